@@ -1,0 +1,339 @@
+//! The table file format, field by field.
+//!
+//! ```text
+//! table   := header payload
+//! header  := 256 bytes, little-endian, at offset 0 (layout below)
+//! payload := the rkyv archive of `TableData`, root object at the very end of the file
+//! ```
+//!
+//! | offset | size | field |
+//! |-------:|-----:|-------|
+//! | 0   | 8  | magic `b"ADWITBL\0"` |
+//! | 8   | 2  | endianness mark `0xFEFF` (reads `0xFFFE` on a big-endian misreading) |
+//! | 10  | 2  | format version |
+//! | 12  | 4  | header length in bytes (256) |
+//! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
+//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 joint angles |
+//! | 24  | 8  | payload length in bytes (file length − 256) |
+//! | 32  | 8  | payload checksum, XXH3-64 of the payload |
+//! | 40  | 8  | source hash, XXH3-64 of the canonical sample values the table was built from |
+//! | 48  | 4  | k, the neighbour count |
+//! | 52  | 4  | consistency screen (40): 0 off, 1 on |
+//! | 56  | 8  | ε, the neighbourhood radius, mm |
+//! | 64  | 8  | ω1 |
+//! | 72  | 8  | ω2 |
+//! | 80  | 8  | r, the power |
+//! | 88  | 8  | [λ], 1/mm |
+//! | 96  | 8  | [ζ], 1/mm² |
+//! | 104 | 8  | cell edge length, mm |
+//! | 112 | 24 | grid origin (minimum corner) x, y, z, mm, base frame |
+//! | 136 | 12 | grid size in cells along x, y, z |
+//! | 148 | 4  | sample count |
+//! | 152 | 96 | reserved, zero |
+//! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
+//!
+//! The payload starts at offset 256, a multiple of the archive's 16-byte alignment, so a
+//! memory map (page-aligned) hands rkyv an aligned buffer. Its contents are [`TableData`]:
+//! every sample's actual position and errors, the deduplicated candidate lists and, per
+//! cell, the id of its list and the base weights at the cell's centre.
+
+use rkyv::{Archive, Deserialize, Serialize};
+
+/// The file's first eight bytes.
+pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
+/// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
+pub const ENDIAN_MARK: u16 = 0xFEFF;
+/// The format version this runtime writes.
+pub const FORMAT_VERSION: u16 = 1;
+/// The oldest format version this runtime reads.
+pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
+/// The header's length in bytes; the payload starts here.
+pub const HEADER_LEN: usize = 256;
+/// The payload's alignment requirement, bytes.
+pub const PAYLOAD_ALIGN: usize = 16;
+
+/// The rkyv format this runtime was compiled with, read off the archived types themselves so
+/// that a build with other rkyv features (through feature unification, say) writes and
+/// expects different flags: bit 0 little-endian, bit 1 aligned, bits 8-15 pointer width.
+pub const RKYV_FLAGS: u32 = {
+    // SAFETY: `Archived<u32>` is a plain 4-byte integer in the archive's byte order.
+    let one: [u8; 4] = unsafe { core::mem::transmute(rkyv::Archived::<u32>::from_native(1)) };
+    let little_endian = (one[0] == 1) as u32;
+    let aligned = (core::mem::align_of::<rkyv::Archived<u64>>() == 8) as u32;
+    let pointer_width = core::mem::size_of::<rkyv::Archived<usize>>() as u32;
+    little_endian | (aligned << 1) | (pointer_width << 8)
+};
+
+/// Content flag: samples carry orientation errors.
+pub const CONTENT_ORIENTATION: u32 = 1 << 0;
+/// Content flag: samples carry inverse-kinematics configurations.
+pub const CONTENT_CONFIG: u32 = 1 << 1;
+/// Content flag: samples carry joint angles.
+pub const CONTENT_JOINTS: u32 = 1 << 2;
+
+/// The decoded header: identification, integrity fields and the build parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Header {
+    /// The file's format version.
+    pub version: u16,
+    /// rkyv format flags of the writer.
+    pub rkyv_flags: u32,
+    /// What the samples carry ([`CONTENT_ORIENTATION`], ...).
+    pub content_flags: u32,
+    /// The payload's length, bytes.
+    pub payload_len: u64,
+    /// XXH3-64 of the payload.
+    pub payload_checksum: u64,
+    /// XXH3-64 of the canonical sample values.
+    pub source_hash: u64,
+    /// The method's parameters.
+    pub method: crate::method::MethodParams,
+    /// The cell grid.
+    pub grid: Grid,
+    /// The number of samples.
+    pub sample_count: u32,
+}
+
+/// A regular grid of cubic cells over an axis-aligned box of the base frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grid {
+    /// The minimum corner, mm, base frame.
+    pub origin_mm: [f64; 3],
+    /// The cells' edge length, mm.
+    pub cell_mm: f64,
+    /// The number of cells along x, y, z.
+    pub dims: [u32; 3],
+}
+
+impl Grid {
+    /// The number of cells, or `None` on overflow.
+    pub fn cell_count(&self) -> Option<usize> {
+        let [x, y, z] = self.dims.map(|d| d as usize);
+        x.checked_mul(y)?.checked_mul(z)
+    }
+
+    /// The maximum corner, mm, base frame.
+    pub fn max_mm(&self) -> [f64; 3] {
+        let mut out = self.origin_mm;
+        for (axis, o) in out.iter_mut().enumerate() {
+            *o += self.dims[axis] as f64 * self.cell_mm;
+        }
+        out
+    }
+
+    /// The cell holding `position_mm`, or `None` outside the grid or for a non-finite
+    /// position. Cells are half-open `[lo, hi)`, except that the grid's maximum faces
+    /// belong to the last cells.
+    #[inline]
+    pub fn cell_of(&self, position_mm: [f64; 3]) -> Option<usize> {
+        let mut index = [0usize; 3];
+        for axis in 0..3 {
+            let u = (position_mm[axis] - self.origin_mm[axis]) / self.cell_mm;
+            // Written so that NaN fails the test.
+            if !(u >= 0.0 && u <= self.dims[axis] as f64) {
+                return None;
+            }
+            index[axis] = (u as usize).min((self.dims[axis] as usize).saturating_sub(1));
+        }
+        Some(self.linear_index(index))
+    }
+
+    /// The linear index of cell `(ix, iy, iz)`: x fastest.
+    #[inline]
+    pub fn linear_index(&self, [ix, iy, iz]: [usize; 3]) -> usize {
+        ix + self.dims[0] as usize * (iy + self.dims[1] as usize * iz)
+    }
+
+    /// The cell `(ix, iy, iz)` of a linear index.
+    pub fn cell_coords(&self, linear: usize) -> [usize; 3] {
+        let nx = self.dims[0] as usize;
+        let ny = self.dims[1] as usize;
+        [linear % nx, (linear / nx) % ny, linear / (nx * ny)]
+    }
+
+    /// The box of cell `(ix, iy, iz)`: minimum and maximum corners, mm.
+    pub fn cell_box(&self, [ix, iy, iz]: [usize; 3]) -> ([f64; 3], [f64; 3]) {
+        let lo = [
+            self.origin_mm[0] + ix as f64 * self.cell_mm,
+            self.origin_mm[1] + iy as f64 * self.cell_mm,
+            self.origin_mm[2] + iz as f64 * self.cell_mm,
+        ];
+        (lo, lo.map(|v| v + self.cell_mm))
+    }
+}
+
+/// One sample as the runtime needs it. Positions mm, base frame.
+#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+#[rkyv(derive(Debug))]
+pub struct SampleRecord {
+    /// Actual position = nominal + measured error, mm: what the approximation degree uses.
+    pub actual_mm: [f64; 3],
+    /// Nominal (commanded) position, mm.
+    pub nominal_mm: [f64; 3],
+    /// Measured position error, actual − nominal, mm.
+    pub error_mm: [f64; 3],
+    /// Measured orientation error, rotation vector of `R_actual · R_nominalᵀ`, rad; zero
+    /// when the table has no orientation (see the content flags).
+    pub rotation_error_rad: [f64; 3],
+    /// Inverse-kinematics configuration, or [`crate::method::CONFIG_UNKNOWN`].
+    pub config: u8,
+}
+
+/// The archived payload.
+#[derive(Archive, Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[rkyv(derive(Debug))]
+pub struct TableData {
+    /// The samples, in source order: a sample's index is its position here.
+    pub samples: Vec<SampleRecord>,
+    /// Per cell (linear index, x fastest), the id of its candidate list.
+    pub cell_lists: Vec<u32>,
+    /// Candidate list `i` is `list_samples[list_offsets[i] .. list_offsets[i + 1]]`.
+    pub list_offsets: Vec<u32>,
+    /// Concatenated candidate lists: sample indices, increasing within a list.
+    pub list_samples: Vec<u32>,
+    /// Per cell, its base weights are entries `centre_offsets[c] .. centre_offsets[c + 1]`
+    /// of `centre_samples` and `centre_weights`.
+    pub centre_offsets: Vec<u32>,
+    /// The neighbours selected at each cell's centre, nearest first.
+    pub centre_samples: Vec<u32>,
+    /// Their weights `q_i` (summing to 1 per cell with neighbours).
+    pub centre_weights: Vec<f64>,
+}
+
+fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]) {
+    buf[offset..offset + N].copy_from_slice(&bytes);
+}
+
+impl Header {
+    /// The header's 256 bytes, with its checksum.
+    pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
+        let mut b = [0u8; HEADER_LEN];
+        put(&mut b, 0, MAGIC);
+        put(&mut b, 8, ENDIAN_MARK.to_le_bytes());
+        put(&mut b, 10, self.version.to_le_bytes());
+        put(&mut b, 12, (HEADER_LEN as u32).to_le_bytes());
+        put(&mut b, 16, self.rkyv_flags.to_le_bytes());
+        put(&mut b, 20, self.content_flags.to_le_bytes());
+        put(&mut b, 24, self.payload_len.to_le_bytes());
+        put(&mut b, 32, self.payload_checksum.to_le_bytes());
+        put(&mut b, 40, self.source_hash.to_le_bytes());
+        let m = &self.method;
+        put(&mut b, 48, m.max_neighbours.to_le_bytes());
+        put(&mut b, 52, u32::from(m.consistency_screen).to_le_bytes());
+        put(&mut b, 56, m.radius_mm.to_le_bytes());
+        put(&mut b, 64, m.w1.to_le_bytes());
+        put(&mut b, 72, m.w2.to_le_bytes());
+        put(&mut b, 80, m.power.to_le_bytes());
+        put(&mut b, 88, m.lambda_min_per_mm.to_le_bytes());
+        put(&mut b, 96, m.zeta_min_per_mm2.to_le_bytes());
+        put(&mut b, 104, self.grid.cell_mm.to_le_bytes());
+        for axis in 0..3 {
+            put(&mut b, 112 + 8 * axis, self.grid.origin_mm[axis].to_le_bytes());
+            put(&mut b, 136 + 4 * axis, self.grid.dims[axis].to_le_bytes());
+        }
+        put(&mut b, 148, self.sample_count.to_le_bytes());
+        let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
+        put(&mut b, 248, checksum.to_le_bytes());
+        b
+    }
+
+    /// Decodes a header, checking in order: length, magic, endianness mark, version range,
+    /// header length, header checksum, rkyv format flags. Parameter ranges are checked
+    /// later, with the payload ([`crate::Table`]).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Header, crate::OpenError> {
+        use crate::OpenError;
+        let Some(b) = bytes.get(..HEADER_LEN) else {
+            return Err(OpenError::Truncated {
+                len: bytes.len() as u64,
+                needed: HEADER_LEN as u64,
+            });
+        };
+        let u16_at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]);
+        let u32_at = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+        let u64_at = |o: usize| {
+            let mut a = [0u8; 8];
+            a.copy_from_slice(&b[o..o + 8]);
+            u64::from_le_bytes(a)
+        };
+        let f64_at = |o: usize| f64::from_bits(u64_at(o));
+        if b[..8] != MAGIC {
+            return Err(OpenError::BadMagic);
+        }
+        let mark = u16_at(8);
+        if mark != ENDIAN_MARK {
+            return Err(OpenError::Endianness { mark });
+        }
+        let version = u16_at(10);
+        if !(OLDEST_SUPPORTED_VERSION..=FORMAT_VERSION).contains(&version) {
+            return Err(OpenError::UnsupportedVersion {
+                found: version,
+                oldest: OLDEST_SUPPORTED_VERSION,
+                newest: FORMAT_VERSION,
+            });
+        }
+        let header_len = u32_at(12);
+        if header_len as usize != HEADER_LEN {
+            return Err(OpenError::Corrupt {
+                what: "header length is not 256",
+            });
+        }
+        let stored = u64_at(248);
+        let computed = xxhash_rust::xxh3::xxh3_64(&b[..248]);
+        if stored != computed {
+            return Err(OpenError::HeaderChecksum { stored, computed });
+        }
+        let rkyv_flags = u32_at(16);
+        if rkyv_flags != RKYV_FLAGS {
+            return Err(OpenError::RkyvFormat {
+                found: rkyv_flags,
+                expected: RKYV_FLAGS,
+            });
+        }
+        let consistency = u32_at(52);
+        if consistency > 1 {
+            return Err(OpenError::Corrupt {
+                what: "consistency screen flag is neither 0 nor 1",
+            });
+        }
+        Ok(Header {
+            version,
+            rkyv_flags,
+            content_flags: u32_at(20),
+            payload_len: u64_at(24),
+            payload_checksum: u64_at(32),
+            source_hash: u64_at(40),
+            method: crate::method::MethodParams {
+                radius_mm: f64_at(56),
+                max_neighbours: u32_at(48),
+                w1: f64_at(64),
+                w2: f64_at(72),
+                power: f64_at(80),
+                lambda_min_per_mm: f64_at(88),
+                zeta_min_per_mm2: f64_at(96),
+                consistency_screen: consistency == 1,
+            },
+            grid: Grid {
+                origin_mm: [f64_at(112), f64_at(120), f64_at(128)],
+                cell_mm: f64_at(104),
+                dims: [u32_at(136), u32_at(140), u32_at(144)],
+            },
+            sample_count: u32_at(148),
+        })
+    }
+}
+
+/// Serialises a table: the header (with its checksums and lengths filled in from the
+/// payload) followed by the rkyv archive of `data`. The compiler's one way to write a file.
+///
+/// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
+pub fn encode(mut header: Header, data: &TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
+    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
+    header.version = FORMAT_VERSION;
+    header.rkyv_flags = RKYV_FLAGS;
+    header.payload_len = payload.len() as u64;
+    header.payload_checksum = xxhash_rust::xxh3::xxh3_64(&payload);
+    let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
+    out.extend_from_slice(&header.to_bytes());
+    out.extend_from_slice(&payload);
+    Ok(out)
+}

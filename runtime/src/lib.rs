@@ -1,0 +1,43 @@
+//! The runtime side of approximation-degree weighted interpolation of robot positioning
+//! errors: open a compiled correction table (memory-mapped, validated once) and ask it for
+//! the predicted error at any target, in well under a microsecond, without allocating,
+//! locking or panicking.
+//!
+//! Tables are written by the `tablec` compiler (crate `adwi-compiler`); their byte layout
+//! is documented in [`format`]. The method itself — approximation degree, admissibility,
+//! weights — is in [`method`], the single implementation that the compiler's reference,
+//! its table builder and this runtime's queries all call.
+//!
+//! # Example
+//!
+//! ```no_run
+//! use adwi_runtime::{Status, Table, Target};
+//!
+//! // SAFETY: the table file is not modified while mapped (tablec writes by rename).
+//! let table = unsafe { Table::open("tables/kr150-2/kr150.tbl") }?;
+//! let target = [2000.0, 700.0, 1000.0]; // mm, robot base frame
+//! let c = table.query(target);
+//! if c.status == Status::Ok {
+//!     let command = [
+//!         target[0] - c.position_error_mm[0],
+//!         target[1] - c.position_error_mm[1],
+//!         target[2] - c.position_error_mm[2],
+//!     ];
+//!     println!("command {command:?}");
+//! }
+//! // Or solve command + error(command) = target exactly:
+//! let exact = table.compensate(&Target::at(target), 1e-6, 20);
+//! assert!(exact.converged);
+//! # Ok::<(), adwi_runtime::OpenError>(())
+//! ```
+
+#![deny(missing_docs)]
+
+mod error;
+pub mod format;
+pub mod kinematics;
+pub mod method;
+mod table;
+
+pub use error::OpenError;
+pub use table::{AlignedBytes, Compensation, Correction, Status, Table, Target};

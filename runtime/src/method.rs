@@ -1,0 +1,579 @@
+//! Approximation-degree weighted average interpolation, written once.
+//!
+//! Every caller computes through this module: the runtime's table queries, the compiler's
+//! brute-force reference over all samples, and the base weights the compiler stores per
+//! cell. Nothing here allocates or panics; selections live in fixed-size arrays of at most
+//! [`MAX_NEIGHBOURS`] entries.
+//!
+//! # Definitions
+//!
+//! For a target's nominal position `p` and a sample's actual position `s` (nominal plus
+//! measured error), both vectors from the robot base origin (mm, base frame):
+//!
+//! - distance `|s − p|`, angle φ between `s` and `p`, area `S = ½ |s × p|`;
+//! - `λ = sin φ / |s − p|` and `ζ = 1 / S`;
+//! - weights `q_i = ω1 · λ_i^r / Σ λ_j^r + ω2 · ζ_i^r / Σ ζ_j^r` and the prediction
+//!   `d_p = Σ q_i d_i`, the same weights for position and orientation errors.
+//!
+//! # Degenerate cases
+//!
+//! - **Coincident sample** (`s == p` exactly): `λ = 1`, `ζ = ∞` as the method defines. If any
+//!   selected neighbour coincides with the target, the prediction is the mean of the
+//!   coincident samples' errors (weight `1/n` each, zero for the others): the measured
+//!   error at the target is the answer.
+//! - **Collinear sample** (`s ≠ p` on the line through the origin and `p`, φ = 0): the
+//!   method gives `λ = 0`, `S = 0` and `ζ = ∞`. A point that is not the target must not
+//!   take all the weight, so the area is floored: `S ≥ ½ · h_min · max(|p|, |s|)` with
+//!   `h_min =` [`MIN_PERPENDICULAR_OFFSET_MM`] (1 µm), i.e. an offset from the line smaller
+//!   than the tracker can resolve counts as 1 µm. The floor only acts below 1 µm, so
+//!   ordinary samples keep the paper's exact values.
+//! - **Target at the origin** (`|p| = 0`): φ is undefined; `sin φ` is taken as 0, so `λ = 0`
+//!   and `S` takes the floor above.
+//! - **All λ zero** (every neighbour collinear, `r > 0`): `Σ λ^r = 0` carries no
+//!   information; the share ω1 then follows the ζ distribution, so `q_i = ζ_i^r / Σ ζ_j^r`.
+//!
+//! # Admissibility
+//!
+//! A sample may stand in for the target when (METHOD.md section 6):
+//! (31) `λ ≥ [λ]`, (32) `ζ ≥ [ζ]`, (33) `|s − p| ≤ ε`, (34) `sin φ ≥ [λ] · ε`, its
+//! configuration matches the target's when both are known, and the target itself satisfies
+//! (37) `|p|² ≤ 2 / ([ζ] [λ] ε)`. A coincident sample is always admissible. Of the
+//! admissible samples the `k` nearest are used, ties broken by sample order. Finally the
+//! consistency screen (40) `max_i |d_p − d_i| ≤ ε / m`, when enabled, drops the neighbour
+//! whose error disagrees most with the prediction and recomputes, until it holds; dropped
+//! neighbours are not replaced by farther ones.
+
+/// The largest neighbour count `k` a table may use; selections are fixed-size arrays.
+pub const MAX_NEIGHBOURS: usize = 32;
+
+/// Perpendicular offsets below this (mm) from the line through the origin and the target
+/// count as this much when computing the triangle area `S` (see the module docs).
+pub const MIN_PERPENDICULAR_OFFSET_MM: f64 = 1e-3;
+
+/// Sample configuration value meaning "unknown": matches any target configuration.
+pub const CONFIG_UNKNOWN: u8 = u8::MAX;
+
+/// The method's parameters: weights, power, thresholds, radius, neighbour count.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MethodParams {
+    /// ε: the neighbourhood radius, mm (33), also the consistency bound of (40).
+    pub radius_mm: f64,
+    /// k: at most this many neighbours, nearest first (1 ..= [`MAX_NEIGHBOURS`]).
+    pub max_neighbours: u32,
+    /// ω1: the share of the weight given by λ.
+    pub w1: f64,
+    /// ω2: the share of the weight given by ζ (ω1 + ω2 = 1).
+    pub w2: f64,
+    /// r: the power applied to λ and ζ, 0 ≤ r ≤ 2.
+    pub power: f64,
+    /// [λ]: the lower bound on λ, 1/mm (31, 34, 37).
+    pub lambda_min_per_mm: f64,
+    /// [ζ]: the lower bound on ζ, 1/mm² (32, 37).
+    pub zeta_min_per_mm2: f64,
+    /// Whether the consistency screen (40) is applied.
+    pub consistency_screen: bool,
+}
+
+impl MethodParams {
+    /// The paper's parameters (ω1 = 0.87, ω2 = 0.13, r = 1, k = 8, [λ] = [ζ] = 0, screen on)
+    /// with the given radius.
+    pub fn paper(radius_mm: f64) -> MethodParams {
+        MethodParams {
+            radius_mm,
+            max_neighbours: 8,
+            w1: 0.87,
+            w2: 0.13,
+            power: 1.0,
+            lambda_min_per_mm: 0.0,
+            zeta_min_per_mm2: 0.0,
+            consistency_screen: true,
+        }
+    }
+
+    /// Checks the parameters' ranges; `Err` names the first one out of range.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        let finite_nonneg = |x: f64| x.is_finite() && x >= 0.0;
+        if !(self.radius_mm.is_finite() && self.radius_mm > 0.0) {
+            return Err("radius must be finite and positive");
+        }
+        if self.max_neighbours == 0 || self.max_neighbours as usize > MAX_NEIGHBOURS {
+            return Err("neighbour count k must be between 1 and 32");
+        }
+        if !(finite_nonneg(self.w1) && finite_nonneg(self.w2)) {
+            return Err("weights w1, w2 must be finite and non-negative");
+        }
+        if (self.w1 + self.w2 - 1.0).abs() > 1e-9 {
+            return Err("weights w1 + w2 must equal 1");
+        }
+        if !(finite_nonneg(self.power) && self.power <= 2.0) {
+            return Err("power r must be between 0 and 2");
+        }
+        if !(finite_nonneg(self.lambda_min_per_mm) && finite_nonneg(self.zeta_min_per_mm2)) {
+            return Err("thresholds lambda-min, zeta-min must be finite and non-negative");
+        }
+        Ok(())
+    }
+
+    /// Whether λ or ζ thresholds are active, i.e. admissibility depends on more than the
+    /// distance and the configuration.
+    pub fn has_degree_thresholds(&self) -> bool {
+        self.lambda_min_per_mm > 0.0 || self.zeta_min_per_mm2 > 0.0
+    }
+
+    /// Condition (37): whether any sample can be admissible for a target at `target_mm`.
+    pub fn target_in_range(&self, target_mm: [f64; 3]) -> bool {
+        let product = self.zeta_min_per_mm2 * self.lambda_min_per_mm * self.radius_mm;
+        product <= 0.0 || norm_squared(target_mm) <= 2.0 / product
+    }
+
+    /// Conditions (31)-(34) for one sample's approximation degree.
+    pub fn degree_admissible(&self, degree: &Degree) -> bool {
+        if degree.coincident {
+            return true;
+        }
+        degree.distance_mm <= self.radius_mm
+            && degree.lambda_per_mm >= self.lambda_min_per_mm
+            && degree.zeta_per_mm2 >= self.zeta_min_per_mm2
+            && degree.sin_phi >= self.lambda_min_per_mm * self.radius_mm
+    }
+}
+
+/// How close a sample's actual position is to a target position, by the method's measures.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Degree {
+    /// `|s − p|`, mm.
+    pub distance_mm: f64,
+    /// `sin φ`, φ the angle between `s` and `p` seen from the base origin.
+    pub sin_phi: f64,
+    /// `S = ½ |s × p|`, mm², before the collinearity floor.
+    pub area_mm2: f64,
+    /// λ, 1/mm.
+    pub lambda_per_mm: f64,
+    /// ζ, 1/mm² (infinite only for a coincident sample).
+    pub zeta_per_mm2: f64,
+    /// `s == p` exactly.
+    pub coincident: bool,
+}
+
+/// `|a − b|`, mm. The one distance every selection uses, so that all callers order
+/// neighbours identically.
+#[inline]
+pub fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm_squared(sub(a, b)).sqrt()
+}
+
+/// The approximation degree of a sample at actual position `actual_mm` for a target at
+/// nominal position `target_mm` (both mm, base frame). Finite for every finite input.
+#[inline]
+pub fn approximation_degree(target_mm: [f64; 3], actual_mm: [f64; 3]) -> Degree {
+    let distance_mm = distance_mm(actual_mm, target_mm);
+    if distance_mm == 0.0 {
+        return Degree {
+            distance_mm,
+            sin_phi: 0.0,
+            area_mm2: 0.0,
+            lambda_per_mm: 1.0,
+            zeta_per_mm2: f64::INFINITY,
+            coincident: true,
+        };
+    }
+    let cross_norm = norm_squared(cross(actual_mm, target_mm)).sqrt();
+    let target_norm = norm_squared(target_mm).sqrt();
+    let actual_norm = norm_squared(actual_mm).sqrt();
+    let norms = target_norm * actual_norm;
+    let sin_phi = if norms > 0.0 {
+        (cross_norm / norms).min(1.0)
+    } else {
+        0.0
+    };
+    let area_mm2 = 0.5 * cross_norm;
+    let area_floor_mm2 = 0.5 * MIN_PERPENDICULAR_OFFSET_MM * target_norm.max(actual_norm);
+    Degree {
+        distance_mm,
+        sin_phi,
+        area_mm2,
+        lambda_per_mm: sin_phi / distance_mm,
+        zeta_per_mm2: 1.0 / area_mm2.max(area_floor_mm2),
+        coincident: false,
+    }
+}
+
+/// One selected neighbour: its sample index and approximation degree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Neighbour {
+    /// The sample's index in the sample database (its order in the source file).
+    pub sample: u32,
+    /// Its approximation degree for the target.
+    pub degree: Degree,
+}
+
+const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
+    sample: u32::MAX,
+    degree: Degree {
+        distance_mm: f64::INFINITY,
+        sin_phi: 0.0,
+        area_mm2: 0.0,
+        lambda_per_mm: 0.0,
+        zeta_per_mm2: 0.0,
+        coincident: false,
+    },
+};
+
+/// The `k` nearest admissible samples, nearest first, ties broken by the smaller sample
+/// index, in a fixed-size array: offering candidates in any order gives the same result.
+#[derive(Clone, Copy, Debug)]
+pub struct Selection {
+    len: usize,
+    capacity: usize,
+    items: [Neighbour; MAX_NEIGHBOURS],
+}
+
+impl Selection {
+    /// An empty selection keeping at most `k` neighbours (clamped to 1 ..= `MAX_NEIGHBOURS`).
+    pub fn new(k: u32) -> Selection {
+        Selection {
+            len: 0,
+            capacity: (k as usize).clamp(1, MAX_NEIGHBOURS),
+            items: [EMPTY_NEIGHBOUR; MAX_NEIGHBOURS],
+        }
+    }
+
+    /// Whether a candidate at `distance_mm` with index `sample` would enter the selection;
+    /// lets callers skip computing a full degree for samples that cannot.
+    #[inline]
+    pub fn would_accept(&self, sample: u32, distance_mm: f64) -> bool {
+        self.len < self.capacity || precedes(sample, distance_mm, &self.items[self.len - 1])
+    }
+
+    /// Offers a candidate; it is kept if it is among the `k` nearest seen so far.
+    #[inline]
+    pub fn offer(&mut self, neighbour: Neighbour) {
+        let d = neighbour.degree.distance_mm;
+        if !self.would_accept(neighbour.sample, d) {
+            return;
+        }
+        let mut i = if self.len < self.capacity {
+            self.len += 1;
+            self.len - 1
+        } else {
+            self.capacity - 1
+        };
+        while i > 0 && precedes(neighbour.sample, d, &self.items[i - 1]) {
+            self.items[i] = self.items[i - 1];
+            i -= 1;
+        }
+        self.items[i] = neighbour;
+    }
+
+    /// The selected neighbours, nearest first.
+    pub fn as_slice(&self) -> &[Neighbour] {
+        &self.items[..self.len]
+    }
+
+    /// The number of selected neighbours.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether no neighbour is selected.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Removes the neighbour at `position` (in nearest-first order), keeping the order.
+    fn remove(&mut self, position: usize) {
+        if position < self.len {
+            self.items.copy_within(position + 1..self.len, position);
+            self.len -= 1;
+        }
+    }
+}
+
+#[inline]
+fn precedes(sample: u32, distance_mm: f64, other: &Neighbour) -> bool {
+    distance_mm < other.degree.distance_mm
+        || (distance_mm == other.degree.distance_mm && sample < other.sample)
+}
+
+/// The weights of selected neighbours, in selection order; `Σ q_i = 1` when non-empty.
+#[derive(Clone, Copy, Debug)]
+pub struct Weights {
+    len: usize,
+    q: [f64; MAX_NEIGHBOURS],
+}
+
+impl Weights {
+    /// The weights, in the order of the neighbours they were computed for.
+    pub fn as_slice(&self) -> &[f64] {
+        &self.q[..self.len]
+    }
+}
+
+#[inline]
+fn pow_r(x: f64, r: f64) -> f64 {
+    if r == 1.0 {
+        x
+    } else if r == 0.0 {
+        1.0
+    } else if r == 2.0 {
+        x * x
+    } else {
+        x.powf(r)
+    }
+}
+
+/// The weights `q_i` of section 5 for the given neighbours (see the module docs for the
+/// coincident and all-collinear cases).
+pub fn weights(params: &MethodParams, neighbours: &[Neighbour]) -> Weights {
+    let mut out = Weights {
+        len: neighbours.len().min(MAX_NEIGHBOURS),
+        q: [0.0; MAX_NEIGHBOURS],
+    };
+    let neighbours = &neighbours[..out.len];
+    let coincident = neighbours.iter().filter(|n| n.degree.coincident).count();
+    if coincident > 0 {
+        let share = 1.0 / coincident as f64;
+        for (q, n) in out.q.iter_mut().zip(neighbours) {
+            *q = if n.degree.coincident { share } else { 0.0 };
+        }
+        return out;
+    }
+    let r = params.power;
+    let mut lambda_sum = 0.0;
+    let mut zeta_sum = 0.0;
+    for n in neighbours {
+        lambda_sum += pow_r(n.degree.lambda_per_mm, r);
+        zeta_sum += pow_r(n.degree.zeta_per_mm2, r);
+    }
+    let (w_lambda, w_zeta) = if lambda_sum > 0.0 {
+        (params.w1, params.w2)
+    } else {
+        (0.0, 1.0)
+    };
+    for (q, n) in out.q.iter_mut().zip(neighbours) {
+        let lambda_term = if w_lambda > 0.0 {
+            w_lambda * pow_r(n.degree.lambda_per_mm, r) / lambda_sum
+        } else {
+            0.0
+        };
+        *q = lambda_term + w_zeta * pow_r(n.degree.zeta_per_mm2, r) / zeta_sum;
+    }
+    out
+}
+
+/// A sample's measured errors: position (mm) and orientation (rotation vector, rad), both
+/// in the base frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleError {
+    /// Actual − nominal position, mm.
+    pub position_mm: [f64; 3],
+    /// Rotation vector of `R_actual · R_nominalᵀ`, rad (zero when not measured).
+    pub orientation_rad: [f64; 3],
+}
+
+/// A prediction: the weighted errors and the neighbours and weights that produced them.
+#[derive(Clone, Copy, Debug)]
+pub struct Prediction {
+    /// Predicted position error, mm, base frame.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error (rotation vector), rad, base frame.
+    pub orientation_error_rad: [f64; 3],
+    /// The neighbours used, nearest first.
+    pub neighbours: Selection,
+    /// Their weights, in the same order.
+    pub weights: Weights,
+}
+
+/// Weights the errors of the selected neighbours (nearest first, at most
+/// [`MAX_NEIGHBOURS`]) and applies the consistency screen (40).
+///
+/// `error_of(sample)` returns a selected sample's errors; it is only called with indices
+/// of `neighbours`. Returns `None` when there are no neighbours, or none survive the screen.
+pub fn predict(
+    params: &MethodParams,
+    neighbours: &[Neighbour],
+    error_of: impl Fn(u32) -> SampleError,
+) -> Option<Prediction> {
+    let mut selection = Selection::new(MAX_NEIGHBOURS as u32);
+    selection.len = neighbours.len().min(MAX_NEIGHBOURS);
+    selection.items[..selection.len].copy_from_slice(&neighbours[..selection.len]);
+    loop {
+        if selection.is_empty() {
+            return None;
+        }
+        let w = weights(params, selection.as_slice());
+        let mut position = [0.0; 3];
+        let mut orientation = [0.0; 3];
+        for (n, q) in selection.as_slice().iter().zip(w.as_slice()) {
+            let e = error_of(n.sample);
+            for axis in 0..3 {
+                position[axis] += q * e.position_mm[axis];
+                orientation[axis] += q * e.orientation_rad[axis];
+            }
+        }
+        if params.consistency_screen {
+            let bound_mm = params.radius_mm / selection.len() as f64;
+            let mut worst: Option<(usize, f64)> = None;
+            for (i, n) in selection.as_slice().iter().enumerate() {
+                let gap_mm = distance_mm(position, error_of(n.sample).position_mm);
+                // `>=` so that among equal gaps the farther neighbour is dropped first.
+                if gap_mm > bound_mm && worst.is_none_or(|(_, g)| gap_mm >= g) {
+                    worst = Some((i, gap_mm));
+                }
+            }
+            if let Some((i, _)) = worst {
+                selection.remove(i);
+                continue;
+            }
+        }
+        return Some(Prediction {
+            position_error_mm: position,
+            orientation_error_rad: orientation,
+            neighbours: selection,
+            weights: w,
+        });
+    }
+}
+
+#[inline]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline]
+fn norm_squared(a: [f64; 3]) -> f64 {
+    a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn neighbour(sample: u32, target: [f64; 3], actual: [f64; 3]) -> Neighbour {
+        Neighbour {
+            sample,
+            degree: approximation_degree(target, actual),
+        }
+    }
+
+    #[test]
+    fn selection_keeps_k_nearest_with_ties_by_index_in_any_offer_order() {
+        let target = [1000.0, 0.0, 0.0];
+        let points: Vec<[f64; 3]> = vec![
+            [1010.0, 0.0, 0.0],
+            [990.0, 0.0, 0.0], // ties with 0 at 10 mm
+            [1000.0, 5.0, 0.0],
+            [1000.0, 0.0, 30.0],
+            [1000.0, 0.0, -10.0], // ties with 0 and 1
+        ];
+        for order in [[0, 1, 2, 3, 4], [4, 3, 2, 1, 0], [2, 4, 0, 3, 1]] {
+            let mut s = Selection::new(3);
+            for i in order {
+                s.offer(neighbour(i, target, points[i as usize]));
+            }
+            let got: Vec<u32> = s.as_slice().iter().map(|n| n.sample).collect();
+            assert_eq!(got, vec![2, 0, 1]);
+        }
+    }
+
+    #[test]
+    fn coincident_sample_takes_all_weight() {
+        let target = [1500.0, 200.0, 900.0];
+        let p = MethodParams::paper(200.0);
+        let ns = [
+            neighbour(0, target, target),
+            neighbour(1, target, [1510.0, 200.0, 900.0]),
+        ];
+        assert!(ns[0].degree.coincident);
+        assert_eq!(weights(&p, &ns).as_slice(), &[1.0, 0.0]);
+    }
+
+    #[test]
+    fn collinear_sample_gets_a_finite_floored_zeta() {
+        let target = [1000.0, 0.0, 0.0];
+        let on_line = approximation_degree(target, [1050.0, 0.0, 0.0]);
+        assert_eq!(on_line.lambda_per_mm, 0.0);
+        assert!(on_line.zeta_per_mm2.is_finite());
+        assert_eq!(on_line.zeta_per_mm2, 1.0 / (0.5 * 1e-3 * 1050.0));
+        let p = MethodParams::paper(200.0);
+        let ns = [
+            Neighbour {
+                sample: 0,
+                degree: on_line,
+            },
+            neighbour(1, target, [1000.0, 50.0, 0.0]),
+        ];
+        let w = weights(&p, &ns);
+        assert!(w.as_slice().iter().all(|q| q.is_finite()));
+        assert!((w.as_slice().iter().sum::<f64>() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn all_collinear_neighbours_fall_back_to_zeta() {
+        let target = [1000.0, 0.0, 0.0];
+        let ns = [
+            neighbour(0, target, [1050.0, 0.0, 0.0]),
+            neighbour(1, target, [900.0, 0.0, 0.0]),
+        ];
+        let w = weights(&MethodParams::paper(200.0), &ns);
+        let z0 = ns[0].degree.zeta_per_mm2;
+        let z1 = ns[1].degree.zeta_per_mm2;
+        assert!((w.as_slice()[0] - z0 / (z0 + z1)).abs() < 1e-15);
+        assert!((w.as_slice().iter().sum::<f64>() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn target_at_origin_is_finite() {
+        let d = approximation_degree([0.0; 3], [10.0, 0.0, 0.0]);
+        assert_eq!(d.lambda_per_mm, 0.0);
+        assert!(d.zeta_per_mm2.is_finite() && d.zeta_per_mm2 > 0.0);
+    }
+
+    #[test]
+    fn consistency_screen_drops_the_outlier() {
+        let target = [1000.0, 0.0, 0.0];
+        let mut p = MethodParams::paper(10.0);
+        let mut s = Selection::new(4);
+        for (i, a) in [[1001.0, 1.0, 0.0], [999.0, 1.0, 0.0], [1000.0, 2.0, 1.0]]
+            .into_iter()
+            .enumerate()
+        {
+            s.offer(neighbour(i as u32, target, a));
+        }
+        // Errors 0, 0 and 20 mm: d_p is far from the third, beyond ε/m = 3.3 mm.
+        let error_of = |i: u32| SampleError {
+            position_mm: [if i == 2 { 20.0 } else { 0.0 }, 0.0, 0.0],
+            orientation_rad: [0.0; 3],
+        };
+        let screened = predict(&p, s.as_slice(), error_of).unwrap();
+        assert_eq!(screened.neighbours.len(), 2);
+        assert_eq!(screened.position_error_mm, [0.0; 3]);
+        p.consistency_screen = false;
+        let unscreened = predict(&p, s.as_slice(), error_of).unwrap();
+        assert_eq!(unscreened.neighbours.len(), 3);
+        assert!(unscreened.position_error_mm[0] > 1.0);
+    }
+
+    #[test]
+    fn thresholds_and_range() {
+        let mut p = MethodParams::paper(100.0);
+        p.lambda_min_per_mm = 1e-4;
+        p.zeta_min_per_mm2 = 1e-5;
+        // (37): |p|² ≤ 2 / (1e-5 · 1e-4 · 100) = 2e7, |p| ≤ 4472 mm.
+        assert!(p.target_in_range([4000.0, 0.0, 0.0]));
+        assert!(!p.target_in_range([4500.0, 0.0, 0.0]));
+        let d = approximation_degree([1000.0, 0.0, 0.0], [1000.0, 50.0, 0.0]);
+        assert!(p.degree_admissible(&d));
+        let far = approximation_degree([1000.0, 0.0, 0.0], [1000.0, 150.0, 0.0]);
+        assert!(!p.degree_admissible(&far));
+    }
+}

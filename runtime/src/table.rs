@@ -1,0 +1,531 @@
+//! [`Table`]: a validated correction table and its queries.
+
+use std::path::Path;
+
+use crate::format::{
+    ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_ORIENTATION,
+    HEADER_LEN, PAYLOAD_ALIGN,
+};
+use crate::method::{self, MethodParams, Neighbour, Prediction, SampleError, Selection};
+use crate::OpenError;
+
+/// What a query's answer means.
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Status {
+    /// The correction was predicted from at least one admissible neighbour.
+    Ok = 0,
+    /// The target lies outside the table's grid; the correction is zero.
+    OutsideGrid = 1,
+    /// No sample is admissible for the target; the correction is zero.
+    NoAdmissibleNeighbour = 2,
+    /// The target is not finite (NaN or infinite coordinates); the correction is zero.
+    InvalidInput = 3,
+}
+
+impl Status {
+    /// A short lowercase name, as the CLI prints it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::OutsideGrid => "outside_grid",
+            Status::NoAdmissibleNeighbour => "no_neighbour",
+            Status::InvalidInput => "invalid_input",
+        }
+    }
+}
+
+/// A target: where the controller wants the tool to be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Target {
+    /// Nominal position, mm, base frame.
+    pub position_mm: [f64; 3],
+    /// The inverse-kinematics configuration the controller will use, if known: samples
+    /// of another configuration are then not admissible.
+    pub config: Option<u8>,
+}
+
+impl Target {
+    /// A target given by position alone.
+    pub fn at(position_mm: [f64; 3]) -> Target {
+        Target {
+            position_mm,
+            config: None,
+        }
+    }
+}
+
+/// The predicted error at a target: where the robot will land relative to where it was
+/// told to go. Command `target − position_error_mm` to land on the target (to first
+/// order; [`Table::compensate`] solves it exactly).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correction {
+    /// Predicted position error (actual − nominal), mm, base frame.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error, rotation vector of `R_actual · R_nominalᵀ`, rad, base
+    /// frame; zero when the table has no orientation ([`Table::has_orientation`]).
+    pub orientation_error_rad: [f64; 3],
+    /// The number of neighbours whose errors were weighted.
+    pub neighbours: u32,
+    /// Whether the prediction holds; every other field is zero unless this is `Ok`.
+    pub status: Status,
+}
+
+impl Correction {
+    fn failed(status: Status) -> Correction {
+        Correction {
+            position_error_mm: [0.0; 3],
+            orientation_error_rad: [0.0; 3],
+            neighbours: 0,
+            status,
+        }
+    }
+}
+
+/// The command that makes the robot land on a target, found by fixed-point iteration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Compensation {
+    /// The position to command, mm, base frame: `command + error(command) = target`.
+    pub command_position_mm: [f64; 3],
+    /// The rotation to apply to the target orientation, rotation vector, rad, base frame:
+    /// command `R_cmd = Exp(command_rotation_rad) · R_target`. Zero without orientation.
+    pub command_rotation_rad: [f64; 3],
+    /// The correction predicted at the command.
+    pub correction: Correction,
+    /// Iterations used (queries made).
+    pub iterations: u32,
+    /// Whether `|command + error(command) − target| ≤ tolerance` was reached.
+    pub converged: bool,
+    /// `|command + error(command) − target|` at the returned command, mm.
+    pub residual_mm: f64,
+}
+
+/// A correction table, validated at open, answering queries without allocating, locking or
+/// panicking.
+///
+/// Generic over its bytes: a [`memmap2::Mmap`] ([`Table::open`]), an owned aligned buffer
+/// ([`Table::from_vec`]) or any 16-byte-aligned `AsRef<[u8]>` ([`Table::from_bytes`]).
+pub struct Table<D> {
+    data: D,
+    header: Header,
+    /// Address and length of the validated bytes: queries check that `data` still hands
+    /// out the same slice, so an `AsRef` implementation that does not is refused rather
+    /// than read unchecked.
+    validated_at: (usize, usize),
+}
+
+/// An owned, 16-byte-aligned copy of a table's bytes.
+pub type AlignedBytes = rkyv::util::AlignedVec<PAYLOAD_ALIGN>;
+
+impl Table<memmap2::Mmap> {
+    /// Memory-maps and validates the table at `path`.
+    ///
+    /// # Errors
+    ///
+    /// Any [`OpenError`]: the file cannot be read, or fails a check of
+    /// [`Table::from_bytes`].
+    ///
+    /// # Safety
+    ///
+    /// The file must not be modified or truncated while the table is alive: the mapping
+    /// would change under validated data (queries could then read out of bounds). Build
+    /// new tables under a new name and rename them into place, as `tablec build` does;
+    /// a rename never changes a mapped file.
+    pub unsafe fn open(path: impl AsRef<Path>) -> Result<Table<memmap2::Mmap>, OpenError> {
+        let file = std::fs::File::open(path)?;
+        let len = file.metadata()?.len();
+        if len < HEADER_LEN as u64 {
+            // Also refuses empty files, which cannot be mapped.
+            return Err(OpenError::Truncated {
+                len,
+                needed: HEADER_LEN as u64,
+            });
+        }
+        // SAFETY: the caller guarantees the file is not modified while mapped.
+        let map = unsafe { memmap2::Mmap::map(&file)? };
+        Table::from_bytes(map)
+    }
+}
+
+impl Table<AlignedBytes> {
+    /// Copies `bytes` into an aligned buffer and validates it; for bytes of unknown
+    /// alignment (a `Vec<u8>`, an `include_bytes!`).
+    ///
+    /// # Errors
+    ///
+    /// As [`Table::from_bytes`].
+    pub fn from_vec(bytes: impl AsRef<[u8]>) -> Result<Table<AlignedBytes>, OpenError> {
+        let mut aligned = AlignedBytes::with_capacity(bytes.as_ref().len());
+        aligned.extend_from_slice(bytes.as_ref());
+        Table::from_bytes(aligned)
+    }
+}
+
+impl<D: AsRef<[u8]>> Table<D> {
+    /// Validates a table held in `data`. Never panics, for any input.
+    ///
+    /// Checks, in order, stopping at the first failure:
+    /// 1. the header ([`Header::from_bytes`]): length, magic, endianness mark, version,
+    ///    header length, header checksum, rkyv format flags;
+    /// 2. the length: header plus payload length, exactly;
+    /// 3. the payload checksum;
+    /// 4. the buffer's alignment, then rkyv validation of the archive (bounds, alignment);
+    /// 5. the table's own invariants: parameters in range, grid size matching the cells,
+    ///    sample count, finite values, every index in range, candidate lists strictly
+    ///    increasing, base weights in `[0, 1]` summing to 1.
+    ///
+    /// # Errors
+    ///
+    /// The first check that fails, as an [`OpenError`].
+    pub fn from_bytes(data: D) -> Result<Table<D>, OpenError> {
+        let bytes = data.as_ref();
+        let header = Header::from_bytes(bytes)?;
+        let expected = (HEADER_LEN as u64).checked_add(header.payload_len).ok_or(
+            OpenError::Corrupt {
+                what: "payload length overflows",
+            },
+        )?;
+        let len = bytes.len() as u64;
+        if len < expected {
+            return Err(OpenError::Truncated {
+                len,
+                needed: expected,
+            });
+        }
+        if len > expected {
+            return Err(OpenError::TrailingBytes { len, expected });
+        }
+        let payload = &bytes[HEADER_LEN..];
+        let computed = xxhash_rust::xxh3::xxh3_64(payload);
+        if computed != header.payload_checksum {
+            return Err(OpenError::PayloadChecksum {
+                stored: header.payload_checksum,
+                computed,
+            });
+        }
+        let offset = payload.as_ptr() as usize % PAYLOAD_ALIGN;
+        if offset != 0 {
+            return Err(OpenError::Misaligned { offset });
+        }
+        let archived = rkyv::access::<ArchivedTableData, rkyv::rancor::Error>(payload)
+            .map_err(|e| OpenError::Archive(e.to_string()))?;
+        validate(&header, archived)?;
+        let validated_at = (bytes.as_ptr() as usize, bytes.len());
+        Ok(Table {
+            data,
+            header,
+            validated_at,
+        })
+    }
+
+    /// The decoded header: format, checksums and build parameters.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The method's parameters the table was built with.
+    pub fn method(&self) -> &MethodParams {
+        &self.header.method
+    }
+
+    /// The cell grid; targets outside it get [`Status::OutsideGrid`].
+    pub fn grid(&self) -> &Grid {
+        &self.header.grid
+    }
+
+    /// Whether samples carry orientation errors, so corrections include one.
+    pub fn has_orientation(&self) -> bool {
+        self.header.content_flags & CONTENT_ORIENTATION != 0
+    }
+
+    /// Whether samples carry configurations, so [`Target::config`] screens them.
+    pub fn has_config(&self) -> bool {
+        self.header.content_flags & CONTENT_CONFIG != 0
+    }
+
+    /// The validated archive, or `None` if `data` no longer returns the validated slice.
+    #[inline]
+    fn archive(&self) -> Option<&ArchivedTableData> {
+        let bytes = self.data.as_ref();
+        if (bytes.as_ptr() as usize, bytes.len()) != self.validated_at {
+            return None;
+        }
+        // SAFETY: these exact bytes (same address and length) passed `rkyv::access` in
+        // `from_bytes`, and `D` gives shared access only, so they are unchanged (for a
+        // memory map, by the contract of `Table::open`).
+        Some(unsafe { rkyv::access_unchecked::<ArchivedTableData>(&bytes[HEADER_LEN..]) })
+    }
+
+    /// The number of samples.
+    pub fn sample_count(&self) -> usize {
+        self.archive().map_or(0, |a| a.samples.len())
+    }
+
+    /// The raw archived data, for inspection tools.
+    pub fn data(&self) -> Option<&ArchivedTableData> {
+        self.archive()
+    }
+
+    /// The predicted correction at a position. Never allocates, locks or panics.
+    #[inline]
+    pub fn query(&self, position_mm: [f64; 3]) -> Correction {
+        self.query_target(&Target::at(position_mm))
+    }
+
+    /// The predicted correction at a target. Never allocates, locks or panics.
+    #[inline]
+    pub fn query_target(&self, target: &Target) -> Correction {
+        match self.explain(target) {
+            Ok(p) => Correction {
+                position_error_mm: p.position_error_mm,
+                orientation_error_rad: p.orientation_error_rad,
+                neighbours: p.neighbours.len() as u32,
+                status: Status::Ok,
+            },
+            Err(status) => Correction::failed(status),
+        }
+    }
+
+    /// The full prediction at a target: the neighbours used, nearest first, with their
+    /// approximation degrees and weights. Never allocates, locks or panics.
+    ///
+    /// # Errors
+    ///
+    /// The [`Status`] explaining why no prediction exists.
+    pub fn explain(&self, target: &Target) -> Result<Prediction, Status> {
+        let p = target.position_mm;
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(Status::InvalidInput);
+        }
+        let archive = self.archive().ok_or(Status::InvalidInput)?;
+        let params = &self.header.method;
+        let cell = self.header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
+        if !params.target_in_range(p) {
+            return Err(Status::NoAdmissibleNeighbour);
+        }
+        let list = candidate_list(archive, cell).ok_or(Status::NoAdmissibleNeighbour)?;
+        let samples = archive.samples.as_slice();
+        let thresholds = params.has_degree_thresholds();
+        let mut selection = Selection::new(params.max_neighbours);
+        for index in list {
+            let index = index.to_native();
+            let Some(s) = samples.get(index as usize) else {
+                continue;
+            };
+            let actual = s.actual_mm.map(|v| v.to_native());
+            let distance_mm = method::distance_mm(actual, p);
+            // `!(<=)` also rejects NaN, which validation has excluded anyway.
+            if !(distance_mm <= params.radius_mm)
+                || !config_matches(s, target.config)
+                || !selection.would_accept(index, distance_mm)
+            {
+                continue;
+            }
+            let degree = method::approximation_degree(p, actual);
+            if thresholds && !params.degree_admissible(&degree) {
+                continue;
+            }
+            selection.offer(Neighbour {
+                sample: index,
+                degree,
+            });
+        }
+        method::predict(params, selection.as_slice(), |i| sample_error(samples, i))
+            .ok_or(Status::NoAdmissibleNeighbour)
+    }
+
+    /// The command that lands the robot on `target`: iterates
+    /// `command ← target − error(command)` from `command = target` until
+    /// `|command + error(command) − target| ≤ tolerance_mm` or `max_iterations` queries.
+    ///
+    /// The predicted error field is continuous within a neighbourhood but may jump where
+    /// the neighbour set changes; there the iteration can cycle and reports
+    /// `converged: false` with its last command. Never allocates, locks or panics.
+    pub fn compensate(
+        &self,
+        target: &Target,
+        tolerance_mm: f64,
+        max_iterations: u32,
+    ) -> Compensation {
+        let mut command = *target;
+        let mut out = Compensation {
+            command_position_mm: target.position_mm,
+            command_rotation_rad: [0.0; 3],
+            correction: Correction::failed(Status::InvalidInput),
+            iterations: 0,
+            converged: false,
+            residual_mm: f64::INFINITY,
+        };
+        while out.iterations < max_iterations.max(1) {
+            let correction = self.query_target(&command);
+            out.iterations += 1;
+            out.correction = correction;
+            out.command_position_mm = command.position_mm;
+            if correction.status != Status::Ok {
+                return out;
+            }
+            let landing = add(command.position_mm, correction.position_error_mm);
+            out.residual_mm = method::distance_mm(landing, target.position_mm);
+            out.command_rotation_rad = correction.orientation_error_rad.map(|v| -v);
+            if out.residual_mm <= tolerance_mm {
+                out.converged = true;
+                return out;
+            }
+            command.position_mm = sub(target.position_mm, correction.position_error_mm);
+        }
+        out
+    }
+}
+
+#[inline]
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn config_matches(sample: &ArchivedSampleRecord, config: Option<u8>) -> bool {
+    match config {
+        Some(c) => sample.config == method::CONFIG_UNKNOWN || sample.config == c,
+        None => true,
+    }
+}
+
+#[inline]
+fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
+    match samples.get(index as usize) {
+        Some(s) => SampleError {
+            position_mm: s.error_mm.map(|v| v.to_native()),
+            orientation_rad: s.rotation_error_rad.map(|v| v.to_native()),
+        },
+        None => SampleError::default(),
+    }
+}
+
+/// The candidate list of a cell, or `None` if an index is out of range (excluded by
+/// validation; checked anyway so that no query can panic).
+#[inline]
+fn candidate_list(
+    archive: &ArchivedTableData,
+    cell: usize,
+) -> Option<&[rkyv::Archived<u32>]> {
+    let list = archive.cell_lists.get(cell)?.to_native() as usize;
+    let start = archive.list_offsets.get(list)?.to_native() as usize;
+    let end = archive.list_offsets.get(list + 1)?.to_native() as usize;
+    archive.list_samples.get(start..end)
+}
+
+fn corrupt(what: &'static str) -> OpenError {
+    OpenError::Corrupt { what }
+}
+
+/// The semantic checks of step 5 of [`Table::from_bytes`].
+fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
+    header.method.validate().map_err(corrupt)?;
+    let grid = &header.grid;
+    if !(grid.cell_mm.is_finite() && grid.cell_mm > 0.0) {
+        return Err(corrupt("cell size must be finite and positive"));
+    }
+    if !grid.origin_mm.iter().all(|v| v.is_finite()) || !grid.max_mm().iter().all(|v| v.is_finite())
+    {
+        return Err(corrupt("grid bounds are not finite"));
+    }
+    let cells = grid
+        .cell_count()
+        .filter(|&n| n > 0 && n < u32::MAX as usize)
+        .ok_or(corrupt("grid size is zero or too large"))?;
+    if a.cell_lists.len() != cells {
+        return Err(corrupt("cell count differs from the grid size"));
+    }
+    let n = a.samples.len();
+    if n != header.sample_count as usize || n >= u32::MAX as usize {
+        return Err(corrupt("sample count differs from the header"));
+    }
+    let with_orientation = header.content_flags & CONTENT_ORIENTATION != 0;
+    let with_config = header.content_flags & CONTENT_CONFIG != 0;
+    for s in a.samples.iter() {
+        let nominal = s.nominal_mm.map(|v| v.to_native());
+        let error = s.error_mm.map(|v| v.to_native());
+        let actual = s.actual_mm.map(|v| v.to_native());
+        let rotation = s.rotation_error_rad.map(|v| v.to_native());
+        let all = nominal.iter().chain(&error).chain(&actual).chain(&rotation);
+        if !all.clone().all(|v| v.is_finite()) {
+            return Err(corrupt("a sample value is not finite"));
+        }
+        if (0..3).any(|i| nominal[i] + error[i] != actual[i]) {
+            return Err(corrupt("a sample's actual position is not nominal + error"));
+        }
+        if !with_orientation && rotation != [0.0; 3] {
+            return Err(corrupt("orientation error present in a position-only table"));
+        }
+        if !with_config && s.config != method::CONFIG_UNKNOWN {
+            return Err(corrupt("configuration present in a table without configurations"));
+        }
+    }
+    let lists = a
+        .list_offsets
+        .len()
+        .checked_sub(1)
+        .ok_or(corrupt("candidate list offsets are empty"))?;
+    check_offsets(a.list_offsets.as_slice(), a.list_samples.len())?;
+    if a.cell_lists.iter().any(|l| l.to_native() as usize >= lists) {
+        return Err(corrupt("a cell names a candidate list that does not exist"));
+    }
+    for l in 0..lists {
+        let start = a.list_offsets[l].to_native() as usize;
+        let end = a.list_offsets[l + 1].to_native() as usize;
+        let list = &a.list_samples[start..end];
+        if list.iter().any(|&i| i.to_native() as usize >= n) {
+            return Err(corrupt("a candidate list names a sample that does not exist"));
+        }
+        if list.windows(2).any(|w| w[0].to_native() >= w[1].to_native()) {
+            return Err(corrupt("a candidate list is not strictly increasing"));
+        }
+    }
+    if a.centre_offsets.len() != cells + 1 || a.centre_weights.len() != a.centre_samples.len() {
+        return Err(corrupt("base weight arrays do not match the grid"));
+    }
+    check_offsets(a.centre_offsets.as_slice(), a.centre_samples.len())?;
+    let k = header.method.max_neighbours as usize;
+    for c in 0..cells {
+        let start = a.centre_offsets[c].to_native() as usize;
+        let end = a.centre_offsets[c + 1].to_native() as usize;
+        if end - start > k {
+            return Err(corrupt("a cell has more base weights than k"));
+        }
+        if a.centre_samples[start..end]
+            .iter()
+            .any(|&i| i.to_native() as usize >= n)
+        {
+            return Err(corrupt("a base weight names a sample that does not exist"));
+        }
+        let weights = &a.centre_weights[start..end];
+        if !weights
+            .iter()
+            .all(|q| (0.0..=1.0).contains(&q.to_native()))
+        {
+            return Err(corrupt("a base weight is outside [0, 1]"));
+        }
+        let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
+        if end > start && (sum - 1.0).abs() > 1e-9 {
+            return Err(corrupt("a cell's base weights do not sum to 1"));
+        }
+    }
+    Ok(())
+}
+
+/// Offsets must start at 0, never decrease, and end at the length of what they index.
+fn check_offsets(offsets: &[rkyv::Archived<u32>], len: usize) -> Result<(), OpenError> {
+    if offsets.first().map(|o| o.to_native()) != Some(0)
+        || offsets.last().map(|o| o.to_native() as usize) != Some(len)
+        || offsets.windows(2).any(|w| w[0].to_native() > w[1].to_native())
+    {
+        return Err(corrupt("offsets are not increasing from 0 to the array length"));
+    }
+    Ok(())
+}
