@@ -15,9 +15,58 @@ pub fn rotation_from_kuka_abc_deg(abc_deg: [f64; 3]) -> Rotation3<f64> {
     Rotation3::from_euler_angles(c, b, a)
 }
 
+/// The KUKA angles `[A, B, C]` (degrees) of a rotation, the inverse of
+/// [`rotation_from_kuka_abc_deg`].
+///
+/// B is returned in [-90°, 90°] and A, C in (-180°, 180°]. At B = ±90° (gimbal lock) only
+/// `A − C` (B = +90°) or `A + C` (B = −90°) is defined; the convention chosen there is
+/// C = 0, so the whole turn about the base z axis goes into A. Near that singularity A and C
+/// separately lose digits, but the rotation they rebuild stays exact, which is all a pose
+/// needs: that is why orientations are carried as rotations and never as angle triples.
+pub fn kuka_abc_deg_from_rotation(rotation: &Rotation3<f64>) -> [f64; 3] {
+    let m = rotation.matrix();
+    // R = Rz(A)·Ry(B)·Rx(C): first column (cA·cB, sA·cB, −sB), last row (−sB, cB·sC, cB·cC).
+    let cos_b = m[(0, 0)].hypot(m[(1, 0)]);
+    let b = (-m[(2, 0)]).atan2(cos_b);
+    // Below this, cos B is rounding noise and A, C would be atan2 of noise.
+    const GIMBAL_LOCK_COS_B: f64 = 1e-12;
+    let (a, c) = if cos_b > GIMBAL_LOCK_COS_B {
+        (m[(1, 0)].atan2(m[(0, 0)]), m[(2, 1)].atan2(m[(2, 2)]))
+    } else {
+        // With C = 0 the second column is Rz(A)·Ry(±90°)·y = (−sA, cA, 0).
+        ((-m[(0, 1)]).atan2(m[(1, 1)]), 0.0)
+    };
+    [a.to_degrees(), b.to_degrees(), c.to_degrees()]
+}
+
 /// The rotation vector (axis × angle, rad) of a rotation: the logarithm map.
+///
+/// Orientation errors are small rotations (1e-4 rad and below), where an angle taken from
+/// `acos((trace − 1) / 2)` loses half its digits. The skew part of `R` is `sin θ · axis`
+/// to full precision, so the angle comes from `atan2(sin θ, cos θ)` and the vector from the
+/// skew part, except near θ = π where the skew part vanishes and nalgebra's eigen-based
+/// axis is the accurate one.
 pub fn rotation_vector(rotation: &Rotation3<f64>) -> [f64; 3] {
-    let v = rotation.scaled_axis();
+    let m = rotation.matrix();
+    let sin_axis = Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    ) * 0.5;
+    let sin_angle = sin_axis.norm();
+    let cos_angle = (m.trace() - 1.0) * 0.5;
+    let angle = sin_angle.atan2(cos_angle);
+    let v = if cos_angle > -0.9 {
+        // θ / sin θ → 1 as θ → 0; the series keeps it exact when sin θ underflows to 0.
+        let scale = if sin_angle > 1e-8 {
+            angle / sin_angle
+        } else {
+            1.0 + angle * angle / 6.0
+        };
+        sin_axis * scale
+    } else {
+        rotation.scaled_axis()
+    };
     [v.x, v.y, v.z]
 }
 
@@ -61,6 +110,82 @@ mod tests {
         let back = orientation_error(&nominal, &actual);
         for i in 0..3 {
             assert_abs_diff_eq!(back[i], delta[i], epsilon = 1e-15);
+        }
+    }
+
+    /// Rebuilds the rotation from its KUKA angles and checks the matrices agree.
+    fn assert_abc_round_trip(abc_deg: [f64; 3]) {
+        let r = rotation_from_kuka_abc_deg(abc_deg);
+        let back = kuka_abc_deg_from_rotation(&r);
+        assert!(back[1].abs() <= 90.0, "B out of range: {back:?}");
+        let rebuilt = rotation_from_kuka_abc_deg(back);
+        assert_abs_diff_eq!(r.matrix(), rebuilt.matrix(), epsilon = 1e-14);
+    }
+
+    #[test]
+    fn abc_round_trip_away_from_gimbal_lock_returns_the_same_angles() {
+        for abc in [
+            [30.0, 20.0, 10.0],
+            [-170.0, -45.0, 120.0],
+            [0.0, 89.0, -179.0],
+        ] {
+            let back = kuka_abc_deg_from_rotation(&rotation_from_kuka_abc_deg(abc));
+            for i in 0..3 {
+                assert_abs_diff_eq!(back[i], abc[i], epsilon = 1e-9);
+            }
+            assert_abc_round_trip(abc);
+        }
+    }
+
+    #[test]
+    fn abc_round_trip_at_b_plus_and_minus_90() {
+        for b in [90.0, -90.0] {
+            for (a, c) in [(0.0, 0.0), (35.0, -20.0), (-170.0, 150.0), (90.0, 90.0)] {
+                assert_abc_round_trip([a, b, c]);
+            }
+        }
+        // The paper's orientation A 0, B 90, C 0 comes back exactly as written.
+        let back = kuka_abc_deg_from_rotation(&rotation_from_kuka_abc_deg([0.0, 90.0, 0.0]));
+        assert_abs_diff_eq!(back[0], 0.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(back[1], 90.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(back[2], 0.0, epsilon = 1e-12);
+        // At B = +90° only A − C matters: (35, 90, −20) is the same rotation as (55, 90, 0).
+        let back = kuka_abc_deg_from_rotation(&rotation_from_kuka_abc_deg([35.0, 90.0, -20.0]));
+        assert_abs_diff_eq!(back[0], 55.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(back[2], 0.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn abc_round_trip_just_off_gimbal_lock() {
+        for b in [90.0 - 1e-7, -90.0 + 1e-9, 90.0 - 1e-13] {
+            assert_abc_round_trip([12.0, b, -40.0]);
+        }
+    }
+
+    #[test]
+    fn rotation_vector_inverts_exp_from_tiny_angles_to_near_pi() {
+        let axis = Vector3::new(0.3, -0.5, 0.8).normalize();
+        for angle in [
+            1e-12,
+            1e-6,
+            1e-4,
+            0.5,
+            2.0,
+            2.9,
+            std::f64::consts::PI - 1e-6,
+        ] {
+            let v = axis * angle;
+            let back = rotation_vector(&rotation_from_vector([v.x, v.y, v.z]));
+            // A tiny rotation keeps all its digits; within 1e-6 of a half turn the axis is
+            // recovered from the symmetric part, which is good to about 1e-10.
+            let tolerance = if angle < 3.0 {
+                1e-14 * angle.max(1e-2)
+            } else {
+                1e-9
+            };
+            for i in 0..3 {
+                assert_abs_diff_eq!(back[i], v[i], epsilon = tolerance);
+            }
         }
     }
 }
