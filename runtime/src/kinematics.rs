@@ -237,8 +237,16 @@ mod tests {
         // Rx(+90°) cancel, so z6 = z3 = +z; joint 6: 230 along z → flange (1655, 0, 2080).
         let flange = forward(&kr150(), &Transform::IDENTITY, &[0.0; 6]);
         assert_close(flange.translation_mm, [1655.0, 0.0, 2080.0], 1e-9);
-        assert_close(flange.rotate_vector([0.0, 0.0, 1.0]), [0.0, 0.0, 1.0], 1e-15);
-        assert_close(flange.rotate_vector([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0], 1e-15);
+        assert_close(
+            flange.rotate_vector([0.0, 0.0, 1.0]),
+            [0.0, 0.0, 1.0],
+            1e-15,
+        );
+        assert_close(
+            flange.rotate_vector([1.0, 0.0, 0.0]),
+            [1.0, 0.0, 0.0],
+            1e-15,
+        );
     }
 
     #[test]
@@ -257,7 +265,11 @@ mod tests {
         q[2] = FRAC_PI_2;
         let flange = forward(&kr150(), &Transform::IDENTITY, &q);
         assert_close(flange.translation_mm, [2930.0, 0.0, 695.0], 1e-9);
-        assert_close(flange.rotate_vector([0.0, 0.0, 1.0]), [1.0, 0.0, 0.0], 1e-15);
+        assert_close(
+            flange.rotate_vector([0.0, 0.0, 1.0]),
+            [1.0, 0.0, 0.0],
+            1e-15,
+        );
     }
 
     #[test]
