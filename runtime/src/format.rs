@@ -228,7 +228,11 @@ impl Header {
         put(&mut b, 96, m.zeta_min_per_mm2.to_le_bytes());
         put(&mut b, 104, self.grid.cell_mm.to_le_bytes());
         for axis in 0..3 {
-            put(&mut b, 112 + 8 * axis, self.grid.origin_mm[axis].to_le_bytes());
+            put(
+                &mut b,
+                112 + 8 * axis,
+                self.grid.origin_mm[axis].to_le_bytes(),
+            );
             put(&mut b, 136 + 4 * axis, self.grid.dims[axis].to_le_bytes());
         }
         put(&mut b, 148, self.sample_count.to_le_bytes());

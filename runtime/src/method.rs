@@ -289,6 +289,58 @@ impl Selection {
     }
 }
 
+/// Whether a sample of configuration `sample_config` may serve a target whose
+/// configuration is `target_config` (unknown on either side matches anything).
+#[inline]
+pub fn config_matches(sample_config: u8, target_config: Option<u8>) -> bool {
+    match target_config {
+        Some(c) => sample_config == CONFIG_UNKNOWN || sample_config == c,
+        None => true,
+    }
+}
+
+/// Selects the `k` nearest admissible samples among `candidates` for a target.
+///
+/// `sample(i)` gives sample `i`'s actual position (mm) and configuration, or `None` to
+/// skip it. Only the distance is computed for candidates that cannot enter the selection;
+/// the full degree is computed for the others. Candidates may come in any order.
+#[inline]
+pub fn select(
+    params: &MethodParams,
+    target_mm: [f64; 3],
+    target_config: Option<u8>,
+    candidates: impl IntoIterator<Item = u32>,
+    sample: impl Fn(u32) -> Option<([f64; 3], u8)>,
+) -> Selection {
+    let thresholds = params.has_degree_thresholds();
+    let mut selection = Selection::new(params.max_neighbours);
+    if !params.target_in_range(target_mm) {
+        return selection;
+    }
+    for index in candidates {
+        let Some((actual_mm, config)) = sample(index) else {
+            continue;
+        };
+        let distance = distance_mm(actual_mm, target_mm);
+        // `!(<=)` also rejects NaN.
+        if !(distance <= params.radius_mm)
+            || !config_matches(config, target_config)
+            || !selection.would_accept(index, distance)
+        {
+            continue;
+        }
+        let degree = approximation_degree(target_mm, actual_mm);
+        if thresholds && !params.degree_admissible(&degree) {
+            continue;
+        }
+        selection.offer(Neighbour {
+            sample: index,
+            degree,
+        });
+    }
+    selection
+}
+
 #[inline]
 fn precedes(sample: u32, distance_mm: f64, other: &Neighbour) -> bool {
     distance_mm < other.degree.distance_mm

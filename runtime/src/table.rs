@@ -6,7 +6,7 @@ use crate::format::{
     ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_ORIENTATION,
     HEADER_LEN, PAYLOAD_ALIGN,
 };
-use crate::method::{self, MethodParams, Neighbour, Prediction, SampleError, Selection};
+use crate::method::{self, MethodParams, Prediction, SampleError};
 use crate::OpenError;
 
 /// What a query's answer means.
@@ -181,11 +181,12 @@ impl<D: AsRef<[u8]>> Table<D> {
     pub fn from_bytes(data: D) -> Result<Table<D>, OpenError> {
         let bytes = data.as_ref();
         let header = Header::from_bytes(bytes)?;
-        let expected = (HEADER_LEN as u64).checked_add(header.payload_len).ok_or(
-            OpenError::Corrupt {
-                what: "payload length overflows",
-            },
-        )?;
+        let expected =
+            (HEADER_LEN as u64)
+                .checked_add(header.payload_len)
+                .ok_or(OpenError::Corrupt {
+                    what: "payload length overflows",
+                })?;
         let len = bytes.len() as u64;
         if len < expected {
             return Err(OpenError::Truncated {
@@ -301,36 +302,18 @@ impl<D: AsRef<[u8]>> Table<D> {
         let archive = self.archive().ok_or(Status::InvalidInput)?;
         let params = &self.header.method;
         let cell = self.header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
-        if !params.target_in_range(p) {
-            return Err(Status::NoAdmissibleNeighbour);
-        }
         let list = candidate_list(archive, cell).ok_or(Status::NoAdmissibleNeighbour)?;
         let samples = archive.samples.as_slice();
-        let thresholds = params.has_degree_thresholds();
-        let mut selection = Selection::new(params.max_neighbours);
-        for index in list {
-            let index = index.to_native();
-            let Some(s) = samples.get(index as usize) else {
-                continue;
-            };
-            let actual = s.actual_mm.map(|v| v.to_native());
-            let distance_mm = method::distance_mm(actual, p);
-            // `!(<=)` also rejects NaN, which validation has excluded anyway.
-            if !(distance_mm <= params.radius_mm)
-                || !config_matches(s, target.config)
-                || !selection.would_accept(index, distance_mm)
-            {
-                continue;
-            }
-            let degree = method::approximation_degree(p, actual);
-            if thresholds && !params.degree_admissible(&degree) {
-                continue;
-            }
-            selection.offer(Neighbour {
-                sample: index,
-                degree,
-            });
-        }
+        let selection = method::select(
+            params,
+            p,
+            target.config,
+            list.iter().map(|i| i.to_native()),
+            |i| {
+                let s = samples.get(i as usize)?;
+                Some((s.actual_mm.map(|v| v.to_native()), s.config))
+            },
+        );
         method::predict(params, selection.as_slice(), |i| sample_error(samples, i))
             .ok_or(Status::NoAdmissibleNeighbour)
     }
@@ -389,14 +372,6 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 #[inline]
-fn config_matches(sample: &ArchivedSampleRecord, config: Option<u8>) -> bool {
-    match config {
-        Some(c) => sample.config == method::CONFIG_UNKNOWN || sample.config == c,
-        None => true,
-    }
-}
-
-#[inline]
 fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
     match samples.get(index as usize) {
         Some(s) => SampleError {
@@ -410,10 +385,7 @@ fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
 /// The candidate list of a cell, or `None` if an index is out of range (excluded by
 /// validation; checked anyway so that no query can panic).
 #[inline]
-fn candidate_list(
-    archive: &ArchivedTableData,
-    cell: usize,
-) -> Option<&[rkyv::Archived<u32>]> {
+fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Archived<u32>]> {
     let list = archive.cell_lists.get(cell)?.to_native() as usize;
     let start = archive.list_offsets.get(list)?.to_native() as usize;
     let end = archive.list_offsets.get(list + 1)?.to_native() as usize;
@@ -461,10 +433,14 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             return Err(corrupt("a sample's actual position is not nominal + error"));
         }
         if !with_orientation && rotation != [0.0; 3] {
-            return Err(corrupt("orientation error present in a position-only table"));
+            return Err(corrupt(
+                "orientation error present in a position-only table",
+            ));
         }
         if !with_config && s.config != method::CONFIG_UNKNOWN {
-            return Err(corrupt("configuration present in a table without configurations"));
+            return Err(corrupt(
+                "configuration present in a table without configurations",
+            ));
         }
     }
     let lists = a
@@ -481,9 +457,14 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         let end = a.list_offsets[l + 1].to_native() as usize;
         let list = &a.list_samples[start..end];
         if list.iter().any(|&i| i.to_native() as usize >= n) {
-            return Err(corrupt("a candidate list names a sample that does not exist"));
+            return Err(corrupt(
+                "a candidate list names a sample that does not exist",
+            ));
         }
-        if list.windows(2).any(|w| w[0].to_native() >= w[1].to_native()) {
+        if list
+            .windows(2)
+            .any(|w| w[0].to_native() >= w[1].to_native())
+        {
             return Err(corrupt("a candidate list is not strictly increasing"));
         }
     }
@@ -505,10 +486,7 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             return Err(corrupt("a base weight names a sample that does not exist"));
         }
         let weights = &a.centre_weights[start..end];
-        if !weights
-            .iter()
-            .all(|q| (0.0..=1.0).contains(&q.to_native()))
-        {
+        if !weights.iter().all(|q| (0.0..=1.0).contains(&q.to_native())) {
             return Err(corrupt("a base weight is outside [0, 1]"));
         }
         let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
@@ -523,9 +501,13 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
 fn check_offsets(offsets: &[rkyv::Archived<u32>], len: usize) -> Result<(), OpenError> {
     if offsets.first().map(|o| o.to_native()) != Some(0)
         || offsets.last().map(|o| o.to_native() as usize) != Some(len)
-        || offsets.windows(2).any(|w| w[0].to_native() > w[1].to_native())
+        || offsets
+            .windows(2)
+            .any(|w| w[0].to_native() > w[1].to_native())
     {
-        return Err(corrupt("offsets are not increasing from 0 to the array length"));
+        return Err(corrupt(
+            "offsets are not increasing from 0 to the array length",
+        ));
     }
     Ok(())
 }

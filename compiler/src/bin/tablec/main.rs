@@ -1,1 +1,55 @@
-fn main(){}
+//! `tablec`: compile robot error samples into correction tables, and query them.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod build;
+mod inspect;
+mod query;
+
+/// Approximation-degree weighted interpolation of robot positioning errors.
+#[derive(Parser)]
+#[command(name = "tablec", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Compile a sample database (CSV) into a correction table.
+    Build(build::Args),
+    /// Predict the correction at one target, or at every row of a targets CSV.
+    Query(query::Args),
+    /// Print a table's header, parameters, counts and sizes.
+    Inspect(inspect::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Build(args) => build::run(args),
+        Command::Query(args) => query::run(args),
+        Command::Inspect(args) => inspect::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Opens a table by memory map.
+fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memmap2::Mmap>> {
+    use anyhow::Context;
+    // SAFETY: tablec never writes a table in place (it renames complete files), and the
+    // process holds the mapping only for the duration of one command.
+    unsafe { adwi_runtime::Table::open(path) }
+        .with_context(|| format!("cannot open table {}", path.display()))
+}

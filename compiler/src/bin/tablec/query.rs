@@ -1,0 +1,131 @@
+//! `tablec query`.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use adwi_compiler::pose;
+use adwi_compiler::samples::ColumnMap;
+use adwi_runtime::{Status, Target};
+use anyhow::{bail, Context};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The table.
+    table: PathBuf,
+    /// Target X Y Z (mm, base frame), optionally A B C (KUKA degrees).
+    #[arg(allow_negative_numbers = true, num_args = 0..=6)]
+    pose: Vec<f64>,
+    /// Inverse-kinematics configuration of the target.
+    #[arg(long)]
+    config: Option<u8>,
+    /// A CSV of targets (columns x,y,z, optionally config) instead of one pose.
+    #[arg(long, conflicts_with = "pose")]
+    targets: Option<PathBuf>,
+    /// Column mapping for the targets CSV, as for `tablec build`.
+    #[arg(long, value_name = "MAP", requires = "targets")]
+    columns: Option<String>,
+    /// Output CSV for --targets [default: standard output].
+    #[arg(short, long, requires = "targets")]
+    output: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let table = crate::open_table(&args.table)?;
+    if let Some(targets) = &args.targets {
+        return run_batch(
+            &table,
+            targets,
+            args.columns.as_deref(),
+            args.output.as_ref(),
+        );
+    }
+    let (position, abc) = match args.pose.as_slice() {
+        [x, y, z] => ([*x, *y, *z], None),
+        [x, y, z, a, b, c] => ([*x, *y, *z], Some([*a, *b, *c])),
+        _ => bail!("give a target as X Y Z or X Y Z A B C, or --targets FILE"),
+    };
+    let target = Target {
+        position_mm: position,
+        config: args.config,
+    };
+    let c = table.query_target(&target);
+    println!(
+        "target       {:.6} {:.6} {:.6} mm",
+        position[0], position[1], position[2]
+    );
+    println!(
+        "status       {} ({} neighbours)",
+        c.status.as_str(),
+        c.neighbours
+    );
+    if c.status != Status::Ok {
+        return Ok(());
+    }
+    let e = c.position_error_mm;
+    println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
+    if table.has_orientation() {
+        let r = c.orientation_error_rad;
+        println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
+    }
+    let comp = table.compensate(&target, 1e-6, 50);
+    let p = comp.command_position_mm;
+    println!(
+        "command      {:.6} {:.6} {:.6} mm ({} after {} iterations, residual {:.2e} mm)",
+        p[0],
+        p[1],
+        p[2],
+        if comp.converged {
+            "converged"
+        } else {
+            "not converged"
+        },
+        comp.iterations,
+        comp.residual_mm
+    );
+    if let Some(abc) = abc {
+        let target_rotation = pose::rotation_from_kuka_abc_deg(abc);
+        let command = pose::rotation_from_vector(comp.command_rotation_rad) * target_rotation;
+        let [a, b, c] = pose::kuka_abc_deg_from_rotation(&command);
+        println!("command abc  {a:.6} {b:.6} {c:.6} deg");
+    }
+    Ok(())
+}
+
+fn run_batch(
+    table: &adwi_runtime::Table<memmap2::Mmap>,
+    targets: &PathBuf,
+    columns: Option<&str>,
+    output: Option<&PathBuf>,
+) -> anyhow::Result<()> {
+    let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
+    let targets = adwi_compiler::samples::read_targets(targets, &columns)?;
+    let mut out: Box<dyn Write> = match output {
+        Some(path) => Box::new(std::io::BufWriter::new(
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create {}", path.display()))?,
+        )),
+        None => Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
+    };
+    writeln!(out, "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status")?;
+    let orientation = table.has_orientation();
+    for target in &targets {
+        let c = table.query_target(target);
+        let p = target.position_mm;
+        write!(out, "{},{},{}", p[0], p[1], p[2])?;
+        if c.status == Status::Ok {
+            let e = c.position_error_mm;
+            write!(out, ",{:.9},{:.9},{:.9}", e[0], e[1], e[2])?;
+        } else {
+            write!(out, ",,,")?;
+        }
+        if c.status == Status::Ok && orientation {
+            let r = c.orientation_error_rad;
+            write!(out, ",{:.12},{:.12},{:.12}", r[0], r[1], r[2])?;
+        } else {
+            write!(out, ",,,")?;
+        }
+        writeln!(out, ",{},{}", c.neighbours, c.status.as_str())?;
+    }
+    out.flush()?;
+    Ok(())
+}

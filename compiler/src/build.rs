@@ -1,0 +1,500 @@
+//! Compiling a sample database into a cell table.
+//!
+//! The workspace box is cut into cubic cells. For every cell the table stores a candidate
+//! list: every sample that can be among the `k` nearest admissible samples of *some*
+//! target inside the cell. The runtime then only examines that list, and its answer equals
+//! the brute-force reference's for every target in the grid. A sample is listed when
+//!
+//! - it can be within ε of a point of the cell (its distance to the cell box is at most ε),
+//!   and
+//! - it is not *dominated*: fewer than `k` other samples are certainly admissible
+//!   everywhere in the cell (farthest distance to the box within ε) and certainly nearer
+//!   (their farthest distance below its nearest distance). With configurations, the count
+//!   is also taken among samples of its own configuration, since a target of that
+//!   configuration sees only those. With λ or ζ thresholds, admissibility depends on more
+//!   than the distance, no sample is certain, and nothing is pruned beyond the radius.
+//!
+//! Boxes are grown by [`BOX_MARGIN_MM`] and comparisons carry [`DISTANCE_SLACK_MM`], far
+//! above floating-point rounding, so that a target on a cell face, or rounded into a
+//! neighbouring cell, still finds every sample it needs. Identical lists are stored once.
+//! Each cell also stores the base weights `q_i` at its centre.
+//!
+//! Cells are processed in parallel; results are assembled in cell order, so the bytes
+//! written do not depend on the number of threads.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use adwi_runtime::format::{
+    self, Grid, Header, SampleRecord, TableData, CONTENT_CONFIG, CONTENT_JOINTS,
+    CONTENT_ORIENTATION,
+};
+use adwi_runtime::method::{self, MethodParams, SampleError};
+use rayon::prelude::*;
+
+use crate::samples::SampleSet;
+
+/// Cell boxes are grown by this much (mm) when computing candidate lists.
+pub const BOX_MARGIN_MM: f64 = 1e-6;
+/// Slack (mm) in every distance comparison that decides a candidate list.
+pub const DISTANCE_SLACK_MM: f64 = 1e-9;
+/// The most cells a table may have.
+pub const MAX_CELLS: usize = 20_000_000;
+/// The default radius ε is this many sample spacings: it covers the 8 corners of a lattice
+/// cube (at most √3 spacings away) from any point inside it.
+pub const RADIUS_PER_SPACING: f64 = 2.0;
+/// The default cell edge is the sample spacing divided by this.
+pub const CELLS_PER_SPACING: f64 = 4.0;
+
+/// What `tablec build` is asked for; `None` fields are derived from the samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildOptions {
+    /// ε, mm; default [`RADIUS_PER_SPACING`] × the sample spacing.
+    pub radius_mm: Option<f64>,
+    /// Cell edge, mm; default the sample spacing / [`CELLS_PER_SPACING`].
+    pub cell_mm: Option<f64>,
+    /// k.
+    pub max_neighbours: u32,
+    /// ω1.
+    pub w1: f64,
+    /// ω2.
+    pub w2: f64,
+    /// r.
+    pub power: f64,
+    /// [λ], 1/mm.
+    pub lambda_min_per_mm: f64,
+    /// [ζ], 1/mm².
+    pub zeta_min_per_mm2: f64,
+    /// Apply the consistency screen (40).
+    pub consistency_screen: bool,
+    /// The grid's box (min, max corners, mm); default the samples' nominal bounding box
+    /// grown by ε.
+    pub bounds_mm: Option<([f64; 3], [f64; 3])>,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        let paper = MethodParams::paper(1.0);
+        BuildOptions {
+            radius_mm: None,
+            cell_mm: None,
+            max_neighbours: paper.max_neighbours,
+            w1: paper.w1,
+            w2: paper.w2,
+            power: paper.power,
+            lambda_min_per_mm: paper.lambda_min_per_mm,
+            zeta_min_per_mm2: paper.zeta_min_per_mm2,
+            consistency_screen: paper.consistency_screen,
+            bounds_mm: None,
+        }
+    }
+}
+
+/// Why a table could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// A parameter is out of range.
+    #[error("invalid parameter: {0}")]
+    Params(&'static str),
+    /// ε or the cell size were not given and cannot be derived.
+    #[error("cannot derive {0} from a single sample: give it explicitly")]
+    CannotDerive(&'static str),
+    /// The bounds are not a box.
+    #[error("invalid bounds: {0}")]
+    Bounds(String),
+    /// The grid would be too large.
+    #[error("the grid would have {cells} cells, more than {max}: choose a larger --cell")]
+    TooManyCells {
+        /// Cells requested.
+        cells: u128,
+        /// The limit.
+        max: usize,
+    },
+    /// Serialisation failed.
+    #[error("cannot encode the table: {0}")]
+    Encode(String),
+}
+
+/// What a build produced and derived, for the CLI to report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildReport {
+    /// Median nearest-neighbour spacing of the nominal positions, mm.
+    pub spacing_mm: Option<f64>,
+    /// ε used, mm, and whether it was derived.
+    pub radius_mm: f64,
+    /// Whether ε was derived from the spacing.
+    pub radius_derived: bool,
+    /// Cell edge used, mm.
+    pub cell_mm: f64,
+    /// Whether the cell edge was derived from the spacing.
+    pub cell_derived: bool,
+    /// The grid.
+    pub grid: Grid,
+    /// Samples.
+    pub samples: usize,
+    /// Cells in the grid.
+    pub cells: usize,
+    /// Cells whose candidate list is not empty.
+    pub cells_covered: usize,
+    /// Distinct candidate lists stored.
+    pub distinct_lists: usize,
+    /// Total entries over the distinct lists.
+    pub list_entries: usize,
+    /// The longest candidate list.
+    pub max_list_len: usize,
+    /// Mean candidate list length over covered cells.
+    pub mean_list_len: f64,
+    /// Table size, bytes.
+    pub table_bytes: usize,
+}
+
+/// The full method parameters of a build, derived where not given.
+pub fn resolve(
+    samples: &SampleSet,
+    options: &BuildOptions,
+) -> Result<(MethodParams, Grid, BuildReport), BuildError> {
+    let spacing_mm = samples.spacing_mm();
+    let derive = |what| {
+        spacing_mm
+            .filter(|s| *s > 0.0)
+            .ok_or(BuildError::CannotDerive(what))
+    };
+    let radius_mm = match options.radius_mm {
+        Some(r) => r,
+        None => RADIUS_PER_SPACING * derive("the radius")?,
+    };
+    let params = MethodParams {
+        radius_mm,
+        max_neighbours: options.max_neighbours,
+        w1: options.w1,
+        w2: options.w2,
+        power: options.power,
+        lambda_min_per_mm: options.lambda_min_per_mm,
+        zeta_min_per_mm2: options.zeta_min_per_mm2,
+        consistency_screen: options.consistency_screen,
+    };
+    params.validate().map_err(BuildError::Params)?;
+    let cell_mm = match options.cell_mm {
+        Some(c) => c,
+        None => derive("the cell size")? / CELLS_PER_SPACING,
+    };
+    if !(cell_mm.is_finite() && cell_mm > 0.0) {
+        return Err(BuildError::Params("cell size must be finite and positive"));
+    }
+    let (lo, hi) = match options.bounds_mm {
+        Some(b) => b,
+        None => {
+            let (lo, hi) = samples
+                .nominal_bounds_mm()
+                .ok_or(BuildError::CannotDerive("bounds"))?;
+            (lo.map(|v| v - radius_mm), hi.map(|v| v + radius_mm))
+        }
+    };
+    if !(0..3).all(|a| lo[a].is_finite() && hi[a].is_finite() && lo[a] < hi[a]) {
+        return Err(BuildError::Bounds(format!(
+            "{lo:?} to {hi:?}: each minimum must be below its maximum, all finite"
+        )));
+    }
+    let dims_f = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
+    let cells = dims_f.iter().map(|&d| d as u128).product::<u128>();
+    if cells > MAX_CELLS as u128 || dims_f.iter().any(|&d| d > u32::MAX as f64) {
+        return Err(BuildError::TooManyCells {
+            cells,
+            max: MAX_CELLS,
+        });
+    }
+    let grid = Grid {
+        origin_mm: lo,
+        cell_mm,
+        dims: dims_f.map(|d| d as u32),
+    };
+    let report = BuildReport {
+        spacing_mm,
+        radius_mm,
+        radius_derived: options.radius_mm.is_none(),
+        cell_mm,
+        cell_derived: options.cell_mm.is_none(),
+        grid,
+        samples: samples.len(),
+        cells: cells as usize,
+        cells_covered: 0,
+        distinct_lists: 0,
+        list_entries: 0,
+        max_list_len: 0,
+        mean_list_len: 0.0,
+        table_bytes: 0,
+    };
+    Ok((params, grid, report))
+}
+
+/// Compiles `samples` into table bytes. `progress(n)` is called as cells complete, with
+/// the number just completed (from several threads).
+///
+/// # Errors
+///
+/// Parameters out of range, underivable defaults, a grid too large.
+pub fn compile(
+    samples: &SampleSet,
+    options: &BuildOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    let (params, grid, mut report) = resolve(samples, options)?;
+    let records = samples.records();
+    let index = SpatialIndex::new(&records, params.radius_mm);
+    let done = AtomicU64::new(0);
+    let per_cell: Vec<(Vec<u32>, Vec<(u32, f64)>)> = (0..report.cells)
+        .into_par_iter()
+        .map(|cell| {
+            let candidates = candidate_list(&records, &index, &params, &grid, cell);
+            let centre = centre_weights(&records, &params, &grid, cell, &candidates);
+            if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
+                progress(4096);
+            }
+            (candidates, centre)
+        })
+        .collect();
+    progress(done.load(Ordering::Relaxed) % 4096);
+
+    let mut data = TableData {
+        samples: records,
+        cell_lists: Vec::with_capacity(report.cells),
+        list_offsets: vec![0],
+        list_samples: Vec::new(),
+        centre_offsets: Vec::with_capacity(report.cells + 1),
+        centre_samples: Vec::new(),
+        centre_weights: Vec::new(),
+    };
+    data.centre_offsets.push(0);
+    let mut ids: HashMap<&[u32], u32> = HashMap::new();
+    for (list, centre) in &per_cell {
+        let next = ids.len() as u32;
+        let id = *ids.entry(list.as_slice()).or_insert_with(|| {
+            data.list_samples.extend_from_slice(list);
+            data.list_offsets.push(data.list_samples.len() as u32);
+            next
+        });
+        data.cell_lists.push(id);
+        for &(sample, q) in centre {
+            data.centre_samples.push(sample);
+            data.centre_weights.push(q);
+        }
+        data.centre_offsets.push(data.centre_samples.len() as u32);
+        if !list.is_empty() {
+            report.cells_covered += 1;
+            report.max_list_len = report.max_list_len.max(list.len());
+            report.mean_list_len += list.len() as f64;
+        }
+    }
+    report.mean_list_len /= report.cells_covered.max(1) as f64;
+    report.distinct_lists = ids.len();
+    report.list_entries = data.list_samples.len();
+
+    let mut content = 0;
+    if samples.rotation_error_rad.is_some() {
+        content |= CONTENT_ORIENTATION;
+    }
+    if samples.config.is_some() {
+        content |= CONTENT_CONFIG;
+    }
+    if samples.joints_deg.is_some() {
+        content |= CONTENT_JOINTS;
+    }
+    let header = Header {
+        version: format::FORMAT_VERSION,
+        rkyv_flags: format::RKYV_FLAGS,
+        content_flags: content,
+        payload_len: 0,
+        payload_checksum: 0,
+        source_hash: samples.source_hash(),
+        method: params,
+        grid,
+        sample_count: samples.len() as u32,
+    };
+    let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
+    report.table_bytes = bytes.len();
+    Ok((bytes, report))
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory, renamed into
+/// place once complete and flushed: an interrupted write never leaves a partial table and
+/// never damages a table already at `path` (including one mapped by a running process).
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".tablec-")
+        .suffix(".tmp")
+        .tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+/// Samples bucketed by actual position in cubes of edge ≥ ε, so that the samples within ε
+/// of a box are found in the buckets the grown box overlaps.
+struct SpatialIndex {
+    origin_mm: [f64; 3],
+    bucket_mm: f64,
+    dims: [usize; 3],
+    buckets: Vec<Vec<u32>>,
+}
+
+impl SpatialIndex {
+    fn new(records: &[SampleRecord], radius_mm: f64) -> SpatialIndex {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for r in records {
+            for a in 0..3 {
+                lo[a] = lo[a].min(r.actual_mm[a]);
+                hi[a] = hi[a].max(r.actual_mm[a]);
+            }
+        }
+        let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        // At most 256 buckets a side, whatever ε.
+        let bucket_mm = radius_mm.max(extent / 256.0).max(f64::MIN_POSITIVE);
+        let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / bucket_mm) as usize + 1);
+        let mut index = SpatialIndex {
+            origin_mm: lo,
+            bucket_mm,
+            dims,
+            buckets: vec![Vec::new(); dims[0] * dims[1] * dims[2]],
+        };
+        for (i, r) in records.iter().enumerate() {
+            let b = index.bucket_coords(r.actual_mm);
+            let linear = b[0] + dims[0] * (b[1] + dims[1] * b[2]);
+            index.buckets[linear].push(i as u32);
+        }
+        index
+    }
+
+    fn bucket_coords(&self, p: [f64; 3]) -> [usize; 3] {
+        [0, 1, 2].map(|a| {
+            let u = ((p[a] - self.origin_mm[a]) / self.bucket_mm).floor();
+            (u.max(0.0) as usize).min(self.dims[a] - 1)
+        })
+    }
+
+    /// Every sample in a bucket overlapping the box `lo..hi`.
+    fn near(&self, lo: [f64; 3], hi: [f64; 3], out: &mut Vec<u32>) {
+        let a = self.bucket_coords(lo);
+        let b = self.bucket_coords(hi);
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    out.extend_from_slice(&self.buckets[x + self.dims[0] * (y + self.dims[1] * z)]);
+                }
+            }
+        }
+    }
+}
+
+/// The nearest and farthest distances from `p` to the box `lo..hi`, mm.
+fn box_distances(p: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+    let mut near = 0.0;
+    let mut far = 0.0;
+    for a in 0..3 {
+        let below = lo[a] - p[a];
+        let above = p[a] - hi[a];
+        let gap = below.max(above).max(0.0);
+        near += gap * gap;
+        let reach = (p[a] - lo[a]).abs().max((hi[a] - p[a]).abs());
+        far += reach * reach;
+    }
+    (near.sqrt(), far.sqrt())
+}
+
+/// The candidate list of one cell, sample indices increasing (see the module docs).
+fn candidate_list(
+    records: &[SampleRecord],
+    index: &SpatialIndex,
+    params: &MethodParams,
+    grid: &Grid,
+    cell: usize,
+) -> Vec<u32> {
+    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+    let lo = lo.map(|v| v - BOX_MARGIN_MM);
+    let hi = hi.map(|v| v + BOX_MARGIN_MM);
+    let reach = params.radius_mm + DISTANCE_SLACK_MM;
+    let mut near = Vec::new();
+    index.near(lo.map(|v| v - reach), hi.map(|v| v + reach), &mut near);
+
+    // (sample, nearest, farthest distance to the box).
+    let reachable: Vec<(u32, f64, f64)> = near
+        .into_iter()
+        .filter_map(|i| {
+            let (d_near, d_far) = box_distances(records[i as usize].actual_mm, lo, hi);
+            (d_near <= reach).then_some((i, d_near, d_far))
+        })
+        .collect();
+    let k = params.max_neighbours as usize;
+    let mut list: Vec<u32> = if params.has_degree_thresholds() || reachable.len() <= k {
+        reachable.iter().map(|&(i, _, _)| i).collect()
+    } else {
+        // Farthest distances of the samples admissible everywhere in the cell, overall
+        // and per configuration, sorted.
+        let certain = |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
+        let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
+        all.sort_by(f64::total_cmp);
+        let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
+        for r in reachable.iter().filter(certain) {
+            by_config
+                .entry(records[r.0 as usize].config)
+                .or_default()
+                .push(r.2);
+        }
+        by_config
+            .values_mut()
+            .for_each(|v| v.sort_by(f64::total_cmp));
+        let nearer =
+            |sorted: &[f64], d: f64| sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM);
+        reachable
+            .iter()
+            .filter(|&&(i, d_near, _)| {
+                let config = records[i as usize].config;
+                let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
+                nearer(&all, d_near) < k || nearer(same, d_near) < k
+            })
+            .map(|&(i, _, _)| i)
+            .collect()
+    };
+    list.sort_unstable();
+    list
+}
+
+/// The neighbours and weights at a cell's centre, through the runtime's own selection.
+fn centre_weights(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    grid: &Grid,
+    cell: usize,
+    candidates: &[u32],
+) -> Vec<(u32, f64)> {
+    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+    let selection = method::select(params, centre, None, candidates.iter().copied(), |i| {
+        let r = &records[i as usize];
+        Some((r.actual_mm, r.config))
+    });
+    let error_of = |i: u32| {
+        let r = &records[i as usize];
+        SampleError {
+            position_mm: r.error_mm,
+            orientation_rad: r.rotation_error_rad,
+        }
+    };
+    match method::predict(params, selection.as_slice(), error_of) {
+        Some(p) => p
+            .neighbours
+            .as_slice()
+            .iter()
+            .zip(p.weights.as_slice())
+            .map(|(n, &q)| (n.sample, q))
+            .collect(),
+        None => Vec::new(),
+    }
+}

@@ -1,0 +1,706 @@
+//! The sample database: measured errors at commanded poses, read from CSV.
+//!
+//! # CSV format
+//!
+//! One header row, then one row per sample; lines starting with `#` are comments; fields
+//! may be padded with spaces. Columns are found by name, in any order; unknown columns are
+//! ignored.
+//!
+//! | columns | meaning | |
+//! |---|---|---|
+//! | `x,y,z` | nominal (commanded) position, mm, robot base frame | required |
+//! | `dx,dy,dz` | measured position error = actual − nominal, mm | one of these two |
+//! | `mx,my,mz` | measured actual position, mm | |
+//! | `a,b,c` | nominal orientation, KUKA degrees, `R = Rz(a)·Ry(b)·Rx(c)` | optional |
+//! | `rx,ry,rz` | orientation error, rotation vector of `R_actual·R_nominalᵀ`, rad | optional, or: |
+//! | `ma,mb,mc` | measured orientation, KUKA degrees (needs `a,b,c`) | |
+//! | `j1..j6` | joint angles, degrees | optional |
+//! | `config` | inverse-kinematics configuration, integer 0-254 | optional |
+//!
+//! Files whose columns are named otherwise are read through a [`ColumnMap`]:
+//! `x=x_t,y=y_t,z=z_t,dx=x_dif,...`; a source name prefixed by `-` is negated
+//! (`dx=-x_dif` for a file that records nominal − actual).
+//!
+//! Every problem is an error naming the file, the line and, where there is one, the
+//! column: a wrong field count, a field that is not a number, NaN or infinite, a nominal
+//! position given twice, a missing column, an empty file.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use adwi_runtime::format::SampleRecord;
+use adwi_runtime::method::CONFIG_UNKNOWN;
+
+use crate::pose;
+
+/// The canonical column names, in the order of the table above.
+pub const CANONICAL_COLUMNS: [&str; 25] = [
+    "x", "y", "z", "dx", "dy", "dz", "mx", "my", "mz", "a", "b", "c", "rx", "ry", "rz", "ma", "mb",
+    "mc", "j1", "j2", "j3", "j4", "j5", "j6", "config",
+];
+
+/// A sample database in memory, in source order. Positions mm, base frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SampleSet {
+    /// Nominal (commanded) positions, mm.
+    pub nominal_mm: Vec<[f64; 3]>,
+    /// Measured position errors, actual − nominal, mm.
+    pub error_mm: Vec<[f64; 3]>,
+    /// Nominal orientations, KUKA A, B, C degrees, when given.
+    pub nominal_abc_deg: Option<Vec<[f64; 3]>>,
+    /// Measured orientation errors, rotation vectors (rad, base frame), when given.
+    pub rotation_error_rad: Option<Vec<[f64; 3]>>,
+    /// Joint angles, degrees, when given.
+    pub joints_deg: Option<Vec<[f64; 6]>>,
+    /// Inverse-kinematics configurations, when given.
+    pub config: Option<Vec<u8>>,
+    /// The source line of each sample (1-based), for messages.
+    pub lines: Vec<u64>,
+}
+
+impl SampleSet {
+    /// The number of samples.
+    pub fn len(&self) -> usize {
+        self.nominal_mm.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.nominal_mm.is_empty()
+    }
+
+    /// Sample `i`'s actual position, nominal + error, mm.
+    pub fn actual_mm(&self, i: usize) -> [f64; 3] {
+        let (n, e) = (self.nominal_mm[i], self.error_mm[i]);
+        [n[0] + e[0], n[1] + e[1], n[2] + e[2]]
+    }
+
+    /// The samples as the runtime stores them.
+    pub fn records(&self) -> Vec<SampleRecord> {
+        (0..self.len())
+            .map(|i| SampleRecord {
+                actual_mm: self.actual_mm(i),
+                nominal_mm: self.nominal_mm[i],
+                error_mm: self.error_mm[i],
+                rotation_error_rad: self.rotation_error_rad.as_ref().map_or([0.0; 3], |r| r[i]),
+                config: self.config.as_ref().map_or(CONFIG_UNKNOWN, |c| c[i]),
+            })
+            .collect()
+    }
+
+    /// XXH3-64 of the sample values (not of the file's text: comments, column order and
+    /// number formatting do not change it).
+    pub fn source_hash(&self) -> u64 {
+        let mut bytes = Vec::with_capacity(self.len() * 200);
+        let mut push = |v: f64| bytes.extend_from_slice(&v.to_le_bytes());
+        for i in 0..self.len() {
+            self.nominal_mm[i].into_iter().for_each(&mut push);
+            self.error_mm[i].into_iter().for_each(&mut push);
+            if let Some(r) = &self.rotation_error_rad {
+                r[i].into_iter().for_each(&mut push);
+            }
+            if let Some(j) = &self.joints_deg {
+                j[i].into_iter().for_each(&mut push);
+            }
+            if let Some(c) = &self.config {
+                push(f64::from(c[i]));
+            }
+        }
+        let flags = [
+            self.rotation_error_rad.is_some(),
+            self.joints_deg.is_some(),
+            self.config.is_some(),
+        ];
+        bytes.extend(flags.map(u8::from));
+        xxhash_rust::xxh3::xxh3_64(&bytes)
+    }
+
+    /// The median distance from a sample's nominal position to its nearest neighbour's,
+    /// mm: the sample spacing of a lattice, a robust one of a cloud. `None` for fewer than
+    /// two samples. Above 4000 samples, the median is taken over an evenly strided subset
+    /// of 4000 (each still against all samples).
+    pub fn spacing_mm(&self) -> Option<f64> {
+        let n = self.len();
+        if n < 2 {
+            return None;
+        }
+        let stride = n.div_ceil(4000);
+        let mut nearest: Vec<f64> = (0..n)
+            .step_by(stride)
+            .map(|i| {
+                let p = self.nominal_mm[i];
+                (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| adwi_runtime::method::distance_mm(p, self.nominal_mm[j]))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        nearest.sort_by(f64::total_cmp);
+        Some(nearest[nearest.len() / 2])
+    }
+
+    /// The axis-aligned bounding box of the nominal positions, mm, or `None` when empty.
+    pub fn nominal_bounds_mm(&self) -> Option<([f64; 3], [f64; 3])> {
+        let first = *self.nominal_mm.first()?;
+        Some(self.nominal_mm.iter().fold((first, first), |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+            )
+        }))
+    }
+}
+
+/// Which source column supplies each canonical column, and whether it is negated.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ColumnMap {
+    entries: HashMap<String, (String, bool)>,
+}
+
+impl ColumnMap {
+    /// Parses `canonical=source,...`; a `-` before the source negates it.
+    ///
+    /// # Errors
+    ///
+    /// An unknown canonical name, a missing `=`, an empty source or a name mapped twice.
+    pub fn parse(spec: &str) -> Result<ColumnMap, String> {
+        let mut map = ColumnMap::default();
+        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let (canonical, source) = item
+                .split_once('=')
+                .ok_or_else(|| format!("column mapping '{item}' is not of the form name=column"))?;
+            let canonical = canonical.trim().to_ascii_lowercase();
+            if !CANONICAL_COLUMNS.contains(&canonical.as_str()) {
+                return Err(format!(
+                    "column mapping '{item}': '{canonical}' is not one of {}",
+                    CANONICAL_COLUMNS.join(", ")
+                ));
+            }
+            let source = source.trim();
+            let (negate, source) = match source.strip_prefix('-') {
+                Some(s) => (true, s.trim()),
+                None => (false, source),
+            };
+            if source.is_empty() {
+                return Err(format!("column mapping '{item}' names no source column"));
+            }
+            if map
+                .entries
+                .insert(canonical.clone(), (source.to_ascii_lowercase(), negate))
+                .is_some()
+            {
+                return Err(format!("column mapping maps '{canonical}' twice"));
+            }
+        }
+        Ok(map)
+    }
+
+    /// The source column name and negation for a canonical column.
+    fn source(&self, canonical: &str) -> (String, bool) {
+        self.entries
+            .get(canonical)
+            .cloned()
+            .unwrap_or_else(|| (canonical.to_string(), false))
+    }
+}
+
+/// What is wrong with a sample file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SampleErrorKind {
+    /// The file could not be read.
+    Io(String),
+    /// The file has no header row.
+    Empty,
+    /// The file has a header but no sample row.
+    NoSamples,
+    /// A required column is absent from the header.
+    MissingColumn(String),
+    /// Columns that only make sense together are partly present.
+    IncompleteColumns(String),
+    /// A column is given twice in the header.
+    DuplicateColumn(String),
+    /// A row has a different number of fields from the header.
+    FieldCount {
+        /// Fields in the header.
+        expected: u64,
+        /// Fields in this row.
+        found: u64,
+    },
+    /// A field is not a number.
+    NotANumber(String),
+    /// A field is NaN or infinite.
+    NotFinite(String),
+    /// A configuration is not an integer from 0 to 254.
+    BadConfig(String),
+    /// A field is not UTF-8.
+    NotUtf8,
+    /// The CSV syntax is broken (e.g. an unterminated quote).
+    Syntax(String),
+    /// A nominal position appears twice.
+    DuplicatePosition {
+        /// The line where it first appeared.
+        first_line: u64,
+    },
+}
+
+/// An error in a sample file, located by file, line and column.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleError {
+    /// The file.
+    pub path: PathBuf,
+    /// The 1-based line, when the error has one.
+    pub line: Option<u64>,
+    /// The 1-based column number and its header name, when the error has one.
+    pub column: Option<(usize, String)>,
+    /// What is wrong.
+    pub kind: SampleErrorKind,
+}
+
+impl fmt::Display for SampleError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some((number, name)) = &self.column {
+            write!(f, ":{number} (column '{name}')")?;
+        }
+        write!(f, ": ")?;
+        match &self.kind {
+            SampleErrorKind::Io(e) => write!(f, "cannot read: {e}"),
+            SampleErrorKind::Empty => write!(f, "empty file: expected a header row"),
+            SampleErrorKind::NoSamples => write!(f, "no sample rows after the header"),
+            SampleErrorKind::MissingColumn(c) => write!(
+                f,
+                "missing column {c} (name it in the header, or map it with --columns)"
+            ),
+            SampleErrorKind::IncompleteColumns(what) => write!(f, "incomplete columns: {what}"),
+            SampleErrorKind::DuplicateColumn(c) => write!(f, "column '{c}' appears twice"),
+            SampleErrorKind::FieldCount { expected, found } => {
+                write!(f, "{found} fields where the header has {expected}")
+            }
+            SampleErrorKind::NotANumber(v) => write!(f, "not a number: '{v}'"),
+            SampleErrorKind::NotFinite(v) => write!(f, "not a finite number: '{v}'"),
+            SampleErrorKind::BadConfig(v) => {
+                write!(
+                    f,
+                    "configuration must be an integer from 0 to 254, found '{v}'"
+                )
+            }
+            SampleErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
+            SampleErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
+            SampleErrorKind::DuplicatePosition { first_line } => write!(
+                f,
+                "nominal position already given on line {first_line}: each sample needs its own"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SampleError {}
+
+/// Reads a sample file. See the module docs for the format.
+///
+/// # Errors
+///
+/// The first problem found, with file, line and column.
+pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, SampleError> {
+    let bytes = std::fs::read(path).map_err(|e| SampleError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        kind: SampleErrorKind::Io(e.to_string()),
+    })?;
+    parse_samples(path, &bytes, columns)
+}
+
+/// Column indices of the parts a file provides.
+struct Layout {
+    position: [usize; 3],
+    error: ErrorColumns,
+    rotation: Option<RotationColumns>,
+    joints: Option<[usize; 6]>,
+    config: Option<usize>,
+    negate: Vec<bool>,
+}
+
+enum ErrorColumns {
+    None,
+    Delta([usize; 3]),
+    Measured([usize; 3]),
+}
+
+enum RotationColumns {
+    Vector([usize; 3]),
+    Measured {
+        nominal: [usize; 3],
+        measured: [usize; 3],
+    },
+}
+
+/// Reads a CSV of targets: `x,y,z` (mm, base frame) and optionally `config`, through the
+/// same reader and column mapping as samples; other columns (errors, say) are ignored, and
+/// positions may repeat.
+///
+/// # Errors
+///
+/// As [`read_samples`], but error columns are not required.
+pub fn read_targets(
+    path: &Path,
+    columns: &ColumnMap,
+) -> Result<Vec<adwi_runtime::Target>, SampleError> {
+    let bytes = std::fs::read(path).map_err(|e| SampleError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        kind: SampleErrorKind::Io(e.to_string()),
+    })?;
+    let set = parse(path, &bytes, columns, Purpose::Targets)?;
+    Ok((0..set.len())
+        .map(|i| adwi_runtime::Target {
+            position_mm: set.nominal_mm[i],
+            config: set.config.as_ref().map(|c| c[i]),
+        })
+        .collect())
+}
+
+/// Parses sample CSV held in memory; `path` only names it in messages.
+///
+/// # Errors
+///
+/// As [`read_samples`].
+pub fn parse_samples(
+    path: &Path,
+    bytes: &[u8],
+    columns: &ColumnMap,
+) -> Result<SampleSet, SampleError> {
+    parse(path, bytes, columns, Purpose::Samples)
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Purpose {
+    Samples,
+    Targets,
+}
+
+fn parse(
+    path: &Path,
+    bytes: &[u8],
+    columns: &ColumnMap,
+    purpose: Purpose,
+) -> Result<SampleSet, SampleError> {
+    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| SampleError {
+        path: path.to_path_buf(),
+        line,
+        column,
+        kind,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(bytes);
+    let mut records = reader.byte_records();
+    let header = match records.next() {
+        None => return Err(error(None, None, SampleErrorKind::Empty)),
+        Some(Err(e)) => return Err(csv_error(path, e)),
+        Some(Ok(h)) => h,
+    };
+    let header_line = header.position().map_or(1, |p| p.line());
+    let mut names = Vec::with_capacity(header.len());
+    for field in header.iter() {
+        let name = std::str::from_utf8(field)
+            .map_err(|_| error(Some(header_line), None, SampleErrorKind::NotUtf8))?
+            .to_ascii_lowercase();
+        if !name.is_empty() && names.contains(&name) {
+            return Err(error(
+                Some(header_line),
+                Some((names.len() + 1, name.clone())),
+                SampleErrorKind::DuplicateColumn(name),
+            ));
+        }
+        names.push(name);
+    }
+    let layout =
+        layout(&names, columns, purpose).map_err(|kind| error(Some(header_line), None, kind))?;
+
+    let mut set = SampleSet {
+        nominal_abc_deg: layout
+            .rotation
+            .as_ref()
+            .filter(|r| matches!(r, RotationColumns::Measured { .. }))
+            .map(|_| Vec::new()),
+        rotation_error_rad: layout.rotation.as_ref().map(|_| Vec::new()),
+        joints_deg: layout.joints.map(|_| Vec::new()),
+        config: layout.config.map(|_| Vec::new()),
+        ..SampleSet::default()
+    };
+    let mut seen: HashMap<[u64; 3], u64> = HashMap::new();
+    for record in records {
+        let record = record.map_err(|e| csv_error(path, e))?;
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() != names.len() {
+            // A blank line is skipped by the reader; a row with one empty field is not.
+            return Err(error(
+                Some(line),
+                None,
+                SampleErrorKind::FieldCount {
+                    expected: names.len() as u64,
+                    found: record.len() as u64,
+                },
+            ));
+        }
+        let number = |index: usize| -> Result<f64, SampleError> {
+            let column = Some((index + 1, names[index].clone()));
+            let text = std::str::from_utf8(&record[index])
+                .map_err(|_| error(Some(line), column.clone(), SampleErrorKind::NotUtf8))?;
+            let value: f64 = text.parse().map_err(|_| {
+                error(
+                    Some(line),
+                    column.clone(),
+                    SampleErrorKind::NotANumber(truncated(text)),
+                )
+            })?;
+            if !value.is_finite() {
+                return Err(error(
+                    Some(line),
+                    column,
+                    SampleErrorKind::NotFinite(truncated(text)),
+                ));
+            }
+            Ok(if layout.negate[index] { -value } else { value })
+        };
+        let triple = |cols: [usize; 3]| -> Result<[f64; 3], SampleError> {
+            Ok([number(cols[0])?, number(cols[1])?, number(cols[2])?])
+        };
+        let nominal = triple(layout.position)?;
+        let error_mm = match layout.error {
+            ErrorColumns::Delta(cols) => triple(cols)?,
+            ErrorColumns::None => [0.0; 3],
+            ErrorColumns::Measured(cols) => {
+                let m = triple(cols)?;
+                [m[0] - nominal[0], m[1] - nominal[1], m[2] - nominal[2]]
+            }
+        };
+        match &layout.rotation {
+            Some(RotationColumns::Vector(cols)) => {
+                let r = triple(*cols)?;
+                push(&mut set.rotation_error_rad, r);
+            }
+            Some(RotationColumns::Measured { nominal, measured }) => {
+                let abc = triple(*nominal)?;
+                let measured = triple(*measured)?;
+                let r = pose::orientation_error(
+                    &pose::rotation_from_kuka_abc_deg(abc),
+                    &pose::rotation_from_kuka_abc_deg(measured),
+                );
+                push(&mut set.nominal_abc_deg, abc);
+                push(&mut set.rotation_error_rad, r);
+            }
+            None => {}
+        }
+        if let Some(cols) = layout.joints {
+            let mut q = [0.0; 6];
+            for (v, c) in q.iter_mut().zip(cols) {
+                *v = number(c)?;
+            }
+            push(&mut set.joints_deg, q);
+        }
+        if let Some(c) = layout.config {
+            let text = String::from_utf8_lossy(&record[c]).into_owned();
+            let config: u8 = text
+                .parse()
+                .ok()
+                .filter(|&v| v != CONFIG_UNKNOWN)
+                .ok_or_else(|| {
+                    error(
+                        Some(line),
+                        Some((c + 1, names[c].clone())),
+                        SampleErrorKind::BadConfig(truncated(&text)),
+                    )
+                })?;
+            push(&mut set.config, config);
+        }
+        // +0.0 folds -0.0 into 0.0, so both spellings of zero are the same position.
+        let key = nominal.map(|v| (v + 0.0).to_bits());
+        if let (Purpose::Samples, Some(&first_line)) = (purpose, seen.get(&key)) {
+            return Err(error(
+                Some(line),
+                None,
+                SampleErrorKind::DuplicatePosition { first_line },
+            ));
+        }
+        seen.insert(key, line);
+        set.nominal_mm.push(nominal);
+        set.error_mm.push(error_mm);
+        set.lines.push(line);
+    }
+    if set.is_empty() {
+        return Err(error(Some(header_line), None, SampleErrorKind::NoSamples));
+    }
+    Ok(set)
+}
+
+fn push<T>(column: &mut Option<Vec<T>>, value: T) {
+    if let Some(v) = column {
+        v.push(value);
+    }
+}
+
+fn truncated(text: &str) -> String {
+    const MAX: usize = 40;
+    match text.char_indices().nth(MAX) {
+        Some((cut, _)) => format!("{}…", &text[..cut]),
+        None => text.to_string(),
+    }
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> SampleError {
+    let line = e.position().map(|p| p.line());
+    let kind = match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => SampleErrorKind::NotUtf8,
+        csv::ErrorKind::Io(io) => SampleErrorKind::Io(io.to_string()),
+        _ => SampleErrorKind::Syntax(e.to_string()),
+    };
+    SampleError {
+        path: path.to_path_buf(),
+        line,
+        column: None,
+        kind,
+    }
+}
+
+/// Finds the columns of each part; all-or-none groups must be complete.
+fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout, SampleErrorKind> {
+    let mut negate = vec![false; names.len()];
+    let mut find = |canonical: &str| -> Option<usize> {
+        let (source, neg) = map.source(canonical);
+        let index = names.iter().position(|n| *n == source)?;
+        negate[index] = neg;
+        Some(index)
+    };
+    let mut group = |cols: &[&str]| -> Result<Option<Vec<usize>>, SampleErrorKind> {
+        let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
+        if found.iter().all(Option::is_none) {
+            return Ok(None);
+        }
+        if let Some(i) = found.iter().position(Option::is_none) {
+            let present: Vec<&str> = cols
+                .iter()
+                .zip(&found)
+                .filter(|(_, f)| f.is_some())
+                .map(|(c, _)| *c)
+                .collect();
+            return Err(SampleErrorKind::IncompleteColumns(format!(
+                "'{}' given without '{}'",
+                present.join(","),
+                cols[i]
+            )));
+        }
+        Ok(Some(found.into_iter().flatten().collect()))
+    };
+    let three = |v: Vec<usize>| [v[0], v[1], v[2]];
+    let position = group(&["x", "y", "z"])?
+        .map(three)
+        .ok_or_else(|| SampleErrorKind::MissingColumn("x,y,z (nominal position, mm)".into()))?;
+    let delta = group(&["dx", "dy", "dz"])?.map(three);
+    let measured = group(&["mx", "my", "mz"])?.map(three);
+    let error = match (delta, measured) {
+        (Some(d), None) => ErrorColumns::Delta(d),
+        (None, Some(m)) => ErrorColumns::Measured(m),
+        (Some(_), Some(_)) => {
+            return Err(SampleErrorKind::IncompleteColumns(
+                "both dx,dy,dz and mx,my,mz given: keep one".into(),
+            ))
+        }
+        (None, None) if purpose == Purpose::Targets => ErrorColumns::None,
+        (None, None) => {
+            return Err(SampleErrorKind::MissingColumn(
+                "dx,dy,dz (error, mm) or mx,my,mz (measured position, mm)".into(),
+            ))
+        }
+    };
+    let nominal_abc = group(&["a", "b", "c"])?.map(three);
+    let vector = group(&["rx", "ry", "rz"])?.map(three);
+    let measured_abc = group(&["ma", "mb", "mc"])?.map(three);
+    let rotation = match (nominal_abc, vector, measured_abc) {
+        (_, Some(_), Some(_)) => {
+            return Err(SampleErrorKind::IncompleteColumns(
+                "both rx,ry,rz and ma,mb,mc given: keep one".into(),
+            ))
+        }
+        (_, Some(v), None) => Some(RotationColumns::Vector(v)),
+        (Some(nominal), None, Some(measured)) => {
+            Some(RotationColumns::Measured { nominal, measured })
+        }
+        (None, None, Some(_)) => {
+            return Err(SampleErrorKind::MissingColumn(
+                "a,b,c (nominal orientation) for the measured orientation ma,mb,mc".into(),
+            ))
+        }
+        (_, None, None) => None,
+    };
+    let joints =
+        group(&["j1", "j2", "j3", "j4", "j5", "j6"])?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
+    let config = find("config");
+    Ok(Layout {
+        position,
+        error,
+        rotation,
+        joints,
+        config,
+        negate,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<SampleSet, SampleError> {
+        parse_samples(Path::new("s.csv"), text.as_bytes(), &ColumnMap::default())
+    }
+
+    #[test]
+    fn reads_errors_comments_and_padding() {
+        let s = parse(
+            "# header comment\nx, y, z, dx, dy, dz\n1,2,3,0.1,0.2,0.3\n# mid\n4,5,6,-1,-2,-3\n",
+        )
+        .unwrap();
+        assert_eq!(s.nominal_mm, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(s.error_mm[1], [-1.0, -2.0, -3.0]);
+        assert_eq!(s.lines, vec![3, 5]);
+        assert!(s.rotation_error_rad.is_none() && s.config.is_none());
+    }
+
+    #[test]
+    fn measured_positions_become_errors() {
+        let s = parse("x,y,z,mx,my,mz\n1,2,3,1.5,2,2\n").unwrap();
+        assert_eq!(s.error_mm[0], [0.5, 0.0, -1.0]);
+    }
+
+    #[test]
+    fn measured_orientation_becomes_a_rotation_vector() {
+        let s = parse("x,y,z,dx,dy,dz,a,b,c,ma,mb,mc\n1,2,3,0,0,0,0,90,0,0.01,90,0\n").unwrap();
+        let r = s.rotation_error_rad.unwrap()[0];
+        // Rz(0.01°) applied before Ry(90°): a rotation of 0.01° about the base z axis.
+        assert!((r[2] - 0.01f64.to_radians()).abs() < 1e-12, "{r:?}");
+        assert!(r[0].abs() < 1e-12 && r[1].abs() < 1e-12);
+    }
+
+    #[test]
+    fn column_map_renames_and_negates() {
+        let map = ColumnMap::parse("x=x_t,y=y_t,z=z_t,dx=-x_dif,dy=y_dif,dz=z_dif").unwrap();
+        let s = parse_samples(
+            Path::new("u.csv"),
+            b"step,x_t,y_t,z_t,x_dif,y_dif,z_dif\n0,1,2,3,0.5,0.25,0.125\n",
+            &map,
+        )
+        .unwrap();
+        assert_eq!(s.error_mm[0], [-0.5, 0.25, 0.125]);
+        assert!(ColumnMap::parse("q=x_t").is_err());
+        assert!(ColumnMap::parse("x=a,x=b").is_err());
+    }
+}
