@@ -7,7 +7,8 @@
 //! point of comparison, so this module checks it rather than assuming it:
 //!
 //! - [`Grid::new`] detects, per axis, a uniform lattice `origin + n · step` (steps may differ
-//!   between axes) that every sample lies on within `relative_tolerance · step`, and reports
+//!   between axes), anchored at the lowest coordinate along each axis, that every sample
+//!   lies on within `relative_tolerance · step`, and reports
 //!   [`BaselineError::Unsupported`] with the first offending sample otherwise. The lattice may
 //!   be partial: nodes may be missing.
 //! - [`Grid::predict`] never extrapolates: a query outside the lattice's bounding box, or in

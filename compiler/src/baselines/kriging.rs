@@ -378,7 +378,9 @@ impl Baseline for Kriging {
 /// All pairs are used when there are at most `max_pairs` of them; otherwise `max_pairs`
 /// pairs of distinct samples are drawn uniformly with replacement from ChaCha8 seeded with
 /// `seed`, keeping the cost bounded for large databases. Pairs at distance 0 (coincident
-/// samples) carry no spatial information and are skipped.
+/// samples) carry no spatial information and are skipped, as are pairs beyond
+/// `max_lag_mm`; with a non-positive `max_lag_mm` no bins result. `positions_mm` and
+/// `values` pair up by index; extra entries in the longer slice are ignored.
 pub fn empirical_variogram(
     positions_mm: &[[f64; 3]],
     values: &[[f64; 3]],

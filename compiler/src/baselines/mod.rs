@@ -144,6 +144,14 @@ impl std::fmt::Display for NotCovered {
     }
 }
 
+// An evaluation runs queries in parallel: every baseline must stay shareable across threads.
+const _: fn() = || {
+    fn shareable<T: Send + Sync>() {}
+    shareable::<Idw>();
+    shareable::<Grid>();
+    shareable::<Kriging>();
+};
+
 /// Checks the inputs every baseline shares: non-empty, paired, finite.
 fn validate_samples(positions_mm: &[[f64; 3]], values: &[[f64; 3]]) -> Result<(), BaselineError> {
     if positions_mm.len() != values.len() {
