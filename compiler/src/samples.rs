@@ -396,19 +396,37 @@ fn parse(
         column,
         kind,
     };
+    // Comment lines are removed here rather than by the CSV reader, whose line numbers do
+    // not count them consistently; `physical[n - 1]` is the file line of filtered line n.
+    let mut filtered = Vec::with_capacity(bytes.len());
+    let mut physical = Vec::new();
+    for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
+        if line.first() != Some(&b'#') {
+            filtered.extend_from_slice(line);
+            physical.push(i as u64 + 1);
+        }
+    }
     let mut reader = csv::ReaderBuilder::new()
-        .comment(Some(b'#'))
         .trim(csv::Trim::All)
         .has_headers(false)
         .flexible(true)
-        .from_reader(bytes);
+        .from_reader(filtered.as_slice());
     let mut records = reader.byte_records();
     let header = match records.next() {
         None => return Err(error(None, None, SampleErrorKind::Empty)),
-        Some(Err(e)) => return Err(csv_error(path, e)),
+        Some(Err(e)) => return Err(csv_error(path, e, &|_| 1)),
         Some(Ok(h)) => h,
     };
-    let header_line = header.position().map_or(1, |p| p.line());
+    let line_at = |p: Option<&csv::Position>| {
+        p.map_or(0, |p| {
+            let n = p.line() as usize;
+            physical
+                .get(n.saturating_sub(1))
+                .copied()
+                .unwrap_or(p.line())
+        })
+    };
+    let header_line = line_at(header.position());
     let mut names = Vec::with_capacity(header.len());
     for field in header.iter() {
         let name = std::str::from_utf8(field)
@@ -439,8 +457,8 @@ fn parse(
     };
     let mut seen: HashMap<[u64; 3], u64> = HashMap::new();
     for record in records {
-        let record = record.map_err(|e| csv_error(path, e))?;
-        let line = record.position().map_or(0, |p| p.line());
+        let record = record.map_err(|e| csv_error(path, e, &line_at))?;
+        let line = line_at(record.position());
         if record.len() != names.len() {
             // A blank line is skipped by the reader; a row with one empty field is not.
             return Err(error(
@@ -557,8 +575,12 @@ fn truncated(text: &str) -> String {
     }
 }
 
-fn csv_error(path: &Path, e: csv::Error) -> SampleError {
-    let line = e.position().map(|p| p.line());
+fn csv_error(
+    path: &Path,
+    e: csv::Error,
+    line_at: &dyn Fn(Option<&csv::Position>) -> u64,
+) -> SampleError {
+    let line = e.position().map(|p| line_at(Some(p)));
     let kind = match e.kind() {
         csv::ErrorKind::Utf8 { .. } => SampleErrorKind::NotUtf8,
         csv::ErrorKind::Io(io) => SampleErrorKind::Io(io.to_string()),

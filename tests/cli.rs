@@ -1,0 +1,256 @@
+//! The real `tablec` binary, run in a temporary directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tablec(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tablec"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("tablec runs")
+}
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const GOOD: &str = "x,y,z,dx,dy,dz\n\
+1000,0,500,0.1,0.2,0.3\n\
+1100,0,500,0.2,0.1,0.3\n\
+1000,100,500,0.1,0.3,0.2\n\
+1100,100,500,0.3,0.2,0.1\n";
+
+/// Builds `csv` into `out.tbl` over an existing table, expects failure with every
+/// `needle` in the message, and checks the existing table is untouched.
+fn assert_refused(csv: &[u8], needles: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    let ok = tablec(&["build", "-q", "good.csv", "-o", "out.tbl"], dir.path());
+    assert!(ok.status.success(), "{}", stderr(&ok));
+    let before = std::fs::read(dir.path().join("out.tbl")).unwrap();
+    std::fs::write(dir.path().join("bad.csv"), csv).unwrap();
+    let o = tablec(&["build", "-q", "bad.csv", "-o", "out.tbl"], dir.path());
+    assert!(!o.status.success(), "bad input accepted");
+    let message = stderr(&o);
+    for needle in needles {
+        assert!(message.contains(needle), "{needle:?} not in: {message}");
+    }
+    assert!(!message.contains("panicked"), "{message}");
+    assert_eq!(std::fs::read(dir.path().join("out.tbl")).unwrap(), before);
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn wrong_field_count_names_the_line() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n# comment\n4,5,6,0,0\n",
+        &["bad.csv:4:", "5 fields where the header has 6"],
+    );
+}
+
+#[test]
+fn not_a_number_names_line_and_column() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n4,5,6,0,abc,0\n",
+        &["bad.csv:3:5 (column 'dy')", "not a number: 'abc'"],
+    );
+}
+
+#[test]
+fn nan_is_refused() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n4,NaN,6,0,0,0\n",
+        &["bad.csv:3:2 (column 'y')", "not a finite number: 'NaN'"],
+    );
+}
+
+#[test]
+fn infinity_is_refused() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,inf\n",
+        &["bad.csv:2:6 (column 'dz')", "not a finite number"],
+    );
+}
+
+#[test]
+fn duplicate_nominal_position_names_both_lines() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n4,5,6,0,0,0\n1,2,3.0,1,1,1\n",
+        &["bad.csv:4:", "already given on line 2"],
+    );
+}
+
+#[test]
+fn missing_required_column_is_named() {
+    assert_refused(
+        b"x,y,z,dx,dy\n1,2,3,0,0\n",
+        &["bad.csv:1:", "'dx,dy' given without 'dz'"],
+    );
+    assert_refused(
+        b"x,y,dx,dy,dz\n1,2,0,0,0\n",
+        &["bad.csv:1:", "'x,y' given without 'z'"],
+    );
+    assert_refused(
+        b"dx,dy,dz\n0,0,0\n",
+        &["bad.csv:1:", "missing column x,y,z"],
+    );
+    assert_refused(
+        b"x,y,z\n1,2,3\n",
+        &["bad.csv:1:", "missing column dx,dy,dz"],
+    );
+}
+
+#[test]
+fn empty_file_and_header_only_are_refused() {
+    assert_refused(b"", &["bad.csv:", "empty file"]);
+    assert_refused(b"# only a comment\n", &["bad.csv:", "empty file"]);
+    assert_refused(b"x,y,z,dx,dy,dz\n", &["bad.csv:1:", "no sample rows"]);
+}
+
+#[test]
+fn non_utf8_is_refused() {
+    assert_refused(
+        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n4,5,\xff\xfe,0,0,0\n",
+        &["bad.csv:3", "UTF-8"],
+    );
+}
+
+#[test]
+fn same_input_gives_identical_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/paper/worked_example_p1.csv");
+    let samples = samples.to_str().unwrap();
+    for threads in ["1", "2", "3"] {
+        let out = format!("t{threads}.tbl");
+        let o = tablec(
+            &[
+                "build",
+                "-q",
+                samples,
+                "-o",
+                &out,
+                "--threads",
+                threads,
+                "--cell",
+                "10",
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let one = std::fs::read(dir.path().join("t1.tbl")).unwrap();
+    assert_eq!(one, std::fs::read(dir.path().join("t2.tbl")).unwrap());
+    assert_eq!(one, std::fs::read(dir.path().join("t3.tbl")).unwrap());
+}
+
+#[test]
+fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
+               j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+    let grid = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
+    let random = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_random_cleaned.csv");
+    if !grid.exists() {
+        eprintln!("UR5 data set not present beside the repository; skipped");
+        return;
+    }
+    let o = tablec(
+        &[
+            "build",
+            grid.to_str().unwrap(),
+            "-o",
+            "ur5.tbl",
+            "--columns",
+            map,
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary = String::from_utf8_lossy(&o.stdout);
+    assert!(summary.contains("samples        1000"), "{summary}");
+    assert!(summary.contains("(derived: default)"), "{summary}");
+    let o = tablec(
+        &[
+            "query",
+            "ur5.tbl",
+            "--targets",
+            random.to_str().unwrap(),
+            "--columns",
+            map,
+            "-o",
+            "out.csv",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
+    let mut lines = out.lines();
+    assert_eq!(
+        lines.next(),
+        Some("x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status")
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 20);
+    for row in rows {
+        let fields: Vec<&str> = row.split(',').collect();
+        assert_eq!(fields.len(), 11, "{row}");
+        assert_eq!(fields[10], "ok", "{row}");
+        assert!(fields[3].parse::<f64>().unwrap().abs() < 10.0);
+        // Position only: blank orientation.
+        assert_eq!(&fields[6..9], &["", "", ""]);
+    }
+}
+
+#[test]
+fn query_outside_the_grid_and_inspect() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    assert!(
+        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
+            .status
+            .success()
+    );
+    let o = tablec(&["query", "t.tbl", "5000", "0", "0"], dir.path());
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("status       outside_grid"));
+    let o = tablec(
+        &["inspect", "t.tbl", "--cell", "1050", "50", "500"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("samples         4 (positions)"), "{text}");
+    assert!(text.contains("candidates [0, 1, 2, 3]"), "{text}");
+}
+
+#[test]
+fn a_corrupt_table_is_refused_with_a_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    assert!(
+        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
+            .status
+            .success()
+    );
+    let mut bytes = std::fs::read(dir.path().join("t.tbl")).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x10;
+    std::fs::write(dir.path().join("t.tbl"), &bytes).unwrap();
+    let o = tablec(&["query", "t.tbl", "1050", "50", "500"], dir.path());
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("table contents are corrupt: checksum"),
+        "{}",
+        stderr(&o)
+    );
+}
