@@ -8,4 +8,5 @@ pub mod baselines;
 pub mod build;
 pub mod pose;
 pub mod reference;
+pub mod robot;
 pub mod samples;

@@ -1,0 +1,402 @@
+//! The first-order pose error model: how small deviations of the MD-H parameters from
+//! nominal move the TCP, as a 6 × 30 Jacobian in the base frame.
+//!
+//! Each of the 30 parameters (Δa, Δd, Δα, Δθ, Δβ of six joints) acts on the chain as an
+//! elementary motion of everything distal to it: a rotation about a line ([`Screw::Revolute`])
+//! or a translation along a direction ([`Screw::Prismatic`]). For `A_i = Rz(θ)·Tz(d)·Tx(a)·
+//! Rx(α)·Ry(β)` with frame `i − 1` at origin `o` with z axis `z`:
+//!
+//! | parameter | motion                                                             |
+//! |-----------|--------------------------------------------------------------------|
+//! | θ         | rotation about `z` through `o`                                     |
+//! | d         | translation along `z`                                              |
+//! | a         | translation along `x' = R_{i−1}·Rz(θ)·x`                             |
+//! | α         | rotation about `x'` through frame `i`'s origin                     |
+//! | β         | rotation about frame `i`'s y axis through its origin               |
+//!
+//! A rotation `ω` about a line through `c` moves a point `p` by `ω × (p − c)` and turns the
+//! orientation by `ω`; a translation `v` moves it by `v`. This is the paper's differential
+//! transform `dT = T · Σ U⁻¹ δA U`, written directly in the base frame, where compensation
+//! consumes errors. Rows are `[dx, dy, dz]` in mm, then the orientation error
+//! `[δx, δy, δz] = log(R_actual · R_nominalᵀ)` in rad, both in the base frame.
+//!
+//! Further parameter groups (tool offset, base registration) are more screws: a base
+//! translation is a prismatic screw along a base axis, a base rotation a revolute one through
+//! the origin, a tool offset a prismatic screw along a flange axis. A later identification
+//! appends their columns with [`Screw::pose_error_column`].
+
+use adwi_runtime::kinematics::{link_frames, MdhJoint, Transform};
+use nalgebra::{Isometry3, Matrix6, SMatrix, SVector, Vector3, Vector6};
+
+use super::model::JOINT_COUNT;
+use crate::pose::orientation_error;
+
+/// The MD-H parameters that can deviate, in their column order within a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MdhParameter {
+    /// Link length `a`, mm.
+    A,
+    /// Link offset `d`, mm.
+    D,
+    /// Twist `α` about x, rad.
+    Alpha,
+    /// Joint angle offset `θ`, rad.
+    Theta,
+    /// Hayati twist `β` about y, rad.
+    Beta,
+}
+
+impl MdhParameter {
+    /// Every parameter, in column order.
+    pub const ALL: [MdhParameter; PARAMETERS_PER_JOINT] = [
+        MdhParameter::A,
+        MdhParameter::D,
+        MdhParameter::Alpha,
+        MdhParameter::Theta,
+        MdhParameter::Beta,
+    ];
+
+    /// The column of this parameter of joint `joint` (0-based) in the 6 × 30 Jacobian.
+    pub const fn column(self, joint: usize) -> usize {
+        joint * PARAMETERS_PER_JOINT + self as usize
+    }
+}
+
+/// Deviating parameters per joint.
+pub const PARAMETERS_PER_JOINT: usize = 5;
+
+/// Deviating MD-H parameters of the whole robot: the Jacobian's column count.
+pub const MDH_PARAMETER_COUNT: usize = JOINT_COUNT * PARAMETERS_PER_JOINT;
+
+/// The 6 × 30 pose error Jacobian: rows `[dx, dy, dz]` (mm) and `[δx, δy, δz]` (rad),
+/// base frame; columns `(Δa, Δd, Δα, Δθ, Δβ)` of joint 1, then of joint 2, and so on.
+pub type PoseErrorJacobian = SMatrix<f64, 6, MDH_PARAMETER_COUNT>;
+
+/// The 30 deviations as one vector, in the Jacobian's column order (mm and rad mixed).
+pub type DeviationVector = SVector<f64, MDH_PARAMETER_COUNT>;
+
+/// How far one joint's MD-H parameters are from nominal.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct JointDeviation {
+    /// Δa, mm.
+    pub a_mm: f64,
+    /// Δd, mm.
+    pub d_mm: f64,
+    /// Δα, rad.
+    pub alpha_rad: f64,
+    /// Δθ, added to the joint's θ offset, rad.
+    pub theta_rad: f64,
+    /// Δβ, rad.
+    pub beta_rad: f64,
+}
+
+/// Deviations of all six joints.
+pub type MdhDeviations = [JointDeviation; JOINT_COUNT];
+
+/// The actual joint geometry: nominal plus deviations, exactly (no linearisation).
+pub fn apply_deviations(
+    nominal: &[MdhJoint; JOINT_COUNT],
+    deviations: &MdhDeviations,
+) -> [MdhJoint; JOINT_COUNT] {
+    std::array::from_fn(|i| {
+        let (n, d) = (&nominal[i], &deviations[i]);
+        MdhJoint {
+            a_mm: n.a_mm + d.a_mm,
+            d_mm: n.d_mm + d.d_mm,
+            alpha_rad: n.alpha_rad + d.alpha_rad,
+            beta_rad: n.beta_rad + d.beta_rad,
+            theta_offset_rad: n.theta_offset_rad + d.theta_rad,
+        }
+    })
+}
+
+/// The deviations as a vector in the Jacobian's column order.
+pub fn deviation_vector(deviations: &MdhDeviations) -> DeviationVector {
+    let mut v = DeviationVector::zeros();
+    for (joint, d) in deviations.iter().enumerate() {
+        let values = [d.a_mm, d.d_mm, d.alpha_rad, d.theta_rad, d.beta_rad];
+        for (parameter, value) in MdhParameter::ALL.into_iter().zip(values) {
+            v[parameter.column(joint)] = value;
+        }
+    }
+    v
+}
+
+/// The deviations of a vector in the Jacobian's column order (e.g. an identified solution).
+pub fn deviations_from_vector(v: &DeviationVector) -> MdhDeviations {
+    std::array::from_fn(|joint| {
+        let at = |parameter: MdhParameter| v[parameter.column(joint)];
+        JointDeviation {
+            a_mm: at(MdhParameter::A),
+            d_mm: at(MdhParameter::D),
+            alpha_rad: at(MdhParameter::Alpha),
+            theta_rad: at(MdhParameter::Theta),
+            beta_rad: at(MdhParameter::Beta),
+        }
+    })
+}
+
+/// An elementary motion of the distal part of the chain, in the base frame, per unit of
+/// its parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Screw {
+    /// Rotation about the unit `axis` through `point_mm` (per rad).
+    Revolute {
+        /// Unit axis, base frame.
+        axis: Vector3<f64>,
+        /// A point on the axis, base frame, mm.
+        point_mm: Vector3<f64>,
+    },
+    /// Translation along the unit `direction` (per mm).
+    Prismatic {
+        /// Unit direction, base frame.
+        direction: Vector3<f64>,
+    },
+}
+
+impl Screw {
+    /// The pose error `[dp (mm); δ (rad)]` this motion causes at the point `point_mm`
+    /// (base frame), per unit parameter.
+    pub fn pose_error_column(&self, point_mm: &Vector3<f64>) -> Vector6<f64> {
+        match *self {
+            Screw::Revolute { axis, point_mm: c } => {
+                let dp = axis.cross(&(point_mm - c));
+                Vector6::new(dp.x, dp.y, dp.z, axis.x, axis.y, axis.z)
+            }
+            Screw::Prismatic { direction: v } => Vector6::new(v.x, v.y, v.z, 0.0, 0.0, 0.0),
+        }
+    }
+}
+
+fn vector(a: [f64; 3]) -> Vector3<f64> {
+    Vector3::from(a)
+}
+
+/// The screws of the 30 MD-H parameters at joint angles `q_rad`, indexed
+/// `[joint][MdhParameter as usize]`.
+pub fn mdh_screws(
+    joints: &[MdhJoint; JOINT_COUNT],
+    q_rad: &[f64; JOINT_COUNT],
+) -> [[Screw; PARAMETERS_PER_JOINT]; JOINT_COUNT] {
+    let frames = link_frames(joints, q_rad);
+    std::array::from_fn(|i| {
+        let before = if i == 0 {
+            Transform::IDENTITY
+        } else {
+            frames[i - 1]
+        };
+        let after = &frames[i];
+        let joint = &joints[i];
+        let z = vector(before.rotate_vector([0.0, 0.0, 1.0]));
+        let (s, c) = (q_rad[i] + joint.theta_offset_rad).sin_cos();
+        // x' = R_{i−1}·Rz(θ)·x: the direction `a` translates along and `α` turns about.
+        let x_turned = vector(before.rotate_vector([c, s, 0.0]));
+        // Rx(α)·Ry(β)·y = Rx(α)·y, so frame i's y axis is the axis β turns about.
+        let y_after = vector(after.rotate_vector([0.0, 1.0, 0.0]));
+        let origin_before = vector(before.translation_mm);
+        let origin_after = vector(after.translation_mm);
+        let mut screws = [Screw::Prismatic { direction: z }; PARAMETERS_PER_JOINT];
+        screws[MdhParameter::A as usize] = Screw::Prismatic {
+            direction: x_turned,
+        };
+        screws[MdhParameter::D as usize] = Screw::Prismatic { direction: z };
+        screws[MdhParameter::Alpha as usize] = Screw::Revolute {
+            axis: x_turned,
+            point_mm: origin_after,
+        };
+        screws[MdhParameter::Theta as usize] = Screw::Revolute {
+            axis: z,
+            point_mm: origin_before,
+        };
+        screws[MdhParameter::Beta as usize] = Screw::Revolute {
+            axis: y_after,
+            point_mm: origin_after,
+        };
+        screws
+    })
+}
+
+/// The TCP position (base frame, mm) for the screws' point of application.
+fn tcp_position(
+    joints: &[MdhJoint; JOINT_COUNT],
+    tool: &Transform,
+    q_rad: &[f64; JOINT_COUNT],
+) -> Vector3<f64> {
+    vector(adwi_runtime::kinematics::forward(joints, tool, q_rad).translation_mm)
+}
+
+/// The 6 × 30 first-order pose error of the TCP with respect to the MD-H deviations, base
+/// frame, at joint angles `q_rad` (see the module docs for rows and columns).
+///
+/// With the identity tool the TCP is the flange. The linear prediction of the pose error of
+/// deviations `Δ` is `jacobian · deviation_vector(Δ)`; it agrees with the exact error
+/// [`pose_error`] of [`apply_deviations`] to second order in `Δ`.
+pub fn pose_error_jacobian(
+    joints: &[MdhJoint; JOINT_COUNT],
+    tool: &Transform,
+    q_rad: &[f64; JOINT_COUNT],
+) -> PoseErrorJacobian {
+    let tcp = tcp_position(joints, tool, q_rad);
+    let screws = mdh_screws(joints, q_rad);
+    let mut jacobian = PoseErrorJacobian::zeros();
+    for (joint, joint_screws) in screws.iter().enumerate() {
+        for (parameter, screw) in MdhParameter::ALL.into_iter().zip(joint_screws) {
+            jacobian
+                .column_mut(parameter.column(joint))
+                .copy_from(&screw.pose_error_column(&tcp));
+        }
+    }
+    jacobian
+}
+
+/// The geometric joint Jacobian of the TCP (base frame): column `i` is the pose change per
+/// rad of joint `i`, rows as in [`pose_error_jacobian`].
+///
+/// A joint variable enters exactly as the θ offset does, so these are the Δθ columns.
+pub fn joint_jacobian(
+    joints: &[MdhJoint; JOINT_COUNT],
+    tool: &Transform,
+    q_rad: &[f64; JOINT_COUNT],
+) -> Matrix6<f64> {
+    let tcp = tcp_position(joints, tool, q_rad);
+    let screws = mdh_screws(joints, q_rad);
+    let mut jacobian = Matrix6::zeros();
+    for (joint, joint_screws) in screws.iter().enumerate() {
+        jacobian
+            .column_mut(joint)
+            .copy_from(&joint_screws[MdhParameter::Theta as usize].pose_error_column(&tcp));
+    }
+    jacobian
+}
+
+/// The exact pose error of `actual` with respect to `nominal`, base frame:
+/// `[p_actual − p_nominal (mm); log(R_actual · R_nominalᵀ) (rad)]`.
+pub fn pose_error(nominal: &Isometry3<f64>, actual: &Isometry3<f64>) -> Vector6<f64> {
+    let dp = actual.translation.vector - nominal.translation.vector;
+    let delta = orientation_error(
+        &nominal.rotation.to_rotation_matrix(),
+        &actual.rotation.to_rotation_matrix(),
+    );
+    Vector6::new(dp.x, dp.y, dp.z, delta[0], delta[1], delta[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::model::{isometry_from_transform, shipped_robot_path, Robot};
+    use adwi_runtime::kinematics::forward;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn kr150() -> Robot {
+        Robot::load(shipped_robot_path("kr150-2")).unwrap()
+    }
+
+    /// A non-trivial tool, so the Jacobian is checked away from the flange too.
+    fn tool() -> Transform {
+        let iso = crate::robot::model::isometry_from_parts(
+            [30.0, -20.0, 250.0],
+            &crate::pose::rotation_from_kuka_abc_deg([10.0, 20.0, 30.0]),
+        );
+        crate::robot::model::transform_from_isometry(&iso)
+    }
+
+    fn exact_error(
+        nominal: &[MdhJoint; 6],
+        deviations: &MdhDeviations,
+        q: &[f64; 6],
+    ) -> Vector6<f64> {
+        let tool = tool();
+        let nominal_pose = isometry_from_transform(&forward(nominal, &tool, q));
+        let actual =
+            isometry_from_transform(&forward(&apply_deviations(nominal, deviations), &tool, q));
+        pose_error(&nominal_pose, &actual)
+    }
+
+    #[test]
+    fn vector_and_deviations_round_trip_in_column_order() {
+        let mut deviations = MdhDeviations::default();
+        deviations[1].beta_rad = 7.0;
+        deviations[5].a_mm = 3.0;
+        let v = deviation_vector(&deviations);
+        assert_eq!(v[MdhParameter::Beta.column(1)], 7.0);
+        assert_eq!(v[25], 3.0);
+        assert_eq!(v.iter().filter(|x| **x != 0.0).count(), 2);
+        assert_eq!(deviations_from_vector(&v), deviations);
+    }
+
+    #[test]
+    fn jacobian_equals_central_finite_differences_of_exact_fk() {
+        let robot = kr150();
+        let mut nominal = robot.nominal_joints();
+        // A non-zero β2 and a pose with no special angles: nothing hides behind a zero.
+        nominal[1].beta_rad = 0.01;
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..5 {
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let [lo, hi] = robot.joints[i].limits_rad;
+                rng.gen_range(lo..hi)
+            });
+            let jacobian = pose_error_jacobian(&nominal, &tool(), &q);
+            let h = 1e-6;
+            for column in 0..MDH_PARAMETER_COUNT {
+                let mut step = DeviationVector::zeros();
+                step[column] = h;
+                let plus = exact_error(&nominal, &deviations_from_vector(&step), &q);
+                let minus = exact_error(&nominal, &deviations_from_vector(&(-step)), &q);
+                let numeric = (plus - minus) / (2.0 * h);
+                let analytic = jacobian.column(column);
+                let scale = analytic.norm().max(1.0);
+                let gap = (numeric - analytic).norm();
+                assert!(
+                    gap <= 1e-6 * scale,
+                    "column {column}: analytic {analytic:?} numeric {numeric:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn joint_jacobian_is_the_theta_columns() {
+        let robot = kr150();
+        let q = [0.3, -1.2, 1.4, 0.5, 0.9, -0.4];
+        let joints = robot.nominal_joints();
+        let full = pose_error_jacobian(&joints, &tool(), &q);
+        let j = joint_jacobian(&joints, &tool(), &q);
+        for i in 0..6 {
+            assert_eq!(j.column(i), full.column(MdhParameter::Theta.column(i)));
+        }
+    }
+
+    /// The linear model's gap to the exact error is second order: halving every deviation
+    /// quarters it.
+    #[test]
+    fn linear_model_is_exact_to_second_order() {
+        let robot = kr150();
+        let nominal = robot.nominal_joints();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let base: DeviationVector = DeviationVector::from_fn(|i, _| {
+            // mm for a and d, rad for the angles: realistic magnitudes of 0.5 mm and 0.5 mrad.
+            let magnitude = if i % PARAMETERS_PER_JOINT < 2 {
+                0.5
+            } else {
+                5e-4
+            };
+            rng.gen_range(-magnitude..magnitude)
+        });
+        let q = [0.4, -0.9, 1.7, -0.6, 0.8, 1.2];
+        let jacobian = pose_error_jacobian(&nominal, &tool(), &q);
+        let gap = |scale: f64| {
+            let delta = base * scale;
+            let exact = exact_error(&nominal, &deviations_from_vector(&delta), &q);
+            (exact - jacobian * delta).norm()
+        };
+        let (full, half, quarter) = (gap(1.0), gap(0.5), gap(0.25));
+        let linear = (jacobian * base).norm();
+        // The gap is small against the error itself, and shrinks as Δ².
+        assert!(full < 0.01 * linear, "gap {full} vs error {linear}");
+        for ratio in [full / half, half / quarter] {
+            assert!((ratio - 4.0).abs() < 0.1, "ratio {ratio}");
+        }
+    }
+}

@@ -1,0 +1,673 @@
+//! Inverse kinematics of six-axis robots with a spherical wrist (KUKA KR150-2 and the like):
+//! every configuration in closed form, each refined by Newton steps on the exact model.
+//!
+//! # Configurations
+//!
+//! A pose is reached by up to eight joint vectors. Each is labelled by a [`Configuration`],
+//! an integer of three bits:
+//!
+//! - bit 0, **shoulder**: 0 *front*, 1 *back*. Front when joint 1's x axis (from the base
+//!   axis toward joint 2) points toward the wrist centre's horizontal direction, back when
+//!   the arm reaches over behind itself.
+//! - bit 1, **elbow**: 0 *up*, 1 *down*. Up when the elbow (joint 3's axis) lies above the
+//!   line from the shoulder (joint 2's axis) to the wrist centre, seen in the vertical
+//!   plane through the base axis and the wrist centre, with the horizontal axis pointing
+//!   from the base axis toward the wrist centre.
+//! - bit 2, **wrist**: 0 *no flip*, 1 *flip*. Flip when `sin θ5 < 0`, i.e. joint 5 bends to
+//!   its negative side (for KUKA robots, A5 < 0).
+//!
+//! The labels are geometric, so they change only where the robot passes a singularity
+//! (wrist centre on axis 1, arm stretched or folded, axes 4 and 6 aligned).
+//!
+//! # Method
+//!
+//! The closed form assumes the *skeleton* of the nominal model: α1, α3, α4, α5 = ±90°,
+//! α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0. Joints 2 and 3 are then parallel, and axes 4, 5,
+//! 6 meet at the wrist centre, which decouples position (joints 1-3 place the wrist centre)
+//! from orientation (joints 4-6 are a Z-X-Z-like Euler triple). The model actually used —
+//! a nominal β2, or a calibrated model with all 30 deviations — differs slightly from the
+//! skeleton, so every closed-form solution is refined by Newton steps on that exact model
+//! ([`adwi_runtime::kinematics::forward`] with the geometric Jacobian), keeping the
+//! skeleton's configuration label. Solutions outside the joint limits are dropped; joints
+//! with more than a full turn of travel are taken at the representative `q + 2πk` closest
+//! to the robot's home posture.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::fmt;
+
+use adwi_runtime::kinematics::{forward, link_frames, MdhJoint, Transform};
+use nalgebra::{Isometry3, Rotation3, Vector3, Vector6};
+
+use super::error_model::{joint_jacobian, pose_error};
+use super::model::{isometry_from_transform, rotation_of, Robot, JOINT_COUNT};
+
+/// An inverse-kinematics branch: bit 0 shoulder (front 0 / back 1), bit 1 elbow (up 0 /
+/// down 1), bit 2 wrist (no flip 0 / flip 1). See the module docs for the geometry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Configuration(u8);
+
+impl Configuration {
+    /// Shoulder back (bit 0).
+    pub const SHOULDER_BACK: u8 = 1;
+    /// Elbow down (bit 1).
+    pub const ELBOW_DOWN: u8 = 2;
+    /// Wrist flipped (bit 2).
+    pub const WRIST_FLIP: u8 = 4;
+
+    /// The configuration of an integer 0..=7, `None` for anything else.
+    pub fn from_bits(bits: u8) -> Option<Configuration> {
+        (bits < 8).then_some(Configuration(bits))
+    }
+
+    fn new(shoulder_back: bool, elbow_down: bool, wrist_flip: bool) -> Configuration {
+        Configuration(
+            u8::from(shoulder_back) * Self::SHOULDER_BACK
+                + u8::from(elbow_down) * Self::ELBOW_DOWN
+                + u8::from(wrist_flip) * Self::WRIST_FLIP,
+        )
+    }
+
+    /// The integer 0..=7 written to sample files.
+    pub fn bits(self) -> u8 {
+        self.0
+    }
+
+    /// Whether the arm reaches over behind joint 1.
+    pub fn shoulder_back(self) -> bool {
+        self.0 & Self::SHOULDER_BACK != 0
+    }
+
+    /// Whether the elbow is below the shoulder–wrist line.
+    pub fn elbow_down(self) -> bool {
+        self.0 & Self::ELBOW_DOWN != 0
+    }
+
+    /// Whether joint 5 bends to its negative side.
+    pub fn wrist_flip(self) -> bool {
+        self.0 & Self::WRIST_FLIP != 0
+    }
+}
+
+impl fmt::Display for Configuration {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} (shoulder {}, elbow {}, wrist {})",
+            self.0,
+            if self.shoulder_back() {
+                "back"
+            } else {
+                "front"
+            },
+            if self.elbow_down() { "down" } else { "up" },
+            if self.wrist_flip() { "flip" } else { "no flip" }
+        )
+    }
+}
+
+/// One joint vector reaching the requested pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IkSolution {
+    /// Joint variables, rad, within the robot's limits.
+    pub q_rad: [f64; JOINT_COUNT],
+    /// Its branch.
+    pub config: Configuration,
+}
+
+/// Why a robot has no closed-form inverse here.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum IkError {
+    /// The nominal geometry is not the spherical-wrist structure the closed form needs.
+    #[error(
+        "{robot}: no closed-form inverse kinematics: {reason} \
+         (needs α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, a4 = a5 = a6 = d5 = 0, a2 > 0)"
+    )]
+    UnsupportedGeometry {
+        /// Robot name.
+        robot: String,
+        /// Which parameter breaks the structure.
+        reason: String,
+    },
+}
+
+/// The angle tolerance within which a nominal twist is taken as its skeleton's ±90° or 0°.
+const SKELETON_ANGLE_TOLERANCE_RAD: f64 = 0.5 * PI / 180.0;
+/// The length within which a nominal offset is taken as the skeleton's zero, mm.
+const SKELETON_LENGTH_TOLERANCE_MM: f64 = 1.0;
+/// How far beyond the skeleton's reach a wrist centre may lie and still be tried, mm.
+const SKELETON_REACH_SLACK_MM: f64 = 10.0;
+/// The least elbow bend a candidate starts from, so that Newton starts on the right side
+/// of a stretched arm, rad.
+const MIN_ELBOW_BEND_RAD: f64 = 1e-3;
+/// Newton stops when a step moves every joint by less than this, rad.
+const NEWTON_STEP_TOLERANCE_RAD: f64 = 1e-13;
+/// Newton steps allowed per solution; from the skeleton's solution it needs two or three.
+const NEWTON_MAX_STEPS: usize = 20;
+/// A refined solution is kept only if its TCP is this close to the target, mm.
+pub const POSITION_TOLERANCE_MM: f64 = 1e-9;
+/// A refined solution is kept only if its orientation is this close to the target, rad.
+pub const ORIENTATION_TOLERANCE_RAD: f64 = 1e-12;
+
+/// Closed-form inverse kinematics of one robot, with Newton refinement on an exact model.
+#[derive(Debug, Clone)]
+pub struct InverseKinematics {
+    robot: Robot,
+    /// The nominal model idealised to the structure the closed form solves.
+    skeleton: [MdhJoint; JOINT_COUNT],
+    /// ±1: the sign of sin α of joints 1, 3, 4, 5 in the skeleton.
+    sin_alpha: [f64; JOINT_COUNT],
+}
+
+impl InverseKinematics {
+    /// Prepares the closed form for `robot`.
+    ///
+    /// # Errors
+    ///
+    /// [`IkError::UnsupportedGeometry`] when the nominal model is not (within 0.5° and
+    /// 1 mm) a spherical-wrist arm with parallel joints 2 and 3.
+    pub fn new(robot: &Robot) -> Result<InverseKinematics, IkError> {
+        let unsupported = |reason: String| IkError::UnsupportedGeometry {
+            robot: robot.name.clone(),
+            reason,
+        };
+        let mut skeleton = robot.nominal_joints();
+        let mut sin_alpha = [0.0; JOINT_COUNT];
+        for (i, joint) in skeleton.iter_mut().enumerate() {
+            let number = i + 1;
+            if joint.beta_rad.abs() > SKELETON_ANGLE_TOLERANCE_RAD {
+                return Err(unsupported(format!("β{number} is not 0")));
+            }
+            joint.beta_rad = 0.0;
+            match number {
+                1 | 3 | 4 | 5 => {
+                    let sign = joint.alpha_rad.signum();
+                    if (joint.alpha_rad.abs() - FRAC_PI_2).abs() > SKELETON_ANGLE_TOLERANCE_RAD {
+                        return Err(unsupported(format!("α{number} is not ±90°")));
+                    }
+                    joint.alpha_rad = sign * FRAC_PI_2;
+                    sin_alpha[i] = sign;
+                }
+                2 => {
+                    if joint.alpha_rad.abs() > SKELETON_ANGLE_TOLERANCE_RAD {
+                        return Err(unsupported("α2 is not 0°".into()));
+                    }
+                    joint.alpha_rad = 0.0;
+                }
+                _ => {}
+            }
+        }
+        let [_, _, _, joint4, joint5, joint6] = &mut skeleton;
+        for (name, value) in [
+            ("a4", &mut joint4.a_mm),
+            ("a5", &mut joint5.a_mm),
+            ("a6", &mut joint6.a_mm),
+            ("d5", &mut joint5.d_mm),
+        ] {
+            if value.abs() > SKELETON_LENGTH_TOLERANCE_MM {
+                return Err(unsupported(format!("{name} = {value} mm is not 0")));
+            }
+            *value = 0.0;
+        }
+        if skeleton[1].a_mm <= 0.0 || skeleton[2].a_mm.hypot(skeleton[3].d_mm) <= 0.0 {
+            return Err(unsupported("a zero-length upper arm or forearm".into()));
+        }
+        Ok(InverseKinematics {
+            robot: robot.clone(),
+            skeleton,
+            sin_alpha,
+        })
+    }
+
+    /// The robot this solver was prepared for.
+    pub fn robot(&self) -> &Robot {
+        &self.robot
+    }
+
+    /// Every configuration reaching `tcp_pose` (TCP in the base frame) with the robot's
+    /// nominal model and tool, within the joint limits, sorted by configuration.
+    ///
+    /// Empty when the pose is out of reach, every solution breaks a limit, or the wrist
+    /// centre lies on axis 1 (infinitely many solutions: none is returned).
+    pub fn solve(&self, tcp_pose: &Isometry3<f64>) -> Vec<IkSolution> {
+        self.solve_with_model(
+            tcp_pose,
+            &self.robot.nominal_joints(),
+            &self.robot.tool_transform(),
+        )
+    }
+
+    /// Like [`InverseKinematics::solve`], for an exact model `joints` and `tool` near the
+    /// nominal one (e.g. nominal plus identified deviations): the closed form on the
+    /// skeleton gives the branches, Newton steps on `joints` make them exact.
+    pub fn solve_with_model(
+        &self,
+        tcp_pose: &Isometry3<f64>,
+        joints: &[MdhJoint; JOINT_COUNT],
+        tool: &Transform,
+    ) -> Vec<IkSolution> {
+        let tool_isometry = isometry_from_transform(tool);
+        let flange = tcp_pose * tool_isometry.inverse();
+        let mut solutions: Vec<IkSolution> = Vec::with_capacity(8);
+        for theta in self.skeleton_solutions(&flange) {
+            let q = std::array::from_fn(|i| theta[i] - self.skeleton[i].theta_offset_rad);
+            let Some(q) = newton(joints, tool, tcp_pose, q) else {
+                continue;
+            };
+            let Some(q_rad) = self.wrap_into_limits(q) else {
+                continue;
+            };
+            // Labelled on the exact model, so that a label always describes the posture
+            // returned. At a singularity two candidates may meet in one posture: keep one.
+            let config = configuration_of(joints, &q_rad);
+            if solutions.iter().any(|s| s.config == config) {
+                continue;
+            }
+            solutions.push(IkSolution { q_rad, config });
+        }
+        solutions.sort_by_key(|s| s.config);
+        solutions
+    }
+
+    /// The solution closest to the home posture (sum of squared joint differences), or the
+    /// one of the given configuration; `None` if there is no such solution.
+    pub fn solve_one(
+        &self,
+        tcp_pose: &Isometry3<f64>,
+        config: Option<Configuration>,
+    ) -> Option<IkSolution> {
+        let home = &self.robot.home_rad;
+        let distance = |s: &IkSolution| -> f64 {
+            s.q_rad
+                .iter()
+                .zip(home)
+                .map(|(q, h)| (q - h) * (q - h))
+                .sum()
+        };
+        self.solve(tcp_pose)
+            .into_iter()
+            .filter(|s| config.map_or(true, |c| c == s.config))
+            .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+    }
+
+    /// The representative of each joint within its limits, closest to home; `None` if a
+    /// joint has none.
+    fn wrap_into_limits(&self, q_rad: [f64; JOINT_COUNT]) -> Option<[f64; JOINT_COUNT]> {
+        let mut out = [0.0; JOINT_COUNT];
+        for (i, (o, q)) in out.iter_mut().zip(q_rad).enumerate() {
+            let [lower, upper] = self.robot.joints[i].limits_rad;
+            let home = self.robot.home_rad[i];
+            // The representative nearest home, then its neighbours a turn away.
+            let nearest = q + TAU * ((home - q) / TAU).round();
+            *o = [nearest, nearest - TAU, nearest + TAU]
+                .into_iter()
+                .filter(|v| (lower..=upper).contains(v))
+                .min_by(|a, b| (a - home).abs().total_cmp(&(b - home).abs()))?;
+        }
+        Some(out)
+    }
+
+    /// The skeleton's closed-form solutions for a flange pose: joint angles θ (offsets
+    /// included, not wrapped), up to eight.
+    fn skeleton_solutions(&self, flange: &Isometry3<f64>) -> Vec<[f64; JOINT_COUNT]> {
+        let s = &self.skeleton;
+        let flange_rotation = flange.rotation.to_rotation_matrix();
+        // The wrist centre is joint 5's origin; the flange sits d6 along joint 6's axis,
+        // whose direction in the flange frame is Rx(α6)ᵀ·z.
+        let (sin_a6, cos_a6) = s[5].alpha_rad.sin_cos();
+        let wrist_centre = flange.translation.vector
+            - flange_rotation * Vector3::new(0.0, sin_a6, cos_a6) * s[5].d_mm;
+
+        let (wx, wy) = (wrist_centre.x, wrist_centre.y);
+        let radius = wx.hypot(wy);
+        let offset_z = s[1].d_mm + s[2].d_mm;
+        if radius <= 1e-9 || radius < offset_z.abs() {
+            return Vec::new();
+        }
+        let heading = wy.atan2(wx);
+        // Joint 1: z1 = sin α1 · (sin θ1, −cos θ1, 0) is horizontal, and the wrist centre
+        // must lie d2 + d3 along it: sin α1 · r · sin(θ1 − heading) = d2 + d3. The solution
+        // with |θ1 − heading| ≤ 90° faces the wrist centre (shoulder front), the other
+        // reaches over the back.
+        let lean = (self.sin_alpha[0] * offset_z / radius).asin();
+        let mut solutions = Vec::with_capacity(8);
+        for theta1 in [heading + lean, heading + PI - lean] {
+            let q1 = theta1 - s[0].theta_offset_rad;
+            let frame1 = s[0].transform(q1);
+            let local = frame1.inverse().transform_point(wrist_centre.into());
+            for (theta2, theta3) in self.planar_arm(local[0], local[1]) {
+                let arm = [theta1, theta2, theta3];
+                for (theta4, theta5, theta6) in self.wrist(&arm, &flange_rotation) {
+                    solutions.push([theta1, theta2, theta3, theta4, theta5, theta6]);
+                }
+            }
+        }
+        solutions
+    }
+
+    /// Joints 2 and 3 as a planar two-link arm in frame 1: the upper arm `a2` and the
+    /// forearm from joint 3 to the wrist centre, `(a3, −sin α3 · d4)` in frame 3 before its
+    /// twist. Returns θ2, θ3 for both elbows (one when stretched or folded).
+    fn planar_arm(&self, u: f64, v: f64) -> Vec<(f64, f64)> {
+        let s = &self.skeleton;
+        let upper = s[1].a_mm;
+        let forearm_angle = (-self.sin_alpha[2] * s[3].d_mm).atan2(s[2].a_mm);
+        let forearm = s[2].a_mm.hypot(s[3].d_mm);
+        let reach = u.hypot(v);
+        // The exact model's arm may be a few mm longer or shorter than the skeleton's: a
+        // wrist centre just out of the skeleton's reach is tried from a nearly stretched
+        // (or folded) elbow on both sides, and Newton decides.
+        if reach > upper + forearm + SKELETON_REACH_SLACK_MM
+            || reach < (upper - forearm).abs() - SKELETON_REACH_SLACK_MM
+        {
+            return Vec::new();
+        }
+        let cos_elbow =
+            (reach * reach - upper * upper - forearm * forearm) / (2.0 * upper * forearm);
+        let elbow = cos_elbow
+            .clamp(-1.0, 1.0)
+            .acos()
+            .clamp(MIN_ELBOW_BEND_RAD, PI - MIN_ELBOW_BEND_RAD);
+        [1.0, -1.0]
+            .into_iter()
+            .map(|sign: f64| {
+                let gamma = sign * elbow;
+                let theta2 =
+                    v.atan2(u) - (forearm * gamma.sin()).atan2(upper + forearm * gamma.cos());
+                (theta2, gamma - forearm_angle)
+            })
+            .collect()
+    }
+
+    /// Joints 4-6 from the rotation the wrist must produce (module docs, bit 2): both wrist
+    /// solutions, or one at the wrist singularity (θ5 = 0 or π, only θ4 ± θ6 defined, θ4 is
+    /// set to 0).
+    fn wrist(&self, theta: &[f64; 3], flange_rotation: &Rotation3<f64>) -> Vec<(f64, f64, f64)> {
+        let s = &self.skeleton;
+        let q = |i: usize| theta[i] - s[i].theta_offset_rad;
+        let arm = s[0]
+            .transform(q(0))
+            .compose(&s[1].transform(q(1)))
+            .compose(&s[2].transform(q(2)));
+        // M = R3ᵀ·R_flange·Rx(α6)ᵀ = Rz(θ4)·Rx(α4)·Rz(θ5)·Rx(α5)·Rz(θ6). With σ4, σ5 the signs
+        // of sin α4, sin α5 and p = −σ4·σ5: M·z = (σ5 s5 c4, σ5 s5 s4, p c5) and
+        // zᵀ·M = (σ4 s5 c6, −σ4 s5 s6, p c5).
+        let last_twist = Rotation3::from_axis_angle(&Vector3::x_axis(), s[5].alpha_rad);
+        let m = rotation_of(&arm).inverse() * flange_rotation * last_twist.inverse();
+        let m = m.matrix();
+        let (sigma4, sigma5) = (self.sin_alpha[3], self.sin_alpha[4]);
+        let p = -sigma4 * sigma5;
+        let cos5 = (p * m[(2, 2)]).clamp(-1.0, 1.0);
+        let sin5_magnitude = (1.0 - cos5 * cos5).max(0.0).sqrt();
+        // Below this, θ4 and θ6 would be atan2 of rounding noise.
+        if sin5_magnitude < 1e-10 {
+            let theta5 = if cos5 > 0.0 { 0.0 } else { PI };
+            // θ4 = 0: M = Rx(α4)·Rz(θ5)·Rx(α5)·Rz(θ6), so Rz(θ6) = (Rx(α4)·Rz(θ5)·Rx(α5))ᵀ·M.
+            let fixed = Rotation3::from_axis_angle(&Vector3::x_axis(), s[3].alpha_rad)
+                * Rotation3::from_axis_angle(&Vector3::z_axis(), theta5)
+                * Rotation3::from_axis_angle(&Vector3::x_axis(), s[4].alpha_rad);
+            let rest = fixed.inverse().matrix() * m;
+            return vec![(0.0, theta5, rest[(1, 0)].atan2(rest[(0, 0)]))];
+        }
+        [1.0, -1.0]
+            .into_iter()
+            .map(|sign: f64| {
+                let sin5 = sign * sin5_magnitude;
+                let theta5 = sin5.atan2(cos5);
+                let k4 = sigma5 * sign;
+                let theta4 = (k4 * m[(1, 2)]).atan2(k4 * m[(0, 2)]);
+                let k6 = sigma4 * sign;
+                let theta6 = (-k6 * m[(2, 1)]).atan2(k6 * m[(2, 0)]);
+                (theta4, theta5, theta6)
+            })
+            .collect()
+    }
+}
+
+/// The configuration of joint angles `q_rad` on the model `joints` (module docs).
+///
+/// Works for any joint vector, e.g. the commanded angles of a measured data set.
+pub fn configuration_of(
+    joints: &[MdhJoint; JOINT_COUNT],
+    q_rad: &[f64; JOINT_COUNT],
+) -> Configuration {
+    let frames = link_frames(joints, q_rad);
+    let shoulder = Vector3::from(frames[0].translation_mm);
+    let elbow = Vector3::from(frames[1].translation_mm);
+    // Joint 5's axis passes through the wrist centre.
+    let wrist_centre = Vector3::from(frames[3].translation_mm);
+    let heading = Vector3::new(wrist_centre.x, wrist_centre.y, 0.0);
+    // Joint 1's x axis, from the base axis toward joint 2.
+    let arm_x = Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0]));
+    let shoulder_back = arm_x.dot(&heading) < 0.0;
+    // The vertical plane through the base axis and the wrist centre: horizontal coordinate
+    // along the wrist centre's heading, vertical along base z.
+    let heading = heading.try_normalize(0.0).unwrap_or_else(|| arm_x);
+    let plane = |p: &Vector3<f64>| (p.dot(&heading), p.z);
+    let (sr, sz) = plane(&shoulder);
+    let (er, ez) = plane(&elbow);
+    let (wr, wz) = plane(&wrist_centre);
+    // Cross product of shoulder→wrist and shoulder→elbow: positive with the elbow on the
+    // left of that outward line, i.e. above it.
+    let elbow_down = (wr - sr) * (ez - sz) - (wz - sz) * (er - sr) < 0.0;
+    let wrist_flip = (q_rad[4] + joints[4].theta_offset_rad).sin() < 0.0;
+    Configuration::new(shoulder_back, elbow_down, wrist_flip)
+}
+
+/// Newton steps on the exact model from `q_rad`; `None` if it does not reach the pose to
+/// [`POSITION_TOLERANCE_MM`] and [`ORIENTATION_TOLERANCE_RAD`].
+fn newton(
+    joints: &[MdhJoint; JOINT_COUNT],
+    tool: &Transform,
+    target: &Isometry3<f64>,
+    mut q_rad: [f64; JOINT_COUNT],
+) -> Option<[f64; JOINT_COUNT]> {
+    let error_at = |q: &[f64; JOINT_COUNT]| -> Vector6<f64> {
+        let pose = isometry_from_transform(&forward(joints, tool, q));
+        pose_error(&pose, target)
+    };
+    let mut error = error_at(&q_rad);
+    for _ in 0..NEWTON_MAX_STEPS {
+        if converged(&error) {
+            break;
+        }
+        let jacobian = joint_jacobian(joints, tool, &q_rad);
+        let step = jacobian
+            .lu()
+            .solve(&error)
+            .or_else(|| jacobian.svd(true, true).solve(&error, 1e-12).ok())?;
+        for (q, dq) in q_rad.iter_mut().zip(step.iter()) {
+            *q += dq;
+        }
+        error = error_at(&q_rad);
+        if step.amax() < NEWTON_STEP_TOLERANCE_RAD {
+            break;
+        }
+    }
+    converged(&error).then_some(q_rad)
+}
+
+fn converged(error: &Vector6<f64>) -> bool {
+    error.fixed_rows::<3>(0).norm() <= POSITION_TOLERANCE_MM
+        && error.fixed_rows::<3>(3).norm() <= ORIENTATION_TOLERANCE_RAD
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::{orientation_error, rotation_from_kuka_abc_deg};
+    use crate::robot::error_model::{apply_deviations, JointDeviation};
+    use crate::robot::model::{isometry_from_parts, shipped_robot_path};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn kr150() -> Robot {
+        Robot::load(shipped_robot_path("kr150-2")).unwrap()
+    }
+
+    fn deg(q: [f64; 6]) -> [f64; 6] {
+        q.map(f64::to_radians)
+    }
+
+    /// Asserts that `solution` reaches `target` with the model, to the round-trip tolerance.
+    fn assert_reaches(
+        joints: &[MdhJoint; 6],
+        tool: &Transform,
+        solution: &IkSolution,
+        target: &Isometry3<f64>,
+    ) {
+        let pose = isometry_from_transform(&forward(joints, tool, &solution.q_rad));
+        let error = pose_error(target, &pose);
+        assert!(
+            error.fixed_rows::<3>(0).norm() <= 1e-9,
+            "config {}: {error:?}",
+            solution.config
+        );
+        assert!(error.fixed_rows::<3>(3).norm() <= 1e-12);
+    }
+
+    /// Whether two joint vectors are the same posture (joints compared modulo a turn).
+    fn same_posture(a: &[f64; 6], b: &[f64; 6]) -> bool {
+        a.iter().zip(b).all(|(x, y)| {
+            let d = (x - y).rem_euclid(TAU);
+            d.min(TAU - d) < 1e-7
+        })
+    }
+
+    #[test]
+    fn round_trip_over_ten_thousand_random_reachable_poses() {
+        let robot = kr150();
+        let ik = InverseKinematics::new(&robot).unwrap();
+        let (joints, tool) = (robot.nominal_joints(), robot.tool_transform());
+        let mut rng = ChaCha8Rng::seed_from_u64(2020);
+        let mut solutions_checked = 0;
+        let mut configs_seen = [false; 8];
+        for _ in 0..10_000 {
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let [lo, hi] = robot.joints[i].limits_rad;
+                rng.gen_range(lo..hi)
+            });
+            let target = robot.tcp_pose(&q);
+            let solutions = ik.solve(&target);
+            for solution in &solutions {
+                assert!(robot.within_limits(&solution.q_rad));
+                assert_reaches(&joints, &tool, solution, &target);
+                configs_seen[usize::from(solution.config.bits())] = true;
+            }
+            solutions_checked += solutions.len();
+            // The posture we started from is among them, unless it sits at a wrist
+            // singularity, where only θ4 ± θ6 is defined.
+            if q[4].sin().abs() > 1e-3 {
+                assert!(
+                    solutions.iter().any(|s| same_posture(&s.q_rad, &q)),
+                    "{q:?} not recovered from {solutions:?}"
+                );
+            }
+        }
+        assert!(solutions_checked > 20_000, "{solutions_checked}");
+        assert!(configs_seen.iter().all(|&seen| seen), "{configs_seen:?}");
+    }
+
+    #[test]
+    fn newton_makes_a_perturbed_model_exact() {
+        let robot = kr150();
+        let ik = InverseKinematics::new(&robot).unwrap();
+        let mut deviations = [JointDeviation::default(); 6];
+        for (i, d) in deviations.iter_mut().enumerate() {
+            let k = i as f64 + 1.0;
+            *d = JointDeviation {
+                a_mm: 0.3 * k,
+                d_mm: -0.2 * k,
+                alpha_rad: 1e-3 / k,
+                theta_rad: -5e-4 * k,
+                beta_rad: 2e-4,
+            };
+        }
+        let joints = apply_deviations(&robot.nominal_joints(), &deviations);
+        let tool = robot.tool_transform();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..200 {
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let [lo, hi] = robot.joints[i].limits_rad;
+                rng.gen_range(lo..hi)
+            });
+            let target = isometry_from_transform(&forward(&joints, &tool, &q));
+            let solutions = ik.solve_with_model(&target, &joints, &tool);
+            for solution in &solutions {
+                assert_reaches(&joints, &tool, solution, &target);
+            }
+            // The deviations make the wrist slightly non-spherical: within a few degrees of
+            // θ5 = 0 a pose has further exact solutions along θ4 − θ6, and Newton may land on
+            // one of them (still exact, as checked above).
+            if q[4].sin().abs() > 0.05 {
+                assert!(
+                    solutions.iter().any(|s| same_posture(&s.q_rad, &q)),
+                    "{:?} not among {solutions:?}",
+                    q.map(f64::to_degrees)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn labels_of_hand_built_postures() {
+        let robot = kr150();
+        let ik = InverseKinematics::new(&robot).unwrap();
+        let label_of = |q_deg: [f64; 6]| {
+            let q = deg(q_deg);
+            let solutions = ik.solve(&robot.tcp_pose(&q));
+            solutions
+                .iter()
+                .find(|s| same_posture(&s.q_rad, &q))
+                .unwrap_or_else(|| panic!("{q_deg:?} not among {solutions:?}"))
+                .config
+                .bits()
+        };
+        // Home with the wrist bent +30°: upper arm up, forearm forward, elbow above the
+        // shoulder–wrist line.
+        assert_eq!(label_of([0.0, -90.0, 90.0, 0.0, 30.0, 0.0]), 0);
+        assert_eq!(label_of([0.0, -90.0, 90.0, 0.0, -30.0, 0.0]), 4);
+        // Upper arm 10° above horizontal, forearm folded back up: the elbow (1581, 0, 967)
+        // is below the line from the shoulder (350, 0, 750) to the wrist (≈1205, 0, 2000).
+        assert_eq!(label_of([0.0, -10.0, -100.0, 0.0, 30.0, 0.0]), 2);
+        // Upper arm leaning 30° back, forearm horizontal backward: the wrist centre
+        // (≈ −1375, 0, 1888) is behind the base axis, the elbow above the line.
+        assert_eq!(label_of([0.0, -120.0, -60.0, 0.0, 30.0, 0.0]), 1);
+    }
+
+    #[test]
+    fn the_papers_target_is_reachable() {
+        let robot = kr150();
+        let ik = InverseKinematics::new(&robot).unwrap();
+        let target = isometry_from_parts(
+            [2000.0, 700.0, 1000.0],
+            &rotation_from_kuka_abc_deg([0.0, 90.0, 0.0]),
+        );
+        // Closest to home: the arm in front, elbow up (its wrist bends to negative θ5).
+        let best = ik.solve_one(&target, None).unwrap();
+        assert!(
+            !best.config.shoulder_back() && !best.config.elbow_down(),
+            "{}",
+            best.config
+        );
+        let pose = robot.tcp_pose(&best.q_rad);
+        assert!((pose.translation.vector - target.translation.vector).norm() < 1e-9);
+        let rotation_error = orientation_error(
+            &target.rotation.to_rotation_matrix(),
+            &pose.rotation.to_rotation_matrix(),
+        );
+        assert!(rotation_error.iter().all(|x| x.abs() < 1e-12));
+        // A named configuration that exists is returned, one that breaks limits is not.
+        for solution in ik.solve(&target) {
+            let named = ik.solve_one(&target, Some(solution.config)).unwrap();
+            assert_eq!(named, solution);
+        }
+        assert!(Configuration::from_bits(8).is_none());
+    }
+
+    #[test]
+    fn an_offset_wrist_is_refused_with_the_reason() {
+        let ur5 = Robot::load(shipped_robot_path("ur5")).unwrap();
+        let error = InverseKinematics::new(&ur5).unwrap_err();
+        assert!(error.to_string().contains("α3 is not ±90°"), "{error}");
+    }
+}
