@@ -486,7 +486,11 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             return Err(corrupt("a base weight names a sample that does not exist"));
         }
         let weights = &a.centre_weights[start..end];
-        if !weights.iter().all(|q| (0.0..=1.0).contains(&q.to_native())) {
+        // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.
+        if !weights
+            .iter()
+            .all(|q| (0.0..=1.0 + 1e-12).contains(&q.to_native()))
+        {
             return Err(corrupt("a base weight is outside [0, 1]"));
         }
         let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
