@@ -28,7 +28,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use adwi_runtime::format::{
-    self, Grid, Header, SampleRecord, TableData, CONTENT_CONFIG, CONTENT_JOINTS,
+    self, CellRecord, Grid, Header, SampleRecord, TableData, CONTENT_CONFIG, CONTENT_JOINTS,
     CONTENT_ORIENTATION,
 };
 use adwi_runtime::method::{self, MethodParams, SampleError};
@@ -259,28 +259,29 @@ pub fn compile(
 
     let mut data = TableData {
         samples: records,
-        cell_lists: Vec::with_capacity(report.cells),
-        list_offsets: vec![0],
+        cells: Vec::with_capacity(report.cells),
         list_samples: Vec::new(),
-        centre_offsets: Vec::with_capacity(report.cells + 1),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
     };
-    data.centre_offsets.push(0);
-    let mut ids: HashMap<&[u32], u32> = HashMap::new();
+    // Identical lists are stored once, in order of first appearance.
+    let mut starts: HashMap<&[u32], u32> = HashMap::new();
     for (list, centre) in &per_cell {
-        let next = ids.len() as u32;
-        let id = *ids.entry(list.as_slice()).or_insert_with(|| {
+        let list_start = *starts.entry(list.as_slice()).or_insert_with(|| {
+            let start = data.list_samples.len() as u32;
             data.list_samples.extend_from_slice(list);
-            data.list_offsets.push(data.list_samples.len() as u32);
-            next
+            start
         });
-        data.cell_lists.push(id);
+        data.cells.push(CellRecord {
+            list_start,
+            list_len: list.len() as u32,
+            centre_start: data.centre_samples.len() as u32,
+            centre_len: centre.len() as u32,
+        });
         for &(sample, q) in centre {
             data.centre_samples.push(sample);
             data.centre_weights.push(q);
         }
-        data.centre_offsets.push(data.centre_samples.len() as u32);
         if !list.is_empty() {
             report.cells_covered += 1;
             report.max_list_len = report.max_list_len.max(list.len());
@@ -288,7 +289,7 @@ pub fn compile(
         }
     }
     report.mean_list_len /= report.cells_covered.max(1) as f64;
-    report.distinct_lists = ids.len();
+    report.distinct_lists = starts.len();
     report.list_entries = data.list_samples.len();
 
     let mut content = 0;

@@ -35,7 +35,7 @@
 //! The payload starts at offset 256, a multiple of the archive's 16-byte alignment, so a
 //! memory map (page-aligned) hands rkyv an aligned buffer. Its contents are [`TableData`]:
 //! every sample's actual position and errors, the deduplicated candidate lists and, per
-//! cell, the id of its list and the base weights at the cell's centre.
+//! cell, the range of its list and of the base weights at the cell's centre.
 
 use rkyv::{Archive, Deserialize, Serialize};
 
@@ -179,21 +179,33 @@ pub struct SampleRecord {
     pub config: u8,
 }
 
+/// One cell: where its candidate list and its base weights are.
+#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[rkyv(derive(Debug))]
+pub struct CellRecord {
+    /// The candidate list is `list_samples[list_start .. list_start + list_len]`; cells with
+    /// identical lists share one range.
+    pub list_start: u32,
+    /// The candidate list's length.
+    pub list_len: u32,
+    /// The base weights are entries `centre_start .. centre_start + centre_len` of
+    /// `centre_samples` and `centre_weights`.
+    pub centre_start: u32,
+    /// The number of base weights (at most k).
+    pub centre_len: u32,
+}
+
 /// The archived payload.
 #[derive(Archive, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[rkyv(derive(Debug))]
 pub struct TableData {
     /// The samples, in source order: a sample's index is its position here.
     pub samples: Vec<SampleRecord>,
-    /// Per cell (linear index, x fastest), the id of its candidate list.
-    pub cell_lists: Vec<u32>,
-    /// Candidate list `i` is `list_samples[list_offsets[i] .. list_offsets[i + 1]]`.
-    pub list_offsets: Vec<u32>,
-    /// Concatenated candidate lists: sample indices, increasing within a list.
+    /// The cells, linear index `ix + nx · (iy + ny · iz)`. One record per cell, so that a
+    /// query reads its list's range in a single access.
+    pub cells: Vec<CellRecord>,
+    /// Concatenated distinct candidate lists: sample indices, increasing within a list.
     pub list_samples: Vec<u32>,
-    /// Per cell, its base weights are entries `centre_offsets[c] .. centre_offsets[c + 1]`
-    /// of `centre_samples` and `centre_weights`.
-    pub centre_offsets: Vec<u32>,
     /// The neighbours selected at each cell's centre, nearest first.
     pub centre_samples: Vec<u32>,
     /// Their weights `q_i` (summing to 1 per cell with neighbours).

@@ -329,14 +329,32 @@ pub fn select(
         {
             continue;
         }
-        let degree = approximation_degree(target_mm, actual_mm);
-        if thresholds && !params.degree_admissible(&degree) {
-            continue;
+        if thresholds {
+            let degree = approximation_degree(target_mm, actual_mm);
+            if params.degree_admissible(&degree) {
+                selection.offer(Neighbour {
+                    sample: index,
+                    degree,
+                });
+            }
+        } else {
+            // Admissible by distance alone: rank by distance now, and compute the full
+            // degree only for the k that remain.
+            selection.offer(Neighbour {
+                sample: index,
+                degree: Degree {
+                    distance_mm: distance,
+                    ..EMPTY_NEIGHBOUR.degree
+                },
+            });
         }
-        selection.offer(Neighbour {
-            sample: index,
-            degree,
-        });
+    }
+    if !thresholds {
+        for n in &mut selection.items[..selection.len] {
+            if let Some((actual_mm, _)) = sample(n.sample) {
+                n.degree = approximation_degree(target_mm, actual_mm);
+            }
+        }
     }
     selection
 }

@@ -220,6 +220,18 @@ impl<D: AsRef<[u8]>> Table<D> {
         })
     }
 
+    /// Moves the validated bytes into another holder without validating them again, for a
+    /// holder whose `as_ref` returns the same slice (wrapping a memory map in an enum,
+    /// say). Should it not, every query answers [`Status::InvalidInput`]: the address check
+    /// of [`Table::archive`] still guards every access.
+    pub(crate) fn map_data<E: AsRef<[u8]>>(self, wrap: impl FnOnce(D) -> E) -> Table<E> {
+        Table {
+            data: wrap(self.data),
+            header: self.header,
+            validated_at: self.validated_at,
+        }
+    }
+
     /// The decoded header: format, checksums and build parameters.
     pub fn header(&self) -> &Header {
         &self.header
@@ -382,13 +394,13 @@ fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
     }
 }
 
-/// The candidate list of a cell, or `None` if an index is out of range (excluded by
+/// The candidate list of a cell, or `None` if a range is out of bounds (excluded by
 /// validation; checked anyway so that no query can panic).
 #[inline]
 fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Archived<u32>]> {
-    let list = archive.cell_lists.get(cell)?.to_native() as usize;
-    let start = archive.list_offsets.get(list)?.to_native() as usize;
-    let end = archive.list_offsets.get(list + 1)?.to_native() as usize;
+    let c = archive.cells.get(cell)?;
+    let start = c.list_start.to_native() as usize;
+    let end = start.checked_add(c.list_len.to_native() as usize)?;
     archive.list_samples.get(start..end)
 }
 
@@ -411,7 +423,7 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         .cell_count()
         .filter(|&n| n > 0 && n < u32::MAX as usize)
         .ok_or(corrupt("grid size is zero or too large"))?;
-    if a.cell_lists.len() != cells {
+    if a.cells.len() != cells {
         return Err(corrupt("cell count differs from the grid size"));
     }
     let n = a.samples.len();
@@ -443,49 +455,47 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             ));
         }
     }
-    let lists = a
-        .list_offsets
-        .len()
-        .checked_sub(1)
-        .ok_or(corrupt("candidate list offsets are empty"))?;
-    check_offsets(a.list_offsets.as_slice(), a.list_samples.len())?;
-    if a.cell_lists.iter().any(|l| l.to_native() as usize >= lists) {
-        return Err(corrupt("a cell names a candidate list that does not exist"));
+    if a.centre_weights.len() != a.centre_samples.len() {
+        return Err(corrupt("base weight arrays differ in length"));
     }
-    for l in 0..lists {
-        let start = a.list_offsets[l].to_native() as usize;
-        let end = a.list_offsets[l + 1].to_native() as usize;
-        let list = &a.list_samples[start..end];
-        if list.iter().any(|&i| i.to_native() as usize >= n) {
-            return Err(corrupt(
-                "a candidate list names a sample that does not exist",
-            ));
-        }
-        if list
-            .windows(2)
-            .any(|w| w[0].to_native() >= w[1].to_native())
-        {
-            return Err(corrupt("a candidate list is not strictly increasing"));
-        }
-    }
-    if a.centre_offsets.len() != cells + 1 || a.centre_weights.len() != a.centre_samples.len() {
-        return Err(corrupt("base weight arrays do not match the grid"));
-    }
-    check_offsets(a.centre_offsets.as_slice(), a.centre_samples.len())?;
     let k = header.method.max_neighbours as usize;
-    for c in 0..cells {
-        let start = a.centre_offsets[c].to_native() as usize;
-        let end = a.centre_offsets[c + 1].to_native() as usize;
-        if end - start > k {
+    let mut checked_list = None;
+    for c in a.cells.iter() {
+        let range = |start: rkyv::Archived<u32>, len: rkyv::Archived<u32>, total: usize| {
+            let start = start.to_native() as usize;
+            let end = start.checked_add(len.to_native() as usize)?;
+            (end <= total).then_some(start..end)
+        };
+        let list = range(c.list_start, c.list_len, a.list_samples.len())
+            .ok_or(corrupt("a cell's candidate list is out of bounds"))?;
+        // Cells sharing a list are usually adjacent: check each distinct range once in a row.
+        if checked_list.as_ref() != Some(&list) {
+            let list_samples = &a.list_samples[list.clone()];
+            if list_samples.iter().any(|&i| i.to_native() as usize >= n) {
+                return Err(corrupt(
+                    "a candidate list names a sample that does not exist",
+                ));
+            }
+            if list_samples
+                .windows(2)
+                .any(|w| w[0].to_native() >= w[1].to_native())
+            {
+                return Err(corrupt("a candidate list is not strictly increasing"));
+            }
+            checked_list = Some(list);
+        }
+        let centre = range(c.centre_start, c.centre_len, a.centre_samples.len())
+            .ok_or(corrupt("a cell's base weights are out of bounds"))?;
+        if centre.len() > k {
             return Err(corrupt("a cell has more base weights than k"));
         }
-        if a.centre_samples[start..end]
+        if a.centre_samples[centre.clone()]
             .iter()
             .any(|&i| i.to_native() as usize >= n)
         {
             return Err(corrupt("a base weight names a sample that does not exist"));
         }
-        let weights = &a.centre_weights[start..end];
+        let weights = &a.centre_weights[centre.clone()];
         // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.
         if !weights
             .iter()
@@ -494,24 +504,9 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             return Err(corrupt("a base weight is outside [0, 1]"));
         }
         let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
-        if end > start && (sum - 1.0).abs() > 1e-9 {
+        if !centre.is_empty() && (sum - 1.0).abs() > 1e-9 {
             return Err(corrupt("a cell's base weights do not sum to 1"));
         }
-    }
-    Ok(())
-}
-
-/// Offsets must start at 0, never decrease, and end at the length of what they index.
-fn check_offsets(offsets: &[rkyv::Archived<u32>], len: usize) -> Result<(), OpenError> {
-    if offsets.first().map(|o| o.to_native()) != Some(0)
-        || offsets.last().map(|o| o.to_native() as usize) != Some(len)
-        || offsets
-            .windows(2)
-            .any(|w| w[0].to_native() > w[1].to_native())
-    {
-        return Err(corrupt(
-            "offsets are not increasing from 0 to the array length",
-        ));
     }
     Ok(())
 }

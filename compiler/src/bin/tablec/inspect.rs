@@ -73,15 +73,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max[1],
         max[2]
     );
-    let cells = data.cell_lists.len();
-    let lists = data.list_offsets.len() - 1;
-    let list_len = |l: usize| {
-        (data.list_offsets[l + 1].to_native() - data.list_offsets[l].to_native()) as usize
-    };
-    let covered: Vec<usize> = data
-        .cell_lists
+    let cells = data.cells.len();
+    let lists: std::collections::HashSet<(u32, u32)> = data
+        .cells
         .iter()
-        .map(|l| list_len(l.to_native() as usize))
+        .map(|c| (c.list_start.to_native(), c.list_len.to_native()))
+        .collect();
+    let covered: Vec<usize> = data
+        .cells
+        .iter()
+        .map(|c| c.list_len.to_native() as usize)
         .filter(|&n| n > 0)
         .collect();
     let mean = covered.iter().sum::<usize>() as f64 / covered.len().max(1) as f64;
@@ -91,16 +92,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         100.0 * covered.len() as f64 / cells.max(1) as f64
     );
     println!(
-        "candidates      {lists} distinct lists, {} entries; per covered cell mean {mean:.1}, max {}",
+        "candidates      {} distinct lists, {} entries; per covered cell mean {mean:.1}, max {}",
+        lists.len(),
         data.list_samples.len(),
         covered.iter().max().copied().unwrap_or(0)
     );
     println!(
         "sizes           samples {} B, cells {} B, lists {} B, base weights {} B",
         data.samples.len() * std::mem::size_of::<adwi_runtime::format::ArchivedSampleRecord>(),
-        cells * 4,
-        (lists + 1 + data.list_samples.len()) * 4,
-        (cells + 1) * 4 + data.centre_samples.len() * 12
+        cells * std::mem::size_of::<adwi_runtime::format::ArchivedCellRecord>(),
+        data.list_samples.len() * 4,
+        data.centre_samples.len() * 12
     );
     if let Some(p) = args.cell {
         let p = [p[0], p[1], p[2]];
@@ -112,16 +114,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             return Ok(());
         };
         let [ix, iy, iz] = g.cell_coords(cell);
-        let l = data.cell_lists[cell].to_native() as usize;
-        let start = data.list_offsets[l].to_native() as usize;
-        let list: Vec<u32> = data.list_samples[start..start + list_len(l)]
+        let record = &data.cells[cell];
+        let start = record.list_start.to_native() as usize;
+        let list: Vec<u32> = data.list_samples[start..start + record.list_len.to_native() as usize]
             .iter()
             .map(|i| i.to_native())
             .collect();
         println!("cell            #{cell} ({ix}, {iy}, {iz}), candidates {list:?}");
-        let c0 = data.centre_offsets[cell].to_native() as usize;
-        let c1 = data.centre_offsets[cell + 1].to_native() as usize;
-        for i in c0..c1 {
+        let c0 = record.centre_start.to_native() as usize;
+        for i in c0..c0 + record.centre_len.to_native() as usize {
             println!(
                 "  centre weight sample {:>6}  q {:.9}",
                 data.centre_samples[i].to_native(),
