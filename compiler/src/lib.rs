@@ -10,3 +10,4 @@ pub mod pose;
 pub mod reference;
 pub mod robot;
 pub mod samples;
+pub mod simulate;

@@ -285,7 +285,7 @@ impl InverseKinematics {
         };
         self.solve(tcp_pose)
             .into_iter()
-            .filter(|s| config.map_or(true, |c| c == s.config))
+            .filter(|s| config.is_none() || config == Some(s.config))
             .min_by(|a, b| distance(a).total_cmp(&distance(b)))
     }
 
@@ -441,7 +441,7 @@ pub fn configuration_of(
     let shoulder_back = arm_x.dot(&heading) < 0.0;
     // The vertical plane through the base axis and the wrist centre: horizontal coordinate
     // along the wrist centre's heading, vertical along base z.
-    let heading = heading.try_normalize(0.0).unwrap_or_else(|| arm_x);
+    let heading = heading.try_normalize(0.0).unwrap_or(arm_x);
     let plane = |p: &Vector3<f64>| (p.dot(&heading), p.z);
     let (sr, sz) = plane(&shoulder);
     let (er, ez) = plane(&elbow);

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 mod build;
 mod inspect;
 mod query;
+mod simulate;
 
 /// Approximation-degree weighted interpolation of robot positioning errors.
 #[derive(Parser)]
@@ -24,6 +25,8 @@ enum Command {
     Query(query::Args),
     /// Print a table's header, parameters, counts and sizes.
     Inspect(inspect::Args),
+    /// Simulate a sample database: a robot, an error scenario, a sampling plan.
+    Simulate(simulate::Args),
 }
 
 fn main() -> ExitCode {
@@ -32,6 +35,7 @@ fn main() -> ExitCode {
         Command::Build(args) => build::run(args),
         Command::Query(args) => query::run(args),
         Command::Inspect(args) => inspect::run(args),
+        Command::Simulate(args) => simulate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
