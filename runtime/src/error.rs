@@ -72,6 +72,9 @@ pub enum OpenError {
         /// The invariant broken.
         what: &'static str,
     },
+    /// Locking the table in memory was required and failed
+    /// ([`crate::residency::Lock::Required`]).
+    Lock(std::io::Error),
 }
 
 impl fmt::Display for OpenError {
@@ -126,6 +129,11 @@ impl fmt::Display for OpenError {
                 write!(f, "table archive is invalid: {reason}; {REBUILD}")
             }
             OpenError::Corrupt { what } => write!(f, "table is inconsistent: {what}; {REBUILD}"),
+            OpenError::Lock(e) => write!(
+                f,
+                "cannot lock the table in memory: {e}; raise the locked-memory limit \
+                 (ulimit -l) or open without requiring the lock"
+            ),
         }
     }
 }
@@ -133,7 +141,7 @@ impl fmt::Display for OpenError {
 impl std::error::Error for OpenError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            OpenError::Io(e) => Some(e),
+            OpenError::Io(e) | OpenError::Lock(e) => Some(e),
             _ => None,
         }
     }

@@ -33,11 +33,16 @@
 
 #![deny(missing_docs)]
 
+pub mod capi;
 mod error;
 pub mod format;
 pub mod kinematics;
 pub mod method;
+pub mod residency;
+mod swap;
 mod table;
 
 pub use error::OpenError;
+pub use residency::{Lock, OpenOptions, Residency};
+pub use swap::{Current, Retired, TableSwap};
 pub use table::{AlignedBytes, Compensation, Correction, Status, Table, Target};

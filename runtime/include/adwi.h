@@ -1,0 +1,131 @@
+/*
+ * adwi.h — C interface to the adwi runtime: open a compiled robot error-correction table
+ * and query it from a controller.
+ *
+ * Link against libadwi_runtime.a (static; on Linux also -lpthread -ldl -lm -lrt -lutil
+ * -lgcc_s) or libadwi_runtime.so. Units: millimetres and radians, robot base frame.
+ *
+ * Conventions:
+ *  - Every function returns an adwi_result. Outputs are written only on ADWI_OK; a failed
+ *    call leaves them untouched.
+ *  - Null pointers are refused with ADWI_NULL_POINTER.
+ *  - A panic inside the library never unwinds into C: it becomes ADWI_PANIC.
+ *  - adwi_table_query and adwi_table_compensate do not allocate, lock or block, and may be
+ *    called from several threads on the same handle at once. A handle must not be closed
+ *    while another thread uses it.
+ *  - Only the open functions record a detailed message, per thread; read it with
+ *    adwi_last_open_error.
+ *
+ * Example:
+ *
+ *     adwi_table *t = NULL;
+ *     if (adwi_table_open("kr150.tbl", &t) != ADWI_OK) {
+ *         char msg[512];
+ *         adwi_last_open_error(msg, sizeof msg);
+ *         fprintf(stderr, "%s\n", msg);
+ *         return 1;
+ *     }
+ *     const double target[3] = {2000.0, 700.0, 1000.0};
+ *     adwi_correction c;
+ *     if (adwi_table_query(t, target, -1, &c) == ADWI_OK && c.status == ADWI_STATUS_OK) {
+ *         // command target - c.position_error_mm
+ *     }
+ *     adwi_table_close(t);
+ */
+#ifndef ADWI_H
+#define ADWI_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* An open, validated table. Opaque. */
+typedef struct adwi_table adwi_table;
+
+/* Result codes. */
+typedef enum adwi_result {
+    ADWI_OK = 0,                  /* success; outputs written */
+    ADWI_NULL_POINTER = 1,        /* a required pointer was null */
+    ADWI_INVALID_ARGUMENT = 2,    /* config outside -1..254, tolerance negative or NaN, path not UTF-8 */
+    ADWI_IO = 3,                  /* the file cannot be read or mapped */
+    ADWI_INVALID_TABLE = 4,       /* truncated, corrupt, wrong magic, bad checksum */
+    ADWI_UNSUPPORTED_VERSION = 5, /* a format version this runtime does not read */
+    ADWI_LOCK = 6,                /* ADWI_OPEN_LOCK_REQUIRED and mlock failed */
+    ADWI_PANIC = 7                /* a bug caught at the boundary */
+} adwi_result;
+
+/* What a query's answer means (adwi_correction.status). */
+enum {
+    ADWI_STATUS_OK = 0,             /* predicted from at least one admissible neighbour */
+    ADWI_STATUS_OUTSIDE_GRID = 1,   /* target outside the table's grid; correction zero */
+    ADWI_STATUS_NO_NEIGHBOUR = 2,   /* no admissible sample; correction zero */
+    ADWI_STATUS_INVALID_INPUT = 3   /* target not finite; correction zero */
+};
+
+/* Flags for adwi_table_open_with. */
+#define ADWI_OPEN_PREFAULT 1u      /* fault every page in at open */
+#define ADWI_OPEN_LOCK 2u          /* mlock the table, best effort */
+#define ADWI_OPEN_LOCK_REQUIRED 4u /* mlock the table or fail with ADWI_LOCK */
+
+/* The predicted error at a target: command target - position_error_mm to land on it. */
+typedef struct adwi_correction {
+    double position_error_mm[3];     /* actual - nominal, mm */
+    double orientation_error_rad[3]; /* rotation vector of R_actual * R_nominal^T, rad; 0 without orientation */
+    uint32_t neighbours;             /* neighbours weighted */
+    int32_t status;                  /* ADWI_STATUS_*; other fields are zero unless OK */
+} adwi_correction;
+
+/* The command that lands the robot on a target: command + error(command) = target. */
+typedef struct adwi_compensation {
+    double command_position_mm[3];  /* position to command, mm */
+    double command_rotation_rad[3]; /* R_cmd = Exp(command_rotation_rad) * R_target */
+    adwi_correction correction;     /* the correction predicted at the command */
+    uint32_t iterations;            /* queries made */
+    int32_t converged;              /* 1 if the tolerance was reached */
+    double residual_mm;             /* |command + error(command) - target|, mm */
+} adwi_compensation;
+
+/* Opens the table file at path (UTF-8) by memory map and validates it. The file must not be
+ * modified while open: replace tables by renaming a new file into place. */
+adwi_result adwi_table_open(const char *path, adwi_table **out);
+
+/* As adwi_table_open, with ADWI_OPEN_* flags. */
+adwi_result adwi_table_open_with(const char *path, uint32_t flags, adwi_table **out);
+
+/* Copies len bytes into aligned memory and validates them as a table; the caller's buffer
+ * may be freed afterwards. */
+adwi_result adwi_table_open_bytes(const uint8_t *bytes, size_t len, adwi_table **out);
+
+/* The correction at target_mm for configuration config (-1 = unknown). ADWI_OK whenever
+ * the table answered; out->status says whether the correction holds. */
+adwi_result adwi_table_query(const adwi_table *table, const double target_mm[3],
+                             int32_t config, adwi_correction *out);
+
+/* Iterates command <- target - error(command) until the residual is at most tolerance_mm
+ * or max_iterations queries were made. */
+adwi_result adwi_table_compensate(const adwi_table *table, const double target_mm[3],
+                                  int32_t config, double tolerance_mm,
+                                  uint32_t max_iterations, adwi_compensation *out);
+
+/* The number of samples in the table. */
+adwi_result adwi_table_sample_count(const adwi_table *table, uint32_t *out);
+
+/* Closes a handle; null is ignored. */
+void adwi_table_close(adwi_table *table);
+
+/* A static name for a result code; never null. */
+const char *adwi_result_name(int code);
+
+/* Copies this thread's last open error message into buf (at most len bytes including the
+ * NUL, truncated if needed; nothing is written if len is 0) and returns the full message
+ * length without the NUL. Empty after a successful open. */
+size_t adwi_last_open_error(char *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ADWI_H */

@@ -1,0 +1,468 @@
+//! The C ABI: what `include/adwi.h` declares, for controllers written in C or C++.
+//!
+//! Conventions, as the header documents them for C callers:
+//!
+//! - Every function returns an [`AdwiResult`]; outputs are written only when it is
+//!   [`AdwiResult::Ok`], so a failed call leaves the caller's variables as they were.
+//! - Null pointers are refused with [`AdwiResult::NullPointer`], never dereferenced.
+//! - Every export runs inside `catch_unwind`: a panic (none is expected; queries cannot
+//!   panic by construction) becomes [`AdwiResult::Panic`] instead of unwinding into C,
+//!   which would be undefined behaviour.
+//! - Queries and compensations do not allocate, lock or touch thread-local state. Only the
+//!   open functions record a detailed message, in a thread-local string that
+//!   [`adwi_last_open_error`] copies into a caller buffer.
+//! - A handle may be queried from several threads at once; it must not be closed while
+//!   another thread uses it.
+
+use std::cell::RefCell;
+use std::ffi::{c_char, c_int, CStr};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+use crate::residency::{Lock, OpenOptions};
+use crate::{AlignedBytes, Compensation, Correction, OpenError, Table, Target};
+
+/// Result codes; the values are part of the ABI.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdwiResult {
+    /// Success; outputs were written.
+    Ok = 0,
+    /// A required pointer argument was null.
+    NullPointer = 1,
+    /// An argument is out of range (configuration, tolerance, path not UTF-8).
+    InvalidArgument = 2,
+    /// The file could not be read or mapped.
+    Io = 3,
+    /// The bytes are not a valid table: truncated, corrupt, wrong magic or checksum.
+    InvalidTable = 4,
+    /// The table's format version is not one this runtime reads.
+    UnsupportedVersion = 5,
+    /// Locking the table in memory was required and failed.
+    Lock = 6,
+    /// A panic was caught at the boundary (a bug: please report it).
+    Panic = 7,
+}
+
+/// A table as C sees it: behind the opaque `adwi_table` handle, either mapped from a
+/// file or copied into aligned memory.
+pub struct AdwiTable {
+    table: Table<Backing>,
+}
+
+/// The bytes behind a C handle.
+enum Backing {
+    Mapped(memmap2::Mmap),
+    Owned(AlignedBytes),
+}
+
+impl AsRef<[u8]> for Backing {
+    #[inline]
+    fn as_ref(&self) -> &[u8] {
+        match self {
+            Backing::Mapped(m) => m,
+            Backing::Owned(v) => v,
+        }
+    }
+}
+
+/// `adwi_correction`: [`Correction`] with a fixed-width status.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AdwiCorrection {
+    /// Predicted position error (actual − nominal), mm, base frame.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error (rotation vector), rad, base frame.
+    pub orientation_error_rad: [f64; 3],
+    /// The number of neighbours weighted.
+    pub neighbours: u32,
+    /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
+    /// 3 invalid input.
+    pub status: i32,
+}
+
+/// `adwi_compensation`: [`Compensation`] with fixed-width fields.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AdwiCompensation {
+    /// The position to command, mm, base frame.
+    pub command_position_mm: [f64; 3],
+    /// The rotation to apply to the target orientation (rotation vector), rad.
+    pub command_rotation_rad: [f64; 3],
+    /// The correction predicted at the command.
+    pub correction: AdwiCorrection,
+    /// Iterations used.
+    pub iterations: u32,
+    /// 1 if the tolerance was reached, else 0.
+    pub converged: i32,
+    /// `|command + error(command) − target|`, mm.
+    pub residual_mm: f64,
+}
+
+/// `ADWI_OPEN_PREFAULT`: fault every page in at open.
+pub const ADWI_OPEN_PREFAULT: u32 = 1;
+/// `ADWI_OPEN_LOCK`: lock the table in memory, best effort.
+pub const ADWI_OPEN_LOCK: u32 = 2;
+/// `ADWI_OPEN_LOCK_REQUIRED`: lock the table in memory or fail with `ADWI_LOCK`.
+pub const ADWI_OPEN_LOCK_REQUIRED: u32 = 4;
+
+impl From<Correction> for AdwiCorrection {
+    #[inline]
+    fn from(c: Correction) -> AdwiCorrection {
+        AdwiCorrection {
+            position_error_mm: c.position_error_mm,
+            orientation_error_rad: c.orientation_error_rad,
+            neighbours: c.neighbours,
+            status: c.status as i32,
+        }
+    }
+}
+
+impl From<Compensation> for AdwiCompensation {
+    #[inline]
+    fn from(c: Compensation) -> AdwiCompensation {
+        AdwiCompensation {
+            command_position_mm: c.command_position_mm,
+            command_rotation_rad: c.command_rotation_rad,
+            correction: c.correction.into(),
+            iterations: c.iterations,
+            converged: c.converged.into(),
+            residual_mm: c.residual_mm,
+        }
+    }
+}
+
+thread_local! {
+    /// The message of the last failed open on this thread; written only by the open
+    /// functions, never by queries.
+    static LAST_OPEN_ERROR: RefCell<String> = const { RefCell::new(String::new()) };
+}
+
+fn record_open_error(message: String) {
+    LAST_OPEN_ERROR.with(|m| *m.borrow_mut() = message);
+}
+
+fn code_of(error: &OpenError) -> AdwiResult {
+    match error {
+        OpenError::Io(_) => AdwiResult::Io,
+        OpenError::UnsupportedVersion { .. } => AdwiResult::UnsupportedVersion,
+        OpenError::Lock(_) => AdwiResult::Lock,
+        _ => AdwiResult::InvalidTable,
+    }
+}
+
+/// Runs `f`, turning a panic into [`AdwiResult::Panic`].
+#[inline]
+fn guarded(f: impl FnOnce() -> AdwiResult) -> AdwiResult {
+    catch_unwind(AssertUnwindSafe(f)).unwrap_or(AdwiResult::Panic)
+}
+
+/// Finishes an open: stores the handle on success, records the message on failure.
+///
+/// # Safety
+///
+/// `out` is non-null and valid for a pointer write.
+unsafe fn finish_open(
+    result: Result<Table<Backing>, OpenError>,
+    out: *mut *mut AdwiTable,
+) -> AdwiResult {
+    match result {
+        Ok(table) => {
+            let handle = Box::into_raw(Box::new(AdwiTable { table }));
+            // SAFETY: the caller checked `out` is non-null; C guarantees it is writable.
+            unsafe { out.write(handle) };
+            record_open_error(String::new());
+            AdwiResult::Ok
+        }
+        Err(e) => {
+            let code = code_of(&e);
+            record_open_error(e.to_string());
+            code
+        }
+    }
+}
+
+/// Opens the table file at `path` (NUL-terminated UTF-8) by memory map, validating it,
+/// with `flags` a combination of `ADWI_OPEN_*` (0 for none).
+///
+/// # Safety
+///
+/// `path` is null or a NUL-terminated string; `out` is null or valid for a pointer write.
+/// The file must not be modified or truncated while the table is open (replace tables by
+/// renaming a new file into place).
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_open_with(
+    path: *const c_char,
+    flags: u32,
+    out: *mut *mut AdwiTable,
+) -> AdwiResult {
+    guarded(|| {
+        if path.is_null() || out.is_null() {
+            record_open_error("a null pointer was passed to adwi_table_open".into());
+            return AdwiResult::NullPointer;
+        }
+        // SAFETY: non-null, and NUL-terminated by the caller's contract.
+        let path = unsafe { CStr::from_ptr(path) };
+        let Ok(path) = path.to_str() else {
+            record_open_error("the table path is not valid UTF-8".into());
+            return AdwiResult::InvalidArgument;
+        };
+        let options = OpenOptions {
+            prefault: flags & ADWI_OPEN_PREFAULT != 0,
+            lock: if flags & ADWI_OPEN_LOCK_REQUIRED != 0 {
+                Lock::Required
+            } else if flags & ADWI_OPEN_LOCK != 0 {
+                Lock::BestEffort
+            } else {
+                Lock::No
+            },
+        };
+        // SAFETY: the caller guarantees the file is not modified while open.
+        let opened = unsafe { Table::open_with(Path::new(path), options) };
+        let result = opened.and_then(|(table, _)| rewrap(table));
+        // SAFETY: `out` is non-null; the caller guarantees it is writable.
+        unsafe { finish_open(result, out) }
+    })
+}
+
+/// Moves a validated mapped table behind the C handle's backing type without validating
+/// it again: moving an `Mmap` does not move the mapping, and the table checks on every
+/// query that its bytes are still the validated ones.
+fn rewrap(table: Table<memmap2::Mmap>) -> Result<Table<Backing>, OpenError> {
+    Ok(table.map_data(Backing::Mapped))
+}
+
+/// [`adwi_table_open_with`] with no flags.
+///
+/// # Safety
+///
+/// As [`adwi_table_open_with`].
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_open(
+    path: *const c_char,
+    out: *mut *mut AdwiTable,
+) -> AdwiResult {
+    // SAFETY: same contract.
+    unsafe { adwi_table_open_with(path, 0, out) }
+}
+
+/// Copies `len` bytes at `bytes` into aligned memory and validates them as a table.
+///
+/// # Safety
+///
+/// `bytes` is null or valid for reads of `len` bytes; `out` is null or valid for a
+/// pointer write.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_open_bytes(
+    bytes: *const u8,
+    len: usize,
+    out: *mut *mut AdwiTable,
+) -> AdwiResult {
+    guarded(|| {
+        if bytes.is_null() || out.is_null() {
+            record_open_error("a null pointer was passed to adwi_table_open_bytes".into());
+            return AdwiResult::NullPointer;
+        }
+        // SAFETY: non-null and valid for `len` bytes by the caller's contract.
+        let slice = unsafe { std::slice::from_raw_parts(bytes, len) };
+        let mut aligned = AlignedBytes::with_capacity(len);
+        aligned.extend_from_slice(slice);
+        let result = Table::from_bytes(Backing::Owned(aligned));
+        // SAFETY: `out` is non-null; the caller guarantees it is writable.
+        unsafe { finish_open(result, out) }
+    })
+}
+
+/// Converts a C configuration (-1 unknown, 0..=254 known) to a [`Target`] configuration.
+#[inline]
+fn config_of(config: i32) -> Option<Option<u8>> {
+    match config {
+        -1 => Some(None),
+        0..=254 => Some(Some(config as u8)),
+        _ => None,
+    }
+}
+
+/// Reads a C `double[3]`.
+///
+/// # Safety
+///
+/// `p` is non-null and valid for reads of three doubles.
+#[inline]
+unsafe fn read3(p: *const f64) -> [f64; 3] {
+    // SAFETY: as the function's contract; `read_unaligned` tolerates any alignment.
+    unsafe {
+        [
+            p.read_unaligned(),
+            p.add(1).read_unaligned(),
+            p.add(2).read_unaligned(),
+        ]
+    }
+}
+
+/// The correction at `target_mm` (x, y, z, mm, base frame) for configuration `config`
+/// (-1 unknown). Returns `ADWI_OK` whenever the table answered; `out->status` then says
+/// whether the correction holds. Does not allocate.
+///
+/// # Safety
+///
+/// `table` is null or a live handle from an open function; `target_mm` is null or valid
+/// for three doubles; `out` is null or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_query(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    out: *mut AdwiCorrection,
+) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() || target_mm.is_null() || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        let Some(config) = config_of(config) else {
+            return AdwiResult::InvalidArgument;
+        };
+        // SAFETY: non-null, valid for three doubles by contract.
+        let position_mm = unsafe { read3(target_mm) };
+        // SAFETY: non-null, a live handle by contract; only shared access is taken.
+        let table = unsafe { &(*table).table };
+        let c = table.query_target(&Target {
+            position_mm,
+            config,
+        });
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(c.into()) };
+        AdwiResult::Ok
+    })
+}
+
+/// The command that lands the robot on `target_mm`: iterates until
+/// `|command + error(command) − target| <= tolerance_mm` or `max_iterations` queries.
+/// Returns `ADWI_OK` whenever the table answered; `out->converged` and
+/// `out->correction.status` say how well. Does not allocate.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`].
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_compensate(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    tolerance_mm: f64,
+    max_iterations: u32,
+    out: *mut AdwiCompensation,
+) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() || target_mm.is_null() || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        let Some(config) = config_of(config) else {
+            return AdwiResult::InvalidArgument;
+        };
+        if !(tolerance_mm.is_finite() && tolerance_mm >= 0.0) {
+            return AdwiResult::InvalidArgument;
+        }
+        // SAFETY: non-null, valid for three doubles by contract.
+        let position_mm = unsafe { read3(target_mm) };
+        // SAFETY: non-null, a live handle by contract; only shared access is taken.
+        let table = unsafe { &(*table).table };
+        let c = table.compensate(
+            &Target {
+                position_mm,
+                config,
+            },
+            tolerance_mm,
+            max_iterations,
+        );
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(c.into()) };
+        AdwiResult::Ok
+    })
+}
+
+/// The number of samples in the table, written to `out`.
+///
+/// # Safety
+///
+/// `table` is null or a live handle; `out` is null or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_sample_count(
+    table: *const AdwiTable,
+    out: *mut u32,
+) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        // SAFETY: non-null, a live handle by contract.
+        let n = unsafe { (*table).table.sample_count() };
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(n as u32) };
+        AdwiResult::Ok
+    })
+}
+
+/// Closes a handle, unmapping or freeing its table. Null is accepted and ignored.
+///
+/// # Safety
+///
+/// `table` is null or a handle from an open function, not yet closed, and not in use by
+/// another thread.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_close(table: *mut AdwiTable) {
+    let _ = guarded(|| {
+        if !table.is_null() {
+            // SAFETY: a handle from `Box::into_raw`, closed once by contract.
+            drop(unsafe { Box::from_raw(table) });
+        }
+        AdwiResult::Ok
+    });
+}
+
+/// A static, NUL-terminated name for a result code ("ok", "null pointer", ...); never
+/// null, "unknown result" for values outside the enum.
+#[no_mangle]
+pub extern "C" fn adwi_result_name(code: c_int) -> *const c_char {
+    let name: &'static CStr = match code {
+        0 => c"ok",
+        1 => c"null pointer",
+        2 => c"invalid argument",
+        3 => c"cannot read the table",
+        4 => c"invalid table",
+        5 => c"unsupported table format version",
+        6 => c"cannot lock the table in memory",
+        7 => c"internal panic",
+        _ => c"unknown result",
+    };
+    name.as_ptr()
+}
+
+/// Copies the message of this thread's last failed open into `buf` (at most `len` bytes
+/// including the terminating NUL, truncated if needed) and returns the message's full
+/// length without the NUL, so a caller can size a buffer by passing `len = 0`. The message
+/// is empty after a successful open.
+///
+/// # Safety
+///
+/// `buf` is null (only with `len == 0`) or valid for writes of `len` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_last_open_error(buf: *mut c_char, len: usize) -> usize {
+    catch_unwind(|| {
+        LAST_OPEN_ERROR.with(|m| {
+            let m = m.borrow();
+            let bytes = m.as_bytes();
+            if !buf.is_null() && len > 0 {
+                let n = bytes.len().min(len - 1);
+                // SAFETY: `buf` is valid for `len` bytes and `n + 1 <= len`; the regions
+                // cannot overlap (the message is owned by this library).
+                unsafe {
+                    std::ptr::copy_nonoverlapping(bytes.as_ptr(), buf.cast::<u8>(), n);
+                    buf.add(n).write(0);
+                }
+            }
+            bytes.len()
+        })
+    })
+    .unwrap_or(0)
+}

@@ -1,0 +1,246 @@
+//! The C ABI end to end: `tests/c/smoke.c` is compiled with the system C compiler against
+//! `runtime/include/adwi.h` and the runtime's static library, then run on a table built
+//! from the paper's worked example. Its answers must equal the Rust API's bit for bit, and
+//! every bad input must give its documented code.
+//!
+//! The test builds the static library itself (`cargo build -p adwi-runtime --lib`, into a
+//! target directory of its own so that it never waits on the lock of the build running
+//! it), so it needs nothing built beforehand; it needs a C compiler (`cc`).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use adwi_compiler::build::{compile, BuildOptions};
+use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_runtime::{Status, Table, Target};
+
+const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
+const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Builds the runtime's static library and returns its path.
+fn static_library() -> PathBuf {
+    let target_dir = workspace().join("target").join("c-abi");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(workspace())
+        .args(["build", "--quiet", "-p", "adwi-runtime", "--lib"])
+        .env("CARGO_TARGET_DIR", &target_dir)
+        .status()
+        .expect("cannot run cargo");
+    assert!(status.success(), "cargo build -p adwi-runtime failed");
+    let lib = target_dir.join("debug").join("libadwi_runtime.a");
+    assert!(lib.exists(), "{} was not built", lib.display());
+    lib
+}
+
+/// Compiles `tests/c/smoke.c` into `dir` and returns the executable.
+fn compile_smoke(dir: &Path) -> PathBuf {
+    let exe = dir.join("smoke");
+    let cc = std::env::var_os("CC").unwrap_or_else(|| "cc".into());
+    let output = Command::new(cc)
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-I"])
+        .arg(workspace().join("runtime/include"))
+        .arg(workspace().join("tests/c/smoke.c"))
+        .arg(static_library())
+        // What `rustc --print native-static-libs` lists for a std staticlib on Linux.
+        .args([
+            "-lgcc_s",
+            "-lutil",
+            "-lrt",
+            "-lpthread",
+            "-lm",
+            "-ldl",
+            "-lc",
+            "-o",
+        ])
+        .arg(&exe)
+        .output()
+        .expect("cannot run the C compiler (cc)");
+    assert!(
+        output.status.success(),
+        "cc failed:\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    exe
+}
+
+fn worked_example_table() -> Vec<u8> {
+    let csv = workspace().join("tables/paper/worked_example_p1.csv");
+    let samples = read_samples(&csv, &ColumnMap::default()).unwrap();
+    compile(&samples, &BuildOptions::default(), &|_| {})
+        .unwrap()
+        .0
+}
+
+/// The line of `stdout` starting with `name `, split into words after the name.
+fn line<'a>(stdout: &'a str, name: &str) -> Vec<&'a str> {
+    let prefix = format!("{name} ");
+    let l = stdout
+        .lines()
+        .find(|l| l.starts_with(&prefix))
+        .unwrap_or_else(|| panic!("no line {name:?} in:\n{stdout}"));
+    l[prefix.len()..].split_whitespace().collect()
+}
+
+#[test]
+fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = compile_smoke(dir.path());
+    let bytes = worked_example_table();
+    let table_path = dir.path().join("p1.tbl");
+    std::fs::write(&table_path, &bytes).unwrap();
+    let mut corrupt = bytes.clone();
+    let last = corrupt.len() - 1;
+    corrupt[last] ^= 0x40;
+    let corrupt_path = dir.path().join("corrupt.tbl");
+    std::fs::write(&corrupt_path, &corrupt).unwrap();
+
+    let table = Table::from_vec(&bytes).unwrap();
+    let grid_max = table.grid().max_mm();
+    // The worked example's target, points around it, a sample itself, outside the grid,
+    // a configuration, and a NaN.
+    let targets: Vec<([f64; 3], i32)> = vec![
+        (P1, -1),
+        ([1980.0, 690.0, 1010.0], -1),
+        ([2040.0, 740.0, 960.0], 3),
+        ([1950.0, 750.0, 1050.0], -1),
+        ([grid_max[0] + 1.0, 700.0, 1000.0], -1),
+        ([f64::NAN, 700.0, 1000.0], -1),
+    ];
+    let input: String = targets
+        .iter()
+        .map(|(p, c)| format!("{:?} {:?} {:?} {c}\n", p[0], p[1], p[2]))
+        .collect::<String>()
+        .replace("NaN", "nan");
+    let mut child = Command::new(&exe)
+        .arg(&table_path)
+        .arg(dir.path().join("missing.tbl"))
+        .arg(&corrupt_path)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let output = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8(output.stdout).unwrap();
+    assert!(
+        output.status.success(),
+        "smoke failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+
+    // Refusals: ADWI_NULL_POINTER 1, ADWI_INVALID_ARGUMENT 2, ADWI_IO 3,
+    // ADWI_INVALID_TABLE 4.
+    assert_eq!(line(&stdout, "open_null_path")[0], "1");
+    assert_eq!(line(&stdout, "open_null_out"), ["1"]);
+    let missing = line(&stdout, "open_missing");
+    assert_eq!(missing[0], "3", "{stdout}");
+    assert!(
+        stdout.contains("cannot read the table | cannot read the table:"),
+        "{stdout}"
+    );
+    for name in ["open_corrupt_bytes", "open_corrupt_file"] {
+        let words = line(&stdout, name);
+        assert_eq!(words[0], "4", "{name}: {stdout}");
+        // The message length reported equals the Rust error's.
+        let expected = Table::from_vec(&corrupt).err().unwrap().to_string();
+        assert_eq!(words[1], expected.len().to_string(), "{name}: {stdout}");
+        assert!(stdout.contains(&expected), "{stdout}");
+    }
+    assert_eq!(line(&stdout, "open_null_bytes"), ["1"]);
+    assert_eq!(line(&stdout, "handle_untouched"), ["1"]);
+    assert_eq!(line(&stdout, "open")[..2], ["0", "0"]);
+    assert_eq!(line(&stdout, "open_bytes"), ["0"]);
+    assert_eq!(line(&stdout, "sample_count"), ["0", "8"]);
+    assert_eq!(line(&stdout, "query_null_table"), ["1"]);
+    assert_eq!(line(&stdout, "query_null_target"), ["1"]);
+    assert_eq!(line(&stdout, "query_null_out"), ["1"]);
+    assert_eq!(line(&stdout, "query_bad_config"), ["2"]);
+    assert_eq!(line(&stdout, "query_untouched"), ["1"]);
+    assert_eq!(line(&stdout, "compensate_null_out"), ["1"]);
+    assert_eq!(line(&stdout, "compensate_bad_tolerance"), ["2"]);
+    assert!(stdout.lines().last() == Some("done"), "{stdout}");
+
+    // Answers: bit for bit the Rust API's (17 significant digits round-trip a double).
+    let queries: Vec<&str> = stdout.lines().filter(|l| l.starts_with("query ")).collect();
+    let compensations: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("compensate "))
+        .collect();
+    assert_eq!(queries.len(), targets.len(), "{stdout}");
+    assert_eq!(compensations.len(), targets.len(), "{stdout}");
+    assert_eq!(
+        stdout.lines().filter(|l| *l == "handles_agree 1").count(),
+        targets.len(),
+        "{stdout}"
+    );
+    let parse = |w: &str| -> f64 {
+        match w {
+            "nan" | "-nan" => f64::NAN,
+            _ => w.parse().unwrap(),
+        }
+    };
+    for (i, (p, config)) in targets.iter().enumerate() {
+        let target = Target {
+            position_mm: *p,
+            config: (*config >= 0).then_some(*config as u8),
+        };
+        let c = table.query_target(&target);
+        let words: Vec<&str> = queries[i].split_whitespace().skip(1).collect();
+        assert_eq!(words[0], (c.status as i32).to_string(), "target {p:?}");
+        assert_eq!(words[1], c.neighbours.to_string(), "target {p:?}");
+        for axis in 0..3 {
+            assert_eq!(parse(words[2 + axis]), c.position_error_mm[axis], "{p:?}");
+            assert_eq!(
+                parse(words[5 + axis]),
+                c.orientation_error_rad[axis],
+                "{p:?}"
+            );
+        }
+        let k = table.compensate(&target, 1e-9, 50);
+        let words: Vec<&str> = compensations[i].split_whitespace().skip(1).collect();
+        assert_eq!(words[0], (k.correction.status as i32).to_string());
+        assert_eq!(words[1], k.iterations.to_string());
+        assert_eq!(words[2], i32::from(k.converged).to_string());
+        for axis in 0..3 {
+            let got = parse(words[3 + axis]);
+            let want = k.command_position_mm[axis];
+            assert!(got == want || (got.is_nan() && want.is_nan()), "{p:?}");
+        }
+        let residual = parse(words[6]);
+        assert!(residual == k.residual_mm || (residual.is_nan() && k.residual_mm.is_nan()));
+    }
+
+    // The worked example's printed prediction, through C.
+    let p1: Vec<f64> = queries[0]
+        .split_whitespace()
+        .skip(3)
+        .take(3)
+        .map(parse)
+        .collect();
+    assert_eq!(queries[0].split_whitespace().nth(1), Some("0"));
+    for axis in 0..3 {
+        assert!(
+            (p1[axis] - PREDICTED_MM[axis]).abs() <= 1e-9,
+            "axis {axis}: {} vs {}",
+            p1[axis],
+            PREDICTED_MM[axis]
+        );
+    }
+    assert_eq!(
+        table.query(P1).status,
+        Status::Ok,
+        "the Rust API answers P1 too"
+    );
+}

@@ -1,0 +1,78 @@
+//! Tables for the end-to-end tests: a noisy lattice of samples, compiled by the real
+//! compiler.
+
+#![allow(dead_code)]
+
+use adwi_compiler::build::{compile, BuildOptions};
+use adwi_compiler::samples::{parse_samples, ColumnMap};
+
+/// A deterministic generator (SplitMix64): the same tables on every run.
+pub struct SplitMix(pub u64);
+
+impl SplitMix {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The lattice's minimum corner and spacing, mm.
+pub const ORIGIN_MM: [f64; 3] = [1500.0, -100.0, 800.0];
+pub const SPACING_MM: f64 = 50.0;
+/// Samples per axis.
+pub const PER_AXIS: usize = 5;
+
+/// Sample CSV for a `PER_AXIS`³ lattice with smooth errors (times `scale`) plus noise.
+pub fn lattice_csv(seed: u64, scale: f64) -> String {
+    let mut rng = SplitMix(seed);
+    let mut csv = String::from("x,y,z,dx,dy,dz\n");
+    for k in 0..PER_AXIS {
+        for j in 0..PER_AXIS {
+            for i in 0..PER_AXIS {
+                let p = [
+                    ORIGIN_MM[0] + i as f64 * SPACING_MM,
+                    ORIGIN_MM[1] + j as f64 * SPACING_MM,
+                    ORIGIN_MM[2] + k as f64 * SPACING_MM,
+                ];
+                let e = [
+                    scale * (0.2 + 1e-4 * p[1] + rng.uniform(-0.01, 0.01)),
+                    scale * (-0.1 + 2e-4 * p[0] + rng.uniform(-0.01, 0.01)),
+                    scale * (0.3 - 1e-4 * p[2] + rng.uniform(-0.01, 0.01)),
+                ];
+                csv += &format!("{},{},{},{},{},{}\n", p[0], p[1], p[2], e[0], e[1], e[2]);
+            }
+        }
+    }
+    csv
+}
+
+/// The compiled table of [`lattice_csv`], with the default options.
+pub fn lattice_table(seed: u64, scale: f64) -> Vec<u8> {
+    let csv = lattice_csv(seed, scale);
+    let samples = parse_samples(
+        "lattice.csv".as_ref(),
+        csv.as_bytes(),
+        &ColumnMap::default(),
+    )
+    .unwrap();
+    compile(&samples, &BuildOptions::default(), &|_| {})
+        .unwrap()
+        .0
+}
+
+/// Random targets inside the lattice box.
+pub fn targets(seed: u64, count: usize) -> Vec<[f64; 3]> {
+    let mut rng = SplitMix(seed);
+    let extent = SPACING_MM * (PER_AXIS - 1) as f64;
+    (0..count)
+        .map(|_| [0, 1, 2].map(|a| ORIGIN_MM[a] + rng.uniform(0.0, extent)))
+        .collect()
+}

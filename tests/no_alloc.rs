@@ -1,0 +1,160 @@
+//! Queries and compensations never allocate: a counting global allocator watches 100,000
+//! of each, through every way of holding a table (owned bytes, memory map, a swappable
+//! handle, the C ABI).
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use adwi_runtime::capi::{self, AdwiCompensation, AdwiCorrection, AdwiResult};
+use adwi_runtime::{Status, Table, TableSwap, Target};
+
+/// Counts allocations made by a thread while its `COUNTING` flag is set.
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+fn note() {
+    // `try_with`: the flag may already be gone while a thread shuts down.
+    if COUNTING.try_with(Cell::get).unwrap_or(false) {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+// SAFETY: delegates every call to the system allocator unchanged.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        note();
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        note();
+        // SAFETY: as above.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        note();
+        // SAFETY: as above.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        note();
+        // SAFETY: as above.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations (and frees) made by `f` on this thread.
+fn allocations_in(f: impl FnOnce()) -> u64 {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    COUNTING.with(|c| c.set(true));
+    f();
+    COUNTING.with(|c| c.set(false));
+    ALLOCATIONS.load(Ordering::Relaxed) - before
+}
+
+const QUERIES: usize = 100_000;
+
+#[test]
+fn queries_and_compensations_allocate_nothing() {
+    let bytes = common::lattice_table(7, 1.0);
+    let owned = Table::from_vec(&bytes).unwrap();
+    let dir = std::env::temp_dir().join(format!("adwi-no-alloc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("lattice.tbl");
+    std::fs::write(&path, &bytes).unwrap();
+    // SAFETY: the file is private to this test and not modified while mapped.
+    let mapped = unsafe { Table::open(&path) }.unwrap();
+    let live = TableSwap::new(Table::from_vec(&bytes).unwrap());
+    let mut handle = std::ptr::null_mut();
+    let path_c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    // SAFETY: a valid C string and out-pointer.
+    let code = unsafe { capi::adwi_table_open(path_c.as_ptr(), &mut handle) };
+    assert_eq!(code, AdwiResult::Ok);
+
+    // Targets in the grid, some outside it, one not finite: every path of a query.
+    let mut targets = common::targets(11, QUERIES);
+    targets[0] = [0.0; 3];
+    targets[1] = [f64::NAN, 0.0, 0.0];
+    targets[2] = common::ORIGIN_MM;
+    // The swappable handle registers this thread on its first load (once per thread).
+    live.query(targets[3]);
+
+    let mut ok = 0usize;
+    let mut converged = 0usize;
+    let mut checksum = 0.0;
+    let count = allocations_in(|| {
+        for (i, p) in targets.iter().enumerate() {
+            let target = Target {
+                position_mm: *p,
+                config: if i % 2 == 0 { None } else { Some(1) },
+            };
+            let a = owned.query_target(&target);
+            let b = mapped.query(*p);
+            let c = live.query_target(&target);
+            let k = owned.compensate(&target, 1e-9, 20);
+            let l = live.compensate(&target, 1e-9, 20);
+            let e = mapped
+                .explain(&target)
+                .map(|p| p.neighbours.len())
+                .unwrap_or(0);
+            let mut from_c = AdwiCorrection::default();
+            let mut comp_c = AdwiCompensation::default();
+            // SAFETY: a live handle, three readable doubles, writable outputs.
+            let codes = unsafe {
+                (
+                    capi::adwi_table_query(handle, p.as_ptr(), -1, &mut from_c),
+                    capi::adwi_table_compensate(handle, p.as_ptr(), -1, 1e-9, 20, &mut comp_c),
+                )
+            };
+            assert_eq!(codes, (AdwiResult::Ok, AdwiResult::Ok));
+            ok += usize::from(a.status == Status::Ok);
+            converged += usize::from(k.converged);
+            let terms = [
+                a.position_error_mm[0],
+                b.position_error_mm[1],
+                c.position_error_mm[2],
+                k.command_position_mm[0],
+                l.residual_mm,
+                e as f64,
+                from_c.position_error_mm[0],
+                comp_c.command_position_mm[1],
+            ];
+            // Non-finite terms come from the NaN and outside targets.
+            checksum += terms.iter().filter(|t| t.is_finite()).sum::<f64>();
+        }
+    });
+    // SAFETY: the handle from `adwi_table_open`, closed once.
+    unsafe { capi::adwi_table_close(handle) };
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        count, 0,
+        "{count} allocations in {QUERIES} rounds of queries"
+    );
+    // The loop did real work: most targets answered, most compensations converged.
+    assert!(ok > QUERIES * 9 / 10, "only {ok} answers");
+    assert!(converged > QUERIES * 9 / 10, "only {converged} converged");
+    assert!(checksum.is_finite() && checksum != 0.0);
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    // Guards the test above against a counter that counts nothing.
+    let count = allocations_in(|| {
+        std::hint::black_box(vec![1u8; 64]);
+    });
+    assert_eq!(count, 2, "one allocation and one free");
+}
