@@ -6,6 +6,7 @@
 
 pub mod baselines;
 pub mod build;
+pub mod calibrate;
 pub mod pose;
 pub mod reference;
 pub mod robot;
