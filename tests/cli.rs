@@ -254,3 +254,32 @@ fn a_corrupt_table_is_refused_with_a_reason() {
         stderr(&o)
     );
 }
+
+#[test]
+fn an_interrupted_build_leaves_the_existing_table_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    assert!(
+        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
+            .status
+            .success()
+    );
+    let before = std::fs::read(dir.path().join("t.tbl")).unwrap();
+    // Two million cells: long enough to be killed while compiling.
+    let samples = repo("tables/paper/worked_example_p1.csv");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tablec"))
+        .args(["build", "-q", "--cell", "4", "-o", "t.tbl"])
+        .arg(samples)
+        .current_dir(dir.path())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let finished_early = child.try_wait().unwrap().is_some();
+    child.kill().ok();
+    child.wait().unwrap();
+    if !finished_early {
+        assert_eq!(std::fs::read(dir.path().join("t.tbl")).unwrap(), before);
+    }
+    // Whatever happened, the file at the path is a complete, valid table.
+    adwi_runtime::Table::from_vec(std::fs::read(dir.path().join("t.tbl")).unwrap()).unwrap();
+}
