@@ -263,6 +263,10 @@ pub fn compile(
         list_samples: Vec::new(),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
+        joints_rad: samples.joints_deg.as_ref().map_or(Vec::new(), |j| {
+            j.iter().map(|q| q.map(f64::to_radians)).collect()
+        }),
+        model: None,
     };
     // Identical lists are stored once, in order of first appearance.
     let mut starts: HashMap<&[u32], u32> = HashMap::new();

@@ -13,7 +13,7 @@
 //! | 10  | 2  | format version |
 //! | 12  | 4  | header length in bytes (256) |
 //! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
-//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 joint angles |
+//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 joint angles, bit 3 kinematic model |
 //! | 24  | 8  | payload length in bytes (file length − 256) |
 //! | 32  | 8  | payload checksum, XXH3-64 of the payload |
 //! | 40  | 8  | source hash, XXH3-64 of the canonical sample values the table was built from |
@@ -70,6 +70,8 @@ pub const CONTENT_ORIENTATION: u32 = 1 << 0;
 pub const CONTENT_CONFIG: u32 = 1 << 1;
 /// Content flag: samples carry joint angles.
 pub const CONTENT_JOINTS: u32 = 1 << 2;
+/// Content flag: the table carries a calibrated kinematic model (a hybrid table).
+pub const CONTENT_MODEL: u32 = 1 << 3;
 
 /// The decoded header: identification, integrity fields and the build parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -210,6 +212,37 @@ pub struct TableData {
     pub centre_samples: Vec<u32>,
     /// Their weights `q_i` (summing to 1 per cell with neighbours).
     pub centre_weights: Vec<f64>,
+    /// Joint angles of each sample, rad, in sample order; empty when the samples carry
+    /// none ([`CONTENT_JOINTS`]).
+    pub joints_rad: Vec<[f64; 6]>,
+    /// The kinematic model of a hybrid table ([`CONTENT_MODEL`]): the sample errors are
+    /// then the residuals that the calibrated model leaves, and a correction adds the
+    /// model's prediction at the target's joint angles.
+    pub model: Option<KinematicModel>,
+}
+
+/// A 6-axis robot's kinematic parameters, as plain arrays.
+#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+#[rkyv(derive(Debug))]
+pub struct ModelParams {
+    /// Per joint, the MD-H parameters `[a (mm), d (mm), α (rad), β (rad), θ offset (rad)]`.
+    pub joints: [[f64; 5]; 6],
+    /// Flange to tool centre point: rotation rows then translation, `[r00, r01, r02, t0,
+    /// r10, r11, r12, t1, r20, r21, r22, t2]` (mm).
+    pub tool: [f64; 12],
+    /// Robot base in the measurement (world) frame, same layout as `tool`.
+    pub base: [f64; 12],
+}
+
+/// The nominal model the controller commands with, and the calibrated model that
+/// predicts where the robot really goes.
+#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+#[rkyv(derive(Debug))]
+pub struct KinematicModel {
+    /// The controller's nominal parameters.
+    pub nominal: ModelParams,
+    /// The identified parameters.
+    pub calibrated: ModelParams,
 }
 
 fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]) {

@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use crate::format::{
-    ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_ORIENTATION,
-    HEADER_LEN, PAYLOAD_ALIGN,
+    ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_JOINTS,
+    CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction, SampleError};
 use crate::OpenError;
@@ -454,6 +454,32 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
                 "configuration present in a table without configurations",
             ));
         }
+    }
+    let with_joints = header.content_flags & CONTENT_JOINTS != 0;
+    if a.joints_rad.len() != if with_joints { n } else { 0 } {
+        return Err(corrupt("joint angle count differs from the sample count"));
+    }
+    if !a
+        .joints_rad
+        .iter()
+        .flatten()
+        .all(|q| q.to_native().is_finite())
+    {
+        return Err(corrupt("a joint angle is not finite"));
+    }
+    let with_model = header.content_flags & CONTENT_MODEL != 0;
+    match a.model.as_ref() {
+        None if with_model => return Err(corrupt("the content flags promise a model")),
+        Some(_) if !with_model => return Err(corrupt("a model the content flags do not name")),
+        Some(m) => {
+            for p in [&m.nominal, &m.calibrated] {
+                let values = p.joints.iter().flatten().chain(&p.tool).chain(&p.base);
+                if !values.map(|v| v.to_native()).all(f64::is_finite) {
+                    return Err(corrupt("a kinematic parameter is not finite"));
+                }
+            }
+        }
+        None => {}
     }
     if a.centre_weights.len() != a.centre_samples.len() {
         return Err(corrupt("base weight arrays differ in length"));
