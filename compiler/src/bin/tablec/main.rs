@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod bench;
 mod build;
 mod inspect;
 mod query;
@@ -27,6 +28,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Simulate a sample database: a robot, an error scenario, a sampling plan.
     Simulate(simulate::Args),
+    /// Query and open latency of a table next to a k-d tree and the brute force.
+    Bench(bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +39,7 @@ fn main() -> ExitCode {
         Command::Query(args) => query::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Bench(args) => bench::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,279 @@
+//! Measuring query latency, and the alternatives a table is measured against.
+//!
+//! Used by `tablec bench`, by the criterion benchmark `benches/latency.rs` and by the
+//! latency guard test, so that all three measure the same way:
+//!
+//! - **Per-query timing.** Each call is timed on its own with [`std::time::Instant`], and
+//!   the cost of an empty timed region (the median of many, calibrated once by
+//!   [`Timer::calibrate`]) is subtracted. Per-query times give the tail (p99, p99.9, max)
+//!   that a batch mean hides; the mean of the corrected times is cross-checked against a
+//!   batch timing.
+//! - **Workloads.** Uniformly random targets in the table's grid ([`random_targets`]), and
+//!   a controller-like path whose consecutive targets are 1 mm apart ([`trajectory`]), which
+//!   keeps the same cells (and cache lines) hot as a real motion does.
+//! - **Alternatives.** [`KdTreeMethod`] is what an integrator would write without a table:
+//!   a k-d tree (`kiddo`) of the samples built at start-up, every sample within ε found per
+//!   query, the nearest admissible `k` selected and weighted by the same
+//!   [`adwi_runtime::method`] functions. The brute-force reference is
+//!   [`crate::reference::predict`].
+
+use std::time::{Duration, Instant};
+
+use adwi_runtime::format::{Grid, SampleRecord};
+use adwi_runtime::method::{self, MethodParams, Prediction, SampleError};
+use adwi_runtime::{Table, Target};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Percentiles of per-query times, nanoseconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    /// Number of timed queries.
+    pub count: usize,
+    /// Median.
+    pub p50_ns: f64,
+    /// 99th percentile.
+    pub p99_ns: f64,
+    /// 99.9th percentile.
+    pub p999_ns: f64,
+    /// Slowest query.
+    pub max_ns: f64,
+    /// Mean of the per-query times.
+    pub mean_ns: f64,
+}
+
+impl Summary {
+    /// Summarises per-query times (ns); `None` for no times.
+    pub fn of(mut times_ns: Vec<f64>) -> Option<Summary> {
+        if times_ns.is_empty() {
+            return None;
+        }
+        times_ns.sort_by(f64::total_cmp);
+        // Nearest-rank percentile: the smallest time at or above fraction `f` of the queries.
+        let rank = |f: f64| {
+            let i = (f * times_ns.len() as f64).ceil() as usize;
+            times_ns[i.clamp(1, times_ns.len()) - 1]
+        };
+        Some(Summary {
+            count: times_ns.len(),
+            p50_ns: rank(0.50),
+            p99_ns: rank(0.99),
+            p999_ns: rank(0.999),
+            max_ns: times_ns[times_ns.len() - 1],
+            mean_ns: times_ns.iter().sum::<f64>() / times_ns.len() as f64,
+        })
+    }
+}
+
+/// Times single calls, with the cost of reading the clock subtracted.
+#[derive(Clone, Copy, Debug)]
+pub struct Timer {
+    /// The median time of an empty timed region, ns.
+    pub overhead_ns: f64,
+}
+
+impl Timer {
+    /// Measures the clock's overhead: the median of 100,000 empty timed regions.
+    pub fn calibrate() -> Timer {
+        let mut empty: Vec<f64> = (0..100_000)
+            .map(|_| {
+                let start = Instant::now();
+                std::hint::black_box(());
+                start.elapsed().as_nanos() as f64
+            })
+            .collect();
+        empty.sort_by(f64::total_cmp);
+        Timer {
+            overhead_ns: empty[empty.len() / 2],
+        }
+    }
+
+    /// Calls `query` once per input after one untimed warm-up pass over up to 1,000 of
+    /// them, timing each call; returns the per-call times (ns, overhead subtracted,
+    /// floored at 0).
+    pub fn time_each<I, R>(&self, inputs: &[I], mut query: impl FnMut(&I) -> R) -> Vec<f64> {
+        for input in inputs.iter().take(1_000) {
+            std::hint::black_box(query(std::hint::black_box(input)));
+        }
+        inputs
+            .iter()
+            .map(|input| {
+                let input = std::hint::black_box(input);
+                let start = Instant::now();
+                let answer = query(input);
+                let elapsed = start.elapsed();
+                std::hint::black_box(answer);
+                (elapsed.as_nanos() as f64 - self.overhead_ns).max(0.0)
+            })
+            .collect()
+    }
+
+    /// The mean time per call over one batch, without per-call clock reads: a check on
+    /// [`Timer::time_each`]'s overhead correction.
+    pub fn batch_mean_ns<I, R>(inputs: &[I], mut query: impl FnMut(&I) -> R) -> f64 {
+        let start = Instant::now();
+        for input in inputs {
+            std::hint::black_box(query(std::hint::black_box(input)));
+        }
+        start.elapsed().as_nanos() as f64 / inputs.len().max(1) as f64
+    }
+}
+
+/// `count` targets uniformly distributed in `grid`'s box.
+pub fn random_targets(grid: &Grid, count: usize, seed: u64) -> Vec<Target> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let max = grid.max_mm();
+    (0..count)
+        .map(|_| Target::at([0, 1, 2].map(|a| rng.gen_range(grid.origin_mm[a]..max[a]))))
+        .collect()
+}
+
+/// A path of `count` targets `step_mm` apart through `grid`'s box: straight lines in
+/// random directions, reflected at the box's faces and turning every 200 steps, as a
+/// controller's interpolated motion would visit them.
+pub fn trajectory(grid: &Grid, count: usize, step_mm: f64, seed: u64) -> Vec<Target> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let lo = grid.origin_mm;
+    let hi = grid.max_mm();
+    let mut p = [0, 1, 2].map(|a| rng.gen_range(lo[a]..hi[a]));
+    let mut direction = [0.0; 3];
+    let mut out = Vec::with_capacity(count);
+    for i in 0..count {
+        if i % 200 == 0 {
+            direction = random_unit(&mut rng);
+        }
+        for a in 0..3 {
+            p[a] += step_mm * direction[a];
+            if p[a] < lo[a] || p[a] > hi[a] {
+                direction[a] = -direction[a];
+                p[a] = p[a].clamp(lo[a], hi[a]);
+            }
+        }
+        out.push(Target::at(p));
+    }
+    out
+}
+
+fn random_unit(rng: &mut ChaCha8Rng) -> [f64; 3] {
+    loop {
+        let v = [0; 3].map(|_| rng.gen_range(-1.0..1.0));
+        let n = method::distance_mm(v, [0.0; 3]);
+        if n > 1e-3 && n <= 1.0 {
+            return v.map(|x| x / n);
+        }
+    }
+}
+
+/// The samples of a table, as the records it was built from.
+pub fn records_of<D: AsRef<[u8]>>(table: &Table<D>) -> Vec<SampleRecord> {
+    table.data().map_or_else(Vec::new, |data| {
+        data.samples
+            .iter()
+            .map(|s| SampleRecord {
+                actual_mm: s.actual_mm.map(|v| v.to_native()),
+                nominal_mm: s.nominal_mm.map(|v| v.to_native()),
+                error_mm: s.error_mm.map(|v| v.to_native()),
+                rotation_error_rad: s.rotation_error_rad.map(|v| v.to_native()),
+                config: s.config,
+            })
+            .collect()
+    })
+}
+
+/// The method without a table: a k-d tree of the samples' actual positions, queried for
+/// every sample within ε, then the same selection and weighting as the runtime.
+pub struct KdTreeMethod {
+    tree: ImmutableKdTree<f64, 3>,
+    records: Vec<SampleRecord>,
+    params: MethodParams,
+}
+
+impl KdTreeMethod {
+    /// Builds the tree: what an integrator's start-up would do.
+    pub fn new(records: Vec<SampleRecord>, params: MethodParams) -> KdTreeMethod {
+        let points: Vec<[f64; 3]> = records.iter().map(|r| r.actual_mm).collect();
+        KdTreeMethod {
+            tree: ImmutableKdTree::new_from_slice(&points),
+            records,
+            params,
+        }
+    }
+
+    /// The prediction at `target`, or `None` without admissible neighbours. Allocates the
+    /// k-d tree's result vector per query, as its API does.
+    pub fn predict(&self, target: &Target) -> Option<Prediction> {
+        let p = target.position_mm;
+        if !p.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        // Squared radius grown by a relative 1e-12 so that rounding in the tree's squared
+        // distances never drops a sample the method's own distance admits; `select` then
+        // applies the exact radius.
+        let r2 = self.params.radius_mm * self.params.radius_mm * (1.0 + 1e-12);
+        let within = self.tree.within_unsorted::<SquaredEuclidean>(&p, r2);
+        let records = &self.records;
+        let selection = method::select(
+            &self.params,
+            p,
+            target.config,
+            within.iter().map(|n| n.item as u32),
+            |i| {
+                let r = records.get(i as usize)?;
+                Some((r.actual_mm, r.config))
+            },
+        );
+        method::predict(&self.params, selection.as_slice(), |i| {
+            let r = &records[i as usize];
+            SampleError {
+                position_mm: r.error_mm,
+                orientation_rad: r.rotation_error_rad,
+            }
+        })
+    }
+}
+
+/// Times `f` `repeats` times; returns the per-run durations, sorted.
+pub fn time_runs<R>(repeats: usize, mut f: impl FnMut() -> R) -> Vec<Duration> {
+    let mut runs: Vec<Duration> = (0..repeats.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            std::hint::black_box(f());
+            start.elapsed()
+        })
+        .collect();
+    runs.sort();
+    runs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        let s = Summary::of((1..=1000).map(f64::from).collect()).unwrap();
+        assert_eq!(s.count, 1000);
+        assert_eq!(s.p50_ns, 500.0);
+        assert_eq!(s.p99_ns, 990.0);
+        assert_eq!(s.p999_ns, 999.0);
+        assert_eq!(s.max_ns, 1000.0);
+        assert_eq!(s.mean_ns, 500.5);
+        assert!(Summary::of(Vec::new()).is_none());
+    }
+
+    #[test]
+    fn trajectory_steps_are_one_millimetre_and_stay_in_the_grid() {
+        let grid = Grid {
+            origin_mm: [0.0; 3],
+            cell_mm: 10.0,
+            dims: [5, 5, 5],
+        };
+        let path = trajectory(&grid, 5_000, 1.0, 3);
+        for w in path.windows(2) {
+            let d = method::distance_mm(w[0].position_mm, w[1].position_mm);
+            assert!(d <= 1.0 + 1e-9, "step {d}");
+        }
+        assert!(path.iter().all(|t| grid.cell_of(t.position_mm).is_some()));
+    }
+}
