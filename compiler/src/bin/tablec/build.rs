@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use adwi_compiler::build::{compile, write_atomically, BuildOptions};
+use adwi_compiler::build::{compile, write_atomically};
 use adwi_compiler::samples::{read_samples, ColumnMap};
-use anyhow::{bail, Context};
+use anyhow::Context;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -18,36 +18,8 @@ pub struct Args {
     /// (`-` negates).
     #[arg(long, value_name = "MAP")]
     columns: Option<String>,
-    /// Cell edge length, mm [default: sample spacing / 4].
-    #[arg(long, value_name = "MM")]
-    cell: Option<f64>,
-    /// Neighbourhood radius ε, mm [default: 2 × sample spacing].
-    #[arg(long, value_name = "MM")]
-    radius: Option<f64>,
-    /// At most this many neighbours.
-    #[arg(long, default_value_t = 8)]
-    k: u32,
-    /// ω1, the weight of λ [default: 0.87, or 1 − w2].
-    #[arg(long)]
-    w1: Option<f64>,
-    /// ω2, the weight of ζ [default: 0.13, or 1 − w1].
-    #[arg(long)]
-    w2: Option<f64>,
-    /// r, the power on λ and ζ (0 to 2).
-    #[arg(long, default_value_t = 1.0)]
-    power: f64,
-    /// [λ], the admissibility threshold on λ, 1/mm.
-    #[arg(long, default_value_t = 0.0)]
-    lambda_min: f64,
-    /// [ζ], the admissibility threshold on ζ, 1/mm².
-    #[arg(long, default_value_t = 0.0)]
-    zeta_min: f64,
-    /// Skip the consistency screen (40) on neighbour errors.
-    #[arg(long)]
-    no_consistency_screen: bool,
-    /// Grid box, mm: xmin,ymin,zmin,xmax,ymax,zmax [default: samples' box grown by ε].
-    #[arg(long, value_name = "BOX", value_delimiter = ',', num_args = 6)]
-    bounds: Option<Vec<f64>>,
+    #[command(flatten)]
+    table: crate::table_options::TableOptions,
     /// Worker threads [default: all cores]; the table is the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -61,29 +33,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let columns =
         ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
     let samples = read_samples(&args.samples, &columns)?;
-    let (w1, w2) = match (args.w1, args.w2) {
-        (None, None) => (0.87, 0.13),
-        (Some(w1), None) => (w1, 1.0 - w1),
-        (None, Some(w2)) => (1.0 - w2, w2),
-        (Some(w1), Some(w2)) => (w1, w2),
-    };
-    let bounds_mm = match args.bounds.as_deref() {
-        None => None,
-        Some([x0, y0, z0, x1, y1, z1]) => Some(([*x0, *y0, *z0], [*x1, *y1, *z1])),
-        Some(_) => bail!("--bounds takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax"),
-    };
-    let options = BuildOptions {
-        radius_mm: args.radius,
-        cell_mm: args.cell,
-        max_neighbours: args.k,
-        w1,
-        w2,
-        power: args.power,
-        lambda_min_per_mm: args.lambda_min,
-        zeta_min_per_mm2: args.zeta_min,
-        consistency_screen: !args.no_consistency_screen,
-        bounds_mm,
-    };
+    let (w1, w2) = args.table.weights();
+    let options = args.table.build_options()?;
     let (_, _, plan) = adwi_compiler::build::resolve(&samples, &options)?;
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
@@ -149,13 +100,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         println!(
             "method         k {}, w1 {}, w2 {}, r {}, [λ] {}, [ζ] {}, screen (40) {}",
-            args.k,
+            args.table.k,
             w1,
             w2,
-            args.power,
-            args.lambda_min,
-            args.zeta_min,
-            if args.no_consistency_screen {
+            args.table.power,
+            args.table.lambda_min,
+            args.table.zeta_min,
+            if args.table.no_consistency_screen {
                 "off"
             } else {
                 "on"

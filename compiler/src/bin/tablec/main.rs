@@ -6,9 +6,11 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod build;
+mod eval;
 mod inspect;
 mod query;
 mod simulate;
+mod table_options;
 
 /// Approximation-degree weighted interpolation of robot positioning errors.
 #[derive(Parser)]
@@ -28,6 +30,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Simulate a sample database: a robot, an error scenario, a sampling plan.
     Simulate(simulate::Args),
+    /// Compare compensation methods on held-out points: residual statistics and a report.
+    Eval(eval::Args),
     /// Query and open latency of a table next to a k-d tree and the brute force.
     Bench(bench::Args),
 }
@@ -39,6 +43,7 @@ fn main() -> ExitCode {
         Command::Query(args) => query::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Bench(args) => bench::run(args),
     };
     match result {

@@ -1,0 +1,135 @@
+//! `tablec eval`.
+
+use std::path::PathBuf;
+
+use adwi_compiler::calibrate::CalibrateOptions;
+use adwi_compiler::eval::{self, EvalOptions, Method, Protocol};
+use adwi_compiler::robot::Robot;
+use adwi_compiler::samples::{read_samples, ColumnMap};
+use anyhow::{bail, Context};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The sample database (CSV), as for `tablec build`.
+    samples: PathBuf,
+    /// A validation set (CSV with errors, same columns as the samples): build from all
+    /// samples, evaluate at every validation point.
+    #[arg(long, value_name = "FILE", conflicts_with = "folds")]
+    validation: Option<PathBuf>,
+    /// Use only the first N validation points.
+    #[arg(long, value_name = "N", requires = "validation")]
+    limit: Option<usize>,
+    /// k-fold cross-validation of the samples alone, with this many folds.
+    #[arg(long, value_name = "K")]
+    folds: Option<usize>,
+    /// Seed of the k-fold split.
+    #[arg(long, default_value_t = 0, requires = "folds")]
+    seed: u64,
+    /// Column mapping, as for `tablec build`; applies to the samples and the validation set.
+    #[arg(long, value_name = "MAP")]
+    columns: Option<String>,
+    /// Methods to compare, comma-separated: paper, paper-joint, idw, grid, kriging,
+    /// kinematic, hybrid [default: every one the data allow].
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    methods: Option<Vec<Method>>,
+    /// The robot file (e.g. tables/ur5/robot.toml), for `kinematic` and `hybrid`.
+    #[arg(long, value_name = "ROBOT.toml")]
+    robot: Option<PathBuf>,
+    /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
+    #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
+    rank_tol: f64,
+    #[command(flatten)]
+    table: crate::table_options::TableOptions,
+    /// Write the figures as CSV.
+    #[arg(long, value_name = "FILE")]
+    csv: Option<PathBuf>,
+    /// Write the whole evaluation (figures, per-point predictions, identification) as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Write an HTML report with plots to DIR/index.html.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
+    /// Print nothing but errors and warnings.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let columns =
+        ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
+    let samples = read_samples(&args.samples, &columns)?;
+    let protocol = match (&args.validation, args.folds) {
+        (Some(path), None) => {
+            let mut validation = read_samples(path, &columns)?;
+            if let Some(n) = args.limit {
+                if n == 0 {
+                    bail!("--limit must be at least 1");
+                }
+                let n = n.min(validation.len());
+                validation = eval::subset(&validation, &(0..n).collect::<Vec<_>>());
+            }
+            Protocol::Validation(validation)
+        }
+        (None, Some(folds)) => Protocol::KFold {
+            folds,
+            seed: args.seed,
+        },
+        _ => bail!("give a validation set (--validation FILE) or a fold count (--folds K)"),
+    };
+    let robot = match &args.robot {
+        Some(path) => Some(Robot::load(path)?),
+        None => None,
+    };
+    let options = EvalOptions {
+        methods: args.methods.clone(),
+        build: args.table.build_options()?,
+        robot,
+        calibrate: CalibrateOptions {
+            rank_tolerance: args.rank_tol,
+            ..CalibrateOptions::default()
+        },
+        ..EvalOptions::default()
+    };
+    let evaluation = eval::evaluate(&samples, &protocol, &options)?;
+
+    for c in evaluation.calibrations.iter().take(1) {
+        if !c.unidentifiable.is_empty() {
+            let names: Vec<&str> = c.unidentifiable.iter().map(|(n, _)| n.as_str()).collect();
+            eprintln!(
+                "warning: {} kinematic parameters cannot be identified from these samples and \
+                 stay at nominal: {}",
+                names.len(),
+                names.join(", ")
+            );
+        }
+        if !c.converged {
+            eprintln!(
+                "warning: kinematic identification stopped after {} iterations without \
+                 converging",
+                c.iterations
+            );
+        }
+    }
+    if !args.quiet {
+        print!("{}", eval::output::terminal_table(&evaluation));
+    }
+    if let Some(path) = &args.csv {
+        std::fs::write(path, eval::output::csv(&evaluation))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(path) = &args.json {
+        let text = eval::output::json(&evaluation).context("cannot encode the evaluation")?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(dir) = &args.report {
+        let command = std::env::args()
+            .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
+            .collect::<Vec<_>>()
+            .join(" ");
+        let page = eval::report::write(&evaluation, &command, dir)?;
+        if !args.quiet {
+            println!("report: {}", page.display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,74 @@
+//! The table options shared by `tablec build` and `tablec eval`: one definition, so a table
+//! evaluated by `eval` is built exactly as `build` would build it from the same flags.
+
+use adwi_compiler::build::BuildOptions;
+use anyhow::bail;
+
+/// Method and grid options of a table.
+#[derive(clap::Args, Debug, Clone)]
+pub struct TableOptions {
+    /// Cell edge length, mm [default: sample spacing / 4].
+    #[arg(long, value_name = "MM")]
+    pub cell: Option<f64>,
+    /// Neighbourhood radius ε, mm [default: 2 × sample spacing].
+    #[arg(long, value_name = "MM")]
+    pub radius: Option<f64>,
+    /// At most this many neighbours.
+    #[arg(long, default_value_t = 8)]
+    pub k: u32,
+    /// ω1, the weight of λ [default: 0.87, or 1 − w2].
+    #[arg(long)]
+    pub w1: Option<f64>,
+    /// ω2, the weight of ζ [default: 0.13, or 1 − w1].
+    #[arg(long)]
+    pub w2: Option<f64>,
+    /// r, the power on λ and ζ (0 to 2).
+    #[arg(long, default_value_t = 1.0)]
+    pub power: f64,
+    /// [λ], the admissibility threshold on λ, 1/mm.
+    #[arg(long, default_value_t = 0.0)]
+    pub lambda_min: f64,
+    /// [ζ], the admissibility threshold on ζ, 1/mm².
+    #[arg(long, default_value_t = 0.0)]
+    pub zeta_min: f64,
+    /// Skip the consistency screen (40) on neighbour errors.
+    #[arg(long)]
+    pub no_consistency_screen: bool,
+    /// Grid box, mm: xmin,ymin,zmin,xmax,ymax,zmax [default: samples' box grown by ε].
+    #[arg(long, value_name = "BOX", value_delimiter = ',', num_args = 6)]
+    pub bounds: Option<Vec<f64>>,
+}
+
+impl TableOptions {
+    /// ω1 and ω2: the paper's 0.87 and 0.13 unless given; one given implies the other.
+    pub fn weights(&self) -> (f64, f64) {
+        match (self.w1, self.w2) {
+            (None, None) => (0.87, 0.13),
+            (Some(w1), None) => (w1, 1.0 - w1),
+            (None, Some(w2)) => (1.0 - w2, w2),
+            (Some(w1), Some(w2)) => (w1, w2),
+        }
+    }
+
+    /// The compiler's options.
+    pub fn build_options(&self) -> anyhow::Result<BuildOptions> {
+        let (w1, w2) = self.weights();
+        let bounds_mm = match self.bounds.as_deref() {
+            None => None,
+            Some([x0, y0, z0, x1, y1, z1]) => Some(([*x0, *y0, *z0], [*x1, *y1, *z1])),
+            Some(_) => bail!("--bounds takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax"),
+        };
+        Ok(BuildOptions {
+            radius_mm: self.radius,
+            cell_mm: self.cell,
+            max_neighbours: self.k,
+            w1,
+            w2,
+            power: self.power,
+            lambda_min_per_mm: self.lambda_min,
+            zeta_min_per_mm2: self.zeta_min,
+            consistency_screen: !self.no_consistency_screen,
+            bounds_mm,
+        })
+    }
+}

@@ -1,0 +1,849 @@
+//! Held-out evaluation: every compensation method predicts the error at points it was not
+//! built from, and the residuals say which method compensates best.
+//!
+//! A point's *residual* after compensation by a method is `measured error − predicted
+//! error`: what would remain if the controller commanded `target − predicted error`, to
+//! first order. Before compensation the residual is the measured error itself. Statistics
+//! are over residual norms: position in mm, orientation in mrad (when the samples carry
+//! orientation errors), both in the base frame.
+//!
+//! Two protocols ([`Protocol`]): a separate validation set, or k-fold cross-validation of
+//! the samples alone (each sample predicted once, by methods built from the other folds).
+//!
+//! The methods ([`Method`]) compared:
+//!
+//! - `paper`: the approximation-degree method through the real pipeline: the training
+//!   samples are compiled by [`crate::build::compile`] into table bytes, opened by
+//!   [`adwi_runtime::Table::from_vec`] and queried with
+//!   [`adwi_runtime::Table::query_target`], exactly as `tablec build` and `tablec query`
+//!   would;
+//! - `paper-joint`: the same weights ([`adwi_runtime::method`]), but the `k` neighbours are
+//!   the admissible samples nearest in *joint space* (Euclidean distance of the six joint
+//!   angles, degrees), by brute force; the paper's remark that "close" really means close
+//!   joint angles, taken literally;
+//! - `idw`, `grid`, `kriging`: the [`crate::baselines`];
+//! - `kinematic`: model-based calibration ([`crate::calibrate`]) predicting the error at the
+//!   point's joint angles;
+//! - `hybrid`: kinematic calibration, then the `paper` table built from what the calibrated
+//!   model leaves unexplained; prediction = model + interpolated remainder.
+//!
+//! A point a method cannot predict (outside the table's grid, no admissible neighbour,
+//! outside the lattice) is counted per method with its reason, never dropped silently; the
+//! method's statistics are over the points it predicted.
+
+pub mod output;
+pub mod report;
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
+
+use adwi_runtime::method::{self, approximation_degree, config_matches, Neighbour, SampleError};
+use adwi_runtime::{Status, Table, Target};
+
+use crate::baselines::{
+    self, BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
+    ResidualStats,
+};
+use crate::build::{self, BuildError, BuildOptions};
+use crate::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
+use crate::robot::Robot;
+use crate::samples::SampleSet;
+
+/// A compensation method under evaluation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Method {
+    /// Approximation-degree weighted interpolation through a compiled table.
+    Paper,
+    /// Approximation-degree weights over the nearest samples in joint space.
+    PaperJoint,
+    /// Inverse distance weighting.
+    Idw,
+    /// Trilinear interpolation on a sample lattice.
+    Grid,
+    /// Ordinary kriging.
+    Kriging,
+    /// Identified kinematic model.
+    Kinematic,
+    /// Identified kinematic model plus the table on its remainder.
+    Hybrid,
+}
+
+impl Method {
+    /// Every method, in report order.
+    pub const ALL: [Method; 7] = [
+        Method::Paper,
+        Method::PaperJoint,
+        Method::Idw,
+        Method::Grid,
+        Method::Kriging,
+        Method::Kinematic,
+        Method::Hybrid,
+    ];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Paper => "paper",
+            Method::PaperJoint => "paper-joint",
+            Method::Idw => "idw",
+            Method::Grid => "grid",
+            Method::Kriging => "kriging",
+            Method::Kinematic => "kinematic",
+            Method::Hybrid => "hybrid",
+        }
+    }
+
+    /// One line on what the method is, for reports.
+    pub fn description(self) -> &'static str {
+        match self {
+            Method::Paper => "approximation-degree weights, compiled table (tablec build/query)",
+            Method::PaperJoint => {
+                "approximation-degree weights, k nearest samples in joint space (brute force)"
+            }
+            Method::Idw => "inverse distance weighting, k nearest nominal positions",
+            Method::Grid => "trilinear interpolation in the sample lattice",
+            Method::Kriging => "ordinary kriging, fitted variogram",
+            Method::Kinematic => "identified MD-H deviations, tool offset and base registration",
+            Method::Hybrid => "kinematic model + compiled table on the remaining errors",
+        }
+    }
+
+    /// Whether the method needs joint angles in samples and validation points.
+    pub fn needs_joints(self) -> bool {
+        matches!(
+            self,
+            Method::PaperJoint | Method::Kinematic | Method::Hybrid
+        )
+    }
+
+    /// Whether the method needs a robot model.
+    pub fn needs_robot(self) -> bool {
+        matches!(self, Method::Kinematic | Method::Hybrid)
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Method {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s.trim())
+            .ok_or_else(|| {
+                let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
+                format!("unknown method '{s}': choose from {}", names.join(", "))
+            })
+    }
+}
+
+impl serde::Serialize for Method {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+/// How points are held out.
+#[derive(Debug, Clone)]
+pub enum Protocol {
+    /// Build from all samples, predict at every point of a separate validation set.
+    Validation(SampleSet),
+    /// k-fold cross-validation of the samples ([`baselines::k_fold_splits`]).
+    KFold {
+        /// k, at least 2.
+        folds: usize,
+        /// Seed of the split.
+        seed: u64,
+    },
+}
+
+/// What to evaluate and with which parameters; the default evaluates every applicable
+/// method with each one's default parameters.
+#[derive(Debug, Clone, Default)]
+pub struct EvalOptions {
+    /// The methods; `None` for every method the data and options allow.
+    pub methods: Option<Vec<Method>>,
+    /// Table options for `paper`, `paper-joint` and `hybrid`, as `tablec build` takes them.
+    pub build: BuildOptions,
+    /// The robot, for `kinematic` and `hybrid`.
+    pub robot: Option<Robot>,
+    /// Identification options.
+    pub calibrate: CalibrateOptions,
+    /// IDW parameters.
+    pub idw: IdwParams,
+    /// Lattice detection parameters.
+    pub grid: GridParams,
+    /// Kriging parameters.
+    pub kriging: KrigingParams,
+}
+
+/// Why an evaluation could not run at all (a method that cannot handle the data is not an
+/// error: it is reported as unsupported).
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// A method was asked for that the inputs cannot serve.
+    #[error("method {method} cannot run: {reason}")]
+    MethodUnavailable {
+        /// The method.
+        method: Method,
+        /// Why.
+        reason: String,
+    },
+    /// The fold count does not suit the samples.
+    #[error(transparent)]
+    Folds(#[from] baselines::stats::StatsError),
+    /// The table could not be built.
+    #[error("cannot build the table for {method}")]
+    Build {
+        /// The method.
+        method: Method,
+        /// Why.
+        #[source]
+        source: BuildError,
+    },
+    /// The table built could not be opened (a bug: compile and open disagree).
+    #[error("the table built for {method} does not open: {message}")]
+    Open {
+        /// The method.
+        method: Method,
+        /// The runtime's message.
+        message: String,
+    },
+    /// A baseline rejected its inputs for a reason other than unsuitability.
+    #[error("cannot build {method}")]
+    Baseline {
+        /// The method.
+        method: Method,
+        /// Why.
+        #[source]
+        source: BaselineError,
+    },
+    /// Identification failed.
+    #[error("cannot identify the kinematic model for {method}")]
+    Calibrate {
+        /// The method.
+        method: Method,
+        /// Why.
+        #[source]
+        source: CalibrateError,
+    },
+}
+
+/// One method's predicted error at one point: position (mm) and, when predicted,
+/// orientation (rad), base frame.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PointPrediction {
+    /// Predicted position error, mm.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error (rotation vector), rad.
+    pub orientation_error_rad: Option<[f64; 3]>,
+}
+
+/// The outcome of one method over all points.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MethodResult {
+    /// The method.
+    pub method: Method,
+    /// Why the method could not run on these samples at all, when it could not.
+    pub unsupported: Option<String>,
+    /// The prediction at each point, in point order; `None` where not predicted.
+    pub predictions: Vec<Option<PointPrediction>>,
+    /// Points not predicted, by reason.
+    pub not_predicted: BTreeMap<String, usize>,
+    /// Residual statistics after compensation over the predicted points, position, mm.
+    pub position_mm: Option<ResidualStats>,
+    /// Residual statistics after compensation over the predicted points, orientation,
+    /// mrad, when both the samples and the method give orientation.
+    pub orientation_mrad: Option<ResidualStats>,
+    /// The raw errors' statistics over the same predicted points, position, mm: the fair
+    /// "before" for a method that skipped points.
+    pub before_position_mm: Option<ResidualStats>,
+}
+
+impl MethodResult {
+    /// How many points the method predicted.
+    pub fn predicted(&self) -> usize {
+        self.predictions.iter().flatten().count()
+    }
+
+    /// How many points it did not predict.
+    pub fn not_predicted_count(&self) -> usize {
+        self.not_predicted.values().sum()
+    }
+}
+
+/// What identification found, for reports.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CalibrationSummary {
+    /// Which split it was identified on (0 for a validation set; the fold otherwise).
+    pub split: usize,
+    /// Identified parameters, in pivot order, with their values (mm or rad).
+    pub identified: Vec<(String, f64)>,
+    /// Unidentifiable parameters with their independent fraction.
+    pub unidentifiable: Vec<(String, f64)>,
+    /// Condition number of the identified parameters' scaled Jacobian.
+    pub condition_number: f64,
+    /// Position RMS over the training samples before identification, mm.
+    pub initial_position_rms_mm: f64,
+    /// Position RMS over the training samples after identification, mm.
+    pub position_rms_mm: f64,
+    /// Orientation RMS after identification, mrad, when measured.
+    pub orientation_rms_mrad: Option<f64>,
+    /// Levenberg–Marquardt iterations.
+    pub iterations: u32,
+    /// Whether it converged.
+    pub converged: bool,
+}
+
+impl CalibrationSummary {
+    fn new(split: usize, c: &Calibration) -> Self {
+        let named = |p: Parameter| p.to_string();
+        CalibrationSummary {
+            split,
+            identified: c
+                .identified
+                .iter()
+                .map(|&p| (named(p), c.deviations[p.column()]))
+                .collect(),
+            unidentifiable: c
+                .unidentifiable
+                .iter()
+                .map(|&(p, ratio)| (named(p), ratio))
+                .collect(),
+            condition_number: c.condition_number,
+            initial_position_rms_mm: c.initial_position_rms_mm,
+            position_rms_mm: c.position_rms_mm,
+            orientation_rms_mrad: c.orientation_rms_rad.map(|r| r * 1e3),
+            iterations: c.iterations,
+            converged: c.converged,
+        }
+    }
+}
+
+/// The evaluation's results.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Evaluation {
+    /// A one-line description of the protocol.
+    pub protocol: String,
+    /// Number of training samples (all samples for k-fold).
+    pub samples: usize,
+    /// The evaluated points' nominal positions, mm, base frame.
+    pub nominal_mm: Vec<[f64; 3]>,
+    /// Their measured position errors, mm.
+    pub measured_error_mm: Vec<[f64; 3]>,
+    /// Their measured orientation errors, rad, when both sets carry them.
+    pub measured_rotation_error_rad: Option<Vec<[f64; 3]>>,
+    /// The raw errors' statistics, position, mm.
+    pub uncompensated_position_mm: ResidualStats,
+    /// The raw errors' statistics, orientation, mrad.
+    pub uncompensated_orientation_mrad: Option<ResidualStats>,
+    /// Each method's outcome, in [`Method::ALL`] order.
+    pub methods: Vec<MethodResult>,
+    /// Methods left out of a default selection, with the reason.
+    pub skipped: Vec<(Method, String)>,
+    /// What kinematic identification found, per split.
+    pub calibrations: Vec<CalibrationSummary>,
+}
+
+impl Evaluation {
+    /// The result of `method`, if evaluated.
+    pub fn method(&self, method: Method) -> Option<&MethodResult> {
+        self.methods.iter().find(|m| m.method == method)
+    }
+}
+
+/// A subset of a sample set, in the order of `indices`.
+pub fn subset(samples: &SampleSet, indices: &[usize]) -> SampleSet {
+    let pick = |v: &Vec<[f64; 3]>| indices.iter().map(|&i| v[i]).collect::<Vec<_>>();
+    SampleSet {
+        nominal_mm: pick(&samples.nominal_mm),
+        error_mm: pick(&samples.error_mm),
+        nominal_abc_deg: samples.nominal_abc_deg.as_ref().map(pick),
+        rotation_error_rad: samples.rotation_error_rad.as_ref().map(pick),
+        joints_deg: samples
+            .joints_deg
+            .as_ref()
+            .map(|j| indices.iter().map(|&i| j[i]).collect()),
+        config: samples
+            .config
+            .as_ref()
+            .map(|c| indices.iter().map(|&i| c[i]).collect()),
+        lines: indices.iter().map(|&i| samples.lines[i]).collect(),
+    }
+}
+
+/// Methods left out of a default selection, with the reason.
+type Skipped = Vec<(Method, String)>;
+
+/// Chooses the methods: the requested ones (refusing those the inputs cannot serve), or
+/// every method that applies, with the reasons for those left out.
+fn choose_methods(
+    samples: &SampleSet,
+    points: &SampleSet,
+    options: &EvalOptions,
+) -> Result<(Vec<Method>, Skipped), EvalError> {
+    let unavailable = |m: Method| -> Option<String> {
+        if m.needs_robot() && options.robot.is_none() {
+            return Some("needs a robot model (--robot ROBOT.toml)".into());
+        }
+        if m.needs_joints() && samples.joints_deg.is_none() {
+            return Some("needs joint angles (j1..j6) in the samples".into());
+        }
+        if m.needs_joints() && points.joints_deg.is_none() {
+            return Some("needs joint angles (j1..j6) at the validation points".into());
+        }
+        None
+    };
+    match &options.methods {
+        Some(list) => {
+            let mut chosen = list.clone();
+            chosen.sort();
+            chosen.dedup();
+            for &m in &chosen {
+                if let Some(reason) = unavailable(m) {
+                    return Err(EvalError::MethodUnavailable { method: m, reason });
+                }
+            }
+            Ok((chosen, Vec::new()))
+        }
+        None => {
+            let mut chosen = Vec::new();
+            let mut skipped = Vec::new();
+            for m in Method::ALL {
+                match unavailable(m) {
+                    Some(reason) => skipped.push((m, reason)),
+                    None => chosen.push(m),
+                }
+            }
+            Ok((chosen, skipped))
+        }
+    }
+}
+
+/// Runs the evaluation.
+///
+/// # Errors
+///
+/// [`EvalError`] when a requested method cannot run on these inputs, the folds do not
+/// suit the samples, or a method's model cannot be built (a table with invalid options, a
+/// calibration the data cannot support). A method unsuited to the samples (`grid` on
+/// scattered samples) is not an error: its result says why.
+pub fn evaluate(
+    samples: &SampleSet,
+    protocol: &Protocol,
+    options: &EvalOptions,
+) -> Result<Evaluation, EvalError> {
+    let (splits, points, description): (Vec<(SampleSet, Vec<usize>)>, SampleSet, String) =
+        match protocol {
+            Protocol::Validation(validation) => (
+                vec![(samples.clone(), (0..validation.len()).collect())],
+                validation.clone(),
+                format!(
+                    "built from {} samples, evaluated at {} validation points",
+                    samples.len(),
+                    validation.len()
+                ),
+            ),
+            Protocol::KFold { folds, seed } => {
+                let splits = baselines::k_fold_splits(samples.len(), *folds, *seed)?;
+                (
+                    splits
+                        .into_iter()
+                        .map(|f| (subset(samples, &f.train), f.test))
+                        .collect(),
+                    samples.clone(),
+                    format!(
+                        "{folds}-fold cross-validation of {} samples (seed {seed})",
+                        samples.len()
+                    ),
+                )
+            }
+        };
+    let (methods, skipped) = choose_methods(samples, &points, options)?;
+    let orientation = samples.rotation_error_rad.is_some() && points.rotation_error_rad.is_some();
+
+    let mut predictions: BTreeMap<Method, Vec<Option<PointPrediction>>> = methods
+        .iter()
+        .map(|&m| (m, vec![None; points.len()]))
+        .collect();
+    let mut failures: BTreeMap<Method, BTreeMap<String, usize>> = BTreeMap::new();
+    let mut unsupported: BTreeMap<Method, String> = BTreeMap::new();
+    let mut calibrations = Vec::new();
+
+    for (split, (train, test)) in splits.iter().enumerate() {
+        let test_points = subset(&points, test);
+        let calibration = if methods.iter().any(|m| m.needs_robot()) {
+            let robot = options.robot.as_ref().expect("checked by choose_methods");
+            let method = if methods.contains(&Method::Kinematic) {
+                Method::Kinematic
+            } else {
+                Method::Hybrid
+            };
+            let c = calibrate::identify(robot, train, &options.calibrate)
+                .map_err(|source| EvalError::Calibrate { method, source })?;
+            calibrations.push(CalibrationSummary::new(split, &c));
+            Some(c)
+        } else {
+            None
+        };
+        for &method in &methods {
+            if unsupported.contains_key(&method) {
+                continue;
+            }
+            let outcome = predict_split(
+                method,
+                train,
+                &test_points,
+                calibration.as_ref(),
+                options,
+                orientation,
+            )?;
+            match outcome {
+                SplitOutcome::Unsupported(reason) => {
+                    unsupported.insert(method, reason);
+                }
+                SplitOutcome::Predicted(list) => {
+                    for (local, result) in list.into_iter().enumerate() {
+                        match result {
+                            Ok(p) => {
+                                predictions.get_mut(&method).expect("initialised")[test[local]] =
+                                    Some(p)
+                            }
+                            Err(reason) => {
+                                *failures
+                                    .entry(method)
+                                    .or_default()
+                                    .entry(reason)
+                                    .or_default() += 1
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    let measured_rotation = if orientation {
+        points.rotation_error_rad.clone()
+    } else {
+        None
+    };
+    let uncompensated_position_mm = stats(&points.error_mm);
+    let uncompensated_orientation_mrad = measured_rotation
+        .as_ref()
+        .map(|r| stats(&r.iter().map(|v| v.map(|x| x * 1e3)).collect::<Vec<_>>()));
+
+    let methods = methods
+        .into_iter()
+        .map(|method| {
+            let predicted = predictions.remove(&method).unwrap_or_default();
+            if let Some(reason) = unsupported.remove(&method) {
+                return MethodResult {
+                    method,
+                    unsupported: Some(reason),
+                    predictions: vec![None; points.len()],
+                    not_predicted: BTreeMap::from([("unsupported".to_string(), points.len())]),
+                    position_mm: None,
+                    orientation_mrad: None,
+                    before_position_mm: None,
+                };
+            }
+            let mut position = Vec::new();
+            let mut before = Vec::new();
+            let mut rotation = Vec::new();
+            for (i, p) in predicted.iter().enumerate() {
+                let Some(p) = p else { continue };
+                let e = points.error_mm[i];
+                position.push([0, 1, 2].map(|a| e[a] - p.position_error_mm[a]));
+                before.push(e);
+                if let (Some(measured), Some(r)) = (&measured_rotation, p.orientation_error_rad) {
+                    rotation.push([0, 1, 2].map(|a| (measured[i][a] - r[a]) * 1e3));
+                }
+            }
+            let nonempty = |v: &Vec<[f64; 3]>| (!v.is_empty()).then(|| stats(v));
+            MethodResult {
+                method,
+                unsupported: None,
+                not_predicted: failures.remove(&method).unwrap_or_default(),
+                position_mm: nonempty(&position),
+                orientation_mrad: if rotation.len() == position.len() {
+                    nonempty(&rotation)
+                } else {
+                    None
+                },
+                before_position_mm: nonempty(&before),
+                predictions: predicted,
+            }
+        })
+        .collect();
+
+    Ok(Evaluation {
+        protocol: description,
+        samples: samples.len(),
+        nominal_mm: points.nominal_mm.clone(),
+        measured_error_mm: points.error_mm.clone(),
+        measured_rotation_error_rad: measured_rotation,
+        uncompensated_position_mm,
+        uncompensated_orientation_mrad,
+        methods,
+        skipped,
+        calibrations,
+    })
+}
+
+/// Statistics of residuals known to be finite and non-empty.
+fn stats(residuals: &[[f64; 3]]) -> ResidualStats {
+    ResidualStats::from_residuals(residuals)
+        .expect("residuals come from finite, validated samples and are not empty")
+}
+
+enum SplitOutcome {
+    /// The method cannot work on these samples.
+    Unsupported(String),
+    /// One result per test point: the prediction, or why there is none.
+    Predicted(Vec<Result<PointPrediction, String>>),
+}
+
+fn predict_split(
+    method: Method,
+    train: &SampleSet,
+    test: &SampleSet,
+    calibration: Option<&Calibration>,
+    options: &EvalOptions,
+    orientation: bool,
+) -> Result<SplitOutcome, EvalError> {
+    let targets: Vec<Target> = (0..test.len())
+        .map(|i| Target {
+            position_mm: test.nominal_mm[i],
+            config: test.config.as_ref().map(|c| c[i]),
+        })
+        .collect();
+    let joints_rad = |set: &SampleSet, i: usize| {
+        set.joints_deg.as_ref().expect("checked by choose_methods")[i].map(f64::to_radians)
+    };
+    let outcome = match method {
+        Method::Paper => {
+            let table = compile_table(method, train, &options.build)?;
+            targets
+                .iter()
+                .map(|t| table_prediction(&table, t, orientation))
+                .collect()
+        }
+        Method::PaperJoint => {
+            let (params, _, _) = build::resolve(train, &options.build)
+                .map_err(|source| EvalError::Build { method, source })?;
+            let records = train.records();
+            let train_joints = train.joints_deg.as_ref().expect("checked");
+            let test_joints = test.joints_deg.as_ref().expect("checked");
+            targets
+                .iter()
+                .zip(test_joints)
+                .map(|(t, q)| {
+                    joint_space_prediction(&records, train_joints, &params, t, q, orientation)
+                })
+                .collect()
+        }
+        Method::Idw => {
+            let make = |values: &[[f64; 3]]| Idw::new(&train.nominal_mm, values, options.idw);
+            baseline_predictions(method, train, &targets, orientation, make)?
+        }
+        Method::Grid => {
+            let make = |values: &[[f64; 3]]| Grid::new(&train.nominal_mm, values, options.grid);
+            match baseline_predictions(method, train, &targets, orientation, make) {
+                Ok(list) => list,
+                Err(EvalError::Baseline {
+                    source: BaselineError::Unsupported { reason },
+                    ..
+                }) => return Ok(SplitOutcome::Unsupported(reason)),
+                Err(e) => return Err(e),
+            }
+        }
+        Method::Kriging => {
+            let make =
+                |values: &[[f64; 3]]| Kriging::new(&train.nominal_mm, values, options.kriging);
+            match baseline_predictions(method, train, &targets, orientation, make) {
+                Ok(list) => list,
+                Err(EvalError::Baseline {
+                    source: BaselineError::Unsupported { reason },
+                    ..
+                }) => return Ok(SplitOutcome::Unsupported(reason)),
+                Err(e) => return Err(e),
+            }
+        }
+        Method::Kinematic => {
+            let c = calibration.expect("identified for kinematic methods");
+            (0..test.len())
+                .map(|i| {
+                    let (p, r) = c.predict_error(&joints_rad(test, i));
+                    Ok(PointPrediction {
+                        position_error_mm: p,
+                        orientation_error_rad: orientation.then_some(r),
+                    })
+                })
+                .collect()
+        }
+        Method::Hybrid => {
+            let c = calibration.expect("identified for kinematic methods");
+            // What the calibrated model leaves unexplained at each training sample.
+            let mut remainder = train.clone();
+            for i in 0..train.len() {
+                let (p, r) = c.predict_error(&joints_rad(train, i));
+                for (e, p) in remainder.error_mm[i].iter_mut().zip(p) {
+                    *e -= p;
+                }
+                if let Some(rot) = &mut remainder.rotation_error_rad {
+                    for (e, r) in rot[i].iter_mut().zip(r) {
+                        *e -= r;
+                    }
+                }
+            }
+            let table = compile_table(method, &remainder, &options.build)?;
+            targets
+                .iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    let rest = table_prediction(&table, t, orientation)?;
+                    let (p, r) = c.predict_error(&joints_rad(test, i));
+                    Ok(PointPrediction {
+                        position_error_mm: [0, 1, 2].map(|a| p[a] + rest.position_error_mm[a]),
+                        orientation_error_rad: rest
+                            .orientation_error_rad
+                            .map(|rest| [0, 1, 2].map(|a| r[a] + rest[a])),
+                    })
+                })
+                .collect()
+        }
+    };
+    Ok(SplitOutcome::Predicted(outcome))
+}
+
+/// Compiles samples into a table and opens it from its bytes, as `tablec build` then
+/// `tablec query` would.
+fn compile_table(
+    method: Method,
+    samples: &SampleSet,
+    options: &BuildOptions,
+) -> Result<Table<adwi_runtime::AlignedBytes>, EvalError> {
+    let (bytes, _) = build::compile(samples, options, &|_| {})
+        .map_err(|source| EvalError::Build { method, source })?;
+    Table::from_vec(bytes).map_err(|e| EvalError::Open {
+        method,
+        message: e.to_string(),
+    })
+}
+
+fn table_prediction<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    target: &Target,
+    orientation: bool,
+) -> Result<PointPrediction, String> {
+    let c = table.query_target(target);
+    if c.status != Status::Ok {
+        return Err(c.status.as_str().to_string());
+    }
+    Ok(PointPrediction {
+        position_error_mm: c.position_error_mm,
+        orientation_error_rad: (orientation && table.has_orientation())
+            .then_some(c.orientation_error_rad),
+    })
+}
+
+/// The approximation-degree prediction over the `k` admissible samples nearest to the
+/// target in joint space (ties by sample order), brute force.
+///
+/// Admissibility is the table's: the target must satisfy (37), a sample must be within ε
+/// of the target in Cartesian space and pass (31)-(34), and match the target's
+/// configuration. Only the choice among admissible samples changes: joint-space distance
+/// instead of Cartesian distance. The weights and the consistency screen are
+/// [`adwi_runtime::method`]'s.
+fn joint_space_prediction(
+    records: &[adwi_runtime::format::SampleRecord],
+    train_joints_deg: &[[f64; 6]],
+    params: &method::MethodParams,
+    target: &Target,
+    target_joints_deg: &[f64; 6],
+    orientation: bool,
+) -> Result<PointPrediction, String> {
+    let p = target.position_mm;
+    if !params.target_in_range(p) {
+        return Err(Status::NoAdmissibleNeighbour.as_str().to_string());
+    }
+    let joint_distance = |q: &[f64; 6]| {
+        q.iter()
+            .zip(target_joints_deg)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut admissible: Vec<(f64, Neighbour)> = records
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| config_matches(s.config, target.config))
+        .map(|(i, s)| {
+            (
+                joint_distance(&train_joints_deg[i]),
+                Neighbour {
+                    sample: i as u32,
+                    degree: approximation_degree(p, s.actual_mm),
+                },
+            )
+        })
+        .filter(|(_, n)| params.degree_admissible(&n.degree))
+        .collect();
+    admissible.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.sample.cmp(&b.1.sample)));
+    admissible.truncate(params.max_neighbours as usize);
+    let neighbours: Vec<Neighbour> = admissible.into_iter().map(|(_, n)| n).collect();
+    let prediction = method::predict(params, &neighbours, |i| {
+        let s = &records[i as usize];
+        SampleError {
+            position_mm: s.error_mm,
+            orientation_rad: s.rotation_error_rad,
+        }
+    })
+    .ok_or_else(|| Status::NoAdmissibleNeighbour.as_str().to_string())?;
+    Ok(PointPrediction {
+        position_error_mm: prediction.position_error_mm,
+        orientation_error_rad: orientation.then_some(prediction.orientation_error_rad),
+    })
+}
+
+/// Builds a baseline for position errors (and one for orientation errors when evaluated)
+/// and predicts at every target.
+fn baseline_predictions<B: baselines::Baseline>(
+    method: Method,
+    train: &SampleSet,
+    targets: &[Target],
+    orientation: bool,
+    make: impl Fn(&[[f64; 3]]) -> Result<B, BaselineError>,
+) -> Result<Vec<Result<PointPrediction, String>>, EvalError> {
+    let wrap = |source| EvalError::Baseline { method, source };
+    let position = make(&train.error_mm).map_err(wrap)?;
+    let rotation = match (&train.rotation_error_rad, orientation) {
+        (Some(r), true) => Some(make(r).map_err(wrap)?),
+        _ => None,
+    };
+    let reason = |e: PredictError| match e {
+        PredictError::NotCovered(n) => n.to_string(),
+        other => other.to_string(),
+    };
+    Ok(targets
+        .iter()
+        .map(|t| {
+            let p = position.predict(t.position_mm).map_err(reason)?;
+            let r = match &rotation {
+                Some(b) => Some(b.predict(t.position_mm).map_err(reason)?),
+                None => None,
+            };
+            Ok(PointPrediction {
+                position_error_mm: p,
+                orientation_error_rad: r,
+            })
+        })
+        .collect())
+}

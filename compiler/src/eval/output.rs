@@ -1,0 +1,183 @@
+//! The evaluation's figures as a terminal table, CSV and JSON.
+//!
+//! All three carry the same rows: `uncompensated` (the measured errors themselves), then one
+//! row per method with its residuals after compensation. Figures are residual norms:
+//! mean, RMS, 95th percentile (nearest rank) and maximum, position in mm and orientation
+//! in mrad.
+
+use std::fmt::Write as _;
+
+use crate::baselines::ResidualStats;
+
+use super::{Evaluation, MethodResult};
+
+/// One row of the figures: a label, counts and statistics.
+struct Row<'a> {
+    label: &'a str,
+    predicted: usize,
+    not_predicted: usize,
+    position: Option<&'a ResidualStats>,
+    orientation: Option<&'a ResidualStats>,
+    note: String,
+}
+
+fn rows(e: &Evaluation) -> Vec<Row<'_>> {
+    let mut rows = vec![Row {
+        label: "uncompensated",
+        predicted: e.nominal_mm.len(),
+        not_predicted: 0,
+        position: Some(&e.uncompensated_position_mm),
+        orientation: e.uncompensated_orientation_mrad.as_ref(),
+        note: String::new(),
+    }];
+    rows.extend(e.methods.iter().map(|m| Row {
+        label: m.method.name(),
+        predicted: m.predicted(),
+        not_predicted: m.not_predicted_count(),
+        position: m.position_mm.as_ref(),
+        orientation: m.orientation_mrad.as_ref(),
+        note: note(m),
+    }));
+    rows
+}
+
+/// Why points are missing from a method's figures, in words.
+fn note(m: &MethodResult) -> String {
+    if let Some(reason) = &m.unsupported {
+        return format!("unsupported: {reason}");
+    }
+    m.not_predicted
+        .iter()
+        .map(|(reason, n)| format!("{n} not predicted: {reason}"))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {
+    match s {
+        Some(s) => [s.mean_norm, s.rms_norm, s.p95_norm, s.max_norm].map(Some),
+        None => [None; 4],
+    }
+}
+
+/// The figures as an aligned text table for the terminal, with notes on missing points
+/// and unsupported methods below it.
+pub fn terminal_table(e: &Evaluation) -> String {
+    let orientation = e.uncompensated_orientation_mrad.is_some();
+    let mut out = String::new();
+    let _ = writeln!(out, "{}", e.protocol);
+    let _ = write!(
+        out,
+        "{:<14} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "", "points", "", "position", "residual", "norm", "mm"
+    );
+    if orientation {
+        let _ = write!(
+            out,
+            " │ {:>8} {:>8} {:>8} {:>8}",
+            "orient.", "residual", "norm", "mrad"
+        );
+    }
+    out.push('\n');
+    let _ = write!(
+        out,
+        "{:<14} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "method", "pred.", "missed", "mean", "rms", "p95", "max"
+    );
+    if orientation {
+        let _ = write!(
+            out,
+            " │ {:>8} {:>8} {:>8} {:>8}",
+            "mean", "rms", "p95", "max"
+        );
+    }
+    out.push('\n');
+    let cell = |v: Option<f64>, width: usize, decimals: usize| match v {
+        Some(v) => format!("{v:>width$.decimals$}"),
+        None => format!("{:>width$}", "—"),
+    };
+    let mut notes = Vec::new();
+    for row in rows(e) {
+        let _ = write!(
+            out,
+            "{:<14} {:>6} {:>6} │",
+            row.label, row.predicted, row.not_predicted
+        );
+        for v in figures(row.position) {
+            let _ = write!(out, " {}", cell(v, 9, 4));
+        }
+        if orientation {
+            let _ = write!(out, " │");
+            for v in figures(row.orientation) {
+                let _ = write!(out, " {}", cell(v, 8, 4));
+            }
+        }
+        out.push('\n');
+        if !row.note.is_empty() {
+            notes.push(format!("{}: {}", row.label, row.note));
+        }
+    }
+    for (method, reason) in &e.skipped {
+        notes.push(format!("{method}: not run: {reason}"));
+    }
+    for note in notes {
+        let _ = writeln!(out, "  {note}");
+    }
+    for c in &e.calibrations {
+        let _ = writeln!(
+            out,
+            "  kinematic identification{}: {} parameters identified, {} unidentifiable, \
+             condition number {:.1}, position RMS {:.4} → {:.4} mm over the training samples, \
+             {} iterations{}",
+            if e.calibrations.len() > 1 {
+                format!(" (fold {})", c.split + 1)
+            } else {
+                String::new()
+            },
+            c.identified.len(),
+            c.unidentifiable.len(),
+            c.condition_number,
+            c.initial_position_rms_mm,
+            c.position_rms_mm,
+            c.iterations,
+            if c.converged { "" } else { " (NOT converged)" }
+        );
+    }
+    out
+}
+
+/// The figures as CSV: one row per method (and `uncompensated`); empty fields where a
+/// figure does not exist.
+pub fn csv(e: &Evaluation) -> String {
+    let mut out = String::from(
+        "method,predicted,not_predicted,position_mean_mm,position_rms_mm,position_p95_mm,\
+         position_max_mm,orientation_mean_mrad,orientation_rms_mrad,orientation_p95_mrad,\
+         orientation_max_mrad,note\n",
+    );
+    for row in rows(e) {
+        let _ = write!(out, "{},{},{}", row.label, row.predicted, row.not_predicted);
+        for v in figures(row.position)
+            .into_iter()
+            .chain(figures(row.orientation))
+        {
+            match v {
+                Some(v) => {
+                    let _ = write!(out, ",{v:.9}");
+                }
+                None => out.push(','),
+            }
+        }
+        let _ = writeln!(out, ",\"{}\"", row.note.replace('"', "\"\""));
+    }
+    out
+}
+
+/// The whole evaluation as pretty-printed JSON: figures, per-point predictions, and the
+/// kinematic identification.
+///
+/// # Errors
+///
+/// Only if serialisation fails, which plain numbers and strings do not.
+pub fn json(e: &Evaluation) -> Result<String, serde_json::Error> {
+    serde_json::to_string_pretty(e)
+}
