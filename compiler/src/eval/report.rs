@@ -259,7 +259,7 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
          table{{border-collapse:collapse;margin:12px 0}}\
          th,td{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
          th{{background:#f2f2f2}} td:first-child,th:first-child{{text-align:left}}\
-         td.note{{text-align:left;font-size:12px;color:#555;max-width:420px}}\
+         td.note,th.note{{text-align:left;font-size:12px;color:#555;max-width:420px}}\
          code{{background:#f6f6f6;padding:2px 4px}}\
          .grid{{display:flex;flex-wrap:wrap;gap:8px}} .swatch{{display:inline-block;width:10px;height:10px;margin-right:6px}}\
          </style></head><body>\n<h1>Compensation evaluation</h1>\n<p>{}</p>\n\
@@ -280,7 +280,7 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
     if orientation {
         page.push_str("<th>mean mrad</th><th>RMS mrad</th><th>p95 mrad</th><th>max mrad</th>");
     }
-    page.push_str("<th>notes</th></tr>\n");
+    page.push_str("<th class=\"note\">notes</th></tr>\n");
     let stat_cells = |s: Option<&crate::baselines::ResidualStats>| {
         match s {
             Some(s) => [s.mean_norm, s.rms_norm, s.p95_norm, s.max_norm].map(Some),

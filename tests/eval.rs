@@ -1,0 +1,292 @@
+//! `tablec eval` end to end: the real binary on files in a temporary directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tablec(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tablec"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("tablec runs")
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// A smooth error field, mm, at a nominal position: what a lattice of samples records.
+fn error_mm(p: [f64; 3]) -> [f64; 3] {
+    let [x, y, z] = p.map(|v| v / 1000.0);
+    [
+        0.3 + 0.5 * x * y - 0.2 * z,
+        -0.4 + 0.3 * (x + z).sin(),
+        0.1 * x - 0.6 * y * z,
+    ]
+}
+
+/// A 6 × 6 × 6 lattice of samples (50 mm step) and validation points: 25 inside the
+/// lattice and 2 far outside it.
+fn write_inputs(dir: &Path) {
+    let mut samples = String::from("x,y,z,dx,dy,dz\n");
+    for i in 0..6 {
+        for j in 0..6 {
+            for k in 0..6 {
+                let p = [
+                    1500.0 + 50.0 * f64::from(i),
+                    300.0 + 50.0 * f64::from(j),
+                    900.0 + 50.0 * f64::from(k),
+                ];
+                let e = error_mm(p);
+                samples.push_str(&format!(
+                    "{},{},{},{},{},{}\n",
+                    p[0], p[1], p[2], e[0], e[1], e[2]
+                ));
+            }
+        }
+    }
+    std::fs::write(dir.join("samples.csv"), samples).unwrap();
+    let mut validation = String::from("x,y,z,dx,dy,dz\n");
+    for n in 0..25 {
+        let t = f64::from(n);
+        let p = [
+            1510.0 + (t * 37.3) % 230.0,
+            310.0 + (t * 53.9) % 230.0,
+            905.0 + (t * 71.1) % 240.0,
+        ];
+        let e = error_mm(p);
+        validation.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            p[0], p[1], p[2], e[0], e[1], e[2]
+        ));
+    }
+    validation.push_str("5000,0,0,0.1,0.1,0.1\n-3000,100,200,0.2,0.2,0.2\n");
+    std::fs::write(dir.join("validation.csv"), validation).unwrap();
+}
+
+/// The `paper` method of `tablec eval` is the table `tablec build` writes, queried as
+/// `tablec query` does: the same prediction at every point, and the same points refused.
+#[test]
+fn paper_method_equals_tablec_query() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_inputs(d);
+    ok(&tablec(
+        &["build", "-q", "samples.csv", "-o", "t.tbl", "--k", "6"],
+        d,
+    ));
+    ok(&tablec(
+        &[
+            "query",
+            "t.tbl",
+            "--targets",
+            "validation.csv",
+            "-o",
+            "q.csv",
+        ],
+        d,
+    ));
+    ok(&tablec(
+        &[
+            "eval",
+            "samples.csv",
+            "--validation",
+            "validation.csv",
+            "--methods",
+            "paper",
+            "--k",
+            "6",
+            "--json",
+            "e.json",
+            "-q",
+        ],
+        d,
+    ));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
+    let paper = &json["methods"][0];
+    assert_eq!(paper["method"], "paper");
+    let predictions = paper["predictions"].as_array().unwrap();
+    let queried = std::fs::read_to_string(d.join("q.csv")).unwrap();
+    let rows: Vec<&str> = queried.lines().skip(1).collect();
+    assert_eq!(rows.len(), predictions.len());
+    let mut refused = 0;
+    for (row, prediction) in rows.iter().zip(predictions) {
+        let fields: Vec<&str> = row.split(',').collect();
+        if fields[10] != "ok" {
+            assert!(prediction.is_null(), "{row}");
+            refused += 1;
+            continue;
+        }
+        let predicted = &prediction["position_error_mm"];
+        for axis in 0..3 {
+            let q: f64 = fields[3 + axis].parse().unwrap();
+            let e = predicted[axis].as_f64().unwrap();
+            // `tablec query` prints nine decimals.
+            assert!((q - e).abs() <= 1e-9, "{row}: {e}");
+        }
+    }
+    // The two far points are outside the grid, counted rather than dropped.
+    assert_eq!(refused, 2);
+    assert_eq!(paper["not_predicted"]["outside_grid"], 2);
+}
+
+/// Every method that applies runs, the lattice method included; points outside the
+/// lattice are counted per method; CSV and the HTML report are written.
+#[test]
+fn every_method_is_compared_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_inputs(d);
+    let o = tablec(
+        &[
+            "eval",
+            "samples.csv",
+            "--validation",
+            "validation.csv",
+            "--csv",
+            "e.csv",
+            "--report",
+            "report",
+        ],
+        d,
+    );
+    ok(&o);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for method in ["uncompensated", "paper ", "idw", "grid", "kriging"] {
+        assert!(stdout.contains(method), "{method} missing from:\n{stdout}");
+    }
+    // Without a robot or joint angles these cannot run, and say why.
+    assert!(stdout.contains("kinematic: not run: needs a robot model"));
+    let csv = std::fs::read_to_string(d.join("e.csv")).unwrap();
+    let grid = csv.lines().find(|l| l.starts_with("grid,")).unwrap();
+    // 25 inside, 2 outside the lattice.
+    assert!(grid.starts_with("grid,25,2,"), "{grid}");
+    let mean = |line: &str| -> f64 { line.split(',').nth(3).unwrap().parse().unwrap() };
+    let before = mean(csv.lines().nth(1).unwrap());
+    // A smooth field on a 50 mm lattice: every interpolator removes most of the error.
+    for line in csv.lines().skip(2) {
+        assert!(mean(line) < 0.1 * before, "{line} vs {before}");
+    }
+    let page = std::fs::read_to_string(d.join("report/index.html")).unwrap();
+    assert!(page.matches("<svg").count() >= 5, "plots missing");
+    assert!(page.contains("<table>"));
+}
+
+/// k-fold cross-validation predicts every sample once.
+#[test]
+fn k_fold_predicts_every_sample_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_inputs(d);
+    ok(&tablec(
+        &[
+            "eval",
+            "samples.csv",
+            "--folds",
+            "4",
+            "--seed",
+            "3",
+            "--methods",
+            "idw,paper",
+            "--json",
+            "e.json",
+            "-q",
+        ],
+        d,
+    ));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
+    let idw = json["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["method"] == "idw")
+        .unwrap();
+    let predictions = idw["predictions"].as_array().unwrap();
+    assert_eq!(predictions.len(), 216);
+    assert!(predictions.iter().all(|p| !p.is_null()));
+}
+
+/// Reads the command and the machine-checked figures of a section of
+/// `docs/evaluation.md`, marked `<!-- check:NAME:command -->` and
+/// `<!-- check:NAME:figures -->`, each followed by a fenced block.
+fn documented(name: &str) -> (Vec<String>, Vec<(String, f64)>) {
+    let doc = std::fs::read_to_string(repo().join("docs/evaluation.md")).unwrap();
+    let block = |marker: &str| -> String {
+        let start = doc
+            .find(&format!("<!-- check:{name}:{marker} -->"))
+            .unwrap_or_else(|| panic!("marker {name}:{marker} missing"));
+        let rest = &doc[start..];
+        let open = rest.find("```").unwrap();
+        let body = &rest[open..];
+        let body = &body[body.find('\n').unwrap() + 1..];
+        body[..body.find("```").unwrap()].to_string()
+    };
+    let command: Vec<String> = block("command")
+        .replace("\\\n", " ")
+        .split_whitespace()
+        .skip_while(|w| *w != "eval")
+        .map(str::to_string)
+        .collect();
+    let figures = block("figures")
+        .lines()
+        .skip(1)
+        // Rows without a mean (an unsupported method) carry nothing to check.
+        .filter_map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            Some((fields[0].to_string(), fields.get(3)?.parse().ok()?))
+        })
+        .collect();
+    (command, figures)
+}
+
+/// The UR5 figures in docs/evaluation.md are what the documented command prints, to
+/// 1e-6 mm in every method's mean residual.
+#[test]
+fn documented_ur5_figures_are_regenerated() {
+    let data = repo().join("../shared/datasets/ur5");
+    if !data.join("3D_UR5_uncalibrated_grid_cleaned.csv").exists() {
+        eprintln!(
+            "skipped: the UR5 data set is not at {} (it travels beside the repository)",
+            data.display()
+        );
+        return;
+    }
+    let (command, figures) = documented("ur5");
+    assert!(figures.len() >= 7, "{figures:?}");
+    let out = tempfile::tempdir().unwrap();
+    let csv = out.path().join("ur5.csv");
+    let mut args: Vec<&str> = command.iter().map(String::as_str).collect();
+    args.extend(["--csv", csv.to_str().unwrap(), "-q"]);
+    ok(&tablec(&args, &repo()));
+    let produced = std::fs::read_to_string(&csv).unwrap();
+    let produced: Vec<(String, Option<f64>)> = produced
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            (fields[0].to_string(), fields[3].parse().ok())
+        })
+        .collect();
+    for (method, documented_mean_mm) in &figures {
+        let (_, mean) = produced
+            .iter()
+            .find(|(m, _)| m == method)
+            .unwrap_or_else(|| panic!("{method} not in the output"));
+        let mean = mean.unwrap_or_else(|| panic!("{method} has no mean"));
+        assert!(
+            (mean - documented_mean_mm).abs() <= 1e-6,
+            "{method}: documented {documented_mean_mm} mm, regenerated {mean} mm"
+        );
+    }
+}
