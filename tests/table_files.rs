@@ -79,7 +79,10 @@ fn wrong_magic_and_versions_are_refused_naming_both_versions() {
     assert!(matches!(open(&not_a_table), Err(OpenError::BadMagic)));
 
     let header = Header::from_bytes(&bytes).unwrap();
-    for version in [0u16, 2, 9] {
+    // Below the oldest, just above the newest (a file from a newer tablec), far above.
+    let newest = adwi_runtime::format::FORMAT_VERSION;
+    let oldest = adwi_runtime::format::OLDEST_SUPPORTED_VERSION;
+    for version in [oldest - 1, newest + 1, newest + 7, u16::MAX] {
         let mut other = bytes.clone();
         let h = Header { version, ..header };
         // `to_bytes` recomputes the header checksum: only the version is wrong.
@@ -98,7 +101,10 @@ fn wrong_magic_and_versions_are_refused_naming_both_versions() {
             message.contains(&format!("version {version} is not supported")),
             "{message}"
         );
-        assert!(message.contains("reads versions 1 to 1"), "{message}");
+        assert!(
+            message.contains(&format!("reads versions {oldest} to {newest}")),
+            "{message}"
+        );
     }
 }
 
