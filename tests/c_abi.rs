@@ -168,6 +168,7 @@ fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
     assert_eq!(line(&stdout, "query_null_out"), ["1"]);
     assert_eq!(line(&stdout, "query_bad_config"), ["2"]);
     assert_eq!(line(&stdout, "query_untouched"), ["1"]);
+    assert_eq!(line(&stdout, "query_joints_null_joints"), ["1"]);
     assert_eq!(line(&stdout, "compensate_null_out"), ["1"]);
     assert_eq!(line(&stdout, "compensate_bad_tolerance"), ["2"]);
     assert!(stdout.lines().last() == Some("done"), "{stdout}");
@@ -182,6 +183,14 @@ fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
     assert_eq!(compensations.len(), targets.len(), "{stdout}");
     assert_eq!(
         stdout.lines().filter(|l| *l == "handles_agree 1").count(),
+        targets.len(),
+        "{stdout}"
+    );
+    assert_eq!(
+        stdout
+            .lines()
+            .filter(|l| *l == "query_joints_agree 1")
+            .count(),
         targets.len(),
         "{stdout}"
     );

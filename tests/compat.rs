@@ -82,10 +82,9 @@ fn the_version_1_table_opens_and_gives_its_recorded_answers() {
 fn the_version_1_table_agrees_with_the_method_on_its_samples() {
     // The fixture's samples are the worked example's: the brute force over them must
     // give the fixture's answers to rounding.
-    let table = Table::from_vec(
-        std::fs::read(root().join("tables/compat/v1/worked_example.tbl")).unwrap(),
-    )
-    .unwrap();
+    let table =
+        Table::from_vec(std::fs::read(root().join("tables/compat/v1/worked_example.tbl")).unwrap())
+            .unwrap();
     let samples = read_samples(
         &root().join("tables/paper/worked_example_p1.csv"),
         &ColumnMap::default(),

@@ -290,3 +290,172 @@ fn documented_ur5_figures_are_regenerated() {
         );
     }
 }
+
+/// `tablec build --hybrid` identifies first and says so: identified count, condition
+/// number, RMS before and after, and a warning naming the parameters the data cannot
+/// identify (Δθ1 turns the TCP exactly like the base rotation about z). Samples without
+/// joint angles are refused with a message saying what is missing.
+#[test]
+fn hybrid_build_reports_the_calibration_and_warns_about_unidentifiable_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("kr150-hybrid.tbl");
+    let out = tablec(
+        &[
+            "build",
+            "tables/kr150-2/samples.csv",
+            "-o",
+            table.to_str().unwrap(),
+            "--robot",
+            "tables/kr150-2/robot.toml",
+            "--hybrid",
+            "--cell",
+            "50",
+        ],
+        &repo(),
+    );
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stdout.contains("27 parameters identified, 15 unidentifiable, condition number"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("position RMS   1.9235 mm before, 0.0658 mm after"),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains("warning: unidentifiable from these samples"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("Δtheta1"), "{stderr}");
+    // The table is hybrid: a position-only query says joint angles are missing.
+    let query = tablec(
+        &["query", table.to_str().unwrap(), "1750", "450", "1250"],
+        &repo(),
+    );
+    ok(&query);
+    assert!(
+        String::from_utf8_lossy(&query.stdout).contains("missing_joints"),
+        "{}",
+        String::from_utf8_lossy(&query.stdout)
+    );
+
+    write_inputs(dir.path());
+    let refused = tablec(
+        &[
+            "build",
+            "samples.csv",
+            "-o",
+            "t.tbl",
+            "--robot",
+            repo().join("tables/kr150-2/robot.toml").to_str().unwrap(),
+            "--hybrid",
+        ],
+        dir.path(),
+    );
+    assert!(!refused.status.success());
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(message.contains("no joint angles"), "{message}");
+}
+
+/// On the KR150-2 with strong joint compliance and gear errors
+/// (`tables/kr150-2/scenario_compliant.toml`), a calibrated kinematic model cannot reach
+/// the measurement noise floor, and the hybrid table, built and queried through the
+/// runtime, does. The floor is the mean norm of the validation points' own tracker noise,
+/// `1.596 σ(d)` for σ(d) = 5 µm + 2 µm/m · d per axis, d the distance to the tracker.
+#[test]
+fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = repo().join("tables/kr150-2/robot.toml");
+    let scenario = repo().join("tables/kr150-2/scenario_compliant.toml");
+    let simulate = |plan: &[&str], seed: &str, output: &str| {
+        let mut args = vec![
+            "simulate",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--min",
+            "1350,50,850",
+            "--max",
+            "2150,850,1650",
+            "--abc",
+            "0,90,0",
+            "--seed",
+            seed,
+            "-o",
+            output,
+        ];
+        args.extend_from_slice(plan);
+        ok(&tablec(&args, dir.path()));
+    };
+    simulate(&["--step", "100"], "1", "samples.csv");
+    simulate(&["--random", "200"], "2", "validation.csv");
+    ok(&tablec(
+        &[
+            "eval",
+            "samples.csv",
+            "--validation",
+            "validation.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--methods",
+            "kinematic,hybrid",
+            "--cell",
+            "50",
+            "--csv",
+            "figures.csv",
+            "-q",
+        ],
+        dir.path(),
+    ));
+    let figures = std::fs::read_to_string(dir.path().join("figures.csv")).unwrap();
+    let column = |method: &str, index: usize| -> f64 {
+        let line = figures
+            .lines()
+            .find(|l| l.starts_with(&format!("{method},")))
+            .unwrap_or_else(|| panic!("{method} missing:\n{figures}"));
+        line.split(',').nth(index).unwrap().parse().unwrap()
+    };
+    let tracker_mm = [4500.0, -1500.0, 0.0];
+    let validation = std::fs::read_to_string(dir.path().join("validation.csv")).unwrap();
+    let distances_m: Vec<f64> = validation
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('x'))
+        .map(|l| {
+            let p: Vec<f64> = l.split(',').take(3).map(|v| v.parse().unwrap()).collect();
+            (0..3)
+                .map(|a| (p[a] - tracker_mm[a]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / 1000.0
+        })
+        .collect();
+    assert_eq!(distances_m.len(), 200);
+    let floor_mm = distances_m
+        .iter()
+        .map(|d| 1.596 * (0.005 + 0.002 * d))
+        .sum::<f64>()
+        / distances_m.len() as f64;
+    let (kinematic, hybrid) = (column("kinematic", 3), column("hybrid", 3));
+    assert_eq!(
+        column("hybrid", 1),
+        200.0,
+        "every point predicted:\n{figures}"
+    );
+    assert!(
+        kinematic > 3.0 * floor_mm,
+        "kinematic {kinematic} mm, floor {floor_mm} mm"
+    );
+    assert!(
+        hybrid < 1.25 * floor_mm,
+        "hybrid {hybrid} mm, floor {floor_mm} mm"
+    );
+    // Orientation too: the model alone leaves ten times what the hybrid leaves.
+    let (kinematic_mrad, hybrid_mrad) = (column("kinematic", 7), column("hybrid", 7));
+    assert!(
+        kinematic_mrad > 10.0 * hybrid_mrad,
+        "{kinematic_mrad} vs {hybrid_mrad} mrad"
+    );
+}

@@ -176,3 +176,189 @@ proptest! {
         }
     }
 }
+
+/// A case with joint angles on every sample, a joint-space screen, and the targets' joint
+/// angles: random, not consistent with the positions, which the screen does not need.
+fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
+    (
+        case(),
+        prop::collection::vec(prop::array::uniform6(-0.5..0.5f64), 200),
+        prop::collection::vec(prop::array::uniform6(-0.5..0.5f64), 60),
+        0.05..0.8f64,
+    )
+        .prop_map(|(mut case, sample_joints, target_joints, radius_rad)| {
+            let len = case.samples.len();
+            case.samples.joints_deg = Some(
+                sample_joints[..len]
+                    .iter()
+                    .map(|q| q.map(f64::to_degrees))
+                    .collect(),
+            );
+            case.options.joint_radius_deg = Some(radius_rad.to_degrees());
+            (case, target_joints)
+        })
+}
+
+/// The brute-force hybrid reference, independent of the table: the compiler's own
+/// calibrated forward kinematics and the reference over every residual.
+struct HybridFixture {
+    table: Table<adwi_runtime::AlignedBytes>,
+    screened: Table<adwi_runtime::AlignedBytes>,
+    calibration: adwi_compiler::calibrate::Calibration,
+    residuals: Vec<adwi_runtime::format::SampleRecord>,
+    joints_rad: Vec<[f64; 6]>,
+    robot: adwi_compiler::robot::Robot,
+}
+
+const HYBRID_JOINT_RADIUS_DEG: f64 = 12.0;
+
+fn hybrid_fixture() -> &'static HybridFixture {
+    use adwi_compiler::calibrate::{identify, CalibrateOptions};
+    use adwi_compiler::robot::{model::shipped_robot_path, Robot};
+    use adwi_compiler::samples::{read_samples, ColumnMap};
+    static FIXTURE: std::sync::OnceLock<HybridFixture> = std::sync::OnceLock::new();
+    FIXTURE.get_or_init(|| {
+        let robot_path = shipped_robot_path("kr150-2");
+        let robot = Robot::load(&robot_path).unwrap();
+        let samples = read_samples(
+            &robot_path.parent().unwrap().join("samples.csv"),
+            &ColumnMap::default(),
+        )
+        .unwrap();
+        let calibration = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        let options = BuildOptions {
+            cell_mm: Some(50.0),
+            ..BuildOptions::default()
+        };
+        let build = |options: &BuildOptions| {
+            let (bytes, _) =
+                adwi_compiler::hybrid::compile(&samples, &calibration, options, &|_| {}).unwrap();
+            Table::from_vec(bytes).unwrap()
+        };
+        let table = build(&options);
+        let screened = build(&BuildOptions {
+            joint_radius_deg: Some(HYBRID_JOINT_RADIUS_DEG),
+            ..options
+        });
+        let joints_rad: Vec<[f64; 6]> = samples
+            .joints_deg
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|q| q.map(f64::to_radians))
+            .collect();
+        // Residuals through the compiler's nalgebra model, not the runtime's.
+        let mut residual = samples.clone();
+        for (i, q) in joints_rad.iter().enumerate() {
+            let (p, r) = calibration.predict_error(q);
+            for a in 0..3 {
+                residual.error_mm[i][a] -= p[a];
+                residual.rotation_error_rad.as_mut().unwrap()[i][a] -= r[a];
+            }
+        }
+        HybridFixture {
+            table,
+            screened,
+            residuals: residual.records(),
+            calibration,
+            joints_rad,
+            robot,
+        }
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(
+        std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(300)
+    ))]
+
+    /// With the joint-space screen on, the table's candidate lists stay a superset (no
+    /// dominance pruning) and its answers equal the screened reference's.
+    #[test]
+    fn joint_screened_table_answers_equal_reference((case, target_joints) in joint_case()) {
+        let (bytes, _) = compile(&case.samples, &case.options, &|_| {}).unwrap();
+        let table = Table::from_vec(bytes).unwrap();
+        let radius_rad = table.joint_radius_rad();
+        prop_assert!(radius_rad > 0.0);
+        let records = case.samples.records();
+        let sample_joints: Vec<[f64; 6]> = case
+            .samples
+            .joints_deg
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|q| q.map(f64::to_radians))
+            .collect();
+        let params = *table.method();
+        for (target, q) in case.targets.iter().zip(&target_joints) {
+            let got = table.query_with_joints(target, q);
+            if table.grid().cell_of(target.position_mm).is_none() {
+                prop_assert_eq!(got.status, Status::OutsideGrid);
+                continue;
+            }
+            let screen = reference::JointScreen {
+                samples_rad: &sample_joints,
+                target_rad: *q,
+                radius_rad,
+            };
+            let want = reference::predict_screened(&records, &params, target, Some(&screen));
+            match want {
+                Some(want) => {
+                    prop_assert_eq!(got.status, Status::Ok, "at {:?}", target);
+                    prop_assert_eq!(got.neighbours as usize, want.neighbours.len());
+                    for axis in 0..3 {
+                        prop_assert!((got.position_error_mm[axis] - want.position_error_mm[axis]).abs() <= 1e-12);
+                        prop_assert!((got.orientation_error_rad[axis] - want.orientation_error_rad[axis]).abs() <= 1e-12);
+                    }
+                }
+                None => prop_assert_eq!(got.status, Status::NoAdmissibleNeighbour, "at {:?}", target),
+            }
+            // Without the target's joints the screen is off: the unscreened reference.
+            let unscreened = table.query_target(target);
+            let want = reference::predict(&records, &params, target);
+            prop_assert_eq!(unscreened.status == Status::Ok, want.is_some());
+        }
+    }
+
+    /// A hybrid table's runtime answer equals the brute-force hybrid reference (calibrated
+    /// model by the compiler's own forward kinematics + reference over the residuals) to
+    /// 1e-9, at random poses near the KR150-2 samples, with and without the joint screen.
+    #[test]
+    fn hybrid_table_answers_equal_reference(
+        pick in 0usize..729,
+        delta_deg in prop::array::uniform6(-6.0..6.0f64),
+    ) {
+        let f = hybrid_fixture();
+        let q: [f64; 6] = std::array::from_fn(|i| f.joints_rad[pick][i] + delta_deg[i].to_radians());
+        let position = f.robot.tcp_pose(&q).translation.vector;
+        let target = Target::at([position.x, position.y, position.z]);
+        prop_assert_eq!(f.table.query_target(&target).status, Status::MissingJoints);
+        for (table, radius_deg) in [(&f.table, 0.0), (&f.screened, HYBRID_JOINT_RADIUS_DEG)] {
+            let got = table.query_with_joints(&target, &q);
+            if table.grid().cell_of(target.position_mm).is_none() {
+                prop_assert_eq!(got.status, Status::OutsideGrid);
+                continue;
+            }
+            let want = adwi_compiler::hybrid::reference_predict(
+                &f.residuals,
+                &f.joints_rad,
+                table.method(),
+                f64::to_radians(radius_deg),
+                &f.calibration,
+                true,
+                &target,
+                &q,
+            );
+            match want {
+                Some((p, r)) => {
+                    prop_assert_eq!(got.status, Status::Ok);
+                    for axis in 0..3 {
+                        prop_assert!((got.position_error_mm[axis] - p[axis]).abs() <= 1e-9, "{:?} vs {:?}", got.position_error_mm, p);
+                        prop_assert!((got.orientation_error_rad[axis] - r[axis]).abs() <= 1e-9, "{:?} vs {:?}", got.orientation_error_rad, r);
+                    }
+                }
+                None => prop_assert_eq!(got.status, Status::NoAdmissibleNeighbour),
+            }
+        }
+    }
+}

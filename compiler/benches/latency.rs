@@ -39,7 +39,10 @@ fn bench(c: &mut Criterion) {
     let kd = KdTreeMethod::new(records.clone(), params);
     let workloads: [(&str, Vec<Target>); 2] = [
         ("random", latency::random_targets(table.grid(), 4096, 1)),
-        ("trajectory", latency::trajectory(table.grid(), 4096, 1.0, 1)),
+        (
+            "trajectory",
+            latency::trajectory(table.grid(), 4096, 1.0, 1),
+        ),
     ];
 
     let mut group = c.benchmark_group("query");

@@ -11,8 +11,9 @@
 //!   everywhere in the cell (farthest distance to the box within ε) and certainly nearer
 //!   (their farthest distance below its nearest distance). With configurations, the count
 //!   is also taken among samples of its own configuration, since a target of that
-//!   configuration sees only those. With λ or ζ thresholds, admissibility depends on more
-//!   than the distance, no sample is certain, and nothing is pruned beyond the radius.
+//!   configuration sees only those. With λ or ζ thresholds, or with the joint-space screen
+//!   ([`BuildOptions::joint_radius_deg`]), admissibility depends on more than the distance,
+//!   no sample is certain, and nothing is pruned beyond the radius.
 //!
 //! Boxes are grown by [`BOX_MARGIN_MM`] and comparisons carry [`DISTANCE_SLACK_MM`], far
 //! above floating-point rounding, so that a target on a cell face, or rounded into a
@@ -28,8 +29,8 @@ use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use adwi_runtime::format::{
-    self, CellRecord, Grid, Header, SampleRecord, TableData, CONTENT_CONFIG, CONTENT_JOINTS,
-    CONTENT_ORIENTATION,
+    self, CellRecord, Grid, Header, KinematicModel, SampleRecord, TableData, CONTENT_CONFIG,
+    CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION,
 };
 use adwi_runtime::method::{self, MethodParams, SampleError};
 use rayon::prelude::*;
@@ -72,6 +73,11 @@ pub struct BuildOptions {
     /// The grid's box (min, max corners, mm); default the samples' nominal bounding box
     /// grown by ε.
     pub bounds_mm: Option<([f64; 3], [f64; 3])>,
+    /// The joint-space admissibility radius, degrees: when the target's joint angles are
+    /// known, a sample is admissible only if every joint angle is within this of the
+    /// target's (`Header::joint_radius_rad`). `None` (or 0) turns the screen off. Needs
+    /// samples with joint angles.
+    pub joint_radius_deg: Option<f64>,
 }
 
 impl Default for BuildOptions {
@@ -88,6 +94,7 @@ impl Default for BuildOptions {
             zeta_min_per_mm2: paper.zeta_min_per_mm2,
             consistency_screen: paper.consistency_screen,
             bounds_mm: None,
+            joint_radius_deg: None,
         }
     }
 }
@@ -148,6 +155,8 @@ pub struct BuildReport {
     pub mean_list_len: f64,
     /// Table size, bytes.
     pub table_bytes: usize,
+    /// The joint-space admissibility radius, rad (0 = off).
+    pub joint_radius_rad: f64,
 }
 
 /// The full method parameters of a build, derived where not given.
@@ -176,6 +185,17 @@ pub fn resolve(
         consistency_screen: options.consistency_screen,
     };
     params.validate().map_err(BuildError::Params)?;
+    let joint_radius_rad = options.joint_radius_deg.unwrap_or(0.0).to_radians();
+    if !(joint_radius_rad.is_finite() && joint_radius_rad >= 0.0) {
+        return Err(BuildError::Params(
+            "joint radius must be finite and non-negative",
+        ));
+    }
+    if joint_radius_rad > 0.0 && samples.joints_deg.is_none() {
+        return Err(BuildError::Params(
+            "a joint radius needs samples with joint angles (columns j1..j6)",
+        ));
+    }
     let cell_mm = match options.cell_mm {
         Some(c) => c,
         None => derive("the cell size")? / CELLS_PER_SPACING,
@@ -225,6 +245,7 @@ pub fn resolve(
         max_list_len: 0,
         mean_list_len: 0.0,
         table_bytes: 0,
+        joint_radius_rad,
     };
     Ok((params, grid, report))
 }
@@ -240,14 +261,32 @@ pub fn compile(
     options: &BuildOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    compile_with_model(samples, options, None, samples.source_hash(), progress)
+}
+
+/// As [`compile`], for a table that also carries a kinematic model: `samples` then hold
+/// the residuals the model leaves, and `source_hash` identifies the measured samples they
+/// were derived from ([`crate::hybrid`] builds hybrid tables through this).
+///
+/// # Errors
+///
+/// As [`compile`].
+pub fn compile_with_model(
+    samples: &SampleSet,
+    options: &BuildOptions,
+    model: Option<KinematicModel>,
+    source_hash: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let (params, grid, mut report) = resolve(samples, options)?;
+    let joint_screen = report.joint_radius_rad > 0.0;
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
     let done = AtomicU64::new(0);
     let per_cell: Vec<(Vec<u32>, Vec<(u32, f64)>)> = (0..report.cells)
         .into_par_iter()
         .map(|cell| {
-            let candidates = candidate_list(&records, &index, &params, &grid, cell);
+            let candidates = candidate_list(&records, &index, &params, joint_screen, &grid, cell);
             let centre = centre_weights(&records, &params, &grid, cell, &candidates);
             if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
                 progress(4096);
@@ -266,7 +305,7 @@ pub fn compile(
         joints_rad: samples.joints_deg.as_ref().map_or(Vec::new(), |j| {
             j.iter().map(|q| q.map(f64::to_radians)).collect()
         }),
-        model: None,
+        model,
     };
     // Identical lists are stored once, in order of first appearance.
     let mut starts: HashMap<&[u32], u32> = HashMap::new();
@@ -306,16 +345,20 @@ pub fn compile(
     if samples.joints_deg.is_some() {
         content |= CONTENT_JOINTS;
     }
+    if data.model.is_some() {
+        content |= CONTENT_MODEL;
+    }
     let header = Header {
         version: format::FORMAT_VERSION,
         rkyv_flags: format::RKYV_FLAGS,
         content_flags: content,
         payload_len: 0,
         payload_checksum: 0,
-        source_hash: samples.source_hash(),
+        source_hash,
         method: params,
         grid,
         sample_count: samples.len() as u32,
+        joint_radius_rad: report.joint_radius_rad,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     report.table_bytes = bytes.len();
@@ -414,10 +457,13 @@ fn box_distances(p: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
 }
 
 /// The candidate list of one cell, sample indices increasing (see the module docs).
+/// `joint_screen`: whether the joint-space screen is on, so that no sample is certainly
+/// admissible.
 fn candidate_list(
     records: &[SampleRecord],
     index: &SpatialIndex,
     params: &MethodParams,
+    joint_screen: bool,
     grid: &Grid,
     cell: usize,
 ) -> Vec<u32> {
@@ -437,37 +483,43 @@ fn candidate_list(
         })
         .collect();
     let k = params.max_neighbours as usize;
-    let mut list: Vec<u32> = if params.has_degree_thresholds() || reachable.len() <= k {
-        reachable.iter().map(|&(i, _, _)| i).collect()
-    } else {
-        // Farthest distances of the samples admissible everywhere in the cell, overall
-        // and per configuration, sorted.
-        let certain = |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
-        let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
-        all.sort_by(f64::total_cmp);
-        let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
-        for r in reachable.iter().filter(certain) {
+    let mut list: Vec<u32> =
+        if params.has_degree_thresholds() || joint_screen || reachable.len() <= k {
+            reachable.iter().map(|&(i, _, _)| i).collect()
+        } else {
+            // Farthest distances of the samples admissible everywhere in the cell, overall
+            // and per configuration, sorted.
+            let certain =
+                |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
+            let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
+            all.sort_by(f64::total_cmp);
+            let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
+            for r in reachable.iter().filter(certain) {
+                by_config
+                    .entry(records[r.0 as usize].config)
+                    .or_default()
+                    .push(r.2);
+            }
             by_config
-                .entry(records[r.0 as usize].config)
-                .or_default()
-                .push(r.2);
-        }
-        by_config
-            .values_mut()
-            .for_each(|v| v.sort_by(f64::total_cmp));
-        let nearer =
-            |sorted: &[f64], d: f64| sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM);
-        reachable
-            .iter()
-            .filter(|&&(i, d_near, _)| {
-                let config = records[i as usize].config;
-                let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
-                nearer(&all, d_near) < k || nearer(same, d_near) < k
-            })
-            .map(|&(i, _, _)| i)
-            .collect()
-    };
-    list.sort_unstable();
+                .values_mut()
+                .for_each(|v| v.sort_by(f64::total_cmp));
+            let nearer =
+                |sorted: &[f64], d: f64| sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM);
+            reachable
+                .iter()
+                .filter(|&&(i, d_near, _)| {
+                    let config = records[i as usize].config;
+                    let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
+                    nearer(&all, d_near) < k || nearer(same, d_near) < k
+                })
+                .map(|&(i, _, _)| i)
+                .collect()
+        };
+    // Nearest to the cell's centre first (see `TableData::list_samples`).
+    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+    let key = |i: u32| method::distance_mm(records[i as usize].actual_mm, centre);
+    list.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
     list
 }
 
@@ -492,7 +544,8 @@ fn centre_weights(
             orientation_rad: r.rotation_error_rad,
         }
     };
-    match method::predict(params, selection.as_slice(), error_of) {
+    let neighbours = method::neighbours(centre, &selection, |i| records[i as usize].actual_mm);
+    match method::predict(params, neighbours.as_slice(), error_of) {
         Some(p) => p
             .neighbours
             .as_slice()

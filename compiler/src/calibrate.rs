@@ -52,6 +52,8 @@
 //! of the kept, scaled Jacobian is reported too. Pivoting on the scaled Jacobian keeps the
 //! choice independent of units (mm against rad).
 
+use adwi_runtime::format::{KinematicModel, ModelParams};
+use adwi_runtime::hybrid::{joint_rows, rows_of};
 use adwi_runtime::kinematics::{forward, MdhJoint, Transform};
 use nalgebra::{DMatrix, DVector, Isometry3, Rotation3, SVector, Vector3};
 
@@ -270,6 +272,38 @@ impl Calibration {
     /// frame.
     pub fn predict_error(&self, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
         self.model.error(q_rad)
+    }
+
+    /// The nominal and the identified model as a table stores them (a hybrid table's
+    /// [`KinematicModel`]): plain MD-H rows, tool and base transforms. The nominal base
+    /// is the identity; the identified one is the registration.
+    ///
+    /// [`adwi_runtime::hybrid::model_error`] of this model equals [`Self::predict_error`]
+    /// to rounding: both evaluate the same forward kinematics.
+    pub fn kinematic_model(&self) -> KinematicModel {
+        let m = &self.model;
+        let nominal_tool = crate::robot::model::transform_from_isometry(&m.nominal_tool);
+        let r = m.base_rotation.matrix();
+        let base = Transform {
+            rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
+            translation_mm: [
+                m.base_translation_mm.x,
+                m.base_translation_mm.y,
+                m.base_translation_mm.z,
+            ],
+        };
+        KinematicModel {
+            nominal: ModelParams {
+                joints: joint_rows(&m.nominal_joints),
+                tool: rows_of(&nominal_tool),
+                base: rows_of(&Transform::IDENTITY),
+            },
+            calibrated: ModelParams {
+                joints: joint_rows(&m.joints),
+                tool: rows_of(&m.tool),
+                base: rows_of(&base),
+            },
+        }
     }
 
     /// The identified MD-H deviations (Δa, Δd, Δα, Δθ, Δβ per joint).

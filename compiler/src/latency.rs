@@ -20,7 +20,7 @@
 use std::time::{Duration, Instant};
 
 use adwi_runtime::format::{Grid, SampleRecord};
-use adwi_runtime::method::{self, MethodParams, Prediction, SampleError};
+use adwi_runtime::method::{self, Estimate, MethodParams, SampleError};
 use adwi_runtime::{Table, Target};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rand::{Rng, SeedableRng};
@@ -202,7 +202,7 @@ impl KdTreeMethod {
 
     /// The prediction at `target`, or `None` without admissible neighbours. Allocates the
     /// k-d tree's result vector per query, as its API does.
-    pub fn predict(&self, target: &Target) -> Option<Prediction> {
+    pub fn predict(&self, target: &Target) -> Option<Estimate> {
         let p = target.position_mm;
         if !p.iter().all(|v| v.is_finite()) {
             return None;
@@ -223,12 +223,13 @@ impl KdTreeMethod {
                 Some((r.actual_mm, r.config))
             },
         );
-        method::predict(&self.params, selection.as_slice(), |i| {
+        method::estimate(&self.params, p, &selection, |i| {
             let r = &records[i as usize];
-            SampleError {
+            let error = SampleError {
                 position_mm: r.error_mm,
                 orientation_rad: r.rotation_error_rad,
-            }
+            };
+            (r.actual_mm, error)
         })
     }
 }

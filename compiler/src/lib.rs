@@ -8,6 +8,7 @@ pub mod baselines;
 pub mod build;
 pub mod calibrate;
 pub mod eval;
+pub mod hybrid;
 pub mod latency;
 pub mod pose;
 pub mod reference;

@@ -3,6 +3,7 @@
 //! same answer for every target inside its grid; the property tests hold it to that.
 
 use adwi_runtime::format::SampleRecord;
+use adwi_runtime::hybrid::joints_within;
 use adwi_runtime::method::{
     self, approximation_degree, config_matches, MethodParams, Neighbour, Prediction, SampleError,
 };
@@ -15,6 +16,37 @@ pub fn neighbours(
     params: &MethodParams,
     target: &Target,
 ) -> Vec<Neighbour> {
+    neighbours_screened(records, params, target, None)
+}
+
+/// The joint-space admissibility screen of a query with known joint angles: sample `i`
+/// is admissible only if `joints_within(samples_rad[i], target_rad, radius_rad)`.
+#[derive(Clone, Copy, Debug)]
+pub struct JointScreen<'a> {
+    /// Every sample's joint angles, rad, in sample order.
+    pub samples_rad: &'a [[f64; 6]],
+    /// The target's joint angles, rad.
+    pub target_rad: [f64; 6],
+    /// The radius, rad.
+    pub radius_rad: f64,
+}
+
+impl JointScreen<'_> {
+    /// Whether sample `index` passes the screen.
+    pub fn admits(&self, index: usize) -> bool {
+        self.samples_rad
+            .get(index)
+            .is_some_and(|q| joints_within(q, &self.target_rad, self.radius_rad))
+    }
+}
+
+/// As [`neighbours`], with the joint-space screen applied when given.
+pub fn neighbours_screened(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    target: &Target,
+    screen: Option<&JointScreen>,
+) -> Vec<Neighbour> {
     let p = target.position_mm;
     if !params.target_in_range(p) {
         return Vec::new();
@@ -23,6 +55,7 @@ pub fn neighbours(
         .iter()
         .enumerate()
         .filter(|(_, s)| config_matches(s.config, target.config))
+        .filter(|(i, _)| screen.is_none_or(|screen| screen.admits(*i)))
         .map(|(i, s)| Neighbour {
             sample: i as u32,
             degree: approximation_degree(p, s.actual_mm),
@@ -46,10 +79,20 @@ pub fn predict(
     params: &MethodParams,
     target: &Target,
 ) -> Option<Prediction> {
+    predict_screened(records, params, target, None)
+}
+
+/// As [`predict`], with the joint-space screen applied when given.
+pub fn predict_screened(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    target: &Target,
+    screen: Option<&JointScreen>,
+) -> Option<Prediction> {
     if !target.position_mm.iter().all(|v| v.is_finite()) {
         return None;
     }
-    let selected = neighbours(records, params, target);
+    let selected = neighbours_screened(records, params, target, screen);
     method::predict(params, &selected, |i| {
         let s = &records[i as usize];
         SampleError {

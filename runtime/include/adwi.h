@@ -62,7 +62,9 @@ enum {
     ADWI_STATUS_OK = 0,             /* predicted from at least one admissible neighbour */
     ADWI_STATUS_OUTSIDE_GRID = 1,   /* target outside the table's grid; correction zero */
     ADWI_STATUS_NO_NEIGHBOUR = 2,   /* no admissible sample; correction zero */
-    ADWI_STATUS_INVALID_INPUT = 3   /* target not finite; correction zero */
+    ADWI_STATUS_INVALID_INPUT = 3,  /* target not finite; correction zero */
+    ADWI_STATUS_MISSING_JOINTS = 4  /* hybrid table queried without joint angles: use
+                                       adwi_table_query_joints; correction zero */
 };
 
 /* Flags for adwi_table_open_with. */
@@ -103,6 +105,14 @@ adwi_result adwi_table_open_bytes(const uint8_t *bytes, size_t len, adwi_table *
  * the table answered; out->status says whether the correction holds. */
 adwi_result adwi_table_query(const adwi_table *table, const double target_mm[3],
                              int32_t config, adwi_correction *out);
+
+/* As adwi_table_query, for a target the controller reaches with joint angles joints_rad
+ * (six doubles, rad). The only query a hybrid table (calibrated kinematic model plus
+ * interpolated residuals) answers; on any table it also applies the joint-space screen
+ * when the table was built with one. */
+adwi_result adwi_table_query_joints(const adwi_table *table, const double target_mm[3],
+                                    int32_t config, const double joints_rad[6],
+                                    adwi_correction *out);
 
 /* Iterates command <- target - error(command) until the residual is at most tolerance_mm
  * or max_iterations queries were made. */

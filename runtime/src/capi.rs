@@ -77,7 +77,7 @@ pub struct AdwiCorrection {
     /// The number of neighbours weighted.
     pub neighbours: u32,
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
-    /// 3 invalid input.
+    /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them).
     pub status: i32,
 }
 
@@ -330,6 +330,53 @@ pub unsafe extern "C" fn adwi_table_query(
             position_mm,
             config,
         });
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(c.into()) };
+        AdwiResult::Ok
+    })
+}
+
+/// The correction at `target_mm` (x, y, z, mm, base frame) for configuration `config`
+/// (-1 unknown), reached with joint angles `joints_rad` (six doubles, rad): the only query
+/// a hybrid table answers, and the one that applies a table's joint-space screen
+/// ([`Table::query_with_joints`]). Returns `ADWI_OK` whenever the table answered;
+/// `out->status` then says whether the correction holds. Does not allocate.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`]; `joints_rad` is null or valid for six doubles.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_query_joints(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    joints_rad: *const f64,
+    out: *mut AdwiCorrection,
+) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() || target_mm.is_null() || joints_rad.is_null() || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        let Some(config) = config_of(config) else {
+            return AdwiResult::InvalidArgument;
+        };
+        // SAFETY: non-null, valid for three doubles by contract.
+        let position_mm = unsafe { read3(target_mm) };
+        // SAFETY: non-null, valid for six doubles by contract (two reads of three).
+        let joints = unsafe {
+            let [a, b, c] = read3(joints_rad);
+            let [d, e, f] = read3(joints_rad.add(3));
+            [a, b, c, d, e, f]
+        };
+        // SAFETY: non-null, a live handle by contract; only shared access is taken.
+        let table = unsafe { &(*table).table };
+        let c = table.query_with_joints(
+            &Target {
+                position_mm,
+                config,
+            },
+            &joints,
+        );
         // SAFETY: non-null, writable by contract.
         unsafe { out.write(c.into()) };
         AdwiResult::Ok

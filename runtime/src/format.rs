@@ -29,7 +29,8 @@
 //! | 112 | 24 | grid origin (minimum corner) x, y, z, mm, base frame |
 //! | 136 | 12 | grid size in cells along x, y, z |
 //! | 148 | 4  | sample count |
-//! | 152 | 96 | reserved, zero |
+//! | 152 | 8  | joint-space radius, rad: a sample is admissible only if every joint angle is within it of the target's, when the target's joint angles are given; 0 = off |
+//! | 160 | 88 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of the archive's 16-byte alignment, so a
@@ -94,6 +95,10 @@ pub struct Header {
     pub grid: Grid,
     /// The number of samples.
     pub sample_count: u32,
+    /// The joint-space admissibility radius, rad, or 0 when off: with the target's joint
+    /// angles known ([`crate::Table::query_with_joints`]), a sample is admissible only if
+    /// `max_i |q_sample,i − q_target,i|` is at most this. Needs [`CONTENT_JOINTS`].
+    pub joint_radius_rad: f64,
 }
 
 /// A regular grid of cubic cells over an axis-aligned box of the base frame.
@@ -206,7 +211,9 @@ pub struct TableData {
     /// The cells, linear index `ix + nx · (iy + ny · iz)`. One record per cell, so that a
     /// query reads its list's range in a single access.
     pub cells: Vec<CellRecord>,
-    /// Concatenated distinct candidate lists: sample indices, increasing within a list.
+    /// Concatenated distinct candidate lists: sample indices, each list ordered by distance
+    /// to its cell's centre (ties by index), so that a query meets the likely neighbours
+    /// first and ranks the rest with few moves. No sample appears twice in a list.
     pub list_samples: Vec<u32>,
     /// The neighbours selected at each cell's centre, nearest first.
     pub centre_samples: Vec<u32>,
@@ -281,6 +288,7 @@ impl Header {
             put(&mut b, 136 + 4 * axis, self.grid.dims[axis].to_le_bytes());
         }
         put(&mut b, 148, self.sample_count.to_le_bytes());
+        put(&mut b, 152, self.joint_radius_rad.to_le_bytes());
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
         b
@@ -344,6 +352,13 @@ impl Header {
                 what: "consistency screen flag is neither 0 nor 1",
             });
         }
+        let joint_radius_rad = f64_at(152);
+        // Written so that NaN fails the test.
+        if !(joint_radius_rad >= 0.0 && joint_radius_rad.is_finite()) {
+            return Err(OpenError::Corrupt {
+                what: "joint radius is negative or not finite",
+            });
+        }
         Ok(Header {
             version,
             rkyv_flags,
@@ -367,6 +382,7 @@ impl Header {
                 dims: [u32_at(136), u32_at(140), u32_at(144)],
             },
             sample_count: u32_at(148),
+            joint_radius_rad,
         })
     }
 }

@@ -36,6 +36,7 @@
 pub mod capi;
 mod error;
 pub mod format;
+pub mod hybrid;
 pub mod kinematics;
 pub mod method;
 pub mod residency;

@@ -44,7 +44,7 @@
 //! neighbours are not replaced by farther ones.
 
 /// The largest neighbour count `k` a table may use; selections are fixed-size arrays.
-pub const MAX_NEIGHBOURS: usize = 32;
+pub const MAX_NEIGHBOURS: usize = 16;
 
 /// Perpendicular offsets below this (mm) from the line through the origin and the target
 /// count as this much when computing the triangle area `S` (see the module docs).
@@ -97,7 +97,7 @@ impl MethodParams {
             return Err("radius must be finite and positive");
         }
         if self.max_neighbours == 0 || self.max_neighbours as usize > MAX_NEIGHBOURS {
-            return Err("neighbour count k must be between 1 and 32");
+            return Err("neighbour count k must be between 1 and 16");
         }
         if !(finite_nonneg(self.w1) && finite_nonneg(self.w2)) {
             return Err("weights w1, w2 must be finite and non-negative");
@@ -166,7 +166,23 @@ pub fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// nominal position `target_mm` (both mm, base frame). Finite for every finite input.
 #[inline]
 pub fn approximation_degree(target_mm: [f64; 3], actual_mm: [f64; 3]) -> Degree {
-    let distance_mm = distance_mm(actual_mm, target_mm);
+    degree_from_parts(
+        target_mm,
+        norm_squared(target_mm).sqrt(),
+        actual_mm,
+        distance_mm(actual_mm, target_mm),
+    )
+}
+
+/// [`approximation_degree`] with `|target|` and the distance already computed by the
+/// caller, by the same expressions (so with the same bits).
+#[inline]
+fn degree_from_parts(
+    target_mm: [f64; 3],
+    target_norm: f64,
+    actual_mm: [f64; 3],
+    distance_mm: f64,
+) -> Degree {
     if distance_mm == 0.0 {
         return Degree {
             distance_mm,
@@ -178,7 +194,6 @@ pub fn approximation_degree(target_mm: [f64; 3], actual_mm: [f64; 3]) -> Degree 
         };
     }
     let cross_norm = norm_squared(cross(actual_mm, target_mm)).sqrt();
-    let target_norm = norm_squared(target_mm).sqrt();
     let actual_norm = norm_squared(actual_mm).sqrt();
     let norms = target_norm * actual_norm;
     let sin_phi = if norms > 0.0 {
@@ -198,7 +213,7 @@ pub fn approximation_degree(target_mm: [f64; 3], actual_mm: [f64; 3]) -> Degree 
     }
 }
 
-/// One selected neighbour: its sample index and approximation degree.
+/// One neighbour: its sample index and approximation degree.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Neighbour {
     /// The sample's index in the sample database (its order in the source file).
@@ -207,10 +222,11 @@ pub struct Neighbour {
     pub degree: Degree,
 }
 
+/// A placeholder for unused slots of fixed-size arrays; never read.
 const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
-    sample: u32::MAX,
+    sample: 0,
     degree: Degree {
-        distance_mm: f64::INFINITY,
+        distance_mm: 0.0,
         sin_phi: 0.0,
         area_mm2: 0.0,
         lambda_per_mm: 0.0,
@@ -220,36 +236,45 @@ const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
 };
 
 /// The `k` nearest admissible samples, nearest first, ties broken by the smaller sample
-/// index, in a fixed-size array: offering candidates in any order gives the same result.
+/// index: offering candidates in any order gives the same result. Only keys are kept
+/// (sample index and distance, 12 bytes a slot), so that ranking candidates moves little
+/// memory; degrees are computed for the survivors only.
 #[derive(Clone, Copy, Debug)]
 pub struct Selection {
     len: usize,
     capacity: usize,
-    items: [Neighbour; MAX_NEIGHBOURS],
+    samples: [u32; MAX_NEIGHBOURS],
+    distances_mm: [f64; MAX_NEIGHBOURS],
 }
 
 impl Selection {
     /// An empty selection keeping at most `k` neighbours (clamped to 1 ..= `MAX_NEIGHBOURS`).
+    #[inline]
     pub fn new(k: u32) -> Selection {
         Selection {
             len: 0,
             capacity: (k as usize).clamp(1, MAX_NEIGHBOURS),
-            items: [EMPTY_NEIGHBOUR; MAX_NEIGHBOURS],
+            samples: [0; MAX_NEIGHBOURS],
+            distances_mm: [0.0; MAX_NEIGHBOURS],
         }
     }
 
-    /// Whether a candidate at `distance_mm` with index `sample` would enter the selection;
-    /// lets callers skip computing a full degree for samples that cannot.
+    /// Whether a candidate at `distance_mm` with index `sample` would enter the selection.
     #[inline]
     pub fn would_accept(&self, sample: u32, distance_mm: f64) -> bool {
-        self.len < self.capacity || precedes(sample, distance_mm, &self.items[self.len - 1])
+        self.len < self.capacity || self.precedes(sample, distance_mm, self.len - 1)
+    }
+
+    #[inline]
+    fn precedes(&self, sample: u32, distance_mm: f64, slot: usize) -> bool {
+        let d = self.distances_mm[slot];
+        distance_mm < d || (distance_mm == d && sample < self.samples[slot])
     }
 
     /// Offers a candidate; it is kept if it is among the `k` nearest seen so far.
     #[inline]
-    pub fn offer(&mut self, neighbour: Neighbour) {
-        let d = neighbour.degree.distance_mm;
-        if !self.would_accept(neighbour.sample, d) {
+    pub fn offer(&mut self, sample: u32, distance_mm: f64) {
+        if !self.would_accept(sample, distance_mm) {
             return;
         }
         let mut i = if self.len < self.capacity {
@@ -258,16 +283,23 @@ impl Selection {
         } else {
             self.capacity - 1
         };
-        while i > 0 && precedes(neighbour.sample, d, &self.items[i - 1]) {
-            self.items[i] = self.items[i - 1];
+        while i > 0 && self.precedes(sample, distance_mm, i - 1) {
+            self.samples[i] = self.samples[i - 1];
+            self.distances_mm[i] = self.distances_mm[i - 1];
             i -= 1;
         }
-        self.items[i] = neighbour;
+        self.samples[i] = sample;
+        self.distances_mm[i] = distance_mm;
     }
 
-    /// The selected neighbours, nearest first.
-    pub fn as_slice(&self) -> &[Neighbour] {
-        &self.items[..self.len]
+    /// The selected sample indices, nearest first.
+    pub fn samples(&self) -> &[u32] {
+        &self.samples[..self.len]
+    }
+
+    /// Their distances to the target, mm.
+    pub fn distances_mm(&self) -> &[f64] {
+        &self.distances_mm[..self.len]
     }
 
     /// The number of selected neighbours.
@@ -278,14 +310,6 @@ impl Selection {
     /// Whether no neighbour is selected.
     pub fn is_empty(&self) -> bool {
         self.len == 0
-    }
-
-    /// Removes the neighbour at `position` (in nearest-first order), keeping the order.
-    fn remove(&mut self, position: usize) {
-        if position < self.len {
-            self.items.copy_within(position + 1..self.len, position);
-            self.len -= 1;
-        }
     }
 }
 
@@ -302,8 +326,8 @@ pub fn config_matches(sample_config: u8, target_config: Option<u8>) -> bool {
 /// Selects the `k` nearest admissible samples among `candidates` for a target.
 ///
 /// `sample(i)` gives sample `i`'s actual position (mm) and configuration, or `None` to
-/// skip it. Only the distance is computed for candidates that cannot enter the selection;
-/// the full degree is computed for the others. Candidates may come in any order.
+/// skip it. Candidates may come in any order. Without λ or ζ thresholds admissibility is a
+/// matter of distance and configuration, and only distances are computed here.
 #[inline]
 pub fn select(
     params: &MethodParams,
@@ -329,40 +353,11 @@ pub fn select(
         {
             continue;
         }
-        if thresholds {
-            let degree = approximation_degree(target_mm, actual_mm);
-            if params.degree_admissible(&degree) {
-                selection.offer(Neighbour {
-                    sample: index,
-                    degree,
-                });
-            }
-        } else {
-            // Admissible by distance alone: rank by distance now, and compute the full
-            // degree only for the k that remain.
-            selection.offer(Neighbour {
-                sample: index,
-                degree: Degree {
-                    distance_mm: distance,
-                    ..EMPTY_NEIGHBOUR.degree
-                },
-            });
-        }
-    }
-    if !thresholds {
-        for n in &mut selection.items[..selection.len] {
-            if let Some((actual_mm, _)) = sample(n.sample) {
-                n.degree = approximation_degree(target_mm, actual_mm);
-            }
+        if !thresholds || params.degree_admissible(&approximation_degree(target_mm, actual_mm)) {
+            selection.offer(index, distance);
         }
     }
     selection
-}
-
-#[inline]
-fn precedes(sample: u32, distance_mm: f64, other: &Neighbour) -> bool {
-    distance_mm < other.degree.distance_mm
-        || (distance_mm == other.degree.distance_mm && sample < other.sample)
 }
 
 /// The weights of selected neighbours, in selection order; `Σ q_i = 1` when non-empty.
@@ -379,6 +374,30 @@ impl Weights {
     }
 }
 
+/// The neighbours a prediction used, nearest first.
+#[derive(Clone, Copy, Debug)]
+pub struct Neighbours {
+    len: usize,
+    items: [Neighbour; MAX_NEIGHBOURS],
+}
+
+impl Neighbours {
+    /// The neighbours, nearest first.
+    pub fn as_slice(&self) -> &[Neighbour] {
+        &self.items[..self.len]
+    }
+
+    /// The number of neighbours.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
 #[inline]
 fn pow_r(x: f64, r: f64) -> f64 {
     if r == 1.0 {
@@ -392,43 +411,119 @@ fn pow_r(x: f64, r: f64) -> f64 {
     }
 }
 
+/// What the weights and the prediction need of up to [`MAX_NEIGHBOURS`] neighbours, side
+/// by side: λ, ζ, which coincide with the target, and their errors.
+struct Gathered {
+    len: usize,
+    lambda: [f64; MAX_NEIGHBOURS],
+    zeta: [f64; MAX_NEIGHBOURS],
+    coincident: u32,
+    position_mm: [[f64; 3]; MAX_NEIGHBOURS],
+    orientation_rad: [[f64; 3]; MAX_NEIGHBOURS],
+}
+
+impl Gathered {
+    #[inline]
+    fn new() -> Gathered {
+        Gathered {
+            len: 0,
+            lambda: [0.0; MAX_NEIGHBOURS],
+            zeta: [0.0; MAX_NEIGHBOURS],
+            coincident: 0,
+            position_mm: [[0.0; 3]; MAX_NEIGHBOURS],
+            orientation_rad: [[0.0; 3]; MAX_NEIGHBOURS],
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, degree: &Degree, error: &SampleError) {
+        if self.len < MAX_NEIGHBOURS {
+            self.lambda[self.len] = degree.lambda_per_mm;
+            self.zeta[self.len] = degree.zeta_per_mm2;
+            self.coincident |= u32::from(degree.coincident) << self.len;
+            self.position_mm[self.len] = error.position_mm;
+            self.orientation_rad[self.len] = error.orientation_rad;
+            self.len += 1;
+        }
+    }
+}
+
 /// The weights `q_i` of section 5 for the given neighbours (see the module docs for the
 /// coincident and all-collinear cases).
 pub fn weights(params: &MethodParams, neighbours: &[Neighbour]) -> Weights {
+    let mut degrees = Gathered::new();
+    let no_error = SampleError::default();
+    neighbours
+        .iter()
+        .for_each(|n| degrees.push(&n.degree, &no_error));
     let mut out = Weights {
-        len: neighbours.len().min(MAX_NEIGHBOURS),
+        len: degrees.len,
         q: [0.0; MAX_NEIGHBOURS],
     };
-    let neighbours = &neighbours[..out.len];
-    let coincident = neighbours.iter().filter(|n| n.degree.coincident).count();
-    if coincident > 0 {
-        let share = 1.0 / coincident as f64;
-        for (q, n) in out.q.iter_mut().zip(neighbours) {
-            *q = if n.degree.coincident { share } else { 0.0 };
+    weights_of_active(params, &degrees, all_active(degrees.len), &mut out.q);
+    out
+}
+
+/// A mask with the first `len` neighbours active.
+#[inline]
+fn all_active(len: usize) -> u32 {
+    if len >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << len) - 1
+    }
+}
+
+/// The weights of the neighbours whose bit is set in `active` (bit `i` for neighbour
+/// `i`), written to `q[i]`; inactive neighbours get 0. Sums run in neighbour order, so
+/// every caller gets the same bits.
+#[inline]
+fn weights_of_active(
+    params: &MethodParams,
+    degrees: &Gathered,
+    active: u32,
+    q: &mut [f64; MAX_NEIGHBOURS],
+) {
+    let n = degrees.len;
+    let is_active = |i: usize| active & (1 << i) != 0;
+    let coincident = degrees.coincident & active;
+    if coincident != 0 {
+        let share = 1.0 / coincident.count_ones() as f64;
+        for (i, q) in q.iter_mut().enumerate().take(n) {
+            *q = if coincident & (1 << i) != 0 {
+                share
+            } else {
+                0.0
+            };
         }
-        return out;
+        return;
     }
     let r = params.power;
     let mut lambda_sum = 0.0;
     let mut zeta_sum = 0.0;
-    for n in neighbours {
-        lambda_sum += pow_r(n.degree.lambda_per_mm, r);
-        zeta_sum += pow_r(n.degree.zeta_per_mm2, r);
+    for i in 0..n {
+        if is_active(i) {
+            lambda_sum += pow_r(degrees.lambda[i], r);
+            zeta_sum += pow_r(degrees.zeta[i], r);
+        }
     }
     let (w_lambda, w_zeta) = if lambda_sum > 0.0 {
         (params.w1, params.w2)
     } else {
         (0.0, 1.0)
     };
-    for (q, n) in out.q.iter_mut().zip(neighbours) {
-        let lambda_term = if w_lambda > 0.0 {
-            w_lambda * pow_r(n.degree.lambda_per_mm, r) / lambda_sum
-        } else {
+    for (i, q) in q.iter_mut().enumerate().take(n) {
+        *q = if !is_active(i) {
             0.0
+        } else {
+            let lambda_term = if w_lambda > 0.0 {
+                w_lambda * pow_r(degrees.lambda[i], r) / lambda_sum
+            } else {
+                0.0
+            };
+            lambda_term + w_zeta * pow_r(degrees.zeta[i], r) / zeta_sum
         };
-        *q = lambda_term + w_zeta * pow_r(n.degree.zeta_per_mm2, r) / zeta_sum;
     }
-    out
 }
 
 /// A sample's measured errors: position (mm) and orientation (rotation vector, rad), both
@@ -441,68 +536,164 @@ pub struct SampleError {
     pub orientation_rad: [f64; 3],
 }
 
-/// A prediction: the weighted errors and the neighbours and weights that produced them.
+/// A prediction with the neighbours and weights that produced it.
 #[derive(Clone, Copy, Debug)]
 pub struct Prediction {
     /// Predicted position error, mm, base frame.
     pub position_error_mm: [f64; 3],
     /// Predicted orientation error (rotation vector), rad, base frame.
     pub orientation_error_rad: [f64; 3],
-    /// The neighbours used, nearest first.
-    pub neighbours: Selection,
+    /// The neighbours used, nearest first (after the consistency screen).
+    pub neighbours: Neighbours,
     /// Their weights, in the same order.
     pub weights: Weights,
 }
 
-/// Weights the errors of the selected neighbours (nearest first, at most
-/// [`MAX_NEIGHBOURS`]) and applies the consistency screen (40).
+/// A prediction alone: what a controller needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Predicted position error, mm, base frame.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error (rotation vector), rad, base frame.
+    pub orientation_error_rad: [f64; 3],
+    /// The number of neighbours weighted.
+    pub neighbours: u32,
+}
+
+/// The weighting and the consistency screen (40) over gathered neighbours (nearest
+/// first); the survivors are marked in the returned mask and their weights are in `q`.
+#[inline]
+fn weigh(
+    params: &MethodParams,
+    g: &Gathered,
+    q: &mut [f64; MAX_NEIGHBOURS],
+) -> Option<(Estimate, u32)> {
+    let mut active = all_active(g.len);
+    loop {
+        let count = active.count_ones();
+        if count == 0 {
+            return None;
+        }
+        weights_of_active(params, g, active, q);
+        let mut position = [0.0; 3];
+        let mut orientation = [0.0; 3];
+        for i in 0..g.len {
+            if active & (1 << i) != 0 {
+                for axis in 0..3 {
+                    position[axis] += q[i] * g.position_mm[i][axis];
+                    orientation[axis] += q[i] * g.orientation_rad[i][axis];
+                }
+            }
+        }
+        if params.consistency_screen {
+            // Compared squared: the same order as the distances, without square roots.
+            let bound_mm = params.radius_mm / count as f64;
+            let bound_squared = bound_mm * bound_mm;
+            let mut worst: Option<(usize, f64)> = None;
+            for i in 0..g.len {
+                if active & (1 << i) == 0 {
+                    continue;
+                }
+                let gap_squared = norm_squared(sub(position, g.position_mm[i]));
+                // `>=` so that among equal gaps the farther neighbour is dropped first.
+                if gap_squared > bound_squared && worst.is_none_or(|(_, w)| gap_squared >= w) {
+                    worst = Some((i, gap_squared));
+                }
+            }
+            if let Some((i, _)) = worst {
+                active &= !(1 << i);
+                continue;
+            }
+        }
+        let estimate = Estimate {
+            position_error_mm: position,
+            orientation_error_rad: orientation,
+            neighbours: count,
+        };
+        return Some((estimate, active));
+    }
+}
+
+/// The prediction from a selection: computes the selected samples' degrees, weights their
+/// errors and applies the consistency screen (40). The runtime's query path.
 ///
-/// `error_of(sample)` returns a selected sample's errors; it is only called with indices
-/// of `neighbours`. Returns `None` when there are no neighbours, or none survive the screen.
+/// `sample(i)` returns a selected sample's actual position (mm) and errors; it is called
+/// once for each index the selection holds. Returns `None` when the selection is empty or
+/// nothing survives the screen.
+#[inline]
+pub fn estimate(
+    params: &MethodParams,
+    target_mm: [f64; 3],
+    selection: &Selection,
+    sample: impl Fn(u32) -> ([f64; 3], SampleError),
+) -> Option<Estimate> {
+    let target_norm = norm_squared(target_mm).sqrt();
+    let mut g = Gathered::new();
+    for (&i, &distance) in selection.samples().iter().zip(selection.distances_mm()) {
+        let (actual_mm, error) = sample(i);
+        let degree = degree_from_parts(target_mm, target_norm, actual_mm, distance);
+        g.push(&degree, &error);
+    }
+    let mut q = [0.0; MAX_NEIGHBOURS];
+    weigh(params, &g, &mut q).map(|(e, _)| e)
+}
+
+/// The neighbours of a selection with their degrees, for [`predict`].
+pub fn neighbours(
+    target_mm: [f64; 3],
+    selection: &Selection,
+    actual_of: impl Fn(u32) -> [f64; 3],
+) -> Neighbours {
+    let mut out = Neighbours {
+        len: selection.len(),
+        items: [EMPTY_NEIGHBOUR; MAX_NEIGHBOURS],
+    };
+    for (slot, &i) in out.items.iter_mut().zip(selection.samples()) {
+        *slot = Neighbour {
+            sample: i,
+            degree: approximation_degree(target_mm, actual_of(i)),
+        };
+    }
+    out
+}
+
+/// As [`estimate`], from neighbours given with their degrees (nearest first, at most
+/// [`MAX_NEIGHBOURS`]), returning the neighbours that survived the screen and their
+/// weights too. The brute-force reference and explanations use it.
 pub fn predict(
     params: &MethodParams,
     neighbours: &[Neighbour],
     error_of: impl Fn(u32) -> SampleError,
 ) -> Option<Prediction> {
-    let mut selection = Selection::new(MAX_NEIGHBOURS as u32);
-    selection.len = neighbours.len().min(MAX_NEIGHBOURS);
-    selection.items[..selection.len].copy_from_slice(&neighbours[..selection.len]);
-    loop {
-        if selection.is_empty() {
-            return None;
-        }
-        let w = weights(params, selection.as_slice());
-        let mut position = [0.0; 3];
-        let mut orientation = [0.0; 3];
-        for (n, q) in selection.as_slice().iter().zip(w.as_slice()) {
-            let e = error_of(n.sample);
-            for axis in 0..3 {
-                position[axis] += q * e.position_mm[axis];
-                orientation[axis] += q * e.orientation_rad[axis];
-            }
-        }
-        if params.consistency_screen {
-            let bound_mm = params.radius_mm / selection.len() as f64;
-            let mut worst: Option<(usize, f64)> = None;
-            for (i, n) in selection.as_slice().iter().enumerate() {
-                let gap_mm = distance_mm(position, error_of(n.sample).position_mm);
-                // `>=` so that among equal gaps the farther neighbour is dropped first.
-                if gap_mm > bound_mm && worst.is_none_or(|(_, g)| gap_mm >= g) {
-                    worst = Some((i, gap_mm));
-                }
-            }
-            if let Some((i, _)) = worst {
-                selection.remove(i);
-                continue;
-            }
-        }
-        return Some(Prediction {
-            position_error_mm: position,
-            orientation_error_rad: orientation,
-            neighbours: selection,
-            weights: w,
-        });
+    let neighbours = &neighbours[..neighbours.len().min(MAX_NEIGHBOURS)];
+    let mut g = Gathered::new();
+    for n in neighbours {
+        g.push(&n.degree, &error_of(n.sample));
     }
+    let mut q = [0.0; MAX_NEIGHBOURS];
+    let (estimate, active) = weigh(params, &g, &mut q)?;
+    let mut prediction = Prediction {
+        position_error_mm: estimate.position_error_mm,
+        orientation_error_rad: estimate.orientation_error_rad,
+        neighbours: Neighbours {
+            len: 0,
+            items: [EMPTY_NEIGHBOUR; MAX_NEIGHBOURS],
+        },
+        weights: Weights {
+            len: 0,
+            q: [0.0; MAX_NEIGHBOURS],
+        },
+    };
+    for (i, n) in neighbours.iter().enumerate() {
+        if active & (1 << i) != 0 {
+            let out = &mut prediction.neighbours;
+            out.items[out.len] = *n;
+            out.len += 1;
+            prediction.weights.q[prediction.weights.len] = q[i];
+            prediction.weights.len += 1;
+        }
+    }
+    Some(prediction)
 }
 
 #[inline]
@@ -548,9 +739,9 @@ mod tests {
         for order in [[0, 1, 2, 3, 4], [4, 3, 2, 1, 0], [2, 4, 0, 3, 1]] {
             let mut s = Selection::new(3);
             for i in order {
-                s.offer(neighbour(i, target, points[i as usize]));
+                s.offer(i, distance_mm(target, points[i as usize]));
             }
-            let got: Vec<u32> = s.as_slice().iter().map(|n| n.sample).collect();
+            let got: Vec<u32> = s.samples().to_vec();
             assert_eq!(got, vec![2, 0, 1]);
         }
     }
@@ -612,23 +803,21 @@ mod tests {
     fn consistency_screen_drops_the_outlier() {
         let target = [1000.0, 0.0, 0.0];
         let mut p = MethodParams::paper(10.0);
-        let mut s = Selection::new(4);
-        for (i, a) in [[1001.0, 1.0, 0.0], [999.0, 1.0, 0.0], [1000.0, 2.0, 1.0]]
+        let s: Vec<Neighbour> = [[1001.0, 1.0, 0.0], [999.0, 1.0, 0.0], [1000.0, 2.0, 1.0]]
             .into_iter()
             .enumerate()
-        {
-            s.offer(neighbour(i as u32, target, a));
-        }
+            .map(|(i, a)| neighbour(i as u32, target, a))
+            .collect();
         // Errors 0, 0 and 20 mm: d_p is far from the third, beyond ε/m = 3.3 mm.
         let error_of = |i: u32| SampleError {
             position_mm: [if i == 2 { 20.0 } else { 0.0 }, 0.0, 0.0],
             orientation_rad: [0.0; 3],
         };
-        let screened = predict(&p, s.as_slice(), error_of).unwrap();
+        let screened = predict(&p, &s, error_of).unwrap();
         assert_eq!(screened.neighbours.len(), 2);
         assert_eq!(screened.position_error_mm, [0.0; 3]);
         p.consistency_screen = false;
-        let unscreened = predict(&p, s.as_slice(), error_of).unwrap();
+        let unscreened = predict(&p, &s, error_of).unwrap();
         assert_eq!(unscreened.neighbours.len(), 3);
         assert!(unscreened.position_error_mm[0] > 1.0);
     }

@@ -6,7 +6,7 @@ use crate::format::{
     ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_JOINTS,
     CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, PAYLOAD_ALIGN,
 };
-use crate::method::{self, MethodParams, Prediction, SampleError};
+use crate::method::{self, MethodParams, Prediction, SampleError, Selection};
 use crate::OpenError;
 
 /// What a query's answer means.
@@ -21,6 +21,10 @@ pub enum Status {
     NoAdmissibleNeighbour = 2,
     /// The target is not finite (NaN or infinite coordinates); the correction is zero.
     InvalidInput = 3,
+    /// The table is a hybrid table (a calibrated kinematic model plus residuals), whose
+    /// correction depends on the joint angles: query it with
+    /// [`Table::query_with_joints`]. The correction is zero.
+    MissingJoints = 4,
 }
 
 impl Status {
@@ -31,6 +35,7 @@ impl Status {
             Status::OutsideGrid => "outside_grid",
             Status::NoAdmissibleNeighbour => "no_neighbour",
             Status::InvalidInput => "invalid_input",
+            Status::MissingJoints => "missing_joints",
         }
     }
 }
@@ -73,7 +78,7 @@ pub struct Correction {
 }
 
 impl Correction {
-    fn failed(status: Status) -> Correction {
+    pub(crate) fn failed(status: Status) -> Correction {
         Correction {
             position_error_mm: [0.0; 3],
             orientation_error_rad: [0.0; 3],
@@ -209,7 +214,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if offset != 0 {
             return Err(OpenError::Misaligned { offset });
         }
-        let archived = rkyv::access::<ArchivedTableData, rkyv::rancor::Error>(payload)
+        let archived = rkyv::access::<ArchivedTableData, rkyv::rancor::BoxedError>(payload)
             .map_err(|e| OpenError::Archive(e.to_string()))?;
         validate(&header, archived)?;
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
@@ -287,13 +292,23 @@ impl<D: AsRef<[u8]>> Table<D> {
     }
 
     /// The predicted correction at a target. Never allocates, locks or panics.
+    ///
+    /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query_target(&self, target: &Target) -> Correction {
-        match self.explain(target) {
-            Ok(p) => Correction {
-                position_error_mm: p.position_error_mm,
-                orientation_error_rad: p.orientation_error_rad,
-                neighbours: p.neighbours.len() as u32,
+        if self.is_hybrid() {
+            return Correction::failed(Status::MissingJoints);
+        }
+        let estimate = self.select(target).and_then(|(selection, samples)| {
+            let sample = |i| (actual(samples, i), sample_error(samples, i));
+            method::estimate(&self.header.method, target.position_mm, &selection, sample)
+                .ok_or(Status::NoAdmissibleNeighbour)
+        });
+        match estimate {
+            Ok(e) => Correction {
+                position_error_mm: e.position_error_mm,
+                orientation_error_rad: e.orientation_error_rad,
+                neighbours: e.neighbours,
                 status: Status::Ok,
             },
             Err(status) => Correction::failed(status),
@@ -305,19 +320,33 @@ impl<D: AsRef<[u8]>> Table<D> {
     ///
     /// # Errors
     ///
-    /// The [`Status`] explaining why no prediction exists.
+    /// The [`Status`] explaining why no prediction exists ([`Status::MissingJoints`] on a
+    /// hybrid table, whose residuals alone are not the error).
     pub fn explain(&self, target: &Target) -> Result<Prediction, Status> {
+        if self.is_hybrid() {
+            return Err(Status::MissingJoints);
+        }
+        let (selection, samples) = self.select(target)?;
+        let neighbours = method::neighbours(target.position_mm, &selection, |i| actual(samples, i));
+        method::predict(&self.header.method, neighbours.as_slice(), |i| {
+            sample_error(samples, i)
+        })
+        .ok_or(Status::NoAdmissibleNeighbour)
+    }
+
+    /// The `k` nearest admissible samples of the target's cell, and the samples.
+    #[inline]
+    fn select(&self, target: &Target) -> Result<(Selection, &[ArchivedSampleRecord]), Status> {
         let p = target.position_mm;
         if !p.iter().all(|v| v.is_finite()) {
             return Err(Status::InvalidInput);
         }
         let archive = self.archive().ok_or(Status::InvalidInput)?;
-        let params = &self.header.method;
         let cell = self.header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
         let list = candidate_list(archive, cell).ok_or(Status::NoAdmissibleNeighbour)?;
         let samples = archive.samples.as_slice();
         let selection = method::select(
-            params,
+            &self.header.method,
             p,
             target.config,
             list.iter().map(|i| i.to_native()),
@@ -326,8 +355,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                 Some((s.actual_mm.map(|v| v.to_native()), s.config))
             },
         );
-        method::predict(params, selection.as_slice(), |i| sample_error(samples, i))
-            .ok_or(Status::NoAdmissibleNeighbour)
+        Ok((selection, samples))
     }
 
     /// The command that lands the robot on `target`: iterates
@@ -384,7 +412,14 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 #[inline]
-fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
+fn actual(samples: &[ArchivedSampleRecord], index: u32) -> [f64; 3] {
+    samples
+        .get(index as usize)
+        .map_or([0.0; 3], |s| s.actual_mm.map(|v| v.to_native()))
+}
+
+#[inline]
+pub(crate) fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
     match samples.get(index as usize) {
         Some(s) => SampleError {
             position_mm: s.error_mm.map(|v| v.to_native()),
@@ -397,7 +432,10 @@ fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
 /// The candidate list of a cell, or `None` if a range is out of bounds (excluded by
 /// validation; checked anyway so that no query can panic).
 #[inline]
-fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Archived<u32>]> {
+pub(crate) fn candidate_list(
+    archive: &ArchivedTableData,
+    cell: usize,
+) -> Option<&[rkyv::Archived<u32>]> {
     let c = archive.cells.get(cell)?;
     let start = c.list_start.to_native() as usize;
     let end = start.checked_add(c.list_len.to_native() as usize)?;
@@ -456,6 +494,9 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         }
     }
     let with_joints = header.content_flags & CONTENT_JOINTS != 0;
+    if header.joint_radius_rad > 0.0 && !with_joints {
+        return Err(corrupt("a joint radius without sample joint angles"));
+    }
     if a.joints_rad.len() != if with_joints { n } else { 0 } {
         return Err(corrupt("joint angle count differs from the sample count"));
     }
@@ -486,6 +527,7 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
     }
     let k = header.method.max_neighbours as usize;
     let mut checked_list = None;
+    let mut seen = vec![0u64; n.div_ceil(64)];
     for c in a.cells.iter() {
         let range = |start: rkyv::Archived<u32>, len: rkyv::Archived<u32>, total: usize| {
             let start = start.to_native() as usize;
@@ -502,12 +544,18 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
                     "a candidate list names a sample that does not exist",
                 ));
             }
-            if list_samples
-                .windows(2)
-                .any(|w| w[0].to_native() >= w[1].to_native())
-            {
-                return Err(corrupt("a candidate list is not strictly increasing"));
+            // A sample listed twice would be selected twice.
+            for i in list_samples {
+                let i = i.to_native() as usize;
+                let (word, bit) = (i / 64, 1u64 << (i % 64));
+                if seen[word] & bit != 0 {
+                    return Err(corrupt("a candidate list names a sample twice"));
+                }
+                seen[word] |= bit;
             }
+            list_samples
+                .iter()
+                .for_each(|i| seen[i.to_native() as usize / 64] = 0);
             checked_list = Some(list);
         }
         let centre = range(c.centre_start, c.centre_len, a.centre_samples.len())

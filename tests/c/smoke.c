@@ -88,6 +88,9 @@ int main(int argc, char **argv) {
     printf("query_null_out %d\n", (int)adwi_table_query(table, target, -1, NULL));
     printf("query_bad_config %d\n", (int)adwi_table_query(table, target, 300, &c));
     printf("query_untouched %d\n", memcmp(&c, &sentinel, sizeof c) == 0);
+    const double joints[6] = {0.0, -1.0, 1.5, 0.0, 0.5, 0.0};
+    printf("query_joints_null_joints %d\n",
+           (int)adwi_table_query_joints(table, target, -1, NULL, &c));
     adwi_compensation k;
     printf("compensate_null_out %d\n",
            (int)adwi_table_compensate(table, target, -1, 1e-6, 20, NULL));
@@ -110,6 +113,12 @@ int main(int argc, char **argv) {
                a.orientation_error_rad[0], a.orientation_error_rad[1],
                a.orientation_error_rad[2]);
         printf("handles_agree %d\n", memcmp(&a, &b, sizeof a) == 0);
+        /* A position-only table without a joint screen ignores the joint angles. */
+        if (adwi_table_query_joints(table, p, config, joints, &b) != ADWI_OK) {
+            printf("query_failed\n");
+            return 1;
+        }
+        printf("query_joints_agree %d\n", memcmp(&a, &b, sizeof a) == 0);
         if (adwi_table_compensate(table, p, config, 1e-9, 50, &k) != ADWI_OK) {
             printf("compensate_failed\n");
             return 1;

@@ -24,8 +24,15 @@
 //! - `idw`, `grid`, `kriging`: the [`crate::baselines`];
 //! - `kinematic`: model-based calibration ([`crate::calibrate`]) predicting the error at the
 //!   point's joint angles;
-//! - `hybrid`: kinematic calibration, then the `paper` table built from what the calibrated
-//!   model leaves unexplained; prediction = model + interpolated remainder.
+//! - `hybrid`: the real hybrid table ([`crate::hybrid::compile`]): kinematic calibration,
+//!   then the `paper` table built from what the calibrated model leaves unexplained, both
+//!   in one file, opened with [`adwi_runtime::Table::from_vec`] and queried with
+//!   [`adwi_runtime::Table::query_with_joints`] at the point's joint angles, exactly as
+//!   `tablec build --hybrid` and a controller would; prediction = model + interpolated
+//!   remainder.
+//!
+//! With a joint-space screen in the table options (`joint_radius_deg`), `paper` and
+//! `hybrid` are queried with the point's joint angles, so the screen applies.
 //!
 //! A point a method cannot predict (outside the table's grid, no admissible neighbour,
 //! outside the lattice) is counted per method with its reason, never dropped silently; the
@@ -105,7 +112,9 @@ impl Method {
             Method::Grid => "trilinear interpolation in the sample lattice",
             Method::Kriging => "ordinary kriging, fitted variogram",
             Method::Kinematic => "identified MD-H deviations, tool offset and base registration",
-            Method::Hybrid => "kinematic model + compiled table on the remaining errors",
+            Method::Hybrid => {
+                "hybrid table: kinematic model + compiled table on the remaining errors"
+            }
         }
     }
 
@@ -632,7 +641,12 @@ fn predict_split(
             let table = compile_table(method, train, &options.build)?;
             targets
                 .iter()
-                .map(|t| table_prediction(&table, t, orientation))
+                .enumerate()
+                .map(|(i, t)| {
+                    // The joint angles only matter to a table with a joint screen.
+                    let joints = test.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians));
+                    table_prediction(&table, t, joints.as_ref(), orientation)
+                })
                 .collect()
         }
         Method::PaperJoint => {
@@ -690,33 +704,25 @@ fn predict_split(
         }
         Method::Hybrid => {
             let c = calibration.expect("identified for kinematic methods");
-            // What the calibrated model leaves unexplained at each training sample.
-            let mut remainder = train.clone();
-            for i in 0..train.len() {
-                let (p, r) = c.predict_error(&joints_rad(train, i));
-                for (e, p) in remainder.error_mm[i].iter_mut().zip(p) {
-                    *e -= p;
-                }
-                if let Some(rot) = &mut remainder.rotation_error_rad {
-                    for (e, r) in rot[i].iter_mut().zip(r) {
-                        *e -= r;
+            // The real hybrid table: model and residuals compiled together, opened and
+            // queried with the point's joint angles, as a controller would.
+            let (bytes, _) =
+                crate::hybrid::compile(train, c, &options.build, &|_| {}).map_err(|e| match e {
+                    crate::hybrid::HybridError::Build(source) => {
+                        EvalError::Build { method, source }
                     }
-                }
-            }
-            let table = compile_table(method, &remainder, &options.build)?;
+                    crate::hybrid::HybridError::Calibrate(source) => {
+                        EvalError::Calibrate { method, source }
+                    }
+                })?;
+            let table = Table::from_vec(bytes).map_err(|e| EvalError::Open {
+                method,
+                message: e.to_string(),
+            })?;
             targets
                 .iter()
                 .enumerate()
-                .map(|(i, t)| {
-                    let rest = table_prediction(&table, t, orientation)?;
-                    let (p, r) = c.predict_error(&joints_rad(test, i));
-                    Ok(PointPrediction {
-                        position_error_mm: [0, 1, 2].map(|a| p[a] + rest.position_error_mm[a]),
-                        orientation_error_rad: rest
-                            .orientation_error_rad
-                            .map(|rest| [0, 1, 2].map(|a| r[a] + rest[a])),
-                    })
-                })
+                .map(|(i, t)| table_prediction(&table, t, Some(&joints_rad(test, i)), orientation))
                 .collect()
         }
     };
@@ -738,12 +744,18 @@ fn compile_table(
     })
 }
 
+/// A table's answer at a target, queried with the target's joint angles when known
+/// ([`Table::query_with_joints`]: the model part of a hybrid table, the joint screen).
 fn table_prediction<D: AsRef<[u8]>>(
     table: &Table<D>,
     target: &Target,
+    joints_rad: Option<&[f64; 6]>,
     orientation: bool,
 ) -> Result<PointPrediction, String> {
-    let c = table.query_target(target);
+    let c = match joints_rad {
+        Some(q) => table.query_with_joints(target, q),
+        None => table.query_target(target),
+    };
     if c.status != Status::Ok {
         return Err(c.status.as_str().to_string());
     }

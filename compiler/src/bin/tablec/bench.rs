@@ -55,7 +55,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params.radius_mm
     );
     let timer = Timer::calibrate();
-    println!("clock overhead {:.1} ns per timed region\n", timer.overhead_ns);
+    println!(
+        "clock overhead {:.1} ns per timed region\n",
+        timer.overhead_ns
+    );
 
     let kd = KdTreeMethod::new(records.clone(), params);
     let workloads = [
@@ -70,7 +73,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ];
     println!(
         "{:<16} {:<20} {:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
-        "workload", "contender", "queries", "p50 ns", "p99 ns", "p99.9 ns", "max ns", "mean ns",
+        "workload",
+        "contender",
+        "queries",
+        "p50 ns",
+        "p99 ns",
+        "p99.9 ns",
+        "max ns",
+        "mean ns",
         "batch ns"
     );
     let mut verdicts = Vec::new();
@@ -139,11 +149,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
         (
             "(c) read + deserialise owned copy (rkyv)",
-            latency::time_runs(args.open_repeats, || deserialise(path).map(|d| d.samples.len())),
+            latency::time_runs(args.open_repeats, || {
+                deserialise(path).map(|d| d.samples.len())
+            }),
         ),
         (
             "(b) start-up: build the k-d tree",
-            latency::time_runs(args.open_repeats, || KdTreeMethod::new(records.clone(), params)),
+            latency::time_runs(args.open_repeats, || {
+                KdTreeMethod::new(records.clone(), params)
+            }),
         ),
     ];
     for (name, runs) in open_rows {
@@ -179,18 +193,24 @@ fn agreement<D: AsRef<[u8]>>(
     reference_count: usize,
 ) -> String {
     let params = table.method();
-    let same = |t: &Target, other: Option<adwi_runtime::method::Prediction>| {
+    let same = |t: &Target, other: Option<[f64; 3]>| {
         let c = table.query_target(t);
         match other {
-            Some(p) => c.status == Status::Ok && c.position_error_mm == p.position_error_mm,
+            Some(p) => c.status == Status::Ok && c.position_error_mm == p,
             None => c.status != Status::Ok,
         }
     };
-    let kd_same = targets.iter().filter(|t| same(t, kd.predict(t))).count();
+    let kd_same = targets
+        .iter()
+        .filter(|t| same(t, kd.predict(t).map(|e| e.position_error_mm)))
+        .count();
     let few = &targets[..reference_count.min(targets.len())];
     let reference_same = few
         .iter()
-        .filter(|t| same(t, reference::predict(records, params, t)))
+        .filter(|t| {
+            let p = reference::predict(records, params, t);
+            same(t, p.map(|p| p.position_error_mm))
+        })
         .count();
     format!(
         "identical answers: k-d tree {kd_same}/{}, brute force {reference_same}/{}",

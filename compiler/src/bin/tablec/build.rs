@@ -4,8 +4,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use adwi_compiler::build::{compile, write_atomically};
+use adwi_compiler::calibrate::{CalibrateOptions, Calibration};
+use adwi_compiler::hybrid::identify_and_compile;
+use adwi_compiler::robot::Robot;
 use adwi_compiler::samples::{read_samples, ColumnMap};
-use anyhow::Context;
+use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -20,6 +23,14 @@ pub struct Args {
     columns: Option<String>,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
+    /// The robot model (TOML), for --hybrid.
+    #[arg(long, value_name = "ROBOT.toml")]
+    robot: Option<PathBuf>,
+    /// Build a hybrid table: identify the robot's kinematic deviations from the samples
+    /// (which need j1..j6), then tabulate the residuals the calibrated model leaves. Query
+    /// it with the target's joint angles.
+    #[arg(long, requires = "robot")]
+    hybrid: bool,
     /// Worker threads [default: all cores]; the table is the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -52,7 +63,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pool = pool.num_threads(n);
     }
     let pool = pool.build().context("cannot start worker threads")?;
-    let (bytes, report) = pool.install(|| compile(&samples, &options, &|n| bar.inc(n)))?;
+    let mut calibration = None;
+    let (bytes, report) = match (&args.robot, args.hybrid) {
+        (Some(robot_path), true) => {
+            let robot = Robot::load(robot_path)
+                .with_context(|| format!("cannot load the robot {}", robot_path.display()))?;
+            bar.set_message("identifying");
+            let built = pool.install(|| {
+                identify_and_compile(
+                    &robot,
+                    &samples,
+                    &options,
+                    &CalibrateOptions::default(),
+                    &|n| bar.inc(n),
+                )
+            })?;
+            calibration = Some((built.calibration, built.residual_position_rms_mm));
+            (built.bytes, built.report)
+        }
+        (Some(_), false) => {
+            bail!("--robot is only used by --hybrid: add --hybrid, or drop --robot")
+        }
+        _ => pool.install(|| compile(&samples, &options, &|n| bar.inc(n)))?,
+    };
     bar.finish_and_clear();
     write_atomically(&args.output, &bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
@@ -98,6 +131,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             report.mean_list_len,
             report.max_list_len
         );
+        if let Some((c, residual_rms_mm)) = &calibration {
+            print_calibration(c, *residual_rms_mm);
+        }
         println!(
             "method         k {}, w1 {}, w2 {}, r {}, [λ] {}, [ζ] {}, screen (40) {}",
             args.table.k,
@@ -112,6 +148,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "on"
             }
         );
+        match args.table.joint_radius.filter(|r| *r > 0.0) {
+            Some(deg) => println!(
+                "joint screen   every joint within {deg}° of the target's, when queried with joints"
+            ),
+            None => println!("joint screen   off"),
+        }
         println!(
             "wrote          {} ({} bytes) in {:.2} s",
             args.output.display(),
@@ -119,5 +161,59 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             started.elapsed().as_secs_f64()
         );
     }
+    if let Some((c, _)) = &calibration {
+        warn_unidentifiable(c);
+    }
     Ok(())
+}
+
+/// What identification found, as `tablec build --hybrid` reports it: the calibration's
+/// quality and, above all, which parameters the data could not identify (they stay at
+/// their nominal values).
+fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
+    println!(
+        "calibration    {} parameters identified, {} unidentifiable, condition number {:.1}, {} iterations{}",
+        c.identified.len(),
+        c.unidentifiable.len(),
+        c.condition_number,
+        c.iterations,
+        if c.converged { "" } else { " (not converged)" }
+    );
+    println!(
+        "position RMS   {:.4} mm before, {:.4} mm after calibration (table residuals {:.4} mm)",
+        c.initial_position_rms_mm, c.position_rms_mm, residual_rms_mm
+    );
+    if let Some(r) = c.orientation_rms_rad {
+        println!("orient. RMS    {:.4} mrad after calibration", r * 1e3);
+    }
+    let identified: Vec<String> = c
+        .identified
+        .iter()
+        .map(|p| {
+            let v = c.deviations[p.column()];
+            if p.is_length() {
+                format!("{p} {v:+.4} mm")
+            } else {
+                format!("{p} {:+.4} mrad", v * 1e3)
+            }
+        })
+        .collect();
+    println!("identified     {}", identified.join(", "));
+}
+
+/// Warns, on standard error and even with --quiet, about the parameters the data cannot
+/// identify: the table is still built (they keep their nominal values, and the table
+/// interpolates what they would have explained), but the user should know.
+fn warn_unidentifiable(c: &Calibration) {
+    if !c.unidentifiable.is_empty() {
+        let dropped: Vec<String> = c
+            .unidentifiable
+            .iter()
+            .map(|(p, ratio)| format!("{p} ({ratio:.1e})"))
+            .collect();
+        eprintln!(
+            "warning: unidentifiable from these samples (kept nominal; independent fraction in brackets): {}",
+            dropped.join(", ")
+        );
+    }
 }

@@ -37,6 +37,11 @@ pub struct TableOptions {
     /// Grid box, mm: xmin,ymin,zmin,xmax,ymax,zmax [default: samples' box grown by ε].
     #[arg(long, value_name = "BOX", value_delimiter = ',', num_args = 6)]
     pub bounds: Option<Vec<f64>>,
+    /// Joint-space screen, degrees: when a query gives the target's joint angles, a sample
+    /// is admissible only if each of its joint angles is within this of the target's
+    /// (needs samples with j1..j6) [default: off].
+    #[arg(long, value_name = "DEG")]
+    pub joint_radius: Option<f64>,
 }
 
 impl TableOptions {
@@ -69,6 +74,7 @@ impl TableOptions {
             zeta_min_per_mm2: self.zeta_min,
             consistency_screen: !self.no_consistency_screen,
             bounds_mm,
+            joint_radius_deg: self.joint_radius,
         })
     }
 }
