@@ -341,6 +341,23 @@ fn hybrid_build_reports_the_calibration_and_warns_about_unidentifiable_parameter
         String::from_utf8_lossy(&query.stdout)
     );
 
+    // With the joint angles (the first sample's), it answers: model + residual.
+    let query = tablec(
+        &[
+            "query",
+            table.to_str().unwrap(),
+            "--joints",
+            "2.556150,-67.995407,139.177130,2.700294,-71.201150,-0.870738",
+            "1350",
+            "50",
+            "850",
+        ],
+        &repo(),
+    );
+    ok(&query);
+    let stdout = String::from_utf8_lossy(&query.stdout);
+    assert!(stdout.contains("status       ok"), "{stdout}");
+
     write_inputs(dir.path());
     let refused = tablec(
         &[

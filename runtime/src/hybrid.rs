@@ -32,8 +32,10 @@
 //! Everything here is allocation-free and panic-free: two forward kinematics (a few hundred
 //! flops) and a 3 × 3 logarithm on top of the ordinary query.
 
-use crate::format::{ArchivedModelParams, KinematicModel, ModelParams, CONTENT_MODEL};
-use crate::kinematics::{forward, MdhJoint, Transform};
+use crate::format::{
+    ArchivedModelParams, ArchivedTableData, KinematicModel, ModelParams, CONTENT_MODEL,
+};
+use crate::kinematics::{forward_prepared, MdhJoint, PreparedJoint, Transform};
 use crate::method;
 use crate::table::{candidate_list, sample_error, Correction, Status, Table, Target};
 
@@ -100,23 +102,81 @@ pub fn joint_rows(joints: &[MdhJoint; JOINT_COUNT]) -> [[f64; 5]; JOINT_COUNT] {
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
 /// `base · A_1(q_1) ⋯ A_6(q_6) · tool`.
-#[inline]
 pub fn tcp_pose(params: &ModelParams, q_rad: &[f64; JOINT_COUNT]) -> Transform {
-    let flange_tcp = forward(&mdh_joints(params), &transform_of(&params.tool), q_rad);
-    transform_of(&params.base).compose(&flange_tcp)
+    PreparedChain::new(params).tcp_pose(&q_rad.map(f64::sin_cos))
 }
 
 /// The pose error a kinematic model predicts at joint angles `q_rad`: the calibrated TCP
 /// against the nominal one, position (mm) and orientation (rotation vector of
-/// `R_cal · R_nomᵀ`, rad), both in the base frame.
-#[inline]
+/// `R_cal · R_nomᵀ`, rad), both in the base frame. The compiler computes a hybrid table's
+/// residuals with this, and queries with the same arithmetic ([`PreparedModel::error`]).
 pub fn model_error(model: &KinematicModel, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
-    let nominal = tcp_pose(&model.nominal, q_rad);
-    let calibrated = tcp_pose(&model.calibrated, q_rad);
-    let position_mm = [0, 1, 2].map(|a| calibrated.translation_mm[a] - nominal.translation_mm[a]);
-    // R_cal · R_nomᵀ: the rotation part of calibrated · nominal⁻¹.
-    let relative = calibrated.compose(&nominal.inverse());
-    (position_mm, rotation_vector(&relative.rotation))
+    PreparedModel::new(model).error(q_rad)
+}
+
+/// One model's chain with its constant sines and cosines computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PreparedChain {
+    joints: [PreparedJoint; JOINT_COUNT],
+    tool: Transform,
+    base: Transform,
+}
+
+impl PreparedChain {
+    fn new(params: &ModelParams) -> PreparedChain {
+        PreparedChain {
+            joints: mdh_joints(params).map(|j| j.prepare()),
+            tool: transform_of(&params.tool),
+            base: transform_of(&params.base),
+        }
+    }
+
+    #[inline]
+    fn tcp_pose(&self, sin_cos_q: &[(f64, f64); JOINT_COUNT]) -> Transform {
+        self.base
+            .compose(&forward_prepared(&self.joints, &self.tool, sin_cos_q))
+    }
+}
+
+/// A [`KinematicModel`] ready for queries: the sines and cosines of every constant angle
+/// computed once (at open), so that a prediction costs six `sin_cos` (of the joint angles,
+/// shared by both models) and two chains of 3 × 4 products.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedModel {
+    nominal: PreparedChain,
+    calibrated: PreparedChain,
+}
+
+impl PreparedModel {
+    /// Prepares `model`.
+    pub fn new(model: &KinematicModel) -> PreparedModel {
+        PreparedModel {
+            nominal: PreparedChain::new(&model.nominal),
+            calibrated: PreparedChain::new(&model.calibrated),
+        }
+    }
+
+    /// The predicted pose error at joint angles `q_rad`, as [`model_error`].
+    #[inline]
+    pub fn error(&self, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
+        let sin_cos_q = q_rad.map(f64::sin_cos);
+        let nominal = self.nominal.tcp_pose(&sin_cos_q);
+        let calibrated = self.calibrated.tcp_pose(&sin_cos_q);
+        let position_mm =
+            [0, 1, 2].map(|a| calibrated.translation_mm[a] - nominal.translation_mm[a]);
+        // R_cal · R_nomᵀ: the rotation part of calibrated · nominal⁻¹.
+        let relative = calibrated.compose(&nominal.inverse());
+        (position_mm, rotation_vector(&relative.rotation))
+    }
+}
+
+/// The prepared model of a validated archive, if it carries one.
+pub(crate) fn prepared_model(archive: &ArchivedTableData) -> Option<PreparedModel> {
+    let model = archive.model.as_ref()?;
+    Some(PreparedModel::new(&KinematicModel {
+        nominal: native(&model.nominal),
+        calibrated: native(&model.calibrated),
+    }))
 }
 
 /// The rotation vector (axis × angle, rad) of a rotation matrix: the logarithm map,
@@ -127,6 +187,7 @@ pub fn model_error(model: &KinematicModel, q_rad: &[f64; JOINT_COUNT]) -> ([f64;
 /// skew part (an angle from `acos` would lose half its digits). Near θ = π the skew part
 /// vanishes; the axis then comes from the largest column of `R + I = 2 · axis · axisᵀ`
 /// (for θ = π exactly), its sign from the skew part. Finite for every finite input.
+#[inline]
 pub fn rotation_vector(r: &[[f64; 3]; 3]) -> [f64; 3] {
     let sin_axis = [
         0.5 * (r[2][1] - r[1][2]),
@@ -233,12 +294,8 @@ impl<D: AsRef<[u8]>> Table<D> {
         if correction.status != Status::Ok {
             return correction;
         }
-        if let Some(model) = self.data().and_then(|a| a.model.as_ref()) {
-            let model = KinematicModel {
-                nominal: native(&model.nominal),
-                calibrated: native(&model.calibrated),
-            };
-            let (position_mm, rotation_rad) = model_error(&model, joints_rad);
+        if let Some(model) = &self.prepared_model {
+            let (position_mm, rotation_rad) = model.error(joints_rad);
             for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {
                 *out += model;
             }

@@ -48,18 +48,78 @@ impl MdhJoint {
     /// The link transform `A = Rz(θ) · Tz(d) · Tx(a) · Rx(α) · Ry(β)` for the joint
     /// variable `q_rad` (so `θ = q_rad + theta_offset_rad`).
     pub fn transform(&self, q_rad: f64) -> Transform {
-        let (st, ct) = (q_rad + self.theta_offset_rad).sin_cos();
-        let (sa, ca) = self.alpha_rad.sin_cos();
-        let (sb, cb) = self.beta_rad.sin_cos();
-        // The closed form of the product, as written out in the method description.
-        Transform {
-            rotation: [
-                [ct * cb - st * sa * sb, -st * ca, ct * sb + st * sa * cb],
-                [st * cb + ct * sa * sb, ct * ca, st * sb - ct * sa * cb],
-                [-ca * sb, sa, ca * cb],
-            ],
-            translation_mm: [self.a_mm * ct, self.a_mm * st, self.d_mm],
+        link_transform(
+            self.a_mm,
+            self.d_mm,
+            self.alpha_rad.sin_cos(),
+            self.beta_rad.sin_cos(),
+            (q_rad + self.theta_offset_rad).sin_cos(),
+        )
+    }
+
+    /// The joint with the sines and cosines of its constant angles computed once, for
+    /// callers that evaluate it at many joint values (a hybrid table's queries).
+    pub fn prepare(&self) -> PreparedJoint {
+        PreparedJoint {
+            a_mm: self.a_mm,
+            d_mm: self.d_mm,
+            sin_cos_alpha: self.alpha_rad.sin_cos(),
+            sin_cos_beta: self.beta_rad.sin_cos(),
+            sin_cos_theta_offset: self.theta_offset_rad.sin_cos(),
         }
+    }
+}
+
+/// An [`MdhJoint`] with the sines and cosines of α, β and the θ offset precomputed: a link
+/// transform then costs one `sin_cos` (of the joint variable) instead of four.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreparedJoint {
+    /// Link length `a`, mm.
+    pub a_mm: f64,
+    /// Link offset `d`, mm.
+    pub d_mm: f64,
+    /// `(sin α, cos α)`.
+    pub sin_cos_alpha: (f64, f64),
+    /// `(sin β, cos β)`.
+    pub sin_cos_beta: (f64, f64),
+    /// `(sin θ_offset, cos θ_offset)`.
+    pub sin_cos_theta_offset: (f64, f64),
+}
+
+impl PreparedJoint {
+    /// The link transform at joint variable `q`, given `(sin q, cos q)`: the offset is added
+    /// by the angle-addition formulas.
+    #[inline]
+    pub fn transform(&self, (sin_q, cos_q): (f64, f64)) -> Transform {
+        let (so, co) = self.sin_cos_theta_offset;
+        link_transform(
+            self.a_mm,
+            self.d_mm,
+            self.sin_cos_alpha,
+            self.sin_cos_beta,
+            (sin_q * co + cos_q * so, cos_q * co - sin_q * so),
+        )
+    }
+}
+
+/// `A = Rz(θ) · Tz(d) · Tx(a) · Rx(α) · Ry(β)` from the sines and cosines of α, β and θ:
+/// the one closed form every link transform is computed with.
+#[inline]
+fn link_transform(
+    a_mm: f64,
+    d_mm: f64,
+    (sa, ca): (f64, f64),
+    (sb, cb): (f64, f64),
+    (st, ct): (f64, f64),
+) -> Transform {
+    // The closed form of the product, as written out in the method description.
+    Transform {
+        rotation: [
+            [ct * cb - st * sa * sb, -st * ca, ct * sb + st * sa * cb],
+            [st * cb + ct * sa * sb, ct * ca, st * sb - ct * sa * cb],
+            [-ca * sb, sa, ca * cb],
+        ],
+        translation_mm: [a_mm * ct, a_mm * st, d_mm],
     }
 }
 
@@ -90,6 +150,7 @@ impl Transform {
     };
 
     /// The composition `self · other`: `other` is expressed in `self`'s child frame.
+    #[inline]
     pub fn compose(&self, other: &Transform) -> Transform {
         let r = &self.rotation;
         let mut rotation = [[0.0; 3]; 3];
@@ -107,6 +168,7 @@ impl Transform {
     }
 
     /// The inverse transform (rotation transposed, translation `-Rᵀ · t`).
+    #[inline]
     pub fn inverse(&self) -> Transform {
         let r = &self.rotation;
         let rotation = [
@@ -126,6 +188,7 @@ impl Transform {
     }
 
     /// Maps a point (mm) from the child frame into the parent frame.
+    #[inline]
     pub fn transform_point(&self, point_mm: [f64; 3]) -> [f64; 3] {
         let mut out = self.translation_mm;
         for (o, row) in out.iter_mut().zip(&self.rotation) {
@@ -135,6 +198,7 @@ impl Transform {
     }
 
     /// Rotates a direction from the child frame into the parent frame (no translation).
+    #[inline]
     pub fn rotate_vector(&self, vector: [f64; 3]) -> [f64; 3] {
         let r = &self.rotation;
         [
@@ -158,6 +222,22 @@ pub fn forward<const N: usize>(
     let mut pose = Transform::IDENTITY;
     for (joint, &q) in joints.iter().zip(q_rad) {
         pose = pose.compose(&joint.transform(q));
+    }
+    pose.compose(tool)
+}
+
+/// As [`forward`], for prepared joints and the sines and cosines of the joint variables
+/// (`sin_cos_q[i] = q_i.sin_cos()`): evaluating two models at the same joint angles then
+/// takes one set of `sin_cos`.
+#[inline]
+pub fn forward_prepared<const N: usize>(
+    joints: &[PreparedJoint; N],
+    tool: &Transform,
+    sin_cos_q: &[(f64, f64); N],
+) -> Transform {
+    let mut pose = Transform::IDENTITY;
+    for (joint, &sc) in joints.iter().zip(sin_cos_q) {
+        pose = pose.compose(&joint.transform(sc));
     }
     pose.compose(tool)
 }
@@ -287,6 +367,24 @@ mod tests {
         let z = flange.rotate_vector([0.0, 0.0, 1.0]);
         let expected = [0, 1, 2].map(|i| flange.translation_mm[i] + 100.0 * z[i]);
         assert_close(tcp.translation_mm, expected, 1e-9);
+    }
+
+    #[test]
+    fn prepared_joints_agree_with_the_direct_transform() {
+        let mut joints = kr150();
+        joints[1].theta_offset_rad = -0.3;
+        joints[2].beta_rad = 2e-4;
+        let q = [0.1, -0.7, 2.2, 0.3, -0.4, 1.1];
+        let direct = forward(&joints, &Transform::IDENTITY, &q);
+        let prepared = forward_prepared(
+            &joints.map(|j| j.prepare()),
+            &Transform::IDENTITY,
+            &q.map(f64::sin_cos),
+        );
+        for i in 0..3 {
+            assert_close(prepared.rotation[i], direct.rotation[i], 1e-15);
+        }
+        assert_close(prepared.translation_mm, direct.translation_mm, 1e-11);
     }
 
     #[test]

@@ -118,6 +118,9 @@ pub struct Table<D> {
     /// out the same slice, so an `AsRef` implementation that does not is refused rather
     /// than read unchecked.
     validated_at: (usize, usize),
+    /// A hybrid table's kinematic model with its constant sines and cosines computed once
+    /// at open, so that a query pays only for the joint angles' ([`crate::hybrid`]).
+    pub(crate) prepared_model: Option<crate::hybrid::PreparedModel>,
 }
 
 /// An owned, 16-byte-aligned copy of a table's bytes.
@@ -218,10 +221,12 @@ impl<D: AsRef<[u8]>> Table<D> {
             .map_err(|e| OpenError::Archive(e.to_string()))?;
         validate(&header, archived)?;
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
+        let prepared_model = crate::hybrid::prepared_model(archived);
         Ok(Table {
             data,
             header,
             validated_at,
+            prepared_model,
         })
     }
 
@@ -234,6 +239,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             data: wrap(self.data),
             header: self.header,
             validated_at: self.validated_at,
+            prepared_model: self.prepared_model,
         }
     }
 

@@ -18,6 +18,16 @@ pub struct Args {
     /// Inverse-kinematics configuration of the target.
     #[arg(long)]
     config: Option<u8>,
+    /// The joint angles the controller will use for the target, degrees: J1,...,J6.
+    /// Needed by a hybrid table (built with --hybrid); applies a table's joint screen.
+    #[arg(
+        long,
+        value_name = "DEG",
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        conflicts_with = "targets"
+    )]
+    joints: Option<Vec<f64>>,
     /// A CSV of targets (columns x,y,z, optionally config) instead of one pose.
     #[arg(long, conflicts_with = "pose")]
     targets: Option<PathBuf>,
@@ -48,7 +58,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         position_mm: position,
         config: args.config,
     };
-    let c = table.query_target(&target);
+    let joints_rad: Option<[f64; 6]> = match args.joints.as_deref() {
+        None => None,
+        Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f].map(f64::to_radians)),
+        Some(_) => bail!("--joints takes six angles in degrees: J1,J2,J3,J4,J5,J6"),
+    };
+    let c = match &joints_rad {
+        Some(q) => table.query_with_joints(&target, q),
+        None => table.query_target(&target),
+    };
     println!(
         "target       {:.6} {:.6} {:.6} mm",
         position[0], position[1], position[2]
@@ -66,6 +84,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if table.has_orientation() {
         let r = c.orientation_error_rad;
         println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
+    }
+    if joints_rad.is_some() {
+        // The fixed-point compensation re-queries at moved positions, whose joint angles
+        // only the controller's inverse kinematics knows: print the first-order command.
+        let p = [0, 1, 2].map(|a| position[a] - e[a]);
+        println!(
+            "command      {:.6} {:.6} {:.6} mm (first order: target − error)",
+            p[0], p[1], p[2]
+        );
+        return Ok(());
     }
     let comp = table.compensate(&target, 1e-6, 50);
     let p = comp.command_position_mm;
