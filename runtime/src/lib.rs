@@ -8,6 +8,11 @@
 //! weights — is in [`method`], the single implementation that the compiler's reference,
 //! its table builder and this runtime's queries all call.
 //!
+//! A *hybrid* table (`tablec build --robot ROBOT.toml --hybrid`) also carries a calibrated
+//! kinematic model; it answers [`Table::query_with_joints`], which adds the model's
+//! predicted error at the controller's joint angles to the interpolated residuals
+//! ([`hybrid`]). The same query applies a table's joint-space admissibility screen.
+//!
 //! # Example
 //!
 //! ```no_run
