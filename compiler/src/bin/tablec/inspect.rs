@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use adwi_runtime::format::{CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_ORIENTATION, HEADER_LEN};
+use adwi_runtime::format::{
+    CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
+};
 use adwi_runtime::Target;
 
 #[derive(clap::Args)]
@@ -38,6 +40,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (CONTENT_ORIENTATION, "orientations"),
         (CONTENT_CONFIG, "configurations"),
         (CONTENT_JOINTS, "joint angles"),
+        (
+            CONTENT_MODEL,
+            "kinematic model: hybrid table, query with joint angles",
+        ),
     ] {
         if h.content_flags & flag != 0 {
             content.push(name);
@@ -59,6 +65,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         m.zeta_min_per_mm2,
         if m.consistency_screen { "on" } else { "off" }
     );
+    if h.joint_radius_rad > 0.0 {
+        println!(
+            "joint screen    every joint within {}° of the target's",
+            h.joint_radius_rad.to_degrees()
+        );
+    }
     let max = g.max_mm();
     println!(
         "grid            {} × {} × {} cells of {} mm, ({}, {}, {}) to ({}, {}, {}) mm",
