@@ -65,14 +65,9 @@ fn the_version_1_table_opens_and_gives_its_recorded_answers() {
         assert_eq!(c.status, status, "{p:?}");
         assert_eq!(c.neighbours, neighbours, "{p:?}");
         if let Some(e) = error {
-            for axis in 0..3 {
+            for (got, want) in c.position_error_mm.iter().zip(e) {
                 // Recorded with 9 decimals.
-                assert!(
-                    (c.position_error_mm[axis] - e[axis]).abs() <= 5.1e-10,
-                    "{p:?} axis {axis}: {} vs {}",
-                    c.position_error_mm[axis],
-                    e[axis]
-                );
+                assert!((got - want).abs() <= 5.1e-10, "{p:?}: {got} vs {want}");
             }
         }
     }
