@@ -293,3 +293,36 @@ fn an_interrupted_build_leaves_the_existing_table_untouched() {
     // Whatever happened, the file at the path is a complete, valid table.
     adwi_runtime::Table::from_vec(std::fs::read(dir.path().join("t.tbl")).unwrap()).unwrap();
 }
+
+#[test]
+fn a_closed_output_pipe_ends_tablec_quietly() {
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    assert!(
+        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
+            .status
+            .success()
+    );
+    let mut targets = String::from("x,y,z\n");
+    for i in 0..200_000 {
+        targets.push_str(&format!("{},{},500\n", 1000 + i % 100, i % 100));
+    }
+    std::fs::write(dir.path().join("targets.csv"), targets).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tablec"))
+        .args(["query", "t.tbl", "--targets", "targets.csv"])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("x,y,z,dx"), "{first}");
+    // The reader is gone: tablec stops as Unix tools do, without a panic or an error.
+    let out = child.wait_with_output().unwrap();
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(message.is_empty(), "{message}");
+}
