@@ -65,13 +65,8 @@ fn reference_reproduces_every_intermediate_value() {
         assert_close(&format!("zeta {id}"), d.zeta_per_mm2, zeta, true);
         assert_close(&format!("q {id}"), *q, q_paper, false);
     }
-    for axis in 0..3 {
-        assert_close(
-            "prediction",
-            prediction.position_error_mm[axis],
-            PREDICTED_MM[axis],
-            false,
-        );
+    for (got, want) in prediction.position_error_mm.iter().zip(PREDICTED_MM) {
+        assert_close("prediction", *got, want, false);
     }
 }
 

@@ -64,9 +64,9 @@ pub struct BuildOptions {
     pub w2: f64,
     /// r.
     pub power: f64,
-    /// [λ], 1/mm.
+    /// \[λ\], 1/mm.
     pub lambda_min_per_mm: f64,
-    /// [ζ], 1/mm².
+    /// \[ζ\], 1/mm².
     pub zeta_min_per_mm2: f64,
     /// Apply the consistency screen (40).
     pub consistency_screen: bool,
@@ -283,7 +283,7 @@ pub fn compile_with_model(
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
     let done = AtomicU64::new(0);
-    let per_cell: Vec<(Vec<u32>, Vec<(u32, f64)>)> = (0..report.cells)
+    let per_cell: Vec<CellPlan> = (0..report.cells)
         .into_par_iter()
         .map(|cell| {
             let candidates = candidate_list(&records, &index, &params, joint_screen, &grid, cell);
@@ -364,6 +364,9 @@ pub fn compile_with_model(
     report.table_bytes = bytes.len();
     Ok((bytes, report))
 }
+
+/// One cell's candidate list and base weights `(sample, q)`, before assembly.
+type CellPlan = (Vec<u32>, Vec<(u32, f64)>);
 
 /// Writes `bytes` to `path` through a temporary file in the same directory, renamed into
 /// place once complete and flushed: an interrupted write never leaves a partial table and

@@ -23,8 +23,8 @@
 //! | 64  | 8  | ω1 |
 //! | 72  | 8  | ω2 |
 //! | 80  | 8  | r, the power |
-//! | 88  | 8  | [λ], 1/mm |
-//! | 96  | 8  | [ζ], 1/mm² |
+//! | 88  | 8  | \[λ\], 1/mm |
+//! | 96  | 8  | \[ζ\], 1/mm² |
 //! | 104 | 8  | cell edge length, mm |
 //! | 112 | 24 | grid origin (minimum corner) x, y, z, mm, base frame |
 //! | 136 | 12 | grid size in cells along x, y, z |

@@ -66,16 +66,16 @@ pub struct MethodParams {
     pub w2: f64,
     /// r: the power applied to λ and ζ, 0 ≤ r ≤ 2.
     pub power: f64,
-    /// [λ]: the lower bound on λ, 1/mm (31, 34, 37).
+    /// \[λ\]: the lower bound on λ, 1/mm (31, 34, 37).
     pub lambda_min_per_mm: f64,
-    /// [ζ]: the lower bound on ζ, 1/mm² (32, 37).
+    /// \[ζ\]: the lower bound on ζ, 1/mm² (32, 37).
     pub zeta_min_per_mm2: f64,
     /// Whether the consistency screen (40) is applied.
     pub consistency_screen: bool,
 }
 
 impl MethodParams {
-    /// The paper's parameters (ω1 = 0.87, ω2 = 0.13, r = 1, k = 8, [λ] = [ζ] = 0, screen on)
+    /// The paper's parameters (ω1 = 0.87, ω2 = 0.13, r = 1, k = 8, \[λ\] = \[ζ\] = 0, screen on)
     /// with the given radius.
     pub fn paper(radius_mm: f64) -> MethodParams {
         MethodParams {
@@ -346,8 +346,9 @@ pub fn select(
             continue;
         };
         let distance = distance_mm(actual_mm, target_mm);
-        // `!(<=)` also rejects NaN.
-        if !(distance <= params.radius_mm)
+        // Written as `within` so that a NaN distance is rejected too.
+        let within = distance <= params.radius_mm;
+        if !within
             || !config_matches(config, target_config)
             || !selection.would_accept(index, distance)
         {
@@ -577,11 +578,12 @@ fn weigh(
         weights_of_active(params, g, active, q);
         let mut position = [0.0; 3];
         let mut orientation = [0.0; 3];
-        for i in 0..g.len {
+        let rows = q.iter().zip(&g.position_mm).zip(&g.orientation_rad);
+        for (i, ((q, p), o)) in rows.enumerate().take(g.len) {
             if active & (1 << i) != 0 {
                 for axis in 0..3 {
-                    position[axis] += q[i] * g.position_mm[i][axis];
-                    orientation[axis] += q[i] * g.orientation_rad[i][axis];
+                    position[axis] += q * p[axis];
+                    orientation[axis] += q * o[axis];
                 }
             }
         }

@@ -1,7 +1,7 @@
 //! `tablec query`.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use adwi_compiler::pose;
 use adwi_compiler::samples::ColumnMap;
@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &table,
             targets,
             args.columns.as_deref(),
-            args.output.as_ref(),
+            args.output.as_deref(),
         );
     }
     let (position, abc) = match args.pose.as_slice() {
@@ -121,9 +121,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn run_batch(
     table: &adwi_runtime::Table<memmap2::Mmap>,
-    targets: &PathBuf,
+    targets: &Path,
     columns: Option<&str>,
-    output: Option<&PathBuf>,
+    output: Option<&Path>,
 ) -> anyhow::Result<()> {
     let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
     let targets = adwi_compiler::samples::read_targets(targets, &columns)?;
