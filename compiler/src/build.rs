@@ -297,8 +297,13 @@ pub fn compile_with_model(
     progress(done.load(Ordering::Relaxed) % 4096);
 
     let mut data = TableData {
+        actual_norms_mm: records
+            .iter()
+            .map(|r| method::norm_mm(r.actual_mm))
+            .collect(),
         samples: records,
         cells: Vec::with_capacity(report.cells),
+        centre_offsets: Vec::with_capacity(report.cells + 1),
         list_samples: Vec::new(),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
@@ -309,6 +314,7 @@ pub fn compile_with_model(
     };
     // Identical lists are stored once, in order of first appearance.
     let mut starts: HashMap<&[u32], u32> = HashMap::new();
+    data.centre_offsets.push(0);
     for (list, centre) in &per_cell {
         let list_start = *starts.entry(list.as_slice()).or_insert_with(|| {
             let start = data.list_samples.len() as u32;
@@ -318,13 +324,12 @@ pub fn compile_with_model(
         data.cells.push(CellRecord {
             list_start,
             list_len: list.len() as u32,
-            centre_start: data.centre_samples.len() as u32,
-            centre_len: centre.len() as u32,
         });
         for &(sample, q) in centre {
             data.centre_samples.push(sample);
             data.centre_weights.push(q);
         }
+        data.centre_offsets.push(data.centre_samples.len() as u32);
         if !list.is_empty() {
             report.cells_covered += 1;
             report.max_list_len = report.max_list_len.max(list.len());
@@ -381,6 +386,14 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         .suffix(".tmp")
         .tempfile_in(dir)?;
     tmp.write_all(bytes)?;
+    // Temporary files are created private (0600); a table is read by other users' control
+    // processes, so it gets the usual permissions of a data file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
+    }
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| e.error)?;
     Ok(())

@@ -229,7 +229,7 @@ impl KdTreeMethod {
                 position_mm: r.error_mm,
                 orientation_rad: r.rotation_error_rad,
             };
-            (r.actual_mm, error)
+            (r.actual_mm, method::norm_mm(r.actual_mm), error)
         })
     }
 }

@@ -64,8 +64,8 @@ pub fn neighbours_screened(
         .collect();
     admissible.sort_by(|a, b| {
         a.degree
-            .distance_mm
-            .total_cmp(&b.degree.distance_mm)
+            .distance_squared_mm2
+            .total_cmp(&b.degree.distance_squared_mm2)
             .then(a.sample.cmp(&b.sample))
     });
     admissible.truncate(params.max_neighbours as usize);

@@ -186,7 +186,8 @@ pub struct SampleRecord {
     pub config: u8,
 }
 
-/// One cell: where its candidate list and its base weights are.
+/// One cell: where its candidate list is. Eight bytes, so that the cell records a query
+/// touches stay dense in cache.
 #[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 #[rkyv(derive(Debug))]
 pub struct CellRecord {
@@ -195,11 +196,6 @@ pub struct CellRecord {
     pub list_start: u32,
     /// The candidate list's length.
     pub list_len: u32,
-    /// The base weights are entries `centre_start .. centre_start + centre_len` of
-    /// `centre_samples` and `centre_weights`.
-    pub centre_start: u32,
-    /// The number of base weights (at most k).
-    pub centre_len: u32,
 }
 
 /// The archived payload.
@@ -208,9 +204,16 @@ pub struct CellRecord {
 pub struct TableData {
     /// The samples, in source order: a sample's index is its position here.
     pub samples: Vec<SampleRecord>,
+    /// `|actual_mm|` of each sample, mm, computed as the method computes it, so that a
+    /// query need not take the square root again.
+    pub actual_norms_mm: Vec<f64>,
     /// The cells, linear index `ix + nx · (iy + ny · iz)`. One record per cell, so that a
     /// query reads its list's range in a single access.
     pub cells: Vec<CellRecord>,
+    /// Cell `c`'s base weights are entries `centre_offsets[c] .. centre_offsets[c + 1]` of
+    /// `centre_samples` and `centre_weights` (kept apart from `cells`: queries never read
+    /// them).
+    pub centre_offsets: Vec<u32>,
     /// Concatenated distinct candidate lists: sample indices, each list ordered by distance
     /// to its cell's centre (ties by index), so that a query meets the likely neighbours
     /// first and ranks the rest with few moves. No sample appears twice in a list.

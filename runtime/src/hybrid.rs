@@ -36,8 +36,8 @@ use crate::format::{
     ArchivedModelParams, ArchivedTableData, KinematicModel, ModelParams, CONTENT_MODEL,
 };
 use crate::kinematics::{forward_prepared, MdhJoint, PreparedJoint, Transform};
-use crate::method;
-use crate::table::{candidate_list, sample_error, Correction, Status, Table, Target};
+
+use crate::table::{Correction, Status, Table, Target};
 
 /// The number of joints of a model in a table.
 pub const JOINT_COUNT: usize = 6;
@@ -290,7 +290,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if !joints_rad.iter().all(|q| q.is_finite()) {
             return Correction::failed(Status::InvalidInput);
         }
-        let mut correction = self.residual(target, joints_rad);
+        let mut correction = self.interpolate(target, Some(joints_rad));
         if correction.status != Status::Ok {
             return correction;
         }
@@ -308,62 +308,6 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         correction
-    }
-
-    /// The interpolated sample errors (the residuals, on a hybrid table) at a target with
-    /// known joint angles: the ordinary query with the joint-space screen applied.
-    #[inline]
-    fn residual(&self, target: &Target, joints_rad: &[f64; JOINT_COUNT]) -> Correction {
-        let p = target.position_mm;
-        if !p.iter().all(|v| v.is_finite()) {
-            return Correction::failed(Status::InvalidInput);
-        }
-        let Some(archive) = self.data() else {
-            return Correction::failed(Status::InvalidInput);
-        };
-        let params = self.method();
-        let Some(cell) = self.grid().cell_of(p) else {
-            return Correction::failed(Status::OutsideGrid);
-        };
-        let Some(list) = candidate_list(archive, cell) else {
-            return Correction::failed(Status::NoAdmissibleNeighbour);
-        };
-        let samples = archive.samples.as_slice();
-        let sample_joints = archive.joints_rad.as_slice();
-        let radius_rad = self.joint_radius_rad();
-        // Validation guarantees one joint vector per sample whenever the radius is set.
-        let screen = radius_rad > 0.0 && !sample_joints.is_empty();
-        let selection = method::select(
-            params,
-            p,
-            target.config,
-            list.iter().map(|i| i.to_native()),
-            |i| {
-                let s = samples.get(i as usize)?;
-                if screen {
-                    let q = sample_joints.get(i as usize)?.map(|v| v.to_native());
-                    if !joints_within(&q, joints_rad, radius_rad) {
-                        return None;
-                    }
-                }
-                Some((s.actual_mm.map(|v| v.to_native()), s.config))
-            },
-        );
-        let estimate = method::estimate(params, p, &selection, |i| {
-            let actual = samples
-                .get(i as usize)
-                .map_or([0.0; 3], |s| s.actual_mm.map(|v| v.to_native()));
-            (actual, sample_error(samples, i))
-        });
-        match estimate {
-            Some(e) => Correction {
-                position_error_mm: e.position_error_mm,
-                orientation_error_rad: e.orientation_error_rad,
-                neighbours: e.neighbours,
-                status: Status::Ok,
-            },
-            None => Correction::failed(Status::NoAdmissibleNeighbour),
-        }
     }
 }
 

@@ -131,7 +131,7 @@ impl MethodParams {
         if degree.coincident {
             return true;
         }
-        degree.distance_mm <= self.radius_mm
+        degree.distance_squared_mm2 <= self.radius_mm * self.radius_mm
             && degree.lambda_per_mm >= self.lambda_min_per_mm
             && degree.zeta_per_mm2 >= self.zeta_min_per_mm2
             && degree.sin_phi >= self.lambda_min_per_mm * self.radius_mm
@@ -141,6 +141,9 @@ impl MethodParams {
 /// How close a sample's actual position is to a target position, by the method's measures.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Degree {
+    /// `|s − p|²`, mm²: the key neighbours are ranked and screened by (33) with, so that
+    /// no square root stands between a candidate and its rejection.
+    pub distance_squared_mm2: f64,
     /// `|s − p|`, mm.
     pub distance_mm: f64,
     /// `sin φ`, φ the angle between `s` and `p` seen from the base origin.
@@ -159,7 +162,21 @@ pub struct Degree {
 /// neighbours identically.
 #[inline]
 pub fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm_squared(sub(a, b)).sqrt()
+    distance_squared_mm2(a, b).sqrt()
+}
+
+/// `|a|`, mm, as every caller computes it (the table stores it per sample, so the bits
+/// must agree).
+#[inline]
+pub fn norm_mm(a: [f64; 3]) -> f64 {
+    norm_squared(a).sqrt()
+}
+
+/// `|a − b|²`, mm²: the ranking key of neighbours (nearest first, ties by sample index)
+/// and the quantity (33) bounds, as `|a − b|² ≤ ε²`.
+#[inline]
+pub fn distance_squared_mm2(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm_squared(sub(a, b))
 }
 
 /// The approximation degree of a sample at actual position `actual_mm` for a target at
@@ -168,23 +185,27 @@ pub fn distance_mm(a: [f64; 3], b: [f64; 3]) -> f64 {
 pub fn approximation_degree(target_mm: [f64; 3], actual_mm: [f64; 3]) -> Degree {
     degree_from_parts(
         target_mm,
-        norm_squared(target_mm).sqrt(),
+        norm_mm(target_mm),
         actual_mm,
-        distance_mm(actual_mm, target_mm),
+        norm_mm(actual_mm),
+        distance_squared_mm2(actual_mm, target_mm),
     )
 }
 
-/// [`approximation_degree`] with `|target|` and the distance already computed by the
-/// caller, by the same expressions (so with the same bits).
+/// [`approximation_degree`] with `|target|`, `|actual|` and the squared distance already
+/// computed by the caller, by the same expressions (so with the same bits).
 #[inline]
 fn degree_from_parts(
     target_mm: [f64; 3],
     target_norm: f64,
     actual_mm: [f64; 3],
-    distance_mm: f64,
+    actual_norm: f64,
+    distance_squared_mm2: f64,
 ) -> Degree {
+    let distance_mm = distance_squared_mm2.sqrt();
     if distance_mm == 0.0 {
         return Degree {
+            distance_squared_mm2,
             distance_mm,
             sin_phi: 0.0,
             area_mm2: 0.0,
@@ -194,21 +215,31 @@ fn degree_from_parts(
         };
     }
     let cross_norm = norm_squared(cross(actual_mm, target_mm)).sqrt();
-    let actual_norm = norm_squared(actual_mm).sqrt();
     let norms = target_norm * actual_norm;
-    let sin_phi = if norms > 0.0 {
-        (cross_norm / norms).min(1.0)
-    } else {
-        0.0
-    };
     let area_mm2 = 0.5 * cross_norm;
     let area_floor_mm2 = 0.5 * MIN_PERPENDICULAR_OFFSET_MM * target_norm.max(actual_norm);
+    let area_used_mm2 = area_mm2.max(area_floor_mm2);
+    // λ = sin φ / |s − p| with sin φ = |s × p| / (|s| |p|) clamped to 1 against rounding,
+    // and ζ = 1 / S: both from one division, as the query path needs λ and ζ but not sin φ.
+    let (sin_phi, lambda_per_mm, zeta_per_mm2) = if norms > 0.0 {
+        let clamped = cross_norm.min(norms);
+        let denominator = norms * distance_mm;
+        let reciprocal = 1.0 / (denominator * area_used_mm2);
+        (
+            clamped / norms,
+            clamped * area_used_mm2 * reciprocal,
+            denominator * reciprocal,
+        )
+    } else {
+        (0.0, 0.0, 1.0 / area_used_mm2)
+    };
     Degree {
+        distance_squared_mm2,
         distance_mm,
         sin_phi,
         area_mm2,
-        lambda_per_mm: sin_phi / distance_mm,
-        zeta_per_mm2: 1.0 / area_mm2.max(area_floor_mm2),
+        lambda_per_mm,
+        zeta_per_mm2,
         coincident: false,
     }
 }
@@ -226,6 +257,7 @@ pub struct Neighbour {
 const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
     sample: 0,
     degree: Degree {
+        distance_squared_mm2: 0.0,
         distance_mm: 0.0,
         sin_phi: 0.0,
         area_mm2: 0.0,
@@ -237,14 +269,14 @@ const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
 
 /// The `k` nearest admissible samples, nearest first, ties broken by the smaller sample
 /// index: offering candidates in any order gives the same result. Only keys are kept
-/// (sample index and distance, 12 bytes a slot), so that ranking candidates moves little
-/// memory; degrees are computed for the survivors only.
+/// (sample index and squared distance, 12 bytes a slot), so that ranking candidates moves
+/// little memory; degrees are computed for the survivors only.
 #[derive(Clone, Copy, Debug)]
 pub struct Selection {
     len: usize,
     capacity: usize,
     samples: [u32; MAX_NEIGHBOURS],
-    distances_mm: [f64; MAX_NEIGHBOURS],
+    keys_mm2: [f64; MAX_NEIGHBOURS],
 }
 
 impl Selection {
@@ -255,26 +287,27 @@ impl Selection {
             len: 0,
             capacity: (k as usize).clamp(1, MAX_NEIGHBOURS),
             samples: [0; MAX_NEIGHBOURS],
-            distances_mm: [0.0; MAX_NEIGHBOURS],
+            keys_mm2: [0.0; MAX_NEIGHBOURS],
         }
     }
 
-    /// Whether a candidate at `distance_mm` with index `sample` would enter the selection.
+    /// Whether a candidate at squared distance `key_mm2` with index `sample` would enter
+    /// the selection.
     #[inline]
-    pub fn would_accept(&self, sample: u32, distance_mm: f64) -> bool {
-        self.len < self.capacity || self.precedes(sample, distance_mm, self.len - 1)
+    pub fn would_accept(&self, sample: u32, key_mm2: f64) -> bool {
+        self.len < self.capacity || self.precedes(sample, key_mm2, self.len - 1)
     }
 
     #[inline]
-    fn precedes(&self, sample: u32, distance_mm: f64, slot: usize) -> bool {
-        let d = self.distances_mm[slot];
-        distance_mm < d || (distance_mm == d && sample < self.samples[slot])
+    fn precedes(&self, sample: u32, key_mm2: f64, slot: usize) -> bool {
+        let d = self.keys_mm2[slot];
+        key_mm2 < d || (key_mm2 == d && sample < self.samples[slot])
     }
 
     /// Offers a candidate; it is kept if it is among the `k` nearest seen so far.
     #[inline]
-    pub fn offer(&mut self, sample: u32, distance_mm: f64) {
-        if !self.would_accept(sample, distance_mm) {
+    pub fn offer(&mut self, sample: u32, key_mm2: f64) {
+        if !self.would_accept(sample, key_mm2) {
             return;
         }
         let mut i = if self.len < self.capacity {
@@ -283,13 +316,13 @@ impl Selection {
         } else {
             self.capacity - 1
         };
-        while i > 0 && self.precedes(sample, distance_mm, i - 1) {
+        while i > 0 && self.precedes(sample, key_mm2, i - 1) {
             self.samples[i] = self.samples[i - 1];
-            self.distances_mm[i] = self.distances_mm[i - 1];
+            self.keys_mm2[i] = self.keys_mm2[i - 1];
             i -= 1;
         }
         self.samples[i] = sample;
-        self.distances_mm[i] = distance_mm;
+        self.keys_mm2[i] = key_mm2;
     }
 
     /// The selected sample indices, nearest first.
@@ -297,9 +330,9 @@ impl Selection {
         &self.samples[..self.len]
     }
 
-    /// Their distances to the target, mm.
-    pub fn distances_mm(&self) -> &[f64] {
-        &self.distances_mm[..self.len]
+    /// Their squared distances to the target, mm².
+    pub fn keys_mm2(&self) -> &[f64] {
+        &self.keys_mm2[..self.len]
     }
 
     /// The number of selected neighbours.
@@ -341,21 +374,20 @@ pub fn select(
     if !params.target_in_range(target_mm) {
         return selection;
     }
+    let radius_squared = params.radius_mm * params.radius_mm;
     for index in candidates {
         let Some((actual_mm, config)) = sample(index) else {
             continue;
         };
-        let distance = distance_mm(actual_mm, target_mm);
+        let key = distance_squared_mm2(actual_mm, target_mm);
         // Written as `within` so that a NaN distance is rejected too.
-        let within = distance <= params.radius_mm;
-        if !within
-            || !config_matches(config, target_config)
-            || !selection.would_accept(index, distance)
+        let within = key <= radius_squared;
+        if !within || !config_matches(config, target_config) || !selection.would_accept(index, key)
         {
             continue;
         }
         if !thresholds || params.degree_admissible(&approximation_degree(target_mm, actual_mm)) {
-            selection.offer(index, distance);
+            selection.offer(index, key);
         }
     }
     selection
@@ -500,29 +532,30 @@ fn weights_of_active(
         return;
     }
     let r = params.power;
+    let mut lambda_r = [0.0; MAX_NEIGHBOURS];
+    let mut zeta_r = [0.0; MAX_NEIGHBOURS];
     let mut lambda_sum = 0.0;
     let mut zeta_sum = 0.0;
     for i in 0..n {
         if is_active(i) {
-            lambda_sum += pow_r(degrees.lambda[i], r);
-            zeta_sum += pow_r(degrees.zeta[i], r);
+            lambda_r[i] = pow_r(degrees.lambda[i], r);
+            zeta_r[i] = pow_r(degrees.zeta[i], r);
+            lambda_sum += lambda_r[i];
+            zeta_sum += zeta_r[i];
         }
     }
-    let (w_lambda, w_zeta) = if lambda_sum > 0.0 {
-        (params.w1, params.w2)
+    // q_i = ω1 λ_i^r / Σλ^r + ω2 ζ_i^r / Σζ^r, with the two quotients' divisors folded
+    // into one factor each.
+    let (lambda_factor, zeta_factor) = if lambda_sum > 0.0 {
+        (params.w1 / lambda_sum, params.w2 / zeta_sum)
     } else {
-        (0.0, 1.0)
+        (0.0, 1.0 / zeta_sum)
     };
     for (i, q) in q.iter_mut().enumerate().take(n) {
-        *q = if !is_active(i) {
-            0.0
+        *q = if is_active(i) {
+            lambda_factor * lambda_r[i] + zeta_factor * zeta_r[i]
         } else {
-            let lambda_term = if w_lambda > 0.0 {
-                w_lambda * pow_r(degrees.lambda[i], r) / lambda_sum
-            } else {
-                0.0
-            };
-            lambda_term + w_zeta * pow_r(degrees.zeta[i], r) / zeta_sum
+            0.0
         };
     }
 }
@@ -619,21 +652,21 @@ fn weigh(
 /// The prediction from a selection: computes the selected samples' degrees, weights their
 /// errors and applies the consistency screen (40). The runtime's query path.
 ///
-/// `sample(i)` returns a selected sample's actual position (mm) and errors; it is called
-/// once for each index the selection holds. Returns `None` when the selection is empty or
+/// `sample(i)` returns a selected sample's actual position (mm), its norm ([`norm_mm`],
+/// stored by tables) and its errors; it is called once for each index the selection holds. Returns `None` when the selection is empty or
 /// nothing survives the screen.
 #[inline]
 pub fn estimate(
     params: &MethodParams,
     target_mm: [f64; 3],
     selection: &Selection,
-    sample: impl Fn(u32) -> ([f64; 3], SampleError),
+    sample: impl Fn(u32) -> ([f64; 3], f64, SampleError),
 ) -> Option<Estimate> {
-    let target_norm = norm_squared(target_mm).sqrt();
+    let target_norm = norm_mm(target_mm);
     let mut g = Gathered::new();
-    for (&i, &distance) in selection.samples().iter().zip(selection.distances_mm()) {
-        let (actual_mm, error) = sample(i);
-        let degree = degree_from_parts(target_mm, target_norm, actual_mm, distance);
+    for (&i, &key) in selection.samples().iter().zip(selection.keys_mm2()) {
+        let (actual_mm, actual_norm, error) = sample(i);
+        let degree = degree_from_parts(target_mm, target_norm, actual_mm, actual_norm, key);
         g.push(&degree, &error);
     }
     let mut q = [0.0; MAX_NEIGHBOURS];
@@ -741,7 +774,7 @@ mod tests {
         for order in [[0, 1, 2, 3, 4], [4, 3, 2, 1, 0], [2, 4, 0, 3, 1]] {
             let mut s = Selection::new(3);
             for i in order {
-                s.offer(i, distance_mm(target, points[i as usize]));
+                s.offer(i, distance_squared_mm2(target, points[i as usize]));
             }
             let got: Vec<u32> = s.samples().to_vec();
             assert_eq!(got, vec![2, 0, 1]);
@@ -766,7 +799,8 @@ mod tests {
         let on_line = approximation_degree(target, [1050.0, 0.0, 0.0]);
         assert_eq!(on_line.lambda_per_mm, 0.0);
         assert!(on_line.zeta_per_mm2.is_finite());
-        assert_eq!(on_line.zeta_per_mm2, 1.0 / (0.5 * 1e-3 * 1050.0));
+        let floored = 1.0 / (0.5 * 1e-3 * 1050.0);
+        assert!((on_line.zeta_per_mm2 - floored).abs() <= 1e-15 * floored);
         let p = MethodParams::paper(200.0);
         let ns = [
             Neighbour {

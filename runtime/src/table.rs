@@ -305,20 +305,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if self.is_hybrid() {
             return Correction::failed(Status::MissingJoints);
         }
-        let estimate = self.select(target).and_then(|(selection, samples)| {
-            let sample = |i| (actual(samples, i), sample_error(samples, i));
-            method::estimate(&self.header.method, target.position_mm, &selection, sample)
-                .ok_or(Status::NoAdmissibleNeighbour)
-        });
-        match estimate {
-            Ok(e) => Correction {
-                position_error_mm: e.position_error_mm,
-                orientation_error_rad: e.orientation_error_rad,
-                neighbours: e.neighbours,
-                status: Status::Ok,
-            },
-            Err(status) => Correction::failed(status),
-        }
+        self.interpolate(target, None)
     }
 
     /// The full prediction at a target: the neighbours used, nearest first, with their
@@ -332,7 +319,8 @@ impl<D: AsRef<[u8]>> Table<D> {
         if self.is_hybrid() {
             return Err(Status::MissingJoints);
         }
-        let (selection, samples) = self.select(target)?;
+        let (selection, archive) = self.select(target, None)?;
+        let samples = archive.samples.as_slice();
         let neighbours = method::neighbours(target.position_mm, &selection, |i| actual(samples, i));
         method::predict(&self.header.method, neighbours.as_slice(), |i| {
             sample_error(samples, i)
@@ -342,7 +330,11 @@ impl<D: AsRef<[u8]>> Table<D> {
 
     /// The `k` nearest admissible samples of the target's cell, and the samples.
     #[inline]
-    fn select(&self, target: &Target) -> Result<(Selection, &[ArchivedSampleRecord]), Status> {
+    fn select(
+        &self,
+        target: &Target,
+        joints_rad: Option<&[f64; 6]>,
+    ) -> Result<(Selection, &ArchivedTableData), Status> {
         let p = target.position_mm;
         if !p.iter().all(|v| v.is_finite()) {
             return Err(Status::InvalidInput);
@@ -351,6 +343,11 @@ impl<D: AsRef<[u8]>> Table<D> {
         let cell = self.header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
         let list = candidate_list(archive, cell).ok_or(Status::NoAdmissibleNeighbour)?;
         let samples = archive.samples.as_slice();
+        // The joint-space screen, when the table has one and the target's joints are known
+        // (validation guarantees one joint vector per sample whenever the radius is set).
+        let radius_rad = self.header.joint_radius_rad;
+        let screen = joints_rad.filter(|_| radius_rad > 0.0);
+        let sample_joints = archive.joints_rad.as_slice();
         let selection = method::select(
             &self.header.method,
             p,
@@ -358,10 +355,43 @@ impl<D: AsRef<[u8]>> Table<D> {
             list.iter().map(|i| i.to_native()),
             |i| {
                 let s = samples.get(i as usize)?;
+                if let Some(target_joints) = screen {
+                    let q = sample_joints.get(i as usize)?.map(|v| v.to_native());
+                    if !crate::hybrid::joints_within(&q, target_joints, radius_rad) {
+                        return None;
+                    }
+                }
                 Some((s.actual_mm.map(|v| v.to_native()), s.config))
             },
         );
-        Ok((selection, samples))
+        Ok((selection, archive))
+    }
+
+    /// The interpolated sample errors at a target (with the joint-space screen when
+    /// `joints_rad` is given): the ordinary query, and a hybrid table's residual part.
+    #[inline]
+    pub(crate) fn interpolate(&self, target: &Target, joints_rad: Option<&[f64; 6]>) -> Correction {
+        let estimate = self
+            .select(target, joints_rad)
+            .and_then(|(selection, archive)| {
+                let samples = archive.samples.as_slice();
+                let norms = archive.actual_norms_mm.as_slice();
+                let sample = |i: u32| {
+                    let norm = norms.get(i as usize).map_or(0.0, |n| n.to_native());
+                    (actual(samples, i), norm, sample_error(samples, i))
+                };
+                method::estimate(&self.header.method, target.position_mm, &selection, sample)
+                    .ok_or(Status::NoAdmissibleNeighbour)
+            });
+        match estimate {
+            Ok(e) => Correction {
+                position_error_mm: e.position_error_mm,
+                orientation_error_rad: e.orientation_error_rad,
+                neighbours: e.neighbours,
+                status: Status::Ok,
+            },
+            Err(status) => Correction::failed(status),
+        }
     }
 
     /// The command that lands the robot on `target`: iterates
@@ -425,7 +455,7 @@ fn actual(samples: &[ArchivedSampleRecord], index: u32) -> [f64; 3] {
 }
 
 #[inline]
-pub(crate) fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
+fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
     match samples.get(index as usize) {
         Some(s) => SampleError {
             position_mm: s.error_mm.map(|v| v.to_native()),
@@ -438,10 +468,7 @@ pub(crate) fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> Samp
 /// The candidate list of a cell, or `None` if a range is out of bounds (excluded by
 /// validation; checked anyway so that no query can panic).
 #[inline]
-pub(crate) fn candidate_list(
-    archive: &ArchivedTableData,
-    cell: usize,
-) -> Option<&[rkyv::Archived<u32>]> {
+fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Archived<u32>]> {
     let c = archive.cells.get(cell)?;
     let start = c.list_start.to_native() as usize;
     let end = start.checked_add(c.list_len.to_native() as usize)?;
@@ -528,19 +555,40 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         }
         None => {}
     }
+    if a.actual_norms_mm.len() != n
+        || a.samples
+            .iter()
+            .zip(a.actual_norms_mm.iter())
+            .any(|(s, norm)| {
+                method::norm_mm(s.actual_mm.map(|v| v.to_native())) != norm.to_native()
+            })
+    {
+        return Err(corrupt("a sample's stored norm is not |actual|"));
+    }
     if a.centre_weights.len() != a.centre_samples.len() {
         return Err(corrupt("base weight arrays differ in length"));
     }
     let k = header.method.max_neighbours as usize;
     let mut checked_list = None;
     let mut seen = vec![0u64; n.div_ceil(64)];
-    for c in a.cells.iter() {
-        let range = |start: rkyv::Archived<u32>, len: rkyv::Archived<u32>, total: usize| {
-            let start = start.to_native() as usize;
-            let end = start.checked_add(len.to_native() as usize)?;
-            (end <= total).then_some(start..end)
-        };
-        let list = range(c.list_start, c.list_len, a.list_samples.len())
+    let offsets = a.centre_offsets.as_slice();
+    if offsets.len() != cells + 1
+        || offsets[0].to_native() != 0
+        || offsets[cells].to_native() as usize != a.centre_samples.len()
+        || offsets
+            .windows(2)
+            .any(|w| w[0].to_native() > w[1].to_native())
+    {
+        return Err(corrupt(
+            "base weight offsets do not run from 0 to the weight count",
+        ));
+    }
+    for (c, centre_range) in a.cells.iter().zip(offsets.windows(2)) {
+        let start = c.list_start.to_native() as usize;
+        let list = start
+            .checked_add(c.list_len.to_native() as usize)
+            .filter(|&end| end <= a.list_samples.len())
+            .map(|end| start..end)
             .ok_or(corrupt("a cell's candidate list is out of bounds"))?;
         // Cells sharing a list are usually adjacent: check each distinct range once in a row.
         if checked_list.as_ref() != Some(&list) {
@@ -564,8 +612,7 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
                 .for_each(|i| seen[i.to_native() as usize / 64] = 0);
             checked_list = Some(list);
         }
-        let centre = range(c.centre_start, c.centre_len, a.centre_samples.len())
-            .ok_or(corrupt("a cell's base weights are out of bounds"))?;
+        let centre = centre_range[0].to_native() as usize..centre_range[1].to_native() as usize;
         if centre.len() > k {
             return Err(corrupt("a cell has more base weights than k"));
         }

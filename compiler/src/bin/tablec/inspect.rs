@@ -114,7 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.samples.len() * std::mem::size_of::<adwi_runtime::format::ArchivedSampleRecord>(),
         cells * std::mem::size_of::<adwi_runtime::format::ArchivedCellRecord>(),
         data.list_samples.len() * 4,
-        data.centre_samples.len() * 12
+        (cells + 1) * 4 + data.centre_samples.len() * 12
     );
     if let Some(p) = args.cell {
         let p = [p[0], p[1], p[2]];
@@ -133,8 +133,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|i| i.to_native())
             .collect();
         println!("cell            #{cell} ({ix}, {iy}, {iz}), candidates {list:?}");
-        let c0 = record.centre_start.to_native() as usize;
-        for i in c0..c0 + record.centre_len.to_native() as usize {
+        let c0 = data.centre_offsets[cell].to_native() as usize;
+        let c1 = data.centre_offsets[cell + 1].to_native() as usize;
+        for i in c0..c1 {
             println!(
                 "  centre weight sample {:>6}  q {:.9}",
                 data.centre_samples[i].to_native(),
