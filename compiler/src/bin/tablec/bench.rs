@@ -60,6 +60,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         timer.overhead_ns
     );
 
+    if table.is_hybrid() {
+        return bench_hybrid(&table, &timer, args.queries, args.seed);
+    }
     let kd = KdTreeMethod::new(records.clone(), params);
     let workloads = [
         (
@@ -217,4 +220,62 @@ fn agreement<D: AsRef<[u8]>>(
         targets.len(),
         few.len()
     )
+}
+
+/// A hybrid table answers only with the joint angles the controller will use, which only
+/// the controller's inverse kinematics knows for an arbitrary target: the workload is the
+/// samples' own poses, each target moved by up to 5 mm along every axis and queried with
+/// that sample's joint angles (model evaluation plus interpolated residual).
+fn bench_hybrid<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    timer: &Timer,
+    queries: usize,
+    seed: u64,
+) -> anyhow::Result<()> {
+    use rand::{Rng, SeedableRng};
+    let data = table.data().context("table bytes changed")?;
+    let poses: Vec<([f64; 3], [f64; 6])> = data
+        .samples
+        .iter()
+        .zip(data.joints_rad.iter())
+        .map(|(s, q)| {
+            (
+                s.nominal_mm.map(|v| v.to_native()),
+                q.map(|v| v.to_native()),
+            )
+        })
+        .collect();
+    anyhow::ensure!(
+        !poses.is_empty(),
+        "the hybrid table carries no joint angles"
+    );
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let inputs: Vec<(Target, [f64; 6])> = (0..queries.max(1))
+        .map(|i| {
+            let (p, q) = poses[i % poses.len()];
+            let moved = p.map(|v| v + rng.gen_range(-5.0..5.0));
+            (Target::at(moved), q)
+        })
+        .collect();
+    let answered = inputs
+        .iter()
+        .filter(|(t, q)| table.query_with_joints(t, q).status == Status::Ok)
+        .count();
+    let times = timer.time_each(&inputs, |(t, q)| table.query_with_joints(t, q));
+    let batch = Timer::batch_mean_ns(&inputs, |(t, q)| table.query_with_joints(t, q));
+    let s = Summary::of(times).context("no queries to time")?;
+    println!(
+        "hybrid table: query_with_joints at the samples' poses moved by up to 5 mm, \
+         with their joint angles ({answered} of {} answered)",
+        inputs.len()
+    );
+    println!(
+        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "queries", "p50 ns", "p99 ns", "p99.9 ns", "max ns", "mean ns", "batch ns"
+    );
+    println!(
+        "{:>8} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0}",
+        s.count, s.p50_ns, s.p99_ns, s.p999_ns, s.max_ns, s.mean_ns, batch
+    );
+    Ok(())
 }
