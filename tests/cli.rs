@@ -333,7 +333,14 @@ fn a_built_table_is_readable_by_other_users() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path()).status.success());
-    let mode = std::fs::metadata(dir.path().join("t.tbl")).unwrap().permissions().mode();
+    assert!(
+        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
+            .status
+            .success()
+    );
+    let mode = std::fs::metadata(dir.path().join("t.tbl"))
+        .unwrap()
+        .permissions()
+        .mode();
     assert_eq!(mode & 0o777, 0o644);
 }

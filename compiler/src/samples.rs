@@ -306,13 +306,16 @@ impl std::error::Error for SampleError {}
 ///
 /// The first problem found, with file, line and column.
 pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, SampleError> {
-    let bytes = std::fs::read(path).map_err(|e| SampleError {
+    parse_samples(path, &read_file(path)?, columns)
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>, SampleError> {
+    std::fs::read(path).map_err(|e| SampleError {
         path: path.to_path_buf(),
         line: None,
         column: None,
         kind: SampleErrorKind::Io(e.to_string()),
-    })?;
-    parse_samples(path, &bytes, columns)
+    })
 }
 
 /// Column indices of the parts a file provides.
@@ -350,13 +353,7 @@ pub fn read_targets(
     path: &Path,
     columns: &ColumnMap,
 ) -> Result<Vec<adwi_runtime::Target>, SampleError> {
-    let bytes = std::fs::read(path).map_err(|e| SampleError {
-        path: path.to_path_buf(),
-        line: None,
-        column: None,
-        kind: SampleErrorKind::Io(e.to_string()),
-    })?;
-    let set = parse(path, &bytes, columns, Purpose::Targets)?;
+    let set = parse(path, &read_file(path)?, columns, Purpose::Targets)?;
     Ok((0..set.len())
         .map(|i| adwi_runtime::Target {
             position_mm: set.nominal_mm[i],

@@ -141,18 +141,8 @@ impl Table<memmap2::Mmap> {
     /// new tables under a new name and rename them into place, as `tablec build` does;
     /// a rename never changes a mapped file.
     pub unsafe fn open(path: impl AsRef<Path>) -> Result<Table<memmap2::Mmap>, OpenError> {
-        let file = std::fs::File::open(path)?;
-        let len = file.metadata()?.len();
-        if len < HEADER_LEN as u64 {
-            // Also refuses empty files, which cannot be mapped.
-            return Err(OpenError::Truncated {
-                len,
-                needed: HEADER_LEN as u64,
-            });
-        }
-        // SAFETY: the caller guarantees the file is not modified while mapped.
-        let map = unsafe { memmap2::Mmap::map(&file)? };
-        Table::from_bytes(map)
+        // SAFETY: the caller upholds `open_with`'s contract, which is this one.
+        unsafe { Table::open_with(path, crate::OpenOptions::default()) }.map(|(table, _)| table)
     }
 }
 
