@@ -342,22 +342,32 @@ enum RotationColumns {
     },
 }
 
-/// Reads a CSV of targets: `x,y,z` (mm, base frame) and optionally `config`, through the
-/// same reader and column mapping as samples; other columns (errors, say) are ignored, and
-/// positions may repeat.
+/// A target read from a CSV: where to go and, when the file gives them, the joint angles
+/// the controller will use.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TargetRow {
+    /// Position and configuration.
+    pub target: adwi_runtime::Target,
+    /// Joint angles `j1..j6`, rad, when the file has those columns.
+    pub joints_rad: Option<[f64; 6]>,
+}
+
+/// Reads a CSV of targets: `x,y,z` (mm, base frame), optionally `config` and `j1..j6`
+/// (degrees), through the same reader and column mapping as samples; other columns
+/// (errors, say) are ignored, and positions may repeat.
 ///
 /// # Errors
 ///
 /// As [`read_samples`], but error columns are not required.
-pub fn read_targets(
-    path: &Path,
-    columns: &ColumnMap,
-) -> Result<Vec<adwi_runtime::Target>, SampleError> {
+pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, SampleError> {
     let set = parse(path, &read_file(path)?, columns, Purpose::Targets)?;
     Ok((0..set.len())
-        .map(|i| adwi_runtime::Target {
-            position_mm: set.nominal_mm[i],
-            config: set.config.as_ref().map(|c| c[i]),
+        .map(|i| TargetRow {
+            target: adwi_runtime::Target {
+                position_mm: set.nominal_mm[i],
+                config: set.config.as_ref().map(|c| c[i]),
+            },
+            joints_rad: set.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians)),
         })
         .collect())
 }

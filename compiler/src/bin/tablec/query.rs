@@ -136,9 +136,13 @@ fn run_batch(
     };
     writeln!(out, "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status")?;
     let orientation = table.has_orientation();
-    for target in &targets {
-        let c = table.query_target(target);
-        let p = target.position_mm;
+    for row in &targets {
+        // Rows with joint angles serve hybrid tables and the joint-space screen.
+        let c = match &row.joints_rad {
+            Some(q) => table.query_with_joints(&row.target, q),
+            None => table.query_target(&row.target),
+        };
+        let p = row.target.position_mm;
         write!(out, "{},{},{}", p[0], p[1], p[2])?;
         if c.status == Status::Ok {
             let e = c.position_error_mm;
