@@ -92,11 +92,22 @@ fn histogram(values: &[f64], top: f64, bins: usize) -> Vec<usize> {
     counts
 }
 
-/// Histogram of a method's position residual norms after compensation, over the raw error
-/// norms before, on a shared axis so methods can be compared panel to panel.
-fn histogram_svg(e: &Evaluation, m: &MethodResult, top_mm: f64) -> Result<String, ReportError> {
+/// Histogram of a method's position residual norms after compensation, with the raw error
+/// norms before when `with_before` (on the raw errors' scale, where the residuals are a
+/// bar or two) or alone (on the residuals' own scale, to show their spread). The axis is
+/// shared by every method's panel so panels compare.
+fn histogram_svg(
+    e: &Evaluation,
+    m: &MethodResult,
+    top_mm: f64,
+    with_before: bool,
+) -> Result<String, ReportError> {
     const BINS: usize = 30;
-    let before: Vec<f64> = e.measured_error_mm.iter().map(|v| norm(*v)).collect();
+    let before: Vec<f64> = if with_before {
+        e.measured_error_mm.iter().map(|v| norm(*v)).collect()
+    } else {
+        Vec::new()
+    };
     let after: Vec<f64> = residual_norms(e, m).into_iter().map(|(_, n)| n).collect();
     let hb = histogram(&before, top_mm, BINS);
     let ha = histogram(&after, top_mm, BINS);
@@ -129,10 +140,11 @@ fn histogram_svg(e: &Evaluation, m: &MethodResult, top_mm: f64) -> Result<String
             let label = label.to_string();
             (counts.to_vec(), style, label, width)
         };
-        for (counts, style, label, width) in [
+        let series = [
             bars(&hb, BEFORE.mix(0.45).filled(), "before (raw error)"),
             bars(&ha, colour(m).mix(0.75).filled(), "after compensation"),
-        ] {
+        ];
+        for (counts, style, label, width) in series.into_iter().skip(usize::from(!with_before)) {
             chart
                 .draw_series(counts.iter().enumerate().filter(|(_, &c)| c > 0).map(
                     move |(b, &c)| {
@@ -353,7 +365,22 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
         .max(1e-3)
         * 1.02;
     for m in e.methods.iter().filter(|m| m.unsupported.is_none()) {
-        page.push_str(&histogram_svg(e, m, top_mm)?);
+        page.push_str(&histogram_svg(e, m, top_mm, true)?);
+        page.push('\n');
+    }
+    page.push_str(
+        "</div>\n<h2>Residuals after compensation, on their own scale</h2>\n<div class=\"grid\">\n",
+    );
+    let compensated = e.methods.iter().filter(|m| m.unsupported.is_none());
+    let residual_top_mm = compensated
+        .clone()
+        .flat_map(|m| residual_norms(e, m))
+        .map(|(_, n)| n)
+        .fold(0.0, f64::max)
+        .max(1e-3)
+        * 1.02;
+    for m in compensated {
+        page.push_str(&histogram_svg(e, m, residual_top_mm, false)?);
         page.push('\n');
     }
     page.push_str("</div>\n<h2>Residual against position</h2>\n");
