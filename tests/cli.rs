@@ -19,6 +19,42 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// The UR5 measurements' column mapping (joint angles included).
+const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
+                       j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+
+/// The UR5 grid (samples) and random (hold-out) files, or `None`, with a message, when the
+/// data set is not beside the repository.
+fn ur5_files() -> Option<(PathBuf, PathBuf)> {
+    let grid = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
+    let random = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_random_cleaned.csv");
+    if grid.exists() && random.exists() {
+        Some((grid, random))
+    } else {
+        eprintln!("UR5 data set not present beside the repository; skipped");
+        None
+    }
+}
+
+/// `tablec query TABLE --targets TARGETS --columns UR5_MAP -o out.csv` in `dir`.
+fn query_ur5_targets(dir: &Path, table: &str, targets: &Path) -> String {
+    let o = tablec(
+        &[
+            "query",
+            table,
+            "--targets",
+            targets.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "-o",
+            "out.csv",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::read_to_string(dir.join("out.csv")).unwrap()
+}
+
 const GOOD: &str = "x,y,z,dx,dy,dz\n\
 1000,0,500,0.1,0.2,0.3\n\
 1100,0,500,0.2,0.1,0.3\n\
@@ -155,15 +191,10 @@ fn same_input_gives_identical_bytes_for_any_thread_count() {
 
 #[test]
 fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
-               j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
-    let grid = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
-    let random = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_random_cleaned.csv");
-    if !grid.exists() {
-        eprintln!("UR5 data set not present beside the repository; skipped");
+    let Some((grid, random)) = ur5_files() else {
         return;
-    }
+    };
+    let dir = tempfile::tempdir().unwrap();
     let o = tablec(
         &[
             "build",
@@ -171,7 +202,7 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
             "-o",
             "ur5.tbl",
             "--columns",
-            map,
+            UR5_MAP,
         ],
         dir.path(),
     );
@@ -179,21 +210,7 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
     let summary = String::from_utf8_lossy(&o.stdout);
     assert!(summary.contains("samples        1000"), "{summary}");
     assert!(summary.contains("(derived: default)"), "{summary}");
-    let o = tablec(
-        &[
-            "query",
-            "ur5.tbl",
-            "--targets",
-            random.to_str().unwrap(),
-            "--columns",
-            map,
-            "-o",
-            "out.csv",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
+    let out = query_ur5_targets(dir.path(), "ur5.tbl", &random);
     let mut lines = out.lines();
     assert_eq!(
         lines.next(),
@@ -347,14 +364,9 @@ fn a_built_table_is_readable_by_other_users() {
 
 #[test]
 fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
-    let map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
-               j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
-    let grid = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
-    let random = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_random_cleaned.csv");
-    if !grid.exists() {
-        eprintln!("UR5 data set not present beside the repository; skipped");
+    let Some((grid, random)) = ur5_files() else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let robot = repo("tables/ur5/robot.toml");
     let o = tablec(
@@ -363,7 +375,7 @@ fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
             "-q",
             grid.to_str().unwrap(),
             "--columns",
-            map,
+            UR5_MAP,
             "--robot",
             robot.to_str().unwrap(),
             "--hybrid",
@@ -375,20 +387,7 @@ fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
         dir.path(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = tablec(
-        &[
-            "query",
-            "h.tbl",
-            "--targets",
-            random.to_str().unwrap(),
-            "--columns",
-            map,
-            "-o",
-            "out.csv",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    let out = query_ur5_targets(dir.path(), "h.tbl", &random);
     // Residual |measured − predicted| over the 20 held-out poses: the documented hybrid
     // figure is 0.0856 mm mean (docs/evaluation.md).
     let measured: Vec<[f64; 3]> = csv::Reader::from_path(&random)
@@ -399,7 +398,6 @@ fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
             [4, 5, 6].map(|i| r[i].parse().unwrap())
         })
         .collect();
-    let out = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
     let mut residuals = Vec::new();
     for (row, m) in out.lines().skip(1).zip(&measured) {
         let f: Vec<&str> = row.split(',').collect();
