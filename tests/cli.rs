@@ -61,6 +61,15 @@ const GOOD: &str = "x,y,z,dx,dy,dz\n\
 1000,100,500,0.1,0.3,0.2\n\
 1100,100,500,0.3,0.2,0.1\n";
 
+/// A temporary directory holding `good.csv` (`GOOD`) and the table `t.tbl` built from it.
+fn good_table() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
+    let o = tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    dir
+}
+
 /// Builds `csv` into `out.tbl` over an existing table, expects failure with every
 /// `needle` in the message, and checks the existing table is untouched.
 fn assert_refused(csv: &[u8], needles: &[&str]) {
@@ -230,13 +239,7 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
 
 #[test]
 fn query_outside_the_grid_and_inspect() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(
-        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
-            .status
-            .success()
-    );
+    let dir = good_table();
     let o = tablec(&["query", "t.tbl", "5000", "0", "0"], dir.path());
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stdout).contains("status       outside_grid"));
@@ -262,13 +265,7 @@ fn query_outside_the_grid_and_inspect() {
 
 #[test]
 fn a_corrupt_table_is_refused_with_a_reason() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(
-        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
-            .status
-            .success()
-    );
+    let dir = good_table();
     let mut bytes = std::fs::read(dir.path().join("t.tbl")).unwrap();
     let last = bytes.len() - 1;
     bytes[last] ^= 0x10;
@@ -284,13 +281,7 @@ fn a_corrupt_table_is_refused_with_a_reason() {
 
 #[test]
 fn an_interrupted_build_leaves_the_existing_table_untouched() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(
-        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
-            .status
-            .success()
-    );
+    let dir = good_table();
     let before = std::fs::read(dir.path().join("t.tbl")).unwrap();
     // Two million cells: long enough to be killed while compiling.
     let samples = repo("tables/paper/worked_example_p1.csv");
@@ -314,13 +305,7 @@ fn an_interrupted_build_leaves_the_existing_table_untouched() {
 #[test]
 fn a_closed_output_pipe_ends_tablec_quietly() {
     use std::io::{BufRead, BufReader};
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(
-        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
-            .status
-            .success()
-    );
+    let dir = good_table();
     let mut targets = String::from("x,y,z\n");
     for i in 0..200_000 {
         targets.push_str(&format!("{},{},500\n", 1000 + i % 100, i % 100));
@@ -348,13 +333,7 @@ fn a_closed_output_pipe_ends_tablec_quietly() {
 #[test]
 fn a_built_table_is_readable_by_other_users() {
     use std::os::unix::fs::PermissionsExt;
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("good.csv"), GOOD).unwrap();
-    assert!(
-        tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path())
-            .status
-            .success()
-    );
+    let dir = good_table();
     let mode = std::fs::metadata(dir.path().join("t.tbl"))
         .unwrap()
         .permissions()

@@ -164,18 +164,8 @@ fn the_counter_sees_allocations() {
 #[test]
 fn hybrid_queries_allocate_nothing() {
     use adwi_compiler::build::BuildOptions;
-    use adwi_compiler::calibrate::{identify, CalibrateOptions};
-    use adwi_compiler::robot::{model::shipped_robot_path, Robot};
-    use adwi_compiler::samples::{read_samples, ColumnMap};
 
-    let robot_path = shipped_robot_path("kr150-2");
-    let robot = Robot::load(&robot_path).unwrap();
-    let samples = read_samples(
-        &robot_path.parent().unwrap().join("samples.csv"),
-        &ColumnMap::default(),
-    )
-    .unwrap();
-    let calibration = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+    let (_, samples, calibration) = common::kr150_calibration();
     let options = BuildOptions {
         cell_mm: Some(50.0),
         joint_radius_deg: Some(15.0),

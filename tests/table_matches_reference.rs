@@ -3,6 +3,8 @@
 //! wrong: inside cells, on cell faces and corners, exactly on samples, and collinear with a
 //! sample through the base origin.
 
+mod common;
+
 use adwi_compiler::build::{compile, BuildOptions};
 use adwi_compiler::reference;
 use adwi_compiler::samples::SampleSet;
@@ -213,19 +215,9 @@ struct HybridFixture {
 const HYBRID_JOINT_RADIUS_DEG: f64 = 12.0;
 
 fn hybrid_fixture() -> &'static HybridFixture {
-    use adwi_compiler::calibrate::{identify, CalibrateOptions};
-    use adwi_compiler::robot::{model::shipped_robot_path, Robot};
-    use adwi_compiler::samples::{read_samples, ColumnMap};
     static FIXTURE: std::sync::OnceLock<HybridFixture> = std::sync::OnceLock::new();
     FIXTURE.get_or_init(|| {
-        let robot_path = shipped_robot_path("kr150-2");
-        let robot = Robot::load(&robot_path).unwrap();
-        let samples = read_samples(
-            &robot_path.parent().unwrap().join("samples.csv"),
-            &ColumnMap::default(),
-        )
-        .unwrap();
-        let calibration = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        let (robot, samples, calibration) = common::kr150_calibration();
         let options = BuildOptions {
             cell_mm: Some(50.0),
             ..BuildOptions::default()

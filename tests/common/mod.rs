@@ -76,3 +76,24 @@ pub fn targets(seed: u64, count: usize) -> Vec<[f64; 3]> {
         .map(|_| [0, 1, 2].map(|a| ORIGIN_MM[a] + rng.uniform(0.0, extent)))
         .collect()
 }
+
+/// The shipped KR150-2 samples and the kinematic calibration identified from them: the
+/// starting point of every hybrid-table test.
+pub fn kr150_calibration() -> (
+    adwi_compiler::robot::Robot,
+    adwi_compiler::samples::SampleSet,
+    adwi_compiler::calibrate::Calibration,
+) {
+    use adwi_compiler::calibrate::{identify, CalibrateOptions};
+    use adwi_compiler::robot::{model::shipped_robot_path, Robot};
+    use adwi_compiler::samples::read_samples;
+    let robot_path = shipped_robot_path("kr150-2");
+    let robot = Robot::load(&robot_path).unwrap();
+    let samples = read_samples(
+        &robot_path.parent().unwrap().join("samples.csv"),
+        &ColumnMap::default(),
+    )
+    .unwrap();
+    let calibration = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+    (robot, samples, calibration)
+}
