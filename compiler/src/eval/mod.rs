@@ -663,25 +663,22 @@ fn predict_split(
                 })
                 .collect()
         }
-        Method::Idw => {
-            let make = |values: &[[f64; 3]]| Idw::new(&train.nominal_mm, values, options.idw);
-            baseline_predictions(method, train, &targets, orientation, make)?
-        }
-        Method::Grid => {
-            let make = |values: &[[f64; 3]]| Grid::new(&train.nominal_mm, values, options.grid);
-            match baseline_predictions(method, train, &targets, orientation, make) {
-                Ok(list) => list,
-                Err(EvalError::Baseline {
-                    source: BaselineError::Unsupported { reason },
-                    ..
-                }) => return Ok(SplitOutcome::Unsupported(reason)),
-                Err(e) => return Err(e),
-            }
-        }
-        Method::Kriging => {
-            let make =
-                |values: &[[f64; 3]]| Kriging::new(&train.nominal_mm, values, options.kriging);
-            match baseline_predictions(method, train, &targets, orientation, make) {
+        Method::Idw | Method::Grid | Method::Kriging => {
+            let positions = &train.nominal_mm;
+            let result = match method {
+                Method::Idw => baseline_predictions(method, train, &targets, orientation, |v| {
+                    Idw::new(positions, v, options.idw)
+                }),
+                Method::Grid => baseline_predictions(method, train, &targets, orientation, |v| {
+                    Grid::new(positions, v, options.grid)
+                }),
+                _ => baseline_predictions(method, train, &targets, orientation, |v| {
+                    Kriging::new(positions, v, options.kriging)
+                }),
+            };
+            // A baseline that cannot work on these samples (a lattice method on a cloud)
+            // is reported as unsupported, not as a failure of the evaluation.
+            match result {
                 Ok(list) => list,
                 Err(EvalError::Baseline {
                     source: BaselineError::Unsupported { reason },
