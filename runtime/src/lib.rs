@@ -4,7 +4,7 @@
 //! locking or panicking.
 //!
 //! Tables are written by the `tablec` compiler (crate `adwi-compiler`); their byte layout
-//! is documented in [`format`]. The method itself — approximation degree, admissibility,
+//! is documented in [`format`](mod@format). The method itself — approximation degree, admissibility,
 //! weights — is in [`method`], the single implementation that the compiler's reference,
 //! its table builder and this runtime's queries all call.
 //!

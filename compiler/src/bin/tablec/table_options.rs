@@ -1,5 +1,7 @@
 //! The table options shared by `tablec build` and `tablec eval`: one definition, so a table
 //! evaluated by `eval` is built exactly as `build` would build it from the same flags.
+// The field docs are clap's help text, where the paper's [λ] and [ζ] read as written.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 use adwi_compiler::build::BuildOptions;
 use anyhow::bail;
