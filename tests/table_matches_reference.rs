@@ -232,13 +232,7 @@ fn hybrid_fixture() -> &'static HybridFixture {
             joint_radius_deg: Some(HYBRID_JOINT_RADIUS_DEG),
             ..options
         });
-        let joints_rad: Vec<[f64; 6]> = samples
-            .joints_deg
-            .as_ref()
-            .unwrap()
-            .iter()
-            .map(|q| q.map(f64::to_radians))
-            .collect();
+        let joints_rad = samples.all_joints_rad();
         // Residuals through the compiler's nalgebra model, not the runtime's.
         let mut residual = samples.clone();
         for (i, q) in joints_rad.iter().enumerate() {
@@ -273,14 +267,7 @@ proptest! {
         let radius_rad = table.joint_radius_rad();
         prop_assert!(radius_rad > 0.0);
         let records = case.samples.records();
-        let sample_joints: Vec<[f64; 6]> = case
-            .samples
-            .joints_deg
-            .as_ref()
-            .unwrap()
-            .iter()
-            .map(|q| q.map(f64::to_radians))
-            .collect();
+        let sample_joints = case.samples.all_joints_rad();
         let params = *table.method();
         for (target, q) in case.targets.iter().zip(&target_joints) {
             let got = table.query_with_joints(target, q);

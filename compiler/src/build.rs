@@ -307,9 +307,7 @@ pub fn compile_with_model(
         list_samples: Vec::new(),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
-        joints_rad: samples.joints_deg.as_ref().map_or(Vec::new(), |j| {
-            j.iter().map(|q| q.map(f64::to_radians)).collect()
-        }),
+        joints_rad: samples.all_joints_rad(),
         model,
     };
     // Identical lists are stored once, in order of first appearance.

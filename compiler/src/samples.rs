@@ -76,6 +76,16 @@ impl SampleSet {
         [n[0] + e[0], n[1] + e[1], n[2] + e[2]]
     }
 
+    /// Sample `i`'s joint angles in radians, when the samples carry joint angles.
+    pub fn joints_rad(&self, i: usize) -> Option<[f64; 6]> {
+        self.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians))
+    }
+
+    /// Every sample's joint angles in radians, in sample order; empty without joint angles.
+    pub fn all_joints_rad(&self) -> Vec<[f64; 6]> {
+        (0..self.len()).filter_map(|i| self.joints_rad(i)).collect()
+    }
+
     /// The samples as the runtime stores them.
     pub fn records(&self) -> Vec<SampleRecord> {
         (0..self.len())
@@ -367,7 +377,7 @@ pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, 
                 position_mm: set.nominal_mm[i],
                 config: set.config.as_ref().map(|c| c[i]),
             },
-            joints_rad: set.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians)),
+            joints_rad: set.joints_rad(i),
         })
         .collect())
 }

@@ -633,9 +633,8 @@ fn predict_split(
             config: test.config.as_ref().map(|c| c[i]),
         })
         .collect();
-    let joints_rad = |set: &SampleSet, i: usize| {
-        set.joints_deg.as_ref().expect("checked by choose_methods")[i].map(f64::to_radians)
-    };
+    let joints_rad =
+        |set: &SampleSet, i: usize| set.joints_rad(i).expect("checked by choose_methods");
     let outcome = match method {
         Method::Paper => {
             let table = compile_table(method, train, &options.build)?;
@@ -644,7 +643,7 @@ fn predict_split(
                 .enumerate()
                 .map(|(i, t)| {
                     // The joint angles only matter to a table with a joint screen.
-                    let joints = test.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians));
+                    let joints = test.joints_rad(i);
                     table_prediction(&table, t, joints.as_ref(), orientation)
                 })
                 .collect()
