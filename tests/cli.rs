@@ -1,15 +1,11 @@
 //! The real `tablec` binary, run in a temporary directory.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn tablec(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tablec"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("tablec runs")
-}
+use common::tablec;
 
 fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)

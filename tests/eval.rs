@@ -1,15 +1,11 @@
 //! `tablec eval` end to end: the real binary on files in a temporary directory.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn tablec(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tablec"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("tablec runs")
-}
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::tablec;
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")

@@ -97,3 +97,12 @@ pub fn kr150_calibration() -> (
     let calibration = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
     (robot, samples, calibration)
 }
+
+/// Runs the real `tablec` binary with `args` in `dir`.
+pub fn tablec(args: &[&str], dir: &std::path::Path) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("tablec runs")
+}
