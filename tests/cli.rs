@@ -19,17 +19,13 @@ fn stderr(o: &Output) -> String {
 const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
                        j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
 
-/// The UR5 grid (samples) and random (hold-out) files, or `None`, with a message, when the
-/// data set is not beside the repository.
-fn ur5_files() -> Option<(PathBuf, PathBuf)> {
-    let grid = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
-    let random = repo("../shared/datasets/ur5/3D_UR5_uncalibrated_random_cleaned.csv");
-    if grid.exists() && random.exists() {
-        Some((grid, random))
-    } else {
-        eprintln!("UR5 data set not present beside the repository; skipped");
-        None
-    }
+/// The UR5 grid (samples) and random (hold-out) files shipped in `tables/ur5/measurements`.
+fn ur5_files() -> (PathBuf, PathBuf) {
+    let dir = repo("tables/ur5/measurements");
+    (
+        dir.join("3D_UR5_uncalibrated_grid_cleaned.csv"),
+        dir.join("3D_UR5_uncalibrated_random_cleaned.csv"),
+    )
 }
 
 /// `tablec query TABLE --targets TARGETS --columns UR5_MAP -o out.csv` in `dir`.
@@ -196,9 +192,7 @@ fn same_input_gives_identical_bytes_for_any_thread_count() {
 
 #[test]
 fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
-    let Some((grid, random)) = ur5_files() else {
-        return;
-    };
+    let (grid, random) = ur5_files();
     let dir = tempfile::tempdir().unwrap();
     let o = tablec(
         &[
@@ -339,9 +333,7 @@ fn a_built_table_is_readable_by_other_users() {
 
 #[test]
 fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
-    let Some((grid, random)) = ur5_files() else {
-        return;
-    };
+    let (grid, random) = ur5_files();
     let dir = tempfile::tempdir().unwrap();
     let robot = repo("tables/ur5/robot.toml");
     let o = tablec(

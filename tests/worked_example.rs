@@ -1,4 +1,4 @@
-//! The paper's worked example (METHOD.md section 7): target P1 = (2000, 700, 1000) mm and
+//! The paper's worked example (docs/method.md §7): target P1 = (2000, 700, 1000) mm and
 //! eight samples, every intermediate value reproduced to 1e-9, through the reference and
 //! end to end through `tablec build` and `tablec query`.
 

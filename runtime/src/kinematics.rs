@@ -112,7 +112,7 @@ fn link_transform(
     (sb, cb): (f64, f64),
     (st, ct): (f64, f64),
 ) -> Transform {
-    // The closed form of the product, as written out in the method description.
+    // The closed form of the product, as written out in docs/method.md §2.
     Transform {
         rotation: [
             [ct * cb - st * sa * sb, -st * ca, ct * sb + st * sa * cb],
@@ -271,7 +271,7 @@ mod tests {
         }
     }
 
-    /// KUKA KR150-2 nominal MD-H parameters of the method description (θ offsets zero).
+    /// KUKA KR150-2 nominal MD-H parameters of docs/method.md §2 (θ offsets zero).
     fn kr150() -> [MdhJoint; 6] {
         let j = |a_mm, d_mm, alpha_deg: f64| MdhJoint {
             a_mm,

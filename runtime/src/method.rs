@@ -34,7 +34,7 @@
 //!
 //! # Admissibility
 //!
-//! A sample may stand in for the target when (METHOD.md section 6):
+//! A sample may stand in for the target when (docs/method.md §5):
 //! (31) `λ ≥ [λ]`, (32) `ζ ≥ [ζ]`, (33) `|s − p| ≤ ε`, (34) `sin φ ≥ [λ] · ε`, its
 //! configuration matches the target's when both are known, and the target itself satisfies
 //! (37) `|p|² ≤ 2 / ([ζ] [λ] ε)`. A coincident sample is always admissible. Of the

@@ -434,7 +434,7 @@ mod tests {
     fn ur5_tool_offset_fits_the_data_set_targets() {
         let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
         let data = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../shared/datasets/ur5/3D_UR5_uncalibrated_grid_cleaned.csv");
+            .join("../tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
         let mut reader = csv::Reader::from_path(&data).unwrap();
         let mut flanges = Vec::new();
         let mut targets = Vec::new();
