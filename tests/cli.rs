@@ -213,13 +213,16 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
     let mut lines = out.lines();
     assert_eq!(
         lines.next(),
-        Some("x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status")
+        Some(
+            "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status,\
+             command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
+        )
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 20);
     for row in rows {
         let fields: Vec<&str> = row.split(',').collect();
-        assert_eq!(fields.len(), 11, "{row}");
+        assert_eq!(fields.len(), 18, "{row}");
         assert_eq!(fields[10], "ok", "{row}");
         assert!(fields[3].parse::<f64>().unwrap().abs() < 10.0);
         // Position only: blank orientation.
@@ -231,7 +234,7 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
 fn query_outside_the_grid_and_inspect() {
     let dir = good_table();
     let o = tablec(&["query", "t.tbl", "5000", "0", "0"], dir.path());
-    assert!(o.status.success());
+    assert_eq!(o.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&o.stdout).contains("status       outside_grid"));
     let o = tablec(
         &["inspect", "t.tbl", "--cell", "1050", "50", "500"],
@@ -376,4 +379,373 @@ fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
     assert_eq!(residuals.len(), 20);
     let mean = residuals.iter().sum::<f64>() / 20.0;
     assert!((mean - 0.0856).abs() < 5e-4, "mean residual {mean} mm");
+}
+
+/// The exit status of `tablec query`: 0 answered, 3 not answered (README, "Exit status").
+#[test]
+fn query_exit_status_says_whether_the_target_was_answered() {
+    let dir = good_table();
+    let ok = tablec(&["query", "t.tbl", "1050", "50", "500"], dir.path());
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
+    let outside = tablec(&["query", "t.tbl", "99999", "0", "0"], dir.path());
+    assert_eq!(outside.status.code(), Some(3));
+    assert!(
+        stderr(&outside).contains("outside_grid"),
+        "{}",
+        stderr(&outside)
+    );
+    let nan = tablec(&["query", "t.tbl", "nan", "50", "500"], dir.path());
+    assert_eq!(nan.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&nan.stdout).contains("invalid_input"));
+}
+
+/// A non-finite orientation is refused like a non-finite position, never answered with
+/// NaN command angles.
+#[test]
+fn query_refuses_a_nan_orientation() {
+    let dir = good_table();
+    for abc in [["nan", "0", "0"], ["0", "inf", "0"], ["0", "0", "NaN"]] {
+        let mut args = vec!["query", "t.tbl", "1050", "50", "500"];
+        args.extend(abc);
+        let o = tablec(&args, dir.path());
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(3), "{abc:?}: {out}");
+        assert!(out.contains("invalid_input"), "{out}");
+        assert!(!out.to_lowercase().contains("nan "), "{out}");
+    }
+}
+
+/// `--joints` takes negative angles as written (every UR5 pose starts with one).
+#[test]
+fn query_takes_negative_joint_angles() {
+    let dir = good_table();
+    let o = tablec(
+        &[
+            "query",
+            "t.tbl",
+            "1050",
+            "50",
+            "500",
+            "--joints",
+            "-22.93,-1.5,2,3,-4,5",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = tablec(
+        &[
+            "query",
+            "t.tbl",
+            "1050",
+            "50",
+            "500",
+            "--joints",
+            "-22.93,1,2",
+        ],
+        dir.path(),
+    );
+    assert!(stderr(&o).contains("six angles"), "{}", stderr(&o));
+}
+
+/// `--targets` writes the compensated command beside the error, keeps every row with its
+/// status, counts the unanswered rows on standard error and exits 3 when there are any.
+#[test]
+fn query_targets_writes_commands_and_counts_failures() {
+    let dir = good_table();
+    std::fs::write(
+        dir.path().join("targets.csv"),
+        "x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\nnan,0,0\n",
+    )
+    .unwrap();
+    let o = tablec(
+        &[
+            "query",
+            "t.tbl",
+            "--targets",
+            "targets.csv",
+            "-o",
+            "out.csv",
+        ],
+        dir.path(),
+    );
+    // A NaN in the targets file is refused by the reader, with its line.
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("targets.csv:5"), "{}", stderr(&o));
+    std::fs::write(
+        dir.path().join("targets.csv"),
+        "x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\n",
+    )
+    .unwrap();
+    let o = tablec(
+        &[
+            "query",
+            "t.tbl",
+            "--targets",
+            "targets.csv",
+            "-o",
+            "out.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("1 of 3 targets not answered: 1 outside_grid"),
+        "{}",
+        stderr(&o)
+    );
+    let out = std::fs::read_to_string(dir.path().join("out.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = out.lines().map(|l| l.split(',').collect()).collect();
+    let header = &rows[0];
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    assert_eq!(rows.len(), 4);
+    let table =
+        adwi_runtime::Table::from_vec(std::fs::read(dir.path().join("t.tbl")).unwrap()).unwrap();
+    for row in [&rows[1], &rows[3]] {
+        assert_eq!(row[column("status")], "ok");
+        assert_eq!(row[column("command_status")], "converged");
+        // command + error(command) = target, to the fixed point's tolerance (1e-6 mm) and
+        // the printed digits.
+        let value = |name: &str| row[column(name)].parse::<f64>().unwrap();
+        let command = ["command_x", "command_y", "command_z"].map(value);
+        let target = ["x", "y", "z"].map(value);
+        let landing = table.query(command).position_error_mm;
+        for axis in 0..3 {
+            assert!(
+                (command[axis] + landing[axis] - target[axis]).abs() < 2e-6,
+                "{row:?}"
+            );
+        }
+    }
+    assert_eq!(rows[2][column("status")], "outside_grid");
+    assert_eq!(rows[2][column("command_x")], "");
+}
+
+/// `--bounds` in its documented form, one comma-separated argument, negative values too.
+#[test]
+fn bounds_take_the_documented_comma_form() {
+    let dir = good_table();
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "good.csv",
+            "-o",
+            "b.tbl",
+            "--bounds",
+            "-100,-200,400,1200,300,600",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table =
+        adwi_runtime::Table::from_vec(std::fs::read(dir.path().join("b.tbl")).unwrap()).unwrap();
+    assert_eq!(table.grid().origin_mm, [-100.0, -200.0, 400.0]);
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "good.csv",
+            "-o",
+            "b.tbl",
+            "--bounds",
+            "0,0,0,1,1",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("six numbers"), "{}", stderr(&o));
+}
+
+/// An output that is an input — by name, symbolic link or hard link — is refused before
+/// anything is written, and the input is left as it was.
+#[cfg(unix)]
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = good_table();
+    let good = dir.path().join("good.csv");
+    std::os::unix::fs::symlink(&good, dir.path().join("soft.csv")).unwrap();
+    std::fs::hard_link(&good, dir.path().join("hard.csv")).unwrap();
+    for output in ["good.csv", "soft.csv", "hard.csv", "./good.csv"] {
+        let o = tablec(&["build", "-q", "good.csv", "-o", output], dir.path());
+        assert_eq!(o.status.code(), Some(1), "{output}");
+        assert!(stderr(&o).contains("refusing to write"), "{}", stderr(&o));
+        assert_eq!(std::fs::read_to_string(&good).unwrap(), GOOD, "{output}");
+    }
+    std::fs::write(dir.path().join("targets.csv"), "x,y,z\n1050,50,500\n").unwrap();
+    let o = tablec(
+        &[
+            "query",
+            "t.tbl",
+            "--targets",
+            "targets.csv",
+            "-o",
+            "targets.csv",
+        ],
+        dir.path(),
+    );
+    assert!(stderr(&o).contains("refusing to write"), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("targets.csv")).unwrap(),
+        "x,y,z\n1050,50,500\n"
+    );
+    let o = tablec(
+        &[
+            "eval", "good.csv", "--folds", "2", "--csv", "hard.csv", "-q",
+        ],
+        dir.path(),
+    );
+    assert!(stderr(&o).contains("refusing to write"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&good).unwrap(), GOOD);
+}
+
+/// A semicolon-separated file is named as such, not only "missing column".
+#[test]
+fn a_semicolon_file_is_recognised_in_the_message() {
+    assert_refused(
+        b"x;y;z;dx;dy;dz\n1;2;3;0;0;0\n",
+        &[
+            "bad.csv:1:",
+            "missing column x,y,z",
+            "separated by semicolons",
+        ],
+    );
+}
+
+/// The OS error of a missing table is printed once.
+#[test]
+fn a_missing_table_names_its_os_error_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = tablec(&["query", "missing.tbl", "1", "2", "3"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let message = stderr(&o);
+    assert_eq!(message.matches("No such file").count(), 1, "{message}");
+}
+
+/// k-fold evaluation summarises the points a method cannot predict: a count per kind of
+/// reason and a few examples, not one reason per point.
+#[test]
+fn eval_summarises_unpredicted_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/kr150-2/samples.csv");
+    let o = tablec(
+        &[
+            "eval",
+            samples.to_str().unwrap(),
+            "--folds",
+            "5",
+            "--methods",
+            "paper,grid",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let note = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("grid:"))
+        .unwrap();
+    assert!(note.contains("729 not predicted"), "{note}");
+    assert!(note.len() < 600, "{} characters: {note}", note.len());
+}
+
+/// A file whose grid could never be built is refused at once, with the figure, before
+/// any compilation: a million samples in a 2 m cube.
+#[test]
+fn an_oversized_grid_is_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = common::SplitMix(5);
+    let mut csv = String::with_capacity(40_000_000);
+    csv.push_str("x,y,z,dx,dy,dz\n");
+    for _ in 0..1_000_000 {
+        let [x, y, z] = [0; 3].map(|_| rng.uniform(0.0, 2000.0));
+        csv.push_str(&format!("{x:.4},{y:.4},{z:.4},0.1,0.2,0.3\n"));
+    }
+    std::fs::write(dir.path().join("big.csv"), csv).unwrap();
+    let started = std::time::Instant::now();
+    let o = tablec(&["build", "-q", "big.csv", "-o", "big.tbl"], dir.path());
+    let took = started.elapsed();
+    assert_eq!(o.status.code(), Some(1));
+    let message = stderr(&o);
+    assert!(message.contains("the grid would have"), "{message}");
+    assert!(message.contains("GB"), "{message}");
+    // Well under a second on an idle machine; the bound only catches minutes.
+    assert!(took.as_secs() < 20, "refused after {took:?}");
+}
+
+/// Samples along a line make a grid that is almost all empty: said before the build.
+#[test]
+fn a_mostly_empty_grid_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("x,y,z,dx,dy,dz\n");
+    for i in 0..59 {
+        let v = 100.0 * i as f64;
+        csv.push_str(&format!("{v},{v},{v},0.1,0.2,0.3\n"));
+    }
+    std::fs::write(dir.path().join("line.csv"), csv).unwrap();
+    let o = tablec(&["build", "-q", "line.csv", "-o", "l.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("mostly empty"), "{}", stderr(&o));
+}
+
+/// Builds killed at any moment, including while the table is written, leave no
+/// temporary file once the next build has run in the folder, and never a partial table.
+#[cfg(unix)]
+#[test]
+fn killed_builds_leave_no_temporary_files() {
+    let dir = good_table();
+    // About 600,000 cells: a build of a fraction of a second that writes megabytes.
+    let samples = repo("tables/paper/worked_example_p1.csv");
+    let build = || {
+        Command::new(env!("CARGO_BIN_EXE_tablec"))
+            .args(["build", "-q", "--cell", "6", "-o", "t.tbl"])
+            .arg(&samples)
+            .current_dir(dir.path())
+            .spawn()
+            .unwrap()
+    };
+    let started = std::time::Instant::now();
+    build().wait().unwrap();
+    let full = started.elapsed();
+    // A stale file of a writer that is gone, as an earlier kill would leave it.
+    std::fs::write(dir.path().join(".tablec-999999999-1.tmp"), b"partial").unwrap();
+    for step in 1..=8 {
+        let mut child = build();
+        std::thread::sleep(full.mul_f64(0.55 + 0.06 * step as f64));
+        // SIGKILL: no destructor, no cleanup of the process's own.
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let bytes = std::fs::read(dir.path().join("t.tbl")).unwrap();
+        adwi_runtime::Table::from_vec(bytes).expect("a complete table at the path");
+    }
+    let o = tablec(&["build", "-q", "good.csv", "-o", "t.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let leftovers: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with(".tablec-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// `tablec bench` reports figures and ratios, not the project's internal goals.
+#[test]
+fn bench_prints_figures_without_internal_goals() {
+    let dir = good_table();
+    let o = tablec(
+        &[
+            "bench",
+            "t.tbl",
+            "--queries",
+            "2000",
+            "--reference-queries",
+            "50",
+            "--open-repeats",
+            "2",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("p50"), "{out}");
+    assert!(!out.contains("goal"), "{out}");
 }

@@ -138,14 +138,10 @@ impl fmt::Display for OpenError {
     }
 }
 
-impl std::error::Error for OpenError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            OpenError::Io(e) | OpenError::Lock(e) => Some(e),
-            _ => None,
-        }
-    }
-}
+/// No `source`: the message of every variant already includes its cause (C callers get
+/// one string, [`crate::capi::adwi_last_open_error`]), and a chain printer would print the
+/// OS error twice. The I/O error itself is in the variant.
+impl std::error::Error for OpenError {}
 
 impl From<std::io::Error> for OpenError {
     fn from(e: std::io::Error) -> OpenError {

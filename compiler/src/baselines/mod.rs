@@ -128,6 +128,29 @@ pub enum NotCovered {
     },
 }
 
+impl NotCovered {
+    /// The kind of reason, without the particulars of one query: what an evaluation
+    /// counts points by.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::NoSampleWithinRadius { .. } => "no sample within the search radius",
+            Self::OutsideLattice => "outside the sample lattice",
+            Self::MissingCorner { .. } => "a corner of the enclosing lattice cube has no sample",
+        }
+    }
+}
+
+impl PredictError {
+    /// The kind of reason, without the particulars of one query (see [`NotCovered::kind`]).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::NonFiniteQuery => "query position is not finite",
+            Self::NotCovered(n) => n.kind(),
+            Self::SingularSystem { .. } => "singular kriging system",
+        }
+    }
+}
+
 impl std::fmt::Display for NotCovered {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {

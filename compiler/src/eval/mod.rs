@@ -263,8 +263,11 @@ pub struct MethodResult {
     pub unsupported: Option<String>,
     /// The prediction at each point, in point order; `None` where not predicted.
     pub predictions: Vec<Option<PointPrediction>>,
-    /// Points not predicted, by reason.
+    /// Points not predicted, by kind of reason.
     pub not_predicted: BTreeMap<String, usize>,
+    /// For each kind of reason, the particulars of the first few points it applied to
+    /// (at most [`MISS_EXAMPLES`], in the order met), where they say more than the kind.
+    pub not_predicted_examples: BTreeMap<String, Vec<String>>,
     /// Residual statistics after compensation over the predicted points, position, mm.
     pub position_mm: Option<ResidualStats>,
     /// Residual statistics after compensation over the predicted points, orientation,
@@ -284,6 +287,56 @@ impl MethodResult {
     /// How many points it did not predict.
     pub fn not_predicted_count(&self) -> usize {
         self.not_predicted.values().sum()
+    }
+
+    /// The points not predicted, in words: a count per kind of reason with a few
+    /// examples, so that thousands of misses read as a line per kind.
+    pub fn not_predicted_summary(&self) -> Vec<String> {
+        self.not_predicted
+            .iter()
+            .map(|(reason, n)| {
+                let examples = self.not_predicted_examples.get(reason);
+                match examples.filter(|e| !e.is_empty()) {
+                    Some(e) => {
+                        let more = if *n > e.len() { "; …" } else { "" };
+                        format!("{n} not predicted: {reason} (e.g. {}{more})", e.join("; "))
+                    }
+                    None => format!("{n} not predicted: {reason}"),
+                }
+            })
+            .collect()
+    }
+}
+
+/// How many examples of each kind of miss an evaluation keeps.
+pub const MISS_EXAMPLES: usize = 3;
+
+/// Why a method did not predict one point: the kind of reason, which points are counted
+/// by, and the particulars, when they add to it.
+#[derive(Debug, Clone, PartialEq)]
+struct Miss {
+    reason: String,
+    detail: Option<String>,
+}
+
+impl Miss {
+    fn status(status: Status) -> Miss {
+        Miss {
+            reason: status.as_str().to_string(),
+            detail: None,
+        }
+    }
+
+    fn baseline(e: PredictError) -> Miss {
+        let detail = match &e {
+            PredictError::NotCovered(n) => n.to_string(),
+            other => other.to_string(),
+        };
+        let reason = e.kind().to_string();
+        Miss {
+            detail: (detail != reason).then_some(detail),
+            reason,
+        }
     }
 }
 
@@ -481,7 +534,9 @@ pub fn evaluate(
         .iter()
         .map(|&m| (m, vec![None; points.len()]))
         .collect();
-    let mut failures: BTreeMap<Method, BTreeMap<String, usize>> = BTreeMap::new();
+    // Per method: misses counted by kind of reason, and a few particulars of each kind.
+    type Tally = (BTreeMap<String, usize>, BTreeMap<String, Vec<String>>);
+    let mut failures: BTreeMap<Method, Tally> = BTreeMap::new();
     let mut unsupported: BTreeMap<Method, String> = BTreeMap::new();
     let mut calibrations = Vec::new();
 
@@ -524,12 +579,15 @@ pub fn evaluate(
                                 predictions.get_mut(&method).expect("initialised")[test[local]] =
                                     Some(p)
                             }
-                            Err(reason) => {
-                                *failures
-                                    .entry(method)
-                                    .or_default()
-                                    .entry(reason)
-                                    .or_default() += 1
+                            Err(miss) => {
+                                let tally: &mut Tally = failures.entry(method).or_default();
+                                *tally.0.entry(miss.reason.clone()).or_default() += 1;
+                                let examples = tally.1.entry(miss.reason).or_default();
+                                if let Some(detail) = miss.detail {
+                                    if examples.len() < MISS_EXAMPLES {
+                                        examples.push(detail);
+                                    }
+                                }
                             }
                         }
                     }
@@ -552,12 +610,14 @@ pub fn evaluate(
         .into_iter()
         .map(|method| {
             let predicted = predictions.remove(&method).unwrap_or_default();
+            let tally = failures.remove(&method).unwrap_or_default();
             if let Some(reason) = unsupported.remove(&method) {
                 return MethodResult {
                     method,
                     unsupported: Some(reason),
                     predictions: vec![None; points.len()],
                     not_predicted: BTreeMap::from([("unsupported".to_string(), points.len())]),
+                    not_predicted_examples: BTreeMap::new(),
                     position_mm: None,
                     orientation_mrad: None,
                     before_position_mm: None,
@@ -579,7 +639,8 @@ pub fn evaluate(
             MethodResult {
                 method,
                 unsupported: None,
-                not_predicted: failures.remove(&method).unwrap_or_default(),
+                not_predicted: tally.0,
+                not_predicted_examples: tally.1,
                 position_mm: nonempty(&position),
                 orientation_mrad: if rotation.len() == position.len() {
                     nonempty(&rotation)
@@ -616,7 +677,7 @@ enum SplitOutcome {
     /// The method cannot work on these samples.
     Unsupported(String),
     /// One result per test point: the prediction, or why there is none.
-    Predicted(Vec<Result<PointPrediction, String>>),
+    Predicted(Vec<Result<PointPrediction, Miss>>),
 }
 
 fn predict_split(
@@ -747,13 +808,13 @@ fn table_prediction<D: AsRef<[u8]>>(
     target: &Target,
     joints_rad: Option<&[f64; 6]>,
     orientation: bool,
-) -> Result<PointPrediction, String> {
+) -> Result<PointPrediction, Miss> {
     let c = match joints_rad {
         Some(q) => table.query_with_joints(target, q),
         None => table.query_target(target),
     };
     if c.status != Status::Ok {
-        return Err(c.status.as_str().to_string());
+        return Err(Miss::status(c.status));
     }
     Ok(PointPrediction {
         position_error_mm: c.position_error_mm,
@@ -777,10 +838,10 @@ fn joint_space_prediction(
     target: &Target,
     target_joints_deg: &[f64; 6],
     orientation: bool,
-) -> Result<PointPrediction, String> {
+) -> Result<PointPrediction, Miss> {
     let p = target.position_mm;
     if !params.target_in_range(p) {
-        return Err(Status::NoAdmissibleNeighbour.as_str().to_string());
+        return Err(Miss::status(Status::NoAdmissibleNeighbour));
     }
     let joint_distance = |q: &[f64; 6]| {
         q.iter()
@@ -814,7 +875,7 @@ fn joint_space_prediction(
             orientation_rad: s.rotation_error_rad,
         }
     })
-    .ok_or_else(|| Status::NoAdmissibleNeighbour.as_str().to_string())?;
+    .ok_or(Miss::status(Status::NoAdmissibleNeighbour))?;
     Ok(PointPrediction {
         position_error_mm: prediction.position_error_mm,
         orientation_error_rad: orientation.then_some(prediction.orientation_error_rad),
@@ -829,23 +890,19 @@ fn baseline_predictions<B: baselines::Baseline>(
     targets: &[Target],
     orientation: bool,
     make: impl Fn(&[[f64; 3]]) -> Result<B, BaselineError>,
-) -> Result<Vec<Result<PointPrediction, String>>, EvalError> {
+) -> Result<Vec<Result<PointPrediction, Miss>>, EvalError> {
     let wrap = |source| EvalError::Baseline { method, source };
     let position = make(&train.error_mm).map_err(wrap)?;
     let rotation = match (&train.rotation_error_rad, orientation) {
         (Some(r), true) => Some(make(r).map_err(wrap)?),
         _ => None,
     };
-    let reason = |e: PredictError| match e {
-        PredictError::NotCovered(n) => n.to_string(),
-        other => other.to_string(),
-    };
     Ok(targets
         .iter()
         .map(|t| {
-            let p = position.predict(t.position_mm).map_err(reason)?;
+            let p = position.predict(t.position_mm).map_err(Miss::baseline)?;
             let r = match &rotation {
-                Some(b) => Some(b.predict(t.position_mm).map_err(reason)?),
+                Some(b) => Some(b.predict(t.position_mm).map_err(Miss::baseline)?),
                 None => None,
             };
             Ok(PointPrediction {

@@ -46,11 +46,7 @@ fn note(m: &MethodResult) -> String {
     if let Some(reason) = &m.unsupported {
         return format!("unsupported: {reason}");
     }
-    m.not_predicted
-        .iter()
-        .map(|(reason, n)| format!("{n} not predicted: {reason}"))
-        .collect::<Vec<_>>()
-        .join("; ")
+    m.not_predicted_summary().join("; ")
 }
 
 fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {

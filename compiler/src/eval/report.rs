@@ -321,9 +321,9 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
         if let Some(reason) = &m.unsupported {
             note = format!("unsupported: {reason}");
         }
-        for (reason, n) in &m.not_predicted {
-            if m.unsupported.is_none() {
-                let _ = write!(note, "; {n} not predicted: {reason}");
+        if m.unsupported.is_none() {
+            for line in m.not_predicted_summary() {
+                let _ = write!(note, "; {line}");
             }
         }
         let _ = write!(

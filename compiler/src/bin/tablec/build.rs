@@ -41,12 +41,34 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
+    let mut inputs = vec![args.samples.as_path()];
+    inputs.extend(args.robot.as_deref());
+    crate::refuse_overwriting(&args.output, &inputs)?;
     let columns =
         ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
     let samples = read_samples(&args.samples, &columns)?;
     let (w1, w2) = args.table.weights();
-    let options = args.table.build_options()?;
+    let options = args.table.build_options();
     let (_, _, plan) = adwi_compiler::build::resolve(&samples, &options)?;
+    let reachable =
+        adwi_compiler::build::max_covered_cells(plan.samples, plan.radius_mm, plan.cell_mm);
+    if plan.cells > 100_000 && plan.cells as f64 > 10.0 * reachable {
+        eprintln!(
+            "warning: the grid's {} cells are mostly empty: at most {:.0} of them lie within ε = \
+             {:.3} mm of a sample (samples along a line or a plane?); the table will be about \
+             {} — give --bounds around the samples, or a larger --cell",
+            plan.cells,
+            reachable.min(plan.cells as f64),
+            plan.radius_mm,
+            adwi_compiler::build::human_bytes(adwi_compiler::build::estimated_table_bytes(
+                plan.cells as u128,
+                plan.samples,
+                plan.radius_mm,
+                plan.cell_mm,
+                options.max_neighbours
+            ))
+        );
+    }
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {

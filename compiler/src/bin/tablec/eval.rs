@@ -55,6 +55,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut inputs = vec![args.samples.as_path()];
+    inputs.extend(args.validation.as_deref());
+    inputs.extend(args.robot.as_deref());
+    let page = args.report.as_ref().map(|dir| dir.join("index.html"));
+    for output in [&args.csv, &args.json, &page].into_iter().flatten() {
+        crate::refuse_overwriting(output, &inputs)?;
+    }
     let columns =
         ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
     let samples = read_samples(&args.samples, &columns)?;
@@ -82,7 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let options = EvalOptions {
         methods: args.methods.clone(),
-        build: args.table.build_options()?,
+        build: args.table.build_options(),
         robot,
         calibrate: CalibrateOptions {
             rank_tolerance: args.rank_tol,

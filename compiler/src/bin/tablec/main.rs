@@ -36,19 +36,33 @@ enum Command {
     Bench(bench::Args),
 }
 
+/// Exit status when a query gave no correction for its target, or for some rows of a
+/// targets file (README, "Exit status"). 1 is an error, 2 a usage error (clap's).
+const EXIT_UNANSWERED: u8 = 3;
+
+/// Whether a query answered every target it was given.
+pub enum Answered {
+    /// Every target got a correction (status `ok`).
+    All,
+    /// At least one target got none; its status says why.
+    NotAll,
+}
+
 fn main() -> ExitCode {
     restore_default_sigpipe();
     let cli = Cli::parse();
+    let done = |r: anyhow::Result<()>| r.map(|()| Answered::All);
     let result = match cli.command {
-        Command::Build(args) => build::run(args),
+        Command::Build(args) => done(build::run(args)),
         Command::Query(args) => query::run(args),
-        Command::Inspect(args) => inspect::run(args),
-        Command::Simulate(args) => simulate::run(args),
-        Command::Eval(args) => eval::run(args),
-        Command::Bench(args) => bench::run(args),
+        Command::Inspect(args) => done(inspect::run(args)),
+        Command::Simulate(args) => done(simulate::run(args)),
+        Command::Eval(args) => done(eval::run(args)),
+        Command::Bench(args) => done(bench::run(args)),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Answered::All) => ExitCode::SUCCESS,
+        Ok(Answered::NotAll) => ExitCode::from(EXIT_UNANSWERED),
         Err(e) => {
             eprintln!("error: {e}");
             for cause in e.chain().skip(1) {
@@ -78,4 +92,73 @@ fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memm
     // process holds the mapping only for the duration of one command.
     unsafe { adwi_runtime::Table::open(path) }
         .with_context(|| format!("cannot open table {}", path.display()))
+}
+
+/// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.
+pub fn parse_number_list(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|item| {
+            let item = item.trim();
+            match item.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                Ok(_) => Err(format!("'{item}' is not a finite number")),
+                Err(_) => Err(format!("'{item}' is not a number")),
+            }
+        })
+        .collect()
+}
+
+/// Refuses to write `output` when it is one of `inputs` — the same file, also through a
+/// symbolic or hard link — before anything is written: a mistyped `-o` must never replace
+/// the calibration data it was computed from.
+pub fn refuse_overwriting(
+    output: &std::path::Path,
+    inputs: &[&std::path::Path],
+) -> anyhow::Result<()> {
+    // An output that does not exist yet cannot be an input.
+    let Ok(out) = std::fs::metadata(output) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Ok(inp) = std::fs::metadata(input) else {
+            continue;
+        };
+        if same_file(&out, &inp, output, input) {
+            anyhow::bail!(
+                "refusing to write {}: it is the input {} (the same file{}); choose another output",
+                output.display(),
+                input.display(),
+                if output == *input {
+                    ""
+                } else {
+                    ", through a link"
+                }
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(
+    a: &std::fs::Metadata,
+    b: &std::fs::Metadata,
+    _: &std::path::Path,
+    _: &std::path::Path,
+) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(
+    _: &std::fs::Metadata,
+    _: &std::fs::Metadata,
+    a: &std::path::Path,
+    b: &std::path::Path,
+) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
 }

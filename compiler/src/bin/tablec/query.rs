@@ -5,10 +5,22 @@ use std::path::{Path, PathBuf};
 
 use adwi_compiler::pose;
 use adwi_compiler::samples::ColumnMap;
-use adwi_runtime::{Status, Target};
+use adwi_runtime::{Correction, Status, Table, Target};
 use anyhow::{bail, Context};
 
+use crate::Answered;
+
+/// The fixed-point compensation's tolerance, mm, and iteration bound.
+const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
+const COMPENSATE_ITERATIONS: u32 = 50;
+
 #[derive(clap::Args)]
+#[command(
+    after_help = "Exit status: 0 when every target was answered (status ok); 3 when \
+    the table gave no correction for the target, or for at least one row of --targets (the \
+    rows are all written, each with its status, and a count of the unanswered ones goes to \
+    standard error); 1 on an error (unreadable table or targets file); 2 on a usage error."
+)]
 pub struct Args {
     /// The table.
     table: PathBuf,
@@ -22,13 +34,14 @@ pub struct Args {
     /// Needed by a hybrid table (built with --hybrid); applies a table's joint screen.
     #[arg(
         long,
-        value_name = "DEG",
-        value_delimiter = ',',
-        allow_negative_numbers = true,
+        value_name = "DEG,...",
+        allow_hyphen_values = true,
+        value_parser = crate::parse_number_list,
         conflicts_with = "targets"
     )]
-    joints: Option<Vec<f64>>,
-    /// A CSV of targets (columns x,y,z, optionally config) instead of one pose.
+    joints: Option<NumberList>,
+    /// A CSV of targets (columns x,y,z, optionally config and j1..j6 in degrees) instead of
+    /// one pose.
     #[arg(long, conflicts_with = "pose")]
     targets: Option<PathBuf>,
     /// Column mapping for the targets CSV, as for `tablec build`.
@@ -39,9 +52,14 @@ pub struct Args {
     output: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+type NumberList = Vec<f64>;
+
+pub fn run(args: Args) -> anyhow::Result<Answered> {
     let table = crate::open_table(&args.table)?;
     if let Some(targets) = &args.targets {
+        if let Some(output) = &args.output {
+            crate::refuse_overwriting(output, &[&args.table, targets])?;
+        }
         return run_batch(
             &table,
             targets,
@@ -63,9 +81,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f].map(f64::to_radians)),
         Some(_) => bail!("--joints takes six angles in degrees: J1,J2,J3,J4,J5,J6"),
     };
-    let c = match &joints_rad {
-        Some(q) => table.query_with_joints(&target, q),
-        None => table.query_target(&target),
+    // A non-finite orientation is refused as a non-finite position is: no command can be
+    // computed for it.
+    let c = if abc.is_some_and(|abc| !abc.iter().all(|v| v.is_finite())) {
+        Correction {
+            position_error_mm: [0.0; 3],
+            orientation_error_rad: [0.0; 3],
+            neighbours: 0,
+            status: Status::InvalidInput,
+        }
+    } else {
+        match &joints_rad {
+            Some(q) => table.query_with_joints(&target, q),
+            None => table.query_target(&target),
+        }
     };
     println!(
         "target       {:.6} {:.6} {:.6} mm",
@@ -77,7 +106,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         c.neighbours
     );
     if c.status != Status::Ok {
-        return Ok(());
+        eprintln!("no correction: {}", c.status.as_str());
+        return Ok(Answered::NotAll);
     }
     let e = c.position_error_mm;
     println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
@@ -85,46 +115,76 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let r = c.orientation_error_rad;
         println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
     }
-    if joints_rad.is_some() {
-        // The fixed-point compensation re-queries at moved positions, whose joint angles
-        // only the controller's inverse kinematics knows: print the first-order command.
-        let p = [0, 1, 2].map(|a| position[a] - e[a]);
-        println!(
-            "command      {:.6} {:.6} {:.6} mm (first order: target − error)",
-            p[0], p[1], p[2]
-        );
-        return Ok(());
-    }
-    let comp = table.compensate(&target, 1e-6, 50);
-    let p = comp.command_position_mm;
+    let command = command(&table, &target, joints_rad.as_ref(), &c);
+    let p = command.position_mm;
     println!(
-        "command      {:.6} {:.6} {:.6} mm ({} after {} iterations, residual {:.2e} mm)",
-        p[0],
-        p[1],
-        p[2],
-        if comp.converged {
-            "converged"
-        } else {
-            "not converged"
-        },
-        comp.iterations,
-        comp.residual_mm
+        "command      {:.6} {:.6} {:.6} mm ({})",
+        p[0], p[1], p[2], command.how
     );
     if let Some(abc) = abc {
         let target_rotation = pose::rotation_from_kuka_abc_deg(abc);
-        let command = pose::rotation_from_vector(comp.command_rotation_rad) * target_rotation;
-        let [a, b, c] = pose::kuka_abc_deg_from_rotation(&command);
+        let rotation = pose::rotation_from_vector(command.rotation_rad) * target_rotation;
+        let [a, b, c] = pose::kuka_abc_deg_from_rotation(&rotation);
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
-    Ok(())
+    Ok(Answered::All)
+}
+
+/// The pose to command so that the robot lands on the target.
+struct Command {
+    position_mm: [f64; 3],
+    /// Rotation vector to apply to the target orientation, rad, base frame.
+    rotation_rad: [f64; 3],
+    /// How it was found, for people and for the `command_status` column.
+    how: String,
+    /// `converged`, `not_converged` or `first_order`.
+    status: &'static str,
+}
+
+/// The command for an answered target: the fixed point of `command + error(command) =
+/// target` by [`Table::compensate`]; with joint angles, the first-order `target − error`,
+/// since the moved command's joint angles are only known to the controller's inverse
+/// kinematics.
+fn command<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    target: &Target,
+    joints_rad: Option<&[f64; 6]>,
+    c: &Correction,
+) -> Command {
+    if joints_rad.is_some() {
+        let e = c.position_error_mm;
+        return Command {
+            position_mm: [0, 1, 2].map(|a| target.position_mm[a] - e[a]),
+            rotation_rad: c.orientation_error_rad.map(|v| -v),
+            how: "first order: target − error".to_string(),
+            status: "first_order",
+        };
+    }
+    let comp = table.compensate(target, COMPENSATE_TOLERANCE_MM, COMPENSATE_ITERATIONS);
+    let status = if comp.converged {
+        "converged"
+    } else {
+        "not_converged"
+    };
+    Command {
+        position_mm: comp.command_position_mm,
+        rotation_rad: comp.command_rotation_rad,
+        how: format!(
+            "{} after {} iterations, residual {:.2e} mm",
+            status.replace('_', " "),
+            comp.iterations,
+            comp.residual_mm
+        ),
+        status,
+    }
 }
 
 fn run_batch(
-    table: &adwi_runtime::Table<memmap2::Mmap>,
+    table: &Table<memmap2::Mmap>,
     targets: &Path,
     columns: Option<&str>,
     output: Option<&Path>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Answered> {
     let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
     let targets = adwi_compiler::samples::read_targets(targets, &columns)?;
     let mut out: Box<dyn Write> = match output {
@@ -134,8 +194,13 @@ fn run_batch(
         )),
         None => Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
     };
-    writeln!(out, "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status")?;
+    writeln!(
+        out,
+        "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status,\
+         command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
+    )?;
     let orientation = table.has_orientation();
+    let mut unanswered: std::collections::BTreeMap<&str, usize> = Default::default();
     for row in &targets {
         // Rows with joint angles serve hybrid tables and the joint-space screen.
         let c = match &row.joints_rad {
@@ -156,8 +221,36 @@ fn run_batch(
         } else {
             write!(out, ",,,")?;
         }
-        writeln!(out, ",{},{}", c.neighbours, c.status.as_str())?;
+        write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
+        if c.status == Status::Ok {
+            let command = command(table, &row.target, row.joints_rad.as_ref(), &c);
+            let p = command.position_mm;
+            write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
+            if orientation {
+                let r = command.rotation_rad;
+                write!(out, ",{:.12},{:.12},{:.12}", r[0], r[1], r[2])?;
+            } else {
+                write!(out, ",,,")?;
+            }
+            writeln!(out, ",{}", command.status)?;
+        } else {
+            *unanswered.entry(c.status.as_str()).or_default() += 1;
+            writeln!(out, ",,,,,,,")?;
+        }
     }
     out.flush()?;
-    Ok(())
+    if unanswered.is_empty() {
+        return Ok(Answered::All);
+    }
+    let count: usize = unanswered.values().sum();
+    let by_status: Vec<String> = unanswered
+        .iter()
+        .map(|(status, n)| format!("{n} {status}"))
+        .collect();
+    eprintln!(
+        "{count} of {} targets not answered: {}",
+        targets.len(),
+        by_status.join(", ")
+    );
+    Ok(Answered::NotAll)
 }

@@ -96,6 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let samples = simulate(&robot, &scenario, &plan)?;
 
+    crate::refuse_overwriting(&args.output, &[&args.robot, &args.scenario])?;
     let file = File::create(&args.output)
         .with_context(|| format!("cannot create {}", args.output.display()))?;
     let mut writer = BufWriter::new(file);

@@ -4,7 +4,20 @@
 #![allow(rustdoc::broken_intra_doc_links)]
 
 use adwi_compiler::build::BuildOptions;
-use anyhow::bail;
+
+/// A box's minimum and maximum corners, mm.
+type Bounds = ([f64; 3], [f64; 3]);
+
+/// `xmin,ymin,zmin,xmax,ymax,zmax` in one argument (`-500,-500,0,500,500,900`).
+fn parse_bounds(text: &str) -> Result<Bounds, String> {
+    match crate::parse_number_list(text)?.as_slice() {
+        &[x0, y0, z0, x1, y1, z1] => Ok(([x0, y0, z0], [x1, y1, z1])),
+        other => Err(format!(
+            "six numbers are needed, xmin,ymin,zmin,xmax,ymax,zmax; {} given",
+            other.len()
+        )),
+    }
+}
 
 /// Method and grid options of a table.
 #[derive(clap::Args, Debug, Clone)]
@@ -37,8 +50,13 @@ pub struct TableOptions {
     #[arg(long)]
     pub no_consistency_screen: bool,
     /// Grid box, mm: xmin,ymin,zmin,xmax,ymax,zmax [default: samples' box grown by ε].
-    #[arg(long, value_name = "BOX", value_delimiter = ',', num_args = 6)]
-    pub bounds: Option<Vec<f64>>,
+    #[arg(
+        long,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+        allow_hyphen_values = true,
+        value_parser = parse_bounds
+    )]
+    pub bounds: Option<Bounds>,
     /// Joint-space screen, degrees: when a query gives the target's joint angles, a sample
     /// is admissible only if each of its joint angles is within this of the target's
     /// (needs samples with j1..j6) [default: off].
@@ -58,14 +76,9 @@ impl TableOptions {
     }
 
     /// The compiler's options.
-    pub fn build_options(&self) -> anyhow::Result<BuildOptions> {
+    pub fn build_options(&self) -> BuildOptions {
         let (w1, w2) = self.weights();
-        let bounds_mm = match self.bounds.as_deref() {
-            None => None,
-            Some([x0, y0, z0, x1, y1, z1]) => Some(([*x0, *y0, *z0], [*x1, *y1, *z1])),
-            Some(_) => bail!("--bounds takes six numbers: xmin,ymin,zmin,xmax,ymax,zmax"),
-        };
-        Ok(BuildOptions {
+        BuildOptions {
             radius_mm: self.radius,
             cell_mm: self.cell,
             max_neighbours: self.k,
@@ -75,8 +88,8 @@ impl TableOptions {
             lambda_min_per_mm: self.lambda_min,
             zeta_min_per_mm2: self.zeta_min,
             consistency_screen: !self.no_consistency_screen,
-            bounds_mm,
+            bounds_mm: self.bounds,
             joint_radius_deg: self.joint_radius,
-        })
+        }
     }
 }
