@@ -481,7 +481,7 @@ impl Gathered {
     }
 }
 
-/// The weights `q_i` of section 5 for the given neighbours (see the module docs for the
+/// The weights `q_i` of docs/method.md §4 for the given neighbours (see the module docs for the
 /// coincident and all-collinear cases).
 pub fn weights(params: &MethodParams, neighbours: &[Neighbour]) -> Weights {
     let mut degrees = Gathered::new();
