@@ -11,15 +11,15 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use adwi_compiler::build::{compile, BuildOptions};
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::{Status, Table, Target};
 
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];
 
 fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 /// Builds the runtime's static library and returns its path.

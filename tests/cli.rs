@@ -1,14 +1,14 @@
 //! The real `tablec` binary, run in a temporary directory.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::tablec;
+use crate::common::tablec;
 
 fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
 }
 
 fn stderr(o: &Output) -> String {
@@ -653,7 +653,7 @@ fn eval_summarises_unpredicted_points() {
 #[test]
 fn an_oversized_grid_is_refused_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
-    let mut rng = common::SplitMix(5);
+    let mut rng = crate::common::SplitMix(5);
     let mut csv = String::with_capacity(40_000_000);
     csv.push_str("x,y,z,dx,dy,dz\n");
     for _ in 0..1_000_000 {

@@ -4,13 +4,13 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compiler::reference;
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::reference;
+use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::format::{FORMAT_VERSION, OLDEST_SUPPORTED_VERSION};
 use adwi_runtime::{Status, Table, Target};
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 /// `tables/compat/v1/README.md`'s table of answers: target, error, neighbours, status.

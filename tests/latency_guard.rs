@@ -2,9 +2,9 @@
 //! nanoseconds per query; `tablec bench` prints them), so that only a gross regression (an
 //! allocation, a lock, a scan of every sample) fails it, never a busy machine.
 
-mod common;
+use crate::common;
 
-use adwi_compiler::latency::{Summary, Timer};
+use adwi_eval::latency::{Summary, Timer};
 use adwi_runtime::{Status, Table, Target};
 
 #[test]

@@ -2,7 +2,7 @@
 //! of each, through every way of holding a table (owned bytes, memory map, a swappable
 //! handle, the C ABI).
 
-mod common;
+use crate::common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -163,7 +163,7 @@ fn the_counter_sees_allocations() {
 /// either, through the Rust API and the C ABI.
 #[test]
 fn hybrid_queries_allocate_nothing() {
-    use adwi_compiler::build::BuildOptions;
+    use adwi_compile::build::BuildOptions;
 
     let (_, samples, calibration) = common::kr150_calibration();
     let options = BuildOptions {
@@ -171,8 +171,10 @@ fn hybrid_queries_allocate_nothing() {
         joint_radius_deg: Some(15.0),
         ..BuildOptions::default()
     };
-    let (bytes, _) =
-        adwi_compiler::hybrid::compile(&samples, &calibration, &options, &|_| {}).unwrap();
+    let model = calibration.kinematic_model();
+    let bytes = adwi_compile::hybrid::compile(&samples, &model, &options, &|_| {})
+        .unwrap()
+        .bytes;
     let table = Table::from_vec(&bytes).unwrap();
     assert!(table.is_hybrid());
     // SAFETY: valid bytes and out-pointer; the handle copies the bytes.

@@ -3,14 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compiler::robot::Robot;
-use adwi_compiler::simulate::{
+use adwi_robot::simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
+use adwi_robot::Robot;
 
 fn shipped(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../tables/kr150-2")
+        .join("../../tables/kr150-2")
         .join(name)
 }
 

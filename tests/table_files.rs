@@ -1,8 +1,8 @@
 //! Tables that are truncated, bit-flipped, of another version or not tables at all are
 //! refused at open with a reason, and never make the runtime panic.
 
-use adwi_compiler::build::{compile, BuildOptions};
-use adwi_compiler::samples::{parse_samples, ColumnMap};
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::samples::{parse_samples, ColumnMap};
 use adwi_runtime::format::{Header, HEADER_LEN};
 use adwi_runtime::{OpenError, Status, Table};
 

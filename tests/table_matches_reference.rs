@@ -3,11 +3,11 @@
 //! wrong: inside cells, on cell faces and corners, exactly on samples, and collinear with a
 //! sample through the base origin.
 
-mod common;
+use crate::common;
 
-use adwi_compiler::build::{compile, BuildOptions};
-use adwi_compiler::reference;
-use adwi_compiler::samples::SampleSet;
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::reference;
+use adwi_compile::samples::SampleSet;
 use adwi_runtime::{Status, Table, Target};
 use proptest::prelude::*;
 
@@ -206,10 +206,10 @@ fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
 struct HybridFixture {
     table: Table<adwi_runtime::AlignedBytes>,
     screened: Table<adwi_runtime::AlignedBytes>,
-    calibration: adwi_compiler::calibrate::Calibration,
+    calibration: adwi_robot::calibrate::Calibration,
     residuals: Vec<adwi_runtime::format::SampleRecord>,
     joints_rad: Vec<[f64; 6]>,
-    robot: adwi_compiler::robot::Robot,
+    robot: adwi_robot::Robot,
 }
 
 const HYBRID_JOINT_RADIUS_DEG: f64 = 12.0;
@@ -223,9 +223,9 @@ fn hybrid_fixture() -> &'static HybridFixture {
             ..BuildOptions::default()
         };
         let build = |options: &BuildOptions| {
-            let (bytes, _) =
-                adwi_compiler::hybrid::compile(&samples, &calibration, options, &|_| {}).unwrap();
-            Table::from_vec(bytes).unwrap()
+            let model = calibration.kinematic_model();
+            let built = adwi_compile::hybrid::compile(&samples, &model, options, &|_| {}).unwrap();
+            Table::from_vec(built.bytes).unwrap()
         };
         let table = build(&options);
         let screened = build(&BuildOptions {
@@ -318,7 +318,7 @@ proptest! {
                 prop_assert_eq!(got.status, Status::OutsideGrid);
                 continue;
             }
-            let want = adwi_compiler::hybrid::reference_predict(
+            let want = common::hybrid_reference_predict(
                 &f.residuals,
                 &f.joints_rad,
                 table.method(),

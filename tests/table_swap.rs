@@ -1,7 +1,7 @@
 //! Real-time handling of live tables: replacing a table while other threads query it, and
 //! opening with prefaulting and memory locking.
 
-mod common;
+use crate::common;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;

@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use adwi_compiler::reference;
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::reference;
+use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::method::MethodParams;
 use adwi_runtime::Target;
 
@@ -14,7 +14,7 @@ const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];
 
 fn example() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tables/paper/worked_example_p1.csv")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/paper/worked_example_p1.csv")
 }
 
 /// The paper's printed columns: distance, angle, area, λ, ζ, q per sample.

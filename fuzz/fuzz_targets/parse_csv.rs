@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use adwi_compiler::samples::{parse_samples, ColumnMap};
+use adwi_compile::samples::{parse_samples, ColumnMap};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

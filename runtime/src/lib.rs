@@ -3,7 +3,7 @@
 //! the predicted error at any target, in well under a microsecond, without allocating,
 //! locking or panicking.
 //!
-//! Tables are written by the `tablec` compiler (crate `adwi-compiler`); their byte layout
+//! Tables are written by the `tablec` compiler (crate `tablec`, over `adwi-compile`); their byte layout
 //! is documented in [`format`](mod@format). The method itself — approximation degree, admissibility,
 //! weights — is in [`method`], the single implementation that the compiler's reference,
 //! its table builder and this runtime's queries all call.

@@ -3,8 +3,8 @@
 
 #![allow(dead_code)]
 
-use adwi_compiler::build::{compile, BuildOptions};
-use adwi_compiler::samples::{parse_samples, ColumnMap};
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::samples::{parse_samples, ColumnMap};
 
 /// A deterministic generator (SplitMix64): the same tables on every run.
 pub struct SplitMix(pub u64);
@@ -80,13 +80,13 @@ pub fn targets(seed: u64, count: usize) -> Vec<[f64; 3]> {
 /// The shipped KR150-2 samples and the kinematic calibration identified from them: the
 /// starting point of every hybrid-table test.
 pub fn kr150_calibration() -> (
-    adwi_compiler::robot::Robot,
-    adwi_compiler::samples::SampleSet,
-    adwi_compiler::calibrate::Calibration,
+    adwi_robot::Robot,
+    adwi_compile::samples::SampleSet,
+    adwi_robot::calibrate::Calibration,
 ) {
-    use adwi_compiler::calibrate::{identify, CalibrateOptions};
-    use adwi_compiler::robot::{model::shipped_robot_path, Robot};
-    use adwi_compiler::samples::read_samples;
+    use adwi_compile::samples::read_samples;
+    use adwi_robot::calibrate::{identify, CalibrateOptions};
+    use adwi_robot::{model::shipped_robot_path, Robot};
     let robot_path = shipped_robot_path("kr150-2");
     let robot = Robot::load(&robot_path).unwrap();
     let samples = read_samples(
@@ -105,4 +105,46 @@ pub fn tablec(args: &[&str], dir: &std::path::Path) -> std::process::Output {
         .current_dir(dir)
         .output()
         .expect("tablec runs")
+}
+
+/// The brute-force reference of a hybrid query at `target` reached with joint angles
+/// `joints_rad`, computed independently of the table: the calibrated model's predicted
+/// error by the robot crate's own forward kinematics ([`Calibration::predict_error`]),
+/// plus the reference prediction over every residual in `residual_records` (with the
+/// joint-space screen when `joint_radius_rad > 0`). Position (mm) and orientation (rad,
+/// zero without `orientation`), or `None` when no residual sample is admissible.
+#[allow(clippy::too_many_arguments)]
+pub fn hybrid_reference_predict(
+    residual_records: &[adwi_runtime::format::SampleRecord],
+    sample_joints_rad: &[[f64; 6]],
+    params: &adwi_runtime::method::MethodParams,
+    joint_radius_rad: f64,
+    calibration: &adwi_robot::calibrate::Calibration,
+    orientation: bool,
+    target: &adwi_runtime::Target,
+    joints_rad: &[f64; 6],
+) -> Option<([f64; 3], [f64; 3])> {
+    use adwi_compile::reference::{self, JointScreen};
+    let screen = JointScreen {
+        samples_rad: sample_joints_rad,
+        target_rad: *joints_rad,
+        radius_rad: joint_radius_rad,
+    };
+    let screen = (joint_radius_rad > 0.0).then_some(&screen);
+    let rest = reference::predict_screened(residual_records, params, target, screen)?;
+    let (p, r) = calibration.predict_error(joints_rad);
+    let position = [0, 1, 2].map(|a| p[a] + rest.position_error_mm[a]);
+    let rotation = if orientation {
+        [0, 1, 2].map(|a| r[a] + rest.orientation_error_rad[a])
+    } else {
+        [0.0; 3]
+    };
+    Some((position, rotation))
+}
+
+/// A path in the repository.
+pub fn repo(path: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
 }

@@ -1,17 +1,21 @@
-//! The offline side of approximation-degree weighted interpolation: reading sample
-//! databases, the brute-force reference, and compiling cell tables for the runtime.
+//! Reading sample databases and compiling them into correction tables.
+//!
+//! - [`samples`]: the CSV reader (column mapping, units, every error located by file, line
+//!   and column) and [`samples::SampleSet`], the samples in memory;
+//! - [`build`]: the table compiler — options resolved into a plan, candidate lists per
+//!   cell, the encoded table;
+//! - [`hybrid`]: a hybrid table from samples and a given kinematic model (its residuals);
+//! - [`reference`]: the brute-force reference every compiled table is tested against;
+//! - [`write`]: writing the file without ever losing data;
+//! - [`pose`]: orientation conventions of sample files.
 //!
 //! The method itself lives in [`adwi_runtime::method`]; this crate calls it, never
-//! re-implements it.
+//! re-implements it. Kinematic identification, which finds the model of a hybrid table, is
+//! `adwi-robot`'s.
 
-pub mod baselines;
 pub mod build;
-pub mod calibrate;
-pub mod eval;
 pub mod hybrid;
-pub mod latency;
 pub mod pose;
 pub mod reference;
-pub mod robot;
 pub mod samples;
-pub mod simulate;
+pub mod write;

@@ -11,22 +11,23 @@
 //! - `open/*`: mapping and fully validating the table file vs. reading and deserialising
 //!   an owned copy.
 //!
-//! Run: `cargo bench -p adwi-compiler --bench latency`. Under `cargo test` it runs once in
+//! Run: `cargo bench -p adwi-eval --bench latency`. Under `cargo test` it runs once in
 //! criterion's test mode.
 
 use std::hint::black_box;
 use std::path::Path;
 
-use adwi_compiler::build::{compile, write_atomically, BuildOptions};
-use adwi_compiler::latency::{self, KdTreeMethod};
-use adwi_compiler::reference;
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::reference;
+use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_compile::write::write_atomically;
+use adwi_eval::latency::{self, KdTreeMethod};
 use adwi_runtime::format::{TableData, HEADER_LEN};
 use adwi_runtime::{AlignedBytes, Table, Target};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {
-    let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tables/kr150-2/samples.csv");
+    let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/kr150-2/samples.csv");
     let samples = read_samples(&csv, &ColumnMap::default()).expect("shipped samples");
     let (bytes, _) = compile(&samples, &BuildOptions::default(), &|_| {}).expect("build");
     let dir = tempfile::tempdir().expect("temporary directory");

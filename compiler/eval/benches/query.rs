@@ -2,14 +2,14 @@
 //!
 //! The table is built from a 16 × 16 × 16 lattice (4,096 samples, 50 mm spacing, ±5 mm
 //! noise) 1-2 m from the base, with 12.5 mm cells; build time and table size are printed
-//! before the measurements. Run: `cargo bench -p adwi-compiler --bench query`.
+//! before the measurements. Run: `cargo bench -p adwi-eval --bench query`.
 
 use std::hint::black_box;
 use std::time::Instant;
 
-use adwi_compiler::build::{compile, BuildOptions};
-use adwi_compiler::reference;
-use adwi_compiler::samples::SampleSet;
+use adwi_compile::build::{compile, BuildOptions};
+use adwi_compile::reference;
+use adwi_compile::samples::SampleSet;
 use adwi_runtime::{Table, Target};
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::{Rng, SeedableRng};

@@ -15,13 +15,14 @@
 //!   a k-d tree (`kiddo`) of the samples built at start-up, every sample within ε found per
 //!   query, the nearest admissible `k` selected and weighted by the same
 //!   [`adwi_runtime::method`] functions. The brute-force reference is
-//!   [`crate::reference::predict`].
+//!   [`adwi_compile::reference::predict`].
 
 use std::time::{Duration, Instant};
 
-use adwi_runtime::format::{Grid, SampleRecord};
+use adwi_compile::reference;
+use adwi_runtime::format::{Grid, SampleRecord, TableData, HEADER_LEN};
 use adwi_runtime::method::{self, Estimate, MethodParams, SampleError};
-use adwi_runtime::{Table, Target};
+use adwi_runtime::{AlignedBytes, Status, Table, Target};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -245,6 +246,88 @@ pub fn time_runs<R>(repeats: usize, mut f: impl FnMut() -> R) -> Vec<Duration> {
         .collect();
     runs.sort();
     runs
+}
+
+/// Reads the file and deserialises its payload into an owned [`TableData`], as a format
+/// without zero-copy access would have to.
+pub fn deserialise_owned(path: &std::path::Path) -> Option<TableData> {
+    let bytes = std::fs::read(path).ok()?;
+    let mut aligned = AlignedBytes::with_capacity(bytes.len());
+    aligned.extend_from_slice(&bytes);
+    rkyv::from_bytes::<TableData, rkyv::rancor::Error>(aligned.get(HEADER_LEN..)?).ok()
+}
+
+/// Whether the three contenders give the same answers: every target against the k-d
+/// tree, the first `reference_count` against the brute force.
+pub fn agreement<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    kd: &KdTreeMethod,
+    records: &[adwi_runtime::format::SampleRecord],
+    targets: &[Target],
+    reference_count: usize,
+) -> String {
+    let params = table.method();
+    let same = |t: &Target, other: Option<[f64; 3]>| {
+        let c = table.query_target(t);
+        match other {
+            Some(p) => c.status == Status::Ok && c.position_error_mm == p,
+            None => c.status != Status::Ok,
+        }
+    };
+    let kd_same = targets
+        .iter()
+        .filter(|t| same(t, kd.predict(t).map(|e| e.position_error_mm)))
+        .count();
+    let few = &targets[..reference_count.min(targets.len())];
+    let reference_same = few
+        .iter()
+        .filter(|t| {
+            let p = reference::predict(records, params, t);
+            same(t, p.map(|p| p.position_error_mm))
+        })
+        .count();
+    format!(
+        "identical answers: k-d tree {kd_same}/{}, brute force {reference_same}/{}",
+        targets.len(),
+        few.len()
+    )
+}
+
+/// A hybrid table answers only with the joint angles the controller will use, which only
+/// the controller's inverse kinematics knows for an arbitrary target: the workload is the
+/// samples' own poses, each target moved by up to 5 mm along every axis and queried with
+/// that sample's joint angles (model evaluation plus interpolated residual). `None` when
+/// the table carries no joint angles.
+pub fn hybrid_workload<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    queries: usize,
+    seed: u64,
+) -> Option<Vec<(Target, [f64; 6])>> {
+    let data = table.data()?;
+    let poses: Vec<([f64; 3], [f64; 6])> = data
+        .samples
+        .iter()
+        .zip(data.joints_rad.iter())
+        .map(|(s, q)| {
+            (
+                s.nominal_mm.map(|v| v.to_native()),
+                q.map(|v| v.to_native()),
+            )
+        })
+        .collect();
+    if poses.is_empty() {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    Some(
+        (0..queries.max(1))
+            .map(|i| {
+                let (p, q) = poses[i % poses.len()];
+                let moved = p.map(|v| v + rng.gen_range(-5.0..5.0));
+                (Target::at(moved), q)
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]

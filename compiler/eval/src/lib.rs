@@ -13,7 +13,7 @@
 //! The methods ([`Method`]) compared:
 //!
 //! - `paper`: the approximation-degree method through the real pipeline: the training
-//!   samples are compiled by [`crate::build::compile`] into table bytes, opened by
+//!   samples are compiled by [`adwi_compile::build::compile`] into table bytes, opened by
 //!   [`adwi_runtime::Table::from_vec`] and queried with
 //!   [`adwi_runtime::Table::query_target`], exactly as `tablec build` and `tablec query`
 //!   would;
@@ -22,9 +22,9 @@
 //!   angles, degrees), by brute force; the paper's remark that "close" really means close
 //!   joint angles, taken literally;
 //! - `idw`, `grid`, `kriging`: the [`crate::baselines`];
-//! - `kinematic`: model-based calibration ([`crate::calibrate`]) predicting the error at the
+//! - `kinematic`: model-based calibration ([`adwi_robot::calibrate`]) predicting the error at the
 //!   point's joint angles;
-//! - `hybrid`: the real hybrid table ([`crate::hybrid::compile`]): kinematic calibration,
+//! - `hybrid`: the real hybrid table ([`adwi_compile::hybrid::compile`]): kinematic calibration,
 //!   then the `paper` table built from what the calibrated model leaves unexplained, both
 //!   in one file, opened with [`adwi_runtime::Table::from_vec`] and queried with
 //!   [`adwi_runtime::Table::query_with_joints`] at the point's joint angles, exactly as
@@ -38,6 +38,8 @@
 //! outside the lattice) is counted per method with its reason, never dropped silently; the
 //! method's statistics are over the points it predicted.
 
+pub mod baselines;
+pub mod latency;
 pub mod output;
 pub mod report;
 
@@ -49,13 +51,13 @@ use adwi_runtime::method::{self, approximation_degree, config_matches, Neighbour
 use adwi_runtime::{Status, Table, Target};
 
 use crate::baselines::{
-    self, BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
+    BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
     ResidualStats,
 };
-use crate::build::{self, BuildError, BuildOptions};
-use crate::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
-use crate::robot::Robot;
-use crate::samples::SampleSet;
+use adwi_compile::build::{self, BuildError, BuildOptions};
+use adwi_compile::samples::SampleSet;
+use adwi_robot::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
+use adwi_robot::Robot;
 
 /// A compensation method under evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -763,15 +765,10 @@ fn predict_split(
             let c = calibration.expect("identified for kinematic methods");
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
-            let (bytes, _) =
-                crate::hybrid::compile(train, c, &options.build, &|_| {}).map_err(|e| match e {
-                    crate::hybrid::HybridError::Build(source) => {
-                        EvalError::Build { method, source }
-                    }
-                    crate::hybrid::HybridError::Calibrate(source) => {
-                        EvalError::Calibrate { method, source }
-                    }
-                })?;
+            let built =
+                adwi_compile::hybrid::compile(train, &c.kinematic_model(), &options.build, &|_| {})
+                    .map_err(|source| EvalError::Build { method, source })?;
+            let bytes = built.bytes;
             let table = Table::from_vec(bytes).map_err(|e| EvalError::Open {
                 method,
                 message: e.to_string(),

@@ -57,14 +57,14 @@ use adwi_runtime::hybrid::{joint_rows, rows_of};
 use adwi_runtime::kinematics::{forward, MdhJoint, Transform};
 use nalgebra::{DMatrix, DVector, Isometry3, Rotation3, SVector, Vector3};
 
-use crate::pose::{orientation_error, rotation_from_vector, rotation_vector};
-use crate::robot::error_model::{
+use crate::error_model::{
     apply_deviations, deviations_from_vector, pose_error_jacobian, DeviationVector, MdhParameter,
     MDH_PARAMETER_COUNT, PARAMETERS_PER_JOINT,
 };
-use crate::robot::model::{isometry_from_parts, isometry_from_transform, rotation_of};
-use crate::robot::{Robot, JOINT_COUNT};
-use crate::samples::SampleSet;
+use crate::model::{isometry_from_parts, isometry_from_transform, rotation_of};
+use crate::{Robot, JOINT_COUNT};
+use adwi_compile::pose::{orientation_error, rotation_from_vector, rotation_vector};
+use adwi_compile::samples::SampleSet;
 
 /// Identified parameters: 30 MD-H deviations, tool translation and rotation, base
 /// translation and rotation (see the module docs for the order and units).
@@ -282,7 +282,7 @@ impl Calibration {
     /// to rounding: both evaluate the same forward kinematics.
     pub fn kinematic_model(&self) -> KinematicModel {
         let m = &self.model;
-        let nominal_tool = crate::robot::model::transform_from_isometry(&m.nominal_tool);
+        let nominal_tool = crate::model::transform_from_isometry(&m.nominal_tool);
         let r = m.base_rotation.matrix();
         let base = Transform {
             rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
@@ -345,8 +345,7 @@ impl Model {
             self.nominal_tool.translation.vector + x.fixed_rows::<3>(TOOL_TRANSLATION).into_owned();
         let r = rotation_from_vector(three(x, TOOL_ROTATION))
             * self.nominal_tool.rotation.to_rotation_matrix();
-        let tool =
-            crate::robot::model::transform_from_isometry(&isometry_from_parts([t.x, t.y, t.z], &r));
+        let tool = crate::model::transform_from_isometry(&isometry_from_parts([t.x, t.y, t.z], &r));
         Model {
             joints,
             tool,
@@ -357,7 +356,7 @@ impl Model {
     }
 
     fn nominal_pose(&self, q_rad: &[f64; JOINT_COUNT]) -> Isometry3<f64> {
-        let tool = crate::robot::model::transform_from_isometry(&self.nominal_tool);
+        let tool = crate::model::transform_from_isometry(&self.nominal_tool);
         isometry_from_transform(&forward(&self.nominal_joints, &tool, q_rad))
     }
 
@@ -697,7 +696,7 @@ fn pivot_columns(a: &DMatrix<f64>, tolerance: f64) -> (Vec<usize>, Vec<(usize, f
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::model::shipped_robot_path;
+    use crate::model::shipped_robot_path;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -917,5 +916,43 @@ mod tests {
             joint: 1,
             parameter: MdhParameter::Theta
         }));
+    }
+
+    /// The stored model reproduces the identification's predictions through the runtime's
+    /// forward kinematics, and the residuals it leaves are the identification's.
+    #[test]
+    fn stored_model_agrees_with_the_identification() {
+        let dir = shipped_robot_path("kr150-2");
+        let robot = Robot::load(&dir).unwrap();
+        let samples = adwi_compile::samples::read_samples(
+            &dir.parent().unwrap().join("samples.csv"),
+            &adwi_compile::samples::ColumnMap::default(),
+        )
+        .unwrap();
+        let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        let model = c.kinematic_model();
+        let joints = samples.joints_deg.as_ref().unwrap();
+        for q_deg in joints.iter().step_by(37) {
+            let q = q_deg.map(f64::to_radians);
+            let (p, r) = adwi_runtime::hybrid::model_error(&model, &q);
+            let (p_ref, r_ref) = c.predict_error(&q);
+            for a in 0..3 {
+                assert!((p[a] - p_ref[a]).abs() < 1e-9, "{p:?} vs {p_ref:?}");
+                assert!((r[a] - r_ref[a]).abs() < 1e-12, "{r:?} vs {r_ref:?}");
+            }
+        }
+        let residual = adwi_compile::hybrid::residual_samples(&samples, &model).unwrap();
+        let rms = (residual
+            .error_mm
+            .iter()
+            .map(|e| e.iter().map(|v| v * v).sum::<f64>())
+            .sum::<f64>()
+            / residual.len() as f64)
+            .sqrt();
+        assert!(
+            (rms - c.position_rms_mm).abs() < 1e-9,
+            "{rms} vs {}",
+            c.position_rms_mm
+        );
     }
 }

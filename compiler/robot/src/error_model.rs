@@ -29,7 +29,7 @@ use adwi_runtime::kinematics::{link_frames, MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
 use super::model::JOINT_COUNT;
-use crate::pose::orientation_error;
+use adwi_compile::pose::orientation_error;
 
 /// The MD-H parameters that can deviate, in their column order within a joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -283,7 +283,7 @@ pub fn pose_error(nominal: &Isometry3<f64>, actual: &Isometry3<f64>) -> Vector6<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::model::{isometry_from_transform, shipped_robot_path, Robot};
+    use crate::model::{isometry_from_transform, shipped_robot_path, Robot};
     use adwi_runtime::kinematics::forward;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -294,11 +294,11 @@ mod tests {
 
     /// A non-trivial tool, so the Jacobian is checked away from the flange too.
     fn tool() -> Transform {
-        let iso = crate::robot::model::isometry_from_parts(
+        let iso = crate::model::isometry_from_parts(
             [30.0, -20.0, 250.0],
-            &crate::pose::rotation_from_kuka_abc_deg([10.0, 20.0, 30.0]),
+            &adwi_compile::pose::rotation_from_kuka_abc_deg([10.0, 20.0, 30.0]),
         );
-        crate::robot::model::transform_from_isometry(&iso)
+        crate::model::transform_from_isometry(&iso)
     }
 
     fn exact_error(

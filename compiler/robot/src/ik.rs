@@ -494,9 +494,9 @@ fn converged(error: &Vector6<f64>) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::{orientation_error, rotation_from_kuka_abc_deg};
-    use crate::robot::error_model::{apply_deviations, JointDeviation};
-    use crate::robot::model::{isometry_from_parts, shipped_robot_path};
+    use crate::error_model::{apply_deviations, JointDeviation};
+    use crate::model::{isometry_from_parts, shipped_robot_path};
+    use adwi_compile::pose::{orientation_error, rotation_from_kuka_abc_deg};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -28,7 +28,7 @@ use adwi_runtime::kinematics::{self, MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use crate::pose::rotation_from_kuka_abc_deg;
+use adwi_compile::pose::rotation_from_kuka_abc_deg;
 
 /// Number of joints of the robots this crate models.
 pub const JOINT_COUNT: usize = 6;
@@ -347,8 +347,7 @@ pub fn rotation_of(transform: &Transform) -> Rotation3<f64> {
 /// `shipped_robot_path("kr150-2")`.
 pub fn shipped_robot_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("tables")
+        .join("../../tables")
         .join(name)
         .join("robot.toml")
 }
@@ -434,7 +433,7 @@ mod tests {
     fn ur5_tool_offset_fits_the_data_set_targets() {
         let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
         let data = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
+            .join("../../tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
         let mut reader = csv::Reader::from_path(&data).unwrap();
         let mut flanges = Vec::new();
         let mut targets = Vec::new();

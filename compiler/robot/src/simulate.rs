@@ -29,12 +29,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::pose::{
+use crate::error_model::{apply_deviations, JointDeviation, MdhDeviations};
+use crate::model::{isometry_from_parts, isometry_from_transform};
+use crate::{Configuration, IkError, InverseKinematics, Robot, JOINT_COUNT};
+use adwi_compile::pose::{
     kuka_abc_deg_from_rotation, orientation_error, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
-use crate::robot::error_model::{apply_deviations, JointDeviation, MdhDeviations};
-use crate::robot::model::{isometry_from_parts, isometry_from_transform};
-use crate::robot::{Configuration, IkError, InverseKinematics, Robot, JOINT_COUNT};
 
 /// Standard gravity, m/s².
 const GRAVITY_M_PER_S2: f64 = 9.80665;
@@ -774,8 +774,8 @@ pub fn position_error_stats_mm(samples: &[SimulatedSample]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::error_model::{deviation_vector, pose_error, pose_error_jacobian};
-    use crate::robot::model::shipped_robot_path;
+    use crate::error_model::{deviation_vector, pose_error, pose_error_jacobian};
+    use crate::model::shipped_robot_path;
 
     fn kr150() -> Robot {
         Robot::load(shipped_robot_path("kr150-2")).unwrap()

@@ -3,10 +3,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use adwi_compiler::latency::{self, KdTreeMethod, Summary, Timer};
-use adwi_compiler::reference;
-use adwi_runtime::format::{TableData, HEADER_LEN};
-use adwi_runtime::{AlignedBytes, Status, Table, Target};
+use adwi_compile::reference;
+use adwi_eval::latency::{self, KdTreeMethod, Summary, Timer};
+use adwi_runtime::{Status, Table};
 use anyhow::Context;
 
 #[derive(clap::Args)]
@@ -123,7 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             t.p99_ns,
             k.p50_ns / t.p50_ns.max(1.0),
             k.p99_ns / t.p99_ns.max(1.0),
-            agreement(&table, &kd, &records, targets, args.reference_queries),
+            latency::agreement(&table, &kd, &records, targets, args.reference_queries),
         ));
     }
     println!();
@@ -153,7 +152,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (
             "(c) read + deserialise owned copy (rkyv)",
             latency::time_runs(args.open_repeats, || {
-                deserialise(path).map(|d| d.samples.len())
+                latency::deserialise_owned(path).map(|d| d.samples.len())
             }),
         ),
         (
@@ -177,51 +176,6 @@ fn micros(d: Duration) -> f64 {
     d.as_nanos() as f64 / 1e3
 }
 
-/// Reads the file and deserialises its payload into an owned [`TableData`], as a format
-/// without zero-copy access would have to.
-fn deserialise(path: &std::path::Path) -> Option<TableData> {
-    let bytes = std::fs::read(path).ok()?;
-    let mut aligned = AlignedBytes::with_capacity(bytes.len());
-    aligned.extend_from_slice(&bytes);
-    rkyv::from_bytes::<TableData, rkyv::rancor::Error>(aligned.get(HEADER_LEN..)?).ok()
-}
-
-/// Whether the three contenders give the same answers: every target against the k-d
-/// tree, the first `reference_count` against the brute force.
-fn agreement<D: AsRef<[u8]>>(
-    table: &Table<D>,
-    kd: &KdTreeMethod,
-    records: &[adwi_runtime::format::SampleRecord],
-    targets: &[Target],
-    reference_count: usize,
-) -> String {
-    let params = table.method();
-    let same = |t: &Target, other: Option<[f64; 3]>| {
-        let c = table.query_target(t);
-        match other {
-            Some(p) => c.status == Status::Ok && c.position_error_mm == p,
-            None => c.status != Status::Ok,
-        }
-    };
-    let kd_same = targets
-        .iter()
-        .filter(|t| same(t, kd.predict(t).map(|e| e.position_error_mm)))
-        .count();
-    let few = &targets[..reference_count.min(targets.len())];
-    let reference_same = few
-        .iter()
-        .filter(|t| {
-            let p = reference::predict(records, params, t);
-            same(t, p.map(|p| p.position_error_mm))
-        })
-        .count();
-    format!(
-        "identical answers: k-d tree {kd_same}/{}, brute force {reference_same}/{}",
-        targets.len(),
-        few.len()
-    )
-}
-
 /// A hybrid table answers only with the joint angles the controller will use, which only
 /// the controller's inverse kinematics knows for an arbitrary target: the workload is the
 /// samples' own poses, each target moved by up to 5 mm along every axis and queried with
@@ -232,31 +186,8 @@ fn bench_hybrid<D: AsRef<[u8]>>(
     queries: usize,
     seed: u64,
 ) -> anyhow::Result<()> {
-    use rand::{Rng, SeedableRng};
-    let data = table.data().context("table bytes changed")?;
-    let poses: Vec<([f64; 3], [f64; 6])> = data
-        .samples
-        .iter()
-        .zip(data.joints_rad.iter())
-        .map(|(s, q)| {
-            (
-                s.nominal_mm.map(|v| v.to_native()),
-                q.map(|v| v.to_native()),
-            )
-        })
-        .collect();
-    anyhow::ensure!(
-        !poses.is_empty(),
-        "the hybrid table carries no joint angles"
-    );
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let inputs: Vec<(Target, [f64; 6])> = (0..queries.max(1))
-        .map(|i| {
-            let (p, q) = poses[i % poses.len()];
-            let moved = p.map(|v| v + rng.gen_range(-5.0..5.0));
-            (Target::at(moved), q)
-        })
-        .collect();
+    let inputs = latency::hybrid_workload(table, queries, seed)
+        .context("the hybrid table carries no joint angles")?;
     let answered = inputs
         .iter()
         .filter(|(t, q)| table.query_with_joints(t, q).status == Status::Ok)

@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use adwi_compiler::build::{compile, write_atomically};
-use adwi_compiler::calibrate::{CalibrateOptions, Calibration};
-use adwi_compiler::hybrid::identify_and_compile;
-use adwi_compiler::robot::Robot;
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::build::compile;
+use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_compile::write::write_atomically;
+use adwi_robot::calibrate::{CalibrateOptions, Calibration};
+use adwi_robot::Robot;
 use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
@@ -49,9 +49,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let samples = read_samples(&args.samples, &columns)?;
     let (w1, w2) = args.table.weights();
     let options = args.table.build_options();
-    let (_, _, plan) = adwi_compiler::build::resolve(&samples, &options)?;
+    let (_, _, plan) = adwi_compile::build::resolve(&samples, &options)?;
     let reachable =
-        adwi_compiler::build::max_covered_cells(plan.samples, plan.radius_mm, plan.cell_mm);
+        adwi_compile::build::max_covered_cells(plan.samples, plan.radius_mm, plan.cell_mm);
     if plan.cells > 100_000 && plan.cells as f64 > 10.0 * reachable {
         eprintln!(
             "warning: the grid's {} cells are mostly empty: at most {:.0} of them lie within ε = \
@@ -60,7 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             plan.cells,
             reachable.min(plan.cells as f64),
             plan.radius_mm,
-            adwi_compiler::build::human_bytes(adwi_compiler::build::estimated_table_bytes(
+            adwi_compile::build::human_bytes(adwi_compile::build::estimated_table_bytes(
                 plan.cells as u128,
                 plan.samples,
                 plan.radius_mm,
@@ -91,16 +91,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let robot = Robot::load(robot_path)
                 .with_context(|| format!("cannot load the robot {}", robot_path.display()))?;
             bar.set_message("identifying");
+            let identified = pool.install(|| {
+                adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
+            })?;
+            bar.set_message("compiling");
             let built = pool.install(|| {
-                identify_and_compile(
-                    &robot,
+                adwi_compile::hybrid::compile(
                     &samples,
+                    &identified.kinematic_model(),
                     &options,
-                    &CalibrateOptions::default(),
                     &|n| bar.inc(n),
                 )
             })?;
-            calibration = Some((built.calibration, built.residual_position_rms_mm));
+            calibration = Some((identified, built.residual_position_rms_mm));
             (built.bytes, built.report)
         }
         (Some(_), false) => {

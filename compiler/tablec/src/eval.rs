@@ -2,10 +2,10 @@
 
 use std::path::PathBuf;
 
-use adwi_compiler::calibrate::CalibrateOptions;
-use adwi_compiler::eval::{self, EvalOptions, Method, Protocol};
-use adwi_compiler::robot::Robot;
-use adwi_compiler::samples::{read_samples, ColumnMap};
+use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_eval::{EvalOptions, Method, Protocol};
+use adwi_robot::calibrate::CalibrateOptions;
+use adwi_robot::Robot;
 use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     bail!("--limit must be at least 1");
                 }
                 let n = n.min(validation.len());
-                validation = eval::subset(&validation, &(0..n).collect::<Vec<_>>());
+                validation = adwi_eval::subset(&validation, &(0..n).collect::<Vec<_>>());
             }
             Protocol::Validation(validation)
         }
@@ -97,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..EvalOptions::default()
     };
-    let evaluation = eval::evaluate(&samples, &protocol, &options)?;
+    let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
 
     for c in evaluation.calibrations.iter().take(1) {
         if !c.unidentifiable.is_empty() {
@@ -118,14 +118,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     if !args.quiet {
-        print!("{}", eval::output::terminal_table(&evaluation));
+        print!("{}", adwi_eval::output::terminal_table(&evaluation));
     }
     if let Some(path) = &args.csv {
-        std::fs::write(path, eval::output::csv(&evaluation))
+        std::fs::write(path, adwi_eval::output::csv(&evaluation))
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(path) = &args.json {
-        let text = eval::output::json(&evaluation).context("cannot encode the evaluation")?;
+        let text = adwi_eval::output::json(&evaluation).context("cannot encode the evaluation")?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(dir) = &args.report {
@@ -133,7 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|a| if a.contains(' ') { format!("'{a}'") } else { a })
             .collect::<Vec<_>>()
             .join(" ");
-        let page = eval::report::write(&evaluation, &command, dir)?;
+        let page = adwi_eval::report::write(&evaluation, &command, dir)?;
         if !args.quiet {
             println!("report: {}", page.display());
         }

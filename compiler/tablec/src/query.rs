@@ -3,8 +3,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_compiler::pose;
-use adwi_compiler::samples::ColumnMap;
+use adwi_compile::pose;
+use adwi_compile::samples::ColumnMap;
 use adwi_runtime::{Correction, Status, Table, Target};
 use anyhow::{bail, Context};
 
@@ -186,7 +186,7 @@ fn run_batch(
     output: Option<&Path>,
 ) -> anyhow::Result<Answered> {
     let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
-    let targets = adwi_compiler::samples::read_targets(targets, &columns)?;
+    let targets = adwi_compile::samples::read_targets(targets, &columns)?;
     let mut out: Box<dyn Write> = match output {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path)

@@ -4,10 +4,10 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
-use adwi_compiler::robot::{Configuration, Robot};
-use adwi_compiler::simulate::{
+use adwi_robot::simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
+use adwi_robot::{Configuration, Robot};
 use anyhow::{bail, Context};
 
 /// Simulate measured samples: nominal poses on a lattice or at random in a box, their exact

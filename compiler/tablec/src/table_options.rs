@@ -3,7 +3,7 @@
 // The field docs are clap's help text, where the paper's [λ] and [ζ] read as written.
 #![allow(rustdoc::broken_intra_doc_links)]
 
-use adwi_compiler::build::BuildOptions;
+use adwi_compile::build::BuildOptions;
 
 /// A box's minimum and maximum corners, mm.
 type Bounds = ([f64; 3], [f64; 3]);

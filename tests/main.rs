@@ -1,0 +1,20 @@
+//! The end-to-end tests of the workspace, as one test binary (linking dominates a test
+//! build's time): the real `tablec` executable, the runtime against the brute-force
+//! reference, table files good and hostile, the C interface, allocation counting,
+//! concurrent table swaps, the shipped data and the documented figures.
+
+mod common;
+
+mod c_abi;
+mod cli;
+mod compat;
+mod eval;
+mod hostile_csv;
+mod latency_guard;
+mod no_alloc;
+mod shipped_kr150_data;
+mod table_files;
+mod table_matches_reference;
+mod table_mutation;
+mod table_swap;
+mod worked_example;
