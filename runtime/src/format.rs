@@ -186,6 +186,16 @@ pub struct SampleRecord {
     pub config: u8,
 }
 
+impl SampleRecord {
+    /// The sample's measured errors, as the method weighs them.
+    pub fn measured_error(&self) -> crate::method::SampleError {
+        crate::method::SampleError {
+            position_mm: self.error_mm,
+            orientation_rad: self.rotation_error_rad,
+        }
+    }
+}
+
 /// One cell: where its candidate list is. Eight bytes, so that the cell records a query
 /// touches stay dense in cache.
 #[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]

@@ -30,7 +30,7 @@ use adwi_runtime::format::{
     self, CellRecord, Grid, Header, KinematicModel, SampleRecord, TableData, CONTENT_CONFIG,
     CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION,
 };
-use adwi_runtime::method::{self, MethodParams, SampleError};
+use adwi_runtime::method::{self, MethodParams};
 use rayon::prelude::*;
 
 use crate::samples::SampleSet;
@@ -580,13 +580,7 @@ fn centre_weights(
         let r = &records[i as usize];
         Some((r.actual_mm, r.config))
     });
-    let error_of = |i: u32| {
-        let r = &records[i as usize];
-        SampleError {
-            position_mm: r.error_mm,
-            orientation_rad: r.rotation_error_rad,
-        }
-    };
+    let error_of = |i: u32| records[i as usize].measured_error();
     let neighbours = method::neighbours(centre, &selection, |i| records[i as usize].actual_mm);
     match method::predict(params, neighbours.as_slice(), error_of) {
         Some(p) => p

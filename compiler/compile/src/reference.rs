@@ -5,7 +5,7 @@
 use adwi_runtime::format::SampleRecord;
 use adwi_runtime::hybrid::joints_within;
 use adwi_runtime::method::{
-    self, approximation_degree, config_matches, MethodParams, Neighbour, Prediction, SampleError,
+    self, approximation_degree, config_matches, MethodParams, Neighbour, Prediction,
 };
 use adwi_runtime::Target;
 
@@ -47,11 +47,27 @@ pub fn neighbours_screened(
     target: &Target,
     screen: Option<&JointScreen>,
 ) -> Vec<Neighbour> {
+    neighbours_ranked(records, params, target, screen, |n| {
+        n.degree.distance_squared_mm2
+    })
+}
+
+/// The admissible samples for `target` (with the joint-space screen when given), the `k`
+/// first by `rank` (smallest first, ties by sample order): filter all samples, sort,
+/// truncate. [`neighbours_screened`] ranks by Cartesian distance, as the method does;
+/// other rankings (the nearest in joint space, say) keep its admissibility exactly.
+pub fn neighbours_ranked(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    target: &Target,
+    screen: Option<&JointScreen>,
+    rank: impl Fn(&Neighbour) -> f64,
+) -> Vec<Neighbour> {
     let p = target.position_mm;
     if !params.target_in_range(p) {
         return Vec::new();
     }
-    let mut admissible: Vec<Neighbour> = records
+    let mut admissible: Vec<(f64, Neighbour)> = records
         .iter()
         .enumerate()
         .filter(|(_, s)| config_matches(s.config, target.config))
@@ -61,15 +77,11 @@ pub fn neighbours_screened(
             degree: approximation_degree(p, s.actual_mm),
         })
         .filter(|n| params.degree_admissible(&n.degree))
+        .map(|n| (rank(&n), n))
         .collect();
-    admissible.sort_by(|a, b| {
-        a.degree
-            .distance_squared_mm2
-            .total_cmp(&b.degree.distance_squared_mm2)
-            .then(a.sample.cmp(&b.sample))
-    });
+    admissible.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.sample.cmp(&b.1.sample)));
     admissible.truncate(params.max_neighbours as usize);
-    admissible
+    admissible.into_iter().map(|(_, n)| n).collect()
 }
 
 /// The reference prediction at `target`, or `None` when no sample is admissible (or the
@@ -93,11 +105,5 @@ pub fn predict_screened(
         return None;
     }
     let selected = neighbours_screened(records, params, target, screen);
-    method::predict(params, &selected, |i| {
-        let s = &records[i as usize];
-        SampleError {
-            position_mm: s.error_mm,
-            orientation_rad: s.rotation_error_rad,
-        }
-    })
+    method::predict(params, &selected, |i| records[i as usize].measured_error())
 }

@@ -333,7 +333,7 @@ impl ColumnMap {
 
 /// What is wrong with a sample file.
 #[derive(Debug, Clone, PartialEq)]
-pub enum SampleErrorKind {
+pub enum ReadErrorKind {
     /// The file could not be read.
     Io(String),
     /// The file has no header row.
@@ -378,7 +378,7 @@ pub enum SampleErrorKind {
 
 /// An error in a sample file, located by file, line and column.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SampleError {
+pub struct ReadError {
     /// The file.
     pub path: PathBuf,
     /// The 1-based line, when the error has one.
@@ -386,10 +386,10 @@ pub struct SampleError {
     /// The 1-based column number and its header name, when the error has one.
     pub column: Option<(usize, String)>,
     /// What is wrong.
-    pub kind: SampleErrorKind,
+    pub kind: ReadErrorKind,
 }
 
-impl fmt::Display for SampleError {
+impl fmt::Display for ReadError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.path.display())?;
         if let Some(line) = self.line {
@@ -400,29 +400,29 @@ impl fmt::Display for SampleError {
         }
         write!(f, ": ")?;
         match &self.kind {
-            SampleErrorKind::Io(e) => write!(f, "cannot read: {e}"),
-            SampleErrorKind::Empty => write!(f, "empty file: expected a header row"),
-            SampleErrorKind::NoSamples => write!(f, "no sample rows after the header"),
-            SampleErrorKind::MissingColumn { wanted, found } => write!(
+            ReadErrorKind::Io(e) => write!(f, "cannot read: {e}"),
+            ReadErrorKind::Empty => write!(f, "empty file: expected a header row"),
+            ReadErrorKind::NoSamples => write!(f, "no sample rows after the header"),
+            ReadErrorKind::MissingColumn { wanted, found } => write!(
                 f,
                 "missing column {wanted} (name it in the header, or map it with --columns); {found}"
             ),
-            SampleErrorKind::IncompleteColumns(what) => write!(f, "incomplete columns: {what}"),
-            SampleErrorKind::DuplicateColumn(c) => write!(f, "column '{c}' appears twice"),
-            SampleErrorKind::FieldCount { expected, found } => {
+            ReadErrorKind::IncompleteColumns(what) => write!(f, "incomplete columns: {what}"),
+            ReadErrorKind::DuplicateColumn(c) => write!(f, "column '{c}' appears twice"),
+            ReadErrorKind::FieldCount { expected, found } => {
                 write!(f, "{found} fields where the header has {expected}")
             }
-            SampleErrorKind::NotANumber(v) => write!(f, "not a number: '{v}'"),
-            SampleErrorKind::NotFinite(v) => write!(f, "not a finite number: '{v}'"),
-            SampleErrorKind::BadConfig(v) => {
+            ReadErrorKind::NotANumber(v) => write!(f, "not a number: '{v}'"),
+            ReadErrorKind::NotFinite(v) => write!(f, "not a finite number: '{v}'"),
+            ReadErrorKind::BadConfig(v) => {
                 write!(
                     f,
                     "configuration must be an integer from 0 to 254, found '{v}'"
                 )
             }
-            SampleErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
-            SampleErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
-            SampleErrorKind::DuplicatePosition { first_line } => write!(
+            ReadErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
+            ReadErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
+            ReadErrorKind::DuplicatePosition { first_line } => write!(
                 f,
                 "nominal position already given on line {first_line}: each sample needs its own"
             ),
@@ -430,23 +430,23 @@ impl fmt::Display for SampleError {
     }
 }
 
-impl std::error::Error for SampleError {}
+impl std::error::Error for ReadError {}
 
 /// Reads a sample file. See the module docs for the format.
 ///
 /// # Errors
 ///
 /// The first problem found, with file, line and column.
-pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, SampleError> {
+pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, ReadError> {
     parse_samples(path, &read_file(path)?, columns)
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, SampleError> {
-    std::fs::read(path).map_err(|e| SampleError {
+fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
+    std::fs::read(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
         column: None,
-        kind: SampleErrorKind::Io(e.to_string()),
+        kind: ReadErrorKind::Io(e.to_string()),
     })
 }
 
@@ -491,7 +491,7 @@ pub struct TargetRow {
 /// # Errors
 ///
 /// As [`read_samples`], but error columns are not required.
-pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, SampleError> {
+pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, ReadError> {
     let set = parse(path, &read_file(path)?, columns, Purpose::Targets)?;
     Ok((0..set.len())
         .map(|i| TargetRow {
@@ -513,7 +513,7 @@ pub fn parse_samples(
     path: &Path,
     bytes: &[u8],
     columns: &ColumnMap,
-) -> Result<SampleSet, SampleError> {
+) -> Result<SampleSet, ReadError> {
     parse(path, bytes, columns, Purpose::Samples)
 }
 
@@ -528,8 +528,8 @@ fn parse(
     bytes: &[u8],
     columns: &ColumnMap,
     purpose: Purpose,
-) -> Result<SampleSet, SampleError> {
-    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| SampleError {
+) -> Result<SampleSet, ReadError> {
+    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
         path: path.to_path_buf(),
         line,
         column,
@@ -553,7 +553,7 @@ fn parse(
     let mut header = csv::ByteRecord::new();
     match reader.read_byte_record(&mut header) {
         Ok(true) => {}
-        Ok(false) => return Err(error(None, None, SampleErrorKind::Empty)),
+        Ok(false) => return Err(error(None, None, ReadErrorKind::Empty)),
         Err(e) => return Err(csv_error(path, e, &|_| 1)),
     }
     let line_at = |p: Option<&csv::Position>| {
@@ -572,13 +572,13 @@ fn parse(
     let mut distinct = std::collections::HashSet::with_capacity(header.len());
     for field in header.iter() {
         let name = std::str::from_utf8(field)
-            .map_err(|_| error(Some(header_line), None, SampleErrorKind::NotUtf8))?
+            .map_err(|_| error(Some(header_line), None, ReadErrorKind::NotUtf8))?
             .to_ascii_lowercase();
         if !name.is_empty() && !distinct.insert(name.clone()) {
             return Err(error(
                 Some(header_line),
                 Some((names.len() + 1, name.clone())),
-                SampleErrorKind::DuplicateColumn(name),
+                ReadErrorKind::DuplicateColumn(name),
             ));
         }
         names.push(name);
@@ -620,33 +620,33 @@ fn parse(
             return Err(error(
                 Some(line),
                 None,
-                SampleErrorKind::FieldCount {
+                ReadErrorKind::FieldCount {
                     expected: names.len() as u64,
                     found: record.len() as u64,
                 },
             ));
         }
-        let number = |index: usize| -> Result<f64, SampleError> {
+        let number = |index: usize| -> Result<f64, ReadError> {
             let column = || Some((index + 1, names[index].clone()));
             let text = std::str::from_utf8(&record[index])
-                .map_err(|_| error(Some(line), column(), SampleErrorKind::NotUtf8))?;
+                .map_err(|_| error(Some(line), column(), ReadErrorKind::NotUtf8))?;
             let value: f64 = text.parse().map_err(|_| {
                 error(
                     Some(line),
                     column(),
-                    SampleErrorKind::NotANumber(truncated(text)),
+                    ReadErrorKind::NotANumber(truncated(text)),
                 )
             })?;
             if !value.is_finite() {
                 return Err(error(
                     Some(line),
                     column(),
-                    SampleErrorKind::NotFinite(truncated(text)),
+                    ReadErrorKind::NotFinite(truncated(text)),
                 ));
             }
             Ok(if layout.negate[index] { -value } else { value })
         };
-        let triple = |cols: [usize; 3]| -> Result<[f64; 3], SampleError> {
+        let triple = |cols: [usize; 3]| -> Result<[f64; 3], ReadError> {
             Ok([number(cols[0])?, number(cols[1])?, number(cols[2])?])
         };
         let nominal = triple(layout.position)?;
@@ -692,7 +692,7 @@ fn parse(
                     error(
                         Some(line),
                         Some((c + 1, names[c].clone())),
-                        SampleErrorKind::BadConfig(truncated(&text)),
+                        ReadErrorKind::BadConfig(truncated(&text)),
                     )
                 })?;
             push(&mut set.config, config);
@@ -703,7 +703,7 @@ fn parse(
             return Err(error(
                 Some(line),
                 None,
-                SampleErrorKind::DuplicatePosition { first_line },
+                ReadErrorKind::DuplicatePosition { first_line },
             ));
         }
         seen.insert(key, line);
@@ -712,7 +712,7 @@ fn parse(
         set.lines.push(line);
     }
     if set.is_empty() {
-        return Err(error(Some(header_line), None, SampleErrorKind::NoSamples));
+        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
     }
     Ok(set)
 }
@@ -735,14 +735,14 @@ fn csv_error(
     path: &Path,
     e: csv::Error,
     line_at: &dyn Fn(Option<&csv::Position>) -> u64,
-) -> SampleError {
+) -> ReadError {
     let line = e.position().map(|p| line_at(Some(p)));
     let kind = match e.kind() {
-        csv::ErrorKind::Utf8 { .. } => SampleErrorKind::NotUtf8,
-        csv::ErrorKind::Io(io) => SampleErrorKind::Io(io.to_string()),
-        _ => SampleErrorKind::Syntax(e.to_string()),
+        csv::ErrorKind::Utf8 { .. } => ReadErrorKind::NotUtf8,
+        csv::ErrorKind::Io(io) => ReadErrorKind::Io(io.to_string()),
+        _ => ReadErrorKind::Syntax(e.to_string()),
     };
-    SampleError {
+    ReadError {
         path: path.to_path_buf(),
         line,
         column: None,
@@ -777,8 +777,8 @@ fn describe_header(names: &[String]) -> String {
 }
 
 /// Finds the columns of each part; all-or-none groups must be complete.
-fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout, SampleErrorKind> {
-    let missing = |wanted: &str| SampleErrorKind::MissingColumn {
+fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout, ReadErrorKind> {
+    let missing = |wanted: &str| ReadErrorKind::MissingColumn {
         wanted: wanted.to_string(),
         found: describe_header(names),
     };
@@ -789,7 +789,7 @@ fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout,
         negate[index] = neg;
         Some(index)
     };
-    let mut group = |cols: &[&str]| -> Result<Option<Vec<usize>>, SampleErrorKind> {
+    let mut group = |cols: &[&str]| -> Result<Option<Vec<usize>>, ReadErrorKind> {
         let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
         if found.iter().all(Option::is_none) {
             return Ok(None);
@@ -801,7 +801,7 @@ fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout,
                 .filter(|(_, f)| f.is_some())
                 .map(|(c, _)| *c)
                 .collect();
-            return Err(SampleErrorKind::IncompleteColumns(format!(
+            return Err(ReadErrorKind::IncompleteColumns(format!(
                 "'{}' given without '{}'",
                 present.join(","),
                 cols[i]
@@ -819,7 +819,7 @@ fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout,
         (Some(d), None) => ErrorColumns::Delta(d),
         (None, Some(m)) => ErrorColumns::Measured(m),
         (Some(_), Some(_)) => {
-            return Err(SampleErrorKind::IncompleteColumns(
+            return Err(ReadErrorKind::IncompleteColumns(
                 "both dx,dy,dz and mx,my,mz given: keep one".into(),
             ))
         }
@@ -835,7 +835,7 @@ fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout,
     let measured_abc = group(&["ma", "mb", "mc"])?.map(three);
     let rotation = match (nominal_abc, vector, measured_abc) {
         (_, Some(_), Some(_)) => {
-            return Err(SampleErrorKind::IncompleteColumns(
+            return Err(ReadErrorKind::IncompleteColumns(
                 "both rx,ry,rz and ma,mb,mc given: keep one".into(),
             ))
         }
@@ -867,7 +867,7 @@ fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout,
 mod tests {
     use super::*;
 
-    fn parse(text: &str) -> Result<SampleSet, SampleError> {
+    fn parse(text: &str) -> Result<SampleSet, ReadError> {
         parse_samples(Path::new("s.csv"), text.as_bytes(), &ColumnMap::default())
     }
 

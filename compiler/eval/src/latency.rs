@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use adwi_compile::reference;
 use adwi_runtime::format::{Grid, SampleRecord, TableData, HEADER_LEN};
-use adwi_runtime::method::{self, Estimate, MethodParams, SampleError};
+use adwi_runtime::method::{self, Estimate, MethodParams};
 use adwi_runtime::{AlignedBytes, Status, Table, Target};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rand::{Rng, SeedableRng};
@@ -226,11 +226,11 @@ impl KdTreeMethod {
         );
         method::estimate(&self.params, p, &selection, |i| {
             let r = &records[i as usize];
-            let error = SampleError {
-                position_mm: r.error_mm,
-                orientation_rad: r.rotation_error_rad,
-            };
-            (r.actual_mm, method::norm_mm(r.actual_mm), error)
+            (
+                r.actual_mm,
+                method::norm_mm(r.actual_mm),
+                r.measured_error(),
+            )
         })
     }
 }

@@ -47,7 +47,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use adwi_runtime::method::{self, approximation_degree, config_matches, Neighbour, SampleError};
+use adwi_runtime::method;
 use adwi_runtime::{Status, Table, Target};
 
 use crate::baselines::{
@@ -836,10 +836,6 @@ fn joint_space_prediction(
     target_joints_deg: &[f64; 6],
     orientation: bool,
 ) -> Result<PointPrediction, Miss> {
-    let p = target.position_mm;
-    if !params.target_in_range(p) {
-        return Err(Miss::status(Status::NoAdmissibleNeighbour));
-    }
     let joint_distance = |q: &[f64; 6]| {
         q.iter()
             .zip(target_joints_deg)
@@ -847,30 +843,12 @@ fn joint_space_prediction(
             .sum::<f64>()
             .sqrt()
     };
-    let mut admissible: Vec<(f64, Neighbour)> = records
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| config_matches(s.config, target.config))
-        .map(|(i, s)| {
-            (
-                joint_distance(&train_joints_deg[i]),
-                Neighbour {
-                    sample: i as u32,
-                    degree: approximation_degree(p, s.actual_mm),
-                },
-            )
-        })
-        .filter(|(_, n)| params.degree_admissible(&n.degree))
-        .collect();
-    admissible.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.sample.cmp(&b.1.sample)));
-    admissible.truncate(params.max_neighbours as usize);
-    let neighbours: Vec<Neighbour> = admissible.into_iter().map(|(_, n)| n).collect();
+    let neighbours =
+        adwi_compile::reference::neighbours_ranked(records, params, target, None, |n| {
+            joint_distance(&train_joints_deg[n.sample as usize])
+        });
     let prediction = method::predict(params, &neighbours, |i| {
-        let s = &records[i as usize];
-        SampleError {
-            position_mm: s.error_mm,
-            orientation_rad: s.rotation_error_rad,
-        }
+        records[i as usize].measured_error()
     })
     .ok_or(Miss::status(Status::NoAdmissibleNeighbour))?;
     Ok(PointPrediction {
