@@ -8,7 +8,8 @@
 
 use std::path::Path;
 
-use adwi_runtime::format::{FORMAT_VERSION, HEADER_LEN, MAGIC, RKYV_FLAGS};
+use adwi_runtime::format::HEADER_LEN;
+use adwi_runtime::testing::repair_header;
 use adwi_runtime::{OpenError, Table, Target};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -34,22 +35,6 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
     out.sort();
     assert!(out.len() >= 3, "seed tables missing from {}", dir.display());
     out
-}
-
-/// Rewrites the header fields a mutation breaks: magic, mark, version, lengths, flags,
-/// checksums (as the fuzz target does).
-fn repair_header(bytes: &mut [u8]) {
-    let payload_len = (bytes.len() - HEADER_LEN) as u64;
-    bytes[0..8].copy_from_slice(&MAGIC);
-    bytes[8..10].copy_from_slice(&0xFEFFu16.to_le_bytes());
-    bytes[10..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    bytes[12..16].copy_from_slice(&(HEADER_LEN as u32).to_le_bytes());
-    bytes[16..20].copy_from_slice(&RKYV_FLAGS.to_le_bytes());
-    bytes[24..32].copy_from_slice(&payload_len.to_le_bytes());
-    let payload = xxhash_rust::xxh3::xxh3_64(&bytes[HEADER_LEN..]);
-    bytes[32..40].copy_from_slice(&payload.to_le_bytes());
-    let header = xxhash_rust::xxh3::xxh3_64(&bytes[..248]);
-    bytes[248..256].copy_from_slice(&header.to_le_bytes());
 }
 
 const INTERESTING_U32: [u32; 8] = [0, 1, 2, 7, 0x7FFF_FFFF, 0x8000_0000, 0xFFFF_FFFE, u32::MAX];
