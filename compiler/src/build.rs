@@ -119,9 +119,16 @@ pub enum BuildError {
         /// The limit.
         max: usize,
     },
+    /// A parameter, the grid or the samples are outside the range the runtime accepts.
+    #[error("implausible table: {0}")]
+    Implausible(#[from] format::Implausible),
     /// Serialisation failed.
     #[error("cannot encode the table: {0}")]
     Encode(String),
+    /// The encoded table does not open: a bug of the compiler, never a property of the
+    /// input.
+    #[error("the built table does not open ({0}): please report this bug")]
+    Unopenable(String),
 }
 
 /// What a build produced and derived, for the CLI to report.
@@ -230,6 +237,15 @@ pub fn resolve(
         cell_mm,
         dims: dims_f.map(|d| d as u32),
     };
+    // The runtime's own plausibility bounds, so that no build ends in a table that does
+    // not open (an ε beyond every distance in the workspace, a grid a kilometre away).
+    let positions = (0..samples.len()).flat_map(|i| [samples.nominal_mm[i], samples.actual_mm(i)]);
+    format::check_plausible(
+        &params,
+        &grid,
+        joint_radius_rad,
+        format::bounding_box(positions),
+    )?;
     let report = BuildReport {
         spacing_mm,
         radius_mm,
@@ -279,6 +295,9 @@ pub fn compile_with_model(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let (params, grid, mut report) = resolve(samples, options)?;
+    if let Some(model) = &model {
+        format::check_model_plausible(model)?;
+    }
     let joint_screen = report.joint_radius_rad > 0.0;
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
@@ -364,6 +383,8 @@ pub fn compile_with_model(
         joint_radius_rad: report.joint_radius_rad,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
+    // Opened once as the runtime will: a table the runtime refuses is never written.
+    adwi_runtime::Table::from_vec(&bytes).map_err(|e| BuildError::Unopenable(e.to_string()))?;
     report.table_bytes = bytes.len();
     Ok((bytes, report))
 }
@@ -568,5 +589,109 @@ fn centre_weights(
             .map(|(n, &q)| (n.sample, q))
             .collect(),
         None => Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::samples::{parse_samples, ColumnMap};
+
+    /// A 3 × 3 × 3 lattice of 100 mm with joint angles, plus `extra` rows.
+    fn samples(extra: &str) -> SampleSet {
+        let mut csv = String::from("x,y,z,dx,dy,dz,j1,j2,j3,j4,j5,j6\n");
+        for i in 0..27 {
+            let p = [i % 3, (i / 3) % 3, i / 9].map(|v| 1000.0 + 100.0 * f64::from(v));
+            csv += &format!("{},{},{},0.1,0.2,-0.1,{i},0,0,0,0,0\n", p[0], p[1], p[2]);
+        }
+        csv += extra;
+        parse_samples("s.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap()
+    }
+
+    fn build(samples: &SampleSet, options: BuildOptions) -> Result<Vec<u8>, BuildError> {
+        compile(samples, &options, &|_| {}).map(|(bytes, _)| bytes)
+    }
+
+    #[test]
+    fn any_radius_with_the_default_bounds_builds_a_table_that_opens() {
+        // The default grid grows with ε, so ε never exceeds its diagonal; `compile` opens
+        // what it built.
+        let s = samples("");
+        for radius_mm in [1.0, 200.0, 5e4] {
+            let options = BuildOptions {
+                radius_mm: Some(radius_mm),
+                cell_mm: Some(radius_mm.max(100.0) / 2.0),
+                ..BuildOptions::default()
+            };
+            build(&s, options).unwrap();
+        }
+    }
+
+    #[test]
+    fn what_the_runtime_would_refuse_is_refused_before_building() {
+        let s = samples("");
+        let small_box = Some(([1000.0; 3], [1200.0; 3]));
+        let cases = [
+            // ε beyond every distance between the grid and the samples.
+            BuildOptions {
+                radius_mm: Some(1e5),
+                bounds_mm: small_box,
+                ..BuildOptions::default()
+            },
+            // The default grid, ε wide, would reach 1e300 mm from the base.
+            BuildOptions {
+                radius_mm: Some(1e300),
+                cell_mm: Some(1e299),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                bounds_mm: Some(([1000.0; 3], [2e6; 3])),
+                cell_mm: Some(1e5),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                joint_radius_deg: Some(800.0),
+                ..BuildOptions::default()
+            },
+        ];
+        for options in cases {
+            let err = build(&s, options.clone()).unwrap_err();
+            assert!(
+                matches!(err, BuildError::Implausible(_)),
+                "{options:?}: {err}"
+            );
+        }
+        let far = samples("2e6,0,0,0,0,0,0,0,0,0,0,0\n");
+        let options = BuildOptions {
+            bounds_mm: small_box,
+            ..BuildOptions::default()
+        };
+        let err = build(&far, options).unwrap_err();
+        assert!(err.to_string().contains("sample coordinate"), "{err}");
+    }
+
+    #[test]
+    fn an_implausible_model_is_refused() {
+        let s = samples("");
+        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let params = format::ModelParams {
+            joints: [[100.0, 200.0, 0.0, 0.0, 0.0]; 6],
+            tool: identity,
+            base: identity,
+        };
+        let mut model = KinematicModel {
+            nominal: params,
+            calibrated: params,
+        };
+        let options = BuildOptions::default();
+        let hash = s.source_hash();
+        compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap();
+        model.calibrated.base[3] = 1e300;
+        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
+        model.calibrated.base[3] = 0.0;
+        model.nominal.tool[0] = 2.0;
+        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
     }
 }

@@ -63,8 +63,11 @@ enum {
     ADWI_STATUS_OUTSIDE_GRID = 1,   /* target outside the table's grid; correction zero */
     ADWI_STATUS_NO_NEIGHBOUR = 2,   /* no admissible sample; correction zero */
     ADWI_STATUS_INVALID_INPUT = 3,  /* target not finite; correction zero */
-    ADWI_STATUS_MISSING_JOINTS = 4  /* hybrid table queried without joint angles: use
+    ADWI_STATUS_MISSING_JOINTS = 4, /* hybrid table queried without joint angles: use
                                        adwi_table_query_joints; correction zero */
+    ADWI_STATUS_NUMERICAL_FAILURE = 5 /* the prediction came out NaN or infinite (degenerate
+                                         geometry, e.g. a target within ~1e-300 mm of the
+                                         base origin) and is withheld; correction zero */
 };
 
 /* Flags for adwi_table_open_with. */

@@ -77,7 +77,8 @@ pub struct AdwiCorrection {
     /// The number of neighbours weighted.
     pub neighbours: u32,
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
-    /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them).
+    /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them),
+    /// 5 numerical failure (a non-finite prediction, withheld).
     pub status: i32,
 }
 
@@ -109,6 +110,8 @@ pub const ADWI_OPEN_LOCK_REQUIRED: u32 = 4;
 impl From<Correction> for AdwiCorrection {
     #[inline]
     fn from(c: Correction) -> AdwiCorrection {
+        // Every query path checks this already; checked again where C takes over.
+        let c = c.finite_or_failure();
         AdwiCorrection {
             position_error_mm: c.position_error_mm,
             orientation_error_rad: c.orientation_error_rad,
@@ -121,6 +124,7 @@ impl From<Correction> for AdwiCorrection {
 impl From<Compensation> for AdwiCompensation {
     #[inline]
     fn from(c: Compensation) -> AdwiCompensation {
+        let c = c.finite_or_failure();
         AdwiCompensation {
             command_position_mm: c.command_position_mm,
             command_rotation_rad: c.command_rotation_rad,
