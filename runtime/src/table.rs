@@ -637,7 +637,19 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         ));
     }
     let radius_squared_mm2 = header.method.radius_mm * header.method.radius_mm;
-    for (cell, (c, centre_range)) in a.cells.iter().zip(offsets.windows(2)).enumerate() {
+    // The cell's (ix, iy, iz), x fastest, counted rather than divided out of the index.
+    let mut coords = [0usize; 3];
+    for (c, centre_range) in a.cells.iter().zip(offsets.windows(2)) {
+        let here = coords;
+        coords[0] += 1;
+        if coords[0] == grid.dims[0] as usize {
+            coords[0] = 0;
+            coords[1] += 1;
+            if coords[1] == grid.dims[1] as usize {
+                coords[1] = 0;
+                coords[2] += 1;
+            }
+        }
         let start = c.list_start.to_native() as usize;
         let list = start
             .checked_add(c.list_len.to_native() as usize)
@@ -676,21 +688,19 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
         {
             return Err(corrupt("a base weight names a sample that does not exist"));
         }
-        // The base weights were selected at the cell's centre, within ε of it (computed as
-        // the compiler computes it, so never refused for a table it wrote): a grid edited
-        // to another shape or place with the same cell count fails here.
-        if !centre.is_empty() {
-            let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+        // The base weights were selected at the cell's centre, so their nearest sample is
+        // within ε of it (computed as the compiler computes it, so never refused for a
+        // table it wrote): a grid edited to another shape or place with the same cell
+        // count fails here. One sample a cell keeps the cost of opening low.
+        if let Some(nearest) = a.centre_samples[centre.clone()].first() {
+            let (lo, hi) = grid.cell_box(here);
             let middle = [0, 1, 2].map(|axis| 0.5 * (lo[axis] + hi[axis]));
-            let samples = a.samples.as_slice();
-            let beyond = a.centre_samples[centre.clone()].iter().any(|&i| {
-                let key = method::distance_squared_mm2(actual(samples, i.to_native()), middle);
-                key > radius_squared_mm2 || key.is_nan()
-            });
-            if beyond {
+            let nearest = actual(a.samples.as_slice(), nearest.to_native());
+            let key = method::distance_squared_mm2(nearest, middle);
+            if key > radius_squared_mm2 || key.is_nan() {
                 return Err(corrupt(
-                    "a cell's base weights name a sample beyond ε of its centre: the grid does \
-                     not match its cells",
+                    "a cell's nearest base weight is beyond ε of its centre: the grid does not \
+                     match its cells",
                 ));
             }
         }
