@@ -128,7 +128,7 @@ pub enum BuildError {
     /// The encoded table does not open: a bug of the compiler, never a property of the
     /// input.
     #[error("the built table does not open ({0}): please report this bug")]
-    Unopenable(String),
+    Unopenable(#[source] adwi_runtime::OpenError),
 }
 
 /// What a build produced and derived, for the CLI to report.
@@ -384,7 +384,7 @@ pub fn compile_with_model(
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
-    adwi_runtime::Table::from_vec(&bytes).map_err(|e| BuildError::Unopenable(e.to_string()))?;
+    adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     report.table_bytes = bytes.len();
     Ok((bytes, report))
 }

@@ -89,8 +89,9 @@ enum {
     ADWI_STATUS_MISSING_JOINTS = 4, /* hybrid table queried without joint angles: use
                                        adwi_table_query_joints; correction zero */
     ADWI_STATUS_NUMERICAL_FAILURE = 5 /* the prediction came out NaN or infinite (degenerate
-                                         geometry, e.g. a target within ~1e-300 mm of the
-                                         base origin) and is withheld; correction zero */
+                                         geometry, e.g. a target and a sample both within
+                                         ~1e-160 mm of the base origin) and is withheld;
+                                         correction zero */
 };
 
 /* Flags for adwi_table_open_with. */

@@ -26,9 +26,9 @@ pub enum Status {
     /// [`Table::query_with_joints`]. The correction is zero.
     MissingJoints = 4,
     /// The prediction came out non-finite (NaN or infinite). A validated table gives this
-    /// only in degenerate geometry, such as a target within about 1e-300 mm of the base
-    /// origin, where the approximation degrees overflow; answered instead of a correction
-    /// no robot can be commanded with. The correction is zero.
+    /// only in degenerate geometry, such as a target and a sample both within about
+    /// 1e-160 mm of the base origin, where the approximation degrees overflow; answered
+    /// instead of a correction no robot can be commanded with. The correction is zero.
     NumericalFailure = 5,
 }
 
