@@ -121,14 +121,20 @@ pub enum BuildError {
     },
     /// A parameter, the grid or the samples are outside the range the runtime accepts.
     #[error("implausible table: {0}")]
-    Implausible(#[from] format::Implausible),
+    Implausible(format::Implausible),
     /// Serialisation failed.
     #[error("cannot encode the table: {0}")]
     Encode(String),
     /// The encoded table does not open: a bug of the compiler, never a property of the
     /// input.
-    #[error("the built table does not open ({0}): please report this bug")]
+    #[error("the built table does not open: please report this bug")]
     Unopenable(#[source] adwi_runtime::OpenError),
+}
+
+impl From<format::Implausible> for BuildError {
+    fn from(e: format::Implausible) -> BuildError {
+        BuildError::Implausible(e)
+    }
 }
 
 /// What a build produced and derived, for the CLI to report.
@@ -224,8 +230,16 @@ pub fn resolve(
             "{lo:?} to {hi:?}: each minimum must be below its maximum, all finite"
         )));
     }
+    // Bounds a kilometre away (a huge --radius widens the default ones) are refused before
+    // their cells are counted.
+    for v in lo.iter().chain(&hi) {
+        format::check_coordinate("a grid bound (mm)", *v)?;
+    }
     let dims_f = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
-    let cells = dims_f.iter().map(|&d| d as u128).product::<u128>();
+    // Saturating: a tiny cell makes each count reach u128::MAX (`as` saturates).
+    let cells = dims_f
+        .iter()
+        .fold(1u128, |product, &d| product.saturating_mul(d as u128));
     if cells > MAX_CELLS as u128 || dims_f.iter().any(|&d| d > u32::MAX as f64) {
         return Err(BuildError::TooManyCells {
             cells,
@@ -645,6 +659,14 @@ mod tests {
                 ..BuildOptions::default()
             },
             BuildOptions {
+                radius_mm: Some(1e300),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                radius_mm: Some(f64::MAX),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
                 bounds_mm: Some(([1000.0; 3], [2e6; 3])),
                 cell_mm: Some(1e5),
                 ..BuildOptions::default()
@@ -668,6 +690,14 @@ mod tests {
         };
         let err = build(&far, options).unwrap_err();
         assert!(err.to_string().contains("sample coordinate"), "{err}");
+        // A cell so small that every axis counts more cells than u128 holds.
+        let options = BuildOptions {
+            cell_mm: Some(1e-300),
+            bounds_mm: small_box,
+            ..BuildOptions::default()
+        };
+        let err = build(&s, options).unwrap_err();
+        assert!(matches!(err, BuildError::TooManyCells { .. }), "{err}");
     }
 
     #[test]

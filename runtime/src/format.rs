@@ -485,6 +485,21 @@ pub fn bounding_box(points: impl IntoIterator<Item = [f64; 3]>) -> Option<([f64;
     })
 }
 
+/// Checks one coordinate against [`MAX_COORDINATE_MM`]; `field` names it, with its unit.
+pub fn check_coordinate(field: &'static str, value: f64) -> Result<(), Implausible> {
+    // Written so that NaN fails the test.
+    if value.abs() <= MAX_COORDINATE_MM {
+        Ok(())
+    } else {
+        Err(Implausible {
+            field,
+            value,
+            rule: "within ±",
+            limit: MAX_COORDINATE_MM,
+        })
+    }
+}
+
 /// Checks a table's parameters and grid against each other and against the box holding
 /// its samples' nominal and actual positions (`None` without samples): the ranges no real
 /// table leaves, checked both by the runtime at open and by the compiler before it builds,
@@ -506,19 +521,7 @@ pub fn check_plausible(
     joint_radius_rad: f64,
     samples_box_mm: Option<([f64; 3], [f64; 3])>,
 ) -> Result<(), Implausible> {
-    let within_workspace = |field, value: f64| {
-        // Written so that NaN fails the test.
-        if value.abs() <= MAX_COORDINATE_MM {
-            Ok(())
-        } else {
-            Err(Implausible {
-                field,
-                value,
-                rule: "within ±",
-                limit: MAX_COORDINATE_MM,
-            })
-        }
-    };
+    let within_workspace = check_coordinate;
     if let Some((lo, hi)) = samples_box_mm {
         for v in lo.into_iter().chain(hi) {
             within_workspace("a sample coordinate (mm)", v)?;
