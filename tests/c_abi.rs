@@ -1,9 +1,10 @@
 //! The C ABI end to end: `tests/c/smoke.c` is compiled with the system C compiler against
-//! `runtime/include/adwi.h` and the runtime's static library, then run on a table built
-//! from the paper's worked example. Its answers must equal the Rust API's bit for bit, and
-//! every bad input must give its documented code.
+//! `runtime/include/adwi.h` and the runtime's libraries, once statically and once
+//! dynamically, each with exactly the link line README.md and the header document, then
+//! run on a table built from the paper's worked example. Its answers must equal the Rust
+//! API's bit for bit, and every bad input must give its documented code.
 //!
-//! The test builds the static library itself (`cargo build -p adwi-runtime --lib`, into a
+//! The test builds the libraries itself (`cargo rustc -p adwi-runtime --lib`, into a
 //! target directory of its own so that it never waits on the lock of the build running
 //! it), so it needs nothing built beforehand; it needs a C compiler (`cc`).
 
@@ -18,55 +19,124 @@ use adwi_runtime::{Status, Table, Target};
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];
 
+/// The system libraries a static link needs after `libadwi_runtime.a`, as README.md and
+/// `adwi.h` document them: what `rustc --print native-static-libs` lists on Linux.
+const NATIVE_STATIC_LIBS: &str = "-lgcc_s -lutil -lrt -lpthread -lm -ldl -lc";
+
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Builds the runtime's static library and returns its path.
-fn static_library() -> PathBuf {
+/// Builds the runtime's static and shared libraries; returns their directory and the
+/// native libraries rustc lists for the static one.
+fn libraries() -> (PathBuf, String) {
     let target_dir = workspace().join("target").join("c-abi");
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
+    // `cargo rustc` builds every crate type of the manifest (rlib, staticlib, cdylib);
+    // cargo replays the note when the build is fresh.
+    let output = Command::new(cargo)
         .current_dir(workspace())
-        .args(["build", "--quiet", "-p", "adwi-runtime", "--lib"])
+        .args(["rustc", "-p", "adwi-runtime", "--lib", "--", "--print"])
+        .arg("native-static-libs")
         .env("CARGO_TARGET_DIR", &target_dir)
-        .status()
+        .output()
         .expect("cannot run cargo");
-    assert!(status.success(), "cargo build -p adwi-runtime failed");
-    let lib = target_dir.join("debug").join("libadwi_runtime.a");
-    assert!(lib.exists(), "{} was not built", lib.display());
-    lib
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "cargo rustc -p adwi-runtime failed:\n{stderr}"
+    );
+    let native = stderr
+        .lines()
+        .find_map(|l| l.split("native-static-libs: ").nth(1))
+        .unwrap_or_else(|| panic!("no native-static-libs note in:\n{stderr}"))
+        .trim()
+        .to_string();
+    let dir = target_dir.join("debug");
+    for lib in ["libadwi_runtime.a", "libadwi_runtime.so"] {
+        assert!(
+            dir.join(lib).exists(),
+            "{lib} was not built in {}",
+            dir.display()
+        );
+    }
+    (dir, native)
 }
 
-/// Compiles `tests/c/smoke.c` into `dir` and returns the executable.
-fn compile_smoke(dir: &Path) -> PathBuf {
-    let exe = dir.join("smoke");
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Linking {
+    /// `cc app.c -I runtime/include DIR/libadwi_runtime.a NATIVE_STATIC_LIBS`
+    Static,
+    /// `cc app.c -I runtime/include -L DIR -ladwi_runtime -Wl,-rpath,DIR`
+    Shared,
+}
+
+/// Compiles `tests/c/smoke.c` into `dir` against the libraries in `lib_dir` and returns
+/// the executable.
+fn compile_smoke(dir: &Path, lib_dir: &Path, linking: Linking) -> PathBuf {
+    let exe = dir.join(format!("smoke-{linking:?}").to_lowercase());
     let cc = std::env::var_os("CC").unwrap_or_else(|| "cc".into());
-    let output = Command::new(cc)
-        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-I"])
-        .arg(workspace().join("runtime/include"))
+    let mut command = Command::new(cc);
+    command
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-O1"])
         .arg(workspace().join("tests/c/smoke.c"))
-        .arg(static_library())
-        // What `rustc --print native-static-libs` lists for a std staticlib on Linux.
-        .args([
-            "-lgcc_s",
-            "-lutil",
-            "-lrt",
-            "-lpthread",
-            "-lm",
-            "-ldl",
-            "-lc",
-            "-o",
-        ])
+        .arg("-I")
+        .arg(workspace().join("runtime/include"));
+    match linking {
+        Linking::Static => {
+            command.arg(lib_dir.join("libadwi_runtime.a"));
+            command.args(NATIVE_STATIC_LIBS.split_whitespace());
+        }
+        Linking::Shared => {
+            let mut rpath = std::ffi::OsString::from("-Wl,-rpath,");
+            rpath.push(lib_dir);
+            command
+                .arg("-L")
+                .arg(lib_dir)
+                .arg("-ladwi_runtime")
+                .arg(rpath);
+        }
+    }
+    let output = command
+        .arg("-o")
         .arg(&exe)
         .output()
         .expect("cannot run the C compiler (cc)");
     assert!(
         output.status.success(),
-        "cc failed:\n{}",
+        "cc ({linking:?}) failed:\n{}",
         String::from_utf8_lossy(&output.stderr)
     );
     exe
+}
+
+#[test]
+fn the_documented_link_lines_are_the_ones_tested() {
+    let (_, native) = libraries();
+    assert_eq!(
+        native, NATIVE_STATIC_LIBS,
+        "rustc's list changed: update README.md and adwi.h"
+    );
+    let readme = std::fs::read_to_string(workspace().join("README.md")).unwrap();
+    let header = std::fs::read_to_string(workspace().join("runtime/include/adwi.h")).unwrap();
+    let static_line = format!("target/release/libadwi_runtime.a {NATIVE_STATIC_LIBS}");
+    assert!(
+        readme.contains(&static_line),
+        "README.md lacks {static_line:?}"
+    );
+    let header_static =
+        format!("target/release/libadwi_runtime.a \\\n *           {NATIVE_STATIC_LIBS}");
+    assert!(
+        header.contains(&header_static),
+        "adwi.h lacks {header_static:?}"
+    );
+    let shared = r#"-L "$PWD/target/release" -ladwi_runtime -Wl,-rpath,"$PWD/target/release""#;
+    assert!(readme.contains(shared), "README.md lacks {shared:?}");
+    assert!(
+        header.contains(r#"-L "$PWD/target/release" -ladwi_runtime \"#)
+            && header.contains(r#"-Wl,-rpath,"$PWD/target/release""#),
+        "adwi.h lacks the shared link line"
+    );
 }
 
 fn worked_example_table() -> Vec<u8> {
@@ -88,16 +158,40 @@ fn line<'a>(stdout: &'a str, name: &str) -> Vec<&'a str> {
 }
 
 #[test]
-fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
+fn c_program_linked_statically_matches_the_rust_api_and_refuses_bad_inputs() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = compile_smoke(dir.path());
+    let (lib_dir, _) = libraries();
+    let exe = compile_smoke(dir.path(), &lib_dir, Linking::Static);
+    // Nothing of the shared library is needed: it is not even named.
+    let binary = std::fs::read(&exe).unwrap();
+    assert!(!contains(&binary, b"libadwi_runtime.so"));
+    run_smoke(&exe, dir.path());
+}
+
+#[test]
+fn c_program_linked_dynamically_matches_the_rust_api_and_refuses_bad_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (lib_dir, _) = libraries();
+    let exe = compile_smoke(dir.path(), &lib_dir, Linking::Shared);
+    // The executable names the shared library (its dynamic section's NEEDED entry).
+    let binary = std::fs::read(&exe).unwrap();
+    assert!(contains(&binary, b"libadwi_runtime.so"));
+    run_smoke(&exe, dir.path());
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    haystack.windows(needle.len()).any(|w| w == needle)
+}
+
+/// Runs the smoke program in `dir` and checks every line it prints.
+fn run_smoke(exe: &Path, dir: &Path) {
     let bytes = worked_example_table();
-    let table_path = dir.path().join("p1.tbl");
+    let table_path = dir.join("p1.tbl");
     std::fs::write(&table_path, &bytes).unwrap();
     let mut corrupt = bytes.clone();
     let last = corrupt.len() - 1;
     corrupt[last] ^= 0x40;
-    let corrupt_path = dir.path().join("corrupt.tbl");
+    let corrupt_path = dir.join("corrupt.tbl");
     std::fs::write(&corrupt_path, &corrupt).unwrap();
 
     let table = Table::from_vec(&bytes).unwrap();
@@ -117,9 +211,9 @@ fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
         .map(|(p, c)| format!("{:?} {:?} {:?} {c}\n", p[0], p[1], p[2]))
         .collect::<String>()
         .replace("NaN", "nan");
-    let mut child = Command::new(&exe)
+    let mut child = Command::new(exe)
         .arg(&table_path)
-        .arg(dir.path().join("missing.tbl"))
+        .arg(dir.join("missing.tbl"))
         .arg(&corrupt_path)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -171,6 +265,23 @@ fn c_program_matches_the_rust_api_and_refuses_bad_inputs() {
     assert_eq!(line(&stdout, "query_joints_null_joints"), ["1"]);
     assert_eq!(line(&stdout, "compensate_null_out"), ["1"]);
     assert_eq!(line(&stdout, "compensate_bad_tolerance"), ["2"]);
+    // ADWI_INVALID_HANDLE 8, from every function, for each of the three bogus handles.
+    let refusals: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("invalid_handle "))
+        .collect();
+    assert_eq!(refusals, ["invalid_handle 8 8 8 8 8"; 3], "{stdout}");
+    assert_eq!(
+        stdout
+            .lines()
+            .filter(|l| *l == "invalid_handle_untouched 1")
+            .count(),
+        3,
+        "{stdout}"
+    );
+    assert_eq!(line(&stdout, "invalid_handle_memory_untouched"), ["1"]);
+    assert_eq!(line(&stdout, "result_name_8"), ["invalid", "handle"]);
+    assert_eq!(line(&stdout, "close"), ["0", "0", "0"]);
     assert!(stdout.lines().last() == Some("done"), "{stdout}");
 
     // Answers: bit for bit the Rust API's (17 significant digits round-trip a double).

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use adwi_compile::reference;
 use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_runtime::format::{CONTENT_JOINTS, CONTENT_MODEL};
 use adwi_runtime::format::{FORMAT_VERSION, OLDEST_SUPPORTED_VERSION};
 use adwi_runtime::{Status, Table, Target};
 
@@ -100,5 +101,133 @@ fn the_version_1_table_agrees_with_the_method_on_its_samples() {
             (None, _) => assert_ne!(c.status, Status::Ok),
             (Some(_), None) => panic!("{p:?}: the reference has no answer"),
         }
+    }
+}
+
+/// `tables/compat/v1/README.md`'s answers of the hybrid fixture: target (mm), joint angles
+/// (degrees), error (mm), neighbours, status.
+type HybridAnswer = ([f64; 3], [f64; 6], Option<[f64; 3]>, u32, Status);
+
+const FIRST_POSE_MM: [f64; 3] = [-495.48014933320513, -261.22060558066715, 359.404929823319];
+const FIRST_JOINTS_DEG: [f64; 6] = [
+    17.272893800633657,
+    -81.98887450752903,
+    88.40996156653269,
+    0.07134692051529574,
+    93.45549391078386,
+    -0.12149026052282592,
+];
+
+const V1_HYBRID_ANSWERS: [HybridAnswer; 5] = [
+    (
+        FIRST_POSE_MM,
+        FIRST_JOINTS_DEG,
+        Some([
+            -2.431379815316371,
+            -0.41332581267771124,
+            -0.6695839219887557,
+        ]),
+        8,
+        Status::Ok,
+    ),
+    (
+        [-496.5584396318196, -303.7438549414801, 389.15230080163224],
+        [
+            23.470392864049625,
+            -77.07699251876265,
+            77.09116418455962,
+            11.235902610533948,
+            104.46604662450441,
+            -2.872462361249245,
+        ],
+        Some([
+            -2.6503179853352505,
+            -0.048157265372807616,
+            -0.7107791381900339,
+        ]),
+        8,
+        Status::Ok,
+    ),
+    (
+        [-379.4891043290153, -391.437788426598, 321.30117534761547],
+        [
+            39.90741597526584,
+            -78.49182609849096,
+            88.15719596291765,
+            6.224929174902254,
+            117.51697908151714,
+            17.389107740297682,
+        ],
+        Some([
+            -2.5134941452891595,
+            -0.2622417025364461,
+            -0.5025847404468314,
+        ]),
+        8,
+        Status::Ok,
+    ),
+    (
+        FIRST_POSE_MM,
+        [
+            17.272893800633657,
+            -81.98887450752903,
+            88.40996156653269,
+            90.0713469205153,
+            93.45549391078386,
+            -0.12149026052282592,
+        ],
+        None,
+        0,
+        Status::NoAdmissibleNeighbour,
+    ),
+    (
+        [500.0, -261.22060558066715, 359.404929823319],
+        FIRST_JOINTS_DEG,
+        None,
+        0,
+        Status::OutsideGrid,
+    ),
+];
+
+#[test]
+fn the_version_1_hybrid_table_opens_and_gives_its_recorded_answers() {
+    let path = root().join("tables/compat/v1/ur5_hybrid.tbl");
+    assert_eq!(std::fs::metadata(&path).unwrap().len(), 178_992);
+    // SAFETY: a committed fixture, not modified while the test runs.
+    let table = unsafe { Table::open(&path) }.unwrap();
+    let header = table.header();
+    assert_eq!(header.version, 1);
+    assert_eq!(header.content_flags, CONTENT_JOINTS | CONTENT_MODEL);
+    assert_eq!(header.source_hash, 0x1ac4_b533_b619_3568);
+    assert_eq!(header.joint_radius_rad, 60f64.to_radians());
+    assert_eq!(table.sample_count(), 1000);
+    assert!(table.is_hybrid());
+    // The measurements it was built from are the shipped ones.
+    let columns = ColumnMap::parse(
+        "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,j3=joint_3,\
+         j4=joint_4,j5=joint_5,j6=joint_6",
+    )
+    .unwrap();
+    let measured = read_samples(
+        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv"),
+        &columns,
+    )
+    .unwrap();
+    assert_eq!(measured.source_hash(), header.source_hash);
+    for (p, joints_deg, error, neighbours, status) in V1_HYBRID_ANSWERS {
+        let target = Target::at(p);
+        let c = table.query_with_joints(&target, &joints_deg.map(f64::to_radians));
+        assert_eq!(c.status, status, "{p:?} {joints_deg:?}");
+        assert_eq!(c.neighbours, neighbours, "{p:?} {joints_deg:?}");
+        assert_eq!(c.orientation_error_rad, [0.0; 3], "{p:?}");
+        match error {
+            Some(e) => {
+                for (got, want) in c.position_error_mm.iter().zip(e) {
+                    assert!((got - want).abs() <= 1e-12, "{p:?}: {got} vs {want}");
+                }
+            }
+            None => assert_eq!(c.position_error_mm, [0.0; 3]),
+        }
+        assert_eq!(table.query(p).status, Status::MissingJoints, "{p:?}");
     }
 }

@@ -1,19 +1,18 @@
 //! Table bytes with a valid header (magic, version, lengths, checksums recomputed after the
 //! fuzzer's mutation), so that mutations reach rkyv validation and the semantic checks
 //! rather than stopping at a checksum. Opening must never panic; a table that opens must
-//! answer queries without panicking.
+//! answer queries (with and without joint angles) without panicking, and never with
+//! status ok and a non-finite value.
 
 #![no_main]
 
-use adwi_runtime::format::{FORMAT_VERSION, HEADER_LEN, MAGIC, RKYV_FLAGS};
-use adwi_runtime::{Table, Target};
+use adwi_runtime::testing::repair_header;
+use adwi_runtime::{Correction, Status, Table, Target};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut bytes = data.to_vec();
-    if bytes.len() >= HEADER_LEN {
-        repair_header(&mut bytes);
-    }
+    repair_header(&mut bytes);
     let Ok(table) = Table::from_vec(&bytes) else {
         return;
     };
@@ -22,9 +21,21 @@ fuzz_target!(|data: &[u8]| {
     let hi = grid.max_mm();
     // The grid's corners and centre, and targets read from the input's tail.
     let mut targets = vec![lo, hi, [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]))];
-    for chunk in data.rchunks_exact(24).take(8) {
-        let f = |i: usize| f64::from_le_bytes(chunk[i..i + 8].try_into().unwrap());
-        targets.push([f(0), f(8), f(16)]);
+    let words: Vec<f64> = data
+        .rchunks_exact(8)
+        .take(48)
+        .map(|w| f64::from_le_bytes(w.try_into().unwrap()))
+        .collect();
+    for p in words.chunks_exact(3).take(8) {
+        targets.push([p[0], p[1], p[2]]);
+    }
+    // Joint angles: none moved, a sample's, read from the input's tail, not finite.
+    let mut joints = vec![[0.0; 6], [0.0, 0.0, 0.0, 0.0, 0.0, f64::NAN]];
+    if let Some(q) = table.data().and_then(|d| d.joints_rad.first()) {
+        joints.push(q.map(|v| v.to_native()));
+    }
+    for q in words.chunks_exact(6).take(2) {
+        joints.push([q[0], q[1], q[2], q[3], q[4], q[5]]);
     }
     for p in targets {
         for config in [None, Some(0), Some(4)] {
@@ -32,25 +43,26 @@ fuzz_target!(|data: &[u8]| {
                 position_mm: p,
                 config,
             };
-            let _ = table.query_target(&target);
-            let _ = table.explain(&target);
-            let _ = table.compensate(&target, 1e-6, 10);
+            check(&table.query_target(&target));
+            for q in &joints {
+                check(&table.query_with_joints(&target, q));
+            }
+            if let Ok(e) = table.explain(&target) {
+                assert!(e.position_error_mm.iter().all(|v| v.is_finite()));
+            }
+            let k = table.compensate(&target, 1e-6, 10);
+            check(&k.correction);
+            if k.correction.status == Status::Ok {
+                assert!(k.command_position_mm.iter().all(|v| v.is_finite()));
+            }
         }
     }
 });
 
-/// Writes the fields a random mutation would almost always break: magic, endianness
-/// mark, version, header length, rkyv flags, payload length and both checksums.
-fn repair_header(bytes: &mut [u8]) {
-    let payload_len = (bytes.len() - HEADER_LEN) as u64;
-    bytes[0..8].copy_from_slice(&MAGIC);
-    bytes[8..10].copy_from_slice(&0xFEFFu16.to_le_bytes());
-    bytes[10..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    bytes[12..16].copy_from_slice(&(HEADER_LEN as u32).to_le_bytes());
-    bytes[16..20].copy_from_slice(&RKYV_FLAGS.to_le_bytes());
-    bytes[24..32].copy_from_slice(&payload_len.to_le_bytes());
-    let payload = xxhash_rust::xxh3::xxh3_64(&bytes[HEADER_LEN..]);
-    bytes[32..40].copy_from_slice(&payload.to_le_bytes());
-    let header = xxhash_rust::xxh3::xxh3_64(&bytes[..248]);
-    bytes[248..256].copy_from_slice(&header.to_le_bytes());
+/// A correction with status ok is finite.
+fn check(c: &Correction) {
+    if c.status == Status::Ok {
+        let values = c.position_error_mm.iter().chain(&c.orientation_error_rad);
+        assert!(values.into_iter().all(|v| v.is_finite()), "{c:?}");
+    }
 }

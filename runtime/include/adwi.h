@@ -1,14 +1,25 @@
 /*
  * adwi.h — C interface to the adwi runtime: open a compiled robot error-correction table
- * and query it from a controller.
+ * and query it from a controller. Units: millimetres and radians, robot base frame.
  *
- * Link against libadwi_runtime.a (static; on Linux also -lpthread -ldl -lm -lrt -lutil
- * -lgcc_s) or libadwi_runtime.so. Units: millimetres and radians, robot base frame.
+ * Build the libraries with `cargo build --release -p adwi-runtime`; both land in
+ * target/release. Link on Linux either
+ *  - statically, naming the archive by its path (with -ladwi_runtime the linker would take
+ *    the .so beside it, and the program would not find it at run time), followed by the
+ *    system libraries Rust's standard library needs
+ *    (`rustc --print native-static-libs`):
+ *        cc app.c -I runtime/include target/release/libadwi_runtime.a \
+ *           -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc
+ *  - or dynamically, telling the loader where the library is (or installing it where the
+ *    loader looks, and running ldconfig):
+ *        cc app.c -I runtime/include -L "$PWD/target/release" -ladwi_runtime \
+ *           -Wl,-rpath,"$PWD/target/release"
  *
  * Conventions:
  *  - Every function returns an adwi_result. Outputs are written only on ADWI_OK; a failed
  *    call leaves them untouched.
- *  - Null pointers are refused with ADWI_NULL_POINTER.
+ *  - Null pointers are refused with ADWI_NULL_POINTER; a handle that is not open, in the
+ *    common case, with ADWI_INVALID_HANDLE (see adwi_table).
  *  - A panic inside the library never unwinds into C: it becomes ADWI_PANIC.
  *  - adwi_table_query and adwi_table_compensate do not allocate, lock or block, and may be
  *    called from several threads on the same handle at once. A handle must not be closed
@@ -42,7 +53,17 @@
 extern "C" {
 #endif
 
-/* An open, validated table. Opaque. */
+/* An open, validated table. Opaque.
+ *
+ * Every function taking a handle first reads a marker the library keeps at its start and
+ * answers ADWI_INVALID_HANDLE, touching nothing else, when it is not that of an open table.
+ * This catches the common mistakes of querying a handle after adwi_table_close or closing
+ * it twice, shortly after the close. It is a check, not a guarantee, and these remain
+ * undefined behaviour: using a closed handle (its memory may have been returned to the
+ * system since, or reused for a newly opened handle, which the stale pointer then reaches),
+ * closing a handle while another thread uses it, and passing a pointer that no open
+ * function returned (readable memory without the marker is refused, but any other pointer
+ * may crash). */
 typedef struct adwi_table adwi_table;
 
 /* Result codes. */
@@ -54,7 +75,9 @@ typedef enum adwi_result {
     ADWI_INVALID_TABLE = 4,       /* truncated, corrupt, wrong magic, bad checksum */
     ADWI_UNSUPPORTED_VERSION = 5, /* a format version this runtime does not read */
     ADWI_LOCK = 6,                /* ADWI_OPEN_LOCK_REQUIRED and mlock failed */
-    ADWI_PANIC = 7                /* a bug caught at the boundary */
+    ADWI_PANIC = 7,               /* a bug caught at the boundary */
+    ADWI_INVALID_HANDLE = 8       /* not an open handle: closed already, or never opened
+                                     (see adwi_table) */
 } adwi_result;
 
 /* What a query's answer means (adwi_correction.status). */
@@ -63,8 +86,12 @@ enum {
     ADWI_STATUS_OUTSIDE_GRID = 1,   /* target outside the table's grid; correction zero */
     ADWI_STATUS_NO_NEIGHBOUR = 2,   /* no admissible sample; correction zero */
     ADWI_STATUS_INVALID_INPUT = 3,  /* target not finite; correction zero */
-    ADWI_STATUS_MISSING_JOINTS = 4  /* hybrid table queried without joint angles: use
+    ADWI_STATUS_MISSING_JOINTS = 4, /* hybrid table queried without joint angles: use
                                        adwi_table_query_joints; correction zero */
+    ADWI_STATUS_NUMERICAL_FAILURE = 5 /* the prediction came out NaN or infinite (degenerate
+                                         geometry, e.g. a target and a sample both within
+                                         ~1e-160 mm of the base origin) and is withheld;
+                                         correction zero */
 };
 
 /* Flags for adwi_table_open_with. */
@@ -123,8 +150,10 @@ adwi_result adwi_table_compensate(const adwi_table *table, const double target_m
 /* The number of samples in the table. */
 adwi_result adwi_table_sample_count(const adwi_table *table, uint32_t *out);
 
-/* Closes a handle; null is ignored. */
-void adwi_table_close(adwi_table *table);
+/* Closes a handle, unmapping or freeing its table; null is ignored (ADWI_OK). A handle
+ * without the marker of an open one (closed already, say) is refused with
+ * ADWI_INVALID_HANDLE and nothing is freed (see adwi_table for what remains undefined). */
+adwi_result adwi_table_close(adwi_table *table);
 
 /* A static name for a result code; never null. */
 const char *adwi_result_name(int code);

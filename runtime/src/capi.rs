@@ -13,6 +13,9 @@
 //!   [`adwi_last_open_error`] copies into a caller buffer.
 //! - A handle may be queried from several threads at once; it must not be closed while
 //!   another thread uses it.
+//! - Every function taking a handle first checks its marker ([`AdwiTable`]) and answers
+//!   [`AdwiResult::InvalidHandle`] for a pointer that is not an open handle as far as it
+//!   can tell: a handle used after close or closed twice, shortly after the close.
 
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CStr};
@@ -42,12 +45,55 @@ pub enum AdwiResult {
     Lock = 6,
     /// A panic was caught at the boundary (a bug: please report it).
     Panic = 7,
+    /// The handle is not an open table: closed already, or never returned by an open
+    /// function (as far as its marker tells).
+    InvalidHandle = 8,
 }
 
 /// A table as C sees it: behind the opaque `adwi_table` handle, either mapped from a
 /// file or copied into aligned memory.
+///
+/// `magic` comes first and is [`HANDLE_LIVE`] from open to close, where it is overwritten
+/// with [`HANDLE_CLOSED`] before the memory is freed: every function reads it before
+/// anything else, so that the usual mistakes (a query after close, a second close) are
+/// refused instead of reading a freed table. This is a check of the common case, not a
+/// guarantee: freed memory may have been unmapped or reused for another handle since, so
+/// using a closed handle remains undefined behaviour.
+#[repr(C)]
 pub struct AdwiTable {
+    magic: u64,
     table: Table<Backing>,
+}
+
+/// The marker of an open handle ("adwi:tbl" in memory).
+pub const HANDLE_LIVE: u64 = u64::from_le_bytes(*b"adwi:tbl");
+/// The marker a handle gets at close, before its memory is freed ("adwi:end").
+pub const HANDLE_CLOSED: u64 = u64::from_le_bytes(*b"adwi:end");
+
+/// The table behind `handle`, or the result code refusing it: null, misaligned, or
+/// without the marker of an open handle.
+///
+/// # Safety
+///
+/// `handle` is null, or points to at least 8 readable bytes (any handle from an open
+/// function, closed or not, still does in the common case; see [`AdwiTable`]).
+#[inline]
+unsafe fn open_table<'a>(handle: *const AdwiTable) -> Result<&'a Table<Backing>, AdwiResult> {
+    if handle.is_null() {
+        return Err(AdwiResult::NullPointer);
+    }
+    if handle as usize % std::mem::align_of::<AdwiTable>() != 0 {
+        return Err(AdwiResult::InvalidHandle);
+    }
+    // SAFETY: non-null, aligned and readable by contract; volatile so that the read is
+    // made even where the compiler could assume it sees a live handle.
+    let magic = unsafe { std::ptr::addr_of!((*handle).magic).read_volatile() };
+    if magic != HANDLE_LIVE {
+        return Err(AdwiResult::InvalidHandle);
+    }
+    // SAFETY: the marker is that of an open handle, created by `finish_open` and not yet
+    // closed (by the caller's contract); only shared access is taken.
+    Ok(unsafe { &(*handle).table })
 }
 
 /// The bytes behind a C handle.
@@ -77,7 +123,8 @@ pub struct AdwiCorrection {
     /// The number of neighbours weighted.
     pub neighbours: u32,
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
-    /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them).
+    /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them),
+    /// 5 numerical failure (a non-finite prediction, withheld).
     pub status: i32,
 }
 
@@ -109,6 +156,8 @@ pub const ADWI_OPEN_LOCK_REQUIRED: u32 = 4;
 impl From<Correction> for AdwiCorrection {
     #[inline]
     fn from(c: Correction) -> AdwiCorrection {
+        // Every query path checks this already; checked again where C takes over.
+        let c = c.finite_or_failure();
         AdwiCorrection {
             position_error_mm: c.position_error_mm,
             orientation_error_rad: c.orientation_error_rad,
@@ -121,6 +170,7 @@ impl From<Correction> for AdwiCorrection {
 impl From<Compensation> for AdwiCompensation {
     #[inline]
     fn from(c: Compensation) -> AdwiCompensation {
+        let c = c.finite_or_failure();
         AdwiCompensation {
             command_position_mm: c.command_position_mm,
             command_rotation_rad: c.command_rotation_rad,
@@ -168,7 +218,10 @@ unsafe fn finish_open(
 ) -> AdwiResult {
     match result {
         Ok(table) => {
-            let handle = Box::into_raw(Box::new(AdwiTable { table }));
+            let handle = Box::into_raw(Box::new(AdwiTable {
+                magic: HANDLE_LIVE,
+                table,
+            }));
             // SAFETY: the caller checked `out` is non-null; C guarantees it is writable.
             unsafe { out.write(handle) };
             record_open_error(String::new());
@@ -319,13 +372,16 @@ pub unsafe extern "C" fn adwi_table_query(
         if table.is_null() || target_mm.is_null() || out.is_null() {
             return AdwiResult::NullPointer;
         }
+        // SAFETY: a handle from an open function by contract.
+        let table = match unsafe { open_table(table) } {
+            Ok(table) => table,
+            Err(code) => return code,
+        };
         let Some(config) = config_of(config) else {
             return AdwiResult::InvalidArgument;
         };
         // SAFETY: non-null, valid for three doubles by contract.
         let position_mm = unsafe { read3(target_mm) };
-        // SAFETY: non-null, a live handle by contract; only shared access is taken.
-        let table = unsafe { &(*table).table };
         let c = table.query_target(&Target {
             position_mm,
             config,
@@ -357,6 +413,11 @@ pub unsafe extern "C" fn adwi_table_query_joints(
         if table.is_null() || target_mm.is_null() || joints_rad.is_null() || out.is_null() {
             return AdwiResult::NullPointer;
         }
+        // SAFETY: a handle from an open function by contract.
+        let table = match unsafe { open_table(table) } {
+            Ok(table) => table,
+            Err(code) => return code,
+        };
         let Some(config) = config_of(config) else {
             return AdwiResult::InvalidArgument;
         };
@@ -368,8 +429,6 @@ pub unsafe extern "C" fn adwi_table_query_joints(
             let [d, e, f] = read3(joints_rad.add(3));
             [a, b, c, d, e, f]
         };
-        // SAFETY: non-null, a live handle by contract; only shared access is taken.
-        let table = unsafe { &(*table).table };
         let c = table.query_with_joints(
             &Target {
                 position_mm,
@@ -404,6 +463,11 @@ pub unsafe extern "C" fn adwi_table_compensate(
         if table.is_null() || target_mm.is_null() || out.is_null() {
             return AdwiResult::NullPointer;
         }
+        // SAFETY: a handle from an open function by contract.
+        let table = match unsafe { open_table(table) } {
+            Ok(table) => table,
+            Err(code) => return code,
+        };
         let Some(config) = config_of(config) else {
             return AdwiResult::InvalidArgument;
         };
@@ -412,8 +476,6 @@ pub unsafe extern "C" fn adwi_table_compensate(
         }
         // SAFETY: non-null, valid for three doubles by contract.
         let position_mm = unsafe { read3(target_mm) };
-        // SAFETY: non-null, a live handle by contract; only shared access is taken.
-        let table = unsafe { &(*table).table };
         let c = table.compensate(
             &Target {
                 position_mm,
@@ -442,29 +504,44 @@ pub unsafe extern "C" fn adwi_table_sample_count(
         if table.is_null() || out.is_null() {
             return AdwiResult::NullPointer;
         }
-        // SAFETY: non-null, a live handle by contract.
-        let n = unsafe { (*table).table.sample_count() };
+        // SAFETY: a handle from an open function by contract.
+        let n = match unsafe { open_table(table) } {
+            Ok(table) => table.sample_count(),
+            Err(code) => return code,
+        };
         // SAFETY: non-null, writable by contract.
         unsafe { out.write(n as u32) };
         AdwiResult::Ok
     })
 }
 
-/// Closes a handle, unmapping or freeing its table. Null is accepted and ignored.
+/// Closes a handle, unmapping or freeing its table. Null is accepted and ignored
+/// (`ADWI_OK`); a handle without the marker of an open one (closed already, say) is
+/// refused with `ADWI_INVALID_HANDLE` and nothing is freed.
 ///
 /// # Safety
 ///
-/// `table` is null or a handle from an open function, not yet closed, and not in use by
-/// another thread.
+/// `table` is null or a handle from an open function, not in use by another thread. A
+/// handle closed already is caught in the common case only ([`AdwiTable`]).
 #[no_mangle]
-pub unsafe extern "C" fn adwi_table_close(table: *mut AdwiTable) {
-    let _ = guarded(|| {
-        if !table.is_null() {
-            // SAFETY: a handle from `Box::into_raw`, closed once by contract.
-            drop(unsafe { Box::from_raw(table) });
+pub unsafe extern "C" fn adwi_table_close(table: *mut AdwiTable) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() {
+            return AdwiResult::Ok;
+        }
+        // SAFETY: a handle from an open function by contract.
+        if let Err(code) = unsafe { open_table(table) } {
+            return code;
+        }
+        // SAFETY: an open handle from `Box::into_raw`, so writable and freed only here.
+        // The marker is overwritten first, volatile so that the store is not dropped as
+        // dead before the free.
+        unsafe {
+            std::ptr::addr_of_mut!((*table).magic).write_volatile(HANDLE_CLOSED);
+            drop(Box::from_raw(table));
         }
         AdwiResult::Ok
-    });
+    })
 }
 
 /// A static, NUL-terminated name for a result code ("ok", "null pointer", ...); never
@@ -480,6 +557,7 @@ pub extern "C" fn adwi_result_name(code: c_int) -> *const c_char {
         5 => c"unsupported table format version",
         6 => c"cannot lock the table in memory",
         7 => c"internal panic",
+        8 => c"invalid handle",
         _ => c"unknown result",
     };
     name.as_ptr()
@@ -512,4 +590,121 @@ pub unsafe extern "C" fn adwi_last_open_error(buf: *mut c_char, len: usize) -> u
         })
     })
     .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{align_of, offset_of, size_of};
+
+    use super::*;
+
+    /// The layout `include/adwi.h` declares, as `tests/c/smoke.c` asserts it on the C side
+    /// (`_Static_assert`): the same numbers, so that either side drifting fails a test.
+    #[test]
+    fn layout_and_values_match_the_c_header() {
+        assert_eq!(size_of::<AdwiResult>(), 4);
+        assert_eq!(size_of::<AdwiCorrection>(), 56);
+        assert_eq!(align_of::<AdwiCorrection>(), 8);
+        assert_eq!(offset_of!(AdwiCorrection, position_error_mm), 0);
+        assert_eq!(offset_of!(AdwiCorrection, orientation_error_rad), 24);
+        assert_eq!(offset_of!(AdwiCorrection, neighbours), 48);
+        assert_eq!(offset_of!(AdwiCorrection, status), 52);
+        assert_eq!(size_of::<AdwiCompensation>(), 120);
+        assert_eq!(align_of::<AdwiCompensation>(), 8);
+        assert_eq!(offset_of!(AdwiCompensation, command_position_mm), 0);
+        assert_eq!(offset_of!(AdwiCompensation, command_rotation_rad), 24);
+        assert_eq!(offset_of!(AdwiCompensation, correction), 48);
+        assert_eq!(offset_of!(AdwiCompensation, iterations), 104);
+        assert_eq!(offset_of!(AdwiCompensation, converged), 108);
+        assert_eq!(offset_of!(AdwiCompensation, residual_mm), 112);
+        assert_eq!(offset_of!(AdwiTable, magic), 0);
+        let results = [
+            (AdwiResult::Ok, 0),
+            (AdwiResult::NullPointer, 1),
+            (AdwiResult::InvalidArgument, 2),
+            (AdwiResult::Io, 3),
+            (AdwiResult::InvalidTable, 4),
+            (AdwiResult::UnsupportedVersion, 5),
+            (AdwiResult::Lock, 6),
+            (AdwiResult::Panic, 7),
+            (AdwiResult::InvalidHandle, 8),
+        ];
+        for (result, value) in results {
+            assert_eq!(result as i32, value);
+        }
+        let statuses = [
+            (crate::Status::Ok, 0),
+            (crate::Status::OutsideGrid, 1),
+            (crate::Status::NoAdmissibleNeighbour, 2),
+            (crate::Status::InvalidInput, 3),
+            (crate::Status::MissingJoints, 4),
+            (crate::Status::NumericalFailure, 5),
+        ];
+        for (status, value) in statuses {
+            assert_eq!(status as i32, value);
+        }
+        assert_eq!(
+            (ADWI_OPEN_PREFAULT, ADWI_OPEN_LOCK, ADWI_OPEN_LOCK_REQUIRED),
+            (1, 2, 4)
+        );
+    }
+
+    #[test]
+    fn handles_without_the_open_marker_are_refused_untouched() {
+        let bytes = include_bytes!("../../tables/compat/v1/worked_example.tbl");
+        let mut handle = std::ptr::null_mut();
+        // SAFETY: valid bytes and output.
+        let code = unsafe { adwi_table_open_bytes(bytes.as_ptr(), bytes.len(), &mut handle) };
+        assert_eq!(code, AdwiResult::Ok);
+        let target = [2000.0, 700.0, 1000.0];
+        let joints = [0.0; 6];
+        let mut count = 0u32;
+        // SAFETY: an open handle and valid pointers.
+        assert_eq!(
+            unsafe { adwi_table_sample_count(handle, &mut count) },
+            AdwiResult::Ok
+        );
+        assert_eq!(count, 8);
+        // Readable, aligned memory that never was a handle: zeros, the closed marker, and
+        // a misaligned pointer into it.
+        let mut zeroed = [0u64; 64];
+        let mut closed = [0u64; 64];
+        closed[0] = HANDLE_CLOSED;
+        let misaligned = zeroed
+            .as_mut_ptr()
+            .cast::<u8>()
+            .wrapping_add(1)
+            .cast::<AdwiTable>();
+        for bogus in [
+            zeroed.as_mut_ptr().cast::<AdwiTable>(),
+            closed.as_mut_ptr().cast::<AdwiTable>(),
+            misaligned,
+        ] {
+            let mut c = AdwiCorrection {
+                neighbours: 77,
+                ..AdwiCorrection::default()
+            };
+            let mut k = AdwiCompensation::default();
+            let mut n = 5u32;
+            // SAFETY: readable memory; the functions refuse it before reading more than
+            // the marker.
+            let codes = unsafe {
+                [
+                    adwi_table_query(bogus, target.as_ptr(), -1, &mut c),
+                    adwi_table_query_joints(bogus, target.as_ptr(), -1, joints.as_ptr(), &mut c),
+                    adwi_table_compensate(bogus, target.as_ptr(), -1, 1e-6, 10, &mut k),
+                    adwi_table_sample_count(bogus, &mut n),
+                    adwi_table_close(bogus),
+                ]
+            };
+            assert_eq!(codes, [AdwiResult::InvalidHandle; 5]);
+            assert_eq!((c.neighbours, n, k), (77, 5, AdwiCompensation::default()));
+        }
+        assert_eq!(zeroed, [0; 64]);
+        // SAFETY: an open handle, closed once; null is accepted.
+        unsafe {
+            assert_eq!(adwi_table_close(handle), AdwiResult::Ok);
+            assert_eq!(adwi_table_close(std::ptr::null_mut()), AdwiResult::Ok);
+        }
+    }
 }

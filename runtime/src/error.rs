@@ -72,6 +72,9 @@ pub enum OpenError {
         /// The invariant broken.
         what: &'static str,
     },
+    /// A parameter, grid field or stored value is outside the range any real table
+    /// respects (an ε of 1e300 mm, say), though the checksums are intact.
+    Implausible(crate::format::Implausible),
     /// Locking the table in memory was required and failed
     /// ([`crate::residency::Lock::Required`]).
     Lock(std::io::Error),
@@ -129,6 +132,9 @@ impl fmt::Display for OpenError {
                 write!(f, "table archive is invalid: {reason}; {REBUILD}")
             }
             OpenError::Corrupt { what } => write!(f, "table is inconsistent: {what}; {REBUILD}"),
+            OpenError::Implausible(e) => {
+                write!(f, "table holds an implausible value: {e}; {REBUILD}")
+            }
             OpenError::Lock(e) => write!(
                 f,
                 "cannot lock the table in memory: {e}; raise the locked-memory limit \

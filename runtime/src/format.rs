@@ -73,6 +73,9 @@ pub const CONTENT_CONFIG: u32 = 1 << 1;
 pub const CONTENT_JOINTS: u32 = 1 << 2;
 /// Content flag: the table carries a calibrated kinematic model (a hybrid table).
 pub const CONTENT_MODEL: u32 = 1 << 3;
+/// Every content flag this format version defines; a table naming others is refused.
+pub const CONTENT_KNOWN: u32 =
+    CONTENT_ORIENTATION | CONTENT_CONFIG | CONTENT_JOINTS | CONTENT_MODEL;
 
 /// The decoded header: identification, integrity fields and the build parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -308,8 +311,8 @@ impl Header {
     }
 
     /// Decodes a header, checking in order: length, magic, endianness mark, version range,
-    /// header length, header checksum, rkyv format flags. Parameter ranges are checked
-    /// later, with the payload ([`crate::Table`]).
+    /// header length, header checksum, rkyv format flags, reserved bytes zero. Parameter
+    /// ranges are checked later, with the payload ([`crate::Table`], [`check_plausible`]).
     pub fn from_bytes(bytes: &[u8]) -> Result<Header, crate::OpenError> {
         use crate::OpenError;
         let Some(b) = bytes.get(..HEADER_LEN) else {
@@ -357,6 +360,11 @@ impl Header {
             return Err(OpenError::RkyvFormat {
                 found: rkyv_flags,
                 expected: RKYV_FLAGS,
+            });
+        }
+        if b[160..248].iter().any(|&byte| byte != 0) {
+            return Err(OpenError::Corrupt {
+                what: "reserved header bytes are not zero",
             });
         }
         let consistency = u32_at(52);
@@ -414,4 +422,204 @@ pub fn encode(mut header: Header, data: &TableData) -> Result<Vec<u8>, rkyv::ran
     out.extend_from_slice(&header.to_bytes());
     out.extend_from_slice(&payload);
     Ok(out)
+}
+
+/// The largest plausible distance of a grid corner or a sample from the robot's base, mm,
+/// per coordinate. No robot workspace reaches a kilometre, so a larger value is damage or
+/// a unit error; bounding it also keeps every product the method forms (distances
+/// squared, cross products, areas) far from overflow.
+pub const MAX_COORDINATE_MM: f64 = 1e6;
+
+/// The largest plausible joint-space radius, rad: 4π (720°) is the widest difference
+/// between two angles of a joint turning ±360°, so a wider screen screens nothing.
+pub const MAX_JOINT_RADIUS_RAD: f64 = 4.0 * std::f64::consts::PI;
+
+/// The largest plausible magnitude of a rotation entry of a kinematic model's tool or
+/// base transform: rotation matrices have entries in `[-1, 1]`, up to rounding.
+pub const MAX_ROTATION_ENTRY: f64 = 1.0 + 1e-6;
+
+/// A build parameter, grid field or stored value outside the range any real table
+/// respects, though the table's checksums may be intact: the runtime refuses to open it
+/// and the compiler to write it ([`check_plausible`], [`check_model_plausible`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Implausible {
+    /// The field, with its unit.
+    pub field: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// What it must be, relative to `limit`.
+    pub rule: &'static str,
+    /// The bound it crosses.
+    pub limit: f64,
+}
+
+impl std::fmt::Display for Implausible {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} is {}, but must be {}{}",
+            self.field,
+            Number(self.value),
+            self.rule,
+            Number(self.limit)
+        )
+    }
+}
+
+impl std::error::Error for Implausible {}
+
+/// A number as people read it: plain in the usual range, in exponent form outside it (the
+/// plain form of 1e300 has 301 digits).
+struct Number(f64);
+
+impl std::fmt::Display for Number {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.0;
+        if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
+            write!(f, "{v}")
+        } else {
+            write!(f, "{v:e}")
+        }
+    }
+}
+
+/// The smallest box holding `points`: minimum and maximum corners, or `None` for no
+/// points.
+pub fn bounding_box(points: impl IntoIterator<Item = [f64; 3]>) -> Option<([f64; 3], [f64; 3])> {
+    points.into_iter().fold(None, |acc, p| {
+        let (lo, hi) = acc.unwrap_or((p, p));
+        Some((
+            [0, 1, 2].map(|a| lo[a].min(p[a])),
+            [0, 1, 2].map(|a| hi[a].max(p[a])),
+        ))
+    })
+}
+
+/// Checks one coordinate against [`MAX_COORDINATE_MM`]; `field` names it, with its unit.
+pub fn check_coordinate(field: &'static str, value: f64) -> Result<(), Implausible> {
+    // Written so that NaN fails the test.
+    if value.abs() <= MAX_COORDINATE_MM {
+        Ok(())
+    } else {
+        Err(Implausible {
+            field,
+            value,
+            rule: "within ±",
+            limit: MAX_COORDINATE_MM,
+        })
+    }
+}
+
+/// Checks a table's parameters and grid against each other and against the box holding
+/// its samples' nominal and actual positions (`None` without samples): the ranges no real
+/// table leaves, checked both by the runtime at open and by the compiler before it builds,
+/// so that the compiler never writes what the runtime refuses.
+///
+/// Assumes [`MethodParams::validate`](crate::method::MethodParams::validate) passed, and
+/// the samples are finite.
+///
+/// - Samples and grid within [`MAX_COORDINATE_MM`] of the base on every axis.
+/// - The cell edge positive, and large enough to move every grid coordinate: the grid's
+///   extent along each axis is then `dims × cell` (a few ulps aside), never lost to rounding.
+/// - ε at most the diagonal of the box holding the grid and the samples: no distance
+///   between a sample and a target in the grid exceeds it, so a larger ε admits nothing
+///   more and can only be damage.
+/// - The joint-space radius at most [`MAX_JOINT_RADIUS_RAD`].
+pub fn check_plausible(
+    method: &crate::method::MethodParams,
+    grid: &Grid,
+    joint_radius_rad: f64,
+    samples_box_mm: Option<([f64; 3], [f64; 3])>,
+) -> Result<(), Implausible> {
+    let within_workspace = check_coordinate;
+    if let Some((lo, hi)) = samples_box_mm {
+        for v in lo.into_iter().chain(hi) {
+            within_workspace("a sample coordinate (mm)", v)?;
+        }
+    }
+    for v in grid.origin_mm {
+        within_workspace("the grid origin (mm)", v)?;
+    }
+    if !(grid.cell_mm > 0.0 && grid.cell_mm.is_finite()) {
+        return Err(Implausible {
+            field: "the cell edge (mm)",
+            value: grid.cell_mm,
+            rule: "above ",
+            limit: 0.0,
+        });
+    }
+    let max = grid.max_mm();
+    for (&origin, &corner) in grid.origin_mm.iter().zip(&max) {
+        within_workspace("the grid's maximum corner (mm)", corner)?;
+        let step = (origin + grid.cell_mm) - origin;
+        if step <= 0.0 || step.is_nan() {
+            return Err(Implausible {
+                field: "the cell edge (mm)",
+                value: grid.cell_mm,
+                rule: "large enough to change the grid origin's coordinates, above ",
+                limit: origin.abs() * f64::EPSILON,
+            });
+        }
+    }
+    let (lo, hi) = match samples_box_mm {
+        Some((s_lo, s_hi)) => (
+            [0, 1, 2].map(|a| s_lo[a].min(grid.origin_mm[a])),
+            [0, 1, 2].map(|a| s_hi[a].max(max[a])),
+        ),
+        None => (grid.origin_mm, max),
+    };
+    let diagonal_mm = crate::method::distance_mm(lo, hi);
+    if method.radius_mm > diagonal_mm || diagonal_mm.is_nan() {
+        return Err(Implausible {
+            field: "the radius ε (mm)",
+            value: method.radius_mm,
+            rule: "at most the diagonal of the box holding the grid and the samples, ",
+            limit: diagonal_mm,
+        });
+    }
+    if joint_radius_rad > MAX_JOINT_RADIUS_RAD || joint_radius_rad.is_nan() {
+        return Err(Implausible {
+            field: "the joint-space radius (rad)",
+            value: joint_radius_rad,
+            rule: "at most ",
+            limit: MAX_JOINT_RADIUS_RAD,
+        });
+    }
+    Ok(())
+}
+
+/// Checks a kinematic model's magnitudes: lengths and translations within
+/// [`MAX_COORDINATE_MM`], rotation entries within [`MAX_ROTATION_ENTRY`], so that forward
+/// kinematics stays finite for every finite joint angle. Assumes finite values.
+pub fn check_model_plausible(model: &KinematicModel) -> Result<(), Implausible> {
+    for params in [&model.nominal, &model.calibrated] {
+        let lengths = params.joints.iter().flat_map(|j| [j[0], j[1]]);
+        let translations = [&params.tool, &params.base]
+            .into_iter()
+            .flat_map(|t| [t[3], t[7], t[11]]);
+        for v in lengths.chain(translations) {
+            if v.abs() > MAX_COORDINATE_MM || v.is_nan() {
+                return Err(Implausible {
+                    field: "a kinematic model length (mm)",
+                    value: v,
+                    rule: "within ±",
+                    limit: MAX_COORDINATE_MM,
+                });
+            }
+        }
+        let rotations = [&params.tool, &params.base]
+            .into_iter()
+            .flat_map(|t| [0, 1, 2, 4, 5, 6, 8, 9, 10].map(|i| t[i]));
+        for v in rotations {
+            if v.abs() > MAX_ROTATION_ENTRY || v.is_nan() {
+                return Err(Implausible {
+                    field: "a rotation entry of the model's tool or base",
+                    value: v,
+                    rule: "within ±",
+                    limit: MAX_ROTATION_ENTRY,
+                });
+            }
+        }
+    }
+    Ok(())
 }

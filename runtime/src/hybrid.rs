@@ -33,7 +33,8 @@
 //! flops) and a 3 × 3 logarithm on top of the ordinary query.
 
 use crate::format::{
-    ArchivedModelParams, ArchivedTableData, KinematicModel, ModelParams, CONTENT_MODEL,
+    ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData, KinematicModel, ModelParams,
+    CONTENT_MODEL,
 };
 use crate::kinematics::{forward_prepared, MdhJoint, PreparedJoint, Transform};
 
@@ -172,11 +173,15 @@ impl PreparedModel {
 
 /// The prepared model of a validated archive, if it carries one.
 pub(crate) fn prepared_model(archive: &ArchivedTableData) -> Option<PreparedModel> {
-    let model = archive.model.as_ref()?;
-    Some(PreparedModel::new(&KinematicModel {
+    Some(PreparedModel::new(&native_model(archive.model.as_ref()?)))
+}
+
+/// A kinematic model out of the archive.
+pub(crate) fn native_model(model: &ArchivedKinematicModel) -> KinematicModel {
+    KinematicModel {
         nominal: native(&model.nominal),
         calibrated: native(&model.calibrated),
-    }))
+    }
 }
 
 /// The rotation vector (axis × angle, rad) of a rotation matrix: the logarithm map,
@@ -261,11 +266,7 @@ impl<D: AsRef<[u8]>> Table<D> {
 
     /// The kinematic model of a hybrid table (nominal and calibrated parameters).
     pub fn kinematic_model(&self) -> Option<KinematicModel> {
-        let model = self.data()?.model.as_ref()?;
-        Some(KinematicModel {
-            nominal: native(&model.nominal),
-            calibrated: native(&model.calibrated),
-        })
+        Some(native_model(self.data()?.model.as_ref()?))
     }
 
     /// The predicted correction at a target that the controller will reach with joint
@@ -307,7 +308,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                 }
             }
         }
-        correction
+        correction.finite_or_failure()
     }
 }
 

@@ -47,6 +47,8 @@ pub mod method;
 pub mod residency;
 mod swap;
 mod table;
+#[doc(hidden)]
+pub mod testing;
 
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};

@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use crate::format::{
-    ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_JOINTS,
-    CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, PAYLOAD_ALIGN,
+    self, ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_JOINTS,
+    CONTENT_KNOWN, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction, SampleError, Selection};
 use crate::OpenError;
@@ -25,6 +25,11 @@ pub enum Status {
     /// correction depends on the joint angles: query it with
     /// [`Table::query_with_joints`]. The correction is zero.
     MissingJoints = 4,
+    /// The prediction came out non-finite (NaN or infinite). A validated table gives this
+    /// only in degenerate geometry, such as a target and a sample both within about
+    /// 1e-160 mm of the base origin, where the approximation degrees overflow; answered
+    /// instead of a correction no robot can be commanded with. The correction is zero.
+    NumericalFailure = 5,
 }
 
 impl Status {
@@ -36,6 +41,7 @@ impl Status {
             Status::NoAdmissibleNeighbour => "no_neighbour",
             Status::InvalidInput => "invalid_input",
             Status::MissingJoints => "missing_joints",
+            Status::NumericalFailure => "numerical_failure",
         }
     }
 }
@@ -85,6 +91,38 @@ impl Correction {
             neighbours: 0,
             status,
         }
+    }
+
+    /// This correction, or [`Status::NumericalFailure`] if it claims [`Status::Ok`] with
+    /// a non-finite value: the last line of defence of every query path, so that no caller
+    /// is ever told to command a NaN.
+    #[inline]
+    pub(crate) fn finite_or_failure(self) -> Correction {
+        let values = self
+            .position_error_mm
+            .iter()
+            .chain(&self.orientation_error_rad);
+        if self.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
+            return Correction::failed(Status::NumericalFailure);
+        }
+        self
+    }
+}
+
+impl Compensation {
+    /// This compensation, with its correction turned into [`Status::NumericalFailure`]
+    /// (and `converged` false) if it claims [`Status::Ok`] with a non-finite command or
+    /// residual.
+    #[inline]
+    pub(crate) fn finite_or_failure(mut self) -> Compensation {
+        let values = (self.command_position_mm.iter())
+            .chain(&self.command_rotation_rad)
+            .chain([&self.residual_mm]);
+        if self.correction.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
+            self.correction = Correction::failed(Status::NumericalFailure);
+            self.converged = false;
+        }
+        self
     }
 }
 
@@ -169,9 +207,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// 2. the length: header plus payload length, exactly;
     /// 3. the payload checksum;
     /// 4. the buffer's alignment, then rkyv validation of the archive (bounds, alignment);
-    /// 5. the table's own invariants: parameters in range, grid size matching the cells,
-    ///    sample count, finite values, every index in range, candidate lists strictly
-    ///    increasing, base weights in `[0, 1]` summing to 1.
+    /// 5. the table's own invariants: parameters in range, known content flags, grid size
+    ///    matching the cells, sample count, finite values, parameters, grid and samples of
+    ///    plausible magnitude ([`format::check_plausible`]), every index in range, candidate
+    ///    lists without repeats, base weights in `[0, 1]` summing to 1.
     ///
     /// # Errors
     ///
@@ -312,10 +351,19 @@ impl<D: AsRef<[u8]>> Table<D> {
         let (selection, archive) = self.select(target, None)?;
         let samples = archive.samples.as_slice();
         let neighbours = method::neighbours(target.position_mm, &selection, |i| actual(samples, i));
-        method::predict(&self.header.method, neighbours.as_slice(), |i| {
+        let prediction = method::predict(&self.header.method, neighbours.as_slice(), |i| {
             sample_error(samples, i)
         })
-        .ok_or(Status::NoAdmissibleNeighbour)
+        .ok_or(Status::NoAdmissibleNeighbour)?;
+        // As every query path: never a non-finite prediction (degrees may be infinite: a
+        // coincident sample's ζ is, by definition).
+        let values = (prediction.position_error_mm.iter())
+            .chain(&prediction.orientation_error_rad)
+            .chain(prediction.weights.as_slice());
+        if !values.into_iter().all(|v| v.is_finite()) {
+            return Err(Status::NumericalFailure);
+        }
+        Ok(prediction)
     }
 
     /// The `k` nearest admissible samples of the target's cell, and the samples.
@@ -379,7 +427,8 @@ impl<D: AsRef<[u8]>> Table<D> {
                 orientation_error_rad: e.orientation_error_rad,
                 neighbours: e.neighbours,
                 status: Status::Ok,
-            },
+            }
+            .finite_or_failure(),
             Err(status) => Correction::failed(status),
         }
     }
@@ -419,11 +468,11 @@ impl<D: AsRef<[u8]>> Table<D> {
             out.command_rotation_rad = correction.orientation_error_rad.map(|v| -v);
             if out.residual_mm <= tolerance_mm {
                 out.converged = true;
-                return out;
+                return out.finite_or_failure();
             }
             command.position_mm = sub(target.position_mm, correction.position_error_mm);
         }
-        out
+        out.finite_or_failure()
     }
 }
 
@@ -472,14 +521,12 @@ fn corrupt(what: &'static str) -> OpenError {
 /// The semantic checks of step 5 of [`Table::from_bytes`].
 fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
     header.method.validate().map_err(corrupt)?;
+    if header.content_flags & !CONTENT_KNOWN != 0 {
+        return Err(corrupt(
+            "the content flags name contents this version does not know",
+        ));
+    }
     let grid = &header.grid;
-    if !(grid.cell_mm.is_finite() && grid.cell_mm > 0.0) {
-        return Err(corrupt("cell size must be finite and positive"));
-    }
-    if !grid.origin_mm.iter().all(|v| v.is_finite()) || !grid.max_mm().iter().all(|v| v.is_finite())
-    {
-        return Err(corrupt("grid bounds are not finite"));
-    }
     let cells = grid
         .cell_count()
         .filter(|&n| n > 0 && n < u32::MAX as usize)
@@ -516,6 +563,20 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             ));
         }
     }
+    let positions = a.samples.iter().flat_map(|s| {
+        [
+            s.nominal_mm.map(|v| v.to_native()),
+            s.actual_mm.map(|v| v.to_native()),
+        ]
+    });
+    let samples_box_mm = format::bounding_box(positions);
+    format::check_plausible(
+        &header.method,
+        grid,
+        header.joint_radius_rad,
+        samples_box_mm,
+    )
+    .map_err(OpenError::Implausible)?;
     let with_joints = header.content_flags & CONTENT_JOINTS != 0;
     if header.joint_radius_rad > 0.0 && !with_joints {
         return Err(corrupt("a joint radius without sample joint angles"));
@@ -542,6 +603,8 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
                     return Err(corrupt("a kinematic parameter is not finite"));
                 }
             }
+            format::check_model_plausible(&crate::hybrid::native_model(m))
+                .map_err(OpenError::Implausible)?;
         }
         None => {}
     }
@@ -573,7 +636,20 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             "base weight offsets do not run from 0 to the weight count",
         ));
     }
+    let radius_squared_mm2 = header.method.radius_mm * header.method.radius_mm;
+    // The cell's (ix, iy, iz), x fastest, counted rather than divided out of the index.
+    let mut coords = [0usize; 3];
     for (c, centre_range) in a.cells.iter().zip(offsets.windows(2)) {
+        let here = coords;
+        coords[0] += 1;
+        if coords[0] == grid.dims[0] as usize {
+            coords[0] = 0;
+            coords[1] += 1;
+            if coords[1] == grid.dims[1] as usize {
+                coords[1] = 0;
+                coords[2] += 1;
+            }
+        }
         let start = c.list_start.to_native() as usize;
         let list = start
             .checked_add(c.list_len.to_native() as usize)
@@ -611,6 +687,22 @@ fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
             .any(|&i| i.to_native() as usize >= n)
         {
             return Err(corrupt("a base weight names a sample that does not exist"));
+        }
+        // The base weights were selected at the cell's centre, so their nearest sample is
+        // within ε of it (computed as the compiler computes it, so never refused for a
+        // table it wrote): a grid edited to another shape or place with the same cell
+        // count fails here. One sample a cell keeps the cost of opening low.
+        if let Some(nearest) = a.centre_samples[centre.clone()].first() {
+            let (lo, hi) = grid.cell_box(here);
+            let middle = [0, 1, 2].map(|axis| 0.5 * (lo[axis] + hi[axis]));
+            let nearest = actual(a.samples.as_slice(), nearest.to_native());
+            let key = method::distance_squared_mm2(nearest, middle);
+            if key > radius_squared_mm2 || key.is_nan() {
+                return Err(corrupt(
+                    "a cell's nearest base weight is beyond ε of its centre: the grid does not \
+                     match its cells",
+                ));
+            }
         }
         let weights = &a.centre_weights[centre.clone()];
         // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.

@@ -10,11 +10,41 @@
  * answers with 17 significant digits. Every other line it prints is "name value ...",
  * for the Rust test to compare with what it expects.
  */
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "adwi.h"
+
+/* The layout and values the header declares, as the library has them: the Rust side
+ * asserts the same numbers (runtime/src/capi.rs, layout_and_values_match_the_c_header), so
+ * a change on either side alone fails to compile here or fails that test. */
+_Static_assert(sizeof(adwi_result) == 4, "adwi_result is an int");
+_Static_assert(sizeof(adwi_correction) == 56, "sizeof adwi_correction");
+_Static_assert(_Alignof(adwi_correction) == 8, "alignof adwi_correction");
+_Static_assert(offsetof(adwi_correction, position_error_mm) == 0, "position_error_mm");
+_Static_assert(offsetof(adwi_correction, orientation_error_rad) == 24, "orientation_error_rad");
+_Static_assert(offsetof(adwi_correction, neighbours) == 48, "neighbours");
+_Static_assert(offsetof(adwi_correction, status) == 52, "status");
+_Static_assert(sizeof(adwi_compensation) == 120, "sizeof adwi_compensation");
+_Static_assert(_Alignof(adwi_compensation) == 8, "alignof adwi_compensation");
+_Static_assert(offsetof(adwi_compensation, command_position_mm) == 0, "command_position_mm");
+_Static_assert(offsetof(adwi_compensation, command_rotation_rad) == 24, "command_rotation_rad");
+_Static_assert(offsetof(adwi_compensation, correction) == 48, "correction");
+_Static_assert(offsetof(adwi_compensation, iterations) == 104, "iterations");
+_Static_assert(offsetof(adwi_compensation, converged) == 108, "converged");
+_Static_assert(offsetof(adwi_compensation, residual_mm) == 112, "residual_mm");
+_Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT == 2 &&
+                   ADWI_IO == 3 && ADWI_INVALID_TABLE == 4 && ADWI_UNSUPPORTED_VERSION == 5 &&
+                   ADWI_LOCK == 6 && ADWI_PANIC == 7 && ADWI_INVALID_HANDLE == 8,
+               "adwi_result values");
+_Static_assert(ADWI_STATUS_OK == 0 && ADWI_STATUS_OUTSIDE_GRID == 1 &&
+                   ADWI_STATUS_NO_NEIGHBOUR == 2 && ADWI_STATUS_INVALID_INPUT == 3 &&
+                   ADWI_STATUS_MISSING_JOINTS == 4 && ADWI_STATUS_NUMERICAL_FAILURE == 5,
+               "ADWI_STATUS_* values");
+_Static_assert(ADWI_OPEN_PREFAULT == 1u && ADWI_OPEN_LOCK == 2u && ADWI_OPEN_LOCK_REQUIRED == 4u,
+               "ADWI_OPEN_* values");
 
 static unsigned char *read_file(const char *path, size_t *len) {
     FILE *f = fopen(path, "rb");
@@ -92,10 +122,38 @@ int main(int argc, char **argv) {
     printf("query_joints_null_joints %d\n",
            (int)adwi_table_query_joints(table, target, -1, NULL, &c));
     adwi_compensation k;
+    memset(&k, 0xCD, sizeof k);
     printf("compensate_null_out %d\n",
            (int)adwi_table_compensate(table, target, -1, 1e-6, 20, NULL));
     printf("compensate_bad_tolerance %d\n",
            (int)adwi_table_compensate(table, target, -1, -1.0, 20, &k));
+
+    /* Handles no open function returned: readable memory without the open marker (zeros,
+     * garbage) and a misaligned pointer. Refused with ADWI_INVALID_HANDLE, outputs and
+     * memory untouched. (A closed handle is refused the same way in the common case, but
+     * using one is undefined behaviour, so it is not exercised here.) */
+    static uint64_t zeroed[64];
+    uint64_t garbage[64];
+    memset(garbage, 0xAB, sizeof garbage);
+    adwi_table *bogus[3] = {(adwi_table *)zeroed, (adwi_table *)garbage,
+                            (adwi_table *)((unsigned char *)zeroed + 1)};
+    for (int i = 0; i < 3; i++) {
+        uint32_t n = 12345;
+        adwi_compensation before_k = k;
+        printf("invalid_handle %d %d %d %d %d\n",
+               (int)adwi_table_query(bogus[i], target, -1, &c),
+               (int)adwi_table_query_joints(bogus[i], target, -1, joints, &c),
+               (int)adwi_table_compensate(bogus[i], target, -1, 1e-6, 20, &k),
+               (int)adwi_table_sample_count(bogus[i], &n),
+               (int)adwi_table_close(bogus[i]));
+        printf("invalid_handle_untouched %d\n",
+               memcmp(&c, &sentinel, sizeof c) == 0 && n == 12345 &&
+                   memcmp(&k, &before_k, sizeof k) == 0);
+    }
+    int zeroed_untouched = 1;
+    for (int i = 0; i < 64; i++) zeroed_untouched &= zeroed[i] == 0;
+    printf("invalid_handle_memory_untouched %d\n", zeroed_untouched);
+    printf("result_name_8 %s\n", adwi_result_name(ADWI_INVALID_HANDLE));
 
     /* Answers. */
     double x, y, z;
@@ -127,9 +185,8 @@ int main(int argc, char **argv) {
                k.iterations, k.converged, k.command_position_mm[0], k.command_position_mm[1],
                k.command_position_mm[2], k.residual_mm);
     }
-    adwi_table_close(copy);
-    adwi_table_close(table);
-    adwi_table_close(NULL);
+    printf("close %d %d %d\n", (int)adwi_table_close(copy), (int)adwi_table_close(table),
+           (int)adwi_table_close(NULL));
     printf("done\n");
     return 0;
 }

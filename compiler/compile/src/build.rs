@@ -128,9 +128,22 @@ pub enum BuildError {
     /// A hybrid table needs the samples' joint angles, at which its model is evaluated.
     #[error("a hybrid table needs samples with joint angles (columns j1..j6)")]
     MissingJoints,
+    /// A parameter, the grid or the samples are outside the range the runtime accepts.
+    #[error("implausible table: {0}")]
+    Implausible(format::Implausible),
     /// Serialisation failed.
     #[error("cannot encode the table: {0}")]
     Encode(String),
+    /// The encoded table does not open: a bug of the compiler, never a property of the
+    /// input.
+    #[error("the built table does not open: please report this bug")]
+    Unopenable(#[source] adwi_runtime::OpenError),
+}
+
+impl From<format::Implausible> for BuildError {
+    fn from(e: format::Implausible) -> BuildError {
+        BuildError::Implausible(e)
+    }
 }
 
 /// What a build produced and derived, for the CLI to report.
@@ -264,8 +277,16 @@ pub fn resolve(
             "{lo:?} to {hi:?}: each minimum must be below its maximum, all finite"
         )));
     }
+    // Bounds a kilometre away (a huge --radius widens the default ones) are refused before
+    // their cells are counted.
+    for v in lo.iter().chain(&hi) {
+        format::check_coordinate("a grid bound (mm)", *v)?;
+    }
     let dims_f = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
-    let cells = dims_f.iter().map(|&d| d as u128).product::<u128>();
+    // Saturating: a tiny cell makes each count reach u128::MAX (`as` saturates).
+    let cells = dims_f
+        .iter()
+        .fold(1u128, |product, &d| product.saturating_mul(d as u128));
     if cells > MAX_CELLS as u128 || dims_f.iter().any(|&d| d > u32::MAX as f64) {
         return Err(BuildError::TooManyCells {
             cells,
@@ -285,6 +306,15 @@ pub fn resolve(
         cell_mm,
         dims: dims_f.map(|d| d as u32),
     };
+    // The runtime's own plausibility bounds, so that no build ends in a table that does
+    // not open (an ε beyond every distance in the workspace, a grid a kilometre away).
+    let positions = (0..samples.len()).flat_map(|i| [samples.nominal_mm[i], samples.actual_mm(i)]);
+    format::check_plausible(
+        &params,
+        &grid,
+        joint_radius_rad,
+        format::bounding_box(positions),
+    )?;
     let report = BuildReport {
         spacing_mm,
         radius_mm,
@@ -334,6 +364,9 @@ pub fn compile_with_model(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let (params, grid, mut report) = resolve(samples, options)?;
+    if let Some(model) = &model {
+        format::check_model_plausible(model)?;
+    }
     let joint_screen = report.joint_radius_rad > 0.0;
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
@@ -419,6 +452,8 @@ pub fn compile_with_model(
         joint_radius_rad: report.joint_radius_rad,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
+    // Opened once as the runtime will: a table the runtime refuses is never written.
+    adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     report.table_bytes = bytes.len();
     Ok((bytes, report))
 }
@@ -591,5 +626,125 @@ fn centre_weights(
             .map(|(n, &q)| (n.sample, q))
             .collect(),
         None => Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::samples::{parse_samples, ColumnMap};
+
+    /// A 3 × 3 × 3 lattice of 100 mm with joint angles, plus `extra` rows.
+    fn samples(extra: &str) -> SampleSet {
+        let mut csv = String::from("x,y,z,dx,dy,dz,j1,j2,j3,j4,j5,j6\n");
+        for i in 0..27 {
+            let p = [i % 3, (i / 3) % 3, i / 9].map(|v| 1000.0 + 100.0 * f64::from(v));
+            csv += &format!("{},{},{},0.1,0.2,-0.1,{i},0,0,0,0,0\n", p[0], p[1], p[2]);
+        }
+        csv += extra;
+        parse_samples("s.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap()
+    }
+
+    fn build(samples: &SampleSet, options: BuildOptions) -> Result<Vec<u8>, BuildError> {
+        compile(samples, &options, &|_| {}).map(|(bytes, _)| bytes)
+    }
+
+    #[test]
+    fn any_radius_with_the_default_bounds_builds_a_table_that_opens() {
+        // The default grid grows with ε, so ε never exceeds its diagonal; `compile` opens
+        // what it built.
+        let s = samples("");
+        for radius_mm in [1.0, 200.0, 5e4] {
+            let options = BuildOptions {
+                radius_mm: Some(radius_mm),
+                cell_mm: Some(radius_mm.max(100.0) / 2.0),
+                ..BuildOptions::default()
+            };
+            build(&s, options).unwrap();
+        }
+    }
+
+    #[test]
+    fn what_the_runtime_would_refuse_is_refused_before_building() {
+        let s = samples("");
+        let small_box = Some(([1000.0; 3], [1200.0; 3]));
+        let cases = [
+            // ε beyond every distance between the grid and the samples.
+            BuildOptions {
+                radius_mm: Some(1e5),
+                bounds_mm: small_box,
+                ..BuildOptions::default()
+            },
+            // The default grid, ε wide, would reach 1e300 mm from the base.
+            BuildOptions {
+                radius_mm: Some(1e300),
+                cell_mm: Some(1e299),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                radius_mm: Some(1e300),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                radius_mm: Some(f64::MAX),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                bounds_mm: Some(([1000.0; 3], [2e6; 3])),
+                cell_mm: Some(1e5),
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                joint_radius_deg: Some(800.0),
+                ..BuildOptions::default()
+            },
+        ];
+        for options in cases {
+            let err = build(&s, options.clone()).unwrap_err();
+            assert!(
+                matches!(err, BuildError::Implausible(_)),
+                "{options:?}: {err}"
+            );
+        }
+        let far = samples("2e6,0,0,0,0,0,0,0,0,0,0,0\n");
+        let options = BuildOptions {
+            bounds_mm: small_box,
+            ..BuildOptions::default()
+        };
+        let err = build(&far, options).unwrap_err();
+        assert!(err.to_string().contains("sample coordinate"), "{err}");
+        // A cell so small that every axis counts more cells than u128 holds.
+        let options = BuildOptions {
+            cell_mm: Some(1e-300),
+            bounds_mm: small_box,
+            ..BuildOptions::default()
+        };
+        let err = build(&s, options).unwrap_err();
+        assert!(matches!(err, BuildError::TooManyCells { .. }), "{err}");
+    }
+
+    #[test]
+    fn an_implausible_model_is_refused() {
+        let s = samples("");
+        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let params = format::ModelParams {
+            joints: [[100.0, 200.0, 0.0, 0.0, 0.0]; 6],
+            tool: identity,
+            base: identity,
+        };
+        let mut model = KinematicModel {
+            nominal: params,
+            calibrated: params,
+        };
+        let options = BuildOptions::default();
+        let hash = s.source_hash();
+        compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap();
+        model.calibrated.base[3] = 1e300;
+        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
+        model.calibrated.base[3] = 0.0;
+        model.nominal.tool[0] = 2.0;
+        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
     }
 }
