@@ -192,7 +192,11 @@ pub fn estimated_table_bytes(
     k: u32,
 ) -> u128 {
     let covered = (max_covered_cells(samples, radius_mm, cell_mm) as u128).min(cells);
-    cells * 12 + covered * 12 * u128::from(k) + samples as u128 * 120
+    // Saturating: an absurd grid (a huge --radius, say) must be refused, not overflow.
+    cells
+        .saturating_mul(12)
+        .saturating_add(covered.saturating_mul(12 * u128::from(k)))
+        .saturating_add(samples as u128 * 120)
 }
 
 /// At most how many cells of edge `cell_mm` can lie within `radius_mm` of one of `samples`
