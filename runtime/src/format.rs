@@ -40,6 +40,8 @@
 
 use rkyv::{Archive, Deserialize, Serialize};
 
+use crate::kinematics::{MdhJoint, Transform};
+
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
@@ -266,6 +268,54 @@ pub struct KinematicModel {
     pub nominal: ModelParams,
     /// The identified parameters.
     pub calibrated: ModelParams,
+}
+
+/// The number of joints of a model in a table.
+pub const JOINT_COUNT: usize = 6;
+
+// Layout conversions: the one place where the file's plain arrays become the runtime's
+// kinematic types and back.
+/// The rigid transform of a table's 12-value layout: rotation rows then translation,
+/// `[r00, r01, r02, t0, r10, r11, r12, t1, r20, r21, r22, t2]` (mm).
+#[inline]
+pub fn transform_of(rows: &[f64; 12]) -> Transform {
+    Transform {
+        rotation: [
+            [rows[0], rows[1], rows[2]],
+            [rows[4], rows[5], rows[6]],
+            [rows[8], rows[9], rows[10]],
+        ],
+        translation_mm: [rows[3], rows[7], rows[11]],
+    }
+}
+
+/// A transform in the table's 12-value layout (the inverse of [`transform_of`]).
+pub fn rows_of(transform: &Transform) -> [f64; 12] {
+    let r = &transform.rotation;
+    let t = transform.translation_mm;
+    [
+        r[0][0], r[0][1], r[0][2], t[0], r[1][0], r[1][1], r[1][2], t[1], r[2][0], r[2][1],
+        r[2][2], t[2],
+    ]
+}
+
+/// The joints of a model in the table's layout `[a (mm), d (mm), α, β, θ offset (rad)]`.
+#[inline]
+pub fn joint_rows_to_mdh(rows: &[[f64; 5]; JOINT_COUNT]) -> [MdhJoint; JOINT_COUNT] {
+    rows.map(
+        |[a_mm, d_mm, alpha_rad, beta_rad, theta_offset_rad]| MdhJoint {
+            a_mm,
+            d_mm,
+            alpha_rad,
+            beta_rad,
+            theta_offset_rad,
+        },
+    )
+}
+
+/// The table layout of MD-H joints (the inverse of [`joint_rows_to_mdh`]).
+pub fn joint_rows(joints: &[MdhJoint; JOINT_COUNT]) -> [[f64; 5]; JOINT_COUNT] {
+    joints.map(|j| [j.a_mm, j.d_mm, j.alpha_rad, j.beta_rad, j.theta_offset_rad])
 }
 
 fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]) {

@@ -257,6 +257,76 @@ pub fn link_frames<const N: usize>(joints: &[MdhJoint; N], q_rad: &[f64; N]) -> 
     frames
 }
 
+/// The rotation vector (axis × angle, rad) of a rotation matrix: the logarithm map,
+/// allocation-free.
+///
+/// The skew part of `R` is `sin θ · axis` to full precision, so for the small rotations
+/// that pose errors are the angle comes from `atan2(sin θ, cos θ)` and the vector from the
+/// skew part (an angle from `acos` would lose half its digits). Near θ = π the skew part
+/// vanishes; the axis then comes from the largest column of `R + I = 2 · axis · axisᵀ`
+/// (for θ = π exactly), its sign from the skew part. Finite for every finite input.
+#[inline]
+pub fn rotation_vector(r: &[[f64; 3]; 3]) -> [f64; 3] {
+    let sin_axis = [
+        0.5 * (r[2][1] - r[1][2]),
+        0.5 * (r[0][2] - r[2][0]),
+        0.5 * (r[1][0] - r[0][1]),
+    ];
+    let sin_angle = norm(sin_axis);
+    let cos_angle = 0.5 * (r[0][0] + r[1][1] + r[2][2] - 1.0);
+    let angle = sin_angle.atan2(cos_angle);
+    if cos_angle > -0.9 {
+        // θ / sin θ → 1 as θ → 0; the series keeps it exact when sin θ underflows to 0.
+        let scale = if sin_angle > 1e-8 {
+            angle / sin_angle
+        } else {
+            1.0 + angle * angle / 6.0
+        };
+        return sin_axis.map(|v| v * scale);
+    }
+    // Near π: R + Rᵀ = 2 cos θ I + 2 (1 − cos θ) a aᵀ, so the symmetric part gives a aᵀ.
+    let one_minus_cos = 1.0 - cos_angle;
+    let outer = |i: usize, j: usize| {
+        let delta = if i == j { 1.0 } else { 0.0 };
+        (0.5 * (r[i][j] + r[j][i]) - cos_angle * delta) / one_minus_cos
+    };
+    let diagonal = [outer(0, 0), outer(1, 1), outer(2, 2)];
+    let mut k = 0;
+    for i in 1..3 {
+        if diagonal[i] > diagonal[k] {
+            k = i;
+        }
+    }
+    let mut axis = [outer(0, k), outer(1, k), outer(2, k)];
+    let length = norm(axis);
+    if length > 0.0 {
+        axis = axis.map(|v| v / length);
+    }
+    // The symmetric part fixes the axis up to sign; the skew part (sin θ · axis) the sign.
+    let dot = axis[0] * sin_axis[0] + axis[1] * sin_axis[1] + axis[2] * sin_axis[2];
+    if dot < 0.0 {
+        axis = axis.map(|v| -v);
+    }
+    axis.map(|v| v * angle)
+}
+
+#[inline]
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// The pose error of `actual` against `nominal`, both in one frame: position
+/// `p_actual − p_nominal` (mm) and orientation `log(R_actual · R_nominalᵀ)` (rotation
+/// vector, rad), in that frame. The one definition of a pose error: the runtime's model
+/// part, the compiler's identification and its simulation all compute it here.
+#[inline]
+pub fn pose_error(nominal: &Transform, actual: &Transform) -> ([f64; 3], [f64; 3]) {
+    let position_mm = [0, 1, 2].map(|a| actual.translation_mm[a] - nominal.translation_mm[a]);
+    // R_act · R_nomᵀ: the rotation part of actual · nominal⁻¹.
+    let relative = actual.compose(&nominal.inverse());
+    (position_mm, rotation_vector(&relative.rotation))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -402,5 +472,53 @@ mod tests {
             assert_close(identity.rotation[i], Transform::IDENTITY.rotation[i], 1e-15);
         }
         assert_close(identity.translation_mm, [0.0; 3], 1e-12);
+    }
+
+    /// `Exp(v)` by Rodrigues' formula, for checking the logarithm.
+    fn exp(v: [f64; 3]) -> [[f64; 3]; 3] {
+        let theta = norm(v);
+        let k = if theta > 0.0 {
+            v.map(|x| x / theta)
+        } else {
+            [0.0; 3]
+        };
+        let (s, c) = theta.sin_cos();
+        let mut r = [[0.0; 3]; 3];
+        let skew = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]];
+        for i in 0..3 {
+            for j in 0..3 {
+                let delta = if i == j { 1.0 } else { 0.0 };
+                r[i][j] = c * delta + s * skew[i][j] + (1.0 - c) * k[i] * k[j];
+            }
+        }
+        r
+    }
+
+    #[test]
+    fn logarithm_inverts_the_exponential_from_tiny_angles_to_pi() {
+        let axes = [[1.0, 0.0, 0.0], [0.3, -0.5, 0.8], [-0.2, 0.9, 0.1]];
+        for axis in axes {
+            let unit = axis.map(|v| v / norm(axis));
+            for angle in [
+                0.0,
+                1e-12,
+                1e-6,
+                1e-3,
+                0.5,
+                2.0,
+                2.9,
+                3.1,
+                std::f64::consts::PI - 1e-7,
+            ] {
+                let v = unit.map(|x| x * angle);
+                let back = rotation_vector(&exp(v));
+                for a in 0..3 {
+                    assert!(
+                        (back[a] - v[a]).abs() < 1e-9 * angle.max(1e-3) + 1e-15,
+                        "angle {angle}, axis {unit:?}: {back:?} vs {v:?}"
+                    );
+                }
+            }
+        }
     }
 }

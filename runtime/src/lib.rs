@@ -11,7 +11,7 @@
 //! A *hybrid* table (`tablec build --robot ROBOT.toml --hybrid`) also carries a calibrated
 //! kinematic model; it answers [`Table::query_with_joints`], which adds the model's
 //! predicted error at the controller's joint angles to the interpolated residuals
-//! ([`hybrid`]). The same query applies a table's joint-space admissibility screen.
+//! ([`model`]). The same query applies a table's joint-space admissibility screen.
 //!
 //! # Example
 //!
@@ -41,14 +41,15 @@
 pub mod capi;
 mod error;
 pub mod format;
-pub mod hybrid;
 pub mod kinematics;
 pub mod method;
+pub mod model;
 pub mod residency;
 mod swap;
 mod table;
 #[doc(hidden)]
 pub mod testing;
+mod validate;
 
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};

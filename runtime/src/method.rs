@@ -750,6 +750,18 @@ fn norm_squared(a: [f64; 3]) -> f64 {
     a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
 }
 
+/// Whether every joint angle of `sample_rad` is within `radius_rad` of `target_rad`:
+/// `max_i |q_sample,i − q_target,i| ≤ radius_rad` (joint vectors of unequal length fail). The one test of the joint-space screen,
+/// shared by the runtime, the table builder and the brute-force reference. NaN fails.
+#[inline]
+pub fn joints_within(sample_rad: &[f64], target_rad: &[f64], radius_rad: f64) -> bool {
+    sample_rad.len() == target_rad.len()
+        && sample_rad
+            .iter()
+            .zip(target_rad)
+            .all(|(s, t)| (s - t).abs() <= radius_rad)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -870,5 +882,16 @@ mod tests {
         assert!(p.degree_admissible(&d));
         let far = approximation_degree([1000.0, 0.0, 0.0], [1000.0, 150.0, 0.0]);
         assert!(!p.degree_admissible(&far));
+    }
+
+    #[test]
+    fn joint_screen_is_a_max_norm_and_refuses_nan() {
+        let target = [0.0, 0.5, -0.5, 1.0, 0.0, 0.0];
+        let mut sample = target;
+        sample[3] += 0.1;
+        assert!(joints_within(&sample, &target, 0.1 + 1e-12));
+        assert!(!joints_within(&sample, &target, 0.099));
+        sample[0] = f64::NAN;
+        assert!(!joints_within(&sample, &target, 10.0));
     }
 }

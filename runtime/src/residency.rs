@@ -9,11 +9,6 @@
 //! process's locked-memory limit (`RLIMIT_MEMLOCK`, `ulimit -l`) is too small; whether that
 //! failure is fatal is the caller's choice ([`Lock`]).
 
-use std::path::Path;
-
-use crate::format::HEADER_LEN;
-use crate::{OpenError, Table};
-
 /// Whether to lock a table's pages in memory at open.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Lock {
@@ -66,67 +61,9 @@ pub struct Residency {
 /// page.
 const TOUCH_STRIDE: usize = 4096;
 
-impl Table<memmap2::Mmap> {
-    /// Memory-maps the table at `path` as [`Table::open`] does, first prefaulting and
-    /// locking its pages as `options` asks.
-    ///
-    /// The lock is taken before validation so that the validated pages are the locked
-    /// ones; it is released when the table (its mapping) is dropped.
-    ///
-    /// # Errors
-    ///
-    /// As [`Table::open`], and [`OpenError::Lock`] when `options.lock` is
-    /// [`Lock::Required`] and `mlock` fails.
-    ///
-    /// # Safety
-    ///
-    /// As [`Table::open`]: the file must not be modified or truncated while the table is
-    /// alive.
-    pub unsafe fn open_with(
-        path: impl AsRef<Path>,
-        options: OpenOptions,
-    ) -> Result<(Table<memmap2::Mmap>, Residency), OpenError> {
-        let file = std::fs::File::open(path)?;
-        let len = file.metadata()?.len();
-        if len < HEADER_LEN as u64 {
-            // Also refuses empty files, which cannot be mapped.
-            return Err(OpenError::Truncated {
-                len,
-                needed: HEADER_LEN as u64,
-            });
-        }
-        let mut mmap_options = memmap2::MmapOptions::new();
-        if options.prefault {
-            mmap_options.populate();
-        }
-        // SAFETY: the caller guarantees the file is not modified while mapped.
-        let map = unsafe { mmap_options.map(&file)? };
-        let mut residency = Residency {
-            pages_touched: 0,
-            locked: false,
-            lock_error: None,
-        };
-        match options.lock {
-            Lock::No => {}
-            Lock::BestEffort => match map.lock() {
-                Ok(()) => residency.locked = true,
-                Err(e) => residency.lock_error = Some(e),
-            },
-            Lock::Required => {
-                map.lock().map_err(OpenError::Lock)?;
-                residency.locked = true;
-            }
-        }
-        if options.prefault {
-            residency.pages_touched = touch_pages(&map);
-        }
-        Ok((Table::from_bytes(map)?, residency))
-    }
-}
-
 /// Reads one byte of every page of `bytes`, so that each is faulted in now rather than by
 /// a later query. Returns the number of pages touched.
-fn touch_pages(bytes: &[u8]) -> usize {
+pub(crate) fn touch_pages(bytes: &[u8]) -> usize {
     let mut pages = 0;
     let mut sum = 0u8;
     for page in bytes.chunks(TOUCH_STRIDE) {

@@ -3,10 +3,12 @@
 use std::path::Path;
 
 use crate::format::{
-    self, ArchivedSampleRecord, ArchivedTableData, Grid, Header, CONTENT_CONFIG, CONTENT_JOINTS,
-    CONTENT_KNOWN, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, PAYLOAD_ALIGN,
+    ArchivedSampleRecord, ArchivedTableData, Grid, Header, KinematicModel, CONTENT_CONFIG,
+    CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, JOINT_COUNT, PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction, SampleError, Selection};
+use crate::model::native_model;
+use crate::residency::{Lock, OpenOptions, Residency};
 use crate::OpenError;
 
 /// What a query's answer means.
@@ -158,7 +160,7 @@ pub struct Table<D> {
     validated_at: (usize, usize),
     /// A hybrid table's kinematic model with its constant sines and cosines computed once
     /// at open, so that a query pays only for the joint angles' ([`crate::hybrid`]).
-    pub(crate) prepared_model: Option<crate::hybrid::PreparedModel>,
+    pub(crate) prepared_model: Option<crate::model::PreparedModel>,
 }
 
 /// An owned, 16-byte-aligned copy of a table's bytes.
@@ -181,6 +183,62 @@ impl Table<memmap2::Mmap> {
     pub unsafe fn open(path: impl AsRef<Path>) -> Result<Table<memmap2::Mmap>, OpenError> {
         // SAFETY: the caller upholds `open_with`'s contract, which is this one.
         unsafe { Table::open_with(path, crate::OpenOptions::default()) }.map(|(table, _)| table)
+    }
+
+    /// Memory-maps the table at `path` as [`Table::open`] does, first prefaulting and
+    /// locking its pages as `options` asks.
+    ///
+    /// The lock is taken before validation so that the validated pages are the locked
+    /// ones; it is released when the table (its mapping) is dropped.
+    ///
+    /// # Errors
+    ///
+    /// As [`Table::open`], and [`OpenError::Lock`] when `options.lock` is
+    /// [`Lock::Required`] and `mlock` fails.
+    ///
+    /// # Safety
+    ///
+    /// As [`Table::open`]: the file must not be modified or truncated while the table is
+    /// alive.
+    pub unsafe fn open_with(
+        path: impl AsRef<Path>,
+        options: OpenOptions,
+    ) -> Result<(Table<memmap2::Mmap>, Residency), OpenError> {
+        let file = std::fs::File::open(path)?;
+        let len = file.metadata()?.len();
+        if len < HEADER_LEN as u64 {
+            // Also refuses empty files, which cannot be mapped.
+            return Err(OpenError::Truncated {
+                len,
+                needed: HEADER_LEN as u64,
+            });
+        }
+        let mut mmap_options = memmap2::MmapOptions::new();
+        if options.prefault {
+            mmap_options.populate();
+        }
+        // SAFETY: the caller guarantees the file is not modified while mapped.
+        let map = unsafe { mmap_options.map(&file)? };
+        let mut residency = Residency {
+            pages_touched: 0,
+            locked: false,
+            lock_error: None,
+        };
+        match options.lock {
+            Lock::No => {}
+            Lock::BestEffort => match map.lock() {
+                Ok(()) => residency.locked = true,
+                Err(e) => residency.lock_error = Some(e),
+            },
+            Lock::Required => {
+                map.lock().map_err(OpenError::Lock)?;
+                residency.locked = true;
+            }
+        }
+        if options.prefault {
+            residency.pages_touched = crate::residency::touch_pages(&map);
+        }
+        Ok((Table::from_bytes(map)?, residency))
     }
 }
 
@@ -248,9 +306,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         }
         let archived = rkyv::access::<ArchivedTableData, rkyv::rancor::BoxedError>(payload)
             .map_err(|e| OpenError::Archive(e.to_string()))?;
-        validate(&header, archived)?;
+        crate::validate::validate(&header, archived)?;
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
-        let prepared_model = crate::hybrid::prepared_model(archived);
+        let prepared_model = crate::model::prepared_model(archived);
         Ok(Table {
             data,
             header,
@@ -395,7 +453,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                 let s = samples.get(i as usize)?;
                 if let Some(target_joints) = screen {
                     let q = sample_joints.get(i as usize)?.map(|v| v.to_native());
-                    if !crate::hybrid::joints_within(&q, target_joints, radius_rad) {
+                    if !crate::method::joints_within(&q, target_joints, radius_rad) {
                         return None;
                     }
                 }
@@ -474,6 +532,64 @@ impl<D: AsRef<[u8]>> Table<D> {
         }
         out.finite_or_failure()
     }
+
+    /// Whether this is a hybrid table (a kinematic model plus residuals): it then needs the
+    /// target's joint angles ([`Table::query_with_joints`]).
+    pub fn is_hybrid(&self) -> bool {
+        self.header().content_flags & CONTENT_MODEL != 0
+    }
+
+    /// The joint-space admissibility radius, rad; 0 when the screen is off.
+    pub fn joint_radius_rad(&self) -> f64 {
+        self.header().joint_radius_rad
+    }
+
+    /// The kinematic model of a hybrid table (nominal and calibrated parameters).
+    pub fn kinematic_model(&self) -> Option<KinematicModel> {
+        Some(native_model(self.data()?.model.as_ref()?))
+    }
+
+    /// The predicted correction at a target that the controller will reach with joint
+    /// angles `joints_rad` (rad, the controller's joint variables, in the robot file's
+    /// order). Never allocates, locks or panics.
+    ///
+    /// - On a hybrid table: the calibrated model's predicted error at `joints_rad` plus
+    ///   the interpolated residual at the target (see the module docs).
+    /// - On any table with a joint radius ([`Table::joint_radius_rad`]): only samples
+    ///   whose joint angles are all within that radius of `joints_rad` are admissible.
+    /// - Otherwise the answer equals [`Table::query_target`]'s.
+    ///
+    /// `neighbours` counts the interpolated residuals' neighbours. Non-finite joint angles
+    /// give [`Status::InvalidInput`]. The joint angles are taken as given: they are not
+    /// checked against the target position (the controller's inverse kinematics is the
+    /// authority on them).
+    pub fn query_with_joints(
+        &self,
+        target: &Target,
+        joints_rad: &[f64; JOINT_COUNT],
+    ) -> Correction {
+        if !joints_rad.iter().all(|q| q.is_finite()) {
+            return Correction::failed(Status::InvalidInput);
+        }
+        let mut correction = self.interpolate(target, Some(joints_rad));
+        if correction.status != Status::Ok {
+            return correction;
+        }
+        if let Some(model) = &self.prepared_model {
+            let (position_mm, rotation_rad) = model.error(joints_rad);
+            for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {
+                *out += model;
+            }
+            // Position-only samples: the table predicts no orientation, the model does.
+            if self.has_orientation() {
+                let orientation = correction.orientation_error_rad.iter_mut();
+                for (out, model) in orientation.zip(rotation_rad) {
+                    *out += model;
+                }
+            }
+        }
+        correction.finite_or_failure()
+    }
 }
 
 #[inline]
@@ -512,210 +628,4 @@ fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Ar
     let start = c.list_start.to_native() as usize;
     let end = start.checked_add(c.list_len.to_native() as usize)?;
     archive.list_samples.get(start..end)
-}
-
-fn corrupt(what: &'static str) -> OpenError {
-    OpenError::Corrupt { what }
-}
-
-/// The semantic checks of step 5 of [`Table::from_bytes`].
-fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
-    header.method.validate().map_err(corrupt)?;
-    if header.content_flags & !CONTENT_KNOWN != 0 {
-        return Err(corrupt(
-            "the content flags name contents this version does not know",
-        ));
-    }
-    let grid = &header.grid;
-    let cells = grid
-        .cell_count()
-        .filter(|&n| n > 0 && n < u32::MAX as usize)
-        .ok_or(corrupt("grid size is zero or too large"))?;
-    if a.cells.len() != cells {
-        return Err(corrupt("cell count differs from the grid size"));
-    }
-    let n = a.samples.len();
-    if n != header.sample_count as usize || n >= u32::MAX as usize {
-        return Err(corrupt("sample count differs from the header"));
-    }
-    let with_orientation = header.content_flags & CONTENT_ORIENTATION != 0;
-    let with_config = header.content_flags & CONTENT_CONFIG != 0;
-    for s in a.samples.iter() {
-        let nominal = s.nominal_mm.map(|v| v.to_native());
-        let error = s.error_mm.map(|v| v.to_native());
-        let actual = s.actual_mm.map(|v| v.to_native());
-        let rotation = s.rotation_error_rad.map(|v| v.to_native());
-        let all = nominal.iter().chain(&error).chain(&actual).chain(&rotation);
-        if !all.clone().all(|v| v.is_finite()) {
-            return Err(corrupt("a sample value is not finite"));
-        }
-        if (0..3).any(|i| nominal[i] + error[i] != actual[i]) {
-            return Err(corrupt("a sample's actual position is not nominal + error"));
-        }
-        if !with_orientation && rotation != [0.0; 3] {
-            return Err(corrupt(
-                "orientation error present in a position-only table",
-            ));
-        }
-        if !with_config && s.config != method::CONFIG_UNKNOWN {
-            return Err(corrupt(
-                "configuration present in a table without configurations",
-            ));
-        }
-    }
-    let positions = a.samples.iter().flat_map(|s| {
-        [
-            s.nominal_mm.map(|v| v.to_native()),
-            s.actual_mm.map(|v| v.to_native()),
-        ]
-    });
-    let samples_box_mm = format::bounding_box(positions);
-    format::check_plausible(
-        &header.method,
-        grid,
-        header.joint_radius_rad,
-        samples_box_mm,
-    )
-    .map_err(OpenError::Implausible)?;
-    let with_joints = header.content_flags & CONTENT_JOINTS != 0;
-    if header.joint_radius_rad > 0.0 && !with_joints {
-        return Err(corrupt("a joint radius without sample joint angles"));
-    }
-    if a.joints_rad.len() != if with_joints { n } else { 0 } {
-        return Err(corrupt("joint angle count differs from the sample count"));
-    }
-    if !a
-        .joints_rad
-        .iter()
-        .flatten()
-        .all(|q| q.to_native().is_finite())
-    {
-        return Err(corrupt("a joint angle is not finite"));
-    }
-    let with_model = header.content_flags & CONTENT_MODEL != 0;
-    match a.model.as_ref() {
-        None if with_model => return Err(corrupt("the content flags promise a model")),
-        Some(_) if !with_model => return Err(corrupt("a model the content flags do not name")),
-        Some(m) => {
-            for p in [&m.nominal, &m.calibrated] {
-                let values = p.joints.iter().flatten().chain(&p.tool).chain(&p.base);
-                if !values.map(|v| v.to_native()).all(f64::is_finite) {
-                    return Err(corrupt("a kinematic parameter is not finite"));
-                }
-            }
-            format::check_model_plausible(&crate::hybrid::native_model(m))
-                .map_err(OpenError::Implausible)?;
-        }
-        None => {}
-    }
-    if a.actual_norms_mm.len() != n
-        || a.samples
-            .iter()
-            .zip(a.actual_norms_mm.iter())
-            .any(|(s, norm)| {
-                method::norm_mm(s.actual_mm.map(|v| v.to_native())) != norm.to_native()
-            })
-    {
-        return Err(corrupt("a sample's stored norm is not |actual|"));
-    }
-    if a.centre_weights.len() != a.centre_samples.len() {
-        return Err(corrupt("base weight arrays differ in length"));
-    }
-    let k = header.method.max_neighbours as usize;
-    let mut checked_list = None;
-    let mut seen = vec![0u64; n.div_ceil(64)];
-    let offsets = a.centre_offsets.as_slice();
-    if offsets.len() != cells + 1
-        || offsets[0].to_native() != 0
-        || offsets[cells].to_native() as usize != a.centre_samples.len()
-        || offsets
-            .windows(2)
-            .any(|w| w[0].to_native() > w[1].to_native())
-    {
-        return Err(corrupt(
-            "base weight offsets do not run from 0 to the weight count",
-        ));
-    }
-    let radius_squared_mm2 = header.method.radius_mm * header.method.radius_mm;
-    // The cell's (ix, iy, iz), x fastest, counted rather than divided out of the index.
-    let mut coords = [0usize; 3];
-    for (c, centre_range) in a.cells.iter().zip(offsets.windows(2)) {
-        let here = coords;
-        coords[0] += 1;
-        if coords[0] == grid.dims[0] as usize {
-            coords[0] = 0;
-            coords[1] += 1;
-            if coords[1] == grid.dims[1] as usize {
-                coords[1] = 0;
-                coords[2] += 1;
-            }
-        }
-        let start = c.list_start.to_native() as usize;
-        let list = start
-            .checked_add(c.list_len.to_native() as usize)
-            .filter(|&end| end <= a.list_samples.len())
-            .map(|end| start..end)
-            .ok_or(corrupt("a cell's candidate list is out of bounds"))?;
-        // Cells sharing a list are usually adjacent: check each distinct range once in a row.
-        if checked_list.as_ref() != Some(&list) {
-            let list_samples = &a.list_samples[list.clone()];
-            if list_samples.iter().any(|&i| i.to_native() as usize >= n) {
-                return Err(corrupt(
-                    "a candidate list names a sample that does not exist",
-                ));
-            }
-            // A sample listed twice would be selected twice.
-            for i in list_samples {
-                let i = i.to_native() as usize;
-                let (word, bit) = (i / 64, 1u64 << (i % 64));
-                if seen[word] & bit != 0 {
-                    return Err(corrupt("a candidate list names a sample twice"));
-                }
-                seen[word] |= bit;
-            }
-            list_samples
-                .iter()
-                .for_each(|i| seen[i.to_native() as usize / 64] = 0);
-            checked_list = Some(list);
-        }
-        let centre = centre_range[0].to_native() as usize..centre_range[1].to_native() as usize;
-        if centre.len() > k {
-            return Err(corrupt("a cell has more base weights than k"));
-        }
-        if a.centre_samples[centre.clone()]
-            .iter()
-            .any(|&i| i.to_native() as usize >= n)
-        {
-            return Err(corrupt("a base weight names a sample that does not exist"));
-        }
-        // The base weights were selected at the cell's centre, so their nearest sample is
-        // within ε of it (computed as the compiler computes it, so never refused for a
-        // table it wrote): a grid edited to another shape or place with the same cell
-        // count fails here. One sample a cell keeps the cost of opening low.
-        if let Some(nearest) = a.centre_samples[centre.clone()].first() {
-            let (lo, hi) = grid.cell_box(here);
-            let middle = [0, 1, 2].map(|axis| 0.5 * (lo[axis] + hi[axis]));
-            let nearest = actual(a.samples.as_slice(), nearest.to_native());
-            let key = method::distance_squared_mm2(nearest, middle);
-            if key > radius_squared_mm2 || key.is_nan() {
-                return Err(corrupt(
-                    "a cell's nearest base weight is beyond ε of its centre: the grid does not \
-                     match its cells",
-                ));
-            }
-        }
-        let weights = &a.centre_weights[centre.clone()];
-        // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.
-        if !weights
-            .iter()
-            .all(|q| (0.0..=1.0 + 1e-12).contains(&q.to_native()))
-        {
-            return Err(corrupt("a base weight is outside [0, 1]"));
-        }
-        let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
-        if !centre.is_empty() && (sum - 1.0).abs() > 1e-9 {
-            return Err(corrupt("a cell's base weights do not sum to 1"));
-        }
-    }
-    Ok(())
 }

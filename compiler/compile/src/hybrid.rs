@@ -14,7 +14,7 @@
 //!    the [`KinematicModel`] this module takes);
 //! 2. compute each sample's *residual*: measured error minus the calibrated model's
 //!    predicted error at the sample's joint angles, position and (when measured)
-//!    orientation, with the runtime's own [`adwi_runtime::hybrid::model_error`], so that
+//!    orientation, with the runtime's own [`adwi_runtime::model::model_error`], so that
 //!    the table and its queries cannot disagree on the model;
 //! 3. compile the residuals into a cell table with the approximation-degree method
 //!    ([`crate::build::compile_with_model`]), the nominal and calibrated models stored with
@@ -26,7 +26,7 @@
 //!
 
 use adwi_runtime::format::KinematicModel;
-use adwi_runtime::hybrid::model_error;
+use adwi_runtime::model::model_error;
 
 use crate::build::{self, BuildError, BuildOptions, BuildReport};
 use crate::samples::SampleSet;

@@ -39,35 +39,13 @@ pub fn kuka_abc_deg_from_rotation(rotation: &Rotation3<f64>) -> [f64; 3] {
     [a.to_degrees(), b.to_degrees(), c.to_degrees()]
 }
 
-/// The rotation vector (axis × angle, rad) of a rotation: the logarithm map.
-///
-/// Orientation errors are small rotations (1e-4 rad and below), where an angle taken from
-/// `acos((trace − 1) / 2)` loses half its digits. The skew part of `R` is `sin θ · axis`
-/// to full precision, so the angle comes from `atan2(sin θ, cos θ)` and the vector from the
-/// skew part, except near θ = π where the skew part vanishes and nalgebra's eigen-based
-/// axis is the accurate one.
+/// The rotation vector (axis × angle, rad) of a rotation: the logarithm map, computed by
+/// the runtime's one implementation ([`adwi_runtime::kinematics::rotation_vector`]), which
+/// keeps every digit of the small rotations that orientation errors are and stays exact up
+/// to θ = π.
 pub fn rotation_vector(rotation: &Rotation3<f64>) -> [f64; 3] {
     let m = rotation.matrix();
-    let sin_axis = Vector3::new(
-        m[(2, 1)] - m[(1, 2)],
-        m[(0, 2)] - m[(2, 0)],
-        m[(1, 0)] - m[(0, 1)],
-    ) * 0.5;
-    let sin_angle = sin_axis.norm();
-    let cos_angle = (m.trace() - 1.0) * 0.5;
-    let angle = sin_angle.atan2(cos_angle);
-    let v = if cos_angle > -0.9 {
-        // θ / sin θ → 1 as θ → 0; the series keeps it exact when sin θ underflows to 0.
-        let scale = if sin_angle > 1e-8 {
-            angle / sin_angle
-        } else {
-            1.0 + angle * angle / 6.0
-        };
-        sin_axis * scale
-    } else {
-        rotation.scaled_axis()
-    };
-    [v.x, v.y, v.z]
+    adwi_runtime::kinematics::rotation_vector(&[0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]]))
 }
 
 /// The rotation of a rotation vector (axis × angle, rad): the exponential map.

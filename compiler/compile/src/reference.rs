@@ -3,7 +3,7 @@
 //! same answer for every target inside its grid; the property tests hold it to that.
 
 use adwi_runtime::format::SampleRecord;
-use adwi_runtime::hybrid::joints_within;
+use adwi_runtime::method::joints_within;
 use adwi_runtime::method::{
     self, approximation_degree, config_matches, MethodParams, Neighbour, Prediction,
 };

@@ -52,8 +52,8 @@
 //! of the kept, scaled Jacobian is reported too. Pivoting on the scaled Jacobian keeps the
 //! choice independent of units (mm against rad).
 
+use adwi_runtime::format::{joint_rows, rows_of};
 use adwi_runtime::format::{KinematicModel, ModelParams};
-use adwi_runtime::hybrid::{joint_rows, rows_of};
 use adwi_runtime::kinematics::{forward, MdhJoint, Transform};
 use nalgebra::{DMatrix, DVector, Isometry3, Rotation3, SVector, Vector3};
 
@@ -278,7 +278,7 @@ impl Calibration {
     /// [`KinematicModel`]): plain MD-H rows, tool and base transforms. The nominal base
     /// is the identity; the identified one is the registration.
     ///
-    /// [`adwi_runtime::hybrid::model_error`] of this model equals [`Self::predict_error`]
+    /// [`adwi_runtime::model::model_error`] of this model equals [`Self::predict_error`]
     /// to rounding: both evaluate the same forward kinematics.
     pub fn kinematic_model(&self) -> KinematicModel {
         let m = &self.model;
@@ -934,7 +934,7 @@ mod tests {
         let joints = samples.joints_deg.as_ref().unwrap();
         for q_deg in joints.iter().step_by(37) {
             let q = q_deg.map(f64::to_radians);
-            let (p, r) = adwi_runtime::hybrid::model_error(&model, &q);
+            let (p, r) = adwi_runtime::model::model_error(&model, &q);
             let (p_ref, r_ref) = c.predict_error(&q);
             for a in 0..3 {
                 assert!((p[a] - p_ref[a]).abs() < 1e-9, "{p:?} vs {p_ref:?}");

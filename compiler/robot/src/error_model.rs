@@ -28,8 +28,7 @@
 use adwi_runtime::kinematics::{link_frames, MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
-use super::model::JOINT_COUNT;
-use adwi_compile::pose::orientation_error;
+use super::model::{transform_from_isometry, JOINT_COUNT};
 
 /// The MD-H parameters that can deviate, in their column order within a joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -270,14 +269,14 @@ pub fn joint_jacobian(
 }
 
 /// The exact pose error of `actual` with respect to `nominal`, base frame:
-/// `[p_actual − p_nominal (mm); log(R_actual · R_nominalᵀ) (rad)]`.
+/// `[p_actual − p_nominal (mm); log(R_actual · R_nominalᵀ) (rad)]`, computed by the
+/// runtime's one definition ([`adwi_runtime::kinematics::pose_error`]).
 pub fn pose_error(nominal: &Isometry3<f64>, actual: &Isometry3<f64>) -> Vector6<f64> {
-    let dp = actual.translation.vector - nominal.translation.vector;
-    let delta = orientation_error(
-        &nominal.rotation.to_rotation_matrix(),
-        &actual.rotation.to_rotation_matrix(),
+    let (p, r) = adwi_runtime::kinematics::pose_error(
+        &transform_from_isometry(nominal),
+        &transform_from_isometry(actual),
     );
-    Vector6::new(dp.x, dp.y, dp.z, delta[0], delta[1], delta[2])
+    Vector6::new(p[0], p[1], p[2], r[0], r[1], r[2])
 }
 
 #[cfg(test)]

@@ -1,0 +1,174 @@
+//! The kinematic model of a hybrid table: a calibrated model plus the interpolated
+//! residuals it leaves, served by the same allocation-free query path.
+//!
+//! A *hybrid* table ([`crate::format::CONTENT_MODEL`]) carries two kinematic models of the
+//! robot: the nominal one the controller commands with, and the calibrated one that
+//! predicts where the robot really goes. Its samples' errors are the *residuals* the
+//! calibrated model leaves (measured error minus the model's predicted error at the
+//! sample's joint angles). A correction is then
+//!
+//! ```text
+//! position_error_mm     = p_cal(q) − p_nom(q)            + interpolated residual at the target
+//! orientation_error_rad = log(R_cal(q) · R_nom(q)ᵀ)        + interpolated residual at the target
+//! ```
+//!
+//! where `q` are the joint angles the controller will command for the target, and
+//! `T_cal(q) = B_cal · A_1(q_1) ⋯ A_6(q_6) · T_tool,cal`, `T_nom(q)` likewise with the
+//! nominal parameters (the pose errors are in the base frame, as the samples record them).
+//! The model part is a function of the joint angles, which a position alone does not
+//! determine (one position has up to eight inverse-kinematics solutions and any tool
+//! orientation), so a hybrid table must be queried with the joint angles:
+//! [`Table::query_with_joints`]. Queried by position alone ([`Table::query_target`]) it
+//! answers [`Status::MissingJoints`] rather than a residual that is not the error.
+//!
+//! The same joint angles drive the optional joint-space admissibility screen
+//! ([`crate::format::Header::joint_radius_rad`]): a sample is admissible only if each of its
+//! joint angles is within the radius of the target's ([`crate::method::joints_within`]). Samples close in
+//! Cartesian space but reached with a very different arm posture (another wrist angle, say)
+//! then stop standing in for the target, which is the method's own remark that "close"
+//! means close joint angles. Position-only tables may use the screen too, when built from
+//! samples with joint angles.
+//!
+//! This module evaluates the model part: everything here is allocation-free and panic-free,
+//! two forward kinematics (a few hundred flops) and a 3 × 3 logarithm on top of the ordinary
+//! query ([`crate::Table::query_with_joints`]).
+
+use crate::format::{
+    joint_rows_to_mdh, transform_of, ArchivedKinematicModel, ArchivedModelParams,
+    ArchivedTableData, KinematicModel, ModelParams, JOINT_COUNT,
+};
+use crate::kinematics::{forward_prepared, pose_error, PreparedJoint, Transform};
+
+/// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
+/// `base · A_1(q_1) ⋯ A_6(q_6) · tool`.
+pub fn tcp_pose(params: &ModelParams, q_rad: &[f64; JOINT_COUNT]) -> Transform {
+    PreparedChain::new(params).tcp_pose(&q_rad.map(f64::sin_cos))
+}
+
+/// The pose error a kinematic model predicts at joint angles `q_rad`: the calibrated TCP
+/// against the nominal one, position (mm) and orientation (rotation vector of
+/// `R_cal · R_nomᵀ`, rad), both in the base frame. The compiler computes a hybrid table's
+/// residuals with this, and queries with the same arithmetic ([`PreparedModel::error`]).
+pub fn model_error(model: &KinematicModel, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
+    PreparedModel::new(model).error(q_rad)
+}
+
+/// One model's chain with its constant sines and cosines computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PreparedChain {
+    joints: [PreparedJoint; JOINT_COUNT],
+    tool: Transform,
+    base: Transform,
+}
+
+impl PreparedChain {
+    fn new(params: &ModelParams) -> PreparedChain {
+        PreparedChain {
+            joints: joint_rows_to_mdh(&params.joints).map(|j| j.prepare()),
+            tool: transform_of(&params.tool),
+            base: transform_of(&params.base),
+        }
+    }
+
+    #[inline]
+    fn tcp_pose(&self, sin_cos_q: &[(f64, f64); JOINT_COUNT]) -> Transform {
+        self.base
+            .compose(&forward_prepared(&self.joints, &self.tool, sin_cos_q))
+    }
+}
+
+/// A [`KinematicModel`] ready for queries: the sines and cosines of every constant angle
+/// computed once (at open), so that a prediction costs six `sin_cos` (of the joint angles,
+/// shared by both models) and two chains of 3 × 4 products.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedModel {
+    nominal: PreparedChain,
+    calibrated: PreparedChain,
+}
+
+impl PreparedModel {
+    /// Prepares `model`.
+    pub fn new(model: &KinematicModel) -> PreparedModel {
+        PreparedModel {
+            nominal: PreparedChain::new(&model.nominal),
+            calibrated: PreparedChain::new(&model.calibrated),
+        }
+    }
+
+    /// The predicted pose error at joint angles `q_rad`, as [`model_error`].
+    #[inline]
+    pub fn error(&self, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
+        let sin_cos_q = q_rad.map(f64::sin_cos);
+        let nominal = self.nominal.tcp_pose(&sin_cos_q);
+        let calibrated = self.calibrated.tcp_pose(&sin_cos_q);
+        pose_error(&nominal, &calibrated)
+    }
+}
+
+/// The prepared model of a validated archive, if it carries one.
+pub(crate) fn prepared_model(archive: &ArchivedTableData) -> Option<PreparedModel> {
+    Some(PreparedModel::new(&native_model(archive.model.as_ref()?)))
+}
+
+/// A kinematic model out of the archive.
+pub(crate) fn native_model(model: &ArchivedKinematicModel) -> KinematicModel {
+    KinematicModel {
+        nominal: native(&model.nominal),
+        calibrated: native(&model.calibrated),
+    }
+}
+
+/// A model's parameters out of the archive.
+#[inline]
+fn native(a: &ArchivedModelParams) -> ModelParams {
+    ModelParams {
+        joints: a.joints.map(|j| j.map(|v| v.to_native())),
+        tool: a.tool.map(|v| v.to_native()),
+        base: a.base.map(|v| v.to_native()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::rows_of;
+
+    #[test]
+    fn identical_models_predict_no_error_and_a_shifted_base_predicts_the_shift() {
+        use std::f64::consts::FRAC_PI_2;
+        let joint = |a_mm, d_mm, alpha_rad| [a_mm, d_mm, alpha_rad, 0.0, 0.0];
+        let identity = rows_of(&Transform::IDENTITY);
+        let nominal = ModelParams {
+            joints: [
+                joint(350.0, 750.0, -FRAC_PI_2),
+                joint(1250.0, 0.0, 0.0),
+                joint(55.0, 0.0, FRAC_PI_2),
+                joint(0.0, 1100.0, -FRAC_PI_2),
+                joint(0.0, 0.0, FRAC_PI_2),
+                joint(0.0, 230.0, 0.0),
+            ],
+            tool: identity,
+            base: identity,
+        };
+        let q = [0.1, -0.7, 1.2, 0.3, -0.4, 1.1];
+        let same = KinematicModel {
+            nominal,
+            calibrated: nominal,
+        };
+        assert_eq!(model_error(&same, &q), ([0.0; 3], [0.0; 3]));
+        let mut shifted = nominal;
+        shifted.base[3] = 0.25;
+        shifted.base[11] = -0.5;
+        let (p, r) = model_error(
+            &KinematicModel {
+                nominal,
+                calibrated: shifted,
+            },
+            &q,
+        );
+        for (got, want) in p.iter().zip([0.25, 0.0, -0.5]) {
+            assert!((got - want).abs() < 1e-12, "{p:?}");
+        }
+        assert!(r.iter().all(|v| v.abs() < 1e-15), "{r:?}");
+    }
+}
