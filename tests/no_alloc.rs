@@ -172,7 +172,8 @@ fn hybrid_queries_allocate_nothing() {
         ..BuildOptions::default()
     };
     let model = calibration.kinematic_model();
-    let bytes = adwi_compile::hybrid::compile(&samples, &model, &options, &|_| {})
+    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
+    let bytes = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {})
         .unwrap()
         .bytes;
     let table = Table::from_vec(&bytes).unwrap();

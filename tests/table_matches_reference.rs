@@ -8,6 +8,7 @@ use crate::common;
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_compile::reference;
 use adwi_compile::samples::SampleSet;
+use adwi_runtime::method::MethodParams;
 use adwi_runtime::{Status, Table, Target};
 use proptest::prelude::*;
 
@@ -73,14 +74,16 @@ fn options() -> impl Strategy<Value = BuildOptions> {
     )
         .prop_map(
             |(k, power, w1, screen, (lambda, zeta), radius)| BuildOptions {
-                max_neighbours: k,
-                power,
-                w1,
-                w2: 1.0 - w1,
-                consistency_screen: screen,
-                lambda_min_per_mm: lambda,
-                zeta_min_per_mm2: zeta,
-                radius_mm: radius,
+                method: MethodParams {
+                    radius_mm: radius,
+                    max_neighbours: k,
+                    w1,
+                    w2: 1.0 - w1,
+                    power,
+                    lambda_min_per_mm: lambda,
+                    zeta_min_per_mm2: zeta,
+                    consistency_screen: screen,
+                },
                 ..BuildOptions::default()
             },
         )
@@ -97,7 +100,7 @@ fn case() -> impl Strategy<Value = Case> {
     )
         .prop_map(|(samples, mut options, picks)| {
             let (lo, hi) = samples.nominal_bounds_mm().unwrap();
-            let pad = options.radius_mm.unwrap_or(60.0);
+            let pad = options.method.radius_mm.unwrap_or(60.0);
             let lo = lo.map(|v| v - pad);
             let hi = hi.map(|v| v + pad);
             // About 5,000 cells at most, so that a case builds in milliseconds.
@@ -224,7 +227,8 @@ fn hybrid_fixture() -> &'static HybridFixture {
         };
         let build = |options: &BuildOptions| {
             let model = calibration.kinematic_model();
-            let built = adwi_compile::hybrid::compile(&samples, &model, options, &|_| {}).unwrap();
+            let plan = adwi_compile::build::plan(&samples, options).unwrap();
+            let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
             Table::from_vec(built.bytes).unwrap()
         };
         let table = build(&options);

@@ -54,10 +54,14 @@ pub const MIN_PERPENDICULAR_OFFSET_MM: f64 = 1e-3;
 pub const CONFIG_UNKNOWN: u8 = u8::MAX;
 
 /// The method's parameters: weights, power, thresholds, radius, neighbour count.
+///
+/// Generic over the radius's type so that one definition serves a table (`f64`, the
+/// default) and a build request whose ε may still be derived from the samples
+/// (`Option<f64>`); [`MethodParams::with_radius`] turns one into the other.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MethodParams {
+pub struct MethodParams<Radius = f64> {
     /// ε: the neighbourhood radius, mm (33), also the consistency bound of (40).
-    pub radius_mm: f64,
+    pub radius_mm: Radius,
     /// k: at most this many neighbours, nearest first (1 ..= [`MAX_NEIGHBOURS`]).
     pub max_neighbours: u32,
     /// ω1: the share of the weight given by λ.
@@ -74,10 +78,10 @@ pub struct MethodParams {
     pub consistency_screen: bool,
 }
 
-impl MethodParams {
+impl<Radius> MethodParams<Radius> {
     /// The paper's parameters (ω1 = 0.87, ω2 = 0.13, r = 1, k = 8, \[λ\] = \[ζ\] = 0, screen on)
-    /// with the given radius.
-    pub fn paper(radius_mm: f64) -> MethodParams {
+    /// with the given radius: the one place they are written.
+    pub const fn paper(radius_mm: Radius) -> MethodParams<Radius> {
         MethodParams {
             radius_mm,
             max_neighbours: 8,
@@ -90,6 +94,22 @@ impl MethodParams {
         }
     }
 
+    /// The same parameters with another radius.
+    pub fn with_radius<Other>(self, radius_mm: Other) -> MethodParams<Other> {
+        MethodParams {
+            radius_mm,
+            max_neighbours: self.max_neighbours,
+            w1: self.w1,
+            w2: self.w2,
+            power: self.power,
+            lambda_min_per_mm: self.lambda_min_per_mm,
+            zeta_min_per_mm2: self.zeta_min_per_mm2,
+            consistency_screen: self.consistency_screen,
+        }
+    }
+}
+
+impl MethodParams {
     /// Checks the parameters' ranges; `Err` names the first one out of range.
     pub fn validate(&self) -> Result<(), &'static str> {
         let finite_nonneg = |x: f64| x.is_finite() && x >= 0.0;

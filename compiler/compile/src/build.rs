@@ -50,24 +50,11 @@ pub const CELLS_PER_SPACING: f64 = 4.0;
 /// What `tablec build` is asked for; `None` fields are derived from the samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildOptions {
-    /// ε, mm; default [`RADIUS_PER_SPACING`] × the sample spacing.
-    pub radius_mm: Option<f64>,
+    /// The method's parameters; ε (`radius_mm`) defaults to [`RADIUS_PER_SPACING`] × the
+    /// sample spacing.
+    pub method: MethodParams<Option<f64>>,
     /// Cell edge, mm; default the sample spacing / [`CELLS_PER_SPACING`].
     pub cell_mm: Option<f64>,
-    /// k.
-    pub max_neighbours: u32,
-    /// ω1.
-    pub w1: f64,
-    /// ω2.
-    pub w2: f64,
-    /// r.
-    pub power: f64,
-    /// \[λ\], 1/mm.
-    pub lambda_min_per_mm: f64,
-    /// \[ζ\], 1/mm².
-    pub zeta_min_per_mm2: f64,
-    /// Apply the consistency screen (40).
-    pub consistency_screen: bool,
     /// The grid's box (min, max corners, mm); default the samples' nominal bounding box
     /// grown by ε.
     pub bounds_mm: Option<([f64; 3], [f64; 3])>,
@@ -80,17 +67,9 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        let paper = MethodParams::paper(1.0);
         BuildOptions {
-            radius_mm: None,
+            method: MethodParams::paper(None),
             cell_mm: None,
-            max_neighbours: paper.max_neighbours,
-            w1: paper.w1,
-            w2: paper.w2,
-            power: paper.power,
-            lambda_min_per_mm: paper.lambda_min_per_mm,
-            zeta_min_per_mm2: paper.zeta_min_per_mm2,
-            consistency_screen: paper.consistency_screen,
             bounds_mm: None,
             joint_radius_deg: None,
         }
@@ -146,25 +125,61 @@ impl From<format::Implausible> for BuildError {
     }
 }
 
-/// What a build produced and derived, for the CLI to report.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BuildReport {
+/// A build resolved from its options and samples, once: every parameter the table will
+/// hold, and what was derived. [`compile_plan`] consumes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plan {
+    /// The method's parameters, ε resolved.
+    pub params: MethodParams,
+    /// The cell grid.
+    pub grid: Grid,
+    /// The joint-space admissibility radius, rad (0 = off).
+    pub joint_radius_rad: f64,
     /// Median nearest-neighbour spacing of the nominal positions, mm.
     pub spacing_mm: Option<f64>,
-    /// ε used, mm, and whether it was derived.
-    pub radius_mm: f64,
     /// Whether ε was derived from the spacing.
     pub radius_derived: bool,
-    /// Cell edge used, mm.
-    pub cell_mm: f64,
     /// Whether the cell edge was derived from the spacing.
     pub cell_derived: bool,
-    /// The grid.
-    pub grid: Grid,
-    /// Samples.
+    /// The number of samples planned for.
     pub samples: usize,
-    /// Cells in the grid.
-    pub cells: usize,
+}
+
+impl Plan {
+    /// The number of cells in the grid.
+    pub fn cells(&self) -> usize {
+        self.grid.cell_count().unwrap_or(0)
+    }
+
+    /// At most how many cells can hold candidates ([`max_covered_cells`]).
+    pub fn coverable_cells(&self) -> f64 {
+        max_covered_cells(self.samples, self.params.radius_mm, self.grid.cell_mm)
+            .min(self.cells() as f64)
+    }
+
+    /// Whether most of a large grid lies farther than ε from every sample, as it does for
+    /// samples along a line or a plane, whose bounding box is mostly empty.
+    pub fn is_mostly_empty(&self) -> bool {
+        self.cells() > 100_000 && self.cells() as f64 > 10.0 * self.coverable_cells()
+    }
+
+    /// The table's estimated size, bytes ([`estimated_table_bytes`]).
+    pub fn estimated_table_bytes(&self) -> u128 {
+        estimated_table_bytes(
+            self.cells() as u128,
+            self.samples,
+            self.params.radius_mm,
+            self.grid.cell_mm,
+            self.params.max_neighbours,
+        )
+    }
+}
+
+/// What a build produced, for the CLI to report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildReport {
+    /// The plan it followed.
+    pub plan: Plan,
     /// Cells whose candidate list is not empty.
     pub cells_covered: usize,
     /// Distinct candidate lists stored.
@@ -177,8 +192,6 @@ pub struct BuildReport {
     pub mean_list_len: f64,
     /// Table size, bytes.
     pub table_bytes: usize,
-    /// The joint-space admissibility radius, rad (0 = off).
-    pub joint_radius_rad: f64,
 }
 
 /// A table's size before it is built, bytes: per cell its 8-byte record and base-weight
@@ -223,31 +236,24 @@ pub fn human_bytes(bytes: u128) -> String {
     }
 }
 
-/// The full method parameters of a build, derived where not given.
-pub fn resolve(
-    samples: &SampleSet,
-    options: &BuildOptions,
-) -> Result<(MethodParams, Grid, BuildReport), BuildError> {
+/// Resolves a build's options against its samples: derives ε, the cell edge and the grid
+/// where not given, and checks everything the runtime will check, before any work.
+///
+/// # Errors
+///
+/// Parameters out of range, underivable defaults, a grid too large or implausible.
+pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildError> {
     let spacing_mm = samples.spacing_mm();
     let derive = |what| {
         spacing_mm
             .filter(|s| *s > 0.0)
             .ok_or(BuildError::CannotDerive(what))
     };
-    let radius_mm = match options.radius_mm {
+    let radius_mm = match options.method.radius_mm {
         Some(r) => r,
         None => RADIUS_PER_SPACING * derive("the radius")?,
     };
-    let params = MethodParams {
-        radius_mm,
-        max_neighbours: options.max_neighbours,
-        w1: options.w1,
-        w2: options.w2,
-        power: options.power,
-        lambda_min_per_mm: options.lambda_min_per_mm,
-        zeta_min_per_mm2: options.zeta_min_per_mm2,
-        consistency_screen: options.consistency_screen,
-    };
+    let params = options.method.with_radius(radius_mm);
     params.validate().map_err(BuildError::Params)?;
     let joint_radius_rad = options.joint_radius_deg.unwrap_or(0.0).to_radians();
     if !(joint_radius_rad.is_finite() && joint_radius_rad >= 0.0) {
@@ -319,28 +325,20 @@ pub fn resolve(
         joint_radius_rad,
         format::bounding_box(positions),
     )?;
-    let report = BuildReport {
-        spacing_mm,
-        radius_mm,
-        radius_derived: options.radius_mm.is_none(),
-        cell_mm,
-        cell_derived: options.cell_mm.is_none(),
+    Ok(Plan {
+        params,
         grid,
-        samples: samples.len(),
-        cells: cells as usize,
-        cells_covered: 0,
-        distinct_lists: 0,
-        list_entries: 0,
-        max_list_len: 0,
-        mean_list_len: 0.0,
-        table_bytes: 0,
         joint_radius_rad,
-    };
-    Ok((params, grid, report))
+        spacing_mm,
+        radius_derived: options.method.radius_mm.is_none(),
+        cell_derived: options.cell_mm.is_none(),
+        samples: samples.len(),
+    })
 }
 
-/// Compiles `samples` into table bytes. `progress(n)` is called as cells complete, with
-/// the number just completed (from several threads).
+/// Plans and compiles `samples` into table bytes: [`plan`], then [`compile_plan`].
+/// `progress(n)` is called as cells complete, with the number just completed (from
+/// several threads).
 ///
 /// # Errors
 ///
@@ -350,32 +348,43 @@ pub fn compile(
     options: &BuildOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
-    compile_with_model(samples, options, None, samples.source_hash(), progress)
+    let plan = plan(samples, options)?;
+    compile_plan(samples, &plan, None, samples.source_hash(), progress)
 }
 
-/// As [`compile`], for a table that also carries a kinematic model: `samples` then hold
-/// the residuals the model leaves, and `source_hash` identifies the measured samples they
-/// were derived from ([`crate::hybrid`] builds hybrid tables through this).
+/// Compiles `samples` into table bytes as `plan` (from [`plan`] over the same samples, or
+/// the measured ones of a hybrid table) says. With a kinematic `model`, `samples` hold the
+/// residuals the model leaves and `source_hash` identifies the measured samples they were
+/// derived from ([`crate::hybrid`] builds hybrid tables through this).
 ///
 /// # Errors
 ///
-/// As [`compile`].
-pub fn compile_with_model(
+/// An implausible model, an encoding failure.
+pub fn compile_plan(
     samples: &SampleSet,
-    options: &BuildOptions,
+    plan: &Plan,
     model: Option<KinematicModel>,
     source_hash: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
-    let (params, grid, mut report) = resolve(samples, options)?;
+    let Plan { params, grid, .. } = *plan;
+    let mut report = BuildReport {
+        plan: *plan,
+        cells_covered: 0,
+        distinct_lists: 0,
+        list_entries: 0,
+        max_list_len: 0,
+        mean_list_len: 0.0,
+        table_bytes: 0,
+    };
     if let Some(model) = &model {
         format::check_model_plausible(model)?;
     }
-    let joint_screen = report.joint_radius_rad > 0.0;
+    let joint_screen = plan.joint_radius_rad > 0.0;
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
     let done = AtomicU64::new(0);
-    let per_cell: Vec<CellPlan> = (0..report.cells)
+    let per_cell: Vec<CellPlan> = (0..plan.cells())
         .into_par_iter()
         .map(|cell| {
             let candidates = candidate_list(&records, &index, &params, joint_screen, &grid, cell);
@@ -394,8 +403,8 @@ pub fn compile_with_model(
             .map(|r| method::norm_mm(r.actual_mm))
             .collect(),
         samples: records,
-        cells: Vec::with_capacity(report.cells),
-        centre_offsets: Vec::with_capacity(report.cells + 1),
+        cells: Vec::with_capacity(plan.cells()),
+        centre_offsets: Vec::with_capacity(plan.cells() + 1),
         list_samples: Vec::new(),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
@@ -453,7 +462,7 @@ pub fn compile_with_model(
         method: params,
         grid,
         sample_count: samples.len() as u32,
-        joint_radius_rad: report.joint_radius_rad,
+        joint_radius_rad: plan.joint_radius_rad,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
@@ -658,9 +667,9 @@ mod tests {
         // The default grid grows with ε, so ε never exceeds its diagonal; `compile` opens
         // what it built.
         let s = samples("");
-        for radius_mm in [1.0, 200.0, 5e4] {
+        for radius_mm in [1.0f64, 200.0, 5e4] {
             let options = BuildOptions {
-                radius_mm: Some(radius_mm),
+                method: MethodParams::paper(Some(radius_mm)),
                 cell_mm: Some(radius_mm.max(100.0) / 2.0),
                 ..BuildOptions::default()
             };
@@ -675,22 +684,22 @@ mod tests {
         let cases = [
             // ε beyond every distance between the grid and the samples.
             BuildOptions {
-                radius_mm: Some(1e5),
+                method: MethodParams::paper(Some(1e5)),
                 bounds_mm: small_box,
                 ..BuildOptions::default()
             },
             // The default grid, ε wide, would reach 1e300 mm from the base.
             BuildOptions {
-                radius_mm: Some(1e300),
+                method: MethodParams::paper(Some(1e300)),
                 cell_mm: Some(1e299),
                 ..BuildOptions::default()
             },
             BuildOptions {
-                radius_mm: Some(1e300),
+                method: MethodParams::paper(Some(1e300)),
                 ..BuildOptions::default()
             },
             BuildOptions {
-                radius_mm: Some(f64::MAX),
+                method: MethodParams::paper(Some(f64::MAX)),
                 ..BuildOptions::default()
             },
             BuildOptions {
@@ -740,15 +749,15 @@ mod tests {
             nominal: params,
             calibrated: params,
         };
-        let options = BuildOptions::default();
+        let plan = plan(&s, &BuildOptions::default()).unwrap();
         let hash = s.source_hash();
-        compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap();
+        compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap();
         model.calibrated.base[3] = 1e300;
-        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        let err = compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap_err();
         assert!(matches!(err, BuildError::Implausible(_)), "{err}");
         model.calibrated.base[3] = 0.0;
         model.nominal.tool[0] = 2.0;
-        let err = compile_with_model(&s, &options, Some(model), hash, &|_| {}).unwrap_err();
+        let err = compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap_err();
         assert!(matches!(err, BuildError::Implausible(_)), "{err}");
     }
 }

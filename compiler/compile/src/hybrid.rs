@@ -17,7 +17,7 @@
 //!    orientation, with the runtime's own [`adwi_runtime::model::model_error`], so that
 //!    the table and its queries cannot disagree on the model;
 //! 3. compile the residuals into a cell table with the approximation-degree method
-//!    ([`crate::build::compile_with_model`]), the nominal and calibrated models stored with
+//!    ([`crate::build::compile_plan`]), the nominal and calibrated models stored with
 //!    it (`TableData::model`, `CONTENT_MODEL`).
 //!
 //! The residual samples keep their nominal positions; their "actual" positions, which the
@@ -28,7 +28,7 @@
 use adwi_runtime::format::KinematicModel;
 use adwi_runtime::model::model_error;
 
-use crate::build::{self, BuildError, BuildOptions, BuildReport};
+use crate::build::{self, BuildError, BuildReport, Plan};
 use crate::samples::SampleSet;
 
 /// The samples with their errors replaced by the residuals `model` leaves: measured error
@@ -72,22 +72,24 @@ pub struct HybridBuild {
     pub residual_position_rms_mm: f64,
 }
 
-/// Compiles the hybrid table of `samples` and their identified `model`: the residual
-/// table (step 3 of the module docs) carrying the nominal and calibrated models.
+/// Compiles the hybrid table of `samples` and their identified `model` as `plan` (made by
+/// [`build::plan`] from the measured samples) says: the residual table (step 3 of the
+/// module docs) carrying the nominal and calibrated models.
 ///
 /// # Errors
 ///
-/// [`BuildError::MissingJoints`] without joint angles, otherwise as [`build::compile`].
+/// [`BuildError::MissingJoints`] without joint angles, otherwise as
+/// [`build::compile_plan`].
 pub fn compile(
     samples: &SampleSet,
     model: &KinematicModel,
-    options: &BuildOptions,
+    plan: &Plan,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
     let residual = residual_samples(samples, model)?;
-    let (bytes, report) = build::compile_with_model(
+    let (bytes, report) = build::compile_plan(
         &residual,
-        options,
+        plan,
         Some(*model),
         samples.source_hash(),
         progress,

@@ -57,8 +57,8 @@ fn bench(c: &mut Criterion) {
     eprintln!(
         "table: {} samples, {} cells, {} distinct lists (mean {:.1}, max {} per cell), \
          {} bytes, built in {:.2} s on {} threads",
-        report.samples,
-        report.cells,
+        report.plan.samples,
+        report.plan.cells(),
         report.distinct_lists,
         report.mean_list_len,
         report.max_list_len,

@@ -712,8 +712,9 @@ fn predict_split(
                 .collect()
         }
         Method::PaperJoint => {
-            let (params, _, _) = build::resolve(train, &options.build)
-                .map_err(|source| EvalError::Build { method, source })?;
+            let params = build::plan(train, &options.build)
+                .map_err(|source| EvalError::Build { method, source })?
+                .params;
             let records = train.records();
             let train_joints = train.joints_deg.as_ref().expect("checked");
             let test_joints = test.joints_deg.as_ref().expect("checked");
@@ -765,10 +766,11 @@ fn predict_split(
             let c = calibration.expect("identified for kinematic methods");
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
-            let built =
-                adwi_compile::hybrid::compile(train, &c.kinematic_model(), &options.build, &|_| {})
-                    .map_err(|source| EvalError::Build { method, source })?;
-            let bytes = built.bytes;
+            let model = c.kinematic_model();
+            let bytes = build::plan(train, &options.build)
+                .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
+                .map_err(|source| EvalError::Build { method, source })?
+                .bytes;
             let table = Table::from_vec(bytes).map_err(|e| EvalError::Open {
                 method,
                 message: e.to_string(),

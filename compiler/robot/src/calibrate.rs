@@ -283,15 +283,8 @@ impl Calibration {
     pub fn kinematic_model(&self) -> KinematicModel {
         let m = &self.model;
         let nominal_tool = crate::model::transform_from_isometry(&m.nominal_tool);
-        let r = m.base_rotation.matrix();
-        let base = Transform {
-            rotation: [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]),
-            translation_mm: [
-                m.base_translation_mm.x,
-                m.base_translation_mm.y,
-                m.base_translation_mm.z,
-            ],
-        };
+        let t = &m.base_translation_mm;
+        let base = crate::model::transform_from_parts([t.x, t.y, t.z], &m.base_rotation);
         KinematicModel {
             nominal: ModelParams {
                 joints: joint_rows(&m.nominal_joints),

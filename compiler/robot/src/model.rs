@@ -322,16 +322,16 @@ pub fn isometry_from_transform(transform: &Transform) -> Isometry3<f64> {
 
 /// A nalgebra isometry as a runtime transform.
 pub fn transform_from_isometry(isometry: &Isometry3<f64>) -> Transform {
-    let m = isometry.rotation.to_rotation_matrix();
-    let m = m.matrix();
     let t = &isometry.translation.vector;
+    transform_from_parts([t.x, t.y, t.z], &isometry.rotation.to_rotation_matrix())
+}
+
+/// The runtime transform with the given translation (mm) and rotation matrix, exactly.
+pub fn transform_from_parts(translation_mm: [f64; 3], rotation: &Rotation3<f64>) -> Transform {
+    let m = rotation.matrix();
     Transform {
-        rotation: [
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ],
-        translation_mm: [t.x, t.y, t.z],
+        rotation: [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]]),
+        translation_mm,
     }
 }
 

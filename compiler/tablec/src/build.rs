@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use adwi_compile::build::compile;
+use adwi_compile::build::{compile_plan, BuildReport};
+use adwi_compile::hybrid;
 use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
@@ -47,44 +48,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let columns =
         ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
     let samples = read_samples(&args.samples, &columns)?;
-    let (w1, w2) = args.table.weights();
-    let options = args.table.build_options();
-    let (_, _, plan) = adwi_compile::build::resolve(&samples, &options)?;
-    let reachable =
-        adwi_compile::build::max_covered_cells(plan.samples, plan.radius_mm, plan.cell_mm);
-    if plan.cells > 100_000 && plan.cells as f64 > 10.0 * reachable {
+    let plan = adwi_compile::build::plan(&samples, &args.table.build_options())?;
+    let cells = plan.cells();
+    if plan.is_mostly_empty() {
         eprintln!(
-            "warning: the grid's {} cells are mostly empty: at most {:.0} of them lie within ε = \
-             {:.3} mm of a sample (samples along a line or a plane?); the table will be about \
-             {} — give --bounds around the samples, or a larger --cell",
-            plan.cells,
-            reachable.min(plan.cells as f64),
-            plan.radius_mm,
-            adwi_compile::build::human_bytes(adwi_compile::build::estimated_table_bytes(
-                plan.cells as u128,
-                plan.samples,
-                plan.radius_mm,
-                plan.cell_mm,
-                options.max_neighbours
-            ))
+            "warning: the grid's {cells} cells are mostly empty: at most {:.0} of them lie \
+             within ε = {:.3} mm of a sample (samples along a line or a plane?); the table \
+             will be about {} — give --bounds around the samples, or a larger --cell",
+            plan.coverable_cells(),
+            plan.params.radius_mm,
+            adwi_compile::build::human_bytes(plan.estimated_table_bytes())
         );
     }
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {
-        indicatif::ProgressBar::new(plan.cells as u64)
+        indicatif::ProgressBar::new(cells as u64)
     };
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} cells, {eta} left")
             .context("progress bar template")?
             .progress_chars("=> "),
     );
-    bar.set_message("compiling");
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
         pool = pool.num_threads(n);
     }
     let pool = pool.build().context("cannot start worker threads")?;
+    let progress = |n| bar.inc(n);
     let mut calibration = None;
     let (bytes, report) = match (&args.robot, args.hybrid) {
         (Some(robot_path), true) => {
@@ -95,101 +86,109 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
             })?;
             bar.set_message("compiling");
-            let built = pool.install(|| {
-                adwi_compile::hybrid::compile(
-                    &samples,
-                    &identified.kinematic_model(),
-                    &options,
-                    &|n| bar.inc(n),
-                )
-            })?;
+            let model = identified.kinematic_model();
+            let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
             calibration = Some((identified, built.residual_position_rms_mm));
             (built.bytes, built.report)
         }
         (Some(_), false) => {
             bail!("--robot is only used by --hybrid: add --hybrid, or drop --robot")
         }
-        _ => pool.install(|| compile(&samples, &options, &|n| bar.inc(n)))?,
+        _ => {
+            bar.set_message("compiling");
+            let hash = samples.source_hash();
+            pool.install(|| compile_plan(&samples, &plan, None, hash, &progress))?
+        }
     };
     bar.finish_and_clear();
     write_atomically(&args.output, &bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if !args.quiet {
-        let derived = |yes| if yes { " (derived: default)" } else { "" };
-        let spacing = report
-            .spacing_mm
-            .map_or("n/a".to_string(), |s| format!("{s:.3} mm"));
-        let g = report.grid;
-        println!(
-            "samples        {} from {}",
-            report.samples,
-            args.samples.display()
-        );
-        println!("spacing        {spacing} (median nearest-neighbour distance)");
-        println!(
-            "radius ε       {:.3} mm{}",
-            report.radius_mm,
-            derived(report.radius_derived)
-        );
-        println!(
-            "cell           {:.3} mm{}",
-            report.cell_mm,
-            derived(report.cell_derived)
-        );
-        println!(
-            "grid           {} × {} × {} cells from ({:.3}, {:.3}, {:.3}) to ({:.3}, {:.3}, {:.3}) mm",
-            g.dims[0],
-            g.dims[1],
-            g.dims[2],
-            g.origin_mm[0],
-            g.origin_mm[1],
-            g.origin_mm[2],
-            g.max_mm()[0],
-            g.max_mm()[1],
-            g.max_mm()[2]
-        );
-        println!(
-            "candidates     {} distinct lists, {} of {} cells covered, mean {:.1}, max {} per cell",
-            report.distinct_lists,
-            report.cells_covered,
-            report.cells,
-            report.mean_list_len,
-            report.max_list_len
-        );
-        if let Some((c, residual_rms_mm)) = &calibration {
-            print_calibration(c, *residual_rms_mm);
-        }
-        println!(
-            "method         k {}, w1 {}, w2 {}, r {}, [λ] {}, [ζ] {}, screen (40) {}",
-            args.table.k,
-            w1,
-            w2,
-            args.table.power,
-            args.table.lambda_min,
-            args.table.zeta_min,
-            if args.table.no_consistency_screen {
-                "off"
-            } else {
-                "on"
-            }
-        );
-        match args.table.joint_radius.filter(|r| *r > 0.0) {
-            Some(deg) => println!(
-                "joint screen   every joint within {deg}° of the target's, when queried with joints"
-            ),
-            None => println!("joint screen   off"),
-        }
-        println!(
-            "wrote          {} ({} bytes) in {:.2} s",
-            args.output.display(),
-            report.table_bytes,
-            started.elapsed().as_secs_f64()
-        );
+        print_summary(&args, &report, calibration.as_ref(), started);
     }
     if let Some((c, _)) = &calibration {
         warn_unidentifiable(c);
     }
     Ok(())
+}
+
+/// What was built: the plan as derived, the candidate lists, the method and the file.
+fn print_summary(
+    args: &Args,
+    report: &BuildReport,
+    calibration: Option<&(Calibration, f64)>,
+    started: Instant,
+) {
+    let plan = &report.plan;
+    let derived = |yes| if yes { " (derived: default)" } else { "" };
+    let spacing = plan
+        .spacing_mm
+        .map_or("n/a".to_string(), |s| format!("{s:.3} mm"));
+    let g = plan.grid;
+    let m = plan.params;
+    println!(
+        "samples        {} from {}",
+        plan.samples,
+        args.samples.display()
+    );
+    println!("spacing        {spacing} (median nearest-neighbour distance)");
+    println!(
+        "radius ε       {:.3} mm{}",
+        m.radius_mm,
+        derived(plan.radius_derived)
+    );
+    println!(
+        "cell           {:.3} mm{}",
+        g.cell_mm,
+        derived(plan.cell_derived)
+    );
+    println!(
+        "grid           {} × {} × {} cells from ({:.3}, {:.3}, {:.3}) to ({:.3}, {:.3}, {:.3}) mm",
+        g.dims[0],
+        g.dims[1],
+        g.dims[2],
+        g.origin_mm[0],
+        g.origin_mm[1],
+        g.origin_mm[2],
+        g.max_mm()[0],
+        g.max_mm()[1],
+        g.max_mm()[2]
+    );
+    println!(
+        "candidates     {} distinct lists, {} of {} cells covered, mean {:.1}, max {} per cell",
+        report.distinct_lists,
+        report.cells_covered,
+        plan.cells(),
+        report.mean_list_len,
+        report.max_list_len
+    );
+    if let Some((c, residual_rms_mm)) = calibration {
+        print_calibration(c, *residual_rms_mm);
+    }
+    println!(
+        "method         k {}, w1 {}, w2 {}, r {}, [λ] {}, [ζ] {}, screen (40) {}",
+        m.max_neighbours,
+        m.w1,
+        m.w2,
+        m.power,
+        m.lambda_min_per_mm,
+        m.zeta_min_per_mm2,
+        if m.consistency_screen { "on" } else { "off" }
+    );
+    if plan.joint_radius_rad > 0.0 {
+        println!(
+            "joint screen   every joint within {}° of the target's, when queried with joints",
+            plan.joint_radius_rad.to_degrees()
+        );
+    } else {
+        println!("joint screen   off");
+    }
+    println!(
+        "wrote          {} ({} bytes) in {:.2} s",
+        args.output.display(),
+        report.table_bytes,
+        started.elapsed().as_secs_f64()
+    );
 }
 
 /// What identification found, as `tablec build --hybrid` reports it: the calibration's

@@ -4,6 +4,10 @@
 #![allow(rustdoc::broken_intra_doc_links)]
 
 use adwi_compile::build::BuildOptions;
+use adwi_runtime::method::MethodParams;
+
+/// The paper's parameters, the defaults of every option below.
+const PAPER: MethodParams<()> = MethodParams::paper(());
 
 /// A box's minimum and maximum corners, mm.
 type Bounds = ([f64; 3], [f64; 3]);
@@ -29,7 +33,7 @@ pub struct TableOptions {
     #[arg(long, value_name = "MM")]
     pub radius: Option<f64>,
     /// At most this many neighbours.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = PAPER.max_neighbours)]
     pub k: u32,
     /// ω1, the weight of λ [default: 0.87, or 1 − w2].
     #[arg(long)]
@@ -38,13 +42,13 @@ pub struct TableOptions {
     #[arg(long)]
     pub w2: Option<f64>,
     /// r, the power on λ and ζ (0 to 2).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = PAPER.power)]
     pub power: f64,
     /// [λ], the admissibility threshold on λ, 1/mm.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = PAPER.lambda_min_per_mm)]
     pub lambda_min: f64,
     /// [ζ], the admissibility threshold on ζ, 1/mm².
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = PAPER.zeta_min_per_mm2)]
     pub zeta_min: f64,
     /// Skip the consistency screen (40) on neighbour errors.
     #[arg(long)]
@@ -65,10 +69,10 @@ pub struct TableOptions {
 }
 
 impl TableOptions {
-    /// ω1 and ω2: the paper's 0.87 and 0.13 unless given; one given implies the other.
+    /// ω1 and ω2: the paper's unless given; one given implies the other.
     pub fn weights(&self) -> (f64, f64) {
         match (self.w1, self.w2) {
-            (None, None) => (0.87, 0.13),
+            (None, None) => (PAPER.w1, PAPER.w2),
             (Some(w1), None) => (w1, 1.0 - w1),
             (None, Some(w2)) => (1.0 - w2, w2),
             (Some(w1), Some(w2)) => (w1, w2),
@@ -79,15 +83,17 @@ impl TableOptions {
     pub fn build_options(&self) -> BuildOptions {
         let (w1, w2) = self.weights();
         BuildOptions {
-            radius_mm: self.radius,
+            method: MethodParams {
+                radius_mm: self.radius,
+                max_neighbours: self.k,
+                w1,
+                w2,
+                power: self.power,
+                lambda_min_per_mm: self.lambda_min,
+                zeta_min_per_mm2: self.zeta_min,
+                consistency_screen: !self.no_consistency_screen,
+            },
             cell_mm: self.cell,
-            max_neighbours: self.k,
-            w1,
-            w2,
-            power: self.power,
-            lambda_min_per_mm: self.lambda_min,
-            zeta_min_per_mm2: self.zeta_min,
-            consistency_screen: !self.no_consistency_screen,
             bounds_mm: self.bounds,
             joint_radius_deg: self.joint_radius,
         }
