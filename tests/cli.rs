@@ -452,41 +452,25 @@ fn query_takes_negative_joint_angles() {
 #[test]
 fn query_targets_writes_commands_and_counts_failures() {
     let dir = good_table();
-    std::fs::write(
-        dir.path().join("targets.csv"),
-        "x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\nnan,0,0\n",
-    )
-    .unwrap();
-    let o = tablec(
-        &[
-            "query",
-            "t.tbl",
-            "--targets",
-            "targets.csv",
-            "-o",
-            "out.csv",
-        ],
-        dir.path(),
-    );
+    let query = |targets: &str| {
+        std::fs::write(dir.path().join("targets.csv"), targets).unwrap();
+        tablec(
+            &[
+                "query",
+                "t.tbl",
+                "--targets",
+                "targets.csv",
+                "-o",
+                "out.csv",
+            ],
+            dir.path(),
+        )
+    };
     // A NaN in the targets file is refused by the reader, with its line.
+    let o = query("x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\nnan,0,0\n");
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("targets.csv:5"), "{}", stderr(&o));
-    std::fs::write(
-        dir.path().join("targets.csv"),
-        "x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\n",
-    )
-    .unwrap();
-    let o = tablec(
-        &[
-            "query",
-            "t.tbl",
-            "--targets",
-            "targets.csv",
-            "-o",
-            "out.csv",
-        ],
-        dir.path(),
-    );
+    let o = query("x,y,z\n1050,50,500\n99999,0,0\n1040,60,500\n");
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("1 of 3 targets not answered: 1 outside_grid"),

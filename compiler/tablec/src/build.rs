@@ -165,24 +165,11 @@ fn print_summary(
     if let Some((c, residual_rms_mm)) = calibration {
         print_calibration(c, *residual_rms_mm);
     }
+    println!("method         {}", crate::describe_method(&m));
     println!(
-        "method         k {}, w1 {}, w2 {}, r {}, [λ] {}, [ζ] {}, screen (40) {}",
-        m.max_neighbours,
-        m.w1,
-        m.w2,
-        m.power,
-        m.lambda_min_per_mm,
-        m.zeta_min_per_mm2,
-        if m.consistency_screen { "on" } else { "off" }
+        "joint screen   {}",
+        crate::describe_joint_screen(plan.joint_radius_rad)
     );
-    if plan.joint_radius_rad > 0.0 {
-        println!(
-            "joint screen   every joint within {}° of the target's, when queried with joints",
-            plan.joint_radius_rad.to_degrees()
-        );
-    } else {
-        println!("joint screen   off");
-    }
     println!(
         "wrote          {} ({} bytes) in {:.2} s",
         args.output.display(),

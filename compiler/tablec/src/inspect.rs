@@ -54,23 +54,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         h.sample_count,
         content.join(", ")
     );
+    println!("method          {}", crate::describe_method(&m));
     println!(
-        "method          ε {} mm, k {}, w1 {}, w2 {}, r {}, [λ] {} 1/mm, [ζ] {} 1/mm², screen (40) {}",
-        m.radius_mm,
-        m.max_neighbours,
-        m.w1,
-        m.w2,
-        m.power,
-        m.lambda_min_per_mm,
-        m.zeta_min_per_mm2,
-        if m.consistency_screen { "on" } else { "off" }
+        "joint screen    {}",
+        crate::describe_joint_screen(h.joint_radius_rad)
     );
-    if h.joint_radius_rad > 0.0 {
-        println!(
-            "joint screen    every joint within {}° of the target's",
-            h.joint_radius_rad.to_degrees()
-        );
-    }
     let max = g.max_mm();
     println!(
         "grid            {} × {} × {} cells of {} mm, ({}, {}, {}) to ({}, {}, {}) mm",

@@ -162,3 +162,30 @@ fn same_file(
         _ => false,
     }
 }
+
+/// The method's parameters in one line, as `build` and `inspect` print them.
+pub fn describe_method(m: &adwi_runtime::method::MethodParams) -> String {
+    format!(
+        "ε {} mm, k {}, w1 {}, w2 {}, r {}, [λ] {} 1/mm, [ζ] {} 1/mm², screen (40) {}",
+        m.radius_mm,
+        m.max_neighbours,
+        m.w1,
+        m.w2,
+        m.power,
+        m.lambda_min_per_mm,
+        m.zeta_min_per_mm2,
+        if m.consistency_screen { "on" } else { "off" }
+    )
+}
+
+/// The joint-space screen in words, as `build` and `inspect` print it.
+pub fn describe_joint_screen(joint_radius_rad: f64) -> String {
+    if joint_radius_rad > 0.0 {
+        format!(
+            "every joint within {}° of the target's, when queried with joint angles",
+            joint_radius_rad.to_degrees()
+        )
+    } else {
+        "off".to_string()
+    }
+}
