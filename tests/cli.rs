@@ -432,19 +432,22 @@ fn query_takes_negative_joint_angles() {
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // A table with joint angles takes exactly its robot's count.
+    let hybrid = repo("tables/compat/v1/ur5_hybrid.tbl");
     let o = tablec(
         &[
             "query",
-            "t.tbl",
-            "1050",
-            "50",
-            "500",
+            hybrid.to_str().unwrap(),
+            "-500",
+            "-100",
+            "300",
             "--joints",
             "-22.93,1,2",
         ],
         dir.path(),
     );
-    assert!(stderr(&o).contains("six angles"), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("6 joint angles"), "{}", stderr(&o));
 }
 
 /// `--targets` writes the compensated command beside the error, keeps every row with its

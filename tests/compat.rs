@@ -202,18 +202,8 @@ fn the_version_1_hybrid_table_opens_and_gives_its_recorded_answers() {
     assert_eq!(header.joint_radius_rad, 60f64.to_radians());
     assert_eq!(table.sample_count(), 1000);
     assert!(table.is_hybrid());
-    // The measurements it was built from are the shipped ones.
-    let columns = ColumnMap::parse(
-        "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,j3=joint_3,\
-         j4=joint_4,j5=joint_5,j6=joint_6",
-    )
-    .unwrap();
-    let measured = read_samples(
-        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv"),
-        &columns,
-    )
-    .unwrap();
-    assert_eq!(measured.source_hash(), header.source_hash);
+    // (Version 1 hashed joint angles in degrees; samples now hold radians, so the hash of
+    // the shipped measurements is no longer comparable with the recorded one above.)
     for (p, joints_deg, error, neighbours, status) in V1_HYBRID_ANSWERS {
         let target = Target::at(p);
         let c = table.query_with_joints(&target, &joints_deg.map(f64::to_radians));

@@ -183,12 +183,13 @@ fn hybrid_queries_allocate_nothing() {
     let code = unsafe { capi::adwi_table_open_bytes(bytes.as_ptr(), bytes.len(), &mut handle) };
     assert_eq!(code, AdwiResult::Ok);
 
-    let joints = samples.joints_deg.as_ref().unwrap();
+    let joints = samples.joints.as_ref().unwrap();
     let queries: Vec<([f64; 3], [f64; 6])> = (0..20_000)
         .map(|i| {
             let s = i % samples.len();
             let wiggle = (i as f64 * 0.37).sin();
-            let q = joints[s].map(|v| (v + 3.0 * wiggle).to_radians());
+            let q: [f64; 6] =
+                std::array::from_fn(|a| joints.row(s)[a] + (3.0 * wiggle).to_radians());
             let p = samples.nominal_mm[s].map(|v| v + 20.0 * wiggle);
             (p, q)
         })

@@ -193,12 +193,10 @@ fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
     )
         .prop_map(|(mut case, sample_joints, target_joints, radius_rad)| {
             let len = case.samples.len();
-            case.samples.joints_deg = Some(
-                sample_joints[..len]
-                    .iter()
-                    .map(|q| q.map(f64::to_degrees))
-                    .collect(),
-            );
+            case.samples.joints = Some(adwi_compile::samples::Joints::from_flat(
+                6,
+                sample_joints[..len].iter().flatten().copied().collect(),
+            ));
             case.options.joint_radius_deg = Some(radius_rad.to_degrees());
             (case, target_joints)
         })
@@ -211,7 +209,7 @@ struct HybridFixture {
     screened: Table<adwi_runtime::AlignedBytes>,
     calibration: adwi_robot::calibrate::Calibration,
     residuals: Vec<adwi_runtime::format::SampleRecord>,
-    joints_rad: Vec<[f64; 6]>,
+    joints: adwi_compile::samples::Joints,
     robot: adwi_robot::Robot,
 }
 
@@ -236,10 +234,10 @@ fn hybrid_fixture() -> &'static HybridFixture {
             joint_radius_deg: Some(HYBRID_JOINT_RADIUS_DEG),
             ..options
         });
-        let joints_rad = samples.all_joints_rad();
+        let joints = samples.joints.clone().unwrap();
         // Residuals through the compiler's nalgebra model, not the runtime's.
         let mut residual = samples.clone();
-        for (i, q) in joints_rad.iter().enumerate() {
+        for (i, q) in joints.rows().enumerate() {
             let (p, r) = calibration.predict_error(q);
             for a in 0..3 {
                 residual.error_mm[i][a] -= p[a];
@@ -251,7 +249,7 @@ fn hybrid_fixture() -> &'static HybridFixture {
             screened,
             residuals: residual.records(),
             calibration,
-            joints_rad,
+            joints,
             robot,
         }
     })
@@ -271,7 +269,7 @@ proptest! {
         let radius_rad = table.joint_radius_rad();
         prop_assert!(radius_rad > 0.0);
         let records = case.samples.records();
-        let sample_joints = case.samples.all_joints_rad();
+        let sample_joints = case.samples.joints.clone().unwrap();
         let params = *table.method();
         for (target, q) in case.targets.iter().zip(&target_joints) {
             let got = table.query_with_joints(target, q);
@@ -280,8 +278,8 @@ proptest! {
                 continue;
             }
             let screen = reference::JointScreen {
-                samples_rad: &sample_joints,
-                target_rad: *q,
+                samples: &sample_joints,
+                target_rad: q,
                 radius_rad,
             };
             let want = reference::predict_screened(&records, &params, target, Some(&screen));
@@ -312,7 +310,7 @@ proptest! {
         delta_deg in prop::array::uniform6(-6.0..6.0f64),
     ) {
         let f = hybrid_fixture();
-        let q: [f64; 6] = std::array::from_fn(|i| f.joints_rad[pick][i] + delta_deg[i].to_radians());
+        let q: [f64; 6] = std::array::from_fn(|i| f.joints.row(pick)[i] + delta_deg[i].to_radians());
         let position = f.robot.tcp_pose(&q).translation.vector;
         let target = Target::at([position.x, position.y, position.z]);
         prop_assert_eq!(f.table.query_target(&target).status, Status::MissingJoints);
@@ -324,7 +322,7 @@ proptest! {
             }
             let want = common::hybrid_reference_predict(
                 &f.residuals,
-                &f.joints_rad,
+                &f.joints,
                 table.method(),
                 f64::to_radians(radius_deg),
                 &f.calibration,

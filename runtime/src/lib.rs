@@ -39,6 +39,7 @@
 #![deny(missing_docs)]
 
 pub mod capi;
+pub mod chain;
 mod error;
 pub mod format;
 pub mod kinematics;

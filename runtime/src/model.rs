@@ -33,81 +33,100 @@
 //! two forward kinematics (a few hundred flops) and a 3 × 3 logarithm on top of the ordinary
 //! query ([`crate::Table::query_with_joints`]).
 
+use crate::chain::Chain;
 use crate::format::{
     joint_rows_to_mdh, transform_of, ArchivedKinematicModel, ArchivedModelParams,
     ArchivedTableData, KinematicModel, ModelParams, JOINT_COUNT,
 };
-use crate::kinematics::{forward_prepared, pose_error, PreparedJoint, Transform};
+use crate::kinematics::{pose_error, Transform};
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
-/// `base · A_1(q_1) ⋯ A_6(q_6) · tool`.
+/// `base · A_1(q_1) ⋯ A_6(q_6) · tool`, for a version-1 model's parameters.
 pub fn tcp_pose(params: &ModelParams, q_rad: &[f64; JOINT_COUNT]) -> Transform {
-    PreparedChain::new(params).tcp_pose(&q_rad.map(f64::sin_cos))
+    mdh_chain(params)
+        .tcp_pose(q_rad)
+        .unwrap_or(Transform::IDENTITY)
 }
 
-/// The pose error a kinematic model predicts at joint angles `q_rad`: the calibrated TCP
-/// against the nominal one, position (mm) and orientation (rotation vector of
-/// `R_cal · R_nomᵀ`, rad), both in the base frame. The compiler computes a hybrid table's
-/// residuals with this, and queries with the same arithmetic ([`PreparedModel::error`]).
+/// The pose error a version-1 kinematic model predicts at joint angles `q_rad`: the
+/// calibrated TCP against the nominal one (see [`PreparedModel::error`]).
 pub fn model_error(model: &KinematicModel, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
-    PreparedModel::new(model).error(q_rad)
+    PreparedModel::from_mdh(model)
+        .error(q_rad)
+        .unwrap_or(([0.0; 3], [0.0; 3]))
 }
 
-/// One model's chain with its constant sines and cosines computed.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct PreparedChain {
-    joints: [PreparedJoint; JOINT_COUNT],
-    tool: Transform,
-    base: Transform,
+/// A version-1 model's MD-H parameters as a chain (six joints, finite by validation: an
+/// invalid one becomes a chain of one still joint, which validation never lets through).
+fn mdh_chain(params: &ModelParams) -> Chain {
+    Chain::from_mdh(
+        transform_of(&params.base),
+        &joint_rows_to_mdh(&params.joints),
+        transform_of(&params.tool),
+        None,
+    )
+    .unwrap_or_else(|_| still_chain())
 }
 
-impl PreparedChain {
-    fn new(params: &ModelParams) -> PreparedChain {
-        PreparedChain {
-            joints: joint_rows_to_mdh(&params.joints).map(|j| j.prepare()),
-            tool: transform_of(&params.tool),
-            base: transform_of(&params.base),
-        }
-    }
-
-    #[inline]
-    fn tcp_pose(&self, sin_cos_q: &[(f64, f64); JOINT_COUNT]) -> Transform {
-        self.base
-            .compose(&forward_prepared(&self.joints, &self.tool, sin_cos_q))
-    }
+/// One joint at rest, the identity everywhere: a placeholder that cannot fail.
+fn still_chain() -> Chain {
+    Chain::new(
+        Transform::IDENTITY,
+        &[crate::chain::ChainJoint::default()],
+        Transform::IDENTITY,
+        None,
+    )
+    .expect("the identity chain is valid")
 }
 
-/// A [`KinematicModel`] ready for queries: the sines and cosines of every constant angle
-/// computed once (at open), so that a prediction costs six `sin_cos` (of the joint angles,
-/// shared by both models) and two chains of 3 × 4 products.
+/// A hybrid table's model ready for queries: the chain the controller commands with and
+/// the calibrated one that predicts where the robot really goes (with its gravity
+/// compliance, when identified).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PreparedModel {
-    nominal: PreparedChain,
-    calibrated: PreparedChain,
+    nominal: Chain,
+    calibrated: Chain,
 }
 
 impl PreparedModel {
-    /// Prepares `model`.
-    pub fn new(model: &KinematicModel) -> PreparedModel {
+    /// The model of two chains of equal joint counts; `None` otherwise.
+    pub fn new(nominal: Chain, calibrated: Chain) -> Option<PreparedModel> {
+        (nominal.joint_count() == calibrated.joint_count()).then_some(PreparedModel {
+            nominal,
+            calibrated,
+        })
+    }
+
+    /// A version-1 model (six MD-H joints, tool and base as 12-value rows).
+    pub fn from_mdh(model: &KinematicModel) -> PreparedModel {
         PreparedModel {
-            nominal: PreparedChain::new(&model.nominal),
-            calibrated: PreparedChain::new(&model.calibrated),
+            nominal: mdh_chain(&model.nominal),
+            calibrated: mdh_chain(&model.calibrated),
         }
     }
 
-    /// The predicted pose error at joint angles `q_rad`, as [`model_error`].
+    /// The number of joint values a prediction needs.
+    pub fn joint_count(&self) -> usize {
+        self.nominal.joint_count()
+    }
+
+    /// The predicted pose error at joint values `q` (rad; mm for prismatic joints): the
+    /// calibrated model's TCP, deflected by gravity when it has compliance, against the
+    /// nominal one, as position (mm) and orientation (rotation vector of `R_cal · R_nomᵀ`,
+    /// rad), base frame. `None` when `q` does not have one value per joint.
     #[inline]
-    pub fn error(&self, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
-        let sin_cos_q = q_rad.map(f64::sin_cos);
-        let nominal = self.nominal.tcp_pose(&sin_cos_q);
-        let calibrated = self.calibrated.tcp_pose(&sin_cos_q);
-        pose_error(&nominal, &calibrated)
+    pub fn error(&self, q: &[f64]) -> Option<([f64; 3], [f64; 3])> {
+        let nominal = self.nominal.tcp_pose(q)?;
+        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
+        Some(pose_error(&nominal, &calibrated))
     }
 }
 
 /// The prepared model of a validated archive, if it carries one.
 pub(crate) fn prepared_model(archive: &ArchivedTableData) -> Option<PreparedModel> {
-    Some(PreparedModel::new(&native_model(archive.model.as_ref()?)))
+    Some(PreparedModel::from_mdh(&native_model(
+        archive.model.as_ref()?,
+    )))
 }
 
 /// A kinematic model out of the archive.

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use crate::format::{
     ArchivedSampleRecord, ArchivedTableData, Grid, Header, KinematicModel, CONTENT_CONFIG,
-    CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, JOINT_COUNT, PAYLOAD_ALIGN,
+    CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, JOINT_COUNT, PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction, SampleError, Selection};
 use crate::model::native_model;
@@ -429,7 +429,7 @@ impl<D: AsRef<[u8]>> Table<D> {
     fn select(
         &self,
         target: &Target,
-        joints_rad: Option<&[f64; 6]>,
+        joints_rad: Option<&[f64]>,
     ) -> Result<(Selection, &ArchivedTableData), Status> {
         let p = target.position_mm;
         if !p.iter().all(|v| v.is_finite()) {
@@ -466,7 +466,7 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// The interpolated sample errors at a target (with the joint-space screen when
     /// `joints_rad` is given): the ordinary query, and a hybrid table's residual part.
     #[inline]
-    pub(crate) fn interpolate(&self, target: &Target, joints_rad: Option<&[f64; 6]>) -> Correction {
+    pub(crate) fn interpolate(&self, target: &Target, joints_rad: Option<&[f64]>) -> Correction {
         let estimate = self
             .select(target, joints_rad)
             .and_then(|(selection, archive)| {
@@ -539,6 +539,14 @@ impl<D: AsRef<[u8]>> Table<D> {
         self.header().content_flags & CONTENT_MODEL != 0
     }
 
+    /// The number of joint values [`Table::query_with_joints`] takes: the robot's joint
+    /// count when the table carries joint angles or a model, `None` when joint angles play
+    /// no part in its answers (any count is then accepted and ignored).
+    pub fn joint_count(&self) -> Option<usize> {
+        let flags = self.header.content_flags;
+        (flags & (CONTENT_JOINTS | CONTENT_MODEL) != 0).then_some(JOINT_COUNT)
+    }
+
     /// The joint-space admissibility radius, rad; 0 when the screen is off.
     pub fn joint_radius_rad(&self) -> f64 {
         self.header().joint_radius_rad
@@ -563,12 +571,11 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// give [`Status::InvalidInput`]. The joint angles are taken as given: they are not
     /// checked against the target position (the controller's inverse kinematics is the
     /// authority on them).
-    pub fn query_with_joints(
-        &self,
-        target: &Target,
-        joints_rad: &[f64; JOINT_COUNT],
-    ) -> Correction {
-        if !joints_rad.iter().all(|q| q.is_finite()) {
+    pub fn query_with_joints(&self, target: &Target, joints_rad: &[f64]) -> Correction {
+        let expected = self.joint_count();
+        if !joints_rad.iter().all(|q| q.is_finite())
+            || (expected.is_some() && expected != Some(joints_rad.len()))
+        {
             return Correction::failed(Status::InvalidInput);
         }
         let mut correction = self.interpolate(target, Some(joints_rad));
@@ -576,7 +583,9 @@ impl<D: AsRef<[u8]>> Table<D> {
             return correction;
         }
         if let Some(model) = &self.prepared_model {
-            let (position_mm, rotation_rad) = model.error(joints_rad);
+            let Some((position_mm, rotation_rad)) = model.error(joints_rad) else {
+                return Correction::failed(Status::InvalidInput);
+            };
             for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {
                 *out += model;
             }

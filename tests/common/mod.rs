@@ -116,18 +116,18 @@ pub fn tablec(args: &[&str], dir: &std::path::Path) -> std::process::Output {
 #[allow(clippy::too_many_arguments)]
 pub fn hybrid_reference_predict(
     residual_records: &[adwi_runtime::format::SampleRecord],
-    sample_joints_rad: &[[f64; 6]],
+    sample_joints: &adwi_compile::samples::Joints,
     params: &adwi_runtime::method::MethodParams,
     joint_radius_rad: f64,
     calibration: &adwi_robot::calibrate::Calibration,
     orientation: bool,
     target: &adwi_runtime::Target,
-    joints_rad: &[f64; 6],
+    joints_rad: &[f64],
 ) -> Option<([f64; 3], [f64; 3])> {
     use adwi_compile::reference::{self, JointScreen};
     let screen = JointScreen {
-        samples_rad: sample_joints_rad,
-        target_rad: *joints_rad,
+        samples: sample_joints,
+        target_rad: joints_rad,
         radius_rad: joint_radius_rad,
     };
     let screen = (joint_radius_rad > 0.0).then_some(&screen);

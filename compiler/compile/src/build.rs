@@ -110,6 +110,14 @@ pub enum BuildError {
     /// A parameter, the grid or the samples are outside the range the runtime accepts.
     #[error("implausible table: {0}")]
     Implausible(format::Implausible),
+    /// The samples' joint values do not fit the model's joint count.
+    #[error("the samples have {samples} joint values each, the robot model {model} joints")]
+    JointCount {
+        /// The model's joint count.
+        model: usize,
+        /// The samples' joint values per sample.
+        samples: usize,
+    },
     /// Serialisation failed.
     #[error("cannot encode the table: {0}")]
     Encode(String),
@@ -261,7 +269,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
             "joint radius must be finite and non-negative",
         ));
     }
-    if joint_radius_rad > 0.0 && samples.joints_deg.is_none() {
+    if joint_radius_rad > 0.0 && samples.joints.is_none() {
         return Err(BuildError::Params(
             "a joint radius needs samples with joint angles (columns j1..j6)",
         ));
@@ -408,7 +416,18 @@ pub fn compile_plan(
         list_samples: Vec::new(),
         centre_samples: Vec::new(),
         centre_weights: Vec::new(),
-        joints_rad: samples.all_joints_rad(),
+        joints_rad: match &samples.joints {
+            Some(j) if j.count() == format::JOINT_COUNT => {
+                j.rows().map(|q| std::array::from_fn(|a| q[a])).collect()
+            }
+            Some(j) => {
+                return Err(BuildError::JointCount {
+                    model: format::JOINT_COUNT,
+                    samples: j.count(),
+                })
+            }
+            None => Vec::new(),
+        },
         model,
     };
     // Identical lists are stored once, in order of first appearance.
@@ -446,7 +465,7 @@ pub fn compile_plan(
     if samples.config.is_some() {
         content |= CONTENT_CONFIG;
     }
-    if samples.joints_deg.is_some() {
+    if samples.joints.is_some() {
         content |= CONTENT_JOINTS;
     }
     if data.model.is_some() {

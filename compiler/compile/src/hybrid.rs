@@ -26,13 +26,13 @@
 //!
 
 use adwi_runtime::format::KinematicModel;
-use adwi_runtime::model::model_error;
+use adwi_runtime::model::PreparedModel;
 
 use crate::build::{self, BuildError, BuildReport, Plan};
 use crate::samples::SampleSet;
 
 /// The samples with their errors replaced by the residuals `model` leaves: measured error
-/// minus `model_error(model, q)` at each sample's joint angles, position and (when the
+/// minus `model.error(q)` at each sample's joint angles, position and (when the
 /// samples carry them) orientation.
 ///
 /// # Errors
@@ -40,15 +40,15 @@ use crate::samples::SampleSet;
 /// [`BuildError::MissingJoints`] when the samples carry no joint angles.
 pub fn residual_samples(
     samples: &SampleSet,
-    model: &KinematicModel,
+    model: &PreparedModel,
 ) -> Result<SampleSet, BuildError> {
-    let joints = samples
-        .joints_deg
-        .as_ref()
-        .ok_or(BuildError::MissingJoints)?;
+    let joints = samples.joints.as_ref().ok_or(BuildError::MissingJoints)?;
     let mut residual = samples.clone();
-    for (i, q_deg) in joints.iter().enumerate() {
-        let (position_mm, rotation_rad) = model_error(model, &q_deg.map(f64::to_radians));
+    for (i, q) in joints.rows().enumerate() {
+        let (position_mm, rotation_rad) = model.error(q).ok_or(BuildError::JointCount {
+            model: model.joint_count(),
+            samples: joints.count(),
+        })?;
         for (e, p) in residual.error_mm[i].iter_mut().zip(position_mm) {
             *e -= p;
         }
@@ -86,7 +86,7 @@ pub fn compile(
     plan: &Plan,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
-    let residual = residual_samples(samples, model)?;
+    let residual = residual_samples(samples, &PreparedModel::from_mdh(model))?;
     let (bytes, report) = build::compile_plan(
         &residual,
         plan,

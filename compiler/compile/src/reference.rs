@@ -9,6 +9,8 @@ use adwi_runtime::method::{
 };
 use adwi_runtime::Target;
 
+use crate::samples::Joints;
+
 /// The admissible samples for `target`, the `k` nearest, nearest first, ties broken by
 /// sample order: filter all samples, sort, truncate.
 pub fn neighbours(
@@ -20,13 +22,13 @@ pub fn neighbours(
 }
 
 /// The joint-space admissibility screen of a query with known joint angles: sample `i`
-/// is admissible only if `joints_within(samples_rad[i], target_rad, radius_rad)`.
+/// is admissible only if `joints_within(samples.row(i), target_rad, radius_rad)`.
 #[derive(Clone, Copy, Debug)]
 pub struct JointScreen<'a> {
-    /// Every sample's joint angles, rad, in sample order.
-    pub samples_rad: &'a [[f64; 6]],
-    /// The target's joint angles, rad.
-    pub target_rad: [f64; 6],
+    /// Every sample's joint values, rad, in sample order.
+    pub samples: &'a Joints,
+    /// The target's joint values, rad.
+    pub target_rad: &'a [f64],
     /// The radius, rad.
     pub radius_rad: f64,
 }
@@ -34,9 +36,8 @@ pub struct JointScreen<'a> {
 impl JointScreen<'_> {
     /// Whether sample `index` passes the screen.
     pub fn admits(&self, index: usize) -> bool {
-        self.samples_rad
-            .get(index)
-            .is_some_and(|q| joints_within(q, &self.target_rad, self.radius_rad))
+        index < self.samples.len()
+            && joints_within(self.samples.row(index), self.target_rad, self.radius_rad)
     }
 }
 

@@ -51,8 +51,8 @@ pub struct SampleSet {
     pub nominal_abc_deg: Option<Vec<[f64; 3]>>,
     /// Measured orientation errors, rotation vectors (rad, base frame), when given.
     pub rotation_error_rad: Option<Vec<[f64; 3]>>,
-    /// Joint angles, degrees, when given.
-    pub joints_deg: Option<Vec<[f64; 6]>>,
+    /// Joint values, when given: rad (mm for prismatic joints), one row per sample.
+    pub joints: Option<Joints>,
     /// Inverse-kinematics configurations, when given.
     pub config: Option<Vec<u8>>,
     /// The source line of each sample (1-based), for messages.
@@ -76,14 +76,32 @@ impl SampleSet {
         [n[0] + e[0], n[1] + e[1], n[2] + e[2]]
     }
 
-    /// Sample `i`'s joint angles in radians, when the samples carry joint angles.
-    pub fn joints_rad(&self, i: usize) -> Option<[f64; 6]> {
-        self.joints_deg.as_ref().map(|j| j[i].map(f64::to_radians))
+    /// Sample `i`'s joint values (rad; mm for prismatic joints), when the samples carry
+    /// them.
+    pub fn joints_rad(&self, i: usize) -> Option<&[f64]> {
+        self.joints.as_ref().map(|j| j.row(i))
     }
 
-    /// Every sample's joint angles in radians, in sample order; empty without joint angles.
-    pub fn all_joints_rad(&self) -> Vec<[f64; 6]> {
-        (0..self.len()).filter_map(|i| self.joints_rad(i)).collect()
+    /// The number of joint values per sample, when the samples carry them.
+    pub fn joint_count(&self) -> Option<usize> {
+        self.joints.as_ref().map(Joints::count)
+    }
+
+    /// The samples at `indices`, in that order.
+    pub fn subset(&self, indices: &[usize]) -> SampleSet {
+        let pick = |v: &Vec<[f64; 3]>| indices.iter().map(|&i| v[i]).collect::<Vec<_>>();
+        SampleSet {
+            nominal_mm: pick(&self.nominal_mm),
+            error_mm: pick(&self.error_mm),
+            nominal_abc_deg: self.nominal_abc_deg.as_ref().map(pick),
+            rotation_error_rad: self.rotation_error_rad.as_ref().map(pick),
+            joints: self.joints.as_ref().map(|j| j.subset(indices)),
+            config: self
+                .config
+                .as_ref()
+                .map(|c| indices.iter().map(|&i| c[i]).collect()),
+            lines: indices.iter().map(|&i| self.lines[i]).collect(),
+        }
     }
 
     /// The samples as the runtime stores them.
@@ -112,8 +130,8 @@ impl SampleSet {
             if let Some(r) = &self.rotation_error_rad {
                 r[i].into_iter().for_each(&mut push);
             }
-            if let Some(j) = &self.joints_deg {
-                j[i].into_iter().for_each(&mut push);
+            if let Some(j) = &self.joints {
+                j.row(i).iter().copied().for_each(&mut push);
             }
             if let Some(c) = &self.config {
                 push(f64::from(c[i]));
@@ -121,7 +139,7 @@ impl SampleSet {
         }
         let flags = [
             self.rotation_error_rad.is_some(),
-            self.joints_deg.is_some(),
+            self.joints.is_some(),
             self.config.is_some(),
         ];
         hasher.update(&flags.map(u8::from));
@@ -157,6 +175,87 @@ impl SampleSet {
                 [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
             )
         }))
+    }
+}
+
+/// The joint values of a sample set: the same number per sample, rad for revolute joints
+/// and mm for prismatic ones, in sample order (one flat array, a row per sample).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Joints {
+    count: usize,
+    values: Vec<f64>,
+}
+
+impl Joints {
+    /// No rows yet, `count` values per row.
+    pub fn new(count: usize) -> Joints {
+        Joints {
+            count,
+            values: Vec::new(),
+        }
+    }
+
+    /// The rows of `values`, `count` per row.
+    ///
+    /// # Panics
+    ///
+    /// When `values.len()` is not a multiple of `count`.
+    pub fn from_flat(count: usize, values: Vec<f64>) -> Joints {
+        assert!(
+            count > 0 && values.len() % count == 0,
+            "{} joint values are not rows of {count}",
+            values.len()
+        );
+        Joints { count, values }
+    }
+
+    /// Appends a row.
+    ///
+    /// # Panics
+    ///
+    /// When the row does not have [`Joints::count`] values.
+    pub fn push(&mut self, row: &[f64]) {
+        assert_eq!(row.len(), self.count, "a joint row of the wrong length");
+        self.values.extend_from_slice(row);
+    }
+
+    /// Values per row: the robot's joint count.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The number of rows.
+    pub fn len(&self) -> usize {
+        self.values.len().checked_div(self.count).unwrap_or(0)
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
+    /// Row `i`.
+    pub fn row(&self, i: usize) -> &[f64] {
+        &self.values[i * self.count..(i + 1) * self.count]
+    }
+
+    /// Every row, in order.
+    pub fn rows(&self) -> std::slice::ChunksExact<'_, f64> {
+        self.values.chunks_exact(self.count.max(1))
+    }
+
+    /// Every value, row after row.
+    pub fn as_flat(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// The rows at `indices`, in that order.
+    pub fn subset(&self, indices: &[usize]) -> Joints {
+        let mut out = Joints::new(self.count);
+        for &i in indices {
+            out.push(self.row(i));
+        }
+        out
     }
 }
 
@@ -476,12 +575,12 @@ enum RotationColumns {
 
 /// A target read from a CSV: where to go and, when the file gives them, the joint angles
 /// the controller will use.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct TargetRow {
     /// Position and configuration.
     pub target: adwi_runtime::Target,
-    /// Joint angles `j1..j6`, rad, when the file has those columns.
-    pub joints_rad: Option<[f64; 6]>,
+    /// Joint values `j1..jn`, rad (mm for prismatic joints), when the file has them.
+    pub joints_rad: Option<Vec<f64>>,
 }
 
 /// Reads a CSV of targets: `x,y,z` (mm, base frame), optionally `config` and `j1..j6`
@@ -499,7 +598,7 @@ pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, 
                 position_mm: set.nominal_mm[i],
                 config: set.config.as_ref().map(|c| c[i]),
             },
-            joints_rad: set.joints_rad(i),
+            joints_rad: set.joints_rad(i).map(<[f64]>::to_vec),
         })
         .collect())
 }
@@ -593,7 +692,7 @@ fn parse(
             .filter(|r| matches!(r, RotationColumns::Measured { .. }))
             .map(|_| Vec::new()),
         rotation_error_rad: layout.rotation.as_ref().map(|_| Vec::new()),
-        joints_deg: layout.joints.map(|_| Vec::new()),
+        joints: layout.joints.map(|cols| Joints::new(cols.len())),
         config: layout.config.map(|_| Vec::new()),
         ..SampleSet::default()
     };
@@ -675,12 +774,12 @@ fn parse(
             }
             None => {}
         }
-        if let Some(cols) = layout.joints {
+        if let (Some(cols), Some(joints)) = (layout.joints, set.joints.as_mut()) {
             let mut q = [0.0; 6];
             for (v, c) in q.iter_mut().zip(cols) {
-                *v = number(c)?;
+                *v = number(c)?.to_radians();
             }
-            push(&mut set.joints_deg, q);
+            joints.push(&q);
         }
         if let Some(c) = layout.config {
             let text = String::from_utf8_lossy(&record[c]).into_owned();

@@ -55,7 +55,7 @@ use crate::baselines::{
     ResidualStats,
 };
 use adwi_compile::build::{self, BuildError, BuildOptions};
-use adwi_compile::samples::SampleSet;
+use adwi_compile::samples::{Joints, SampleSet};
 use adwi_robot::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
 use adwi_robot::Robot;
 
@@ -422,24 +422,9 @@ impl Evaluation {
     }
 }
 
-/// A subset of a sample set, in the order of `indices`.
+/// A subset of a sample set, in the order of `indices` ([`SampleSet::subset`]).
 pub fn subset(samples: &SampleSet, indices: &[usize]) -> SampleSet {
-    let pick = |v: &Vec<[f64; 3]>| indices.iter().map(|&i| v[i]).collect::<Vec<_>>();
-    SampleSet {
-        nominal_mm: pick(&samples.nominal_mm),
-        error_mm: pick(&samples.error_mm),
-        nominal_abc_deg: samples.nominal_abc_deg.as_ref().map(pick),
-        rotation_error_rad: samples.rotation_error_rad.as_ref().map(pick),
-        joints_deg: samples
-            .joints_deg
-            .as_ref()
-            .map(|j| indices.iter().map(|&i| j[i]).collect()),
-        config: samples
-            .config
-            .as_ref()
-            .map(|c| indices.iter().map(|&i| c[i]).collect()),
-        lines: indices.iter().map(|&i| samples.lines[i]).collect(),
-    }
+    samples.subset(indices)
 }
 
 /// Methods left out of a default selection, with the reason.
@@ -456,10 +441,10 @@ fn choose_methods(
         if m.needs_robot() && options.robot.is_none() {
             return Some("needs a robot model (--robot ROBOT.toml)".into());
         }
-        if m.needs_joints() && samples.joints_deg.is_none() {
+        if m.needs_joints() && samples.joints.is_none() {
             return Some("needs joint angles (j1..j6) in the samples".into());
         }
-        if m.needs_joints() && points.joints_deg.is_none() {
+        if m.needs_joints() && points.joints.is_none() {
             return Some("needs joint angles (j1..j6) at the validation points".into());
         }
         None
@@ -696,8 +681,9 @@ fn predict_split(
             config: test.config.as_ref().map(|c| c[i]),
         })
         .collect();
-    let joints_rad =
-        |set: &SampleSet, i: usize| set.joints_rad(i).expect("checked by choose_methods");
+    fn joints_rad(set: &SampleSet, i: usize) -> &[f64] {
+        set.joints_rad(i).expect("checked by choose_methods")
+    }
     let outcome = match method {
         Method::Paper => {
             let table = compile_table(method, train, &options.build)?;
@@ -706,8 +692,7 @@ fn predict_split(
                 .enumerate()
                 .map(|(i, t)| {
                     // The joint angles only matter to a table with a joint screen.
-                    let joints = test.joints_rad(i);
-                    table_prediction(&table, t, joints.as_ref(), orientation)
+                    table_prediction(&table, t, test.joints_rad(i), orientation)
                 })
                 .collect()
         }
@@ -716,11 +701,11 @@ fn predict_split(
                 .map_err(|source| EvalError::Build { method, source })?
                 .params;
             let records = train.records();
-            let train_joints = train.joints_deg.as_ref().expect("checked");
-            let test_joints = test.joints_deg.as_ref().expect("checked");
+            let train_joints = train.joints.as_ref().expect("checked");
+            let test_joints = test.joints.as_ref().expect("checked");
             targets
                 .iter()
-                .zip(test_joints)
+                .zip(test_joints.rows())
                 .map(|(t, q)| {
                     joint_space_prediction(&records, train_joints, &params, t, q, orientation)
                 })
@@ -754,7 +739,7 @@ fn predict_split(
             let c = calibration.expect("identified for kinematic methods");
             (0..test.len())
                 .map(|i| {
-                    let (p, r) = c.predict_error(&joints_rad(test, i));
+                    let (p, r) = c.predict_error(joints_rad(test, i));
                     Ok(PointPrediction {
                         position_error_mm: p,
                         orientation_error_rad: orientation.then_some(r),
@@ -778,7 +763,7 @@ fn predict_split(
             targets
                 .iter()
                 .enumerate()
-                .map(|(i, t)| table_prediction(&table, t, Some(&joints_rad(test, i)), orientation))
+                .map(|(i, t)| table_prediction(&table, t, Some(joints_rad(test, i)), orientation))
                 .collect()
         }
     };
@@ -805,7 +790,7 @@ fn compile_table(
 fn table_prediction<D: AsRef<[u8]>>(
     table: &Table<D>,
     target: &Target,
-    joints_rad: Option<&[f64; 6]>,
+    joints_rad: Option<&[f64]>,
     orientation: bool,
 ) -> Result<PointPrediction, Miss> {
     let c = match joints_rad {
@@ -832,22 +817,22 @@ fn table_prediction<D: AsRef<[u8]>>(
 /// [`adwi_runtime::method`]'s.
 fn joint_space_prediction(
     records: &[adwi_runtime::format::SampleRecord],
-    train_joints_deg: &[[f64; 6]],
+    train_joints: &Joints,
     params: &method::MethodParams,
     target: &Target,
-    target_joints_deg: &[f64; 6],
+    target_joints_rad: &[f64],
     orientation: bool,
 ) -> Result<PointPrediction, Miss> {
-    let joint_distance = |q: &[f64; 6]| {
+    let joint_distance = |q: &[f64]| {
         q.iter()
-            .zip(target_joints_deg)
+            .zip(target_joints_rad)
             .map(|(a, b)| (a - b) * (a - b))
             .sum::<f64>()
             .sqrt()
     };
     let neighbours =
         adwi_compile::reference::neighbours_ranked(records, params, target, None, |n| {
-            joint_distance(&train_joints_deg[n.sample as usize])
+            joint_distance(train_joints.row(n.sample as usize))
         });
     let prediction = method::predict(params, &neighbours, |i| {
         records[i as usize].measured_error()

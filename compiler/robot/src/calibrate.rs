@@ -210,6 +210,14 @@ pub enum CalibrateError {
     /// The samples carry no joint angles, so no kinematic model can be evaluated at them.
     #[error("the samples have no joint angles (columns j1..j6): a kinematic calibration needs the commanded joint angles of every sample")]
     MissingJoints,
+    /// The samples' joint values do not fit the robot.
+    #[error("the samples have {samples} joint values each, the robot {robot} joints")]
+    JointCount {
+        /// The robot's joint count.
+        robot: usize,
+        /// Joint values per sample.
+        samples: usize,
+    },
     /// An option is out of range.
     #[error("invalid calibration option {name}: {reason}")]
     InvalidOption {
@@ -270,8 +278,12 @@ impl Calibration {
     /// The predicted pose error at joint angles `q_rad`: the identified model's TCP pose
     /// against the nominal one, position (mm) and orientation (rotation vector, rad), base
     /// frame.
-    pub fn predict_error(&self, q_rad: &[f64; JOINT_COUNT]) -> ([f64; 3], [f64; 3]) {
-        self.model.error(q_rad)
+    ///
+    /// # Panics
+    ///
+    /// When `q_rad` has fewer values than the robot has joints.
+    pub fn predict_error(&self, q_rad: &[f64]) -> ([f64; 3], [f64; 3]) {
+        self.model.error(&std::array::from_fn(|a| q_rad[a]))
     }
 
     /// The nominal and the identified model as a table stores them (a hybrid table's
@@ -462,13 +474,20 @@ pub fn identify(
         });
     }
     let joints = samples
-        .joints_deg
+        .joints
         .as_ref()
         .ok_or(CalibrateError::MissingJoints)?;
+    if joints.count() != JOINT_COUNT {
+        return Err(CalibrateError::JointCount {
+            robot: JOINT_COUNT,
+            samples: joints.count(),
+        });
+    }
     let measurements: Vec<Measurement> = (0..samples.len())
         .map(|i| {
+            let q = joints.row(i);
             let m = Measurement {
-                q_rad: joints[i].map(f64::to_radians),
+                q_rad: std::array::from_fn(|a| q[a]),
                 error_mm: samples.error_mm[i],
                 rotation_error_rad: samples.rotation_error_rad.as_ref().map(|r| r[i]),
             };
@@ -721,7 +740,7 @@ mod tests {
         let model = Model::nominal(robot).with_parameters(truth);
         let mut set = SampleSet {
             rotation_error_rad: orientation.then(Vec::new),
-            joints_deg: Some(Vec::new()),
+            joints: Some(adwi_compile::samples::Joints::new(JOINT_COUNT)),
             ..SampleSet::default()
         };
         for (i, q) in q.iter().enumerate() {
@@ -732,10 +751,7 @@ mod tests {
             if let Some(r) = &mut set.rotation_error_rad {
                 r.push(dr);
             }
-            set.joints_deg
-                .as_mut()
-                .unwrap()
-                .push(q.map(f64::to_degrees));
+            set.joints.as_mut().unwrap().push(q);
             set.lines.push(i as u64 + 2);
         }
         set
@@ -888,7 +904,7 @@ mod tests {
             "{error}"
         );
         let mut no_joints = samples.clone();
-        no_joints.joints_deg = None;
+        no_joints.joints = None;
         assert_eq!(
             identify(&robot, &no_joints, &CalibrateOptions::default()).unwrap_err(),
             CalibrateError::MissingJoints
@@ -924,9 +940,9 @@ mod tests {
         .unwrap();
         let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
         let model = c.kinematic_model();
-        let joints = samples.joints_deg.as_ref().unwrap();
-        for q_deg in joints.iter().step_by(37) {
-            let q = q_deg.map(f64::to_radians);
+        let joints = samples.joints.as_ref().unwrap();
+        for q in joints.rows().step_by(37) {
+            let q: [f64; 6] = std::array::from_fn(|a| q[a]);
             let (p, r) = adwi_runtime::model::model_error(&model, &q);
             let (p_ref, r_ref) = c.predict_error(&q);
             for a in 0..3 {
@@ -934,7 +950,8 @@ mod tests {
                 assert!((r[a] - r_ref[a]).abs() < 1e-12, "{r:?} vs {r_ref:?}");
             }
         }
-        let residual = adwi_compile::hybrid::residual_samples(&samples, &model).unwrap();
+        let prepared = adwi_runtime::model::PreparedModel::from_mdh(&model);
+        let residual = adwi_compile::hybrid::residual_samples(&samples, &prepared).unwrap();
         let rms = (residual
             .error_mm
             .iter()

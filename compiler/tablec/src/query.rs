@@ -76,11 +76,18 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         position_mm: position,
         config: args.config,
     };
-    let joints_rad: Option<[f64; 6]> = match args.joints.as_deref() {
-        None => None,
-        Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f].map(f64::to_radians)),
-        Some(_) => bail!("--joints takes six angles in degrees: J1,J2,J3,J4,J5,J6"),
-    };
+    let joints_rad: Option<Vec<f64>> = args
+        .joints
+        .as_ref()
+        .map(|q| q.iter().map(|v| v.to_radians()).collect());
+    if let (Some(q), Some(n)) = (&joints_rad, table.joint_count()) {
+        if q.len() != n {
+            bail!(
+                "--joints takes the robot's {n} joint angles in degrees, J1,...,J{n}; {} given",
+                q.len()
+            );
+        }
+    }
     // A non-finite orientation is refused as a non-finite position is: no command can be
     // computed for it.
     let c = if abc.is_some_and(|abc| !abc.iter().all(|v| v.is_finite())) {
@@ -91,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             status: Status::InvalidInput,
         }
     } else {
-        match &joints_rad {
+        match joints_rad.as_deref() {
             Some(q) => table.query_with_joints(&target, q),
             None => table.query_target(&target),
         }
@@ -115,7 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         let r = c.orientation_error_rad;
         println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
     }
-    let command = command(&table, &target, joints_rad.as_ref(), &c);
+    let command = command(&table, &target, joints_rad.as_deref(), &c);
     let p = command.position_mm;
     println!(
         "command      {:.6} {:.6} {:.6} mm ({})",
@@ -148,7 +155,7 @@ struct Command {
 fn command<D: AsRef<[u8]>>(
     table: &Table<D>,
     target: &Target,
-    joints_rad: Option<&[f64; 6]>,
+    joints_rad: Option<&[f64]>,
     c: &Correction,
 ) -> Command {
     if joints_rad.is_some() {
@@ -203,7 +210,7 @@ fn run_batch(
     let mut unanswered: std::collections::BTreeMap<&str, usize> = Default::default();
     for row in &targets {
         // Rows with joint angles serve hybrid tables and the joint-space screen.
-        let c = match &row.joints_rad {
+        let c = match row.joints_rad.as_deref() {
             Some(q) => table.query_with_joints(&row.target, q),
             None => table.query_target(&row.target),
         };
@@ -223,7 +230,7 @@ fn run_batch(
         }
         write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
         if c.status == Status::Ok {
-            let command = command(table, &row.target, row.joints_rad.as_ref(), &c);
+            let command = command(table, &row.target, row.joints_rad.as_deref(), &c);
             let p = command.position_mm;
             write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
             if orientation {
