@@ -221,3 +221,141 @@ fn the_version_1_hybrid_table_opens_and_gives_its_recorded_answers() {
         assert_eq!(table.query(p).status, Status::MissingJoints, "{p:?}");
     }
 }
+
+/// `tables/compat/v2/README.md`'s answers of `worked_example.tbl`: served, then exact.
+const V2_ANSWERS: [(bool, Answer); 10] = [
+    (
+        false,
+        (
+            [2000.0, 700.0, 1000.0],
+            Some([0.044719917, 0.995300158, -0.230415065]),
+            8,
+            Status::Ok,
+        ),
+    ),
+    (
+        false,
+        (
+            [1980.0, 690.0, 1010.0],
+            Some([0.044935429, 0.995502446, -0.229656906]),
+            8,
+            Status::Ok,
+        ),
+    ),
+    (
+        false,
+        (
+            [2040.0, 740.0, 960.0],
+            Some([0.043726180, 0.994152413, -0.232225095]),
+            8,
+            Status::Ok,
+        ),
+    ),
+    (
+        false,
+        (
+            [1950.0, 750.0, 1050.0],
+            Some([0.042193600, 0.996989097, -0.228903413]),
+            8,
+            Status::Ok,
+        ),
+    ),
+    (
+        false,
+        ([3000.0, 700.0, 1000.0], None, 0, Status::OutsideGrid),
+    ),
+    (true, V1_ANSWERS[0]),
+    (true, V1_ANSWERS[1]),
+    (true, V1_ANSWERS[2]),
+    (true, V1_ANSWERS[3]),
+    (true, V1_ANSWERS[4]),
+];
+
+/// The three UR5 poses of `tables/compat/v2/README.md`: position (mm), joints (deg),
+/// served and exact errors (mm).
+type V2HybridAnswer = ([f64; 3], [f64; 6], [f64; 3], [f64; 3]);
+
+const V2_HYBRID_ANSWERS: [V2HybridAnswer; 3] = [
+    (
+        [-495.48014933320513, -261.22060558066715, 359.404929823319],
+        [
+            17.272893800633657,
+            -81.98887450752903,
+            88.40996156653269,
+            0.07134692051529574,
+            93.45549391078386,
+            -0.12149026052282592,
+        ],
+        [-2.447803398, -0.396245906, -0.671138845],
+        [-2.431379815, -0.413325813, -0.669583922],
+    ),
+    (
+        [-496.5584396318196, -303.7438549414801, 389.15230080163224],
+        [
+            23.470392864049625,
+            -77.07699251876265,
+            77.09116418455962,
+            11.235902610533948,
+            104.46604662450441,
+            -2.872462361249245,
+        ],
+        [-2.660801131, -0.082845631, -0.685257147],
+        [-2.650317985, -0.048157265, -0.710779138],
+    ),
+    (
+        [-379.4891043290153, -391.437788426598, 321.30117534761547],
+        [
+            39.90741597526584,
+            -78.49182609849096,
+            88.15719596291765,
+            6.224929174902254,
+            117.51697908151714,
+            17.389107740297682,
+        ],
+        [-2.510536707, -0.266201873, -0.517639264],
+        [-2.513494145, -0.262241703, -0.502584740],
+    ),
+];
+
+fn assert_close(got: &[f64; 3], want: &[f64; 3], what: &str) {
+    for (g, w) in got.iter().zip(want) {
+        // Recorded with 9 decimals.
+        assert!((g - w).abs() <= 5.1e-10, "{what}: {got:?} vs {want:?}");
+    }
+}
+
+#[test]
+fn the_version_2_tables_open_and_give_their_recorded_answers() {
+    // SAFETY: committed fixtures, not modified while the test runs.
+    let table = unsafe { Table::open(root().join("tables/compat/v2/worked_example.tbl")) }.unwrap();
+    assert_eq!(table.header().version, 2);
+    assert_eq!(table.header().source_hash, 0xf825_78c5_0b9b_b5e3);
+    assert!(table.has_served_field());
+    for (exact, (p, error, neighbours, status)) in V2_ANSWERS {
+        let c = if exact {
+            table.exact().query(p)
+        } else {
+            table.query(p)
+        };
+        assert_eq!(c.status, status, "{p:?}");
+        assert_eq!(c.neighbours, neighbours, "{p:?}");
+        if let Some(e) = error {
+            assert_close(&c.position_error_mm, &e, &format!("{p:?} exact {exact}"));
+        }
+    }
+    let hybrid = unsafe { Table::open(root().join("tables/compat/v2/ur5_hybrid.tbl")) }.unwrap();
+    assert_eq!(hybrid.header().source_hash, 0x543d_a92b_eccb_c6c5);
+    assert!(hybrid.is_hybrid() && hybrid.has_served_field());
+    assert_eq!(hybrid.joint_count(), Some(6));
+    for (p, joints_deg, served, exact) in V2_HYBRID_ANSWERS {
+        let target = Target::at(p);
+        let q = joints_deg.map(f64::to_radians);
+        assert_eq!(hybrid.query_target(&target).status, Status::MissingJoints);
+        let c = hybrid.query_with_joints(&target, &q);
+        assert_eq!((c.status, c.neighbours), (Status::Ok, 8));
+        assert_close(&c.position_error_mm, &served, "served");
+        let c = hybrid.exact().query_with_joints(&target, &q);
+        assert_eq!((c.status, c.neighbours), (Status::Ok, 8));
+        assert_close(&c.position_error_mm, &exact, "exact");
+    }
+}

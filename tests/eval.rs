@@ -67,10 +67,11 @@ fn write_inputs(dir: &Path) {
     std::fs::write(dir.join("validation.csv"), validation).unwrap();
 }
 
-/// The `paper` method of `tablec eval` is the table `tablec build` writes, queried as
-/// `tablec query` does: the same prediction at every point, and the same points refused.
+/// The `paper` and `paper-trilinear` methods of `tablec eval` are the table `tablec build`
+/// writes, queried as `tablec query --exact` and `tablec query` do: the same prediction at
+/// every point, and the same points refused.
 #[test]
-fn paper_method_equals_tablec_query() {
+fn paper_methods_equal_tablec_query() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_inputs(d);
@@ -78,19 +79,6 @@ fn paper_method_equals_tablec_query() {
         &["build", "-q", "samples.csv", "-o", "t.tbl", "--k", "6"],
         d,
     ));
-    // Exit status 3: the two points far outside are not answered (and are still written).
-    let query = tablec(
-        &[
-            "query",
-            "t.tbl",
-            "--targets",
-            "validation.csv",
-            "-o",
-            "q.csv",
-        ],
-        d,
-    );
-    assert_eq!(query.status.code(), Some(3));
     ok(&tablec(
         &[
             "eval",
@@ -98,7 +86,7 @@ fn paper_method_equals_tablec_query() {
             "--validation",
             "validation.csv",
             "--methods",
-            "paper",
+            "paper,paper-trilinear",
             "--k",
             "6",
             "--json",
@@ -109,31 +97,48 @@ fn paper_method_equals_tablec_query() {
     ));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
-    let paper = &json["methods"][0];
-    assert_eq!(paper["method"], "paper");
-    let predictions = paper["predictions"].as_array().unwrap();
-    let queried = std::fs::read_to_string(d.join("q.csv")).unwrap();
-    let rows: Vec<&str> = queried.lines().skip(1).collect();
-    assert_eq!(rows.len(), predictions.len());
-    let mut refused = 0;
-    for (row, prediction) in rows.iter().zip(predictions) {
-        let fields: Vec<&str> = row.split(',').collect();
-        if fields[10] != "ok" {
-            assert!(prediction.is_null(), "{row}");
-            refused += 1;
-            continue;
+    for (index, name, exact) in [(0, "paper", true), (1, "paper-trilinear", false)] {
+        let mut args = vec![
+            "query",
+            "t.tbl",
+            "--targets",
+            "validation.csv",
+            "-o",
+            "q.csv",
+        ];
+        if exact {
+            args.push("--exact");
         }
-        let predicted = &prediction["position_error_mm"];
-        for axis in 0..3 {
-            let q: f64 = fields[3 + axis].parse().unwrap();
-            let e = predicted[axis].as_f64().unwrap();
-            // `tablec query` prints nine decimals.
-            assert!((q - e).abs() <= 1e-9, "{row}: {e}");
+        // Exit status 3: the two points far outside are not answered (and are still
+        // written).
+        let query = tablec(&args, d);
+        assert_eq!(query.status.code(), Some(3));
+        let method = &json["methods"][index];
+        assert_eq!(method["method"], name);
+        let predictions = method["predictions"].as_array().unwrap();
+        let queried = std::fs::read_to_string(d.join("q.csv")).unwrap();
+        let rows: Vec<&str> = queried.lines().skip(1).collect();
+        assert_eq!(rows.len(), predictions.len());
+        let mut refused = 0;
+        for (row, prediction) in rows.iter().zip(predictions) {
+            let fields: Vec<&str> = row.split(',').collect();
+            if fields[10] != "ok" {
+                assert!(prediction.is_null(), "{name} {row}");
+                refused += 1;
+                continue;
+            }
+            let predicted = &prediction["position_error_mm"];
+            for axis in 0..3 {
+                let q: f64 = fields[3 + axis].parse().unwrap();
+                let e = predicted[axis].as_f64().unwrap();
+                // `tablec query` prints nine decimals.
+                assert!((q - e).abs() <= 1e-9, "{name} {row}: {e}");
+            }
         }
+        // The two far points are outside the grid, counted rather than dropped.
+        assert_eq!(refused, 2, "{name}");
+        assert_eq!(method["not_predicted"]["outside_grid"], 2, "{name}");
     }
-    // The two far points are outside the grid, counted rather than dropped.
-    assert_eq!(refused, 2);
-    assert_eq!(paper["not_predicted"]["outside_grid"], 2);
 }
 
 /// Every method that applies runs, the lattice method included; points outside the

@@ -110,16 +110,18 @@ fn wrong_magic_and_versions_are_refused_naming_both_versions() {
 
 #[test]
 fn a_table_with_a_broken_invariant_but_valid_checksums_is_refused() {
-    // Re-encode with a candidate list naming a sample that does not exist: checksums and
-    // rkyv validation pass, the semantic pass must not.
+    // Re-encode with a candidate naming a sample that does not exist: checksums and rkyv
+    // validation pass, the semantic pass must not.
     let bytes = small_table();
     let table = Table::from_vec(&bytes).unwrap();
     let header = *table.header();
-    let archived = table.data().unwrap();
-    let mut data: adwi_runtime::format::TableData =
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("the compiler writes version 2");
+    };
+    let mut data: adwi_runtime::format::v2::TableData =
         rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
-    let last = data.list_samples.len() - 1;
-    data.list_samples[last] = 99;
+    let cell = data.cells.iter().position(|r| r[0] > 0).unwrap();
+    data.cells[cell][1] = 99;
     let corrupt = adwi_runtime::format::encode(header, &data).unwrap();
     let err = open(&corrupt).unwrap_err();
     assert!(

@@ -182,6 +182,137 @@ proptest! {
     }
 }
 
+/// The served field, as the obvious reference computes it: the brute-force method at the
+/// 8 nodes of the target's cell, blended trilinearly.
+fn served_reference(
+    table: &Table<adwi_runtime::AlignedBytes>,
+    records: &[adwi_runtime::format::SampleRecord],
+    target: &Target,
+) -> Result<([f64; 3], [f64; 3]), Status> {
+    let g = table.grid();
+    let params = *table.method();
+    let mut cell = [0usize; 3];
+    let mut t = [0.0; 3];
+    for a in 0..3 {
+        let u = (target.position_mm[a] - g.origin_mm[a]) / g.cell_mm;
+        if !(0.0..=g.dims[a] as f64).contains(&u) {
+            return Err(Status::OutsideGrid);
+        }
+        cell[a] = (u.floor() as usize).min(g.dims[a] as usize - 1);
+        t[a] = u - cell[a] as f64;
+    }
+    // A configuration no sample has: no sample is admissible anywhere.
+    let configs: Vec<u8> = records.iter().map(|r| r.config).collect();
+    let config = target
+        .config
+        .filter(|_| configs.iter().all(|&c| c != u8::MAX));
+    if let Some(c) = config {
+        if !configs.contains(&c) {
+            return Err(Status::NoAdmissibleNeighbour);
+        }
+    }
+    let mut position = [0.0; 3];
+    let mut orientation = [0.0; 3];
+    for corner in 0..8 {
+        let d = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
+        let node = [0, 1, 2].map(|a| g.origin_mm[a] + (cell[a] + d[a]) as f64 * g.cell_mm);
+        let weight: f64 = (0..3)
+            .map(|a| if d[a] == 1 { t[a] } else { 1.0 - t[a] })
+            .product();
+        let at = Target {
+            position_mm: node,
+            config,
+        };
+        let Some(p) = reference::predict(records, &params, &at) else {
+            return Err(Status::UncoveredCell);
+        };
+        for a in 0..3 {
+            position[a] += weight * p.position_error_mm[a];
+            orientation[a] += weight * p.orientation_error_rad[a];
+        }
+    }
+    Ok((position, orientation))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(
+        std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(200)
+    ))]
+
+    /// The served field equals the exact method at the nodes, blended trilinearly, to
+    /// 1e-12, with the same statuses; and the exact tier's queries equal the reference.
+    #[test]
+    fn served_field_equals_the_nodes_blended(case in case()) {
+        let (bytes, _) = compile(&case.samples, &case.options, &|_| {}).unwrap();
+        let table = Table::from_vec(bytes).unwrap();
+        prop_assert!(table.has_served_field());
+        let records = case.samples.records();
+        let params = *table.method();
+        for target in &case.targets {
+            let got = table.query_target(target);
+            match served_reference(&table, &records, target) {
+                Ok((p, r)) => {
+                    prop_assert_eq!(got.status, Status::Ok, "at {:?}", target);
+                    for a in 0..3 {
+                        prop_assert!((got.position_error_mm[a] - p[a]).abs() <= 1e-12, "{:?} vs {:?}", got, p);
+                        prop_assert!((got.orientation_error_rad[a] - r[a]).abs() <= 1e-12);
+                    }
+                }
+                Err(status) => prop_assert_eq!(got.status, status, "at {:?}", target),
+            }
+            let exact = table.exact().query_target(target);
+            if table.grid().cell_of(target.position_mm).is_some() {
+                match reference::predict(&records, &params, target) {
+                    Some(want) => {
+                        prop_assert_eq!(exact.status, Status::Ok);
+                        for a in 0..3 {
+                            prop_assert!((exact.position_error_mm[a] - want.position_error_mm[a]).abs() <= 1e-12);
+                        }
+                    }
+                    None => prop_assert_eq!(exact.status, Status::NoAdmissibleNeighbour),
+                }
+            }
+        }
+    }
+
+    /// The served field is continuous: along random segments, halving the step halves
+    /// the largest change between consecutive answers (up to rounding); a jump would keep
+    /// it. The exact tier's jumps do not halve.
+    #[test]
+    fn served_field_is_continuous(
+        seed in 0u64..1000,
+        start in prop::array::uniform3(0.05..0.95f64),
+        direction in prop::array::uniform3(-1.0..1.0f64),
+    ) {
+        let table = Table::from_vec(common::lattice_table(seed, 1.0)).unwrap();
+        let g = *table.grid();
+        let from = [0, 1, 2].map(|a| g.origin_mm[a] + start[a] * g.dims[a] as f64 * g.cell_mm);
+        let norm = direction.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-9);
+        // The largest change between consecutive answers over `length_mm` of the segment.
+        let largest_change = |step_mm: f64, length_mm: f64| {
+            let steps = (length_mm / step_mm).round() as usize;
+            let mut largest: f64 = 0.0;
+            let mut previous: Option<[f64; 3]> = None;
+            for i in 0..=steps {
+                let p = [0, 1, 2].map(|a| from[a] + direction[a] / norm * step_mm * i as f64);
+                let c = table.query(p);
+                let here = (c.status == Status::Ok).then_some(c.position_error_mm);
+                if let (Some(a), Some(b)) = (previous, here) {
+                    let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+                    largest = largest.max(d);
+                }
+                previous = here;
+            }
+            largest
+        };
+        // The coarse walk goes one step further, so that a kink (the slope changes at a
+        // cell face) near the end is crossed by a whole coarse step too.
+        let coarse = largest_change(0.02, 20.02);
+        let fine = largest_change(0.01, 20.0);
+        prop_assert!(fine <= 0.5 * coarse * 1.1 + 1e-12, "{fine} after halving from {coarse}");
+    }
+}
+
 /// A case with joint angles on every sample, a joint-space screen, and the targets' joint
 /// angles: random, not consistent with the positions, which the screen does not need.
 fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
@@ -224,7 +355,8 @@ fn hybrid_fixture() -> &'static HybridFixture {
             ..BuildOptions::default()
         };
         let build = |options: &BuildOptions| {
-            let model = calibration.kinematic_model();
+            let model =
+                adwi_runtime::model::PreparedModel::from_mdh(&calibration.kinematic_model());
             let plan = adwi_compile::build::plan(&samples, options).unwrap();
             let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
             Table::from_vec(built.bytes).unwrap()
@@ -272,7 +404,7 @@ proptest! {
         let sample_joints = case.samples.joints.clone().unwrap();
         let params = *table.method();
         for (target, q) in case.targets.iter().zip(&target_joints) {
-            let got = table.query_with_joints(target, q);
+            let got = table.exact().query_with_joints(target, q);
             if table.grid().cell_of(target.position_mm).is_none() {
                 prop_assert_eq!(got.status, Status::OutsideGrid);
                 continue;
@@ -295,7 +427,7 @@ proptest! {
                 None => prop_assert_eq!(got.status, Status::NoAdmissibleNeighbour, "at {:?}", target),
             }
             // Without the target's joints the screen is off: the unscreened reference.
-            let unscreened = table.query_target(target);
+            let unscreened = table.exact().query_target(target);
             let want = reference::predict(&records, &params, target);
             prop_assert_eq!(unscreened.status == Status::Ok, want.is_some());
         }
@@ -315,7 +447,7 @@ proptest! {
         let target = Target::at([position.x, position.y, position.z]);
         prop_assert_eq!(f.table.query_target(&target).status, Status::MissingJoints);
         for (table, radius_deg) in [(&f.table, 0.0), (&f.screened, HYBRID_JOINT_RADIUS_DEG)] {
-            let got = table.query_with_joints(&target, &q);
+            let got = table.exact().query_with_joints(&target, &q);
             if table.grid().cell_of(target.position_mm).is_none() {
                 prop_assert_eq!(got.status, Status::OutsideGrid);
                 continue;

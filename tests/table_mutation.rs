@@ -45,14 +45,14 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         })
         .collect();
     out.sort();
-    assert!(out.len() >= 4, "seed tables missing from {}", dir.display());
+    assert!(out.len() >= 9, "seed tables missing from {}", dir.display());
     for (name, bytes) in &out {
         let table = Table::from_vec(bytes).unwrap_or_else(|e| panic!("seed {name}: {e}"));
+        let version = if name.starts_with("v1_") { 1 } else { 2 };
+        assert_eq!(table.header().version, version, "{name}");
         if name.contains("hybrid") {
-            assert!(
-                table.is_hybrid() && table.joint_radius_rad() > 0.0,
-                "{name}"
-            );
+            assert!(table.is_hybrid(), "{name}");
+            assert_eq!(table.has_served_field(), name.contains("served"), "{name}");
         }
     }
     out
@@ -278,17 +278,12 @@ fn targets(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> V
         lo[a] + f64::from(rng.gen_range(0..=cells)) * grid.cell_mm
     });
     points.push(face);
-    if let Some(data) = table.data() {
-        for _ in 0..2 {
-            if let Some(s) = data
-                .samples
-                .get(rng.gen_range(0..data.samples.len().max(1)))
-            {
-                let actual = s.actual_mm.map(|v| v.to_native());
-                points.push(actual);
-                points.push(s.nominal_mm.map(|v| v.to_native()));
-                points.push(actual.map(|v| v + 1e-9));
-            }
+    let records = adwi_eval::latency::records_of(table);
+    for _ in 0..2 {
+        if let Some(s) = records.get(rng.gen_range(0..records.len().max(1))) {
+            points.push(s.actual_mm);
+            points.push(s.nominal_mm);
+            points.push(s.actual_mm.map(|v| v + 1e-9));
         }
     }
     points.push([hi[0] + 1.0, lo[1], lo[2]]);
@@ -309,29 +304,42 @@ fn targets(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> V
         .collect()
 }
 
-/// Joint vectors: a sample's, near it, random, huge, and not finite.
-fn joint_vectors(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> Vec<[f64; 6]> {
-    let mut out = vec![[0.0; 6]];
-    if let Some(q) = table.data().and_then(|d| {
-        d.joints_rad
-            .get(rng.gen_range(0..d.joints_rad.len().max(1)))
-    }) {
-        let q = q.map(|v| v.to_native());
+/// Joint vectors of the table's joint count (6 when it has none): a sample's, near it,
+/// random, huge, not finite, and one of the wrong length.
+fn joint_vectors(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    let n = table.joint_count().unwrap_or(6);
+    let stored: Vec<f64> = match table.payload() {
+        Some(adwi_runtime::Payload::V1(d)) => d
+            .joints_rad
+            .iter()
+            .flat_map(|q| q.map(|v| v.to_native()))
+            .collect(),
+        Some(adwi_runtime::Payload::V2(d)) => d.joints_rad.iter().map(|v| v.to_native()).collect(),
+        None => Vec::new(),
+    };
+    let mut out = vec![vec![0.0; n]];
+    if stored.len() >= n {
+        let row = rng.gen_range(0..stored.len() / n);
+        let q = stored[row * n..(row + 1) * n].to_vec();
+        out.push(q.iter().map(|v| v + rng.gen_range(-0.2..0.2)).collect());
         out.push(q);
-        out.push(q.map(|v| v + rng.gen_range(-0.2..0.2)));
     }
-    out.push([0; 6].map(|_| rng.gen_range(-7.0..7.0)));
-    out.push([1e300, -1e300, 1e300, 0.0, 0.0, 0.0]);
-    let mut nan = out[rng.gen_range(0..out.len())];
-    nan[rng.gen_range(0..6)] = f64::NAN;
+    out.push((0..n).map(|_| rng.gen_range(-7.0..7.0)).collect());
+    out.push(
+        (0..n)
+            .map(|i| if i % 2 == 0 { 1e300 } else { -1e300 })
+            .collect(),
+    );
+    let mut nan = out[rng.gen_range(0..out.len())].clone();
+    nan[rng.gen_range(0..n)] = f64::NAN;
     out.push(nan);
-    let mut inf = out[0];
-    inf[5] = f64::NEG_INFINITY;
+    let mut inf = out[0].clone();
+    inf[n - 1] = f64::NEG_INFINITY;
     out.push(inf);
+    out.push(vec![0.0; n + 1]);
     out
 }
 
-/// What a correction must be: finite with status ok, zero otherwise.
 fn check_correction(what: &str, c: &Correction) -> Result<(), String> {
     let values = c.position_error_mm.iter().chain(&c.orientation_error_rad);
     if c.status == Status::Ok {
@@ -350,6 +358,7 @@ fn exercise(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> 
     for target in targets(table, rng) {
         let p = target.position_mm;
         check_correction(&format!("query {p:?}"), &table.query(p))?;
+        check_correction(&format!("exact query {p:?}"), &table.exact().query(p))?;
         let c = table.query_target(&target);
         check_correction(&format!("query_target {target:?}"), &c)?;
         if table.is_hybrid() && c.status != Status::MissingJoints {
@@ -358,9 +367,13 @@ fn exercise(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> 
         for q in &joints {
             let c = table.query_with_joints(&target, q);
             check_correction(&format!("query_with_joints {target:?} {q:?}"), &c)?;
-            if !q.iter().all(|v| v.is_finite()) && c.status != Status::InvalidInput {
-                return Err(format!("non-finite joints {q:?} answered {c:?}"));
+            let wrong = !q.iter().all(|v| v.is_finite())
+                || table.joint_count().is_some_and(|n| n != q.len());
+            if wrong && c.status != Status::InvalidInput {
+                return Err(format!("invalid joints {q:?} answered {c:?}"));
             }
+            let exact = table.exact().query_with_joints(&target, q);
+            check_correction(&format!("exact query_with_joints {target:?} {q:?}"), &exact)?;
         }
         if let Ok(e) = table.explain(&target) {
             let values = (e.position_error_mm.iter())
@@ -595,7 +608,7 @@ fn hostile_headers_with_valid_checksums_are_refused() {
             vec![(8, 0xFFFEu16.to_le_bytes().to_vec())],
         ),
         ("version 0", vec![(10, 0u16.to_le_bytes().to_vec())]),
-        ("version 2", vec![(10, 2u16.to_le_bytes().to_vec())]),
+        ("version 3", vec![(10, 3u16.to_le_bytes().to_vec())]),
         ("header length", vec![u32_at(12, 255)]),
         ("rkyv flags", vec![u32_at(16, 0)]),
         ("unknown content flag", vec![u32_at(20, 1 << 4)]),
@@ -642,6 +655,11 @@ fn hostile_headers_with_valid_checksums_are_refused() {
         ("joint radius negative", vec![f64_at(152, -1.0)]),
         ("joint radius without joints", vec![f64_at(152, 0.5)]),
         ("reserved byte", vec![(200, vec![1])]),
+        ("joint count 3", vec![u32_at(160, 3)]),
+        ("joint count max", vec![u32_at(160, u32::MAX)]),
+        ("node sets 0", vec![u32_at(164, 0)]),
+        ("node sets 2", vec![u32_at(164, 2)]),
+        ("grid moved by a cell", vec![f64_at(112, 1850.0)]),
     ];
     let mut opened = Vec::new();
     for (name, edits) in &cases {
@@ -712,13 +730,17 @@ fn targets_at_the_base_origin_never_answer_a_non_finite_correction_with_status_o
         [-1e-320, 1e-320, 0.0],
     ] {
         let target = Target::at(p);
-        let c = table.query_target(&target);
+        let served = table.query_target(&target);
+        if served.status == Status::Ok && !finite(&served.position_error_mm) {
+            failures.push(format!("served query {p:?}: {served:?}"));
+        }
+        let c = table.exact().query_target(&target);
         if c.status == Status::Ok && !finite(&c.position_error_mm) {
             failures.push(format!("query {p:?}: {c:?}"));
         }
         if c.status == Status::NumericalFailure {
             withheld += 1;
-            assert_eq!(c, table.query_with_joints(&target, &[0.0; 6]));
+            assert_eq!(c, table.exact().query_with_joints(&target, &[0.0; 6]));
         }
         if let Ok(e) = table.explain(&target) {
             if !finite(&e.position_error_mm) || !e.weights.as_slice().iter().all(|q| q.is_finite())
@@ -726,11 +748,15 @@ fn targets_at_the_base_origin_never_answer_a_non_finite_correction_with_status_o
                 failures.push(format!("explain {p:?}: {e:?}"));
             }
         }
-        let k = table.compensate(&target, 1e-9, 20);
-        if k.correction.status == Status::Ok
-            && !(finite(&k.command_position_mm) && k.residual_mm.is_finite())
-        {
-            failures.push(format!("compensate {p:?}: {k:?}"));
+        for k in [
+            table.compensate(&target, 1e-9, 20),
+            table.exact().compensate(&target, 1e-9, 20),
+        ] {
+            if k.correction.status == Status::Ok
+                && !(finite(&k.command_position_mm) && k.residual_mm.is_finite())
+            {
+                failures.push(format!("compensate {p:?}: {k:?}"));
+            }
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
@@ -743,7 +769,7 @@ fn finite(v: &[f64]) -> bool {
 
 #[test]
 fn hostile_hybrid_tables_with_valid_checksums_are_refused() {
-    let base = seed("ur5_hybrid.tbl");
+    let base = seed("v1_ur5_hybrid.tbl");
     let table = Table::from_vec(&base).unwrap();
     for edits in [vec![f64_at(152, 13.0)], vec![f64_at(152, 1e300)]] {
         let err = Table::from_vec(with_header_edits(&base, &edits)).err();
@@ -752,8 +778,11 @@ fn hostile_hybrid_tables_with_valid_checksums_are_refused() {
     // The kinematic model, re-encoded with one value out of range: checksums and rkyv
     // validation pass, the plausibility check must not.
     let header = *table.header();
-    let data: adwi_runtime::format::TableData =
-        rkyv::deserialize::<_, rkyv::rancor::Error>(table.data().unwrap()).unwrap();
+    let Some(adwi_runtime::Payload::V1(archived)) = table.payload() else {
+        panic!("the hybrid seed of version 1");
+    };
+    let data: adwi_runtime::format::v1::TableData =
+        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
     type Edit = fn(&mut adwi_runtime::format::KinematicModel);
     let edits: [(&str, Edit); 4] = [
         ("base x 1e300", |m| m.calibrated.base[3] = 1e300),
@@ -766,7 +795,7 @@ fn hostile_hybrid_tables_with_valid_checksums_are_refused() {
     for (name, edit) in edits {
         let mut damaged = data.clone();
         edit(damaged.model.as_mut().unwrap());
-        let bytes = adwi_runtime::format::encode(header, &damaged).unwrap();
+        let bytes = adwi_runtime::testing::encode_v1(&header, &damaged).unwrap();
         let err = Table::from_vec(&bytes).err();
         assert!(
             matches!(err, Some(OpenError::Implausible(_))),
@@ -775,9 +804,64 @@ fn hostile_hybrid_tables_with_valid_checksums_are_refused() {
     }
     // Joint angles of any finite size are the caller's: answered, never with NaN.
     let q = [1e300, -1e300, 1e300, 1e300, 1e300, 1e300];
-    let sample = table.data().unwrap().samples[0]
-        .actual_mm
-        .map(|v| v.to_native());
+    let sample = archived.samples[0].actual_mm.map(|v| v.to_native());
     let c = table.query_with_joints(&Target::at(sample), &q);
     check_correction("huge joint angles", &c).unwrap();
+}
+
+/// A version-2 hybrid table re-encoded with a damaged chain (checksums and rkyv
+/// validation pass) is refused by the semantic pass, with a reason.
+#[test]
+fn hostile_version_2_chains_with_valid_checksums_are_refused() {
+    let base = seed("ur5_hybrid_served.tbl");
+    let table = Table::from_vec(&base).unwrap();
+    let header = *table.header();
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("a version-2 seed");
+    };
+    let data: adwi_runtime::format::v2::TableData =
+        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    type Edit = fn(&mut adwi_runtime::format::v2::ModelRecord);
+    let edits: [(&str, Edit, bool); 6] = [
+        ("base x 1e300", |m| m.calibrated.base[3] = 1e300, true),
+        (
+            "joint origin beyond a kilometre",
+            |m| m.nominal.joints[2].origin[3] = -2e6,
+            true,
+        ),
+        (
+            "unknown joint kind",
+            |m| m.calibrated.joints[0].kind = 7,
+            false,
+        ),
+        (
+            "axis not a unit vector",
+            |m| m.calibrated.joints[1].axis = [0.0, 0.0, 2.0],
+            false,
+        ),
+        (
+            "rotation not orthonormal",
+            |m| m.nominal.tool[0] = 2.0,
+            false,
+        ),
+        (
+            "a joint less",
+            |m| {
+                m.calibrated.joints.pop();
+            },
+            false,
+        ),
+    ];
+    for (name, edit, implausible) in edits {
+        let mut damaged = data.clone();
+        edit(damaged.model.as_mut().unwrap());
+        let bytes = adwi_runtime::format::encode(header, &damaged).unwrap();
+        let err = Table::from_vec(&bytes).err();
+        let refused = if implausible {
+            matches!(err, Some(OpenError::Implausible(_)))
+        } else {
+            matches!(err, Some(OpenError::Corrupt { .. }))
+        };
+        assert!(refused, "{name}: {err:?}");
+    }
 }

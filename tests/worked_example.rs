@@ -89,7 +89,7 @@ fn tablec_build_and_query_reproduce_the_prediction() {
     let query = Command::new(tablec)
         .arg("query")
         .arg(&table)
-        .args(["2000", "700", "1000", "0", "90", "0"])
+        .args(["2000", "700", "1000", "0", "90", "0", "--exact"])
         .output()
         .unwrap();
     assert!(
@@ -99,7 +99,7 @@ fn tablec_build_and_query_reproduce_the_prediction() {
     );
     let stdout = String::from_utf8(query.stdout).unwrap();
     assert!(
-        stdout.contains("status       ok (8 neighbours)"),
+        stdout.contains("status       ok (8 neighbours, exact tier)"),
         "{stdout}"
     );
     let line = stdout.lines().find(|l| l.starts_with("error ")).unwrap();

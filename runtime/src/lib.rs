@@ -40,19 +40,23 @@
 
 pub mod capi;
 pub mod chain;
+mod correction;
 mod error;
+mod exact;
 pub mod format;
 pub mod kinematics;
 pub mod method;
 pub mod model;
 pub mod residency;
+pub mod served;
 mod swap;
 mod table;
 #[doc(hidden)]
 pub mod testing;
 mod validate;
 
+pub use correction::{Compensation, Correction, Status, Target};
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};
-pub use table::{AlignedBytes, Compensation, Correction, Status, Table, Target};
+pub use table::{AlignedBytes, Exact, Payload, Table};

@@ -34,10 +34,8 @@
 //! query ([`crate::Table::query_with_joints`]).
 
 use crate::chain::Chain;
-use crate::format::{
-    joint_rows_to_mdh, transform_of, ArchivedKinematicModel, ArchivedModelParams,
-    ArchivedTableData, KinematicModel, ModelParams, JOINT_COUNT,
-};
+use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
+use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
 use crate::kinematics::{pose_error, Transform};
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
@@ -105,6 +103,16 @@ impl PreparedModel {
         }
     }
 
+    /// The chain the controller commands with.
+    pub fn nominal(&self) -> &Chain {
+        &self.nominal
+    }
+
+    /// The identified chain.
+    pub fn calibrated(&self) -> &Chain {
+        &self.calibrated
+    }
+
     /// The number of joint values a prediction needs.
     pub fn joint_count(&self) -> usize {
         self.nominal.joint_count()
@@ -122,8 +130,8 @@ impl PreparedModel {
     }
 }
 
-/// The prepared model of a validated archive, if it carries one.
-pub(crate) fn prepared_model(archive: &ArchivedTableData) -> Option<PreparedModel> {
+/// The prepared model of a validated version-1 archive, if it carries one.
+pub(crate) fn prepared_model_v1(archive: &ArchivedTableData) -> Option<PreparedModel> {
     Some(PreparedModel::from_mdh(&native_model(
         archive.model.as_ref()?,
     )))

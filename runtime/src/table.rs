@@ -1,150 +1,24 @@
 //! [`Table`]: a validated correction table and its queries.
+//!
+//! A version-2 table answers from two tiers: the **served** field (continuous, one cell's
+//! 8 nodes blended, [`crate::served`]) through [`Table::query`], [`Table::query_target`],
+//! [`Table::query_with_joints`] and [`Table::compensate`]; and the **exact** method (the
+//! paper's, to the digit, [`crate::exact`]) through the same calls on [`Table::exact`]. A
+//! table without a served tier — version 1, or a table with a joint-space screen — answers
+//! both from its exact tier ([`Table::has_served_field`] says which).
 
 use std::path::Path;
 
+use crate::correction::{Compensation, Correction, Status, Target};
+use crate::exact::{self, V1, V2};
 use crate::format::{
-    ArchivedSampleRecord, ArchivedTableData, Grid, Header, KinematicModel, CONTENT_CONFIG,
-    CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN, JOINT_COUNT, PAYLOAD_ALIGN,
+    v1, v2, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
+    PAYLOAD_ALIGN,
 };
-use crate::method::{self, MethodParams, Prediction, SampleError, Selection};
-use crate::model::native_model;
+use crate::method::{self, MethodParams, Prediction};
+use crate::model::PreparedModel;
 use crate::residency::{Lock, OpenOptions, Residency};
 use crate::OpenError;
-
-/// What a query's answer means.
-#[repr(u8)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Status {
-    /// The correction was predicted from at least one admissible neighbour.
-    Ok = 0,
-    /// The target lies outside the table's grid; the correction is zero.
-    OutsideGrid = 1,
-    /// No sample is admissible for the target; the correction is zero.
-    NoAdmissibleNeighbour = 2,
-    /// The target is not finite (NaN or infinite coordinates); the correction is zero.
-    InvalidInput = 3,
-    /// The table is a hybrid table (a calibrated kinematic model plus residuals), whose
-    /// correction depends on the joint angles: query it with
-    /// [`Table::query_with_joints`]. The correction is zero.
-    MissingJoints = 4,
-    /// The prediction came out non-finite (NaN or infinite). A validated table gives this
-    /// only in degenerate geometry, such as a target and a sample both within about
-    /// 1e-160 mm of the base origin, where the approximation degrees overflow; answered
-    /// instead of a correction no robot can be commanded with. The correction is zero.
-    NumericalFailure = 5,
-}
-
-impl Status {
-    /// A short lowercase name, as the CLI prints it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Status::Ok => "ok",
-            Status::OutsideGrid => "outside_grid",
-            Status::NoAdmissibleNeighbour => "no_neighbour",
-            Status::InvalidInput => "invalid_input",
-            Status::MissingJoints => "missing_joints",
-            Status::NumericalFailure => "numerical_failure",
-        }
-    }
-}
-
-/// A target: where the controller wants the tool to be.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Target {
-    /// Nominal position, mm, base frame.
-    pub position_mm: [f64; 3],
-    /// The inverse-kinematics configuration the controller will use, if known: samples
-    /// of another configuration are then not admissible.
-    pub config: Option<u8>,
-}
-
-impl Target {
-    /// A target given by position alone.
-    pub fn at(position_mm: [f64; 3]) -> Target {
-        Target {
-            position_mm,
-            config: None,
-        }
-    }
-}
-
-/// The predicted error at a target: where the robot will land relative to where it was
-/// told to go. Command `target − position_error_mm` to land on the target (to first
-/// order; [`Table::compensate`] solves it exactly).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Correction {
-    /// Predicted position error (actual − nominal), mm, base frame.
-    pub position_error_mm: [f64; 3],
-    /// Predicted orientation error, rotation vector of `R_actual · R_nominalᵀ`, rad, base
-    /// frame; zero when the table has no orientation ([`Table::has_orientation`]).
-    pub orientation_error_rad: [f64; 3],
-    /// The number of neighbours whose errors were weighted.
-    pub neighbours: u32,
-    /// Whether the prediction holds; every other field is zero unless this is `Ok`.
-    pub status: Status,
-}
-
-impl Correction {
-    pub(crate) fn failed(status: Status) -> Correction {
-        Correction {
-            position_error_mm: [0.0; 3],
-            orientation_error_rad: [0.0; 3],
-            neighbours: 0,
-            status,
-        }
-    }
-
-    /// This correction, or [`Status::NumericalFailure`] if it claims [`Status::Ok`] with
-    /// a non-finite value: the last line of defence of every query path, so that no caller
-    /// is ever told to command a NaN.
-    #[inline]
-    pub(crate) fn finite_or_failure(self) -> Correction {
-        let values = self
-            .position_error_mm
-            .iter()
-            .chain(&self.orientation_error_rad);
-        if self.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
-            return Correction::failed(Status::NumericalFailure);
-        }
-        self
-    }
-}
-
-impl Compensation {
-    /// This compensation, with its correction turned into [`Status::NumericalFailure`]
-    /// (and `converged` false) if it claims [`Status::Ok`] with a non-finite command or
-    /// residual.
-    #[inline]
-    pub(crate) fn finite_or_failure(mut self) -> Compensation {
-        let values = (self.command_position_mm.iter())
-            .chain(&self.command_rotation_rad)
-            .chain([&self.residual_mm]);
-        if self.correction.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
-            self.correction = Correction::failed(Status::NumericalFailure);
-            self.converged = false;
-        }
-        self
-    }
-}
-
-/// The command that makes the robot land on a target, found by fixed-point iteration.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Compensation {
-    /// The position to command, mm, base frame: `command + error(command) = target`.
-    pub command_position_mm: [f64; 3],
-    /// The rotation to apply to the target orientation, rotation vector, rad, base frame:
-    /// command `R_cmd = Exp(command_rotation_rad) · R_target`. Zero without orientation.
-    pub command_rotation_rad: [f64; 3],
-    /// The correction predicted at the command.
-    pub correction: Correction,
-    /// Iterations used (queries made).
-    pub iterations: u32,
-    /// Whether `|command + error(command) − target| ≤ tolerance` was reached.
-    pub converged: bool,
-    /// `|command + error(command) − target|` at the returned command, mm.
-    pub residual_mm: f64,
-}
 
 /// A correction table, validated at open, answering queries without allocating, locking or
 /// panicking.
@@ -158,13 +32,36 @@ pub struct Table<D> {
     /// out the same slice, so an `AsRef` implementation that does not is refused rather
     /// than read unchecked.
     validated_at: (usize, usize),
-    /// A hybrid table's kinematic model with its constant sines and cosines computed once
-    /// at open, so that a query pays only for the joint angles' ([`crate::hybrid`]).
-    pub(crate) prepared_model: Option<crate::model::PreparedModel>,
+    /// A hybrid table's kinematic model, its chains prepared at open.
+    model: Option<PreparedModel>,
 }
 
-/// An owned, 16-byte-aligned copy of a table's bytes.
-pub type AlignedBytes = rkyv::util::AlignedVec<PAYLOAD_ALIGN>;
+/// A table's archived payload, by format version.
+#[derive(Clone, Copy, Debug)]
+pub enum Payload<'a> {
+    /// A version-1 table ([`v1::TableData`]).
+    V1(&'a v1::ArchivedTableData),
+    /// A version-2 table ([`v2::TableData`]).
+    V2(&'a v2::ArchivedTableData),
+}
+
+/// Which tier answers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Tier {
+    Served,
+    Exact,
+}
+
+/// The exact tier of a table ([`Table::exact`]): the paper's method to the digit, with the
+/// same calls as the table's served field.
+#[derive(Clone, Copy)]
+pub struct Exact<'a, D> {
+    table: &'a Table<D>,
+}
+
+/// An owned copy of a table's bytes, aligned to a cache line (64 bytes): the payload then
+/// starts on one, as in a memory map, and so does every version-2 cell record.
+pub type AlignedBytes = rkyv::util::AlignedVec<64>;
 
 impl Table<memmap2::Mmap> {
     /// Memory-maps and validates the table at `path`.
@@ -261,14 +158,16 @@ impl<D: AsRef<[u8]>> Table<D> {
     ///
     /// Checks, in order, stopping at the first failure:
     /// 1. the header ([`Header::from_bytes`]): length, magic, endianness mark, version,
-    ///    header length, header checksum, rkyv format flags;
+    ///    header length, header checksum, rkyv format flags, reserved bytes;
     /// 2. the length: header plus payload length, exactly;
     /// 3. the payload checksum;
-    /// 4. the buffer's alignment, then rkyv validation of the archive (bounds, alignment);
-    /// 5. the table's own invariants: parameters in range, known content flags, grid size
-    ///    matching the cells, sample count, finite values, parameters, grid and samples of
-    ///    plausible magnitude ([`format::check_plausible`]), every index in range, candidate
-    ///    lists without repeats, base weights in `[0, 1]` summing to 1.
+    /// 4. the buffer's alignment, then rkyv validation of the version's archive (bounds,
+    ///    alignment);
+    /// 5. the table's own invariants ([`crate::validate`]): parameters in range, known
+    ///    content flags, grid size matching the cells, counts, finite values, parameters,
+    ///    grid and samples of plausible magnitude ([`crate::format::check_plausible`]),
+    ///    every index in range, candidate lists without repeats, node values finite or
+    ///    marked missing, kinematic chains valid.
     ///
     /// # Errors
     ///
@@ -304,29 +203,36 @@ impl<D: AsRef<[u8]>> Table<D> {
         if offset != 0 {
             return Err(OpenError::Misaligned { offset });
         }
-        let archived = rkyv::access::<ArchivedTableData, rkyv::rancor::BoxedError>(payload)
-            .map_err(|e| OpenError::Archive(e.to_string()))?;
-        crate::validate::validate(&header, archived)?;
+        let archive_error = |e: rkyv::rancor::BoxedError| OpenError::Archive(e.to_string());
+        let model = if header.version == 1 {
+            let archived = rkyv::access::<v1::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                .map_err(archive_error)?;
+            crate::validate::validate_v1(&header, archived)?;
+            crate::model::prepared_model_v1(archived)
+        } else {
+            let archived = rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                .map_err(archive_error)?;
+            crate::validate::validate_v2(&header, archived)?
+        };
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
-        let prepared_model = crate::model::prepared_model(archived);
         Ok(Table {
             data,
             header,
             validated_at,
-            prepared_model,
+            model,
         })
     }
 
     /// Moves the validated bytes into another holder without validating them again, for a
     /// holder whose `as_ref` returns the same slice (wrapping a memory map in an enum,
     /// say). Should it not, every query answers [`Status::InvalidInput`]: the address check
-    /// of [`Table::archive`] still guards every access.
+    /// of [`Table::payload`] still guards every access.
     pub(crate) fn map_data<E: AsRef<[u8]>>(self, wrap: impl FnOnce(D) -> E) -> Table<E> {
         Table {
             data: wrap(self.data),
             header: self.header,
             validated_at: self.validated_at,
-            prepared_model: self.prepared_model,
+            model: self.model,
         }
     }
 
@@ -355,48 +261,121 @@ impl<D: AsRef<[u8]>> Table<D> {
         self.header.content_flags & CONTENT_CONFIG != 0
     }
 
+    /// Whether this is a hybrid table (a kinematic model plus residuals): it then needs the
+    /// target's joint values ([`Table::query_with_joints`]).
+    pub fn is_hybrid(&self) -> bool {
+        self.header.content_flags & CONTENT_MODEL != 0
+    }
+
+    /// The joint-space admissibility radius, rad; 0 when the screen is off.
+    pub fn joint_radius_rad(&self) -> f64 {
+        self.header.joint_radius_rad
+    }
+
+    /// The number of joint values [`Table::query_with_joints`] takes: the robot's joint
+    /// count when the table carries joint values or a model, `None` when joint values play
+    /// no part in its answers (any count is then accepted and ignored).
+    pub fn joint_count(&self) -> Option<usize> {
+        (self.header.joint_count > 0).then_some(self.header.joint_count as usize)
+    }
+
+    /// Whether the table has a served tier (a continuous field): version-2 tables without a
+    /// joint-space screen. Without one, [`Table::query`] and the others answer from the
+    /// exact tier.
+    pub fn has_served_field(&self) -> bool {
+        self.header.node_set_count > 0
+    }
+
+    /// A hybrid table's model, its chains ready for evaluation.
+    pub fn model(&self) -> Option<&PreparedModel> {
+        self.model.as_ref()
+    }
+
     /// The validated archive, or `None` if `data` no longer returns the validated slice.
     #[inline]
-    fn archive(&self) -> Option<&ArchivedTableData> {
+    pub fn payload(&self) -> Option<Payload<'_>> {
         let bytes = self.data.as_ref();
         if (bytes.as_ptr() as usize, bytes.len()) != self.validated_at {
             return None;
         }
-        // SAFETY: these exact bytes (same address and length) passed `rkyv::access` in
-        // `from_bytes`, and `D` gives shared access only, so they are unchanged (for a
-        // memory map, by the contract of `Table::open`).
-        Some(unsafe { rkyv::access_unchecked::<ArchivedTableData>(&bytes[HEADER_LEN..]) })
+        let payload = &bytes[HEADER_LEN..];
+        // SAFETY: these exact bytes (same address and length) passed `rkyv::access` for
+        // this version's archive in `from_bytes`, and `D` gives shared access only, so they
+        // are unchanged (for a memory map, by the contract of `Table::open`).
+        Some(unsafe {
+            if self.header.version == 1 {
+                Payload::V1(rkyv::access_unchecked::<v1::ArchivedTableData>(payload))
+            } else {
+                Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload))
+            }
+        })
     }
 
     /// The number of samples.
     pub fn sample_count(&self) -> usize {
-        self.archive().map_or(0, |a| a.samples.len())
+        self.header.sample_count as usize
     }
 
-    /// The raw archived data, for inspection tools.
-    pub fn data(&self) -> Option<&ArchivedTableData> {
-        self.archive()
-    }
-
-    /// The predicted correction at a position. Never allocates, locks or panics.
+    /// The served correction at a position. Never allocates, locks or panics.
+    ///
+    /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query(&self, position_mm: [f64; 3]) -> Correction {
-        self.query_target(&Target::at(position_mm))
+        self.answer(&Target::at(position_mm), None, Tier::Served)
     }
 
-    /// The predicted correction at a target. Never allocates, locks or panics.
+    /// The served correction at a target. Never allocates, locks or panics.
     ///
     /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query_target(&self, target: &Target) -> Correction {
-        if self.is_hybrid() {
-            return Correction::failed(Status::MissingJoints);
-        }
-        self.interpolate(target, None)
+        self.answer(target, None, Tier::Served)
     }
 
-    /// The full prediction at a target: the neighbours used, nearest first, with their
-    /// approximation degrees and weights. Never allocates, locks or panics.
+    /// The served correction at a target that the controller will reach with joint values
+    /// `joints_rad` (rad, mm for prismatic joints, in the robot file's order; exactly
+    /// [`Table::joint_count`] of them when that is known). Never allocates, locks or
+    /// panics.
+    ///
+    /// - On a hybrid table: the calibrated model's predicted error at `joints_rad` plus
+    ///   the residual field at the target (see [`crate::model`]).
+    /// - On any table with a joint radius ([`Table::joint_radius_rad`]): only samples
+    ///   whose joint values are all within that radius of `joints_rad` are admissible
+    ///   (such a table has no served tier: this is its exact tier).
+    /// - Otherwise the answer equals [`Table::query_target`]'s.
+    ///
+    /// Non-finite joint values, or a count other than the table's, give
+    /// [`Status::InvalidInput`]. The joint values are taken as given: they are not checked
+    /// against the target position (the controller's inverse kinematics is the authority
+    /// on them).
+    #[inline]
+    pub fn query_with_joints(&self, target: &Target, joints_rad: &[f64]) -> Correction {
+        self.answer(target, Some(joints_rad), Tier::Served)
+    }
+
+    /// The command that lands the robot on `target` by the served field
+    /// ([`Table::query_target`]): iterates `command ← target − error(command)` from
+    /// `command = target` until `|command + error(command) − target| ≤ tolerance_mm` or
+    /// `max_iterations` queries. The served field is continuous and varies slowly (its
+    /// slope is a small fraction of one), so the iteration contracts. Never allocates,
+    /// locks or panics.
+    pub fn compensate(
+        &self,
+        target: &Target,
+        tolerance_mm: f64,
+        max_iterations: u32,
+    ) -> Compensation {
+        self.compensate_with(target, tolerance_mm, max_iterations, Tier::Served)
+    }
+
+    /// The exact tier, for the paper's method to the digit: [`Exact::query`] and the
+    /// others answer as this table's calls do, from the cell's candidate list.
+    pub fn exact(&self) -> Exact<'_, D> {
+        Exact { table: self }
+    }
+
+    /// The full exact prediction at a target: the neighbours used, nearest first, with
+    /// their approximation degrees and weights. Never allocates, locks or panics.
     ///
     /// # Errors
     ///
@@ -406,13 +385,15 @@ impl<D: AsRef<[u8]>> Table<D> {
         if self.is_hybrid() {
             return Err(Status::MissingJoints);
         }
-        let (selection, archive) = self.select(target, None)?;
-        let samples = archive.samples.as_slice();
-        let neighbours = method::neighbours(target.position_mm, &selection, |i| actual(samples, i));
-        let prediction = method::predict(&self.header.method, neighbours.as_slice(), |i| {
-            sample_error(samples, i)
-        })
-        .ok_or(Status::NoAdmissibleNeighbour)?;
+        if !target.position_mm.iter().all(|v| v.is_finite()) {
+            return Err(Status::InvalidInput);
+        }
+        let prediction = match self.payload().ok_or(Status::InvalidInput)? {
+            Payload::V1(d) => exact::explain(&V1(d), &self.header, target, None)?,
+            Payload::V2(d) => {
+                exact::explain(&V2::new(d, &self.header), &self.header, target, None)?
+            }
+        };
         // As every query path: never a non-finite prediction (degrees may be infinite: a
         // coincident sample's ζ is, by definition).
         let values = (prediction.position_error_mm.iter())
@@ -424,166 +405,42 @@ impl<D: AsRef<[u8]>> Table<D> {
         Ok(prediction)
     }
 
-    /// The `k` nearest admissible samples of the target's cell, and the samples.
+    /// Every query's path: checks, the tier's residual (or whole) correction, the model
+    /// part of a hybrid table, and the last guard against a non-finite answer.
     #[inline]
-    fn select(
-        &self,
-        target: &Target,
-        joints_rad: Option<&[f64]>,
-    ) -> Result<(Selection, &ArchivedTableData), Status> {
-        let p = target.position_mm;
-        if !p.iter().all(|v| v.is_finite()) {
-            return Err(Status::InvalidInput);
+    fn answer(&self, target: &Target, joints_rad: Option<&[f64]>, tier: Tier) -> Correction {
+        if joints_rad.is_none() && self.model.is_some() {
+            return Correction::failed(Status::MissingJoints);
         }
-        let archive = self.archive().ok_or(Status::InvalidInput)?;
-        let cell = self.header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
-        let list = candidate_list(archive, cell).ok_or(Status::NoAdmissibleNeighbour)?;
-        let samples = archive.samples.as_slice();
-        // The joint-space screen, when the table has one and the target's joints are known
-        // (validation guarantees one joint vector per sample whenever the radius is set).
-        let radius_rad = self.header.joint_radius_rad;
-        let screen = joints_rad.filter(|_| radius_rad > 0.0);
-        let sample_joints = archive.joints_rad.as_slice();
-        let selection = method::select(
-            &self.header.method,
-            p,
-            target.config,
-            list.iter().map(|i| i.to_native()),
-            |i| {
-                let s = samples.get(i as usize)?;
-                if let Some(target_joints) = screen {
-                    let q = sample_joints.get(i as usize)?.map(|v| v.to_native());
-                    if !crate::method::joints_within(&q, target_joints, radius_rad) {
-                        return None;
-                    }
-                }
-                Some((s.actual_mm.map(|v| v.to_native()), s.config))
-            },
-        );
-        Ok((selection, archive))
-    }
-
-    /// The interpolated sample errors at a target (with the joint-space screen when
-    /// `joints_rad` is given): the ordinary query, and a hybrid table's residual part.
-    #[inline]
-    pub(crate) fn interpolate(&self, target: &Target, joints_rad: Option<&[f64]>) -> Correction {
-        let estimate = self
-            .select(target, joints_rad)
-            .and_then(|(selection, archive)| {
-                let samples = archive.samples.as_slice();
-                let norms = archive.actual_norms_mm.as_slice();
-                let sample = |i: u32| {
-                    let norm = norms.get(i as usize).map_or(0.0, |n| n.to_native());
-                    (actual(samples, i), norm, sample_error(samples, i))
-                };
-                method::estimate(&self.header.method, target.position_mm, &selection, sample)
-                    .ok_or(Status::NoAdmissibleNeighbour)
-            });
-        match estimate {
-            Ok(e) => Correction {
-                position_error_mm: e.position_error_mm,
-                orientation_error_rad: e.orientation_error_rad,
-                neighbours: e.neighbours,
-                status: Status::Ok,
-            }
-            .finite_or_failure(),
-            Err(status) => Correction::failed(status),
-        }
-    }
-
-    /// The command that lands the robot on `target`: iterates
-    /// `command ← target − error(command)` from `command = target` until
-    /// `|command + error(command) − target| ≤ tolerance_mm` or `max_iterations` queries.
-    ///
-    /// The predicted error field is continuous within a neighbourhood but may jump where
-    /// the neighbour set changes; there the iteration can cycle and reports
-    /// `converged: false` with its last command. Never allocates, locks or panics.
-    pub fn compensate(
-        &self,
-        target: &Target,
-        tolerance_mm: f64,
-        max_iterations: u32,
-    ) -> Compensation {
-        let mut command = *target;
-        let mut out = Compensation {
-            command_position_mm: target.position_mm,
-            command_rotation_rad: [0.0; 3],
-            correction: Correction::failed(Status::InvalidInput),
-            iterations: 0,
-            converged: false,
-            residual_mm: f64::INFINITY,
-        };
-        while out.iterations < max_iterations.max(1) {
-            let correction = self.query_target(&command);
-            out.iterations += 1;
-            out.correction = correction;
-            out.command_position_mm = command.position_mm;
-            if correction.status != Status::Ok {
-                return out;
-            }
-            let landing = add(command.position_mm, correction.position_error_mm);
-            out.residual_mm = method::distance_mm(landing, target.position_mm);
-            out.command_rotation_rad = correction.orientation_error_rad.map(|v| -v);
-            if out.residual_mm <= tolerance_mm {
-                out.converged = true;
-                return out.finite_or_failure();
-            }
-            command.position_mm = sub(target.position_mm, correction.position_error_mm);
-        }
-        out.finite_or_failure()
-    }
-
-    /// Whether this is a hybrid table (a kinematic model plus residuals): it then needs the
-    /// target's joint angles ([`Table::query_with_joints`]).
-    pub fn is_hybrid(&self) -> bool {
-        self.header().content_flags & CONTENT_MODEL != 0
-    }
-
-    /// The number of joint values [`Table::query_with_joints`] takes: the robot's joint
-    /// count when the table carries joint angles or a model, `None` when joint angles play
-    /// no part in its answers (any count is then accepted and ignored).
-    pub fn joint_count(&self) -> Option<usize> {
-        let flags = self.header.content_flags;
-        (flags & (CONTENT_JOINTS | CONTENT_MODEL) != 0).then_some(JOINT_COUNT)
-    }
-
-    /// The joint-space admissibility radius, rad; 0 when the screen is off.
-    pub fn joint_radius_rad(&self) -> f64 {
-        self.header().joint_radius_rad
-    }
-
-    /// The kinematic model of a hybrid table (nominal and calibrated parameters).
-    pub fn kinematic_model(&self) -> Option<KinematicModel> {
-        Some(native_model(self.data()?.model.as_ref()?))
-    }
-
-    /// The predicted correction at a target that the controller will reach with joint
-    /// angles `joints_rad` (rad, the controller's joint variables, in the robot file's
-    /// order). Never allocates, locks or panics.
-    ///
-    /// - On a hybrid table: the calibrated model's predicted error at `joints_rad` plus
-    ///   the interpolated residual at the target (see the module docs).
-    /// - On any table with a joint radius ([`Table::joint_radius_rad`]): only samples
-    ///   whose joint angles are all within that radius of `joints_rad` are admissible.
-    /// - Otherwise the answer equals [`Table::query_target`]'s.
-    ///
-    /// `neighbours` counts the interpolated residuals' neighbours. Non-finite joint angles
-    /// give [`Status::InvalidInput`]. The joint angles are taken as given: they are not
-    /// checked against the target position (the controller's inverse kinematics is the
-    /// authority on them).
-    pub fn query_with_joints(&self, target: &Target, joints_rad: &[f64]) -> Correction {
-        let expected = self.joint_count();
-        if !joints_rad.iter().all(|q| q.is_finite())
-            || (expected.is_some() && expected != Some(joints_rad.len()))
-        {
+        if !target.position_mm.iter().all(|v| v.is_finite()) {
             return Correction::failed(Status::InvalidInput);
         }
-        let mut correction = self.interpolate(target, Some(joints_rad));
+        if let Some(q) = joints_rad {
+            let expected = self.joint_count();
+            if !q.iter().all(|v| v.is_finite()) || expected.is_some_and(|n| n != q.len()) {
+                return Correction::failed(Status::InvalidInput);
+            }
+        }
+        let Some(payload) = self.payload() else {
+            return Correction::failed(Status::InvalidInput);
+        };
+        let h = &self.header;
+        let mut correction = match payload {
+            Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
+            Payload::V2(d) if tier == Tier::Served && h.node_set_count > 0 => crate::served::serve(
+                &h.grid,
+                d,
+                target.position_mm,
+                target.config,
+                self.has_orientation(),
+            ),
+            Payload::V2(d) => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
+        };
         if correction.status != Status::Ok {
             return correction;
         }
-        if let Some(model) = &self.prepared_model {
-            let Some((position_mm, rotation_rad)) = model.error(joints_rad) else {
+        if let (Some(model), Some(q)) = (&self.model, joints_rad) {
+            let Some((position_mm, rotation_rad)) = model.error(q) else {
                 return Correction::failed(Status::InvalidInput);
             };
             for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {
@@ -599,42 +456,76 @@ impl<D: AsRef<[u8]>> Table<D> {
         }
         correction.finite_or_failure()
     }
-}
 
-#[inline]
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline]
-fn actual(samples: &[ArchivedSampleRecord], index: u32) -> [f64; 3] {
-    samples
-        .get(index as usize)
-        .map_or([0.0; 3], |s| s.actual_mm.map(|v| v.to_native()))
-}
-
-#[inline]
-fn sample_error(samples: &[ArchivedSampleRecord], index: u32) -> SampleError {
-    match samples.get(index as usize) {
-        Some(s) => SampleError {
-            position_mm: s.error_mm.map(|v| v.to_native()),
-            orientation_rad: s.rotation_error_rad.map(|v| v.to_native()),
-        },
-        None => SampleError::default(),
+    fn compensate_with(
+        &self,
+        target: &Target,
+        tolerance_mm: f64,
+        max_iterations: u32,
+        tier: Tier,
+    ) -> Compensation {
+        let mut command = *target;
+        let mut out = Compensation {
+            command_position_mm: target.position_mm,
+            command_rotation_rad: [0.0; 3],
+            correction: Correction::failed(Status::InvalidInput),
+            iterations: 0,
+            converged: false,
+            residual_mm: f64::INFINITY,
+        };
+        while out.iterations < max_iterations.max(1) {
+            let correction = self.answer(&command, None, tier);
+            out.iterations += 1;
+            out.correction = correction;
+            out.command_position_mm = command.position_mm;
+            if correction.status != Status::Ok {
+                return out;
+            }
+            let p = correction.position_error_mm;
+            let landing = [0, 1, 2].map(|a| command.position_mm[a] + p[a]);
+            out.residual_mm = method::distance_mm(landing, target.position_mm);
+            out.command_rotation_rad = correction.orientation_error_rad.map(|v| -v);
+            if out.residual_mm <= tolerance_mm {
+                out.converged = true;
+                return out.finite_or_failure();
+            }
+            command.position_mm = [0, 1, 2].map(|a| target.position_mm[a] - p[a]);
+        }
+        out.finite_or_failure()
     }
 }
 
-/// The candidate list of a cell, or `None` if a range is out of bounds (excluded by
-/// validation; checked anyway so that no query can panic).
-#[inline]
-fn candidate_list(archive: &ArchivedTableData, cell: usize) -> Option<&[rkyv::Archived<u32>]> {
-    let c = archive.cells.get(cell)?;
-    let start = c.list_start.to_native() as usize;
-    let end = start.checked_add(c.list_len.to_native() as usize)?;
-    archive.list_samples.get(start..end)
+impl<D: AsRef<[u8]>> Exact<'_, D> {
+    /// The exact correction at a position ([`Table::query`]'s, by the method itself).
+    #[inline]
+    pub fn query(&self, position_mm: [f64; 3]) -> Correction {
+        self.table
+            .answer(&Target::at(position_mm), None, Tier::Exact)
+    }
+
+    /// The exact correction at a target ([`Table::query_target`]'s).
+    #[inline]
+    pub fn query_target(&self, target: &Target) -> Correction {
+        self.table.answer(target, None, Tier::Exact)
+    }
+
+    /// The exact correction with the target's joint values
+    /// ([`Table::query_with_joints`]'s).
+    #[inline]
+    pub fn query_with_joints(&self, target: &Target, joints_rad: &[f64]) -> Correction {
+        self.table.answer(target, Some(joints_rad), Tier::Exact)
+    }
+
+    /// The command by the exact field ([`Table::compensate`]'s). The exact field jumps
+    /// where its neighbour set changes; there the iteration can cycle and reports
+    /// `converged: false` with its last command.
+    pub fn compensate(
+        &self,
+        target: &Target,
+        tolerance_mm: f64,
+        max_iterations: u32,
+    ) -> Compensation {
+        self.table
+            .compensate_with(target, tolerance_mm, max_iterations, Tier::Exact)
+    }
 }

@@ -46,3 +46,20 @@ pub fn repair_header(bytes: &mut [u8]) {
     bytes[16..20].copy_from_slice(&RKYV_FLAGS.to_le_bytes());
     reseal(bytes);
 }
+
+/// A version-1 table of `data` under `header`, as the version-1 writer made them: for
+/// tests that damage a version-1 table's contents and re-encode it (the compiler writes
+/// version 2 only).
+pub fn encode_v1(
+    header: &crate::format::Header,
+    data: &crate::format::v1::TableData,
+) -> Result<Vec<u8>, rkyv::rancor::Error> {
+    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
+    let mut header = *header;
+    header.version = 1;
+    header.rkyv_flags = RKYV_FLAGS;
+    let mut out = header.to_bytes().to_vec();
+    out.extend_from_slice(&payload);
+    reseal(&mut out);
+    Ok(out)
+}

@@ -2,19 +2,22 @@
 //! checked once after rkyv has proven the archive memory-safe, so that no query can meet
 //! an index out of range, a non-finite value or a parameter out of its domain.
 
+use crate::chain::MAX_JOINTS;
+use crate::format::v1::ArchivedTableData;
 use crate::format::{
-    self, ArchivedTableData, Header, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_KNOWN, CONTENT_MODEL,
+    self, v2, Header, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_KNOWN, CONTENT_MODEL,
     CONTENT_ORIENTATION,
 };
 use crate::method;
+use crate::model::PreparedModel;
 use crate::OpenError;
 
 fn corrupt(what: &'static str) -> OpenError {
     OpenError::Corrupt { what }
 }
 
-/// The semantic checks of step 5 of [`Table::from_bytes`].
-pub(crate) fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
+/// The semantic checks of step 5 of [`crate::Table::from_bytes`], version 1.
+pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
     header.method.validate().map_err(corrupt)?;
     if header.content_flags & !CONTENT_KNOWN != 0 {
         return Err(corrupt(
@@ -214,6 +217,306 @@ pub(crate) fn validate(header: &Header, a: &ArchivedTableData) -> Result<(), Ope
         if !centre.is_empty() && (sum - 1.0).abs() > 1e-9 {
             return Err(corrupt("a cell's base weights do not sum to 1"));
         }
+    }
+    Ok(())
+}
+
+/// The semantic checks of step 5 of [`crate::Table::from_bytes`], version 2, in order:
+/// parameters and flags, counts against the header, the samples (finite, norms as the
+/// method computes them, plausible magnitudes), errors, configurations, joint values, the
+/// cell records (every candidate a sample, no repeats, long lists in bounds), the node
+/// sets (values finite or marked missing), the model (valid chains of the header's joint
+/// count). Returns the model, prepared.
+pub(crate) fn validate_v2(
+    header: &Header,
+    a: &v2::ArchivedTableData,
+) -> Result<Option<PreparedModel>, OpenError> {
+    header.method.validate().map_err(corrupt)?;
+    if header.content_flags & !CONTENT_KNOWN != 0 {
+        return Err(corrupt(
+            "the content flags name contents this version does not know",
+        ));
+    }
+    let flags = header.content_flags;
+    let with_orientation = flags & CONTENT_ORIENTATION != 0;
+    let with_config = flags & CONTENT_CONFIG != 0;
+    let with_joints = flags & CONTENT_JOINTS != 0;
+    let with_model = flags & CONTENT_MODEL != 0;
+    let grid = &header.grid;
+    let cells = grid
+        .cell_count()
+        .filter(|&n| n > 0 && n < u32::MAX as usize)
+        .ok_or(corrupt("grid size is zero or too large"))?;
+    let n = a.samples.len();
+    if n == 0 || n != header.sample_count as usize || n >= u32::MAX as usize {
+        return Err(corrupt("sample count differs from the header"));
+    }
+    // Samples: finite, norms exactly as the method computes them, plausible magnitudes.
+    for s in a.samples.iter() {
+        let actual = s.actual_mm.map(|v| v.to_native());
+        if !actual.iter().all(|v| v.is_finite()) {
+            return Err(corrupt("a sample position is not finite"));
+        }
+        if method::norm_mm(actual) != s.norm_mm.to_native() {
+            return Err(corrupt("a sample's stored norm is not |actual|"));
+        }
+    }
+    let samples_box_mm =
+        format::bounding_box(a.samples.iter().map(|s| s.actual_mm.map(|v| v.to_native())));
+    format::check_plausible(
+        &header.method,
+        grid,
+        header.joint_radius_rad,
+        samples_box_mm,
+    )
+    .map_err(OpenError::Implausible)?;
+    if a.errors_mm.len() != n {
+        return Err(corrupt("error count differs from the sample count"));
+    }
+    if a.orientation_errors_rad.len() != if with_orientation { n } else { 0 } {
+        return Err(corrupt(
+            "orientation error count differs from the content flags",
+        ));
+    }
+    let finite3 = |v: &rkyv::Archived<[f64; 3]>| v.iter().all(|x| x.to_native().is_finite());
+    if !a
+        .errors_mm
+        .iter()
+        .chain(a.orientation_errors_rad.iter())
+        .all(finite3)
+    {
+        return Err(corrupt("a sample error is not finite"));
+    }
+    if a.configs.len() != if with_config { n } else { 0 }
+        || a.configs.contains(&method::CONFIG_UNKNOWN)
+    {
+        return Err(corrupt("configurations do not match the content flags"));
+    }
+    // Joint values: a count for hybrid tables and joint screens, values for screens only.
+    let joint_count = header.joint_count as usize;
+    if (with_model || with_joints) != (joint_count > 0) || joint_count > MAX_JOINTS {
+        return Err(corrupt(
+            "the joint count does not match the table's contents",
+        ));
+    }
+    if with_joints != (header.joint_radius_rad > 0.0) {
+        return Err(corrupt(
+            "sample joint values are stored exactly when a joint screen is on",
+        ));
+    }
+    let joint_values = if with_joints { n * joint_count } else { 0 };
+    if a.joints_rad.len() != joint_values || !a.joints_rad.iter().all(|q| q.to_native().is_finite())
+    {
+        return Err(corrupt("joint values do not match the samples"));
+    }
+    validate_cells(a, cells, n)?;
+    validate_cell_reach(header, a)?;
+    validate_nodes(header, a, with_orientation, with_config)?;
+    // The model: valid chains of the header's joint count, of plausible magnitudes.
+    match a.model.as_ref() {
+        None if with_model => Err(corrupt("the content flags promise a model")),
+        Some(_) if !with_model => Err(corrupt("a model the content flags do not name")),
+        None => Ok(None),
+        Some(m) => {
+            let chain = |c: &v2::ArchivedChainRecord| {
+                let chain = c
+                    .to_chain()
+                    .map_err(|_| corrupt("a stored chain is invalid"))?;
+                format::check_chain_plausible(&chain).map_err(OpenError::Implausible)?;
+                Ok::<_, OpenError>(chain)
+            };
+            let (nominal, calibrated) = (chain(&m.nominal)?, chain(&m.calibrated)?);
+            if nominal.joint_count() != joint_count || calibrated.joint_count() != joint_count {
+                return Err(corrupt("a chain's joint count differs from the header's"));
+            }
+            Ok(PreparedModel::new(nominal, calibrated))
+        }
+    }
+}
+
+/// Every cell record: one per cell, of the width the sample count calls for; every
+/// candidate an existing sample, listed once; unused slots zero; long lists in bounds.
+fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(), OpenError> {
+    let narrow = n <= v2::NARROW_SAMPLES;
+    let (narrow_len, wide_len) = if narrow { (cells, 0) } else { (0, cells) };
+    if a.cells.len() != narrow_len || a.cells_wide.len() != wide_len {
+        return Err(corrupt("cell records differ from the grid size"));
+    }
+    let overflow = a.overflow.as_slice();
+    let mut seen = vec![0u64; n.div_ceil(64)];
+    // Checks one list: indices in range and distinct; `seen` is left all zero.
+    let mut check_list = |list: &mut dyn Iterator<Item = usize>| -> Result<(), OpenError> {
+        let mut marked = Vec::new();
+        let mut result = Ok(());
+        for i in list {
+            if i >= n {
+                result = Err(corrupt(
+                    "a candidate list names a sample that does not exist",
+                ));
+                break;
+            }
+            let (word, bit) = (i / 64, 1u64 << (i % 64));
+            if seen[word] & bit != 0 {
+                result = Err(corrupt("a candidate list names a sample twice"));
+                break;
+            }
+            seen[word] |= bit;
+            marked.push(word);
+        }
+        for word in marked {
+            seen[word] = 0;
+        }
+        result
+    };
+    let long_list = |start: usize, count: usize| {
+        start
+            .checked_add(count)
+            .and_then(|end| overflow.get(start..end))
+            .ok_or(corrupt("a long candidate list is out of bounds"))
+    };
+    for record in a.cells.iter() {
+        let count = record[0].to_native() as usize;
+        if count <= v2::INLINE_CANDIDATES {
+            if record[count + 1..].iter().any(|s| s.to_native() != 0) {
+                return Err(corrupt("a cell record's unused slots are not zero"));
+            }
+            check_list(&mut record[1..=count].iter().map(|i| i.to_native() as usize))?;
+        } else {
+            let start = record[1].to_native() as usize | (record[2].to_native() as usize) << 16;
+            if record[3..].iter().any(|s| s.to_native() != 0) {
+                return Err(corrupt("a cell record's unused slots are not zero"));
+            }
+            let list = long_list(start, count)?;
+            check_list(&mut list.iter().map(|i| i.to_native() as usize))?;
+        }
+    }
+    for record in a.cells_wide.iter() {
+        let count = record[0].to_native() as usize;
+        if count <= v2::INLINE_CANDIDATES_WIDE {
+            if record[count + 1..].iter().any(|s| s.to_native() != 0) {
+                return Err(corrupt("a cell record's unused slots are not zero"));
+            }
+            check_list(&mut record[1..=count].iter().map(|i| i.to_native() as usize))?;
+        } else {
+            if record[2..].iter().any(|s| s.to_native() != 0) {
+                return Err(corrupt("a cell record's unused slots are not zero"));
+            }
+            let list = long_list(record[1].to_native() as usize, count)?;
+            check_list(&mut list.iter().map(|i| i.to_native() as usize))?;
+        }
+    }
+    Ok(())
+}
+
+/// Every cell's first candidate within ε of the cell's box, as the compiler lists them: a
+/// grid edited to another shape or place with the same cell count fails here.
+fn validate_cell_reach(header: &Header, a: &v2::ArchivedTableData) -> Result<(), OpenError> {
+    let grid = &header.grid;
+    // The compiler's box margin and distance slack are micrometres and below.
+    let reach_mm = header.method.radius_mm * (1.0 + 1e-9) + 1e-5;
+    let first = |cell: usize| -> Option<usize> {
+        if let Some(r) = a.cells.get(cell) {
+            let count = r[0].to_native() as usize;
+            if count == 0 {
+                return None;
+            }
+            if count <= v2::INLINE_CANDIDATES {
+                return Some(r[1].to_native() as usize);
+            }
+            let start = r[1].to_native() as usize | (r[2].to_native() as usize) << 16;
+            return a.overflow.get(start).map(|i| i.to_native() as usize);
+        }
+        let r = a.cells_wide.get(cell)?;
+        match r[0].to_native() as usize {
+            0 => None,
+            count if count <= v2::INLINE_CANDIDATES_WIDE => Some(r[1].to_native() as usize),
+            _ => a
+                .overflow
+                .get(r[1].to_native() as usize)
+                .map(|i| i.to_native() as usize),
+        }
+    };
+    for cell in 0..a.cells.len().max(a.cells_wide.len()) {
+        let Some(sample) = first(cell) else { continue };
+        let Some(s) = a.samples.get(sample) else {
+            continue;
+        };
+        let p = s.actual_mm.map(|v| v.to_native());
+        let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+        let outside: f64 = (0..3)
+            .map(|axis| {
+                (lo[axis] - p[axis])
+                    .max(p[axis] - hi[axis])
+                    .max(0.0)
+                    .powi(2)
+            })
+            .sum();
+        if outside > reach_mm * reach_mm || outside.is_nan() {
+            return Err(corrupt(
+                "a cell's candidate is beyond ε of the cell: the grid does not match its cells",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The served tier's node sets: as many as the header says, none with a joint screen; the
+/// first for targets of unknown configuration, the others for distinct configurations the
+/// samples carry; each set's nodes in bounds; every node value finite or the missing mark.
+fn validate_nodes(
+    header: &Header,
+    a: &v2::ArchivedTableData,
+    with_orientation: bool,
+    with_config: bool,
+) -> Result<(), OpenError> {
+    let sets = a.node_sets.as_slice();
+    if sets.len() != header.node_set_count as usize {
+        return Err(corrupt("node set count differs from the header"));
+    }
+    if sets.is_empty() {
+        return if a.node_errors_mm.is_empty() && a.node_orientation_errors_rad.is_empty() {
+            Ok(())
+        } else {
+            Err(corrupt("node values without node sets"))
+        };
+    }
+    if header.joint_radius_rad > 0.0 {
+        return Err(corrupt("a served tier in a table with a joint screen"));
+    }
+    let [nx, ny, nz] = header.grid.dims.map(|d| d as usize + 1);
+    let per_set = nx * ny * nz;
+    let values = a.node_errors_mm.len();
+    if values % per_set != 0
+        || a.node_orientation_errors_rad.len() != if with_orientation { values } else { 0 }
+    {
+        return Err(corrupt("node values do not fill whole node sets"));
+    }
+    if sets[0].config != method::CONFIG_UNKNOWN {
+        return Err(corrupt(
+            "the first node set is not for targets of any configuration",
+        ));
+    }
+    for (i, set) in sets.iter().enumerate() {
+        let first = set.first_node.to_native() as usize;
+        if first % per_set != 0 || first + per_set > values {
+            return Err(corrupt("a node set is out of bounds"));
+        }
+        let repeated = sets[..i].iter().any(|other| other.config == set.config);
+        if i > 0 && (repeated || !with_config || set.config == method::CONFIG_UNKNOWN) {
+            return Err(corrupt("node sets repeat a configuration"));
+        }
+        if i > 0 && !a.configs.contains(&set.config) {
+            return Err(corrupt("a node set serves a configuration no sample has"));
+        }
+    }
+    let marked_or_finite = |v: &rkyv::Archived<[f64; 3]>| {
+        let v = v.map(|x| x.to_native());
+        v.iter().all(|x| x.is_finite()) || crate::served::is_missing(&v)
+    };
+    if !a.node_errors_mm.iter().all(marked_or_finite)
+        || !a.node_orientation_errors_rad.iter().all(marked_or_finite)
+    {
+        return Err(corrupt("a node value is neither finite nor marked missing"));
     }
     Ok(())
 }

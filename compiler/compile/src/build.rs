@@ -17,20 +17,27 @@
 //!
 //! Boxes are grown by [`BOX_MARGIN_MM`] and comparisons carry [`DISTANCE_SLACK_MM`], far
 //! above floating-point rounding, so that a target on a cell face, or rounded into a
-//! neighbouring cell, still finds every sample it needs. Identical lists are stored once.
-//! Each cell also stores the base weights `q_i` at its centre.
+//! neighbouring cell, still finds every sample it needs. Each list goes into its cell's own
+//! 64-byte record (the exact tier reads one cache line), or, when longer than a record
+//! holds, into an overflow array.
 //!
-//! Cells are processed in parallel; results are assembled in cell order, so the bytes
-//! written do not depend on the number of threads.
+//! The served tier is then the method evaluated at every node of the grid, through the
+//! list of a cell the node is a corner of — the base weights at each node, applied — once
+//! for targets of unknown configuration and once per configuration the samples carry
+//! ([`adwi_runtime::served`]).
+//!
+//! Cells and nodes are processed in parallel; results are assembled in order, so the
+//! bytes written do not depend on the number of threads.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use adwi_runtime::format::{
-    self, CellRecord, Grid, Header, KinematicModel, SampleRecord, TableData, CONTENT_CONFIG,
-    CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION,
+    self, v2, Grid, Header, SampleRecord, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_MODEL,
+    CONTENT_ORIENTATION,
 };
-use adwi_runtime::method::{self, MethodParams};
+use adwi_runtime::method::{self, MethodParams, CONFIG_UNKNOWN};
+use adwi_runtime::model::PreparedModel;
 use rayon::prelude::*;
 
 use crate::samples::SampleSet;
@@ -200,6 +207,11 @@ pub struct BuildReport {
     pub mean_list_len: f64,
     /// Table size, bytes.
     pub table_bytes: usize,
+    /// Cells the served field covers (all 8 nodes answered, for targets of unknown
+    /// configuration); 0 without a served tier.
+    pub served_cells: usize,
+    /// Node sets of the served tier (0: the exact tier alone answers).
+    pub node_sets: usize,
 }
 
 /// A table's size before it is built, bytes: per cell its 8-byte record and base-weight
@@ -371,7 +383,7 @@ pub fn compile(
 pub fn compile_plan(
     samples: &SampleSet,
     plan: &Plan,
-    model: Option<KinematicModel>,
+    model: Option<&PreparedModel>,
     source_hash: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
@@ -384,79 +396,93 @@ pub fn compile_plan(
         max_list_len: 0,
         mean_list_len: 0.0,
         table_bytes: 0,
+        served_cells: 0,
+        node_sets: 0,
     };
-    if let Some(model) = &model {
-        format::check_model_plausible(model)?;
+    if let Some(model) = model {
+        for chain in [model.nominal(), model.calibrated()] {
+            format::check_chain_plausible(chain)?;
+        }
     }
+    let joint_count = match (&samples.joints, model) {
+        (Some(j), Some(m)) if j.count() != m.joint_count() => {
+            return Err(BuildError::JointCount {
+                model: m.joint_count(),
+                samples: j.count(),
+            })
+        }
+        (Some(j), _) => j.count(),
+        (None, Some(m)) => m.joint_count(),
+        (None, None) => 0,
+    };
     let joint_screen = plan.joint_radius_rad > 0.0;
     let records = samples.records();
     let index = SpatialIndex::new(&records, params.radius_mm);
     let done = AtomicU64::new(0);
-    let per_cell: Vec<CellPlan> = (0..plan.cells())
+    let lists: Vec<Vec<u32>> = (0..plan.cells())
         .into_par_iter()
         .map(|cell| {
             let candidates = candidate_list(&records, &index, &params, joint_screen, &grid, cell);
-            let centre = centre_weights(&records, &params, &grid, cell, &candidates);
             if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
                 progress(4096);
             }
-            (candidates, centre)
+            candidates
         })
         .collect();
     progress(done.load(Ordering::Relaxed) % 4096);
 
-    let mut data = TableData {
-        actual_norms_mm: records
+    let mut data = v2::TableData {
+        samples: records
             .iter()
-            .map(|r| method::norm_mm(r.actual_mm))
+            .map(|r| v2::QuerySample {
+                actual_mm: r.actual_mm,
+                norm_mm: method::norm_mm(r.actual_mm),
+            })
             .collect(),
-        samples: records,
-        cells: Vec::with_capacity(plan.cells()),
-        centre_offsets: Vec::with_capacity(plan.cells() + 1),
-        list_samples: Vec::new(),
-        centre_samples: Vec::new(),
-        centre_weights: Vec::new(),
-        joints_rad: match &samples.joints {
-            Some(j) if j.count() == format::JOINT_COUNT => {
-                j.rows().map(|q| std::array::from_fn(|a| q[a])).collect()
-            }
-            Some(j) => {
-                return Err(BuildError::JointCount {
-                    model: format::JOINT_COUNT,
-                    samples: j.count(),
-                })
-            }
-            None => Vec::new(),
+        errors_mm: samples.error_mm.clone(),
+        orientation_errors_rad: samples.rotation_error_rad.clone().unwrap_or_default(),
+        configs: samples.config.clone().unwrap_or_default(),
+        joints_rad: match (&samples.joints, joint_screen) {
+            (Some(j), true) => j.as_flat().to_vec(),
+            _ => Vec::new(),
         },
-        model,
+        model: model.map(|m| v2::ModelRecord {
+            nominal: v2::ChainRecord::from_chain(m.nominal()),
+            calibrated: v2::ChainRecord::from_chain(m.calibrated()),
+        }),
+        ..v2::TableData::default()
     };
-    // Identical lists are stored once, in order of first appearance.
-    let mut starts: HashMap<&[u32], u32> = HashMap::new();
-    data.centre_offsets.push(0);
-    for (list, centre) in &per_cell {
-        let list_start = *starts.entry(list.as_slice()).or_insert_with(|| {
-            let start = data.list_samples.len() as u32;
-            data.list_samples.extend_from_slice(list);
-            start
-        });
-        data.cells.push(CellRecord {
-            list_start,
-            list_len: list.len() as u32,
-        });
-        for &(sample, q) in centre {
-            data.centre_samples.push(sample);
-            data.centre_weights.push(q);
+    let narrow = records.len() <= v2::NARROW_SAMPLES;
+    let mut distinct = std::collections::HashSet::new();
+    for list in &lists {
+        if narrow {
+            data.cells.push(narrow_record(list, &mut data.overflow));
+        } else {
+            data.cells_wide.push(wide_record(list, &mut data.overflow));
         }
-        data.centre_offsets.push(data.centre_samples.len() as u32);
         if !list.is_empty() {
             report.cells_covered += 1;
             report.max_list_len = report.max_list_len.max(list.len());
             report.mean_list_len += list.len() as f64;
+            report.list_entries += list.len();
+            distinct.insert(list.as_slice());
         }
     }
     report.mean_list_len /= report.cells_covered.max(1) as f64;
-    report.distinct_lists = starts.len();
-    report.list_entries = data.list_samples.len();
+    report.distinct_lists = distinct.len();
+
+    // The served tier: the exact method at every node, one set per target configuration
+    // (none with a joint screen: its admissible samples depend on the joint values).
+    if !joint_screen {
+        let served = NodeValues::compute(&records, &params, &grid, &lists, samples);
+        report.node_sets = served.sets.len();
+        report.served_cells = served.served_cells(&grid);
+        data.node_sets = served.sets;
+        data.node_errors_mm = served.position_mm;
+        if samples.rotation_error_rad.is_some() {
+            data.node_orientation_errors_rad = served.orientation_rad;
+        }
+    }
 
     let mut content = 0;
     if samples.rotation_error_rad.is_some() {
@@ -465,7 +491,7 @@ pub fn compile_plan(
     if samples.config.is_some() {
         content |= CONTENT_CONFIG;
     }
-    if samples.joints.is_some() {
+    if joint_screen {
         content |= CONTENT_JOINTS;
     }
     if data.model.is_some() {
@@ -482,6 +508,12 @@ pub fn compile_plan(
         grid,
         sample_count: samples.len() as u32,
         joint_radius_rad: plan.joint_radius_rad,
+        joint_count: if joint_screen || model.is_some() {
+            joint_count as u32
+        } else {
+            0
+        },
+        node_set_count: data.node_sets.len() as u32,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
@@ -490,8 +522,159 @@ pub fn compile_plan(
     Ok((bytes, report))
 }
 
-/// One cell's candidate list and base weights `(sample, q)`, before assembly.
-type CellPlan = (Vec<u32>, Vec<(u32, f64)>);
+/// A narrow cell record ([`v2::CellRecord`]): the list inline, or its start in `overflow`.
+fn narrow_record(list: &[u32], overflow: &mut Vec<u32>) -> v2::CellRecord {
+    let mut record = [0u16; 32];
+    record[0] = list.len() as u16;
+    if list.len() <= v2::INLINE_CANDIDATES {
+        for (slot, &i) in record[1..].iter_mut().zip(list) {
+            *slot = i as u16;
+        }
+    } else {
+        let start = overflow.len() as u32;
+        record[1] = start as u16;
+        record[2] = (start >> 16) as u16;
+        overflow.extend_from_slice(list);
+    }
+    record
+}
+
+/// A wide cell record ([`v2::WideCellRecord`]), as [`narrow_record`].
+fn wide_record(list: &[u32], overflow: &mut Vec<u32>) -> v2::WideCellRecord {
+    let mut record = [0u32; 16];
+    record[0] = list.len() as u32;
+    if list.len() <= v2::INLINE_CANDIDATES_WIDE {
+        record[1..=list.len()].copy_from_slice(list);
+    } else {
+        record[1] = overflow.len() as u32;
+        overflow.extend_from_slice(list);
+    }
+    record
+}
+
+/// The served tier's node values: the exact method at every node of the grid, per set.
+struct NodeValues {
+    sets: Vec<v2::NodeSet>,
+    position_mm: Vec<[f64; 3]>,
+    orientation_rad: Vec<[f64; 3]>,
+}
+
+impl NodeValues {
+    /// Evaluates every node for targets of unknown configuration, then for each
+    /// configuration the samples carry (a set equal to an earlier one shares its nodes).
+    fn compute(
+        records: &[SampleRecord],
+        params: &MethodParams,
+        grid: &Grid,
+        lists: &[Vec<u32>],
+        samples: &SampleSet,
+    ) -> NodeValues {
+        let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
+        configs.sort_unstable();
+        configs.dedup();
+        let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
+        let per_set = nx * ny * nz;
+        let mut out = NodeValues {
+            sets: Vec::new(),
+            position_mm: Vec::new(),
+            orientation_rad: Vec::new(),
+        };
+        let wanted = std::iter::once(None).chain(configs.into_iter().map(Some));
+        for config in wanted {
+            let values: Vec<([f64; 3], [f64; 3])> = (0..per_set)
+                .into_par_iter()
+                .map(|node| {
+                    let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
+                    node_value(records, params, grid, lists, ijk, config)
+                })
+                .collect();
+            let first_node = (0..out.sets.len())
+                .map(|s| out.sets[s].first_node as usize)
+                .find(|&first| {
+                    values.iter().enumerate().all(|(i, (p, r))| {
+                        same_bits(p, &out.position_mm[first + i])
+                            && same_bits(r, &out.orientation_rad[first + i])
+                    })
+                })
+                .unwrap_or_else(|| {
+                    let first = out.position_mm.len();
+                    out.position_mm.extend(values.iter().map(|v| v.0));
+                    out.orientation_rad.extend(values.iter().map(|v| v.1));
+                    first
+                });
+            out.sets.push(v2::NodeSet {
+                config: config.unwrap_or(CONFIG_UNKNOWN),
+                first_node: first_node as u32,
+            });
+        }
+        out
+    }
+
+    /// The number of cells of the first set whose 8 nodes all have values.
+    fn served_cells(&self, grid: &Grid) -> usize {
+        let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
+        let has = |i: usize| !adwi_runtime::served::is_missing(&self.position_mm[i]);
+        (0..grid.cell_count().unwrap_or(0))
+            .filter(|&cell| {
+                let [i, j, k] = grid.cell_coords(cell);
+                let base = i + nx * (j + ny * k);
+                [
+                    0,
+                    1,
+                    nx,
+                    nx + 1,
+                    nx * ny,
+                    nx * ny + 1,
+                    nx * ny + nx,
+                    nx * ny + nx + 1,
+                ]
+                .iter()
+                .all(|&c| has(base + c))
+            })
+            .count()
+    }
+}
+
+fn same_bits(a: &[f64; 3], b: &[f64; 3]) -> bool {
+    (0..3).all(|i| a[i].to_bits() == b[i].to_bits())
+}
+
+/// The exact method at node `ijk` for a target of `config`: through the candidate list of
+/// a cell the node is a corner of (a list serves every point of its closed cell), so that
+/// the value is the brute-force reference's. Missing ([`v2::NO_NODE_VALUE`]) where no
+/// sample is admissible.
+fn node_value(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    grid: &Grid,
+    lists: &[Vec<u32>],
+    [i, j, k]: [usize; 3],
+    config: Option<u8>,
+) -> ([f64; 3], [f64; 3]) {
+    let position = [
+        grid.origin_mm[0] + i as f64 * grid.cell_mm,
+        grid.origin_mm[1] + j as f64 * grid.cell_mm,
+        grid.origin_mm[2] + k as f64 * grid.cell_mm,
+    ];
+    let last = grid.dims.map(|d| d as usize - 1);
+    let cell = grid.linear_index([i.min(last[0]), j.min(last[1]), k.min(last[2])]);
+    let selection = method::select(params, position, config, lists[cell].iter().copied(), |s| {
+        let r = &records[s as usize];
+        Some((r.actual_mm, r.config))
+    });
+    let sample = |s: u32| {
+        let r = &records[s as usize];
+        (
+            r.actual_mm,
+            method::norm_mm(r.actual_mm),
+            r.measured_error(),
+        )
+    };
+    match method::estimate(params, position, &selection, sample) {
+        Some(e) => (e.position_error_mm, e.orientation_error_rad),
+        None => ([v2::NO_NODE_VALUE; 3], [v2::NO_NODE_VALUE; 3]),
+    }
+}
 
 /// Samples bucketed by actual position in cubes of edge ≥ ε, so that the samples within ε
 /// of a box are found in the buckets the grown box overlaps.
@@ -633,34 +816,6 @@ fn candidate_list(
     list
 }
 
-/// The neighbours and weights at a cell's centre, through the runtime's own selection.
-fn centre_weights(
-    records: &[SampleRecord],
-    params: &MethodParams,
-    grid: &Grid,
-    cell: usize,
-    candidates: &[u32],
-) -> Vec<(u32, f64)> {
-    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
-    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
-    let selection = method::select(params, centre, None, candidates.iter().copied(), |i| {
-        let r = &records[i as usize];
-        Some((r.actual_mm, r.config))
-    });
-    let error_of = |i: u32| records[i as usize].measured_error();
-    let neighbours = method::neighbours(centre, &selection, |i| records[i as usize].actual_mm);
-    match method::predict(params, neighbours.as_slice(), error_of) {
-        Some(p) => p
-            .neighbours
-            .as_slice()
-            .iter()
-            .zip(p.weights.as_slice())
-            .map(|(n, &q)| (n.sample, q))
-            .collect(),
-        None => Vec::new(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -757,26 +912,28 @@ mod tests {
 
     #[test]
     fn an_implausible_model_is_refused() {
+        use adwi_runtime::chain::Chain;
+        use adwi_runtime::kinematics::{MdhJoint, Transform};
         let s = samples("");
-        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
-        let params = format::ModelParams {
-            joints: [[100.0, 200.0, 0.0, 0.0, 0.0]; 6],
-            tool: identity,
-            base: identity,
+        let joint = MdhJoint {
+            a_mm: 100.0,
+            d_mm: 200.0,
+            ..MdhJoint::default()
         };
-        let mut model = KinematicModel {
-            nominal: params,
-            calibrated: params,
+        let chain = |base: Transform| {
+            Chain::from_mdh(base, &[joint; 6], Transform::IDENTITY, None).unwrap()
         };
+        let nominal = chain(Transform::IDENTITY);
         let plan = plan(&s, &BuildOptions::default()).unwrap();
         let hash = s.source_hash();
-        compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap();
-        model.calibrated.base[3] = 1e300;
-        let err = compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap_err();
-        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
-        model.calibrated.base[3] = 0.0;
-        model.nominal.tool[0] = 2.0;
-        let err = compile_plan(&s, &plan, Some(model), hash, &|_| {}).unwrap_err();
+        let sound = PreparedModel::new(nominal, nominal).unwrap();
+        compile_plan(&s, &plan, Some(&sound), hash, &|_| {}).unwrap();
+        let far = Transform {
+            translation_mm: [1e300, 0.0, 0.0],
+            ..Transform::IDENTITY
+        };
+        let model = PreparedModel::new(nominal, chain(far)).unwrap();
+        let err = compile_plan(&s, &plan, Some(&model), hash, &|_| {}).unwrap_err();
         assert!(matches!(err, BuildError::Implausible(_)), "{err}");
     }
 }

@@ -25,7 +25,6 @@
 //! leaves them.
 //!
 
-use adwi_runtime::format::KinematicModel;
 use adwi_runtime::model::PreparedModel;
 
 use crate::build::{self, BuildError, BuildReport, Plan};
@@ -82,15 +81,15 @@ pub struct HybridBuild {
 /// [`build::compile_plan`].
 pub fn compile(
     samples: &SampleSet,
-    model: &KinematicModel,
+    model: &PreparedModel,
     plan: &Plan,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
-    let residual = residual_samples(samples, &PreparedModel::from_mdh(model))?;
+    let residual = residual_samples(samples, model)?;
     let (bytes, report) = build::compile_plan(
         &residual,
         plan,
-        Some(*model),
+        Some(model),
         samples.source_hash(),
         progress,
     )?;

@@ -7,6 +7,7 @@
 //! - [`hybrid`]: a hybrid table from samples and a given kinematic model (its residuals);
 //! - [`reference`]: the brute-force reference every compiled table is tested against;
 //! - [`write`]: writing the file without ever losing data;
+//! - [`inspect`]: what a table holds, in figures;
 //! - [`pose`]: orientation conventions of sample files.
 //!
 //! The method itself lives in [`adwi_runtime::method`]; this crate calls it, never
@@ -15,6 +16,7 @@
 
 pub mod build;
 pub mod hybrid;
+pub mod inspect;
 pub mod pose;
 pub mod reference;
 pub mod samples;

@@ -22,7 +22,7 @@ use adwi_compile::reference;
 use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_compile::write::write_atomically;
 use adwi_eval::latency::{self, KdTreeMethod};
-use adwi_runtime::format::{TableData, HEADER_LEN};
+use adwi_runtime::format::{v2::TableData, HEADER_LEN};
 use adwi_runtime::{AlignedBytes, Table, Target};
 use criterion::{criterion_group, criterion_main, Criterion};
 

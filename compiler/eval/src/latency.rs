@@ -20,9 +20,9 @@
 use std::time::{Duration, Instant};
 
 use adwi_compile::reference;
-use adwi_runtime::format::{Grid, SampleRecord, TableData, HEADER_LEN};
+use adwi_runtime::format::{v1, v2, Grid, Header, SampleRecord, HEADER_LEN};
 use adwi_runtime::method::{self, Estimate, MethodParams};
-use adwi_runtime::{AlignedBytes, Status, Table, Target};
+use adwi_runtime::{AlignedBytes, Payload, Status, Table, Target};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -166,20 +166,41 @@ fn random_unit(rng: &mut ChaCha8Rng) -> [f64; 3] {
     }
 }
 
-/// The samples of a table, as the records it was built from.
+/// The samples of a table, as the records it was built from (nominal positions as
+/// `actual − error`: a version-2 table stores what queries read, not the nominal).
 pub fn records_of<D: AsRef<[u8]>>(table: &Table<D>) -> Vec<SampleRecord> {
-    table.data().map_or_else(Vec::new, |data| {
-        data.samples
+    let native = |v: &rkyv::Archived<[f64; 3]>| v.map(|x| x.to_native());
+    match table.payload() {
+        None => Vec::new(),
+        Some(Payload::V1(data)) => data
+            .samples
             .iter()
             .map(|s| SampleRecord {
-                actual_mm: s.actual_mm.map(|v| v.to_native()),
-                nominal_mm: s.nominal_mm.map(|v| v.to_native()),
-                error_mm: s.error_mm.map(|v| v.to_native()),
-                rotation_error_rad: s.rotation_error_rad.map(|v| v.to_native()),
+                actual_mm: native(&s.actual_mm),
+                nominal_mm: native(&s.nominal_mm),
+                error_mm: native(&s.error_mm),
+                rotation_error_rad: native(&s.rotation_error_rad),
                 config: s.config,
             })
-            .collect()
-    })
+            .collect(),
+        Some(Payload::V2(data)) => (0..data.samples.len())
+            .map(|i| {
+                let actual_mm = native(&data.samples[i].actual_mm);
+                let error_mm = native(&data.errors_mm[i]);
+                SampleRecord {
+                    actual_mm,
+                    nominal_mm: [0, 1, 2].map(|a| actual_mm[a] - error_mm[a]),
+                    error_mm,
+                    rotation_error_rad: data.orientation_errors_rad.get(i).map_or([0.0; 3], native),
+                    config: data
+                        .configs
+                        .get(i)
+                        .copied()
+                        .unwrap_or(method::CONFIG_UNKNOWN),
+                }
+            })
+            .collect(),
+    }
 }
 
 /// The method without a table: a k-d tree of the samples' actual positions, queried for
@@ -248,13 +269,21 @@ pub fn time_runs<R>(repeats: usize, mut f: impl FnMut() -> R) -> Vec<Duration> {
     runs
 }
 
-/// Reads the file and deserialises its payload into an owned [`TableData`], as a format
-/// without zero-copy access would have to.
-pub fn deserialise_owned(path: &std::path::Path) -> Option<TableData> {
+/// Reads the file and deserialises its payload into an owned copy, as a format without
+/// zero-copy access would have to; returns the sample count.
+pub fn deserialise_owned(path: &std::path::Path) -> Option<usize> {
     let bytes = std::fs::read(path).ok()?;
     let mut aligned = AlignedBytes::with_capacity(bytes.len());
     aligned.extend_from_slice(&bytes);
-    rkyv::from_bytes::<TableData, rkyv::rancor::Error>(aligned.get(HEADER_LEN..)?).ok()
+    let payload = aligned.get(HEADER_LEN..)?;
+    match Header::from_bytes(&bytes).ok()?.version {
+        1 => rkyv::from_bytes::<v1::TableData, rkyv::rancor::Error>(payload)
+            .ok()
+            .map(|d| d.samples.len()),
+        _ => rkyv::from_bytes::<v2::TableData, rkyv::rancor::Error>(payload)
+            .ok()
+            .map(|d| d.samples.len()),
+    }
 }
 
 /// Whether the three contenders give the same answers: every target against the k-d
@@ -293,41 +322,34 @@ pub fn agreement<D: AsRef<[u8]>>(
     )
 }
 
-/// A hybrid table answers only with the joint angles the controller will use, which only
-/// the controller's inverse kinematics knows for an arbitrary target: the workload is the
-/// samples' own poses, each target moved by up to 5 mm along every axis and queried with
-/// that sample's joint angles (model evaluation plus interpolated residual). `None` when
-/// the table carries no joint angles.
+/// A hybrid table answers only with the joint values the controller will use, which only
+/// the controller's inverse kinematics knows for an arbitrary target: the workload is
+/// random joint values (each in ±π; prismatic joints ±π mm), kept where the nominal tool
+/// position falls inside the table's grid, queried there with those values (model
+/// evaluation plus the residual field). `None` for a table without a model, or when no
+/// pose of a million tries falls in the grid.
 pub fn hybrid_workload<D: AsRef<[u8]>>(
     table: &Table<D>,
     queries: usize,
     seed: u64,
-) -> Option<Vec<(Target, [f64; 6])>> {
-    let data = table.data()?;
-    let poses: Vec<([f64; 3], [f64; 6])> = data
-        .samples
-        .iter()
-        .zip(data.joints_rad.iter())
-        .map(|(s, q)| {
-            (
-                s.nominal_mm.map(|v| v.to_native()),
-                q.map(|v| v.to_native()),
-            )
-        })
-        .collect();
-    if poses.is_empty() {
-        return None;
-    }
+) -> Option<Vec<(Target, Vec<f64>)>> {
+    let nominal = table.model()?.nominal();
+    let n = nominal.joint_count();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    Some(
-        (0..queries.max(1))
-            .map(|i| {
-                let (p, q) = poses[i % poses.len()];
-                let moved = p.map(|v| v + rng.gen_range(-5.0..5.0));
-                (Target::at(moved), q)
-            })
-            .collect(),
-    )
+    let mut out = Vec::with_capacity(queries);
+    for _ in 0..1_000_000 {
+        if out.len() == queries.max(1) {
+            break;
+        }
+        let q: Vec<f64> = (0..n)
+            .map(|_| rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))
+            .collect();
+        let p = nominal.tcp_pose(&q)?.translation_mm;
+        if table.grid().cell_of(p).is_some() {
+            out.push((Target::at(p), q));
+        }
+    }
+    (!out.is_empty()).then_some(out)
 }
 
 #[cfg(test)]

@@ -62,8 +62,12 @@ use adwi_robot::Robot;
 /// A compensation method under evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Method {
-    /// Approximation-degree weighted interpolation through a compiled table.
+    /// Approximation-degree weighted interpolation through a compiled table: its exact
+    /// tier, the paper's method to the digit.
     Paper,
+    /// The same table's served tier: the method at the grid's nodes, blended trilinearly
+    /// (the continuous field `tablec query` serves).
+    PaperTrilinear,
     /// Approximation-degree weights over the nearest samples in joint space.
     PaperJoint,
     /// Inverse distance weighting.
@@ -74,39 +78,50 @@ pub enum Method {
     Kriging,
     /// Identified kinematic model.
     Kinematic,
-    /// Identified kinematic model plus the table on its remainder.
+    /// Identified kinematic model plus the table on its remainder, exact tier.
     Hybrid,
+    /// The hybrid table's served tier: the model plus the continuous residual field.
+    HybridTrilinear,
 }
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 7] = [
+    pub const ALL: [Method; 9] = [
         Method::Paper,
+        Method::PaperTrilinear,
         Method::PaperJoint,
         Method::Idw,
         Method::Grid,
         Method::Kriging,
         Method::Kinematic,
         Method::Hybrid,
+        Method::HybridTrilinear,
     ];
 
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
             Method::Paper => "paper",
+            Method::PaperTrilinear => "paper-trilinear",
             Method::PaperJoint => "paper-joint",
             Method::Idw => "idw",
             Method::Grid => "grid",
             Method::Kriging => "kriging",
             Method::Kinematic => "kinematic",
             Method::Hybrid => "hybrid",
+            Method::HybridTrilinear => "hybrid-trilinear",
         }
     }
 
     /// One line on what the method is, for reports.
     pub fn description(self) -> &'static str {
         match self {
-            Method::Paper => "approximation-degree weights, compiled table (tablec build/query)",
+            Method::Paper => {
+                "approximation-degree weights, compiled table, exact tier (tablec query --exact)"
+            }
+            Method::PaperTrilinear => {
+                "the same table's served field: the method at the nodes, trilinear (tablec query)"
+            }
             Method::PaperJoint => {
                 "approximation-degree weights, k nearest samples in joint space (brute force)"
             }
@@ -115,7 +130,10 @@ impl Method {
             Method::Kriging => "ordinary kriging, fitted variogram",
             Method::Kinematic => "identified MD-H deviations, tool offset and base registration",
             Method::Hybrid => {
-                "hybrid table: kinematic model + compiled table on the remaining errors"
+                "hybrid table: kinematic model + compiled table on the remaining errors, exact tier"
+            }
+            Method::HybridTrilinear => {
+                "hybrid table's served field: kinematic model + continuous residual field"
             }
         }
     }
@@ -124,13 +142,16 @@ impl Method {
     pub fn needs_joints(self) -> bool {
         matches!(
             self,
-            Method::PaperJoint | Method::Kinematic | Method::Hybrid
+            Method::PaperJoint | Method::Kinematic | Method::Hybrid | Method::HybridTrilinear
         )
     }
 
     /// Whether the method needs a robot model.
     pub fn needs_robot(self) -> bool {
-        matches!(self, Method::Kinematic | Method::Hybrid)
+        matches!(
+            self,
+            Method::Kinematic | Method::Hybrid | Method::HybridTrilinear
+        )
     }
 }
 
@@ -531,11 +552,10 @@ pub fn evaluate(
         let test_points = subset(&points, test);
         let calibration = if methods.iter().any(|m| m.needs_robot()) {
             let robot = options.robot.as_ref().expect("checked by choose_methods");
-            let method = if methods.contains(&Method::Kinematic) {
-                Method::Kinematic
-            } else {
-                Method::Hybrid
-            };
+            let method = *methods
+                .iter()
+                .find(|m| m.needs_robot())
+                .expect("a method that needs the robot");
             let c = calibrate::identify(robot, train, &options.calibrate)
                 .map_err(|source| EvalError::Calibrate { method, source })?;
             calibrations.push(CalibrationSummary::new(split, &c));
@@ -685,14 +705,15 @@ fn predict_split(
         set.joints_rad(i).expect("checked by choose_methods")
     }
     let outcome = match method {
-        Method::Paper => {
+        Method::Paper | Method::PaperTrilinear => {
             let table = compile_table(method, train, &options.build)?;
+            let exact = method == Method::Paper;
             targets
                 .iter()
                 .enumerate()
                 .map(|(i, t)| {
                     // The joint angles only matter to a table with a joint screen.
-                    table_prediction(&table, t, test.joints_rad(i), orientation)
+                    table_prediction(&table, t, test.joints_rad(i), exact, orientation)
                 })
                 .collect()
         }
@@ -747,11 +768,12 @@ fn predict_split(
                 })
                 .collect()
         }
-        Method::Hybrid => {
+        Method::Hybrid | Method::HybridTrilinear => {
             let c = calibration.expect("identified for kinematic methods");
+            let exact = method == Method::Hybrid;
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
-            let model = c.kinematic_model();
+            let model = adwi_runtime::model::PreparedModel::from_mdh(&c.kinematic_model());
             let bytes = build::plan(train, &options.build)
                 .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
                 .map_err(|source| EvalError::Build { method, source })?
@@ -763,7 +785,9 @@ fn predict_split(
             targets
                 .iter()
                 .enumerate()
-                .map(|(i, t)| table_prediction(&table, t, Some(joints_rad(test, i)), orientation))
+                .map(|(i, t)| {
+                    table_prediction(&table, t, Some(joints_rad(test, i)), exact, orientation)
+                })
                 .collect()
         }
     };
@@ -785,17 +809,21 @@ fn compile_table(
     })
 }
 
-/// A table's answer at a target, queried with the target's joint angles when known
-/// ([`Table::query_with_joints`]: the model part of a hybrid table, the joint screen).
+/// A table's answer at a target from its exact tier or its served field, queried with the
+/// target's joint angles when known ([`Table::query_with_joints`]: the model part of a
+/// hybrid table, the joint screen).
 fn table_prediction<D: AsRef<[u8]>>(
     table: &Table<D>,
     target: &Target,
     joints_rad: Option<&[f64]>,
+    exact: bool,
     orientation: bool,
 ) -> Result<PointPrediction, Miss> {
-    let c = match joints_rad {
-        Some(q) => table.query_with_joints(target, q),
-        None => table.query_target(target),
+    let c = match (joints_rad, exact) {
+        (Some(q), true) => table.exact().query_with_joints(target, q),
+        (Some(q), false) => table.query_with_joints(target, q),
+        (None, true) => table.exact().query_target(target),
+        (None, false) => table.query_target(target),
     };
     if c.status != Status::Ok {
         return Err(Miss::status(c.status));

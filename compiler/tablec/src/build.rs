@@ -86,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
             })?;
             bar.set_message("compiling");
-            let model = identified.kinematic_model();
+            let model = adwi_runtime::model::PreparedModel::from_mdh(&identified.kinematic_model());
             let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
             calibration = Some((identified, built.residual_position_rms_mm));
             (built.bytes, built.report)

@@ -11,7 +11,8 @@ use adwi_runtime::Target;
 pub struct Args {
     /// The table.
     table: PathBuf,
-    /// Also print the candidate list and centre base weights of the cell holding X Y Z.
+    /// Also print the cell holding X Y Z: its candidates, its node values and the exact
+    /// method's neighbours and weights at the point.
     #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_negative_numbers = true)]
     cell: Option<Vec<f64>>,
 }
@@ -19,10 +20,8 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let table = crate::open_table(&args.table)?;
     let h = table.header();
-    let m = h.method;
     let g = h.grid;
-    let data = table
-        .data()
+    let summary = adwi_compile::inspect::summary(&table)
         .ok_or_else(|| anyhow::anyhow!("table bytes changed after validation"))?;
     let size = HEADER_LEN as u64 + h.payload_len;
     println!("file            {} ({size} bytes)", args.table.display());
@@ -30,6 +29,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "format          version {}, rkyv flags {:#x}",
         h.version, h.rkyv_flags
     );
+    if h.version == 1 {
+        println!("                version 1: answered by the exact tier (no served field)");
+    }
     println!(
         "payload         {} bytes, checksum {:#018x}",
         h.payload_len, h.payload_checksum
@@ -39,10 +41,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for (flag, name) in [
         (CONTENT_ORIENTATION, "orientations"),
         (CONTENT_CONFIG, "configurations"),
-        (CONTENT_JOINTS, "joint angles"),
+        (CONTENT_JOINTS, "joint values"),
         (
             CONTENT_MODEL,
-            "kinematic model: hybrid table, query with joint angles",
+            "kinematic model: hybrid table, query with joint values",
         ),
     ] {
         if h.content_flags & flag != 0 {
@@ -54,7 +56,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         h.sample_count,
         content.join(", ")
     );
-    println!("method          {}", crate::describe_method(&m));
+    if let Some(n) = table.joint_count() {
+        println!("joints          {n}");
+    }
+    println!("method          {}", crate::describe_method(&h.method));
     println!(
         "joint screen    {}",
         crate::describe_joint_screen(h.joint_radius_rad)
@@ -73,62 +78,67 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max[1],
         max[2]
     );
-    let cells = data.cells.len();
-    let lists: std::collections::HashSet<(u32, u32)> = data
-        .cells
+    let percent = |n: usize| 100.0 * n as f64 / summary.cells.max(1) as f64;
+    println!(
+        "exact tier      {} of {} cells with candidates ({:.1} %); per cell mean {:.1}, max {}; {} lists stored apart",
+        summary.covered,
+        summary.cells,
+        percent(summary.covered),
+        summary.mean_candidates,
+        summary.max_candidates,
+        summary.lists_apart
+    );
+    match summary.served_cells {
+        Some(served) => println!(
+            "served tier     {served} of {} cells served ({:.1} %), {} node set(s): {}",
+            summary.cells,
+            percent(served),
+            summary.node_sets.len(),
+            summary
+                .node_sets
+                .iter()
+                .map(|&c| if c == u8::MAX {
+                    "any configuration".to_string()
+                } else {
+                    format!("configuration {c}")
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None if h.joint_radius_rad > 0.0 => {
+            println!("served tier     none (a joint screen): queries answer from the exact tier")
+        }
+        None => println!("served tier     none: queries answer from the exact tier"),
+    }
+    let sections: Vec<String> = summary
+        .sections
         .iter()
-        .map(|c| (c.list_start.to_native(), c.list_len.to_native()))
+        .map(|(name, bytes)| format!("{name} {bytes} B"))
         .collect();
-    let covered: Vec<usize> = data
-        .cells
-        .iter()
-        .map(|c| c.list_len.to_native() as usize)
-        .filter(|&n| n > 0)
-        .collect();
-    let mean = covered.iter().sum::<usize>() as f64 / covered.len().max(1) as f64;
-    println!(
-        "cells           {cells}, {} covered ({:.1} %)",
-        covered.len(),
-        100.0 * covered.len() as f64 / cells.max(1) as f64
-    );
-    println!(
-        "candidates      {} distinct lists, {} entries; per covered cell mean {mean:.1}, max {}",
-        lists.len(),
-        data.list_samples.len(),
-        covered.iter().max().copied().unwrap_or(0)
-    );
-    println!(
-        "sizes           samples {} B, cells {} B, lists {} B, base weights {} B",
-        data.samples.len() * std::mem::size_of::<adwi_runtime::format::ArchivedSampleRecord>(),
-        cells * std::mem::size_of::<adwi_runtime::format::ArchivedCellRecord>(),
-        data.list_samples.len() * 4,
-        (cells + 1) * 4 + data.centre_samples.len() * 12
-    );
+    println!("sizes           {}", sections.join(", "));
     if let Some(p) = args.cell {
         let p = [p[0], p[1], p[2]];
-        let Some(cell) = g.cell_of(p) else {
+        let Some(cell) = adwi_compile::inspect::cell(&table, p) else {
             println!(
                 "cell            ({}, {}, {}) is outside the grid",
                 p[0], p[1], p[2]
             );
             return Ok(());
         };
-        let [ix, iy, iz] = g.cell_coords(cell);
-        let record = &data.cells[cell];
-        let start = record.list_start.to_native() as usize;
-        let list: Vec<u32> = data.list_samples[start..start + record.list_len.to_native() as usize]
-            .iter()
-            .map(|i| i.to_native())
-            .collect();
-        println!("cell            #{cell} ({ix}, {iy}, {iz}), candidates {list:?}");
-        let c0 = data.centre_offsets[cell].to_native() as usize;
-        let c1 = data.centre_offsets[cell + 1].to_native() as usize;
-        for i in c0..c1 {
-            println!(
-                "  centre weight sample {:>6}  q {:.9}",
-                data.centre_samples[i].to_native(),
-                data.centre_weights[i].to_native()
-            );
+        let [ix, iy, iz] = cell.coords;
+        println!(
+            "cell            #{} ({ix}, {iy}, {iz}), candidates {:?}",
+            cell.index, cell.candidates
+        );
+        for (corner, node) in cell.nodes_mm.iter().enumerate() {
+            let at = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
+            match node {
+                Some(e) => println!(
+                    "  node {at:?}    error {:.9} {:.9} {:.9} mm",
+                    e[0], e[1], e[2]
+                ),
+                None => println!("  node {at:?}    no admissible sample: cell not served"),
+            }
         }
         if let Ok(pred) = table.explain(&Target::at(p)) {
             for (n, q) in pred

@@ -50,6 +50,10 @@ pub struct Args {
     /// Output CSV for --targets [default: standard output].
     #[arg(short, long, requires = "targets")]
     output: Option<PathBuf>,
+    /// Answer from the exact tier (the paper's method to the digit) instead of the served
+    /// continuous field.
+    #[arg(long)]
+    exact: bool,
 }
 
 type NumberList = Vec<f64>;
@@ -65,6 +69,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             targets,
             args.columns.as_deref(),
             args.output.as_deref(),
+            args.exact,
         );
     }
     let (position, abc) = match args.pose.as_slice() {
@@ -98,17 +103,24 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             status: Status::InvalidInput,
         }
     } else {
-        match joints_rad.as_deref() {
-            Some(q) => table.query_with_joints(&target, q),
-            None => table.query_target(&target),
-        }
+        answer(&table, &target, joints_rad.as_deref(), args.exact)
     };
     println!(
         "target       {:.6} {:.6} {:.6} mm",
         position[0], position[1], position[2]
     );
+    let tier = if args.exact || !table.has_served_field() {
+        "exact"
+    } else {
+        "served"
+    };
+    let counted = if tier == "served" {
+        "nodes"
+    } else {
+        "neighbours"
+    };
     println!(
-        "status       {} ({} neighbours)",
+        "status       {} ({} {counted}, {tier} tier)",
         c.status.as_str(),
         c.neighbours
     );
@@ -122,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         let r = c.orientation_error_rad;
         println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
     }
-    let command = command(&table, &target, joints_rad.as_deref(), &c);
+    let command = command(&table, &target, joints_rad.as_deref(), &c, args.exact);
     let p = command.position_mm;
     println!(
         "command      {:.6} {:.6} {:.6} mm ({})",
@@ -135,6 +147,22 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
     Ok(Answered::All)
+}
+
+/// The table's answer at a target, from the tier asked for, with the joint values when
+/// given (hybrid tables, the joint screen).
+fn answer<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    target: &Target,
+    joints_rad: Option<&[f64]>,
+    exact: bool,
+) -> Correction {
+    match (joints_rad, exact) {
+        (Some(q), true) => table.exact().query_with_joints(target, q),
+        (Some(q), false) => table.query_with_joints(target, q),
+        (None, true) => table.exact().query_target(target),
+        (None, false) => table.query_target(target),
+    }
 }
 
 /// The pose to command so that the robot lands on the target.
@@ -157,6 +185,7 @@ fn command<D: AsRef<[u8]>>(
     target: &Target,
     joints_rad: Option<&[f64]>,
     c: &Correction,
+    exact: bool,
 ) -> Command {
     if joints_rad.is_some() {
         let e = c.position_error_mm;
@@ -167,7 +196,13 @@ fn command<D: AsRef<[u8]>>(
             status: "first_order",
         };
     }
-    let comp = table.compensate(target, COMPENSATE_TOLERANCE_MM, COMPENSATE_ITERATIONS);
+    let comp = if exact {
+        table
+            .exact()
+            .compensate(target, COMPENSATE_TOLERANCE_MM, COMPENSATE_ITERATIONS)
+    } else {
+        table.compensate(target, COMPENSATE_TOLERANCE_MM, COMPENSATE_ITERATIONS)
+    };
     let status = if comp.converged {
         "converged"
     } else {
@@ -191,6 +226,7 @@ fn run_batch(
     targets: &Path,
     columns: Option<&str>,
     output: Option<&Path>,
+    exact: bool,
 ) -> anyhow::Result<Answered> {
     let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
     let targets = adwi_compile::samples::read_targets(targets, &columns)?;
@@ -210,10 +246,7 @@ fn run_batch(
     let mut unanswered: std::collections::BTreeMap<&str, usize> = Default::default();
     for row in &targets {
         // Rows with joint angles serve hybrid tables and the joint-space screen.
-        let c = match row.joints_rad.as_deref() {
-            Some(q) => table.query_with_joints(&row.target, q),
-            None => table.query_target(&row.target),
-        };
+        let c = answer(table, &row.target, row.joints_rad.as_deref(), exact);
         let p = row.target.position_mm;
         write!(out, "{},{},{}", p[0], p[1], p[2])?;
         if c.status == Status::Ok {
@@ -230,7 +263,7 @@ fn run_batch(
         }
         write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
         if c.status == Status::Ok {
-            let command = command(table, &row.target, row.joints_rad.as_deref(), &c);
+            let command = command(table, &row.target, row.joints_rad.as_deref(), &c, exact);
             let p = command.position_mm;
             write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
             if orientation {

@@ -3,17 +3,17 @@
 //! ```text
 //! table   := header payload
 //! header  := 256 bytes, little-endian, at offset 0 (layout below)
-//! payload := the rkyv archive of `TableData`, root object at the very end of the file
+//! payload := the rkyv archive of the version's `TableData`, root object at the very end
 //! ```
 //!
 //! | offset | size | field |
 //! |-------:|-----:|-------|
 //! | 0   | 8  | magic `b"ADWITBL\0"` |
 //! | 8   | 2  | endianness mark `0xFEFF` (reads `0xFFFE` on a big-endian misreading) |
-//! | 10  | 2  | format version |
+//! | 10  | 2  | format version: 2 ([`v2`]); version 1 ([`v1`]) is still read |
 //! | 12  | 4  | header length in bytes (256) |
 //! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
-//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 joint angles, bit 3 kinematic model |
+//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 sample joint values (v2: stored only for a joint screen), bit 3 kinematic model (a hybrid table) |
 //! | 24  | 8  | payload length in bytes (file length − 256) |
 //! | 32  | 8  | payload checksum, XXH3-64 of the payload |
 //! | 40  | 8  | source hash, XXH3-64 of the canonical sample values the table was built from |
@@ -29,25 +29,32 @@
 //! | 112 | 24 | grid origin (minimum corner) x, y, z, mm, base frame |
 //! | 136 | 12 | grid size in cells along x, y, z |
 //! | 148 | 4  | sample count |
-//! | 152 | 8  | joint-space radius, rad: a sample is admissible only if every joint angle is within it of the target's, when the target's joint angles are given; 0 = off |
-//! | 160 | 88 | reserved, zero |
+//! | 152 | 8  | joint-space radius, rad: a sample is admissible only if every joint value is within it of the target's, when the target's joint values are given; 0 = off |
+//! | 160 | 4  | v2: the robot's joint count, when the table holds joint values or a model; 0 otherwise (v1: reserved, zero; v1 robots have 6) |
+//! | 164 | 4  | v2: the number of node sets of the served tier; 0 for a table served by its exact tier alone (v1: reserved, zero) |
+//! | 168 | 80 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
-//! The payload starts at offset 256, a multiple of the archive's 16-byte alignment, so a
-//! memory map (page-aligned) hands rkyv an aligned buffer. Its contents are [`TableData`]:
-//! every sample's actual position and errors, the deduplicated candidate lists and, per
-//! cell, the range of its list and of the base weights at the cell's centre.
+//! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
+//! archive, and a version-2 table's cell records that open it, start on a cache line. The
+//! payloads: [`v2::TableData`] (what a query reads, and nothing else) and the older
+//! [`v1::TableData`].
 
 use rkyv::{Archive, Deserialize, Serialize};
 
-use crate::kinematics::{MdhJoint, Transform};
+pub mod v1;
+pub mod v2;
+
+pub use v1::{
+    joint_rows, joint_rows_to_mdh, rows_of, transform_of, KinematicModel, ModelParams, JOINT_COUNT,
+};
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
 pub const ENDIAN_MARK: u16 = 0xFEFF;
 /// The format version this runtime writes.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 /// The oldest format version this runtime reads.
 pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
 /// The header's length in bytes; the payload starts here.
@@ -104,6 +111,11 @@ pub struct Header {
     /// angles known ([`crate::Table::query_with_joints`]), a sample is admissible only if
     /// `max_i |q_sample,i − q_target,i|` is at most this. Needs [`CONTENT_JOINTS`].
     pub joint_radius_rad: f64,
+    /// The robot's joint count when the table holds joint values or a model (version 1:
+    /// 6 then), else 0.
+    pub joint_count: u32,
+    /// The served tier's node sets (version 2; 0: the exact tier alone answers).
+    pub node_set_count: u32,
 }
 
 /// A regular grid of cubic cells over an axis-aligned box of the base frame.
@@ -201,123 +213,6 @@ impl SampleRecord {
     }
 }
 
-/// One cell: where its candidate list is. Eight bytes, so that the cell records a query
-/// touches stay dense in cache.
-#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
-#[rkyv(derive(Debug))]
-pub struct CellRecord {
-    /// The candidate list is `list_samples[list_start .. list_start + list_len]`; cells with
-    /// identical lists share one range.
-    pub list_start: u32,
-    /// The candidate list's length.
-    pub list_len: u32,
-}
-
-/// The archived payload.
-#[derive(Archive, Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[rkyv(derive(Debug))]
-pub struct TableData {
-    /// The samples, in source order: a sample's index is its position here.
-    pub samples: Vec<SampleRecord>,
-    /// `|actual_mm|` of each sample, mm, computed as the method computes it, so that a
-    /// query need not take the square root again.
-    pub actual_norms_mm: Vec<f64>,
-    /// The cells, linear index `ix + nx · (iy + ny · iz)`. One record per cell, so that a
-    /// query reads its list's range in a single access.
-    pub cells: Vec<CellRecord>,
-    /// Cell `c`'s base weights are entries `centre_offsets[c] .. centre_offsets[c + 1]` of
-    /// `centre_samples` and `centre_weights` (kept apart from `cells`: queries never read
-    /// them).
-    pub centre_offsets: Vec<u32>,
-    /// Concatenated distinct candidate lists: sample indices, each list ordered by distance
-    /// to its cell's centre (ties by index), so that a query meets the likely neighbours
-    /// first and ranks the rest with few moves. No sample appears twice in a list.
-    pub list_samples: Vec<u32>,
-    /// The neighbours selected at each cell's centre, nearest first.
-    pub centre_samples: Vec<u32>,
-    /// Their weights `q_i` (summing to 1 per cell with neighbours).
-    pub centre_weights: Vec<f64>,
-    /// Joint angles of each sample, rad, in sample order; empty when the samples carry
-    /// none ([`CONTENT_JOINTS`]).
-    pub joints_rad: Vec<[f64; 6]>,
-    /// The kinematic model of a hybrid table ([`CONTENT_MODEL`]): the sample errors are
-    /// then the residuals that the calibrated model leaves, and a correction adds the
-    /// model's prediction at the target's joint angles.
-    pub model: Option<KinematicModel>,
-}
-
-/// A 6-axis robot's kinematic parameters, as plain arrays.
-#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
-#[rkyv(derive(Debug))]
-pub struct ModelParams {
-    /// Per joint, the MD-H parameters `[a (mm), d (mm), α (rad), β (rad), θ offset (rad)]`.
-    pub joints: [[f64; 5]; 6],
-    /// Flange to tool centre point: rotation rows then translation, `[r00, r01, r02, t0,
-    /// r10, r11, r12, t1, r20, r21, r22, t2]` (mm).
-    pub tool: [f64; 12],
-    /// Robot base in the measurement (world) frame, same layout as `tool`.
-    pub base: [f64; 12],
-}
-
-/// The nominal model the controller commands with, and the calibrated model that
-/// predicts where the robot really goes.
-#[derive(Archive, Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
-#[rkyv(derive(Debug))]
-pub struct KinematicModel {
-    /// The controller's nominal parameters.
-    pub nominal: ModelParams,
-    /// The identified parameters.
-    pub calibrated: ModelParams,
-}
-
-/// The number of joints of a model in a table.
-pub const JOINT_COUNT: usize = 6;
-
-// Layout conversions: the one place where the file's plain arrays become the runtime's
-// kinematic types and back.
-/// The rigid transform of a table's 12-value layout: rotation rows then translation,
-/// `[r00, r01, r02, t0, r10, r11, r12, t1, r20, r21, r22, t2]` (mm).
-#[inline]
-pub fn transform_of(rows: &[f64; 12]) -> Transform {
-    Transform {
-        rotation: [
-            [rows[0], rows[1], rows[2]],
-            [rows[4], rows[5], rows[6]],
-            [rows[8], rows[9], rows[10]],
-        ],
-        translation_mm: [rows[3], rows[7], rows[11]],
-    }
-}
-
-/// A transform in the table's 12-value layout (the inverse of [`transform_of`]).
-pub fn rows_of(transform: &Transform) -> [f64; 12] {
-    let r = &transform.rotation;
-    let t = transform.translation_mm;
-    [
-        r[0][0], r[0][1], r[0][2], t[0], r[1][0], r[1][1], r[1][2], t[1], r[2][0], r[2][1],
-        r[2][2], t[2],
-    ]
-}
-
-/// The joints of a model in the table's layout `[a (mm), d (mm), α, β, θ offset (rad)]`.
-#[inline]
-pub fn joint_rows_to_mdh(rows: &[[f64; 5]; JOINT_COUNT]) -> [MdhJoint; JOINT_COUNT] {
-    rows.map(
-        |[a_mm, d_mm, alpha_rad, beta_rad, theta_offset_rad]| MdhJoint {
-            a_mm,
-            d_mm,
-            alpha_rad,
-            beta_rad,
-            theta_offset_rad,
-        },
-    )
-}
-
-/// The table layout of MD-H joints (the inverse of [`joint_rows_to_mdh`]).
-pub fn joint_rows(joints: &[MdhJoint; JOINT_COUNT]) -> [[f64; 5]; JOINT_COUNT] {
-    joints.map(|j| [j.a_mm, j.d_mm, j.alpha_rad, j.beta_rad, j.theta_offset_rad])
-}
-
 fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]) {
     buf[offset..offset + N].copy_from_slice(&bytes);
 }
@@ -355,6 +250,10 @@ impl Header {
         }
         put(&mut b, 148, self.sample_count.to_le_bytes());
         put(&mut b, 152, self.joint_radius_rad.to_le_bytes());
+        if self.version >= 2 {
+            put(&mut b, 160, self.joint_count.to_le_bytes());
+            put(&mut b, 164, self.node_set_count.to_le_bytes());
+        }
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
         b
@@ -412,7 +311,8 @@ impl Header {
                 expected: RKYV_FLAGS,
             });
         }
-        if b[160..248].iter().any(|&byte| byte != 0) {
+        let reserved_from = if version >= 2 { 168 } else { 160 };
+        if b[reserved_from..248].iter().any(|&byte| byte != 0) {
             return Err(OpenError::Corrupt {
                 what: "reserved header bytes are not zero",
             });
@@ -454,15 +354,24 @@ impl Header {
             },
             sample_count: u32_at(148),
             joint_radius_rad,
+            joint_count: if version >= 2 {
+                u32_at(160)
+            } else if u32_at(20) & (CONTENT_JOINTS | CONTENT_MODEL) != 0 {
+                JOINT_COUNT as u32
+            } else {
+                0
+            },
+            node_set_count: if version >= 2 { u32_at(164) } else { 0 },
         })
     }
 }
 
-/// Serialises a table: the header (with its checksums and lengths filled in from the
-/// payload) followed by the rkyv archive of `data`. The compiler's one way to write a file.
+/// Serialises a version-2 table: the header (with its checksums and lengths filled in from
+/// the payload) followed by the rkyv archive of `data`. The compiler's one way to write a
+/// file.
 ///
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
-pub fn encode(mut header: Header, data: &TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
+pub fn encode(mut header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     header.version = FORMAT_VERSION;
     header.rkyv_flags = RKYV_FLAGS;
@@ -668,6 +577,43 @@ pub fn check_model_plausible(model: &KinematicModel) -> Result<(), Implausible> 
                     rule: "within ±",
                     limit: MAX_ROTATION_ENTRY,
                 });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The largest plausible mass of a link or payload, kg.
+pub const MAX_MASS_KG: f64 = 1e6;
+
+/// Checks a chain's magnitudes, as [`check_model_plausible`] a version-1 model's: base,
+/// tool and joint-origin translations within [`MAX_COORDINATE_MM`], masses within
+/// [`MAX_MASS_KG`] and compliance centres of mass within the workspace bound. Assumes a
+/// valid chain ([`crate::chain::Chain::new`]).
+pub fn check_chain_plausible(chain: &crate::chain::Chain) -> Result<(), Implausible> {
+    let translations = [chain.base.translation_mm, chain.tool.translation_mm]
+        .into_iter()
+        .chain(chain.joints().iter().map(|j| j.origin.translation_mm));
+    for t in translations {
+        for v in t {
+            check_coordinate("a kinematic translation (mm)", v)?;
+        }
+    }
+    if let Some(c) = &chain.compliance {
+        let n = chain.joint_count();
+        for &m in c.link_mass_kg[..n].iter().chain([&c.payload_kg]) {
+            if m > MAX_MASS_KG || m.is_nan() {
+                return Err(Implausible {
+                    field: "a link or payload mass (kg)",
+                    value: m,
+                    rule: "at most ",
+                    limit: MAX_MASS_KG,
+                });
+            }
+        }
+        for com in c.link_com_mm[..n].iter().chain([&c.payload_com_mm]) {
+            for &v in com {
+                check_coordinate("a centre of mass (mm)", v)?;
             }
         }
     }

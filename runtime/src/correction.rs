@@ -1,0 +1,143 @@
+//! What a query answers: [`Correction`] and [`Compensation`], with a [`Status`] that says
+//! whether the answer holds, for a [`Target`].
+
+/// What a query's answer means.
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Status {
+    /// The correction was predicted from at least one admissible neighbour.
+    Ok = 0,
+    /// The target lies outside the table's grid; the correction is zero.
+    OutsideGrid = 1,
+    /// No sample is admissible for the target; the correction is zero.
+    NoAdmissibleNeighbour = 2,
+    /// The target is not finite (NaN or infinite coordinates); the correction is zero.
+    InvalidInput = 3,
+    /// The table is a hybrid table (a calibrated kinematic model plus residuals), whose
+    /// correction depends on the joint angles: query it with
+    /// [`crate::Table::query_with_joints`]. The correction is zero.
+    MissingJoints = 4,
+    /// The prediction came out non-finite (NaN or infinite). A validated table gives this
+    /// only in degenerate geometry, such as a target and a sample both within about
+    /// 1e-160 mm of the base origin, where the approximation degrees overflow; answered
+    /// instead of a correction no robot can be commanded with. The correction is zero.
+    NumericalFailure = 5,
+    /// The served field is not defined in the target's cell: the method has no admissible
+    /// sample at one of the cell's corners, and the field is never extrapolated. The exact
+    /// tier ([`crate::Table::exact`]) may still answer there. The correction is zero.
+    UncoveredCell = 6,
+}
+
+impl Status {
+    /// A short lowercase name, as the CLI prints it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::OutsideGrid => "outside_grid",
+            Status::NoAdmissibleNeighbour => "no_neighbour",
+            Status::InvalidInput => "invalid_input",
+            Status::MissingJoints => "missing_joints",
+            Status::NumericalFailure => "numerical_failure",
+            Status::UncoveredCell => "uncovered_cell",
+        }
+    }
+}
+
+/// A target: where the controller wants the tool to be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Target {
+    /// Nominal position, mm, base frame.
+    pub position_mm: [f64; 3],
+    /// The inverse-kinematics configuration the controller will use, if known: samples
+    /// of another configuration are then not admissible.
+    pub config: Option<u8>,
+}
+
+impl Target {
+    /// A target given by position alone.
+    pub fn at(position_mm: [f64; 3]) -> Target {
+        Target {
+            position_mm,
+            config: None,
+        }
+    }
+}
+
+/// The predicted error at a target: where the robot will land relative to where it was
+/// told to go. Command `target − position_error_mm` to land on the target (to first
+/// order; [`crate::Table::compensate`] solves it exactly).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correction {
+    /// Predicted position error (actual − nominal), mm, base frame.
+    pub position_error_mm: [f64; 3],
+    /// Predicted orientation error, rotation vector of `R_actual · R_nominalᵀ`, rad, base
+    /// frame; zero when the table has no orientation ([`crate::Table::has_orientation`]).
+    pub orientation_error_rad: [f64; 3],
+    /// The number of neighbours whose errors were weighted (the exact tier), or of nodes
+    /// blended (the served tier: 8).
+    pub neighbours: u32,
+    /// Whether the prediction holds; every other field is zero unless this is `Ok`.
+    pub status: Status,
+}
+
+impl Correction {
+    pub(crate) fn failed(status: Status) -> Correction {
+        Correction {
+            position_error_mm: [0.0; 3],
+            orientation_error_rad: [0.0; 3],
+            neighbours: 0,
+            status,
+        }
+    }
+
+    /// This correction, or [`Status::NumericalFailure`] if it claims [`Status::Ok`] with
+    /// a non-finite value: the last line of defence of every query path, so that no caller
+    /// is ever told to command a NaN.
+    #[inline]
+    pub(crate) fn finite_or_failure(self) -> Correction {
+        let values = self
+            .position_error_mm
+            .iter()
+            .chain(&self.orientation_error_rad);
+        if self.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
+            return Correction::failed(Status::NumericalFailure);
+        }
+        self
+    }
+}
+
+impl Compensation {
+    /// This compensation, with its correction turned into [`Status::NumericalFailure`]
+    /// (and `converged` false) if it claims [`Status::Ok`] with a non-finite command or
+    /// residual.
+    #[inline]
+    pub(crate) fn finite_or_failure(mut self) -> Compensation {
+        let values = (self.command_position_mm.iter())
+            .chain(&self.command_rotation_rad)
+            .chain([&self.residual_mm]);
+        if self.correction.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
+            self.correction = Correction::failed(Status::NumericalFailure);
+            self.converged = false;
+        }
+        self
+    }
+}
+
+/// The command that makes the robot land on a target, found by fixed-point iteration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Compensation {
+    /// The position to command, mm, base frame: `command + error(command) = target`.
+    pub command_position_mm: [f64; 3],
+    /// The rotation to apply to the target orientation, rotation vector, rad, base frame:
+    /// command `R_cmd = Exp(command_rotation_rad) · R_target`. Zero without orientation.
+    pub command_rotation_rad: [f64; 3],
+    /// The correction predicted at the command.
+    pub correction: Correction,
+    /// Iterations used (queries made).
+    pub iterations: u32,
+    /// Whether `|command + error(command) − target| ≤ tolerance` was reached.
+    pub converged: bool,
+    /// `|command + error(command) − target|` at the returned command, mm.
+    pub residual_mm: f64,
+}

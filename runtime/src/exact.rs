@@ -1,0 +1,266 @@
+//! The exact tier: the paper's method to the digit, over the candidate list of the
+//! target's cell ([`crate::method`] does the selection and the weighing; this module only
+//! reads a table's data for it).
+//!
+//! Both payload versions answer it, through one accessor trait ([`ExactSource`]), so that
+//! one selection and one weighing serve a version-1 table (candidate lists shared between
+//! cells behind 8-byte records) and a version-2 table (each cell's candidates inside its
+//! own 64-byte record). Nothing here allocates or panics: indices were validated at open,
+//! and every access is checked anyway.
+
+use rkyv::Archived;
+
+use crate::chain::MAX_JOINTS;
+use crate::correction::{Correction, Status};
+use crate::format::{v1, v2, Header, CONTENT_ORIENTATION};
+use crate::method::{self, Prediction, SampleError, Selection, CONFIG_UNKNOWN};
+use crate::Target;
+
+/// What the exact tier reads of a table, whichever version holds it.
+pub(crate) trait ExactSource {
+    /// The candidate list of `cell`, or `None` when out of range.
+    fn candidates(&self, cell: usize) -> Option<Candidates<'_>>;
+    /// Sample `i`'s actual position (mm) and configuration.
+    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)>;
+    /// Sample `i`'s `|actual|`, mm.
+    fn norm(&self, i: u32) -> f64;
+    /// Sample `i`'s errors.
+    fn error(&self, i: u32) -> SampleError;
+    /// Whether sample `i`'s joint values are all within `radius_rad` of `target_rad`.
+    fn joints_within(&self, i: u32, target_rad: &[f64], radius_rad: f64) -> bool;
+}
+
+/// A candidate list: sample indices as stored.
+pub(crate) enum Candidates<'a> {
+    /// Narrow indices, inline in a version-2 cell record.
+    Narrow(std::slice::Iter<'a, Archived<u16>>),
+    /// Wide indices: a version-1 list, a version-2 long list or wide record.
+    Wide(std::slice::Iter<'a, Archived<u32>>),
+}
+
+impl Iterator for Candidates<'_> {
+    type Item = u32;
+
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        match self {
+            Candidates::Narrow(i) => i.next().map(|v| u32::from(v.to_native())),
+            Candidates::Wide(i) => i.next().map(|v| v.to_native()),
+        }
+    }
+}
+
+/// The `k` nearest admissible samples for `target` in its cell, with the joint-space
+/// screen when the table has one and `joints_rad` is given.
+#[inline]
+pub(crate) fn select(
+    source: &impl ExactSource,
+    header: &Header,
+    target: &Target,
+    joints_rad: Option<&[f64]>,
+) -> Result<Selection, Status> {
+    let p = target.position_mm;
+    let cell = header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
+    let candidates = source
+        .candidates(cell)
+        .ok_or(Status::NoAdmissibleNeighbour)?;
+    let radius_rad = header.joint_radius_rad;
+    let screen = joints_rad.filter(|_| radius_rad > 0.0);
+    Ok(method::select(
+        &header.method,
+        p,
+        target.config,
+        candidates,
+        |i| {
+            if let Some(target_joints) = screen {
+                if !source.joints_within(i, target_joints, radius_rad) {
+                    return None;
+                }
+            }
+            source.actual_and_config(i)
+        },
+    ))
+}
+
+/// The exact prediction at `target`: the method over its cell's candidates.
+#[inline]
+pub(crate) fn interpolate(
+    source: &impl ExactSource,
+    header: &Header,
+    target: &Target,
+    joints_rad: Option<&[f64]>,
+) -> Correction {
+    let estimate = select(source, header, target, joints_rad).and_then(|selection| {
+        let sample = |i: u32| {
+            let (actual, _) = source.actual_and_config(i).unwrap_or(([0.0; 3], 0));
+            (actual, source.norm(i), source.error(i))
+        };
+        method::estimate(&header.method, target.position_mm, &selection, sample)
+            .ok_or(Status::NoAdmissibleNeighbour)
+    });
+    match estimate {
+        Ok(e) => Correction {
+            position_error_mm: e.position_error_mm,
+            orientation_error_rad: e.orientation_error_rad,
+            neighbours: e.neighbours,
+            status: Status::Ok,
+        },
+        Err(status) => Correction::failed(status),
+    }
+}
+
+/// The exact prediction with its neighbours, degrees and weights.
+pub(crate) fn explain(
+    source: &impl ExactSource,
+    header: &Header,
+    target: &Target,
+    joints_rad: Option<&[f64]>,
+) -> Result<Prediction, Status> {
+    let selection = select(source, header, target, joints_rad)?;
+    let actual = |i: u32| source.actual_and_config(i).map_or([0.0; 3], |(a, _)| a);
+    let neighbours = method::neighbours(target.position_mm, &selection, actual);
+    method::predict(&header.method, neighbours.as_slice(), |i| source.error(i))
+        .ok_or(Status::NoAdmissibleNeighbour)
+}
+
+/// A version-1 table's data.
+pub(crate) struct V1<'a>(pub &'a v1::ArchivedTableData);
+
+impl ExactSource for V1<'_> {
+    #[inline]
+    fn candidates(&self, cell: usize) -> Option<Candidates<'_>> {
+        let c = self.0.cells.get(cell)?;
+        let start = c.list_start.to_native() as usize;
+        let end = start.checked_add(c.list_len.to_native() as usize)?;
+        Some(Candidates::Wide(
+            self.0.list_samples.get(start..end)?.iter(),
+        ))
+    }
+
+    #[inline]
+    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)> {
+        let s = self.0.samples.get(i as usize)?;
+        Some((s.actual_mm.map(|v| v.to_native()), s.config))
+    }
+
+    #[inline]
+    fn norm(&self, i: u32) -> f64 {
+        self.0
+            .actual_norms_mm
+            .get(i as usize)
+            .map_or(0.0, |n| n.to_native())
+    }
+
+    #[inline]
+    fn error(&self, i: u32) -> SampleError {
+        match self.0.samples.get(i as usize) {
+            Some(s) => SampleError {
+                position_mm: s.error_mm.map(|v| v.to_native()),
+                orientation_rad: s.rotation_error_rad.map(|v| v.to_native()),
+            },
+            None => SampleError::default(),
+        }
+    }
+
+    #[inline]
+    fn joints_within(&self, i: u32, target_rad: &[f64], radius_rad: f64) -> bool {
+        self.0.joints_rad.get(i as usize).is_some_and(|q| {
+            let q = q.map(|v| v.to_native());
+            method::joints_within(&q, target_rad, radius_rad)
+        })
+    }
+}
+
+/// A version-2 table's data, with the header's joint count and whether it holds
+/// orientation errors.
+pub(crate) struct V2<'a> {
+    pub data: &'a v2::ArchivedTableData,
+    pub joint_count: usize,
+    pub orientation: bool,
+}
+
+impl<'a> V2<'a> {
+    /// The version-2 data of a table with `header`.
+    pub fn new(data: &'a v2::ArchivedTableData, header: &Header) -> V2<'a> {
+        V2 {
+            data,
+            joint_count: header.joint_count as usize,
+            orientation: header.content_flags & CONTENT_ORIENTATION != 0,
+        }
+    }
+}
+
+impl ExactSource for V2<'_> {
+    #[inline]
+    fn candidates(&self, cell: usize) -> Option<Candidates<'_>> {
+        let d = self.data;
+        if let Some(record) = d.cells.get(cell) {
+            let count = record[0].to_native() as usize;
+            if count <= v2::INLINE_CANDIDATES {
+                return Some(Candidates::Narrow(record.get(1..=count)?.iter()));
+            }
+            let start = record[1].to_native() as usize | (record[2].to_native() as usize) << 16;
+            return Some(Candidates::Wide(
+                d.overflow.get(start..start.checked_add(count)?)?.iter(),
+            ));
+        }
+        let record = d.cells_wide.get(cell)?;
+        let count = record[0].to_native() as usize;
+        if count <= v2::INLINE_CANDIDATES_WIDE {
+            return Some(Candidates::Wide(record.get(1..=count)?.iter()));
+        }
+        let start = record[1].to_native() as usize;
+        Some(Candidates::Wide(
+            d.overflow.get(start..start.checked_add(count)?)?.iter(),
+        ))
+    }
+
+    #[inline]
+    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)> {
+        let s = self.data.samples.get(i as usize)?;
+        let config = self
+            .data
+            .configs
+            .get(i as usize)
+            .copied()
+            .unwrap_or(CONFIG_UNKNOWN);
+        Some((s.actual_mm.map(|v| v.to_native()), config))
+    }
+
+    #[inline]
+    fn norm(&self, i: u32) -> f64 {
+        self.data
+            .samples
+            .get(i as usize)
+            .map_or(0.0, |s| s.norm_mm.to_native())
+    }
+
+    #[inline]
+    fn error(&self, i: u32) -> SampleError {
+        let i = i as usize;
+        let three =
+            |v: Option<&Archived<[f64; 3]>>| v.map_or([0.0; 3], |v| v.map(|x| x.to_native()));
+        SampleError {
+            position_mm: three(self.data.errors_mm.get(i)),
+            orientation_rad: if self.orientation {
+                three(self.data.orientation_errors_rad.get(i))
+            } else {
+                [0.0; 3]
+            },
+        }
+    }
+
+    #[inline]
+    fn joints_within(&self, i: u32, target_rad: &[f64], radius_rad: f64) -> bool {
+        let n = self.joint_count.min(MAX_JOINTS);
+        let start = i as usize * n;
+        let Some(stored) = self.data.joints_rad.get(start..start + n) else {
+            return false;
+        };
+        let mut q = [0.0; MAX_JOINTS];
+        for (out, v) in q.iter_mut().zip(stored) {
+            *out = v.to_native();
+        }
+        method::joints_within(&q[..n], target_rad, radius_rad)
+    }
+}
