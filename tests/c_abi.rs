@@ -263,6 +263,8 @@ fn run_smoke(exe: &Path, dir: &Path) {
     assert_eq!(line(&stdout, "query_bad_config"), ["2"]);
     assert_eq!(line(&stdout, "query_untouched"), ["1"]);
     assert_eq!(line(&stdout, "query_joints_null_joints"), ["1"]);
+    assert_eq!(line(&stdout, "query_joints_too_many"), ["2"]);
+    assert_eq!(line(&stdout, "joint_count"), ["0", "0"]);
     assert_eq!(line(&stdout, "compensate_null_out"), ["1"]);
     assert_eq!(line(&stdout, "compensate_bad_tolerance"), ["2"]);
     // ADWI_INVALID_HANDLE 8, from every function, for each of the three bogus handles.
@@ -300,11 +302,18 @@ fn run_smoke(exe: &Path, dir: &Path) {
     assert_eq!(
         stdout
             .lines()
-            .filter(|l| *l == "query_joints_agree 1")
+            .filter(|l| *l == "query_joints_agree 1 1")
             .count(),
         targets.len(),
         "{stdout}"
     );
+    let exacts: Vec<&str> = stdout.lines().filter(|l| l.starts_with("exact ")).collect();
+    let exact_compensations: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("compensate_exact "))
+        .collect();
+    assert_eq!(exacts.len(), targets.len(), "{stdout}");
+    assert_eq!(exact_compensations.len(), targets.len(), "{stdout}");
     let parse = |w: &str| -> f64 {
         match w {
             "nan" | "-nan" => f64::NAN,
@@ -328,28 +337,42 @@ fn run_smoke(exe: &Path, dir: &Path) {
                 "{p:?}"
             );
         }
-        let k = table.compensate(&target, 1e-9, 50);
-        let words: Vec<&str> = compensations[i].split_whitespace().skip(1).collect();
-        assert_eq!(words[0], (k.correction.status as i32).to_string());
-        assert_eq!(words[1], k.iterations.to_string());
-        assert_eq!(words[2], i32::from(k.converged).to_string());
+        let e = table.exact().query_target(&target);
+        let words: Vec<&str> = exacts[i].split_whitespace().skip(1).collect();
+        assert_eq!(words[0], (e.status as i32).to_string(), "target {p:?}");
+        assert_eq!(words[1], e.neighbours.to_string(), "target {p:?}");
         for axis in 0..3 {
-            let got = parse(words[3 + axis]);
-            let want = k.command_position_mm[axis];
-            assert!(got == want || (got.is_nan() && want.is_nan()), "{p:?}");
+            assert_eq!(parse(words[2 + axis]), e.position_error_mm[axis], "{p:?}");
         }
-        let residual = parse(words[6]);
-        assert!(residual == k.residual_mm || (residual.is_nan() && k.residual_mm.is_nan()));
+        for (k, line) in [
+            (table.compensate(&target, 1e-9, 50), compensations[i]),
+            (
+                table.exact().compensate(&target, 1e-9, 50),
+                exact_compensations[i],
+            ),
+        ] {
+            let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+            assert_eq!(words[0], (k.correction.status as i32).to_string());
+            assert_eq!(words[1], k.iterations.to_string());
+            assert_eq!(words[2], i32::from(k.converged).to_string());
+            for axis in 0..3 {
+                let got = parse(words[3 + axis]);
+                let want = k.command_position_mm[axis];
+                assert!(got == want || (got.is_nan() && want.is_nan()), "{p:?}");
+            }
+            let residual = parse(words[6]);
+            assert!(residual == k.residual_mm || (residual.is_nan() && k.residual_mm.is_nan()));
+        }
     }
 
-    // The worked example's printed prediction, through C.
-    let p1: Vec<f64> = queries[0]
+    // The worked example's printed prediction, through C's exact tier.
+    let p1: Vec<f64> = exacts[0]
         .split_whitespace()
         .skip(3)
         .take(3)
         .map(parse)
         .collect();
-    assert_eq!(queries[0].split_whitespace().nth(1), Some("0"));
+    assert_eq!(exacts[0].split_whitespace().nth(1), Some("0"));
     for axis in 0..3 {
         assert!(
             (p1[axis] - PREDICTED_MM[axis]).abs() <= 1e-9,

@@ -203,7 +203,14 @@ fn hybrid_queries_allocate_nothing() {
             let mut from_c = AdwiCorrection::default();
             // SAFETY: a live handle, readable target and joints, a writable output.
             let code = unsafe {
-                capi::adwi_table_query_joints(handle, p.as_ptr(), -1, q.as_ptr(), &mut from_c)
+                capi::adwi_table_query_joints(
+                    handle,
+                    p.as_ptr(),
+                    -1,
+                    q.as_ptr(),
+                    q.len(),
+                    &mut from_c,
+                )
             };
             assert_eq!(code, AdwiResult::Ok);
             assert_eq!(missing.status, Status::MissingJoints);

@@ -422,12 +422,24 @@ fn exercise_c_abi(
     let centre = [0, 1, 2].map(|a| 0.5 * (grid.origin_mm[a] + grid.max_mm()[a]));
     let mut c = AdwiCorrection::default();
     let mut k = AdwiCompensation::default();
-    let joints = [0.1, -1.0, 1.5, 0.0, 0.5, 0.0];
-    // SAFETY: a live handle, valid pointers to three and six doubles and to the outputs.
+    let joints: Vec<f64> = [0.1, -1.0, 1.5, 0.0, 0.5, 0.0]
+        .into_iter()
+        .cycle()
+        .take(table.joint_count().unwrap_or(6))
+        .collect();
+    // SAFETY: a live handle, valid pointers to three doubles, to `joints` and to the
+    // outputs.
     let codes = unsafe {
         [
             capi::adwi_table_query(handle, centre.as_ptr(), -1, &mut c),
-            capi::adwi_table_query_joints(handle, centre.as_ptr(), -1, joints.as_ptr(), &mut c),
+            capi::adwi_table_query_joints(
+                handle,
+                centre.as_ptr(),
+                -1,
+                joints.as_ptr(),
+                joints.len(),
+                &mut c,
+            ),
             capi::adwi_table_compensate(handle, centre.as_ptr(), -1, 1e-6, 10, &mut k),
         ]
     };

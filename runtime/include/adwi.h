@@ -21,9 +21,13 @@
  *  - Null pointers are refused with ADWI_NULL_POINTER; a handle that is not open, in the
  *    common case, with ADWI_INVALID_HANDLE (see adwi_table).
  *  - A panic inside the library never unwinds into C: it becomes ADWI_PANIC.
- *  - adwi_table_query and adwi_table_compensate do not allocate, lock or block, and may be
- *    called from several threads on the same handle at once. A handle must not be closed
- *    while another thread uses it.
+ *  - The query and compensate functions do not allocate, lock or block, and may be called
+ *    from several threads on the same handle at once. A handle must not be closed while
+ *    another thread uses it.
+ *  - Two tiers answer: adwi_table_query, _query_joints and _compensate serve the
+ *    continuous correction field (a servo loop's input: no jumps); the _exact variants
+ *    answer by the paper's method to the digit. A table without a served field (format
+ *    version 1, or built with a joint-space screen) answers both from the exact tier.
  *  - Only the open functions record a detailed message, per thread; read it with
  *    adwi_last_open_error.
  *
@@ -88,10 +92,14 @@ enum {
     ADWI_STATUS_INVALID_INPUT = 3,  /* target not finite; correction zero */
     ADWI_STATUS_MISSING_JOINTS = 4, /* hybrid table queried without joint angles: use
                                        adwi_table_query_joints; correction zero */
-    ADWI_STATUS_NUMERICAL_FAILURE = 5 /* the prediction came out NaN or infinite (degenerate
-                                         geometry, e.g. a target and a sample both within
-                                         ~1e-160 mm of the base origin) and is withheld;
-                                         correction zero */
+    ADWI_STATUS_NUMERICAL_FAILURE = 5, /* the prediction came out NaN or infinite (degenerate
+                                          geometry, e.g. a target and a sample both within
+                                          ~1e-160 mm of the base origin) and is withheld;
+                                          correction zero */
+    ADWI_STATUS_UNCOVERED_CELL = 6 /* the served field is not defined in the target's cell
+                                      (a corner has no admissible sample; never
+                                      extrapolated); the exact tier may answer there;
+                                      correction zero */
 };
 
 /* Flags for adwi_table_open_with. */
@@ -103,7 +111,7 @@ enum {
 typedef struct adwi_correction {
     double position_error_mm[3];     /* actual - nominal, mm */
     double orientation_error_rad[3]; /* rotation vector of R_actual * R_nominal^T, rad; 0 without orientation */
-    uint32_t neighbours;             /* neighbours weighted */
+    uint32_t neighbours;             /* neighbours weighted (exact), nodes blended (served: 8) */
     int32_t status;                  /* ADWI_STATUS_*; other fields are zero unless OK */
 } adwi_correction;
 
@@ -128,24 +136,45 @@ adwi_result adwi_table_open_with(const char *path, uint32_t flags, adwi_table **
  * may be freed afterwards. */
 adwi_result adwi_table_open_bytes(const uint8_t *bytes, size_t len, adwi_table **out);
 
-/* The correction at target_mm for configuration config (-1 = unknown). ADWI_OK whenever
- * the table answered; out->status says whether the correction holds. */
+/* The served correction (the continuous field) at target_mm for configuration config
+ * (-1 = unknown). ADWI_OK whenever the table answered; out->status says whether the
+ * correction holds. */
 adwi_result adwi_table_query(const adwi_table *table, const double target_mm[3],
                              int32_t config, adwi_correction *out);
 
-/* As adwi_table_query, for a target the controller reaches with joint angles joints_rad
- * (six doubles, rad). The only query a hybrid table (calibrated kinematic model plus
- * interpolated residuals) answers; on any table it also applies the joint-space screen
- * when the table was built with one. */
-adwi_result adwi_table_query_joints(const adwi_table *table, const double target_mm[3],
-                                    int32_t config, const double joints_rad[6],
-                                    adwi_correction *out);
+/* As adwi_table_query, from the exact tier: the paper's method to the digit. */
+adwi_result adwi_table_query_exact(const adwi_table *table, const double target_mm[3],
+                                   int32_t config, adwi_correction *out);
 
-/* Iterates command <- target - error(command) until the residual is at most tolerance_mm
- * or max_iterations queries were made. */
+/* As adwi_table_query, for a target the controller reaches with the n_joints joint values
+ * joints_rad (rad; mm for prismatic joints). n_joints must be the table's joint count
+ * (adwi_table_joint_count) when it has one, else ADWI_INVALID_ARGUMENT. The only query a
+ * hybrid table (calibrated kinematic model plus the residual field) answers; on any table
+ * it also applies the joint-space screen when the table was built with one. */
+adwi_result adwi_table_query_joints(const adwi_table *table, const double target_mm[3],
+                                    int32_t config, const double *joints_rad,
+                                    size_t n_joints, adwi_correction *out);
+
+/* As adwi_table_query_joints, from the exact tier. */
+adwi_result adwi_table_query_joints_exact(const adwi_table *table, const double target_mm[3],
+                                          int32_t config, const double *joints_rad,
+                                          size_t n_joints, adwi_correction *out);
+
+/* Iterates command <- target - error(command) on the served field until the residual is at
+ * most tolerance_mm or max_iterations queries were made. */
 adwi_result adwi_table_compensate(const adwi_table *table, const double target_mm[3],
                                   int32_t config, double tolerance_mm,
                                   uint32_t max_iterations, adwi_compensation *out);
+
+/* As adwi_table_compensate, on the exact field (which can jump: the iteration may then
+ * cycle and report converged = 0). */
+adwi_result adwi_table_compensate_exact(const adwi_table *table, const double target_mm[3],
+                                        int32_t config, double tolerance_mm,
+                                        uint32_t max_iterations, adwi_compensation *out);
+
+/* The number of joint values adwi_table_query_joints takes: the robot's joint count, or 0
+ * for a table whose answers do not depend on joint values. */
+adwi_result adwi_table_joint_count(const adwi_table *table, uint32_t *out);
 
 /* The number of samples in the table. */
 adwi_result adwi_table_sample_count(const adwi_table *table, uint32_t *out);

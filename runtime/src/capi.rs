@@ -22,6 +22,7 @@ use std::ffi::{c_char, c_int, CStr};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
+use crate::chain::MAX_JOINTS;
 use crate::residency::{Lock, OpenOptions};
 use crate::{AlignedBytes, Compensation, Correction, OpenError, Table, Target};
 
@@ -120,11 +121,12 @@ pub struct AdwiCorrection {
     pub position_error_mm: [f64; 3],
     /// Predicted orientation error (rotation vector), rad, base frame.
     pub orientation_error_rad: [f64; 3],
-    /// The number of neighbours weighted.
+    /// The number of neighbours weighted (exact tier), or of nodes blended (served: 8).
     pub neighbours: u32,
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
     /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them),
-    /// 5 numerical failure (a non-finite prediction, withheld).
+    /// 5 numerical failure (a non-finite prediction, withheld), 6 uncovered cell (the
+    /// served field is not defined there).
     pub status: i32,
 }
 
@@ -353,9 +355,75 @@ unsafe fn read3(p: *const f64) -> [f64; 3] {
     }
 }
 
-/// The correction at `target_mm` (x, y, z, mm, base frame) for configuration `config`
-/// (-1 unknown). Returns `ADWI_OK` whenever the table answered; `out->status` then says
-/// whether the correction holds. Does not allocate.
+/// Which tier a C call asks.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Tier {
+    Served,
+    Exact,
+}
+
+/// The shared body of the query exports: checks the pointers and arguments, reads the
+/// target (and `n_joints` joint values when given), answers from `tier`.
+///
+/// # Safety
+///
+/// As [`adwi_table_query_joints`].
+unsafe fn query_c(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    joints: Option<(*const f64, usize)>,
+    out: *mut AdwiCorrection,
+    tier: Tier,
+) -> AdwiResult {
+    guarded(|| {
+        let joints_null = joints.is_some_and(|(p, _)| p.is_null());
+        if table.is_null() || target_mm.is_null() || joints_null || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        // SAFETY: a handle from an open function by contract.
+        let table = match unsafe { open_table(table) } {
+            Ok(table) => table,
+            Err(code) => return code,
+        };
+        let Some(config) = config_of(config) else {
+            return AdwiResult::InvalidArgument;
+        };
+        // SAFETY: non-null, valid for three doubles by contract.
+        let position_mm = unsafe { read3(target_mm) };
+        let target = Target {
+            position_mm,
+            config,
+        };
+        let c = match joints {
+            None => match tier {
+                Tier::Served => table.query_target(&target),
+                Tier::Exact => table.exact().query_target(&target),
+            },
+            Some((p, n)) => {
+                if n > MAX_JOINTS || table.joint_count().is_some_and(|count| count != n) {
+                    return AdwiResult::InvalidArgument;
+                }
+                let mut q = [0.0; MAX_JOINTS];
+                for (i, value) in q.iter_mut().enumerate().take(n) {
+                    // SAFETY: non-null, valid for `n` doubles by contract.
+                    *value = unsafe { p.add(i).read_unaligned() };
+                }
+                match tier {
+                    Tier::Served => table.query_with_joints(&target, &q[..n]),
+                    Tier::Exact => table.exact().query_with_joints(&target, &q[..n]),
+                }
+            }
+        };
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(c.into()) };
+        AdwiResult::Ok
+    })
+}
+
+/// The served correction (the continuous field) at `target_mm` (x, y, z, mm, base frame)
+/// for configuration `config` (-1 unknown). Returns `ADWI_OK` whenever the table answered;
+/// `out->status` then says whether the correction holds. Does not allocate.
 ///
 /// # Safety
 ///
@@ -368,96 +436,99 @@ pub unsafe extern "C" fn adwi_table_query(
     config: i32,
     out: *mut AdwiCorrection,
 ) -> AdwiResult {
-    guarded(|| {
-        if table.is_null() || target_mm.is_null() || out.is_null() {
-            return AdwiResult::NullPointer;
-        }
-        // SAFETY: a handle from an open function by contract.
-        let table = match unsafe { open_table(table) } {
-            Ok(table) => table,
-            Err(code) => return code,
-        };
-        let Some(config) = config_of(config) else {
-            return AdwiResult::InvalidArgument;
-        };
-        // SAFETY: non-null, valid for three doubles by contract.
-        let position_mm = unsafe { read3(target_mm) };
-        let c = table.query_target(&Target {
-            position_mm,
-            config,
-        });
-        // SAFETY: non-null, writable by contract.
-        unsafe { out.write(c.into()) };
-        AdwiResult::Ok
-    })
+    // SAFETY: the caller upholds this function's contract, which is `query_c`'s.
+    unsafe { query_c(table, target_mm, config, None, out, Tier::Served) }
 }
 
-/// The correction at `target_mm` (x, y, z, mm, base frame) for configuration `config`
-/// (-1 unknown), reached with joint angles `joints_rad` (six doubles, rad): the only query
-/// a hybrid table answers, and the one that applies a table's joint-space screen
-/// ([`Table::query_with_joints`]). Returns `ADWI_OK` whenever the table answered;
-/// `out->status` then says whether the correction holds. Does not allocate.
+/// As [`adwi_table_query`], from the exact tier: the paper's method to the digit.
 ///
 /// # Safety
 ///
-/// As [`adwi_table_query`]; `joints_rad` is null or valid for six doubles.
+/// As [`adwi_table_query`].
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_query_exact(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    out: *mut AdwiCorrection,
+) -> AdwiResult {
+    // SAFETY: the caller upholds this function's contract, which is `query_c`'s.
+    unsafe { query_c(table, target_mm, config, None, out, Tier::Exact) }
+}
+
+/// The served correction at `target_mm` for configuration `config` (-1 unknown), reached
+/// with the `n_joints` joint values at `joints_rad` (rad, mm for prismatic joints): the
+/// only query a hybrid table answers, and the one that applies a table's joint-space
+/// screen ([`Table::query_with_joints`]). `n_joints` must be the table's joint count
+/// ([`adwi_table_joint_count`]) when it has one, else `ADWI_INVALID_ARGUMENT`. Returns
+/// `ADWI_OK` whenever the table answered; `out->status` then says whether the correction
+/// holds. Does not allocate.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`]; `joints_rad` is null or valid for `n_joints` doubles.
 #[no_mangle]
 pub unsafe extern "C" fn adwi_table_query_joints(
     table: *const AdwiTable,
     target_mm: *const f64,
     config: i32,
     joints_rad: *const f64,
+    n_joints: usize,
     out: *mut AdwiCorrection,
 ) -> AdwiResult {
-    guarded(|| {
-        if table.is_null() || target_mm.is_null() || joints_rad.is_null() || out.is_null() {
-            return AdwiResult::NullPointer;
-        }
-        // SAFETY: a handle from an open function by contract.
-        let table = match unsafe { open_table(table) } {
-            Ok(table) => table,
-            Err(code) => return code,
-        };
-        let Some(config) = config_of(config) else {
-            return AdwiResult::InvalidArgument;
-        };
-        // SAFETY: non-null, valid for three doubles by contract.
-        let position_mm = unsafe { read3(target_mm) };
-        // SAFETY: non-null, valid for six doubles by contract (two reads of three).
-        let joints = unsafe {
-            let [a, b, c] = read3(joints_rad);
-            let [d, e, f] = read3(joints_rad.add(3));
-            [a, b, c, d, e, f]
-        };
-        let c = table.query_with_joints(
-            &Target {
-                position_mm,
-                config,
-            },
-            &joints,
-        );
-        // SAFETY: non-null, writable by contract.
-        unsafe { out.write(c.into()) };
-        AdwiResult::Ok
-    })
+    // SAFETY: the caller upholds this function's contract, which is `query_c`'s.
+    unsafe {
+        query_c(
+            table,
+            target_mm,
+            config,
+            Some((joints_rad, n_joints)),
+            out,
+            Tier::Served,
+        )
+    }
 }
 
-/// The command that lands the robot on `target_mm`: iterates until
-/// `|command + error(command) − target| <= tolerance_mm` or `max_iterations` queries.
-/// Returns `ADWI_OK` whenever the table answered; `out->converged` and
-/// `out->correction.status` say how well. Does not allocate.
+/// As [`adwi_table_query_joints`], from the exact tier.
 ///
 /// # Safety
 ///
-/// As [`adwi_table_query`].
+/// As [`adwi_table_query_joints`].
 #[no_mangle]
-pub unsafe extern "C" fn adwi_table_compensate(
+pub unsafe extern "C" fn adwi_table_query_joints_exact(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    joints_rad: *const f64,
+    n_joints: usize,
+    out: *mut AdwiCorrection,
+) -> AdwiResult {
+    // SAFETY: the caller upholds this function's contract, which is `query_c`'s.
+    unsafe {
+        query_c(
+            table,
+            target_mm,
+            config,
+            Some((joints_rad, n_joints)),
+            out,
+            Tier::Exact,
+        )
+    }
+}
+
+/// The shared body of the compensation exports.
+///
+/// # Safety
+///
+/// As [`adwi_table_compensate`].
+unsafe fn compensate_c(
     table: *const AdwiTable,
     target_mm: *const f64,
     config: i32,
     tolerance_mm: f64,
     max_iterations: u32,
     out: *mut AdwiCompensation,
+    tier: Tier,
 ) -> AdwiResult {
     guarded(|| {
         if table.is_null() || target_mm.is_null() || out.is_null() {
@@ -476,16 +547,104 @@ pub unsafe extern "C" fn adwi_table_compensate(
         }
         // SAFETY: non-null, valid for three doubles by contract.
         let position_mm = unsafe { read3(target_mm) };
-        let c = table.compensate(
-            &Target {
-                position_mm,
-                config,
-            },
-            tolerance_mm,
-            max_iterations,
-        );
+        let target = Target {
+            position_mm,
+            config,
+        };
+        let c = match tier {
+            Tier::Served => table.compensate(&target, tolerance_mm, max_iterations),
+            Tier::Exact => table
+                .exact()
+                .compensate(&target, tolerance_mm, max_iterations),
+        };
         // SAFETY: non-null, writable by contract.
         unsafe { out.write(c.into()) };
+        AdwiResult::Ok
+    })
+}
+
+/// The command that lands the robot on `target_mm` by the served field: iterates until
+/// `|command + error(command) − target| <= tolerance_mm` or `max_iterations` queries.
+/// Returns `ADWI_OK` whenever the table answered; `out->converged` and
+/// `out->correction.status` say how well. Does not allocate.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`].
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_compensate(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    tolerance_mm: f64,
+    max_iterations: u32,
+    out: *mut AdwiCompensation,
+) -> AdwiResult {
+    // SAFETY: the caller upholds this function's contract, which is `compensate_c`'s.
+    unsafe {
+        compensate_c(
+            table,
+            target_mm,
+            config,
+            tolerance_mm,
+            max_iterations,
+            out,
+            Tier::Served,
+        )
+    }
+}
+
+/// As [`adwi_table_compensate`], by the exact field.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`].
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_compensate_exact(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    config: i32,
+    tolerance_mm: f64,
+    max_iterations: u32,
+    out: *mut AdwiCompensation,
+) -> AdwiResult {
+    // SAFETY: the caller upholds this function's contract, which is `compensate_c`'s.
+    unsafe {
+        compensate_c(
+            table,
+            target_mm,
+            config,
+            tolerance_mm,
+            max_iterations,
+            out,
+            Tier::Exact,
+        )
+    }
+}
+
+/// The number of joint values [`adwi_table_query_joints`] takes, written to `out`: the
+/// robot's joint count for a table with joint values or a model, 0 for one whose answers
+/// do not depend on joints.
+///
+/// # Safety
+///
+/// `table` is null or a live handle; `out` is null or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn adwi_table_joint_count(
+    table: *const AdwiTable,
+    out: *mut u32,
+) -> AdwiResult {
+    guarded(|| {
+        if table.is_null() || out.is_null() {
+            return AdwiResult::NullPointer;
+        }
+        // SAFETY: a handle from an open function by contract.
+        let n = match unsafe { open_table(table) } {
+            Ok(table) => table.joint_count().unwrap_or(0),
+            Err(code) => return code,
+        };
+        // SAFETY: non-null, writable by contract.
+        unsafe { out.write(n as u32) };
         AdwiResult::Ok
     })
 }
@@ -639,6 +798,7 @@ mod tests {
             (crate::Status::InvalidInput, 3),
             (crate::Status::MissingJoints, 4),
             (crate::Status::NumericalFailure, 5),
+            (crate::Status::UncoveredCell, 6),
         ];
         for (status, value) in statuses {
             assert_eq!(status as i32, value);
@@ -691,7 +851,7 @@ mod tests {
             let codes = unsafe {
                 [
                     adwi_table_query(bogus, target.as_ptr(), -1, &mut c),
-                    adwi_table_query_joints(bogus, target.as_ptr(), -1, joints.as_ptr(), &mut c),
+                    adwi_table_query_joints(bogus, target.as_ptr(), -1, joints.as_ptr(), 6, &mut c),
                     adwi_table_compensate(bogus, target.as_ptr(), -1, 1e-6, 10, &mut k),
                     adwi_table_sample_count(bogus, &mut n),
                     adwi_table_close(bogus),

@@ -41,7 +41,8 @@ _Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT =
                "adwi_result values");
 _Static_assert(ADWI_STATUS_OK == 0 && ADWI_STATUS_OUTSIDE_GRID == 1 &&
                    ADWI_STATUS_NO_NEIGHBOUR == 2 && ADWI_STATUS_INVALID_INPUT == 3 &&
-                   ADWI_STATUS_MISSING_JOINTS == 4 && ADWI_STATUS_NUMERICAL_FAILURE == 5,
+                   ADWI_STATUS_MISSING_JOINTS == 4 && ADWI_STATUS_NUMERICAL_FAILURE == 5 &&
+                   ADWI_STATUS_UNCOVERED_CELL == 6,
                "ADWI_STATUS_* values");
 _Static_assert(ADWI_OPEN_PREFAULT == 1u && ADWI_OPEN_LOCK == 2u && ADWI_OPEN_LOCK_REQUIRED == 4u,
                "ADWI_OPEN_* values");
@@ -120,7 +121,12 @@ int main(int argc, char **argv) {
     printf("query_untouched %d\n", memcmp(&c, &sentinel, sizeof c) == 0);
     const double joints[6] = {0.0, -1.0, 1.5, 0.0, 0.5, 0.0};
     printf("query_joints_null_joints %d\n",
-           (int)adwi_table_query_joints(table, target, -1, NULL, &c));
+           (int)adwi_table_query_joints(table, target, -1, NULL, 6, &c));
+    printf("query_joints_too_many %d\n",
+           (int)adwi_table_query_joints(table, target, -1, joints, 100, &c));
+    uint32_t joint_count = 99;
+    code = adwi_table_joint_count(table, &joint_count);
+    printf("joint_count %d %u\n", (int)code, joint_count);
     adwi_compensation k;
     memset(&k, 0xCD, sizeof k);
     printf("compensate_null_out %d\n",
@@ -142,7 +148,7 @@ int main(int argc, char **argv) {
         adwi_compensation before_k = k;
         printf("invalid_handle %d %d %d %d %d\n",
                (int)adwi_table_query(bogus[i], target, -1, &c),
-               (int)adwi_table_query_joints(bogus[i], target, -1, joints, &c),
+               (int)adwi_table_query_joints(bogus[i], target, -1, joints, 6, &c),
                (int)adwi_table_compensate(bogus[i], target, -1, 1e-6, 20, &k),
                (int)adwi_table_sample_count(bogus[i], &n),
                (int)adwi_table_close(bogus[i]));
@@ -160,9 +166,10 @@ int main(int argc, char **argv) {
     int config;
     while (scanf("%lf %lf %lf %d", &x, &y, &z, &config) == 4) {
         const double p[3] = {x, y, z};
-        adwi_correction a, b;
+        adwi_correction a, b, e;
         if (adwi_table_query(table, p, config, &a) != ADWI_OK ||
-            adwi_table_query(copy, p, config, &b) != ADWI_OK) {
+            adwi_table_query(copy, p, config, &b) != ADWI_OK ||
+            adwi_table_query_exact(table, p, config, &e) != ADWI_OK) {
             printf("query_failed\n");
             return 1;
         }
@@ -170,18 +177,29 @@ int main(int argc, char **argv) {
                a.position_error_mm[0], a.position_error_mm[1], a.position_error_mm[2],
                a.orientation_error_rad[0], a.orientation_error_rad[1],
                a.orientation_error_rad[2]);
+        printf("exact %d %u %.17g %.17g %.17g\n", e.status, e.neighbours,
+               e.position_error_mm[0], e.position_error_mm[1], e.position_error_mm[2]);
         printf("handles_agree %d\n", memcmp(&a, &b, sizeof a) == 0);
         /* A position-only table without a joint screen ignores the joint angles. */
-        if (adwi_table_query_joints(table, p, config, joints, &b) != ADWI_OK) {
+        if (adwi_table_query_joints(table, p, config, joints, 6, &b) != ADWI_OK ||
+            adwi_table_query_joints_exact(table, p, config, joints, 6, &c) != ADWI_OK) {
             printf("query_failed\n");
             return 1;
         }
-        printf("query_joints_agree %d\n", memcmp(&a, &b, sizeof a) == 0);
+        printf("query_joints_agree %d %d\n", memcmp(&a, &b, sizeof a) == 0,
+               memcmp(&e, &c, sizeof e) == 0);
         if (adwi_table_compensate(table, p, config, 1e-9, 50, &k) != ADWI_OK) {
             printf("compensate_failed\n");
             return 1;
         }
         printf("compensate %d %u %d %.17g %.17g %.17g %.17g\n", k.correction.status,
+               k.iterations, k.converged, k.command_position_mm[0], k.command_position_mm[1],
+               k.command_position_mm[2], k.residual_mm);
+        if (adwi_table_compensate_exact(table, p, config, 1e-9, 50, &k) != ADWI_OK) {
+            printf("compensate_failed\n");
+            return 1;
+        }
+        printf("compensate_exact %d %u %d %.17g %.17g %.17g %.17g\n", k.correction.status,
                k.iterations, k.converged, k.command_position_mm[0], k.command_position_mm[1],
                k.command_position_mm[2], k.residual_mm);
     }
