@@ -664,7 +664,7 @@ fn an_oversized_grid_is_refused_before_any_work() {
 fn a_mostly_empty_grid_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
     let mut csv = String::from("x,y,z,dx,dy,dz\n");
-    for i in 0..59 {
+    for i in 0..72 {
         let v = 100.0 * i as f64;
         csv.push_str(&format!("{v},{v},{v},0.1,0.2,0.3\n"));
     }

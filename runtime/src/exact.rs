@@ -95,8 +95,15 @@ pub(crate) fn interpolate(
             let (actual, _) = source.actual_and_config(i).unwrap_or(([0.0; 3], 0));
             (actual, source.norm(i), source.error(i))
         };
-        method::estimate(&header.method, target.position_mm, &selection, sample)
-            .ok_or(Status::NoAdmissibleNeighbour)
+        let orientation = header.content_flags & CONTENT_ORIENTATION != 0;
+        method::estimate(
+            &header.method,
+            target.position_mm,
+            &selection,
+            orientation,
+            sample,
+        )
+        .ok_or(Status::NoAdmissibleNeighbour)
     });
     match estimate {
         Ok(e) => Correction {

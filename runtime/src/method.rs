@@ -287,16 +287,67 @@ const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
     },
 };
 
+/// Up to `N` values of a fixed-size array, of which the first `len` are set: the query
+/// path's scratch space, which is never zeroed (a query writes what it reads).
+#[derive(Clone, Copy)]
+struct Slots<T: Copy, const N: usize> {
+    len: usize,
+    items: [std::mem::MaybeUninit<T>; N],
+}
+
+impl<T: Copy, const N: usize> Slots<T, N> {
+    #[inline]
+    fn new() -> Self {
+        Slots {
+            len: 0,
+            items: [std::mem::MaybeUninit::uninit(); N],
+        }
+    }
+
+    /// Appends `value`; ignored when full.
+    #[inline]
+    fn push(&mut self, value: T) {
+        if let Some(slot) = self.items.get_mut(self.len) {
+            slot.write(value);
+            self.len += 1;
+        }
+    }
+
+    /// Sets item `i` of the set ones, or the next one (`i == len`, growing by one); other
+    /// indices are ignored.
+    #[inline]
+    fn set(&mut self, i: usize, value: T) {
+        if i <= self.len {
+            if let Some(slot) = self.items.get_mut(i) {
+                slot.write(value);
+                self.len = self.len.max(i + 1);
+            }
+        }
+    }
+
+    #[inline]
+    fn as_slice(&self) -> &[T] {
+        // SAFETY: the first `len` items were written (`push` and `set` only ever extend
+        // the set prefix by one), and `len <= N`.
+        unsafe { std::slice::from_raw_parts(self.items.as_ptr().cast::<T>(), self.len) }
+    }
+}
+
+impl<T: Copy + std::fmt::Debug, const N: usize> std::fmt::Debug for Slots<T, N> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.as_slice()).finish()
+    }
+}
+
 /// The `k` nearest admissible samples, nearest first, ties broken by the smaller sample
 /// index: offering candidates in any order gives the same result. Only keys are kept
 /// (sample index and squared distance, 12 bytes a slot), so that ranking candidates moves
 /// little memory; degrees are computed for the survivors only.
 #[derive(Clone, Copy, Debug)]
 pub struct Selection {
-    len: usize,
     capacity: usize,
-    samples: [u32; MAX_NEIGHBOURS],
-    keys_mm2: [f64; MAX_NEIGHBOURS],
+    samples: Slots<u32, MAX_NEIGHBOURS>,
+    keys_mm2: Slots<f64, MAX_NEIGHBOURS>,
 }
 
 impl Selection {
@@ -304,10 +355,9 @@ impl Selection {
     #[inline]
     pub fn new(k: u32) -> Selection {
         Selection {
-            len: 0,
             capacity: (k as usize).clamp(1, MAX_NEIGHBOURS),
-            samples: [0; MAX_NEIGHBOURS],
-            keys_mm2: [0.0; MAX_NEIGHBOURS],
+            samples: Slots::new(),
+            keys_mm2: Slots::new(),
         }
     }
 
@@ -315,13 +365,14 @@ impl Selection {
     /// the selection.
     #[inline]
     pub fn would_accept(&self, sample: u32, key_mm2: f64) -> bool {
-        self.len < self.capacity || self.precedes(sample, key_mm2, self.len - 1)
+        let len = self.len();
+        len < self.capacity || self.precedes(sample, key_mm2, len - 1)
     }
 
     #[inline]
     fn precedes(&self, sample: u32, key_mm2: f64, slot: usize) -> bool {
-        let d = self.keys_mm2[slot];
-        key_mm2 < d || (key_mm2 == d && sample < self.samples[slot])
+        let d = self.keys_mm2.as_slice()[slot];
+        key_mm2 < d || (key_mm2 == d && sample < self.samples.as_slice()[slot])
     }
 
     /// Offers a candidate; it is kept if it is among the `k` nearest seen so far.
@@ -330,39 +381,46 @@ impl Selection {
         if !self.would_accept(sample, key_mm2) {
             return;
         }
-        let mut i = if self.len < self.capacity {
-            self.len += 1;
-            self.len - 1
-        } else {
-            self.capacity - 1
-        };
+        // The slot it takes: after the last that precedes it; the ones behind move back
+        // (the farthest drops off when full).
+        let len = self.len();
+        let mut i = len.min(self.capacity - 1);
         while i > 0 && self.precedes(sample, key_mm2, i - 1) {
-            self.samples[i] = self.samples[i - 1];
-            self.keys_mm2[i] = self.keys_mm2[i - 1];
             i -= 1;
         }
-        self.samples[i] = sample;
-        self.keys_mm2[i] = key_mm2;
+        let last = len.min(self.capacity - 1);
+        let mut j = last;
+        while j > i {
+            let (s, k) = (
+                self.samples.as_slice()[j - 1],
+                self.keys_mm2.as_slice()[j - 1],
+            );
+            self.samples.set(j, s);
+            self.keys_mm2.set(j, k);
+            j -= 1;
+        }
+        self.samples.set(i, sample);
+        self.keys_mm2.set(i, key_mm2);
     }
 
     /// The selected sample indices, nearest first.
     pub fn samples(&self) -> &[u32] {
-        &self.samples[..self.len]
+        self.samples.as_slice()
     }
 
     /// Their squared distances to the target, mm².
     pub fn keys_mm2(&self) -> &[f64] {
-        &self.keys_mm2[..self.len]
+        self.keys_mm2.as_slice()
     }
 
     /// The number of selected neighbours.
     pub fn len(&self) -> usize {
-        self.len
+        self.samples.len
     }
 
     /// Whether no neighbour is selected.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.len() == 0
     }
 }
 
@@ -416,14 +474,13 @@ pub fn select(
 /// The weights of selected neighbours, in selection order; `Σ q_i = 1` when non-empty.
 #[derive(Clone, Copy, Debug)]
 pub struct Weights {
-    len: usize,
-    q: [f64; MAX_NEIGHBOURS],
+    q: Slots<f64, MAX_NEIGHBOURS>,
 }
 
 impl Weights {
     /// The weights, in the order of the neighbours they were computed for.
     pub fn as_slice(&self) -> &[f64] {
-        &self.q[..self.len]
+        self.q.as_slice()
     }
 }
 
@@ -465,38 +522,44 @@ fn pow_r(x: f64, r: f64) -> f64 {
 }
 
 /// What the weights and the prediction need of up to [`MAX_NEIGHBOURS`] neighbours, side
-/// by side: λ, ζ, which coincide with the target, and their errors.
+/// by side: λ, ζ, which coincide with the target, and their errors (orientation errors only
+/// when the prediction includes them: a position-only table does no orientation work).
 struct Gathered {
-    len: usize,
-    lambda: [f64; MAX_NEIGHBOURS],
-    zeta: [f64; MAX_NEIGHBOURS],
+    lambda: Slots<f64, MAX_NEIGHBOURS>,
+    zeta: Slots<f64, MAX_NEIGHBOURS>,
     coincident: u32,
-    position_mm: [[f64; 3]; MAX_NEIGHBOURS],
-    orientation_rad: [[f64; 3]; MAX_NEIGHBOURS],
+    position_mm: Slots<[f64; 3], MAX_NEIGHBOURS>,
+    orientation_rad: Slots<[f64; 3], MAX_NEIGHBOURS>,
 }
 
 impl Gathered {
     #[inline]
     fn new() -> Gathered {
         Gathered {
-            len: 0,
-            lambda: [0.0; MAX_NEIGHBOURS],
-            zeta: [0.0; MAX_NEIGHBOURS],
+            lambda: Slots::new(),
+            zeta: Slots::new(),
             coincident: 0,
-            position_mm: [[0.0; 3]; MAX_NEIGHBOURS],
-            orientation_rad: [[0.0; 3]; MAX_NEIGHBOURS],
+            position_mm: Slots::new(),
+            orientation_rad: Slots::new(),
         }
     }
 
     #[inline]
-    fn push(&mut self, degree: &Degree, error: &SampleError) {
-        if self.len < MAX_NEIGHBOURS {
-            self.lambda[self.len] = degree.lambda_per_mm;
-            self.zeta[self.len] = degree.zeta_per_mm2;
-            self.coincident |= u32::from(degree.coincident) << self.len;
-            self.position_mm[self.len] = error.position_mm;
-            self.orientation_rad[self.len] = error.orientation_rad;
-            self.len += 1;
+    fn len(&self) -> usize {
+        self.lambda.len
+    }
+
+    #[inline]
+    fn push(&mut self, degree: &Degree, error: &SampleError, orientation: bool) {
+        let i = self.len();
+        if i < MAX_NEIGHBOURS {
+            self.lambda.push(degree.lambda_per_mm);
+            self.zeta.push(degree.zeta_per_mm2);
+            self.coincident |= u32::from(degree.coincident) << i;
+            self.position_mm.push(error.position_mm);
+            if orientation {
+                self.orientation_rad.push(error.orientation_rad);
+            }
         }
     }
 }
@@ -508,12 +571,9 @@ pub fn weights(params: &MethodParams, neighbours: &[Neighbour]) -> Weights {
     let no_error = SampleError::default();
     neighbours
         .iter()
-        .for_each(|n| degrees.push(&n.degree, &no_error));
-    let mut out = Weights {
-        len: degrees.len,
-        q: [0.0; MAX_NEIGHBOURS],
-    };
-    weights_of_active(params, &degrees, all_active(degrees.len), &mut out.q);
+        .for_each(|n| degrees.push(&n.degree, &no_error, false));
+    let mut out = Weights { q: Slots::new() };
+    weights_of_active(params, &degrees, all_active(degrees.len()), &mut out.q);
     out
 }
 
@@ -535,34 +595,41 @@ fn weights_of_active(
     params: &MethodParams,
     degrees: &Gathered,
     active: u32,
-    q: &mut [f64; MAX_NEIGHBOURS],
+    q: &mut Slots<f64, MAX_NEIGHBOURS>,
 ) {
-    let n = degrees.len;
+    let n = degrees.len();
     let is_active = |i: usize| active & (1 << i) != 0;
     let coincident = degrees.coincident & active;
     if coincident != 0 {
         let share = 1.0 / coincident.count_ones() as f64;
-        for (i, q) in q.iter_mut().enumerate().take(n) {
-            *q = if coincident & (1 << i) != 0 {
-                share
-            } else {
-                0.0
-            };
+        for i in 0..n {
+            q.set(
+                i,
+                if coincident & (1 << i) != 0 {
+                    share
+                } else {
+                    0.0
+                },
+            );
         }
         return;
     }
     let r = params.power;
-    let mut lambda_r = [0.0; MAX_NEIGHBOURS];
-    let mut zeta_r = [0.0; MAX_NEIGHBOURS];
+    let (lambda, zeta) = (degrees.lambda.as_slice(), degrees.zeta.as_slice());
+    let mut lambda_r = Slots::<f64, MAX_NEIGHBOURS>::new();
+    let mut zeta_r = Slots::<f64, MAX_NEIGHBOURS>::new();
     let mut lambda_sum = 0.0;
     let mut zeta_sum = 0.0;
     for i in 0..n {
-        if is_active(i) {
-            lambda_r[i] = pow_r(degrees.lambda[i], r);
-            zeta_r[i] = pow_r(degrees.zeta[i], r);
-            lambda_sum += lambda_r[i];
-            zeta_sum += zeta_r[i];
-        }
+        let (l, z) = if is_active(i) {
+            (pow_r(lambda[i], r), pow_r(zeta[i], r))
+        } else {
+            (0.0, 0.0)
+        };
+        lambda_r.push(l);
+        zeta_r.push(z);
+        lambda_sum += l;
+        zeta_sum += z;
     }
     // q_i = ω1 λ_i^r / Σλ^r + ω2 ζ_i^r / Σζ^r, with the two quotients' divisors folded
     // into one factor each.
@@ -571,12 +638,14 @@ fn weights_of_active(
     } else {
         (0.0, 1.0 / zeta_sum)
     };
-    for (i, q) in q.iter_mut().enumerate().take(n) {
-        *q = if is_active(i) {
+    let (lambda_r, zeta_r) = (lambda_r.as_slice(), zeta_r.as_slice());
+    for i in 0..n {
+        let weight = if is_active(i) {
             lambda_factor * lambda_r[i] + zeta_factor * zeta_r[i]
         } else {
             0.0
         };
+        q.set(i, weight);
     }
 }
 
@@ -620,23 +689,24 @@ pub struct Estimate {
 fn weigh(
     params: &MethodParams,
     g: &Gathered,
-    q: &mut [f64; MAX_NEIGHBOURS],
+    q: &mut Slots<f64, MAX_NEIGHBOURS>,
 ) -> Option<(Estimate, u32)> {
-    let mut active = all_active(g.len);
+    let n = g.len();
+    let mut active = all_active(n);
+    let positions = g.position_mm.as_slice();
+    let orientations = g.orientation_rad.as_slice();
     loop {
         let count = active.count_ones();
         if count == 0 {
             return None;
         }
         weights_of_active(params, g, active, q);
+        let weights = q.as_slice();
         let mut position = [0.0; 3];
-        let mut orientation = [0.0; 3];
-        let rows = q.iter().zip(&g.position_mm).zip(&g.orientation_rad);
-        for (i, ((q, p), o)) in rows.enumerate().take(g.len) {
+        for i in 0..n {
             if active & (1 << i) != 0 {
                 for axis in 0..3 {
-                    position[axis] += q * p[axis];
-                    orientation[axis] += q * o[axis];
+                    position[axis] += weights[i] * positions[i][axis];
                 }
             }
         }
@@ -645,11 +715,11 @@ fn weigh(
             let bound_mm = params.radius_mm / count as f64;
             let bound_squared = bound_mm * bound_mm;
             let mut worst: Option<(usize, f64)> = None;
-            for i in 0..g.len {
+            for (i, p) in positions.iter().enumerate() {
                 if active & (1 << i) == 0 {
                     continue;
                 }
-                let gap_squared = norm_squared(sub(position, g.position_mm[i]));
+                let gap_squared = norm_squared(sub(position, *p));
                 // `>=` so that among equal gaps the farther neighbour is dropped first.
                 if gap_squared > bound_squared && worst.is_none_or(|(_, w)| gap_squared >= w) {
                     worst = Some((i, gap_squared));
@@ -658,6 +728,15 @@ fn weigh(
             if let Some((i, _)) = worst {
                 active &= !(1 << i);
                 continue;
+            }
+        }
+        // Orientation errors take the same weights, summed only when gathered.
+        let mut orientation = [0.0; 3];
+        for (i, o) in orientations.iter().enumerate() {
+            if active & (1 << i) != 0 {
+                for axis in 0..3 {
+                    orientation[axis] += weights[i] * o[axis];
+                }
             }
         }
         let estimate = Estimate {
@@ -673,13 +752,15 @@ fn weigh(
 /// errors and applies the consistency screen (40). The runtime's query path.
 ///
 /// `sample(i)` returns a selected sample's actual position (mm), its norm ([`norm_mm`],
-/// stored by tables) and its errors; it is called once for each index the selection holds. Returns `None` when the selection is empty or
-/// nothing survives the screen.
+/// stored by tables) and its errors; it is called once for each index the selection holds.
+/// Orientation errors are weighed only when `orientation` (the estimate's is zero
+/// otherwise). Returns `None` when the selection is empty or nothing survives the screen.
 #[inline]
 pub fn estimate(
     params: &MethodParams,
     target_mm: [f64; 3],
     selection: &Selection,
+    orientation: bool,
     sample: impl Fn(u32) -> ([f64; 3], f64, SampleError),
 ) -> Option<Estimate> {
     let target_norm = norm_mm(target_mm);
@@ -687,9 +768,9 @@ pub fn estimate(
     for (&i, &key) in selection.samples().iter().zip(selection.keys_mm2()) {
         let (actual_mm, actual_norm, error) = sample(i);
         let degree = degree_from_parts(target_mm, target_norm, actual_mm, actual_norm, key);
-        g.push(&degree, &error);
+        g.push(&degree, &error, orientation);
     }
-    let mut q = [0.0; MAX_NEIGHBOURS];
+    let mut q = Slots::new();
     weigh(params, &g, &mut q).map(|(e, _)| e)
 }
 
@@ -723,9 +804,9 @@ pub fn predict(
     let neighbours = &neighbours[..neighbours.len().min(MAX_NEIGHBOURS)];
     let mut g = Gathered::new();
     for n in neighbours {
-        g.push(&n.degree, &error_of(n.sample));
+        g.push(&n.degree, &error_of(n.sample), true);
     }
-    let mut q = [0.0; MAX_NEIGHBOURS];
+    let mut q = Slots::new();
     let (estimate, active) = weigh(params, &g, &mut q)?;
     let mut prediction = Prediction {
         position_error_mm: estimate.position_error_mm,
@@ -734,18 +815,14 @@ pub fn predict(
             len: 0,
             items: [EMPTY_NEIGHBOUR; MAX_NEIGHBOURS],
         },
-        weights: Weights {
-            len: 0,
-            q: [0.0; MAX_NEIGHBOURS],
-        },
+        weights: Weights { q: Slots::new() },
     };
-    for (i, n) in neighbours.iter().enumerate() {
+    for (i, (n, &weight)) in neighbours.iter().zip(q.as_slice()).enumerate() {
         if active & (1 << i) != 0 {
             let out = &mut prediction.neighbours;
             out.items[out.len] = *n;
             out.len += 1;
-            prediction.weights.q[prediction.weights.len] = q[i];
-            prediction.weights.len += 1;
+            prediction.weights.q.push(weight);
         }
     }
     Some(prediction)

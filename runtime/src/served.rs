@@ -27,55 +27,98 @@
 use crate::correction::{Correction, Status};
 use crate::format::v2::ArchivedTableData;
 use crate::format::Grid;
-use crate::method::CONFIG_UNKNOWN;
+
+/// What a served query needs of the grid, prepared once at open: the node strides and the
+/// first node of the set serving targets of unknown configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ServedGrid {
+    origin_mm: [f64; 3],
+    cell_mm: f64,
+    cells: [usize; 3],
+    /// Node offsets of a cell's 8 corners from its minimum one, x fastest.
+    corners: [usize; 8],
+    /// The first node of the first set (targets of unknown configuration).
+    first_any: usize,
+    /// Whether the samples carry configurations (targets' configurations then choose the
+    /// set).
+    with_configs: bool,
+}
+
+impl ServedGrid {
+    /// The prepared grid of a validated table with a served tier.
+    pub(crate) fn new(grid: &Grid, data: &ArchivedTableData) -> ServedGrid {
+        let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
+        let nxy = nx * ny;
+        ServedGrid {
+            origin_mm: grid.origin_mm,
+            cell_mm: grid.cell_mm,
+            cells: grid.dims.map(|d| d as usize),
+            corners: [0, 1, nx, nx + 1, nxy, nxy + 1, nxy + nx, nxy + nx + 1],
+            first_any: data
+                .node_sets
+                .first()
+                .map_or(0, |s| s.first_node.to_native() as usize),
+            with_configs: !data.configs.is_empty(),
+        }
+    }
+
+    /// The node index of the target's cell's minimum corner (x fastest over `dims + 1`
+    /// nodes per axis) and the target's fractional position in the cell, each in
+    /// `[0, 1]`; `None` outside the grid or for a non-finite position. Cells are half-open
+    /// except at the grid's maximum faces, as [`Grid::cell_of`] has them.
+    #[inline]
+    fn locate(&self, position_mm: [f64; 3]) -> Option<(usize, [f64; 3])> {
+        let mut cell = [0usize; 3];
+        let mut fraction = [0.0; 3];
+        for axis in 0..3 {
+            // A division, not a multiplication by the reciprocal, so that the cell is the one
+            // `Grid::cell_of` finds, to the last bit at cell faces.
+            let u = (position_mm[axis] - self.origin_mm[axis]) / self.cell_mm;
+            let cells = self.cells[axis];
+            // Written so that NaN fails the test.
+            if !(u >= 0.0 && u <= cells as f64) {
+                return None;
+            }
+            cell[axis] = (u as usize).min(cells.saturating_sub(1));
+            fraction[axis] = (u - cell[axis] as f64).clamp(0.0, 1.0);
+        }
+        let [nx, nxy] = [self.corners[2], self.corners[4]];
+        Some((cell[0] + nx * cell[1] + nxy * cell[2], fraction))
+    }
+}
 
 /// The served correction at `position_mm` for a target of configuration `config`: the
 /// interpolated errors (position, and orientation when `orientation`), or why there are
 /// none. Never allocates or panics.
 #[inline]
 pub(crate) fn serve(
-    grid: &Grid,
+    grid: &ServedGrid,
     data: &ArchivedTableData,
     position_mm: [f64; 3],
     config: Option<u8>,
     orientation: bool,
 ) -> Correction {
-    let Some((base, fraction)) = locate(grid, position_mm) else {
+    let Some((base, fraction)) = grid.locate(position_mm) else {
         return Correction::failed(Status::OutsideGrid);
     };
     // Samples without configurations serve targets of any configuration; with them, a
     // configuration no sample has is served by none.
-    let wanted = match config {
-        Some(c) if !data.configs.is_empty() => c,
-        _ => CONFIG_UNKNOWN,
+    let first_set = match config {
+        Some(c) if grid.with_configs => match data.node_sets.iter().find(|s| s.config == c) {
+            Some(set) => set.first_node.to_native() as usize,
+            None => return Correction::failed(Status::NoAdmissibleNeighbour),
+        },
+        _ => grid.first_any,
     };
-    let Some(set) = data.node_sets.iter().find(|s| s.config == wanted) else {
-        return Correction::failed(Status::NoAdmissibleNeighbour);
-    };
-    let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
-    let first = set.first_node.to_native() as usize + base;
-    let corners = [
-        0,
-        1,
-        nx,
-        nx + 1,
-        nx * ny,
-        nx * ny + 1,
-        nx * ny + nx,
-        nx * ny + nx + 1,
-    ];
+    let first = first_set + base;
     let weights = trilinear_weights(fraction);
-    let Some(position_error_mm) = blend(data.node_errors_mm.as_slice(), first, &corners, &weights)
-    else {
+    let nodes = data.node_errors_mm.as_slice();
+    let Some(position_error_mm) = blend(nodes, first, &grid.corners, &weights) else {
         return Correction::failed(Status::UncoveredCell);
     };
     let orientation_error_rad = if orientation {
-        match blend(
-            data.node_orientation_errors_rad.as_slice(),
-            first,
-            &corners,
-            &weights,
-        ) {
+        let nodes = data.node_orientation_errors_rad.as_slice();
+        match blend(nodes, first, &grid.corners, &weights) {
             Some(r) => r,
             None => return Correction::failed(Status::UncoveredCell),
         }
@@ -88,28 +131,6 @@ pub(crate) fn serve(
         neighbours: 8,
         status: Status::Ok,
     }
-}
-
-/// The node index of the target's cell's minimum corner (x fastest over `dims + 1` nodes
-/// per axis) and the target's fractional position in the cell, each in `[0, 1]`; `None`
-/// outside the grid or for a non-finite position. Cells are half-open except at the
-/// grid's maximum faces, as [`Grid::cell_of`] has them.
-#[inline]
-pub(crate) fn locate(grid: &Grid, position_mm: [f64; 3]) -> Option<(usize, [f64; 3])> {
-    let mut cell = [0usize; 3];
-    let mut fraction = [0.0; 3];
-    for axis in 0..3 {
-        let u = (position_mm[axis] - grid.origin_mm[axis]) / grid.cell_mm;
-        let cells = grid.dims[axis] as usize;
-        // Written so that NaN fails the test.
-        if !(u >= 0.0 && u <= cells as f64) {
-            return None;
-        }
-        cell[axis] = (u as usize).min(cells.saturating_sub(1));
-        fraction[axis] = (u - cell[axis] as f64).clamp(0.0, 1.0);
-    }
-    let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
-    Some((cell[0] + nx * (cell[1] + ny * cell[2]), fraction))
 }
 
 /// The weights of the 8 corners, in the order `corners` lists them in [`serve`]:
@@ -138,9 +159,11 @@ fn blend(
     corners: &[usize; 8],
     weights: &[f64; 8],
 ) -> Option<[f64; 3]> {
+    // One range check for the whole block of the cell's nodes, then offsets within it.
+    let block = nodes.get(first..first.checked_add(corners[7])? + 1)?;
     let mut sum = [0.0; 3];
     for (&corner, &weight) in corners.iter().zip(weights) {
-        let node = nodes.get(first + corner)?;
+        let node = block.get(corner)?;
         for (s, v) in sum.iter_mut().zip(node.iter()) {
             *s += weight * v.to_native();
         }
@@ -195,15 +218,18 @@ mod tests {
 
     #[test]
     fn locate_puts_the_maximum_face_in_the_last_cell() {
-        let grid = Grid {
+        let grid = ServedGrid {
             origin_mm: [0.0; 3],
             cell_mm: 10.0,
-            dims: [2, 3, 4],
+            cells: [2, 3, 4],
+            corners: [0, 1, 3, 4, 12, 13, 15, 16],
+            first_any: 0,
+            with_configs: false,
         };
-        let (base, f) = locate(&grid, [20.0, 30.0, 40.0]).unwrap();
+        let (base, f) = grid.locate([20.0, 30.0, 40.0]).unwrap();
         assert_eq!(f, [1.0; 3]);
         assert_eq!(base, 1 + 3 * (2 + 4 * 3));
-        assert!(locate(&grid, [20.0001, 0.0, 0.0]).is_none());
-        assert!(locate(&grid, [f64::NAN, 0.0, 0.0]).is_none());
+        assert!(grid.locate([20.0001, 0.0, 0.0]).is_none());
+        assert!(grid.locate([f64::NAN, 0.0, 0.0]).is_none());
     }
 }

@@ -18,6 +18,7 @@ use crate::format::{
 use crate::method::{self, MethodParams, Prediction};
 use crate::model::PreparedModel;
 use crate::residency::{Lock, OpenOptions, Residency};
+use crate::served::ServedGrid;
 use crate::OpenError;
 
 /// A correction table, validated at open, answering queries without allocating, locking or
@@ -34,6 +35,8 @@ pub struct Table<D> {
     validated_at: (usize, usize),
     /// A hybrid table's kinematic model, its chains prepared at open.
     model: Option<PreparedModel>,
+    /// The served tier's grid, prepared at open; `None` without a served tier.
+    served: Option<ServedGrid>,
 }
 
 /// A table's archived payload, by format version.
@@ -204,15 +207,18 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Err(OpenError::Misaligned { offset });
         }
         let archive_error = |e: rkyv::rancor::BoxedError| OpenError::Archive(e.to_string());
-        let model = if header.version == 1 {
+        let (model, served) = if header.version == 1 {
             let archived = rkyv::access::<v1::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
                 .map_err(archive_error)?;
             crate::validate::validate_v1(&header, archived)?;
-            crate::model::prepared_model_v1(archived)
+            (crate::model::prepared_model_v1(archived), None)
         } else {
             let archived = rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
                 .map_err(archive_error)?;
-            crate::validate::validate_v2(&header, archived)?
+            let model = crate::validate::validate_v2(&header, archived)?;
+            let served =
+                (header.node_set_count > 0).then(|| ServedGrid::new(&header.grid, archived));
+            (model, served)
         };
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
         Ok(Table {
@@ -220,6 +226,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             header,
             validated_at,
             model,
+            served,
         })
     }
 
@@ -233,6 +240,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             header: self.header,
             validated_at: self.validated_at,
             model: self.model,
+            served: self.served,
         }
     }
 
@@ -427,14 +435,16 @@ impl<D: AsRef<[u8]>> Table<D> {
         let h = &self.header;
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
-            Payload::V2(d) if tier == Tier::Served && h.node_set_count > 0 => crate::served::serve(
-                &h.grid,
-                d,
-                target.position_mm,
-                target.config,
-                self.has_orientation(),
-            ),
-            Payload::V2(d) => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
+            Payload::V2(d) => match (&self.served, tier) {
+                (Some(grid), Tier::Served) => crate::served::serve(
+                    grid,
+                    d,
+                    target.position_mm,
+                    target.config,
+                    self.has_orientation(),
+                ),
+                _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
+            },
         };
         if correction.status != Status::Ok {
             return correction;

@@ -344,10 +344,13 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
     }
     let overflow = a.overflow.as_slice();
     let mut seen = vec![0u64; n.div_ceil(64)];
-    // Checks one list: indices in range and distinct; `seen` is left all zero.
-    let mut check_list = |list: &mut dyn Iterator<Item = usize>| -> Result<(), OpenError> {
-        let mut marked = Vec::new();
+    // Checks one list: indices in range and distinct, marking each in `seen`, then clearing
+    // the marks again (a second pass rather than a list of them: no allocation per cell).
+    let mut check_list = |list: &mut dyn Iterator<Item = usize>,
+                          again: &mut dyn Iterator<Item = usize>|
+     -> Result<(), OpenError> {
         let mut result = Ok(());
+        let mut marked = 0;
         for i in list {
             if i >= n {
                 result = Err(corrupt(
@@ -361,10 +364,10 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
                 break;
             }
             seen[word] |= bit;
-            marked.push(word);
+            marked += 1;
         }
-        for word in marked {
-            seen[word] = 0;
+        for i in again.take(marked) {
+            seen[i / 64] = 0;
         }
         result
     };
@@ -380,14 +383,16 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
             if record[count + 1..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
-            check_list(&mut record[1..=count].iter().map(|i| i.to_native() as usize))?;
+            let list = || record[1..=count].iter().map(|i| i.to_native() as usize);
+            check_list(&mut list(), &mut list())?;
         } else {
             let start = record[1].to_native() as usize | (record[2].to_native() as usize) << 16;
             if record[3..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
             let list = long_list(start, count)?;
-            check_list(&mut list.iter().map(|i| i.to_native() as usize))?;
+            let list = || list.iter().map(|i| i.to_native() as usize);
+            check_list(&mut list(), &mut list())?;
         }
     }
     for record in a.cells_wide.iter() {
@@ -396,13 +401,15 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
             if record[count + 1..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
-            check_list(&mut record[1..=count].iter().map(|i| i.to_native() as usize))?;
+            let list = || record[1..=count].iter().map(|i| i.to_native() as usize);
+            check_list(&mut list(), &mut list())?;
         } else {
             if record[2..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
             let list = long_list(record[1].to_native() as usize, count)?;
-            check_list(&mut list.iter().map(|i| i.to_native() as usize))?;
+            let list = || list.iter().map(|i| i.to_native() as usize);
+            check_list(&mut list(), &mut list())?;
         }
     }
     Ok(())

@@ -51,8 +51,10 @@ pub const MAX_CELLS: usize = 20_000_000;
 /// The default radius ε is this many sample spacings: it covers the 8 corners of a lattice
 /// cube (at most √3 spacings away) from any point inside it.
 pub const RADIUS_PER_SPACING: f64 = 2.0;
-/// The default cell edge is the sample spacing divided by this.
-pub const CELLS_PER_SPACING: f64 = 4.0;
+/// The default cell edge is the sample spacing divided by this: cells half a spacing wide
+/// keep a cell's candidates within one 64-byte record for lattice-like samples, and put
+/// the served field's nodes twice as dense as the samples.
+pub const CELLS_PER_SPACING: f64 = 2.0;
 
 /// What `tablec build` is asked for; `None` fields are derived from the samples.
 #[derive(Clone, Debug, PartialEq)]
@@ -670,7 +672,7 @@ fn node_value(
             r.measured_error(),
         )
     };
-    match method::estimate(params, position, &selection, sample) {
+    match method::estimate(params, position, &selection, true, sample) {
         Some(e) => (e.position_error_mm, e.orientation_error_rad),
         None => ([v2::NO_NODE_VALUE; 3], [v2::NO_NODE_VALUE; 3]),
     }

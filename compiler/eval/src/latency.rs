@@ -209,16 +209,19 @@ pub struct KdTreeMethod {
     tree: ImmutableKdTree<f64, 3>,
     records: Vec<SampleRecord>,
     params: MethodParams,
+    orientation: bool,
 }
 
 impl KdTreeMethod {
     /// Builds the tree: what an integrator's start-up would do.
     pub fn new(records: Vec<SampleRecord>, params: MethodParams) -> KdTreeMethod {
         let points: Vec<[f64; 3]> = records.iter().map(|r| r.actual_mm).collect();
+        let orientation = records.iter().any(|r| r.rotation_error_rad != [0.0; 3]);
         KdTreeMethod {
             tree: ImmutableKdTree::new_from_slice(&points),
             records,
             params,
+            orientation,
         }
     }
 
@@ -245,7 +248,7 @@ impl KdTreeMethod {
                 Some((r.actual_mm, r.config))
             },
         );
-        method::estimate(&self.params, p, &selection, |i| {
+        method::estimate(&self.params, p, &selection, self.orientation, |i| {
             let r = &records[i as usize];
             (
                 r.actual_mm,
@@ -254,6 +257,213 @@ impl KdTreeMethod {
             )
         })
     }
+}
+
+/// A contender of [`bench_queries`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Contender {
+    /// The table's served tier: the continuous field (8 nodes, trilinear).
+    Trilinear,
+    /// The table's exact tier: the method over the cell's candidate list.
+    Exact,
+    /// A k-d tree of the samples with the same selection and weights ([`KdTreeMethod`]).
+    KdTree,
+    /// The brute-force reference over every sample.
+    Brute,
+}
+
+impl Contender {
+    /// Every contender, in report order.
+    pub const ALL: [Contender; 4] = [
+        Contender::Trilinear,
+        Contender::Exact,
+        Contender::KdTree,
+        Contender::Brute,
+    ];
+
+    /// The name used in reports and in `tablec bench --json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Contender::Trilinear => "trilinear",
+            Contender::Exact => "exact",
+            Contender::KdTree => "kdtree",
+            Contender::Brute => "brute",
+        }
+    }
+}
+
+/// One workload's measurements.
+#[derive(Clone, Debug)]
+pub struct WorkloadResult {
+    /// `random` or `trajectory`.
+    pub name: &'static str,
+    /// Targets timed (the brute force: at most the reference count).
+    pub targets: usize,
+    /// Targets the served tier answered, and the exact tier.
+    pub answered: (usize, usize),
+    /// Per contender: the per-query summary and the batch mean (ns).
+    pub timings: Vec<(Contender, Summary, f64)>,
+    /// Of the targets compared, how many the k-d tree and the brute force answered
+    /// exactly as the exact tier (same status, same bits), and out of how many.
+    pub agreement: [(usize, usize); 2],
+}
+
+/// What [`bench_queries`] times.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchOptions {
+    /// Timed queries per workload and contender.
+    pub queries: usize,
+    /// Timed queries per workload for the brute force (slow: every sample per query).
+    pub reference_queries: usize,
+    /// Seed of the workloads.
+    pub seed: u64,
+}
+
+/// Times every contender on the two workloads: targets uniform in the grid (`random`), and
+/// a path of targets 1 mm apart (`trajectory`). A hybrid table's targets come with joint
+/// values ([`hybrid_workload`]: random poses; the path moves every joint by at most 1 mm at
+/// the tool), and every contender adds the model part, as the table does. `None` when the
+/// table's bytes changed or a hybrid table yields no pose in its grid.
+pub fn bench_queries<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    timer: &Timer,
+    options: &BenchOptions,
+) -> Option<Vec<WorkloadResult>> {
+    let records = records_of(table);
+    let params = *table.method();
+    let kd = KdTreeMethod::new(records.clone(), params);
+    let model = table.model().copied();
+    let with_model = |estimate: Option<Estimate>, q: Option<&[f64]>| -> Option<[f64; 3]> {
+        let e = estimate?;
+        match (&model, q) {
+            (Some(m), Some(q)) => {
+                let (p, _) = m.error(q)?;
+                Some([0, 1, 2].map(|a| e.position_error_mm[a] + p[a]))
+            }
+            _ => Some(e.position_error_mm),
+        }
+    };
+    let brute = |t: &Target| {
+        reference::predict(&records, &params, t).map(|p| Estimate {
+            position_error_mm: p.position_error_mm,
+            orientation_error_rad: p.orientation_error_rad,
+            neighbours: p.neighbours.len() as u32,
+        })
+    };
+    /// A target and, for a hybrid table, its joint angles.
+    type Query = (Target, Option<Vec<f64>>);
+    let grid = *table.grid();
+    let workloads: Vec<(&'static str, Vec<Query>)> = if table.is_hybrid() {
+        let poses = hybrid_workload(table, options.queries, options.seed)?;
+        let path = joint_path(table, &poses, options.queries);
+        let wrap = |v: Vec<(Target, Vec<f64>)>| v.into_iter().map(|(t, q)| (t, Some(q))).collect();
+        vec![("random", wrap(poses)), ("trajectory", wrap(path))]
+    } else {
+        let none = |v: Vec<Target>| v.into_iter().map(|t| (t, None)).collect();
+        vec![
+            (
+                "random",
+                none(random_targets(&grid, options.queries, options.seed)),
+            ),
+            (
+                "trajectory",
+                none(trajectory(&grid, options.queries, 1.0, options.seed)),
+            ),
+        ]
+    };
+    let served = |(t, q): &(Target, Option<Vec<f64>>)| match q {
+        Some(q) => table.query_with_joints(t, q),
+        None => table.query_target(t),
+    };
+    let exact = |(t, q): &(Target, Option<Vec<f64>>)| match q {
+        Some(q) => table.exact().query_with_joints(t, q),
+        None => table.exact().query_target(t),
+    };
+    let mut out = Vec::new();
+    for (name, inputs) in workloads {
+        let few = &inputs[..options.reference_queries.min(inputs.len())];
+        let kd_query =
+            |(t, q): &(Target, Option<Vec<f64>>)| with_model(kd.predict(t), q.as_deref());
+        let brute_query = |(t, q): &(Target, Option<Vec<f64>>)| with_model(brute(t), q.as_deref());
+        let mut timings = Vec::new();
+        for contender in Contender::ALL {
+            let (times, batch) = match contender {
+                Contender::Trilinear => (
+                    timer.time_each(&inputs, served),
+                    Timer::batch_mean_ns(&inputs, served),
+                ),
+                Contender::Exact => (
+                    timer.time_each(&inputs, exact),
+                    Timer::batch_mean_ns(&inputs, exact),
+                ),
+                Contender::KdTree => (
+                    timer.time_each(&inputs, kd_query),
+                    Timer::batch_mean_ns(&inputs, kd_query),
+                ),
+                Contender::Brute => (
+                    timer.time_each(few, brute_query),
+                    Timer::batch_mean_ns(few, brute_query),
+                ),
+            };
+            timings.push((contender, Summary::of(times)?, batch));
+        }
+        let same = |input: &(Target, Option<Vec<f64>>), other: Option<[f64; 3]>| {
+            let c = exact(input);
+            match other {
+                Some(p) => c.status == Status::Ok && c.position_error_mm == p,
+                None => c.status != Status::Ok,
+            }
+        };
+        let kd_same = inputs.iter().filter(|i| same(i, kd_query(i))).count();
+        let brute_same = few.iter().filter(|i| same(i, brute_query(i))).count();
+        out.push(WorkloadResult {
+            name,
+            targets: inputs.len(),
+            answered: (
+                inputs
+                    .iter()
+                    .filter(|i| served(i).status == Status::Ok)
+                    .count(),
+                inputs
+                    .iter()
+                    .filter(|i| exact(i).status == Status::Ok)
+                    .count(),
+            ),
+            timings,
+            agreement: [(kd_same, inputs.len()), (brute_same, few.len())],
+        });
+    }
+    Some(out)
+}
+
+/// A hybrid table's trajectory: from each random pose, small joint steps (each joint by
+/// up to 1 mm of tool motion, assuming a 1 m lever) for 200 steps, then the next pose.
+fn joint_path<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    poses: &[(Target, Vec<f64>)],
+    count: usize,
+) -> Vec<(Target, Vec<f64>)> {
+    let Some(model) = table.model() else {
+        return Vec::new();
+    };
+    let nominal = model.nominal();
+    let mut rng = ChaCha8Rng::seed_from_u64(poses.len() as u64);
+    let mut out = Vec::with_capacity(count);
+    let mut q = poses.first().map(|p| p.1.clone()).unwrap_or_default();
+    let mut direction: Vec<f64> = Vec::new();
+    for i in 0..count {
+        if i % 200 == 0 {
+            q = poses[(i / 200) % poses.len()].1.clone();
+            direction = (0..q.len()).map(|_| rng.gen_range(-1e-3..1e-3)).collect();
+        }
+        for (v, d) in q.iter_mut().zip(&direction) {
+            *v += d;
+        }
+        if let Some(pose) = nominal.tcp_pose(&q) {
+            out.push((Target::at(pose.translation_mm), q.clone()));
+        }
+    }
+    out
 }
 
 /// Times `f` `repeats` times; returns the per-run durations, sorted.
@@ -284,42 +494,6 @@ pub fn deserialise_owned(path: &std::path::Path) -> Option<usize> {
             .ok()
             .map(|d| d.samples.len()),
     }
-}
-
-/// Whether the three contenders give the same answers: every target against the k-d
-/// tree, the first `reference_count` against the brute force.
-pub fn agreement<D: AsRef<[u8]>>(
-    table: &Table<D>,
-    kd: &KdTreeMethod,
-    records: &[adwi_runtime::format::SampleRecord],
-    targets: &[Target],
-    reference_count: usize,
-) -> String {
-    let params = table.method();
-    let same = |t: &Target, other: Option<[f64; 3]>| {
-        let c = table.query_target(t);
-        match other {
-            Some(p) => c.status == Status::Ok && c.position_error_mm == p,
-            None => c.status != Status::Ok,
-        }
-    };
-    let kd_same = targets
-        .iter()
-        .filter(|t| same(t, kd.predict(t).map(|e| e.position_error_mm)))
-        .count();
-    let few = &targets[..reference_count.min(targets.len())];
-    let reference_same = few
-        .iter()
-        .filter(|t| {
-            let p = reference::predict(records, params, t);
-            same(t, p.map(|p| p.position_error_mm))
-        })
-        .count();
-    format!(
-        "identical answers: k-d tree {kd_same}/{}, brute force {reference_same}/{}",
-        targets.len(),
-        few.len()
-    )
 }
 
 /// A hybrid table answers only with the joint values the controller will use, which only

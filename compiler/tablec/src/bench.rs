@@ -1,18 +1,18 @@
-//! `tablec bench`: query and open latency of a table, next to the alternatives.
+//! `tablec bench`: query and open latency of a table's two tiers, next to a k-d tree and
+//! the brute force.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
-use adwi_compile::reference;
-use adwi_eval::latency::{self, KdTreeMethod, Summary, Timer};
-use adwi_runtime::{Status, Table};
+use adwi_eval::latency::{self, BenchOptions, KdTreeMethod, Timer};
+use adwi_runtime::Table;
 use anyhow::Context;
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The table.
     table: PathBuf,
-    /// Timed queries per workload for the table and the k-d tree.
+    /// Timed queries per workload for the table's tiers and the k-d tree.
     #[arg(long, default_value_t = 100_000)]
     queries: usize,
     /// Timed queries per workload for the brute-force reference (slow: every sample per
@@ -25,6 +25,11 @@ pub struct Args {
     /// Seed of the random targets and the trajectory.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Also write the percentiles as JSON: {"random": {...}, "trajectory": {...}}, each
+    /// with the contenders "trilinear", "exact", "kdtree" and "brute", each
+    /// {"p50_ns": .., "p99_ns": ..}.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
 }
 
 const METHOD: &str = "\
@@ -33,48 +38,49 @@ median cost of an empty timed region; one untimed warm-up pass first. Percentile
 nearest-rank over all timed queries. 'batch' is the mean per query of one untimed-per-call
 batch, a check on the overhead correction. Workloads: targets uniform in the table's grid,
 and a trajectory of targets 1 mm apart (straight segments of 200 mm, reflected at the
-grid's faces). Contenders: the table; (a) the brute-force reference over every sample;
-(b) a k-d tree (kiddo, built at start-up) finding every sample within epsilon, then the
-same selection and weights (adwi_runtime::method). Open: (c) memory map + full validation
-vs. reading the file and deserialising an owned copy (rkyv validation, no semantic checks).";
+grid's faces); for a hybrid table, random joint poses whose tool lies in the grid, and
+paths of small joint steps from them. Contenders: the served field (trilinear); the exact
+tier; a k-d tree (kiddo, built at start-up) finding every sample within epsilon, then the
+same selection and weights (adwi_runtime::method); the brute-force reference over every
+sample. Open: memory map + full validation vs. reading the file and deserialising an owned
+copy (rkyv validation, no semantic checks).";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(json) = &args.json {
+        crate::refuse_overwriting(json, &[&args.table])?;
+    }
     let table = crate::open_table(&args.table)?;
-    let records = latency::records_of(&table);
     let params = *table.method();
     let grid = *table.grid();
     println!("{METHOD}\n");
     println!(
-        "table {}: {} samples, {} cells of {} mm, k = {}, epsilon = {} mm",
+        "table {}: {} samples, {} cells of {} mm, k = {}, epsilon = {} mm{}",
         args.table.display(),
-        records.len(),
+        table.sample_count(),
         grid.cell_count().unwrap_or(0),
         grid.cell_mm,
         params.max_neighbours,
-        params.radius_mm
+        params.radius_mm,
+        if table.has_served_field() {
+            ""
+        } else {
+            " (no served tier: 'trilinear' is the exact tier)"
+        }
     );
     let timer = Timer::calibrate();
     println!(
         "clock overhead {:.1} ns per timed region\n",
         timer.overhead_ns
     );
-
-    if table.is_hybrid() {
-        return bench_hybrid(&table, &timer, args.queries, args.seed);
-    }
-    let kd = KdTreeMethod::new(records.clone(), params);
-    let workloads = [
-        (
-            "random in grid",
-            latency::random_targets(&grid, args.queries, args.seed),
-        ),
-        (
-            "trajectory 1 mm",
-            latency::trajectory(&grid, args.queries, 1.0, args.seed),
-        ),
-    ];
+    let options = BenchOptions {
+        queries: args.queries,
+        reference_queries: args.reference_queries,
+        seed: args.seed,
+    };
+    let results = latency::bench_queries(&table, &timer, &options)
+        .context("no workload: a hybrid table without a pose in its grid, or changed bytes")?;
     println!(
-        "{:<16} {:<20} {:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "{:<11} {:<10} {:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
         "workload",
         "contender",
         "queries",
@@ -85,54 +91,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "mean ns",
         "batch ns"
     );
-    let mut verdicts = Vec::new();
-    for (name, targets) in &workloads {
-        let answered = targets
-            .iter()
-            .filter(|t| table.query_target(t).status == Status::Ok)
-            .count();
-        let table_times = timer.time_each(targets, |t| table.query_target(t));
-        let table_batch = Timer::batch_mean_ns(targets, |t| table.query_target(t));
-        let kd_times = timer.time_each(targets, |t| kd.predict(t));
-        let kd_batch = Timer::batch_mean_ns(targets, |t| kd.predict(t));
-        let few = &targets[..args.reference_queries.min(targets.len())];
-        let reference_times = timer.time_each(few, |t| reference::predict(&records, &params, t));
-        let reference_batch =
-            Timer::batch_mean_ns(few, |t| reference::predict(&records, &params, t));
-        let rows = [
-            ("table", table_times, table_batch),
-            ("(b) k-d tree", kd_times, kd_batch),
-            ("(a) brute force", reference_times, reference_batch),
-        ];
-        let mut summaries = Vec::new();
-        for (contender, times, batch) in rows {
-            let s = Summary::of(times).context("no queries to time")?;
+    for w in &results {
+        for (contender, s, batch) in &w.timings {
             println!(
-                "{name:<16} {contender:<20} {:>8} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0}",
-                s.count, s.p50_ns, s.p99_ns, s.p999_ns, s.max_ns, s.mean_ns, batch
+                "{:<11} {:<10} {:>8} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0}",
+                w.name,
+                contender.name(),
+                s.count,
+                s.p50_ns,
+                s.p99_ns,
+                s.p999_ns,
+                s.max_ns,
+                s.mean_ns,
+                batch
             );
-            summaries.push(s);
         }
-        let (t, k) = (summaries[0], summaries[1]);
-        verdicts.push(format!(
-            "{name}: {answered} of {} targets answered; table p50 {:.0} ns, p99 {:.0} ns, \
-             {:.1}x faster than the k-d tree at p50, {:.1}x at p99; {}",
-            targets.len(),
-            t.p50_ns,
-            t.p99_ns,
-            k.p50_ns / t.p50_ns.max(1.0),
-            k.p99_ns / t.p99_ns.max(1.0),
-            latency::agreement(&table, &kd, &records, targets, args.reference_queries),
-        ));
     }
     println!();
-    for v in verdicts {
-        println!("{v}");
+    for w in &results {
+        let p50 = |i: usize| w.timings[i].1.p50_ns.max(1.0);
+        let p99 = |i: usize| w.timings[i].1.p99_ns.max(1.0);
+        println!(
+            "{}: {} targets, {} answered by the served field, {} by the exact tier; the k-d \
+             tree is {:.1}x the trilinear p50 ({:.1}x at p99) and {:.1}x the exact p50 ({:.1}x \
+             at p99); exact answers identical to the k-d tree's {}/{}, to the brute force's {}/{}",
+            w.name,
+            w.targets,
+            w.answered.0,
+            w.answered.1,
+            p50(2) / p50(0),
+            p99(2) / p99(0),
+            p50(2) / p50(1),
+            p99(2) / p99(1),
+            w.agreement[0].0,
+            w.agreement[0].1,
+            w.agreement[1].0,
+            w.agreement[1].1,
+        );
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(path, json(&results))
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
 
     println!("\nopen ({} runs each)", args.open_repeats);
     println!("{:<44} {:>12} {:>12}", "", "median us", "max us");
     let path = &args.table;
+    let records = latency::records_of(&table);
     let open_rows: [(&str, Vec<Duration>); 4] = [
         (
             "mmap + full validation (Table::open)",
@@ -150,22 +155,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }),
         ),
         (
-            "(c) read + deserialise owned copy (rkyv)",
+            "read + deserialise an owned copy (rkyv)",
             latency::time_runs(args.open_repeats, || latency::deserialise_owned(path)),
         ),
         (
-            "(b) start-up: build the k-d tree",
+            "k-d tree start-up: build the tree",
             latency::time_runs(args.open_repeats, || {
                 KdTreeMethod::new(records.clone(), params)
             }),
         ),
     ];
+    let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
     for (name, runs) in open_rows {
+        let median = runs[runs.len() / 2];
         println!(
             "{name:<44} {:>12.1} {:>12.1}",
-            micros(runs[runs.len() / 2]),
+            micros(median),
             micros(runs[runs.len() - 1])
         );
+        if name.starts_with("mmap") {
+            println!(
+                "{:<44} {:>12.2}",
+                "  (validated GB/s at the median)",
+                bytes as f64 / median.as_secs_f64().max(1e-12) / 1e9
+            );
+        }
     }
     Ok(())
 }
@@ -174,37 +188,25 @@ fn micros(d: Duration) -> f64 {
     d.as_nanos() as f64 / 1e3
 }
 
-/// A hybrid table answers only with the joint angles the controller will use, which only
-/// the controller's inverse kinematics knows for an arbitrary target: the workload is the
-/// samples' own poses, each target moved by up to 5 mm along every axis and queried with
-/// that sample's joint angles (model evaluation plus interpolated residual).
-fn bench_hybrid<D: AsRef<[u8]>>(
-    table: &Table<D>,
-    timer: &Timer,
-    queries: usize,
-    seed: u64,
-) -> anyhow::Result<()> {
-    let inputs = latency::hybrid_workload(table, queries, seed)
-        .context("the hybrid table carries no joint angles")?;
-    let answered = inputs
+/// `{"random": {"trilinear": {"p50_ns": .., "p99_ns": ..}, ...}, "trajectory": {...}}`.
+fn json(results: &[latency::WorkloadResult]) -> String {
+    let workloads: Vec<String> = results
         .iter()
-        .filter(|(t, q)| table.query_with_joints(t, q).status == Status::Ok)
-        .count();
-    let times = timer.time_each(&inputs, |(t, q)| table.query_with_joints(t, q));
-    let batch = Timer::batch_mean_ns(&inputs, |(t, q)| table.query_with_joints(t, q));
-    let s = Summary::of(times).context("no queries to time")?;
-    println!(
-        "hybrid table: query_with_joints at the samples' poses moved by up to 5 mm, \
-         with their joint angles ({answered} of {} answered)",
-        inputs.len()
-    );
-    println!(
-        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
-        "queries", "p50 ns", "p99 ns", "p99.9 ns", "max ns", "mean ns", "batch ns"
-    );
-    println!(
-        "{:>8} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0}",
-        s.count, s.p50_ns, s.p99_ns, s.p999_ns, s.max_ns, s.mean_ns, batch
-    );
-    Ok(())
+        .map(|w| {
+            let contenders: Vec<String> = w
+                .timings
+                .iter()
+                .map(|(c, s, _)| {
+                    format!(
+                        "\"{}\": {{\"p50_ns\": {:.1}, \"p99_ns\": {:.1}}}",
+                        c.name(),
+                        s.p50_ns,
+                        s.p99_ns
+                    )
+                })
+                .collect();
+            format!("\"{}\": {{{}}}", w.name, contenders.join(", "))
+        })
+        .collect();
+    format!("{{{}}}\n", workloads.join(", "))
 }
