@@ -162,6 +162,8 @@ impl serde::Serialize for Method {
 
 /// How points are held out.
 #[derive(Debug, Clone)]
+// One per evaluation: the validation set held inline costs nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Protocol {
     /// Build from all samples, predict at every point of a separate validation set.
     Validation(SampleSet),
