@@ -119,12 +119,106 @@ fn infinity_is_refused() {
     );
 }
 
+/// Rows that command one pose again are one sample, the mean of their errors; `build`
+/// says how many and how far the repeats lie from their means.
 #[test]
-fn duplicate_nominal_position_names_both_lines() {
-    assert_refused(
-        b"x,y,z,dx,dy,dz\n1,2,3,0,0,0\n4,5,6,0,0,0\n1,2,3.0,1,1,1\n",
-        &["bad.csv:4:", "already given on line 2"],
-    );
+fn repeated_poses_are_averaged_and_their_spread_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = format!("{GOOD}1000,0,500,0.3,0.2,0.3\n1000,0,500,0.2,0.2,0.3\n");
+    std::fs::write(dir.path().join("repeats.csv"), csv).unwrap();
+    let o = tablec(&["build", "repeats.csv", "-o", "r.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("samples        4 from repeats.csv"), "{out}");
+    // Errors 0.1, 0.3, 0.2 in x about their mean 0.2.
+    let expected = "repeats        1 poses on 3 rows (at most 3 of one pose), each averaged into \
+                    one sample; errors about their means: max 0.1000 mm, RMS 0.0816 mm";
+    assert!(out.contains(expected), "{out}");
+    // The table is the one built from the mean.
+    let mean = GOOD.replace("1000,0,500,0.1,", "1000,0,500,0.2,");
+    std::fs::write(dir.path().join("mean.csv"), mean).unwrap();
+    let o = tablec(&["build", "-q", "mean.csv", "-o", "m.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(
+        dir.path().join("targets.csv"),
+        "x,y,z\n1000,0,500\n1050,50,500\n1090,10,500\n",
+    )
+    .unwrap();
+    let answers = |table: &str| -> Vec<f64> {
+        let o = tablec(&["query", table, "--targets", "targets.csv"], dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        out.lines()
+            .skip(1)
+            .flat_map(|l| {
+                l.split(',')
+                    .skip(3)
+                    .take(3)
+                    .map(|v| v.parse().unwrap())
+                    .collect::<Vec<f64>>()
+            })
+            .collect()
+    };
+    let (repeated, averaged) = (answers("r.tbl"), answers("m.tbl"));
+    assert_eq!(repeated.len(), 9);
+    for (a, b) in repeated.iter().zip(&averaged) {
+        assert!((a - b).abs() < 1e-12, "{repeated:?} {averaged:?}");
+    }
+}
+
+/// Samples at one nominal position with different orientations, and samples whose actual
+/// positions coincide exactly: the table builds and answers there and around.
+#[test]
+fn samples_sharing_a_position_build_and_answer() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("x,y,z,dx,dy,dz,rx,ry,rz,a,b,c\n");
+    for (i, j, k) in [
+        (0, 0, 0),
+        (1, 0, 0),
+        (0, 1, 0),
+        (1, 1, 0),
+        (0, 0, 1),
+        (1, 1, 1),
+    ] {
+        let p = [1000 + 100 * i, 100 * j, 500 + 100 * k];
+        // Two orientations at each position; at the first, the same error: the two
+        // samples' actual positions are the same.
+        for (c, e) in [(0, 0.1), (90, if i + j + k == 0 { 0.1 } else { 0.2 })] {
+            csv += &format!(
+                "{},{},{},{e},0.2,0.3,0.001,0,0,0,90,{c}\n",
+                p[0], p[1], p[2]
+            );
+        }
+    }
+    // A third sample lands exactly where the first two do: nominal + error the same.
+    csv += "999.9,0,500,0.2,0.2,0.3,0.001,0,0,0,90,0\n";
+    std::fs::write(dir.path().join("shared.csv"), csv).unwrap();
+    let o = tablec(&["build", "shared.csv", "-o", "s.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("samples        13 from shared.csv"), "{out}");
+    assert!(!out.contains("repeats"), "{out}");
+    for target in [
+        ["1000.1", "0.2", "500.3"],
+        ["1050", "50", "550"],
+        ["1000", "0", "500"],
+    ] {
+        let o = tablec(
+            &["query", "s.tbl", target[0], target[1], target[2]],
+            dir.path(),
+        );
+        let message = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+        assert!(
+            o.status.code() == Some(0) || o.status.code() == Some(3),
+            "{message}"
+        );
+        assert!(!message.contains("panicked"), "{message}");
+    }
+    // At the shared actual position, the coincident samples answer.
+    let o = tablec(&["query", "s.tbl", "1000.1", "0.2", "500.3"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("status       ok"), "{out}");
 }
 
 #[test]
@@ -585,17 +679,161 @@ fn an_output_that_is_an_input_is_refused() {
     assert_eq!(std::fs::read_to_string(&good).unwrap(), GOOD);
 }
 
-/// A semicolon-separated file is named as such, not only "missing column".
+/// A semicolon-separated file with decimal commas, in metres, builds the table its
+/// comma-separated millimetre twin builds, byte for byte; read with commas as separators,
+/// it is refused with the separator it seems to use.
 #[test]
-fn a_semicolon_file_is_recognised_in_the_message() {
-    assert_refused(
-        b"x;y;z;dx;dy;dz\n1;2;3;0;0;0\n",
-        &[
-            "bad.csv:1:",
-            "missing column x,y,z",
-            "separated by semicolons",
-        ],
+fn a_semicolon_file_with_decimal_commas_in_metres_builds_its_twins_table() {
+    let dir = good_table();
+    let twin = GOOD
+        .replace(',', ";")
+        .replace("1000;", "1;")
+        .replace("1100;", "1,1;")
+        .replace(";500;", ";0,5;")
+        .replace(";100;", ";0,1;")
+        .replace(".", ",");
+    assert!(
+        twin.starts_with("x;y;z;dx;dy;dz\n1;0;0,5;0,1;0,2;0,3\n"),
+        "{twin}"
     );
+    std::fs::write(dir.path().join("twin.csv"), &twin).unwrap();
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "twin.csv",
+            "-o",
+            "twin.tbl",
+            "--length-unit",
+            "m",
+            "--columns",
+            "dx:mm,dy:mm,dz:mm",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(dir.path().join("twin.tbl")).unwrap(),
+        std::fs::read(dir.path().join("t.tbl")).unwrap()
+    );
+    // The separator and the decimal mark given, tab-separated.
+    std::fs::write(dir.path().join("tab.csv"), twin.replace(';', "\t")).unwrap();
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "tab.csv",
+            "-o",
+            "tab.tbl",
+            "--delimiter",
+            "tab",
+            "--decimal",
+            "comma",
+            "--columns",
+            "x:m,y:m,z:m",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(dir.path().join("tab.tbl")).unwrap(),
+        std::fs::read(dir.path().join("t.tbl")).unwrap()
+    );
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "twin.csv",
+            "-o",
+            "c.tbl",
+            "--delimiter",
+            "comma",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let message = stderr(&o);
+    assert!(
+        message.contains("twin.csv:1: missing column x,y,z"),
+        "{message}"
+    );
+    assert!(
+        message.contains("the file seems separated by semicolons; give --delimiter semicolon"),
+        "{message}"
+    );
+}
+
+/// `eval` and `query --targets` take the reading options `build` takes.
+#[test]
+fn eval_and_query_targets_read_as_build_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 4 × 4 × 3 lattice in millimetres, and its twin in metres (positions exact in both),
+    // tab-separated with decimal commas.
+    let (mut mm, mut m) = (
+        String::from("x,y,z,dx,dy,dz\n"),
+        String::from("X\tY\tZ\tDX\tDY\tDZ\n"),
+    );
+    for i in 0..48 {
+        let p = [
+            1000 + 125 * (i % 4),
+            125 * (i / 4 % 4),
+            500 + 125 * (i / 16),
+        ];
+        let e = [0.25 + 0.001 * p[0] as f64, -0.5, 0.125];
+        mm += &format!("{},{},{},{},{},{}\n", p[0], p[1], p[2], e[0], e[1], e[2]);
+        let metres = p.map(|v| format!("{}", v as f64 / 1000.0).replace('.', ","));
+        let e = e.map(|v| format!("{v}").replace('.', ","));
+        m += &format!(
+            "{}\t{}\t{}\t{}\t{}\t{}\n",
+            metres[0], metres[1], metres[2], e[0], e[1], e[2]
+        );
+    }
+    std::fs::write(dir.path().join("mm.csv"), &mm).unwrap();
+    std::fs::write(dir.path().join("m.csv"), &m).unwrap();
+    let map = "x=X,y=Y,z=Z,dx=DX:mm,dy=DY:mm,dz=DZ:mm";
+    let reading = ["--length-unit", "m", "--columns", map];
+    let eval = |file: &str, extra: &[&str]| {
+        let mut args = vec!["eval", file, "--folds", "4", "--methods", "paper,idw"];
+        args.extend_from_slice(extra);
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let figures = |out: &str| -> Vec<String> {
+        out.lines()
+            .filter(|l| l.trim_start().starts_with("paper") || l.trim_start().starts_with("idw"))
+            .map(str::to_string)
+            .collect()
+    };
+    let (a, b) = (eval("mm.csv", &[]), eval("m.csv", &reading));
+    assert!(!figures(&a).is_empty(), "{a}");
+    assert_eq!(figures(&a), figures(&b));
+    // Targets in metres, semicolon-separated with decimal commas.
+    let o = tablec(&["build", "-q", "mm.csv", "-o", "t.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(
+        dir.path().join("targets_mm.csv"),
+        "x,y,z\n1125,125,625\n1250,250,750\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("targets_m.csv"),
+        "x;y;z\n1,125;0,125;0,625\n1,25;0,25;0,75\n",
+    )
+    .unwrap();
+    let query = |file: &str, extra: &[&str]| {
+        let mut args = vec!["query", "t.tbl", "--targets", file];
+        args.extend_from_slice(extra);
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let a = query("targets_mm.csv", &[]);
+    assert_eq!(a.lines().count(), 3, "{a}");
+    assert_eq!(a, query("targets_m.csv", &["--length-unit", "m"]));
+    // Without --targets, reading options are a usage error.
+    let o = tablec(&["query", "t.tbl", "--length-unit", "m"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
 /// The OS error of a missing table is printed once.

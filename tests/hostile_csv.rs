@@ -100,3 +100,23 @@ fn many_rows_of_nothing_are_refused() {
     let comments = "# comment\n".repeat(1 << 18);
     assert!(parse("comments.csv", comments.as_bytes()).is_err());
 }
+
+/// A million rows at one position: repeats of one pose fold into one sample, a million
+/// orientations there stay a million samples with no spacing — each in bounded time.
+#[test]
+fn a_million_rows_at_one_position_are_read_quickly() {
+    const ROWS: usize = 1_000_000;
+    let csv = format!("x,y,z,dx,dy,dz\n{}", "1,2,3,0.1,0.2,0.3\n".repeat(ROWS));
+    let set = parse("repeats.csv", csv.as_bytes()).unwrap();
+    assert_eq!(set.len(), 1);
+    assert_eq!(set.repeats.as_ref().unwrap().rows, ROWS);
+    let mut csv = String::from("x,y,z,dx,dy,dz,a,b,c\n");
+    for i in 0..ROWS {
+        csv += &format!("1,2,3,0.1,0.2,0.3,0,0,{}\n", i as f64 * 1e-4);
+    }
+    let set = parse("orientations.csv", csv.as_bytes()).unwrap();
+    assert_eq!(set.len(), ROWS);
+    let start = Instant::now();
+    assert_eq!(set.spacing_mm(), None);
+    assert!(start.elapsed() < BOUND, "{:?}", start.elapsed());
+}

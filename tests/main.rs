@@ -1,7 +1,8 @@
 //! The end-to-end tests of the workspace, as one test binary (linking dominates a test
 //! build's time): the real `tablec` executable, the runtime against the brute-force
 //! reference, table files good and hostile, the C interface, allocation counting,
-//! concurrent table swaps, the shipped data and the documented figures.
+//! concurrent table swaps, the shipped data (the UR10 measurements read as they are) and
+//! the documented figures.
 
 mod common;
 
@@ -17,4 +18,5 @@ mod table_files;
 mod table_matches_reference;
 mod table_mutation;
 mod table_swap;
+mod ur10_measurements;
 mod worked_example;

@@ -114,7 +114,7 @@ pub enum BuildError {
         max: usize,
     },
     /// A hybrid table needs the samples' joint angles, at which its model is evaluated.
-    #[error("a hybrid table needs samples with joint angles (columns j1..j6)")]
+    #[error("a hybrid table needs samples with joint angles (columns j1..jn)")]
     MissingJoints,
     /// A parameter, the grid or the samples are outside the range the runtime accepts.
     #[error("implausible table: {0}")]
@@ -285,7 +285,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
     }
     if joint_radius_rad > 0.0 && samples.joints.is_none() {
         return Err(BuildError::Params(
-            "a joint radius needs samples with joint angles (columns j1..j6)",
+            "a joint radius needs samples with joint angles (columns j1..jn)",
         ));
     }
     let cell_mm = match options.cell_mm {

@@ -1,7 +1,9 @@
 //! Reading sample databases and compiling them into correction tables.
 //!
-//! - [`samples`]: the CSV reader (column mapping, units, every error located by file, line
-//!   and column) and [`samples::SampleSet`], the samples in memory;
+//! - [`samples`]: the CSV reader (separators and decimal marks, column mapping, units,
+//!   orientation conventions, every error located by file, line and column),
+//!   [`samples::SampleSet`], the samples in memory, and [`samples::Measurements`], raw
+//!   measurements in an instrument's frame;
 //! - [`build`]: the table compiler — options resolved into a plan, candidate lists per
 //!   cell, the encoded table;
 //! - [`hybrid`]: a hybrid table from samples and a given kinematic model (its residuals);

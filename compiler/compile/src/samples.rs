@@ -3,42 +3,79 @@
 //! # CSV format
 //!
 //! One header row, then one row per sample; lines starting with `#` are comments; fields
-//! may be padded with spaces. Columns are found by name, in any order; unknown columns are
-//! ignored.
+//! may be padded with spaces. The separator — comma, semicolon or tab — is the one the
+//! header line uses most; numbers take a decimal point, or a decimal comma in files not
+//! separated by commas (detected from the first number with a mark; every number must then
+//! agree). Both can be given instead ([`ReadOptions`]). Columns are found by name, in any
+//! order; unknown columns are ignored.
 //!
 //! | columns | meaning | |
 //! |---|---|---|
-//! | `x,y,z` | nominal (commanded) position, mm, robot base frame | required |
-//! | `dx,dy,dz` | measured position error = actual − nominal, mm | one of these two |
-//! | `mx,my,mz` | measured actual position, mm | |
-//! | `a,b,c` | nominal orientation, KUKA degrees, `R = Rz(a)·Ry(b)·Rx(c)` | optional |
-//! | `rx,ry,rz` | orientation error, rotation vector of `R_actual·R_nominalᵀ`, rad | optional, or: |
-//! | `ma,mb,mc` | measured orientation, KUKA degrees (needs `a,b,c`) | |
-//! | `j1..j6` | joint angles, degrees | optional |
+//! | `x,y,z` | nominal (commanded) position, robot base frame | required |
+//! | `dx,dy,dz` | measured position error = actual − nominal | one of these two |
+//! | `mx,my,mz` | measured actual position | |
+//! | a nominal orientation | see below | optional |
+//! | `rx,ry,rz` | orientation error: rotation vector of `R_actual·R_nominalᵀ`, base frame, rad | optional, or: |
+//! | a measured orientation | the nominal's names with an `m` before them (needs a nominal one) | |
+//! | `j1..jn` | joint values, n from 1 to 12, no gaps | optional |
 //! | `config` | inverse-kinematics configuration, integer 0-254 | optional |
+//!
+//! Orientations, one convention per side (nominal, measured):
+//!
+//! | nominal | measured | convention |
+//! |---|---|---|
+//! | `a,b,c` | `ma,mb,mc` | KUKA, `R = Rz(a)·Ry(b)·Rx(c)` |
+//! | `q1,q2,q3,q4` | `mq1..mq4` | quaternion w, x, y, z (ABB), normalised |
+//! | `qx,qy,qz,qw` | `mqx,mqy,mqz,mqw` | quaternion x, y, z, w, normalised |
+//! | `w,p,r` | `mw,mp,mr` | Fanuc, `R = Rz(r)·Ry(p)·Rx(w)` |
+//! | `roll,pitch,yaw` | `mroll,mpitch,myaw` | extrinsic x-y-z, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` |
+//! | `ex,ey,ez` | `mex,mey,mez` | intrinsic X-Y-Z Euler, `R = Rx(ex)·Ry(ey)·Rz(ez)` |
+//!
+//! Units: positions in millimetres and angles (orientation angles, joints) in degrees
+//! unless [`ReadOptions`] says otherwise for the whole file or the column mapping for a
+//! group of columns; the rotation vector `rx,ry,rz` is in radians unless mapped `:deg`.
+//! Everything read is returned in millimetres and radians.
 //!
 //! Files whose columns are named otherwise are read through a [`ColumnMap`]:
 //! `x=x_t,y=y_t,z=z_t,dx=x_dif,...`; a source name prefixed by `-` is negated
-//! (`dx=-x_dif` for a file that records nominal − actual).
+//! (`dx=-x_dif` for a file that records nominal − actual), one followed by `:unit` is in
+//! that unit (`x=Goal x:m`, `ma=measurement_rx:deg`; `mm`, `m`, `deg`, `rad`), and `x:m`
+//! alone gives a unit to a column named as expected. The columns of a group (`x,y,z`,
+//! `ma,mb,mc`, ...) take one unit; joints may mix angles and lengths (prismatic joints).
+//!
+//! Several rows may share a nominal position when their orientations, joints or
+//! configurations differ. Rows that command the same pose (see [`REPEAT_RESOLUTION`]) are
+//! one sample, the mean of their measured errors, and their spread is reported in
+//! [`SampleSet::repeats`].
 //!
 //! Every problem is an error naming the file, the line and, where there is one, the
-//! column: a wrong field count, a field that is not a number, NaN or infinite, a nominal
-//! position given twice, a missing column, an empty file.
+//! column: a wrong field count, a field that is not a number, NaN or infinite, a number
+//! with the other decimal mark, a zero quaternion, a missing or incomplete group of
+//! columns, two conventions on one side, mixed units in a group, an empty file.
+//!
+//! Measurements in another frame than the robot's base (a laser tracker's) are read by
+//! [`read_measurements`] into [`Measurements`], which a registration turns into samples.
 
-use std::collections::HashMap;
-use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use adwi_runtime::format::SampleRecord;
 use adwi_runtime::method::CONFIG_UNKNOWN;
+use nalgebra::Rotation3;
 
-use crate::pose;
+mod columns;
+mod measurements;
+mod reader;
+mod repeats;
 
-/// The canonical column names, in the order of the table above.
-pub const CANONICAL_COLUMNS: [&str; 25] = [
-    "x", "y", "z", "dx", "dy", "dz", "mx", "my", "mz", "a", "b", "c", "rx", "ry", "rz", "ma", "mb",
-    "mc", "j1", "j2", "j3", "j4", "j5", "j6", "config",
-];
+pub use columns::{
+    orientation_columns, AngleUnit, ColumnMap, ColumnMapError, LengthUnit, Unit, UnitError,
+    CANONICAL_COLUMNS, MAX_JOINTS,
+};
+pub use measurements::{Measurements, MeasurementsError};
+pub use reader::{Choice, Decimal, Delimiter, ReadError, ReadErrorKind, ReadOptions};
+pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
+
+use reader::{parse, read_file, Purpose, Rows};
 
 /// A sample database in memory, in source order. Positions mm, base frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -47,16 +84,20 @@ pub struct SampleSet {
     pub nominal_mm: Vec<[f64; 3]>,
     /// Measured position errors, actual − nominal, mm.
     pub error_mm: Vec<[f64; 3]>,
-    /// Nominal orientations, KUKA A, B, C degrees, when given.
-    pub nominal_abc_deg: Option<Vec<[f64; 3]>>,
+    /// Nominal orientations (the commanded frame in the base frame), when given.
+    pub nominal_rotation: Option<Vec<Rotation3<f64>>>,
     /// Measured orientation errors, rotation vectors (rad, base frame), when given.
     pub rotation_error_rad: Option<Vec<[f64; 3]>>,
     /// Joint values, when given: rad (mm for prismatic joints), one row per sample.
     pub joints: Option<Joints>,
     /// Inverse-kinematics configurations, when given.
     pub config: Option<Vec<u8>>,
-    /// The source line of each sample (1-based), for messages.
+    /// The source line of each sample (1-based), for messages; of a repeated pose, its
+    /// first row's.
     pub lines: Vec<u64>,
+    /// The spread of repeated poses' measured errors, when rows repeated a pose (each
+    /// repeated pose is one sample, the mean of its rows).
+    pub repeats: Option<RepeatReport>,
 }
 
 impl SampleSet {
@@ -93,7 +134,10 @@ impl SampleSet {
         SampleSet {
             nominal_mm: pick(&self.nominal_mm),
             error_mm: pick(&self.error_mm),
-            nominal_abc_deg: self.nominal_abc_deg.as_ref().map(pick),
+            nominal_rotation: self
+                .nominal_rotation
+                .as_ref()
+                .map(|r| indices.iter().map(|&i| r[i]).collect()),
             rotation_error_rad: self.rotation_error_rad.as_ref().map(pick),
             joints: self.joints.as_ref().map(|j| j.subset(indices)),
             config: self
@@ -101,6 +145,8 @@ impl SampleSet {
                 .as_ref()
                 .map(|c| indices.iter().map(|&i| c[i]).collect()),
             lines: indices.iter().map(|&i| self.lines[i]).collect(),
+            // The spread of the file's repeats is not the subset's.
+            repeats: None,
         }
     }
 
@@ -146,11 +192,12 @@ impl SampleSet {
         hasher.digest()
     }
 
-    /// The median distance from a sample's nominal position to its nearest neighbour's,
-    /// mm: the sample spacing of a lattice, a robust one of a cloud. `None` for fewer than
-    /// two samples. Above 4000 samples, the median is taken over an evenly strided subset
-    /// of 4000 (each still against all samples, found through a bucket grid so that a
-    /// million samples take a fraction of a second rather than minutes).
+    /// The median distance from a sample's nominal position to the nearest other nominal
+    /// position, mm: the sample spacing of a lattice, a robust one of a cloud. Samples at
+    /// one position (several orientations there) count as one position. `None` for fewer
+    /// than two positions. Above 4000 samples, the median is taken over an evenly strided
+    /// subset of 4000 (each still against all samples, found through a bucket grid so that
+    /// a million samples take a fraction of a second rather than minutes).
     pub fn spacing_mm(&self) -> Option<f64> {
         let n = self.len();
         if n < 2 {
@@ -161,9 +208,10 @@ impl SampleSet {
         let mut nearest: Vec<f64> = (0..n)
             .step_by(stride)
             .map(|i| grid.nearest_other_mm(&self.nominal_mm, i))
+            .filter(|d| d.is_finite())
             .collect();
         nearest.sort_by(f64::total_cmp);
-        Some(nearest[nearest.len() / 2])
+        nearest.get(nearest.len() / 2).copied()
     }
 
     /// The axis-aligned bounding box of the nominal positions, mm, or `None` when empty.
@@ -320,7 +368,35 @@ impl PointGrid {
             grid.items[next[b]] = i as u32;
             next[b] += 1;
         }
+        grid.drop_coincident(points);
         grid
+    }
+
+    /// Keeps one point of each position in each bucket: the nearest *other* position is
+    /// then found without looking at every sample of a position again (a million samples
+    /// at one position would otherwise make each search look at a million).
+    fn drop_coincident(&mut self, points: &[[f64; 3]]) {
+        // +0.0 folds −0.0 into 0.0: both are the same position.
+        let key = |j: u32| points[j as usize].map(|v| (v + 0.0).to_bits());
+        let mut write = 0;
+        for b in 0..self.starts.len() - 1 {
+            let (lo, hi) = (self.starts[b], self.starts[b + 1]);
+            if hi - lo > 1 {
+                self.items[lo..hi].sort_unstable_by_key(|&j| key(j));
+            }
+            self.starts[b] = write;
+            let mut previous = None;
+            for k in lo..hi {
+                let j = self.items[k];
+                if previous != Some(key(j)) {
+                    previous = Some(key(j));
+                    self.items[write] = j;
+                    write += 1;
+                }
+            }
+        }
+        *self.starts.last_mut().expect("one more start than buckets") = write;
+        self.items.truncate(write);
     }
 
     fn coords(&self, p: [f64; 3]) -> [usize; 3] {
@@ -335,10 +411,10 @@ impl PointGrid {
         x + self.dims[0] * (y + self.dims[1] * z)
     }
 
-    /// The distance from point `i` to the nearest other point, mm, computed by
-    /// [`adwi_runtime::method::distance_mm`] exactly as a comparison with every point
-    /// would: buckets are searched in growing shells until no unsearched bucket can hold
-    /// a nearer point.
+    /// The distance from point `i` to the nearest point at another position, mm (infinite
+    /// when there is none), computed by [`adwi_runtime::method::distance_mm`] exactly as a
+    /// comparison with every point would: buckets are searched in growing shells until no
+    /// unsearched bucket can hold a nearer point.
     fn nearest_other_mm(&self, points: &[[f64; 3]], i: usize) -> f64 {
         let p = points[i];
         let c = self.coords(p);
@@ -364,7 +440,7 @@ impl PointGrid {
                         }
                         let b = x + self.dims[0] * (y + self.dims[1] * z);
                         for &j in &self.items[self.starts[b]..self.starts[b + 1]] {
-                            if j as usize != i {
+                            if points[j as usize] != p {
                                 let d = adwi_runtime::method::distance_mm(p, points[j as usize]);
                                 best = best.min(d);
                             }
@@ -377,233 +453,31 @@ impl PointGrid {
     }
 }
 
-/// Which source column supplies each canonical column, and whether it is negated.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ColumnMap {
-    entries: HashMap<String, (String, bool)>,
+/// Reads a sample file with the default options (separator and decimal mark detected,
+/// millimetres and degrees). See the module docs for the format.
+///
+/// # Errors
+///
+/// The first problem found, with file, line and column.
+pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, ReadError> {
+    read_samples_with(path, columns, &ReadOptions::default())
 }
-
-impl ColumnMap {
-    /// Parses `canonical=source,...`; a `-` before the source negates it.
-    ///
-    /// # Errors
-    ///
-    /// An unknown canonical name, a missing `=`, an empty source or a name mapped twice.
-    pub fn parse(spec: &str) -> Result<ColumnMap, String> {
-        let mut map = ColumnMap::default();
-        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            let (canonical, source) = item
-                .split_once('=')
-                .ok_or_else(|| format!("column mapping '{item}' is not of the form name=column"))?;
-            let canonical = canonical.trim().to_ascii_lowercase();
-            if !CANONICAL_COLUMNS.contains(&canonical.as_str()) {
-                return Err(format!(
-                    "column mapping '{item}': '{canonical}' is not one of {}",
-                    CANONICAL_COLUMNS.join(", ")
-                ));
-            }
-            let source = source.trim();
-            let (negate, source) = match source.strip_prefix('-') {
-                Some(s) => (true, s.trim()),
-                None => (false, source),
-            };
-            if source.is_empty() {
-                return Err(format!("column mapping '{item}' names no source column"));
-            }
-            if map
-                .entries
-                .insert(canonical.clone(), (source.to_ascii_lowercase(), negate))
-                .is_some()
-            {
-                return Err(format!("column mapping maps '{canonical}' twice"));
-            }
-        }
-        Ok(map)
-    }
-
-    /// The source column name and negation for a canonical column.
-    fn source(&self, canonical: &str) -> (String, bool) {
-        self.entries
-            .get(canonical)
-            .cloned()
-            .unwrap_or_else(|| (canonical.to_string(), false))
-    }
-}
-
-/// What is wrong with a sample file.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ReadErrorKind {
-    /// The file could not be read.
-    Io(String),
-    /// The file has no header row.
-    Empty,
-    /// The file has a header but no sample row.
-    NoSamples,
-    /// A required column is absent from the header.
-    MissingColumn {
-        /// The columns wanted.
-        wanted: String,
-        /// What the header holds instead, as read: its column count, and the separator
-        /// it seems to use when that is not the one read with.
-        found: String,
-    },
-    /// Columns that only make sense together are partly present.
-    IncompleteColumns(String),
-    /// A column is given twice in the header.
-    DuplicateColumn(String),
-    /// A row has a different number of fields from the header.
-    FieldCount {
-        /// Fields in the header.
-        expected: u64,
-        /// Fields in this row.
-        found: u64,
-    },
-    /// A field is not a number.
-    NotANumber(String),
-    /// A field is NaN or infinite.
-    NotFinite(String),
-    /// A configuration is not an integer from 0 to 254.
-    BadConfig(String),
-    /// A field is not UTF-8.
-    NotUtf8,
-    /// The CSV syntax is broken (e.g. an unterminated quote).
-    Syntax(String),
-    /// A nominal position appears twice.
-    DuplicatePosition {
-        /// The line where it first appeared.
-        first_line: u64,
-    },
-}
-
-/// An error in a sample file, located by file, line and column.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReadError {
-    /// The file.
-    pub path: PathBuf,
-    /// The 1-based line, when the error has one.
-    pub line: Option<u64>,
-    /// The 1-based column number and its header name, when the error has one.
-    pub column: Option<(usize, String)>,
-    /// What is wrong.
-    pub kind: ReadErrorKind,
-}
-
-impl fmt::Display for ReadError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.path.display())?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
-        }
-        if let Some((number, name)) = &self.column {
-            write!(f, ":{number} (column '{name}')")?;
-        }
-        write!(f, ": ")?;
-        match &self.kind {
-            ReadErrorKind::Io(e) => write!(f, "cannot read: {e}"),
-            ReadErrorKind::Empty => write!(f, "empty file: expected a header row"),
-            ReadErrorKind::NoSamples => write!(f, "no sample rows after the header"),
-            ReadErrorKind::MissingColumn { wanted, found } => write!(
-                f,
-                "missing column {wanted} (name it in the header, or map it with --columns); {found}"
-            ),
-            ReadErrorKind::IncompleteColumns(what) => write!(f, "incomplete columns: {what}"),
-            ReadErrorKind::DuplicateColumn(c) => write!(f, "column '{c}' appears twice"),
-            ReadErrorKind::FieldCount { expected, found } => {
-                write!(f, "{found} fields where the header has {expected}")
-            }
-            ReadErrorKind::NotANumber(v) => write!(f, "not a number: '{v}'"),
-            ReadErrorKind::NotFinite(v) => write!(f, "not a finite number: '{v}'"),
-            ReadErrorKind::BadConfig(v) => {
-                write!(
-                    f,
-                    "configuration must be an integer from 0 to 254, found '{v}'"
-                )
-            }
-            ReadErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
-            ReadErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
-            ReadErrorKind::DuplicatePosition { first_line } => write!(
-                f,
-                "nominal position already given on line {first_line}: each sample needs its own"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for ReadError {}
 
 /// Reads a sample file. See the module docs for the format.
 ///
 /// # Errors
 ///
 /// The first problem found, with file, line and column.
-pub fn read_samples(path: &Path, columns: &ColumnMap) -> Result<SampleSet, ReadError> {
-    parse_samples(path, &read_file(path)?, columns)
+pub fn read_samples_with(
+    path: &Path,
+    columns: &ColumnMap,
+    options: &ReadOptions,
+) -> Result<SampleSet, ReadError> {
+    parse_samples_with(path, &read_file(path)?, columns, options)
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
-    std::fs::read(path).map_err(|e| ReadError {
-        path: path.to_path_buf(),
-        line: None,
-        column: None,
-        kind: ReadErrorKind::Io(e.to_string()),
-    })
-}
-
-/// Column indices of the parts a file provides.
-struct Layout {
-    position: [usize; 3],
-    error: ErrorColumns,
-    rotation: Option<RotationColumns>,
-    joints: Option<[usize; 6]>,
-    config: Option<usize>,
-    negate: Vec<bool>,
-}
-
-enum ErrorColumns {
-    None,
-    Delta([usize; 3]),
-    Measured([usize; 3]),
-}
-
-enum RotationColumns {
-    Vector([usize; 3]),
-    Measured {
-        nominal: [usize; 3],
-        measured: [usize; 3],
-    },
-}
-
-/// A target read from a CSV: where to go and, when the file gives them, the joint angles
-/// the controller will use.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TargetRow {
-    /// Position and configuration.
-    pub target: adwi_runtime::Target,
-    /// Joint values `j1..jn`, rad (mm for prismatic joints), when the file has them.
-    pub joints_rad: Option<Vec<f64>>,
-}
-
-/// Reads a CSV of targets: `x,y,z` (mm, base frame), optionally `config` and `j1..j6`
-/// (degrees), through the same reader and column mapping as samples; other columns
-/// (errors, say) are ignored, and positions may repeat.
-///
-/// # Errors
-///
-/// As [`read_samples`], but error columns are not required.
-pub fn read_targets(path: &Path, columns: &ColumnMap) -> Result<Vec<TargetRow>, ReadError> {
-    let set = parse(path, &read_file(path)?, columns, Purpose::Targets)?;
-    Ok((0..set.len())
-        .map(|i| TargetRow {
-            target: adwi_runtime::Target {
-                position_mm: set.nominal_mm[i],
-                config: set.config.as_ref().map(|c| c[i]),
-            },
-            joints_rad: set.joints_rad(i).map(<[f64]>::to_vec),
-        })
-        .collect())
-}
-
-/// Parses sample CSV held in memory; `path` only names it in messages.
+/// Parses sample CSV held in memory with the default options; `path` only names it in
+/// messages.
 ///
 /// # Errors
 ///
@@ -613,352 +487,128 @@ pub fn parse_samples(
     bytes: &[u8],
     columns: &ColumnMap,
 ) -> Result<SampleSet, ReadError> {
-    parse(path, bytes, columns, Purpose::Samples)
+    parse_samples_with(path, bytes, columns, &ReadOptions::default())
 }
 
-#[derive(Clone, Copy, PartialEq)]
-enum Purpose {
-    Samples,
-    Targets,
-}
-
-fn parse(
+/// Parses sample CSV held in memory; `path` only names it in messages.
+///
+/// # Errors
+///
+/// As [`read_samples`].
+pub fn parse_samples_with(
     path: &Path,
     bytes: &[u8],
     columns: &ColumnMap,
-    purpose: Purpose,
+    options: &ReadOptions,
 ) -> Result<SampleSet, ReadError> {
-    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
-        path: path.to_path_buf(),
-        line,
-        column,
-        kind,
-    };
-    // Comment lines are removed here rather than by the CSV reader, whose line numbers do
-    // not count them consistently; `physical[n - 1]` is the file line of filtered line n.
-    let mut filtered = Vec::with_capacity(bytes.len());
-    let mut physical = Vec::new();
-    for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
-        if line.first() != Some(&b'#') {
-            filtered.extend_from_slice(line);
-            physical.push(i as u64 + 1);
-        }
-    }
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .has_headers(false)
-        .flexible(true)
-        .from_reader(filtered.as_slice());
-    let mut header = csv::ByteRecord::new();
-    match reader.read_byte_record(&mut header) {
-        Ok(true) => {}
-        Ok(false) => return Err(error(None, None, ReadErrorKind::Empty)),
-        Err(e) => return Err(csv_error(path, e, &|_| 1)),
-    }
-    let line_at = |p: Option<&csv::Position>| {
-        p.map_or(0, |p| {
-            let n = p.line() as usize;
-            physical
-                .get(n.saturating_sub(1))
-                .copied()
-                .unwrap_or(p.line())
-        })
-    };
-    let header_line = line_at(header.position());
-    let mut names = Vec::with_capacity(header.len());
-    // A set beside the list: a linear `contains` per column is quadratic in the column
-    // count, minutes for a hostile header of a million columns.
-    let mut distinct = std::collections::HashSet::with_capacity(header.len());
-    for field in header.iter() {
-        let name = std::str::from_utf8(field)
-            .map_err(|_| error(Some(header_line), None, ReadErrorKind::NotUtf8))?
-            .to_ascii_lowercase();
-        if !name.is_empty() && !distinct.insert(name.clone()) {
-            return Err(error(
-                Some(header_line),
-                Some((names.len() + 1, name.clone())),
-                ReadErrorKind::DuplicateColumn(name),
-            ));
-        }
-        names.push(name);
-    }
-    let layout =
-        layout(&names, columns, purpose).map_err(|kind| error(Some(header_line), None, kind))?;
-
-    let mut set = SampleSet {
-        nominal_abc_deg: layout
-            .rotation
-            .as_ref()
-            .filter(|r| matches!(r, RotationColumns::Measured { .. }))
-            .map(|_| Vec::new()),
-        rotation_error_rad: layout.rotation.as_ref().map(|_| Vec::new()),
-        joints: layout.joints.map(|cols| Joints::new(cols.len())),
-        config: layout.config.map(|_| Vec::new()),
-        ..SampleSet::default()
-    };
-    // Rows are at most the lines counted above: reserve once rather than grow.
-    let rows = physical.len();
-    set.nominal_mm.reserve(rows);
-    set.error_mm.reserve(rows);
-    set.lines.reserve(rows);
-    // Keys are the positions' bits, not attacker-chosen strings worth SipHash's cost.
-    let mut seen: rustc_hash::FxHashMap<[u64; 3], u64> = rustc_hash::FxHashMap::default();
-    seen.reserve(rows);
-    // One record buffer for every row: a million-row file must not cost a million
-    // allocations.
-    let mut record = csv::ByteRecord::new();
-    loop {
-        match reader.read_byte_record(&mut record) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(path, e, &line_at)),
-        }
-        let line = line_at(record.position());
-        if record.len() != names.len() {
-            // A blank line is skipped by the reader; a row with one empty field is not.
-            return Err(error(
-                Some(line),
-                None,
-                ReadErrorKind::FieldCount {
-                    expected: names.len() as u64,
-                    found: record.len() as u64,
-                },
-            ));
-        }
-        let number = |index: usize| -> Result<f64, ReadError> {
-            let column = || Some((index + 1, names[index].clone()));
-            let text = std::str::from_utf8(&record[index])
-                .map_err(|_| error(Some(line), column(), ReadErrorKind::NotUtf8))?;
-            let value: f64 = text.parse().map_err(|_| {
-                error(
-                    Some(line),
-                    column(),
-                    ReadErrorKind::NotANumber(truncated(text)),
-                )
-            })?;
-            if !value.is_finite() {
-                return Err(error(
-                    Some(line),
-                    column(),
-                    ReadErrorKind::NotFinite(truncated(text)),
-                ));
-            }
-            Ok(if layout.negate[index] { -value } else { value })
-        };
-        let triple = |cols: [usize; 3]| -> Result<[f64; 3], ReadError> {
-            Ok([number(cols[0])?, number(cols[1])?, number(cols[2])?])
-        };
-        let nominal = triple(layout.position)?;
-        let error_mm = match layout.error {
-            ErrorColumns::Delta(cols) => triple(cols)?,
-            ErrorColumns::None => [0.0; 3],
-            ErrorColumns::Measured(cols) => {
-                let m = triple(cols)?;
-                [m[0] - nominal[0], m[1] - nominal[1], m[2] - nominal[2]]
-            }
-        };
-        match &layout.rotation {
-            Some(RotationColumns::Vector(cols)) => {
-                let r = triple(*cols)?;
-                push(&mut set.rotation_error_rad, r);
-            }
-            Some(RotationColumns::Measured { nominal, measured }) => {
-                let abc = triple(*nominal)?;
-                let measured = triple(*measured)?;
-                let r = pose::orientation_error(
-                    &pose::rotation_from_kuka_abc_deg(abc),
-                    &pose::rotation_from_kuka_abc_deg(measured),
-                );
-                push(&mut set.nominal_abc_deg, abc);
-                push(&mut set.rotation_error_rad, r);
-            }
-            None => {}
-        }
-        if let (Some(cols), Some(joints)) = (layout.joints, set.joints.as_mut()) {
-            let mut q = [0.0; 6];
-            for (v, c) in q.iter_mut().zip(cols) {
-                *v = number(c)?.to_radians();
-            }
-            joints.push(&q);
-        }
-        if let Some(c) = layout.config {
-            let text = String::from_utf8_lossy(&record[c]).into_owned();
-            let config: u8 = text
-                .parse()
-                .ok()
-                .filter(|&v| v != CONFIG_UNKNOWN)
-                .ok_or_else(|| {
-                    error(
-                        Some(line),
-                        Some((c + 1, names[c].clone())),
-                        ReadErrorKind::BadConfig(truncated(&text)),
-                    )
-                })?;
-            push(&mut set.config, config);
-        }
-        // +0.0 folds -0.0 into 0.0, so both spellings of zero are the same position.
-        let key = nominal.map(|v| (v + 0.0).to_bits());
-        if let (Purpose::Samples, Some(&first_line)) = (purpose, seen.get(&key)) {
-            return Err(error(
-                Some(line),
-                None,
-                ReadErrorKind::DuplicatePosition { first_line },
-            ));
-        }
-        seen.insert(key, line);
-        set.nominal_mm.push(nominal);
-        set.error_mm.push(error_mm);
-        set.lines.push(line);
-    }
-    if set.is_empty() {
-        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
-    }
-    Ok(set)
+    let rows = parse(path, bytes, columns, options, Purpose::Samples)?;
+    Ok(samples_from_rows(rows))
 }
 
-fn push<T>(column: &mut Option<Vec<T>>, value: T) {
-    if let Some(v) = column {
-        v.push(value);
-    }
+/// The samples of a file's rows: errors as given, or from the measured poses (as
+/// [`Measurements::to_samples`] computes them), repeated poses folded.
+fn samples_from_rows(rows: Rows) -> SampleSet {
+    let nominal_mm = rows.nominal_mm.unwrap_or_default();
+    let error_mm = match (rows.delta_mm, rows.measured_mm) {
+        (Some(delta), _) => delta,
+        (None, Some(measured)) => measurements::position_errors(&nominal_mm, measured),
+        (None, None) => vec![[0.0; 3]; nominal_mm.len()],
+    };
+    let rotation_error_rad = match (
+        rows.rotation_vector_rad,
+        &rows.nominal_rotation,
+        &rows.measured_rotation,
+    ) {
+        (Some(v), _, _) => Some(v),
+        (None, Some(nominal), Some(measured)) => {
+            Some(measurements::orientation_errors(nominal, measured))
+        }
+        _ => None,
+    };
+    repeats::fold(repeats::Parts {
+        nominal_mm,
+        error_mm,
+        nominal_rotation: rows.nominal_rotation,
+        rotation_error_rad,
+        joints: rows.joints,
+        config: rows.config,
+        lines: rows.lines,
+    })
 }
 
-fn truncated(text: &str) -> String {
-    const MAX: usize = 40;
-    match text.char_indices().nth(MAX) {
-        Some((cut, _)) => format!("{}…", &text[..cut]),
-        None => text.to_string(),
-    }
+/// A target read from a CSV: where to go and, when the file gives them, the joint values
+/// the controller will use.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetRow {
+    /// Position and configuration.
+    pub target: adwi_runtime::Target,
+    /// Joint values `j1..jn`, rad (mm for prismatic joints), when the file has them.
+    pub joints_rad: Option<Vec<f64>>,
 }
 
-fn csv_error(
+/// Reads a CSV of targets: `x,y,z` (base frame), optionally `config` and `j1..jn`, through
+/// the same reader, column mapping and options as samples; other columns (errors, say)
+/// are ignored, and positions may repeat.
+///
+/// # Errors
+///
+/// As [`read_samples`], but error columns are not required.
+pub fn read_targets(
     path: &Path,
-    e: csv::Error,
-    line_at: &dyn Fn(Option<&csv::Position>) -> u64,
-) -> ReadError {
-    let line = e.position().map(|p| line_at(Some(p)));
-    let kind = match e.kind() {
-        csv::ErrorKind::Utf8 { .. } => ReadErrorKind::NotUtf8,
-        csv::ErrorKind::Io(io) => ReadErrorKind::Io(io.to_string()),
-        _ => ReadErrorKind::Syntax(e.to_string()),
-    };
-    ReadError {
-        path: path.to_path_buf(),
-        line,
-        column: None,
-        kind,
-    }
+    columns: &ColumnMap,
+    options: &ReadOptions,
+) -> Result<Vec<TargetRow>, ReadError> {
+    let rows = parse(path, &read_file(path)?, columns, options, Purpose::Targets)?;
+    let nominal = rows.nominal_mm.unwrap_or_default();
+    Ok((0..rows.lines.len())
+        .map(|i| TargetRow {
+            target: adwi_runtime::Target {
+                position_mm: nominal[i],
+                config: rows.config.as_ref().map(|c| c[i]),
+            },
+            joints_rad: rows.joints.as_ref().map(|j| j.row(i).to_vec()),
+        })
+        .collect())
 }
 
-/// What a header holds, for a missing-column message: how many columns were read with the
-/// comma as separator, and which other separator the text suggests when it is one column.
-fn describe_header(names: &[String]) -> String {
-    const SHOWN: usize = 60;
-    let mut text = names.join(",");
-    if let Some((cut, _)) = text.char_indices().nth(SHOWN) {
-        text.truncate(cut);
-        text.push('…');
-    }
-    let columns = match names.len() {
-        1 => "1 column".to_string(),
-        n => format!("{n} columns"),
-    };
-    let seen = [(';', "semicolons"), ('\t', "tabs"), ('|', "vertical bars")]
-        .into_iter()
-        .filter(|(c, _)| names.len() == 1 && names[0].contains(*c))
-        .max_by_key(|(c, _)| names[0].matches(*c).count());
-    match seen {
-        Some((_, name)) => format!(
-            "the header, read with commas as separators, is {columns} ('{text}'): the file is \
-             separated by {name}, and tablec reads comma-separated files"
-        ),
-        None => format!("the header, read with commas as separators, has {columns}: '{text}'"),
-    }
+/// Reads raw measurements ([`Measurements`]): joints `j1..jn` and measured position
+/// `mx,my,mz` required, nominal position and orientations and the measured orientation
+/// optional, through the same reader, column mapping and options as samples. Error columns
+/// are not read, and rows are kept as they are (repeats are folded by
+/// [`Measurements::to_samples`]).
+///
+/// # Errors
+///
+/// As [`read_samples`], but nominal positions are not required and joints are.
+pub fn read_measurements(
+    path: &Path,
+    columns: &ColumnMap,
+    options: &ReadOptions,
+) -> Result<Measurements, ReadError> {
+    parse_measurements(path, &read_file(path)?, columns, options)
 }
 
-/// Finds the columns of each part; all-or-none groups must be complete.
-fn layout(names: &[String], map: &ColumnMap, purpose: Purpose) -> Result<Layout, ReadErrorKind> {
-    let missing = |wanted: &str| ReadErrorKind::MissingColumn {
-        wanted: wanted.to_string(),
-        found: describe_header(names),
-    };
-    let mut negate = vec![false; names.len()];
-    let mut find = |canonical: &str| -> Option<usize> {
-        let (source, neg) = map.source(canonical);
-        let index = names.iter().position(|n| *n == source)?;
-        negate[index] = neg;
-        Some(index)
-    };
-    let mut group = |cols: &[&str]| -> Result<Option<Vec<usize>>, ReadErrorKind> {
-        let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
-        if found.iter().all(Option::is_none) {
-            return Ok(None);
-        }
-        if let Some(i) = found.iter().position(Option::is_none) {
-            let present: Vec<&str> = cols
-                .iter()
-                .zip(&found)
-                .filter(|(_, f)| f.is_some())
-                .map(|(c, _)| *c)
-                .collect();
-            return Err(ReadErrorKind::IncompleteColumns(format!(
-                "'{}' given without '{}'",
-                present.join(","),
-                cols[i]
-            )));
-        }
-        Ok(Some(found.into_iter().flatten().collect()))
-    };
-    let three = |v: Vec<usize>| [v[0], v[1], v[2]];
-    let position = group(&["x", "y", "z"])?
-        .map(three)
-        .ok_or_else(|| missing("x,y,z (nominal position, mm)"))?;
-    let delta = group(&["dx", "dy", "dz"])?.map(three);
-    let measured = group(&["mx", "my", "mz"])?.map(three);
-    let error = match (delta, measured) {
-        (Some(d), None) => ErrorColumns::Delta(d),
-        (None, Some(m)) => ErrorColumns::Measured(m),
-        (Some(_), Some(_)) => {
-            return Err(ReadErrorKind::IncompleteColumns(
-                "both dx,dy,dz and mx,my,mz given: keep one".into(),
-            ))
-        }
-        (None, None) if purpose == Purpose::Targets => ErrorColumns::None,
-        (None, None) => {
-            return Err(missing(
-                "dx,dy,dz (error, mm) or mx,my,mz (measured position, mm)",
-            ))
-        }
-    };
-    let nominal_abc = group(&["a", "b", "c"])?.map(three);
-    let vector = group(&["rx", "ry", "rz"])?.map(three);
-    let measured_abc = group(&["ma", "mb", "mc"])?.map(three);
-    let rotation = match (nominal_abc, vector, measured_abc) {
-        (_, Some(_), Some(_)) => {
-            return Err(ReadErrorKind::IncompleteColumns(
-                "both rx,ry,rz and ma,mb,mc given: keep one".into(),
-            ))
-        }
-        (_, Some(v), None) => Some(RotationColumns::Vector(v)),
-        (Some(nominal), None, Some(measured)) => {
-            Some(RotationColumns::Measured { nominal, measured })
-        }
-        (None, None, Some(_)) => {
-            return Err(missing(
-                "a,b,c (nominal orientation) for the measured orientation ma,mb,mc",
-            ))
-        }
-        (_, None, None) => None,
-    };
-    let joints =
-        group(&["j1", "j2", "j3", "j4", "j5", "j6"])?.map(|v| [v[0], v[1], v[2], v[3], v[4], v[5]]);
-    let config = find("config");
-    Ok(Layout {
-        position,
-        error,
-        rotation,
-        joints,
-        config,
-        negate,
+/// Parses measurements held in memory ([`read_measurements`]); `path` only names the file
+/// in messages.
+///
+/// # Errors
+///
+/// As [`read_measurements`].
+pub fn parse_measurements(
+    path: &Path,
+    bytes: &[u8],
+    columns: &ColumnMap,
+    options: &ReadOptions,
+) -> Result<Measurements, ReadError> {
+    let rows = parse(path, bytes, columns, options, Purpose::Measurements)?;
+    Ok(Measurements {
+        joints: rows.joints.unwrap_or_default(),
+        nominal_mm: rows.nominal_mm,
+        nominal_rotation: rows.nominal_rotation,
+        measured_mm: rows.measured_mm.unwrap_or_default(),
+        measured_rotation: rows.measured_rotation,
+        config: rows.config,
+        lines: rows.lines,
     })
 }
 
@@ -1021,7 +671,7 @@ mod tests {
             let grid = PointGrid::new(&points);
             for i in 0..points.len() {
                 let brute = (0..points.len())
-                    .filter(|&j| j != i)
+                    .filter(|&j| points[j] != points[i])
                     .map(|j| adwi_runtime::method::distance_mm(points[i], points[j]))
                     .fold(f64::INFINITY, f64::min);
                 assert_eq!(grid.nearest_other_mm(&points, i), brute, "point {i}");

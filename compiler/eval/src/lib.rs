@@ -183,6 +183,8 @@ impl serde::Serialize for Method {
 
 /// How points are held out.
 #[derive(Debug, Clone)]
+// One per evaluation: the validation set held inline costs nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Protocol {
     /// Build from all samples, predict at every point of a separate validation set.
     Validation(SampleSet),
@@ -463,10 +465,10 @@ fn choose_methods(
             return Some("needs a robot model (--robot ROBOT.toml)".into());
         }
         if m.needs_joints() && samples.joints.is_none() {
-            return Some("needs joint angles (j1..j6) in the samples".into());
+            return Some("needs joint angles (j1..jn) in the samples".into());
         }
         if m.needs_joints() && points.joints.is_none() {
-            return Some("needs joint angles (j1..j6) at the validation points".into());
+            return Some("needs joint angles (j1..jn) at the validation points".into());
         }
         None
     };

@@ -208,7 +208,7 @@ impl Default for CalibrateOptions {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CalibrateError {
     /// The samples carry no joint angles, so no kinematic model can be evaluated at them.
-    #[error("the samples have no joint angles (columns j1..j6): a kinematic calibration needs the commanded joint angles of every sample")]
+    #[error("the samples have no joint angles (columns j1..jn): a kinematic calibration needs the commanded joint angles of every sample")]
     MissingJoints,
     /// The samples' joint values do not fit the robot.
     #[error("the samples have {samples} joint values each, the robot {robot} joints")]

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildReport};
 use adwi_compile::hybrid;
-use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_compile::samples::read_samples_with;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
 use adwi_robot::Robot;
@@ -18,17 +18,15 @@ pub struct Args {
     /// Where to write the table (written to a temporary file, then renamed).
     #[arg(short, long)]
     output: PathBuf,
-    /// Column mapping for files named otherwise: `x=x_t,y=y_t,dx=-x_dif,...`
-    /// (`-` negates).
-    #[arg(long, value_name = "MAP")]
-    columns: Option<String>,
+    #[command(flatten)]
+    read: crate::read_options::ReadOptions,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
     /// The robot model (TOML), for --hybrid.
     #[arg(long, value_name = "ROBOT.toml")]
     robot: Option<PathBuf>,
     /// Build a hybrid table: identify the robot's kinematic deviations from the samples
-    /// (which need j1..j6), then tabulate the residuals the calibrated model leaves. Query
+    /// (which need j1..jn), then tabulate the residuals the calibrated model leaves. Query
     /// it with the target's joint angles.
     #[arg(long, requires = "robot")]
     hybrid: bool,
@@ -45,9 +43,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut inputs = vec![args.samples.as_path()];
     inputs.extend(args.robot.as_deref());
     crate::refuse_overwriting(&args.output, &inputs)?;
-    let columns =
-        ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
-    let samples = read_samples(&args.samples, &columns)?;
+    let (columns, read) = args.read.resolve()?;
+    let samples = read_samples_with(&args.samples, &columns, &read)?;
     let plan = adwi_compile::build::plan(&samples, &args.table.build_options())?;
     let cells = plan.cells();
     if plan.is_mostly_empty() {
@@ -104,7 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     write_atomically(&args.output, &bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if !args.quiet {
-        print_summary(&args, &report, calibration.as_ref(), started);
+        print_summary(&args, &report, &samples, calibration.as_ref(), started);
     }
     if let Some((c, _)) = &calibration {
         warn_unidentifiable(c);
@@ -116,6 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn print_summary(
     args: &Args,
     report: &BuildReport,
+    samples: &adwi_compile::samples::SampleSet,
     calibration: Option<&(Calibration, f64)>,
     started: Instant,
 ) {
@@ -131,6 +129,17 @@ fn print_summary(
         plan.samples,
         args.samples.display()
     );
+    if let Some(r) = &samples.repeats {
+        let orientation = match (r.orientation_max_mrad, r.orientation_rms_mrad) {
+            (Some(max), Some(rms)) => format!("; orientation max {max:.4} mrad, RMS {rms:.4} mrad"),
+            _ => String::new(),
+        };
+        println!(
+            "repeats        {} poses on {} rows (at most {} of one pose), each averaged into one \
+             sample; errors about their means: max {:.4} mm, RMS {:.4} mm{orientation}",
+            r.poses, r.rows, r.max_rows_per_pose, r.position_max_mm, r.position_rms_mm
+        );
+    }
     println!("spacing        {spacing} (median nearest-neighbour distance)");
     println!(
         "radius ε       {:.3} mm{}",

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use adwi_compile::samples::{read_samples, ColumnMap};
+use adwi_compile::samples::read_samples_with;
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::Robot;
@@ -25,9 +25,9 @@ pub struct Args {
     /// Seed of the k-fold split.
     #[arg(long, default_value_t = 0, requires = "folds")]
     seed: u64,
-    /// Column mapping, as for `tablec build`; applies to the samples and the validation set.
-    #[arg(long, value_name = "MAP")]
-    columns: Option<String>,
+    /// How the samples and the validation set are read, as for `tablec build`.
+    #[command(flatten)]
+    read: crate::read_options::ReadOptions,
     /// Methods to compare, comma-separated: paper, paper-joint, idw, grid, kriging,
     /// kinematic, hybrid [default: every one the data allow].
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
@@ -62,12 +62,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for output in [&args.csv, &args.json, &page].into_iter().flatten() {
         crate::refuse_overwriting(output, &inputs)?;
     }
-    let columns =
-        ColumnMap::parse(args.columns.as_deref().unwrap_or("")).map_err(anyhow::Error::msg)?;
-    let samples = read_samples(&args.samples, &columns)?;
+    let (columns, read) = args.read.resolve()?;
+    let samples = read_samples_with(&args.samples, &columns, &read)?;
     let protocol = match (&args.validation, args.folds) {
         (Some(path), None) => {
-            let mut validation = read_samples(path, &columns)?;
+            let mut validation = read_samples_with(path, &columns, &read)?;
             if let Some(n) = args.limit {
                 if n == 0 {
                     bail!("--limit must be at least 1");

@@ -9,6 +9,7 @@ mod build;
 mod eval;
 mod inspect;
 mod query;
+mod read_options;
 mod simulate;
 mod table_options;
 

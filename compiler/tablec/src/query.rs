@@ -4,7 +4,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use adwi_compile::pose;
-use adwi_compile::samples::ColumnMap;
 use adwi_runtime::{Correction, Status, Table, Target};
 use anyhow::{bail, Context};
 
@@ -16,6 +15,12 @@ const COMPENSATE_ITERATIONS: u32 = 50;
 
 #[derive(clap::Args)]
 #[command(
+    group(
+        clap::ArgGroup::new("reading")
+            .args(crate::read_options::ReadOptions::IDS)
+            .multiple(true)
+            .requires("targets")
+    ),
     after_help = "Exit status: 0 when every target was answered (status ok); 3 when \
     the table gave no correction for the target, or for at least one row of --targets (the \
     rows are all written, each with its status, and a count of the unanswered ones goes to \
@@ -40,13 +45,12 @@ pub struct Args {
         conflicts_with = "targets"
     )]
     joints: Option<NumberList>,
-    /// A CSV of targets (columns x,y,z, optionally config and j1..j6 in degrees) instead of
-    /// one pose.
+    /// A CSV of targets (columns x,y,z, optionally config and j1..jn) instead of one pose.
     #[arg(long, conflicts_with = "pose")]
     targets: Option<PathBuf>,
-    /// Column mapping for the targets CSV, as for `tablec build`.
-    #[arg(long, value_name = "MAP", requires = "targets")]
-    columns: Option<String>,
+    /// How the targets CSV is read, as for `tablec build`.
+    #[command(flatten)]
+    read: crate::read_options::ReadOptions,
     /// Output CSV for --targets [default: standard output].
     #[arg(short, long, requires = "targets")]
     output: Option<PathBuf>,
@@ -67,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         return run_batch(
             &table,
             targets,
-            args.columns.as_deref(),
+            &args.read,
             args.output.as_deref(),
             args.exact,
         );
@@ -224,12 +228,12 @@ fn command<D: AsRef<[u8]>>(
 fn run_batch(
     table: &Table<memmap2::Mmap>,
     targets: &Path,
-    columns: Option<&str>,
+    read: &crate::read_options::ReadOptions,
     output: Option<&Path>,
     exact: bool,
 ) -> anyhow::Result<Answered> {
-    let columns = ColumnMap::parse(columns.unwrap_or("")).map_err(anyhow::Error::msg)?;
-    let targets = adwi_compile::samples::read_targets(targets, &columns)?;
+    let (columns, options) = read.resolve()?;
+    let targets = adwi_compile::samples::read_targets(targets, &columns, &options)?;
     let mut out: Box<dyn Write> = match output {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path)

@@ -63,7 +63,7 @@ pub struct TableOptions {
     pub bounds: Option<Bounds>,
     /// Joint-space screen, degrees: when a query gives the target's joint angles, a sample
     /// is admissible only if each of its joint angles is within this of the target's
-    /// (needs samples with j1..j6) [default: off].
+    /// (needs samples with j1..jn) [default: off].
     #[arg(long, value_name = "DEG")]
     pub joint_radius: Option<f64>,
 }

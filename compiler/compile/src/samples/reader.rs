@@ -1,0 +1,1454 @@
+//! The CSV reader: separators and decimal marks, the header's columns, and every row's
+//! numbers converted to millimetres and radians, each problem located by file, line and
+//! column.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use adwi_runtime::method::CONFIG_UNKNOWN;
+use nalgebra::Rotation3;
+
+use super::columns::{
+    orientation_columns, AngleUnit, ColumnMap, LengthUnit, Quantity, Source, Unit, JOINT_COLUMNS,
+    MAX_JOINTS,
+};
+use super::Joints;
+use crate::pose::Convention;
+
+/// The character between fields.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delimiter {
+    /// `,`
+    Comma,
+    /// `;`, as spreadsheets write CSV where the decimal mark is a comma.
+    Semicolon,
+    /// A tab.
+    Tab,
+}
+
+impl Delimiter {
+    /// The byte.
+    pub fn byte(self) -> u8 {
+        match self {
+            Delimiter::Comma => b',',
+            Delimiter::Semicolon => b';',
+            Delimiter::Tab => b'\t',
+        }
+    }
+
+    /// The name, as `--delimiter` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Delimiter::Comma => "comma",
+            Delimiter::Semicolon => "semicolon",
+            Delimiter::Tab => "tab",
+        }
+    }
+
+    fn plural(self) -> &'static str {
+        match self {
+            Delimiter::Comma => "commas",
+            Delimiter::Semicolon => "semicolons",
+            Delimiter::Tab => "tabs",
+        }
+    }
+
+    const ALL: [Delimiter; 3] = [Delimiter::Comma, Delimiter::Semicolon, Delimiter::Tab];
+
+    /// The separator of a header line: of comma, semicolon and tab, the one that occurs
+    /// most often outside quotes (a comma on a tie, or when there is none).
+    pub fn detect(header_line: &[u8]) -> Delimiter {
+        let mut counts = [0usize; 3];
+        let mut quoted = false;
+        for &b in header_line {
+            if b == b'"' {
+                quoted = !quoted;
+            } else if !quoted {
+                if let Some(i) = Delimiter::ALL.iter().position(|d| d.byte() == b) {
+                    counts[i] += 1;
+                }
+            }
+        }
+        // `max_by_key` keeps the last maximum: search from the back so that the first wins.
+        let best = (0..3).rev().max_by_key(|&i| counts[i]).unwrap_or(0);
+        Delimiter::ALL[best]
+    }
+}
+
+impl FromStr for Delimiter {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Delimiter, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "comma" | "," => Ok(Delimiter::Comma),
+            "semicolon" | ";" => Ok(Delimiter::Semicolon),
+            "tab" | "\t" | "\\t" => Ok(Delimiter::Tab),
+            other => Err(format!(
+                "unknown delimiter '{other}': comma, semicolon or tab"
+            )),
+        }
+    }
+}
+
+/// The decimal mark of the numbers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Decimal {
+    /// `1234.56`
+    Point,
+    /// `1234,56`, in files separated by semicolons or tabs (or quoted).
+    Comma,
+}
+
+impl Decimal {
+    /// The name, as `--decimal` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Decimal::Point => "point",
+            Decimal::Comma => "comma",
+        }
+    }
+
+    fn mark(self) -> u8 {
+        match self {
+            Decimal::Point => b'.',
+            Decimal::Comma => b',',
+        }
+    }
+}
+
+impl FromStr for Decimal {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Decimal, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "point" | "." => Ok(Decimal::Point),
+            "comma" | "," => Ok(Decimal::Comma),
+            other => Err(format!("unknown decimal mark '{other}': point or comma")),
+        }
+    }
+}
+
+/// How a file is read, beyond its column names.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// The field separator; `None` detects it from the header line
+    /// ([`Delimiter::detect`]).
+    pub delimiter: Option<Delimiter>,
+    /// The decimal mark; `None` detects it: a point in comma-separated files, otherwise the
+    /// mark of the first number that has one, after which every number must agree.
+    pub decimal: Option<Decimal>,
+    /// The unit of position columns whose mapping gives none.
+    pub length_unit: LengthUnit,
+    /// The unit of joint and orientation-angle columns whose mapping gives none (not of the
+    /// rotation vector `rx,ry,rz`, which is in radians unless mapped `:deg`).
+    pub angle_unit: AngleUnit,
+}
+
+/// How the reader came to use a separator or a decimal mark, for messages.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Choice {
+    /// Given in the options.
+    Given,
+    /// Detected from the header line (separators).
+    Detected,
+    /// Implied: a comma-separated file has decimal points.
+    CommaSeparated,
+    /// Detected from the first number with a decimal mark, at this line and column.
+    FirstNumber {
+        /// The 1-based line.
+        line: u64,
+        /// The 1-based column and its header name.
+        column: (usize, String),
+    },
+}
+
+/// What is wrong with a sample file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ReadErrorKind {
+    /// The file could not be read.
+    Io(String),
+    /// The file has no header row.
+    Empty,
+    /// The file has a header but no sample row.
+    NoSamples,
+    /// A required column is absent from the header.
+    MissingColumn {
+        /// The columns wanted.
+        wanted: String,
+        /// What the header holds instead, as read: its separator and how it was chosen, its
+        /// column count, and the separator it seems to use when that is another.
+        found: String,
+    },
+    /// Columns that only make sense together are partly present.
+    IncompleteColumns(String),
+    /// Columns that say the same thing twice (two orientation conventions on one side,
+    /// errors and measured positions).
+    ConflictingColumns(String),
+    /// The columns of one group are in different units.
+    MixedUnits(String),
+    /// More joints than [`super::MAX_JOINTS`].
+    TooManyJoints,
+    /// A column is given twice in the header.
+    DuplicateColumn(String),
+    /// A row has a different number of fields from the header.
+    FieldCount {
+        /// Fields in the header.
+        expected: u64,
+        /// Fields in this row.
+        found: u64,
+    },
+    /// A field is not a number.
+    NotANumber(String),
+    /// A field is NaN or infinite.
+    NotFinite(String),
+    /// A number's decimal mark is not the file's.
+    DecimalMark {
+        /// The field.
+        text: String,
+        /// The file's decimal mark.
+        expected: Decimal,
+        /// How the file's mark was chosen.
+        choice: Box<Choice>,
+    },
+    /// A quaternion is zero.
+    ZeroQuaternion,
+    /// A configuration is not an integer from 0 to 254.
+    BadConfig(String),
+    /// A field is not UTF-8.
+    NotUtf8,
+    /// The CSV syntax is broken (e.g. an unterminated quote).
+    Syntax(String),
+}
+
+/// An error in a sample file, located by file, line and column.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadError {
+    /// The file.
+    pub path: PathBuf,
+    /// The 1-based line, when the error has one.
+    pub line: Option<u64>,
+    /// The 1-based column number and its header name, when the error has one.
+    pub column: Option<(usize, String)>,
+    /// What is wrong.
+    pub kind: ReadErrorKind,
+}
+
+impl fmt::Display for ReadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some((number, name)) = &self.column {
+            write!(f, ":{number} (column '{name}')")?;
+        }
+        write!(f, ": ")?;
+        match &self.kind {
+            ReadErrorKind::Io(e) => write!(f, "cannot read: {e}"),
+            ReadErrorKind::Empty => write!(f, "empty file: expected a header row"),
+            ReadErrorKind::NoSamples => write!(f, "no sample rows after the header"),
+            ReadErrorKind::MissingColumn { wanted, found } => write!(
+                f,
+                "missing column {wanted} (name it in the header, or map it with --columns); {found}"
+            ),
+            ReadErrorKind::IncompleteColumns(what) => write!(f, "incomplete columns: {what}"),
+            ReadErrorKind::ConflictingColumns(what) => write!(f, "conflicting columns: {what}"),
+            ReadErrorKind::MixedUnits(what) => write!(f, "mixed units: {what}"),
+            ReadErrorKind::TooManyJoints => write!(
+                f,
+                "more than {MAX_JOINTS} joint columns (j1..j{MAX_JOINTS} are read)"
+            ),
+            ReadErrorKind::DuplicateColumn(c) => write!(f, "column '{c}' appears twice"),
+            ReadErrorKind::FieldCount { expected, found } => {
+                write!(f, "{found} fields where the header has {expected}")
+            }
+            ReadErrorKind::NotANumber(v) => write!(f, "not a number: '{v}'"),
+            ReadErrorKind::NotFinite(v) => write!(f, "not a finite number: '{v}'"),
+            ReadErrorKind::DecimalMark {
+                text,
+                expected,
+                choice,
+            } => {
+                let other = match expected {
+                    Decimal::Point => "a decimal comma",
+                    Decimal::Comma => "a decimal point",
+                };
+                write!(f, "'{text}' has {other}, but ")?;
+                match choice.as_ref() {
+                    Choice::Given | Choice::Detected => {
+                        write!(f, "the file is read with --decimal {}", expected.name())
+                    }
+                    Choice::CommaSeparated => write!(
+                        f,
+                        "a comma-separated file has decimal points (quoted decimal commas \
+                         need --decimal comma)"
+                    ),
+                    Choice::FirstNumber { line, column } => write!(
+                        f,
+                        "the file's numbers have decimal {}s, as the first one with a mark \
+                         (line {line}, column {} '{}'); --decimal point or comma chooses",
+                        expected.name(),
+                        column.0,
+                        column.1
+                    ),
+                }
+            }
+            ReadErrorKind::ZeroQuaternion => {
+                write!(f, "the quaternion is zero, which is no orientation")
+            }
+            ReadErrorKind::BadConfig(v) => {
+                write!(
+                    f,
+                    "configuration must be an integer from 0 to 254, found '{v}'"
+                )
+            }
+            ReadErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
+            ReadErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for ReadError {}
+
+/// Reads a whole file.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
+    std::fs::read(path).map_err(|e| ReadError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        kind: ReadErrorKind::Io(e.to_string()),
+    })
+}
+
+/// What a reading needs from a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Purpose {
+    /// A sample database: nominal positions and errors (or measured positions).
+    Samples,
+    /// Targets: nominal positions; everything else optional.
+    Targets,
+    /// Raw measurements: joints and measured positions; nominal poses optional; error
+    /// columns not read.
+    Measurements,
+}
+
+/// One numeric column as read: its index in the row, and the factor to millimetres or
+/// radians (unit and sign).
+#[derive(Clone, Copy, Debug)]
+struct Field {
+    index: usize,
+    scale: f64,
+}
+
+/// An orientation's columns.
+#[derive(Clone, Debug)]
+struct OrientationFields {
+    convention: Convention,
+    fields: Vec<Field>,
+}
+
+/// A column's factor to millimetres or radians (sign included), and its unit (none for a
+/// quaternion component).
+type Scale = (f64, Option<Unit>);
+
+/// The columns a file provides, by part.
+#[derive(Default)]
+struct Layout {
+    position: Option<[Field; 3]>,
+    delta: Option<[Field; 3]>,
+    measured: Option<[Field; 3]>,
+    nominal_orientation: Option<OrientationFields>,
+    measured_orientation: Option<OrientationFields>,
+    rotation_vector: Option<[Field; 3]>,
+    joints: Option<Vec<Field>>,
+    config: Option<usize>,
+}
+
+/// The rows of a file, by part, in millimetres and radians; a part is `None` (or empty for
+/// positions) when the file does not have it.
+#[derive(Default)]
+pub(crate) struct Rows {
+    pub nominal_mm: Option<Vec<[f64; 3]>>,
+    pub delta_mm: Option<Vec<[f64; 3]>>,
+    pub measured_mm: Option<Vec<[f64; 3]>>,
+    pub nominal_rotation: Option<Vec<Rotation3<f64>>>,
+    pub measured_rotation: Option<Vec<Rotation3<f64>>>,
+    pub rotation_vector_rad: Option<Vec<[f64; 3]>>,
+    pub joints: Option<Joints>,
+    pub config: Option<Vec<u8>>,
+    pub lines: Vec<u64>,
+}
+
+const BOM: &[u8] = b"\xef\xbb\xbf";
+
+/// Reads the rows of sample CSV held in memory; `path` only names it in messages.
+pub(crate) fn parse(
+    path: &Path,
+    bytes: &[u8],
+    columns: &ColumnMap,
+    options: &ReadOptions,
+    purpose: Purpose,
+) -> Result<Rows, ReadError> {
+    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
+        path: path.to_path_buf(),
+        line,
+        column,
+        kind,
+    };
+    // Spreadsheets start UTF-8 files with a byte-order mark.
+    let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
+    // Comment lines are removed here rather than by the CSV reader, whose line numbers do
+    // not count them consistently; `physical[n - 1]` is the file line of filtered line n.
+    // Most files have none, and are read in place.
+    let has_comments =
+        bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#');
+    let mut filtered = Vec::new();
+    let mut physical = Vec::new();
+    if has_comments {
+        filtered.reserve(bytes.len());
+        for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
+            if line.first() != Some(&b'#') {
+                filtered.extend_from_slice(line);
+                physical.push(i as u64 + 1);
+            }
+        }
+    }
+    let data: &[u8] = if has_comments { &filtered } else { bytes };
+    let mut lines = LineCounter {
+        data,
+        byte: 0,
+        line: 1,
+        physical: has_comments.then_some(physical.as_slice()),
+    };
+
+    // The header line: the first that is not blank (the CSV reader skips blank lines).
+    let header_text = data
+        .split(|&b| b == b'\n')
+        .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
+        .find(|l| !l.is_empty())
+        .unwrap_or(&[]);
+    let (delimiter, delimiter_choice) = match options.delimiter {
+        Some(d) => (d, Choice::Given),
+        None => (Delimiter::detect(header_text), Choice::Detected),
+    };
+    // Fields are trimmed here, not by the CSV reader, which builds a new record per row to
+    // trim: a million-row file must not cost a million allocations.
+    let mut reader = csv::ReaderBuilder::new()
+        .delimiter(delimiter.byte())
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(data);
+    let mut header = csv::ByteRecord::new();
+    match reader.read_byte_record(&mut header) {
+        Ok(true) => {}
+        Ok(false) => return Err(error(None, None, ReadErrorKind::Empty)),
+        Err(e) => return Err(csv_error(path, e, &mut lines)),
+    }
+    let header_line = lines.of(header.position());
+    let mut names = Vec::with_capacity(header.len());
+    // A set beside the list: a linear `contains` per column is quadratic in the column
+    // count, minutes for a hostile header of a million columns.
+    let mut distinct = std::collections::HashSet::with_capacity(header.len());
+    for field in header.iter() {
+        let name = std::str::from_utf8(field.trim_ascii())
+            .map_err(|_| error(Some(header_line), None, ReadErrorKind::NotUtf8))?
+            .to_ascii_lowercase();
+        if !name.is_empty() && !distinct.insert(name.clone()) {
+            return Err(error(
+                Some(header_line),
+                Some((names.len() + 1, name.clone())),
+                ReadErrorKind::DuplicateColumn(name),
+            ));
+        }
+        names.push(name);
+    }
+    drop(distinct);
+    let header_info = HeaderInfo {
+        names: &names,
+        delimiter,
+        choice: &delimiter_choice,
+    };
+    let layout = resolve(&header_info, columns, options, purpose)
+        .map_err(|kind| error(Some(header_line), None, kind))?;
+
+    let mut decimal = match options.decimal {
+        Some(d) => Some((d, Choice::Given)),
+        None if delimiter == Delimiter::Comma => Some((Decimal::Point, Choice::CommaSeparated)),
+        None => None,
+    };
+    // Rows are at most the lines of the file: reserve once rather than grow.
+    let rows_hint = data.iter().filter(|&&b| b == b'\n').count() + 1;
+    let mut rows = Rows {
+        nominal_mm: layout.position.map(|_| Vec::with_capacity(rows_hint)),
+        delta_mm: layout.delta.map(|_| Vec::with_capacity(rows_hint)),
+        measured_mm: layout.measured.map(|_| Vec::with_capacity(rows_hint)),
+        nominal_rotation: layout.nominal_orientation.as_ref().map(|_| Vec::new()),
+        measured_rotation: layout.measured_orientation.as_ref().map(|_| Vec::new()),
+        rotation_vector_rad: layout.rotation_vector.map(|_| Vec::new()),
+        joints: layout.joints.as_ref().map(|j| Joints::new(j.len())),
+        config: layout.config.map(|_| Vec::new()),
+        lines: Vec::with_capacity(rows_hint),
+    };
+    let mut joint_row = [0.0; MAX_JOINTS];
+    let mut orientation = [0.0; 4];
+    // One record buffer for every row.
+    let mut record = csv::ByteRecord::new();
+    loop {
+        match reader.read_byte_record(&mut record) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(csv_error(path, e, &mut lines)),
+        }
+        let line = lines.of(record.position());
+        if record.len() != names.len() {
+            // A blank line is skipped by the reader; a row with one empty field is not.
+            return Err(error(
+                Some(line),
+                None,
+                ReadErrorKind::FieldCount {
+                    expected: names.len() as u64,
+                    found: record.len() as u64,
+                },
+            ));
+        }
+        let mut number = |f: Field| -> Result<f64, ReadError> {
+            number_at(&record[f.index], &mut decimal, line, f.index, &names)
+                .map(|v| v * f.scale)
+                .map_err(|kind| {
+                    error(
+                        Some(line),
+                        Some((f.index + 1, names[f.index].clone())),
+                        kind,
+                    )
+                })
+        };
+        let mut triple = |cols: [Field; 3]| -> Result<[f64; 3], ReadError> {
+            Ok([number(cols[0])?, number(cols[1])?, number(cols[2])?])
+        };
+        if let (Some(cols), Some(v)) = (layout.position, rows.nominal_mm.as_mut()) {
+            v.push(triple(cols)?);
+        }
+        if let (Some(cols), Some(v)) = (layout.delta, rows.delta_mm.as_mut()) {
+            v.push(triple(cols)?);
+        }
+        if let (Some(cols), Some(v)) = (layout.measured, rows.measured_mm.as_mut()) {
+            v.push(triple(cols)?);
+        }
+        if let (Some(cols), Some(v)) = (layout.rotation_vector, rows.rotation_vector_rad.as_mut()) {
+            v.push(triple(cols)?);
+        }
+        for (part, out) in [
+            (&layout.nominal_orientation, &mut rows.nominal_rotation),
+            (&layout.measured_orientation, &mut rows.measured_rotation),
+        ] {
+            if let (Some(o), Some(out)) = (part, out.as_mut()) {
+                let values = &mut orientation[..o.fields.len()];
+                for (v, &f) in values.iter_mut().zip(&o.fields) {
+                    *v = number(f)?;
+                }
+                let rotation = o.convention.rotation(values).ok_or_else(|| {
+                    let first = o.fields[0].index;
+                    error(
+                        Some(line),
+                        Some((first + 1, names[first].clone())),
+                        ReadErrorKind::ZeroQuaternion,
+                    )
+                })?;
+                out.push(rotation);
+            }
+        }
+        if let (Some(cols), Some(joints)) = (&layout.joints, rows.joints.as_mut()) {
+            let q = &mut joint_row[..cols.len()];
+            for (v, &f) in q.iter_mut().zip(cols) {
+                *v = number(f)?;
+            }
+            joints.push(q);
+        }
+        if let (Some(c), Some(configs)) = (layout.config, rows.config.as_mut()) {
+            let text = String::from_utf8_lossy(record[c].trim_ascii()).into_owned();
+            let config: u8 = text
+                .parse()
+                .ok()
+                .filter(|&v| v != CONFIG_UNKNOWN)
+                .ok_or_else(|| {
+                    error(
+                        Some(line),
+                        Some((c + 1, names[c].clone())),
+                        ReadErrorKind::BadConfig(truncated(&text)),
+                    )
+                })?;
+            configs.push(config);
+        }
+        rows.lines.push(line);
+    }
+    if rows.lines.is_empty() {
+        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
+    }
+    Ok(rows)
+}
+
+/// The number in a field, in the file's unit: trimmed, with the file's decimal mark,
+/// finite. `decimal` is the file's mark once known; the first number with a mark decides it
+/// when it is not.
+fn number_at(
+    raw: &[u8],
+    decimal: &mut Option<(Decimal, Choice)>,
+    line: u64,
+    index: usize,
+    names: &[String],
+) -> Result<f64, ReadErrorKind> {
+    let raw = raw.trim_ascii();
+    let text = std::str::from_utf8(raw).map_err(|_| ReadErrorKind::NotUtf8)?;
+    let (mut point, mut comma) = (false, false);
+    for &b in raw {
+        point |= b == b'.';
+        comma |= b == b',';
+    }
+    if point || comma {
+        let mark = match decimal {
+            Some((mark, _)) => *mark,
+            None if point && comma => return Err(ReadErrorKind::NotANumber(truncated(text))),
+            None => {
+                let mark = if comma {
+                    Decimal::Comma
+                } else {
+                    Decimal::Point
+                };
+                *decimal = Some((
+                    mark,
+                    Choice::FirstNumber {
+                        line,
+                        column: (index + 1, names[index].clone()),
+                    },
+                ));
+                mark
+            }
+        };
+        let foreign = match mark {
+            Decimal::Point => comma,
+            Decimal::Comma => point,
+        };
+        if foreign {
+            let choice = Box::new(decimal.as_ref().map_or(Choice::Given, |(_, c)| c.clone()));
+            return Err(ReadErrorKind::DecimalMark {
+                text: truncated(text),
+                expected: mark,
+                choice,
+            });
+        }
+    }
+    let value: Result<f64, _> = if comma {
+        // A decimal comma: the number with a point, on the stack for any number of usual
+        // length.
+        let mut buffer = [0u8; 64];
+        match buffer.get_mut(..raw.len()) {
+            Some(b) => {
+                for (out, &c) in b.iter_mut().zip(raw) {
+                    *out = if c == Decimal::Comma.mark() {
+                        Decimal::Point.mark()
+                    } else {
+                        c
+                    };
+                }
+                std::str::from_utf8(b).map_or(Ok(f64::NAN), str::parse)
+            }
+            None => text.replace(',', ".").parse(),
+        }
+    } else {
+        text.parse()
+    };
+    let value = value.map_err(|_| ReadErrorKind::NotANumber(truncated(text)))?;
+    if !value.is_finite() {
+        return Err(ReadErrorKind::NotFinite(truncated(text)));
+    }
+    Ok(value)
+}
+
+fn truncated(text: &str) -> String {
+    const MAX: usize = 40;
+    match text.char_indices().nth(MAX) {
+        Some((cut, _)) => format!("{}…", &text[..cut]),
+        None => text.to_string(),
+    }
+}
+
+fn csv_error(path: &Path, e: csv::Error, lines: &mut LineCounter<'_>) -> ReadError {
+    let line = e.position().map(|p| lines.of(Some(p)));
+    let kind = match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => ReadErrorKind::NotUtf8,
+        csv::ErrorKind::Io(io) => ReadErrorKind::Io(io.to_string()),
+        _ => ReadErrorKind::Syntax(e.to_string()),
+    };
+    ReadError {
+        path: path.to_path_buf(),
+        line,
+        column: None,
+        kind,
+    }
+}
+
+/// The file line of a record. The CSV reader's own line numbers, and its byte positions,
+/// count from the end of the previous record, before the blank lines it skips and the `\n`
+/// of a `\r\n` it has not consumed yet: the record starts at the first byte after them.
+struct LineCounter<'a> {
+    /// The text read (without comment lines).
+    data: &'a [u8],
+    /// A byte offset and the 1-based line it is on, where the last count stopped.
+    byte: usize,
+    line: u64,
+    /// The file line of each line of `data`, when comment lines were removed from it.
+    physical: Option<&'a [u64]>,
+}
+
+impl LineCounter<'_> {
+    /// The file line where the record at `position` starts (0 without a position). Counts
+    /// forward from the last call, so reading every record counts the text once.
+    fn of(&mut self, position: Option<&csv::Position>) -> u64 {
+        let Some(position) = position else {
+            return 0;
+        };
+        let mut start = (position.byte() as usize).min(self.data.len());
+        while start < self.data.len() && matches!(self.data[start], b'\r' | b'\n') {
+            start += 1;
+        }
+        if start < self.byte {
+            (self.byte, self.line) = (0, 1);
+        }
+        let newlines = self.data[self.byte..start]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        self.line += newlines as u64;
+        self.byte = start;
+        match self.physical {
+            Some(physical) => physical
+                .get(self.line as usize - 1)
+                .copied()
+                .unwrap_or(self.line),
+            None => self.line,
+        }
+    }
+}
+
+/// The header as read, for finding columns and for a missing column's message.
+struct HeaderInfo<'a> {
+    names: &'a [String],
+    delimiter: Delimiter,
+    choice: &'a Choice,
+}
+
+impl HeaderInfo<'_> {
+    /// What the header holds: the separator it was read with and how that was chosen, its
+    /// column count, and the separator the text suggests when it is one column.
+    fn describe(&self) -> String {
+        const SHOWN: usize = 60;
+        let names = self.names;
+        let mut text = names.join(",");
+        if let Some((cut, _)) = text.char_indices().nth(SHOWN) {
+            text.truncate(cut);
+            text.push('…');
+        }
+        let columns = match names.len() {
+            1 => "1 column".to_string(),
+            n => format!("{n} columns"),
+        };
+        let how = match self.choice {
+            Choice::Given => "as given by --delimiter",
+            _ => "detected from it",
+        };
+        let read = format!(
+            "the header, read with {} as separators ({how}),",
+            self.delimiter.plural()
+        );
+        let seen = [
+            (b';', Delimiter::Semicolon),
+            (b'\t', Delimiter::Tab),
+            (b',', Delimiter::Comma),
+        ]
+        .into_iter()
+        .filter(|(c, d)| {
+            *d != self.delimiter && names.len() == 1 && names[0].as_bytes().contains(c)
+        })
+        .max_by_key(|(c, _)| names[0].bytes().filter(|b| b == c).count());
+        match seen {
+            Some((_, other)) => format!(
+                "{read} is {columns} ('{text}'): the file seems separated by {}; give \
+                 --delimiter {}",
+                other.plural(),
+                other.name()
+            ),
+            None => format!("{read} has {columns}: '{text}'"),
+        }
+    }
+}
+
+/// Finds the columns of each part: all-or-none groups complete, one unit per group, one
+/// orientation convention per side, joints `j1..jn` without gaps; then what `purpose`
+/// requires.
+fn resolve(
+    header: &HeaderInfo<'_>,
+    map: &ColumnMap,
+    options: &ReadOptions,
+    purpose: Purpose,
+) -> Result<Layout, ReadErrorKind> {
+    let names = header.names;
+    let missing = |wanted: &str| ReadErrorKind::MissingColumn {
+        wanted: wanted.to_string(),
+        found: header.describe(),
+    };
+    let find = |canonical: &str| -> Option<(usize, Source)> {
+        let source = map.find(canonical)?;
+        let index = names.iter().position(|n| *n == source.name)?;
+        Some((index, source))
+    };
+    // The factor to millimetres or radians of a column (sign included), and its unit.
+    let scale = |canonical: &str, source: &Source| -> Scale {
+        let quantity = Quantity::of(canonical).expect("a canonical column");
+        let unit = source.unit.or(match quantity {
+            Quantity::Length => Some(Unit::Length(options.length_unit)),
+            Quantity::Angle | Quantity::Joint => Some(Unit::Angle(options.angle_unit)),
+            Quantity::RotationVector => Some(Unit::Angle(AngleUnit::Radian)),
+            Quantity::Unitless => None,
+        });
+        let factor = match unit {
+            Some(Unit::Length(u)) => u.mm(),
+            Some(Unit::Angle(u)) => u.rad(),
+            None => 1.0,
+        };
+        (if source.negate { -factor } else { factor }, unit)
+    };
+    // The columns of a group, all or none, in one unit.
+    let group = |cols: &[&str]| -> Result<Option<Vec<Field>>, ReadErrorKind> {
+        let found: Vec<Option<(usize, Source)>> = cols.iter().map(|c| find(c)).collect();
+        if found.iter().all(Option::is_none) {
+            return Ok(None);
+        }
+        if let Some(i) = found.iter().position(Option::is_none) {
+            let present: Vec<&str> = cols
+                .iter()
+                .zip(&found)
+                .filter(|(_, f)| f.is_some())
+                .map(|(c, _)| *c)
+                .collect();
+            return Err(ReadErrorKind::IncompleteColumns(format!(
+                "'{}' given without '{}'",
+                present.join(","),
+                cols[i]
+            )));
+        }
+        let mut fields = Vec::with_capacity(cols.len());
+        let mut first_unit: Option<(&str, Unit)> = None;
+        for (c, (index, source)) in cols.iter().zip(found.into_iter().flatten()) {
+            let (factor, unit) = scale(c, &source);
+            match (first_unit, unit) {
+                (Some((first, u)), Some(unit)) if u != unit => {
+                    return Err(ReadErrorKind::MixedUnits(format!(
+                        "'{first}' is in {u} but '{c}' in {unit}: the columns {} take one unit",
+                        cols.join(",")
+                    )))
+                }
+                (None, Some(unit)) => first_unit = Some((c, unit)),
+                _ => {}
+            }
+            fields.push(Field {
+                index,
+                scale: factor,
+            });
+        }
+        Ok(Some(fields))
+    };
+    let three = |v: Vec<Field>| [v[0], v[1], v[2]];
+    let mut layout = Layout {
+        position: group(&["x", "y", "z"])?.map(three),
+        delta: group(&["dx", "dy", "dz"])?.map(three),
+        measured: group(&["mx", "my", "mz"])?.map(three),
+        rotation_vector: group(&["rx", "ry", "rz"])?.map(three),
+        config: find("config").map(|(i, _)| i),
+        ..Layout::default()
+    };
+    for measured in [false, true] {
+        let mut found: Option<OrientationFields> = None;
+        for convention in Convention::ALL {
+            let cols = orientation_columns(convention, measured);
+            if let Some(fields) = group(cols)? {
+                if let Some(first) = &found {
+                    return Err(ReadErrorKind::ConflictingColumns(format!(
+                        "two conventions for the {} orientation, '{}' and '{}': keep one",
+                        if measured { "measured" } else { "nominal" },
+                        orientation_columns(first.convention, measured).join(","),
+                        cols.join(",")
+                    )));
+                }
+                found = Some(OrientationFields { convention, fields });
+            }
+        }
+        if measured {
+            layout.measured_orientation = found;
+        } else {
+            layout.nominal_orientation = found;
+        }
+    }
+    layout.joints = joints(names, &find, &scale)?;
+    // Joint angles named q1..q6 are no quaternion q1..q4.
+    if matches!(&layout.nominal_orientation, Some(o) if o.convention == Convention::QuaternionWxyz)
+        && !map.maps("q1")
+        && names.iter().any(|n| n == "q5")
+    {
+        return Err(ReadErrorKind::ConflictingColumns(
+            "q1,q2,q3,q4 are read as a quaternion (w, x, y, z), but the file has q5 too: if \
+             q1, q2, ... are joint angles, map them (j1=q1,j2=q2,...)"
+                .into(),
+        ));
+    }
+
+    if layout.position.is_none() && purpose != Purpose::Measurements {
+        return Err(missing("x,y,z (nominal position, mm)"));
+    }
+    match purpose {
+        Purpose::Samples | Purpose::Targets => {
+            if layout.delta.is_some() && layout.measured.is_some() {
+                return Err(ReadErrorKind::ConflictingColumns(
+                    "both dx,dy,dz and mx,my,mz given: keep one".into(),
+                ));
+            }
+            if purpose == Purpose::Samples && layout.delta.is_none() && layout.measured.is_none() {
+                return Err(missing(
+                    "dx,dy,dz (error, mm) or mx,my,mz (measured position, mm)",
+                ));
+            }
+            if let Some(m) = &layout.measured_orientation {
+                let cols = orientation_columns(m.convention, true).join(",");
+                if layout.rotation_vector.is_some() {
+                    return Err(ReadErrorKind::ConflictingColumns(format!(
+                        "both rx,ry,rz and {cols} given: keep one"
+                    )));
+                }
+                if layout.nominal_orientation.is_none() {
+                    return Err(missing(&format!(
+                        "a,b,c (or another nominal orientation) for the measured orientation \
+                         {cols}"
+                    )));
+                }
+            }
+        }
+        Purpose::Measurements => {
+            if layout.joints.is_none() {
+                return Err(missing("j1..jn (joint angles)"));
+            }
+            if layout.measured.is_none() {
+                return Err(missing("mx,my,mz (measured position)"));
+            }
+            // Errors are what measurements lead to, not part of them.
+            layout.delta = None;
+            layout.rotation_vector = None;
+        }
+    }
+    Ok(layout)
+}
+
+/// The joint columns `j1..jn`: none, or a run from `j1` without gaps; revolute joints in
+/// one angle unit.
+fn joints(
+    names: &[String],
+    find: &dyn Fn(&str) -> Option<(usize, Source)>,
+    scale: &dyn Fn(&str, &Source) -> Scale,
+) -> Result<Option<Vec<Field>>, ReadErrorKind> {
+    let found: Vec<Option<(usize, Source)>> = JOINT_COLUMNS.iter().map(|c| find(c)).collect();
+    let Some(last) = found.iter().rposition(Option::is_some) else {
+        return Ok(None);
+    };
+    if let Some(gap) = found[..last].iter().position(Option::is_none) {
+        let present: Vec<&str> = JOINT_COLUMNS
+            .iter()
+            .zip(&found)
+            .filter(|(_, f)| f.is_some())
+            .map(|(c, _)| *c)
+            .collect();
+        return Err(ReadErrorKind::IncompleteColumns(format!(
+            "'{}' given without '{}': joints are j1..jn without gaps",
+            present.join(","),
+            JOINT_COLUMNS[gap]
+        )));
+    }
+    if last + 1 == MAX_JOINTS && names.iter().any(|n| n == "j13") {
+        return Err(ReadErrorKind::TooManyJoints);
+    }
+    let mut fields = Vec::with_capacity(last + 1);
+    let mut angle: Option<(&str, AngleUnit)> = None;
+    for (c, (index, source)) in JOINT_COLUMNS.iter().zip(found.into_iter().flatten()) {
+        let (factor, unit) = scale(c, &source);
+        if let Some(Unit::Angle(u)) = unit {
+            match angle {
+                Some((first, a)) if a != u => {
+                    return Err(ReadErrorKind::MixedUnits(format!(
+                        "'{first}' is in {} but '{c}' in {}: revolute joints take one unit",
+                        a.symbol(),
+                        u.symbol()
+                    )))
+                }
+                Some(_) => {}
+                None => angle = Some((c, u)),
+            }
+        }
+        fields.push(Field {
+            index,
+            scale: factor,
+        });
+    }
+    Ok(Some(fields))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use approx::assert_abs_diff_eq;
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    use super::super::{parse_samples_with, ColumnMap, SampleSet};
+    use super::*;
+    use crate::pose;
+
+    fn read(text: &str, map: &str, options: ReadOptions) -> Result<SampleSet, String> {
+        parse_samples_with(
+            Path::new("s.csv"),
+            text.as_bytes(),
+            &ColumnMap::parse(map).unwrap(),
+            &options,
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    fn samples(text: &str) -> SampleSet {
+        read(text, "", ReadOptions::default()).unwrap()
+    }
+
+    fn refused(text: &str, map: &str, options: ReadOptions, needles: &[&str]) {
+        let message = read(text, map, options).unwrap_err();
+        for needle in needles {
+            assert!(message.contains(needle), "{needle:?} not in: {message}");
+        }
+    }
+
+    #[test]
+    fn the_separator_is_the_one_the_header_uses_most() {
+        assert_eq!(Delimiter::detect(b"x,y,z"), Delimiter::Comma);
+        assert_eq!(Delimiter::detect(b"x;y;z"), Delimiter::Semicolon);
+        assert_eq!(Delimiter::detect(b"x\ty\tz"), Delimiter::Tab);
+        assert_eq!(Delimiter::detect(b"x"), Delimiter::Comma);
+        // Quoted names may hold other separators.
+        assert_eq!(
+            Delimiter::detect(b"\"x, mm\";\"y, mm\";\"z, mm\";\"a,b,c\""),
+            Delimiter::Semicolon
+        );
+        // A tie goes to the comma, then the semicolon.
+        assert_eq!(Delimiter::detect(b"a,b;c"), Delimiter::Comma);
+        assert_eq!(Delimiter::detect(b"a\tb;c"), Delimiter::Semicolon);
+        for (text, separator) in [
+            ("x,y,z,dx,dy,dz\n1,2,3,0.5,0,0\n", ","),
+            ("x;y;z;dx;dy;dz\n1;2;3;0.5;0;0\n", ";"),
+            ("x\ty\tz\tdx\tdy\tdz\n1\t2\t3\t0.5\t0\t0\n", "\t"),
+        ] {
+            let s = samples(text);
+            assert_eq!(s.nominal_mm, vec![[1.0, 2.0, 3.0]], "{separator:?}");
+            assert_eq!(s.error_mm, vec![[0.5, 0.0, 0.0]], "{separator:?}");
+        }
+        // Padded tab-separated fields, a comment, CRLF line ends.
+        let s = samples("# tracker export\r\n x \t y \t z \t dx \t dy \t dz \r\n 1 \t 2 \t 3 \t 0.5 \t 0 \t 0 \r\n");
+        assert_eq!(s.nominal_mm, vec![[1.0, 2.0, 3.0]]);
+        assert_eq!(s.lines, vec![3]);
+    }
+
+    #[test]
+    fn decimal_commas_are_read_where_commas_do_not_separate() {
+        let s = samples("x;y;z;dx;dy;dz\n1234,56;-2,5;3;0,125;-1,5E-3;2,02011E+13\n5;6;7;0;0;0\n");
+        assert_eq!(s.nominal_mm[0], [1234.56, -2.5, 3.0]);
+        assert_eq!(s.error_mm[0], [0.125, -1.5e-3, 2.02011e13]);
+        let s = samples("x\ty\tz\tdx\tdy\tdz\n1,5\t2\t3\t0\t0\t0\n");
+        assert_eq!(s.nominal_mm[0], [1.5, 2.0, 3.0]);
+        // A decimal point in a semicolon file is read as such.
+        let s = samples("x;y;z;dx;dy;dz\n1.5;2;3;0;0;0\n");
+        assert_eq!(s.nominal_mm[0], [1.5, 2.0, 3.0]);
+        // A number longer than the stack buffer.
+        let long = format!("1,{}", "5".repeat(80));
+        let s = samples(&format!("x;y;z;dx;dy;dz\n{long};2;3;0;0;0\n"));
+        assert_abs_diff_eq!(s.nominal_mm[0][0], 1.5555555555555556, epsilon = 1e-15);
+    }
+
+    #[test]
+    fn the_first_decimal_mark_decides_and_every_number_must_agree() {
+        // Integers first: the mark is decided by the first number that has one.
+        refused(
+            "x;y;z;dx;dy;dz\n1;2;3;0;0;0\n4;5;6;0,5;0;0\n7;8;9;0.5;0;0\n",
+            "",
+            ReadOptions::default(),
+            &[
+                "s.csv:4:4 (column 'dx')",
+                "'0.5' has a decimal point",
+                "decimal commas",
+                "line 3, column 4 'dx'",
+            ],
+        );
+        refused(
+            "x;y;z;dx;dy;dz\n1.5;2;3;0,5;0;0\n",
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:4 (column 'dx')", "'0,5' has a decimal comma"],
+        );
+        // Thousands separators are not read as decimal marks.
+        refused(
+            "x;y;z;dx;dy;dz\n1.234,5;2;3;0;0;0\n",
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:1 (column 'x')", "not a number: '1.234,5'"],
+        );
+        refused(
+            "x;y;z;dx;dy;dz\n1,234,5;2;3;0;0;0\n",
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:1 (column 'x')", "not a number: '1,234,5'"],
+        );
+        // A quoted decimal comma in a comma-separated file.
+        refused(
+            "x,y,z,dx,dy,dz\n\"1,5\",2,3,0,0,0\n",
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:1", "comma-separated file has decimal points"],
+        );
+    }
+
+    #[test]
+    fn the_separator_and_the_decimal_mark_can_be_given() {
+        let comma = ReadOptions {
+            decimal: Some(Decimal::Comma),
+            ..ReadOptions::default()
+        };
+        let s = read("x,y,z,dx,dy,dz\n\"1,5\",2,3,0,0,0\n", "", comma).unwrap();
+        assert_eq!(s.nominal_mm[0], [1.5, 2.0, 3.0]);
+        refused(
+            "x;y;z;dx;dy;dz\n1.5;2;3;0;0;0\n",
+            "",
+            comma,
+            &["s.csv:2:1", "read with --decimal comma"],
+        );
+        let point = ReadOptions {
+            decimal: Some(Decimal::Point),
+            ..ReadOptions::default()
+        };
+        refused(
+            "x;y;z;dx;dy;dz\n1,5;2;3;0;0;0\n",
+            "",
+            point,
+            &["s.csv:2:1", "'1,5' has a decimal comma"],
+        );
+        let tab = ReadOptions {
+            delimiter: Some(Delimiter::Tab),
+            ..ReadOptions::default()
+        };
+        // A header that uses more semicolons than tabs, read with tabs as told.
+        let text = "x\ty\tz\tdx\tdy\tdz\tnote; with; seven; semicolons; in; it; really\n\
+                    1\t2\t3\t0\t0\t0\tfree; text\n";
+        let header = text.lines().next().unwrap();
+        assert_eq!(Delimiter::detect(header.as_bytes()), Delimiter::Semicolon);
+        let s = read(text, "", tab).unwrap();
+        assert_eq!(s.nominal_mm[0], [1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn a_missing_column_names_the_separator_read_with() {
+        refused(
+            "u;v;dx;dy;dz\n1;2;0;0;0\n",
+            "",
+            ReadOptions::default(),
+            &[
+                "s.csv:1:",
+                "missing column x,y,z",
+                "read with semicolons as separators (detected from it)",
+            ],
+        );
+        refused(
+            "x;y;z;dx;dy;dz\n1;2;3;0;0;0\n",
+            "",
+            ReadOptions {
+                delimiter: Some(Delimiter::Comma),
+                ..ReadOptions::default()
+            },
+            &[
+                "s.csv:1:",
+                "missing column x,y,z",
+                "read with commas as separators (as given by --delimiter)",
+                "seems separated by semicolons; give --delimiter semicolon",
+            ],
+        );
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_first_name() {
+        let s = samples("\u{feff}x;y;z;dx;dy;dz\n1;2;3;0;0;0\n");
+        assert_eq!(s.nominal_mm[0], [1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn units_apply_per_group_with_file_wide_defaults() {
+        // Nominal in metres, measured in millimetres; nominal angles in radians, measured
+        // in degrees; joints in radians, one prismatic joint in metres.
+        let text = "gx;gy;gz;mx;my;mz;ga;gb;gc;ma;mb;mc;s1;s2;rail\n\
+                    0,4;-0,4;0,8;400,5;-400;800;0;1,5707963267948966;0;0,01;90;0;0,5;-1;1,25\n";
+        let map = "x=gx:m,y=gy:m,z=gz:m,a=ga:rad,b=gb:rad,c=gc:rad,j1=s1:rad,j2=s2:rad,j3=rail:m";
+        let s = read(text, map, ReadOptions::default()).unwrap();
+        assert_eq!(s.nominal_mm[0], [400.0, -400.0, 800.0]);
+        assert_abs_diff_eq!(s.error_mm[0][0], 0.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(s.error_mm[0][1], 0.0, epsilon = 1e-12);
+        assert_eq!(s.joints_rad(0), Some(&[0.5, -1.0, 1250.0][..]));
+        // Rz(0.01°) before Ry(90°): 0.01° about the base z axis.
+        let r = s.rotation_error_rad.as_ref().unwrap()[0];
+        assert_abs_diff_eq!(r[2], 0.01f64.to_radians(), epsilon = 1e-12);
+        // The same through file-wide defaults and the short form.
+        let text = "x;y;z;mx;my;mz;a;b;c;ma;mb;mc;j1;j2;j3\n\
+                    0,4;-0,4;0,8;400,5;-400;800;0;1,5707963267948966;0;0,01;90;0;0,5;-1;1,25\n";
+        let options = ReadOptions {
+            length_unit: LengthUnit::Metre,
+            angle_unit: AngleUnit::Radian,
+            ..ReadOptions::default()
+        };
+        let t = read(text, "mx:mm,my:mm,mz:mm,ma:deg,mb:deg,mc:deg,j3:m", options).unwrap();
+        assert_eq!(t, s);
+    }
+
+    #[test]
+    fn the_rotation_vector_is_in_radians_unless_mapped_in_degrees() {
+        let text = "x,y,z,dx,dy,dz,rx,ry,rz,j1\n1,2,3,0,0,0,0.001,0,0,90\n";
+        let radians = ReadOptions {
+            angle_unit: AngleUnit::Radian,
+            ..ReadOptions::default()
+        };
+        for options in [ReadOptions::default(), radians] {
+            let s = read(text, "", options).unwrap();
+            assert_eq!(s.rotation_error_rad.unwrap()[0], [0.001, 0.0, 0.0]);
+        }
+        let s = read(text, "rx:deg,ry:deg,rz:deg", ReadOptions::default()).unwrap();
+        assert_eq!(
+            s.rotation_error_rad.as_ref().unwrap()[0],
+            [0.001f64.to_radians(), 0.0, 0.0]
+        );
+        assert_eq!(s.joints_rad(0), Some(&[90f64.to_radians()][..]));
+    }
+
+    #[test]
+    fn a_group_in_two_units_is_refused() {
+        refused(
+            "x,y,z,dx,dy,dz\n1,2,3,0,0,0\n",
+            "x:m,z:m",
+            ReadOptions::default(),
+            &[
+                "s.csv:1:",
+                "mixed units",
+                "'x' is in m but 'y' in mm",
+                "x,y,z take one unit",
+            ],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,a,b,c\n1,2,3,0,0,0,0,0,0\n",
+            "c:rad",
+            ReadOptions::default(),
+            &["'a' is in deg but 'c' in rad"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,j1,j2\n1,2,3,0,0,0,0,0\n",
+            "j2:rad",
+            ReadOptions::default(),
+            &["'j1' is in deg but 'j2' in rad: revolute joints take one unit"],
+        );
+    }
+
+    #[test]
+    fn any_joint_count_from_one_to_twelve() {
+        for n in [1usize, 6, 7, 12] {
+            let names: Vec<String> = (1..=n).map(|i| format!("j{i}")).collect();
+            let values: Vec<String> = (1..=n).map(|i| format!("{}", 10 * i)).collect();
+            let text = format!(
+                "x,y,z,dx,dy,dz,{}\n1,2,3,0,0,0,{}\n",
+                names.join(","),
+                values.join(",")
+            );
+            let s = samples(&text);
+            assert_eq!(s.joint_count(), Some(n));
+            let expected: Vec<f64> = (1..=n).map(|i| (10.0 * i as f64).to_radians()).collect();
+            assert_eq!(s.joints_rad(0), Some(expected.as_slice()));
+        }
+        // Mapped, in any column order.
+        let s = read(
+            "q8,q7,q6,q5,q4,q3,q2,q1,x,y,z,dx,dy,dz\n8,7,6,5,4,3,2,1,1,2,3,0,0,0\n",
+            "j1=q1,j2=q2,j3=q3,j4=q4,j5=q5,j6=q6,j7=q7,j8=q8",
+            ReadOptions::default(),
+        )
+        .unwrap();
+        let expected: Vec<f64> = (1..=8).map(|i| (i as f64).to_radians()).collect();
+        assert_eq!(s.joints_rad(0), Some(expected.as_slice()));
+    }
+
+    #[test]
+    fn joints_with_gaps_or_beyond_twelve_are_refused() {
+        let o = ReadOptions::default();
+        refused(
+            "x,y,z,dx,dy,dz,j1,j2,j4\n1,2,3,0,0,0,1,2,4\n",
+            "",
+            o,
+            &["s.csv:1:", "'j1,j2,j4' given without 'j3'", "without gaps"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,j2,j3\n1,2,3,0,0,0,1,2\n",
+            "",
+            o,
+            &["'j2,j3' given without 'j1'"],
+        );
+        let names: Vec<String> = (1..=13).map(|i| format!("j{i}")).collect();
+        let text = format!(
+            "x,y,z,dx,dy,dz,{}\n1,2,3,0,0,0{}\n",
+            names.join(","),
+            ",0".repeat(13)
+        );
+        refused(&text, "", o, &["s.csv:1:", "more than 12 joint columns"]);
+    }
+
+    #[test]
+    fn joint_columns_named_like_a_quaternion_are_joints_when_mapped() {
+        let text = "x,y,z,dx,dy,dz,q1,q2,q3,q4,q5,q6\n1,2,3,0,0,0,0,0,0,0,0,90\n";
+        refused(
+            text,
+            "",
+            ReadOptions::default(),
+            &["s.csv:1:", "the file has q5 too", "j1=q1,j2=q2"],
+        );
+        let s = read(
+            text,
+            "j1=q1,j2=q2,j3=q3,j4=q4,j5=q5,j6=q6",
+            ReadOptions::default(),
+        )
+        .unwrap();
+        assert!(s.nominal_rotation.is_none());
+        assert_eq!(s.joints_rad(0).unwrap()[5], 90f64.to_radians());
+    }
+
+    #[test]
+    fn line_numbers_count_blank_lines_comments_and_crlf_line_ends() {
+        for (text, line) in [
+            ("x,y,z,dx,dy,dz\n\n\n1,2,3,0,0,0\n\n1,2,4,0,0,x\n", 6),
+            ("x,y,z,dx,dy,dz\r\n1,2,3,0,0,0\r\n1,2,4,0,0,x\r\n", 3),
+            (
+                "# c\r\n\r\nx,y,z,dx,dy,dz\r\n\r\n1,2,3,0,0,0\r\n# c\r\n1,2,4,0,0,x\r\n",
+                7,
+            ),
+            ("x;y;z;dx;dy;dz\r\n1;2;3;0;0;0\r\n\"a\nb\";2;4;0;0;0\r\n", 3),
+        ] {
+            let message = read(text, "", ReadOptions::default()).unwrap_err();
+            let expected = format!("s.csv:{line}:");
+            assert!(
+                message.starts_with(&expected),
+                "{expected} for {text:?}: {message}"
+            );
+        }
+    }
+
+    /// A nominal orientation and a measured one `exp(δ)·R` written in every convention,
+    /// by numbers found independently (nalgebra's quaternion and Euler angles): the reader
+    /// gives back δ, whatever the conventions of the two sides.
+    #[test]
+    fn every_orientation_convention_gives_the_same_error() {
+        let nominal = pose::rotation_zyx_rad(0.4, std::f64::consts::FRAC_PI_2, -1.2);
+        let delta = [2e-4, -1e-4, 3e-4];
+        let measured = pose::rotation_from_vector(delta) * nominal;
+        // Each convention's column names and numbers for a rotation (angles in degrees).
+        let write = |convention: Convention, r: &Rotation3<f64>| -> Vec<f64> {
+            let (roll, pitch, yaw) = r.euler_angles();
+            let (xr, xp, xy) = r.inverse().euler_angles();
+            let q = UnitQuaternion::from_rotation_matrix(r);
+            match convention {
+                Convention::KukaAbc => vec![yaw, pitch, roll],
+                Convention::FanucWpr | Convention::RollPitchYaw => vec![roll, pitch, yaw],
+                // R = Rx(a)·Ry(b)·Rz(c) = (Rz(−c)·Ry(−b)·Rx(−a))ᵀ.
+                Convention::EulerXyz => vec![-xr, -xp, -xy],
+                Convention::QuaternionWxyz => return vec![q.w, q.i, q.j, q.k],
+                Convention::QuaternionXyzw => return vec![q.i, q.j, q.k, q.w],
+            }
+            .into_iter()
+            .map(f64::to_degrees)
+            .collect()
+        };
+        for n in Convention::ALL {
+            for m in Convention::ALL {
+                let names = [orientation_columns(n, false), orientation_columns(m, true)].concat();
+                let values: Vec<String> = [write(n, &nominal), write(m, &measured)]
+                    .concat()
+                    .iter()
+                    .map(|v| format!("{v:e}"))
+                    .collect();
+                let text = format!(
+                    "x,y,z,dx,dy,dz,{}\n1,2,3,0,0,0,{}\n",
+                    names.join(","),
+                    values.join(",")
+                );
+                let s = samples(&text);
+                let r = s.rotation_error_rad.as_ref().unwrap()[0];
+                for a in 0..3 {
+                    assert_abs_diff_eq!(r[a], delta[a], epsilon = 1e-12);
+                }
+                let back = &s.nominal_rotation.as_ref().unwrap()[0];
+                assert_abs_diff_eq!(back.matrix(), nominal.matrix(), epsilon = 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn a_nominal_orientation_alone_is_kept_without_errors() {
+        let s = samples("x,y,z,dx,dy,dz,roll,pitch,yaw\n1,2,3,0,0,0,90,0,0\n");
+        assert!(s.rotation_error_rad.is_none());
+        let r = &s.nominal_rotation.unwrap()[0];
+        assert_abs_diff_eq!(r * Vector3::y(), Vector3::z(), epsilon = 1e-15);
+    }
+
+    #[test]
+    fn orientation_columns_are_refused_when_they_conflict_or_are_zero() {
+        let o = ReadOptions::default();
+        refused(
+            "x,y,z,dx,dy,dz,a,b,c,roll,pitch,yaw\n1,2,3,0,0,0,0,0,0,0,0,0\n",
+            "",
+            o,
+            &[
+                "s.csv:1:",
+                "two conventions for the nominal orientation, 'a,b,c' and 'roll,pitch,yaw'",
+            ],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,a,b,c,mq1,mq2,mq3,mq4,mqx,mqy,mqz,mqw\n1,2,3,0,0,0,0,0,0,1,0,0,0,0,0,0,1\n",
+            "",
+            o,
+            &["two conventions for the measured orientation, 'mq1,mq2,mq3,mq4' and 'mqx,mqy,mqz,mqw'"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,w,p,r,mw,mp,mr,rx,ry,rz\n1,2,3,0,0,0,0,0,0,0,0,0,0,0,0\n",
+            "",
+            o,
+            &["both rx,ry,rz and mw,mp,mr given: keep one"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,mex,mey,mez\n1,2,3,0,0,0,0,0,0\n",
+            "",
+            o,
+            &["missing column a,b,c (or another nominal orientation) for the measured orientation mex,mey,mez"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,qx,qy,qz\n1,2,3,0,0,0,0,0,0\n",
+            "",
+            o,
+            &["'qx,qy,qz' given without 'qw'"],
+        );
+        refused(
+            "x,y,z,dx,dy,dz,q1,q2,q3,q4\n1,2,3,0,0,0,1,0,0,0\n# a comment\n4,5,6,0,0,0,0,0,0,0.0\n",
+            "",
+            o,
+            &["s.csv:4:7 (column 'q1')", "the quaternion is zero"],
+        );
+    }
+}
