@@ -224,7 +224,7 @@ fn hybrid_fixture() -> &'static HybridFixture {
             ..BuildOptions::default()
         };
         let build = |options: &BuildOptions| {
-            let model = calibration.kinematic_model();
+            let model = calibration.kinematic_model().unwrap();
             let plan = adwi_compile::build::plan(&samples, options).unwrap();
             let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
             Table::from_vec(built.bytes).unwrap()

@@ -373,7 +373,7 @@ impl CalibrationSummary {
             identified: c
                 .identified
                 .iter()
-                .map(|&p| (named(p), c.deviations[p.column()]))
+                .map(|&p| (named(p), c.value(p)))
                 .collect(),
             unidentifiable: c
                 .unidentifiable
@@ -750,8 +750,12 @@ fn predict_split(
         Method::Hybrid => {
             let c = calibration.expect("identified for kinematic methods");
             // The real hybrid table: model and residuals compiled together, opened and
-            // queried with the point's joint angles, as a controller would.
-            let model = c.kinematic_model();
+            // queried with the point's joint angles, as a controller would. A model the
+            // table format cannot store (not six MD-H joints) makes the method unsupported.
+            let model = match c.kinematic_model() {
+                Ok(model) => model,
+                Err(e) => return Ok(SplitOutcome::Unsupported(e.to_string())),
+            };
             let bytes = build::plan(train, &options.build)
                 .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
                 .map_err(|source| EvalError::Build { method, source })?

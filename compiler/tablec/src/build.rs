@@ -86,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
             })?;
             bar.set_message("compiling");
-            let model = identified.kinematic_model();
+            let model = identified.kinematic_model()?;
             let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
             calibration = Some((identified, built.residual_position_rms_mm));
             (built.bytes, built.report)
@@ -201,7 +201,7 @@ fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
         .identified
         .iter()
         .map(|p| {
-            let v = c.deviations[p.column()];
+            let v = c.value(*p);
             if p.is_length() {
                 format!("{p} {v:+.4} mm")
             } else {
