@@ -8,7 +8,6 @@ use adwi_compile::hybrid;
 use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
-use adwi_robot::Robot;
 use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
@@ -24,11 +23,13 @@ pub struct Args {
     columns: Option<String>,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
-    /// The robot model (TOML), for --hybrid.
-    #[arg(long, value_name = "ROBOT.toml")]
+    /// The robot file (TOML, or URDF by its .urdf extension), for --hybrid.
+    #[arg(long, value_name = "ROBOT")]
     robot: Option<PathBuf>,
+    #[command(flatten)]
+    links: crate::RobotLinks,
     /// Build a hybrid table: identify the robot's kinematic deviations from the samples
-    /// (which need j1..j6), then tabulate the residuals the calibrated model leaves. Query
+    /// (which need their joint angles), then tabulate the residuals the calibrated model leaves. Query
     /// it with the target's joint angles.
     #[arg(long, requires = "robot")]
     hybrid: bool,
@@ -79,8 +80,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut calibration = None;
     let (bytes, report) = match (&args.robot, args.hybrid) {
         (Some(robot_path), true) => {
-            let robot = Robot::load(robot_path)
-                .with_context(|| format!("cannot load the robot {}", robot_path.display()))?;
+            let robot = args.links.load(robot_path)?;
+            // Refused before identifying: the table format decides which robots it takes.
+            adwi_robot::calibrate::check_version_1_model(&robot)?;
             bar.set_message("identifying");
             let identified = pool.install(|| {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
