@@ -171,7 +171,7 @@ fn hybrid_queries_allocate_nothing() {
         joint_radius_deg: Some(15.0),
         ..BuildOptions::default()
     };
-    let model = adwi_runtime::model::PreparedModel::from_mdh(&calibration.kinematic_model());
+    let model = calibration.prepared_model();
     let plan = adwi_compile::build::plan(&samples, &options).unwrap();
     let bytes = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {})
         .unwrap()

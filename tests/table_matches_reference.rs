@@ -355,8 +355,7 @@ fn hybrid_fixture() -> &'static HybridFixture {
             ..BuildOptions::default()
         };
         let build = |options: &BuildOptions| {
-            let model =
-                adwi_runtime::model::PreparedModel::from_mdh(&calibration.kinematic_model());
+            let model = calibration.prepared_model();
             let plan = adwi_compile::build::plan(&samples, options).unwrap();
             let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
             Table::from_vec(built.bytes).unwrap()

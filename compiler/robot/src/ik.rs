@@ -1,5 +1,7 @@
-//! Inverse kinematics of six-axis robots with a spherical wrist (KUKA KR150-2 and the like):
-//! every configuration in closed form, each refined by Newton steps on the exact model.
+//! Inverse kinematics: every configuration of a six-axis robot with a spherical wrist (KUKA
+//! KR150-2 and the like) in closed form, each refined by Newton steps on the exact model; and
+//! for any other robot of six or more joints (an offset wrist, seven axes) one solution by
+//! damped least squares from a seed posture ([`solve_near`]).
 //!
 //! # Configurations
 //!
@@ -19,27 +21,58 @@
 //! The labels are geometric, so they change only where the robot passes a singularity
 //! (wrist centre on axis 1, arm stretched or folded, axes 4 and 6 aligned).
 //!
-//! # Method
+//! # Closed form
 //!
-//! The closed form assumes the *skeleton* of the nominal model: α1, α3, α4, α5 = ±90°,
-//! α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0. Joints 2 and 3 are then parallel, and axes 4, 5,
-//! 6 meet at the wrist centre, which decouples position (joints 1-3 place the wrist centre)
-//! from orientation (joints 4-6 are a Z-X-Z-like Euler triple). The model actually used —
-//! a nominal β2, or a calibrated model with all 30 deviations — differs slightly from the
-//! skeleton, so every closed-form solution is refined by Newton steps on that exact model
-//! ([`adwi_runtime::kinematics::forward`] with the geometric Jacobian), keeping the
+//! The closed form assumes the *skeleton* of the nominal model: six MD-H joints with α1, α3,
+//! α4, α5 = ±90°, α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0. Joints 2 and 3 are then parallel,
+//! and axes 4, 5, 6 meet at the wrist centre, which decouples position (joints 1-3 place the
+//! wrist centre) from orientation (joints 4-6 are a Z-X-Z-like Euler triple). The model
+//! actually used — a nominal β2, or a calibrated model with all 30 deviations — differs
+//! slightly from the skeleton, so every closed-form solution is refined by Newton steps on
+//! that exact model (the runtime's chain with the geometric Jacobian), keeping the
 //! skeleton's configuration label. Solutions outside the joint limits are dropped; joints
 //! with more than a full turn of travel are taken at the representative `q + 2πk` closest
 //! to the robot's home posture.
+//!
+//! # Redundancy resolution (seven axes and more; any robot without the closed form)
+//!
+//! [`solve_near`] finds, of the postures that reach a pose, the one nearest a seed posture
+//! (the robot's home, say) in joint space, in two stages:
+//!
+//! 1. onto the pose from the seed: damped least-squares steps `Δq = Jᵀ(JJᵀ + λ²I)⁻¹e`
+//!    (orientation rows weighted by [`ORIENTATION_WEIGHT_MM_PER_RAD`], λ = 10⁻³ of J's
+//!    largest singular value, each joint moving at most [`MAX_STEP`] per step), undamped
+//!    minimum-norm Newton steps once within 1 µm, until the pose is reached to
+//!    [`POSITION_TOLERANCE_MM`] and [`ORIENTATION_TOLERANCE_RAD`];
+//! 2. along the self-motion toward the seed: the seed's pull projected into J's null space,
+//!    `(I − J⁺J)(q_seed − q)` (the joint motion that does not move the TCP, to first
+//!    order), then stage 1 again from there to come back onto the pose; a step is kept when
+//!    it brings the posture closer to the seed, halved otherwise, until the pull vanishes.
+//!
+//! At the end the pose is exact and `q − q_seed` has no part in the null space: the posture
+//! is a stationary point of the joint-space distance to the seed on the set of postures
+//! that reach the pose — locally the nearest one. A six-joint robot has no null space: the
+//! solution is the one stage 1 reaches from the seed. When stage 1 does not converge or the
+//! posture breaks a joint limit (a seed at a singularity may lead onto a branch that does),
+//! [`FURTHER_SEEDS`] starting postures drawn within the joint ranges (from a fixed seed: the
+//! answer is deterministic) take the two stages, walking toward the original seed, and the
+//! within-limits posture nearest the original seed is returned; none when no start gives one.
+//! Distances are Euclidean in joint space (rad, and mm for prismatic joints).
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::fmt;
 
-use adwi_runtime::kinematics::{forward, link_frames, MdhJoint, Transform};
-use nalgebra::{Isometry3, Rotation3, Vector3, Vector6};
+use adwi_runtime::chain::Chain;
+use adwi_runtime::kinematics::{link_frames, MdhJoint, Transform};
+use nalgebra::{DMatrix, DVector, Isometry3, Rotation3, Vector3, Vector6};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
-use super::error_model::{joint_jacobian, pose_error};
-use super::model::{isometry_from_transform, rotation_of, Robot, JOINT_COUNT};
+use super::error_model::{joint_jacobian, transform_pose_error};
+use super::model::{isometry_from_transform, rotation_of, transform_from_isometry, Robot};
+
+/// The joint count of the robots the closed form solves.
+pub const JOINT_COUNT: usize = 6;
 
 /// An inverse-kinematics branch: bit 0 shoulder (front 0 / back 1), bit 1 elbow (up 0 /
 /// down 1), bit 2 wrist (no flip 0 / flip 1). See the module docs for the geometry.
@@ -120,7 +153,8 @@ pub enum IkError {
     /// The nominal geometry is not the spherical-wrist structure the closed form needs.
     #[error(
         "{robot}: no closed-form inverse kinematics: {reason} \
-         (needs α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, a4 = a5 = a6 = d5 = 0, a2 > 0)"
+         (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, \
+         a4 = a5 = a6 = d5 = 0, a2 > 0)"
     )]
     UnsupportedGeometry {
         /// Robot name.
@@ -170,7 +204,16 @@ impl InverseKinematics {
             robot: robot.name.clone(),
             reason,
         };
-        let mut skeleton = robot.nominal_joints();
+        let mut skeleton: [MdhJoint; JOINT_COUNT] = match robot.mdh() {
+            Some(rows) => rows
+                .try_into()
+                .map_err(|_| unsupported(format!("{} joints, not {JOINT_COUNT}", rows.len())))?,
+            None => {
+                return Err(unsupported(
+                    "the joints are not given in MD-H (a URDF or chain robot)".into(),
+                ))
+            }
+        };
         let mut sin_alpha = [0.0; JOINT_COUNT];
         for (i, joint) in skeleton.iter_mut().enumerate() {
             let number = i + 1;
@@ -223,34 +266,42 @@ impl InverseKinematics {
         &self.robot
     }
 
-    /// Every configuration reaching `tcp_pose` (TCP in the base frame) with the robot's
-    /// nominal model and tool, within the joint limits, sorted by configuration.
+    /// Every configuration reaching `tcp_pose` (TCP in the frame poses are given in) with
+    /// the robot's nominal model, tool and base, within the joint limits, sorted by
+    /// configuration.
     ///
     /// Empty when the pose is out of reach, every solution breaks a limit, or the wrist
     /// centre lies on axis 1 (infinitely many solutions: none is returned).
     pub fn solve(&self, tcp_pose: &Isometry3<f64>) -> Vec<IkSolution> {
-        self.solve_with_model(
-            tcp_pose,
-            &self.robot.nominal_joints(),
-            &self.robot.tool_transform(),
-        )
+        let rows: [MdhJoint; JOINT_COUNT] = self
+            .robot
+            .mdh()
+            .expect("checked by InverseKinematics::new")
+            .try_into()
+            .expect("checked by InverseKinematics::new");
+        self.solve_with_model(tcp_pose, &rows, &self.robot.tool(), &self.robot.base())
     }
 
-    /// Like [`InverseKinematics::solve`], for an exact model `joints` and `tool` near the
-    /// nominal one (e.g. nominal plus identified deviations): the closed form on the
-    /// skeleton gives the branches, Newton steps on `joints` make them exact.
+    /// Like [`InverseKinematics::solve`], for an exact model `joints`, `tool` and `base`
+    /// near the nominal one (e.g. nominal plus identified deviations): the closed form on
+    /// the skeleton gives the branches, Newton steps on the model's chain make them exact.
     pub fn solve_with_model(
         &self,
         tcp_pose: &Isometry3<f64>,
         joints: &[MdhJoint; JOINT_COUNT],
         tool: &Transform,
+        base: &Transform,
     ) -> Vec<IkSolution> {
+        let Ok(chain) = Chain::from_mdh(*base, joints, *tool, None) else {
+            return Vec::new();
+        };
         let tool_isometry = isometry_from_transform(tool);
-        let flange = tcp_pose * tool_isometry.inverse();
+        let flange = isometry_from_transform(&base.inverse()) * tcp_pose * tool_isometry.inverse();
+        let target = transform_from_isometry(tcp_pose);
         let mut solutions: Vec<IkSolution> = Vec::with_capacity(8);
         for theta in self.skeleton_solutions(&flange) {
             let q = std::array::from_fn(|i| theta[i] - self.skeleton[i].theta_offset_rad);
-            let Some(q) = newton(joints, tool, tcp_pose, q) else {
+            let Some(q) = newton(&chain, &target, q) else {
                 continue;
             };
             let Some(q_rad) = self.wrap_into_limits(q) else {
@@ -275,7 +326,7 @@ impl InverseKinematics {
         tcp_pose: &Isometry3<f64>,
         config: Option<Configuration>,
     ) -> Option<IkSolution> {
-        let home = &self.robot.home_rad;
+        let home = self.robot.home();
         let distance = |s: &IkSolution| -> f64 {
             s.q_rad
                 .iter()
@@ -294,8 +345,8 @@ impl InverseKinematics {
     fn wrap_into_limits(&self, q_rad: [f64; JOINT_COUNT]) -> Option<[f64; JOINT_COUNT]> {
         let mut out = [0.0; JOINT_COUNT];
         for (i, (o, q)) in out.iter_mut().zip(q_rad).enumerate() {
-            let [lower, upper] = self.robot.joints[i].limits_rad;
-            let home = self.robot.home_rad[i];
+            let [lower, upper] = self.robot.joints()[i].limits;
+            let home = self.robot.home()[i];
             // The representative nearest home, then its neighbours a turn away.
             let nearest = q + TAU * ((home - q) / TAU).round();
             *o = [nearest, nearest - TAU, nearest + TAU]
@@ -456,21 +507,21 @@ pub fn configuration_of(
 /// Newton steps on the exact model from `q_rad`; `None` if it does not reach the pose to
 /// [`POSITION_TOLERANCE_MM`] and [`ORIENTATION_TOLERANCE_RAD`].
 fn newton(
-    joints: &[MdhJoint; JOINT_COUNT],
-    tool: &Transform,
-    target: &Isometry3<f64>,
+    chain: &Chain,
+    target: &Transform,
     mut q_rad: [f64; JOINT_COUNT],
 ) -> Option<[f64; JOINT_COUNT]> {
-    let error_at = |q: &[f64; JOINT_COUNT]| -> Vector6<f64> {
-        let pose = isometry_from_transform(&forward(joints, tool, q));
-        pose_error(&pose, target)
+    let error_at = |q: &[f64; JOINT_COUNT]| -> Option<Vector6<f64>> {
+        Some(transform_pose_error(&chain.tcp_pose(q)?, target))
     };
-    let mut error = error_at(&q_rad);
+    let mut error = error_at(&q_rad)?;
     for _ in 0..NEWTON_MAX_STEPS {
         if converged(&error) {
             break;
         }
-        let jacobian = joint_jacobian(joints, tool, &q_rad);
+        let jacobian: nalgebra::Matrix6<f64> = joint_jacobian(chain, &q_rad)
+            .fixed_view::<6, 6>(0, 0)
+            .into_owned();
         let step = jacobian
             .lu()
             .solve(&error)
@@ -478,7 +529,7 @@ fn newton(
         for (q, dq) in q_rad.iter_mut().zip(step.iter()) {
             *q += dq;
         }
-        error = error_at(&q_rad);
+        error = error_at(&q_rad)?;
         if step.amax() < NEWTON_STEP_TOLERANCE_RAD {
             break;
         }
@@ -491,10 +542,231 @@ fn converged(error: &Vector6<f64>) -> bool {
         && error.fixed_rows::<3>(3).norm() <= ORIENTATION_TOLERANCE_RAD
 }
 
+/// Orientation rows of [`solve_near`] are weighted by this (mm per rad): an error of 1 mrad
+/// counts like one of 1 mm.
+pub const ORIENTATION_WEIGHT_MM_PER_RAD: f64 = 1000.0;
+/// The largest change of one joint in one step of [`solve_near`] (rad, or mm for a
+/// prismatic joint), so that a far seed approaches the pose in small steps.
+pub const MAX_STEP: f64 = 0.2;
+/// Iterations of [`solve_near`] before it gives up.
+const NUMERIC_MAX_STEPS: usize = 500;
+
+/// The posture of `robot` nearest `seed` that reaches `tcp_pose` (TCP in the frame poses are
+/// given in), by damped least squares and a walk along the self-motion toward the seed
+/// (module docs, "Redundancy resolution"); when that posture breaks a joint limit, the
+/// within-limits posture nearest the seed among those reached from [`FURTHER_SEEDS`]
+/// further starting postures; `None` when there is none.
+///
+/// # Panics
+///
+/// When `seed` does not have one value per joint.
+pub fn solve_near(robot: &Robot, tcp_pose: &Isometry3<f64>, seed: &[f64]) -> Option<Vec<f64>> {
+    let target = transform_from_isometry(tcp_pose);
+    let chain = robot.chain();
+    if let Some(q) = solve_near_chain(chain, &target, seed) {
+        if robot.within_limits(&q) {
+            return Some(q);
+        }
+    }
+    let seed = DVector::from_column_slice(seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(FURTHER_SEEDS_RNG);
+    let mut best: Option<(f64, DVector<f64>)> = None;
+    for _ in 0..FURTHER_SEEDS {
+        let start = DVector::from_fn(robot.joint_count(), |i, _| {
+            let [lower, upper] = robot.sampling_range(i);
+            rng.gen_range(lower..=upper)
+        });
+        let Some(on_pose) = to_pose(chain, &target, start) else {
+            continue;
+        };
+        let walked = walk_toward(chain, &target, on_pose.clone(), &seed);
+        let Some(q) = [walked, on_pose]
+            .into_iter()
+            .find(|q| robot.within_limits(q.as_slice()))
+        else {
+            continue;
+        };
+        let distance = (&q - &seed).norm();
+        if best.as_ref().is_none_or(|(d, _)| distance < *d) {
+            best = Some((distance, q));
+        }
+    }
+    best.map(|(_, q)| q.as_slice().to_vec())
+}
+
+/// Starting postures [`solve_near`] tries, uniformly within the joint ranges, when the
+/// seed's solution breaks a limit.
+pub const FURTHER_SEEDS: usize = 32;
+/// The ChaCha8 seed of those postures: the same pose always gives the same answer.
+const FURTHER_SEEDS_RNG: u64 = 0x5eed;
+
+/// [`solve_near`] on a chain, without limits.
+pub(crate) fn solve_near_chain(
+    chain: &Chain,
+    target: &Transform,
+    seed: &[f64],
+) -> Option<Vec<f64>> {
+    assert_eq!(seed.len(), chain.joint_count(), "one seed value per joint");
+    let seed = DVector::from_column_slice(seed);
+    // 1. Onto the pose: from the seed, minimum-norm steps stay near it.
+    let q = to_pose(chain, target, seed.clone())?;
+    // 2. Along the self-motion toward the seed.
+    Some(walk_toward(chain, target, q, &seed).as_slice().to_vec())
+}
+
+/// From a posture `q` on the pose, along the self-motion toward `seed`: each step the
+/// seed's pull projected into the null space, then back onto the pose; a step is kept when
+/// it brings the posture closer to the seed (or, at the end, shrinks the pull), halved
+/// otherwise.
+fn walk_toward(
+    chain: &Chain,
+    target: &Transform,
+    mut q: DVector<f64>,
+    seed: &DVector<f64>,
+) -> DVector<f64> {
+    let mut gain: f64 = 1.0;
+    for _ in 0..NUMERIC_MAX_STEPS {
+        let Some(pull) = null_space_part(chain, &q, &(seed - &q)) else {
+            break;
+        };
+        if pull.amax() < NULL_SPACE_TOLERANCE {
+            break;
+        }
+        let mut step = &pull * gain;
+        let largest = step.amax();
+        if largest > MAX_STEP {
+            step *= MAX_STEP / largest;
+        }
+        // Close to the end, where the change of distance falls below rounding, a step is
+        // kept when the pull shrinks.
+        let small = pull.amax() < 1e-6;
+        let closer = to_pose(chain, target, &q + step).filter(|next| {
+            if small {
+                null_space_part(chain, next, &(seed - next)).is_some_and(|p| p.amax() < pull.amax())
+            } else {
+                (next - seed).norm() < (&q - seed).norm()
+            }
+        });
+        match closer {
+            Some(next) => {
+                q = next;
+                gain = (gain * 2.0).min(1.0);
+            }
+            None => {
+                gain *= 0.5;
+                if gain < 1e-6 {
+                    break;
+                }
+            }
+        }
+    }
+    q
+}
+
+/// A null-space pull below this (rad, mm) ends the walk toward the seed.
+const NULL_SPACE_TOLERANCE: f64 = 1e-12;
+
+/// The weighted Jacobian (orientation rows × [`ORIENTATION_WEIGHT_MM_PER_RAD`]) and the
+/// weighted pose error at `q`.
+fn weighted(
+    chain: &Chain,
+    target: &Transform,
+    q: &DVector<f64>,
+) -> Option<(DMatrix<f64>, DVector<f64>, Vector6<f64>)> {
+    let error = transform_pose_error(&chain.tcp_pose(q.as_slice())?, target);
+    let w = ORIENTATION_WEIGHT_MM_PER_RAD;
+    let weight = [1.0, 1.0, 1.0, w, w, w];
+    let mut jacobian = joint_jacobian(chain, q.as_slice());
+    for (r, w) in weight.iter().enumerate() {
+        jacobian.row_mut(r).scale_mut(*w);
+    }
+    let e = DVector::from_fn(6, |r, _| error[r] * weight[r]);
+    Some((jacobian, e, error))
+}
+
+/// Steps from `q` onto the pose: damped least squares while far (λ = 10⁻³ of J's largest
+/// singular value, each joint moving at most [`MAX_STEP`]), minimum-norm Newton within
+/// 1 µm, until the steps vanish (or a thousandth of the tolerances is reached); `None`
+/// unless it reaches [`POSITION_TOLERANCE_MM`] and [`ORIENTATION_TOLERANCE_RAD`].
+fn to_pose(chain: &Chain, target: &Transform, mut q: DVector<f64>) -> Option<DVector<f64>> {
+    for _ in 0..NUMERIC_MAX_STEPS {
+        let (jacobian, e, error) = weighted(chain, target, &q)?;
+        // A thousand times tighter than asked: one more Newton step costs little.
+        if error.fixed_rows::<3>(0).norm() <= 1e-3 * POSITION_TOLERANCE_MM
+            && error.fixed_rows::<3>(3).norm() <= 1e-3 * ORIENTATION_TOLERANCE_RAD
+        {
+            return Some(q);
+        }
+        let svd = jacobian.svd(true, true);
+        let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
+        let sigma = &svd.singular_values;
+        let largest = sigma.max();
+        if !(largest.is_finite() && largest > 0.0) {
+            return None;
+        }
+        let rank_tolerance = 1e-10 * largest;
+        let lambda2 = if e.norm() > 1e-3 {
+            (1e-3 * largest).powi(2)
+        } else {
+            0.0
+        };
+        let mut step = pseudo_inverse_times(u, sigma, v_t, &e, |s| {
+            if s > rank_tolerance {
+                s / (s * s + lambda2)
+            } else {
+                0.0
+            }
+        });
+        let step_size = step.amax();
+        if step_size > MAX_STEP {
+            step *= MAX_STEP / step_size;
+        }
+        q += &step;
+        if step_size < NEWTON_STEP_TOLERANCE_RAD {
+            break;
+        }
+    }
+    let (_, _, error) = weighted(chain, target, &q)?;
+    converged(&error).then_some(q)
+}
+
+/// The part of `v` in the null space of the chain's Jacobian at `q`: `(I − J⁺J) v`.
+fn null_space_part(chain: &Chain, q: &DVector<f64>, v: &DVector<f64>) -> Option<DVector<f64>> {
+    let svd = joint_jacobian(chain, q.as_slice()).svd(false, true);
+    let v_t = svd.v_t.as_ref()?;
+    let largest = svd.singular_values.max();
+    let mut out = v.clone();
+    for (k, &s) in svd.singular_values.iter().enumerate() {
+        if s > 1e-10 * largest {
+            let row = v_t.row(k).transpose();
+            out -= &row * row.dot(v);
+        }
+    }
+    Some(out)
+}
+
+/// `V · diag(f(σ)) · Uᵀ · e` of a thin SVD `J = U Σ Vᵀ`.
+fn pseudo_inverse_times(
+    u: &DMatrix<f64>,
+    sigma: &DVector<f64>,
+    v_t: &DMatrix<f64>,
+    e: &DVector<f64>,
+    f: impl Fn(f64) -> f64,
+) -> DVector<f64> {
+    let mut out = DVector::zeros(v_t.ncols());
+    for (k, &s) in sigma.iter().enumerate() {
+        let coefficient = f(s) * u.column(k).dot(e);
+        if coefficient != 0.0 {
+            out += v_t.row(k).transpose() * coefficient;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::error_model::{apply_deviations, JointDeviation};
+    use crate::error_model::{apply_deviations, pose_error, JointDeviation};
     use crate::model::{isometry_from_parts, shipped_robot_path};
     use adwi_compile::pose::{orientation_error, rotation_from_kuka_abc_deg};
     use rand::{Rng, SeedableRng};
@@ -508,6 +780,26 @@ mod tests {
         q.map(f64::to_radians)
     }
 
+    fn rows(robot: &Robot) -> [MdhJoint; 6] {
+        robot.mdh().unwrap().try_into().unwrap()
+    }
+
+    fn fk(joints: &[MdhJoint; 6], tool: &Transform, q: &[f64]) -> Transform {
+        Chain::from_mdh(Transform::IDENTITY, joints, *tool, None)
+            .unwrap()
+            .tcp_pose(q)
+            .unwrap()
+    }
+
+    fn random_q(robot: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        (0..robot.joint_count())
+            .map(|i| {
+                let [lo, hi] = robot.sampling_range(i);
+                rng.gen_range(lo..hi)
+            })
+            .collect()
+    }
+
     /// Asserts that `solution` reaches `target` with the model, to the round-trip tolerance.
     fn assert_reaches(
         joints: &[MdhJoint; 6],
@@ -515,7 +807,7 @@ mod tests {
         solution: &IkSolution,
         target: &Isometry3<f64>,
     ) {
-        let pose = isometry_from_transform(&forward(joints, tool, &solution.q_rad));
+        let pose = isometry_from_transform(&fk(joints, tool, &solution.q_rad));
         let error = pose_error(target, &pose);
         assert!(
             error.fixed_rows::<3>(0).norm() <= 1e-9,
@@ -537,13 +829,13 @@ mod tests {
     fn round_trip_over_ten_thousand_random_reachable_poses() {
         let robot = kr150();
         let ik = InverseKinematics::new(&robot).unwrap();
-        let (joints, tool) = (robot.nominal_joints(), robot.tool_transform());
+        let (joints, tool) = (rows(&robot), robot.tool());
         let mut rng = ChaCha8Rng::seed_from_u64(2020);
         let mut solutions_checked = 0;
         let mut configs_seen = [false; 8];
         for _ in 0..10_000 {
             let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints[i].limits_rad;
+                let [lo, hi] = robot.joints()[i].limits;
                 rng.gen_range(lo..hi)
             });
             let target = robot.tcp_pose(&q);
@@ -582,16 +874,18 @@ mod tests {
                 beta_rad: 2e-4,
             };
         }
-        let joints = apply_deviations(&robot.nominal_joints(), &deviations);
-        let tool = robot.tool_transform();
+        let joints: [MdhJoint; 6] = apply_deviations(&rows(&robot), &deviations)
+            .try_into()
+            .unwrap();
+        let tool = robot.tool();
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         for _ in 0..200 {
             let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints[i].limits_rad;
+                let [lo, hi] = robot.joints()[i].limits;
                 rng.gen_range(lo..hi)
             });
-            let target = isometry_from_transform(&forward(&joints, &tool, &q));
-            let solutions = ik.solve_with_model(&target, &joints, &tool);
+            let target = isometry_from_transform(&fk(&joints, &tool, &q));
+            let solutions = ik.solve_with_model(&target, &joints, &tool, &Transform::IDENTITY);
             for solution in &solutions {
                 assert_reaches(&joints, &tool, solution, &target);
             }
@@ -669,5 +963,90 @@ mod tests {
         let ur5 = Robot::load(shipped_robot_path("ur5")).unwrap();
         let error = InverseKinematics::new(&ur5).unwrap_err();
         assert!(error.to_string().contains("α3 is not ±90°"), "{error}");
+    }
+
+    #[test]
+    fn a_robot_without_the_closed_form_is_refused_with_the_reason() {
+        let iiwa = Robot::load(crate::model::shipped_file("iiwa14", "robot.toml")).unwrap();
+        let error = InverseKinematics::new(&iiwa).unwrap_err();
+        assert!(error.to_string().contains("7 joints"), "{error}");
+        let urdf = Robot::load(crate::model::shipped_file("ur10", "robot.urdf")).unwrap();
+        let error = InverseKinematics::new(&urdf).unwrap_err();
+        assert!(error.to_string().contains("not given in MD-H"), "{error}");
+    }
+
+    /// The seven-axis iiwa: from a seed near a posture, the numerical inverse reaches the
+    /// posture's pose exactly, and the solution is the posture nearest the seed (its
+    /// distance to the seed has no component along the self-motion). Within the limits
+    /// only where that nearest posture is.
+    #[test]
+    fn seven_axes_reach_the_pose_nearest_the_seed() {
+        for file in ["robot.urdf", "robot.toml"] {
+            let robot = Robot::load(crate::model::shipped_file("iiwa14", file)).unwrap();
+            let mut rng = ChaCha8Rng::seed_from_u64(77);
+            let (mut largest_mm, mut largest_rad, mut solved, mut within) = (0.0f64, 0.0f64, 0, 0);
+            let tries = 200;
+            for _ in 0..tries {
+                let q = random_q(&robot, &mut rng);
+                let target = robot.tcp_pose(&q);
+                // A seed up to 0.3 rad from the posture on every joint.
+                let seed: Vec<f64> = q.iter().map(|v| v + rng.gen_range(-0.3..0.3)).collect();
+                let target_t = transform_from_isometry(&target);
+                let Some(solution) = solve_near_chain(robot.chain(), &target_t, &seed) else {
+                    continue;
+                };
+                solved += 1;
+                if let Some(limited) = solve_near(&robot, &target, &seed) {
+                    assert!(robot.within_limits(&limited));
+                    let error = pose_error(&target, &robot.tcp_pose(&limited));
+                    assert!(error.fixed_rows::<3>(0).norm() <= 1e-9);
+                    within += 1;
+                }
+                let error = pose_error(&target, &robot.tcp_pose(&solution));
+                largest_mm = largest_mm.max(error.fixed_rows::<3>(0).norm());
+                largest_rad = largest_rad.max(error.fixed_rows::<3>(3).norm());
+                // Nearest: (solution − seed) lies in the row space of J (no null-space part).
+                let d = DVector::from_fn(7, |i, _| solution[i] - seed[i]);
+                let null =
+                    null_space_part(robot.chain(), &DVector::from_column_slice(&solution), &d)
+                        .unwrap();
+                assert!(
+                    null.norm() < 1e-9,
+                    "null-space part {} of {}",
+                    null.norm(),
+                    d.norm()
+                );
+            }
+            println!(
+                "iiwa ({file}): {solved} of {tries} poses solved from a seed within 0.3 rad \
+                 ({within} within the limits); FK(IK(pose)) − pose at most {largest_mm:.2e} mm, \
+                 {largest_rad:.2e} rad"
+            );
+            assert!(solved >= tries * 99 / 100, "{solved} of {tries}");
+            assert!(within >= tries * 98 / 100, "{within} of {tries}");
+            assert!(largest_mm <= 1e-9 && largest_rad <= 1e-12);
+        }
+    }
+
+    /// From the home posture too: every pose of a random posture within limits that the
+    /// damped steps reach is exact.
+    #[test]
+    fn numerical_inverse_from_home_is_exact_where_it_converges() {
+        let robot = Robot::load(crate::model::shipped_file("ur10", "robot.urdf")).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let mut solved = 0;
+        for _ in 0..100 {
+            let q: Vec<f64> = random_q(&robot, &mut rng)
+                .iter()
+                .map(|v| v * 0.25)
+                .collect();
+            let target = robot.tcp_pose(&q);
+            if let Some(solution) = solve_near(&robot, &target, robot.home()) {
+                solved += 1;
+                let error = pose_error(&target, &robot.tcp_pose(&solution));
+                assert!(error.fixed_rows::<3>(0).norm() <= 1e-9, "{error:?}");
+            }
+        }
+        assert!(solved >= 80, "{solved}");
     }
 }

@@ -1,16 +1,19 @@
-//! The robot side of adwi: robot descriptions as data ([`model`]), inverse kinematics
-//! ([`ik`]), the first-order pose error model ([`error_model`]), kinematic identification
-//! from measured samples ([`calibrate`]) and the simulation of sample databases
-//! ([`simulate`]).
+//! The robot side of adwi: robot descriptions as data ([`model`]: TOML robot files,
+//! [`urdf`] files), inverse kinematics ([`ik`]), the first-order pose error model
+//! ([`error_model`]), kinematic identification from measured samples ([`calibrate`]) and the
+//! simulation of sample databases ([`simulate`]), for any serial robot of 1 to
+//! [`adwi_runtime::chain::MAX_JOINTS`] revolute or prismatic joints.
 //!
-//! Forward kinematics is not here: it is [`adwi_runtime::kinematics`], shared with the
-//! runtime so that one implementation serves simulation, identification and queries.
+//! Forward kinematics is not here: every robot is a runtime [`adwi_runtime::chain::Chain`],
+//! so that one implementation serves simulation, identification and queries.
 
 pub mod calibrate;
 pub mod error_model;
 pub mod ik;
 pub mod model;
 pub mod simulate;
+pub mod urdf;
 
 pub use ik::{Configuration, IkError, IkSolution, InverseKinematics};
-pub use model::{Joint, Robot, RobotError, JOINT_COUNT};
+pub use model::{Geometry, Joint, LinkInertial, Robot, RobotError};
+pub use urdf::LinkNames;

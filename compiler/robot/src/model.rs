@@ -1,37 +1,83 @@
-//! A robot described as data: the TOML robot file, its validation, and the nominal model.
+//! A robot described as data: robot files (TOML, URDF), their validation, and the nominal
+//! model as a runtime [`Chain`].
 //!
-//! A robot file names the robot, lists six joints with their MD-H parameters and joint
-//! limits, gives the tool (TCP in the flange frame) and a home posture. Units are in the key
-//! names: `_mm` for lengths, `_deg` for angles. Adding a robot is writing such a file.
+//! A robot is a serial chain of 1 to [`MAX_JOINTS`] revolute or prismatic joints: its
+//! nominal kinematics (a runtime [`Chain`]: base, joint origins and axes, tool), the range
+//! each joint variable may take, a home posture, and — when known — the mass and centre of
+//! mass of the link each joint moves (for gravity compliance). Joint values are radians for
+//! revolute joints and millimetres for prismatic ones, in chain order: the joint values of a
+//! sample map to the chain's movable joints in order.
+//!
+//! [`Robot::load`] chooses the format by extension: `.urdf` is a URDF file ([`crate::urdf`]),
+//! anything else a TOML robot file.
+//!
+//! # TOML robot files
+//!
+//! Units are in the key names: `_mm` for lengths, `_deg` for angles. The joints are given
+//! either all in the MD-H convention (Hayati-modified Denavit-Hartenberg, `A_i = Rz(θ_i) ·
+//! Tz(d_i) · Tx(a_i) · Rx(α_i) · Ry(β_i)`, `θ_i = q_i + theta_offset_i`):
 //!
 //! ```toml
 //! name = "KUKA KR150-2"
-//! home_deg = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0]
+//! home_deg = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0]   # optional, zeros by default
 //!
-//! [tool]
+//! [tool]                          # TCP in the flange frame (optional: the flange)
+//! translation_mm = [0.0, 0.0, 0.0]
+//! abc_deg = [0.0, 0.0, 0.0]       # KUKA A, B, C: R = Rz(A)·Ry(B)·Rx(C)
+//!
+//! [base]                          # the robot base in the frame poses are given in (optional)
 //! translation_mm = [0.0, 0.0, 0.0]
 //! abc_deg = [0.0, 0.0, 0.0]
 //!
-//! [[joints]]
+//! [[joints]]                      # any number of these, 1 to 12, base to flange
 //! a_mm = 350.0
 //! d_mm = 750.0
 //! alpha_deg = -90.0
-//! beta_deg = 0.0
-//! theta_offset_deg = 0.0
+//! beta_deg = 0.0                  # optional
+//! theta_offset_deg = 0.0          # optional
 //! limits_deg = [-185.0, 185.0]
-//! # … five more [[joints]]
+//! mass_kg = 400.0                 # optional: the link this joint moves
+//! com_mm = [-300.0, 150.0, 0.0]   # optional: its centre of mass in MD-H frame i
 //! ```
+//!
+//! or all as general chain joints, the form a URDF joint has (`T = base · O_1 · M_1(q_1 +
+//! o_1) ⋯ O_n · M_n(q_n + o_n) · tool`, see [`adwi_runtime::chain`]):
+//!
+//! ```toml
+//! [[joints]]
+//! name = "joint_a2"               # optional
+//! type = "revolute"               # or "prismatic" (default revolute)
+//! xyz_mm = [0.0, 0.0, 202.5]      # the joint's origin in the previous joint's frame
+//! rpy_deg = [90.0, 0.0, 180.0]    # after its motion: roll, pitch, yaw as in URDF
+//! axis = [0.0, 0.0, 1.0]          # unit axis in the joint's frame (default z)
+//! offset_deg = 0.0                # added to the joint variable (offset_mm when prismatic)
+//! limits_deg = [-120.0, 120.0]    # limits_mm when prismatic; ±inf for a continuous joint
+//! mass_kg = 6.35                  # optional
+//! com_mm = [0.3, 59.0, 42.0]      # optional: in the joint's frame after its motion
+//! ```
+//!
+//! where the tool is the TCP in the last joint's frame after its motion. A TOML file may
+//! instead name a URDF file (`urdf = "robot.urdf"`, relative to the TOML file, with optional
+//! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
+//! link's frame) and `[base]` to it. `home_deg` holds degrees for revolute joints and
+//! millimetres for prismatic ones.
+//!
+//! # Frames
+//!
+//! MD-H frame `i` is the frame after `A_i` (the flange is frame `n`); a chain joint's frame
+//! after its motion is `base · O_1 · M_1 ⋯ O_i · M_i`, which for an MD-H robot is MD-H
+//! frame `i − 1` turned by `θ_i`. [`Robot::gravity_model`] gives every centre of mass in the
+//! latter, the runtime's convention.
 
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::kinematics::{self, MdhJoint, Transform};
+use adwi_compile::pose::{kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg};
+pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
+use adwi_runtime::kinematics::{MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
-use adwi_compile::pose::rotation_from_kuka_abc_deg;
-
-/// Number of joints of the robots this crate models.
-pub const JOINT_COUNT: usize = 6;
+use crate::urdf::{LinkNames, UrdfSource};
 
 /// What can be wrong with a robot file.
 #[derive(Debug, thiserror::Error)]
@@ -54,11 +100,32 @@ pub enum RobotError {
         #[source]
         source: toml::de::Error,
     },
-    /// The file lists a number of joints other than six.
-    #[error("the robot must have {JOINT_COUNT} [[joints]], the file lists {found}")]
+    /// The file is not a URDF file the parser reads.
+    #[error("{path} is not a valid URDF file")]
+    Urdf {
+        /// The file.
+        path: PathBuf,
+        /// The parser's error.
+        #[source]
+        source: urdf_rs::UrdfError,
+    },
+    /// The URDF file has no serial chain between the links asked for, or a joint this
+    /// crate cannot model.
+    #[error("URDF: {0}")]
+    UrdfChain(String),
+    /// The robot has no joint, or more than the runtime serves.
+    #[error("a robot has 1 to {MAX_JOINTS} movable joints, this one {found}")]
     JointCount {
-        /// How many `[[joints]]` tables the file has.
+        /// How many movable joints the description has.
         found: usize,
+    },
+    /// A joint is described neither in MD-H nor as a chain joint, or the joints mix both.
+    #[error("joint {joint}: {reason}")]
+    JointStyle {
+        /// Joint number, 1-based.
+        joint: usize,
+        /// What is wrong.
+        reason: String,
     },
     /// A number is NaN or infinite.
     #[error("{field} is not a finite number")]
@@ -66,101 +133,265 @@ pub enum RobotError {
         /// Which value, e.g. `joint 2 a_mm`.
         field: String,
     },
+    /// A value is out of its range.
+    #[error("{field}: {reason}")]
+    Invalid {
+        /// Which value.
+        field: String,
+        /// Its valid range.
+        reason: String,
+    },
     /// A joint's limits are empty or reversed.
-    #[error("joint {joint}: limits_deg = [{lower_deg}, {upper_deg}] must have lower < upper")]
+    #[error("joint {joint}: limits [{lower}, {upper}] {unit} must have lower < upper")]
     EmptyLimits {
         /// Joint number, 1-based.
         joint: usize,
-        /// Lower limit, degrees.
-        lower_deg: f64,
-        /// Upper limit, degrees.
-        upper_deg: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+        /// `deg` or `mm`.
+        unit: &'static str,
+    },
+    /// The home posture has the wrong number of values.
+    #[error("home_deg has {found} values, the robot {expected} joints")]
+    HomeLength {
+        /// The joint count.
+        expected: usize,
+        /// The values given.
+        found: usize,
     },
     /// The home posture lies outside a joint's limits.
-    #[error("home_deg[{index}] = {home_deg}° is outside joint {joint}'s limits [{lower_deg}, {upper_deg}]", index = joint - 1)]
+    #[error("home_deg[{index}] = {home} {unit} is outside joint {joint}'s limits [{lower}, {upper}]", index = joint - 1)]
     HomeOutsideLimits {
         /// Joint number, 1-based.
         joint: usize,
-        /// The home angle, degrees.
-        home_deg: f64,
-        /// Lower limit, degrees.
-        lower_deg: f64,
-        /// Upper limit, degrees.
-        upper_deg: f64,
+        /// The home value (deg or mm).
+        home: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+        /// `deg` or `mm`.
+        unit: &'static str,
     },
+    /// The runtime refused the chain (a rotation that is not one, an axis of zero length).
+    #[error("the robot's kinematic chain is invalid")]
+    Chain(#[source] adwi_runtime::chain::ChainError),
 }
 
-/// The robot file as written, before validation.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RobotFile {
-    name: String,
-    joints: Vec<JointFile>,
-    #[serde(default)]
-    tool: ToolFile,
-    home_deg: Option<[f64; JOINT_COUNT]>,
-}
-
-#[derive(Debug, Clone, Copy, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct JointFile {
-    a_mm: f64,
-    d_mm: f64,
-    alpha_deg: f64,
-    #[serde(default)]
-    beta_deg: f64,
-    #[serde(default)]
-    theta_offset_deg: f64,
-    limits_deg: [f64; 2],
-}
-
-#[derive(Debug, Clone, Copy, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ToolFile {
-    #[serde(default)]
-    translation_mm: [f64; 3],
-    #[serde(default)]
-    abc_deg: [f64; 3],
-}
-
-/// One joint: its nominal MD-H geometry and the range its joint variable may take.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Joint {
-    /// Nominal MD-H parameters (mm, rad).
-    pub mdh: MdhJoint,
-    /// `[lower, upper]` limits of the joint variable `q` (not of `θ = q + θ_offset`), rad.
-    pub limits_rad: [f64; 2],
-}
-
-/// A validated robot: six joints, a tool and a home posture.
+/// How a robot's joints are described: the parameterisation identification perturbs and
+/// the closed-form inverse kinematics needs.
 #[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// MD-H rows, one per joint (all revolute about z); the tool is the TCP in the flange
+    /// (MD-H frame `n`).
+    Mdh(Vec<MdhJoint>),
+    /// General chain joints (URDF, or a TOML file of chain joints); the tool is the TCP in
+    /// the last joint's frame after its motion.
+    Chain(Vec<ChainJoint>),
+}
+
+impl Geometry {
+    /// The number of joints.
+    pub fn len(&self) -> usize {
+        match self {
+            Geometry::Mdh(rows) => rows.len(),
+            Geometry::Chain(joints) => joints.len(),
+        }
+    }
+
+    /// Whether there is no joint.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The mass and centre of mass of the link a joint moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkInertial {
+    /// Mass, kg.
+    pub mass_kg: f64,
+    /// Centre of mass in the joint's frame after its motion (the runtime's convention), mm.
+    pub com_mm: [f64; 3],
+}
+
+/// One joint's non-kinematic data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// Its name (`joint_1` … when the file gives none).
+    pub name: String,
+    /// `[lower, upper]` limits of the joint variable (not of the variable plus offset), rad
+    /// or mm; `[−∞, ∞]` for a continuous joint.
+    pub limits: [f64; 2],
+    /// The link it moves, when the file gives its mass.
+    pub inertial: Option<LinkInertial>,
+}
+
+/// A validated robot: 1 to 12 joints, a tool, a base, a home posture, and its nominal
+/// chain.
+#[derive(Debug, Clone)]
 pub struct Robot {
     /// Human-readable name, e.g. "KUKA KR150-2".
     pub name: String,
-    /// The joints, base to flange.
-    pub joints: [Joint; JOINT_COUNT],
-    /// The tool centre point (TCP) in the flange frame.
-    pub tool: Isometry3<f64>,
-    /// A reference posture (rad): among several inverse-kinematics solutions, the one
-    /// closest to it is the default, and joints with more than a turn of travel are wrapped
-    /// toward it.
-    pub home_rad: [f64; JOINT_COUNT],
+    geometry: Geometry,
+    joints: Vec<Joint>,
+    base: Transform,
+    tool: Transform,
+    home: Vec<f64>,
+    chain: Chain,
+    urdf: Option<UrdfSource>,
 }
 
 impl Robot {
-    /// Reads and validates a robot file.
+    /// A robot of the given parts, validated: 1 to [`MAX_JOINTS`] joints, one [`Joint`]
+    /// and one home value per joint, finite geometry, limits with lower < upper, home within
+    /// them, non-negative finite masses.
+    ///
+    /// `tool` is the TCP in the flange frame for an MD-H geometry, in the last joint's frame
+    /// after its motion for a chain geometry; `base` the robot's base in the frame poses are
+    /// given in.
     ///
     /// # Errors
     ///
-    /// [`RobotError::Read`] if the file cannot be read, [`RobotError::Parse`] if it is not a
-    /// robot description, and the validation errors of [`Robot::from_toml_str`].
+    /// The [`RobotError`] naming what is wrong.
+    pub fn new(
+        name: String,
+        geometry: Geometry,
+        joints: Vec<Joint>,
+        base: Transform,
+        tool: Transform,
+        home: Vec<f64>,
+    ) -> Result<Robot, RobotError> {
+        let n = geometry.len();
+        if n == 0 || n > MAX_JOINTS {
+            return Err(RobotError::JointCount { found: n });
+        }
+        if joints.len() != n {
+            return Err(RobotError::Invalid {
+                field: "joints".into(),
+                reason: format!("{} joint descriptions for {n} joints", joints.len()),
+            });
+        }
+        if home.len() != n {
+            return Err(RobotError::HomeLength {
+                expected: n,
+                found: home.len(),
+            });
+        }
+        let chain = match &geometry {
+            Geometry::Mdh(rows) => {
+                for (i, row) in rows.iter().enumerate() {
+                    let values = [
+                        ("a_mm", row.a_mm),
+                        ("d_mm", row.d_mm),
+                        ("alpha", row.alpha_rad),
+                        ("beta", row.beta_rad),
+                        ("theta_offset", row.theta_offset_rad),
+                    ];
+                    for (key, value) in values {
+                        finite(value, || format!("joint {} {key}", i + 1))?;
+                    }
+                }
+                Chain::from_mdh(base, rows, tool, None)
+            }
+            Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
+        }
+        .map_err(RobotError::Chain)?;
+        let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
+        for (i, (joint, &kind)) in joints.iter().zip(&kinds).enumerate() {
+            let number = i + 1;
+            let unit = unit_of(kind);
+            let [lower, upper] = joint.limits;
+            if lower.is_nan() || upper.is_nan() {
+                return Err(RobotError::NonFinite {
+                    field: format!("joint {number} limits"),
+                });
+            }
+            // NaN was refused above; [inf, inf] and [-inf, -inf] are empty too.
+            if lower >= upper || lower == f64::INFINITY || upper == f64::NEG_INFINITY {
+                return Err(RobotError::EmptyLimits {
+                    joint: number,
+                    lower: to_unit(lower, kind),
+                    upper: to_unit(upper, kind),
+                    unit,
+                });
+            }
+            if let Some(inertial) = &joint.inertial {
+                let ok = inertial.mass_kg.is_finite()
+                    && inertial.mass_kg >= 0.0
+                    && inertial.com_mm.iter().all(|v| v.is_finite());
+                if !ok {
+                    return Err(RobotError::Invalid {
+                        field: format!("joint {number} mass_kg, com_mm"),
+                        reason: "the mass must be finite and ≥ 0, the centre of mass finite".into(),
+                    });
+                }
+            }
+        }
+        for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
+            finite(value, || format!("home_deg[{i}]"))?;
+            let [lower, upper] = joint.limits;
+            if !(lower..=upper).contains(&value) {
+                return Err(RobotError::HomeOutsideLimits {
+                    joint: i + 1,
+                    home: to_unit(value, kind),
+                    lower: to_unit(lower, kind),
+                    upper: to_unit(upper, kind),
+                    unit: unit_of(kind),
+                });
+            }
+        }
+        Ok(Robot {
+            name,
+            geometry,
+            joints,
+            base,
+            tool,
+            home,
+            chain,
+            urdf: None,
+        })
+    }
+
+    /// Reads and validates a robot file: URDF for a `.urdf` extension (the chain from the
+    /// root link to the only leaf link), TOML otherwise.
+    ///
+    /// # Errors
+    ///
+    /// [`RobotError::Read`] if the file cannot be read, [`RobotError::Parse`] or
+    /// [`RobotError::Urdf`] if it is not a robot description, and the validation errors of
+    /// [`Robot::new`].
     pub fn load(path: impl AsRef<Path>) -> Result<Robot, RobotError> {
+        Robot::load_with(path, &LinkNames::default())
+    }
+
+    /// As [`Robot::load`], with the URDF chain between the given links (a TOML file's own
+    /// `base_link` and `tip_link` give way to them).
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::load`].
+    pub fn load_with(path: impl AsRef<Path>, links: &LinkNames) -> Result<Robot, RobotError> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|source| RobotError::Read {
             path: path.to_owned(),
             source,
         })?;
-        Robot::from_toml_str(&text).map_err(|error| match error {
+        let is_urdf = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("urdf"));
+        if is_urdf {
+            return crate::urdf::robot_from_urdf_str(&text, links).map_err(|e| match e {
+                RobotError::Urdf { source, .. } => RobotError::Urdf {
+                    path: path.to_owned(),
+                    source,
+                },
+                other => other,
+            });
+        }
+        let dir = path.parent().unwrap_or(Path::new(""));
+        Robot::from_toml_in(&text, dir, links).map_err(|error| match error {
             RobotError::Parse { source, .. } => RobotError::Parse {
                 path: path.to_owned(),
                 source,
@@ -169,122 +400,648 @@ impl Robot {
         })
     }
 
-    /// Parses and validates a robot description given as TOML text.
+    /// Parses and validates a robot description given as TOML text (a `urdf` key is read
+    /// relative to the working directory).
     ///
     /// # Errors
     ///
-    /// [`RobotError::Parse`] (with an empty path) for malformed TOML or unknown keys,
-    /// [`RobotError::JointCount`], [`RobotError::NonFinite`], [`RobotError::EmptyLimits`]
-    /// and [`RobotError::HomeOutsideLimits`] for a description that parses but cannot be
-    /// a robot.
+    /// [`RobotError::Parse`] (with an empty path) for malformed TOML or unknown keys, and
+    /// the validation errors of [`Robot::new`].
     pub fn from_toml_str(text: &str) -> Result<Robot, RobotError> {
+        Robot::from_toml_in(text, Path::new(""), &LinkNames::default())
+    }
+
+    fn from_toml_in(text: &str, dir: &Path, links: &LinkNames) -> Result<Robot, RobotError> {
         let file: RobotFile = toml::from_str(text).map_err(|source| RobotError::Parse {
             path: PathBuf::new(),
             source,
         })?;
-        let joints_file: [JointFile; JOINT_COUNT] =
-            file.joints
-                .as_slice()
-                .try_into()
-                .map_err(|_| RobotError::JointCount {
-                    found: file.joints.len(),
-                })?;
-
-        let mut joints = [Joint {
-            mdh: MdhJoint::default(),
-            limits_rad: [0.0; 2],
-        }; JOINT_COUNT];
-        for (index, (joint, spec)) in joints.iter_mut().zip(&joints_file).enumerate() {
-            let number = index + 1;
-            let values = [
-                ("a_mm", spec.a_mm),
-                ("d_mm", spec.d_mm),
-                ("alpha_deg", spec.alpha_deg),
-                ("beta_deg", spec.beta_deg),
-                ("theta_offset_deg", spec.theta_offset_deg),
-                ("limits_deg[0]", spec.limits_deg[0]),
-                ("limits_deg[1]", spec.limits_deg[1]),
-            ];
-            for (name, value) in values {
-                finite(value, || format!("joint {number} {name}"))?;
-            }
-            let [lower_deg, upper_deg] = spec.limits_deg;
-            if lower_deg >= upper_deg {
-                return Err(RobotError::EmptyLimits {
-                    joint: number,
-                    lower_deg,
-                    upper_deg,
+        let tool = file
+            .tool
+            .map(|t| t.transform("tool"))
+            .transpose()?
+            .unwrap_or(Transform::IDENTITY);
+        let base = file
+            .base
+            .map(|b| b.transform("base"))
+            .transpose()?
+            .unwrap_or(Transform::IDENTITY);
+        if let Some(urdf_path) = &file.urdf {
+            if !file.joints.is_empty() {
+                return Err(RobotError::Invalid {
+                    field: "joints".into(),
+                    reason: "a robot file naming a URDF file lists no [[joints]]".into(),
                 });
             }
-            *joint = Joint {
-                mdh: MdhJoint {
-                    a_mm: spec.a_mm,
-                    d_mm: spec.d_mm,
-                    alpha_rad: spec.alpha_deg.to_radians(),
-                    beta_rad: spec.beta_deg.to_radians(),
-                    theta_offset_rad: spec.theta_offset_deg.to_radians(),
-                },
-                limits_rad: [lower_deg.to_radians(), upper_deg.to_radians()],
+            let links = LinkNames {
+                base_link: links.base_link.clone().or(file.base_link),
+                tip_link: links.tip_link.clone().or(file.tip_link),
             };
+            let urdf = Robot::load_with(dir.join(urdf_path), &links)?;
+            let kinds: Vec<JointKind> = urdf.chain.joints().iter().map(|j| j.kind).collect();
+            let home = match &file.home_deg {
+                Some(h) => from_file_units(h, &kinds)?,
+                None => urdf.home.clone(),
+            };
+            return urdf.with_parts(
+                file.name,
+                base.compose(&urdf.base),
+                urdf.tool.compose(&tool),
+                home,
+            );
         }
-
-        for (i, value) in file.tool.translation_mm.iter().enumerate() {
-            finite(*value, || format!("tool translation_mm[{i}]"))?;
+        if file.base_link.is_some() || file.tip_link.is_some() {
+            return Err(RobotError::Invalid {
+                field: "base_link, tip_link".into(),
+                reason: "only a robot file naming a URDF file has links".into(),
+            });
         }
-        for (i, value) in file.tool.abc_deg.iter().enumerate() {
-            finite(*value, || format!("tool abc_deg[{i}]"))?;
+        let n = file.joints.len();
+        if n == 0 || n > MAX_JOINTS {
+            return Err(RobotError::JointCount { found: n });
         }
-        let tool = isometry_from_parts(
-            file.tool.translation_mm,
-            &rotation_from_kuka_abc_deg(file.tool.abc_deg),
-        );
-
-        let home_deg = file.home_deg.unwrap_or([0.0; JOINT_COUNT]);
-        for (index, (&home, joint)) in home_deg.iter().zip(&joints_file).enumerate() {
-            finite(home, || format!("home_deg[{index}]"))?;
-            let [lower_deg, upper_deg] = joint.limits_deg;
-            if !(lower_deg..=upper_deg).contains(&home) {
-                return Err(RobotError::HomeOutsideLimits {
-                    joint: index + 1,
-                    home_deg: home,
-                    lower_deg,
-                    upper_deg,
-                });
+        let mdh = joint_style(&file.joints[0], 1)? == Style::Mdh;
+        let mut joints = Vec::with_capacity(n);
+        let geometry = if mdh {
+            let mut rows = Vec::with_capacity(n);
+            for (i, spec) in file.joints.iter().enumerate() {
+                let (row, joint) = spec.mdh(i + 1)?;
+                rows.push(row);
+                joints.push(joint);
             }
-        }
+            Geometry::Mdh(rows)
+        } else {
+            let mut rows = Vec::with_capacity(n);
+            for (i, spec) in file.joints.iter().enumerate() {
+                let (row, joint) = spec.chain(i + 1)?;
+                rows.push(row);
+                joints.push(joint);
+            }
+            Geometry::Chain(rows)
+        };
+        let kinds: Vec<JointKind> = match &geometry {
+            Geometry::Mdh(rows) => vec![JointKind::Revolute; rows.len()],
+            Geometry::Chain(rows) => rows.iter().map(|j| j.kind).collect(),
+        };
+        let home = match &file.home_deg {
+            Some(h) => from_file_units(h, &kinds)?,
+            None => vec![0.0; n],
+        };
+        Robot::new(file.name, geometry, joints, base, tool, home)
+    }
 
-        Ok(Robot {
-            name: file.name,
-            joints,
+    /// This robot with another name, base, tool and home posture (geometry, joints and URDF
+    /// source kept).
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::new`].
+    pub fn with_parts(
+        &self,
+        name: String,
+        base: Transform,
+        tool: Transform,
+        home: Vec<f64>,
+    ) -> Result<Robot, RobotError> {
+        let mut robot = Robot::new(
+            name,
+            self.geometry.clone(),
+            self.joints.clone(),
+            base,
             tool,
-            home_rad: home_deg.map(f64::to_radians),
+            home,
+        )?;
+        robot.urdf = self.urdf.clone();
+        Ok(robot)
+    }
+
+    /// This robot with another geometry, base and tool (the calibrated model of it): the
+    /// name, joints, home posture and URDF source kept.
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::new`].
+    pub fn with_geometry(
+        &self,
+        name: String,
+        geometry: Geometry,
+        base: Transform,
+        tool: Transform,
+    ) -> Result<Robot, RobotError> {
+        let mut robot = Robot::new(
+            name,
+            geometry,
+            self.joints.clone(),
+            base,
+            tool,
+            self.home.clone(),
+        )?;
+        robot.urdf = self.urdf.clone();
+        Ok(robot)
+    }
+
+    pub(crate) fn set_urdf_source(&mut self, source: UrdfSource) {
+        self.urdf = Some(source);
+    }
+
+    pub(crate) fn urdf_source(&self) -> Option<&UrdfSource> {
+        self.urdf.as_ref()
+    }
+
+    /// The nominal kinematics as the runtime evaluates them.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
+    /// The number of joints.
+    pub fn joint_count(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// The joints' names, limits and masses, base to tool.
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+
+    /// Whether joint `i` (0-based) is revolute or prismatic.
+    pub fn joint_kind(&self, i: usize) -> JointKind {
+        self.chain.joints()[i].kind
+    }
+
+    /// How the joints are described.
+    pub fn geometry(&self) -> &Geometry {
+        &self.geometry
+    }
+
+    /// The MD-H rows, when the robot is described in MD-H.
+    pub fn mdh(&self) -> Option<&[MdhJoint]> {
+        match &self.geometry {
+            Geometry::Mdh(rows) => Some(rows),
+            Geometry::Chain(_) => None,
+        }
+    }
+
+    /// The TCP in the flange frame (MD-H) or in the last joint's frame after its motion
+    /// (chain).
+    pub fn tool(&self) -> Transform {
+        self.tool
+    }
+
+    /// The robot's base in the frame poses are given in.
+    pub fn base(&self) -> Transform {
+        self.base
+    }
+
+    /// The reference posture (rad; mm for prismatic joints): among several
+    /// inverse-kinematics solutions the one closest to it is the default, joints with more
+    /// than a turn of travel are wrapped toward it, and numerical inverse kinematics starts
+    /// from it.
+    pub fn home(&self) -> &[f64] {
+        &self.home
+    }
+
+    /// Whether `q` has one value per joint and every one lies within its limits
+    /// (inclusive).
+    pub fn within_limits(&self, q: &[f64]) -> bool {
+        q.len() == self.joints.len()
+            && self
+                .joints
+                .iter()
+                .zip(q)
+                .all(|(joint, &v)| (joint.limits[0]..=joint.limits[1]).contains(&v))
+    }
+
+    /// The range joint `i` is sampled over: its limits, or one turn centred on the home
+    /// posture for a continuous joint (infinite limits: the turn is clipped by the finite
+    /// one when only one limit is infinite).
+    pub fn sampling_range(&self, i: usize) -> [f64; 2] {
+        let [lower, upper] = self.joints[i].limits;
+        let home = self.home[i];
+        let half = match self.joint_kind(i) {
+            JointKind::Revolute => std::f64::consts::PI,
+            JointKind::Prismatic => 1000.0,
+        };
+        [
+            if lower.is_finite() {
+                lower
+            } else {
+                (home - half).min(upper - 2.0 * half)
+            },
+            if upper.is_finite() {
+                upper
+            } else {
+                (home + half).max(lower + 2.0 * half)
+            },
+        ]
+    }
+
+    /// The nominal TCP pose (in the frame poses are given in) at joint values `q`.
+    ///
+    /// # Panics
+    ///
+    /// When `q` does not have one value per joint.
+    pub fn tcp_pose(&self, q: &[f64]) -> Isometry3<f64> {
+        isometry_from_transform(&self.tcp_transform(q))
+    }
+
+    /// As [`Robot::tcp_pose`], as a runtime transform.
+    ///
+    /// # Panics
+    ///
+    /// When `q` does not have one value per joint.
+    pub fn tcp_transform(&self, q: &[f64]) -> Transform {
+        self.chain.tcp_pose(q).unwrap_or_else(|| {
+            panic!(
+                "{} joint values for a robot of {} joints",
+                q.len(),
+                self.joint_count()
+            )
         })
     }
 
-    /// The nominal MD-H parameters of the six joints, for [`kinematics::forward`].
-    pub fn nominal_joints(&self) -> [MdhJoint; JOINT_COUNT] {
-        self.joints.map(|joint| joint.mdh)
+    /// The robot's link masses as a runtime [`Compliance`] with zero compliances (the
+    /// starting point of a gravity-compliance model), when the file gives at least one
+    /// link's mass; links without one weigh nothing.
+    pub fn gravity_model(&self) -> Option<Compliance> {
+        if self.joints.iter().all(|j| j.inertial.is_none()) {
+            return None;
+        }
+        let mut c = Compliance::NONE;
+        for (i, joint) in self.joints.iter().enumerate() {
+            if let Some(inertial) = joint.inertial {
+                c.link_mass_kg[i] = inertial.mass_kg;
+                c.link_com_mm[i] = inertial.com_mm;
+            }
+        }
+        Some(c)
     }
 
-    /// The tool (TCP in the flange frame) as a runtime transform.
-    pub fn tool_transform(&self) -> Transform {
-        transform_from_isometry(&self.tool)
-    }
-
-    /// Whether every joint variable lies within its limits (inclusive).
-    pub fn within_limits(&self, q_rad: &[f64; JOINT_COUNT]) -> bool {
-        self.joints
+    /// The robot file of this robot (TOML, the format [`Robot::load`] reads, in the joints'
+    /// own style): `comment` lines first. Loaded again it gives the same forward kinematics
+    /// to rounding (every number is written with all its digits).
+    pub fn to_toml_string(&self, comment: &[String]) -> String {
+        let mut out = String::new();
+        for block in comment {
+            for line in block.lines() {
+                out.push_str(&format!("# {line}\n"));
+            }
+        }
+        if !comment.is_empty() {
+            out.push('\n');
+        }
+        let kinds: Vec<JointKind> = self.chain.joints().iter().map(|j| j.kind).collect();
+        out.push_str(&format!("name = {}\n", toml_string(&self.name)));
+        let home: Vec<f64> = self
+            .home
             .iter()
-            .zip(q_rad)
-            .all(|(joint, &q)| (joint.limits_rad[0]..=joint.limits_rad[1]).contains(&q))
+            .zip(&kinds)
+            .map(|(&v, &k)| to_unit(v, k))
+            .collect();
+        out.push_str(&format!("home_deg = {}\n", toml_list(&home)));
+        let frame = |out: &mut String, title: &str, t: &Transform| {
+            let abc = kuka_abc_deg_from_rotation(&rotation_of(t));
+            out.push_str(&format!(
+                "\n[{title}]\ntranslation_mm = {}\nabc_deg = {}\n",
+                toml_list(&t.translation_mm),
+                toml_list(&abc)
+            ));
+        };
+        frame(&mut out, "base", &self.base);
+        frame(&mut out, "tool", &self.tool);
+        for (i, (joint, &kind)) in self.joints.iter().zip(&kinds).enumerate() {
+            out.push_str("\n[[joints]]\n");
+            out.push_str(&format!("name = {}\n", toml_string(&joint.name)));
+            match &self.geometry {
+                Geometry::Mdh(rows) => {
+                    let r = &rows[i];
+                    out.push_str(&format!(
+                        "a_mm = {}\nd_mm = {}\nalpha_deg = {}\nbeta_deg = {}\ntheta_offset_deg = {}\n",
+                        toml_float(r.a_mm),
+                        toml_float(r.d_mm),
+                        toml_float(r.alpha_rad.to_degrees()),
+                        toml_float(r.beta_rad.to_degrees()),
+                        toml_float(r.theta_offset_rad.to_degrees()),
+                    ));
+                }
+                Geometry::Chain(rows) => {
+                    let j = &rows[i];
+                    let (roll, pitch, yaw) = rotation_of(&j.origin).euler_angles();
+                    let (kind_name, offset_key) = match kind {
+                        JointKind::Revolute => ("revolute", "offset_deg"),
+                        JointKind::Prismatic => ("prismatic", "offset_mm"),
+                    };
+                    out.push_str(&format!(
+                        "type = \"{kind_name}\"\nxyz_mm = {}\nrpy_deg = {}\naxis = {}\n{offset_key} = {}\n",
+                        toml_list(&j.origin.translation_mm),
+                        toml_list(&[roll, pitch, yaw].map(f64::to_degrees)),
+                        toml_list(&j.axis),
+                        toml_float(to_unit(j.offset, kind)),
+                    ));
+                }
+            }
+            let limits_key = match kind {
+                JointKind::Revolute => "limits_deg",
+                JointKind::Prismatic => "limits_mm",
+            };
+            out.push_str(&format!(
+                "{limits_key} = {}\n",
+                toml_list(&joint.limits.map(|v| to_unit(v, kind)))
+            ));
+            if let Some(inertial) = joint.inertial {
+                let com_mm = match &self.geometry {
+                    // Back into MD-H frame i: the file's convention for MD-H joints.
+                    Geometry::Mdh(rows) => mdh_constant_part(&rows[i])
+                        .inverse()
+                        .transform_point(inertial.com_mm),
+                    Geometry::Chain(_) => inertial.com_mm,
+                };
+                out.push_str(&format!(
+                    "mass_kg = {}\ncom_mm = {}\n",
+                    toml_float(inertial.mass_kg),
+                    toml_list(&com_mm)
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// The constant part of an MD-H row, `Tz(d)·Tx(a)·Rx(α)·Ry(β)`: MD-H frame `i` in the
+/// joint's frame after its motion.
+pub fn mdh_constant_part(row: &MdhJoint) -> Transform {
+    MdhJoint {
+        theta_offset_rad: 0.0,
+        ..*row
+    }
+    .transform(0.0)
+}
+
+/// Degrees for a revolute joint's value, mm for a prismatic one's.
+pub(crate) fn to_unit(value: f64, kind: JointKind) -> f64 {
+    match kind {
+        JointKind::Revolute => value.to_degrees(),
+        JointKind::Prismatic => value,
+    }
+}
+
+/// The unit [`to_unit`] converts to.
+pub(crate) fn unit_of(kind: JointKind) -> &'static str {
+    match kind {
+        JointKind::Revolute => "deg",
+        JointKind::Prismatic => "mm",
+    }
+}
+
+/// Joint values in file units (deg, mm) to the model's (rad, mm).
+fn from_file_units(values: &[f64], kinds: &[JointKind]) -> Result<Vec<f64>, RobotError> {
+    if values.len() != kinds.len() {
+        return Err(RobotError::HomeLength {
+            expected: kinds.len(),
+            found: values.len(),
+        });
+    }
+    Ok(values
+        .iter()
+        .zip(kinds)
+        .map(|(&v, k)| match k {
+            JointKind::Revolute => v.to_radians(),
+            JointKind::Prismatic => v,
+        })
+        .collect())
+}
+
+/// The robot file as written, before validation.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RobotFile {
+    name: String,
+    #[serde(default)]
+    joints: Vec<JointFile>,
+    tool: Option<FrameFile>,
+    base: Option<FrameFile>,
+    home_deg: Option<Vec<f64>>,
+    urdf: Option<PathBuf>,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JointFile {
+    name: Option<String>,
+    // MD-H
+    a_mm: Option<f64>,
+    d_mm: Option<f64>,
+    alpha_deg: Option<f64>,
+    beta_deg: Option<f64>,
+    theta_offset_deg: Option<f64>,
+    // Chain
+    #[serde(rename = "type")]
+    kind: Option<KindFile>,
+    xyz_mm: Option<[f64; 3]>,
+    rpy_deg: Option<[f64; 3]>,
+    axis: Option<[f64; 3]>,
+    offset_deg: Option<f64>,
+    offset_mm: Option<f64>,
+    // Both
+    limits_deg: Option<[f64; 2]>,
+    limits_mm: Option<[f64; 2]>,
+    mass_kg: Option<f64>,
+    com_mm: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum KindFile {
+    Revolute,
+    Prismatic,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Style {
+    Mdh,
+    Chain,
+}
+
+fn joint_style(spec: &JointFile, number: usize) -> Result<Style, RobotError> {
+    let mdh = spec.a_mm.is_some()
+        || spec.d_mm.is_some()
+        || spec.alpha_deg.is_some()
+        || spec.beta_deg.is_some()
+        || spec.theta_offset_deg.is_some();
+    let chain = spec.kind.is_some()
+        || spec.xyz_mm.is_some()
+        || spec.rpy_deg.is_some()
+        || spec.axis.is_some()
+        || spec.offset_deg.is_some()
+        || spec.offset_mm.is_some();
+    let style = |reason: &str| RobotError::JointStyle {
+        joint: number,
+        reason: reason.into(),
+    };
+    match (mdh, chain) {
+        (true, false) => Ok(Style::Mdh),
+        (false, true) => Ok(Style::Chain),
+        (true, true) => Err(style(
+            "MD-H keys (a_mm, d_mm, alpha_deg, …) and chain keys (type, xyz_mm, rpy_deg, axis, …) \
+             in one joint: a joint is one or the other",
+        )),
+        (false, false) => Err(style(
+            "neither MD-H keys (a_mm, d_mm, alpha_deg) nor chain keys (xyz_mm, rpy_deg, axis)",
+        )),
+    }
+}
+
+impl JointFile {
+    fn common(&self, number: usize, kind: JointKind) -> Result<Joint, RobotError> {
+        let (limits, key, other) = match kind {
+            JointKind::Revolute => (
+                self.limits_deg.map(|l| l.map(f64::to_radians)),
+                "limits_deg",
+                self.limits_mm.map(|_| "limits_mm"),
+            ),
+            JointKind::Prismatic => (
+                self.limits_mm,
+                "limits_mm",
+                self.limits_deg.map(|_| "limits_deg"),
+            ),
+        };
+        if let Some(other) = other {
+            return Err(RobotError::JointStyle {
+                joint: number,
+                reason: format!("{other} given for a joint whose limits are {key}"),
+            });
+        }
+        let limits = limits.ok_or_else(|| RobotError::JointStyle {
+            joint: number,
+            reason: format!("{key} missing"),
+        })?;
+        let inertial = match (self.mass_kg, self.com_mm) {
+            (Some(mass_kg), com) => Some(LinkInertial {
+                mass_kg,
+                com_mm: com.unwrap_or([0.0; 3]),
+            }),
+            (None, Some(_)) => {
+                return Err(RobotError::JointStyle {
+                    joint: number,
+                    reason: "com_mm given without mass_kg".into(),
+                })
+            }
+            (None, None) => None,
+        };
+        Ok(Joint {
+            name: self
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("joint_{number}")),
+            limits,
+            inertial,
+        })
     }
 
-    /// The nominal TCP pose in the base frame at joint angles `q_rad`.
-    pub fn tcp_pose(&self, q_rad: &[f64; JOINT_COUNT]) -> Isometry3<f64> {
-        isometry_from_transform(&kinematics::forward(
-            &self.nominal_joints(),
-            &self.tool_transform(),
-            q_rad,
+    fn mdh(&self, number: usize) -> Result<(MdhJoint, Joint), RobotError> {
+        if joint_style(self, number)? != Style::Mdh {
+            return Err(RobotError::JointStyle {
+                joint: number,
+                reason: "a chain joint in a robot whose joint 1 is MD-H: one style for all joints"
+                    .into(),
+            });
+        }
+        let required = |value: Option<f64>, key: &str| {
+            value.ok_or_else(|| RobotError::JointStyle {
+                joint: number,
+                reason: format!("{key} missing"),
+            })
+        };
+        let row = MdhJoint {
+            a_mm: required(self.a_mm, "a_mm")?,
+            d_mm: required(self.d_mm, "d_mm")?,
+            alpha_rad: required(self.alpha_deg, "alpha_deg")?.to_radians(),
+            beta_rad: self.beta_deg.unwrap_or(0.0).to_radians(),
+            theta_offset_rad: self.theta_offset_deg.unwrap_or(0.0).to_radians(),
+        };
+        let mut joint = self.common(number, JointKind::Revolute)?;
+        // The file gives the centre of mass in MD-H frame i; the model holds it in the
+        // joint's frame after its motion.
+        if let Some(inertial) = &mut joint.inertial {
+            if inertial.com_mm.iter().all(|v| v.is_finite()) {
+                inertial.com_mm = mdh_constant_part(&row).transform_point(inertial.com_mm);
+            }
+        }
+        Ok((row, joint))
+    }
+
+    fn chain(&self, number: usize) -> Result<(ChainJoint, Joint), RobotError> {
+        if joint_style(self, number)? != Style::Chain {
+            return Err(RobotError::JointStyle {
+                joint: number,
+                reason: "an MD-H joint in a robot whose joint 1 is a chain joint: one style for all joints"
+                    .into(),
+            });
+        }
+        let kind = match self.kind.unwrap_or(KindFile::Revolute) {
+            KindFile::Revolute => JointKind::Revolute,
+            KindFile::Prismatic => JointKind::Prismatic,
+        };
+        let offset = match (kind, self.offset_deg, self.offset_mm) {
+            (JointKind::Revolute, offset, None) => offset.unwrap_or(0.0).to_radians(),
+            (JointKind::Prismatic, None, offset) => offset.unwrap_or(0.0),
+            _ => {
+                return Err(RobotError::JointStyle {
+                    joint: number,
+                    reason: "offset_deg is a revolute joint's offset, offset_mm a prismatic one's"
+                        .into(),
+                })
+            }
+        };
+        let xyz = self.xyz_mm.unwrap_or([0.0; 3]);
+        let rpy = self.rpy_deg.unwrap_or([0.0; 3]);
+        for (key, values) in [("xyz_mm", xyz), ("rpy_deg", rpy)] {
+            for (a, v) in values.iter().enumerate() {
+                finite(*v, || format!("joint {number} {key}[{a}]"))?;
+            }
+        }
+        let axis =
+            unit_axis(self.axis.unwrap_or([0.0, 0.0, 1.0])).ok_or_else(|| RobotError::Invalid {
+                field: format!("joint {number} axis"),
+                reason: "must be a finite, non-zero vector".into(),
+            })?;
+        let row = ChainJoint {
+            origin: transform_from_xyz_rpy(xyz, rpy.map(f64::to_radians)),
+            axis,
+            kind,
+            offset,
+        };
+        Ok((row, self.common(number, kind)?))
+    }
+}
+
+/// The unit vector along `v`, or `None` for a zero or non-finite vector.
+pub(crate) fn unit_axis(v: [f64; 3]) -> Option<[f64; 3]> {
+    let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    (norm.is_finite() && norm > 0.0).then(|| v.map(|x| x / norm))
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FrameFile {
+    #[serde(default)]
+    translation_mm: [f64; 3],
+    #[serde(default)]
+    abc_deg: [f64; 3],
+}
+
+impl FrameFile {
+    fn transform(&self, what: &str) -> Result<Transform, RobotError> {
+        for (i, value) in self.translation_mm.iter().enumerate() {
+            finite(*value, || format!("{what} translation_mm[{i}]"))?;
+        }
+        for (i, value) in self.abc_deg.iter().enumerate() {
+            finite(*value, || format!("{what} abc_deg[{i}]"))?;
+        }
+        Ok(transform_from_parts(
+            self.translation_mm,
+            &rotation_from_kuka_abc_deg(self.abc_deg),
         ))
     }
 }
@@ -295,6 +1052,45 @@ fn finite(value: f64, field: impl FnOnce() -> String) -> Result<(), RobotError> 
     } else {
         Err(RobotError::NonFinite { field: field() })
     }
+}
+
+/// A float as TOML writes it, every digit kept (`inf` and `-inf` as TOML spells them).
+pub(crate) fn toml_float(v: f64) -> String {
+    // Debug keeps a decimal point or an exponent, so an integral value stays a float.
+    format!("{v:?}")
+}
+
+fn toml_list(values: &[f64]) -> String {
+    let items: Vec<String> = values.iter().map(|v| toml_float(*v)).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn toml_string(s: &str) -> String {
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// The transform of a URDF-style origin: translation (mm), then roll, pitch, yaw (rad) about
+/// the fixed x, y, z axes (`R = Rz(yaw)·Ry(pitch)·Rx(roll)`).
+pub fn transform_from_xyz_rpy(xyz_mm: [f64; 3], rpy_rad: [f64; 3]) -> Transform {
+    let [roll, pitch, yaw] = rpy_rad;
+    transform_from_parts(xyz_mm, &Rotation3::from_euler_angles(roll, pitch, yaw))
+}
+
+/// The roll, pitch, yaw (rad) of a transform's rotation, the inverse of
+/// [`transform_from_xyz_rpy`].
+pub fn rpy_of(transform: &Transform) -> [f64; 3] {
+    let (roll, pitch, yaw) = rotation_of(transform).euler_angles();
+    [roll, pitch, yaw]
 }
 
 /// The pose with the given translation (mm) and rotation.
@@ -308,16 +1104,9 @@ pub fn isometry_from_parts(translation_mm: [f64; 3], rotation: &Rotation3<f64>) 
 /// A runtime transform as a nalgebra isometry.
 ///
 /// The rotation is re-orthonormalised through a quaternion; for a transform that came out of
-/// [`kinematics::forward`] that changes it by rounding noise only.
+/// a forward kinematics that changes it by rounding noise only.
 pub fn isometry_from_transform(transform: &Transform) -> Isometry3<f64> {
-    let r = &transform.rotation;
-    let matrix = Matrix3::new(
-        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
-    );
-    isometry_from_parts(
-        transform.translation_mm,
-        &Rotation3::from_matrix_unchecked(matrix),
-    )
+    isometry_from_parts(transform.translation_mm, &rotation_of(transform))
 }
 
 /// A nalgebra isometry as a runtime transform.
@@ -343,43 +1132,85 @@ pub fn rotation_of(transform: &Transform) -> Rotation3<f64> {
     ))
 }
 
+/// The frames of a chain at joint values `q`: per joint, its frame before its motion
+/// (`base · O_1 · M_1 ⋯ O_i`) and after it (`… · M_i(q_i + o_i)`), in the frame poses are
+/// given in; the TCP pose last. The same products as [`Chain::tcp_pose`].
+///
+/// # Panics
+///
+/// When `q` does not have one value per joint.
+pub fn chain_frames(chain: &Chain, q: &[f64]) -> (Vec<(Transform, Transform)>, Transform) {
+    assert_eq!(q.len(), chain.joint_count(), "one joint value per joint");
+    let mut frames = Vec::with_capacity(q.len());
+    let mut pose = chain.base;
+    for (joint, &value) in chain.joints().iter().zip(q) {
+        let before = pose.compose(&joint.origin);
+        pose = before.compose(&joint.motion(value + joint.offset));
+        frames.push((before, pose));
+    }
+    (frames, pose.compose(&chain.tool))
+}
+
 /// The path of a robot shipped in this repository's `tables/` folder, e.g.
-/// `shipped_robot_path("kr150-2")`.
+/// `shipped_robot_path("kr150-2")` (its `robot.toml`).
 pub fn shipped_robot_path(name: &str) -> PathBuf {
+    shipped_file(name, "robot.toml")
+}
+
+/// A file of a robot shipped in this repository's `tables/` folder, e.g.
+/// `shipped_file("iiwa14", "robot.urdf")`.
+pub fn shipped_file(robot: &str, file: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../tables")
-        .join(name)
-        .join("robot.toml")
+        .join(robot)
+        .join(file)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn kr150() -> Robot {
+        Robot::load(shipped_robot_path("kr150-2")).unwrap()
+    }
+
     #[test]
     fn shipped_kr150_matches_the_method_table() {
-        let robot = Robot::load(shipped_robot_path("kr150-2")).unwrap();
-        let a: Vec<f64> = robot.joints.iter().map(|j| j.mdh.a_mm).collect();
-        let d: Vec<f64> = robot.joints.iter().map(|j| j.mdh.d_mm).collect();
-        let alpha: Vec<f64> = robot
-            .joints
-            .iter()
-            .map(|j| j.mdh.alpha_rad.to_degrees())
-            .collect();
+        let robot = kr150();
+        let rows = robot.mdh().unwrap();
+        let a: Vec<f64> = rows.iter().map(|j| j.a_mm).collect();
+        let d: Vec<f64> = rows.iter().map(|j| j.d_mm).collect();
+        let alpha: Vec<f64> = rows.iter().map(|j| j.alpha_rad.to_degrees()).collect();
         assert_eq!(a, [350.0, 1250.0, 55.0, 0.0, 0.0, 0.0]);
         assert_eq!(d, [750.0, 0.0, 0.0, 1100.0, 0.0, 230.0]);
         for (got, want) in alpha.iter().zip([-90.0, 0.0, 90.0, -90.0, 90.0, 0.0]) {
             assert!((got - want).abs() < 1e-12);
         }
-        assert!(robot.within_limits(&robot.home_rad));
-        assert_eq!(robot.tool, Isometry3::identity());
+        assert!(robot.within_limits(robot.home()));
+        assert_eq!(robot.tool(), Transform::IDENTITY);
+        assert_eq!(robot.base(), Transform::IDENTITY);
+        assert_eq!(robot.joint_count(), 6);
+        assert!(robot.gravity_model().is_none());
     }
 
     #[test]
     fn shipped_ur5_loads() {
         let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
-        assert_eq!(robot.joints[1].mdh.a_mm, -425.0);
-        assert!(robot.tool.translation.vector.z > 25.0);
+        assert_eq!(robot.mdh().unwrap()[1].a_mm, -425.0);
+        assert!(robot.tool().translation_mm[2] > 25.0);
+    }
+
+    /// The MD-H chain is the MD-H forward kinematics: the runtime's two evaluations agree.
+    #[test]
+    fn the_chain_of_an_mdh_robot_is_its_mdh_forward_kinematics() {
+        let robot = kr150();
+        let rows: [MdhJoint; 6] = robot.mdh().unwrap().try_into().unwrap();
+        let q = [0.2, -1.1, 1.9, 0.4, 0.7, -2.0];
+        let want = adwi_runtime::kinematics::forward(&rows, &robot.tool(), &q);
+        let got = robot.tcp_transform(&q);
+        for a in 0..3 {
+            assert!((got.translation_mm[a] - want.translation_mm[a]).abs() < 1e-9);
+        }
     }
 
     fn kr150_text() -> String {
@@ -387,18 +1218,43 @@ mod tests {
     }
 
     #[test]
-    fn five_joints_are_refused() {
+    fn any_joint_count_from_one_to_twelve_loads_and_others_are_refused() {
         let text = kr150_text();
-        let cut = text.rfind("[[joints]]").unwrap();
-        let error = Robot::from_toml_str(&text[..cut]).unwrap_err();
+        let first = text.find("[[joints]]").unwrap();
+        let (head, joints) = text.split_at(first);
+        let one_joint = &joints[..joints[1..].find("[[joints]]").unwrap() + 1];
+        let head = head.replace("home_deg = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0]", "");
+        for n in [1, 5, 7, 12] {
+            let robot = Robot::from_toml_str(&format!("{head}{}", one_joint.repeat(n))).unwrap();
+            assert_eq!(robot.joint_count(), n);
+            assert_eq!(robot.chain().joint_count(), n);
+            assert_eq!(robot.home(), vec![0.0; n]);
+        }
+        for n in [0, 13] {
+            let error =
+                Robot::from_toml_str(&format!("{head}{}", one_joint.repeat(n))).unwrap_err();
+            assert!(
+                matches!(error, RobotError::JointCount { found } if found == n),
+                "{error}"
+            );
+        }
+        // A home posture of the wrong length is refused.
+        let error =
+            Robot::from_toml_str(&text.replacen("0.0, 0.0, 0.0]", "0.0, 0.0]", 1)).unwrap_err();
         assert!(
-            matches!(error, RobotError::JointCount { found: 5 }),
+            matches!(
+                error,
+                RobotError::HomeLength {
+                    expected: 6,
+                    found: 5
+                }
+            ),
             "{error}"
         );
     }
 
     #[test]
-    fn reversed_limits_and_unknown_keys_are_refused() {
+    fn reversed_limits_unknown_keys_and_mixed_styles_are_refused() {
         let text = kr150_text().replacen(
             "limits_deg = [-185.0, 185.0]",
             "limits_deg = [10.0, -10.0]",
@@ -413,11 +1269,84 @@ mod tests {
         let text = kr150_text().replacen("a_mm = 350.0", "a_mm = 350.0\nlength = 3", 1);
         let error = Robot::from_toml_str(&text).unwrap_err();
         assert!(matches!(error, RobotError::Parse { .. }), "{error}");
+
+        let text = kr150_text().replacen("a_mm = 1250.0", "axis = [0.0, 0.0, 1.0]", 1);
+        let error = Robot::from_toml_str(&text).unwrap_err();
+        assert!(
+            matches!(error, RobotError::JointStyle { joint: 2, .. }),
+            "{error}"
+        );
+    }
+
+    /// A robot written as a file and read again is the same robot, in either style.
+    #[test]
+    fn written_robot_files_load_as_the_same_robot() {
+        let robot = kr150();
+        let text = robot.to_toml_string(&["a test".into()]);
+        let back = Robot::from_toml_str(&text).unwrap();
+        let q = [0.2, -1.1, 1.9, 0.4, 0.7, -2.0];
+        let (a, b) = (robot.tcp_transform(&q), back.tcp_transform(&q));
+        for i in 0..3 {
+            assert!(
+                (a.translation_mm[i] - b.translation_mm[i]).abs() < 1e-9,
+                "{text}"
+            );
+        }
+        assert_eq!(back.joints()[0].limits, robot.joints()[0].limits);
+
+        let chain_text = r#"
+name = "two slides and a turn"
+home_deg = [0.0, 10.0, 0.0]
+[tool]
+translation_mm = [0.0, 0.0, 100.0]
+[[joints]]
+type = "prismatic"
+axis = [1.0, 0.0, 0.0]
+limits_mm = [-500.0, 500.0]
+mass_kg = 20.0
+com_mm = [0.0, 0.0, 50.0]
+[[joints]]
+type = "prismatic"
+xyz_mm = [0.0, 0.0, 300.0]
+rpy_deg = [0.0, 0.0, 90.0]
+axis = [1.0, 0.0, 0.0]
+offset_mm = 5.0
+limits_mm = [0.0, 800.0]
+[[joints]]
+xyz_mm = [0.0, 50.0, 0.0]
+rpy_deg = [-90.0, 30.0, 0.0]
+axis = [0.0, 0.0, -1.0]
+limits_deg = [-inf, inf]
+"#;
+        let robot = Robot::from_toml_str(chain_text).unwrap();
+        assert_eq!(robot.joint_kind(0), JointKind::Prismatic);
+        assert_eq!(robot.joints()[2].limits, [f64::NEG_INFINITY, f64::INFINITY]);
+        let range = robot.sampling_range(2);
+        assert!((range[1] - range[0] - 2.0 * std::f64::consts::PI).abs() < 1e-12);
+        // At zero: slide 1 at 0, slide 2 at its 5 mm offset along its x = base y, then
+        // 50 mm along that frame's y = base −x, then 100 mm along the tool z.
+        let pose = robot.tcp_transform(&[0.0, 0.0, 0.0]);
+        let (roll, pitch) = (-90f64.to_radians(), 30f64.to_radians());
+        let turn = Rotation3::from_euler_angles(roll, pitch, 0.0);
+        let z = Rotation3::from_euler_angles(0.0, 0.0, 90f64.to_radians()) * turn * Vector3::z();
+        let want = Vector3::new(-50.0, 5.0, 300.0) + z * 100.0;
+        assert!(
+            (Vector3::from(pose.translation_mm) - want).norm() < 1e-9,
+            "{pose:?}"
+        );
+        let back = Robot::from_toml_str(&robot.to_toml_string(&[])).unwrap();
+        let q = [120.0, 300.0, 2.0];
+        let (a, b) = (robot.tcp_transform(&q), back.tcp_transform(&q));
+        for i in 0..3 {
+            assert!((a.translation_mm[i] - b.translation_mm[i]).abs() < 1e-9);
+        }
+        assert_eq!(back.gravity_model(), robot.gravity_model());
+        assert_eq!(back.home(), robot.home());
     }
 
     #[test]
     fn transform_conversions_round_trip() {
-        let robot = Robot::load(shipped_robot_path("kr150-2")).unwrap();
+        let robot = kr150();
         let q = [0.2, -1.1, 1.9, 0.4, 0.7, -2.0];
         let pose = robot.tcp_pose(&q);
         let back = isometry_from_transform(&transform_from_isometry(&pose));
@@ -432,6 +1361,14 @@ mod tests {
     #[test]
     fn ur5_tool_offset_fits_the_data_set_targets() {
         let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
+        let flange_robot = robot
+            .with_parts(
+                robot.name.clone(),
+                Transform::IDENTITY,
+                Transform::IDENTITY,
+                robot.home().to_vec(),
+            )
+            .unwrap();
         let data = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
         let mut reader = csv::Reader::from_path(&data).unwrap();
@@ -441,8 +1378,7 @@ mod tests {
             let record = record.unwrap();
             let value = |i: usize| record[i].parse::<f64>().unwrap();
             let q_rad: [f64; 6] = std::array::from_fn(|j| value(7 + j).to_radians());
-            let flange = kinematics::forward(&robot.nominal_joints(), &Transform::IDENTITY, &q_rad);
-            flanges.push(isometry_from_transform(&flange));
+            flanges.push(flange_robot.tcp_pose(&q_rad));
             targets.push(Vector3::new(value(1), value(2), value(3)));
         }
         assert_eq!(flanges.len(), 1000);
@@ -463,7 +1399,7 @@ mod tests {
                 .sum();
             (sum / flanges.len() as f64).sqrt()
         };
-        let shipped = robot.tool.translation.vector;
+        let shipped = Vector3::from(robot.tool().translation_mm);
         println!(
             "UR5 tool fit: fitted {:.4?} mm, residual RMS {:.4} mm; shipped {:.4?} mm, residual RMS {:.4} mm",
             fitted.as_slice(),

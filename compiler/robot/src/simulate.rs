@@ -1,10 +1,12 @@
 //! The error simulator: sample databases of a robot whose error sources are known.
 //!
-//! For every nominal pose of a [`SamplingPlan`] the simulator picks one inverse-kinematics
-//! solution of the nominal model (the commanded joint angles) and computes where the robot
-//! *actually* goes, exactly — never through the linear error model:
+//! For every sample of a [`SamplingPlan`] the simulator takes the commanded joint values —
+//! drawn in joint space, or solved by inverse kinematics of the nominal model for a nominal
+//! pose — and computes where the robot *actually* goes, exactly — never through the linear
+//! error model:
 //!
-//! 1. the geometry is nominal plus the scenario's MD-H deviations (Δa, Δd, Δα, Δθ, Δβ);
+//! 1. the geometry is nominal plus the scenario's deviations: MD-H deviations (Δa, Δd, Δα,
+//!    Δθ, Δβ) for a robot described in MD-H, origin and offset deviations for any other;
 //! 2. each joint deflects under gravity: `Δq = K⁻¹ · τ`, with `τ` the gravity torques of the
 //!    payload (and of any link masses) on the actual geometry at the commanded angles;
 //! 3. each gear adds a small periodic transmission error `A · sin(n · q + φ)`;
@@ -16,22 +18,42 @@
 //! The sample's error is measured − nominal: position in mm and orientation as the rotation
 //! vector of `R_measured · R_nominalᵀ`, both in the base frame.
 //!
-//! Everything random comes from ChaCha8 seeded by the plan's seed (stream 0 for poses,
-//! stream 1 for noise), and every number is written with a fixed number of decimals, so the
-//! same inputs give the same file byte for byte.
+//! # Sampling plans
+//!
+//! Pose space ([`Positions::Lattice`], [`Positions::Random`]): nominal positions in a box with
+//! one tool orientation (optionally spread). A six-axis robot with a spherical wrist is
+//! solved in closed form ([`InverseKinematics`], the solution closest to home or the plan's
+//! configuration); any other robot of six or more joints by damped least squares from its
+//! home posture ([`crate::ik::solve_near`]: the solution nearest home, documented there);
+//! fewer joints cannot reach arbitrary poses and take joint-space plans only.
+//!
+//! Joint space ([`Positions::JointRandom`], [`Positions::JointGrid`]), for any robot: joint
+//! values uniformly at random, or on a grid of evenly spaced values (first joint slowest),
+//! within each joint's range (its limits, or one turn around home for a continuous joint,
+//! unless the plan gives ranges). The nominal pose is the nominal model's forward kinematics
+//! at the joint values as written to the file.
+//!
+//! Everything random comes from ChaCha8 seeded by the plan's seed (stream 0 for poses and
+//! joint values, stream 1 for noise), and every number is written with a fixed number of
+//! decimals, rounded before it is used, so the same inputs give the same file byte for byte.
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::kinematics::{forward, link_frames, MdhJoint};
+use adwi_runtime::chain::JointKind;
+use adwi_runtime::kinematics::{MdhJoint, Transform};
 use nalgebra::{Isometry3, Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::error_model::{apply_deviations, JointDeviation, MdhDeviations};
-use crate::model::{isometry_from_parts, isometry_from_transform};
-use crate::{Configuration, IkError, InverseKinematics, Robot, JOINT_COUNT};
+use crate::error_model::{apply_deviations, JointDeviation};
+use crate::ik::{configuration_of, solve_near};
+use crate::model::{
+    chain_frames, isometry_from_parts, isometry_from_transform, mdh_constant_part,
+    transform_from_xyz_rpy, Geometry, MAX_JOINTS,
+};
+use crate::{Configuration, IkError, InverseKinematics, Robot};
 use adwi_compile::pose::{
     kuka_abc_deg_from_rotation, orientation_error, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
@@ -39,8 +61,21 @@ use adwi_compile::pose::{
 /// Standard gravity, m/s².
 const GRAVITY_M_PER_S2: f64 = 9.80665;
 
-/// The sample file's header row.
+/// The sample file's header row for a six-joint robot with configurations.
 pub const CSV_HEADER: &str = "x,y,z,a,b,c,dx,dy,dz,rx,ry,rz,j1,j2,j3,j4,j5,j6,config";
+
+/// The sample file's header row: [`CSV_HEADER`]'s columns with `j1..jn` for `joints` joints,
+/// and `config` when the samples have configurations.
+pub fn csv_header(joints: usize, config: bool) -> String {
+    let mut header = String::from("x,y,z,a,b,c,dx,dy,dz,rx,ry,rz");
+    for j in 1..=joints {
+        header.push_str(&format!(",j{j}"));
+    }
+    if config {
+        header.push_str(",config");
+    }
+    header
+}
 
 /// What can go wrong in a simulation.
 #[derive(Debug, thiserror::Error)]
@@ -69,7 +104,7 @@ pub enum SimulateError {
     /// A sampling plan value is unusable.
     #[error("sampling plan: {0}")]
     InvalidPlan(String),
-    /// The robot has no closed-form inverse kinematics.
+    /// The robot has no closed-form inverse kinematics (and no other fits the plan).
     #[error(transparent)]
     Kinematics(#[from] IkError),
     /// A nominal pose has no inverse-kinematics solution within the joint limits.
@@ -77,7 +112,8 @@ pub enum SimulateError {
         "pose {index} (x {:.3}, y {:.3}, z {:.3} mm; A {:.3}, B {:.3}, C {:.3} deg) is not \
          reachable within the joint limits{}",
         position_mm[0], position_mm[1], position_mm[2], abc_deg[0], abc_deg[1], abc_deg[2],
-        config.map(|c| format!(" in configuration {c}")).unwrap_or_default()
+        config.map(|c| format!(" in configuration {c}"))
+            .unwrap_or_else(|| " (from the home posture)".into())
     )]
     Unreachable {
         /// 0-based index in the plan.
@@ -97,14 +133,17 @@ pub enum SimulateError {
 /// The error sources of one simulated robot, as read from a scenario TOML file.
 ///
 /// ```toml
-/// [[joints]]                    # six of these, joint 1 first
-/// delta_a_mm = 0.2              # MD-H deviations
+/// [[joints]]                    # one per joint of the robot, joint 1 first
+/// delta_a_mm = 0.2              # MD-H deviations (robots described in MD-H)
 /// delta_d_mm = -0.1
 /// delta_alpha_deg = 0.01
 /// delta_theta_deg = -0.02
 /// delta_beta_deg = 0.0
-/// stiffness_nm_per_rad = 8.0e6  # joint stiffness, N·m/rad (absent: rigid)
-/// gear_amplitude_deg = 0.003    # periodic transmission error A·sin(n·q + φ)
+/// # delta_xyz_mm = [0.1, 0.0, -0.2]   # or, for URDF and chain robots, the joint origin's
+/// # delta_rpy_deg = [0.01, 0.0, 0.0]  # deviation O' = O·Trans(xyz)·Rot(rpy), and the
+/// # delta_offset_deg = 0.02           # offset's (delta_offset_mm for a prismatic joint)
+/// stiffness_nm_per_rad = 8.0e6  # joint stiffness, N·m/rad (absent: rigid; revolute only)
+/// gear_amplitude_deg = 0.003    # periodic transmission error A·sin(n·q + φ) (revolute only)
 /// gear_periods_per_rev = 2.0
 /// gear_phase_deg = 30.0
 ///
@@ -113,7 +152,7 @@ pub enum SimulateError {
 /// centre_of_gravity_mm = [0.0, 0.0, 250.0]   # flange frame
 ///
 /// [[link_masses]]               # optional, any number
-/// joint = 2                     # the link joint 2 moves, frame 2
+/// joint = 2                     # the link joint 2 moves
 /// mass_kg = 250.0
 /// centre_of_gravity_mm = [-600.0, 0.0, 0.0]
 ///
@@ -123,18 +162,37 @@ pub enum SimulateError {
 /// sigma_per_m_mm = 0.006
 /// orientation_sigma_rad = 0.0   # per axis, on the rotation vector
 /// ```
+///
+/// A link mass's (and the payload's) centre of gravity is given in its link's frame: MD-H
+/// frame `i` for a robot described in MD-H (frame `n`, the flange, for the payload), the
+/// joint's frame after its motion for any other robot (the last joint's for the payload).
+/// Gravity is −z of the frame poses are given in.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
-    /// Geometric MD-H deviations per joint.
-    pub deviations: MdhDeviations,
+    /// Geometric MD-H deviations per joint (robots described in MD-H).
+    pub deviations: Vec<JointDeviation>,
+    /// Geometric origin and offset deviations per joint (any other robot).
+    pub origin_deviations: Vec<OriginDeviation>,
     /// Per-joint stiffness, N·m/rad; `None` for a rigid joint.
-    pub stiffness_nm_per_rad: [Option<f64>; JOINT_COUNT],
+    pub stiffness_nm_per_rad: Vec<Option<f64>>,
     /// Per-joint periodic gear transmission error.
-    pub gears: [GearError; JOINT_COUNT],
+    pub gears: Vec<GearError>,
     /// Point masses loading the joints: the payload and any link masses.
     pub masses: Vec<PointMass>,
     /// The laser tracker's noise model.
     pub measurement: Measurement,
+}
+
+/// How a chain joint's origin and offset deviate: `O' = O · Trans(xyz) · Rot(rpy)`, offset
+/// plus `offset`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct OriginDeviation {
+    /// Translation, mm, in the origin's frame.
+    pub xyz_mm: [f64; 3],
+    /// Roll, pitch, yaw, rad (`Rz(yaw)·Ry(pitch)·Rx(roll)`).
+    pub rpy_rad: [f64; 3],
+    /// Added to the joint's offset, rad (mm for a prismatic joint).
+    pub offset: f64,
 }
 
 /// A periodic transmission error `amplitude · sin(periods_per_rev · q + phase)`.
@@ -158,8 +216,8 @@ impl GearError {
 /// A point mass riding on one link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointMass {
-    /// The link it rides on: 1..=6 is the link moved by that joint, expressed in that
-    /// joint's frame (6 is the flange frame, where the payload is).
+    /// The link it rides on: `1..=n` is the link moved by that joint, expressed in that
+    /// link's frame ([`Scenario`]; `n` is the flange, where the payload is).
     pub link: usize,
     /// Mass, kg.
     pub mass_kg: f64,
@@ -203,6 +261,12 @@ struct ScenarioJointFile {
     delta_theta_deg: f64,
     #[serde(default)]
     delta_beta_deg: f64,
+    #[serde(default)]
+    delta_xyz_mm: [f64; 3],
+    #[serde(default)]
+    delta_rpy_deg: [f64; 3],
+    delta_offset_deg: Option<f64>,
+    delta_offset_mm: Option<f64>,
     stiffness_nm_per_rad: Option<f64>,
     #[serde(default)]
     gear_amplitude_deg: f64,
@@ -239,15 +303,22 @@ struct MeasurementFile {
 }
 
 impl Scenario {
-    /// A scenario with no error at all: the simulated robot is the nominal one.
-    pub fn perfect() -> Scenario {
+    /// A scenario with no error at all for a robot of `joints` joints: the simulated robot
+    /// is the nominal one.
+    pub fn perfect(joints: usize) -> Scenario {
         Scenario {
-            deviations: [JointDeviation::default(); JOINT_COUNT],
-            stiffness_nm_per_rad: [None; JOINT_COUNT],
-            gears: [GearError::default(); JOINT_COUNT],
+            deviations: vec![JointDeviation::default(); joints],
+            origin_deviations: vec![OriginDeviation::default(); joints],
+            stiffness_nm_per_rad: vec![None; joints],
+            gears: vec![GearError::default(); joints],
             masses: Vec::new(),
             measurement: Measurement::default(),
         }
+    }
+
+    /// The number of joints the scenario describes.
+    pub fn joint_count(&self) -> usize {
+        self.gears.len()
     }
 
     /// Reads a scenario file.
@@ -276,33 +347,48 @@ impl Scenario {
     /// # Errors
     ///
     /// [`SimulateError::Parse`] for malformed TOML or unknown keys;
-    /// [`SimulateError::InvalidScenario`] for a joint count other than six, a non-finite
-    /// value, a non-positive stiffness, a negative mass or σ, or a link number outside 1..=6.
+    /// [`SimulateError::InvalidScenario`] for a joint count outside 1 to 12, a non-finite
+    /// value, a non-positive stiffness, a negative mass or σ, or a link number outside the
+    /// joints.
     pub fn from_toml_str(text: &str) -> Result<Scenario, SimulateError> {
         let file: ScenarioFile = toml::from_str(text).map_err(|source| SimulateError::Parse {
             path: PathBuf::new(),
             source,
         })?;
         let invalid = |message: String| SimulateError::InvalidScenario(message);
-        if file.joints.len() != JOINT_COUNT {
+        let n = file.joints.len();
+        if n == 0 || n > MAX_JOINTS {
             return Err(invalid(format!(
-                "{JOINT_COUNT} [[joints]] needed, the file lists {}",
-                file.joints.len()
+                "1 to {MAX_JOINTS} [[joints]] needed, the file lists {n}"
             )));
         }
-        let mut scenario = Scenario::perfect();
+        let mut scenario = Scenario::perfect(n);
         for (i, joint) in file.joints.iter().enumerate() {
             let number = i + 1;
+            let offset = match (joint.delta_offset_deg, joint.delta_offset_mm) {
+                (Some(_), Some(_)) => {
+                    return Err(invalid(format!(
+                        "joint {number}: delta_offset_deg or delta_offset_mm, not both"
+                    )))
+                }
+                (Some(deg), None) => deg.to_radians(),
+                (None, Some(mm)) => mm,
+                (None, None) => 0.0,
+            };
             let values = [
                 ("delta_a_mm", joint.delta_a_mm),
                 ("delta_d_mm", joint.delta_d_mm),
                 ("delta_alpha_deg", joint.delta_alpha_deg),
                 ("delta_theta_deg", joint.delta_theta_deg),
                 ("delta_beta_deg", joint.delta_beta_deg),
+                ("delta_offset", offset),
                 ("gear_amplitude_deg", joint.gear_amplitude_deg),
                 ("gear_periods_per_rev", joint.gear_periods_per_rev),
                 ("gear_phase_deg", joint.gear_phase_deg),
-            ];
+            ]
+            .into_iter()
+            .chain(joint.delta_xyz_mm.map(|v| ("delta_xyz_mm", v)))
+            .chain(joint.delta_rpy_deg.map(|v| ("delta_rpy_deg", v)));
             for (name, value) in values {
                 if !value.is_finite() {
                     return Err(invalid(format!("joint {number} {name} is not finite")));
@@ -323,6 +409,11 @@ impl Scenario {
                 theta_rad: joint.delta_theta_deg.to_radians(),
                 beta_rad: joint.delta_beta_deg.to_radians(),
             };
+            scenario.origin_deviations[i] = OriginDeviation {
+                xyz_mm: joint.delta_xyz_mm,
+                rpy_rad: joint.delta_rpy_deg.map(f64::to_radians),
+                offset,
+            };
             scenario.stiffness_nm_per_rad[i] = joint.stiffness_nm_per_rad;
             scenario.gears[i] = GearError {
                 amplitude_rad: joint.gear_amplitude_deg.to_radians(),
@@ -333,17 +424,15 @@ impl Scenario {
         let masses = file
             .payload
             .iter()
-            .map(|p| (JOINT_COUNT, "payload", p.mass_kg, p.centre_of_gravity_mm))
+            .map(|p| (n, "payload", p.mass_kg, p.centre_of_gravity_mm))
             .chain(
                 file.link_masses
                     .iter()
                     .map(|m| (m.joint, "link mass", m.mass_kg, m.centre_of_gravity_mm)),
             );
         for (link, what, mass_kg, centre_of_gravity_mm) in masses {
-            if !(1..=JOINT_COUNT).contains(&link) {
-                return Err(invalid(format!(
-                    "{what}: joint = {link} must be 1..={JOINT_COUNT}"
-                )));
+            if !(1..=n).contains(&link) {
+                return Err(invalid(format!("{what}: joint = {link} must be 1..={n}")));
             }
             let finite_cog = centre_of_gravity_mm.iter().all(|v| v.is_finite());
             if !(mass_kg.is_finite() && mass_kg >= 0.0 && finite_cog) {
@@ -381,60 +470,156 @@ impl Scenario {
         Ok(scenario)
     }
 
-    /// The actual geometry: nominal plus this scenario's deviations.
-    pub fn actual_joints(&self, robot: &Robot) -> [MdhJoint; JOINT_COUNT] {
-        apply_deviations(&robot.nominal_joints(), &self.deviations)
+    /// The actual robot: nominal plus this scenario's geometric deviations.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::InvalidScenario`] when the scenario's joint count is not the
+    /// robot's, when it gives MD-H deviations for a robot not described in MD-H (or origin
+    /// deviations for one that is), when a prismatic joint has a stiffness or a gear error,
+    /// or when the deviated robot is not valid.
+    pub fn actual_robot(&self, robot: &Robot) -> Result<Robot, SimulateError> {
+        let invalid = |message: String| SimulateError::InvalidScenario(message);
+        let n = robot.joint_count();
+        if self.joint_count() != n {
+            return Err(invalid(format!(
+                "the scenario has {} [[joints]], the robot {n} joints",
+                self.joint_count()
+            )));
+        }
+        for i in 0..n {
+            if robot.joint_kind(i) == JointKind::Prismatic
+                && (self.stiffness_nm_per_rad[i].is_some() || self.gears[i].amplitude_rad != 0.0)
+            {
+                return Err(invalid(format!(
+                    "joint {}: stiffness and gear errors model revolute joints; joint {} is prismatic",
+                    i + 1,
+                    i + 1
+                )));
+            }
+        }
+        let geometry = match robot.geometry() {
+            Geometry::Mdh(rows) => {
+                if self
+                    .origin_deviations
+                    .iter()
+                    .any(|d| *d != OriginDeviation::default())
+                {
+                    return Err(invalid(format!(
+                        "{} is described in MD-H: give its deviations as delta_a_mm, \
+                         delta_d_mm, delta_alpha_deg, delta_theta_deg, delta_beta_deg",
+                        robot.name
+                    )));
+                }
+                Geometry::Mdh(apply_deviations(rows, &self.deviations))
+            }
+            Geometry::Chain(joints) => {
+                if self
+                    .deviations
+                    .iter()
+                    .any(|d| *d != JointDeviation::default())
+                {
+                    return Err(invalid(format!(
+                        "{}'s joints are not MD-H rows: give its deviations as delta_xyz_mm, \
+                         delta_rpy_deg, delta_offset_deg (delta_offset_mm)",
+                        robot.name
+                    )));
+                }
+                Geometry::Chain(
+                    joints
+                        .iter()
+                        .zip(&self.origin_deviations)
+                        .map(|(j, d)| {
+                            let mut j = *j;
+                            j.origin = j
+                                .origin
+                                .compose(&transform_from_xyz_rpy(d.xyz_mm, d.rpy_rad));
+                            j.offset += d.offset;
+                            j
+                        })
+                        .collect(),
+                )
+            }
+        };
+        robot
+            .with_geometry(robot.name.clone(), geometry, robot.base(), robot.tool())
+            .map_err(|e| invalid(format!("the deviated robot is invalid: {e}")))
     }
 
-    /// The joint deflections (rad) at commanded angles `q_rad` on the actual geometry
-    /// `joints`: compliance under the gravity of every mass, plus gear errors.
+    /// The actual MD-H geometry of an MD-H robot: nominal plus this scenario's deviations.
+    ///
+    /// # Panics
+    ///
+    /// When the robot is not described in MD-H or the joint counts differ.
+    pub fn actual_joints(&self, robot: &Robot) -> Vec<MdhJoint> {
+        apply_deviations(robot.mdh().expect("an MD-H robot"), &self.deviations)
+    }
+
+    /// The joint deflections (rad) at commanded values `q` on the actual robot `actual`
+    /// ([`Scenario::actual_robot`]): compliance under the gravity of every mass, plus gear
+    /// errors.
     ///
     /// A joint yields in the direction gravity pushes it: `Δq_j = τ_j / k_j` with
     /// `τ_j = z_j · ((c − o_j) × m·g)` summed over the masses joint `j` carries.
-    pub fn joint_deflections_rad(
-        &self,
-        joints: &[MdhJoint; JOINT_COUNT],
-        q_rad: &[f64; JOINT_COUNT],
-    ) -> [f64; JOINT_COUNT] {
-        let frames = link_frames(joints, q_rad);
-        let mut torque_nm = [0.0; JOINT_COUNT];
+    ///
+    /// # Panics
+    ///
+    /// When `q` does not have one value per joint.
+    pub fn joint_deflections_rad(&self, actual: &Robot, q: &[f64]) -> Vec<f64> {
+        let (frames, _) = chain_frames(actual.chain(), q);
+        // Each link's frame, in which its masses are given.
+        let link_frames: Vec<Transform> = match actual.geometry() {
+            Geometry::Mdh(rows) => frames
+                .iter()
+                .zip(rows)
+                .map(|((_, after), row)| after.compose(&mdh_constant_part(row)))
+                .collect(),
+            Geometry::Chain(_) => frames.iter().map(|(_, after)| *after).collect(),
+        };
+        let joints = actual.chain().joints();
+        let mut torque_nm = vec![0.0; q.len()];
         for mass in &self.masses {
-            let centre =
-                Vector3::from(frames[mass.link - 1].transform_point(mass.centre_of_gravity_mm));
+            let centre = Vector3::from(
+                link_frames[mass.link - 1].transform_point(mass.centre_of_gravity_mm),
+            );
             let weight_n = Vector3::new(0.0, 0.0, -mass.mass_kg * GRAVITY_M_PER_S2);
             for (j, torque) in torque_nm.iter_mut().enumerate().take(mass.link) {
-                // Joint j turns about the z axis of the frame before it (the base for j = 0).
-                let (axis, origin) = if j == 0 {
-                    (Vector3::z(), Vector3::zeros())
-                } else {
-                    (
-                        Vector3::from(frames[j - 1].rotate_vector([0.0, 0.0, 1.0])),
-                        Vector3::from(frames[j - 1].translation_mm),
-                    )
-                };
+                if joints[j].kind != JointKind::Revolute {
+                    continue;
+                }
+                // Joint j turns about its axis through its frame's origin.
+                let before = &frames[j].0;
+                let axis = Vector3::from(before.rotate_vector(joints[j].axis));
+                let origin = Vector3::from(before.translation_mm);
                 // mm · N → N·m.
                 *torque += axis.dot(&(centre - origin).cross(&weight_n)) * 1e-3;
             }
         }
-        std::array::from_fn(|j| {
-            let compliance = self.stiffness_nm_per_rad[j].map_or(0.0, |k| torque_nm[j] / k);
-            compliance + self.gears[j].deflection_rad(q_rad[j])
-        })
+        (0..q.len())
+            .map(|j| {
+                let compliance = self.stiffness_nm_per_rad[j].map_or(0.0, |k| torque_nm[j] / k);
+                compliance + self.gears[j].deflection_rad(q[j])
+            })
+            .collect()
     }
 
-    /// The exact actual TCP pose (before measurement) for commanded angles `q_rad`.
-    pub fn actual_pose(&self, robot: &Robot, q_rad: &[f64; JOINT_COUNT]) -> Isometry3<f64> {
-        let joints = self.actual_joints(robot);
-        let deflection = self.joint_deflections_rad(&joints, q_rad);
-        let q_actual: [f64; JOINT_COUNT] = std::array::from_fn(|j| q_rad[j] + deflection[j]);
-        isometry_from_transform(&forward(&joints, &robot.tool_transform(), &q_actual))
+    /// The exact actual TCP pose (before measurement) of the actual robot `actual`
+    /// ([`Scenario::actual_robot`]) for commanded values `q`.
+    ///
+    /// # Panics
+    ///
+    /// When `q` does not have one value per joint.
+    pub fn actual_pose(&self, actual: &Robot, q: &[f64]) -> Isometry3<f64> {
+        let deflection = self.joint_deflections_rad(actual, q);
+        let q_actual: Vec<f64> = q.iter().zip(&deflection).map(|(q, d)| q + d).collect();
+        isometry_from_transform(&actual.tcp_transform(&q_actual))
     }
 }
 
 // ---------------------------------------------------------------------------------------
 // Sampling plan
 
-/// Where the nominal positions are.
+/// Where the samples are: nominal positions (pose space) or joint values (joint space).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Positions {
     /// Every point `min + k · step` inside the box `[min, max]` (each axis), x slowest,
@@ -456,20 +641,46 @@ pub enum Positions {
         /// Opposite corner, mm.
         max_mm: [f64; 3],
     },
+    /// `count` joint vectors, each joint uniformly distributed in its range.
+    JointRandom {
+        /// How many.
+        count: usize,
+        /// Per joint `[lower, upper]` (rad; mm when prismatic); `None` for the robot's
+        /// sampling ranges ([`Robot::sampling_range`]).
+        ranges: Option<Vec<[f64; 2]>>,
+    },
+    /// Every combination of `counts[i]` evenly spaced values of each joint `i` in its range
+    /// (both ends included; one value is the middle of the range), first joint slowest.
+    JointGrid {
+        /// Values per joint.
+        counts: Vec<usize>,
+        /// Per joint `[lower, upper]`, as for [`Positions::JointRandom`].
+        ranges: Option<Vec<[f64; 2]>>,
+    },
+}
+
+impl Positions {
+    /// Whether the plan draws joint values rather than poses.
+    pub fn is_joint_space(&self) -> bool {
+        matches!(
+            self,
+            Positions::JointRandom { .. } | Positions::JointGrid { .. }
+        )
+    }
 }
 
 /// What to sample: positions, the tool orientation, the configuration, the seed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SamplingPlan {
-    /// The nominal positions.
+    /// The nominal positions, or joint values.
     pub positions: Positions,
-    /// The nominal tool orientation, KUKA A, B, C degrees.
+    /// The nominal tool orientation of a pose-space plan, KUKA A, B, C degrees.
     pub abc_deg: [f64; 3],
     /// When positive, each pose's orientation is the nominal one turned by a random
     /// rotation of angle uniform in `[0, spread]` about a uniformly random axis, degrees.
     pub orientation_spread_deg: f64,
-    /// The configuration to use, or `None` for the solution closest to the robot's home
-    /// posture.
+    /// The configuration to use (closed-form robots, pose-space plans), or `None` for the
+    /// solution closest to the robot's home posture.
     pub config: Option<Configuration>,
     /// Seed of every random draw.
     pub seed: u64,
@@ -483,33 +694,87 @@ struct NominalPose {
     abc_deg: [f64; 3],
 }
 
+/// Above this many samples a joint grid is refused (it grows as the product of its
+/// counts).
+pub const MAX_GRID_SAMPLES: usize = 10_000_000;
+
 impl SamplingPlan {
-    fn validate(&self) -> Result<(), SimulateError> {
-        let invalid = |m: &str| Err(SimulateError::InvalidPlan(m.into()));
-        let (min, max) = match &self.positions {
+    fn validate(&self, robot: &Robot) -> Result<(), SimulateError> {
+        let invalid = |m: String| Err(SimulateError::InvalidPlan(m));
+        let n = robot.joint_count();
+        let check_ranges = |ranges: &Option<Vec<[f64; 2]>>| -> Result<(), SimulateError> {
+            if let Some(ranges) = ranges {
+                if ranges.len() != n {
+                    return invalid(format!(
+                        "{} joint ranges for a robot of {n} joints",
+                        ranges.len()
+                    ));
+                }
+                for (i, r) in ranges.iter().enumerate() {
+                    if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1]) {
+                        return invalid(format!(
+                            "joint {} range needs finite lower ≤ upper",
+                            i + 1
+                        ));
+                    }
+                    let [lower, upper] = robot.joints()[i].limits;
+                    if r[0] < lower || r[1] > upper {
+                        return invalid(format!("joint {}'s range leaves its limits", i + 1));
+                    }
+                }
+            }
+            Ok(())
+        };
+        match &self.positions {
             Positions::Lattice {
                 min_mm,
                 max_mm,
                 step_mm,
             } => {
                 if !(step_mm.is_finite() && *step_mm > 0.0) {
-                    return invalid("the lattice step must be positive");
+                    return invalid("the lattice step must be positive".into());
                 }
-                (min_mm, max_mm)
+                check_box(min_mm, max_mm)?;
             }
-            Positions::Random { min_mm, max_mm, .. } => (min_mm, max_mm),
-        };
-        if !min.iter().chain(max).all(|v| v.is_finite()) || (0..3).any(|i| min[i] > max[i]) {
-            return invalid("the box needs finite corners with min ≤ max on every axis");
+            Positions::Random { min_mm, max_mm, .. } => check_box(min_mm, max_mm)?,
+            Positions::JointRandom { ranges, .. } => check_ranges(ranges)?,
+            Positions::JointGrid { counts, ranges } => {
+                check_ranges(ranges)?;
+                if counts.len() != n {
+                    return invalid(format!(
+                        "{} grid counts for a robot of {n} joints",
+                        counts.len()
+                    ));
+                }
+                if counts.contains(&0) {
+                    return invalid("every joint needs at least one grid value".into());
+                }
+                let total = counts
+                    .iter()
+                    .try_fold(1usize, |total, &c| total.checked_mul(c));
+                if total.is_none_or(|t| t > MAX_GRID_SAMPLES) {
+                    return invalid(format!(
+                        "a grid of {} samples is more than {MAX_GRID_SAMPLES}",
+                        counts
+                            .iter()
+                            .map(usize::to_string)
+                            .collect::<Vec<_>>()
+                            .join(" × ")
+                    ));
+                }
+            }
+        }
+        if self.positions.is_joint_space() && self.config.is_some() {
+            return invalid("a joint-space plan has no configuration to choose".into());
         }
         let spread = self.orientation_spread_deg;
         if !(self.abc_deg.iter().all(|v| v.is_finite()) && spread.is_finite() && spread >= 0.0) {
-            return invalid("the orientation and its spread must be finite, spread ≥ 0");
+            return invalid("the orientation and its spread must be finite, spread ≥ 0".into());
         }
         Ok(())
     }
 
-    /// The nominal poses, deterministic in the seed.
+    /// The nominal poses of a pose-space plan, deterministic in the seed.
     fn poses(&self, rng: &mut ChaCha8Rng) -> Vec<NominalPose> {
         let positions: Vec<[f64; 3]> = match &self.positions {
             Positions::Lattice {
@@ -533,6 +798,7 @@ impl SamplingPlan {
             } => (0..*count)
                 .map(|_| std::array::from_fn(|i| rng.gen_range(min_mm[i]..=max_mm[i])))
                 .collect(),
+            Positions::JointRandom { .. } | Positions::JointGrid { .. } => Vec::new(),
         };
         let nominal_rotation = rotation_from_kuka_abc_deg(self.abc_deg);
         positions
@@ -555,6 +821,78 @@ impl SamplingPlan {
             })
             .collect()
     }
+
+    /// The joint values of a joint-space plan (rad, mm), rounded to the file's decimals in
+    /// file units, deterministic in the seed.
+    fn joint_values(&self, robot: &Robot, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+        let n = robot.joint_count();
+        let ranges = |given: &Option<Vec<[f64; 2]>>| -> Vec<[f64; 2]> {
+            given
+                .clone()
+                .unwrap_or_else(|| (0..n).map(|i| robot.sampling_range(i)).collect())
+        };
+        let raw: Vec<Vec<f64>> = match &self.positions {
+            Positions::JointRandom { count, ranges: r } => {
+                let r = ranges(r);
+                (0..*count)
+                    .map(|_| r.iter().map(|[lo, hi]| rng.gen_range(*lo..=*hi)).collect())
+                    .collect()
+            }
+            Positions::JointGrid { counts, ranges: r } => {
+                let r = ranges(r);
+                let values: Vec<Vec<f64>> = counts
+                    .iter()
+                    .zip(&r)
+                    .map(|(&count, &[lo, hi])| {
+                        if count == 1 {
+                            vec![0.5 * (lo + hi)]
+                        } else {
+                            // Counted, not accumulated: both ends exactly.
+                            (0..count)
+                                .map(|k| lo + (hi - lo) * k as f64 / (count - 1) as f64)
+                                .collect()
+                        }
+                    })
+                    .collect();
+                let mut out = vec![Vec::new()];
+                for joint_values in &values {
+                    out = out
+                        .into_iter()
+                        .flat_map(|prefix| {
+                            joint_values.iter().map(move |&v| {
+                                let mut q = prefix.clone();
+                                q.push(v);
+                                q
+                            })
+                        })
+                        .collect();
+                }
+                out
+            }
+            Positions::Lattice { .. } | Positions::Random { .. } => Vec::new(),
+        };
+        // As written: degrees (mm) rounded to the file's decimals, and back.
+        raw.into_iter()
+            .map(|q| {
+                q.iter()
+                    .enumerate()
+                    .map(|(i, &v)| match robot.joint_kind(i) {
+                        JointKind::Revolute => round_to_file(v.to_degrees()).to_radians(),
+                        JointKind::Prismatic => round_to_file(v),
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+fn check_box(min: &[f64; 3], max: &[f64; 3]) -> Result<(), SimulateError> {
+    if !min.iter().chain(max).all(|v| v.is_finite()) || (0..3).any(|i| min[i] > max[i]) {
+        return Err(SimulateError::InvalidPlan(
+            "the box needs finite corners with min ≤ max on every axis".into(),
+        ));
+    }
+    Ok(())
 }
 
 /// Decimals written for mm and degrees.
@@ -588,7 +926,7 @@ fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
 // Simulation
 
 /// One simulated sample: a row of the sample file.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedSample {
     /// Nominal TCP position, base frame, mm.
     pub position_mm: [f64; 3],
@@ -598,47 +936,102 @@ pub struct SimulatedSample {
     pub error_mm: [f64; 3],
     /// Rotation vector of `R_measured · R_nominalᵀ`, base frame, rad.
     pub orientation_error_rad: [f64; 3],
-    /// Commanded joint angles, degrees.
-    pub q_deg: [f64; JOINT_COUNT],
-    /// Their inverse-kinematics configuration.
-    pub config: Configuration,
+    /// Commanded joint values: degrees, mm for prismatic joints.
+    pub q_deg: Vec<f64>,
+    /// Their inverse-kinematics configuration (robots with the closed form).
+    pub config: Option<Configuration>,
+}
+
+/// How the commanded joint values of pose-space samples are found.
+enum Inverse {
+    ClosedForm(Box<InverseKinematics>),
+    Numeric,
 }
 
 /// Simulates the samples of `plan` on `robot` with the error sources of `scenario`.
 ///
 /// # Errors
 ///
-/// [`SimulateError::InvalidPlan`] for an unusable plan, [`SimulateError::Kinematics`] for a
-/// robot without closed-form inverse kinematics, [`SimulateError::Unreachable`] for the
-/// first pose that no allowed configuration reaches.
+/// [`SimulateError::InvalidPlan`] for an unusable plan, [`SimulateError::InvalidScenario`]
+/// for a scenario that does not fit the robot, [`SimulateError::Kinematics`] for a
+/// pose-space plan that names a configuration of a robot without closed-form inverse
+/// kinematics, or a pose-space plan of a robot of fewer than six joints,
+/// [`SimulateError::Unreachable`] for the first pose that no allowed configuration reaches.
 pub fn simulate(
     robot: &Robot,
     scenario: &Scenario,
     plan: &SamplingPlan,
 ) -> Result<Vec<SimulatedSample>, SimulateError> {
-    plan.validate()?;
-    let ik = InverseKinematics::new(robot)?;
+    plan.validate(robot)?;
+    let actual = scenario.actual_robot(robot)?;
+    let closed_form = InverseKinematics::new(robot);
+    // Configurations are labelled wherever the closed form applies.
+    let labels = closed_form.is_ok();
     let mut pose_rng = ChaCha8Rng::seed_from_u64(plan.seed);
     let mut noise_rng = ChaCha8Rng::seed_from_u64(plan.seed);
     noise_rng.set_stream(1);
     let measurement = &scenario.measurement;
     let tracker = Vector3::from(measurement.tracker_position_mm);
 
-    plan.poses(&mut pose_rng)
-        .into_iter()
-        .enumerate()
-        .map(|(index, nominal)| {
-            let rotation = rotation_from_kuka_abc_deg(nominal.abc_deg);
-            let target = isometry_from_parts(nominal.position_mm, &rotation);
-            let solution =
-                ik.solve_one(&target, plan.config)
-                    .ok_or(SimulateError::Unreachable {
+    // Every sample: its nominal pose (as written) and commanded joint values.
+    let commanded: Vec<(NominalPose, Vec<f64>, Option<Configuration>)> =
+        if plan.positions.is_joint_space() {
+            plan.joint_values(robot, &mut pose_rng)
+                .into_iter()
+                .map(|q| {
+                    let pose = robot.tcp_pose(&q);
+                    let t = pose.translation.vector;
+                    let nominal = NominalPose {
+                        position_mm: [t.x, t.y, t.z].map(round_to_file),
+                        abc_deg: kuka_abc_deg_from_rotation(&pose.rotation.to_rotation_matrix())
+                            .map(round_to_file),
+                    };
+                    let config = labels.then(|| label(robot, &q));
+                    (nominal, q, config)
+                })
+                .collect()
+        } else {
+            let inverse = match closed_form {
+                Ok(ik) => Inverse::ClosedForm(Box::new(ik)),
+                Err(error) => {
+                    if plan.config.is_some() || robot.joint_count() < 6 {
+                        return Err(error.into());
+                    }
+                    Inverse::Numeric
+                }
+            };
+            plan.poses(&mut pose_rng)
+                .into_iter()
+                .enumerate()
+                .map(|(index, nominal)| {
+                    let rotation = rotation_from_kuka_abc_deg(nominal.abc_deg);
+                    let target = isometry_from_parts(nominal.position_mm, &rotation);
+                    let unreachable = SimulateError::Unreachable {
                         index,
                         position_mm: nominal.position_mm,
                         abc_deg: nominal.abc_deg,
                         config: plan.config,
-                    })?;
-            let actual = scenario.actual_pose(robot, &solution.q_rad);
+                    };
+                    let (q, config) = match &inverse {
+                        Inverse::ClosedForm(ik) => {
+                            let solution = ik.solve_one(&target, plan.config).ok_or(unreachable)?;
+                            (solution.q_rad.to_vec(), Some(solution.config))
+                        }
+                        Inverse::Numeric => {
+                            let q = solve_near(robot, &target, robot.home()).ok_or(unreachable)?;
+                            (q, None)
+                        }
+                    };
+                    Ok((nominal, q, config))
+                })
+                .collect::<Result<_, SimulateError>>()?
+        };
+
+    Ok(commanded
+        .into_iter()
+        .map(|(nominal, q, config)| {
+            let rotation = rotation_from_kuka_abc_deg(nominal.abc_deg);
+            let actual = scenario.actual_pose(&actual, &q);
 
             // The tracker's noise, drawn for every sample (even at σ = 0) so that the
             // stream stays aligned whatever the noise levels.
@@ -657,16 +1050,35 @@ pub fn simulate(
                 rotation_from_vector(turn.into()) * actual.rotation.to_rotation_matrix();
 
             let error = measured_position - Vector3::from(nominal.position_mm);
-            Ok(SimulatedSample {
+            let q_deg = q
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| match robot.joint_kind(i) {
+                    JointKind::Revolute => v.to_degrees(),
+                    JointKind::Prismatic => v,
+                })
+                .collect();
+            SimulatedSample {
                 position_mm: nominal.position_mm,
                 abc_deg: nominal.abc_deg,
                 error_mm: error.into(),
                 orientation_error_rad: orientation_error(&rotation, &measured_rotation),
-                q_deg: solution.q_rad.map(f64::to_degrees),
-                config: solution.config,
-            })
+                q_deg,
+                config,
+            }
         })
-        .collect()
+        .collect())
+}
+
+/// The configuration label of joint values `q` of a robot with the closed form.
+fn label(robot: &Robot, q: &[f64]) -> Configuration {
+    let rows: [MdhJoint; 6] = robot
+        .mdh()
+        .expect("the closed form needs MD-H rows")
+        .try_into()
+        .expect("the closed form needs six joints");
+    let q: [f64; 6] = q.try_into().expect("six joint values");
+    configuration_of(&rows, &q)
 }
 
 /// Comment lines describing a simulated file: robot, scenario, plan, seed and columns.
@@ -681,37 +1093,93 @@ pub fn describe(robot: &Robot, scenario_name: &str, plan: &SamplingPlan) -> Vec<
             min[0], max[0], min[1], max[1], min[2], max[2]
         )
     };
-    let positions = match &plan.positions {
+    let joint_ranges = |given: &Option<Vec<[f64; 2]>>| match given {
+        None => "within the robot's joint ranges".to_owned(),
+        Some(r) => {
+            let items: Vec<String> = r
+                .iter()
+                .enumerate()
+                .map(|(i, [lo, hi])| match robot.joint_kind(i) {
+                    JointKind::Revolute => {
+                        format!("[{}, {}]", lo.to_degrees(), hi.to_degrees())
+                    }
+                    JointKind::Prismatic => format!("[{lo}, {hi}] mm"),
+                })
+                .collect();
+            format!("within {} deg", items.join(", "))
+        }
+    };
+    let closed_form = InverseKinematics::new(robot).is_ok();
+    let n = robot.joint_count();
+    let prismatic = (0..n).any(|i| robot.joint_kind(i) == JointKind::Prismatic);
+    let joint_units = if prismatic {
+        "deg, mm for prismatic joints"
+    } else {
+        "deg"
+    };
+    let columns = if closed_form {
+        "Columns: nominal x,y,z (mm) and a,b,c (KUKA deg); error = measured - nominal: \
+         dx,dy,dz (mm) and rx,ry,rz (rotation vector, rad), base frame; commanded j1..j6 \
+         (deg); config (IK branch)."
+            .to_owned()
+    } else {
+        format!(
+            "Columns: nominal x,y,z (mm) and a,b,c (KUKA deg); error = measured - nominal: \
+             dx,dy,dz (mm) and rx,ry,rz (rotation vector, rad), base frame; commanded j1..j{n} \
+             ({joint_units})."
+        )
+    };
+    let header = format!(
+        "Simulated samples of the {}, error scenario {scenario_name}, seed {}.",
+        robot.name, plan.seed
+    );
+    let poses = match &plan.positions {
         Positions::Lattice {
             min_mm,
             max_mm,
             step_mm,
-        } => format!("lattice over {}, step {step_mm} mm", range(min_mm, max_mm)),
+        } => Some(format!(
+            "lattice over {}, step {step_mm} mm",
+            range(min_mm, max_mm)
+        )),
         Positions::Random {
             count,
             min_mm,
             max_mm,
-        } => format!("{count} random poses in {}", range(min_mm, max_mm)),
+        } => Some(format!("{count} random poses in {}", range(min_mm, max_mm))),
+        Positions::JointRandom { .. } | Positions::JointGrid { .. } => None,
     };
-    let [a, b, c] = plan.abc_deg;
-    let config = plan.config.map_or_else(
-        || "the configuration closest to the home posture".to_owned(),
-        |c| format!("configuration {}", c.bits()),
-    );
-    vec![
-        format!(
-            "Simulated samples of the {}, error scenario {scenario_name}, seed {}.",
-            robot.name, plan.seed
+    let sampling = match (&plan.positions, poses) {
+        (_, Some(positions)) => {
+            let [a, b, c] = plan.abc_deg;
+            let config = match (plan.config, closed_form) {
+                (Some(c), _) => format!("configuration {}", c.bits()),
+                (None, true) => "the configuration closest to the home posture".to_owned(),
+                (None, false) => {
+                    "the joint values nearest the home posture (damped least squares)".to_owned()
+                }
+            };
+            format!(
+                "Poses: {positions}; tool A {a}, B {b}, C {c} deg, spread {} deg; {config}.",
+                plan.orientation_spread_deg
+            )
+        }
+        (Positions::JointRandom { count, ranges }, None) => format!(
+            "Joint values: {count} random joint vectors {}; nominal pose = forward kinematics.",
+            joint_ranges(ranges)
         ),
-        format!(
-            "Poses: {positions}; tool A {a}, B {b}, C {c} deg, spread {} deg; {config}.",
-            plan.orientation_spread_deg
+        (Positions::JointGrid { counts, ranges }, None) => format!(
+            "Joint values: a grid of {} values {}; nominal pose = forward kinematics.",
+            counts
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(" × "),
+            joint_ranges(ranges)
         ),
-        "Columns: nominal x,y,z (mm) and a,b,c (KUKA deg); error = measured - nominal: \
-         dx,dy,dz (mm) and rx,ry,rz (rotation vector, rad), base frame; commanded j1..j6 \
-         (deg); config (IK branch)."
-            .to_owned(),
-    ]
+        _ => unreachable!("pose-space plans have positions"),
+    };
+    vec![header, sampling, columns]
 }
 
 /// Formats with fixed decimals, writing a rounded negative zero as zero so that a file
@@ -724,9 +1192,9 @@ fn fixed(value: f64, decimals: usize) -> String {
     }
 }
 
-/// Writes samples in the product's sample format ([`CSV_HEADER`]): `#` comment lines
-/// first, then the header, then one row per sample with 6 decimals for mm and degrees and
-/// 9 for radians.
+/// Writes samples in the product's sample format ([`csv_header`]: `j1..jn`, and `config`
+/// when the samples have configurations): `#` comment lines first, then the header, then
+/// one row per sample with 6 decimals for mm and degrees and 9 for radians.
 ///
 /// # Errors
 ///
@@ -741,7 +1209,9 @@ pub fn write_csv(
             writeln!(writer, "# {line}")?;
         }
     }
-    writeln!(writer, "{CSV_HEADER}")?;
+    let joints = samples.first().map_or(0, |s| s.q_deg.len());
+    let config = samples.first().is_some_and(|s| s.config.is_some());
+    writeln!(writer, "{}", csv_header(joints, config))?;
     for s in samples {
         let mm_deg = s
             .position_mm
@@ -757,7 +1227,7 @@ pub fn write_csv(
         let fields: Vec<String> = mm_deg
             .chain(rad)
             .chain(joints)
-            .chain(std::iter::once(s.config.bits().to_string()))
+            .chain(s.config.map(|c| c.bits().to_string()))
             .collect();
         writeln!(writer, "{}", fields.join(","))?;
     }
@@ -775,7 +1245,7 @@ pub fn position_error_stats_mm(samples: &[SimulatedSample]) -> (f64, f64) {
 mod tests {
     use super::*;
     use crate::error_model::{deviation_vector, pose_error, pose_error_jacobian};
-    use crate::model::shipped_robot_path;
+    use crate::model::{shipped_file, shipped_robot_path};
 
     fn kr150() -> Robot {
         Robot::load(shipped_robot_path("kr150-2")).unwrap()
@@ -809,7 +1279,7 @@ mod tests {
     #[test]
     fn a_perfect_robot_has_no_error_and_reaches_every_pose() {
         let robot = kr150();
-        let samples = simulate(&robot, &Scenario::perfect(), &small_lattice()).unwrap();
+        let samples = simulate(&robot, &Scenario::perfect(6), &small_lattice()).unwrap();
         // 3 × 3 × 3, x slowest, z fastest, endpoints included.
         assert_eq!(samples.len(), 27);
         assert_eq!(samples[0].position_mm, [1800.0, 500.0, 900.0]);
@@ -818,7 +1288,8 @@ mod tests {
         for s in &samples {
             assert!(s.error_mm.iter().all(|e| e.abs() < 1e-9), "{s:?}");
             assert!(s.orientation_error_rad.iter().all(|e| e.abs() < 1e-12));
-            let pose = robot.tcp_pose(&s.q_deg.map(f64::to_radians));
+            let q: Vec<f64> = s.q_deg.iter().map(|v| v.to_radians()).collect();
+            let pose = robot.tcp_pose(&q);
             let reached = pose.translation.vector;
             assert!((reached - Vector3::from(s.position_mm)).norm() < 1e-9);
         }
@@ -847,7 +1318,7 @@ mod tests {
         let mut plan = small_lattice();
         plan.orientation_spread_deg = 3.0;
         let nominal = rotation_from_kuka_abc_deg(plan.abc_deg);
-        let samples = simulate(&robot, &Scenario::perfect(), &plan).unwrap();
+        let samples = simulate(&robot, &Scenario::perfect(6), &plan).unwrap();
         let mut largest_deg: f64 = 0.0;
         for s in &samples {
             let turn = rotation_from_kuka_abc_deg(s.abc_deg) * nominal.inverse();
@@ -863,15 +1334,14 @@ mod tests {
     #[test]
     fn geometric_errors_follow_the_linear_model_to_second_order() {
         let robot = kr150();
-        let mut scenario = Scenario::perfect();
+        let mut scenario = Scenario::perfect(6);
         scenario.deviations = shipped_scenario().deviations;
         let samples = simulate(&robot, &scenario, &small_lattice()).unwrap();
         let delta = deviation_vector(&scenario.deviations);
         for s in &samples {
-            let q = s.q_deg.map(f64::to_radians);
-            let jacobian =
-                pose_error_jacobian(&robot.nominal_joints(), &robot.tool_transform(), &q);
-            let linear = jacobian * delta;
+            let q: Vec<f64> = s.q_deg.iter().map(|v| v.to_radians()).collect();
+            let jacobian = pose_error_jacobian(robot.mdh().unwrap(), &robot.tool(), &q);
+            let linear = jacobian * &delta;
             let exact = Vector3::from(s.error_mm);
             let gap = (exact - linear.fixed_rows::<3>(0)).norm();
             // Second order in deviations of ~0.3 mm and ~2e-4 rad: microns.
@@ -886,7 +1356,7 @@ mod tests {
     #[test]
     fn a_payload_makes_the_arm_sag() {
         let robot = kr150();
-        let mut scenario = Scenario::perfect();
+        let mut scenario = Scenario::perfect(6);
         scenario.stiffness_nm_per_rad[1] = Some(5.0e6);
         scenario.masses.push(PointMass {
             link: 6,
@@ -894,13 +1364,13 @@ mod tests {
             centre_of_gravity_mm: [0.0, 0.0, 0.0],
         });
         let q = [0.0, -45.0, 100.0, 0.0, 30.0, 0.0].map(f64::to_radians);
-        let joints = scenario.actual_joints(&robot);
+        let actual = scenario.actual_robot(&robot).unwrap();
         // Joint 2 (axis along base +y through (350, 0, 750)) carries the weight at the
         // flange: τ = (x_flange − 350 mm) · m·g > 0, and a positive q2 turns the arm down.
         let flange = robot.tcp_pose(&q).translation.vector;
         let shoulder_x_mm = 350.0;
         let expected_nm = (flange.x - shoulder_x_mm) * 1e-3 * 100.0 * GRAVITY_M_PER_S2;
-        let deflection = scenario.joint_deflections_rad(&joints, &q);
+        let deflection = scenario.joint_deflections_rad(&actual, &q);
         assert!(
             (deflection[1] - expected_nm / 5.0e6).abs() < 1e-12,
             "{deflection:?}"
@@ -909,14 +1379,14 @@ mod tests {
             .iter()
             .enumerate()
             .all(|(j, d)| j == 1 || *d == 0.0));
-        let error = pose_error(&robot.tcp_pose(&q), &scenario.actual_pose(&robot, &q));
+        let error = pose_error(&robot.tcp_pose(&q), &scenario.actual_pose(&actual, &q));
         assert!(error[2] < -0.1, "the TCP drops: {error:?}");
     }
 
     #[test]
     fn tracker_noise_has_the_requested_sigma() {
         let robot = kr150();
-        let mut scenario = Scenario::perfect();
+        let mut scenario = Scenario::perfect(6);
         scenario.measurement = Measurement {
             tracker_position_mm: [1700.0, 450.0, 1250.0],
             sigma_mm: 0.02,
@@ -957,7 +1427,7 @@ mod tests {
             max_mm: [4000.0, 0.0, 1000.0],
             step_mm: 100.0,
         };
-        let error = simulate(&robot, &Scenario::perfect(), &plan).unwrap_err();
+        let error = simulate(&robot, &Scenario::perfect(6), &plan).unwrap_err();
         assert!(matches!(error, SimulateError::Unreachable { index: 0, .. }));
         assert!(error.to_string().contains("x 4000.000"), "{error}");
 
@@ -972,8 +1442,11 @@ mod tests {
         let error = Scenario::from_toml_str(&rigid_is_not_zero).unwrap_err();
         assert!(error.to_string().contains("joint 1 stiffness"), "{error}");
         let cut = text.find("[[joints]] # A6").unwrap();
-        let error = Scenario::from_toml_str(&text[..cut]).unwrap_err();
-        assert!(error.to_string().contains("the file lists 5"), "{error}");
+        let five = Scenario::from_toml_str(&text[..cut]).unwrap();
+        let error = simulate(&robot, &five, &small_lattice()).unwrap_err();
+        assert!(error.to_string().contains("the scenario has 5"), "{error}");
+        let error = Scenario::from_toml_str("").unwrap_err();
+        assert!(matches!(error, SimulateError::Parse { .. }), "{error}");
     }
 
     #[test]
@@ -982,5 +1455,197 @@ mod tests {
         assert_eq!(fixed(-0.0, 9), "0.000000000");
         assert_eq!(fixed(-0.5, 6), "-0.500000");
         assert_eq!(fixed(1234.5, 6), "1234.500000");
+    }
+
+    fn iiwa() -> Robot {
+        Robot::load(shipped_file("iiwa14", "robot.urdf")).unwrap()
+    }
+
+    /// A scenario for the iiwa's chain joints: origin and offset deviations, a payload.
+    const IIWA_SCENARIO: &str = r#"
+[[joints]]
+delta_offset_deg = 0.01
+[[joints]]
+delta_xyz_mm = [0.2, -0.1, 0.3]
+delta_rpy_deg = [0.01, -0.02, 0.005]
+delta_offset_deg = -0.02
+stiffness_nm_per_rad = 2.0e5
+[[joints]]
+delta_xyz_mm = [-0.1, 0.0, 0.2]
+[[joints]]
+delta_rpy_deg = [0.0, 0.015, 0.0]
+stiffness_nm_per_rad = 1.0e5
+[[joints]]
+delta_offset_deg = 0.03
+[[joints]]
+delta_xyz_mm = [0.05, 0.05, 0.0]
+[[joints]]
+gear_amplitude_deg = 0.002
+gear_periods_per_rev = 2.0
+[payload]
+mass_kg = 5.0
+centre_of_gravity_mm = [0.0, 0.0, 100.0]
+"#;
+
+    #[test]
+    fn joint_space_plans_sample_any_robot() {
+        let robot = iiwa();
+        let perfect = Scenario::perfect(7);
+        let plan = |positions| SamplingPlan {
+            positions,
+            abc_deg: [0.0; 3],
+            orientation_spread_deg: 0.0,
+            config: None,
+            seed: 3,
+        };
+        let random = plan(Positions::JointRandom {
+            count: 50,
+            ranges: None,
+        });
+        let samples = simulate(&robot, &perfect, &random).unwrap();
+        assert_eq!(samples.len(), 50);
+        for s in &samples {
+            let q: Vec<f64> = s.q_deg.iter().map(|v| v.to_radians()).collect();
+            assert!(robot.within_limits(&q));
+            assert_eq!(s.config, None);
+            // The file's nominal position is the forward kinematics, rounded to 1e-6 mm.
+            let p = robot.tcp_pose(&q).translation.vector;
+            assert!((p - Vector3::from(s.position_mm)).amax() <= 5e-7 + 1e-9);
+            assert!(Vector3::from(s.error_mm).amax() <= 5e-7 + 1e-9);
+        }
+        let grid = plan(Positions::JointGrid {
+            counts: vec![2, 1, 3, 1, 1, 2, 1],
+            ranges: None,
+        });
+        let samples = simulate(&robot, &perfect, &grid).unwrap();
+        assert_eq!(samples.len(), 12);
+        // First joint slowest: its lower limit for the first six samples, then its upper.
+        assert!((samples[0].q_deg[0] + 170.0).abs() < 1e-9);
+        assert!((samples[6].q_deg[0] - 170.0).abs() < 1e-9);
+        assert_eq!(samples[0].q_deg[1], 0.0);
+        assert!((samples[1].q_deg[5] - 120.0).abs() < 1e-9);
+
+        let mut bytes = Vec::new();
+        write_csv(&samples, &describe(&robot, "test", &grid), &mut bytes).unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        assert!(
+            text.contains("\nx,y,z,a,b,c,dx,dy,dz,rx,ry,rz,j1,j2,j3,j4,j5,j6,j7\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("a grid of 2 × 1 × 3 × 1 × 1 × 2 × 1 values"),
+            "{text}"
+        );
+        // The same seed gives the same bytes.
+        let again = simulate(&robot, &perfect, &random).unwrap();
+        assert_eq!(again, simulate(&robot, &perfect, &random).unwrap());
+    }
+
+    /// A seven-axis robot's pose-space samples: the joint values nearest home that reach
+    /// each nominal pose, exactly.
+    #[test]
+    fn pose_space_plans_of_seven_axes_solve_from_home() {
+        let robot = iiwa();
+        let plan = SamplingPlan {
+            positions: Positions::Lattice {
+                min_mm: [400.0, -200.0, 500.0],
+                max_mm: [600.0, 200.0, 700.0],
+                step_mm: 100.0,
+            },
+            abc_deg: [0.0, 180.0, 0.0],
+            orientation_spread_deg: 0.0,
+            config: None,
+            seed: 1,
+        };
+        let samples = simulate(&robot, &Scenario::perfect(7), &plan).unwrap();
+        // 3 × 5 × 3.
+        assert_eq!(samples.len(), 45);
+        for s in &samples {
+            let q: Vec<f64> = s.q_deg.iter().map(|v| v.to_radians()).collect();
+            let pose = robot.tcp_pose(&q);
+            let target = isometry_from_parts(s.position_mm, &rotation_from_kuka_abc_deg(s.abc_deg));
+            let e = pose_error(&target, &pose);
+            assert!(e.fixed_rows::<3>(0).norm() < 1e-6, "{e:?}");
+            assert!(s.error_mm.iter().all(|v| v.abs() < 1e-6));
+        }
+        assert!(describe(&robot, "test", &plan)[1].contains("nearest the home posture"));
+        // A configuration belongs to the closed form.
+        let mut with_config = plan.clone();
+        with_config.config = Configuration::from_bits(0);
+        let error = simulate(&robot, &Scenario::perfect(7), &with_config).unwrap_err();
+        assert!(matches!(error, SimulateError::Kinematics(_)), "{error}");
+    }
+
+    /// Simulated joint-space samples of the iiwa with origin deviations are explained by
+    /// its identified model; the rest is the compliance and gear error the scenario adds.
+    #[test]
+    fn a_chain_scenario_deviates_the_robot_and_calibration_explains_it() {
+        let robot = iiwa();
+        let scenario = Scenario::from_toml_str(IIWA_SCENARIO).unwrap();
+        let geometric = Scenario {
+            stiffness_nm_per_rad: vec![None; 7],
+            gears: vec![GearError::default(); 7],
+            ..scenario.clone()
+        };
+        let plan = SamplingPlan {
+            positions: Positions::JointRandom {
+                count: 200,
+                ranges: None,
+            },
+            abc_deg: [0.0; 3],
+            orientation_spread_deg: 0.0,
+            config: None,
+            seed: 5,
+        };
+        for (scenario, rigid) in [(&geometric, true), (&scenario, false)] {
+            let samples = simulate(&robot, scenario, &plan).unwrap();
+            let (mean_mm, _) = position_error_stats_mm(&samples);
+            assert!(mean_mm > 0.2, "{mean_mm}");
+            let mut set = adwi_compile::samples::SampleSet {
+                rotation_error_rad: Some(Vec::new()),
+                joints: Some(adwi_compile::samples::Joints::new(7)),
+                ..Default::default()
+            };
+            for (i, s) in samples.iter().enumerate() {
+                set.nominal_mm.push(s.position_mm);
+                set.error_mm.push(s.error_mm);
+                set.rotation_error_rad
+                    .as_mut()
+                    .unwrap()
+                    .push(s.orientation_error_rad);
+                let q: Vec<f64> = s.q_deg.iter().map(|v| v.to_radians()).collect();
+                set.joints.as_mut().unwrap().push(&q);
+                set.lines.push(i as u64 + 2);
+            }
+            let c = crate::calibrate::identify(&robot, &set, &Default::default()).unwrap();
+            // Rigid: only the file's rounding to 1e-6 is left. Compliant: the gravity sag
+            // and the gear error are left, which no kinematic model represents.
+            let left = c.position_rms_mm;
+            if rigid {
+                assert!(left < 1e-5, "{left} mm left of {mean_mm}");
+            } else {
+                assert!(
+                    left > 1e-3 && left < 0.5 * c.initial_position_rms_mm,
+                    "{left}"
+                );
+            }
+        }
+        // MD-H deviations do not fit a chain robot, nor stiffness a prismatic joint.
+        let mdh = Scenario::from_toml_str(&IIWA_SCENARIO.replacen(
+            "[[joints]]",
+            "[[joints]]\ndelta_a_mm = 0.1",
+            1,
+        ))
+        .unwrap();
+        let error = simulate(&robot, &mdh, &plan).unwrap_err();
+        assert!(error.to_string().contains("delta_xyz_mm"), "{error}");
+        let kr150 = kr150();
+        let chain = Scenario::from_toml_str(&IIWA_SCENARIO.replace(
+            "[[joints]]\ngear_amplitude_deg = 0.002\ngear_periods_per_rev = 2.0\n",
+            "",
+        ))
+        .unwrap();
+        let error = simulate(&kr150, &chain, &small_lattice()).unwrap_err();
+        assert!(error.to_string().contains("described in MD-H"), "{error}");
     }
 }

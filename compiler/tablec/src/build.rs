@@ -8,7 +8,6 @@ use adwi_compile::hybrid;
 use adwi_compile::samples::read_samples_with;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
-use adwi_robot::Robot;
 use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
@@ -22,9 +21,11 @@ pub struct Args {
     read: crate::read_options::ReadOptions,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
-    /// The robot model (TOML), for --hybrid.
-    #[arg(long, value_name = "ROBOT.toml")]
+    /// The robot file (TOML, or URDF by its .urdf extension), for --hybrid.
+    #[arg(long, value_name = "ROBOT")]
     robot: Option<PathBuf>,
+    #[command(flatten)]
+    links: crate::RobotLinks,
     /// Build a hybrid table: identify the robot's kinematic deviations from the samples
     /// (which need j1..jn), then tabulate the residuals the calibrated model leaves. Query
     /// it with the target's joint angles.
@@ -76,14 +77,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut calibration = None;
     let (bytes, report) = match (&args.robot, args.hybrid) {
         (Some(robot_path), true) => {
-            let robot = Robot::load(robot_path)
-                .with_context(|| format!("cannot load the robot {}", robot_path.display()))?;
+            let robot = args.links.load(robot_path)?;
             bar.set_message("identifying");
             let identified = pool.install(|| {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
             })?;
             bar.set_message("compiling");
-            let model = adwi_runtime::model::PreparedModel::from_mdh(&identified.kinematic_model());
+            let model = identified.prepared_model();
             let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
             calibration = Some((identified, built.residual_position_rms_mm));
             (built.bytes, built.report)
@@ -210,7 +210,7 @@ fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
         .identified
         .iter()
         .map(|p| {
-            let v = c.deviations[p.column()];
+            let v = c.value(*p);
             if p.is_length() {
                 format!("{p} {v:+.4} mm")
             } else {

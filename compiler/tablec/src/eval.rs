@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use adwi_compile::samples::read_samples_with;
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
-use adwi_robot::Robot;
 use anyhow::{bail, Context};
 
 #[derive(clap::Args)]
@@ -32,9 +31,12 @@ pub struct Args {
     /// kinematic, hybrid [default: every one the data allow].
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     methods: Option<Vec<Method>>,
-    /// The robot file (e.g. tables/ur5/robot.toml), for `kinematic` and `hybrid`.
-    #[arg(long, value_name = "ROBOT.toml")]
+    /// The robot file (TOML, or URDF by its .urdf extension; e.g. tables/ur5/robot.toml),
+    /// for `kinematic` and `hybrid`.
+    #[arg(long, value_name = "ROBOT")]
     robot: Option<PathBuf>,
+    #[command(flatten)]
+    links: crate::RobotLinks,
     /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
@@ -83,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => bail!("give a validation set (--validation FILE) or a fold count (--folds K)"),
     };
     let robot = match &args.robot {
-        Some(path) => Some(Robot::load(path)?),
+        Some(path) => Some(args.links.load(path)?),
         None => None,
     };
     let options = EvalOptions {

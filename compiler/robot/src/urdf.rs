@@ -1,0 +1,952 @@
+//! URDF robot descriptions: the serial chain between two links of a URDF file as a
+//! [`Robot`], and a (calibrated) robot written back as URDF.
+//!
+//! # Reading
+//!
+//! The file is parsed with the `urdf-rs` crate. The chain runs from the base link (the
+//! file's only root link, or [`LinkNames::base_link`]) to the tip link (the only leaf below
+//! the base, or [`LinkNames::tip_link`]). Its `revolute`, `continuous` and `prismatic`
+//! joints are the robot's joints, in order from the base; `fixed` joints fold into the next
+//! movable joint's origin (or into the tool, after the last movable joint); `floating`,
+//! `planar` and `spherical` joints, and joints that `mimic` another, are refused. Origins
+//! are `xyz` (m, written here in mm) and `rpy` (`R = Rz(yaw)·Ry(pitch)·Rx(roll)`); axes are
+//! normalised. The tool is the tip link's frame (a TOML robot file naming the URDF file may
+//! add a `[tool]` after it); the base is the base link's frame.
+//!
+//! Limits: `revolute` and `prismatic` joints need `lower < upper` (rad; m, read in mm);
+//! `continuous` joints have none (`[−∞, ∞]`). The home posture is zero where the limits
+//! allow it, else the middle of the limits.
+//!
+//! Masses: the link a joint moves is its child link together with every link fixed to it
+//! (through `fixed` joints, not through movable ones); its mass is their `<inertial>` masses
+//! summed and its centre of mass their mass-weighted mean, in the child link's frame (the
+//! joint's frame after its motion). Links before the first movable joint do not move and
+//! are not counted. A link without `<inertial>` weighs nothing.
+//!
+//! # Writing
+//!
+//! [`Robot::to_urdf_string`] writes a robot as URDF. A robot read from a URDF file is
+//! written as that file's robot (every link, joint, inertial and mesh kept) with the chain's
+//! movable joints' origins replaced by the robot's: each joint's constant offset and, for
+//! the first joint, the base are folded into the origin (URDF has neither), and the fixed
+//! joints before a movable joint keep their origins. Any other robot (MD-H, or TOML chain
+//! joints) is written as a fresh URDF: `base_link`, then per joint `link_i` (masses and
+//! centres of mass as `<inertial>`, inertia tensors zero: unknown). Either way a fixed joint
+//! `calibrated_tcp_joint` from the tip link to a new link `calibrated_tcp` carries the tool
+//! (the TCP in the tip link's frame), so that the written file's only new leaf is the TCP:
+//! read again it gives the same forward kinematics to rounding. (Limits the URDF form
+//! needs but the robot file lacks, effort and velocity, are written as 0.)
+
+use std::collections::HashMap;
+
+use adwi_runtime::chain::{ChainJoint, JointKind};
+use adwi_runtime::kinematics::Transform;
+use urdf_rs::{JointType, Pose, Vec3};
+
+use crate::model::{
+    rpy_of, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot, RobotError,
+    MAX_JOINTS,
+};
+
+/// The name of the link [`Robot::to_urdf_string`] adds for the TCP.
+pub const TCP_LINK: &str = "calibrated_tcp";
+/// The name of the fixed joint to [`TCP_LINK`].
+pub const TCP_JOINT: &str = "calibrated_tcp_joint";
+
+/// Which links of a URDF file bound the chain; `None` for the file's only root and only
+/// leaf.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct LinkNames {
+    /// The link the chain starts at: the robot's base frame.
+    pub base_link: Option<String>,
+    /// The link the chain ends at: the frame of the TCP (before any tool a TOML robot file
+    /// adds).
+    pub tip_link: Option<String>,
+}
+
+/// Where a robot's chain came from in its URDF file, for writing it back.
+#[derive(Debug, Clone)]
+pub(crate) struct UrdfSource {
+    /// The parsed file.
+    robot: urdf_rs::Robot,
+    /// The link the chain ends at.
+    tip_link: String,
+    /// Per movable joint of the chain, its index in `robot.joints`.
+    movable: Vec<usize>,
+    /// Per movable joint, the fixed joints between the previous movable joint (or the base
+    /// link) and it, in chain order.
+    fixed_before: Vec<Vec<usize>>,
+    /// The fixed joints from the last movable joint to the tip link.
+    fixed_after: Vec<usize>,
+}
+
+fn chain_error(message: String) -> RobotError {
+    RobotError::UrdfChain(message)
+}
+
+/// A URDF origin as a transform, mm.
+fn transform_of_pose(pose: &Pose) -> Transform {
+    transform_from_xyz_rpy(pose.xyz.0.map(|v| v * 1000.0), pose.rpy.0)
+}
+
+/// A transform as a URDF origin, m.
+fn pose_of_transform(t: &Transform) -> Pose {
+    Pose {
+        xyz: Vec3(t.translation_mm.map(|v| v / 1000.0)),
+        rpy: Vec3(rpy_of(t)),
+    }
+}
+
+/// The product of the origins of `joints` (indices into `robot.joints`), in order.
+fn product(robot: &urdf_rs::Robot, joints: &[usize]) -> Transform {
+    joints.iter().fold(Transform::IDENTITY, |t, &j| {
+        t.compose(&transform_of_pose(&robot.joints[j].origin))
+    })
+}
+
+/// Reads a robot from URDF text (see the module docs).
+pub(crate) fn robot_from_urdf_str(text: &str, links: &LinkNames) -> Result<Robot, RobotError> {
+    let urdf = urdf_rs::read_from_string(text).map_err(|source| RobotError::Urdf {
+        path: std::path::PathBuf::new(),
+        source,
+    })?;
+    robot_from_urdf(&urdf, links)
+}
+
+/// The robot of a parsed URDF file's chain between `links` (see the module docs).
+///
+/// # Errors
+///
+/// [`RobotError::UrdfChain`] when the file has no such chain or a joint on it cannot be
+/// modelled, and the validation errors of [`Robot::new`].
+pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot, RobotError> {
+    let mut link_index = HashMap::new();
+    for (i, link) in urdf.links.iter().enumerate() {
+        if link_index.insert(link.name.as_str(), i).is_some() {
+            return Err(chain_error(format!("two links are named '{}'", link.name)));
+        }
+    }
+    // Each link's parent joint, and each link's child joints.
+    let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+    let mut child_joints: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (j, joint) in urdf.joints.iter().enumerate() {
+        for end in [&joint.parent.link, &joint.child.link] {
+            if !link_index.contains_key(end.as_str()) {
+                return Err(chain_error(format!(
+                    "joint '{}' names the link '{end}', which the file does not have",
+                    joint.name
+                )));
+            }
+        }
+        if parent_joint.insert(joint.child.link.as_str(), j).is_some() {
+            return Err(chain_error(format!(
+                "link '{}' is the child of two joints: not a tree",
+                joint.child.link
+            )));
+        }
+        child_joints
+            .entry(joint.parent.link.as_str())
+            .or_default()
+            .push(j);
+    }
+    let base = match &links.base_link {
+        Some(name) => {
+            if !link_index.contains_key(name.as_str()) {
+                return Err(chain_error(format!("no link named '{name}' (base link)")));
+            }
+            name.clone()
+        }
+        None => {
+            let roots: Vec<&str> = urdf
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .filter(|l| !parent_joint.contains_key(l))
+                .collect();
+            match roots.as_slice() {
+                [root] => (*root).to_owned(),
+                _ => {
+                    return Err(chain_error(format!(
+                        "{} root links ({}): name the base link",
+                        roots.len(),
+                        roots.join(", ")
+                    )))
+                }
+            }
+        }
+    };
+    let tip = match &links.tip_link {
+        Some(name) => {
+            if !link_index.contains_key(name.as_str()) {
+                return Err(chain_error(format!("no link named '{name}' (tip link)")));
+            }
+            name.clone()
+        }
+        None => {
+            // The leaves below the base, depth first.
+            let mut leaves = Vec::new();
+            let mut stack = vec![base.as_str()];
+            let mut visited = 0;
+            while let Some(link) = stack.pop() {
+                visited += 1;
+                if visited > urdf.links.len() {
+                    return Err(chain_error("the joints form a cycle".into()));
+                }
+                match child_joints.get(link) {
+                    Some(children) if !children.is_empty() => {
+                        for &j in children.iter().rev() {
+                            stack.push(urdf.joints[j].child.link.as_str());
+                        }
+                    }
+                    _ => leaves.push(link),
+                }
+            }
+            match leaves.as_slice() {
+                [leaf] => (*leaf).to_owned(),
+                _ => {
+                    return Err(chain_error(format!(
+                        "{} leaf links below '{base}' ({}): name the tip link",
+                        leaves.len(),
+                        leaves.join(", ")
+                    )))
+                }
+            }
+        }
+    };
+    // The joints from the tip up to the base, then reversed.
+    let mut path = Vec::new();
+    let mut link = tip.as_str();
+    while link != base {
+        let Some(&j) = parent_joint.get(link) else {
+            return Err(chain_error(format!(
+                "link '{tip}' is not below link '{base}'"
+            )));
+        };
+        if path.len() > urdf.joints.len() {
+            return Err(chain_error("the joints form a cycle".into()));
+        }
+        path.push(j);
+        link = urdf.joints[j].parent.link.as_str();
+    }
+    path.reverse();
+
+    let mut movable = Vec::new();
+    let mut fixed_before = Vec::new();
+    let mut pending = Vec::new();
+    for &j in &path {
+        let joint = &urdf.joints[j];
+        if joint.mimic.is_some() {
+            return Err(chain_error(format!(
+                "joint '{}' mimics another joint: not a serial chain of independent joints",
+                joint.name
+            )));
+        }
+        match joint.joint_type {
+            JointType::Fixed => pending.push(j),
+            JointType::Revolute | JointType::Continuous | JointType::Prismatic => {
+                movable.push(j);
+                fixed_before.push(std::mem::take(&mut pending));
+            }
+            ref other => {
+                return Err(chain_error(format!(
+                    "joint '{}' is {other:?}: only revolute, continuous, prismatic and fixed \
+                     joints make a serial chain",
+                    joint.name
+                )))
+            }
+        }
+    }
+    if movable.is_empty() || movable.len() > MAX_JOINTS {
+        return Err(RobotError::JointCount {
+            found: movable.len(),
+        });
+    }
+    let fixed_after = pending;
+
+    let mut rows = Vec::with_capacity(movable.len());
+    let mut joints = Vec::with_capacity(movable.len());
+    let mut home = Vec::with_capacity(movable.len());
+    for (&j, before) in movable.iter().zip(&fixed_before) {
+        let joint = &urdf.joints[j];
+        let axis = unit_axis(joint.axis.xyz.0).ok_or_else(|| {
+            chain_error(format!("joint '{}' has an axis of zero length", joint.name))
+        })?;
+        let (kind, limits) = match joint.joint_type {
+            JointType::Continuous => (JointKind::Revolute, [f64::NEG_INFINITY, f64::INFINITY]),
+            JointType::Revolute => (JointKind::Revolute, [joint.limit.lower, joint.limit.upper]),
+            _ => (
+                JointKind::Prismatic,
+                [joint.limit.lower * 1000.0, joint.limit.upper * 1000.0],
+            ),
+        };
+        // A missing <limit> reads as [0, 0]; NaN never compares less.
+        if limits[0].partial_cmp(&limits[1]) != Some(std::cmp::Ordering::Less) {
+            return Err(chain_error(format!(
+                "joint '{}' has limits lower {} upper {}: a {} joint needs lower < upper",
+                joint.name,
+                joint.limit.lower,
+                joint.limit.upper,
+                if kind == JointKind::Revolute {
+                    "revolute"
+                } else {
+                    "prismatic"
+                }
+            )));
+        }
+        rows.push(ChainJoint {
+            origin: product(urdf, before).compose(&transform_of_pose(&joint.origin)),
+            axis,
+            kind,
+            offset: 0.0,
+        });
+        joints.push(Joint {
+            name: joint.name.clone(),
+            limits,
+            inertial: body_inertial(urdf, &joint.child.link, &child_joints),
+        });
+        home.push(if (limits[0]..=limits[1]).contains(&0.0) {
+            0.0
+        } else if limits[0].is_finite() && limits[1].is_finite() {
+            0.5 * (limits[0] + limits[1])
+        } else if limits[0].is_finite() {
+            limits[0]
+        } else {
+            limits[1]
+        });
+    }
+    let tool = product(urdf, &fixed_after);
+    let name = if urdf.name.is_empty() {
+        "URDF robot".to_owned()
+    } else {
+        urdf.name.clone()
+    };
+    let mut robot = Robot::new(
+        name,
+        Geometry::Chain(rows),
+        joints,
+        Transform::IDENTITY,
+        tool,
+        home,
+    )?;
+    robot.set_urdf_source(UrdfSource {
+        robot: urdf.clone(),
+        tip_link: tip,
+        movable,
+        fixed_before,
+        fixed_after,
+    });
+    Ok(robot)
+}
+
+/// The mass and centre of mass (mm, in `link`'s frame) of `link` and every link fixed to
+/// it; `None` when they weigh nothing.
+fn body_inertial(
+    urdf: &urdf_rs::Robot,
+    link: &str,
+    child_joints: &HashMap<&str, Vec<usize>>,
+) -> Option<LinkInertial> {
+    let mut mass = 0.0;
+    let mut moment = [0.0; 3];
+    let mut stack = vec![(link, Transform::IDENTITY)];
+    let mut visited = 0;
+    while let Some((name, frame)) = stack.pop() {
+        visited += 1;
+        if visited > urdf.links.len() {
+            break;
+        }
+        if let Some(l) = urdf.links.iter().find(|l| l.name == name) {
+            let m = l.inertial.mass.value;
+            if m > 0.0 {
+                let com = frame.transform_point(l.inertial.origin.xyz.0.map(|v| v * 1000.0));
+                mass += m;
+                for a in 0..3 {
+                    moment[a] += m * com[a];
+                }
+            }
+        }
+        for &j in child_joints.get(name).map(Vec::as_slice).unwrap_or(&[]) {
+            let joint = &urdf.joints[j];
+            if joint.joint_type == JointType::Fixed {
+                let child = frame.compose(&transform_of_pose(&joint.origin));
+                stack.push((joint.child.link.as_str(), child));
+            }
+        }
+    }
+    (mass > 0.0).then(|| LinkInertial {
+        mass_kg: mass,
+        com_mm: moment.map(|v| v / mass),
+    })
+}
+
+impl Robot {
+    /// This robot as URDF text (see the module docs): `comment` lines in a comment after
+    /// the XML declaration.
+    ///
+    /// # Errors
+    ///
+    /// [`RobotError::UrdfChain`] when the URDF writer fails.
+    pub fn to_urdf_string(&self, comment: &[String]) -> Result<String, RobotError> {
+        let chain = self.chain();
+        // Each movable joint's origin with its offset folded in, the base in the first.
+        let origins: Vec<Transform> = chain
+            .joints()
+            .iter()
+            .enumerate()
+            .map(|(i, j)| {
+                let origin = j.origin.compose(&j.motion(j.offset));
+                if i == 0 {
+                    chain.base.compose(&origin)
+                } else {
+                    origin
+                }
+            })
+            .collect();
+        let mut urdf = match self.urdf_source() {
+            Some(source) if source.movable.len() == origins.len() => {
+                let mut urdf = source.robot.clone();
+                for ((origin, &j), before) in origins
+                    .iter()
+                    .zip(&source.movable)
+                    .zip(&source.fixed_before)
+                {
+                    let fixed = product(&source.robot, before);
+                    urdf.joints[j].origin = pose_of_transform(&fixed.inverse().compose(origin));
+                }
+                let after = product(&source.robot, &source.fixed_after);
+                let tcp = after.inverse().compose(&chain.tool);
+                // A file written here before: its TCP joint is updated, not doubled.
+                let last_fixed = source.fixed_after.last().map(|&j| &urdf.joints[j]);
+                match last_fixed {
+                    Some(joint) if joint.name == TCP_JOINT => {
+                        let j = *source.fixed_after.last().expect("matched Some");
+                        let before_tcp = product(
+                            &source.robot,
+                            &source.fixed_after[..source.fixed_after.len() - 1],
+                        );
+                        urdf.joints[j].origin =
+                            pose_of_transform(&before_tcp.inverse().compose(&chain.tool));
+                    }
+                    _ => add_tcp(&mut urdf, &source.tip_link, &tcp)?,
+                }
+                urdf
+            }
+            _ => self.fresh_urdf(&origins)?,
+        };
+        urdf.name = self.name.clone();
+        let body = urdf_rs::write_to_string(&urdf)
+            .map_err(|e| chain_error(format!("cannot write the robot as URDF: {e}")))?;
+        let mut out = String::from("<?xml version=\"1.0\"?>\n");
+        if !comment.is_empty() {
+            out.push_str("<!--\n");
+            for block in comment {
+                for line in block.lines() {
+                    // "--" may not appear inside an XML comment.
+                    out.push_str(&format!("  {}\n", line.replace("--", "- -")));
+                }
+            }
+            out.push_str("-->\n");
+        }
+        out.push_str(&body);
+        out.push('\n');
+        Ok(out)
+    }
+
+    /// A URDF of this robot's chain alone: `base_link`, `link_1` … (see the module docs).
+    fn fresh_urdf(&self, origins: &[Transform]) -> Result<urdf_rs::Robot, RobotError> {
+        let link = |name: String, inertial: Option<LinkInertial>| urdf_rs::Link {
+            name,
+            inertial: inertial
+                .map(|i| urdf_rs::Inertial {
+                    origin: Pose {
+                        xyz: Vec3(i.com_mm.map(|v| v / 1000.0)),
+                        rpy: Vec3([0.0; 3]),
+                    },
+                    mass: urdf_rs::Mass { value: i.mass_kg },
+                    inertia: urdf_rs::Inertia::default(),
+                })
+                .unwrap_or_default(),
+            visual: Vec::new(),
+            collision: Vec::new(),
+        };
+        let mut urdf = urdf_rs::Robot {
+            name: self.name.clone(),
+            version: None,
+            links: vec![link("base_link".into(), None)],
+            joints: Vec::new(),
+            materials: Vec::new(),
+        };
+        let mut parent = "base_link".to_owned();
+        for (i, (joint, origin)) in self.joints().iter().zip(origins).enumerate() {
+            let child = format!("link_{}", i + 1);
+            let chain_joint = &self.chain().joints()[i];
+            let [lower, upper] = joint.limits;
+            let (joint_type, scale) = match chain_joint.kind {
+                JointKind::Revolute if lower.is_infinite() && upper.is_infinite() => {
+                    (JointType::Continuous, 1.0)
+                }
+                JointKind::Revolute => (JointType::Revolute, 1.0),
+                JointKind::Prismatic => (JointType::Prismatic, 1e-3),
+            };
+            urdf.links.push(link(child.clone(), joint.inertial));
+            urdf.joints.push(urdf_rs::Joint {
+                name: joint.name.clone(),
+                joint_type,
+                origin: pose_of_transform(origin),
+                parent: urdf_rs::LinkName { link: parent },
+                child: urdf_rs::LinkName {
+                    link: child.clone(),
+                },
+                axis: urdf_rs::Axis {
+                    xyz: Vec3(chain_joint.axis),
+                },
+                limit: urdf_rs::JointLimit {
+                    lower: if lower.is_finite() {
+                        lower * scale
+                    } else {
+                        0.0
+                    },
+                    upper: if upper.is_finite() {
+                        upper * scale
+                    } else {
+                        0.0
+                    },
+                    ..urdf_rs::JointLimit::default()
+                },
+                calibration: None,
+                dynamics: None,
+                mimic: None,
+                safety_controller: None,
+            });
+            parent = child;
+        }
+        add_tcp(&mut urdf, &parent, &self.chain().tool)?;
+        Ok(urdf)
+    }
+}
+
+/// Adds the fixed joint [`TCP_JOINT`] from `tip` to a new link [`TCP_LINK`] at `tcp`.
+fn add_tcp(urdf: &mut urdf_rs::Robot, tip: &str, tcp: &Transform) -> Result<(), RobotError> {
+    if urdf.links.iter().any(|l| l.name == TCP_LINK) {
+        return Err(chain_error(format!(
+            "the file already has a link '{TCP_LINK}' that is not the tip of the chain"
+        )));
+    }
+    urdf.links.push(urdf_rs::Link {
+        name: TCP_LINK.into(),
+        inertial: urdf_rs::Inertial::default(),
+        visual: Vec::new(),
+        collision: Vec::new(),
+    });
+    urdf.joints.push(urdf_rs::Joint {
+        name: TCP_JOINT.into(),
+        joint_type: JointType::Fixed,
+        origin: pose_of_transform(tcp),
+        parent: urdf_rs::LinkName { link: tip.into() },
+        child: urdf_rs::LinkName {
+            link: TCP_LINK.into(),
+        },
+        axis: urdf_rs::Axis::default(),
+        limit: urdf_rs::JointLimit::default(),
+        calibration: None,
+        dynamics: None,
+        mimic: None,
+        safety_controller: None,
+    });
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::shipped_file;
+    use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A URDF that exercises everything: fixed joints before, between and after movable
+    /// ones, axes that are no coordinate axis (one not even unit length), a prismatic and a
+    /// continuous joint, arbitrary rpy, inertials on fixed-on links, and a side branch.
+    const TEST_URDF: &str = r#"<?xml version="1.0"?>
+<robot name="test arm">
+  <link name="world"/>
+  <link name="base"><inertial><origin xyz="0 0 0.1"/><mass value="50"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="l1"><inertial><origin xyz="0.1 0 0.2" rpy="0.3 0 0"/><mass value="4"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="l1_cover"><inertial><origin xyz="0 0.05 0"/><mass value="1"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="l2"/>
+  <link name="l2b"/>
+  <link name="l3"/>
+  <link name="l4"/>
+  <link name="camera"/>
+  <link name="flange"/>
+  <link name="tool0"/>
+  <joint name="world_base" type="fixed">
+    <parent link="world"/><child link="base"/>
+    <origin xyz="0.5 -0.2 0.01" rpy="0 0 0.7"/>
+  </joint>
+  <joint name="j1" type="revolute">
+    <parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.3" rpy="0.1 -0.2 0.3"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+  <joint name="cover" type="fixed">
+    <parent link="l1"/><child link="l1_cover"/>
+    <origin xyz="0.02 0 0" rpy="0 1.5707963267948966 0"/>
+  </joint>
+  <joint name="j2" type="revolute">
+    <parent link="l1"/><child link="l2"/>
+    <origin xyz="0.05 0.1 0.25" rpy="1.5707963267948966 0 0"/>
+    <axis xyz="0 1 -1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/>
+  </joint>
+  <joint name="l2_fixed" type="fixed">
+    <parent link="l2"/><child link="l2b"/>
+    <origin xyz="0.4 0 0" rpy="0 0 -0.4"/>
+  </joint>
+  <joint name="slide" type="prismatic">
+    <parent link="l2b"/><child link="l3"/>
+    <origin xyz="0 0 0.02" rpy="0.2 0.1 0"/>
+    <axis xyz="1 0 0"/>
+    <limit lower="-0.1" upper="0.3" effort="1" velocity="1"/>
+  </joint>
+  <joint name="spin" type="continuous">
+    <parent link="l3"/><child link="l4"/>
+    <origin xyz="0.1 0 0" rpy="-1.2 0.4 2.5"/>
+    <axis xyz="0.3 -0.4 0.866"/>
+  </joint>
+  <joint name="camera_mount" type="fixed">
+    <parent link="l2"/><child link="camera"/>
+    <origin xyz="0 0.1 0"/>
+  </joint>
+  <joint name="l4_flange" type="fixed">
+    <parent link="l4"/><child link="flange"/>
+    <origin xyz="0 0 0.08" rpy="3.141592653589793 0 0"/>
+  </joint>
+  <joint name="flange_tool0" type="fixed">
+    <parent link="flange"/><child link="tool0"/>
+    <origin xyz="0.01 0.02 0.15" rpy="0 -1.5707963267948966 -1.5707963267948966"/>
+  </joint>
+</robot>
+"#;
+
+    /// The TCP pose by a walk of the parsed file, independent of the import: from the tip
+    /// up to the base through the parent joints, each origin `Translation(xyz)·Rz·Ry·Rx`
+    /// and each motion a nalgebra rotation about (or translation along) the normalised
+    /// axis. Metres, joint values in metres for prismatic joints.
+    fn walk(urdf: &urdf_rs::Robot, base: &str, tip: &str, q: &[f64]) -> Isometry3<f64> {
+        let mut path = Vec::new();
+        let mut link = tip.to_owned();
+        while link != base {
+            let joint = urdf
+                .joints
+                .iter()
+                .find(|j| j.child.link == link)
+                .expect("a parent joint");
+            path.push(joint);
+            link = joint.parent.link.clone();
+        }
+        path.reverse();
+        let mut values = q.iter();
+        let mut pose = Isometry3::identity();
+        for joint in path {
+            let [x, y, z] = joint.origin.xyz.0;
+            let [roll, pitch, yaw] = joint.origin.rpy.0;
+            pose *= Isometry3::from_parts(
+                Translation3::new(x, y, z),
+                UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+            );
+            let axis = Unit::new_normalize(Vector3::from(joint.axis.xyz.0));
+            match joint.joint_type {
+                JointType::Fixed => {}
+                JointType::Prismatic => {
+                    let v = *values.next().unwrap();
+                    pose *= Translation3::from(axis.into_inner() * v);
+                }
+                _ => {
+                    let v = *values.next().unwrap();
+                    pose *= UnitQuaternion::from_axis_angle(&axis, v);
+                }
+            }
+        }
+        assert!(values.next().is_none());
+        pose
+    }
+
+    /// Random joint values within the sampling ranges, in the robot's units (rad, mm).
+    fn random_q(robot: &Robot, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        (0..robot.joint_count())
+            .map(|i| {
+                let [lo, hi] = robot.sampling_range(i);
+                rng.gen_range(lo..hi)
+            })
+            .collect()
+    }
+
+    /// Compares the imported robot's FK with the walk over 1000 random joint vectors and
+    /// returns the largest position difference, mm.
+    fn largest_walk_difference(
+        text: &str,
+        links: &LinkNames,
+        base: &str,
+        tip: &str,
+        seed: u64,
+    ) -> f64 {
+        let robot = robot_from_urdf_str(text, links).unwrap();
+        let urdf = urdf_rs::read_from_string(text).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut largest: f64 = 0.0;
+        for _ in 0..1000 {
+            let q = random_q(&robot, &mut rng);
+            // The walk takes metres for prismatic joints.
+            let q_si: Vec<f64> = q
+                .iter()
+                .enumerate()
+                .map(|(i, v)| match robot.joint_kind(i) {
+                    JointKind::Prismatic => v / 1000.0,
+                    JointKind::Revolute => *v,
+                })
+                .collect();
+            let want = walk(&urdf, base, tip, &q_si);
+            let got = robot.tcp_pose(&q);
+            let dp = (got.translation.vector - want.translation.vector * 1000.0).norm();
+            let dr = got.rotation.angle_to(&want.rotation);
+            assert!(dr < 1e-12, "rotation differs by {dr} rad");
+            largest = largest.max(dp);
+        }
+        largest
+    }
+
+    #[test]
+    fn imported_chains_equal_a_direct_walk_of_the_file() {
+        let links = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let test = largest_walk_difference(TEST_URDF, &links, "world", "tool0", 1);
+        let mut largest = test;
+        for robot in ["ur10", "iiwa14"] {
+            let text = std::fs::read_to_string(shipped_file(robot, "robot.urdf")).unwrap();
+            let urdf = urdf_rs::read_from_string(&text).unwrap();
+            let tip = urdf
+                .links
+                .iter()
+                .find(|l| !urdf.joints.iter().any(|j| j.parent.link == l.name))
+                .unwrap()
+                .name
+                .clone();
+            let d = largest_walk_difference(&text, &LinkNames::default(), "base_link", &tip, 2);
+            println!("{robot}: largest URDF-walk difference {d:.3e} mm");
+            largest = largest.max(d);
+        }
+        println!("test arm: largest URDF-walk difference {test:.3e} mm");
+        assert!(largest < 1e-9, "{largest} mm");
+        // Between other links: the chain from l1 to the camera is one revolute joint.
+        let links = LinkNames {
+            base_link: Some("l1".into()),
+            tip_link: Some("camera".into()),
+        };
+        let d = largest_walk_difference(TEST_URDF, &links, "l1", "camera", 3);
+        assert!(d < 1e-9, "{d}");
+    }
+
+    #[test]
+    fn joints_limits_and_masses_of_the_test_arm() {
+        let links = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let robot = robot_from_urdf_str(TEST_URDF, &links).unwrap();
+        assert_eq!(robot.joint_count(), 4);
+        let names: Vec<&str> = robot.joints().iter().map(|j| j.name.as_str()).collect();
+        assert_eq!(names, ["j1", "j2", "slide", "spin"]);
+        assert_eq!(robot.joint_kind(2), JointKind::Prismatic);
+        assert_eq!(robot.joints()[2].limits, [-100.0, 300.0]);
+        assert_eq!(robot.joints()[3].limits, [f64::NEG_INFINITY, f64::INFINITY]);
+        let axis = robot.chain().joints()[1].axis;
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((axis[1] - s).abs() < 1e-15 && (axis[2] + s).abs() < 1e-15);
+        // Link 1 with its cover: 4 kg at (100, 0, 200) mm, and 1 kg at the cover's COM
+        // (0, 50, 0) mm turned by Ry(90°) (which leaves it) and moved 20 mm along x: the sum
+        // is 5 kg at ((400 + 20)/5, 50/5, 800/5) mm.
+        let inertial = robot.joints()[0].inertial.unwrap();
+        assert!((inertial.mass_kg - 5.0).abs() < 1e-12);
+        for (got, want) in inertial.com_mm.iter().zip([84.0, 10.0, 160.0]) {
+            assert!((got - want).abs() < 1e-9, "{inertial:?}");
+        }
+        assert!(robot.joints()[1].inertial.is_none());
+        // The world → base link is fixed before the first joint: the base weighs nothing.
+        let gravity = robot.gravity_model().unwrap();
+        assert_eq!(gravity.link_mass_kg[0], 5.0);
+        assert_eq!(robot.home(), [0.0, 0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn chains_that_cannot_be_modelled_are_refused_with_the_reason() {
+        // Two leaves below the root (camera and tool0): the tip must be named.
+        let error = robot_from_urdf_str(TEST_URDF, &LinkNames::default()).unwrap_err();
+        assert!(error.to_string().contains("leaf links"), "{error}");
+        let error = robot_from_urdf_str(
+            TEST_URDF,
+            &LinkNames {
+                base_link: Some("l4".into()),
+                tip_link: Some("camera".into()),
+            },
+        )
+        .unwrap_err();
+        assert!(error.to_string().contains("not below"), "{error}");
+        let floating = TEST_URDF.replace(
+            r#"name="spin" type="continuous""#,
+            r#"name="spin" type="floating""#,
+        );
+        let error = robot_from_urdf_str(
+            &floating,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some("tool0".into()),
+            },
+        )
+        .unwrap_err();
+        assert!(error.to_string().contains("Floating"), "{error}");
+        let no_limits = TEST_URDF.replace(r#"lower="-2" upper="2""#, r#"lower="0" upper="0""#);
+        let error = robot_from_urdf_str(
+            &no_limits,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some("tool0".into()),
+            },
+        )
+        .unwrap_err();
+        assert!(error.to_string().contains("'j2'"), "{error}");
+        // Only fixed joints: no robot.
+        let error = robot_from_urdf_str(
+            TEST_URDF,
+            &LinkNames {
+                base_link: Some("l4".into()),
+                tip_link: Some("tool0".into()),
+            },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(error, RobotError::JointCount { found: 0 }),
+            "{error}"
+        );
+    }
+
+    /// A robot written as URDF and read again has the same forward kinematics, whether it
+    /// came from a URDF file (origins replaced in the file's own robot) or from MD-H.
+    #[test]
+    fn written_urdf_reads_back_as_the_same_chain() {
+        let links = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let robot = robot_from_urdf_str(TEST_URDF, &links).unwrap();
+        // A changed model of it: offsets, a moved origin, a base and a tool.
+        let Geometry::Chain(mut rows) = robot.geometry().clone() else {
+            unreachable!()
+        };
+        rows[0].offset = 0.01;
+        rows[2].offset = 3.0;
+        rows[3].origin = rows[3].origin.compose(&transform_from_xyz_rpy(
+            [0.5, -0.2, 0.1],
+            [1e-3, -2e-3, 5e-4],
+        ));
+        let base = transform_from_xyz_rpy([1.0, 2.0, -0.5], [1e-3, 2e-3, -3e-3]);
+        let tool = robot
+            .tool()
+            .compose(&transform_from_xyz_rpy([0.1, 0.0, 0.3], [0.0, 1e-3, 0.0]));
+        let changed = robot
+            .with_geometry("changed".into(), Geometry::Chain(rows), base, tool)
+            .unwrap();
+        let text = changed
+            .to_urdf_string(&["written -- by a test".into()])
+            .unwrap();
+        assert!(text.contains("- - by a test"));
+        // The file's other links are kept; the TCP is the new link, reached from tool0.
+        let back = robot_from_urdf_str(
+            &text,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some(TCP_LINK.into()),
+            },
+        )
+        .unwrap();
+        assert!(text.contains("camera_mount"));
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for _ in 0..200 {
+            let q = random_q(&robot, &mut rng);
+            let (a, b) = (changed.tcp_pose(&q), back.tcp_pose(&q));
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
+            assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+        }
+        // Written again, the TCP joint is updated rather than doubled.
+        let again = back.to_urdf_string(&[]).unwrap();
+        assert_eq!(again.matches(TCP_JOINT).count(), 1);
+
+        // An MD-H robot as a fresh URDF.
+        let kr150 = Robot::load(crate::model::shipped_robot_path("kr150-2")).unwrap();
+        let kr150 = kr150
+            .with_parts(
+                kr150.name.clone(),
+                base,
+                transform_from_xyz_rpy([10.0, 0.0, 250.0], [0.0, 0.5, 0.0]),
+                kr150.home().to_vec(),
+            )
+            .unwrap();
+        let text = kr150.to_urdf_string(&[]).unwrap();
+        let back = robot_from_urdf_str(&text, &LinkNames::default()).unwrap();
+        for _ in 0..200 {
+            let q = random_q(&kr150, &mut rng);
+            let (a, b) = (kr150.tcp_pose(&q), back.tcp_pose(&q));
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
+        }
+        assert_eq!(back.joints()[1].limits, kr150.joints()[1].limits);
+    }
+
+    /// Each shipped robot's URDF and its MD-H robot file are the same robot: the same
+    /// forward kinematics (the UR5's file adds its tool) and the same gravity torques from
+    /// their masses, although the two put their joint frames in different places.
+    #[test]
+    fn shipped_urdf_and_mdh_files_are_the_same_robot() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        for name in ["ur5", "ur10", "iiwa14"] {
+            let urdf = Robot::load(shipped_file(name, "robot.urdf")).unwrap();
+            let mdh = Robot::load(shipped_file(name, "robot.toml")).unwrap();
+            let mdh = mdh
+                .with_parts(
+                    mdh.name.clone(),
+                    mdh.base(),
+                    Transform::IDENTITY,
+                    mdh.home().to_vec(),
+                )
+                .unwrap();
+            assert_eq!(urdf.joint_count(), mdh.joint_count());
+            let (gu, gm) = (urdf.gravity_model().unwrap(), mdh.gravity_model().unwrap());
+            assert_eq!(gu.link_mass_kg, gm.link_mass_kg);
+            let mut largest: f64 = 0.0;
+            for _ in 0..1000 {
+                let q = random_q(&urdf, &mut rng);
+                let (a, b) = (urdf.tcp_pose(&q), mdh.tcp_pose(&q));
+                largest = largest.max((a.translation.vector - b.translation.vector).norm());
+                assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+                let tu = urdf.chain().gravity_torques(&q, &gu).unwrap();
+                let tm = mdh.chain().gravity_torques(&q, &gm).unwrap();
+                for j in 0..q.len() {
+                    // kg·mm²/s²: 1e-6 of a N·m.
+                    assert!(
+                        (tu[j] - tm[j]).abs() < 1e-3,
+                        "{name} joint {}: {} vs {}",
+                        j + 1,
+                        tu[j],
+                        tm[j]
+                    );
+                }
+            }
+            println!("{name}: URDF and MD-H files agree to {largest:.2e} mm");
+            assert!(largest < 1e-9);
+        }
+    }
+}
