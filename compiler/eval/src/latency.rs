@@ -156,7 +156,7 @@ pub fn trajectory(grid: &Grid, count: usize, step_mm: f64, seed: u64) -> Vec<Tar
     out
 }
 
-fn random_unit(rng: &mut ChaCha8Rng) -> [f64; 3] {
+pub(crate) fn random_unit(rng: &mut ChaCha8Rng) -> [f64; 3] {
     loop {
         let v = [0; 3].map(|_| rng.gen_range(-1.0..1.0));
         let n = method::distance_mm(v, [0.0; 3]);

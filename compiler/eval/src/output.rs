@@ -64,7 +64,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     let _ = writeln!(out, "{}", e.protocol);
     let _ = write!(
         out,
-        "{:<14} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "{:<16} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
         "", "points", "", "position", "residual", "norm", "mm"
     );
     if orientation {
@@ -77,7 +77,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     out.push('\n');
     let _ = write!(
         out,
-        "{:<14} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "{:<16} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
         "method", "pred.", "missed", "mean", "rms", "p95", "max"
     );
     if orientation {
@@ -96,7 +96,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     for row in rows(e) {
         let _ = write!(
             out,
-            "{:<14} {:>6} {:>6} │",
+            "{:<16} {:>6} {:>6} │",
             row.label, row.predicted, row.not_predicted
         );
         for v in figures(row.position) {

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod build;
+mod continuity;
 mod eval;
 mod inspect;
 mod query;
@@ -35,6 +36,8 @@ enum Command {
     Eval(eval::Args),
     /// Query and open latency of a table next to a k-d tree and the brute force.
     Bench(bench::Args),
+    /// The largest change of both tiers' corrections along straight lines, step by step.
+    Continuity(continuity::Args),
 }
 
 /// Exit status when a query gave no correction for its target, or for some rows of a
@@ -60,6 +63,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => done(simulate::run(args)),
         Command::Eval(args) => done(eval::run(args)),
         Command::Bench(args) => done(bench::run(args)),
+        Command::Continuity(args) => done(continuity::run(args)),
     };
     match result {
         Ok(Answered::All) => ExitCode::SUCCESS,
@@ -93,6 +97,33 @@ fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memm
     // process holds the mapping only for the duration of one command.
     unsafe { adwi_runtime::Table::open(path) }
         .with_context(|| format!("cannot open table {}", path.display()))
+}
+
+/// The links a URDF robot's chain runs between, as every subcommand with `--robot` takes
+/// them.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct RobotLinks {
+    /// URDF robots: the link the chain starts at, the robot's base frame [default: the
+    /// file's only root link].
+    #[arg(long, value_name = "LINK")]
+    base_link: Option<String>,
+    /// URDF robots: the link the chain ends at, the TCP's frame [default: the only leaf
+    /// link below the base].
+    #[arg(long, value_name = "LINK")]
+    tip_link: Option<String>,
+}
+
+impl RobotLinks {
+    /// Loads a robot file (TOML, or URDF by its `.urdf` extension) with these links.
+    pub fn load(&self, path: &std::path::Path) -> anyhow::Result<adwi_robot::Robot> {
+        use anyhow::Context;
+        let links = adwi_robot::LinkNames {
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+        };
+        adwi_robot::Robot::load_with(path, &links)
+            .with_context(|| format!("cannot load the robot {}", path.display()))
+    }
 }
 
 /// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.

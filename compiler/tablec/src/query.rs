@@ -35,7 +35,8 @@ pub struct Args {
     /// Inverse-kinematics configuration of the target.
     #[arg(long)]
     config: Option<u8>,
-    /// The joint angles the controller will use for the target, degrees: J1,...,J6.
+    /// The joint values the controller will use for the target, degrees (mm for prismatic
+    /// joints): J1,...,Jn, as many as the table's robot has.
     /// Needed by a hybrid table (built with --hybrid); applies a table's joint screen.
     #[arg(
         long,

@@ -7,16 +7,19 @@ use std::path::PathBuf;
 use adwi_robot::simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
-use adwi_robot::{Configuration, Robot};
+use adwi_robot::Configuration;
 use anyhow::{bail, Context};
 
 /// Simulate measured samples: nominal poses on a lattice or at random in a box, their exact
 /// actual poses under an error scenario, measured with laser-tracker noise.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Robot description (TOML), e.g. tables/kr150-2/robot.toml.
-    #[arg(long)]
+    /// The robot file (TOML, or URDF by its .urdf extension), e.g.
+    /// tables/kr150-2/robot.toml.
+    #[arg(long, value_name = "ROBOT")]
     robot: PathBuf,
+    #[command(flatten)]
+    links: crate::RobotLinks,
     /// Error scenario (TOML), e.g. tables/kr150-2/scenario.toml.
     #[arg(long)]
     scenario: PathBuf,
@@ -66,7 +69,7 @@ fn parse_triple(text: &str) -> Result<[f64; 3], String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let robot = Robot::load(&args.robot)?;
+    let robot = args.links.load(&args.robot)?;
     let scenario = Scenario::load(&args.scenario)?;
     let positions = match (args.step, args.random) {
         (Some(step_mm), None) => Positions::Lattice {
