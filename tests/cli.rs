@@ -974,3 +974,46 @@ fn bench_prints_figures_without_internal_goals() {
     assert!(out.contains("p50"), "{out}");
     assert!(!out.contains("goal"), "{out}");
 }
+
+/// `tablec continuity`: along the same lines, the served field changes by far less than a
+/// micrometre per 0.01 mm step, while the exact method jumps where its neighbour set
+/// changes.
+#[test]
+fn continuity_reports_both_tiers_along_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/kr150-2/samples.csv");
+    let o = tablec(
+        &["build", "-q", samples.to_str().unwrap(), "-o", "t.tbl"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = tablec(
+        &["continuity", "t.tbl", "--lines", "8", "--length-mm", "100"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        out.starts_with("8 lines of 100 mm at 0.01 mm steps"),
+        "{out}"
+    );
+    let row = |tier: &str| -> (usize, f64) {
+        let fields: Vec<&str> = out
+            .lines()
+            .find(|l| l.starts_with(tier))
+            .unwrap_or_else(|| panic!("{out}"))
+            .split_whitespace()
+            .collect();
+        (fields[1].parse().unwrap(), fields[2].parse().unwrap())
+    };
+    let (served_steps, served_largest_mm) = row("served ");
+    let (exact_steps, exact_largest_mm) = row("exact ");
+    assert!(
+        served_steps > 10_000 && exact_steps >= served_steps,
+        "{out}"
+    );
+    assert!(served_largest_mm < 1e-3, "{out}");
+    assert!(exact_largest_mm > 10.0 * served_largest_mm, "{out}");
+    let o = tablec(&["continuity", "t.tbl", "--step-mm", "0"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+}
