@@ -50,25 +50,36 @@ impl Iterator for Candidates<'_> {
     }
 }
 
-/// The `k` nearest admissible samples for `target` in its cell, with the joint-space
-/// screen when the table has one and `joints_rad` is given.
+/// The candidate list of the cell holding `position_mm`.
 #[inline]
-pub(crate) fn select(
+fn candidates_at<'a>(
+    source: &'a impl ExactSource,
+    header: &Header,
+    position_mm: [f64; 3],
+) -> Result<Candidates<'a>, Status> {
+    let cell = header
+        .grid
+        .cell_of(position_mm)
+        .ok_or(Status::OutsideGrid)?;
+    source.candidates(cell).ok_or(Status::NoAdmissibleNeighbour)
+}
+
+/// The `k` nearest admissible samples for `target` among `candidates`, with the
+/// joint-space screen when the table has one and `joints_rad` is given. Returned by value
+/// and not inside a `Result`, so that it is built in place rather than copied.
+#[inline]
+fn select_among(
     source: &impl ExactSource,
     header: &Header,
     target: &Target,
     joints_rad: Option<&[f64]>,
-) -> Result<Selection, Status> {
-    let p = target.position_mm;
-    let cell = header.grid.cell_of(p).ok_or(Status::OutsideGrid)?;
-    let candidates = source
-        .candidates(cell)
-        .ok_or(Status::NoAdmissibleNeighbour)?;
+    candidates: Candidates<'_>,
+) -> Selection {
     let radius_rad = header.joint_radius_rad;
     let screen = joints_rad.filter(|_| radius_rad > 0.0);
-    Ok(method::select(
+    method::select(
         &header.method,
-        p,
+        target.position_mm,
         target.config,
         candidates,
         |i| {
@@ -79,7 +90,19 @@ pub(crate) fn select(
             }
             source.actual_and_config(i)
         },
-    ))
+    )
+}
+
+/// The `k` nearest admissible samples for `target` in its cell ([`select_among`]).
+#[inline]
+pub(crate) fn select(
+    source: &impl ExactSource,
+    header: &Header,
+    target: &Target,
+    joints_rad: Option<&[f64]>,
+) -> Result<Selection, Status> {
+    let candidates = candidates_at(source, header, target.position_mm)?;
+    Ok(select_among(source, header, target, joints_rad, candidates))
 }
 
 /// The exact prediction at `target`: the method over its cell's candidates.
@@ -90,29 +113,30 @@ pub(crate) fn interpolate(
     target: &Target,
     joints_rad: Option<&[f64]>,
 ) -> Correction {
-    let estimate = select(source, header, target, joints_rad).and_then(|selection| {
-        let sample = |i: u32| {
-            let (actual, _) = source.actual_and_config(i).unwrap_or(([0.0; 3], 0));
-            (actual, source.norm(i), source.error(i))
-        };
-        let orientation = header.content_flags & CONTENT_ORIENTATION != 0;
-        method::estimate(
-            &header.method,
-            target.position_mm,
-            &selection,
-            orientation,
-            sample,
-        )
-        .ok_or(Status::NoAdmissibleNeighbour)
-    });
-    match estimate {
-        Ok(e) => Correction {
+    let candidates = match candidates_at(source, header, target.position_mm) {
+        Ok(c) => c,
+        Err(status) => return Correction::failed(status),
+    };
+    let selection = select_among(source, header, target, joints_rad, candidates);
+    let sample = |i: u32| {
+        let (actual, _) = source.actual_and_config(i).unwrap_or(([0.0; 3], 0));
+        (actual, source.norm(i), source.error(i))
+    };
+    let orientation = header.content_flags & CONTENT_ORIENTATION != 0;
+    match method::estimate(
+        &header.method,
+        target.position_mm,
+        &selection,
+        orientation,
+        sample,
+    ) {
+        Some(e) => Correction {
             position_error_mm: e.position_error_mm,
             orientation_error_rad: e.orientation_error_rad,
             neighbours: e.neighbours,
             status: Status::Ok,
         },
-        Err(status) => Correction::failed(status),
+        None => Correction::failed(Status::NoAdmissibleNeighbour),
     }
 }
 

@@ -43,6 +43,8 @@
 //! whose error disagrees most with the prediction and recomputes, until it holds; dropped
 //! neighbours are not replaced by farther ones.
 
+use std::mem::MaybeUninit;
+
 /// The largest neighbour count `k` a table may use; selections are fixed-size arrays.
 pub const MAX_NEIGHBOURS: usize = 16;
 
@@ -292,7 +294,7 @@ const EMPTY_NEIGHBOUR: Neighbour = Neighbour {
 #[derive(Clone, Copy)]
 struct Slots<T: Copy, const N: usize> {
     len: usize,
-    items: [std::mem::MaybeUninit<T>; N],
+    items: [MaybeUninit<T>; N],
 }
 
 impl<T: Copy, const N: usize> Slots<T, N> {
@@ -300,7 +302,7 @@ impl<T: Copy, const N: usize> Slots<T, N> {
     fn new() -> Self {
         Slots {
             len: 0,
-            items: [std::mem::MaybeUninit::uninit(); N],
+            items: [MaybeUninit::uninit(); N],
         }
     }
 
@@ -329,7 +331,7 @@ impl<T: Copy, const N: usize> Slots<T, N> {
     fn as_slice(&self) -> &[T] {
         // SAFETY: the first `len` items were written (`push` and `set` only ever extend
         // the set prefix by one), and `len <= N`.
-        unsafe { std::slice::from_raw_parts(self.items.as_ptr().cast::<T>(), self.len) }
+        unsafe { initialised(&self.items, self.len) }
     }
 }
 
@@ -525,43 +527,90 @@ fn pow_r(x: f64, r: f64) -> f64 {
 /// by side: λ, ζ, which coincide with the target, and their errors (orientation errors only
 /// when the prediction includes them: a position-only table does no orientation work).
 struct Gathered {
-    lambda: Slots<f64, MAX_NEIGHBOURS>,
-    zeta: Slots<f64, MAX_NEIGHBOURS>,
+    // The counts first and together, the arrays after them never written before use:
+    // with a count inside each array's own `Slots`, the compiler merged the zero stores
+    // into one memset over the whole struct, arrays included, on every query.
+    len: usize,
+    orientation_len: usize,
     coincident: u32,
-    position_mm: Slots<[f64; 3], MAX_NEIGHBOURS>,
-    orientation_rad: Slots<[f64; 3], MAX_NEIGHBOURS>,
+    lambda: [MaybeUninit<f64>; MAX_NEIGHBOURS],
+    zeta: [MaybeUninit<f64>; MAX_NEIGHBOURS],
+    position_mm: [MaybeUninit<[f64; 3]>; MAX_NEIGHBOURS],
+    orientation_rad: [MaybeUninit<[f64; 3]>; MAX_NEIGHBOURS],
 }
 
 impl Gathered {
     #[inline]
     fn new() -> Gathered {
         Gathered {
-            lambda: Slots::new(),
-            zeta: Slots::new(),
+            len: 0,
+            orientation_len: 0,
             coincident: 0,
-            position_mm: Slots::new(),
-            orientation_rad: Slots::new(),
+            lambda: [MaybeUninit::uninit(); MAX_NEIGHBOURS],
+            zeta: [MaybeUninit::uninit(); MAX_NEIGHBOURS],
+            position_mm: [MaybeUninit::uninit(); MAX_NEIGHBOURS],
+            orientation_rad: [MaybeUninit::uninit(); MAX_NEIGHBOURS],
         }
     }
 
     #[inline]
     fn len(&self) -> usize {
-        self.lambda.len
+        self.len
     }
 
     #[inline]
     fn push(&mut self, degree: &Degree, error: &SampleError, orientation: bool) {
-        let i = self.len();
+        let i = self.len;
         if i < MAX_NEIGHBOURS {
-            self.lambda.push(degree.lambda_per_mm);
-            self.zeta.push(degree.zeta_per_mm2);
+            self.lambda[i].write(degree.lambda_per_mm);
+            self.zeta[i].write(degree.zeta_per_mm2);
             self.coincident |= u32::from(degree.coincident) << i;
-            self.position_mm.push(error.position_mm);
-            if orientation {
-                self.orientation_rad.push(error.orientation_rad);
+            self.position_mm[i].write(error.position_mm);
+            if orientation && self.orientation_len == i {
+                self.orientation_rad[i].write(error.orientation_rad);
+                self.orientation_len += 1;
             }
+            self.len += 1;
         }
     }
+
+    #[inline]
+    fn lambda(&self) -> &[f64] {
+        // SAFETY: `push` writes items 0..len of `lambda`, `zeta` and `position_mm`, and
+        // 0..orientation_len of `orientation_rad`, in order; both counts are at most
+        // MAX_NEIGHBOURS.
+        unsafe { initialised(&self.lambda, self.len) }
+    }
+
+    #[inline]
+    fn zeta(&self) -> &[f64] {
+        // SAFETY: as in `lambda`.
+        unsafe { initialised(&self.zeta, self.len) }
+    }
+
+    #[inline]
+    fn positions(&self) -> &[[f64; 3]] {
+        // SAFETY: as in `lambda`.
+        unsafe { initialised(&self.position_mm, self.len) }
+    }
+
+    #[inline]
+    fn orientations(&self) -> &[[f64; 3]] {
+        // SAFETY: as in `lambda`.
+        unsafe { initialised(&self.orientation_rad, self.orientation_len) }
+    }
+}
+
+/// The first `len` items of `items`.
+///
+/// # Safety
+///
+/// `len <= N`, and items `0..len` were written.
+#[inline]
+unsafe fn initialised<T, const N: usize>(items: &[MaybeUninit<T>; N], len: usize) -> &[T] {
+    debug_assert!(len <= N);
+    // SAFETY: by the caller's contract; `MaybeUninit<T>` has `T`'s layout.
+    unsafe { std::slice::from_raw_parts(items.as_ptr().cast::<T>(), len) }
 }
 
 /// The weights `q_i` of docs/method.md §4 for the given neighbours (see the module docs for the
@@ -615,7 +664,7 @@ fn weights_of_active(
         return;
     }
     let r = params.power;
-    let (lambda, zeta) = (degrees.lambda.as_slice(), degrees.zeta.as_slice());
+    let (lambda, zeta) = (degrees.lambda(), degrees.zeta());
     let mut lambda_r = Slots::<f64, MAX_NEIGHBOURS>::new();
     let mut zeta_r = Slots::<f64, MAX_NEIGHBOURS>::new();
     let mut lambda_sum = 0.0;
@@ -693,8 +742,8 @@ fn weigh(
 ) -> Option<(Estimate, u32)> {
     let n = g.len();
     let mut active = all_active(n);
-    let positions = g.position_mm.as_slice();
-    let orientations = g.orientation_rad.as_slice();
+    let positions = g.positions();
+    let orientations = g.orientations();
     loop {
         let count = active.count_ones();
         if count == 0 {
