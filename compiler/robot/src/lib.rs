@@ -9,6 +9,7 @@
 
 pub mod calibrate;
 pub mod error_model;
+pub mod file;
 pub mod ik;
 pub mod model;
 pub mod simulate;

@@ -45,7 +45,7 @@ use urdf_rs::{JointType, Pose, Vec3};
 
 use crate::model::{
     rpy_of, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot, RobotError,
-    MAX_JOINTS,
+    UrdfSource, MAX_JOINTS,
 };
 
 /// The name of the link [`Robot::to_urdf_string`] adds for the TCP.
@@ -62,22 +62,6 @@ pub struct LinkNames {
     /// The link the chain ends at: the frame of the TCP (before any tool a TOML robot file
     /// adds).
     pub tip_link: Option<String>,
-}
-
-/// Where a robot's chain came from in its URDF file, for writing it back.
-#[derive(Debug, Clone)]
-pub(crate) struct UrdfSource {
-    /// The parsed file.
-    robot: urdf_rs::Robot,
-    /// The link the chain ends at.
-    tip_link: String,
-    /// Per movable joint of the chain, its index in `robot.joints`.
-    movable: Vec<usize>,
-    /// Per movable joint, the fixed joints between the previous movable joint (or the base
-    /// link) and it, in chain order.
-    fixed_before: Vec<Vec<usize>>,
-    /// The fixed joints from the last movable joint to the tip link.
-    fixed_after: Vec<usize>,
 }
 
 fn chain_error(message: String) -> RobotError {
