@@ -125,3 +125,74 @@ fn eval_takes_a_urdf_robot() {
     let hybrid_mean: f64 = hybrid.split_whitespace().nth(4).unwrap().parse().unwrap();
     assert!(hybrid_mean < mean, "{out}");
 }
+
+/// `tablec calibrate`: every parameter with its deviation and standard error or the reason
+/// it was not identified, and the calibrated robot written as a robot file and as URDF,
+/// both of which load again as robots of the same calibration.
+#[test]
+fn calibrate_reports_every_parameter_and_writes_the_calibrated_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = repo("tables/ur5/robot.urdf");
+    let grid = ur5_grid();
+    let calibrate = |robot: &str, outputs: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            robot,
+        ];
+        args.extend_from_slice(outputs);
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let out = calibrate(
+        urdf.to_str().unwrap(),
+        &["-o", "cal.toml", "--urdf", "cal.urdf"],
+    );
+    let after_mm = |out: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with("position RMS")).unwrap();
+        let words: Vec<&str> = line.split_whitespace().collect();
+        words[words.iter().position(|w| *w == "after;").unwrap() - 2]
+            .parse()
+            .unwrap()
+    };
+    assert!(after_mm(&out) < 0.13, "{out}");
+    let identified: Vec<&str> = out.lines().filter(|l| l.ends_with(" identified")).collect();
+    assert!(identified.len() >= 20, "{out}");
+    for line in &identified {
+        // Names may hold a space ("base x"): the standard error is third from the end.
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let se: f64 = words[words.len() - 3].parse().unwrap();
+        assert!(se > 0.0 && se.is_finite(), "{line}");
+    }
+    assert!(
+        out.contains("unidentifiable from these samples, kept nominal"),
+        "{out}"
+    );
+    // The written robots load, and describe one robot: calibrating from either gives the
+    // same residual.
+    let from_toml = calibrate("cal.toml", &[]);
+    let from_urdf = calibrate("cal.urdf", &[]);
+    assert!(
+        (after_mm(&from_toml) - after_mm(&from_urdf)).abs() < 1e-4,
+        "{from_toml}\n{from_urdf}"
+    );
+    // Never over an input.
+    let o = tablec(
+        &[
+            "calibrate",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            "cal.toml",
+            "-o",
+            "cal.toml",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+}

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod build;
+mod calibrate;
 mod continuity;
 mod eval;
 mod inspect;
@@ -28,6 +29,8 @@ enum Command {
     Build(build::Args),
     /// Predict the correction at one target, or at every row of a targets CSV.
     Query(query::Args),
+    /// Identify a robot's kinematic deviations from samples; write the calibrated robot.
+    Calibrate(calibrate::Args),
     /// Print a table's header, parameters, counts and sizes.
     Inspect(inspect::Args),
     /// Simulate a sample database: a robot, an error scenario, a sampling plan.
@@ -59,6 +62,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Build(args) => done(build::run(args)),
         Command::Query(args) => query::run(args),
+        Command::Calibrate(args) => done(calibrate::run(args)),
         Command::Inspect(args) => done(inspect::run(args)),
         Command::Simulate(args) => done(simulate::run(args)),
         Command::Eval(args) => done(eval::run(args)),

@@ -1,0 +1,127 @@
+//! `tablec calibrate`: kinematic identification alone, its parameters with their standard
+//! errors, and the calibrated robot written as a robot file and as URDF.
+
+use std::path::PathBuf;
+
+use adwi_compile::samples::read_samples_with;
+use adwi_compile::write::write_atomically;
+use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
+use anyhow::Context;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The sample database (CSV with joint values j1..jn), as for `tablec build`.
+    samples: PathBuf,
+    #[command(flatten)]
+    read: crate::read_options::ReadOptions,
+    /// The robot file (TOML, or URDF by its .urdf extension).
+    #[arg(long, value_name = "ROBOT")]
+    robot: PathBuf,
+    #[command(flatten)]
+    links: crate::RobotLinks,
+    /// Write the calibrated robot as a robot file (TOML), loadable by every `--robot`.
+    #[arg(short, long, value_name = "ROBOT.toml")]
+    output: Option<PathBuf>,
+    /// Write the calibrated robot as URDF (joint origins adjusted, the tool as a fixed
+    /// joint to a `calibrated_tcp` link).
+    #[arg(long, value_name = "ROBOT.urdf")]
+    urdf: Option<PathBuf>,
+    /// Relative pivot below which a parameter is unidentifiable.
+    #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
+    rank_tol: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let inputs = [args.samples.as_path(), args.robot.as_path()];
+    for output in [&args.output, &args.urdf].into_iter().flatten() {
+        crate::refuse_overwriting(output, &inputs)?;
+    }
+    let (columns, read) = args.read.resolve()?;
+    let samples = read_samples_with(&args.samples, &columns, &read)?;
+    let robot = args.links.load(&args.robot)?;
+    let options = CalibrateOptions {
+        rank_tolerance: args.rank_tol,
+        ..CalibrateOptions::default()
+    };
+    let c = identify(&robot, &samples, &options)?;
+    print_summary(&c);
+    print_parameters(&c);
+    let comment = [
+        format!(
+            "{} calibrated from {} ({} samples): position RMS {:.4} mm before, {:.4} mm after.",
+            robot.name,
+            args.samples.display(),
+            samples.len(),
+            c.initial_position_rms_mm,
+            c.position_rms_mm
+        ),
+        "Written by tablec calibrate.".to_string(),
+    ];
+    if let Some(path) = &args.output {
+        let text = c.calibrated_robot().to_toml_string(&comment);
+        write_atomically(path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote          {}", path.display());
+    }
+    if let Some(path) = &args.urdf {
+        let text = c.calibrated_robot().to_urdf_string(&comment)?;
+        write_atomically(path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote          {}", path.display());
+    }
+    Ok(())
+}
+
+fn print_summary(c: &Calibration) {
+    println!(
+        "calibration    {} parameters identified, {} unidentifiable, condition number {:.1}, {} iterations{}",
+        c.identified.len(),
+        c.unidentifiable.len(),
+        c.condition_number,
+        c.iterations,
+        if c.converged { "" } else { " (not converged)" }
+    );
+    println!(
+        "position RMS   {:.4} mm before, {:.4} mm after; residual σ {:.4} mm per coordinate",
+        c.initial_position_rms_mm, c.position_rms_mm, c.residual_sigma_mm
+    );
+    if let Some(r) = c.orientation_rms_rad {
+        println!("orient. RMS    {:.4} mrad after", r * 1e3);
+    }
+}
+
+/// Every parameter: its identified deviation and standard error (mm, or mrad for angles),
+/// or why it was not identified.
+fn print_parameters(c: &Calibration) {
+    println!(
+        "{:<14} {:>12} {:>12}  {:<5} status",
+        "parameter", "deviation", "std. error", "unit"
+    );
+    for (column, p) in c.parameters.iter().enumerate() {
+        let scale = if p.is_length() { 1.0 } else { 1e3 };
+        let unit = if p.is_length() { "mm" } else { "mrad" };
+        match c.standard_errors[column] {
+            Some(se) => println!(
+                "{:<14} {:>+12.5} {:>12.5}  {unit:<5} identified",
+                p.to_string(),
+                c.deviations[column] * scale,
+                se * scale,
+            ),
+            None => {
+                let why = c
+                    .unidentifiable
+                    .iter()
+                    .find(|(q, _)| q == p)
+                    .map_or("not identified".to_string(), |(_, ratio)| {
+                        format!("unidentifiable from these samples, kept nominal (independent fraction {ratio:.1e})")
+                    });
+                println!(
+                    "{:<14} {:>12} {:>12}  {unit:<5} {why}",
+                    p.to_string(),
+                    "—",
+                    "—"
+                );
+            }
+        }
+    }
+}
