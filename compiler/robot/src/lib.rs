@@ -11,6 +11,7 @@ pub mod calibrate;
 pub mod error_model;
 pub mod ik;
 pub mod model;
+pub mod register;
 pub mod simulate;
 pub mod urdf;
 
