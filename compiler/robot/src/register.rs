@@ -37,7 +37,7 @@
 //! then refines both transforms through its base and tool parameters, linearised around
 //! this start; [`Registration::refined`] composes the two.
 
-use adwi_compile::pose::{orientation_error, rotation_from_vector, rotation_vector};
+use adwi_compile::pose::{orientation_error, rotation_vector};
 use adwi_compile::samples::{Measurements, MeasurementsError, SampleSet};
 use adwi_runtime::kinematics::Transform;
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
@@ -609,6 +609,7 @@ mod tests {
     use crate::calibrate::{identify, CalibrateOptions, Parameter};
     use crate::error_model::{apply_deviations, deviations_from_vector, PARAMETERS_PER_JOINT};
     use crate::model::{shipped_robot_path, Geometry};
+    use adwi_compile::pose::rotation_from_vector;
     use adwi_compile::samples::Joints;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

@@ -8,6 +8,7 @@ mod bench;
 mod build;
 mod eval;
 mod inspect;
+mod measured_in;
 mod query;
 mod read_options;
 mod simulate;
