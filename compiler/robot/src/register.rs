@@ -494,7 +494,7 @@ fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vec
     // Points on a line leave a rotation about it free.
     let mut sorted = [s[0], s[1], s[2]];
     sorted.sort_by(f64::total_cmp);
-    if !(largest > 0.0) || sorted[1] <= 1e-12 * largest {
+    if largest.is_nan() || largest <= 0.0 || sorted[1] <= 1e-12 * largest {
         return None;
     }
     let (u, v_t) = (svd.u?, svd.v_t?);
