@@ -19,5 +19,6 @@ mod table_files;
 mod table_matches_reference;
 mod table_mutation;
 mod table_swap;
+mod tracker;
 mod ur10_measurements;
 mod worked_example;

@@ -12,6 +12,7 @@ pub mod error_model;
 pub mod file;
 pub mod ik;
 pub mod model;
+pub mod register;
 pub mod simulate;
 pub mod urdf;
 

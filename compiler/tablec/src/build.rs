@@ -10,6 +10,8 @@ use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
 use anyhow::{bail, Context};
 
+use crate::measured_in::{MeasuredIn, Registered};
+
 #[derive(clap::Args)]
 pub struct Args {
     /// The sample database (CSV: x,y,z and dx,dy,dz or mx,my,mz; see the README).
@@ -31,6 +33,18 @@ pub struct Args {
     /// it with the target's joint angles.
     #[arg(long, requires = "robot")]
     hybrid: bool,
+    /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
+    /// tracker's own frame: joints j1..jn and measured mx,my,mz, optionally a measured
+    /// orientation; the tracker-to-base and flange-to-probe transforms are registered
+    /// first and refined by the identification).
+    #[arg(
+        long,
+        value_enum,
+        value_name = "FRAME",
+        default_value_t,
+        requires = "hybrid"
+    )]
+    measured_in: crate::measured_in::MeasuredIn,
     /// Worker threads [default: all cores]; the table is the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -45,7 +59,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.robot.as_deref());
     crate::refuse_overwriting(&args.output, &inputs)?;
     let (columns, read) = args.read.resolve()?;
-    let samples = read_samples_with(&args.samples, &columns, &read)?;
+    let (registered, samples) = match (args.measured_in, &args.robot) {
+        (MeasuredIn::Tracker, Some(robot_path)) => {
+            let robot = args.links.load(robot_path)?;
+            let (registered, samples) = Registered::read(&args.samples, &columns, &read, robot)?;
+            (Some(registered), samples)
+        }
+        _ => (None, read_samples_with(&args.samples, &columns, &read)?),
+    };
     let plan = adwi_compile::build::plan(&samples, &args.table.build_options())?;
     let cells = plan.cells();
     if plan.is_mostly_empty() {
@@ -77,7 +98,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut calibration = None;
     let (bytes, report) = match (&args.robot, args.hybrid) {
         (Some(robot_path), true) => {
-            let robot = args.links.load(robot_path)?;
+            let robot = match &registered {
+                Some(r) => r.robot.clone(),
+                None => args.links.load(robot_path)?,
+            };
             bar.set_message("identifying");
             let identified = pool.install(|| {
                 adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
@@ -101,7 +125,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     write_atomically(&args.output, &bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if !args.quiet {
-        print_summary(&args, &report, &samples, calibration.as_ref(), started);
+        print_summary(
+            &args,
+            &report,
+            &samples,
+            calibration.as_ref(),
+            registered.as_ref(),
+            started,
+        );
     }
     if let Some((c, _)) = &calibration {
         warn_unidentifiable(c);
@@ -115,6 +146,7 @@ fn print_summary(
     report: &BuildReport,
     samples: &adwi_compile::samples::SampleSet,
     calibration: Option<&(Calibration, f64)>,
+    registered: Option<&Registered>,
     started: Instant,
 ) {
     let plan = &report.plan;
@@ -171,8 +203,14 @@ fn print_summary(
         report.mean_list_len,
         report.max_list_len
     );
+    if let Some(r) = registered {
+        r.print();
+    }
     if let Some((c, residual_rms_mm)) = calibration {
         print_calibration(c, *residual_rms_mm);
+        if let Some(r) = registered {
+            r.print_refined(c, samples);
+        }
     }
     println!("method         {}", crate::describe_method(&m));
     println!(

@@ -8,6 +8,8 @@ use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use anyhow::Context;
 
+use crate::measured_in::{MeasuredIn, Registered};
+
 #[derive(clap::Args)]
 pub struct Args {
     /// The sample database (CSV with joint values j1..jn), as for `tablec build`.
@@ -26,6 +28,10 @@ pub struct Args {
     /// joint to a `calibrated_tcp` link).
     #[arg(long, value_name = "ROBOT.urdf")]
     urdf: Option<PathBuf>,
+    /// The frame the measured poses are in: `tracker` registers tracker-frame measurements
+    /// (joints and measured probe poses) to the robot first (see `tablec build --help`).
+    #[arg(long, value_enum, value_name = "FRAME", default_value_t)]
+    measured_in: crate::measured_in::MeasuredIn,
     /// Relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
@@ -37,14 +43,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::refuse_overwriting(output, &inputs)?;
     }
     let (columns, read) = args.read.resolve()?;
-    let samples = read_samples_with(&args.samples, &columns, &read)?;
-    let robot = args.links.load(&args.robot)?;
+    let file_robot = args.links.load(&args.robot)?;
+    let (registered, samples, robot) = match args.measured_in {
+        MeasuredIn::Tracker => {
+            let (registered, samples) =
+                Registered::read(&args.samples, &columns, &read, file_robot)?;
+            registered.print();
+            let robot = registered.robot.clone();
+            (Some(registered), samples, robot)
+        }
+        MeasuredIn::Base => (
+            None,
+            read_samples_with(&args.samples, &columns, &read)?,
+            file_robot,
+        ),
+    };
     let options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
         ..CalibrateOptions::default()
     };
     let c = identify(&robot, &samples, &options)?;
     print_summary(&c);
+    if let Some(registered) = &registered {
+        registered.print_refined(&c, &samples);
+    }
     print_parameters(&c);
     let comment = [
         format!(

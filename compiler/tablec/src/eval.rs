@@ -7,6 +7,8 @@ use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
 use anyhow::{bail, Context};
 
+use crate::measured_in::{MeasuredIn, Registered};
+
 #[derive(clap::Args)]
 pub struct Args {
     /// The sample database (CSV), as for `tablec build`.
@@ -37,6 +39,17 @@ pub struct Args {
     robot: Option<PathBuf>,
     #[command(flatten)]
     links: crate::RobotLinks,
+    /// The frame the measured poses are in, as for `tablec build`: `tracker` registers the
+    /// samples (and the validation set, taken in the same tracker frame with the same
+    /// probe) to the robot first.
+    #[arg(
+        long,
+        value_enum,
+        value_name = "FRAME",
+        default_value_t,
+        requires = "robot"
+    )]
+    measured_in: MeasuredIn,
     /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
@@ -65,10 +78,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::refuse_overwriting(output, &inputs)?;
     }
     let (columns, read) = args.read.resolve()?;
-    let samples = read_samples_with(&args.samples, &columns, &read)?;
+    let (registered, samples) = match (args.measured_in, &args.robot) {
+        (MeasuredIn::Tracker, Some(robot_path)) => {
+            let robot = args.links.load(robot_path)?;
+            let (registered, samples) = Registered::read(&args.samples, &columns, &read, robot)?;
+            (Some(registered), samples)
+        }
+        _ => (None, read_samples_with(&args.samples, &columns, &read)?),
+    };
     let protocol = match (&args.validation, args.folds) {
         (Some(path), None) => {
-            let mut validation = read_samples_with(path, &columns, &read)?;
+            let mut validation = match &registered {
+                Some(r) => r.samples(path, &columns, &read)?,
+                None => read_samples_with(path, &columns, &read)?,
+            };
             if let Some(n) = args.limit {
                 if n == 0 {
                     bail!("--limit must be at least 1");
@@ -84,9 +107,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         _ => bail!("give a validation set (--validation FILE) or a fold count (--folds K)"),
     };
-    let robot = match &args.robot {
-        Some(path) => Some(args.links.load(path)?),
-        None => None,
+    let robot = match (&registered, &args.robot) {
+        (Some(r), _) => Some(r.robot.clone()),
+        (None, Some(path)) => Some(args.links.load(path)?),
+        (None, None) => None,
     };
     let options = EvalOptions {
         methods: args.methods.clone(),
@@ -119,6 +143,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     if !args.quiet {
+        if let Some(r) = &registered {
+            r.print();
+            // The transforms refined by an identification of all samples.
+            let all = adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?;
+            r.print_refined(&all, &samples);
+        }
         print!("{}", adwi_eval::output::terminal_table(&evaluation));
     }
     if let Some(path) = &args.csv {

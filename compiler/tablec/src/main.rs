@@ -10,6 +10,7 @@ mod calibrate;
 mod continuity;
 mod eval;
 mod inspect;
+mod measured_in;
 mod query;
 mod read_options;
 mod simulate;

@@ -1,0 +1,217 @@
+//! `--measured-in tracker` through the real `tablec`: simulated measurements of a UR10 in a
+//! far, turned tracker frame through an unknown probe, and the shipped UR10 series C.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::Output;
+
+use adwi_compile::pose::{kuka_abc_deg_from_rotation, rotation_from_vector};
+use adwi_robot::error_model::{apply_deviations, deviations_from_vector};
+use adwi_robot::model::{rotation_of, transform_from_parts};
+use adwi_robot::{Geometry, Robot};
+use adwi_runtime::kinematics::Transform;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::common::{repo, tablec};
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// A tracker 2 m and more from the robot, turned 120° about a skew axis.
+fn tracker() -> Transform {
+    let axis = nalgebra::Vector3::new(1.0, 2.0, 3.0).normalize() * 120f64.to_radians();
+    transform_from_parts([2000.0, -1500.0, 800.0], &rotation_from_vector(axis.into()))
+}
+
+/// A probe off the flange axis, turned 30°.
+fn probe() -> Transform {
+    let axis = nalgebra::Vector3::new(-1.0, 0.5, 2.0).normalize() * 30f64.to_radians();
+    transform_from_parts([30.0, -20.0, 150.0], &rotation_from_vector(axis.into()))
+}
+
+/// Writes `tracker.csv`: the poses of the UR10 with `deviations` (MD-H vector) and the
+/// probe, measured in the tracker frame, KUKA A, B, C angles, joints in degrees.
+fn write_tracker_csv(dir: &Path, deviations: &[f64]) {
+    let robot = Robot::load(repo("tables/ur10/robot.toml")).unwrap();
+    let Geometry::Mdh(rows) = robot.geometry().clone() else {
+        unreachable!("the UR10 file is MD-H")
+    };
+    let geometry = Geometry::Mdh(apply_deviations(&rows, &deviations_from_vector(deviations)));
+    let actual = robot
+        .with_geometry("actual".into(), geometry, robot.base(), probe())
+        .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut csv = String::from("j1,j2,j3,j4,j5,j6,mx,my,mz,ma,mb,mc\n");
+    for _ in 0..300 {
+        let q: Vec<f64> = (0..6).map(|_| rng.gen_range(-2.5..2.5)).collect();
+        let pose = tracker().compose(&actual.tcp_transform(&q));
+        let abc = kuka_abc_deg_from_rotation(&rotation_of(&pose));
+        for v in &q {
+            write!(csv, "{:.15},", v.to_degrees()).unwrap();
+        }
+        let p = pose.translation_mm;
+        writeln!(
+            csv,
+            "{:.12},{:.12},{:.12},{:.15},{:.15},{:.15}",
+            p[0], p[1], p[2], abc[0], abc[1], abc[2]
+        )
+        .unwrap();
+    }
+    std::fs::write(dir.join("tracker.csv"), csv).unwrap();
+}
+
+/// The line of `out` starting with `prefix` (after spaces).
+fn line<'a>(out: &'a str, prefix: &str) -> &'a str {
+    out.lines()
+        .find(|l| l.trim_start().starts_with(prefix))
+        .unwrap_or_else(|| panic!("no line {prefix} in\n{out}"))
+}
+
+/// A perfect robot: the build prints the tracker and the probe as simulated, with no
+/// residual.
+#[test]
+fn tracker_measurements_of_a_perfect_robot_register_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    write_tracker_csv(dir.path(), &[0.0; 30]);
+    let robot = repo("tables/ur10/robot.toml");
+    let o = tablec(
+        &[
+            "build",
+            "tracker.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--measured-in",
+            "tracker",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(line(&out, "registration").contains("300 rows in the tracker frame, 6-D"));
+    assert!(
+        line(&out, "base in tracker").contains("translation (2000.0000, -1500.0000, 800.0000) mm"),
+        "{out}"
+    );
+    assert!(
+        line(&out, "probe on flange").contains("translation (30.0000, -20.0000, 150.0000) mm"),
+        "{out}"
+    );
+    assert!(
+        line(&out, "probe on flange").contains("(30.00000°)"),
+        "{out}"
+    );
+    assert!(
+        line(&out, "base in tracker").contains("(120.00000°)"),
+        "{out}"
+    );
+    assert!(
+        line(&out, "fit residuals").contains(
+            "position RMS 0.0000 mm, max 0.0000 mm; orientation RMS 0.0000 mrad, max 0.0000 mrad"
+        ),
+        "{out}"
+    );
+}
+
+/// Kinematic errors: the rigid fit keeps them, the identification explains them all (the
+/// kinematic method predicts every held-out point exactly).
+#[test]
+fn tracker_measurements_calibrate_like_base_frame_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut deviations = [0.0; 30];
+    // Δa, Δd, Δα, Δθ of joints 2 to 5 (0.3 mm, 0.5 mrad).
+    for joint in 1..5 {
+        deviations[joint * 5] = 0.3;
+        deviations[joint * 5 + 2] = -5e-4;
+        deviations[joint * 5 + 3] = 5e-4;
+    }
+    write_tracker_csv(dir.path(), &deviations);
+    let robot = repo("tables/ur10/robot.toml");
+    let o = tablec(
+        &[
+            "eval",
+            "tracker.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--measured-in",
+            "tracker",
+            "--folds",
+            "5",
+            "--methods",
+            "kinematic",
+        ],
+        dir.path(),
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let fit = line(&out, "fit residuals");
+    assert!(!fit.contains("position RMS 0.0000"), "{out}");
+    assert!(
+        line(&line_after(&out, "refined"), "residuals").contains(
+            "position RMS 0.0000 mm, max 0.0000 mm; orientation RMS 0.0000 mrad, max 0.0000 mrad"
+        ),
+        "{out}"
+    );
+    let kinematic: Vec<&str> = line(&out, "kinematic ").split_whitespace().collect();
+    assert_eq!(
+        &kinematic[..8],
+        [
+            "kinematic",
+            "300",
+            "0",
+            "│",
+            "0.0000",
+            "0.0000",
+            "0.0000",
+            "0.0000"
+        ],
+        "{out}"
+    );
+}
+
+/// The text of `out` from the line starting with `prefix` on.
+fn line_after(out: &str, prefix: &str) -> String {
+    let start = out
+        .lines()
+        .position(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no line {prefix} in\n{out}"));
+    out.lines().skip(start).collect::<Vec<_>>().join("\n")
+}
+
+/// `--measured-in tracker` needs a robot, and is refused for plain tables.
+#[test]
+fn measured_in_tracker_needs_a_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    write_tracker_csv(dir.path(), &[0.0; 30]);
+    let o = tablec(
+        &[
+            "build",
+            "tracker.csv",
+            "--measured-in",
+            "tracker",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+    let o = tablec(
+        &[
+            "eval",
+            "tracker.csv",
+            "--measured-in",
+            "tracker",
+            "--folds",
+            "5",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+}
