@@ -196,3 +196,85 @@ fn calibrate_reports_every_parameter_and_writes_the_calibrated_robot() {
     );
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
 }
+
+/// A seven-joint robot end to end: simulated samples with seven joint columns, a hybrid
+/// table of its calibrated chains, queries with seven joint values (six refused).
+#[test]
+fn a_seven_joint_robot_from_simulation_to_hybrid_queries() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = repo("tables/iiwa14/robot.toml");
+    let scenario = repo("tables/iiwa14/scenario.toml");
+    let o = tablec(
+        &[
+            "simulate",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--min",
+            "400,-200,300",
+            "--max",
+            "600,200,600",
+            "--random",
+            "200",
+            "--abc",
+            "0,180,0",
+            "-o",
+            "s.csv",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(dir.path().join("s.csv")).unwrap();
+    let mut rows = text.lines().filter(|l| !l.starts_with('#'));
+    let header = rows.next().unwrap();
+    assert!(header.ends_with(",j1,j2,j3,j4,j5,j6,j7"), "{header}");
+    let first: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "s.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let joints = first[12..19].join(",");
+    let six = first[12..18].join(",");
+    let query = |joints: &str, exact: bool| {
+        let mut args = vec![
+            "query", "t.tbl", first[0], first[1], first[2], "--joints", joints,
+        ];
+        if exact {
+            args.push("--exact");
+        }
+        tablec(&args, dir.path())
+    };
+    for exact in [false, true] {
+        let o = query(&joints, exact);
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        // The sample's own pose: the correction is its measured error to within the
+        // residual interpolation's smoothing (tens of µm).
+        let error: Vec<f64> = stdout(&o)
+            .lines()
+            .find(|l| l.starts_with("error"))
+            .unwrap()
+            .split_whitespace()
+            .skip(1)
+            .take(3)
+            .map(|v| v.parse().unwrap())
+            .collect();
+        for a in 0..3 {
+            let measured: f64 = first[6 + a].parse().unwrap();
+            assert!((error[a] - measured).abs() < 0.05, "{error:?} vs {first:?}");
+        }
+    }
+    let o = query(&six, false);
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(stderr(&o).contains("7 joint"), "{}", stderr(&o));
+}
