@@ -37,6 +37,12 @@ fn probe() -> Transform {
 /// Writes `tracker.csv`: the poses of the UR10 with `deviations` (MD-H vector) and the
 /// probe, measured in the tracker frame, KUKA A, B, C angles, joints in degrees.
 fn write_tracker_csv(dir: &Path, deviations: &[f64]) {
+    write_series(dir, "tracker.csv", deviations, &tracker(), 3);
+}
+
+/// Writes the file `name`: 300 random poses (seed `seed`) of the UR10 with `deviations`
+/// and the probe, measured from a tracker at `tracker`.
+fn write_series(dir: &Path, name: &str, deviations: &[f64], tracker: &Transform, seed: u64) {
     let robot = Robot::load(repo("tables/ur10/robot.toml")).unwrap();
     let Geometry::Mdh(rows) = robot.geometry().clone() else {
         unreachable!("the UR10 file is MD-H")
@@ -45,11 +51,11 @@ fn write_tracker_csv(dir: &Path, deviations: &[f64]) {
     let actual = robot
         .with_geometry("actual".into(), geometry, robot.base(), probe())
         .unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut csv = String::from("j1,j2,j3,j4,j5,j6,mx,my,mz,ma,mb,mc\n");
     for _ in 0..300 {
         let q: Vec<f64> = (0..6).map(|_| rng.gen_range(-2.5..2.5)).collect();
-        let pose = tracker().compose(&actual.tcp_transform(&q));
+        let pose = tracker.compose(&actual.tcp_transform(&q));
         let abc = kuka_abc_deg_from_rotation(&rotation_of(&pose));
         for v in &q {
             write!(csv, "{:.15},", v.to_degrees()).unwrap();
@@ -62,7 +68,7 @@ fn write_tracker_csv(dir: &Path, deviations: &[f64]) {
         )
         .unwrap();
     }
-    std::fs::write(dir.join("tracker.csv"), csv).unwrap();
+    std::fs::write(dir.join(name), csv).unwrap();
 }
 
 /// The line of `out` starting with `prefix` (after spaces).
@@ -214,4 +220,55 @@ fn measured_in_tracker_needs_a_robot() {
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+}
+
+/// A validation series measured after the tracker moved: read through the samples'
+/// registration its errors hold the move; registered apart (the probe kept), the
+/// calibration predicts it as well as the samples themselves.
+#[test]
+fn a_validation_series_from_a_moved_tracker_is_registered_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut deviations = [0.0; 30];
+    for joint in 1..5 {
+        deviations[joint * 5] = 0.3;
+        deviations[joint * 5 + 3] = 5e-4;
+    }
+    write_series(dir.path(), "train.csv", &deviations, &tracker(), 3);
+    let moved = transform_from_parts([40.0, -25.0, 10.0], &rotation_from_vector([0.0, 0.0, 0.02]))
+        .compose(&tracker());
+    write_series(dir.path(), "moved.csv", &deviations, &moved, 4);
+    let robot = repo("tables/ur10/robot.toml");
+    let kinematic_mean_mm = |apart: bool| -> f64 {
+        let mut args = vec![
+            "eval",
+            "train.csv",
+            "--validation",
+            "moved.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--measured-in",
+            "tracker",
+            "--methods",
+            "kinematic",
+        ];
+        if apart {
+            args.push("--register-validation-apart");
+        }
+        let o = tablec(&args, dir.path());
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{err}");
+        assert_eq!(
+            out.contains("validation     registered apart"),
+            apart,
+            "{out}"
+        );
+        line(&out, "kinematic ")
+            .split_whitespace()
+            .nth(4)
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    assert!(kinematic_mean_mm(false) > 1.0);
+    assert!(kinematic_mean_mm(true) < 1e-6);
 }

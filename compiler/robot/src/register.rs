@@ -478,6 +478,51 @@ fn rows_of(robot: &Robot, measurements: &Measurements) -> Result<Vec<Row>, Regis
         .collect()
 }
 
+/// The registration of measurements taken after the tracker moved (another series with
+/// the same probe): the robot's frame in the new tracker frame, fitted (Kabsch on
+/// positions) to the TCP positions `calibrated` predicts — a calibration made from
+/// `reference`'s samples — so that the registered errors are in the frame that
+/// calibration was made in. Fitting to the nominal robot instead would let the rigid
+/// transform absorb part of the robot's own error, differently from the reference's fit.
+/// The probe is `reference`'s; the residuals are the calibrated model's, positions only.
+///
+/// # Errors
+///
+/// As [`register`], for the measurements' consistency and joint count, and
+/// [`RegisterError::Degenerate`] when the TCP positions lie on a line.
+pub fn register_moved(
+    reference: &Registration,
+    calibrated: &Robot,
+    measurements: &Measurements,
+) -> Result<Registration, RegisterError> {
+    let rows = rows_of(calibrated, measurements)?;
+    let tool = calibrated.tool();
+    let predicted: Vec<Vector3<f64>> = rows
+        .iter()
+        .map(|row| row.flange_rotation * Vector3::from(tool.translation_mm) + row.flange_mm)
+        .collect();
+    let measured: Vec<Vector3<f64>> = rows.iter().map(|row| row.measured_mm).collect();
+    let (r, t) =
+        kabsch(&predicted, &measured).ok_or(RegisterError::Degenerate { rows: rows.len() })?;
+    let residuals: Vec<f64> = predicted
+        .iter()
+        .zip(&measured)
+        .map(|(p, m)| (r * p + t - m).norm())
+        .collect();
+    let (position_rms_mm, position_max_mm) = rms_max(&residuals);
+    Ok(Registration {
+        base_in_tracker: transform_from_parts(t.into(), &r),
+        probe: reference.probe,
+        orientation: reference.orientation,
+        rows: rows.len(),
+        position_rms_mm,
+        position_max_mm,
+        orientation_rms_rad: None,
+        orientation_max_rad: None,
+        iterations: 0,
+    })
+}
+
 /// The rotation and translation `(R, t)` minimising `Σ |R·a_i + t − b_i|²`
 /// (Kabsch–Umeyama without scale); `None` when the points `a` lie on a line.
 fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vector3<f64>)> {

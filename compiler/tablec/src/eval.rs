@@ -50,6 +50,13 @@ pub struct Args {
         requires = "robot"
     )]
     measured_in: MeasuredIn,
+    /// With `--measured-in tracker` and `--validation`: register the validation set on its
+    /// own (a series measured after the tracker moved): the robot's frame in the new
+    /// tracker frame is fitted to the TCP positions the samples' calibration predicts, the
+    /// probe kept. Six rigid parameters come from the validation points this way; no
+    /// method is trained on their errors.
+    #[arg(long, requires = "validation")]
+    register_validation_apart: bool,
     /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
@@ -86,9 +93,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         _ => (None, read_samples_with(&args.samples, &columns, &read)?),
     };
+    if args.register_validation_apart && registered.is_none() {
+        bail!("--register-validation-apart needs --measured-in tracker");
+    }
+    let mut validation_registration = None;
+    let calibrate_options = CalibrateOptions {
+        rank_tolerance: args.rank_tol,
+        ..CalibrateOptions::default()
+    };
     let protocol = match (&args.validation, args.folds) {
         (Some(path), None) => {
             let mut validation = match &registered {
+                Some(r) if args.register_validation_apart => {
+                    // The calibration of the samples alone, as the kinematic method makes
+                    // it: the frame the validation set is registered into.
+                    let calibration =
+                        adwi_robot::calibrate::identify(&r.robot, &samples, &calibrate_options)?;
+                    let (registration, samples) =
+                        r.samples_registered_apart(&calibration, path, &columns, &read)?;
+                    validation_registration = Some(registration);
+                    samples
+                }
                 Some(r) => r.samples(path, &columns, &read)?,
                 None => read_samples_with(path, &columns, &read)?,
             };
@@ -116,10 +141,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods: args.methods.clone(),
         build: args.table.build_options(),
         robot,
-        calibrate: CalibrateOptions {
-            rank_tolerance: args.rank_tol,
-            ..CalibrateOptions::default()
-        },
+        calibrate: calibrate_options,
         ..EvalOptions::default()
     };
     let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
@@ -148,6 +170,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             // The transforms refined by an identification of all samples.
             let all = adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?;
             r.print_refined(&all, &samples);
+        }
+        if let Some(v) = &validation_registration {
+            crate::measured_in::print_validation_registration(v);
         }
         print!("{}", adwi_eval::output::terminal_table(&evaluation));
     }

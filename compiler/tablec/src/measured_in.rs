@@ -8,7 +8,7 @@ use std::path::Path;
 use adwi_compile::samples::{read_measurements, ColumnMap, ReadOptions, SampleSet};
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{
-    register, translation_and_rotation_deg, Refined, RegisterOptions, Registration,
+    register, register_moved, translation_and_rotation_deg, Refined, RegisterOptions, Registration,
 };
 use adwi_robot::Robot;
 use adwi_runtime::kinematics::Transform;
@@ -70,6 +70,31 @@ impl Registered {
             .with_context(|| format!("cannot register {}", path.display()))
     }
 
+    /// Reads tracker-frame measurements taken after the tracker moved (another series) as
+    /// samples: the robot's frame in the new tracker frame fitted to the TCP positions
+    /// `calibration` (made from this registration's samples) predicts, the probe kept
+    /// (`adwi_robot::register::register_moved`). Returns that registration with the
+    /// samples.
+    pub fn samples_registered_apart(
+        &self,
+        calibration: &Calibration,
+        path: &Path,
+        columns: &ColumnMap,
+        read: &ReadOptions,
+    ) -> anyhow::Result<(Registration, SampleSet)> {
+        let measurements = read_measurements(path, columns, read)?;
+        let registration = register_moved(
+            &self.registration,
+            calibration.calibrated_robot(),
+            &measurements,
+        )
+        .with_context(|| format!("cannot register {}", path.display()))?;
+        let samples = registration
+            .to_samples(&self.file_robot, &measurements)
+            .with_context(|| format!("cannot register {}", path.display()))?;
+        Ok((registration, samples))
+    }
+
     /// Prints the registration: both transforms and the rigid fit's residuals.
     pub fn print(&self) {
         let r = &self.registration;
@@ -106,6 +131,23 @@ impl Registered {
             refined.orientation_rms_rad.zip(refined.orientation_max_rad),
         );
     }
+}
+
+/// Prints a validation set's own registration ([`Registered::samples_registered_apart`]):
+/// its tracker-to-base transform and the calibrated model's residuals.
+pub fn print_validation_registration(r: &Registration) {
+    println!(
+        "validation     registered apart ({} rows): the robot's frame in the moved tracker's, \
+         fitted to the calibrated model's TCP positions; the probe is the samples'",
+        r.rows
+    );
+    print_transforms(&r.base_in_tracker, &r.probe);
+    print_residuals(
+        "fit residuals",
+        r.position_rms_mm,
+        r.position_max_mm,
+        r.orientation_rms_rad.zip(r.orientation_max_rad),
+    );
 }
 
 fn print_transforms(base_in_tracker: &Transform, probe: &Transform) {
