@@ -40,6 +40,11 @@ pub struct Args {
     /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
+    /// Kinematic identification: keep every parameter the pivoting keeps, even those whose
+    /// estimates are implausible or within a few standard errors of zero (by default they
+    /// are held at nominal, with the reason reported).
+    #[arg(long)]
+    keep_untrustworthy: bool,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
     /// Write the figures as CSV.
@@ -94,6 +99,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         robot,
         calibrate: CalibrateOptions {
             rank_tolerance: args.rank_tol,
+            hold_untrustworthy: !args.keep_untrustworthy,
             ..CalibrateOptions::default()
         },
         ..EvalOptions::default()
