@@ -368,7 +368,10 @@ mod tests {
             .sum::<f64>()
             / values.len() as f64;
         assert!((drawn - truth).abs() < 0.15 * truth, "{drawn}");
-        assert!((e.nugget_mm2 - drawn).abs() < 0.1 * drawn, "{e:?} against {drawn}");
+        assert!(
+            (e.nugget_mm2 - drawn).abs() < 0.1 * drawn,
+            "{e:?} against {drawn}"
+        );
         // The mean norm of the noise itself is what best_mean_mm predicts.
         let mean_norm = values
             .iter()
