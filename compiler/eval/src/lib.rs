@@ -41,6 +41,7 @@
 pub mod baselines;
 pub mod continuity;
 pub mod latency;
+pub mod noise_floor;
 pub mod output;
 pub mod report;
 
@@ -387,6 +388,56 @@ pub struct CalibrationSummary {
     pub iterations: u32,
     /// Whether it converged.
     pub converged: bool,
+    /// How many parameters were held at nominal for want of trust.
+    pub held: usize,
+    /// Every parameter: value, standard error, strongest correlation, status and reason.
+    pub parameters: Vec<ParameterRow>,
+}
+
+/// One parameter of an identification, for reports ([`calibrate::ParameterReport`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ParameterRow {
+    /// The parameter's name (`Δtheta6`, `tool z`).
+    pub name: String,
+    /// `mm` or `rad`.
+    pub unit: &'static str,
+    /// The identified value (0 unless identified), mm or rad.
+    pub value: f64,
+    /// The estimate it had when held at nominal, mm or rad.
+    pub held_estimate: Option<f64>,
+    /// Its standard error, mm or rad.
+    pub standard_error: Option<f64>,
+    /// The parameter it correlates with most strongly.
+    pub correlated_with: Option<String>,
+    /// That correlation, −1 to 1.
+    pub correlation: Option<f64>,
+    /// `identified`, `held` or `unidentifiable`.
+    pub status: &'static str,
+    /// Why not identified, in words; empty when identified.
+    pub reason: String,
+}
+
+impl ParameterRow {
+    /// The rows of a calibration, in column order.
+    pub fn of(c: &Calibration) -> Vec<ParameterRow> {
+        c.report
+            .iter()
+            .map(|r| ParameterRow {
+                name: r.parameter.to_string(),
+                unit: r.parameter.unit(),
+                value: r.value,
+                held_estimate: match r.status {
+                    calibrate::ParameterStatus::Held { estimate, .. } => Some(estimate),
+                    _ => None,
+                },
+                standard_error: r.standard_error,
+                correlated_with: r.strongest_correlation.map(|(p, _)| p.to_string()),
+                correlation: r.strongest_correlation.map(|(_, rho)| rho),
+                status: r.status_name(),
+                reason: r.reason(),
+            })
+            .collect()
+    }
 }
 
 impl CalibrationSummary {
@@ -410,6 +461,8 @@ impl CalibrationSummary {
             orientation_rms_mrad: c.orientation_rms_rad.map(|r| r * 1e3),
             iterations: c.iterations,
             converged: c.converged,
+            held: c.held().len(),
+            parameters: ParameterRow::of(c),
         }
     }
 }
@@ -437,6 +490,11 @@ pub struct Evaluation {
     pub skipped: Vec<(Method, String)>,
     /// What kinematic identification found, per split.
     pub calibrations: Vec<CalibrationSummary>,
+    /// The noise floor of the first split's training samples ([`crate::noise_floor`]): of the
+    /// residuals its identified model leaves when a robot is given, else of the measured
+    /// errors. With a validation set that is every sample; in k-fold cross-validation the
+    /// training samples of the first fold.
+    pub noise_floor: Option<noise_floor::NoiseFloor>,
 }
 
 impl Evaluation {
@@ -550,6 +608,7 @@ pub fn evaluate(
     let mut failures: BTreeMap<Method, Tally> = BTreeMap::new();
     let mut unsupported: BTreeMap<Method, String> = BTreeMap::new();
     let mut calibrations = Vec::new();
+    let mut floor = None;
 
     for (split, (train, test)) in splits.iter().enumerate() {
         let test_points = subset(&points, test);
@@ -566,6 +625,9 @@ pub fn evaluate(
         } else {
             None
         };
+        if split == 0 {
+            floor = Some(training_noise_floor(train, calibration.as_ref()));
+        }
         for &method in &methods {
             if unsupported.contains_key(&method) {
                 continue;
@@ -674,7 +736,29 @@ pub fn evaluate(
         methods,
         skipped,
         calibrations,
+        noise_floor: floor,
     })
+}
+
+/// The noise floor of training samples: of the residuals `calibration` leaves on them, or
+/// of their measured errors without one.
+fn training_noise_floor(
+    train: &SampleSet,
+    calibration: Option<&Calibration>,
+) -> noise_floor::NoiseFloor {
+    match (calibration, train.joints.as_ref()) {
+        (Some(c), Some(joints)) => {
+            let residuals: Vec<[f64; 3]> = (0..train.len())
+                .map(|i| {
+                    let (predicted, _) = c.predict_error(joints.row(i));
+                    let e = train.error_mm[i];
+                    [0, 1, 2].map(|a| e[a] - predicted[a])
+                })
+                .collect();
+            noise_floor::noise_floor(train, &residuals, "kinematic residuals")
+        }
+        _ => noise_floor::noise_floor(train, &train.error_mm, "measured errors"),
+    }
 }
 
 /// Statistics of residuals known to be finite and non-empty.

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use crate::baselines::ResidualStats;
 
-use super::{Evaluation, MethodResult};
+use super::{Evaluation, MethodResult, ParameterRow};
 
 /// One row of the figures: a label, counts and statistics.
 struct Row<'a> {
@@ -113,6 +113,18 @@ pub fn terminal_table(e: &Evaluation) -> String {
             notes.push(format!("{}: {}", row.label, row.note));
         }
     }
+    if let Some(floor) = &e.noise_floor {
+        let _ = write!(out, "{:<14} {:>6} {:>6} │", "noise floor", "", "");
+        let _ = writeln!(
+            out,
+            " {} {:>9} {:>9} {:>9}",
+            cell(floor.best_mean_mm, 9, 4),
+            "",
+            "",
+            ""
+        );
+        notes.push(noise_floor_note(floor));
+    }
     for (method, reason) in &e.skipped {
         notes.push(format!("{method}: not run: {reason}"));
     }
@@ -122,15 +134,16 @@ pub fn terminal_table(e: &Evaluation) -> String {
     for c in &e.calibrations {
         let _ = writeln!(
             out,
-            "  kinematic identification{}: {} parameters identified, {} unidentifiable, \
-             condition number {:.1}, position RMS {:.4} → {:.4} mm over the training samples, \
-             {} iterations{}",
+            "  kinematic identification{}: {} parameters identified, {} held at nominal, {} \
+             unidentifiable, condition number {:.1}, position RMS {:.4} → {:.4} mm over the \
+             training samples, {} iterations{}",
             if e.calibrations.len() > 1 {
                 format!(" (fold {})", c.split + 1)
             } else {
                 String::new()
             },
             c.identified.len(),
+            c.held,
             c.unidentifiable.len(),
             c.condition_number,
             c.initial_position_rms_mm,
@@ -139,7 +152,76 @@ pub fn terminal_table(e: &Evaluation) -> String {
             if c.converged { "" } else { " (NOT converged)" }
         );
     }
+    if let Some(c) = e.calibrations.first() {
+        if e.calibrations.len() > 1 {
+            let _ = writeln!(out, "  parameters identified in fold 1:");
+        }
+        out.push_str(&parameter_table(&c.parameters));
+    }
     out
+}
+
+/// The identification's parameters as an aligned table: value, standard error (lengths in
+/// mm, angles in mrad), strongest correlation, status and, when not identified, why.
+pub fn parameter_table(rows: &[ParameterRow]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} reason",
+        "parameter", "value", "SE", "", "strongest corr.", "status"
+    );
+    for r in rows {
+        let (scale, unit) = if r.unit == "rad" {
+            (1e3, "mrad")
+        } else {
+            (1.0, "mm")
+        };
+        let value = if r.status == "identified" {
+            format!("{:+.4}", r.value * scale)
+        } else {
+            "0".to_string()
+        };
+        let se = r
+            .standard_error
+            .map_or("—".to_string(), |s| format!("{:.4}", s * scale));
+        let correlation = match (&r.correlated_with, r.correlation) {
+            (Some(p), Some(rho)) => format!("{rho:+.2} {p}"),
+            _ => "—".to_string(),
+        };
+        let _ = writeln!(
+            out,
+            "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} {}",
+            r.name, value, se, unit, correlation, r.status, r.reason
+        );
+    }
+    out
+}
+
+/// The noise floor in words: the nuggets, the total variance and the mean they imply.
+fn noise_floor_note(floor: &crate::noise_floor::NoiseFloor) -> String {
+    let nugget =
+        |n: Option<f64>, e: Option<&crate::noise_floor::NuggetEstimate>, unit: &str| match (n, e) {
+            (Some(n), Some(e)) => format!(
+                "{n:.5} mm² ({} bins to {:.1} {unit}, spacing {:.1} {unit})",
+                e.bins.len(),
+                e.bins.last().map_or(0.0, |b| b.lag),
+                e.spacing
+            ),
+            _ => "—".to_string(),
+        };
+    format!(
+        "noise floor: nugget of the {} of the {} training samples {} in Cartesian \
+         distance, {} in joint distance; total variance {:.5} mm²; a perfect predictor \
+         would leave {} mm mean (Gaussian, per-axis σ² = smaller nugget / 3)",
+        floor.basis,
+        floor.samples,
+        nugget(floor.nugget_mm2_cartesian, floor.cartesian.as_ref(), "mm"),
+        nugget(floor.nugget_mm2_joint, floor.joint.as_ref(), "°"),
+        floor.total_variance_mm2,
+        floor
+            .best_mean_mm
+            .map_or("—".to_string(), |m| format!("{m:.4}")),
+    )
 }
 
 /// The figures as CSV: one row per method (and `uncompensated`); empty fields where a

@@ -67,7 +67,13 @@
 //! [`CalibrateOptions::rank_tolerance`] (relative to the first) ends the selection. The
 //! parameters not kept stay at zero and are reported as unidentifiable; the condition number
 //! of the kept, scaled Jacobian is reported too. Pivoting on the scaled Jacobian keeps the
-//! choice independent of units (mm against rad).
+//! choice independent of units (mm against rad). Of columns that are exactly redundant
+//! (equal independent parts), a tool or base column is kept rather than a joint's: a
+//! flange offset along its own axis (`Δd_n`) moves the TCP exactly like a longer tool, a
+//! tilt of the last joint's frame (`Δα_n`, `Δβ_n`) like a tool offset across it, `Δd_1`
+//! like a base registered higher; what is mounted or registered — the tool, the tracker's
+//! registration — deviates more and is known less than what was machined, so the
+//! deviation is given to it.
 //!
 //! # Uncertainty
 //!
@@ -76,7 +82,36 @@
 //! solution and `σ² = |r|² / (m − p)` the residual variance (`m` measured coordinates, `p`
 //! identified parameters): the spread the parameter would have over repeated measurements
 //! with noise like the residuals', if the model were right. For a rotation updated
-//! multiplicatively it is the spread of the small rotation about that axis.
+//! multiplicatively it is the spread of the small rotation about that axis. The correlation
+//! of two parameters is `C_ij / sqrt(C_ii C_jj)` of that covariance `C`; each parameter's
+//! strongest one is reported ([`ParameterReport::strongest_correlation`]): near ±1, the
+//! data tell the two apart only through the other's value.
+//!
+//! # Trust
+//!
+//! A parameter the pivoting keeps is not yet one the data determine. After each fit every
+//! kept parameter is assessed ([`CalibrateOptions::hold_untrustworthy`]):
+//!
+//! - **plausible**: its value must lie within the bound of its kind
+//!   ([`Parameter::plausible_bound`]): 5° for an angle of a joint (MD-H Δα, Δθ, Δβ, a joint
+//!   offset, an origin rotation), 5 mm for a length of a joint (Δa, Δd, an origin
+//!   translation, a prismatic offset), and wider for what is mounted or registered rather
+//!   than machined: 25 mm and 10° for the tool, 50 mm and 10° for the base registration.
+//!   A robot that left its factory within tolerance deviates far less; a value beyond them
+//!   is the fit explaining something else (noise, a compliance, the tool) with a
+//!   parameter that happens to correlate with it;
+//! - **determined**: `|value| > significance · SE`
+//!   ([`CalibrateOptions::significance`], 3 by default), or a negligible standard error
+//!   (below 0.01 mm or 0.01 mrad, [`Parameter::negligible_standard_error`]: the data pin it
+//!   down, even at zero).
+//!
+//! The least trustworthy failing parameter — the implausible one furthest beyond its bound,
+//! else the undetermined one with the largest SE / |value| — is held at its nominal value,
+//! the pivoting is redone without it (a parameter it had shadowed, such as the tool z
+//! translation behind `Δd_n`, may now enter) and the fit is solved again from the previous
+//! solution; until every kept parameter passes. Each held parameter's report
+//! ([`Calibration::report`]) keeps the estimate, standard error and strongest correlation
+//! it had when it was held, and the reason ([`HoldReason`]).
 
 use adwi_runtime::chain::{Chain, JointKind};
 use adwi_runtime::kinematics::Transform;
@@ -219,6 +254,151 @@ impl std::fmt::Display for Parameter {
     }
 }
 
+impl Parameter {
+    /// The largest deviation of this kind that is physically plausible (mm or rad; module
+    /// docs, "Trust"): 5° and 5 mm for a joint's geometry, 25 mm and 10° for the tool,
+    /// 50 mm and 10° for the base registration.
+    pub fn plausible_bound(self) -> f64 {
+        let degrees = |d: f64| d.to_radians();
+        match self {
+            Parameter::ToolTranslation(_) => 25.0,
+            Parameter::ToolRotation(_) => degrees(10.0),
+            Parameter::BaseTranslation(_) => 50.0,
+            Parameter::BaseRotation(_) => degrees(10.0),
+            p if p.is_length() => 5.0,
+            _ => degrees(5.0),
+        }
+    }
+
+    /// A standard error below which the data determine the parameter whatever its value:
+    /// 0.01 mm, or 0.01 mrad.
+    pub fn negligible_standard_error(self) -> f64 {
+        if self.is_length() {
+            0.01
+        } else {
+            1e-5
+        }
+    }
+}
+
+/// Why a kept parameter was held at its nominal value (module docs, "Trust").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HoldReason {
+    /// Its estimate lies beyond the plausible bound of its kind.
+    Implausible {
+        /// The estimate, mm or rad.
+        value: f64,
+        /// The bound, mm or rad.
+        bound: f64,
+    },
+    /// Its estimate is within a few standard errors of zero.
+    Undetermined {
+        /// The estimate, mm or rad.
+        value: f64,
+        /// Its standard error, mm or rad.
+        standard_error: f64,
+    },
+}
+
+impl HoldReason {
+    /// The reason in words, values in mm or mrad as `parameter` takes them.
+    pub fn describe(&self, parameter: Parameter) -> String {
+        let show = |v: f64| {
+            if parameter.is_length() {
+                format!("{v:+.4} mm")
+            } else {
+                format!("{:+.4} mrad", v * 1e3)
+            }
+        };
+        match *self {
+            HoldReason::Implausible { value, bound } => format!(
+                "implausible: estimate {} beyond ±{}",
+                show(value),
+                show(bound).trim_start_matches('+')
+            ),
+            HoldReason::Undetermined {
+                value,
+                standard_error,
+            } => format!(
+                "undetermined: estimate {} within {:.1} standard errors ({}) of zero",
+                show(value),
+                value.abs() / standard_error,
+                show(standard_error).trim_start_matches('+')
+            ),
+        }
+    }
+}
+
+/// What became of one parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ParameterStatus {
+    /// Identified: plausible and determined by the data.
+    Identified,
+    /// Kept by the pivoting but held at nominal: the estimate it had and why.
+    Held {
+        /// The estimate when it was held, mm or rad.
+        estimate: f64,
+        /// Why.
+        reason: HoldReason,
+    },
+    /// Not separable from the identified parameters (pivoted QR), kept at nominal.
+    Unidentifiable {
+        /// Its independent fraction in the scaled Jacobian (0 for an exact redundancy).
+        independent_fraction: f64,
+        /// The identified parameter whose column is most like its own (largest |cosine|):
+        /// for an exact redundancy of two, the one that took its place.
+        most_like: Option<Parameter>,
+    },
+}
+
+/// One parameter as a calibration engineer reads it: value, standard error, strongest
+/// correlation, status and reason.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParameterReport {
+    /// The parameter.
+    pub parameter: Parameter,
+    /// Its identified value (mm or rad), zero unless identified.
+    pub value: f64,
+    /// Its standard error (mm or rad): of the final fit when identified, of the fit that
+    /// held it when held; `None` when unidentifiable.
+    pub standard_error: Option<f64>,
+    /// The parameter it correlates with most strongly, and the correlation, in the same fit.
+    pub strongest_correlation: Option<(Parameter, f64)>,
+    /// Identified, held or unidentifiable.
+    pub status: ParameterStatus,
+}
+
+impl ParameterReport {
+    /// `identified`, `held` or `unidentifiable`.
+    pub fn status_name(&self) -> &'static str {
+        match self.status {
+            ParameterStatus::Identified => "identified",
+            ParameterStatus::Held { .. } => "held",
+            ParameterStatus::Unidentifiable { .. } => "unidentifiable",
+        }
+    }
+
+    /// Why the parameter is not identified, in words; empty when it is.
+    pub fn reason(&self) -> String {
+        match self.status {
+            ParameterStatus::Identified => String::new(),
+            ParameterStatus::Held { reason, .. } => reason.describe(self.parameter),
+            ParameterStatus::Unidentifiable {
+                independent_fraction,
+                most_like,
+            } => match most_like {
+                Some(p) => format!(
+                    "redundant with the identified parameters, most like {p} (independent \
+                     fraction {independent_fraction:.1e})"
+                ),
+                None => format!(
+                    "not seen by these data (independent fraction {independent_fraction:.1e})"
+                ),
+            },
+        }
+    }
+}
+
 /// How to identify.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CalibrateOptions {
@@ -235,6 +415,12 @@ pub struct CalibrateOptions {
     pub max_iterations: u32,
     /// Stop when an accepted step lowers the cost by less than this fraction of it.
     pub relative_cost_tolerance: f64,
+    /// Hold at nominal, one at a time, the kept parameters whose estimates are implausible
+    /// or undetermined, and fit again (module docs, "Trust").
+    pub hold_untrustworthy: bool,
+    /// A parameter is determined when `|value| > significance · SE` (or its SE is
+    /// negligible).
+    pub significance: f64,
 }
 
 impl Default for CalibrateOptions {
@@ -244,6 +430,8 @@ impl Default for CalibrateOptions {
             orientation_weight_mm_per_rad: 1000.0,
             max_iterations: 100,
             relative_cost_tolerance: 1e-14,
+            hold_untrustworthy: true,
+            significance: 3.0,
         }
     }
 }
@@ -312,8 +500,13 @@ pub struct Calibration {
     pub standard_errors: Vec<Option<f64>>,
     /// The parameters that were identified, in pivot order (most independent first).
     pub identified: Vec<Parameter>,
+    /// Every parameter, in column order: value, standard error, strongest correlation,
+    /// and whether it was identified, held at nominal (and why) or unidentifiable.
+    pub report: Vec<ParameterReport>,
     /// The parameters the data cannot separate from the identified ones, each with its
     /// independent fraction (pivot ratio) in the scaled Jacobian: 0 for an exact redundancy.
+    /// Parameters held at nominal for want of trust are not among them (see
+    /// [`Self::held`]).
     pub unidentifiable: Vec<(Parameter, f64)>,
     /// Condition number of the identified parameters' scaled Jacobian at the solution.
     pub condition_number: f64,
@@ -346,6 +539,15 @@ impl Calibration {
     /// The standard error of `parameter` (mm or rad), when identified.
     pub fn standard_error(&self, parameter: Parameter) -> Option<f64> {
         self.column(parameter).and_then(|c| self.standard_errors[c])
+    }
+
+    /// The parameters held at nominal for want of trust (module docs, "Trust"), in the
+    /// column order, with their reports.
+    pub fn held(&self) -> Vec<&ParameterReport> {
+        self.report
+            .iter()
+            .filter(|r| matches!(r.status, ParameterStatus::Held { .. }))
+            .collect()
     }
 
     fn column(&self, parameter: Parameter) -> Option<usize> {
@@ -677,51 +879,20 @@ pub fn identify(
             }
         })
         .collect::<Result<_, _>>()?;
-    let rows_per_sample = if samples.rotation_error_rad.is_some() {
-        6
-    } else {
-        3
-    };
-    let weight = options.orientation_weight_mm_per_rad;
-    let model = Model::new(robot);
-    let p = model.len();
-
-    // The weighted residual vector and Jacobian (all columns) of a state.
-    let linearise = |x: &DVector<f64>, state: &State, with_jacobian: bool| {
-        let rows = measurements.len() * rows_per_sample;
-        let mut r = DVector::zeros(rows);
-        let mut jac = if with_jacobian {
-            DMatrix::zeros(rows, p)
+    let problem = Problem {
+        model: Model::new(robot),
+        measurements,
+        rows_per_sample: if samples.rotation_error_rad.is_some() {
+            6
         } else {
-            DMatrix::zeros(0, 0)
-        };
-        for (s, m) in measurements.iter().enumerate() {
-            let e = model.error(state, &m.q);
-            let row = s * rows_per_sample;
-            for a in 0..3 {
-                r[row + a] = m.error_mm[a] - e[a];
-            }
-            if let Some(measured) = m.rotation_error_rad {
-                for a in 0..3 {
-                    r[row + 3 + a] = weight * (measured[a] - e[a + 3]);
-                }
-            }
-            if with_jacobian {
-                let j = model.jacobian(x, state, &m.q);
-                for a in 0..rows_per_sample {
-                    let scale = if a < 3 { 1.0 } else { weight };
-                    for c in 0..p {
-                        jac[(row + a, c)] = scale * j[(a, c)];
-                    }
-                }
-            }
-        }
-        (r, jac)
+            3
+        },
+        weight: options.orientation_weight_mm_per_rad,
     };
-
-    let mut x = DVector::zeros(p);
-    let mut state = model.state(&x)?;
-    let (r0, j0) = linearise(&x, &state, true);
+    let p = problem.model.len();
+    let nominal_x = DVector::zeros(p);
+    let nominal_state = problem.model.state(&nominal_x)?;
+    let (r0, j0) = problem.linearise(&nominal_x, &nominal_state, true);
     let column_norms: Vec<f64> = (0..p).map(|c| j0.column(c).norm()).collect();
     let largest = column_norms.iter().copied().fold(0.0, f64::max);
     if largest == 0.0 || !largest.is_finite() {
@@ -733,152 +904,424 @@ pub fn identify(
         .iter()
         .map(|&n| if n > 1e-12 * largest { 1.0 / n } else { 0.0 })
         .collect();
-    let mut scaled = j0.clone();
-    for (c, s) in scales.iter().enumerate() {
-        scaled.column_mut(c).scale_mut(*s);
-    }
-    let (kept, dropped) = pivot_columns(&scaled, options.rank_tolerance);
-    if kept.is_empty() {
-        return Err(CalibrateError::NothingIdentifiable);
-    }
-    let rows = measurements.len() * rows_per_sample;
-    if rows < 2 * kept.len() {
-        return Err(CalibrateError::TooFewMeasurements {
-            measurements: rows,
-            parameters: kept.len(),
-        });
-    }
+    let initial_position_rms_mm = problem.position_rms(&r0);
 
-    let position_rms = |r: &DVector<f64>| {
-        let sum: f64 = (0..measurements.len())
-            .map(|s| r.fixed_rows::<3>(s * rows_per_sample).norm_squared())
-            .sum();
-        (sum / measurements.len() as f64).sqrt()
+    // Fit, assess, hold the least trustworthy parameter at nominal, fit again (module
+    // docs, "Trust").
+    let mut held: Vec<(usize, Assessment)> = Vec::new();
+    let mut start = nominal_x;
+    let fit = loop {
+        let held_columns: Vec<usize> = held.iter().map(|(c, _)| *c).collect();
+        let fit = problem.solve(&j0, &scales, &held_columns, start, options)?;
+        if !options.hold_untrustworthy {
+            break fit;
+        }
+        let worst = fit
+            .kept
+            .iter()
+            .enumerate()
+            .filter_map(|(k, &c)| {
+                let a = fit.assess(&problem.model.parameters, k, options.significance);
+                a.reason.is_some().then_some((c, a))
+            })
+            .max_by(|a, b| a.1.severity.total_cmp(&b.1.severity));
+        match worst {
+            Some((c, assessment)) => {
+                held.push((c, assessment));
+                start = fit.x.clone();
+                start[c] = 0.0;
+            }
+            None => break fit,
+        }
     };
-    let initial_position_rms_mm = position_rms(&r0);
 
-    // Levenberg–Marquardt in the scaled, kept coordinates: solve
-    // [J; √μ·I] δ = [r; 0] by SVD, accept the step if the cost falls.
-    let reduced = |jac: &DMatrix<f64>| {
-        DMatrix::from_fn(rows, kept.len(), |i, k| jac[(i, kept[k])] * scales[kept[k]])
-    };
-    let (mut r, mut jac) = (r0, j0);
-    let mut cost = r.norm_squared();
-    let mut mu: f64 = 1e-6;
-    let mut iterations = 0;
-    let mut converged = false;
-    while iterations < options.max_iterations {
-        iterations += 1;
-        let jk = reduced(&jac);
-        let mut accepted = false;
-        for _ in 0..30 {
-            let mut augmented = DMatrix::zeros(rows + kept.len(), kept.len());
-            augmented.rows_mut(0, rows).copy_from(&jk);
-            for k in 0..kept.len() {
-                augmented[(rows + k, k)] = mu.sqrt();
-            }
-            let mut rhs = DVector::zeros(rows + kept.len());
-            rhs.rows_mut(0, rows).copy_from(&r);
-            let step = augmented
-                .svd(true, true)
-                .solve(&rhs, 0.0)
-                .expect("SVD with both factors computed");
-            let mut dx = DVector::zeros(p);
-            for (k, &c) in kept.iter().enumerate() {
-                dx[c] = step[k] * scales[c];
-            }
-            let candidate_x = model.step(&x, &dx);
-            // A step so large that the model stops being a robot is refused like one that
-            // raises the cost.
-            let Ok(candidate) = model.state(&candidate_x) else {
-                mu *= 10.0;
-                continue;
-            };
-            let (candidate_r, _) = linearise(&candidate_x, &candidate, false);
-            let candidate_cost = candidate_r.norm_squared();
-            if candidate_cost.is_finite() && candidate_cost <= cost {
-                let decrease = cost - candidate_cost;
-                x = candidate_x;
-                state = candidate;
-                mu = (mu / 10.0).max(1e-15);
-                accepted = true;
-                if decrease <= options.relative_cost_tolerance * cost || candidate_cost == 0.0 {
-                    converged = true;
-                }
-                cost = candidate_cost;
-                break;
-            }
-            mu *= 10.0;
-        }
-        if !accepted {
-            // No step lowers the cost any more: a minimum to working precision.
-            converged = true;
-        }
-        let (next_r, next_jac) = linearise(&x, &state, true);
-        r = next_r;
-        jac = next_jac;
-        if converged {
-            break;
-        }
+    let parameters = &problem.model.parameters;
+    let mut report: Vec<ParameterReport> = parameters
+        .iter()
+        .map(|&parameter| ParameterReport {
+            parameter,
+            value: 0.0,
+            standard_error: None,
+            strongest_correlation: None,
+            status: ParameterStatus::Identified,
+        })
+        .collect();
+    for (k, &c) in fit.kept.iter().enumerate() {
+        let a = fit.assess(parameters, k, options.significance);
+        report[c].value = fit.x[c];
+        report[c].standard_error = Some(a.standard_error);
+        report[c].strongest_correlation = a.correlation;
     }
-
-    let jk = reduced(&jac);
-    let svd = jk.svd(false, true);
-    let singular = &svd.singular_values;
-    let condition_number = singular.max() / singular.min();
-    let residual_sigma_mm = (r.norm_squared() / (rows - kept.len()) as f64).sqrt();
-    // σ² (JᵀJ)⁻¹ of the unscaled parameters: with J_s = J·S = U Σ Vᵀ, (JᵀJ)⁻¹ = S V Σ⁻² Vᵀ S.
+    for (&(c, ratio), like) in fit.dropped.iter().zip(&fit.resembles) {
+        report[c].status = ParameterStatus::Unidentifiable {
+            independent_fraction: ratio,
+            most_like: like.map(|k| parameters[k]),
+        };
+    }
+    for (c, a) in held {
+        report[c].standard_error = Some(a.standard_error);
+        report[c].strongest_correlation = a.correlation;
+        report[c].status = ParameterStatus::Held {
+            estimate: a.value,
+            reason: a.reason.expect("only failing parameters are held"),
+        };
+    }
     let mut standard_errors = vec![None; p];
-    if let Some(v_t) = &svd.v_t {
-        for (k, &c) in kept.iter().enumerate() {
-            let variance: f64 = (0..singular.len())
-                .map(|m| (v_t[(m, k)] / singular[m]).powi(2))
-                .sum();
-            standard_errors[c] = Some(residual_sigma_mm * variance.sqrt() * scales[c]);
-        }
+    for &c in &fit.kept {
+        standard_errors[c] = report[c].standard_error;
     }
     let orientation_rms_rad = samples.rotation_error_rad.as_ref().map(|_| {
-        let sum: f64 = (0..measurements.len())
-            .map(|s| r.fixed_rows::<3>(s * rows_per_sample + 3).norm_squared())
+        let sum: f64 = (0..problem.measurements.len())
+            .map(|s| {
+                fit.r
+                    .fixed_rows::<3>(s * problem.rows_per_sample + 3)
+                    .norm_squared()
+            })
             .sum();
-        (sum / measurements.len() as f64).sqrt() / weight
+        (sum / problem.measurements.len() as f64).sqrt() / problem.weight
     });
     Ok(Calibration {
-        identified: kept.iter().map(|&c| model.parameters[c]).collect(),
-        unidentifiable: dropped
-            .into_iter()
-            .map(|(c, ratio)| (model.parameters[c], ratio))
+        identified: fit.kept.iter().map(|&c| parameters[c]).collect(),
+        unidentifiable: fit
+            .dropped
+            .iter()
+            .map(|&(c, ratio)| (parameters[c], ratio))
             .collect(),
-        parameters: model.parameters.clone(),
-        deviations: x,
+        report,
+        parameters: parameters.clone(),
         standard_errors,
-        condition_number,
+        condition_number: fit.condition_number,
         initial_position_rms_mm,
-        position_rms_mm: position_rms(&r),
+        position_rms_mm: problem.position_rms(&fit.r),
         orientation_rms_rad,
-        residual_sigma_mm,
-        iterations,
-        converged,
+        residual_sigma_mm: fit.residual_sigma_mm,
+        iterations: fit.iterations,
+        converged: fit.converged,
+        deviations: fit.x,
         nominal: robot.clone(),
-        calibrated: state.robot,
+        calibrated: fit.state.robot,
     })
+}
+
+/// The least-squares problem: the model and the measurements.
+struct Problem {
+    model: Model,
+    measurements: Vec<Measurement>,
+    rows_per_sample: usize,
+    weight: f64,
+}
+
+/// One solution of [`Problem::solve`].
+struct Fit {
+    x: DVector<f64>,
+    state: State,
+    r: DVector<f64>,
+    kept: Vec<usize>,
+    dropped: Vec<(usize, f64)>,
+    /// Per dropped column, the kept column most like it.
+    resembles: Vec<Option<usize>>,
+    condition_number: f64,
+    residual_sigma_mm: f64,
+    /// `(JᵀJ)⁻¹` of the kept parameters (unscaled, kept order), times σ².
+    covariance: DMatrix<f64>,
+    iterations: u32,
+    converged: bool,
+}
+
+/// What the data say about one kept parameter.
+struct Assessment {
+    value: f64,
+    standard_error: f64,
+    correlation: Option<(Parameter, f64)>,
+    /// Why it cannot be trusted, if it cannot.
+    reason: Option<HoldReason>,
+    /// Which failing parameter to hold first: implausible ones (by how far beyond their
+    /// bound), then undetermined ones (by standard error over value).
+    severity: f64,
+}
+
+impl Fit {
+    fn assess(&self, parameters: &[Parameter], k: usize, significance: f64) -> Assessment {
+        let c = self.kept[k];
+        let parameter = parameters[c];
+        let value = self.x[c];
+        let variance = self.covariance[(k, k)];
+        let standard_error = variance.max(0.0).sqrt();
+        let correlation = (0..self.kept.len())
+            .filter(|&l| l != k)
+            .map(|l| {
+                let denominator = (variance * self.covariance[(l, l)]).sqrt();
+                let rho = if denominator > 0.0 {
+                    self.covariance[(k, l)] / denominator
+                } else {
+                    0.0
+                };
+                (parameters[self.kept[l]], rho)
+            })
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+        let bound = parameter.plausible_bound();
+        let floor = parameter.negligible_standard_error();
+        let (reason, severity) = if value.abs() > bound {
+            (
+                Some(HoldReason::Implausible { value, bound }),
+                1e6 + value.abs() / bound,
+            )
+        } else if standard_error > floor && value.abs() <= significance * standard_error {
+            (
+                Some(HoldReason::Undetermined {
+                    value,
+                    standard_error,
+                }),
+                standard_error / value.abs().max(f64::MIN_POSITIVE),
+            )
+        } else {
+            (None, 0.0)
+        };
+        Assessment {
+            value,
+            standard_error,
+            correlation,
+            reason,
+            severity,
+        }
+    }
+}
+
+impl Problem {
+    /// The weighted residual vector and (when asked) Jacobian, all columns, of a state.
+    fn linearise(
+        &self,
+        x: &DVector<f64>,
+        state: &State,
+        with_jacobian: bool,
+    ) -> (DVector<f64>, DMatrix<f64>) {
+        let p = self.model.len();
+        let rows = self.measurements.len() * self.rows_per_sample;
+        let mut r = DVector::zeros(rows);
+        let mut jac = if with_jacobian {
+            DMatrix::zeros(rows, p)
+        } else {
+            DMatrix::zeros(0, 0)
+        };
+        for (s, m) in self.measurements.iter().enumerate() {
+            let e = self.model.error(state, &m.q);
+            let row = s * self.rows_per_sample;
+            for a in 0..3 {
+                r[row + a] = m.error_mm[a] - e[a];
+            }
+            if let Some(measured) = m.rotation_error_rad {
+                for a in 0..3 {
+                    r[row + 3 + a] = self.weight * (measured[a] - e[a + 3]);
+                }
+            }
+            if with_jacobian {
+                let j = self.model.jacobian(x, state, &m.q);
+                for a in 0..self.rows_per_sample {
+                    let scale = if a < 3 { 1.0 } else { self.weight };
+                    for c in 0..p {
+                        jac[(row + a, c)] = scale * j[(a, c)];
+                    }
+                }
+            }
+        }
+        (r, jac)
+    }
+
+    /// RMS of the position residual norms.
+    fn position_rms(&self, r: &DVector<f64>) -> f64 {
+        let n = self.measurements.len();
+        let sum: f64 = (0..n)
+            .map(|s| r.fixed_rows::<3>(s * self.rows_per_sample).norm_squared())
+            .sum();
+        (sum / n as f64).sqrt()
+    }
+
+    /// Selects the identifiable columns of the nominal Jacobian `j0` (scaled by `scales`)
+    /// other than `held`, and fits them from `start` (whose held columns are zero).
+    fn solve(
+        &self,
+        j0: &DMatrix<f64>,
+        scales: &[f64],
+        held: &[usize],
+        start: DVector<f64>,
+        options: &CalibrateOptions,
+    ) -> Result<Fit, CalibrateError> {
+        let p = self.model.len();
+        let mut scaled = j0.clone();
+        for (c, s) in scales.iter().enumerate() {
+            let s = if held.contains(&c) { 0.0 } else { *s };
+            scaled.column_mut(c).scale_mut(s);
+        }
+        // Of exactly redundant columns the tool's or the base's is kept (module docs).
+        let preferred: Vec<bool> = self
+            .model
+            .parameters
+            .iter()
+            .map(|p| {
+                matches!(
+                    p,
+                    Parameter::ToolTranslation(_)
+                        | Parameter::ToolRotation(_)
+                        | Parameter::BaseTranslation(_)
+                        | Parameter::BaseRotation(_)
+                )
+            })
+            .collect();
+        let (kept, mut dropped) = pivot_columns(&scaled, options.rank_tolerance, &preferred);
+        dropped.retain(|(c, _)| !held.contains(c));
+        // The kept column most like each dropped one (largest |cosine| of the unit columns).
+        let resembles: Vec<Option<usize>> = dropped
+            .iter()
+            .map(|&(c, _)| {
+                kept.iter()
+                    .map(|&k| (k, scaled.column(c).dot(&scaled.column(k)).abs()))
+                    .filter(|&(_, cosine)| cosine > 0.0)
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(k, _)| k)
+            })
+            .collect();
+        if kept.is_empty() {
+            return Err(CalibrateError::NothingIdentifiable);
+        }
+        let rows = self.measurements.len() * self.rows_per_sample;
+        if rows < 2 * kept.len() {
+            return Err(CalibrateError::TooFewMeasurements {
+                measurements: rows,
+                parameters: kept.len(),
+            });
+        }
+
+        // Levenberg–Marquardt in the scaled, kept coordinates: solve
+        // [J; √μ·I] δ = [r; 0] by SVD, accept the step if the cost falls.
+        let reduced = |jac: &DMatrix<f64>| {
+            DMatrix::from_fn(rows, kept.len(), |i, k| jac[(i, kept[k])] * scales[kept[k]])
+        };
+        let mut x = start;
+        let mut state = self.model.state(&x)?;
+        let (mut r, mut jac) = self.linearise(&x, &state, true);
+        let mut cost = r.norm_squared();
+        let mut mu: f64 = 1e-6;
+        let mut iterations = 0;
+        let mut converged = false;
+        while iterations < options.max_iterations {
+            iterations += 1;
+            let jk = reduced(&jac);
+            let mut accepted = false;
+            for _ in 0..30 {
+                let mut augmented = DMatrix::zeros(rows + kept.len(), kept.len());
+                augmented.rows_mut(0, rows).copy_from(&jk);
+                for k in 0..kept.len() {
+                    augmented[(rows + k, k)] = mu.sqrt();
+                }
+                let mut rhs = DVector::zeros(rows + kept.len());
+                rhs.rows_mut(0, rows).copy_from(&r);
+                let step = augmented
+                    .svd(true, true)
+                    .solve(&rhs, 0.0)
+                    .expect("SVD with both factors computed");
+                let mut dx = DVector::zeros(p);
+                for (k, &c) in kept.iter().enumerate() {
+                    dx[c] = step[k] * scales[c];
+                }
+                let candidate_x = self.model.step(&x, &dx);
+                // A step so large that the model stops being a robot is refused like one
+                // that raises the cost.
+                let Ok(candidate) = self.model.state(&candidate_x) else {
+                    mu *= 10.0;
+                    continue;
+                };
+                let (candidate_r, _) = self.linearise(&candidate_x, &candidate, false);
+                let candidate_cost = candidate_r.norm_squared();
+                if candidate_cost.is_finite() && candidate_cost <= cost {
+                    let decrease = cost - candidate_cost;
+                    x = candidate_x;
+                    state = candidate;
+                    mu = (mu / 10.0).max(1e-15);
+                    accepted = true;
+                    if decrease <= options.relative_cost_tolerance * cost || candidate_cost == 0.0 {
+                        converged = true;
+                    }
+                    cost = candidate_cost;
+                    break;
+                }
+                mu *= 10.0;
+            }
+            if !accepted {
+                // No step lowers the cost any more: a minimum to working precision.
+                converged = true;
+            }
+            let (next_r, next_jac) = self.linearise(&x, &state, true);
+            r = next_r;
+            jac = next_jac;
+            if converged {
+                break;
+            }
+        }
+
+        let jk = reduced(&jac);
+        let svd = jk.svd(false, true);
+        let singular = &svd.singular_values;
+        let condition_number = singular.max() / singular.min();
+        let residual_sigma_mm = (r.norm_squared() / (rows - kept.len()) as f64).sqrt();
+        // σ² (JᵀJ)⁻¹ of the unscaled parameters: with J_s = J·S = U Σ Vᵀ,
+        // (JᵀJ)⁻¹ = S V Σ⁻² Vᵀ S.
+        let n = kept.len();
+        let mut covariance = DMatrix::zeros(n, n);
+        if let Some(v_t) = &svd.v_t {
+            for k in 0..n {
+                for l in k..n {
+                    let m: f64 = (0..singular.len())
+                        .map(|i| v_t[(i, k)] * v_t[(i, l)] / singular[i].powi(2))
+                        .sum();
+                    let value = residual_sigma_mm.powi(2) * m * scales[kept[k]] * scales[kept[l]];
+                    covariance[(k, l)] = value;
+                    covariance[(l, k)] = value;
+                }
+            }
+        }
+        Ok(Fit {
+            x,
+            state,
+            r,
+            kept,
+            dropped,
+            resembles,
+            condition_number,
+            residual_sigma_mm,
+            covariance,
+            iterations,
+            converged,
+        })
+    }
 }
 
 /// QR with column pivoting by modified Gram–Schmidt: returns the kept columns in pivot
 /// order, and the dropped ones with their independent fraction (relative to the first
-/// pivot), in column order. Selection stops at the first pivot below `tolerance`; of equal
-/// columns the first is kept.
-fn pivot_columns(a: &DMatrix<f64>, tolerance: f64) -> (Vec<usize>, Vec<(usize, f64)>) {
+/// pivot), in column order. Selection stops at the first pivot below `tolerance`; of
+/// columns whose independent parts are equal (to 1e-9), a `preferred` one is kept, else the
+/// first.
+fn pivot_columns(
+    a: &DMatrix<f64>,
+    tolerance: f64,
+    preferred: &[bool],
+) -> (Vec<usize>, Vec<(usize, f64)>) {
     let mut residual = a.clone();
     let mut kept = Vec::new();
     let mut remaining: Vec<usize> = (0..a.ncols()).collect();
     let mut first = None;
     while !remaining.is_empty() {
-        let (position, norm) = remaining
+        let norms: Vec<f64> = remaining
             .iter()
-            .enumerate()
-            .map(|(i, &c)| (i, residual.column(c).norm()))
-            .fold((0, -1.0), |best, x| if x.1 > best.1 { x } else { best });
+            .map(|&c| residual.column(c).norm())
+            .collect();
+        let largest = norms.iter().copied().fold(-1.0, f64::max);
+        let tied = |i: &usize| norms[*i] >= largest * (1.0 - 1e-9);
+        let position = (0..remaining.len())
+            .filter(tied)
+            .find(|&i| preferred[remaining[i]])
+            .or_else(|| (0..remaining.len()).find(tied))
+            .expect("the largest is among the remaining");
+        let norm = norms[position];
         let first_norm = *first.get_or_insert(norm);
         if first_norm <= 0.0 || norm < tolerance * first_norm {
             break;
@@ -1122,14 +1565,19 @@ mod tests {
         let q = poses(&robot, 60, 4);
         let p = Parameter::all_of(&robot).len();
         let zero = simulate(&robot, &DVector::zeros(p), &q, false, 0.0, 0);
-        let structure = identify(&robot, &zero, &CalibrateOptions::default()).unwrap();
+        // Every parameter the pivoting keeps, trusted or not: the spread of each is compared.
+        let options = CalibrateOptions {
+            hold_untrustworthy: false,
+            ..CalibrateOptions::default()
+        };
+        let structure = identify(&robot, &zero, &options).unwrap();
         let truth = deviations_on(&structure.parameters, &columns_of(&structure), 5);
         let draws = 40;
         let mut estimates = Vec::new();
         let mut reported = DVector::<f64>::zeros(p);
         for seed in 0..draws {
             let samples = simulate(&robot, &truth, &q, false, 0.02, 100 + seed);
-            let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+            let c = identify(&robot, &samples, &options).unwrap();
             assert_eq!(c.identified, structure.identified);
             assert!(
                 (c.residual_sigma_mm - 0.02).abs() < 0.005,
@@ -1158,6 +1606,118 @@ mod tests {
         for (parameter, _) in &structure.unidentifiable {
             assert_eq!(structure.standard_error(*parameter), None);
         }
+    }
+
+    /// The trust rules (module docs, "Trust"): with noise and no deviation at all, the
+    /// parameters whose estimates are noise are held at nominal as undetermined, every one
+    /// left passes the rules, and the reports carry value, SE and strongest correlation.
+    /// A deviation far beyond its plausible bound is held as implausible. Of exactly
+    /// redundant joint and tool parameters, the tool's is kept.
+    #[test]
+    fn untrustworthy_parameters_are_held_with_a_reason() {
+        let robot = kr150();
+        let q = poses(&robot, 80, 6);
+        let p = Parameter::all_of(&robot).len();
+        let truth = {
+            let zero = simulate(&robot, &DVector::zeros(p), &q, false, 0.0, 0);
+            let structure = identify(&robot, &zero, &CalibrateOptions::default()).unwrap();
+            deviations_on(&structure.parameters, &columns_of(&structure), 8)
+        };
+        // Half of the deviations zero, so that noise alone makes their estimates.
+        let mut sparse = truth.clone();
+        for c in (0..p).step_by(2) {
+            sparse[c] = 0.0;
+        }
+        let samples = simulate(&robot, &sparse, &q, false, 0.05, 11);
+        let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        let held = c.held();
+        assert!(!held.is_empty());
+        for r in &held {
+            let ParameterStatus::Held { estimate, reason } = r.status else {
+                unreachable!()
+            };
+            let HoldReason::Undetermined {
+                value,
+                standard_error,
+            } = reason
+            else {
+                panic!("{}: {reason:?}", r.parameter)
+            };
+            assert_eq!(value, estimate);
+            assert!(value.abs() <= 3.0 * standard_error);
+            assert_eq!(c.value(r.parameter), 0.0);
+            assert!(r.reason().starts_with("undetermined"), "{}", r.reason());
+        }
+        for r in &c.report {
+            if r.status == ParameterStatus::Identified {
+                let se = r.standard_error.unwrap();
+                assert!(r.value.abs() > 3.0 * se || se <= r.parameter.negligible_standard_error());
+                assert!(r.value.abs() <= r.parameter.plausible_bound());
+                let (partner, rho) = r.strongest_correlation.unwrap();
+                assert_ne!(partner, r.parameter);
+                assert!(rho.abs() <= 1.0 + 1e-9);
+                assert!(c.identified.contains(&r.parameter));
+            }
+        }
+        // The held parameters' deviations were zero in truth: holding them loses nothing,
+        // the fit leaves the noise (RMS norm √3 σ).
+        let noise_rms = 0.05 * 3f64.sqrt();
+        assert!(
+            c.position_rms_mm < 1.05 * noise_rms,
+            "{}",
+            c.position_rms_mm
+        );
+
+        // A joint angle 10° off: implausible, held, and the reason says so.
+        let theta2 = Parameter::Mdh {
+            joint: 1,
+            parameter: MdhParameter::Theta,
+        };
+        let column = c.parameters.iter().position(|p| *p == theta2).unwrap();
+        let mut absurd = truth.clone();
+        absurd[column] = 10f64.to_radians();
+        let samples = simulate(&robot, &absurd, &q, false, 0.0, 0);
+        let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        let report = &c.report[column];
+        assert!(
+            matches!(
+                report.status,
+                ParameterStatus::Held {
+                    reason: HoldReason::Implausible { .. },
+                    ..
+                }
+            ),
+            "{report:?}"
+        );
+        assert!(
+            report.reason().contains("beyond ±87.2665 mrad"),
+            "{}",
+            report.reason()
+        );
+        assert_eq!(c.value(theta2), 0.0);
+
+        // On the UR5, Δd of the last joint moves the TCP exactly as the tool's z does: the
+        // tool keeps it.
+        let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
+        let q = poses(&robot, 80, 6);
+        let samples = simulate(&robot, &DVector::zeros(42), &q, false, 0.0, 0);
+        let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();
+        assert!(c.identified.contains(&Parameter::ToolTranslation(2)));
+        let d6 = Parameter::Mdh {
+            joint: 5,
+            parameter: MdhParameter::D,
+        };
+        let status = c.report[c.parameters.iter().position(|p| *p == d6).unwrap()].status;
+        assert!(
+            matches!(
+                status,
+                ParameterStatus::Unidentifiable {
+                    most_like: Some(Parameter::ToolTranslation(2)),
+                    ..
+                }
+            ),
+            "{status:?}"
+        );
     }
 
     /// Known redundancies are found: Δd1 moves the TCP exactly like the base z

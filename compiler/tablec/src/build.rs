@@ -226,12 +226,14 @@ fn print_summary(
 }
 
 /// What identification found, as `tablec build --hybrid` reports it: the calibration's
-/// quality and, above all, which parameters the data could not identify (they stay at
-/// their nominal values).
+/// quality, which parameters the data could not identify or were held at nominal for want
+/// of trust (they stay at their nominal values), and every parameter's value, standard
+/// error, strongest correlation, status and reason.
 fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
     println!(
-        "calibration    {} parameters identified, {} unidentifiable, condition number {:.1}, {} iterations{}",
+        "calibration    {} parameters identified, {} held at nominal, {} unidentifiable, condition number {:.1}, {} iterations{}",
         c.identified.len(),
+        c.held().len(),
         c.unidentifiable.len(),
         c.condition_number,
         c.iterations,
@@ -257,6 +259,18 @@ fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
         })
         .collect();
     println!("identified     {}", identified.join(", "));
+    let held = c.held();
+    if !held.is_empty() {
+        let names: Vec<String> = held.iter().map(|r| r.parameter.to_string()).collect();
+        println!(
+            "held nominal   {} (implausible or undetermined; reasons below)",
+            names.join(", ")
+        );
+    }
+    print!(
+        "{}",
+        adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(c))
+    );
 }
 
 /// Warns, on standard error and even with --quiet, about the parameters the data cannot

@@ -67,7 +67,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(registered) = &registered {
         registered.print_refined(&c, &samples);
     }
-    print_parameters(&c);
+    print!(
+        "{}",
+        adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(&c))
+    );
     let comment = [
         format!(
             "{} calibrated from {} ({} samples): position RMS {:.4} mm before, {:.4} mm after.",
@@ -109,41 +112,5 @@ fn print_summary(c: &Calibration) {
     );
     if let Some(r) = c.orientation_rms_rad {
         println!("orient. RMS    {:.4} mrad after", r * 1e3);
-    }
-}
-
-/// Every parameter: its identified deviation and standard error (mm, or mrad for angles),
-/// or why it was not identified.
-fn print_parameters(c: &Calibration) {
-    println!(
-        "{:<14} {:>12} {:>12}  {:<5} status",
-        "parameter", "deviation", "std. error", "unit"
-    );
-    for (column, p) in c.parameters.iter().enumerate() {
-        let scale = if p.is_length() { 1.0 } else { 1e3 };
-        let unit = if p.is_length() { "mm" } else { "mrad" };
-        match c.standard_errors[column] {
-            Some(se) => println!(
-                "{:<14} {:>+12.5} {:>12.5}  {unit:<5} identified",
-                p.to_string(),
-                c.deviations[column] * scale,
-                se * scale,
-            ),
-            None => {
-                let why = c
-                    .unidentifiable
-                    .iter()
-                    .find(|(q, _)| q == p)
-                    .map_or("not identified".to_string(), |(_, ratio)| {
-                        format!("unidentifiable from these samples, kept nominal (independent fraction {ratio:.1e})")
-                    });
-                println!(
-                    "{:<14} {:>12} {:>12}  {unit:<5} {why}",
-                    p.to_string(),
-                    "—",
-                    "—"
-                );
-            }
-        }
     }
 }

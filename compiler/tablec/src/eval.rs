@@ -60,6 +60,11 @@ pub struct Args {
     /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
+    /// Kinematic identification: keep every parameter the pivoting keeps, even those whose
+    /// estimates are implausible or within a few standard errors of zero (by default they
+    /// are held at nominal, with the reason reported).
+    #[arg(long)]
+    keep_untrustworthy: bool,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
     /// Write the figures as CSV.
@@ -99,6 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut validation_registration = None;
     let calibrate_options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
+        hold_untrustworthy: !args.keep_untrustworthy,
         ..CalibrateOptions::default()
     };
     let protocol = match (&args.validation, args.folds) {
