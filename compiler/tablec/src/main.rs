@@ -95,6 +95,33 @@ fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memm
         .with_context(|| format!("cannot open table {}", path.display()))
 }
 
+/// The links a URDF robot's chain runs between, as every subcommand with `--robot` takes
+/// them.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct RobotLinks {
+    /// URDF robots: the link the chain starts at, the robot's base frame [default: the
+    /// file's only root link].
+    #[arg(long, value_name = "LINK")]
+    base_link: Option<String>,
+    /// URDF robots: the link the chain ends at, the TCP's frame [default: the only leaf
+    /// link below the base].
+    #[arg(long, value_name = "LINK")]
+    tip_link: Option<String>,
+}
+
+impl RobotLinks {
+    /// Loads a robot file (TOML, or URDF by its `.urdf` extension) with these links.
+    pub fn load(&self, path: &std::path::Path) -> anyhow::Result<adwi_robot::Robot> {
+        use anyhow::Context;
+        let links = adwi_robot::LinkNames {
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+        };
+        adwi_robot::Robot::load_with(path, &links)
+            .with_context(|| format!("cannot load the robot {}", path.display()))
+    }
+}
+
 /// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.
 pub fn parse_number_list(text: &str) -> Result<Vec<f64>, String> {
     text.split(',')
