@@ -396,7 +396,7 @@ impl CalibrationSummary {
             identified: c
                 .identified
                 .iter()
-                .map(|&p| (named(p), c.deviations[p.column()]))
+                .map(|&p| (named(p), c.value(p)))
                 .collect(),
             unidentifiable: c
                 .unidentifiable
@@ -775,7 +775,7 @@ fn predict_split(
             let exact = method == Method::Hybrid;
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
-            let model = adwi_runtime::model::PreparedModel::from_mdh(&c.kinematic_model());
+            let model = c.prepared_model();
             let bytes = build::plan(train, &options.build)
                 .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
                 .map_err(|source| EvalError::Build { method, source })?
