@@ -4,6 +4,55 @@
 use std::io::Write;
 use std::path::Path;
 
+/// Refuses to write `output` when it is one of `inputs` — the same file, also through a
+/// symbolic or hard link — before anything is written: a mistyped output path must never
+/// replace the calibration data it was computed from. Inputs that do not exist are
+/// skipped, and an output that does not exist yet cannot be an input.
+///
+/// # Errors
+///
+/// [`std::io::ErrorKind::AlreadyExists`], naming the output and the input it is.
+pub fn refuse_overwriting(output: &Path, inputs: &[&Path]) -> std::io::Result<()> {
+    let Ok(out) = std::fs::metadata(output) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Ok(inp) = std::fs::metadata(input) else {
+            continue;
+        };
+        if same_file(&out, &inp, output, input) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::AlreadyExists,
+                format!(
+                    "refusing to write {}: it is the input {} (the same file{}); choose another output",
+                    output.display(),
+                    input.display(),
+                    if output == *input {
+                        ""
+                    } else {
+                        ", through a link"
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata, _: &Path, _: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata, a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
 /// Writes `bytes` to `path` so that no reader, crash or kill ever sees a partial table and
 /// an existing table at `path` (even one mapped by a running controller) stays intact until
 /// the complete new one replaces it by rename.

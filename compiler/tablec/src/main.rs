@@ -145,59 +145,13 @@ pub fn parse_number_list(text: &str) -> Result<Vec<f64>, String> {
         .collect()
 }
 
-/// Refuses to write `output` when it is one of `inputs` — the same file, also through a
-/// symbolic or hard link — before anything is written: a mistyped `-o` must never replace
-/// the calibration data it was computed from.
+/// Refuses to write `output` when it is one of `inputs`, before anything is written
+/// ([`adwi_compile::write::refuse_overwriting`]).
 pub fn refuse_overwriting(
     output: &std::path::Path,
     inputs: &[&std::path::Path],
 ) -> anyhow::Result<()> {
-    // An output that does not exist yet cannot be an input.
-    let Ok(out) = std::fs::metadata(output) else {
-        return Ok(());
-    };
-    for input in inputs {
-        let Ok(inp) = std::fs::metadata(input) else {
-            continue;
-        };
-        if same_file(&out, &inp, output, input) {
-            anyhow::bail!(
-                "refusing to write {}: it is the input {} (the same file{}); choose another output",
-                output.display(),
-                input.display(),
-                if output == *input {
-                    ""
-                } else {
-                    ", through a link"
-                }
-            );
-        }
-    }
-    Ok(())
-}
-
-#[cfg(unix)]
-fn same_file(
-    a: &std::fs::Metadata,
-    b: &std::fs::Metadata,
-    _: &std::path::Path,
-    _: &std::path::Path,
-) -> bool {
-    use std::os::unix::fs::MetadataExt;
-    a.dev() == b.dev() && a.ino() == b.ino()
-}
-
-#[cfg(not(unix))]
-fn same_file(
-    _: &std::fs::Metadata,
-    _: &std::fs::Metadata,
-    a: &std::path::Path,
-    b: &std::path::Path,
-) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
+    Ok(adwi_compile::write::refuse_overwriting(output, inputs)?)
 }
 
 /// The method's parameters in one line, as `build` and `inspect` print them.

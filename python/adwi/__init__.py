@@ -1,0 +1,583 @@
+"""adwi — robot positioning-error tables, from Python.
+
+Industrial robots land 1-3 mm away from where they are told to go. From measured
+samples (commanded pose, measured error) adwi compiles a memory-mapped correction table
+that predicts the error at any target by approximation-degree weighted average
+interpolation (Sun, Xi, Tang, 2020); the controller commands the target minus the error.
+
+This package does what the ``tablec`` command line does, with numpy arrays:
+
+- :func:`build` compiles samples into a table file (``tablec build``);
+- :meth:`Table.open` maps a table, :meth:`Table.query` answers an (N, 3) array of targets
+  and :meth:`Table.compensate` solves for the commands (``tablec query --targets``);
+- :func:`evaluate` compares the methods on held-out points (``tablec eval``).
+
+Samples are a CSV path, a pandas DataFrame with the CSV's column names, or a numpy array
+with columns ``x, y, z, dx, dy, dz[, j1..jn]``. Positions are in mm, joint angles in
+degrees (as ``tablec`` reads them), orientation errors in rad.
+
+Every refused input raises :class:`AdwiError` (a :class:`ValueError`) with ``tablec``'s
+message: a bad sample row names ``file:line:column``.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _adwi
+from ._adwi import AdwiError
+
+__all__ = [
+    "AdwiError",
+    "AdwiWarning",
+    "BuildReport",
+    "Compensation",
+    "QueryResult",
+    "STATUS_NAMES",
+    "COMMAND_STATUS_NAMES",
+    "Table",
+    "build",
+    "evaluate",
+]
+
+#: Query statuses, indexed by status code: the names ``tablec query`` prints.
+STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.STATUS_NAMES)
+#: ``command_status`` names of ``tablec query --targets``, indexed by code.
+COMMAND_STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.COMMAND_STATUS_NAMES)
+
+#: The columns of a samples array, before the joints ``j1..jn``.
+ARRAY_COLUMNS: Tuple[str, ...] = ("x", "y", "z", "dx", "dy", "dz")
+
+
+class AdwiWarning(UserWarning):
+    """What ``tablec`` warns about on standard error: a mostly empty grid, kinematic
+    parameters the samples cannot identify, an identification that did not converge."""
+
+
+PathLike = Union[str, "os.PathLike[str]"]
+Samples = Any  # a path, a pandas.DataFrame or an (N, 6 + n) numpy array
+
+
+def _is_dataframe(obj: Any) -> bool:
+    return hasattr(obj, "to_csv") and hasattr(obj, "columns") and hasattr(obj, "iloc")
+
+
+def _source(samples: Samples, what: str) -> Union[str, Tuple[str, bytes]]:
+    """A path, or (name, CSV bytes) for a DataFrame or an array, for the native reader:
+    every input goes through the one CSV reader, with its checks and messages."""
+    if isinstance(samples, (str, os.PathLike)):
+        return os.fspath(samples)
+    if _is_dataframe(samples):
+        # float repr is the shortest round-trip form: the reader gets every bit.
+        text = samples.to_csv(index=False, na_rep="NaN", lineterminator="\n")
+        return (f"<{what} DataFrame>", text.encode("utf-8"))
+    array = np.asarray(samples, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1] < len(ARRAY_COLUMNS):
+        raise AdwiError(
+            f"{what}: an array needs shape (N, 6 + n): columns x, y, z, dx, dy, dz and "
+            f"optionally the joints j1..jn; its shape is {array.shape}"
+        )
+    joints = array.shape[1] - len(ARRAY_COLUMNS)
+    header = list(ARRAY_COLUMNS) + [f"j{i + 1}" for i in range(joints)]
+    return (f"<{what} array>", _adwi.array_csv(np.ascontiguousarray(array), header))
+
+
+def _columns(columns: Union[None, str, Mapping[str, str]]) -> Optional[str]:
+    if columns is None or isinstance(columns, str):
+        return columns
+    return ",".join(f"{name}={source}" for name, source in columns.items())
+
+
+def _reading(
+    samples: Samples,
+    columns: Union[None, str, Mapping[str, str]],
+    delimiter: Optional[str],
+    decimal: Optional[str],
+    length_unit: Optional[str],
+    angle_unit: Optional[str],
+) -> Dict[str, Optional[str]]:
+    if not isinstance(samples, (str, os.PathLike)) and (delimiter or decimal):
+        raise AdwiError("delimiter and decimal apply to CSV files, not to arrays or DataFrames")
+    return {
+        "columns": _columns(columns),
+        "delimiter": delimiter,
+        "decimal": decimal,
+        "length_unit": length_unit,
+        "angle_unit": angle_unit,
+    }
+
+
+def _table_options(**options: Any) -> Dict[str, Any]:
+    bounds = options.get("bounds")
+    if bounds is not None:
+        bounds = [float(v) for v in np.asarray(bounds, dtype=np.float64).ravel()]
+        if len(bounds) != 6:
+            raise AdwiError(
+                f"bounds: six numbers are needed, xmin,ymin,zmin,xmax,ymax,zmax; {len(bounds)} given"
+            )
+        options["bounds"] = bounds
+    return options
+
+
+def _warn(messages: Sequence[str]) -> None:
+    for message in messages:
+        warnings.warn(message, AdwiWarning, stacklevel=3)
+
+
+class BuildReport:
+    """What :func:`build` made, as ``tablec build`` prints it.
+
+    Attributes (and keys, for ``report["cells"]``): ``output``, ``source``, ``samples``,
+    ``repeats`` (dict or None), ``spacing_mm``, ``radius_mm``, ``radius_derived``,
+    ``cell_mm``, ``cell_derived``, ``grid_dims``, ``grid_origin_mm``, ``grid_max_mm``,
+    ``cells``, ``covered_cells``, ``distinct_lists``, ``list_entries``, ``mean_list_len``,
+    ``max_list_len``, ``served_cells``, ``node_sets``, ``bytes``, ``k``, ``w1``, ``w2``,
+    ``power``, ``lambda_min``, ``zeta_min``, ``consistency_screen``, ``joint_radius_deg``,
+    ``hybrid``, ``calibration`` (dict or None), ``warnings``, ``seconds``.
+    """
+
+    def __init__(self, fields: Mapping[str, Any]) -> None:
+        self._fields = dict(fields)
+        for name, value in self._fields.items():
+            setattr(self, name, value)
+
+    def as_dict(self) -> Dict[str, Any]:
+        """The report as a plain dict."""
+        return dict(self._fields)
+
+    def __getitem__(self, key: str) -> Any:
+        return self._fields[key]
+
+    def keys(self) -> Iterator[str]:
+        return iter(self._fields)
+
+    def __repr__(self) -> str:
+        f = self._fields
+        return (
+            f"BuildReport({f['output']!r}: {f['samples']} samples, {f['cells']} cells "
+            f"({f['covered_cells']} covered), {f['bytes']} bytes)"
+        )
+
+
+def build(
+    samples: Samples,
+    output: PathLike,
+    *,
+    columns: Union[None, str, Mapping[str, str]] = None,
+    robot: Optional[PathLike] = None,
+    hybrid: bool = False,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    delimiter: Optional[str] = None,
+    decimal: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    cell: Optional[float] = None,
+    radius: Optional[float] = None,
+    k: Optional[int] = None,
+    w1: Optional[float] = None,
+    w2: Optional[float] = None,
+    power: Optional[float] = None,
+    lambda_min: Optional[float] = None,
+    zeta_min: Optional[float] = None,
+    consistency_screen: bool = True,
+    bounds: Optional[Sequence[float]] = None,
+    joint_radius: Optional[float] = None,
+    threads: Optional[int] = None,
+) -> BuildReport:
+    """Compile samples into a correction table at ``output``, as ``tablec build``.
+
+    ``samples`` is a CSV path, a pandas DataFrame with the CSV's column names (``x, y, z,
+    dx, dy, dz``, orientations, ``j1..jn``, ``config``; in a message, its line n is row
+    n - 2), or a numpy array with columns ``x, y, z, dx, dy, dz[, j1..jn]`` (mm, joints
+    in degrees unless ``angle_unit="rad"``).
+
+    Reading, as tablec's READING options: ``columns`` (``"x=x_t,y=y_t,..."`` or a dict
+    ``{"x": "x_t", ...}``; ``"-col"`` negates, ``"col:m"`` gives a unit), ``delimiter``
+    (``"comma"``, ``"semicolon"``, ``"tab"``), ``decimal`` (``"point"``, ``"comma"``),
+    ``length_unit`` (``"mm"``, ``"m"``), ``angle_unit`` (``"deg"``, ``"rad"``).
+
+    Table, as tablec's options of the same names: ``cell`` and ``radius`` (mm; derived
+    from the sample spacing by default), ``k``, ``w1``, ``w2``, ``power``, ``lambda_min``,
+    ``zeta_min`` (the paper's by default), ``consistency_screen``, ``bounds``
+    (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg). ``robot`` (TOML,
+    or URDF with ``base_link``/``tip_link``) with ``hybrid=True`` identifies the robot's
+    kinematic deviations first and tables what the calibrated model leaves.
+
+    The table is written atomically (complete or not at all); an output that is one of
+    the inputs (also through a link) is refused before anything is written. The GIL is
+    released while building. Warnings (a mostly empty grid, unidentifiable parameters)
+    are issued as :class:`AdwiWarning`.
+
+    Returns the :class:`BuildReport`. Raises :class:`AdwiError`.
+    """
+    source = _source(samples, "samples")
+    reading = _reading(samples, columns, delimiter, decimal, length_unit, angle_unit)
+    table = _table_options(
+        cell=cell,
+        radius=radius,
+        k=k,
+        w1=w1,
+        w2=w2,
+        power=power,
+        lambda_min=lambda_min,
+        zeta_min=zeta_min,
+        consistency_screen=consistency_screen,
+        bounds=bounds,
+        joint_radius=joint_radius,
+    )
+    fields = _adwi.build(
+        source,
+        os.fspath(output),
+        reading,
+        table,
+        robot=None if robot is None else os.fspath(robot),
+        base_link=base_link,
+        tip_link=tip_link,
+        hybrid=hybrid,
+        threads=threads,
+    )
+    _warn(fields["warnings"])
+    return BuildReport(fields)
+
+
+def evaluate(
+    samples: Samples,
+    *,
+    validation: Optional[Samples] = None,
+    folds: Optional[int] = None,
+    seed: int = 0,
+    limit: Optional[int] = None,
+    methods: Optional[Sequence[str]] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    rank_tol: Optional[float] = None,
+    columns: Union[None, str, Mapping[str, str]] = None,
+    delimiter: Optional[str] = None,
+    decimal: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    cell: Optional[float] = None,
+    radius: Optional[float] = None,
+    k: Optional[int] = None,
+    w1: Optional[float] = None,
+    w2: Optional[float] = None,
+    power: Optional[float] = None,
+    lambda_min: Optional[float] = None,
+    zeta_min: Optional[float] = None,
+    consistency_screen: bool = True,
+    bounds: Optional[Sequence[float]] = None,
+    joint_radius: Optional[float] = None,
+) -> List[Dict[str, Any]]:
+    """Compare compensation methods on held-out points, as ``tablec eval``.
+
+    Either ``validation`` (samples in the same form and columns as ``samples``; ``limit``
+    keeps the first N) or ``folds`` (k-fold cross-validation of ``samples``, split by
+    ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
+    ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``
+    (default: every one the data allow); ``kinematic`` and ``hybrid`` need ``robot``.
+    Reading and table options as :func:`build`.
+
+    Returns one record per row of ``tablec eval --csv`` — ``uncompensated``, then one per
+    method — with its keys: ``method``, ``predicted``, ``not_predicted``,
+    ``position_{mean,rms,p95,max}_mm``, ``orientation_{mean,rms,p95,max}_mrad`` (None
+    without orientations) and ``note``; ``pandas.DataFrame(records)`` takes them. The GIL
+    is released while evaluating.
+    """
+    source = _source(samples, "samples")
+    reading = _reading(samples, columns, delimiter, decimal, length_unit, angle_unit)
+    if validation is not None and not isinstance(validation, (str, os.PathLike)) and (
+        delimiter or decimal
+    ):
+        raise AdwiError("delimiter and decimal apply to CSV files, not to arrays or DataFrames")
+    table = _table_options(
+        cell=cell,
+        radius=radius,
+        k=k,
+        w1=w1,
+        w2=w2,
+        power=power,
+        lambda_min=lambda_min,
+        zeta_min=zeta_min,
+        consistency_screen=consistency_screen,
+        bounds=bounds,
+        joint_radius=joint_radius,
+    )
+    if isinstance(methods, str):
+        methods = [m for m in methods.split(",") if m]
+    records, messages = _adwi.evaluate(
+        source,
+        reading,
+        table,
+        validation=None if validation is None else _source(validation, "validation"),
+        limit=limit,
+        folds=folds,
+        seed=seed,
+        methods=None if methods is None else list(methods),
+        robot=None if robot is None else os.fspath(robot),
+        base_link=base_link,
+        tip_link=tip_link,
+        rank_tol=rank_tol,
+    )
+    _warn(messages)
+    return list(records)
+
+
+class QueryResult:
+    """The answers of :meth:`Table.query`, one row per target.
+
+    - ``error_mm`` (N, 3): predicted position error, actual − nominal, mm; NaN where the
+      status is not ``ok``.
+    - ``orientation_rad`` (N, 3) or None: predicted orientation error (rotation vector,
+      rad, base frame); None for position-only tables.
+    - ``status`` (N,): status names as ``tablec query`` prints them (``ok``,
+      ``outside_grid``, ``no_neighbour``, ``invalid_input``, ``missing_joints``,
+      ``numerical_failure``, ``uncovered_cell``); ``status_code`` the same as integers,
+      indexes of :data:`STATUS_NAMES`; ``ok`` a boolean mask.
+    - ``neighbours`` (N,): neighbours weighted (exact tier) or nodes blended (served tier).
+    """
+
+    error_mm: np.ndarray
+    orientation_rad: Optional[np.ndarray]
+    status_code: np.ndarray
+    neighbours: np.ndarray
+
+    def __init__(self, fields: Mapping[str, Any]) -> None:
+        self.error_mm = fields["error_mm"]
+        self.orientation_rad = fields["orientation_rad"]
+        self.status_code = fields["status_code"]
+        self.neighbours = fields["neighbours"]
+
+    @property
+    def status(self) -> np.ndarray:
+        """Status names, (N,) array of str."""
+        return np.asarray(STATUS_NAMES)[self.status_code]
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Where a correction was predicted (status ``ok``), (N,) bool."""
+        return self.status_code == 0
+
+    def __len__(self) -> int:
+        return len(self.status_code)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({len(self)} targets, {int(self.ok.sum())} ok)"
+
+
+class Compensation(QueryResult):
+    """The answers of :meth:`Table.compensate`: those of :meth:`Table.query` at the
+    targets, and the commands, as ``tablec query --targets`` writes them.
+
+    - ``command_mm`` (N, 3): the position to command so that the robot lands on the
+      target (``command + error(command) = target``, by fixed-point iteration; with
+      joints, first order ``target − error``); NaN where the status is not ``ok``.
+    - ``command_rotation_rad`` (N, 3) or None: the rotation vector to apply to the target
+      orientation, ``R_cmd = Exp(v) · R_target``; None for position-only tables.
+    - ``command_status`` (N,): ``converged``, ``not_converged``, ``first_order``, or ``""``
+      where there is no command.
+    - ``iterations`` (N,) and ``residual_mm`` (N,): of the fixed-point iteration
+      (0 and NaN for first-order commands).
+    """
+
+    command_mm: np.ndarray
+    command_rotation_rad: Optional[np.ndarray]
+    command_status_code: np.ndarray
+    iterations: np.ndarray
+    residual_mm: np.ndarray
+
+    def __init__(self, fields: Mapping[str, Any]) -> None:
+        super().__init__(fields)
+        self.command_mm = fields["command_mm"]
+        self.command_rotation_rad = fields["command_rotation_rad"]
+        self.command_status_code = fields["command_status_code"]
+        self.iterations = fields["iterations"]
+        self.residual_mm = fields["residual_mm"]
+
+    @property
+    def command_status(self) -> np.ndarray:
+        """``command_status`` names, (N,) array of str (``""`` without a command)."""
+        names = np.asarray(COMMAND_STATUS_NAMES + ("",))
+        codes = np.where(self.command_status_code == _adwi.NO_COMMAND, len(names) - 1,
+                         self.command_status_code)
+        return names[codes]
+
+
+def _points(points: Any) -> np.ndarray:
+    array = np.ascontiguousarray(points, dtype=np.float64)
+    if array.ndim == 1:
+        array = array.reshape(1, -1)
+    return array
+
+
+def _optional_joints(joints: Any) -> Optional[np.ndarray]:
+    if joints is None:
+        return None
+    array = np.ascontiguousarray(joints, dtype=np.float64)
+    if array.ndim == 1:
+        array = array.reshape(1, -1)
+    return array
+
+
+def _optional_config(config: Any, n: int) -> Optional[np.ndarray]:
+    if config is None:
+        return None
+    array = np.ascontiguousarray(config, dtype=np.int64).reshape(-1)
+    if array.size == 1 and n != 1:
+        array = np.full(n, array[0], dtype=np.int64)
+    return array
+
+
+def _joints_deg(joints_unit: str) -> bool:
+    if joints_unit not in ("deg", "rad"):
+        raise AdwiError(f"joints_unit: 'deg' or 'rad', not {joints_unit!r}")
+    return joints_unit == "deg"
+
+
+class Table:
+    """A correction table, memory-mapped and validated once by :meth:`open`.
+
+    Query it with :meth:`query` (errors) or :meth:`compensate` (commands), vectorised over
+    (N, 3) arrays of targets; both release the GIL during the loop, so several threads
+    can query one table at once.
+    """
+
+    def __init__(self, raw: "_adwi.Table") -> None:
+        self._raw = raw
+
+    @classmethod
+    def open(cls, path: PathLike) -> "Table":
+        """Map the table at ``path`` and validate it (header, checksums, structure).
+        Raises :class:`AdwiError` for a file that is not a valid table."""
+        return cls(_adwi.Table.open(os.fspath(path)))
+
+    @property
+    def path(self) -> str:
+        """The table's file."""
+        return os.fspath(self._raw.path)
+
+    @property
+    def grid(self) -> Dict[str, Any]:
+        """The cell grid: ``origin_mm``, ``max_mm``, ``cell_mm``, ``dims``, ``cells``;
+        targets outside it are answered ``outside_grid``."""
+        return self._raw.grid
+
+    @property
+    def method(self) -> Dict[str, Any]:
+        """The method's parameters: ``radius_mm``, ``k``, ``w1``, ``w2``, ``power``,
+        ``lambda_min``, ``zeta_min``, ``consistency_screen``."""
+        return self._raw.method
+
+    @property
+    def has_orientation(self) -> bool:
+        """Whether the samples carry orientation errors, so answers include one."""
+        return self._raw.has_orientation
+
+    @property
+    def has_config(self) -> bool:
+        """Whether the samples carry configurations, which ``config`` then screens."""
+        return self._raw.has_config
+
+    @property
+    def is_hybrid(self) -> bool:
+        """Whether this is a hybrid table (calibrated model + residuals): it needs the
+        targets' joint angles."""
+        return self._raw.is_hybrid
+
+    @property
+    def joint_count(self) -> Optional[int]:
+        """The number of joint values a query takes, or None when joints play no part."""
+        return self._raw.joint_count
+
+    @property
+    def joint_radius_deg(self) -> float:
+        """The joint-space screen's radius, degrees; 0 when off."""
+        return self._raw.joint_radius_deg
+
+    @property
+    def has_served_field(self) -> bool:
+        """Whether the table has a served (continuous) tier; otherwise every query is
+        answered from the exact tier."""
+        return self._raw.has_served_field
+
+    @property
+    def sample_count(self) -> int:
+        """The number of samples the table was built from."""
+        return self._raw.sample_count
+
+    @property
+    def version(self) -> int:
+        """The file format version."""
+        return self._raw.version
+
+    @property
+    def source_hash(self) -> int:
+        """XXH3-64 of the sample values the table was built from."""
+        return self._raw.source_hash
+
+    def query(
+        self,
+        points: Any,
+        joints: Any = None,
+        exact: bool = False,
+        *,
+        config: Any = None,
+        joints_unit: str = "deg",
+    ) -> QueryResult:
+        """Predicted errors at ``points`` ((N, 3), mm, base frame; one point (3,) is one
+        row), as ``tablec query --targets`` answers rows ``x,y,z[,config][,j1..jn]``.
+
+        ``joints`` ((N, n)): the joint angles the controller will use, in degrees as tablec
+        reads ``j1..jn`` (``joints_unit="rad"`` for radians); needed by hybrid tables, and
+        applies a table's joint-space screen. ``config`` ((N,) ints, or one int; negative
+        for unknown): the inverse-kinematics configuration. ``exact``: answer from the
+        exact tier (the paper's method to the digit) instead of the served field.
+        """
+        p = _points(points)
+        result = self._raw.query_batch(
+            p,
+            joints=_optional_joints(joints),
+            config=_optional_config(config, len(p)),
+            exact=exact,
+            compensate=False,
+            joints_deg=_joints_deg(joints_unit),
+        )
+        return QueryResult(result)
+
+    def compensate(
+        self,
+        points: Any,
+        joints: Any = None,
+        exact: bool = False,
+        *,
+        config: Any = None,
+        joints_unit: str = "deg",
+        tolerance_mm: float = _adwi.COMPENSATE_TOLERANCE_MM,
+        max_iterations: int = _adwi.COMPENSATE_ITERATIONS,
+    ) -> Compensation:
+        """The commands that land the robot on ``points``, as ``tablec query --targets``
+        writes them (its ``command_*`` columns): ``command + error(command) = target`` by
+        fixed-point iteration to ``tolerance_mm`` within ``max_iterations`` queries; with
+        ``joints``, the first-order ``target − error`` (the moved command's joint angles
+        are only known to the controller). Arguments as :meth:`query`.
+        """
+        p = _points(points)
+        result = self._raw.query_batch(
+            p,
+            joints=_optional_joints(joints),
+            config=_optional_config(config, len(p)),
+            exact=exact,
+            compensate=True,
+            joints_deg=_joints_deg(joints_unit),
+            tolerance_mm=tolerance_mm,
+            max_iterations=max_iterations,
+        )
+        return Compensation(result)
+
+    def __repr__(self) -> str:
+        return repr(self._raw)

@@ -1,0 +1,214 @@
+"""Type stubs of the adwi package: robot positioning-error tables from Python."""
+
+import os
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+PathLike = Union[str, os.PathLike[str]]
+#: A CSV path, a pandas.DataFrame with the CSV's column names, or an (N, 6 + n) array
+#: with columns x, y, z, dx, dy, dz[, j1..jn].
+Samples = Union[PathLike, npt.ArrayLike, Any]
+Columns = Union[None, str, Mapping[str, str]]
+
+__all__ = [
+    "AdwiError",
+    "AdwiWarning",
+    "BuildReport",
+    "Compensation",
+    "QueryResult",
+    "STATUS_NAMES",
+    "COMMAND_STATUS_NAMES",
+    "Table",
+    "build",
+    "evaluate",
+]
+
+STATUS_NAMES: Tuple[str, ...]
+COMMAND_STATUS_NAMES: Tuple[str, ...]
+ARRAY_COLUMNS: Tuple[str, ...]
+
+class AdwiError(ValueError):
+    """An input refused as tablec refuses it; a bad sample row's message names
+    file:line:column."""
+
+class AdwiWarning(UserWarning):
+    """What tablec warns about on standard error."""
+
+class BuildReport:
+    """What build() made, as tablec build prints it."""
+
+    output: str
+    source: str
+    samples: int
+    repeats: Optional[Dict[str, Any]]
+    spacing_mm: Optional[float]
+    radius_mm: float
+    radius_derived: bool
+    cell_mm: float
+    cell_derived: bool
+    grid_dims: List[int]
+    grid_origin_mm: List[float]
+    grid_max_mm: List[float]
+    cells: int
+    covered_cells: int
+    distinct_lists: int
+    list_entries: int
+    mean_list_len: float
+    max_list_len: int
+    served_cells: int
+    node_sets: int
+    bytes: int
+    k: int
+    w1: float
+    w2: float
+    power: float
+    lambda_min: float
+    zeta_min: float
+    consistency_screen: bool
+    joint_radius_deg: float
+    hybrid: bool
+    calibration: Optional[Dict[str, Any]]
+    warnings: List[str]
+    seconds: float
+    def __init__(self, fields: Mapping[str, Any]) -> None: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+    def __getitem__(self, key: str) -> Any: ...
+    def keys(self) -> Iterator[str]: ...
+
+def build(
+    samples: Samples,
+    output: PathLike,
+    *,
+    columns: Columns = None,
+    robot: Optional[PathLike] = None,
+    hybrid: bool = False,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    delimiter: Optional[str] = None,
+    decimal: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    cell: Optional[float] = None,
+    radius: Optional[float] = None,
+    k: Optional[int] = None,
+    w1: Optional[float] = None,
+    w2: Optional[float] = None,
+    power: Optional[float] = None,
+    lambda_min: Optional[float] = None,
+    zeta_min: Optional[float] = None,
+    consistency_screen: bool = True,
+    bounds: Optional[Sequence[float]] = None,
+    joint_radius: Optional[float] = None,
+    threads: Optional[int] = None,
+) -> BuildReport:
+    """Compile samples into a correction table at output, as tablec build."""
+
+def evaluate(
+    samples: Samples,
+    *,
+    validation: Optional[Samples] = None,
+    folds: Optional[int] = None,
+    seed: int = 0,
+    limit: Optional[int] = None,
+    methods: Union[None, str, Sequence[str]] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    rank_tol: Optional[float] = None,
+    columns: Columns = None,
+    delimiter: Optional[str] = None,
+    decimal: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    cell: Optional[float] = None,
+    radius: Optional[float] = None,
+    k: Optional[int] = None,
+    w1: Optional[float] = None,
+    w2: Optional[float] = None,
+    power: Optional[float] = None,
+    lambda_min: Optional[float] = None,
+    zeta_min: Optional[float] = None,
+    consistency_screen: bool = True,
+    bounds: Optional[Sequence[float]] = None,
+    joint_radius: Optional[float] = None,
+) -> List[Dict[str, Any]]:
+    """Compare compensation methods on held-out points, as tablec eval: one record per
+    row of its --csv output."""
+
+class QueryResult:
+    """Table.query's answers, one row per target."""
+
+    error_mm: npt.NDArray[np.float64]
+    orientation_rad: Optional[npt.NDArray[np.float64]]
+    status_code: npt.NDArray[np.uint8]
+    neighbours: npt.NDArray[np.uint32]
+    def __init__(self, fields: Mapping[str, Any]) -> None: ...
+    @property
+    def status(self) -> npt.NDArray[np.str_]: ...
+    @property
+    def ok(self) -> npt.NDArray[np.bool_]: ...
+    def __len__(self) -> int: ...
+
+class Compensation(QueryResult):
+    """Table.compensate's answers: the query at the targets, and the commands."""
+
+    command_mm: npt.NDArray[np.float64]
+    command_rotation_rad: Optional[npt.NDArray[np.float64]]
+    command_status_code: npt.NDArray[np.uint8]
+    iterations: npt.NDArray[np.uint32]
+    residual_mm: npt.NDArray[np.float64]
+    @property
+    def command_status(self) -> npt.NDArray[np.str_]: ...
+
+class Table:
+    """A correction table, memory-mapped and validated once."""
+
+    def __init__(self, raw: Any) -> None: ...
+    @classmethod
+    def open(cls, path: PathLike) -> Table: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def grid(self) -> Dict[str, Any]: ...
+    @property
+    def method(self) -> Dict[str, Any]: ...
+    @property
+    def has_orientation(self) -> bool: ...
+    @property
+    def has_config(self) -> bool: ...
+    @property
+    def is_hybrid(self) -> bool: ...
+    @property
+    def joint_count(self) -> Optional[int]: ...
+    @property
+    def joint_radius_deg(self) -> float: ...
+    @property
+    def has_served_field(self) -> bool: ...
+    @property
+    def sample_count(self) -> int: ...
+    @property
+    def version(self) -> int: ...
+    @property
+    def source_hash(self) -> int: ...
+    def query(
+        self,
+        points: npt.ArrayLike,
+        joints: Optional[npt.ArrayLike] = None,
+        exact: bool = False,
+        *,
+        config: Optional[npt.ArrayLike] = None,
+        joints_unit: str = "deg",
+    ) -> QueryResult: ...
+    def compensate(
+        self,
+        points: npt.ArrayLike,
+        joints: Optional[npt.ArrayLike] = None,
+        exact: bool = False,
+        *,
+        config: Optional[npt.ArrayLike] = None,
+        joints_unit: str = "deg",
+        tolerance_mm: float = 1e-6,
+        max_iterations: int = 50,
+    ) -> Compensation: ...
