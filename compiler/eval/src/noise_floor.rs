@@ -26,7 +26,8 @@
 //!    [`MIN_PAIRS`] pairs are dropped.
 //! 3. A straight line `γ(h) = nugget + slope · h` is fitted by unweighted least squares to
 //!    the (mean lag, mean semivariance) of the [`FIT_BINS`] populated bins of smallest
-//!    lag, and its intercept is the nugget, clamped to `[0, γ` of the first bin`]`. Only
+//!    lag, and its intercept is the nugget, at most `γ` of the first bin; an intercept at or
+//!    below zero gives no estimate (the low lags do not show the nugget). Only
 //!    the lowest bins, and unweighted, so that the many pairs at larger lags, where the
 //!    semivariogram bends towards its sill, do not pull the line down at zero. A fitted
 //!    slope below zero (no spatial structure at these lags) means a pure nugget: the mean
@@ -184,7 +185,7 @@ fn median_spacing(points: &Points, order: &[usize]) -> Option<f64> {
 
 /// Estimates the nugget of `values` at `points` (flat, `dim` coordinates each) by the
 /// module's procedure; `None` when there are too few close pairs to fit (fewer than two
-/// bins with [`MIN_PAIRS`] pairs).
+/// bins with [`MIN_PAIRS`] pairs), or when the fitted line meets zero lag at or below zero.
 ///
 /// # Panics
 ///
@@ -247,7 +248,12 @@ pub fn estimate_nugget(
     let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     let (nugget, slope) = if slope > 0.0 {
         let intercept = mean_g - slope * mean_h;
-        (intercept.clamp(0.0, bins[0].semivariance_mm2), slope)
+        // A line through zero or below says the low lags are too far apart to show the
+        // nugget (the field is still rising steeply there), not that there is no noise.
+        if intercept <= 0.0 {
+            return None;
+        }
+        (intercept.min(bins[0].semivariance_mm2), slope)
     } else {
         (mean_g, 0.0)
     };
