@@ -1017,3 +1017,72 @@ fn continuity_reports_both_tiers_along_lines() {
     let o = tablec(&["continuity", "t.tbl", "--step-mm", "0"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
 }
+
+/// `tablec build --tune`: k and ε chosen by cross-validation on the samples, every
+/// candidate printed, the choice and its cross-validated mean recorded in the table and
+/// shown by `inspect`; refused beside an explicit --k.
+#[test]
+fn tune_chooses_k_and_radius_and_records_the_choice() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/kr150-2/samples.csv");
+    let o = tablec(
+        &[
+            "build",
+            samples.to_str().unwrap(),
+            "-o",
+            "t.tbl",
+            "--tune",
+            "--tune-folds",
+            "3",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("3-fold cross-validation of `paper`"), "{out}");
+    let candidates: Vec<&str> = out.lines().filter(|l| l.contains(" mm mean, ")).collect();
+    assert_eq!(candidates.len(), 9, "{out}");
+    let chosen: Vec<&str> = candidates
+        .iter()
+        .find(|l| l.trim_start().starts_with('*'))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    // "* k 12, ε 150.000 mm: 0.0690 mm mean, 0 missed"
+    let k = chosen[2].trim_end_matches(',');
+    let mean: f64 = chosen[6].parse().unwrap();
+    for line in &candidates {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let m: f64 = words[words.len() - 5].parse().unwrap();
+        assert!(mean <= m, "{out}");
+    }
+    let o = tablec(&["inspect", "t.tbl"], dir.path());
+    let inspect = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        inspect.contains(&format!(
+            "chosen by 3-fold cross-validation on the samples: {mean:.4} mm mean"
+        )),
+        "{inspect}"
+    );
+    assert!(inspect.contains(&format!(", k {k}, ")), "{inspect}");
+    let o = tablec(
+        &[
+            "build",
+            samples.to_str().unwrap(),
+            "-o",
+            "u.tbl",
+            "--tune",
+            "--k",
+            "8",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = tablec(
+        &["build", "-q", samples.to_str().unwrap(), "-o", "d.tbl"],
+        dir.path(),
+    );
+    assert!(o.status.success());
+    let o = tablec(&["inspect", "d.tbl"], dir.path());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("tuned           no"));
+}

@@ -32,6 +32,7 @@
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+pub use adwi_runtime::format::Tuning;
 use adwi_runtime::format::{
     self, v2, Grid, Header, SampleRecord, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_MODEL,
     CONTENT_ORIENTATION,
@@ -72,6 +73,9 @@ pub struct BuildOptions {
     /// target's (`Header::joint_radius_rad`). `None` (or 0) turns the screen off. Needs
     /// samples with joint angles.
     pub joint_radius_deg: Option<f64>,
+    /// The cross-validation that chose these options, recorded in the table's header
+    /// (`tablec build --tune`); `None` when they were given or defaulted.
+    pub tuning: Option<Tuning>,
 }
 
 impl Default for BuildOptions {
@@ -81,6 +85,7 @@ impl Default for BuildOptions {
             cell_mm: None,
             bounds_mm: None,
             joint_radius_deg: None,
+            tuning: None,
         }
     }
 }
@@ -160,6 +165,8 @@ pub struct Plan {
     pub cell_derived: bool,
     /// The number of samples planned for.
     pub samples: usize,
+    /// The cross-validation that chose the options, for the header.
+    pub tuning: Option<Tuning>,
 }
 
 impl Plan {
@@ -355,6 +362,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         radius_derived: options.method.radius_mm.is_none(),
         cell_derived: options.cell_mm.is_none(),
         samples: samples.len(),
+        tuning: options.tuning,
     })
 }
 
@@ -516,6 +524,7 @@ pub fn compile_plan(
             0
         },
         node_set_count: data.node_sets.len() as u32,
+        tuning: plan.tuning,
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.

@@ -44,6 +44,7 @@ pub mod latency;
 pub mod noise_floor;
 pub mod output;
 pub mod report;
+pub mod tune;
 
 use std::collections::BTreeMap;
 use std::fmt;

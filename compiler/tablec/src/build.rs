@@ -45,6 +45,15 @@ pub struct Args {
         requires = "hybrid"
     )]
     measured_in: crate::measured_in::MeasuredIn,
+    /// Choose k and ε by k-fold cross-validation on these samples alone (k in 4, 8, 12; ε
+    /// of 1.5, 2 or 3 sample spacings), scoring the method the table serves (the hybrid
+    /// with --hybrid); the choice and its cross-validated mean are recorded in the table
+    /// (`tablec inspect`). The other options apply to every candidate.
+    #[arg(long, conflicts_with_all = ["k", "radius"])]
+    tune: bool,
+    /// Folds of --tune's cross-validation.
+    #[arg(long, default_value_t = 5, value_name = "K", requires = "tune")]
+    tune_folds: usize,
     /// Worker threads [default: all cores]; the table is the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -67,7 +76,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         _ => (None, read_samples_with(&args.samples, &columns, &read)?),
     };
-    let plan = adwi_compile::build::plan(&samples, &args.table.build_options())?;
+    let mut options = args.table.build_options();
+    if args.tune {
+        let robot = match (&registered, &args.robot, args.hybrid) {
+            (Some(r), _, true) => Some(r.robot.clone()),
+            (None, Some(path), true) => Some(args.links.load(path)?),
+            _ => None,
+        };
+        let report = adwi_eval::tune::tune(
+            &samples,
+            robot.as_ref(),
+            &options,
+            &CalibrateOptions::default(),
+            args.tune_folds,
+            0,
+        )?;
+        if !args.quiet {
+            print_tuning(&report);
+        }
+        options = report.options;
+    }
+    let plan = adwi_compile::build::plan(&samples, &options)?;
     let cells = plan.cells();
     if plan.is_mostly_empty() {
         eprintln!(
@@ -223,6 +252,27 @@ fn print_summary(
         report.table_bytes,
         started.elapsed().as_secs_f64()
     );
+}
+
+/// Every candidate of --tune with its cross-validated mean, the chosen one marked.
+fn print_tuning(report: &adwi_eval::tune::TuneReport) {
+    println!(
+        "tuning         {}-fold cross-validation of `{}` on the samples alone:",
+        report.folds,
+        report.method.name()
+    );
+    for (i, c) in report.candidates.iter().enumerate() {
+        let mean = c
+            .cv_mean_mm
+            .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
+        println!(
+            "  {} k {:>2}, ε {:>9.3} mm: {mean}, {} missed",
+            if i == report.chosen { "*" } else { " " },
+            c.k,
+            c.radius_mm,
+            c.missed
+        );
+    }
 }
 
 /// What identification found, as `tablec build --hybrid` reports it: the calibration's

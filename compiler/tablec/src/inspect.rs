@@ -60,6 +60,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("joints          {n}");
     }
     println!("method          {}", crate::describe_method(&h.method));
+    match h.tuning {
+        Some(t) => println!(
+            "tuned           k and ε chosen by {}-fold cross-validation on the samples: {:.4} mm mean",
+            t.folds, t.cv_mean_mm
+        ),
+        None => println!("tuned           no (parameters given or defaulted)"),
+    }
     println!(
         "joint screen    {}",
         crate::describe_joint_screen(h.joint_radius_rad)

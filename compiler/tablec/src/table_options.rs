@@ -26,7 +26,7 @@ fn parse_bounds(text: &str) -> Result<Bounds, String> {
 /// Method and grid options of a table.
 #[derive(clap::Args, Debug, Clone)]
 pub struct TableOptions {
-    /// Cell edge length, mm [default: sample spacing / 4].
+    /// Cell edge length, mm [default: sample spacing / 2].
     #[arg(long, value_name = "MM")]
     pub cell: Option<f64>,
     /// Neighbourhood radius ε, mm [default: 2 × sample spacing].
@@ -96,6 +96,7 @@ impl TableOptions {
             cell_mm: self.cell,
             bounds_mm: self.bounds,
             joint_radius_deg: self.joint_radius,
+            tuning: None,
         }
     }
 }

@@ -32,7 +32,10 @@
 //! | 152 | 8  | joint-space radius, rad: a sample is admissible only if every joint value is within it of the target's, when the target's joint values are given; 0 = off |
 //! | 160 | 4  | v2: the robot's joint count, when the table holds joint values or a model; 0 otherwise (v1: reserved, zero; v1 robots have 6) |
 //! | 164 | 4  | v2: the number of node sets of the served tier; 0 for a table served by its exact tier alone (v1: reserved, zero) |
-//! | 168 | 80 | reserved, zero |
+//! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`); 0 when they were given or defaulted |
+//! | 172 | 4  | reserved, zero |
+//! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
+//! | 184 | 64 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
@@ -116,6 +119,18 @@ pub struct Header {
     pub joint_count: u32,
     /// The served tier's node sets (version 2; 0: the exact tier alone answers).
     pub node_set_count: u32,
+    /// How the method's parameters were chosen (version 2), when by cross-validation.
+    pub tuning: Option<Tuning>,
+}
+
+/// The cross-validation that chose a table's parameters (`tablec build --tune`), recorded
+/// so that `inspect` can say how the table came to be and how well it is expected to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tuning {
+    /// Number of folds.
+    pub folds: u32,
+    /// Mean position residual over the held-out folds with the chosen parameters, mm.
+    pub cv_mean_mm: f64,
 }
 
 /// A regular grid of cubic cells over an axis-aligned box of the base frame.
@@ -253,6 +268,10 @@ impl Header {
         if self.version >= 2 {
             put(&mut b, 160, self.joint_count.to_le_bytes());
             put(&mut b, 164, self.node_set_count.to_le_bytes());
+            if let Some(t) = self.tuning {
+                put(&mut b, 168, t.folds.to_le_bytes());
+                put(&mut b, 176, t.cv_mean_mm.to_le_bytes());
+            }
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
@@ -311,8 +330,15 @@ impl Header {
                 expected: RKYV_FLAGS,
             });
         }
-        let reserved_from = if version >= 2 { 168 } else { 160 };
-        if b[reserved_from..248].iter().any(|&byte| byte != 0) {
+        let reserved: [std::ops::Range<usize>; 2] = if version >= 2 {
+            [172..176, 184..248]
+        } else {
+            [160..248, 248..248]
+        };
+        if reserved
+            .iter()
+            .any(|r| b[r.clone()].iter().any(|&byte| byte != 0))
+        {
             return Err(OpenError::Corrupt {
                 what: "reserved header bytes are not zero",
             });
@@ -330,6 +356,27 @@ impl Header {
                 what: "joint radius is negative or not finite",
             });
         }
+        let tuning = if version >= 2 && u32_at(168) > 0 {
+            let cv_mean_mm = f64_at(176);
+            // Written so that NaN fails the test.
+            if !(0.0..=MAX_COORDINATE_MM).contains(&cv_mean_mm) {
+                return Err(OpenError::Corrupt {
+                    what:
+                        "the tuning's cross-validated mean is negative, implausible or not finite",
+                });
+            }
+            Some(Tuning {
+                folds: u32_at(168),
+                cv_mean_mm,
+            })
+        } else {
+            if version >= 2 && f64_at(176).to_bits() != 0 {
+                return Err(OpenError::Corrupt {
+                    what: "a cross-validated mean without folds",
+                });
+            }
+            None
+        };
         Ok(Header {
             version,
             rkyv_flags,
@@ -362,6 +409,7 @@ impl Header {
                 0
             },
             node_set_count: if version >= 2 { u32_at(164) } else { 0 },
+            tuning,
         })
     }
 }

@@ -1,0 +1,135 @@
+//! The table's parameters chosen by evidence: k-fold cross-validation of candidate
+//! parameters on the training samples alone (`tablec build --tune`). Validation points
+//! never take part: a choice made on them would be fitted to them.
+//!
+//! The candidates are the neighbour count `k` and the neighbourhood radius ε as a multiple
+//! of the sample spacing (the method's other parameters stay as given). Each is scored by
+//! the mean position residual of the method the table serves — `paper`, or `hybrid` with a
+//! robot — over the held-out folds. A candidate that leaves points unpredicted never beats
+//! one that predicts more: the choice is the lowest mean among those that miss the fewest.
+
+use adwi_compile::build::{BuildOptions, Tuning};
+use adwi_compile::samples::SampleSet;
+use adwi_robot::Robot;
+
+use crate::{evaluate, EvalError, EvalOptions, Method, Protocol};
+
+/// The neighbour counts tried.
+pub const K_CANDIDATES: [u32; 3] = [4, 8, 12];
+/// The radii tried, in sample spacings (the default is 2).
+pub const RADIUS_CANDIDATES_SPACINGS: [f64; 3] = [1.5, 2.0, 3.0];
+
+/// One candidate's cross-validated figures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    /// The neighbour count.
+    pub k: u32,
+    /// The radius, mm.
+    pub radius_mm: f64,
+    /// Mean position residual over the predicted held-out points, mm; `None` when none was
+    /// predicted.
+    pub cv_mean_mm: Option<f64>,
+    /// Held-out points not predicted.
+    pub missed: usize,
+}
+
+/// What tuning found: every candidate, and the options chosen.
+#[derive(Clone, Debug)]
+pub struct TuneReport {
+    /// The method scored.
+    pub method: Method,
+    /// The folds.
+    pub folds: usize,
+    /// Every candidate, in the order tried.
+    pub candidates: Vec<Candidate>,
+    /// The index of the chosen one.
+    pub chosen: usize,
+    /// The build options with the chosen parameters and the tuning recorded.
+    pub options: BuildOptions,
+}
+
+/// Why tuning could not choose.
+#[derive(Debug, thiserror::Error)]
+pub enum TuneError {
+    /// The samples have no spacing to scale radii by (fewer than two positions).
+    #[error("the samples have no spacing to scale the candidate radii by")]
+    NoSpacing,
+    /// Fewer than two folds.
+    #[error("tuning needs at least 2 folds")]
+    Folds,
+    /// No candidate predicted a single held-out point.
+    #[error("no candidate predicted any held-out point")]
+    NothingPredicted,
+    /// An evaluation failed.
+    #[error(transparent)]
+    Eval(#[from] EvalError),
+}
+
+/// Chooses `k` and ε for a table of `samples` (a hybrid table when `robot` is given) by
+/// `folds`-fold cross-validation with `seed`, the other options as in `base`.
+///
+/// # Errors
+///
+/// [`TuneError`].
+pub fn tune(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    base: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    folds: usize,
+    seed: u64,
+) -> Result<TuneReport, TuneError> {
+    if folds < 2 {
+        return Err(TuneError::Folds);
+    }
+    let spacing = samples.spacing_mm().ok_or(TuneError::NoSpacing)?;
+    let method = if robot.is_some() {
+        Method::Hybrid
+    } else {
+        Method::Paper
+    };
+    let mut candidates = Vec::new();
+    for &k in &K_CANDIDATES {
+        for &spacings in &RADIUS_CANDIDATES_SPACINGS {
+            let mut build = base.clone();
+            build.method.max_neighbours = k;
+            build.method.radius_mm = Some(spacings * spacing);
+            let options = EvalOptions {
+                methods: Some(vec![method]),
+                build,
+                robot: robot.cloned(),
+                calibrate: *calibrate,
+                ..EvalOptions::default()
+            };
+            let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
+            let result = evaluation.method(method);
+            candidates.push(Candidate {
+                k,
+                radius_mm: spacings * spacing,
+                cv_mean_mm: result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+                missed: result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+            });
+        }
+    }
+    let chosen = candidates
+        .iter()
+        .enumerate()
+        .filter_map(|(i, c)| c.cv_mean_mm.map(|m| (i, c.missed, m)))
+        .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
+        .map(|(i, _, _)| i)
+        .ok_or(TuneError::NothingPredicted)?;
+    let mut options = base.clone();
+    options.method.max_neighbours = candidates[chosen].k;
+    options.method.radius_mm = Some(candidates[chosen].radius_mm);
+    options.tuning = Some(Tuning {
+        folds: folds as u32,
+        cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
+    });
+    Ok(TuneReport {
+        method,
+        folds,
+        candidates,
+        chosen,
+        options,
+    })
+}
