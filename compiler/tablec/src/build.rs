@@ -5,12 +5,11 @@ use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildReport};
 use adwi_compile::hybrid;
-use adwi_compile::samples::read_samples_with;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
 use anyhow::{bail, Context};
 
-use crate::measured_in::{MeasuredIn, Registered};
+use crate::measured_in::Registered;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -68,14 +67,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.robot.as_deref());
     crate::refuse_overwriting(&args.output, &inputs)?;
     let (columns, read) = args.read.resolve()?;
-    let (registered, samples) = match (args.measured_in, &args.robot) {
-        (MeasuredIn::Tracker, Some(robot_path)) => {
-            let robot = args.links.load(robot_path)?;
-            let (registered, samples) = Registered::read(&args.samples, &columns, &read, robot)?;
-            (Some(registered), samples)
-        }
-        _ => (None, read_samples_with(&args.samples, &columns, &read)?),
-    };
+    let (registered, samples) = crate::measured_in::read_samples(
+        args.measured_in,
+        args.robot.as_deref(),
+        &args.links,
+        &args.samples,
+        &columns,
+        &read,
+    )?;
     let mut options = args.table.build_options();
     if args.tune {
         let robot = match (&registered, &args.robot, args.hybrid) {
@@ -236,7 +235,7 @@ fn print_summary(
         r.print();
     }
     if let Some((c, residual_rms_mm)) = calibration {
-        print_calibration(c, *residual_rms_mm);
+        crate::calibrate::print_identification(c, Some(*residual_rms_mm));
         if let Some(r) = registered {
             r.print_refined(c, samples);
         }
@@ -273,54 +272,6 @@ fn print_tuning(report: &adwi_eval::tune::TuneReport) {
             c.missed
         );
     }
-}
-
-/// What identification found, as `tablec build --hybrid` reports it: the calibration's
-/// quality, which parameters the data could not identify or were held at nominal for want
-/// of trust (they stay at their nominal values), and every parameter's value, standard
-/// error, strongest correlation, status and reason.
-fn print_calibration(c: &Calibration, residual_rms_mm: f64) {
-    println!(
-        "calibration    {} parameters identified, {} held at nominal, {} unidentifiable, condition number {:.1}, {} iterations{}",
-        c.identified.len(),
-        c.held().len(),
-        c.unidentifiable.len(),
-        c.condition_number,
-        c.iterations,
-        if c.converged { "" } else { " (not converged)" }
-    );
-    println!(
-        "position RMS   {:.4} mm before, {:.4} mm after calibration (table residuals {:.4} mm)",
-        c.initial_position_rms_mm, c.position_rms_mm, residual_rms_mm
-    );
-    if let Some(r) = c.orientation_rms_rad {
-        println!("orient. RMS    {:.4} mrad after calibration", r * 1e3);
-    }
-    let identified: Vec<String> = c
-        .identified
-        .iter()
-        .map(|p| {
-            let v = c.value(*p);
-            if p.is_length() {
-                format!("{p} {v:+.4} mm")
-            } else {
-                format!("{p} {:+.4} mrad", v * 1e3)
-            }
-        })
-        .collect();
-    println!("identified     {}", identified.join(", "));
-    let held = c.held();
-    if !held.is_empty() {
-        let names: Vec<String> = held.iter().map(|r| r.parameter.to_string()).collect();
-        println!(
-            "held nominal   {} (implausible or undetermined; reasons below)",
-            names.join(", ")
-        );
-    }
-    print!(
-        "{}",
-        adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(c))
-    );
 }
 
 /// Warns, on standard error and even with --quiet, about the parameters the data cannot

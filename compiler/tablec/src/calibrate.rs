@@ -63,14 +63,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..CalibrateOptions::default()
     };
     let c = identify(&robot, &samples, &options)?;
-    print_summary(&c);
     if let Some(registered) = &registered {
         registered.print_refined(&c, &samples);
     }
-    print!(
-        "{}",
-        adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(&c))
-    );
+    print_identification(&c, None);
     let comment = [
         format!(
             "{} calibrated from {} ({} samples): position RMS {:.4} mm before, {:.4} mm after.",
@@ -97,20 +93,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_summary(c: &Calibration) {
+/// What identification found, as `build --hybrid` and `calibrate` report it: how many
+/// parameters were identified, held at nominal for want of trust, or unidentifiable; the
+/// residuals before and after (and, for a hybrid table, what its residual tier starts
+/// from); then every parameter's value, standard error, strongest correlation, status and
+/// reason.
+pub fn print_identification(c: &Calibration, table_residual_rms_mm: Option<f64>) {
     println!(
-        "calibration    {} parameters identified, {} unidentifiable, condition number {:.1}, {} iterations{}",
+        "calibration    {} parameters identified, {} held at nominal, {} unidentifiable, condition number {:.1}, {} iterations{}",
         c.identified.len(),
+        c.held().len(),
         c.unidentifiable.len(),
         c.condition_number,
         c.iterations,
         if c.converged { "" } else { " (not converged)" }
     );
+    let table =
+        table_residual_rms_mm.map_or(String::new(), |r| format!(" (table residuals {r:.4} mm)"));
     println!(
-        "position RMS   {:.4} mm before, {:.4} mm after; residual σ {:.4} mm per coordinate",
+        "position RMS   {:.4} mm before, {:.4} mm after; residual σ {:.4} mm per coordinate{table}",
         c.initial_position_rms_mm, c.position_rms_mm, c.residual_sigma_mm
     );
     if let Some(r) = c.orientation_rms_rad {
         println!("orient. RMS    {:.4} mrad after", r * 1e3);
     }
+    print!(
+        "{}",
+        adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(c))
+    );
 }

@@ -7,7 +7,7 @@ use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
 use anyhow::{bail, Context};
 
-use crate::measured_in::{MeasuredIn, Registered};
+use crate::measured_in::MeasuredIn;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -90,14 +90,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::refuse_overwriting(output, &inputs)?;
     }
     let (columns, read) = args.read.resolve()?;
-    let (registered, samples) = match (args.measured_in, &args.robot) {
-        (MeasuredIn::Tracker, Some(robot_path)) => {
-            let robot = args.links.load(robot_path)?;
-            let (registered, samples) = Registered::read(&args.samples, &columns, &read, robot)?;
-            (Some(registered), samples)
-        }
-        _ => (None, read_samples_with(&args.samples, &columns, &read)?),
-    };
+    let (registered, samples) = crate::measured_in::read_samples(
+        args.measured_in,
+        args.robot.as_deref(),
+        &args.links,
+        &args.samples,
+        &columns,
+        &read,
+    )?;
     if args.register_validation_apart && registered.is_none() {
         bail!("--register-validation-apart needs --measured-in tracker");
     }

@@ -25,6 +25,29 @@ pub enum MeasuredIn {
     Tracker,
 }
 
+/// Reads a sample file as `frame` says: tracker-frame measurements registered to the robot
+/// at `robot_path` (`--measured-in tracker`, which needs one), or samples as they are.
+pub fn read_samples(
+    frame: MeasuredIn,
+    robot_path: Option<&Path>,
+    links: &crate::RobotLinks,
+    path: &Path,
+    columns: &ColumnMap,
+    read: &ReadOptions,
+) -> anyhow::Result<(Option<Registered>, SampleSet)> {
+    match (frame, robot_path) {
+        (MeasuredIn::Tracker, Some(robot_path)) => {
+            let robot = links.load(robot_path)?;
+            let (registered, samples) = Registered::read(path, columns, read, robot)?;
+            Ok((Some(registered), samples))
+        }
+        _ => Ok((
+            None,
+            adwi_compile::samples::read_samples_with(path, columns, read)?,
+        )),
+    }
+}
+
 /// Tracker-frame measurements registered to a robot.
 pub struct Registered {
     /// The registration.
