@@ -201,6 +201,7 @@ impl TableOptions {
                 .bounds
                 .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
             joint_radius_deg: self.joint_radius,
+            tuning: None,
         }
     }
 }
