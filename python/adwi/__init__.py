@@ -137,7 +137,8 @@ class BuildReport:
     ``cells``, ``covered_cells``, ``distinct_lists``, ``list_entries``, ``mean_list_len``,
     ``max_list_len``, ``served_cells``, ``node_sets``, ``bytes``, ``k``, ``w1``, ``w2``,
     ``power``, ``lambda_min``, ``zeta_min``, ``consistency_screen``, ``joint_radius_deg``,
-    ``hybrid``, ``calibration`` (dict or None), ``warnings``, ``seconds``.
+    ``hybrid``, ``calibration`` (dict or None), ``tuning`` (dict or None), ``warnings``,
+    ``seconds``.
     """
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
@@ -188,6 +189,8 @@ def build(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     threads: Optional[int] = None,
+    tune: bool = False,
+    tune_folds: int = 5,
 ) -> BuildReport:
     """Compile samples into a correction table at ``output``, as ``tablec build``.
 
@@ -206,7 +209,10 @@ def build(
     ``zeta_min`` (the paper's by default), ``consistency_screen``, ``bounds``
     (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg). ``robot`` (TOML,
     or URDF with ``base_link``/``tip_link``) with ``hybrid=True`` identifies the robot's
-    kinematic deviations first and tables what the calibrated model leaves.
+    kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
+    chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples
+    alone, as ``tablec build --tune``, and records the choice in the table (the report's
+    ``tuning``: folds and cross-validated mean, mm).
 
     The table is written atomically (complete or not at all); an output that is one of
     the inputs (also through a link) is refused before anything is written. The GIL is
@@ -240,6 +246,8 @@ def build(
         tip_link=tip_link,
         hybrid=hybrid,
         threads=threads,
+        tune=tune,
+        tune_folds=tune_folds,
     )
     _warn(fields["warnings"])
     return BuildReport(fields)

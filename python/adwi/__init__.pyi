@@ -102,6 +102,8 @@ def build(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     threads: Optional[int] = None,
+    tune: bool = False,
+    tune_folds: int = 5,
 ) -> BuildReport:
     """Compile samples into a correction table at output, as tablec build."""
 

@@ -349,6 +349,16 @@ fn report_dict<'py>(
     d.set_item("zeta_min", m.zeta_min_per_mm2)?;
     d.set_item("consistency_screen", m.consistency_screen)?;
     d.set_item("joint_radius_deg", plan.joint_radius_rad.to_degrees())?;
+    let tuning = match plan.tuning {
+        Some(t) => {
+            let td = PyDict::new(py);
+            td.set_item("folds", t.folds)?;
+            td.set_item("cv_mean_mm", t.cv_mean_mm)?;
+            Some(td)
+        }
+        None => None,
+    };
+    d.set_item("tuning", tuning)?;
     d.set_item("hybrid", calibration.is_some())?;
     d.set_item(
         "calibration",
@@ -365,7 +375,7 @@ fn report_dict<'py>(
 /// `tablec build`: read, plan, compile (hybrid with a robot), write atomically. Returns
 /// the report as a dict.
 #[pyfunction]
-#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None))]
+#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5))]
 #[allow(clippy::too_many_arguments)]
 fn build<'py>(
     py: Python<'py>,
@@ -378,6 +388,8 @@ fn build<'py>(
     tip_link: Option<String>,
     hybrid: bool,
     threads: Option<usize>,
+    tune: bool,
+    tune_folds: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = Instant::now();
     let built = py.allow_threads(|| -> anyhow::Result<_> {
@@ -394,7 +406,23 @@ fn build<'py>(
         };
         let (columns, read) = reading.resolve()?;
         let samples = source.read(&columns, &read)?;
-        let plan = adwi_compile::build::plan(&samples, &table.build_options())?;
+        let mut options = table.build_options();
+        if tune {
+            if table.k.is_some() || table.radius.is_some() {
+                bail!("tune chooses k and radius: give tune=True or k/radius, not both");
+            }
+            // As `tablec build --tune`: k and ε by cross-validation on these samples alone.
+            let report = adwi_eval::tune::tune(
+                &samples,
+                robot.as_ref(),
+                &options,
+                &CalibrateOptions::default(),
+                tune_folds,
+                0,
+            )?;
+            options = report.options;
+        }
+        let plan = adwi_compile::build::plan(&samples, &options)?;
         let mut warnings = Vec::new();
         if plan.is_mostly_empty() {
             warnings.push(format!(

@@ -24,6 +24,23 @@ def test_table_is_byte_identical_to_tablec(tablec, kr150_table, tmp_path):
     assert out.read_bytes() == kr150_table.read_bytes()
 
 
+def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
+    ours = tmp_path / "ours.tbl"
+    report = adwi.build(KR150 / "samples.csv", ours, tune=True, tune_folds=3)
+    theirs = tmp_path / "tablec.tbl"
+    subprocess.run(
+        [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(theirs),
+         "--tune", "--tune-folds", "3"],
+        check=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()
+    assert report.tuning["folds"] == 3
+    assert 0.0 < report.tuning["cv_mean_mm"] < 0.2
+    assert adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl").tuning is None
+    with pytest.raises(adwi.AdwiError, match="tune chooses k and radius"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)
+
+
 def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):
     options = ["--cell", "40", "--radius", "190", "--k", "6", "--w2", "0.2", "--power", "1.5",
                "--no-consistency-screen", "--bounds", "1300,0,800,2200,900,1700",
