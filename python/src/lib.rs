@@ -179,12 +179,7 @@ impl TableOptions {
     /// The compiler's options: the paper's parameters unless given, and one of ω1, ω2
     /// given implies the other (as `tablec`).
     fn build_options(&self) -> BuildOptions {
-        let (w1, w2) = match (self.w1, self.w2) {
-            (None, None) => (PAPER.w1, PAPER.w2),
-            (Some(w1), None) => (w1, 1.0 - w1),
-            (None, Some(w2)) => (1.0 - w2, w2),
-            (Some(w1), Some(w2)) => (w1, w2),
-        };
+        let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
         BuildOptions {
             method: MethodParams {
                 radius_mm: self.radius,

@@ -90,6 +90,18 @@ impl Default for BuildOptions {
     }
 }
 
+/// The weights ω1 and ω2 from what a user gave: the paper's when neither is given, and
+/// `1 − ω` for the one not given, so that they sum to 1 unless both are given.
+pub fn resolve_weights(w1: Option<f64>, w2: Option<f64>) -> (f64, f64) {
+    let paper = MethodParams::paper(());
+    match (w1, w2) {
+        (None, None) => (paper.w1, paper.w2),
+        (Some(w1), None) => (w1, 1.0 - w1),
+        (None, Some(w2)) => (1.0 - w2, w2),
+        (Some(w1), Some(w2)) => (w1, w2),
+    }
+}
+
 /// Why a table could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
@@ -831,6 +843,14 @@ fn candidate_list(
 mod tests {
     use super::*;
     use crate::samples::{parse_samples, ColumnMap};
+
+    #[test]
+    fn weights_are_the_papers_unless_given_and_one_implies_the_other() {
+        assert_eq!(resolve_weights(None, None), (0.87, 0.13));
+        assert_eq!(resolve_weights(Some(0.25), None), (0.25, 0.75));
+        assert_eq!(resolve_weights(None, Some(0.25)), (0.75, 0.25));
+        assert_eq!(resolve_weights(Some(0.5), Some(0.7)), (0.5, 0.7));
+    }
 
     /// A 3 × 3 × 3 lattice of 100 mm with joint angles, plus `extra` rows.
     fn samples(extra: &str) -> SampleSet {

@@ -69,19 +69,9 @@ pub struct TableOptions {
 }
 
 impl TableOptions {
-    /// ω1 and ω2: the paper's unless given; one given implies the other.
-    pub fn weights(&self) -> (f64, f64) {
-        match (self.w1, self.w2) {
-            (None, None) => (PAPER.w1, PAPER.w2),
-            (Some(w1), None) => (w1, 1.0 - w1),
-            (None, Some(w2)) => (1.0 - w2, w2),
-            (Some(w1), Some(w2)) => (w1, w2),
-        }
-    }
-
     /// The compiler's options.
     pub fn build_options(&self) -> BuildOptions {
-        let (w1, w2) = self.weights();
+        let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
         BuildOptions {
             method: MethodParams {
                 radius_mm: self.radius,
