@@ -102,6 +102,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--register-validation-apart needs --measured-in tracker");
     }
     let mut validation_registration = None;
+    // The identification of all samples, made once: for registering a validation series
+    // apart and for printing the refined transforms.
+    let mut calibration_of_all = None;
     let calibrate_options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
         hold_untrustworthy: !args.keep_untrustworthy,
@@ -118,6 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     let (registration, samples) =
                         r.samples_registered_apart(&calibration, path, &columns, &read)?;
                     validation_registration = Some(registration);
+                    calibration_of_all = Some(calibration);
                     samples
                 }
                 Some(r) => r.samples(path, &columns, &read)?,
@@ -174,7 +178,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(r) = &registered {
             r.print();
             // The transforms refined by an identification of all samples.
-            let all = adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?;
+            let all = match calibration_of_all {
+                Some(c) => c,
+                None => adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?,
+            };
             r.print_refined(&all, &samples);
         }
         if let Some(v) = &validation_registration {
