@@ -287,8 +287,9 @@ def evaluate(
     Either ``validation`` (samples in the same form and columns as ``samples``; ``limit``
     keeps the first N) or ``folds`` (k-fold cross-validation of ``samples``, split by
     ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
-    ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``
-    (default: every one the data allow); ``kinematic`` and ``hybrid`` need ``robot``.
+    ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``,
+    ``kinematic-kriging``, ``kinematic-kriging-joint`` (default: every one the data
+    allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``.
     Reading and table options as :func:`build`.
 
     Returns one record per row of ``tablec eval --csv`` — ``uncompensated``, then one per

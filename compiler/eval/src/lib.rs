@@ -85,11 +85,17 @@ pub enum Method {
     Hybrid,
     /// The hybrid table's served tier: the model plus the continuous residual field.
     HybridTrilinear,
+    /// Identified kinematic model plus kriging with a nugget on its residuals, in Cartesian
+    /// distance ([`baselines::gp`]).
+    KinematicKriging,
+    /// Identified kinematic model plus kriging with a nugget on its residuals, in joint
+    /// distance ([`baselines::gp`]).
+    KinematicKrigingJoint,
 }
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 11] = [
         Method::Paper,
         Method::PaperTrilinear,
         Method::PaperJoint,
@@ -99,6 +105,8 @@ impl Method {
         Method::Kinematic,
         Method::Hybrid,
         Method::HybridTrilinear,
+        Method::KinematicKriging,
+        Method::KinematicKrigingJoint,
     ];
 
     /// The name used on the command line and in reports.
@@ -113,6 +121,8 @@ impl Method {
             Method::Kinematic => "kinematic",
             Method::Hybrid => "hybrid",
             Method::HybridTrilinear => "hybrid-trilinear",
+            Method::KinematicKriging => "kinematic-kriging",
+            Method::KinematicKrigingJoint => "kinematic-kriging-joint",
         }
     }
 
@@ -138,6 +148,12 @@ impl Method {
             Method::HybridTrilinear => {
                 "hybrid table's served field: kinematic model + continuous residual field"
             }
+            Method::KinematicKriging => {
+                "kinematic model + kriging with a nugget on its residuals, Cartesian distance"
+            }
+            Method::KinematicKrigingJoint => {
+                "kinematic model + kriging with a nugget on its residuals, joint distance"
+            }
         }
     }
 
@@ -145,7 +161,12 @@ impl Method {
     pub fn needs_joints(self) -> bool {
         matches!(
             self,
-            Method::PaperJoint | Method::Kinematic | Method::Hybrid | Method::HybridTrilinear
+            Method::PaperJoint
+                | Method::Kinematic
+                | Method::Hybrid
+                | Method::HybridTrilinear
+                | Method::KinematicKriging
+                | Method::KinematicKrigingJoint
         )
     }
 
@@ -153,7 +174,11 @@ impl Method {
     pub fn needs_robot(self) -> bool {
         matches!(
             self,
-            Method::Kinematic | Method::Hybrid | Method::HybridTrilinear
+            Method::Kinematic
+                | Method::Hybrid
+                | Method::HybridTrilinear
+                | Method::KinematicKriging
+                | Method::KinematicKrigingJoint
         )
     }
 }
@@ -260,6 +285,15 @@ pub enum EvalError {
         /// Why.
         #[source]
         source: BaselineError,
+    },
+    /// Kriging of the kinematic residuals could not be fitted.
+    #[error("cannot fit kriging for {method}")]
+    Kriging {
+        /// The method.
+        method: Method,
+        /// Why.
+        #[source]
+        source: baselines::gp::GpError,
     },
     /// Identification failed.
     #[error("cannot identify the kinematic model for {method}")]
@@ -856,6 +890,10 @@ fn predict_split(
                 })
                 .collect()
         }
+        Method::KinematicKriging | Method::KinematicKrigingJoint => {
+            let c = calibration.expect("identified for kinematic methods");
+            kinematic_kriging_predictions(method, c, train, test, orientation)?
+        }
         Method::Hybrid | Method::HybridTrilinear => {
             let c = calibration.expect("identified for kinematic methods");
             let exact = method == Method::Hybrid;
@@ -880,6 +918,53 @@ fn predict_split(
         }
     };
     Ok(SplitOutcome::Predicted(outcome))
+}
+
+/// The kinematic model's prediction plus kriging with a nugget of the residuals it leaves
+/// on the training samples, in Cartesian or joint distance ([`baselines::gp`]).
+fn kinematic_kriging_predictions(
+    method: Method,
+    calibration: &Calibration,
+    train: &SampleSet,
+    test: &SampleSet,
+    orientation: bool,
+) -> Result<Vec<Result<PointPrediction, Miss>>, EvalError> {
+    let joint_space = method == Method::KinematicKrigingJoint;
+    let input = |set: &SampleSet, i: usize| -> Vec<f64> {
+        if joint_space {
+            set.joints_rad(i)
+                .expect("checked by choose_methods")
+                .to_vec()
+        } else {
+            set.nominal_mm[i].to_vec()
+        }
+    };
+    let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i)).collect();
+    let residuals: Vec<Vec<f64>> = (0..train.len())
+        .map(|i| {
+            let (p, r) = calibration.predict_error(train.joints_rad(i).expect("checked"));
+            let mut row: Vec<f64> = (0..3).map(|a| train.error_mm[i][a] - p[a]).collect();
+            if orientation {
+                let measured = train.rotation_error_rad.as_ref().expect("orientation")[i];
+                row.extend((0..3).map(|a| measured[a] - r[a]));
+            }
+            row
+        })
+        .collect();
+    let gp = baselines::gp::ResidualGp::fit(&inputs, &residuals)
+        .map_err(|source| EvalError::Kriging { method, source })?;
+    Ok((0..test.len())
+        .map(|i| {
+            let (p, r) = calibration.predict_error(test.joints_rad(i).expect("checked"));
+            let field = gp
+                .predict(&input(test, i))
+                .ok_or(Miss::status(Status::InvalidInput))?;
+            Ok(PointPrediction {
+                position_error_mm: [0, 1, 2].map(|a| p[a] + field[a]),
+                orientation_error_rad: orientation.then(|| [0, 1, 2].map(|a| r[a] + field[3 + a])),
+            })
+        })
+        .collect())
 }
 
 /// Compiles samples into a table and opens it from its bytes, as `tablec build` then

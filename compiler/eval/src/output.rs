@@ -60,11 +60,19 @@ fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {
 /// and unsupported methods below it.
 pub fn terminal_table(e: &Evaluation) -> String {
     let orientation = e.uncompensated_orientation_mrad.is_some();
+    let rows = rows(e);
+    // The label column fits the longest method name.
+    let w = rows
+        .iter()
+        .map(|r| r.label.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(16);
     let mut out = String::new();
     let _ = writeln!(out, "{}", e.protocol);
     let _ = write!(
         out,
-        "{:<16} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "{:<w$} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
         "", "points", "", "position", "residual", "norm", "mm"
     );
     if orientation {
@@ -77,7 +85,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     out.push('\n');
     let _ = write!(
         out,
-        "{:<16} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
+        "{:<w$} {:>6} {:>6} │ {:>9} {:>9} {:>9} {:>9}",
         "method", "pred.", "missed", "mean", "rms", "p95", "max"
     );
     if orientation {
@@ -93,10 +101,10 @@ pub fn terminal_table(e: &Evaluation) -> String {
         None => format!("{:>width$}", "—"),
     };
     let mut notes = Vec::new();
-    for row in rows(e) {
+    for row in rows {
         let _ = write!(
             out,
-            "{:<16} {:>6} {:>6} │",
+            "{:<w$} {:>6} {:>6} │",
             row.label, row.predicted, row.not_predicted
         );
         for v in figures(row.position) {
@@ -114,7 +122,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
         }
     }
     if let Some(floor) = &e.noise_floor {
-        let _ = write!(out, "{:<14} {:>6} {:>6} │", "noise floor", "", "");
+        let _ = write!(out, "{:<w$} {:>6} {:>6} │", "noise floor", "", "");
         let _ = writeln!(
             out,
             " {} {:>9} {:>9} {:>9}",
