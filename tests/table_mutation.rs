@@ -671,7 +671,12 @@ fn hostile_headers_with_valid_checksums_are_refused() {
         ("joint count max", vec![u32_at(160, u32::MAX)]),
         ("node sets 0", vec![u32_at(164, 0)]),
         ("node sets 2", vec![u32_at(164, 2)]),
-        ("reserved word between tuning fields", vec![u32_at(172, 1)]),
+        ("served field kind 2", vec![u32_at(172, 2)]),
+        ("served field kind max", vec![u32_at(172, u32::MAX)]),
+        (
+            "kriging served field without node sets",
+            vec![u32_at(172, 1), u32_at(164, 0)],
+        ),
         ("tuned mean without folds", vec![f64_at(176, 0.07)]),
         ("tuned mean NaN", vec![u32_at(168, 5), f64_at(176, nan)]),
         (
@@ -704,6 +709,7 @@ fn plausible_edits_still_open() {
         vec![f64_at(64, 0.5), f64_at(72, 0.5)],
         vec![u32_at(48, 16), u32_at(52, 0)],
         vec![u32_at(168, 5), f64_at(176, 0.069)],
+        vec![u32_at(172, 1)],
     ] {
         Table::from_vec(with_header_edits(&base, &edits)).unwrap();
     }

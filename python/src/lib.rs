@@ -197,6 +197,7 @@ impl TableOptions {
                 .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
             joint_radius_deg: self.joint_radius,
             tuning: None,
+            served_field: adwi_compile::build::ServedField::Method,
         }
     }
 }

@@ -24,7 +24,12 @@
 //! The served tier is then the method evaluated at every node of the grid, through the
 //! list of a cell the node is a corner of — the base weights at each node, applied — once
 //! for targets of unknown configuration and once per configuration the samples carry
-//! ([`adwi_runtime::served`]).
+//! ([`adwi_runtime::served`]). With [`BuildOptions::served_field`] set to
+//! [`ServedField::Kriging`], the nodes where the method answers hold instead kriging with a
+//! nugget of the samples' errors ([`crate::nugget_kriging`], fitted once per set of
+//! samples a configuration sees): a smoother field that does not pass each sample's
+//! measurement noise on. Where the method does not answer, a node stays missing either way,
+//! so the served field covers the same cells.
 //!
 //! Cells and nodes are processed in parallel; results are assembled in order, so the
 //! bytes written do not depend on the number of threads.
@@ -32,11 +37,11 @@
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-pub use adwi_runtime::format::Tuning;
 use adwi_runtime::format::{
     self, v2, Grid, Header, SampleRecord, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_MODEL,
     CONTENT_ORIENTATION,
 };
+pub use adwi_runtime::format::{ServedField, Tuning};
 use adwi_runtime::method::{self, MethodParams, CONFIG_UNKNOWN};
 use adwi_runtime::model::PreparedModel;
 use rayon::prelude::*;
@@ -76,6 +81,8 @@ pub struct BuildOptions {
     /// The cross-validation that chose these options, recorded in the table's header
     /// (`tablec build --tune`); `None` when they were given or defaulted.
     pub tuning: Option<Tuning>,
+    /// What the served tier's nodes hold (module docs).
+    pub served_field: ServedField,
 }
 
 impl Default for BuildOptions {
@@ -86,6 +93,7 @@ impl Default for BuildOptions {
             bounds_mm: None,
             joint_radius_deg: None,
             tuning: None,
+            served_field: ServedField::Method,
         }
     }
 }
@@ -147,6 +155,12 @@ pub enum BuildError {
     /// Serialisation failed.
     #[error("cannot encode the table: {0}")]
     Encode(String),
+    /// The kriging of a served field could not be fitted.
+    #[error("cannot fit the kriging of the served field")]
+    Kriging(#[source] crate::nugget_kriging::GpError),
+    /// A kriging served field was asked of a table that has none (a joint screen).
+    #[error("a kriging served field needs a served tier, which a table with a joint screen does not have")]
+    KrigingWithoutServedTier,
     /// The encoded table does not open: a bug of the compiler, never a property of the
     /// input.
     #[error("the built table does not open: please report this bug")]
@@ -179,6 +193,8 @@ pub struct Plan {
     pub samples: usize,
     /// The cross-validation that chose the options, for the header.
     pub tuning: Option<Tuning>,
+    /// What the served tier's nodes hold.
+    pub served_field: ServedField,
 }
 
 impl Plan {
@@ -302,6 +318,9 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
             "joint radius must be finite and non-negative",
         ));
     }
+    if joint_radius_rad > 0.0 && options.served_field == ServedField::Kriging {
+        return Err(BuildError::KrigingWithoutServedTier);
+    }
     if joint_radius_rad > 0.0 && samples.joints.is_none() {
         return Err(BuildError::Params(
             "a joint radius needs samples with joint angles (columns j1..jn)",
@@ -375,6 +394,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         cell_derived: options.cell_mm.is_none(),
         samples: samples.len(),
         tuning: options.tuning,
+        served_field: options.served_field,
     })
 }
 
@@ -496,7 +516,8 @@ pub fn compile_plan(
     // The served tier: the exact method at every node, one set per target configuration
     // (none with a joint screen: its admissible samples depend on the joint values).
     if !joint_screen {
-        let served = NodeValues::compute(&records, &params, &grid, &lists, samples);
+        let served =
+            NodeValues::compute(&records, &params, &grid, &lists, samples, plan.served_field)?;
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);
         data.node_sets = served.sets;
@@ -537,6 +558,11 @@ pub fn compile_plan(
         },
         node_set_count: data.node_sets.len() as u32,
         tuning: plan.tuning,
+        served_field: if data.node_sets.is_empty() {
+            ServedField::Method
+        } else {
+            plan.served_field
+        },
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
@@ -584,14 +610,16 @@ struct NodeValues {
 
 impl NodeValues {
     /// Evaluates every node for targets of unknown configuration, then for each
-    /// configuration the samples carry (a set equal to an earlier one shares its nodes).
+    /// configuration the samples carry (a set equal to an earlier one shares its nodes):
+    /// the method's answer, or where it answers, the kriging of `field`.
     fn compute(
         records: &[SampleRecord],
         params: &MethodParams,
         grid: &Grid,
         lists: &[Vec<u32>],
         samples: &SampleSet,
-    ) -> NodeValues {
+        field: ServedField,
+    ) -> Result<NodeValues, BuildError> {
         let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
         configs.sort_unstable();
         configs.dedup();
@@ -602,15 +630,35 @@ impl NodeValues {
             position_mm: Vec::new(),
             orientation_rad: Vec::new(),
         };
+        // Kriging fits, by the samples they were fitted to (one per distinct subset).
+        let mut fits: Vec<(Vec<usize>, NodeKriging)> = Vec::new();
         let wanted = std::iter::once(None).chain(configs.into_iter().map(Some));
         for config in wanted {
-            let values: Vec<([f64; 3], [f64; 3])> = (0..per_set)
+            let node_position = |node: usize| {
+                let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
+                (ijk, grid_node_mm(grid, ijk))
+            };
+            let mut values: Vec<([f64; 3], [f64; 3])> = (0..per_set)
                 .into_par_iter()
-                .map(|node| {
-                    let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
-                    node_value(records, params, grid, lists, ijk, config)
-                })
+                .map(|node| node_value(records, params, grid, lists, node_position(node).0, config))
                 .collect();
+            if field == ServedField::Kriging {
+                // The samples a target of this configuration may use (method::select).
+                let seen: Vec<usize> = (0..records.len())
+                    .filter(|&i| method::config_matches(records[i].config, config))
+                    .collect();
+                if !fits.iter().any(|(s, _)| *s == seen) {
+                    let fit =
+                        NodeKriging::fit(records, &seen, samples.rotation_error_rad.is_some())?;
+                    fits.push((seen.clone(), fit));
+                }
+                let kriging = &fits.iter().find(|(s, _)| *s == seen).expect("fitted").1;
+                values.par_iter_mut().enumerate().for_each(|(node, value)| {
+                    if !adwi_runtime::served::is_missing(&value.0) {
+                        *value = kriging.predict(node_position(node).1);
+                    }
+                });
+            }
             let first_node = (0..out.sets.len())
                 .map(|s| out.sets[s].first_node as usize)
                 .find(|&first| {
@@ -630,7 +678,7 @@ impl NodeValues {
                 first_node: first_node as u32,
             });
         }
-        out
+        Ok(out)
     }
 
     /// The number of cells of the first set whose 8 nodes all have values.
@@ -658,6 +706,63 @@ impl NodeValues {
     }
 }
 
+/// Kriging with a nugget of some samples' errors, in Cartesian distance of their actual
+/// positions (where the method places them): position, and orientation when stored.
+struct NodeKriging {
+    fit: crate::nugget_kriging::ResidualGp,
+    orientation: bool,
+}
+
+impl NodeKriging {
+    fn fit(
+        records: &[SampleRecord],
+        samples: &[usize],
+        orientation: bool,
+    ) -> Result<NodeKriging, BuildError> {
+        let inputs: Vec<Vec<f64>> = samples
+            .iter()
+            .map(|&i| records[i].actual_mm.to_vec())
+            .collect();
+        let values: Vec<Vec<f64>> = samples
+            .iter()
+            .map(|&i| {
+                let r = &records[i];
+                let mut row = r.error_mm.to_vec();
+                if orientation {
+                    row.extend_from_slice(&r.rotation_error_rad);
+                }
+                row
+            })
+            .collect();
+        let fit = crate::nugget_kriging::ResidualGp::fit(&inputs, &values)
+            .map_err(BuildError::Kriging)?;
+        Ok(NodeKriging { fit, orientation })
+    }
+
+    /// The field at `position_mm`; orientation zero when not stored (as the method's).
+    fn predict(&self, position_mm: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        let v = self
+            .fit
+            .predict(&position_mm)
+            .expect("grid nodes are finite and three-dimensional");
+        let rotation = if self.orientation {
+            [v[3], v[4], v[5]]
+        } else {
+            [0.0; 3]
+        };
+        ([v[0], v[1], v[2]], rotation)
+    }
+}
+
+/// The position of node `ijk`, mm.
+fn grid_node_mm(grid: &Grid, [i, j, k]: [usize; 3]) -> [f64; 3] {
+    [
+        grid.origin_mm[0] + i as f64 * grid.cell_mm,
+        grid.origin_mm[1] + j as f64 * grid.cell_mm,
+        grid.origin_mm[2] + k as f64 * grid.cell_mm,
+    ]
+}
+
 fn same_bits(a: &[f64; 3], b: &[f64; 3]) -> bool {
     (0..3).all(|i| a[i].to_bits() == b[i].to_bits())
 }
@@ -674,11 +779,7 @@ fn node_value(
     [i, j, k]: [usize; 3],
     config: Option<u8>,
 ) -> ([f64; 3], [f64; 3]) {
-    let position = [
-        grid.origin_mm[0] + i as f64 * grid.cell_mm,
-        grid.origin_mm[1] + j as f64 * grid.cell_mm,
-        grid.origin_mm[2] + k as f64 * grid.cell_mm,
-    ];
+    let position = grid_node_mm(grid, [i, j, k]);
     let last = grid.dims.map(|d| d as usize - 1);
     let cell = grid.linear_index([i.min(last[0]), j.min(last[1]), k.min(last[2])]);
     let selection = method::select(params, position, config, lists[cell].iter().copied(), |s| {
@@ -865,6 +966,98 @@ mod tests {
 
     fn build(samples: &SampleSet, options: BuildOptions) -> Result<Vec<u8>, BuildError> {
         compile(samples, &options, &|_| {}).map(|(bytes, _)| bytes)
+    }
+
+    /// A 5 × 5 × 5 lattice of 100 mm whose errors are a smooth field plus a deterministic
+    /// scatter standing in for measurement noise.
+    fn noisy_lattice() -> SampleSet {
+        let mut csv = String::from("x,y,z,dx,dy,dz\n");
+        for i in 0..125 {
+            let p = [i % 5, (i / 5) % 5, i / 25].map(|v| 1000.0 + 100.0 * f64::from(v));
+            let noise = |k: i32| 0.02 * ((i * 7 + k * 13) % 11 - 5) as f64 / 5.0;
+            let smooth = |a: usize| ((p[a] - 1200.0) / 300.0).sin() * 0.3;
+            csv += &format!(
+                "{},{},{},{},{},{}\n",
+                p[0],
+                p[1],
+                p[2],
+                smooth(0) + noise(0),
+                smooth(1) + noise(1),
+                smooth(2) + noise(2)
+            );
+        }
+        parse_samples("s.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap()
+    }
+
+    #[test]
+    fn a_kriging_served_field_holds_the_kriging_where_the_method_answers() {
+        let s = noisy_lattice();
+        let options = |served_field| BuildOptions {
+            served_field,
+            ..BuildOptions::default()
+        };
+        let method =
+            adwi_runtime::Table::from_vec(build(&s, options(ServedField::Method)).unwrap())
+                .unwrap();
+        let kriging = build(&s, options(ServedField::Kriging)).unwrap();
+        assert_eq!(kriging, build(&s, options(ServedField::Kriging)).unwrap());
+        let kriging = adwi_runtime::Table::from_vec(kriging).unwrap();
+        assert_eq!(kriging.header().served_field, ServedField::Kriging);
+        assert_eq!(method.header().served_field, ServedField::Method);
+        // The reference: the same fit, evaluated directly.
+        let records = s.records();
+        let inputs: Vec<Vec<f64>> = records.iter().map(|r| r.actual_mm.to_vec()).collect();
+        let values: Vec<Vec<f64>> = records.iter().map(|r| r.error_mm.to_vec()).collect();
+        let gp = crate::nugget_kriging::ResidualGp::fit(&inputs, &values).unwrap();
+        let grid = kriging.header().grid;
+        let (mut nodes, mut smoother) = (0, 0);
+        for i in 1..grid.dims[0] {
+            for j in 1..grid.dims[1] {
+                for k in 1..grid.dims[2] {
+                    let at = grid_node_mm(&grid, [i as usize, j as usize, k as usize]);
+                    let (m, g) = (method.query(at), kriging.query(at));
+                    assert_eq!(m.status, g.status, "coverage differs at {at:?}");
+                    // The exact tier is the method's in both.
+                    assert_eq!(
+                        method.exact().query(at).position_error_mm,
+                        kriging.exact().query(at).position_error_mm
+                    );
+                    if g.status != adwi_runtime::Status::Ok {
+                        continue;
+                    }
+                    nodes += 1;
+                    let want = gp.predict(&at).unwrap();
+                    for (got, want) in g.position_error_mm.iter().zip(&want) {
+                        assert!((got - want).abs() < 1e-9, "{at:?}");
+                    }
+                    // Against the noise-free field, the kriging is the closer one mostly.
+                    let truth = [0, 1, 2].map(|a| ((at[a] - 1200.0) / 300.0).sin() * 0.3);
+                    let off = |v: [f64; 3]| (0..3).map(|a| (v[a] - truth[a]).abs()).sum::<f64>();
+                    if off(g.position_error_mm) < off(m.position_error_mm) {
+                        smoother += 1;
+                    }
+                }
+            }
+        }
+        assert!(nodes > 100, "{nodes} interior nodes served");
+        assert!(
+            2 * smoother > nodes,
+            "kriging closer at {smoother} of {nodes} nodes"
+        );
+    }
+
+    #[test]
+    fn a_kriging_served_field_needs_a_served_tier() {
+        let s = samples("");
+        let options = BuildOptions {
+            served_field: ServedField::Kriging,
+            joint_radius_deg: Some(10.0),
+            ..BuildOptions::default()
+        };
+        assert!(matches!(
+            build(&s, options),
+            Err(BuildError::KrigingWithoutServedTier)
+        ));
     }
 
     #[test]

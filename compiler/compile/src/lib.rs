@@ -19,6 +19,7 @@
 pub mod build;
 pub mod hybrid;
 pub mod inspect;
+pub mod nugget_kriging;
 pub mod pose;
 pub mod reference;
 pub mod samples;

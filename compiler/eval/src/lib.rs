@@ -86,10 +86,10 @@ pub enum Method {
     /// The hybrid table's served tier: the model plus the continuous residual field.
     HybridTrilinear,
     /// Identified kinematic model plus kriging with a nugget on its residuals, in Cartesian
-    /// distance ([`baselines::gp`]).
+    /// distance ([`adwi_compile::nugget_kriging`]).
     KinematicKriging,
     /// Identified kinematic model plus kriging with a nugget on its residuals, in joint
-    /// distance ([`baselines::gp`]).
+    /// distance ([`adwi_compile::nugget_kriging`]).
     KinematicKrigingJoint,
 }
 
@@ -293,7 +293,7 @@ pub enum EvalError {
         method: Method,
         /// Why.
         #[source]
-        source: baselines::gp::GpError,
+        source: adwi_compile::nugget_kriging::GpError,
     },
     /// Identification failed.
     #[error("cannot identify the kinematic model for {method}")]
@@ -921,7 +921,7 @@ fn predict_split(
 }
 
 /// The kinematic model's prediction plus kriging with a nugget of the residuals it leaves
-/// on the training samples, in Cartesian or joint distance ([`baselines::gp`]).
+/// on the training samples, in Cartesian or joint distance ([`adwi_compile::nugget_kriging`]).
 fn kinematic_kriging_predictions(
     method: Method,
     calibration: &Calibration,
@@ -951,7 +951,7 @@ fn kinematic_kriging_predictions(
             row
         })
         .collect();
-    let gp = baselines::gp::ResidualGp::fit(&inputs, &residuals)
+    let gp = adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
         .map_err(|source| EvalError::Kriging { method, source })?;
     Ok((0..test.len())
         .map(|i| {

@@ -7,8 +7,14 @@
 //! the mean position residual of the method the table serves — `paper`, or `hybrid` with a
 //! robot — over the held-out folds. A candidate that leaves points unpredicted never beats
 //! one that predicts more: the choice is the lowest mean among those that miss the fewest.
+//!
+//! Then, with the chosen `k` and ε, what the served field's nodes hold
+//! ([`ServedField`]): the method's own answer, or kriging with a nugget of the samples'
+//! errors. Both are scored the same way on the served tier (`paper-trilinear`, or
+//! `hybrid-trilinear`), and the lower mean wins; a table with a joint screen has no served
+//! tier and keeps the method's.
 
-use adwi_compile::build::{BuildOptions, Tuning};
+use adwi_compile::build::{BuildOptions, ServedField, Tuning};
 use adwi_compile::samples::SampleSet;
 use adwi_robot::Robot;
 
@@ -33,6 +39,17 @@ pub struct Candidate {
     pub missed: usize,
 }
 
+/// One served field's cross-validated figures, with the chosen `k` and ε.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServedCandidate {
+    /// What the nodes hold.
+    pub field: ServedField,
+    /// Mean position residual of the served tier over the predicted held-out points, mm.
+    pub cv_mean_mm: Option<f64>,
+    /// Held-out points the served tier did not predict.
+    pub missed: usize,
+}
+
 /// What tuning found: every candidate, and the options chosen.
 #[derive(Clone, Debug)]
 pub struct TuneReport {
@@ -44,6 +61,8 @@ pub struct TuneReport {
     pub candidates: Vec<Candidate>,
     /// The index of the chosen one.
     pub chosen: usize,
+    /// The served fields tried with the chosen `k` and ε (none with a joint screen).
+    pub served: Vec<ServedCandidate>,
     /// The build options with the chosen parameters and the tuning recorded.
     pub options: BuildOptions,
 }
@@ -125,11 +144,49 @@ pub fn tune(
         folds: folds as u32,
         cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
     });
+    let mut served = Vec::new();
+    if options.joint_radius_deg.is_none_or(|r| r == 0.0) {
+        let method = if robot.is_some() {
+            Method::HybridTrilinear
+        } else {
+            Method::PaperTrilinear
+        };
+        for field in [ServedField::Method, ServedField::Kriging] {
+            let build = BuildOptions {
+                served_field: field,
+                ..options.clone()
+            };
+            let evaluation = evaluate(
+                samples,
+                &Protocol::KFold { folds, seed },
+                &EvalOptions {
+                    methods: Some(vec![method]),
+                    build,
+                    robot: robot.cloned(),
+                    calibrate: *calibrate,
+                    ..EvalOptions::default()
+                },
+            )?;
+            let result = evaluation.method(method);
+            served.push(ServedCandidate {
+                field,
+                cv_mean_mm: result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+                missed: result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+            });
+        }
+        // The same cells are served either way; ties keep the method's own answer.
+        options.served_field = served
+            .iter()
+            .filter_map(|c| c.cv_mean_mm.map(|m| (c.field, c.missed, m)))
+            .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
+            .map_or(ServedField::Method, |(field, _, _)| field);
+    }
     Ok(TuneReport {
         method,
         folds,
         candidates,
         chosen,
+        served,
         options,
     })
 }

@@ -97,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     match summary.served_cells {
         Some(served) => println!(
-            "served tier     {served} of {} cells served ({:.1} %), {} node set(s): {}",
+            "served tier     {served} of {} cells served ({:.1} %), {} node set(s): {}; nodes hold {}",
             summary.cells,
             percent(served),
             summary.node_sets.len(),
@@ -110,7 +110,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     format!("configuration {c}")
                 })
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            match h.served_field {
+                adwi_runtime::format::ServedField::Method => "the method's answer",
+                adwi_runtime::format::ServedField::Kriging =>
+                    "kriging with a nugget of the samples' errors (--served-field kriging)",
+            }
         ),
         None if h.joint_radius_rad > 0.0 => {
             println!("served tier     none (a joint screen): queries answer from the exact tier")

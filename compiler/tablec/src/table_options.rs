@@ -4,6 +4,7 @@
 #![allow(rustdoc::broken_intra_doc_links)]
 
 use adwi_compile::build::BuildOptions;
+use adwi_runtime::format::ServedField;
 use adwi_runtime::method::MethodParams;
 
 /// The paper's parameters, the defaults of every option below.
@@ -66,6 +67,19 @@ pub struct TableOptions {
     /// (needs samples with j1..jn) [default: off].
     #[arg(long, value_name = "DEG")]
     pub joint_radius: Option<f64>,
+    /// What the served field's nodes hold: `method`, the method's own answer (what the
+    /// exact tier answers, tabulated), or `kriging`, kriging with a nugget of the samples'
+    /// errors (a hybrid table's residuals) in Cartesian distance, which smooths their
+    /// measurement noise; the exact tier answers the method either way.
+    #[arg(long, value_name = "FIELD", default_value = "method", value_parser = parse_served_field)]
+    pub served_field: ServedField,
+}
+
+fn parse_served_field(text: &str) -> Result<ServedField, String> {
+    [ServedField::Method, ServedField::Kriging]
+        .into_iter()
+        .find(|f| f.name() == text)
+        .ok_or_else(|| format!("'{text}': choose method or kriging"))
 }
 
 impl TableOptions {
@@ -87,6 +101,7 @@ impl TableOptions {
             bounds_mm: self.bounds,
             joint_radius_deg: self.joint_radius,
             tuning: None,
+            served_field: self.served_field,
         }
     }
 }

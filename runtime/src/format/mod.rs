@@ -33,7 +33,7 @@
 //! | 160 | 4  | v2: the robot's joint count, when the table holds joint values or a model; 0 otherwise (v1: reserved, zero; v1 robots have 6) |
 //! | 164 | 4  | v2: the number of node sets of the served tier; 0 for a table served by its exact tier alone (v1: reserved, zero) |
 //! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`); 0 when they were given or defaulted |
-//! | 172 | 4  | reserved, zero |
+//! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`) |
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
 //! | 184 | 64 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
@@ -121,6 +121,37 @@ pub struct Header {
     pub node_set_count: u32,
     /// How the method's parameters were chosen (version 2), when by cross-validation.
     pub tuning: Option<Tuning>,
+    /// What the served tier's nodes hold (version 2; [`ServedField::Method`] before).
+    pub served_field: ServedField,
+}
+
+/// What a table's served tier blends between: the values at the grid's nodes.
+///
+/// The exact tier always answers the method itself; the served field either tabulates
+/// that answer at the nodes, or a smoother estimate of the same errors. Both are blended
+/// trilinearly at query time, so the choice costs a query nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u32)]
+pub enum ServedField {
+    /// The method's own answer at every node: the served field is the exact tier's,
+    /// tabulated.
+    #[default]
+    Method = 0,
+    /// Kriging with a nugget of the samples' errors (a hybrid table's: the residuals its
+    /// model leaves) in Cartesian distance, at every node where the method answers: it
+    /// smooths the measurement noise the method interpolates. The exact tier still
+    /// answers the method.
+    Kriging = 1,
+}
+
+impl ServedField {
+    /// The name `tablec` uses for it: `method` or `kriging`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ServedField::Method => "method",
+            ServedField::Kriging => "kriging",
+        }
+    }
 }
 
 /// The cross-validation that chose a table's parameters (`tablec build --tune`), recorded
@@ -272,6 +303,7 @@ impl Header {
                 put(&mut b, 168, t.folds.to_le_bytes());
                 put(&mut b, 176, t.cv_mean_mm.to_le_bytes());
             }
+            put(&mut b, 172, (self.served_field as u32).to_le_bytes());
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
@@ -331,7 +363,7 @@ impl Header {
             });
         }
         let reserved: [std::ops::Range<usize>; 2] = if version >= 2 {
-            [172..176, 184..248]
+            [184..248, 248..248]
         } else {
             [160..248, 248..248]
         };
@@ -354,6 +386,20 @@ impl Header {
         if !(joint_radius_rad >= 0.0 && joint_radius_rad.is_finite()) {
             return Err(OpenError::Corrupt {
                 what: "joint radius is negative or not finite",
+            });
+        }
+        let served_field = match (version, u32_at(172)) {
+            (1, _) | (_, 0) => ServedField::Method,
+            (_, 1) => ServedField::Kriging,
+            _ => {
+                return Err(OpenError::Corrupt {
+                    what: "the served field's kind is neither 0 (method) nor 1 (kriging)",
+                })
+            }
+        };
+        if served_field == ServedField::Kriging && u32_at(164) == 0 {
+            return Err(OpenError::Corrupt {
+                what: "a kriging served field without node sets",
             });
         }
         let tuning = if version >= 2 && u32_at(168) > 0 {
@@ -410,6 +456,7 @@ impl Header {
             },
             node_set_count: if version >= 2 { u32_at(164) } else { 0 },
             tuning,
+            served_field,
         })
     }
 }

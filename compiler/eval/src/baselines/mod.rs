@@ -10,8 +10,6 @@
 //!   grid approach of patent CN201110113246.6, which needs samples on a lattice;
 //! - [`kriging`]: ordinary kriging with a variogram fitted to the samples, the geostatistical
 //!   best linear unbiased predictor;
-//! - [`gp`]: kriging with a nugget (Gaussian-process regression) in any distance, for a
-//!   model's residuals: it smooths noise instead of interpolating it;
 //! - [`stats`]: residual statistics and deterministic k-fold splits for the evaluation.
 //!
 //! Every baseline is built from sample *nominal* positions (mm, base frame) and one value
@@ -23,7 +21,6 @@
 //! All baselines implement [`Baseline`], so an evaluation loop can treat them alike. They
 //! are immutable after construction and `Sync`, so queries can run in parallel.
 
-pub mod gp;
 pub mod grid;
 pub mod idw;
 pub mod kriging;

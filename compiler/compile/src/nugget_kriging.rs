@@ -59,7 +59,7 @@ pub enum GpError {
 }
 
 /// The chosen hyperparameters of one group of components.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GpChoice {
     /// Length scale ℓ, in the inputs' unit (mm or rad).
     pub length_scale: f64,
