@@ -53,7 +53,7 @@ const COLOURS: [RGBColor; 9] = [
 ];
 const BEFORE: RGBColor = RGBColor(150, 150, 150);
 /// Training samples on the map of the workspace.
-const TRAINING: RGBColor = RGBColor(170, 170, 170);
+const TRAINING: RGBColor = RGBColor(60, 60, 60);
 /// Evaluated points on the map of the workspace.
 const EVALUATED: RGBColor = RGBColor(31, 119, 180);
 /// The noise floor's reference lines.
@@ -85,7 +85,6 @@ fn swatch(c: RGBColor) -> String {
 enum Mark {
     Line,
     Dashed,
-    Dot,
 }
 
 /// A legend in HTML beside a plot: label and mark per entry, in order.
@@ -95,10 +94,6 @@ fn legend(entries: &[(String, RGBColor, Mark)]) -> String {
         let style = match mark {
             Mark::Line => format!("border-top:3px solid {}", css(*c)),
             Mark::Dashed => format!("border-top:2px dashed {}", css(*c)),
-            Mark::Dot => format!(
-                "background:{};border-radius:50%;height:8px;width:8px",
-                css(*c)
-            ),
         };
         let _ = write!(
             out,
@@ -240,27 +235,98 @@ fn faint() -> ShapeStyle {
     BLACK.mix(0.03).stroke_width(1)
 }
 
-/// Cumulative distributions of `curves` on a log x axis from `lo` to `hi`, with a
-/// reference curve (dashed black) when given; the plot and its legend.
+/// The x axis of a distribution plot.
+#[derive(Clone, Copy)]
+struct Axis {
+    lo: f64,
+    hi: f64,
+    log: bool,
+}
+
+impl Axis {
+    /// Where a value lies on the plot's own (linear) coordinate.
+    fn place(self, v: f64) -> f64 {
+        if self.log {
+            v.max(self.lo).log10()
+        } else {
+            v
+        }
+    }
+
+    /// The value at a coordinate.
+    fn value(self, x: f64) -> f64 {
+        if self.log {
+            10f64.powf(x)
+        } else {
+            x
+        }
+    }
+
+    /// Labelled values: 1, 2, 5 × 10ⁿ on a log axis, a round step on a linear one.
+    fn ticks(self) -> Vec<f64> {
+        if self.log {
+            return log_ticks(self.lo, self.hi);
+        }
+        let step = nice_below((self.hi - self.lo) / 5.0);
+        let first = (self.lo / step).ceil() as i64;
+        let last = (self.hi / step).floor() as i64;
+        (first..=last).map(|k| k as f64 * step).collect()
+    }
+}
+
+/// A linear coordinate labelled at given values (plotters' own linear coordinate picks its
+/// labels itself).
+struct Ticked {
+    lo: f64,
+    hi: f64,
+    ticks: Vec<f64>,
+}
+
+impl Ranged for Ticked {
+    type FormatOption = plotters::coord::ranged1d::DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        let fraction = (value - self.lo) / (self.hi - self.lo);
+        limit.0 + (f64::from(limit.1 - limit.0) * fraction + 1e-3).floor() as i32
+    }
+
+    fn key_points<Hint: plotters::coord::ranged1d::KeyPointHint>(&self, _: Hint) -> Vec<f64> {
+        self.ticks.clone()
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.lo..self.hi
+    }
+}
+
+/// Cumulative distributions of `curves` on `axis`, `size` px, with a reference curve
+/// (dashed black) when given. A value beyond the axis runs off the right edge.
 fn cdf_svg(
     name: &str,
     x_desc: &str,
     curves: &[Curve],
-    (lo, hi): (f64, f64),
-    reference: Option<(&str, &dyn Fn(f64) -> f64)>,
-) -> Result<[String; 2], ReportError> {
+    axis: Axis,
+    size: (u32, u32),
+    reference: Option<&dyn Fn(f64) -> f64>,
+) -> Result<String, ReportError> {
     let mut svg = String::new();
-    let mut entries = Vec::new();
     {
         let err = plot_error(name);
-        let root = SVGBackend::with_string(&mut svg, (860, 440)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         root.fill(&WHITE).map_err(&err)?;
+        let ticks: Vec<f64> = axis.ticks().into_iter().map(|v| axis.place(v)).collect();
+        let (x0, x1) = (axis.place(axis.lo), axis.place(axis.hi));
         let mut chart = ChartBuilder::on(&root)
             .margin(14)
             .x_label_area_size(44)
-            .y_label_area_size(60)
+            .y_label_area_size(56)
             .build_cartesian_2d(
-                (lo..hi).log_scale().with_key_points(log_ticks(lo, hi)),
+                Ticked {
+                    lo: x0,
+                    hi: x1,
+                    ticks,
+                },
                 0.0..1.0,
             )
             .map_err(&err)?;
@@ -268,45 +334,57 @@ fn cdf_svg(
             .configure_mesh()
             .x_desc(x_desc)
             .y_desc("fraction of points at or below")
-            .x_label_formatter(&|v| short(*v))
+            .x_label_formatter(&|x| short(axis.value(*x)))
             .y_label_formatter(&|v| format!("{v:.1}"))
             .light_line_style(faint())
-            .label_style((FONT, 13))
-            .axis_desc_style((FONT, 14))
+            .label_style((FONT, 12))
+            .axis_desc_style((FONT, 13))
             .draw()
             .map_err(&err)?;
         for c in curves {
-            let mut sorted: Vec<f64> = c.values.iter().map(|v| v.clamp(lo, hi)).collect();
+            let mut sorted = c.values.clone();
             sorted.sort_by(f64::total_cmp);
             let n = sorted.len() as f64;
-            let mut steps = vec![(lo, 0.0)];
+            let mut steps = vec![(x0, 0.0)];
+            let mut below = 0.0;
             for (k, v) in sorted.iter().enumerate() {
-                steps.push((*v, k as f64 / n));
-                steps.push((*v, (k + 1) as f64 / n));
+                if *v > axis.hi {
+                    break;
+                }
+                let x = axis.place(*v);
+                steps.push((x, k as f64 / n));
+                below = (k + 1) as f64 / n;
+                steps.push((x, below));
             }
-            if sorted.last().is_some_and(|v| *v < hi) {
-                steps.push((hi, 1.0));
-            }
+            steps.push((x1, below));
             chart
                 .draw_series(LineSeries::new(steps, c.colour.stroke_width(2)))
                 .map_err(&err)?;
-            entries.push((c.label.clone(), c.colour, Mark::Line));
         }
-        if let Some((label, f)) = reference {
+        if let Some(f) = reference {
             let points: Vec<(f64, f64)> = (0..=200)
                 .map(|k| {
-                    let x = lo * (hi / lo).powf(f64::from(k) / 200.0);
-                    (x, f(x))
+                    let x = x0 + (x1 - x0) * f64::from(k) / 200.0;
+                    (x, f(axis.value(x)))
                 })
                 .collect();
             chart
                 .draw_series(DashedLineSeries::new(points, 6, 4, FLOOR.stroke_width(1)))
                 .map_err(&err)?;
-            entries.push((label.to_string(), FLOOR, Mark::Dashed));
         }
         root.present().map_err(&err)?;
     }
-    Ok([svg, legend(&entries)])
+    Ok(svg)
+}
+
+/// The legend of a distribution plot.
+fn cdf_legend(curves: &[Curve], reference: Option<&str>) -> String {
+    let mut entries: Vec<(String, RGBColor, Mark)> = curves
+        .iter()
+        .map(|c| (c.label.clone(), c.colour, Mark::Line))
+        .collect();
+    entries.extend(reference.map(|r| (r.to_string(), FLOOR, Mark::Dashed)));
+    legend(&entries)
 }
 
 /// Points of one series of a scatter plot.
@@ -381,16 +459,30 @@ fn distance_svg(
             .axis_desc_style((FONT, 14))
             .draw()
             .map_err(&err)?;
+        let bins = distance_bins(distance.len());
+        // Few points are drawn plainly; many, small and translucent, under their medians.
+        let (radius, opacity) = if distance.len() <= 200 {
+            (3, 0.9)
+        } else {
+            (2, 0.45)
+        };
         for s in series {
-            let style = s.colour.filled();
+            let style = s.colour.mix(opacity).filled();
             chart
                 .draw_series(
                     s.points
-                        .into_iter()
-                        .map(move |(d, n)| Circle::new((d, n.max(y_lo)), 3, style)),
+                        .iter()
+                        .map(move |(d, n)| Circle::new((*d, n.max(y_lo)), radius, style)),
                 )
                 .map_err(&err)?;
-            entries.push((s.label, s.colour, Mark::Dot));
+            let medians = binned_medians(&s.points, (lo, hi), bins);
+            chart
+                .draw_series(LineSeries::new(
+                    medians.iter().map(|(d, n)| (*d, n.max(y_lo))),
+                    s.colour.stroke_width(3),
+                ))
+                .map_err(&err)?;
+            entries.push((s.label, s.colour, Mark::Line));
         }
         if let Some(f) = floor_mm {
             chart
@@ -410,6 +502,29 @@ fn distance_svg(
         root.present().map_err(&err)?;
     }
     Ok([svg, legend(&entries)])
+}
+
+/// How many distance bins the medians of the distance plot are taken over: about 15
+/// points a bin, 3 to 10 bins.
+fn distance_bins(points: usize) -> usize {
+    (points / 15).clamp(3, 10)
+}
+
+/// The median of the y values of `points` in each of `bins` equal bins of x over
+/// `(lo, hi)`, at the bin's centre; bins with fewer than 3 points are left out.
+fn binned_medians(points: &[(f64, f64)], (lo, hi): (f64, f64), bins: usize) -> Vec<(f64, f64)> {
+    let width = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
+    let mut groups = vec![Vec::new(); bins];
+    for (x, y) in points {
+        let b = (((x - lo) / width).floor().max(0.0) as usize).min(bins - 1);
+        groups[b].push(*y);
+    }
+    groups
+        .iter()
+        .enumerate()
+        .filter(|(_, g)| g.len() >= 3)
+        .map(|(b, g)| (lo + (b as f64 + 0.5) * width, quantile(g, 0.5)))
+        .collect()
 }
 
 /// Smallest and largest of `values` ((0, 1) when empty).
@@ -574,20 +689,33 @@ fn arrows_svg(
             }
         }
         chart.draw_series(shapes).map_err(&err)?;
-        // The scale bar, bottom left.
+        // The scale bar, bottom left, on a white ground so that arrows do not hide it.
         let x0 = xr.start + side * 0.05;
         let y0 = yr.start + side * 0.04;
+        let label = format!(
+            "{} mm error = {} mm arrow",
+            short(bar_mm),
+            short(bar_mm * scale)
+        );
+        let px = side / f64::from(MAP_SIDE);
+        let width = (bar_mm * scale).max(label.chars().count() as f64 * 6.6 * px);
+        let ground = WHITE.mix(0.85).filled();
+        chart
+            .draw_series([Rectangle::new(
+                [
+                    (x0 - 5.0 * px, y0 - 6.0 * px),
+                    (x0 + width + 5.0 * px, y0 + side * 0.045 + 4.0 * px),
+                ],
+                ground,
+            )])
+            .map_err(&err)?;
         let bar = BLACK.stroke_width(2);
         chart
             .draw_series([PathElement::new([(x0, y0), (x0 + bar_mm * scale, y0)], bar)])
             .map_err(&err)?;
         chart
             .draw_series([Text::new(
-                format!(
-                    "{} mm error = {} mm arrow",
-                    short(bar_mm),
-                    short(bar_mm * scale)
-                ),
+                label,
                 (x0, y0 + side * 0.045),
                 (FONT, 12).into_font(),
             )])
@@ -632,20 +760,21 @@ fn locations_svg(e: &Evaluation, view: View) -> Result<String, ReportError> {
             .axis_desc_style((FONT, 13))
             .draw()
             .map_err(&err)?;
-        let dot = TRAINING.filled();
-        chart
-            .draw_series(
-                training
-                    .iter()
-                    .map(move |p| Circle::new((p[0], p[1]), 2, dot)),
-            )
-            .map_err(&err)?;
+        // The evaluated points first: the samples, fewer and often on a lattice, on top.
         let ring = EVALUATED.stroke_width(1);
         chart
             .draw_series(
                 evaluated
                     .iter()
                     .map(move |p| Circle::new((p[0], p[1]), 3, ring)),
+            )
+            .map_err(&err)?;
+        let dot = TRAINING.filled();
+        chart
+            .draw_series(
+                training
+                    .iter()
+                    .map(move |p| Circle::new((p[0], p[1]), 2, dot)),
             )
             .map_err(&err)?;
         root.present().map_err(&err)?;
@@ -693,7 +822,7 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
          body{{font-family:sans-serif;margin:24px;max-width:1320px;color:#222}}\
          table{{border-collapse:collapse;margin:12px 0}}\
          th,td{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
-         th{{background:#f2f2f2}} td:first-child,th:first-child{{text-align:left}}\
+         th{{background:#f2f2f2}} td:first-child,th:first-child{{text-align:left;white-space:nowrap}}\
          td.note,th.note{{text-align:left;font-size:12px;color:#555;max-width:420px}}\
          tr.floor td{{font-style:italic;background:#fafafa}}\
          code{{background:#f6f6f6;padding:2px 4px}}\
@@ -702,7 +831,7 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
          .swatch{{display:inline-block;width:10px;height:10px;margin-right:6px}}\
          .legend{{list-style:none;padding:0;margin:14px 0;font-size:13px}} .legend li{{margin:3px 0}}\
          .mark{{display:inline-block;width:22px;height:0;margin-right:8px;vertical-align:middle}}\
-         td.text{{text-align:left}}\
+         td.text,th.text{{text-align:left}}\
          </style>\n</head>\n<body>\n<h1>Compensation evaluation</h1>\n<p>{}</p>\n\
          <p>Command: <code>{}</code></p>\n",
         escape(&e.protocol),
@@ -879,17 +1008,35 @@ fn cdf_section(
         .chain(floor_mm.map(|f| f / 4.0))
         .collect();
     let (lo, hi) = log_range(&all);
+    let compensated: Vec<f64> = curves[..curves.len() - 1]
+        .iter()
+        .flat_map(|c| c.values.iter().copied())
+        .collect();
+    let zoom_hi = quantile(&compensated, 0.99).max(floor_mm.unwrap_or(0.0) * 2.0) * 1.05;
     let sigma = floor_mm.map(|m| m / (2.0 * (2.0 / std::f64::consts::PI).sqrt()));
     let reference = sigma.map(|s| move |r: f64| maxwell_cdf(r, s));
-    let plot = cdf_svg(
+    let reference = reference.as_ref().map(|f| f as &dyn Fn(f64) -> f64);
+    let overview = cdf_svg(
         "distribution",
         "position residual norm, mm (log scale)",
         &curves,
-        (lo, hi),
-        reference
-            .as_ref()
-            .map(|f| ("perfect predictor (noise floor)", f as &dyn Fn(f64) -> f64)),
+        Axis { lo, hi, log: true },
+        (520, 400),
+        reference,
     )?;
+    let zoom = cdf_svg(
+        "distribution, compensated",
+        "position residual norm, mm (linear, to the compensated 99th percentile)",
+        &curves,
+        Axis {
+            lo: 0.0,
+            hi: zoom_hi,
+            log: false,
+        },
+        (520, 400),
+        reference,
+    )?;
+    let floor_label = "perfect predictor (noise floor)";
     let floor_words = if floor_mm.is_some() {
         " The dashed black curve is what a perfect predictor would leave: Gaussian noise \
          with the noise floor's nugget; no method can lie left of it for long."
@@ -898,14 +1045,21 @@ fn cdf_section(
     };
     figure(
         page,
-        &plot,
+        &[
+            overview,
+            zoom,
+            cdf_legend(&curves, floor_mm.map(|_| floor_label)),
+        ],
         &format!(
             "For each method, the fraction of evaluated points whose position residual norm \
              is at most the value on the x axis (over the points the method predicted), with \
              the measured errors in grey; a curve further left and steeper compensates \
-             better. The x axis is logarithmic so that methods a few tens of µm apart \
-             separate while the uncompensated errors stay on the page; legend in order of \
-             mean residual, mm.{floor_words}"
+             better. Left: a logarithmic axis, on which methods a few tens of µm apart \
+             separate and the uncompensated errors stay on the page. Right: a linear axis \
+             from 0 to the 99th percentile of the compensated residuals ({} mm), to compare \
+             the methods' spreads; curves that leave the right edge have points beyond it. \
+             Legend in order of mean residual, mm.{floor_words}",
+            short(zoom_hi)
         ),
     );
     Ok(())
@@ -931,12 +1085,14 @@ fn distance_section(
         &format!(
             "Position residual norm of each evaluated point against the distance of its \
              target from the robot base origin, for the measured errors (grey) and the {} \
-             method{} with the lowest mean ({}); a trend with distance is error a method \
-             leaves where the arm reaches far or close. The y axis is logarithmic: equal \
-             heights are equal ratios.{}",
+             method{} with the lowest mean ({}); the thick lines are each series' median \
+             in {} equal bins of distance. A trend with distance is error a method leaves \
+             where the arm reaches far or close. The y axis is logarithmic: equal heights \
+             are equal ratios.{}",
             best.len(),
             if best.len() == 1 { "" } else { "s" },
             names.join(", "),
+            distance_bins(e.nominal_mm.len()),
             if floor_mm.is_some() {
                 " The dashed line is the noise floor's mean."
             } else {
@@ -987,7 +1143,7 @@ fn vectors_section(
         let stride = n.div_ceil(MAX_ARROWS).max(1);
         if stride > 1 {
             format!(
-                " Every {stride}th point is drawn ({} of {n}).",
+                " One point in {stride} is drawn ({} of {n}), so that arrows stay apart.",
                 n.div_ceil(stride)
             )
         } else {
@@ -1063,6 +1219,8 @@ fn axes_section(page: &mut String, e: &Evaluation) {
             let _ = write!(page, "<td>{v:.4}</td>");
         }
         for v in signed {
+            // No "-0.0000": a mean that rounds to zero is shown as zero.
+            let v = if v.abs() < 5e-5 { 0.0 } else { v };
             let _ = write!(page, "<td>{v:+.4}</td>");
         }
         page.push_str("</tr>\n");
@@ -1093,7 +1251,7 @@ fn locations_section(page: &mut String, e: &Evaluation) -> Result<(), ReportErro
         page,
         &svgs,
         &format!(
-            "Nominal positions of the {} training samples ({}grey dots) and the {} evaluated \
+            "Nominal positions of the {} training samples ({}dark grey dots) and the {} evaluated \
              points ({}blue rings), {} (left) and {} (right), base frame, equal scales on \
              both axes. Evaluated points outside the cloud of samples are extrapolation.{}",
             e.training_nominal_mm.len(),
@@ -1154,13 +1312,18 @@ fn orientation_section(page: &mut String, e: &Evaluation) -> Result<(), ReportEr
         .iter()
         .flat_map(|c| c.values.iter().copied())
         .collect();
-    let plot = cdf_svg(
-        "orientation distribution",
-        "orientation residual norm, mrad (log scale)",
-        &curves,
-        log_range(&all),
-        None,
-    )?;
+    let (lo, hi) = log_range(&all);
+    let plot = [
+        cdf_svg(
+            "orientation distribution",
+            "orientation residual norm, mrad (log scale)",
+            &curves,
+            Axis { lo, hi, log: true },
+            (760, 420),
+            None,
+        )?,
+        cdf_legend(&curves, None),
+    ];
     let missing: Vec<&str> = e
         .methods
         .iter()
@@ -1240,8 +1403,8 @@ fn parameters_section(page: &mut String, e: &Evaluation) {
         "<p>Identified parameters first, the most significant (largest |value| / SE) at \
          the top; then those held at nominal, then the unidentifiable ones, in the \
          model's order. Lengths in mm, angles in mrad.</p>\n<table><tr><th>parameter</th>\
-         <th>unit</th><th>value</th><th>SE</th><th>|value| / SE</th>\
-         <th>strongest correlation</th><th>status</th><th class=\"note\">reason</th></tr>\n",
+         <th class=\"text\">unit</th><th>value</th><th>SE</th><th>|value| / SE</th>\
+         <th class=\"text\">strongest correlation</th><th class=\"text\">status</th><th class=\"note\">reason</th></tr>\n",
     );
     for r in parameter_order(&c.parameters) {
         let (scale, unit) = if r.unit == "rad" {
