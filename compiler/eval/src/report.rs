@@ -267,6 +267,9 @@ impl Axis {
         if self.log {
             return log_ticks(self.lo, self.hi);
         }
+        if self.hi <= self.lo {
+            return vec![self.lo];
+        }
         let step = nice_below((self.hi - self.lo) / 5.0);
         let first = (self.lo / step).ceil() as i64;
         let last = (self.hi / step).floor() as i64;
@@ -698,7 +701,7 @@ fn arrows_svg(
             short(bar_mm * scale)
         );
         let px = side / f64::from(MAP_SIDE);
-        let width = (bar_mm * scale).max(label.chars().count() as f64 * 6.6 * px);
+        let width = (bar_mm * scale).max(label.chars().count() as f64 * 5.8 * px);
         let ground = WHITE.mix(0.85).filled();
         chart
             .draw_series([Rectangle::new(
@@ -1013,6 +1016,8 @@ fn cdf_section(
         .flat_map(|c| c.values.iter().copied())
         .collect();
     let zoom_hi = quantile(&compensated, 0.99).max(floor_mm.unwrap_or(0.0) * 2.0) * 1.05;
+    // No method predicted anything: the linear view shows the raw errors instead.
+    let zoom_hi = if zoom_hi > 0.0 { zoom_hi } else { hi };
     let sigma = floor_mm.map(|m| m / (2.0 * (2.0 / std::f64::consts::PI).sqrt()));
     let reference = sigma.map(|s| move |r: f64| maxwell_cdf(r, s));
     let reference = reference.as_ref().map(|f| f as &dyn Fn(f64) -> f64);
@@ -1038,8 +1043,8 @@ fn cdf_section(
     )?;
     let floor_label = "perfect predictor (noise floor)";
     let floor_words = if floor_mm.is_some() {
-        " The dashed black curve is what a perfect predictor would leave: Gaussian noise \
-         with the noise floor's nugget; no method can lie left of it for long."
+        ", and the dashed curve is what a perfect predictor would leave (Gaussian noise \
+         with the noise floor's nugget)"
     } else {
         ""
     };
@@ -1051,14 +1056,12 @@ fn cdf_section(
             cdf_legend(&curves, floor_mm.map(|_| floor_label)),
         ],
         &format!(
-            "For each method, the fraction of evaluated points whose position residual norm \
-             is at most the value on the x axis (over the points the method predicted), with \
-             the measured errors in grey; a curve further left and steeper compensates \
-             better. Left: a logarithmic axis, on which methods a few tens of µm apart \
-             separate and the uncompensated errors stay on the page. Right: a linear axis \
-             from 0 to the 99th percentile of the compensated residuals ({} mm), to compare \
-             the methods' spreads; curves that leave the right edge have points beyond it. \
-             Legend in order of mean residual, mm.{floor_words}",
+            "The fraction of evaluated points whose position residual norm is at most x, per \
+             method over the points it predicted and for the measured errors (grey): further \
+             left and steeper is better{floor_words}. Left, a log x axis, on which methods \
+             tens of µm apart separate and the raw errors stay on the page; right, a linear \
+             x axis to the 99th percentile of the compensated residuals ({} mm), curves \
+             leaving its right edge having points beyond it.",
             short(zoom_hi)
         ),
     );
@@ -1079,19 +1082,23 @@ fn distance_section(
     let best: Vec<&MethodResult> = ranked.iter().take(DISTANCE_METHODS).copied().collect();
     let plot = distance_svg(e, &best, floor_mm)?;
     let names: Vec<&str> = best.iter().map(|m| m.method.name()).collect();
+    let which = match names.len() {
+        0 => "(no method predicted any point)".to_string(),
+        1 => format!("and the method with the lowest mean ({})", names[0]),
+        n => format!(
+            "and the {n} methods with the lowest mean ({})",
+            names.join(", ")
+        ),
+    };
     figure(
         page,
         &plot,
         &format!(
             "Position residual norm of each evaluated point against the distance of its \
-             target from the robot base origin, for the measured errors (grey) and the {} \
-             method{} with the lowest mean ({}); the thick lines are each series' median \
-             in {} equal bins of distance. A trend with distance is error a method leaves \
-             where the arm reaches far or close. The y axis is logarithmic: equal heights \
-             are equal ratios.{}",
-            best.len(),
-            if best.len() == 1 { "" } else { "s" },
-            names.join(", "),
+             target from the robot base origin, for the measured errors (grey) {which}; \
+             the thick lines are each series' median in {} equal bins of distance. A trend \
+             with distance is error a method leaves where the arm reaches far or close. The \
+             y axis is logarithmic: equal heights are equal ratios.{}",
             distance_bins(e.nominal_mm.len()),
             if floor_mm.is_some() {
                 " The dashed line is the noise floor's mean."
@@ -1143,7 +1150,7 @@ fn vectors_section(
         let stride = n.div_ceil(MAX_ARROWS).max(1);
         if stride > 1 {
             format!(
-                " One point in {stride} is drawn ({} of {n}), so that arrows stay apart.",
+                " One point in {stride} is drawn ({} of {n}).",
                 n.div_ceil(stride)
             )
         } else {
@@ -1155,9 +1162,9 @@ fn vectors_section(
         &svgs,
         &format!(
             "{}Measured error (uncompensated) at each evaluated point, {} (left) and {} \
-             (right), all points projected; each arrow starts at the target and points \
-             along the error, {} mm of arrow per mm of error (scale bar bottom left). \
-             Coherent arrows are systematic error a model can learn.{}",
+             (right), all points projected: each arrow starts at the target and points along \
+             the error, {} mm of arrow per mm of error (scale bar bottom left). Arrows that \
+             agree with their neighbours are systematic error a model can learn.{}",
             swatch(BEFORE),
             View::Top.name(),
             View::Side.name(),
@@ -1188,11 +1195,10 @@ fn vectors_section(
         page,
         &svgs,
         &format!(
-            "{}Residual after compensation by <b>{}</b>, the method with the lowest mean \
-             residual, at the points it predicted, drawn like the measured errors above but \
-             {} mm of arrow per mm of error: {}× the scale of the measured errors, so that \
-             the residuals are visible. Arrows that still line up are systematic error the \
-             method missed; arrows in random directions are noise.{}",
+            "{}Residual after compensation by <b>{}</b>, the method with the lowest mean, \
+             drawn the same way at {} mm of arrow per mm of error ({}× the scale above). \
+             Arrows still agreeing with their neighbours are systematic error the method \
+             missed; arrows in random directions are noise.{}",
             swatch(colour(m)),
             m.method,
             short(after_scale.0),
@@ -1235,10 +1241,9 @@ fn axes_section(page: &mut String, e: &Evaluation) {
         row(page, format!("{}{}", swatch(colour(m)), m.method), &vectors);
     }
     page.push_str(
-        "</table>\n<p>Residual components in the base frame, over the points each method \
-         predicted. The first three columns say along which axis error remains; the last \
-         three are the signed means, a bias: a method that has learnt the error leaves \
-         them near zero, a fraction of the mean absolute values.</p>\n",
+        "</table>\n<p>Residual components in the base frame over the points each method \
+         predicted: the mean absolute values say along which axis error remains, the signed \
+         means are a bias, near zero for a method that has learnt the error.</p>\n",
     );
 }
 
@@ -1251,9 +1256,10 @@ fn locations_section(page: &mut String, e: &Evaluation) -> Result<(), ReportErro
         page,
         &svgs,
         &format!(
-            "Nominal positions of the {} training samples ({}dark grey dots) and the {} evaluated \
-             points ({}blue rings), {} (left) and {} (right), base frame, equal scales on \
-             both axes. Evaluated points outside the cloud of samples are extrapolation.{}",
+            "Nominal positions of the {} training samples ({}dark grey dots) and the {} \
+             evaluated points ({}blue rings), {} (left) and {} (right), base frame, equal \
+             scales on both axes; evaluated points outside the cloud of samples are \
+             extrapolation.{}",
             e.training_nominal_mm.len(),
             swatch(TRAINING),
             e.nominal_mm.len(),
@@ -1334,11 +1340,9 @@ fn orientation_section(page: &mut String, e: &Evaluation) -> Result<(), ReportEr
         page,
         &plot,
         &format!(
-            "For each method that predicts orientation, the fraction of evaluated points \
-             whose orientation residual norm (rotation vector, base frame) is at most the \
-             value on the x axis, with the measured orientation errors in grey; further \
-             left is better. Logarithmic x axis; legend in order of mean residual, \
-             mrad.{}",
+            "The fraction of evaluated points whose orientation residual norm (rotation \
+             vector, base frame) is at most x, per method that predicts orientation and for \
+             the measured errors (grey), on a log x axis: further left is better.{}",
             if missing.is_empty() {
                 String::new()
             } else {
@@ -1462,4 +1466,219 @@ pub fn write(e: &Evaluation, command: &str, dir: &Path) -> Result<PathBuf, Repor
             source,
         })?;
     Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use adwi_compile::samples::{read_samples, ColumnMap, SampleSet};
+    use adwi_robot::Robot;
+
+    use super::*;
+    use crate::{evaluate, EvalOptions, Method, Protocol};
+
+    fn shipped(file: &str) -> SampleSet {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/kr150-2");
+        read_samples(&path.join(file), &ColumnMap::default()).expect("shipped samples")
+    }
+
+    /// The KR150-2 samples and their first 40 validation points, without orientation
+    /// errors when `orientation` is false.
+    fn inputs(orientation: bool) -> (SampleSet, SampleSet) {
+        let mut samples = shipped("samples.csv");
+        let validation = shipped("validation.csv");
+        let mut validation = validation.subset(&(0..40).collect::<Vec<_>>());
+        if !orientation {
+            samples.rotation_error_rad = None;
+            validation.rotation_error_rad = None;
+        }
+        (samples, validation)
+    }
+
+    fn page(orientation: bool, robot: bool) -> String {
+        let (samples, validation) = inputs(orientation);
+        let mut methods = vec![Method::Paper, Method::Idw];
+        let robot = robot.then(|| {
+            methods.push(Method::Kinematic);
+            let path =
+                Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/kr150-2/robot.toml");
+            Robot::load(path).expect("shipped robot")
+        });
+        let options = EvalOptions {
+            methods: Some(methods),
+            robot,
+            ..EvalOptions::default()
+        };
+        let e =
+            evaluate(&samples, &Protocol::Validation(validation), &options).expect("evaluation");
+        html(&e, "tablec eval samples.csv --validation validation.csv").expect("page")
+    }
+
+    /// The page's sections by their `<h2>` heading, in order, each with its text.
+    fn sections(page: &str) -> Vec<(String, String)> {
+        page.split("<h2>")
+            .skip(1)
+            .map(|s| {
+                let (heading, rest) = s.split_once("</h2>").expect("closed heading");
+                (heading.to_string(), rest.to_string())
+            })
+            .collect()
+    }
+
+    /// Which sections a page must have, with how many plots and captioned figures each.
+    const POSITION_SECTIONS: [(&str, usize, usize); 6] = [
+        ("Figures", 0, 0),
+        ("Distribution of position residuals", 2, 1),
+        ("Residual against distance from the base", 1, 1),
+        // Before and after, each a top and a side view.
+        ("Error vectors before and after compensation", 4, 2),
+        ("Per-axis errors", 0, 0),
+        ("Where the samples and evaluated points lie", 2, 1),
+    ];
+    const ORIENTATION: (&str, usize, usize) = ("Distribution of orientation residuals", 1, 1);
+    const IDENTIFICATION: (&str, usize, usize) = ("Kinematic identification", 0, 0);
+
+    fn check_sections(page: &str, expected: &[(&str, usize, usize)]) {
+        let found = sections(page);
+        let headings: Vec<&str> = found.iter().map(|(h, _)| h.as_str()).collect();
+        let wanted: Vec<&str> = expected.iter().map(|(h, _, _)| *h).collect();
+        assert_eq!(headings, wanted);
+        for ((heading, text), (_, plots, figures)) in found.iter().zip(expected) {
+            assert_eq!(text.matches("<svg").count(), *plots, "{heading}");
+            assert_eq!(text.matches("<figcaption>").count(), *figures, "{heading}");
+        }
+    }
+
+    /// A self-contained HTML5 page: nothing loaded from elsewhere.
+    fn check_self_contained(page: &str) {
+        assert!(page.starts_with("<!DOCTYPE html>\n<html lang=\"en\">"));
+        assert!(page.trim_end().ends_with("</body>\n</html>"));
+        for external in ["<img", "<script", "<link", "src=", "url(", "@import"] {
+            assert!(!page.contains(external), "{external}");
+        }
+        let without_namespaces = page.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
+        assert!(!without_namespaces.contains("http"), "a link in the page");
+    }
+
+    #[test]
+    fn a_run_with_a_robot_and_orientation_has_every_section() {
+        let page = page(true, true);
+        check_self_contained(&page);
+        let mut expected = POSITION_SECTIONS.to_vec();
+        expected.push(ORIENTATION);
+        expected.push(IDENTIFICATION);
+        check_sections(&page, &expected);
+        // The noise floor, in its row, its column and its line.
+        assert!(page.contains("<td>noise floor</td>"));
+        assert!(page.contains("<th>mean ÷ floor</th>"));
+        assert!(page.contains("Noise floor: a perfect predictor would leave"));
+        assert!(page.contains("perfect predictor (noise floor)"));
+        // Axis labels carry units and frames.
+        for label in [
+            "x, mm (base frame)",
+            "y, mm (base frame)",
+            "z, mm (base frame)",
+            "position residual norm, mm (log scale)",
+            "orientation residual norm, mrad (log scale)",
+        ] {
+            assert!(page.contains(label), "{label}");
+        }
+        assert!(page.contains("mm error = "), "a scale bar");
+        // The parameter table, identified first.
+        let table = &page[page.find("<th>parameter</th>").expect("parameter table")..];
+        let first_held = table.find(">held<").expect("a held parameter");
+        let first_unidentifiable = table.find(">unidentifiable<").expect("unidentifiable");
+        let last_identified = table.rfind(">identified<").expect("identified");
+        assert!(last_identified < first_held && first_held < first_unidentifiable);
+        assert!(!page.contains("No orientation errors were measured"));
+    }
+
+    #[test]
+    fn a_run_without_robot_or_orientation_leaves_those_sections_out() {
+        let page = page(false, false);
+        check_self_contained(&page);
+        check_sections(&page, &POSITION_SECTIONS);
+        assert!(page.contains("No orientation errors were measured"));
+        assert!(!page.contains("mrad"));
+        assert!(!page.contains("Kinematic identification"));
+    }
+
+    #[test]
+    fn orientation_without_a_robot_has_its_section() {
+        let page = page(true, false);
+        let mut expected = POSITION_SECTIONS.to_vec();
+        expected.push(ORIENTATION);
+        check_sections(&page, &expected);
+    }
+
+    #[test]
+    fn a_run_where_no_method_predicts_still_shows_the_measured_errors() {
+        // One sample off the lattice: the lattice method cannot run.
+        let (mut samples, validation) = inputs(false);
+        samples.nominal_mm[0][0] += 0.37;
+        let options = EvalOptions {
+            methods: Some(vec![Method::Grid]),
+            ..EvalOptions::default()
+        };
+        let e =
+            evaluate(&samples, &Protocol::Validation(validation), &options).expect("evaluation");
+        assert!(e.methods[0].unsupported.is_some());
+        let page = html(&e, "tablec eval").expect("page");
+        check_self_contained(&page);
+        let mut expected = POSITION_SECTIONS.to_vec();
+        expected[3] = ("Error vectors before and after compensation", 2, 1);
+        check_sections(&page, &expected);
+        assert!(page.contains("No method predicted any point"));
+    }
+
+    fn row(name: &str, status: &'static str, value: f64, se: Option<f64>) -> ParameterRow {
+        ParameterRow {
+            name: name.to_string(),
+            unit: "mm",
+            value,
+            held_estimate: None,
+            standard_error: se,
+            correlated_with: None,
+            correlation: None,
+            status,
+            reason: String::new(),
+        }
+    }
+
+    #[test]
+    fn parameters_are_ordered_identified_by_significance_then_held_then_unidentifiable() {
+        let rows = [
+            row("u", "unidentifiable", 0.0, None),
+            row("weak", "identified", 0.1, Some(0.05)),
+            row("h", "held", 0.0, Some(0.1)),
+            row("strong", "identified", -0.5, Some(0.01)),
+            row("middle", "identified", 0.3, Some(0.03)),
+        ];
+        let names: Vec<&str> = parameter_order(&rows)
+            .iter()
+            .map(|r| r.name.as_str())
+            .collect();
+        assert_eq!(names, ["strong", "middle", "weak", "h", "u"]);
+    }
+
+    #[test]
+    fn maxwell_distribution_matches_the_noise_floor_mean() {
+        // The noise floor's best mean is the mean of Maxwell's distribution; its median
+        // lies just below the mean, and the distribution runs from 0 to 1.
+        let sigma = 0.05;
+        let mean = 2.0 * sigma * (2.0 / std::f64::consts::PI).sqrt();
+        assert!(maxwell_cdf(0.0, sigma).abs() < 1e-6);
+        assert!((maxwell_cdf(20.0 * sigma, sigma) - 1.0).abs() < 1e-6);
+        let at_mean = maxwell_cdf(mean, sigma);
+        assert!((0.5..0.6).contains(&at_mean), "{at_mean}");
+    }
+
+    #[test]
+    fn log_ticks_are_one_two_five() {
+        assert_eq!(log_ticks(0.03, 0.6), [0.05, 0.1, 0.2, 0.5]);
+        assert_eq!(short(0.1), "0.1");
+        assert_eq!(short(-700.0), "-700");
+        assert_eq!(short(0.00005), "0.00005");
+    }
 }
