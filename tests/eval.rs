@@ -179,8 +179,27 @@ fn every_method_is_compared_and_reported() {
         assert!(mean(line) < 0.1 * before, "{line} vs {before}");
     }
     let page = std::fs::read_to_string(d.join("report/index.html")).unwrap();
-    assert!(page.matches("<svg").count() >= 5, "plots missing");
     assert!(page.contains("<table>"));
+    // Every position section, each plot inline; without a robot or orientation errors,
+    // no identification and no orientation plot, but a line saying so.
+    for heading in [
+        "Figures",
+        "Distribution of position residuals",
+        "Residual against distance from the base",
+        "Error vectors before and after compensation",
+        "Per-axis errors",
+        "Where the samples and evaluated points lie",
+    ] {
+        assert!(page.contains(&format!("<h2>{heading}</h2>")), "{heading}");
+    }
+    assert_eq!(
+        page.matches("<svg").count(),
+        9,
+        "two distributions, distance, four vector panels, two maps"
+    );
+    assert!(page.contains("No orientation errors were measured"));
+    assert!(!page.contains("orientation residuals</h2>"));
+    assert!(!page.contains("Kinematic identification"));
 }
 
 /// k-fold cross-validation predicts every sample once.
@@ -295,9 +314,20 @@ fn ur5_noise_floor_and_trusted_identification() {
     let out = tempfile::tempdir().unwrap();
     let json = out.path().join("ur5.json");
     let mut args: Vec<&str> = command.iter().map(String::as_str).collect();
+    let report = out.path().join("report");
     args.extend(["--methods", "kinematic", "--json", json.to_str().unwrap()]);
+    args.extend(["--report", report.to_str().unwrap()]);
     let o = tablec(&args, &repo());
     ok(&o);
+    // The report shows the identification, held and unidentifiable parameters last.
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    let table = &page[page
+        .find("<h2>Kinematic identification</h2>")
+        .expect("section")..];
+    let held = table.find(">held<").expect("held parameters");
+    assert!(table.rfind(">identified<").unwrap() < held);
+    assert!(page.contains(">Δd6<"));
+    assert!(page.contains("No orientation errors were measured"));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("noise floor"), "{stdout}");
     let e: serde_json::Value =

@@ -509,6 +509,10 @@ pub struct Evaluation {
     pub protocol: String,
     /// Number of training samples (all samples for k-fold).
     pub samples: usize,
+    /// The training samples' nominal positions, mm, base frame (all samples for k-fold),
+    /// for the report's map of where samples and evaluated points lie; not in the JSON.
+    #[serde(skip)]
+    pub training_nominal_mm: Vec<[f64; 3]>,
     /// The evaluated points' nominal positions, mm, base frame.
     pub nominal_mm: Vec<[f64; 3]>,
     /// Their measured position errors, mm.
@@ -763,6 +767,7 @@ pub fn evaluate(
     Ok(Evaluation {
         protocol: description,
         samples: samples.len(),
+        training_nominal_mm: samples.nominal_mm.clone(),
         nominal_mm: points.nominal_mm.clone(),
         measured_error_mm: points.error_mm.clone(),
         measured_rotation_error_rad: measured_rotation,
