@@ -246,6 +246,31 @@ fn calibrate_identifies_gravity_compliance_given_link_masses() {
     assert!(rows[1].trim_end().ends_with("identified"), "{}", rows[1]);
     let written = std::fs::read_to_string(dir.path().join("cal.toml")).unwrap();
     assert!(written.contains("compliance_urad_per_nm = "), "{written}");
+    // A hybrid table stores them with its calibrated chain.
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--compliance",
+            "-o",
+            "c.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = tablec(&["inspect", "c.tbl"], dir.path());
+    let inspect = stdout(&o);
+    let line = inspect
+        .lines()
+        .find(|l| l.starts_with("compliance "))
+        .unwrap_or_else(|| panic!("{inspect}"));
+    assert!(line.contains(&format!("{value:.4}")), "{line}\n{}", rows[1]);
 
     let kr150 = repo("tables/kr150-2");
     let o = tablec(

@@ -92,6 +92,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote          {}", path.display());
     }
     if let Some(path) = &args.urdf {
+        if args.compliance {
+            eprintln!(
+                "warning: URDF has no place for the identified compliances: {} leaves them out \
+                 (the robot file, -o, carries them)",
+                path.display()
+            );
+        }
         let text = c.calibrated_robot().to_urdf_string(&comment)?;
         write_atomically(path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
