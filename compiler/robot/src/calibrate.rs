@@ -129,9 +129,10 @@
 //!   plus the estimate) must lie within ±100 µrad/(N·m)
 //!   ([`MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM`]), a stiffness of 10⁴ N·m/rad, softer than
 //!   the smallest strain-wave gears of robot arms: the UR5's shoulder carries about
-//!   30 N·m, so such a compliance would tilt it by 3 mrad, 2.5 mm at the tool, more than
-//!   the arm's whole error. It must not be negative either, once determined (a joint does
-//!   not stiffen under load, [`HoldReason::NegativeCompliance`]);
+//!   30 N·m, so such a compliance would tilt it by 3 mrad, 2.5 mm at the tool, as much as
+//!   the arm's whole uncompensated error (2.7 mm RMS on its laser-tracker data). It must
+//!   not be negative either, once determined (a joint does not stiffen under load,
+//!   [`HoldReason::NegativeCompliance`]);
 //! - **determined**: `|value| > significance · SE`
 //!   ([`CalibrateOptions::significance`], 3 by default), or a negligible standard error
 //!   (below 0.01 mm, 0.01 mrad or 0.001 µrad/(N·m),
