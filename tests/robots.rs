@@ -205,6 +205,92 @@ fn calibrate_reports_every_parameter_and_writes_the_calibrated_robot() {
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
 }
 
+/// `tablec calibrate --compliance`: the UR5's joint compliances identified with its
+/// geometry, reported in µrad/(N·m) and written to the calibrated robot file; a robot file
+/// without link masses is refused with the reason.
+#[test]
+fn calibrate_identifies_gravity_compliance_given_link_masses() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = repo("tables/ur5/robot.toml");
+    let grid = ur5_grid();
+    let o = tablec(
+        &[
+            "calibrate",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            robot.to_str().unwrap(),
+            "--compliance",
+            "-o",
+            "cal.toml",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let rows: Vec<&str> = out
+        .lines()
+        .filter(|l| l.trim_start().starts_with("compliance"))
+        .collect();
+    assert_eq!(rows.len(), 6, "{out}");
+    for row in &rows {
+        assert!(row.contains(" µrad/(N·m) "), "{row}");
+    }
+    // The shoulder (joint 2) carries the most torque: its compliance is identified, a
+    // stiffness of a few 10⁴ N·m/rad.
+    let shoulder = rows[1].split_whitespace().collect::<Vec<_>>();
+    assert_eq!(shoulder[0], "compliance2");
+    let value: f64 = shoulder[1].parse().unwrap();
+    assert!((5.0..100.0).contains(&value), "{}", rows[1]);
+    assert!(rows[1].trim_end().ends_with("identified"), "{}", rows[1]);
+    let written = std::fs::read_to_string(dir.path().join("cal.toml")).unwrap();
+    assert!(written.contains("compliance_urad_per_nm = "), "{written}");
+    // A hybrid table stores them with its calibrated chain.
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--compliance",
+            "-o",
+            "c.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = tablec(&["inspect", "c.tbl"], dir.path());
+    let inspect = stdout(&o);
+    let line = inspect
+        .lines()
+        .find(|l| l.starts_with("compliance "))
+        .unwrap_or_else(|| panic!("{inspect}"));
+    assert!(line.contains(&format!("{value:.4}")), "{line}\n{}", rows[1]);
+
+    let kr150 = repo("tables/kr150-2");
+    let o = tablec(
+        &[
+            "calibrate",
+            kr150.join("samples.csv").to_str().unwrap(),
+            "--robot",
+            kr150.join("robot.toml").to_str().unwrap(),
+            "--compliance",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("the robot file gives no link masses (mass_kg, com_mm per joint)"),
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// A seven-joint robot end to end: simulated samples with seven joint columns, a hybrid
 /// table of its calibrated chains, queries with seven joint values (six refused).
 #[test]

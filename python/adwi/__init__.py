@@ -191,6 +191,7 @@ def build(
     threads: Optional[int] = None,
     tune: bool = False,
     tune_folds: int = 5,
+    compliance: bool = False,
 ) -> BuildReport:
     """Compile samples into a correction table at ``output``, as ``tablec build``.
 
@@ -212,7 +213,10 @@ def build(
     kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
     chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples
     alone, as ``tablec build --tune``, and records the choice in the table (the report's
-    ``tuning``: folds and cross-validated mean, mm).
+    ``tuning``: folds and cross-validated mean, mm). ``compliance=True`` (with
+    ``hybrid=True``) identifies each revolute joint's gravity compliance with the
+    geometry, as ``tablec build --hybrid --compliance``: the robot file must give link
+    masses.
 
     The table is written atomically (complete or not at all); an output that is one of
     the inputs (also through a link) is refused before anything is written. The GIL is
@@ -248,6 +252,7 @@ def build(
         threads=threads,
         tune=tune,
         tune_folds=tune_folds,
+        compliance=compliance,
     )
     _warn(fields["warnings"])
     return BuildReport(fields)
@@ -265,6 +270,7 @@ def evaluate(
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
+    compliance: bool = False,
     columns: Union[None, str, Mapping[str, str]] = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,
@@ -289,8 +295,10 @@ def evaluate(
     ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
     ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``,
     ``kinematic-kriging``, ``kinematic-kriging-joint`` (default: every one the data
-    allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``.
-    Reading and table options as :func:`build`.
+    allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
+    ``compliance=True`` identifies gravity compliance with their kinematic model, as
+    ``tablec eval --compliance`` (the robot file must give link masses). Reading and
+    table options as :func:`build`.
 
     Returns one record per row of ``tablec eval --csv`` — ``uncompensated``, then one per
     method — with its keys: ``method``, ``predicted``, ``not_predicted``,
@@ -332,6 +340,7 @@ def evaluate(
         base_link=base_link,
         tip_link=tip_link,
         rank_tol=rank_tol,
+        compliance=compliance,
     )
     _warn(messages)
     return list(records)

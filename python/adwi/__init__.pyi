@@ -104,6 +104,7 @@ def build(
     threads: Optional[int] = None,
     tune: bool = False,
     tune_folds: int = 5,
+    compliance: bool = False,
 ) -> BuildReport:
     """Compile samples into a correction table at output, as tablec build."""
 
@@ -119,6 +120,7 @@ def evaluate(
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
+    compliance: bool = False,
     columns: Columns = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,

@@ -371,7 +371,7 @@ fn report_dict<'py>(
 /// `tablec build`: read, plan, compile (hybrid with a robot), write atomically. Returns
 /// the report as a dict.
 #[pyfunction]
-#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5))]
+#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5, compliance=false))]
 #[allow(clippy::too_many_arguments)]
 fn build<'py>(
     py: Python<'py>,
@@ -386,6 +386,7 @@ fn build<'py>(
     threads: Option<usize>,
     tune: bool,
     tune_folds: usize,
+    compliance: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = Instant::now();
     let built = py.allow_threads(|| -> anyhow::Result<_> {
@@ -400,6 +401,14 @@ fn build<'py>(
             (None, true) => bail!("hybrid=True needs the robot file: robot=PATH"),
             (None, false) => None,
         };
+        if compliance && !hybrid {
+            bail!("compliance is identified by hybrid: give hybrid=True, or drop compliance");
+        }
+        // As `tablec build --hybrid [--compliance]`, for the tuning and the table alike.
+        let calibrate_options = CalibrateOptions {
+            compliance,
+            ..CalibrateOptions::default()
+        };
         let (columns, read) = reading.resolve()?;
         let samples = source.read(&columns, &read)?;
         let mut options = table.build_options();
@@ -412,7 +421,7 @@ fn build<'py>(
                 &samples,
                 robot.as_ref(),
                 &options,
-                &CalibrateOptions::default(),
+                &calibrate_options,
                 tune_folds,
                 0,
             )?;
@@ -441,7 +450,7 @@ fn build<'py>(
         let (bytes, report) = match &robot {
             Some(robot) => {
                 let identified = pool.install(|| {
-                    adwi_robot::calibrate::identify(robot, &samples, &CalibrateOptions::default())
+                    adwi_robot::calibrate::identify(robot, &samples, &calibrate_options)
                 })?;
                 let model = identified.prepared_model();
                 let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
@@ -490,7 +499,7 @@ fn build<'py>(
 /// record per row of `tablec eval --csv` (the uncompensated errors, then one per method),
 /// with the same keys, figures in full precision.
 #[pyfunction]
-#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None))]
+#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, compliance=false))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -506,6 +515,7 @@ fn evaluate<'py>(
     base_link: Option<String>,
     tip_link: Option<String>,
     rank_tol: Option<f64>,
+    compliance: bool,
 ) -> PyResult<(Bound<'py, PyList>, Vec<String>)> {
     let evaluated = py.allow_threads(|| -> anyhow::Result<_> {
         let (columns, read) = reading.resolve()?;
@@ -547,6 +557,7 @@ fn evaluate<'py>(
             robot,
             calibrate: CalibrateOptions {
                 rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
+                compliance,
                 ..CalibrateOptions::default()
             },
             ..EvalOptions::default()

@@ -199,3 +199,32 @@ def test_hybrid_report(ur5_hybrid_table):
     assert c["position_rms_mm"] < c["initial_position_rms_mm"]
     assert c["identified"] and all(isinstance(v, float) for v in c["identified"].values())
     assert ur5_hybrid_table.with_name("again.tbl").read_bytes() == ur5_hybrid_table.read_bytes()
+
+
+def test_compliant_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
+    ours = tmp_path / "ours.tbl"
+    report = adwi.build(
+        UR5_GRID,
+        ours,
+        columns=UR5_COLUMNS,
+        robot=UR5 / "robot.toml",
+        hybrid=True,
+        cell=30,
+        compliance=True,
+    )
+    theirs = tmp_path / "tablec.tbl"
+    subprocess.run(
+        [str(tablec), "build", "--quiet", str(UR5_GRID), "-o", str(theirs),
+         "--columns", UR5_COLUMNS, "--robot", str(UR5 / "robot.toml"), "--hybrid",
+         "--compliance", "--cell", "30"],
+        check=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()
+    assert "compliance2" in report.calibration["identified"]
+    plain = tmp_path / "plain.tbl"
+    adwi.build(UR5_GRID, plain, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", hybrid=True,
+               cell=30)
+    assert plain.read_bytes() != ours.read_bytes()
+    with pytest.raises(adwi.AdwiError, match="no link masses"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "k.tbl", robot=KR150 / "robot.toml",
+                   hybrid=True, compliance=True)

@@ -434,7 +434,7 @@ pub struct CalibrationSummary {
 pub struct ParameterRow {
     /// The parameter's name (`Δtheta6`, `tool z`).
     pub name: String,
-    /// `mm` or `rad`.
+    /// `mm`, `rad` or `µrad/(N·m)`.
     pub unit: &'static str,
     /// The identified value (0 unless identified), mm or rad.
     pub value: f64,

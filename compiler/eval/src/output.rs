@@ -170,7 +170,8 @@ pub fn terminal_table(e: &Evaluation) -> String {
 }
 
 /// The identification's parameters as an aligned table: value, standard error (lengths in
-/// mm, angles in mrad), strongest correlation, status and, when not identified, why.
+/// mm, angles in mrad, compliances in µrad/(N·m)), strongest correlation, status and, when
+/// not identified, why.
 pub fn parameter_table(rows: &[ParameterRow]) -> String {
     let mut out = String::new();
     let _ = writeln!(
@@ -182,7 +183,7 @@ pub fn parameter_table(rows: &[ParameterRow]) -> String {
         let (scale, unit) = if r.unit == "rad" {
             (1e3, "mrad")
         } else {
-            (1.0, "mm")
+            (1.0, r.unit)
         };
         let value = if r.status == "identified" {
             format!("{:+.4}", r.value * scale)

@@ -29,7 +29,9 @@
 //!   (`R_tool' = Exp(δ) · R_tool`);
 //! - 3 base registration translations, mm, added to the base's translation;
 //! - 3 base registration rotations, a rotation vector, rad (`R_base' = Exp(δ) · R_base`,
-//!   about axes of the frame poses are given in).
+//!   about axes of the frame poses are given in);
+//! - with [`CalibrateOptions::compliance`], per revolute joint its gravity compliance
+//!   (µrad/(N·m), the deviation from the robot file's; "Gravity compliance" below).
 //!
 //! The base registration is there because a laser tracker's frame is registered to the
 //! robot's base by a measurement of its own, whose error is a rigid transform of every
@@ -44,6 +46,24 @@
 //! are the runtime's chain ([`adwi_runtime::chain::Chain`]), so a stored model
 //! ([`Calibration::chains`]) evaluates exactly what was identified.
 //!
+//! # Gravity compliance
+//!
+//! A joint's gear gives under the gravity torque about its axis: commanded `q`, the arm
+//! stands at `q_j + c_j · τ_j(q)` ([`adwi_runtime::chain`], "Gravity compliance"), `τ_j`
+//! the torque of the links joint `j` carries (the robot file's `mass_kg`, `com_mm`),
+//! gravity along −z of the frame poses are given in (the calibrated chain's base frame).
+//! With [`CalibrateOptions::compliance`] the compliance `c_j` of every revolute joint is
+//! identified with the geometry (a robot file without link masses is refused,
+//! [`CalibrateError::NoLinkMasses`]); its value is reported in µrad/(N·m), a joint's
+//! stiffness in N·m/µrad inverted. The actual pose is then always the runtime's
+//! [`Chain::loaded_tcp_pose`] of the calibrated chain with its compliances, so the stored
+//! model reproduces the identification. When the robot file gives compliances
+//! (`compliance_urad_per_nm`, [`crate::model`]), the nominal model of where the arm
+//! stands carries them: without the option they stay as the file gives them, with it the
+//! identified value is the deviation from them, as the geometry's is from the file's
+//! geometry. The commanded pose the errors are measured from is the chain without
+//! deflection, as the controller computes it.
+//!
 //! # Identification
 //!
 //! Levenberg–Marquardt on the residuals `measured error − predicted error` of every sample
@@ -55,8 +75,14 @@
 //! origin rotation `r` turns about `R_O · J_l(r) · e_k` (`J_l` the left Jacobian of SO(3), so
 //! that the column is exact at any `r`) through the origin; the tool and base columns are
 //! screws of their own. Rotations of the tool and base are updated multiplicatively
-//! (`R ← Exp(δ) · R`), so their Jacobian is exact at every step. A test checks every column
-//! against central differences of the exact model.
+//! (`R ← Exp(δ) · R`), so their Jacobian is exact at every step. With compliance every
+//! geometric screw is taken at the loaded joints `q + Δq`, and the column of `c_j` is joint
+//! `j`'s screw there times `τ_j(q)`. The torques depend on the geometry too (a longer link
+//! carries its mass further out); that dependence is left out of the Jacobian (Gauss–Newton
+//! on the deflection: it changes the step, not the minimum, and is of the order of the
+//! deflection itself, about 1e-3 of a column). A test checks every column against central
+//! differences of the exact model (with the torques held, for the geometric columns of a
+//! compliant model).
 //!
 //! Not every parameter can be identified: some are redundant by construction (`Δd_1` and the
 //! base z translation move the TCP alike), others because the data do not excite them (a
@@ -99,11 +125,18 @@
 //!   than machined: 25 mm and 10° for the tool, 50 mm and 10° for the base registration.
 //!   A robot that left its factory within tolerance deviates far less; a value beyond them
 //!   is the fit explaining something else (noise, a compliance, the tool) with a
-//!   parameter that happens to correlate with it;
+//!   parameter that happens to correlate with it. A joint's whole compliance (the file's
+//!   plus the estimate) must lie within ±100 µrad/(N·m)
+//!   ([`MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM`]), a stiffness of 10⁴ N·m/rad, softer than
+//!   the smallest strain-wave gears of robot arms: the UR5's shoulder carries about
+//!   30 N·m, so such a compliance would tilt it by 3 mrad, 2.5 mm at the tool, as much as
+//!   the arm's whole uncompensated error (2.7 mm RMS on its laser-tracker data). It must
+//!   not be negative either, once determined (a joint does not stiffen under load,
+//!   [`HoldReason::NegativeCompliance`]);
 //! - **determined**: `|value| > significance · SE`
 //!   ([`CalibrateOptions::significance`], 3 by default), or a negligible standard error
-//!   (below 0.01 mm or 0.01 mrad, [`Parameter::negligible_standard_error`]: the data pin it
-//!   down, even at zero).
+//!   (below 0.01 mm, 0.01 mrad or 0.001 µrad/(N·m),
+//!   [`Parameter::negligible_standard_error`]: the data pin it down, even at zero).
 //!
 //! The least trustworthy failing parameter — the implausible one furthest beyond its bound,
 //! else the undetermined one with the largest SE / |value| — is held at its nominal value,
@@ -124,6 +157,7 @@ use crate::error_model::{
 };
 use crate::model::{
     chain_frames, mdh_constant_part, rotation_of, transform_from_parts, Geometry, Robot,
+    URAD_PER_NM,
 };
 use adwi_compile::pose::{rotation_from_vector, rotation_vector};
 use adwi_compile::samples::SampleSet;
@@ -168,6 +202,12 @@ pub enum Parameter {
     BaseTranslation(usize),
     /// Base registration rotation about a base axis, rad.
     BaseRotation(usize),
+    /// The gravity compliance of a revolute joint (0-based), µrad/(N·m): its deviation
+    /// from the robot file's (module docs, "Gravity compliance").
+    Compliance {
+        /// Joint index, 0-based.
+        joint: usize,
+    },
 }
 
 impl Parameter {
@@ -183,17 +223,34 @@ impl Parameter {
             | Parameter::BaseTranslation(_) => true,
             Parameter::OriginRotation { .. }
             | Parameter::ToolRotation(_)
-            | Parameter::BaseRotation(_) => false,
+            | Parameter::BaseRotation(_)
+            | Parameter::Compliance { .. } => false,
         }
     }
 
-    /// The unit of its value: `mm` or `rad`.
+    /// Whether the parameter is a joint's gravity compliance (µrad/(N·m)).
+    pub fn is_compliance(self) -> bool {
+        matches!(self, Parameter::Compliance { .. })
+    }
+
+    /// The unit of its value: `mm`, `rad`, or `µrad/(N·m)` for a compliance.
     pub fn unit(self) -> &'static str {
-        if self.is_length() {
+        if self.is_compliance() {
+            "µrad/(N·m)"
+        } else if self.is_length() {
             "mm"
         } else {
             "rad"
         }
+    }
+
+    /// The gravity compliances of `robot`, one per revolute joint, in column order (they
+    /// follow [`Parameter::all_of`] when [`CalibrateOptions::compliance`] asks for them).
+    pub fn compliances_of(robot: &Robot) -> Vec<Parameter> {
+        (0..robot.joint_count())
+            .filter(|&joint| robot.joint_kind(joint) == JointKind::Revolute)
+            .map(|joint| Parameter::Compliance { joint })
+            .collect()
     }
 
     /// The parameters of `robot`, in column order (module docs).
@@ -250,17 +307,20 @@ impl std::fmt::Display for Parameter {
             Parameter::ToolRotation(a) => write!(f, "tool r{}", AXES[a]),
             Parameter::BaseTranslation(a) => write!(f, "base {}", AXES[a]),
             Parameter::BaseRotation(a) => write!(f, "base r{}", AXES[a]),
+            Parameter::Compliance { joint } => write!(f, "compliance{}", joint + 1),
         }
     }
 }
 
 impl Parameter {
-    /// The largest deviation of this kind that is physically plausible (mm or rad; module
-    /// docs, "Trust"): 5° and 5 mm for a joint's geometry, 25 mm and 10° for the tool,
-    /// 50 mm and 10° for the base registration.
+    /// The largest deviation of this kind that is physically plausible (mm, rad or
+    /// µrad/(N·m); module docs, "Trust"): 5° and 5 mm for a joint's geometry, 25 mm and
+    /// 10° for the tool, 50 mm and 10° for the base registration, 100 µrad/(N·m) for a
+    /// joint's compliance (of its whole compliance, not of the deviation).
     pub fn plausible_bound(self) -> f64 {
         let degrees = |d: f64| d.to_radians();
         match self {
+            Parameter::Compliance { .. } => MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM,
             Parameter::ToolTranslation(_) => 25.0,
             Parameter::ToolRotation(_) => degrees(10.0),
             Parameter::BaseTranslation(_) => 50.0,
@@ -271,9 +331,12 @@ impl Parameter {
     }
 
     /// A standard error below which the data determine the parameter whatever its value:
-    /// 0.01 mm, or 0.01 mrad.
+    /// 0.01 mm, 0.01 mrad, or 0.001 µrad/(N·m) (10 µrad under the 10 kN·m a 150 kg robot's
+    /// shoulder carries).
     pub fn negligible_standard_error(self) -> f64 {
-        if self.is_length() {
+        if self.is_compliance() {
+            1e-3
+        } else if self.is_length() {
             0.01
         } else {
             1e-5
@@ -281,15 +344,27 @@ impl Parameter {
     }
 }
 
+/// The largest plausible gravity compliance of a joint, µrad/(N·m) (module docs, "Trust").
+pub const MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM: f64 = 100.0;
+
 /// Why a kept parameter was held at its nominal value (module docs, "Trust").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum HoldReason {
-    /// Its estimate lies beyond the plausible bound of its kind.
+    /// Its estimate lies beyond the plausible bound of its kind (for a compliance: the
+    /// joint's whole compliance, the file's plus the estimate).
     Implausible {
-        /// The estimate, mm or rad.
+        /// The estimate, mm, rad or µrad/(N·m).
         value: f64,
-        /// The bound, mm or rad.
+        /// The bound, mm, rad or µrad/(N·m).
         bound: f64,
+    },
+    /// A joint's whole compliance (the file's plus the estimate) is negative, and
+    /// determined: the joint would stiffen under load, which no gear does.
+    NegativeCompliance {
+        /// The joint's whole compliance, µrad/(N·m).
+        value: f64,
+        /// The estimate's standard error, µrad/(N·m).
+        standard_error: f64,
     },
     /// Its estimate is within a few standard errors of zero.
     Undetermined {
@@ -301,10 +376,12 @@ pub enum HoldReason {
 }
 
 impl HoldReason {
-    /// The reason in words, values in mm or mrad as `parameter` takes them.
+    /// The reason in words, values in mm, mrad or µrad/(N·m) as `parameter` takes them.
     pub fn describe(&self, parameter: Parameter) -> String {
         let show = |v: f64| {
-            if parameter.is_length() {
+            if parameter.is_compliance() {
+                format!("{v:+.4} µrad/(N·m)")
+            } else if parameter.is_length() {
                 format!("{v:+.4} mm")
             } else {
                 format!("{:+.4} mrad", v * 1e3)
@@ -321,6 +398,16 @@ impl HoldReason {
                 standard_error,
             } => format!(
                 "undetermined: estimate {} within {:.1} standard errors ({}) of zero",
+                show(value),
+                value.abs() / standard_error,
+                show(standard_error).trim_start_matches('+')
+            ),
+            HoldReason::NegativeCompliance {
+                value,
+                standard_error,
+            } => format!(
+                "implausible: compliance {} is negative by {:.1} standard errors ({}): a joint \
+                 does not stiffen under load",
                 show(value),
                 value.abs() / standard_error,
                 show(standard_error).trim_start_matches('+')
@@ -421,6 +508,9 @@ pub struct CalibrateOptions {
     /// A parameter is determined when `|value| > significance · SE` (or its SE is
     /// negligible).
     pub significance: f64,
+    /// Identify each revolute joint's gravity compliance with the geometry (module docs,
+    /// "Gravity compliance"): the robot file must give link masses.
+    pub compliance: bool,
 }
 
 impl Default for CalibrateOptions {
@@ -432,6 +522,7 @@ impl Default for CalibrateOptions {
             relative_cost_tolerance: 1e-14,
             hold_untrustworthy: true,
             significance: 3.0,
+            compliance: false,
         }
     }
 }
@@ -442,6 +533,13 @@ pub enum CalibrateError {
     /// The samples carry no joint values, so no kinematic model can be evaluated at them.
     #[error("the samples have no joint angles (columns j1..jn): a kinematic calibration needs the commanded joint values of every sample")]
     MissingJoints,
+    /// Compliance was asked for, but the robot file gives no link masses: without them
+    /// there is no gravity torque to deflect the joints.
+    #[error("{robot}: the robot file gives no link masses (mass_kg, com_mm per joint), so gravity compliance cannot be identified: add them, or calibrate without compliance")]
+    NoLinkMasses {
+        /// The robot.
+        robot: String,
+    },
     /// The samples' joint values do not fit the robot.
     #[error("the samples have {samples} joint values each, the robot {robot} joints")]
     JointCount {
@@ -493,7 +591,8 @@ pub enum CalibrateError {
 pub struct Calibration {
     /// Every parameter of the model, in column order (module docs).
     pub parameters: Vec<Parameter>,
-    /// The identified values, per column (mm and rad); zero where not identified.
+    /// The identified values, per column (mm, rad, and µrad/(N·m) for compliances); zero
+    /// where not identified.
     pub deviations: DVector<f64>,
     /// The standard errors, per column (mm and rad; module docs, "Uncertainty"); `None`
     /// where not identified.
@@ -559,32 +658,31 @@ impl Calibration {
         &self.nominal
     }
 
-    /// The identified model as a robot: the nominal one with the identified geometry, tool
-    /// and base (limits, masses and home posture kept). Its robot file
+    /// The identified model as a robot: the nominal one with the identified geometry, tool,
+    /// base and compliances (limits, masses and home posture kept). Its robot file
     /// ([`Robot::to_toml_string`]) or URDF ([`Robot::to_urdf_string`]) gives this
     /// calibration's forward kinematics.
     pub fn calibrated_robot(&self) -> &Robot {
         &self.calibrated
     }
 
-    /// The predicted pose error at joint values `q`: the identified model's TCP pose against
-    /// the nominal one, position (mm) and orientation (rotation vector, rad), base frame.
+    /// The predicted pose error at joint values `q`: the identified model's TCP pose,
+    /// deflected by gravity when it has compliance, against the nominal (commanded) one,
+    /// position (mm) and orientation (rotation vector, rad), base frame.
     ///
     /// # Panics
     ///
     /// When `q` does not have one value per joint.
     pub fn predict_error(&self, q: &[f64]) -> ([f64; 3], [f64; 3]) {
-        let e = transform_pose_error(
-            &self.nominal.tcp_transform(q),
-            &self.calibrated.tcp_transform(q),
-        );
+        let e = transform_pose_error(&self.nominal.tcp_transform(q), &loaded(&self.calibrated, q));
         ([e[0], e[1], e[2]], [e[3], e[4], e[5]])
     }
 
     /// The nominal and the calibrated model as the runtime's chains (the calibrated one in
-    /// the frame the samples are given in, with the base registration; no gravity
-    /// compliance identified): what a hybrid table of chains stores. The runtime's
-    /// `PreparedModel::new(nominal, calibrated)` error equals [`Self::predict_error`].
+    /// the frame the samples are given in, with the base registration, and its gravity
+    /// compliance when identified or given by the robot file): what a hybrid table of
+    /// chains stores. The runtime's `PreparedModel::new(nominal, calibrated)` error equals
+    /// [`Self::predict_error`].
     pub fn chains(&self) -> (Chain, Chain) {
         (*self.nominal.chain(), *self.calibrated.chain())
     }
@@ -607,6 +705,8 @@ struct Model {
     /// The first tool translation column; tool rotation, base translation and base
     /// rotation follow.
     tool_translation: usize,
+    /// Per compliance column (they follow the base's), its joint.
+    compliance_joints: Vec<usize>,
 }
 
 /// A parameter state: the calibrated robot it describes.
@@ -616,18 +716,52 @@ struct State {
 }
 
 impl Model {
-    fn new(robot: &Robot) -> Model {
-        let parameters = Parameter::all_of(robot);
+    /// The model of `robot`'s geometry, and of its joints' compliances when `compliance`.
+    fn new(robot: &Robot, compliance: bool) -> Model {
+        let mut parameters = Parameter::all_of(robot);
         let tool_translation = parameters
             .iter()
             .position(|p| *p == Parameter::ToolTranslation(0))
             .expect("every robot has a tool");
+        let compliances = if compliance {
+            Parameter::compliances_of(robot)
+        } else {
+            Vec::new()
+        };
+        let compliance_joints = compliances
+            .iter()
+            .map(|p| match p {
+                Parameter::Compliance { joint } => *joint,
+                _ => unreachable!("compliances_of gives compliances"),
+            })
+            .collect();
+        parameters.extend(compliances);
         Model {
             robot: robot.clone(),
             multiplicative: [tool_translation + 3, tool_translation + 9],
             tool_translation,
+            compliance_joints,
             parameters,
         }
+    }
+
+    /// The first compliance column.
+    fn first_compliance(&self) -> usize {
+        self.tool_translation + 12
+    }
+
+    /// Per column, what the robot file gives for that parameter: the joint's compliance
+    /// for a compliance column, zero for the rest (their values are deviations from the
+    /// file's geometry).
+    fn file_values(&self) -> Vec<f64> {
+        let compliances = self.robot.compliances_urad_per_nm();
+        self.parameters
+            .iter()
+            .map(|p| match p {
+                Parameter::Compliance { joint } => compliances[*joint],
+                _ => 0.0,
+            })
+            .collect()
     }
 
     fn len(&self) -> usize {
@@ -675,25 +809,47 @@ impl Model {
             [0, 1, 2].map(|a| b[a] + x[c + 6 + a]),
             &(rotation_from_vector(three(c + 9)) * rotation_of(&base)),
         );
-        let calibrated = robot
+        let invalid = |e: crate::model::RobotError| CalibrateError::InvalidModel {
+            robot: robot.name.clone(),
+            reason: e.to_string(),
+        };
+        let mut calibrated = robot
             .with_geometry(format!("{} (calibrated)", robot.name), geometry, base, tool)
-            .map_err(|e| CalibrateError::InvalidModel {
-                robot: robot.name.clone(),
-                reason: e.to_string(),
-            })?;
+            .map_err(invalid)?;
+        if !self.compliance_joints.is_empty() {
+            // The file's compliances (zero where it gives none) plus the deviations.
+            let mut compliances: Vec<Option<f64>> = robot
+                .joints()
+                .iter()
+                .map(|j| j.compliance_urad_per_nm)
+                .collect();
+            for (k, &joint) in self.compliance_joints.iter().enumerate() {
+                let nominal = compliances[joint].unwrap_or(0.0);
+                compliances[joint] = Some(nominal + x[self.first_compliance() + k]);
+            }
+            calibrated = calibrated.with_compliances(&compliances).map_err(invalid)?;
+        }
         Ok(State { robot: calibrated })
     }
 
-    /// The predicted pose error of a state at `q`: `[dp (mm); δ (rad)]`, base frame.
+    /// The predicted pose error of a state at `q`: `[dp (mm); δ (rad)]`, base frame: the
+    /// state's TCP, deflected by gravity ([`Chain::loaded_tcp_pose`]), against the nominal
+    /// commanded one.
     fn error(&self, state: &State, q: &[f64]) -> nalgebra::Vector6<f64> {
-        transform_pose_error(&self.robot.tcp_transform(q), &state.robot.tcp_transform(q))
+        transform_pose_error(&self.robot.tcp_transform(q), &loaded(&state.robot, q))
     }
 
     /// The 6 × p Jacobian of the base-frame pose error with respect to the parameters at
-    /// `state` (module docs).
-    fn jacobian(&self, x: &DVector<f64>, state: &State, q: &[f64]) -> DMatrix<f64> {
+    /// `state` (module docs), at the joint values the arm stands at under gravity, the
+    /// torques taken as independent of the parameters.
+    fn jacobian(&self, x: &DVector<f64>, state: &State, commanded: &[f64]) -> DMatrix<f64> {
         let mut j = DMatrix::zeros(6, self.len());
         let chain = state.robot.chain();
+        let n = chain.joint_count();
+        let loaded_joints = chain
+            .loaded_joints(commanded)
+            .expect("one joint value per joint");
+        let q = &loaded_joints[..n];
         let (frames, tcp_pose) = chain_frames(chain, q);
         let tcp = vector(tcp_pose.translation_mm);
         let mut put = |column: usize, screw: &Screw| {
@@ -776,6 +932,22 @@ impl Model {
                 },
             );
         }
+        // A compliance turns its joint by the gravity torque per unit of compliance.
+        if let Some(gravity) = &chain.compliance {
+            let torques = chain
+                .gravity_torques(commanded, gravity)
+                .expect("one joint value per joint");
+            for (k, &joint) in self.compliance_joints.iter().enumerate() {
+                let column = self.first_compliance() + k;
+                let screw = Screw::of_joint(
+                    &frames[joint].0,
+                    chain.joints()[joint].axis,
+                    JointKind::Revolute,
+                );
+                j.column_mut(column)
+                    .copy_from(&(screw.pose_error_column(&tcp) * (torques[joint] * URAD_PER_NM)));
+            }
+        }
         j
     }
 
@@ -791,6 +963,18 @@ impl Model {
         }
         next
     }
+}
+
+/// The TCP pose of `robot` at commanded `q`, deflected by gravity when its chain models
+/// compliance: exactly the runtime's [`Chain::loaded_tcp_pose`].
+fn loaded(robot: &Robot, q: &[f64]) -> Transform {
+    robot.chain().loaded_tcp_pose(q).unwrap_or_else(|| {
+        panic!(
+            "{} joint values for a robot of {} joints",
+            q.len(),
+            robot.joint_count()
+        )
+    })
 }
 
 /// `Trans(t) · Exp(r)`: a small perturbation of a joint origin (mm, rad).
@@ -852,6 +1036,11 @@ pub fn identify(
             reason: "must be finite and positive",
         });
     }
+    if options.compliance && robot.gravity_model().is_none() {
+        return Err(CalibrateError::NoLinkMasses {
+            robot: robot.name.clone(),
+        });
+    }
     let joints = samples
         .joints
         .as_ref()
@@ -880,7 +1069,7 @@ pub fn identify(
         })
         .collect::<Result<_, _>>()?;
     let problem = Problem {
-        model: Model::new(robot),
+        model: Model::new(robot, options.compliance),
         measurements,
         rows_per_sample: if samples.rotation_error_rad.is_some() {
             6
@@ -908,6 +1097,7 @@ pub fn identify(
 
     // Fit, assess, hold the least trustworthy parameter at nominal, fit again (module
     // docs, "Trust").
+    let file_values = problem.model.file_values();
     let mut held: Vec<(usize, Assessment)> = Vec::new();
     let mut start = nominal_x;
     let fit = loop {
@@ -921,7 +1111,12 @@ pub fn identify(
             .iter()
             .enumerate()
             .filter_map(|(k, &c)| {
-                let a = fit.assess(&problem.model.parameters, k, options.significance);
+                let a = fit.assess(
+                    &problem.model.parameters,
+                    &file_values,
+                    k,
+                    options.significance,
+                );
                 a.reason.is_some().then_some((c, a))
             })
             .max_by(|a, b| a.1.severity.total_cmp(&b.1.severity));
@@ -947,7 +1142,7 @@ pub fn identify(
         })
         .collect();
     for (k, &c) in fit.kept.iter().enumerate() {
-        let a = fit.assess(parameters, k, options.significance);
+        let a = fit.assess(parameters, &file_values, k, options.significance);
         report[c].value = fit.x[c];
         report[c].standard_error = Some(a.standard_error);
         report[c].strongest_correlation = a.correlation;
@@ -1041,10 +1236,20 @@ struct Assessment {
 }
 
 impl Fit {
-    fn assess(&self, parameters: &[Parameter], k: usize, significance: f64) -> Assessment {
+    /// The assessment of kept parameter `k` (module docs, "Trust"); `file_values` per
+    /// column, added to the estimate where plausibility judges the whole value (a
+    /// compliance).
+    fn assess(
+        &self,
+        parameters: &[Parameter],
+        file_values: &[f64],
+        k: usize,
+        significance: f64,
+    ) -> Assessment {
         let c = self.kept[k];
         let parameter = parameters[c];
         let value = self.x[c];
+        let whole = file_values[c] + value;
         let variance = self.covariance[(k, k)];
         let standard_error = variance.max(0.0).sqrt();
         let correlation = (0..self.kept.len())
@@ -1061,12 +1266,24 @@ impl Fit {
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
         let bound = parameter.plausible_bound();
         let floor = parameter.negligible_standard_error();
-        let (reason, severity) = if value.abs() > bound {
+        let determined = standard_error <= floor || value.abs() > significance * standard_error;
+        let (reason, severity) = if whole.abs() > bound {
             (
-                Some(HoldReason::Implausible { value, bound }),
-                1e6 + value.abs() / bound,
+                Some(HoldReason::Implausible {
+                    value: whole,
+                    bound,
+                }),
+                1e6 + whole.abs() / bound,
             )
-        } else if standard_error > floor && value.abs() <= significance * standard_error {
+        } else if parameter.is_compliance() && whole < 0.0 && determined {
+            (
+                Some(HoldReason::NegativeCompliance {
+                    value: whole,
+                    standard_error,
+                }),
+                1e6 + whole.abs() / standard_error.max(f64::MIN_POSITIVE),
+            )
+        } else if !determined {
             (
                 Some(HoldReason::Undetermined {
                     value,
@@ -1389,7 +1606,28 @@ mod tests {
         noise_mm: f64,
         seed: u64,
     ) -> SampleSet {
-        let model = Model::new(robot);
+        simulate_model(
+            &Model::new(robot, false),
+            truth,
+            q,
+            orientation,
+            noise_mm,
+            seed,
+        )
+    }
+
+    /// As [`simulate`], of any model (one with compliances among them): the measured poses
+    /// are the runtime chain's deflected poses ([`Chain::loaded_tcp_pose`]) of the true
+    /// robot.
+    fn simulate_model(
+        model: &Model,
+        truth: &DVector<f64>,
+        q: &[Vec<f64>],
+        orientation: bool,
+        noise_mm: f64,
+        seed: u64,
+    ) -> SampleSet {
+        let robot = &model.robot;
         let state = model.state(truth).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut set = SampleSet {
@@ -1455,7 +1693,7 @@ mod tests {
     #[test]
     fn jacobian_matches_finite_differences_of_the_exact_model() {
         for robot in [kr150(), iiwa()] {
-            let model = Model::new(&robot);
+            let model = Model::new(&robot, false);
             let all: Vec<usize> = (0..model.len()).collect();
             let x = deviations_on(&model.parameters, &all, 3);
             let state = model.state(&x).unwrap();
@@ -1494,6 +1732,228 @@ mod tests {
         }
     }
 
+    fn ur5() -> Robot {
+        Robot::load(shipped_robot_path("ur5")).unwrap()
+    }
+
+    /// Realistic deviations on the given columns, as [`deviations_on`], and compliances of
+    /// 5 to 40 µrad/(N·m) (stiffnesses of 2.5·10⁴ to 2·10⁵ N·m/rad, a UR5's range).
+    fn compliant_deviations_on(
+        parameters: &[Parameter],
+        columns: &[usize],
+        seed: u64,
+    ) -> DVector<f64> {
+        let mut x = deviations_on(parameters, columns, seed);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed + 1000);
+        for &c in columns {
+            if parameters[c].is_compliance() {
+                x[c] = rng.gen_range(5.0..40.0);
+            }
+        }
+        x
+    }
+
+    /// With compliance, every column against central differences of the exact model: a
+    /// compliance column exactly (the torques do not depend on the compliances); a
+    /// geometric column exactly when the torques are held at the state's (the Jacobian's
+    /// definition, module docs), and to the neglected torque term, `c · ∂τ/∂x`, when they
+    /// follow the geometry as the model does.
+    #[test]
+    fn compliance_jacobian_matches_finite_differences() {
+        for robot in [ur5(), iiwa()] {
+            let model = Model::new(&robot, true);
+            let all: Vec<usize> = (0..model.len()).collect();
+            let x = compliant_deviations_on(&model.parameters, &all, 3);
+            let state = model.state(&x).unwrap();
+            let chain = state.robot.chain();
+            let q = &poses(&robot, 1, 5)[0];
+            let held_joints = chain.loaded_joints(q).unwrap();
+            let held_joints = &held_joints[..robot.joint_count()];
+            // The pose error of x + d with the torques held at the state's: each joint
+            // deflected as at x, plus the compliance deviation's own turn.
+            let torques = chain
+                .gravity_torques(q, chain.compliance.as_ref().unwrap())
+                .unwrap();
+            let held = |d: &DVector<f64>| {
+                let s = model.state(&model.step(&x, d)).unwrap();
+                let mut joints = held_joints.to_vec();
+                for (k, &joint) in model.compliance_joints.iter().enumerate() {
+                    joints[joint] += d[model.first_compliance() + k] * URAD_PER_NM * torques[joint];
+                }
+                transform_pose_error(
+                    &robot.tcp_transform(q),
+                    &s.robot.chain().tcp_pose(&joints).unwrap(),
+                )
+            };
+            let exact =
+                |d: &DVector<f64>| model.error(&model.state(&model.step(&x, d)).unwrap(), q);
+            let j = model.jacobian(&x, &state, q);
+            let mut largest_neglected: f64 = 0.0;
+            for c in 0..model.len() {
+                let compliance = model.parameters[c].is_compliance();
+                let h = if compliance { 1e-3 } else { 1e-6 };
+                let mut d = DVector::zeros(model.len());
+                d[c] = h;
+                let held_numeric = (held(&d) - held(&(-&d))) / (2.0 * h);
+                let numeric = (exact(&d) - exact(&(-&d))) / (2.0 * h);
+                let scale = j.column(c).norm().max(1.0);
+                if compliance {
+                    // The same deflection, summed in another order.
+                    assert!((held_numeric - numeric).norm() < 1e-9 * scale);
+                }
+                for a in 0..3 {
+                    assert!(
+                        (held_numeric[a] - j[(a, c)]).abs() < 1e-6 * scale,
+                        "{}: {} row {a}: {} vs {}",
+                        robot.name,
+                        model.parameters[c],
+                        held_numeric[a],
+                        j[(a, c)]
+                    );
+                    // As in the test without compliance: the orientation rows differ by
+                    // the inverse left Jacobian of SO(3).
+                    assert!((held_numeric[a + 3] - j[(a + 3, c)]).abs() < 2e-2 * scale);
+                    largest_neglected =
+                        largest_neglected.max((numeric[a] - j[(a, c)]).abs() / scale);
+                }
+            }
+            // The deflections are a few mrad at most (compliances of ≤ 40 µrad/(N·m),
+            // torques of ≤ 100 N·m): the torques' dependence on the geometry changes a
+            // column by that fraction of it at most.
+            println!(
+                "{}: torque term left out of the Jacobian ≤ {largest_neglected:.2e} of a column",
+                robot.name
+            );
+            assert!(largest_neglected < 5e-3, "{largest_neglected}");
+        }
+    }
+
+    /// Noise-free data from a robot with known geometric deviations and known joint
+    /// compliances, simulated as the runtime chain deflects: the compliances come back to
+    /// 1e-6 of their values, the geometry to 1e-6 mm or rad, and the stored model predicts
+    /// the deflected poses.
+    #[test]
+    fn recovers_known_compliances_from_noise_free_data() {
+        for robot in [ur5(), iiwa()] {
+            let model = Model::new(&robot, true);
+            let q = poses(&robot, 120, 1);
+            let options = CalibrateOptions {
+                compliance: true,
+                ..CalibrateOptions::default()
+            };
+            let p = model.len();
+            let zero = simulate_model(&model, &DVector::zeros(p), &q, false, 0.0, 0);
+            let structure = identify(&robot, &zero, &options).unwrap();
+            let columns = columns_of(&structure);
+            let compliances: Vec<usize> = columns
+                .iter()
+                .copied()
+                .filter(|&c| model.parameters[c].is_compliance())
+                .collect();
+            // Joint 1 turns about gravity and carries no torque: not seen. The others are.
+            assert!(compliances.len() >= 3, "{:?}", structure.identified);
+            let truth = compliant_deviations_on(&model.parameters, &columns, 2);
+            let samples = simulate_model(&model, &truth, &q, false, 0.0, 0);
+            let c = identify(&robot, &samples, &options).unwrap();
+            assert!(c.converged, "not converged after {}", c.iterations);
+            assert_eq!(c.identified, structure.identified);
+            for i in 0..p {
+                let parameter = c.parameters[i];
+                let gap = (c.deviations[i] - truth[i]).abs();
+                let tolerance = if parameter.is_compliance() {
+                    1e-6 * truth[i].abs()
+                } else {
+                    1e-6
+                };
+                assert!(
+                    gap <= tolerance,
+                    "{}, {parameter}: identified {} true {}",
+                    robot.name,
+                    c.deviations[i],
+                    truth[i]
+                );
+            }
+            for &k in &compliances {
+                let r = &c.report[k];
+                assert_eq!(r.status, ParameterStatus::Identified);
+                assert_eq!(r.parameter.unit(), "µrad/(N·m)");
+            }
+            assert!(c.position_rms_mm < 1e-9, "{}", c.position_rms_mm);
+            let truth_state = model.state(&truth).unwrap();
+            let stored = c.prepared_model();
+            for q in poses(&robot, 10, 9) {
+                let expected = model.error(&truth_state, &q);
+                let got = stored.error(&q).unwrap();
+                for a in 0..3 {
+                    assert!((expected[a] - got.0[a]).abs() < 1e-6);
+                }
+            }
+            println!(
+                "{}: compliances {:?} µrad/(N·m) recovered",
+                robot.name,
+                compliances
+                    .iter()
+                    .map(|&k| (c.parameters[k].to_string(), c.deviations[k]))
+                    .collect::<Vec<_>>()
+            );
+        }
+    }
+
+    /// Compliance needs link masses; a compliance beyond 100 µrad/(N·m) or a determined
+    /// negative one is held at nominal with its reason.
+    #[test]
+    fn implausible_compliances_are_held_and_massless_robots_refused() {
+        let options = CalibrateOptions {
+            compliance: true,
+            ..CalibrateOptions::default()
+        };
+        let robot = kr150();
+        let q = poses(&robot, 60, 4);
+        let samples = simulate(&robot, &DVector::zeros(42), &q, false, 0.0, 0);
+        let error = identify(&robot, &samples, &options).unwrap_err();
+        assert!(matches!(error, CalibrateError::NoLinkMasses { .. }));
+        assert!(
+            error.to_string().contains("gives no link masses"),
+            "{error}"
+        );
+
+        let robot = ur5();
+        let model = Model::new(&robot, true);
+        let q = poses(&robot, 120, 4);
+        let column = |joint| {
+            model
+                .parameters
+                .iter()
+                .position(|p| *p == Parameter::Compliance { joint })
+                .unwrap()
+        };
+        for (value, negative) in [(-20.0, true), (400.0, false)] {
+            let mut truth = DVector::zeros(model.len());
+            truth[column(1)] = value;
+            truth[column(2)] = 15.0;
+            let samples = simulate_model(&model, &truth, &q, false, 0.01, 3);
+            let c = identify(&robot, &samples, &options).unwrap();
+            let report = &c.report[column(1)];
+            match report.status {
+                ParameterStatus::Held {
+                    reason: HoldReason::NegativeCompliance { value, .. },
+                    ..
+                } if negative => assert!(value < 0.0),
+                ParameterStatus::Held {
+                    reason: HoldReason::Implausible { bound, .. },
+                    ..
+                } if !negative => assert_eq!(bound, 100.0),
+                status => panic!("{value}: {status:?}"),
+            }
+            assert!(
+                report.reason().contains("µrad/(N·m)"),
+                "{}",
+                report.reason()
+            );
+            assert_eq!(c.value(Parameter::Compliance { joint: 1 }), 0.0);
+        }
+    }
+
     /// Noise-free data from a known model: the identifiable deviations come back to 1e-6.
     fn recovers(robot: &Robot, samples: usize) -> f64 {
         let q = poses(robot, samples, 1);
@@ -1523,7 +1983,7 @@ mod tests {
             assert!(c.position_rms_mm < 1e-9, "{}", c.position_rms_mm);
             assert!(c.initial_position_rms_mm > 0.1);
             // Predictions at unseen poses equal the simulated errors.
-            let model = Model::new(robot);
+            let model = Model::new(robot, false);
             let truth_state = model.state(&truth).unwrap();
             for q in poses(robot, 10, 9) {
                 let expected = model.error(&truth_state, &q);
@@ -1858,6 +2318,39 @@ mod tests {
             "{rms} vs {}",
             c.position_rms_mm
         );
+
+        // With compliance identified, the stored calibrated chain carries it and predicts
+        // the same deflected poses.
+        let robot = ur5();
+        let model = Model::new(&robot, true);
+        let q = poses(&robot, 80, 12);
+        let all: Vec<usize> = (0..model.len()).collect();
+        let truth = compliant_deviations_on(&model.parameters, &all, 4);
+        let samples = simulate_model(&model, &truth, &q, false, 0.01, 5);
+        let options = CalibrateOptions {
+            compliance: true,
+            ..CalibrateOptions::default()
+        };
+        let c = identify(&robot, &samples, &options).unwrap();
+        let model = c.prepared_model();
+        let stored = model.calibrated().compliance.unwrap();
+        for joint in 1..3 {
+            let identified = c.value(Parameter::Compliance { joint });
+            assert!(identified > 0.0);
+            assert_eq!(stored.compliance[joint], identified * URAD_PER_NM);
+        }
+        for q in &q {
+            assert_eq!(model.error(q).unwrap(), c.predict_error(q));
+        }
+        let residual = adwi_compile::hybrid::residual_samples(&samples, &model).unwrap();
+        let rms = (residual
+            .error_mm
+            .iter()
+            .map(|e| e.iter().map(|v| v * v).sum::<f64>())
+            .sum::<f64>()
+            / residual.len() as f64)
+            .sqrt();
+        assert!((rms - c.position_rms_mm).abs() < 1e-9);
     }
 
     /// A seven-joint robot is identified and stored as its chains.
@@ -1927,6 +2420,57 @@ mod tests {
             );
             assert!(largest < 1e-9, "{}: {largest} mm", robot.name);
             std::fs::remove_dir_all(dir).unwrap();
+        }
+
+        // With compliance identified, the robot file carries it: read again, it deflects
+        // as the calibrated model does, and so does the file read a second time.
+        for robot in [ur5(), iiwa()] {
+            let model = Model::new(&robot, true);
+            let q = poses(&robot, 120, 7);
+            let all: Vec<usize> = (0..model.len()).collect();
+            let truth = compliant_deviations_on(&model.parameters, &all, 8);
+            let samples = simulate_model(&model, &truth, &q, false, 0.0, 0);
+            let options = CalibrateOptions {
+                compliance: true,
+                ..CalibrateOptions::default()
+            };
+            let c = identify(&robot, &samples, &options).unwrap();
+            let calibrated = c.calibrated_robot();
+            let text = calibrated.to_toml_string(&["test".into()]);
+            assert!(text.contains("compliance_urad_per_nm = "), "{text}");
+            let back = Robot::from_toml_str(&text).unwrap();
+            assert_eq!(
+                back.gravity_model().unwrap().compliance,
+                calibrated.gravity_model().unwrap().compliance
+            );
+            let mut largest: f64 = 0.0;
+            for q in poses(&robot, 200, 10) {
+                let want = loaded(calibrated, &q);
+                let got = loaded(&back, &q);
+                largest =
+                    largest.max((vector(got.translation_mm) - vector(want.translation_mm)).norm());
+                // The deflection is there: the loaded pose is not the commanded one.
+                let still = calibrated.tcp_transform(&q);
+                assert!((vector(still.translation_mm) - vector(want.translation_mm)).norm() > 1e-3);
+            }
+            println!(
+                "{}: written calibrated robot file with compliances agrees to {largest:.2e} mm",
+                robot.name
+            );
+            assert!(largest < 1e-9, "{}: {largest} mm", robot.name);
+            // A calibration from that file starts from its compliances: errors that are
+            // the deflection alone are what its nominal model already predicts.
+            let mut deflections = samples.clone();
+            for (i, q) in q.iter().enumerate() {
+                let e = transform_pose_error(&back.tcp_transform(q), &loaded(&back, q));
+                deflections.error_mm[i] = [e[0], e[1], e[2]];
+            }
+            let again = identify(&back, &deflections, &CalibrateOptions::default()).unwrap();
+            assert!(
+                again.initial_position_rms_mm < 1e-9,
+                "{}",
+                again.initial_position_rms_mm
+            );
         }
     }
 

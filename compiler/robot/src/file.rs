@@ -210,6 +210,7 @@ struct JointFile {
     limits_mm: Option<[f64; 2]>,
     mass_kg: Option<f64>,
     com_mm: Option<[f64; 3]>,
+    compliance_urad_per_nm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -298,6 +299,7 @@ impl JointFile {
                 .unwrap_or_else(|| format!("joint_{number}")),
             limits,
             inertial,
+            compliance_urad_per_nm: self.compliance_urad_per_nm,
         })
     }
 

@@ -38,6 +38,7 @@
 //! limits_deg = [-185.0, 185.0]
 //! mass_kg = 400.0                 # optional: the link this joint moves
 //! com_mm = [-300.0, 150.0, 0.0]   # optional: its centre of mass in MD-H frame i
+//! compliance_urad_per_nm = 2.5    # optional: gravity compliance, µrad/(N·m)
 //! ```
 //!
 //! or all as general chain joints, the form a URDF joint has (`T = base · O_1 · M_1(q_1 +
@@ -54,6 +55,7 @@
 //! limits_deg = [-120.0, 120.0]    # limits_mm when prismatic; ±inf for a continuous joint
 //! mass_kg = 6.35                  # optional
 //! com_mm = [0.3, 59.0, 42.0]      # optional: in the joint's frame after its motion
+//! compliance_urad_per_nm = 2.5    # optional, revolute joints only
 //! ```
 //!
 //! where the tool is the TCP in the last joint's frame after its motion. A TOML file may
@@ -61,6 +63,20 @@
 //! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
 //! link's frame) and `[base]` to it. `home_deg` holds degrees for revolute joints and
 //! millimetres for prismatic ones.
+//!
+//! # Gravity compliance
+//!
+//! `compliance_urad_per_nm` is how far a revolute joint gives under the gravity torque
+//! about its axis, µrad per N·m: the arm stands at `q_j + c_j · τ_j(q)` when commanded `q`
+//! ([`adwi_runtime::chain`], "Gravity compliance"), with `τ_j` the torque of the masses
+//! (`mass_kg`, `com_mm`) of the links joint `j` carries, gravity along the base frame's −z.
+//! `tablec calibrate --compliance` writes the identified compliances under this key. When a
+//! file gives one for any joint, the robot's chain carries them all (zero where not given)
+//! and the robot's model of where the arm stands is the deflected one
+//! ([`Chain::loaded_tcp_pose`]); the commanded pose ([`Robot::tcp_pose`]) is the chain
+//! without deflection, as the controller computes it. A calibration starts from these
+//! compliances, as it starts from the file's geometry. URDF has no place for them: a robot
+//! written as URDF ([`Robot::to_urdf_string`]) leaves them out.
 //!
 //! # Frames
 //!
@@ -73,6 +89,10 @@ use std::path::{Path, PathBuf};
 
 use adwi_compile::pose::kuka_abc_deg_from_rotation;
 pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
+
+/// One µrad/(N·m), the unit robot files and calibration reports give compliances in, in the
+/// runtime's unit, rad per kg·mm²/s² (= rad per µN·m).
+pub const URAD_PER_NM: f64 = 1e-12;
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -223,6 +243,9 @@ pub struct Joint {
     pub limits: [f64; 2],
     /// The link it moves, when the file gives its mass.
     pub inertial: Option<LinkInertial>,
+    /// Its gravity compliance, µrad/(N·m) (module docs, "Gravity compliance"), when the
+    /// file gives one; revolute joints only.
+    pub compliance_urad_per_nm: Option<f64>,
 }
 
 /// Where a robot's chain came from in its URDF file, for writing it back.
@@ -292,7 +315,7 @@ impl Robot {
                 found: home.len(),
             });
         }
-        let chain = match &geometry {
+        let mut chain = match &geometry {
             Geometry::Mdh(rows) => {
                 for (i, row) in rows.iter().enumerate() {
                     let values = [
@@ -311,6 +334,7 @@ impl Robot {
             Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
         }
         .map_err(RobotError::Chain)?;
+        let compliance = compliance_of(&joints);
         let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
         for (i, (joint, &kind)) in joints.iter().zip(&kinds).enumerate() {
             let number = i + 1;
@@ -341,7 +365,17 @@ impl Robot {
                     });
                 }
             }
+            if let Some(c) = joint.compliance_urad_per_nm {
+                finite(c, || format!("joint {number} compliance_urad_per_nm"))?;
+                if kind != JointKind::Revolute {
+                    return Err(RobotError::Invalid {
+                        field: format!("joint {number} compliance_urad_per_nm"),
+                        reason: "a compliance is given for revolute joints only".into(),
+                    });
+                }
+            }
         }
+        chain.compliance = compliance;
         for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
             finite(value, || format!("home_deg[{i}]"))?;
             let [lower, upper] = joint.limits;
@@ -536,21 +570,58 @@ impl Robot {
         })
     }
 
-    /// The robot's link masses as a runtime [`Compliance`] with zero compliances (the
-    /// starting point of a gravity-compliance model), when the file gives at least one
-    /// link's mass; links without one weigh nothing.
+    /// The robot's link masses as a runtime [`Compliance`], with the file's compliances
+    /// (zero where it gives none: the starting point of a gravity-compliance model), when
+    /// the file gives at least one link's mass; links without one weigh nothing.
     pub fn gravity_model(&self) -> Option<Compliance> {
         if self.joints.iter().all(|j| j.inertial.is_none()) {
             return None;
         }
-        let mut c = Compliance::NONE;
-        for (i, joint) in self.joints.iter().enumerate() {
-            if let Some(inertial) = joint.inertial {
-                c.link_mass_kg[i] = inertial.mass_kg;
-                c.link_com_mm[i] = inertial.com_mm;
+        Some(gravity_of(&self.joints))
+    }
+
+    /// This robot with the given compliances, µrad/(N·m), one per joint (`None` for none):
+    /// its chain then carries them (module docs, "Gravity compliance").
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::new`]: a compliance that is not finite, or one for a prismatic joint.
+    pub fn with_compliances(&self, compliances: &[Option<f64>]) -> Result<Robot, RobotError> {
+        if compliances.len() != self.joints.len() {
+            return Err(RobotError::Invalid {
+                field: "compliances".into(),
+                reason: format!(
+                    "{} compliances for {} joints",
+                    compliances.len(),
+                    self.joints.len()
+                ),
+            });
+        }
+        for (i, c) in compliances.iter().enumerate() {
+            if let Some(c) = c {
+                finite(*c, || format!("joint {} compliance_urad_per_nm", i + 1))?;
+                if self.joint_kind(i) != JointKind::Revolute {
+                    return Err(RobotError::Invalid {
+                        field: format!("joint {} compliance_urad_per_nm", i + 1),
+                        reason: "a compliance is given for revolute joints only".into(),
+                    });
+                }
             }
         }
-        Some(c)
+        let mut robot = self.clone();
+        for (joint, c) in robot.joints.iter_mut().zip(compliances) {
+            joint.compliance_urad_per_nm = *c;
+        }
+        robot.chain.compliance = compliance_of(&robot.joints);
+        Ok(robot)
+    }
+
+    /// The compliances the file gives, µrad/(N·m), per joint (zero where it gives none).
+    pub fn compliances_urad_per_nm(&self) -> Vec<f64> {
+        self.joints
+            .iter()
+            .map(|j| j.compliance_urad_per_nm.unwrap_or(0.0))
+            .collect()
     }
 
     /// The robot file of this robot (TOML, the format [`Robot::load`] reads, in the joints'
@@ -638,9 +709,34 @@ impl Robot {
                     toml_list(&com_mm)
                 ));
             }
+            if let Some(c) = joint.compliance_urad_per_nm {
+                out.push_str(&format!("compliance_urad_per_nm = {}\n", toml_float(c)));
+            }
         }
         out
     }
+}
+
+/// The joints' masses and compliances as a runtime [`Compliance`] (massless links weigh
+/// nothing, joints without a compliance have none).
+fn gravity_of(joints: &[Joint]) -> Compliance {
+    let mut c = Compliance::NONE;
+    for (i, joint) in joints.iter().enumerate() {
+        if let Some(inertial) = joint.inertial {
+            c.link_mass_kg[i] = inertial.mass_kg;
+            c.link_com_mm[i] = inertial.com_mm;
+        }
+        c.compliance[i] = joint.compliance_urad_per_nm.unwrap_or(0.0) * URAD_PER_NM;
+    }
+    c
+}
+
+/// The chain's compliance: the joints' when any gives one, else none.
+fn compliance_of(joints: &[Joint]) -> Option<Compliance> {
+    joints
+        .iter()
+        .any(|j| j.compliance_urad_per_nm.is_some())
+        .then(|| gravity_of(joints))
 }
 
 /// The constant part of an MD-H row, `Tz(d)·Tx(a)·Rx(α)·Ry(β)`: MD-H frame `i` in the
@@ -971,6 +1067,44 @@ limits_deg = [-inf, inf]
         }
         assert_eq!(back.gravity_model(), robot.gravity_model());
         assert_eq!(back.home(), robot.home());
+    }
+
+    /// A file's compliances: the chain carries them with the masses (zero where none is
+    /// given), the commanded pose stays undeflected, and a prismatic joint refuses one.
+    #[test]
+    fn compliances_in_robot_files() {
+        let robot = Robot::load(shipped_robot_path("ur5")).unwrap();
+        assert!(robot.chain().compliance.is_none());
+        let text = robot.to_toml_string(&[]).replacen(
+            "mass_kg = 8.393",
+            "mass_kg = 8.393\ncompliance_urad_per_nm = 25.0",
+            1,
+        );
+        let compliant = Robot::from_toml_str(&text).unwrap();
+        let c = compliant.chain().compliance.unwrap();
+        assert_eq!(c.compliance[1], 25.0 * URAD_PER_NM);
+        assert_eq!(c.compliance[2], 0.0);
+        assert_eq!(c.link_mass_kg[1], 8.393);
+        assert_eq!(compliant.compliances_urad_per_nm()[1], 25.0);
+        assert_eq!(compliant.gravity_model(), Some(c));
+        let q = [0.3, -1.2, 1.0, 0.4, 0.7, 0.1];
+        assert_eq!(compliant.tcp_transform(&q), robot.tcp_transform(&q));
+        let deflected = compliant.chain().loaded_tcp_pose(&q).unwrap();
+        let gap = Vector3::from(deflected.translation_mm)
+            - Vector3::from(robot.tcp_transform(&q).translation_mm);
+        assert!(gap.norm() > 0.1, "{gap}");
+        let back = Robot::from_toml_str(&compliant.to_toml_string(&[])).unwrap();
+        assert_eq!(back.chain().compliance.unwrap().compliance, c.compliance);
+
+        let slide = r#"
+name = "a slide"
+[[joints]]
+type = "prismatic"
+limits_mm = [0.0, 100.0]
+compliance_urad_per_nm = 1.0
+"#;
+        let error = Robot::from_toml_str(slide).unwrap_err();
+        assert!(error.to_string().contains("compliance"), "{error}");
     }
 
     #[test]

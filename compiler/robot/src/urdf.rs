@@ -287,6 +287,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
             name: joint.name.clone(),
             limits,
             inertial: body_inertial(urdf, &joint.child.link, &child_joints),
+            compliance_urad_per_nm: None,
         });
         home.push(if (limits[0]..=limits[1]).contains(&0.0) {
             0.0

@@ -32,6 +32,11 @@ pub struct Args {
     /// it with the target's joint angles.
     #[arg(long, requires = "robot")]
     hybrid: bool,
+    /// Identify each revolute joint's gravity compliance (µrad/(N·m)) with the geometry:
+    /// the arm deflected by the gravity torque of the links it carries. The robot file
+    /// must give link masses (mass_kg, com_mm per joint).
+    #[arg(long, requires = "hybrid")]
+    compliance: bool,
     /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
     /// tracker's own frame: joints j1..jn and measured mx,my,mz, optionally a measured
     /// orientation; the tracker-to-base and flange-to-probe transforms are registered
@@ -78,6 +83,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &read,
     )?;
     let mut options = args.table.build_options();
+    let calibrate_options = CalibrateOptions {
+        compliance: args.compliance,
+        ..CalibrateOptions::default()
+    };
     if args.tune {
         let robot = match (&registered, &args.robot, args.hybrid) {
             (Some(r), _, true) => Some(r.robot.clone()),
@@ -88,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &samples,
             robot.as_ref(),
             &options,
-            &CalibrateOptions::default(),
+            &calibrate_options,
             args.tune_folds,
             0,
         )?;
@@ -134,7 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             };
             bar.set_message("identifying");
             let identified = pool.install(|| {
-                adwi_robot::calibrate::identify(&robot, &samples, &CalibrateOptions::default())
+                adwi_robot::calibrate::identify(&robot, &samples, &calibrate_options)
             })?;
             bar.set_message("compiling");
             let model = identified.prepared_model();

@@ -35,6 +35,12 @@ pub struct Args {
     /// Relative pivot below which a parameter is unidentifiable.
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     rank_tol: f64,
+    /// Identify each revolute joint's gravity compliance (µrad/(N·m)) with the geometry:
+    /// the arm deflected by the gravity torque of the links it carries. The robot file
+    /// must give link masses (mass_kg, com_mm per joint).
+    /// The calibrated robot file carries them (compliance_urad_per_nm).
+    #[arg(long)]
+    compliance: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -60,6 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
+        compliance: args.compliance,
         ..CalibrateOptions::default()
     };
     let c = identify(&robot, &samples, &options)?;
@@ -85,6 +92,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote          {}", path.display());
     }
     if let Some(path) = &args.urdf {
+        if args.compliance {
+            eprintln!(
+                "warning: URDF has no place for the identified compliances: {} leaves them out \
+                 (the robot file, -o, carries them)",
+                path.display()
+            );
+        }
         let text = c.calibrated_robot().to_urdf_string(&comment)?;
         write_atomically(path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;

@@ -65,6 +65,12 @@ pub struct Args {
     /// are held at nominal, with the reason reported).
     #[arg(long)]
     keep_untrustworthy: bool,
+    /// Kinematic identification (kinematic and hybrid methods): also identify each
+    /// revolute joint's gravity compliance (µrad/(N·m)), the arm deflected by the gravity
+    /// torque of the links it carries. The robot file must give link masses (mass_kg,
+    /// com_mm per joint).
+    #[arg(long, requires = "robot")]
+    compliance: bool,
     #[command(flatten)]
     table: crate::table_options::TableOptions,
     /// Write the figures as CSV.
@@ -108,6 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let calibrate_options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
         hold_untrustworthy: !args.keep_untrustworthy,
+        compliance: args.compliance,
         ..CalibrateOptions::default()
     };
     let protocol = match (&args.validation, args.folds) {

@@ -59,6 +59,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(n) = table.joint_count() {
         println!("joints          {n}");
     }
+    if let Some(c) = table.model().and_then(|m| m.calibrated().compliance) {
+        let n = table.joint_count().unwrap_or(0);
+        let values: Vec<String> = c.compliance[..n]
+            .iter()
+            .map(|v| format!("{:.4}", v / adwi_robot::model::URAD_PER_NM))
+            .collect();
+        println!(
+            "compliance      {} µrad/(N·m), joints 1 to {n} (the calibrated model deflects under gravity)",
+            values.join(", ")
+        );
+    }
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {
         Some(t) => println!(
