@@ -1040,8 +1040,26 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(out.contains("3-fold cross-validation of `paper`"), "{out}");
-    let candidates: Vec<&str> = out.lines().filter(|l| l.contains(" mm mean, ")).collect();
+    let (served, candidates): (Vec<&str>, Vec<&str>) = out
+        .lines()
+        .filter(|l| l.contains(" mm mean, "))
+        .partition(|l| l.contains("served field"));
     assert_eq!(candidates.len(), 9, "{out}");
+    // Then the served field, scored with the chosen k and ε: the lower mean is kept.
+    assert_eq!(served.len(), 2, "{out}");
+    let served_mean = |line: &str| -> f64 {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        words[words.len() - 5].parse().unwrap()
+    };
+    let kept = served
+        .iter()
+        .find(|l| l.trim_start().starts_with('*'))
+        .unwrap();
+    assert!(
+        served.iter().all(|l| served_mean(kept) <= served_mean(l)),
+        "{out}"
+    );
+    let kept_kriging = kept.contains("served field kriging");
     let chosen: Vec<&str> = candidates
         .iter()
         .find(|l| l.trim_start().starts_with('*'))
@@ -1065,6 +1083,11 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
         "{inspect}"
     );
     assert!(inspect.contains(&format!(", k {k}, ")), "{inspect}");
+    assert_eq!(
+        inspect.contains("nodes hold kriging with a nugget"),
+        kept_kriging,
+        "{inspect}"
+    );
     let o = tablec(
         &[
             "build",
@@ -1085,4 +1108,75 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
     assert!(o.status.success());
     let o = tablec(&["inspect", "d.tbl"], dir.path());
     assert!(String::from_utf8_lossy(&o.stdout).contains("tuned           no"));
+}
+
+/// `--served-field kriging`: the served field holds kriging with a nugget where the method
+/// answers (recorded, shown by inspect, answering other values than the exact tier's
+/// method at a sample-free point), and a table without a served tier refuses it.
+#[test]
+fn a_kriging_served_field_is_built_recorded_and_served() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/kr150-2/samples.csv");
+    let samples = samples.to_str().unwrap();
+    for (table, field) in [("m.tbl", "method"), ("k.tbl", "kriging")] {
+        let o = tablec(
+            &["build", "-q", samples, "-o", table, "--served-field", field],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let inspect = |table: &str| {
+        let o = tablec(&["inspect", table], dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    assert!(inspect("k.tbl").contains("nodes hold kriging with a nugget"));
+    assert!(inspect("m.tbl").contains("nodes hold the method's answer"));
+    // Halfway between lattice samples: both served fields and both exact tiers answer.
+    let query = |table: &str, exact: bool| -> String {
+        let mut args = vec!["query", table, "1750", "450", "1250"];
+        if exact {
+            args.push("--exact");
+        }
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(out.contains("status       ok"), "{out}");
+        out.lines()
+            .find(|l| l.starts_with("error"))
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(query("m.tbl", true), query("k.tbl", true));
+    assert_ne!(query("m.tbl", false), query("k.tbl", false));
+    let o = tablec(
+        &[
+            "build",
+            samples,
+            "-o",
+            "j.tbl",
+            "--served-field",
+            "kriging",
+            "--joint-radius",
+            "10",
+        ],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("a kriging served field needs a served tier"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("j.tbl").exists());
+    let o = tablec(
+        &["build", samples, "-o", "x.tbl", "--served-field", "spline"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("choose method or kriging"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -137,8 +137,8 @@ class BuildReport:
     ``cells``, ``covered_cells``, ``distinct_lists``, ``list_entries``, ``mean_list_len``,
     ``max_list_len``, ``served_cells``, ``node_sets``, ``bytes``, ``k``, ``w1``, ``w2``,
     ``power``, ``lambda_min``, ``zeta_min``, ``consistency_screen``, ``joint_radius_deg``,
-    ``hybrid``, ``calibration`` (dict or None), ``tuning`` (dict or None), ``warnings``,
-    ``seconds``.
+    ``served_field``, ``hybrid``, ``calibration`` (dict or None), ``tuning`` (dict or
+    None), ``warnings``, ``seconds``.
     """
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
@@ -188,6 +188,7 @@ def build(
     consistency_screen: bool = True,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
+    served_field: Optional[str] = None,
     threads: Optional[int] = None,
     tune: bool = False,
     tune_folds: int = 5,
@@ -208,7 +209,9 @@ def build(
     Table, as tablec's options of the same names: ``cell`` and ``radius`` (mm; derived
     from the sample spacing by default), ``k``, ``w1``, ``w2``, ``power``, ``lambda_min``,
     ``zeta_min`` (the paper's by default), ``consistency_screen``, ``bounds``
-    (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg). ``robot`` (TOML,
+    (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg), ``served_field``
+    (``"method"``, the default, or ``"kriging"``: kriging with a nugget of the samples'
+    errors at the served field's nodes; ``tune=True`` chooses it). ``robot`` (TOML,
     or URDF with ``base_link``/``tip_link``) with ``hybrid=True`` identifies the robot's
     kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
     chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples
@@ -239,6 +242,7 @@ def build(
         consistency_screen=consistency_screen,
         bounds=bounds,
         joint_radius=joint_radius,
+        served_field=served_field,
     )
     fields = _adwi.build(
         source,
@@ -287,6 +291,7 @@ def evaluate(
     consistency_screen: bool = True,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
+    served_field: Optional[str] = None,
 ) -> List[Dict[str, Any]]:
     """Compare compensation methods on held-out points, as ``tablec eval``.
 
@@ -324,6 +329,7 @@ def evaluate(
         consistency_screen=consistency_screen,
         bounds=bounds,
         joint_radius=joint_radius,
+        served_field=served_field,
     )
     if isinstance(methods, str):
         methods = [m for m in methods.split(",") if m]

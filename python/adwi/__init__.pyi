@@ -68,6 +68,7 @@ class BuildReport:
     zeta_min: float
     consistency_screen: bool
     joint_radius_deg: float
+    served_field: str
     hybrid: bool
     calibration: Optional[Dict[str, Any]]
     warnings: List[str]
@@ -101,6 +102,7 @@ def build(
     consistency_screen: bool = True,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
+    served_field: Optional[str] = None,
     threads: Optional[int] = None,
     tune: bool = False,
     tune_folds: int = 5,
@@ -137,6 +139,7 @@ def evaluate(
     consistency_screen: bool = True,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
+    served_field: Optional[str] = None,
 ) -> List[Dict[str, Any]]:
     """Compare compensation methods on held-out points, as tablec eval: one record per
     row of its --csv output."""

@@ -173,14 +173,22 @@ struct TableOptions {
     bounds: Option<[f64; 6]>,
     #[pyo3(item)]
     joint_radius: Option<f64>,
+    #[pyo3(item)]
+    served_field: Option<String>,
 }
 
 impl TableOptions {
     /// The compiler's options: the paper's parameters unless given, and one of ω1, ω2
     /// given implies the other (as `tablec`).
-    fn build_options(&self) -> BuildOptions {
+    fn build_options(&self) -> anyhow::Result<BuildOptions> {
+        use adwi_compile::build::ServedField;
         let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
-        BuildOptions {
+        let served_field = match self.served_field.as_deref() {
+            None | Some("method") => ServedField::Method,
+            Some("kriging") => ServedField::Kriging,
+            Some(other) => bail!("served_field '{other}': choose method or kriging"),
+        };
+        Ok(BuildOptions {
             method: MethodParams {
                 radius_mm: self.radius,
                 max_neighbours: self.k.unwrap_or(PAPER.max_neighbours),
@@ -197,8 +205,8 @@ impl TableOptions {
                 .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
             joint_radius_deg: self.joint_radius,
             tuning: None,
-            served_field: adwi_compile::build::ServedField::Method,
-        }
+            served_field,
+        })
     }
 }
 
@@ -345,6 +353,7 @@ fn report_dict<'py>(
     d.set_item("zeta_min", m.zeta_min_per_mm2)?;
     d.set_item("consistency_screen", m.consistency_screen)?;
     d.set_item("joint_radius_deg", plan.joint_radius_rad.to_degrees())?;
+    d.set_item("served_field", plan.served_field.name())?;
     let tuning = match plan.tuning {
         Some(t) => {
             let td = PyDict::new(py);
@@ -411,7 +420,7 @@ fn build<'py>(
         };
         let (columns, read) = reading.resolve()?;
         let samples = source.read(&columns, &read)?;
-        let mut options = table.build_options();
+        let mut options = table.build_options()?;
         if tune {
             if table.k.is_some() || table.radius.is_some() {
                 bail!("tune chooses k and radius: give tune=True or k/radius, not both");
@@ -553,7 +562,7 @@ fn evaluate<'py>(
             .transpose()?;
         let options = EvalOptions {
             methods,
-            build: table.build_options(),
+            build: table.build_options()?,
             robot,
             calibrate: CalibrateOptions {
                 rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),

@@ -41,6 +41,22 @@ def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
         adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)
 
 
+def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
+    ours = tmp_path / "ours.tbl"
+    report = adwi.build(KR150 / "samples.csv", ours, served_field="kriging")
+    assert report.served_field == "kriging"
+    theirs = tmp_path / "tablec.tbl"
+    subprocess.run(
+        [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(theirs),
+         "--served-field", "kriging"],
+        check=True,
+    )
+    assert ours.read_bytes() == theirs.read_bytes()
+    assert adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl").served_field == "method"
+    with pytest.raises(adwi.AdwiError, match="choose method or kriging"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
+
+
 def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):
     options = ["--cell", "40", "--radius", "190", "--k", "6", "--w2", "0.2", "--power", "1.5",
                "--no-consistency-screen", "--bounds", "1300,0,800,2200,900,1700",
