@@ -282,6 +282,29 @@ fn same_input_gives_identical_bytes_for_any_thread_count() {
     let one = std::fs::read(dir.path().join("t1.tbl")).unwrap();
     assert_eq!(one, std::fs::read(dir.path().join("t2.tbl")).unwrap());
     assert_eq!(one, std::fs::read(dir.path().join("t3.tbl")).unwrap());
+    // The kriging of a served field too: its fits are scored in parallel.
+    let kr150 = repo("tables/kr150-2/samples.csv");
+    for threads in ["1", "3"] {
+        let o = tablec(
+            &[
+                "build",
+                "-q",
+                kr150.to_str().unwrap(),
+                "-o",
+                &format!("k{threads}.tbl"),
+                "--threads",
+                threads,
+                "--served-field",
+                "kriging",
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert_eq!(
+        std::fs::read(dir.path().join("k1.tbl")).unwrap(),
+        std::fs::read(dir.path().join("k3.tbl")).unwrap()
+    );
 }
 
 #[test]
