@@ -626,6 +626,45 @@ impl View {
     }
 }
 
+/// A map of the workspace projected on `view`: white, with axes in mm, equal scales.
+fn map_chart<'a, 'b>(
+    root: &'a DrawingArea<SVGBackend<'b>, plotters::coord::Shift>,
+    view: View,
+    xr: std::ops::Range<f64>,
+    yr: std::ops::Range<f64>,
+    err: &dyn Fn(DrawingAreaErrorKind<std::io::Error>) -> ReportError,
+) -> Result<
+    ChartContext<
+        'a,
+        SVGBackend<'b>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    ReportError,
+> {
+    root.fill(&WHITE).map_err(err)?;
+    let mut chart = ChartBuilder::on(root)
+        .margin(MAP_MARGIN)
+        .x_label_area_size(MAP_X_LABELS)
+        .y_label_area_size(MAP_Y_LABELS)
+        .build_cartesian_2d(xr, yr)
+        .map_err(err)?;
+    let (x_desc, y_desc) = view.desc();
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_labels(6)
+        .y_labels(6)
+        .x_label_formatter(&|v| short(*v))
+        .y_label_formatter(&|v| short(*v))
+        .light_line_style(faint())
+        .label_style((FONT, 12))
+        .axis_desc_style((FONT, 13))
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
+}
+
 /// At most this many arrows per panel: more hide each other.
 const MAX_ARROWS: usize = 400;
 
@@ -647,27 +686,7 @@ fn arrows_svg(
     {
         let err = plot_error(name);
         let root = map_area(&mut svg);
-        root.fill(&WHITE).map_err(&err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .margin(MAP_MARGIN)
-            .x_label_area_size(MAP_X_LABELS)
-            .y_label_area_size(MAP_Y_LABELS)
-            .build_cartesian_2d(xr.clone(), yr.clone())
-            .map_err(&err)?;
-        let (x_desc, y_desc) = view.desc();
-        chart
-            .configure_mesh()
-            .x_desc(x_desc)
-            .y_desc(y_desc)
-            .x_labels(6)
-            .y_labels(6)
-            .x_label_formatter(&|v| short(*v))
-            .y_label_formatter(&|v| short(*v))
-            .light_line_style(faint())
-            .label_style((FONT, 12))
-            .axis_desc_style((FONT, 13))
-            .draw()
-            .map_err(&err)?;
+        let mut chart = map_chart(&root, view, xr.clone(), yr.clone(), &err)?;
         let style = c.stroke_width(1);
         let mut shapes = Vec::new();
         for (p, v) in projected
@@ -744,27 +763,7 @@ fn locations_svg(e: &Evaluation, view: View) -> Result<String, ReportError> {
     {
         let err = plot_error("locations");
         let root = map_area(&mut svg);
-        root.fill(&WHITE).map_err(&err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .margin(MAP_MARGIN)
-            .x_label_area_size(MAP_X_LABELS)
-            .y_label_area_size(MAP_Y_LABELS)
-            .build_cartesian_2d(xr, yr)
-            .map_err(&err)?;
-        let (x_desc, y_desc) = view.desc();
-        chart
-            .configure_mesh()
-            .x_desc(x_desc)
-            .y_desc(y_desc)
-            .x_labels(6)
-            .y_labels(6)
-            .x_label_formatter(&|v| short(*v))
-            .y_label_formatter(&|v| short(*v))
-            .light_line_style(faint())
-            .label_style((FONT, 12))
-            .axis_desc_style((FONT, 13))
-            .draw()
-            .map_err(&err)?;
+        let mut chart = map_chart(&root, view, xr, yr, &err)?;
         // The evaluated points first: the samples, fewer and often on a lattice, on top.
         let ring = EVALUATED.stroke_width(1);
         chart
