@@ -492,7 +492,7 @@ fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
             "--robot",
             robot.to_str().unwrap(),
             "--methods",
-            "kinematic,hybrid,kinematic-kriging,kinematic-kriging-joint",
+            "kinematic,hybrid,kinematic-kriging,kinematic-kriging-joint,kinematic-kriging-pose",
             "--cell",
             "50",
             "--csv",
@@ -553,7 +553,11 @@ fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
     // interpolation passes on: closer to the floor in position, and a fraction of the
     // table's orientation residual (the simulated orientation noise is tiny against the
     // smooth compliance field).
-    for method in ["kinematic-kriging", "kinematic-kriging-joint"] {
+    for method in [
+        "kinematic-kriging",
+        "kinematic-kriging-joint",
+        "kinematic-kriging-pose",
+    ] {
         assert_eq!(column(method, 1), 200.0, "{method}:\n{figures}");
         let (mm, mrad) = (column(method, 3), column(method, 7));
         assert!(

@@ -299,8 +299,8 @@ def evaluate(
     keeps the first N) or ``folds`` (k-fold cross-validation of ``samples``, split by
     ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
     ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``,
-    ``kinematic-kriging``, ``kinematic-kriging-joint`` (default: every one the data
-    allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
+    ``kinematic-kriging``, ``kinematic-kriging-joint``, ``kinematic-kriging-pose``
+    (default: every one the data allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
     ``compliance=True`` identifies gravity compliance with their kinematic model, as
     ``tablec eval --compliance`` (the robot file must give link masses). Reading and
     table options as :func:`build`.

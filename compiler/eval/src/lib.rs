@@ -91,11 +91,14 @@ pub enum Method {
     /// Identified kinematic model plus kriging with a nugget on its residuals, in joint
     /// distance ([`adwi_compile::nugget_kriging`]).
     KinematicKrigingJoint,
+    /// Identified kinematic model plus kriging with a nugget on its residuals, in a
+    /// distance of position and joint angles combined ([`POSE_SCALES_MM_PER_RAD`]).
+    KinematicKrigingPose,
 }
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Paper,
         Method::PaperTrilinear,
         Method::PaperJoint,
@@ -107,6 +110,7 @@ impl Method {
         Method::HybridTrilinear,
         Method::KinematicKriging,
         Method::KinematicKrigingJoint,
+        Method::KinematicKrigingPose,
     ];
 
     /// The name used on the command line and in reports.
@@ -123,6 +127,7 @@ impl Method {
             Method::HybridTrilinear => "hybrid-trilinear",
             Method::KinematicKriging => "kinematic-kriging",
             Method::KinematicKrigingJoint => "kinematic-kriging-joint",
+            Method::KinematicKrigingPose => "kinematic-kriging-pose",
         }
     }
 
@@ -154,6 +159,9 @@ impl Method {
             Method::KinematicKrigingJoint => {
                 "kinematic model + kriging with a nugget on its residuals, joint distance"
             }
+            Method::KinematicKrigingPose => {
+                "kinematic model + kriging with a nugget on its residuals, position and joints"
+            }
         }
     }
 
@@ -167,6 +175,7 @@ impl Method {
                 | Method::HybridTrilinear
                 | Method::KinematicKriging
                 | Method::KinematicKrigingJoint
+                | Method::KinematicKrigingPose
         )
     }
 
@@ -179,6 +188,7 @@ impl Method {
                 | Method::HybridTrilinear
                 | Method::KinematicKriging
                 | Method::KinematicKrigingJoint
+                | Method::KinematicKrigingPose
         )
     }
 }
@@ -895,7 +905,7 @@ fn predict_split(
                 })
                 .collect()
         }
-        Method::KinematicKriging | Method::KinematicKrigingJoint => {
+        Method::KinematicKriging | Method::KinematicKrigingJoint | Method::KinematicKrigingPose => {
             let c = calibration.expect("identified for kinematic methods");
             kinematic_kriging_predictions(method, c, train, test, orientation)?
         }
@@ -925,8 +935,19 @@ fn predict_split(
     Ok(SplitOutcome::Predicted(outcome))
 }
 
+/// The scales tried for `kinematic-kriging-pose`, mm of distance per rad of joint angle:
+/// its inputs are the nominal position (mm) and the joint angles times the scale, so that
+/// two poses at one position reached with different postures are apart. A log grid from a
+/// wrist's lever to beyond an arm's reach; for each residual component the scale (with its
+/// length scale and nugget) of the highest marginal likelihood on the training samples is
+/// used.
+pub const POSE_SCALES_MM_PER_RAD: [f64; 5] = [50.0, 100.0, 200.0, 400.0, 800.0];
+
 /// The kinematic model's prediction plus kriging with a nugget of the residuals it leaves
-/// on the training samples, in Cartesian or joint distance ([`adwi_compile::nugget_kriging`]).
+/// on the training samples ([`adwi_compile::nugget_kriging`]): in Cartesian distance, joint
+/// distance, or both combined at the scale the training samples' likelihood prefers
+/// ([`POSE_SCALES_MM_PER_RAD`]; marginal likelihoods of one set of values are comparable
+/// across kernels, which is what makes the scale a hyperparameter like the others).
 fn kinematic_kriging_predictions(
     method: Method,
     calibration: &Calibration,
@@ -934,17 +955,22 @@ fn kinematic_kriging_predictions(
     test: &SampleSet,
     orientation: bool,
 ) -> Result<Vec<Result<PointPrediction, Miss>>, EvalError> {
-    let joint_space = method == Method::KinematicKrigingJoint;
-    let input = |set: &SampleSet, i: usize| -> Vec<f64> {
-        if joint_space {
-            set.joints_rad(i)
-                .expect("checked by choose_methods")
-                .to_vec()
-        } else {
-            set.nominal_mm[i].to_vec()
+    let scales: &[f64] = match method {
+        Method::KinematicKrigingPose => &POSE_SCALES_MM_PER_RAD,
+        _ => &[0.0],
+    };
+    let input = |set: &SampleSet, i: usize, scale: f64| -> Vec<f64> {
+        let q = set.joints_rad(i).expect("checked by choose_methods");
+        match method {
+            Method::KinematicKrigingJoint => q.to_vec(),
+            Method::KinematicKrigingPose => {
+                let mut v = set.nominal_mm[i].to_vec();
+                v.extend(q.iter().map(|q| q * scale));
+                v
+            }
+            _ => set.nominal_mm[i].to_vec(),
         }
     };
-    let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i)).collect();
     let residuals: Vec<Vec<f64>> = (0..train.len())
         .map(|i| {
             let (p, r) = calibration.predict_error(train.joints_rad(i).expect("checked"));
@@ -956,14 +982,42 @@ fn kinematic_kriging_predictions(
             row
         })
         .collect();
-    let gp = adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
-        .map_err(|source| EvalError::Kriging { method, source })?;
+    let fits = scales
+        .iter()
+        .map(|&scale| {
+            let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i, scale)).collect();
+            adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
+                .map_err(|source| EvalError::Kriging { method, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    // Per component, the fit of the highest likelihood (the first on a tie).
+    let width = residuals[0].len();
+    let pick: Vec<usize> = (0..width)
+        .map(|c| {
+            let mut best = 0;
+            for (f, fit) in fits.iter().enumerate() {
+                if fit.choices()[c].log_likelihood > fits[best].choices()[c].log_likelihood {
+                    best = f;
+                }
+            }
+            best
+        })
+        .collect();
     Ok((0..test.len())
         .map(|i| {
             let (p, r) = calibration.predict_error(test.joints_rad(i).expect("checked"));
-            let field = gp
-                .predict(&input(test, i))
-                .ok_or(Miss::status(Status::InvalidInput))?;
+            let mut field = vec![0.0; width];
+            for (f, (fit, &scale)) in fits.iter().zip(scales).enumerate() {
+                if !pick.contains(&f) {
+                    continue;
+                }
+                let predicted = fit
+                    .predict(&input(test, i, scale))
+                    .ok_or(Miss::status(Status::InvalidInput))?;
+                for c in (0..width).filter(|&c| pick[c] == f) {
+                    field[c] = predicted[c];
+                }
+            }
             Ok(PointPrediction {
                 position_error_mm: [0, 1, 2].map(|a| p[a] + field[a]),
                 orientation_error_rad: orientation.then(|| [0, 1, 2].map(|a| r[a] + field[3 + a])),

@@ -40,7 +40,7 @@ pub enum ReportError {
 }
 
 /// One colour per method, in [`super::Method::ALL`] order; grey is "uncompensated".
-const COLOURS: [RGBColor; 11] = [
+const COLOURS: [RGBColor; 12] = [
     RGBColor(31, 119, 180),
     RGBColor(23, 190, 207),
     RGBColor(255, 127, 14),
@@ -52,6 +52,7 @@ const COLOURS: [RGBColor; 11] = [
     RGBColor(227, 119, 194),
     RGBColor(0, 0, 0),
     RGBColor(255, 187, 120),
+    RGBColor(0, 128, 128),
 ];
 const BEFORE: RGBColor = RGBColor(150, 150, 150);
 /// Training samples on the map of the workspace.
