@@ -107,35 +107,38 @@ pub fn tune(
     } else {
         Method::Paper
     };
+    // One candidate's cross-validated mean position residual and missed points.
+    let score = |method: Method, build: BuildOptions| -> Result<(Option<f64>, usize), TuneError> {
+        let options = EvalOptions {
+            methods: Some(vec![method]),
+            build,
+            robot: robot.cloned(),
+            calibrate: *calibrate,
+            ..EvalOptions::default()
+        };
+        let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
+        let result = evaluation.method(method);
+        Ok((
+            result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+            result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+        ))
+    };
     let mut candidates = Vec::new();
     for &k in &K_CANDIDATES {
         for &spacings in &RADIUS_CANDIDATES_SPACINGS {
             let mut build = base.clone();
             build.method.max_neighbours = k;
             build.method.radius_mm = Some(spacings * spacing);
-            let options = EvalOptions {
-                methods: Some(vec![method]),
-                build,
-                robot: robot.cloned(),
-                calibrate: *calibrate,
-                ..EvalOptions::default()
-            };
-            let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
-            let result = evaluation.method(method);
+            let (cv_mean_mm, missed) = score(method, build)?;
             candidates.push(Candidate {
                 k,
                 radius_mm: spacings * spacing,
-                cv_mean_mm: result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
-                missed: result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+                cv_mean_mm,
+                missed,
             });
         }
     }
-    let chosen = candidates
-        .iter()
-        .enumerate()
-        .filter_map(|(i, c)| c.cv_mean_mm.map(|m| (i, c.missed, m)))
-        .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
-        .map(|(i, _, _)| i)
+    let chosen = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)))
         .ok_or(TuneError::NothingPredicted)?;
     let mut options = base.clone();
     options.method.max_neighbours = candidates[chosen].k;
@@ -156,30 +159,16 @@ pub fn tune(
                 served_field: field,
                 ..options.clone()
             };
-            let evaluation = evaluate(
-                samples,
-                &Protocol::KFold { folds, seed },
-                &EvalOptions {
-                    methods: Some(vec![method]),
-                    build,
-                    robot: robot.cloned(),
-                    calibrate: *calibrate,
-                    ..EvalOptions::default()
-                },
-            )?;
-            let result = evaluation.method(method);
+            let (cv_mean_mm, missed) = score(method, build)?;
             served.push(ServedCandidate {
                 field,
-                cv_mean_mm: result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
-                missed: result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+                cv_mean_mm,
+                missed,
             });
         }
         // The same cells are served either way; ties keep the method's own answer.
-        options.served_field = served
-            .iter()
-            .filter_map(|c| c.cv_mean_mm.map(|m| (c.field, c.missed, m)))
-            .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
-            .map_or(ServedField::Method, |(field, _, _)| field);
+        options.served_field = best(served.iter().map(|c| (c.cv_mean_mm, c.missed)))
+            .map_or(ServedField::Method, |i| served[i].field);
     }
     Ok(TuneReport {
         method,
@@ -189,4 +178,14 @@ pub fn tune(
         served,
         options,
     })
+}
+
+/// The index of the best of `(mean, missed)` scores: the lowest mean among those that miss
+/// the fewest, the first on a tie; `None` when none has a mean.
+fn best(scores: impl Iterator<Item = (Option<f64>, usize)>) -> Option<usize> {
+    scores
+        .enumerate()
+        .filter_map(|(i, (mean, missed))| mean.map(|m| (i, missed, m)))
+        .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
+        .map(|(i, _, _)| i)
 }
