@@ -19,7 +19,7 @@ use adwi_compile::write::{refuse_overwriting, write_atomically};
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
 use adwi_runtime::method::MethodParams;
-use adwi_runtime::{Correction, Status, Table as RuntimeTable, Target};
+use adwi_runtime::{Correction, Status, Table as RuntimeTable, Target, Tier};
 use anyhow::{bail, Context};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2};
@@ -648,22 +648,6 @@ struct Table {
     path: PathBuf,
 }
 
-/// The answer at a target from the tier asked for, with the joint values when given (as
-/// `tablec query`).
-fn answer<D: AsRef<[u8]>>(
-    table: &RuntimeTable<D>,
-    target: &Target,
-    joints_rad: Option<&[f64]>,
-    exact: bool,
-) -> Correction {
-    match (joints_rad, exact) {
-        (Some(q), true) => table.exact().query_with_joints(target, q),
-        (Some(q), false) => table.query_with_joints(target, q),
-        (None, true) => table.exact().query_target(target),
-        (None, false) => table.query_target(target),
-    }
-}
-
 /// The command for an answered target, as `tablec query` computes it: the fixed point of
 /// `command + error(command) = target`; with joint angles, the first-order
 /// `target − error`.
@@ -942,7 +926,7 @@ impl Table {
                     config: config.as_ref().and_then(|c| c[i]),
                 };
                 let q = joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
-                let c = answer(table, &target, q, exact);
+                let c = table.answer(&target, q, if exact { Tier::Exact } else { Tier::Served });
                 b.neighbours[i] = c.neighbours;
                 b.status[i] = c.status as u8;
                 if c.status != Status::Ok {

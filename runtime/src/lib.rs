@@ -59,4 +59,4 @@ pub use correction::{Compensation, Correction, Status, Target};
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};
-pub use table::{AlignedBytes, Exact, Payload, Table};
+pub use table::{AlignedBytes, Exact, Payload, Table, Tier};

@@ -48,10 +48,12 @@ pub enum Payload<'a> {
     V2(&'a v2::ArchivedTableData),
 }
 
-/// Which tier answers.
+/// Which tier answers a query ([`Table::answer`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Tier {
+pub enum Tier {
+    /// The served field: the nodes of the target's cell, blended ([`Table::query`]).
     Served,
+    /// The exact tier: the method itself, from the cell's candidates ([`Table::exact`]).
     Exact,
 }
 
@@ -414,9 +416,12 @@ impl<D: AsRef<[u8]>> Table<D> {
     }
 
     /// Every query's path: checks, the tier's residual (or whole) correction, the model
-    /// part of a hybrid table, and the last guard against a non-finite answer.
+    /// part of a hybrid table, and the last guard against a non-finite answer. The named
+    /// calls are this with their tier and joint values fixed (`query_target(t)` is
+    /// `answer(t, None, Tier::Served)`); a caller choosing the tier and whether joint values
+    /// are known at run time calls it directly. Never allocates, locks or panics.
     #[inline]
-    fn answer(&self, target: &Target, joints_rad: Option<&[f64]>, tier: Tier) -> Correction {
+    pub fn answer(&self, target: &Target, joints_rad: Option<&[f64]>, tier: Tier) -> Correction {
         if joints_rad.is_none() && self.model.is_some() {
             return Correction::failed(Status::MissingJoints);
         }

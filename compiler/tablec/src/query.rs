@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use adwi_compile::pose;
-use adwi_runtime::{Correction, Status, Table, Target};
+use adwi_runtime::{Correction, Status, Table, Target, Tier};
 use anyhow::{bail, Context};
 
 use crate::Answered;
@@ -108,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             status: Status::InvalidInput,
         }
     } else {
-        answer(&table, &target, joints_rad.as_deref(), args.exact)
+        table.answer(&target, joints_rad.as_deref(), tier(args.exact))
     };
     println!(
         "target       {:.6} {:.6} {:.6} mm",
@@ -152,22 +152,6 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
     Ok(Answered::All)
-}
-
-/// The table's answer at a target, from the tier asked for, with the joint values when
-/// given (hybrid tables, the joint screen).
-fn answer<D: AsRef<[u8]>>(
-    table: &Table<D>,
-    target: &Target,
-    joints_rad: Option<&[f64]>,
-    exact: bool,
-) -> Correction {
-    match (joints_rad, exact) {
-        (Some(q), true) => table.exact().query_with_joints(target, q),
-        (Some(q), false) => table.query_with_joints(target, q),
-        (None, true) => table.exact().query_target(target),
-        (None, false) => table.query_target(target),
-    }
 }
 
 /// The pose to command so that the robot lands on the target.
@@ -251,7 +235,7 @@ fn run_batch(
     let mut unanswered: std::collections::BTreeMap<&str, usize> = Default::default();
     for row in &targets {
         // Rows with joint angles serve hybrid tables and the joint-space screen.
-        let c = answer(table, &row.target, row.joints_rad.as_deref(), exact);
+        let c = table.answer(&row.target, row.joints_rad.as_deref(), tier(exact));
         let p = row.target.position_mm;
         write!(out, "{},{},{}", p[0], p[1], p[2])?;
         if c.status == Status::Ok {
@@ -298,4 +282,13 @@ fn run_batch(
         by_status.join(", ")
     );
     Ok(Answered::NotAll)
+}
+
+/// The tier `--exact` asks for.
+fn tier(exact: bool) -> Tier {
+    if exact {
+        Tier::Exact
+    } else {
+        Tier::Served
+    }
 }
