@@ -51,7 +51,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use adwi_runtime::method;
-use adwi_runtime::{Status, Table, Target};
+use adwi_runtime::{Status, Table, Target, Tier};
 
 use crate::baselines::{
     BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
@@ -796,19 +796,40 @@ fn training_noise_floor(
     train: &SampleSet,
     calibration: Option<&Calibration>,
 ) -> noise_floor::NoiseFloor {
-    match (calibration, train.joints.as_ref()) {
-        (Some(c), Some(joints)) => {
-            let residuals: Vec<[f64; 3]> = (0..train.len())
-                .map(|i| {
-                    let (predicted, _) = c.predict_error(joints.row(i));
-                    let e = train.error_mm[i];
-                    [0, 1, 2].map(|a| e[a] - predicted[a])
-                })
-                .collect();
+    match calibration {
+        Some(c) if train.joints.is_some() => {
+            let (residuals, _) = kinematic_residuals(c, train);
             noise_floor::noise_floor(train, &residuals, "kinematic residuals")
         }
         _ => noise_floor::noise_floor(train, &train.error_mm, "measured errors"),
     }
+}
+
+/// What the identified model leaves of samples' measured errors: position (mm) and, when
+/// the samples carry them, orientation (rad).
+///
+/// # Panics
+///
+/// When the samples carry no joint angles (the callers check).
+fn kinematic_residuals(
+    calibration: &Calibration,
+    samples: &SampleSet,
+) -> (Vec<[f64; 3]>, Option<Vec<[f64; 3]>>) {
+    let mut position = Vec::with_capacity(samples.len());
+    let mut rotation = samples
+        .rotation_error_rad
+        .as_ref()
+        .map(|_| Vec::with_capacity(samples.len()));
+    for i in 0..samples.len() {
+        let (p, r) = calibration.predict_error(samples.joints_rad(i).expect("joint angles"));
+        let e = samples.error_mm[i];
+        position.push([0, 1, 2].map(|a| e[a] - p[a]));
+        if let (Some(out), Some(measured)) = (&mut rotation, &samples.rotation_error_rad) {
+            let m = measured[i];
+            out.push([0, 1, 2].map(|a| m[a] - r[a]));
+        }
+    }
+    (position, rotation)
 }
 
 /// Statistics of residuals known to be finite and non-empty.
@@ -971,13 +992,12 @@ fn kinematic_kriging_predictions(
             _ => set.nominal_mm[i].to_vec(),
         }
     };
+    let (position, rotation) = kinematic_residuals(calibration, train);
     let residuals: Vec<Vec<f64>> = (0..train.len())
         .map(|i| {
-            let (p, r) = calibration.predict_error(train.joints_rad(i).expect("checked"));
-            let mut row: Vec<f64> = (0..3).map(|a| train.error_mm[i][a] - p[a]).collect();
-            if orientation {
-                let measured = train.rotation_error_rad.as_ref().expect("orientation")[i];
-                row.extend((0..3).map(|a| measured[a] - r[a]));
+            let mut row = position[i].to_vec();
+            if let (true, Some(r)) = (orientation, &rotation) {
+                row.extend_from_slice(&r[i]);
             }
             row
         })
@@ -1051,12 +1071,8 @@ fn table_prediction<D: AsRef<[u8]>>(
     exact: bool,
     orientation: bool,
 ) -> Result<PointPrediction, Miss> {
-    let c = match (joints_rad, exact) {
-        (Some(q), true) => table.exact().query_with_joints(target, q),
-        (Some(q), false) => table.query_with_joints(target, q),
-        (None, true) => table.exact().query_target(target),
-        (None, false) => table.query_target(target),
-    };
+    let tier = if exact { Tier::Exact } else { Tier::Served };
+    let c = table.answer(target, joints_rad, tier);
     if c.status != Status::Ok {
         return Err(Miss::status(c.status));
     }
