@@ -647,12 +647,15 @@ impl NodeValues {
                 let seen: Vec<usize> = (0..records.len())
                     .filter(|&i| method::config_matches(records[i].config, config))
                     .collect();
-                if !fits.iter().any(|(s, _)| *s == seen) {
-                    let fit =
-                        NodeKriging::fit(records, &seen, samples.rotation_error_rad.is_some())?;
-                    fits.push((seen.clone(), fit));
-                }
-                let kriging = &fits.iter().find(|(s, _)| *s == seen).expect("fitted").1;
+                let fitted = match fits.iter().position(|(s, _)| *s == seen) {
+                    Some(i) => i,
+                    None => {
+                        let orientation = samples.rotation_error_rad.is_some();
+                        fits.push((seen.clone(), NodeKriging::fit(records, &seen, orientation)?));
+                        fits.len() - 1
+                    }
+                };
+                let kriging = &fits[fitted].1;
                 values.par_iter_mut().enumerate().for_each(|(node, value)| {
                     if !adwi_runtime::served::is_missing(&value.0) {
                         *value = kriging.predict(node_position(node).1);
