@@ -126,6 +126,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 adwi_runtime::format::ServedField::Method => "the method's answer",
                 adwi_runtime::format::ServedField::Kriging =>
                     "kriging with a nugget of the samples' errors (--served-field kriging)",
+                adwi_runtime::format::ServedField::KrigingToolAxis =>
+                    "kriging with a nugget of the samples' errors, turning with the tool's approach axis (--served-field kriging-tool-axis)",
             }
         ),
         None if h.joint_radius_rad > 0.0 => {

@@ -33,7 +33,7 @@
 //! | 160 | 4  | v2: the robot's joint count, when the table holds joint values or a model; 0 otherwise (v1: reserved, zero; v1 robots have 6) |
 //! | 164 | 4  | v2: the number of node sets of the served tier; 0 for a table served by its exact tier alone (v1: reserved, zero) |
 //! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`); 0 when they were given or defaulted |
-//! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`) |
+//! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`), 2 that kriging with a part that turns with the tool's approach axis (`--served-field kriging-tool-axis`; hybrid tables; 4 vectors per node) |
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
 //! | 184 | 64 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
@@ -142,14 +142,36 @@ pub enum ServedField {
     /// smooths the measurement noise the method interpolates. The exact tier still
     /// answers the method.
     Kriging = 1,
+    /// Kriging with a nugget as [`ServedField::Kriging`], whose covariance also lets the
+    /// errors turn with the tool: `E(p, a) = f(p) + a_x h_x(p) + a_y h_y(p) + a_z h_z(p)`,
+    /// with `a` the unit approach (z) axis of the nominal TCP at the query's joint values,
+    /// base frame. Residuals that depend on the tool's orientation and not only on where it
+    /// is (an offset tool, a target seen from another side) are then predicted, still in
+    /// constant time: each node holds the four vectors `f, h_x, h_y, h_z` (the layout of
+    /// [`crate::format::v2::TableData::node_errors_mm`]), blended trilinearly, and the
+    /// query combines them with `a`. Hybrid tables only: the axis comes from their nominal
+    /// chain.
+    KrigingToolAxis = 2,
 }
 
 impl ServedField {
-    /// The name `tablec` uses for it: `method` or `kriging`.
+    /// Vectors stored per node and component group: 1, or 4 for
+    /// [`ServedField::KrigingToolAxis`] (`f, h_x, h_y, h_z`).
+    pub fn node_stride(self) -> usize {
+        match self {
+            ServedField::Method | ServedField::Kriging => 1,
+            ServedField::KrigingToolAxis => 4,
+        }
+    }
+}
+
+impl ServedField {
+    /// The name `tablec` uses for it: `method`, `kriging` or `kriging-tool-axis`.
     pub fn name(self) -> &'static str {
         match self {
             ServedField::Method => "method",
             ServedField::Kriging => "kriging",
+            ServedField::KrigingToolAxis => "kriging-tool-axis",
         }
     }
 }
@@ -391,13 +413,14 @@ impl Header {
         let served_field = match (version, u32_at(172)) {
             (1, _) | (_, 0) => ServedField::Method,
             (_, 1) => ServedField::Kriging,
+            (_, 2) => ServedField::KrigingToolAxis,
             _ => {
                 return Err(OpenError::Corrupt {
-                    what: "the served field's kind is neither 0 (method) nor 1 (kriging)",
+                    what: "the served field's kind is none of 0 (method), 1 (kriging), 2 (kriging-tool-axis)",
                 })
             }
         };
-        if served_field == ServedField::Kriging && u32_at(164) == 0 {
+        if served_field != ServedField::Method && u32_at(164) == 0 {
             return Err(OpenError::Corrupt {
                 what: "a kriging served field without node sets",
             });
