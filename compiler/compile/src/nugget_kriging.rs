@@ -28,6 +28,29 @@
 //! orientation's when given) gets its own `(ℓ, λ)`: gravity bends z, not x, so they need not
 //! share smoothness; one Cholesky factorisation per grid point scores them all.
 //! The grid search is deterministic and needs no optimiser.
+//!
+//! # A part that turns with the tool
+//!
+//! A residual may depend on the tool's orientation as well as on where it is: a tool offset
+//! slightly off, a reflector seen from another side, a wrist error the model does not hold.
+//! With a unit vector `a_i` per sample (the nominal tool's approach axis, say) the
+//! covariance becomes
+//!
+//! ```text
+//! σ² R(h) (1 + w ⟨a, a'⟩)
+//! ```
+//!
+//! the field of position times a part linear in the axis, `w` its weight relative to the
+//! position part ([`MODULATIONS`], `w = 0` is the Cartesian kriging above). It is chosen with
+//! `ℓ` and `λ` by the same likelihood. The prediction is then linear in the query's axis,
+//!
+//! ```text
+//! ŷ(x, a) = f(x) + a_x h_x(x) + a_y h_y(x) + a_z h_z(x),
+//! f(x) = ȳ + Σ_i s_i R(|x − x_i|),   h(x) = w Σ_i s_i R(|x − x_i|) a_i,   s = (K + λI)⁻¹ (y − ȳ)
+//! ```
+//!
+//! so `f` and `h` can be tabulated over positions and combined with the axis at query time,
+//! in constant time ([`ResidualGp::predict_terms`]).
 
 use nalgebra::DMatrix;
 #[cfg(test)]
@@ -43,6 +66,11 @@ pub const LENGTH_SCALES: [f64; 13] = [
 /// Nuggets tried, as a fraction of the sill: from near-exact interpolation to a field
 /// mostly noise.
 pub const NUGGETS: [f64; 10] = [0.003, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0];
+
+/// Weights of the part that turns with a unit vector, relative to the position part, tried
+/// when the fit is given one per sample ([`ResidualGp::fit_turning`]): none, comparable, or
+/// dominant.
+pub const MODULATIONS: [f64; 5] = [0.0, 0.3, 1.0, 3.0, 10.0];
 
 /// Why a residual field could not be fitted.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -65,6 +93,8 @@ pub struct GpChoice {
     pub length_scale: f64,
     /// Nugget relative to the sill, λ.
     pub relative_nugget: f64,
+    /// Weight `w` of the part that turns with the samples' unit vectors (0 without them).
+    pub modulation: f64,
     /// The profiled log-likelihood it reached (constants dropped).
     pub log_likelihood: f64,
 }
@@ -73,6 +103,8 @@ pub struct GpChoice {
 #[derive(Debug, Clone)]
 pub struct ResidualGp {
     inputs: Vec<Vec<f64>>,
+    /// Each sample's unit vector, when the field turns with one.
+    axes: Option<Vec<[f64; 3]>>,
     components: Vec<Component>,
 }
 
@@ -81,7 +113,7 @@ pub struct ResidualGp {
 struct Component {
     choice: GpChoice,
     mean: f64,
-    /// `(R + λI)⁻¹ (y − ȳ)`.
+    /// `(K + λI)⁻¹ (y − ȳ)`, `K = R` or `R ∘ (1 + w A)`.
     weights: Vec<f64>,
 }
 
@@ -108,6 +140,40 @@ impl ResidualGp {
     ///
     /// [`GpError`] for fewer than 3 samples, malformed rows or coincident inputs.
     pub fn fit(inputs: &[Vec<f64>], values: &[Vec<f64>]) -> Result<ResidualGp, GpError> {
+        Self::fit_with(inputs, None, values)
+    }
+
+    /// Fits the field with a part that turns with `axes[i]`, a unit vector per sample (module
+    /// docs): `w` is chosen among [`MODULATIONS`] with `ℓ` and `λ`, per component.
+    ///
+    /// # Errors
+    ///
+    /// As [`ResidualGp::fit`]; [`GpError::Malformed`] also for axes not one per input, not
+    /// finite, or not of unit length (to 1e-6).
+    pub fn fit_turning(
+        inputs: &[Vec<f64>],
+        axes: &[[f64; 3]],
+        values: &[Vec<f64>],
+    ) -> Result<ResidualGp, GpError> {
+        if axes.len() != inputs.len()
+            || axes.iter().any(|a| {
+                !((a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() - 1.0)
+                    .abs()
+                    .lt(&1e-6)
+            })
+        {
+            return Err(GpError::Malformed(
+                "the axes are not one unit vector per input",
+            ));
+        }
+        Self::fit_with(inputs, Some(axes), values)
+    }
+
+    fn fit_with(
+        inputs: &[Vec<f64>],
+        axes: Option<&[[f64; 3]]>,
+        values: &[Vec<f64>],
+    ) -> Result<ResidualGp, GpError> {
         let n = inputs.len();
         if n < 3 {
             return Err(GpError::TooFewSamples(n));
@@ -139,21 +205,35 @@ impl ResidualGp {
             .map(|c| values.iter().map(|v| v[c]).sum::<f64>() / n as f64)
             .collect();
         let centred = DMatrix::from_fn(n, width, |i, c| values[i][c] - means[c]);
-        let candidates: Vec<(f64, f64)> = LENGTH_SCALES
+        // The axes' Gram matrix ⟨a_i, a_j⟩, when the field turns with them.
+        let gram = axes.map(|a| {
+            DMatrix::from_fn(n, n, |i, j| {
+                a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
+            })
+        });
+        let modulations: &[f64] = if gram.is_some() { &MODULATIONS } else { &[0.0] };
+        let candidates: Vec<(f64, f64, f64)> = LENGTH_SCALES
             .iter()
-            .flat_map(|&l| NUGGETS.iter().map(move |&lambda| (l * spacing, lambda)))
+            .flat_map(|&l| {
+                modulations
+                    .iter()
+                    .flat_map(move |&w| NUGGETS.iter().map(move |&lambda| (l * spacing, lambda, w)))
+            })
             .collect();
         // One factorisation per grid point scores every component. The grid points are
         // independent; the choice takes the first best in grid order, so it does not
         // depend on the thread count.
         let scored: Vec<Option<Vec<f64>>> = candidates
             .par_iter()
-            .map(|&(l, lambda)| log_likelihoods(&distances, &centred, l, lambda))
+            .map(|&(l, lambda, w)| {
+                let a = system(&distances, gram.as_ref(), l, lambda, w);
+                log_likelihoods(a, &centred)
+            })
             .collect();
         let mut components = Vec::with_capacity(width);
         for (c, &mean) in means.iter().enumerate() {
             let mut best: Option<GpChoice> = None;
-            for (&(l, lambda), score) in candidates.iter().zip(&scored) {
+            for (&(l, lambda, w), score) in candidates.iter().zip(&scored) {
                 let Some(s) = score.as_ref().map(|s| s[c]) else {
                     continue;
                 };
@@ -161,12 +241,19 @@ impl ResidualGp {
                     best = Some(GpChoice {
                         length_scale: l,
                         relative_nugget: lambda,
+                        modulation: w,
                         log_likelihood: s,
                     });
                 }
             }
             let choice = best.ok_or(GpError::Singular)?;
-            let a = system(&distances, choice.length_scale, choice.relative_nugget);
+            let a = system(
+                &distances,
+                gram.as_ref(),
+                choice.length_scale,
+                choice.relative_nugget,
+                choice.modulation,
+            );
             let weights = a
                 .cholesky()
                 .ok_or(GpError::Singular)?
@@ -179,8 +266,14 @@ impl ResidualGp {
         }
         Ok(ResidualGp {
             inputs: inputs.to_vec(),
+            axes: axes.map(<[_]>::to_vec),
             components,
         })
+    }
+
+    /// Whether the field turns with an axis ([`ResidualGp::fit_turning`]).
+    pub fn turns(&self) -> bool {
+        self.axes.is_some()
     }
 
     /// The chosen `(ℓ, λ)` of each component.
@@ -188,9 +281,36 @@ impl ResidualGp {
         self.components.iter().map(|c| c.choice).collect()
     }
 
-    /// The predicted components at `x`; `None` when `x` has the wrong dimension or is not
-    /// finite.
+    /// The predicted components at `x`, for a field fitted without axes ([`ResidualGp::fit`]);
+    /// `None` when `x` has the wrong dimension or is not finite, or the field turns with an
+    /// axis (its prediction needs one: [`ResidualGp::predict_at`]).
     pub fn predict(&self, x: &[f64]) -> Option<Vec<f64>> {
+        if self.turns() {
+            return None;
+        }
+        Some(self.predict_terms(x)?.iter().map(|t| t[0]).collect())
+    }
+
+    /// The predicted components at `x` for a tool whose axis is `axis`
+    /// (`f + axis · h`, module docs); `None` when `x` or `axis` is malformed, or the field
+    /// does not turn.
+    pub fn predict_at(&self, x: &[f64], axis: [f64; 3]) -> Option<Vec<f64>> {
+        if !self.turns() || !axis.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let terms = self.predict_terms(x)?;
+        Some(
+            terms
+                .iter()
+                .map(|[f, hx, hy, hz]| f + axis[0] * hx + axis[1] * hy + axis[2] * hz)
+                .collect(),
+        )
+    }
+
+    /// Per component, the terms `[f, h_x, h_y, h_z]` at `x` (module docs; `h = 0` for a field
+    /// that does not turn): what a table's node holds. `None` when `x` has the wrong
+    /// dimension or is not finite.
+    pub fn predict_terms(&self, x: &[f64]) -> Option<Vec<[f64; 4]>> {
         if x.len() != self.inputs[0].len() || x.iter().any(|v| !v.is_finite()) {
             return None;
         }
@@ -200,38 +320,48 @@ impl ResidualGp {
                 .iter()
                 .map(|c| {
                     let l = c.choice.length_scale;
-                    c.mean
-                        + distances
-                            .iter()
-                            .zip(&c.weights)
-                            .map(|(&h, w)| matern52(h, l) * w)
-                            .sum::<f64>()
+                    let mut terms = [c.mean, 0.0, 0.0, 0.0];
+                    for (i, (&h, s)) in distances.iter().zip(&c.weights).enumerate() {
+                        let r = matern52(h, l) * s;
+                        terms[0] += r;
+                        if let Some(axes) = &self.axes {
+                            for k in 0..3 {
+                                terms[1 + k] += c.choice.modulation * r * axes[i][k];
+                            }
+                        }
+                    }
+                    terms
                 })
                 .collect(),
         )
     }
 }
 
-/// `R + λI` for length scale `l`.
-fn system(distances: &DMatrix<f64>, l: f64, lambda: f64) -> DMatrix<f64> {
+/// `K + λI` for length scale `l`: `K = R`, or `R ∘ (1 + w G)` with `G` the axes' Gram matrix.
+fn system(
+    distances: &DMatrix<f64>,
+    gram: Option<&DMatrix<f64>>,
+    l: f64,
+    lambda: f64,
+    w: f64,
+) -> DMatrix<f64> {
     let mut a = distances.map(|h| matern52(h, l));
+    if let (Some(g), true) = (gram, w != 0.0) {
+        a.zip_apply(g, |k, g| *k *= 1.0 + w * g);
+    }
     for i in 0..a.nrows() {
         a[(i, i)] += lambda;
     }
     a
 }
 
-/// Per component, the profiled log-likelihood of the module docs; `None` when `R + λI` is
-/// not positive definite in floating point. A component with no variation scores 0 at every
-/// grid point: it carries no evidence about ℓ or λ.
-fn log_likelihoods(
-    distances: &DMatrix<f64>,
-    centred: &DMatrix<f64>,
-    l: f64,
-    lambda: f64,
-) -> Option<Vec<f64>> {
-    let n = distances.nrows() as f64;
-    let chol = system(distances, l, lambda).cholesky()?;
+/// Per component, the profiled log-likelihood of the module docs for the system `a`;
+/// `None` when it is not positive definite in floating point. A component with no
+/// variation scores 0 at every grid point: it carries no evidence about the
+/// hyperparameters.
+fn log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<Vec<f64>> {
+    let n = a.nrows() as f64;
+    let chol = a.cholesky()?;
     let log_det: f64 = 2.0
         * chol
             .l_dirty()
@@ -272,15 +402,35 @@ fn median_nearest_distance(distances: &DMatrix<f64>) -> f64 {
 /// system densely and solves it by LU, for tests.
 #[cfg(test)]
 fn reference_predict(inputs: &[Vec<f64>], values: &[f64], l: f64, lambda: f64, x: &[f64]) -> f64 {
+    reference_predict_turning(inputs, None, values, (l, lambda, 0.0), x, [0.0; 3])
+}
+
+/// The same with axes: the covariance `R(h) (1 + w ⟨a, a'⟩)` written out per entry, the
+/// query's axis in the cross-covariances.
+#[cfg(test)]
+fn reference_predict_turning(
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+    values: &[f64],
+    (l, lambda, w): (f64, f64, f64),
+    x: &[f64],
+    axis: [f64; 3],
+) -> f64 {
     let n = inputs.len();
     let mean = values.iter().sum::<f64>() / n as f64;
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let turn = |i: usize, b: [f64; 3]| axes.map_or(1.0, |a| 1.0 + w * dot(a[i], b));
     let a = DMatrix::from_fn(n, n, |i, j| {
-        matern52(distance(&inputs[i], &inputs[j]), l) + if i == j { lambda } else { 0.0 }
+        let aj = axes.map_or([0.0; 3], |a| a[j]);
+        matern52(distance(&inputs[i], &inputs[j]), l) * turn(i, aj)
+            + if i == j { lambda } else { 0.0 }
     });
     let y = DVector::from_iterator(n, values.iter().map(|v| v - mean));
-    let w = a.lu().solve(&y).expect("invertible");
-    let r = DVector::from_iterator(n, inputs.iter().map(|s| matern52(distance(s, x), l)));
-    mean + r.dot(&w)
+    let s = a.lu().solve(&y).expect("invertible");
+    let r = DVector::from_fn(n, |i, _| {
+        matern52(distance(&inputs[i], x), l) * turn(i, axis)
+    });
+    mean + r.dot(&s)
 }
 
 #[cfg(test)]
@@ -353,6 +503,73 @@ mod tests {
             .sqrt();
         // The noise's own RMS is 0.2/√3 ≈ 0.115.
         assert!(rms < 0.05, "held-out RMS {rms}");
+    }
+
+    fn unit_axes(n: usize, seed: u64) -> Vec<[f64; 3]> {
+        cloud(n, 3, seed)
+            .iter()
+            .map(|v| {
+                let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-9);
+                [v[0] / norm, v[1] / norm, v[2] / norm]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_turning_field_equals_its_dense_reference_and_is_linear_in_the_axis() {
+        // A field with a part proportional to the axis, as an offset tool gives.
+        let inputs = cloud(80, 3, 11);
+        let axes = unit_axes(80, 12);
+        let offset = |x: &[f64]| [0.3 + 0.2 * x[0], -0.1, 0.4 * x[2]];
+        let field = |x: &[f64], a: [f64; 3]| {
+            let o = offset(x);
+            (1.3 * x[1]).sin() + o[0] * a[0] + o[1] * a[1] + o[2] * a[2]
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        let values: Vec<Vec<f64>> = (0..80)
+            .map(|i| vec![field(&inputs[i], axes[i]) + 0.01 * rng.gen_range(-1.0..1.0)])
+            .collect();
+        let gp = ResidualGp::fit_turning(&inputs, &axes, &values).unwrap();
+        let choice = gp.choices()[0];
+        assert!(choice.modulation > 0.0, "{choice:?}");
+        let column: Vec<f64> = values.iter().map(|v| v[0]).collect();
+        let plain = ResidualGp::fit(&inputs, &values).unwrap();
+        let (mut turning_sq, mut plain_sq) = (0.0, 0.0);
+        for (x, axis) in cloud(30, 3, 14).iter().zip(unit_axes(30, 15)) {
+            let got = gp.predict_at(x, axis).unwrap()[0];
+            let want = reference_predict_turning(
+                &inputs,
+                Some(&axes),
+                &column,
+                (
+                    choice.length_scale,
+                    choice.relative_nugget,
+                    choice.modulation,
+                ),
+                x,
+                axis,
+            );
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+            let t = gp.predict_terms(x).unwrap()[0];
+            let linear = t[0] + axis[0] * t[1] + axis[1] * t[2] + axis[2] * t[3];
+            assert!((linear - got).abs() < 1e-12);
+            turning_sq += (got - field(x, axis)).powi(2);
+            plain_sq += (plain.predict(x).unwrap()[0] - field(x, axis)).powi(2);
+        }
+        // The part that turns is beyond a field of position alone.
+        assert!(turning_sq < 0.2 * plain_sq, "{turning_sq} vs {plain_sq}");
+        assert!(gp.predict(&[0.0; 3]).is_none());
+        assert!(plain.predict_at(&[0.0; 3], [0.0, 0.0, 1.0]).is_none());
+        assert!(matches!(
+            ResidualGp::fit_turning(&inputs, &axes[1..], &values),
+            Err(GpError::Malformed(_))
+        ));
+        let mut long = axes.clone();
+        long[3] = [1.0, 1.0, 0.0];
+        assert!(matches!(
+            ResidualGp::fit_turning(&inputs, &long, &values),
+            Err(GpError::Malformed(_))
+        ));
     }
 
     #[test]
