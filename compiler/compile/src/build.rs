@@ -158,6 +158,9 @@ pub enum BuildError {
     /// The kriging of a served field could not be fitted.
     #[error("cannot fit the kriging of the served field")]
     Kriging(#[source] crate::nugget_kriging::GpError),
+    /// A served field that turns with the tool was asked of a table without a model.
+    #[error("the kriging-tool-axis served field needs a hybrid table (a robot model and samples with joint angles): the tool's axis comes from its nominal chain")]
+    ToolAxisWithoutModel,
     /// A kriging served field was asked of a table that has none (a joint screen).
     #[error("a kriging served field needs a served tier, which a table with a joint screen does not have")]
     KrigingWithoutServedTier,
@@ -318,7 +321,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
             "joint radius must be finite and non-negative",
         ));
     }
-    if joint_radius_rad > 0.0 && options.served_field == ServedField::Kriging {
+    if joint_radius_rad > 0.0 && options.served_field != ServedField::Method {
         return Err(BuildError::KrigingWithoutServedTier);
     }
     if joint_radius_rad > 0.0 && samples.joints.is_none() {
@@ -516,8 +519,14 @@ pub fn compile_plan(
     // The served tier: the exact method at every node, one set per target configuration
     // (none with a joint screen: its admissible samples depend on the joint values).
     if !joint_screen {
-        let served =
-            NodeValues::compute(&records, &params, &grid, &lists, samples, plan.served_field)?;
+        let field = match plan.served_field {
+            ServedField::Method => NodeField::Method,
+            ServedField::Kriging => NodeField::Kriging(None),
+            ServedField::KrigingToolAxis => {
+                NodeField::Kriging(Some(tool_axes(samples, model)?))
+            }
+        };
+        let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);
         data.node_sets = served.sets;
@@ -601,35 +610,80 @@ fn wide_record(list: &[u32], overflow: &mut Vec<u32>) -> v2::WideCellRecord {
     record
 }
 
-/// The served tier's node values: the exact method at every node of the grid, per set.
+/// What the nodes hold: the method's answer, or the kriging of the samples' errors, which
+/// turns with the tool's axis when given one unit axis per sample.
+enum NodeField {
+    Method,
+    Kriging(Option<Vec<[f64; 3]>>),
+}
+
+impl NodeField {
+    /// Vectors per node ([`ServedField::node_stride`]).
+    fn stride(&self) -> usize {
+        match self {
+            NodeField::Kriging(Some(_)) => 4,
+            _ => 1,
+        }
+    }
+}
+
+/// The unit approach (z) axis of the nominal TCP at each sample's joint values: what a
+/// served field turning with the tool combines its terms with (the runtime computes the
+/// same at the query's joint values).
+fn tool_axes(
+    samples: &SampleSet,
+    model: Option<&PreparedModel>,
+) -> Result<Vec<[f64; 3]>, BuildError> {
+    let (Some(model), Some(joints)) = (model, &samples.joints) else {
+        return Err(BuildError::ToolAxisWithoutModel);
+    };
+    joints
+        .rows()
+        .map(|q| {
+            let r = model.nominal().tcp_pose(q).ok_or(BuildError::ToolAxisWithoutModel)?.rotation;
+            Ok([r[0][2], r[1][2], r[2][2]])
+        })
+        .collect()
+}
+
+/// The served tier's node values: the exact method at every node of the grid, per set;
+/// `stride` vectors per node (the layout of [`v2::TableData::node_errors_mm`]).
 struct NodeValues {
     sets: Vec<v2::NodeSet>,
+    stride: usize,
     position_mm: Vec<[f64; 3]>,
     orientation_rad: Vec<[f64; 3]>,
 }
 
+/// One node's vectors: position and orientation, `[f, h_x, h_y, h_z]` (only `f` used at
+/// stride 1).
+type NodeTerms = ([[f64; 3]; 4], [[f64; 3]; 4]);
+
 impl NodeValues {
     /// Evaluates every node for targets of unknown configuration, then for each
     /// configuration the samples carry (a set equal to an earlier one shares its nodes):
-    /// the method's answer, or where it answers, the kriging of `field`.
+    /// the method's answer, or where it answers, the kriging `field` asks for.
     fn compute(
         records: &[SampleRecord],
         params: &MethodParams,
         grid: &Grid,
         lists: &[Vec<u32>],
         samples: &SampleSet,
-        field: ServedField,
+        field: &NodeField,
     ) -> Result<NodeValues, BuildError> {
         let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
         configs.sort_unstable();
         configs.dedup();
         let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
         let per_set = nx * ny * nz;
+        let stride = field.stride();
         let mut out = NodeValues {
             sets: Vec::new(),
+            stride,
             position_mm: Vec::new(),
             orientation_rad: Vec::new(),
         };
+        let missing = [[v2::NO_NODE_VALUE; 3]; 4];
         // Kriging fits, by the samples they were fitted to (one per distinct subset).
         let mut fits: Vec<(Vec<usize>, NodeKriging)> = Vec::new();
         let wanted = std::iter::once(None).chain(configs.into_iter().map(Some));
@@ -638,11 +692,19 @@ impl NodeValues {
                 let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
                 (ijk, grid_node_mm(grid, ijk))
             };
-            let mut values: Vec<([f64; 3], [f64; 3])> = (0..per_set)
+            let mut values: Vec<NodeTerms> = (0..per_set)
                 .into_par_iter()
-                .map(|node| node_value(records, params, grid, lists, node_position(node).0, config))
+                .map(|node| {
+                    let (p, r) =
+                        node_value(records, params, grid, lists, node_position(node).0, config);
+                    if adwi_runtime::served::is_missing(&p) {
+                        (missing, missing)
+                    } else {
+                        ([p, [0.0; 3], [0.0; 3], [0.0; 3]], [r, [0.0; 3], [0.0; 3], [0.0; 3]])
+                    }
+                })
                 .collect();
-            if field == ServedField::Kriging {
+            if let NodeField::Kriging(axes) = field {
                 // The samples a target of this configuration may use (method::select).
                 let seen: Vec<usize> = (0..records.len())
                     .filter(|&i| method::config_matches(records[i].config, config))
@@ -651,29 +713,37 @@ impl NodeValues {
                     Some(i) => i,
                     None => {
                         let orientation = samples.rotation_error_rad.is_some();
-                        fits.push((seen.clone(), NodeKriging::fit(records, &seen, orientation)?));
+                        let fit = NodeKriging::fit(records, &seen, axes.as_deref(), orientation)?;
+                        fits.push((seen.clone(), fit));
                         fits.len() - 1
                     }
                 };
                 let kriging = &fits[fitted].1;
                 values.par_iter_mut().enumerate().for_each(|(node, value)| {
-                    if !adwi_runtime::served::is_missing(&value.0) {
+                    if !adwi_runtime::served::is_missing(&value.0[0]) {
                         *value = kriging.predict(node_position(node).1);
                     }
                 });
             }
+            let flat = |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
+                v.iter().flat_map(|t| which(t)[..stride].to_vec()).collect()
+            };
+            let position = flat(&values, |t| &t.0);
+            let orientation = flat(&values, |t| &t.1);
             let first_node = (0..out.sets.len())
                 .map(|s| out.sets[s].first_node as usize)
                 .find(|&first| {
-                    values.iter().enumerate().all(|(i, (p, r))| {
-                        same_bits(p, &out.position_mm[first + i])
-                            && same_bits(r, &out.orientation_rad[first + i])
-                    })
+                    let at = first * stride;
+                    position.iter().zip(&out.position_mm[at..]).all(|(a, b)| same_bits(a, b))
+                        && orientation
+                            .iter()
+                            .zip(&out.orientation_rad[at..])
+                            .all(|(a, b)| same_bits(a, b))
                 })
                 .unwrap_or_else(|| {
-                    let first = out.position_mm.len();
-                    out.position_mm.extend(values.iter().map(|v| v.0));
-                    out.orientation_rad.extend(values.iter().map(|v| v.1));
+                    let first = out.position_mm.len() / stride;
+                    out.position_mm.extend(position);
+                    out.orientation_rad.extend(orientation);
                     first
                 });
             out.sets.push(v2::NodeSet {
@@ -687,7 +757,7 @@ impl NodeValues {
     /// The number of cells of the first set whose 8 nodes all have values.
     fn served_cells(&self, grid: &Grid) -> usize {
         let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
-        let has = |i: usize| !adwi_runtime::served::is_missing(&self.position_mm[i]);
+        let has = |i: usize| !adwi_runtime::served::is_missing(&self.position_mm[i * self.stride]);
         (0..grid.cell_count().unwrap_or(0))
             .filter(|&cell| {
                 let [i, j, k] = grid.cell_coords(cell);
@@ -710,7 +780,8 @@ impl NodeValues {
 }
 
 /// Kriging with a nugget of some samples' errors, in Cartesian distance of their actual
-/// positions (where the method places them): position, and orientation when stored.
+/// positions (where the method places them): position, and orientation when stored;
+/// turning with the tool's axis when given the samples' axes.
 struct NodeKriging {
     fit: crate::nugget_kriging::ResidualGp,
     orientation: bool,
@@ -720,6 +791,7 @@ impl NodeKriging {
     fn fit(
         records: &[SampleRecord],
         samples: &[usize],
+        axes: Option<&[[f64; 3]]>,
         orientation: bool,
     ) -> Result<NodeKriging, BuildError> {
         let inputs: Vec<Vec<f64>> = samples
@@ -737,23 +809,31 @@ impl NodeKriging {
                 row
             })
             .collect();
-        let fit = crate::nugget_kriging::ResidualGp::fit(&inputs, &values)
-            .map_err(BuildError::Kriging)?;
+        let fit = match axes {
+            Some(axes) => {
+                let axes: Vec<[f64; 3]> = samples.iter().map(|&i| axes[i]).collect();
+                crate::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &values)
+            }
+            None => crate::nugget_kriging::ResidualGp::fit(&inputs, &values),
+        }
+        .map_err(BuildError::Kriging)?;
         Ok(NodeKriging { fit, orientation })
     }
 
-    /// The field at `position_mm`; orientation zero when not stored (as the method's).
-    fn predict(&self, position_mm: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-        let v = self
+    /// The field's terms at `position_mm` (`f` alone when it does not turn); orientation
+    /// zero when not stored (as the method's).
+    fn predict(&self, position_mm: [f64; 3]) -> NodeTerms {
+        let t = self
             .fit
-            .predict(&position_mm)
+            .predict_terms(&position_mm)
             .expect("grid nodes are finite and three-dimensional");
+        let vectors = |c: usize| [0, 1, 2, 3].map(|k| [t[c][k], t[c + 1][k], t[c + 2][k]]);
         let rotation = if self.orientation {
-            [v[3], v[4], v[5]]
+            vectors(3)
         } else {
-            [0.0; 3]
+            [[0.0; 3]; 4]
         };
-        ([v[0], v[1], v[2]], rotation)
+        (vectors(0), rotation)
     }
 }
 

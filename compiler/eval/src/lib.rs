@@ -94,11 +94,15 @@ pub enum Method {
     /// Identified kinematic model plus kriging with a nugget on its residuals, in a
     /// distance of position and joint angles combined ([`POSE_SCALES_MM_PER_RAD`]).
     KinematicKrigingPose,
+    /// Identified kinematic model plus kriging with a nugget on its residuals, in Cartesian
+    /// distance with a part that turns with the nominal tool's approach axis: what a hybrid
+    /// table's `kriging-tool-axis` served field tabulates, evaluated directly.
+    KinematicKrigingToolAxis,
 }
 
 impl Method {
     /// Every method, in report order.
-    pub const ALL: [Method; 12] = [
+    pub const ALL: [Method; 13] = [
         Method::Paper,
         Method::PaperTrilinear,
         Method::PaperJoint,
@@ -111,6 +115,7 @@ impl Method {
         Method::KinematicKriging,
         Method::KinematicKrigingJoint,
         Method::KinematicKrigingPose,
+        Method::KinematicKrigingToolAxis,
     ];
 
     /// The name used on the command line and in reports.
@@ -128,6 +133,7 @@ impl Method {
             Method::KinematicKriging => "kinematic-kriging",
             Method::KinematicKrigingJoint => "kinematic-kriging-joint",
             Method::KinematicKrigingPose => "kinematic-kriging-pose",
+            Method::KinematicKrigingToolAxis => "kinematic-kriging-tool-axis",
         }
     }
 
@@ -162,6 +168,9 @@ impl Method {
             Method::KinematicKrigingPose => {
                 "kinematic model + kriging with a nugget on its residuals, position and joints"
             }
+            Method::KinematicKrigingToolAxis => {
+                "kinematic model + kriging with a nugget on its residuals, turning with the tool axis"
+            }
         }
     }
 
@@ -176,6 +185,7 @@ impl Method {
                 | Method::KinematicKriging
                 | Method::KinematicKrigingJoint
                 | Method::KinematicKrigingPose
+                | Method::KinematicKrigingToolAxis
         )
     }
 
@@ -189,6 +199,7 @@ impl Method {
                 | Method::KinematicKriging
                 | Method::KinematicKrigingJoint
                 | Method::KinematicKrigingPose
+                | Method::KinematicKrigingToolAxis
         )
     }
 }
@@ -926,7 +937,10 @@ fn predict_split(
                 })
                 .collect()
         }
-        Method::KinematicKriging | Method::KinematicKrigingJoint | Method::KinematicKrigingPose => {
+        Method::KinematicKriging
+        | Method::KinematicKrigingJoint
+        | Method::KinematicKrigingPose
+        | Method::KinematicKrigingToolAxis => {
             let c = calibration.expect("identified for kinematic methods");
             kinematic_kriging_predictions(method, c, train, test, orientation)?
         }
@@ -1002,12 +1016,30 @@ fn kinematic_kriging_predictions(
             row
         })
         .collect();
+    // The nominal tool's approach axis at a point's joint values, for the field that turns.
+    let nominal = calibration.prepared_model();
+    let axis = |set: &SampleSet, i: usize| -> Option<[f64; 3]> {
+        let r = nominal.nominal().tcp_pose(set.joints_rad(i)?)?.rotation;
+        Some([r[0][2], r[1][2], r[2][2]])
+    };
     let fits = scales
         .iter()
         .map(|&scale| {
             let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i, scale)).collect();
-            adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
-                .map_err(|source| EvalError::Kriging { method, source })
+            if method == Method::KinematicKrigingToolAxis {
+                let axes: Vec<[f64; 3]> = (0..train.len())
+                    .map(|i| axis(train, i).ok_or(EvalError::Kriging {
+                        method,
+                        source: adwi_compile::nugget_kriging::GpError::Malformed(
+                            "a sample's joint values do not fit the robot",
+                        ),
+                    }))
+                    .collect::<Result<_, _>>()?;
+                adwi_compile::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &residuals)
+            } else {
+                adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
+            }
+            .map_err(|source| EvalError::Kriging { method, source })
         })
         .collect::<Result<Vec<_>, _>>()?;
     // Per component, the fit of the highest likelihood (the first on a tie).
@@ -1031,9 +1063,13 @@ fn kinematic_kriging_predictions(
                 if !pick.contains(&f) {
                     continue;
                 }
-                let predicted = fit
-                    .predict(&input(test, i, scale))
-                    .ok_or(Miss::status(Status::InvalidInput))?;
+                let x = input(test, i, scale);
+                let predicted = if fit.turns() {
+                    axis(test, i).and_then(|a| fit.predict_at(&x, a))
+                } else {
+                    fit.predict(&x)
+                }
+                .ok_or(Miss::status(Status::InvalidInput))?;
                 for c in (0..width).filter(|&c| pick[c] == f) {
                     field[c] = predicted[c];
                 }

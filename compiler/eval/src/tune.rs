@@ -9,10 +9,11 @@
 //! one that predicts more: the choice is the lowest mean among those that miss the fewest.
 //!
 //! Then, with the chosen `k` and ε, what the served field's nodes hold
-//! ([`ServedField`]): the method's own answer, or kriging with a nugget of the samples'
-//! errors. Both are scored the same way on the served tier (`paper-trilinear`, or
-//! `hybrid-trilinear`), and the lower mean wins; a table with a joint screen has no served
-//! tier and keeps the method's.
+//! ([`ServedField`]): the method's own answer, kriging with a nugget of the samples'
+//! errors, and for a hybrid table that kriging turning with the tool's axis. Each is
+//! scored the same way on the served tier (`paper-trilinear`, or `hybrid-trilinear`), and
+//! the lowest mean wins; a table with a joint screen has no served tier and keeps the
+//! method's.
 
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
 use adwi_compile::samples::SampleSet;
@@ -154,7 +155,17 @@ pub fn tune(
         } else {
             Method::PaperTrilinear
         };
-        for field in [ServedField::Method, ServedField::Kriging] {
+        // The field that turns with the tool's axis needs the hybrid's model.
+        let fields: &[ServedField] = if robot.is_some() {
+            &[
+                ServedField::Method,
+                ServedField::Kriging,
+                ServedField::KrigingToolAxis,
+            ]
+        } else {
+            &[ServedField::Method, ServedField::Kriging]
+        };
+        for &field in fields {
             let build = BuildOptions {
                 served_field: field,
                 ..options.clone()

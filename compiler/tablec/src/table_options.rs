@@ -70,16 +70,22 @@ pub struct TableOptions {
     /// What the served field's nodes hold: `method`, the method's own answer (what the
     /// exact tier answers, tabulated), or `kriging`, kriging with a nugget of the samples'
     /// errors (a hybrid table's residuals) in Cartesian distance, which smooths their
-    /// measurement noise; the exact tier answers the method either way.
+    /// measurement noise, or `kriging-tool-axis` (hybrid tables), that kriging with a part
+    /// that turns with the nominal tool's approach axis at the query's joint values; the
+    /// exact tier answers the method either way.
     #[arg(long, value_name = "FIELD", default_value = "method", value_parser = parse_served_field)]
     pub served_field: ServedField,
 }
 
 fn parse_served_field(text: &str) -> Result<ServedField, String> {
-    [ServedField::Method, ServedField::Kriging]
-        .into_iter()
-        .find(|f| f.name() == text)
-        .ok_or_else(|| format!("'{text}': choose method or kriging"))
+    [
+        ServedField::Method,
+        ServedField::Kriging,
+        ServedField::KrigingToolAxis,
+    ]
+    .into_iter()
+    .find(|f| f.name() == text)
+    .ok_or_else(|| format!("'{text}': choose method, kriging or kriging-tool-axis"))
 }
 
 impl TableOptions {
