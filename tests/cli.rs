@@ -1198,7 +1198,7 @@ fn a_kriging_served_field_is_built_recorded_and_served() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("choose method or kriging"),
+        stderr(&o).contains("choose method, kriging or kriging-tool-axis"),
         "{}",
         stderr(&o)
     );

@@ -210,8 +210,10 @@ def build(
     from the sample spacing by default), ``k``, ``w1``, ``w2``, ``power``, ``lambda_min``,
     ``zeta_min`` (the paper's by default), ``consistency_screen``, ``bounds``
     (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg), ``served_field``
-    (``"method"``, the default, or ``"kriging"``: kriging with a nugget of the samples'
-    errors at the served field's nodes; ``tune=True`` chooses it). ``robot`` (TOML,
+    (``"method"``, the default; ``"kriging"``: kriging with a nugget of the samples'
+    errors at the served field's nodes; or, with ``hybrid=True``, ``"kriging-tool-axis"``:
+    that kriging with a part that turns with the nominal tool's approach axis;
+    ``tune=True`` chooses among them). ``robot`` (TOML,
     or URDF with ``base_link``/``tip_link``) with ``hybrid=True`` identifies the robot's
     kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
     chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples

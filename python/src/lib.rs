@@ -184,9 +184,12 @@ impl TableOptions {
         use adwi_compile::build::ServedField;
         let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
         let served_field = match self.served_field.as_deref() {
-            None | Some("method") => ServedField::Method,
-            Some("kriging") => ServedField::Kriging,
-            Some(other) => bail!("served_field '{other}': choose method or kriging"),
+            None => ServedField::Method,
+            Some(name) => ServedField::from_name(name).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "served_field '{name}': choose method, kriging or kriging-tool-axis"
+                )
+            })?,
         };
         Ok(BuildOptions {
             method: MethodParams {

@@ -53,7 +53,7 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     )
     assert ours.read_bytes() == theirs.read_bytes()
     assert adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl").served_field == "method"
-    with pytest.raises(adwi.AdwiError, match="choose method or kriging"):
+    with pytest.raises(adwi.AdwiError, match="choose method, kriging or kriging-tool-axis"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
 
 

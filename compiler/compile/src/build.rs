@@ -522,9 +522,7 @@ pub fn compile_plan(
         let field = match plan.served_field {
             ServedField::Method => NodeField::Method,
             ServedField::Kriging => NodeField::Kriging(None),
-            ServedField::KrigingToolAxis => {
-                NodeField::Kriging(Some(tool_axes(samples, model)?))
-            }
+            ServedField::KrigingToolAxis => NodeField::Kriging(Some(tool_axes(samples, model)?)),
         };
         let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
         report.node_sets = served.sets.len();
@@ -640,7 +638,11 @@ fn tool_axes(
     joints
         .rows()
         .map(|q| {
-            let r = model.nominal().tcp_pose(q).ok_or(BuildError::ToolAxisWithoutModel)?.rotation;
+            let r = model
+                .nominal()
+                .tcp_pose(q)
+                .ok_or(BuildError::ToolAxisWithoutModel)?
+                .rotation;
             Ok([r[0][2], r[1][2], r[2][2]])
         })
         .collect()
@@ -700,7 +702,10 @@ impl NodeValues {
                     if adwi_runtime::served::is_missing(&p) {
                         (missing, missing)
                     } else {
-                        ([p, [0.0; 3], [0.0; 3], [0.0; 3]], [r, [0.0; 3], [0.0; 3], [0.0; 3]])
+                        (
+                            [p, [0.0; 3], [0.0; 3], [0.0; 3]],
+                            [r, [0.0; 3], [0.0; 3], [0.0; 3]],
+                        )
                     }
                 })
                 .collect();
@@ -725,16 +730,20 @@ impl NodeValues {
                     }
                 });
             }
-            let flat = |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
-                v.iter().flat_map(|t| which(t)[..stride].to_vec()).collect()
-            };
+            let flat =
+                |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
+                    v.iter().flat_map(|t| which(t)[..stride].to_vec()).collect()
+                };
             let position = flat(&values, |t| &t.0);
             let orientation = flat(&values, |t| &t.1);
             let first_node = (0..out.sets.len())
                 .map(|s| out.sets[s].first_node as usize)
                 .find(|&first| {
                     let at = first * stride;
-                    position.iter().zip(&out.position_mm[at..]).all(|(a, b)| same_bits(a, b))
+                    position
+                        .iter()
+                        .zip(&out.position_mm[at..])
+                        .all(|(a, b)| same_bits(a, b))
                         && orientation
                             .iter()
                             .zip(&out.orientation_rad[at..])

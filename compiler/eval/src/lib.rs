@@ -1028,12 +1028,14 @@ fn kinematic_kriging_predictions(
             let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i, scale)).collect();
             if method == Method::KinematicKrigingToolAxis {
                 let axes: Vec<[f64; 3]> = (0..train.len())
-                    .map(|i| axis(train, i).ok_or(EvalError::Kriging {
-                        method,
-                        source: adwi_compile::nugget_kriging::GpError::Malformed(
-                            "a sample's joint values do not fit the robot",
-                        ),
-                    }))
+                    .map(|i| {
+                        axis(train, i).ok_or(EvalError::Kriging {
+                            method,
+                            source: adwi_compile::nugget_kriging::GpError::Malformed(
+                                "a sample's joint values do not fit the robot",
+                            ),
+                        })
+                    })
                     .collect::<Result<_, _>>()?;
                 adwi_compile::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &residuals)
             } else {

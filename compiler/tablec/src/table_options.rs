@@ -78,14 +78,8 @@ pub struct TableOptions {
 }
 
 fn parse_served_field(text: &str) -> Result<ServedField, String> {
-    [
-        ServedField::Method,
-        ServedField::Kriging,
-        ServedField::KrigingToolAxis,
-    ]
-    .into_iter()
-    .find(|f| f.name() == text)
-    .ok_or_else(|| format!("'{text}': choose method, kriging or kriging-tool-axis"))
+    ServedField::from_name(text)
+        .ok_or_else(|| format!("'{text}': choose method, kriging or kriging-tool-axis"))
 }
 
 impl TableOptions {

@@ -155,6 +155,18 @@ pub enum ServedField {
 }
 
 impl ServedField {
+    /// Every kind, in header order.
+    pub const ALL: [ServedField; 3] = [
+        ServedField::Method,
+        ServedField::Kriging,
+        ServedField::KrigingToolAxis,
+    ];
+
+    /// The kind `tablec` and the bindings call `name` ([`ServedField::name`]).
+    pub fn from_name(name: &str) -> Option<ServedField> {
+        ServedField::ALL.into_iter().find(|f| f.name() == name)
+    }
+
     /// Vectors stored per node and component group: 1, or 4 for
     /// [`ServedField::KrigingToolAxis`] (`f, h_x, h_y, h_z`).
     pub fn node_stride(self) -> usize {
