@@ -128,6 +128,20 @@ impl PreparedModel {
         let calibrated = self.calibrated.loaded_tcp_pose(q)?;
         Some(pose_error(&nominal, &calibrated))
     }
+
+    /// [`PreparedModel::error`] and the nominal TCP's approach axis at `q`: the z column of
+    /// its rotation, a unit vector in the base frame. One forward kinematics of the
+    /// nominal chain gives both, for the served field that turns with the tool
+    /// ([`crate::format::ServedField::KrigingToolAxis`]). Returns `(position_mm,
+    /// rotation_rad, approach)`; `None` as `error`.
+    #[inline]
+    pub fn error_with_approach(&self, q: &[f64]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+        let nominal = self.nominal.tcp_pose(q)?;
+        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
+        let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
+        let r = &nominal.rotation;
+        Some((position_mm, rotation_rad, [r[0][2], r[1][2], r[2][2]]))
+    }
 }
 
 /// The prepared model of a validated version-1 archive, if it carries one.

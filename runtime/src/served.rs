@@ -19,6 +19,12 @@
 //! not). A node the method cannot answer holds [`crate::format::v2::NO_NODE_VALUE`] in every component;
 //! the NaN spreads through the blend (even at weight 0), which is how the query notices.
 //!
+//! A tool-axis field ([`crate::format::ServedField::KrigingToolAxis`]) holds four vectors
+//! a node, `f, h_x, h_y, h_z`, and answers `f + a_x h_x + a_y h_y + a_z h_z` blended, with
+//! `a` the approach axis of the nominal TCP at the query's joint values. The combination
+//! is linear, so each corner's combination is blended with the same weights: the field is
+//! continuous in position for a fixed `a`, and a missing node is missed whatever `a` is.
+//!
 //! One node set serves targets of unknown configuration, one each configuration the
 //! samples carry ([`crate::format::v2::NodeSet`]). A table with a joint-space screen has no served tier:
 //! its admissible samples change with the target's joint values, which no node grid over
@@ -26,7 +32,7 @@
 
 use crate::correction::{Correction, Status};
 use crate::format::v2::ArchivedTableData;
-use crate::format::Grid;
+use crate::format::Header;
 
 /// What a served query needs of the grid, prepared once at open: the node strides and the
 /// first node of the set serving targets of unknown configuration.
@@ -42,11 +48,14 @@ pub(crate) struct ServedGrid {
     /// Whether the samples carry configurations (targets' configurations then choose the
     /// set).
     with_configs: bool,
+    /// Vectors per node ([`crate::format::ServedField::node_stride`]).
+    stride: usize,
 }
 
 impl ServedGrid {
     /// The prepared grid of a validated table with a served tier.
-    pub(crate) fn new(grid: &Grid, data: &ArchivedTableData) -> ServedGrid {
+    pub(crate) fn new(header: &Header, data: &ArchivedTableData) -> ServedGrid {
+        let grid = &header.grid;
         let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
         let nxy = nx * ny;
         ServedGrid {
@@ -59,13 +68,14 @@ impl ServedGrid {
                 .first()
                 .map_or(0, |s| s.first_node.to_native() as usize),
             with_configs: !data.configs.is_empty(),
+            stride: header.served_field.node_stride(),
         }
     }
 
     /// The node index of the target's cell's minimum corner (x fastest over `dims + 1`
     /// nodes per axis) and the target's fractional position in the cell, each in
     /// `[0, 1]`; `None` outside the grid or for a non-finite position. Cells are half-open
-    /// except at the grid's maximum faces, as [`Grid::cell_of`] has them.
+    /// except at the grid's maximum faces, as [`crate::format::Grid::cell_of`] has them.
     #[inline]
     fn locate(&self, position_mm: [f64; 3]) -> Option<(usize, [f64; 3])> {
         let mut cell = [0usize; 3];
@@ -89,7 +99,9 @@ impl ServedGrid {
 
 /// The served correction at `position_mm` for a target of configuration `config`: the
 /// interpolated errors (position, and orientation when `orientation`), or why there are
-/// none. Never allocates or panics.
+/// none. `axis` is the nominal TCP's approach axis for a tool-axis field, `None` for a
+/// field of one vector a node; the other way round is [`Status::InvalidInput`]. Never
+/// allocates or panics.
 #[inline]
 pub(crate) fn serve(
     grid: &ServedGrid,
@@ -97,7 +109,30 @@ pub(crate) fn serve(
     position_mm: [f64; 3],
     config: Option<u8>,
     orientation: bool,
+    axis: Option<[f64; 3]>,
 ) -> Correction {
+    match axis {
+        None => serve_terms(grid, data, position_mm, config, orientation, [1.0]),
+        Some([x, y, z]) => {
+            serve_terms(grid, data, position_mm, config, orientation, [1.0, x, y, z])
+        }
+    }
+}
+
+/// [`serve`] for a field of `S` vectors a node, combined with `coefficients` (1 for `f`,
+/// then the axis).
+#[inline]
+fn serve_terms<const S: usize>(
+    grid: &ServedGrid,
+    data: &ArchivedTableData,
+    position_mm: [f64; 3],
+    config: Option<u8>,
+    orientation: bool,
+    coefficients: [f64; S],
+) -> Correction {
+    if grid.stride != S {
+        return Correction::failed(Status::InvalidInput);
+    }
     let Some((base, fraction)) = grid.locate(position_mm) else {
         return Correction::failed(Status::OutsideGrid);
     };
@@ -113,12 +148,13 @@ pub(crate) fn serve(
     let first = first_set + base;
     let weights = trilinear_weights(fraction);
     let nodes = data.node_errors_mm.as_slice();
-    let Some(position_error_mm) = blend(nodes, first, &grid.corners, &weights) else {
+    let Some(position_error_mm) = blend(nodes, first, &grid.corners, &weights, &coefficients)
+    else {
         return Correction::failed(Status::UncoveredCell);
     };
     let orientation_error_rad = if orientation {
         let nodes = data.node_orientation_errors_rad.as_slice();
-        match blend(nodes, first, &grid.corners, &weights) {
+        match blend(nodes, first, &grid.corners, &weights, &coefficients) {
             Some(r) => r,
             None => return Correction::failed(Status::UncoveredCell),
         }
@@ -150,46 +186,87 @@ fn trilinear_weights([u, v, w]: [f64; 3]) -> [f64; 8] {
     ]
 }
 
-/// `Σ weight · node` over the corners, or `None` when a corner is out of range (excluded
-/// by validation; checked so that nothing can panic) or holds no value.
+/// `Σ weight · Σ_t coefficient_t · term_t` over the corners, each node being `S`
+/// consecutive vectors from node `first` (counted in nodes), or `None` when a corner is
+/// out of range (excluded by validation; checked so that nothing can panic) or holds no
+/// value. With `S = 1` and coefficient 1 the sum is `Σ weight · node`, to the bit.
 #[inline]
-fn blend(
+fn blend<const S: usize>(
     nodes: &[rkyv::Archived<[f64; 3]>],
     first: usize,
     corners: &[usize; 8],
     weights: &[f64; 8],
+    coefficients: &[f64; S],
 ) -> Option<[f64; 3]> {
     // One range check for the whole block of the cell's nodes, then offsets within it.
-    let block = nodes.get(first..first.checked_add(corners[7])? + 1)?;
+    let start = first.checked_mul(S)?;
+    let end = first
+        .checked_add(corners[7])?
+        .checked_add(1)?
+        .checked_mul(S)?;
+    let block = nodes.get(start..end)?;
     let mut sum = [0.0; 3];
     for (&corner, &weight) in corners.iter().zip(weights) {
-        let node = block.get(corner)?;
-        for (s, v) in sum.iter_mut().zip(node.iter()) {
-            *s += weight * v.to_native();
+        // Within the block's length, which did not overflow.
+        let at = corner * S;
+        let (f, h) = block.get(at..at + S)?.split_first()?;
+        // `f` times its coefficient rather than added to zero, so that a field of one
+        // vector a node blends exactly as it always has (signed zeros included).
+        let mut value = f.map(|v| coefficients[0] * v.to_native());
+        for (term, &c) in h.iter().zip(coefficients.iter().skip(1)) {
+            for (x, v) in value.iter_mut().zip(term.iter()) {
+                *x += c * v.to_native();
+            }
+        }
+        for (s, x) in sum.iter_mut().zip(value) {
+            *s += weight * x;
         }
     }
-    // A missing node is NaN in every component, and NaN survives a zero weight.
+    // A missing node is NaN in every component of every term, and NaN survives a zero
+    // weight or coefficient.
     sum.iter().all(|v| !v.is_nan()).then_some(sum)
 }
 
 /// The node values of one set, for inspection: node `(i, j, k)` of set `set`, or `None`
-/// out of range.
+/// out of range. For a tool-axis field, its `f` term ([`node_terms`] has them all).
 pub fn node(
-    grid: &Grid,
+    header: &Header,
+    data: &ArchivedTableData,
+    set: usize,
+    ijk: [usize; 3],
+) -> Option<([f64; 3], Option<[f64; 3]>)> {
+    node_terms(header, data, set, ijk).map(|(p, r)| (p[0], r.map(|r| r[0])))
+}
+
+/// A node's terms `f, h_x, h_y, h_z` ([`node_terms`]).
+pub type NodeTerms = [[f64; 3]; 4];
+
+/// Every term of node `(i, j, k)` of set `set`, `f, h_x, h_y, h_z` (position, and
+/// orientation when the table has it), or `None` out of range. A field of one vector a
+/// node does not turn with the tool: its `h` terms are zero.
+pub fn node_terms(
+    header: &Header,
     data: &ArchivedTableData,
     set: usize,
     [i, j, k]: [usize; 3],
-) -> Option<([f64; 3], Option<[f64; 3]>)> {
-    let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
+) -> Option<(NodeTerms, Option<NodeTerms>)> {
+    let [nx, ny, nz] = header.grid.dims.map(|d| d as usize + 1);
     if i >= nx || j >= ny || k >= nz {
         return None;
     }
+    let stride = header.served_field.node_stride();
     let index = data.node_sets.get(set)?.first_node.to_native() as usize + i + nx * (j + ny * k);
-    let p = data.node_errors_mm.get(index)?.map(|v| v.to_native());
-    let r = data
-        .node_orientation_errors_rad
-        .get(index)
-        .map(|r| r.map(|v| v.to_native()));
+    let start = index.checked_mul(stride)?;
+    let terms = |values: &[rkyv::Archived<[f64; 3]>]| {
+        let stored = values.get(start..start.checked_add(stride)?)?;
+        let mut out: NodeTerms = [[0.0; 3]; 4];
+        for (o, v) in out.iter_mut().zip(stored) {
+            *o = v.map(|x| x.to_native());
+        }
+        Some(out)
+    };
+    let p = terms(data.node_errors_mm.as_slice())?;
+    let r = terms(data.node_orientation_errors_rad.as_slice());
     Some((p, r))
 }
 
@@ -225,6 +302,7 @@ mod tests {
             corners: [0, 1, 3, 4, 12, 13, 15, 16],
             first_any: 0,
             with_configs: false,
+            stride: 1,
         };
         let (base, f) = grid.locate([20.0, 30.0, 40.0]).unwrap();
         assert_eq!(f, [1.0; 3]);

@@ -218,8 +218,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             let archived = rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
                 .map_err(archive_error)?;
             let model = crate::validate::validate_v2(&header, archived)?;
-            let served =
-                (header.node_set_count > 0).then(|| ServedGrid::new(&header.grid, archived));
+            let served = (header.node_set_count > 0).then(|| ServedGrid::new(&header, archived));
             (model, served)
         };
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
@@ -348,7 +347,9 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// panics.
     ///
     /// - On a hybrid table: the calibrated model's predicted error at `joints_rad` plus
-    ///   the residual field at the target (see [`crate::model`]).
+    ///   the residual field at the target (see [`crate::model`]); a field that turns with
+    ///   the tool ([`crate::format::ServedField::KrigingToolAxis`]) is turned by the
+    ///   nominal TCP's approach axis at `joints_rad`.
     /// - On any table with a joint radius ([`Table::joint_radius_rad`]): only samples
     ///   whose joint values are all within that radius of `joints_rad` are admissible
     ///   (such a table has no served tier: this is its exact tier).
@@ -438,16 +439,36 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
+        // A field that turns with the tool needs the nominal approach axis, which comes
+        // from the same forward kinematics as the model part: computed once, here.
+        let mut model_part = None;
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
             Payload::V2(d) => match (&self.served, tier) {
-                (Some(grid), Tier::Served) => crate::served::serve(
-                    grid,
-                    d,
-                    target.position_mm,
-                    target.config,
-                    self.has_orientation(),
-                ),
+                (Some(grid), Tier::Served) => {
+                    let axis = if h.served_field.node_stride() > 1 {
+                        // Validation admits such a field in hybrid tables only, and those
+                        // were given joint values above.
+                        let Some((p, r, axis)) = (self.model.as_ref())
+                            .zip(joints_rad)
+                            .and_then(|(model, q)| model.error_with_approach(q))
+                        else {
+                            return Correction::failed(Status::InvalidInput);
+                        };
+                        model_part = Some((p, r));
+                        Some(axis)
+                    } else {
+                        None
+                    };
+                    crate::served::serve(
+                        grid,
+                        d,
+                        target.position_mm,
+                        target.config,
+                        self.has_orientation(),
+                        axis,
+                    )
+                }
                 _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
             },
         };
@@ -455,7 +476,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             return correction;
         }
         if let (Some(model), Some(q)) = (&self.model, joints_rad) {
-            let Some((position_mm, rotation_rad)) = model.error(q) else {
+            let Some((position_mm, rotation_rad)) = model_part.or_else(|| model.error(q)) else {
                 return Correction::failed(Status::InvalidInput);
             };
             for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {

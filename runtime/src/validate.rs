@@ -469,7 +469,9 @@ fn validate_cell_reach(header: &Header, a: &v2::ArchivedTableData) -> Result<(),
 
 /// The served tier's node sets: as many as the header says, none with a joint screen; the
 /// first for targets of unknown configuration, the others for distinct configurations the
-/// samples carry; each set's nodes in bounds; every node value finite or the missing mark.
+/// samples carry; each set's nodes in bounds; every node value finite or the missing mark,
+/// a node's vectors ([`format::ServedField::node_stride`] of them) all one or all the
+/// other.
 fn validate_nodes(
     header: &Header,
     a: &v2::ArchivedTableData,
@@ -490,14 +492,25 @@ fn validate_nodes(
     if header.joint_radius_rad > 0.0 {
         return Err(corrupt("a served tier in a table with a joint screen"));
     }
+    // Also refused with the header; checked here too, as the query relies on it.
+    let stride = header.served_field.node_stride();
+    if stride > 1 && header.content_flags & CONTENT_MODEL == 0 {
+        return Err(corrupt(
+            "a tool-axis served field without a kinematic model",
+        ));
+    }
     let [nx, ny, nz] = header.grid.dims.map(|d| d as usize + 1);
     let per_set = nx * ny * nz;
     let values = a.node_errors_mm.len();
-    if values % per_set != 0
+    let set_values = per_set
+        .checked_mul(stride)
+        .ok_or(corrupt("node values do not fill whole node sets"))?;
+    if values % set_values != 0
         || a.node_orientation_errors_rad.len() != if with_orientation { values } else { 0 }
     {
         return Err(corrupt("node values do not fill whole node sets"));
     }
+    let nodes = values / stride;
     if sets[0].config != method::CONFIG_UNKNOWN {
         return Err(corrupt(
             "the first node set is not for targets of any configuration",
@@ -505,7 +518,7 @@ fn validate_nodes(
     }
     for (i, set) in sets.iter().enumerate() {
         let first = set.first_node.to_native() as usize;
-        if first % per_set != 0 || first + per_set > values {
+        if first % per_set != 0 || first + per_set > nodes {
             return Err(corrupt("a node set is out of bounds"));
         }
         let repeated = sets[..i].iter().any(|other| other.config == set.config);
@@ -516,14 +529,26 @@ fn validate_nodes(
             return Err(corrupt("a node set serves a configuration no sample has"));
         }
     }
-    let marked_or_finite = |v: &rkyv::Archived<[f64; 3]>| {
-        let v = v.map(|x| x.to_native());
-        v.iter().all(|x| x.is_finite()) || crate::served::is_missing(&v)
+    // A node is answered or not as a whole: a query reads all of its vectors.
+    let whole_nodes = |values: &[rkyv::Archived<[f64; 3]>]| {
+        for node in values.chunks_exact(stride) {
+            let mut missing = 0;
+            for v in node {
+                let v = v.map(|x| x.to_native());
+                if crate::served::is_missing(&v) {
+                    missing += 1;
+                } else if !v.iter().all(|x| x.is_finite()) {
+                    return Err(corrupt("a node value is neither finite nor marked missing"));
+                }
+            }
+            if missing != 0 && missing != node.len() {
+                return Err(corrupt(
+                    "a node's vectors are marked missing in part, not all or none",
+                ));
+            }
+        }
+        Ok(())
     };
-    if !a.node_errors_mm.iter().all(marked_or_finite)
-        || !a.node_orientation_errors_rad.iter().all(marked_or_finite)
-    {
-        return Err(corrupt("a node value is neither finite nor marked missing"));
-    }
-    Ok(())
+    whole_nodes(a.node_errors_mm.as_slice())?;
+    whole_nodes(a.node_orientation_errors_rad.as_slice())
 }

@@ -205,7 +205,7 @@ fn corner_values<D: AsRef<[u8]>>(
         (1, 1, 0),
         (1, 1, 1),
     ] {
-        let value = adwi_runtime::served::node(grid, data, 0, [i + di, j + dj, k + dk])
+        let value = adwi_runtime::served::node(table.header(), data, 0, [i + di, j + dj, k + dk])
             .map(|(p, _)| p)
             .filter(|p| !adwi_runtime::served::is_missing(p));
         out.push(value);

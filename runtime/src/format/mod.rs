@@ -437,6 +437,12 @@ impl Header {
                 what: "a kriging served field without node sets",
             });
         }
+        // Its approach axis comes from the nominal chain.
+        if served_field == ServedField::KrigingToolAxis && u32_at(20) & CONTENT_MODEL == 0 {
+            return Err(OpenError::Corrupt {
+                what: "a tool-axis served field without a kinematic model",
+            });
+        }
         let tuning = if version >= 2 && u32_at(168) > 0 {
             let cv_mean_mm = f64_at(176);
             // Written so that NaN fails the test.

@@ -51,7 +51,8 @@ pub type CellRecord = [u16; 32];
 pub type WideCellRecord = [u32; 16];
 
 /// Node errors the method could not give (no admissible sample at the node): every
-/// component is this NaN. A cell with such a node is not served.
+/// component of every vector of the node is this NaN. A cell with such a node is not
+/// served.
 pub const NO_NODE_VALUE: f64 = f64::NAN;
 
 /// What an exact query reads of a sample to select and weigh it.
@@ -71,7 +72,8 @@ pub struct NodeSet {
     /// The target configuration served, or [`crate::method::CONFIG_UNKNOWN`] for targets
     /// of unknown configuration (every sample admissible). The first set is always that.
     pub config: u8,
-    /// Its first node in `node_errors_mm`: sets whose values are identical share nodes.
+    /// Its first node in `node_errors_mm`, counted in nodes (its first vector is
+    /// `first_node · stride`): sets whose values are identical share nodes.
     pub first_node: u32,
 }
 
@@ -156,9 +158,18 @@ pub struct TableData {
     /// The served tier's node sets; empty for a table without one (a joint screen).
     pub node_sets: Vec<NodeSet>,
     /// Node errors, mm: set after set, each `(nx + 1)(ny + 1)(nz + 1)` nodes, x fastest.
+    ///
+    /// Each node holds [`ServedField::node_stride`](super::ServedField::node_stride)
+    /// consecutive vectors: one, the error, or for
+    /// [`ServedField::KrigingToolAxis`](super::ServedField::KrigingToolAxis) four, `f,
+    /// h_x, h_y, h_z`, the error being `f + a_x h_x + a_y h_y + a_z h_z` for the nominal
+    /// TCP's approach axis `a`. Node `n` of a set (counted in nodes, as
+    /// [`NodeSet::first_node`] is) is then vectors `(first_node + n) · stride + t`,
+    /// `t < stride`: a node's terms are adjacent, so a cell's corners stay one block. A
+    /// node without a value holds [`NO_NODE_VALUE`] in all of its vectors.
     pub node_errors_mm: Vec<[f64; 3]>,
-    /// Node orientation errors, rad, laid out as `node_errors_mm`; empty without
-    /// orientation.
+    /// Node orientation errors, rad, laid out as `node_errors_mm` (the same stride and
+    /// terms); empty without orientation.
     pub node_orientation_errors_rad: Vec<[f64; 3]>,
     /// A hybrid table's model.
     pub model: Option<ModelRecord>,
