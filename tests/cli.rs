@@ -1203,3 +1203,98 @@ fn a_kriging_served_field_is_built_recorded_and_served() {
         stderr(&o)
     );
 }
+
+/// `--served-field kriging-tool-axis` on a hybrid build: recorded and shown by inspect,
+/// served with the query's joint values, the same bytes whatever the thread count; a table
+/// without a model refuses it and writes nothing.
+#[test]
+fn a_tool_axis_served_field_is_built_recorded_and_served() {
+    let dir = tempfile::tempdir().unwrap();
+    let (grid, _) = ur5_files();
+    // Every fourth sample keeps the kriging's grid search quick.
+    let text = std::fs::read_to_string(grid).unwrap();
+    let mut lines = text.lines();
+    let mut subset = format!("{}\n", lines.next().unwrap());
+    for line in lines.step_by(4) {
+        subset.push_str(line);
+        subset.push('\n');
+    }
+    std::fs::write(dir.path().join("s.csv"), subset).unwrap();
+    let robot = repo("tables/ur5/robot.toml");
+    let columns = UR5_MAP;
+    for threads in ["1", "3"] {
+        let table = format!("a{threads}.tbl");
+        let o = tablec(
+            &[
+                "build",
+                "-q",
+                "s.csv",
+                "--columns",
+                columns,
+                "--robot",
+                robot.to_str().unwrap(),
+                "--hybrid",
+                "--cell",
+                "60",
+                "--served-field",
+                "kriging-tool-axis",
+                "--threads",
+                threads,
+                "-o",
+                &table,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert_eq!(
+        std::fs::read(dir.path().join("a1.tbl")).unwrap(),
+        std::fs::read(dir.path().join("a3.tbl")).unwrap()
+    );
+    let o = tablec(&["inspect", "a1.tbl"], dir.path());
+    let inspect = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        inspect.contains("turning with the tool's approach axis"),
+        "{inspect}"
+    );
+    // The first sample's pose, served, and the same position with the wrist turned: the
+    // model part and the turning field both follow the joints.
+    let query = |joints: &str| -> String {
+        let o = tablec(
+            &[
+                "query", "a1.tbl", "-430.328", "-6.274", "-98.637", "--joints", joints,
+            ],
+            dir.path(),
+        );
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(out.contains("status       ok"), "{out}");
+        out.lines()
+            .find(|l| l.starts_with("error"))
+            .unwrap()
+            .to_string()
+    };
+    assert_ne!(
+        query("-22.933,-43.719,135.398,-94.740,55.417,-5.552"),
+        query("-22.933,-43.719,135.398,-80.740,65.417,-5.552")
+    );
+    let o = tablec(
+        &[
+            "build",
+            "s.csv",
+            "--columns",
+            columns,
+            "-o",
+            "p.tbl",
+            "--served-field",
+            "kriging-tool-axis",
+        ],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("needs a hybrid table"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("p.tbl").exists());
+}

@@ -474,3 +474,91 @@ proptest! {
         }
     }
 }
+
+/// A hybrid table whose served field turns with the tool (`kriging-tool-axis`) answers, at
+/// its nodes, the model plus the direct turning kriging of the residuals with the nominal
+/// tool's approach axis at the query's joint values (`nugget_kriging::ResidualGp`), to
+/// 1e-9: the compiler's tabulation and the runtime's combination of the four node vectors
+/// with the axis hold the prediction, whatever the posture. On the UR5's measurements,
+/// whose tool orientation varies from pose to pose.
+#[test]
+fn a_tool_axis_served_field_answers_the_turning_kriging_at_its_nodes() {
+    use adwi_compile::nugget_kriging::ResidualGp;
+    use adwi_compile::samples::{read_samples, ColumnMap};
+    use adwi_runtime::format::ServedField;
+    let columns = ColumnMap::parse(
+        "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,j3=joint_3,\
+         j4=joint_4,j5=joint_5,j6=joint_6",
+    )
+    .unwrap();
+    let all = read_samples(
+        &common::repo("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv"),
+        &columns,
+    )
+    .unwrap();
+    // Every fourth sample keeps the kriging's grid search quick.
+    let picked: Vec<usize> = (0..all.len()).step_by(4).collect();
+    let samples = all.subset(&picked);
+    let robot = adwi_robot::Robot::load(common::repo("tables/ur5/robot.toml")).unwrap();
+    let calibration =
+        adwi_robot::calibrate::identify(&robot, &samples, &Default::default()).unwrap();
+    let model = calibration.prepared_model();
+    let options = BuildOptions {
+        cell_mm: Some(60.0),
+        served_field: ServedField::KrigingToolAxis,
+        ..BuildOptions::default()
+    };
+    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
+    let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
+    let table = Table::from_vec(built.bytes).unwrap();
+    assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
+    // The residuals and axes, computed here apart from the compiler.
+    let joints = samples.joints.clone().unwrap();
+    let axis = |q: &[f64]| {
+        let r = model.nominal().tcp_pose(q).unwrap().rotation;
+        [r[0][2], r[1][2], r[2][2]]
+    };
+    let mut inputs = Vec::new();
+    let mut values = Vec::new();
+    let mut axes = Vec::new();
+    for (i, q) in joints.rows().enumerate() {
+        let (p, _) = model.error(q).unwrap();
+        let residual = [0, 1, 2].map(|a| samples.error_mm[i][a] - p[a]);
+        inputs.push(
+            (0..3)
+                .map(|a| samples.nominal_mm[i][a] + residual[a])
+                .collect(),
+        );
+        values.push(residual.to_vec());
+        axes.push(axis(q));
+    }
+    let gp = ResidualGp::fit_turning(&inputs, &axes, &values).unwrap();
+    // The UR5's residuals do turn with the tool: the likelihood gives the part a weight.
+    assert!(
+        gp.choices().iter().any(|c| c.modulation > 0.0),
+        "{:?}",
+        gp.choices()
+    );
+    let grid = *table.grid();
+    let mut checked = 0;
+    for (n, q) in joints.rows().enumerate() {
+        let node = [7 * n, 3 * n, n];
+        let node = [0, 1, 2].map(|a| node[a] % (grid.dims[a] as usize + 1));
+        let at = [0, 1, 2].map(|a| grid.origin_mm[a] + node[a] as f64 * grid.cell_mm);
+        let got = table.query_with_joints(&Target::at(at), q);
+        if got.status != Status::Ok {
+            continue;
+        }
+        let (p, _) = model.error(q).unwrap();
+        let want = gp.predict_at(&at, axis(q)).unwrap();
+        for a in 0..3 {
+            assert!(
+                (got.position_error_mm[a] - p[a] - want[a]).abs() < 1e-9,
+                "at {at:?}: {:?} vs {want:?}",
+                got.position_error_mm
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 20, "only {checked} nodes served");
+}

@@ -55,6 +55,11 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     assert adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl").served_field == "method"
     with pytest.raises(adwi.AdwiError, match="choose method, kriging or kriging-tool-axis"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
+    # The field that turns with the tool takes its axis from a hybrid table's model.
+    with pytest.raises(adwi.AdwiError, match="needs a hybrid table"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "axis.tbl",
+                   served_field="kriging-tool-axis")
+    assert not (tmp_path / "axis.tbl").exists()
 
 
 def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):
