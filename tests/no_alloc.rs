@@ -224,3 +224,49 @@ fn hybrid_queries_allocate_nothing() {
     assert!(ok > queries.len() / 2, "only {ok} answered");
     assert!(checksum.is_finite());
 }
+
+/// The served field that turns with the tool (four vectors a node, the nominal approach
+/// axis from the model part's forward kinematics) allocates nothing either.
+#[test]
+fn tool_axis_served_queries_allocate_nothing() {
+    use adwi_compile::build::{BuildOptions, ServedField};
+
+    let (_, all, calibration) = common::kr150_calibration();
+    let picked: Vec<usize> = (0..all.len()).step_by(3).collect();
+    let samples = all.subset(&picked);
+    let options = BuildOptions {
+        cell_mm: Some(100.0),
+        served_field: ServedField::KrigingToolAxis,
+        ..BuildOptions::default()
+    };
+    let model = calibration.prepared_model();
+    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
+    let bytes = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {})
+        .unwrap()
+        .bytes;
+    let table = Table::from_vec(&bytes).unwrap();
+    assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
+    let joints = samples.joints.as_ref().unwrap();
+    let queries: Vec<([f64; 3], [f64; 6])> = (0..20_000)
+        .map(|i| {
+            let s = i % samples.len();
+            let wiggle = (i as f64 * 0.37).sin();
+            let q: [f64; 6] =
+                std::array::from_fn(|a| joints.row(s)[a] + (10.0 * wiggle).to_radians());
+            let p = samples.nominal_mm[s].map(|v| v + 40.0 * wiggle);
+            (p, q)
+        })
+        .collect();
+    let mut ok = 0usize;
+    let mut checksum = 0.0;
+    let count = allocations_in(|| {
+        for (p, q) in &queries {
+            let a = table.query_with_joints(&Target::at(*p), q);
+            ok += usize::from(a.status == Status::Ok);
+            checksum += a.position_error_mm[2] + a.orientation_error_rad[0];
+        }
+    });
+    assert_eq!(count, 0, "tool-axis queries allocated {count} times");
+    assert!(ok > queries.len() / 2, "only {ok} answered");
+    assert!(checksum.is_finite());
+}

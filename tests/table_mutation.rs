@@ -892,3 +892,68 @@ fn hostile_version_2_chains_with_valid_checksums_are_refused() {
         assert!(refused, "{name}: {err:?}");
     }
 }
+
+/// A version-2 hybrid served table re-encoded as a tool-axis field (header byte 172 = 2)
+/// with node arrays that break its layout — one vector a node, a node's vectors missing
+/// in part — is refused at open with the reason; the same arrays laid out right open.
+#[test]
+fn tool_axis_node_layouts_with_valid_checksums_are_checked() {
+    use adwi_runtime::format::ServedField;
+    let base = seed("ur5_hybrid_served.tbl");
+    let table = Table::from_vec(&base).unwrap();
+    let mut header = *table.header();
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("a version-2 seed");
+    };
+    let data: adwi_runtime::format::v2::TableData =
+        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    header.served_field = ServedField::KrigingToolAxis;
+    let refused = |data: &adwi_runtime::format::v2::TableData| -> String {
+        let bytes = adwi_runtime::format::encode(header, data).unwrap();
+        match Table::from_vec(&bytes) {
+            Err(OpenError::Corrupt { what }) => what.to_string(),
+            other => panic!("opened or refused otherwise: {:?}", other.err()),
+        }
+    };
+    // The stride-1 nodes relabelled: a quarter of the vectors a tool-axis field needs.
+    let why = refused(&data);
+    assert!(
+        why.contains("node values do not fill whole node sets"),
+        "{why}"
+    );
+    // Four vectors a node: f, then h = 0.
+    let mut laid_out = data.clone();
+    laid_out.node_errors_mm = data
+        .node_errors_mm
+        .iter()
+        .flat_map(|&f| {
+            let h = if f.iter().all(|v| v.is_nan()) {
+                f
+            } else {
+                [0.0; 3]
+            };
+            [f, h, h, h]
+        })
+        .collect();
+    let bytes = adwi_runtime::format::encode(header, &laid_out).unwrap();
+    let opened = Table::from_vec(&bytes).unwrap();
+    assert_eq!(opened.header().served_field, ServedField::KrigingToolAxis);
+    let missing = laid_out
+        .node_errors_mm
+        .iter()
+        .position(|v| v.iter().all(|x| x.is_nan()))
+        .expect("the seed has uncovered nodes");
+    let mut partial = laid_out.clone();
+    partial.node_errors_mm[missing - missing % 4 + 1] = [0.0; 3];
+    let why = refused(&partial);
+    assert!(why.contains("marked missing in part"), "{why}");
+    let mut infinite = laid_out;
+    let present = infinite
+        .node_errors_mm
+        .iter()
+        .position(|v| v.iter().all(|x| x.is_finite()))
+        .unwrap();
+    infinite.node_errors_mm[present - present % 4 + 2] = [f64::INFINITY, 0.0, 0.0];
+    let why = refused(&infinite);
+    assert!(why.contains("neither finite nor marked missing"), "{why}");
+}
