@@ -301,7 +301,8 @@ def evaluate(
     keeps the first N) or ``folds`` (k-fold cross-validation of ``samples``, split by
     ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
     ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``,
-    ``kinematic-kriging``, ``kinematic-kriging-joint``, ``kinematic-kriging-pose``
+    ``kinematic-kriging``, ``kinematic-kriging-joint``, ``kinematic-kriging-pose``,
+    ``kinematic-kriging-tool-axis``
     (default: every one the data allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
     ``compliance=True`` identifies gravity compliance with their kinematic model, as
     ``tablec eval --compliance`` (the robot file must give link masses). Reading and

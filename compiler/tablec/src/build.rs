@@ -52,9 +52,9 @@ pub struct Args {
     /// Choose k and ε by k-fold cross-validation on these samples alone (k in 4, 8, 12; ε
     /// of 1.5, 2 or 3 sample spacings), scoring the method the table serves (the hybrid
     /// with --hybrid); then, with those, what the served field holds (--served-field
-    /// method or kriging), scoring the served tier. The choices and the cross-validated
-    /// mean are recorded in the table (`tablec inspect`). The other options apply to
-    /// every candidate.
+    /// method, kriging, or with --hybrid kriging-tool-axis), scoring the served tier. The
+    /// choices and the cross-validated mean are recorded in the table (`tablec inspect`).
+    /// The other options apply to every candidate.
     #[arg(long, conflicts_with_all = ["k", "radius"])]
     tune: bool,
     /// Folds of --tune's cross-validation.
@@ -289,7 +289,7 @@ fn print_tuning(report: &adwi_eval::tune::TuneReport) {
                 .cv_mean_mm
                 .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
             println!(
-                "  {} served field {:<7} (k {}, ε {:.3} mm): {mean}, {} missed",
+                "  {} served field {:<17} (k {}, ε {:.3} mm): {mean}, {} missed",
                 if c.field == report.options.served_field {
                     "*"
                 } else {
