@@ -97,76 +97,86 @@ impl ServedGrid {
     }
 }
 
-/// The served correction at `position_mm` for a target of configuration `config`: the
-/// interpolated errors (position, and orientation when `orientation`), or why there are
-/// none. `axis` is the nominal TCP's approach axis for a tool-axis field, `None` for a
-/// field of one vector a node; the other way round is [`Status::InvalidInput`]. Never
-/// allocates or panics.
-#[inline]
-pub(crate) fn serve(
-    grid: &ServedGrid,
-    data: &ArchivedTableData,
-    position_mm: [f64; 3],
-    config: Option<u8>,
-    orientation: bool,
-    axis: Option<[f64; 3]>,
-) -> Correction {
-    match axis {
-        None => serve_terms(grid, data, position_mm, config, orientation, [1.0]),
-        Some([x, y, z]) => {
-            serve_terms(grid, data, position_mm, config, orientation, [1.0, x, y, z])
+/// The blended node vectors at a target: position, and orientation (zero without), one
+/// vector per term (`f`, then `h_x, h_y, h_z` for a tool-axis field).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ServedTerms<const S: usize> {
+    pub(crate) position_mm: [[f64; 3]; S],
+    pub(crate) orientation_rad: [[f64; 3]; S],
+}
+
+impl ServedTerms<1> {
+    /// The field of one vector a node, as a correction.
+    #[inline]
+    pub(crate) fn correction(&self) -> Correction {
+        Correction {
+            position_error_mm: self.position_mm[0],
+            orientation_error_rad: self.orientation_rad[0],
+            neighbours: 8,
+            status: Status::Ok,
         }
     }
 }
 
-/// [`serve`] for a field of `S` vectors a node, combined with `coefficients` (1 for `f`,
-/// then the axis).
+impl ServedTerms<4> {
+    /// The tool-axis field turned by the nominal TCP's approach axis `a`:
+    /// `f + a_x h_x + a_y h_y + a_z h_z`, position and orientation.
+    #[inline]
+    pub(crate) fn turned(&self, a: [f64; 3]) -> Correction {
+        let turn = |t: &[[f64; 3]; 4]| {
+            [0, 1, 2].map(|c| t[0][c] + a[0] * t[1][c] + a[1] * t[2][c] + a[2] * t[3][c])
+        };
+        Correction {
+            position_error_mm: turn(&self.position_mm),
+            orientation_error_rad: turn(&self.orientation_rad),
+            neighbours: 8,
+            status: Status::Ok,
+        }
+    }
+}
+
+/// The served field's node vectors at `position_mm` for a target of configuration
+/// `config`, blended trilinearly term by term (position, and orientation when
+/// `orientation`), or why there are none. `S` is the table's stride (1, or 4 for a
+/// tool-axis field, whose terms the caller turns with the axis once it knows the field
+/// answers: the axis costs a forward kinematics a miss need not pay); another `S` is
+/// [`Status::InvalidInput`]. Never allocates or panics.
 #[inline]
-fn serve_terms<const S: usize>(
+pub(crate) fn serve<const S: usize>(
     grid: &ServedGrid,
     data: &ArchivedTableData,
     position_mm: [f64; 3],
     config: Option<u8>,
     orientation: bool,
-    coefficients: [f64; S],
-) -> Correction {
+) -> Result<ServedTerms<S>, Status> {
     if grid.stride != S {
-        return Correction::failed(Status::InvalidInput);
+        return Err(Status::InvalidInput);
     }
-    let Some((base, fraction)) = grid.locate(position_mm) else {
-        return Correction::failed(Status::OutsideGrid);
-    };
+    let (base, fraction) = grid.locate(position_mm).ok_or(Status::OutsideGrid)?;
     // Samples without configurations serve targets of any configuration; with them, a
     // configuration no sample has is served by none.
     let first_set = match config {
         Some(c) if grid.with_configs => match data.node_sets.iter().find(|s| s.config == c) {
             Some(set) => set.first_node.to_native() as usize,
-            None => return Correction::failed(Status::NoAdmissibleNeighbour),
+            None => return Err(Status::NoAdmissibleNeighbour),
         },
         _ => grid.first_any,
     };
     let first = first_set + base;
     let weights = trilinear_weights(fraction);
     let nodes = data.node_errors_mm.as_slice();
-    let Some(position_error_mm) = blend(nodes, first, &grid.corners, &weights, &coefficients)
-    else {
-        return Correction::failed(Status::UncoveredCell);
-    };
-    let orientation_error_rad = if orientation {
+    let position_mm =
+        blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::UncoveredCell)?;
+    let orientation_rad = if orientation {
         let nodes = data.node_orientation_errors_rad.as_slice();
-        match blend(nodes, first, &grid.corners, &weights, &coefficients) {
-            Some(r) => r,
-            None => return Correction::failed(Status::UncoveredCell),
-        }
+        blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::UncoveredCell)?
     } else {
-        [0.0; 3]
+        [[0.0; 3]; S]
     };
-    Correction {
-        position_error_mm,
-        orientation_error_rad,
-        neighbours: 8,
-        status: Status::Ok,
-    }
+    Ok(ServedTerms {
+        position_mm,
+        orientation_rad,
+    })
 }
 
 /// The weights of the 8 corners, in the order `corners` lists them in [`serve`]:
@@ -186,18 +196,17 @@ fn trilinear_weights([u, v, w]: [f64; 3]) -> [f64; 8] {
     ]
 }
 
-/// `Σ weight · Σ_t coefficient_t · term_t` over the corners, each node being `S`
+/// `Σ weight · term_t` over the corners for each term `t`, each node being `S`
 /// consecutive vectors from node `first` (counted in nodes), or `None` when a corner is
 /// out of range (excluded by validation; checked so that nothing can panic) or holds no
-/// value. With `S = 1` and coefficient 1 the sum is `Σ weight · node`, to the bit.
+/// value.
 #[inline]
 fn blend<const S: usize>(
     nodes: &[rkyv::Archived<[f64; 3]>],
     first: usize,
     corners: &[usize; 8],
     weights: &[f64; 8],
-    coefficients: &[f64; S],
-) -> Option<[f64; 3]> {
+) -> Option<[[f64; 3]; S]> {
     // One range check for the whole block of the cell's nodes, then offsets within it.
     let start = first.checked_mul(S)?;
     let end = first
@@ -205,26 +214,20 @@ fn blend<const S: usize>(
         .checked_add(1)?
         .checked_mul(S)?;
     let block = nodes.get(start..end)?;
-    let mut sum = [0.0; 3];
+    let mut sum = [[0.0; 3]; S];
     for (&corner, &weight) in corners.iter().zip(weights) {
         // Within the block's length, which did not overflow.
         let at = corner * S;
-        let (f, h) = block.get(at..at + S)?.split_first()?;
-        // `f` times its coefficient rather than added to zero, so that a field of one
-        // vector a node blends exactly as it always has (signed zeros included).
-        let mut value = f.map(|v| coefficients[0] * v.to_native());
-        for (term, &c) in h.iter().zip(coefficients.iter().skip(1)) {
-            for (x, v) in value.iter_mut().zip(term.iter()) {
-                *x += c * v.to_native();
+        let node = block.get(at..at + S)?;
+        for (s, term) in sum.iter_mut().zip(node) {
+            for (x, v) in s.iter_mut().zip(term.iter()) {
+                *x += weight * v.to_native();
             }
-        }
-        for (s, x) in sum.iter_mut().zip(value) {
-            *s += weight * x;
         }
     }
     // A missing node is NaN in every component of every term, and NaN survives a zero
-    // weight or coefficient.
-    sum.iter().all(|v| !v.is_nan()).then_some(sum)
+    // weight.
+    sum.iter().flatten().all(|v| !v.is_nan()).then_some(sum)
 }
 
 /// The node values of one set, for inspection: node `(i, j, k)` of set `set`, or `None`

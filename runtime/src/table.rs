@@ -440,34 +440,37 @@ impl<D: AsRef<[u8]>> Table<D> {
         };
         let h = &self.header;
         // A field that turns with the tool needs the nominal approach axis, which comes
-        // from the same forward kinematics as the model part: computed once, here.
+        // from the same forward kinematics as the model part: computed once, and only
+        // once the field answers.
         let mut model_part = None;
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
             Payload::V2(d) => match (&self.served, tier) {
                 (Some(grid), Tier::Served) => {
-                    let axis = if h.served_field.node_stride() > 1 {
-                        // Validation admits such a field in hybrid tables only, and those
-                        // were given joint values above.
-                        let Some((p, r, axis)) = (self.model.as_ref())
-                            .zip(joints_rad)
-                            .and_then(|(model, q)| model.error_with_approach(q))
-                        else {
-                            return Correction::failed(Status::InvalidInput);
-                        };
-                        model_part = Some((p, r));
-                        Some(axis)
+                    let (p, config) = (target.position_mm, target.config);
+                    let orientation = self.has_orientation();
+                    if h.served_field.node_stride() == 1 {
+                        match crate::served::serve::<1>(grid, d, p, config, orientation) {
+                            Ok(terms) => terms.correction(),
+                            Err(status) => Correction::failed(status),
+                        }
                     } else {
-                        None
-                    };
-                    crate::served::serve(
-                        grid,
-                        d,
-                        target.position_mm,
-                        target.config,
-                        self.has_orientation(),
-                        axis,
-                    )
+                        match crate::served::serve::<4>(grid, d, p, config, orientation) {
+                            Err(status) => Correction::failed(status),
+                            // Validation admits such a field in hybrid tables only, and
+                            // those were given joint values above.
+                            Ok(terms) => match (self.model.as_ref())
+                                .zip(joints_rad)
+                                .and_then(|(model, q)| model.error_with_approach(q))
+                            {
+                                Some((position_mm, rotation_rad, axis)) => {
+                                    model_part = Some((position_mm, rotation_rad));
+                                    terms.turned(axis)
+                                }
+                                None => Correction::failed(Status::InvalidInput),
+                            },
+                        }
+                    }
                 }
                 _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
             },
