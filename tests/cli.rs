@@ -1251,6 +1251,34 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
         std::fs::read(dir.path().join("a1.tbl")).unwrap(),
         std::fs::read(dir.path().join("a3.tbl")).unwrap()
     );
+    // Without -q, build says what the kriging chose, per component.
+    let o = tablec(
+        &[
+            "build",
+            "s.csv",
+            "--columns",
+            columns,
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--cell",
+            "60",
+            "--served-field",
+            "kriging-tool-axis",
+            "-o",
+            "b.tbl",
+        ],
+        dir.path(),
+    );
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("served field   kriging-tool-axis; by likelihood"))
+        .unwrap_or_else(|| panic!("{out}"));
+    for component in ["x ℓ", "y ℓ", "z ℓ"] {
+        assert!(line.contains(component), "{line}");
+    }
+    assert_eq!(line.matches(", w ").count(), 3, "{line}");
     let o = tablec(&["inspect", "a1.tbl"], dir.path());
     let inspect = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(

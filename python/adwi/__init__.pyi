@@ -69,6 +69,7 @@ class BuildReport:
     consistency_screen: bool
     joint_radius_deg: float
     served_field: str
+    served_kriging: List[Dict[str, float]]
     hybrid: bool
     calibration: Optional[Dict[str, Any]]
     warnings: List[str]

@@ -357,6 +357,16 @@ fn report_dict<'py>(
     d.set_item("consistency_screen", m.consistency_screen)?;
     d.set_item("joint_radius_deg", plan.joint_radius_rad.to_degrees())?;
     d.set_item("served_field", plan.served_field.name())?;
+    // A kriging served field's hyperparameters per component (x, y, z, then orientation).
+    let kriging = PyList::empty(py);
+    for c in &report.served_kriging {
+        let k = PyDict::new(py);
+        k.set_item("length_scale_mm", c.length_scale)?;
+        k.set_item("relative_nugget", c.relative_nugget)?;
+        k.set_item("modulation", c.modulation)?;
+        kriging.append(k)?;
+    }
+    d.set_item("served_kriging", kriging)?;
     let tuning = match plan.tuning {
         Some(t) => {
             let td = PyDict::new(py);

@@ -45,6 +45,11 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     ours = tmp_path / "ours.tbl"
     report = adwi.build(KR150 / "samples.csv", ours, served_field="kriging")
     assert report.served_field == "kriging"
+    # x, y, z and the orientation's three, each with its own length scale and nugget.
+    assert len(report.served_kriging) == 6
+    for choice in report.served_kriging:
+        assert choice["length_scale_mm"] > 0 and choice["relative_nugget"] > 0
+        assert choice["modulation"] == 0
     theirs = tmp_path / "tablec.tbl"
     subprocess.run(
         [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(theirs),
@@ -52,7 +57,8 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
         check=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()
-    assert adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl").served_field == "method"
+    method = adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl")
+    assert method.served_field == "method" and method.served_kriging == []
     with pytest.raises(adwi.AdwiError, match="choose method, kriging or kriging-tool-axis"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
     # The field that turns with the tool takes its axis from a hybrid table's model.

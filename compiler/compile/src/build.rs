@@ -252,6 +252,10 @@ pub struct BuildReport {
     pub served_cells: usize,
     /// Node sets of the served tier (0: the exact tier alone answers).
     pub node_sets: usize,
+    /// A kriging served field's hyperparameters, chosen by likelihood, per component
+    /// (x, y, z, then the orientation's), of the fit serving targets of any configuration;
+    /// empty when the nodes hold the method's answer.
+    pub served_kriging: Vec<crate::nugget_kriging::GpChoice>,
 }
 
 /// A table's size before it is built, bytes: per cell its 8-byte record and base-weight
@@ -443,6 +447,7 @@ pub fn compile_plan(
         table_bytes: 0,
         served_cells: 0,
         node_sets: 0,
+        served_kriging: Vec::new(),
     };
     if let Some(model) = model {
         for chain in [model.nominal(), model.calibrated()] {
@@ -527,6 +532,7 @@ pub fn compile_plan(
         let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);
+        report.served_kriging = served.kriging_choices;
         data.node_sets = served.sets;
         data.node_errors_mm = served.position_mm;
         if samples.rotation_error_rad.is_some() {
@@ -652,6 +658,8 @@ fn tool_axes(
 /// `stride` vectors per node (the layout of [`v2::TableData::node_errors_mm`]).
 struct NodeValues {
     sets: Vec<v2::NodeSet>,
+    /// The first kriging fit's hyperparameters (empty for the method's values).
+    kriging_choices: Vec<crate::nugget_kriging::GpChoice>,
     stride: usize,
     position_mm: Vec<[f64; 3]>,
     orientation_rad: Vec<[f64; 3]>,
@@ -681,6 +689,7 @@ impl NodeValues {
         let stride = field.stride();
         let mut out = NodeValues {
             sets: Vec::new(),
+            kriging_choices: Vec::new(),
             stride,
             position_mm: Vec::new(),
             orientation_rad: Vec::new(),
@@ -724,6 +733,9 @@ impl NodeValues {
                     }
                 };
                 let kriging = &fits[fitted].1;
+                if out.kriging_choices.is_empty() {
+                    out.kriging_choices = kriging.fit.choices();
+                }
                 values.par_iter_mut().enumerate().for_each(|(node, value)| {
                     if !adwi_runtime::served::is_missing(&value.0[0]) {
                         *value = kriging.predict(node_position(node).1);

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use adwi_compile::build::{compile_plan, BuildReport};
+use adwi_compile::build::{compile_plan, BuildReport, ServedField};
 use adwi_compile::hybrid;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
@@ -256,6 +256,7 @@ fn print_summary(
         "joint screen   {}",
         crate::describe_joint_screen(plan.joint_radius_rad)
     );
+    println!("served field   {}", describe_served_field(report));
     println!(
         "wrote          {} ({} bytes) in {:.2} s",
         args.output.display(),
@@ -265,6 +266,43 @@ fn print_summary(
 }
 
 /// Every candidate of --tune with its cross-validated mean, the chosen one marked.
+/// What the served field's nodes hold, with a kriging's hyperparameters per component.
+fn describe_served_field(report: &BuildReport) -> String {
+    if report.node_sets == 0 {
+        return "none (the exact tier answers)".to_string();
+    }
+    let name = report.plan.served_field.name();
+    if report.served_kriging.is_empty() {
+        return name.to_string();
+    }
+    const COMPONENTS: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+    let choices: Vec<String> = report
+        .served_kriging
+        .iter()
+        .zip(COMPONENTS)
+        .map(|(c, component)| {
+            let turning = if report.plan.served_field == ServedField::KrigingToolAxis {
+                format!(", w {}", c.modulation)
+            } else {
+                String::new()
+            };
+            format!(
+                "{component} ℓ {:.1} mm, λ {}{turning}",
+                c.length_scale, c.relative_nugget
+            )
+        })
+        .collect();
+    format!(
+        "{name}; by likelihood (length scale ℓ, nugget λ per sill{}): {}",
+        if report.plan.served_field == ServedField::KrigingToolAxis {
+            ", weight w of the part turning with the tool"
+        } else {
+            ""
+        },
+        choices.join("; ")
+    )
+}
+
 fn print_tuning(report: &adwi_eval::tune::TuneReport) {
     println!(
         "tuning         {}-fold cross-validation of `{}` on the samples alone:",
