@@ -1222,38 +1222,9 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
     std::fs::write(dir.path().join("s.csv"), subset).unwrap();
     let robot = repo("tables/ur5/robot.toml");
     let columns = UR5_MAP;
-    for threads in ["1", "3"] {
-        let table = format!("a{threads}.tbl");
-        let o = tablec(
-            &[
-                "build",
-                "-q",
-                "s.csv",
-                "--columns",
-                columns,
-                "--robot",
-                robot.to_str().unwrap(),
-                "--hybrid",
-                "--cell",
-                "60",
-                "--served-field",
-                "kriging-tool-axis",
-                "--threads",
-                threads,
-                "-o",
-                &table,
-            ],
-            dir.path(),
-        );
-        assert!(o.status.success(), "{}", stderr(&o));
-    }
-    assert_eq!(
-        std::fs::read(dir.path().join("a1.tbl")).unwrap(),
-        std::fs::read(dir.path().join("a3.tbl")).unwrap()
-    );
-    // Without -q, build says what the kriging chose, per component.
-    let o = tablec(
-        &[
+    // A hybrid build of the subset with the tool-axis field, and `extra` arguments.
+    let build = |extra: &[&str]| {
+        let mut args = vec![
             "build",
             "s.csv",
             "--columns",
@@ -1265,11 +1236,22 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
             "60",
             "--served-field",
             "kriging-tool-axis",
-            "-o",
-            "b.tbl",
-        ],
-        dir.path(),
+        ];
+        args.extend(extra);
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        o
+    };
+    for threads in ["1", "3"] {
+        let table = format!("a{threads}.tbl");
+        build(&["-q", "--threads", threads, "-o", &table]);
+    }
+    assert_eq!(
+        std::fs::read(dir.path().join("a1.tbl")).unwrap(),
+        std::fs::read(dir.path().join("a3.tbl")).unwrap()
     );
+    // Without -q, build says what the kriging chose, per component.
+    let o = build(&["-o", "b.tbl"]);
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let line = out
         .lines()

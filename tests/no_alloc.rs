@@ -183,17 +183,7 @@ fn hybrid_queries_allocate_nothing() {
     let code = unsafe { capi::adwi_table_open_bytes(bytes.as_ptr(), bytes.len(), &mut handle) };
     assert_eq!(code, AdwiResult::Ok);
 
-    let joints = samples.joints.as_ref().unwrap();
-    let queries: Vec<([f64; 3], [f64; 6])> = (0..20_000)
-        .map(|i| {
-            let s = i % samples.len();
-            let wiggle = (i as f64 * 0.37).sin();
-            let q: [f64; 6] =
-                std::array::from_fn(|a| joints.row(s)[a] + (3.0 * wiggle).to_radians());
-            let p = samples.nominal_mm[s].map(|v| v + 20.0 * wiggle);
-            (p, q)
-        })
-        .collect();
+    let queries = wiggled_poses(&samples, 3.0, 20.0);
     let mut ok = 0usize;
     let mut checksum = 0.0;
     let count = allocations_in(|| {
@@ -246,17 +236,7 @@ fn tool_axis_served_queries_allocate_nothing() {
         .bytes;
     let table = Table::from_vec(&bytes).unwrap();
     assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
-    let joints = samples.joints.as_ref().unwrap();
-    let queries: Vec<([f64; 3], [f64; 6])> = (0..20_000)
-        .map(|i| {
-            let s = i % samples.len();
-            let wiggle = (i as f64 * 0.37).sin();
-            let q: [f64; 6] =
-                std::array::from_fn(|a| joints.row(s)[a] + (10.0 * wiggle).to_radians());
-            let p = samples.nominal_mm[s].map(|v| v + 40.0 * wiggle);
-            (p, q)
-        })
-        .collect();
+    let queries = wiggled_poses(&samples, 10.0, 40.0);
     let mut ok = 0usize;
     let mut checksum = 0.0;
     let count = allocations_in(|| {
@@ -269,4 +249,24 @@ fn tool_axis_served_queries_allocate_nothing() {
     assert_eq!(count, 0, "tool-axis queries allocated {count} times");
     assert!(ok > queries.len() / 2, "only {ok} answered");
     assert!(checksum.is_finite());
+}
+
+/// 20 000 queries near the samples' poses: each joint moved by up to `joint_deg`, the
+/// target by up to `position_mm` along every axis, deterministically.
+fn wiggled_poses(
+    samples: &adwi_compile::samples::SampleSet,
+    joint_deg: f64,
+    position_mm: f64,
+) -> Vec<([f64; 3], [f64; 6])> {
+    let joints = samples.joints.as_ref().unwrap();
+    (0..20_000)
+        .map(|i| {
+            let s = i % samples.len();
+            let wiggle = (i as f64 * 0.37).sin();
+            let q: [f64; 6] =
+                std::array::from_fn(|a| joints.row(s)[a] + (joint_deg * wiggle).to_radians());
+            let p = samples.nominal_mm[s].map(|v| v + position_mm * wiggle);
+            (p, q)
+        })
+        .collect()
 }
