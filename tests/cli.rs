@@ -1106,6 +1106,15 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
         "{inspect}"
     );
     assert!(inspect.contains(&format!(", k {k}, ")), "{inspect}");
+    // The kept served field's figure is recorded too.
+    let kept_name = if kept_kriging { "kriging" } else { "method" };
+    assert!(
+        inspect.contains(&format!(
+            "; served field {kept_name} chosen by the same folds: {:.4} mm mean",
+            served_mean(kept)
+        )),
+        "{inspect}"
+    );
     assert_eq!(
         inspect.contains("nodes hold kriging with a nugget"),
         kept_kriging,

@@ -684,6 +684,15 @@ fn hostile_headers_with_valid_checksums_are_refused() {
             vec![u32_at(168, 5), f64_at(176, -0.1)],
         ),
         ("tuned mean 1e300", vec![u32_at(168, 5), f64_at(176, 1e300)]),
+        ("served tuned mean without folds", vec![f64_at(184, 0.07)]),
+        (
+            "served tuned mean NaN",
+            vec![u32_at(168, 5), f64_at(184, nan)],
+        ),
+        (
+            "served tuned mean negative",
+            vec![u32_at(168, 5), f64_at(184, -0.1)],
+        ),
         ("grid moved by a cell", vec![f64_at(112, 1850.0)]),
     ];
     let mut opened = Vec::new();

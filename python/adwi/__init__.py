@@ -221,7 +221,8 @@ def build(
     kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
     chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples
     alone, as ``tablec build --tune``, and records the choice in the table (the report's
-    ``tuning``: folds and cross-validated mean, mm). ``compliance=True`` (with
+    ``tuning``: ``folds``, the cross-validated mean ``cv_mean_mm`` and the served tier's
+    ``served_cv_mean_mm``, mm). ``compliance=True`` (with
     ``hybrid=True``) identifies each revolute joint's gravity compliance with the
     geometry, as ``tablec build --hybrid --compliance``: the robot file must give link
     masses.

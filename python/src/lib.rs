@@ -372,6 +372,7 @@ fn report_dict<'py>(
             let td = PyDict::new(py);
             td.set_item("folds", t.folds)?;
             td.set_item("cv_mean_mm", t.cv_mean_mm)?;
+            td.set_item("served_cv_mean_mm", t.served_cv_mean_mm)?;
             Some(td)
         }
         None => None,

@@ -36,6 +36,7 @@ def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
     assert ours.read_bytes() == theirs.read_bytes()
     assert report.tuning["folds"] == 3
     assert 0.0 < report.tuning["cv_mean_mm"] < 0.2
+    assert 0.0 < report.tuning["served_cv_mean_mm"] < 0.2
     assert adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl").tuning is None
     with pytest.raises(adwi.AdwiError, match="tune chooses k and radius"):
         adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)

@@ -147,6 +147,7 @@ pub fn tune(
     options.tuning = Some(Tuning {
         folds: folds as u32,
         cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
+        served_cv_mean_mm: None,
     });
     let mut served = Vec::new();
     if options.joint_radius_deg.is_none_or(|r| r == 0.0) {
@@ -178,8 +179,11 @@ pub fn tune(
             });
         }
         // The same cells are served either way; ties keep the method's own answer.
-        options.served_field = best(served.iter().map(|c| (c.cv_mean_mm, c.missed)))
-            .map_or(ServedField::Method, |i| served[i].field);
+        let kept = best(served.iter().map(|c| (c.cv_mean_mm, c.missed)));
+        options.served_field = kept.map_or(ServedField::Method, |i| served[i].field);
+        if let Some(tuning) = &mut options.tuning {
+            tuning.served_cv_mean_mm = kept.and_then(|i| served[i].cv_mean_mm);
+        }
     }
     Ok(TuneReport {
         method,

@@ -73,8 +73,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {
         Some(t) => println!(
-            "tuned           k and ε chosen by {}-fold cross-validation on the samples: {:.4} mm mean",
-            t.folds, t.cv_mean_mm
+            "tuned           k and ε chosen by {}-fold cross-validation on the samples: {:.4} mm mean{}",
+            t.folds,
+            t.cv_mean_mm,
+            t.served_cv_mean_mm.map_or(String::new(), |m| format!(
+                "; served field {} chosen by the same folds: {m:.4} mm mean",
+                h.served_field.name()
+            ))
         ),
         None => println!("tuned           no (parameters given or defaulted)"),
     }

@@ -35,7 +35,8 @@
 //! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`); 0 when they were given or defaulted |
 //! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`), 2 that kriging with a part that turns with the tool's approach axis (`--served-field kriging-tool-axis`; hybrid tables; 4 vectors per node) |
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
-//! | 184 | 64 | reserved, zero |
+//! | 184 | 8  | v2: the same cross-validation's mean position residual of the served tier with the chosen served field, mm (0 when not tuned or without a served tier) |
+//! | 192 | 56 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
@@ -194,8 +195,12 @@ impl ServedField {
 pub struct Tuning {
     /// Number of folds.
     pub folds: u32,
-    /// Mean position residual over the held-out folds with the chosen parameters, mm.
+    /// Mean position residual over the held-out folds with the chosen parameters, mm
+    /// (the exact tier's: the method the table computes).
     pub cv_mean_mm: f64,
+    /// The served tier's mean over the same folds with the chosen served field, mm, when
+    /// the table has one: what queries by the served field are expected to leave.
+    pub served_cv_mean_mm: Option<f64>,
 }
 
 /// A regular grid of cubic cells over an axis-aligned box of the base frame.
@@ -336,6 +341,11 @@ impl Header {
             if let Some(t) = self.tuning {
                 put(&mut b, 168, t.folds.to_le_bytes());
                 put(&mut b, 176, t.cv_mean_mm.to_le_bytes());
+                put(
+                    &mut b,
+                    184,
+                    t.served_cv_mean_mm.unwrap_or(0.0).to_le_bytes(),
+                );
             }
             put(&mut b, 172, (self.served_field as u32).to_le_bytes());
         }
@@ -397,7 +407,7 @@ impl Header {
             });
         }
         let reserved: [std::ops::Range<usize>; 2] = if version >= 2 {
-            [184..248, 248..248]
+            [192..248, 248..248]
         } else {
             [160..248, 248..248]
         };
@@ -452,12 +462,20 @@ impl Header {
                         "the tuning's cross-validated mean is negative, implausible or not finite",
                 });
             }
+            let served = f64_at(184);
+            // Written so that NaN fails the test; 0 is "not scored".
+            if !(0.0..=MAX_COORDINATE_MM).contains(&served) {
+                return Err(OpenError::Corrupt {
+                    what: "the tuning's served cross-validated mean is negative, implausible or not finite",
+                });
+            }
             Some(Tuning {
                 folds: u32_at(168),
                 cv_mean_mm,
+                served_cv_mean_mm: (served > 0.0).then_some(served),
             })
         } else {
-            if version >= 2 && f64_at(176).to_bits() != 0 {
+            if version >= 2 && (f64_at(176).to_bits() != 0 || f64_at(184).to_bits() != 0) {
                 return Err(OpenError::Corrupt {
                     what: "a cross-validated mean without folds",
                 });
