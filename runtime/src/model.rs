@@ -139,9 +139,23 @@ impl PreparedModel {
         let nominal = self.nominal.tcp_pose(q)?;
         let calibrated = self.calibrated.loaded_tcp_pose(q)?;
         let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
-        let r = &nominal.rotation;
-        Some((position_mm, rotation_rad, [r[0][2], r[1][2], r[2][2]]))
+        Some((position_mm, rotation_rad, approach(&nominal)))
     }
+
+    /// The nominal TCP's approach axis at `q` alone (as [`PreparedModel::error_with_approach`]
+    /// gives it): what the compiler fits a tool-axis field to at each sample's joint values,
+    /// so that build and query use one definition. `None` when `q` does not have one value
+    /// per joint.
+    pub fn approach_axis(&self, q: &[f64]) -> Option<[f64; 3]> {
+        Some(approach(&self.nominal.tcp_pose(q)?))
+    }
+}
+
+/// The approach (z) axis of a TCP pose: the third column of its rotation, base frame.
+#[inline]
+fn approach(tcp: &Transform) -> [f64; 3] {
+    let r = &tcp.rotation;
+    [r[0][2], r[1][2], r[2][2]]
 }
 
 /// The prepared model of a validated version-1 archive, if it carries one.

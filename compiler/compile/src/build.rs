@@ -644,12 +644,9 @@ fn tool_axes(
     joints
         .rows()
         .map(|q| {
-            let r = model
-                .nominal()
-                .tcp_pose(q)
-                .ok_or(BuildError::ToolAxisWithoutModel)?
-                .rotation;
-            Ok([r[0][2], r[1][2], r[2][2]])
+            model
+                .approach_axis(q)
+                .ok_or(BuildError::ToolAxisWithoutModel)
         })
         .collect()
 }
@@ -744,7 +741,9 @@ impl NodeValues {
             }
             let flat =
                 |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
-                    v.iter().flat_map(|t| which(t)[..stride].to_vec()).collect()
+                    v.iter()
+                        .flat_map(|t| which(t)[..stride].iter().copied())
+                        .collect()
                 };
             let position = flat(&values, |t| &t.0);
             let orientation = flat(&values, |t| &t.1);

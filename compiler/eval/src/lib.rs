@@ -1017,11 +1017,8 @@ fn kinematic_kriging_predictions(
         })
         .collect();
     // The nominal tool's approach axis at a point's joint values, for the field that turns.
-    let nominal = calibration.prepared_model();
-    let axis = |set: &SampleSet, i: usize| -> Option<[f64; 3]> {
-        let r = nominal.nominal().tcp_pose(set.joints_rad(i)?)?.rotation;
-        Some([r[0][2], r[1][2], r[2][2]])
-    };
+    let model = calibration.prepared_model();
+    let axis = |set: &SampleSet, i: usize| model.approach_axis(set.joints_rad(i)?);
     let fits = scales
         .iter()
         .map(|&scale| {
