@@ -155,13 +155,10 @@ impl ResidualGp {
         axes: &[[f64; 3]],
         values: &[Vec<f64>],
     ) -> Result<ResidualGp, GpError> {
-        if axes.len() != inputs.len()
-            || axes.iter().any(|a| {
-                !((a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() - 1.0)
-                    .abs()
-                    .lt(&1e-6)
-            })
-        {
+        // Written so that a NaN fails the test.
+        let unit =
+            |a: &[f64; 3]| ((a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() - 1.0).abs() < 1e-6;
+        if axes.len() != inputs.len() || !axes.iter().all(unit) {
             return Err(GpError::Malformed(
                 "the axes are not one unit vector per input",
             ));
