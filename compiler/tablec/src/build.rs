@@ -276,29 +276,30 @@ fn describe_served_field(report: &BuildReport) -> String {
         return name.to_string();
     }
     const COMPONENTS: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+    let turning = report.plan.served_field == ServedField::KrigingToolAxis;
     let choices: Vec<String> = report
         .served_kriging
         .iter()
         .zip(COMPONENTS)
         .map(|(c, component)| {
-            let turning = if report.plan.served_field == ServedField::KrigingToolAxis {
+            let weight = if turning {
                 format!(", w {}", c.modulation)
             } else {
                 String::new()
             };
             format!(
-                "{component} ℓ {:.1} mm, λ {}{turning}",
+                "{component} ℓ {:.1} mm, λ {}{weight}",
                 c.length_scale, c.relative_nugget
             )
         })
         .collect();
+    let legend = if turning {
+        ", weight w of the part turning with the tool"
+    } else {
+        ""
+    };
     format!(
-        "{name}; by likelihood (length scale ℓ, nugget λ per sill{}): {}",
-        if report.plan.served_field == ServedField::KrigingToolAxis {
-            ", weight w of the part turning with the tool"
-        } else {
-            ""
-        },
+        "{name}; by likelihood (length scale ℓ, nugget λ per sill{legend}): {}",
         choices.join("; ")
     )
 }
