@@ -171,11 +171,7 @@ fn hybrid_queries_allocate_nothing() {
         joint_radius_deg: Some(15.0),
         ..BuildOptions::default()
     };
-    let model = calibration.prepared_model();
-    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
-    let bytes = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {})
-        .unwrap()
-        .bytes;
+    let bytes = common::hybrid_table_bytes(&samples, &calibration.prepared_model(), &options);
     let table = Table::from_vec(&bytes).unwrap();
     assert!(table.is_hybrid());
     // SAFETY: valid bytes and out-pointer; the handle copies the bytes.
@@ -229,11 +225,7 @@ fn tool_axis_served_queries_allocate_nothing() {
         served_field: ServedField::KrigingToolAxis,
         ..BuildOptions::default()
     };
-    let model = calibration.prepared_model();
-    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
-    let bytes = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {})
-        .unwrap()
-        .bytes;
+    let bytes = common::hybrid_table_bytes(&samples, &calibration.prepared_model(), &options);
     let table = Table::from_vec(&bytes).unwrap();
     assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
     let queries = wiggled_poses(&samples, 10.0, 40.0);

@@ -356,9 +356,7 @@ fn hybrid_fixture() -> &'static HybridFixture {
         };
         let build = |options: &BuildOptions| {
             let model = calibration.prepared_model();
-            let plan = adwi_compile::build::plan(&samples, options).unwrap();
-            let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
-            Table::from_vec(built.bytes).unwrap()
+            Table::from_vec(common::hybrid_table_bytes(&samples, &model, options)).unwrap()
         };
         let table = build(&options);
         let screened = build(&BuildOptions {
@@ -508,9 +506,7 @@ fn a_tool_axis_served_field_answers_the_turning_kriging_at_its_nodes() {
         served_field: ServedField::KrigingToolAxis,
         ..BuildOptions::default()
     };
-    let plan = adwi_compile::build::plan(&samples, &options).unwrap();
-    let built = adwi_compile::hybrid::compile(&samples, &model, &plan, &|_| {}).unwrap();
-    let table = Table::from_vec(built.bytes).unwrap();
+    let table = Table::from_vec(common::hybrid_table_bytes(&samples, &model, &options)).unwrap();
     assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
     // The residuals and axes, computed here apart from the compiler.
     let joints = samples.joints.clone().unwrap();

@@ -148,3 +148,16 @@ pub fn repo(path: &str) -> std::path::PathBuf {
         .join("../..")
         .join(path)
 }
+
+/// The bytes of a hybrid table of `samples` with `model`, as `tablec build --hybrid` writes
+/// them with `options`.
+pub fn hybrid_table_bytes(
+    samples: &adwi_compile::samples::SampleSet,
+    model: &adwi_runtime::model::PreparedModel,
+    options: &adwi_compile::build::BuildOptions,
+) -> Vec<u8> {
+    let plan = adwi_compile::build::plan(samples, options).unwrap();
+    adwi_compile::hybrid::compile(samples, model, &plan, &|_| {})
+        .unwrap()
+        .bytes
+}
