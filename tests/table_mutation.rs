@@ -965,4 +965,24 @@ fn tool_axis_node_layouts_with_valid_checksums_are_checked() {
     infinite.node_errors_mm[present - present % 4 + 2] = [f64::INFINITY, 0.0, 0.0];
     let why = refused(&infinite);
     assert!(why.contains("neither finite nor marked missing"), "{why}");
+    // A tool-axis table relabelled as a Cartesian kriging one, checksums recomputed: its
+    // four vectors a node would read as four times the nodes, three quarters of them used
+    // by no set.
+    let tool_axis = seed("ur5_hybrid_tool_axis_served.tbl");
+    let table = Table::from_vec(&tool_axis).unwrap();
+    let mut header = *table.header();
+    assert_eq!(header.served_field, ServedField::KrigingToolAxis);
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("a version-2 seed");
+    };
+    let data: adwi_runtime::format::v2::TableData =
+        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    header.served_field = ServedField::Kriging;
+    let bytes = adwi_runtime::format::encode(header, &data).unwrap();
+    match Table::from_vec(&bytes) {
+        Err(OpenError::Corrupt { what }) => {
+            assert!(what.contains("no node set uses"), "{what}")
+        }
+        other => panic!("opened or refused otherwise: {:?}", other.err()),
+    }
 }

@@ -13,10 +13,12 @@
 //! On a face between two cells both blend the same 4 nodes with the same weights, so the
 //! field is continuous (C0) everywhere it is defined, and linear along every cell edge:
 //! a servo loop stepping through it never meets a jump. It is defined in every cell whose
-//! 8 nodes the method answers; elsewhere a query says [`Status::UncoveredCell`] and never
-//! extrapolates. Coverage is therefore the exact tier's shrunk by up to one cell where the
-//! samples end (a target whose own neighbourhood is admissible can have a corner that is
-//! not). A node the method cannot answer holds [`crate::format::v2::NO_NODE_VALUE`] in every component;
+//! 8 nodes have values; elsewhere a query says [`Status::UncoveredCell`] and never
+//! extrapolates. With the method's values, coverage is the exact tier's shrunk by up to one
+//! cell where the samples end (a target whose own neighbourhood is admissible can have a
+//! corner that is not); a kriging field has values at every corner of a cell where the
+//! exact tier can answer, so it covers at least what the exact tier does. A node without a
+//! value holds [`crate::format::v2::NO_NODE_VALUE`] in every component;
 //! the NaN spreads through the blend (even at weight 0), which is how the query notices.
 //!
 //! A tool-axis field ([`crate::format::ServedField::KrigingToolAxis`]) holds four vectors

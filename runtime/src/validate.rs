@@ -469,7 +469,8 @@ fn validate_cell_reach(header: &Header, a: &v2::ArchivedTableData) -> Result<(),
 
 /// The served tier's node sets: as many as the header says, none with a joint screen; the
 /// first for targets of unknown configuration, the others for distinct configurations the
-/// samples carry; each set's nodes in bounds; every node value finite or the missing mark,
+/// samples carry; each set's nodes in bounds and every block of nodes some set's; every
+/// node value finite or the missing mark,
 /// a node's vectors ([`format::ServedField::node_stride`] of them) all one or all the
 /// other.
 fn validate_nodes(
@@ -528,6 +529,14 @@ fn validate_nodes(
         if i > 0 && !a.configs.contains(&set.config) {
             return Err(corrupt("a node set serves a configuration no sample has"));
         }
+    }
+    // The compiler writes a block of nodes only for a set that uses it. A block no set
+    // starts at is what a table whose kind was relabelled to a smaller stride shows.
+    if (0..nodes / per_set).any(|b| {
+        sets.iter()
+            .all(|s| s.first_node.to_native() as usize != b * per_set)
+    }) {
+        return Err(corrupt("node values that no node set uses"));
     }
     // A node is answered or not as a whole: a query reads all of its vectors.
     let whole_nodes = |values: &[rkyv::Archived<[f64; 3]>]| {

@@ -139,9 +139,10 @@ pub enum ServedField {
     #[default]
     Method = 0,
     /// Kriging with a nugget of the samples' errors (a hybrid table's: the residuals its
-    /// model leaves) in Cartesian distance, at every node where the method answers: it
-    /// smooths the measurement noise the method interpolates. The exact tier still
-    /// answers the method.
+    /// model leaves) in Cartesian distance, at every corner of a cell whose candidate list
+    /// is not empty (so the served field answers wherever the exact tier can): it smooths
+    /// the measurement noise the method interpolates. The exact tier still answers the
+    /// method.
     Kriging = 1,
     /// Kriging with a nugget as [`ServedField::Kriging`], whose covariance also lets the
     /// errors turn with the tool: `E(p, a) = f(p) + a_x h_x(p) + a_y h_y(p) + a_z h_z(p)`,
