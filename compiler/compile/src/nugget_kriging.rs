@@ -430,6 +430,54 @@ fn reference_predict_turning(
     mean + r.dot(&s)
 }
 
+/// The choices of [`ResidualGp::fit_turning`] (or [`ResidualGp::fit`] without axes) by
+/// the obvious search: every grid point scored by Cholesky, the first best in grid order.
+#[cfg(test)]
+fn reference_choices(
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+    values: &[Vec<f64>],
+) -> Vec<GpChoice> {
+    let n = inputs.len();
+    let width = values[0].len();
+    let distances = DMatrix::from_fn(n, n, |i, j| distance(&inputs[i], &inputs[j]));
+    let spacing = median_nearest_distance(&distances);
+    let means: Vec<f64> = (0..width)
+        .map(|c| values.iter().map(|v| v[c]).sum::<f64>() / n as f64)
+        .collect();
+    let centred = DMatrix::from_fn(n, width, |i, c| values[i][c] - means[c]);
+    let gram = axes.map(|a| {
+        DMatrix::from_fn(n, n, |i, j| {
+            a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
+        })
+    });
+    let modulations: &[f64] = if axes.is_some() { &MODULATIONS } else { &[0.0] };
+    let mut best: Vec<Option<GpChoice>> = vec![None; width];
+    for &l in &LENGTH_SCALES {
+        for &w in modulations {
+            for &lambda in &NUGGETS {
+                let a = system(&distances, gram.as_ref(), l * spacing, lambda, w);
+                let Some(scores) = log_likelihoods(a, &centred) else {
+                    continue;
+                };
+                for (b, &s) in best.iter_mut().zip(&scores) {
+                    if b.is_none_or(|b| s > b.log_likelihood) {
+                        *b = Some(GpChoice {
+                            length_scale: l * spacing,
+                            relative_nugget: lambda,
+                            modulation: w,
+                            log_likelihood: s,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    best.into_iter()
+        .map(|b| b.expect("a solvable grid point"))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -567,6 +615,37 @@ mod tests {
             ResidualGp::fit_turning(&inputs, &long, &values),
             Err(GpError::Malformed(_))
         ));
+    }
+
+    #[test]
+    fn the_choice_is_the_exhaustive_cholesky_search() {
+        // Plain and turning fits on several clouds, with a component that does not vary
+        // and one whose centred values are rounding only: every choice, and the
+        // likelihood it reports, is the exhaustive search's to the bit.
+        for seed in 0..4 {
+            let n = 40 + 25 * seed as usize;
+            let inputs = cloud(n, 3, 200 + seed);
+            let axes = unit_axes(n, 300 + seed);
+            let mut rng = ChaCha8Rng::seed_from_u64(400 + seed);
+            let values: Vec<Vec<f64>> = (0..n)
+                .map(|i| {
+                    let x = &inputs[i];
+                    vec![
+                        (1.7 * x[0]).sin() + 0.3 * axes[i][0] + 0.02 * rng.gen_range(-1.0..1.0),
+                        x[1] * x[2] + 0.2 * rng.gen_range(-1.0..1.0),
+                        2.5,
+                        0.1,
+                    ]
+                })
+                .collect();
+            let plain = ResidualGp::fit(&inputs, &values).unwrap();
+            assert_eq!(plain.choices(), reference_choices(&inputs, None, &values));
+            let turning = ResidualGp::fit_turning(&inputs, &axes, &values).unwrap();
+            assert_eq!(
+                turning.choices(),
+                reference_choices(&inputs, Some(&axes), &values)
+            );
+        }
     }
 
     #[test]
