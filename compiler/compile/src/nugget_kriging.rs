@@ -342,14 +342,25 @@ fn system(
     lambda: f64,
     w: f64,
 ) -> DMatrix<f64> {
-    let mut a = distances.map(|h| matern52(h, l));
-    if let (Some(g), true) = (gram, w != 0.0) {
-        a.zip_apply(g, |k, g| *k *= 1.0 + w * g);
-    }
+    let mut a = covariance(distances, gram, l, w);
     for i in 0..a.nrows() {
         a[(i, i)] += lambda;
     }
     a
+}
+
+/// `K` of [`system`], without the nugget.
+fn covariance(
+    distances: &DMatrix<f64>,
+    gram: Option<&DMatrix<f64>>,
+    l: f64,
+    w: f64,
+) -> DMatrix<f64> {
+    let mut k = distances.map(|h| matern52(h, l));
+    if let (Some(g), true) = (gram, w != 0.0) {
+        k.zip_apply(g, |k, g| *k *= 1.0 + w * g);
+    }
+    k
 }
 
 /// Per component, the profiled log-likelihood of the module docs for the system `a`;
@@ -368,16 +379,18 @@ fn log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<Vec<f64>> 
             .sum::<f64>();
     let solved = chol.solve(centred);
     let scores: Vec<f64> = (0..centred.ncols())
-        .map(|c| {
-            let quadratic = centred.column(c).dot(&solved.column(c));
-            if quadratic > 0.0 {
-                -0.5 * n * (quadratic / n).ln() - 0.5 * log_det
-            } else {
-                0.0
-            }
-        })
+        .map(|c| profiled(n, centred.column(c).dot(&solved.column(c)), log_det))
         .collect();
     scores.iter().all(|s| s.is_finite()).then_some(scores)
+}
+
+/// `−(n/2) log(q/n) − ½ log|A|`, or 0 for a component with no variation (`q = yᵀA⁻¹y ≤ 0`).
+fn profiled(n: f64, quadratic: f64, log_det: f64) -> f64 {
+    if quadratic > 0.0 {
+        -0.5 * n * (quadratic / n).ln() - 0.5 * log_det
+    } else {
+        0.0
+    }
 }
 
 /// The median over inputs of the distance to the nearest other input.
