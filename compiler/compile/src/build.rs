@@ -851,7 +851,7 @@ impl NodeKriging {
                 let axes: Vec<[f64; 3]> = samples.iter().map(|&i| axes[i]).collect();
                 crate::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &values)
             }
-            None => crate::nugget_kriging::ResidualGp::fit(&inputs, &values),
+            None => crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values),
         }
         .map_err(BuildError::Kriging)?;
         Ok(NodeKriging { fit, orientation })
@@ -1137,7 +1137,7 @@ mod tests {
         let records = s.records();
         let inputs: Vec<Vec<f64>> = records.iter().map(|r| r.actual_mm.to_vec()).collect();
         let values: Vec<Vec<f64>> = records.iter().map(|r| r.error_mm.to_vec()).collect();
-        let gp = crate::nugget_kriging::ResidualGp::fit(&inputs, &values).unwrap();
+        let gp = crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values).unwrap();
         let grid = kriging.header().grid;
         let (mut nodes, mut compared, mut smoother) = (0, 0, 0);
         for i in 0..=grid.dims[0] {

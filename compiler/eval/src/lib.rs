@@ -1035,6 +1035,8 @@ fn kinematic_kriging_predictions(
                     })
                     .collect::<Result<_, _>>()?;
                 adwi_compile::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &residuals)
+            } else if method == Method::KinematicKriging {
+                adwi_compile::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &residuals)
             } else {
                 adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
             }

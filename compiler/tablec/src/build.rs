@@ -288,8 +288,8 @@ fn describe_served_field(report: &BuildReport) -> String {
                 String::new()
             };
             format!(
-                "{component} ℓ {:.1} mm, λ {}{weight}",
-                c.length_scale, c.relative_nugget
+                "{component} ℓ {:.1} mm, vertical ×{}, λ {}{weight}",
+                c.length_scale, c.vertical_scale, c.relative_nugget
             )
         })
         .collect();
@@ -299,7 +299,7 @@ fn describe_served_field(report: &BuildReport) -> String {
         ""
     };
     format!(
-        "{name}; by likelihood (length scale ℓ, nugget λ per sill{legend}): {}",
+        "{name}; by likelihood (length scale ℓ, vertical distances × a scale, nugget λ per sill{legend}): {}",
         choices.join("; ")
     )
 }
