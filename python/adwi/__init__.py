@@ -14,7 +14,9 @@ This package does what the ``tablec`` command line does, with numpy arrays:
 
 Samples are a CSV path, a pandas DataFrame with the CSV's column names, or a numpy array
 with columns ``x, y, z, dx, dy, dz[, j1..jn]``. Positions are in mm, joint angles in
-degrees (as ``tablec`` reads them), orientation errors in rad.
+degrees (as ``tablec`` reads them), orientation errors in rad. Measurements in a laser
+tracker's own frame (joints and measured poses, ``measured_in="tracker"``, as ``tablec``'s
+``--measured-in tracker``) are registered to the robot first.
 
 Every refused input raises :class:`AdwiError` (a :class:`ValueError`) with ``tablec``'s
 message: a bad sample row names ``file:line:column``.
@@ -36,6 +38,7 @@ __all__ = [
     "AdwiWarning",
     "BuildReport",
     "Compensation",
+    "Evaluation",
     "QueryResult",
     "STATUS_NAMES",
     "COMMAND_STATUS_NAMES",
@@ -140,8 +143,20 @@ class BuildReport:
     ``served_field``, ``served_kriging`` (a kriging served field's hyperparameters per
     component, x, y, z then orientation: dicts of ``length_scale_mm``, ``relative_nugget``
     and ``modulation``, the weight of the part turning with the tool; empty for the
-    method's nodes), ``hybrid``, ``calibration`` (dict or None), ``tuning`` (dict or
-    None), ``warnings``, ``seconds``.
+    method's nodes), ``hybrid``, ``calibration`` (dict or None), ``registration`` (dict,
+    with ``measured_in="tracker"``, or None), ``tuning`` (dict or None), ``warnings``,
+    ``seconds``.
+
+    ``registration`` is what ``tablec build --measured-in tracker`` prints: ``rows``,
+    ``orientation`` (whether orientations were measured, so the probe's rotation was
+    registered), ``iterations``, the transforms ``base_in_tracker`` (the robot's frame in
+    the tracker's, ``p_tracker = R · p_robot + t``) and ``probe`` (the probe on the
+    flange, the registered robot's tool), each a dict of ``translation_mm``,
+    ``rotation_vector_deg`` (the figures tablec prints) and ``rotation`` (the 3 × 3 matrix,
+    row-major); the rigid fit's ``position_rms_mm``, ``position_max_mm``,
+    ``orientation_rms_rad`` and ``orientation_max_rad`` (None without orientations); and
+    ``refined``: both transforms as the hybrid's identification refined them, with the
+    identified model's residuals under the same names.
     """
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
@@ -196,6 +211,7 @@ def build(
     tune: bool = False,
     tune_folds: int = 5,
     compliance: bool = False,
+    measured_in: str = "base",
 ) -> BuildReport:
     """Compile samples into a correction table at ``output``, as ``tablec build``.
 
@@ -225,7 +241,12 @@ def build(
     ``served_cv_mean_mm``, mm). ``compliance=True`` (with
     ``hybrid=True``) identifies each revolute joint's gravity compliance with the
     geometry, as ``tablec build --hybrid --compliance``: the robot file must give link
-    masses.
+    masses. ``measured_in`` is the frame of the measured poses, as ``tablec build
+    --measured-in``: ``"base"`` (the default, the robot's) or ``"tracker"`` (a laser
+    tracker's own frame: joints ``j1..jn`` and measured ``mx, my, mz``, optionally a
+    measured orientation; a CSV path or a DataFrame). Tracker-frame measurements are
+    registered to ``robot`` (base in tracker, probe on flange; ``docs/tracker.md``) before
+    anything else, and need ``hybrid=True``; the report's ``registration`` holds the fit.
 
     The table is written atomically (complete or not at all); an output that is one of
     the inputs (also through a link) is refused before anything is written. The GIL is
@@ -263,6 +284,7 @@ def build(
         tune=tune,
         tune_folds=tune_folds,
         compliance=compliance,
+        measured_in=measured_in,
     )
     _warn(fields["warnings"])
     return BuildReport(fields)
@@ -281,6 +303,8 @@ def evaluate(
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
     compliance: bool = False,
+    measured_in: str = "base",
+    register_validation_apart: bool = False,
     columns: Union[None, str, Mapping[str, str]] = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,
@@ -298,7 +322,7 @@ def evaluate(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     served_field: Optional[str] = None,
-) -> List[Dict[str, Any]]:
+) -> "Evaluation":
     """Compare compensation methods on held-out points, as ``tablec eval``.
 
     Either ``validation`` (samples in the same form and columns as ``samples``; ``limit``
@@ -312,11 +336,20 @@ def evaluate(
     ``tablec eval --compliance`` (the robot file must give link masses). Reading and
     table options as :func:`build`.
 
-    Returns one record per row of ``tablec eval --csv`` — ``uncompensated``, then one per
-    method — with its keys: ``method``, ``predicted``, ``not_predicted``,
-    ``position_{mean,rms,p95,max}_mm``, ``orientation_{mean,rms,p95,max}_mrad`` (None
-    without orientations) and ``note``; ``pandas.DataFrame(records)`` takes them. The GIL
-    is released while evaluating.
+    ``measured_in="tracker"`` (with ``robot``), as ``tablec eval --measured-in tracker``:
+    the samples are tracker-frame measurements, registered to the robot first, and the
+    validation set is read through that registration (same tracker frame, same probe).
+    ``register_validation_apart=True``, as ``--register-validation-apart``: the validation
+    set is a series measured after the tracker moved, registered on its own to the TCP
+    positions the samples' calibration predicts (the probe kept); ``limit`` applies after.
+
+    Returns an :class:`Evaluation`: a list with one record per row of ``tablec eval
+    --csv`` — ``uncompensated``, then one per method — with its keys: ``method``,
+    ``predicted``, ``not_predicted``, ``position_{mean,rms,p95,max}_mm``,
+    ``orientation_{mean,rms,p95,max}_mrad`` (None without orientations) and ``note``;
+    ``pandas.DataFrame(records)`` takes them. Its ``registration`` and
+    ``validation_registration`` are the registrations ``tablec eval`` prints, or None. The
+    GIL is released while evaluating.
     """
     source = _source(samples, "samples")
     reading = _reading(samples, columns, delimiter, decimal, length_unit, angle_unit)
@@ -340,7 +373,7 @@ def evaluate(
     )
     if isinstance(methods, str):
         methods = [m for m in methods.split(",") if m]
-    records, messages = _adwi.evaluate(
+    records, messages, registration, validation_registration = _adwi.evaluate(
         source,
         reading,
         table,
@@ -354,9 +387,37 @@ def evaluate(
         tip_link=tip_link,
         rank_tol=rank_tol,
         compliance=compliance,
+        measured_in=measured_in,
+        register_validation_apart=register_validation_apart,
     )
     _warn(messages)
-    return list(records)
+    return Evaluation(records, registration, validation_registration)
+
+
+class Evaluation(list):
+    """The records of :func:`evaluate`: a list, one dict per row of ``tablec eval
+    --csv``, with what ``tablec eval`` prints besides its table for tracker-frame samples.
+
+    - ``registration``: the samples' registration (``measured_in="tracker"``), keys as
+      :class:`BuildReport`'s ``registration``; ``refined`` is by an identification of all
+      samples, as ``tablec eval`` prints it. None for base-frame samples.
+    - ``validation_registration``: the validation set's own registration
+      (``register_validation_apart=True``): the same keys, positions only, ``refined``
+      None; otherwise None.
+    """
+
+    registration: Optional[Dict[str, Any]]
+    validation_registration: Optional[Dict[str, Any]]
+
+    def __init__(
+        self,
+        records: Sequence[Dict[str, Any]] = (),
+        registration: Optional[Dict[str, Any]] = None,
+        validation_registration: Optional[Dict[str, Any]] = None,
+    ) -> None:
+        super().__init__(records)
+        self.registration = registration
+        self.validation_registration = validation_registration
 
 
 class QueryResult:

@@ -17,6 +17,7 @@ __all__ = [
     "AdwiWarning",
     "BuildReport",
     "Compensation",
+    "Evaluation",
     "QueryResult",
     "STATUS_NAMES",
     "COMMAND_STATUS_NAMES",
@@ -72,6 +73,10 @@ class BuildReport:
     served_kriging: List[Dict[str, float]]
     hybrid: bool
     calibration: Optional[Dict[str, Any]]
+    #: With measured_in="tracker": the rigid registration (rows, orientation, iterations,
+    #: base_in_tracker, probe, residuals) and "refined", as tablec build prints them.
+    registration: Optional[Dict[str, Any]]
+    tuning: Optional[Dict[str, Any]]
     warnings: List[str]
     seconds: float
     def __init__(self, fields: Mapping[str, Any]) -> None: ...
@@ -108,6 +113,7 @@ def build(
     tune: bool = False,
     tune_folds: int = 5,
     compliance: bool = False,
+    measured_in: str = "base",
 ) -> BuildReport:
     """Compile samples into a correction table at output, as tablec build."""
 
@@ -124,6 +130,8 @@ def evaluate(
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
     compliance: bool = False,
+    measured_in: str = "base",
+    register_validation_apart: bool = False,
     columns: Columns = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,
@@ -141,9 +149,22 @@ def evaluate(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     served_field: Optional[str] = None,
-) -> List[Dict[str, Any]]:
+) -> Evaluation:
     """Compare compensation methods on held-out points, as tablec eval: one record per
     row of its --csv output."""
+
+class Evaluation(List[Dict[str, Any]]):
+    """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
+    samples (None otherwise)."""
+
+    registration: Optional[Dict[str, Any]]
+    validation_registration: Optional[Dict[str, Any]]
+    def __init__(
+        self,
+        records: Sequence[Dict[str, Any]] = ...,
+        registration: Optional[Dict[str, Any]] = None,
+        validation_registration: Optional[Dict[str, Any]] = None,
+    ) -> None: ...
 
 class QueryResult:
     """Table.query's answers, one row per target."""

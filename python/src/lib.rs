@@ -12,12 +12,14 @@ use std::time::Instant;
 use adwi_compile::build::{compile_plan, BuildOptions, BuildReport};
 use adwi_compile::hybrid;
 use adwi_compile::samples::{
-    parse_samples_with, read_samples_with, AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit,
-    ReadOptions, SampleSet,
+    AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit, ReadOptions, SampleSet,
 };
 use adwi_compile::write::{refuse_overwriting, write_atomically};
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
+use adwi_robot::measured::Input;
+use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
+use adwi_runtime::kinematics::Transform;
 use adwi_runtime::method::MethodParams;
 use adwi_runtime::{Correction, Status, Table as RuntimeTable, Target, Tier};
 use anyhow::{bail, Context};
@@ -90,13 +92,20 @@ impl Source {
         }
     }
 
+    /// The one reader's view of it, for base-frame samples and tracker-frame measurements
+    /// alike.
+    fn input(&self) -> Input<'_> {
+        match self {
+            Source::Path(p) => Input::File(p),
+            Source::Data(name, bytes) => Input::Memory {
+                name: Path::new(name),
+                bytes,
+            },
+        }
+    }
+
     fn read(&self, columns: &ColumnMap, options: &ReadOptions) -> anyhow::Result<SampleSet> {
-        Ok(match self {
-            Source::Path(p) => read_samples_with(p, columns, options)?,
-            Source::Data(name, bytes) => {
-                parse_samples_with(Path::new(name), bytes, columns, options)?
-            }
-        })
+        Ok(self.input().samples(columns, options)?)
     }
 
     fn describe(&self) -> String {
@@ -228,6 +237,15 @@ fn load_robot(
         .with_context(|| format!("cannot load the robot {}", path.display()))
 }
 
+/// Whether `measured_in` (tablec's `--measured-in`) says the tracker's frame.
+fn tracker_frame(measured_in: &str) -> anyhow::Result<bool> {
+    match measured_in {
+        "base" => Ok(false),
+        "tracker" => Ok(true),
+        other => bail!("measured_in '{other}': choose base or tracker"),
+    }
+}
+
 /// The CSV text of an array whose columns are named by `header`: numbers written to the
 /// last bit (Rust's shortest round-trip form), a non-finite value as `NaN` or `inf`, which
 /// the reader refuses with its row and column, as it would in a file.
@@ -287,11 +305,58 @@ fn calibration_dict<'py>(
     Ok(d)
 }
 
+/// A transform as `tablec` prints it (translation, mm; rotation vector, deg) and as its
+/// rotation matrix (row-major), for those who apply it.
+fn transform_dict<'py>(py: Python<'py>, t: &Transform) -> PyResult<Bound<'py, PyDict>> {
+    let (translation_mm, rotation_deg) = translation_and_rotation_deg(t);
+    let d = PyDict::new(py);
+    d.set_item("translation_mm", translation_mm)?;
+    d.set_item("rotation_vector_deg", rotation_deg)?;
+    d.set_item("rotation", t.rotation)?;
+    Ok(d)
+}
+
+/// The registration of tracker-frame measurements, as `tablec` prints it: the rigid fit,
+/// and both transforms as an identification of the registered samples refined them.
+fn registration_dict<'py>(
+    py: Python<'py>,
+    r: &Registration,
+    refined: Option<&Refined>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("rows", r.rows)?;
+    d.set_item("orientation", r.orientation)?;
+    d.set_item("iterations", r.iterations)?;
+    d.set_item("base_in_tracker", transform_dict(py, &r.base_in_tracker)?)?;
+    d.set_item("probe", transform_dict(py, &r.probe)?)?;
+    d.set_item("position_rms_mm", r.position_rms_mm)?;
+    d.set_item("position_max_mm", r.position_max_mm)?;
+    d.set_item("orientation_rms_rad", r.orientation_rms_rad)?;
+    d.set_item("orientation_max_rad", r.orientation_max_rad)?;
+    let refined = match refined {
+        Some(f) => {
+            let rd = PyDict::new(py);
+            rd.set_item("base_in_tracker", transform_dict(py, &f.base_in_tracker)?)?;
+            rd.set_item("probe", transform_dict(py, &f.probe)?)?;
+            rd.set_item("position_rms_mm", f.position_rms_mm)?;
+            rd.set_item("position_max_mm", f.position_max_mm)?;
+            rd.set_item("orientation_rms_rad", f.orientation_rms_rad)?;
+            rd.set_item("orientation_max_rad", f.orientation_max_rad)?;
+            Some(rd)
+        }
+        None => None,
+    };
+    d.set_item("refined", refined)?;
+    Ok(d)
+}
+
 /// What a build made, for its report.
 struct Built {
     samples: SampleSet,
     report: BuildReport,
     calibration: Option<(Calibration, f64)>,
+    /// Tracker-frame samples' registration, refined by the hybrid's identification.
+    registration: Option<(Registration, Refined)>,
     warnings: Vec<String>,
 }
 
@@ -307,6 +372,7 @@ fn report_dict<'py>(
         samples,
         report,
         calibration,
+        registration,
         warnings,
     } = built;
     let plan = &report.plan;
@@ -386,6 +452,13 @@ fn report_dict<'py>(
             .map(|(c, rms)| calibration_dict(py, c, *rms))
             .transpose()?,
     )?;
+    d.set_item(
+        "registration",
+        registration
+            .as_ref()
+            .map(|(r, refined)| registration_dict(py, r, Some(refined)))
+            .transpose()?,
+    )?;
     d.set_item("warnings", warnings)?;
     d.set_item("seconds", seconds)?;
     Ok(d)
@@ -394,7 +467,7 @@ fn report_dict<'py>(
 /// `tablec build`: read, plan, compile (hybrid with a robot), write atomically. Returns
 /// the report as a dict.
 #[pyfunction]
-#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5, compliance=false))]
+#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5, compliance=false, measured_in="base"))]
 #[allow(clippy::too_many_arguments)]
 fn build<'py>(
     py: Python<'py>,
@@ -410,12 +483,24 @@ fn build<'py>(
     tune: bool,
     tune_folds: usize,
     compliance: bool,
+    measured_in: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let started = Instant::now();
     let built = py.allow_threads(|| -> anyhow::Result<_> {
         let mut inputs: Vec<&Path> = source.path().into_iter().collect();
         inputs.extend(robot.as_deref());
         refuse_overwriting(&output, &inputs)?;
+        // As `tablec build --measured-in tracker`, which requires --hybrid and its --robot.
+        let tracker = tracker_frame(measured_in)?;
+        if tracker && robot.is_none() {
+            bail!(
+                "measured_in='tracker' needs the robot file the measurements are registered \
+                 to: robot=PATH, with hybrid=True"
+            );
+        }
+        if tracker && !hybrid {
+            bail!("measured_in='tracker' is read for a hybrid table: give hybrid=True");
+        }
         let robot = match (&robot, hybrid) {
             (Some(path), true) => Some(load_robot(path, base_link, tip_link)?),
             (Some(_), false) => {
@@ -433,7 +518,15 @@ fn build<'py>(
             ..CalibrateOptions::default()
         };
         let (columns, read) = reading.resolve()?;
-        let samples = source.read(&columns, &read)?;
+        let (tracker_robot, robot) = if tracker {
+            (robot, None)
+        } else {
+            (None, robot)
+        };
+        let (registered, samples) =
+            adwi_robot::measured::read_samples(source.input(), &columns, &read, tracker_robot)?;
+        // Identification starts from the robot with the registered probe as its tool.
+        let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
         let mut options = table.build_options()?;
         if tune {
             if table.k.is_some() || table.radius.is_some() {
@@ -501,10 +594,15 @@ fn build<'py>(
                 ));
             }
         }
+        let registration = registered.zip(calibration.as_ref()).map(|(r, (c, _))| {
+            let refined = r.registration.refined(c, &samples);
+            (r.registration, refined)
+        });
         Ok(Built {
             samples,
             report,
             calibration,
+            registration,
             warnings,
         })
     });
@@ -518,11 +616,21 @@ fn build<'py>(
     )
 }
 
-/// `tablec eval`: every method on held-out points. Returns (records, warnings): one
-/// record per row of `tablec eval --csv` (the uncompensated errors, then one per method),
-/// with the same keys, figures in full precision.
+/// What [`evaluate`] returns: the records, the warnings, and with tracker-frame samples
+/// their registration and a validation set's own (registered apart).
+type Evaluated<'py> = (
+    Bound<'py, PyList>,
+    Vec<String>,
+    Option<Bound<'py, PyDict>>,
+    Option<Bound<'py, PyDict>>,
+);
+
+/// `tablec eval`: every method on held-out points. Returns (records, warnings,
+/// registration, validation registration): one record per row of `tablec eval --csv` (the
+/// uncompensated errors, then one per method), with the same keys, figures in full
+/// precision; the registrations as `tablec eval` prints them, or None.
 #[pyfunction]
-#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, compliance=false))]
+#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, compliance=false, measured_in="base", register_validation_apart=false))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -539,8 +647,25 @@ fn evaluate<'py>(
     tip_link: Option<String>,
     rank_tol: Option<f64>,
     compliance: bool,
-) -> PyResult<(Bound<'py, PyList>, Vec<String>)> {
+    measured_in: &str,
+    register_validation_apart: bool,
+) -> PyResult<Evaluated<'py>> {
     let evaluated = py.allow_threads(|| -> anyhow::Result<_> {
+        // As `tablec eval --measured-in tracker`, which requires --robot, and
+        // --register-validation-apart, which requires --validation and a tracker frame.
+        let tracker = tracker_frame(measured_in)?;
+        if tracker && robot.is_none() {
+            bail!(
+                "measured_in='tracker' needs the robot file the measurements are registered \
+                 to: robot=PATH"
+            );
+        }
+        if register_validation_apart && validation.is_none() {
+            bail!("register_validation_apart needs a validation set (validation=...)");
+        }
+        if register_validation_apart && !tracker {
+            bail!("register_validation_apart needs measured_in='tracker'");
+        }
         let (columns, read) = reading.resolve()?;
         let methods = methods
             .map(|names| {
@@ -551,10 +676,41 @@ fn evaluate<'py>(
             })
             .transpose()
             .map_err(anyhow::Error::msg)?;
-        let samples = source.read(&columns, &read)?;
+        let robot = robot
+            .as_deref()
+            .map(|p| load_robot(p, base_link, tip_link))
+            .transpose()?;
+        let (tracker_robot, robot) = if tracker {
+            (robot, None)
+        } else {
+            (None, robot)
+        };
+        let (registered, samples) =
+            adwi_robot::measured::read_samples(source.input(), &columns, &read, tracker_robot)?;
+        let calibrate = CalibrateOptions {
+            rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
+            compliance,
+            ..CalibrateOptions::default()
+        };
+        // The identification of all samples, as `tablec eval` makes it: the frame a
+        // validation series is registered apart into, and what refines the registration.
+        let mut calibration_of_all = None;
+        let mut validation_registration = None;
         let protocol = match (&validation, folds) {
             (Some(v), None) => {
-                let mut validation = v.read(&columns, &read)?;
+                let mut validation = match &registered {
+                    Some(r) if register_validation_apart => {
+                        let calibration =
+                            adwi_robot::calibrate::identify(&r.robot, &samples, &calibrate)?;
+                        let (registration, samples) =
+                            r.samples_registered_apart(&calibration, v.input(), &columns, &read)?;
+                        validation_registration = Some(registration);
+                        calibration_of_all = Some(calibration);
+                        samples
+                    }
+                    Some(r) => r.samples(v.input(), &columns, &read)?,
+                    None => v.read(&columns, &read)?,
+                };
                 if let Some(n) = limit {
                     if n == 0 {
                         bail!("limit must be at least 1");
@@ -570,24 +726,32 @@ fn evaluate<'py>(
                 bail!("give a validation set (validation=...) or a fold count (folds=K)")
             }
         };
-        let robot = robot
-            .as_deref()
-            .map(|p| load_robot(p, base_link, tip_link))
-            .transpose()?;
+        // Every method starts from the robot with the registered probe as its tool.
+        let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
         let options = EvalOptions {
             methods,
             build: table.build_options()?,
             robot,
-            calibrate: CalibrateOptions {
-                rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
-                compliance,
-                ..CalibrateOptions::default()
-            },
+            calibrate,
             ..EvalOptions::default()
         };
-        Ok(adwi_eval::evaluate(&samples, &protocol, &options)?)
+        let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+        let registration = match registered {
+            Some(r) => {
+                let all = match calibration_of_all {
+                    Some(c) => c,
+                    None => {
+                        adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?
+                    }
+                };
+                let refined = r.registration.refined(&all, &samples);
+                Some((r.registration, refined))
+            }
+            None => None,
+        };
+        Ok((evaluation, registration, validation_registration))
     });
-    let e = evaluated.map_err(adwi_error)?;
+    let (e, registration, validation_registration) = evaluated.map_err(adwi_error)?;
     let mut warnings = Vec::new();
     for c in e.calibrations.iter().take(1) {
         if !c.unidentifiable.is_empty() {
@@ -652,7 +816,13 @@ fn evaluate<'py>(
             note,
         )?)?;
     }
-    Ok((records, warnings))
+    let registration = registration
+        .map(|(r, refined)| registration_dict(py, &r, Some(&refined)))
+        .transpose()?;
+    let validation_registration = validation_registration
+        .map(|r| registration_dict(py, &r, None))
+        .transpose()?;
+    Ok((records, warnings, registration, validation_registration))
 }
 
 /// A correction table, memory-mapped and validated once.

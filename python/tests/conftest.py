@@ -18,6 +18,17 @@ UR5_COLUMNS = (
     "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,"
     "j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6"
 )
+#: The IPA UR10's 6-D laser-tracker measurements, in the tracker's frame (docs/tracker.md):
+#: series B and C were taken from one tracker position.
+UR10 = REPO / "tables" / "ur10"
+UR10_B = UR10 / "measurements" / "Series_B" / "measurements_joint_configurations.csv"
+UR10_C = UR10 / "measurements" / "Series_C" / "measurements_random_poses.csv"
+UR10_TRACKER_COLUMNS = (
+    "j1=shoulder_pan_joint:rad,j2=shoulder_lift_joint:rad,j3=elbow_joint:rad,"
+    "j4=wrist_1_joint:rad,j5=wrist_2_joint:rad,j6=wrist_3_joint:rad,"
+    "mx=measurement_x,my=measurement_y,mz=measurement_z,"
+    "mex=measurement_rx:deg,mey=measurement_ry:deg,mez=measurement_rz:deg"
+)
 
 
 @pytest.fixture(scope="session")

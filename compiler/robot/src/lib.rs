@@ -1,7 +1,9 @@
 //! The robot side of adwi: robot descriptions as data ([`model`]: TOML robot files,
 //! [`urdf`] files), inverse kinematics ([`ik`]), the first-order pose error model
-//! ([`error_model`]), kinematic identification from measured samples ([`calibrate`]) and the
-//! simulation of sample databases ([`simulate`]), for any serial robot of 1 to
+//! ([`error_model`]), kinematic identification from measured samples ([`calibrate`]), the
+//! registration of laser-tracker measurements to the robot ([`register`]; [`measured`] reads
+//! tracker-frame sample files through it) and the simulation of sample databases
+//! ([`simulate`]), for any serial robot of 1 to
 //! [`adwi_runtime::chain::MAX_JOINTS`] revolute or prismatic joints.
 //!
 //! Forward kinematics is not here: every robot is a runtime [`adwi_runtime::chain::Chain`],
@@ -11,6 +13,7 @@ pub mod calibrate;
 pub mod error_model;
 pub mod file;
 pub mod ik;
+pub mod measured;
 pub mod model;
 pub mod register;
 pub mod simulate;

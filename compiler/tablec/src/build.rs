@@ -9,7 +9,7 @@ use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{CalibrateOptions, Calibration};
 use anyhow::{bail, Context};
 
-use crate::measured_in::Registered;
+use adwi_robot::measured::Registered;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -243,12 +243,12 @@ fn print_summary(
         report.max_list_len
     );
     if let Some(r) = registered {
-        r.print();
+        crate::measured_in::print_registration(r);
     }
     if let Some((c, residual_rms_mm)) = calibration {
         crate::calibrate::print_identification(c, Some(*residual_rms_mm));
         if let Some(r) = registered {
-            r.print_refined(c, samples);
+            crate::measured_in::print_refined(r, c, samples);
         }
     }
     println!("method         {}", crate::describe_method(&m));

@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use adwi_compile::samples::read_samples_with;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_robot::measured::{Input, Registered};
 use anyhow::Context;
 
-use crate::measured_in::{MeasuredIn, Registered};
+use crate::measured_in::MeasuredIn;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,8 +54,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (registered, samples, robot) = match args.measured_in {
         MeasuredIn::Tracker => {
             let (registered, samples) =
-                Registered::read(&args.samples, &columns, &read, file_robot)?;
-            registered.print();
+                Registered::read(Input::File(&args.samples), &columns, &read, file_robot)?;
+            crate::measured_in::print_registration(&registered);
             let robot = registered.robot.clone();
             (Some(registered), samples, robot)
         }
@@ -71,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let c = identify(&robot, &samples, &options)?;
     if let Some(registered) = &registered {
-        registered.print_refined(&c, &samples);
+        crate::measured_in::print_refined(registered, &c, &samples);
     }
     print_identification(&c, None);
     let comment = [

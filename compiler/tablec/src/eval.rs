@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use adwi_compile::samples::read_samples_with;
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
+use adwi_robot::measured::Input;
 use anyhow::{bail, Context};
 
 use crate::measured_in::MeasuredIn;
@@ -125,13 +126,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     // it: the frame the validation set is registered into.
                     let calibration =
                         adwi_robot::calibrate::identify(&r.robot, &samples, &calibrate_options)?;
-                    let (registration, samples) =
-                        r.samples_registered_apart(&calibration, path, &columns, &read)?;
+                    let (registration, samples) = r.samples_registered_apart(
+                        &calibration,
+                        Input::File(path),
+                        &columns,
+                        &read,
+                    )?;
                     validation_registration = Some(registration);
                     calibration_of_all = Some(calibration);
                     samples
                 }
-                Some(r) => r.samples(path, &columns, &read)?,
+                Some(r) => r.samples(Input::File(path), &columns, &read)?,
                 None => read_samples_with(path, &columns, &read)?,
             };
             if let Some(n) = args.limit {
@@ -183,13 +188,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if !args.quiet {
         if let Some(r) = &registered {
-            r.print();
+            crate::measured_in::print_registration(r);
             // The transforms refined by an identification of all samples.
             let all = match calibration_of_all {
                 Some(c) => c,
                 None => adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?,
             };
-            r.print_refined(&all, &samples);
+            crate::measured_in::print_refined(r, &all, &samples);
         }
         if let Some(v) = &validation_registration {
             crate::measured_in::print_validation_registration(v);

@@ -1,20 +1,17 @@
 //! `--measured-in`: the frame a sample file's measured poses are in. `base` (the default)
 //! reads samples as they are; `tracker` reads measurements in a laser tracker's own frame,
-//! registers them to the robot (adwi_robot::register) and hands every method the
-//! registered errors.
+//! registers them to the robot (adwi_robot::measured, the one reading the Python bindings
+//! share) and hands every method the registered errors. The printing is the CLI's.
 
 use std::path::Path;
 
-use adwi_compile::samples::{read_measurements, ColumnMap, ReadOptions, SampleSet};
+use adwi_compile::samples::{ColumnMap, ReadOptions, SampleSet};
 use adwi_robot::calibrate::Calibration;
-use adwi_robot::register::{
-    register, register_moved, translation_and_rotation_deg, Refined, RegisterOptions, Registration,
-};
-use adwi_robot::Robot;
+use adwi_robot::measured::{Input, Registered};
+use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
-use anyhow::Context;
 
-/// The frame the measured poses are given in.
+/// The frame the measured poses are in.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum MeasuredIn {
     /// The robot's base frame: the file holds errors, or measured poses in the base frame.
@@ -26,7 +23,8 @@ pub enum MeasuredIn {
 }
 
 /// Reads a sample file as `frame` says: tracker-frame measurements registered to the robot
-/// at `robot_path` (`--measured-in tracker`, which needs one), or samples as they are.
+/// at `robot_path` (`--measured-in tracker`, which needs one), or samples as they are
+/// (`adwi_robot::measured::read_samples`).
 pub fn read_samples(
     frame: MeasuredIn,
     robot_path: Option<&Path>,
@@ -35,128 +33,57 @@ pub fn read_samples(
     columns: &ColumnMap,
     read: &ReadOptions,
 ) -> anyhow::Result<(Option<Registered>, SampleSet)> {
-    match (frame, robot_path) {
-        (MeasuredIn::Tracker, Some(robot_path)) => {
-            let robot = links.load(robot_path)?;
-            let (registered, samples) = Registered::read(path, columns, read, robot)?;
-            Ok((Some(registered), samples))
-        }
-        _ => Ok((
-            None,
-            adwi_compile::samples::read_samples_with(path, columns, read)?,
-        )),
-    }
+    let tracker_robot = match (frame, robot_path) {
+        (MeasuredIn::Tracker, Some(robot_path)) => Some(links.load(robot_path)?),
+        _ => None,
+    };
+    Ok(adwi_robot::measured::read_samples(
+        Input::File(path),
+        columns,
+        read,
+        tracker_robot,
+    )?)
 }
 
-/// Tracker-frame measurements registered to a robot.
-pub struct Registered {
-    /// The registration.
-    pub registration: Registration,
-    /// The robot with the registered probe as its tool.
-    pub robot: Robot,
-    /// The robot as its file describes it.
-    pub file_robot: Robot,
+/// Prints the registration: both transforms and the rigid fit's residuals.
+pub fn print_registration(registered: &Registered) {
+    let r = &registered.registration;
+    println!(
+        "registration   {} rows in the tracker frame, {}, rigid fit of the nominal robot \
+         ({} iterations)",
+        r.rows,
+        if r.orientation {
+            "6-D (positions and orientations)"
+        } else {
+            "positions only (probe rotation kept from the robot file)"
+        },
+        r.iterations
+    );
+    print_transforms(&r.base_in_tracker, &r.probe);
+    print_residuals(
+        "fit residuals",
+        r.position_rms_mm,
+        r.position_max_mm,
+        r.orientation_rms_rad.zip(r.orientation_max_rad),
+    );
 }
 
-impl Registered {
-    /// Reads tracker-frame measurements and registers them to `robot`: the registration
-    /// and the registered base-frame samples.
-    pub fn read(
-        path: &Path,
-        columns: &ColumnMap,
-        read: &ReadOptions,
-        robot: Robot,
-    ) -> anyhow::Result<(Registered, SampleSet)> {
-        let measurements = read_measurements(path, columns, read)?;
-        let registration = register(&robot, &measurements, &RegisterOptions::default())
-            .with_context(|| format!("cannot register {}", path.display()))?;
-        let registered = Registered {
-            robot: registration.robot(&robot)?,
-            registration,
-            file_robot: robot,
-        };
-        let samples = registered.samples(path, columns, read)?;
-        Ok((registered, samples))
-    }
-
-    /// Reads more tracker-frame measurements (same tracker frame, same probe) as samples
-    /// through this registration.
-    pub fn samples(
-        &self,
-        path: &Path,
-        columns: &ColumnMap,
-        read: &ReadOptions,
-    ) -> anyhow::Result<SampleSet> {
-        let measurements = read_measurements(path, columns, read)?;
-        self.registration
-            .to_samples(&self.file_robot, &measurements)
-            .with_context(|| format!("cannot register {}", path.display()))
-    }
-
-    /// Reads tracker-frame measurements taken after the tracker moved (another series) as
-    /// samples: the robot's frame in the new tracker frame fitted to the TCP positions
-    /// `calibration` (made from this registration's samples) predicts, the probe kept
-    /// (`adwi_robot::register::register_moved`). Returns that registration with the
-    /// samples.
-    pub fn samples_registered_apart(
-        &self,
-        calibration: &Calibration,
-        path: &Path,
-        columns: &ColumnMap,
-        read: &ReadOptions,
-    ) -> anyhow::Result<(Registration, SampleSet)> {
-        let measurements = read_measurements(path, columns, read)?;
-        let registration = register_moved(
-            &self.registration,
-            calibration.calibrated_robot(),
-            &measurements,
-        )
-        .with_context(|| format!("cannot register {}", path.display()))?;
-        let samples = registration
-            .to_samples(&self.file_robot, &measurements)
-            .with_context(|| format!("cannot register {}", path.display()))?;
-        Ok((registration, samples))
-    }
-
-    /// Prints the registration: both transforms and the rigid fit's residuals.
-    pub fn print(&self) {
-        let r = &self.registration;
-        println!(
-            "registration   {} rows in the tracker frame, {}, rigid fit of the nominal robot \
-             ({} iterations)",
-            r.rows,
-            if r.orientation {
-                "6-D (positions and orientations)"
-            } else {
-                "positions only (probe rotation kept from the robot file)"
-            },
-            r.iterations
-        );
-        print_transforms(&r.base_in_tracker, &r.probe);
-        print_residuals(
-            "fit residuals",
-            r.position_rms_mm,
-            r.position_max_mm,
-            r.orientation_rms_rad.zip(r.orientation_max_rad),
-        );
-    }
-
-    /// Prints both transforms as `calibration` (identified from this registration's
-    /// samples) refined them, with the identified model's residuals.
-    pub fn print_refined(&self, calibration: &Calibration, samples: &SampleSet) {
-        let refined: Refined = self.registration.refined(calibration, samples);
-        println!("refined        by the identification's base and tool parameters:");
-        print_transforms(&refined.base_in_tracker, &refined.probe);
-        print_residuals(
-            "residuals",
-            refined.position_rms_mm,
-            refined.position_max_mm,
-            refined.orientation_rms_rad.zip(refined.orientation_max_rad),
-        );
-    }
+/// Prints both transforms as `calibration` (identified from the registered samples)
+/// refined them, with the identified model's residuals.
+pub fn print_refined(registered: &Registered, calibration: &Calibration, samples: &SampleSet) {
+    let refined: Refined = registered.registration.refined(calibration, samples);
+    println!("refined        by the identification's base and tool parameters:");
+    print_transforms(&refined.base_in_tracker, &refined.probe);
+    print_residuals(
+        "residuals",
+        refined.position_rms_mm,
+        refined.position_max_mm,
+        refined.orientation_rms_rad.zip(refined.orientation_max_rad),
+    );
 }
 
-/// Prints a validation set's own registration ([`Registered::samples_registered_apart`]):
+/// Prints a validation set's own registration
+/// ([`adwi_robot::measured::Registered::samples_registered_apart`]):
 /// its tracker-to-base transform and the calibrated model's residuals.
 pub fn print_validation_registration(r: &Registration) {
     println!(
