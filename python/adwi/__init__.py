@@ -141,8 +141,9 @@ class BuildReport:
     ``max_list_len``, ``served_cells``, ``node_sets``, ``bytes``, ``k``, ``w1``, ``w2``,
     ``power``, ``lambda_min``, ``zeta_min``, ``consistency_screen``, ``joint_radius_deg``,
     ``served_field``, ``served_kriging`` (a kriging served field's hyperparameters per
-    component, x, y, z then orientation: dicts of ``length_scale_mm``, ``relative_nugget``
-    and ``modulation``, the weight of the part turning with the tool; empty for the
+    component, x, y, z then orientation: dicts of ``length_scale_mm`` (horizontal),
+    ``vertical_scale`` (vertical distances are multiplied by it), ``relative_nugget`` and
+    ``modulation``, the weight of the part turning with the tool; empty for the
     method's nodes), ``hybrid``, ``calibration`` (dict or None), ``registration`` (dict,
     with ``measured_in="tracker"``, or None), ``tuning`` (dict or None), ``warnings``,
     ``seconds``.

@@ -428,6 +428,7 @@ fn report_dict<'py>(
     for c in &report.served_kriging {
         let k = PyDict::new(py);
         k.set_item("length_scale_mm", c.length_scale)?;
+        k.set_item("vertical_scale", c.vertical_scale)?;
         k.set_item("relative_nugget", c.relative_nugget)?;
         k.set_item("modulation", c.modulation)?;
         kriging.append(k)?;

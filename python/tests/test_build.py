@@ -51,6 +51,7 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     for choice in report.served_kriging:
         assert choice["length_scale_mm"] > 0 and choice["relative_nugget"] > 0
         assert choice["modulation"] == 0
+        assert choice["vertical_scale"] in (0.25, 0.5, 1.0, 2.0)
     theirs = tmp_path / "tablec.tbl"
     subprocess.run(
         [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(theirs),
