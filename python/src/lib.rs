@@ -327,27 +327,29 @@ fn registration_dict<'py>(
     d.set_item("rows", r.rows)?;
     d.set_item("orientation", r.orientation)?;
     d.set_item("iterations", r.iterations)?;
-    d.set_item("base_in_tracker", transform_dict(py, &r.base_in_tracker)?)?;
-    d.set_item("probe", transform_dict(py, &r.probe)?)?;
-    d.set_item("position_rms_mm", r.position_rms_mm)?;
-    d.set_item("position_max_mm", r.position_max_mm)?;
-    d.set_item("orientation_rms_rad", r.orientation_rms_rad)?;
-    d.set_item("orientation_max_rad", r.orientation_max_rad)?;
+    transforms_into(py, &d, &r.fit())?;
     let refined = match refined {
         Some(f) => {
             let rd = PyDict::new(py);
-            rd.set_item("base_in_tracker", transform_dict(py, &f.base_in_tracker)?)?;
-            rd.set_item("probe", transform_dict(py, &f.probe)?)?;
-            rd.set_item("position_rms_mm", f.position_rms_mm)?;
-            rd.set_item("position_max_mm", f.position_max_mm)?;
-            rd.set_item("orientation_rms_rad", f.orientation_rms_rad)?;
-            rd.set_item("orientation_max_rad", f.orientation_max_rad)?;
+            transforms_into(py, &rd, f)?;
             Some(rd)
         }
         None => None,
     };
     d.set_item("refined", refined)?;
     Ok(d)
+}
+
+/// Both transforms and the residuals they leave, under the same keys for the rigid fit and
+/// for the refined transforms.
+fn transforms_into(py: Python<'_>, d: &Bound<'_, PyDict>, t: &Refined) -> PyResult<()> {
+    d.set_item("base_in_tracker", transform_dict(py, &t.base_in_tracker)?)?;
+    d.set_item("probe", transform_dict(py, &t.probe)?)?;
+    d.set_item("position_rms_mm", t.position_rms_mm)?;
+    d.set_item("position_max_mm", t.position_max_mm)?;
+    d.set_item("orientation_rms_rad", t.orientation_rms_rad)?;
+    d.set_item("orientation_max_rad", t.orientation_max_rad)?;
+    Ok(())
 }
 
 /// What a build made, for its report.

@@ -307,6 +307,19 @@ pub fn register(
 }
 
 impl Registration {
+    /// The rigid fit's transforms and residuals, in the shape of its [`Registration::refined`]
+    /// ones, so that both are reported alike.
+    pub fn fit(&self) -> Refined {
+        Refined {
+            base_in_tracker: self.base_in_tracker,
+            probe: self.probe,
+            position_rms_mm: self.position_rms_mm,
+            position_max_mm: self.position_max_mm,
+            orientation_rms_rad: self.orientation_rms_rad,
+            orientation_max_rad: self.orientation_max_rad,
+        }
+    }
+
     /// The robot with the registered probe as its tool: the nominal model the registered
     /// samples' errors are taken against, and the start of the identification.
     ///

@@ -59,13 +59,7 @@ pub fn print_registration(registered: &Registered) {
         },
         r.iterations
     );
-    print_transforms(&r.base_in_tracker, &r.probe);
-    print_residuals(
-        "fit residuals",
-        r.position_rms_mm,
-        r.position_max_mm,
-        r.orientation_rms_rad.zip(r.orientation_max_rad),
-    );
+    print_fit("fit residuals", &r.fit());
 }
 
 /// Prints both transforms as `calibration` (identified from the registered samples)
@@ -73,13 +67,7 @@ pub fn print_registration(registered: &Registered) {
 pub fn print_refined(registered: &Registered, calibration: &Calibration, samples: &SampleSet) {
     let refined: Refined = registered.registration.refined(calibration, samples);
     println!("refined        by the identification's base and tool parameters:");
-    print_transforms(&refined.base_in_tracker, &refined.probe);
-    print_residuals(
-        "residuals",
-        refined.position_rms_mm,
-        refined.position_max_mm,
-        refined.orientation_rms_rad.zip(refined.orientation_max_rad),
-    );
+    print_fit("residuals", &refined);
 }
 
 /// Prints a validation set's own registration
@@ -91,12 +79,17 @@ pub fn print_validation_registration(r: &Registration) {
          fitted to the calibrated model's TCP positions; the probe is the samples'",
         r.rows
     );
-    print_transforms(&r.base_in_tracker, &r.probe);
+    print_fit("fit residuals", &r.fit());
+}
+
+/// Both transforms, then the residuals they leave on a line of its own called `residuals`.
+fn print_fit(residuals: &str, fit: &Refined) {
+    print_transforms(&fit.base_in_tracker, &fit.probe);
     print_residuals(
-        "fit residuals",
-        r.position_rms_mm,
-        r.position_max_mm,
-        r.orientation_rms_rad.zip(r.orientation_max_rad),
+        residuals,
+        fit.position_rms_mm,
+        fit.position_max_mm,
+        fit.orientation_rms_rad.zip(fit.orientation_max_rad),
     );
 }
 
