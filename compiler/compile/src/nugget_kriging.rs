@@ -45,10 +45,10 @@
 //! factor `s` ([`VERTICAL_SCALES`], chosen per component with `ℓ` and `λ`), so that the
 //! field may be smoother along the height than across it (`s < 1`) or rougher (`s > 1`).
 //! Gravity sets the vertical apart: what it leaves of a robot's error changes with reach
-//! more than with height. On the UR5's residuals the likelihood takes `s = 0.5` for x and
-//! `s = 0.25` for y (a 10-fold cross-validation of the training grid moved from 0.0760 to
-//! 0.0725 mm mean with it, docs/evaluation.md). It is still a field of position, so a table
-//! serves it at no cost to a query.
+//! more than with height. On the UR5's residuals the likelihood takes `s = 0.5` for x,
+//! `0.25` for y and `2` for z, and the served tool-axis field's 10-fold cross-validation
+//! moves from 0.0759 to 0.0730 mm mean (docs/evaluation.md, "Height against breadth"). It
+//! is still a field of position, so a table serves it at no cost to a query.
 //!
 //! # A part that turns with the tool
 //!
