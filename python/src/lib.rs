@@ -316,6 +316,31 @@ fn transform_dict<'py>(py: Python<'py>, t: &Transform) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
+/// Reads the samples as `measured_in` says (`tracker`: registered to `robot`), with the
+/// robot every method then starts from: with tracker data, the one whose tool is the
+/// registered probe.
+fn read_measured(
+    source: &Source,
+    columns: &ColumnMap,
+    read: &ReadOptions,
+    robot: Option<adwi_robot::Robot>,
+    tracker: bool,
+) -> anyhow::Result<(
+    Option<adwi_robot::measured::Registered>,
+    SampleSet,
+    Option<adwi_robot::Robot>,
+)> {
+    let (tracker_robot, robot) = if tracker {
+        (robot, None)
+    } else {
+        (None, robot)
+    };
+    let (registered, samples) =
+        adwi_robot::measured::read_samples(source.input(), columns, read, tracker_robot)?;
+    let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
+    Ok((registered, samples, robot))
+}
+
 /// The registration of tracker-frame measurements, as `tablec` prints it: the rigid fit,
 /// and both transforms as an identification of the registered samples refined them.
 fn registration_dict<'py>(
@@ -521,15 +546,7 @@ fn build<'py>(
             ..CalibrateOptions::default()
         };
         let (columns, read) = reading.resolve()?;
-        let (tracker_robot, robot) = if tracker {
-            (robot, None)
-        } else {
-            (None, robot)
-        };
-        let (registered, samples) =
-            adwi_robot::measured::read_samples(source.input(), &columns, &read, tracker_robot)?;
-        // Identification starts from the robot with the registered probe as its tool.
-        let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
+        let (registered, samples, robot) = read_measured(&source, &columns, &read, robot, tracker)?;
         let mut options = table.build_options()?;
         if tune {
             if table.k.is_some() || table.radius.is_some() {
@@ -683,13 +700,7 @@ fn evaluate<'py>(
             .as_deref()
             .map(|p| load_robot(p, base_link, tip_link))
             .transpose()?;
-        let (tracker_robot, robot) = if tracker {
-            (robot, None)
-        } else {
-            (None, robot)
-        };
-        let (registered, samples) =
-            adwi_robot::measured::read_samples(source.input(), &columns, &read, tracker_robot)?;
+        let (registered, samples, robot) = read_measured(&source, &columns, &read, robot, tracker)?;
         let calibrate = CalibrateOptions {
             rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
             compliance,
@@ -729,8 +740,6 @@ fn evaluate<'py>(
                 bail!("give a validation set (validation=...) or a fold count (folds=K)")
             }
         };
-        // Every method starts from the robot with the registered probe as its tool.
-        let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
         let options = EvalOptions {
             methods,
             build: table.build_options()?,
