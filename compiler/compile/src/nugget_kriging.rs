@@ -276,16 +276,8 @@ impl ResidualGp {
             .iter()
             .map(|&s| DMatrix::from_fn(n, n, |i, j| scaled_distance(&inputs[i], &inputs[j], s)))
             .collect();
-        let means: Vec<f64> = (0..width)
-            .map(|c| values.iter().map(|v| v[c]).sum::<f64>() / n as f64)
-            .collect();
-        let centred = DMatrix::from_fn(n, width, |i, c| values[i][c] - means[c]);
-        // The axes' Gram matrix ⟨a_i, a_j⟩, when the field turns with them.
-        let gram = axes.map(|a| {
-            DMatrix::from_fn(n, n, |i, j| {
-                a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
-            })
-        });
+        let (means, centred) = centred_values(values);
+        let gram = axes.map(gram_matrix);
         let modulations: &[f64] = if gram.is_some() { &MODULATIONS } else { &[0.0] };
         // (index into `vertical_scales`, ℓ, w).
         let settings: Vec<(usize, f64, f64)> = (0..vertical_scales.len())
@@ -471,6 +463,24 @@ impl ResidualGp {
                 .collect(),
         )
     }
+}
+
+/// Each component's mean over the samples, and the values less it (samples × components).
+fn centred_values(values: &[Vec<f64>]) -> (Vec<f64>, DMatrix<f64>) {
+    let (n, width) = (values.len(), values[0].len());
+    let means: Vec<f64> = (0..width)
+        .map(|c| values.iter().map(|v| v[c]).sum::<f64>() / n as f64)
+        .collect();
+    let centred = DMatrix::from_fn(n, width, |i, c| values[i][c] - means[c]);
+    (means, centred)
+}
+
+/// The axes' Gram matrix `⟨a_i, a_j⟩`, for a field that turns with them.
+fn gram_matrix(a: &[[f64; 3]]) -> DMatrix<f64> {
+    let n = a.len();
+    DMatrix::from_fn(n, n, |i, j| {
+        a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
+    })
 }
 
 /// `K + λI` for length scale `l`: `K = R`, or `R ∘ (1 + w G)` with `G` the axes' Gram matrix.
@@ -769,15 +779,8 @@ fn reference_choices(
     let spacing = median_nearest_distance(&DMatrix::from_fn(n, n, |i, j| {
         distance(&inputs[i], &inputs[j])
     }));
-    let means: Vec<f64> = (0..width)
-        .map(|c| values.iter().map(|v| v[c]).sum::<f64>() / n as f64)
-        .collect();
-    let centred = DMatrix::from_fn(n, width, |i, c| values[i][c] - means[c]);
-    let gram = axes.map(|a| {
-        DMatrix::from_fn(n, n, |i, j| {
-            a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
-        })
-    });
+    let (_, centred) = centred_values(values);
+    let gram = axes.map(gram_matrix);
     let modulations: &[f64] = if axes.is_some() { &MODULATIONS } else { &[0.0] };
     let mut best: Vec<Option<GpChoice>> = vec![None; width];
     for &vertical in vertical_scales {
