@@ -104,10 +104,6 @@ impl Source {
         }
     }
 
-    fn read(&self, columns: &ColumnMap, options: &ReadOptions) -> anyhow::Result<SampleSet> {
-        Ok(self.input().samples(columns, options)?)
-    }
-
     fn describe(&self) -> String {
         match self {
             Source::Path(p) => p.display().to_string(),
@@ -708,23 +704,17 @@ fn evaluate<'py>(
         };
         // The identification of all samples, as `tablec eval` makes it: the frame a
         // validation series is registered apart into, and what refines the registration.
-        let mut calibration_of_all = None;
-        let mut validation_registration = None;
+        let mut registered_apart = None;
         let protocol = match (&validation, folds) {
             (Some(v), None) => {
-                let mut validation = match &registered {
-                    Some(r) if register_validation_apart => {
-                        let calibration =
-                            adwi_robot::calibrate::identify(&r.robot, &samples, &calibrate)?;
-                        let (registration, samples) =
-                            r.samples_registered_apart(&calibration, v.input(), &columns, &read)?;
-                        validation_registration = Some(registration);
-                        calibration_of_all = Some(calibration);
-                        samples
-                    }
-                    Some(r) => r.samples(v.input(), &columns, &read)?,
-                    None => v.read(&columns, &read)?,
-                };
+                let (mut validation, apart) = adwi_robot::measured::read_validation(
+                    v.input(),
+                    &columns,
+                    &read,
+                    registered.as_ref(),
+                    register_validation_apart.then_some((&samples, &calibrate)),
+                )?;
+                registered_apart = apart;
                 if let Some(n) = limit {
                     if n == 0 {
                         bail!("limit must be at least 1");
@@ -748,19 +738,15 @@ fn evaluate<'py>(
             ..EvalOptions::default()
         };
         let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+        let identified = registered_apart.as_ref().map(|(_, c)| c);
         let registration = match registered {
             Some(r) => {
-                let all = match calibration_of_all {
-                    Some(c) => c,
-                    None => {
-                        adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?
-                    }
-                };
-                let refined = r.registration.refined(&all, &samples);
+                let refined = r.refined_by(&samples, &options.calibrate, identified)?;
                 Some((r.registration, refined))
             }
             None => None,
         };
+        let validation_registration = registered_apart.map(|(r, _)| r);
         Ok((evaluation, registration, validation_registration))
     });
     let (e, registration, validation_registration) = evaluated.map_err(adwi_error)?;

@@ -12,8 +12,10 @@ use adwi_compile::samples::{
     Measurements, ReadError, ReadOptions, SampleSet,
 };
 
-use crate::calibrate::Calibration;
-use crate::register::{register, register_moved, RegisterError, RegisterOptions, Registration};
+use crate::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration};
+use crate::register::{
+    register, register_moved, Refined, RegisterError, RegisterOptions, Registration,
+};
 use crate::{Robot, RobotError};
 
 /// A sample file: on disk, or its CSV text in memory (a DataFrame's, say), named by `name`
@@ -87,6 +89,10 @@ pub enum MeasuredError {
     /// The registered probe does not make a robot.
     #[error(transparent)]
     Robot(#[from] RobotError),
+    /// The registered samples cannot be identified (for a validation series registered
+    /// apart, or for the refined transforms).
+    #[error(transparent)]
+    Identify(#[from] CalibrateError),
 }
 
 impl MeasuredError {
@@ -115,6 +121,36 @@ pub fn read_samples(
             Ok((Some(registered), samples))
         }
         None => Ok((None, input.samples(columns, read)?)),
+    }
+}
+
+/// Reads a validation series into the frame of the `samples` that `registered` (when they
+/// were registered) was read with: as it is without a registration; through that
+/// registration (the same tracker frame); or, with `apart`, registered on its own to the
+/// TCP positions of the identification of `samples` by those options (the tracker moved).
+/// Returns the samples, and when registered apart that registration and the
+/// identification, which the caller may reuse ([`Registered::refined_by`]). `apart` without
+/// a registration is read as it is; the callers refuse it first.
+///
+/// # Errors
+///
+/// As [`Registered::samples_registered_apart`], or the identification's error.
+pub fn read_validation(
+    input: Input<'_>,
+    columns: &ColumnMap,
+    read: &ReadOptions,
+    registered: Option<&Registered>,
+    apart: Option<(&SampleSet, &CalibrateOptions)>,
+) -> Result<(SampleSet, Option<(Registration, Calibration)>), MeasuredError> {
+    match (registered, apart) {
+        (Some(r), Some((samples, options))) => {
+            let calibration = identify(&r.robot, samples, options)?;
+            let (registration, validation) =
+                r.samples_registered_apart(&calibration, input, columns, read)?;
+            Ok((validation, Some((registration, calibration))))
+        }
+        (Some(r), None) => Ok((r.samples(input, columns, read)?, None)),
+        (None, _) => Ok((input.samples(columns, read)?, None)),
     }
 }
 
@@ -199,6 +235,30 @@ impl Registered {
             .to_samples(&self.file_robot, &measurements)
             .map_err(MeasuredError::register(&input))?;
         Ok((registration, samples))
+    }
+
+    /// Both transforms as the identification of all the registered `samples` refines them:
+    /// `identified` when the caller has made it ([`read_validation`]), otherwise made here
+    /// with `options`.
+    ///
+    /// # Errors
+    ///
+    /// The identification's error.
+    pub fn refined_by(
+        &self,
+        samples: &SampleSet,
+        options: &CalibrateOptions,
+        identified: Option<&Calibration>,
+    ) -> Result<Refined, MeasuredError> {
+        let made;
+        let calibration = match identified {
+            Some(c) => c,
+            None => {
+                made = identify(&self.robot, samples, options)?;
+                &made
+            }
+        };
+        Ok(self.registration.refined(calibration, samples))
     }
 
     fn to_samples(

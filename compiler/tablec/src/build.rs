@@ -248,7 +248,7 @@ fn print_summary(
     if let Some((c, residual_rms_mm)) = calibration {
         crate::calibrate::print_identification(c, Some(*residual_rms_mm));
         if let Some(r) = registered {
-            crate::measured_in::print_refined(r, c, samples);
+            crate::measured_in::print_refined(&r.registration.refined(c, samples));
         }
     }
     println!("method         {}", crate::describe_method(&m));

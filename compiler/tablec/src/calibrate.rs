@@ -72,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let c = identify(&robot, &samples, &options)?;
     if let Some(registered) = &registered {
-        crate::measured_in::print_refined(registered, &c, &samples);
+        crate::measured_in::print_refined(&registered.registration.refined(&c, &samples));
     }
     print_identification(&c, None);
     let comment = [

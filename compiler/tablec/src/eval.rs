@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use adwi_compile::samples::read_samples_with;
 use adwi_eval::{EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::measured::Input;
@@ -108,10 +107,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.register_validation_apart && registered.is_none() {
         bail!("--register-validation-apart needs --measured-in tracker");
     }
-    let mut validation_registration = None;
     // The identification of all samples, made once: for registering a validation series
     // apart and for printing the refined transforms.
-    let mut calibration_of_all = None;
+    let mut registered_apart = None;
     let calibrate_options = CalibrateOptions {
         rank_tolerance: args.rank_tol,
         hold_untrustworthy: !args.keep_untrustworthy,
@@ -120,25 +118,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let protocol = match (&args.validation, args.folds) {
         (Some(path), None) => {
-            let mut validation = match &registered {
-                Some(r) if args.register_validation_apart => {
-                    // The calibration of the samples alone, as the kinematic method makes
-                    // it: the frame the validation set is registered into.
-                    let calibration =
-                        adwi_robot::calibrate::identify(&r.robot, &samples, &calibrate_options)?;
-                    let (registration, samples) = r.samples_registered_apart(
-                        &calibration,
-                        Input::File(path),
-                        &columns,
-                        &read,
-                    )?;
-                    validation_registration = Some(registration);
-                    calibration_of_all = Some(calibration);
-                    samples
-                }
-                Some(r) => r.samples(Input::File(path), &columns, &read)?,
-                None => read_samples_with(path, &columns, &read)?,
-            };
+            // Registered apart, into the frame of the samples' calibration alone, as the
+            // kinematic method makes it.
+            let (mut validation, apart) = adwi_robot::measured::read_validation(
+                Input::File(path),
+                &columns,
+                &read,
+                registered.as_ref(),
+                args.register_validation_apart
+                    .then_some((&samples, &calibrate_options)),
+            )?;
+            registered_apart = apart;
             if let Some(n) = args.limit {
                 if n == 0 {
                     bail!("--limit must be at least 1");
@@ -190,13 +180,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(r) = &registered {
             crate::measured_in::print_registration(r);
             // The transforms refined by an identification of all samples.
-            let all = match calibration_of_all {
-                Some(c) => c,
-                None => adwi_robot::calibrate::identify(&r.robot, &samples, &options.calibrate)?,
-            };
-            crate::measured_in::print_refined(r, &all, &samples);
+            let identified = registered_apart.as_ref().map(|(_, c)| c);
+            crate::measured_in::print_refined(&r.refined_by(
+                &samples,
+                &options.calibrate,
+                identified,
+            )?);
         }
-        if let Some(v) = &validation_registration {
+        if let Some((v, _)) = &registered_apart {
             crate::measured_in::print_validation_registration(v);
         }
         print!("{}", adwi_eval::output::terminal_table(&evaluation));

@@ -6,7 +6,6 @@
 use std::path::Path;
 
 use adwi_compile::samples::{ColumnMap, ReadOptions, SampleSet};
-use adwi_robot::calibrate::Calibration;
 use adwi_robot::measured::{Input, Registered};
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
@@ -62,12 +61,12 @@ pub fn print_registration(registered: &Registered) {
     print_fit("fit residuals", &r.fit());
 }
 
-/// Prints both transforms as `calibration` (identified from the registered samples)
-/// refined them, with the identified model's residuals.
-pub fn print_refined(registered: &Registered, calibration: &Calibration, samples: &SampleSet) {
-    let refined: Refined = registered.registration.refined(calibration, samples);
+/// Prints both transforms as an identification of the registered samples refined them
+/// ([`Registration::refined`](adwi_robot::register::Registration::refined)), with the
+/// identified model's residuals.
+pub fn print_refined(refined: &Refined) {
     println!("refined        by the identification's base and tool parameters:");
-    print_fit("residuals", &refined);
+    print_fit("residuals", refined);
 }
 
 /// Prints a validation set's own registration
