@@ -308,14 +308,21 @@ fn documented_ur5_figures_are_regenerated() {
 /// ~0.06 mm mean a perfect predictor would leave), and the identification holds what it
 /// cannot trust: the flange's Δd6 and Δtheta6 stay nominal, the tool's z takes the
 /// reflector's offset, and every parameter has a status and, when not identified, a reason.
+/// What the 20 points resolve is said too: each mean's standard error, the hybrid against
+/// the kinematic model point by point, and the offset the hybrid's residuals share.
 #[test]
-fn ur5_noise_floor_and_trusted_identification() {
+fn ur5_noise_floor_resolution_and_trusted_identification() {
     let (command, _) = documented("ur5");
     let out = tempfile::tempdir().unwrap();
     let json = out.path().join("ur5.json");
     let mut args: Vec<&str> = command.iter().map(String::as_str).collect();
     let report = out.path().join("report");
-    args.extend(["--methods", "kinematic", "--json", json.to_str().unwrap()]);
+    args.extend([
+        "--methods",
+        "kinematic,hybrid",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
     args.extend(["--report", report.to_str().unwrap()]);
     let o = tablec(&args, &repo());
     ok(&o);
@@ -341,6 +348,38 @@ fn ur5_noise_floor_and_trusted_identification() {
     assert!((0.0035..0.0065).contains(&joint), "{floor}");
     assert!((0.055..0.07).contains(&best), "{floor}");
     assert!(cartesian < number(&floor["total_variance_mm2"]));
+    // The hybrid leaves 0.0853 mm, the kinematic model 0.1004 mm: 0.0151 mm apart, known
+    // point by point to about ±0.007 mm although each mean alone is known only to about
+    // ±0.007-0.008 mm.
+    let comparison = &e["comparison"];
+    assert_eq!(comparison["reference"], "hybrid", "{comparison}");
+    let kinematic = &comparison["against"][0];
+    assert_eq!(kinematic["method"], "kinematic");
+    assert_eq!(kinematic["points"], 20);
+    let difference = number(&kinematic["mean_difference_mm"]);
+    assert!((difference - 0.0151).abs() < 5e-5, "{comparison}");
+    let paired = number(&kinematic["standard_error_mm"]);
+    assert!((0.004..0.01).contains(&paired), "{comparison}");
+    let hybrid = e["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["method"] == "hybrid")
+        .unwrap();
+    let se = number(&hybrid["position_mm"]["mean_norm_standard_error"]);
+    assert!((0.005..0.01).contains(&se), "{se}");
+    // The 20 random poses share an offset of about 0.03 mm that the grid's model cannot
+    // know: below 1 % chance for the hybrid's residuals.
+    let p = number(&hybrid["position_mm"]["mean_per_axis_p_value"]);
+    assert!(p < 0.01, "{p}");
+    assert!(
+        stdout.contains("point by point against hybrid (mean 0.0853 ± 0.0077 mm"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("hybrid (-0.0218, +0.0158, -0.0140) mm, p = 0.008"),
+        "{stdout}"
+    );
     let parameters = e["calibrations"][0]["parameters"].as_array().unwrap();
     let row = |name: &str| {
         parameters

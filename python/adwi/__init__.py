@@ -347,7 +347,9 @@ def evaluate(
     Returns an :class:`Evaluation`: a list with one record per row of ``tablec eval
     --csv`` — ``uncompensated``, then one per method — with its keys: ``method``,
     ``predicted``, ``not_predicted``, ``position_{mean,rms,p95,max}_mm``,
-    ``orientation_{mean,rms,p95,max}_mrad`` (None without orientations) and ``note``;
+    ``orientation_{mean,rms,p95,max}_mrad`` (None without orientations),
+    ``position_mean_se_mm`` (the standard error of the position mean),
+    ``position_offset_p`` (the p value of the residuals' shared offset) and ``note``;
     ``pandas.DataFrame(records)`` takes them. Its ``registration`` and
     ``validation_registration`` are the registrations ``tablec eval`` prints, or None. The
     GIL is released while evaluating.
@@ -374,7 +376,7 @@ def evaluate(
     )
     if isinstance(methods, str):
         methods = [m for m in methods.split(",") if m]
-    records, messages, registration, validation_registration = _adwi.evaluate(
+    records, messages, registration, validation_registration, comparison = _adwi.evaluate(
         source,
         reading,
         table,
@@ -392,7 +394,7 @@ def evaluate(
         register_validation_apart=register_validation_apart,
     )
     _warn(messages)
-    return Evaluation(records, registration, validation_registration)
+    return Evaluation(records, registration, validation_registration, comparison)
 
 
 class Evaluation(list):
@@ -405,20 +407,29 @@ class Evaluation(list):
     - ``validation_registration``: the validation set's own registration
       (``register_validation_apart=True``): the same keys, positions only, ``refined``
       None; otherwise None.
+    - ``comparison``: every method against the best, point by point, as ``"comparison"``
+      in ``tablec eval --json``: ``reference``, the method with the lowest mean of those
+      that missed no point, and ``against``, one dict per other method (``method``,
+      ``points`` both predicted, ``mean_difference_mm`` of its residual norm minus the
+      reference's, and its ``standard_error_mm``), smallest difference first. None when no
+      method has residuals.
     """
 
     registration: Optional[Dict[str, Any]]
     validation_registration: Optional[Dict[str, Any]]
+    comparison: Optional[Dict[str, Any]]
 
     def __init__(
         self,
         records: Sequence[Dict[str, Any]] = (),
         registration: Optional[Dict[str, Any]] = None,
         validation_registration: Optional[Dict[str, Any]] = None,
+        comparison: Optional[Dict[str, Any]] = None,
     ) -> None:
         super().__init__(records)
         self.registration = registration
         self.validation_registration = validation_registration
+        self.comparison = comparison
 
 
 class QueryResult:

@@ -155,15 +155,17 @@ def evaluate(
 
 class Evaluation(List[Dict[str, Any]]):
     """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
-    samples (None otherwise)."""
+    samples (None otherwise) and the methods against the best, point by point."""
 
     registration: Optional[Dict[str, Any]]
     validation_registration: Optional[Dict[str, Any]]
+    comparison: Optional[Dict[str, Any]]
     def __init__(
         self,
         records: Sequence[Dict[str, Any]] = ...,
         registration: Optional[Dict[str, Any]] = None,
         validation_registration: Optional[Dict[str, Any]] = None,
+        comparison: Optional[Dict[str, Any]] = None,
     ) -> None: ...
 
 class QueryResult:

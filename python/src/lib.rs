@@ -632,19 +632,22 @@ fn build<'py>(
     )
 }
 
-/// What [`evaluate`] returns: the records, the warnings, and with tracker-frame samples
-/// their registration and a validation set's own (registered apart).
+/// What [`evaluate`] returns: the records, the warnings, with tracker-frame samples
+/// their registration and a validation set's own (registered apart), and the comparison
+/// of the methods with the best.
 type Evaluated<'py> = (
     Bound<'py, PyList>,
     Vec<String>,
     Option<Bound<'py, PyDict>>,
     Option<Bound<'py, PyDict>>,
+    Option<Bound<'py, PyDict>>,
 );
 
 /// `tablec eval`: every method on held-out points. Returns (records, warnings,
-/// registration, validation registration): one record per row of `tablec eval --csv` (the
-/// uncompensated errors, then one per method), with the same keys, figures in full
-/// precision; the registrations as `tablec eval` prints them, or None.
+/// registration, validation registration, comparison): one record per row of `tablec eval
+/// --csv` (the uncompensated errors, then one per method), with the same keys, figures in
+/// full precision; the registrations as `tablec eval` prints them, or None; the methods
+/// against the best, point by point, as `"comparison"` in `tablec eval --json`.
 #[pyfunction]
 #[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, compliance=false, measured_in="base", register_validation_apart=false))]
 #[allow(clippy::too_many_arguments)]
@@ -789,6 +792,9 @@ fn evaluate<'py>(
                 d.set_item(format!("{prefix}_{name}_{unit}"), figures.map(|f| f[i]))?;
             }
         }
+        let [se, p] = adwi_eval::output::resolution(position);
+        d.set_item("position_mean_se_mm", se)?;
+        d.set_item("position_offset_p", p)?;
         d.set_item("note", note)?;
         Ok(d)
     };
@@ -820,7 +826,32 @@ fn evaluate<'py>(
     let validation_registration = validation_registration
         .map(|r| registration_dict(py, &r, None))
         .transpose()?;
-    Ok((records, warnings, registration, validation_registration))
+    let comparison = e
+        .comparison
+        .as_ref()
+        .map(|c| -> PyResult<Bound<'py, PyDict>> {
+            let d = PyDict::new(py);
+            d.set_item("reference", c.reference.name())?;
+            let against = PyList::empty(py);
+            for a in &c.against {
+                let row = PyDict::new(py);
+                row.set_item("method", a.method.name())?;
+                row.set_item("points", a.points)?;
+                row.set_item("mean_difference_mm", a.mean_difference_mm)?;
+                row.set_item("standard_error_mm", a.standard_error_mm)?;
+                against.append(row)?;
+            }
+            d.set_item("against", against)?;
+            Ok(d)
+        })
+        .transpose()?;
+    Ok((
+        records,
+        warnings,
+        registration,
+        validation_registration,
+        comparison,
+    ))
 }
 
 /// A correction table, memory-mapped and validated once.

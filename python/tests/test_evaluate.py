@@ -1,6 +1,7 @@
 """adwi.evaluate: the figures of `tablec eval --csv`, as records pandas takes."""
 
 import csv
+import json
 import subprocess
 
 import pandas as pd
@@ -18,6 +19,7 @@ FIGURES = [
     "orientation_rms_mrad",
     "orientation_p95_mrad",
     "orientation_max_mrad",
+    "position_mean_se_mm",
 ]
 
 
@@ -44,6 +46,12 @@ def assert_same_figures(records, rows):
                 assert record[key] is None
             else:
                 assert format(record[key], ".9f") == row[key], (record["method"], key)
+        if row["position_offset_p"] == "":
+            assert record["position_offset_p"] is None
+        else:
+            assert float(row["position_offset_p"]) == pytest.approx(
+                record["position_offset_p"], rel=5e-4
+            )
 
 
 def test_kr150_validation_equals_tablec(tablec, tmp_path):
@@ -84,6 +92,27 @@ def test_ur5_with_robot_equals_tablec(tablec, tmp_path):
     assert by_method["paper"]["position_mean_mm"] == pytest.approx(0.5221, abs=5e-5)
     assert by_method["hybrid"]["position_mean_mm"] == pytest.approx(0.0853, abs=5e-5)
     assert by_method["hybrid"]["orientation_mean_mrad"] is None
+    # What the 20 poses resolve, as `tablec eval --json` says under "comparison".
+    assert records.comparison["reference"] == "hybrid"
+    assert [a["method"] for a in records.comparison["against"]] == ["kinematic", "paper"]
+    kinematic = records.comparison["against"][0]
+    assert kinematic["points"] == 20
+    assert kinematic["mean_difference_mm"] == pytest.approx(
+        by_method["kinematic"]["position_mean_mm"] - by_method["hybrid"]["position_mean_mm"],
+        abs=1e-12,
+    )
+    out = tmp_path / "figures.json"
+    subprocess.run(
+        [
+            str(tablec), "eval", UR5_GRID, "--validation", UR5_RANDOM, "--columns", UR5_COLUMNS,
+            "--robot", UR5 / "robot.toml", "--cell", "30", "--methods", "paper,kinematic,hybrid",
+            "--quiet", "--json", str(out),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    with open(out) as f:
+        assert records.comparison == json.load(f)["comparison"]
 
 
 def test_folds_and_dataframes(tmp_path):

@@ -39,6 +39,7 @@
 //! method's statistics are over the points it predicted.
 
 pub mod baselines;
+pub mod comparison;
 pub mod continuity;
 pub mod latency;
 pub mod noise_floor;
@@ -555,6 +556,9 @@ pub struct Evaluation {
     /// errors. With a validation set that is every sample; in k-fold cross-validation the
     /// training samples of the first fold.
     pub noise_floor: Option<noise_floor::NoiseFloor>,
+    /// Every method against the best, point by point ([`comparison`]): which differences
+    /// these points resolve.
+    pub comparison: Option<comparison::Comparison>,
 }
 
 impl Evaluation {
@@ -738,7 +742,7 @@ pub fn evaluate(
         .as_ref()
         .map(|r| stats(&r.iter().map(|v| v.map(|x| x * 1e3)).collect::<Vec<_>>()));
 
-    let methods = methods
+    let methods: Vec<MethodResult> = methods
         .into_iter()
         .map(|method| {
             let predicted = predictions.remove(&method).unwrap_or_default();
@@ -785,6 +789,7 @@ pub fn evaluate(
         })
         .collect();
 
+    let comparison = comparison::compare(&methods, &points.error_mm);
     Ok(Evaluation {
         protocol: description,
         samples: samples.len(),
@@ -798,6 +803,7 @@ pub fn evaluate(
         skipped,
         calibrations,
         noise_floor: floor,
+        comparison,
     })
 }
 

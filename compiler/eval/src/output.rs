@@ -56,6 +56,14 @@ fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {
     }
 }
 
+/// How well the points know a position mean: its standard error, mm, and the p value of
+/// the residuals' shared offset.
+pub fn resolution(s: Option<&ResidualStats>) -> [Option<f64>; 2] {
+    s.map_or([None; 2], |s| {
+        [s.mean_norm_standard_error, s.mean_per_axis_p_value]
+    })
+}
+
 /// The figures as an aligned text table for the terminal, with notes on missing points
 /// and unsupported methods below it.
 pub fn terminal_table(e: &Evaluation) -> String {
@@ -132,6 +140,9 @@ pub fn terminal_table(e: &Evaluation) -> String {
             ""
         );
         notes.push(noise_floor_note(floor));
+    }
+    if let Some(c) = &e.comparison {
+        notes.extend(comparison_notes(e, c));
     }
     for (method, reason) in &e.skipped {
         notes.push(format!("{method}: not run: {reason}"));
@@ -233,19 +244,101 @@ fn noise_floor_note(floor: &crate::noise_floor::NoiseFloor) -> String {
     )
 }
 
+/// What the points resolve, in words: the best method's mean with its standard error, the
+/// others' paired differences from it, and the residual offsets unlikely to be chance.
+fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<String> {
+    let Some(reference) = e.method(c.reference) else {
+        return Vec::new();
+    };
+    let Some(stats) = reference.position_mm.as_ref() else {
+        return Vec::new();
+    };
+    let points = e.nominal_mm.len();
+    let plus_minus = |se: Option<f64>| se.map_or(String::new(), |se| format!(" ± {se:.4}"));
+    let differences: Vec<String> = c
+        .against
+        .iter()
+        .map(|d| {
+            let over = if d.points == points {
+                String::new()
+            } else {
+                format!(" (over {} points)", d.points)
+            };
+            format!(
+                "{} {:+.4}{}{over}",
+                d.method.name(),
+                d.mean_difference_mm,
+                plus_minus(d.standard_error_mm)
+            )
+        })
+        .collect();
+    let mut notes = vec![format!(
+        "point by point against {} (mean {:.4}{} mm, ± one standard error): {} mm; a \
+         difference within two standard errors is not resolved by these {points} points",
+        c.reference.name(),
+        stats.mean_norm,
+        plus_minus(stats.mean_norm_standard_error),
+        if differences.is_empty() {
+            "no other method".to_string()
+        } else {
+            differences.join(", ")
+        }
+    )];
+    let offset = |m: &MethodResult| {
+        let s = m.position_mm.as_ref()?;
+        let p = s.mean_per_axis_p_value?;
+        let [x, y, z] = s.mean_per_axis;
+        Some((
+            p,
+            format!(
+                "{} ({x:+.4}, {y:+.4}, {z:+.4}) mm, p = {}",
+                m.method.name(),
+                crate::baselines::p_value_text(p)
+            ),
+        ))
+    };
+    if let Some((_, text)) = offset(reference) {
+        let others: Vec<String> = e
+            .methods
+            .iter()
+            .filter(|m| m.method != c.reference)
+            .filter_map(offset)
+            .filter(|(p, _)| *p < OFFSET_SIGNIFICANCE)
+            .map(|(_, text)| text)
+            .collect();
+        let also = if others.is_empty() {
+            String::new()
+        } else {
+            format!("; at p < {OFFSET_SIGNIFICANCE} also {}", others.join(", "))
+        };
+        notes.push(format!(
+            "offset shared by the residuals (their mean, Hotelling's T² against zero): \
+             {text}{also}"
+        ));
+    }
+    notes
+}
+
+/// The p value below which the terminal names a method whose residuals share an offset.
+const OFFSET_SIGNIFICANCE: f64 = 0.01;
+
 /// The figures as CSV: one row per method (and `uncompensated`); empty fields where a
-/// figure does not exist.
+/// figure does not exist. After the figures of [`terminal_table`], the standard error of the
+/// position mean and the p value of the residuals' shared offset
+/// ([`ResidualStats::mean_per_axis_p_value`]).
 pub fn csv(e: &Evaluation) -> String {
     let mut out = String::from(
         "method,predicted,not_predicted,position_mean_mm,position_rms_mm,position_p95_mm,\
          position_max_mm,orientation_mean_mrad,orientation_rms_mrad,orientation_p95_mrad,\
-         orientation_max_mrad,note\n",
+         orientation_max_mrad,position_mean_se_mm,position_offset_p,note\n",
     );
     for row in rows(e) {
         let _ = write!(out, "{},{},{}", row.label, row.predicted, row.not_predicted);
+        let [se, p] = resolution(row.position);
         for v in figures(row.position)
             .into_iter()
             .chain(figures(row.orientation))
+            .chain([se])
         {
             match v {
                 Some(v) => {
@@ -253,6 +346,13 @@ pub fn csv(e: &Evaluation) -> String {
                 }
                 None => out.push(','),
             }
+        }
+        // A p value spans many decades: four significant digits, not nine decimals.
+        match p {
+            Some(p) => {
+                let _ = write!(out, ",{p:.3e}");
+            }
+            None => out.push(','),
         }
         let _ = writeln!(out, ",\"{}\"", row.note.replace('"', "\"\""));
     }

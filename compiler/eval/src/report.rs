@@ -873,6 +873,7 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
     if floor_mm.is_some() {
         page.push_str("<th>mean ÷ floor</th>");
     }
+    page.push_str("<th>± SE mm</th><th>against best mm</th>");
     if orientation {
         page.push_str("<th>mean mrad</th><th>RMS mrad</th><th>p95 mrad</th><th>max mrad</th>");
     }
@@ -893,7 +894,28 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
                 r.map_or("—".to_string(), |r| format!("{r:.2}"))
             );
         }
+        if ratio {
+            let se = s.and_then(|s| s.mean_norm_standard_error);
+            let _ = write!(cells, "<td>{}</td>", cell(se));
+        }
         cells
+    };
+    // The paired difference from the best method, ± its standard error.
+    let against = |method: Option<crate::Method>| -> String {
+        let Some(c) = &e.comparison else {
+            return "<td>—</td>".to_string();
+        };
+        if method == Some(c.reference) {
+            return "<td>best</td>".to_string();
+        }
+        let d = c.against.iter().find(|d| Some(d.method) == method);
+        let text = d.map_or("—".to_string(), |d| {
+            let se = d
+                .standard_error_mm
+                .map_or(String::new(), |se| format!(" ± {se:.4}"));
+            format!("{:+.4}{se}", d.mean_difference_mm)
+        });
+        format!("<td>{text}</td>")
     };
     let _ = write!(
         page,
@@ -902,6 +924,7 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
         e.nominal_mm.len(),
         stat_cells(Some(&e.uncompensated_position_mm), true)
     );
+    page.push_str(&against(None));
     if orientation {
         page.push_str(&stat_cells(
             e.uncompensated_orientation_mrad.as_ref(),
@@ -928,6 +951,7 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
             m.not_predicted_count(),
             stat_cells(m.position_mm.as_ref(), true)
         );
+        page.push_str(&against(Some(m.method)));
         if orientation {
             page.push_str(&stat_cells(m.orientation_mrad.as_ref(), false));
         }
@@ -937,7 +961,7 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
         let _ = write!(
             page,
             "<tr class=\"floor\"><td>noise floor</td><td></td><td></td><td>{floor:.4}</td>\
-             <td></td><td></td><td></td><td>1.00</td>"
+             <td></td><td></td><td></td><td>1.00</td><td></td><td></td>"
         );
         if orientation {
             page.push_str("<td></td><td></td><td></td><td></td>");
@@ -963,6 +987,20 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
             nugget(f.nugget_mm2_cartesian),
             nugget(f.nugget_mm2_joint),
             f.total_variance_mm2,
+        );
+    }
+    if let Some(c) = &e.comparison {
+        let _ = writeln!(
+            page,
+            "<p>\"± SE\" is the standard error of the mean residual: how closely these {} \
+             points pin it down. \"against best\" is, point by point over the points both \
+             predicted, a method's residual minus that of <b>{}</b> (the lowest mean of the \
+             methods that missed no point), ± its standard error: the points' own difficulty \
+             cancels, so it resolves far smaller differences than the means' standard errors \
+             suggest, and a difference within two of its standard errors is not resolved by \
+             these points.</p>",
+            e.nominal_mm.len(),
+            c.reference
         );
     }
     if !e.skipped.is_empty() {
@@ -1216,9 +1254,9 @@ fn axes_section(page: &mut String, e: &Evaluation) {
     page.push_str(
         "<h2>Per-axis errors</h2>\n<table><tr><th>method</th><th>points</th>\
          <th>mean |dx| mm</th><th>mean |dy| mm</th><th>mean |dz| mm</th>\
-         <th>mean dx mm</th><th>mean dy mm</th><th>mean dz mm</th></tr>\n",
+         <th>mean dx mm</th><th>mean dy mm</th><th>mean dz mm</th><th>offset p</th></tr>\n",
     );
-    let row = |page: &mut String, label: String, vectors: &[[f64; 3]]| {
+    let row = |page: &mut String, label: String, vectors: &[[f64; 3]], p: Option<f64>| {
         let n = vectors.len().max(1) as f64;
         let abs = [0, 1, 2].map(|a| vectors.iter().map(|v| v[a].abs()).sum::<f64>() / n);
         let signed = [0, 1, 2].map(|a| vectors.iter().map(|v| v[a]).sum::<f64>() / n);
@@ -1231,21 +1269,35 @@ fn axes_section(page: &mut String, e: &Evaluation) {
             let v = if v.abs() < 5e-5 { 0.0 } else { v };
             let _ = write!(page, "<td>{v:+.4}</td>");
         }
-        page.push_str("</tr>\n");
+        let p = p.map_or("—".to_string(), crate::baselines::p_value_text);
+        let _ = writeln!(page, "<td>{p}</td></tr>");
     };
     row(
         page,
         format!("{}uncompensated", swatch(BEFORE)),
         &e.measured_error_mm,
+        e.uncompensated_position_mm.mean_per_axis_p_value,
     );
-    for m in e.methods.iter().filter(|m| m.position_mm.is_some()) {
+    for m in &e.methods {
+        let Some(stats) = &m.position_mm else {
+            continue;
+        };
         let vectors: Vec<[f64; 3]> = residuals(e, m).into_iter().map(|(_, r)| r).collect();
-        row(page, format!("{}{}", swatch(colour(m)), m.method), &vectors);
+        row(
+            page,
+            format!("{}{}", swatch(colour(m)), m.method),
+            &vectors,
+            stats.mean_per_axis_p_value,
+        );
     }
     page.push_str(
         "</table>\n<p>Residual components in the base frame over the points each method \
          predicted: the mean absolute values say along which axis error remains, the signed \
-         means are a bias, near zero for a method that has learnt the error.</p>\n",
+         means are a bias, near zero for a method that has learnt the error. \"offset p\" \
+         tests the signed means together against zero (Hotelling's T²): the chance that \
+         residuals without a common offset show one this large. A small p for every good \
+         method says the evaluated points share an error no model of the samples can learn: \
+         a validation series measured apart (another registration, another temperature).</p>\n",
     );
 }
 
@@ -1576,6 +1628,12 @@ mod tests {
         assert!(page.contains("<th>mean ÷ floor</th>"));
         assert!(page.contains("Noise floor: a perfect predictor would leave"));
         assert!(page.contains("perfect predictor (noise floor)"));
+        // What the points resolve: each mean's standard error, the paired difference from
+        // the best method (which the page names), and each residual offset's test.
+        assert!(page.contains("<th>± SE mm</th><th>against best mm</th>"));
+        assert_eq!(page.matches("<td>best</td>").count(), 1);
+        assert!(page.contains("a method's residual minus that of <b>"));
+        assert!(page.contains("<th>offset p</th>"));
         // Axis labels carry units and frames.
         for label in [
             "x, mm (base frame)",

@@ -54,6 +54,17 @@ pub struct ResidualStats {
     pub mean_per_axis: [f64; 3],
     /// Root mean square of each component (x, y, z).
     pub rms_per_axis: [f64; 3],
+    /// Standard error of `mean_norm`, `s / √n` with `s` the sample standard deviation of
+    /// the norms: how closely these points pin the mean down (20 points know a 0.08 mm
+    /// mean to about ±0.008 mm). `None` for a single residual.
+    pub mean_norm_standard_error: Option<f64>,
+    /// Hotelling's T² test of `mean_per_axis` against zero: the probability that residuals
+    /// with no common offset would show one at least this large. A small value says the
+    /// points share an error the method did not remove; between a validation series and
+    /// the samples, something no model of the samples can learn (a new registration, a
+    /// change of temperature). `None` with fewer than four residuals or when their
+    /// covariance is singular.
+    pub mean_per_axis_p_value: Option<f64>,
 }
 
 impl ResidualStats {
@@ -88,6 +99,10 @@ impl ResidualStats {
             [0, 1, 2].map(|axis| residuals.iter().map(|r| r[axis]).sum::<f64>() / n);
         let rms_per_axis = [0, 1, 2]
             .map(|axis| (residuals.iter().map(|r| r[axis] * r[axis]).sum::<f64>() / n).sqrt());
+        let mean_norm_standard_error = (residuals.len() > 1).then(|| {
+            let variance = norms.iter().map(|x| (x - mean_norm).powi(2)).sum::<f64>() / (n - 1.0);
+            (variance / n).sqrt()
+        });
         Ok(Self {
             count: residuals.len(),
             mean_norm,
@@ -96,7 +111,46 @@ impl ResidualStats {
             max_norm,
             mean_per_axis,
             rms_per_axis,
+            mean_norm_standard_error,
+            mean_per_axis_p_value: offset_p_value(residuals, mean_per_axis),
         })
+    }
+}
+
+/// Hotelling's one-sample T² test of the mean vector `mean` of `residuals` against zero:
+/// `T² = n mᵀ S⁻¹ m` with `S` the sample covariance, and `(n − 3) / (3 (n − 1)) T²`
+/// follows the F distribution with (3, n − 3) degrees of freedom when the residuals are
+/// Gaussian with zero mean. Returns the upper tail probability, or `None` with fewer than
+/// four residuals or a covariance that is not positive definite.
+fn offset_p_value(residuals: &[[f64; 3]], mean: [f64; 3]) -> Option<f64> {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    let n = residuals.len();
+    if n < 4 {
+        return None;
+    }
+    let m = nalgebra::Vector3::from(mean);
+    let covariance = residuals
+        .iter()
+        .map(|r| {
+            let d = nalgebra::Vector3::from(*r) - m;
+            d * d.transpose()
+        })
+        .sum::<nalgebra::Matrix3<f64>>()
+        / (n - 1) as f64;
+    let t2 = n as f64 * covariance.cholesky()?.solve(&m).dot(&m);
+    let f = (n - 3) as f64 / (3.0 * (n - 1) as f64) * t2;
+    let distribution = FisherSnedecor::new(3.0, (n - 3) as f64).ok()?;
+    let p = distribution.sf(f);
+    p.is_finite().then_some(p)
+}
+
+/// A p value in words: three decimals, or two significant digits below 0.001 (where
+/// three decimals would print zero).
+pub fn p_value_text(p: f64) -> String {
+    if p >= 1e-3 {
+        format!("{p:.3}")
+    } else {
+        format!("{p:.1e}")
     }
 }
 
@@ -189,6 +243,59 @@ mod tests {
         assert!(close(s.rms_per_axis[0], 2.5f64.sqrt()));
         assert!(close(s.rms_per_axis[1], 2.0));
         assert!(close(s.rms_per_axis[2], 6.0));
+    }
+
+    #[test]
+    fn the_mean_is_given_its_standard_error_and_the_offset_its_test() {
+        // Reference values from NumPy and SciPy: `np.linalg.norm(r, axis=1).std(ddof=1) /
+        // sqrt(6)`, and `scipy.stats.f.sf(F, 3, 3)` with `F = 3 / 15 · T²`,
+        // `T² = 6 mᵀ S⁻¹ m` = 50.3425129087780.
+        let residuals = [
+            [0.1, 0.2, -0.1],
+            [0.3, -0.1, 0.0],
+            [0.2, 0.1, 0.1],
+            [0.25, 0.05, -0.05],
+            [0.15, 0.0, 0.2],
+            [0.35, 0.15, 0.05],
+        ];
+        let s = ResidualStats::from_residuals(&residuals).unwrap();
+        approx::assert_abs_diff_eq!(
+            s.mean_norm_standard_error.unwrap(),
+            0.022977269125579174,
+            epsilon = 1e-12
+        );
+        approx::assert_abs_diff_eq!(
+            s.mean_per_axis_p_value.unwrap(),
+            0.04483111678354557,
+            epsilon = 1e-9
+        );
+        // Centred on zero, the same points show no offset at all: p = 1.
+        let mean = s.mean_per_axis;
+        let centred = residuals.map(|r| [0, 1, 2].map(|a| r[a] - mean[a]));
+        let c = ResidualStats::from_residuals(&centred).unwrap();
+        approx::assert_abs_diff_eq!(c.mean_per_axis_p_value.unwrap(), 1.0, epsilon = 1e-9);
+        // Too few points for a covariance, or a singular one, give no test rather than a
+        // meaningless one.
+        let three = ResidualStats::from_residuals(&residuals[..3]).unwrap();
+        assert_eq!(three.mean_per_axis_p_value, None);
+        let flat = [
+            [1.0, 2.0, 0.0],
+            [2.0, 1.0, 0.0],
+            [1.5, 1.0, 0.0],
+            [1.0, 1.5, 0.0],
+        ];
+        assert_eq!(
+            ResidualStats::from_residuals(&flat)
+                .unwrap()
+                .mean_per_axis_p_value,
+            None
+        );
+        assert_eq!(
+            ResidualStats::from_residuals(&residuals[..1])
+                .unwrap()
+                .mean_norm_standard_error,
+            None
+        );
     }
 
     #[test]
