@@ -303,6 +303,7 @@ def evaluate(
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
+    keep_untrustworthy: bool = False,
     compliance: bool = False,
     measured_in: str = "base",
     register_validation_apart: bool = False,
@@ -334,8 +335,11 @@ def evaluate(
     ``kinematic-kriging-tool-axis``
     (default: every one the data allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
     ``compliance=True`` identifies gravity compliance with their kinematic model, as
-    ``tablec eval --compliance`` (the robot file must give link masses). Reading and
-    table options as :func:`build`.
+    ``tablec eval --compliance`` (the robot file must give link masses);
+    ``keep_untrustworthy=True`` keeps every parameter the identification's pivoting keeps,
+    even implausible ones or those within a few standard errors of zero, as
+    ``--keep-untrustworthy`` (by default they are held at nominal). Reading and table
+    options as :func:`build`.
 
     ``measured_in="tracker"`` (with ``robot``), as ``tablec eval --measured-in tracker``:
     the samples are tracker-frame measurements, registered to the robot first, and the
@@ -389,6 +393,7 @@ def evaluate(
         base_link=base_link,
         tip_link=tip_link,
         rank_tol=rank_tol,
+        keep_untrustworthy=keep_untrustworthy,
         compliance=compliance,
         measured_in=measured_in,
         register_validation_apart=register_validation_apart,

@@ -129,6 +129,7 @@ def evaluate(
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
     rank_tol: Optional[float] = None,
+    keep_untrustworthy: bool = False,
     compliance: bool = False,
     measured_in: str = "base",
     register_validation_apart: bool = False,

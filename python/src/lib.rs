@@ -649,7 +649,7 @@ type Evaluated<'py> = (
 /// full precision; the registrations as `tablec eval` prints them, or None; the methods
 /// against the best, point by point, as `"comparison"` in `tablec eval --json`.
 #[pyfunction]
-#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, compliance=false, measured_in="base", register_validation_apart=false))]
+#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, keep_untrustworthy=false, compliance=false, measured_in="base", register_validation_apart=false))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -665,6 +665,7 @@ fn evaluate<'py>(
     base_link: Option<String>,
     tip_link: Option<String>,
     rank_tol: Option<f64>,
+    keep_untrustworthy: bool,
     compliance: bool,
     measured_in: &str,
     register_validation_apart: bool,
@@ -702,6 +703,7 @@ fn evaluate<'py>(
         let (registered, samples, robot) = read_measured(&source, &columns, &read, robot, tracker)?;
         let calibrate = CalibrateOptions {
             rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
+            hold_untrustworthy: !keep_untrustworthy,
             compliance,
             ..CalibrateOptions::default()
         };
