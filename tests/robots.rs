@@ -291,6 +291,79 @@ fn calibrate_identifies_gravity_compliance_given_link_masses() {
     );
 }
 
+/// A robot file's `[payload]`: the compliances identified with it differ from those
+/// without (5 kg at the flange loads every joint), the calibrated robot file keeps it, and
+/// a hybrid table's calibrated chain carries it (`inspect` says so).
+#[test]
+fn a_payload_in_the_robot_file_loads_the_identified_compliance() {
+    let dir = tempfile::tempdir().unwrap();
+    let ur5 = std::fs::read_to_string(repo("tables/ur5/robot.toml")).unwrap();
+    std::fs::write(
+        dir.path().join("carrying.toml"),
+        format!("{ur5}\n[payload]\nmass_kg = 5.0\ncom_mm = [0.0, 0.0, 60.0]\n"),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("bare.toml"), &ur5).unwrap();
+    let grid = ur5_grid();
+    let shoulder = |robot: &str| -> f64 {
+        let o = tablec(
+            &[
+                "calibrate",
+                grid.to_str().unwrap(),
+                "--columns",
+                UR5_MAP,
+                "--robot",
+                robot,
+                "--compliance",
+                "-o",
+                &format!("cal-{robot}"),
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = stdout(&o);
+        let row = out
+            .lines()
+            .find(|l| l.trim_start().starts_with("compliance2 "))
+            .unwrap_or_else(|| panic!("{out}"));
+        row.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    let (carrying, bare) = (shoulder("carrying.toml"), shoulder("bare.toml"));
+    // The same deflections are explained by more torque: a smaller compliance.
+    assert!(carrying < bare, "{carrying} against {bare}");
+    let written = std::fs::read_to_string(dir.path().join("cal-carrying.toml")).unwrap();
+    assert!(
+        written.contains("\n[payload]\nmass_kg = 5.0\ncom_mm = [0.0, 0.0, 60.0"),
+        "{written}"
+    );
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            "carrying.toml",
+            "--hybrid",
+            "--compliance",
+            "-o",
+            "c.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let inspect = stdout(&tablec(&["inspect", "c.tbl"], dir.path()));
+    // 60 mm beyond the flange is 26 mm beyond the calibrated TCP (34 mm beyond it).
+    let line = inspect
+        .lines()
+        .find(|l| l.starts_with("load at flange  5 kg, centre of mass ("))
+        .unwrap_or_else(|| panic!("{inspect}"));
+    let centre = &line[line.find('(').unwrap() + 1..line.find(')').unwrap()];
+    let z: f64 = centre.split(", ").nth(2).unwrap().parse().unwrap();
+    assert!((25.0..28.0).contains(&z), "{line}");
+}
+
 /// A seven-joint robot end to end: simulated samples with seven joint columns, a hybrid
 /// table of its calibrated chains, queries with seven joint values (six refused).
 #[test]

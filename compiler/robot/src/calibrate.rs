@@ -535,7 +535,7 @@ pub enum CalibrateError {
     MissingJoints,
     /// Compliance was asked for, but the robot file gives no link masses: without them
     /// there is no gravity torque to deflect the joints.
-    #[error("{robot}: the robot file gives no link masses (mass_kg, com_mm per joint), so gravity compliance cannot be identified: add them, or calibrate without compliance")]
+    #[error("{robot}: the robot file gives no link masses (mass_kg, com_mm per joint) and no [payload], so gravity compliance cannot be identified: add them, or calibrate without compliance")]
     NoLinkMasses {
         /// The robot.
         robot: String,

@@ -106,12 +106,18 @@ impl Robot {
                 Some(h) => from_file_units(h, &kinds)?,
                 None => urdf.home().to_vec(),
             };
-            return urdf.with_parts(
-                file.name,
-                base.compose(&urdf.base()),
-                urdf.tool().compose(&tool),
-                home,
-            );
+            let payload = file.payload.map(|p| LinkInertial {
+                mass_kg: p.mass_kg,
+                com_mm: p.com_mm,
+            });
+            return urdf
+                .with_parts(
+                    file.name,
+                    base.compose(&urdf.base()),
+                    urdf.tool().compose(&tool),
+                    home,
+                )?
+                .with_payload(payload);
         }
         if file.base_link.is_some() || file.tip_link.is_some() {
             return Err(RobotError::Invalid {
@@ -150,7 +156,18 @@ impl Robot {
             Some(h) => from_file_units(h, &kinds)?,
             None => vec![0.0; n],
         };
-        Robot::new(file.name, geometry, joints, base, tool, home)
+        // The payload's centre of mass into the last joint's frame after its motion, as
+        // the links' (`JointFile::mdh`).
+        let payload = file.payload.map(|p| LinkInertial {
+            mass_kg: p.mass_kg,
+            com_mm: match &geometry {
+                Geometry::Mdh(rows) if p.com_mm.iter().all(|v| v.is_finite()) => {
+                    mdh_constant_part(&rows[n - 1]).transform_point(p.com_mm)
+                }
+                _ => p.com_mm,
+            },
+        });
+        Robot::new(file.name, geometry, joints, base, tool, home)?.with_payload(payload)
     }
 }
 
@@ -185,6 +202,18 @@ struct RobotFile {
     urdf: Option<PathBuf>,
     base_link: Option<String>,
     tip_link: Option<String>,
+    payload: Option<PayloadFile>,
+}
+
+/// `[payload]`: what the flange carries, its centre of mass in the frame of the last
+/// joint's `com_mm` (MD-H frame `n`, the flange, for MD-H joints; the last joint's frame
+/// after its motion otherwise).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PayloadFile {
+    mass_kg: f64,
+    #[serde(default)]
+    com_mm: [f64; 3],
 }
 
 #[derive(Debug, Clone, Default, Deserialize)]

@@ -39,6 +39,10 @@
 //! mass_kg = 400.0                 # optional: the link this joint moves
 //! com_mm = [-300.0, 150.0, 0.0]   # optional: its centre of mass in MD-H frame i
 //! compliance_urad_per_nm = 2.5    # optional: gravity compliance, µrad/(N·m)
+//!
+//! [payload]                       # optional: what the flange carries (tool, workpiece)
+//! mass_kg = 100.0
+//! com_mm = [0.0, 0.0, 150.0]      # in the last joint's com_mm frame: MD-H frame n, the flange
 //! ```
 //!
 //! or all as general chain joints, the form a URDF joint has (`T = base · O_1 · M_1(q_1 +
@@ -58,10 +62,11 @@
 //! compliance_urad_per_nm = 2.5    # optional, revolute joints only
 //! ```
 //!
-//! where the tool is the TCP in the last joint's frame after its motion. A TOML file may
+//! where the tool is the TCP in the last joint's frame after its motion, and so is a
+//! `[payload]`'s `com_mm`. A TOML file may
 //! instead name a URDF file (`urdf = "robot.urdf"`, relative to the TOML file, with optional
 //! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
-//! link's frame) and `[base]` to it. `home_deg` holds degrees for revolute joints and
+//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. `home_deg` holds degrees for revolute joints and
 //! millimetres for prismatic ones.
 //!
 //! # Gravity compliance
@@ -69,14 +74,17 @@
 //! `compliance_urad_per_nm` is how far a revolute joint gives under the gravity torque
 //! about its axis, µrad per N·m: the arm stands at `q_j + c_j · τ_j(q)` when commanded `q`
 //! ([`adwi_runtime::chain`], "Gravity compliance"), with `τ_j` the torque of the masses
-//! (`mass_kg`, `com_mm`) of the links joint `j` carries, gravity along the base frame's −z.
+//! (`mass_kg`, `com_mm`) of the links joint `j` carries and of the payload, gravity along
+//! the base frame's −z. A payload is what the flange carries beyond the arm's own links: a
+//! spindle or gripper, the workpiece, a reflector and its holder. On a heavy robot it can
+//! outweigh the wrist, so a compliance identified without it is wrong for every posture.
 //! `tablec calibrate --compliance` writes the identified compliances under this key. When a
 //! file gives one for any joint, the robot's chain carries them all (zero where not given)
 //! and the robot's model of where the arm stands is the deflected one
 //! ([`Chain::loaded_tcp_pose`]); the commanded pose ([`Robot::tcp_pose`]) is the chain
 //! without deflection, as the controller computes it. A calibration starts from these
-//! compliances, as it starts from the file's geometry. URDF has no place for them: a robot
-//! written as URDF ([`Robot::to_urdf_string`]) leaves them out.
+//! compliances, as it starts from the file's geometry. URDF has no place for them or for a
+//! payload: a robot written as URDF ([`Robot::to_urdf_string`]) leaves them out.
 //!
 //! # Frames
 //!
@@ -277,6 +285,10 @@ pub struct Robot {
     home: Vec<f64>,
     chain: Chain,
     urdf: Option<UrdfSource>,
+    /// What the flange carries beyond the links (a tool, a workpiece, a reflector and its
+    /// holder), centre of mass in the last joint's frame after its motion like the links'
+    /// (module docs, "Gravity compliance").
+    payload: Option<LinkInertial>,
 }
 
 impl Robot {
@@ -334,7 +346,6 @@ impl Robot {
             Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
         }
         .map_err(RobotError::Chain)?;
-        let compliance = compliance_of(&joints);
         let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
         for (i, (joint, &kind)) in joints.iter().zip(&kinds).enumerate() {
             let number = i + 1;
@@ -355,15 +366,7 @@ impl Robot {
                 });
             }
             if let Some(inertial) = &joint.inertial {
-                let ok = inertial.mass_kg.is_finite()
-                    && inertial.mass_kg >= 0.0
-                    && inertial.com_mm.iter().all(|v| v.is_finite());
-                if !ok {
-                    return Err(RobotError::Invalid {
-                        field: format!("joint {number} mass_kg, com_mm"),
-                        reason: "the mass must be finite and ≥ 0, the centre of mass finite".into(),
-                    });
-                }
+                check_inertial(inertial, || format!("joint {number} mass_kg, com_mm"))?;
             }
             if let Some(c) = joint.compliance_urad_per_nm {
                 finite(c, || format!("joint {number} compliance_urad_per_nm"))?;
@@ -375,7 +378,7 @@ impl Robot {
                 }
             }
         }
-        chain.compliance = compliance;
+        chain.compliance = compliance_of(&joints, None, &chain.tool);
         for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
             finite(value, || format!("home_deg[{i}]"))?;
             let [lower, upper] = joint.limits;
@@ -398,7 +401,32 @@ impl Robot {
             home,
             chain,
             urdf: None,
+            payload: None,
         })
+    }
+
+    /// This robot carrying `payload` at the flange (`None` for nothing beyond the links):
+    /// mass and centre of mass in the last joint's frame after its motion, as a link's
+    /// ([`LinkInertial`]). Its weight adds to every joint's gravity torque.
+    ///
+    /// # Errors
+    ///
+    /// [`RobotError::Invalid`] for a mass that is not finite and ≥ 0 or a centre of mass
+    /// that is not finite.
+    pub fn with_payload(&self, payload: Option<LinkInertial>) -> Result<Robot, RobotError> {
+        if let Some(p) = &payload {
+            check_inertial(p, || "payload mass_kg, com_mm".to_string())?;
+        }
+        let mut robot = self.clone();
+        robot.payload = payload;
+        robot.chain.compliance = compliance_of(&robot.joints, payload, &robot.chain.tool);
+        Ok(robot)
+    }
+
+    /// What the flange carries beyond the links, when the file says
+    /// ([`Robot::with_payload`]).
+    pub fn payload(&self) -> Option<LinkInertial> {
+        self.payload
     }
 
     /// This robot with another name, base, tool and home posture (geometry, joints and URDF
@@ -423,7 +451,7 @@ impl Robot {
             home,
         )?;
         robot.urdf = self.urdf.clone();
-        Ok(robot)
+        robot.with_payload(self.payload)
     }
 
     /// This robot with another geometry, base and tool (the calibrated model of it): the
@@ -448,7 +476,7 @@ impl Robot {
             self.home.clone(),
         )?;
         robot.urdf = self.urdf.clone();
-        Ok(robot)
+        robot.with_payload(self.payload)
     }
 
     pub(crate) fn set_urdf_source(&mut self, source: UrdfSource) {
@@ -574,10 +602,10 @@ impl Robot {
     /// (zero where it gives none: the starting point of a gravity-compliance model), when
     /// the file gives at least one link's mass; links without one weigh nothing.
     pub fn gravity_model(&self) -> Option<Compliance> {
-        if self.joints.iter().all(|j| j.inertial.is_none()) {
+        if self.joints.iter().all(|j| j.inertial.is_none()) && self.payload.is_none() {
             return None;
         }
-        Some(gravity_of(&self.joints))
+        Some(gravity_of(&self.joints, self.payload, &self.chain.tool))
     }
 
     /// This robot with the given compliances, µrad/(N·m), one per joint (`None` for none):
@@ -612,7 +640,7 @@ impl Robot {
         for (joint, c) in robot.joints.iter_mut().zip(compliances) {
             joint.compliance_urad_per_nm = *c;
         }
-        robot.chain.compliance = compliance_of(&robot.joints);
+        robot.chain.compliance = compliance_of(&robot.joints, robot.payload, &robot.chain.tool);
         Ok(robot)
     }
 
@@ -713,13 +741,29 @@ impl Robot {
                 out.push_str(&format!("compliance_urad_per_nm = {}\n", toml_float(c)));
             }
         }
+        if let Some(payload) = self.payload {
+            let com_mm = match &self.geometry {
+                // Into MD-H frame n, the flange, as the last link's.
+                Geometry::Mdh(rows) => mdh_constant_part(&rows[rows.len() - 1])
+                    .inverse()
+                    .transform_point(payload.com_mm),
+                Geometry::Chain(_) => payload.com_mm,
+            };
+            out.push_str(&format!(
+                "\n[payload]\nmass_kg = {}\ncom_mm = {}\n",
+                toml_float(payload.mass_kg),
+                toml_list(&com_mm)
+            ));
+        }
         out
     }
 }
 
-/// The joints' masses and compliances as a runtime [`Compliance`] (massless links weigh
-/// nothing, joints without a compliance have none).
-fn gravity_of(joints: &[Joint]) -> Compliance {
+/// The joints' masses and compliances and the payload as a runtime [`Compliance`]
+/// (massless links weigh nothing, joints without a compliance have none). The runtime
+/// places the payload in the tool frame: its centre of mass moves there from the last
+/// joint's frame through the chain's `tool`.
+fn gravity_of(joints: &[Joint], payload: Option<LinkInertial>, tool: &Transform) -> Compliance {
     let mut c = Compliance::NONE;
     for (i, joint) in joints.iter().enumerate() {
         if let Some(inertial) = joint.inertial {
@@ -728,15 +772,42 @@ fn gravity_of(joints: &[Joint]) -> Compliance {
         }
         c.compliance[i] = joint.compliance_urad_per_nm.unwrap_or(0.0) * URAD_PER_NM;
     }
+    if let Some(p) = payload {
+        c.payload_kg = p.mass_kg;
+        c.payload_com_mm = tool.inverse().transform_point(p.com_mm);
+    }
     c
 }
 
-/// The chain's compliance: the joints' when any gives one, else none.
-fn compliance_of(joints: &[Joint]) -> Option<Compliance> {
+/// The chain's compliance: the joints' and the payload's when any joint gives a
+/// compliance, else none.
+fn compliance_of(
+    joints: &[Joint],
+    payload: Option<LinkInertial>,
+    tool: &Transform,
+) -> Option<Compliance> {
     joints
         .iter()
         .any(|j| j.compliance_urad_per_nm.is_some())
-        .then(|| gravity_of(joints))
+        .then(|| gravity_of(joints, payload, tool))
+}
+
+/// A mass that is finite and ≥ 0 at a finite centre of mass, or the error naming `field`.
+fn check_inertial(
+    inertial: &LinkInertial,
+    field: impl FnOnce() -> String,
+) -> Result<(), RobotError> {
+    let ok = inertial.mass_kg.is_finite()
+        && inertial.mass_kg >= 0.0
+        && inertial.com_mm.iter().all(|v| v.is_finite());
+    if ok {
+        Ok(())
+    } else {
+        Err(RobotError::Invalid {
+            field: field(),
+            reason: "the mass must be finite and ≥ 0, the centre of mass finite".into(),
+        })
+    }
 }
 
 /// The constant part of an MD-H row, `Tz(d)·Tx(a)·Rx(α)·Ry(β)`: MD-H frame `i` in the
@@ -1105,6 +1176,112 @@ compliance_urad_per_nm = 1.0
 "#;
         let error = Robot::from_toml_str(slide).unwrap_err();
         assert!(error.to_string().contains("compliance"), "{error}");
+    }
+
+    /// A payload weighs on every joint as a mass at the flange: the same torques and the
+    /// same deflected pose as the last link made heavier by it (its centre of mass in the
+    /// same frame as that link's, so the two reach the runtime by different paths: the
+    /// link's frame, and the tool frame through the chain's tool). Files and robots of
+    /// either style carry it, and write it back.
+    #[test]
+    fn a_payload_weighs_as_a_mass_at_the_flange() {
+        let ur5 = Robot::load(shipped_robot_path("ur5")).unwrap();
+        let iiwa = Robot::load(shipped_file("iiwa14", "robot.urdf")).unwrap();
+        let payload_com_mm = [12.0, -30.0, 80.0];
+        for robot in [ur5, iiwa] {
+            let n = robot.joint_count();
+            let compliances: Vec<Option<f64>> = (0..n).map(|j| Some(10.0 + j as f64)).collect();
+            let robot = robot.with_compliances(&compliances).unwrap();
+            let payload = LinkInertial {
+                mass_kg: 5.0,
+                com_mm: payload_com_mm,
+            };
+            let carrying = robot.with_payload(Some(payload)).unwrap();
+            assert_eq!(carrying.payload(), Some(payload));
+            let mut joints = robot.joints().to_vec();
+            let last = joints[n - 1].inertial.unwrap();
+            let mass_kg = last.mass_kg + payload.mass_kg;
+            let com_mm = [0, 1, 2].map(|a| {
+                (last.mass_kg * last.com_mm[a] + payload.mass_kg * payload.com_mm[a]) / mass_kg
+            });
+            joints[n - 1].inertial = Some(LinkInertial { mass_kg, com_mm });
+            let heavier = Robot::new(
+                robot.name.clone(),
+                robot.geometry().clone(),
+                joints,
+                robot.base(),
+                robot.tool(),
+                robot.home().to_vec(),
+            )
+            .unwrap();
+            let q: Vec<f64> = (0..n).map(|j| 0.3 - 0.25 * j as f64).collect();
+            let torques = |r: &Robot| {
+                r.chain()
+                    .gravity_torques(&q, &r.chain().compliance.unwrap())
+                    .unwrap()
+            };
+            let (with_payload, with_mass, without) =
+                (torques(&carrying), torques(&heavier), torques(&robot));
+            for j in 0..n {
+                assert!(
+                    (with_payload[j] - with_mass[j]).abs() <= 1e-9 * with_mass[j].abs().max(1.0),
+                    "{}: joint {j}: {} against {}",
+                    robot.name,
+                    with_payload[j],
+                    with_mass[j]
+                );
+            }
+            // 5 kg out at the flange loads the shoulder.
+            assert!((with_payload[1] - without[1]).abs() > 1e3, "{}", robot.name);
+            let (a, b) = (
+                carrying.chain().loaded_tcp_pose(&q).unwrap(),
+                heavier.chain().loaded_tcp_pose(&q).unwrap(),
+            );
+            for i in 0..3 {
+                assert!((a.translation_mm[i] - b.translation_mm[i]).abs() < 1e-9);
+            }
+            // Written and read again; a calibrated model keeps it.
+            let text = carrying.to_toml_string(&[]);
+            assert!(text.contains("\n[payload]\nmass_kg = 5"), "{text}");
+            let back = Robot::from_toml_str(&text).unwrap();
+            let p = back.payload().unwrap();
+            assert_eq!(p.mass_kg, 5.0);
+            for a in 0..3 {
+                assert!((p.com_mm[a] - payload.com_mm[a]).abs() < 1e-9, "{p:?}");
+            }
+            let moved = carrying
+                .with_parts(
+                    "moved".into(),
+                    carrying.base(),
+                    carrying.tool(),
+                    carrying.home().to_vec(),
+                )
+                .unwrap();
+            assert_eq!(moved.payload(), Some(payload));
+            assert_eq!(moved.chain().compliance, carrying.chain().compliance);
+        }
+        // In an MD-H file the payload's centre of mass is in the flange frame, as the last
+        // link's `com_mm`: the UR5's flange is 82.3 mm along its last joint's axis.
+        let text = format!(
+            "{}\n[payload]\nmass_kg = 2.0\ncom_mm = [0.0, 0.0, 10.0]\n",
+            std::fs::read_to_string(shipped_robot_path("ur5")).unwrap()
+        );
+        let robot = Robot::from_toml_str(&text).unwrap();
+        let com = robot.payload().unwrap().com_mm;
+        assert!((com[2] - (82.3 + 10.0)).abs() < 1e-9, "{com:?}");
+        assert!(robot.gravity_model().is_some());
+        for bad in [
+            "mass_kg = -1.0",
+            "mass_kg = nan",
+            "mass_kg = 1.0\ncom_mm = [0.0, inf, 0.0]",
+        ] {
+            let text = format!(
+                "{}\n[payload]\n{bad}\n",
+                std::fs::read_to_string(shipped_robot_path("ur5")).unwrap()
+            );
+            let error = Robot::from_toml_str(&text).unwrap_err();
+            assert!(error.to_string().contains("payload"), "{bad}: {error}");
+        }
     }
 
     #[test]

@@ -69,6 +69,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "compliance      {} µrad/(N·m), joints 1 to {n} (the calibrated model deflects under gravity)",
             values.join(", ")
         );
+        if c.payload_kg > 0.0 {
+            let [x, y, z] = c.payload_com_mm;
+            println!(
+                "load at flange  {} kg, centre of mass ({x:.1}, {y:.1}, {z:.1}) mm in the tool frame",
+                c.payload_kg
+            );
+        }
     }
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {
