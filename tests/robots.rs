@@ -205,6 +205,38 @@ fn calibrate_reports_every_parameter_and_writes_the_calibrated_robot() {
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
 }
 
+/// `tablec calibrate` of the UR5 grid with `args` after the samples and their columns.
+fn calibrate_ur5_grid(dir: &Path, args: &[&str]) -> Output {
+    let grid = ur5_grid();
+    let mut all = vec!["calibrate", grid.to_str().unwrap(), "--columns", UR5_MAP];
+    all.extend_from_slice(args);
+    tablec(&all, dir)
+}
+
+/// Builds a hybrid table of the UR5 grid with `robot`'s compliances identified into
+/// `dir/c.tbl` and returns what `tablec inspect` prints of it.
+fn inspect_compliant_hybrid(dir: &Path, robot: &str) -> String {
+    let grid = ur5_grid();
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            grid.to_str().unwrap(),
+            "--columns",
+            UR5_MAP,
+            "--robot",
+            robot,
+            "--hybrid",
+            "--compliance",
+            "-o",
+            "c.tbl",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    stdout(&tablec(&["inspect", "c.tbl"], dir))
+}
+
 /// `tablec calibrate --compliance`: the UR5's joint compliances identified with its
 /// geometry, reported in µrad/(N·m) and written to the calibrated robot file; a robot file
 /// without link masses is refused with the reason.
@@ -212,20 +244,15 @@ fn calibrate_reports_every_parameter_and_writes_the_calibrated_robot() {
 fn calibrate_identifies_gravity_compliance_given_link_masses() {
     let dir = tempfile::tempdir().unwrap();
     let robot = repo("tables/ur5/robot.toml");
-    let grid = ur5_grid();
-    let o = tablec(
+    let o = calibrate_ur5_grid(
+        dir.path(),
         &[
-            "calibrate",
-            grid.to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
             "--robot",
             robot.to_str().unwrap(),
             "--compliance",
             "-o",
             "cal.toml",
         ],
-        dir.path(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
@@ -247,25 +274,7 @@ fn calibrate_identifies_gravity_compliance_given_link_masses() {
     let written = std::fs::read_to_string(dir.path().join("cal.toml")).unwrap();
     assert!(written.contains("compliance_urad_per_nm = "), "{written}");
     // A hybrid table stores them with its calibrated chain.
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            grid.to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
-            "--robot",
-            robot.to_str().unwrap(),
-            "--hybrid",
-            "--compliance",
-            "-o",
-            "c.tbl",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = tablec(&["inspect", "c.tbl"], dir.path());
-    let inspect = stdout(&o);
+    let inspect = inspect_compliant_hybrid(dir.path(), robot.to_str().unwrap());
     let line = inspect
         .lines()
         .find(|l| l.starts_with("compliance "))
@@ -304,22 +313,9 @@ fn a_payload_in_the_robot_file_loads_the_identified_compliance() {
     )
     .unwrap();
     std::fs::write(dir.path().join("bare.toml"), &ur5).unwrap();
-    let grid = ur5_grid();
     let shoulder = |robot: &str| -> f64 {
-        let o = tablec(
-            &[
-                "calibrate",
-                grid.to_str().unwrap(),
-                "--columns",
-                UR5_MAP,
-                "--robot",
-                robot,
-                "--compliance",
-                "-o",
-                &format!("cal-{robot}"),
-            ],
-            dir.path(),
-        );
+        let out = format!("cal-{robot}");
+        let o = calibrate_ur5_grid(dir.path(), &["--robot", robot, "--compliance", "-o", &out]);
         assert!(o.status.success(), "{}", stderr(&o));
         let out = stdout(&o);
         let row = out
@@ -336,24 +332,7 @@ fn a_payload_in_the_robot_file_loads_the_identified_compliance() {
         written.contains("\n[payload]\nmass_kg = 5.0\ncom_mm = [0.0, 0.0, 60.0"),
         "{written}"
     );
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            grid.to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
-            "--robot",
-            "carrying.toml",
-            "--hybrid",
-            "--compliance",
-            "-o",
-            "c.tbl",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let inspect = stdout(&tablec(&["inspect", "c.tbl"], dir.path()));
+    let inspect = inspect_compliant_hybrid(dir.path(), "carrying.toml");
     // 60 mm beyond the flange is 26 mm beyond the calibrated TCP (34 mm beyond it).
     let line = inspect
         .lines()

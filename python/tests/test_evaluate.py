@@ -118,26 +118,18 @@ def test_ur5_with_robot_equals_tablec(tablec, tmp_path):
 def test_keep_untrustworthy_equals_tablec(tablec, tmp_path):
     # Every parameter the pivoting keeps, the implausible and the insignificant ones too:
     # a different kinematic model (0.1005 mm, against 0.1004 mm with them held).
-    kept = adwi.evaluate(
-        UR5_GRID,
-        validation=UR5_RANDOM,
-        columns=UR5_COLUMNS,
-        robot=UR5 / "robot.toml",
-        methods="kinematic",
-        keep_untrustworthy=True,
-    )
+    def kinematic(**options):
+        return adwi.evaluate(
+            UR5_GRID, validation=UR5_RANDOM, columns=UR5_COLUMNS, robot=UR5 / "robot.toml",
+            methods="kinematic", **options,
+        )
+
+    kept, held = kinematic(keep_untrustworthy=True), kinematic()
     rows = tablec_eval(
         tablec, tmp_path, UR5_GRID, "--validation", UR5_RANDOM, "--columns", UR5_COLUMNS,
         "--robot", UR5 / "robot.toml", "--methods", "kinematic", "--keep-untrustworthy",
     )
     assert_same_figures(kept, rows)
-    held = adwi.evaluate(
-        UR5_GRID,
-        validation=UR5_RANDOM,
-        columns=UR5_COLUMNS,
-        robot=UR5 / "robot.toml",
-        methods="kinematic",
-    )
     assert kept[1]["position_mean_mm"] == pytest.approx(0.100511153, abs=1e-9)
     assert held[1]["position_mean_mm"] == pytest.approx(0.100431503, abs=1e-9)
 

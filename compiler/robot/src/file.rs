@@ -160,12 +160,7 @@ impl Robot {
         // the links' (`JointFile::mdh`).
         let payload = file.payload.map(|p| LinkInertial {
             mass_kg: p.mass_kg,
-            com_mm: match &geometry {
-                Geometry::Mdh(rows) if p.com_mm.iter().all(|v| v.is_finite()) => {
-                    mdh_constant_part(&rows[n - 1]).transform_point(p.com_mm)
-                }
-                _ => p.com_mm,
-            },
+            com_mm: geometry.com_from_file(n - 1, p.com_mm),
         });
         Robot::new(file.name, geometry, joints, base, tool, home)?.with_payload(payload)
     }

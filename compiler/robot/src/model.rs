@@ -230,6 +230,26 @@ impl Geometry {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+
+    /// A centre of mass as a robot file gives it for the link joint `i` (0-based) moves,
+    /// MD-H frame `i + 1` for MD-H rows, in that joint's frame after its motion (the
+    /// runtime's convention, which chain joints use in files too).
+    pub(crate) fn com_from_file(&self, i: usize, com_mm: [f64; 3]) -> [f64; 3] {
+        match self {
+            Geometry::Mdh(rows) => mdh_constant_part(&rows[i]).transform_point(com_mm),
+            Geometry::Chain(_) => com_mm,
+        }
+    }
+
+    /// [`Geometry::com_from_file`] undone: the centre of mass as a robot file gives it.
+    pub(crate) fn com_to_file(&self, i: usize, com_mm: [f64; 3]) -> [f64; 3] {
+        match self {
+            Geometry::Mdh(rows) => mdh_constant_part(&rows[i])
+                .inverse()
+                .transform_point(com_mm),
+            Geometry::Chain(_) => com_mm,
+        }
+    }
 }
 
 /// The mass and centre of mass of the link a joint moves.
@@ -724,17 +744,10 @@ impl Robot {
                 toml_list(&joint.limits.map(|v| to_unit(v, kind)))
             ));
             if let Some(inertial) = joint.inertial {
-                let com_mm = match &self.geometry {
-                    // Back into MD-H frame i: the file's convention for MD-H joints.
-                    Geometry::Mdh(rows) => mdh_constant_part(&rows[i])
-                        .inverse()
-                        .transform_point(inertial.com_mm),
-                    Geometry::Chain(_) => inertial.com_mm,
-                };
                 out.push_str(&format!(
                     "mass_kg = {}\ncom_mm = {}\n",
                     toml_float(inertial.mass_kg),
-                    toml_list(&com_mm)
+                    toml_list(&self.geometry.com_to_file(i, inertial.com_mm))
                 ));
             }
             if let Some(c) = joint.compliance_urad_per_nm {
@@ -742,13 +755,10 @@ impl Robot {
             }
         }
         if let Some(payload) = self.payload {
-            let com_mm = match &self.geometry {
-                // Into MD-H frame n, the flange, as the last link's.
-                Geometry::Mdh(rows) => mdh_constant_part(&rows[rows.len() - 1])
-                    .inverse()
-                    .transform_point(payload.com_mm),
-                Geometry::Chain(_) => payload.com_mm,
-            };
+            // In the last link's frame: MD-H frame n, the flange, for MD-H joints.
+            let com_mm = self
+                .geometry
+                .com_to_file(self.joints.len() - 1, payload.com_mm);
             out.push_str(&format!(
                 "\n[payload]\nmass_kg = {}\ncom_mm = {}\n",
                 toml_float(payload.mass_kg),
