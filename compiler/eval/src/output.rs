@@ -287,7 +287,10 @@ fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<St
     let offset = |m: &MethodResult| {
         let s = m.position_mm.as_ref()?;
         let p = s.mean_per_axis_p_value?;
-        let [x, y, z] = s.mean_per_axis;
+        // No "-0.0000": a mean that rounds to zero is shown as zero.
+        let [x, y, z] = s
+            .mean_per_axis
+            .map(|v| if v.abs() < 5e-5 { 0.0 } else { v });
         Some((
             p,
             format!(
