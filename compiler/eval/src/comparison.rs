@@ -7,6 +7,7 @@
 //! known better than either mean: on the UR5's 20 poses, two krigings differ by
 //! 0.0006 ± 0.0044 mm. Its standard error says whether the points tell two methods apart.
 
+use crate::baselines::mean_and_standard_error;
 use crate::{Method, MethodResult};
 
 /// Every method with position residuals against the one with the lowest mean.
@@ -38,17 +39,13 @@ pub struct PairedDifference {
 /// Compares `methods` (their predictions at points whose measured position errors are
 /// `measured_error_mm`) with the best of them. `None` when no method has residuals.
 pub fn compare(methods: &[MethodResult], measured_error_mm: &[[f64; 3]]) -> Option<Comparison> {
+    // Per point, the residual norm where the method predicted.
     let norms = |m: &MethodResult| -> Vec<Option<f64>> {
-        m.predictions
-            .iter()
-            .zip(measured_error_mm)
-            .map(|(p, e)| {
-                p.map(|p| {
-                    let r = [0, 1, 2].map(|a| e[a] - p.position_error_mm[a]);
-                    (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt()
-                })
-            })
-            .collect()
+        let mut norms = vec![None; measured_error_mm.len()];
+        for (i, r) in m.position_residuals(measured_error_mm) {
+            norms[i] = Some((r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt());
+        }
+        norms
     };
     let scored: Vec<(&MethodResult, f64)> = methods
         .iter()
@@ -73,17 +70,11 @@ pub fn compare(methods: &[MethodResult], measured_error_mm: &[[f64; 3]]) -> Opti
                 .zip(&reference_norms)
                 .filter_map(|(a, b)| Some((*a)? - (*b)?))
                 .collect();
-            let n = differences.len();
-            (n > 0).then(|| {
-                let mean = differences.iter().sum::<f64>() / n as f64;
-                let standard_error_mm = (n > 1).then(|| {
-                    let variance = differences.iter().map(|d| (d - mean).powi(2)).sum::<f64>()
-                        / (n - 1) as f64;
-                    (variance / n as f64).sqrt()
-                });
+            (!differences.is_empty()).then(|| {
+                let (mean, standard_error_mm) = mean_and_standard_error(&differences);
                 PairedDifference {
                     method: m.method,
-                    points: n,
+                    points: differences.len(),
                     mean_difference_mm: mean,
                     standard_error_mm,
                 }

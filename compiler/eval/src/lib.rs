@@ -363,6 +363,21 @@ pub struct MethodResult {
 }
 
 impl MethodResult {
+    /// Its position residuals (measured − predicted error, mm, base frame) at the points it
+    /// predicted, with each point's index; `measured_error_mm` holds the points' measured
+    /// errors ([`Evaluation::measured_error_mm`]).
+    pub fn position_residuals(&self, measured_error_mm: &[[f64; 3]]) -> Vec<(usize, [f64; 3])> {
+        self.predictions
+            .iter()
+            .zip(measured_error_mm)
+            .enumerate()
+            .filter_map(|(i, (p, measured))| {
+                let p = p.as_ref()?;
+                Some((i, [0, 1, 2].map(|a| measured[a] - p.position_error_mm[a])))
+            })
+            .collect()
+    }
+
     /// How many points the method predicted.
     pub fn predicted(&self) -> usize {
         self.predictions.iter().flatten().count()

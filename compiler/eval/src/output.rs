@@ -254,7 +254,6 @@ fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<St
         return Vec::new();
     };
     let points = e.nominal_mm.len();
-    let plus_minus = |se: Option<f64>| se.map_or(String::new(), |se| format!(" ± {se:.4}"));
     let differences: Vec<String> = c
         .against
         .iter()
@@ -287,10 +286,7 @@ fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<St
     let offset = |m: &MethodResult| {
         let s = m.position_mm.as_ref()?;
         let p = s.mean_per_axis_p_value?;
-        // No "-0.0000": a mean that rounds to zero is shown as zero.
-        let [x, y, z] = s
-            .mean_per_axis
-            .map(|v| if v.abs() < 5e-5 { 0.0 } else { v });
+        let [x, y, z] = s.mean_per_axis.map(rounded_zero);
         Some((
             p,
             format!(
@@ -320,6 +316,20 @@ fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<St
         ));
     }
     notes
+}
+
+/// ` ± se` to four decimals, or nothing without a standard error.
+pub(crate) fn plus_minus(se: Option<f64>) -> String {
+    se.map_or(String::new(), |se| format!(" ± {se:.4}"))
+}
+
+/// `v`, or zero where it rounds to zero at four decimals: no "-0.0000" for a signed mean.
+pub(crate) fn rounded_zero(v: f64) -> f64 {
+    if v.abs() < 5e-5 {
+        0.0
+    } else {
+        v
+    }
 }
 
 /// The p value below which the terminal names a method whose residuals share an offset.

@@ -115,15 +115,7 @@ fn norm(v: [f64; 3]) -> f64 {
 /// Position residuals (mm, base frame) of a method at the points it predicted, with the
 /// point index.
 fn residuals(e: &Evaluation, m: &MethodResult) -> Vec<(usize, [f64; 3])> {
-    m.predictions
-        .iter()
-        .enumerate()
-        .filter_map(|(i, p)| {
-            let p = p.as_ref()?;
-            let measured = e.measured_error_mm[i];
-            Some((i, [0, 1, 2].map(|a| measured[a] - p.position_error_mm[a])))
-        })
-        .collect()
+    m.position_residuals(&e.measured_error_mm)
 }
 
 /// Orientation residual norms (mrad) of a method at the points where it predicted an
@@ -910,10 +902,11 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
         }
         let d = c.against.iter().find(|d| Some(d.method) == method);
         let text = d.map_or("—".to_string(), |d| {
-            let se = d
-                .standard_error_mm
-                .map_or(String::new(), |se| format!(" ± {se:.4}"));
-            format!("{:+.4}{se}", d.mean_difference_mm)
+            format!(
+                "{:+.4}{}",
+                d.mean_difference_mm,
+                crate::output::plus_minus(d.standard_error_mm)
+            )
         });
         format!("<td>{text}</td>")
     };
@@ -995,10 +988,10 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
             "<p>\"± SE\" is the standard error of the mean residual: how closely these {} \
              points pin it down. \"against best\" is, point by point over the points both \
              predicted, a method's residual minus that of <b>{}</b> (the lowest mean of the \
-             methods that missed no point), ± its standard error: the points' own difficulty \
-             cancels, so it resolves far smaller differences than the means' standard errors \
-             suggest, and a difference within two of its standard errors is not resolved by \
-             these points.</p>",
+             methods that missed no point), ± its standard error: a point hard for one method \
+             is hard for a similar one, so it resolves smaller differences between similar \
+             methods than the means' standard errors suggest, and a difference within two of \
+             its standard errors is not resolved by these points.</p>",
             e.nominal_mm.len(),
             c.reference
         );
@@ -1265,9 +1258,7 @@ fn axes_section(page: &mut String, e: &Evaluation) {
             let _ = write!(page, "<td>{v:.4}</td>");
         }
         for v in signed {
-            // No "-0.0000": a mean that rounds to zero is shown as zero.
-            let v = if v.abs() < 5e-5 { 0.0 } else { v };
-            let _ = write!(page, "<td>{v:+.4}</td>");
+            let _ = write!(page, "<td>{:+.4}</td>", crate::output::rounded_zero(v));
         }
         let p = p.map_or("—".to_string(), crate::baselines::p_value_text);
         let _ = writeln!(page, "<td>{p}</td></tr>");

@@ -30,7 +30,7 @@ pub mod stats;
 pub use grid::{Grid, GridParams};
 pub use idw::{Idw, IdwParams};
 pub use kriging::{Kriging, KrigingParams, VariogramFit, VariogramModel};
-pub use stats::{k_fold_splits, p_value_text, Fold, ResidualStats};
+pub use stats::{k_fold_splits, mean_and_standard_error, p_value_text, Fold, ResidualStats};
 
 /// A baseline interpolator: predicts a value 3-vector at a query position.
 ///

@@ -89,7 +89,7 @@ impl ResidualStats {
             .iter()
             .map(|r| r.iter().map(|c| c * c).sum::<f64>().sqrt())
             .collect();
-        let mean_norm = norms.iter().sum::<f64>() / n;
+        let (mean_norm, mean_norm_standard_error) = mean_and_standard_error(&norms);
         let rms_norm = (norms.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
         norms.sort_unstable_by(f64::total_cmp);
         let p95_norm = percentile_nearest_rank(&norms, 95.0)
@@ -99,10 +99,6 @@ impl ResidualStats {
             [0, 1, 2].map(|axis| residuals.iter().map(|r| r[axis]).sum::<f64>() / n);
         let rms_per_axis = [0, 1, 2]
             .map(|axis| (residuals.iter().map(|r| r[axis] * r[axis]).sum::<f64>() / n).sqrt());
-        let mean_norm_standard_error = (residuals.len() > 1).then(|| {
-            let variance = norms.iter().map(|x| (x - mean_norm).powi(2)).sum::<f64>() / (n - 1.0);
-            (variance / n).sqrt()
-        });
         Ok(Self {
             count: residuals.len(),
             mean_norm,
@@ -115,6 +111,18 @@ impl ResidualStats {
             mean_per_axis_p_value: offset_p_value(residuals, mean_per_axis),
         })
     }
+}
+
+/// The mean of non-empty `values` and its standard error, `s / √n` with `s` the sample
+/// standard deviation (`None` for a single value).
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, Option<f64>) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let standard_error = (values.len() > 1).then(|| {
+        let variance = values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        (variance / n).sqrt()
+    });
+    (mean, standard_error)
 }
 
 /// Hotelling's one-sample T² test of the mean vector `mean` of `residuals` against zero:
