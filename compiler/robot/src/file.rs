@@ -11,8 +11,8 @@ use serde::Deserialize;
 use adwi_compile::pose::rotation_from_kuka_abc_deg;
 
 use crate::model::{
-    finite, mdh_constant_part, transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry,
-    Joint, LinkInertial, Robot, RobotError,
+    finite, transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial,
+    Robot, RobotError,
 };
 use crate::urdf::LinkNames;
 
@@ -106,18 +106,13 @@ impl Robot {
                 Some(h) => from_file_units(h, &kinds)?,
                 None => urdf.home().to_vec(),
             };
-            let payload = file.payload.map(|p| LinkInertial {
-                mass_kg: p.mass_kg,
-                com_mm: p.com_mm,
-            });
-            return urdf
-                .with_parts(
-                    file.name,
-                    base.compose(&urdf.base()),
-                    urdf.tool().compose(&tool),
-                    home,
-                )?
-                .with_payload(payload);
+            let robot = urdf.with_parts(
+                file.name,
+                base.compose(&urdf.base()),
+                urdf.tool().compose(&tool),
+                home,
+            )?;
+            return carrying(robot, file.payload);
         }
         if file.base_link.is_some() || file.tip_link.is_some() {
             return Err(RobotError::Invalid {
@@ -156,14 +151,30 @@ impl Robot {
             Some(h) => from_file_units(h, &kinds)?,
             None => vec![0.0; n],
         };
-        // The payload's centre of mass into the last joint's frame after its motion, as
-        // the links' (`JointFile::mdh`).
-        let payload = file.payload.map(|p| LinkInertial {
-            mass_kg: p.mass_kg,
-            com_mm: geometry.com_from_file(n - 1, p.com_mm),
-        });
-        Robot::new(file.name, geometry, joints, base, tool, home)?.with_payload(payload)
+        // The links' centres of mass from the file's frames into the joints' frames after
+        // their motion, the model's.
+        for (i, joint) in joints.iter_mut().enumerate() {
+            if let Some(inertial) = &mut joint.inertial {
+                inertial.com_mm = geometry.com_from_file(i, inertial.com_mm);
+            }
+        }
+        carrying(
+            Robot::new(file.name, geometry, joints, base, tool, home)?,
+            file.payload,
+        )
     }
+}
+
+/// `robot` with the file's `[payload]`, its centre of mass moved from the file's frame (the
+/// last link's) into the model's as a link's is.
+fn carrying(robot: Robot, payload: Option<PayloadFile>) -> Result<Robot, RobotError> {
+    let payload = payload.map(|p| LinkInertial {
+        mass_kg: p.mass_kg,
+        com_mm: robot
+            .geometry()
+            .com_from_file(robot.joint_count() - 1, p.com_mm),
+    });
+    robot.with_payload(payload)
 }
 
 /// Joint values in file units (deg, mm) to the model's (rad, mm).
@@ -348,15 +359,9 @@ impl JointFile {
             beta_rad: self.beta_deg.unwrap_or(0.0).to_radians(),
             theta_offset_rad: self.theta_offset_deg.unwrap_or(0.0).to_radians(),
         };
-        let mut joint = self.common(number, JointKind::Revolute)?;
-        // The file gives the centre of mass in MD-H frame i; the model holds it in the
-        // joint's frame after its motion.
-        if let Some(inertial) = &mut joint.inertial {
-            if inertial.com_mm.iter().all(|v| v.is_finite()) {
-                inertial.com_mm = mdh_constant_part(&row).transform_point(inertial.com_mm);
-            }
-        }
-        Ok((row, joint))
+        // The centre of mass stays in the file's MD-H frame i until the geometry is whole
+        // (`Geometry::com_from_file`).
+        Ok((row, self.common(number, JointKind::Revolute)?))
     }
 
     fn chain(&self, number: usize) -> Result<(ChainJoint, Joint), RobotError> {
