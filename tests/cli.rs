@@ -3,21 +3,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::tablec;
-
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+use crate::common::{build_ur5_hybrid, repo, tablec, UR5_MAP};
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
-
-/// The UR5 measurements' column mapping (joint angles included).
-const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
-                       j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
 
 /// The UR5 grid (samples) and random (hold-out) files shipped in `tables/ur5/measurements`.
 fn ur5_files() -> (PathBuf, PathBuf) {
@@ -453,27 +443,15 @@ fn a_built_table_is_readable_by_other_users() {
 
 #[test]
 fn a_hybrid_table_answers_a_targets_file_with_joint_angles() {
-    let (grid, random) = ur5_files();
+    let (_, random) = ur5_files();
     let dir = tempfile::tempdir().unwrap();
     let robot = repo("tables/ur5/robot.toml");
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            grid.to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
-            "--robot",
-            robot.to_str().unwrap(),
-            "--hybrid",
-            "--cell",
-            "30",
-            "-o",
-            "h.tbl",
-        ],
+    build_ur5_hybrid(
         dir.path(),
+        robot.to_str().unwrap(),
+        &["--cell", "30"],
+        "h.tbl",
     );
-    assert!(o.status.success(), "{}", stderr(&o));
     let out = query_ur5_targets(dir.path(), "h.tbl", &random);
     // Residual |measured − predicted| over the 20 held-out poses: the documented hybrid
     // figure is 0.0856 mm mean (docs/evaluation.md).

@@ -202,6 +202,16 @@ fn every_method_is_compared_and_reported() {
     assert!(!page.contains("Kinematic identification"));
 }
 
+/// The entry of `method` under `"methods"` in `tablec eval --json` output.
+fn method_json<'a>(json: &'a serde_json::Value, method: &str) -> &'a serde_json::Value {
+    json["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["method"] == method)
+        .unwrap_or_else(|| panic!("{method} not in the JSON"))
+}
+
 /// k-fold cross-validation predicts every sample once.
 #[test]
 fn k_fold_predicts_every_sample_once() {
@@ -226,12 +236,7 @@ fn k_fold_predicts_every_sample_once() {
     ));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
-    let idw = json["methods"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|m| m["method"] == "idw")
-        .unwrap();
+    let idw = method_json(&json, "idw");
     let predictions = idw["predictions"].as_array().unwrap();
     assert_eq!(predictions.len(), 216);
     assert!(predictions.iter().all(|p| !p.is_null()));
@@ -360,12 +365,7 @@ fn ur5_noise_floor_resolution_and_trusted_identification() {
     assert!((difference - 0.0151).abs() < 5e-5, "{comparison}");
     let paired = number(&kinematic["standard_error_mm"]);
     assert!((0.004..0.01).contains(&paired), "{comparison}");
-    let hybrid = e["methods"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|m| m["method"] == "hybrid")
-        .unwrap();
+    let hybrid = method_json(&e, "hybrid");
     let se = number(&hybrid["position_mm"]["mean_norm_standard_error"]);
     assert!((0.005..0.01).contains(&se), "{se}");
     // The 20 random poses share an offset of about 0.03 mm that the grid's model cannot

@@ -4,13 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use crate::common::tablec;
-
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+use crate::common::{build_ur5_hybrid, repo, tablec, ur5_grid, UR5_MAP};
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -18,14 +12,6 @@ fn stderr(o: &Output) -> String {
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// The UR5 measurements' column mapping (joint angles included).
-const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
-                       j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
-
-fn ur5_grid() -> PathBuf {
-    repo("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv")
 }
 
 fn ur5_random() -> PathBuf {
@@ -38,22 +24,7 @@ fn ur5_random() -> PathBuf {
 fn a_urdf_robot_makes_a_hybrid_table() {
     let dir = tempfile::tempdir().unwrap();
     let urdf = repo("tables/ur5/robot.urdf");
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            ur5_grid().to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
-            "--robot",
-            urdf.to_str().unwrap(),
-            "--hybrid",
-            "-o",
-            "h.tbl",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    build_ur5_hybrid(dir.path(), urdf.to_str().unwrap(), &[], "h.tbl");
     // The grid's first sample, at its joints.
     let (x, y, z) = ("-430.328", "-6.274", "-98.637");
     let joints = "-22.9333,-43.7192,135.3978,-94.7403,55.4168,-5.5522";
@@ -216,24 +187,7 @@ fn calibrate_ur5_grid(dir: &Path, args: &[&str]) -> Output {
 /// Builds a hybrid table of the UR5 grid with `robot`'s compliances identified into
 /// `dir/c.tbl` and returns what `tablec inspect` prints of it.
 fn inspect_compliant_hybrid(dir: &Path, robot: &str) -> String {
-    let grid = ur5_grid();
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            grid.to_str().unwrap(),
-            "--columns",
-            UR5_MAP,
-            "--robot",
-            robot,
-            "--hybrid",
-            "--compliance",
-            "-o",
-            "c.tbl",
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    build_ur5_hybrid(dir, robot, &["--compliance"], "c.tbl");
     stdout(&tablec(&["inspect", "c.tbl"], dir))
 }
 

@@ -142,6 +142,35 @@ pub fn hybrid_reference_predict(
     Some((position, rotation))
 }
 
+/// The UR5 measurements' column mapping (joint angles included).
+pub const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
+                           j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+
+/// The UR5 grid measurements shipped in `tables/ur5/measurements` (the samples).
+pub fn ur5_grid() -> std::path::PathBuf {
+    repo("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv")
+}
+
+/// `tablec build -q` of a hybrid table `out` from the UR5 grid with `robot`, and `extra`
+/// arguments, in `dir`; it must succeed.
+pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out: &str) {
+    let grid = ur5_grid();
+    let mut args = vec![
+        "build",
+        "-q",
+        grid.to_str().unwrap(),
+        "--columns",
+        UR5_MAP,
+        "--robot",
+        robot,
+        "--hybrid",
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["-o", out]);
+    let o = tablec(&args, dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// A path in the repository.
 pub fn repo(path: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
