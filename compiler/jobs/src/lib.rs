@@ -1,0 +1,254 @@
+//! The jobs `tablec` and the `adwi` Python package run, written once.
+//!
+//! Each job has two stages, as ripgrep's `LowArgs` and `HiArgs` do:
+//!
+//! - `*Args` ([`BuildArgs`], [`EvalArgs`], [`CalibrateArgs`], [`SimulateArgs`]) are what a
+//!   user asked for: every option, with its documentation and its default, defined once as
+//!   a clap argument group (tablec flattens it) and as a serde struct (Python's keyword
+//!   arguments deserialize into it);
+//! - `*Job::new(args)` checks every option and every combination, opens and reads every
+//!   input, sizes the work and checks every output (not an input, not two outputs in one
+//!   file, not a FIFO or a device) — **before any work**, so that a bad request fails in
+//!   milliseconds with one message — and `run` then does the work, writes its outputs all
+//!   or nothing ([`adwi_compile::write::OutputPlan`]) and returns typed results and typed
+//!   [`Warning`]s.
+//!
+//! Front ends map their arguments onto `*Args` and print or convert the results; neither
+//! calls a step of a pipeline itself.
+
+pub mod args;
+pub mod build;
+pub mod calibrate;
+pub mod eval;
+mod inputs;
+pub mod simulate;
+pub mod tune;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+pub use args::{Frame, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+pub use build::{BuildArgs, BuildJob, Built};
+pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
+pub use eval::{EvalArgs, EvalJob, Evaluated};
+pub use inputs::Source;
+pub use simulate::{SimulateArgs, SimulateJob, Simulated};
+
+/// Why a job was refused or failed. Refusals of options come before any work.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// An option, or a combination of options, that cannot be honoured.
+    #[error("{0}")]
+    Options(String),
+    /// A samples, validation or targets file that cannot be read (file, line, column).
+    #[error(transparent)]
+    Read(#[from] adwi_samples::ReadError),
+    /// Tracker-frame measurements that cannot be registered to the robot.
+    #[error(transparent)]
+    Measured(#[from] adwi_robot::measured::MeasuredError),
+    /// A robot file that cannot be loaded.
+    #[error("cannot load the robot {}", path.display())]
+    Robot {
+        /// The robot file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: adwi_robot::RobotError,
+    },
+    /// A simulation that cannot run (its scenario, its plan).
+    #[error(transparent)]
+    Simulate(#[from] adwi_robot::simulate::SimulateError),
+    /// The table cannot be built from these samples and options.
+    #[error(transparent)]
+    Build(#[from] adwi_compile::build::BuildError),
+    /// The kinematic identification failed.
+    #[error(transparent)]
+    Calibrate(#[from] adwi_robot::calibrate::CalibrateError),
+    /// The evaluation failed.
+    #[error(transparent)]
+    Eval(#[from] adwi_eval::EvalError),
+    /// The cross-validation that chooses the table's parameters failed.
+    #[error(transparent)]
+    Tune(#[from] tune::TuneError),
+    /// A table that cannot be opened.
+    #[error("cannot open table {}", path.display())]
+    Table {
+        /// The table file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: adwi_runtime::OpenError,
+    },
+    /// An output refused before any work, or that could not be written.
+    #[error(transparent)]
+    Output(#[from] adwi_compile::write::OutputError),
+    /// Worker threads could not be started.
+    #[error("cannot start worker threads: {0}")]
+    Threads(String),
+    /// A result came out non-finite and is not reported as one.
+    #[error("{0}")]
+    NonFinite(String),
+}
+
+impl JobError {
+    /// A refused option, named as the command line names it.
+    pub(crate) fn option(name: &str, why: impl fmt::Display) -> JobError {
+        JobError::Options(format!("{}: {why}", flag(name)))
+    }
+
+    pub(crate) fn robot(path: &Path) -> impl FnOnce(adwi_robot::RobotError) -> JobError + '_ {
+        move |source| JobError::Robot {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// An option's name as both front ends understand it: `--tune-folds (tune_folds)`.
+pub(crate) fn flag(name: &str) -> String {
+    format!("--{} ({name})", name.replace('_', "-"))
+}
+
+/// What a job warns about: the work was done, but the user should know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Warning {
+    /// Most of the grid's cells are far from every sample (samples along a line or a
+    /// plane): the table is large for what it holds.
+    MostlyEmptyGrid {
+        /// Cells in the grid.
+        cells: usize,
+        /// At most this many lie within ε of a sample.
+        coverable: f64,
+        /// ε, mm.
+        radius_mm: f64,
+        /// The table's estimated size, bytes.
+        estimated_bytes: u128,
+    },
+    /// Kinematic parameters the samples cannot identify: they keep their nominal values
+    /// and the table interpolates what they would have explained.
+    Unidentifiable {
+        /// Each parameter with its independent fraction (the pivot ratio).
+        parameters: Vec<(String, f64)>,
+    },
+    /// The identification stopped without converging.
+    NotConverged {
+        /// Levenberg–Marquardt iterations made.
+        iterations: u32,
+    },
+    /// URDF has no place for identified compliances: the URDF written leaves them out.
+    UrdfWithoutCompliance {
+        /// The URDF written.
+        path: PathBuf,
+    },
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Warning::MostlyEmptyGrid {
+                cells,
+                coverable,
+                radius_mm,
+                estimated_bytes,
+            } => write!(
+                f,
+                "the grid's {cells} cells are mostly empty: at most {coverable:.0} of them lie \
+                 within ε = {radius_mm:.3} mm of a sample (samples along a line or a plane?); \
+                 the table will be about {} — give bounds around the samples (--bounds), or a \
+                 larger cell (--cell)",
+                adwi_compile::build::human_bytes(*estimated_bytes)
+            ),
+            Warning::Unidentifiable { parameters } => {
+                let names: Vec<String> = parameters
+                    .iter()
+                    .map(|(p, ratio)| format!("{p} ({ratio:.1e})"))
+                    .collect();
+                write!(
+                    f,
+                    "{} kinematic parameters cannot be identified from these samples and stay \
+                     at nominal (independent fraction in brackets): {}",
+                    names.len(),
+                    names.join(", ")
+                )
+            }
+            Warning::NotConverged { iterations } => write!(
+                f,
+                "kinematic identification stopped after {iterations} iterations without \
+                 converging"
+            ),
+            Warning::UrdfWithoutCompliance { path } => write!(
+                f,
+                "URDF has no place for the identified compliances: {} leaves them out (the \
+                 robot file, -o, carries them)",
+                path.display()
+            ),
+        }
+    }
+}
+
+/// What an identification warns about.
+pub(crate) fn calibration_warnings(c: &adwi_robot::calibrate::Calibration) -> Vec<Warning> {
+    let mut warnings = Vec::new();
+    if !c.unidentifiable.is_empty() {
+        warnings.push(Warning::Unidentifiable {
+            parameters: c
+                .unidentifiable
+                .iter()
+                .map(|(p, ratio)| (p.to_string(), *ratio))
+                .collect(),
+        });
+    }
+    if !c.converged {
+        warnings.push(Warning::NotConverged {
+            iterations: c.iterations,
+        });
+    }
+    warnings
+}
+
+/// Where a long job reports how far it got. Every method has a default that does nothing,
+/// so a front end without a progress bar passes [`Silent`].
+pub trait Progress: Sync {
+    /// A new stage begins (`identifying`, `compiling`), of `units` steps when known.
+    fn stage(&self, _name: &str, _units: Option<u64>) {}
+    /// `units` more steps of the current stage are done.
+    fn advance(&self, _units: u64) {}
+}
+
+/// No progress reported.
+pub struct Silent;
+
+impl Progress for Silent {}
+
+/// The worker threads of a job: all cores by default; a count is checked before any
+/// work, since more threads than a few per core only add overhead.
+pub(crate) fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, JobError> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        check_threads(n)?;
+        pool = pool.num_threads(n);
+    }
+    pool.build().map_err(|e| JobError::Threads(e.to_string()))
+}
+
+/// The most worker threads a job takes: four per core (at least 64), beyond which threads
+/// only contend for the cores.
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (4 * cores).max(64)
+}
+
+pub(crate) fn check_threads(n: usize) -> Result<(), JobError> {
+    let max = max_threads();
+    if n == 0 || n > max {
+        return Err(JobError::option(
+            "threads",
+            format!(
+                "{n} worker threads: give 1 to {max} (four per core of this machine's {}, at \
+                 least 64); more only contend for the cores",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            ),
+        ));
+    }
+    Ok(())
+}
