@@ -47,8 +47,13 @@ pub enum OutputError {
         /// What it is (`a directory`, `a FIFO`, ...).
         kind: &'static str,
     },
-    /// The output's directory does not exist.
-    #[error("cannot write {}: the directory {} does not exist", path.display(), dir.display())]
+    /// The output's directory does not exist (or, for a directory the command creates, a
+    /// file stands where a directory of its path would be).
+    #[error(
+        "cannot write {}: {} is not an existing directory",
+        path.display(),
+        dir.display()
+    )]
     NoDirectory {
         /// The output as given.
         path: PathBuf,
@@ -150,10 +155,18 @@ impl OutputPlan {
         refuse_overwriting(output, inputs)?;
         let target = regular_target(output)?;
         let dir = directory_of(&target);
-        if !create && !dir.is_dir() {
+        // A directory the command creates must be creatable: its nearest existing
+        // ancestor a directory.
+        let existing = if create {
+            dir.ancestors()
+                .find(|a| a.as_os_str().is_empty() || a.exists())
+        } else {
+            Some(dir)
+        };
+        if !existing.is_some_and(|d| d.as_os_str().is_empty() || d.is_dir()) {
             return Err(OutputError::NoDirectory {
                 path: output.to_path_buf(),
-                dir: dir.to_path_buf(),
+                dir: existing.unwrap_or(dir).to_path_buf(),
             });
         }
         for other in &self.outputs {
