@@ -123,6 +123,8 @@ impl Default for EvalArgs {
 }
 
 /// What is evaluated: methods built from samples, or a table built before.
+// One per job: the samples held inline cost nothing.
+#[allow(clippy::large_enum_variant)]
 enum Subject {
     Methods {
         samples: SampleSet,

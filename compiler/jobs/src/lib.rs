@@ -42,10 +42,10 @@ pub enum JobError {
     Options(String),
     /// A samples, validation or targets file that cannot be read (file, line, column).
     #[error(transparent)]
-    Read(#[from] adwi_samples::ReadError),
+    Read(Box<adwi_samples::ReadError>),
     /// Tracker-frame measurements that cannot be registered to the robot.
     #[error(transparent)]
-    Measured(#[from] adwi_robot::measured::MeasuredError),
+    Measured(Box<adwi_robot::measured::MeasuredError>),
     /// A robot file that cannot be loaded.
     #[error("cannot load the robot {}", path.display())]
     Robot {
@@ -53,23 +53,23 @@ pub enum JobError {
         path: PathBuf,
         /// Why.
         #[source]
-        source: adwi_robot::RobotError,
+        source: Box<adwi_robot::RobotError>,
     },
     /// A simulation that cannot run (its scenario, its plan).
     #[error(transparent)]
-    Simulate(#[from] adwi_robot::simulate::SimulateError),
+    Simulate(Box<adwi_robot::simulate::SimulateError>),
     /// The table cannot be built from these samples and options.
     #[error(transparent)]
-    Build(#[from] adwi_compile::build::BuildError),
+    Build(Box<adwi_compile::build::BuildError>),
     /// The kinematic identification failed.
     #[error(transparent)]
-    Calibrate(#[from] adwi_robot::calibrate::CalibrateError),
+    Calibrate(Box<adwi_robot::calibrate::CalibrateError>),
     /// The evaluation failed.
     #[error(transparent)]
-    Eval(#[from] adwi_eval::EvalError),
+    Eval(Box<adwi_eval::EvalError>),
     /// The cross-validation that chooses the table's parameters failed.
     #[error(transparent)]
-    Tune(#[from] tune::TuneError),
+    Tune(Box<tune::TuneError>),
     /// A table that cannot be opened.
     #[error("cannot open table {}", path.display())]
     Table {
@@ -81,7 +81,7 @@ pub enum JobError {
     },
     /// An output refused before any work, or that could not be written.
     #[error(transparent)]
-    Output(#[from] adwi_compile::write::OutputError),
+    Output(Box<adwi_compile::write::OutputError>),
     /// Worker threads could not be started.
     #[error("cannot start worker threads: {0}")]
     Threads(String),
@@ -89,6 +89,28 @@ pub enum JobError {
     #[error("{0}")]
     NonFinite(String),
 }
+
+/// The large errors of the steps, boxed so that a job's `Result` stays small.
+macro_rules! boxed_from {
+    ($($variant:ident: $ty:ty),* $(,)?) => {
+        $(impl From<$ty> for JobError {
+            fn from(e: $ty) -> JobError {
+                JobError::$variant(Box::new(e))
+            }
+        })*
+    };
+}
+
+boxed_from!(
+    Read: adwi_samples::ReadError,
+    Measured: adwi_robot::measured::MeasuredError,
+    Simulate: adwi_robot::simulate::SimulateError,
+    Build: adwi_compile::build::BuildError,
+    Calibrate: adwi_robot::calibrate::CalibrateError,
+    Eval: adwi_eval::EvalError,
+    Tune: tune::TuneError,
+    Output: adwi_compile::write::OutputError,
+);
 
 impl JobError {
     /// A refused option, named as the command line names it.
@@ -99,7 +121,7 @@ impl JobError {
     pub(crate) fn robot(path: &Path) -> impl FnOnce(adwi_robot::RobotError) -> JobError + '_ {
         move |source| JobError::Robot {
             path: path.to_path_buf(),
-            source,
+            source: Box::new(source),
         }
     }
 }

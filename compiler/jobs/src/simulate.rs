@@ -161,7 +161,7 @@ impl SimulateJob {
         comments.extend(args.comment);
         let mut bytes = Vec::new();
         write_csv(&samples, &comments, &mut bytes).map_err(|source| {
-            JobError::Output(adwi_compile::write::OutputError::Write {
+            JobError::from(adwi_compile::write::OutputError::Write {
                 path: args.output.clone(),
                 source,
             })
