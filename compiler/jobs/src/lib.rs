@@ -274,3 +274,115 @@ pub(crate) fn check_threads(n: usize) -> Result<(), JobError> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use serde::de::value::{Error, MapDeserializer};
+    use serde::Deserialize;
+
+    use super::*;
+
+    /// Each job's arguments under a command, as tablec has them.
+    #[derive(clap::Parser)]
+    enum Cli {
+        Build(BuildArgs),
+        Eval(EvalArgs),
+        Calibrate(CalibrateArgs),
+        Simulate(SimulateArgs),
+    }
+
+    /// `T` from no keyword arguments at all, as Python's defaults are made.
+    fn from_nothing<'de, T: Deserialize<'de>>() -> T {
+        T::deserialize(MapDeserializer::<_, Error>::new(std::iter::empty::<(
+            &str,
+            &str,
+        )>()))
+        .unwrap()
+    }
+
+    /// The defaults clap gives when no flag is passed are the structs' `Default`s, which
+    /// serde takes for every keyword a Python call leaves out: one definition, one set of
+    /// defaults.
+    #[test]
+    fn the_command_line_and_python_have_the_same_defaults() {
+        let Cli::Build(parsed) = Cli::parse_from(["tablec", "build", "s.csv", "-o", "t.tbl"])
+        else {
+            unreachable!()
+        };
+        let mut expected: BuildArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        expected.output = "t.tbl".into();
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+        assert_eq!(
+            format!("{expected:?}"),
+            format!("{:?}", {
+                let mut d = BuildArgs::default();
+                d.samples = vec![Source::File("s.csv".into())];
+                d.output = "t.tbl".into();
+                d
+            })
+        );
+
+        let Cli::Eval(parsed) = Cli::parse_from(["tablec", "eval", "s.csv"]) else {
+            unreachable!()
+        };
+        let mut expected: EvalArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+
+        let Cli::Calibrate(parsed) = Cli::parse_from(["tablec", "calibrate", "s.csv"]) else {
+            unreachable!()
+        };
+        let mut expected: CalibrateArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+
+        let Cli::Simulate(parsed) = Cli::parse_from([
+            "tablec",
+            "simulate",
+            "--scenario",
+            "x.toml",
+            "--min",
+            "0,0,0",
+            "--max",
+            "1,1,1",
+            "-o",
+            "s.csv",
+        ]) else {
+            unreachable!()
+        };
+        let mut expected: SimulateArgs = from_nothing();
+        expected.scenario = "x.toml".into();
+        expected.max = [1.0; 3];
+        expected.output = "s.csv".into();
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+    }
+
+    /// A refused combination is refused before anything is read: the samples file here
+    /// does not exist.
+    #[test]
+    fn combinations_are_refused_before_any_input_is_read() {
+        let mut args = BuildArgs::default();
+        args.samples = vec![Source::File("/nonexistent/s.csv".into())];
+        args.output = "/nonexistent/t.tbl".into();
+        args.tune = true;
+        args.table.k = Some(4);
+        let e = BuildJob::new(args.clone()).err().unwrap();
+        assert!(matches!(e, JobError::Options(_)), "{e}");
+        args.tune = false;
+        args.compliance = true;
+        assert!(matches!(
+            BuildJob::new(args.clone()),
+            Err(JobError::Options(_))
+        ));
+        args.compliance = false;
+        args.threads = Some(1_000_000);
+        let e = BuildJob::new(args).err().unwrap();
+        assert!(
+            e.to_string()
+                .contains("--threads (threads): 1000000 worker threads"),
+            "{e}"
+        );
+    }
+}

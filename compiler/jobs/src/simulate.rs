@@ -15,7 +15,7 @@ use crate::inputs::{load_robot, Inputs};
 use crate::JobError;
 
 /// Simulate measured samples: every option of `tablec simulate`.
-#[derive(clap::Args, Deserialize, Debug, Clone, Default)]
+#[derive(clap::Args, Deserialize, Debug, Clone)]
 #[serde(default)]
 pub struct SimulateArgs {
     /// The robot (required), e.g. tables/kr150-2/robot.toml.
@@ -57,6 +57,25 @@ pub struct SimulateArgs {
     /// simulation (repeatable).
     #[arg(long)]
     pub comment: Vec<String>,
+}
+
+impl Default for SimulateArgs {
+    fn default() -> SimulateArgs {
+        SimulateArgs {
+            robot: RobotArgs::default(),
+            scenario: PathBuf::new(),
+            min: [0.0; 3],
+            max: [0.0; 3],
+            step: None,
+            random: None,
+            abc: [0.0, 90.0, 0.0],
+            orientation_spread: 0.0,
+            config: None,
+            seed: 1,
+            output: PathBuf::new(),
+            comment: Vec::new(),
+        }
+    }
 }
 
 /// A simulation checked and loaded, ready to run.
