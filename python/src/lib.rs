@@ -154,15 +154,28 @@ fn job_args<T: serde::de::DeserializeOwned>(
             given.set_item(key, value)?;
         }
     }
-    let mut de = pythonize::Depythonizer::from_object(given.as_any());
-    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+    let deserialize = |dict: &Bound<'_, PyDict>| -> Result<T, pythonize::PythonizeError> {
+        T::deserialize(&mut pythonize::Depythonizer::from_object(dict.as_any()))
+    };
+    deserialize(&given).map_err(|e| {
+        // Serde cannot say which key of a flattened struct failed: the option is found by
+        // deserializing each one alone.
+        let culprit = given.iter().find_map(|(key, value)| {
+            let alone = PyDict::new(py);
+            alone.set_item(&key, value).ok()?;
+            let e = deserialize(&alone).err()?;
+            Some((key.to_string(), e))
+        });
+        let (key, e) = culprit.map_or((None, e), |(k, e)| (Some(k), e));
         let message = e
-            .inner()
             .to_string()
             .replace("expected u32", "expected a whole number from 0")
             .replace("expected usize", "expected a whole number from 0")
             .replace("expected u64", "expected a whole number from 0");
-        AdwiError::new_err(format!("{}: {message}", e.path()))
+        match key {
+            Some(key) => AdwiError::new_err(format!("{key}: {message}")),
+            None => AdwiError::new_err(message),
+        }
     })
 }
 

@@ -195,7 +195,7 @@ def test_tracker_validation_registered_apart_equals_tablec(tablec, tmp_path):
 
 def test_measured_in_is_base_or_tracker(tmp_path):
     out = tmp_path / "t.tbl"
-    with pytest.raises(ValueError, match="measured_in 'robot': choose base or tracker"):
+    with pytest.raises(ValueError, match="measured_in: unknown variant `robot`, expected `base` or `tracker`"):
         adwi.build(KR150 / "samples.csv", out, measured_in="robot")
     with pytest.raises(adwi.AdwiError, match="measured_in: unknown variant `Tracker`, expected `base` or `tracker`"):
         adwi.evaluate(KR150 / "samples.csv", folds=3, measured_in="Tracker")

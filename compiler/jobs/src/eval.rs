@@ -33,7 +33,7 @@ pub struct EvalArgs {
     /// Score this table, built before, at the validation points (--validation): its
     /// served field, queried with each point's joint angles when it is hybrid, as a
     /// controller queries it. No samples, methods or table options then.
-    #[arg(long = "table", value_name = "TABLE")]
+    #[arg(long = "table", id = "table", value_name = "TABLE")]
     #[serde(rename = "table")]
     pub table_file: Option<PathBuf>,
     /// Use only the first N validation points.
