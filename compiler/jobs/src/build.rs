@@ -11,7 +11,6 @@ use std::time::Instant;
 use adwi_compile::build::{compile_plan, BuildOptions, BuildReport, Plan};
 use adwi_compile::write::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::measured::Registered;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_samples::{RepeatReport, SampleSet};
@@ -19,6 +18,7 @@ use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs, TableArgs};
 use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
 use crate::tune::TuneReport;
 use crate::{JobError, Progress, Warning};
 
@@ -26,7 +26,9 @@ use crate::{JobError, Progress, Warning};
 #[derive(clap::Args, Deserialize, Debug, Clone)]
 #[serde(default)]
 pub struct BuildArgs {
-    /// The sample database (CSV: x,y,z and dx,dy,dz or mx,my,mz; see docs/samples.md).
+    /// The sample database (CSV: x,y,z and dx,dy,dz or mx,my,mz; see docs/samples.md);
+    /// several series make one table (in a tracker's frame, each with its own
+    /// tracker-to-base transform).
     #[arg(required = true, value_name = "SAMPLES")]
     #[serde(skip)]
     pub samples: Vec<Source>,
@@ -98,8 +100,7 @@ impl Default for BuildArgs {
 /// grid sized and the output checked.
 pub struct BuildJob {
     args: BuildArgs,
-    samples: SampleSet,
-    registered: Option<Registered>,
+    series: Series,
     robot: Option<Robot>,
     options: BuildOptions,
     plan: Plan,
@@ -128,8 +129,11 @@ pub struct Built {
     /// A hybrid table's identification, and the RMS of the residuals its table holds, mm.
     pub calibration: Option<(Calibration, f64)>,
     /// Tracker-frame samples' registration, and both transforms as the identification
-    /// refined them.
+    /// refined them (of the first series, when several were given).
     pub registration: Option<(Registration, Refined)>,
+    /// Tracker-frame series after the first: each one's registration to the robot
+    /// identified from all of them (the probe the first one's).
+    pub series_registrations: Vec<Registration>,
     /// What the user should know.
     pub warnings: Vec<Warning>,
     /// Wall time, s, from the job's creation.
@@ -154,19 +158,22 @@ impl BuildJob {
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
         let (columns, read) = args.reading.resolve()?;
         let tracker = args.measured_in == Frame::Tracker;
-        let source = crate::inputs::one_source(&args.samples, "samples")?;
-        let (registered, samples) = adwi_robot::measured::read_samples(
-            source.input(),
+        let calibrate = CalibrateOptions {
+            compliance: args.compliance,
+            ..CalibrateOptions::default()
+        };
+        let series = crate::series::read(
+            &args.samples,
             &columns,
             &read,
             file_robot.clone().filter(|_| tracker),
         )?;
-        let robot = match &registered {
+        let robot = match &series.registered {
             Some(r) => Some(r.robot.clone()),
             None => file_robot,
         };
         let options = args.table.build_options();
-        let plan = adwi_compile::build::plan(&samples, &options)?;
+        let plan = adwi_compile::build::plan(&series.samples, &options)?;
         let mut warnings = Vec::new();
         if plan.is_mostly_empty() {
             warnings.push(Warning::MostlyEmptyGrid {
@@ -176,14 +183,9 @@ impl BuildJob {
                 estimated_bytes: plan.estimated_table_bytes(),
             });
         }
-        let calibrate = CalibrateOptions {
-            compliance: args.compliance,
-            ..CalibrateOptions::default()
-        };
         Ok(BuildJob {
             args,
-            samples,
-            registered,
+            series,
             robot,
             options,
             plan,
@@ -202,7 +204,7 @@ impl BuildJob {
 
     /// The samples read (registered to the robot when measured in a tracker's frame).
     pub fn samples(&self) -> &SampleSet {
-        &self.samples
+        &self.series.samples
     }
 
     /// Runs the build: tuning when asked, the identification of a hybrid table's model,
@@ -215,8 +217,7 @@ impl BuildJob {
     pub fn run(self, progress: &dyn Progress) -> Result<Built, JobError> {
         let BuildJob {
             args,
-            samples,
-            registered,
+            mut series,
             robot,
             mut options,
             mut plan,
@@ -226,6 +227,17 @@ impl BuildJob {
             mut warnings,
             started,
         } = self;
+        if args.samples.len() > 1 {
+            progress.stage("registering the series", None);
+            pool.install(|| series.refine(&calibrate))?;
+            plan = adwi_compile::build::plan(&series.samples, &options)?;
+        }
+        let Series {
+            samples,
+            registered,
+            others,
+            ..
+        } = series;
         let mut tuning = None;
         if args.tune {
             progress.stage("tuning", None);
@@ -285,6 +297,7 @@ impl BuildJob {
             tuning,
             calibration,
             registration,
+            series_registrations: others,
             warnings,
             seconds: started.elapsed().as_secs_f64(),
         })

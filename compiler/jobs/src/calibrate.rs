@@ -5,14 +5,13 @@ use std::path::{Path, PathBuf};
 
 use adwi_compile::write::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::measured::Registered;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
-use adwi_samples::SampleSet;
 use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs};
-use crate::inputs::{load_robot, one_source, Inputs, Source};
+use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
 use crate::{JobError, Warning};
 
 /// Identify a robot's kinematic deviations from samples: every option of `tablec
@@ -20,7 +19,8 @@ use crate::{JobError, Warning};
 #[derive(clap::Args, Deserialize, Debug, Clone)]
 #[serde(default)]
 pub struct CalibrateArgs {
-    /// The sample database (CSV with joint values j1..jn), as for `tablec build`.
+    /// The sample database (CSV with joint values j1..jn), as for `tablec build`; several
+    /// series are identified together.
     #[arg(required = true, value_name = "SAMPLES")]
     #[serde(skip)]
     pub samples: Vec<Source>,
@@ -68,11 +68,19 @@ impl Default for CalibrateArgs {
     }
 }
 
+/// The identification's options.
+fn options(args: &CalibrateArgs) -> CalibrateOptions {
+    CalibrateOptions {
+        rank_tolerance: args.rank_tol,
+        compliance: args.compliance,
+        ..CalibrateOptions::default()
+    }
+}
+
 /// A calibration checked and loaded, ready to run.
 pub struct CalibrateJob {
     args: CalibrateArgs,
-    samples: SampleSet,
-    registered: Option<Registered>,
+    series: Series,
     robot: Robot,
     outputs: OutputPlan,
 }
@@ -84,8 +92,10 @@ pub struct Calibrated {
     pub calibration: Calibration,
     /// The robot's name.
     pub robot_name: String,
-    /// The samples file, as messages name it.
-    pub source: PathBuf,
+    /// The samples files, as messages name them.
+    pub sources: Vec<PathBuf>,
+    /// Tracker-frame series after the first: each one's registration.
+    pub series_registrations: Vec<Registration>,
     /// How many samples.
     pub samples: usize,
     /// Tracker-frame samples' registration, and both transforms as the identification
@@ -127,22 +137,20 @@ impl CalibrateJob {
             &inputs.paths(),
         )?;
         let (columns, read) = args.reading.resolve()?;
-        let source = one_source(&args.samples, "samples")?;
         let tracker = args.measured_in == Frame::Tracker;
-        let (registered, samples) = adwi_robot::measured::read_samples(
-            source.input(),
+        let series = crate::series::read(
+            &args.samples,
             &columns,
             &read,
             tracker.then(|| file_robot.clone()),
         )?;
-        let robot = match &registered {
+        let robot = match &series.registered {
             Some(r) => r.robot.clone(),
             None => file_robot,
         };
         Ok(CalibrateJob {
             args,
-            samples,
-            registered,
+            series,
             robot,
             outputs,
         })
@@ -157,17 +165,18 @@ impl CalibrateJob {
     pub fn run(self) -> Result<Calibrated, JobError> {
         let CalibrateJob {
             args,
-            samples,
-            registered,
+            mut series,
             robot,
             outputs,
         } = self;
-        let options = CalibrateOptions {
-            rank_tolerance: args.rank_tol,
-            compliance: args.compliance,
-            ..CalibrateOptions::default()
-        };
-        let c = identify(&robot, &samples, &options)?;
+        series.refine(&options(&args))?;
+        let Series {
+            samples,
+            registered,
+            others,
+            ..
+        } = series;
+        let c = identify(&robot, &samples, &options(&args))?;
         if !(c.position_rms_mm.is_finite() && c.initial_position_rms_mm.is_finite()) {
             return Err(JobError::NonFinite(format!(
                 "the identification came out non-finite (position RMS {} mm): the robot file or \
@@ -175,12 +184,16 @@ impl CalibrateJob {
                 c.position_rms_mm
             )));
         }
-        let source = one_source(&args.samples, "samples")?.name().to_path_buf();
+        let sources: Vec<String> = args
+            .samples
+            .iter()
+            .map(|s| s.name().display().to_string())
+            .collect();
         let comment = [
             format!(
                 "{} calibrated from {} ({} samples): position RMS {:.4} mm before, {:.4} mm after.",
                 robot.name,
-                source.display(),
+                sources.join(", "),
                 samples.len(),
                 c.initial_position_rms_mm,
                 c.position_rms_mm
@@ -211,7 +224,12 @@ impl CalibrateJob {
         });
         Ok(Calibrated {
             robot_name: robot.name.clone(),
-            source,
+            sources: args
+                .samples
+                .iter()
+                .map(|s| s.name().to_path_buf())
+                .collect(),
+            series_registrations: others,
             samples: samples.len(),
             registration,
             written: contents.iter().map(|(p, _)| p.to_path_buf()).collect(),

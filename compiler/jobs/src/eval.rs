@@ -5,23 +5,23 @@ use std::path::{Path, PathBuf};
 
 use adwi_compile::write::OutputPlan;
 use adwi_eval::{EvalOptions, Evaluation, Method, Protocol};
-use adwi_robot::calibrate::{CalibrateOptions, Calibration};
-use adwi_robot::measured::Registered;
+use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
-use adwi_samples::SampleSet;
+use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
 
 use crate::args::{parsed, Frame, Reading, RobotArgs, TableArgs};
-use crate::inputs::{load_robot, one_source, Inputs, Source};
+use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
 use crate::{JobError, Warning};
 
 /// Compare compensation methods on held-out points: every option of `tablec eval`.
 #[derive(clap::Args, Deserialize, Debug, Clone)]
 #[serde(default)]
 pub struct EvalArgs {
-    /// The sample database the methods are built from (CSV, as for `tablec build`); not
-    /// with --table.
+    /// The sample database the methods are built from (CSV, as for `tablec build`; several
+    /// series are trained together); not with --table.
     #[arg(value_name = "SAMPLES")]
     #[serde(skip)]
     pub samples: Vec<Source>,
@@ -127,12 +127,12 @@ impl Default for EvalArgs {
 #[allow(clippy::large_enum_variant)]
 enum Subject {
     Methods {
-        samples: SampleSet,
-        registered: Option<Registered>,
-        /// A validation set registered apart, and the identification of all samples that
-        /// registration needed (reused for the refined transforms).
-        registered_apart: Option<(Registration, Calibration)>,
-        protocol: Protocol,
+        series: Series,
+        /// The validation set (read once checked, registered when the samples are), or
+        /// the folds.
+        held_out: HeldOut,
+        columns: ColumnMap,
+        read: ReadOptions,
         options: Box<EvalOptions>,
     },
     Table {
@@ -140,6 +140,18 @@ enum Subject {
         path: PathBuf,
         points: SampleSet,
     },
+}
+
+/// The points an evaluation predicts.
+enum HeldOut {
+    /// A validation set: its first `limit` points; registered apart with `apart`.
+    Validation {
+        source: Source,
+        limit: Option<usize>,
+        apart: bool,
+    },
+    /// k-fold cross-validation of the samples.
+    Folds { folds: usize, seed: u64 },
 }
 
 /// An evaluation checked and loaded, ready to run.
@@ -159,6 +171,8 @@ pub struct Evaluated {
     /// Tracker-frame samples' registration, and both transforms as an identification of
     /// all samples refined them.
     pub registration: Option<(Registration, Refined)>,
+    /// Tracker-frame series after the first: each one's registration.
+    pub series_registrations: Vec<Registration>,
     /// A validation set's own registration (registered apart).
     pub validation_registration: Option<Registration>,
     /// The report page written, when asked for.
@@ -216,43 +230,40 @@ impl EvalJob {
             }
             None => {
                 let tracker = args.measured_in == Frame::Tracker;
-                let source = one_source(&args.samples, "samples")?;
-                let (registered, samples) = adwi_robot::measured::read_samples(
-                    source.input(),
-                    &columns,
-                    &read,
-                    file_robot.clone().filter(|_| tracker),
-                )?;
                 let calibrate = CalibrateOptions {
                     rank_tolerance: args.rank_tol,
                     hold_untrustworthy: !args.keep_untrustworthy,
                     compliance: args.compliance,
                     ..CalibrateOptions::default()
                 };
-                let mut registered_apart = None;
-                let protocol = match (&args.validation, args.folds) {
+                let series = crate::series::read(
+                    &args.samples,
+                    &columns,
+                    &read,
+                    file_robot.clone().filter(|_| tracker),
+                )?;
+                let held_out = match (&args.validation, args.folds) {
                     (Some(v), None) => {
-                        // Registered apart, into the frame of the samples' calibration
-                        // alone, as the kinematic method makes it.
-                        let (mut points, apart) = adwi_robot::measured::read_validation(
-                            v.input(),
-                            &columns,
-                            &read,
-                            registered.as_ref(),
-                            args.register_validation_apart
-                                .then_some((&samples, &calibrate)),
-                        )?;
-                        registered_apart = apart;
-                        limit(&mut points, args.limit);
-                        Protocol::Validation(points)
+                        // Read once now, so that a bad file is refused before any work;
+                        // registered in `run`, once the samples are.
+                        if tracker {
+                            v.input().measurements(&columns, &read)?;
+                        } else {
+                            v.input().samples(&columns, &read)?;
+                        }
+                        HeldOut::Validation {
+                            source: v.clone(),
+                            limit: args.limit,
+                            apart: args.register_validation_apart,
+                        }
                     }
-                    (None, Some(folds)) => Protocol::KFold {
+                    (None, Some(folds)) => HeldOut::Folds {
                         folds,
                         seed: args.seed,
                     },
                     _ => unreachable!("checked"),
                 };
-                let robot: Option<Robot> = match &registered {
+                let robot: Option<Robot> = match &series.registered {
                     Some(r) => Some(r.robot.clone()),
                     None => file_robot,
                 };
@@ -263,11 +274,14 @@ impl EvalJob {
                     calibrate,
                     ..EvalOptions::default()
                 };
+                // The tables the methods build are sized now, from every sample: a grid
+                // too large is refused before any fold is identified.
+                adwi_compile::build::plan(&series.samples, &options.build)?;
                 Subject::Methods {
-                    samples,
-                    registered,
-                    registered_apart,
-                    protocol,
+                    series,
+                    held_out,
+                    columns,
+                    read,
                     options: Box::new(options),
                 }
             }
@@ -297,6 +311,7 @@ impl EvalJob {
             page,
         } = self;
         let mut warnings = Vec::new();
+        let mut series_registrations = Vec::new();
         let (evaluation, registration, validation_registration) = match subject {
             Subject::Table {
                 table,
@@ -313,12 +328,42 @@ impl EvalJob {
                 (evaluation, None, None)
             }
             Subject::Methods {
-                samples,
-                registered,
-                registered_apart,
-                protocol,
+                mut series,
+                held_out,
+                columns,
+                read,
                 options,
             } => {
+                series.refine(&options.calibrate)?;
+                let Series {
+                    samples,
+                    registered,
+                    others,
+                    ..
+                } = series;
+                series_registrations = others;
+                let mut registered_apart = None;
+                let protocol = match held_out {
+                    HeldOut::Validation {
+                        source,
+                        limit: n,
+                        apart,
+                    } => {
+                        // Registered apart, into the frame of the samples' calibration
+                        // alone, as the kinematic method makes it.
+                        let (mut points, made) = adwi_robot::measured::read_validation(
+                            source.input(),
+                            &columns,
+                            &read,
+                            registered.as_ref(),
+                            apart.then_some((&samples, &options.calibrate)),
+                        )?;
+                        registered_apart = made;
+                        limit(&mut points, n);
+                        Protocol::Validation(points)
+                    }
+                    HeldOut::Folds { folds, seed } => Protocol::KFold { folds, seed },
+                };
                 let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
                 if let Some(c) = evaluation.identified.first() {
                     warnings.extend(crate::calibration_warnings(c));
@@ -360,6 +405,7 @@ impl EvalJob {
         Ok(Evaluated {
             evaluation,
             registration,
+            series_registrations,
             validation_registration,
             report_page: page,
             warnings,

@@ -103,15 +103,3 @@ pub(crate) fn load_robot(args: &RobotArgs, inputs: &mut Inputs) -> Result<Option
     let robot = Robot::load_with(path, &args.links()).map_err(JobError::robot(path))?;
     Ok(Some(robot))
 }
-
-/// Refuses several sources where a job reads one.
-pub(crate) fn one_source<'a>(sources: &'a [Source], what: &str) -> Result<&'a Source, JobError> {
-    match sources {
-        [one] => Ok(one),
-        [] => Err(JobError::Options(format!("give the {what} file"))),
-        _ => Err(JobError::Options(format!(
-            "{} {what} files given: this command reads one",
-            sources.len()
-        ))),
-    }
-}

@@ -21,6 +21,7 @@ pub mod build;
 pub mod calibrate;
 pub mod eval;
 mod inputs;
+mod series;
 pub mod simulate;
 pub mod tune;
 

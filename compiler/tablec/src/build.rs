@@ -93,6 +93,9 @@ fn print_summary(built: &Built) {
     if let Some((registration, _)) = &built.registration {
         crate::registration::print_registration(registration);
     }
+    for (i, r) in built.series_registrations.iter().enumerate() {
+        crate::registration::print_series_registration(i + 2, r);
+    }
     if let Some((c, residual_rms_mm)) = &built.calibration {
         crate::calibrate::print_identification(c, Some(*residual_rms_mm));
         if let Some((_, refined)) = &built.registration {

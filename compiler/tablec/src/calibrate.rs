@@ -16,6 +16,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::registration::print_registration(registration);
         crate::registration::print_refined(refined);
     }
+    for (i, r) in calibrated.series_registrations.iter().enumerate() {
+        crate::registration::print_series_registration(i + 2, r);
+    }
     print_identification(&calibrated.calibration, None);
     for path in &calibrated.written {
         println!("wrote          {}", path.display());

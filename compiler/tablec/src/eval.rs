@@ -24,6 +24,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             crate::registration::print_registration(registration);
             crate::registration::print_refined(refined);
         }
+        for (i, r) in evaluated.series_registrations.iter().enumerate() {
+            crate::registration::print_series_registration(i + 2, r);
+        }
         if let Some(v) = &evaluated.validation_registration {
             crate::registration::print_validation_registration(v);
         }

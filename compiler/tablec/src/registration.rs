@@ -40,6 +40,18 @@ pub fn print_validation_registration(r: &Registration) {
     print_fit("fit residuals", &r.fit());
 }
 
+/// Prints the registration of a series after the first (several series trained
+/// together): its tracker-to-base transform, fitted to the robot identified from all of
+/// them, and the probe they share.
+pub fn print_series_registration(index: usize, r: &Registration) {
+    println!(
+        "series {index}       registered to the robot identified from every series ({} rows); \
+         the probe is the first series'",
+        r.rows
+    );
+    print_fit("fit residuals", &r.fit());
+}
+
 /// Both transforms, then the residuals they leave on a line of its own called `residuals`.
 fn print_fit(residuals: &str, fit: &Refined) {
     print_transforms(&fit.base_in_tracker, &fit.probe);
