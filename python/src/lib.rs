@@ -100,8 +100,14 @@ fn job_options(job: &str) -> Option<clap::Command> {
     })
 }
 
-/// The arguments a Python function takes apart from its keyword options.
-const POSITIONAL: [&str; 3] = ["samples", "output", "validation"];
+/// The arguments a job's Python function takes apart from its keyword options.
+fn apart(job: &str) -> &'static [&'static str] {
+    match job {
+        "build" => &["samples", "output"],
+        "evaluate" => &["samples", "validation"],
+        _ => &["samples"],
+    }
+}
 
 /// `[(name, help, default or None)]` of a job's options, for the docstrings.
 #[pyfunction]
@@ -110,7 +116,7 @@ fn options(job: &str) -> PyResult<Vec<(String, String, Option<String>)>> {
         .ok_or_else(|| AdwiError::new_err(format!("no job '{job}'")))?;
     Ok(command
         .get_arguments()
-        .filter(|a| !POSITIONAL.contains(&a.get_id().as_str()) && !a.is_hide_set())
+        .filter(|a| !apart(job).contains(&a.get_id().as_str()) && !a.is_hide_set())
         .map(|a| {
             let help = a.get_help().map(|h| h.to_string()).unwrap_or_default();
             let default = a
@@ -136,7 +142,7 @@ fn job_args<T: serde::de::DeserializeOwned>(
     let known: Vec<String> = command
         .get_arguments()
         .map(|a| a.get_id().to_string())
-        .filter(|id| !POSITIONAL.contains(&id.as_str()))
+        .filter(|id| !apart(job).contains(&id.as_str()))
         .collect();
     for key in kwargs.keys() {
         let key: String = key.extract()?;
