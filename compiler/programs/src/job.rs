@@ -351,6 +351,9 @@ impl CompensateJob {
                 correction_mm: None,
                 rotation_deg: None,
                 joint_change_deg: None,
+                point_mm: None,
+                command_mm: None,
+                command_joints: None,
                 iterations: 0,
                 residual_mm: None,
             };
@@ -506,6 +509,7 @@ impl CompensateJob {
                 let turned = angle_between(&new_rotation, &rotation);
                 fill(
                     entry,
+                    &point,
                     &command,
                     self.kinematics.as_ref(),
                     moved,
@@ -580,7 +584,7 @@ impl CompensateJob {
                     &command.point.rotation.to_rotation_matrix(),
                     &point.rotation.to_rotation_matrix(),
                 );
-                fill(entry, &command, Some(k), moved, Some(turned));
+                fill(entry, &point, &command, Some(k), moved, Some(turned));
                 if moved > limits.max_correction_mm {
                     return Err((
                         TargetStatus::TooLarge,
@@ -600,17 +604,31 @@ impl CompensateJob {
 /// The report's figures of a solved command.
 fn fill(
     entry: &mut TargetLine,
+    point: &Isometry3<f64>,
     command: &correct::Command,
     kinematics: Option<&Kinematics>,
     moved: f64,
     turned: Option<f64>,
 ) {
     entry.correction_mm = Some(moved);
+    entry.point_mm = Some(point.translation.vector.into());
+    entry.command_mm = Some(command.point.translation.vector.into());
     entry.rotation_deg = turned.map(f64::to_degrees);
     entry.iterations = command.iterations;
     entry.residual_mm = Some(command.residual_mm);
     if let (Some(k), Some(a), Some(b)) = (kinematics, &command.target_joints, &command.joints) {
         entry.joint_change_deg = Some(correct::joint_change(k.robot(), a, b));
+    }
+    if let (Some(k), Some(q)) = (kinematics, &command.joints) {
+        entry.command_joints = Some(
+            q.iter()
+                .enumerate()
+                .map(|(i, v)| match k.robot().joint_kind(i) {
+                    adwi_runtime::chain::JointKind::Revolute => v.to_degrees(),
+                    adwi_runtime::chain::JointKind::Prismatic => *v,
+                })
+                .collect(),
+        );
     }
 }
 

@@ -301,18 +301,29 @@ const BLOCK_WORDS: [&str; 25] = [
 fn next_statement(lexer: &mut Lexer) -> Vec<Token> {
     let mut tokens: Vec<Token> = Vec::new();
     let mut block = false;
+    let mut line_start = true;
     loop {
         let t = lexer.next_token();
         match t.kind {
             Tok::Newline if block => return tokens,
-            Tok::Newline => {}
+            Tok::Newline => line_start = true,
             Tok::Eof => return tokens,
             Tok::Punct(b';') => return tokens,
             _ => {
-                if tokens.is_empty() && t.kind == Tok::Ident {
-                    let word = lexer.text(t).to_ascii_uppercase();
-                    block = BLOCK_WORDS.contains(&word.as_str());
+                // A line opening or closing a block, or a `%%%` header line, also ends
+                // whatever came before it without a `;`.
+                let opens = line_start
+                    && (t.is(b'%')
+                        || (t.kind == Tok::Ident
+                            && BLOCK_WORDS.contains(&lexer.text(t).to_ascii_uppercase().as_str())));
+                if opens && !tokens.is_empty() {
+                    lexer.pos = t.start;
+                    return tokens;
                 }
+                if opens {
+                    block = true;
+                }
+                line_start = false;
                 tokens.push(t)
             }
         }

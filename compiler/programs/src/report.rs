@@ -28,6 +28,12 @@ pub struct TargetLine {
     /// The largest change of one joint between target and command, degrees (mm for a
     /// prismatic joint), when the postures were solved.
     pub joint_change_deg: Option<f64>,
+    /// The table's point at the target, base frame, mm: what the table was asked about.
+    pub point_mm: Option<[f64; 3]>,
+    /// The table's point at the command, base frame, mm (before the program's rounding).
+    pub command_mm: Option<[f64; 3]>,
+    /// The command's posture (degrees; mm for prismatic joints), when solved.
+    pub command_joints: Option<Vec<f64>>,
     /// Queries the fixed point made.
     pub iterations: u32,
     /// `|command + error(command) − target|` at the command, mm.
@@ -86,13 +92,19 @@ impl Report {
     /// The report as CSV: one header, one row per target.
     pub fn to_csv(&self) -> String {
         let mut out = String::from(
-            "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,iterations,residual_mm\n",
+            "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
+             iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z\n",
         );
         let opt = |v: Option<f64>, d: usize| v.map_or(String::new(), |v| format!("{v:.d$}"));
+        let xyz = |v: Option<[f64; 3]>| {
+            v.map_or(",,".to_string(), |p| {
+                format!("{:.9},{:.9},{:.9}", p[0], p[1], p[2])
+            })
+        };
         for t in &self.targets {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 csv_field(&t.name),
                 t.line,
                 t.column,
@@ -104,6 +116,8 @@ impl Report {
                 opt(t.joint_change_deg, 6),
                 t.iterations,
                 t.residual_mm.map_or(String::new(), |v| format!("{v:.3e}")),
+                xyz(t.point_mm),
+                xyz(t.command_mm),
             );
         }
         out
