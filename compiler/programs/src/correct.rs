@@ -40,6 +40,9 @@ pub enum TargetStatus {
     /// Not corrected: the target is used with different tools or work objects, so no one
     /// command lands it for every use.
     AmbiguousFrame,
+    /// Not corrected: the target's numbers give no finite pose or command (a value far
+    /// beyond any workspace).
+    Invalid,
 }
 
 impl TargetStatus {
@@ -62,6 +65,7 @@ impl TargetStatus {
             TargetStatus::NeedsRobot => "needs_robot",
             TargetStatus::NeedsOrientation => "needs_orientation",
             TargetStatus::AmbiguousFrame => "ambiguous_frame",
+            TargetStatus::Invalid => "invalid",
         }
     }
 }
@@ -221,20 +225,41 @@ pub struct Command {
 /// Why no command was found, and the details for the report.
 pub type Failure = (TargetStatus, String);
 
-/// Solves the command of one table point `target` (base frame). `orientation`: whether the
-/// target has one (a target without is corrected in position only, and needs none of the
-/// kinematics). `target_joints`: the target's posture when the program gives it (joint
-/// targets). `seed`: the posture the inverse kinematics starts nearest.
+/// What [`solve`] is asked for one target.
+#[derive(Clone, Copy, Debug)]
+pub struct Request<'a> {
+    /// The table's point at the target, base frame.
+    pub target: &'a Isometry3<f64>,
+    /// Whether the target has an orientation: one without is corrected in position only,
+    /// and needs none of the kinematics.
+    pub orientation: bool,
+    /// The posture the program writes.
+    pub posture: &'a Posture,
+    /// The target's posture when the program gives it (joint targets).
+    pub target_joints: Option<&'a [f64]>,
+    /// The posture the inverse kinematics starts nearest.
+    pub seed: &'a [f64],
+}
+
+/// Solves the command of one table point.
+///
+/// # Errors
+///
+/// Why the target gets no command: the [`TargetStatus`] and a detail for the report.
 pub fn solve<D: AsRef<[u8]>>(
     table: &Table<D>,
     kinematics: Option<&Kinematics>,
     limits: &Limits,
-    target: &Isometry3<f64>,
-    orientation: bool,
-    posture: &Posture,
-    target_joints: Option<Vec<f64>>,
-    seed: &[f64],
+    request: Request,
 ) -> Result<Command, Failure> {
+    let Request {
+        target,
+        orientation,
+        posture,
+        target_joints,
+        seed,
+    } = request;
+    let target_joints = target_joints.map(<[f64]>::to_vec);
     let kinematics = kinematics.filter(|_| orientation);
     if table.is_hybrid() && kinematics.is_none() {
         return Err((

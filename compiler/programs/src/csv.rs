@@ -25,6 +25,15 @@ use crate::Error;
 /// [`Error::Syntax`] for a missing column, a row of the wrong length or a field that is not
 /// a number, with its line, column and the column's name.
 pub fn read(src: &Source) -> Result<Program, Error> {
+    read_at_most(src, usize::MAX)
+}
+
+/// [`read`], stopping after `limit` rows ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let mut lines = Vec::new();
     let mut start = 0;
     for (i, b) in src.bytes.iter().enumerate() {
@@ -80,7 +89,12 @@ pub fn read(src: &Source) -> Result<Program, Error> {
     let joints: Vec<usize> = (1..).map_while(|k| column(&format!("j{k}"))).collect();
     let config = column("config");
     let mut targets = Vec::new();
+    let mut truncated_at = None;
     for row in rows {
+        if targets.len() > limit {
+            truncated_at = Some(row.0);
+            break;
+        }
         let spans: Vec<(usize, usize)> = fields(row, src.bytes, delimiter).collect();
         if spans.len() != names.len() {
             return Err(src.error(
@@ -143,19 +157,20 @@ pub fn read(src: &Source) -> Result<Program, Error> {
         targets.push(ProgramTarget {
             name: format!("row {line}"),
             offset: row.0,
-            kind: TargetKind::Cartesian(CartesianTarget {
+            kind: TargetKind::Cartesian(Box::new(CartesianTarget {
                 position,
                 unit: LengthUnit::Millimetre,
                 orientation,
                 config,
                 joints,
-            }),
+            })),
             uses: Vec::new(),
         });
     }
     Ok(Program {
         format: Format::Csv,
         targets,
+        truncated_at,
     })
 }
 

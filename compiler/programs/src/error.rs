@@ -49,19 +49,24 @@ pub enum Error {
         message: String,
     },
     /// The program would take longer to compensate than the job allows: refused before
-    /// any target is corrected, with its size and the estimate.
+    /// any target is corrected, with its size and the estimate. Reading stops once the
+    /// targets read exceed the bound, so a huge program is refused as fast as a small one.
     #[error(
-        "{file}: {bytes} bytes, {targets} targets: about {seconds:.0} s of work, more than \
-         the {limit_seconds} s allowed (max_seconds); refused before any"
+        "{file}: {bytes} bytes, {}: about {seconds:.0} s of work, more than the \
+         {limit_seconds} s allowed (max_seconds); refused before any",
+        if let Some(at) = read_bytes { format!("more than {targets} targets in its first {at} bytes") } else { format!("{targets} targets") }
     )]
     TooLarge {
         /// The program file.
         file: String,
         /// Its size.
         bytes: usize,
-        /// The targets found in it.
+        /// The targets read.
         targets: usize,
-        /// The estimated work, seconds.
+        /// The bytes read before reading stopped, when it stopped early.
+        read_bytes: Option<usize>,
+        /// The estimated work, seconds (extrapolated by the file's size when reading
+        /// stopped early).
         seconds: f64,
         /// The bound, seconds.
         limit_seconds: f64,

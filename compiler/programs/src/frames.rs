@@ -177,7 +177,7 @@ mod tests {
             if lock != 0 {
                 prop_assert_eq!(near[2], abc[2]);
                 let d = (near[0] - abc[0]).rem_euclid(360.0);
-                prop_assert!(d < 1e-6 || d > 360.0 - 1e-6, "{near:?} {abc:?}");
+                prop_assert!(!(1e-6..=360.0 - 1e-6).contains(&d), "{near:?} {abc:?}");
             }
         }
     }

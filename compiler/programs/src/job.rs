@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Vector3};
 use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
 use crate::frames::{angle_between, kuka_pose, orientation_values, rotation_of, FrameChain};
 use crate::number::{rewrite, Number};
-use crate::program::{ConfigHint, Format, Orientation, Program, TargetKind};
+use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, TargetKind};
 use crate::report::{Report, TargetLine};
 use crate::source::Source;
 use crate::Error;
@@ -109,8 +109,9 @@ pub struct CompensateJob {
 }
 
 /// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
-/// inverse kinematics, with a numerical one (measured: docs/programs.md, "Cost").
-const SECONDS_PER_TARGET: [f64; 3] = [5e-6, 3e-4, 2e-2];
+/// inverse kinematics, with a numerical one — about three times what was measured
+/// (docs/programs.md, "Cost"), so that the estimate errs on the side of refusing.
+const SECONDS_PER_TARGET: [f64; 3] = [1e-5, 3e-5, 2e-4];
 
 /// How many bytes a program may have at most: read into memory whole.
 const MAX_PROGRAM_BYTES: u64 = 1 << 30;
@@ -135,7 +136,7 @@ impl CompensateJob {
         {
             return Err(Error::Option("max_correction_mm, max_joint_change_deg and the tolerance must be finite and positive, the iterations at least 1".into()));
         }
-        if !(o.max_seconds > 0.0) {
+        if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
             return Err(Error::Option("max_seconds must be positive".into()));
         }
         for (name, frame) in [
@@ -197,6 +198,22 @@ impl CompensateJob {
         }
         let bytes = read(&o.program)?;
         let name = o.program.display().to_string();
+        let robot = match &o.robot {
+            Some(path) => Some(Robot::load_with(path, &o.links).map_err(|e| Error::Robot {
+                path: path.clone(),
+                message: e.to_string(),
+            })?),
+            None => None,
+        };
+        let (kinematics, table_tool) = kinematics(o, &table, robot)?;
+        // The cost of a target is known once the kinematics are: the program is read only
+        // as far as the work it may take.
+        let cost = match &kinematics {
+            None => SECONDS_PER_TARGET[0],
+            Some(k) if k.has_configurations() => SECONDS_PER_TARGET[1],
+            Some(_) => SECONDS_PER_TARGET[2],
+        };
+        let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
         let program = {
             let src = Source::new(&name, &bytes);
             match format {
@@ -209,21 +226,24 @@ impl CompensateJob {
                     let partner_src = partner_bytes
                         .as_deref()
                         .map(|b| Source::new(&partner_name, b));
-                    crate::krl::read(&src, partner_src.as_ref())?
+                    crate::krl::read_at_most(&src, partner_src.as_ref(), limit)?
                 }
-                Format::Rapid => crate::rapid::read(&src)?,
-                Format::UrScript => crate::urscript::read(&src)?,
-                Format::Csv => crate::csv::read(&src)?,
+                Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
+                Format::UrScript => crate::urscript::read_at_most(&src, limit)?,
+                Format::Csv => crate::csv::read_at_most(&src, limit)?,
             }
         };
-        let robot = match &o.robot {
-            Some(path) => Some(Robot::load_with(path, &o.links).map_err(|e| Error::Robot {
-                path: path.clone(),
-                message: e.to_string(),
-            })?),
-            None => None,
-        };
-        let (kinematics, table_tool) = kinematics(o, &table, robot)?;
+        if let Some(at) = program.truncated_at {
+            let targets = program.targets.len();
+            return Err(Error::TooLarge {
+                file: name,
+                bytes: bytes.len(),
+                targets,
+                read_bytes: Some(at),
+                seconds: cost * targets as f64 * bytes.len() as f64 / at.max(1) as f64,
+                limit_seconds: o.max_seconds,
+            });
+        }
         // Frames: every use resolved, or the job refused at the use that cannot be.
         let src = Source::new(&name, &bytes);
         let default_tool = o
@@ -237,23 +257,21 @@ impl CompensateJob {
         for target in &program.targets {
             let mut list: Vec<FrameChain> = Vec::new();
             if matches!(target.kind, TargetKind::Cartesian(_)) {
-                let uses: Vec<(
-                    Option<Isometry3<f64>>,
-                    Option<Isometry3<f64>>,
-                    usize,
-                    Vec<String>,
-                )> = if target.uses.is_empty() {
-                    vec![(None, None, target.offset, Vec::new())]
+                let default_use = [FrameUse {
+                    tool: None,
+                    base: None,
+                    offset: target.offset,
+                    undeclared: Vec::new(),
+                }];
+                let uses = if target.uses.is_empty() {
+                    &default_use[..]
                 } else {
-                    target
-                        .uses
-                        .iter()
-                        .map(|u| (u.tool, u.base, u.offset, u.undeclared.clone()))
-                        .collect()
+                    &target.uses[..]
                 };
-                for (tool, base, at, undeclared) in uses {
-                    let tool = tool.or(default_tool);
-                    for missing in &undeclared {
+                for u in uses {
+                    let (base, at) = (u.base, u.offset);
+                    let tool = u.tool.or(default_tool);
+                    for missing in &u.undeclared {
                         let given = if missing.starts_with("work object") {
                             o.base.is_some()
                         } else {
@@ -285,17 +303,13 @@ impl CompensateJob {
             }
             chains.push(list);
         }
-        let cost = match &kinematics {
-            None => SECONDS_PER_TARGET[0],
-            Some(k) if k.has_configurations() => SECONDS_PER_TARGET[1],
-            Some(_) => SECONDS_PER_TARGET[2],
-        };
         let seconds = cost * program.targets.len() as f64;
         if seconds > o.max_seconds {
             return Err(Error::TooLarge {
                 file: name,
                 bytes: bytes.len(),
                 targets: program.targets.len(),
+                read_bytes: None,
                 seconds,
                 limit_seconds: o.max_seconds,
             });
@@ -329,7 +343,7 @@ impl CompensateJob {
     /// corrected.
     pub fn run(&self) -> Result<Compensated, Error> {
         let src = Source::new(&self.name, &self.bytes);
-        let mut edits: Vec<((usize, usize), String)> = Vec::new();
+        let mut edits: Vec<Edit> = Vec::new();
         let mut report = Report::default();
         let mut seed: Vec<f64> = self
             .kinematics
@@ -357,7 +371,22 @@ impl CompensateJob {
                 iterations: 0,
                 residual_mm: None,
             };
-            let result = self.target(&src, target, chains, &mut seed, &mut entry);
+            let result = self
+                .target(&src, target, chains, &mut seed, &mut entry)
+                .and_then(|edits| {
+                    // Never a non-finite number written, whatever the input held.
+                    let finite = edits
+                        .iter()
+                        .all(|(_, text)| text.parse::<f64>().is_ok_and(f64::is_finite));
+                    if finite {
+                        Ok(edits)
+                    } else {
+                        Err((
+                            TargetStatus::Invalid,
+                            "the command is not finite".to_string(),
+                        ))
+                    }
+                });
             match result {
                 Ok(new_edits) => edits.extend(new_edits),
                 Err((status, detail)) => {
@@ -438,7 +467,7 @@ impl CompensateJob {
         chains: &[FrameChain],
         seed: &mut Vec<f64>,
         entry: &mut TargetLine,
-    ) -> Result<Vec<((usize, usize), String)>, correct::Failure> {
+    ) -> Result<Vec<Edit>, correct::Failure> {
         let limits = &self.options.limits;
         let bytes = src.bytes;
         let number_edit =
@@ -490,16 +519,15 @@ impl CompensateJob {
                     &self.table,
                     self.kinematics.as_ref(),
                     limits,
-                    &point,
-                    orientation,
-                    &posture,
-                    given_joints.clone(),
-                    &near,
+                    correct::Request {
+                        target: &point,
+                        orientation,
+                        posture: &posture,
+                        target_joints: given_joints.as_deref(),
+                        seed: &near,
+                    },
                 );
-                let command = match command {
-                    Ok(c) => c,
-                    Err(e) => return Err(e),
-                };
+                let command = command?;
                 if let Some(q) = &command.target_joints {
                     seed.clone_from(q);
                 }
@@ -572,11 +600,13 @@ impl CompensateJob {
                     &self.table,
                     Some(k),
                     limits,
-                    &point,
-                    true,
-                    &posture,
-                    Some(q.clone()),
-                    &q,
+                    correct::Request {
+                        target: &point,
+                        orientation: true,
+                        posture: &posture,
+                        target_joints: Some(&q),
+                        seed: &q,
+                    },
                 )?;
                 let qc = command.joints.clone().unwrap_or_else(|| q.clone());
                 let moved = (command.point.translation.vector - point.translation.vector).norm();
@@ -600,6 +630,9 @@ impl CompensateJob {
         }
     }
 }
+
+/// A replacement: the bytes `start..end` of the program, and their new text.
+type Edit = ((usize, usize), String);
 
 /// The report's figures of a solved command.
 fn fill(

@@ -58,6 +58,19 @@ enum Kind {
 ///
 /// [`Error::Syntax`] at the first malformed target aggregate.
 pub fn read(src: &Source, partner: Option<&Source>) -> Result<Program, Error> {
+    read_at_most(src, partner, usize::MAX)
+}
+
+/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(
+    src: &Source,
+    partner: Option<&Source>,
+    limit: usize,
+) -> Result<Program, Error> {
     let mut used = motion_names(src)?;
     if let Some(p) = partner {
         // The partner is context only: a file that does not read gives no names.
@@ -67,10 +80,18 @@ pub fn read(src: &Source, partner: Option<&Source>) -> Result<Program, Error> {
     let mut lexer = Lexer::new(src, KRL);
     while let Some(line) = lexer.line() {
         statement(src, &line, &used, &mut targets)?;
+        if targets.len() > limit {
+            return Ok(Program {
+                format: Format::Krl,
+                targets,
+                truncated_at: Some(lexer.pos),
+            });
+        }
     }
     Ok(Program {
         format: Format::Krl,
         targets,
+        truncated_at: None,
     })
 }
 
@@ -386,7 +407,7 @@ fn aggregate(
             };
             let (status, turn) = (integer("S")?, integer("T")?);
             match position {
-                [Some(x), Some(y), Some(z)] => TargetKind::Cartesian(CartesianTarget {
+                [Some(x), Some(y), Some(z)] => TargetKind::Cartesian(Box::new(CartesianTarget {
                     position: [x, y, z],
                     unit: LengthUnit::Millimetre,
                     orientation: match abc {
@@ -405,7 +426,7 @@ fn aggregate(
                         ConfigHint::None
                     },
                     joints: Vec::new(),
-                }),
+                })),
                 _ => TargetKind::Incomplete("X, Y and Z not all given".into()),
             }
         }

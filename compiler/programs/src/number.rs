@@ -312,4 +312,62 @@ mod tests {
         let n = parsed(text);
         assert_eq!(rewrite(&n, text.as_bytes(), 1e-13, 4), None);
     }
+
+    use proptest::prelude::*;
+
+    fn style_strategy() -> impl Strategy<Value = NumberStyle> {
+        (
+            0..9usize,
+            any::<bool>(),
+            any::<bool>(),
+            any::<bool>(),
+            prop::option::of((any::<bool>(), any::<bool>(), 1..4usize)),
+        )
+            .prop_map(
+                |(decimals, point, plus, bare_point, exponent)| NumberStyle {
+                    decimals,
+                    point: point || decimals > 0,
+                    plus,
+                    bare_point: bare_point && decimals > 0,
+                    exponent: exponent.map(|(upper, plus, digits)| ExponentStyle {
+                        marker: if upper { b'E' } else { b'e' },
+                        plus,
+                        digits,
+                    }),
+                },
+            )
+    }
+
+    proptest! {
+        /// A number written in any style reads back within half a unit of its last decimal
+        /// (and of the decimals required), and keeps the style's marks.
+        #[test]
+        fn formatted_numbers_read_back_within_their_resolution(
+            value in prop_oneof![-5000.0..5000.0f64, -1.0..1.0f64, Just(0.0)],
+            style in style_strategy(),
+            required in 0..9usize,
+        ) {
+            let text = format_number(value, &style, required);
+            let back = parse_number(text.as_bytes(), 0).unwrap();
+            prop_assert_eq!(back.span, (0, text.len()), "{}", text);
+            let exponent = style.exponent.map_or(0, |_| if value == 0.0 { 0 } else { value.abs().log10().floor() as i32 });
+            let resolution = 0.5 * 10f64.powi(-(required as i32)).max(10f64.powi(exponent - 17));
+            prop_assert!((back.value - value).abs() <= resolution * (1.0 + 1e-9) + 1e-12 * value.abs(), "{} for {}", text, value);
+            prop_assert_eq!(back.style.exponent.map(|e| e.marker), style.exponent.map(|e| e.marker));
+            prop_assert!(back.style.decimals >= style.decimals, "{} in {:?}", text, style);
+            if style.plus && !text.starts_with('-') {
+                prop_assert!(text.starts_with('+'));
+            }
+        }
+
+        /// Parse then format gives the text back; and a value the text holds is never
+        /// rewritten.
+        #[test]
+        fn parse_then_format_round_trips(value in -5000.0..5000.0f64, style in style_strategy(), required in 0..9usize) {
+            let text = format_number(value, &style, 0);
+            let n = parse_number(text.as_bytes(), 0).unwrap();
+            prop_assert_eq!(format_number(n.value, &n.style, 0), text.clone());
+            prop_assert_eq!(rewrite(&n, text.as_bytes(), n.value, required), None);
+        }
+    }
 }

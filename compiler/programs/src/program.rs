@@ -71,7 +71,7 @@ pub struct ProgramTarget {
 #[derive(Clone, Debug)]
 pub enum TargetKind {
     /// A pose of the TCP in a work-object (base) frame.
-    Cartesian(CartesianTarget),
+    Cartesian(Box<CartesianTarget>),
     /// Joint values.
     Joints(JointTarget),
     /// A target the program writes only in part (a KRL aggregate without some of its
@@ -214,4 +214,7 @@ pub struct Program {
     pub format: Format,
     /// Its targets.
     pub targets: Vec<ProgramTarget>,
+    /// Where reading stopped, when the program holds more targets than the reader was
+    /// allowed to read (the job sizes its work by them: crate docs): the byte offset.
+    pub truncated_at: Option<usize>,
 }

@@ -70,6 +70,15 @@ struct Use {
 ///
 /// [`Error::Syntax`] at the first malformed target, tool or work object.
 pub fn read(src: &Source) -> Result<Program, Error> {
+    read_at_most(src, usize::MAX)
+}
+
+/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let mut lexer = Lexer::new(src, RAPID);
     let mut tools: HashMap<String, Declared> = HashMap::new();
     let mut wobjs: HashMap<String, Declared> = HashMap::new();
@@ -77,7 +86,12 @@ pub fn read(src: &Source) -> Result<Program, Error> {
     let mut targets: Vec<(ProgramTarget, Vec<Use>)> = Vec::new();
     let mut by_name: HashMap<String, usize> = HashMap::new();
     let mut pending_uses: Vec<(String, Use)> = Vec::new();
+    let mut truncated_at = None;
     loop {
+        if targets.len() > limit {
+            truncated_at = Some(lexer.pos);
+            break;
+        }
         let statement = next_statement(&mut lexer);
         if statement.is_empty() {
             if lexer.pos >= src.bytes.len() {
@@ -263,6 +277,7 @@ pub fn read(src: &Source) -> Result<Program, Error> {
     Ok(Program {
         format: Format::Rapid,
         targets: out,
+        truncated_at,
     })
 }
 
@@ -501,13 +516,13 @@ fn robtarget(src: &Source, v: &Value) -> Result<TargetKind, Error> {
     if !matches!(parts[3], Value::List(..)) {
         return Err(src.error(parts[3].offset(), "expected extax [eax_a,...,eax_f]"));
     }
-    Ok(TargetKind::Cartesian(CartesianTarget {
+    Ok(TargetKind::Cartesian(Box::new(CartesianTarget {
         position,
         unit: LengthUnit::Millimetre,
         orientation: Some(Orientation::QuaternionWxyz(rotation)),
         config: ConfigHint::RapidConf(cf),
         joints: Vec::new(),
-    }))
+    })))
 }
 
 /// A jointtarget value.

@@ -35,7 +35,7 @@ const URSCRIPT: Language = Language {
 /// A literal the script writes.
 #[derive(Clone, Debug)]
 enum Literal {
-    Pose([Number; 6]),
+    Pose(Box<[Number; 6]>),
     Joints(Vec<Number>),
 }
 
@@ -62,6 +62,16 @@ enum Tcp {
 ///
 /// [`Error::Syntax`] at the first malformed pose literal or joint list.
 pub fn read(src: &Source) -> Result<Program, Error> {
+    read_at_most(src, usize::MAX)
+}
+
+/// [`read`], stopping after `limit` literals that may be targets
+/// ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let mut lexer = Lexer::new(src, URSCRIPT);
     let mut candidates: Vec<Candidate> = Vec::new();
     // Per variable, its assignments (candidate indices) in file order.
@@ -69,7 +79,12 @@ pub fn read(src: &Source) -> Result<Program, Error> {
     // Uses of variables not yet assigned: resolved to the variable's last assignment.
     let mut late_uses: Vec<(String, FrameUse)> = Vec::new();
     let mut tcp = Tcp::Default;
+    let mut truncated_at = None;
     while let Some(line) = lexer.line() {
+        if candidates.len() > limit {
+            truncated_at = Some(lexer.pos);
+            break;
+        }
         // An assignment: [global|local] NAME = literal.
         let mut i = 0;
         if line
@@ -189,13 +204,16 @@ pub fn read(src: &Source) -> Result<Program, Error> {
             name: c.name,
             offset: c.offset,
             kind: match c.literal {
-                Literal::Pose([x, y, z, rx, ry, rz]) => TargetKind::Cartesian(CartesianTarget {
-                    position: [x, y, z],
-                    unit: LengthUnit::Metre,
-                    orientation: Some(Orientation::RotationVectorRad([rx, ry, rz])),
-                    config: ConfigHint::None,
-                    joints: Vec::new(),
-                }),
+                Literal::Pose(pose) => {
+                    let [x, y, z, rx, ry, rz] = *pose;
+                    TargetKind::Cartesian(Box::new(CartesianTarget {
+                        position: [x, y, z],
+                        unit: LengthUnit::Metre,
+                        orientation: Some(Orientation::RotationVectorRad([rx, ry, rz])),
+                        config: ConfigHint::None,
+                        joints: Vec::new(),
+                    }))
+                }
                 Literal::Joints(joints) => TargetKind::Joints(JointTarget {
                     joints,
                     unit: AngleUnit::Radian,
@@ -207,6 +225,7 @@ pub fn read(src: &Source) -> Result<Program, Error> {
     Ok(Program {
         format: Format::UrScript,
         targets,
+        truncated_at,
     })
 }
 
@@ -290,7 +309,7 @@ fn literal(src: &Source, line: &[Token], i: usize) -> Result<Option<(Literal, us
                 ),
             ));
         };
-        Ok(Some((Literal::Pose(p), end)))
+        Ok(Some((Literal::Pose(Box::new(p)), end)))
     } else if numbers.is_empty() {
         Ok(None)
     } else {

@@ -60,6 +60,9 @@ pub struct Args {
     /// Refuse, before any work, a program estimated to take longer than this, seconds.
     #[arg(long, default_value_t = 300.0)]
     max_seconds: f64,
+    /// Print only the targets left unchanged and the summary.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 type Frame = [f64; 6];
@@ -91,7 +94,12 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     let job = CompensateJob::new(options)?;
     let done = job.run()?;
     job.write(&done)?;
-    for t in &done.report.targets {
+    for t in done
+        .report
+        .targets
+        .iter()
+        .filter(|t| !(args.quiet && t.status.corrected()))
+    {
         let figure =
             |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!(" {v:.4} {unit}"));
         println!(
