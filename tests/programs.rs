@@ -583,3 +583,65 @@ fn a_million_targets_are_sized_before_any_work() {
     // A third of the file read, nothing corrected: seconds where the work would take 30.
     assert!(seconds < 10.0, "{seconds} s");
 }
+
+/// Every `tablec` command of docs/programs.md, run as written from a folder where the
+/// repository's `tables/` and `tests/` are at hand; the lines of the `text` block that
+/// follows a command block must be among what its last command printed.
+#[test]
+fn docs_examples_run_as_written() {
+    let doc = std::fs::read_to_string(repo("docs/programs.md")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for link in ["tables", "tests"] {
+        std::os::unix::fs::symlink(repo(link), dir.path().join(link)).unwrap();
+    }
+    // (the commands of a sh block, the lines of the first text block after it).
+    let mut blocks: Vec<(Vec<String>, Vec<String>)> = Vec::new();
+    let mut fence: Option<&str> = None;
+    let mut awaiting_output = false;
+    for line in doc.lines() {
+        match fence {
+            None if line == "```sh" => {
+                fence = Some("sh");
+                blocks.push((Vec::new(), Vec::new()));
+                awaiting_output = true;
+            }
+            None if line == "```text" => {
+                fence = Some(if awaiting_output { "output" } else { "text" })
+            }
+            None if line.starts_with("```") => fence = Some("other"),
+            Some(f) if line == "```" => {
+                awaiting_output &= f != "output";
+                fence = None;
+            }
+            Some("sh") => blocks.last_mut().unwrap().0.push(line.to_string()),
+            Some("output") => blocks.last_mut().unwrap().1.push(line.to_string()),
+            _ => {}
+        }
+    }
+    assert_eq!(blocks.len(), 5, "{blocks:?}");
+    for (commands, expected) in &blocks {
+        let mut output = String::new();
+        for command in commands {
+            let args: Vec<&str> = command
+                .strip_prefix("tablec ")
+                .expect("a tablec command")
+                .split_whitespace()
+                .collect();
+            let o = tablec(&args, dir.path());
+            let code = o.status.code().unwrap_or(-1);
+            assert!(
+                code == 0 || code == 3,
+                "{command}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            output = String::from_utf8_lossy(&o.stdout).into_owned()
+                + &String::from_utf8_lossy(&o.stderr);
+        }
+        for line in expected {
+            assert!(
+                output.lines().any(|l| l.trim_end() == line.trim_end()),
+                "{commands:?}: '{line}' not in\n{output}"
+            );
+        }
+    }
+}
