@@ -45,7 +45,7 @@ impl FrameChain {
 
 /// A pose from KUKA `X, Y, Z` (mm) and `A, B, C` (degrees): `R = Rz(A)·Ry(B)·Rx(C)`.
 pub fn kuka_pose(xyz_mm: [f64; 3], abc_deg: [f64; 3]) -> Isometry3<f64> {
-    let r = adwi_compile::pose::rotation_from_kuka_abc_deg(abc_deg);
+    let r = adwi_samples::pose::rotation_from_kuka_abc_deg(abc_deg);
     Isometry3::from_parts(
         Translation3::from(Vector3::from(xyz_mm)),
         UnitQuaternion::from_rotation_matrix(&r),
@@ -55,14 +55,14 @@ pub fn kuka_pose(xyz_mm: [f64; 3], abc_deg: [f64; 3]) -> Isometry3<f64> {
 /// The rotation an orientation writes; `None` for a zero quaternion.
 pub fn rotation_of(orientation: &Orientation) -> Option<Rotation3<f64>> {
     match orientation {
-        Orientation::KukaAbcDeg(abc) => Some(adwi_compile::pose::rotation_from_kuka_abc_deg(
+        Orientation::KukaAbcDeg(abc) => Some(adwi_samples::pose::rotation_from_kuka_abc_deg(
             abc.map(|n| n.value),
         )),
         Orientation::QuaternionWxyz(q) => {
-            adwi_compile::pose::rotation_from_quaternion_wxyz(q.map(|n| n.value))
+            adwi_samples::pose::rotation_from_quaternion_wxyz(q.map(|n| n.value))
         }
         Orientation::RotationVectorRad(v) => {
-            Some(adwi_compile::pose::rotation_from_vector(v.map(|n| n.value)))
+            Some(adwi_samples::pose::rotation_from_vector(v.map(|n| n.value)))
         }
     }
 }
@@ -83,7 +83,7 @@ pub fn orientation_values(orientation: &Orientation, rotation: &Rotation3<f64>) 
         }
         Orientation::RotationVectorRad(v) => {
             let old = Vector3::from(v.map(|n| n.value));
-            let new = Vector3::from(adwi_compile::pose::rotation_vector(rotation));
+            let new = Vector3::from(adwi_samples::pose::rotation_vector(rotation));
             let angle = new.norm();
             // The same rotation about the opposite axis, by 2π − θ.
             let other = if angle > 0.0 {
@@ -102,10 +102,10 @@ pub fn orientation_values(orientation: &Orientation, rotation: &Rotation3<f64>) 
 }
 
 /// KUKA angles of `rotation` nearest `original` (degrees): the canonical ones
-/// ([`adwi_compile::pose::kuka_abc_deg_from_rotation`]), except at gimbal lock, where only
+/// ([`adwi_samples::pose::kuka_abc_deg_from_rotation`]), except at gimbal lock, where only
 /// `A − C` (B = 90°) or `A + C` (B = −90°) is defined and the written C is kept.
 pub fn kuka_abc_near(rotation: &Rotation3<f64>, original: [f64; 3]) -> [f64; 3] {
-    let [a, b, c] = adwi_compile::pose::kuka_abc_deg_from_rotation(rotation);
+    let [a, b, c] = adwi_samples::pose::kuka_abc_deg_from_rotation(rotation);
     let m = rotation.matrix();
     let cos_b = m[(0, 0)].hypot(m[(1, 0)]);
     if cos_b > 1e-12 || c != 0.0 {
@@ -120,7 +120,7 @@ pub fn kuka_abc_near(rotation: &Rotation3<f64>, original: [f64; 3]) -> [f64; 3] 
 
 /// The angle of the rotation between two rotations, rad.
 pub fn angle_between(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
-    Vector3::from(adwi_compile::pose::rotation_vector(&(a * b.inverse()))).norm()
+    Vector3::from(adwi_samples::pose::rotation_vector(&(a * b.inverse()))).norm()
 }
 
 #[cfg(test)]
@@ -170,9 +170,9 @@ mod tests {
         fn kuka_angles_near_the_written_ones_rebuild_the_rotation(abc in pose_strategy(), lock in 0..3u8) {
             let mut abc = [abc[3], abc[4], abc[5]];
             if lock == 1 { abc[1] = 90.0 } else if lock == 2 { abc[1] = -90.0 }
-            let r = adwi_compile::pose::rotation_from_kuka_abc_deg(abc);
+            let r = adwi_samples::pose::rotation_from_kuka_abc_deg(abc);
             let near = kuka_abc_near(&r, abc);
-            let rebuilt = adwi_compile::pose::rotation_from_kuka_abc_deg(near);
+            let rebuilt = adwi_samples::pose::rotation_from_kuka_abc_deg(near);
             prop_assert!(angle_between(&r, &rebuilt) < 1e-9);
             if lock != 0 {
                 prop_assert_eq!(near[2], abc[2]);

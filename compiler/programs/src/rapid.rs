@@ -545,7 +545,7 @@ fn pose(src: &Source, v: &Value, what: &str) -> Result<Isometry3<f64>, Error> {
     let parts = list(src, v, 2, what)?;
     let t = numbers::<3>(src, &parts[0], "trans [x,y,z]")?.map(|n| n.value);
     let q = numbers::<4>(src, &parts[1], "rot [q1,q2,q3,q4]")?;
-    let rotation = adwi_compile::pose::rotation_from_quaternion_wxyz(q.map(|n| n.value))
+    let rotation = adwi_samples::pose::rotation_from_quaternion_wxyz(q.map(|n| n.value))
         .ok_or_else(|| src.error(q[0].span.0, "rot: a zero quaternion is no rotation"))?;
     Ok(Isometry3::from_parts(
         Translation3::new(t[0], t[1], t[2]),

@@ -84,7 +84,7 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
 /// A small table around the KR150-2 fixtures' targets: errors of 1-2 mm, orientation too.
 fn table_bytes() -> Vec<u8> {
     use adwi_compile::build::{compile, BuildOptions};
-    use adwi_compile::samples::{parse_samples, ColumnMap};
+    use adwi_samples::{parse_samples, ColumnMap};
     let mut csv = String::from("x,y,z,dx,dy,dz,rx,ry,rz\n");
     for i in 0..7 {
         for j in 0..7 {

@@ -159,8 +159,8 @@ use crate::model::{
     chain_frames, mdh_constant_part, rotation_of, transform_from_parts, Geometry, Robot,
     URAD_PER_NM,
 };
-use adwi_compile::pose::{rotation_from_vector, rotation_vector};
-use adwi_compile::samples::SampleSet;
+use adwi_samples::pose::{rotation_from_vector, rotation_vector};
+use adwi_samples::SampleSet;
 
 /// One identifiable quantity of the calibration model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1568,7 +1568,7 @@ fn pivot_columns(
 mod tests {
     use super::*;
     use crate::model::{shipped_file, shipped_robot_path};
-    use adwi_compile::samples::Joints;
+    use adwi_samples::Joints;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -2294,9 +2294,9 @@ mod tests {
     fn stored_model_agrees_with_the_identification() {
         let dir = shipped_robot_path("kr150-2");
         let robot = Robot::load(&dir).unwrap();
-        let samples = adwi_compile::samples::read_samples(
+        let samples = adwi_samples::read_samples(
             &dir.parent().unwrap().join("samples.csv"),
-            &adwi_compile::samples::ColumnMap::default(),
+            &adwi_samples::ColumnMap::default(),
         )
         .unwrap();
         let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();

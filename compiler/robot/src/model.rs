@@ -95,8 +95,8 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::pose::kuka_abc_deg_from_rotation;
 pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
+use adwi_samples::pose::kuka_abc_deg_from_rotation;
 
 /// One µrad/(N·m), the unit robot files and calibration reports give compliances in, in the
 /// runtime's unit, rad per kg·mm²/s² (= rad per µN·m).
