@@ -645,3 +645,52 @@ fn docs_examples_run_as_written() {
         }
     }
 }
+
+#[test]
+fn a_posture_near_the_wrist_singularity_is_refused_not_flipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    // A5 at -0.002°: the correction's small turn of the flange swings A4 and A6; at -1° it
+    // does not. At +0.01° the wrist is not flipped, a configuration the KR150-2 samples
+    // (configuration 4) do not hold.
+    std::fs::write(
+        dir.path().join("wrist.dat"),
+        "DEFDAT WRIST\n\
+         DECL E6AXIS XS1={A1 15.0,A2 -70.0,A3 100.0,A4 30.0,A5 0.01,A6 -30.0}\n\
+         DECL E6AXIS XS2={A1 15.0,A2 -70.0,A3 100.0,A4 30.0,A5 -0.002,A6 -30.0}\n\
+         DECL E6AXIS XS3={A1 15.0,A2 -70.0,A3 100.0,A4 30.0,A5 -1.0,A6 -30.0}\n\
+         ENDDAT\n",
+    )
+    .unwrap();
+    let robot = kr150_robot();
+    let (code, stdout, stderr) = compensate(
+        dir.path(),
+        &[
+            table.to_str().unwrap(),
+            "wrist.dat",
+            "-o",
+            "out.dat",
+            "--robot",
+            robot.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, 3, "{stderr}");
+    assert!(
+        stdout.contains("XS1                      2:13    joints     outside (no_neighbour)"),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .contains("XS2                      3:13    joints     joint_jump (a joint moves 34.5"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("XS3                      4:13    joints     ok 1.9467 mm 0.6798 ° joint"),
+        "{stdout}"
+    );
+    let out = std::fs::read_to_string(dir.path().join("out.dat")).unwrap();
+    assert!(
+        out.contains("XS2={A1 15.0,A2 -70.0,A3 100.0,A4 30.0,A5 -0.002,A6 -30.0}"),
+        "{out}"
+    );
+}

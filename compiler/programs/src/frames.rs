@@ -132,8 +132,8 @@ mod tests {
         kuka_pose([v[0], v[1], v[2]], [v[3], v[4], v[5]])
     }
 
-    /// The chain written out with 4×4 homogeneous matrices, inverses by Gauss-Jordan: the
-    /// slow reference of [`FrameChain`].
+    /// The chain written out with 4×4 homogeneous matrices and a general matrix inverse:
+    /// the slow reference of [`FrameChain`].
     fn homogeneous(p: &Isometry3<f64>) -> nalgebra::Matrix4<f64> {
         p.to_homogeneous()
     }
