@@ -109,7 +109,7 @@ pub struct CompensateJob {
 }
 
 /// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
-/// inverse kinematics, with a numerical one — about three times what was measured
+/// inverse kinematics, with a numerical one — two to four times what was measured
 /// (docs/programs.md, "Cost"), so that the estimate errs on the side of refusing.
 const SECONDS_PER_TARGET: [f64; 3] = [1e-5, 3e-5, 2e-4];
 
