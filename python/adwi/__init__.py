@@ -572,3 +572,84 @@ class Table:
 
     def __repr__(self) -> str:
         return repr(self._raw)
+
+
+# ---------------------------------------------------------------------------------------
+# Robot programs compensated offline (``tablec compensate``).
+
+__all__ += ["CompensatedProgram", "compensate_program"]
+
+
+class CompensatedProgram:
+    """A compensated robot program: ``output``, its bytes (every target's numbers replaced,
+    everything else as read); ``targets``, one dict per target as ``tablec compensate
+    --report`` writes its rows (``name``, ``line``, ``column``, ``kind``, ``status``,
+    ``detail``, ``correction_mm``, ``rotation_deg``, ``joint_change_deg``,
+    ``iterations``, ``residual_mm``, ``point_mm``, ``command_mm``, and
+    ``command_joints`` in degrees); ``summary``, the counts (``total``, ``corrected``,
+    ``not_corrected`` by status, ``largest_correction_mm``, ``largest_at``, ``text`` as
+    tablec prints it)."""
+
+    def __init__(self, output: bytes, targets: List[Dict[str, Any]], summary: Dict[str, Any]):
+        self.output = output
+        self.targets = targets
+        self.summary = summary
+
+    @property
+    def all_corrected(self) -> bool:
+        """Whether every target was corrected (``tablec compensate`` exits 0)."""
+        return self.summary["corrected"] == self.summary["total"]
+
+    def __repr__(self) -> str:
+        return f"CompensatedProgram({self.summary['text']})"
+
+
+def compensate_program(
+    table: Union[str, os.PathLike],
+    program: Union[str, os.PathLike],
+    output: Optional[Union[str, os.PathLike]] = None,
+    *,
+    report: Optional[Union[str, os.PathLike]] = None,
+    format: Optional[str] = None,
+    robot: Optional[Union[str, os.PathLike]] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    tool: Optional[Sequence[float]] = None,
+    base: Optional[Sequence[float]] = None,
+    table_tool: Optional[Sequence[float]] = None,
+    max_correction_mm: float = 5.0,
+    max_joint_change_deg: float = 2.0,
+    strict: bool = False,
+    max_seconds: float = 300.0,
+) -> CompensatedProgram:
+    """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
+    URScript or CSV program replaced by the command that lands on it (docs/programs.md).
+
+    ``output`` and ``report`` (CSV) are written atomically when given, never over an
+    input. ``format``: ``"krl"``, ``"rapid"``, ``"urscript"`` or ``"csv"`` (default: by
+    extension). ``robot``: a robot file, for joint targets and the posture checks.
+    ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
+    tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
+    leaving any target unchanged. A malformed program raises :class:`AdwiError` naming
+    ``file:line:column``.
+    """
+    path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
+    frame = lambda f: None if f is None else [float(v) for v in f]  # noqa: E731
+    out, targets, summary = _adwi.compensate_program(
+        os.fspath(table),
+        os.fspath(program),
+        output=path(output),
+        report=path(report),
+        format=format,
+        robot=path(robot),
+        base_link=base_link,
+        tip_link=tip_link,
+        tool=frame(tool),
+        base=frame(base),
+        table_tool=frame(table_tool),
+        max_correction_mm=max_correction_mm,
+        max_joint_change_deg=max_joint_change_deg,
+        strict=strict,
+        max_seconds=max_seconds,
+    )
+    return CompensatedProgram(bytes(out), targets, summary)

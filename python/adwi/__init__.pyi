@@ -273,3 +273,33 @@ class Table:
         tolerance_mm: float = 1e-6,
         max_iterations: int = 50,
     ) -> Compensation: ...
+
+# Robot programs compensated offline (tablec compensate).
+
+__all__ += ["CompensatedProgram", "compensate_program"]
+
+class CompensatedProgram:
+    output: bytes
+    targets: List[Dict[str, Any]]
+    summary: Dict[str, Any]
+    @property
+    def all_corrected(self) -> bool: ...
+
+def compensate_program(
+    table: PathLike,
+    program: PathLike,
+    output: Optional[PathLike] = None,
+    *,
+    report: Optional[PathLike] = None,
+    format: Optional[str] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    tool: Optional[Sequence[float]] = None,
+    base: Optional[Sequence[float]] = None,
+    table_tool: Optional[Sequence[float]] = None,
+    max_correction_mm: float = 5.0,
+    max_joint_change_deg: float = 2.0,
+    strict: bool = False,
+    max_seconds: float = 300.0,
+) -> CompensatedProgram: ...

@@ -941,6 +941,94 @@ impl Table {
     }
 }
 
+// ---------------------------------------------------------------------------------------
+// Robot programs compensated offline: `tablec compensate` (adwi_programs::CompensateJob).
+
+/// `tablec compensate`: the job checks every option and input before any work, corrects
+/// every target, and writes `output` (and `report`, as CSV) atomically when given.
+/// Returns (the compensated program's bytes, one dict per target, the summary dict).
+#[pyfunction]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0))]
+#[allow(clippy::too_many_arguments)]
+fn compensate_program<'py>(
+    py: Python<'py>,
+    table: PathBuf,
+    program: PathBuf,
+    output: Option<PathBuf>,
+    report: Option<PathBuf>,
+    format: Option<String>,
+    robot: Option<PathBuf>,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+    tool: Option<[f64; 6]>,
+    base: Option<[f64; 6]>,
+    table_tool: Option<[f64; 6]>,
+    max_correction_mm: f64,
+    max_joint_change_deg: f64,
+    strict: bool,
+    max_seconds: f64,
+) -> PyResult<(Bound<'py, pyo3::types::PyBytes>, Bound<'py, PyList>, Bound<'py, PyDict>)> {
+    use adwi_programs::{CompensateJob, CompensateOptions, Format};
+    let mut options = CompensateOptions::new(table, program);
+    options.output = output;
+    options.report = report;
+    options.format = match format.as_deref() {
+        None => None,
+        Some(name) => Some(Format::from_name(name).ok_or_else(|| {
+            AdwiError::new_err(format!("format '{name}': one of krl, rapid, urscript, csv"))
+        })?),
+    };
+    options.robot = robot;
+    options.links = adwi_robot::LinkNames { base_link, tip_link };
+    options.tool = tool;
+    options.base = base;
+    options.table_tool = table_tool;
+    options.limits.max_correction_mm = max_correction_mm;
+    options.limits.max_joint_change_deg = max_joint_change_deg;
+    options.strict = strict;
+    options.max_seconds = max_seconds;
+    let done = py
+        .allow_threads(|| -> Result<_, adwi_programs::Error> {
+            let job = CompensateJob::new(options)?;
+            let done = job.run()?;
+            job.write(&done)?;
+            Ok(done)
+        })
+        .map_err(|e| AdwiError::new_err(e.to_string()))?;
+    let targets = PyList::empty(py);
+    for t in &done.report.targets {
+        let d = PyDict::new(py);
+        d.set_item("name", &t.name)?;
+        d.set_item("line", t.line)?;
+        d.set_item("column", t.column)?;
+        d.set_item("kind", t.kind)?;
+        d.set_item("status", t.status.as_str())?;
+        d.set_item("detail", &t.detail)?;
+        d.set_item("correction_mm", t.correction_mm)?;
+        d.set_item("rotation_deg", t.rotation_deg)?;
+        d.set_item("joint_change_deg", t.joint_change_deg)?;
+        d.set_item("iterations", t.iterations)?;
+        d.set_item("residual_mm", t.residual_mm)?;
+        d.set_item("point_mm", t.point_mm)?;
+        d.set_item("command_mm", t.command_mm)?;
+        d.set_item("command_joints", t.command_joints.clone())?;
+        targets.append(d)?;
+    }
+    let s = done.report.summary();
+    let summary = PyDict::new(py);
+    summary.set_item("total", s.total)?;
+    summary.set_item("corrected", s.corrected)?;
+    let not_corrected = PyDict::new(py);
+    for (status, count) in &s.not_corrected {
+        not_corrected.set_item(status, count)?;
+    }
+    summary.set_item("not_corrected", not_corrected)?;
+    summary.set_item("largest_correction_mm", s.largest.as_ref().map(|l| l.0))?;
+    summary.set_item("largest_at", s.largest.as_ref().map(|l| l.1.clone()))?;
+    summary.set_item("text", s.to_string())?;
+    Ok((pyo3::types::PyBytes::new(py, &done.output), targets, summary))
+}
+
 #[pymodule]
 fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("AdwiError", m.py().get_type::<AdwiError>())?;
@@ -955,5 +1043,6 @@ fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add_function(wrap_pyfunction!(array_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate_program, m)?)?;
     Ok(())
 }

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod build;
 mod calibrate;
+mod compensate;
 mod continuity;
 mod eval;
 mod inspect;
@@ -29,6 +30,8 @@ enum Command {
     Build(build::Args),
     /// Predict the correction at one target, or at every row of a targets CSV.
     Query(query::Args),
+    /// Compensate a robot program: every target replaced by the command that lands on it.
+    Compensate(compensate::Args),
     /// Identify a robot's kinematic deviations from samples; write the calibrated robot.
     Calibrate(calibrate::Args),
     /// Print a table's header, parameters, counts and sizes.
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Build(args) => done(build::run(args)),
         Command::Query(args) => query::run(args),
+        Command::Compensate(args) => compensate::run(args),
         Command::Calibrate(args) => done(calibrate::run(args)),
         Command::Inspect(args) => done(inspect::run(args)),
         Command::Simulate(args) => done(simulate::run(args)),
