@@ -642,3 +642,94 @@ fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
         "served kriging {mrad} mrad, hybrid {hybrid_mrad}"
     );
 }
+
+/// `eval --table` scores a table built before exactly as `eval` scores the method that
+/// built it: the UR5 hybrid table's served field at the 20 random poses is
+/// `hybrid-trilinear`'s figure, point for point.
+#[test]
+fn a_table_built_before_is_scored_as_the_method_that_built_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = crate::common::ur5_grid();
+    let random = repo().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv");
+    let robot = repo().join("tables/ur5/robot.toml");
+    crate::common::build_ur5_hybrid(
+        dir.path(),
+        robot.to_str().unwrap(),
+        &["--cell", "30", "--served-field", "method"],
+        "ur5.tbl",
+    );
+    let scored = tablec(
+        &[
+            "eval",
+            "--table",
+            "ur5.tbl",
+            "--validation",
+            random.to_str().unwrap(),
+            "--columns",
+            crate::common::UR5_MAP,
+            "--json",
+            "table.json",
+        ],
+        dir.path(),
+    );
+    ok(&scored);
+    let evaluated = tablec(
+        &[
+            "eval",
+            grid.to_str().unwrap(),
+            "--validation",
+            random.to_str().unwrap(),
+            "--columns",
+            crate::common::UR5_MAP,
+            "--robot",
+            robot.to_str().unwrap(),
+            "--cell",
+            "30",
+            "--served-field",
+            "method",
+            "--methods",
+            "hybrid-trilinear",
+            "--json",
+            "method.json",
+        ],
+        dir.path(),
+    );
+    ok(&evaluated);
+    let read = |name: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(name)).unwrap()).unwrap()
+    };
+    let (table, method) = (read("table.json"), read("method.json"));
+    let predictions = |v: &serde_json::Value, name: &str| {
+        v["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["method"] == name)
+            .unwrap_or_else(|| panic!("{name} missing"))["predictions"]
+            .clone()
+    };
+    assert_eq!(
+        predictions(&table, "table"),
+        predictions(&method, "hybrid-trilinear")
+    );
+    let stdout = String::from_utf8_lossy(&scored.stdout);
+    assert!(
+        stdout.contains("the table ur5.tbl (1000 samples), evaluated at 20 validation points"),
+        "{stdout}"
+    );
+    // Scoring takes the table as it was built: no samples, methods or table options.
+    let o = tablec(
+        &[
+            "eval",
+            "--table",
+            "ur5.tbl",
+            "--validation",
+            "x.csv",
+            "--cell",
+            "20",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("scores the table as it was built"));
+}

@@ -272,3 +272,90 @@ fn a_validation_series_from_a_moved_tracker_is_registered_apart() {
     assert!(kinematic_mean_mm(false) > 1.0);
     assert!(kinematic_mean_mm(true) < 1e-6);
 }
+
+/// Two series of one robot measured from two tracker positions train one calibration:
+/// each series is registered with its own tracker-to-base transform (printed) and the
+/// probe they share, and the identification explains both as well as it explains one. The
+/// same rows taken as one series (one transform for both) cannot be explained at all.
+#[test]
+fn series_from_two_tracker_positions_train_one_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut deviations = [0.0; 30];
+    for joint in 1..5 {
+        deviations[joint * 5] = 0.3;
+        deviations[joint * 5 + 3] = 5e-4;
+    }
+    let moved = {
+        let axis = nalgebra::Vector3::new(0.0, 0.0, 1.0) * 40f64.to_radians();
+        transform_from_parts([-1000.0, 2500.0, 300.0], &rotation_from_vector(axis.into()))
+    };
+    write_series(dir.path(), "a.csv", &deviations, &tracker(), 3);
+    write_series(dir.path(), "c.csv", &deviations, &moved, 4);
+    let robot = repo("tables/ur10/robot.toml");
+    let calibrate = |files: &[&str]| {
+        let mut args = vec!["calibrate"];
+        args.extend_from_slice(files);
+        args.extend([
+            "--robot",
+            robot.to_str().unwrap(),
+            "--measured-in",
+            "tracker",
+        ]);
+        let o = tablec(&args, dir.path());
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{err}");
+        out
+    };
+    let after = |out: &str| -> f64 {
+        let l = line(out, "position RMS");
+        l.split(", ")
+            .nth(1)
+            .unwrap()
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let both = calibrate(&["a.csv", "c.csv"]);
+    assert!(
+        line(&both, "series 2")
+            .contains("registered to the robot identified from every series (300 rows)"),
+        "{both}"
+    );
+    // The second series' tracker as simulated, in the frame of the first series'
+    // calibration (its base deviation moves it by a fraction of a millimetre).
+    let second = both[both.find("series 2").unwrap()..].to_string();
+    let translation: Vec<f64> = line(&second, "base in tracker")
+        .split('(')
+        .nth(1)
+        .unwrap()
+        .split(')')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    for (got, simulated) in translation.iter().zip([-1000.0, 2500.0, 300.0]) {
+        assert!((got - simulated).abs() < 0.2, "{second}");
+    }
+    assert!(after(&both) < 1e-3, "{both}");
+    // One file holding both series cannot be fitted with one transform.
+    let a = std::fs::read_to_string(dir.path().join("a.csv")).unwrap();
+    let c = std::fs::read_to_string(dir.path().join("c.csv")).unwrap();
+    let merged = a + c.split_once('\n').unwrap().1;
+    std::fs::write(dir.path().join("merged.csv"), merged).unwrap();
+    let o = tablec(
+        &[
+            "calibrate",
+            "merged.csv",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--measured-in",
+            "tracker",
+        ],
+        dir.path(),
+    );
+    let (out, _) = text(&o);
+    assert!(!o.status.success() || after(&out) > 100.0, "{out}");
+}

@@ -6,12 +6,14 @@
 //! its kinematic parameters and the probe on its flange. The first series is registered
 //! as a single one is ([`Registered::read`]: a rigid fit of the nominal robot, probe
 //! included); every other one is registered to it with the probe kept
-//! ([`register_moved`]), first to the TCP positions of the nominal robot with that probe,
-//! then — once the robot has been identified from all series together — to those of the
-//! calibrated robot, so that each series' transform is fitted to the same model the
-//! others are expressed in. This alternation (the transforms given the model, the model
-//! given the transforms) is one step of block coordinate descent towards the joint
-//! least-squares fit of the model and every series' transform; [`REFINEMENTS`] steps.
+//! ([`register_moved`]): to the TCP positions of the nominal robot when the files are
+//! read (enough to size the work), then to those of the robot identified from the first
+//! series alone — no other series' misregistration has leaked into that model, and
+//! measurements a model fits exactly are then registered exactly — and then
+//! [`REFINEMENTS`] times to the robot identified from every series together, so that each
+//! series' transform is fitted to the model the others are expressed in (one step of block
+//! coordinate descent, the transforms given the model and the model given the
+//! transforms, towards their joint least-squares fit).
 
 use adwi_robot::calibrate::{identify, CalibrateOptions};
 use adwi_robot::measured::{MeasuredError, Registered};
@@ -23,8 +25,7 @@ use crate::inputs::Source;
 use crate::JobError;
 
 /// How many times the later series are registered again to the robot identified from all
-/// series. On the UR10's series A and C one step moves series C's transform by
-/// hundredths of a millimetre and a second by less than a micrometre.
+/// series, after their registration to the first series' calibration.
 pub const REFINEMENTS: usize = 1;
 
 /// The series read as one sample set in the robot's base frame.
@@ -103,8 +104,9 @@ pub(crate) fn read(
 }
 
 impl Series {
-    /// Registers the series after the first again, [`REFINEMENTS`] times, each time to
-    /// the robot identified from all of them (module docs); nothing for a single series.
+    /// Registers the series after the first again: to the robot identified from the
+    /// first series, then [`REFINEMENTS`] times to the robot identified from all of them
+    /// (module docs); nothing for a single series.
     ///
     /// # Errors
     ///
@@ -113,6 +115,10 @@ impl Series {
         let (Some(later), Some(registered)) = (&self.later, &self.registered) else {
             return Ok(());
         };
+        // The first series' own calibration: what the others are registered to first, so
+        // that no series' misregistration has yet leaked into the model.
+        let first = identify(&registered.robot, &later.first_samples, calibrate)?;
+        (self.others, self.samples) = later.register(registered, first.calibrated_robot())?;
         for _ in 0..REFINEMENTS {
             let calibration = identify(&registered.robot, &self.samples, calibrate)?;
             (self.others, self.samples) =
