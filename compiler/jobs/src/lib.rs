@@ -364,11 +364,16 @@ mod tests {
     /// does not exist.
     #[test]
     fn combinations_are_refused_before_any_input_is_read() {
-        let mut args = BuildArgs::default();
-        args.samples = vec![Source::File("/nonexistent/s.csv".into())];
-        args.output = "/nonexistent/t.tbl".into();
-        args.tune = true;
-        args.table.k = Some(4);
+        let mut args = BuildArgs {
+            samples: vec![Source::File("/nonexistent/s.csv".into())],
+            output: "/nonexistent/t.tbl".into(),
+            tune: true,
+            table: TableArgs {
+                k: Some(4),
+                ..TableArgs::default()
+            },
+            ..BuildArgs::default()
+        };
         let e = BuildJob::new(args.clone()).err().unwrap();
         assert!(matches!(e, JobError::Options(_)), "{e}");
         args.tune = false;
