@@ -315,15 +315,12 @@ mod tests {
         expected.samples = vec![Source::File("s.csv".into())];
         expected.output = "t.tbl".into();
         assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
-        assert_eq!(
-            format!("{expected:?}"),
-            format!("{:?}", {
-                let mut d = BuildArgs::default();
-                d.samples = vec![Source::File("s.csv".into())];
-                d.output = "t.tbl".into();
-                d
-            })
-        );
+        let default = BuildArgs {
+            samples: vec![Source::File("s.csv".into())],
+            output: "t.tbl".into(),
+            ..BuildArgs::default()
+        };
+        assert_eq!(format!("{expected:?}"), format!("{default:?}"));
 
         let Cli::Eval(parsed) = Cli::parse_from(["tablec", "eval", "s.csv"]) else {
             unreachable!()
