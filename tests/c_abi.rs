@@ -1,6 +1,6 @@
 //! The C ABI end to end: `tests/c/smoke.c` is compiled with the system C compiler against
 //! `runtime/include/adwi.h` and the runtime's libraries, once statically and once
-//! dynamically, each with exactly the link line README.md and the header document, then
+//! dynamically, each with exactly the link line docs/runtime.md and the header document, then
 //! run on a table built from the paper's worked example. Its answers must equal the Rust
 //! API's bit for bit, and every bad input must give its documented code.
 //!
@@ -19,7 +19,7 @@ use adwi_samples::{read_samples, ColumnMap};
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];
 
-/// The system libraries a static link needs after `libadwi_runtime.a`, as README.md and
+/// The system libraries a static link needs after `libadwi_runtime.a`, as docs/runtime.md and
 /// `adwi.h` document them: what `rustc --print native-static-libs` lists on Linux.
 const NATIVE_STATIC_LIBS: &str = "-lgcc_s -lutil -lrt -lpthread -lm -ldl -lc";
 
@@ -115,14 +115,14 @@ fn the_documented_link_lines_are_the_ones_tested() {
     let (_, native) = libraries();
     assert_eq!(
         native, NATIVE_STATIC_LIBS,
-        "rustc's list changed: update README.md and adwi.h"
+        "rustc's list changed: update docs/runtime.md and adwi.h"
     );
-    let readme = std::fs::read_to_string(workspace().join("README.md")).unwrap();
+    let readme = std::fs::read_to_string(workspace().join("docs/runtime.md")).unwrap();
     let header = std::fs::read_to_string(workspace().join("runtime/include/adwi.h")).unwrap();
     let static_line = format!("target/release/libadwi_runtime.a {NATIVE_STATIC_LIBS}");
     assert!(
         readme.contains(&static_line),
-        "README.md lacks {static_line:?}"
+        "docs/runtime.md lacks {static_line:?}"
     );
     let header_static =
         format!("target/release/libadwi_runtime.a \\\n *           {NATIVE_STATIC_LIBS}");
@@ -131,7 +131,7 @@ fn the_documented_link_lines_are_the_ones_tested() {
         "adwi.h lacks {header_static:?}"
     );
     let shared = r#"-L "$PWD/target/release" -ladwi_runtime -Wl,-rpath,"$PWD/target/release""#;
-    assert!(readme.contains(shared), "README.md lacks {shared:?}");
+    assert!(readme.contains(shared), "docs/runtime.md lacks {shared:?}");
     assert!(
         header.contains(r#"-L "$PWD/target/release" -ladwi_runtime \"#)
             && header.contains(r#"-Wl,-rpath,"$PWD/target/release""#),

@@ -9,6 +9,7 @@ mod common;
 mod c_abi;
 mod cli;
 mod compat;
+mod documented_commands;
 mod eval;
 mod hostile_csv;
 mod latency_guard;

@@ -60,3 +60,8 @@ pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};
 pub use table::{AlignedBytes, Exact, Payload, Table, Tier};
+
+/// The README's Rust example, compiled as a doctest so that it cannot rot.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+struct ReadmeExample;
