@@ -15,6 +15,7 @@ pub mod file;
 pub mod ik;
 pub mod measured;
 pub mod model;
+pub mod plausible;
 pub mod register;
 pub mod simulate;
 pub mod urdf;
