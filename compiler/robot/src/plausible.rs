@@ -70,6 +70,8 @@ pub(crate) enum Quantity {
     JointLimitDeg,
     /// A finite revolute joint limit, rad.
     JointLimitRad,
+    /// A revolute joint's value, degrees: within the joint limit bound.
+    JointValueDeg,
     /// A mass, kg.
     MassKg,
     /// A gravity compliance, µrad/(N·m).
@@ -133,6 +135,7 @@ impl Quantity {
             Quantity::JointLimitRad => {
                 within("a joint limit (rad)", MAX_JOINT_LIMIT_DEG.to_radians())
             }
+            Quantity::JointValueDeg => within("a joint value (deg)", MAX_JOINT_LIMIT_DEG),
             Quantity::MassKg => between("a mass (kg)", 0.0, MAX_MASS_KG),
             Quantity::ComplianceUradPerNm => {
                 within("a compliance (µrad/(N·m))", MAX_COMPLIANCE_URAD_PER_NM)

@@ -156,12 +156,13 @@ mod trust;
 pub use parameters::{Parameter, MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM};
 pub use trust::{HoldReason, ParameterReport, ParameterStatus};
 
-use adwi_runtime::chain::Chain;
+use adwi_runtime::chain::{Chain, JointKind};
 use adwi_runtime::model::PreparedModel;
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 
 use crate::error_model::transform_pose_error;
 use crate::model::Robot;
+use crate::plausible::{check, number, Quantity};
 use adwi_compile::samples::SampleSet;
 
 use model::{loaded, Model};
@@ -248,14 +249,52 @@ pub enum CalibrateError {
         parameters: usize,
     },
     /// The data excite no parameter at all (e.g. every sample at the same joint angles and
-    /// no error).
+    /// no error): the model's Jacobian at the samples is zero.
     #[error("the samples identify no kinematic parameter: their poses do not vary")]
     NothingIdentifiable,
     /// A value is NaN or infinite.
-    #[error("sample {index} has a non-finite joint angle or error")]
+    #[error("sample {index}{}: a joint value or measured error is not finite", line_of(*line))]
     NonFinite {
         /// The sample's index.
         index: usize,
+        /// Its source line, when known.
+        line: Option<u64>,
+    },
+    /// A sample's value is beyond what any robot's is: a joint turned more than ten turns
+    /// (or slid more than 1 km), an error no kinematic model explains.
+    #[error("sample {index}{}: {what}", line_of(*line))]
+    ImplausibleSample {
+        /// The sample's index.
+        index: usize,
+        /// Its source line, when known.
+        line: Option<u64>,
+        /// The value, what it is and the bound it crosses.
+        what: String,
+    },
+    /// The model's prediction or its Jacobian at a sample is not finite, though every
+    /// input lies in its range: an input combination no robot has. Found before iterating.
+    #[error(
+        "the model of {robot} is not finite at sample {index}{} ({what}): its inputs, though \
+         each in range, make no robot; check the robot file's lengths, masses and compliances",
+        line_of(*line)
+    )]
+    NonFiniteModel {
+        /// The robot.
+        robot: String,
+        /// The sample's index.
+        index: usize,
+        /// Its source line, when known.
+        line: Option<u64>,
+        /// What is not finite: the prediction, or the column of which parameter.
+        what: String,
+    },
+    /// An identified value is not finite: nothing is reported as a calibration.
+    #[error("the identification of {robot} gives a non-finite {what}")]
+    NonFiniteResult {
+        /// The robot.
+        robot: String,
+        /// Which value.
+        what: &'static str,
     },
     /// The calibrated model is not valid (a deviation so large that a rotation is no longer
     /// one): the data do not describe this robot.
@@ -267,6 +306,21 @@ pub enum CalibrateError {
         reason: String,
     },
 }
+
+/// `, line L` for a known source line.
+fn line_of(line: Option<u64>) -> String {
+    line.map(|l| format!(" (line {l})")).unwrap_or_default()
+}
+
+/// The largest position error a sample may have for identification, mm: no plausible
+/// deviation of a robot's geometry, tool or base registration ([`Parameter::plausible_bound`])
+/// moves its TCP a metre; an error that large is a pose measured in another frame (a
+/// tracker's: see [`crate::measured`]) or in another unit.
+pub const MAX_PLAUSIBLE_ERROR_MM: f64 = 1000.0;
+
+/// The largest orientation error a sample may have for identification, rad (57°), for
+/// the same reason.
+pub const MAX_PLAUSIBLE_ROTATION_ERROR_RAD: f64 = 1.0;
 
 /// A robot's identified model: what [`identify`] found and how well.
 #[derive(Debug, Clone)]
@@ -385,7 +439,11 @@ impl Calibration {
 ///
 /// [`CalibrateError::MissingJoints`] without joint values, [`CalibrateError::JointCount`]
 /// when the samples' joint count is not the robot's, [`CalibrateError::NonFinite`] for a
-/// non-finite value, [`CalibrateError::NothingIdentifiable`] when the poses do not vary,
+/// non-finite value, [`CalibrateError::ImplausibleSample`] for a joint value or error
+/// beyond any robot's ([`MAX_PLAUSIBLE_ERROR_MM`]), [`CalibrateError::NonFiniteModel`]
+/// when the model is not finite at a sample (checked before iterating),
+/// [`CalibrateError::NonFiniteResult`] for a non-finite result (never returned as a
+/// calibration), [`CalibrateError::NothingIdentifiable`] when the poses do not vary,
 /// [`CalibrateError::TooFewMeasurements`] when the samples are too few for the parameters
 /// they excite, [`CalibrateError::InvalidOption`] for options out of range,
 /// [`CalibrateError::InvalidModel`] when the identified model is not a robot.
@@ -424,21 +482,7 @@ pub fn identify(
         });
     }
     let measurements: Vec<Measurement> = (0..samples.len())
-        .map(|i| {
-            let m = Measurement {
-                q: joints.row(i).to_vec(),
-                error_mm: samples.error_mm[i],
-                rotation_error_rad: samples.rotation_error_rad.as_ref().map(|r| r[i]),
-            };
-            let finite = m.q.iter().chain(&m.error_mm).all(|v| v.is_finite())
-                && m.rotation_error_rad
-                    .is_none_or(|r| r.iter().all(|v| v.is_finite()));
-            if finite {
-                Ok(m)
-            } else {
-                Err(CalibrateError::NonFinite { index: i })
-            }
-        })
+        .map(|i| measurement(robot, samples, i))
         .collect::<Result<_, _>>()?;
     let problem = Problem {
         model: Model::new(robot, options.compliance),
@@ -454,9 +498,21 @@ pub fn identify(
     let nominal_x = DVector::zeros(p);
     let nominal_state = problem.model.state(&nominal_x)?;
     let (r0, j0) = problem.linearise(&nominal_x, &nominal_state, true);
+    if let Some((row, column)) = first_non_finite(&r0, &j0) {
+        let index = row / problem.rows_per_sample;
+        return Err(CalibrateError::NonFiniteModel {
+            robot: robot.name.clone(),
+            index,
+            line: samples.lines.get(index).copied(),
+            what: match column {
+                None => "the predicted error".into(),
+                Some(c) => format!("the column of {}", problem.model.parameters[c]),
+            },
+        });
+    }
     let column_norms: Vec<f64> = (0..p).map(|c| j0.column(c).norm()).collect();
     let largest = column_norms.iter().copied().fold(0.0, f64::max);
-    if largest == 0.0 || !largest.is_finite() {
+    if largest == 0.0 {
         return Err(CalibrateError::NothingIdentifiable);
     }
     // Unit columns: pivoting then compares parameters independently of their units. A
@@ -547,6 +603,27 @@ pub fn identify(
             .sum();
         (sum / problem.measurements.len() as f64).sqrt() / problem.weight
     });
+    let position_rms_mm = problem.position_rms(&fit.r);
+    let checks = [
+        ("position RMS", position_rms_mm),
+        ("initial position RMS", initial_position_rms_mm),
+        ("residual σ", fit.residual_sigma_mm),
+        ("orientation RMS", orientation_rms_rad.unwrap_or(0.0)),
+    ];
+    let non_finite = checks
+        .iter()
+        .find(|(_, v)| !v.is_finite())
+        .map(|(what, _)| *what)
+        .or_else(|| (!fit.x.iter().all(|v| v.is_finite())).then_some("parameter value"))
+        .or_else(|| {
+            (!standard_errors.iter().flatten().all(|v| v.is_finite())).then_some("standard error")
+        });
+    if let Some(what) = non_finite {
+        return Err(CalibrateError::NonFiniteResult {
+            robot: robot.name.clone(),
+            what,
+        });
+    }
     Ok(Calibration {
         identified: fit.kept.iter().map(|&c| parameters[c]).collect(),
         unidentifiable: fit
@@ -559,7 +636,7 @@ pub fn identify(
         standard_errors,
         condition_number: fit.condition_number,
         initial_position_rms_mm,
-        position_rms_mm: problem.position_rms(&fit.r),
+        position_rms_mm,
         orientation_rms_rad,
         residual_sigma_mm: fit.residual_sigma_mm,
         iterations: fit.iterations,
@@ -567,5 +644,77 @@ pub fn identify(
         deviations: fit.x,
         nominal: robot.clone(),
         calibrated: fit.state.robot,
+    })
+}
+
+/// Sample `i` as a measurement, its values checked finite and plausible: joints within
+/// ten turns (1 km when prismatic, [`crate::plausible`]), errors within
+/// [`MAX_PLAUSIBLE_ERROR_MM`] and [`MAX_PLAUSIBLE_ROTATION_ERROR_RAD`].
+fn measurement(
+    robot: &Robot,
+    samples: &SampleSet,
+    i: usize,
+) -> Result<Measurement, CalibrateError> {
+    let joints = samples.joints.as_ref().expect("checked by the caller");
+    let m = Measurement {
+        q: joints.row(i).to_vec(),
+        error_mm: samples.error_mm[i],
+        rotation_error_rad: samples.rotation_error_rad.as_ref().map(|r| r[i]),
+    };
+    let line = samples.lines.get(i).copied();
+    let finite = m.q.iter().chain(&m.error_mm).all(|v| v.is_finite())
+        && m.rotation_error_rad
+            .is_none_or(|r| r.iter().all(|v| v.is_finite()));
+    if !finite {
+        return Err(CalibrateError::NonFinite { index: i, line });
+    }
+    let implausible = |what: String| CalibrateError::ImplausibleSample {
+        index: i,
+        line,
+        what,
+    };
+    for (j, &value) in m.q.iter().enumerate() {
+        let (shown, quantity) = match robot.joint_kind(j) {
+            JointKind::Revolute => (value.to_degrees(), Quantity::JointValueDeg),
+            JointKind::Prismatic => (value, Quantity::LengthMm),
+        };
+        check(shown, quantity, || format!("joint {}", j + 1))
+            .map_err(|e| implausible(e.to_string()))?;
+    }
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let error = norm(m.error_mm);
+    if error > MAX_PLAUSIBLE_ERROR_MM {
+        return Err(implausible(format!(
+            "a position error of {} mm, more than the {MAX_PLAUSIBLE_ERROR_MM} mm any \
+             calibration explains: are the measured poses in another frame (a tracker's) or \
+             another unit?",
+            number(error)
+        )));
+    }
+    if let Some(r) = m.rotation_error_rad {
+        let angle = norm(r);
+        if angle > MAX_PLAUSIBLE_ROTATION_ERROR_RAD {
+            return Err(implausible(format!(
+                "an orientation error of {} rad, more than the \
+                 {MAX_PLAUSIBLE_ROTATION_ERROR_RAD} rad any calibration explains: are the \
+                 measured poses in another frame or convention?",
+                number(angle)
+            )));
+        }
+    }
+    Ok(m)
+}
+
+/// The first non-finite entry of the residuals `r` or the Jacobian `j`: its row, and its
+/// column (`None` for a residual).
+fn first_non_finite(r: &DVector<f64>, j: &DMatrix<f64>) -> Option<(usize, Option<usize>)> {
+    if let Some(row) = r.iter().position(|v| !v.is_finite()) {
+        return Some((row, None));
+    }
+    // Row by row, so that the first sample is found first.
+    (0..j.nrows()).find_map(|row| {
+        (0..j.ncols())
+            .find(|&c| !j[(row, c)].is_finite())
+            .map(|c| (row, Some(c)))
     })
 }

@@ -914,3 +914,63 @@ fn tempfile_dir() -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// Values no robot has are refused before iterating, naming the sample and its line: an
+/// error beyond a metre (a tracker's frame, another unit), a joint beyond ten turns, a
+/// non-finite value; a model that is not finite is found at its first sample and column.
+#[test]
+fn implausible_samples_are_refused_before_iterating() {
+    let robot = kr150();
+    let q = poses(&robot, 60, 4);
+    let samples = simulate(&robot, &DVector::zeros(42), &q, true, 0.0, 0);
+    let options = CalibrateOptions::default();
+    let start = std::time::Instant::now();
+    let mut far = samples.clone();
+    far.error_mm[5] = [5e5, 0.0, 0.0];
+    assert_eq!(
+        identify(&robot, &far, &options).unwrap_err().to_string(),
+        "sample 5 (line 7): a position error of 500000 mm, more than the 1000 mm any \
+         calibration explains: are the measured poses in another frame (a tracker's) or \
+         another unit?"
+    );
+    let mut turned = samples.clone();
+    turned.rotation_error_rad.as_mut().unwrap()[3] = [0.0, 2.0, 0.0];
+    assert!(identify(&robot, &turned, &options)
+        .unwrap_err()
+        .to_string()
+        .starts_with("sample 3 (line 5): an orientation error of 2 rad"));
+    let mut spun = samples.clone();
+    let mut joints = Joints::new(6);
+    for (i, q) in q.iter().enumerate() {
+        let mut q = q.clone();
+        if i == 9 {
+            q[2] = 1e300;
+        }
+        joints.push(&q);
+    }
+    spun.joints = Some(joints);
+    assert!(identify(&robot, &spun, &options)
+        .unwrap_err()
+        .to_string()
+        .starts_with("sample 9 (line 11): joint 3: a joint value (deg) is 5.7295779513082"));
+    let mut nan = samples.clone();
+    nan.error_mm[0][1] = f64::NAN;
+    assert_eq!(
+        identify(&robot, &nan, &options).unwrap_err(),
+        CalibrateError::NonFinite {
+            index: 0,
+            line: Some(2)
+        }
+    );
+    assert!(start.elapsed().as_secs_f64() < 1.0);
+
+    let r = DVector::from_vec(vec![0.0; 6]);
+    let mut j = DMatrix::zeros(6, 4);
+    assert_eq!(first_non_finite(&r, &j), None);
+    j[(4, 2)] = f64::INFINITY;
+    j[(5, 1)] = f64::NAN;
+    assert_eq!(first_non_finite(&r, &j), Some((4, Some(2))));
+    let mut r = r;
+    r[5] = f64::NAN;
+    assert_eq!(first_non_finite(&r, &j), Some((5, None)));
+}
