@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use adwi_compile::build::{compile, BuildOptions};
-use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::{Status, Table, Target};
+use adwi_samples::{read_samples, ColumnMap};
 
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];

@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 
 use adwi_compile::reference;
-use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::format::{CONTENT_JOINTS, CONTENT_MODEL};
 use adwi_runtime::format::{FORMAT_VERSION, OLDEST_SUPPORTED_VERSION};
 use adwi_runtime::{Status, Table, Target};
+use adwi_samples::{read_samples, ColumnMap};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

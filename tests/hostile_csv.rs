@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use adwi_compile::samples::{parse_samples, ColumnMap, SampleSet};
+use adwi_samples::{parse_samples, ColumnMap, SampleSet};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -246,7 +246,7 @@ fn tool_axis_served_queries_allocate_nothing() {
 /// 20 000 queries near the samples' poses: each joint moved by up to `joint_deg`, the
 /// target by up to `position_mm` along every axis, deterministically.
 fn wiggled_poses(
-    samples: &adwi_compile::samples::SampleSet,
+    samples: &adwi_samples::SampleSet,
     joint_deg: f64,
     position_mm: f64,
 ) -> Vec<([f64; 3], [f64; 6])> {

@@ -2,9 +2,9 @@
 //! refused at open with a reason, and never make the runtime panic.
 
 use adwi_compile::build::{compile, BuildOptions};
-use adwi_compile::samples::{parse_samples, ColumnMap};
 use adwi_runtime::format::{Header, HEADER_LEN};
 use adwi_runtime::{OpenError, Status, Table};
+use adwi_samples::{parse_samples, ColumnMap};
 
 fn small_table() -> Vec<u8> {
     let csv = "x,y,z,dx,dy,dz,rx,ry,rz,config\n\

@@ -7,9 +7,9 @@ use crate::common;
 
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_compile::reference;
-use adwi_compile::samples::SampleSet;
 use adwi_runtime::method::MethodParams;
 use adwi_runtime::{Status, Table, Target};
+use adwi_samples::SampleSet;
 use proptest::prelude::*;
 
 #[derive(Debug, Clone)]
@@ -360,7 +360,7 @@ fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
     )
         .prop_map(|(mut case, sample_joints, target_joints, radius_rad)| {
             let len = case.samples.len();
-            case.samples.joints = Some(adwi_compile::samples::Joints::from_flat(
+            case.samples.joints = Some(adwi_samples::Joints::from_flat(
                 6,
                 sample_joints[..len].iter().flatten().copied().collect(),
             ));
@@ -376,7 +376,7 @@ struct HybridFixture {
     screened: Table<adwi_runtime::AlignedBytes>,
     calibration: adwi_robot::calibrate::Calibration,
     residuals: Vec<adwi_runtime::format::SampleRecord>,
-    joints: adwi_compile::samples::Joints,
+    joints: adwi_samples::Joints,
     robot: adwi_robot::Robot,
 }
 
@@ -518,8 +518,8 @@ proptest! {
 #[test]
 fn a_tool_axis_served_field_answers_the_turning_kriging_at_its_nodes() {
     use adwi_compile::nugget_kriging::ResidualGp;
-    use adwi_compile::samples::{read_samples, ColumnMap};
     use adwi_runtime::format::ServedField;
+    use adwi_samples::{read_samples, ColumnMap};
     let columns = ColumnMap::parse(
         "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,j3=joint_3,\
          j4=joint_4,j5=joint_5,j6=joint_6",

@@ -16,11 +16,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use adwi_compile::build::{compile, BuildOptions};
-use adwi_compile::samples::{parse_samples, ColumnMap};
 use adwi_runtime::capi::{self, AdwiCompensation, AdwiCorrection, AdwiResult};
 use adwi_runtime::format::HEADER_LEN;
 use adwi_runtime::testing::{reseal, seal_header};
 use adwi_runtime::{Correction, OpenError, Status, Table, Target};
+use adwi_samples::{parse_samples, ColumnMap};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

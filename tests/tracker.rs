@@ -5,11 +5,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Output;
 
-use adwi_compile::pose::{kuka_abc_deg_from_rotation, rotation_from_vector};
 use adwi_robot::error_model::{apply_deviations, deviations_from_vector};
 use adwi_robot::model::{rotation_of, transform_from_parts};
 use adwi_robot::{Geometry, Robot};
 use adwi_runtime::kinematics::Transform;
+use adwi_samples::pose::{kuka_abc_deg_from_rotation, rotation_from_vector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

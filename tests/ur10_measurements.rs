@@ -7,8 +7,8 @@
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use adwi_compile::pose;
-use adwi_compile::samples::{read_measurements, ColumnMap, Measurements, ReadOptions};
+use adwi_samples::pose;
+use adwi_samples::{read_measurements, ColumnMap, Measurements, ReadOptions};
 use approx::assert_abs_diff_eq;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use adwi_compile::reference;
-use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_runtime::method::MethodParams;
 use adwi_runtime::Target;
+use adwi_samples::{read_samples, ColumnMap};
 
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
 const PREDICTED_MM: [f64; 3] = [0.044584991, 0.995639127, -0.230310237];

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use adwi_compile::samples::{
+use adwi_samples::{
     parse_measurements, parse_samples, parse_samples_with, AngleUnit, ColumnMap, Decimal,
     Delimiter, LengthUnit, ReadOptions,
 };

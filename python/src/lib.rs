@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildOptions, BuildReport};
 use adwi_compile::hybrid;
-use adwi_compile::samples::{
+use adwi_samples::{
     AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit, ReadOptions, SampleSet,
 };
 use adwi_compile::write::{refuse_overwriting, write_atomically};

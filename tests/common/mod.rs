@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use adwi_compile::build::{compile, BuildOptions};
-use adwi_compile::samples::{parse_samples, ColumnMap};
+use adwi_samples::{parse_samples, ColumnMap};
 
 /// A deterministic generator (SplitMix64): the same tables on every run.
 pub struct SplitMix(pub u64);
@@ -81,12 +81,12 @@ pub fn targets(seed: u64, count: usize) -> Vec<[f64; 3]> {
 /// starting point of every hybrid-table test.
 pub fn kr150_calibration() -> (
     adwi_robot::Robot,
-    adwi_compile::samples::SampleSet,
+    adwi_samples::SampleSet,
     adwi_robot::calibrate::Calibration,
 ) {
-    use adwi_compile::samples::read_samples;
     use adwi_robot::calibrate::{identify, CalibrateOptions};
     use adwi_robot::{model::shipped_robot_path, Robot};
+    use adwi_samples::read_samples;
     let robot_path = shipped_robot_path("kr150-2");
     let robot = Robot::load(&robot_path).unwrap();
     let samples = read_samples(
@@ -116,7 +116,7 @@ pub fn tablec(args: &[&str], dir: &std::path::Path) -> std::process::Output {
 #[allow(clippy::too_many_arguments)]
 pub fn hybrid_reference_predict(
     residual_records: &[adwi_runtime::format::SampleRecord],
-    sample_joints: &adwi_compile::samples::Joints,
+    sample_joints: &adwi_samples::Joints,
     params: &adwi_runtime::method::MethodParams,
     joint_radius_rad: f64,
     calibration: &adwi_robot::calibrate::Calibration,
@@ -181,7 +181,7 @@ pub fn repo(path: &str) -> std::path::PathBuf {
 /// The bytes of a hybrid table of `samples` with `model`, as `tablec build --hybrid` writes
 /// them with `options`.
 pub fn hybrid_table_bytes(
-    samples: &adwi_compile::samples::SampleSet,
+    samples: &adwi_samples::SampleSet,
     model: &adwi_runtime::model::PreparedModel,
     options: &adwi_compile::build::BuildOptions,
 ) -> Vec<u8> {

@@ -49,7 +49,7 @@ use adwi_runtime::method::{self, MethodParams, CONFIG_UNKNOWN};
 use adwi_runtime::model::PreparedModel;
 use rayon::prelude::*;
 
-use crate::samples::SampleSet;
+use adwi_samples::SampleSet;
 
 /// Cell boxes are grown by this much (mm) when computing candidate lists.
 pub const BOX_MARGIN_MM: f64 = 1e-6;
@@ -1071,7 +1071,7 @@ fn candidate_list(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::samples::{parse_samples, ColumnMap};
+    use adwi_samples::{parse_samples, ColumnMap};
 
     #[test]
     fn weights_are_the_papers_unless_given_and_one_implies_the_other() {

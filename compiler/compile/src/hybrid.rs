@@ -28,7 +28,7 @@
 use adwi_runtime::model::PreparedModel;
 
 use crate::build::{self, BuildError, BuildReport, Plan};
-use crate::samples::SampleSet;
+use adwi_samples::SampleSet;
 
 /// The samples with their errors replaced by the residuals `model` leaves: measured error
 /// minus `model.error(q)` at each sample's joint angles, position and (when the

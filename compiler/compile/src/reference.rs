@@ -9,7 +9,7 @@ use adwi_runtime::method::{
 };
 use adwi_runtime::Target;
 
-use crate::samples::Joints;
+use adwi_samples::Joints;
 
 /// The admissible samples for `target`, the `k` nearest, nearest first, ties broken by
 /// sample order: filter all samples, sort, truncate.

@@ -19,11 +19,11 @@ use std::path::Path;
 
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_compile::reference;
-use adwi_compile::samples::{read_samples, ColumnMap};
 use adwi_compile::write::write_atomically;
 use adwi_eval::latency::{self, KdTreeMethod};
 use adwi_runtime::format::{v2::TableData, HEADER_LEN};
 use adwi_runtime::{AlignedBytes, Table, Target};
+use adwi_samples::{read_samples, ColumnMap};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {

@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_compile::reference;
-use adwi_compile::samples::SampleSet;
 use adwi_runtime::{Table, Target};
+use adwi_samples::SampleSet;
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

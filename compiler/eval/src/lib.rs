@@ -59,9 +59,9 @@ use crate::baselines::{
     ResidualStats,
 };
 use adwi_compile::build::{self, BuildError, BuildOptions};
-use adwi_compile::samples::{Joints, SampleSet};
 use adwi_robot::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
 use adwi_robot::Robot;
+use adwi_samples::{Joints, SampleSet};
 
 /// A compensation method under evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -50,7 +50,7 @@
 
 use std::cmp::Ordering;
 
-use adwi_compile::samples::SampleSet;
+use adwi_samples::SampleSet;
 
 /// Number of equal-width lag bins up to three spacings.
 pub const BINS: usize = 6;

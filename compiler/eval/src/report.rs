@@ -1517,8 +1517,8 @@ pub fn write(e: &Evaluation, command: &str, dir: &Path) -> Result<PathBuf, Repor
 mod tests {
     use std::path::Path;
 
-    use adwi_compile::samples::{read_samples, ColumnMap, SampleSet};
     use adwi_robot::Robot;
+    use adwi_samples::{read_samples, ColumnMap, SampleSet};
 
     use super::*;
     use crate::{evaluate, EvalOptions, Method, Protocol};

@@ -16,8 +16,8 @@
 //! method's.
 
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
-use adwi_compile::samples::SampleSet;
 use adwi_robot::Robot;
+use adwi_samples::SampleSet;
 
 use crate::{evaluate, EvalError, EvalOptions, Method, Protocol};
 

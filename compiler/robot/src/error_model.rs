@@ -318,7 +318,7 @@ mod tests {
     fn tool() -> Transform {
         let iso = crate::model::isometry_from_parts(
             [30.0, -20.0, 250.0],
-            &adwi_compile::pose::rotation_from_kuka_abc_deg([10.0, 20.0, 30.0]),
+            &adwi_samples::pose::rotation_from_kuka_abc_deg([10.0, 20.0, 30.0]),
         );
         crate::model::transform_from_isometry(&iso)
     }

@@ -8,7 +8,7 @@ use adwi_runtime::chain::{ChainJoint, JointKind, MAX_JOINTS};
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use serde::Deserialize;
 
-use adwi_compile::pose::rotation_from_kuka_abc_deg;
+use adwi_samples::pose::rotation_from_kuka_abc_deg;
 
 use crate::model::{
     transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot,

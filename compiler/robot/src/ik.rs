@@ -768,7 +768,7 @@ mod tests {
     use super::*;
     use crate::error_model::{apply_deviations, pose_error, JointDeviation};
     use crate::model::{isometry_from_parts, shipped_robot_path};
-    use adwi_compile::pose::{orientation_error, rotation_from_kuka_abc_deg};
+    use adwi_samples::pose::{orientation_error, rotation_from_kuka_abc_deg};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

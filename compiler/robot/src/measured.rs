@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::samples::{
+use adwi_samples::{
     parse_measurements, parse_samples_with, read_measurements, read_samples_with, ColumnMap,
     Measurements, ReadError, ReadOptions, SampleSet,
 };

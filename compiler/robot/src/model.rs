@@ -95,8 +95,8 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::pose::kuka_abc_deg_from_rotation;
 pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
+use adwi_samples::pose::kuka_abc_deg_from_rotation;
 
 use crate::plausible::{check, check_all, Quantity};
 

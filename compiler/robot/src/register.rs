@@ -37,9 +37,9 @@
 //! then refines both transforms through its base and tool parameters, linearised around
 //! this start; [`Registration::refined`] composes the two.
 
-use adwi_compile::pose::{orientation_error, rotation_vector};
-use adwi_compile::samples::{Measurements, MeasurementsError, SampleSet};
 use adwi_runtime::kinematics::Transform;
+use adwi_samples::pose::{orientation_error, rotation_vector};
+use adwi_samples::{Measurements, MeasurementsError, SampleSet};
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 
 use crate::calibrate::Calibration;
@@ -787,8 +787,8 @@ mod tests {
     use crate::calibrate::{identify, CalibrateOptions, Parameter};
     use crate::error_model::{apply_deviations, deviations_from_vector, PARAMETERS_PER_JOINT};
     use crate::model::{shipped_robot_path, Geometry};
-    use adwi_compile::pose::rotation_from_vector;
-    use adwi_compile::samples::Joints;
+    use adwi_samples::pose::rotation_from_vector;
+    use adwi_samples::Joints;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

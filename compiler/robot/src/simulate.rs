@@ -60,7 +60,7 @@ use crate::model::{
 };
 use crate::plausible::{check, check_all, number, Quantity};
 use crate::{Configuration, IkError, InverseKinematics, Robot};
-use adwi_compile::pose::{
+use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, orientation_error, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
 
@@ -1915,9 +1915,9 @@ centre_of_gravity_mm = [0.0, 0.0, 100.0]
             let samples = simulate(&robot, scenario, &plan).unwrap();
             let (mean_mm, _) = position_error_stats_mm(&samples);
             assert!(mean_mm > 0.2, "{mean_mm}");
-            let mut set = adwi_compile::samples::SampleSet {
+            let mut set = adwi_samples::SampleSet {
                 rotation_error_rad: Some(Vec::new()),
-                joints: Some(adwi_compile::samples::Joints::new(7)),
+                joints: Some(adwi_samples::Joints::new(7)),
                 ..Default::default()
             };
             for (i, s) in samples.iter().enumerate() {

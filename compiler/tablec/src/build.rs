@@ -183,7 +183,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn print_summary(
     args: &Args,
     report: &BuildReport,
-    samples: &adwi_compile::samples::SampleSet,
+    samples: &adwi_samples::SampleSet,
     calibration: Option<&(Calibration, f64)>,
     registered: Option<&Registered>,
     started: Instant,

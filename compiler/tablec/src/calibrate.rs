@@ -3,10 +3,10 @@
 
 use std::path::PathBuf;
 
-use adwi_compile::samples::read_samples_with;
 use adwi_compile::write::write_atomically;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::measured::{Input, Registered};
+use adwi_samples::read_samples_with;
 use anyhow::Context;
 
 use crate::measured_in::MeasuredIn;

@@ -5,10 +5,10 @@
 
 use std::path::Path;
 
-use adwi_compile::samples::{ColumnMap, ReadOptions, SampleSet};
 use adwi_robot::measured::{Input, Registered};
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
+use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 
 /// The frame the measured poses are in.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]

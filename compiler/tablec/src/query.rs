@@ -3,8 +3,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_compile::pose;
 use adwi_runtime::{Correction, Status, Table, Target, Tier};
+use adwi_samples::pose;
 use anyhow::{bail, Context};
 
 use crate::Answered;
@@ -218,7 +218,7 @@ fn run_batch(
     exact: bool,
 ) -> anyhow::Result<Answered> {
     let (columns, options) = read.resolve()?;
-    let targets = adwi_compile::samples::read_targets(targets, &columns, &options)?;
+    let targets = adwi_samples::read_targets(targets, &columns, &options)?;
     let mut out: Box<dyn Write> = match output {
         Some(path) => Box::new(std::io::BufWriter::new(
             std::fs::File::create(path)

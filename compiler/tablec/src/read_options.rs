@@ -1,7 +1,7 @@
 //! The reading options shared by `tablec build`, `tablec eval` and `tablec query --targets`:
 //! one definition, so that every command reads a file the same way from the same flags.
 
-use adwi_compile::samples::{AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit};
+use adwi_samples::{AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit};
 
 /// How sample and target files are read: column names, separators, units.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -38,9 +38,9 @@ impl ReadOptions {
     /// # Errors
     ///
     /// A malformed `--columns`.
-    pub fn resolve(&self) -> anyhow::Result<(ColumnMap, adwi_compile::samples::ReadOptions)> {
+    pub fn resolve(&self) -> anyhow::Result<(ColumnMap, adwi_samples::ReadOptions)> {
         let columns = ColumnMap::parse(self.columns.as_deref().unwrap_or(""))?;
-        let options = adwi_compile::samples::ReadOptions {
+        let options = adwi_samples::ReadOptions {
             delimiter: self.delimiter,
             decimal: self.decimal,
             length_unit: self.length_unit.unwrap_or_default(),

@@ -163,7 +163,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::error_model::transform_pose_error;
 use crate::model::Robot;
 use crate::plausible::{check, number, Quantity};
-use adwi_compile::samples::SampleSet;
+use adwi_samples::SampleSet;
 
 use model::{loaded, Model};
 use solver::{Measurement, Problem};

@@ -14,7 +14,7 @@ use crate::model::{
     chain_frames, mdh_constant_part, rotation_of, transform_from_parts, Geometry, Robot,
     URAD_PER_NM,
 };
-use adwi_compile::pose::{rotation_from_vector, rotation_vector};
+use adwi_samples::pose::{rotation_from_vector, rotation_vector};
 
 use super::parameters::Parameter;
 use super::CalibrateError;

@@ -3,7 +3,7 @@ use super::*;
 use crate::error_model::{transform_pose_error, vector, MdhParameter};
 use crate::model::URAD_PER_NM;
 use crate::model::{shipped_file, shipped_robot_path};
-use adwi_compile::samples::Joints;
+use adwi_samples::Joints;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -723,9 +723,9 @@ fn refuses_data_that_cannot_identify_the_model() {
 fn stored_model_agrees_with_the_identification() {
     let dir = shipped_robot_path("kr150-2");
     let robot = Robot::load(&dir).unwrap();
-    let samples = adwi_compile::samples::read_samples(
+    let samples = adwi_samples::read_samples(
         &dir.parent().unwrap().join("samples.csv"),
-        &adwi_compile::samples::ColumnMap::default(),
+        &adwi_samples::ColumnMap::default(),
     )
     .unwrap();
     let c = identify(&robot, &samples, &CalibrateOptions::default()).unwrap();

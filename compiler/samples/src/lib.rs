@@ -64,6 +64,7 @@ use nalgebra::Rotation3;
 
 mod columns;
 mod measurements;
+pub mod pose;
 mod reader;
 mod repeats;
 

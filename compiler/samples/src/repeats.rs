@@ -306,7 +306,7 @@ mod tests {
     #[test]
     fn repeats_are_the_same_pose_to_the_resolution() {
         let metres = ReadOptions {
-            length_unit: crate::samples::LengthUnit::Metre,
+            length_unit: crate::LengthUnit::Metre,
             ..ReadOptions::default()
         };
         let read = |text: &str| {
