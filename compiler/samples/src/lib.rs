@@ -53,6 +53,10 @@
 //! with the other decimal mark, a zero quaternion, a missing or incomplete group of
 //! columns, two conventions on one side, mixed units in a group, an empty file.
 //!
+//! Samples that read but look wrong for a robot in millimetres — a file in metres spans a
+//! millimetre — are flagged by [`SampleSet::plausibility_warnings`], typed, for the caller
+//! to print.
+//!
 //! Measurements in another frame than the robot's base (a laser tracker's) are read by
 //! [`read_measurements`] into [`Measurements`], which a registration turns into samples.
 
@@ -64,6 +68,7 @@ use nalgebra::Rotation3;
 
 mod columns;
 mod measurements;
+mod plausible;
 pub mod pose;
 mod reader;
 mod repeats;
@@ -73,6 +78,9 @@ pub use columns::{
     CANONICAL_COLUMNS, MAX_JOINTS,
 };
 pub use measurements::{Measurements, MeasurementsError};
+pub use plausible::{
+    SampleWarning, MAX_PLAUSIBLE_ERROR_RMS_MM, MAX_PLAUSIBLE_EXTENT_MM, MIN_PLAUSIBLE_EXTENT_MM,
+};
 pub use reader::{Choice, Decimal, Delimiter, ReadError, ReadErrorKind, ReadOptions};
 pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
 
