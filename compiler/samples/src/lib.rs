@@ -81,7 +81,9 @@ pub use measurements::{Measurements, MeasurementsError};
 pub use plausible::{
     SampleWarning, MAX_PLAUSIBLE_ERROR_RMS_MM, MAX_PLAUSIBLE_EXTENT_MM, MIN_PLAUSIBLE_EXTENT_MM,
 };
-pub use reader::{Choice, Decimal, Delimiter, ReadError, ReadErrorKind, ReadOptions};
+pub use reader::{
+    Choice, Decimal, Delimiter, MappedColumnMissing, ReadError, ReadErrorKind, ReadOptions,
+};
 pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
 
 use reader::{parse, read_file, Purpose, Rows};

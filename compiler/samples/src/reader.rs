@@ -173,14 +173,7 @@ pub enum ReadErrorKind {
     /// The file has a header but no sample row.
     NoSamples,
     /// The column mapping names a column the header lacks (a typo, most often).
-    MappedColumnMissing {
-        /// The canonical column mapped.
-        name: String,
-        /// The column the mapping names, as compared (lower case).
-        column: String,
-        /// The header's names closest to it, closest first.
-        closest: Vec<String>,
-    },
+    MappedColumnMissing(Box<MappedColumnMissing>),
     /// A required column is absent from the header.
     MissingColumn {
         /// The columns wanted.
@@ -230,6 +223,17 @@ pub enum ReadErrorKind {
     Syntax(String),
 }
 
+/// A column the mapping names that the header lacks ([`ReadErrorKind::MappedColumnMissing`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappedColumnMissing {
+    /// The canonical column mapped.
+    pub name: &'static str,
+    /// The column the mapping names, as compared (lower case).
+    pub column: String,
+    /// The header's names closest to it, closest first (at most three).
+    pub closest: Vec<String>,
+}
+
 /// An error in a sample file, located by file, line and column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReadError {
@@ -257,11 +261,12 @@ impl fmt::Display for ReadError {
             ReadErrorKind::Io(e) => write!(f, "cannot read: {e}"),
             ReadErrorKind::Empty => write!(f, "empty file: expected a header row"),
             ReadErrorKind::NoSamples => write!(f, "no sample rows after the header"),
-            ReadErrorKind::MappedColumnMissing {
-                name,
-                column,
-                closest,
-            } => {
+            ReadErrorKind::MappedColumnMissing(missing) => {
+                let MappedColumnMissing {
+                    name,
+                    column,
+                    closest,
+                } = missing.as_ref();
                 write!(
                     f,
                     "the column mapping takes '{name}' from a column '{column}', which the \
@@ -826,11 +831,13 @@ fn resolve(
     // (`dx=xdif` would read as "dy,dz without dx", `j1=joint1` drop the joints silently).
     for (name, source) in map.mapped() {
         if !names.contains(&source.name) {
-            return Err(ReadErrorKind::MappedColumnMissing {
-                name: name.to_string(),
-                column: source.name.clone(),
-                closest: closest_names(&source.name, names),
-            });
+            return Err(ReadErrorKind::MappedColumnMissing(Box::new(
+                MappedColumnMissing {
+                    name,
+                    column: source.name.clone(),
+                    closest: closest_names(&source.name, names),
+                },
+            )));
         }
     }
     let find = |canonical: &str| -> Option<(usize, Source)> {
