@@ -14,7 +14,7 @@ use crate::model::{
     transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot,
     RobotError,
 };
-use crate::plausible::{check, check_all, Quantity};
+use crate::plausible::{check, check_all, check_name, Quantity};
 use crate::urdf::LinkNames;
 
 impl Robot {
@@ -85,10 +85,11 @@ impl Robot {
         links: &LinkNames,
         load: &mut dyn FnMut(&Path, &LinkNames) -> Result<Robot, RobotError>,
     ) -> Result<Robot, RobotError> {
-        let file: RobotFile = toml::from_str(text).map_err(|source| RobotError::Parse {
+        let file: RobotFile = toml::from_str(text).map_err(|error| RobotError::Parse {
             path: PathBuf::new(),
-            source,
+            source: crate::toml_error::TomlError::new(&error, text),
         })?;
+        check_name(&file.name)?;
         let tool = file
             .tool
             .map(|t| t.transform("tool"))
@@ -752,5 +753,41 @@ mod tests {
             1,
         );
         assert!(Robot::from_toml_str(&continuous).is_ok());
+    }
+
+    /// What the fuzz test found, kept: a TOML error quotes a short excerpt of its line
+    /// however long; a robot file with values at the bounds, written back, reads again.
+    #[test]
+    fn long_lines_and_values_at_the_bounds() {
+        let text = std::fs::read_to_string(crate::model::shipped_robot_path("ur5")).unwrap();
+        let nested = format!(
+            "{text}\nx = {}{}\n",
+            "[".repeat(100_000),
+            "]".repeat(100_000)
+        );
+        let error = Robot::from_toml_str(&nested).unwrap_err();
+        let message = format!("{error}: {}", std::error::Error::source(&error).unwrap());
+        assert!(message.len() < 500, "{} bytes: {message}", message.len());
+        let long_name = text.replacen(
+            "name = \"Universal Robots UR5\"",
+            &format!("name = \"{}\"", "n".repeat(300)),
+            1,
+        );
+        let error = Robot::from_toml_str(&long_name).unwrap_err().to_string();
+        assert!(
+            error.contains("has 300 characters, more than the 256"),
+            "{error}"
+        );
+        assert!(error.len() < 200, "{error}");
+        let at_bounds = text
+            .replacen(
+                "com_mm = [212.5, 0.0, 113.36]",
+                "com_mm = [212.5, -1000000.0, 113.36]",
+                1,
+            )
+            .replacen("mass_kg = 3.7", "mass_kg = 1000000.0", 1);
+        let robot = Robot::from_toml_str(&at_bounds).unwrap();
+        let again = Robot::from_toml_str(&robot.to_toml_string(&[])).unwrap();
+        assert_eq!(again.joint_count(), 6);
     }
 }

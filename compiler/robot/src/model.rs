@@ -153,7 +153,7 @@ pub enum RobotError {
         path: PathBuf,
         /// The TOML error, with line and column.
         #[source]
-        source: toml::de::Error,
+        source: crate::toml_error::TomlError,
     },
     /// The file is not a URDF file the parser reads.
     #[error("{path} is not a valid URDF file")]
@@ -162,7 +162,7 @@ pub enum RobotError {
         path: PathBuf,
         /// The parser's error.
         #[source]
-        source: urdf_rs::UrdfError,
+        source: crate::urdf::UrdfParseError,
     },
     /// The URDF file has no serial chain between the links asked for, or a joint this
     /// crate cannot model.
@@ -486,13 +486,19 @@ impl Robot {
         }
         chain.compliance = compliance_of(&joints, None, &chain.tool);
         // Composed (fixed joints folded in, a tool after a URDF's tip), the chain's
-        // translations must still be the table format's.
-        adwi_runtime::format::check_chain_plausible(&chain).map_err(|reason| {
-            RobotError::Implausible {
-                field: "the robot's kinematic chain".into(),
-                reason,
-            }
-        })?;
+        // translations must still be within the bound (the table format's, which
+        // `adwi_runtime::format::check_chain_plausible` holds exactly; here to rounding, so
+        // that a robot file the tool writes reads again).
+        for (t, what) in [(&chain.base, "base"), (&chain.tool, "tool")] {
+            check_all(&t.translation_mm, Quantity::LengthMm, || {
+                format!("the robot's {what} translation (mm, composed)")
+            })?;
+        }
+        for (i, joint) in chain.joints().iter().enumerate() {
+            check_all(&joint.origin.translation_mm, Quantity::LengthMm, || {
+                format!("joint {} origin (mm, composed)", i + 1)
+            })?;
+        }
         for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
             finite(value, || format!("home_deg[{i}]"))?;
             let [lower, upper] = joint.limits;

@@ -18,7 +18,11 @@
 //! | gear transmission error | amplitude within ±[`MAX_GEAR_AMPLITUDE_DEG`], at most [`MAX_GEAR_PERIODS_PER_REV`] periods per revolution |
 //! | measurement noise σ | 0 to [`MAX_SIGMA_MM`] mm, 0 to [`MAX_SIGMA_MM`] mm per metre, 0 to [`MAX_ORIENTATION_SIGMA_RAD`] rad |
 //! | URDF inertia tensor entries | within ±[`MAX_INERTIA_KG_M2`] kg·m² |
-//! | URDF effort, velocity, damping, friction, acceleration, jerk limits | finite or infinite (no limit), and ≥ 0 where URDF requires it |
+//! | URDF effort, velocity, damping, friction, acceleration, jerk limits | ≥ 0, infinite (no limit) only from URDF 1.2 on for effort, velocity and position limits |
+//! | a robot's name | at most [`MAX_NAME_CHARS`] characters |
+//!
+//! Each bound holds to a relative 1e-9, so that a value at the bound that the tool writes
+//! back after moving it between frames reads again.
 //!
 //! With every input inside them, a robot's positions stay within a few km and its gravity
 //! torques within 10¹³ N·m, so that every deflection, pose and error computed from them is
@@ -54,6 +58,27 @@ pub const MAX_SIGMA_MM: f64 = 1000.0;
 pub const MAX_ORIENTATION_SIGMA_RAD: f64 = 1.0;
 /// The largest magnitude of an inertia tensor entry, kg·m²: [`MAX_MASS_KG`] at 1 km.
 pub const MAX_INERTIA_KG_M2: f64 = 1e12;
+
+/// The most characters of a robot's name (robot files, URDF): messages quote it.
+pub const MAX_NAME_CHARS: usize = 256;
+
+/// Checks a robot's name from a file against [`MAX_NAME_CHARS`].
+pub(crate) fn check_name(text: &str) -> Result<(), RobotError> {
+    let count = text.chars().count();
+    if count > MAX_NAME_CHARS {
+        return Err(RobotError::Invalid {
+            field: "name".into(),
+            reason: format!(
+                "'{}' has {count} characters, more than the {MAX_NAME_CHARS} a robot's name may have",
+                name(text)
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The relative rounding a bound allows: 1e-9.
+const ROUNDING: f64 = 1e-9;
 
 /// What a number is, and so the range it must lie in (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,8 +124,11 @@ impl Quantity {
     /// The bound `value` crosses, if any; `None` for a plausible value. NaN crosses every
     /// bound; an infinite value only the bounds of finite quantities.
     fn implausible(self, value: f64) -> Option<Implausible> {
+        // A bound holds to rounding, so that a value at the bound written back by the tool
+        // (a centre of mass moved between frames and back) reads again.
+        let slack = |limit: f64| limit * (1.0 + ROUNDING);
         let within = |field: &'static str, limit: f64| {
-            (value.abs() > limit || value.is_nan()).then_some(Implausible {
+            (value.abs() > slack(limit) || value.is_nan()).then_some(Implausible {
                 field,
                 value,
                 rule: "within ±",
@@ -108,14 +136,14 @@ impl Quantity {
             })
         };
         let between = |field: &'static str, lower: f64, upper: f64| {
-            if value < lower || value.is_nan() {
+            if value < lower - lower.abs() * ROUNDING || value.is_nan() {
                 Some(Implausible {
                     field,
                     value,
                     rule: "at least ",
                     limit: lower,
                 })
-            } else if value > upper {
+            } else if value > slack(upper) {
                 Some(Implausible {
                     field,
                     value,
@@ -206,10 +234,27 @@ pub(crate) fn number(value: f64) -> String {
     }
 }
 
+/// A name from a file as a message quotes it: at most 40 characters, then how many more
+/// (a hostile file's names may be megabytes long).
+pub(crate) fn name(text: &str) -> String {
+    const SHOWN: usize = 40;
+    let count = text.chars().count();
+    if count <= SHOWN {
+        text.to_owned()
+    } else {
+        let kept: String = text.chars().take(SHOWN).collect();
+        format!("{kept}… ({} more characters)", count - SHOWN)
+    }
+}
+
 /// The first `shown` of `names`, then "and N more": a list in a message stays short
 /// whatever the file holds.
 pub(crate) fn first_few<T: std::fmt::Display>(names: &[T], shown: usize) -> String {
-    let listed: Vec<String> = names.iter().take(shown).map(|n| n.to_string()).collect();
+    let listed: Vec<String> = names
+        .iter()
+        .take(shown)
+        .map(|n| name(&n.to_string()))
+        .collect();
     let listed = listed.join(", ");
     if names.len() > shown {
         format!("{listed} and {} more", names.len() - shown)

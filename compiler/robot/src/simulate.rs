@@ -102,7 +102,7 @@ pub enum SimulateError {
         path: PathBuf,
         /// The TOML error, with line and column.
         #[source]
-        source: toml::de::Error,
+        source: crate::toml_error::TomlError,
     },
     /// A scenario value is unusable.
     #[error("scenario: {0}")]
@@ -396,9 +396,9 @@ impl Scenario {
     /// a stiffness below 100 N·m/rad, a mass beyond 10⁶ kg, a σ beyond 1 m, ...), with the
     /// joint and key, or a link number outside the joints.
     pub fn from_toml_str(text: &str) -> Result<Scenario, SimulateError> {
-        let file: ScenarioFile = toml::from_str(text).map_err(|source| SimulateError::Parse {
+        let file: ScenarioFile = toml::from_str(text).map_err(|error| SimulateError::Parse {
             path: PathBuf::new(),
-            source,
+            source: crate::toml_error::TomlError::new(&error, text),
         })?;
         let invalid = |message: String| SimulateError::InvalidScenario(message);
         let n = file.joints.len();

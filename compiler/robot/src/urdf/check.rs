@@ -5,12 +5,35 @@
 use urdf_rs::{Geometry, JointType, Pose};
 
 use crate::model::RobotError;
-use crate::plausible::{check, check_all, Quantity};
+use crate::plausible::{check, check_all, name as shown, Quantity};
 
 /// Checks every number of `urdf` (module docs).
 pub(crate) fn check_numbers(urdf: &urdf_rs::Robot) -> Result<(), RobotError> {
+    // Before URDF 1.2, effort, velocity and the position limits of revolute and prismatic
+    // joints are required numbers: infinite, they could not be written back (the writer
+    // leaves infinite values out) nor read again.
+    let version_1_2 = urdf
+        .version
+        .as_deref()
+        .and_then(|v| {
+            let (major, minor) = v.trim().split_once('.')?;
+            Some((major.parse::<u32>().ok()?, minor.parse::<u32>().ok()?))
+        })
+        .is_some_and(|v| v >= (1, 2));
+    let infinite = |value: f64, field: &dyn Fn() -> String| {
+        if value.is_infinite() && !version_1_2 {
+            Err(RobotError::Invalid {
+                field: field(),
+                reason: "infinite, which URDF before 1.2 does not allow (no limit is written \
+                         as a number, or the file declares version=\"1.2\")"
+                    .into(),
+            })
+        } else {
+            Ok(())
+        }
+    };
     for link in &urdf.links {
-        let at = |element: &str| format!("link '{}' {element}", link.name);
+        let at = |element: &str| format!("link '{}' {element}", shown(&link.name));
         let inertial = &link.inertial;
         pose(&inertial.origin, || at("<inertial><origin>"))?;
         check(inertial.mass.value, Quantity::MassKg, || {
@@ -56,7 +79,7 @@ pub(crate) fn check_numbers(urdf: &urdf_rs::Robot) -> Result<(), RobotError> {
         }
     }
     for joint in &urdf.joints {
-        let at = |element: &str| format!("joint '{}' {element}", joint.name);
+        let at = |element: &str| format!("joint '{}' {element}", shown(&joint.name));
         pose(&joint.origin, || at("<origin>"))?;
         check_all(&joint.axis.xyz.0, Quantity::Finite, || at("<axis xyz>"))?;
         let limit = &joint.limit;
@@ -67,10 +90,19 @@ pub(crate) fn check_numbers(urdf: &urdf_rs::Robot) -> Result<(), RobotError> {
             JointType::Prismatic => Quantity::LengthM,
             _ => Quantity::Finite,
         };
+        let modelled = matches!(joint.joint_type, JointType::Revolute | JointType::Prismatic);
         for (value, name) in [(limit.lower, "lower"), (limit.upper, "upper")] {
-            if !value.is_infinite() {
-                check(value, position, || at(&format!("<limit {name}>")))?;
+            let field = || at(&format!("<limit {name}>"));
+            if value.is_infinite() {
+                if modelled {
+                    infinite(value, &field)?;
+                }
+            } else {
+                check(value, position, field)?;
             }
+        }
+        for (value, name) in [(limit.effort, "effort"), (limit.velocity, "velocity")] {
+            infinite(value, &|| at(&format!("<limit {name}>")))?;
         }
         for (value, name) in [
             (limit.effort, "effort"),
@@ -123,7 +155,7 @@ pub(crate) fn check_numbers(urdf: &urdf_rs::Robot) -> Result<(), RobotError> {
     for material in &urdf.materials {
         if let Some(color) = &material.color {
             check_all(&color.rgba.0, Quantity::Finite, || {
-                format!("material '{}' <color rgba>", material.name)
+                format!("material '{}' <color rgba>", shown(&material.name))
             })?;
         }
     }

@@ -61,7 +61,7 @@ use crate::model::{
     rpy_of, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot, RobotError,
     UrdfSource, MAX_JOINTS,
 };
-use crate::plausible::first_few;
+use crate::plausible::{first_few, name as shown};
 
 mod check;
 mod scan;
@@ -69,6 +69,39 @@ mod write;
 
 pub use scan::{MAX_URDF_DEPTH, MAX_URDF_ELEMENTS, MAX_URDF_JOINTS, MAX_URDF_LINKS};
 pub use write::UrdfOmission;
+
+/// The URDF parser's error, its message cut to [`UrdfParseError::MAX_CHARS`]: the parser
+/// quotes attribute values whole, however long.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UrdfParseError {
+    /// The parser's message, cut.
+    pub message: String,
+}
+
+impl UrdfParseError {
+    /// The most characters of the parser's message kept.
+    pub const MAX_CHARS: usize = 300;
+
+    fn new(error: &urdf_rs::UrdfError) -> UrdfParseError {
+        let full = error.to_string();
+        let count = full.chars().count();
+        let message = if count > Self::MAX_CHARS {
+            let kept: String = full.chars().take(Self::MAX_CHARS).collect();
+            format!("{kept}… ({} more characters)", count - Self::MAX_CHARS)
+        } else {
+            full
+        };
+        UrdfParseError { message }
+    }
+}
+
+impl std::fmt::Display for UrdfParseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for UrdfParseError {}
 
 /// How many names a message lists before "and N more".
 const NAMES_SHOWN: usize = 8;
@@ -116,9 +149,9 @@ fn product(robot: &urdf_rs::Robot, joints: &[usize]) -> Transform {
 /// Reads a robot from URDF text (see the module docs).
 pub(crate) fn robot_from_urdf_str(text: &str, links: &LinkNames) -> Result<Robot, RobotError> {
     scan::check_size(text)?;
-    let urdf = urdf_rs::read_from_string(text).map_err(|source| RobotError::Urdf {
+    let urdf = urdf_rs::read_from_string(text).map_err(|error| RobotError::Urdf {
         path: std::path::PathBuf::new(),
-        source,
+        source: UrdfParseError::new(&error),
     })?;
     robot_from_urdf(&urdf, links)
 }
@@ -145,7 +178,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     let mut link_index = HashMap::new();
     for (i, link) in urdf.links.iter().enumerate() {
         if link_index.insert(link.name.as_str(), i).is_some() {
-            return Err(chain_error(format!("two links are named '{}'", link.name)));
+            return Err(chain_error(format!(
+                "two links are named '{}'",
+                shown(&link.name)
+            )));
         }
     }
     let mut joint_names = std::collections::HashSet::new();
@@ -153,10 +189,11 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         if !joint_names.insert(joint.name.as_str()) {
             return Err(chain_error(format!(
                 "two joints are named '{}'",
-                joint.name
+                shown(&joint.name)
             )));
         }
     }
+    crate::plausible::check_name(&urdf.name)?;
     check::check_numbers(urdf)?;
     // Each link's parent joint, and each link's child joints.
     let mut parent_joint: HashMap<&str, usize> = HashMap::new();
@@ -165,15 +202,16 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         for end in [&joint.parent.link, &joint.child.link] {
             if !link_index.contains_key(end.as_str()) {
                 return Err(chain_error(format!(
-                    "joint '{}' names the link '{end}', which the file does not have",
-                    joint.name
+                    "joint '{}' names the link '{}', which the file does not have",
+                    shown(&joint.name),
+                    shown(end)
                 )));
             }
         }
         if parent_joint.insert(joint.child.link.as_str(), j).is_some() {
             return Err(chain_error(format!(
                 "link '{}' is the child of two joints: not a tree",
-                joint.child.link
+                shown(&joint.child.link)
             )));
         }
         child_joints
@@ -184,7 +222,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     let base = match &links.base_link {
         Some(name) => {
             if !link_index.contains_key(name.as_str()) {
-                return Err(chain_error(format!("no link named '{name}' (base link)")));
+                return Err(chain_error(format!(
+                    "no link named '{}' (base link)",
+                    shown(name)
+                )));
             }
             name.clone()
         }
@@ -210,7 +251,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     let tip = match &links.tip_link {
         Some(name) => {
             if !link_index.contains_key(name.as_str()) {
-                return Err(chain_error(format!("no link named '{name}' (tip link)")));
+                return Err(chain_error(format!(
+                    "no link named '{}' (tip link)",
+                    shown(name)
+                )));
             }
             name.clone()
         }
@@ -237,8 +281,9 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
                 [leaf] => (*leaf).to_owned(),
                 _ => {
                     return Err(chain_error(format!(
-                        "{} leaf links below '{base}' ({}): name the tip link",
+                        "{} leaf links below '{}' ({}): name the tip link",
                         leaves.len(),
+                        shown(&base),
                         first_few(&leaves, NAMES_SHOWN)
                     )))
                 }
@@ -251,7 +296,9 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     while link != base {
         let Some(&j) = parent_joint.get(link) else {
             return Err(chain_error(format!(
-                "link '{tip}' is not below link '{base}'"
+                "link '{}' is not below link '{}'",
+                shown(&tip),
+                shown(&base)
             )));
         };
         if path.len() > urdf.joints.len() {
@@ -270,7 +317,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         if joint.mimic.is_some() {
             return Err(chain_error(format!(
                 "joint '{}' mimics another joint: not a serial chain of independent joints",
-                joint.name
+                shown(&joint.name)
             )));
         }
         match joint.joint_type {
@@ -283,7 +330,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
                 return Err(chain_error(format!(
                     "joint '{}' is {other:?}: only revolute, continuous, prismatic and fixed \
                      joints make a serial chain",
-                    joint.name
+                    shown(&joint.name)
                 )))
             }
         }
@@ -301,7 +348,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     for (&j, before) in movable.iter().zip(&fixed_before) {
         let joint = &urdf.joints[j];
         let axis = unit_axis(joint.axis.xyz.0).ok_or_else(|| {
-            chain_error(format!("joint '{}' has an axis of zero length", joint.name))
+            chain_error(format!(
+                "joint '{}' has an axis of zero length",
+                shown(&joint.name)
+            ))
         })?;
         let (kind, limits) = match joint.joint_type {
             JointType::Continuous => (JointKind::Revolute, [f64::NEG_INFINITY, f64::INFINITY]),
@@ -315,7 +365,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         if limits[0].partial_cmp(&limits[1]) != Some(std::cmp::Ordering::Less) {
             return Err(chain_error(format!(
                 "joint '{}' has limits lower {} upper {}: a {} joint needs lower < upper",
-                joint.name,
+                shown(&joint.name),
                 joint.limit.lower,
                 joint.limit.upper,
                 if kind == JointKind::Revolute {
@@ -910,6 +960,62 @@ mod tests {
             error,
             "URDF: 100 root links (r0, r1, r2, r3, r4, r5, r6, r7 and 92 more): name the base link"
         );
+    }
+
+    /// What the fuzz test found, kept: the parser's message quoting a megabyte attribute,
+    /// names of a megabyte, and infinite limits a URDF 1.0 file cannot carry back.
+    #[test]
+    fn messages_stay_short_and_limits_stay_writable() {
+        let tip = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let refused = |text: &str| {
+            let error = robot_from_urdf_str(text, &tip).unwrap_err();
+            match std::error::Error::source(&error) {
+                Some(source) => format!("{error}: {source}"),
+                None => error.to_string(),
+            }
+        };
+        let text = TEST_URDF.replace(
+            r#"<origin xyz="0 0 0.3""#,
+            &format!(r#"<origin xyz="0 0.3{}""#, "<a>".repeat(300_000)),
+        );
+        let message = refused(&text);
+        assert!(message.ends_with("more characters)"), "{message}");
+        assert!(message.len() < 500, "{} bytes", message.len());
+        let text = TEST_URDF.replace(
+            r#"name="j1""#,
+            &format!(r#"name="{}""#, "j".repeat(1_000_000)),
+        );
+        let text = text.replace(r#"<axis xyz="0 0 1"/>"#, r#"<axis xyz="0 0 0"/>"#);
+        let message = refused(&text);
+        assert!(message.contains("… (999960 more characters)"), "{message}");
+        assert!(message.len() < 200, "{message}");
+        // Infinite velocity: not in URDF 1.0 (it could not be written back), in 1.2.
+        let text = TEST_URDF.replace(
+            r#"<limit lower="-2" upper="2" effort="1" velocity="1"/>"#,
+            r#"<limit lower="-2" upper="2" effort="1" velocity="inf"/>"#,
+        );
+        assert!(
+            refused(&text).starts_with("joint 'j2' <limit velocity>: infinite"),
+            "{}",
+            refused(&text)
+        );
+        let text = text.replace(
+            r#"<robot name="test arm">"#,
+            r#"<robot name="test arm" version="1.2">"#,
+        );
+        let robot = robot_from_urdf_str(&text, &tip).unwrap();
+        let written = robot.to_urdf_string(&[]).unwrap();
+        assert!(robot_from_urdf_str(
+            &written,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some(TCP_LINK.into())
+            }
+        )
+        .is_ok());
     }
 
     /// An axis is a direction: a vector whose length overflows or underflows is still one;
