@@ -13,6 +13,7 @@ mod eval;
 mod hostile_csv;
 mod latency_guard;
 mod no_alloc;
+mod robot_mutation;
 mod robots;
 mod shipped_kr150_data;
 mod table_files;

@@ -18,6 +18,7 @@ pub mod model;
 pub mod plausible;
 pub mod register;
 pub mod simulate;
+pub mod testing;
 pub mod toml_error;
 pub mod urdf;
 
