@@ -66,8 +66,14 @@
 //! `[payload]`'s `com_mm`. A TOML file may
 //! instead name a URDF file (`urdf = "robot.urdf"`, relative to the TOML file, with optional
 //! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
-//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. `home_deg` holds degrees for revolute joints and
-//! millimetres for prismatic ones.
+//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. The
+//! file it names may itself be a TOML robot file naming another (a tool added to a robot),
+//! at most [`crate::file::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
+//! [`Robot::load_with_files`] reports every file read. `home_deg` holds degrees for
+//! revolute joints and millimetres for prismatic ones.
+//!
+//! Every number must lie in its plausible range ([`crate::plausible`]: lengths within
+//! 1 km, masses to 10⁶ kg, ...); a value beyond is refused with its key.
 //!
 //! # Gravity compliance
 //!

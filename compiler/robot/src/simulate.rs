@@ -207,7 +207,8 @@ pub enum SimulateError {
 /// frame `i` for a robot described in MD-H (frame `n`, the flange, for the payload), the
 /// joint's frame after its motion for any other robot (the last joint's for the payload).
 /// Gravity is −z of the frame poses are given in. Every value must lie in its plausible
-/// range ([`crate::plausible`]).
+/// range ([`crate::plausible`]). A scenario file names no other file: [`Scenario::load`]
+/// reads that one file (a caller checking outputs against inputs needs no more).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
     /// Geometric MD-H deviations per joint (robots described in MD-H).

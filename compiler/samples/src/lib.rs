@@ -51,7 +51,8 @@
 //! Every problem is an error naming the file, the line and, where there is one, the
 //! column: a wrong field count, a field that is not a number, NaN or infinite, a number
 //! with the other decimal mark, a zero quaternion, a missing or incomplete group of
-//! columns, two conventions on one side, mixed units in a group, an empty file.
+//! columns, a mapped column the header lacks (with the header's closest names), two
+//! conventions on one side, mixed units in a group, an empty file.
 //!
 //! Samples that read but look wrong for a robot in millimetres — a file in metres spans a
 //! millimetre — are flagged by [`SampleSet::plausibility_warnings`], typed, for the caller
