@@ -166,8 +166,7 @@ impl std::fmt::Display for RegisterWarning {
                     f,
                     "the rigid fit leaves a position RMS of {position_rms_mm:.1} mm, more than \
                      the {MAX_PLAUSIBLE_FIT_RMS_MM} mm a robot's own error accounts for; the \
-                     measured positions spread {} times as far as the robot's",
-                    crate::plausible::number(*spread_ratio)
+                     measured positions spread {spread_ratio:.3e} times as far as the robot's"
                 )?;
                 match likely_unit {
                     Some(unit) => write!(
@@ -1024,5 +1023,44 @@ mod tests {
             "measurement row 9: measured position (mm)[0]: a length (mm) is 1e300, but must be \
              within ±1000000"
         );
+    }
+
+    /// The UR10's series C, measured in mm: a plausible fit; its measured positions in
+    /// metres read as millimetres: flagged, with the unit.
+    #[test]
+    fn the_ur10_series_in_metres_is_flagged() {
+        let folder =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/ur10/measurements");
+        let readme = std::fs::read_to_string(folder.join("README.md")).unwrap();
+        let line = readme
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("--columns "))
+            .unwrap();
+        let columns = adwi_samples::ColumnMap::parse(line.trim()).unwrap();
+        let mut m = adwi_samples::read_measurements(
+            &folder.join("Series_C/measurements_random_poses.csv"),
+            &columns,
+            &adwi_samples::ReadOptions::default(),
+        )
+        .unwrap();
+        let robot = Robot::load(shipped_robot_path("ur10")).unwrap();
+        let r = register(&robot, &m, &RegisterOptions::default()).unwrap();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        for p in &mut m.measured_mm {
+            *p = p.map(|v| v * 1e-3);
+        }
+        let r = register(&robot, &m, &RegisterOptions::default()).unwrap();
+        assert!(
+            matches!(
+                &r.warnings[..],
+                [RegisterWarning::ImplausibleFit {
+                    likely_unit: Some("m"),
+                    ..
+                }]
+            ),
+            "{:?}",
+            r.warnings
+        );
+        println!("{}", r.warnings[0]);
     }
 }

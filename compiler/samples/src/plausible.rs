@@ -153,6 +153,7 @@ fn number(value: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ColumnMap;
 
     /// A lattice of `side` mm with errors of `error` mm, every number times `scale`.
     fn lattice(side: f64, error: f64, scale: f64) -> SampleSet {
@@ -214,5 +215,26 @@ mod tests {
                 error_rms_mm: 2500.0
             }]
         );
+    }
+
+    /// The UR5's laser-tracker grid (mm) is plausible; the same numbers in metres read as
+    /// millimetres are flagged, with the unit.
+    #[test]
+    fn the_ur5_grid_in_metres_is_flagged() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
+        let map = ColumnMap::parse("x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif").unwrap();
+        let mut samples = crate::read_samples(&path, &map).unwrap();
+        assert!(samples.plausibility_warnings().is_empty());
+        for (p, e) in samples.nominal_mm.iter_mut().zip(&mut samples.error_mm) {
+            *p = p.map(|v| v * 1e-3);
+            *e = e.map(|v| v * 1e-3);
+        }
+        let warnings = samples.plausibility_warnings();
+        let [SampleWarning::Extent { likely_units, .. }] = &warnings[..] else {
+            panic!("{warnings:?}")
+        };
+        assert_eq!(likely_units, &["m"]);
+        println!("{}", warnings[0]);
     }
 }
