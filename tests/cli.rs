@@ -1185,7 +1185,7 @@ fn a_kriging_served_field_is_built_recorded_and_served() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("choose method, kriging or kriging-tool-axis"),
+        stderr(&o).contains("choose auto, method, kriging or kriging-tool-axis"),
         "{}",
         stderr(&o)
     );

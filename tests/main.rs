@@ -1,7 +1,7 @@
 //! The end-to-end tests of the workspace, as one test binary (linking dominates a test
 //! build's time): the real `tablec` executable, the runtime against the brute-force
 //! reference, table files good and hostile, the C interface, allocation counting,
-//! concurrent table swaps, the shipped data (the UR10 measurements read as they are) and
+//! concurrent table swaps, robot programs compensated offline, the shipped data (the UR10 measurements read as they are) and
 //! the documented figures.
 
 mod common;
@@ -13,6 +13,8 @@ mod eval;
 mod hostile_csv;
 mod latency_guard;
 mod no_alloc;
+mod outputs;
+mod programs;
 mod robot_mutation;
 mod robots;
 mod shipped_kr150_data;

@@ -6,19 +6,86 @@ use adwi_runtime::format::{Header, HEADER_LEN};
 use adwi_runtime::{OpenError, Status, Table};
 use adwi_samples::{parse_samples, ColumnMap};
 
-fn small_table() -> Vec<u8> {
-    let csv = "x,y,z,dx,dy,dz,rx,ry,rz,config\n\
-               1000,0,500,0.1,0.2,0.3,1e-4,0,0,0\n\
-               1100,0,500,0.2,0.1,0.3,0,1e-4,0,0\n\
-               1000,100,500,0.1,0.3,0.2,0,0,1e-4,1\n\
-               1100,100,500,0.3,0.2,0.1,0,0,0,1\n\
-               1050,50,600,0.2,0.2,0.2,0,0,0,0\n";
+/// A 3 × 3 × 4 lattice, 30 mm apart, with orientation errors and two configurations; with
+/// joint values `j1..j6` when `joints`.
+fn lattice_csv(joints: bool) -> String {
+    let mut csv = String::from("x,y,z,dx,dy,dz,rx,ry,rz,config");
+    if joints {
+        csv += ",j1,j2,j3,j4,j5,j6";
+    }
+    csv += "\n";
+    let mut n = 0;
+    for k in 0..4 {
+        for j in 0..3 {
+            for i in 0..3 {
+                let (x, y, z) = (1000 + 30 * i, 30 * j, 500 + 30 * k);
+                let e = 0.1 + 0.01 * (n % 7) as f64;
+                csv += &format!(
+                    "{x},{y},{z},{e},0.2,-{e},1e-4,0,{},{}",
+                    1e-5 * n as f64,
+                    n % 2
+                );
+                if joints {
+                    csv += &format!(",{},{},{},0,90,0", i * 10, j * 10, k * 10);
+                }
+                csv += "\n";
+                n += 1;
+            }
+        }
+    }
+    csv
+}
+
+fn compiled(csv: &str, options: BuildOptions) -> Vec<u8> {
     let samples = parse_samples("t.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
-    let options = BuildOptions {
-        cell_mm: Some(50.0),
-        ..BuildOptions::default()
-    };
     compile(&samples, &options, &|_| {}).unwrap().0
+}
+
+/// The plain small table: orientation errors, two configurations (three node sets), and
+/// candidate lists too long for their cell records (the overflow list).
+fn small_table() -> Vec<u8> {
+    compiled(
+        &lattice_csv(false),
+        BuildOptions {
+            cell_mm: Some(60.0),
+            ..BuildOptions::default()
+        },
+    )
+}
+
+/// Small tables that together hold every section of the format — the plain one, one with
+/// a joint screen (the samples' joint values, no served tier), and a hybrid one (the
+/// nominal and calibrated chains) — each a few kilobytes, so that every bit of each can be
+/// flipped in a test.
+fn small_tables() -> Vec<(&'static str, Vec<u8>)> {
+    let screened = compiled(
+        &lattice_csv(true),
+        BuildOptions {
+            cell_mm: Some(60.0),
+            joint_radius_deg: Some(30.0),
+            ..BuildOptions::default()
+        },
+    );
+    let (_, samples, calibration) = crate::common::kr150_calibration();
+    let near: Vec<usize> = (0..samples.len())
+        .filter(|&i| {
+            let p = samples.nominal_mm[i];
+            p[0] <= 1550.0 && p[1] <= 250.0 && p[2] <= 1050.0
+        })
+        .collect();
+    let hybrid = crate::common::hybrid_table_bytes(
+        &samples.subset(&near),
+        &calibration.prepared_model(),
+        &BuildOptions {
+            cell_mm: Some(200.0),
+            ..BuildOptions::default()
+        },
+    );
+    vec![
+        ("plain", small_table()),
+        ("screened", screened),
+        ("hybrid", hybrid),
+    ]
 }
 
 /// Opens through the public entry point, checking that a refused table is refused and an
@@ -28,7 +95,7 @@ fn open(bytes: &[u8]) -> Result<(), OpenError> {
     let c = table.query([1050.0, 50.0, 500.0]);
     assert!(matches!(
         c.status,
-        Status::Ok | Status::NoAdmissibleNeighbour
+        Status::Ok | Status::NoAdmissibleNeighbour | Status::MissingJoints | Status::OutsideGrid
     ));
     Ok(())
 }
@@ -59,16 +126,47 @@ fn appended_bytes_are_refused() {
 
 #[test]
 fn every_single_bit_flip_is_refused() {
-    let bytes = small_table();
-    let mut flipped = bytes.clone();
-    for byte in 0..bytes.len() {
-        for bit in 0..8 {
-            flipped[byte] ^= 1 << bit;
-            let result = open(&flipped);
-            assert!(result.is_err(), "flip of bit {bit} of byte {byte} accepted");
-            flipped[byte] ^= 1 << bit;
+    for (name, bytes) in small_tables() {
+        assert!(bytes.len() < 40_000, "{name}: {} bytes", bytes.len());
+        open(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mut flipped = bytes.clone();
+        for byte in 0..bytes.len() {
+            for bit in 0..8 {
+                flipped[byte] ^= 1 << bit;
+                let result = open(&flipped);
+                assert!(
+                    result.is_err(),
+                    "{name}: flip of bit {bit} of byte {byte} accepted"
+                );
+                flipped[byte] ^= 1 << bit;
+            }
         }
     }
+}
+
+/// The small tables hold every section: the overflow list, orientation errors,
+/// configurations and their node sets, the joint screen's joint values, the model.
+#[test]
+fn the_small_tables_hold_every_section() {
+    let tables = small_tables();
+    let (plain, screened, hybrid) = (&tables[0].1, &tables[1].1, &tables[2].1);
+    let plain = Table::from_vec(plain).unwrap();
+    let Some(adwi_runtime::Payload::V2(data)) = plain.payload() else {
+        panic!("a version-2 table")
+    };
+    assert!(!data.overflow.is_empty(), "an overflow list");
+    assert!(!data.orientation_errors_rad.is_empty() && !data.configs.is_empty());
+    assert!(
+        data.node_sets.len() >= 3,
+        "{} node sets",
+        data.node_sets.len()
+    );
+    let screened = Table::from_vec(screened).unwrap();
+    let Some(adwi_runtime::Payload::V2(data)) = screened.payload() else {
+        panic!("a version-2 table")
+    };
+    assert!(!data.joints_rad.is_empty() && data.node_sets.is_empty());
+    assert!(Table::from_vec(hybrid).unwrap().is_hybrid());
 }
 
 #[test]

@@ -10,7 +10,13 @@ This package does what the ``tablec`` command line does, with numpy arrays:
 - :func:`build` compiles samples into a table file (``tablec build``);
 - :meth:`Table.open` maps a table, :meth:`Table.query` answers an (N, 3) array of targets
   and :meth:`Table.compensate` solves for the commands (``tablec query --targets``);
-- :func:`evaluate` compares the methods on held-out points (``tablec eval``).
+- :func:`evaluate` compares the methods on held-out points, or scores a table built
+  before (``tablec eval``);
+- :func:`calibrate` identifies the robot and writes it calibrated (``tablec calibrate``).
+
+Every function takes ``tablec``'s options of the same names as keyword arguments
+(``--tune-folds`` is ``tune_folds=``), defined once for both and documented in each
+function's docstring.
 
 Samples are a CSV path, a pandas DataFrame with the CSV's column names, or a numpy array
 with columns ``x, y, z, dx, dy, dz[, j1..jn]``. Positions are in mm, joint angles in
@@ -44,6 +50,7 @@ __all__ = [
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
+    "calibrate",
     "evaluate",
 ]
 
@@ -95,35 +102,49 @@ def _columns(columns: Union[None, str, Mapping[str, str]]) -> Optional[str]:
     return ",".join(f"{name}={source}" for name, source in columns.items())
 
 
-def _reading(
-    samples: Samples,
-    columns: Union[None, str, Mapping[str, str]],
-    delimiter: Optional[str],
-    decimal: Optional[str],
-    length_unit: Optional[str],
-    angle_unit: Optional[str],
-) -> Dict[str, Optional[str]]:
-    if not isinstance(samples, (str, os.PathLike)) and (delimiter or decimal):
+def _sources(samples: Any, what: str) -> List[Union[str, Tuple[str, bytes]]]:
+    """One source, or several series (a list or tuple of them), for the native reader."""
+    if isinstance(samples, (list, tuple)):
+        return [_source(s, f"{what} {i + 1}") for i, s in enumerate(samples)]
+    return [_source(samples, what)]
+
+
+#: Options whose values are paths.
+_PATH_OPTIONS = ("robot", "csv", "json", "report", "table", "output", "urdf")
+
+
+def _options(files: Sequence[Any], options: Dict[str, Any]) -> Dict[str, Any]:
+    """The keyword options as the job takes them: paths as strings, a column mapping dict
+    as its text, bounds and method lists as lists. Their names and values are checked by
+    the job, with tablec's messages."""
+    given = {k: v for k, v in options.items() if v is not None}
+    if any(not isinstance(f, (str, os.PathLike)) for f in files if f is not None) and (
+        given.get("delimiter") or given.get("decimal")
+    ):
         raise AdwiError("delimiter and decimal apply to CSV files, not to arrays or DataFrames")
-    return {
-        "columns": _columns(columns),
-        "delimiter": delimiter,
-        "decimal": decimal,
-        "length_unit": length_unit,
-        "angle_unit": angle_unit,
-    }
+    if "columns" in given:
+        given["columns"] = _columns(given["columns"])
+    if "bounds" in given:
+        given["bounds"] = [float(v) for v in np.asarray(given["bounds"], dtype=np.float64).ravel()]
+    if isinstance(given.get("methods"), str):
+        given["methods"] = [m for m in given["methods"].split(",") if m]
+    elif "methods" in given:
+        given["methods"] = list(given["methods"])
+    for name in _PATH_OPTIONS:
+        if isinstance(given.get(name), os.PathLike):
+            given[name] = os.fspath(given[name])
+    return given
 
 
-def _table_options(**options: Any) -> Dict[str, Any]:
-    bounds = options.get("bounds")
-    if bounds is not None:
-        bounds = [float(v) for v in np.asarray(bounds, dtype=np.float64).ravel()]
-        if len(bounds) != 6:
-            raise AdwiError(
-                f"bounds: six numbers are needed, xmin,ymin,zmin,xmax,ymax,zmax; {len(bounds)} given"
-            )
-        options["bounds"] = bounds
-    return options
+def _document(function: Any, job: str) -> Any:
+    """Appends the job's options — names, defaults and help as ``tablec --help`` gives
+    them, from the one definition both front ends use — to ``function``'s docstring."""
+    lines = [function.__doc__ or "", "", "    Options (tablec's flags of the same names):", ""]
+    for name, text, default in _adwi.options(job):
+        default_text = f" [default: {default}]" if default is not None else ""
+        lines.append(f"    - ``{name}``{default_text}: {' '.join(text.split())}")
+    function.__doc__ = "\n".join(lines)
+    return function
 
 
 def _warn(messages: Sequence[str]) -> None:
@@ -183,170 +204,43 @@ class BuildReport:
         )
 
 
-def build(
-    samples: Samples,
-    output: PathLike,
-    *,
-    columns: Union[None, str, Mapping[str, str]] = None,
-    robot: Optional[PathLike] = None,
-    hybrid: bool = False,
-    base_link: Optional[str] = None,
-    tip_link: Optional[str] = None,
-    delimiter: Optional[str] = None,
-    decimal: Optional[str] = None,
-    length_unit: Optional[str] = None,
-    angle_unit: Optional[str] = None,
-    cell: Optional[float] = None,
-    radius: Optional[float] = None,
-    k: Optional[int] = None,
-    w1: Optional[float] = None,
-    w2: Optional[float] = None,
-    power: Optional[float] = None,
-    lambda_min: Optional[float] = None,
-    zeta_min: Optional[float] = None,
-    consistency_screen: bool = True,
-    bounds: Optional[Sequence[float]] = None,
-    joint_radius: Optional[float] = None,
-    served_field: Optional[str] = None,
-    threads: Optional[int] = None,
-    tune: bool = False,
-    tune_folds: int = 5,
-    compliance: bool = False,
-    measured_in: str = "base",
-) -> BuildReport:
+def build(samples: Samples, output: PathLike, **options: Any) -> BuildReport:
     """Compile samples into a correction table at ``output``, as ``tablec build``.
 
     ``samples`` is a CSV path, a pandas DataFrame with the CSV's column names (``x, y, z,
     dx, dy, dz``, orientations, ``j1..jn``, ``config``; in a message, its line n is row
-    n - 2), or a numpy array with columns ``x, y, z, dx, dy, dz[, j1..jn]`` (mm, joints
-    in degrees unless ``angle_unit="rad"``).
-
-    Reading, as tablec's READING options: ``columns`` (``"x=x_t,y=y_t,..."`` or a dict
-    ``{"x": "x_t", ...}``; ``"-col"`` negates, ``"col:m"`` gives a unit), ``delimiter``
-    (``"comma"``, ``"semicolon"``, ``"tab"``), ``decimal`` (``"point"``, ``"comma"``),
-    ``length_unit`` (``"mm"``, ``"m"``), ``angle_unit`` (``"deg"``, ``"rad"``).
-
-    Table, as tablec's options of the same names: ``cell`` and ``radius`` (mm; derived
-    from the sample spacing by default), ``k``, ``w1``, ``w2``, ``power``, ``lambda_min``,
-    ``zeta_min`` (the paper's by default), ``consistency_screen``, ``bounds``
-    (xmin, ymin, zmin, xmax, ymax, zmax, mm), ``joint_radius`` (deg), ``served_field``
-    (``"method"``, the default; ``"kriging"``: kriging with a nugget of the samples'
-    errors at the served field's nodes; or, with ``hybrid=True``, ``"kriging-tool-axis"``:
-    that kriging with a part that turns with the nominal tool's approach axis;
-    ``tune=True`` chooses among them). ``robot`` (TOML,
-    or URDF with ``base_link``/``tip_link``) with ``hybrid=True`` identifies the robot's
-    kinematic deviations first and tables what the calibrated model leaves. ``tune=True``
-    chooses ``k`` and ``radius`` by ``tune_folds``-fold cross-validation on the samples
-    alone, as ``tablec build --tune``, and records the choice in the table (the report's
-    ``tuning``: ``folds``, the cross-validated mean ``cv_mean_mm`` and the served tier's
-    ``served_cv_mean_mm``, mm). ``compliance=True`` (with
-    ``hybrid=True``) identifies each revolute joint's gravity compliance with the
-    geometry, as ``tablec build --hybrid --compliance``: the robot file must give link
-    masses. ``measured_in`` is the frame of the measured poses, as ``tablec build
-    --measured-in``: ``"base"`` (the default, the robot's) or ``"tracker"`` (a laser
-    tracker's own frame: joints ``j1..jn`` and measured ``mx, my, mz``, optionally a
-    measured orientation; a CSV path or a DataFrame). Tracker-frame measurements are
-    registered to ``robot`` (base in tracker, probe on flange; ``docs/tracker.md``) before
-    anything else, and need ``hybrid=True``; the report's ``registration`` holds the fit.
+    n - 2), a numpy array with columns ``x, y, z, dx, dy, dz[, j1..jn]`` (mm, joints in
+    degrees unless ``angle_unit="rad"``), or a list of them: several series in one table.
+    With ``robot`` (a robot file, TOML or URDF) the table is hybrid: the robot's kinematic
+    deviations are identified from the samples and the table holds the calibrated model
+    and the residuals it leaves. ``columns`` may be a dict ``{"x": "x_t", ...}``.
 
     The table is written atomically (complete or not at all); an output that is one of
     the inputs (also through a link) is refused before anything is written. The GIL is
-    released while building. Warnings (a mostly empty grid, unidentifiable parameters)
-    are issued as :class:`AdwiWarning`.
-
-    Returns the :class:`BuildReport`. Raises :class:`AdwiError`.
+    released while building. Warnings are issued as :class:`AdwiWarning`. Returns the
+    :class:`BuildReport`. Raises :class:`AdwiError`.
     """
-    source = _source(samples, "samples")
-    reading = _reading(samples, columns, delimiter, decimal, length_unit, angle_unit)
-    table = _table_options(
-        cell=cell,
-        radius=radius,
-        k=k,
-        w1=w1,
-        w2=w2,
-        power=power,
-        lambda_min=lambda_min,
-        zeta_min=zeta_min,
-        consistency_screen=consistency_screen,
-        bounds=bounds,
-        joint_radius=joint_radius,
-        served_field=served_field,
-    )
     fields = _adwi.build(
-        source,
+        _sources(samples, "samples"),
         os.fspath(output),
-        reading,
-        table,
-        robot=None if robot is None else os.fspath(robot),
-        base_link=base_link,
-        tip_link=tip_link,
-        hybrid=hybrid,
-        threads=threads,
-        tune=tune,
-        tune_folds=tune_folds,
-        compliance=compliance,
-        measured_in=measured_in,
+        **_options([samples], options),
     )
     _warn(fields["warnings"])
     return BuildReport(fields)
 
 
 def evaluate(
-    samples: Samples,
+    samples: Optional[Samples] = None,
     *,
     validation: Optional[Samples] = None,
-    folds: Optional[int] = None,
-    seed: int = 0,
-    limit: Optional[int] = None,
-    methods: Optional[Sequence[str]] = None,
-    robot: Optional[PathLike] = None,
-    base_link: Optional[str] = None,
-    tip_link: Optional[str] = None,
-    rank_tol: Optional[float] = None,
-    keep_untrustworthy: bool = False,
-    compliance: bool = False,
-    measured_in: str = "base",
-    register_validation_apart: bool = False,
-    columns: Union[None, str, Mapping[str, str]] = None,
-    delimiter: Optional[str] = None,
-    decimal: Optional[str] = None,
-    length_unit: Optional[str] = None,
-    angle_unit: Optional[str] = None,
-    cell: Optional[float] = None,
-    radius: Optional[float] = None,
-    k: Optional[int] = None,
-    w1: Optional[float] = None,
-    w2: Optional[float] = None,
-    power: Optional[float] = None,
-    lambda_min: Optional[float] = None,
-    zeta_min: Optional[float] = None,
-    consistency_screen: bool = True,
-    bounds: Optional[Sequence[float]] = None,
-    joint_radius: Optional[float] = None,
-    served_field: Optional[str] = None,
+    **options: Any,
 ) -> "Evaluation":
-    """Compare compensation methods on held-out points, as ``tablec eval``.
+    """Compare compensation methods on held-out points, as ``tablec eval``; or, with
+    ``table``, score a table built before at the ``validation`` points (``tablec eval
+    --table``).
 
-    Either ``validation`` (samples in the same form and columns as ``samples``; ``limit``
-    keeps the first N) or ``folds`` (k-fold cross-validation of ``samples``, split by
-    ``seed``). ``methods``: names among ``paper``, ``paper-trilinear``, ``paper-joint``,
-    ``idw``, ``grid``, ``kriging``, ``kinematic``, ``hybrid``, ``hybrid-trilinear``,
-    ``kinematic-kriging``, ``kinematic-kriging-joint``, ``kinematic-kriging-pose``,
-    ``kinematic-kriging-tool-axis``
-    (default: every one the data allow); ``kinematic``, ``hybrid`` and the ``kinematic-kriging`` ones need ``robot``;
-    ``compliance=True`` identifies gravity compliance with their kinematic model, as
-    ``tablec eval --compliance`` (the robot file must give link masses);
-    ``keep_untrustworthy=True`` keeps every parameter the identification's pivoting keeps,
-    even implausible ones or those within a few standard errors of zero, as
-    ``--keep-untrustworthy`` (by default they are held at nominal). Reading and table
-    options as :func:`build`.
-
-    ``measured_in="tracker"`` (with ``robot``), as ``tablec eval --measured-in tracker``:
-    the samples are tracker-frame measurements, registered to the robot first, and the
-    validation set is read through that registration (same tracker frame, same probe).
-    ``register_validation_apart=True``, as ``--register-validation-apart``: the validation
-    set is a series measured after the tracker moved, registered on its own to the TCP
-    positions the samples' calibration predicts (the probe kept); ``limit`` applies after.
+    Either ``validation`` (samples in the same form and columns as ``samples``) or
+    ``folds`` (k-fold cross-validation of ``samples``, split by ``seed``).
 
     Returns an :class:`Evaluation`: a list with one record per row of ``tablec eval
     --csv`` — ``uncompensated``, then one per method — with its keys: ``method``,
@@ -358,48 +252,36 @@ def evaluate(
     ``validation_registration`` are the registrations ``tablec eval`` prints, or None. The
     GIL is released while evaluating.
     """
-    source = _source(samples, "samples")
-    reading = _reading(samples, columns, delimiter, decimal, length_unit, angle_unit)
-    if validation is not None and not isinstance(validation, (str, os.PathLike)) and (
-        delimiter or decimal
-    ):
-        raise AdwiError("delimiter and decimal apply to CSV files, not to arrays or DataFrames")
-    table = _table_options(
-        cell=cell,
-        radius=radius,
-        k=k,
-        w1=w1,
-        w2=w2,
-        power=power,
-        lambda_min=lambda_min,
-        zeta_min=zeta_min,
-        consistency_screen=consistency_screen,
-        bounds=bounds,
-        joint_radius=joint_radius,
-        served_field=served_field,
-    )
-    if isinstance(methods, str):
-        methods = [m for m in methods.split(",") if m]
+    sources = [] if samples is None else _sources(samples, "samples")
     records, messages, registration, validation_registration, comparison = _adwi.evaluate(
-        source,
-        reading,
-        table,
-        validation=None if validation is None else _source(validation, "validation"),
-        limit=limit,
-        folds=folds,
-        seed=seed,
-        methods=None if methods is None else list(methods),
-        robot=None if robot is None else os.fspath(robot),
-        base_link=base_link,
-        tip_link=tip_link,
-        rank_tol=rank_tol,
-        keep_untrustworthy=keep_untrustworthy,
-        compliance=compliance,
-        measured_in=measured_in,
-        register_validation_apart=register_validation_apart,
+        sources,
+        None if validation is None else _source(validation, "validation"),
+        **_options([samples, validation], options),
     )
     _warn(messages)
     return Evaluation(records, registration, validation_registration, comparison)
+
+
+def calibrate(samples: Samples, **options: Any) -> Dict[str, Any]:
+    """Identify a robot's kinematic deviations from samples, as ``tablec calibrate``, and
+    write the calibrated robot as a robot file (``output``) and as URDF (``urdf``), all
+    or neither.
+
+    Returns a dict: ``identified`` (parameter: value, mm or rad), ``unidentifiable``,
+    ``condition_number``, ``iterations``, ``converged``, ``initial_position_rms_mm``,
+    ``position_rms_mm``, ``orientation_rms_rad``, ``parameters`` (each one's ``name``,
+    ``unit``, ``value``, ``standard_error``, ``status``, ``reason``), ``registration``
+    (tracker-frame samples), ``written`` and ``warnings`` (also issued as
+    :class:`AdwiWarning`).
+    """
+    fields = _adwi.calibrate(_sources(samples, "samples"), **_options([samples], options))
+    _warn(fields["warnings"])
+    return fields
+
+
+_document(build, "build")
+_document(evaluate, "evaluate")
+_document(calibrate, "calibrate")
 
 
 class Evaluation(list):
@@ -690,3 +572,84 @@ class Table:
 
     def __repr__(self) -> str:
         return repr(self._raw)
+
+
+# ---------------------------------------------------------------------------------------
+# Robot programs compensated offline (``tablec compensate``).
+
+__all__ += ["CompensatedProgram", "compensate_program"]
+
+
+class CompensatedProgram:
+    """A compensated robot program: ``output``, its bytes (every target's numbers replaced,
+    everything else as read); ``targets``, one dict per target as ``tablec compensate
+    --report`` writes its rows (``name``, ``line``, ``column``, ``kind``, ``status``,
+    ``detail``, ``correction_mm``, ``rotation_deg``, ``joint_change_deg``,
+    ``iterations``, ``residual_mm``, ``point_mm``, ``command_mm``, and
+    ``command_joints`` in degrees); ``summary``, the counts (``total``, ``corrected``,
+    ``not_corrected`` by status, ``largest_correction_mm``, ``largest_at``, ``text`` as
+    tablec prints it)."""
+
+    def __init__(self, output: bytes, targets: List[Dict[str, Any]], summary: Dict[str, Any]):
+        self.output = output
+        self.targets = targets
+        self.summary = summary
+
+    @property
+    def all_corrected(self) -> bool:
+        """Whether every target was corrected (``tablec compensate`` exits 0)."""
+        return self.summary["corrected"] == self.summary["total"]
+
+    def __repr__(self) -> str:
+        return f"CompensatedProgram({self.summary['text']})"
+
+
+def compensate_program(
+    table: Union[str, os.PathLike],
+    program: Union[str, os.PathLike],
+    output: Optional[Union[str, os.PathLike]] = None,
+    *,
+    report: Optional[Union[str, os.PathLike]] = None,
+    format: Optional[str] = None,
+    robot: Optional[Union[str, os.PathLike]] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    tool: Optional[Sequence[float]] = None,
+    base: Optional[Sequence[float]] = None,
+    table_tool: Optional[Sequence[float]] = None,
+    max_correction_mm: float = 5.0,
+    max_joint_change_deg: float = 2.0,
+    strict: bool = False,
+    max_seconds: float = 300.0,
+) -> CompensatedProgram:
+    """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
+    URScript or CSV program replaced by the command that lands on it (docs/programs.md).
+
+    ``output`` and ``report`` (CSV) are written atomically when given, never over an
+    input. ``format``: ``"krl"``, ``"rapid"``, ``"urscript"`` or ``"csv"`` (default: by
+    extension). ``robot``: a robot file, for joint targets and the posture checks.
+    ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
+    tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
+    leaving any target unchanged. A malformed program raises :class:`AdwiError` naming
+    ``file:line:column``.
+    """
+    path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
+    frame = lambda f: None if f is None else [float(v) for v in f]  # noqa: E731
+    out, targets, summary = _adwi.compensate_program(
+        os.fspath(table),
+        os.fspath(program),
+        output=path(output),
+        report=path(report),
+        format=format,
+        robot=path(robot),
+        base_link=base_link,
+        tip_link=tip_link,
+        tool=frame(tool),
+        base=frame(base),
+        table_tool=frame(table_tool),
+        max_correction_mm=max_correction_mm,
+        max_joint_change_deg=max_joint_change_deg,
+        strict=strict,
+        max_seconds=max_seconds,
+    )
+    return CompensatedProgram(bytes(out), targets, summary)

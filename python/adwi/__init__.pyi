@@ -23,6 +23,7 @@ __all__ = [
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
+    "calibrate",
     "evaluate",
 ]
 
@@ -84,15 +85,15 @@ class BuildReport:
     def __getitem__(self, key: str) -> Any: ...
     def keys(self) -> Iterator[str]: ...
 
+# The keyword options below are the jobs' own (adwi_jobs' BuildArgs, EvalArgs,
+# CalibrateArgs: tablec's flags of the same names); the package's tests hold these
+# signatures equal to them.
+
 def build(
-    samples: Samples,
+    samples: Union[Samples, Sequence[Samples]],
     output: PathLike,
     *,
     columns: Columns = None,
-    robot: Optional[PathLike] = None,
-    hybrid: bool = False,
-    base_link: Optional[str] = None,
-    tip_link: Optional[str] = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,
     length_unit: Optional[str] = None,
@@ -102,57 +103,85 @@ def build(
     k: Optional[int] = None,
     w1: Optional[float] = None,
     w2: Optional[float] = None,
-    power: Optional[float] = None,
-    lambda_min: Optional[float] = None,
-    zeta_min: Optional[float] = None,
-    consistency_screen: bool = True,
+    power: float = 1.0,
+    lambda_min: float = 0.0,
+    zeta_min: float = 0.0,
+    no_consistency_screen: bool = False,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
-    served_field: Optional[str] = None,
-    threads: Optional[int] = None,
-    tune: bool = False,
-    tune_folds: int = 5,
+    served_field: str = "auto",
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    hybrid: bool = False,
     compliance: bool = False,
     measured_in: str = "base",
+    tune: bool = False,
+    tune_folds: int = 5,
+    threads: Optional[int] = None,
 ) -> BuildReport:
     """Compile samples into a correction table at output, as tablec build."""
 
 def evaluate(
-    samples: Samples,
+    samples: Union[None, Samples, Sequence[Samples]] = None,
     *,
     validation: Optional[Samples] = None,
+    table: Optional[PathLike] = None,
+    limit: Optional[int] = None,
     folds: Optional[int] = None,
     seed: int = 0,
-    limit: Optional[int] = None,
-    methods: Union[None, str, Sequence[str]] = None,
-    robot: Optional[PathLike] = None,
-    base_link: Optional[str] = None,
-    tip_link: Optional[str] = None,
-    rank_tol: Optional[float] = None,
-    keep_untrustworthy: bool = False,
-    compliance: bool = False,
-    measured_in: str = "base",
-    register_validation_apart: bool = False,
     columns: Columns = None,
     delimiter: Optional[str] = None,
     decimal: Optional[str] = None,
     length_unit: Optional[str] = None,
     angle_unit: Optional[str] = None,
+    methods: Union[None, str, Sequence[str]] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    measured_in: str = "base",
+    register_validation_apart: bool = False,
+    rank_tol: float = 0.001,
+    keep_untrustworthy: bool = False,
+    compliance: bool = False,
     cell: Optional[float] = None,
     radius: Optional[float] = None,
     k: Optional[int] = None,
     w1: Optional[float] = None,
     w2: Optional[float] = None,
-    power: Optional[float] = None,
-    lambda_min: Optional[float] = None,
-    zeta_min: Optional[float] = None,
-    consistency_screen: bool = True,
+    power: float = 1.0,
+    lambda_min: float = 0.0,
+    zeta_min: float = 0.0,
+    no_consistency_screen: bool = False,
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
-    served_field: Optional[str] = None,
+    served_field: str = "auto",
+    csv: Optional[PathLike] = None,
+    json: Optional[PathLike] = None,
+    report: Optional[PathLike] = None,
 ) -> Evaluation:
     """Compare compensation methods on held-out points, as tablec eval: one record per
-    row of its --csv output."""
+    row of its --csv output; with table, score that table at the validation points."""
+
+def calibrate(
+    samples: Union[Samples, Sequence[Samples]],
+    *,
+    columns: Columns = None,
+    delimiter: Optional[str] = None,
+    decimal: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    output: Optional[PathLike] = None,
+    urdf: Optional[PathLike] = None,
+    measured_in: str = "base",
+    rank_tol: float = 0.001,
+    compliance: bool = False,
+) -> Dict[str, Any]:
+    """Identify the robot's kinematic deviations from samples, as tablec calibrate, and
+    write the calibrated robot files."""
 
 class Evaluation(List[Dict[str, Any]]):
     """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
@@ -244,3 +273,33 @@ class Table:
         tolerance_mm: float = 1e-6,
         max_iterations: int = 50,
     ) -> Compensation: ...
+
+# Robot programs compensated offline (tablec compensate).
+
+__all__ += ["CompensatedProgram", "compensate_program"]
+
+class CompensatedProgram:
+    output: bytes
+    targets: List[Dict[str, Any]]
+    summary: Dict[str, Any]
+    @property
+    def all_corrected(self) -> bool: ...
+
+def compensate_program(
+    table: PathLike,
+    program: PathLike,
+    output: Optional[PathLike] = None,
+    *,
+    report: Optional[PathLike] = None,
+    format: Optional[str] = None,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    tool: Optional[Sequence[float]] = None,
+    base: Optional[Sequence[float]] = None,
+    table_tool: Optional[Sequence[float]] = None,
+    max_correction_mm: float = 5.0,
+    max_joint_change_deg: float = 2.0,
+    strict: bool = False,
+    max_seconds: float = 300.0,
+) -> CompensatedProgram: ...

@@ -1,28 +1,22 @@
 //! `adwi._adwi`: the native half of the `adwi` Python package.
 //!
-//! Thin bindings that compose the workspace's crates as `tablec` does (its `build.rs`,
-//! `query.rs` and `eval.rs`): the same reading options, the same table options and
-//! defaults, the same refusal to overwrite an input, the same atomic write, the same
-//! answers. The public Python API, with its docstrings, is `adwi/__init__.py`, which calls
-//! the functions here.
+//! The jobs are `adwi_jobs`' (the ones `tablec` runs): a job's keyword arguments
+//! deserialize into its `*Args`, whose clap definition is also what documents them
+//! ([`options`]), so that an option is defined once for both front ends. This module maps
+//! arguments, runs the job with the GIL released, and converts the typed results into
+//! dicts; the public Python API is `adwi/__init__.py`, its signatures `adwi/__init__.pyi`.
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
 
-use adwi_compile::build::{compile_plan, BuildOptions, BuildReport};
-use adwi_compile::hybrid;
-use adwi_samples::{
-    AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit, ReadOptions, SampleSet,
+use adwi_jobs::{
+    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, JobError, Silent,
 };
-use adwi_compile::write::{refuse_overwriting, write_atomically};
-use adwi_eval::{EvalOptions, Method, Protocol};
-use adwi_robot::calibrate::{CalibrateOptions, Calibration};
-use adwi_robot::measured::Input;
+use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
-use adwi_runtime::method::MethodParams;
 use adwi_runtime::{Correction, Status, Table as RuntimeTable, Target, Tier};
-use anyhow::{bail, Context};
+use anyhow::Context;
+use clap::Args as _;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
@@ -38,9 +32,6 @@ create_exception!(
      file:line:column), bad options, an unreadable or invalid table, an output that is one \
      of the inputs."
 );
-
-/// The paper's parameters, the defaults of every table option (as `tablec`'s).
-const PAPER: MethodParams<()> = MethodParams::paper(());
 
 /// The fixed-point compensation's tolerance, mm, and iteration bound, as `tablec query`'s.
 const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
@@ -72,174 +63,126 @@ const COMMAND_STATUSES: [&str; 3] = ["converged", "not_converged", "first_order"
 const NO_COMMAND: u8 = 255;
 
 /// An error as tablec prints it (its causes after colons), raised as [`AdwiError`].
-fn adwi_error(e: anyhow::Error) -> PyErr {
-    AdwiError::new_err(format!("{e:#}"))
+fn adwi_error(e: impl Into<anyhow::Error>) -> PyErr {
+    AdwiError::new_err(format!("{:#}", e.into()))
 }
 
 /// Where samples come from: a file, or CSV text made from a DataFrame or an array (named
-/// in messages by `name`).
+/// in messages by its first item).
 #[derive(FromPyObject)]
 enum Source {
     Data(String, Vec<u8>),
     Path(PathBuf),
 }
 
-impl Source {
-    fn path(&self) -> Option<&Path> {
-        match self {
-            Source::Path(p) => Some(p),
-            Source::Data(..) => None,
-        }
-    }
-
-    /// The one reader's view of it, for base-frame samples and tracker-frame measurements
-    /// alike.
-    fn input(&self) -> Input<'_> {
-        match self {
-            Source::Path(p) => Input::File(p),
-            Source::Data(name, bytes) => Input::Memory {
-                name: Path::new(name),
+impl From<Source> for adwi_jobs::Source {
+    fn from(s: Source) -> adwi_jobs::Source {
+        match s {
+            Source::Path(p) => adwi_jobs::Source::File(p),
+            Source::Data(name, bytes) => adwi_jobs::Source::Memory {
+                name: name.into(),
                 bytes,
             },
         }
     }
+}
 
-    fn describe(&self) -> String {
-        match self {
-            Source::Path(p) => p.display().to_string(),
-            Source::Data(name, _) => name.clone(),
+/// The options of a job (`build`, `evaluate`, `calibrate`): each one's name, help text
+/// and default as `tablec --help` gives them, the arguments Python passes apart (the
+/// sources, the output) left out. `__init__.py` documents the functions from it.
+fn job_options(job: &str) -> Option<clap::Command> {
+    let command = clap::Command::new("adwi");
+    Some(match job {
+        "build" => BuildArgs::augment_args(command),
+        "evaluate" => EvalArgs::augment_args(command),
+        "calibrate" => CalibrateArgs::augment_args(command),
+        _ => return None,
+    })
+}
+
+/// The arguments a job's Python function takes apart from its keyword options.
+fn apart(job: &str) -> &'static [&'static str] {
+    match job {
+        "build" => &["samples", "output"],
+        "evaluate" => &["samples", "validation"],
+        _ => &["samples"],
+    }
+}
+
+/// `[(name, help, default or None)]` of a job's options, for the docstrings.
+#[pyfunction]
+fn options(job: &str) -> PyResult<Vec<(String, String, Option<String>)>> {
+    let command = job_options(job)
+        .ok_or_else(|| AdwiError::new_err(format!("no job '{job}'")))?;
+    Ok(command
+        .get_arguments()
+        .filter(|a| !apart(job).contains(&a.get_id().as_str()) && !a.is_hide_set())
+        .map(|a| {
+            let help = a.get_help().map(|h| h.to_string()).unwrap_or_default();
+            let default = a
+                .get_default_values()
+                .first()
+                .map(|v| v.to_string_lossy().into_owned());
+            (a.get_id().to_string(), help, default)
+        })
+        .collect())
+}
+
+/// A job's `*Args` from Python keyword arguments: names checked against the job's
+/// options (an unknown one is refused with the known ones), values deserialized as the
+/// command line's are parsed, a refusal naming the option.
+fn job_args<T: serde::de::DeserializeOwned>(
+    py: Python<'_>,
+    job: &str,
+    kwargs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<T> {
+    let empty = PyDict::new(py);
+    let kwargs = kwargs.unwrap_or(&empty);
+    let command = job_options(job).expect("a known job");
+    let known: Vec<String> = command
+        .get_arguments()
+        .map(|a| a.get_id().to_string())
+        .filter(|id| !apart(job).contains(&id.as_str()))
+        .collect();
+    for key in kwargs.keys() {
+        let key: String = key.extract()?;
+        if !known.contains(&key) {
+            return Err(AdwiError::new_err(format!(
+                "{job}() has no option '{key}'; its options are {}",
+                known.join(", ")
+            )));
         }
     }
-}
-
-/// The reading options, as `tablec`'s `--columns`, `--delimiter`, `--decimal`,
-/// `--length-unit` and `--angle-unit` take them.
-#[derive(FromPyObject, Default)]
-struct Reading {
-    #[pyo3(item)]
-    columns: Option<String>,
-    #[pyo3(item)]
-    delimiter: Option<String>,
-    #[pyo3(item)]
-    decimal: Option<String>,
-    #[pyo3(item)]
-    length_unit: Option<String>,
-    #[pyo3(item)]
-    angle_unit: Option<String>,
-}
-
-fn parse_option<T: std::str::FromStr<Err: std::fmt::Display>>(
-    what: &str,
-    text: &Option<String>,
-) -> anyhow::Result<Option<T>> {
-    text.as_deref()
-        .map(|t| t.parse::<T>())
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("{what}: {e}"))
-}
-
-impl Reading {
-    fn resolve(&self) -> anyhow::Result<(ColumnMap, ReadOptions)> {
-        let columns = ColumnMap::parse(self.columns.as_deref().unwrap_or(""))?;
-        let options = ReadOptions {
-            delimiter: parse_option::<Delimiter>("delimiter", &self.delimiter)?,
-            decimal: parse_option::<Decimal>("decimal", &self.decimal)?,
-            length_unit: parse_option::<LengthUnit>("length_unit", &self.length_unit)?
-                .unwrap_or_default(),
-            angle_unit: parse_option::<AngleUnit>("angle_unit", &self.angle_unit)?
-                .unwrap_or_default(),
-        };
-        Ok((columns, options))
+    // None stands for "not given": the option keeps its default.
+    let given = PyDict::new(py);
+    for (key, value) in kwargs.iter() {
+        if !value.is_none() {
+            given.set_item(key, value)?;
+        }
     }
-}
-
-/// The table options, as `tablec build` and `tablec eval` take them (`table_options.rs`).
-#[derive(FromPyObject, Default)]
-struct TableOptions {
-    #[pyo3(item)]
-    cell: Option<f64>,
-    #[pyo3(item)]
-    radius: Option<f64>,
-    #[pyo3(item)]
-    k: Option<u32>,
-    #[pyo3(item)]
-    w1: Option<f64>,
-    #[pyo3(item)]
-    w2: Option<f64>,
-    #[pyo3(item)]
-    power: Option<f64>,
-    #[pyo3(item)]
-    lambda_min: Option<f64>,
-    #[pyo3(item)]
-    zeta_min: Option<f64>,
-    #[pyo3(item)]
-    consistency_screen: Option<bool>,
-    #[pyo3(item)]
-    bounds: Option<[f64; 6]>,
-    #[pyo3(item)]
-    joint_radius: Option<f64>,
-    #[pyo3(item)]
-    served_field: Option<String>,
-}
-
-impl TableOptions {
-    /// The compiler's options: the paper's parameters unless given, and one of ω1, ω2
-    /// given implies the other (as `tablec`).
-    fn build_options(&self) -> anyhow::Result<BuildOptions> {
-        use adwi_compile::build::ServedField;
-        let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
-        let served_field = match self.served_field.as_deref() {
-            None => ServedField::Method,
-            Some(name) => ServedField::from_name(name).ok_or_else(|| {
-                anyhow::anyhow!(
-                    "served_field '{name}': choose method, kriging or kriging-tool-axis"
-                )
-            })?,
-        };
-        Ok(BuildOptions {
-            method: MethodParams {
-                radius_mm: self.radius,
-                max_neighbours: self.k.unwrap_or(PAPER.max_neighbours),
-                w1,
-                w2,
-                power: self.power.unwrap_or(PAPER.power),
-                lambda_min_per_mm: self.lambda_min.unwrap_or(PAPER.lambda_min_per_mm),
-                zeta_min_per_mm2: self.zeta_min.unwrap_or(PAPER.zeta_min_per_mm2),
-                consistency_screen: self.consistency_screen.unwrap_or(PAPER.consistency_screen),
-            },
-            cell_mm: self.cell,
-            bounds_mm: self
-                .bounds
-                .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
-            joint_radius_deg: self.joint_radius,
-            tuning: None,
-            served_field,
-        })
-    }
-}
-
-/// A robot file with the links of a URDF chain, as `tablec`'s `--robot`, `--base-link`
-/// and `--tip-link`.
-fn load_robot(
-    path: &Path,
-    base_link: Option<String>,
-    tip_link: Option<String>,
-) -> anyhow::Result<adwi_robot::Robot> {
-    let links = adwi_robot::LinkNames {
-        base_link,
-        tip_link,
+    let deserialize = |dict: &Bound<'_, PyDict>| -> Result<T, pythonize::PythonizeError> {
+        T::deserialize(&mut pythonize::Depythonizer::from_object(dict.as_any()))
     };
-    adwi_robot::Robot::load_with(path, &links)
-        .with_context(|| format!("cannot load the robot {}", path.display()))
-}
-
-/// Whether `measured_in` (tablec's `--measured-in`) says the tracker's frame.
-fn tracker_frame(measured_in: &str) -> anyhow::Result<bool> {
-    match measured_in {
-        "base" => Ok(false),
-        "tracker" => Ok(true),
-        other => bail!("measured_in '{other}': choose base or tracker"),
-    }
+    deserialize(&given).map_err(|e| {
+        // Serde cannot say which key of a flattened struct failed: the option is found by
+        // deserializing each one alone.
+        let culprit = given.iter().find_map(|(key, value)| {
+            let alone = PyDict::new(py);
+            alone.set_item(&key, value).ok()?;
+            let e = deserialize(&alone).err()?;
+            Some((key.to_string(), e))
+        });
+        let (key, e) = culprit.map_or((None, e), |(k, e)| (Some(k), e));
+        let message = e
+            .to_string()
+            .replace("expected u32", "expected a whole number from 0")
+            .replace("expected usize", "expected a whole number from 0")
+            .replace("expected u64", "expected a whole number from 0");
+        match key {
+            Some(key) => AdwiError::new_err(format!("{key}: {message}")),
+            None => AdwiError::new_err(message),
+        }
+    })
 }
 
 /// The CSV text of an array whose columns are named by `header`: numbers written to the
@@ -274,11 +217,11 @@ fn array_csv(
     Ok(pyo3::types::PyBytes::new(py, out.as_bytes()).unbind())
 }
 
-/// What identification found, as `tablec build --hybrid` prints it.
+/// What identification found, as `tablec build` (hybrid) prints it.
 fn calibration_dict<'py>(
     py: Python<'py>,
     c: &Calibration,
-    residual_rms_mm: f64,
+    residual_rms_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let identified = PyDict::new(py);
@@ -310,31 +253,6 @@ fn transform_dict<'py>(py: Python<'py>, t: &Transform) -> PyResult<Bound<'py, Py
     d.set_item("rotation_vector_deg", rotation_deg)?;
     d.set_item("rotation", t.rotation)?;
     Ok(d)
-}
-
-/// Reads the samples as `measured_in` says (`tracker`: registered to `robot`), with the
-/// robot every method then starts from: with tracker data, the one whose tool is the
-/// registered probe.
-fn read_measured(
-    source: &Source,
-    columns: &ColumnMap,
-    read: &ReadOptions,
-    robot: Option<adwi_robot::Robot>,
-    tracker: bool,
-) -> anyhow::Result<(
-    Option<adwi_robot::measured::Registered>,
-    SampleSet,
-    Option<adwi_robot::Robot>,
-)> {
-    let (tracker_robot, robot) = if tracker {
-        (robot, None)
-    } else {
-        (None, robot)
-    };
-    let (registered, samples) =
-        adwi_robot::measured::read_samples(source.input(), columns, read, tracker_robot)?;
-    let robot = registered.as_ref().map(|r| r.robot.clone()).or(robot);
-    Ok((registered, samples, robot))
 }
 
 /// The registration of tracker-frame measurements, as `tablec` prints it: the rigid fit,
@@ -373,39 +291,47 @@ fn transforms_into(py: Python<'_>, d: &Bound<'_, PyDict>, t: &Refined) -> PyResu
     Ok(())
 }
 
-/// What a build made, for its report.
-struct Built {
-    samples: SampleSet,
-    report: BuildReport,
-    calibration: Option<(Calibration, f64)>,
-    /// Tracker-frame samples' registration, refined by the hybrid's identification.
-    registration: Option<(Registration, Refined)>,
-    warnings: Vec<String>,
+/// A job's warnings, as `tablec` prints them after `warning: `.
+fn warning_texts(warnings: &[adwi_jobs::Warning]) -> Vec<String> {
+    warnings.iter().map(|w| w.to_string()).collect()
 }
 
-/// The build report: what `tablec build` prints, as numbers.
-fn report_dict<'py>(
+/// Runs a job with the GIL released; its error raised as [`AdwiError`].
+fn run_job<T: Send>(
+    py: Python<'_>,
+    job: impl FnOnce() -> Result<T, JobError> + Send,
+) -> PyResult<T> {
+    py.allow_threads(job).map_err(adwi_error)
+}
+
+/// `tablec build` ([`BuildJob`]). Returns the report as a dict.
+#[pyfunction]
+#[pyo3(signature = (sources, output, **options))]
+fn build<'py>(
     py: Python<'py>,
-    output: &Path,
-    source: &Source,
-    built: &Built,
-    seconds: f64,
+    sources: Vec<Source>,
+    output: PathBuf,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let Built {
-        samples,
-        report,
-        calibration,
-        registration,
-        warnings,
-    } = built;
+    let mut args: BuildArgs = job_args(py, "build", options)?;
+    args.samples = sources.into_iter().map(Into::into).collect();
+    args.output = output;
+    let built = run_job(py, || BuildJob::new(args)?.run(&Silent))?;
+    let report = &built.report;
     let plan = &report.plan;
     let g = plan.grid;
     let m = plan.params;
     let d = PyDict::new(py);
-    d.set_item("output", output.display().to_string())?;
-    d.set_item("source", source.describe())?;
+    d.set_item("output", built.output.display().to_string())?;
+    let sources: Vec<String> = built
+        .sources
+        .iter()
+        .map(|s| s.display().to_string())
+        .collect();
+    d.set_item("source", sources.join(", "))?;
+    d.set_item("sources", sources)?;
     d.set_item("samples", plan.samples)?;
-    let repeats = match &samples.repeats {
+    let repeats = match &built.repeats {
         Some(r) => {
             let rd = PyDict::new(py);
             rd.set_item("poses", r.poses)?;
@@ -468,169 +394,28 @@ fn report_dict<'py>(
         None => None,
     };
     d.set_item("tuning", tuning)?;
-    d.set_item("hybrid", calibration.is_some())?;
+    d.set_item("hybrid", built.calibration.is_some())?;
     d.set_item(
         "calibration",
-        calibration
+        built
+            .calibration
             .as_ref()
-            .map(|(c, rms)| calibration_dict(py, c, *rms))
+            .map(|(c, rms)| calibration_dict(py, c, Some(*rms)))
             .transpose()?,
     )?;
     d.set_item(
         "registration",
-        registration
+        built
+            .registration
             .as_ref()
             .map(|(r, refined)| registration_dict(py, r, Some(refined)))
             .transpose()?,
     )?;
-    d.set_item("warnings", warnings)?;
-    d.set_item("seconds", seconds)?;
+    d.set_item("warnings", warning_texts(&built.warnings))?;
+    d.set_item("seconds", built.seconds)?;
     Ok(d)
 }
 
-/// `tablec build`: read, plan, compile (hybrid with a robot), write atomically. Returns
-/// the report as a dict.
-#[pyfunction]
-#[pyo3(signature = (source, output, reading, table, robot=None, base_link=None, tip_link=None, hybrid=false, threads=None, tune=false, tune_folds=5, compliance=false, measured_in="base"))]
-#[allow(clippy::too_many_arguments)]
-fn build<'py>(
-    py: Python<'py>,
-    source: Source,
-    output: PathBuf,
-    reading: Reading,
-    table: TableOptions,
-    robot: Option<PathBuf>,
-    base_link: Option<String>,
-    tip_link: Option<String>,
-    hybrid: bool,
-    threads: Option<usize>,
-    tune: bool,
-    tune_folds: usize,
-    compliance: bool,
-    measured_in: &str,
-) -> PyResult<Bound<'py, PyDict>> {
-    let started = Instant::now();
-    let built = py.allow_threads(|| -> anyhow::Result<_> {
-        let mut inputs: Vec<&Path> = source.path().into_iter().collect();
-        inputs.extend(robot.as_deref());
-        refuse_overwriting(&output, &inputs)?;
-        // As `tablec build --measured-in tracker`, which requires --hybrid and its --robot.
-        let tracker = tracker_frame(measured_in)?;
-        if tracker && robot.is_none() {
-            bail!(
-                "measured_in='tracker' needs the robot file the measurements are registered \
-                 to: robot=PATH, with hybrid=True"
-            );
-        }
-        if tracker && !hybrid {
-            bail!("measured_in='tracker' is read for a hybrid table: give hybrid=True");
-        }
-        let robot = match (&robot, hybrid) {
-            (Some(path), true) => Some(load_robot(path, base_link, tip_link)?),
-            (Some(_), false) => {
-                bail!("robot is only used by hybrid: give hybrid=True, or drop robot")
-            }
-            (None, true) => bail!("hybrid=True needs the robot file: robot=PATH"),
-            (None, false) => None,
-        };
-        if compliance && !hybrid {
-            bail!("compliance is identified by hybrid: give hybrid=True, or drop compliance");
-        }
-        // As `tablec build --hybrid [--compliance]`, for the tuning and the table alike.
-        let calibrate_options = CalibrateOptions {
-            compliance,
-            ..CalibrateOptions::default()
-        };
-        let (columns, read) = reading.resolve()?;
-        let (registered, samples, robot) = read_measured(&source, &columns, &read, robot, tracker)?;
-        let mut options = table.build_options()?;
-        if tune {
-            if table.k.is_some() || table.radius.is_some() {
-                bail!("tune chooses k and radius: give tune=True or k/radius, not both");
-            }
-            // As `tablec build --tune`: k and ε by cross-validation on these samples alone.
-            let report = adwi_eval::tune::tune(
-                &samples,
-                robot.as_ref(),
-                &options,
-                &calibrate_options,
-                tune_folds,
-                0,
-            )?;
-            options = report.options;
-        }
-        let plan = adwi_compile::build::plan(&samples, &options)?;
-        let mut warnings = Vec::new();
-        if plan.is_mostly_empty() {
-            warnings.push(format!(
-                "the grid's {} cells are mostly empty: at most {:.0} of them lie within \
-                 ε = {:.3} mm of a sample (samples along a line or a plane?); the table will \
-                 be about {} — give bounds around the samples, or a larger cell",
-                plan.cells(),
-                plan.coverable_cells(),
-                plan.params.radius_mm,
-                adwi_compile::build::human_bytes(plan.estimated_table_bytes())
-            ));
-        }
-        let mut pool = rayon::ThreadPoolBuilder::new();
-        if let Some(n) = threads {
-            pool = pool.num_threads(n);
-        }
-        let pool = pool.build().context("cannot start worker threads")?;
-        let progress = |_| {};
-        let mut calibration = None;
-        let (bytes, report) = match &robot {
-            Some(robot) => {
-                let identified = pool.install(|| {
-                    adwi_robot::calibrate::identify(robot, &samples, &calibrate_options)
-                })?;
-                let model = identified.prepared_model();
-                let built = pool.install(|| hybrid::compile(&samples, &model, &plan, &progress))?;
-                calibration = Some((identified, built.residual_position_rms_mm));
-                (built.bytes, built.report)
-            }
-            None => {
-                let hash = samples.source_hash();
-                pool.install(|| compile_plan(&samples, &plan, None, hash, &progress))?
-            }
-        };
-        write_atomically(&output, &bytes)
-            .with_context(|| format!("cannot write {}", output.display()))?;
-        if let Some((c, _)) = &calibration {
-            if !c.unidentifiable.is_empty() {
-                let dropped: Vec<String> = c
-                    .unidentifiable
-                    .iter()
-                    .map(|(p, ratio)| format!("{p} ({ratio:.1e})"))
-                    .collect();
-                warnings.push(format!(
-                    "unidentifiable from these samples (kept nominal; independent fraction \
-                     in brackets): {}",
-                    dropped.join(", ")
-                ));
-            }
-        }
-        let registration = registered.zip(calibration.as_ref()).map(|(r, (c, _))| {
-            let refined = r.registration.refined(c, &samples);
-            (r.registration, refined)
-        });
-        Ok(Built {
-            samples,
-            report,
-            calibration,
-            registration,
-            warnings,
-        })
-    });
-    let built = built.map_err(adwi_error)?;
-    report_dict(
-        py,
-        &output,
-        &source,
-        &built,
-        started.elapsed().as_secs_f64(),
-    )
-}
 
 /// What [`evaluate`] returns: the records, the warnings, with tracker-frame samples
 /// their registration and a validation set's own (registered apart), and the comparison
@@ -643,136 +428,25 @@ type Evaluated<'py> = (
     Option<Bound<'py, PyDict>>,
 );
 
-/// `tablec eval`: every method on held-out points. Returns (records, warnings,
-/// registration, validation registration, comparison): one record per row of `tablec eval
-/// --csv` (the uncompensated errors, then one per method), with the same keys, figures in
-/// full precision; the registrations as `tablec eval` prints them, or None; the methods
-/// against the best, point by point, as `"comparison"` in `tablec eval --json`.
+/// `tablec eval` ([`EvalJob`]). Returns (records, warnings, registration, validation
+/// registration, comparison): one record per row of `tablec eval --csv` (the
+/// uncompensated errors, then one per method), with the same keys, figures in full
+/// precision; the registrations as `tablec eval` prints them, or None; the methods against
+/// the best, point by point, as `"comparison"` in `tablec eval --json`.
 #[pyfunction]
-#[pyo3(signature = (source, reading, table, validation=None, limit=None, folds=None, seed=0, methods=None, robot=None, base_link=None, tip_link=None, rank_tol=None, keep_untrustworthy=false, compliance=false, measured_in="base", register_validation_apart=false))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (sources, validation=None, **options))]
 fn evaluate<'py>(
     py: Python<'py>,
-    source: Source,
-    reading: Reading,
-    table: TableOptions,
+    sources: Vec<Source>,
     validation: Option<Source>,
-    limit: Option<usize>,
-    folds: Option<usize>,
-    seed: u64,
-    methods: Option<Vec<String>>,
-    robot: Option<PathBuf>,
-    base_link: Option<String>,
-    tip_link: Option<String>,
-    rank_tol: Option<f64>,
-    keep_untrustworthy: bool,
-    compliance: bool,
-    measured_in: &str,
-    register_validation_apart: bool,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Evaluated<'py>> {
-    let evaluated = py.allow_threads(|| -> anyhow::Result<_> {
-        // As `tablec eval --measured-in tracker`, which requires --robot, and
-        // --register-validation-apart, which requires --validation and a tracker frame.
-        let tracker = tracker_frame(measured_in)?;
-        if tracker && robot.is_none() {
-            bail!(
-                "measured_in='tracker' needs the robot file the measurements are registered \
-                 to: robot=PATH"
-            );
-        }
-        if register_validation_apart && validation.is_none() {
-            bail!("register_validation_apart needs a validation set (validation=...)");
-        }
-        if register_validation_apart && !tracker {
-            bail!("register_validation_apart needs measured_in='tracker'");
-        }
-        let (columns, read) = reading.resolve()?;
-        let methods = methods
-            .map(|names| {
-                names
-                    .iter()
-                    .map(|n| n.parse::<Method>())
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .transpose()
-            .map_err(anyhow::Error::msg)?;
-        let robot = robot
-            .as_deref()
-            .map(|p| load_robot(p, base_link, tip_link))
-            .transpose()?;
-        let (registered, samples, robot) = read_measured(&source, &columns, &read, robot, tracker)?;
-        let calibrate = CalibrateOptions {
-            rank_tolerance: rank_tol.unwrap_or(CalibrateOptions::default().rank_tolerance),
-            hold_untrustworthy: !keep_untrustworthy,
-            compliance,
-            ..CalibrateOptions::default()
-        };
-        // The identification of all samples, as `tablec eval` makes it: the frame a
-        // validation series is registered apart into, and what refines the registration.
-        let mut registered_apart = None;
-        let protocol = match (&validation, folds) {
-            (Some(v), None) => {
-                let (mut validation, apart) = adwi_robot::measured::read_validation(
-                    v.input(),
-                    &columns,
-                    &read,
-                    registered.as_ref(),
-                    register_validation_apart.then_some((&samples, &calibrate)),
-                )?;
-                registered_apart = apart;
-                if let Some(n) = limit {
-                    if n == 0 {
-                        bail!("limit must be at least 1");
-                    }
-                    let n = n.min(validation.len());
-                    validation = adwi_eval::subset(&validation, &(0..n).collect::<Vec<_>>());
-                }
-                Protocol::Validation(validation)
-            }
-            (None, Some(folds)) => Protocol::KFold { folds, seed },
-            (Some(_), Some(_)) => bail!("give a validation set or a fold count, not both"),
-            (None, None) => {
-                bail!("give a validation set (validation=...) or a fold count (folds=K)")
-            }
-        };
-        let options = EvalOptions {
-            methods,
-            build: table.build_options()?,
-            robot,
-            calibrate,
-            ..EvalOptions::default()
-        };
-        let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
-        let identified = registered_apart.as_ref().map(|(_, c)| c);
-        let registration = match registered {
-            Some(r) => {
-                let refined = r.refined_by(&samples, &options.calibrate, identified)?;
-                Some((r.registration, refined))
-            }
-            None => None,
-        };
-        let validation_registration = registered_apart.map(|(r, _)| r);
-        Ok((evaluation, registration, validation_registration))
-    });
-    let (e, registration, validation_registration) = evaluated.map_err(adwi_error)?;
-    let mut warnings = Vec::new();
-    for c in e.calibrations.iter().take(1) {
-        if !c.unidentifiable.is_empty() {
-            let names: Vec<&str> = c.unidentifiable.iter().map(|(n, _)| n.as_str()).collect();
-            warnings.push(format!(
-                "{} kinematic parameters cannot be identified from these samples and stay at \
-                 nominal: {}",
-                names.len(),
-                names.join(", ")
-            ));
-        }
-        if !c.converged {
-            warnings.push(format!(
-                "kinematic identification stopped after {} iterations without converging",
-                c.iterations
-            ));
-        }
-    }
+    let mut args: EvalArgs = job_args(py, "evaluate", options)?;
+    args.samples = sources.into_iter().map(Into::into).collect();
+    args.validation = validation.map(Into::into);
+    let evaluated = run_job(py, || EvalJob::new(args)?.run("adwi.evaluate"))?;
+    let e = &evaluated.evaluation;
+    let warnings = warning_texts(&evaluated.warnings);
     let records = PyList::empty(py);
     let record = |label: &str,
                   predicted: usize,
@@ -822,11 +496,15 @@ fn evaluate<'py>(
             note,
         )?)?;
     }
-    let registration = registration
-        .map(|(r, refined)| registration_dict(py, &r, Some(&refined)))
+    let registration = evaluated
+        .registration
+        .as_ref()
+        .map(|(r, refined)| registration_dict(py, r, Some(refined)))
         .transpose()?;
-    let validation_registration = validation_registration
-        .map(|r| registration_dict(py, &r, None))
+    let validation_registration = evaluated
+        .validation_registration
+        .as_ref()
+        .map(|r| registration_dict(py, r, None))
         .transpose()?;
     let comparison = e
         .comparison
@@ -854,6 +532,52 @@ fn evaluate<'py>(
         validation_registration,
         comparison,
     ))
+}
+
+
+/// `tablec calibrate` ([`CalibrateJob`]): the identification, the files written and the
+/// warnings, as a dict.
+#[pyfunction]
+#[pyo3(signature = (sources, **options))]
+fn calibrate<'py>(
+    py: Python<'py>,
+    sources: Vec<Source>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut args: CalibrateArgs = job_args(py, "calibrate", options)?;
+    args.samples = sources.into_iter().map(Into::into).collect();
+    let calibrated = run_job(py, || CalibrateJob::new(args)?.run())?;
+    let d = calibration_dict(py, &calibrated.calibration, None)?;
+    d.set_item("robot", &calibrated.robot_name)?;
+    d.set_item("samples", calibrated.samples)?;
+    let parameters = PyList::empty(py);
+    for row in adwi_eval::ParameterRow::of(&calibrated.calibration) {
+        let p = PyDict::new(py);
+        p.set_item("name", row.name)?;
+        p.set_item("unit", row.unit)?;
+        p.set_item("value", row.value)?;
+        p.set_item("standard_error", row.standard_error)?;
+        p.set_item("status", row.status)?;
+        p.set_item("reason", row.reason)?;
+        parameters.append(p)?;
+    }
+    d.set_item("parameters", parameters)?;
+    d.set_item(
+        "registration",
+        calibrated
+            .registration
+            .as_ref()
+            .map(|(r, refined)| registration_dict(py, r, Some(refined)))
+            .transpose()?,
+    )?;
+    let written: Vec<String> = calibrated
+        .written
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    d.set_item("written", written)?;
+    d.set_item("warnings", warning_texts(&calibrated.warnings))?;
+    Ok(d)
 }
 
 /// A correction table, memory-mapped and validated once.
@@ -1217,6 +941,94 @@ impl Table {
     }
 }
 
+// ---------------------------------------------------------------------------------------
+// Robot programs compensated offline: `tablec compensate` (adwi_programs::CompensateJob).
+
+/// `tablec compensate`: the job checks every option and input before any work, corrects
+/// every target, and writes `output` (and `report`, as CSV) atomically when given.
+/// Returns (the compensated program's bytes, one dict per target, the summary dict).
+#[pyfunction]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0))]
+#[allow(clippy::too_many_arguments)]
+fn compensate_program<'py>(
+    py: Python<'py>,
+    table: PathBuf,
+    program: PathBuf,
+    output: Option<PathBuf>,
+    report: Option<PathBuf>,
+    format: Option<String>,
+    robot: Option<PathBuf>,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+    tool: Option<[f64; 6]>,
+    base: Option<[f64; 6]>,
+    table_tool: Option<[f64; 6]>,
+    max_correction_mm: f64,
+    max_joint_change_deg: f64,
+    strict: bool,
+    max_seconds: f64,
+) -> PyResult<(Bound<'py, pyo3::types::PyBytes>, Bound<'py, PyList>, Bound<'py, PyDict>)> {
+    use adwi_programs::{CompensateJob, CompensateOptions, Format};
+    let mut options = CompensateOptions::new(table, program);
+    options.output = output;
+    options.report = report;
+    options.format = match format.as_deref() {
+        None => None,
+        Some(name) => Some(Format::from_name(name).ok_or_else(|| {
+            AdwiError::new_err(format!("format '{name}': one of krl, rapid, urscript, csv"))
+        })?),
+    };
+    options.robot = robot;
+    options.links = adwi_robot::LinkNames { base_link, tip_link };
+    options.tool = tool;
+    options.base = base;
+    options.table_tool = table_tool;
+    options.limits.max_correction_mm = max_correction_mm;
+    options.limits.max_joint_change_deg = max_joint_change_deg;
+    options.strict = strict;
+    options.max_seconds = max_seconds;
+    let done = py
+        .allow_threads(|| -> Result<_, adwi_programs::Error> {
+            let job = CompensateJob::new(options)?;
+            let done = job.run()?;
+            job.write(&done)?;
+            Ok(done)
+        })
+        .map_err(|e| AdwiError::new_err(e.to_string()))?;
+    let targets = PyList::empty(py);
+    for t in &done.report.targets {
+        let d = PyDict::new(py);
+        d.set_item("name", &t.name)?;
+        d.set_item("line", t.line)?;
+        d.set_item("column", t.column)?;
+        d.set_item("kind", t.kind)?;
+        d.set_item("status", t.status.as_str())?;
+        d.set_item("detail", &t.detail)?;
+        d.set_item("correction_mm", t.correction_mm)?;
+        d.set_item("rotation_deg", t.rotation_deg)?;
+        d.set_item("joint_change_deg", t.joint_change_deg)?;
+        d.set_item("iterations", t.iterations)?;
+        d.set_item("residual_mm", t.residual_mm)?;
+        d.set_item("point_mm", t.point_mm)?;
+        d.set_item("command_mm", t.command_mm)?;
+        d.set_item("command_joints", t.command_joints.clone())?;
+        targets.append(d)?;
+    }
+    let s = done.report.summary();
+    let summary = PyDict::new(py);
+    summary.set_item("total", s.total)?;
+    summary.set_item("corrected", s.corrected)?;
+    let not_corrected = PyDict::new(py);
+    for (status, count) in &s.not_corrected {
+        not_corrected.set_item(status, count)?;
+    }
+    summary.set_item("not_corrected", not_corrected)?;
+    summary.set_item("largest_correction_mm", s.largest.as_ref().map(|l| l.0))?;
+    summary.set_item("largest_at", s.largest.as_ref().map(|l| l.1.clone()))?;
+    summary.set_item("text", s.to_string())?;
+    Ok((pyo3::types::PyBytes::new(py, &done.output), targets, summary))
+}
+
 #[pymodule]
 fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("AdwiError", m.py().get_type::<AdwiError>())?;
@@ -1228,6 +1040,9 @@ fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Table>()?;
     m.add_function(wrap_pyfunction!(build, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add_function(wrap_pyfunction!(array_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate_program, m)?)?;
     Ok(())
 }

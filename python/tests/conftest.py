@@ -72,7 +72,7 @@ def ur5_hybrid_table(tmp_path_factory) -> Path:
 
     path = tmp_path_factory.mktemp("ur5") / "ur5-hybrid.tbl"
     adwi.build(
-        UR5_GRID, path, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", hybrid=True, cell=30
+        UR5_GRID, path, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", cell=30
     )
     return path
 

@@ -38,7 +38,7 @@ def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
     assert 0.0 < report.tuning["cv_mean_mm"] < 0.2
     assert 0.0 < report.tuning["served_cv_mean_mm"] < 0.2
     assert adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl").tuning is None
-    with pytest.raises(adwi.AdwiError, match="tune chooses k and radius"):
+    with pytest.raises(adwi.AdwiError, match="tune\\) chooses k and the radius"):
         adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)
 
 
@@ -61,7 +61,7 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     assert ours.read_bytes() == theirs.read_bytes()
     method = adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl")
     assert method.served_field == "method" and method.served_kriging == []
-    with pytest.raises(adwi.AdwiError, match="choose method, kriging or kriging-tool-axis"):
+    with pytest.raises(adwi.AdwiError, match="^served_field: 'spline': choose auto, method, kriging or kriging-tool-axis"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
     # The field that turns with the tool takes its axis from a hybrid table's model.
     with pytest.raises(adwi.AdwiError, match="needs a hybrid table"):
@@ -87,7 +87,7 @@ def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):
         k=6,
         w2=0.2,
         power=1.5,
-        consistency_screen=False,
+        no_consistency_screen=True,
         bounds=(1300, 0, 800, 2200, 900, 1700),
         joint_radius=30,
     )
@@ -182,7 +182,7 @@ def test_never_overwrites_an_input(tmp_path):
     robot = tmp_path / "robot.toml"
     robot.write_bytes((UR5 / "robot.toml").read_bytes())
     with pytest.raises(adwi.AdwiError, match="refusing to write"):
-        adwi.build(UR5_GRID, robot, columns=UR5_COLUMNS, robot=robot, hybrid=True)
+        adwi.build(UR5_GRID, robot, columns=UR5_COLUMNS, robot=robot)
     assert samples.read_bytes() == before
     assert robot.read_bytes() == (UR5 / "robot.toml").read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "robot.toml", "samples.csv"]
@@ -199,10 +199,18 @@ def test_replaces_an_existing_table_atomically(kr150_table, tmp_path):
 
 
 def test_option_errors(tmp_path):
-    with pytest.raises(adwi.AdwiError, match="hybrid"):
-        adwi.build(UR5_GRID, tmp_path / "t.tbl", columns=UR5_COLUMNS, robot=UR5 / "robot.toml")
-    with pytest.raises(adwi.AdwiError, match="robot"):
+    with pytest.raises(adwi.AdwiError, match="needs the robot file"):
         adwi.build(UR5_GRID, tmp_path / "t.tbl", columns=UR5_COLUMNS, hybrid=True)
+    with pytest.raises(adwi.AdwiError, match="give the robot file"):
+        adwi.build(UR5_GRID, tmp_path / "t.tbl", columns=UR5_COLUMNS, compliance=True)
+    # Options are the jobs' own: an unknown one is refused with the known ones, a value
+    # of the wrong kind with its name.
+    with pytest.raises(adwi.AdwiError, match="no option 'cels'.*cell"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "t.tbl", cels=40)
+    with pytest.raises(adwi.AdwiError, match="^k: invalid value: integer `-1`"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "t.tbl", k=-1)
+    with pytest.raises(adwi.AdwiError, match="threads"):
+        adwi.build(KR150 / "samples.csv", tmp_path / "t.tbl", threads=100000)
     with pytest.raises(adwi.AdwiError, match="delimiter"):
         adwi.build(KR150 / "samples.csv", tmp_path / "t.tbl", delimiter="pipe")
     with pytest.raises(adwi.AdwiError, match="missing column"):
@@ -220,7 +228,6 @@ def test_hybrid_report(ur5_hybrid_table):
         ur5_hybrid_table.with_name("again.tbl"),
         columns=UR5_COLUMNS,
         robot=UR5 / "robot.toml",
-        hybrid=True,
         cell=30,
     )
     assert report.hybrid and report.calibration is not None
@@ -237,23 +244,21 @@ def test_compliant_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
         ours,
         columns=UR5_COLUMNS,
         robot=UR5 / "robot.toml",
-        hybrid=True,
         cell=30,
         compliance=True,
     )
     theirs = tmp_path / "tablec.tbl"
     subprocess.run(
         [str(tablec), "build", "--quiet", str(UR5_GRID), "-o", str(theirs),
-         "--columns", UR5_COLUMNS, "--robot", str(UR5 / "robot.toml"), "--hybrid",
+         "--columns", UR5_COLUMNS, "--robot", str(UR5 / "robot.toml"),
          "--compliance", "--cell", "30"],
         check=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()
     assert "compliance2" in report.calibration["identified"]
     plain = tmp_path / "plain.tbl"
-    adwi.build(UR5_GRID, plain, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", hybrid=True,
-               cell=30)
+    adwi.build(UR5_GRID, plain, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", cell=30)
     assert plain.read_bytes() != ours.read_bytes()
     with pytest.raises(adwi.AdwiError, match="no link masses"):
         adwi.build(KR150 / "samples.csv", tmp_path / "k.tbl", robot=KR150 / "robot.toml",
-                   hybrid=True, compliance=True)
+                   compliance=True)

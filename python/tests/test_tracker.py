@@ -92,13 +92,13 @@ def validation_block(r):
 
 
 def test_tracker_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
-    options = dict(columns=UR10_TRACKER_COLUMNS, robot=ROBOT, hybrid=True, cell=CELL)
+    options = dict(columns=UR10_TRACKER_COLUMNS, robot=ROBOT, cell=CELL)
     ours = tmp_path / "ours.tbl"
     report = adwi.build(UR10_C, ours, measured_in="tracker", **options)
     theirs = tmp_path / "tablec.tbl"
     stdout = run_tablec(
         tablec, "build", UR10_C, "-o", theirs, "--columns", UR10_TRACKER_COLUMNS,
-        "--robot", ROBOT, "--hybrid", "--measured-in", "tracker", "--cell", CELL,
+        "--robot", ROBOT, "--measured-in", "tracker", "--cell", CELL,
     )
     assert ours.read_bytes() == theirs.read_bytes()
     r = report.registration
@@ -195,9 +195,9 @@ def test_tracker_validation_registered_apart_equals_tablec(tablec, tmp_path):
 
 def test_measured_in_is_base_or_tracker(tmp_path):
     out = tmp_path / "t.tbl"
-    with pytest.raises(ValueError, match="measured_in 'robot': choose base or tracker"):
+    with pytest.raises(ValueError, match="measured_in: unknown variant `robot`, expected `base` or `tracker`"):
         adwi.build(KR150 / "samples.csv", out, measured_in="robot")
-    with pytest.raises(adwi.AdwiError, match="measured_in 'Tracker': choose base or tracker"):
+    with pytest.raises(adwi.AdwiError, match="measured_in: unknown variant `Tracker`, expected `base` or `tracker`"):
         adwi.evaluate(KR150 / "samples.csv", folds=3, measured_in="Tracker")
     assert not out.exists()
     # "base", the default, reads the samples as they are: nothing registered.
@@ -210,17 +210,15 @@ def test_measured_in_is_base_or_tracker(tmp_path):
 def test_tracker_frame_refusals(tmp_path):
     out = tmp_path / "t.tbl"
     tracker = dict(columns=UR10_TRACKER_COLUMNS, measured_in="tracker")
-    # As tablec: --measured-in tracker requires --robot (eval) and --hybrid (build).
-    with pytest.raises(adwi.AdwiError, match=r"measured_in='tracker' needs the robot file"):
-        adwi.build(UR10_C, out, hybrid=True, **tracker)
-    with pytest.raises(adwi.AdwiError, match=r"measured_in='tracker' needs the robot file"):
+    # As tablec: --measured-in tracker requires --robot (the same job checks both).
+    with pytest.raises(adwi.AdwiError, match=r"\(measured_in='tracker'\) needs the robot file"):
+        adwi.build(UR10_C, out, **tracker)
+    with pytest.raises(adwi.AdwiError, match=r"\(measured_in='tracker'\) needs the robot file"):
         adwi.evaluate(UR10_C, folds=3, **tracker)
-    with pytest.raises(adwi.AdwiError, match=r"measured_in='tracker' is read for a hybrid table"):
-        adwi.build(UR10_C, out, robot=ROBOT, **tracker)
     # --register-validation-apart requires --validation and a tracker frame.
-    with pytest.raises(adwi.AdwiError, match=r"register_validation_apart needs a validation set"):
+    with pytest.raises(adwi.AdwiError, match=r"\(register_validation_apart\) needs a validation set"):
         adwi.evaluate(UR10_C, folds=3, robot=ROBOT, register_validation_apart=True, **tracker)
-    with pytest.raises(adwi.AdwiError, match=r"register_validation_apart needs measured_in='tracker'"):
+    with pytest.raises(adwi.AdwiError, match=r"\(register_validation_apart\) needs --measured-in tracker"):
         adwi.evaluate(
             KR150 / "samples.csv", validation=KR150 / "validation.csv",
             register_validation_apart=True,
@@ -231,5 +229,5 @@ def test_tracker_frame_refusals(tmp_path):
         adwi.AdwiError,
         match=r"^cannot register <samples DataFrame>: 3 measured positions cannot register",
     ):
-        adwi.build(frame, out, robot=ROBOT, hybrid=True, **tracker)
+        adwi.build(frame, out, robot=ROBOT, **tracker)
     assert not out.exists()

@@ -1,8 +1,75 @@
-//! Writing a table file so that nothing is ever lost: no partial table, no damaged
-//! existing table, no temporary file left behind.
+//! Writing output files so that nothing is ever lost: no partial file, no damaged
+//! existing file, no temporary file left behind, no input overwritten — one writer for
+//! every output of every command ([`OutputPlan`]).
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Why an output was refused before any work, or could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The output is one of the command's inputs.
+    #[error(
+        "refusing to write {}: it is the input {} (the same file{}); choose another output",
+        output.display(),
+        input.display(),
+        if *through_link { ", through a link" } else { "" }
+    )]
+    IsInput {
+        /// The output as given.
+        output: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+        /// Whether the two names differ (a symbolic or hard link joins them).
+        through_link: bool,
+    },
+    /// Two outputs of one command are the same file: one would silently replace the other.
+    #[error(
+        "refusing to write {} and {}: they are the same file; give two different outputs",
+        first.display(),
+        second.display()
+    )]
+    SameOutput {
+        /// The first output.
+        first: PathBuf,
+        /// The second, the same file.
+        second: PathBuf,
+    },
+    /// The output exists and is not a regular file (or a symbolic link to one): a
+    /// directory, a FIFO, a device or a socket is never replaced by a file.
+    #[error(
+        "refusing to write {}: it exists and is {kind}, not a regular file; give a file name",
+        path.display()
+    )]
+    NotRegular {
+        /// The output as given.
+        path: PathBuf,
+        /// What it is (`a directory`, `a FIFO`, ...).
+        kind: &'static str,
+    },
+    /// The output's directory does not exist (or, for a directory the command creates, a
+    /// file stands where a directory of its path would be).
+    #[error(
+        "cannot write {}: {} is not an existing directory",
+        path.display(),
+        dir.display()
+    )]
+    NoDirectory {
+        /// The output as given.
+        path: PathBuf,
+        /// Its directory.
+        dir: PathBuf,
+    },
+    /// Writing failed (nothing was replaced).
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The output as given.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
 
 /// Refuses to write `output` when it is one of `inputs` — the same file, also through a
 /// symbolic or hard link — before anything is written: a mistyped output path must never
@@ -11,8 +78,8 @@ use std::path::Path;
 ///
 /// # Errors
 ///
-/// [`std::io::ErrorKind::AlreadyExists`], naming the output and the input it is.
-pub fn refuse_overwriting(output: &Path, inputs: &[&Path]) -> std::io::Result<()> {
+/// [`OutputError::IsInput`], naming the output and the input it is.
+pub fn refuse_overwriting(output: &Path, inputs: &[&Path]) -> Result<(), OutputError> {
     let Ok(out) = std::fs::metadata(output) else {
         return Ok(());
     };
@@ -21,22 +88,239 @@ pub fn refuse_overwriting(output: &Path, inputs: &[&Path]) -> std::io::Result<()
             continue;
         };
         if same_file(&out, &inp, output, input) {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::AlreadyExists,
-                format!(
-                    "refusing to write {}: it is the input {} (the same file{}); choose another output",
-                    output.display(),
-                    input.display(),
-                    if output == *input {
-                        ""
-                    } else {
-                        ", through a link"
-                    }
-                ),
-            ));
+            return Err(OutputError::IsInput {
+                output: output.to_path_buf(),
+                input: input.to_path_buf(),
+                through_link: output != *input,
+            });
         }
     }
     Ok(())
+}
+
+/// The outputs of one command, checked before any work and written all or nothing.
+///
+/// [`OutputPlan::check`] refuses, before the command does anything: an output that is an
+/// input ([`refuse_overwriting`]), two outputs that are the same file, an existing output
+/// that is not a regular file (a symbolic link to a regular file is written through: its
+/// target is replaced), and an output whose directory does not exist (unless the command
+/// creates it: [`OutputPlan::check_in_new_directory`]). [`OutputPlan::write`] then writes
+/// every file complete to a temporary beside its target and renames them into place only
+/// once all are complete: a failure, a full disk or a kill leaves every existing file as
+/// it was.
+#[derive(Debug, Clone, Default)]
+pub struct OutputPlan {
+    outputs: Vec<Planned>,
+}
+
+#[derive(Debug, Clone)]
+struct Planned {
+    /// As given, for messages and for [`OutputPlan::write`]'s lookup.
+    given: PathBuf,
+    /// Where the bytes go: `given`, or the file a symbolic link at `given` points to.
+    target: PathBuf,
+    /// Whether its directory is created at write time.
+    create_directory: bool,
+}
+
+impl OutputPlan {
+    /// Checks `outputs` against `inputs` and each other (the type's docs).
+    ///
+    /// # Errors
+    ///
+    /// The first refusal, as an [`OutputError`].
+    pub fn check(outputs: &[&Path], inputs: &[&Path]) -> Result<OutputPlan, OutputError> {
+        let mut plan = OutputPlan::default();
+        for output in outputs {
+            plan.add(output, inputs, false)?;
+        }
+        Ok(plan)
+    }
+
+    /// Adds an output whose directory the command creates when it writes (a report's
+    /// folder), checked as [`OutputPlan::check`] checks the others.
+    ///
+    /// # Errors
+    ///
+    /// As [`OutputPlan::check`].
+    pub fn check_in_new_directory(
+        &mut self,
+        output: &Path,
+        inputs: &[&Path],
+    ) -> Result<(), OutputError> {
+        self.add(output, inputs, true)
+    }
+
+    fn add(&mut self, output: &Path, inputs: &[&Path], create: bool) -> Result<(), OutputError> {
+        refuse_overwriting(output, inputs)?;
+        let target = regular_target(output)?;
+        let dir = directory_of(&target);
+        // A directory the command creates must be creatable: its nearest existing
+        // ancestor a directory.
+        let existing = if create {
+            dir.ancestors()
+                .find(|a| a.as_os_str().is_empty() || a.exists())
+        } else {
+            Some(dir)
+        };
+        if !existing.is_some_and(|d| d.as_os_str().is_empty() || d.is_dir()) {
+            return Err(OutputError::NoDirectory {
+                path: output.to_path_buf(),
+                dir: existing.unwrap_or(dir).to_path_buf(),
+            });
+        }
+        for other in &self.outputs {
+            if other.target == target || same_existing(&other.target, &target) {
+                return Err(OutputError::SameOutput {
+                    first: other.given.clone(),
+                    second: output.to_path_buf(),
+                });
+            }
+        }
+        self.outputs.push(Planned {
+            given: output.to_path_buf(),
+            target,
+            create_directory: create,
+        });
+        Ok(())
+    }
+
+    /// The outputs, as given.
+    pub fn paths(&self) -> impl Iterator<Item = &Path> {
+        self.outputs.iter().map(|o| o.given.as_path())
+    }
+
+    /// Writes `contents` (each output's path as given, and its bytes) all or nothing:
+    /// every file complete beside its target first, then every rename. An output of the
+    /// plan missing from `contents` is not written; a path not in the plan is an error
+    /// (a bug in the caller), as is a file that stopped being regular since the check.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Write`] (nothing was replaced), or a refusal found again.
+    pub fn write(&self, contents: &[(&Path, &[u8])]) -> Result<(), OutputError> {
+        let mut staged: Vec<(PathBuf, &Planned)> = Vec::with_capacity(contents.len());
+        let result = (|| {
+            for (path, bytes) in contents {
+                let planned = self
+                    .outputs
+                    .iter()
+                    .find(|o| o.given == *path)
+                    .ok_or_else(|| OutputError::Write {
+                        path: path.to_path_buf(),
+                        source: std::io::Error::other("not an output checked before the work"),
+                    })?;
+                // Checked again: the file may have been replaced since.
+                regular_target(&planned.given)?;
+                let dir = directory_of(&planned.target);
+                let failed = |source| OutputError::Write {
+                    path: planned.given.clone(),
+                    source,
+                };
+                if planned.create_directory {
+                    std::fs::create_dir_all(dir).map_err(failed)?;
+                }
+                remove_stale_temporaries(dir);
+                let temporary = stage(dir, bytes).map_err(|source| OutputError::Write {
+                    path: planned.given.clone(),
+                    source,
+                })?;
+                staged.push((temporary, planned));
+            }
+            Ok(())
+        })();
+        if let Err(e) = result {
+            for (temporary, _) in &staged {
+                let _ = std::fs::remove_file(temporary);
+            }
+            return Err(e);
+        }
+        for (i, (temporary, planned)) in staged.iter().enumerate() {
+            if let Err(source) = std::fs::rename(temporary, &planned.target) {
+                for (later, _) in &staged[i..] {
+                    let _ = std::fs::remove_file(later);
+                }
+                return Err(OutputError::Write {
+                    path: planned.given.clone(),
+                    source,
+                });
+            }
+            sync_directory(directory_of(&planned.target));
+        }
+        Ok(())
+    }
+}
+
+/// Where writing `output` puts its bytes: the path itself when it does not exist or is a
+/// regular file, the file a symbolic link points to when it points to a regular file (or
+/// to nothing yet); a refusal for anything else.
+fn regular_target(output: &Path) -> Result<PathBuf, OutputError> {
+    let refuse = |kind| OutputError::NotRegular {
+        path: output.to_path_buf(),
+        kind,
+    };
+    let Ok(link) = std::fs::symlink_metadata(output) else {
+        return Ok(output.to_path_buf());
+    };
+    if link.file_type().is_symlink() {
+        let target = match std::fs::read_link(output) {
+            Ok(t) if t.is_absolute() => t,
+            Ok(t) => directory_of(output).join(t),
+            Err(_) => return Err(refuse("an unreadable symbolic link")),
+        };
+        return match std::fs::metadata(&target) {
+            Ok(m) if m.is_file() => Ok(target),
+            Ok(m) => Err(refuse(kind_of(&m))),
+            // A dangling link: the file it names is created.
+            Err(_) => Ok(target),
+        };
+    }
+    if link.is_file() {
+        Ok(output.to_path_buf())
+    } else {
+        Err(refuse(kind_of(&link)))
+    }
+}
+
+/// What a file that is not regular is, in words.
+fn kind_of(m: &std::fs::Metadata) -> &'static str {
+    if m.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = m.file_type();
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "not a regular file"
+}
+
+/// The directory a file is written in (`.` for a bare name).
+fn directory_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Whether two paths name one existing file.
+fn same_existing(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(ma), Ok(mb)) => same_file(&ma, &mb, a, b),
+        _ => false,
+    }
 }
 
 #[cfg(unix)]
@@ -53,37 +337,40 @@ fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata, a: &Path, b: &Path) -
     }
 }
 
-/// Writes `bytes` to `path` so that no reader, crash or kill ever sees a partial table and
-/// an existing table at `path` (even one mapped by a running controller) stays intact until
-/// the complete new one replaces it by rename.
+/// Writes `bytes` to `path` so that no reader, crash or kill ever sees a partial file and
+/// an existing file at `path` (even a table mapped by a running controller) stays intact
+/// until the complete new one replaces it by rename: [`OutputPlan`] with one output and no
+/// inputs. An existing `path` that is not a regular file is refused.
 ///
 /// On Linux the data goes to an unnamed `O_TMPFILE` file in the target directory, which
 /// the kernel frees if the process dies before it is named; once written and flushed it is
-/// linked as `.tablec-PID-N.tmp` and renamed into place at once. Elsewhere (or on file
-/// systems without `O_TMPFILE`) it is written under that name from the start. Either way a
-/// process killed between naming and renaming leaves a named file behind, and every write
-/// first removes such files in its directory whose writing process is gone, so none
-/// accumulates. The table is made readable by all (0644): controllers often run as other
-/// users.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    remove_stale_temporaries(dir);
+/// linked as `.tablec-PID-N.tmp` and renamed into place. Elsewhere (or on file systems
+/// without `O_TMPFILE`) it is written under that name from the start. Either way a process
+/// killed between naming and renaming leaves a named file behind, and every write first
+/// removes such files in its directory whose writing process is gone, so none accumulates.
+/// The file is made readable by all (0644): controllers often run as other users.
+///
+/// # Errors
+///
+/// As [`OutputPlan::check`] and [`OutputPlan::write`].
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    OutputPlan::check(&[path], &[])?.write(&[(path, bytes)])
+}
+
+/// Writes `bytes` complete and flushed to a fresh temporary file in `dir`, and returns
+/// its name.
+fn stage(dir: &Path, bytes: &[u8]) -> std::io::Result<PathBuf> {
     #[cfg(target_os = "linux")]
-    match unnamed::write(dir, path, bytes) {
+    match unnamed::stage(dir, bytes) {
         Err(e) if unnamed::unsupported(&e) => {}
         done => return done,
     }
     let (temporary, mut file) = create_named_temporary(dir)?;
-    let written = fill(&mut file, bytes).and_then(|()| std::fs::rename(&temporary, path));
-    if written.is_err() {
+    if let Err(e) = fill(&mut file, bytes) {
         let _ = std::fs::remove_file(&temporary);
+        return Err(e);
     }
-    written?;
-    sync_directory(dir);
-    Ok(())
+    Ok(temporary)
 }
 
 /// The prefix of the temporary files a write may leave when killed at the wrong moment;
@@ -209,22 +496,15 @@ mod unnamed {
         )
     }
 
-    pub fn write(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    /// Writes `bytes` to an unnamed file in `dir` and names it once complete.
+    pub fn stage(dir: &Path, bytes: &[u8]) -> std::io::Result<std::path::PathBuf> {
         let mut file = std::fs::OpenOptions::new()
             .write(true)
             .custom_flags(libc::O_TMPFILE)
             .mode(0o644)
             .open(dir)?;
         super::fill(&mut file, bytes)?;
-        // Named only now, complete; renamed over the target at once.
-        let temporary = link(&file, dir)?;
-        let renamed = std::fs::rename(&temporary, path);
-        if renamed.is_err() {
-            let _ = std::fs::remove_file(&temporary);
-        }
-        renamed?;
-        super::sync_directory(dir);
-        Ok(())
+        link(&file, dir)
     }
 
     /// Gives the unnamed file a fresh temporary name in `dir`.

@@ -45,13 +45,11 @@ pub mod latency;
 pub mod noise_floor;
 pub mod output;
 pub mod report;
-pub mod tune;
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use adwi_runtime::method;
 use adwi_runtime::{Status, Table, Target, Tier};
 
 use crate::baselines::{
@@ -61,7 +59,7 @@ use crate::baselines::{
 use adwi_compile::build::{self, BuildError, BuildOptions};
 use adwi_robot::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
 use adwi_robot::Robot;
-use adwi_samples::{Joints, SampleSet};
+use adwi_samples::SampleSet;
 
 /// A compensation method under evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -72,8 +70,6 @@ pub enum Method {
     /// The same table's served tier: the method at the grid's nodes, blended trilinearly
     /// (the continuous field `tablec query` serves).
     PaperTrilinear,
-    /// Approximation-degree weights over the nearest samples in joint space.
-    PaperJoint,
     /// Inverse distance weighting.
     Idw,
     /// Trilinear interpolation on a sample lattice.
@@ -84,39 +80,39 @@ pub enum Method {
     Kinematic,
     /// Identified kinematic model plus the table on its remainder, exact tier.
     Hybrid,
-    /// The hybrid table's served tier: the model plus the continuous residual field.
+    /// The hybrid table's served tier: the model plus the continuous residual field (what
+    /// the build's served field holds: the method's answer or a kriging of the residuals).
     HybridTrilinear,
-    /// Identified kinematic model plus kriging with a nugget on its residuals, in Cartesian
-    /// distance ([`adwi_compile::nugget_kriging`]).
-    KinematicKriging,
-    /// Identified kinematic model plus kriging with a nugget on its residuals, in joint
-    /// distance ([`adwi_compile::nugget_kriging`]).
-    KinematicKrigingJoint,
-    /// Identified kinematic model plus kriging with a nugget on its residuals, in a
-    /// distance of position and joint angles combined ([`POSE_SCALES_MM_PER_RAD`]).
-    KinematicKrigingPose,
-    /// Identified kinematic model plus kriging with a nugget on its residuals, in Cartesian
-    /// distance with a part that turns with the nominal tool's approach axis: what a hybrid
-    /// table's `kriging-tool-axis` served field tabulates, evaluated directly.
-    KinematicKrigingToolAxis,
+    /// A table built before, scored as it is: its served field, queried with the points'
+    /// joint angles when it is hybrid ([`evaluate_table`]).
+    Table,
 }
 
 impl Method {
-    /// Every method, in report order.
-    pub const ALL: [Method; 13] = [
+    /// Every method that is built from samples, in report order.
+    pub const ALL: [Method; 8] = [
         Method::Paper,
         Method::PaperTrilinear,
-        Method::PaperJoint,
         Method::Idw,
         Method::Grid,
         Method::Kriging,
         Method::Kinematic,
         Method::Hybrid,
         Method::HybridTrilinear,
-        Method::KinematicKriging,
-        Method::KinematicKrigingJoint,
-        Method::KinematicKrigingPose,
-        Method::KinematicKrigingToolAxis,
+    ];
+
+    /// What an evaluation compares when not told: what a table serves (both tiers, with
+    /// and without a kinematic model) and the cheap baselines, inverse distance weighting
+    /// and the kinematic model alone. `grid` and `kriging` are asked for by name: the
+    /// lattice answers nothing on scattered real data, and ordinary kriging interpolates
+    /// the noise a kriging served field smooths.
+    pub const DEFAULT: [Method; 6] = [
+        Method::Paper,
+        Method::PaperTrilinear,
+        Method::Idw,
+        Method::Kinematic,
+        Method::Hybrid,
+        Method::HybridTrilinear,
     ];
 
     /// The name used on the command line and in reports.
@@ -124,17 +120,13 @@ impl Method {
         match self {
             Method::Paper => "paper",
             Method::PaperTrilinear => "paper-trilinear",
-            Method::PaperJoint => "paper-joint",
             Method::Idw => "idw",
             Method::Grid => "grid",
             Method::Kriging => "kriging",
             Method::Kinematic => "kinematic",
             Method::Hybrid => "hybrid",
             Method::HybridTrilinear => "hybrid-trilinear",
-            Method::KinematicKriging => "kinematic-kriging",
-            Method::KinematicKrigingJoint => "kinematic-kriging-joint",
-            Method::KinematicKrigingPose => "kinematic-kriging-pose",
-            Method::KinematicKrigingToolAxis => "kinematic-kriging-tool-axis",
+            Method::Table => "table",
         }
     }
 
@@ -147,9 +139,6 @@ impl Method {
             Method::PaperTrilinear => {
                 "the same table's served field: the method at the nodes, trilinear (tablec query)"
             }
-            Method::PaperJoint => {
-                "approximation-degree weights, k nearest samples in joint space (brute force)"
-            }
             Method::Idw => "inverse distance weighting, k nearest nominal positions",
             Method::Grid => "trilinear interpolation in the sample lattice",
             Method::Kriging => "ordinary kriging, fitted variogram",
@@ -160,18 +149,7 @@ impl Method {
             Method::HybridTrilinear => {
                 "hybrid table's served field: kinematic model + continuous residual field"
             }
-            Method::KinematicKriging => {
-                "kinematic model + kriging with a nugget on its residuals, Cartesian distance"
-            }
-            Method::KinematicKrigingJoint => {
-                "kinematic model + kriging with a nugget on its residuals, joint distance"
-            }
-            Method::KinematicKrigingPose => {
-                "kinematic model + kriging with a nugget on its residuals, position and joints"
-            }
-            Method::KinematicKrigingToolAxis => {
-                "kinematic model + kriging with a nugget on its residuals, turning with the tool axis"
-            }
+            Method::Table => "the table given, its served field (tablec query)",
         }
     }
 
@@ -179,31 +157,50 @@ impl Method {
     pub fn needs_joints(self) -> bool {
         matches!(
             self,
-            Method::PaperJoint
-                | Method::Kinematic
-                | Method::Hybrid
-                | Method::HybridTrilinear
-                | Method::KinematicKriging
-                | Method::KinematicKrigingJoint
-                | Method::KinematicKrigingPose
-                | Method::KinematicKrigingToolAxis
+            Method::Kinematic | Method::Hybrid | Method::HybridTrilinear
         )
     }
 
     /// Whether the method needs a robot model.
     pub fn needs_robot(self) -> bool {
+        self.needs_joints()
+    }
+
+    /// Whether a table serves the method's answer to a controller (`tablec query`), as
+    /// opposed to a baseline it is compared with.
+    pub fn is_served(self) -> bool {
         matches!(
             self,
-            Method::Kinematic
+            Method::Paper
+                | Method::PaperTrilinear
                 | Method::Hybrid
                 | Method::HybridTrilinear
-                | Method::KinematicKriging
-                | Method::KinematicKrigingJoint
-                | Method::KinematicKrigingPose
-                | Method::KinematicKrigingToolAxis
+                | Method::Table
         )
     }
 }
+
+/// Methods earlier versions evaluated that no table serves, and what measures their
+/// question through a real table now.
+const RETIRED: [(&str, &str); 5] = [
+    ("paper-joint", "the joint-space screen (--joint-radius) is what a table serves"),
+    (
+        "kinematic-kriging",
+        "hybrid-trilinear with a kriging served field (--served-field kriging) measures it through the table",
+    ),
+    (
+        "kinematic-kriging-tool-axis",
+        "hybrid-trilinear with a kriging served field measures it through the table",
+    ),
+    (
+        "kinematic-kriging-joint",
+        "hybrid-trilinear measures what a table serves",
+    ),
+    (
+        "kinematic-kriging-pose",
+        "hybrid-trilinear measures what a table serves",
+    ),
+];
 
 impl fmt::Display for Method {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -215,13 +212,19 @@ impl FromStr for Method {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s.trim())
-            .ok_or_else(|| {
-                let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown method '{s}': choose from {}", names.join(", "))
-            })
+        let name = s.trim();
+        if let Some(m) = Method::ALL.into_iter().find(|m| m.name() == name) {
+            return Ok(m);
+        }
+        let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
+        let retired = RETIRED.iter().find(|(old, _)| *old == name);
+        Err(match retired {
+            Some((_, instead)) => format!(
+                "method '{name}' was retired: no table can serve it; {instead} (choose from {})",
+                names.join(", ")
+            ),
+            None => format!("unknown method '{name}': choose from {}", names.join(", ")),
+        })
     }
 }
 
@@ -265,6 +268,10 @@ pub struct EvalOptions {
     pub grid: GridParams,
     /// Kriging parameters.
     pub kriging: KrigingParams,
+    /// The identification of each split, when an earlier evaluation of the same samples,
+    /// protocol and identification options made it ([`Evaluation::identified`]): several
+    /// evaluations then identify once per split. Empty: identified here.
+    pub identified: Vec<Calibration>,
 }
 
 /// Why an evaluation could not run at all (a method that cannot handle the data is not an
@@ -574,6 +581,11 @@ pub struct Evaluation {
     /// Every method against the best, point by point ([`comparison`]): which differences
     /// these points resolve.
     pub comparison: Option<comparison::Comparison>,
+    /// The identification of each split (with a validation set, of every sample), for a
+    /// later evaluation of the same splits to reuse ([`EvalOptions::identified`]); not in
+    /// the JSON ([`Evaluation::calibrations`] is).
+    #[serde(skip)]
+    pub identified: Vec<Calibration>,
 }
 
 impl Evaluation {
@@ -625,7 +637,7 @@ fn choose_methods(
         None => {
             let mut chosen = Vec::new();
             let mut skipped = Vec::new();
-            for m in Method::ALL {
+            for m in Method::DEFAULT {
                 match unavailable(m) {
                     Some(reason) => skipped.push((m, reason)),
                     None => chosen.push(m),
@@ -678,15 +690,9 @@ pub fn evaluate(
     let (methods, skipped) = choose_methods(samples, &points, options)?;
     let orientation = samples.rotation_error_rad.is_some() && points.rotation_error_rad.is_some();
 
-    let mut predictions: BTreeMap<Method, Vec<Option<PointPrediction>>> = methods
-        .iter()
-        .map(|&m| (m, vec![None; points.len()]))
-        .collect();
-    // Per method: misses counted by kind of reason, and a few particulars of each kind.
-    type Tally = (BTreeMap<String, usize>, BTreeMap<String, Vec<String>>);
-    let mut failures: BTreeMap<Method, Tally> = BTreeMap::new();
-    let mut unsupported: BTreeMap<Method, String> = BTreeMap::new();
+    let mut collected = Collected::new(&methods, points.len());
     let mut calibrations = Vec::new();
+    let mut identified = Vec::new();
     let mut floor = None;
 
     for (split, (train, test)) in splits.iter().enumerate() {
@@ -697,9 +703,13 @@ pub fn evaluate(
                 .iter()
                 .find(|m| m.needs_robot())
                 .expect("a method that needs the robot");
-            let c = calibrate::identify(robot, train, &options.calibrate)
-                .map_err(|source| EvalError::Calibrate { method, source })?;
+            let c = match options.identified.get(split) {
+                Some(c) => c.clone(),
+                None => calibrate::identify(robot, train, &options.calibrate)
+                    .map_err(|source| EvalError::Calibrate { method, source })?,
+            };
             calibrations.push(CalibrationSummary::new(split, &c));
+            identified.push(c.clone());
             Some(c)
         } else {
             None
@@ -708,7 +718,7 @@ pub fn evaluate(
             floor = Some(training_noise_floor(train, calibration.as_ref()));
         }
         for &method in &methods {
-            if unsupported.contains_key(&method) {
+            if collected.unsupported.contains_key(&method) {
                 continue;
             }
             let outcome = predict_split(
@@ -719,25 +729,103 @@ pub fn evaluate(
                 options,
                 orientation,
             )?;
-            match outcome {
-                SplitOutcome::Unsupported(reason) => {
-                    unsupported.insert(method, reason);
-                }
-                SplitOutcome::Predicted(list) => {
-                    for (local, result) in list.into_iter().enumerate() {
-                        match result {
-                            Ok(p) => {
-                                predictions.get_mut(&method).expect("initialised")[test[local]] =
-                                    Some(p)
-                            }
-                            Err(miss) => {
-                                let tally: &mut Tally = failures.entry(method).or_default();
-                                *tally.0.entry(miss.reason.clone()).or_default() += 1;
-                                let examples = tally.1.entry(miss.reason).or_default();
-                                if let Some(detail) = miss.detail {
-                                    if examples.len() < MISS_EXAMPLES {
-                                        examples.push(detail);
-                                    }
+            collected.record(method, test, outcome);
+        }
+    }
+    let mut evaluation = assemble(description, samples, &points, orientation, collected);
+    evaluation.skipped = skipped;
+    evaluation.calibrations = calibrations;
+    evaluation.noise_floor = floor;
+    evaluation.identified = identified;
+    Ok(evaluation)
+}
+
+/// Scores a table built before at `points` (with their measured errors): its served field,
+/// queried with each point's joint angles when the table is hybrid, as a controller would
+/// query it. The evaluation holds the one method [`Method::Table`]; its sample count is
+/// the table's, and `description` says what was evaluated.
+///
+/// # Errors
+///
+/// [`EvalError::MethodUnavailable`] for a hybrid table and points without joint angles.
+pub fn evaluate_table<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    points: &SampleSet,
+    description: String,
+) -> Result<Evaluation, EvalError> {
+    let method = Method::Table;
+    if table.is_hybrid() && points.joints.is_none() {
+        return Err(EvalError::MethodUnavailable {
+            method,
+            reason: "the table is hybrid: its answer needs each point's joint angles (j1..jn)"
+                .into(),
+        });
+    }
+    let orientation = points.rotation_error_rad.is_some() && table.has_orientation();
+    let mut collected = Collected::new(&[method], points.len());
+    let outcome = (0..points.len())
+        .map(|i| {
+            let target = Target {
+                position_mm: points.nominal_mm[i],
+                config: points.config.as_ref().map(|c| c[i]),
+            };
+            table_prediction(table, &target, points.joints_rad(i), false, orientation)
+        })
+        .collect();
+    let all: Vec<usize> = (0..points.len()).collect();
+    collected.record(method, &all, SplitOutcome::Predicted(outcome));
+    let mut evaluation = assemble(
+        description,
+        &SampleSet::default(),
+        points,
+        orientation,
+        collected,
+    );
+    evaluation.samples = table.sample_count();
+    Ok(evaluation)
+}
+
+/// Per method: misses counted by kind of reason, and a few particulars of each kind.
+type Tally = (BTreeMap<String, usize>, BTreeMap<String, Vec<String>>);
+
+/// Every method's predictions at every point, gathered split by split.
+struct Collected {
+    methods: Vec<Method>,
+    predictions: BTreeMap<Method, Vec<Option<PointPrediction>>>,
+    failures: BTreeMap<Method, Tally>,
+    unsupported: BTreeMap<Method, String>,
+}
+
+impl Collected {
+    fn new(methods: &[Method], points: usize) -> Collected {
+        Collected {
+            methods: methods.to_vec(),
+            predictions: methods.iter().map(|&m| (m, vec![None; points])).collect(),
+            failures: BTreeMap::new(),
+            unsupported: BTreeMap::new(),
+        }
+    }
+
+    /// One split's outcome for `method`, at the points `test` (indices into all points).
+    fn record(&mut self, method: Method, test: &[usize], outcome: SplitOutcome) {
+        match outcome {
+            SplitOutcome::Unsupported(reason) => {
+                self.unsupported.insert(method, reason);
+            }
+            SplitOutcome::Predicted(list) => {
+                for (local, result) in list.into_iter().enumerate() {
+                    match result {
+                        Ok(p) => {
+                            self.predictions.get_mut(&method).expect("initialised")[test[local]] =
+                                Some(p)
+                        }
+                        Err(miss) => {
+                            let tally: &mut Tally = self.failures.entry(method).or_default();
+                            *tally.0.entry(miss.reason.clone()).or_default() += 1;
+                            let examples = tally.1.entry(miss.reason).or_default();
+                            if let Some(detail) = miss.detail {
+                                if examples.len() < MISS_EXAMPLES {
+                                    examples.push(detail);
                                 }
                             }
                         }
@@ -746,7 +834,23 @@ pub fn evaluate(
             }
         }
     }
+}
 
+/// The evaluation of what was collected at `points`: each method's residual statistics
+/// and the comparison with the best (the caller adds what identification found).
+fn assemble(
+    description: String,
+    samples: &SampleSet,
+    points: &SampleSet,
+    orientation: bool,
+    collected: Collected,
+) -> Evaluation {
+    let Collected {
+        methods,
+        mut predictions,
+        mut failures,
+        mut unsupported,
+    } = collected;
     let measured_rotation = if orientation {
         points.rotation_error_rad.clone()
     } else {
@@ -805,7 +909,7 @@ pub fn evaluate(
         .collect();
 
     let comparison = comparison::compare(&methods, &points.error_mm);
-    Ok(Evaluation {
+    Evaluation {
         protocol: description,
         samples: samples.len(),
         training_nominal_mm: samples.nominal_mm.clone(),
@@ -815,11 +919,12 @@ pub fn evaluate(
         uncompensated_position_mm,
         uncompensated_orientation_mrad,
         methods,
-        skipped,
-        calibrations,
-        noise_floor: floor,
+        skipped: Vec::new(),
+        calibrations: Vec::new(),
+        noise_floor: None,
         comparison,
-    })
+        identified: Vec::new(),
+    }
 }
 
 /// The noise floor of training samples: of the residuals `calibration` leaves on them, or
@@ -895,6 +1000,11 @@ fn predict_split(
         set.joints_rad(i).expect("checked by choose_methods")
     }
     let outcome = match method {
+        Method::Table => {
+            return Ok(SplitOutcome::Unsupported(
+                "a table built before is scored by itself (tablec eval --table)".into(),
+            ))
+        }
         Method::Paper | Method::PaperTrilinear => {
             let table = compile_table(method, train, &options.build)?;
             let exact = method == Method::Paper;
@@ -904,21 +1014,6 @@ fn predict_split(
                 .map(|(i, t)| {
                     // The joint angles only matter to a table with a joint screen.
                     table_prediction(&table, t, test.joints_rad(i), exact, orientation)
-                })
-                .collect()
-        }
-        Method::PaperJoint => {
-            let params = build::plan(train, &options.build)
-                .map_err(|source| EvalError::Build { method, source })?
-                .params;
-            let records = train.records();
-            let train_joints = train.joints.as_ref().expect("checked");
-            let test_joints = test.joints.as_ref().expect("checked");
-            targets
-                .iter()
-                .zip(test_joints.rows())
-                .map(|(t, q)| {
-                    joint_space_prediction(&records, train_joints, &params, t, q, orientation)
                 })
                 .collect()
         }
@@ -958,13 +1053,6 @@ fn predict_split(
                 })
                 .collect()
         }
-        Method::KinematicKriging
-        | Method::KinematicKrigingJoint
-        | Method::KinematicKrigingPose
-        | Method::KinematicKrigingToolAxis => {
-            let c = calibration.expect("identified for kinematic methods");
-            kinematic_kriging_predictions(method, c, train, test, orientation)?
-        }
         Method::Hybrid | Method::HybridTrilinear => {
             let c = calibration.expect("identified for kinematic methods");
             let exact = method == Method::Hybrid;
@@ -989,119 +1077,6 @@ fn predict_split(
         }
     };
     Ok(SplitOutcome::Predicted(outcome))
-}
-
-/// The scales tried for `kinematic-kriging-pose`, mm of distance per rad of joint angle:
-/// its inputs are the nominal position (mm) and the joint angles times the scale, so that
-/// two poses at one position reached with different postures are apart. A log grid from a
-/// wrist's lever to beyond an arm's reach; for each residual component the scale (with its
-/// length scale and nugget) of the highest marginal likelihood on the training samples is
-/// used.
-pub const POSE_SCALES_MM_PER_RAD: [f64; 5] = [50.0, 100.0, 200.0, 400.0, 800.0];
-
-/// The kinematic model's prediction plus kriging with a nugget of the residuals it leaves
-/// on the training samples ([`adwi_compile::nugget_kriging`]): in Cartesian distance, joint
-/// distance, or both combined at the scale the training samples' likelihood prefers
-/// ([`POSE_SCALES_MM_PER_RAD`]; marginal likelihoods of one set of values are comparable
-/// across kernels, which is what makes the scale a hyperparameter like the others).
-fn kinematic_kriging_predictions(
-    method: Method,
-    calibration: &Calibration,
-    train: &SampleSet,
-    test: &SampleSet,
-    orientation: bool,
-) -> Result<Vec<Result<PointPrediction, Miss>>, EvalError> {
-    let scales: &[f64] = match method {
-        Method::KinematicKrigingPose => &POSE_SCALES_MM_PER_RAD,
-        _ => &[0.0],
-    };
-    let input = |set: &SampleSet, i: usize, scale: f64| -> Vec<f64> {
-        let q = set.joints_rad(i).expect("checked by choose_methods");
-        match method {
-            Method::KinematicKrigingJoint => q.to_vec(),
-            Method::KinematicKrigingPose => {
-                let mut v = set.nominal_mm[i].to_vec();
-                v.extend(q.iter().map(|q| q * scale));
-                v
-            }
-            _ => set.nominal_mm[i].to_vec(),
-        }
-    };
-    let (position, rotation) = kinematic_residuals(calibration, train);
-    let residuals: Vec<Vec<f64>> = (0..train.len())
-        .map(|i| {
-            let mut row = position[i].to_vec();
-            if let (true, Some(r)) = (orientation, &rotation) {
-                row.extend_from_slice(&r[i]);
-            }
-            row
-        })
-        .collect();
-    // The nominal tool's approach axis at a point's joint values, for the field that turns.
-    let model = calibration.prepared_model();
-    let axis = |set: &SampleSet, i: usize| model.approach_axis(set.joints_rad(i)?);
-    let fits = scales
-        .iter()
-        .map(|&scale| {
-            let inputs: Vec<Vec<f64>> = (0..train.len()).map(|i| input(train, i, scale)).collect();
-            if method == Method::KinematicKrigingToolAxis {
-                let axes: Vec<[f64; 3]> = (0..train.len())
-                    .map(|i| {
-                        axis(train, i).ok_or(EvalError::Kriging {
-                            method,
-                            source: adwi_compile::nugget_kriging::GpError::Malformed(
-                                "a sample's joint values do not fit the robot",
-                            ),
-                        })
-                    })
-                    .collect::<Result<_, _>>()?;
-                adwi_compile::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &residuals)
-            } else if method == Method::KinematicKriging {
-                adwi_compile::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &residuals)
-            } else {
-                adwi_compile::nugget_kriging::ResidualGp::fit(&inputs, &residuals)
-            }
-            .map_err(|source| EvalError::Kriging { method, source })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    // Per component, the fit of the highest likelihood (the first on a tie).
-    let width = residuals[0].len();
-    let pick: Vec<usize> = (0..width)
-        .map(|c| {
-            let mut best = 0;
-            for (f, fit) in fits.iter().enumerate() {
-                if fit.choices()[c].log_likelihood > fits[best].choices()[c].log_likelihood {
-                    best = f;
-                }
-            }
-            best
-        })
-        .collect();
-    Ok((0..test.len())
-        .map(|i| {
-            let (p, r) = calibration.predict_error(test.joints_rad(i).expect("checked"));
-            let mut field = vec![0.0; width];
-            for (f, (fit, &scale)) in fits.iter().zip(scales).enumerate() {
-                if !pick.contains(&f) {
-                    continue;
-                }
-                let x = input(test, i, scale);
-                let predicted = if fit.turns() {
-                    axis(test, i).and_then(|a| fit.predict_at(&x, a))
-                } else {
-                    fit.predict(&x)
-                }
-                .ok_or(Miss::status(Status::InvalidInput))?;
-                for c in (0..width).filter(|&c| pick[c] == f) {
-                    field[c] = predicted[c];
-                }
-            }
-            Ok(PointPrediction {
-                position_error_mm: [0, 1, 2].map(|a| p[a] + field[a]),
-                orientation_error_rad: orientation.then(|| [0, 1, 2].map(|a| r[a] + field[3 + a])),
-            })
-        })
-        .collect())
 }
 
 /// Compiles samples into a table and opens it from its bytes, as `tablec build` then
@@ -1138,43 +1113,6 @@ fn table_prediction<D: AsRef<[u8]>>(
         position_error_mm: c.position_error_mm,
         orientation_error_rad: (orientation && table.has_orientation())
             .then_some(c.orientation_error_rad),
-    })
-}
-
-/// The approximation-degree prediction over the `k` admissible samples nearest to the
-/// target in joint space (ties by sample order), brute force.
-///
-/// Admissibility is the table's: the target must satisfy (37), a sample must be within ε
-/// of the target in Cartesian space and pass (31)-(34), and match the target's
-/// configuration. Only the choice among admissible samples changes: joint-space distance
-/// instead of Cartesian distance. The weights and the consistency screen are
-/// [`adwi_runtime::method`]'s.
-fn joint_space_prediction(
-    records: &[adwi_runtime::format::SampleRecord],
-    train_joints: &Joints,
-    params: &method::MethodParams,
-    target: &Target,
-    target_joints_rad: &[f64],
-    orientation: bool,
-) -> Result<PointPrediction, Miss> {
-    let joint_distance = |q: &[f64]| {
-        q.iter()
-            .zip(target_joints_rad)
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let neighbours =
-        adwi_compile::reference::neighbours_ranked(records, params, target, None, |n| {
-            joint_distance(train_joints.row(n.sample as usize))
-        });
-    let prediction = method::predict(params, &neighbours, |i| {
-        records[i as usize].measured_error()
-    })
-    .ok_or(Miss::status(Status::NoAdmissibleNeighbour))?;
-    Ok(PointPrediction {
-        position_error_mm: prediction.position_error_mm,
-        orientation_error_rad: orientation.then_some(prediction.orientation_error_rad),
     })
 }
 

@@ -10,14 +10,13 @@
 //! page needs nothing beside itself.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::{Evaluation, MethodResult, ParameterRow};
 
-/// Why the report could not be written.
+/// Why the report could not be drawn.
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
     /// A plot could not be drawn.
@@ -28,18 +27,10 @@ pub enum ReportError {
         /// The backend's message.
         message: String,
     },
-    /// The page could not be written.
-    #[error("cannot write {path}")]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
 }
 
-/// One colour per method, in [`super::Method::ALL`] order; grey is "uncompensated".
+/// One colour per method, in [`super::Method::ALL`] order, then a table scored as built;
+/// grey is "uncompensated".
 const COLOURS: [RGBColor; 12] = [
     RGBColor(31, 119, 180),
     RGBColor(23, 190, 207),
@@ -68,7 +59,7 @@ fn colour(m: &MethodResult) -> RGBColor {
     let index = super::Method::ALL
         .iter()
         .position(|x| *x == m.method)
-        .unwrap_or(0);
+        .unwrap_or(super::Method::ALL.len());
     COLOURS[index % COLOURS.len()]
 }
 
@@ -849,7 +840,9 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
     let floor_mm = e.noise_floor.as_ref().and_then(|f| f.best_mean_mm);
     cdf_section(&mut page, e, &ranked, floor_mm)?;
     distance_section(&mut page, e, &ranked, floor_mm)?;
-    vectors_section(&mut page, e, ranked.first().copied())?;
+    // What a controller can be given: the best method a table serves.
+    let served = ranked.iter().copied().find(|m| m.method.is_served());
+    vectors_section(&mut page, e, served)?;
     axes_section(&mut page, e);
     locations_section(&mut page, e)?;
     orientation_section(&mut page, e)?;
@@ -1143,8 +1136,8 @@ fn distance_section(
     Ok(())
 }
 
-/// Error vectors before and after compensation by the best method on a top and a side
-/// view.
+/// Error vectors before and after compensation by the best method a table serves (a
+/// controller can be given nothing else), on a top and a side view.
 fn vectors_section(
     page: &mut String,
     e: &Evaluation,
@@ -1492,25 +1485,6 @@ fn parameters_section(page: &mut String, e: &Evaluation) {
     if e.calibrations.len() > 1 {
         page.push_str("<p>The other folds' identifications are in the JSON output.</p>\n");
     }
-}
-
-/// Writes the report page to `dir/index.html`, creating `dir` if needed; returns the
-/// page's path.
-///
-/// # Errors
-///
-/// [`ReportError::Write`] if the directory or file cannot be written, and the errors of
-/// [`html`].
-pub fn write(e: &Evaluation, command: &str, dir: &Path) -> Result<PathBuf, ReportError> {
-    let page = html(e, command)?;
-    let path = dir.join("index.html");
-    std::fs::create_dir_all(dir)
-        .and_then(|()| std::fs::write(&path, page))
-        .map_err(|source| ReportError::Write {
-            path: path.clone(),
-            source,
-        })?;
-    Ok(path)
 }
 
 #[cfg(test)]

@@ -89,6 +89,16 @@ pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
 
 use reader::{parse, read_file, Purpose, Rows};
 
+/// Series that cannot make one sample set: one carries columns the first does not.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("series {series} differs from the first in {what}: series trained together need the same columns")]
+pub struct SeriesMismatch {
+    /// Which series (1-based) differs from the first.
+    pub series: usize,
+    /// What it differs in.
+    pub what: &'static str,
+}
+
 /// A sample database in memory, in source order. Positions mm, base frame.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SampleSet {
@@ -160,6 +170,99 @@ impl SampleSet {
             // The spread of the file's repeats is not the subset's.
             repeats: None,
         }
+    }
+
+    /// Several series as one sample set, in order: the samples of each, and a pose that
+    /// two series command alike (after each series folded its own repeats) folded into
+    /// one sample, the mean of their errors, as rows repeating a pose in one file are.
+    /// The series must carry the same columns: joint values (and as many), nominal
+    /// orientations, orientation errors and configurations all or none.
+    ///
+    /// # Errors
+    ///
+    /// [`SeriesMismatch`], naming the first series that differs from the first one.
+    pub fn concat(series: &[SampleSet]) -> Result<SampleSet, SeriesMismatch> {
+        let Some(first) = series.first() else {
+            return Ok(SampleSet::default());
+        };
+        let shape = |s: &SampleSet| {
+            (
+                s.joint_count(),
+                s.nominal_rotation.is_some(),
+                s.rotation_error_rad.is_some(),
+                s.config.is_some(),
+            )
+        };
+        for (i, s) in series.iter().enumerate().skip(1) {
+            let (a, b) = (shape(first), shape(s));
+            let what = if a.0 != b.0 {
+                "joint values (j1..jn, and as many)"
+            } else if a.1 != b.1 {
+                "a nominal orientation"
+            } else if a.2 != b.2 {
+                "orientation errors"
+            } else if a.3 != b.3 {
+                "configurations"
+            } else {
+                continue;
+            };
+            return Err(SeriesMismatch {
+                series: i + 1,
+                what,
+            });
+        }
+        let gather3 = |f: fn(&SampleSet) -> &Vec<[f64; 3]>| -> Vec<[f64; 3]> {
+            series.iter().flat_map(|s| f(s).iter().copied()).collect()
+        };
+        let joints = first.joints.as_ref().map(|j| {
+            let mut all = Joints::new(j.count());
+            for s in series {
+                let js = s.joints.as_ref().expect("checked");
+                for r in js.rows() {
+                    all.push(r);
+                }
+            }
+            all
+        });
+        Ok(repeats::fold(repeats::Parts {
+            nominal_mm: gather3(|s| &s.nominal_mm),
+            error_mm: gather3(|s| &s.error_mm),
+            nominal_rotation: first.nominal_rotation.as_ref().map(|_| {
+                series
+                    .iter()
+                    .flat_map(|s| {
+                        s.nominal_rotation
+                            .as_ref()
+                            .expect("checked")
+                            .iter()
+                            .copied()
+                    })
+                    .collect()
+            }),
+            rotation_error_rad: first.rotation_error_rad.as_ref().map(|_| {
+                series
+                    .iter()
+                    .flat_map(|s| {
+                        s.rotation_error_rad
+                            .as_ref()
+                            .expect("checked")
+                            .iter()
+                            .copied()
+                    })
+                    .collect()
+            }),
+            joints,
+            config: first.config.as_ref().map(|_| {
+                series
+                    .iter()
+                    .flat_map(|s| s.config.as_ref().expect("checked").iter().copied())
+                    .collect()
+            }),
+            lines: series
+                .iter()
+                .flat_map(|s| s.lines.iter().copied())
+                .collect(),
+        }))
     }
 
     /// The samples as the runtime stores them.
@@ -627,6 +730,30 @@ pub fn parse_measurements(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn series_concatenate_and_a_pose_both_command_is_one_sample() {
+        let parse = |text: &str| {
+            parse_samples(Path::new("s.csv"), text.as_bytes(), &ColumnMap::default()).unwrap()
+        };
+        let a = parse("x,y,z,dx,dy,dz,j1\n0,0,0,0.1,0,0,1\n10,0,0,0.2,0,0,2\n");
+        let c = parse("x,y,z,dx,dy,dz,j1\n10,0,0,0.4,0,0,2\n20,0,0,0.5,0,0,3\n");
+        let both = SampleSet::concat(&[a.clone(), c]).unwrap();
+        assert_eq!(
+            both.nominal_mm,
+            vec![[0.0; 3], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]]
+        );
+        assert_eq!(both.error_mm[1][0], (0.2 + 0.4) / 2.0);
+        assert_eq!(both.joints.as_ref().unwrap().count(), 1);
+        assert_eq!(both.repeats.as_ref().map(|r| r.poses), Some(1));
+        let without_joints = parse("x,y,z,dx,dy,dz\n30,0,0,0.1,0,0\n");
+        let e = SampleSet::concat(&[a, without_joints]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "series 2 differs from the first in joint values (j1..jn, and as many): series \
+             trained together need the same columns"
+        );
+    }
 
     fn parse(text: &str) -> Result<SampleSet, ReadError> {
         parse_samples(Path::new("s.csv"), text.as_bytes(), &ColumnMap::default())

@@ -46,9 +46,10 @@ sample. Open: memory map + full validation vs. reading the file and deserialisin
 copy (rkyv validation, no semantic checks).";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(json) = &args.json {
-        crate::refuse_overwriting(json, &[&args.table])?;
-    }
+    let outputs = adwi_compile::write::OutputPlan::check(
+        &args.json.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
+        &[&args.table],
+    )?;
     let table = crate::open_table(&args.table)?;
     let params = *table.method();
     let grid = *table.grid();
@@ -130,8 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(path) = &args.json {
-        std::fs::write(path, json(&results))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        outputs.write(&[(path, json(&results).as_bytes())])?;
     }
 
     println!("\nopen ({} runs each)", args.open_repeats);

@@ -7,14 +7,14 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod build;
 mod calibrate;
+mod compensate;
 mod continuity;
 mod eval;
 mod inspect;
-mod measured_in;
+mod progress;
 mod query;
-mod read_options;
+mod registration;
 mod simulate;
-mod table_options;
 
 /// Approximation-degree weighted interpolation of robot positioning errors.
 #[derive(Parser)]
@@ -30,6 +30,8 @@ enum Command {
     Build(build::Args),
     /// Predict the correction at one target, or at every row of a targets CSV.
     Query(query::Args),
+    /// Compensate a robot program: every target replaced by the command that lands on it.
+    Compensate(compensate::Args),
     /// Identify a robot's kinematic deviations from samples; write the calibrated robot.
     Calibrate(calibrate::Args),
     /// Print a table's header, parameters, counts and sizes.
@@ -45,8 +47,10 @@ enum Command {
 }
 
 /// Exit status when a query gave no correction for its target, or for some rows of a
-/// targets file (README, "Exit status"). 1 is an error, 2 a usage error (clap's).
+/// targets file (docs/cli.md, "Exit status"). 1 is an error.
 const EXIT_UNANSWERED: u8 = 3;
+/// Exit status of a usage error: clap's, and a combination of options a job refuses.
+const EXIT_USAGE: u8 = 2;
 
 /// Whether a query answered every target it was given.
 pub enum Answered {
@@ -63,6 +67,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Build(args) => done(build::run(args)),
         Command::Query(args) => query::run(args),
+        Command::Compensate(args) => compensate::run(args),
         Command::Calibrate(args) => done(calibrate::run(args)),
         Command::Inspect(args) => done(inspect::run(args)),
         Command::Simulate(args) => done(simulate::run(args)),
@@ -78,8 +83,21 @@ fn main() -> ExitCode {
             for cause in e.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
-            ExitCode::FAILURE
+            // A refused combination of options is a usage error, as clap's own are.
+            let usage = matches!(
+                e.downcast_ref::<adwi_jobs::JobError>(),
+                Some(adwi_jobs::JobError::Options(_))
+            );
+            ExitCode::from(if usage { EXIT_USAGE } else { 1 })
         }
+    }
+}
+
+/// Prints a job's warnings on standard error, even with `--quiet`: the work was done, but
+/// the user should know.
+pub fn warn(warnings: &[adwi_jobs::Warning]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
 }
 
@@ -102,56 +120,6 @@ fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memm
     // process holds the mapping only for the duration of one command.
     unsafe { adwi_runtime::Table::open(path) }
         .with_context(|| format!("cannot open table {}", path.display()))
-}
-
-/// The links a URDF robot's chain runs between, as every subcommand with `--robot` takes
-/// them.
-#[derive(clap::Args, Debug, Clone, Default)]
-pub struct RobotLinks {
-    /// URDF robots: the link the chain starts at, the robot's base frame [default: the
-    /// file's only root link].
-    #[arg(long, value_name = "LINK")]
-    base_link: Option<String>,
-    /// URDF robots: the link the chain ends at, the TCP's frame [default: the only leaf
-    /// link below the base].
-    #[arg(long, value_name = "LINK")]
-    tip_link: Option<String>,
-}
-
-impl RobotLinks {
-    /// Loads a robot file (TOML, or URDF by its `.urdf` extension) with these links.
-    pub fn load(&self, path: &std::path::Path) -> anyhow::Result<adwi_robot::Robot> {
-        use anyhow::Context;
-        let links = adwi_robot::LinkNames {
-            base_link: self.base_link.clone(),
-            tip_link: self.tip_link.clone(),
-        };
-        adwi_robot::Robot::load_with(path, &links)
-            .with_context(|| format!("cannot load the robot {}", path.display()))
-    }
-}
-
-/// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.
-pub fn parse_number_list(text: &str) -> Result<Vec<f64>, String> {
-    text.split(',')
-        .map(|item| {
-            let item = item.trim();
-            match item.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                Ok(_) => Err(format!("'{item}' is not a finite number")),
-                Err(_) => Err(format!("'{item}' is not a number")),
-            }
-        })
-        .collect()
-}
-
-/// Refuses to write `output` when it is one of `inputs`, before anything is written
-/// ([`adwi_compile::write::refuse_overwriting`]).
-pub fn refuse_overwriting(
-    output: &std::path::Path,
-    inputs: &[&std::path::Path],
-) -> anyhow::Result<()> {
-    Ok(adwi_compile::write::refuse_overwriting(output, inputs)?)
 }
 
 /// The method's parameters in one line, as `build` and `inspect` print them.

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use adwi_runtime::{Correction, Status, Table, Target, Tier};
 use adwi_samples::pose;
-use anyhow::{bail, Context};
+use anyhow::bail;
 
 use crate::Answered;
 
@@ -17,7 +17,7 @@ const COMPENSATE_ITERATIONS: u32 = 50;
 #[command(
     group(
         clap::ArgGroup::new("reading")
-            .args(crate::read_options::ReadOptions::IDS)
+            .args(adwi_jobs::Reading::IDS)
             .multiple(true)
             .requires("targets")
     ),
@@ -42,7 +42,7 @@ pub struct Args {
         long,
         value_name = "DEG,...",
         allow_hyphen_values = true,
-        value_parser = crate::parse_number_list,
+        value_parser = adwi_jobs::args::parse_number_list,
         conflicts_with = "targets"
     )]
     joints: Option<NumberList>,
@@ -51,7 +51,7 @@ pub struct Args {
     targets: Option<PathBuf>,
     /// How the targets CSV is read, as for `tablec build`.
     #[command(flatten)]
-    read: crate::read_options::ReadOptions,
+    read: adwi_jobs::Reading,
     /// Output CSV for --targets [default: standard output].
     #[arg(short, long, requires = "targets")]
     output: Option<PathBuf>,
@@ -67,7 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     let table = crate::open_table(&args.table)?;
     if let Some(targets) = &args.targets {
         if let Some(output) = &args.output {
-            crate::refuse_overwriting(output, &[&args.table, targets])?;
+            adwi_compile::write::OutputPlan::check(&[output], &[&args.table, targets])?;
         }
         return run_batch(
             &table,
@@ -213,18 +213,19 @@ fn command<D: AsRef<[u8]>>(
 fn run_batch(
     table: &Table<memmap2::Mmap>,
     targets: &Path,
-    read: &crate::read_options::ReadOptions,
+    read: &adwi_jobs::Reading,
     output: Option<&Path>,
     exact: bool,
 ) -> anyhow::Result<Answered> {
     let (columns, options) = read.resolve()?;
     let targets = adwi_samples::read_targets(targets, &columns, &options)?;
+    // A file is written whole once every row is (atomically: never a partial file);
+    // standard output row by row.
+    let mut buffer = Vec::new();
+    let stdout = std::io::stdout();
     let mut out: Box<dyn Write> = match output {
-        Some(path) => Box::new(std::io::BufWriter::new(
-            std::fs::File::create(path)
-                .with_context(|| format!("cannot create {}", path.display()))?,
-        )),
-        None => Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
+        Some(_) => Box::new(&mut buffer),
+        None => Box::new(std::io::BufWriter::new(stdout.lock())),
     };
     writeln!(
         out,
@@ -268,6 +269,10 @@ fn run_batch(
         }
     }
     out.flush()?;
+    drop(out);
+    if let Some(path) = output {
+        adwi_compile::write::write_atomically(path, &buffer)?;
+    }
     if unanswered.is_empty() {
         return Ok(Answered::All);
     }

@@ -1,52 +1,11 @@
-//! `--measured-in`: the frame a sample file's measured poses are in. `base` (the default)
-//! reads samples as they are; `tracker` reads measurements in a laser tracker's own frame,
-//! registers them to the robot (adwi_robot::measured, the one reading the Python bindings
-//! share) and hands every method the registered errors. The printing is the CLI's.
+//! Printing a registration of tracker-frame measurements (`--measured-in tracker`): the
+//! transforms and the residuals they leave.
 
-use std::path::Path;
-
-use adwi_robot::measured::{Input, Registered};
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
-use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
-
-/// The frame the measured poses are in.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MeasuredIn {
-    /// The robot's base frame: the file holds errors, or measured poses in the base frame.
-    #[default]
-    Base,
-    /// A tracker's own frame: the file holds joints j1..jn and measured positions
-    /// mx,my,mz (and, from a 6-D probe, a measured orientation).
-    Tracker,
-}
-
-/// Reads a sample file as `frame` says: tracker-frame measurements registered to the robot
-/// at `robot_path` (`--measured-in tracker`, which needs one), or samples as they are
-/// (`adwi_robot::measured::read_samples`).
-pub fn read_samples(
-    frame: MeasuredIn,
-    robot_path: Option<&Path>,
-    links: &crate::RobotLinks,
-    path: &Path,
-    columns: &ColumnMap,
-    read: &ReadOptions,
-) -> anyhow::Result<(Option<Registered>, SampleSet)> {
-    let tracker_robot = match (frame, robot_path) {
-        (MeasuredIn::Tracker, Some(robot_path)) => Some(links.load(robot_path)?),
-        _ => None,
-    };
-    Ok(adwi_robot::measured::read_samples(
-        Input::File(path),
-        columns,
-        read,
-        tracker_robot,
-    )?)
-}
 
 /// Prints the registration: both transforms and the rigid fit's residuals.
-pub fn print_registration(registered: &Registered) {
-    let r = &registered.registration;
+pub fn print_registration(r: &Registration) {
     println!(
         "registration   {} rows in the tracker frame, {}, rigid fit of the nominal robot \
          ({} iterations)",
@@ -76,6 +35,18 @@ pub fn print_validation_registration(r: &Registration) {
     println!(
         "validation     registered apart ({} rows): the robot's frame in the moved tracker's, \
          fitted to the calibrated model's TCP positions; the probe is the samples'",
+        r.rows
+    );
+    print_fit("fit residuals", &r.fit());
+}
+
+/// Prints the registration of a series after the first (several series trained
+/// together): its tracker-to-base transform, fitted to the robot identified from all of
+/// them, and the probe they share.
+pub fn print_series_registration(index: usize, r: &Registration) {
+    println!(
+        "series {index}       registered to the robot identified from every series ({} rows); \
+         the probe is the first series'",
         r.rows
     );
     print_fit("fit residuals", &r.fit());

@@ -14,12 +14,18 @@
 //! scored the same way on the served tier (`paper-trilinear`, or `hybrid-trilinear`), and
 //! the lowest mean wins; a table with a joint screen has no served tier and keeps the
 //! method's.
+//!
+//! The folds are the same for every candidate, and so is a hybrid table's model on each:
+//! the robot is identified once per fold, by the first evaluation, and every later one
+//! reuses it.
+
+use std::cell::RefCell;
 
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
+use adwi_eval::{evaluate, EvalError, EvalOptions, Method, Protocol};
+use adwi_robot::calibrate::Calibration;
 use adwi_robot::Robot;
 use adwi_samples::SampleSet;
-
-use crate::{evaluate, EvalError, EvalOptions, Method, Protocol};
 
 /// The neighbour counts tried.
 pub const K_CANDIDATES: [u32; 3] = [4, 8, 12];
@@ -108,6 +114,8 @@ pub fn tune(
     } else {
         Method::Paper
     };
+    // Each fold's identification, made by the first candidate's evaluation.
+    let identified: RefCell<Vec<Calibration>> = RefCell::new(Vec::new());
     // One candidate's cross-validated mean position residual and missed points.
     let score = |method: Method, build: BuildOptions| -> Result<(Option<f64>, usize), TuneError> {
         let options = EvalOptions {
@@ -115,9 +123,13 @@ pub fn tune(
             build,
             robot: robot.cloned(),
             calibrate: *calibrate,
+            identified: identified.borrow().clone(),
             ..EvalOptions::default()
         };
         let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
+        if identified.borrow().is_empty() {
+            *identified.borrow_mut() = evaluation.identified.clone();
+        }
         let result = evaluation.method(method);
         Ok((
             result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),

@@ -1,0 +1,181 @@
+//! Candidate lists: per cell, every sample that can be among the `k` nearest admissible
+//! samples of some target in it (the build's module docs), found through a spatial index
+//! of the samples' actual positions.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use adwi_runtime::format::{Grid, SampleRecord};
+use adwi_runtime::method::{self, MethodParams};
+use rayon::prelude::*;
+
+/// Cell boxes are grown by this much (mm) when computing candidate lists.
+pub const BOX_MARGIN_MM: f64 = 1e-6;
+/// Slack (mm) in every distance comparison that decides a candidate list.
+pub const DISTANCE_SLACK_MM: f64 = 1e-9;
+
+/// Every cell's candidate list ([`candidate_list`]), in cell order. `progress(n)` is called
+/// as cells complete, with the number just completed (from several threads).
+pub(super) fn candidate_lists(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    joint_screen: bool,
+    grid: &Grid,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<Vec<u32>> {
+    let index = SpatialIndex::new(records, params.radius_mm);
+    let done = AtomicU64::new(0);
+    let cells = grid.cell_count().unwrap_or(0);
+    let lists: Vec<Vec<u32>> = (0..cells)
+        .into_par_iter()
+        .map(|cell| {
+            let candidates = candidate_list(records, &index, params, joint_screen, grid, cell);
+            if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
+                progress(4096);
+            }
+            candidates
+        })
+        .collect();
+    progress(done.load(Ordering::Relaxed) % 4096);
+    lists
+}
+
+/// Samples bucketed by actual position in cubes of edge ≥ ε, so that the samples within ε
+/// of a box are found in the buckets the grown box overlaps.
+struct SpatialIndex {
+    origin_mm: [f64; 3],
+    bucket_mm: f64,
+    dims: [usize; 3],
+    buckets: Vec<Vec<u32>>,
+}
+
+impl SpatialIndex {
+    fn new(records: &[SampleRecord], radius_mm: f64) -> SpatialIndex {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for r in records {
+            for a in 0..3 {
+                lo[a] = lo[a].min(r.actual_mm[a]);
+                hi[a] = hi[a].max(r.actual_mm[a]);
+            }
+        }
+        let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        // At most 256 buckets a side, whatever ε.
+        let bucket_mm = radius_mm.max(extent / 256.0).max(f64::MIN_POSITIVE);
+        let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / bucket_mm) as usize + 1);
+        let mut index = SpatialIndex {
+            origin_mm: lo,
+            bucket_mm,
+            dims,
+            buckets: vec![Vec::new(); dims[0] * dims[1] * dims[2]],
+        };
+        for (i, r) in records.iter().enumerate() {
+            let b = index.bucket_coords(r.actual_mm);
+            let linear = b[0] + dims[0] * (b[1] + dims[1] * b[2]);
+            index.buckets[linear].push(i as u32);
+        }
+        index
+    }
+
+    fn bucket_coords(&self, p: [f64; 3]) -> [usize; 3] {
+        [0, 1, 2].map(|a| {
+            let u = ((p[a] - self.origin_mm[a]) / self.bucket_mm).floor();
+            (u.max(0.0) as usize).min(self.dims[a] - 1)
+        })
+    }
+
+    /// Every sample in a bucket overlapping the box `lo..hi`.
+    fn near(&self, lo: [f64; 3], hi: [f64; 3], out: &mut Vec<u32>) {
+        let a = self.bucket_coords(lo);
+        let b = self.bucket_coords(hi);
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    out.extend_from_slice(&self.buckets[x + self.dims[0] * (y + self.dims[1] * z)]);
+                }
+            }
+        }
+    }
+}
+
+/// The nearest and farthest distances from `p` to the box `lo..hi`, mm.
+fn box_distances(p: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+    let mut near = 0.0;
+    let mut far = 0.0;
+    for a in 0..3 {
+        let below = lo[a] - p[a];
+        let above = p[a] - hi[a];
+        let gap = below.max(above).max(0.0);
+        near += gap * gap;
+        let reach = (p[a] - lo[a]).abs().max((hi[a] - p[a]).abs());
+        far += reach * reach;
+    }
+    (near.sqrt(), far.sqrt())
+}
+
+/// The candidate list of one cell (the build's module docs), nearest the cell's centre
+/// first. `joint_screen`: whether the joint-space screen is on, so that no sample is
+/// certainly admissible.
+fn candidate_list(
+    records: &[SampleRecord],
+    index: &SpatialIndex,
+    params: &MethodParams,
+    joint_screen: bool,
+    grid: &Grid,
+    cell: usize,
+) -> Vec<u32> {
+    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+    let lo = lo.map(|v| v - BOX_MARGIN_MM);
+    let hi = hi.map(|v| v + BOX_MARGIN_MM);
+    let reach = params.radius_mm + DISTANCE_SLACK_MM;
+    let mut near = Vec::new();
+    index.near(lo.map(|v| v - reach), hi.map(|v| v + reach), &mut near);
+
+    // (sample, nearest, farthest distance to the box).
+    let reachable: Vec<(u32, f64, f64)> = near
+        .into_iter()
+        .filter_map(|i| {
+            let (d_near, d_far) = box_distances(records[i as usize].actual_mm, lo, hi);
+            (d_near <= reach).then_some((i, d_near, d_far))
+        })
+        .collect();
+    let k = params.max_neighbours as usize;
+    let mut list: Vec<u32> =
+        if params.has_degree_thresholds() || joint_screen || reachable.len() <= k {
+            reachable.iter().map(|&(i, _, _)| i).collect()
+        } else {
+            // Farthest distances of the samples admissible everywhere in the cell, overall
+            // and per configuration, sorted.
+            let certain =
+                |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
+            let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
+            all.sort_by(f64::total_cmp);
+            let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
+            for r in reachable.iter().filter(certain) {
+                by_config
+                    .entry(records[r.0 as usize].config)
+                    .or_default()
+                    .push(r.2);
+            }
+            by_config
+                .values_mut()
+                .for_each(|v| v.sort_by(f64::total_cmp));
+            let nearer =
+                |sorted: &[f64], d: f64| sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM);
+            reachable
+                .iter()
+                .filter(|&&(i, d_near, _)| {
+                    let config = records[i as usize].config;
+                    let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
+                    nearer(&all, d_near) < k || nearer(same, d_near) < k
+                })
+                .map(|&(i, _, _)| i)
+                .collect()
+        };
+    // Nearest to the cell's centre first (see `TableData::list_samples`).
+    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+    let key = |i: u32| method::distance_mm(records[i as usize].actual_mm, centre);
+    list.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+    list
+}

@@ -1,0 +1,226 @@
+//! Assembling a table: the candidate lists encoded into cell records (inline, or in the
+//! overflow array), the served field's nodes, the samples and the model, into the
+//! version-2 payload and its header; the table is opened once as the runtime will before
+//! its bytes are returned.
+
+use adwi_runtime::format::{
+    self, v2, Header, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_MODEL, CONTENT_ORIENTATION,
+};
+use adwi_runtime::method;
+use adwi_runtime::model::PreparedModel;
+
+use super::candidates::candidate_lists;
+use super::nodes::{NodeField, NodeValues};
+use super::{BuildError, BuildReport, Plan, ServedField};
+use adwi_samples::SampleSet;
+
+/// Compiles `samples` into table bytes as `plan` (from [`super::plan()`] over the same samples, or
+/// the measured ones of a hybrid table) says. With a kinematic `model`, `samples` hold the
+/// residuals the model leaves and `source_hash` identifies the measured samples they were
+/// derived from ([`crate::hybrid`] builds hybrid tables through this).
+///
+/// # Errors
+///
+/// An implausible model, an encoding failure.
+pub fn compile_plan(
+    samples: &SampleSet,
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+    source_hash: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    let Plan { params, grid, .. } = *plan;
+    let mut report = BuildReport {
+        plan: *plan,
+        cells_covered: 0,
+        distinct_lists: 0,
+        list_entries: 0,
+        max_list_len: 0,
+        mean_list_len: 0.0,
+        table_bytes: 0,
+        served_cells: 0,
+        node_sets: 0,
+        served_kriging: Vec::new(),
+    };
+    if let Some(model) = model {
+        for chain in [model.nominal(), model.calibrated()] {
+            format::check_chain_plausible(chain)?;
+        }
+    }
+    let joint_count = match (&samples.joints, model) {
+        (Some(j), Some(m)) if j.count() != m.joint_count() => {
+            return Err(BuildError::JointCount {
+                model: m.joint_count(),
+                samples: j.count(),
+            })
+        }
+        (Some(j), _) => j.count(),
+        (None, Some(m)) => m.joint_count(),
+        (None, None) => 0,
+    };
+    let joint_screen = plan.joint_radius_rad > 0.0;
+    let records = samples.records();
+    let lists = candidate_lists(&records, &params, joint_screen, &grid, progress);
+
+    let mut data = v2::TableData {
+        samples: records
+            .iter()
+            .map(|r| v2::QuerySample {
+                actual_mm: r.actual_mm,
+                norm_mm: method::norm_mm(r.actual_mm),
+            })
+            .collect(),
+        errors_mm: samples.error_mm.clone(),
+        orientation_errors_rad: samples.rotation_error_rad.clone().unwrap_or_default(),
+        configs: samples.config.clone().unwrap_or_default(),
+        joints_rad: match (&samples.joints, joint_screen) {
+            (Some(j), true) => j.as_flat().to_vec(),
+            _ => Vec::new(),
+        },
+        model: model.map(|m| v2::ModelRecord {
+            nominal: v2::ChainRecord::from_chain(m.nominal()),
+            calibrated: v2::ChainRecord::from_chain(m.calibrated()),
+        }),
+        ..v2::TableData::default()
+    };
+    let narrow = records.len() <= v2::NARROW_SAMPLES;
+    let mut distinct = std::collections::HashSet::new();
+    for list in &lists {
+        if narrow {
+            data.cells.push(narrow_record(list, &mut data.overflow));
+        } else {
+            data.cells_wide.push(wide_record(list, &mut data.overflow));
+        }
+        if !list.is_empty() {
+            report.cells_covered += 1;
+            report.max_list_len = report.max_list_len.max(list.len());
+            report.mean_list_len += list.len() as f64;
+            report.list_entries += list.len();
+            distinct.insert(list.as_slice());
+        }
+    }
+    report.mean_list_len /= report.cells_covered.max(1) as f64;
+    report.distinct_lists = distinct.len();
+
+    // The served tier: the exact method at every node, one set per target configuration
+    // (none with a joint screen: its admissible samples depend on the joint values).
+    if !joint_screen {
+        let field = NodeField::new(plan.served_field, samples, model)?;
+        let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
+        report.node_sets = served.sets.len();
+        report.served_cells = served.served_cells(&grid);
+        report.served_kriging = served.kriging_choices;
+        data.node_sets = served.sets;
+        data.node_errors_mm = served.position_mm;
+        if samples.rotation_error_rad.is_some() {
+            data.node_orientation_errors_rad = served.orientation_rad;
+        }
+    }
+
+    let mut content = 0;
+    if samples.rotation_error_rad.is_some() {
+        content |= CONTENT_ORIENTATION;
+    }
+    if samples.config.is_some() {
+        content |= CONTENT_CONFIG;
+    }
+    if joint_screen {
+        content |= CONTENT_JOINTS;
+    }
+    if data.model.is_some() {
+        content |= CONTENT_MODEL;
+    }
+    let header = Header {
+        version: format::FORMAT_VERSION,
+        rkyv_flags: format::RKYV_FLAGS,
+        content_flags: content,
+        payload_len: 0,
+        payload_checksum: 0,
+        source_hash,
+        method: params,
+        grid,
+        sample_count: samples.len() as u32,
+        joint_radius_rad: plan.joint_radius_rad,
+        joint_count: if joint_screen || model.is_some() {
+            joint_count as u32
+        } else {
+            0
+        },
+        node_set_count: data.node_sets.len() as u32,
+        tuning: plan.tuning,
+        served_field: if data.node_sets.is_empty() {
+            ServedField::Method
+        } else {
+            plan.served_field
+        },
+    };
+    let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
+    // Opened once as the runtime will: a table the runtime refuses is never written.
+    adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    report.table_bytes = bytes.len();
+    Ok((bytes, report))
+}
+
+/// A narrow cell record ([`v2::CellRecord`]): the list inline, or its start in `overflow`.
+fn narrow_record(list: &[u32], overflow: &mut Vec<u32>) -> v2::CellRecord {
+    let mut record = [0u16; 32];
+    record[0] = list.len() as u16;
+    if list.len() <= v2::INLINE_CANDIDATES {
+        for (slot, &i) in record[1..].iter_mut().zip(list) {
+            *slot = i as u16;
+        }
+    } else {
+        let start = overflow.len() as u32;
+        record[1] = start as u16;
+        record[2] = (start >> 16) as u16;
+        overflow.extend_from_slice(list);
+    }
+    record
+}
+
+/// A wide cell record ([`v2::WideCellRecord`]), as [`narrow_record`].
+fn wide_record(list: &[u32], overflow: &mut Vec<u32>) -> v2::WideCellRecord {
+    let mut record = [0u32; 16];
+    record[0] = list.len() as u32;
+    if list.len() <= v2::INLINE_CANDIDATES_WIDE {
+        record[1..=list.len()].copy_from_slice(list);
+    } else {
+        record[1] = overflow.len() as u32;
+        overflow.extend_from_slice(list);
+    }
+    record
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::fixtures::samples;
+    use crate::build::{plan, BuildOptions};
+
+    #[test]
+    fn an_implausible_model_is_refused() {
+        use adwi_runtime::chain::Chain;
+        use adwi_runtime::kinematics::{MdhJoint, Transform};
+        let s = samples("");
+        let joint = MdhJoint {
+            a_mm: 100.0,
+            d_mm: 200.0,
+            ..MdhJoint::default()
+        };
+        let chain = |base: Transform| {
+            Chain::from_mdh(base, &[joint; 6], Transform::IDENTITY, None).unwrap()
+        };
+        let nominal = chain(Transform::IDENTITY);
+        let plan = plan(&s, &BuildOptions::default()).unwrap();
+        let hash = s.source_hash();
+        let sound = PreparedModel::new(nominal, nominal).unwrap();
+        compile_plan(&s, &plan, Some(&sound), hash, &|_| {}).unwrap();
+        let far = Transform {
+            translation_mm: [1e300, 0.0, 0.0],
+            ..Transform::IDENTITY
+        };
+        let model = PreparedModel::new(nominal, chain(far)).unwrap();
+        let err = compile_plan(&s, &plan, Some(&model), hash, &|_| {}).unwrap_err();
+        assert!(matches!(err, BuildError::Implausible(_)), "{err}");
+    }
+}

@@ -1,0 +1,470 @@
+//! The served field's nodes: the value every node of the grid holds, once per set of
+//! samples a target configuration sees — the exact method's answer there, or a kriging of
+//! the samples' errors (the build's module docs) — and how many cells they serve.
+
+use adwi_runtime::format::{v2, Grid, SampleRecord};
+use adwi_runtime::method::{self, MethodParams, CONFIG_UNKNOWN};
+use adwi_runtime::model::PreparedModel;
+use rayon::prelude::*;
+
+use super::{BuildError, ServedField};
+use adwi_samples::SampleSet;
+
+/// What the nodes hold: the method's answer, or the kriging of the samples' errors, which
+/// turns with the tool's axis when given one unit axis per sample.
+pub(super) enum NodeField {
+    Method,
+    Kriging(Option<Vec<[f64; 3]>>),
+}
+
+impl NodeField {
+    /// The field `served` asks for; the tool's axes come from `model` at the samples'
+    /// joint values.
+    pub(super) fn new(
+        served: ServedField,
+        samples: &SampleSet,
+        model: Option<&PreparedModel>,
+    ) -> Result<NodeField, BuildError> {
+        Ok(match served {
+            ServedField::Method => NodeField::Method,
+            ServedField::Kriging => NodeField::Kriging(None),
+            ServedField::KrigingToolAxis => NodeField::Kriging(Some(tool_axes(samples, model)?)),
+        })
+    }
+
+    /// Vectors per node ([`ServedField::node_stride`]).
+    fn stride(&self) -> usize {
+        match self {
+            NodeField::Kriging(Some(_)) => 4,
+            _ => 1,
+        }
+    }
+}
+
+/// The unit approach (z) axis of the nominal TCP at each sample's joint values: what a
+/// served field turning with the tool combines its terms with (the runtime computes the
+/// same at the query's joint values).
+fn tool_axes(
+    samples: &SampleSet,
+    model: Option<&PreparedModel>,
+) -> Result<Vec<[f64; 3]>, BuildError> {
+    let (Some(model), Some(joints)) = (model, &samples.joints) else {
+        return Err(BuildError::ToolAxisWithoutModel);
+    };
+    joints
+        .rows()
+        .map(|q| {
+            model
+                .approach_axis(q)
+                .ok_or(BuildError::ToolAxisWithoutModel)
+        })
+        .collect()
+}
+
+/// The served tier's node values: the exact method at every node of the grid, per set;
+/// `stride` vectors per node (the layout of [`v2::TableData::node_errors_mm`]).
+pub(super) struct NodeValues {
+    pub(super) sets: Vec<v2::NodeSet>,
+    /// The first kriging fit's hyperparameters (empty for the method's values).
+    pub(super) kriging_choices: Vec<crate::nugget_kriging::GpChoice>,
+    stride: usize,
+    pub(super) position_mm: Vec<[f64; 3]>,
+    pub(super) orientation_rad: Vec<[f64; 3]>,
+}
+
+/// One node's vectors: position and orientation, `[f, h_x, h_y, h_z]` (only `f` used at
+/// stride 1).
+type NodeTerms = ([[f64; 3]; 4], [[f64; 3]; 4]);
+
+impl NodeValues {
+    /// Evaluates every node for targets of unknown configuration, then for each
+    /// configuration the samples carry (a set equal to an earlier one shares its nodes):
+    /// the method's answer where it has one, or the kriging `field` asks for at every
+    /// corner of a cell where the exact tier can answer.
+    pub(super) fn compute(
+        records: &[SampleRecord],
+        params: &MethodParams,
+        grid: &Grid,
+        lists: &[Vec<u32>],
+        samples: &SampleSet,
+        field: &NodeField,
+    ) -> Result<NodeValues, BuildError> {
+        let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
+        configs.sort_unstable();
+        configs.dedup();
+        let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
+        let per_set = nx * ny * nz;
+        let stride = field.stride();
+        let mut out = NodeValues {
+            sets: Vec::new(),
+            kriging_choices: Vec::new(),
+            stride,
+            position_mm: Vec::new(),
+            orientation_rad: Vec::new(),
+        };
+        let missing = [[v2::NO_NODE_VALUE; 3]; 4];
+        // Kriging fits, by the samples they were fitted to (one per distinct subset).
+        let mut fits: Vec<(Vec<usize>, NodeKriging)> = Vec::new();
+        let wanted = std::iter::once(None).chain(configs.into_iter().map(Some));
+        for config in wanted {
+            let node_position = |node: usize| {
+                let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
+                (ijk, grid_node_mm(grid, ijk))
+            };
+            let values: Vec<NodeTerms> = match field {
+                NodeField::Method => (0..per_set)
+                    .into_par_iter()
+                    .map(|node| {
+                        let (p, r) =
+                            node_value(records, params, grid, lists, node_position(node).0, config);
+                        if adwi_runtime::served::is_missing(&p) {
+                            (missing, missing)
+                        } else {
+                            (
+                                [p, [0.0; 3], [0.0; 3], [0.0; 3]],
+                                [r, [0.0; 3], [0.0; 3], [0.0; 3]],
+                            )
+                        }
+                    })
+                    .collect(),
+                NodeField::Kriging(axes) => {
+                    // The samples a target of this configuration may use (method::select).
+                    let seen: Vec<usize> = (0..records.len())
+                        .filter(|&i| method::config_matches(records[i].config, config))
+                        .collect();
+                    let fitted = match fits.iter().position(|(s, _)| *s == seen) {
+                        Some(i) => i,
+                        None => {
+                            let orientation = samples.rotation_error_rad.is_some();
+                            let fit =
+                                NodeKriging::fit(records, &seen, axes.as_deref(), orientation)?;
+                            fits.push((seen.clone(), fit));
+                            fits.len() - 1
+                        }
+                    };
+                    let kriging = &fits[fitted].1;
+                    if out.kriging_choices.is_empty() {
+                        out.kriging_choices = kriging.fit.choices();
+                    }
+                    let usable =
+                        |s: &u32| method::config_matches(records[*s as usize].config, config);
+                    (0..per_set)
+                        .into_par_iter()
+                        .map(|node| {
+                            let (ijk, at) = node_position(node);
+                            let reached = adjacent_cells(grid, ijk)
+                                .any(|cell| lists[cell].iter().any(usable));
+                            if reached {
+                                kriging.predict(at)
+                            } else {
+                                (missing, missing)
+                            }
+                        })
+                        .collect()
+                }
+            };
+            let flat =
+                |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
+                    v.iter()
+                        .flat_map(|t| which(t)[..stride].iter().copied())
+                        .collect()
+                };
+            let position = flat(&values, |t| &t.0);
+            let orientation = flat(&values, |t| &t.1);
+            let first_node = (0..out.sets.len())
+                .map(|s| out.sets[s].first_node as usize)
+                .find(|&first| {
+                    let at = first * stride;
+                    position
+                        .iter()
+                        .zip(&out.position_mm[at..])
+                        .all(|(a, b)| same_bits(a, b))
+                        && orientation
+                            .iter()
+                            .zip(&out.orientation_rad[at..])
+                            .all(|(a, b)| same_bits(a, b))
+                })
+                .unwrap_or_else(|| {
+                    let first = out.position_mm.len() / stride;
+                    out.position_mm.extend(position);
+                    out.orientation_rad.extend(orientation);
+                    first
+                });
+            out.sets.push(v2::NodeSet {
+                config: config.unwrap_or(CONFIG_UNKNOWN),
+                first_node: first_node as u32,
+            });
+        }
+        Ok(out)
+    }
+
+    /// The number of cells of the first set whose 8 nodes all have values.
+    pub(super) fn served_cells(&self, grid: &Grid) -> usize {
+        let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
+        let has = |i: usize| !adwi_runtime::served::is_missing(&self.position_mm[i * self.stride]);
+        (0..grid.cell_count().unwrap_or(0))
+            .filter(|&cell| {
+                let [i, j, k] = grid.cell_coords(cell);
+                let base = i + nx * (j + ny * k);
+                [
+                    0,
+                    1,
+                    nx,
+                    nx + 1,
+                    nx * ny,
+                    nx * ny + 1,
+                    nx * ny + nx,
+                    nx * ny + nx + 1,
+                ]
+                .iter()
+                .all(|&c| has(base + c))
+            })
+            .count()
+    }
+}
+
+/// Kriging with a nugget of some samples' errors, in Cartesian distance of their actual
+/// positions (where the method places them): position, and orientation when stored;
+/// turning with the tool's axis when given the samples' axes.
+struct NodeKriging {
+    fit: crate::nugget_kriging::ResidualGp,
+    orientation: bool,
+}
+
+impl NodeKriging {
+    fn fit(
+        records: &[SampleRecord],
+        samples: &[usize],
+        axes: Option<&[[f64; 3]]>,
+        orientation: bool,
+    ) -> Result<NodeKriging, BuildError> {
+        let inputs: Vec<Vec<f64>> = samples
+            .iter()
+            .map(|&i| records[i].actual_mm.to_vec())
+            .collect();
+        let values: Vec<Vec<f64>> = samples
+            .iter()
+            .map(|&i| {
+                let r = &records[i];
+                let mut row = r.error_mm.to_vec();
+                if orientation {
+                    row.extend_from_slice(&r.rotation_error_rad);
+                }
+                row
+            })
+            .collect();
+        let fit = match axes {
+            Some(axes) => {
+                let axes: Vec<[f64; 3]> = samples.iter().map(|&i| axes[i]).collect();
+                crate::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &values)
+            }
+            None => crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values),
+        }
+        .map_err(BuildError::Kriging)?;
+        Ok(NodeKriging { fit, orientation })
+    }
+
+    /// The field's terms at `position_mm` (`f` alone when it does not turn); orientation
+    /// zero when not stored (as the method's).
+    fn predict(&self, position_mm: [f64; 3]) -> NodeTerms {
+        let t = self
+            .fit
+            .predict_terms(&position_mm)
+            .expect("grid nodes are finite and three-dimensional");
+        let vectors = |c: usize| [0, 1, 2, 3].map(|k| [t[c][k], t[c + 1][k], t[c + 2][k]]);
+        let rotation = if self.orientation {
+            vectors(3)
+        } else {
+            [[0.0; 3]; 4]
+        };
+        (vectors(0), rotation)
+    }
+}
+
+/// The cells (linear indices) node `ijk` is a corner of: up to 8, fewer on the grid's faces.
+fn adjacent_cells(grid: &Grid, ijk: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+    let range = move |a: usize| ijk[a].saturating_sub(1)..=ijk[a].min(grid.dims[a] as usize - 1);
+    range(2).flat_map(move |k| {
+        range(1).flat_map(move |j| range(0).map(move |i| grid.linear_index([i, j, k])))
+    })
+}
+
+/// The position of node `ijk`, mm.
+fn grid_node_mm(grid: &Grid, [i, j, k]: [usize; 3]) -> [f64; 3] {
+    [
+        grid.origin_mm[0] + i as f64 * grid.cell_mm,
+        grid.origin_mm[1] + j as f64 * grid.cell_mm,
+        grid.origin_mm[2] + k as f64 * grid.cell_mm,
+    ]
+}
+
+fn same_bits(a: &[f64; 3], b: &[f64; 3]) -> bool {
+    (0..3).all(|i| a[i].to_bits() == b[i].to_bits())
+}
+
+/// The exact method at node `ijk` for a target of `config`: through the candidate list of
+/// a cell the node is a corner of (a list serves every point of its closed cell), so that
+/// the value is the brute-force reference's. Missing ([`v2::NO_NODE_VALUE`]) where no
+/// sample is admissible.
+fn node_value(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    grid: &Grid,
+    lists: &[Vec<u32>],
+    [i, j, k]: [usize; 3],
+    config: Option<u8>,
+) -> ([f64; 3], [f64; 3]) {
+    let position = grid_node_mm(grid, [i, j, k]);
+    let last = grid.dims.map(|d| d as usize - 1);
+    let cell = grid.linear_index([i.min(last[0]), j.min(last[1]), k.min(last[2])]);
+    let selection = method::select(params, position, config, lists[cell].iter().copied(), |s| {
+        let r = &records[s as usize];
+        Some((r.actual_mm, r.config))
+    });
+    let sample = |s: u32| {
+        let r = &records[s as usize];
+        (
+            r.actual_mm,
+            method::norm_mm(r.actual_mm),
+            r.measured_error(),
+        )
+    };
+    match method::estimate(params, position, &selection, true, sample) {
+        Some(e) => (e.position_error_mm, e.orientation_error_rad),
+        None => ([v2::NO_NODE_VALUE; 3], [v2::NO_NODE_VALUE; 3]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::fixtures::{build, noisy_lattice, samples};
+    use crate::build::BuildOptions;
+
+    #[test]
+    fn a_kriging_served_field_holds_the_kriging_wherever_the_exact_tier_can_answer() {
+        use adwi_runtime::Status;
+        let s = noisy_lattice();
+        let options = |served_field| BuildOptions {
+            served_field,
+            ..BuildOptions::default()
+        };
+        let method =
+            adwi_runtime::Table::from_vec(build(&s, options(ServedField::Method)).unwrap())
+                .unwrap();
+        let kriging = build(&s, options(ServedField::Kriging)).unwrap();
+        assert_eq!(kriging, build(&s, options(ServedField::Kriging)).unwrap());
+        let kriging = adwi_runtime::Table::from_vec(kriging).unwrap();
+        assert_eq!(kriging.header().served_field, ServedField::Kriging);
+        assert_eq!(method.header().served_field, ServedField::Method);
+        // The reference: the same fit, evaluated directly.
+        let records = s.records();
+        let inputs: Vec<Vec<f64>> = records.iter().map(|r| r.actual_mm.to_vec()).collect();
+        let values: Vec<Vec<f64>> = records.iter().map(|r| r.error_mm.to_vec()).collect();
+        let gp = crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values).unwrap();
+        let grid = kriging.header().grid;
+        let (mut nodes, mut compared, mut smoother) = (0, 0, 0);
+        for i in 0..=grid.dims[0] {
+            for j in 0..=grid.dims[1] {
+                for k in 0..=grid.dims[2] {
+                    let at = grid_node_mm(&grid, [i as usize, j as usize, k as usize]);
+                    let (m, g) = (method.query(at), kriging.query(at));
+                    // The exact tier is the method's in both.
+                    assert_eq!(
+                        method.exact().query(at).position_error_mm,
+                        kriging.exact().query(at).position_error_mm
+                    );
+                    if m.status == Status::Ok {
+                        assert_eq!(g.status, Status::Ok, "the kriging covers less at {at:?}");
+                    }
+                    if g.status != Status::Ok {
+                        continue;
+                    }
+                    nodes += 1;
+                    let want = gp.predict(&at).unwrap();
+                    for (got, want) in g.position_error_mm.iter().zip(&want) {
+                        assert!((got - want).abs() < 1e-9, "{at:?}");
+                    }
+                    if m.status != Status::Ok {
+                        continue;
+                    }
+                    // Against the noise-free field, the kriging is the closer one mostly.
+                    compared += 1;
+                    let truth = [0, 1, 2].map(|a| ((at[a] - 1200.0) / 300.0).sin() * 0.3);
+                    let off = |v: [f64; 3]| (0..3).map(|a| (v[a] - truth[a]).abs()).sum::<f64>();
+                    if off(g.position_error_mm) < off(m.position_error_mm) {
+                        smoother += 1;
+                    }
+                }
+            }
+        }
+        assert!(compared > 100, "{compared} nodes served by both");
+        assert!(nodes > compared, "the kriging serves no fringe node");
+        assert!(
+            2 * smoother > compared,
+            "kriging closer at {smoother} of {compared} nodes"
+        );
+        // Coverage, against a brute-force reference: a cell is served exactly when each of
+        // its 8 corners is a corner of some cell with a sample within ε of its box, and
+        // wherever the exact tier answers, the served field does.
+        let radius_mm = kriging.method().radius_mm;
+        let reached = |cell: [usize; 3]| {
+            let (lo, hi) = grid.cell_box(cell);
+            records.iter().any(|r| {
+                let gap: f64 = (0..3)
+                    .map(|a| {
+                        (lo[a] - r.actual_mm[a])
+                            .max(r.actual_mm[a] - hi[a])
+                            .max(0.0)
+                    })
+                    .map(|d| d * d)
+                    .sum();
+                gap.sqrt() <= radius_mm
+            })
+        };
+        let dims = grid.dims.map(|d| d as usize);
+        let node_reached = |n: [usize; 3]| {
+            let around = |a: usize| n[a].saturating_sub(1)..=n[a].min(dims[a] - 1);
+            around(0).any(|i| around(1).any(|j| around(2).any(|k| reached([i, j, k]))))
+        };
+        let mut served = 0;
+        for cell in 0..grid.cell_count().unwrap() {
+            let c = grid.cell_coords(cell);
+            let (lo, _) = grid.cell_box(c);
+            let corners_reached =
+                (0..8).all(|corner| node_reached([0, 1, 2].map(|a| c[a] + (corner >> a & 1))));
+            // Points inside the cell, its centre among them.
+            for t in [[0.5; 3], [0.1, 0.9, 0.3], [0.95, 0.05, 0.7]] {
+                let at = [0, 1, 2].map(|a| lo[a] + t[a] * grid.cell_mm);
+                let answer = kriging.query(at);
+                assert_eq!(answer.status == Status::Ok, corners_reached, "at {at:?}");
+                if kriging.exact().query(at).status == Status::Ok {
+                    assert_eq!(
+                        answer.status,
+                        Status::Ok,
+                        "the exact tier answers at {at:?}"
+                    );
+                }
+            }
+            served += usize::from(corners_reached);
+        }
+        assert!(
+            served < grid.cell_count().unwrap(),
+            "no cell is left unserved"
+        );
+    }
+
+    #[test]
+    fn a_kriging_served_field_needs_a_served_tier() {
+        let s = samples("");
+        let options = BuildOptions {
+            served_field: ServedField::Kriging,
+            joint_radius_deg: Some(10.0),
+            ..BuildOptions::default()
+        };
+        assert!(matches!(
+            build(&s, options),
+            Err(BuildError::KrigingWithoutServedTier)
+        ));
+    }
+}

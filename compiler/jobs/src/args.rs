@@ -1,0 +1,381 @@
+//! The options several jobs share, each defined once: how sample files are read
+//! ([`Reading`]), the table's method and grid ([`TableArgs`]), the robot ([`RobotArgs`]) and
+//! the frame measurements are in ([`Frame`]).
+//!
+//! Every options struct is both a clap argument group (what `tablec` parses) and a serde
+//! struct (what the Python package's keyword arguments deserialize into), with the same
+//! names and the same defaults: an option is added in one place. The `Default` of each
+//! struct is what clap gives when no flag is passed (tested).
+// The field docs are clap's help text, where the paper's [λ] and [ζ] read as written.
+#![allow(rustdoc::broken_intra_doc_links)]
+
+use std::path::PathBuf;
+
+use adwi_compile::build::BuildOptions;
+use adwi_runtime::format::ServedField;
+use adwi_runtime::method::MethodParams;
+use adwi_samples::{AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit};
+use serde::Deserialize;
+
+use crate::JobError;
+
+/// The paper's parameters, the defaults of the method's options.
+const PAPER: MethodParams<()> = MethodParams::paper(());
+
+/// How sample, validation and target files are read: column names, separators, units.
+#[derive(clap::Args, Deserialize, Debug, Clone, Default, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Reading {
+    /// Column mapping for files named otherwise, comma-separated `NAME=SOURCE[:UNIT]`
+    /// items: the file's column SOURCE supplies the column NAME (x, dx, a, j1, ...; see
+    /// docs/samples.md); `-` before SOURCE negates it; `:UNIT` (mm, m, deg, rad) gives its
+    /// unit, and `NAME:UNIT` alone the unit of a column already named NAME. The columns of
+    /// one group (x,y,z; ma,mb,mc; ...) take one unit. Example:
+    /// `x=Goal x:m,y=Goal y:m,z=Goal z:m,dx=-x_dif,ma=measurement_rx:deg,j1:rad`.
+    #[arg(long, value_name = "MAP")]
+    pub columns: Option<String>,
+    /// Field separator: comma, semicolon or tab [default: the one the header line uses
+    /// most].
+    #[arg(long, value_name = "SEP")]
+    #[serde(deserialize_with = "parsed::option")]
+    pub delimiter: Option<Delimiter>,
+    /// Decimal mark: point or comma [default: point in comma-separated files, otherwise
+    /// that of the first number with one].
+    #[arg(long, value_name = "MARK")]
+    #[serde(deserialize_with = "parsed::option")]
+    pub decimal: Option<Decimal>,
+    /// Unit of position columns (x,y,z, dx,dy,dz, mx,my,mz) the mapping gives none: mm or
+    /// m [default: mm].
+    #[arg(long, value_name = "UNIT")]
+    #[serde(deserialize_with = "parsed::option")]
+    pub length_unit: Option<LengthUnit>,
+    /// Unit of joint and orientation-angle columns the mapping gives none: deg or rad
+    /// [default: deg]. The rotation vector rx,ry,rz is in rad unless mapped `:deg`.
+    #[arg(long, value_name = "UNIT")]
+    #[serde(deserialize_with = "parsed::option")]
+    pub angle_unit: Option<AngleUnit>,
+}
+
+impl Reading {
+    /// The column mapping and the reader's options.
+    ///
+    /// # Errors
+    ///
+    /// A malformed column mapping.
+    pub fn resolve(&self) -> Result<(ColumnMap, adwi_samples::ReadOptions), JobError> {
+        let columns = ColumnMap::parse(self.columns.as_deref().unwrap_or(""))
+            .map_err(|e| JobError::option("columns", e))?;
+        let options = adwi_samples::ReadOptions {
+            delimiter: self.delimiter,
+            decimal: self.decimal,
+            length_unit: self.length_unit.unwrap_or_default(),
+            angle_unit: self.angle_unit.unwrap_or_default(),
+        };
+        Ok((columns, options))
+    }
+
+    /// Whether any option was given (a command that reads no file refuses them).
+    pub fn is_given(&self) -> bool {
+        *self != Reading::default()
+    }
+
+    /// The ids of these options' arguments, for a command that takes them only together
+    /// with another argument.
+    pub const IDS: [&'static str; 5] = [
+        "columns",
+        "delimiter",
+        "decimal",
+        "length_unit",
+        "angle_unit",
+    ];
+}
+
+/// A box's minimum and maximum corners, mm, base frame.
+pub type Bounds = ([f64; 3], [f64; 3]);
+
+/// What a table's served field holds, as asked for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ServedFieldChoice {
+    /// Chosen by the build's own evidence (cross-validation on the training samples).
+    #[default]
+    Auto,
+    /// This one.
+    Given(ServedField),
+}
+
+impl std::str::FromStr for ServedFieldChoice {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<ServedFieldChoice, String> {
+        if text == "auto" {
+            return Ok(ServedFieldChoice::Auto);
+        }
+        ServedField::from_name(text)
+            .map(ServedFieldChoice::Given)
+            .ok_or_else(|| format!("'{text}': choose auto, method, kriging or kriging-tool-axis"))
+    }
+}
+
+impl std::fmt::Display for ServedFieldChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ServedFieldChoice::Auto => f.write_str("auto"),
+            ServedFieldChoice::Given(field) => f.write_str(field.name()),
+        }
+    }
+}
+
+/// The method's parameters and the grid of a table.
+#[derive(clap::Args, Deserialize, Debug, Clone, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct TableArgs {
+    /// Cell edge length, mm [default: sample spacing / 2].
+    #[arg(long, value_name = "MM")]
+    pub cell: Option<f64>,
+    /// Neighbourhood radius ε, mm [default: 2 × sample spacing].
+    #[arg(long, value_name = "MM")]
+    pub radius: Option<f64>,
+    /// At most this many neighbours [default: 8].
+    #[arg(long)]
+    pub k: Option<u32>,
+    /// ω1, the weight of λ [default: 0.87, or 1 − w2].
+    #[arg(long)]
+    pub w1: Option<f64>,
+    /// ω2, the weight of ζ [default: 0.13, or 1 − w1].
+    #[arg(long)]
+    pub w2: Option<f64>,
+    /// r, the power on λ and ζ (0 to 2).
+    #[arg(long, default_value_t = PAPER.power)]
+    pub power: f64,
+    /// [λ], the admissibility threshold on λ, 1/mm.
+    #[arg(long, default_value_t = PAPER.lambda_min_per_mm)]
+    pub lambda_min: f64,
+    /// [ζ], the admissibility threshold on ζ, 1/mm².
+    #[arg(long, default_value_t = PAPER.zeta_min_per_mm2)]
+    pub zeta_min: f64,
+    /// Skip the consistency screen (40) on neighbour errors.
+    #[arg(long)]
+    pub no_consistency_screen: bool,
+    /// Grid box, mm: xmin,ymin,zmin,xmax,ymax,zmax [default: samples' box grown by ε].
+    #[arg(
+        long,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+        allow_hyphen_values = true,
+        value_parser = parse_bounds
+    )]
+    #[serde(deserialize_with = "bounds")]
+    pub bounds: Option<Bounds>,
+    /// Joint-space screen, degrees: when a query gives the target's joint angles, a sample
+    /// is admissible only if each of its joint angles is within this of the target's
+    /// (needs samples with j1..jn) [default: off].
+    #[arg(long, value_name = "DEG")]
+    pub joint_radius: Option<f64>,
+    /// What the served field's nodes hold: `auto` chooses by cross-validation on the
+    /// samples alone; `method`, the method's own answer (what the exact tier answers,
+    /// tabulated); `kriging`, kriging with a nugget of the samples' errors (a hybrid
+    /// table's residuals) in Cartesian distance, which smooths their measurement noise;
+    /// `kriging-tool-axis` (hybrid tables), that kriging with a part that turns with the
+    /// nominal tool's approach axis at the query's joint values. The exact tier answers
+    /// the method either way.
+    #[arg(long, value_name = "FIELD", default_value_t = ServedFieldChoice::Auto)]
+    #[serde(deserialize_with = "parsed::value")]
+    pub served_field: ServedFieldChoice,
+}
+
+impl Default for TableArgs {
+    fn default() -> TableArgs {
+        TableArgs {
+            cell: None,
+            radius: None,
+            k: None,
+            w1: None,
+            w2: None,
+            power: PAPER.power,
+            lambda_min: PAPER.lambda_min_per_mm,
+            zeta_min: PAPER.zeta_min_per_mm2,
+            no_consistency_screen: false,
+            bounds: None,
+            joint_radius: None,
+            served_field: ServedFieldChoice::Auto,
+        }
+    }
+}
+
+impl TableArgs {
+    /// The compiler's options, the served field as given or, when to be chosen, the
+    /// method's answer until the choice is made.
+    pub fn build_options(&self) -> BuildOptions {
+        let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
+        BuildOptions {
+            method: MethodParams {
+                radius_mm: self.radius,
+                max_neighbours: self.k.unwrap_or(PAPER.max_neighbours),
+                w1,
+                w2,
+                power: self.power,
+                lambda_min_per_mm: self.lambda_min,
+                zeta_min_per_mm2: self.zeta_min,
+                consistency_screen: !self.no_consistency_screen,
+            },
+            cell_mm: self.cell,
+            bounds_mm: self.bounds,
+            joint_radius_deg: self.joint_radius,
+            tuning: None,
+            served_field: match self.served_field {
+                ServedFieldChoice::Given(field) => field,
+                ServedFieldChoice::Auto => ServedField::Method,
+            },
+        }
+    }
+}
+
+/// `xmin,ymin,zmin,xmax,ymax,zmax` in one argument (`-500,-500,0,500,500,900`).
+fn parse_bounds(text: &str) -> Result<Bounds, String> {
+    bounds_of(&parse_number_list(text)?)
+}
+
+fn bounds_of(values: &[f64]) -> Result<Bounds, String> {
+    match *values {
+        [x0, y0, z0, x1, y1, z1] => Ok(([x0, y0, z0], [x1, y1, z1])),
+        _ => Err(format!(
+            "six numbers are needed, xmin,ymin,zmin,xmax,ymax,zmax; {} given",
+            values.len()
+        )),
+    }
+}
+
+/// Bounds from a list of six numbers (Python's `bounds=[...]`).
+fn bounds<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Bounds>, D::Error> {
+    let values: Option<Vec<f64>> = Option::deserialize(d)?;
+    values
+        .map(|v| bounds_of(&v).map_err(serde::de::Error::custom))
+        .transpose()
+}
+
+/// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.
+///
+/// # Errors
+///
+/// An item that is not a finite number, named.
+pub fn parse_number_list(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|item| {
+            let item = item.trim();
+            match item.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                Ok(_) => Err(format!("'{item}' is not a finite number")),
+                Err(_) => Err(format!("'{item}' is not a number")),
+            }
+        })
+        .collect()
+}
+
+/// Three comma-separated finite numbers, such as `--min 1350,50,850`.
+///
+/// # Errors
+///
+/// Not three finite numbers.
+pub fn parse_triple(text: &str) -> Result<[f64; 3], String> {
+    let values = parse_number_list(text)?;
+    values.try_into().map_err(|v: Vec<f64>| {
+        format!(
+            "three comma-separated numbers are needed, {} given",
+            v.len()
+        )
+    })
+}
+
+/// The robot file, and for a URDF the links its chain runs between.
+#[derive(clap::Args, Deserialize, Debug, Clone, Default, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotArgs {
+    /// The robot file (TOML, or URDF by its .urdf extension; e.g. tables/ur5/robot.toml).
+    #[arg(long, value_name = "ROBOT")]
+    pub robot: Option<PathBuf>,
+    /// URDF robots: the link the chain starts at, the robot's base frame [default: the
+    /// file's only root link].
+    #[arg(long, value_name = "LINK")]
+    pub base_link: Option<String>,
+    /// URDF robots: the link the chain ends at, the TCP's frame [default: the only leaf
+    /// link below the base].
+    #[arg(long, value_name = "LINK")]
+    pub tip_link: Option<String>,
+}
+
+impl RobotArgs {
+    /// The links of a URDF chain.
+    pub fn links(&self) -> adwi_robot::LinkNames {
+        adwi_robot::LinkNames {
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+        }
+    }
+
+    /// Refuses link names without a robot file to apply them to.
+    pub(crate) fn check(&self) -> Result<(), JobError> {
+        if self.robot.is_none() && (self.base_link.is_some() || self.tip_link.is_some()) {
+            return Err(JobError::Options(
+                "base_link and tip_link name the links of a URDF robot: give the robot file \
+                 (--robot)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The frame measured poses are in.
+#[derive(clap::ValueEnum, Deserialize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Frame {
+    /// The robot's base frame: the file holds errors, or measured poses in the base frame.
+    #[default]
+    Base,
+    /// A laser tracker's own frame: the file holds joints j1..jn and measured positions
+    /// mx,my,mz (and, from a 6-D probe, a measured orientation), registered to the robot
+    /// first.
+    Tracker,
+}
+
+/// Deserializing through `FromStr`, for the options whose text the command line parses
+/// the same way.
+pub(crate) mod parsed {
+    use serde::Deserialize;
+    use std::fmt::Display;
+    use std::str::FromStr;
+
+    pub fn value<'de, D, T>(d: D) -> Result<T, D::Error>
+    where
+        D: serde::Deserializer<'de>,
+        T: FromStr<Err: Display>,
+    {
+        let text = String::deserialize(d)?;
+        text.parse().map_err(serde::de::Error::custom)
+    }
+
+    pub fn option<'de, D, T>(d: D) -> Result<Option<T>, D::Error>
+    where
+        D: serde::Deserializer<'de>,
+        T: FromStr<Err: Display>,
+    {
+        let text: Option<String> = Option::deserialize(d)?;
+        text.map(|t| t.parse().map_err(serde::de::Error::custom))
+            .transpose()
+    }
+
+    pub fn list<'de, D, T>(d: D) -> Result<Option<Vec<T>>, D::Error>
+    where
+        D: serde::Deserializer<'de>,
+        T: FromStr<Err: Display>,
+    {
+        let items: Option<Vec<String>> = Option::deserialize(d)?;
+        items
+            .map(|items| {
+                items
+                    .iter()
+                    .map(|t| t.parse().map_err(serde::de::Error::custom))
+                    .collect()
+            })
+            .transpose()
+    }
+}

@@ -1,0 +1,345 @@
+//! The build job: samples into a table (`tablec build`, `adwi.build`).
+//!
+//! With a robot the table is hybrid: the robot's kinematic deviations are identified from
+//! the samples (their joints j1..jn) and the table holds the calibrated model and the
+//! residuals it leaves, so that it corrects every target the arm reaches. Without one it is
+//! a position-only table of the measured errors.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use adwi_compile::build::{compile_plan, BuildOptions, BuildReport, Plan};
+use adwi_compile::write::OutputPlan;
+use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_robot::register::{Refined, Registration};
+use adwi_robot::Robot;
+use adwi_samples::{RepeatReport, SampleSet};
+use serde::Deserialize;
+
+use crate::args::{Frame, Reading, RobotArgs, TableArgs};
+use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
+use crate::tune::TuneReport;
+use crate::{JobError, Progress, Warning};
+
+/// Compile a sample database into a correction table: every option of `tablec build`.
+#[derive(clap::Args, Deserialize, Debug, Clone)]
+#[serde(default)]
+pub struct BuildArgs {
+    /// The sample database (CSV: x,y,z and dx,dy,dz or mx,my,mz; see docs/samples.md);
+    /// several series make one table (in a tracker's frame, each with its own
+    /// tracker-to-base transform).
+    #[arg(required = true, value_name = "SAMPLES")]
+    #[serde(skip)]
+    pub samples: Vec<Source>,
+    /// Where to write the table (written complete beside it, then renamed into place).
+    #[arg(short, long, value_name = "TABLE")]
+    #[serde(skip)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub reading: Reading,
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub table: TableArgs,
+    /// With a robot file (`--robot`), the table is hybrid: the robot's kinematic
+    /// deviations are identified from the samples (which need j1..jn), and the table holds
+    /// the calibrated model and the residuals it leaves. Query it with the target's joint
+    /// angles.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub robot: RobotArgs,
+    /// Accepted for compatibility: a robot file makes the table hybrid.
+    #[arg(long, hide = true)]
+    pub hybrid: bool,
+    /// Identify each revolute joint's gravity compliance (µrad/(N·m)) with the geometry:
+    /// the arm deflected by the gravity torque of the links it carries. The robot file
+    /// must give link masses (mass_kg, com_mm per joint).
+    #[arg(long)]
+    pub compliance: bool,
+    /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
+    /// tracker's own frame: joints j1..jn and measured mx,my,mz, optionally a measured
+    /// orientation; the tracker-to-base and flange-to-probe transforms are registered
+    /// first and refined by the identification). Needs the robot.
+    #[arg(long, value_enum, value_name = "FRAME", default_value_t)]
+    pub measured_in: Frame,
+    /// Choose k and ε by k-fold cross-validation on these samples alone (k in 4, 8, 12; ε
+    /// of 1.5, 2 or 3 sample spacings), scoring the method the table serves (the hybrid
+    /// with a robot); then, with those, what the served field holds. The choices and the
+    /// cross-validated mean are recorded in the table (`tablec inspect`). The other
+    /// options apply to every candidate.
+    #[arg(long)]
+    pub tune: bool,
+    /// Folds of --tune's cross-validation.
+    #[arg(long, default_value_t = 5, value_name = "K")]
+    pub tune_folds: usize,
+    /// Worker threads [default: all cores]; the table is the same for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+impl Default for BuildArgs {
+    fn default() -> BuildArgs {
+        BuildArgs {
+            samples: Vec::new(),
+            output: PathBuf::new(),
+            reading: Reading::default(),
+            table: TableArgs::default(),
+            robot: RobotArgs::default(),
+            hybrid: false,
+            compliance: false,
+            measured_in: Frame::Base,
+            tune: false,
+            tune_folds: 5,
+            threads: None,
+        }
+    }
+}
+
+/// A build checked and loaded, ready to run: every option valid, every input read, the
+/// grid sized and the output checked.
+pub struct BuildJob {
+    args: BuildArgs,
+    series: Series,
+    robot: Option<Robot>,
+    options: BuildOptions,
+    plan: Plan,
+    outputs: OutputPlan,
+    pool: rayon::ThreadPool,
+    calibrate: CalibrateOptions,
+    warnings: Vec<Warning>,
+    started: Instant,
+}
+
+/// What a build made.
+#[derive(Debug)]
+pub struct Built {
+    /// The table written.
+    pub output: PathBuf,
+    /// The samples files, as messages name them.
+    pub sources: Vec<PathBuf>,
+    /// How many samples (repeats averaged).
+    pub samples: usize,
+    /// The spread of repeated poses, when rows repeated a pose.
+    pub repeats: Option<RepeatReport>,
+    /// What the compiler made: the plan as resolved, candidate lists, served field.
+    pub report: BuildReport,
+    /// The cross-validation that chose the options (`tune`).
+    pub tuning: Option<TuneReport>,
+    /// A hybrid table's identification, and the RMS of the residuals its table holds, mm.
+    pub calibration: Option<(Calibration, f64)>,
+    /// Tracker-frame samples' registration, and both transforms as the identification
+    /// refined them (of the first series, when several were given).
+    pub registration: Option<(Registration, Refined)>,
+    /// Tracker-frame series after the first: each one's registration to the robot
+    /// identified from all of them (the probe the first one's).
+    pub series_registrations: Vec<Registration>,
+    /// What the user should know.
+    pub warnings: Vec<Warning>,
+    /// Wall time, s, from the job's creation.
+    pub seconds: f64,
+}
+
+impl BuildJob {
+    /// Checks `args`, reads the samples and the robot, sizes the grid and checks the
+    /// output, before any work.
+    ///
+    /// # Errors
+    ///
+    /// A refused option or combination, an unreadable input, a grid too large, an output
+    /// that is an input.
+    pub fn new(args: BuildArgs) -> Result<BuildJob, JobError> {
+        let started = Instant::now();
+        let pool = crate::thread_pool(args.threads)?;
+        check(&args)?;
+        let mut inputs = Inputs::default();
+        inputs.add_sources(&args.samples);
+        let file_robot = load_robot(&args.robot, &mut inputs)?;
+        let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
+        let (columns, read) = args.reading.resolve()?;
+        let tracker = args.measured_in == Frame::Tracker;
+        let calibrate = CalibrateOptions {
+            compliance: args.compliance,
+            ..CalibrateOptions::default()
+        };
+        let series = crate::series::read(
+            &args.samples,
+            &columns,
+            &read,
+            file_robot.clone().filter(|_| tracker),
+        )?;
+        let robot = match &series.registered {
+            Some(r) => Some(r.robot.clone()),
+            None => file_robot,
+        };
+        let options = args.table.build_options();
+        let plan = adwi_compile::build::plan(&series.samples, &options)?;
+        let mut warnings = Vec::new();
+        if plan.is_mostly_empty() {
+            warnings.push(Warning::MostlyEmptyGrid {
+                cells: plan.cells(),
+                coverable: plan.coverable_cells(),
+                radius_mm: plan.params.radius_mm,
+                estimated_bytes: plan.estimated_table_bytes(),
+            });
+        }
+        Ok(BuildJob {
+            args,
+            series,
+            robot,
+            options,
+            plan,
+            outputs,
+            pool,
+            calibrate,
+            warnings,
+            started,
+        })
+    }
+
+    /// The plan the build follows (before tuning changes k and ε).
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// The samples read (registered to the robot when measured in a tracker's frame).
+    pub fn samples(&self) -> &SampleSet {
+        &self.series.samples
+    }
+
+    /// Runs the build: tuning when asked, the identification of a hybrid table's model,
+    /// the compilation, and the write.
+    ///
+    /// # Errors
+    ///
+    /// Tuning, identification or compilation failing; the write failing (nothing is then
+    /// replaced).
+    pub fn run(self, progress: &dyn Progress) -> Result<Built, JobError> {
+        let BuildJob {
+            args,
+            mut series,
+            robot,
+            mut options,
+            mut plan,
+            outputs,
+            pool,
+            calibrate,
+            mut warnings,
+            started,
+        } = self;
+        if args.samples.len() > 1 {
+            progress.stage("registering the series", None);
+            pool.install(|| series.refine(&calibrate))?;
+            plan = adwi_compile::build::plan(&series.samples, &options)?;
+        }
+        let Series {
+            samples,
+            registered,
+            others,
+            ..
+        } = series;
+        let mut tuning = None;
+        if args.tune {
+            progress.stage("tuning", None);
+            let report = pool.install(|| {
+                crate::tune::tune(
+                    &samples,
+                    robot.as_ref(),
+                    &options,
+                    &calibrate,
+                    args.tune_folds,
+                    0,
+                )
+            })?;
+            options = report.options.clone();
+            plan = adwi_compile::build::plan(&samples, &options)?;
+            tuning = Some(report);
+        }
+        let advance = |n| progress.advance(n);
+        let (bytes, report, calibration) = match &robot {
+            Some(robot) => {
+                progress.stage("identifying", None);
+                let identified = pool.install(|| identify(robot, &samples, &calibrate))?;
+                progress.stage("compiling", Some(plan.cells() as u64));
+                let model = identified.prepared_model();
+                let built = pool
+                    .install(|| adwi_compile::hybrid::compile(&samples, &model, &plan, &advance))?;
+                warnings.extend(crate::calibration_warnings(&identified));
+                (
+                    built.bytes,
+                    built.report,
+                    Some((identified, built.residual_position_rms_mm)),
+                )
+            }
+            None => {
+                progress.stage("compiling", Some(plan.cells() as u64));
+                let hash = samples.source_hash();
+                let (bytes, report) =
+                    pool.install(|| compile_plan(&samples, &plan, None, hash, &advance))?;
+                (bytes, report, None)
+            }
+        };
+        outputs.write(&[(&args.output, &bytes)])?;
+        let registration = registered.zip(calibration.as_ref()).map(|(r, (c, _))| {
+            let refined = r.registration.refined(c, &samples);
+            (r.registration, refined)
+        });
+        Ok(Built {
+            output: args.output,
+            sources: args
+                .samples
+                .iter()
+                .map(|s| s.name().to_path_buf())
+                .collect(),
+            samples: samples.len(),
+            repeats: samples.repeats,
+            report,
+            tuning,
+            calibration,
+            registration,
+            series_registrations: others,
+            warnings,
+            seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// The combinations a build refuses, before reading anything.
+fn check(args: &BuildArgs) -> Result<(), JobError> {
+    let robot = args.robot.robot.is_some();
+    if args.hybrid && !robot {
+        return Err(JobError::Options(
+            "a hybrid table needs the robot file: --robot ROBOT (robot=PATH)".into(),
+        ));
+    }
+    if args.compliance && !robot {
+        return Err(JobError::Options(
+            "--compliance (compliance) is identified with the robot's geometry: give the robot \
+             file (--robot)"
+                .into(),
+        ));
+    }
+    if args.measured_in == Frame::Tracker && !robot {
+        return Err(JobError::Options(
+            "--measured-in tracker (measured_in='tracker') needs the robot file the \
+             measurements are registered to (--robot)"
+                .into(),
+        ));
+    }
+    if args.tune {
+        if args.table.radius.is_some() || args.table.k.is_some() {
+            return Err(JobError::Options(
+                "--tune (tune) chooses k and the radius ε: give --tune, or --k/--radius, not \
+                 both"
+                    .into(),
+            ));
+        }
+        if args.tune_folds < 2 {
+            return Err(JobError::option("tune_folds", "give at least 2 folds"));
+        }
+    }
+    if args.output.as_os_str().is_empty() {
+        return Err(JobError::Options("give the table's path (-o TABLE)".into()));
+    }
+    Ok(())
+}

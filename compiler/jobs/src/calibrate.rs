@@ -1,0 +1,240 @@
+//! The calibration job: a robot's kinematic deviations identified from samples, and the
+//! calibrated robot written as a robot file and as URDF (`tablec calibrate`).
+
+use std::path::{Path, PathBuf};
+
+use adwi_compile::write::OutputPlan;
+use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_robot::register::{Refined, Registration};
+use adwi_robot::Robot;
+use serde::Deserialize;
+
+use crate::args::{Frame, Reading, RobotArgs};
+use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
+use crate::{JobError, Warning};
+
+/// Identify a robot's kinematic deviations from samples: every option of `tablec
+/// calibrate`.
+#[derive(clap::Args, Deserialize, Debug, Clone)]
+#[serde(default)]
+pub struct CalibrateArgs {
+    /// The sample database (CSV with joint values j1..jn), as for `tablec build`; several
+    /// series are identified together.
+    #[arg(required = true, value_name = "SAMPLES")]
+    #[serde(skip)]
+    pub samples: Vec<Source>,
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub reading: Reading,
+    /// The robot to identify (required).
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub robot: RobotArgs,
+    /// Write the calibrated robot as a robot file (TOML), loadable by every `--robot`.
+    #[arg(short, long, value_name = "ROBOT.toml")]
+    pub output: Option<PathBuf>,
+    /// Write the calibrated robot as URDF (joint origins adjusted, the tool as a fixed
+    /// joint to a `calibrated_tcp` link).
+    #[arg(long, value_name = "ROBOT.urdf")]
+    pub urdf: Option<PathBuf>,
+    /// The frame the measured poses are in: `tracker` registers tracker-frame measurements
+    /// (joints and measured probe poses) to the robot first (see `tablec build --help`).
+    #[arg(long, value_enum, value_name = "FRAME", default_value_t)]
+    pub measured_in: Frame,
+    /// Relative pivot below which a parameter is unidentifiable.
+    #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
+    pub rank_tol: f64,
+    /// Identify each revolute joint's gravity compliance (µrad/(N·m)) with the geometry:
+    /// the arm deflected by the gravity torque of the links it carries. The robot file
+    /// must give link masses (mass_kg, com_mm per joint). The calibrated robot file
+    /// carries them (compliance_urad_per_nm).
+    #[arg(long)]
+    pub compliance: bool,
+}
+
+impl Default for CalibrateArgs {
+    fn default() -> CalibrateArgs {
+        CalibrateArgs {
+            samples: Vec::new(),
+            reading: Reading::default(),
+            robot: RobotArgs::default(),
+            output: None,
+            urdf: None,
+            measured_in: Frame::Base,
+            rank_tol: CalibrateOptions::default().rank_tolerance,
+            compliance: false,
+        }
+    }
+}
+
+/// The identification's options.
+fn options(args: &CalibrateArgs) -> CalibrateOptions {
+    CalibrateOptions {
+        rank_tolerance: args.rank_tol,
+        compliance: args.compliance,
+        ..CalibrateOptions::default()
+    }
+}
+
+/// A calibration checked and loaded, ready to run.
+pub struct CalibrateJob {
+    args: CalibrateArgs,
+    series: Series,
+    robot: Robot,
+    outputs: OutputPlan,
+}
+
+/// What a calibration found, and what it wrote.
+#[derive(Debug)]
+pub struct Calibrated {
+    /// The identification.
+    pub calibration: Calibration,
+    /// The robot's name.
+    pub robot_name: String,
+    /// The samples files, as messages name them.
+    pub sources: Vec<PathBuf>,
+    /// Tracker-frame series after the first: each one's registration.
+    pub series_registrations: Vec<Registration>,
+    /// How many samples.
+    pub samples: usize,
+    /// Tracker-frame samples' registration, and both transforms as the identification
+    /// refined them.
+    pub registration: Option<(Registration, Refined)>,
+    /// The files written, in the order written.
+    pub written: Vec<PathBuf>,
+    /// What the user should know.
+    pub warnings: Vec<Warning>,
+}
+
+impl CalibrateJob {
+    /// Checks `args`, reads the samples and the robot, and checks the outputs.
+    ///
+    /// # Errors
+    ///
+    /// A refused option, an unreadable input, an output that is an input, or two outputs
+    /// that are one file.
+    pub fn new(args: CalibrateArgs) -> Result<CalibrateJob, JobError> {
+        if args.robot.robot.is_none() {
+            return Err(JobError::Options(
+                "calibrate identifies a robot: give the robot file (--robot)".into(),
+            ));
+        }
+        if !(args.rank_tol.is_finite() && args.rank_tol > 0.0 && args.rank_tol < 1.0) {
+            return Err(JobError::option(
+                "rank_tol",
+                format!("{} is not a relative pivot between 0 and 1", args.rank_tol),
+            ));
+        }
+        let mut inputs = Inputs::default();
+        inputs.add_sources(&args.samples);
+        let file_robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
+        let outputs = OutputPlan::check(
+            &[args.output.as_deref(), args.urdf.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<&Path>>(),
+            &inputs.paths(),
+        )?;
+        let (columns, read) = args.reading.resolve()?;
+        let tracker = args.measured_in == Frame::Tracker;
+        let series = crate::series::read(
+            &args.samples,
+            &columns,
+            &read,
+            tracker.then(|| file_robot.clone()),
+        )?;
+        let robot = match &series.registered {
+            Some(r) => r.robot.clone(),
+            None => file_robot,
+        };
+        Ok(CalibrateJob {
+            args,
+            series,
+            robot,
+            outputs,
+        })
+    }
+
+    /// Identifies the robot and writes the calibrated robot files, all or none.
+    ///
+    /// # Errors
+    ///
+    /// The identification failing or coming out non-finite; a write failing (nothing is
+    /// then replaced).
+    pub fn run(self) -> Result<Calibrated, JobError> {
+        let CalibrateJob {
+            args,
+            mut series,
+            robot,
+            outputs,
+        } = self;
+        series.refine(&options(&args))?;
+        let Series {
+            samples,
+            registered,
+            others,
+            ..
+        } = series;
+        let c = identify(&robot, &samples, &options(&args))?;
+        if !(c.position_rms_mm.is_finite() && c.initial_position_rms_mm.is_finite()) {
+            return Err(JobError::NonFinite(format!(
+                "the identification came out non-finite (position RMS {} mm): the robot file or \
+                 the samples hold implausible values",
+                c.position_rms_mm
+            )));
+        }
+        let sources: Vec<String> = args
+            .samples
+            .iter()
+            .map(|s| s.name().display().to_string())
+            .collect();
+        let comment = [
+            format!(
+                "{} calibrated from {} ({} samples): position RMS {:.4} mm before, {:.4} mm after.",
+                robot.name,
+                sources.join(", "),
+                samples.len(),
+                c.initial_position_rms_mm,
+                c.position_rms_mm
+            ),
+            "Written by tablec calibrate.".to_string(),
+        ];
+        let mut warnings = crate::calibration_warnings(&c);
+        let mut contents: Vec<(&Path, Vec<u8>)> = Vec::new();
+        if let Some(path) = &args.output {
+            let text = c.calibrated_robot().to_toml_string(&comment);
+            contents.push((path, text.into_bytes()));
+        }
+        if let Some(path) = &args.urdf {
+            if args.compliance {
+                warnings.push(Warning::UrdfWithoutCompliance { path: path.clone() });
+            }
+            let text = c
+                .calibrated_robot()
+                .to_urdf_string(&comment)
+                .map_err(JobError::robot(path))?;
+            contents.push((path, text.into_bytes()));
+        }
+        let borrowed: Vec<(&Path, &[u8])> = contents.iter().map(|(p, b)| (*p, &b[..])).collect();
+        outputs.write(&borrowed)?;
+        let registration = registered.map(|r| {
+            let refined = r.registration.refined(&c, &samples);
+            (r.registration, refined)
+        });
+        Ok(Calibrated {
+            robot_name: robot.name.clone(),
+            sources: args
+                .samples
+                .iter()
+                .map(|s| s.name().to_path_buf())
+                .collect(),
+            series_registrations: others,
+            samples: samples.len(),
+            registration,
+            written: contents.iter().map(|(p, _)| p.to_path_buf()).collect(),
+            warnings,
+            calibration: c,
+        })
+    }
+}

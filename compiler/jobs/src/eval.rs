@@ -1,0 +1,521 @@
+//! The evaluation job: methods compared on held-out points, or a table built before
+//! scored on a validation set (`tablec eval`, `adwi.evaluate`).
+
+use std::path::{Path, PathBuf};
+
+use adwi_compile::write::OutputPlan;
+use adwi_eval::{EvalOptions, Evaluation, Method, Protocol};
+use adwi_robot::calibrate::CalibrateOptions;
+use adwi_robot::register::{Refined, Registration};
+use adwi_robot::Robot;
+use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
+use serde::Deserialize;
+
+use crate::args::{parsed, Frame, Reading, RobotArgs, TableArgs};
+use crate::inputs::{load_robot, Inputs, Source};
+use crate::series::Series;
+use crate::{JobError, Warning};
+
+/// Compare compensation methods on held-out points: every option of `tablec eval`.
+#[derive(clap::Args, Deserialize, Debug, Clone)]
+#[serde(default)]
+pub struct EvalArgs {
+    /// The sample database the methods are built from (CSV, as for `tablec build`; several
+    /// series are trained together); not with --table.
+    #[arg(value_name = "SAMPLES")]
+    #[serde(skip)]
+    pub samples: Vec<Source>,
+    /// A validation set (CSV with errors, the samples' columns): build from all samples,
+    /// evaluate at every validation point.
+    #[arg(long, value_name = "FILE")]
+    #[serde(skip)]
+    pub validation: Option<Source>,
+    /// Score this table, built before, at the validation points (--validation): its
+    /// served field, queried with each point's joint angles when it is hybrid, as a
+    /// controller queries it. No samples, methods or table options then.
+    #[arg(long = "table", id = "table", value_name = "TABLE")]
+    #[serde(rename = "table")]
+    pub table_file: Option<PathBuf>,
+    /// Use only the first N validation points.
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+    /// k-fold cross-validation of the samples alone, with this many folds.
+    #[arg(long, value_name = "K")]
+    pub folds: Option<usize>,
+    /// Seed of the k-fold split.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub reading: Reading,
+    /// Methods to compare, comma-separated: paper, paper-trilinear, idw, grid, kriging,
+    /// kinematic, hybrid, hybrid-trilinear [default: paper, paper-trilinear, idw, and with
+    /// a robot kinematic, hybrid, hybrid-trilinear].
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    #[serde(deserialize_with = "parsed::list")]
+    pub methods: Option<Vec<Method>>,
+    /// The robot, for `kinematic` and `hybrid`.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub robot: RobotArgs,
+    /// The frame the measured poses are in, as for `tablec build`: `tracker` registers the
+    /// samples (and the validation set, taken in the same tracker frame with the same
+    /// probe) to the robot first.
+    #[arg(long, value_enum, value_name = "FRAME", default_value_t)]
+    pub measured_in: Frame,
+    /// With `--measured-in tracker` and `--validation`: register the validation set on its
+    /// own (a series measured after the tracker moved): the robot's frame in the new
+    /// tracker frame is fitted to the TCP positions the samples' calibration predicts, the
+    /// probe kept. Six rigid parameters come from the validation points this way; no
+    /// method is trained on their errors.
+    #[arg(long)]
+    pub register_validation_apart: bool,
+    /// Kinematic identification: relative pivot below which a parameter is unidentifiable.
+    #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
+    pub rank_tol: f64,
+    /// Kinematic identification: keep every parameter the pivoting keeps, even those whose
+    /// estimates are implausible or within a few standard errors of zero (by default they
+    /// are held at nominal, with the reason reported).
+    #[arg(long)]
+    pub keep_untrustworthy: bool,
+    /// Kinematic identification (kinematic and hybrid methods): also identify each
+    /// revolute joint's gravity compliance (µrad/(N·m)). The robot file must give link
+    /// masses (mass_kg, com_mm per joint).
+    #[arg(long)]
+    pub compliance: bool,
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub options: TableArgs,
+    /// Write the figures as CSV.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Write the whole evaluation (figures, per-point predictions, identification) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write an HTML report with plots to DIR/index.html.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+impl Default for EvalArgs {
+    fn default() -> EvalArgs {
+        EvalArgs {
+            samples: Vec::new(),
+            validation: None,
+            table_file: None,
+            limit: None,
+            folds: None,
+            seed: 0,
+            reading: Reading::default(),
+            methods: None,
+            robot: RobotArgs::default(),
+            measured_in: Frame::Base,
+            register_validation_apart: false,
+            rank_tol: CalibrateOptions::default().rank_tolerance,
+            keep_untrustworthy: false,
+            compliance: false,
+            options: TableArgs::default(),
+            csv: None,
+            json: None,
+            report: None,
+        }
+    }
+}
+
+/// What is evaluated: methods built from samples, or a table built before.
+// One per job: the samples held inline cost nothing.
+#[allow(clippy::large_enum_variant)]
+enum Subject {
+    Methods {
+        series: Series,
+        /// The validation set (read once checked, registered when the samples are), or
+        /// the folds.
+        held_out: HeldOut,
+        columns: ColumnMap,
+        read: ReadOptions,
+        options: Box<EvalOptions>,
+    },
+    Table {
+        table: adwi_runtime::Table<memmap2::Mmap>,
+        path: PathBuf,
+        points: SampleSet,
+    },
+}
+
+/// The points an evaluation predicts.
+enum HeldOut {
+    /// A validation set: its first `limit` points; registered apart with `apart`.
+    Validation {
+        source: Source,
+        limit: Option<usize>,
+        apart: bool,
+    },
+    /// k-fold cross-validation of the samples.
+    Folds { folds: usize, seed: u64 },
+}
+
+/// An evaluation checked and loaded, ready to run.
+pub struct EvalJob {
+    subject: Subject,
+    outputs: OutputPlan,
+    csv: Option<PathBuf>,
+    json: Option<PathBuf>,
+    page: Option<PathBuf>,
+}
+
+/// What an evaluation found.
+#[derive(Debug)]
+pub struct Evaluated {
+    /// Every method's figures, predictions and identification.
+    pub evaluation: Evaluation,
+    /// Tracker-frame samples' registration, and both transforms as an identification of
+    /// all samples refined them.
+    pub registration: Option<(Registration, Refined)>,
+    /// Tracker-frame series after the first: each one's registration.
+    pub series_registrations: Vec<Registration>,
+    /// A validation set's own registration (registered apart).
+    pub validation_registration: Option<Registration>,
+    /// The report page written, when asked for.
+    pub report_page: Option<PathBuf>,
+    /// What the user should know.
+    pub warnings: Vec<Warning>,
+}
+
+impl EvalJob {
+    /// Checks `args`, reads the samples, the validation set, the robot or the table, and
+    /// checks the outputs, before any work.
+    ///
+    /// # Errors
+    ///
+    /// A refused option or combination, an unreadable input, an output that is an input.
+    pub fn new(args: EvalArgs) -> Result<EvalJob, JobError> {
+        check(&args)?;
+        let mut inputs = Inputs::default();
+        inputs.add_sources(&args.samples);
+        inputs.add_sources(args.validation.as_ref());
+        if let Some(t) = &args.table_file {
+            inputs.add(t);
+        }
+        let file_robot = load_robot(&args.robot, &mut inputs)?;
+        let page = args.report.as_ref().map(|dir| dir.join("index.html"));
+        let mut outputs = OutputPlan::check(
+            &[args.csv.as_deref(), args.json.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>(),
+            &inputs.paths(),
+        )?;
+        if let Some(page) = &page {
+            outputs.check_in_new_directory(page, &inputs.paths())?;
+        }
+        let (columns, read) = args.reading.resolve()?;
+        let subject = match &args.table_file {
+            Some(path) => {
+                // SAFETY: the mapping lives as long as the job; tablec and the Python
+                // package replace tables by rename, never in place.
+                let table = unsafe { adwi_runtime::Table::open(path) }.map_err(|source| {
+                    JobError::Table {
+                        path: path.clone(),
+                        source,
+                    }
+                })?;
+                let validation = args.validation.as_ref().expect("checked");
+                let mut points = validation.input().samples(&columns, &read)?;
+                limit(&mut points, args.limit);
+                Subject::Table {
+                    table,
+                    path: path.clone(),
+                    points,
+                }
+            }
+            None => {
+                let tracker = args.measured_in == Frame::Tracker;
+                let calibrate = CalibrateOptions {
+                    rank_tolerance: args.rank_tol,
+                    hold_untrustworthy: !args.keep_untrustworthy,
+                    compliance: args.compliance,
+                    ..CalibrateOptions::default()
+                };
+                let series = crate::series::read(
+                    &args.samples,
+                    &columns,
+                    &read,
+                    file_robot.clone().filter(|_| tracker),
+                )?;
+                let held_out = match (&args.validation, args.folds) {
+                    (Some(v), None) => {
+                        // Read once now, so that a bad file is refused before any work;
+                        // registered in `run`, once the samples are.
+                        if tracker {
+                            v.input().measurements(&columns, &read)?;
+                        } else {
+                            v.input().samples(&columns, &read)?;
+                        }
+                        HeldOut::Validation {
+                            source: v.clone(),
+                            limit: args.limit,
+                            apart: args.register_validation_apart,
+                        }
+                    }
+                    (None, Some(folds)) => HeldOut::Folds {
+                        folds,
+                        seed: args.seed,
+                    },
+                    _ => unreachable!("checked"),
+                };
+                let robot: Option<Robot> = match &series.registered {
+                    Some(r) => Some(r.robot.clone()),
+                    None => file_robot,
+                };
+                let options = EvalOptions {
+                    methods: args.methods.clone(),
+                    build: args.options.build_options(),
+                    robot,
+                    calibrate,
+                    ..EvalOptions::default()
+                };
+                // The tables the methods build are sized now, from every sample: a grid
+                // too large is refused before any fold is identified.
+                adwi_compile::build::plan(&series.samples, &options.build)?;
+                Subject::Methods {
+                    series,
+                    held_out,
+                    columns,
+                    read,
+                    options: Box::new(options),
+                }
+            }
+        };
+        Ok(EvalJob {
+            subject,
+            outputs,
+            csv: args.csv,
+            json: args.json,
+            page,
+        })
+    }
+
+    /// Runs the evaluation and writes its outputs, all or none. `command` is the command
+    /// line the report quotes.
+    ///
+    /// # Errors
+    ///
+    /// The evaluation failing (a method's model cannot be built); an output failing
+    /// (nothing is then replaced).
+    pub fn run(self, command: &str) -> Result<Evaluated, JobError> {
+        let EvalJob {
+            subject,
+            outputs,
+            csv,
+            json,
+            page,
+        } = self;
+        let mut warnings = Vec::new();
+        let mut series_registrations = Vec::new();
+        let (evaluation, registration, validation_registration) = match subject {
+            Subject::Table {
+                table,
+                path,
+                points,
+            } => {
+                let description = format!(
+                    "the table {} ({} samples), evaluated at {} validation points",
+                    path.display(),
+                    table.sample_count(),
+                    points.len()
+                );
+                let evaluation = adwi_eval::evaluate_table(&table, &points, description)?;
+                (evaluation, None, None)
+            }
+            Subject::Methods {
+                mut series,
+                held_out,
+                columns,
+                read,
+                options,
+            } => {
+                series.refine(&options.calibrate)?;
+                let Series {
+                    samples,
+                    registered,
+                    others,
+                    ..
+                } = series;
+                series_registrations = others;
+                let mut registered_apart = None;
+                let protocol = match held_out {
+                    HeldOut::Validation {
+                        source,
+                        limit: n,
+                        apart,
+                    } => {
+                        // Registered apart, into the frame of the samples' calibration
+                        // alone, as the kinematic method makes it.
+                        let (mut points, made) = adwi_robot::measured::read_validation(
+                            source.input(),
+                            &columns,
+                            &read,
+                            registered.as_ref(),
+                            apart.then_some((&samples, &options.calibrate)),
+                        )?;
+                        registered_apart = made;
+                        limit(&mut points, n);
+                        Protocol::Validation(points)
+                    }
+                    HeldOut::Folds { folds, seed } => Protocol::KFold { folds, seed },
+                };
+                let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+                if let Some(c) = evaluation.identified.first() {
+                    warnings.extend(crate::calibration_warnings(c));
+                }
+                // The transforms as an identification of all samples refines them: the one
+                // registering the validation set apart, or that of the validation protocol
+                // (its only split is every sample), or one made here for k-fold.
+                let all_samples = match (&registered_apart, &protocol) {
+                    (Some((_, c)), _) => Some(c),
+                    (None, Protocol::Validation(_)) => evaluation.identified.first(),
+                    (None, Protocol::KFold { .. }) => None,
+                };
+                let registration = match registered {
+                    Some(r) => {
+                        let refined = r.refined_by(&samples, &options.calibrate, all_samples)?;
+                        Some((r.registration, refined))
+                    }
+                    None => None,
+                };
+                (evaluation, registration, registered_apart.map(|(r, _)| r))
+            }
+        };
+        let mut contents: Vec<(&Path, Vec<u8>)> = Vec::new();
+        if let Some(path) = &csv {
+            contents.push((path, adwi_eval::output::csv(&evaluation).into_bytes()));
+        }
+        if let Some(path) = &json {
+            let text = adwi_eval::output::json(&evaluation)
+                .map_err(|e| JobError::NonFinite(format!("cannot encode the evaluation: {e}")))?;
+            contents.push((path, text.into_bytes()));
+        }
+        if let Some(path) = &page {
+            let html = adwi_eval::report::html(&evaluation, command)
+                .map_err(|e| JobError::NonFinite(format!("cannot draw the report: {e}")))?;
+            contents.push((path, html.into_bytes()));
+        }
+        let borrowed: Vec<(&Path, &[u8])> = contents.iter().map(|(p, b)| (*p, &b[..])).collect();
+        outputs.write(&borrowed)?;
+        Ok(Evaluated {
+            evaluation,
+            registration,
+            series_registrations,
+            validation_registration,
+            report_page: page,
+            warnings,
+        })
+    }
+}
+
+/// The first `n` points, when limited.
+fn limit(points: &mut SampleSet, n: Option<usize>) {
+    if let Some(n) = n {
+        let n = n.min(points.len());
+        *points = points.subset(&(0..n).collect::<Vec<_>>());
+    }
+}
+
+/// The combinations an evaluation refuses, before reading anything.
+fn check(args: &EvalArgs) -> Result<(), JobError> {
+    let refuse = |text: &str| Err(JobError::Options(text.into()));
+    if args.table_file.is_some() {
+        if args.validation.is_none() {
+            return refuse("--table (table) is scored at a validation set: give --validation");
+        }
+        if !args.samples.is_empty() || args.folds.is_some() {
+            return refuse(
+                "--table (table) scores a table built before at --validation: give no samples \
+                 file and no --folds",
+            );
+        }
+        if args.methods.is_some()
+            || args.robot.robot.is_some()
+            || args.options != TableArgs::default()
+        {
+            return refuse(
+                "--table (table) scores the table as it was built: no --methods, --robot or \
+                 table options",
+            );
+        }
+        if args.measured_in != Frame::Base {
+            return refuse(
+                "--table (table) reads the validation set in the robot's base frame (the \
+                 table's)",
+            );
+        }
+    } else {
+        if args.samples.is_empty() {
+            return refuse("give the samples file (or --table TABLE to score a table)");
+        }
+        match (&args.validation, args.folds) {
+            (Some(_), Some(_)) => {
+                return refuse(
+                    "give a validation set (--validation) or a fold count (--folds), not both",
+                )
+            }
+            (None, None) => {
+                return refuse(
+                    "give a validation set (--validation FILE) or a fold count (--folds K)",
+                )
+            }
+            (None, Some(folds)) if folds < 2 => {
+                return Err(JobError::option("folds", "give at least 2 folds"))
+            }
+            _ => {}
+        }
+    }
+    if let Some(0) = args.limit {
+        return Err(JobError::option("limit", "give at least 1 point"));
+    }
+    if args.limit.is_some() && args.validation.is_none() {
+        return refuse("--limit (limit) keeps the first validation points: give --validation");
+    }
+    let robot = args.robot.robot.is_some();
+    if args.measured_in == Frame::Tracker && !robot {
+        return refuse(
+            "--measured-in tracker (measured_in='tracker') needs the robot file the \
+             measurements are registered to (--robot)",
+        );
+    }
+    if args.register_validation_apart {
+        if args.validation.is_none() {
+            return refuse(
+                "--register-validation-apart (register_validation_apart) needs a validation \
+                 set (--validation)",
+            );
+        }
+        if args.measured_in != Frame::Tracker {
+            return refuse(
+                "--register-validation-apart (register_validation_apart) needs --measured-in \
+                 tracker",
+            );
+        }
+    }
+    if args.compliance && !robot {
+        return refuse(
+            "--compliance (compliance) is identified with the robot's geometry: give the robot \
+             file (--robot)",
+        );
+    }
+    if !(args.rank_tol.is_finite() && args.rank_tol > 0.0 && args.rank_tol < 1.0) {
+        return Err(JobError::option(
+            "rank_tol",
+            format!("{} is not a relative pivot between 0 and 1", args.rank_tol),
+        ));
+    }
+    if let Some(methods) = &args.methods {
+        if let Some(m) = methods.iter().find(|m| m.needs_robot()).filter(|_| !robot) {
+            return Err(JobError::option(
+                "methods",
+                format!("{m} needs the robot file (--robot)"),
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,389 @@
+//! The jobs `tablec` and the `adwi` Python package run, written once.
+//!
+//! Each job has two stages, as ripgrep's `LowArgs` and `HiArgs` do:
+//!
+//! - `*Args` ([`BuildArgs`], [`EvalArgs`], [`CalibrateArgs`], [`SimulateArgs`]) are what a
+//!   user asked for: every option, with its documentation and its default, defined once as
+//!   a clap argument group (tablec flattens it) and as a serde struct (Python's keyword
+//!   arguments deserialize into it);
+//! - `*Job::new(args)` checks every option and every combination, opens and reads every
+//!   input, sizes the work and checks every output (not an input, not two outputs in one
+//!   file, not a FIFO or a device) — **before any work**, so that a bad request fails in
+//!   milliseconds with one message — and `run` then does the work, writes its outputs all
+//!   or nothing ([`adwi_compile::write::OutputPlan`]) and returns typed results and typed
+//!   [`Warning`]s.
+//!
+//! Front ends map their arguments onto `*Args` and print or convert the results; neither
+//! calls a step of a pipeline itself.
+
+pub mod args;
+pub mod build;
+pub mod calibrate;
+pub mod eval;
+mod inputs;
+mod series;
+pub mod simulate;
+pub mod tune;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+pub use args::{Frame, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+pub use build::{BuildArgs, BuildJob, Built};
+pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
+pub use eval::{EvalArgs, EvalJob, Evaluated};
+pub use inputs::Source;
+pub use simulate::{SimulateArgs, SimulateJob, Simulated};
+
+/// Why a job was refused or failed. Refusals of options come before any work.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// An option, or a combination of options, that cannot be honoured.
+    #[error("{0}")]
+    Options(String),
+    /// A samples, validation or targets file that cannot be read (file, line, column).
+    #[error(transparent)]
+    Read(Box<adwi_samples::ReadError>),
+    /// Tracker-frame measurements that cannot be registered to the robot.
+    #[error(transparent)]
+    Measured(Box<adwi_robot::measured::MeasuredError>),
+    /// A robot file that cannot be loaded.
+    #[error("cannot load the robot {}", path.display())]
+    Robot {
+        /// The robot file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: Box<adwi_robot::RobotError>,
+    },
+    /// A simulation that cannot run (its scenario, its plan).
+    #[error(transparent)]
+    Simulate(Box<adwi_robot::simulate::SimulateError>),
+    /// The table cannot be built from these samples and options.
+    #[error(transparent)]
+    Build(Box<adwi_compile::build::BuildError>),
+    /// The kinematic identification failed.
+    #[error(transparent)]
+    Calibrate(Box<adwi_robot::calibrate::CalibrateError>),
+    /// The evaluation failed.
+    #[error(transparent)]
+    Eval(Box<adwi_eval::EvalError>),
+    /// The cross-validation that chooses the table's parameters failed.
+    #[error(transparent)]
+    Tune(Box<tune::TuneError>),
+    /// A table that cannot be opened.
+    #[error("cannot open table {}", path.display())]
+    Table {
+        /// The table file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: adwi_runtime::OpenError,
+    },
+    /// An output refused before any work, or that could not be written.
+    #[error(transparent)]
+    Output(Box<adwi_compile::write::OutputError>),
+    /// Worker threads could not be started.
+    #[error("cannot start worker threads: {0}")]
+    Threads(String),
+    /// A result came out non-finite and is not reported as one.
+    #[error("{0}")]
+    NonFinite(String),
+}
+
+/// The large errors of the steps, boxed so that a job's `Result` stays small.
+macro_rules! boxed_from {
+    ($($variant:ident: $ty:ty),* $(,)?) => {
+        $(impl From<$ty> for JobError {
+            fn from(e: $ty) -> JobError {
+                JobError::$variant(Box::new(e))
+            }
+        })*
+    };
+}
+
+boxed_from!(
+    Read: adwi_samples::ReadError,
+    Measured: adwi_robot::measured::MeasuredError,
+    Simulate: adwi_robot::simulate::SimulateError,
+    Build: adwi_compile::build::BuildError,
+    Calibrate: adwi_robot::calibrate::CalibrateError,
+    Eval: adwi_eval::EvalError,
+    Tune: tune::TuneError,
+    Output: adwi_compile::write::OutputError,
+);
+
+impl JobError {
+    /// A refused option, named as the command line names it.
+    pub(crate) fn option(name: &str, why: impl fmt::Display) -> JobError {
+        JobError::Options(format!("{}: {why}", flag(name)))
+    }
+
+    pub(crate) fn robot(path: &Path) -> impl FnOnce(adwi_robot::RobotError) -> JobError + '_ {
+        move |source| JobError::Robot {
+            path: path.to_path_buf(),
+            source: Box::new(source),
+        }
+    }
+}
+
+/// An option's name as both front ends understand it: `--tune-folds (tune_folds)`.
+pub(crate) fn flag(name: &str) -> String {
+    format!("--{} ({name})", name.replace('_', "-"))
+}
+
+/// What a job warns about: the work was done, but the user should know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Warning {
+    /// Most of the grid's cells are far from every sample (samples along a line or a
+    /// plane): the table is large for what it holds.
+    MostlyEmptyGrid {
+        /// Cells in the grid.
+        cells: usize,
+        /// At most this many lie within ε of a sample.
+        coverable: f64,
+        /// ε, mm.
+        radius_mm: f64,
+        /// The table's estimated size, bytes.
+        estimated_bytes: u128,
+    },
+    /// Kinematic parameters the samples cannot identify: they keep their nominal values
+    /// and the table interpolates what they would have explained.
+    Unidentifiable {
+        /// Each parameter with its independent fraction (the pivot ratio).
+        parameters: Vec<(String, f64)>,
+    },
+    /// The identification stopped without converging.
+    NotConverged {
+        /// Levenberg–Marquardt iterations made.
+        iterations: u32,
+    },
+    /// URDF has no place for identified compliances: the URDF written leaves them out.
+    UrdfWithoutCompliance {
+        /// The URDF written.
+        path: PathBuf,
+    },
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Warning::MostlyEmptyGrid {
+                cells,
+                coverable,
+                radius_mm,
+                estimated_bytes,
+            } => write!(
+                f,
+                "the grid's {cells} cells are mostly empty: at most {coverable:.0} of them lie \
+                 within ε = {radius_mm:.3} mm of a sample (samples along a line or a plane?); \
+                 the table will be about {} — give bounds around the samples (--bounds), or a \
+                 larger cell (--cell)",
+                adwi_compile::build::human_bytes(*estimated_bytes)
+            ),
+            Warning::Unidentifiable { parameters } => {
+                let names: Vec<String> = parameters
+                    .iter()
+                    .map(|(p, ratio)| format!("{p} ({ratio:.1e})"))
+                    .collect();
+                write!(
+                    f,
+                    "{} kinematic parameters cannot be identified from these samples and stay \
+                     at nominal (independent fraction in brackets): {}",
+                    names.len(),
+                    names.join(", ")
+                )
+            }
+            Warning::NotConverged { iterations } => write!(
+                f,
+                "kinematic identification stopped after {iterations} iterations without \
+                 converging"
+            ),
+            Warning::UrdfWithoutCompliance { path } => write!(
+                f,
+                "URDF has no place for the identified compliances: {} leaves them out (the \
+                 robot file, -o, carries them)",
+                path.display()
+            ),
+        }
+    }
+}
+
+/// What an identification warns about.
+pub(crate) fn calibration_warnings(c: &adwi_robot::calibrate::Calibration) -> Vec<Warning> {
+    let mut warnings = Vec::new();
+    if !c.unidentifiable.is_empty() {
+        warnings.push(Warning::Unidentifiable {
+            parameters: c
+                .unidentifiable
+                .iter()
+                .map(|(p, ratio)| (p.to_string(), *ratio))
+                .collect(),
+        });
+    }
+    if !c.converged {
+        warnings.push(Warning::NotConverged {
+            iterations: c.iterations,
+        });
+    }
+    warnings
+}
+
+/// Where a long job reports how far it got. Every method has a default that does nothing,
+/// so a front end without a progress bar passes [`Silent`].
+pub trait Progress: Sync {
+    /// A new stage begins (`identifying`, `compiling`), of `units` steps when known.
+    fn stage(&self, _name: &str, _units: Option<u64>) {}
+    /// `units` more steps of the current stage are done.
+    fn advance(&self, _units: u64) {}
+}
+
+/// No progress reported.
+pub struct Silent;
+
+impl Progress for Silent {}
+
+/// The worker threads of a job: all cores by default; a count is checked before any
+/// work, since more threads than a few per core only add overhead.
+pub(crate) fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, JobError> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        check_threads(n)?;
+        pool = pool.num_threads(n);
+    }
+    pool.build().map_err(|e| JobError::Threads(e.to_string()))
+}
+
+/// The most worker threads a job takes: four per core (at least 64), beyond which threads
+/// only contend for the cores.
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (4 * cores).max(64)
+}
+
+pub(crate) fn check_threads(n: usize) -> Result<(), JobError> {
+    let max = max_threads();
+    if n == 0 || n > max {
+        return Err(JobError::option(
+            "threads",
+            format!(
+                "{n} worker threads: give 1 to {max} (four per core of this machine's {}, at \
+                 least 64); more only contend for the cores",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            ),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use serde::de::value::{Error, MapDeserializer};
+    use serde::Deserialize;
+
+    use super::*;
+
+    /// Each job's arguments under a command, as tablec has them.
+    #[derive(clap::Parser)]
+    enum Cli {
+        Build(BuildArgs),
+        Eval(EvalArgs),
+        Calibrate(CalibrateArgs),
+        Simulate(SimulateArgs),
+    }
+
+    /// `T` from no keyword arguments at all, as Python's defaults are made.
+    fn from_nothing<'de, T: Deserialize<'de>>() -> T {
+        T::deserialize(MapDeserializer::<_, Error>::new(std::iter::empty::<(
+            &str,
+            &str,
+        )>()))
+        .unwrap()
+    }
+
+    /// The defaults clap gives when no flag is passed are the structs' `Default`s, which
+    /// serde takes for every keyword a Python call leaves out: one definition, one set of
+    /// defaults.
+    #[test]
+    fn the_command_line_and_python_have_the_same_defaults() {
+        let Cli::Build(parsed) = Cli::parse_from(["tablec", "build", "s.csv", "-o", "t.tbl"])
+        else {
+            unreachable!()
+        };
+        let mut expected: BuildArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        expected.output = "t.tbl".into();
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+        assert_eq!(
+            format!("{expected:?}"),
+            format!("{:?}", {
+                let mut d = BuildArgs::default();
+                d.samples = vec![Source::File("s.csv".into())];
+                d.output = "t.tbl".into();
+                d
+            })
+        );
+
+        let Cli::Eval(parsed) = Cli::parse_from(["tablec", "eval", "s.csv"]) else {
+            unreachable!()
+        };
+        let mut expected: EvalArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+
+        let Cli::Calibrate(parsed) = Cli::parse_from(["tablec", "calibrate", "s.csv"]) else {
+            unreachable!()
+        };
+        let mut expected: CalibrateArgs = from_nothing();
+        expected.samples = vec![Source::File("s.csv".into())];
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+
+        let Cli::Simulate(parsed) = Cli::parse_from([
+            "tablec",
+            "simulate",
+            "--scenario",
+            "x.toml",
+            "--min",
+            "0,0,0",
+            "--max",
+            "1,1,1",
+            "-o",
+            "s.csv",
+        ]) else {
+            unreachable!()
+        };
+        let mut expected: SimulateArgs = from_nothing();
+        expected.scenario = "x.toml".into();
+        expected.max = [1.0; 3];
+        expected.output = "s.csv".into();
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+    }
+
+    /// A refused combination is refused before anything is read: the samples file here
+    /// does not exist.
+    #[test]
+    fn combinations_are_refused_before_any_input_is_read() {
+        let mut args = BuildArgs::default();
+        args.samples = vec![Source::File("/nonexistent/s.csv".into())];
+        args.output = "/nonexistent/t.tbl".into();
+        args.tune = true;
+        args.table.k = Some(4);
+        let e = BuildJob::new(args.clone()).err().unwrap();
+        assert!(matches!(e, JobError::Options(_)), "{e}");
+        args.tune = false;
+        args.compliance = true;
+        assert!(matches!(
+            BuildJob::new(args.clone()),
+            Err(JobError::Options(_))
+        ));
+        args.compliance = false;
+        args.threads = Some(1_000_000);
+        let e = BuildJob::new(args).err().unwrap();
+        assert!(
+            e.to_string()
+                .contains("--threads (threads): 1000000 worker threads"),
+            "{e}"
+        );
+    }
+}

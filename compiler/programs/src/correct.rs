@@ -1,0 +1,426 @@
+//! The command for one target: the table's fixed point, through forward and inverse
+//! kinematics where the target is joints or the table is hybrid, with the checks that keep
+//! a command from surprising the robot.
+
+use std::f64::consts::TAU;
+
+use adwi_robot::ik::{configuration_of, solve_near, JOINT_COUNT};
+use adwi_robot::{Configuration, InverseKinematics, Robot};
+use adwi_runtime::kinematics::MdhJoint;
+use adwi_runtime::{Status, Table, Target};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+/// What became of a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetStatus {
+    /// Corrected.
+    Ok,
+    /// Not corrected: the table gives no correction there (outside its grid, no admissible
+    /// sample, a cell its served field does not cover; the runtime's status says which).
+    Outside(Status),
+    /// Not corrected: the inverse kinematics found no posture for the target or for its
+    /// command (out of reach, beyond a joint limit, not in the written configuration).
+    IkFailed,
+    /// Not corrected: the command's posture is in another configuration than the
+    /// target's.
+    ConfigurationChanged,
+    /// Refused: the correction is larger than the job's bound.
+    TooLarge,
+    /// Refused: a joint would move more than the job's bound between target and command.
+    JointJump,
+    /// Not corrected: the fixed point was not reached within the iterations.
+    NotConverged,
+    /// Not corrected: the program writes the target in part.
+    Incomplete,
+    /// Not corrected: joint targets need a robot (or a hybrid table's chain).
+    NeedsRobot,
+    /// Not corrected: the target has no orientation, which its frames (or the inverse
+    /// kinematics a hybrid table needs) require.
+    NeedsOrientation,
+    /// Not corrected: the target is used with different tools or work objects, so no one
+    /// command lands it for every use.
+    AmbiguousFrame,
+    /// Not corrected: the target's numbers give no finite pose or command (a value far
+    /// beyond any workspace).
+    Invalid,
+}
+
+impl TargetStatus {
+    /// Whether the target was corrected (its numbers replaced).
+    pub fn corrected(self) -> bool {
+        self == TargetStatus::Ok
+    }
+
+    /// Its name in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TargetStatus::Ok => "ok",
+            TargetStatus::Outside(_) => "outside",
+            TargetStatus::IkFailed => "ik_failed",
+            TargetStatus::ConfigurationChanged => "configuration_changed",
+            TargetStatus::TooLarge => "too_large",
+            TargetStatus::JointJump => "joint_jump",
+            TargetStatus::NotConverged => "not_converged",
+            TargetStatus::Incomplete => "incomplete",
+            TargetStatus::NeedsRobot => "needs_robot",
+            TargetStatus::NeedsOrientation => "needs_orientation",
+            TargetStatus::AmbiguousFrame => "ambiguous_frame",
+            TargetStatus::Invalid => "invalid",
+        }
+    }
+}
+
+/// The bounds of a job's corrections.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// The largest correction of a target's position, mm.
+    pub max_correction_mm: f64,
+    /// The largest change of one joint between a target and its command, degrees (mm
+    /// for a prismatic joint).
+    pub max_joint_change_deg: f64,
+    /// The fixed point's tolerance: `|command + error(command) − target|`, mm.
+    pub tolerance_mm: f64,
+    /// The fixed point's iterations (queries).
+    pub max_iterations: u32,
+}
+
+/// What the program says of the posture: a configuration and, per joint, its turn.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Posture {
+    /// The configuration, in this project's labels ([`Configuration`]).
+    pub configuration: Option<Configuration>,
+    /// Per joint, which representative (`q + 2πk`) is meant.
+    pub turns: Vec<Turn>,
+}
+
+/// Which of a joint's representatives `q + 2πk` a program means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Turn {
+    /// Any: the one nearest the seed.
+    Any,
+    /// KUKA Turn: negative (true) or not.
+    Negative(bool),
+    /// ABB robconf: the quadrant `floor(q / 90°)`.
+    Quadrant(i64),
+}
+
+impl Turn {
+    fn holds(self, q_rad: f64) -> bool {
+        match self {
+            Turn::Any => true,
+            Turn::Negative(n) => (q_rad < 0.0) == n,
+            Turn::Quadrant(k) => (q_rad.to_degrees() / 90.0).floor() as i64 == k,
+        }
+    }
+}
+
+/// A robot whose TCP is the table's point: forward and inverse kinematics.
+pub struct Kinematics {
+    robot: Robot,
+    closed: Option<(InverseKinematics, [MdhJoint; JOINT_COUNT])>,
+}
+
+impl Kinematics {
+    /// The kinematics of `robot` (its tool the table's point).
+    pub fn new(robot: Robot) -> Kinematics {
+        let closed = InverseKinematics::new(&robot).ok().and_then(|ik| {
+            let rows: [MdhJoint; JOINT_COUNT] = robot.mdh()?.try_into().ok()?;
+            Some((ik, rows))
+        });
+        Kinematics { robot, closed }
+    }
+
+    /// The robot.
+    pub fn robot(&self) -> &Robot {
+        &self.robot
+    }
+
+    /// Whether postures carry configuration labels (a six-axis spherical wrist).
+    pub fn has_configurations(&self) -> bool {
+        self.closed.is_some()
+    }
+
+    /// The table point's pose at joint values `q`; `None` for the wrong count.
+    pub fn forward(&self, q: &[f64]) -> Option<Isometry3<f64>> {
+        let t = self.robot.chain().tcp_pose(q)?;
+        Some(adwi_robot::model::isometry_from_transform(&t))
+    }
+
+    /// The configuration of `q`, for robots with configuration labels.
+    pub fn configuration(&self, q: &[f64]) -> Option<Configuration> {
+        let (_, rows) = self.closed.as_ref()?;
+        let q: [f64; JOINT_COUNT] = q.try_into().ok()?;
+        Some(configuration_of(rows, &q))
+    }
+
+    /// The posture reaching `pose` in `posture`'s configuration and turns nearest `near`:
+    /// in closed form where the robot has it, else by damped least squares from `near`
+    /// (which then decides the configuration).
+    pub fn inverse(
+        &self,
+        pose: &Isometry3<f64>,
+        posture: &Posture,
+        near: &[f64],
+    ) -> Option<Vec<f64>> {
+        let Some((ik, _)) = &self.closed else {
+            let q = solve_near(&self.robot, pose, near)?;
+            return posture
+                .turns
+                .iter()
+                .zip(&q)
+                .all(|(t, v)| t.holds(*v))
+                .then_some(q);
+        };
+        let distance =
+            |q: &[f64]| -> f64 { q.iter().zip(near).map(|(a, b)| (a - b) * (a - b)).sum() };
+        ik.solve(pose)
+            .into_iter()
+            .filter(|s| posture.configuration.is_none_or(|c| c == s.config))
+            .filter_map(|s| self.representatives(&s.q_rad, posture, near))
+            .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+    }
+
+    /// Each joint's representative `q + 2πk` within its limits that holds its turn,
+    /// nearest `near`; `None` when a joint has none.
+    fn representatives(&self, q: &[f64], posture: &Posture, near: &[f64]) -> Option<Vec<f64>> {
+        q.iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let [lower, upper] = self.robot.joints()[i].limits;
+                let turn = posture.turns.get(i).copied().unwrap_or(Turn::Any);
+                let seed = near.get(i).copied().unwrap_or(v);
+                let nearest = v + TAU * ((seed - v) / TAU).round();
+                [
+                    nearest - TAU,
+                    nearest,
+                    nearest + TAU,
+                    nearest - 2.0 * TAU,
+                    nearest + 2.0 * TAU,
+                ]
+                .into_iter()
+                .filter(|c| (lower..=upper).contains(c) && turn.holds(*c))
+                .min_by(|a, b| (a - seed).abs().total_cmp(&(b - seed).abs()))
+            })
+            .collect()
+    }
+}
+
+/// A solved command for the table's point.
+#[derive(Clone, Debug)]
+pub struct Command {
+    /// The pose to command the table's point to, base frame.
+    pub point: Isometry3<f64>,
+    /// The target's posture, when solved or given.
+    pub target_joints: Option<Vec<f64>>,
+    /// The command's posture, when solved.
+    pub joints: Option<Vec<f64>>,
+    /// Queries made.
+    pub iterations: u32,
+    /// Whether the fixed point was reached.
+    pub converged: bool,
+    /// `|command + error(command) − target|`, mm.
+    pub residual_mm: f64,
+}
+
+/// Why no command was found, and the details for the report.
+pub type Failure = (TargetStatus, String);
+
+/// What [`solve`] is asked for one target.
+#[derive(Clone, Copy, Debug)]
+pub struct Request<'a> {
+    /// The table's point at the target, base frame.
+    pub target: &'a Isometry3<f64>,
+    /// Whether the target has an orientation: one without is corrected in position only,
+    /// and needs none of the kinematics.
+    pub orientation: bool,
+    /// The posture the program writes.
+    pub posture: &'a Posture,
+    /// The target's posture when the program gives it (joint targets).
+    pub target_joints: Option<&'a [f64]>,
+    /// The posture the inverse kinematics starts nearest.
+    pub seed: &'a [f64],
+}
+
+/// Solves the command of one table point.
+///
+/// # Errors
+///
+/// Why the target gets no command: the [`TargetStatus`] and a detail for the report.
+pub fn solve<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    kinematics: Option<&Kinematics>,
+    limits: &Limits,
+    request: Request,
+) -> Result<Command, Failure> {
+    let Request {
+        target,
+        orientation,
+        posture,
+        target_joints,
+        seed,
+    } = request;
+    let target_joints = target_joints.map(<[f64]>::to_vec);
+    let kinematics = kinematics.filter(|_| orientation);
+    if table.is_hybrid() && kinematics.is_none() {
+        return Err((
+            TargetStatus::NeedsOrientation,
+            "a hybrid table needs the target's posture, from its orientation".into(),
+        ));
+    }
+    let target_joints = match (target_joints, kinematics) {
+        (Some(q), _) => Some(q),
+        (None, Some(k)) => Some(k.inverse(target, posture, seed).ok_or_else(|| {
+            (
+                TargetStatus::IkFailed,
+                "no posture reaches the target in its configuration".to_string(),
+            )
+        })?),
+        (None, None) => None,
+    };
+    // The configuration the command must keep: written, or the target posture's own.
+    let posture = match (&target_joints, kinematics) {
+        (Some(q), Some(k)) if posture.configuration.is_none() => Posture {
+            configuration: k.configuration(q),
+            turns: posture.turns.clone(),
+        },
+        _ => posture.clone(),
+    };
+    let config = posture
+        .configuration
+        .filter(|_| table.has_config())
+        .map(|c| c.bits());
+    let p = target.translation.vector;
+    let mut command = if table.is_hybrid() {
+        let (kinematics, q0) = (
+            kinematics.expect("checked above"),
+            target_joints.clone().expect("solved above"),
+        );
+        let mut point = *target;
+        let mut q = q0.clone();
+        let mut out = None;
+        for iteration in 1..=limits.max_iterations.max(1) {
+            let c = table.query_with_joints(
+                &Target {
+                    position_mm: point.translation.vector.into(),
+                    config,
+                },
+                &q,
+            );
+            if c.status != Status::Ok {
+                return Err((TargetStatus::Outside(c.status), c.status.as_str().into()));
+            }
+            let e = Vector3::from(c.position_error_mm);
+            let residual_mm = (point.translation.vector + e - p).norm();
+            if residual_mm <= limits.tolerance_mm {
+                out = Some(Command {
+                    point,
+                    target_joints: None,
+                    joints: Some(q),
+                    iterations: iteration,
+                    converged: true,
+                    residual_mm,
+                });
+                break;
+            }
+            point = Isometry3::from_parts(
+                Translation3::from(p - e),
+                UnitQuaternion::from_scaled_axis(-Vector3::from(c.orientation_error_rad))
+                    * target.rotation,
+            );
+            q = kinematics.inverse(&point, &posture, &q).ok_or_else(|| {
+                (
+                    TargetStatus::IkFailed,
+                    "no posture reaches the command in the target's configuration".to_string(),
+                )
+            })?;
+        }
+        out.ok_or_else(|| {
+            (
+                TargetStatus::NotConverged,
+                format!("{} iterations", limits.max_iterations),
+            )
+        })?
+    } else {
+        let comp = table.compensate(
+            &Target {
+                position_mm: p.into(),
+                config,
+            },
+            limits.tolerance_mm,
+            limits.max_iterations,
+        );
+        let status = comp.correction.status;
+        if status != Status::Ok {
+            return Err((TargetStatus::Outside(status), status.as_str().into()));
+        }
+        if !comp.converged {
+            return Err((
+                TargetStatus::NotConverged,
+                format!(
+                    "residual {:.2e} mm after {} iterations",
+                    comp.residual_mm, comp.iterations
+                ),
+            ));
+        }
+        let rotation = UnitQuaternion::from_scaled_axis(Vector3::from(comp.command_rotation_rad))
+            * target.rotation;
+        let point = Isometry3::from_parts(
+            Translation3::from(Vector3::from(comp.command_position_mm)),
+            rotation,
+        );
+        let joints = match (kinematics, &target_joints) {
+            (Some(k), Some(q)) => Some(k.inverse(&point, &posture, q).ok_or_else(|| {
+                (
+                    TargetStatus::IkFailed,
+                    "no posture reaches the command in the target's configuration".to_string(),
+                )
+            })?),
+            _ => None,
+        };
+        Command {
+            point,
+            target_joints: None,
+            joints,
+            iterations: comp.iterations,
+            converged: true,
+            residual_mm: comp.residual_mm,
+        }
+    };
+    if let (Some(k), Some(q), Some(qc)) = (kinematics, &target_joints, &command.joints) {
+        if k.configuration(q) != k.configuration(qc) {
+            return Err((
+                TargetStatus::ConfigurationChanged,
+                format!(
+                    "configuration {} at the target, {} at the command",
+                    k.configuration(q).map_or(0, |c| c.bits()),
+                    k.configuration(qc).map_or(0, |c| c.bits())
+                ),
+            ));
+        }
+        let jump = joint_change(k.robot(), q, qc);
+        if jump > limits.max_joint_change_deg {
+            return Err((
+                TargetStatus::JointJump,
+                format!(
+                    "a joint moves {jump:.3}° (bound {}°)",
+                    limits.max_joint_change_deg
+                ),
+            ));
+        }
+    }
+    command.target_joints = target_joints;
+    Ok(command)
+}
+
+/// The largest change of one joint between two postures: degrees for a revolute joint, mm
+/// for a prismatic one.
+pub fn joint_change(robot: &Robot, a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .map(|(i, (a, b))| match robot.joint_kind(i) {
+            adwi_runtime::chain::JointKind::Revolute => (a - b).abs().to_degrees(),
+            adwi_runtime::chain::JointKind::Prismatic => (a - b).abs(),
+        })
+        .fold(0.0, f64::max)
+}

@@ -1,0 +1,823 @@
+//! [`CompensateJob`]: every option and input checked before any target is corrected, then
+//! the run.
+
+use std::path::{Path, PathBuf};
+
+use adwi_robot::{Geometry, Joint, LinkNames, Robot};
+use adwi_runtime::{AlignedBytes, Table};
+use nalgebra::{Isometry3, Vector3};
+
+use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
+use crate::frames::{angle_between, kuka_pose, orientation_values, rotation_of, FrameChain};
+use crate::number::{rewrite, Number};
+use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, TargetKind};
+use crate::report::{Report, TargetLine};
+use crate::source::Source;
+use crate::Error;
+
+/// What a compensation is asked to do. [`CompensateOptions::new`] gives the defaults.
+#[derive(Clone, Debug)]
+pub struct CompensateOptions {
+    /// The correction table.
+    pub table: PathBuf,
+    /// The program.
+    pub program: PathBuf,
+    /// Where the compensated program goes, when the job writes it ([`CompensateJob::write`]):
+    /// checked before any work never to be an input.
+    pub output: Option<PathBuf>,
+    /// Where the per-target report goes as CSV, likewise.
+    pub report: Option<PathBuf>,
+    /// The program's format; `None`: by the file's extension ([`Format::from_path`]).
+    pub format: Option<Format>,
+    /// A robot file (TOML, or URDF by `.urdf`), for joint targets, the inverse kinematics
+    /// of a hybrid table's targets, and the posture checks.
+    pub robot: Option<PathBuf>,
+    /// The URDF chain's ends.
+    pub links: LinkNames,
+    /// The program's TCP in the flange frame, `[X, Y, Z, A, B, C]` (mm, KUKA degrees), for
+    /// uses whose tool the program does not declare; `None`: the table's point.
+    pub tool: Option<[f64; 6]>,
+    /// The work object (base) in the robot's base frame, likewise; `None`: the base frame.
+    pub base: Option<[f64; 6]>,
+    /// The table's measured point in the flange frame; `None`: a hybrid table's own (with
+    /// a robot file), else the robot file's tool, else the flange.
+    pub table_tool: Option<[f64; 6]>,
+    /// The bounds of a correction.
+    pub limits: Limits,
+    /// Fail instead of leaving any target unchanged.
+    pub strict: bool,
+    /// The estimated seconds of work beyond which the job is refused before any.
+    pub max_seconds: f64,
+}
+
+/// The default bound of a correction: larger than any calibrated robot's error, small
+/// enough to catch a table of another robot or a wrong frame.
+pub const DEFAULT_MAX_CORRECTION_MM: f64 = 5.0;
+/// The default bound of a joint's change, degrees: a correction of
+/// [`DEFAULT_MAX_CORRECTION_MM`] turns an axis 150 mm from the TCP by 1.9°, so a normal
+/// correction stays below it; a posture near a singularity, where a small Cartesian change
+/// swings the wrist, goes beyond it.
+pub const DEFAULT_MAX_JOINT_CHANGE_DEG: f64 = 2.0;
+
+impl CompensateOptions {
+    /// The defaults for `table` and `program`: 5 mm and 2° bounds, `tablec query`'s fixed
+    /// point (1e-6 mm, 50 iterations), not strict, 300 s of work at most.
+    pub fn new(table: impl Into<PathBuf>, program: impl Into<PathBuf>) -> CompensateOptions {
+        CompensateOptions {
+            table: table.into(),
+            program: program.into(),
+            output: None,
+            report: None,
+            format: None,
+            robot: None,
+            links: LinkNames::default(),
+            tool: None,
+            base: None,
+            table_tool: None,
+            limits: Limits {
+                max_correction_mm: DEFAULT_MAX_CORRECTION_MM,
+                max_joint_change_deg: DEFAULT_MAX_JOINT_CHANGE_DEG,
+                tolerance_mm: 1e-6,
+                max_iterations: 50,
+            },
+            strict: false,
+            max_seconds: 300.0,
+        }
+    }
+}
+
+/// A compensated program: its bytes and the report.
+#[derive(Clone, Debug)]
+pub struct Compensated {
+    /// The program with every corrected target's numbers replaced.
+    pub output: Vec<u8>,
+    /// Per target, what was done.
+    pub report: Report,
+}
+
+/// A job whose options and inputs have all been checked: [`CompensateJob::run`] only
+/// corrects.
+pub struct CompensateJob {
+    options: CompensateOptions,
+    table: Table<AlignedBytes>,
+    bytes: Vec<u8>,
+    name: String,
+    program: Program,
+    kinematics: Option<Kinematics>,
+    /// Per target, its frame chains (one per distinct use; none for joint targets).
+    chains: Vec<Vec<FrameChain>>,
+    /// The program and the report, checked before any work.
+    outputs: adwi_compile::write::OutputPlan,
+}
+
+/// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
+/// inverse kinematics, with a numerical one — two to four times what was measured
+/// (docs/programs.md, "Cost"), so that the estimate errs on the side of refusing.
+const SECONDS_PER_TARGET: [f64; 3] = [1e-5, 3e-5, 2e-4];
+
+/// How many bytes a program may have at most: read into memory whole.
+const MAX_PROGRAM_BYTES: u64 = 1 << 30;
+
+impl CompensateJob {
+    /// Checks every option, opens the table and the robot, reads the program, resolves
+    /// every target's frames and sizes the work — before any target is corrected.
+    ///
+    /// # Errors
+    ///
+    /// The first problem found: a bad option, an unreadable input, a malformed program
+    /// (file, line and column), an output that is an input, or more work than
+    /// `max_seconds`.
+    pub fn new(options: CompensateOptions) -> Result<CompensateJob, Error> {
+        let o = &options;
+        let limits = &o.limits;
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(limits.max_correction_mm)
+            || !positive(limits.max_joint_change_deg)
+            || !positive(limits.tolerance_mm)
+            || limits.max_iterations == 0
+        {
+            return Err(Error::Option("max_correction_mm, max_joint_change_deg and the tolerance must be finite and positive, the iterations at least 1".into()));
+        }
+        if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
+            return Err(Error::Option("max_seconds must be positive".into()));
+        }
+        for (name, frame) in [
+            ("tool", &o.tool),
+            ("base", &o.base),
+            ("table tool", &o.table_tool),
+        ] {
+            if frame.is_some_and(|f| !f.iter().all(|v| v.is_finite())) {
+                return Err(Error::Option(format!(
+                    "the {name} must be six finite numbers X,Y,Z,A,B,C"
+                )));
+            }
+        }
+        let format = match o.format {
+            Some(f) => f,
+            None => Format::from_path(&o.program).ok_or_else(|| {
+                Error::Option(format!(
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv); give it (krl, rapid, urscript, csv)",
+                    o.program.display()
+                ))
+            })?,
+        };
+        let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
+        if let Some(r) = &o.robot {
+            inputs.push(r);
+        }
+        let outputs = adwi_compile::write::OutputPlan::check(
+            &[o.output.as_deref(), o.report.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>(),
+            &inputs,
+        )?;
+        if let (Some(a), Some(b)) = (&o.output, &o.report) {
+            if a == b {
+                return Err(Error::Option(format!(
+                    "the output and the report are both {}",
+                    a.display()
+                )));
+            }
+        }
+        let read = |path: &Path| {
+            std::fs::read(path).map_err(|source| Error::Read {
+                path: path.to_path_buf(),
+                source,
+            })
+        };
+        let table = Table::from_vec(read(&o.table)?).map_err(|source| Error::Table {
+            path: o.table.clone(),
+            source,
+        })?;
+        let size = std::fs::metadata(&o.program)
+            .map_err(|source| Error::Read {
+                path: o.program.clone(),
+                source,
+            })?
+            .len();
+        if size > MAX_PROGRAM_BYTES {
+            return Err(Error::Option(format!(
+                "{}: {size} bytes, more than the {MAX_PROGRAM_BYTES} a program may have",
+                o.program.display()
+            )));
+        }
+        let bytes = read(&o.program)?;
+        let name = o.program.display().to_string();
+        let robot = match &o.robot {
+            Some(path) => Some(Robot::load_with(path, &o.links).map_err(|e| Error::Robot {
+                path: path.clone(),
+                message: e.to_string(),
+            })?),
+            None => None,
+        };
+        let (kinematics, table_tool) = kinematics(o, &table, robot)?;
+        // The cost of a target is known once the kinematics are: the program is read only
+        // as far as the work it may take.
+        let cost = match &kinematics {
+            None => SECONDS_PER_TARGET[0],
+            Some(k) if k.has_configurations() => SECONDS_PER_TARGET[1],
+            Some(_) => SECONDS_PER_TARGET[2],
+        };
+        let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
+        let program = {
+            let src = Source::new(&name, &bytes);
+            match format {
+                Format::Krl => {
+                    let partner_path = partner(&o.program);
+                    let partner_bytes = partner_path.as_deref().and_then(|p| std::fs::read(p).ok());
+                    let partner_name = partner_path
+                        .map(|p| p.display().to_string())
+                        .unwrap_or_default();
+                    let partner_src = partner_bytes
+                        .as_deref()
+                        .map(|b| Source::new(&partner_name, b));
+                    crate::krl::read_at_most(&src, partner_src.as_ref(), limit)?
+                }
+                Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
+                Format::UrScript => crate::urscript::read_at_most(&src, limit)?,
+                Format::Csv => crate::csv::read_at_most(&src, limit)?,
+            }
+        };
+        if let Some(at) = program.truncated_at {
+            let targets = program.targets.len();
+            return Err(Error::TooLarge {
+                file: name,
+                bytes: bytes.len(),
+                targets,
+                read_bytes: Some(at),
+                seconds: cost * targets as f64 * bytes.len() as f64 / at.max(1) as f64,
+                limit_seconds: o.max_seconds,
+            });
+        }
+        // Frames: every use resolved, or the job refused at the use that cannot be.
+        let src = Source::new(&name, &bytes);
+        let default_tool = o
+            .tool
+            .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]));
+        let default_base = o
+            .base
+            .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]))
+            .unwrap_or_else(Isometry3::identity);
+        let mut chains = Vec::with_capacity(program.targets.len());
+        for target in &program.targets {
+            let mut list: Vec<FrameChain> = Vec::new();
+            if matches!(target.kind, TargetKind::Cartesian(_)) {
+                let default_use = [FrameUse {
+                    tool: None,
+                    base: None,
+                    offset: target.offset,
+                    undeclared: Vec::new(),
+                }];
+                let uses = if target.uses.is_empty() {
+                    &default_use[..]
+                } else {
+                    &target.uses[..]
+                };
+                for u in uses {
+                    let (base, at) = (u.base, u.offset);
+                    let tool = u.tool.or(default_tool);
+                    for missing in &u.undeclared {
+                        let given = if missing.starts_with("work object") {
+                            o.base.is_some()
+                        } else {
+                            o.tool.is_some()
+                        };
+                        if !given {
+                            return Err(src.error(at, format!("{missing} is not declared in the program: give it as an option ({})", if missing.starts_with("work object") { "base" } else { "tool" })));
+                        }
+                    }
+                    let chain = match (tool, table_tool) {
+                        (None, _) => FrameChain {
+                            base: base.unwrap_or(default_base),
+                            tool: Isometry3::identity(),
+                            table_tool: Isometry3::identity(),
+                        },
+                        (Some(tool), Some(table_tool)) => FrameChain {
+                            base: base.unwrap_or(default_base),
+                            tool,
+                            table_tool,
+                        },
+                        (Some(_), None) => {
+                            return Err(src.error(at, "this use names a tool, but where the table's point is on the flange is not known: give the table tool or a robot file"));
+                        }
+                    };
+                    if !list.iter().any(|c| same_chain(c, &chain)) {
+                        list.push(chain);
+                    }
+                }
+            }
+            chains.push(list);
+        }
+        let seconds = cost * program.targets.len() as f64;
+        if seconds > o.max_seconds {
+            return Err(Error::TooLarge {
+                file: name,
+                bytes: bytes.len(),
+                targets: program.targets.len(),
+                read_bytes: None,
+                seconds,
+                limit_seconds: o.max_seconds,
+            });
+        }
+        Ok(CompensateJob {
+            options,
+            table,
+            bytes,
+            name,
+            program,
+            kinematics,
+            chains,
+            outputs,
+        })
+    }
+
+    /// The program as read.
+    pub fn program(&self) -> &Program {
+        &self.program
+    }
+
+    /// The options, as checked.
+    pub fn options(&self) -> &CompensateOptions {
+        &self.options
+    }
+
+    /// Corrects every target: the compensated program's bytes and the report.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotAllCorrected`] when the job is strict and some target was not
+    /// corrected.
+    pub fn run(&self) -> Result<Compensated, Error> {
+        let src = Source::new(&self.name, &self.bytes);
+        let mut edits: Vec<Edit> = Vec::new();
+        let mut report = Report::default();
+        let mut seed: Vec<f64> = self
+            .kinematics
+            .as_ref()
+            .map_or_else(Vec::new, |k| k.robot().home().to_vec());
+        for (target, chains) in self.program.targets.iter().zip(&self.chains) {
+            let (line, column) = src.location(target.offset);
+            let mut entry = TargetLine {
+                name: target.name.clone(),
+                line,
+                column,
+                kind: match target.kind {
+                    TargetKind::Cartesian(_) => "cartesian",
+                    TargetKind::Joints(_) => "joints",
+                    TargetKind::Incomplete(_) => "incomplete",
+                },
+                status: TargetStatus::Ok,
+                detail: String::new(),
+                correction_mm: None,
+                rotation_deg: None,
+                joint_change_deg: None,
+                point_mm: None,
+                command_mm: None,
+                command_joints: None,
+                iterations: 0,
+                residual_mm: None,
+            };
+            let result = self
+                .target(&src, target, chains, &mut seed, &mut entry)
+                .and_then(|edits| {
+                    // Never a non-finite number written, whatever the input held.
+                    let finite = edits
+                        .iter()
+                        .all(|(_, text)| text.parse::<f64>().is_ok_and(f64::is_finite));
+                    if finite {
+                        Ok(edits)
+                    } else {
+                        Err((
+                            TargetStatus::Invalid,
+                            "the command is not finite".to_string(),
+                        ))
+                    }
+                });
+            match result {
+                Ok(new_edits) => edits.extend(new_edits),
+                Err((status, detail)) => {
+                    entry.status = status;
+                    entry.detail = detail;
+                }
+            }
+            report.targets.push(entry);
+        }
+        if self.options.strict {
+            if let Some(first) = report.first_not_corrected() {
+                return Err(Error::NotAllCorrected {
+                    not_corrected: report
+                        .targets
+                        .iter()
+                        .filter(|t| !t.status.corrected())
+                        .count(),
+                    total: report.targets.len(),
+                    first: format!(
+                        "{} {}{}",
+                        first.place(),
+                        first.status.as_str(),
+                        if first.detail.is_empty() {
+                            String::new()
+                        } else {
+                            format!(": {}", first.detail)
+                        }
+                    ),
+                });
+            }
+        }
+        edits.sort_by_key(|(span, _)| span.0);
+        let mut output = Vec::with_capacity(self.bytes.len() + edits.len() * 4);
+        let mut at = 0;
+        for ((start, end), text) in edits {
+            debug_assert!(start >= at, "targets never overlap");
+            output.extend_from_slice(&self.bytes[at..start]);
+            output.extend_from_slice(text.as_bytes());
+            at = end;
+        }
+        output.extend_from_slice(&self.bytes[at..]);
+        Ok(Compensated { output, report })
+    }
+
+    /// Writes the compensated program and the report where the options say, both or
+    /// neither ([`adwi_compile::write::OutputPlan`], checked when the job was made).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Write`] when a file cannot be written (none is then replaced).
+    pub fn write(&self, done: &Compensated) -> Result<(), Error> {
+        let report = done.report.to_csv();
+        let mut contents: Vec<(&Path, &[u8])> = Vec::new();
+        if let Some(path) = &self.options.output {
+            contents.push((path, &done.output));
+        }
+        if let Some(path) = &self.options.report {
+            contents.push((path, report.as_bytes()));
+        }
+        Ok(self.outputs.write(&contents)?)
+    }
+
+    /// One target's edits, its report filled in; or why it is left unchanged.
+    fn target(
+        &self,
+        src: &Source,
+        target: &crate::program::ProgramTarget,
+        chains: &[FrameChain],
+        seed: &mut Vec<f64>,
+        entry: &mut TargetLine,
+    ) -> Result<Vec<Edit>, correct::Failure> {
+        let limits = &self.options.limits;
+        let bytes = src.bytes;
+        let number_edit =
+            |n: &Number, value: f64, decimals: usize| -> Option<((usize, usize), String)> {
+                rewrite(n, &bytes[n.span.0..n.span.1], value, decimals).map(|text| (n.span, text))
+            };
+        match &target.kind {
+            TargetKind::Incomplete(why) => Err((TargetStatus::Incomplete, why.clone())),
+            TargetKind::Cartesian(c) => {
+                let [chain] = chains else {
+                    return Err((
+                        TargetStatus::AmbiguousFrame,
+                        format!("used with {} different tools or work objects", chains.len()),
+                    ));
+                };
+                let scale = c.unit.mm();
+                let position = Vector3::from(c.position.map(|n| n.value * scale));
+                let rotation = match &c.orientation {
+                    Some(o) => Some(rotation_of(o).ok_or_else(|| {
+                        (
+                            TargetStatus::Incomplete,
+                            "a zero quaternion is no orientation".to_string(),
+                        )
+                    })?),
+                    None => None,
+                };
+                let given_joints: Option<Vec<f64>> = (!c.joints.is_empty())
+                    .then(|| c.joints.iter().map(|n| n.value.to_radians()).collect());
+                let identity_frames =
+                    chain.base == Isometry3::identity() && chain.tool == chain.table_tool;
+                let (rotation, orientation) = match (rotation, &given_joints, &self.kinematics) {
+                    (Some(r), ..) => (r, true),
+                    // A CSV row's joints give the orientation the pose does not write.
+                    (None, Some(q), Some(k)) => match k.forward(q) {
+                        Some(p) => (p.rotation.to_rotation_matrix(), true),
+                        None => return Err((TargetStatus::Incomplete, format!("{} joint values for a robot of {}", q.len(), k.robot().joint_count()))),
+                    },
+                    (None, ..) if identity_frames && !self.table.is_hybrid() => (nalgebra::Rotation3::identity(), false),
+                    (None, ..) => return Err((TargetStatus::NeedsOrientation, "the target writes no orientation, which its frames or the table's posture need".into())),
+                };
+                let pose = Isometry3::from_parts(
+                    position.into(),
+                    nalgebra::UnitQuaternion::from_rotation_matrix(&rotation),
+                );
+                let point = chain.table_point(&pose);
+                let posture = posture(&c.config, self.kinematics.as_ref());
+                let near = given_joints.clone().unwrap_or_else(|| seed.clone());
+                let command = correct::solve(
+                    &self.table,
+                    self.kinematics.as_ref(),
+                    limits,
+                    correct::Request {
+                        target: &point,
+                        orientation,
+                        posture: &posture,
+                        target_joints: given_joints.as_deref(),
+                        seed: &near,
+                    },
+                );
+                let command = command?;
+                if let Some(q) = &command.target_joints {
+                    seed.clone_from(q);
+                }
+                let new_pose = chain.program_pose(&command.point);
+                let moved = (new_pose.translation.vector - pose.translation.vector).norm();
+                let new_rotation = new_pose.rotation.to_rotation_matrix();
+                let turned = angle_between(&new_rotation, &rotation);
+                fill(
+                    entry,
+                    &point,
+                    &command,
+                    self.kinematics.as_ref(),
+                    moved,
+                    orientation.then_some(turned),
+                );
+                if moved > limits.max_correction_mm {
+                    return Err((
+                        TargetStatus::TooLarge,
+                        format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
+                    ));
+                }
+                let mut edits = Vec::new();
+                for (n, v) in c.position.iter().zip(new_pose.translation.vector.iter()) {
+                    edits.extend(number_edit(n, v / scale, c.unit.decimals()));
+                }
+                if let Some(o) = &c.orientation {
+                    // An orientation the correction does not turn keeps its numbers (and its
+                    // way of writing a rotation several ways, such as KUKA's at B = ±90°).
+                    if turned > 1e-12 {
+                        let values = orientation_values(o, &new_rotation);
+                        let (numbers, decimals): (&[Number], usize) = match o {
+                            Orientation::KukaAbcDeg(n) => (n, 6),
+                            Orientation::QuaternionWxyz(n) => (n, 9),
+                            Orientation::RotationVectorRad(n) => (n, 8),
+                        };
+                        for (n, v) in numbers.iter().zip(values) {
+                            edits.extend(number_edit(n, v, decimals));
+                        }
+                    }
+                }
+                if let Some(q) = &command.joints {
+                    for (n, v) in c.joints.iter().zip(q) {
+                        edits.extend(number_edit(n, v.to_degrees(), 6));
+                    }
+                }
+                Ok(edits)
+            }
+            TargetKind::Joints(j) => {
+                let Some(k) = &self.kinematics else {
+                    return Err((
+                        TargetStatus::NeedsRobot,
+                        "joint targets need a robot file (or a hybrid table)".into(),
+                    ));
+                };
+                let n = k.robot().joint_count();
+                if j.joints.len() != n {
+                    return Err((
+                        TargetStatus::Incomplete,
+                        format!("{} joint values for a robot of {n}", j.joints.len()),
+                    ));
+                }
+                let q: Vec<f64> = j.joints.iter().map(|v| v.value * j.unit.rad()).collect();
+                let point = k.forward(&q).expect("one value per joint");
+                let posture = Posture {
+                    configuration: k.configuration(&q),
+                    turns: Vec::new(),
+                };
+                seed.clone_from(&q);
+                let command = correct::solve(
+                    &self.table,
+                    Some(k),
+                    limits,
+                    correct::Request {
+                        target: &point,
+                        orientation: true,
+                        posture: &posture,
+                        target_joints: Some(&q),
+                        seed: &q,
+                    },
+                )?;
+                let qc = command.joints.clone().unwrap_or_else(|| q.clone());
+                let moved = (command.point.translation.vector - point.translation.vector).norm();
+                let turned = angle_between(
+                    &command.point.rotation.to_rotation_matrix(),
+                    &point.rotation.to_rotation_matrix(),
+                );
+                fill(entry, &point, &command, Some(k), moved, Some(turned));
+                if moved > limits.max_correction_mm {
+                    return Err((
+                        TargetStatus::TooLarge,
+                        format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
+                    ));
+                }
+                Ok(j.joints
+                    .iter()
+                    .zip(&qc)
+                    .filter_map(|(n, v)| number_edit(n, v / j.unit.rad(), j.unit.decimals()))
+                    .collect())
+            }
+        }
+    }
+}
+
+/// A replacement: the bytes `start..end` of the program, and their new text.
+type Edit = ((usize, usize), String);
+
+/// The report's figures of a solved command.
+fn fill(
+    entry: &mut TargetLine,
+    point: &Isometry3<f64>,
+    command: &correct::Command,
+    kinematics: Option<&Kinematics>,
+    moved: f64,
+    turned: Option<f64>,
+) {
+    entry.correction_mm = Some(moved);
+    entry.point_mm = Some(point.translation.vector.into());
+    entry.command_mm = Some(command.point.translation.vector.into());
+    entry.rotation_deg = turned.map(f64::to_degrees);
+    entry.iterations = command.iterations;
+    entry.residual_mm = Some(command.residual_mm);
+    if let (Some(k), Some(a), Some(b)) = (kinematics, &command.target_joints, &command.joints) {
+        entry.joint_change_deg = Some(correct::joint_change(k.robot(), a, b));
+    }
+    if let (Some(k), Some(q)) = (kinematics, &command.joints) {
+        entry.command_joints = Some(
+            q.iter()
+                .enumerate()
+                .map(|(i, v)| match k.robot().joint_kind(i) {
+                    adwi_runtime::chain::JointKind::Revolute => v.to_degrees(),
+                    adwi_runtime::chain::JointKind::Prismatic => *v,
+                })
+                .collect(),
+        );
+    }
+}
+
+/// Whether two frame chains are the same to rounding.
+fn same_chain(a: &FrameChain, b: &FrameChain) -> bool {
+    let close = |x: &Isometry3<f64>, y: &Isometry3<f64>| {
+        (x.to_homogeneous() - y.to_homogeneous()).abs().max() < 1e-9
+    };
+    close(&a.base, &b.base) && close(&a.tool, &b.tool) && close(&a.table_tool, &b.table_tool)
+}
+
+/// The other file of a KRL `.src`/`.dat` pair, when it exists.
+fn partner(program: &Path) -> Option<PathBuf> {
+    let ext = program.extension()?.to_str()?;
+    let other = match ext.to_ascii_lowercase().as_str() {
+        "src" => "dat",
+        "dat" => "src",
+        _ => return None,
+    };
+    [other.to_string(), other.to_ascii_uppercase()]
+        .into_iter()
+        .map(|e| program.with_extension(e))
+        .find(|p| p.is_file())
+}
+
+/// The posture a program writes, in this project's configuration labels.
+fn posture(hint: &ConfigHint, kinematics: Option<&Kinematics>) -> Posture {
+    let joints = kinematics.map_or(6, |k| k.robot().joint_count());
+    let configuration = |bits: u8| adwi_robot::Configuration::from_bits(bits);
+    match *hint {
+        ConfigHint::None => Posture::default(),
+        ConfigHint::Configuration(bits) => Posture {
+            configuration: configuration(bits),
+            turns: Vec::new(),
+        },
+        ConfigHint::KukaStatusTurn { status, turn } => Posture {
+            // KUKA S: bit 0 overhead (shoulder back), bit 1 A3 ≥ φ (elbow up), bit 2 A5 ≤ 0.
+            configuration: status
+                .and_then(|s| configuration(((s & 1) | (((s >> 1) & 1) ^ 1) << 1 | (s & 4)) as u8)),
+            turns: turn.map_or_else(Vec::new, |t| {
+                (0..joints.min(6))
+                    .map(|i| Turn::Negative((t >> i) & 1 == 1))
+                    .collect()
+            }),
+        },
+        ConfigHint::RapidConf([cf1, cf4, cf6, cfx]) => Posture {
+            // ABB cfx: bit 0 axis 5 negative, bit 1 backward (elbow down), bit 2 behind.
+            configuration: (0..8)
+                .contains(&cfx)
+                .then(|| configuration((((cfx >> 2) & 1) | (cfx & 2) | ((cfx & 1) << 2)) as u8))
+                .flatten(),
+            turns: (0..joints.min(6))
+                .map(|i| match i {
+                    0 => Turn::Quadrant(cf1),
+                    3 => Turn::Quadrant(cf4),
+                    5 => Turn::Quadrant(cf6),
+                    _ => Turn::Any,
+                })
+                .collect(),
+        },
+    }
+}
+
+/// The kinematics whose TCP is the table's point, and that point in the flange frame when
+/// it is known.
+fn kinematics(
+    o: &CompensateOptions,
+    table: &Table<AlignedBytes>,
+    robot: Option<Robot>,
+) -> Result<(Option<Kinematics>, Option<Isometry3<f64>>), Error> {
+    let flag = o
+        .table_tool
+        .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]));
+    let iso =
+        |t: &adwi_runtime::kinematics::Transform| adwi_robot::model::isometry_from_transform(t);
+    let transform = |i: &Isometry3<f64>| adwi_robot::model::transform_from_isometry(i);
+    let robot_error = |message: String| Error::Robot {
+        path: o.robot.clone().unwrap_or_default(),
+        message,
+    };
+    match (table.model(), robot) {
+        (None, None) => Ok((None, Some(flag.unwrap_or_else(Isometry3::identity)))),
+        (None, Some(robot)) => {
+            let table_tool = flag.unwrap_or_else(|| iso(&robot.tool()));
+            let robot = robot
+                .with_parts(
+                    robot.name.clone(),
+                    robot.base(),
+                    transform(&table_tool),
+                    robot.home().to_vec(),
+                )
+                .map_err(|e| robot_error(e.to_string()))?;
+            Ok((Some(Kinematics::new(robot)), Some(table_tool)))
+        }
+        (Some(model), robot) => {
+            let chain = model.nominal();
+            // The table's point in the frame the chain ends in.
+            let point_in_end = iso(&chain.tool);
+            let (robot, table_tool) = match robot {
+                Some(robot) => {
+                    if robot.joint_count() != chain.joint_count() {
+                        return Err(robot_error(format!(
+                            "{} joints, the table's robot {}",
+                            robot.joint_count(),
+                            chain.joint_count()
+                        )));
+                    }
+                    // Where the flange is in the robot's last frame: its chain's tool less
+                    // its own tool.
+                    let flange_in_end = iso(&robot.chain().tool) * iso(&robot.tool()).inverse();
+                    let table_tool = flag.unwrap_or_else(|| flange_in_end.inverse() * point_in_end);
+                    let robot = robot
+                        .with_parts(
+                            robot.name.clone(),
+                            robot.base(),
+                            transform(&table_tool),
+                            robot.home().to_vec(),
+                        )
+                        .map_err(|e| robot_error(e.to_string()))?;
+                    // The robot file must be the table's nominal robot.
+                    let home = robot.home().to_vec();
+                    let a = iso(&robot.chain().tcp_pose(&home).expect("one value per joint"));
+                    let b = iso(&chain.tcp_pose(&home).expect("same joint count"));
+                    let gap = (a.translation.vector - b.translation.vector).norm();
+                    if gap > 1e-6
+                        || angle_between(
+                            &a.rotation.to_rotation_matrix(),
+                            &b.rotation.to_rotation_matrix(),
+                        ) > 1e-9
+                    {
+                        return Err(robot_error(format!("it is not the table's nominal robot with the table's point as its tool: {gap:.6} mm apart at home")));
+                    }
+                    (robot, Some(table_tool))
+                }
+                None => {
+                    let joints = (0..chain.joint_count())
+                        .map(|i| Joint {
+                            name: format!("joint_{}", i + 1),
+                            limits: [f64::NEG_INFINITY, f64::INFINITY],
+                            inertial: None,
+                            compliance_urad_per_nm: None,
+                        })
+                        .collect();
+                    let robot = Robot::new(
+                        "the table's nominal robot".into(),
+                        Geometry::Chain(chain.joints().to_vec()),
+                        joints,
+                        chain.base,
+                        chain.tool,
+                        vec![0.0; chain.joint_count()],
+                    )
+                    .map_err(|e| {
+                        Error::Option(format!("the table's nominal chain cannot be used: {e}"))
+                    })?;
+                    // Without a robot file the flange is known only from the option.
+                    (robot, flag)
+                }
+            };
+            Ok((Some(Kinematics::new(robot)), table_tool))
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! What a program's reader finds: its targets, each with the numbers that write it, the
+//! frames it is commanded in, and what it says about the arm's configuration.
+
+use nalgebra::Isometry3;
+
+use crate::number::Number;
+
+/// A program format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// KUKA KRL: a `.src` or a `.dat` file.
+    Krl,
+    /// ABB RAPID: a `.mod` (or `.modx`, `.prg`) module.
+    Rapid,
+    /// Universal Robots URScript: a `.script` file.
+    UrScript,
+    /// A CSV of poses, as `tablec query --targets` reads them.
+    Csv,
+}
+
+impl Format {
+    /// Every format.
+    pub const ALL: [Format; 4] = [Format::Krl, Format::Rapid, Format::UrScript, Format::Csv];
+
+    /// The name the command line takes (`krl`, `rapid`, `urscript`, `csv`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Krl => "krl",
+            Format::Rapid => "rapid",
+            Format::UrScript => "urscript",
+            Format::Csv => "csv",
+        }
+    }
+
+    /// The format of a name as [`Format::name`] gives it.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
+    /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV.
+    pub fn from_path(path: &std::path::Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "src" | "dat" => Format::Krl,
+            "mod" | "modx" | "prg" | "sys" => Format::Rapid,
+            "script" | "urscript" => Format::UrScript,
+            "csv" => Format::Csv,
+            _ => return None,
+        })
+    }
+}
+
+/// A target of a program: where the TCP is told to go (a pose) or how the joints are told
+/// to stand.
+#[derive(Clone, Debug)]
+pub struct ProgramTarget {
+    /// Its name (a declared variable), or the instruction that writes it inline
+    /// (`LIN`, `MoveL`, `movel`, `row`).
+    pub name: String,
+    /// The byte where it is written.
+    pub offset: usize,
+    /// What it is.
+    pub kind: TargetKind,
+    /// The frames it is commanded in, one per use the reader saw (none: the job's
+    /// defaults).
+    pub uses: Vec<FrameUse>,
+}
+
+/// What a target is.
+#[derive(Clone, Debug)]
+pub enum TargetKind {
+    /// A pose of the TCP in a work-object (base) frame.
+    Cartesian(Box<CartesianTarget>),
+    /// Joint values.
+    Joints(JointTarget),
+    /// A target the program writes only in part (a KRL aggregate without some of its
+    /// coordinates: the controller takes the rest from where the robot stands), so no
+    /// command can be computed for it; the text names what is missing.
+    Incomplete(String),
+}
+
+/// A length unit of a program's positions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LengthUnit {
+    /// Millimetres (KRL, RAPID, CSV).
+    Millimetre,
+    /// Metres (URScript).
+    Metre,
+}
+
+impl LengthUnit {
+    /// Millimetres per unit.
+    pub fn mm(self) -> f64 {
+        match self {
+            LengthUnit::Millimetre => 1.0,
+            LengthUnit::Metre => 1000.0,
+        }
+    }
+
+    /// The decimals that keep a length to 1e-4 mm (rule 1 of the crate docs): 4 in mm, 7 in m.
+    pub fn decimals(self) -> usize {
+        match self {
+            LengthUnit::Millimetre => 4,
+            LengthUnit::Metre => 7,
+        }
+    }
+}
+
+/// An angle unit of a program's joints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AngleUnit {
+    /// Degrees (KRL, RAPID, CSV).
+    Degree,
+    /// Radians (URScript).
+    Radian,
+}
+
+impl AngleUnit {
+    /// Radians per unit.
+    pub fn rad(self) -> f64 {
+        match self {
+            AngleUnit::Degree => std::f64::consts::PI / 180.0,
+            AngleUnit::Radian => 1.0,
+        }
+    }
+
+    /// The decimals that keep an angle to 1e-6° (rule 1 of the crate docs): 6 in degrees,
+    /// 8 in radians.
+    pub fn decimals(self) -> usize {
+        match self {
+            AngleUnit::Degree => 6,
+            AngleUnit::Radian => 8,
+        }
+    }
+}
+
+/// A Cartesian target's numbers.
+#[derive(Clone, Debug)]
+pub struct CartesianTarget {
+    /// X, Y, Z.
+    pub position: [Number; 3],
+    /// Their unit.
+    pub unit: LengthUnit,
+    /// The orientation, when the program writes one.
+    pub orientation: Option<Orientation>,
+    /// What the program says about the arm's configuration.
+    pub config: ConfigHint,
+    /// Joint values written beside the pose (a CSV's `j1..jn`, degrees): the seed of the
+    /// inverse kinematics, rewritten to the command's joints when those are solved.
+    pub joints: Vec<Number>,
+}
+
+/// How a program writes an orientation.
+#[derive(Clone, Copy, Debug)]
+pub enum Orientation {
+    /// KUKA A, B, C, degrees: `R = Rz(A)·Ry(B)·Rx(C)`.
+    KukaAbcDeg([Number; 3]),
+    /// A quaternion w, x, y, z (ABB's q1..q4).
+    QuaternionWxyz([Number; 4]),
+    /// A rotation vector, radians (Universal Robots' rx, ry, rz).
+    RotationVectorRad([Number; 3]),
+}
+
+/// What a program says about the configuration of the arm at a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfigHint {
+    /// Nothing: the posture nearest the previous target's (or home) is taken.
+    None,
+    /// KUKA Status and Turn, as written (either may be missing).
+    KukaStatusTurn {
+        /// S: bit 0 overhead, bit 1 A3 ≥ φ (elbow up), bit 2 A5 ≤ 0.
+        status: Option<u32>,
+        /// T: bit i set when axis i + 1 is negative.
+        turn: Option<u32>,
+    },
+    /// ABB robconf `[cf1, cf4, cf6, cfx]`: quadrants of axes 1, 4 and 6 and the
+    /// configuration (bit 0 axis 5 negative, bit 1 backward, bit 2 behind).
+    RapidConf([i64; 4]),
+    /// This project's inverse-kinematics configuration (a CSV's `config`, as sample
+    /// files write it): bit 0 shoulder back, bit 1 elbow down, bit 2 wrist flipped.
+    Configuration(u8),
+}
+
+/// A joint target's numbers.
+#[derive(Clone, Debug)]
+pub struct JointTarget {
+    /// The joint values, first joint first (external axes are not included).
+    pub joints: Vec<Number>,
+    /// Their unit.
+    pub unit: AngleUnit,
+}
+
+/// The frames one use of a target commands it in.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameUse {
+    /// The TCP in the flange frame, when the program says (RAPID `tooldata`, URScript
+    /// `set_tcp`); `None`: the job's tool.
+    pub tool: Option<Isometry3<f64>>,
+    /// The work object (base) in the robot's base frame, when the program says (RAPID
+    /// `wobjdata`); `None`: the job's base.
+    pub base: Option<Isometry3<f64>>,
+    /// Where the use is written (the motion instruction), for messages.
+    pub offset: usize,
+    /// The frames the use names but the program does not declare (`tool gun`), which the
+    /// job's options must then give.
+    pub undeclared: Vec<String>,
+}
+
+/// A program read: its targets in the order they are written.
+#[derive(Clone, Debug)]
+pub struct Program {
+    /// Its format.
+    pub format: Format,
+    /// Its targets.
+    pub targets: Vec<ProgramTarget>,
+    /// Where reading stopped, when the program holds more targets than the reader was
+    /// allowed to read (the job sizes its work by them: crate docs): the byte offset.
+    pub truncated_at: Option<usize>,
+}

@@ -1,0 +1,159 @@
+//! What a compensation did to every target, and in sum.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+use crate::correct::TargetStatus;
+
+/// One target's line of the report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetLine {
+    /// Its name, or the instruction writing it inline.
+    pub name: String,
+    /// 1-based line and column where it is written.
+    pub line: usize,
+    /// 1-based column, in bytes.
+    pub column: usize,
+    /// `cartesian` or `joints` (or `incomplete`).
+    pub kind: &'static str,
+    /// What became of it.
+    pub status: TargetStatus,
+    /// Why, when it was not corrected (the runtime's status, the joint that jumps).
+    pub detail: String,
+    /// How far the command's TCP (a joint target's: the table's point) lies from the
+    /// target's, mm; for a refused target, the correction that was refused.
+    pub correction_mm: Option<f64>,
+    /// The rotation between the command's orientation and the target's, degrees.
+    pub rotation_deg: Option<f64>,
+    /// The largest change of one joint between target and command, degrees (mm for a
+    /// prismatic joint), when the postures were solved.
+    pub joint_change_deg: Option<f64>,
+    /// The table's point at the target, base frame, mm: what the table was asked about.
+    pub point_mm: Option<[f64; 3]>,
+    /// The table's point at the command, base frame, mm (before the program's rounding).
+    pub command_mm: Option<[f64; 3]>,
+    /// The command's posture (degrees; mm for prismatic joints), when solved.
+    pub command_joints: Option<Vec<f64>>,
+    /// Queries the fixed point made.
+    pub iterations: u32,
+    /// `|command + error(command) − target|` at the command, mm.
+    pub residual_mm: Option<f64>,
+}
+
+/// The report: a line per target, in the order the program writes them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Report {
+    /// Per target.
+    pub targets: Vec<TargetLine>,
+}
+
+/// The report in figures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// Targets in the program.
+    pub total: usize,
+    /// Targets corrected.
+    pub corrected: usize,
+    /// Targets left unchanged, by status.
+    pub not_corrected: BTreeMap<&'static str, usize>,
+    /// The largest correction made (mm), and the target it was made to.
+    pub largest: Option<(f64, String)>,
+}
+
+impl Report {
+    /// The counts and the largest correction.
+    pub fn summary(&self) -> Summary {
+        let mut not_corrected = BTreeMap::new();
+        let mut largest: Option<(f64, String)> = None;
+        for t in &self.targets {
+            if t.status.corrected() {
+                if let Some(c) = t.correction_mm {
+                    if largest.as_ref().is_none_or(|(l, _)| c > *l) {
+                        largest = Some((c, t.place()));
+                    }
+                }
+            } else {
+                *not_corrected.entry(t.status.as_str()).or_default() += 1;
+            }
+        }
+        Summary {
+            total: self.targets.len(),
+            corrected: self.targets.iter().filter(|t| t.status.corrected()).count(),
+            not_corrected,
+            largest,
+        }
+    }
+
+    /// The first target not corrected, if any.
+    pub fn first_not_corrected(&self) -> Option<&TargetLine> {
+        self.targets.iter().find(|t| !t.status.corrected())
+    }
+
+    /// The report as CSV: one header, one row per target.
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from(
+            "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
+             iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z\n",
+        );
+        let opt = |v: Option<f64>, d: usize| v.map_or(String::new(), |v| format!("{v:.d$}"));
+        let xyz = |v: Option<[f64; 3]>| {
+            v.map_or(",,".to_string(), |p| {
+                format!("{:.9},{:.9},{:.9}", p[0], p[1], p[2])
+            })
+        };
+        for t in &self.targets {
+            let _ = writeln!(
+                out,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                csv_field(&t.name),
+                t.line,
+                t.column,
+                t.kind,
+                t.status.as_str(),
+                csv_field(&t.detail),
+                opt(t.correction_mm, 6),
+                opt(t.rotation_deg, 6),
+                opt(t.joint_change_deg, 6),
+                t.iterations,
+                t.residual_mm.map_or(String::new(), |v| format!("{v:.3e}")),
+                xyz(t.point_mm),
+                xyz(t.command_mm),
+            );
+        }
+        out
+    }
+}
+
+impl TargetLine {
+    /// `name (line:column)`.
+    pub fn place(&self) -> String {
+        format!("{} ({}:{})", self.name, self.line, self.column)
+    }
+}
+
+impl std::fmt::Display for Summary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} of {} targets corrected", self.corrected, self.total)?;
+        if !self.not_corrected.is_empty() {
+            let by: Vec<String> = self
+                .not_corrected
+                .iter()
+                .map(|(s, n)| format!("{n} {s}"))
+                .collect();
+            write!(f, "; left unchanged: {}", by.join(", "))?;
+        }
+        if let Some((mm, place)) = &self.largest {
+            write!(f, "; largest correction {mm:.4} mm at {place}")?;
+        }
+        Ok(())
+    }
+}
+
+/// A CSV field, quoted when it holds a comma, a quote or a line end.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}

@@ -1,0 +1,120 @@
+//! A program's bytes with their line starts, for locating errors and targets by line and
+//! column, and the small lexical pieces every format shares.
+
+use crate::number::{parse_number, Number};
+use crate::Error;
+
+/// A program file's bytes.
+pub struct Source<'a> {
+    /// The file's name as the user gave it, for messages.
+    pub name: &'a str,
+    /// Its bytes, as read (never decoded: KRL files are often Latin-1).
+    pub bytes: &'a [u8],
+    line_starts: Vec<usize>,
+}
+
+impl<'a> Source<'a> {
+    /// The source of `bytes`, called `name` in messages.
+    pub fn new(name: &'a str, bytes: &'a [u8]) -> Source<'a> {
+        let mut line_starts = vec![0];
+        line_starts.extend(
+            bytes
+                .iter()
+                .enumerate()
+                .filter(|(_, b)| **b == b'\n')
+                .map(|(i, _)| i + 1),
+        );
+        Source {
+            name,
+            bytes,
+            line_starts,
+        }
+    }
+
+    /// The 1-based line and column (in bytes) of `offset`.
+    pub fn location(&self, offset: usize) -> (usize, usize) {
+        let line = self.line_starts.partition_point(|&s| s <= offset);
+        let start = self.line_starts[line.saturating_sub(1)];
+        (line, offset - start + 1)
+    }
+
+    /// A syntax error at `offset`.
+    pub fn error(&self, offset: usize, message: impl Into<String>) -> Error {
+        let (line, column) = self.location(offset);
+        Error::Syntax {
+            file: self.name.to_string(),
+            line,
+            column,
+            message: message.into(),
+        }
+    }
+
+    /// The byte at `i`, if any.
+    pub fn at(&self, i: usize) -> Option<u8> {
+        self.bytes.get(i).copied()
+    }
+
+    /// The text of `start..end`, lossily (for names and messages; bytes outside ASCII show
+    /// as replacement characters).
+    pub fn text(&self, start: usize, end: usize) -> String {
+        String::from_utf8_lossy(&self.bytes[start..end.min(self.bytes.len())]).into_owned()
+    }
+
+    /// The end of the identifier starting at `i` (letters, digits, `_`, and `$` and `#`
+    /// when `extra` allows them), `i` itself when none starts there.
+    pub fn identifier_end(&self, i: usize, extra: &[u8]) -> usize {
+        let mut j = i;
+        while let Some(b) = self.at(j) {
+            let first = j == i;
+            let ok = b.is_ascii_alphabetic()
+                || b == b'_'
+                || extra.contains(&b)
+                || (!first && b.is_ascii_digit());
+            if !ok {
+                break;
+            }
+            j += 1;
+        }
+        j
+    }
+
+    /// The first non-blank (space, tab) byte at or after `i`; newlines are not blank.
+    pub fn skip_blanks(&self, mut i: usize) -> usize {
+        while matches!(self.at(i), Some(b' ' | b'\t')) {
+            i += 1;
+        }
+        i
+    }
+
+    /// A number at `i`, or an error naming `what` was expected there.
+    pub fn number(&self, i: usize, what: &str) -> Result<Number, Error> {
+        parse_number(self.bytes, i).ok_or_else(|| {
+            self.error(
+                i,
+                format!("expected a number ({what}), found {}", self.describe(i)),
+            )
+        })
+    }
+
+    /// What stands at `i`, for messages: a short quote, or the end of the file.
+    pub fn describe(&self, i: usize) -> String {
+        if i >= self.bytes.len() {
+            return "the end of the file".to_string();
+        }
+        let end = (i + 12).min(self.bytes.len());
+        let end = self.bytes[i..end]
+            .iter()
+            .position(|b| *b == b'\n' || *b == b'\r')
+            .map_or(end, |p| i + p);
+        if end == i {
+            return "the end of the line".to_string();
+        }
+        format!("'{}'", self.text(i, end))
+    }
+}
+
+/// Whether two identifiers are equal ignoring ASCII case (KRL and RAPID are
+/// case-insensitive).
+pub fn same_name(a: &[u8], b: &[u8]) -> bool {
+    a.eq_ignore_ascii_case(b)
+}

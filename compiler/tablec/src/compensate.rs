@@ -1,0 +1,124 @@
+//! `tablec compensate`: a robot program with every target replaced by the command that
+//! lands on it ([`adwi_programs::CompensateJob`]).
+
+use std::path::PathBuf;
+
+use adwi_programs::{CompensateJob, CompensateOptions, Format};
+
+use crate::Answered;
+
+#[derive(clap::Args)]
+#[command(
+    after_help = "Exit status: 0 when every target was corrected; 3 when some target \
+    was left unchanged (the program is still written, each target's status in the report); \
+    1 on an error (a malformed program, an unreadable input, a refused output, --strict with a \
+    target left unchanged: nothing is written); 2 on a usage error."
+)]
+pub struct Args {
+    /// The correction table.
+    table: PathBuf,
+    /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script) or a CSV of
+    /// poses (.csv).
+    program: PathBuf,
+    /// The compensated program (never one of the inputs; written atomically).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The program's format [default: by its extension].
+    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv"])]
+    format: Option<String>,
+    /// A robot file (TOML, or URDF by its .urdf extension, with --base-link/--tip-link):
+    /// for joint targets, and to check every command's posture (inverse kinematics in the
+    /// target's configuration).
+    #[command(flatten)]
+    robot: adwi_jobs::RobotArgs,
+    /// The program's TCP in the flange frame, X,Y,Z,A,B,C (mm, KUKA degrees), where the
+    /// program does not declare its tool [default: the table's point].
+    #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
+    tool: Option<Frame>,
+    /// The work object (base) in the robot's base frame, X,Y,Z,A,B,C, where the program
+    /// does not declare it [default: the base frame].
+    #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
+    base: Option<Frame>,
+    /// The point the table's samples measured, in the flange frame, X,Y,Z,A,B,C [default: a
+    /// hybrid table's own (with --robot); else the robot file's tool; else the flange].
+    #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
+    table_tool: Option<Frame>,
+    /// Refuse (leave unchanged, report) a correction larger than this, mm.
+    #[arg(long, default_value_t = adwi_programs::DEFAULT_MAX_CORRECTION_MM)]
+    max_correction_mm: f64,
+    /// Refuse a command whose posture moves a joint more than this from the target's,
+    /// degrees (mm for a prismatic joint).
+    #[arg(long, default_value_t = adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG)]
+    max_joint_change_deg: f64,
+    /// Fail, writing nothing, when any target would be left unchanged.
+    #[arg(long)]
+    strict: bool,
+    /// Write the per-target report as CSV too.
+    #[arg(long, value_name = "FILE")]
+    report: Option<PathBuf>,
+    /// Refuse, before any work, a program estimated to take longer than this, seconds.
+    #[arg(long, default_value_t = 300.0)]
+    max_seconds: f64,
+    /// Print only the targets left unchanged and the summary.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+type Frame = [f64; 6];
+
+fn frame(text: &str) -> Result<Frame, String> {
+    let values = adwi_jobs::args::parse_number_list(text)?;
+    values
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("a frame is six numbers X,Y,Z,A,B,C, not {}", v.len()))
+}
+
+pub fn run(args: Args) -> anyhow::Result<Answered> {
+    let mut options = CompensateOptions::new(&args.table, &args.program);
+    options.output = Some(args.output);
+    options.report = args.report;
+    options.format = args.format.as_deref().and_then(Format::from_name);
+    options.links = args.robot.links();
+    options.robot = args.robot.robot;
+    options.tool = args.tool;
+    options.base = args.base;
+    options.table_tool = args.table_tool;
+    options.limits.max_correction_mm = args.max_correction_mm;
+    options.limits.max_joint_change_deg = args.max_joint_change_deg;
+    options.strict = args.strict;
+    options.max_seconds = args.max_seconds;
+    let job = CompensateJob::new(options)?;
+    let done = job.run()?;
+    job.write(&done)?;
+    for t in done
+        .report
+        .targets
+        .iter()
+        .filter(|t| !(args.quiet && t.status.corrected()))
+    {
+        let figure =
+            |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!(" {v:.4} {unit}"));
+        println!(
+            "{:<24} {}:{:<5} {:<10} {}{}{}{}",
+            t.name,
+            t.line,
+            t.column,
+            t.kind,
+            t.status.as_str(),
+            figure(t.correction_mm, "mm"),
+            figure(t.joint_change_deg, "° joint"),
+            if t.detail.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", t.detail)
+            },
+        );
+    }
+    let summary = done.report.summary();
+    println!("{summary}");
+    Ok(if summary.corrected == summary.total {
+        Answered::All
+    } else {
+        Answered::NotAll
+    })
+}
