@@ -16,6 +16,7 @@ mod latency_guard;
 mod no_alloc;
 mod outputs;
 mod programs;
+mod robot_mutation;
 mod robots;
 mod shipped_kr150_data;
 mod table_files;

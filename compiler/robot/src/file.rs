@@ -11,9 +11,10 @@ use serde::Deserialize;
 use adwi_samples::pose::rotation_from_kuka_abc_deg;
 
 use crate::model::{
-    finite, transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial,
-    Robot, RobotError,
+    transform_from_parts, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot,
+    RobotError,
 };
+use crate::plausible::{check, check_all, check_name, Quantity};
 use crate::urdf::LinkNames;
 
 impl Robot {
@@ -36,31 +37,28 @@ impl Robot {
     ///
     /// As [`Robot::load`].
     pub fn load_with(path: impl AsRef<Path>, links: &LinkNames) -> Result<Robot, RobotError> {
-        let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
-        let is_urdf = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("urdf"));
-        if is_urdf {
-            return crate::urdf::robot_from_urdf_str(&text, links).map_err(|e| match e {
-                RobotError::Urdf { source, .. } => RobotError::Urdf {
-                    path: path.to_owned(),
-                    source,
-                },
-                other => other,
-            });
-        }
-        let dir = path.parent().unwrap_or(Path::new(""));
-        Robot::from_toml_in(&text, dir, links).map_err(|error| match error {
-            RobotError::Parse { source, .. } => RobotError::Parse {
-                path: path.to_owned(),
-                source,
-            },
-            other => other,
-        })
+        Ok(Robot::load_with_files(path, links)?.0)
+    }
+
+    /// As [`Robot::load_with`], with every file it read: the named file, then the file it
+    /// names (a TOML robot file's `urdf`), and so on, each canonical (absolute, links
+    /// resolved), so that a caller can refuse to write over any of them.
+    ///
+    /// Robot files may name robot files at most [`MAX_ROBOT_FILE_DEPTH`] deep, and never
+    /// one already on the way (a file naming itself, two naming each other).
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::load`]; [`RobotError::NamingCycle`] and [`RobotError::NamingTooDeep`]
+    /// for files that name each other in a cycle or too deep; an error in a named file
+    /// comes as [`RobotError::InNamedFile`], naming the file that named it.
+    pub fn load_with_files(
+        path: impl AsRef<Path>,
+        links: &LinkNames,
+    ) -> Result<(Robot, Vec<PathBuf>), RobotError> {
+        let mut files = Vec::new();
+        let robot = load_naming(path.as_ref(), links, &mut Vec::new(), &mut files)?;
+        Ok((robot, files))
     }
 
     /// Parses and validates a robot description given as TOML text (a `urdf` key is read
@@ -75,10 +73,23 @@ impl Robot {
     }
 
     fn from_toml_in(text: &str, dir: &Path, links: &LinkNames) -> Result<Robot, RobotError> {
-        let file: RobotFile = toml::from_str(text).map_err(|source| RobotError::Parse {
+        Robot::from_toml_naming(text, dir, links, &mut |path, links| {
+            load_naming(path, links, &mut Vec::new(), &mut Vec::new())
+        })
+    }
+
+    /// Parses TOML text, loading the file its `urdf` key names through `load`.
+    fn from_toml_naming(
+        text: &str,
+        dir: &Path,
+        links: &LinkNames,
+        load: &mut dyn FnMut(&Path, &LinkNames) -> Result<Robot, RobotError>,
+    ) -> Result<Robot, RobotError> {
+        let file: RobotFile = toml::from_str(text).map_err(|error| RobotError::Parse {
             path: PathBuf::new(),
-            source,
+            source: crate::toml_error::TomlError::new(&error, text),
         })?;
+        check_name(&file.name)?;
         let tool = file
             .tool
             .map(|t| t.transform("tool"))
@@ -100,7 +111,7 @@ impl Robot {
                 base_link: links.base_link.clone().or(file.base_link),
                 tip_link: links.tip_link.clone().or(file.tip_link),
             };
-            let urdf = Robot::load_with(dir.join(urdf_path), &links)?;
+            let urdf = load(&dir.join(urdf_path), &links)?;
             let kinds: Vec<JointKind> = urdf.chain().joints().iter().map(|j| j.kind).collect();
             let home = match &file.home_deg {
                 Some(h) => from_file_units(h, &kinds)?,
@@ -165,9 +176,85 @@ impl Robot {
     }
 }
 
+/// The deepest chain of robot files naming robot files: a TOML file naming a URDF file is
+/// two; layers of TOML files (one adding a tool to another) rarely more than three.
+pub const MAX_ROBOT_FILE_DEPTH: usize = 8;
+
+/// Loads the robot file `path`, named by the files of `naming` (canonical, outermost
+/// first), recording every file read in `files`.
+fn load_naming(
+    path: &Path,
+    links: &LinkNames,
+    naming: &mut Vec<(PathBuf, PathBuf)>,
+    files: &mut Vec<PathBuf>,
+) -> Result<Robot, RobotError> {
+    let read_error = |source| RobotError::Read {
+        path: path.to_owned(),
+        source,
+    };
+    let canonical = std::fs::canonicalize(path).map_err(read_error)?;
+    // The chain as the files name each other, for messages.
+    let chain = |naming: &[(PathBuf, PathBuf)]| -> Vec<PathBuf> {
+        naming
+            .iter()
+            .map(|(given, _)| given.clone())
+            .chain(std::iter::once(path.to_owned()))
+            .collect()
+    };
+    if naming.iter().any(|(_, c)| *c == canonical) {
+        return Err(RobotError::NamingCycle {
+            files: chain(naming),
+        });
+    }
+    if naming.len() >= MAX_ROBOT_FILE_DEPTH {
+        return Err(RobotError::NamingTooDeep {
+            files: chain(naming),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(read_error)?;
+    files.push(canonical.clone());
+    let is_urdf = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"));
+    if is_urdf {
+        return crate::urdf::robot_from_urdf_str(&text, links).map_err(|e| match e {
+            RobotError::Urdf { source, .. } => RobotError::Urdf {
+                path: path.to_owned(),
+                source,
+            },
+            other => other,
+        });
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    naming.push((path.to_owned(), canonical));
+    let robot = Robot::from_toml_naming(&text, dir, links, &mut |named, links| {
+        load_naming(named, links, naming, files).map_err(|error| match error {
+            // A cycle or a chain too deep is reported once, whole.
+            e @ (RobotError::NamingCycle { .. } | RobotError::NamingTooDeep { .. }) => e,
+            e => RobotError::InNamedFile {
+                file: path.to_owned(),
+                named: named.to_owned(),
+                source: Box::new(e),
+            },
+        })
+    });
+    naming.pop();
+    robot.map_err(|error| match error {
+        RobotError::Parse { source, .. } => RobotError::Parse {
+            path: path.to_owned(),
+            source,
+        },
+        other => other,
+    })
+}
+
 /// `robot` with the file's `[payload]`, its centre of mass moved from the file's frame (the
 /// last link's) into the model's as a link's is.
 fn carrying(robot: Robot, payload: Option<PayloadFile>) -> Result<Robot, RobotError> {
+    if let Some(p) = &payload {
+        check(p.mass_kg, Quantity::MassKg, || "payload mass_kg".into())?;
+        check_all(&p.com_mm, Quantity::LengthMm, || "payload com_mm".into())?;
+    }
     let payload = payload.map(|p| LinkInertial {
         mass_kg: p.mass_kg,
         com_mm: robot
@@ -184,6 +271,13 @@ fn from_file_units(values: &[f64], kinds: &[JointKind]) -> Result<Vec<f64>, Robo
             expected: kinds.len(),
             found: values.len(),
         });
+    }
+    for (i, (&value, kind)) in values.iter().zip(kinds).enumerate() {
+        let quantity = match kind {
+            JointKind::Revolute => Quantity::JointLimitDeg,
+            JointKind::Prismatic => Quantity::LengthMm,
+        };
+        check(value, quantity, || format!("home_deg[{i}]"))?;
     }
     Ok(values
         .iter()
@@ -314,6 +408,31 @@ impl JointFile {
             joint: number,
             reason: format!("{key} missing"),
         })?;
+        // As the file gives them (degrees or mm); an infinite limit is no limit.
+        let (given, quantity) = match kind {
+            JointKind::Revolute => (self.limits_deg, Quantity::JointLimitDeg),
+            JointKind::Prismatic => (self.limits_mm, Quantity::LengthMm),
+        };
+        for (i, value) in given.into_iter().flatten().enumerate() {
+            if !value.is_infinite() {
+                check(value, quantity, || format!("joint {number} {key}[{i}]"))?;
+            }
+        }
+        if let Some(mass_kg) = self.mass_kg {
+            check(mass_kg, Quantity::MassKg, || {
+                format!("joint {number} mass_kg")
+            })?;
+        }
+        if let Some(com_mm) = self.com_mm {
+            check_all(&com_mm, Quantity::LengthMm, || {
+                format!("joint {number} com_mm")
+            })?;
+        }
+        if let Some(c) = self.compliance_urad_per_nm {
+            check(c, Quantity::ComplianceUradPerNm, || {
+                format!("joint {number} compliance_urad_per_nm")
+            })?;
+        }
         let inertial = match (self.mass_kg, self.com_mm) {
             (Some(mass_kg), com) => Some(LinkInertial {
                 mass_kg,
@@ -352,12 +471,25 @@ impl JointFile {
                 reason: format!("{key} missing"),
             })
         };
+        let (a_mm, d_mm) = (required(self.a_mm, "a_mm")?, required(self.d_mm, "d_mm")?);
+        let alpha_deg = required(self.alpha_deg, "alpha_deg")?;
+        let beta_deg = self.beta_deg.unwrap_or(0.0);
+        let theta_offset_deg = self.theta_offset_deg.unwrap_or(0.0);
+        for (value, key, quantity) in [
+            (a_mm, "a_mm", Quantity::LengthMm),
+            (d_mm, "d_mm", Quantity::LengthMm),
+            (alpha_deg, "alpha_deg", Quantity::AngleDeg),
+            (beta_deg, "beta_deg", Quantity::AngleDeg),
+            (theta_offset_deg, "theta_offset_deg", Quantity::AngleDeg),
+        ] {
+            check(value, quantity, || format!("joint {number} {key}"))?;
+        }
         let row = MdhJoint {
-            a_mm: required(self.a_mm, "a_mm")?,
-            d_mm: required(self.d_mm, "d_mm")?,
-            alpha_rad: required(self.alpha_deg, "alpha_deg")?.to_radians(),
-            beta_rad: self.beta_deg.unwrap_or(0.0).to_radians(),
-            theta_offset_rad: self.theta_offset_deg.unwrap_or(0.0).to_radians(),
+            a_mm,
+            d_mm,
+            alpha_rad: alpha_deg.to_radians(),
+            beta_rad: beta_deg.to_radians(),
+            theta_offset_rad: theta_offset_deg.to_radians(),
         };
         // The centre of mass stays in the file's MD-H frame i until the geometry is whole
         // (`Geometry::com_from_file`).
@@ -389,10 +521,19 @@ impl JointFile {
         };
         let xyz = self.xyz_mm.unwrap_or([0.0; 3]);
         let rpy = self.rpy_deg.unwrap_or([0.0; 3]);
-        for (key, values) in [("xyz_mm", xyz), ("rpy_deg", rpy)] {
-            for (a, v) in values.iter().enumerate() {
-                finite(*v, || format!("joint {number} {key}[{a}]"))?;
-            }
+        check_all(&xyz, Quantity::LengthMm, || {
+            format!("joint {number} xyz_mm")
+        })?;
+        check_all(&rpy, Quantity::AngleDeg, || {
+            format!("joint {number} rpy_deg")
+        })?;
+        match kind {
+            JointKind::Revolute => check(offset.to_degrees(), Quantity::AngleDeg, || {
+                format!("joint {number} offset_deg")
+            })?,
+            JointKind::Prismatic => check(offset, Quantity::LengthMm, || {
+                format!("joint {number} offset_mm")
+            })?,
         }
         let axis =
             unit_axis(self.axis.unwrap_or([0.0, 0.0, 1.0])).ok_or_else(|| RobotError::Invalid {
@@ -420,15 +561,233 @@ struct FrameFile {
 
 impl FrameFile {
     fn transform(&self, what: &str) -> Result<Transform, RobotError> {
-        for (i, value) in self.translation_mm.iter().enumerate() {
-            finite(*value, || format!("{what} translation_mm[{i}]"))?;
-        }
-        for (i, value) in self.abc_deg.iter().enumerate() {
-            finite(*value, || format!("{what} abc_deg[{i}]"))?;
-        }
+        check_all(&self.translation_mm, Quantity::LengthMm, || {
+            format!("{what} translation_mm")
+        })?;
+        check_all(&self.abc_deg, Quantity::AngleDeg, || {
+            format!("{what} abc_deg")
+        })?;
         Ok(transform_from_parts(
             self.translation_mm,
             &rotation_from_kuka_abc_deg(self.abc_deg),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::shipped_file;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    /// Every file a robot file makes the loader read is reported, canonical; files that
+    /// name each other, or name too deep, are refused with the chain of files, and an
+    /// error in a named file says which file named it.
+    #[test]
+    fn named_files_are_reported_and_bounded() {
+        let dir = tempfile::tempdir().unwrap();
+        let urdf = std::fs::canonicalize(shipped_file("ur5", "robot.urdf")).unwrap();
+        let toml = write(
+            dir.path(),
+            "ur5.toml",
+            &format!("name = \"UR5\"\nurdf = {:?}\n", urdf.display().to_string()),
+        );
+        let (robot, files) = Robot::load_with_files(&toml, &LinkNames::default()).unwrap();
+        assert_eq!(robot.name, "UR5");
+        assert_eq!(files, [std::fs::canonicalize(&toml).unwrap(), urdf.clone()]);
+        // A layer on top: three files.
+        let tool = write(
+            dir.path(),
+            "tool.toml",
+            "name = \"UR5 with a tool\"\nurdf = \"ur5.toml\"\n[tool]\ntranslation_mm = [0.0, 0.0, 100.0]\n",
+        );
+        let (_, files) = Robot::load_with_files(&tool, &LinkNames::default()).unwrap();
+        assert_eq!(files.len(), 3);
+        assert_eq!(files[2], urdf);
+
+        let own = write(
+            dir.path(),
+            "self.toml",
+            "name = \"s\"\nurdf = \"self.toml\"\n",
+        );
+        let error = Robot::load(&own).unwrap_err();
+        assert!(matches!(error, RobotError::NamingCycle { .. }), "{error:?}");
+        let expected = format!(
+            "robot files name each other in a cycle: {} → {}",
+            own.display(),
+            own.display()
+        );
+        assert_eq!(error.to_string(), expected);
+        let a = write(dir.path(), "a.toml", "name = \"a\"\nurdf = \"b.toml\"\n");
+        write(dir.path(), "b.toml", "name = \"b\"\nurdf = \"a.toml\"\n");
+        let b = dir.path().join("b.toml");
+        assert_eq!(
+            Robot::load(&a).unwrap_err().to_string(),
+            format!(
+                "robot files name each other in a cycle: {} → {} → {}",
+                a.display(),
+                b.display(),
+                a.display()
+            )
+        );
+        // Ten files naming each other: too deep, though no cycle; eight are not.
+        for i in 0..9 {
+            write(
+                dir.path(),
+                &format!("layer{i}.toml"),
+                &format!("name = \"{i}\"\nurdf = \"layer{}.toml\"\n", i + 1),
+            );
+        }
+        write(
+            dir.path(),
+            "layer9.toml",
+            &format!("name = \"9\"\nurdf = {:?}\n", urdf.display().to_string()),
+        );
+        let error = Robot::load(dir.path().join("layer0.toml")).unwrap_err();
+        assert!(
+            matches!(error, RobotError::NamingTooDeep { ref files } if files.len() == 9),
+            "{error:?}"
+        );
+        assert!(error
+            .to_string()
+            .starts_with("robot files name robot files more than 8 deep: "));
+        assert!(Robot::load(dir.path().join("layer2.toml")).is_err());
+        assert!(Robot::load(dir.path().join("layer3.toml")).is_ok());
+
+        // An error in the named file: wrapped, naming both files.
+        let bad = write(
+            dir.path(),
+            "bad.urdf",
+            &std::fs::read_to_string(&urdf)
+                .unwrap()
+                .replace(r#"<mass value="3.7"/>"#, r#"<mass value="NaN"/>"#),
+        );
+        let wraps = write(
+            dir.path(),
+            "wraps.toml",
+            "name = \"w\"\nurdf = \"bad.urdf\"\n",
+        );
+        let error = Robot::load(&wraps).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!("{} names {}", wraps.display(), bad.display())
+        );
+        let source = std::error::Error::source(&error).unwrap().to_string();
+        assert_eq!(
+            source,
+            "link 'shoulder_link' <inertial><mass value> is not a finite number"
+        );
+    }
+
+    /// Numbers beyond what any robot has are refused where they are read, with the key.
+    #[test]
+    fn implausible_numbers_in_robot_files_are_refused_with_the_key() {
+        let text = std::fs::read_to_string(crate::model::shipped_robot_path("ur5")).unwrap();
+        for (from, to, expected) in [
+            (
+                "mass_kg = 3.7",
+                "mass_kg = 1e308",
+                "joint 1 mass_kg: a mass (kg) is 1e308, but must be at most 1000000",
+            ),
+            (
+                "mass_kg = 3.7",
+                "mass_kg = -5.0",
+                "joint 1 mass_kg: a mass (kg) is -5, but must be at least 0",
+            ),
+            (
+                "a_mm = -425.0",
+                "a_mm = -1e300",
+                "joint 2 a_mm: a length (mm) is -1e300, but must be within ±1000000",
+            ),
+            (
+                "com_mm = [212.5, 0.0, 113.36]",
+                "com_mm = [1e308, 0.0, 113.36]",
+                "joint 2 com_mm[0]: a length (mm) is 1e308, but must be within ±1000000",
+            ),
+            (
+                "alpha_deg = 90.0",
+                "alpha_deg = 1e300",
+                "joint 1 alpha_deg: an angle (deg) is 1e300, but must be within ±720",
+            ),
+            (
+                "translation_mm = [0.0, 0.09, 31.0]",
+                "translation_mm = [0.0, 0.09, nan]",
+                "tool translation_mm[2] is not a finite number",
+            ),
+            (
+                "limits_deg = [-360.0, 360.0]",
+                "limits_deg = [-1e9, 360.0]",
+                "joint 1 limits_deg[0]: a joint limit (deg) is -1e9, but must be within ±3600",
+            ),
+        ] {
+            let changed = text.replacen(from, to, 1);
+            assert_ne!(changed, text, "{from}");
+            let error = Robot::from_toml_str(&changed).unwrap_err();
+            assert_eq!(error.to_string(), expected);
+        }
+        let compliant = text.replacen(
+            "com_mm = [212.5, 0.0, 113.36]",
+            "com_mm = [212.5, 0.0, 113.36]\ncompliance_urad_per_nm = 1e100",
+            1,
+        );
+        let error = Robot::from_toml_str(&compliant).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "joint 2 compliance_urad_per_nm: a compliance (µrad/(N·m)) is 1e100, but must be within ±10000"
+        );
+        let payload = format!("{text}\n[payload]\nmass_kg = 1e308\n");
+        let error = Robot::from_toml_str(&payload).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "payload mass_kg: a mass (kg) is 1e308, but must be at most 1000000"
+        );
+        // Continuous joints keep their infinite limits.
+        let continuous = text.replacen(
+            "limits_deg = [-360.0, 360.0]",
+            "limits_deg = [-inf, inf]",
+            1,
+        );
+        assert!(Robot::from_toml_str(&continuous).is_ok());
+    }
+
+    /// What the fuzz test found, kept: a TOML error quotes a short excerpt of its line
+    /// however long; a robot file with values at the bounds, written back, reads again.
+    #[test]
+    fn long_lines_and_values_at_the_bounds() {
+        let text = std::fs::read_to_string(crate::model::shipped_robot_path("ur5")).unwrap();
+        let nested = format!(
+            "{text}\nx = {}{}\n",
+            "[".repeat(100_000),
+            "]".repeat(100_000)
+        );
+        let error = Robot::from_toml_str(&nested).unwrap_err();
+        let message = format!("{error}: {}", std::error::Error::source(&error).unwrap());
+        assert!(message.len() < 500, "{} bytes: {message}", message.len());
+        let long_name = text.replacen(
+            "name = \"Universal Robots UR5\"",
+            &format!("name = \"{}\"", "n".repeat(300)),
+            1,
+        );
+        let error = Robot::from_toml_str(&long_name).unwrap_err().to_string();
+        assert!(
+            error.contains("has 300 characters, more than the 256"),
+            "{error}"
+        );
+        assert!(error.len() < 200, "{error}");
+        let at_bounds = text
+            .replacen(
+                "com_mm = [212.5, 0.0, 113.36]",
+                "com_mm = [212.5, -1000000.0, 113.36]",
+                1,
+            )
+            .replacen("mass_kg = 3.7", "mass_kg = 1000000.0", 1);
+        let robot = Robot::from_toml_str(&at_bounds).unwrap();
+        let again = Robot::from_toml_str(&robot.to_toml_string(&[])).unwrap();
+        assert_eq!(again.joint_count(), 6);
     }
 }

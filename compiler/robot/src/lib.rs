@@ -15,8 +15,11 @@ pub mod file;
 pub mod ik;
 pub mod measured;
 pub mod model;
+pub mod plausible;
 pub mod register;
 pub mod simulate;
+pub mod testing;
+pub mod toml_error;
 pub mod urdf;
 
 pub use ik::{Configuration, IkError, IkSolution, InverseKinematics};

@@ -66,8 +66,14 @@
 //! `[payload]`'s `com_mm`. A TOML file may
 //! instead name a URDF file (`urdf = "robot.urdf"`, relative to the TOML file, with optional
 //! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
-//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. `home_deg` holds degrees for revolute joints and
-//! millimetres for prismatic ones.
+//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. The
+//! file it names may itself be a TOML robot file naming another (a tool added to a robot),
+//! at most [`crate::file::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
+//! [`Robot::load_with_files`] reports every file read. `home_deg` holds degrees for
+//! revolute joints and millimetres for prismatic ones.
+//!
+//! Every number must lie in its plausible range ([`crate::plausible`]: lengths within
+//! 1 km, masses to 10⁶ kg, ...); a value beyond is refused with its key.
 //!
 //! # Gravity compliance
 //!
@@ -98,6 +104,8 @@ use std::path::{Path, PathBuf};
 pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
 use adwi_samples::pose::kuka_abc_deg_from_rotation;
 
+use crate::plausible::{check, check_all, Quantity};
+
 /// One µrad/(N·m), the unit robot files and calibration reports give compliances in, in the
 /// runtime's unit, rad per kg·mm²/s² (= rad per µN·m).
 pub const URAD_PER_NM: f64 = 1e-12;
@@ -107,6 +115,34 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 /// What can be wrong with a robot file.
 #[derive(Debug, thiserror::Error)]
 pub enum RobotError {
+    /// Robot files name each other in a cycle (a file naming itself, two naming each
+    /// other): the files, the first named again last.
+    #[error("robot files name each other in a cycle: {}", arrows(files))]
+    NamingCycle {
+        /// The files as they name each other, the file that closes the cycle last.
+        files: Vec<PathBuf>,
+    },
+    /// Robot files name robot files deeper than [`crate::file::MAX_ROBOT_FILE_DEPTH`].
+    #[error(
+        "robot files name robot files more than {} deep: {}",
+        crate::file::MAX_ROBOT_FILE_DEPTH,
+        arrows(files)
+    )]
+    NamingTooDeep {
+        /// The files as they name each other.
+        files: Vec<PathBuf>,
+    },
+    /// A file named by a robot file (its `urdf` key) is not a valid robot description.
+    #[error("{} names {}", file.display(), named.display())]
+    InNamedFile {
+        /// The robot file.
+        file: PathBuf,
+        /// The file it names.
+        named: PathBuf,
+        /// What is wrong with that file.
+        #[source]
+        source: Box<RobotError>,
+    },
     /// The file could not be read.
     #[error("cannot read robot file {path}")]
     Read {
@@ -123,7 +159,7 @@ pub enum RobotError {
         path: PathBuf,
         /// The TOML error, with line and column.
         #[source]
-        source: toml::de::Error,
+        source: crate::toml_error::TomlError,
     },
     /// The file is not a URDF file the parser reads.
     #[error("{path} is not a valid URDF file")]
@@ -132,7 +168,7 @@ pub enum RobotError {
         path: PathBuf,
         /// The parser's error.
         #[source]
-        source: urdf_rs::UrdfError,
+        source: crate::urdf::UrdfParseError,
     },
     /// The URDF file has no serial chain between the links asked for, or a joint this
     /// crate cannot model.
@@ -157,6 +193,14 @@ pub enum RobotError {
     NonFinite {
         /// Which value, e.g. `joint 2 a_mm`.
         field: String,
+    },
+    /// A number lies outside the range any robot's does ([`crate::plausible`]).
+    #[error("{field}: {reason}")]
+    Implausible {
+        /// Which value, e.g. `joint 2 a_mm`.
+        field: String,
+        /// Its value and the bound it crosses.
+        reason: adwi_runtime::format::Implausible,
     },
     /// A value is out of its range.
     #[error("{field}: {reason}")]
@@ -203,6 +247,12 @@ pub enum RobotError {
     /// The runtime refused the chain (a rotation that is not one, an axis of zero length).
     #[error("the robot's kinematic chain is invalid")]
     Chain(#[source] adwi_runtime::chain::ChainError),
+}
+
+/// Files as they name each other, `a.toml → b.toml → a.toml`.
+fn arrows(files: &[PathBuf]) -> String {
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    names.join(" → ")
 }
 
 /// How a robot's joints are described: the parameterisation identification perturbs and
@@ -347,22 +397,51 @@ impl Robot {
                 found: home.len(),
             });
         }
-        let mut chain = match &geometry {
+        for (t, what) in [(&base, "base"), (&tool, "tool")] {
+            check_all(&t.translation_mm, Quantity::LengthMm, || {
+                format!("{what} translation_mm")
+            })?;
+        }
+        match &geometry {
             Geometry::Mdh(rows) => {
                 for (i, row) in rows.iter().enumerate() {
                     let values = [
-                        ("a_mm", row.a_mm),
-                        ("d_mm", row.d_mm),
-                        ("alpha", row.alpha_rad),
-                        ("beta", row.beta_rad),
-                        ("theta_offset", row.theta_offset_rad),
+                        ("a_mm", row.a_mm, Quantity::LengthMm),
+                        ("d_mm", row.d_mm, Quantity::LengthMm),
+                        ("alpha_deg", row.alpha_rad.to_degrees(), Quantity::AngleDeg),
+                        ("beta_deg", row.beta_rad.to_degrees(), Quantity::AngleDeg),
+                        (
+                            "theta_offset_deg",
+                            row.theta_offset_rad.to_degrees(),
+                            Quantity::AngleDeg,
+                        ),
                     ];
-                    for (key, value) in values {
-                        finite(value, || format!("joint {} {key}", i + 1))?;
+                    for (key, value, quantity) in values {
+                        check(value, quantity, || format!("joint {} {key}", i + 1))?;
                     }
                 }
-                Chain::from_mdh(base, rows, tool, None)
             }
+            Geometry::Chain(rows) => {
+                for (i, row) in rows.iter().enumerate() {
+                    let number = i + 1;
+                    check_all(&row.origin.translation_mm, Quantity::LengthMm, || {
+                        format!("joint {number} xyz_mm")
+                    })?;
+                    match row.kind {
+                        JointKind::Revolute => {
+                            check(row.offset.to_degrees(), Quantity::AngleDeg, || {
+                                format!("joint {number} offset_deg")
+                            })?
+                        }
+                        JointKind::Prismatic => check(row.offset, Quantity::LengthMm, || {
+                            format!("joint {number} offset_mm")
+                        })?,
+                    }
+                }
+            }
+        }
+        let mut chain = match &geometry {
+            Geometry::Mdh(rows) => Chain::from_mdh(base, rows, tool, None),
             Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
         }
         .map_err(RobotError::Chain)?;
@@ -385,11 +464,24 @@ impl Robot {
                     unit,
                 });
             }
+            let quantity = match kind {
+                JointKind::Revolute => Quantity::JointLimitDeg,
+                JointKind::Prismatic => Quantity::LengthMm,
+            };
+            for (i, value) in joint.limits.into_iter().enumerate() {
+                if value.is_finite() {
+                    check(to_unit(value, kind), quantity, || {
+                        format!("joint {number} limits_{unit}[{i}]")
+                    })?;
+                }
+            }
             if let Some(inertial) = &joint.inertial {
-                check_inertial(inertial, || format!("joint {number} mass_kg, com_mm"))?;
+                check_inertial(inertial, || format!("joint {number}"))?;
             }
             if let Some(c) = joint.compliance_urad_per_nm {
-                finite(c, || format!("joint {number} compliance_urad_per_nm"))?;
+                check(c, Quantity::ComplianceUradPerNm, || {
+                    format!("joint {number} compliance_urad_per_nm")
+                })?;
                 if kind != JointKind::Revolute {
                     return Err(RobotError::Invalid {
                         field: format!("joint {number} compliance_urad_per_nm"),
@@ -399,6 +491,20 @@ impl Robot {
             }
         }
         chain.compliance = compliance_of(&joints, None, &chain.tool);
+        // Composed (fixed joints folded in, a tool after a URDF's tip), the chain's
+        // translations must still be within the bound (the table format's, which
+        // `adwi_runtime::format::check_chain_plausible` holds exactly; here to rounding, so
+        // that a robot file the tool writes reads again).
+        for (t, what) in [(&chain.base, "base"), (&chain.tool, "tool")] {
+            check_all(&t.translation_mm, Quantity::LengthMm, || {
+                format!("the robot's {what} translation (mm, composed)")
+            })?;
+        }
+        for (i, joint) in chain.joints().iter().enumerate() {
+            check_all(&joint.origin.translation_mm, Quantity::LengthMm, || {
+                format!("joint {} origin (mm, composed)", i + 1)
+            })?;
+        }
         for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
             finite(value, || format!("home_deg[{i}]"))?;
             let [lower, upper] = joint.limits;
@@ -435,7 +541,7 @@ impl Robot {
     /// that is not finite.
     pub fn with_payload(&self, payload: Option<LinkInertial>) -> Result<Robot, RobotError> {
         if let Some(p) = &payload {
-            check_inertial(p, || "payload mass_kg, com_mm".to_string())?;
+            check_inertial(p, || "payload".to_string())?;
         }
         let mut robot = self.clone();
         robot.payload = payload;
@@ -647,7 +753,9 @@ impl Robot {
         }
         for (i, c) in compliances.iter().enumerate() {
             if let Some(c) = c {
-                finite(*c, || format!("joint {} compliance_urad_per_nm", i + 1))?;
+                check(*c, Quantity::ComplianceUradPerNm, || {
+                    format!("joint {} compliance_urad_per_nm", i + 1)
+                })?;
                 if self.joint_kind(i) != JointKind::Revolute {
                     return Err(RobotError::Invalid {
                         field: format!("joint {} compliance_urad_per_nm", i + 1),
@@ -802,22 +910,15 @@ fn compliance_of(
         .then(|| gravity_of(joints, payload, tool))
 }
 
-/// A mass that is finite and ≥ 0 at a finite centre of mass, or the error naming `field`.
-fn check_inertial(
-    inertial: &LinkInertial,
-    field: impl FnOnce() -> String,
-) -> Result<(), RobotError> {
-    let ok = inertial.mass_kg.is_finite()
-        && inertial.mass_kg >= 0.0
-        && inertial.com_mm.iter().all(|v| v.is_finite());
-    if ok {
-        Ok(())
-    } else {
-        Err(RobotError::Invalid {
-            field: field(),
-            reason: "the mass must be finite and ≥ 0, the centre of mass finite".into(),
-        })
-    }
+/// A mass within [`Quantity::MassKg`] at a centre of mass within [`Quantity::LengthMm`], or
+/// the error naming `owner`'s `mass_kg` or `com_mm`.
+fn check_inertial(inertial: &LinkInertial, owner: impl Fn() -> String) -> Result<(), RobotError> {
+    check(inertial.mass_kg, Quantity::MassKg, || {
+        format!("{} mass_kg", owner())
+    })?;
+    check_all(&inertial.com_mm, Quantity::LengthMm, || {
+        format!("{} com_mm", owner())
+    })
 }
 
 /// The constant part of an MD-H row, `Tz(d)·Tx(a)·Rx(α)·Ry(β)`: MD-H frame `i` in the
@@ -846,10 +947,24 @@ pub(crate) fn unit_of(kind: JointKind) -> &'static str {
     }
 }
 
-/// The unit vector along `v`, or `None` for a zero or non-finite vector.
+/// The unit vector along `v`, or `None` for a zero or non-finite vector. A direction has
+/// no magnitude: a vector whose length would overflow (`1e200 0 0`) or underflow is scaled
+/// by its largest component first.
 pub(crate) fn unit_axis(v: [f64; 3]) -> Option<[f64; 3]> {
+    if !v.iter().all(|x| x.is_finite()) {
+        return None;
+    }
     let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    (norm.is_finite() && norm > 0.0).then(|| v.map(|x| x / norm))
+    if norm.is_finite() && norm >= f64::MIN_POSITIVE {
+        return Some(v.map(|x| x / norm));
+    }
+    let largest = v.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    if largest == 0.0 {
+        return None;
+    }
+    let s = v.map(|x| x / largest);
+    let norm = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+    Some(s.map(|x| x / norm))
 }
 
 pub(crate) fn finite(value: f64, field: impl FnOnce() -> String) -> Result<(), RobotError> {

@@ -43,7 +43,8 @@ use adwi_samples::{Measurements, MeasurementsError, SampleSet};
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 
 use crate::calibrate::Calibration;
-use crate::model::{rotation_of, transform_from_parts};
+use crate::model::{rotation_of, transform_from_parts, JointKind};
+use crate::plausible::{check as check_plausible, check_all, Quantity};
 use crate::Robot;
 
 /// How to register.
@@ -88,6 +89,15 @@ pub enum RegisterError {
         /// The row's source line.
         line: u64,
     },
+    /// A value is beyond any robot's and any tracker's: a measured coordinate beyond 1 km,
+    /// a joint beyond ten turns ([`crate::plausible`]).
+    #[error("measurement row {line}: {what}")]
+    Implausible {
+        /// The row's source line.
+        line: u64,
+        /// The value, what it is and the bound it crosses.
+        what: String,
+    },
     /// The measurements' parts do not have one entry per row.
     #[error("the measurements are inconsistent: {0}")]
     Measurements(#[from] MeasurementsError),
@@ -117,6 +127,91 @@ pub struct Registration {
     pub orientation_max_rad: Option<f64>,
     /// Levenberg–Marquardt iterations made.
     pub iterations: u32,
+    /// What about the fit looks wrong, for the caller to tell the user (the library
+    /// prints nothing).
+    pub warnings: Vec<RegisterWarning>,
+}
+
+/// The largest RMS of a rigid fit's position residuals that a robot's own error accounts
+/// for, mm: uncalibrated robots deviate by a few millimetres, the largest and most loaded
+/// by a few tens.
+pub const MAX_PLAUSIBLE_FIT_RMS_MM: f64 = 25.0;
+
+/// Something about a registration that looks wrong, though it could be computed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RegisterWarning {
+    /// The rigid fit leaves residuals larger than a robot's own error
+    /// ([`MAX_PLAUSIBLE_FIT_RMS_MM`]).
+    ImplausibleFit {
+        /// The fit's position RMS, mm.
+        position_rms_mm: f64,
+        /// How far the measured positions spread about their centre, over how far the
+        /// robot's predicted ones do (RMS distances): 1 when both are in mm.
+        spread_ratio: f64,
+        /// The unit the measured positions seem to be in, read as mm, when the ratio is
+        /// one's (`m`, `cm`, `in`, `µm`).
+        likely_unit: Option<&'static str>,
+    },
+}
+
+impl std::fmt::Display for RegisterWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RegisterWarning::ImplausibleFit {
+                position_rms_mm,
+                spread_ratio,
+                likely_unit,
+            } => {
+                write!(
+                    f,
+                    "the rigid fit leaves a position RMS of {position_rms_mm:.1} mm, more than \
+                     the {MAX_PLAUSIBLE_FIT_RMS_MM} mm a robot's own error accounts for; the \
+                     measured positions spread {spread_ratio:.3e} times as far as the robot's"
+                )?;
+                match likely_unit {
+                    Some(unit) => write!(
+                        f,
+                        ": they look like {unit} read as mm (give their columns the unit {unit})"
+                    ),
+                    None => write!(
+                        f,
+                        ": check the joint columns, the robot file and that the rows are one \
+                         tracker frame's"
+                    ),
+                }
+            }
+        }
+    }
+}
+
+/// The units a length might have been written in, and how many of them make a millimetre.
+const UNITS_PER_MM: [(&str, f64); 4] = [("m", 1e-3), ("cm", 0.1), ("in", 1.0 / 25.4), ("µm", 1e3)];
+
+/// The warning for a rigid fit of `position_rms_mm` between `predicted` (mm) and
+/// `measured` positions, if the fit is implausible.
+fn fit_warning(
+    position_rms_mm: f64,
+    predicted: &[Vector3<f64>],
+    measured: &[Vector3<f64>],
+) -> Option<RegisterWarning> {
+    if position_rms_mm <= MAX_PLAUSIBLE_FIT_RMS_MM {
+        return None;
+    }
+    let spread = |points: &[Vector3<f64>]| {
+        let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+        let sum: f64 = points.iter().map(|p| (p - centre).norm_squared()).sum();
+        (sum / points.len() as f64).sqrt()
+    };
+    let spread_ratio = spread(measured) / spread(predicted);
+    let likely_unit = UNITS_PER_MM
+        .iter()
+        .find(|(_, ratio)| (spread_ratio / ratio - 1.0).abs() < 0.1)
+        .map(|(unit, _)| *unit);
+    Some(RegisterWarning::ImplausibleFit {
+        position_rms_mm,
+        spread_ratio,
+        likely_unit,
+    })
 }
 
 /// The transforms after the identification refined them, and the residuals of the
@@ -293,6 +388,11 @@ pub fn register(
         }
         None => (None, None),
     };
+    let predicted: Vec<Vector3<f64>> = rows
+        .iter()
+        .map(|r| r.flange_rotation * x.tp + r.flange_mm)
+        .collect();
+    let measured: Vec<Vector3<f64>> = rows.iter().map(|r| r.measured_mm).collect();
     Ok(Registration {
         base_in_tracker: transform_from_parts([x.t.x, x.t.y, x.t.z], &x.r),
         probe: transform_from_parts([x.tp.x, x.tp.y, x.tp.z], &x.rp),
@@ -303,6 +403,9 @@ pub fn register(
         orientation_rms_rad,
         orientation_max_rad,
         iterations,
+        warnings: fit_warning(position_rms_mm, &predicted, &measured)
+            .into_iter()
+            .collect(),
     })
 }
 
@@ -475,10 +578,23 @@ fn rows_of(robot: &Robot, measurements: &Measurements) -> Result<Vec<Row>, Regis
             let rotation = measurements.measured_rotation.as_ref().map(|r| r[i]);
             let finite = q.iter().chain(&p).all(|v| v.is_finite())
                 && rotation.is_none_or(|r| r.matrix().iter().all(|v| v.is_finite()));
+            let line = measurements.lines[i];
             if !finite {
-                return Err(RegisterError::NonFinite {
-                    line: measurements.lines[i],
-                });
+                return Err(RegisterError::NonFinite { line });
+            }
+            let implausible = |e: crate::RobotError| RegisterError::Implausible {
+                line,
+                what: e.to_string(),
+            };
+            check_all(&p, Quantity::LengthMm, || "measured position (mm)".into())
+                .map_err(implausible)?;
+            for (j, &value) in q.iter().enumerate() {
+                let (shown, quantity) = match robot.joint_kind(j) {
+                    JointKind::Revolute => (value.to_degrees(), Quantity::JointValueDeg),
+                    JointKind::Prismatic => (value, Quantity::LengthMm),
+                };
+                check_plausible(shown, quantity, || format!("joint {}", j + 1))
+                    .map_err(implausible)?;
             }
             let pose = flange.tcp_transform(q);
             Ok(Row {
@@ -533,6 +649,9 @@ pub fn register_moved(
         orientation_rms_rad: None,
         orientation_max_rad: None,
         iterations: 0,
+        warnings: fit_warning(position_rms_mm, &predicted, &measured)
+            .into_iter()
+            .collect(),
     })
 }
 
@@ -857,5 +976,91 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Positions in metres read as millimetres register, with a warning that names the
+    /// unit; a plausible fit has none; an implausible coordinate is refused with its line.
+    #[test]
+    fn implausible_fits_are_flagged_and_implausible_values_refused() {
+        let robot = Robot::load(shipped_robot_path("ur10")).unwrap();
+        let actual = with_tool(&robot, probe());
+        let good = measure(&actual, &tracker(), &poses(&robot, 60, 3), false);
+        let r = register(&robot, &good, &RegisterOptions::default()).unwrap();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        for (scale, unit) in [(1e-3, Some("m")), (1.0 / 25.4, Some("in")), (0.5, None)] {
+            let mut scaled = good.clone();
+            for p in &mut scaled.measured_mm {
+                *p = p.map(|v| v * scale);
+            }
+            let r = register(&robot, &scaled, &RegisterOptions::default()).unwrap();
+            let [RegisterWarning::ImplausibleFit {
+                position_rms_mm,
+                spread_ratio,
+                likely_unit,
+            }] = r.warnings.as_slice()
+            else {
+                panic!("{scale}: {:?}", r.warnings)
+            };
+            assert!(*position_rms_mm > MAX_PLAUSIBLE_FIT_RMS_MM);
+            assert!((spread_ratio / scale - 1.0).abs() < 0.05, "{spread_ratio}");
+            assert_eq!(*likely_unit, unit);
+            let text = r.warnings[0].to_string();
+            match unit {
+                Some(u) => assert!(
+                    text.ends_with(&format!(
+                        "they look like {u} read as mm (give their columns the unit {u})"
+                    )),
+                    "{text}"
+                ),
+                None => assert!(text.ends_with("one tracker frame's"), "{text}"),
+            }
+        }
+        let mut outlier = good.clone();
+        outlier.measured_mm[7][0] = 1e300;
+        let error = register(&robot, &outlier, &RegisterOptions::default()).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "measurement row 9: measured position (mm)[0]: a length (mm) is 1e300, but must be \
+             within ±1000000"
+        );
+    }
+
+    /// The UR10's series C, measured in mm: a plausible fit; its measured positions in
+    /// metres read as millimetres: flagged, with the unit.
+    #[test]
+    fn the_ur10_series_in_metres_is_flagged() {
+        let folder =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables/ur10/measurements");
+        let readme = std::fs::read_to_string(folder.join("README.md")).unwrap();
+        let line = readme
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("--columns "))
+            .unwrap();
+        let columns = adwi_samples::ColumnMap::parse(line.trim()).unwrap();
+        let mut m = adwi_samples::read_measurements(
+            &folder.join("Series_C/measurements_random_poses.csv"),
+            &columns,
+            &adwi_samples::ReadOptions::default(),
+        )
+        .unwrap();
+        let robot = Robot::load(shipped_robot_path("ur10")).unwrap();
+        let r = register(&robot, &m, &RegisterOptions::default()).unwrap();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        for p in &mut m.measured_mm {
+            *p = p.map(|v| v * 1e-3);
+        }
+        let r = register(&robot, &m, &RegisterOptions::default()).unwrap();
+        assert!(
+            matches!(
+                &r.warnings[..],
+                [RegisterWarning::ImplausibleFit {
+                    likely_unit: Some("m"),
+                    ..
+                }]
+            ),
+            "{:?}",
+            r.warnings
+        );
+        println!("{}", r.warnings[0]);
     }
 }

@@ -33,6 +33,11 @@
 //! unless the plan gives ranges). The nominal pose is the nominal model's forward kinematics
 //! at the joint values as written to the file.
 //!
+//! A plan's sample count is computed from its numbers before anything is allocated
+//! ([`SamplingPlan::sample_count`]) and refused beyond [`MAX_SAMPLES`]; every number of a
+//! scenario lies in its plausible range ([`crate::plausible`]), and every simulated value is
+//! checked finite before it is returned.
+//!
 //! Everything random comes from ChaCha8 seeded by the plan's seed (stream 0 for poses and
 //! joint values, stream 1 for noise), and every number is written with a fixed number of
 //! decimals, rounded before it is used, so the same inputs give the same file byte for byte.
@@ -53,6 +58,7 @@ use crate::model::{
     chain_frames, isometry_from_parts, isometry_from_transform, mdh_constant_part,
     transform_from_xyz_rpy, Geometry, MAX_JOINTS,
 };
+use crate::plausible::{check, check_all, number, Quantity};
 use crate::{Configuration, IkError, InverseKinematics, Robot};
 use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, orientation_error, rotation_from_kuka_abc_deg, rotation_from_vector,
@@ -96,7 +102,7 @@ pub enum SimulateError {
         path: PathBuf,
         /// The TOML error, with line and column.
         #[source]
-        source: toml::de::Error,
+        source: crate::toml_error::TomlError,
     },
     /// A scenario value is unusable.
     #[error("scenario: {0}")]
@@ -104,6 +110,40 @@ pub enum SimulateError {
     /// A sampling plan value is unusable.
     #[error("sampling plan: {0}")]
     InvalidPlan(String),
+    /// The plan asks for more samples than a simulation may make (or none): refused
+    /// before anything is computed or allocated.
+    #[error(
+        "sampling plan: {what} gives {} samples, {}",
+        if count.is_infinite() {
+            "more than 1e308".to_owned()
+        } else {
+            number(*count)
+        },
+        if *count < 1.0 {
+            "so there is nothing to simulate".to_owned()
+        } else {
+            format!("more than the {max} a simulation may make: {fix}")
+        }
+    )]
+    TooManySamples {
+        /// The plan, in words (`a lattice of 80001 × 80001 × 80001 points`).
+        what: String,
+        /// How many samples it gives (a float: it may exceed every integer type).
+        count: f64,
+        /// The limit, [`MAX_SAMPLES`].
+        max: usize,
+        /// What to change.
+        fix: &'static str,
+    },
+    /// A simulated value is not finite: the inputs, though each in its range, combine
+    /// into no robot.
+    #[error("sample {index}: the simulated {what} is not finite; nothing is written")]
+    NonFinite {
+        /// 0-based index in the plan.
+        index: usize,
+        /// Which value.
+        what: &'static str,
+    },
     /// The robot has no closed-form inverse kinematics (and no other fits the plan).
     #[error(transparent)]
     Kinematics(#[from] IkError),
@@ -166,7 +206,9 @@ pub enum SimulateError {
 /// A link mass's (and the payload's) centre of gravity is given in its link's frame: MD-H
 /// frame `i` for a robot described in MD-H (frame `n`, the flange, for the payload), the
 /// joint's frame after its motion for any other robot (the last joint's for the payload).
-/// Gravity is −z of the frame poses are given in.
+/// Gravity is −z of the frame poses are given in. Every value must lie in its plausible
+/// range ([`crate::plausible`]). A scenario file names no other file: [`Scenario::load`]
+/// reads that one file (a caller checking outputs against inputs needs no more).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
     /// Geometric MD-H deviations per joint (robots described in MD-H).
@@ -338,6 +380,9 @@ impl Scenario {
                 path: path.to_owned(),
                 source,
             },
+            SimulateError::InvalidScenario(message) => {
+                SimulateError::InvalidScenario(format!("{}: {message}", path.display()))
+            }
             other => other,
         })
     }
@@ -347,13 +392,14 @@ impl Scenario {
     /// # Errors
     ///
     /// [`SimulateError::Parse`] for malformed TOML or unknown keys;
-    /// [`SimulateError::InvalidScenario`] for a joint count outside 1 to 12, a non-finite
-    /// value, a non-positive stiffness, a negative mass or σ, or a link number outside the
-    /// joints.
+    /// [`SimulateError::InvalidScenario`] for a joint count outside 1 to 12, a value
+    /// outside its plausible range ([`crate::plausible`]: a deviation beyond 1 km or 720°,
+    /// a stiffness below 100 N·m/rad, a mass beyond 10⁶ kg, a σ beyond 1 m, ...), with the
+    /// joint and key, or a link number outside the joints.
     pub fn from_toml_str(text: &str) -> Result<Scenario, SimulateError> {
-        let file: ScenarioFile = toml::from_str(text).map_err(|source| SimulateError::Parse {
+        let file: ScenarioFile = toml::from_str(text).map_err(|error| SimulateError::Parse {
             path: PathBuf::new(),
-            source,
+            source: crate::toml_error::TomlError::new(&error, text),
         })?;
         let invalid = |message: String| SimulateError::InvalidScenario(message);
         let n = file.joints.len();
@@ -375,32 +421,53 @@ impl Scenario {
                 (None, Some(mm)) => mm,
                 (None, None) => 0.0,
             };
+            let (offset_key, offset_given, offset_quantity) = match joint.delta_offset_mm {
+                Some(mm) => ("delta_offset_mm", mm, Quantity::LengthMm),
+                None => (
+                    "delta_offset_deg",
+                    joint.delta_offset_deg.unwrap_or(0.0),
+                    Quantity::AngleDeg,
+                ),
+            };
             let values = [
-                ("delta_a_mm", joint.delta_a_mm),
-                ("delta_d_mm", joint.delta_d_mm),
-                ("delta_alpha_deg", joint.delta_alpha_deg),
-                ("delta_theta_deg", joint.delta_theta_deg),
-                ("delta_beta_deg", joint.delta_beta_deg),
-                ("delta_offset", offset),
-                ("gear_amplitude_deg", joint.gear_amplitude_deg),
-                ("gear_periods_per_rev", joint.gear_periods_per_rev),
-                ("gear_phase_deg", joint.gear_phase_deg),
+                ("delta_a_mm", joint.delta_a_mm, Quantity::LengthMm),
+                ("delta_d_mm", joint.delta_d_mm, Quantity::LengthMm),
+                ("delta_alpha_deg", joint.delta_alpha_deg, Quantity::AngleDeg),
+                ("delta_theta_deg", joint.delta_theta_deg, Quantity::AngleDeg),
+                ("delta_beta_deg", joint.delta_beta_deg, Quantity::AngleDeg),
+                (offset_key, offset_given, offset_quantity),
+                (
+                    "gear_amplitude_deg",
+                    joint.gear_amplitude_deg,
+                    Quantity::GearAmplitudeDeg,
+                ),
+                (
+                    "gear_periods_per_rev",
+                    joint.gear_periods_per_rev,
+                    Quantity::GearPeriodsPerRev,
+                ),
+                ("gear_phase_deg", joint.gear_phase_deg, Quantity::AngleDeg),
             ]
             .into_iter()
-            .chain(joint.delta_xyz_mm.map(|v| ("delta_xyz_mm", v)))
-            .chain(joint.delta_rpy_deg.map(|v| ("delta_rpy_deg", v)));
-            for (name, value) in values {
-                if !value.is_finite() {
-                    return Err(invalid(format!("joint {number} {name} is not finite")));
-                }
+            .chain(
+                joint
+                    .delta_xyz_mm
+                    .map(|v| ("delta_xyz_mm", v, Quantity::LengthMm)),
+            )
+            .chain(
+                joint
+                    .delta_rpy_deg
+                    .map(|v| ("delta_rpy_deg", v, Quantity::AngleDeg)),
+            );
+            for (name, value, quantity) in values {
+                check(value, quantity, || format!("joint {number} {name}"))
+                    .map_err(|e| invalid(e.to_string()))?;
             }
             if let Some(k) = joint.stiffness_nm_per_rad {
-                if !(k.is_finite() && k > 0.0) {
-                    return Err(invalid(format!(
-                        "joint {number} stiffness_nm_per_rad = {k} must be positive \
-                         (leave it out for a rigid joint)"
-                    )));
-                }
+                check(k, Quantity::StiffnessNmPerRad, || {
+                    format!("joint {number} stiffness_nm_per_rad (leave it out for a rigid joint)")
+                })
+                .map_err(|e| invalid(e.to_string()))?;
             }
             scenario.deviations[i] = JointDeviation {
                 a_mm: joint.delta_a_mm,
@@ -434,12 +501,13 @@ impl Scenario {
             if !(1..=n).contains(&link) {
                 return Err(invalid(format!("{what}: joint = {link} must be 1..={n}")));
             }
-            let finite_cog = centre_of_gravity_mm.iter().all(|v| v.is_finite());
-            if !(mass_kg.is_finite() && mass_kg >= 0.0 && finite_cog) {
-                return Err(invalid(format!(
-                    "{what}: mass_kg must be finite and ≥ 0, centre_of_gravity_mm finite"
-                )));
-            }
+            check(mass_kg, Quantity::MassKg, || format!("{what} mass_kg"))
+                .and_then(|()| {
+                    check_all(&centre_of_gravity_mm, Quantity::LengthMm, || {
+                        format!("{what} centre_of_gravity_mm")
+                    })
+                })
+                .map_err(|e| invalid(e.to_string()))?;
             scenario.masses.push(PointMass {
                 link,
                 mass_kg,
@@ -447,19 +515,25 @@ impl Scenario {
             });
         }
         if let Some(m) = file.measurement {
-            let values = [
-                m.sigma_mm,
-                m.sigma_per_m_mm,
-                m.orientation_sigma_rad,
-                m.tracker_position_mm[0],
-                m.tracker_position_mm[1],
-                m.tracker_position_mm[2],
-            ];
-            if !values.iter().all(|v| v.is_finite()) || values[..3].iter().any(|v| *v < 0.0) {
-                return Err(invalid(
-                    "measurement: values must be finite and every σ ≥ 0".into(),
-                ));
-            }
+            check_all(&m.tracker_position_mm, Quantity::LengthMm, || {
+                "measurement tracker_position_mm".into()
+            })
+            .and_then(|()| {
+                check(m.sigma_mm, Quantity::SigmaMm, || {
+                    "measurement sigma_mm".into()
+                })
+            })
+            .and_then(|()| {
+                check(m.sigma_per_m_mm, Quantity::SigmaMm, || {
+                    "measurement sigma_per_m_mm".into()
+                })
+            })
+            .and_then(|()| {
+                check(m.orientation_sigma_rad, Quantity::SigmaRad, || {
+                    "measurement orientation_sigma_rad".into()
+                })
+            })
+            .map_err(|e| invalid(e.to_string()))?;
             scenario.measurement = Measurement {
                 tracker_position_mm: m.tracker_position_mm,
                 sigma_mm: m.sigma_mm,
@@ -694,11 +768,90 @@ struct NominalPose {
     abc_deg: [f64; 3],
 }
 
-/// Above this many samples a joint grid is refused (it grows as the product of its
-/// counts).
-pub const MAX_GRID_SAMPLES: usize = 10_000_000;
+/// The most samples a simulation may make: a million samples are a file of about 200 MB
+/// and take about 400 MB while they are made. A plan's count is computed from its numbers
+/// and refused before anything is allocated ([`SamplingPlan::sample_count`]).
+pub const MAX_SAMPLES: usize = 1_000_000;
+
+/// The most samples of a joint grid ([`MAX_SAMPLES`], as for every plan).
+pub const MAX_GRID_SAMPLES: usize = MAX_SAMPLES;
 
 impl SamplingPlan {
+    /// How many samples the plan makes, computed from its numbers alone
+    /// (nothing is allocated): a lattice's points per axis multiplied, a random plan's
+    /// count, a joint grid's counts multiplied.
+    ///
+    /// # Errors
+    ///
+    /// [`SimulateError::InvalidPlan`] for a lattice step that is not positive and finite,
+    /// [`SimulateError::TooManySamples`] for no sample or more than [`MAX_SAMPLES`], with
+    /// the count.
+    pub fn sample_count(&self) -> Result<usize, SimulateError> {
+        let too_many = |what: String, count: f64, fix: &'static str| {
+            Err(SimulateError::TooManySamples {
+                what,
+                count,
+                max: MAX_SAMPLES,
+                fix,
+            })
+        };
+        let (what, count, fix) = match &self.positions {
+            Positions::Lattice {
+                min_mm,
+                max_mm,
+                step_mm,
+            } => {
+                if !(step_mm.is_finite() && *step_mm > 0.0) {
+                    return Err(SimulateError::InvalidPlan(format!(
+                        "the lattice step is {} mm: it must be positive and finite",
+                        number(*step_mm)
+                    )));
+                }
+                // As `poses` counts them, in floating point so that no count overflows.
+                let per_axis = [0, 1, 2].map(|i| lattice_points(min_mm[i], max_mm[i], *step_mm));
+                let count = per_axis.iter().product::<f64>();
+                let shown = per_axis.map(number);
+                (
+                    format!(
+                        "a lattice of {} × {} × {} points (step {} mm)",
+                        shown[0],
+                        shown[1],
+                        shown[2],
+                        number(*step_mm)
+                    ),
+                    count,
+                    "give a larger step or a smaller box",
+                )
+            }
+            Positions::Random { count, .. } => (
+                "a random plan".to_owned(),
+                *count as f64,
+                "ask for fewer poses",
+            ),
+            Positions::JointRandom { count, .. } => (
+                "a random joint-space plan".to_owned(),
+                *count as f64,
+                "ask for fewer joint vectors",
+            ),
+            Positions::JointGrid { counts, .. } => (
+                format!(
+                    "a joint grid of {} values",
+                    counts
+                        .iter()
+                        .map(usize::to_string)
+                        .collect::<Vec<_>>()
+                        .join(" × ")
+                ),
+                counts.iter().map(|&c| c as f64).product(),
+                "give fewer values per joint",
+            ),
+        };
+        if !(count >= 1.0 && count <= MAX_SAMPLES as f64) {
+            return too_many(what, count, fix);
+        }
+        Ok(count as usize)
+    }
+
     fn validate(&self, robot: &Robot) -> Result<(), SimulateError> {
         let invalid = |m: String| Err(SimulateError::InvalidPlan(m));
         let n = robot.joint_count();
@@ -726,16 +879,7 @@ impl SamplingPlan {
             Ok(())
         };
         match &self.positions {
-            Positions::Lattice {
-                min_mm,
-                max_mm,
-                step_mm,
-            } => {
-                if !(step_mm.is_finite() && *step_mm > 0.0) {
-                    return invalid("the lattice step must be positive".into());
-                }
-                check_box(min_mm, max_mm)?;
-            }
+            Positions::Lattice { min_mm, max_mm, .. } => check_box(min_mm, max_mm)?,
             Positions::Random { min_mm, max_mm, .. } => check_box(min_mm, max_mm)?,
             Positions::JointRandom { ranges, .. } => check_ranges(ranges)?,
             Positions::JointGrid { counts, ranges } => {
@@ -749,21 +893,9 @@ impl SamplingPlan {
                 if counts.contains(&0) {
                     return invalid("every joint needs at least one grid value".into());
                 }
-                let total = counts
-                    .iter()
-                    .try_fold(1usize, |total, &c| total.checked_mul(c));
-                if total.is_none_or(|t| t > MAX_GRID_SAMPLES) {
-                    return invalid(format!(
-                        "a grid of {} samples is more than {MAX_GRID_SAMPLES}",
-                        counts
-                            .iter()
-                            .map(usize::to_string)
-                            .collect::<Vec<_>>()
-                            .join(" × ")
-                    ));
-                }
             }
         }
+        self.sample_count()?;
         if self.positions.is_joint_space() && self.config.is_some() {
             return invalid("a joint-space plan has no configuration to choose".into());
         }
@@ -771,6 +903,15 @@ impl SamplingPlan {
         if !(self.abc_deg.iter().all(|v| v.is_finite()) && spread.is_finite() && spread >= 0.0) {
             return invalid("the orientation and its spread must be finite, spread ≥ 0".into());
         }
+        check_all(&self.abc_deg, Quantity::AngleDeg, || {
+            "the tool orientation A, B, C".into()
+        })
+        .and_then(|()| {
+            check(spread, Quantity::AngleDeg, || {
+                "the orientation spread".into()
+            })
+        })
+        .map_err(|e| SimulateError::InvalidPlan(e.to_string()))?;
         Ok(())
     }
 
@@ -784,8 +925,7 @@ impl SamplingPlan {
             } => {
                 // Counted, not accumulated, so the points are exactly min + k·step; the
                 // small slack keeps a max that is a whole number of steps.
-                let count =
-                    |i: usize| ((max_mm[i] - min_mm[i]) / step_mm + 1e-9).floor() as usize + 1;
+                let count = |i: usize| lattice_points(min_mm[i], max_mm[i], *step_mm) as usize;
                 let axis = |i: usize| (0..count(i)).map(move |k| min_mm[i] + k as f64 * step_mm);
                 axis(0)
                     .flat_map(|x| axis(1).flat_map(move |y| axis(2).map(move |z| [x, y, z])))
@@ -886,13 +1026,28 @@ impl SamplingPlan {
     }
 }
 
+/// The points of a lattice axis from `min` to `max` at `step` (both > 0 and finite is the
+/// caller's to check): `min + k · step` for every `k` that stays within `max`, the small
+/// slack keeping a `max` that is a whole number of steps. A float, so that it never wraps.
+fn lattice_points(min: f64, max: f64, step: f64) -> f64 {
+    ((max - min) / step + 1e-9).floor() + 1.0
+}
+
 fn check_box(min: &[f64; 3], max: &[f64; 3]) -> Result<(), SimulateError> {
     if !min.iter().chain(max).all(|v| v.is_finite()) || (0..3).any(|i| min[i] > max[i]) {
         return Err(SimulateError::InvalidPlan(
             "the box needs finite corners with min ≤ max on every axis".into(),
         ));
     }
-    Ok(())
+    check_all(min, Quantity::LengthMm, || {
+        "the box's minimum corner".into()
+    })
+    .and_then(|()| {
+        check_all(max, Quantity::LengthMm, || {
+            "the box's maximum corner".into()
+        })
+    })
+    .map_err(|e| SimulateError::InvalidPlan(e.to_string()))
 }
 
 /// Decimals written for mm and degrees.
@@ -956,7 +1111,10 @@ enum Inverse {
 /// for a scenario that does not fit the robot, [`SimulateError::Kinematics`] for a
 /// pose-space plan that names a configuration of a robot without closed-form inverse
 /// kinematics, or a pose-space plan of a robot of fewer than six joints,
-/// [`SimulateError::Unreachable`] for the first pose that no allowed configuration reaches.
+/// [`SimulateError::Unreachable`] for the first pose that no allowed configuration reaches,
+/// [`SimulateError::TooManySamples`] for a plan of no sample or more than [`MAX_SAMPLES`]
+/// (before any work), [`SimulateError::NonFinite`] for a sample whose simulated values are
+/// not finite (never written).
 pub fn simulate(
     robot: &Robot,
     scenario: &Scenario,
@@ -1027,7 +1185,7 @@ pub fn simulate(
                 .collect::<Result<_, SimulateError>>()?
         };
 
-    Ok(commanded
+    let samples: Vec<SimulatedSample> = commanded
         .into_iter()
         .map(|(nominal, q, config)| {
             let rotation = rotation_from_kuka_abc_deg(nominal.abc_deg);
@@ -1067,7 +1225,23 @@ pub fn simulate(
                 config,
             }
         })
-        .collect())
+        .collect();
+    for (index, sample) in samples.iter().enumerate() {
+        let parts: [(&[f64], &'static str); 5] = [
+            (&sample.position_mm, "nominal position"),
+            (&sample.abc_deg, "nominal orientation"),
+            (&sample.error_mm, "position error"),
+            (&sample.orientation_error_rad, "orientation error"),
+            (&sample.q_deg, "joint values"),
+        ];
+        if let Some((_, what)) = parts
+            .iter()
+            .find(|(values, _)| !values.iter().all(|v| v.is_finite()))
+        {
+            return Err(SimulateError::NonFinite { index, what });
+        }
+    }
+    Ok(samples)
 }
 
 /// The configuration label of joint values `q` of a robot with the closed form.
@@ -1447,6 +1621,147 @@ mod tests {
         assert!(error.to_string().contains("the scenario has 5"), "{error}");
         let error = Scenario::from_toml_str("").unwrap_err();
         assert!(matches!(error, SimulateError::Parse { .. }), "{error}");
+    }
+
+    /// Plans too large (or empty) are refused at once with the count, before anything is
+    /// allocated; a step that is not positive and finite is refused as such.
+    #[test]
+    fn plans_are_sized_before_anything_is_allocated() {
+        let robot = kr150();
+        let scenario = shipped_scenario();
+        let box_of = |positions| SamplingPlan {
+            positions,
+            ..small_lattice()
+        };
+        let (min_mm, max_mm) = ([1350.0, 50.0, 850.0], [2150.0, 850.0, 1650.0]);
+        let lattice = |step_mm| {
+            box_of(Positions::Lattice {
+                min_mm,
+                max_mm,
+                step_mm,
+            })
+        };
+        let random = |count| {
+            box_of(Positions::Random {
+                count,
+                min_mm,
+                max_mm,
+            })
+        };
+        let start = std::time::Instant::now();
+        for (plan, expected) in [
+            (
+                random(1_000_000_000_000_000_000),
+                "sampling plan: a random plan gives 1e18 samples, more than the 1000000 a \
+                 simulation may make: ask for fewer poses",
+            ),
+            (
+                random(100_000_000),
+                "sampling plan: a random plan gives 100000000 samples, more than the 1000000 a \
+                 simulation may make: ask for fewer poses",
+            ),
+            (
+                random(0),
+                "sampling plan: a random plan gives 0 samples, so there is nothing to simulate",
+            ),
+            (
+                lattice(0.01),
+                "sampling plan: a lattice of 80001 × 80001 × 80001 points (step 0.01 mm) gives \
+                 5.12019200240001e14 samples, more than the 1000000 a simulation may make: give a \
+                 larger step or a smaller box",
+            ),
+            (
+                lattice(1e-300),
+                "sampling plan: a lattice of 7.999999999999999e302 × 7.999999999999999e302 × \
+                 7.999999999999999e302 points (step 1e-300 mm) gives more than 1e308 samples, \
+                 more than the 1000000 a simulation may make: give a larger step or a smaller box",
+            ),
+            (
+                lattice(0.0),
+                "sampling plan: the lattice step is 0 mm: it must be positive and finite",
+            ),
+            (
+                lattice(f64::NAN),
+                "sampling plan: the lattice step is NaN mm: it must be positive and finite",
+            ),
+            (
+                box_of(Positions::JointGrid {
+                    counts: vec![100; 6],
+                    ranges: None,
+                }),
+                "sampling plan: a joint grid of 100 × 100 × 100 × 100 × 100 × 100 values gives \
+                 1e12 samples, more than the 1000000 a simulation may make: give fewer \
+                 values per joint",
+            ),
+        ] {
+            let error = simulate(&robot, &scenario, &plan).unwrap_err();
+            assert_eq!(error.to_string(), expected);
+        }
+        assert!(start.elapsed().as_secs_f64() < 1.0);
+        assert_eq!(lattice(100.0).sample_count().unwrap(), 729);
+        assert_eq!(random(1000).sample_count().unwrap(), 1000);
+    }
+
+    /// A scenario value beyond its plausible range is refused with the joint and key; no
+    /// scenario makes a non-finite sample.
+    #[test]
+    fn implausible_scenarios_are_refused_with_the_key() {
+        let text =
+            std::fs::read_to_string(shipped_robot_path("kr150-2").with_file_name("scenario.toml"))
+                .unwrap();
+        for (from, to, expected) in [
+            (
+                "delta_a_mm = 0.25",
+                "delta_a_mm = 1e308",
+                "scenario: joint 1 delta_a_mm: a length (mm) is 1e308, but must be within ±1000000",
+            ),
+            (
+                "stiffness_nm_per_rad = 1.0e7",
+                "stiffness_nm_per_rad = 1e-308",
+                "scenario: joint 2 stiffness_nm_per_rad (leave it out for a rigid joint): a \
+                 stiffness (N·m/rad) is 1e-308, but must be at least 100",
+            ),
+            (
+                "sigma_mm = 0.015",
+                "sigma_mm = 1e308",
+                "scenario: measurement sigma_mm: a noise σ (mm) is 1e308, but must be at most 1000",
+            ),
+            (
+                "mass_kg = 100.0",
+                "mass_kg = 1e308",
+                "scenario: payload mass_kg: a mass (kg) is 1e308, but must be at most 1000000",
+            ),
+            (
+                "gear_periods_per_rev = 2.0",
+                "gear_periods_per_rev = inf",
+                "scenario: joint 1 gear_periods_per_rev is not a finite number",
+            ),
+        ] {
+            let changed = text.replacen(from, to, 1);
+            assert_ne!(changed, text, "{from}");
+            let error = Scenario::from_toml_str(&changed).unwrap_err();
+            assert_eq!(error.to_string(), expected);
+        }
+        // At the edges of every range, the samples are finite all the same.
+        let mut scenario = shipped_scenario();
+        for (i, k) in scenario.stiffness_nm_per_rad.iter_mut().enumerate() {
+            *k = Some(crate::plausible::MIN_STIFFNESS_NM_PER_RAD);
+            scenario.gears[i].amplitude_rad = crate::plausible::MAX_GEAR_AMPLITUDE_DEG.to_radians();
+            scenario.gears[i].periods_per_rev = crate::plausible::MAX_GEAR_PERIODS_PER_REV;
+        }
+        for mass in &mut scenario.masses {
+            mass.mass_kg = crate::plausible::MAX_MASS_KG;
+            mass.centre_of_gravity_mm = [crate::plausible::MAX_LENGTH_MM; 3];
+        }
+        scenario.measurement.sigma_mm = crate::plausible::MAX_SIGMA_MM;
+        scenario.measurement.sigma_per_m_mm = crate::plausible::MAX_SIGMA_MM;
+        scenario.measurement.orientation_sigma_rad = crate::plausible::MAX_ORIENTATION_SIGMA_RAD;
+        let samples = simulate(&kr150(), &scenario, &small_lattice()).unwrap();
+        assert!(samples.iter().all(|s| s
+            .error_mm
+            .iter()
+            .chain(&s.orientation_error_rad)
+            .all(|v| v.is_finite())));
     }
 
     #[test]

@@ -410,6 +410,13 @@ impl ColumnMap {
         Some(self.source(canonical))
     }
 
+    /// The mapped canonical columns and their sources, in [`CANONICAL_COLUMNS`] order.
+    pub(crate) fn mapped(&self) -> impl Iterator<Item = (&'static str, &Source)> + '_ {
+        CANONICAL_COLUMNS
+            .iter()
+            .filter_map(|&c| self.entries.get(c).map(|s| (c, s)))
+    }
+
     /// Whether the mapping names `canonical`.
     pub(crate) fn maps(&self, canonical: &str) -> bool {
         self.entries.contains_key(canonical)

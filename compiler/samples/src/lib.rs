@@ -51,7 +51,12 @@
 //! Every problem is an error naming the file, the line and, where there is one, the
 //! column: a wrong field count, a field that is not a number, NaN or infinite, a number
 //! with the other decimal mark, a zero quaternion, a missing or incomplete group of
-//! columns, two conventions on one side, mixed units in a group, an empty file.
+//! columns, a mapped column the header lacks (with the header's closest names), two
+//! conventions on one side, mixed units in a group, an empty file.
+//!
+//! Samples that read but look wrong for a robot in millimetres — a file in metres spans a
+//! millimetre — are flagged by [`SampleSet::plausibility_warnings`], typed, for the caller
+//! to print.
 //!
 //! Measurements in another frame than the robot's base (a laser tracker's) are read by
 //! [`read_measurements`] into [`Measurements`], which a registration turns into samples.
@@ -64,6 +69,7 @@ use nalgebra::Rotation3;
 
 mod columns;
 mod measurements;
+mod plausible;
 pub mod pose;
 mod reader;
 mod repeats;
@@ -73,7 +79,12 @@ pub use columns::{
     CANONICAL_COLUMNS, MAX_JOINTS,
 };
 pub use measurements::{Measurements, MeasurementsError};
-pub use reader::{Choice, Decimal, Delimiter, ReadError, ReadErrorKind, ReadOptions};
+pub use plausible::{
+    SampleWarning, MAX_PLAUSIBLE_ERROR_RMS_MM, MAX_PLAUSIBLE_EXTENT_MM, MIN_PLAUSIBLE_EXTENT_MM,
+};
+pub use reader::{
+    Choice, Decimal, Delimiter, MappedColumnMissing, ReadError, ReadErrorKind, ReadOptions,
+};
 pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
 
 use reader::{parse, read_file, Purpose, Rows};

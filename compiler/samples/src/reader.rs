@@ -172,6 +172,8 @@ pub enum ReadErrorKind {
     Empty,
     /// The file has a header but no sample row.
     NoSamples,
+    /// The column mapping names a column the header lacks (a typo, most often).
+    MappedColumnMissing(Box<MappedColumnMissing>),
     /// A required column is absent from the header.
     MissingColumn {
         /// The columns wanted.
@@ -221,6 +223,17 @@ pub enum ReadErrorKind {
     Syntax(String),
 }
 
+/// A column the mapping names that the header lacks ([`ReadErrorKind::MappedColumnMissing`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappedColumnMissing {
+    /// The canonical column mapped.
+    pub name: &'static str,
+    /// The column the mapping names, as compared (lower case).
+    pub column: String,
+    /// The header's names closest to it, closest first (at most three).
+    pub closest: Vec<String>,
+}
+
 /// An error in a sample file, located by file, line and column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReadError {
@@ -248,6 +261,23 @@ impl fmt::Display for ReadError {
             ReadErrorKind::Io(e) => write!(f, "cannot read: {e}"),
             ReadErrorKind::Empty => write!(f, "empty file: expected a header row"),
             ReadErrorKind::NoSamples => write!(f, "no sample rows after the header"),
+            ReadErrorKind::MappedColumnMissing(missing) => {
+                let MappedColumnMissing {
+                    name,
+                    column,
+                    closest,
+                } = missing.as_ref();
+                write!(
+                    f,
+                    "the column mapping takes '{name}' from a column '{column}', which the \
+                     header does not have"
+                )?;
+                match closest.as_slice() {
+                    [] => Ok(()),
+                    [one] => write!(f, "; the closest is '{one}'"),
+                    more => write!(f, "; the closest are '{}'", more.join("', '")),
+                }
+            }
             ReadErrorKind::MissingColumn { wanted, found } => write!(
                 f,
                 "missing column {wanted} (name it in the header, or map it with --columns); {found}"
@@ -797,6 +827,19 @@ fn resolve(
         wanted: wanted.to_string(),
         found: header.describe(),
     };
+    // A column the mapping names must be there: absent, it is a typo, not an absent group
+    // (`dx=xdif` would read as "dy,dz without dx", `j1=joint1` drop the joints silently).
+    for (name, source) in map.mapped() {
+        if !names.contains(&source.name) {
+            return Err(ReadErrorKind::MappedColumnMissing(Box::new(
+                MappedColumnMissing {
+                    name,
+                    column: source.name.clone(),
+                    closest: closest_names(&source.name, names),
+                },
+            )));
+        }
+    }
     let find = |canonical: &str| -> Option<(usize, Source)> {
         let source = map.find(canonical)?;
         let index = names.iter().position(|n| *n == source.name)?;
@@ -945,6 +988,46 @@ fn resolve(
         }
     }
     Ok(layout)
+}
+
+/// The header names closest to `wanted` by edit distance (at most three, closest first,
+/// header order among equals), of those that share more than they differ; of a hostile
+/// header only the first names are compared, so that a message costs milliseconds.
+fn closest_names(wanted: &str, names: &[String]) -> Vec<String> {
+    const SHOWN: usize = 3;
+    const COMPARED: usize = 10_000;
+    let wanted: Vec<char> = wanted.chars().collect();
+    let mut scored: Vec<(usize, usize)> = names
+        .iter()
+        .take(COMPARED)
+        .enumerate()
+        .filter_map(|(i, name)| {
+            let name: Vec<char> = name.chars().collect();
+            let d = edit_distance(&wanted, &name);
+            (2 * d < wanted.len().max(name.len())).then_some((d, i))
+        })
+        .collect();
+    scored.sort_unstable();
+    scored
+        .into_iter()
+        .take(SHOWN)
+        .map(|(_, i)| names[i].clone())
+        .collect()
+}
+
+/// The Levenshtein distance of two names: insertions, deletions and substitutions.
+fn edit_distance(a: &[char], b: &[char]) -> usize {
+    let mut previous: Vec<usize> = (0..=b.len()).collect();
+    let mut current = vec![0; b.len() + 1];
+    for (i, ca) in a.iter().enumerate() {
+        current[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let substitution = previous[j] + usize::from(ca != cb);
+            current[j + 1] = substitution.min(previous[j + 1] + 1).min(current[j] + 1);
+        }
+        std::mem::swap(&mut previous, &mut current);
+    }
+    previous[b.len()]
 }
 
 /// The joint columns `j1..jn`: none, or a run from `j1` without gaps; revolute joints in
@@ -1181,6 +1264,41 @@ mod tests {
                 "seems separated by semicolons; give --delimiter semicolon",
             ],
         );
+    }
+
+    /// A mapping that names a column the header lacks is an error naming it and the
+    /// closest names, not a group read as incomplete or absent.
+    #[test]
+    fn a_mapped_column_the_header_lacks_is_named_with_the_closest() {
+        let text = "x_t,y_t,z_t,x_dif,y_dif,z_dif,joint_1,joint_2\n1,2,3,0.1,0.2,0.3,10,20\n";
+        let map = "x=x_t,y=y_t,z=z_t,dx=xdif,dy=y_dif,dz=z_dif";
+        assert_eq!(
+            read(text, map, ReadOptions::default()).unwrap_err(),
+            "s.csv:1: the column mapping takes 'dx' from a column 'xdif', which the header \
+             does not have; the closest are 'x_dif', 'y_dif', 'z_dif'"
+        );
+        let map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint1,j2=joint_2";
+        assert_eq!(
+            read(text, map, ReadOptions::default()).unwrap_err(),
+            "s.csv:1: the column mapping takes 'j1' from a column 'joint1', which the header \
+             does not have; the closest are 'joint_1', 'joint_2'"
+        );
+        // Nothing alike: no suggestion; the short form too.
+        refused(
+            text,
+            "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,config=branch",
+            ReadOptions::default(),
+            &["takes 'config' from a column 'branch', which the header does not have"],
+        );
+        refused(
+            text,
+            "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,rx:deg",
+            ReadOptions::default(),
+            &["takes 'rx' from a column 'rx', which the header does not have"],
+        );
+        let map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2";
+        let s = read(text, map, ReadOptions::default()).unwrap();
+        assert_eq!(s.joints.unwrap().count(), 2);
     }
 
     #[test]

@@ -34,8 +34,22 @@
 //! centres of mass as `<inertial>`, inertia tensors zero: unknown). Either way a fixed joint
 //! `calibrated_tcp_joint` from the tip link to a new link `calibrated_tcp` carries the tool
 //! (the TCP in the tip link's frame), so that the written file's only new leaf is the TCP:
-//! read again it gives the same forward kinematics to rounding. (Limits the URDF form
-//! needs but the robot file lacks, effort and velocity, are written as 0.)
+//! read again it gives the same forward kinematics to rounding. What the robot file does
+//! not give is never written as if it did ([`UrdfOmission`], also listed in the file's
+//! header comment): a fresh URDF is URDF 1.2, where effort and velocity limits are optional,
+//! and leaves them out; a link without a mass has no `<inertial>`; a link with one is that
+//! point mass (inertia zero about its centre of mass). Compliances and a payload have no
+//! place in URDF and are left out.
+//!
+//! # Limits
+//!
+//! Before it is parsed, the text is scanned once for its size: at most [`MAX_URDF_DEPTH`]
+//! levels of nested elements, [`MAX_URDF_ELEMENTS`] elements, [`MAX_URDF_LINKS`] links and
+//! [`MAX_URDF_JOINTS`] joints, each far beyond any robot's description, so that a hostile
+//! file is refused in one linear pass rather than exhausting the stack or the memory of the
+//! parser. Every number of the parsed file, on the chain or off it, must then lie in its
+//! plausible range ([`crate::plausible`]), with the element and attribute named; link and
+//! joint names must be unique. Messages list at most a few names.
 
 use std::collections::HashMap;
 
@@ -47,6 +61,50 @@ use crate::model::{
     rpy_of, transform_from_xyz_rpy, unit_axis, Geometry, Joint, LinkInertial, Robot, RobotError,
     UrdfSource, MAX_JOINTS,
 };
+use crate::plausible::{first_few, name as shown};
+
+mod check;
+mod scan;
+mod write;
+
+pub use scan::{MAX_URDF_DEPTH, MAX_URDF_ELEMENTS, MAX_URDF_JOINTS, MAX_URDF_LINKS};
+pub use write::UrdfOmission;
+
+/// The URDF parser's error, its message cut to [`UrdfParseError::MAX_CHARS`]: the parser
+/// quotes attribute values whole, however long.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UrdfParseError {
+    /// The parser's message, cut.
+    pub message: String,
+}
+
+impl UrdfParseError {
+    /// The most characters of the parser's message kept.
+    pub const MAX_CHARS: usize = 300;
+
+    fn new(error: &urdf_rs::UrdfError) -> UrdfParseError {
+        let full = error.to_string();
+        let count = full.chars().count();
+        let message = if count > Self::MAX_CHARS {
+            let kept: String = full.chars().take(Self::MAX_CHARS).collect();
+            format!("{kept}… ({} more characters)", count - Self::MAX_CHARS)
+        } else {
+            full
+        };
+        UrdfParseError { message }
+    }
+}
+
+impl std::fmt::Display for UrdfParseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for UrdfParseError {}
+
+/// How many names a message lists before "and N more".
+const NAMES_SHOWN: usize = 8;
 
 /// The name of the link [`Robot::to_urdf_string`] adds for the TCP.
 pub const TCP_LINK: &str = "calibrated_tcp";
@@ -90,9 +148,10 @@ fn product(robot: &urdf_rs::Robot, joints: &[usize]) -> Transform {
 
 /// Reads a robot from URDF text (see the module docs).
 pub(crate) fn robot_from_urdf_str(text: &str, links: &LinkNames) -> Result<Robot, RobotError> {
-    let urdf = urdf_rs::read_from_string(text).map_err(|source| RobotError::Urdf {
+    scan::check_size(text)?;
+    let urdf = urdf_rs::read_from_string(text).map_err(|error| RobotError::Urdf {
         path: std::path::PathBuf::new(),
-        source,
+        source: UrdfParseError::new(&error),
     })?;
     robot_from_urdf(&urdf, links)
 }
@@ -101,15 +160,41 @@ pub(crate) fn robot_from_urdf_str(text: &str, links: &LinkNames) -> Result<Robot
 ///
 /// # Errors
 ///
-/// [`RobotError::UrdfChain`] when the file has no such chain or a joint on it cannot be
-/// modelled, and the validation errors of [`Robot::new`].
+/// [`RobotError::UrdfChain`] when the file has more links or joints than the module docs
+/// allow ("Limits"), two links or two joints of one name, no such chain or a joint on it
+/// that cannot be modelled; [`RobotError::NonFinite`] or [`RobotError::Implausible`] for a
+/// number outside its range; and the validation errors of [`Robot::new`].
 pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot, RobotError> {
+    for (count, max, what) in [
+        (urdf.links.len(), MAX_URDF_LINKS, "links"),
+        (urdf.joints.len(), MAX_URDF_JOINTS, "joints"),
+    ] {
+        if count > max {
+            return Err(chain_error(format!(
+                "{count} {what}, more than the {max} a URDF file may have"
+            )));
+        }
+    }
     let mut link_index = HashMap::new();
     for (i, link) in urdf.links.iter().enumerate() {
         if link_index.insert(link.name.as_str(), i).is_some() {
-            return Err(chain_error(format!("two links are named '{}'", link.name)));
+            return Err(chain_error(format!(
+                "two links are named '{}'",
+                shown(&link.name)
+            )));
         }
     }
+    let mut joint_names = std::collections::HashSet::new();
+    for joint in &urdf.joints {
+        if !joint_names.insert(joint.name.as_str()) {
+            return Err(chain_error(format!(
+                "two joints are named '{}'",
+                shown(&joint.name)
+            )));
+        }
+    }
+    crate::plausible::check_name(&urdf.name)?;
+    check::check_numbers(urdf)?;
     // Each link's parent joint, and each link's child joints.
     let mut parent_joint: HashMap<&str, usize> = HashMap::new();
     let mut child_joints: HashMap<&str, Vec<usize>> = HashMap::new();
@@ -117,15 +202,16 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         for end in [&joint.parent.link, &joint.child.link] {
             if !link_index.contains_key(end.as_str()) {
                 return Err(chain_error(format!(
-                    "joint '{}' names the link '{end}', which the file does not have",
-                    joint.name
+                    "joint '{}' names the link '{}', which the file does not have",
+                    shown(&joint.name),
+                    shown(end)
                 )));
             }
         }
         if parent_joint.insert(joint.child.link.as_str(), j).is_some() {
             return Err(chain_error(format!(
                 "link '{}' is the child of two joints: not a tree",
-                joint.child.link
+                shown(&joint.child.link)
             )));
         }
         child_joints
@@ -136,7 +222,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     let base = match &links.base_link {
         Some(name) => {
             if !link_index.contains_key(name.as_str()) {
-                return Err(chain_error(format!("no link named '{name}' (base link)")));
+                return Err(chain_error(format!(
+                    "no link named '{}' (base link)",
+                    shown(name)
+                )));
             }
             name.clone()
         }
@@ -153,7 +242,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
                     return Err(chain_error(format!(
                         "{} root links ({}): name the base link",
                         roots.len(),
-                        roots.join(", ")
+                        first_few(&roots, NAMES_SHOWN)
                     )))
                 }
             }
@@ -162,7 +251,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     let tip = match &links.tip_link {
         Some(name) => {
             if !link_index.contains_key(name.as_str()) {
-                return Err(chain_error(format!("no link named '{name}' (tip link)")));
+                return Err(chain_error(format!(
+                    "no link named '{}' (tip link)",
+                    shown(name)
+                )));
             }
             name.clone()
         }
@@ -189,9 +281,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
                 [leaf] => (*leaf).to_owned(),
                 _ => {
                     return Err(chain_error(format!(
-                        "{} leaf links below '{base}' ({}): name the tip link",
+                        "{} leaf links below '{}' ({}): name the tip link",
                         leaves.len(),
-                        leaves.join(", ")
+                        shown(&base),
+                        first_few(&leaves, NAMES_SHOWN)
                     )))
                 }
             }
@@ -203,7 +296,9 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     while link != base {
         let Some(&j) = parent_joint.get(link) else {
             return Err(chain_error(format!(
-                "link '{tip}' is not below link '{base}'"
+                "link '{}' is not below link '{}'",
+                shown(&tip),
+                shown(&base)
             )));
         };
         if path.len() > urdf.joints.len() {
@@ -222,7 +317,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         if joint.mimic.is_some() {
             return Err(chain_error(format!(
                 "joint '{}' mimics another joint: not a serial chain of independent joints",
-                joint.name
+                shown(&joint.name)
             )));
         }
         match joint.joint_type {
@@ -235,7 +330,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
                 return Err(chain_error(format!(
                     "joint '{}' is {other:?}: only revolute, continuous, prismatic and fixed \
                      joints make a serial chain",
-                    joint.name
+                    shown(&joint.name)
                 )))
             }
         }
@@ -253,7 +348,10 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     for (&j, before) in movable.iter().zip(&fixed_before) {
         let joint = &urdf.joints[j];
         let axis = unit_axis(joint.axis.xyz.0).ok_or_else(|| {
-            chain_error(format!("joint '{}' has an axis of zero length", joint.name))
+            chain_error(format!(
+                "joint '{}' has an axis of zero length",
+                shown(&joint.name)
+            ))
         })?;
         let (kind, limits) = match joint.joint_type {
             JointType::Continuous => (JointKind::Revolute, [f64::NEG_INFINITY, f64::INFINITY]),
@@ -267,7 +365,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         if limits[0].partial_cmp(&limits[1]) != Some(std::cmp::Ordering::Less) {
             return Err(chain_error(format!(
                 "joint '{}' has limits lower {} upper {}: a {} joint needs lower < upper",
-                joint.name,
+                shown(&joint.name),
                 joint.limit.lower,
                 joint.limit.upper,
                 if kind == JointKind::Revolute {
@@ -286,7 +384,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         joints.push(Joint {
             name: joint.name.clone(),
             limits,
-            inertial: body_inertial(urdf, &joint.child.link, &child_joints),
+            inertial: body_inertial(urdf, &joint.child.link, &link_index, &child_joints),
             compliance_urad_per_nm: None,
         });
         home.push(if (limits[0]..=limits[1]).contains(&0.0) {
@@ -328,6 +426,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
 fn body_inertial(
     urdf: &urdf_rs::Robot,
     link: &str,
+    link_index: &HashMap<&str, usize>,
     child_joints: &HashMap<&str, Vec<usize>>,
 ) -> Option<LinkInertial> {
     let mut mass = 0.0;
@@ -339,7 +438,7 @@ fn body_inertial(
         if visited > urdf.links.len() {
             break;
         }
-        if let Some(l) = urdf.links.iter().find(|l| l.name == name) {
+        if let Some(l) = link_index.get(name).map(|&i| &urdf.links[i]) {
             let m = l.inertial.mass.value;
             if m > 0.0 {
                 let com = frame.transform_point(l.inertial.origin.xyz.0.map(|v| v * 1000.0));
@@ -361,183 +460,6 @@ fn body_inertial(
         mass_kg: mass,
         com_mm: moment.map(|v| v / mass),
     })
-}
-
-impl Robot {
-    /// This robot as URDF text (see the module docs): `comment` lines in a comment after
-    /// the XML declaration.
-    ///
-    /// # Errors
-    ///
-    /// [`RobotError::UrdfChain`] when the URDF writer fails.
-    pub fn to_urdf_string(&self, comment: &[String]) -> Result<String, RobotError> {
-        let chain = self.chain();
-        // Each movable joint's origin with its offset folded in, the base in the first.
-        let origins: Vec<Transform> = chain
-            .joints()
-            .iter()
-            .enumerate()
-            .map(|(i, j)| {
-                let origin = j.origin.compose(&j.motion(j.offset));
-                if i == 0 {
-                    chain.base.compose(&origin)
-                } else {
-                    origin
-                }
-            })
-            .collect();
-        let mut urdf = match self.urdf_source() {
-            Some(source) if source.movable.len() == origins.len() => {
-                let mut urdf = source.robot.clone();
-                for ((origin, &j), before) in origins
-                    .iter()
-                    .zip(&source.movable)
-                    .zip(&source.fixed_before)
-                {
-                    let fixed = product(&source.robot, before);
-                    urdf.joints[j].origin = pose_of_transform(&fixed.inverse().compose(origin));
-                }
-                let after = product(&source.robot, &source.fixed_after);
-                let tcp = after.inverse().compose(&chain.tool);
-                // A file written here before: its TCP joint is updated, not doubled.
-                let last_fixed = source.fixed_after.last().map(|&j| &urdf.joints[j]);
-                match last_fixed {
-                    Some(joint) if joint.name == TCP_JOINT => {
-                        let j = *source.fixed_after.last().expect("matched Some");
-                        let before_tcp = product(
-                            &source.robot,
-                            &source.fixed_after[..source.fixed_after.len() - 1],
-                        );
-                        urdf.joints[j].origin =
-                            pose_of_transform(&before_tcp.inverse().compose(&chain.tool));
-                    }
-                    _ => add_tcp(&mut urdf, &source.tip_link, &tcp)?,
-                }
-                urdf
-            }
-            _ => self.fresh_urdf(&origins)?,
-        };
-        urdf.name = self.name.clone();
-        let body = urdf_rs::write_to_string(&urdf)
-            .map_err(|e| chain_error(format!("cannot write the robot as URDF: {e}")))?;
-        let mut out = String::from("<?xml version=\"1.0\"?>\n");
-        if !comment.is_empty() {
-            out.push_str("<!--\n");
-            for block in comment {
-                for line in block.lines() {
-                    // "--" may not appear inside an XML comment.
-                    out.push_str(&format!("  {}\n", line.replace("--", "- -")));
-                }
-            }
-            out.push_str("-->\n");
-        }
-        out.push_str(&body);
-        out.push('\n');
-        Ok(out)
-    }
-
-    /// A URDF of this robot's chain alone: `base_link`, `link_1` … (see the module docs).
-    fn fresh_urdf(&self, origins: &[Transform]) -> Result<urdf_rs::Robot, RobotError> {
-        let link = |name: String, inertial: Option<LinkInertial>| urdf_rs::Link {
-            name,
-            inertial: inertial
-                .map(|i| urdf_rs::Inertial {
-                    origin: Pose {
-                        xyz: Vec3(i.com_mm.map(|v| v / 1000.0)),
-                        rpy: Vec3([0.0; 3]),
-                    },
-                    mass: urdf_rs::Mass { value: i.mass_kg },
-                    inertia: urdf_rs::Inertia::default(),
-                })
-                .unwrap_or_default(),
-            visual: Vec::new(),
-            collision: Vec::new(),
-        };
-        let mut urdf = urdf_rs::Robot {
-            name: self.name.clone(),
-            version: None,
-            links: vec![link("base_link".into(), None)],
-            joints: Vec::new(),
-            materials: Vec::new(),
-        };
-        let mut parent = "base_link".to_owned();
-        for (i, (joint, origin)) in self.joints().iter().zip(origins).enumerate() {
-            let child = format!("link_{}", i + 1);
-            let chain_joint = &self.chain().joints()[i];
-            let [lower, upper] = joint.limits;
-            let (joint_type, scale) = match chain_joint.kind {
-                JointKind::Revolute if lower.is_infinite() && upper.is_infinite() => {
-                    (JointType::Continuous, 1.0)
-                }
-                JointKind::Revolute => (JointType::Revolute, 1.0),
-                JointKind::Prismatic => (JointType::Prismatic, 1e-3),
-            };
-            urdf.links.push(link(child.clone(), joint.inertial));
-            urdf.joints.push(urdf_rs::Joint {
-                name: joint.name.clone(),
-                joint_type,
-                origin: pose_of_transform(origin),
-                parent: urdf_rs::LinkName { link: parent },
-                child: urdf_rs::LinkName {
-                    link: child.clone(),
-                },
-                axis: urdf_rs::Axis {
-                    xyz: Vec3(chain_joint.axis),
-                },
-                limit: urdf_rs::JointLimit {
-                    lower: if lower.is_finite() {
-                        lower * scale
-                    } else {
-                        0.0
-                    },
-                    upper: if upper.is_finite() {
-                        upper * scale
-                    } else {
-                        0.0
-                    },
-                    ..urdf_rs::JointLimit::default()
-                },
-                calibration: None,
-                dynamics: None,
-                mimic: None,
-                safety_controller: None,
-            });
-            parent = child;
-        }
-        add_tcp(&mut urdf, &parent, &self.chain().tool)?;
-        Ok(urdf)
-    }
-}
-
-/// Adds the fixed joint [`TCP_JOINT`] from `tip` to a new link [`TCP_LINK`] at `tcp`.
-fn add_tcp(urdf: &mut urdf_rs::Robot, tip: &str, tcp: &Transform) -> Result<(), RobotError> {
-    if urdf.links.iter().any(|l| l.name == TCP_LINK) {
-        return Err(chain_error(format!(
-            "the file already has a link '{TCP_LINK}' that is not the tip of the chain"
-        )));
-    }
-    urdf.links.push(urdf_rs::Link {
-        name: TCP_LINK.into(),
-        inertial: urdf_rs::Inertial::default(),
-        visual: Vec::new(),
-        collision: Vec::new(),
-    });
-    urdf.joints.push(urdf_rs::Joint {
-        name: TCP_JOINT.into(),
-        joint_type: JointType::Fixed,
-        origin: pose_of_transform(tcp),
-        parent: urdf_rs::LinkName { link: tip.into() },
-        child: urdf_rs::LinkName {
-            link: TCP_LINK.into(),
-        },
-        axis: urdf_rs::Axis::default(),
-        limit: urdf_rs::JointLimit::default(),
-        calibration: None,
-        dynamics: None,
-        mimic: None,
-        safety_controller: None,
-    });
-    Ok(())
 }
 
 #[cfg(test)]
@@ -889,6 +811,235 @@ mod tests {
             assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
         }
         assert_eq!(back.joints()[1].limits, kr150.joints()[1].limits);
+    }
+
+    /// What the writer cannot know it does not write as if it did: a fresh URDF (from a
+    /// robot file) is URDF 1.2 without effort and velocity limits, a massless link has no
+    /// `<inertial>`, and the header says what is left out; read again it is the same robot.
+    /// A URDF-sourced robot keeps its file's limits, and its massless links stay without
+    /// an `<inertial>`.
+    #[test]
+    fn written_urdf_never_invents_values() {
+        let ur5 = Robot::load(crate::model::shipped_robot_path("ur5")).unwrap();
+        assert_eq!(
+            ur5.urdf_omissions(),
+            [
+                UrdfOmission::EffortAndVelocity,
+                UrdfOmission::InertiaTensors
+            ]
+        );
+        let text = ur5.to_urdf_string(&["calibrated".into()]).unwrap();
+        assert!(text.contains("<robot name=\"Universal Robots UR5\" version=\"1.2\">"));
+        assert!(!text.contains("effort="), "{text}");
+        assert!(!text.contains("velocity="), "{text}");
+        assert!(text.contains("<link name=\"base_link\"/>"), "{text}");
+        assert!(!text.contains("<mass value=\"0\"/>"), "{text}");
+        assert!(text.contains("- effort and velocity limits: not in the robot file, left out"));
+        assert!(text.contains("- inertia tensors: not in the robot file, written as zero"));
+        let back = robot_from_urdf_str(&text, &LinkNames::default()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..50 {
+            let q = random_q(&ur5, &mut rng);
+            let (a, b) = (ur5.tcp_pose(&q), back.tcp_pose(&q));
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
+        }
+        for (a, b) in ur5.joints().iter().zip(back.joints()) {
+            assert_eq!(a.limits, b.limits);
+            let (a, b) = (a.inertial.unwrap(), b.inertial.unwrap());
+            assert!((a.mass_kg - b.mass_kg).abs() < 1e-12);
+        }
+        // A continuous joint's infinite limits are left out, and read back infinite.
+        let mut joints = ur5.joints().to_vec();
+        joints[5].limits = [f64::NEG_INFINITY, f64::INFINITY];
+        let continuous = Robot::new(
+            "c".into(),
+            ur5.geometry().clone(),
+            joints,
+            ur5.base(),
+            ur5.tool(),
+            ur5.home().to_vec(),
+        )
+        .unwrap();
+        let text = continuous.to_urdf_string(&[]).unwrap();
+        assert!(text.contains("type=\"continuous\""), "{text}");
+        let back = robot_from_urdf_str(&text, &LinkNames::default()).unwrap();
+        assert_eq!(back.joints()[5].limits, [f64::NEG_INFINITY, f64::INFINITY]);
+
+        let urdf = Robot::load(shipped_file("ur5", "robot.urdf")).unwrap();
+        assert!(urdf.urdf_omissions().is_empty());
+        let text = urdf.to_urdf_string(&[]).unwrap();
+        assert!(!text.contains("<mass value=\"0\"/>"), "{text}");
+        assert!(text.contains("effort=\"150\""), "{text}");
+        assert!(!text.contains("Not in this file"), "{text}");
+        let with_payload = urdf
+            .with_payload(Some(LinkInertial {
+                mass_kg: 2.0,
+                com_mm: [0.0; 3],
+            }))
+            .unwrap();
+        assert_eq!(with_payload.urdf_omissions(), [UrdfOmission::Payload]);
+        let text = with_payload.to_urdf_string(&[]).unwrap();
+        assert!(
+            text.contains("- payload: URDF has no place for it"),
+            "{text}"
+        );
+    }
+
+    /// Hostile files are refused with what is wrong, in time and memory proportional to
+    /// their size, and messages list a few names only.
+    #[test]
+    fn hostile_urdf_files_are_refused_with_the_reason() {
+        let tip = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let refused = |text: &str| robot_from_urdf_str(text, &tip).unwrap_err().to_string();
+        // Masses that are not a mass, on the chain or off it.
+        for (value, expected) in [
+            ("NaN", "link 'l1' <inertial><mass value> is not a finite number"),
+            ("-inf", "link 'l1' <inertial><mass value> is not a finite number"),
+            ("-5", "link 'l1' <inertial><mass value>: a mass (kg) is -5, but must be at least 0"),
+            ("1e308", "link 'l1' <inertial><mass value>: a mass (kg) is 1e308, but must be at most 1000000"),
+        ] {
+            let text = TEST_URDF.replace(r#"<mass value="4"/>"#, &format!(r#"<mass value="{value}"/>"#));
+            assert_eq!(refused(&text), format!("{expected}"), "{value}");
+        }
+        let text = TEST_URDF.replace(
+            r#"<origin xyz="0 0.1 0"/>"#,
+            r#"<origin xyz="1e290 0.1 0"/>"#,
+        );
+        assert!(
+            refused(&text)
+                .starts_with("joint 'camera_mount' <origin> xyz[0]: a length (m) is 1e290"),
+            "{}",
+            refused(&text)
+        );
+        // Two joints of one name.
+        let text = TEST_URDF.replace(r#"name="j2""#, r#"name="j1""#);
+        assert_eq!(refused(&text), "URDF: two joints are named 'j1'");
+        // Nested far too deep, and far too many joints: refused before parsing.
+        let deep = TEST_URDF.replace(
+            "<link name=\"l2\"/>",
+            &format!(
+                "<link name=\"l2\">{}{}</link>",
+                "<a>".repeat(20_000),
+                "</a>".repeat(20_000)
+            ),
+        );
+        assert!(
+            refused(&deep).contains("nested more than 64 deep (line"),
+            "{}",
+            refused(&deep)
+        );
+        let mut many = String::from("<robot name=\"r\"><link name=\"l0\"/>");
+        for i in 0..200_000 {
+            many += &format!(
+                "<link name=\"l{}\"/><joint name=\"f{i}\" type=\"fixed\"><parent link=\"l{i}\"/>\
+                 <child link=\"l{}\"/></joint>",
+                i + 1,
+                i + 1
+            );
+        }
+        many += "</robot>";
+        let start = std::time::Instant::now();
+        assert!(
+            refused(&many).contains("more than 200000 elements"),
+            "{}",
+            refused(&many)
+        );
+        assert!(start.elapsed().as_secs_f64() < 1.0);
+        // A hundred roots: the message names eight.
+        let roots: String = (0..100).map(|i| format!("<link name=\"r{i}\"/>")).collect();
+        let error = robot_from_urdf_str(
+            &format!("<robot name=\"r\">{roots}</robot>"),
+            &LinkNames::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            error,
+            "URDF: 100 root links (r0, r1, r2, r3, r4, r5, r6, r7 and 92 more): name the base link"
+        );
+    }
+
+    /// What the fuzz test found, kept: the parser's message quoting a megabyte attribute,
+    /// names of a megabyte, and infinite limits a URDF 1.0 file cannot carry back.
+    #[test]
+    fn messages_stay_short_and_limits_stay_writable() {
+        let tip = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        let refused = |text: &str| {
+            let error = robot_from_urdf_str(text, &tip).unwrap_err();
+            match std::error::Error::source(&error) {
+                Some(source) => format!("{error}: {source}"),
+                None => error.to_string(),
+            }
+        };
+        let text = TEST_URDF.replace(
+            r#"<origin xyz="0 0 0.3""#,
+            &format!(r#"<origin xyz="0 0.3{}""#, "<a>".repeat(300_000)),
+        );
+        let message = refused(&text);
+        assert!(message.ends_with("more characters)"), "{message}");
+        assert!(message.len() < 500, "{} bytes", message.len());
+        let text = TEST_URDF.replace(
+            r#"name="j1""#,
+            &format!(r#"name="{}""#, "j".repeat(1_000_000)),
+        );
+        let text = text.replace(r#"<axis xyz="0 0 1"/>"#, r#"<axis xyz="0 0 0"/>"#);
+        let message = refused(&text);
+        assert!(message.contains("… (999960 more characters)"), "{message}");
+        assert!(message.len() < 200, "{message}");
+        // Infinite velocity: not in URDF 1.0 (it could not be written back), in 1.2.
+        let text = TEST_URDF.replace(
+            r#"<limit lower="-2" upper="2" effort="1" velocity="1"/>"#,
+            r#"<limit lower="-2" upper="2" effort="1" velocity="inf"/>"#,
+        );
+        assert!(
+            refused(&text).starts_with("joint 'j2' <limit velocity>: infinite"),
+            "{}",
+            refused(&text)
+        );
+        let text = text.replace(
+            r#"<robot name="test arm">"#,
+            r#"<robot name="test arm" version="1.2">"#,
+        );
+        let robot = robot_from_urdf_str(&text, &tip).unwrap();
+        let written = robot.to_urdf_string(&[]).unwrap();
+        assert!(robot_from_urdf_str(
+            &written,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some(TCP_LINK.into())
+            }
+        )
+        .is_ok());
+    }
+
+    /// An axis is a direction: a vector whose length overflows or underflows is still one;
+    /// only a zero vector is refused.
+    #[test]
+    fn axes_of_any_finite_length_are_directions() {
+        let tip = LinkNames {
+            base_link: None,
+            tip_link: Some("tool0".into()),
+        };
+        for axis in ["1e200 0 0", "1e-200 0 0", "1 0 0"] {
+            let text = TEST_URDF.replace(
+                r#"<axis xyz="1 0 0"/>"#,
+                &format!(r#"<axis xyz="{axis}"/>"#),
+            );
+            let robot = robot_from_urdf_str(&text, &tip).unwrap();
+            assert_eq!(robot.chain().joints()[2].axis, [1.0, 0.0, 0.0], "{axis}");
+        }
+        let text = TEST_URDF.replace(r#"<axis xyz="1 0 0"/>"#, r#"<axis xyz="0 0 0"/>"#);
+        let error = robot_from_urdf_str(&text, &tip).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "URDF: joint 'slide' has an axis of zero length"
+        );
     }
 
     /// Each shipped robot's URDF and its MD-H robot file are the same robot: the same
