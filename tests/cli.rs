@@ -1295,3 +1295,37 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
     );
     assert!(!dir.path().join("p.tbl").exists());
 }
+
+/// Samples in metres read as millimetres build, but say so on standard error with the
+/// unit they seem to be in, even with --quiet.
+#[test]
+fn samples_in_metres_read_as_millimetres_are_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(repo("tables/kr150-2/samples.csv")).unwrap();
+    let mut metres = String::new();
+    for line in text.lines() {
+        if line.starts_with('#') || line.starts_with('x') {
+            metres += line;
+        } else {
+            let fields: Vec<String> = line
+                .split(',')
+                .enumerate()
+                .map(|(i, v)| match i {
+                    0..=2 | 6..=8 => (v.parse::<f64>().unwrap() / 1000.0).to_string(),
+                    _ => v.to_string(),
+                })
+                .collect();
+            metres += &fields.join(",");
+        }
+        metres.push('\n');
+    }
+    std::fs::write(dir.path().join("m.csv"), metres).unwrap();
+    let o = tablec(&["build", "-q", "m.csv", "-o", "m.tbl"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: the samples span 0.8 mm")
+            && stderr(&o).contains("m read as mm"),
+        "{}",
+        stderr(&o)
+    );
+}

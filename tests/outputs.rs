@@ -247,3 +247,102 @@ fn only_regular_files_are_replaced() {
     let written = std::fs::read_to_string(dir.path().join("old.csv")).unwrap();
     assert!(written.starts_with("method,predicted"), "{written}");
 }
+
+/// A robot file's `urdf =` key makes the URDF it names an input of every command that
+/// loads the robot: `calibrate --urdf`, `simulate -o`, `build -o` and `eval --csv` each
+/// refuse to write over it.
+#[test]
+fn the_urdf_a_robot_file_names_is_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("robot")).unwrap();
+    std::fs::copy(repo("tables/iiwa14/robot.urdf"), d.join("robot/robot.urdf")).unwrap();
+    std::fs::write(
+        d.join("robot/robot.toml"),
+        "name = \"x\"\nurdf = \"robot.urdf\"\n",
+    )
+    .unwrap();
+    // Joint offsets a URDF chain can carry, one per joint.
+    std::fs::write(
+        d.join("sc.toml"),
+        "[[joints]]\ndelta_offset_deg = 0.01\n".repeat(7),
+    )
+    .unwrap();
+    let o = tablec(
+        &[
+            "simulate",
+            "--robot",
+            "robot/robot.toml",
+            "--scenario",
+            "sc.toml",
+            "--min",
+            "400,-200,300",
+            "--max",
+            "600,200,600",
+            "--random",
+            "60",
+            "--abc",
+            "0,180,0",
+            "-o",
+            "s.csv",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let urdf = std::fs::read(d.join("robot/robot.urdf")).unwrap();
+    let runs: [&[&str]; 4] = [
+        &[
+            "calibrate",
+            "s.csv",
+            "--robot",
+            "robot/robot.toml",
+            "--urdf",
+            "robot/robot.urdf",
+        ],
+        &[
+            "simulate",
+            "--robot",
+            "robot/robot.toml",
+            "--scenario",
+            "sc.toml",
+            "--min",
+            "400,-200,300",
+            "--max",
+            "600,200,600",
+            "--random",
+            "10",
+            "--abc",
+            "0,180,0",
+            "-o",
+            "robot/robot.urdf",
+        ],
+        &[
+            "build",
+            "s.csv",
+            "--robot",
+            "robot/robot.toml",
+            "-o",
+            "robot/robot.urdf",
+        ],
+        &[
+            "eval",
+            "s.csv",
+            "--folds",
+            "2",
+            "--robot",
+            "robot/robot.toml",
+            "--csv",
+            "robot/robot.urdf",
+        ],
+    ];
+    for args in runs {
+        let o = tablec(args, d);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(
+            stderr(&o).contains("refusing to write robot/robot.urdf: it is the input"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert_eq!(std::fs::read(d.join("robot/robot.urdf")).unwrap(), urdf);
+    }
+}

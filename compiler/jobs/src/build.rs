@@ -174,7 +174,7 @@ impl BuildJob {
         };
         let options = args.table.build_options();
         let plan = adwi_compile::build::plan(&series.samples, &options)?;
-        let mut warnings = Vec::new();
+        let mut warnings = series.warnings();
         if plan.is_mostly_empty() {
             warnings.push(Warning::MostlyEmptyGrid {
                 cells: plan.cells(),

@@ -170,6 +170,7 @@ impl CalibrateJob {
             outputs,
         } = self;
         series.refine(&options(&args))?;
+        let series_warnings = series.warnings();
         let Series {
             samples,
             registered,
@@ -200,15 +201,20 @@ impl CalibrateJob {
             ),
             "Written by tablec calibrate.".to_string(),
         ];
-        let mut warnings = crate::calibration_warnings(&c);
+        let mut warnings = series_warnings;
+        warnings.extend(crate::calibration_warnings(&c));
         let mut contents: Vec<(&Path, Vec<u8>)> = Vec::new();
         if let Some(path) = &args.output {
             let text = c.calibrated_robot().to_toml_string(&comment);
             contents.push((path, text.into_bytes()));
         }
         if let Some(path) = &args.urdf {
-            if args.compliance {
-                warnings.push(Warning::UrdfWithoutCompliance { path: path.clone() });
+            let omissions = c.calibrated_robot().urdf_omissions();
+            if !omissions.is_empty() {
+                warnings.push(Warning::UrdfOmits {
+                    path: path.clone(),
+                    omissions,
+                });
             }
             let text = c
                 .calibrated_robot()

@@ -335,6 +335,7 @@ impl EvalJob {
                 options,
             } => {
                 series.refine(&options.calibrate)?;
+                warnings.extend(series.warnings());
                 let Series {
                     samples,
                     registered,

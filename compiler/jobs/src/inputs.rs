@@ -89,7 +89,8 @@ impl Inputs {
     }
 }
 
-/// Loads the robot `args` names, if any, recording every file read as an input.
+/// Loads the robot `args` names, if any, recording every file read as an input (the
+/// robot file, and a URDF it names).
 ///
 /// # Errors
 ///
@@ -100,6 +101,11 @@ pub(crate) fn load_robot(args: &RobotArgs, inputs: &mut Inputs) -> Result<Option
         return Ok(None);
     };
     inputs.add(path);
-    let robot = Robot::load_with(path, &args.links()).map_err(JobError::robot(path))?;
+    let (robot, files) =
+        Robot::load_with_files(path, &args.links()).map_err(JobError::robot(path))?;
+    // Every file the robot file led to (a URDF it names) is an input too.
+    for file in &files {
+        inputs.add(file);
+    }
     Ok(Some(robot))
 }

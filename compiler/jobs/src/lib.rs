@@ -158,11 +158,18 @@ pub enum Warning {
         /// Levenberg–Marquardt iterations made.
         iterations: u32,
     },
-    /// URDF has no place for identified compliances: the URDF written leaves them out.
-    UrdfWithoutCompliance {
+    /// What a URDF written from the calibrated robot does not carry (or carries only as
+    /// the robot file gives it).
+    UrdfOmits {
         /// The URDF written.
         path: PathBuf,
+        /// What it leaves out.
+        omissions: Vec<adwi_robot::urdf::UrdfOmission>,
     },
+    /// Samples that look wrong for a robot measured in millimetres (a file in metres, say).
+    Samples(adwi_samples::SampleWarning),
+    /// A registration of tracker-frame measurements whose fit no robot's error explains.
+    Registration(adwi_robot::register::RegisterWarning),
 }
 
 impl fmt::Display for Warning {
@@ -199,12 +206,12 @@ impl fmt::Display for Warning {
                 "kinematic identification stopped after {iterations} iterations without \
                  converging"
             ),
-            Warning::UrdfWithoutCompliance { path } => write!(
-                f,
-                "URDF has no place for the identified compliances: {} leaves them out (the \
-                 robot file, -o, carries them)",
-                path.display()
-            ),
+            Warning::UrdfOmits { path, omissions } => {
+                let what: Vec<String> = omissions.iter().map(|o| o.to_string()).collect();
+                write!(f, "{} does not carry: {}", path.display(), what.join("; "))
+            }
+            Warning::Samples(w) => write!(f, "{w}"),
+            Warning::Registration(w) => write!(f, "{w}"),
         }
     }
 }

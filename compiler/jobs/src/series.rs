@@ -104,6 +104,26 @@ pub(crate) fn read(
 }
 
 impl Series {
+    /// What the samples and their registrations warn about: samples that look like
+    /// another unit, registrations no robot's error explains.
+    pub(crate) fn warnings(&self) -> Vec<crate::Warning> {
+        let mut out: Vec<crate::Warning> = self
+            .samples
+            .plausibility_warnings()
+            .into_iter()
+            .map(crate::Warning::Samples)
+            .collect();
+        let registrations = self
+            .registered
+            .iter()
+            .map(|r| &r.registration)
+            .chain(&self.others);
+        for r in registrations {
+            out.extend(r.warnings.iter().cloned().map(crate::Warning::Registration));
+        }
+        out
+    }
+
     /// Registers the series after the first again: to the robot identified from the
     /// first series, then [`REFINEMENTS`] times to the robot identified from all of them
     /// (module docs); nothing for a single series.

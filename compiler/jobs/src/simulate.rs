@@ -148,6 +148,8 @@ impl SimulateJob {
             config,
             seed: args.seed,
         };
+        // Sized before anything is simulated: a plan too large is refused with its count.
+        plan.sample_count()?;
         Ok(SimulateJob {
             args,
             robot,
