@@ -1116,8 +1116,28 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
         dir.path(),
     );
     assert!(o.status.success());
+    // By default the served field is chosen by cross-validation, and recorded.
     let o = tablec(&["inspect", "d.tbl"], dir.path());
-    assert!(String::from_utf8_lossy(&o.stdout).contains("tuned           no"));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("cross-validated 5-fold on the samples alone"),
+        "{out}"
+    );
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "-o",
+            "m.tbl",
+            "--served-field",
+            "method",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success());
+    let o = tablec(&["inspect", "m.tbl"], dir.path());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("cross-validated no"));
 }
 
 /// `--served-field kriging`: the served field holds kriging with a nugget where the method

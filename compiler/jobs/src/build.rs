@@ -16,10 +16,11 @@ use adwi_robot::Robot;
 use adwi_samples::{RepeatReport, SampleSet};
 use serde::Deserialize;
 
+use crate::args::ServedFieldChoice;
 use crate::args::{Frame, Reading, RobotArgs, TableArgs};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
-use crate::tune::TuneReport;
+use crate::tune::{AutoServedField, TuneReport};
 use crate::{JobError, Progress, Warning};
 
 /// Compile a sample database into a correction table: every option of `tablec build`.
@@ -126,6 +127,9 @@ pub struct Built {
     pub report: BuildReport,
     /// The cross-validation that chose the options (`tune`).
     pub tuning: Option<TuneReport>,
+    /// The cross-validation that chose the served field, without `tune` (`served_field`
+    /// `auto`, the default).
+    pub served_choice: Option<AutoServedField>,
     /// A hybrid table's identification, and the RMS of the residuals its table holds, mm.
     pub calibration: Option<(Calibration, f64)>,
     /// Tracker-frame samples' registration, and both transforms as the identification
@@ -239,6 +243,8 @@ impl BuildJob {
             ..
         } = series;
         let mut tuning = None;
+        let mut served_choice = None;
+        let choose_field = args.table.served_field == ServedFieldChoice::Auto;
         if args.tune {
             progress.stage("tuning", None);
             let report = pool.install(|| {
@@ -249,11 +255,40 @@ impl BuildJob {
                     &calibrate,
                     args.tune_folds,
                     0,
+                    choose_field,
                 )
             })?;
             options = report.options.clone();
             plan = adwi_compile::build::plan(&samples, &options)?;
             tuning = Some(report);
+        } else if choose_field && plan.joint_radius_rad == 0.0 {
+            // Never a reason for a build to fail that would succeed with the method's own
+            // field: without the evidence, that one.
+            if samples.len() < crate::tune::AUTO_MIN_SAMPLES {
+                warnings.push(Warning::ServedFieldNotChosen {
+                    reason: format!(
+                        "{} samples; at least {} are cross-validated",
+                        samples.len(),
+                        crate::tune::AUTO_MIN_SAMPLES
+                    ),
+                });
+            } else {
+                progress.stage("choosing the served field", None);
+                let chosen = pool.install(|| {
+                    crate::tune::auto_served_field(&samples, robot.as_ref(), &options, &calibrate)
+                });
+                match chosen {
+                    Ok(choice) => {
+                        options.served_field = choice.choice.field();
+                        options.tuning = choice.tuning();
+                        plan = adwi_compile::build::plan(&samples, &options)?;
+                        served_choice = Some(choice);
+                    }
+                    Err(e) => warnings.push(Warning::ServedFieldNotChosen {
+                        reason: error_chain(&e),
+                    }),
+                }
+            }
         }
         let advance = |n| progress.advance(n);
         let (bytes, report, calibration) = match &robot {
@@ -295,6 +330,7 @@ impl BuildJob {
             repeats: samples.repeats,
             report,
             tuning,
+            served_choice,
             calibration,
             registration,
             series_registrations: others,
@@ -302,6 +338,18 @@ impl BuildJob {
             seconds: started.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// An error and its sources, in one line.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
 }
 
 /// The combinations a build refuses, before reading anything.

@@ -170,11 +170,22 @@ pub enum Warning {
     Samples(adwi_samples::SampleWarning),
     /// A registration of tracker-frame measurements whose fit no robot's error explains.
     Registration(adwi_robot::register::RegisterWarning),
+    /// The served field could not be chosen by cross-validation (too few samples, or a
+    /// fold that could not be evaluated): the table serves the method's own answer.
+    ServedFieldNotChosen {
+        /// Why.
+        reason: String,
+    },
 }
 
 impl fmt::Display for Warning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Warning::ServedFieldNotChosen { reason } => write!(
+                f,
+                "the served field was not chosen by cross-validation ({reason}): it holds the \
+                 method's own answer (--served-field kriging forces the other)"
+            ),
             Warning::MostlyEmptyGrid {
                 cells,
                 coverable,

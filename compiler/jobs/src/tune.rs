@@ -9,11 +9,13 @@
 //! one that predicts more: the choice is the lowest mean among those that miss the fewest.
 //!
 //! Then, with the chosen `k` and ε, what the served field's nodes hold
-//! ([`ServedField`]): the method's own answer, kriging with a nugget of the samples'
-//! errors, and for a hybrid table that kriging turning with the tool's axis. Each is
-//! scored the same way on the served tier (`paper-trilinear`, or `hybrid-trilinear`), and
-//! the lowest mean wins; a table with a joint screen has no served tier and keeps the
-//! method's.
+//! ([`ServedField`]): the method's own answer, or kriging with a nugget of the samples'
+//! errors (which turns with the tool's axis where its likelihood says so). Each is scored
+//! the same way on the served tier (`paper-trilinear`, or `hybrid-trilinear`), and the
+//! lowest mean wins; a table with a joint screen has no served tier and keeps the
+//! method's. That choice is also what every build makes by default, without `--tune`
+//! ([`auto_served_field`]: the build's own parameters, at most [`AUTO_MAX_SAMPLES`] of the
+//! samples).
 //!
 //! The folds are the same for every candidate, and so is a hybrid table's model on each:
 //! the robot is identified once per fold, by the first evaluation, and every later one
@@ -92,7 +94,8 @@ pub enum TuneError {
 }
 
 /// Chooses `k` and ε for a table of `samples` (a hybrid table when `robot` is given) by
-/// `folds`-fold cross-validation with `seed`, the other options as in `base`.
+/// `folds`-fold cross-validation with `seed`, the other options as in `base`; then, when
+/// `choose_field`, the served field with them ([`served_field`]).
 ///
 /// # Errors
 ///
@@ -104,6 +107,7 @@ pub fn tune(
     calibrate: &adwi_robot::calibrate::CalibrateOptions,
     folds: usize,
     seed: u64,
+    choose_field: bool,
 ) -> Result<TuneReport, TuneError> {
     if folds < 2 {
         return Err(TuneError::Folds);
@@ -116,25 +120,17 @@ pub fn tune(
     };
     // Each fold's identification, made by the first candidate's evaluation.
     let identified: RefCell<Vec<Calibration>> = RefCell::new(Vec::new());
-    // One candidate's cross-validated mean position residual and missed points.
-    let score = |method: Method, build: BuildOptions| -> Result<(Option<f64>, usize), TuneError> {
-        let options = EvalOptions {
-            methods: Some(vec![method]),
+    let score = |method: Method, build: BuildOptions| {
+        cross_validate(
+            samples,
+            robot,
+            calibrate,
+            folds,
+            seed,
+            &identified,
+            method,
             build,
-            robot: robot.cloned(),
-            calibrate: *calibrate,
-            identified: identified.borrow().clone(),
-            ..EvalOptions::default()
-        };
-        let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
-        if identified.borrow().is_empty() {
-            *identified.borrow_mut() = evaluation.identified.clone();
-        }
-        let result = evaluation.method(method);
-        Ok((
-            result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
-            result.map_or(samples.len(), |r| samples.len() - r.predicted()),
-        ))
+        )
     };
     let mut candidates = Vec::new();
     for &k in &K_CANDIDATES {
@@ -161,42 +157,24 @@ pub fn tune(
         cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
         served_cv_mean_mm: None,
     });
-    let mut served = Vec::new();
-    if options.joint_radius_deg.is_none_or(|r| r == 0.0) {
-        let method = if robot.is_some() {
-            Method::HybridTrilinear
-        } else {
-            Method::PaperTrilinear
-        };
-        // The field that turns with the tool's axis needs the hybrid's model.
-        let fields: &[ServedField] = if robot.is_some() {
-            &[
-                ServedField::Method,
-                ServedField::Kriging,
-                ServedField::KrigingToolAxis,
-            ]
-        } else {
-            &[ServedField::Method, ServedField::Kriging]
-        };
-        for &field in fields {
-            let build = BuildOptions {
-                served_field: field,
-                ..options.clone()
-            };
-            let (cv_mean_mm, missed) = score(method, build)?;
-            served.push(ServedCandidate {
-                field,
-                cv_mean_mm,
-                missed,
-            });
-        }
-        // The same cells are served either way; ties keep the method's own answer.
-        let kept = best(served.iter().map(|c| (c.cv_mean_mm, c.missed)));
-        options.served_field = kept.map_or(ServedField::Method, |i| served[i].field);
+    let served = if choose_field {
+        let choice = served_field(
+            samples,
+            robot,
+            &options,
+            calibrate,
+            folds,
+            seed,
+            &identified,
+        )?;
+        options.served_field = choice.field();
         if let Some(tuning) = &mut options.tuning {
-            tuning.served_cv_mean_mm = kept.and_then(|i| served[i].cv_mean_mm);
+            tuning.served_cv_mean_mm = choice.chosen_cv_mean_mm();
         }
-    }
+        choice.candidates
+    } else {
+        Vec::new()
+    };
     Ok(TuneReport {
         method,
         folds,
@@ -204,6 +182,212 @@ pub fn tune(
         chosen,
         served,
         options,
+    })
+}
+
+/// What the served field's nodes should hold, chosen by cross-validation of the served tier
+/// (`paper-trilinear`, or `hybrid-trilinear` with a robot) on the training samples alone:
+/// the method's own answer against kriging with a nugget, with the other options as in
+/// `options`. A table with a joint screen has no served tier: no candidate, the method's.
+///
+/// `identified` holds each fold's identification of a hybrid table's model once made, so
+/// that every later evaluation on the same folds reuses it.
+///
+/// # Errors
+///
+/// An evaluation failing.
+pub fn served_field(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    folds: usize,
+    seed: u64,
+    identified: &RefCell<Vec<Calibration>>,
+) -> Result<ServedChoice, TuneError> {
+    if folds < 2 {
+        return Err(TuneError::Folds);
+    }
+    if options.joint_radius_deg.is_some_and(|r| r > 0.0) {
+        return Ok(ServedChoice::default());
+    }
+    let method = if robot.is_some() {
+        Method::HybridTrilinear
+    } else {
+        Method::PaperTrilinear
+    };
+    let mut candidates = Vec::new();
+    // The kriging turns with the tool's axis where its likelihood says so: one kind.
+    for field in [ServedField::Method, ServedField::Kriging] {
+        let build = BuildOptions {
+            served_field: field,
+            ..options.clone()
+        };
+        let (cv_mean_mm, missed) = cross_validate(
+            samples, robot, calibrate, folds, seed, identified, method, build,
+        )?;
+        candidates.push(ServedCandidate {
+            field,
+            cv_mean_mm,
+            missed,
+        });
+    }
+    // The same cells are served either way; ties keep the method's own answer.
+    let chosen = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)));
+    Ok(ServedChoice {
+        folds,
+        candidates,
+        chosen,
+    })
+}
+
+/// The served fields tried and the one chosen ([`served_field`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ServedChoice {
+    /// The folds.
+    pub folds: usize,
+    /// Every field tried, in order (none for a table without a served tier).
+    pub candidates: Vec<ServedCandidate>,
+    /// The index of the chosen one, if any predicted a held-out point.
+    pub chosen: Option<usize>,
+}
+
+impl ServedChoice {
+    /// The field chosen: the method's own answer when none was.
+    pub fn field(&self) -> ServedField {
+        self.chosen
+            .map_or(ServedField::Method, |i| self.candidates[i].field)
+    }
+
+    /// The chosen field's cross-validated mean, mm.
+    pub fn chosen_cv_mean_mm(&self) -> Option<f64> {
+        self.chosen.and_then(|i| self.candidates[i].cv_mean_mm)
+    }
+}
+
+/// One candidate's cross-validated mean position residual of `method` (`None` when no
+/// held-out point was predicted) and its missed points, on the same folds as every other;
+/// the first evaluation fills `identified`.
+#[allow(clippy::too_many_arguments)]
+fn cross_validate(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    folds: usize,
+    seed: u64,
+    identified: &RefCell<Vec<Calibration>>,
+    method: Method,
+    build: BuildOptions,
+) -> Result<(Option<f64>, usize), TuneError> {
+    let options = EvalOptions {
+        methods: Some(vec![method]),
+        build,
+        robot: robot.cloned(),
+        calibrate: *calibrate,
+        identified: identified.borrow().clone(),
+        ..EvalOptions::default()
+    };
+    let evaluation = evaluate(samples, &Protocol::KFold { folds, seed }, &options)?;
+    if identified.borrow().is_empty() {
+        *identified.borrow_mut() = evaluation.identified.clone();
+    }
+    let result = evaluation.method(method);
+    Ok((
+        result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+        result.map_or(samples.len(), |r| samples.len() - r.predicted()),
+    ))
+}
+
+/// The fewest samples the served field's choice by default cross-validates: with fewer,
+/// the folds are too small to tell two fields apart, and the method's own answer is served.
+pub const AUTO_MIN_SAMPLES: usize = 25;
+/// The folds of the served field's choice by default ([`auto_served_field`]).
+pub const AUTO_FOLDS: usize = 5;
+/// The most samples the served field's choice by default cross-validates: above, an evenly
+/// strided subset of this many, so that the choice costs a bounded time whatever the
+/// sample count (the table itself is built from all of them).
+pub const AUTO_MAX_SAMPLES: usize = 1000;
+
+/// The served field chosen by default, and the evidence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoServedField {
+    /// The served fields tried and the one chosen.
+    pub choice: ServedChoice,
+    /// The exact tier's cross-validated mean on the same folds, mm (the method the table
+    /// computes, with the build's parameters).
+    pub exact_cv_mean_mm: Option<f64>,
+    /// How many of the samples were cross-validated ([`AUTO_MAX_SAMPLES`] at most).
+    pub samples: usize,
+}
+
+impl AutoServedField {
+    /// What the table's header records of it.
+    pub fn tuning(&self) -> Option<Tuning> {
+        Some(Tuning {
+            folds: self.choice.folds as u32,
+            cv_mean_mm: self.exact_cv_mean_mm?,
+            served_cv_mean_mm: self.choice.chosen_cv_mean_mm(),
+        })
+    }
+}
+
+/// The served field a build chooses when none is asked for: [`served_field`] with
+/// [`AUTO_FOLDS`] folds on at most [`AUTO_MAX_SAMPLES`] of the samples, and the exact
+/// tier's figure on the same folds.
+///
+/// # Errors
+///
+/// An evaluation failing.
+pub fn auto_served_field(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+) -> Result<AutoServedField, TuneError> {
+    let subset;
+    let samples = if samples.len() > AUTO_MAX_SAMPLES {
+        let stride = samples.len() as f64 / AUTO_MAX_SAMPLES as f64;
+        let indices: Vec<usize> = (0..AUTO_MAX_SAMPLES)
+            .map(|i| (i as f64 * stride) as usize)
+            .collect();
+        subset = samples.subset(&indices);
+        &subset
+    } else {
+        samples
+    };
+    let identified = RefCell::new(Vec::new());
+    let exact = if robot.is_some() {
+        Method::Hybrid
+    } else {
+        Method::Paper
+    };
+    let method = BuildOptions {
+        served_field: ServedField::Method,
+        ..options.clone()
+    };
+    let (exact_cv_mean_mm, _) = cross_validate(
+        samples,
+        robot,
+        calibrate,
+        AUTO_FOLDS,
+        0,
+        &identified,
+        exact,
+        method,
+    )?;
+    let choice = served_field(
+        samples,
+        robot,
+        options,
+        calibrate,
+        AUTO_FOLDS,
+        0,
+        &identified,
+    )?;
+    Ok(AutoServedField {
+        choice,
+        exact_cv_mean_mm,
+        samples: samples.len(),
     })
 }
 

@@ -59,6 +59,9 @@ fn print_summary(built: &Built) {
     if let Some(t) = &built.tuning {
         print_tuning(t);
     }
+    if let Some(c) = &built.served_choice {
+        print_served_choice(c);
+    }
     println!("spacing        {spacing} (median nearest-neighbour distance)");
     println!(
         "radius ε       {:.3} mm{}",
@@ -174,22 +177,39 @@ fn print_tuning(report: &adwi_jobs::tune::TuneReport) {
         );
     }
     if let Some(chosen) = report.candidates.get(report.chosen) {
-        for c in &report.served {
-            let mean = c
-                .cv_mean_mm
-                .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
-            println!(
-                "  {} served field {:<17} (k {}, ε {:.3} mm): {mean}, {} missed",
-                if c.field == report.options.served_field {
-                    "*"
-                } else {
-                    " "
-                },
-                c.field.name(),
-                chosen.k,
-                chosen.radius_mm,
-                c.missed
-            );
-        }
+        let parameters = format!("k {}, ε {:.3} mm", chosen.k, chosen.radius_mm);
+        print_served_candidates(&report.served, report.options.served_field, &parameters);
+    }
+}
+
+/// The served field chosen by default: each field's cross-validated mean, the chosen one
+/// marked.
+fn print_served_choice(auto: &adwi_jobs::tune::AutoServedField) {
+    let exact = auto
+        .exact_cv_mean_mm
+        .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
+    println!(
+        "served field   chosen by {}-fold cross-validation on {} of the samples alone (the \
+         exact tier: {exact}):",
+        auto.choice.folds, auto.samples
+    );
+    print_served_candidates(&auto.choice.candidates, auto.choice.field(), "the build's");
+}
+
+fn print_served_candidates(
+    candidates: &[adwi_jobs::tune::ServedCandidate],
+    chosen: adwi_compile::build::ServedField,
+    parameters: &str,
+) {
+    for c in candidates {
+        let mean = c
+            .cv_mean_mm
+            .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
+        println!(
+            "  {} served field {:<17} ({parameters}): {mean}, {} missed",
+            if c.field == chosen { "*" } else { " " },
+            c.field.name(),
+            c.missed
+        );
     }
 }

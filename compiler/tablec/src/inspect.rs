@@ -80,7 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {
         Some(t) => println!(
-            "tuned           k and ε chosen by {}-fold cross-validation on the samples: {:.4} mm mean{}",
+            "cross-validated {}-fold on the samples alone: the method {:.4} mm mean{}",
             t.folds,
             t.cv_mean_mm,
             t.served_cv_mean_mm.map_or(String::new(), |m| format!(
@@ -88,7 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 h.served_field.name()
             ))
         ),
-        None => println!("tuned           no (parameters given or defaulted)"),
+        None => println!("cross-validated no (parameters and served field given)"),
     }
     println!(
         "joint screen    {}",

@@ -32,7 +32,7 @@
 //! | 152 | 8  | joint-space radius, rad: a sample is admissible only if every joint value is within it of the target's, when the target's joint values are given; 0 = off |
 //! | 160 | 4  | v2: the robot's joint count, when the table holds joint values or a model; 0 otherwise (v1: reserved, zero; v1 robots have 6) |
 //! | 164 | 4  | v2: the number of node sets of the served tier; 0 for a table served by its exact tier alone (v1: reserved, zero) |
-//! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`); 0 when they were given or defaulted |
+//! | 168 | 4  | v2: folds of the cross-validation that chose the method's parameters (`tablec build --tune`) or the served field (by default); 0 when both were given |
 //! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`), 2 that kriging with a part that turns with the tool's approach axis (`--served-field kriging-tool-axis`; hybrid tables; 4 vectors per node) |
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
 //! | 184 | 8  | v2: the same cross-validation's mean position residual of the served tier with the chosen served field, mm (0 when not tuned or without a served tier) |
@@ -190,7 +190,8 @@ impl ServedField {
     }
 }
 
-/// The cross-validation that chose a table's parameters (`tablec build --tune`), recorded
+/// The cross-validation that chose a table's parameters (`tablec build --tune`) or its
+/// served field (by default, `--served-field auto`), recorded
 /// so that `inspect` can say how the table came to be and how well it is expected to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tuning {
