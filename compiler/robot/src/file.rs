@@ -176,9 +176,7 @@ impl Robot {
     }
 }
 
-/// The deepest chain of robot files naming robot files: a TOML file naming a URDF file is
-/// two; layers of TOML files (one adding a tool to another) rarely more than three.
-pub const MAX_ROBOT_FILE_DEPTH: usize = 8;
+pub use crate::error::MAX_ROBOT_FILE_DEPTH;
 
 /// Loads the robot file `path`, named by the files of `naming` (canonical, outermost
 /// first), recording every file read in `files`.

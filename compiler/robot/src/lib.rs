@@ -10,6 +10,7 @@
 //! so that one implementation serves simulation, identification and queries.
 
 pub mod calibrate;
+pub mod error;
 pub mod error_model;
 pub mod file;
 pub mod ik;

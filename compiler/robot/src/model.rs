@@ -68,7 +68,7 @@
 //! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
 //! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. The
 //! file it names may itself be a TOML robot file naming another (a tool added to a robot),
-//! at most [`crate::file::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
+//! at most [`crate::error::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
 //! [`Robot::load_with_files`] reports every file read. `home_deg` holds degrees for
 //! revolute joints and millimetres for prismatic ones.
 //!
@@ -104,6 +104,7 @@ use std::path::{Path, PathBuf};
 pub use adwi_runtime::chain::{Chain, ChainJoint, Compliance, JointKind, MAX_JOINTS};
 use adwi_samples::pose::kuka_abc_deg_from_rotation;
 
+pub use crate::error::RobotError;
 use crate::plausible::{check, check_all, Quantity};
 
 /// One µrad/(N·m), the unit robot files and calibration reports give compliances in, in the
@@ -111,149 +112,6 @@ use crate::plausible::{check, check_all, Quantity};
 pub const URAD_PER_NM: f64 = 1e-12;
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
-
-/// What can be wrong with a robot file.
-#[derive(Debug, thiserror::Error)]
-pub enum RobotError {
-    /// Robot files name each other in a cycle (a file naming itself, two naming each
-    /// other): the files, the first named again last.
-    #[error("robot files name each other in a cycle: {}", arrows(files))]
-    NamingCycle {
-        /// The files as they name each other, the file that closes the cycle last.
-        files: Vec<PathBuf>,
-    },
-    /// Robot files name robot files deeper than [`crate::file::MAX_ROBOT_FILE_DEPTH`].
-    #[error(
-        "robot files name robot files more than {} deep: {}",
-        crate::file::MAX_ROBOT_FILE_DEPTH,
-        arrows(files)
-    )]
-    NamingTooDeep {
-        /// The files as they name each other.
-        files: Vec<PathBuf>,
-    },
-    /// A file named by a robot file (its `urdf` key) is not a valid robot description.
-    #[error("{} names {}", file.display(), named.display())]
-    InNamedFile {
-        /// The robot file.
-        file: PathBuf,
-        /// The file it names.
-        named: PathBuf,
-        /// What is wrong with that file.
-        #[source]
-        source: Box<RobotError>,
-    },
-    /// The file could not be read.
-    #[error("cannot read robot file {path}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The file is not valid TOML or does not have the robot file's keys.
-    #[error("robot file {path} is not a valid robot description")]
-    Parse {
-        /// The file.
-        path: PathBuf,
-        /// The TOML error, with line and column.
-        #[source]
-        source: crate::toml_error::TomlError,
-    },
-    /// The file is not a URDF file the parser reads.
-    #[error("{path} is not a valid URDF file")]
-    Urdf {
-        /// The file.
-        path: PathBuf,
-        /// The parser's error.
-        #[source]
-        source: crate::urdf::UrdfParseError,
-    },
-    /// The URDF file has no serial chain between the links asked for, or a joint this
-    /// crate cannot model.
-    #[error("URDF: {0}")]
-    UrdfChain(String),
-    /// The robot has no joint, or more than the runtime serves.
-    #[error("a robot has 1 to {MAX_JOINTS} movable joints, this one {found}")]
-    JointCount {
-        /// How many movable joints the description has.
-        found: usize,
-    },
-    /// A joint is described neither in MD-H nor as a chain joint, or the joints mix both.
-    #[error("joint {joint}: {reason}")]
-    JointStyle {
-        /// Joint number, 1-based.
-        joint: usize,
-        /// What is wrong.
-        reason: String,
-    },
-    /// A number is NaN or infinite.
-    #[error("{field} is not a finite number")]
-    NonFinite {
-        /// Which value, e.g. `joint 2 a_mm`.
-        field: String,
-    },
-    /// A number lies outside the range any robot's does ([`crate::plausible`]).
-    #[error("{field}: {reason}")]
-    Implausible {
-        /// Which value, e.g. `joint 2 a_mm`.
-        field: String,
-        /// Its value and the bound it crosses.
-        reason: adwi_runtime::format::Implausible,
-    },
-    /// A value is out of its range.
-    #[error("{field}: {reason}")]
-    Invalid {
-        /// Which value.
-        field: String,
-        /// Its valid range.
-        reason: String,
-    },
-    /// A joint's limits are empty or reversed.
-    #[error("joint {joint}: limits [{lower}, {upper}] {unit} must have lower < upper")]
-    EmptyLimits {
-        /// Joint number, 1-based.
-        joint: usize,
-        /// Lower limit.
-        lower: f64,
-        /// Upper limit.
-        upper: f64,
-        /// `deg` or `mm`.
-        unit: &'static str,
-    },
-    /// The home posture has the wrong number of values.
-    #[error("home_deg has {found} values, the robot {expected} joints")]
-    HomeLength {
-        /// The joint count.
-        expected: usize,
-        /// The values given.
-        found: usize,
-    },
-    /// The home posture lies outside a joint's limits.
-    #[error("home_deg[{index}] = {home} {unit} is outside joint {joint}'s limits [{lower}, {upper}]", index = joint - 1)]
-    HomeOutsideLimits {
-        /// Joint number, 1-based.
-        joint: usize,
-        /// The home value (deg or mm).
-        home: f64,
-        /// Lower limit.
-        lower: f64,
-        /// Upper limit.
-        upper: f64,
-        /// `deg` or `mm`.
-        unit: &'static str,
-    },
-    /// The runtime refused the chain (a rotation that is not one, an axis of zero length).
-    #[error("the robot's kinematic chain is invalid")]
-    Chain(#[source] adwi_runtime::chain::ChainError),
-}
-
-/// Files as they name each other, `a.toml → b.toml → a.toml`.
-fn arrows(files: &[PathBuf]) -> String {
-    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
-    names.join(" → ")
-}
 
 /// How a robot's joints are described: the parameterisation identification perturbs and
 /// the closed-form inverse kinematics needs.

@@ -30,7 +30,7 @@
 
 use adwi_runtime::format::Implausible;
 
-use crate::model::RobotError;
+use crate::error::RobotError;
 
 /// The largest length or position, mm: 1 km, the table format's bound on coordinates.
 pub const MAX_LENGTH_MM: f64 = adwi_runtime::format::MAX_COORDINATE_MM;

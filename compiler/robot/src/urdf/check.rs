@@ -4,7 +4,7 @@
 
 use urdf_rs::{Geometry, JointType, Pose};
 
-use crate::model::RobotError;
+use crate::error::RobotError;
 use crate::plausible::{check, check_all, name as shown, Quantity};
 
 /// Checks every number of `urdf` (module docs).

@@ -70,38 +70,7 @@ mod write;
 pub use scan::{MAX_URDF_DEPTH, MAX_URDF_ELEMENTS, MAX_URDF_JOINTS, MAX_URDF_LINKS};
 pub use write::UrdfOmission;
 
-/// The URDF parser's error, its message cut to [`UrdfParseError::MAX_CHARS`]: the parser
-/// quotes attribute values whole, however long.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct UrdfParseError {
-    /// The parser's message, cut.
-    pub message: String,
-}
-
-impl UrdfParseError {
-    /// The most characters of the parser's message kept.
-    pub const MAX_CHARS: usize = 300;
-
-    fn new(error: &urdf_rs::UrdfError) -> UrdfParseError {
-        let full = error.to_string();
-        let count = full.chars().count();
-        let message = if count > Self::MAX_CHARS {
-            let kept: String = full.chars().take(Self::MAX_CHARS).collect();
-            format!("{kept}… ({} more characters)", count - Self::MAX_CHARS)
-        } else {
-            full
-        };
-        UrdfParseError { message }
-    }
-}
-
-impl std::fmt::Display for UrdfParseError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for UrdfParseError {}
+pub use crate::error::UrdfParseError;
 
 /// How many names a message lists before "and N more".
 const NAMES_SHOWN: usize = 8;

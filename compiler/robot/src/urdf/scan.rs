@@ -9,7 +9,7 @@
 //! depth the parser reaches: where the two read malformed text differently, the parser
 //! refuses the text at that point, before any deeper element.
 
-use crate::model::RobotError;
+use crate::error::RobotError;
 
 /// The deepest nesting of elements a URDF file may have: the URDF grammar nests five deep
 /// (`robot`, `link`, `visual`, `geometry`, `mesh`), extensions such as `<gazebo>` a few
