@@ -272,6 +272,37 @@ pub struct EvalOptions {
     /// protocol and identification options made it ([`Evaluation::identified`]): several
     /// evaluations then identify once per split. Empty: identified here.
     pub identified: Vec<Calibration>,
+    /// Chooses the served field of the served-tier methods (`paper-trilinear`,
+    /// `hybrid-trilinear`) from each split's training samples alone, as a build without a
+    /// given field does; `None`: `build`'s served field.
+    pub served_field: Option<ServedFieldRule>,
+}
+
+/// A served field chosen from a split's training samples (their calibration, for a hybrid
+/// table): what [`EvalOptions::served_field`] holds. A rule, not a fixed field, so that no
+/// held-out point ever takes part in the choice.
+#[derive(Clone)]
+pub struct ServedFieldRule(
+    #[allow(clippy::type_complexity)]
+    pub  std::sync::Arc<dyn Fn(&SampleSet) -> adwi_compile::build::ServedField + Send + Sync>,
+);
+
+impl std::fmt::Debug for ServedFieldRule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ServedFieldRule(..)")
+    }
+}
+
+/// The build options of `method` on the training samples `train`: `options.build`, with the
+/// served field of a served-tier method chosen from `train` when a rule is given.
+fn build_options_for(method: Method, train: &SampleSet, options: &EvalOptions) -> BuildOptions {
+    match (&options.served_field, method) {
+        (Some(rule), Method::PaperTrilinear | Method::HybridTrilinear) => BuildOptions {
+            served_field: (rule.0)(train),
+            ..options.build.clone()
+        },
+        _ => options.build.clone(),
+    }
 }
 
 /// Why an evaluation could not run at all (a method that cannot handle the data is not an
@@ -1006,7 +1037,7 @@ fn predict_split(
             ))
         }
         Method::Paper | Method::PaperTrilinear => {
-            let table = compile_table(method, train, &options.build)?;
+            let table = compile_table(method, train, &build_options_for(method, train, options))?;
             let exact = method == Method::Paper;
             targets
                 .iter()
@@ -1059,7 +1090,7 @@ fn predict_split(
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
             let model = c.prepared_model();
-            let bytes = build::plan(train, &options.build)
+            let bytes = build::plan(train, &build_options_for(method, train, options))
                 .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
                 .map_err(|source| EvalError::Build { method, source })?
                 .bytes;

@@ -264,30 +264,20 @@ impl BuildJob {
         } else if choose_field && plan.joint_radius_rad == 0.0 {
             // Never a reason for a build to fail that would succeed with the method's own
             // field: without the evidence, that one.
-            if samples.len() < crate::tune::AUTO_MIN_SAMPLES {
-                warnings.push(Warning::ServedFieldNotChosen {
-                    reason: format!(
-                        "{} samples; at least {} are cross-validated",
-                        samples.len(),
-                        crate::tune::AUTO_MIN_SAMPLES
-                    ),
-                });
-            } else {
-                progress.stage("choosing the served field", None);
-                let chosen = pool.install(|| {
-                    crate::tune::auto_served_field(&samples, robot.as_ref(), &options, &calibrate)
-                });
-                match chosen {
-                    Ok(choice) => {
-                        options.served_field = choice.choice.field();
-                        options.tuning = choice.tuning();
-                        plan = adwi_compile::build::plan(&samples, &options)?;
-                        served_choice = Some(choice);
-                    }
-                    Err(e) => warnings.push(Warning::ServedFieldNotChosen {
-                        reason: error_chain(&e),
-                    }),
+            progress.stage("choosing the served field", None);
+            let chosen = pool.install(|| {
+                crate::tune::auto_served_field(&samples, robot.as_ref(), &options, &calibrate)
+            });
+            match chosen {
+                Ok(choice) => {
+                    options.served_field = choice.choice.field();
+                    options.tuning = choice.tuning();
+                    plan = adwi_compile::build::plan(&samples, &options)?;
+                    served_choice = Some(choice);
                 }
+                Err(e) => warnings.push(Warning::ServedFieldNotChosen {
+                    reason: error_chain(&e),
+                }),
             }
         }
         let advance = |n| progress.advance(n);

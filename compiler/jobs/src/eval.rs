@@ -3,15 +3,16 @@
 
 use std::path::{Path, PathBuf};
 
+use adwi_compile::build::ServedField;
 use adwi_compile::write::OutputPlan;
-use adwi_eval::{EvalOptions, Evaluation, Method, Protocol};
+use adwi_eval::{EvalOptions, Evaluation, Method, Protocol, ServedFieldRule};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
 
-use crate::args::{parsed, Frame, Reading, RobotArgs, TableArgs};
+use crate::args::{parsed, Frame, Reading, RobotArgs, ServedFieldChoice, TableArgs};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
 use crate::{JobError, Warning};
@@ -267,11 +268,28 @@ impl EvalJob {
                     Some(r) => Some(r.robot.clone()),
                     None => file_robot,
                 };
+                let build = args.options.build_options();
+                // As a build without a given served field: chosen from each split's
+                // training samples alone.
+                let served_field =
+                    (args.options.served_field == ServedFieldChoice::Auto).then(|| {
+                        let (robot, build) = (robot.clone(), build.clone());
+                        ServedFieldRule(std::sync::Arc::new(move |train: &SampleSet| {
+                            crate::tune::auto_served_field(
+                                train,
+                                robot.as_ref(),
+                                &build,
+                                &calibrate,
+                            )
+                            .map_or(ServedField::Method, |auto| auto.choice.field())
+                        }))
+                    });
                 let options = EvalOptions {
                     methods: args.methods.clone(),
-                    build: args.options.build_options(),
+                    build,
                     robot,
                     calibrate,
+                    served_field,
                     ..EvalOptions::default()
                 };
                 // The tables the methods build are sized now, from every sample: a grid

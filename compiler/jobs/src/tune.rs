@@ -85,6 +85,9 @@ pub enum TuneError {
     /// Fewer than two folds.
     #[error("tuning needs at least 2 folds")]
     Folds,
+    /// Too few samples to cross-validate a choice by default ([`AUTO_MIN_SAMPLES`]).
+    #[error("{0} samples; at least {AUTO_MIN_SAMPLES} are cross-validated")]
+    TooFewSamples(usize),
     /// No candidate predicted a single held-out point.
     #[error("no candidate predicted any held-out point")]
     NothingPredicted,
@@ -344,6 +347,9 @@ pub fn auto_served_field(
     options: &BuildOptions,
     calibrate: &adwi_robot::calibrate::CalibrateOptions,
 ) -> Result<AutoServedField, TuneError> {
+    if samples.len() < AUTO_MIN_SAMPLES {
+        return Err(TuneError::TooFewSamples(samples.len()));
+    }
     let subset;
     let samples = if samples.len() > AUTO_MAX_SAMPLES {
         let stride = samples.len() as f64 / AUTO_MAX_SAMPLES as f64;
