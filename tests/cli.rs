@@ -1079,7 +1079,7 @@ fn tune_chooses_k_and_radius_and_records_the_choice() {
     let inspect = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(
         inspect.contains(&format!(
-            "chosen by 3-fold cross-validation on the samples: {mean:.4} mm mean"
+            "cross-validated 3-fold on the samples alone: the method {mean:.4} mm mean"
         )),
         "{inspect}"
     );
