@@ -475,6 +475,15 @@ impl<D: AsRef<[u8]>> Table<D> {
                 _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
             },
         };
+        // A hybrid table's model holds everywhere: where the method has no neighbour, or
+        // the target is outside the grid, the answer is the model alone.
+        let residual_missing = matches!(
+            correction.status,
+            Status::OutsideGrid | Status::NoAdmissibleNeighbour
+        );
+        if residual_missing && self.model.is_some() {
+            correction = Correction::model_only();
+        }
         if correction.status != Status::Ok {
             return correction;
         }

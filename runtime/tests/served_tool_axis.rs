@@ -13,7 +13,7 @@ use adwi_runtime::format::{
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use adwi_runtime::method::{self, MethodParams};
 use adwi_runtime::model::PreparedModel;
-use adwi_runtime::{OpenError, Payload, Status, Table, Target};
+use adwi_runtime::{OpenError, Payload, Residual, Status, Table, Target};
 use proptest::prelude::*;
 
 const GRID: Grid = Grid {
@@ -25,8 +25,8 @@ const GRID: Grid = Grid {
 const PER_SET: usize = 18;
 const NX: usize = 3;
 const NY: usize = 3;
-/// The node whose value is missing: the grid's maximum corner, so only the last cell is
-/// not served.
+/// The node whose value is missing: the grid's maximum corner, so that the last cell
+/// fades.
 const MISSING: usize = PER_SET - 1;
 
 fn chains() -> (Chain, Chain) {
@@ -141,25 +141,35 @@ fn refusal(header: Header, data: &v2::TableData) -> &'static str {
     }
 }
 
-/// The served answer by the definition: the 8 corners of the target's cell weighted by
-/// hand, each `f + a·h` with `a` the nominal TCP's z axis, plus the model part; `None`
-/// when a corner is the missing node.
-fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> Option<([f64; 3], [f64; 3])> {
+/// The served answer by the definition: the 8 corners of the cell of the target's nearest
+/// point in the grid box weighted by hand, each `f + a·h` with `a` the nominal TCP's z
+/// axis, the missing node counting zero, scaled by the fade outside the box, plus the
+/// model part; and the residual flag the answer should carry.
+fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> ([f64; 3], [f64; 3], Residual) {
     let (nominal, calibrated) = chains();
     let r = nominal.tcp_pose(q).unwrap().rotation;
     let a = [r[0][2], r[1][2], r[2][2]];
     let mut cell = [0usize; 3];
     let mut t = [0.0; 3];
+    let mut distance2_mm2 = 0.0;
     for axis in 0..3 {
-        let u = (position_mm[axis] - GRID.origin_mm[axis]) / GRID.cell_mm;
+        let low = GRID.origin_mm[axis];
+        let high = low + GRID.dims[axis] as f64 * GRID.cell_mm;
+        let nearest = position_mm[axis].clamp(low, high);
+        distance2_mm2 += (position_mm[axis] - nearest).powi(2);
+        let u = (nearest - low) / GRID.cell_mm;
         cell[axis] = (u.floor() as usize).min(GRID.dims[axis] as usize - 1);
         t[axis] = u - cell[axis] as f64;
     }
+    let fade_mm = adwi_runtime::served::fade_length_mm(GRID.cell_mm);
+    let s = (1.0 - distance2_mm2.sqrt() / fade_mm).max(0.0);
+    let fade = s * s * (3.0 - 2.0 * s);
     let (model_p, model_r) = PreparedModel::new(nominal, calibrated)
         .unwrap()
         .error(q)
         .unwrap();
     let mut out = [model_p, model_r];
+    let (mut missing, mut contributed) = (false, false);
     for corner in 0..8 {
         let d = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
         let weight: f64 = (0..3)
@@ -167,16 +177,25 @@ fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> Option<([f64; 3], [f64; 3])
             .product();
         let n = (cell[0] + d[0]) + NX * ((cell[1] + d[1]) + NY * (cell[2] + d[2]));
         if n == MISSING {
-            return None;
+            missing = true;
+            continue;
         }
+        contributed |= weight > 0.0 && fade > 0.0;
         for (kind, sum) in out.iter_mut().enumerate() {
             for (c, sum) in sum.iter_mut().enumerate() {
                 let turned: f64 = (0..3).map(|i| a[i] * term(n, i + 1, kind)[c]).sum();
-                *sum += weight * (term(n, 0, kind)[c] + turned);
+                *sum += fade * weight * (term(n, 0, kind)[c] + turned);
             }
         }
     }
-    Some((out[0], out[1]))
+    let residual = if !contributed {
+        Residual::ModelOnly
+    } else if missing || distance2_mm2 > 0.0 {
+        Residual::Faded
+    } else {
+        Residual::Full
+    };
+    (out[0], out[1], residual)
 }
 
 fn position(fraction: [f64; 3]) -> [f64; 3] {
@@ -188,23 +207,19 @@ proptest! {
 
     #[test]
     fn the_tool_axis_field_answers_f_plus_a_dot_h_blended_plus_the_model(
-        fraction in prop::array::uniform3(0.0..=1.0f64),
+        fraction in prop::array::uniform3(-1.5..=2.5f64),
         q in prop::array::uniform6(-3.2..3.2f64),
     ) {
         let (header, data) = parts(ServedField::KrigingToolAxis, 1.0);
         let table = open(header, &data).unwrap();
         let p = position(fraction);
         let got = table.query_with_joints(&Target::at(p), &q);
-        match reference(p, &q) {
-            Some((position_mm, rotation_rad)) => {
-                prop_assert_eq!(got.status, Status::Ok, "at {:?}", p);
-                prop_assert_eq!(got.neighbours, 8);
-                for c in 0..3 {
-                    prop_assert!((got.position_error_mm[c] - position_mm[c]).abs() <= 1e-12, "{:?} vs {:?}", got, position_mm);
-                    prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got, rotation_rad);
-                }
-            }
-            None => prop_assert_eq!(got.status, Status::UncoveredCell, "at {:?}", p),
+        let (position_mm, rotation_rad, residual) = reference(p, &q);
+        prop_assert_eq!(got.status, Status::Ok, "at {:?}", p);
+        prop_assert_eq!(got.residual, residual, "at {:?}", p);
+        for c in 0..3 {
+            prop_assert!((got.position_error_mm[c] - position_mm[c]).abs() <= 1e-12, "{:?} vs {:?}", got, position_mm);
+            prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got, rotation_rad);
         }
     }
 
@@ -237,10 +252,19 @@ fn statuses_and_inspection_of_a_tool_axis_table() {
     );
     let q = [0.1, -0.7, 1.2, 0.3, -0.4, 1.1];
     let outside = position([1.5, 0.5, 0.5]);
-    let served = |p| table.query_with_joints(&Target::at(p), &q).status;
-    assert_eq!(served(outside), Status::OutsideGrid);
-    assert_eq!(served(position([0.75, 0.75, 0.5])), Status::UncoveredCell);
-    assert_eq!(served(inside), Status::Ok);
+    let served = |p| {
+        let c = table.query_with_joints(&Target::at(p), &q);
+        (c.status, c.residual)
+    };
+    // A hybrid table: the model answers everywhere, the residual fading where it ends.
+    assert_eq!(served(outside), (Status::Ok, Residual::Faded));
+    let far = position([5.0, 0.5, 0.5]);
+    assert_eq!(served(far), (Status::Ok, Residual::ModelOnly));
+    assert_eq!(
+        served(position([0.75, 0.75, 0.5])),
+        (Status::Ok, Residual::Faded)
+    );
+    assert_eq!(served(inside), (Status::Ok, Residual::Full));
     let Some(Payload::V2(archive)) = table.payload() else {
         panic!("a version-2 table")
     };
