@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::{Correction, Status, Table, Target, Tier};
+use adwi_runtime::{Correction, Residual, Status, Table, Target, Tier};
 use adwi_samples::pose;
 use anyhow::bail;
 
@@ -106,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             orientation_error_rad: [0.0; 3],
             neighbours: 0,
             status: Status::InvalidInput,
+            residual: Residual::Full,
         }
     } else {
         table.answer(&target, joints_rad.as_deref(), tier(args.exact))
@@ -132,6 +133,9 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     if c.status != Status::Ok {
         eprintln!("no correction: {}", c.status.as_str());
         return Ok(Answered::NotAll);
+    }
+    if table.is_hybrid() {
+        println!("residual     {}", c.residual.as_str());
     }
     let e = c.position_error_mm;
     println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
@@ -229,7 +233,7 @@ fn run_batch(
     };
     writeln!(
         out,
-        "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status,\
+        "x,y,z,pred_dx,pred_dy,pred_dz,pred_rx,pred_ry,pred_rz,neighbours,status,residual,\
          command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
     )?;
     let orientation = table.has_orientation();
@@ -253,6 +257,7 @@ fn run_batch(
         }
         write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
         if c.status == Status::Ok {
+            write!(out, ",{}", c.residual.as_str())?;
             let command = command(table, &row.target, row.joints_rad.as_deref(), &c, exact);
             let p = command.position_mm;
             write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
@@ -265,7 +270,7 @@ fn run_batch(
             writeln!(out, ",{}", command.status)?;
         } else {
             *unanswered.entry(c.status.as_str()).or_default() += 1;
-            writeln!(out, ",,,,,,,")?;
+            writeln!(out, ",,,,,,,,")?;
         }
     }
     out.flush()?;
