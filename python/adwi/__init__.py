@@ -332,7 +332,9 @@ class QueryResult:
       rad, base frame); None for position-only tables.
     - ``status`` (N,): status names as ``tablec query`` prints them (``ok``,
       ``outside_grid``, ``no_neighbour``, ``invalid_input``, ``missing_joints``,
-      ``numerical_failure``, ``uncovered_cell``); ``status_code`` the same as integers,
+      ``numerical_failure``, ``uncovered_cell``, ``joints_mismatch``: a hybrid table's
+      joints do not put the tool near the target, joints given in the wrong unit, degrees
+      unless ``joints_unit="rad"``); ``status_code`` the same as integers,
       indexes of :data:`STATUS_NAMES`; ``ok`` a boolean mask.
     - ``neighbours`` (N,): neighbours weighted (exact tier) or nodes blended (served tier).
     - ``residual`` (N,): how much of a hybrid table's residual field the answer holds

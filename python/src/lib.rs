@@ -38,7 +38,7 @@ const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
 const COMPENSATE_ITERATIONS: u32 = 50;
 
 /// Every status, indexed by its code (`Status as u8`).
-const STATUSES: [Status; 7] = [
+const STATUSES: [Status; 8] = [
     Status::Ok,
     Status::OutsideGrid,
     Status::NoAdmissibleNeighbour,
@@ -46,6 +46,7 @@ const STATUSES: [Status; 7] = [
     Status::MissingJoints,
     Status::NumericalFailure,
     Status::UncoveredCell,
+    Status::JointsMismatch,
 ];
 
 // The codes are the statuses' own (`Status as u8`).

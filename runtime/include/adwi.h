@@ -96,10 +96,14 @@ enum {
                                           geometry, e.g. a target and a sample both within
                                           ~1e-160 mm of the base origin) and is withheld;
                                           correction zero */
-    ADWI_STATUS_UNCOVERED_CELL = 6 /* the served field is not defined in the target's cell
-                                      (a corner has no admissible sample; never
-                                      extrapolated); the exact tier may answer there;
-                                      correction zero */
+    ADWI_STATUS_UNCOVERED_CELL = 6, /* the served field is not defined in the target's cell
+                                       (a corner has no admissible sample; never
+                                       extrapolated; position-only tables); the exact tier
+                                       may answer there; correction zero */
+    ADWI_STATUS_JOINTS_MISMATCH = 7 /* hybrid table: the joint values' nominal forward
+                                       kinematics puts the tool farther from the target than
+                                       the table allows (joints_rad takes radians: degrees
+                                       given?); correction zero */
 };
 
 /* How much of a hybrid table's residual field a correction holds

@@ -126,7 +126,8 @@ pub struct AdwiCorrection {
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
     /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them),
     /// 5 numerical failure (a non-finite prediction, withheld), 6 uncovered cell (the
-    /// served field is not defined there).
+    /// served field is not defined there), 7 joints mismatch (a hybrid table's joint
+    /// values, in radians, do not put the tool near the target).
     pub status: i32,
     /// [`crate::Residual`] as an integer: 0 full, 1 faded, 2 model only (a hybrid
     /// table's residual field, wholly, in part or not at all; 0 for a position-only table).
@@ -816,6 +817,7 @@ mod tests {
             (crate::Status::MissingJoints, 4),
             (crate::Status::NumericalFailure, 5),
             (crate::Status::UncoveredCell, 6),
+            (crate::Status::JointsMismatch, 7),
         ];
         for (status, value) in statuses {
             assert_eq!(status as i32, value);

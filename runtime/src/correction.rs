@@ -26,6 +26,12 @@ pub enum Status {
     /// sample at one of the cell's corners, and the field is never extrapolated. The exact
     /// tier ([`crate::Table::exact`]) may still answer there. The correction is zero.
     UncoveredCell = 6,
+    /// A hybrid table was given joint values whose nominal forward kinematics puts the tool
+    /// farther from the target than [`crate::Table::joints_tolerance_mm`]: joints in
+    /// degrees where radians are taken (or the reverse), or the joints of another target.
+    /// The correction would be the model's at one pose plus the residual at another, so
+    /// none is given. The correction is zero.
+    JointsMismatch = 7,
 }
 
 impl Status {
@@ -39,6 +45,7 @@ impl Status {
             Status::MissingJoints => "missing_joints",
             Status::NumericalFailure => "numerical_failure",
             Status::UncoveredCell => "uncovered_cell",
+            Status::JointsMismatch => "joints_mismatch",
         }
     }
 }

@@ -29,6 +29,27 @@ const NY: usize = 3;
 /// fades.
 const MISSING: usize = PER_SET - 1;
 
+/// The nominal and calibrated chains, both bases moved by `shift_mm` (a translation of the
+/// base moves both TCPs alike: the model's error does not change).
+fn chains_shifted(shift_mm: [f64; 3]) -> (Chain, Chain) {
+    let (nominal, calibrated) = chains();
+    let shift = |c: Chain| {
+        let mut c = c;
+        for (t, s) in c.base.translation_mm.iter_mut().zip(shift_mm) {
+            *t += s;
+        }
+        c
+    };
+    (shift(nominal), shift(calibrated))
+}
+
+/// The base shift that puts the nominal TCP at `q` on `position_mm`, so that `q` are joint
+/// values for that target (not [`Status::JointsMismatch`]).
+fn reaching(position_mm: [f64; 3], q: &[f64; 6]) -> [f64; 3] {
+    let tcp = chains().0.tcp_pose(q).unwrap().translation_mm;
+    [0, 1, 2].map(|a| position_mm[a] - tcp[a])
+}
+
 fn chains() -> (Chain, Chain) {
     use std::f64::consts::FRAC_PI_2;
     let j = |a_mm, d_mm, alpha_rad| MdhJoint {
@@ -82,7 +103,12 @@ fn nodes(stride: usize, kind: usize, h_scale: f64) -> Vec<[f64; 3]> {
 /// A hybrid table with orientation, one sample in the middle of the grid listed by every
 /// cell, and a served field of `field` (its nodes from [`nodes`]).
 fn parts(field: ServedField, h_scale: f64) -> (Header, v2::TableData) {
-    let (nominal, calibrated) = chains();
+    parts_shifted(field, h_scale, [0.0; 3])
+}
+
+/// [`parts`] with the chains of [`chains_shifted`].
+fn parts_shifted(field: ServedField, h_scale: f64, shift_mm: [f64; 3]) -> (Header, v2::TableData) {
+    let (nominal, calibrated) = chains_shifted(shift_mm);
     let actual_mm = [550.0, -50.0, 225.0];
     let mut cell = [0u16; 32];
     cell[0] = 1;
@@ -210,9 +236,9 @@ proptest! {
         fraction in prop::array::uniform3(-1.5..=2.5f64),
         q in prop::array::uniform6(-3.2..3.2f64),
     ) {
-        let (header, data) = parts(ServedField::KrigingToolAxis, 1.0);
-        let table = open(header, &data).unwrap();
         let p = position(fraction);
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 1.0, reaching(p, &q));
+        let table = open(header, &data).unwrap();
         let got = table.query_with_joints(&Target::at(p), &q);
         let (position_mm, rotation_rad, residual) = reference(p, &q);
         prop_assert_eq!(got.status, Status::Ok, "at {:?}", p);
@@ -228,11 +254,12 @@ proptest! {
         fraction in prop::array::uniform3(-0.1..=1.1f64),
         q in prop::array::uniform6(-3.2..3.2f64),
     ) {
-        let (header, data) = parts(ServedField::KrigingToolAxis, 0.0);
-        let turning = open(header, &data).unwrap();
-        let (header, data) = parts(ServedField::Kriging, 0.0);
-        let plain = open(header, &data).unwrap();
         let target = Target::at(position(fraction));
+        let shift = reaching(target.position_mm, &q);
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 0.0, shift);
+        let turning = open(header, &data).unwrap();
+        let (header, data) = parts_shifted(ServedField::Kriging, 0.0, shift);
+        let plain = open(header, &data).unwrap();
         prop_assert_eq!(turning.query_with_joints(&target, &q), plain.query_with_joints(&target, &q));
         prop_assert_eq!(turning.exact().query_with_joints(&target, &q), plain.exact().query_with_joints(&target, &q));
     }
@@ -253,9 +280,15 @@ fn statuses_and_inspection_of_a_tool_axis_table() {
     let q = [0.1, -0.7, 1.2, 0.3, -0.4, 1.1];
     let outside = position([1.5, 0.5, 0.5]);
     let served = |p| {
-        let c = table.query_with_joints(&Target::at(p), &q);
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 1.0, reaching(p, &q));
+        let c = open(header, &data)
+            .unwrap()
+            .query_with_joints(&Target::at(p), &q);
         (c.status, c.residual)
     };
+    // Joint values that put the tool elsewhere are refused.
+    let c = table.query_with_joints(&Target::at(inside), &q);
+    assert_eq!(c.status, Status::JointsMismatch);
     // A hybrid table: the model answers everywhere, the residual fading where it ends.
     assert_eq!(served(outside), (Status::Ok, Residual::Faded));
     let far = position([5.0, 0.5, 0.5]);

@@ -47,7 +47,7 @@ _Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT =
 _Static_assert(ADWI_STATUS_OK == 0 && ADWI_STATUS_OUTSIDE_GRID == 1 &&
                    ADWI_STATUS_NO_NEIGHBOUR == 2 && ADWI_STATUS_INVALID_INPUT == 3 &&
                    ADWI_STATUS_MISSING_JOINTS == 4 && ADWI_STATUS_NUMERICAL_FAILURE == 5 &&
-                   ADWI_STATUS_UNCOVERED_CELL == 6,
+                   ADWI_STATUS_UNCOVERED_CELL == 6 && ADWI_STATUS_JOINTS_MISMATCH == 7,
                "ADWI_STATUS_* values");
 _Static_assert(ADWI_RESIDUAL_FULL == 0 && ADWI_RESIDUAL_FADED == 1 && ADWI_RESIDUAL_MODEL_ONLY == 2,
                "ADWI_RESIDUAL_* values");

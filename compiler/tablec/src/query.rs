@@ -132,6 +132,9 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     );
     if c.status != Status::Ok {
         eprintln!("no correction: {}", c.status.as_str());
+        if let (Status::JointsMismatch, Some(q)) = (c.status, &joints_rad) {
+            explain_mismatch(&table, position, q);
+        }
         return Ok(Answered::NotAll);
     }
     if table.is_hybrid() {
@@ -156,6 +159,20 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
     Ok(Answered::All)
+}
+
+/// Says how far the joints put the tool from the target, and the unit `--joints` takes.
+fn explain_mismatch<D: AsRef<[u8]>>(table: &Table<D>, target_mm: [f64; 3], joints_rad: &[f64]) {
+    let (Some(model), Some(tolerance_mm)) = (table.model(), table.joints_tolerance_mm()) else {
+        return;
+    };
+    if let Some(at) = model.at(joints_rad) {
+        let off_mm = adwi_runtime::method::distance_mm(at.nominal_tcp_mm, target_mm);
+        eprintln!(
+            "the joints' nominal forward kinematics puts the tool {off_mm:.1} mm from the \
+             target (the table allows {tolerance_mm:.1} mm): --joints takes degrees"
+        );
+    }
 }
 
 /// The pose to command so that the robot lands on the target.
