@@ -471,8 +471,12 @@ impl<D: AsRef<[u8]>> Table<D> {
                     return Correction::failed(Status::InvalidInput);
                 };
                 let off_mm = method::distance_mm(at.nominal_tcp_mm, target.position_mm);
-                // Written so that NaN fails the test.
-                if !(off_mm <= joints_tolerance_mm(&h.grid)) {
+                // NaN (a chain that overflowed) is refused too.
+                let within = off_mm.partial_cmp(&joints_tolerance_mm(&h.grid));
+                if !matches!(
+                    within,
+                    Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+                ) {
                     return Correction::failed(Status::JointsMismatch);
                 }
                 Some(at)
