@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use adwi_compile::build::{compile, BuildOptions};
-use adwi_runtime::{Status, Table, Target};
+use adwi_runtime::{Residual, Status, Table, Target};
 use adwi_samples::{read_samples, ColumnMap};
 
 const P1: [f64; 3] = [2000.0, 700.0, 1000.0];
@@ -179,6 +179,35 @@ fn c_program_linked_dynamically_matches_the_rust_api_and_refuses_bad_inputs() {
     run_smoke(&exe, dir.path());
 }
 
+/// Targets of the UR5 hybrid table with their joint values (rad), each target the nominal
+/// forward kinematics of its joints: the first pose of its samples whose residual is full
+/// (inside the grid), the first whose residual is faded (the edge of the samples), and
+/// the first turned half a revolution about the base (beyond the fade: the model alone).
+fn hybrid_targets(table: &Table<adwi_runtime::AlignedBytes>) -> Vec<([f64; 3], [f64; 6])> {
+    let csv = workspace().join("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
+    let nominal = table.model().unwrap().nominal();
+    let at = |q: [f64; 6]| (nominal.tcp_pose(&q).unwrap().translation_mm, q);
+    let residual = |(p, q): &([f64; 3], [f64; 6])| {
+        let c = table.query_with_joints(&Target::at(*p), q);
+        assert_eq!(c.status, Status::Ok, "{p:?}");
+        c.residual
+    };
+    let poses: Vec<([f64; 3], [f64; 6])> = csv::Reader::from_path(csv)
+        .unwrap()
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            at([7, 8, 9, 10, 11, 12].map(|i| r[i].parse::<f64>().unwrap().to_radians()))
+        })
+        .collect();
+    let first = |flag| *poses.iter().find(|t| residual(t) == flag).unwrap();
+    let mut turned = poses[0].1;
+    turned[0] += std::f64::consts::PI;
+    let far = at(turned);
+    assert_eq!(residual(&far), Residual::ModelOnly);
+    vec![first(Residual::Full), first(Residual::Faded), far]
+}
+
 fn contains(haystack: &[u8], needle: &[u8]) -> bool {
     haystack.windows(needle.len()).any(|w| w == needle)
 }
@@ -206,15 +235,25 @@ fn run_smoke(exe: &Path, dir: &Path) {
         ([grid_max[0] + 1.0, 700.0, 1000.0], -1),
         ([f64::NAN, 700.0, 1000.0], -1),
     ];
-    let input: String = targets
+    let mut input: String = targets
         .iter()
         .map(|(p, c)| format!("{:?} {:?} {:?} {c}\n", p[0], p[1], p[2]))
         .collect::<String>()
         .replace("NaN", "nan");
+    let hybrid_path = workspace().join("tables/compat/v2/ur5_hybrid.tbl");
+    let hybrid = Table::from_vec(std::fs::read(&hybrid_path).unwrap()).unwrap();
+    let hybrid_targets = hybrid_targets(&hybrid);
+    input.push_str("hybrid\n");
+    for (p, q) in &hybrid_targets {
+        let words: Vec<String> = p.iter().chain(q).map(|v| format!("{v:?}")).collect();
+        input.push_str(&words.join(" "));
+        input.push('\n');
+    }
     let mut child = Command::new(exe)
         .arg(&table_path)
         .arg(dir.join("missing.tbl"))
         .arg(&corrupt_path)
+        .arg(&hybrid_path)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -284,6 +323,24 @@ fn run_smoke(exe: &Path, dir: &Path) {
     assert_eq!(line(&stdout, "invalid_handle_memory_untouched"), ["1"]);
     assert_eq!(line(&stdout, "result_name_8"), ["invalid", "handle"]);
     assert_eq!(line(&stdout, "close"), ["0", "0", "0"]);
+    assert_eq!(line(&stdout, "hybrid_close"), ["0"]);
+    let hybrids: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("hybrid "))
+        .collect();
+    assert_eq!(hybrids.len(), hybrid_targets.len(), "{stdout}");
+    for ((p, q), line) in hybrid_targets.iter().zip(hybrids) {
+        let c = hybrid.query_with_joints(&Target::at(*p), q);
+        let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+        let want = [c.status as i32, c.neighbours as i32, c.residual as i32];
+        assert_eq!(words[..3], want.map(|v| v.to_string()), "{p:?}");
+        for axis in 0..3 {
+            assert_eq!(
+                words[3 + axis].parse::<f64>().unwrap(),
+                c.position_error_mm[axis]
+            );
+        }
+    }
     assert!(stdout.lines().last() == Some("done"), "{stdout}");
 
     // Answers: bit for bit the Rust API's (17 significant digits round-trip a double).
@@ -329,10 +386,11 @@ fn run_smoke(exe: &Path, dir: &Path) {
         let words: Vec<&str> = queries[i].split_whitespace().skip(1).collect();
         assert_eq!(words[0], (c.status as i32).to_string(), "target {p:?}");
         assert_eq!(words[1], c.neighbours.to_string(), "target {p:?}");
+        assert_eq!(words[2], (c.residual as i32).to_string(), "target {p:?}");
         for axis in 0..3 {
-            assert_eq!(parse(words[2 + axis]), c.position_error_mm[axis], "{p:?}");
+            assert_eq!(parse(words[3 + axis]), c.position_error_mm[axis], "{p:?}");
             assert_eq!(
-                parse(words[5 + axis]),
+                parse(words[6 + axis]),
                 c.orientation_error_rad[axis],
                 "{p:?}"
             );

@@ -321,7 +321,7 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
     assert_eq!(
         lines.next(),
         Some(
-            "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status,\
+            "x,y,z,pred_dx,pred_dy,pred_dz,pred_rx,pred_ry,pred_rz,neighbours,status,residual,\
              command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
         )
     );
@@ -329,8 +329,8 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
     assert_eq!(rows.len(), 20);
     for row in rows {
         let fields: Vec<&str> = row.split(',').collect();
-        assert_eq!(fields.len(), 18, "{row}");
-        assert_eq!(fields[10], "ok", "{row}");
+        assert_eq!(fields.len(), 19, "{row}");
+        assert_eq!(fields[10..12], ["ok", "full"], "{row}");
         assert!(fields[3].parse::<f64>().unwrap().abs() < 10.0);
         // Position only: blank orientation.
         assert_eq!(&fields[6..9], &["", "", ""]);

@@ -382,6 +382,16 @@ fn ur5_noise_floor_resolution_and_trusted_identification() {
     // know: below 1 % chance for the hybrid's residuals.
     let p = number(&hybrid["position_mm"]["mean_per_axis_p_value"]);
     assert!(p < 0.01, "{p}");
+    // Every point answered, each with its residual flag; other methods have none.
+    let flags = ["residual_full", "residual_faded", "residual_model_only"];
+    let counts: Vec<u64> = flags.map(|k| hybrid[k].as_u64().unwrap()).to_vec();
+    assert_eq!(counts.iter().sum::<u64>(), 20, "{counts:?}");
+    let line = format!(
+        "residual: {} full, {} faded, {} model_only",
+        counts[0], counts[1], counts[2]
+    );
+    assert!(stdout.contains(&line), "{stdout}");
+    assert!(method_json(&e, "kinematic").get("residual_full").is_none());
     assert!(
         stdout.contains("point by point against hybrid (mean 0.0853 ± 0.0077 mm"),
         "{stdout}"

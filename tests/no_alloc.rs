@@ -179,7 +179,7 @@ fn hybrid_queries_allocate_nothing() {
     let code = unsafe { capi::adwi_table_open_bytes(bytes.as_ptr(), bytes.len(), &mut handle) };
     assert_eq!(code, AdwiResult::Ok);
 
-    let queries = wiggled_poses(&samples, 3.0, 20.0);
+    let queries = wiggled_poses(&samples, 1.0, 20.0);
     let mut ok = 0usize;
     let mut checksum = 0.0;
     let count = allocations_in(|| {
@@ -228,7 +228,8 @@ fn tool_axis_served_queries_allocate_nothing() {
     let bytes = common::hybrid_table_bytes(&samples, &calibration.prepared_model(), &options);
     let table = Table::from_vec(&bytes).unwrap();
     assert_eq!(table.header().served_field, ServedField::KrigingToolAxis);
-    let queries = wiggled_poses(&samples, 10.0, 40.0);
+    // Joints within the table's tolerance of the positions (a few degrees on a 1.5 m arm).
+    let queries = wiggled_poses(&samples, 1.0, 40.0);
     let mut ok = 0usize;
     let mut checksum = 0.0;
     let count = allocations_in(|| {

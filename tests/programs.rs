@@ -168,8 +168,8 @@ fn check_against_query(dir: &Path, table: &Path, report: &Report, what: &str) ->
         .collect();
     assert_eq!(rows.len(), ok.len());
     for (t, row) in ok.iter().zip(&rows) {
-        assert_eq!(row[17], "converged", "{what} {}", t.place());
-        let command: Vec<f64> = row[11..14].iter().map(|v| v.parse().unwrap()).collect();
+        assert_eq!(row[18], "converged", "{what} {}", t.place());
+        let command: Vec<f64> = row[12..15].iter().map(|v| v.parse().unwrap()).collect();
         let mine = t.command_mm.unwrap();
         for a in 0..3 {
             assert!(

@@ -47,6 +47,7 @@ __all__ = [
     "Evaluation",
     "QueryResult",
     "STATUS_NAMES",
+    "RESIDUAL_NAMES",
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
@@ -56,6 +57,9 @@ __all__ = [
 
 #: Query statuses, indexed by status code: the names ``tablec query`` prints.
 STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.STATUS_NAMES)
+#: Residual flags, indexed by code: how much of a hybrid table's residual field an
+#: answer holds (``full``, ``faded``, ``model_only``), as ``tablec query`` prints them.
+RESIDUAL_NAMES: Tuple[str, ...] = tuple(_adwi.RESIDUAL_NAMES)
 #: ``command_status`` names of ``tablec query --targets``, indexed by code.
 COMMAND_STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.COMMAND_STATUS_NAMES)
 
@@ -328,26 +332,42 @@ class QueryResult:
       rad, base frame); None for position-only tables.
     - ``status`` (N,): status names as ``tablec query`` prints them (``ok``,
       ``outside_grid``, ``no_neighbour``, ``invalid_input``, ``missing_joints``,
-      ``numerical_failure``, ``uncovered_cell``); ``status_code`` the same as integers,
+      ``numerical_failure``, ``uncovered_cell``, ``joints_mismatch``: a hybrid table's
+      joints do not put the tool near the target, joints given in the wrong unit, degrees
+      unless ``joints_unit="rad"``); ``status_code`` the same as integers,
       indexes of :data:`STATUS_NAMES`; ``ok`` a boolean mask.
     - ``neighbours`` (N,): neighbours weighted (exact tier) or nodes blended (served tier).
+    - ``residual`` (N,): how much of a hybrid table's residual field the answer holds
+      (``full``, ``faded``, ``model_only``; always ``full`` for a position-only table),
+      ``""`` where the status is not ``ok``; ``residual_code`` the same as integers,
+      indexes of :data:`RESIDUAL_NAMES`.
     """
 
     error_mm: np.ndarray
     orientation_rad: Optional[np.ndarray]
     status_code: np.ndarray
+    residual_code: np.ndarray
     neighbours: np.ndarray
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
         self.error_mm = fields["error_mm"]
         self.orientation_rad = fields["orientation_rad"]
         self.status_code = fields["status_code"]
+        self.residual_code = fields["residual_code"]
         self.neighbours = fields["neighbours"]
 
     @property
     def status(self) -> np.ndarray:
         """Status names, (N,) array of str."""
         return np.asarray(STATUS_NAMES)[self.status_code]
+
+    @property
+    def residual(self) -> np.ndarray:
+        """Residual flag names, (N,) array of str (``""`` where the status is not ``ok``)."""
+        names = np.asarray(RESIDUAL_NAMES + ("",))
+        codes = np.where(self.residual_code == _adwi.NO_RESIDUAL, len(names) - 1,
+                         self.residual_code)
+        return names[codes]
 
     @property
     def ok(self) -> np.ndarray:
@@ -585,10 +605,11 @@ class CompensatedProgram:
     everything else as read); ``targets``, one dict per target as ``tablec compensate
     --report`` writes its rows (``name``, ``line``, ``column``, ``kind``, ``status``,
     ``detail``, ``correction_mm``, ``rotation_deg``, ``joint_change_deg``,
-    ``iterations``, ``residual_mm``, ``point_mm``, ``command_mm``, and
-    ``command_joints`` in degrees); ``summary``, the counts (``total``, ``corrected``,
-    ``not_corrected`` by status, ``largest_correction_mm``, ``largest_at``, ``text`` as
-    tablec prints it)."""
+    ``iterations``, ``residual_mm``, ``point_mm``, ``command_mm``, ``residual`` (the
+    residual flag, None where no command was computed), and ``command_joints`` in
+    degrees); ``summary``, the counts (``total``, ``corrected``, ``not_corrected`` by
+    status, ``residual_faded`` and ``residual_model_only`` among the corrected,
+    ``largest_correction_mm``, ``largest_at``, ``text`` as tablec prints it)."""
 
     def __init__(self, output: bytes, targets: List[Dict[str, Any]], summary: Dict[str, Any]):
         self.output = output

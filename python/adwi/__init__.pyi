@@ -20,6 +20,7 @@ __all__ = [
     "Evaluation",
     "QueryResult",
     "STATUS_NAMES",
+    "RESIDUAL_NAMES",
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
@@ -28,6 +29,7 @@ __all__ = [
 ]
 
 STATUS_NAMES: Tuple[str, ...]
+RESIDUAL_NAMES: Tuple[str, ...]
 COMMAND_STATUS_NAMES: Tuple[str, ...]
 ARRAY_COLUMNS: Tuple[str, ...]
 
@@ -204,10 +206,13 @@ class QueryResult:
     error_mm: npt.NDArray[np.float64]
     orientation_rad: Optional[npt.NDArray[np.float64]]
     status_code: npt.NDArray[np.uint8]
+    residual_code: npt.NDArray[np.uint8]
     neighbours: npt.NDArray[np.uint32]
     def __init__(self, fields: Mapping[str, Any]) -> None: ...
     @property
     def status(self) -> npt.NDArray[np.str_]: ...
+    @property
+    def residual(self) -> npt.NDArray[np.str_]: ...
     @property
     def ok(self) -> npt.NDArray[np.bool_]: ...
     def __len__(self) -> int: ...

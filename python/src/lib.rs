@@ -14,7 +14,7 @@ use adwi_jobs::{
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
-use adwi_runtime::{Correction, Status, Table as RuntimeTable, Target, Tier};
+use adwi_runtime::{Correction, Residual, Status, Table as RuntimeTable, Target, Tier};
 use anyhow::Context;
 use clap::Args as _;
 use numpy::ndarray::{Array1, Array2};
@@ -38,7 +38,7 @@ const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
 const COMPENSATE_ITERATIONS: u32 = 50;
 
 /// Every status, indexed by its code (`Status as u8`).
-const STATUSES: [Status; 7] = [
+const STATUSES: [Status; 8] = [
     Status::Ok,
     Status::OutsideGrid,
     Status::NoAdmissibleNeighbour,
@@ -46,6 +46,7 @@ const STATUSES: [Status; 7] = [
     Status::MissingJoints,
     Status::NumericalFailure,
     Status::UncoveredCell,
+    Status::JointsMismatch,
 ];
 
 // The codes are the statuses' own (`Status as u8`).
@@ -53,6 +54,20 @@ const _: () = {
     let mut i = 0;
     while i < STATUSES.len() {
         assert!(STATUSES[i] as usize == i);
+        i += 1;
+    }
+};
+
+/// The `residual` names of `tablec query`, indexed by code (`Residual as u8`); code
+/// [`NO_RESIDUAL`] is a row without a correction (its status is not `ok`).
+const RESIDUALS: [Residual; 3] = Residual::ALL;
+const NO_RESIDUAL: u8 = 255;
+
+// The codes are the flags' own (`Residual as u8`).
+const _: () = {
+    let mut i = 0;
+    while i < RESIDUALS.len() {
+        assert!(RESIDUALS[i] as usize == i);
         i += 1;
     }
 };
@@ -639,6 +654,7 @@ struct Batch {
     orientation: Vec<f64>,
     neighbours: Vec<u32>,
     status: Vec<u8>,
+    residual_flag: Vec<u8>,
     command: Vec<f64>,
     command_rotation: Vec<f64>,
     command_status: Vec<u8>,
@@ -844,6 +860,7 @@ impl Table {
                 },
                 neighbours: vec![0; n],
                 status: vec![0; n],
+                residual_flag: vec![NO_RESIDUAL; n],
                 command: Vec::new(),
                 command_rotation: Vec::new(),
                 command_status: Vec::new(),
@@ -871,6 +888,7 @@ impl Table {
                 if c.status != Status::Ok {
                     continue;
                 }
+                b.residual_flag[i] = c.residual as u8;
                 b.error[3 * i..3 * i + 3].copy_from_slice(&c.position_error_mm);
                 if orientation {
                     b.orientation[3 * i..3 * i + 3].copy_from_slice(&c.orientation_error_rad);
@@ -900,6 +918,7 @@ impl Table {
         )?;
         d.set_item("neighbours", vector(py, batch.neighbours))?;
         d.set_item("status_code", vector(py, batch.status))?;
+        d.set_item("residual_code", vector(py, batch.residual_flag))?;
         if compensate {
             d.set_item("command_mm", matrix(py, batch.command, n)?)?;
             d.set_item(
@@ -1009,6 +1028,7 @@ fn compensate_program<'py>(
         d.set_item("joint_change_deg", t.joint_change_deg)?;
         d.set_item("iterations", t.iterations)?;
         d.set_item("residual_mm", t.residual_mm)?;
+        d.set_item("residual", t.residual.map(Residual::as_str))?;
         d.set_item("point_mm", t.point_mm)?;
         d.set_item("command_mm", t.command_mm)?;
         d.set_item("command_joints", t.command_joints.clone())?;
@@ -1023,6 +1043,8 @@ fn compensate_program<'py>(
         not_corrected.set_item(status, count)?;
     }
     summary.set_item("not_corrected", not_corrected)?;
+    summary.set_item("residual_faded", s.faded)?;
+    summary.set_item("residual_model_only", s.model_only)?;
     summary.set_item("largest_correction_mm", s.largest.as_ref().map(|l| l.0))?;
     summary.set_item("largest_at", s.largest.as_ref().map(|l| l.1.clone()))?;
     summary.set_item("text", s.to_string())?;
@@ -1035,6 +1057,8 @@ fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("STATUS_NAMES", STATUSES.map(|s| s.as_str()).to_vec())?;
     m.add("COMMAND_STATUS_NAMES", COMMAND_STATUSES.to_vec())?;
     m.add("NO_COMMAND", NO_COMMAND)?;
+    m.add("RESIDUAL_NAMES", RESIDUALS.map(|r| r.as_str()).to_vec())?;
+    m.add("NO_RESIDUAL", NO_RESIDUAL)?;
     m.add("COMPENSATE_TOLERANCE_MM", COMPENSATE_TOLERANCE_MM)?;
     m.add("COMPENSATE_ITERATIONS", COMPENSATE_ITERATIONS)?;
     m.add_class::<Table>()?;

@@ -35,14 +35,15 @@ def assert_same_answers(rows, result: adwi.Compensation, orientation: bool):
     assert len(rows) == len(result)
     assert list(result.status) == [r["status"] for r in rows]
     assert list(result.neighbours) == [int(r["neighbours"]) for r in rows]
+    assert list(result.residual) == [r["residual"] for r in rows]
     assert list(result.command_status) == [r["command_status"] for r in rows]
     for i, row in enumerate(rows):
         if row["status"] != "ok":
             assert np.isnan(result.error_mm[i]).all()
             assert np.isnan(result.command_mm[i]).all()
-            assert row["dx"] == "" and row["command_x"] == ""
+            assert row["pred_dx"] == "" and row["command_x"] == ""
             continue
-        assert formatted(result.error_mm[i], 9) == [row["dx"], row["dy"], row["dz"]], i
+        assert formatted(result.error_mm[i], 9) == [row["pred_dx"], row["pred_dy"], row["pred_dz"]], i
         assert formatted(result.command_mm[i], 9) == [
             row["command_x"],
             row["command_y"],
@@ -50,10 +51,10 @@ def assert_same_answers(rows, result: adwi.Compensation, orientation: bool):
         ], i
         # And numerically: within the half unit of the last printed digit.
         np.testing.assert_allclose(
-            result.error_mm[i], [float(row[c]) for c in ("dx", "dy", "dz")], rtol=0, atol=5e-10
+            result.error_mm[i], [float(row[c]) for c in ("pred_dx", "pred_dy", "pred_dz")], rtol=0, atol=5e-10
         )
         if orientation:
-            assert formatted(result.orientation_rad[i], 12) == [row["rx"], row["ry"], row["rz"]]
+            assert formatted(result.orientation_rad[i], 12) == [row["pred_rx"], row["pred_ry"], row["pred_rz"]]
             assert formatted(result.command_rotation_rad[i], 12) == [
                 row["command_rx"],
                 row["command_ry"],

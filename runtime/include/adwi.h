@@ -96,10 +96,26 @@ enum {
                                           geometry, e.g. a target and a sample both within
                                           ~1e-160 mm of the base origin) and is withheld;
                                           correction zero */
-    ADWI_STATUS_UNCOVERED_CELL = 6 /* the served field is not defined in the target's cell
-                                      (a corner has no admissible sample; never
-                                      extrapolated); the exact tier may answer there;
-                                      correction zero */
+    ADWI_STATUS_UNCOVERED_CELL = 6, /* the served field is not defined in the target's cell
+                                       (a corner has no admissible sample; never
+                                       extrapolated; position-only tables); the exact tier
+                                       may answer there; correction zero */
+    ADWI_STATUS_JOINTS_MISMATCH = 7 /* hybrid table: the joint values' nominal forward
+                                       kinematics puts the tool farther from the target than
+                                       the table allows (joints_rad takes radians: degrees
+                                       given?); correction zero */
+};
+
+/* How much of a hybrid table's residual field a correction holds
+ * (adwi_correction.residual; meaningful when status is ADWI_STATUS_OK). The calibrated
+ * model answers everywhere; the residual where the samples are, fading to zero across
+ * the last cell and within a fade length of the grid box (docs/runtime.md, "The
+ * residual flag"). */
+enum {
+    ADWI_RESIDUAL_FULL = 0,      /* all of it (every position-only table's answer) */
+    ADWI_RESIDUAL_FADED = 1,     /* part of it: a cell corner without a value, or outside
+                                    the grid within the fade length */
+    ADWI_RESIDUAL_MODEL_ONLY = 2 /* none: the calibrated model alone */
 };
 
 /* Flags for adwi_table_open_with. */
@@ -113,6 +129,9 @@ typedef struct adwi_correction {
     double orientation_error_rad[3]; /* rotation vector of R_actual * R_nominal^T, rad; 0 without orientation */
     uint32_t neighbours;             /* neighbours weighted (exact), nodes blended (served: 8) */
     int32_t status;                  /* ADWI_STATUS_*; other fields are zero unless OK */
+    int32_t residual;                /* ADWI_RESIDUAL_*: how much of a hybrid table's
+                                        residual field the correction holds */
+    uint32_t reserved;               /* zero (the struct has no padding: memcmp compares) */
 } adwi_correction;
 
 /* The command that lands the robot on a target: command + error(command) = target. */

@@ -126,8 +126,15 @@ pub struct AdwiCorrection {
     /// [`crate::Status`] as an integer: 0 ok, 1 outside grid, 2 no admissible neighbour,
     /// 3 invalid input, 4 missing joint angles (a hybrid table queried without them),
     /// 5 numerical failure (a non-finite prediction, withheld), 6 uncovered cell (the
-    /// served field is not defined there).
+    /// served field is not defined there), 7 joints mismatch (a hybrid table's joint
+    /// values, in radians, do not put the tool near the target).
     pub status: i32,
+    /// [`crate::Residual`] as an integer: 0 full, 1 faded, 2 model only (a hybrid
+    /// table's residual field, wholly, in part or not at all; 0 for a position-only table).
+    pub residual: i32,
+    /// Zero: the struct's tail, named so that it has no padding (every byte written,
+    /// outputs comparable with `memcmp`).
+    pub reserved: u32,
 }
 
 /// `adwi_compensation`: [`Compensation`] with fixed-width fields.
@@ -148,6 +155,13 @@ pub struct AdwiCompensation {
     pub residual_mm: f64,
 }
 
+/// `ADWI_RESIDUAL_FULL`: a hybrid table's whole residual (and every position-only answer).
+pub const ADWI_RESIDUAL_FULL: i32 = 0;
+/// `ADWI_RESIDUAL_FADED`: part of a hybrid table's residual, fading where it has no value.
+pub const ADWI_RESIDUAL_FADED: i32 = 1;
+/// `ADWI_RESIDUAL_MODEL_ONLY`: a hybrid table's calibrated model alone.
+pub const ADWI_RESIDUAL_MODEL_ONLY: i32 = 2;
+
 /// `ADWI_OPEN_PREFAULT`: fault every page in at open.
 pub const ADWI_OPEN_PREFAULT: u32 = 1;
 /// `ADWI_OPEN_LOCK`: lock the table in memory, best effort.
@@ -165,6 +179,8 @@ impl From<Correction> for AdwiCorrection {
             orientation_error_rad: c.orientation_error_rad,
             neighbours: c.neighbours,
             status: c.status as i32,
+            residual: c.residual as i32,
+            reserved: 0,
         }
     }
 }
@@ -762,20 +778,22 @@ mod tests {
     #[test]
     fn layout_and_values_match_the_c_header() {
         assert_eq!(size_of::<AdwiResult>(), 4);
-        assert_eq!(size_of::<AdwiCorrection>(), 56);
+        assert_eq!(size_of::<AdwiCorrection>(), 64);
         assert_eq!(align_of::<AdwiCorrection>(), 8);
         assert_eq!(offset_of!(AdwiCorrection, position_error_mm), 0);
         assert_eq!(offset_of!(AdwiCorrection, orientation_error_rad), 24);
         assert_eq!(offset_of!(AdwiCorrection, neighbours), 48);
         assert_eq!(offset_of!(AdwiCorrection, status), 52);
-        assert_eq!(size_of::<AdwiCompensation>(), 120);
+        assert_eq!(offset_of!(AdwiCorrection, residual), 56);
+        assert_eq!(offset_of!(AdwiCorrection, reserved), 60);
+        assert_eq!(size_of::<AdwiCompensation>(), 128);
         assert_eq!(align_of::<AdwiCompensation>(), 8);
         assert_eq!(offset_of!(AdwiCompensation, command_position_mm), 0);
         assert_eq!(offset_of!(AdwiCompensation, command_rotation_rad), 24);
         assert_eq!(offset_of!(AdwiCompensation, correction), 48);
-        assert_eq!(offset_of!(AdwiCompensation, iterations), 104);
-        assert_eq!(offset_of!(AdwiCompensation, converged), 108);
-        assert_eq!(offset_of!(AdwiCompensation, residual_mm), 112);
+        assert_eq!(offset_of!(AdwiCompensation, iterations), 112);
+        assert_eq!(offset_of!(AdwiCompensation, converged), 116);
+        assert_eq!(offset_of!(AdwiCompensation, residual_mm), 120);
         assert_eq!(offset_of!(AdwiTable, magic), 0);
         let results = [
             (AdwiResult::Ok, 0),
@@ -799,9 +817,18 @@ mod tests {
             (crate::Status::MissingJoints, 4),
             (crate::Status::NumericalFailure, 5),
             (crate::Status::UncoveredCell, 6),
+            (crate::Status::JointsMismatch, 7),
         ];
         for (status, value) in statuses {
             assert_eq!(status as i32, value);
+        }
+        let residuals = [
+            (crate::Residual::Full, ADWI_RESIDUAL_FULL),
+            (crate::Residual::Faded, ADWI_RESIDUAL_FADED),
+            (crate::Residual::ModelOnly, ADWI_RESIDUAL_MODEL_ONLY),
+        ];
+        for (residual, value) in residuals {
+            assert_eq!(residual as i32, value);
         }
         assert_eq!(
             (ADWI_OPEN_PREFAULT, ADWI_OPEN_LOCK, ADWI_OPEN_LOCK_REQUIRED),

@@ -26,6 +26,12 @@ pub enum Status {
     /// sample at one of the cell's corners, and the field is never extrapolated. The exact
     /// tier ([`crate::Table::exact`]) may still answer there. The correction is zero.
     UncoveredCell = 6,
+    /// A hybrid table was given joint values whose nominal forward kinematics puts the tool
+    /// farther from the target than [`crate::Table::joints_tolerance_mm`]: joints in
+    /// degrees where radians are taken (or the reverse), or the joints of another target.
+    /// The correction would be the model's at one pose plus the residual at another, so
+    /// none is given. The correction is zero.
+    JointsMismatch = 7,
 }
 
 impl Status {
@@ -39,6 +45,41 @@ impl Status {
             Status::MissingJoints => "missing_joints",
             Status::NumericalFailure => "numerical_failure",
             Status::UncoveredCell => "uncovered_cell",
+            Status::JointsMismatch => "joints_mismatch",
+        }
+    }
+}
+
+/// How much of a hybrid table's residual field a correction holds: the calibrated model
+/// answers everywhere, the residual where the samples are, fading to zero beyond them
+/// (docs/runtime.md, "The residual flag"; [`crate::served`] has the fade). A
+/// position-only table's answers, and a hybrid table's exact tier where the method
+/// answers, are [`Residual::Full`].
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Residual {
+    /// The whole residual: inside the grid, every corner blended had a value (the exact
+    /// tier: the method answered). Also what a failed query carries (all fields zero).
+    #[default]
+    Full = 0,
+    /// Part of it: a corner without a value contributed zero, or the target is outside
+    /// the grid within the fade length, where the residual is scaled down.
+    Faded = 1,
+    /// None: the correction is the calibrated model's alone (beyond the fade, a
+    /// configuration no sample has, or no neighbour for the exact tier).
+    ModelOnly = 2,
+}
+
+impl Residual {
+    /// Every flag, indexed by its code (`Residual as u8`).
+    pub const ALL: [Residual; 3] = [Residual::Full, Residual::Faded, Residual::ModelOnly];
+
+    /// A short lowercase name, as the CLI prints it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Residual::Full => "full",
+            Residual::Faded => "faded",
+            Residual::ModelOnly => "model_only",
         }
     }
 }
@@ -79,6 +120,9 @@ pub struct Correction {
     pub neighbours: u32,
     /// Whether the prediction holds; every other field is zero unless this is `Ok`.
     pub status: Status,
+    /// How much of a hybrid table's residual the correction holds ([`Residual::Full`] for
+    /// a position-only table); meaningful only when `status` is `Ok`.
+    pub residual: Residual,
 }
 
 impl Correction {
@@ -88,6 +132,16 @@ impl Correction {
             orientation_error_rad: [0.0; 3],
             neighbours: 0,
             status,
+            residual: Residual::Full,
+        }
+    }
+
+    /// A hybrid table's answer where its residual has nothing: the model part (added by
+    /// the caller) alone.
+    pub(crate) fn model_only() -> Correction {
+        Correction {
+            residual: Residual::ModelOnly,
+            ..Correction::failed(Status::Ok)
         }
     }
 

@@ -135,6 +135,7 @@ pub(crate) fn interpolate(
             orientation_error_rad: e.orientation_error_rad,
             neighbours: e.neighbours,
             status: Status::Ok,
+            residual: crate::Residual::Full,
         },
         None => Correction::failed(Status::NoAdmissibleNeighbour),
     }

@@ -55,7 +55,7 @@ mod table;
 pub mod testing;
 mod validate;
 
-pub use correction::{Compensation, Correction, Status, Target};
+pub use correction::{Compensation, Correction, Residual, Status, Target};
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};

@@ -142,6 +142,22 @@ impl PreparedModel {
         Some((position_mm, rotation_rad, approach(&nominal)))
     }
 
+    /// Everything a hybrid query needs of the model at `q`, from one forward kinematics of
+    /// each chain: [`PreparedModel::error_with_approach`]'s values and the nominal TCP's
+    /// position, which says whether `q` reaches the target at all. `None` as `error`.
+    #[inline]
+    pub fn at(&self, q: &[f64]) -> Option<ModelAt> {
+        let nominal = self.nominal.tcp_pose(q)?;
+        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
+        let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
+        Some(ModelAt {
+            position_mm,
+            rotation_rad,
+            approach: approach(&nominal),
+            nominal_tcp_mm: nominal.translation_mm,
+        })
+    }
+
     /// The nominal TCP's approach axis at `q` alone (as [`PreparedModel::error_with_approach`]
     /// gives it): what the compiler fits a tool-axis field to at each sample's joint values,
     /// so that build and query use one definition. `None` when `q` does not have one value
@@ -149,6 +165,19 @@ impl PreparedModel {
     pub fn approach_axis(&self, q: &[f64]) -> Option<[f64; 3]> {
         Some(approach(&self.nominal.tcp_pose(q)?))
     }
+}
+
+/// The model at one set of joint values ([`PreparedModel::at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelAt {
+    /// The predicted position error, mm, base frame.
+    pub position_mm: [f64; 3],
+    /// The predicted orientation error (rotation vector), rad, base frame.
+    pub rotation_rad: [f64; 3],
+    /// The nominal TCP's approach axis, a unit vector, base frame.
+    pub approach: [f64; 3],
+    /// The nominal TCP's position, mm, base frame: where the controller puts the tool.
+    pub nominal_tcp_mm: [f64; 3],
 }
 
 /// The approach (z) axis of a TCP pose: the third column of its rotation, base frame.

@@ -13,8 +13,9 @@
 //! On a face between two cells both blend the same 4 nodes with the same weights, so the
 //! field is continuous (C0) everywhere it is defined, and linear along every cell edge:
 //! a servo loop stepping through it never meets a jump. It is defined in every cell whose
-//! 8 nodes have values; elsewhere a query says [`Status::UncoveredCell`] and never
-//! extrapolates. With the method's values, coverage is the exact tier's shrunk by up to one
+//! 8 nodes have values; elsewhere a query of a position-only table says
+//! [`Status::UncoveredCell`] and never extrapolates (a hybrid table fades its residual
+//! instead: see below). With the method's values, coverage is the exact tier's shrunk by up to one
 //! cell where the samples end (a target whose own neighbourhood is admissible can have a
 //! corner that is not); a kriging field has values at every corner of a cell where the
 //! exact tier can answer, so it covers at least what the exact tier does. A node without a
@@ -27,14 +28,30 @@
 //! is linear, so each corner's combination is blended with the same weights: the field is
 //! continuous in position for a fixed `a`, and a missing node is missed whatever `a` is.
 //!
+//! # A hybrid table's residual
+//!
+//! A hybrid table's field is the residual its calibrated model leaves, and the model is
+//! valid everywhere: where the residual has no value the answer is the model alone, and
+//! the residual fades to zero on the way there rather than stopping with a jump
+//! ([`crate::Residual`] says which of the three a query got):
+//!
+//! - inside the grid a corner without a value contributes zero, so across the last cell
+//!   the blend runs linearly from the last values to zero (no renormalisation over the
+//!   corners that remain, which would jump where a corner's weight reaches zero);
+//! - outside the grid the field is evaluated at the target's nearest point of the grid box
+//!   and multiplied by `s(1 − d / L)`, `s(t) = 3t² − 2t³` (smoothstep), with `d` the
+//!   target's distance to the box and `L` the fade length ([`fade_length_mm`]), so it
+//!   meets the field on the box's faces and reaches zero, with zero slope, at `d = L`;
+//! - beyond the fade, or for a configuration no node set has, the residual is zero.
+//!
 //! One node set serves targets of unknown configuration, one each configuration the
 //! samples carry ([`crate::format::v2::NodeSet`]). A table with a joint-space screen has no served tier:
 //! its admissible samples change with the target's joint values, which no node grid over
 //! positions can hold (its queries are the exact tier's).
 
-use crate::correction::{Correction, Status};
+use crate::correction::{Correction, Residual, Status};
 use crate::format::v2::ArchivedTableData;
-use crate::format::Header;
+use crate::format::{Header, CONTENT_MODEL};
 
 /// What a served query needs of the grid, prepared once at open: the node strides and the
 /// first node of the set serving targets of unknown configuration.
@@ -52,6 +69,29 @@ pub(crate) struct ServedGrid {
     with_configs: bool,
     /// Vectors per node ([`crate::format::ServedField::node_stride`]).
     stride: usize,
+    /// A hybrid table's fade length ([`fade_length_mm`]): its residual fades to zero
+    /// where it has no value. `None`: a position-only table, which refuses there.
+    fade_mm: Option<f64>,
+}
+
+/// The distance from the grid box over which a hybrid table's residual fades to zero:
+/// two cells, and at least 20 mm.
+///
+/// Smoothstep's steepest slope is `1.5 / L`, so a residual of amplitude `A` changes by at
+/// most `1.5 A · δ / L` over a step `δ` outside the box: with `L ≥ 20 mm`, a 1 mm residual
+/// changes by at most 0.75 µm per 0.01 mm step (a servo loop's increments see no jump),
+/// to which the field's own slope along the box face adds what it has inside. Two cells
+/// keep the fade no shorter than the field's own resolution on a coarse grid, where a
+/// residual a cell away is still the field's best guess.
+pub fn fade_length_mm(cell_mm: f64) -> f64 {
+    (2.0 * cell_mm).max(20.0)
+}
+
+/// `3t² − 2t³` for `t` clamped to `[0, 1]`: 0 and 1 at the ends, with zero slope there.
+#[inline]
+fn smoothstep(t: f64) -> f64 {
+    let t = t.clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
 }
 
 impl ServedGrid {
@@ -71,6 +111,8 @@ impl ServedGrid {
                 .map_or(0, |s| s.first_node.to_native() as usize),
             with_configs: !data.configs.is_empty(),
             stride: header.served_field.node_stride(),
+            fade_mm: (header.content_flags & CONTENT_MODEL != 0)
+                .then(|| fade_length_mm(grid.cell_mm)),
         }
     }
 
@@ -97,6 +139,33 @@ impl ServedGrid {
         let [nx, nxy] = [self.corners[2], self.corners[4]];
         Some((cell[0] + nx * cell[1] + nxy * cell[2], fraction))
     }
+
+    /// [`ServedGrid::locate`] of the grid box's point nearest to `position_mm`, and the
+    /// distance to it (mm; zero inside the box); `None` for a non-finite position.
+    #[inline]
+    fn locate_nearest(&self, position_mm: [f64; 3]) -> Option<(usize, [f64; 3], f64)> {
+        let mut cell = [0usize; 3];
+        let mut fraction = [0.0; 3];
+        let mut outside_mm2 = 0.0;
+        for axis in 0..3 {
+            let u = (position_mm[axis] - self.origin_mm[axis]) / self.cell_mm;
+            if !u.is_finite() {
+                return None;
+            }
+            let cells = self.cells[axis];
+            let inside = u.clamp(0.0, cells as f64);
+            let outside_mm = (u - inside) * self.cell_mm;
+            outside_mm2 += outside_mm * outside_mm;
+            cell[axis] = (inside as usize).min(cells.saturating_sub(1));
+            fraction[axis] = (inside - cell[axis] as f64).clamp(0.0, 1.0);
+        }
+        let [nx, nxy] = [self.corners[2], self.corners[4]];
+        Some((
+            cell[0] + nx * cell[1] + nxy * cell[2],
+            fraction,
+            outside_mm2.sqrt(),
+        ))
+    }
 }
 
 /// The blended node vectors at a target: position, and orientation (zero without), one
@@ -105,6 +174,20 @@ impl ServedGrid {
 pub(crate) struct ServedTerms<const S: usize> {
     pub(crate) position_mm: [[f64; 3]; S],
     pub(crate) orientation_rad: [[f64; 3]; S],
+    /// The corners that held a value (8 where the field is defined).
+    pub(crate) nodes: u32,
+    /// How much of the field the terms hold.
+    pub(crate) residual: Residual,
+}
+
+impl<const S: usize> ServedTerms<S> {
+    /// No field at all: a hybrid table's model alone.
+    const MODEL_ONLY: ServedTerms<S> = ServedTerms {
+        position_mm: [[0.0; 3]; S],
+        orientation_rad: [[0.0; 3]; S],
+        nodes: 0,
+        residual: Residual::ModelOnly,
+    };
 }
 
 impl ServedTerms<1> {
@@ -114,8 +197,9 @@ impl ServedTerms<1> {
         Correction {
             position_error_mm: self.position_mm[0],
             orientation_error_rad: self.orientation_rad[0],
-            neighbours: 8,
+            neighbours: self.nodes,
             status: Status::Ok,
+            residual: self.residual,
         }
     }
 }
@@ -131,8 +215,9 @@ impl ServedTerms<4> {
         Correction {
             position_error_mm: turn(&self.position_mm),
             orientation_error_rad: turn(&self.orientation_rad),
-            neighbours: 8,
+            neighbours: self.nodes,
             status: Status::Ok,
+            residual: self.residual,
         }
     }
 }
@@ -142,7 +227,8 @@ impl ServedTerms<4> {
 /// `orientation`), or why there are none. `S` is the table's stride (1, or 4 for a
 /// tool-axis field, whose terms the caller turns with the axis once it knows the field
 /// answers: the axis costs a forward kinematics a miss need not pay); another `S` is
-/// [`Status::InvalidInput`]. Never allocates or panics.
+/// [`Status::InvalidInput`]. A hybrid table's field fades where it has no value (the
+/// module docs) and never misses. Never allocates or panics.
 #[inline]
 pub(crate) fn serve<const S: usize>(
     grid: &ServedGrid,
@@ -154,12 +240,26 @@ pub(crate) fn serve<const S: usize>(
     if grid.stride != S {
         return Err(Status::InvalidInput);
     }
-    let (base, fraction) = grid.locate(position_mm).ok_or(Status::OutsideGrid)?;
+    let (base, fraction, fade) = match (grid.locate(position_mm), grid.fade_mm) {
+        (Some((base, fraction)), _) => (base, fraction, None),
+        (None, None) => return Err(Status::OutsideGrid),
+        (None, Some(length_mm)) => {
+            let (base, fraction, distance_mm) = grid
+                .locate_nearest(position_mm)
+                .ok_or(Status::OutsideGrid)?;
+            let fade = smoothstep(1.0 - distance_mm / length_mm);
+            if fade <= 0.0 {
+                return Ok(ServedTerms::MODEL_ONLY);
+            }
+            (base, fraction, Some(fade))
+        }
+    };
     // Samples without configurations serve targets of any configuration; with them, a
     // configuration no sample has is served by none.
     let first_set = match config {
         Some(c) if grid.with_configs => match data.node_sets.iter().find(|s| s.config == c) {
             Some(set) => set.first_node.to_native() as usize,
+            None if grid.fade_mm.is_some() => return Ok(ServedTerms::MODEL_ONLY),
             None => return Err(Status::NoAdmissibleNeighbour),
         },
         _ => grid.first_any,
@@ -167,18 +267,42 @@ pub(crate) fn serve<const S: usize>(
     let first = first_set + base;
     let weights = trilinear_weights(fraction);
     let nodes = data.node_errors_mm.as_slice();
-    let position_mm =
-        blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::UncoveredCell)?;
-    let orientation_rad = if orientation {
+    let blended = blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::InvalidInput)?;
+    let strict = grid.fade_mm.is_none();
+    if strict && blended.missing != 0 {
+        return Err(Status::UncoveredCell);
+    }
+    let (orientation_rad, missing) = if orientation {
         let nodes = data.node_orientation_errors_rad.as_slice();
-        blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::UncoveredCell)?
+        let turned =
+            blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::InvalidInput)?;
+        if strict && turned.missing != 0 {
+            return Err(Status::UncoveredCell);
+        }
+        (turned.sum, blended.missing | turned.missing)
     } else {
-        [[0.0; 3]; S]
+        ([[0.0; 3]; S], blended.missing)
     };
-    Ok(ServedTerms {
-        position_mm,
+    let mut terms = ServedTerms {
+        position_mm: blended.sum,
         orientation_rad,
-    })
+        nodes: 8 - missing.count_ones(),
+        residual: match (missing, fade) {
+            (0, None) => Residual::Full,
+            _ if !blended.contributed => Residual::ModelOnly,
+            _ => Residual::Faded,
+        },
+    };
+    if let Some(fade) = fade {
+        for v in terms
+            .position_mm
+            .iter_mut()
+            .chain(&mut terms.orientation_rad)
+        {
+            *v = v.map(|x| x * fade);
+        }
+    }
+    Ok(terms)
 }
 
 /// The weights of the 8 corners, in the order `corners` lists them in [`serve`]:
@@ -198,17 +322,26 @@ fn trilinear_weights([u, v, w]: [f64; 3]) -> [f64; 8] {
     ]
 }
 
-/// `Σ weight · term_t` over the corners for each term `t`, each node being `S`
-/// consecutive vectors from node `first` (counted in nodes), or `None` when a corner is
-/// out of range (excluded by validation; checked so that nothing can panic) or holds no
-/// value.
+/// A cell's corners blended ([`blend`]).
+struct Blend<const S: usize> {
+    /// `Σ weight · term` over the corners that hold a value.
+    sum: [[f64; 3]; S],
+    /// Bit `c` set: corner `c` holds no value (and contributed nothing).
+    missing: u8,
+    /// Whether a corner with a value had a positive weight.
+    contributed: bool,
+}
+
+/// `Σ weight · term_t` over the corners that hold a value, for each term `t`, each node
+/// being `S` consecutive vectors from node `first` (counted in nodes); `None` when a
+/// corner is out of range (excluded by validation; checked so that nothing can panic).
 #[inline]
 fn blend<const S: usize>(
     nodes: &[rkyv::Archived<[f64; 3]>],
     first: usize,
     corners: &[usize; 8],
     weights: &[f64; 8],
-) -> Option<[[f64; 3]; S]> {
+) -> Option<Blend<S>> {
     // One range check for the whole block of the cell's nodes, then offsets within it.
     let start = first.checked_mul(S)?;
     let end = first
@@ -216,20 +349,28 @@ fn blend<const S: usize>(
         .checked_add(1)?
         .checked_mul(S)?;
     let block = nodes.get(start..end)?;
-    let mut sum = [[0.0; 3]; S];
-    for (&corner, &weight) in corners.iter().zip(weights) {
+    let mut out = Blend {
+        sum: [[0.0; 3]; S],
+        missing: 0,
+        contributed: false,
+    };
+    for (c, (&corner, &weight)) in corners.iter().zip(weights).enumerate() {
         // Within the block's length, which did not overflow.
         let at = corner * S;
         let node = block.get(at..at + S)?;
-        for (s, term) in sum.iter_mut().zip(node) {
+        // Validation admits finite values or the marker, NaN in every component.
+        if node[0][0].to_native().is_nan() {
+            out.missing |= 1 << c;
+            continue;
+        }
+        out.contributed |= weight > 0.0;
+        for (s, term) in out.sum.iter_mut().zip(node) {
             for (x, v) in s.iter_mut().zip(term.iter()) {
                 *x += weight * v.to_native();
             }
         }
     }
-    // A missing node is NaN in every component of every term, and NaN survives a zero
-    // weight.
-    sum.iter().flatten().all(|v| !v.is_nan()).then_some(sum)
+    Some(out)
 }
 
 /// The node values of one set, for inspection: node `(i, j, k)` of set `set`, or `None`
@@ -308,6 +449,7 @@ mod tests {
             first_any: 0,
             with_configs: false,
             stride: 1,
+            fade_mm: None,
         };
         let (base, f) = grid.locate([20.0, 30.0, 40.0]).unwrap();
         assert_eq!(f, [1.0; 3]);

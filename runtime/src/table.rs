@@ -39,6 +39,21 @@ pub struct Table<D> {
     served: Option<ServedGrid>,
 }
 
+/// How far a hybrid table lets the nominal TCP at the query's joint values lie from the
+/// target ([`Table::joints_tolerance_mm`]): the residual's fade length
+/// ([`crate::served::fade_length_mm`]), two cells and at least 20 mm.
+///
+/// Joint values the controller uses for a target put the nominal TCP on it (the shipped
+/// UR5 samples: within 0.05 mm); joint values in the wrong unit put it hundreds of
+/// millimetres away. A table does not hold its samples' joint values (only a table with a
+/// joint screen does), so the bound cannot be learnt from them; it is the distance beyond
+/// which the table itself treats a position as unrelated to its residual field: farther
+/// than that, the model part (at the joints' pose) and the residual part (at the target)
+/// would describe two places the table keeps apart.
+fn joints_tolerance_mm(grid: &Grid) -> f64 {
+    crate::served::fade_length_mm(grid.cell_mm)
+}
+
 /// A table's archived payload, by format version.
 #[derive(Clone, Copy, Debug)]
 pub enum Payload<'a> {
@@ -295,6 +310,15 @@ impl<D: AsRef<[u8]>> Table<D> {
         self.header.node_set_count > 0
     }
 
+    /// A hybrid table's bound on the distance between the target and the nominal TCP at
+    /// the query's joint values, mm; farther, a query answers [`Status::JointsMismatch`].
+    /// `None` for a position-only table (joint values then never move the answer's pose).
+    pub fn joints_tolerance_mm(&self) -> Option<f64> {
+        self.model
+            .is_some()
+            .then(|| joints_tolerance_mm(&self.header.grid))
+    }
+
     /// A hybrid table's model, its chains ready for evaluation.
     pub fn model(&self) -> Option<&PreparedModel> {
         self.model.as_ref()
@@ -439,10 +463,26 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
-        // A field that turns with the tool needs the nominal approach axis, which comes
-        // from the same forward kinematics as the model part: computed once, and only
-        // once the field answers.
-        let mut model_part = None;
+        // A hybrid table's model at the joint values, once: its error, the approach axis a
+        // field turning with the tool needs, and where the joints put the nominal TCP.
+        let model_at = match (&self.model, joints_rad) {
+            (Some(model), Some(q)) => {
+                let Some(at) = model.at(q) else {
+                    return Correction::failed(Status::InvalidInput);
+                };
+                let off_mm = method::distance_mm(at.nominal_tcp_mm, target.position_mm);
+                // NaN (a chain that overflowed) is refused too.
+                let within = off_mm.partial_cmp(&joints_tolerance_mm(&h.grid));
+                if !matches!(
+                    within,
+                    Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+                ) {
+                    return Correction::failed(Status::JointsMismatch);
+                }
+                Some(at)
+            }
+            _ => None,
+        };
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
             Payload::V2(d) => match (&self.served, tier) {
@@ -459,14 +499,8 @@ impl<D: AsRef<[u8]>> Table<D> {
                             Err(status) => Correction::failed(status),
                             // Validation admits such a field in hybrid tables only, and
                             // those were given joint values above.
-                            Ok(terms) => match (self.model.as_ref())
-                                .zip(joints_rad)
-                                .and_then(|(model, q)| model.error_with_approach(q))
-                            {
-                                Some((position_mm, rotation_rad, axis)) => {
-                                    model_part = Some((position_mm, rotation_rad));
-                                    terms.turned(axis)
-                                }
+                            Ok(terms) => match &model_at {
+                                Some(at) => terms.turned(at.approach),
                                 None => Correction::failed(Status::InvalidInput),
                             },
                         }
@@ -475,20 +509,26 @@ impl<D: AsRef<[u8]>> Table<D> {
                 _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
             },
         };
+        // A hybrid table's model holds everywhere: where the method has no neighbour, or
+        // the target is outside the grid, the answer is the model alone.
+        let residual_missing = matches!(
+            correction.status,
+            Status::OutsideGrid | Status::NoAdmissibleNeighbour
+        );
+        if residual_missing && self.model.is_some() {
+            correction = Correction::model_only();
+        }
         if correction.status != Status::Ok {
             return correction;
         }
-        if let (Some(model), Some(q)) = (&self.model, joints_rad) {
-            let Some((position_mm, rotation_rad)) = model_part.or_else(|| model.error(q)) else {
-                return Correction::failed(Status::InvalidInput);
-            };
-            for (out, model) in correction.position_error_mm.iter_mut().zip(position_mm) {
+        if let Some(at) = model_at {
+            for (out, model) in correction.position_error_mm.iter_mut().zip(at.position_mm) {
                 *out += model;
             }
             // Position-only samples: the table predicts no orientation, the model does.
             if self.has_orientation() {
                 let orientation = correction.orientation_error_rad.iter_mut();
-                for (out, model) in orientation.zip(rotation_rad) {
+                for (out, model) in orientation.zip(at.rotation_rad) {
                     *out += model;
                 }
             }

@@ -13,7 +13,7 @@ use adwi_runtime::format::{
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use adwi_runtime::method::{self, MethodParams};
 use adwi_runtime::model::PreparedModel;
-use adwi_runtime::{OpenError, Payload, Status, Table, Target};
+use adwi_runtime::{OpenError, Payload, Residual, Status, Table, Target};
 use proptest::prelude::*;
 
 const GRID: Grid = Grid {
@@ -25,9 +25,30 @@ const GRID: Grid = Grid {
 const PER_SET: usize = 18;
 const NX: usize = 3;
 const NY: usize = 3;
-/// The node whose value is missing: the grid's maximum corner, so only the last cell is
-/// not served.
+/// The node whose value is missing: the grid's maximum corner, so that the last cell
+/// fades.
 const MISSING: usize = PER_SET - 1;
+
+/// The nominal and calibrated chains, both bases moved by `shift_mm` (a translation of the
+/// base moves both TCPs alike: the model's error does not change).
+fn chains_shifted(shift_mm: [f64; 3]) -> (Chain, Chain) {
+    let (nominal, calibrated) = chains();
+    let shift = |c: Chain| {
+        let mut c = c;
+        for (t, s) in c.base.translation_mm.iter_mut().zip(shift_mm) {
+            *t += s;
+        }
+        c
+    };
+    (shift(nominal), shift(calibrated))
+}
+
+/// The base shift that puts the nominal TCP at `q` on `position_mm`, so that `q` are joint
+/// values for that target (not [`Status::JointsMismatch`]).
+fn reaching(position_mm: [f64; 3], q: &[f64; 6]) -> [f64; 3] {
+    let tcp = chains().0.tcp_pose(q).unwrap().translation_mm;
+    [0, 1, 2].map(|a| position_mm[a] - tcp[a])
+}
 
 fn chains() -> (Chain, Chain) {
     use std::f64::consts::FRAC_PI_2;
@@ -82,7 +103,12 @@ fn nodes(stride: usize, kind: usize, h_scale: f64) -> Vec<[f64; 3]> {
 /// A hybrid table with orientation, one sample in the middle of the grid listed by every
 /// cell, and a served field of `field` (its nodes from [`nodes`]).
 fn parts(field: ServedField, h_scale: f64) -> (Header, v2::TableData) {
-    let (nominal, calibrated) = chains();
+    parts_shifted(field, h_scale, [0.0; 3])
+}
+
+/// [`parts`] with the chains of [`chains_shifted`].
+fn parts_shifted(field: ServedField, h_scale: f64, shift_mm: [f64; 3]) -> (Header, v2::TableData) {
+    let (nominal, calibrated) = chains_shifted(shift_mm);
     let actual_mm = [550.0, -50.0, 225.0];
     let mut cell = [0u16; 32];
     cell[0] = 1;
@@ -141,25 +167,35 @@ fn refusal(header: Header, data: &v2::TableData) -> &'static str {
     }
 }
 
-/// The served answer by the definition: the 8 corners of the target's cell weighted by
-/// hand, each `f + a·h` with `a` the nominal TCP's z axis, plus the model part; `None`
-/// when a corner is the missing node.
-fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> Option<([f64; 3], [f64; 3])> {
+/// The served answer by the definition: the 8 corners of the cell of the target's nearest
+/// point in the grid box weighted by hand, each `f + a·h` with `a` the nominal TCP's z
+/// axis, the missing node counting zero, scaled by the fade outside the box, plus the
+/// model part; and the residual flag the answer should carry.
+fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> ([f64; 3], [f64; 3], Residual) {
     let (nominal, calibrated) = chains();
     let r = nominal.tcp_pose(q).unwrap().rotation;
     let a = [r[0][2], r[1][2], r[2][2]];
     let mut cell = [0usize; 3];
     let mut t = [0.0; 3];
+    let mut distance2_mm2 = 0.0;
     for axis in 0..3 {
-        let u = (position_mm[axis] - GRID.origin_mm[axis]) / GRID.cell_mm;
+        let low = GRID.origin_mm[axis];
+        let high = low + GRID.dims[axis] as f64 * GRID.cell_mm;
+        let nearest = position_mm[axis].clamp(low, high);
+        distance2_mm2 += (position_mm[axis] - nearest).powi(2);
+        let u = (nearest - low) / GRID.cell_mm;
         cell[axis] = (u.floor() as usize).min(GRID.dims[axis] as usize - 1);
         t[axis] = u - cell[axis] as f64;
     }
+    let fade_mm = adwi_runtime::served::fade_length_mm(GRID.cell_mm);
+    let s = (1.0 - distance2_mm2.sqrt() / fade_mm).max(0.0);
+    let fade = s * s * (3.0 - 2.0 * s);
     let (model_p, model_r) = PreparedModel::new(nominal, calibrated)
         .unwrap()
         .error(q)
         .unwrap();
     let mut out = [model_p, model_r];
+    let (mut missing, mut contributed) = (false, false);
     for corner in 0..8 {
         let d = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
         let weight: f64 = (0..3)
@@ -167,16 +203,25 @@ fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> Option<([f64; 3], [f64; 3])
             .product();
         let n = (cell[0] + d[0]) + NX * ((cell[1] + d[1]) + NY * (cell[2] + d[2]));
         if n == MISSING {
-            return None;
+            missing = true;
+            continue;
         }
+        contributed |= weight > 0.0 && fade > 0.0;
         for (kind, sum) in out.iter_mut().enumerate() {
             for (c, sum) in sum.iter_mut().enumerate() {
                 let turned: f64 = (0..3).map(|i| a[i] * term(n, i + 1, kind)[c]).sum();
-                *sum += weight * (term(n, 0, kind)[c] + turned);
+                *sum += fade * weight * (term(n, 0, kind)[c] + turned);
             }
         }
     }
-    Some((out[0], out[1]))
+    let residual = if !contributed {
+        Residual::ModelOnly
+    } else if missing || distance2_mm2 > 0.0 {
+        Residual::Faded
+    } else {
+        Residual::Full
+    };
+    (out[0], out[1], residual)
 }
 
 fn position(fraction: [f64; 3]) -> [f64; 3] {
@@ -188,23 +233,19 @@ proptest! {
 
     #[test]
     fn the_tool_axis_field_answers_f_plus_a_dot_h_blended_plus_the_model(
-        fraction in prop::array::uniform3(0.0..=1.0f64),
+        fraction in prop::array::uniform3(-1.5..=2.5f64),
         q in prop::array::uniform6(-3.2..3.2f64),
     ) {
-        let (header, data) = parts(ServedField::KrigingToolAxis, 1.0);
-        let table = open(header, &data).unwrap();
         let p = position(fraction);
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 1.0, reaching(p, &q));
+        let table = open(header, &data).unwrap();
         let got = table.query_with_joints(&Target::at(p), &q);
-        match reference(p, &q) {
-            Some((position_mm, rotation_rad)) => {
-                prop_assert_eq!(got.status, Status::Ok, "at {:?}", p);
-                prop_assert_eq!(got.neighbours, 8);
-                for c in 0..3 {
-                    prop_assert!((got.position_error_mm[c] - position_mm[c]).abs() <= 1e-12, "{:?} vs {:?}", got, position_mm);
-                    prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got, rotation_rad);
-                }
-            }
-            None => prop_assert_eq!(got.status, Status::UncoveredCell, "at {:?}", p),
+        let (position_mm, rotation_rad, residual) = reference(p, &q);
+        prop_assert_eq!(got.status, Status::Ok, "at {:?}", p);
+        prop_assert_eq!(got.residual, residual, "at {:?}", p);
+        for c in 0..3 {
+            prop_assert!((got.position_error_mm[c] - position_mm[c]).abs() <= 1e-12, "{:?} vs {:?}", got, position_mm);
+            prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got, rotation_rad);
         }
     }
 
@@ -213,11 +254,12 @@ proptest! {
         fraction in prop::array::uniform3(-0.1..=1.1f64),
         q in prop::array::uniform6(-3.2..3.2f64),
     ) {
-        let (header, data) = parts(ServedField::KrigingToolAxis, 0.0);
-        let turning = open(header, &data).unwrap();
-        let (header, data) = parts(ServedField::Kriging, 0.0);
-        let plain = open(header, &data).unwrap();
         let target = Target::at(position(fraction));
+        let shift = reaching(target.position_mm, &q);
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 0.0, shift);
+        let turning = open(header, &data).unwrap();
+        let (header, data) = parts_shifted(ServedField::Kriging, 0.0, shift);
+        let plain = open(header, &data).unwrap();
         prop_assert_eq!(turning.query_with_joints(&target, &q), plain.query_with_joints(&target, &q));
         prop_assert_eq!(turning.exact().query_with_joints(&target, &q), plain.exact().query_with_joints(&target, &q));
     }
@@ -237,10 +279,25 @@ fn statuses_and_inspection_of_a_tool_axis_table() {
     );
     let q = [0.1, -0.7, 1.2, 0.3, -0.4, 1.1];
     let outside = position([1.5, 0.5, 0.5]);
-    let served = |p| table.query_with_joints(&Target::at(p), &q).status;
-    assert_eq!(served(outside), Status::OutsideGrid);
-    assert_eq!(served(position([0.75, 0.75, 0.5])), Status::UncoveredCell);
-    assert_eq!(served(inside), Status::Ok);
+    let served = |p| {
+        let (header, data) = parts_shifted(ServedField::KrigingToolAxis, 1.0, reaching(p, &q));
+        let c = open(header, &data)
+            .unwrap()
+            .query_with_joints(&Target::at(p), &q);
+        (c.status, c.residual)
+    };
+    // Joint values that put the tool elsewhere are refused.
+    let c = table.query_with_joints(&Target::at(inside), &q);
+    assert_eq!(c.status, Status::JointsMismatch);
+    // A hybrid table: the model answers everywhere, the residual fading where it ends.
+    assert_eq!(served(outside), (Status::Ok, Residual::Faded));
+    let far = position([5.0, 0.5, 0.5]);
+    assert_eq!(served(far), (Status::Ok, Residual::ModelOnly));
+    assert_eq!(
+        served(position([0.75, 0.75, 0.5])),
+        (Status::Ok, Residual::Faded)
+    );
+    assert_eq!(served(inside), (Status::Ok, Residual::Full));
     let Some(Payload::V2(archive)) = table.payload() else {
         panic!("a version-2 table")
     };

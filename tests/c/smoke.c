@@ -1,13 +1,16 @@
 /*
  * A C program using the runtime through adwi.h alone, run by tests/c_abi.rs.
  *
- * Usage: smoke TABLE MISSING CORRUPT < targets
+ * Usage: smoke TABLE MISSING CORRUPT HYBRID < targets
  *   TABLE    a valid table file
  *   MISSING  a path that does not exist
  *   CORRUPT  a file holding a damaged table
+ *   HYBRID   a hybrid table of a six-joint robot
  * Each line of standard input is "x y z config"; for each, the program queries and
  * compensates through a mapped handle and a handle opened from bytes, and prints the
- * answers with 17 significant digits. Every other line it prints is "name value ...",
+ * answers with 17 significant digits. Then a line "hybrid", and lines "x y z j1 ... j6"
+ * (joints in radians), each queried of HYBRID with its joints. Every other line it
+ * prints is "name value ...",
  * for the Rust test to compare with what it expects.
  */
 #include <stddef.h>
@@ -21,20 +24,22 @@
  * asserts the same numbers (runtime/src/capi.rs, layout_and_values_match_the_c_header), so
  * a change on either side alone fails to compile here or fails that test. */
 _Static_assert(sizeof(adwi_result) == 4, "adwi_result is an int");
-_Static_assert(sizeof(adwi_correction) == 56, "sizeof adwi_correction");
+_Static_assert(sizeof(adwi_correction) == 64, "sizeof adwi_correction");
 _Static_assert(_Alignof(adwi_correction) == 8, "alignof adwi_correction");
 _Static_assert(offsetof(adwi_correction, position_error_mm) == 0, "position_error_mm");
 _Static_assert(offsetof(adwi_correction, orientation_error_rad) == 24, "orientation_error_rad");
 _Static_assert(offsetof(adwi_correction, neighbours) == 48, "neighbours");
 _Static_assert(offsetof(adwi_correction, status) == 52, "status");
-_Static_assert(sizeof(adwi_compensation) == 120, "sizeof adwi_compensation");
+_Static_assert(offsetof(adwi_correction, residual) == 56, "residual");
+_Static_assert(offsetof(adwi_correction, reserved) == 60, "reserved");
+_Static_assert(sizeof(adwi_compensation) == 128, "sizeof adwi_compensation");
 _Static_assert(_Alignof(adwi_compensation) == 8, "alignof adwi_compensation");
 _Static_assert(offsetof(adwi_compensation, command_position_mm) == 0, "command_position_mm");
 _Static_assert(offsetof(adwi_compensation, command_rotation_rad) == 24, "command_rotation_rad");
 _Static_assert(offsetof(adwi_compensation, correction) == 48, "correction");
-_Static_assert(offsetof(adwi_compensation, iterations) == 104, "iterations");
-_Static_assert(offsetof(adwi_compensation, converged) == 108, "converged");
-_Static_assert(offsetof(adwi_compensation, residual_mm) == 112, "residual_mm");
+_Static_assert(offsetof(adwi_compensation, iterations) == 112, "iterations");
+_Static_assert(offsetof(adwi_compensation, converged) == 116, "converged");
+_Static_assert(offsetof(adwi_compensation, residual_mm) == 120, "residual_mm");
 _Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT == 2 &&
                    ADWI_IO == 3 && ADWI_INVALID_TABLE == 4 && ADWI_UNSUPPORTED_VERSION == 5 &&
                    ADWI_LOCK == 6 && ADWI_PANIC == 7 && ADWI_INVALID_HANDLE == 8,
@@ -42,8 +47,10 @@ _Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT =
 _Static_assert(ADWI_STATUS_OK == 0 && ADWI_STATUS_OUTSIDE_GRID == 1 &&
                    ADWI_STATUS_NO_NEIGHBOUR == 2 && ADWI_STATUS_INVALID_INPUT == 3 &&
                    ADWI_STATUS_MISSING_JOINTS == 4 && ADWI_STATUS_NUMERICAL_FAILURE == 5 &&
-                   ADWI_STATUS_UNCOVERED_CELL == 6,
+                   ADWI_STATUS_UNCOVERED_CELL == 6 && ADWI_STATUS_JOINTS_MISMATCH == 7,
                "ADWI_STATUS_* values");
+_Static_assert(ADWI_RESIDUAL_FULL == 0 && ADWI_RESIDUAL_FADED == 1 && ADWI_RESIDUAL_MODEL_ONLY == 2,
+               "ADWI_RESIDUAL_* values");
 _Static_assert(ADWI_OPEN_PREFAULT == 1u && ADWI_OPEN_LOCK == 2u && ADWI_OPEN_LOCK_REQUIRED == 4u,
                "ADWI_OPEN_* values");
 
@@ -70,8 +77,8 @@ static void print_open_error(const char *name, adwi_result code) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 4) {
-        fprintf(stderr, "usage: smoke TABLE MISSING CORRUPT < targets\n");
+    if (argc != 5) {
+        fprintf(stderr, "usage: smoke TABLE MISSING CORRUPT HYBRID < targets\n");
         return 2;
     }
     adwi_table *table = NULL;
@@ -167,14 +174,20 @@ int main(int argc, char **argv) {
     while (scanf("%lf %lf %lf %d", &x, &y, &z, &config) == 4) {
         const double p[3] = {x, y, z};
         adwi_correction a, b, e;
+        /* Different garbage in each: the comparisons below hold only if every byte is
+         * written. */
+        memset(&a, 0x11, sizeof a);
+        memset(&b, 0x22, sizeof b);
+        memset(&e, 0x33, sizeof e);
+        memset(&c, 0x44, sizeof c);
         if (adwi_table_query(table, p, config, &a) != ADWI_OK ||
             adwi_table_query(copy, p, config, &b) != ADWI_OK ||
             adwi_table_query_exact(table, p, config, &e) != ADWI_OK) {
             printf("query_failed\n");
             return 1;
         }
-        printf("query %d %u %.17g %.17g %.17g %.17g %.17g %.17g\n", a.status, a.neighbours,
-               a.position_error_mm[0], a.position_error_mm[1], a.position_error_mm[2],
+        printf("query %d %u %d %.17g %.17g %.17g %.17g %.17g %.17g\n", a.status, a.neighbours,
+               a.residual, a.position_error_mm[0], a.position_error_mm[1], a.position_error_mm[2],
                a.orientation_error_rad[0], a.orientation_error_rad[1],
                a.orientation_error_rad[2]);
         printf("exact %d %u %.17g %.17g %.17g\n", e.status, e.neighbours,
@@ -205,6 +218,28 @@ int main(int argc, char **argv) {
     }
     printf("close %d %d %d\n", (int)adwi_table_close(copy), (int)adwi_table_close(table),
            (int)adwi_table_close(NULL));
+
+    /* A hybrid table: the model everywhere, the residual where the samples are. */
+    char word[16];
+    adwi_table *hybrid = NULL;
+    if (scanf("%15s", word) != 1 || strcmp(word, "hybrid") != 0 ||
+        adwi_table_open(argv[4], &hybrid) != ADWI_OK) {
+        printf("hybrid_failed\n");
+        return 1;
+    }
+    double q[6];
+    while (scanf("%lf %lf %lf %lf %lf %lf %lf %lf %lf", &x, &y, &z, &q[0], &q[1], &q[2], &q[3],
+                 &q[4], &q[5]) == 9) {
+        const double p[3] = {x, y, z};
+        adwi_correction h;
+        if (adwi_table_query_joints(hybrid, p, -1, q, 6, &h) != ADWI_OK) {
+            printf("query_failed\n");
+            return 1;
+        }
+        printf("hybrid %d %u %d %.17g %.17g %.17g\n", h.status, h.neighbours, h.residual,
+               h.position_error_mm[0], h.position_error_mm[1], h.position_error_mm[2]);
+    }
+    printf("hybrid_close %d\n", (int)adwi_table_close(hybrid));
     printf("done\n");
     return 0;
 }

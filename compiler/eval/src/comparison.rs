@@ -113,6 +113,7 @@ mod tests {
                     p.map(|p| PointPrediction {
                         position_error_mm: p,
                         orientation_error_rad: None,
+                        residual: None,
                     })
                 })
                 .collect(),
@@ -122,6 +123,7 @@ mod tests {
                 .then(|| ResidualStats::from_residuals(&residuals).unwrap()),
             orientation_mrad: None,
             before_position_mm: None,
+            residual: None,
         }
     }
 

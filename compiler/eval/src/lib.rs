@@ -50,7 +50,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use adwi_runtime::{Status, Table, Target, Tier};
+use adwi_runtime::{Residual, Status, Table, Target, Tier};
 
 use crate::baselines::{
     BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
@@ -374,6 +374,39 @@ pub struct PointPrediction {
     pub position_error_mm: [f64; 3],
     /// Predicted orientation error (rotation vector), rad.
     pub orientation_error_rad: Option<[f64; 3]>,
+    /// How much of a hybrid table's residual field the prediction holds; `None` for every
+    /// other method (counted in [`MethodResult::residual`]).
+    #[serde(skip)]
+    pub residual: Option<Residual>,
+}
+
+/// A hybrid table's answered points by residual flag ([`Residual`]): where the residual
+/// field answered in full, faded, or left the calibrated model alone.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ResidualCounts {
+    /// Points answered with the whole residual.
+    pub residual_full: usize,
+    /// Points answered with a faded residual.
+    pub residual_faded: usize,
+    /// Points answered by the calibrated model alone.
+    pub residual_model_only: usize,
+}
+
+impl ResidualCounts {
+    /// The counts of `predictions`; `None` when none carries a flag (not a hybrid table).
+    fn of(predictions: &[Option<PointPrediction>]) -> Option<ResidualCounts> {
+        let mut counts = ResidualCounts::default();
+        let mut any = false;
+        for residual in predictions.iter().flatten().filter_map(|p| p.residual) {
+            any = true;
+            *match residual {
+                Residual::Full => &mut counts.residual_full,
+                Residual::Faded => &mut counts.residual_faded,
+                Residual::ModelOnly => &mut counts.residual_model_only,
+            } += 1;
+        }
+        any.then_some(counts)
+    }
 }
 
 /// The outcome of one method over all points.
@@ -398,6 +431,9 @@ pub struct MethodResult {
     /// The raw errors' statistics over the same predicted points, position, mm: the fair
     /// "before" for a method that skipped points.
     pub before_position_mm: Option<ResidualStats>,
+    /// A hybrid table's answered points by residual flag; `None` for other methods.
+    #[serde(flatten)]
+    pub residual: Option<ResidualCounts>,
 }
 
 impl MethodResult {
@@ -424,6 +460,22 @@ impl MethodResult {
     /// How many points it did not predict.
     pub fn not_predicted_count(&self) -> usize {
         self.not_predicted.values().sum()
+    }
+
+    /// A hybrid table's answered points by residual flag, in words (`None` for other
+    /// methods).
+    pub fn residual_summary(&self) -> Option<String> {
+        self.residual.map(|c| {
+            format!(
+                "residual: {} {}, {} {}, {} {}",
+                c.residual_full,
+                Residual::Full.as_str(),
+                c.residual_faded,
+                Residual::Faded.as_str(),
+                c.residual_model_only,
+                Residual::ModelOnly.as_str()
+            )
+        })
     }
 
     /// The points not predicted, in words: a count per kind of reason with a few
@@ -907,6 +959,7 @@ fn assemble(
                     position_mm: None,
                     orientation_mrad: None,
                     before_position_mm: None,
+                    residual: None,
                 };
             }
             let mut position = Vec::new();
@@ -934,6 +987,7 @@ fn assemble(
                     None
                 },
                 before_position_mm: nonempty(&before),
+                residual: ResidualCounts::of(&predicted),
                 predictions: predicted,
             }
         })
@@ -1080,6 +1134,7 @@ fn predict_split(
                     Ok(PointPrediction {
                         position_error_mm: p,
                         orientation_error_rad: orientation.then_some(r),
+                        residual: None,
                     })
                 })
                 .collect()
@@ -1144,6 +1199,7 @@ fn table_prediction<D: AsRef<[u8]>>(
         position_error_mm: c.position_error_mm,
         orientation_error_rad: (orientation && table.has_orientation())
             .then_some(c.orientation_error_rad),
+        residual: table.is_hybrid().then_some(c.residual),
     })
 }
 
@@ -1173,6 +1229,7 @@ fn baseline_predictions<B: baselines::Baseline>(
             Ok(PointPrediction {
                 position_error_mm: p,
                 orientation_error_rad: r,
+                residual: None,
             })
         })
         .collect())

@@ -46,7 +46,9 @@ fn note(m: &MethodResult) -> String {
     if let Some(reason) = &m.unsupported {
         return format!("unsupported: {reason}");
     }
-    m.not_predicted_summary().join("; ")
+    let mut lines = m.not_predicted_summary();
+    lines.extend(m.residual_summary());
+    lines.join("; ")
 }
 
 fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {

@@ -924,7 +924,11 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
             note = format!("unsupported: {reason}");
         }
         if m.unsupported.is_none() {
-            for line in m.not_predicted_summary() {
+            for line in m
+                .not_predicted_summary()
+                .into_iter()
+                .chain(m.residual_summary())
+            {
                 let _ = write!(note, "; {line}");
             }
         }

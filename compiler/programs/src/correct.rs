@@ -7,7 +7,7 @@ use std::f64::consts::TAU;
 use adwi_robot::ik::{configuration_of, solve_near, JOINT_COUNT};
 use adwi_robot::{Configuration, InverseKinematics, Robot};
 use adwi_runtime::kinematics::MdhJoint;
-use adwi_runtime::{Status, Table, Target};
+use adwi_runtime::{Residual, Status, Table, Target};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// What became of a target.
@@ -220,6 +220,9 @@ pub struct Command {
     pub converged: bool,
     /// `|command + error(command) − target|`, mm.
     pub residual_mm: f64,
+    /// How much of a hybrid table's residual field the correction at the command held
+    /// ([`Residual::Full`] for a position-only table).
+    pub residual: Residual,
 }
 
 /// Why no command was found, and the details for the report.
@@ -319,6 +322,7 @@ pub fn solve<D: AsRef<[u8]>>(
                     iterations: iteration,
                     converged: true,
                     residual_mm,
+                    residual: c.residual,
                 });
                 break;
             }
@@ -384,6 +388,7 @@ pub fn solve<D: AsRef<[u8]>>(
             iterations: comp.iterations,
             converged: true,
             residual_mm: comp.residual_mm,
+            residual: comp.correction.residual,
         }
     };
     if let (Some(k), Some(q), Some(qc)) = (kinematics, &target_joints, &command.joints) {

@@ -377,6 +377,7 @@ impl CompensateJob {
                 command_joints: None,
                 iterations: 0,
                 residual_mm: None,
+                residual: None,
             };
             let result = self
                 .target(&src, target, chains, &mut seed, &mut entry)
@@ -646,6 +647,7 @@ fn fill(
     entry.rotation_deg = turned.map(f64::to_degrees);
     entry.iterations = command.iterations;
     entry.residual_mm = Some(command.residual_mm);
+    entry.residual = Some(command.residual);
     if let (Some(k), Some(a), Some(b)) = (kinematics, &command.target_joints, &command.joints) {
         entry.joint_change_deg = Some(correct::joint_change(k.robot(), a, b));
     }

@@ -3,6 +3,8 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
+use adwi_runtime::Residual;
+
 use crate::correct::TargetStatus;
 
 /// One target's line of the report.
@@ -38,6 +40,9 @@ pub struct TargetLine {
     pub iterations: u32,
     /// `|command + error(command) − target|` at the command, mm.
     pub residual_mm: Option<f64>,
+    /// How much of a hybrid table's residual field the correction held (`full` for a
+    /// position-only table), when a command was computed.
+    pub residual: Option<Residual>,
 }
 
 /// The report: a line per target, in the order the program writes them.
@@ -56,6 +61,10 @@ pub struct Summary {
     pub corrected: usize,
     /// Targets left unchanged, by status.
     pub not_corrected: BTreeMap<&'static str, usize>,
+    /// Targets corrected by a hybrid table's model with a faded residual.
+    pub faded: usize,
+    /// Targets corrected by a hybrid table's model alone.
+    pub model_only: usize,
     /// The largest correction made (mm), and the target it was made to.
     pub largest: Option<(f64, String)>,
 }
@@ -76,10 +85,16 @@ impl Report {
                 *not_corrected.entry(t.status.as_str()).or_default() += 1;
             }
         }
+        let corrected_with = |flag| {
+            let with = |t: &&TargetLine| t.status.corrected() && t.residual == Some(flag);
+            self.targets.iter().filter(with).count()
+        };
         Summary {
             total: self.targets.len(),
             corrected: self.targets.iter().filter(|t| t.status.corrected()).count(),
             not_corrected,
+            faded: corrected_with(Residual::Faded),
+            model_only: corrected_with(Residual::ModelOnly),
             largest,
         }
     }
@@ -93,7 +108,8 @@ impl Report {
     pub fn to_csv(&self) -> String {
         let mut out = String::from(
             "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
-             iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z\n",
+             iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z,\
+             residual\n",
         );
         let opt = |v: Option<f64>, d: usize| v.map_or(String::new(), |v| format!("{v:.d$}"));
         let xyz = |v: Option<[f64; 3]>| {
@@ -104,7 +120,7 @@ impl Report {
         for t in &self.targets {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 csv_field(&t.name),
                 t.line,
                 t.column,
@@ -118,6 +134,7 @@ impl Report {
                 t.residual_mm.map_or(String::new(), |v| format!("{v:.3e}")),
                 xyz(t.point_mm),
                 xyz(t.command_mm),
+                t.residual.map_or("", Residual::as_str),
             );
         }
         out
@@ -134,6 +151,14 @@ impl TargetLine {
 impl std::fmt::Display for Summary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} of {} targets corrected", self.corrected, self.total)?;
+        // A hybrid table's model answers where its residual does not reach.
+        if self.faded + self.model_only > 0 {
+            write!(
+                f,
+                " ({} with a faded residual, {} by the calibrated model alone)",
+                self.faded, self.model_only
+            )?;
+        }
         if !self.not_corrected.is_empty() {
             let by: Vec<String> = self
                 .not_corrected
@@ -155,5 +180,63 @@ fn csv_field(text: &str) -> String {
         format!("\"{}\"", text.replace('"', "\"\""))
     } else {
         text.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(status: TargetStatus, residual: Option<Residual>) -> TargetLine {
+        TargetLine {
+            name: "P".into(),
+            line: 1,
+            column: 1,
+            kind: "cartesian",
+            status,
+            detail: String::new(),
+            correction_mm: residual.map(|_| 1.0),
+            rotation_deg: None,
+            joint_change_deg: None,
+            point_mm: None,
+            command_mm: None,
+            command_joints: None,
+            iterations: 1,
+            residual_mm: None,
+            residual,
+        }
+    }
+
+    #[test]
+    fn the_summary_counts_targets_corrected_by_the_model_alone_or_a_faded_residual() {
+        let report = Report {
+            targets: vec![
+                line(TargetStatus::Ok, Some(Residual::Full)),
+                line(TargetStatus::Ok, Some(Residual::Faded)),
+                line(TargetStatus::Ok, Some(Residual::ModelOnly)),
+                line(TargetStatus::Ok, Some(Residual::ModelOnly)),
+                line(TargetStatus::IkFailed, None),
+            ],
+        };
+        let summary = report.summary();
+        assert_eq!(
+            (summary.corrected, summary.faded, summary.model_only),
+            (4, 1, 2)
+        );
+        assert!(
+            summary.to_string().starts_with(
+                "4 of 5 targets corrected (1 with a faded residual, 2 by the calibrated model \
+                 alone); left unchanged: 1 ik_failed"
+            ),
+            "{summary}"
+        );
+        let csv = report.to_csv();
+        let rows: Vec<&str> = csv.lines().collect();
+        assert!(rows[0].ends_with(",command_z,residual"));
+        let flags: Vec<&str> = rows[1..]
+            .iter()
+            .map(|r| r.rsplit(',').next().unwrap())
+            .collect();
+        assert_eq!(flags, ["full", "faded", "model_only", "model_only", ""]);
     }
 }

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::{Correction, Status, Table, Target, Tier};
+use adwi_runtime::{Correction, Residual, Status, Table, Target, Tier};
 use adwi_samples::pose;
 use anyhow::bail;
 
@@ -106,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             orientation_error_rad: [0.0; 3],
             neighbours: 0,
             status: Status::InvalidInput,
+            residual: Residual::Full,
         }
     } else {
         table.answer(&target, joints_rad.as_deref(), tier(args.exact))
@@ -131,7 +132,13 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     );
     if c.status != Status::Ok {
         eprintln!("no correction: {}", c.status.as_str());
+        if let (Status::JointsMismatch, Some(q)) = (c.status, &joints_rad) {
+            explain_mismatch(&table, position, q);
+        }
         return Ok(Answered::NotAll);
+    }
+    if table.is_hybrid() {
+        println!("residual     {}", c.residual.as_str());
     }
     let e = c.position_error_mm;
     println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
@@ -152,6 +159,20 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
     Ok(Answered::All)
+}
+
+/// Says how far the joints put the tool from the target, and the unit `--joints` takes.
+fn explain_mismatch<D: AsRef<[u8]>>(table: &Table<D>, target_mm: [f64; 3], joints_rad: &[f64]) {
+    let (Some(model), Some(tolerance_mm)) = (table.model(), table.joints_tolerance_mm()) else {
+        return;
+    };
+    if let Some(at) = model.at(joints_rad) {
+        let off_mm = adwi_runtime::method::distance_mm(at.nominal_tcp_mm, target_mm);
+        eprintln!(
+            "the joints' nominal forward kinematics puts the tool {off_mm:.1} mm from the \
+             target (the table allows {tolerance_mm:.1} mm): --joints takes degrees"
+        );
+    }
 }
 
 /// The pose to command so that the robot lands on the target.
@@ -229,7 +250,7 @@ fn run_batch(
     };
     writeln!(
         out,
-        "x,y,z,dx,dy,dz,rx,ry,rz,neighbours,status,\
+        "x,y,z,pred_dx,pred_dy,pred_dz,pred_rx,pred_ry,pred_rz,neighbours,status,residual,\
          command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
     )?;
     let orientation = table.has_orientation();
@@ -253,6 +274,7 @@ fn run_batch(
         }
         write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
         if c.status == Status::Ok {
+            write!(out, ",{}", c.residual.as_str())?;
             let command = command(table, &row.target, row.joints_rad.as_deref(), &c, exact);
             let p = command.position_mm;
             write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
@@ -265,7 +287,7 @@ fn run_batch(
             writeln!(out, ",{}", command.status)?;
         } else {
             *unanswered.entry(c.status.as_str()).or_default() += 1;
-            writeln!(out, ",,,,,,,")?;
+            writeln!(out, ",,,,,,,,")?;
         }
     }
     out.flush()?;
