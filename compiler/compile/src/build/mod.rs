@@ -27,7 +27,9 @@
 //! ([`adwi_runtime::served`]). With [`BuildOptions::served_field`] set to
 //! [`ServedField::Kriging`] (or [`ServedField::KrigingToolAxis`]), the nodes hold instead
 //! kriging with a nugget of the samples' errors ([`crate::nugget_kriging`], fitted once per
-//! set of samples a configuration sees): a smoother field that does not pass each sample's
+//! set of samples a configuration sees; beyond a thousand samples from each node's
+//! neighbours, [`crate::local_kriging`], so that it takes time and memory linear in the
+//! samples): a smoother field that does not pass each sample's
 //! measurement noise on. The method's nodes are missing wherever it has no admissible
 //! sample, so its served field stops up to one cell short of the exact tier. The kriging is
 //! defined everywhere, and its nodes are filled at every corner of a cell whose candidate

@@ -8,6 +8,7 @@ use adwi_runtime::model::PreparedModel;
 use rayon::prelude::*;
 
 use super::{BuildError, ServedField};
+use crate::local_kriging::{KrigingField, LocalSettings};
 use adwi_samples::SampleSet;
 
 /// What the nodes hold: the method's answer, or the kriging of the samples' errors, which
@@ -144,22 +145,26 @@ impl NodeValues {
                     };
                     let kriging = &fits[fitted].1;
                     if out.kriging_choices.is_empty() {
-                        out.kriging_choices = kriging.fit.choices();
+                        out.kriging_choices = kriging.field.choices();
                     }
                     let usable =
                         |s: &u32| method::config_matches(records[*s as usize].config, config);
-                    (0..per_set)
-                        .into_par_iter()
-                        .map(|node| {
-                            let (ijk, at) = node_position(node);
-                            let reached = adjacent_cells(grid, ijk)
-                                .any(|cell| lists[cell].iter().any(usable));
-                            if reached {
-                                kriging.predict(at)
-                            } else {
-                                (missing, missing)
-                            }
-                        })
+                    let reached = |node: usize| {
+                        adjacent_cells(grid, node_position(node).0)
+                            .any(|cell| lists[cell].iter().any(usable))
+                    };
+                    kriging
+                        .field
+                        .lattice_terms(
+                            [nx, ny, nz],
+                            grid.cell_mm,
+                            &|ijk| grid_node_mm(grid, ijk),
+                            &reached,
+                            &|terms| kriging.node_terms(terms),
+                        )
+                        .map_err(BuildError::Kriging)?
+                        .into_iter()
+                        .map(|v| v.unwrap_or((missing, missing)))
                         .collect()
                 }
             };
@@ -225,9 +230,10 @@ impl NodeValues {
 
 /// Kriging with a nugget of some samples' errors, in Cartesian distance of their actual
 /// positions (where the method places them): position, and orientation when stored;
-/// turning with the tool's axis when given the samples' axes.
+/// turning with the tool's axis when given the samples' axes. Dense or local
+/// ([`crate::local_kriging`]) as the sample count says.
 struct NodeKriging {
-    fit: crate::nugget_kriging::ResidualGp,
+    field: KrigingField,
     orientation: bool,
 }
 
@@ -253,24 +259,16 @@ impl NodeKriging {
                 row
             })
             .collect();
-        let fit = match axes {
-            Some(axes) => {
-                let axes: Vec<[f64; 3]> = samples.iter().map(|&i| axes[i]).collect();
-                crate::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &values)
-            }
-            None => crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values),
-        }
-        .map_err(BuildError::Kriging)?;
-        Ok(NodeKriging { fit, orientation })
+        let axes: Option<Vec<[f64; 3]>> = axes.map(|a| samples.iter().map(|&i| a[i]).collect());
+        let field = KrigingField::fit(&inputs, axes.as_deref(), &values, LocalSettings::default())
+            .map_err(BuildError::Kriging)?;
+        Ok(NodeKriging { field, orientation })
     }
 
-    /// The field's terms at `position_mm` (`f` alone when it does not turn); orientation
-    /// zero when not stored (as the method's).
-    fn predict(&self, position_mm: [f64; 3]) -> NodeTerms {
-        let t = self
-            .fit
-            .predict_terms(&position_mm)
-            .expect("grid nodes are finite and three-dimensional");
+    /// A node's vectors from the field's terms there, `[f, h_x, h_y, h_z]` per component
+    /// (`f` alone when it does not turn); orientation zero when not stored (as the
+    /// method's).
+    fn node_terms(&self, t: &[[f64; 4]]) -> NodeTerms {
         let vectors = |c: usize| [0, 1, 2, 3].map(|k| [t[c][k], t[c + 1][k], t[c + 2][k]]);
         let rotation = if self.orientation {
             vectors(3)
