@@ -159,9 +159,10 @@ pub enum BuildError {
     /// The kriging of a served field could not be fitted.
     #[error("cannot fit the kriging of the served field")]
     Kriging(#[source] crate::nugget_kriging::GpError),
-    /// A served field that turns with the tool was asked of a table without a model.
-    #[error("the kriging-tool-axis served field needs a hybrid table (a robot model and samples with joint angles): the tool's axis comes from its nominal chain")]
-    ToolAxisWithoutModel,
+    /// The nominal tool's approach axis, which a hybrid table's kriging may turn with,
+    /// could not be computed at a sample's joint values.
+    #[error("the nominal tool's approach axis cannot be computed at a sample's joint values")]
+    ToolAxis,
     /// A kriging served field was asked of a table that has none (a joint screen).
     #[error("a kriging served field needs a served tier, which a table with a joint screen does not have")]
     KrigingWithoutServedTier,

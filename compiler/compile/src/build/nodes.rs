@@ -11,16 +11,18 @@ use super::{BuildError, ServedField};
 use crate::local_kriging::{KrigingField, LocalSettings};
 use adwi_samples::SampleSet;
 
-/// What the nodes hold: the method's answer, or the kriging of the samples' errors, which
-/// turns with the tool's axis when given one unit axis per sample.
+/// What the nodes hold: the method's answer, or the kriging of the samples' errors, fitted
+/// with a part that turns with the tool's axis when given one unit axis per sample.
 pub(super) enum NodeField {
     Method,
     Kriging(Option<Vec<[f64; 3]>>),
 }
 
 impl NodeField {
-    /// The field `served` asks for; the tool's axes come from `model` at the samples'
-    /// joint values.
+    /// The field `served` asks for. A kriging field is fitted with the tool's axes whenever
+    /// there are some (`model` and the samples' joint values: a hybrid table), so that the
+    /// likelihood decides whether it turns; `kriging-tool-axis` is an older name of
+    /// `kriging`.
     pub(super) fn new(
         served: ServedField,
         samples: &SampleSet,
@@ -28,43 +30,33 @@ impl NodeField {
     ) -> Result<NodeField, BuildError> {
         Ok(match served {
             ServedField::Method => NodeField::Method,
-            ServedField::Kriging => NodeField::Kriging(None),
-            ServedField::KrigingToolAxis => NodeField::Kriging(Some(tool_axes(samples, model)?)),
+            ServedField::Kriging | ServedField::KrigingToolAxis => match (model, &samples.joints) {
+                (Some(model), Some(_)) => NodeField::Kriging(Some(tool_axes(samples, model)?)),
+                _ => NodeField::Kriging(None),
+            },
         })
-    }
-
-    /// Vectors per node ([`ServedField::node_stride`]).
-    fn stride(&self) -> usize {
-        match self {
-            NodeField::Kriging(Some(_)) => 4,
-            _ => 1,
-        }
     }
 }
 
 /// The unit approach (z) axis of the nominal TCP at each sample's joint values: what a
 /// served field turning with the tool combines its terms with (the runtime computes the
 /// same at the query's joint values).
-fn tool_axes(
-    samples: &SampleSet,
-    model: Option<&PreparedModel>,
-) -> Result<Vec<[f64; 3]>, BuildError> {
-    let (Some(model), Some(joints)) = (model, &samples.joints) else {
-        return Err(BuildError::ToolAxisWithoutModel);
+fn tool_axes(samples: &SampleSet, model: &PreparedModel) -> Result<Vec<[f64; 3]>, BuildError> {
+    let Some(joints) = &samples.joints else {
+        return Err(BuildError::MissingJoints);
     };
     joints
         .rows()
-        .map(|q| {
-            model
-                .approach_axis(q)
-                .ok_or(BuildError::ToolAxisWithoutModel)
-        })
+        .map(|q| model.approach_axis(q).ok_or(BuildError::ToolAxis))
         .collect()
 }
 
 /// The served tier's node values: the exact method at every node of the grid, per set;
 /// `stride` vectors per node (the layout of [`v2::TableData::node_errors_mm`]).
 pub(super) struct NodeValues {
+    /// What the nodes hold: the method's answer, a kriging of position, or one that turns
+    /// with the tool (stride 4) when the likelihood gave some component a turning part.
+    pub(super) served_field: ServedField,
     pub(super) sets: Vec<v2::NodeSet>,
     /// The first kriging fit's hyperparameters (empty for the method's values).
     pub(super) kriging_choices: Vec<crate::nugget_kriging::GpChoice>,
@@ -95,8 +87,17 @@ impl NodeValues {
         configs.dedup();
         let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
         let per_set = nx * ny * nz;
-        let stride = field.stride();
+        // Kriging nodes are computed with their four terms, and reduced to `f` at the end
+        // when no fit turns.
+        let stride = match field {
+            NodeField::Method => 1,
+            NodeField::Kriging(_) => 4,
+        };
         let mut out = NodeValues {
+            served_field: match field {
+                NodeField::Method => ServedField::Method,
+                NodeField::Kriging(_) => ServedField::KrigingToolAxis,
+            },
             sets: Vec::new(),
             kriging_choices: Vec::new(),
             stride,
@@ -199,6 +200,14 @@ impl NodeValues {
                 config: config.unwrap_or(CONFIG_UNKNOWN),
                 first_node: first_node as u32,
             });
+        }
+        if matches!(field, NodeField::Kriging(_)) && !fits.iter().any(|(_, f)| f.field.turns()) {
+            // No part turns with the tool (no axes, or the likelihood gave it no weight):
+            // every `h` is 0, and a node is its `f`.
+            out.served_field = ServedField::Kriging;
+            out.stride = 1;
+            out.position_mm = out.position_mm.iter().step_by(4).copied().collect();
+            out.orientation_rad = out.orientation_rad.iter().step_by(4).copied().collect();
         }
         Ok(out)
     }
