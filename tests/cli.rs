@@ -1205,15 +1205,17 @@ fn a_kriging_served_field_is_built_recorded_and_served() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("choose auto, method, kriging or kriging-tool-axis"),
+        stderr(&o).contains("choose auto, method or kriging"),
         "{}",
         stderr(&o)
     );
 }
 
-/// `--served-field kriging-tool-axis` on a hybrid build: recorded and shown by inspect,
-/// served with the query's joint values, the same bytes whatever the thread count; a table
-/// without a model refuses it and writes nothing.
+/// `--served-field kriging` on a hybrid build of UR5 data turns with the tool (the
+/// likelihood gives the part weight): recorded and shown by inspect, served with the
+/// query's joint values, the same bytes whatever the thread count, and the same as its
+/// older name `kriging-tool-axis`; without a model the field is a kriging of position
+/// alone, under either name.
 #[test]
 fn a_tool_axis_served_field_is_built_recorded_and_served() {
     let dir = tempfile::tempdir().unwrap();
@@ -1229,8 +1231,9 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
     std::fs::write(dir.path().join("s.csv"), subset).unwrap();
     let robot = repo("tables/ur5/robot.toml");
     let columns = UR5_MAP;
-    // A hybrid build of the subset with the tool-axis field, and `extra` arguments.
-    let build = |extra: &[&str]| {
+    // A hybrid build of the subset with the kriging field named `field`, and `extra`
+    // arguments.
+    let build = |field: &str, extra: &[&str]| {
         let mut args = vec![
             "build",
             "s.csv",
@@ -1242,7 +1245,7 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
             "--cell",
             "60",
             "--served-field",
-            "kriging-tool-axis",
+            field,
         ];
         args.extend(extra);
         let o = tablec(&args, dir.path());
@@ -1251,14 +1254,18 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
     };
     for threads in ["1", "3"] {
         let table = format!("a{threads}.tbl");
-        build(&["-q", "--threads", threads, "-o", &table]);
+        build("kriging", &["-q", "--threads", threads, "-o", &table]);
     }
-    assert_eq!(
-        std::fs::read(dir.path().join("a1.tbl")).unwrap(),
-        std::fs::read(dir.path().join("a3.tbl")).unwrap()
-    );
+    build("kriging-tool-axis", &["-q", "-o", "old.tbl"]);
+    for other in ["a3.tbl", "old.tbl"] {
+        assert_eq!(
+            std::fs::read(dir.path().join("a1.tbl")).unwrap(),
+            std::fs::read(dir.path().join(other)).unwrap(),
+            "{other}"
+        );
+    }
     // Without -q, build says what the kriging chose, per component.
-    let o = build(&["-o", "b.tbl"]);
+    let o = build("kriging", &["-o", "b.tbl"]);
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let line = out
         .lines()
@@ -1294,26 +1301,30 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
         query("-22.933,-43.719,135.398,-94.740,55.417,-5.552"),
         query("-22.933,-43.719,135.398,-80.740,65.417,-5.552")
     );
-    let o = tablec(
-        &[
-            "build",
-            "s.csv",
-            "--columns",
-            columns,
-            "-o",
-            "p.tbl",
-            "--served-field",
-            "kriging-tool-axis",
-        ],
-        dir.path(),
-    );
-    assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("needs a hybrid table"),
-        "{}",
-        stderr(&o)
-    );
-    assert!(!dir.path().join("p.tbl").exists());
+    let mut plain = Vec::new();
+    for name in ["kriging", "kriging-tool-axis"] {
+        let table = format!("p-{name}.tbl");
+        let o = tablec(
+            &[
+                "build",
+                "s.csv",
+                "--columns",
+                columns,
+                "-q",
+                "-o",
+                &table,
+                "--served-field",
+                name,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let o = tablec(&["inspect", &table], dir.path());
+        let inspect = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(!inspect.contains("turning with the tool"), "{inspect}");
+        plain.push(std::fs::read(dir.path().join(&table)).unwrap());
+    }
+    assert_eq!(plain[0], plain[1]);
 }
 
 /// Samples in metres read as millimetres build, but say so on standard error with the

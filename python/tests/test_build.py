@@ -61,13 +61,13 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
     assert ours.read_bytes() == theirs.read_bytes()
     method = adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl")
     assert method.served_field == "method" and method.served_kriging == []
-    with pytest.raises(adwi.AdwiError, match="^served_field: 'spline': choose auto, method, kriging or kriging-tool-axis"):
+    with pytest.raises(adwi.AdwiError, match="^served_field: 'spline': choose auto, method or kriging"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")
-    # The field that turns with the tool takes its axis from a hybrid table's model.
-    with pytest.raises(adwi.AdwiError, match="needs a hybrid table"):
-        adwi.build(KR150 / "samples.csv", tmp_path / "axis.tbl",
-                   served_field="kriging-tool-axis")
-    assert not (tmp_path / "axis.tbl").exists()
+    # kriging-tool-axis is the older name of kriging: without a model, a field of position.
+    axis = adwi.build(KR150 / "samples.csv", tmp_path / "axis.tbl",
+                      served_field="kriging-tool-axis")
+    assert axis.served_field == "kriging"
+    assert (tmp_path / "axis.tbl").read_bytes() == ours.read_bytes()
 
 
 def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):

@@ -6,7 +6,8 @@
 //! - [`reference`]: the brute-force reference every compiled table is tested against;
 //! - [`write`]: writing the file without ever losing data;
 //! - [`inspect`]: what a table holds, in figures;
-//! - [`nugget_kriging`]: kriging with a nugget, what a kriging served field holds.
+//! - [`nugget_kriging`]: kriging with a nugget, what a kriging served field holds;
+//! - [`local_kriging`]: the same at any number of samples, from neighbours.
 //!
 //! The method itself lives in [`adwi_runtime::method`]; this crate calls it, never
 //! re-implements it. Kinematic identification, which finds the model of a hybrid table, is
@@ -15,6 +16,7 @@
 pub mod build;
 pub mod hybrid;
 pub mod inspect;
+pub mod local_kriging;
 pub mod nugget_kriging;
 pub mod reference;
 pub mod write;

@@ -170,7 +170,7 @@ fn distance(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// [`distance`] with the third coordinate scaled by `vertical` (exactly [`distance`] at 1).
-fn scaled_distance(a: &[f64], b: &[f64], vertical: f64) -> f64 {
+pub(crate) fn scaled_distance(a: &[f64], b: &[f64], vertical: f64) -> f64 {
     if vertical == 1.0 {
         return distance(a, b);
     }
@@ -197,11 +197,7 @@ impl ResidualGp {
     ///
     /// As [`ResidualGp::fit`]; [`GpError::Malformed`] also for inputs not three-dimensional.
     pub fn fit_cartesian(inputs: &[Vec<f64>], values: &[Vec<f64>]) -> Result<ResidualGp, GpError> {
-        if inputs.iter().any(|x| x.len() != 3) {
-            return Err(GpError::Malformed(
-                "Cartesian inputs are not three-dimensional",
-            ));
-        }
+        check_cartesian(inputs, None)?;
         Self::fit_with(inputs, None, &VERTICAL_SCALES, values)
     }
 
@@ -218,19 +214,7 @@ impl ResidualGp {
         axes: &[[f64; 3]],
         values: &[Vec<f64>],
     ) -> Result<ResidualGp, GpError> {
-        // Written so that a NaN fails the test.
-        let unit =
-            |a: &[f64; 3]| ((a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() - 1.0).abs() < 1e-6;
-        if axes.len() != inputs.len() || !axes.iter().all(unit) {
-            return Err(GpError::Malformed(
-                "the axes are not one unit vector per input",
-            ));
-        }
-        if inputs.iter().any(|x| x.len() != 3) {
-            return Err(GpError::Malformed(
-                "Cartesian inputs are not three-dimensional",
-            ));
-        }
+        check_cartesian(inputs, Some(axes))?;
         Self::fit_with(inputs, Some(axes), &VERTICAL_SCALES, values)
     }
 
@@ -243,28 +227,8 @@ impl ResidualGp {
         vertical_scales: &[f64],
         values: &[Vec<f64>],
     ) -> Result<ResidualGp, GpError> {
+        let width = check_rows(inputs, values)?;
         let n = inputs.len();
-        if n < 3 {
-            return Err(GpError::TooFewSamples(n));
-        }
-        let dim = inputs[0].len();
-        let width = values.first().map_or(0, Vec::len);
-        if values.len() != n
-            || dim == 0
-            || width == 0
-            || inputs.iter().any(|x| x.len() != dim)
-            || values.iter().any(|v| v.len() != width)
-        {
-            return Err(GpError::Malformed("rows of unequal or zero length"));
-        }
-        if inputs
-            .iter()
-            .chain(values)
-            .flatten()
-            .any(|v| !v.is_finite())
-        {
-            return Err(GpError::Malformed("a value is not finite"));
-        }
         // Length scales are in units of the inputs' own spacing, whatever the vertical scale.
         let spacing = median_nearest_distance(&DMatrix::from_fn(n, n, |i, j| {
             distance(&inputs[i], &inputs[j])
@@ -363,32 +327,86 @@ impl ResidualGp {
             }
             chosen.push(best.ok_or(GpError::Singular)?);
         }
-        // The fit at each chosen grid point, by Cholesky as the scores.
-        let mut points: Vec<usize> = chosen.iter().map(|&(i, _)| i).collect();
-        points.sort_unstable();
-        points.dedup();
-        let factors: Vec<_> = points
-            .par_iter()
-            .map(|&i| {
-                let (v, l, lambda, w) = candidates[i];
-                system(&distances[v], gram.as_ref(), l, lambda, w).cholesky()
-            })
-            .collect();
-        let mut components = Vec::with_capacity(width);
-        for (c, (&mean, &(i, log_likelihood))) in means.iter().zip(&chosen).enumerate() {
-            let (v, length_scale, relative_nugget, modulation) = candidates[i];
-            let factor = factors[points.binary_search(&i).expect("a chosen point")]
-                .as_ref()
-                .ok_or(GpError::Singular)?;
-            let weights = factor.solve(&centred.column(c).into_owned());
-            components.push(Component {
-                choice: GpChoice {
+        let choices: Vec<GpChoice> = chosen
+            .iter()
+            .map(|&(i, log_likelihood)| {
+                let (v, length_scale, relative_nugget, modulation) = candidates[i];
+                GpChoice {
                     length_scale,
                     vertical_scale: vertical_scales[v],
                     relative_nugget,
                     modulation,
                     log_likelihood,
-                },
+                }
+            })
+            .collect();
+        Self::solve(inputs, axes, &means, &centred, choices)
+    }
+
+    /// The dense fit at given hyperparameters, one per value component (no search): what
+    /// [`ResidualGp::fit_turning`] (with `axes`) or [`ResidualGp::fit_cartesian`] would
+    /// predict had they chosen `choices`. The reference a local fit
+    /// ([`crate::local_kriging`]) is held to.
+    ///
+    /// # Errors
+    ///
+    /// As [`ResidualGp::fit_turning`]; [`GpError::Malformed`] also for a choice per
+    /// component not given or not positive, and [`GpError::Singular`] for a system not
+    /// positive definite.
+    pub fn with_choices(
+        inputs: &[Vec<f64>],
+        axes: Option<&[[f64; 3]]>,
+        values: &[Vec<f64>],
+        choices: &[GpChoice],
+    ) -> Result<ResidualGp, GpError> {
+        let width = check_rows(inputs, values)?;
+        check_cartesian(inputs, axes)?;
+        check_choices(choices, width, axes.is_some())?;
+        let (means, centred) = centred_values(values);
+        Self::solve(inputs, axes, &means, &centred, choices.to_vec())
+    }
+
+    /// The fit at each component's choice: `(K + λI)⁻¹ (y − ȳ)` by Cholesky, one
+    /// factorisation per distinct choice.
+    fn solve(
+        inputs: &[Vec<f64>],
+        axes: Option<&[[f64; 3]]>,
+        means: &[f64],
+        centred: &DMatrix<f64>,
+        choices: Vec<GpChoice>,
+    ) -> Result<ResidualGp, GpError> {
+        let n = inputs.len();
+        let key = |c: &GpChoice| {
+            [
+                c.length_scale,
+                c.vertical_scale,
+                c.relative_nugget,
+                c.modulation,
+            ]
+            .map(f64::to_bits)
+        };
+        let mut points: Vec<[u64; 4]> = choices.iter().map(key).collect();
+        points.sort_unstable();
+        points.dedup();
+        let gram = axes.map(gram_matrix);
+        let factors: Vec<_> = points
+            .par_iter()
+            .map(|p| {
+                let [l, vertical, lambda, w] = p.map(f64::from_bits);
+                let distances = DMatrix::from_fn(n, n, |i, j| {
+                    scaled_distance(&inputs[i], &inputs[j], vertical)
+                });
+                system(&distances, gram.as_ref(), l, lambda, w).cholesky()
+            })
+            .collect();
+        let mut components = Vec::with_capacity(choices.len());
+        for (c, (&mean, choice)) in means.iter().zip(choices).enumerate() {
+            let factor = factors[points.binary_search(&key(&choice)).expect("a chosen point")]
+                .as_ref()
+                .ok_or(GpError::Singular)?;
+            let weights = factor.solve(&centred.column(c).into_owned());
+            components.push(Component {
+                choice,
                 mean,
                 weights: weights.iter().copied().collect(),
             });
@@ -447,21 +465,126 @@ impl ResidualGp {
             self.components
                 .iter()
                 .map(|c| {
-                    let (l, vertical) = (c.choice.length_scale, c.choice.vertical_scale);
-                    let mut terms = [c.mean, 0.0, 0.0, 0.0];
-                    for (i, (input, s)) in self.inputs.iter().zip(&c.weights).enumerate() {
-                        let r = matern52(scaled_distance(input, x, vertical), l) * s;
-                        terms[0] += r;
-                        if let Some(axes) = &self.axes {
-                            for k in 0..3 {
-                                terms[1 + k] += c.choice.modulation * r * axes[i][k];
-                            }
-                        }
-                    }
-                    terms
+                    kernel_terms(
+                        &c.choice,
+                        c.mean,
+                        self.inputs.iter().map(Vec::as_slice),
+                        self.axes.as_deref(),
+                        &c.weights,
+                        x,
+                    )
                 })
                 .collect(),
         )
+    }
+}
+
+/// Checks a fit's rows: at least 3 samples, inputs of one non-zero dimension, values of one
+/// non-zero width, one row per input, everything finite. Returns the width.
+pub(crate) fn check_rows(inputs: &[Vec<f64>], values: &[Vec<f64>]) -> Result<usize, GpError> {
+    let n = inputs.len();
+    if n < 3 {
+        return Err(GpError::TooFewSamples(n));
+    }
+    let dim = inputs[0].len();
+    let width = values.first().map_or(0, Vec::len);
+    if values.len() != n
+        || dim == 0
+        || width == 0
+        || inputs.iter().any(|x| x.len() != dim)
+        || values.iter().any(|v| v.len() != width)
+    {
+        return Err(GpError::Malformed("rows of unequal or zero length"));
+    }
+    if inputs
+        .iter()
+        .chain(values)
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return Err(GpError::Malformed("a value is not finite"));
+    }
+    Ok(width)
+}
+
+/// Checks the inputs of a Cartesian fit (three-dimensional) and, when given, its axes (one
+/// unit vector per input, to 1e-6).
+pub(crate) fn check_cartesian(
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+) -> Result<(), GpError> {
+    if let Some(axes) = axes {
+        // Written so that a NaN fails the test.
+        let unit =
+            |a: &[f64; 3]| ((a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() - 1.0).abs() < 1e-6;
+        if axes.len() != inputs.len() || !axes.iter().all(unit) {
+            return Err(GpError::Malformed(
+                "the axes are not one unit vector per input",
+            ));
+        }
+    }
+    if inputs.iter().any(|x| x.len() != 3) {
+        return Err(GpError::Malformed(
+            "Cartesian inputs are not three-dimensional",
+        ));
+    }
+    Ok(())
+}
+
+/// Checks given hyperparameters: one per component, positive and finite (a modulation
+/// non-negative, and 0 without axes).
+pub(crate) fn check_choices(choices: &[GpChoice], width: usize, axes: bool) -> Result<(), GpError> {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    let good = |c: &GpChoice| {
+        positive(c.length_scale)
+            && positive(c.vertical_scale)
+            && positive(c.relative_nugget)
+            && c.modulation.is_finite()
+            && c.modulation >= 0.0
+            && (axes || c.modulation == 0.0)
+    };
+    if choices.len() != width || !choices.iter().all(good) {
+        return Err(GpError::Malformed(
+            "the hyperparameters are not one valid choice per component",
+        ));
+    }
+    Ok(())
+}
+
+/// The terms `[f, h_x, h_y, h_z]` of one component at `x` (module docs) from kriging
+/// `weights` on `inputs` (and their `axes` when the field turns): the one sum both the dense
+/// fit and the local one ([`crate::local_kriging`]) evaluate.
+pub(crate) fn kernel_terms<'a>(
+    choice: &GpChoice,
+    mean: f64,
+    inputs: impl Iterator<Item = &'a [f64]>,
+    axes: Option<&[[f64; 3]]>,
+    weights: &[f64],
+    x: &[f64],
+) -> [f64; 4] {
+    let (l, vertical) = (choice.length_scale, choice.vertical_scale);
+    let mut terms = [mean, 0.0, 0.0, 0.0];
+    for (i, (input, s)) in inputs.zip(weights).enumerate() {
+        let r = matern52(scaled_distance(input, x, vertical), l) * s;
+        terms[0] += r;
+        if let Some(axes) = axes {
+            for k in 0..3 {
+                terms[1 + k] += choice.modulation * r * axes[i][k];
+            }
+        }
+    }
+    terms
+}
+
+/// The covariance of the module docs between two samples at scaled distance `h` whose axes
+/// have inner product `gram` (ignored at `w = 0`): `R(h) (1 + w gram)`.
+#[inline]
+pub(crate) fn covariance_entry(h: f64, l: f64, w: f64, gram: f64) -> f64 {
+    let r = matern52(h, l);
+    if w != 0.0 {
+        r * (1.0 + w * gram)
+    } else {
+        r
     }
 }
 
@@ -505,11 +628,10 @@ fn covariance(
     l: f64,
     w: f64,
 ) -> DMatrix<f64> {
-    let mut k = distances.map(|h| matern52(h, l));
-    if let (Some(g), true) = (gram, w != 0.0) {
-        k.zip_apply(g, |k, g| *k *= 1.0 + w * g);
-    }
-    k
+    let n = distances.nrows();
+    DMatrix::from_fn(n, n, |i, j| {
+        covariance_entry(distances[(i, j)], l, w, gram.map_or(0.0, |g| g[(i, j)]))
+    })
 }
 
 /// Per component, the profiled log-likelihood of the module docs for the system `a`;

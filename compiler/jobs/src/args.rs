@@ -112,7 +112,9 @@ impl std::str::FromStr for ServedFieldChoice {
         }
         ServedField::from_name(text)
             .map(ServedFieldChoice::Given)
-            .ok_or_else(|| format!("'{text}': choose auto, method, kriging or kriging-tool-axis"))
+            .ok_or_else(|| {
+                format!("'{text}': choose auto, method or kriging (kriging-tool-axis: the older name of kriging)")
+            })
     }
 }
 
@@ -173,10 +175,11 @@ pub struct TableArgs {
     /// What the served field's nodes hold: `auto` chooses by cross-validation on the
     /// samples alone; `method`, the method's own answer (what the exact tier answers,
     /// tabulated); `kriging`, kriging with a nugget of the samples' errors (a hybrid
-    /// table's residuals) in Cartesian distance, which smooths their measurement noise;
-    /// `kriging-tool-axis` (hybrid tables), that kriging with a part that turns with the
-    /// nominal tool's approach axis at the query's joint values. The exact tier answers
-    /// the method either way.
+    /// table's residuals) in Cartesian distance, which smooths their measurement noise; on
+    /// a hybrid table with a part that turns with the nominal tool's approach axis at the
+    /// query's joint values, where the samples' likelihood gives that part weight
+    /// (`kriging-tool-axis` is its older name). The exact tier answers the method either
+    /// way.
     #[arg(long, value_name = "FIELD", default_value_t = ServedFieldChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub served_field: ServedFieldChoice,

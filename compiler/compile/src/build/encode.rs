@@ -110,6 +110,8 @@ pub fn compile_plan(
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);
         report.served_kriging = served.kriging_choices;
+        // The kind written: a kriging turns with the tool only where the likelihood says.
+        report.plan.served_field = served.served_field;
         data.node_sets = served.sets;
         data.node_errors_mm = served.position_mm;
         if samples.rotation_error_rad.is_some() {
@@ -151,7 +153,7 @@ pub fn compile_plan(
         served_field: if data.node_sets.is_empty() {
             ServedField::Method
         } else {
-            plan.served_field
+            report.plan.served_field
         },
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;

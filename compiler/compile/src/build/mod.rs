@@ -27,7 +27,9 @@
 //! ([`adwi_runtime::served`]). With [`BuildOptions::served_field`] set to
 //! [`ServedField::Kriging`] (or [`ServedField::KrigingToolAxis`]), the nodes hold instead
 //! kriging with a nugget of the samples' errors ([`crate::nugget_kriging`], fitted once per
-//! set of samples a configuration sees): a smoother field that does not pass each sample's
+//! set of samples a configuration sees; beyond a thousand samples from each node's
+//! neighbours, [`crate::local_kriging`], so that it takes time and memory linear in the
+//! samples): a smoother field that does not pass each sample's
 //! measurement noise on. The method's nodes are missing wherever it has no admissible
 //! sample, so its served field stops up to one cell short of the exact tier. The kriging is
 //! defined everywhere, and its nodes are filled at every corner of a cell whose candidate
@@ -157,9 +159,10 @@ pub enum BuildError {
     /// The kriging of a served field could not be fitted.
     #[error("cannot fit the kriging of the served field")]
     Kriging(#[source] crate::nugget_kriging::GpError),
-    /// A served field that turns with the tool was asked of a table without a model.
-    #[error("the kriging-tool-axis served field needs a hybrid table (a robot model and samples with joint angles): the tool's axis comes from its nominal chain")]
-    ToolAxisWithoutModel,
+    /// The nominal tool's approach axis, which a hybrid table's kriging may turn with,
+    /// could not be computed at a sample's joint values.
+    #[error("the nominal tool's approach axis cannot be computed at a sample's joint values")]
+    ToolAxis,
     /// A kriging served field was asked of a table that has none (a joint screen).
     #[error("a kriging served field needs a served tier, which a table with a joint screen does not have")]
     KrigingWithoutServedTier,

@@ -8,18 +8,21 @@ use adwi_runtime::model::PreparedModel;
 use rayon::prelude::*;
 
 use super::{BuildError, ServedField};
+use crate::local_kriging::{KrigingField, LocalSettings};
 use adwi_samples::SampleSet;
 
-/// What the nodes hold: the method's answer, or the kriging of the samples' errors, which
-/// turns with the tool's axis when given one unit axis per sample.
+/// What the nodes hold: the method's answer, or the kriging of the samples' errors, fitted
+/// with a part that turns with the tool's axis when given one unit axis per sample.
 pub(super) enum NodeField {
     Method,
     Kriging(Option<Vec<[f64; 3]>>),
 }
 
 impl NodeField {
-    /// The field `served` asks for; the tool's axes come from `model` at the samples'
-    /// joint values.
+    /// The field `served` asks for. A kriging field is fitted with the tool's axes whenever
+    /// there are some (`model` and the samples' joint values: a hybrid table), so that the
+    /// likelihood decides whether it turns; `kriging-tool-axis` is an older name of
+    /// `kriging`.
     pub(super) fn new(
         served: ServedField,
         samples: &SampleSet,
@@ -27,43 +30,33 @@ impl NodeField {
     ) -> Result<NodeField, BuildError> {
         Ok(match served {
             ServedField::Method => NodeField::Method,
-            ServedField::Kriging => NodeField::Kriging(None),
-            ServedField::KrigingToolAxis => NodeField::Kriging(Some(tool_axes(samples, model)?)),
+            ServedField::Kriging | ServedField::KrigingToolAxis => match (model, &samples.joints) {
+                (Some(model), Some(_)) => NodeField::Kriging(Some(tool_axes(samples, model)?)),
+                _ => NodeField::Kriging(None),
+            },
         })
-    }
-
-    /// Vectors per node ([`ServedField::node_stride`]).
-    fn stride(&self) -> usize {
-        match self {
-            NodeField::Kriging(Some(_)) => 4,
-            _ => 1,
-        }
     }
 }
 
 /// The unit approach (z) axis of the nominal TCP at each sample's joint values: what a
 /// served field turning with the tool combines its terms with (the runtime computes the
 /// same at the query's joint values).
-fn tool_axes(
-    samples: &SampleSet,
-    model: Option<&PreparedModel>,
-) -> Result<Vec<[f64; 3]>, BuildError> {
-    let (Some(model), Some(joints)) = (model, &samples.joints) else {
-        return Err(BuildError::ToolAxisWithoutModel);
+fn tool_axes(samples: &SampleSet, model: &PreparedModel) -> Result<Vec<[f64; 3]>, BuildError> {
+    let Some(joints) = &samples.joints else {
+        return Err(BuildError::MissingJoints);
     };
     joints
         .rows()
-        .map(|q| {
-            model
-                .approach_axis(q)
-                .ok_or(BuildError::ToolAxisWithoutModel)
-        })
+        .map(|q| model.approach_axis(q).ok_or(BuildError::ToolAxis))
         .collect()
 }
 
 /// The served tier's node values: the exact method at every node of the grid, per set;
 /// `stride` vectors per node (the layout of [`v2::TableData::node_errors_mm`]).
 pub(super) struct NodeValues {
+    /// What the nodes hold: the method's answer, a kriging of position, or one that turns
+    /// with the tool (stride 4) when the likelihood gave some component a turning part.
+    pub(super) served_field: ServedField,
     pub(super) sets: Vec<v2::NodeSet>,
     /// The first kriging fit's hyperparameters (empty for the method's values).
     pub(super) kriging_choices: Vec<crate::nugget_kriging::GpChoice>,
@@ -94,8 +87,17 @@ impl NodeValues {
         configs.dedup();
         let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
         let per_set = nx * ny * nz;
-        let stride = field.stride();
+        // Kriging nodes are computed with their four terms, and reduced to `f` at the end
+        // when no fit turns.
+        let stride = match field {
+            NodeField::Method => 1,
+            NodeField::Kriging(_) => 4,
+        };
         let mut out = NodeValues {
+            served_field: match field {
+                NodeField::Method => ServedField::Method,
+                NodeField::Kriging(_) => ServedField::KrigingToolAxis,
+            },
             sets: Vec::new(),
             kriging_choices: Vec::new(),
             stride,
@@ -144,22 +146,26 @@ impl NodeValues {
                     };
                     let kriging = &fits[fitted].1;
                     if out.kriging_choices.is_empty() {
-                        out.kriging_choices = kriging.fit.choices();
+                        out.kriging_choices = kriging.field.choices();
                     }
                     let usable =
                         |s: &u32| method::config_matches(records[*s as usize].config, config);
-                    (0..per_set)
-                        .into_par_iter()
-                        .map(|node| {
-                            let (ijk, at) = node_position(node);
-                            let reached = adjacent_cells(grid, ijk)
-                                .any(|cell| lists[cell].iter().any(usable));
-                            if reached {
-                                kriging.predict(at)
-                            } else {
-                                (missing, missing)
-                            }
-                        })
+                    let reached = |node: usize| {
+                        adjacent_cells(grid, node_position(node).0)
+                            .any(|cell| lists[cell].iter().any(usable))
+                    };
+                    kriging
+                        .field
+                        .lattice_terms(
+                            [nx, ny, nz],
+                            grid.cell_mm,
+                            &|ijk| grid_node_mm(grid, ijk),
+                            &reached,
+                            &|terms| kriging.node_terms(terms),
+                        )
+                        .map_err(BuildError::Kriging)?
+                        .into_iter()
+                        .map(|v| v.unwrap_or((missing, missing)))
                         .collect()
                 }
             };
@@ -195,6 +201,14 @@ impl NodeValues {
                 first_node: first_node as u32,
             });
         }
+        if matches!(field, NodeField::Kriging(_)) && !fits.iter().any(|(_, f)| f.field.turns()) {
+            // No part turns with the tool (no axes, or the likelihood gave it no weight):
+            // every `h` is 0, and a node is its `f`.
+            out.served_field = ServedField::Kriging;
+            out.stride = 1;
+            out.position_mm = out.position_mm.iter().step_by(4).copied().collect();
+            out.orientation_rad = out.orientation_rad.iter().step_by(4).copied().collect();
+        }
         Ok(out)
     }
 
@@ -225,9 +239,10 @@ impl NodeValues {
 
 /// Kriging with a nugget of some samples' errors, in Cartesian distance of their actual
 /// positions (where the method places them): position, and orientation when stored;
-/// turning with the tool's axis when given the samples' axes.
+/// turning with the tool's axis when given the samples' axes. Dense or local
+/// ([`crate::local_kriging`]) as the sample count says.
 struct NodeKriging {
-    fit: crate::nugget_kriging::ResidualGp,
+    field: KrigingField,
     orientation: bool,
 }
 
@@ -253,24 +268,16 @@ impl NodeKriging {
                 row
             })
             .collect();
-        let fit = match axes {
-            Some(axes) => {
-                let axes: Vec<[f64; 3]> = samples.iter().map(|&i| axes[i]).collect();
-                crate::nugget_kriging::ResidualGp::fit_turning(&inputs, &axes, &values)
-            }
-            None => crate::nugget_kriging::ResidualGp::fit_cartesian(&inputs, &values),
-        }
-        .map_err(BuildError::Kriging)?;
-        Ok(NodeKriging { fit, orientation })
+        let axes: Option<Vec<[f64; 3]>> = axes.map(|a| samples.iter().map(|&i| a[i]).collect());
+        let field = KrigingField::fit(&inputs, axes.as_deref(), &values, LocalSettings::default())
+            .map_err(BuildError::Kriging)?;
+        Ok(NodeKriging { field, orientation })
     }
 
-    /// The field's terms at `position_mm` (`f` alone when it does not turn); orientation
-    /// zero when not stored (as the method's).
-    fn predict(&self, position_mm: [f64; 3]) -> NodeTerms {
-        let t = self
-            .fit
-            .predict_terms(&position_mm)
-            .expect("grid nodes are finite and three-dimensional");
+    /// A node's vectors from the field's terms there, `[f, h_x, h_y, h_z]` per component
+    /// (`f` alone when it does not turn); orientation zero when not stored (as the
+    /// method's).
+    fn node_terms(&self, t: &[[f64; 4]]) -> NodeTerms {
         let vectors = |c: usize| [0, 1, 2, 3].map(|k| [t[c][k], t[c + 1][k], t[c + 2][k]]);
         let rotation = if self.orientation {
             vectors(3)

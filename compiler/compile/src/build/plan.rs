@@ -17,6 +17,14 @@ pub const RADIUS_PER_SPACING: f64 = 2.0;
 /// keep a cell's candidates within one 64-byte record for lattice-like samples, and put
 /// the served field's nodes twice as dense as the samples.
 pub const CELLS_PER_SPACING: f64 = 2.0;
+/// The most a table with a derived cell edge is estimated to take ([`Plan::estimated_table_bytes`]),
+/// bytes: the cell grows beyond spacing / [`CELLS_PER_SPACING`] until its table fits, so
+/// that dense data (a hundred thousand samples, a tracker's repeated poses) give a table
+/// of the workspace's size rather than of the sample count's.
+pub const MAX_DERIVED_TABLE_BYTES: u128 = 64_000_000;
+/// Samples whose volume spacing ([`derivation_spacing_mm`]) exceeds their nearest-neighbour
+/// spacing by more than this are clustered: the derived ε and cell follow the volume.
+pub const CLUSTERED_SPACINGS: f64 = 4.0;
 
 /// A build resolved from its options and samples, once: every parameter the table will
 /// hold, and what was derived. [`compile_plan`](super::compile_plan) consumes it.
@@ -28,7 +36,7 @@ pub struct Plan {
     pub grid: Grid,
     /// The joint-space admissibility radius, rad (0 = off).
     pub joint_radius_rad: f64,
-    /// Median nearest-neighbour spacing of the nominal positions, mm.
+    /// The sample spacing ε and the cell were derived from, mm ([`derivation_spacing_mm`]).
     pub spacing_mm: Option<f64>,
     /// Whether ε was derived from the spacing.
     pub radius_derived: bool,
@@ -38,7 +46,11 @@ pub struct Plan {
     pub samples: usize,
     /// The cross-validation that chose the options, for the header.
     pub tuning: Option<Tuning>,
-    /// What the served tier's nodes hold.
+    /// Bytes of served values per node of the grid, at most (the estimate's).
+    pub node_bytes: u128,
+    /// What the served tier's nodes hold, as asked; in a [`super::BuildReport`], as
+    /// written (a kriging asked of a hybrid table turns with the tool only where the
+    /// likelihood gives that part weight).
     pub served_field: ServedField,
 }
 
@@ -63,31 +75,84 @@ impl Plan {
     /// The table's estimated size, bytes ([`estimated_table_bytes`]).
     pub fn estimated_table_bytes(&self) -> u128 {
         estimated_table_bytes(
-            self.cells() as u128,
+            self.grid.dims.map(u128::from),
             self.samples,
             self.params.radius_mm,
             self.grid.cell_mm,
             self.params.max_neighbours,
+            self.node_bytes,
         )
     }
 }
 
-/// A table's size before it is built, bytes: per cell its 8-byte record and base-weight
-/// offset, per cell that can be covered ([`max_covered_cells`]) at most `k` base weights
-/// (12 bytes each), and per sample its record.
+/// Bytes of the served field's nodes per node of the grid, at most: 24 per vector, times
+/// the vectors per node (4 for a kriging that may turn with the tool: one asked of samples
+/// with joint angles, which a hybrid table has), twice with orientation, once per node set
+/// (targets of unknown configuration, and each configuration); 0 with a joint screen,
+/// which has no served tier.
+fn node_bytes(samples: &SampleSet, served_field: ServedField, joint_screen: bool) -> u128 {
+    if joint_screen {
+        return 0;
+    }
+    let stride = match served_field {
+        ServedField::Method => 1,
+        ServedField::Kriging | ServedField::KrigingToolAxis if samples.joints.is_some() => 4,
+        ServedField::Kriging | ServedField::KrigingToolAxis => 1,
+    };
+    let orientation = if samples.rotation_error_rad.is_some() {
+        2
+    } else {
+        1
+    };
+    let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
+    configs.sort_unstable();
+    configs.dedup();
+    24 * stride * orientation * (1 + configs.len() as u128)
+}
+
+/// A table's size before it is built, bytes, for a grid `dims` cells wide: per cell its
+/// 8-byte record and base-weight offset, per cell that can be covered
+/// ([`max_covered_cells`]) at most `k` base weights (12 bytes each), per node
+/// `node_bytes` of served values, and per sample its record.
 pub fn estimated_table_bytes(
-    cells: u128,
+    dims: [u128; 3],
     samples: usize,
     radius_mm: f64,
     cell_mm: f64,
     k: u32,
+    node_bytes: u128,
 ) -> u128 {
-    let covered = (max_covered_cells(samples, radius_mm, cell_mm) as u128).min(cells);
     // Saturating: an absurd grid (a huge --radius, say) must be refused, not overflow.
+    let count = |d: [u128; 3]| d.iter().fold(1u128, |p, &d| p.saturating_mul(d));
+    let cells = count(dims);
+    let nodes = count(dims.map(|d| d.saturating_add(1)));
+    let covered = (max_covered_cells(samples, radius_mm, cell_mm) as u128).min(cells);
     cells
         .saturating_mul(12)
         .saturating_add(covered.saturating_mul(12 * u128::from(k)))
+        .saturating_add(nodes.saturating_mul(node_bytes))
         .saturating_add(samples as u128 * 120)
+}
+
+/// The spacing a default ε and cell are derived from, mm: the median nearest-neighbour
+/// distance of the nominal positions ([`SampleSet::spacing_mm`]), unless the volume per
+/// sample says the samples are clustered. For samples spread through a volume, a lattice
+/// or a random cloud, the volume spacing `(V / n)^(1/3)` (`V` the nominal bounding box's
+/// volume) is one to two nearest-neighbour spacings; far above that
+/// ([`CLUSTERED_SPACINGS`]) the samples come in clusters (one pose measured in several
+/// orientations, passes of a tracked path), their nearest neighbour measures the cluster,
+/// not the volume between clusters that ε must span, and the volume spacing is used.
+/// Samples on a plane or a line have no volume, and keep their nearest neighbour.
+pub fn derivation_spacing_mm(samples: &SampleSet) -> Option<f64> {
+    let nearest = samples.spacing_mm()?;
+    let (lo, hi) = samples.nominal_bounds_mm()?;
+    let volume: f64 = (0..3).map(|a| hi[a] - lo[a]).product();
+    let per_sample = (volume / samples.len() as f64).cbrt();
+    Some(if per_sample > CLUSTERED_SPACINGS * nearest {
+        per_sample
+    } else {
+        nearest
+    })
 }
 
 /// At most how many cells of edge `cell_mm` can lie within `radius_mm` of one of `samples`
@@ -121,7 +186,7 @@ pub fn human_bytes(bytes: u128) -> String {
 ///
 /// Parameters out of range, underivable defaults, a grid too large or implausible.
 pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildError> {
-    let spacing_mm = samples.spacing_mm();
+    let spacing_mm = derivation_spacing_mm(samples);
     let derive = |what| {
         spacing_mm
             .filter(|s| *s > 0.0)
@@ -147,13 +212,6 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
             "a joint radius needs samples with joint angles (columns j1..jn)",
         ));
     }
-    let cell_mm = match options.cell_mm {
-        Some(c) => c,
-        None => derive("the cell size")? / CELLS_PER_SPACING,
-    };
-    if !(cell_mm.is_finite() && cell_mm > 0.0) {
-        return Err(BuildError::Params("cell size must be finite and positive"));
-    }
     let (lo, hi) = match options.bounds_mm {
         Some(b) => b,
         None => {
@@ -173,8 +231,35 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
     for v in lo.iter().chain(&hi) {
         format::check_coordinate("a grid bound (mm)", *v)?;
     }
-    let dims_f = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
-    // Saturating: a tiny cell makes each count reach u128::MAX (`as` saturates).
+    let node_bytes = node_bytes(samples, options.served_field, joint_radius_rad > 0.0);
+    // Cells per axis; saturating: a tiny cell makes each count reach u128::MAX (`as`
+    // saturates).
+    let dims_for = |cell_mm: f64| [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
+    let estimate = |cell_mm: f64| {
+        estimated_table_bytes(
+            dims_for(cell_mm).map(|d| d as u128),
+            samples.len(),
+            radius_mm,
+            cell_mm,
+            params.max_neighbours,
+            node_bytes,
+        )
+    };
+    let cell_mm = match options.cell_mm {
+        Some(c) => c,
+        None => {
+            let fine = derive("the cell size")? / CELLS_PER_SPACING;
+            if estimate(fine) <= MAX_DERIVED_TABLE_BYTES {
+                fine
+            } else {
+                smallest_cell_within(fine, |c| estimate(c) <= MAX_DERIVED_TABLE_BYTES)
+            }
+        }
+    };
+    if !(cell_mm.is_finite() && cell_mm > 0.0) {
+        return Err(BuildError::Params("cell size must be finite and positive"));
+    }
+    let dims_f = dims_for(cell_mm);
     let cells = dims_f
         .iter()
         .fold(1u128, |product, &d| product.saturating_mul(d as u128));
@@ -182,13 +267,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         return Err(BuildError::TooManyCells {
             cells,
             cell_mm,
-            estimated_bytes: estimated_table_bytes(
-                cells,
-                samples.len(),
-                radius_mm,
-                cell_mm,
-                params.max_neighbours,
-            ),
+            estimated_bytes: estimate(cell_mm),
             max: MAX_CELLS,
         });
     }
@@ -216,7 +295,31 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         samples: samples.len(),
         tuning: options.tuning,
         served_field: options.served_field,
+        node_bytes,
     })
+}
+
+/// The smallest cell edge above `fine` that `fits` (to a thousandth of itself), for a
+/// `fits` that holds from some edge on: doubled until it fits, then bisected. A grid of one
+/// cell fits any bound the samples' own records do, so the doubling ends; the steps are
+/// fixed, so the edge is the same on every machine.
+fn smallest_cell_within(fine: f64, fits: impl Fn(f64) -> bool) -> f64 {
+    let mut high = fine;
+    let mut doublings = 0;
+    while !fits(high) && doublings < 200 {
+        high *= 2.0;
+        doublings += 1;
+    }
+    let mut low = high / 2.0;
+    while high - low > 1e-3 * high {
+        let middle = 0.5 * (low + high);
+        if fits(middle) {
+            high = middle;
+        } else {
+            low = middle;
+        }
+    }
+    high
 }
 
 #[cfg(test)]
@@ -296,5 +399,83 @@ mod tests {
         };
         let err = build(&s, options).unwrap_err();
         assert!(matches!(err, BuildError::TooManyCells { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_derived_cell_keeps_any_sample_count_within_the_table_bound() {
+        use rand::{Rng, SeedableRng};
+        // 128,000 random samples in the KR150-2's box: the spacing alone would give 3 mm
+        // cells and a table of hundreds of megabytes.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut csv = String::from("x,y,z,dx,dy,dz\n");
+        for _ in 0..128_000 {
+            let x = rng.gen_range(1350.0..2150.0);
+            let y = rng.gen_range(50.0..850.0);
+            let z = rng.gen_range(850.0..1650.0);
+            csv += &format!("{x},{y},{z},0.1,{},-0.2\n", rng.gen_range(-0.05..0.05));
+        }
+        let s = adwi_samples::parse_samples(
+            "s.csv".as_ref(),
+            csv.as_bytes(),
+            &adwi_samples::ColumnMap::default(),
+        )
+        .unwrap();
+        // A random cloud is not clustered: its nearest neighbour is its spacing.
+        assert_eq!(derivation_spacing_mm(&s), s.spacing_mm());
+        let plan = plan(&s, &BuildOptions::default()).unwrap();
+        let fine = s.spacing_mm().unwrap() / CELLS_PER_SPACING;
+        assert!(plan.cell_derived && plan.grid.cell_mm > fine, "{plan:?}");
+        assert!(plan.estimated_table_bytes() <= MAX_DERIVED_TABLE_BYTES);
+        // The smallest such cell: a cell 1 % finer would not fit.
+        let finer = BuildOptions {
+            cell_mm: Some(plan.grid.cell_mm / 1.01),
+            ..BuildOptions::default()
+        };
+        let finer = super::plan(&s, &finer).unwrap();
+        assert!(finer.estimated_table_bytes() > MAX_DERIVED_TABLE_BYTES);
+        let (bytes, report) = crate::build::compile(&s, &BuildOptions::default(), &|_| {}).unwrap();
+        assert!(
+            (bytes.len() as u128) <= MAX_DERIVED_TABLE_BYTES,
+            "{} bytes, {report:?}",
+            bytes.len()
+        );
+        // Sparse samples keep the spacing's cell.
+        let lattice = samples("");
+        let plan = super::plan(&lattice, &BuildOptions::default()).unwrap();
+        assert_eq!(plan.grid.cell_mm, 100.0 / CELLS_PER_SPACING);
+    }
+
+    #[test]
+    fn clustered_samples_derive_from_the_volume_between_clusters() {
+        // A 4 × 4 × 4 lattice of 100 mm, each point measured in 10 poses 0.5 mm apart: the
+        // nearest neighbour is 0.5 mm, the volume spacing about 70 mm.
+        let mut csv = String::from("x,y,z,dx,dy,dz\n");
+        for i in 0..64 {
+            for r in 0..10 {
+                let p = [i % 4, (i / 4) % 4, i / 16].map(|v| 1000.0 + 100.0 * f64::from(v));
+                csv += &format!(
+                    "{},{},{},0.1,0.1,0.1\n",
+                    p[0] + 0.5 * f64::from(r),
+                    p[1],
+                    p[2]
+                );
+            }
+        }
+        let s = adwi_samples::parse_samples(
+            "s.csv".as_ref(),
+            csv.as_bytes(),
+            &adwi_samples::ColumnMap::default(),
+        )
+        .unwrap();
+        assert_eq!(s.spacing_mm(), Some(0.5));
+        let spacing = derivation_spacing_mm(&s).unwrap();
+        let volume = 304.5f64 * 300.0 * 300.0;
+        assert_eq!(spacing, (volume / 640.0).cbrt());
+        let plan = plan(&s, &BuildOptions::default()).unwrap();
+        assert_eq!(plan.params.radius_mm, RADIUS_PER_SPACING * spacing);
+        assert_eq!(plan.grid.cell_mm, spacing / CELLS_PER_SPACING);
+        // A lattice keeps its nearest neighbour.
+        let lattice = samples("");
+        assert_eq!(derivation_spacing_mm(&lattice), lattice.spacing_mm());
     }
 }
