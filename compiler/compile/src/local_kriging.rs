@@ -79,6 +79,40 @@ impl Default for LocalSettings {
     }
 }
 
+/// The hyperparameters a fit chooses by likelihood ([`KrigingField::fit`]): on all
+/// samples up to `settings.subsample`, else on an evenly strided subsample of that many,
+/// without predicting anything.
+///
+/// # Errors
+///
+/// As [`ResidualGp::fit_turning`].
+pub fn search_choices(
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+    values: &[Vec<f64>],
+    settings: LocalSettings,
+) -> Result<Vec<GpChoice>, GpError> {
+    check_rows(inputs, values)?;
+    check_cartesian(inputs, axes)?;
+    let dense = |inputs: &[Vec<f64>], axes: Option<&[[f64; 3]]>, values: &[Vec<f64>]| match axes {
+        Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
+        None => ResidualGp::fit_cartesian(inputs, values),
+    };
+    let n = inputs.len();
+    let m = settings.subsample.max(3);
+    if n <= m {
+        return dense(inputs, axes, values).map(|fit| fit.choices());
+    }
+    // Evenly strided: sample ⌊i n / m⌋ for i < m (n > m, so all distinct).
+    let picked: Vec<usize> = (0..m)
+        .map(|i| (i as u128 * n as u128 / m as u128) as usize)
+        .collect();
+    let pick =
+        |rows: &[Vec<f64>]| -> Vec<Vec<f64>> { picked.iter().map(|&i| rows[i].clone()).collect() };
+    let picked_axes: Option<Vec<[f64; 3]>> = axes.map(|a| picked.iter().map(|&i| a[i]).collect());
+    Ok(dense(&pick(inputs), picked_axes.as_deref(), &pick(values))?.choices())
+}
+
 /// A kriging field over Cartesian positions (mm, z vertical), dense or local (module docs).
 #[derive(Debug)]
 pub enum KrigingField {
@@ -110,22 +144,32 @@ impl KrigingField {
             Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
             None => ResidualGp::fit_cartesian(inputs, values),
         };
-        let n = inputs.len();
-        if n <= settings.subsample.max(3) {
+        if inputs.len() <= settings.subsample.max(3) {
             return dense(inputs, axes, values).map(KrigingField::Dense);
         }
-        let m = settings.subsample.max(3);
-        // Evenly strided: sample ⌊i n / m⌋ for i < m (n > m, so all distinct).
-        let picked: Vec<usize> = (0..m)
-            .map(|i| (i as u128 * n as u128 / m as u128) as usize)
-            .collect();
-        let pick = |rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
-            picked.iter().map(|&i| rows[i].clone()).collect()
-        };
-        let picked_axes: Option<Vec<[f64; 3]>> =
-            axes.map(|a| picked.iter().map(|&i| a[i]).collect());
-        let choices = dense(&pick(inputs), picked_axes.as_deref(), &pick(values))?.choices();
+        let choices = search_choices(inputs, axes, values, settings)?;
         LocalGp::with_choices(inputs, axes, values, &choices, settings.neighbours)
+            .map(|fit| KrigingField::Local(Box::new(fit)))
+    }
+
+    /// The field at given hyperparameters (no search): dense up to `settings.subsample`
+    /// samples ([`ResidualGp::with_choices`]), else local ([`LocalGp::with_choices`]).
+    ///
+    /// # Errors
+    ///
+    /// As [`ResidualGp::with_choices`].
+    pub fn with_choices(
+        inputs: &[Vec<f64>],
+        axes: Option<&[[f64; 3]]>,
+        values: &[Vec<f64>],
+        choices: &[GpChoice],
+        settings: LocalSettings,
+    ) -> Result<KrigingField, GpError> {
+        if inputs.len() <= settings.subsample.max(3) {
+            return ResidualGp::with_choices(inputs, axes, values, choices)
+                .map(KrigingField::Dense);
+        }
+        LocalGp::with_choices(inputs, axes, values, choices, settings.neighbours)
             .map(|fit| KrigingField::Local(Box::new(fit)))
     }
 

@@ -136,6 +136,39 @@ pub struct GpChoice {
     pub log_likelihood: f64,
 }
 
+/// Hyperparameters given to a fit instead of searched for, one choice per value component
+/// (position, then orientation: at most [`GivenChoices::MAX`]): a build's served-field
+/// choice searches them once on all its training samples, and its cross-validation folds
+/// reuse them. A value (`Copy`), so that build plans can carry it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GivenChoices {
+    len: usize,
+    choices: [GpChoice; GivenChoices::MAX],
+}
+
+impl GivenChoices {
+    /// The most components: three of position, three of orientation.
+    pub const MAX: usize = 6;
+
+    /// `choices`, or `None` for none or more than [`GivenChoices::MAX`].
+    pub fn new(choices: &[GpChoice]) -> Option<GivenChoices> {
+        if choices.is_empty() || choices.len() > Self::MAX {
+            return None;
+        }
+        let mut out = GivenChoices {
+            len: choices.len(),
+            choices: [choices[0]; Self::MAX],
+        };
+        out.choices[..choices.len()].copy_from_slice(choices);
+        Some(out)
+    }
+
+    /// The choices, one per component.
+    pub fn as_slice(&self) -> &[GpChoice] {
+        &self.choices[..self.len]
+    }
+}
+
 /// A fitted residual field: the predictor of the module docs for each value component.
 #[derive(Debug, Clone)]
 pub struct ResidualGp {

@@ -224,6 +224,7 @@ impl TableArgs {
             bounds_mm: self.bounds,
             joint_radius_deg: self.joint_radius,
             tuning: None,
+            kriging_choices: None,
             served_field: match self.served_field {
                 ServedFieldChoice::Given(field) => field,
                 ServedFieldChoice::Auto => ServedField::Method,

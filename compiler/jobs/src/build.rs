@@ -270,8 +270,7 @@ impl BuildJob {
             });
             match chosen {
                 Ok(choice) => {
-                    options.served_field = choice.choice.field();
-                    options.tuning = choice.tuning();
+                    choice.apply(&mut options);
                     plan = adwi_compile::build::plan(&samples, &options)?;
                     served_choice = Some(choice);
                 }

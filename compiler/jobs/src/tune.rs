@@ -24,6 +24,7 @@
 use std::cell::RefCell;
 
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
+use adwi_compile::nugget_kriging::GivenChoices;
 use adwi_eval::{evaluate, EvalError, EvalOptions, Method, Protocol};
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::Robot;
@@ -85,6 +86,13 @@ pub enum TuneError {
     /// Fewer than two folds.
     #[error("tuning needs at least 2 folds")]
     Folds,
+    /// The samples' identification failed (the hyperparameters of a hybrid table's kriging
+    /// are those of its residuals).
+    #[error("cannot identify the robot from the samples")]
+    Identify(#[source] adwi_robot::calibrate::CalibrateError),
+    /// The kriging's hyperparameters could not be chosen.
+    #[error("cannot fit the kriging of the served field")]
+    Kriging(#[source] adwi_compile::build::BuildError),
     /// Too few samples to cross-validate a choice by default ([`AUTO_MIN_SAMPLES`]).
     #[error("{0} samples; at least {AUTO_MIN_SAMPLES} are cross-validated")]
     TooFewSamples(usize),
@@ -321,9 +329,21 @@ pub struct AutoServedField {
     pub exact_cv_mean_mm: Option<f64>,
     /// How many of the samples were cross-validated ([`AUTO_MAX_SAMPLES`] at most).
     pub samples: usize,
+    /// The kriging's hyperparameters every fold used: the table's, when kriging is chosen.
+    pub kriging_choices: Option<GivenChoices>,
 }
 
 impl AutoServedField {
+    /// `options` with the chosen field (and the kriging's hyperparameters, when chosen)
+    /// and the evidence recorded.
+    pub fn apply(&self, options: &mut BuildOptions) {
+        options.served_field = self.choice.field();
+        options.tuning = self.tuning();
+        if options.served_field != ServedField::Method {
+            options.kriging_choices = self.kriging_choices;
+        }
+    }
+
     /// What the table's header records of it.
     pub fn tuning(&self) -> Option<Tuning> {
         Some(Tuning {
@@ -361,6 +381,20 @@ pub fn auto_served_field(
     } else {
         samples
     };
+    // The kriging's hyperparameters, chosen once by likelihood on all these samples (a
+    // hybrid table's: of the residuals of the model identified from them), are reused by
+    // every fold: each fold then solves its kriging instead of searching again.
+    let model = robot
+        .map(|r| adwi_robot::calibrate::identify(r, samples, calibrate))
+        .transpose()
+        .map_err(TuneError::Identify)?
+        .map(|c| c.prepared_model());
+    let kriging_choices = adwi_compile::build::kriging_choices(samples, model.as_ref())
+        .map_err(TuneError::Kriging)?;
+    let options = &BuildOptions {
+        kriging_choices,
+        ..options.clone()
+    };
     let identified = RefCell::new(Vec::new());
     let exact = if robot.is_some() {
         Method::Hybrid
@@ -394,6 +428,7 @@ pub fn auto_served_field(
         choice,
         exact_cv_mean_mm,
         samples: samples.len(),
+        kriging_choices,
     })
 }
 

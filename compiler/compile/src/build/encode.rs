@@ -105,7 +105,7 @@ pub fn compile_plan(
     // The served tier: the exact method at every node, one set per target configuration
     // (none with a joint screen: its admissible samples depend on the joint values).
     if !joint_screen {
-        let field = NodeField::new(plan.served_field, samples, model)?;
+        let field = NodeField::new(plan.served_field, plan.kriging_choices, samples, model)?;
         let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);

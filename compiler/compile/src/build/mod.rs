@@ -56,6 +56,28 @@ use adwi_runtime::method::MethodParams;
 
 pub use candidates::{BOX_MARGIN_MM, DISTANCE_SLACK_MM};
 pub use encode::compile_plan;
+
+/// The hyperparameters a kriging served field of `samples` would choose by likelihood, as
+/// a build with `--served-field kriging` chooses them (of a hybrid table's residuals when
+/// `model` is given), without building anything: a served-field choice searches them once
+/// on all its training samples and gives them to its folds' builds
+/// ([`BuildOptions::kriging_choices`]).
+///
+/// # Errors
+///
+/// A hybrid table's residuals that cannot be computed; a kriging that cannot be fitted.
+pub fn kriging_choices(
+    samples: &SampleSet,
+    model: Option<&adwi_runtime::model::PreparedModel>,
+) -> Result<Option<crate::nugget_kriging::GivenChoices>, BuildError> {
+    match model {
+        Some(model) => nodes::kriging_choices(
+            &crate::hybrid::residual_samples(samples, model)?,
+            Some(model),
+        ),
+        None => nodes::kriging_choices(samples, None),
+    }
+}
 pub use plan::{
     estimated_table_bytes, human_bytes, max_covered_cells, plan, Plan, CELLS_PER_SPACING,
     MAX_CELLS, RADIUS_PER_SPACING,
@@ -84,6 +106,10 @@ pub struct BuildOptions {
     pub tuning: Option<Tuning>,
     /// What the served tier's nodes hold (module docs).
     pub served_field: ServedField,
+    /// A kriging served field's hyperparameters, when given rather than chosen by
+    /// likelihood on these samples (a served-field choice's folds reuse those of all the
+    /// training samples); ignored by the method's field.
+    pub kriging_choices: Option<crate::nugget_kriging::GivenChoices>,
 }
 
 impl Default for BuildOptions {
@@ -95,6 +121,7 @@ impl Default for BuildOptions {
             joint_radius_deg: None,
             tuning: None,
             served_field: ServedField::Method,
+            kriging_choices: None,
         }
     }
 }

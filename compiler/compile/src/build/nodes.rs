@@ -9,13 +9,15 @@ use rayon::prelude::*;
 
 use super::{BuildError, ServedField};
 use crate::local_kriging::{KrigingField, LocalSettings};
+use crate::nugget_kriging::GivenChoices;
 use adwi_samples::SampleSet;
 
 /// What the nodes hold: the method's answer, or the kriging of the samples' errors, fitted
 /// with a part that turns with the tool's axis when given one unit axis per sample.
 pub(super) enum NodeField {
     Method,
-    Kriging(Option<Vec<[f64; 3]>>),
+    /// The samples' tool axes (a hybrid table), and the hyperparameters when given.
+    Kriging(Option<Vec<[f64; 3]>>, Option<GivenChoices>),
 }
 
 impl NodeField {
@@ -25,17 +27,71 @@ impl NodeField {
     /// `kriging`.
     pub(super) fn new(
         served: ServedField,
+        given: Option<GivenChoices>,
         samples: &SampleSet,
         model: Option<&PreparedModel>,
     ) -> Result<NodeField, BuildError> {
         Ok(match served {
             ServedField::Method => NodeField::Method,
             ServedField::Kriging | ServedField::KrigingToolAxis => match (model, &samples.joints) {
-                (Some(model), Some(_)) => NodeField::Kriging(Some(tool_axes(samples, model)?)),
-                _ => NodeField::Kriging(None),
+                (Some(model), Some(_)) => {
+                    NodeField::Kriging(Some(tool_axes(samples, model)?), given)
+                }
+                _ => NodeField::Kriging(None, given),
             },
         })
     }
+}
+
+/// The hyperparameters a kriging served field of `samples` would choose by likelihood
+/// (turning with the tool when `model` gives the samples' axes), searched as a build
+/// searches them and nothing predicted: what a served-field choice reuses in its folds.
+/// `samples` are those the nodes are fitted to (a hybrid table's residuals).
+pub(super) fn kriging_choices(
+    samples: &SampleSet,
+    model: Option<&PreparedModel>,
+) -> Result<Option<GivenChoices>, BuildError> {
+    let axes = match (model, &samples.joints) {
+        (Some(model), Some(_)) => Some(tool_axes(samples, model)?),
+        _ => None,
+    };
+    let records = samples.records();
+    let all: Vec<usize> = (0..records.len()).collect();
+    let orientation = samples.rotation_error_rad.is_some();
+    let (inputs, values) = kriging_rows(&records, &all, orientation);
+    let choices = crate::local_kriging::search_choices(
+        &inputs,
+        axes.as_deref(),
+        &values,
+        LocalSettings::default(),
+    )
+    .map_err(BuildError::Kriging)?;
+    Ok(GivenChoices::new(&choices))
+}
+
+/// The kriging's inputs (the samples' actual positions, where the method places them) and
+/// values (position errors, and orientation errors when stored) of `samples` of `records`.
+fn kriging_rows(
+    records: &[SampleRecord],
+    samples: &[usize],
+    orientation: bool,
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let inputs: Vec<Vec<f64>> = samples
+        .iter()
+        .map(|&i| records[i].actual_mm.to_vec())
+        .collect();
+    let values: Vec<Vec<f64>> = samples
+        .iter()
+        .map(|&i| {
+            let r = &records[i];
+            let mut row = r.error_mm.to_vec();
+            if orientation {
+                row.extend_from_slice(&r.rotation_error_rad);
+            }
+            row
+        })
+        .collect();
+    (inputs, values)
 }
 
 /// The unit approach (z) axis of the nominal TCP at each sample's joint values: what a
@@ -91,12 +147,12 @@ impl NodeValues {
         // when no fit turns.
         let stride = match field {
             NodeField::Method => 1,
-            NodeField::Kriging(_) => 4,
+            NodeField::Kriging(..) => 4,
         };
         let mut out = NodeValues {
             served_field: match field {
                 NodeField::Method => ServedField::Method,
-                NodeField::Kriging(_) => ServedField::KrigingToolAxis,
+                NodeField::Kriging(..) => ServedField::KrigingToolAxis,
             },
             sets: Vec::new(),
             kriging_choices: Vec::new(),
@@ -129,7 +185,7 @@ impl NodeValues {
                         }
                     })
                     .collect(),
-                NodeField::Kriging(axes) => {
+                NodeField::Kriging(axes, given) => {
                     // The samples a target of this configuration may use (method::select).
                     let seen: Vec<usize> = (0..records.len())
                         .filter(|&i| method::config_matches(records[i].config, config))
@@ -138,8 +194,13 @@ impl NodeValues {
                         Some(i) => i,
                         None => {
                             let orientation = samples.rotation_error_rad.is_some();
-                            let fit =
-                                NodeKriging::fit(records, &seen, axes.as_deref(), orientation)?;
+                            let fit = NodeKriging::fit(
+                                records,
+                                &seen,
+                                axes.as_deref(),
+                                *given,
+                                orientation,
+                            )?;
                             fits.push((seen.clone(), fit));
                             fits.len() - 1
                         }
@@ -201,7 +262,7 @@ impl NodeValues {
                 first_node: first_node as u32,
             });
         }
-        if matches!(field, NodeField::Kriging(_)) && !fits.iter().any(|(_, f)| f.field.turns()) {
+        if matches!(field, NodeField::Kriging(..)) && !fits.iter().any(|(_, f)| f.field.turns()) {
             // No part turns with the tool (no axes, or the likelihood gave it no weight):
             // every `h` is 0, and a node is its `f`.
             out.served_field = ServedField::Kriging;
@@ -251,26 +312,23 @@ impl NodeKriging {
         records: &[SampleRecord],
         samples: &[usize],
         axes: Option<&[[f64; 3]]>,
+        given: Option<GivenChoices>,
         orientation: bool,
     ) -> Result<NodeKriging, BuildError> {
-        let inputs: Vec<Vec<f64>> = samples
-            .iter()
-            .map(|&i| records[i].actual_mm.to_vec())
-            .collect();
-        let values: Vec<Vec<f64>> = samples
-            .iter()
-            .map(|&i| {
-                let r = &records[i];
-                let mut row = r.error_mm.to_vec();
-                if orientation {
-                    row.extend_from_slice(&r.rotation_error_rad);
-                }
-                row
-            })
-            .collect();
+        let (inputs, values) = kriging_rows(records, samples, orientation);
         let axes: Option<Vec<[f64; 3]>> = axes.map(|a| samples.iter().map(|&i| a[i]).collect());
-        let field = KrigingField::fit(&inputs, axes.as_deref(), &values, LocalSettings::default())
-            .map_err(BuildError::Kriging)?;
+        let settings = LocalSettings::default();
+        let field = match given {
+            Some(given) => KrigingField::with_choices(
+                &inputs,
+                axes.as_deref(),
+                &values,
+                given.as_slice(),
+                settings,
+            ),
+            None => KrigingField::fit(&inputs, axes.as_deref(), &values, settings),
+        }
+        .map_err(BuildError::Kriging)?;
         Ok(NodeKriging { field, orientation })
     }
 

@@ -52,6 +52,8 @@ pub struct Plan {
     /// written (a kriging asked of a hybrid table turns with the tool only where the
     /// likelihood gives that part weight).
     pub served_field: ServedField,
+    /// A kriging field's hyperparameters, when given ([`BuildOptions::kriging_choices`]).
+    pub kriging_choices: Option<crate::nugget_kriging::GivenChoices>,
 }
 
 impl Plan {
@@ -295,6 +297,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         samples: samples.len(),
         tuning: options.tuning,
         served_field: options.served_field,
+        kriging_choices: options.kriging_choices,
         node_bytes,
     })
 }
