@@ -59,7 +59,7 @@ fn print_summary(built: &Built) {
     if let Some(t) = &built.tuning {
         print_tuning(t);
     }
-    println!("spacing        {spacing} (median nearest-neighbour distance)");
+    println!("spacing        {spacing} (median nearest-neighbour distance, or the volume per sample of clustered samples)");
     println!(
         "radius ε       {:.3} mm{}",
         m.radius_mm,
