@@ -62,7 +62,7 @@ fn print_summary(built: &Built) {
     if let Some(c) = &built.served_choice {
         print_served_choice(c);
     }
-    println!("spacing        {spacing} (median nearest-neighbour distance)");
+    println!("spacing        {spacing} (median nearest-neighbour distance, or the volume per sample of clustered samples)");
     println!(
         "radius ε       {:.3} mm{}",
         m.radius_mm,

@@ -139,7 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 adwi_runtime::format::ServedField::Kriging =>
                     "kriging with a nugget of the samples' errors (--served-field kriging)",
                 adwi_runtime::format::ServedField::KrigingToolAxis =>
-                    "kriging with a nugget of the samples' errors, turning with the tool's approach axis (--served-field kriging-tool-axis)",
+                    "kriging with a nugget of the samples' errors, turning with the tool's approach axis (--served-field kriging on a hybrid table)",
             }
         ),
         None if h.joint_radius_rad > 0.0 => {
