@@ -560,7 +560,7 @@ pub fn compensated(
 /// [`Iso9283Error::Cube`] for a side that is not positive and finite, or a centre not
 /// finite.
 pub fn cube_positions(centre_mm: [f64; 3], side_mm: f64) -> Result<[[f64; 3]; 5], Iso9283Error> {
-    if !(side_mm.is_finite() && side_mm > 0.0) || !centre_mm.iter().all(|v| v.is_finite()) {
+    if !(side_mm.is_finite() && side_mm > 0.0 && centre_mm.iter().all(|v| v.is_finite())) {
         return Err(Iso9283Error::Cube(format!(
             "a cube needs a finite centre and a positive side; {side_mm} mm given"
         )));
