@@ -8,3 +8,4 @@
 //!   selection from a reachable candidate pool, ordered as a short joint-space path).
 
 pub mod iso9283;
+pub mod plan;
