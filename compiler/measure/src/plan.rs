@@ -554,7 +554,7 @@ pub fn plan(
 }
 
 /// The configuration label of a joint vector, for robots with a closed form.
-pub type ConfigLabel = dyn Fn(&[f64]) -> u8;
+pub type ConfigLabel<'a> = dyn Fn(&[f64]) -> u8 + 'a;
 
 /// The plan as CSV: `#` comment lines, then `j1..jn` (degrees; mm for prismatic joints),
 /// the nominal `x,y,z` (mm) and `a,b,c` (KUKA degrees) at those joints, and `config` when
@@ -564,7 +564,7 @@ pub fn write_csv(
     robot: &Robot,
     plan: &Plan,
     comments: &[String],
-    config: Option<&ConfigLabel>,
+    config: Option<&ConfigLabel<'_>>,
 ) -> String {
     let mut out = String::new();
     for c in comments {
