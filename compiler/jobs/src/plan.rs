@@ -30,7 +30,7 @@ pub struct PlanArgs {
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "min")]
     pub max: Option<[f64; 3]>,
     /// A further box, xmin,ymin,zmin,xmax,ymax,zmax (mm; repeatable): the TCP in any box.
-    #[arg(long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", allow_hyphen_values = true,
+    #[arg(id = "box", long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", allow_hyphen_values = true,
           value_parser = parse_six)]
     #[serde(rename = "box", deserialize_with = "boxes")]
     pub boxes: Vec<[f64; 6]>,
