@@ -1,10 +1,13 @@
 //! Which poses to measure: a set that determines the robot's kinematic parameters well
 //! and covers the workspace, in an order the robot runs quickly.
 //!
-//! 1. **Candidates.** Joint vectors drawn uniformly within the joint limits (the robot's
-//!    sampling ranges), deterministic in the seed, kept when the nominal TCP lies in one of
-//!    the boxes, its orientation is an allowed one (within a tolerance), and a laser tracker
-//!    sees it: the TCP within the tracker's range and the tool's approach axis (z) within
+//! 1. **Candidates**, deterministic in the seed. Without allowed orientations, joint
+//!    vectors drawn uniformly within the joint limits (the robot's sampling ranges); with
+//!    them, TCP poses drawn uniformly in the boxes, turned from an allowed orientation by
+//!    a random rotation up to the tolerance, and solved by inverse kinematics (the
+//!    closed-form solution nearest the home posture, or the numerical one from it). Kept
+//!    when the nominal TCP lies in one of the boxes, within the joint limits, its
+//!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
 //!    the sight cone about the line to the tracker.
 //! 2. **Selection.** Greedy: each step takes the candidate with the best blend of
 //!    - its D-optimality gain, `log det(M + Bᵢᵀ Bᵢ) − log det M = log det(I₃ + Bᵢ M⁻¹ Bᵢᵀ)`,
@@ -30,9 +33,12 @@
 use std::fmt::Write as _;
 
 use adwi_robot::calibrate::{design_jacobians, Parameter};
-use adwi_robot::model::JointKind;
-use adwi_robot::Robot;
-use adwi_samples::pose::kuka_abc_deg_from_rotation;
+use adwi_robot::ik::solve_near;
+use adwi_robot::model::{isometry_from_parts, JointKind};
+use adwi_robot::{IkSolution, InverseKinematics, Robot};
+use adwi_samples::pose::{
+    kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg, rotation_from_vector,
+};
 use nalgebra::{DMatrix, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -296,7 +302,7 @@ fn admissible(robot: &Robot, options: &PlanOptions, q: &[f64]) -> Option<Planned
     }
     if let Some(o) = &options.orientations {
         let allowed = o.abc_deg.iter().any(|abc| {
-            let r = adwi_samples::pose::rotation_from_kuka_abc_deg(*abc);
+            let r = rotation_from_kuka_abc_deg(*abc);
             r.angle_to(&rotation).to_degrees() <= o.tolerance_deg
         });
         if !allowed {
@@ -327,14 +333,51 @@ pub fn candidates(
         .map(|i| robot.sampling_range(i))
         .collect();
     let max_draws = options.pool.saturating_mul(DRAWS_PER_CANDIDATE);
+    let closed_form = InverseKinematics::new(robot).ok();
+    let volumes: Vec<f64> = options
+        .boxes_mm
+        .iter()
+        .map(|(min, max)| (0..3).map(|a| max[a] - min[a]).product())
+        .collect();
+    let total_volume: f64 = volumes.iter().sum();
     let mut found = Vec::with_capacity(options.pool);
     let mut draws = 0;
     while found.len() < options.pool && draws < max_draws {
         draws += 1;
-        let q: Vec<f64> = ranges
-            .iter()
-            .map(|&[lo, hi]| rng.gen_range(lo..=hi))
-            .collect();
+        let q: Vec<f64> = match &options.orientations {
+            None => ranges
+                .iter()
+                .map(|&[lo, hi]| rng.gen_range(lo..=hi))
+                .collect(),
+            Some(allowed) => {
+                // A pose in the boxes (each by its volume), turned from an allowed
+                // orientation by up to the tolerance, and its joints nearest home.
+                let mut pick = rng.gen_range(0.0..total_volume);
+                let mut k = 0;
+                while k + 1 < volumes.len() && pick >= volumes[k] {
+                    pick -= volumes[k];
+                    k += 1;
+                }
+                let (min, max) = options.boxes_mm[k];
+                let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
+                let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
+                let z: f64 = rng.gen_range(-1.0..=1.0);
+                let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
+                let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
+                let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
+                let pose = isometry_from_parts(position, &rotation);
+                let solution = match &closed_form {
+                    Some(ik) => nearest_home(robot, ik.solve(&pose)),
+                    None => solve_near(robot, &pose, robot.home()),
+                };
+                match solution {
+                    Some(q) => q,
+                    None => continue,
+                }
+            }
+        };
         if let Some(pose) = admissible(robot, options, &as_written(robot, &q)) {
             found.push(pose);
             advance(1);
@@ -348,6 +391,17 @@ pub fn candidates(
         });
     }
     Ok((found, draws))
+}
+
+/// Of closed-form solutions, the one nearest the home posture, as `tablec simulate`
+/// chooses.
+fn nearest_home(robot: &Robot, solutions: Vec<IkSolution>) -> Option<Vec<f64>> {
+    let home = robot.home();
+    let distance = |q: &[f64]| -> f64 { q.iter().zip(home).map(|(a, b)| (a - b).powi(2)).sum() };
+    solutions
+        .into_iter()
+        .map(|s| s.q_rad.to_vec())
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
 }
 
 /// The information of a set of poses: `ridge · I + Σ BᵢᵀBᵢ`.
