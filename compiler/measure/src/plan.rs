@@ -737,6 +737,39 @@ mod tests {
         assert_eq!(seen.len(), 30);
     }
 
+    /// With allowed orientations the candidates come from inverse kinematics: every pose
+    /// within the tolerance of one of them, and in the box.
+    #[test]
+    fn planned_poses_keep_an_allowed_orientation() {
+        let robot = Robot::load(adwi_robot::model::shipped_robot_path("kr150-2")).unwrap();
+        let allowed = [[0.0, 90.0, 0.0], [0.0, 45.0, 0.0]];
+        let o = PlanOptions {
+            boxes_mm: vec![([1350.0, 50.0, 850.0], [2150.0, 850.0, 1650.0])],
+            tracker: None,
+            orientations: Some(AllowedOrientations {
+                abc_deg: allowed.to_vec(),
+                tolerance_deg: 5.0,
+            }),
+            ..options(20, 100)
+        };
+        let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        for pose in &p.poses {
+            let tcp = robot.tcp_pose(&pose.joints);
+            let rotation = tcp.rotation.to_rotation_matrix();
+            let off = allowed
+                .iter()
+                .map(|abc| {
+                    rotation_from_kuka_abc_deg(*abc)
+                        .angle_to(&rotation)
+                        .to_degrees()
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(off <= 5.0, "{off}°");
+            let t = tcp.translation.vector;
+            assert!((1350.0..=2150.0).contains(&t.x) && (850.0..=1650.0).contains(&t.z));
+        }
+    }
+
     /// The greedy choice is D-better than the same number of the pool's first
     /// candidates (a random draw), on the same pool and criterion.
     #[test]
