@@ -269,7 +269,7 @@ impl PlanJob {
             .collect();
         let comments = [
             format!(
-                "{} poses of the {} planned by tablec plan, seed {}, from {} candidates ({} joint draws) in {} mm.",
+                "{} poses of the {} planned by tablec plan, seed {}, from {} candidates ({} draws) in {} mm.",
                 planned.poses.len(),
                 robot.name,
                 args.seed,

@@ -111,7 +111,7 @@ pub enum PlanError {
         reason: String,
     },
     /// The candidates found fall short of the poses asked for.
-    #[error("{found} reachable candidates in {draws} joint draws, fewer than the {count} poses asked for: widen the box, the range, the cone or the orientation tolerance, or ask for fewer poses")]
+    #[error("{found} reachable candidates in {draws} draws, fewer than the {count} poses asked for: widen the box, the range, the cone or the orientation tolerance, or ask for fewer poses")]
     TooFewCandidates {
         /// Candidates found.
         found: usize,
@@ -143,9 +143,9 @@ pub struct Plan {
     pub poses: Vec<PlannedPose>,
     /// The parameters identifiable on the pool, which the selection weighs.
     pub parameters: Vec<Parameter>,
-    /// Candidates in the pool, and joint draws made to find them.
+    /// Candidates in the pool.
     pub pool: usize,
-    /// Joint draws made.
+    /// Draws made (joint vectors, or poses solved by inverse kinematics).
     pub draws: usize,
     /// `log det` of the chosen poses' information (scaled parameters, with the ridge).
     pub log_det: f64,

@@ -21,7 +21,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let planned = planned?;
     let p = &planned.plan;
     println!(
-        "planned        {} poses of the {} from {} candidates ({} joint draws)",
+        "planned        {} poses of the {} from {} candidates ({} draws)",
         p.poses.len(),
         planned.robot_name,
         p.pool,
