@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use adwi_compile::write::OutputPlan;
 use adwi_measure::plan::{
-    check, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanOptions, TrackerSight,
+    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanOptions,
+    TrackerSight,
 };
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
@@ -37,7 +38,8 @@ pub struct PlanArgs {
     /// Poses to plan.
     #[arg(long)]
     pub count: usize,
-    /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000].
+    /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000;
+    /// at most 2,000 solved by numerical inverse kinematics].
     #[arg(long)]
     pub pool: Option<usize>,
     /// Seed of the candidates: the same seed gives the same file byte for byte.
@@ -138,9 +140,13 @@ fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<[f64; 2]>, D::E
 }
 
 /// The default pool: ten candidates per pose, at least 1,000 and at most 20,000 (and at
-/// least the count).
-fn default_pool(count: usize) -> usize {
-    count.saturating_mul(10).clamp(1_000, 20_000).max(count)
+/// least the count), within the robot's largest pool.
+fn default_pool(count: usize, largest: usize) -> usize {
+    count
+        .saturating_mul(10)
+        .clamp(1_000, 20_000)
+        .min(largest)
+        .max(count)
 }
 
 /// A plan checked and sized, ready to run.
@@ -205,7 +211,7 @@ impl PlanJob {
         let options = PlanOptions {
             boxes_mm,
             count: args.count,
-            pool: args.pool.unwrap_or_else(|| default_pool(args.count)),
+            pool: args.pool.unwrap_or(0),
             seed: args.seed,
             tracker,
             orientations: (!args.abc.is_empty()).then(|| AllowedOrientations {
@@ -218,6 +224,11 @@ impl PlanJob {
         let threads = crate::thread_pool(args.threads)?;
         let mut inputs = Inputs::default();
         let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
+        let mut options = options;
+        if args.pool.is_none() {
+            let largest = max_pool(&robot, options.orientations.is_some());
+            options.pool = default_pool(args.count, largest);
+        }
         // Sized before any work: counts, boxes, the tracker, the selection's arithmetic.
         check(&robot, &options).map_err(|e| JobError::Options(e.to_string()))?;
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;

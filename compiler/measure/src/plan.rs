@@ -48,6 +48,20 @@ use rayon::prelude::*;
 pub const MAX_POSES: usize = 5_000;
 /// The largest candidate pool.
 pub const MAX_POOL: usize = 50_000;
+/// The largest pool solved by numerical inverse kinematics (allowed orientations on a
+/// robot without the closed form): each candidate costs milliseconds, from home and up to
+/// [`adwi_robot::ik::FURTHER_SEEDS`] further starts, so this is a couple of minutes.
+pub const MAX_NUMERICAL_POOL: usize = 2_000;
+
+/// The largest pool for `robot`: [`MAX_NUMERICAL_POOL`] when candidates are solved by
+/// numerical inverse kinematics, else [`MAX_POOL`].
+pub fn max_pool(robot: &Robot, orientations: bool) -> usize {
+    if orientations && InverseKinematics::new(robot).is_err() {
+        MAX_NUMERICAL_POOL
+    } else {
+        MAX_POOL
+    }
+}
 /// Draws per pool candidate before the constraints are deemed too tight: the draws stop
 /// there and the pool is what was found.
 pub const DRAWS_PER_CANDIDATE: usize = 200;
@@ -176,12 +190,19 @@ pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
             format!("{} poses: give 1 to {MAX_POSES}", options.count),
         ));
     }
-    if options.pool < options.count || options.pool > MAX_POOL {
+    let largest = max_pool(robot, options.orientations.is_some());
+    if options.pool < options.count || options.pool > largest {
         return Err(option(
             "pool",
             format!(
-                "{} candidates: give at least the count ({}) and at most {MAX_POOL}",
-                options.pool, options.count
+                "{} candidates: give at least the count ({}) and at most {largest}{}",
+                options.pool,
+                options.count,
+                if largest < MAX_POOL {
+                    " (solved by numerical inverse kinematics, milliseconds each)"
+                } else {
+                    ""
+                }
             ),
         ));
     }
