@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use adwi_compile::write::OutputPlan;
 use adwi_measure::plan::{
-    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanOptions,
-    TrackerSight,
+    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanError,
+    PlanOptions, TrackerSight,
 };
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
@@ -230,7 +230,10 @@ impl PlanJob {
             options.pool = default_pool(args.count, largest);
         }
         // Sized before any work: counts, boxes, the tracker, the selection's arithmetic.
-        check(&robot, &options).map_err(|e| JobError::Options(e.to_string()))?;
+        check(&robot, &options).map_err(|e| match e {
+            PlanError::Option { name, reason } => JobError::option(name, reason),
+            e => JobError::Plan(Box::new(e)),
+        })?;
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
         Ok(PlanJob {
             args,
