@@ -183,6 +183,14 @@ impl Iso9283Job {
                 (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
             }
             (Some(path), None) => {
+                let plan_only = Iso9283Args::default();
+                if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
+                    return Err(JobError::Options(
+                        "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
+                         their own"
+                            .into(),
+                    ));
+                }
                 if args.output.is_some() {
                     return Err(JobError::option(
                         "output",
