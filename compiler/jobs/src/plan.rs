@@ -364,4 +364,51 @@ mod tests {
         let e = PlanJob::new(args).err().unwrap();
         assert!(e.to_string().contains("100000 poses"), "{e}");
     }
+
+    /// A plan measured by `simulate --poses`: the samples are at the planned joints, in
+    /// the plan's order.
+    #[test]
+    fn simulate_measures_the_planned_joints_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let robot = adwi_robot::model::shipped_robot_path("kr150-2");
+        let planned = PlanJob::new(PlanArgs {
+            robot: RobotArgs {
+                robot: Some(robot.clone()),
+                ..RobotArgs::default()
+            },
+            min: Some([1350.0, 50.0, 850.0]),
+            max: Some([2150.0, 850.0, 1650.0]),
+            abc: vec![[0.0, 90.0, 0.0]],
+            count: 6,
+            pool: Some(40),
+            output: dir.path().join("plan.csv"),
+            ..PlanArgs::default()
+        })
+        .unwrap()
+        .run(&crate::Silent)
+        .unwrap();
+        let samples = dir.path().join("samples.csv");
+        crate::SimulateJob::new(crate::SimulateArgs {
+            robot: RobotArgs {
+                robot: Some(robot),
+                ..RobotArgs::default()
+            },
+            scenario: adwi_robot::model::shipped_file("kr150-2", "scenario.toml"),
+            poses: Some(dir.path().join("plan.csv")),
+            output: samples.clone(),
+            ..crate::SimulateArgs::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        let read =
+            adwi_samples::read_samples(&samples, &adwi_samples::ColumnMap::default()).unwrap();
+        assert_eq!(read.len(), 6);
+        for (i, pose) in planned.plan.poses.iter().enumerate() {
+            let q = read.joints_rad(i).unwrap();
+            for (a, b) in q.iter().zip(&pose.joints) {
+                assert!((a - b).abs() < 1e-9, "{a} {b}");
+            }
+        }
+    }
 }
