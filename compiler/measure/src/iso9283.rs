@@ -75,7 +75,7 @@ pub enum Iso9283Error {
         reason: String,
     },
     /// A column the format needs is missing from the header.
-    #[error("the header has no column '{0}' (needs position, cycle, x, y, z, mx, my, mz; optionally a, b, c with ma, mb, mc)")]
+    #[error("the header has no column '{0}' (needs position, cycle, x, y, z, mx, my, mz; for orientation figures a, b, c and ma, mb, mc)")]
     MissingColumn(&'static str),
     /// A field that is not what its column holds.
     #[error("line {line}, column {column}: '{text}' {why}")]
@@ -154,8 +154,9 @@ pub fn read_cycles(path: &Path) -> Result<Vec<CycleRow>, Iso9283Error> {
 
 /// Parses measured cycles: a comma-separated file, `#` comment lines, one header row of
 /// `position, cycle, x, y, z, mx, my, mz` (commanded and attained position, mm, base frame)
-/// and optionally `a, b, c, ma, mb, mc` (commanded and attained orientation, KUKA degrees),
-/// in any order; other columns are ignored. `position` is any name, `cycle` a whole number.
+/// and optionally `a, b, c, ma, mb, mc` (commanded and attained orientation, KUKA degrees;
+/// `a, b, c` without a measured orientation are ignored), in any order; other columns are
+/// ignored. `position` is any name, `cycle` a whole number.
 ///
 /// # Errors
 ///
@@ -178,6 +179,8 @@ pub fn parse_cycles(bytes: &[u8]) -> Result<Vec<CycleRow>, Iso9283Error> {
     let cycle = need("cycle")?;
     let commanded = [need("x")?, need("y")?, need("z")?];
     let attained = [need("mx")?, need("my")?, need("mz")?];
+    // Orientation figures when the attained orientation was measured: a plan's commanded
+    // a, b, c alone, measured by a position-only tracker, are read as position only.
     const ANGLES: [&str; 6] = ["a", "b", "c", "ma", "mb", "mc"];
     let angles: Vec<Option<usize>> = ANGLES.iter().map(|n| find(n)).collect();
     let orientation = if angles.iter().all(Option::is_some) {
@@ -187,12 +190,14 @@ pub fn parse_cycles(bytes: &[u8]) -> Result<Vec<CycleRow>, Iso9283Error> {
                 .map(|a| a.expect("all some"))
                 .collect::<Vec<_>>(),
         )
-    } else if let Some(k) = angles.iter().position(Option::is_some) {
+    } else if angles[3..].iter().any(Option::is_some) {
+        // A measured orientation needs all three angles, and the commanded ones.
         let missing = ANGLES
             .iter()
             .zip(&angles)
             .find(|(_, a)| a.is_none())
-            .map_or(ANGLES[k], |(n, _)| n);
+            .map(|(n, _)| *n)
+            .expect("not all present");
         return Err(Iso9283Error::MissingColumn(missing));
     } else {
         None
@@ -761,6 +766,12 @@ mod tests {
     fn malformed_files_are_refused_with_their_line() {
         let e = parse_cycles(b"position,cycle,x,y,z,mx,my\nP1,1,0,0,0,0,0\n").unwrap_err();
         assert_eq!(e, Iso9283Error::MissingColumn("mz"));
+        let rows = parse_cycles(b"position,cycle,x,y,z,a,b,c,mx,my,mz\nP1,1,0,0,0,0,90,0,0,0,0\n")
+            .unwrap();
+        assert_eq!(rows[0].orientation_abc_deg, None);
+        let e = parse_cycles(b"position,cycle,x,y,z,mx,my,mz,ma,mb,mc\nP1,1,0,0,0,0,0,0,0,0,0\n")
+            .unwrap_err();
+        assert_eq!(e, Iso9283Error::MissingColumn("a"));
         let e = parse_cycles(b"position,cycle,x,y,z,mx,my,mz\nP1,1,0,0,0,0,0,nan\n").unwrap_err();
         assert!(
             matches!(
