@@ -12,7 +12,9 @@ This package does what the ``tablec`` command line does, with numpy arrays:
   and :meth:`Table.compensate` solves for the commands (``tablec query --targets``);
 - :func:`evaluate` compares the methods on held-out points, or scores a table built
   before (``tablec eval``);
-- :func:`calibrate` identifies the robot and writes it calibrated (``tablec calibrate``).
+- :func:`calibrate` identifies the robot and writes it calibrated (``tablec calibrate``);
+- :func:`plan` chooses the poses to measure (``tablec plan``), and :func:`iso9283`
+  reduces measured cycles to ISO 9283 accuracy and repeatability (``tablec iso9283``).
 
 Every function takes ``tablec``'s options of the same names as keyword arguments
 (``--tune-folds`` is ``tune_folds=``), defined once for both and documented in each
@@ -53,6 +55,8 @@ __all__ = [
     "build",
     "calibrate",
     "evaluate",
+    "iso9283",
+    "plan",
 ]
 
 #: Query statuses, indexed by status code: the names ``tablec query`` prints.
@@ -283,9 +287,40 @@ def calibrate(samples: Samples, **options: Any) -> Dict[str, Any]:
     return fields
 
 
+def plan(output: PathLike, **options: Any) -> Dict[str, Any]:
+    """Plan the poses to measure, as ``tablec plan``: reachable candidates in the box
+    (``min``, ``max``, ``box``), seen by the tracker, chosen for the identification
+    (D-optimality) blended with coverage, ordered as a short joint-space path, and written
+    to ``output`` (CSV: ``j1..jn`` in degrees, the nominal ``x,y,z,a,b,c``).
+
+    Returns a dict: ``robot``, ``joints_rad``, ``position_mm``, ``abc_deg`` (one row per
+    pose, in the order to measure), ``parameters`` (the identifiable ones the selection
+    weighs), ``pool``, ``draws``, ``log_det``, ``min_distance_mm``, ``path_travel`` (rad)
+    and ``written``.
+    """
+    return _adwi.plan(os.fspath(output), **_options([], options))
+
+
+def iso9283(measurements: Optional[PathLike] = None, **options: Any) -> Dict[str, Any]:
+    """ISO 9283:1998 pose characteristics of measured cycles, as ``tablec iso9283``; or,
+    with ``cube=[x, y, z, side]`` and ``output``, the standard's five cube positions
+    written as a plan.
+
+    Returns a dict: ``positions`` (per position ``name``, ``n``, ``ap_p_mm``,
+    ``ap_x_mm``..., ``rp_l_mm``..., the orientation figures or None), ``distance`` (between
+    consecutive positions ``from``, ``to``, ``ad_p_mm``..., ``rd_mm``), ``compensated`` (the
+    same for the table's compensation, with ``table``; else None) and ``written``.
+    """
+    files = [measurements] if measurements is not None else []
+    path = os.fspath(measurements) if measurements is not None else None
+    return _adwi.iso9283(path, **_options(files, options))
+
+
 _document(build, "build")
 _document(evaluate, "evaluate")
 _document(calibrate, "calibrate")
+_document(plan, "plan")
+_document(iso9283, "iso9283")
 
 
 class Evaluation(list):

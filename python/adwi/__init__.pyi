@@ -185,6 +185,42 @@ def calibrate(
     """Identify the robot's kinematic deviations from samples, as tablec calibrate, and
     write the calibrated robot files."""
 
+def plan(
+    output: PathLike,
+    *,
+    robot: Optional[PathLike] = None,
+    base_link: Optional[str] = None,
+    tip_link: Optional[str] = None,
+    min: Optional[Sequence[float]] = None,
+    max: Optional[Sequence[float]] = None,
+    box: Optional[Sequence[Sequence[float]]] = None,
+    count: Optional[int] = None,
+    pool: Optional[int] = None,
+    seed: int = 1,
+    tracker: Optional[Sequence[float]] = None,
+    tracker_range: Optional[Sequence[float]] = None,
+    sight_cone_deg: Optional[float] = None,
+    abc: Optional[Sequence[Sequence[float]]] = None,
+    orientation_tolerance: float = 15.0,
+    coverage: float = 0.3,
+    rank_tol: float = 0.001,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Plan the poses to measure, as tablec plan, and write them to output."""
+
+def iso9283(
+    measurements: Optional[PathLike] = None,
+    *,
+    cube: Optional[Sequence[float]] = None,
+    abc: Sequence[float] = (0, 90, 0),
+    cycles: int = 30,
+    output: Optional[PathLike] = None,
+    json: Optional[PathLike] = None,
+    table: Optional[PathLike] = None,
+) -> Dict[str, Any]:
+    """ISO 9283 pose characteristics of measured cycles, as tablec iso9283, or the cube's
+    five positions written as a plan (cube, output)."""
+
 class Evaluation(List[Dict[str, Any]]):
     """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
     samples (None otherwise) and the methods against the best, point by point."""

@@ -9,7 +9,8 @@
 use std::path::PathBuf;
 
 use adwi_jobs::{
-    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, JobError, Silent,
+    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args,
+    Iso9283Job, JobError, PlanArgs, PlanJob, Silent,
 };
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
@@ -111,6 +112,8 @@ fn job_options(job: &str) -> Option<clap::Command> {
         "build" => BuildArgs::augment_args(command),
         "evaluate" => EvalArgs::augment_args(command),
         "calibrate" => CalibrateArgs::augment_args(command),
+        "plan" => PlanArgs::augment_args(command),
+        "iso9283" => Iso9283Args::augment_args(command),
         _ => return None,
     })
 }
@@ -120,6 +123,8 @@ fn apart(job: &str) -> &'static [&'static str] {
     match job {
         "build" => &["samples", "output"],
         "evaluate" => &["samples", "validation"],
+        "plan" => &["output"],
+        "iso9283" => &["measurements"],
         _ => &["samples"],
     }
 }
@@ -1065,8 +1070,83 @@ fn _adwi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(build, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(iso9283, m)?)?;
     m.add_function(wrap_pyfunction!(options, m)?)?;
     m.add_function(wrap_pyfunction!(array_csv, m)?)?;
     m.add_function(wrap_pyfunction!(compensate_program, m)?)?;
     Ok(())
+}
+
+/// `tablec plan` ([`PlanJob`]): the poses planned, in the order to measure them, and the
+/// criterion, as a dict.
+#[pyfunction]
+#[pyo3(signature = (output, **options))]
+fn plan<'py>(
+    py: Python<'py>,
+    output: PathBuf,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut args: PlanArgs = job_args(py, "plan", options)?;
+    args.output = output;
+    let planned = run_job(py, || PlanJob::new(args)?.run(&Silent))?;
+    let p = &planned.plan;
+    let d = PyDict::new(py);
+    d.set_item("robot", &planned.robot_name)?;
+    let joints: Vec<Vec<f64>> = p.poses.iter().map(|q| q.joints.clone()).collect();
+    d.set_item("joints_rad", joints)?;
+    let positions: Vec<[f64; 3]> = p.poses.iter().map(|q| q.position_mm).collect();
+    d.set_item("position_mm", positions)?;
+    let abc: Vec<[f64; 3]> = p.poses.iter().map(|q| q.abc_deg).collect();
+    d.set_item("abc_deg", abc)?;
+    let parameters: Vec<String> = p.parameters.iter().map(|q| q.to_string()).collect();
+    d.set_item("parameters", parameters)?;
+    d.set_item("pool", p.pool)?;
+    d.set_item("draws", p.draws)?;
+    d.set_item("log_det", p.log_det)?;
+    d.set_item("min_distance_mm", p.min_distance_mm)?;
+    d.set_item("path_travel", p.path_travel)?;
+    d.set_item("written", vec![planned.output.display().to_string()])?;
+    Ok(d)
+}
+
+/// `tablec iso9283` ([`Iso9283Job`]): the characteristics of measured cycles (and, with
+/// a table, of their compensation), or the cube plan written, as a dict.
+#[pyfunction]
+#[pyo3(signature = (measurements=None, **options))]
+fn iso9283<'py>(
+    py: Python<'py>,
+    measurements: Option<PathBuf>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut args: Iso9283Args = job_args(py, "iso9283", options)?;
+    args.measurements = measurements;
+    let result = run_job(py, || Iso9283Job::new(args)?.run())?;
+    let d = PyDict::new(py);
+    let convert = |report: &Option<adwi_measure::iso9283::Report>| -> PyResult<_> {
+        report
+            .as_ref()
+            .map(|r| pythonize::pythonize(py, r))
+            .transpose()
+            .map_err(|e| AdwiError::new_err(e.to_string()))
+    };
+    match convert(&result.report)? {
+        Some(report) => {
+            let report = report.downcast_into::<PyDict>()?;
+            d.set_item("positions", report.get_item("positions")?)?;
+            d.set_item("distance", report.get_item("distance")?)?;
+        }
+        None => {
+            d.set_item("positions", PyList::empty(py))?;
+            d.set_item("distance", PyList::empty(py))?;
+        }
+    }
+    d.set_item("compensated", convert(&result.compensated)?)?;
+    let written: Vec<String> = result
+        .written
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    d.set_item("written", written)?;
+    Ok(d)
 }

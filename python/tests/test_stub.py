@@ -27,7 +27,7 @@ def stub_keywords(function: str):
 
 
 def test_the_stub_lists_every_option_of_each_job_with_its_default():
-    for function in ("build", "evaluate", "calibrate"):
+    for function in ("build", "evaluate", "calibrate", "plan", "iso9283"):
         options = {name: default for name, _, default in adwi._adwi.options(function)}
         stub = stub_keywords(function)
         names = set(stub) - APART.get(function, set()) - HIDDEN.get(function, set())
@@ -38,6 +38,8 @@ def test_the_stub_lists_every_option_of_each_job_with_its_default():
             given = stub[name]
             if isinstance(given, bool):
                 assert str(given).lower() == default, (function, name)
+            elif isinstance(given, tuple):
+                assert ",".join(f"{v:g}" for v in given) == default, (function, name)
             elif isinstance(given, (int, float)):
                 assert given == float(default), (function, name, given, default)
             else:
@@ -45,6 +47,6 @@ def test_the_stub_lists_every_option_of_each_job_with_its_default():
 
 
 def test_every_option_is_documented_in_the_docstring():
-    for function in (adwi.build, adwi.evaluate, adwi.calibrate):
+    for function in (adwi.build, adwi.evaluate, adwi.calibrate, adwi.plan, adwi.iso9283):
         for name, _, _ in adwi._adwi.options(function.__name__):
             assert f"``{name}``" in function.__doc__, (function.__name__, name)

@@ -21,6 +21,8 @@ pub mod build;
 pub mod calibrate;
 pub mod eval;
 mod inputs;
+pub mod iso9283;
+pub mod plan;
 mod series;
 pub mod simulate;
 pub mod tune;
@@ -33,6 +35,8 @@ pub use build::{BuildArgs, BuildJob, Built};
 pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
 pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
+pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
+pub use plan::{PlanArgs, PlanJob, Planned};
 pub use simulate::{SimulateArgs, SimulateJob, Simulated};
 
 /// Why a job was refused or failed. Refusals of options come before any work.
@@ -86,6 +90,12 @@ pub enum JobError {
     /// Worker threads could not be started.
     #[error("cannot start worker threads: {0}")]
     Threads(String),
+    /// Measured cycles ISO 9283 cannot reduce, or a plan it cannot place.
+    #[error(transparent)]
+    Measure(Box<adwi_measure::iso9283::Iso9283Error>),
+    /// A measurement plan that cannot be made.
+    #[error(transparent)]
+    Plan(Box<adwi_measure::plan::PlanError>),
     /// A result came out non-finite and is not reported as one.
     #[error("{0}")]
     NonFinite(String),
@@ -370,7 +380,8 @@ mod tests {
         };
         let mut expected: SimulateArgs = from_nothing();
         expected.scenario = "x.toml".into();
-        expected.max = [1.0; 3];
+        expected.min = Some([0.0; 3]);
+        expected.max = Some([1.0; 3]);
         expected.output = "s.csv".into();
         assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
     }

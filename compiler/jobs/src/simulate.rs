@@ -26,11 +26,18 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub scenario: PathBuf,
     /// Box corner x,y,z (mm, base frame).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub min: [f64; 3],
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
+          required_unless_present = "poses")]
+    pub min: Option<[f64; 3]>,
     /// Opposite box corner x,y,z (mm, base frame).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub max: [f64; 3],
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true,
+          required_unless_present = "poses")]
+    pub max: Option<[f64; 3]>,
+    /// Measure these poses instead of a lattice or random ones: a CSV with joint values
+    /// j1..jn (degrees; mm for prismatic joints), such as `tablec plan` writes; the nominal
+    /// pose is the forward kinematics of each row's joints.
+    #[arg(long, value_name = "POSES.csv", conflicts_with_all = ["min", "max", "step", "random"])]
+    pub poses: Option<PathBuf>,
     /// Lattice spacing (mm): every min + k·step inside the box.
     #[arg(long)]
     pub step: Option<f64>,
@@ -64,8 +71,9 @@ impl Default for SimulateArgs {
         SimulateArgs {
             robot: RobotArgs::default(),
             scenario: PathBuf::new(),
-            min: [0.0; 3],
-            max: [0.0; 3],
+            min: None,
+            max: None,
+            poses: None,
             step: None,
             random: None,
             abc: [0.0, 90.0, 0.0],
@@ -76,6 +84,37 @@ impl Default for SimulateArgs {
             comment: Vec::new(),
         }
     }
+}
+
+/// The joint values of every row of a poses file (rad; mm when prismatic).
+fn read_joint_rows(path: &std::path::Path, robot: &Robot) -> Result<Vec<Vec<f64>>, JobError> {
+    let (columns, options) = crate::args::Reading::default().resolve()?;
+    let rows = adwi_samples::read_targets(path, &columns, &options)?;
+    rows.into_iter()
+        .enumerate()
+        .map(|(i, row)| match row.joints_rad {
+            Some(q) if q.len() == robot.joint_count() => Ok(q),
+            Some(q) => Err(JobError::option(
+                "poses",
+                format!(
+                    "{} gives {} joint values per row; the {} has {} joints",
+                    path.display(),
+                    q.len(),
+                    robot.name,
+                    robot.joint_count()
+                ),
+            )),
+            None => Err(JobError::option(
+                "poses",
+                format!(
+                    "{} has no joint values (j1..jn) on its row {}: the poses to measure are \
+                     joint vectors",
+                    path.display(),
+                    i + 1
+                ),
+            )),
+        })
+        .collect()
 }
 
 /// A simulation checked and loaded, ready to run.
@@ -112,20 +151,35 @@ impl SimulateJob {
                 "simulate needs the robot file (--robot)".into(),
             ));
         }
-        let positions = match (args.step, args.random) {
-            (Some(step_mm), None) => Positions::Lattice {
-                min_mm: args.min,
-                max_mm: args.max,
-                step_mm,
-            },
-            (None, Some(count)) => Positions::Random {
-                count,
-                min_mm: args.min,
-                max_mm: args.max,
-            },
+        let box_mm = match (args.min, args.max, &args.poses) {
+            (Some(min), Some(max), None) => Some((min, max)),
+            (None, None, Some(_)) => None,
             _ => {
                 return Err(JobError::Options(
-                    "give exactly one of --step (a lattice) and --random (a count)".into(),
+                    "give the box (--min and --max) with --step or --random, or the poses to \
+                     measure (--poses) alone"
+                        .into(),
+                ))
+            }
+        };
+        let positions = match (args.step, args.random, box_mm) {
+            (Some(step_mm), None, Some((min_mm, max_mm))) => Positions::Lattice {
+                min_mm,
+                max_mm,
+                step_mm,
+            },
+            (None, Some(count), Some((min_mm, max_mm))) => Positions::Random {
+                count,
+                min_mm,
+                max_mm,
+            },
+            // Read below, once the poses file is known not to be the output.
+            (None, None, None) => Positions::Joints(Vec::new()),
+            _ => {
+                return Err(JobError::Options(
+                    "give exactly one of --step (a lattice), --random (a count) and --poses \
+                     (a file)"
+                        .into(),
                 ))
             }
         };
@@ -138,8 +192,15 @@ impl SimulateJob {
             .transpose()?;
         let mut inputs = Inputs::default();
         inputs.add(&args.scenario);
+        if let Some(poses) = &args.poses {
+            inputs.add(poses);
+        }
         let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
+        let positions = match &args.poses {
+            Some(path) => Positions::Joints(read_joint_rows(path, &robot)?),
+            None => positions,
+        };
         let scenario = Scenario::load(&args.scenario)?;
         let plan = SamplingPlan {
             positions,

@@ -731,6 +731,8 @@ pub enum Positions {
         /// Per joint `[lower, upper]`, as for [`Positions::JointRandom`].
         ranges: Option<Vec<[f64; 2]>>,
     },
+    /// These joint vectors (rad; mm when prismatic), in this order: a planned set of poses.
+    Joints(Vec<Vec<f64>>),
 }
 
 impl Positions {
@@ -738,7 +740,7 @@ impl Positions {
     pub fn is_joint_space(&self) -> bool {
         matches!(
             self,
-            Positions::JointRandom { .. } | Positions::JointGrid { .. }
+            Positions::JointRandom { .. } | Positions::JointGrid { .. } | Positions::Joints(_)
         )
     }
 }
@@ -845,6 +847,11 @@ impl SamplingPlan {
                 counts.iter().map(|&c| c as f64).product(),
                 "give fewer values per joint",
             ),
+            Positions::Joints(joints) => (
+                "a list of joint vectors".to_owned(),
+                joints.len() as f64,
+                "give fewer joint vectors",
+            ),
         };
         if !(count >= 1.0 && count <= MAX_SAMPLES as f64) {
             return too_many(what, count, fix);
@@ -894,6 +901,14 @@ impl SamplingPlan {
                     return invalid("every joint needs at least one grid value".into());
                 }
             }
+            Positions::Joints(joints) => {
+                if let Some(k) = joints.iter().position(|q| !robot.within_limits(q)) {
+                    return invalid(format!(
+                        "joint vector {} has not {n} values within the joint limits",
+                        k + 1
+                    ));
+                }
+            }
         }
         self.sample_count()?;
         if self.positions.is_joint_space() && self.config.is_some() {
@@ -938,7 +953,9 @@ impl SamplingPlan {
             } => (0..*count)
                 .map(|_| std::array::from_fn(|i| rng.gen_range(min_mm[i]..=max_mm[i])))
                 .collect(),
-            Positions::JointRandom { .. } | Positions::JointGrid { .. } => Vec::new(),
+            Positions::JointRandom { .. } | Positions::JointGrid { .. } | Positions::Joints(_) => {
+                Vec::new()
+            }
         };
         let nominal_rotation = rotation_from_kuka_abc_deg(self.abc_deg);
         positions
@@ -1009,6 +1026,7 @@ impl SamplingPlan {
                 }
                 out
             }
+            Positions::Joints(joints) => joints.clone(),
             Positions::Lattice { .. } | Positions::Random { .. } => Vec::new(),
         };
         // As written: degrees (mm) rounded to the file's decimals, and back.
@@ -1244,8 +1262,13 @@ pub fn simulate(
     Ok(samples)
 }
 
-/// The configuration label of joint values `q` of a robot with the closed form.
-fn label(robot: &Robot, q: &[f64]) -> Configuration {
+/// The configuration label of joint values `q` of a robot with the closed form
+/// ([`InverseKinematics::new`](crate::ik::InverseKinematics::new) accepts it).
+///
+/// # Panics
+///
+/// For a robot without the closed form's six MD-H joints.
+pub fn label(robot: &Robot, q: &[f64]) -> Configuration {
     let rows: [MdhJoint; 6] = robot
         .mdh()
         .expect("the closed form needs MD-H rows")
@@ -1321,7 +1344,7 @@ pub fn describe(robot: &Robot, scenario_name: &str, plan: &SamplingPlan) -> Vec<
             min_mm,
             max_mm,
         } => Some(format!("{count} random poses in {}", range(min_mm, max_mm))),
-        Positions::JointRandom { .. } | Positions::JointGrid { .. } => None,
+        Positions::JointRandom { .. } | Positions::JointGrid { .. } | Positions::Joints(_) => None,
     };
     let sampling = match (&plan.positions, poses) {
         (_, Some(positions)) => {
@@ -1350,6 +1373,10 @@ pub fn describe(robot: &Robot, scenario_name: &str, plan: &SamplingPlan) -> Vec<
                 .collect::<Vec<_>>()
                 .join(" × "),
             joint_ranges(ranges)
+        ),
+        (Positions::Joints(joints), None) => format!(
+            "Joint values: {} given joint vectors; nominal pose = forward kinematics.",
+            joints.len()
         ),
         _ => unreachable!("pose-space plans have positions"),
     };

@@ -11,6 +11,8 @@ mod compensate;
 mod continuity;
 mod eval;
 mod inspect;
+mod iso9283;
+mod plan;
 mod progress;
 mod query;
 mod registration;
@@ -44,6 +46,11 @@ enum Command {
     Bench(bench::Args),
     /// The largest change of both tiers' corrections along straight lines, step by step.
     Continuity(continuity::Args),
+    /// ISO 9283 pose accuracy and repeatability of measured cycles, or the standard's cube
+    /// positions as a plan to measure.
+    Iso9283(iso9283::Args),
+    /// Plan the poses to measure for an identification and a table.
+    Plan(plan::Args),
 }
 
 /// Exit status when a query gave no correction for its target, or for some rows of a
@@ -74,6 +81,8 @@ fn main() -> ExitCode {
         Command::Eval(args) => done(eval::run(args)),
         Command::Bench(args) => done(bench::run(args)),
         Command::Continuity(args) => done(continuity::run(args)),
+        Command::Iso9283(args) => done(iso9283::run(args)),
+        Command::Plan(args) => done(plan::run(args)),
     };
     match result {
         Ok(Answered::All) => ExitCode::SUCCESS,

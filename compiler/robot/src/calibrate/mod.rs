@@ -647,6 +647,64 @@ pub fn identify(
     })
 }
 
+/// The identification's position Jacobians at the nominal model, for choosing poses to
+/// measure: per joint vector a 3 × k block (position rows), over the k parameters that
+/// the QR pivoting of [`identify`] keeps on all these poses together (at `rank_tolerance`),
+/// each column scaled by the inverse of its norm over all poses, so that a design
+/// criterion compares parameters independently of their units. The parameters are
+/// returned in the blocks' column order.
+///
+/// # Errors
+///
+/// [`CalibrateError::JointCount`] for a joint vector of another length,
+/// [`CalibrateError::InvalidModel`] for a robot the model cannot describe,
+/// [`CalibrateError::NothingIdentifiable`] when the poses do not vary.
+pub fn design_jacobians(
+    robot: &Robot,
+    joints: &[Vec<f64>],
+    rank_tolerance: f64,
+) -> Result<(Vec<Parameter>, Vec<DMatrix<f64>>), CalibrateError> {
+    if let Some(q) = joints.iter().find(|q| q.len() != robot.joint_count()) {
+        return Err(CalibrateError::JointCount {
+            robot: robot.joint_count(),
+            samples: q.len(),
+        });
+    }
+    let model = Model::new(robot, false);
+    let x = DVector::zeros(model.len());
+    let state = model.state(&x)?;
+    let blocks: Vec<DMatrix<f64>> = joints
+        .iter()
+        .map(|q| model.jacobian(&x, &state, q).rows(0, 3).into_owned())
+        .collect();
+    let p = model.len();
+    let mut stacked = DMatrix::zeros(3 * blocks.len(), p);
+    for (k, b) in blocks.iter().enumerate() {
+        stacked.rows_mut(3 * k, 3).copy_from(b);
+    }
+    let norms: Vec<f64> = (0..p).map(|c| stacked.column(c).norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    if !(largest > 0.0 && largest.is_finite()) {
+        return Err(CalibrateError::NothingIdentifiable);
+    }
+    let scales: Vec<f64> = norms
+        .iter()
+        .map(|&n| if n > 1e-12 * largest { 1.0 / n } else { 0.0 })
+        .collect();
+    for (c, s) in scales.iter().enumerate() {
+        stacked.column_mut(c).scale_mut(*s);
+    }
+    let preferred: Vec<bool> = (0..p).map(|c| c >= model.tool_translation).collect();
+    let (mut kept, _) = solver::pivot_columns(&stacked, rank_tolerance, &preferred);
+    kept.sort_unstable();
+    let parameters = kept.iter().map(|&c| model.parameters[c]).collect();
+    let blocks = blocks
+        .iter()
+        .map(|b| DMatrix::from_fn(3, kept.len(), |r, k| b[(r, kept[k])] * scales[kept[k]]))
+        .collect();
+    Ok((parameters, blocks))
+}
+
 /// Sample `i` as a measurement, its values checked finite and plausible: joints within
 /// ten turns (1 km when prismatic, [`crate::plausible`]), errors within
 /// [`MAX_PLAUSIBLE_ERROR_MM`] and [`MAX_PLAUSIBLE_ROTATION_ERROR_RAD`].

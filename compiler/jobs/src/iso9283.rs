@@ -1,0 +1,411 @@
+//! The ISO 9283 job: pose and distance characteristics of measured cycles, or the
+//! standard's cube positions written as a plan to measure (`tablec iso9283`).
+
+use std::path::{Path, PathBuf};
+
+use adwi_compile::write::OutputPlan;
+use adwi_measure::iso9283::{
+    characteristics, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error, Report,
+    ISO_CYCLES,
+};
+use adwi_runtime::Status;
+use serde::Deserialize;
+
+use crate::args::{parse_number_list, parse_triple};
+use crate::inputs::Inputs;
+use crate::JobError;
+
+/// ISO 9283 pose characteristics: every option of `tablec iso9283`.
+#[derive(clap::Args, Deserialize, Debug, Clone)]
+#[serde(default)]
+pub struct Iso9283Args {
+    /// Measured cycles (CSV: position, cycle, x, y, z, mx, my, mz, optionally a, b, c with
+    /// ma, mb, mc; docs/measure.md).
+    #[arg(value_name = "MEASUREMENTS.csv", required_unless_present = "cube")]
+    pub measurements: Option<PathBuf>,
+    /// Write the five ISO 9283 positions of a cube instead: its centre and edge length,
+    /// X,Y,Z,SIDE (mm, base frame), as a plan CSV (--output).
+    #[arg(long, value_name = "X,Y,Z,SIDE", value_parser = parse_cube, allow_hyphen_values = true,
+          conflicts_with_all = ["measurements", "json", "table"], requires = "output")]
+    #[serde(deserialize_with = "cube")]
+    pub cube: Option<[f64; 4]>,
+    /// The plan's tool orientation A,B,C (KUKA degrees).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,90,0")]
+    pub abc: [f64; 3],
+    /// Cycles the plan repeats the five positions (ISO 9283 asks for 30).
+    #[arg(long, default_value_t = ISO_CYCLES)]
+    pub cycles: u32,
+    /// The plan CSV to write (with --cube).
+    #[arg(long, short, value_name = "PLAN.csv")]
+    pub output: Option<PathBuf>,
+    /// Also write the characteristics as JSON.
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
+    /// Also report the characteristics the table's compensation would give on these
+    /// cycles: each attained pose less the table's predicted error at its commanded pose
+    /// (a first-order prediction; docs/measure.md says what it can claim).
+    #[arg(long, value_name = "TABLE")]
+    pub table: Option<PathBuf>,
+}
+
+impl Default for Iso9283Args {
+    fn default() -> Iso9283Args {
+        Iso9283Args {
+            measurements: None,
+            cube: None,
+            abc: [0.0, 90.0, 0.0],
+            cycles: ISO_CYCLES,
+            output: None,
+            json: None,
+            table: None,
+        }
+    }
+}
+
+/// `X,Y,Z,SIDE` in one argument.
+fn parse_cube(text: &str) -> Result<[f64; 4], String> {
+    let values = parse_number_list(text)?;
+    cube_of(values)
+}
+
+fn cube_of(values: Vec<f64>) -> Result<[f64; 4], String> {
+    values.try_into().map_err(|v: Vec<f64>| {
+        format!(
+            "four numbers are needed, the centre X,Y,Z and the SIDE; {} given",
+            v.len()
+        )
+    })
+}
+
+/// A cube from a list of four numbers (Python's `cube=[...]`).
+fn cube<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D::Error> {
+    let values: Option<Vec<f64>> = Option::deserialize(d)?;
+    values
+        .map(|v| cube_of(v).map_err(serde::de::Error::custom))
+        .transpose()
+}
+
+/// What to do, checked.
+enum Work {
+    /// Reduce measured cycles, and with a table their compensation.
+    Report {
+        rows: Vec<CycleRow>,
+        table: Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>,
+    },
+    /// Write a cube plan.
+    Plan { text: String },
+}
+
+/// An ISO 9283 job checked and loaded, ready to run.
+pub struct Iso9283Job {
+    args: Iso9283Args,
+    work: Work,
+    outputs: OutputPlan,
+}
+
+/// What an ISO 9283 job found, and what it wrote.
+#[derive(Debug, Clone)]
+pub struct Iso9283Result {
+    /// The characteristics of the measured cycles (none for a plan).
+    pub report: Option<Report>,
+    /// Those of the cycles as the table's compensation would attain them.
+    pub compensated: Option<Report>,
+    /// The files written.
+    pub written: Vec<PathBuf>,
+}
+
+fn measure_error(e: Iso9283Error) -> JobError {
+    JobError::Measure(Box::new(e))
+}
+
+/// The report, unless a characteristic came out non-finite (coordinates near the largest
+/// floating-point numbers), which is never reported as a result.
+fn finite(report: Report) -> Result<Report, JobError> {
+    let positions = report.positions.iter().all(|p| {
+        [p.ap_p_mm, p.rp_l_mm, p.ap_x_mm, p.ap_y_mm, p.ap_z_mm]
+            .into_iter()
+            .chain(
+                [
+                    p.ap_a_deg, p.ap_b_deg, p.ap_c_deg, p.rp_a_deg, p.rp_b_deg, p.rp_c_deg,
+                ]
+                .into_iter()
+                .flatten(),
+            )
+            .all(f64::is_finite)
+    });
+    let distances = report.distance.iter().all(|d| {
+        [d.ad_p_mm, d.ad_x_mm, d.ad_y_mm, d.ad_z_mm, d.rd_mm]
+            .iter()
+            .all(|v| v.is_finite())
+    });
+    if positions && distances {
+        Ok(report)
+    } else {
+        Err(JobError::NonFinite(
+            "an ISO 9283 characteristic came out non-finite: the cycles hold implausible \
+             coordinates"
+                .into(),
+        ))
+    }
+}
+
+impl Iso9283Job {
+    /// Checks `args`, reads the cycles and opens the table, or computes the plan; checks
+    /// the outputs.
+    ///
+    /// # Errors
+    ///
+    /// A refused option or combination, an unreadable input, an output that is an input.
+    pub fn new(args: Iso9283Args) -> Result<Iso9283Job, JobError> {
+        let mut inputs = Inputs::default();
+        let (work, outputs) = match (&args.measurements, args.cube) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(JobError::Options(
+                    "give the measured cycles (MEASUREMENTS.csv) or a cube to plan (--cube), \
+                     one of them"
+                        .into(),
+                ))
+            }
+            (None, Some([x, y, z, side])) => {
+                if args.json.is_some() || args.table.is_some() {
+                    return Err(JobError::Options(
+                        "--cube writes a plan: --json and --table report on measured cycles".into(),
+                    ));
+                }
+                let Some(output) = &args.output else {
+                    return Err(JobError::option(
+                        "output",
+                        "--cube writes its plan there: give it",
+                    ));
+                };
+                let text = write_cube_plan([x, y, z], side, args.abc, args.cycles)
+                    .map_err(|e| JobError::option("cube", e))?;
+                (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
+            }
+            (Some(path), None) => {
+                let plan_only = Iso9283Args::default();
+                if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
+                    return Err(JobError::Options(
+                        "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
+                         their own"
+                            .into(),
+                    ));
+                }
+                if args.output.is_some() {
+                    return Err(JobError::option(
+                        "output",
+                        "writes a cube's plan (--cube); the report goes to standard output and \
+                         --json",
+                    ));
+                }
+                inputs.add(path);
+                if let Some(t) = &args.table {
+                    inputs.add(t);
+                }
+                let outputs = OutputPlan::check(
+                    &args
+                        .json
+                        .iter()
+                        .map(PathBuf::as_path)
+                        .collect::<Vec<&Path>>(),
+                    &inputs.paths(),
+                )?;
+                let rows = read_cycles(path).map_err(measure_error)?;
+                let table = match &args.table {
+                    Some(t) => {
+                        // SAFETY: the mapping lives as long as the job; tablec and the
+                        // Python package replace tables by rename, never in place.
+                        let table = unsafe { adwi_runtime::Table::open(t) }.map_err(|source| {
+                            JobError::Table {
+                                path: t.clone(),
+                                source,
+                            }
+                        })?;
+                        Some(Box::new((t.clone(), table)))
+                    }
+                    None => None,
+                };
+                (Work::Report { rows, table }, outputs)
+            }
+        };
+        Ok(Iso9283Job {
+            args,
+            work,
+            outputs,
+        })
+    }
+
+    /// Reduces the cycles (and their compensation) or writes the plan.
+    ///
+    /// # Errors
+    ///
+    /// Cycles the standard cannot reduce (a position commanded twice, too few cycles), a
+    /// commanded pose the table gives no correction for, a write failing.
+    pub fn run(self) -> Result<Iso9283Result, JobError> {
+        let Iso9283Job {
+            args,
+            work,
+            outputs,
+        } = self;
+        match work {
+            Work::Plan { text } => {
+                let output = args.output.expect("checked");
+                outputs.write(&[(&output, text.as_bytes())])?;
+                Ok(Iso9283Result {
+                    report: None,
+                    compensated: None,
+                    written: vec![output],
+                })
+            }
+            Work::Report { rows, table } => {
+                let report = finite(characteristics(&rows).map_err(measure_error)?)?;
+                let compensated = match table.as_deref() {
+                    Some((path, table)) => {
+                        let rows = compensated(&rows, |row| {
+                            let c = table.query(row.commanded_mm);
+                            match c.status {
+                                Status::Ok => Ok((c.position_error_mm, c.orientation_error_rad)),
+                                Status::MissingJoints => Err(format!(
+                                    "{} is a hybrid table: its correction needs joint values, \
+                                     which cycles do not carry",
+                                    path.display()
+                                )),
+                                s => Err(format!(
+                                    "{} gives no correction at the commanded position {:?} mm: {}",
+                                    path.display(),
+                                    row.commanded_mm,
+                                    s.as_str()
+                                )),
+                            }
+                        })
+                        .map_err(measure_error)?;
+                        Some(finite(characteristics(&rows).map_err(measure_error)?)?)
+                    }
+                    None => None,
+                };
+                let mut written = Vec::new();
+                if let Some(path) = &args.json {
+                    let json = serde_json::json!({
+                        "positions": report.positions,
+                        "distance": report.distance,
+                        "compensated": compensated,
+                    });
+                    let text = serde_json::to_string_pretty(&json)
+                        .map_err(|e| JobError::NonFinite(e.to_string()))?;
+                    outputs.write(&[(path, text.as_bytes())])?;
+                    written.push(path.clone());
+                }
+                Ok(Iso9283Result {
+                    report: Some(report),
+                    compensated,
+                    written,
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use serde::de::value::{Error, MapDeserializer};
+
+    use super::*;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Iso9283Args,
+    }
+
+    /// clap's defaults are the struct's `Default`, which Python's keywords start from.
+    #[test]
+    fn the_command_line_and_python_have_the_same_defaults() {
+        let parsed = Cli::parse_from(["iso9283", "m.csv"]).args;
+        let mut expected = Iso9283Args::deserialize(MapDeserializer::<_, Error>::new(
+            std::iter::empty::<(&str, &str)>(),
+        ))
+        .unwrap();
+        expected.measurements = Some("m.csv".into());
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+        let default = Iso9283Args {
+            measurements: Some("m.csv".into()),
+            ..Iso9283Args::default()
+        };
+        assert_eq!(format!("{parsed:?}"), format!("{default:?}"));
+    }
+
+    /// A cube's plan, measured, reduced through the job; JSON written with the keys the
+    /// documentation names.
+    #[test]
+    fn a_plan_measured_is_reported_and_written_as_json() {
+        let dir = tempfile::tempdir().unwrap();
+        let plan = dir.path().join("plan.csv");
+        Iso9283Job::new(Iso9283Args {
+            cube: Some([1000.0, 0.0, 800.0, 300.0]),
+            cycles: 3,
+            output: Some(plan.clone()),
+            ..Iso9283Args::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        // Every attained position 0.1 mm above its command, and 0.01 mm further in x
+        // each cycle.
+        let text = std::fs::read_to_string(&plan).unwrap();
+        let mut measured = String::from("position,cycle,x,y,z,mx,my,mz\n");
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split(',').collect();
+            let v: Vec<f64> = f[1..5].iter().map(|t| t.parse().unwrap()).collect();
+            let (cycle, x, y, z) = (v[0], v[1], v[2], v[3]);
+            measured.push_str(&format!(
+                "{},{cycle},{x},{y},{z},{},{y},{}\n",
+                f[0],
+                x + 0.01 * cycle,
+                z + 0.1
+            ));
+        }
+        let cycles = dir.path().join("cycles.csv");
+        std::fs::write(&cycles, measured).unwrap();
+        let json = dir.path().join("r.json");
+        let result = Iso9283Job::new(Iso9283Args {
+            measurements: Some(cycles.clone()),
+            json: Some(json.clone()),
+            ..Iso9283Args::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        let report = result.report.unwrap();
+        assert_eq!(report.positions.len(), 5);
+        for p in &report.positions {
+            // x̄ − x_c = 0.02, z̄ − z_c = 0.1.
+            assert!((p.ap_x_mm - 0.02).abs() < 1e-9 && (p.ap_z_mm - 0.1).abs() < 1e-9);
+            assert!((p.ap_p_mm - (0.02f64.powi(2) + 0.01).sqrt()).abs() < 1e-9);
+        }
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(written["positions"][0]["name"], "P1");
+        assert_eq!(written["positions"][0]["n"], 3);
+        assert!(written["positions"][0]["rp_l_mm"].is_number());
+        assert_eq!(written["distance"].as_array().unwrap().len(), 4);
+
+        // The plan's output is refused with measurements, the measurements as output too.
+        let e = Iso9283Job::new(Iso9283Args {
+            measurements: Some(cycles.clone()),
+            output: Some(dir.path().join("x.csv")),
+            ..Iso9283Args::default()
+        })
+        .err()
+        .unwrap();
+        assert!(matches!(e, JobError::Options(_)), "{e}");
+        let e = Iso9283Job::new(Iso9283Args {
+            measurements: Some(cycles.clone()),
+            json: Some(cycles),
+            ..Iso9283Args::default()
+        })
+        .err()
+        .unwrap();
+        assert!(matches!(e, JobError::Output(_)), "{e}");
+    }
+}

@@ -1,0 +1,414 @@
+//! The planning job: which poses to measure, written as a CSV the robot runs and
+//! `tablec simulate --poses` measures (`tablec plan`).
+
+use std::path::PathBuf;
+
+use adwi_compile::write::OutputPlan;
+use adwi_measure::plan::{
+    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanError,
+    PlanOptions, TrackerSight,
+};
+use adwi_robot::calibrate::CalibrateOptions;
+use adwi_robot::{InverseKinematics, Robot};
+use serde::Deserialize;
+
+use crate::args::{parse_number_list, parse_triple, RobotArgs};
+use crate::inputs::{load_robot, Inputs};
+use crate::{JobError, Progress};
+
+/// Plan the poses to measure: every option of `tablec plan`.
+#[derive(clap::Args, Deserialize, Debug, Clone)]
+#[serde(default)]
+pub struct PlanArgs {
+    /// The robot (required), e.g. tables/ur5/robot.toml.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub robot: RobotArgs,
+    /// Box corner x,y,z (mm, base frame) the TCP stays in (with --max).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "max")]
+    pub min: Option<[f64; 3]>,
+    /// Opposite box corner x,y,z (mm, base frame).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, requires = "min")]
+    pub max: Option<[f64; 3]>,
+    /// A further box, xmin,ymin,zmin,xmax,ymax,zmax (mm; repeatable): the TCP in any box.
+    #[arg(id = "box", long = "box", value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", allow_hyphen_values = true,
+          value_parser = parse_six)]
+    #[serde(rename = "box", deserialize_with = "boxes")]
+    pub boxes: Vec<[f64; 6]>,
+    /// Poses to plan.
+    #[arg(long)]
+    pub count: usize,
+    /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000;
+    /// at most 2,000 solved by numerical inverse kinematics].
+    #[arg(long)]
+    pub pool: Option<usize>,
+    /// Seed of the candidates: the same seed gives the same file byte for byte.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// A laser tracker's position x,y,z (mm, base frame) that must see every pose.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub tracker: Option<[f64; 3]>,
+    /// The tracker's distance range MIN,MAX (mm).
+    #[arg(long, value_name = "MIN,MAX", value_parser = parse_pair, requires = "tracker")]
+    #[serde(deserialize_with = "pair")]
+    pub tracker_range: Option<[f64; 2]>,
+    /// The reflector's acceptance cone: the tool's z axis within this angle (degrees) of
+    /// the line to the tracker.
+    #[arg(long, requires = "tracker")]
+    pub sight_cone_deg: Option<f64>,
+    /// An allowed tool orientation A,B,C (KUKA degrees; repeatable) [default: any].
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub abc: Vec<[f64; 3]>,
+    /// How far the tool may turn from an allowed orientation, degrees.
+    #[arg(long, default_value_t = 15.0)]
+    pub orientation_tolerance: f64,
+    /// The selection's weight on coverage (maximin distance) against D-optimality, 0 to 1.
+    #[arg(long, default_value_t = 0.3)]
+    pub coverage: f64,
+    /// Relative pivot below which a parameter is unidentifiable (as calibrate's).
+    #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
+    pub rank_tol: f64,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output CSV.
+    #[arg(long, short)]
+    pub output: PathBuf,
+}
+
+impl Default for PlanArgs {
+    fn default() -> PlanArgs {
+        PlanArgs {
+            robot: RobotArgs::default(),
+            min: None,
+            max: None,
+            boxes: Vec::new(),
+            count: 0,
+            pool: None,
+            seed: 1,
+            tracker: None,
+            tracker_range: None,
+            sight_cone_deg: None,
+            abc: Vec::new(),
+            orientation_tolerance: 15.0,
+            coverage: 0.3,
+            rank_tol: CalibrateOptions::default().rank_tolerance,
+            threads: None,
+            output: PathBuf::new(),
+        }
+    }
+}
+
+fn parse_six(text: &str) -> Result<[f64; 6], String> {
+    six_of(parse_number_list(text)?)
+}
+
+fn six_of(values: Vec<f64>) -> Result<[f64; 6], String> {
+    values.try_into().map_err(|v: Vec<f64>| {
+        format!(
+            "six numbers are needed, xmin,ymin,zmin,xmax,ymax,zmax; {} given",
+            v.len()
+        )
+    })
+}
+
+fn parse_pair(text: &str) -> Result<[f64; 2], String> {
+    pair_of(parse_number_list(text)?)
+}
+
+fn pair_of(values: Vec<f64>) -> Result<[f64; 2], String> {
+    values
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("two numbers are needed, MIN,MAX; {} given", v.len()))
+}
+
+/// Boxes from lists of six numbers (Python's `box=[[...], ...]`).
+fn boxes<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<[f64; 6]>, D::Error> {
+    let values: Vec<Vec<f64>> = Vec::deserialize(d)?;
+    values
+        .into_iter()
+        .map(|v| six_of(v).map_err(serde::de::Error::custom))
+        .collect()
+}
+
+/// A range from a list of two numbers (Python's `tracker_range=[...]`).
+fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<[f64; 2]>, D::Error> {
+    let values: Option<Vec<f64>> = Option::deserialize(d)?;
+    values
+        .map(|v| pair_of(v).map_err(serde::de::Error::custom))
+        .transpose()
+}
+
+/// The default pool: ten candidates per pose, at least 1,000 and at most 20,000 (and at
+/// least the count), within the robot's largest pool.
+fn default_pool(count: usize, largest: usize) -> usize {
+    count
+        .saturating_mul(10)
+        .clamp(1_000, 20_000)
+        .min(largest)
+        .max(count)
+}
+
+/// A plan checked and sized, ready to run.
+pub struct PlanJob {
+    args: PlanArgs,
+    robot: Robot,
+    options: PlanOptions,
+    threads: rayon::ThreadPool,
+    outputs: OutputPlan,
+}
+
+/// What a plan chose, and where it wrote it.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    /// The plan.
+    pub plan: Plan,
+    /// The robot's name.
+    pub robot_name: String,
+    /// The file written.
+    pub output: PathBuf,
+}
+
+impl PlanJob {
+    /// Checks `args`, loads the robot, sizes the selection and checks the output.
+    ///
+    /// # Errors
+    ///
+    /// A refused option (with its figure), an unreadable robot, an output that is an input.
+    pub fn new(args: PlanArgs) -> Result<PlanJob, JobError> {
+        if args.robot.robot.is_none() {
+            return Err(JobError::Options(
+                "plan needs the robot file (--robot)".into(),
+            ));
+        }
+        let mut boxes_mm: Vec<([f64; 3], [f64; 3])> = Vec::new();
+        match (args.min, args.max) {
+            (Some(min), Some(max)) => boxes_mm.push((min, max)),
+            (None, None) => {}
+            _ => {
+                return Err(JobError::Options(
+                    "--min and --max give one box together".into(),
+                ))
+            }
+        }
+        boxes_mm.extend(
+            args.boxes
+                .iter()
+                .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
+        );
+        if args.tracker.is_none() && (args.tracker_range.is_some() || args.sight_cone_deg.is_some())
+        {
+            return Err(JobError::option(
+                "tracker",
+                "--tracker-range and --sight-cone-deg need the tracker's position",
+            ));
+        }
+        let tracker = args.tracker.map(|position_mm| TrackerSight {
+            position_mm,
+            range_mm: args.tracker_range.unwrap_or([0.0, f64::MAX]),
+            sight_cone_deg: args.sight_cone_deg,
+        });
+        let options = PlanOptions {
+            boxes_mm,
+            count: args.count,
+            pool: args.pool.unwrap_or(0),
+            seed: args.seed,
+            tracker,
+            orientations: (!args.abc.is_empty()).then(|| AllowedOrientations {
+                abc_deg: args.abc.clone(),
+                tolerance_deg: args.orientation_tolerance,
+            }),
+            coverage_weight: args.coverage,
+            rank_tolerance: args.rank_tol,
+        };
+        let threads = crate::thread_pool(args.threads)?;
+        let mut inputs = Inputs::default();
+        let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
+        let mut options = options;
+        if args.pool.is_none() {
+            let largest = max_pool(&robot, options.orientations.is_some());
+            options.pool = default_pool(args.count, largest);
+        }
+        // Sized before any work: counts, boxes, the tracker, the selection's arithmetic.
+        check(&robot, &options).map_err(|e| match e {
+            PlanError::Option { name, reason } => JobError::option(name, reason),
+            e => JobError::Plan(Box::new(e)),
+        })?;
+        let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
+        Ok(PlanJob {
+            args,
+            robot,
+            options,
+            threads,
+            outputs,
+        })
+    }
+
+    /// Plans the poses and writes them.
+    ///
+    /// # Errors
+    ///
+    /// Too few reachable candidates (with the figure), a Jacobian that cannot be formed,
+    /// the write failing (nothing is then replaced).
+    pub fn run(self, progress: &dyn Progress) -> Result<Planned, JobError> {
+        let PlanJob {
+            args,
+            robot,
+            options,
+            threads,
+            outputs,
+        } = self;
+        let planned = threads
+            .install(|| {
+                plan(
+                    &robot,
+                    &options,
+                    &|name, units| progress.stage(name, Some(units)),
+                    &|units| progress.advance(units),
+                )
+            })
+            .map_err(|e| JobError::Plan(Box::new(e)))?;
+        if !(planned.log_det.is_finite() && planned.min_distance_mm.is_finite()) {
+            return Err(JobError::NonFinite(format!(
+                "the plan's criterion came out non-finite (log det {}, smallest distance {} mm)",
+                planned.log_det, planned.min_distance_mm
+            )));
+        }
+        let closed_form = InverseKinematics::new(&robot).is_ok();
+        let label = |q: &[f64]| adwi_robot::simulate::label(&robot, q).bits();
+        let boxes: Vec<String> = options
+            .boxes_mm
+            .iter()
+            .map(|(a, b)| format!("{a:?} to {b:?}"))
+            .collect();
+        let comments = [
+            format!(
+                "{} poses of the {} planned by tablec plan, seed {}, from {} candidates ({} draws) in {} mm.",
+                planned.poses.len(),
+                robot.name,
+                args.seed,
+                planned.pool,
+                planned.draws,
+                boxes.join(", ")
+            ),
+            format!(
+                "D-optimality over {} identifiable parameters (log det {:.3}) blended with coverage (weight {}); smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
+                planned.parameters.len(),
+                planned.log_det,
+                options.coverage_weight,
+                planned.min_distance_mm,
+                planned.path_travel
+            ),
+            "Columns: commanded j1..jn (deg; mm for prismatic joints); nominal x,y,z (mm) and a,b,c (KUKA deg) at them; config (IK branch) for closed-form robots.".into(),
+        ];
+        let text = write_csv(
+            &robot,
+            &planned,
+            &comments,
+            closed_form.then_some(&label as &ConfigLabel),
+        );
+        outputs.write(&[(&args.output, text.as_bytes())])?;
+        Ok(Planned {
+            plan: planned,
+            robot_name: robot.name.clone(),
+            output: args.output,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use serde::de::value::{Error, MapDeserializer};
+
+    use super::*;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: PlanArgs,
+    }
+
+    #[test]
+    fn the_command_line_and_python_have_the_same_defaults() {
+        let parsed = Cli::parse_from(["plan", "--count", "5", "-o", "p.csv"]).args;
+        let mut expected = PlanArgs::deserialize(MapDeserializer::<_, Error>::new(
+            std::iter::empty::<(&str, &str)>(),
+        ))
+        .unwrap();
+        expected.count = 5;
+        expected.output = "p.csv".into();
+        assert_eq!(format!("{parsed:?}"), format!("{expected:?}"));
+        let default = PlanArgs {
+            count: 5,
+            output: "p.csv".into(),
+            ..PlanArgs::default()
+        };
+        assert_eq!(format!("{parsed:?}"), format!("{default:?}"));
+    }
+
+    /// Refused with the figure when the job is made, before any candidate is drawn.
+    #[test]
+    fn a_plan_too_large_is_refused_before_any_work() {
+        let args = PlanArgs {
+            robot: RobotArgs {
+                robot: Some(adwi_robot::model::shipped_robot_path("ur5")),
+                ..RobotArgs::default()
+            },
+            min: Some([0.0; 3]),
+            max: Some([1.0; 3]),
+            count: 100_000,
+            output: "/nonexistent/p.csv".into(),
+            ..PlanArgs::default()
+        };
+        let e = PlanJob::new(args).err().unwrap();
+        assert!(e.to_string().contains("100000 poses"), "{e}");
+    }
+
+    /// A plan measured by `simulate --poses`: the samples are at the planned joints, in
+    /// the plan's order.
+    #[test]
+    fn simulate_measures_the_planned_joints_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let robot = adwi_robot::model::shipped_robot_path("kr150-2");
+        let planned = PlanJob::new(PlanArgs {
+            robot: RobotArgs {
+                robot: Some(robot.clone()),
+                ..RobotArgs::default()
+            },
+            min: Some([1350.0, 50.0, 850.0]),
+            max: Some([2150.0, 850.0, 1650.0]),
+            abc: vec![[0.0, 90.0, 0.0]],
+            count: 6,
+            pool: Some(40),
+            output: dir.path().join("plan.csv"),
+            ..PlanArgs::default()
+        })
+        .unwrap()
+        .run(&crate::Silent)
+        .unwrap();
+        let samples = dir.path().join("samples.csv");
+        crate::SimulateJob::new(crate::SimulateArgs {
+            robot: RobotArgs {
+                robot: Some(robot),
+                ..RobotArgs::default()
+            },
+            scenario: adwi_robot::model::shipped_file("kr150-2", "scenario.toml"),
+            poses: Some(dir.path().join("plan.csv")),
+            output: samples.clone(),
+            ..crate::SimulateArgs::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        let read =
+            adwi_samples::read_samples(&samples, &adwi_samples::ColumnMap::default()).unwrap();
+        assert_eq!(read.len(), 6);
+        for (i, pose) in planned.plan.poses.iter().enumerate() {
+            let q = read.joints_rad(i).unwrap();
+            for (a, b) in q.iter().zip(&pose.joints) {
+                assert!((a - b).abs() < 1e-9, "{a} {b}");
+            }
+        }
+    }
+}

@@ -1,0 +1,11 @@
+//! Measurement planning and ISO 9283 pose characteristics.
+//!
+//! - [`iso9283`]: the pose accuracy and repeatability, and the distance accuracy and
+//!   repeatability, of ISO 9283:1998 from measured cycles, and the standard's five test
+//!   positions in a cube;
+//! - [`plan`]: which poses to measure so that an identification of the robot's kinematic
+//!   parameters is well determined and the workspace is covered (D-optimal and space-filling
+//!   selection from a reachable candidate pool, ordered as a short joint-space path).
+
+pub mod iso9283;
+pub mod plan;

@@ -1,0 +1,865 @@
+//! Which poses to measure: a set that determines the robot's kinematic parameters well
+//! and covers the workspace, in an order the robot runs quickly.
+//!
+//! 1. **Candidates**, deterministic in the seed. Without allowed orientations, joint
+//!    vectors drawn uniformly within the joint limits (the robot's sampling ranges); with
+//!    them, TCP poses drawn uniformly in the boxes, turned from an allowed orientation by
+//!    a random rotation up to the tolerance, and solved by inverse kinematics (the
+//!    closed-form solution nearest the home posture, or the numerical one from it). Kept
+//!    when the nominal TCP lies in one of the boxes, within the joint limits, its
+//!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
+//!    the sight cone about the line to the tracker.
+//! 2. **Selection.** Greedy: each step takes the candidate with the best blend of
+//!    - its D-optimality gain, `log det(M + Bᵢᵀ Bᵢ) − log det M = log det(I₃ + Bᵢ M⁻¹ Bᵢᵀ)`,
+//!      `Bᵢ` the candidate's position rows of the identification Jacobian over the
+//!      parameters identifiable on the whole pool, columns scaled to unit norm over the
+//!      pool ([`adwi_robot::calibrate::design_jacobians`]), `M` the information of the
+//!      poses chosen so far (with a small ridge, so that the first steps are defined);
+//!      `M⁻¹` is updated by the Woodbury identity, a rank-3 update per pose;
+//!    - its coverage: the distance of its TCP to the nearest pose chosen so far (maximin).
+//!
+//!    Each is divided by its largest value over the remaining candidates, and the score is
+//!    `(1 − w) · gain + w · coverage`, `w` the coverage weight. D-optimality alone piles
+//!    poses at the workspace's edges, where the Jacobian is largest; coverage alone ignores
+//!    what the identification needs; the blend is for a table built from the same samples
+//!    as well as for the identification.
+//! 3. **Order.** Nearest neighbour from the pose nearest the home posture, then 2-opt, in
+//!    the largest joint travel (rad; prismatic joints in metres), which bounds the time of a
+//!    move when the joints move together.
+//!
+//! Ties are broken by the lower candidate index, and every parallel step computes values
+//! independently per candidate: the plan is the same at any thread count.
+
+use std::fmt::Write as _;
+
+use adwi_robot::calibrate::{design_jacobians, Parameter};
+use adwi_robot::ik::solve_near;
+use adwi_robot::model::{isometry_from_parts, JointKind};
+use adwi_robot::{IkSolution, InverseKinematics, Robot};
+use adwi_samples::pose::{
+    kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg, rotation_from_vector,
+};
+use nalgebra::{DMatrix, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// The most poses a plan holds.
+pub const MAX_POSES: usize = 5_000;
+/// The largest candidate pool.
+pub const MAX_POOL: usize = 50_000;
+/// The largest pool solved by numerical inverse kinematics (allowed orientations on a
+/// robot without the closed form): each candidate costs milliseconds, from home and up to
+/// [`adwi_robot::ik::FURTHER_SEEDS`] further starts, so this is a couple of minutes.
+pub const MAX_NUMERICAL_POOL: usize = 2_000;
+
+/// The largest pool for `robot`: [`MAX_NUMERICAL_POOL`] when candidates are solved by
+/// numerical inverse kinematics, else [`MAX_POOL`].
+pub fn max_pool(robot: &Robot, orientations: bool) -> usize {
+    if orientations && InverseKinematics::new(robot).is_err() {
+        MAX_NUMERICAL_POOL
+    } else {
+        MAX_POOL
+    }
+}
+/// Draws per pool candidate before the constraints are deemed too tight: the draws stop
+/// there and the pool is what was found.
+pub const DRAWS_PER_CANDIDATE: usize = 200;
+/// The most arithmetic the selection may take, `poses × pool × parameters²` multiply-adds
+/// (about a minute on one core); larger requests are refused with their figure.
+pub const MAX_SELECTION_WORK: f64 = 4e11;
+/// The file's decimals (mm, degrees), as simulated sample files have them.
+const DECIMALS: usize = 6;
+
+/// A laser tracker that must see every pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerSight {
+    /// The tracker's position, mm, base frame.
+    pub position_mm: [f64; 3],
+    /// Its distance range, mm: the TCP within `[min, max]` of it.
+    pub range_mm: [f64; 2],
+    /// The reflector's acceptance: the tool's z axis within this angle of the line to the
+    /// tracker, degrees; `None` for any direction.
+    pub sight_cone_deg: Option<f64>,
+}
+
+/// The tool orientations allowed, each within a tolerance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AllowedOrientations {
+    /// KUKA A, B, C degrees.
+    pub abc_deg: Vec<[f64; 3]>,
+    /// The largest rotation from one of them, degrees.
+    pub tolerance_deg: f64,
+}
+
+/// What to plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOptions {
+    /// Boxes (min, max corners, mm, base frame): the TCP in one of them.
+    pub boxes_mm: Vec<([f64; 3], [f64; 3])>,
+    /// Poses to choose.
+    pub count: usize,
+    /// Candidates to choose from.
+    pub pool: usize,
+    /// Seed of the candidates.
+    pub seed: u64,
+    /// A tracker that must see every pose.
+    pub tracker: Option<TrackerSight>,
+    /// Allowed tool orientations; `None` for any.
+    pub orientations: Option<AllowedOrientations>,
+    /// The coverage weight `w` of the selection, 0 (D-optimal) to 1 (maximin).
+    pub coverage_weight: f64,
+    /// The relative pivot below which a parameter is unidentifiable (as calibrate's).
+    pub rank_tolerance: f64,
+}
+
+/// Why a plan cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    /// An option out of range, named.
+    #[error("{name}: {reason}")]
+    Option {
+        /// The option.
+        name: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The candidates found fall short of the poses asked for.
+    #[error("{found} reachable candidates in {draws} draws, fewer than the {count} poses asked for: widen the box, the range, the cone or the orientation tolerance, or ask for fewer poses")]
+    TooFewCandidates {
+        /// Candidates found.
+        found: usize,
+        /// Draws made.
+        draws: usize,
+        /// Poses asked for.
+        count: usize,
+    },
+    /// The identification's Jacobian cannot be formed.
+    #[error(transparent)]
+    Jacobian(#[from] Box<adwi_robot::calibrate::CalibrateError>),
+}
+
+/// One planned pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedPose {
+    /// Joint values, rad (mm when prismatic), rounded to the file's decimals.
+    pub joints: Vec<f64>,
+    /// The nominal TCP position at those joints, mm.
+    pub position_mm: [f64; 3],
+    /// The nominal TCP orientation, KUKA A, B, C degrees.
+    pub abc_deg: [f64; 3],
+}
+
+/// A plan and what it achieves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The poses, in the order to measure them.
+    pub poses: Vec<PlannedPose>,
+    /// The parameters identifiable on the pool, which the selection weighs.
+    pub parameters: Vec<Parameter>,
+    /// Candidates in the pool.
+    pub pool: usize,
+    /// Draws made (joint vectors, or poses solved by inverse kinematics).
+    pub draws: usize,
+    /// `log det` of the chosen poses' information (scaled parameters, with the ridge).
+    pub log_det: f64,
+    /// The smallest distance between two chosen poses' TCPs, mm.
+    pub min_distance_mm: f64,
+    /// The path's joint travel, the sum of the largest joint move of each step (rad).
+    pub path_travel: f64,
+}
+
+fn option(name: &'static str, reason: impl Into<String>) -> PlanError {
+    PlanError::Option {
+        name,
+        reason: reason.into(),
+    }
+}
+
+/// Checks the options and sizes the work before any: the counts, the boxes, the tracker,
+/// the orientations, and the selection's arithmetic against [`MAX_SELECTION_WORK`].
+///
+/// # Errors
+///
+/// [`PlanError::Option`] naming the option and the figure.
+pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
+    let finite3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    if !(1..=MAX_POSES).contains(&options.count) {
+        return Err(option(
+            "count",
+            format!("{} poses: give 1 to {MAX_POSES}", options.count),
+        ));
+    }
+    let largest = max_pool(robot, options.orientations.is_some());
+    if options.pool < options.count || options.pool > largest {
+        return Err(option(
+            "pool",
+            format!(
+                "{} candidates: give at least the count ({}) and at most {largest}{}",
+                options.pool,
+                options.count,
+                if largest < MAX_POOL {
+                    " (solved by numerical inverse kinematics, milliseconds each)"
+                } else {
+                    ""
+                }
+            ),
+        ));
+    }
+    if options.boxes_mm.is_empty() {
+        return Err(option(
+            "box",
+            "give at least one box (--min and --max, or --box)",
+        ));
+    }
+    for (min, max) in &options.boxes_mm {
+        if !(finite3(min) && finite3(max) && (0..3).all(|a| min[a] < max[a])) {
+            return Err(option(
+                "box",
+                format!("{min:?} to {max:?} mm: each minimum must be below its maximum, finite"),
+            ));
+        }
+    }
+    if let Some(t) = &options.tracker {
+        let [near, far] = t.range_mm;
+        if !(finite3(&t.position_mm)
+            && near.is_finite()
+            && far.is_finite()
+            && (0.0..far).contains(&near))
+        {
+            return Err(option(
+                "tracker_range",
+                format!("{near},{far} mm: give 0 ≤ MIN < MAX, finite"),
+            ));
+        }
+        if let Some(cone) = t.sight_cone_deg {
+            if !(cone > 0.0 && cone <= 180.0) {
+                return Err(option(
+                    "sight_cone_deg",
+                    format!("{cone}°: give an angle in (0, 180]"),
+                ));
+            }
+        }
+    }
+    if let Some(o) = &options.orientations {
+        if o.abc_deg.is_empty() || !o.abc_deg.iter().all(finite3) {
+            return Err(option("abc", "give finite A,B,C orientations"));
+        }
+        if !(o.tolerance_deg > 0.0 && o.tolerance_deg <= 180.0) {
+            return Err(option(
+                "orientation_tolerance",
+                format!("{}°: give an angle in (0, 180]", o.tolerance_deg),
+            ));
+        }
+    }
+    if !(0.0..=1.0).contains(&options.coverage_weight) {
+        return Err(option(
+            "coverage",
+            format!("{}: give a weight from 0 to 1", options.coverage_weight),
+        ));
+    }
+    if !(options.rank_tolerance > 0.0 && options.rank_tolerance < 1.0) {
+        return Err(option(
+            "rank_tol",
+            format!(
+                "{}: give a relative pivot between 0 and 1",
+                options.rank_tolerance
+            ),
+        ));
+    }
+    let p = Parameter::all_of(robot).len() as f64;
+    let work = options.count as f64 * options.pool as f64 * p * p;
+    if work > MAX_SELECTION_WORK {
+        return Err(option(
+            "count",
+            format!(
+                "{} poses from {} candidates over {p} parameters is {work:.1e} multiply-adds, \
+                 more than {MAX_SELECTION_WORK:.0e} (about a minute on one core): ask for fewer \
+                 poses or a smaller pool",
+                options.count, options.pool
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A joint value as the file writes it: degrees (mm) rounded to [`DECIMALS`], and back.
+fn as_written(robot: &Robot, q: &[f64]) -> Vec<f64> {
+    let scale = 10f64.powi(DECIMALS as i32);
+    q.iter()
+        .enumerate()
+        .map(|(i, &v)| match robot.joint_kind(i) {
+            JointKind::Revolute => ((v.to_degrees() * scale).round() / scale).to_radians(),
+            JointKind::Prismatic => (v * scale).round() / scale,
+        })
+        .collect()
+}
+
+/// Whether the pose at `q` meets the plan's constraints; its TCP position when it does.
+fn admissible(robot: &Robot, options: &PlanOptions, q: &[f64]) -> Option<PlannedPose> {
+    let pose = robot.tcp_pose(q);
+    let p = pose.translation.vector;
+    let position_mm = [p.x, p.y, p.z];
+    let inside = options
+        .boxes_mm
+        .iter()
+        .any(|(min, max)| (0..3).all(|a| (min[a]..=max[a]).contains(&position_mm[a])));
+    if !inside || !robot.within_limits(q) {
+        return None;
+    }
+    let rotation = pose.rotation.to_rotation_matrix();
+    if let Some(t) = &options.tracker {
+        let to_tracker = Vector3::from(t.position_mm) - p;
+        let range = to_tracker.norm();
+        if !(t.range_mm[0]..=t.range_mm[1]).contains(&range) {
+            return None;
+        }
+        if let Some(cone) = t.sight_cone_deg {
+            let axis = rotation * Vector3::z();
+            if range == 0.0 || axis.angle(&to_tracker).to_degrees() > cone {
+                return None;
+            }
+        }
+    }
+    if let Some(o) = &options.orientations {
+        let allowed = o.abc_deg.iter().any(|abc| {
+            let r = rotation_from_kuka_abc_deg(*abc);
+            r.angle_to(&rotation).to_degrees() <= o.tolerance_deg
+        });
+        if !allowed {
+            return None;
+        }
+    }
+    Some(PlannedPose {
+        joints: q.to_vec(),
+        position_mm,
+        abc_deg: kuka_abc_deg_from_rotation(&rotation),
+    })
+}
+
+/// The candidate pool: joint vectors drawn within the sampling ranges, as written to the
+/// file, kept when admissible; at most `pool`, after at most `pool ×`
+/// [`DRAWS_PER_CANDIDATE`] draws. `advance` is told of each candidate found.
+///
+/// # Errors
+///
+/// [`PlanError::TooFewCandidates`] when fewer than `count` are found.
+pub fn candidates(
+    robot: &Robot,
+    options: &PlanOptions,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<PlannedPose>, usize), PlanError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let ranges: Vec<[f64; 2]> = (0..robot.joint_count())
+        .map(|i| robot.sampling_range(i))
+        .collect();
+    let max_draws = options.pool.saturating_mul(DRAWS_PER_CANDIDATE);
+    let closed_form = InverseKinematics::new(robot).ok();
+    let volumes: Vec<f64> = options
+        .boxes_mm
+        .iter()
+        .map(|(min, max)| (0..3).map(|a| max[a] - min[a]).product())
+        .collect();
+    let total_volume: f64 = volumes.iter().sum();
+    let mut found = Vec::with_capacity(options.pool);
+    let mut draws = 0;
+    while found.len() < options.pool && draws < max_draws {
+        draws += 1;
+        let q: Vec<f64> = match &options.orientations {
+            None => ranges
+                .iter()
+                .map(|&[lo, hi]| rng.gen_range(lo..=hi))
+                .collect(),
+            Some(allowed) => {
+                // A pose in the boxes (each by its volume), turned from an allowed
+                // orientation by up to the tolerance, and its joints nearest home.
+                let mut pick = rng.gen_range(0.0..total_volume);
+                let mut k = 0;
+                while k + 1 < volumes.len() && pick >= volumes[k] {
+                    pick -= volumes[k];
+                    k += 1;
+                }
+                let (min, max) = options.boxes_mm[k];
+                let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
+                let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
+                let z: f64 = rng.gen_range(-1.0..=1.0);
+                let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
+                let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
+                let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
+                let pose = isometry_from_parts(position, &rotation);
+                let solution = match &closed_form {
+                    Some(ik) => nearest_home(robot, ik.solve(&pose)),
+                    None => solve_near(robot, &pose, robot.home()),
+                };
+                match solution {
+                    Some(q) => q,
+                    None => continue,
+                }
+            }
+        };
+        if let Some(pose) = admissible(robot, options, &as_written(robot, &q)) {
+            found.push(pose);
+            advance(1);
+        }
+    }
+    if found.len() < options.count {
+        return Err(PlanError::TooFewCandidates {
+            found: found.len(),
+            draws,
+            count: options.count,
+        });
+    }
+    Ok((found, draws))
+}
+
+/// Of closed-form solutions, the one nearest the home posture, as `tablec simulate`
+/// chooses.
+fn nearest_home(robot: &Robot, solutions: Vec<IkSolution>) -> Option<Vec<f64>> {
+    let home = robot.home();
+    let distance = |q: &[f64]| -> f64 { q.iter().zip(home).map(|(a, b)| (a - b).powi(2)).sum() };
+    solutions
+        .into_iter()
+        .map(|s| s.q_rad.to_vec())
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+}
+
+/// The information of a set of poses: `ridge · I + Σ BᵢᵀBᵢ`.
+fn information(blocks: &[&DMatrix<f64>], k: usize, ridge: f64) -> DMatrix<f64> {
+    let mut m = DMatrix::identity(k, k) * ridge;
+    for b in blocks {
+        m += b.transpose() * *b;
+    }
+    m
+}
+
+/// `log det` of a symmetric positive definite matrix, by Cholesky.
+fn log_det(m: &DMatrix<f64>) -> f64 {
+    match m.clone().cholesky() {
+        Some(c) => 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>(),
+        None => f64::NEG_INFINITY,
+    }
+}
+
+/// `log det(I₃ + B M⁻¹ Bᵀ)`, the gain of adding block `B` to information `M`.
+fn gain(b: &DMatrix<f64>, m_inv: &DMatrix<f64>) -> f64 {
+    let s: DMatrix<f64> = DMatrix::identity(3, 3) + b * m_inv * b.transpose();
+    s.determinant().max(f64::MIN_POSITIVE).ln()
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (Vector3::from(a) - Vector3::from(b)).norm()
+}
+
+/// The greedy selection (module docs): indices into `candidates`, in the order chosen.
+/// `advance` is told of each pose chosen.
+///
+/// # Errors
+///
+/// [`PlanError::Jacobian`] when the identification's Jacobian cannot be formed.
+pub fn select(
+    robot: &Robot,
+    options: &PlanOptions,
+    candidates: &[PlannedPose],
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<usize>, Vec<Parameter>, f64), PlanError> {
+    let joints: Vec<Vec<f64>> = candidates.iter().map(|c| c.joints.clone()).collect();
+    let (parameters, blocks) =
+        design_jacobians(robot, &joints, options.rank_tolerance).map_err(Box::new)?;
+    let k = parameters.len();
+    // Unit columns over the pool: one pose holds about 1/pool of each; the ridge is a
+    // thousandth of that, so that the first poses are chosen by what they add.
+    let ridge = 1e-3 / candidates.len() as f64;
+    let mut m_inv = DMatrix::identity(k, k) / ridge;
+    let mut nearest = vec![f64::INFINITY; candidates.len()];
+    let mut taken = vec![false; candidates.len()];
+    let mut chosen = Vec::with_capacity(options.count);
+    let w = options.coverage_weight;
+    for _ in 0..options.count {
+        let gains: Vec<f64> = blocks.par_iter().map(|b| gain(b, &m_inv)).collect();
+        let open = || (0..candidates.len()).filter(|&i| !taken[i]);
+        let max_gain = open().map(|i| gains[i]).fold(0.0, f64::max);
+        let max_cover = open()
+            .map(|i| nearest[i])
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
+        let score = |i: usize| {
+            let g = if max_gain > 0.0 {
+                gains[i] / max_gain
+            } else {
+                0.0
+            };
+            let c = if max_cover > 0.0 && nearest[i].is_finite() {
+                nearest[i] / max_cover
+            } else {
+                1.0
+            };
+            (1.0 - w) * g + w * c
+        };
+        let best = open()
+            .fold(None, |best: Option<(usize, f64)>, i| {
+                let s = score(i);
+                match best {
+                    Some((_, b)) if b >= s => best,
+                    _ => Some((i, s)),
+                }
+            })
+            .map(|(i, _)| i)
+            .expect("the pool holds at least count candidates");
+        taken[best] = true;
+        chosen.push(best);
+        // Woodbury: (M + BᵀB)⁻¹ = M⁻¹ − M⁻¹Bᵀ (I + B M⁻¹ Bᵀ)⁻¹ B M⁻¹.
+        let b = &blocks[best];
+        let mb = &m_inv * b.transpose();
+        let s: DMatrix<f64> = DMatrix::identity(3, 3) + b * &mb;
+        if let Some(s_inv) = s.try_inverse() {
+            m_inv -= &mb * s_inv * mb.transpose();
+        }
+        let p = candidates[best].position_mm;
+        nearest
+            .par_iter_mut()
+            .zip(candidates.par_iter())
+            .for_each(|(d, c)| *d = d.min(distance(c.position_mm, p)));
+        advance(1);
+    }
+    let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
+    let log_det = log_det(&information(&picked, k, ridge));
+    Ok((chosen, parameters, log_det))
+}
+
+/// The largest joint travel between two joint vectors: revolute joints in rad, prismatic
+/// ones in metres.
+fn travel(robot: &Robot, a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .map(|(i, (x, y))| match robot.joint_kind(i) {
+            JointKind::Revolute => (x - y).abs(),
+            JointKind::Prismatic => (x - y).abs() / 1000.0,
+        })
+        .fold(0.0, f64::max)
+}
+
+/// An open path through `poses`: nearest neighbour from the pose nearest the home
+/// posture, then 2-opt until no reversal shortens it (at most 100 passes).
+pub fn order(robot: &Robot, poses: &[PlannedPose]) -> (Vec<usize>, f64) {
+    let n = poses.len();
+    if n == 0 {
+        return (Vec::new(), 0.0);
+    }
+    let d = |i: usize, j: usize| travel(robot, &poses[i].joints, &poses[j].joints);
+    let home = robot.home();
+    let start = (0..n)
+        .min_by(|&a, &b| {
+            travel(robot, &poses[a].joints, home).total_cmp(&travel(robot, &poses[b].joints, home))
+        })
+        .expect("not empty");
+    let mut path = vec![start];
+    let mut visited = vec![false; n];
+    visited[start] = true;
+    for _ in 1..n {
+        let last = *path.last().expect("not empty");
+        let next = (0..n)
+            .filter(|&j| !visited[j])
+            .min_by(|&a, &b| d(last, a).total_cmp(&d(last, b)))
+            .expect("unvisited remain");
+        visited[next] = true;
+        path.push(next);
+    }
+    for _ in 0..100 {
+        let mut improved = false;
+        for i in 0..n.saturating_sub(2) {
+            for j in i + 2..n {
+                // Reversing path[i+1..=j]: edges (i, i+1) and (j, j+1) become (i, j) and
+                // (i+1, j+1); an open path's end has no edge after it.
+                let (a, b, c) = (path[i], path[i + 1], path[j]);
+                let after = path.get(j + 1).copied();
+                let before = d(a, b) + after.map_or(0.0, |e| d(c, e));
+                let reversed = d(a, c) + after.map_or(0.0, |e| d(b, e));
+                if reversed < before - 1e-12 {
+                    path[i + 1..=j].reverse();
+                    improved = true;
+                }
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    let length = path.windows(2).map(|w| d(w[0], w[1])).sum();
+    (path, length)
+}
+
+/// Plans the poses: candidates, selection, order. `stage` names each stage with its
+/// units; `advance` counts them.
+///
+/// # Errors
+///
+/// As [`check`], [`candidates`] and [`select`].
+pub fn plan(
+    robot: &Robot,
+    options: &PlanOptions,
+    stage: &(dyn Fn(&str, u64) + Sync),
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<Plan, PlanError> {
+    check(robot, options)?;
+    stage("drawing candidates", options.pool as u64);
+    let (pool, draws) = candidates(robot, options, advance)?;
+    stage("selecting", options.count as u64);
+    let (chosen, parameters, log_det) = select(robot, options, &pool, advance)?;
+    let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
+    let (path, path_travel) = order(robot, &picked);
+    let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
+    let mut min_distance_mm = f64::INFINITY;
+    for (i, a) in poses.iter().enumerate() {
+        for b in &poses[i + 1..] {
+            min_distance_mm = min_distance_mm.min(distance(a.position_mm, b.position_mm));
+        }
+    }
+    Ok(Plan {
+        poses,
+        parameters,
+        pool: pool.len(),
+        draws,
+        log_det,
+        min_distance_mm,
+        path_travel,
+    })
+}
+
+/// The configuration label of a joint vector, for robots with a closed form.
+pub type ConfigLabel<'a> = dyn Fn(&[f64]) -> u8 + 'a;
+
+/// The plan as CSV: `#` comment lines, then `j1..jn` (degrees; mm for prismatic joints),
+/// the nominal `x,y,z` (mm) and `a,b,c` (KUKA degrees) at those joints, and `config` when
+/// `config` labels them. `tablec simulate --poses` measures it; a measurement adds
+/// `mx,my,mz` for `build` and `calibrate`.
+pub fn write_csv(
+    robot: &Robot,
+    plan: &Plan,
+    comments: &[String],
+    config: Option<&ConfigLabel<'_>>,
+) -> String {
+    let mut out = String::new();
+    for c in comments {
+        for line in c.lines() {
+            let _ = writeln!(out, "# {line}");
+        }
+    }
+    let n = robot.joint_count();
+    let mut header: Vec<String> = (1..=n).map(|j| format!("j{j}")).collect();
+    header.extend(["x", "y", "z", "a", "b", "c"].map(String::from));
+    if config.is_some() {
+        header.push("config".into());
+    }
+    let _ = writeln!(out, "{}", header.join(","));
+    let fixed = |v: f64| {
+        let text = format!("{v:.DECIMALS$}");
+        // A rounded negative zero is written as zero.
+        if text
+            .trim_start_matches('-')
+            .chars()
+            .all(|c| c == '0' || c == '.')
+        {
+            text.trim_start_matches('-').to_string()
+        } else {
+            text
+        }
+    };
+    for pose in &plan.poses {
+        let mut fields: Vec<String> = pose
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| match robot.joint_kind(i) {
+                JointKind::Revolute => fixed(v.to_degrees()),
+                JointKind::Prismatic => fixed(v),
+            })
+            .collect();
+        fields.extend(pose.position_mm.iter().map(|&v| fixed(v)));
+        fields.extend(pose.abc_deg.iter().map(|&v| fixed(v)));
+        if let Some(label) = config {
+            fields.push(label(&pose.joints).to_string());
+        }
+        let _ = writeln!(out, "{}", fields.join(","));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ur5() -> Robot {
+        Robot::load(adwi_robot::model::shipped_robot_path("ur5")).unwrap()
+    }
+
+    fn options(count: usize, pool: usize) -> PlanOptions {
+        PlanOptions {
+            boxes_mm: vec![([-600.0, -600.0, 0.0], [600.0, 600.0, 700.0])],
+            count,
+            pool,
+            seed: 7,
+            tracker: Some(TrackerSight {
+                position_mm: [2000.0, 0.0, 500.0],
+                range_mm: [500.0, 3000.0],
+                sight_cone_deg: Some(70.0),
+            }),
+            orientations: None,
+            coverage_weight: 0.3,
+            rank_tolerance: 1e-6,
+        }
+    }
+
+    fn make(o: &PlanOptions) -> String {
+        let robot = ur5();
+        let p = plan(&robot, o, &|_, _| {}, &|_| {}).unwrap();
+        write_csv(&robot, &p, &[], None)
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_bytes_and_another_seed_other_poses() {
+        let o = options(20, 200);
+        let a = make(&o);
+        assert_eq!(a, make(&o));
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        assert_eq!(a, one.install(|| make(&o)));
+        assert_ne!(a, make(&PlanOptions { seed: 8, ..o }));
+    }
+
+    #[test]
+    fn every_planned_pose_is_within_the_limits_the_box_and_the_cone() {
+        let robot = ur5();
+        let o = options(30, 300);
+        let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        assert_eq!(p.poses.len(), 30);
+        let tracker = o.tracker.as_ref().unwrap();
+        for pose in &p.poses {
+            assert!(robot.within_limits(&pose.joints));
+            // Recomputed from the joints, not taken from the candidate.
+            let tcp = robot.tcp_pose(&pose.joints);
+            let t = tcp.translation.vector;
+            let (min, max) = o.boxes_mm[0];
+            assert!((0..3).all(|a| min[a] <= t[a] && t[a] <= max[a]), "{t:?}");
+            let to_tracker = Vector3::from(tracker.position_mm) - t;
+            let range = to_tracker.norm();
+            assert!((500.0..=3000.0).contains(&range));
+            let axis = tcp.rotation * Vector3::z();
+            assert!(axis.angle(&to_tracker).to_degrees() <= 70.0);
+        }
+        // Every pose once.
+        let mut seen: Vec<String> = p.poses.iter().map(|q| format!("{:?}", q.joints)).collect();
+        seen.sort();
+        seen.dedup();
+        assert_eq!(seen.len(), 30);
+    }
+
+    /// With allowed orientations the candidates come from inverse kinematics: every pose
+    /// within the tolerance of one of them, and in the box.
+    #[test]
+    fn planned_poses_keep_an_allowed_orientation() {
+        let robot = Robot::load(adwi_robot::model::shipped_robot_path("kr150-2")).unwrap();
+        let allowed = [[0.0, 90.0, 0.0], [0.0, 45.0, 0.0]];
+        let o = PlanOptions {
+            boxes_mm: vec![([1350.0, 50.0, 850.0], [2150.0, 850.0, 1650.0])],
+            tracker: None,
+            orientations: Some(AllowedOrientations {
+                abc_deg: allowed.to_vec(),
+                tolerance_deg: 5.0,
+            }),
+            ..options(20, 100)
+        };
+        let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        for pose in &p.poses {
+            let tcp = robot.tcp_pose(&pose.joints);
+            let rotation = tcp.rotation.to_rotation_matrix();
+            let off = allowed
+                .iter()
+                .map(|abc| {
+                    rotation_from_kuka_abc_deg(*abc)
+                        .angle_to(&rotation)
+                        .to_degrees()
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(off <= 5.0, "{off}°");
+            let t = tcp.translation.vector;
+            assert!((1350.0..=2150.0).contains(&t.x) && (850.0..=1650.0).contains(&t.z));
+        }
+    }
+
+    /// The greedy choice is D-better than the same number of the pool's first
+    /// candidates (a random draw), on the same pool and criterion.
+    #[test]
+    fn the_selection_beats_a_random_choice_on_its_criterion() {
+        let robot = ur5();
+        let o = PlanOptions {
+            coverage_weight: 0.0,
+            ..options(25, 300)
+        };
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let (_, parameters, chosen) = select(&robot, &o, &pool, &|_| {}).unwrap();
+        let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
+        let (_, blocks) = design_jacobians(&robot, &joints, o.rank_tolerance).unwrap();
+        let first: Vec<&DMatrix<f64>> = blocks.iter().take(25).collect();
+        let random = log_det(&information(
+            &first,
+            parameters.len(),
+            1e-3 / pool.len() as f64,
+        ));
+        assert!(chosen > random, "{chosen} vs {random}");
+    }
+
+    /// The Woodbury gain equals the difference of log-determinants computed outright.
+    #[test]
+    fn the_rank_three_gain_is_the_log_det_difference() {
+        let robot = ur5();
+        let o = options(5, 50);
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
+        let (parameters, blocks) = design_jacobians(&robot, &joints, 1e-6).unwrap();
+        let k = parameters.len();
+        let some: Vec<&DMatrix<f64>> = blocks.iter().take(10).collect();
+        let m = information(&some, k, 1e-3);
+        let m_inv = m.clone().try_inverse().unwrap();
+        let b = &blocks[20];
+        let mut with = some.clone();
+        with.push(b);
+        let direct = log_det(&information(&with, k, 1e-3)) - log_det(&m);
+        assert!((gain(b, &m_inv) - direct).abs() < 1e-6 * direct.abs().max(1.0));
+    }
+
+    #[test]
+    fn two_opt_never_lengthens_the_nearest_neighbour_path() {
+        let robot = ur5();
+        let o = options(40, 200);
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let (path, length) = order(&robot, &pool[..40]);
+        let mut sorted = path.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..40).collect::<Vec<_>>());
+        let in_order: f64 = (0..39)
+            .map(|i| travel(&robot, &pool[i].joints, &pool[i + 1].joints))
+            .sum();
+        assert!(length <= in_order, "{length} vs {in_order}");
+    }
+
+    #[test]
+    fn requests_are_sized_and_refused_with_their_figure() {
+        let robot = ur5();
+        let e = check(&robot, &options(MAX_POSES + 1, MAX_POOL)).unwrap_err();
+        assert!(e.to_string().contains("5001 poses"), "{e}");
+        let e = check(&robot, &options(5000, 50_000)).unwrap_err();
+        assert!(e.to_string().contains("multiply-adds"), "{e}");
+        let mut o = options(10, 20);
+        o.boxes_mm = vec![([5000.0; 3], [5001.0; 3])];
+        let e = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap_err();
+        assert!(
+            matches!(e, PlanError::TooFewCandidates { found: 0, .. }),
+            "{e}"
+        );
+    }
+}

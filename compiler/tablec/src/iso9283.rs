@@ -1,0 +1,82 @@
+//! `tablec iso9283`: the ISO 9283 job ([`adwi_jobs::Iso9283Job`]), its characteristics
+//! printed as a table per position and per distance.
+
+use adwi_jobs::{Iso9283Args, Iso9283Job};
+use adwi_measure::iso9283::{Report, ISO_CYCLES};
+
+/// ISO 9283:1998 pose characteristics of measured cycles: pose accuracy AP and
+/// repeatability RP per position, distance accuracy AD and repeatability RD between
+/// consecutive positions; or the standard's five cube positions as a plan (--cube).
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    job: Iso9283Args,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let result = Iso9283Job::new(args.job)?.run()?;
+    if let Some(report) = &result.report {
+        print_report(report);
+    }
+    if let Some(report) = &result.compensated {
+        println!();
+        println!("compensated by the table (each attained pose less the predicted error at its command):");
+        print_report(report);
+    }
+    for path in &result.written {
+        println!("wrote          {}", path.display());
+    }
+    Ok(())
+}
+
+/// Per position AP and RP (mm; orientation degrees when measured), then AD and RD.
+fn print_report(report: &Report) {
+    let oriented = report.positions.iter().any(|p| p.ap_a_deg.is_some());
+    print!(
+        "{:<10} {:>4} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "position", "n", "AP_P mm", "AP_x mm", "AP_y mm", "AP_z mm", "RP_l mm"
+    );
+    if oriented {
+        print!(
+            " {:>8} {:>8} {:>8} {:>9} {:>9} {:>9}",
+            "AP_a °", "AP_b °", "AP_c °", "RP_a ±°", "RP_b ±°", "RP_c ±°"
+        );
+    }
+    println!();
+    for p in &report.positions {
+        print!(
+            "{:<10} {:>4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+            p.name, p.n, p.ap_p_mm, p.ap_x_mm, p.ap_y_mm, p.ap_z_mm, p.rp_l_mm
+        );
+        let angles = [
+            p.ap_a_deg, p.ap_b_deg, p.ap_c_deg, p.rp_a_deg, p.rp_b_deg, p.rp_c_deg,
+        ];
+        if let [Some(a), Some(b), Some(c), Some(ra), Some(rb), Some(rc)] = angles {
+            print!(" {a:>8.4} {b:>8.4} {c:>8.4} {ra:>9.4} {rb:>9.4} {rc:>9.4}");
+        }
+        println!();
+    }
+    if !report.distance.is_empty() {
+        println!(
+            "{:<21} {:>4} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "distance", "n", "D_c mm", "AD_P mm", "AD_x mm", "AD_y mm", "AD_z mm", "RD ±mm"
+        );
+        for d in &report.distance {
+            println!(
+                "{:<21} {:>4} {:>10.3} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+                format!("{} - {}", d.from, d.to),
+                d.n,
+                d.commanded_mm,
+                d.ad_p_mm,
+                d.ad_x_mm,
+                d.ad_y_mm,
+                d.ad_z_mm,
+                d.rd_mm
+            );
+        }
+    }
+    let fewest = report.positions.iter().map(|p| p.n).min().unwrap_or(0);
+    if fewest < ISO_CYCLES as usize {
+        println!("note           {fewest} cycles at the fewest: ISO 9283 asks for {ISO_CYCLES}");
+    }
+}

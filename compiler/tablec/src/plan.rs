@@ -1,0 +1,39 @@
+//! `tablec plan`: the planning job ([`adwi_jobs::PlanJob`]).
+
+use adwi_jobs::{PlanArgs, PlanJob};
+
+/// Plan the poses to measure: reachable candidates in the box (seen by the tracker),
+/// chosen for the identification (D-optimality) and for coverage, ordered as a short
+/// joint-space path.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    job: PlanArgs,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let bar = crate::progress::Bar::new(args.quiet);
+    let planned = PlanJob::new(args.job)?.run(&bar);
+    bar.finish();
+    let planned = planned?;
+    let p = &planned.plan;
+    println!(
+        "planned        {} poses of the {} from {} candidates ({} draws)",
+        p.poses.len(),
+        planned.robot_name,
+        p.pool,
+        p.draws
+    );
+    println!(
+        "criterion      log det {:.3} over {} identifiable parameters; smallest TCP distance {:.1} mm; joint travel {:.2} rad",
+        p.log_det,
+        p.parameters.len(),
+        p.min_distance_mm,
+        p.path_travel
+    );
+    println!("wrote          {}", planned.output.display());
+    Ok(())
+}

@@ -1,0 +1,77 @@
+"""adwi.plan and adwi.iso9283 run the jobs tablec plan and tablec iso9283 run: the same
+files, the same figures."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import adwi
+
+from conftest import UR5
+
+
+def test_plan_writes_the_file_tablec_writes(tablec, tmp_path):
+    options = ["--min", "-600,-600,0", "--max", "600,600,700", "--count", "12", "--seed", "4"]
+    subprocess.run(
+        [tablec, "plan", "--robot", UR5 / "robot.toml", *options, "-q", "-o", tmp_path / "t.csv"],
+        check=True,
+        capture_output=True,
+    )
+    planned = adwi.plan(
+        tmp_path / "p.csv",
+        robot=UR5 / "robot.toml",
+        min=[-600, -600, 0],
+        max=[600, 600, 700],
+        count=12,
+        seed=4,
+    )
+    assert (tmp_path / "p.csv").read_bytes() == (tmp_path / "t.csv").read_bytes()
+    assert len(planned["joints_rad"]) == 12
+    positions = np.asarray(planned["position_mm"])
+    assert np.all(positions >= [-600, -600, 0]) and np.all(positions <= [600, 600, 700])
+
+
+def test_plan_refuses_a_request_too_large_with_its_figure(tmp_path):
+    with pytest.raises(adwi.AdwiError, match="100000 poses"):
+        adwi.plan(tmp_path / "p.csv", robot=UR5 / "robot.toml", min=[0, 0, 0], max=[1, 1, 1],
+                  count=100_000)
+
+
+def test_iso9283_gives_tablec_s_figures(tablec, tmp_path):
+    written = adwi.iso9283(cube=[1750, 450, 1250, 600], cycles=5, output=tmp_path / "plan.csv")
+    assert written["written"] == [str(tmp_path / "plan.csv")]
+    lines = (tmp_path / "plan.csv").read_text().splitlines()
+    rng = np.random.default_rng(3)
+    rows = [lines[0] + ",mx,my,mz"]
+    for line in lines[1:]:
+        xyz = np.array([float(v) for v in line.split(",")[2:5]])
+        attained = xyz + [0.2, -0.1, 0.05] + rng.normal(0, 0.02, 3)
+        rows.append(line + "," + ",".join(f"{v:.4f}" for v in attained))
+    cycles = tmp_path / "cycles.csv"
+    cycles.write_text("\n".join(rows) + "\n")
+    subprocess.run(
+        [tablec, "iso9283", cycles, "--json", tmp_path / "t.json"], check=True, capture_output=True
+    )
+    expected = json.loads((tmp_path / "t.json").read_text())
+    report = adwi.iso9283(cycles)
+    assert [p["name"] for p in report["positions"]] == ["P1", "P2", "P3", "P4", "P5"]
+    for got, want in zip(report["positions"], expected["positions"]):
+        for key in ("n", "ap_p_mm", "ap_x_mm", "rp_l_mm", "ap_a_deg"):
+            assert got[key] == want[key], key
+    assert report["distance"] == expected["distance"]
+    assert abs(report["positions"][0]["ap_x_mm"] - 0.2) < 0.05
+    assert report["compensated"] is None
+
+
+def test_iso9283_with_a_table_reports_the_compensation(kr150_table, tmp_path):
+    adwi.iso9283(cube=[1750, 450, 1250, 600], cycles=3, output=tmp_path / "plan.csv")
+    lines = (tmp_path / "plan.csv").read_text().splitlines()
+    rows = [lines[0] + ",mx,my,mz"] + [line + "," + ",".join(line.split(",")[2:5]) for line in lines[1:]]
+    (tmp_path / "cycles.csv").write_text("\n".join(rows) + "\n")
+    report = adwi.iso9283(tmp_path / "cycles.csv", table=kr150_table)
+    compensated = report["compensated"]["positions"]
+    # Attained exactly as commanded: what remains is the table's predicted error, its
+    # repeatability nothing.
+    assert all(p["ap_p_mm"] > 0.5 and p["rp_l_mm"] < 1e-9 for p in compensated)
