@@ -57,6 +57,14 @@ pub const SUBSAMPLE: usize = 1000;
 /// again, tests), few enough that a factorisation costs well under a millisecond.
 pub const NEIGHBOURS: usize = 128;
 
+/// The most samples the hyperparameters' likelihood search sees. The search costs a
+/// factorisation per grid point (13 length scales × 4 vertical scales, × 5 weights of the
+/// turning part): cubic in its samples, it was most of a 1,000-sample hybrid build. On the
+/// UR5's 1,000 samples, hyperparameters searched on 500 of them leave the served field's
+/// 5-fold cross-validation where those of all 1,000 do (docs/evaluation.md, "At any
+/// size").
+pub const SEARCH_SUBSAMPLE: usize = 500;
+
 /// The most nodes along each axis of a block sharing one local system.
 pub const MAX_BLOCK_NODES: usize = 4;
 
@@ -64,8 +72,12 @@ pub const MAX_BLOCK_NODES: usize = 4;
 /// tests use smaller ones).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LocalSettings {
-    /// The subsample size, and the largest sample count fitted densely.
+    /// The largest sample count fitted densely, and the subsample a local fit's
+    /// hyperparameters are searched on when larger than `search`.
     pub subsample: usize,
+    /// The most samples the likelihood search sees: above, an evenly strided subset of this
+    /// many ([`SEARCH_SUBSAMPLE`]).
+    pub search: usize,
     /// Samples per local system.
     pub neighbours: usize,
 }
@@ -74,6 +86,7 @@ impl Default for LocalSettings {
     fn default() -> Self {
         LocalSettings {
             subsample: SUBSAMPLE,
+            search: SEARCH_SUBSAMPLE,
             neighbours: NEIGHBOURS,
         }
     }
@@ -99,7 +112,7 @@ pub fn search_choices(
         None => ResidualGp::fit_cartesian(inputs, values),
     };
     let n = inputs.len();
-    let m = settings.subsample.max(3);
+    let m = settings.search.min(settings.subsample).max(3);
     if n <= m {
         return dense(inputs, axes, values).map(|fit| fit.choices());
     }
@@ -144,10 +157,15 @@ impl KrigingField {
             Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
             None => ResidualGp::fit_cartesian(inputs, values),
         };
-        if inputs.len() <= settings.subsample.max(3) {
+        let n = inputs.len();
+        if n <= settings.search.min(settings.subsample).max(3) {
             return dense(inputs, axes, values).map(KrigingField::Dense);
         }
         let choices = search_choices(inputs, axes, values, settings)?;
+        if n <= settings.subsample.max(3) {
+            return ResidualGp::with_choices(inputs, axes, values, &choices)
+                .map(KrigingField::Dense);
+        }
         LocalGp::with_choices(inputs, axes, values, &choices, settings.neighbours)
             .map(|fit| KrigingField::Local(Box::new(fit)))
     }
@@ -562,6 +580,7 @@ mod tests {
         for axes in [None, Some(axes.as_slice())] {
             let settings = LocalSettings {
                 subsample: 300,
+                search: 300,
                 neighbours: NEIGHBOURS,
             };
             let local = KrigingField::fit(&inputs, axes, &values, settings).unwrap();
@@ -598,6 +617,7 @@ mod tests {
         let (inputs, axes, values) = case(1500, 2);
         let settings = LocalSettings {
             subsample: 200,
+            search: 200,
             neighbours: NEIGHBOURS,
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
@@ -622,6 +642,7 @@ mod tests {
         let (inputs, axes, values) = case(150, 3);
         let settings = LocalSettings {
             subsample: 150,
+            search: 150,
             neighbours: 16,
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
@@ -646,6 +667,7 @@ mod tests {
         }
         let settings = LocalSettings {
             subsample: 100,
+            search: 100,
             neighbours: 64,
         };
         let fit = KrigingField::fit(&inputs, None, &values, settings).unwrap();
