@@ -422,7 +422,7 @@ fn a_closed_output_pipe_ends_tablec_quietly() {
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut first)
         .unwrap();
-    assert!(first.starts_with("x,y,z,dx"), "{first}");
+    assert!(first.starts_with("x,y,z,pred_dx"), "{first}");
     // The reader is gone: tablec stops as Unix tools do, without a panic or an error.
     let out = child.wait_with_output().unwrap();
     let message = String::from_utf8_lossy(&out.stderr);

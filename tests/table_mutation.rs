@@ -343,7 +343,9 @@ fn joint_vectors(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng
 fn check_correction(what: &str, c: &Correction) -> Result<(), String> {
     let values = c.position_error_mm.iter().chain(&c.orientation_error_rad);
     if c.status == Status::Ok {
-        if !values.clone().all(|v| v.is_finite()) || c.neighbours == 0 {
+        // A hybrid table's model alone weighs no neighbour.
+        let weighed = c.neighbours > 0 || c.residual == adwi_runtime::Residual::ModelOnly;
+        if !values.clone().all(|v| v.is_finite()) || !weighed {
             return Err(format!("{what}: status ok with {c:?}"));
         }
     } else if values.clone().any(|&v| v != 0.0) || c.neighbours != 0 {

@@ -172,7 +172,8 @@ fn refusal(header: Header, data: &v2::TableData) -> &'static str {
 /// axis, the missing node counting zero, scaled by the fade outside the box, plus the
 /// model part; and the residual flag the answer should carry.
 fn reference(position_mm: [f64; 3], q: &[f64; 6]) -> ([f64; 3], [f64; 3], Residual) {
-    let (nominal, calibrated) = chains();
+    // The chains the table holds, so that the model part is computed alike.
+    let (nominal, calibrated) = chains_shifted(reaching(position_mm, q));
     let r = nominal.tcp_pose(q).unwrap().rotation;
     let a = [r[0][2], r[1][2], r[2][2]];
     let mut cell = [0usize; 3];
