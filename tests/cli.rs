@@ -875,7 +875,8 @@ fn eval_summarises_unpredicted_points() {
 }
 
 /// A file whose grid could never be built is refused at once, with the figure, before
-/// any compilation: a million samples in a 2 m cube.
+/// any compilation: a million samples in a 2 m cube with a cell asked for (a derived one
+/// grows until the table fits).
 #[test]
 fn an_oversized_grid_is_refused_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
@@ -888,17 +889,21 @@ fn an_oversized_grid_is_refused_before_any_work() {
     }
     std::fs::write(dir.path().join("big.csv"), csv).unwrap();
     let started = std::time::Instant::now();
-    let o = tablec(&["build", "-q", "big.csv", "-o", "big.tbl"], dir.path());
+    let o = tablec(
+        &["build", "-q", "big.csv", "--cell", "0.5", "-o", "big.tbl"],
+        dir.path(),
+    );
     let took = started.elapsed();
     assert_eq!(o.status.code(), Some(1));
     let message = stderr(&o);
     assert!(message.contains("the grid would have"), "{message}");
-    assert!(message.contains("GB"), "{message}");
+    assert!(message.contains("9.0 TB"), "{message}");
     // Well under a second on an idle machine; the bound only catches minutes.
     assert!(took.as_secs() < 20, "refused after {took:?}");
 }
 
-/// Samples along a line make a grid that is almost all empty: said before the build.
+/// Samples along a line make a grid of fine cells that is almost all empty: said before
+/// the build (a derived cell follows the volume per sample of such clustered samples).
 #[test]
 fn a_mostly_empty_grid_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
@@ -908,7 +913,22 @@ fn a_mostly_empty_grid_is_warned_about() {
         csv.push_str(&format!("{v},{v},{v},0.1,0.2,0.3\n"));
     }
     std::fs::write(dir.path().join("line.csv"), csv).unwrap();
-    let o = tablec(&["build", "-q", "line.csv", "-o", "l.tbl"], dir.path());
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "line.csv",
+            "--cell",
+            "50",
+            "--radius",
+            "350",
+            "--served-field",
+            "method",
+            "-o",
+            "l.tbl",
+        ],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("mostly empty"), "{}", stderr(&o));
 }

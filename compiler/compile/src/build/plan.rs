@@ -251,10 +251,16 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         Some(c) => c,
         None => {
             let fine = derive("the cell size")? / CELLS_PER_SPACING;
-            if estimate(fine) <= MAX_DERIVED_TABLE_BYTES {
+            // Cells beyond the grid's largest extent make it no smaller: what a table of
+            // one cell per axis takes is the samples' own part, which no cell shrinks. The
+            // budget is never below twice that (a million samples take more than 64 MB
+            // whatever the cell).
+            let extent = (0..3).map(|a| hi[a] - lo[a]).fold(fine, f64::max);
+            let budget = MAX_DERIVED_TABLE_BYTES.max(estimate(extent).saturating_mul(2));
+            if estimate(fine) <= budget {
                 fine
             } else {
-                smallest_cell_within(fine, |c| estimate(c) <= MAX_DERIVED_TABLE_BYTES)
+                smallest_cell_within(fine, extent, |c| estimate(c) <= budget)
             }
         }
     };
@@ -303,15 +309,13 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
 }
 
 /// The smallest cell edge above `fine` that `fits` (to a thousandth of itself), for a
-/// `fits` that holds from some edge on: doubled until it fits, then bisected. A grid of one
-/// cell fits any bound the samples' own records do, so the doubling ends; the steps are
-/// fixed, so the edge is the same on every machine.
-fn smallest_cell_within(fine: f64, fits: impl Fn(f64) -> bool) -> f64 {
+/// `fits` that holds from some edge on: doubled until it fits (or reaches `largest`, the
+/// edge of a grid of one cell per axis, beyond which nothing shrinks), then bisected; the
+/// steps are fixed, so the edge is the same on every machine.
+fn smallest_cell_within(fine: f64, largest: f64, fits: impl Fn(f64) -> bool) -> f64 {
     let mut high = fine;
-    let mut doublings = 0;
-    while !fits(high) && doublings < 200 {
-        high *= 2.0;
-        doublings += 1;
+    while !fits(high) && high < largest {
+        high = (high * 2.0).min(largest);
     }
     let mut low = high / 2.0;
     while high - low > 1e-3 * high {
