@@ -21,9 +21,22 @@ fn kr150_robot() -> PathBuf {
     repo("tables/kr150-2/robot.toml")
 }
 
-/// `tablec build` of `samples` into `dir/out`; it must succeed.
+/// `tablec build` of `samples` into `dir/out`, serving the method's own field (the figures
+/// checked here are those of the programs' arithmetic, not of the field's choice); it must
+/// succeed.
 fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(&["build", "-q", samples.to_str().unwrap(), "-o", out], dir);
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--served-field",
+            "method",
+            "-o",
+            out,
+        ],
+        dir,
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     dir.join(out)
 }
