@@ -503,10 +503,7 @@ fn evaluate<'py>(
         String::new(),
     )?)?;
     for m in &e.methods {
-        let note = match &m.unsupported {
-            Some(reason) => format!("unsupported: {reason}"),
-            None => m.not_predicted_summary().join("; "),
-        };
+        let note = m.note();
         records.append(record(
             m.method.name(),
             m.predicted(),

@@ -37,7 +37,8 @@ def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
     assert report.tuning["folds"] == 3
     assert 0.0 < report.tuning["cv_mean_mm"] < 0.2
     assert 0.0 < report.tuning["served_cv_mean_mm"] < 0.2
-    assert adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl").tuning is None
+    plain = adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl", served_field="method")
+    assert plain.tuning is None
     with pytest.raises(adwi.AdwiError, match="tune\\) chooses k and the radius"):
         adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)
 
@@ -59,7 +60,7 @@ def test_kriging_served_field_is_byte_identical_to_tablec(tablec, tmp_path):
         check=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()
-    method = adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl")
+    method = adwi.build(KR150 / "samples.csv", tmp_path / "m.tbl", served_field="method")
     assert method.served_field == "method" and method.served_kriging == []
     with pytest.raises(adwi.AdwiError, match="^served_field: 'spline': choose auto, method or kriging"):
         adwi.build(KR150 / "samples.csv", tmp_path / "bad.tbl", served_field="spline")

@@ -62,13 +62,13 @@ def assert_same_answers(rows, result: adwi.Compensation, orientation: bool):
             ]
             np.testing.assert_allclose(
                 result.orientation_rad[i],
-                [float(row[c]) for c in ("rx", "ry", "rz")],
+                [float(row[c]) for c in ("pred_rx", "pred_ry", "pred_rz")],
                 rtol=0,
                 atol=1e-12,
             )
         else:
             assert result.orientation_rad is None
-            assert row["rx"] == ""
+            assert row["pred_rx"] == ""
 
 
 def kr150_targets(tmp_path: Path) -> Path:

@@ -462,6 +462,17 @@ impl MethodResult {
         self.not_predicted.values().sum()
     }
 
+    /// What the figures leave out or hide, in words: why points are missing, and a hybrid
+    /// table's answered points by residual flag (the `note` column of every output).
+    pub fn note(&self) -> String {
+        if let Some(reason) = &self.unsupported {
+            return format!("unsupported: {reason}");
+        }
+        let mut lines = self.not_predicted_summary();
+        lines.extend(self.residual_summary());
+        lines.join("; ")
+    }
+
     /// A hybrid table's answered points by residual flag, in words (`None` for other
     /// methods).
     pub fn residual_summary(&self) -> Option<String> {

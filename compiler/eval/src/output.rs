@@ -36,19 +36,9 @@ fn rows(e: &Evaluation) -> Vec<Row<'_>> {
         not_predicted: m.not_predicted_count(),
         position: m.position_mm.as_ref(),
         orientation: m.orientation_mrad.as_ref(),
-        note: note(m),
+        note: m.note(),
     }));
     rows
-}
-
-/// Why points are missing from a method's figures, in words.
-fn note(m: &MethodResult) -> String {
-    if let Some(reason) = &m.unsupported {
-        return format!("unsupported: {reason}");
-    }
-    let mut lines = m.not_predicted_summary();
-    lines.extend(m.residual_summary());
-    lines.join("; ")
 }
 
 fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {
