@@ -17,7 +17,7 @@ use adwi_samples::SampleSet;
 pub(super) enum NodeField {
     Method,
     /// The samples' tool axes (a hybrid table), and the hyperparameters when given.
-    Kriging(Option<Vec<[f64; 3]>>, Option<GivenChoices>),
+    Kriging(Option<Vec<[f64; 3]>>, Option<Box<GivenChoices>>),
 }
 
 impl NodeField {
@@ -35,9 +35,9 @@ impl NodeField {
             ServedField::Method => NodeField::Method,
             ServedField::Kriging | ServedField::KrigingToolAxis => match (model, &samples.joints) {
                 (Some(model), Some(_)) => {
-                    NodeField::Kriging(Some(tool_axes(samples, model)?), given)
+                    NodeField::Kriging(Some(tool_axes(samples, model)?), given.map(Box::new))
                 }
-                _ => NodeField::Kriging(None, given),
+                _ => NodeField::Kriging(None, given.map(Box::new)),
             },
         })
     }
@@ -198,7 +198,7 @@ impl NodeValues {
                                 records,
                                 &seen,
                                 axes.as_deref(),
-                                *given,
+                                given.as_deref().copied(),
                                 orientation,
                             )?;
                             fits.push((seen.clone(), fit));
