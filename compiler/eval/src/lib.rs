@@ -43,8 +43,11 @@ pub mod comparison;
 pub mod continuity;
 pub mod latency;
 pub mod noise_floor;
+mod options;
 pub mod output;
 pub mod report;
+
+pub use options::{EvalOptions, ServedFieldRule};
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -52,13 +55,9 @@ use std::str::FromStr;
 
 use adwi_runtime::{Residual, Status, Table, Target, Tier};
 
-use crate::baselines::{
-    BaselineError, Grid, GridParams, Idw, IdwParams, Kriging, KrigingParams, PredictError,
-    ResidualStats,
-};
+use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, ResidualStats};
 use adwi_compile::build::{self, BuildError, BuildOptions};
-use adwi_robot::calibrate::{self, CalibrateError, CalibrateOptions, Calibration, Parameter};
-use adwi_robot::Robot;
+use adwi_robot::calibrate::{self, CalibrateError, Calibration, Parameter};
 use adwi_samples::SampleSet;
 
 /// A compensation method under evaluation.
@@ -248,61 +247,6 @@ pub enum Protocol {
         /// Seed of the split.
         seed: u64,
     },
-}
-
-/// What to evaluate and with which parameters; the default evaluates every applicable
-/// method with each one's default parameters.
-#[derive(Debug, Clone, Default)]
-pub struct EvalOptions {
-    /// The methods; `None` for every method the data and options allow.
-    pub methods: Option<Vec<Method>>,
-    /// Table options for `paper`, `paper-joint` and `hybrid`, as `tablec build` takes them.
-    pub build: BuildOptions,
-    /// The robot, for `kinematic` and `hybrid`.
-    pub robot: Option<Robot>,
-    /// Identification options.
-    pub calibrate: CalibrateOptions,
-    /// IDW parameters.
-    pub idw: IdwParams,
-    /// Lattice detection parameters.
-    pub grid: GridParams,
-    /// Kriging parameters.
-    pub kriging: KrigingParams,
-    /// The identification of each split, when an earlier evaluation of the same samples,
-    /// protocol and identification options made it ([`Evaluation::identified`]): several
-    /// evaluations then identify once per split. Empty: identified here.
-    pub identified: Vec<Calibration>,
-    /// Chooses the served field of the served-tier methods (`paper-trilinear`,
-    /// `hybrid-trilinear`) from each split's training samples alone, as a build without a
-    /// given field does; `None`: `build`'s served field.
-    pub served_field: Option<ServedFieldRule>,
-}
-
-/// A served field chosen from a split's training samples (their calibration, for a hybrid
-/// table): what [`EvalOptions::served_field`] holds. A rule, not a fixed field, so that no
-/// held-out point ever takes part in the choice.
-#[derive(Clone)]
-pub struct ServedFieldRule(
-    #[allow(clippy::type_complexity)]
-    pub  std::sync::Arc<dyn Fn(&SampleSet) -> adwi_compile::build::ServedField + Send + Sync>,
-);
-
-impl std::fmt::Debug for ServedFieldRule {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("ServedFieldRule(..)")
-    }
-}
-
-/// The build options of `method` on the training samples `train`: `options.build`, with the
-/// served field of a served-tier method chosen from `train` when a rule is given.
-fn build_options_for(method: Method, train: &SampleSet, options: &EvalOptions) -> BuildOptions {
-    match (&options.served_field, method) {
-        (Some(rule), Method::PaperTrilinear | Method::HybridTrilinear) => BuildOptions {
-            served_field: (rule.0)(train),
-            ..options.build.clone()
-        },
-        _ => options.build.clone(),
-    }
 }
 
 /// Why an evaluation could not run at all (a method that cannot handle the data is not an
@@ -1102,7 +1046,11 @@ fn predict_split(
             ))
         }
         Method::Paper | Method::PaperTrilinear => {
-            let table = compile_table(method, train, &build_options_for(method, train, options))?;
+            let table = compile_table(
+                method,
+                train,
+                &options::build_options_for(method, train, options),
+            )?;
             let exact = method == Method::Paper;
             targets
                 .iter()
@@ -1156,7 +1104,7 @@ fn predict_split(
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
             let model = c.prepared_model();
-            let bytes = build::plan(train, &build_options_for(method, train, options))
+            let bytes = build::plan(train, &options::build_options_for(method, train, options))
                 .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
                 .map_err(|source| EvalError::Build { method, source })?
                 .bytes;
