@@ -37,13 +37,13 @@ pub struct EvalOptions {
     pub served_field: Option<ServedFieldRule>,
 }
 
-/// A served field chosen from a split's training samples (their calibration, for a hybrid
-/// table): what [`EvalOptions::served_field`] holds. A rule, not a fixed field, so that no
+/// A served field chosen from a split's training samples, for a hybrid table (`true`: by
+/// its residuals) or a position-only one: what [`EvalOptions::served_field`] holds. A rule, not a fixed field, so that no
 /// held-out point ever takes part in the choice.
 #[derive(Clone)]
 pub struct ServedFieldRule(
     #[allow(clippy::type_complexity)]
-    pub  std::sync::Arc<dyn Fn(&SampleSet) -> adwi_compile::build::ServedField + Send + Sync>,
+    pub  std::sync::Arc<dyn Fn(&SampleSet, bool) -> adwi_compile::build::ServedField + Send + Sync>,
 );
 
 impl std::fmt::Debug for ServedFieldRule {
@@ -61,7 +61,7 @@ pub(crate) fn build_options_for(
 ) -> BuildOptions {
     match (&options.served_field, method) {
         (Some(rule), Method::PaperTrilinear | Method::HybridTrilinear) => BuildOptions {
-            served_field: (rule.0)(train),
+            served_field: (rule.0)(train, method == Method::HybridTrilinear),
             ..options.build.clone()
         },
         _ => options.build.clone(),

@@ -274,15 +274,19 @@ impl EvalJob {
                 let served_field =
                     (args.options.served_field == ServedFieldChoice::Auto).then(|| {
                         let (robot, build) = (robot.clone(), build.clone());
-                        ServedFieldRule(std::sync::Arc::new(move |train: &SampleSet| {
-                            crate::tune::auto_served_field(
-                                train,
-                                robot.as_ref(),
-                                &build,
-                                &calibrate,
-                            )
-                            .map_or(ServedField::Method, |auto| auto.choice.field())
-                        }))
+                        ServedFieldRule(std::sync::Arc::new(
+                            move |train: &SampleSet, hybrid: bool| {
+                                // A position-only table's field is chosen as a build
+                                // without a robot chooses it: for paper-trilinear.
+                                crate::tune::auto_served_field(
+                                    train,
+                                    robot.as_ref().filter(|_| hybrid),
+                                    &build,
+                                    &calibrate,
+                                )
+                                .map_or(ServedField::Method, |auto| auto.choice.field())
+                            },
+                        ))
                     });
                 let options = EvalOptions {
                     methods: args.methods.clone(),
