@@ -440,6 +440,8 @@ fn hybrid_build_reports_the_calibration_and_warns_about_unidentifiable_parameter
             "--hybrid",
             "--cell",
             "50",
+            "--served-field",
+            "method",
         ],
         &repo(),
     );

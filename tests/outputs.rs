@@ -23,7 +23,18 @@ fn workspace() -> tempfile::TempDir {
     )
     .unwrap();
     std::fs::copy(repo("tables/kr150-2/robot.toml"), dir.path().join("r.toml")).unwrap();
-    let o = tablec(&["build", "-q", "s.csv", "-o", "t.tbl"], dir.path());
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "s.csv",
+            "--served-field",
+            "method",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     for name in ["old.csv", "old.json", "old.toml", "old.urdf"] {
         std::fs::write(dir.path().join(name), format!("old {name}\n")).unwrap();
@@ -100,6 +111,8 @@ fn a_write_cut_short_leaves_every_old_file_intact() {
         ],
         &[
             "eval",
+            "--served-field",
+            "method",
             "s.csv",
             "--validation",
             "v.csv",
@@ -109,6 +122,8 @@ fn a_write_cut_short_leaves_every_old_file_intact() {
         ],
         &[
             "eval",
+            "--served-field",
+            "method",
             "s.csv",
             "--validation",
             "v.csv",
@@ -145,6 +160,8 @@ fn outputs_are_checked_before_the_work_and_written_all_or_none() {
     let o = tablec(
         &[
             "eval",
+            "--served-field",
+            "method",
             "s.csv",
             "--validation",
             "v.csv",
@@ -219,7 +236,17 @@ fn only_regular_files_are_replaced() {
         for args in [
             vec!["build", "-q", "s.csv", "-o", output],
             vec!["calibrate", "s.csv", "--robot", "r.toml", "-o", output],
-            vec!["eval", "s.csv", "--folds", "2", "-q", "--csv", output],
+            vec![
+                "eval",
+                "--served-field",
+                "method",
+                "s.csv",
+                "--folds",
+                "2",
+                "-q",
+                "--csv",
+                output,
+            ],
         ] {
             let o = tablec(&args, dir.path());
             assert_eq!(o.status.code(), Some(1), "{args:?}");
@@ -236,7 +263,17 @@ fn only_regular_files_are_replaced() {
 
     std::os::unix::fs::symlink("old.csv", dir.path().join("link.csv")).unwrap();
     let o = tablec(
-        &["eval", "s.csv", "--folds", "2", "-q", "--csv", "link.csv"],
+        &[
+            "eval",
+            "--served-field",
+            "method",
+            "s.csv",
+            "--folds",
+            "2",
+            "-q",
+            "--csv",
+            "link.csv",
+        ],
         dir.path(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -326,6 +363,8 @@ fn the_urdf_a_robot_file_names_is_an_input() {
         ],
         &[
             "eval",
+            "--served-field",
+            "method",
             "s.csv",
             "--folds",
             "2",
