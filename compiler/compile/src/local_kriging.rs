@@ -7,7 +7,7 @@
 //!
 //! - **Hyperparameters from a subsample.** The length scale (mm), the vertical scale, the
 //!   nugget relative to the sill and the turning weight are properties of the field and of
-//!   the noise, not of the sample count: the likelihood of [`SUBSAMPLE`] samples, evenly
+//!   the noise, not of the sample count: the likelihood of [`SEARCH_SUBSAMPLE`] samples, evenly
 //!   strided through the file's order, chooses them as well as that of all (a stride of a
 //!   tracker's path is a sparser path over the same volume). The subsample depends on the
 //!   data alone, so the build stays byte-identical.
