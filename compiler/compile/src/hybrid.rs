@@ -27,7 +27,7 @@
 
 use adwi_runtime::model::PreparedModel;
 
-use crate::build::{self, BuildError, BuildReport, Plan};
+use crate::build::{self, BuildError, BuildReport, Plan, ServedNodes};
 use adwi_samples::SampleSet;
 
 /// The samples with their errors replaced by the residuals `model` leaves: measured error
@@ -85,12 +85,28 @@ pub fn compile(
     plan: &Plan,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
+    compile_serving(samples, model, plan, ServedNodes::All, progress)
+}
+
+/// [`compile`] computing only the served tier's `nodes`.
+///
+/// # Errors
+///
+/// As [`compile`].
+pub fn compile_serving(
+    samples: &SampleSet,
+    model: &PreparedModel,
+    plan: &Plan,
+    nodes: ServedNodes<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<HybridBuild, BuildError> {
     let residual = residual_samples(samples, model)?;
-    let (bytes, report) = build::compile_plan(
+    let (bytes, report) = build::compile_plan_serving(
         &residual,
         plan,
         Some(model),
         samples.source_hash(),
+        nodes,
         progress,
     )?;
     let sum: f64 = residual

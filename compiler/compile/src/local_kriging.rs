@@ -7,7 +7,7 @@
 //!
 //! - **Hyperparameters from a subsample.** The length scale (mm), the vertical scale, the
 //!   nugget relative to the sill and the turning weight are properties of the field and of
-//!   the noise, not of the sample count: the likelihood of [`SUBSAMPLE`] samples, evenly
+//!   the noise, not of the sample count: the likelihood of [`SEARCH_SUBSAMPLE`] samples, evenly
 //!   strided through the file's order, chooses them as well as that of all (a stride of a
 //!   tracker's path is a sparser path over the same volume). The subsample depends on the
 //!   data alone, so the build stays byte-identical.
@@ -207,9 +207,10 @@ impl KrigingField {
 
     /// The terms `[f, h_x, h_y, h_z]` per component ([`ResidualGp::predict_terms`]) at the
     /// nodes of a lattice `dims` nodes wide (x fastest, node `i + dims[0] (j + dims[1] k)`
-    /// at `position([i, j, k])`, `cell_mm` apart), for every node `wanted`, passed through
-    /// `map`; `None` for the others. Dense: each node on its own; local: by blocks (module
-    /// docs).
+    /// at `position([i, j, k])`, `cell_mm` apart), for every node `wanted` and `computed`,
+    /// passed through `map`; `None` for the others. Dense: each node on its own; local: by
+    /// blocks (module docs) of the nodes `wanted`, so that a node's terms do not depend on
+    /// which others are `computed`.
     ///
     /// # Errors
     ///
@@ -221,6 +222,7 @@ impl KrigingField {
         cell_mm: f64,
         position: &(dyn Fn([usize; 3]) -> [f64; 3] + Sync),
         wanted: &(dyn Fn(usize) -> bool + Sync),
+        computed: &(dyn Fn(usize) -> bool + Sync),
         map: &(dyn Fn(&[[f64; 4]]) -> T + Sync),
     ) -> Result<Vec<Option<T>>, GpError> {
         let [nx, ny, nz] = dims;
@@ -231,7 +233,7 @@ impl KrigingField {
                 return (0..nodes)
                     .into_par_iter()
                     .map(|node| {
-                        if !wanted(node) {
+                        if !(wanted(node) && computed(node)) {
                             return Ok(None);
                         }
                         let terms = fit
@@ -264,11 +266,14 @@ impl KrigingField {
                         }
                     }
                 }
-                if members.is_empty() {
+                if !members.iter().any(|m| computed(m.0)) {
                     return Ok(Vec::new());
                 }
                 let points: Vec<[f64; 3]> = members.iter().map(|m| m.1).collect();
-                let terms = fit.block_terms(&points)?;
+                let centre = bounding_centre(&points)?;
+                members.retain(|m| computed(m.0));
+                let points: Vec<[f64; 3]> = members.iter().map(|m| m.1).collect();
+                let terms = fit.block_terms(centre, &points)?;
                 let width = fit.choices.len();
                 Ok(members
                     .iter()
@@ -384,22 +389,10 @@ impl LocalGp {
 
     /// The terms of every component at each of `points` (point after point, component
     /// after component), from one local system per distinct choice on the samples nearest
-    /// the centre of the points' bounding box.
-    fn block_terms(&self, points: &[[f64; 3]]) -> Result<Vec<[f64; 4]>, GpError> {
-        if points.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(GpError::Malformed("a node position is not finite"));
-        }
+    /// `centre` (the centre of the block's bounding box, [`bounding_centre`]).
+    fn block_terms(&self, centre: [f64; 3], points: &[[f64; 3]]) -> Result<Vec<[f64; 4]>, GpError> {
         let width = self.choices.len();
-        let (lo, hi) = points.iter().fold(
-            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
-            |(lo, hi), p| {
-                (
-                    [0, 1, 2].map(|a| lo[a].min(p[a])),
-                    [0, 1, 2].map(|a| hi[a].max(p[a])),
-                )
-            },
-        );
-        let near = self.nearest([0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])));
+        let near = self.nearest(centre);
         let k = near.len();
         let local: Vec<&[f64]> = near.iter().map(|&i| &self.inputs[i][..]).collect();
         let local_axes: Option<Vec<[f64; 3]>> = self
@@ -471,6 +464,23 @@ impl LocalGp {
     }
 }
 
+/// The centre of `points`' bounding box; [`GpError::Malformed`] for a point not finite.
+fn bounding_centre(points: &[[f64; 3]]) -> Result<[f64; 3], GpError> {
+    if points.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(GpError::Malformed("a node position is not finite"));
+    }
+    let (lo, hi) = points.iter().fold(
+        ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                [0, 1, 2].map(|a| lo[a].min(p[a])),
+                [0, 1, 2].map(|a| hi[a].max(p[a])),
+            )
+        },
+    );
+    Ok([0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -511,7 +521,9 @@ mod tests {
     fn lattice(field: &KrigingField, width: usize) -> Vec<[f64; 4]> {
         let position = |[i, j, k]: [usize; 3]| [i, j, k].map(|v| 50.0 * v as f64);
         field
-            .lattice_terms([21; 3], 50.0, &position, &|_| true, &|t| t.to_vec())
+            .lattice_terms([21; 3], 50.0, &position, &|_| true, &|_| true, &|t| {
+                t.to_vec()
+            })
             .unwrap()
             .into_iter()
             .flat_map(|t| {
@@ -638,6 +650,38 @@ mod tests {
     }
 
     #[test]
+    fn nodes_computed_alone_hold_what_they_hold_among_all() {
+        // A block's system does not depend on which of its nodes are computed.
+        let (inputs, axes, values) = case(1500, 4);
+        let settings = LocalSettings {
+            subsample: 200,
+            search: 200,
+            neighbours: NEIGHBOURS,
+        };
+        let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
+        let position = |[i, j, k]: [usize; 3]| [i, j, k].map(|v| 50.0 * v as f64);
+        let wanted = |n: usize| n % 5 != 0;
+        let terms = |computed: &(dyn Fn(usize) -> bool + Sync)| {
+            fit.lattice_terms([21; 3], 50.0, &position, &wanted, computed, &|t| {
+                t.iter()
+                    .flatten()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<u64>>()
+            })
+            .unwrap()
+        };
+        let (all, some) = (terms(&|_| true), terms(&|n| n % 7 == 3));
+        for (n, (a, s)) in all.iter().zip(&some).enumerate() {
+            assert_eq!(a.is_some(), wanted(n));
+            if n % 7 == 3 {
+                assert_eq!(a, s, "node {n}");
+            } else {
+                assert!(s.is_none());
+            }
+        }
+    }
+
+    #[test]
     fn up_to_the_subsample_the_fit_is_the_dense_one() {
         let (inputs, axes, values) = case(150, 3);
         let settings = LocalSettings {
@@ -673,7 +717,14 @@ mod tests {
         let fit = KrigingField::fit(&inputs, None, &values, settings).unwrap();
         let position = |[i, j, k]: [usize; 3]| [5.0 * i as f64, 5.0 * j as f64, k as f64];
         let terms = fit
-            .lattice_terms([21, 10, 2], 5.0, &position, &|n| n % 3 != 0, &|t| t[0][0])
+            .lattice_terms(
+                [21, 10, 2],
+                5.0,
+                &position,
+                &|n| n % 3 != 0,
+                &|_| true,
+                &|t| t[0][0],
+            )
             .unwrap();
         assert!(terms
             .iter()
@@ -693,7 +744,8 @@ mod tests {
         ));
         let position = |_: [usize; 3]| [f64::NAN; 3];
         assert!(matches!(
-            fit.lattice_terms([2, 2, 2], 5.0, &position, &|_| true, &|t| t[0][0]),
+            fit.lattice_terms([2, 2, 2], 5.0, &position, &|_| true, &|_| true, &|t| t[0]
+                [0]),
             Err(GpError::Malformed(_))
         ));
     }

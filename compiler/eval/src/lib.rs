@@ -56,7 +56,7 @@ use std::str::FromStr;
 use adwi_runtime::{Residual, Status, Table, Target, Tier};
 
 use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, ResidualStats};
-use adwi_compile::build::{self, BuildError, BuildOptions};
+use adwi_compile::build::{self, BuildError, BuildOptions, ServedNodes};
 use adwi_robot::calibrate::{self, CalibrateError, Calibration, Parameter};
 use adwi_samples::SampleSet;
 
@@ -1039,6 +1039,13 @@ fn predict_split(
     fn joints_rad(set: &SampleSet, i: usize) -> &[f64] {
         set.joints_rad(i).expect("checked by choose_methods")
     }
+    // A table is queried at the targets alone: its served tier needs only the nodes that
+    // serve them, and an exact tier's none.
+    let positions: Vec<[f64; 3]> = targets.iter().map(|t| t.position_mm).collect();
+    let nodes = match method {
+        Method::PaperTrilinear | Method::HybridTrilinear => ServedNodes::Serving(&positions),
+        _ => ServedNodes::Serving(&[]),
+    };
     let outcome = match method {
         Method::Table => {
             return Ok(SplitOutcome::Unsupported(
@@ -1050,6 +1057,7 @@ fn predict_split(
                 method,
                 train,
                 &options::build_options_for(method, train, options),
+                nodes,
             )?;
             let exact = method == Method::Paper;
             targets
@@ -1105,7 +1113,9 @@ fn predict_split(
             // queried with the point's joint angles, as a controller would.
             let model = c.prepared_model();
             let bytes = build::plan(train, &options::build_options_for(method, train, options))
-                .and_then(|plan| adwi_compile::hybrid::compile(train, &model, &plan, &|_| {}))
+                .and_then(|plan| {
+                    adwi_compile::hybrid::compile_serving(train, &model, &plan, nodes, &|_| {})
+                })
                 .map_err(|source| EvalError::Build { method, source })?
                 .bytes;
             let table = Table::from_vec(bytes).map_err(|e| EvalError::Open {
@@ -1124,14 +1134,15 @@ fn predict_split(
     Ok(SplitOutcome::Predicted(outcome))
 }
 
-/// Compiles samples into a table and opens it from its bytes, as `tablec build` then
-/// `tablec query` would.
+/// Compiles samples into a table (its served tier's `nodes`) and opens it from its bytes,
+/// as `tablec build` then `tablec query` would.
 fn compile_table(
     method: Method,
     samples: &SampleSet,
     options: &BuildOptions,
+    nodes: ServedNodes<'_>,
 ) -> Result<Table<adwi_runtime::AlignedBytes>, EvalError> {
-    let (bytes, _) = build::compile(samples, options, &|_| {})
+    let (bytes, _) = build::compile_serving(samples, options, nodes, &|_| {})
         .map_err(|source| EvalError::Build { method, source })?;
     Table::from_vec(bytes).map_err(|e| EvalError::Open {
         method,

@@ -10,8 +10,8 @@ use adwi_runtime::method;
 use adwi_runtime::model::PreparedModel;
 
 use super::candidates::candidate_lists;
-use super::nodes::{NodeField, NodeValues};
-use super::{BuildError, BuildReport, Plan, ServedField};
+use super::nodes::{serving_nodes, NodeField, NodeValues};
+use super::{BuildError, BuildReport, Plan, ServedField, ServedNodes};
 use adwi_samples::SampleSet;
 
 /// Compiles `samples` into table bytes as `plan` (from [`super::plan()`] over the same samples, or
@@ -27,6 +27,29 @@ pub fn compile_plan(
     plan: &Plan,
     model: Option<&PreparedModel>,
     source_hash: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    compile_plan_serving(
+        samples,
+        plan,
+        model,
+        source_hash,
+        ServedNodes::All,
+        progress,
+    )
+}
+
+/// [`compile_plan`] computing only the served tier's `nodes`.
+///
+/// # Errors
+///
+/// As [`compile_plan`].
+pub fn compile_plan_serving(
+    samples: &SampleSet,
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+    source_hash: u64,
+    nodes: ServedNodes<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let Plan { params, grid, .. } = *plan;
@@ -106,7 +129,19 @@ pub fn compile_plan(
     // (none with a joint screen: its admissible samples depend on the joint values).
     if !joint_screen {
         let field = NodeField::new(plan.served_field, plan.kriging_choices, samples, model)?;
-        let served = NodeValues::compute(&records, &params, &grid, &lists, samples, &field)?;
+        let computed = match nodes {
+            ServedNodes::All => None,
+            ServedNodes::Serving(positions) => Some(serving_nodes(&grid, positions)),
+        };
+        let served = NodeValues::compute(
+            &records,
+            &params,
+            &grid,
+            &lists,
+            samples,
+            &field,
+            computed.as_deref(),
+        )?;
         report.node_sets = served.sets.len();
         report.served_cells = served.served_cells(&grid);
         report.served_kriging = served.kriging_choices;

@@ -55,7 +55,19 @@ pub use adwi_runtime::format::{ServedField, Tuning};
 use adwi_runtime::method::MethodParams;
 
 pub use candidates::{BOX_MARGIN_MM, DISTANCE_SLACK_MM};
-pub use encode::compile_plan;
+pub use encode::{compile_plan, compile_plan_serving};
+
+/// Which of the served tier's nodes a build computes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ServedNodes<'a> {
+    /// Every node: a table to serve any target.
+    All,
+    /// Only the corners of the cells the runtime blends for targets at these positions
+    /// (mm): the cell holding each, or the grid's cell nearest it outside the grid. The
+    /// other nodes are missing. A table queried at these positions alone (an evaluation's
+    /// held-out points) answers there as the full table does, for a fraction of the nodes.
+    Serving(&'a [[f64; 3]]),
+}
 
 /// The hyperparameters a kriging served field of `samples` would choose by likelihood, as
 /// a build with `--served-field kriging` chooses them (of a hybrid table's residuals when
@@ -245,8 +257,22 @@ pub fn compile(
     options: &BuildOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    compile_serving(samples, options, ServedNodes::All, progress)
+}
+
+/// [`compile`] computing only the served tier's `nodes`.
+///
+/// # Errors
+///
+/// As [`compile`].
+pub fn compile_serving(
+    samples: &SampleSet,
+    options: &BuildOptions,
+    nodes: ServedNodes<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let plan = plan(samples, options)?;
-    compile_plan(samples, &plan, None, samples.source_hash(), progress)
+    compile_plan_serving(samples, &plan, None, samples.source_hash(), nodes, progress)
 }
 
 /// Samples and a build shortcut shared by the unit tests of the build's modules.

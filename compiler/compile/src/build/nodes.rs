@@ -129,7 +129,9 @@ impl NodeValues {
     /// Evaluates every node for targets of unknown configuration, then for each
     /// configuration the samples carry (a set equal to an earlier one shares its nodes):
     /// the method's answer where it has one, or the kriging `field` asks for at every
-    /// corner of a cell where the exact tier can answer.
+    /// corner of a cell where the exact tier can answer. With `computed` (a flag per node
+    /// of a set, [`serving_nodes`]), the nodes it leaves out are missing; the others hold
+    /// what they hold in the full set, to the bit.
     pub(super) fn compute(
         records: &[SampleRecord],
         params: &MethodParams,
@@ -137,6 +139,7 @@ impl NodeValues {
         lists: &[Vec<u32>],
         samples: &SampleSet,
         field: &NodeField,
+        computed: Option<&[bool]>,
     ) -> Result<NodeValues, BuildError> {
         let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
         configs.sort_unstable();
@@ -161,6 +164,7 @@ impl NodeValues {
             orientation_rad: Vec::new(),
         };
         let missing = [[v2::NO_NODE_VALUE; 3]; 4];
+        let computed = |node: usize| computed.is_none_or(|c| c[node]);
         // Kriging fits, by the samples they were fitted to (one per distinct subset).
         let mut fits: Vec<(Vec<usize>, NodeKriging)> = Vec::new();
         let wanted = std::iter::once(None).chain(configs.into_iter().map(Some));
@@ -173,6 +177,9 @@ impl NodeValues {
                 NodeField::Method => (0..per_set)
                     .into_par_iter()
                     .map(|node| {
+                        if !computed(node) {
+                            return (missing, missing);
+                        }
                         let (p, r) =
                             node_value(records, params, grid, lists, node_position(node).0, config);
                         if adwi_runtime::served::is_missing(&p) {
@@ -222,6 +229,7 @@ impl NodeValues {
                             grid.cell_mm,
                             &|ijk| grid_node_mm(grid, ijk),
                             &reached,
+                            &computed,
                             &|terms| kriging.node_terms(terms),
                         )
                         .map_err(BuildError::Kriging)?
@@ -344,6 +352,28 @@ impl NodeKriging {
         };
         (vectors(0), rotation)
     }
+}
+
+/// Per node of a set (x fastest over `dims + 1` per axis), whether it is a corner of the
+/// cell the runtime blends for a target at one of `positions`, mm: the cell of the grid
+/// box's point nearest the target (`adwi_runtime::served`; the target's own cell inside
+/// the box), found by the same arithmetic. Non-finite positions need none.
+pub(super) fn serving_nodes(grid: &Grid, positions: &[[f64; 3]]) -> Vec<bool> {
+    let [nx, ny, nz] = grid.dims.map(|d| d as usize + 1);
+    let mut out = vec![false; nx * ny * nz];
+    for p in positions.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
+        let mut cell = [0usize; 3];
+        for axis in 0..3 {
+            let u = (p[axis] - grid.origin_mm[axis]) / grid.cell_mm;
+            let cells = grid.dims[axis] as usize;
+            cell[axis] = (u.clamp(0.0, cells as f64) as usize).min(cells.saturating_sub(1));
+        }
+        for corner in 0..8 {
+            let [i, j, k] = [0, 1, 2].map(|a| cell[a] + (corner >> a & 1));
+            out[i + nx * (j + ny * k)] = true;
+        }
+    }
+    out
 }
 
 /// The cells (linear indices) node `ijk` is a corner of: up to 8, fewer on the grid's faces.
@@ -517,6 +547,161 @@ mod tests {
             served < grid.cell_count().unwrap(),
             "no cell is left unserved"
         );
+    }
+
+    /// Whether two answers are the same to the bit.
+    fn same_answer(a: &adwi_runtime::Correction, b: &adwi_runtime::Correction) -> bool {
+        a.status == b.status
+            && same_bits(&a.position_error_mm, &b.position_error_mm)
+            && same_bits(&a.orientation_error_rad, &b.orientation_error_rad)
+            && a.residual == b.residual
+    }
+
+    #[test]
+    fn a_table_serving_some_positions_answers_there_as_the_full_table() {
+        use crate::build::{compile_serving, ServedNodes};
+        use adwi_runtime::{Status, Table};
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let s = noisy_lattice();
+        // Inside the grid, on a node, outside it, and not finite.
+        let mut positions: Vec<[f64; 3]> = (0..40)
+            .map(|_| [0, 1, 2].map(|_| rng.gen_range(700.0..1700.0)))
+            .collect();
+        positions.extend([[1200.0, 1300.0, 1000.0], [f64::NAN, 0.0, 0.0]]);
+        for served_field in [ServedField::Method, ServedField::Kriging] {
+            let options = BuildOptions {
+                served_field,
+                ..BuildOptions::default()
+            };
+            let table = |nodes| {
+                Table::from_vec(compile_serving(&s, &options, nodes, &|_| {}).unwrap().0).unwrap()
+            };
+            let (full, some) = (
+                table(ServedNodes::All),
+                table(ServedNodes::Serving(&positions)),
+            );
+            let mut answered = 0;
+            for p in &positions {
+                let (a, b) = (full.query(*p), some.query(*p));
+                assert!(
+                    same_answer(&a, &b),
+                    "{served_field:?} at {p:?}: {a:?} vs {b:?}"
+                );
+                answered += usize::from(a.status == Status::Ok);
+            }
+            assert!(answered > 10, "{answered} answered");
+            // Elsewhere, the partial table serves less.
+            let unserved = (0..200)
+                .map(|_| [0, 1, 2].map(|_| rng.gen_range(1000.0..1400.0)))
+                .filter(|p| some.query(*p).status != full.query(*p).status)
+                .count();
+            assert!(
+                unserved > 0,
+                "{served_field:?}: the partial table serves everywhere"
+            );
+        }
+    }
+
+    #[test]
+    fn a_hybrid_table_serving_some_targets_answers_them_as_the_full_table() {
+        // Targets beyond the grid box too, where the residual fades out from the nearest
+        // cell of the grid.
+        use crate::build::{plan, ServedNodes};
+        use adwi_runtime::chain::Chain;
+        use adwi_runtime::kinematics::{MdhJoint, Transform};
+        use adwi_runtime::{Table, Target};
+        use rand::{Rng, SeedableRng};
+        use std::f64::consts::FRAC_PI_2;
+        let joint = |a_mm, d_mm, alpha_rad| MdhJoint {
+            a_mm,
+            d_mm,
+            alpha_rad,
+            ..MdhJoint::default()
+        };
+        let joints = [
+            joint(0.0, 400.0, 0.0),
+            joint(50.0, 0.0, -FRAC_PI_2),
+            joint(500.0, 0.0, 0.0),
+            joint(50.0, 450.0, -FRAC_PI_2),
+            joint(0.0, 0.0, FRAC_PI_2),
+            joint(0.0, 100.0, -FRAC_PI_2),
+        ];
+        let nominal =
+            Chain::from_mdh(Transform::IDENTITY, &joints, Transform::IDENTITY, None).unwrap();
+        let shifted = Transform {
+            translation_mm: [0.3, -0.2, 0.1],
+            ..Transform::IDENTITY
+        };
+        let calibrated = Chain::from_mdh(shifted, &joints, Transform::IDENTITY, None).unwrap();
+        let model = PreparedModel::new(nominal, calibrated).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        let mut pose = || -> (Vec<f64>, [f64; 3]) {
+            let q: Vec<f64> = (0..6).map(|_| rng.gen_range(-0.6..0.6)).collect();
+            let at = model.at(&q).unwrap().nominal_tcp_mm;
+            (q, at)
+        };
+        let mut csv = String::from("x,y,z,dx,dy,dz,j1,j2,j3,j4,j5,j6\n");
+        for _ in 0..150 {
+            let (q, p) = pose();
+            let e = [0, 1, 2].map(|a| 0.3 + 0.2 * (p[a] / 200.0).sin() + 0.01 * q[a]);
+            let q: Vec<String> = q.iter().map(f64::to_string).collect();
+            csv += &format!(
+                "{},{},{},{},{},{},{}\n",
+                p[0],
+                p[1],
+                p[2],
+                e[0],
+                e[1],
+                e[2],
+                q.join(",")
+            );
+        }
+        let s = adwi_samples::parse_samples(
+            "s.csv".as_ref(),
+            csv.as_bytes(),
+            &adwi_samples::ColumnMap::default(),
+        )
+        .unwrap();
+        let targets: Vec<(Vec<f64>, [f64; 3])> = (0..60).map(|_| pose()).collect();
+        let positions: Vec<[f64; 3]> = targets.iter().map(|t| t.1).collect();
+        // The grid box a fifth narrower than the samples' on every side.
+        let (lo, hi) = s.nominal_bounds_mm().unwrap();
+        let inset = [0, 1, 2].map(|a| 0.2 * (hi[a] - lo[a]));
+        let bounds = (
+            [0, 1, 2].map(|a| lo[a] + inset[a]),
+            [0, 1, 2].map(|a| hi[a] - inset[a]),
+        );
+        for served_field in [ServedField::Method, ServedField::Kriging] {
+            let options = BuildOptions {
+                served_field,
+                bounds_mm: Some(bounds),
+                ..BuildOptions::default()
+            };
+            let plan = plan(&s, &options).unwrap();
+            let table = |nodes| {
+                let built = crate::hybrid::compile_serving(&s, &model, &plan, nodes, &|_| {});
+                Table::from_vec(built.unwrap().bytes).unwrap()
+            };
+            let (full, some) = (
+                table(ServedNodes::All),
+                table(ServedNodes::Serving(&positions)),
+            );
+            let mut faded = 0;
+            for (q, p) in &targets {
+                let target = Target::at(*p);
+                let (a, b) = (
+                    full.query_with_joints(&target, q),
+                    some.query_with_joints(&target, q),
+                );
+                assert!(
+                    same_answer(&a, &b),
+                    "{served_field:?} at {p:?}: {a:?} vs {b:?}"
+                );
+                faded += usize::from(a.residual == adwi_runtime::Residual::Faded);
+            }
+            assert!(faded > 0, "{served_field:?}: no target beyond the grid box");
+        }
     }
 
     #[test]

@@ -145,10 +145,14 @@ impl Problem {
         }
 
         // Levenberg–Marquardt in the scaled, kept coordinates: solve
-        // [J; √μ·I] δ = [r; 0] by SVD, accept the step if the cost falls.
+        // [J; √μ·I] δ = [r; 0] by SVD, accept the step if the cost falls. With the thin
+        // QR factorisation J = Q R, made once per iteration, that is the small system
+        // [R; √μ·I] δ = [Qᵀr; 0] (the rows Q leaves out are orthogonal to every step),
+        // so that each μ tried costs an SVD of 2p × p rather than of every sample's rows.
         let reduced = |jac: &DMatrix<f64>| {
             DMatrix::from_fn(rows, kept.len(), |i, k| jac[(i, kept[k])] * scales[kept[k]])
         };
+        let n = kept.len();
         let mut x = start;
         let mut state = self.model.state(&x)?;
         let (mut r, mut jac) = self.linearise(&x, &state, true);
@@ -158,20 +162,10 @@ impl Problem {
         let mut converged = false;
         while iterations < options.max_iterations {
             iterations += 1;
-            let jk = reduced(&jac);
+            let (factor, projected) = thin_qr(reduced(&jac), &r);
             let mut accepted = false;
             for _ in 0..30 {
-                let mut augmented = DMatrix::zeros(rows + kept.len(), kept.len());
-                augmented.rows_mut(0, rows).copy_from(&jk);
-                for k in 0..kept.len() {
-                    augmented[(rows + k, k)] = mu.sqrt();
-                }
-                let mut rhs = DVector::zeros(rows + kept.len());
-                rhs.rows_mut(0, rows).copy_from(&r);
-                let step = augmented
-                    .svd(true, true)
-                    .solve(&rhs, 0.0)
-                    .expect("SVD with both factors computed");
+                let step = damped_step(&factor, &projected, mu);
                 let mut dx = DVector::zeros(p);
                 for (k, &c) in kept.iter().enumerate() {
                     dx[c] = step[k] * scales[c];
@@ -211,14 +205,14 @@ impl Problem {
             }
         }
 
-        let jk = reduced(&jac);
-        let svd = jk.svd(false, true);
+        // J and its R factor have the same singular values and right singular vectors.
+        let (factor, _) = thin_qr(reduced(&jac), &r);
+        let svd = factor.svd(false, true);
         let singular = &svd.singular_values;
         let condition_number = singular.max() / singular.min();
         let residual_sigma_mm = (r.norm_squared() / (rows - kept.len()) as f64).sqrt();
         // σ² (JᵀJ)⁻¹ of the unscaled parameters: with J_s = J·S = U Σ Vᵀ,
         // (JᵀJ)⁻¹ = S V Σ⁻² Vᵀ S.
-        let n = kept.len();
         let mut covariance = DMatrix::zeros(n, n);
         if let Some(v_t) = &svd.v_t {
             for k in 0..n {
@@ -246,6 +240,33 @@ impl Problem {
             converged,
         })
     }
+}
+
+/// The thin QR factorisation `J = Q R` of a tall `J` (Householder): `R` (square, of `J`'s
+/// column count) and `Qᵀ r`.
+fn thin_qr(jacobian: DMatrix<f64>, r: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+    let n = jacobian.ncols();
+    let qr = jacobian.qr();
+    let mut projected = r.clone();
+    qr.q_tr_mul(&mut projected);
+    (qr.r(), projected.rows(0, n).into_owned())
+}
+
+/// The Levenberg–Marquardt step `δ` minimising `|R δ − Qᵀr|² + μ |δ|²` ([`thin_qr`]'s
+/// factors), by SVD of `[R; √μ·I]`.
+fn damped_step(factor: &DMatrix<f64>, projected: &DVector<f64>, mu: f64) -> DVector<f64> {
+    let n = factor.ncols();
+    let mut augmented = DMatrix::zeros(2 * n, n);
+    augmented.rows_mut(0, n).copy_from(factor);
+    for k in 0..n {
+        augmented[(n + k, k)] = mu.sqrt();
+    }
+    let mut rhs = DVector::zeros(2 * n);
+    rhs.rows_mut(0, n).copy_from(projected);
+    augmented
+        .svd(true, true)
+        .solve(&rhs, 0.0)
+        .expect("SVD with both factors computed")
 }
 
 /// QR with column pivoting by modified Gram–Schmidt: returns the kept columns in pivot
@@ -298,4 +319,52 @@ pub(super) fn pivot_columns(
         .collect();
     dropped.sort_by_key(|&(c, _)| c);
     (kept, dropped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn the_damped_step_from_the_r_factor_is_that_of_all_the_rows() {
+        // The reference: [J; √μ·I] δ = [r; 0] solved by SVD of every row, as written.
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for (rows, n) in [(40, 5), (300, 12), (1200, 30)] {
+            let mut j = DMatrix::from_fn(rows, n, |_, _| rng.gen_range(-1.0..1.0));
+            // Two columns nearly dependent, as far as the kept ones may be (pivot_columns
+            // drops those more so).
+            let apart = DVector::from_fn(rows, |_, _| rng.gen_range(-1e-3..1e-3));
+            let nearly = j.column(0) + apart;
+            j.set_column(2, &nearly);
+            let r = DVector::from_fn(rows, |_, _| rng.gen_range(-1.0..1.0));
+            let (factor, projected) = thin_qr(j.clone(), &r);
+            for mu in [1e-15f64, 1e-6, 1.0, 1e3] {
+                let mut augmented = DMatrix::zeros(rows + n, n);
+                augmented.rows_mut(0, rows).copy_from(&j);
+                for k in 0..n {
+                    augmented[(rows + k, k)] = mu.sqrt();
+                }
+                let mut rhs = DVector::zeros(rows + n);
+                rhs.rows_mut(0, rows).copy_from(&r);
+                let want = augmented.svd(true, true).solve(&rhs, 0.0).unwrap();
+                let got = damped_step(&factor, &projected, mu);
+                assert!(
+                    (&got - &want).norm() <= 1e-9 * want.norm(),
+                    "{rows}×{n}, μ {mu}: {} vs {}",
+                    got.norm(),
+                    want.norm()
+                );
+            }
+            let all = j.clone().svd(false, true);
+            let small = factor.svd(false, true);
+            for (a, b) in all.singular_values.iter().zip(small.singular_values.iter()) {
+                assert!(
+                    (a - b).abs() <= 1e-12 * all.singular_values.max(),
+                    "{a} vs {b}"
+                );
+            }
+        }
+    }
 }
