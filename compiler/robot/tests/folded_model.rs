@@ -61,9 +61,9 @@ fn calibrated(robot: &Robot, small: &[[f64; 6]]) -> Chain {
         })
         .collect();
     let compliance = robot.gravity_model().map(|mut c| {
-        for j in 0..n {
+        for (compliance, s) in c.compliance.iter_mut().zip(&small[..n]) {
             // µrad/(N·m) → rad/(kg·mm²/s²): 1 N·m = 1e6 kg·mm²/s².
-            c.compliance[j] = 20e-6 / 1e6 * (0.5 + 0.5 * small[j][1]);
+            *compliance = 20e-6 / 1e6 * (0.5 + 0.5 * s[1]);
         }
         c
     });
