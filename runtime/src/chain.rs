@@ -402,6 +402,9 @@ pub(crate) struct FoldedChain {
     len: usize,
     tool: Transform,
     gravity: Option<FoldedGravity>,
+    /// Whether every revolute joint's axis is a unit vector to 1e-13, so that its rotations
+    /// compose exactly ([`FoldedChain::loaded_tcp`]).
+    unit_axes: bool,
 }
 
 /// One joint of a [`FoldedChain`]: `O · M(q + o) = [fixed + cos q · cos_part + sin q ·
@@ -467,11 +470,16 @@ impl FoldedChain {
                 compliance: c.compliance,
             }
         });
+        let unit_axes = chain
+            .joints()
+            .iter()
+            .all(|j| j.kind == JointKind::Prismatic || within(dot(j.axis, j.axis), 1.0, 1e-13));
         FoldedChain {
             joints,
             len: chain.len,
             tool: chain.tool,
             gravity,
+            unit_axes,
         }
     }
 
@@ -491,69 +499,145 @@ impl FoldedChain {
 
     /// The TCP pose deflected by gravity when the chain models compliance:
     /// [`Chain::loaded_tcp_pose`], from the sines and cosines of `q` as
-    /// [`FoldedChain::tcp_pose`] takes them.
-    #[inline]
-    pub(crate) fn loaded_tcp_pose(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> Transform {
-        let Some(g) = &self.gravity else {
-            return self.tcp_pose(q, sin_cos);
-        };
-        let torques = self.gravity_torques(q, sin_cos, g);
-        let mut loaded = [0.0; MAX_JOINTS];
-        let mut loaded_sin_cos = [(0.0, 1.0); MAX_JOINTS];
-        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
-        for j in 0..n {
-            let delta = g.compliance[j] * torques[j];
-            loaded[j] = q[j] + delta;
-            // sin and cos of q + Δq by the addition formulas: Δq is a deflection, small.
-            let (s, c) = sin_cos[j];
-            let (sd, cd) = small_sin_cos(delta);
-            loaded_sin_cos[j] = (s * cd + c * sd, c * cd - s * sd);
+    /// [`FoldedChain::tcp_pose`] takes them. (Queries take [`FoldedChain::loaded_tcp`].)
+    #[cfg(test)]
+    fn loaded_tcp_pose(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> Transform {
+        let (translation_mm, rotation) = self.loaded_tcp(q, sin_cos, true);
+        Transform {
+            rotation: rotation.unwrap_or(Transform::IDENTITY.rotation),
+            translation_mm,
         }
-        self.tcp_pose(&loaded[..n], &loaded_sin_cos[..n])
     }
 
-    /// [`Chain::gravity_torques`] at `q`: one pass down the chain for the joints' positions
-    /// and axes and the links' centres of mass, then the moments from suffix sums,
-    /// `Σ_{k ≥ j} (p_k − a_j) × m_k g = (Σ_{k ≥ j} m_k p_k − M_j a_j) × g`.
+    /// [`FoldedChain::loaded_tcp_pose`]'s position, and its rotation when `rotation` (a
+    /// table without orientations never reads it).
+    ///
+    /// The torques need the chain's poses at `q`; from them the deflection follows without
+    /// a second pass down the chain. A joint turning by `Δ_j` more moves everything beyond
+    /// it by the rotation `W_j` about the joint's axis in the base frame, through its
+    /// position there, and `T(q + Δ) = W_1 · W_2 ⋯ W_n · T(q)`: this holds exactly for unit
+    /// axes (rotations about one axis compose), so a chain with an axis farther than 1e-13
+    /// from unit length takes the second pass instead.
     #[inline]
-    fn gravity_torques(
+    pub(crate) fn loaded_tcp(
         &self,
         q: &[f64],
         sin_cos: &[(f64, f64)],
-        g: &FoldedGravity,
-    ) -> [f64; MAX_JOINTS] {
+        rotation: bool,
+    ) -> ([f64; 3], Option<[[f64; 3]; 3]>) {
+        let Some(g) = &self.gravity else {
+            let pose = self.tcp_pose(q, sin_cos);
+            return (pose.translation_mm, rotation.then_some(pose.rotation));
+        };
         let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
-        let mut joint_at = [[0.0; 3]; MAX_JOINTS];
-        let mut axis = [[0.0; 3]; MAX_JOINTS];
+        let at_q = self.gravity_pass(q, sin_cos, g);
+        let delta = |j: usize| g.compliance[j] * at_q.torques[j];
+        if !self.unit_axes {
+            let mut loaded = [0.0; MAX_JOINTS];
+            let mut loaded_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+            for j in 0..n {
+                loaded[j] = q[j] + delta(j);
+                let (s, c) = sin_cos[j];
+                let (sd, cd, _) = small_sin_cos(delta(j));
+                loaded_sin_cos[j] = (s * cd + c * sd, c * cd - s * sd);
+            }
+            let pose = self.tcp_pose(&loaded[..n], &loaded_sin_cos[..n]);
+            return (pose.translation_mm, rotation.then_some(pose.rotation));
+        }
+        let mut position_mm = at_q.tcp.translation_mm;
+        // The rotation's columns, turned as directions.
+        let r = &at_q.tcp.rotation;
+        let mut columns = [0, 1, 2].map(|c| [r[0][c], r[1][c], r[2][c]]);
+        for j in (0..n).rev() {
+            let z = at_q.axes[j];
+            match self.joints[j].kind {
+                JointKind::Prismatic => {
+                    for (p, zc) in position_mm.iter_mut().zip(z) {
+                        *p += delta(j) * zc;
+                    }
+                }
+                JointKind::Revolute => {
+                    let (sd, _, versine) = small_sin_cos(delta(j));
+                    let arm = [0, 1, 2].map(|a| position_mm[a] - at_q.joints_mm[j][a]);
+                    position_mm = turned(position_mm, arm, z, sd, versine);
+                    if rotation {
+                        for column in &mut columns {
+                            *column = turned(*column, *column, z, sd, versine);
+                        }
+                    }
+                }
+            }
+        }
+        let rotation = rotation.then(|| [0, 1, 2].map(|i| columns.map(|c| c[i])));
+        (position_mm, rotation)
+    }
+
+    /// What the gravity torques need of the chain at `q`, and the torques
+    /// ([`Chain::gravity_torques`]): one pass down the chain for the joints' positions and
+    /// axes and the links' centres of mass, then the moments from suffix sums,
+    /// `Σ_{k ≥ j} (p_k − a_j) × m_k g = (Σ_{k ≥ j} m_k p_k − M_j a_j) × g`.
+    #[inline]
+    fn gravity_pass(&self, q: &[f64], sin_cos: &[(f64, f64)], g: &FoldedGravity) -> GravityPass {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let mut out = GravityPass {
+            joints_mm: [[0.0; 3]; MAX_JOINTS],
+            axes: [[0.0; 3]; MAX_JOINTS],
+            torques: [0.0; MAX_JOINTS],
+            tcp: Transform::IDENTITY,
+        };
         let mut weighted_com = [[0.0; 3]; MAX_JOINTS];
         let mut pose = Transform::IDENTITY;
         for j in 0..n {
             let joint = &self.joints[j];
-            joint_at[j] = pose.transform_point(joint.origin_mm);
-            axis[j] = pose.rotate_vector(joint.axis);
+            out.joints_mm[j] = pose.transform_point(joint.origin_mm);
+            out.axes[j] = pose.rotate_vector(joint.axis);
             let link = joint.at(q[j], sin_cos[j]);
             pose = if j == 0 { link } else { pose.compose(&link) };
             let com = pose.transform_point(g.link_com_mm[j]);
             weighted_com[j] = com.map(|v| v * g.link_mass_kg[j]);
         }
         let payload = pose.transform_point(g.payload_com_mm);
+        out.tcp = pose.compose(&self.tool);
         let mut moment_sum = payload.map(|v| v * g.payload_kg);
-        let mut torque = [0.0; MAX_JOINTS];
         for j in (0..n).rev() {
             for (s, w) in moment_sum.iter_mut().zip(weighted_com[j]) {
                 *s += w;
             }
             let about = match self.joints[j].kind {
                 JointKind::Revolute => {
-                    let arm = [0, 1, 2].map(|a| moment_sum[a] - g.carried_kg[j] * joint_at[j][a]);
+                    let arm =
+                        [0, 1, 2].map(|a| moment_sum[a] - g.carried_kg[j] * out.joints_mm[j][a]);
                     cross(arm, g.gravity_mm_s2)
                 }
                 JointKind::Prismatic => g.gravity_mm_s2.map(|v| v * g.carried_kg[j]),
             };
-            torque[j] = dot(about, axis[j]);
+            out.torques[j] = dot(about, out.axes[j]);
         }
-        torque
+        out
     }
+}
+
+/// A chain at joint values `q` as its gravity deflection needs it ([`FoldedChain::loaded_tcp`]),
+/// base frame.
+struct GravityPass {
+    /// Each joint's position and axis.
+    joints_mm: [[f64; 3]; MAX_JOINTS],
+    axes: [[f64; 3]; MAX_JOINTS],
+    /// The gravity torque about each joint.
+    torques: [f64; MAX_JOINTS],
+    /// The TCP's pose at `q`, undeflected.
+    tcp: Transform,
+}
+
+/// `point` turned by a small angle about the unit axis `z` through `point − arm`, given the
+/// angle's sine and versine (`1 − cos`): Rodrigues' formula written as the change it makes,
+/// `point + sin · z × arm + versine · ((z · arm) z − arm)`, so that rounding scales with the
+/// change rather than with the point.
+#[inline]
+fn turned(point: [f64; 3], arm: [f64; 3], z: [f64; 3], sin: f64, versine: f64) -> [f64; 3] {
+    let across = cross(z, arm);
+    let along = dot(z, arm);
+    [0, 1, 2].map(|a| point[a] + (sin * across[a] + versine * (along * z[a] - arm[a])))
 }
 
 impl FoldedJoint {
@@ -631,20 +715,27 @@ impl FoldedJoint {
     }
 }
 
-/// `(sin x, cos x)` for the small angle a gravity deflection is: their Taylor series to
-/// `x⁷` and `x⁸`, exact to rounding for `|x| ≤ 2⁻⁶` (the next terms are below `2⁻⁶⁰`
-/// relative); `f64::sin_cos` beyond.
+/// `(sin x, cos x, 1 − cos x)` for the small angle a gravity deflection is: Taylor series
+/// to `x⁷` and `x⁸`, exact to rounding for `|x| ≤ 2⁻⁶` (the next terms are below `2⁻⁶⁰`
+/// relative), the versine without the cancellation of `1 − cos x`; `f64::sin_cos` beyond.
 #[inline]
-fn small_sin_cos(x: f64) -> (f64, f64) {
+fn small_sin_cos(x: f64) -> (f64, f64, f64) {
     if x.abs() > 1.0 / 64.0 {
-        return x.sin_cos();
+        let (sin, cos) = x.sin_cos();
+        // 1 − cos = sin² / (1 + cos), without cancellation where cos is near 1.
+        let versine = if cos > 0.0 {
+            sin * sin / (1.0 + cos)
+        } else {
+            1.0 - cos
+        };
+        return (sin, cos, versine);
     }
     let x2 = x * x;
     let sin = x * (1.0 - x2 * (1.0 / 6.0) * (1.0 - x2 * (1.0 / 20.0) * (1.0 - x2 * (1.0 / 42.0))));
-    let cos = 1.0
-        - x2 * 0.5
-            * (1.0 - x2 * (1.0 / 12.0) * (1.0 - x2 * (1.0 / 30.0) * (1.0 - x2 * (1.0 / 56.0))));
-    (sin, cos)
+    let versine = x2
+        * 0.5
+        * (1.0 - x2 * (1.0 / 12.0) * (1.0 - x2 * (1.0 / 30.0) * (1.0 - x2 * (1.0 / 56.0))));
+    (sin, 1.0 - versine, versine)
 }
 
 #[inline]
@@ -823,12 +914,15 @@ mod tests {
             rotation in vec3(3.0),
             translation in vec3(600.0),
             axis in vec3(1.0),
+            // Axes as long as validation admits, which the deflection by rotations about
+            // them must notice (it holds for unit axes).
+            axis_length in prop_oneof![Just(1.0), 1.0 - 9e-10..1.0 + 9e-10],
             prismatic in proptest::bool::weighted(0.2),
             offset in -1.0..1.0f64,
         ) -> ChainJoint {
             ChainJoint {
                 origin: rigid(rotation, translation),
-                axis: unit(axis),
+                axis: unit(axis).map(|v| v * axis_length),
                 kind: if prismatic { JointKind::Prismatic } else { JointKind::Revolute },
                 offset: if prismatic { offset * 100.0 } else { offset },
             }
@@ -906,11 +1000,17 @@ mod tests {
     #[test]
     fn small_angles_have_their_sine_and_cosine() {
         for x in [0.0, 1e-300, 1e-9, -3e-5, 1e-3, 0.01, -1.0 / 64.0, 0.02, 1.5] {
-            let (s, c) = small_sin_cos(x);
+            let (s, c, v) = small_sin_cos(x);
             let (ws, wc) = x.sin_cos();
             assert!((s - ws).abs() <= 2.0 * f64::EPSILON * ws.abs(), "{x}");
             assert!((c - wc).abs() <= f64::EPSILON, "{x}");
+            // 1 − cos x = 2 sin²(x / 2), without cancellation.
+            let half = (x / 2.0).sin();
+            assert!(
+                (v - 2.0 * half * half).abs() <= 4.0 * f64::EPSILON * v,
+                "{x}"
+            );
         }
-        assert_eq!(small_sin_cos(0.0), (0.0, 1.0));
+        assert_eq!(small_sin_cos(0.0), (0.0, 1.0, 0.0));
     }
 }

@@ -173,15 +173,20 @@ impl PreparedModel {
         }
         let [nominal, calibrated] = &self.folded;
         let nominal = nominal.tcp_pose(q, &sin_cos[..n]);
-        let calibrated = calibrated.loaded_tcp_pose(q, &sin_cos[..n]);
-        let (position_mm, rotation_rad) = if rotation {
-            pose_error(&nominal, &calibrated)
-        } else {
-            let t = |p: &Transform, a: usize| p.translation_mm[a];
-            (
-                [0, 1, 2].map(|a| t(&calibrated, a) - t(&nominal, a)),
+        let (calibrated_mm, calibrated_rotation) =
+            calibrated.loaded_tcp(q, &sin_cos[..n], rotation);
+        let (position_mm, rotation_rad) = match calibrated_rotation {
+            Some(rotation) => pose_error(
+                &nominal,
+                &Transform {
+                    rotation,
+                    translation_mm: calibrated_mm,
+                },
+            ),
+            None => (
+                [0, 1, 2].map(|a| calibrated_mm[a] - nominal.translation_mm[a]),
                 [0.0; 3],
-            )
+            ),
         };
         Some(ModelAt {
             position_mm,
