@@ -29,9 +29,15 @@
 //! means close joint angles. Position-only tables may use the screen too, when built from
 //! samples with joint angles.
 //!
-//! This module evaluates the model part: everything here is allocation-free and panic-free,
-//! two forward kinematics (a few hundred flops) and a 3 × 3 logarithm on top of the ordinary
-//! query ([`crate::Table::query_with_joints`]).
+//! This module evaluates the model part: everything here is allocation-free and panic-free.
+//! A query's costs, on top of the ordinary query ([`crate::Table::query_with_joints`]): one
+//! `sin_cos` per joint, shared by both chains; one pass down each chain, folded at open
+//! (constant parts multiplied out: `FoldedChain` in [`crate::chain`]); the gravity deflection
+//! by turning the calibrated TCP about each joint's axis; and a 3 × 3 logarithm when the table
+//! has orientations. [`PreparedModel::error`] and the others evaluate the chains joint by
+//! joint, as the compiler fits the residuals with them; the query path is held to them to
+//! 1e-12 mm (joints within half a turn of zero; beyond, the chains' own rounding of each
+//! angle before its `sin_cos` adds a few 1e-13 mm per joint).
 
 use crate::chain::{Chain, FoldedChain, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
@@ -153,7 +159,7 @@ impl PreparedModel {
     ///
     /// The query path: the chains folded at preparation and one `sin_cos` per joint
     /// shared by both ([`crate::chain`]'s `FoldedChain`); equal to the chains' own forward
-    /// kinematics ([`crate::testing::model_at_by_chains`]) to 1e-12 mm.
+    /// kinematics ([`crate::testing::model_at_by_chains`]) to 1e-12 mm (module docs).
     #[inline]
     pub fn at(&self, q: &[f64]) -> Option<ModelAt> {
         self.evaluate(q, true)
