@@ -3,14 +3,13 @@
 //! a calibrated chain that differs by a few tenths of a millimetre and milliradian and has
 //! gravity compliance:
 //!
-//! - `model/sin_cos`, `model/sin_cos_fast`: the sines and cosines of six joint angles, the
-//!   floor of any forward kinematics, by the library and by
-//!   [`adwi_runtime::kinematics::sin_cos`];
+//! - `model/sin_cos`: the sines and cosines of six joint angles, the floor of any forward
+//!   kinematics;
 //! - `model/nominal_tcp_pose`, `model/loaded_tcp_pose`: one chain's forward kinematics, joint
 //!   by joint, without and with its gravity deflection (a second pass);
 //! - `model/at_by_chains`: the model part as the two chains compute it (the reference);
 //! - `model/at`: the model part as a query computes it (chains folded at open, shared
-//!   sines and cosines, the deflection without a second pass).
+//!   `sin_cos`).
 //!
 //! Run: `cargo bench -p adwi-runtime --bench model`. Under `cargo test` it runs once in
 //! criterion's test mode.
@@ -75,9 +74,6 @@ fn bench(c: &mut Criterion) {
     };
     group.bench_function("sin_cos", |b| {
         b.iter(|| black_box(next()).map(f64::sin_cos))
-    });
-    group.bench_function("sin_cos_fast", |b| {
-        b.iter(|| black_box(next()).map(adwi_runtime::kinematics::sin_cos))
     });
     group.bench_function("nominal_tcp_pose", |b| {
         b.iter(|| model.nominal().tcp_pose(black_box(next())))

@@ -257,69 +257,6 @@ pub fn link_frames<const N: usize>(joints: &[MdhJoint; N], q_rad: &[f64; N]) -> 
     frames
 }
 
-/// `(sin x, cos x)` within one unit in the last place, without a library call: the query
-/// path's sines and cosines of joint angles, where `f64::sin_cos` is the largest single
-/// cost (the reference this is held to, by tests).
-///
-/// `x` is reduced to `r ∈ [−π/4, π/4]` by the nearest multiple `n` of π/2, with π/2 split
-/// into its first 33 bits and the rest, so that `n · π/2` is exact in its first part and
-/// `r` carries the rounding of the second as a tail (fdlibm's `__ieee754_rem_pio2` for
-/// medium arguments: an absolute error near 1e-26 · n); then fdlibm's minimax polynomials
-/// `__kernel_sin` and `__kernel_cos` on `r` and its tail, and the quadrant `n mod 4` picks
-/// and signs them. Beyond `|x| ≤ 2¹⁹·π/2`, and for non-finite `x`, it is `f64::sin_cos`.
-#[inline]
-pub fn sin_cos(x: f64) -> (f64, f64) {
-    // π/2: its first 33 bits (any n · PIO2_1 with |n| < 2²⁰ is exact), and the rest.
-    const PIO2_1: f64 = 1.5707963267341256;
-    const PIO2_1T: f64 = 6.077100506506192e-11;
-    if !x.is_finite() || x.abs() > 823_549.6 {
-        return x.sin_cos();
-    }
-    let n = (x * std::f64::consts::FRAC_2_PI).round();
-    let t = x - n * PIO2_1;
-    let w = n * PIO2_1T;
-    let r = t - w;
-    let tail = (t - r) - w;
-    let (sin, cos) = (kernel_sin(r, tail), kernel_cos(r, tail));
-    match (n as i64) & 3 {
-        0 => (sin, cos),
-        1 => (cos, -sin),
-        2 => (-sin, -cos),
-        _ => (-cos, sin),
-    }
-}
-
-/// fdlibm's `__kernel_sin(x, y, 1)`: sin(x + y) for `|x| ≤ π/4`, `y` the tail of `x`.
-#[inline]
-fn kernel_sin(x: f64, y: f64) -> f64 {
-    const S1: f64 = -0.16666666666666632;
-    const S2: f64 = 0.00833333333332249;
-    const S3: f64 = -0.0001984126982985795;
-    const S4: f64 = 2.7557313707070068e-06;
-    const S5: f64 = -2.5050760253406863e-08;
-    const S6: f64 = 1.58969099521155e-10;
-    let z = x * x;
-    let v = z * x;
-    let r = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)));
-    x - ((z * (0.5 * y - v * r) - y) - v * S1)
-}
-
-/// fdlibm's `__kernel_cos(x, y)`: cos(x + y) for `|x| ≤ π/4`, `y` the tail of `x`.
-#[inline]
-fn kernel_cos(x: f64, y: f64) -> f64 {
-    const C1: f64 = 0.0416666666666666;
-    const C2: f64 = -0.001388888888887411;
-    const C3: f64 = 2.480158728947673e-05;
-    const C4: f64 = -2.7557314351390663e-07;
-    const C5: f64 = 2.087572321298175e-09;
-    const C6: f64 = -1.1359647557788195e-11;
-    let z = x * x;
-    let r = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))));
-    let hz = 0.5 * z;
-    let w = 1.0 - hz;
-    w + (((1.0 - w) - hz) + (z * r - x * y))
-}
-
 /// The rotation vector (axis × angle, rad) of a rotation matrix: the logarithm map,
 /// allocation-free.
 ///
@@ -583,38 +520,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    /// Units in the last place between `a` and `b`, measured at the larger of `|b|` and
-    /// 2⁻¹⁰ (near a zero of sin or cos the absolute error is what matters: 2⁻⁶² at most).
-    fn ulps(a: f64, b: f64) -> f64 {
-        (a - b).abs() / (f64::EPSILON * b.abs().max(1.0 / 1024.0))
-    }
-
-    #[test]
-    fn sin_cos_is_the_library_s_to_a_unit_in_the_last_place() {
-        let mut worst: f64 = 0.0;
-        let mut check = |x: f64| {
-            let (s, c) = sin_cos(x);
-            let (ws, wc) = x.sin_cos();
-            worst = worst.max(ulps(s, ws)).max(ulps(c, wc));
-        };
-        // Dense over the joint range, near every multiple of π/4 (quadrant and kernel
-        // boundaries), far out, and at the switch to the library.
-        for i in -200_000..=200_000 {
-            check(i as f64 * 1e-4 * std::f64::consts::PI * 2.0);
-        }
-        for k in -64..=64 {
-            let m = k as f64 * std::f64::consts::FRAC_PI_4;
-            for d in [0.0, 1e-300, 1e-17, -1e-15, 1e-9, -1e-6] {
-                check(m + d);
-            }
-        }
-        for x in [1e3, 12_345.678, -5e5, 823_549.5, 823_549.7, 1e9] {
-            check(x);
-        }
-        assert!(worst <= 1.0, "{worst} units in the last place");
-        assert!(sin_cos(f64::NAN).0.is_nan() && sin_cos(f64::INFINITY).1.is_nan());
-        assert_eq!(sin_cos(0.0), (0.0, 1.0));
     }
 }

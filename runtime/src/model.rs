@@ -31,19 +31,18 @@
 //!
 //! This module evaluates the model part: everything here is allocation-free and panic-free.
 //! A query's costs, on top of the ordinary query ([`crate::Table::query_with_joints`]): one
-//! sine and cosine per joint ([`crate::kinematics::sin_cos`]), shared by both chains; one
-//! pass down each chain, folded at open (constant parts multiplied out: `FoldedChain` in
-//! [`crate::chain`]); the gravity deflection by turning the calibrated TCP about each
-//! joint's axis; and a 3 × 3 logarithm when the table has orientations.
-//! [`PreparedModel::error`] and the others evaluate the chains joint by joint, as the
-//! compiler fits the residuals with them; the query path is held to them to 1e-12 mm
-//! (joints within half a turn of zero; beyond, the chains' own rounding of each angle
-//! before its `sin_cos` adds a few 1e-13 mm per joint).
+//! `sin_cos` per joint, shared by both chains; one pass down each chain, folded at open
+//! (constant parts multiplied out: `FoldedChain` in [`crate::chain`]); the gravity deflection
+//! by turning the calibrated TCP about each joint's axis; and a 3 × 3 logarithm when the table
+//! has orientations. [`PreparedModel::error`] and the others evaluate the chains joint by
+//! joint, as the compiler fits the residuals with them; the query path is held to them to
+//! 1e-12 mm (joints within half a turn of zero; beyond, the chains' own rounding of each
+//! angle before its `sin_cos` adds a few 1e-13 mm per joint).
 
 use crate::chain::{Chain, FoldedChain, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
 use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
-use crate::kinematics::{pose_error, sin_cos as sin_cos_fast, Transform};
+use crate::kinematics::{pose_error, Transform};
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
 /// `base · A_1(q_1) ⋯ A_6(q_6) · tool`, for a version-1 model's parameters.
@@ -158,7 +157,7 @@ impl PreparedModel {
     /// each chain: [`PreparedModel::error_with_approach`]'s values and the nominal TCP's
     /// position, which says whether `q` reaches the target at all. `None` as `error`.
     ///
-    /// The query path: the chains folded at preparation and one sine and cosine per joint
+    /// The query path: the chains folded at preparation and one `sin_cos` per joint
     /// shared by both ([`crate::chain`]'s `FoldedChain`); equal to the chains' own forward
     /// kinematics ([`crate::testing::model_at_by_chains`]) to 1e-12 mm (module docs).
     #[inline]
@@ -175,8 +174,8 @@ impl PreparedModel {
             return None;
         }
         let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
-        for (sc, &v) in sin_cos.iter_mut().zip(q) {
-            *sc = sin_cos_fast(v);
+        for (sc, v) in sin_cos.iter_mut().zip(q) {
+            *sc = v.sin_cos();
         }
         let [nominal, calibrated] = &self.folded;
         let nominal = nominal.tcp_pose(q, &sin_cos[..n]);
