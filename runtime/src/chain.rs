@@ -384,6 +384,360 @@ impl Chain {
     }
 }
 
+/// A [`Chain`] folded for evaluation at many joint values: the query path of a hybrid
+/// table, where two chains are evaluated at the same joint values for every query.
+///
+/// Rodrigues' rotation is linear in `(1, cos θ, sin θ)`, axis unit or not:
+/// `R_k(θ) = k kᵀ + cos θ (I − k kᵀ) + sin θ [k]×`, and expanding `θ = q + o` keeps it linear
+/// in `(1, cos q, sin q)`. So each joint's constant parts (its origin, axis and offset, and
+/// for the first joint the base) are multiplied out once, into
+/// `O · M(q + o) = [F + cos q · C + sin q · S | t + q · u]` ([`FoldedJoint`]), and a pose
+/// costs per joint 9 multiply-adds of that sum and one 3 × 4 product, with the sine and
+/// cosine of `q` given (computed once for both chains). The gravity torques come from
+/// suffix sums over the links in one pass instead of a double loop. [`Chain::tcp_pose`] and
+/// [`Chain::loaded_tcp_pose`] are the reference this is held to (tests: 1e-12 mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct FoldedChain {
+    joints: [FoldedJoint; MAX_JOINTS],
+    len: usize,
+    tool: Transform,
+    gravity: Option<FoldedGravity>,
+    /// Whether every revolute joint's axis is a unit vector to 1e-13, so that its rotations
+    /// compose exactly ([`FoldedChain::loaded_tcp`]).
+    unit_axes: bool,
+}
+
+/// One joint of a [`FoldedChain`]: `O · M(q + o) = [fixed + cos q · cos_part + sin q ·
+/// sin_part | translation_mm + q · travel]`, in the parent link's frame (the base frame for
+/// the first joint, the base folded in).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FoldedJoint {
+    fixed: [[f64; 3]; 3],
+    cos_part: [[f64; 3]; 3],
+    sin_part: [[f64; 3]; 3],
+    translation_mm: [f64; 3],
+    /// A prismatic joint's direction of travel (`O · k`); zero for a revolute joint.
+    travel: [f64; 3],
+    /// The joint's axis `O · k` and its position (the origin's translation, before the
+    /// offset of a prismatic joint): what the gravity torque about it needs.
+    axis: [f64; 3],
+    origin_mm: [f64; 3],
+    kind: JointKind,
+}
+
+/// The constant parts of a chain's gravity compliance ([`Compliance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FoldedGravity {
+    gravity_mm_s2: [f64; 3],
+    link_mass_kg: [f64; MAX_JOINTS],
+    link_com_mm: [[f64; 3]; MAX_JOINTS],
+    /// Per joint, the mass it carries (its link's, every later link's and the payload):
+    /// `Σ_{k ≥ j} m_k`.
+    carried_kg: [f64; MAX_JOINTS],
+    payload_kg: f64,
+    /// The payload's centre of mass in the last joint's frame after its motion (the tool
+    /// folded in), mm.
+    payload_com_mm: [f64; 3],
+    compliance: [f64; MAX_JOINTS],
+}
+
+impl FoldedChain {
+    /// The folded form of a valid chain.
+    pub(crate) fn new(chain: &Chain) -> FoldedChain {
+        let mut joints = [FoldedJoint::STILL; MAX_JOINTS];
+        for (j, (out, joint)) in joints.iter_mut().zip(chain.joints()).enumerate() {
+            let origin = if j == 0 {
+                chain.base.compose(&joint.origin)
+            } else {
+                joint.origin
+            };
+            *out = FoldedJoint::new(&origin, joint);
+        }
+        let gravity = chain.compliance.map(|c| {
+            let mut carried_kg = [0.0; MAX_JOINTS];
+            let mut total_kg = c.payload_kg;
+            for j in (0..chain.len).rev() {
+                total_kg += c.link_mass_kg[j];
+                carried_kg[j] = total_kg;
+            }
+            FoldedGravity {
+                gravity_mm_s2: c.gravity_mm_s2,
+                link_mass_kg: c.link_mass_kg,
+                link_com_mm: c.link_com_mm,
+                carried_kg,
+                payload_kg: c.payload_kg,
+                payload_com_mm: chain.tool.transform_point(c.payload_com_mm),
+                compliance: c.compliance,
+            }
+        });
+        let unit_axes = chain
+            .joints()
+            .iter()
+            .all(|j| j.kind == JointKind::Prismatic || within(dot(j.axis, j.axis), 1.0, 1e-13));
+        FoldedChain {
+            joints,
+            len: chain.len,
+            tool: chain.tool,
+            gravity,
+            unit_axes,
+        }
+    }
+
+    /// The TCP pose at joint values `q` given their sines and cosines
+    /// (`sin_cos[j] = q[j].sin_cos()`), without compliance: [`Chain::tcp_pose`]. Both
+    /// slices hold at least the chain's joint count (the caller's check).
+    #[inline]
+    pub(crate) fn tcp_pose(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> Transform {
+        let joints = &self.joints[..self.len.min(MAX_JOINTS)];
+        let mut pose = Transform::IDENTITY;
+        for (j, ((joint, &value), &sc)) in joints.iter().zip(q).zip(sin_cos).enumerate() {
+            let link = joint.at(value, sc);
+            pose = if j == 0 { link } else { pose.compose(&link) };
+        }
+        pose.compose(&self.tool)
+    }
+
+    /// The TCP pose deflected by gravity when the chain models compliance:
+    /// [`Chain::loaded_tcp_pose`], from the sines and cosines of `q` as
+    /// [`FoldedChain::tcp_pose`] takes them. (Queries take [`FoldedChain::loaded_tcp`].)
+    #[cfg(test)]
+    fn loaded_tcp_pose(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> Transform {
+        let (translation_mm, rotation) = self.loaded_tcp(q, sin_cos, true);
+        Transform {
+            rotation: rotation.unwrap_or(Transform::IDENTITY.rotation),
+            translation_mm,
+        }
+    }
+
+    /// [`FoldedChain::loaded_tcp_pose`]'s position, and its rotation when `rotation` (a
+    /// table without orientations never reads it).
+    ///
+    /// The torques need the chain's poses at `q`; from them the deflection follows without
+    /// a second pass down the chain. A joint turning by `Δ_j` more moves everything beyond
+    /// it by the rotation `W_j` about the joint's axis in the base frame, through its
+    /// position there, and `T(q + Δ) = W_1 · W_2 ⋯ W_n · T(q)`: this holds exactly for unit
+    /// axes (rotations about one axis compose), so a chain with an axis farther than 1e-13
+    /// from unit length takes the second pass instead.
+    #[inline]
+    pub(crate) fn loaded_tcp(
+        &self,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+        rotation: bool,
+    ) -> ([f64; 3], Option<[[f64; 3]; 3]>) {
+        let Some(g) = &self.gravity else {
+            let pose = self.tcp_pose(q, sin_cos);
+            return (pose.translation_mm, rotation.then_some(pose.rotation));
+        };
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let at_q = self.gravity_pass(q, sin_cos, g);
+        let delta = |j: usize| g.compliance[j] * at_q.torques[j];
+        if !self.unit_axes {
+            let mut loaded = [0.0; MAX_JOINTS];
+            let mut loaded_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+            for j in 0..n {
+                loaded[j] = q[j] + delta(j);
+                let (s, c) = sin_cos[j];
+                let (sd, cd, _) = small_sin_cos(delta(j));
+                loaded_sin_cos[j] = (s * cd + c * sd, c * cd - s * sd);
+            }
+            let pose = self.tcp_pose(&loaded[..n], &loaded_sin_cos[..n]);
+            return (pose.translation_mm, rotation.then_some(pose.rotation));
+        }
+        let mut position_mm = at_q.tcp.translation_mm;
+        // The rotation's columns, turned as directions.
+        let r = &at_q.tcp.rotation;
+        let mut columns = [0, 1, 2].map(|c| [r[0][c], r[1][c], r[2][c]]);
+        for j in (0..n).rev() {
+            let z = at_q.axes[j];
+            match self.joints[j].kind {
+                JointKind::Prismatic => {
+                    for (p, zc) in position_mm.iter_mut().zip(z) {
+                        *p += delta(j) * zc;
+                    }
+                }
+                JointKind::Revolute => {
+                    let (sd, _, versine) = small_sin_cos(delta(j));
+                    let arm = [0, 1, 2].map(|a| position_mm[a] - at_q.joints_mm[j][a]);
+                    position_mm = turned(position_mm, arm, z, sd, versine);
+                    if rotation {
+                        for column in &mut columns {
+                            *column = turned(*column, *column, z, sd, versine);
+                        }
+                    }
+                }
+            }
+        }
+        let rotation = rotation.then(|| [0, 1, 2].map(|i| columns.map(|c| c[i])));
+        (position_mm, rotation)
+    }
+
+    /// What the gravity torques need of the chain at `q`, and the torques
+    /// ([`Chain::gravity_torques`]): one pass down the chain for the joints' positions and
+    /// axes and the links' centres of mass, then the moments from suffix sums,
+    /// `Σ_{k ≥ j} (p_k − a_j) × m_k g = (Σ_{k ≥ j} m_k p_k − M_j a_j) × g`.
+    #[inline]
+    fn gravity_pass(&self, q: &[f64], sin_cos: &[(f64, f64)], g: &FoldedGravity) -> GravityPass {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let mut out = GravityPass {
+            joints_mm: [[0.0; 3]; MAX_JOINTS],
+            axes: [[0.0; 3]; MAX_JOINTS],
+            torques: [0.0; MAX_JOINTS],
+            tcp: Transform::IDENTITY,
+        };
+        let mut weighted_com = [[0.0; 3]; MAX_JOINTS];
+        let mut pose = Transform::IDENTITY;
+        for j in 0..n {
+            let joint = &self.joints[j];
+            out.joints_mm[j] = pose.transform_point(joint.origin_mm);
+            out.axes[j] = pose.rotate_vector(joint.axis);
+            let link = joint.at(q[j], sin_cos[j]);
+            pose = if j == 0 { link } else { pose.compose(&link) };
+            let com = pose.transform_point(g.link_com_mm[j]);
+            weighted_com[j] = com.map(|v| v * g.link_mass_kg[j]);
+        }
+        let payload = pose.transform_point(g.payload_com_mm);
+        out.tcp = pose.compose(&self.tool);
+        let mut moment_sum = payload.map(|v| v * g.payload_kg);
+        for j in (0..n).rev() {
+            for (s, w) in moment_sum.iter_mut().zip(weighted_com[j]) {
+                *s += w;
+            }
+            let about = match self.joints[j].kind {
+                JointKind::Revolute => {
+                    let arm =
+                        [0, 1, 2].map(|a| moment_sum[a] - g.carried_kg[j] * out.joints_mm[j][a]);
+                    cross(arm, g.gravity_mm_s2)
+                }
+                JointKind::Prismatic => g.gravity_mm_s2.map(|v| v * g.carried_kg[j]),
+            };
+            out.torques[j] = dot(about, out.axes[j]);
+        }
+        out
+    }
+}
+
+/// A chain at joint values `q` as its gravity deflection needs it ([`FoldedChain::loaded_tcp`]),
+/// base frame.
+struct GravityPass {
+    /// Each joint's position and axis.
+    joints_mm: [[f64; 3]; MAX_JOINTS],
+    axes: [[f64; 3]; MAX_JOINTS],
+    /// The gravity torque about each joint.
+    torques: [f64; MAX_JOINTS],
+    /// The TCP's pose at `q`, undeflected.
+    tcp: Transform,
+}
+
+/// `point` turned by a small angle about the unit axis `z` through `point − arm`, given the
+/// angle's sine and versine (`1 − cos`): Rodrigues' formula written as the change it makes,
+/// `point + sin · z × arm + versine · ((z · arm) z − arm)`, so that rounding scales with the
+/// change rather than with the point.
+#[inline]
+fn turned(point: [f64; 3], arm: [f64; 3], z: [f64; 3], sin: f64, versine: f64) -> [f64; 3] {
+    let across = cross(z, arm);
+    let along = dot(z, arm);
+    [0, 1, 2].map(|a| point[a] + (sin * across[a] + versine * (along * z[a] - arm[a])))
+}
+
+impl FoldedJoint {
+    /// A joint that does not move: what unused slots hold.
+    const STILL: FoldedJoint = FoldedJoint {
+        fixed: Transform::IDENTITY.rotation,
+        cos_part: [[0.0; 3]; 3],
+        sin_part: [[0.0; 3]; 3],
+        translation_mm: [0.0; 3],
+        travel: [0.0; 3],
+        axis: [0.0, 0.0, 1.0],
+        origin_mm: [0.0; 3],
+        kind: JointKind::Revolute,
+    };
+
+    /// `joint` behind `origin` (its own origin, or the base's composed with it).
+    fn new(origin: &Transform, joint: &ChainJoint) -> FoldedJoint {
+        let k = joint.axis;
+        let axis = origin.rotate_vector(k);
+        let r = &origin.rotation;
+        // `r · m` for a 3 × 3 `m`.
+        let times = |m: [[f64; 3]; 3]| -> [[f64; 3]; 3] {
+            [0, 1, 2].map(|i| [0, 1, 2].map(|c| (0..3).map(|l| r[i][l] * m[l][c]).sum()))
+        };
+        match joint.kind {
+            JointKind::Prismatic => FoldedJoint {
+                fixed: *r,
+                cos_part: [[0.0; 3]; 3],
+                sin_part: [[0.0; 3]; 3],
+                translation_mm: [0, 1, 2]
+                    .map(|a| origin.translation_mm[a] + joint.offset * axis[a]),
+                travel: axis,
+                axis,
+                origin_mm: origin.translation_mm,
+                kind: JointKind::Prismatic,
+            },
+            JointKind::Revolute => {
+                let outer = [0, 1, 2].map(|i| [0, 1, 2].map(|c| k[i] * k[c]));
+                let rest = [0, 1, 2]
+                    .map(|i| [0, 1, 2].map(|c| if i == c { 1.0 } else { 0.0 } - outer[i][c]));
+                let skew = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]];
+                // cos(q + o) = cos q cos o − sin q sin o, sin(q + o) = sin q cos o + cos q sin o.
+                let (so, co) = joint.offset.sin_cos();
+                let mix = |a: f64, b: f64| {
+                    [0, 1, 2].map(|i| [0, 1, 2].map(|c| a * rest[i][c] + b * skew[i][c]))
+                };
+                FoldedJoint {
+                    fixed: times(outer),
+                    cos_part: times(mix(co, so)),
+                    sin_part: times(mix(-so, co)),
+                    translation_mm: origin.translation_mm,
+                    travel: [0.0; 3],
+                    axis,
+                    origin_mm: origin.translation_mm,
+                    kind: JointKind::Revolute,
+                }
+            }
+        }
+    }
+
+    /// `O · M(q + o)` at joint value `q`, given `(sin q, cos q)`.
+    #[inline]
+    fn at(&self, q: f64, (s, c): (f64, f64)) -> Transform {
+        let mut rotation = self.fixed;
+        for ((out, cos_row), sin_row) in rotation.iter_mut().zip(&self.cos_part).zip(&self.sin_part)
+        {
+            for ((o, &a), &b) in out.iter_mut().zip(cos_row).zip(sin_row) {
+                *o += c * a + s * b;
+            }
+        }
+        Transform {
+            rotation,
+            translation_mm: [0, 1, 2].map(|a| self.translation_mm[a] + q * self.travel[a]),
+        }
+    }
+}
+
+/// `(sin x, cos x, 1 − cos x)` for the small angle a gravity deflection is: Taylor series
+/// to `x⁷` and `x⁸`, exact to rounding for `|x| ≤ 2⁻⁶` (the next terms are below `2⁻⁶⁰`
+/// relative), the versine without the cancellation of `1 − cos x`; `f64::sin_cos` beyond.
+#[inline]
+fn small_sin_cos(x: f64) -> (f64, f64, f64) {
+    if x.abs() > 1.0 / 64.0 {
+        let (sin, cos) = x.sin_cos();
+        // 1 − cos = sin² / (1 + cos), without cancellation where cos is near 1.
+        let versine = if cos > 0.0 {
+            sin * sin / (1.0 + cos)
+        } else {
+            1.0 - cos
+        };
+        return (sin, cos, versine);
+    }
+    let x2 = x * x;
+    let sin = x * (1.0 - x2 * (1.0 / 6.0) * (1.0 - x2 * (1.0 / 20.0) * (1.0 - x2 * (1.0 / 42.0))));
+    let versine = x2
+        * 0.5
+        * (1.0 - x2 * (1.0 / 12.0) * (1.0 - x2 * (1.0 / 30.0) * (1.0 - x2 * (1.0 / 56.0))));
+    (sin, 1.0 - versine, versine)
+}
+
 #[inline]
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
@@ -420,6 +774,7 @@ fn within(value: f64, expected: f64, tolerance: f64) -> bool {
 mod tests {
     use super::*;
     use crate::kinematics::forward;
+    use proptest::prelude::*;
 
     fn kr150() -> [MdhJoint; 6] {
         use std::f64::consts::FRAC_PI_2;
@@ -524,5 +879,138 @@ mod tests {
             Chain::new(Transform::IDENTITY, &many, Transform::IDENTITY, None),
             Err(ChainError::JointCount(MAX_JOINTS + 1))
         );
+    }
+
+    /// A rigid transform from a rotation vector (Rodrigues) and a translation.
+    fn rigid(rotation_rad: [f64; 3], translation_mm: [f64; 3]) -> Transform {
+        let joint = ChainJoint::default();
+        let angle = dot(rotation_rad, rotation_rad).sqrt();
+        let axis = if angle > 0.0 {
+            rotation_rad.map(|v| v / angle)
+        } else {
+            [0.0, 0.0, 1.0]
+        };
+        Transform {
+            translation_mm,
+            ..ChainJoint { axis, ..joint }.motion(angle)
+        }
+    }
+
+    fn unit(v: [f64; 3]) -> [f64; 3] {
+        let n = dot(v, v).sqrt();
+        if n < 1e-3 {
+            [0.0, 0.0, 1.0]
+        } else {
+            v.map(|x| x / n)
+        }
+    }
+
+    fn vec3(range: f64) -> impl Strategy<Value = [f64; 3]> {
+        [-range..range, -range..range, -range..range]
+    }
+
+    prop_compose! {
+        fn any_joint()(
+            rotation in vec3(3.0),
+            translation in vec3(600.0),
+            axis in vec3(1.0),
+            // Axes as long as validation admits, which the deflection by rotations about
+            // them must notice (it holds for unit axes).
+            axis_length in prop_oneof![Just(1.0), 1.0 - 9e-10..1.0 + 9e-10],
+            prismatic in proptest::bool::weighted(0.2),
+            offset in -1.0..1.0f64,
+        ) -> ChainJoint {
+            ChainJoint {
+                origin: rigid(rotation, translation),
+                axis: unit(axis).map(|v| v * axis_length),
+                kind: if prismatic { JointKind::Prismatic } else { JointKind::Revolute },
+                offset: if prismatic { offset * 100.0 } else { offset },
+            }
+        }
+    }
+
+    prop_compose! {
+        fn any_chain()(
+            joints in proptest::collection::vec(any_joint(), 1..=MAX_JOINTS),
+            base in (vec3(3.0), vec3(500.0)),
+            tool in (vec3(3.0), vec3(200.0)),
+            masses in proptest::collection::vec(0.0..20.0f64, MAX_JOINTS),
+            coms in proptest::collection::vec(vec3(300.0), MAX_JOINTS),
+            payload in (0.0..10.0f64, vec3(100.0)),
+            compliance in proptest::collection::vec(0.0..2e-10f64, MAX_JOINTS),
+            compliant in proptest::bool::ANY,
+        ) -> Chain {
+            let mut c = Compliance::NONE;
+            c.link_mass_kg.copy_from_slice(&masses);
+            c.link_com_mm.copy_from_slice(&coms);
+            (c.payload_kg, c.payload_com_mm) = payload;
+            c.compliance.copy_from_slice(&compliance);
+            for (j, joint) in joints.iter().enumerate() {
+                if joint.kind == JointKind::Prismatic {
+                    c.compliance[j] *= 1e-3;
+                }
+            }
+            let (base, tool) = (rigid(base.0, base.1), rigid(tool.0, tool.1));
+            Chain::new(base, &joints, tool, compliant.then_some(c)).unwrap()
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+
+        /// The folded chain of the query path against the chain's own forward kinematics,
+        /// joint by joint: any axes, prismatic joints, offsets, base, tool and compliance.
+        #[test]
+        fn a_folded_chain_equals_the_chain(
+            chain in any_chain(),
+            q in proptest::collection::vec(-7.0..7.0f64, MAX_JOINTS),
+        ) {
+            let q = &q[..chain.joint_count()];
+            let sin_cos: Vec<(f64, f64)> = q.iter().map(|v| v.sin_cos()).collect();
+            let folded = FoldedChain::new(&chain);
+            // Rounding grows with the chain's size: a few units in the last place of the
+            // longest reach, which is 1e-12 mm for an arm of a metre.
+            let norm = |v: [f64; 3]| dot(v, v).sqrt();
+            let travel_mm: f64 = chain.joints().iter().zip(q).map(|(j, v)| match j.kind {
+                JointKind::Prismatic => (v + j.offset).abs(),
+                JointKind::Revolute => 0.0,
+            }).sum();
+            let reach_mm = norm(chain.base.translation_mm)
+                + chain.joints().iter().map(|j| norm(j.origin.translation_mm)).sum::<f64>()
+                + norm(chain.tool.translation_mm)
+                + travel_mm;
+            let tolerance_mm = 1e-15 * reach_mm.max(1000.0);
+            let pairs = [
+                (folded.tcp_pose(q, &sin_cos), chain.tcp_pose(q).unwrap()),
+                (folded.loaded_tcp_pose(q, &sin_cos), chain.loaded_tcp_pose(q).unwrap()),
+            ];
+            for (fast, reference) in pairs {
+                for a in 0..3 {
+                    let off_mm = (fast.translation_mm[a] - reference.translation_mm[a]).abs();
+                    prop_assert!(off_mm <= tolerance_mm, "{fast:?} vs {reference:?}");
+                    for c in 0..3 {
+                        let off = (fast.rotation[a][c] - reference.rotation[a][c]).abs();
+                        prop_assert!(off <= 1e-14, "{fast:?} vs {reference:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn small_angles_have_their_sine_and_cosine() {
+        for x in [0.0, 1e-300, 1e-9, -3e-5, 1e-3, 0.01, -1.0 / 64.0, 0.02, 1.5] {
+            let (s, c, v) = small_sin_cos(x);
+            let (ws, wc) = x.sin_cos();
+            assert!((s - ws).abs() <= 2.0 * f64::EPSILON * ws.abs(), "{x}");
+            assert!((c - wc).abs() <= f64::EPSILON, "{x}");
+            // 1 − cos x = 2 sin²(x / 2), without cancellation.
+            let half = (x / 2.0).sin();
+            assert!(
+                (v - 2.0 * half * half).abs() <= 4.0 * f64::EPSILON * v,
+                "{x}"
+            );
+        }
+        assert_eq!(small_sin_cos(0.0), (0.0, 1.0, 0.0));
     }
 }

@@ -29,11 +29,17 @@
 //! means close joint angles. Position-only tables may use the screen too, when built from
 //! samples with joint angles.
 //!
-//! This module evaluates the model part: everything here is allocation-free and panic-free,
-//! two forward kinematics (a few hundred flops) and a 3 × 3 logarithm on top of the ordinary
-//! query ([`crate::Table::query_with_joints`]).
+//! This module evaluates the model part: everything here is allocation-free and panic-free.
+//! A query's costs, on top of the ordinary query ([`crate::Table::query_with_joints`]): one
+//! `sin_cos` per joint, shared by both chains; one pass down each chain, folded at open
+//! (constant parts multiplied out: `FoldedChain` in [`crate::chain`]); the gravity deflection
+//! by turning the calibrated TCP about each joint's axis; and a 3 × 3 logarithm when the table
+//! has orientations. [`PreparedModel::error`] and the others evaluate the chains joint by
+//! joint, as the compiler fits the residuals with them; the query path is held to them to
+//! 1e-12 mm (joints within half a turn of zero; beyond, the chains' own rounding of each
+//! angle before its `sin_cos` adds a few 1e-13 mm per joint).
 
-use crate::chain::Chain;
+use crate::chain::{Chain, FoldedChain, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
 use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
 use crate::kinematics::{pose_error, Transform};
@@ -84,22 +90,27 @@ fn still_chain() -> Chain {
 pub struct PreparedModel {
     nominal: Chain,
     calibrated: Chain,
+    /// Both chains folded for queries ([`PreparedModel::at`]).
+    folded: [FoldedChain; 2],
 }
 
 impl PreparedModel {
     /// The model of two chains of equal joint counts; `None` otherwise.
     pub fn new(nominal: Chain, calibrated: Chain) -> Option<PreparedModel> {
-        (nominal.joint_count() == calibrated.joint_count()).then_some(PreparedModel {
+        (nominal.joint_count() == calibrated.joint_count()).then(|| PreparedModel {
             nominal,
             calibrated,
+            folded: [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)],
         })
     }
 
     /// A version-1 model (six MD-H joints, tool and base as 12-value rows).
     pub fn from_mdh(model: &KinematicModel) -> PreparedModel {
+        let (nominal, calibrated) = (mdh_chain(&model.nominal), mdh_chain(&model.calibrated));
         PreparedModel {
-            nominal: mdh_chain(&model.nominal),
-            calibrated: mdh_chain(&model.calibrated),
+            nominal,
+            calibrated,
+            folded: [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)],
         }
     }
 
@@ -145,11 +156,44 @@ impl PreparedModel {
     /// Everything a hybrid query needs of the model at `q`, from one forward kinematics of
     /// each chain: [`PreparedModel::error_with_approach`]'s values and the nominal TCP's
     /// position, which says whether `q` reaches the target at all. `None` as `error`.
+    ///
+    /// The query path: the chains folded at preparation and one `sin_cos` per joint
+    /// shared by both ([`crate::chain`]'s `FoldedChain`); equal to the chains' own forward
+    /// kinematics ([`crate::testing::model_at_by_chains`]) to 1e-12 mm (module docs).
     #[inline]
     pub fn at(&self, q: &[f64]) -> Option<ModelAt> {
-        let nominal = self.nominal.tcp_pose(q)?;
-        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
-        let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
+        self.evaluate(q, true)
+    }
+
+    /// [`PreparedModel::at`], with the orientation error computed only when `rotation`
+    /// (zero otherwise): a table whose samples have no orientation never reads it.
+    #[inline]
+    pub(crate) fn evaluate(&self, q: &[f64], rotation: bool) -> Option<ModelAt> {
+        let n = self.joint_count();
+        if q.len() != n || n > MAX_JOINTS {
+            return None;
+        }
+        let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
+        for (sc, v) in sin_cos.iter_mut().zip(q) {
+            *sc = v.sin_cos();
+        }
+        let [nominal, calibrated] = &self.folded;
+        let nominal = nominal.tcp_pose(q, &sin_cos[..n]);
+        let (calibrated_mm, calibrated_rotation) =
+            calibrated.loaded_tcp(q, &sin_cos[..n], rotation);
+        let (position_mm, rotation_rad) = match calibrated_rotation {
+            Some(rotation) => pose_error(
+                &nominal,
+                &Transform {
+                    rotation,
+                    translation_mm: calibrated_mm,
+                },
+            ),
+            None => (
+                [0, 1, 2].map(|a| calibrated_mm[a] - nominal.translation_mm[a]),
+                [0.0; 3],
+            ),
+        };
         Some(ModelAt {
             position_mm,
             rotation_rad,

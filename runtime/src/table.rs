@@ -467,7 +467,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         // field turning with the tool needs, and where the joints put the nominal TCP.
         let model_at = match (&self.model, joints_rad) {
             (Some(model), Some(q)) => {
-                let Some(at) = model.at(q) else {
+                let Some(at) = model.evaluate(q, self.has_orientation()) else {
                     return Correction::failed(Status::InvalidInput);
                 };
                 let off_mm = method::distance_mm(at.nominal_tcp_mm, target.position_mm);

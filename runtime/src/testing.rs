@@ -1,9 +1,12 @@
 //! Rewriting a table's integrity fields after deliberate damage, for the mutation tests and
 //! the fuzz targets: a mutated table must reach rkyv validation and the semantic checks
-//! instead of stopping at a checksum. Not part of the supported API; a resealed table is
-//! no evidence of an intact one.
+//! instead of stopping at a checksum; and the slow obvious references of the query path's
+//! fast ones, for the tests that hold them equal. Not part of the supported API; a
+//! resealed table is no evidence of an intact one.
 
 use crate::format::{ENDIAN_MARK, FORMAT_VERSION, HEADER_LEN, MAGIC, RKYV_FLAGS};
+use crate::kinematics::pose_error;
+use crate::model::{ModelAt, PreparedModel};
 
 /// The offset of the header checksum, which covers bytes `0..HEADER_CHECKSUM_AT`.
 pub const HEADER_CHECKSUM_AT: usize = 248;
@@ -62,4 +65,20 @@ pub fn encode_v1(
     out.extend_from_slice(&payload);
     reseal(&mut out);
     Ok(out)
+}
+
+/// [`PreparedModel::at`] by each chain's own forward kinematics ([`crate::chain::Chain::tcp_pose`],
+/// [`crate::chain::Chain::loaded_tcp_pose`]), joint by joint: the reference the folded query
+/// path is held to.
+pub fn model_at_by_chains(model: &PreparedModel, q: &[f64]) -> Option<ModelAt> {
+    let nominal = model.nominal().tcp_pose(q)?;
+    let calibrated = model.calibrated().loaded_tcp_pose(q)?;
+    let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
+    let r = &nominal.rotation;
+    Some(ModelAt {
+        position_mm,
+        rotation_rad,
+        approach: [r[0][2], r[1][2], r[2][2]],
+        nominal_tcp_mm: nominal.translation_mm,
+    })
 }
