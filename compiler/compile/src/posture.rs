@@ -12,10 +12,11 @@
 //!    samples, evenly strided, are left out in turn, every sample serving as evidence). A
 //!    sample's own residual would predict itself perfectly; leaving it out scores how the
 //!    term predicts a pose it has not seen.
-//! 3. **Lists.** The posture grid starts at the table grid's origin with cells of `R`
+//! 3. **Lists.** The posture grid starts at the table grid's origin with cells of `R / 2`
 //!    (larger if the grid would exceed [`MAX_POSTURE_CELLS`]) and covers the table's box:
-//!    a sample is listed in the 8 to 27 cells its support reaches, and a query reads
-//!    about 6 times the samples its supports hold, each rejected by its distance alone;
+//!    a sample is listed in the (up to 125) cells its support reaches, and a query reads
+//!    about twice the samples its supports hold (cells of `R` store a quarter of the
+//!    entries but make it read six times: a served query's tail latency is what counts);
 //!    each cell lists, ascending, every sample within `R` of its box. A list longer than
 //!    [`MAX_POSTURE_CANDIDATES`] is refused with its length (the leave-one-out's choice
 //!    falls back to the best candidate whose lists fit).
@@ -298,7 +299,7 @@ pub fn lists(
 ) -> Result<PostureLists, BuildError> {
     let extent_mm = [0, 1, 2].map(|a| grid.max_mm()[a] - grid.origin_mm[a]);
     let dims_for = |cell_mm: f64| extent_mm.map(|e| ((e / cell_mm).ceil() as u64).max(1));
-    let mut cell_mm = params.radius_mm;
+    let mut cell_mm = params.radius_mm / 2.0;
     while dims_for(cell_mm).iter().product::<u64>() > MAX_POSTURE_CELLS as u64 {
         cell_mm *= 1.25;
     }
