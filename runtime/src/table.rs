@@ -6,6 +6,10 @@
 //! paper's, to the digit, [`crate::exact`]) through the same calls on [`Table::exact`]. A
 //! table without a served tier — version 1, or a table with a joint-space screen — answers
 //! both from its exact tier ([`Table::has_served_field`] says which).
+//!
+//! A hybrid table of format version 3 also has a posture term ([`crate::posture`],
+//! [`Table::posture`]), which its served answers given joint values add; the exact tier
+//! does not.
 
 use std::path::Path;
 
