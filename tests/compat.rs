@@ -374,3 +374,41 @@ fn the_version_2_tables_open_and_give_their_recorded_answers() {
         assert_close(&c.position_error_mm, &exact, "exact");
     }
 }
+
+/// `tables/compat/v3/README.md`'s answers: served (with the posture term) and exact
+/// errors (mm) at the poses and joint angles of [`V2_HYBRID_ANSWERS`].
+const V3_HYBRID_ANSWERS: [([f64; 3], [f64; 3]); 3] = [
+    (
+        [-2.426598319, -0.401574017, -0.682478181],
+        [-2.430698292, -0.412749321, -0.671847173],
+    ),
+    (
+        [-2.658488329, -0.028547153, -0.737099939],
+        [-2.650718765, -0.047799751, -0.709384043],
+    ),
+    (
+        [-2.467678842, -0.255059509, -0.547871686],
+        [-2.516729391, -0.262274028, -0.505607972],
+    ),
+];
+
+#[test]
+fn the_version_3_table_opens_and_gives_its_recorded_answers() {
+    let path = root().join("tables/compat/v3/ur5_hybrid_posture.tbl");
+    // SAFETY: a committed fixture, not modified while the test runs.
+    let table = unsafe { Table::open(path) }.unwrap();
+    assert_eq!(table.header().version, 3);
+    assert_eq!(table.header().source_hash, 0x543d_a92b_eccb_c6c5);
+    assert!(table.posture().is_some() && table.has_served_field());
+    for ((p, joints_deg, _, _), (served, exact)) in V2_HYBRID_ANSWERS.iter().zip(V3_HYBRID_ANSWERS)
+    {
+        let target = Target::at(*p);
+        let q = joints_deg.map(f64::to_radians);
+        let c = table.query_with_joints(&target, &q);
+        assert_eq!((c.status, c.neighbours), (Status::Ok, 8));
+        assert_close(&c.position_error_mm, &served, "served");
+        let c = table.exact().query_with_joints(&target, &q);
+        assert_eq!((c.status, c.neighbours), (Status::Ok, 8));
+        assert_close(&c.position_error_mm, &exact, "exact");
+    }
+}

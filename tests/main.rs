@@ -15,6 +15,7 @@ mod hostile_csv;
 mod latency_guard;
 mod no_alloc;
 mod outputs;
+mod posture;
 mod programs;
 mod robot_mutation;
 mod robots;

@@ -263,3 +263,39 @@ fn wiggled_poses(
         })
         .collect()
 }
+
+/// A hybrid table's posture term (a cell's list of samples weighed in pose space) adds
+/// no allocation to a served query.
+#[test]
+fn posture_term_queries_allocate_nothing() {
+    use adwi_compile::build::BuildOptions;
+    use adwi_compile::posture::Posture;
+    use adwi_runtime::posture::PostureParams;
+
+    let (_, samples, calibration) = common::kr150_calibration();
+    let options = BuildOptions {
+        cell_mm: Some(100.0),
+        posture: Posture::Given(PostureParams {
+            radius_mm: 300.0,
+            length_rad: 0.6,
+            floor: 0.3,
+        }),
+        ..BuildOptions::default()
+    };
+    let bytes = common::hybrid_table_bytes(&samples, &calibration.prepared_model(), &options);
+    let table = Table::from_vec(&bytes).unwrap();
+    assert!(table.posture().is_some());
+    let queries = wiggled_poses(&samples, 1.0, 20.0);
+    let mut ok = 0usize;
+    let mut checksum = 0.0;
+    let count = allocations_in(|| {
+        for (p, q) in &queries {
+            let c = table.query_with_joints(&Target::at(*p), q);
+            ok += usize::from(c.status == Status::Ok);
+            checksum += c.position_error_mm[0];
+        }
+    });
+    assert_eq!(count, 0, "posture-term queries allocated {count} times");
+    assert!(ok > queries.len() / 2, "only {ok} answered");
+    assert!(checksum.is_finite());
+}

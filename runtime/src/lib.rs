@@ -47,6 +47,7 @@ pub mod format;
 pub mod kinematics;
 pub mod method;
 pub mod model;
+pub mod posture;
 pub mod residency;
 pub mod served;
 mod swap;

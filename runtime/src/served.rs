@@ -89,7 +89,7 @@ pub fn fade_length_mm(cell_mm: f64) -> f64 {
 
 /// `3t² − 2t³` for `t` clamped to `[0, 1]`: 0 and 1 at the ends, with zero slope there.
 #[inline]
-fn smoothstep(t: f64) -> f64 {
+pub(crate) fn smoothstep(t: f64) -> f64 {
     let t = t.clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
 }

@@ -6,17 +6,22 @@
 //! paper's, to the digit, [`crate::exact`]) through the same calls on [`Table::exact`]. A
 //! table without a served tier — version 1, or a table with a joint-space screen — answers
 //! both from its exact tier ([`Table::has_served_field`] says which).
+//!
+//! A hybrid table of format version 3 also has a posture term ([`crate::posture`],
+//! [`Table::posture`]), which its served answers given joint values add; the exact tier
+//! does not.
 
 use std::path::Path;
 
 use crate::correction::{Compensation, Correction, Status, Target};
 use crate::exact::{self, V1, V2};
 use crate::format::{
-    v1, v2, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
+    v1, v2, v3, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
     PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction};
 use crate::model::PreparedModel;
+use crate::posture::{PostureParams, PreparedPosture};
 use crate::residency::{Lock, OpenOptions, Residency};
 use crate::served::ServedGrid;
 use crate::OpenError;
@@ -37,6 +42,8 @@ pub struct Table<D> {
     model: Option<PreparedModel>,
     /// The served tier's grid, prepared at open; `None` without a served tier.
     served: Option<ServedGrid>,
+    /// A version-3 table's posture term, prepared at open.
+    posture: Option<PreparedPosture>,
 }
 
 /// How far a hybrid table lets the nominal TCP at the query's joint values lie from the
@@ -59,7 +66,8 @@ fn joints_tolerance_mm(grid: &Grid) -> f64 {
 pub enum Payload<'a> {
     /// A version-1 table ([`v1::TableData`]).
     V1(&'a v1::ArchivedTableData),
-    /// A version-2 table ([`v2::TableData`]).
+    /// A version-2 table ([`v2::TableData`]), or the version-2 part of a version-3 one
+    /// ([`v3::TableData::base`]; [`Table::posture`] says whether it has the term).
     V2(&'a v2::ArchivedTableData),
 }
 
@@ -224,17 +232,35 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Err(OpenError::Misaligned { offset });
         }
         let archive_error = |e: rkyv::rancor::BoxedError| OpenError::Archive(e.to_string());
-        let (model, served) = if header.version == 1 {
-            let archived = rkyv::access::<v1::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
-                .map_err(archive_error)?;
-            crate::validate::validate_v1(&header, archived)?;
-            (crate::model::prepared_model_v1(archived), None)
-        } else {
-            let archived = rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
-                .map_err(archive_error)?;
+        let v2_part = |archived: &v2::ArchivedTableData| {
             let model = crate::validate::validate_v2(&header, archived)?;
             let served = (header.node_set_count > 0).then(|| ServedGrid::new(&header, archived));
-            (model, served)
+            Ok::<_, OpenError>((model, served))
+        };
+        let (model, served, posture) = match header.version {
+            1 => {
+                let archived =
+                    rkyv::access::<v1::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                        .map_err(archive_error)?;
+                crate::validate::validate_v1(&header, archived)?;
+                (crate::model::prepared_model_v1(archived), None, None)
+            }
+            2 => {
+                let archived =
+                    rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                        .map_err(archive_error)?;
+                let (model, served) = v2_part(archived)?;
+                (model, served, None)
+            }
+            _ => {
+                let archived =
+                    rkyv::access::<v3::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                        .map_err(archive_error)?;
+                let (model, served) = v2_part(&archived.base)?;
+                crate::validate::validate_posture(&header, &archived.posture)?;
+                let posture = PreparedPosture::new(&header, &archived.posture);
+                (model, served, Some(posture))
+            }
         };
         let validated_at = (bytes.as_ptr() as usize, bytes.len());
         Ok(Table {
@@ -243,6 +269,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             validated_at,
             model,
             served,
+            posture,
         })
     }
 
@@ -257,6 +284,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             validated_at: self.validated_at,
             model: self.model,
             served: self.served,
+            posture: self.posture,
         }
     }
 
@@ -324,6 +352,25 @@ impl<D: AsRef<[u8]>> Table<D> {
         self.model.as_ref()
     }
 
+    /// A hybrid table's posture term's parameters, when it has one ([`crate::posture`]):
+    /// its served answers then add the term at the query's joint values.
+    pub fn posture(&self) -> Option<PostureParams> {
+        self.posture.map(|p| p.params())
+    }
+
+    /// A version-3 table's posture record, or `None` for another table or if `data` no
+    /// longer returns the validated slice.
+    #[inline]
+    pub fn posture_record(&self) -> Option<&v3::ArchivedPostureRecord> {
+        let bytes = self.data.as_ref();
+        if self.header.version < 3 || (bytes.as_ptr() as usize, bytes.len()) != self.validated_at {
+            return None;
+        }
+        // SAFETY: as in `payload`: these bytes passed `rkyv::access` for version 3.
+        let data = unsafe { rkyv::access_unchecked::<v3::ArchivedTableData>(&bytes[HEADER_LEN..]) };
+        Some(&data.posture)
+    }
+
     /// The validated archive, or `None` if `data` no longer returns the validated slice.
     #[inline]
     pub fn payload(&self) -> Option<Payload<'_>> {
@@ -336,10 +383,10 @@ impl<D: AsRef<[u8]>> Table<D> {
         // this version's archive in `from_bytes`, and `D` gives shared access only, so they
         // are unchanged (for a memory map, by the contract of `Table::open`).
         Some(unsafe {
-            if self.header.version == 1 {
-                Payload::V1(rkyv::access_unchecked::<v1::ArchivedTableData>(payload))
-            } else {
-                Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload))
+            match self.header.version {
+                1 => Payload::V1(rkyv::access_unchecked::<v1::ArchivedTableData>(payload)),
+                2 => Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload)),
+                _ => Payload::V2(&rkyv::access_unchecked::<v3::ArchivedTableData>(payload).base),
             }
         })
     }
@@ -520,6 +567,17 @@ impl<D: AsRef<[u8]>> Table<D> {
         }
         if correction.status != Status::Ok {
             return correction;
+        }
+        if let (Some(posture), Some(q), Tier::Served) = (&self.posture, joints_rad, tier) {
+            let term = self
+                .posture_record()
+                .and_then(|r| posture.term(r, target.position_mm, q));
+            let Some(term) = term else {
+                return Correction::failed(Status::InvalidInput);
+            };
+            for (out, p) in correction.position_error_mm.iter_mut().zip(term) {
+                *out += p;
+            }
         }
         if let Some(at) = model_at {
             for (out, model) in correction.position_error_mm.iter_mut().zip(at.position_mm) {

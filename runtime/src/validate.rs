@@ -5,7 +5,7 @@
 use crate::chain::MAX_JOINTS;
 use crate::format::v1::ArchivedTableData;
 use crate::format::{
-    self, v2, Header, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_KNOWN, CONTENT_MODEL,
+    self, v2, v3, Header, CONTENT_CONFIG, CONTENT_JOINTS, CONTENT_KNOWN, CONTENT_MODEL,
     CONTENT_ORIENTATION,
 };
 use crate::method;
@@ -332,6 +332,99 @@ pub(crate) fn validate_v2(
             Ok(PreparedModel::new(nominal, calibrated))
         }
     }
+}
+
+/// A version-3 table's posture term ([`crate::posture`]): parameters positive and finite,
+/// one position, residual and joint row per sample, all finite and plausible; a posture
+/// grid from the table grid's origin covering its box, one list per cell, each ascending,
+/// of existing samples, at most [`v3::MAX_POSTURE_CANDIDATES`] long, every one reaching
+/// its cell. (That a list holds *every* sample reaching its cell is the compiler's
+/// guarantee, as the exact tier's candidate lists are.)
+pub(crate) fn validate_posture(
+    header: &Header,
+    p: &v3::ArchivedPostureRecord,
+) -> Result<(), OpenError> {
+    let params = crate::posture::params_of(p);
+    let positive = |v: f64, limit: f64| v > 0.0 && v <= limit;
+    if !positive(params.radius_mm, format::MAX_COORDINATE_MM)
+        || !positive(params.length_rad, 1e3)
+        || !positive(params.floor, 1e6)
+    {
+        return Err(corrupt(
+            "a posture parameter is not positive, finite and plausible",
+        ));
+    }
+    let n = header.sample_count as usize;
+    let joint_count = header.joint_count as usize;
+    if p.positions_mm.len() != n
+        || p.residuals_mm.len() != n
+        || Some(p.joints_rad.len()) != n.checked_mul(joint_count)
+    {
+        return Err(corrupt(
+            "the posture term's samples differ from the table's",
+        ));
+    }
+    let plausible = |v: &rkyv::Archived<f64>| v.to_native().abs() <= format::MAX_COORDINATE_MM;
+    let values = (p.positions_mm.iter().flatten())
+        .chain(p.residuals_mm.iter().flatten())
+        .chain(p.joints_rad.iter());
+    // Written so that NaN fails the test.
+    if !values.into_iter().all(plausible) {
+        return Err(corrupt(
+            "a posture sample value is not finite or implausible",
+        ));
+    }
+    let grid = crate::posture::posture_grid(header, p);
+    let table_max = header.grid.max_mm();
+    let covers = (0..3).all(|axis| grid.max_mm()[axis] >= table_max[axis]);
+    if !(positive(grid.cell_mm, format::MAX_COORDINATE_MM) && covers) {
+        return Err(corrupt("the posture grid does not cover the table's grid"));
+    }
+    let cells = grid
+        .cell_count()
+        .filter(|&c| c > 0 && c < u32::MAX as usize)
+        .ok_or(corrupt("the posture grid's size is zero or too large"))?;
+    let offsets = p.cell_offsets.as_slice();
+    if offsets.len() != cells + 1
+        || offsets[0].to_native() != 0
+        || offsets[cells].to_native() as usize != p.cell_samples.len()
+    {
+        return Err(corrupt(
+            "posture list offsets do not run from 0 to the list entries",
+        ));
+    }
+    let reach_mm = params.radius_mm * (1.0 + 1e-9) + 1e-5;
+    for (cell, w) in offsets.windows(2).enumerate() {
+        let (start, end) = (w[0].to_native() as usize, w[1].to_native() as usize);
+        let list = p
+            .cell_samples
+            .get(start..end)
+            .ok_or(corrupt("posture list offsets are not ascending"))?;
+        if list.len() > v3::MAX_POSTURE_CANDIDATES {
+            return Err(corrupt("a posture list is longer than a query may read"));
+        }
+        let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+        let mut previous = None;
+        for i in list {
+            let i = i.to_native() as usize;
+            if i >= n || previous.is_some_and(|prev| prev >= i) {
+                return Err(corrupt(
+                    "a posture list is not ascending or names a sample that does not exist",
+                ));
+            }
+            previous = Some(i);
+            let x = p.positions_mm[i].map(|v| v.to_native());
+            let outside_mm2: f64 = (0..3)
+                .map(|a| (lo[a] - x[a]).max(x[a] - hi[a]).max(0.0).powi(2))
+                .sum();
+            if outside_mm2 > reach_mm * reach_mm {
+                return Err(corrupt(
+                    "a posture list names a sample beyond the support of its cell",
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every cell record: one per cell, of the width the sample count calls for; every

@@ -18,7 +18,10 @@
 //!    the table and its queries cannot disagree on the model;
 //! 3. compile the residuals into a cell table with the approximation-degree method
 //!    ([`crate::build::compile_plan`]), the nominal and calibrated models stored with
-//!    it (`TableData::model`, `CONTENT_MODEL`).
+//!    it (`TableData::model`, `CONTENT_MODEL`);
+//! 4. when asked ([`crate::build::BuildOptions::posture`]), fit the posture term to what
+//!    that table leaves at the samples ([`crate::posture`]) and store it (a version-3
+//!    table).
 //!
 //! The residual samples keep their nominal positions; their "actual" positions, which the
 //! approximation degree uses, are nominal + residual, i.e. where the calibrated model
@@ -101,7 +104,13 @@ pub fn compile_serving(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
     let residual = residual_samples(samples, model)?;
-    let (bytes, report) = build::compile_plan_serving(
+    // The posture term learns what the table answers at every sample: all its nodes.
+    let nodes = if plan.posture == crate::posture::Posture::Off {
+        nodes
+    } else {
+        ServedNodes::All
+    };
+    let (mut bytes, mut report) = build::compile_plan_serving(
         &residual,
         plan,
         Some(model),
@@ -109,6 +118,13 @@ pub fn compile_serving(
         nodes,
         progress,
     )?;
+    if plan.posture != crate::posture::Posture::Off {
+        let (with_term, posture) =
+            crate::posture::add_term(&bytes, samples, plan.posture, plan.tuning)?;
+        report.table_bytes = with_term.len();
+        report.posture = Some(posture);
+        bytes = with_term;
+    }
     let sum: f64 = residual
         .error_mm
         .iter()

@@ -18,5 +18,6 @@ pub mod hybrid;
 pub mod inspect;
 pub mod local_kriging;
 pub mod nugget_kriging;
+pub mod posture;
 pub mod reference;
 pub mod write;

@@ -12,6 +12,7 @@
 use std::path::PathBuf;
 
 use adwi_compile::build::BuildOptions;
+use adwi_compile::posture::Posture;
 use adwi_runtime::format::ServedField;
 use adwi_runtime::method::MethodParams;
 use adwi_samples::{AngleUnit, ColumnMap, Decimal, Delimiter, LengthUnit};
@@ -127,6 +128,43 @@ impl std::fmt::Display for ServedFieldChoice {
     }
 }
 
+/// Whether a hybrid table gets a posture term ([`adwi_compile::posture`]), as asked for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PostureChoice {
+    /// Added when the build's cross-validation on the training samples says it helps by
+    /// the documented margin ([`crate::tune::POSTURE_MIN_GAIN_FRACTION`],
+    /// [`crate::tune::POSTURE_MIN_GAIN_MM`]); never for a position-only table.
+    #[default]
+    Auto,
+    /// Always added (a hybrid table).
+    On,
+    /// Never added.
+    Off,
+}
+
+impl std::str::FromStr for PostureChoice {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<PostureChoice, String> {
+        match text {
+            "auto" => Ok(PostureChoice::Auto),
+            "on" => Ok(PostureChoice::On),
+            "off" => Ok(PostureChoice::Off),
+            _ => Err(format!("'{text}': choose auto, on or off")),
+        }
+    }
+}
+
+impl std::fmt::Display for PostureChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            PostureChoice::Auto => "auto",
+            PostureChoice::On => "on",
+            PostureChoice::Off => "off",
+        })
+    }
+}
+
 /// The method's parameters and the grid of a table.
 #[derive(clap::Args, Deserialize, Debug, Clone, PartialEq)]
 #[serde(default, deny_unknown_fields)]
@@ -183,6 +221,13 @@ pub struct TableArgs {
     #[arg(long, value_name = "FIELD", default_value_t = ServedFieldChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub served_field: ServedFieldChoice,
+    /// A hybrid table's posture term, what the residual owes to the arm's posture and not
+    /// to the position alone (joint elasticity, gear errors of a redundant arm's elbow):
+    /// `auto` adds it when cross-validation on the samples alone says it helps (a build;
+    /// `eval` scores the table without it unless given `on`); `on`, always; `off`, never.
+    #[arg(long, value_name = "WHEN", default_value_t = PostureChoice::Auto)]
+    #[serde(deserialize_with = "parsed::value")]
+    pub posture: PostureChoice,
 }
 
 impl Default for TableArgs {
@@ -200,6 +245,7 @@ impl Default for TableArgs {
             bounds: None,
             joint_radius: None,
             served_field: ServedFieldChoice::Auto,
+            posture: PostureChoice::Auto,
         }
     }
 }
@@ -228,6 +274,10 @@ impl TableArgs {
             served_field: match self.served_field {
                 ServedFieldChoice::Given(field) => field,
                 ServedFieldChoice::Auto => ServedField::Method,
+            },
+            posture: match self.posture {
+                PostureChoice::On => Posture::Fit,
+                PostureChoice::Auto | PostureChoice::Off => Posture::Off,
             },
         }
     }

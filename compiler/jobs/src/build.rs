@@ -16,8 +16,8 @@ use adwi_robot::Robot;
 use adwi_samples::{RepeatReport, SampleSet};
 use serde::Deserialize;
 
-use crate::args::ServedFieldChoice;
 use crate::args::{Frame, Reading, RobotArgs, TableArgs};
+use crate::args::{PostureChoice, ServedFieldChoice};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
 use crate::tune::{AutoServedField, TuneReport};
@@ -245,6 +245,7 @@ impl BuildJob {
         let mut tuning = None;
         let mut served_choice = None;
         let choose_field = args.table.served_field == ServedFieldChoice::Auto;
+        let choose_posture = args.table.posture == PostureChoice::Auto && robot.is_some();
         if args.tune {
             progress.stage("tuning", None);
             let report = pool.install(|| {
@@ -256,17 +257,25 @@ impl BuildJob {
                     args.tune_folds,
                     0,
                     choose_field,
+                    choose_posture && plan.joint_radius_rad == 0.0,
                 )
             })?;
             options = report.options.clone();
             plan = adwi_compile::build::plan(&samples, &options)?;
             tuning = Some(report);
-        } else if choose_field && plan.joint_radius_rad == 0.0 {
+        } else if (choose_field || choose_posture) && plan.joint_radius_rad == 0.0 {
             // Never a reason for a build to fail that would succeed with the method's own
             // field: without the evidence, that one.
             progress.stage("choosing the served field", None);
             let chosen = pool.install(|| {
-                crate::tune::auto_served_field(&samples, robot.as_ref(), &options, &calibrate)
+                crate::tune::auto_choice(
+                    &samples,
+                    robot.as_ref(),
+                    &options,
+                    &calibrate,
+                    choose_field,
+                    choose_posture,
+                )
             });
             match chosen {
                 Ok(choice) => {
@@ -353,6 +362,13 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
         return Err(JobError::Options(
             "--compliance (compliance) is identified with the robot's geometry: give the robot \
              file (--robot)"
+                .into(),
+        ));
+    }
+    if args.table.posture == PostureChoice::On && !robot {
+        return Err(JobError::Options(
+            "--posture on (posture='on') is a hybrid table's term: give the robot file \
+             (--robot)"
                 .into(),
         ));
     }

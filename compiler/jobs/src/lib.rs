@@ -30,7 +30,7 @@ pub mod tune;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-pub use args::{Frame, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+pub use args::{Frame, PostureChoice, Reading, RobotArgs, ServedFieldChoice, TableArgs};
 pub use build::{BuildArgs, BuildJob, Built};
 pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
 pub use eval::{EvalArgs, EvalJob, Evaluated};

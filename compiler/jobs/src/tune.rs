@@ -73,6 +73,8 @@ pub struct TuneReport {
     pub chosen: usize,
     /// The served fields tried with the chosen `k` and ε (none with a joint screen).
     pub served: Vec<ServedCandidate>,
+    /// The posture term's cross-validation, when asked for (a hybrid table).
+    pub posture: Option<PostureChoice>,
     /// The build options with the chosen parameters and the tuning recorded.
     pub options: BuildOptions,
 }
@@ -111,6 +113,7 @@ pub enum TuneError {
 /// # Errors
 ///
 /// [`TuneError`].
+#[allow(clippy::too_many_arguments)]
 pub fn tune(
     samples: &SampleSet,
     robot: Option<&Robot>,
@@ -119,6 +122,7 @@ pub fn tune(
     folds: usize,
     seed: u64,
     choose_field: bool,
+    choose_posture: bool,
 ) -> Result<TuneReport, TuneError> {
     if folds < 2 {
         return Err(TuneError::Folds);
@@ -167,6 +171,7 @@ pub fn tune(
         folds: folds as u32,
         cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
         served_cv_mean_mm: None,
+        posture_cv_mean_mm: None,
     });
     let served = if choose_field {
         let choice = served_field(
@@ -186,12 +191,51 @@ pub fn tune(
     } else {
         Vec::new()
     };
+    let posture = match robot.filter(|_| choose_posture) {
+        Some(robot) => {
+            // The chosen field's figure on these folds, scored above when it was chosen.
+            let without_mm = match options.tuning.and_then(|t| t.served_cv_mean_mm) {
+                Some(mean) => Some(mean),
+                None => served_field_among(
+                    &[options.served_field],
+                    samples,
+                    Some(robot),
+                    &options,
+                    calibrate,
+                    folds,
+                    seed,
+                    &identified,
+                )?
+                .chosen_cv_mean_mm(),
+            };
+            let posture = posture_choice(
+                samples,
+                robot,
+                &options,
+                calibrate,
+                folds,
+                seed,
+                &identified,
+                without_mm,
+            )?;
+            if posture.chosen {
+                options.posture = adwi_compile::posture::Posture::Fit;
+                if let Some(tuning) = &mut options.tuning {
+                    tuning.served_cv_mean_mm = posture.without_mm;
+                    tuning.posture_cv_mean_mm = posture.with_mm;
+                }
+            }
+            Some(posture)
+        }
+        None => None,
+    };
     Ok(TuneReport {
         method,
         folds,
         candidates,
         chosen,
         served,
+        posture,
         options,
     })
 }
@@ -222,14 +266,38 @@ pub fn served_field(
     if options.joint_radius_deg.is_some_and(|r| r > 0.0) {
         return Ok(ServedChoice::default());
     }
+    // The kriging turns with the tool's axis where its likelihood says so: one kind.
+    served_field_among(
+        &[ServedField::Method, ServedField::Kriging],
+        samples,
+        robot,
+        options,
+        calibrate,
+        folds,
+        seed,
+        identified,
+    )
+}
+
+/// [`served_field`] among `fields`.
+#[allow(clippy::too_many_arguments)]
+fn served_field_among(
+    fields: &[ServedField],
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    folds: usize,
+    seed: u64,
+    identified: &RefCell<Vec<Calibration>>,
+) -> Result<ServedChoice, TuneError> {
     let method = if robot.is_some() {
         Method::HybridTrilinear
     } else {
         Method::PaperTrilinear
     };
     let mut candidates = Vec::new();
-    // The kriging turns with the tool's axis where its likelihood says so: one kind.
-    for field in [ServedField::Method, ServedField::Kriging] {
+    for &field in fields {
         let build = BuildOptions {
             served_field: field,
             ..options.clone()
@@ -331,6 +399,75 @@ pub struct AutoServedField {
     pub samples: usize,
     /// The kriging's hyperparameters every fold used: the table's, when kriging is chosen.
     pub kriging_choices: Option<GivenChoices>,
+    /// The posture term's cross-validation, when it was asked for (a hybrid table).
+    pub posture: Option<PostureChoice>,
+}
+
+/// The posture term's cross-validation ([`posture_choice`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PostureChoice {
+    /// The served tier's mean without the term (the chosen field's), mm.
+    pub without_mm: Option<f64>,
+    /// The same with the term, mm.
+    pub with_mm: Option<f64>,
+    /// Whether the term is added: it improved the mean by the margin.
+    pub chosen: bool,
+}
+
+/// The least relative improvement of the cross-validated mean for which a build adds the
+/// posture term.
+pub const POSTURE_MIN_GAIN_FRACTION: f64 = 0.02;
+/// The least absolute improvement of the cross-validated mean for which a build adds the
+/// posture term, mm: below, the term's evidence is within what a different fold split
+/// moves.
+pub const POSTURE_MIN_GAIN_MM: f64 = 0.005;
+
+/// Whether a hybrid table's served tier (`hybrid-trilinear`, as `options` build it) gains
+/// from the posture term, by cross-validation on the same folds as its served field's
+/// choice: `without_mm` is that choice's figure, the term is fitted on each fold's
+/// training samples alone, and added when it lowers the mean by at least
+/// [`POSTURE_MIN_GAIN_FRACTION`] and [`POSTURE_MIN_GAIN_MM`].
+///
+/// # Errors
+///
+/// An evaluation failing.
+#[allow(clippy::too_many_arguments)]
+pub fn posture_choice(
+    samples: &SampleSet,
+    robot: &Robot,
+    options: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    folds: usize,
+    seed: u64,
+    identified: &RefCell<Vec<Calibration>>,
+    without_mm: Option<f64>,
+) -> Result<PostureChoice, TuneError> {
+    let build = BuildOptions {
+        posture: adwi_compile::posture::Posture::Fit,
+        ..options.clone()
+    };
+    let (with_mm, _) = cross_validate(
+        samples,
+        Some(robot),
+        calibrate,
+        folds,
+        seed,
+        identified,
+        Method::HybridTrilinear,
+        build,
+    )?;
+    let chosen = match (without_mm, with_mm) {
+        (Some(without), Some(with)) => {
+            let gain = without - with;
+            gain >= POSTURE_MIN_GAIN_MM && gain >= POSTURE_MIN_GAIN_FRACTION * without
+        }
+        _ => false,
+    };
+    Ok(PostureChoice {
+        without_mm,
+        with_mm,
+        chosen,
+    })
 }
 
 impl AutoServedField {
@@ -342,6 +479,9 @@ impl AutoServedField {
         if options.served_field != ServedField::Method {
             options.kriging_choices = self.kriging_choices;
         }
+        if self.posture.is_some_and(|p| p.chosen) {
+            options.posture = adwi_compile::posture::Posture::Fit;
+        }
     }
 
     /// What the table's header records of it.
@@ -350,6 +490,7 @@ impl AutoServedField {
             folds: self.choice.folds as u32,
             cv_mean_mm: self.exact_cv_mean_mm?,
             served_cv_mean_mm: self.choice.chosen_cv_mean_mm(),
+            posture_cv_mean_mm: self.posture.filter(|p| p.chosen).and_then(|p| p.with_mm),
         })
     }
 }
@@ -366,6 +507,24 @@ pub fn auto_served_field(
     robot: Option<&Robot>,
     options: &BuildOptions,
     calibrate: &adwi_robot::calibrate::CalibrateOptions,
+) -> Result<AutoServedField, TuneError> {
+    auto_choice(samples, robot, options, calibrate, true, false)
+}
+
+/// [`auto_served_field`] (only scoring `options.served_field` unless `choose_field`),
+/// then, when `posture` and a robot is given, whether the table gets a posture term
+/// ([`posture_choice`], on the same folds and samples).
+///
+/// # Errors
+///
+/// An evaluation failing.
+pub fn auto_choice(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &adwi_robot::calibrate::CalibrateOptions,
+    choose_field: bool,
+    posture: bool,
 ) -> Result<AutoServedField, TuneError> {
     if samples.len() < AUTO_MIN_SAMPLES {
         return Err(TuneError::TooFewSamples(samples.len()));
@@ -415,7 +574,14 @@ pub fn auto_served_field(
         exact,
         method,
     )?;
-    let choice = served_field(
+    let given = [options.served_field];
+    let fields: &[ServedField] = if choose_field {
+        &[ServedField::Method, ServedField::Kriging]
+    } else {
+        &given
+    };
+    let choice = served_field_among(
+        fields,
         samples,
         robot,
         options,
@@ -424,11 +590,32 @@ pub fn auto_served_field(
         0,
         &identified,
     )?;
+    let posture = match robot.filter(|_| posture) {
+        Some(robot) => {
+            let chosen = BuildOptions {
+                served_field: choice.field(),
+                ..options.clone()
+            };
+            let without_mm = choice.chosen_cv_mean_mm();
+            Some(posture_choice(
+                samples,
+                robot,
+                &chosen,
+                calibrate,
+                AUTO_FOLDS,
+                0,
+                &identified,
+                without_mm,
+            )?)
+        }
+        None => None,
+    };
     Ok(AutoServedField {
         choice,
         exact_cv_mean_mm,
         samples: samples.len(),
         kriging_choices,
+        posture,
     })
 }
 

@@ -111,12 +111,44 @@ fn print_summary(built: &Built) {
         crate::describe_joint_screen(plan.joint_radius_rad)
     );
     println!("served field   {}", describe_served_field(report));
+    println!("posture term   {}", describe_posture(built));
     println!(
         "wrote          {} ({} bytes) in {:.2} s",
         built.output.display(),
         report.table_bytes,
         built.seconds
     );
+}
+
+/// Whether the table has a posture term, its parameters and the evidence.
+fn describe_posture(built: &adwi_jobs::build::Built) -> String {
+    let choice = (built.served_choice.as_ref().and_then(|c| c.posture))
+        .or(built.tuning.as_ref().and_then(|t| t.posture));
+    let evidence = choice.map_or(String::new(), |c| {
+        let mean = |m: Option<f64>| m.map_or("—".to_string(), |m| format!("{m:.4} mm"));
+        format!(
+            "; cross-validated served mean {} without, {} with (added when at least {} % and \
+             {} mm lower)",
+            mean(c.without_mm),
+            mean(c.with_mm),
+            100.0 * adwi_jobs::tune::POSTURE_MIN_GAIN_FRACTION,
+            adwi_jobs::tune::POSTURE_MIN_GAIN_MM
+        )
+    });
+    match &built.report.posture {
+        Some(p) => format!(
+            "on: R {:.1} mm, ℓ_q {} rad, W0 {} (leave-one-out mean {:.4} mm without, {:.4} mm \
+             with); {} cells, at most {} samples a cell{evidence}",
+            p.params.radius_mm,
+            p.params.length_rad,
+            p.params.floor,
+            p.loo_without_mm,
+            p.loo_with_mm,
+            p.cells,
+            p.max_list_len
+        ),
+        None => format!("off{evidence}"),
+    }
 }
 
 /// What the served field's nodes hold, with a kriging's hyperparameters per component.

@@ -90,6 +90,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
         None => println!("cross-validated no (parameters and served field given)"),
     }
+    match table.posture() {
+        Some(p) => println!(
+            "posture term    on: R {} mm, ℓ_q {} rad, W0 {}{}",
+            p.radius_mm,
+            p.length_rad,
+            p.floor,
+            h.tuning
+                .and_then(|t| t.posture_cv_mean_mm)
+                .map_or(String::new(), |m| format!(
+                    "; served field with the term, by the same folds: {m:.4} mm mean"
+                ))
+        ),
+        None if table.is_hybrid() => println!("posture term    off"),
+        None => {}
+    }
     println!(
         "joint screen    {}",
         crate::describe_joint_screen(h.joint_radius_rad)

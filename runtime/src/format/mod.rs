@@ -10,10 +10,10 @@
 //! |-------:|-----:|-------|
 //! | 0   | 8  | magic `b"ADWITBL\0"` |
 //! | 8   | 2  | endianness mark `0xFEFF` (reads `0xFFFE` on a big-endian misreading) |
-//! | 10  | 2  | format version: 2 ([`v2`]); version 1 ([`v1`]) is still read |
+//! | 10  | 2  | format version: 2 ([`v2`]), or 3 ([`v3`]) for a table with a posture term; version 1 ([`v1`]) is still read |
 //! | 12  | 4  | header length in bytes (256) |
 //! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
-//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 sample joint values (v2: stored only for a joint screen), bit 3 kinematic model (a hybrid table) |
+//! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 sample joint values (v2: stored only for a joint screen), bit 3 kinematic model (a hybrid table), bit 4 posture term (version 3, a hybrid table) |
 //! | 24  | 8  | payload length in bytes (file length − 256) |
 //! | 32  | 8  | payload checksum, XXH3-64 of the payload |
 //! | 40  | 8  | source hash, XXH3-64 of the canonical sample values the table was built from |
@@ -36,18 +36,21 @@
 //! | 172 | 4  | v2: what the served tier's nodes hold ([`ServedField`]): 0 the method's own values at the nodes, 1 kriging with a nugget of the samples' errors (`tablec build --served-field kriging`), 2 that kriging with a part that turns with the tool's approach axis (`--served-field kriging-tool-axis`; hybrid tables; 4 vectors per node) |
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
 //! | 184 | 8  | v2: the same cross-validation's mean position residual of the served tier with the chosen served field, mm (0 when not tuned or without a served tier) |
-//! | 192 | 56 | reserved, zero |
+//! | 192 | 8  | v3: the same cross-validation's mean position residual of the served tier with the posture term, mm (0 when not cross-validated; v2: reserved, zero) |
+//! | 200 | 48 | reserved, zero |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
 //! archive, and a version-2 table's cell records that open it, start on a cache line. The
-//! payloads: [`v2::TableData`] (what a query reads, and nothing else) and the older
-//! [`v1::TableData`].
+//! payloads: [`v2::TableData`] (what a query reads, and nothing else), [`v3::TableData`]
+//! (the same and a posture term, written only when the table has one: a table without is
+//! version 2, byte for byte) and the older [`v1::TableData`].
 
 use rkyv::{Archive, Deserialize, Serialize};
 
 pub mod v1;
 pub mod v2;
+pub mod v3;
 
 pub use v1::{
     joint_rows, joint_rows_to_mdh, rows_of, transform_of, KinematicModel, ModelParams, JOINT_COUNT,
@@ -57,8 +60,9 @@ pub use v1::{
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
 pub const ENDIAN_MARK: u16 = 0xFEFF;
-/// The format version this runtime writes.
-pub const FORMAT_VERSION: u16 = 2;
+/// The newest format version this runtime writes: 3 for a table with a posture term, 2
+/// for any other ([`encode`], [`encode_v3`]).
+pub const FORMAT_VERSION: u16 = 3;
 /// The oldest format version this runtime reads.
 pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
 /// The header's length in bytes; the payload starts here.
@@ -86,9 +90,12 @@ pub const CONTENT_CONFIG: u32 = 1 << 1;
 pub const CONTENT_JOINTS: u32 = 1 << 2;
 /// Content flag: the table carries a calibrated kinematic model (a hybrid table).
 pub const CONTENT_MODEL: u32 = 1 << 3;
+/// Content flag: the table carries a posture term ([`crate::posture`], version 3, exactly
+/// then).
+pub const CONTENT_POSTURE: u32 = 1 << 4;
 /// Every content flag this format version defines; a table naming others is refused.
 pub const CONTENT_KNOWN: u32 =
-    CONTENT_ORIENTATION | CONTENT_CONFIG | CONTENT_JOINTS | CONTENT_MODEL;
+    CONTENT_ORIENTATION | CONTENT_CONFIG | CONTENT_JOINTS | CONTENT_MODEL | CONTENT_POSTURE;
 
 /// The decoded header: identification, integrity fields and the build parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -203,6 +210,9 @@ pub struct Tuning {
     /// The served tier's mean over the same folds with the chosen served field, mm, when
     /// the table has one: what queries by the served field are expected to leave.
     pub served_cv_mean_mm: Option<f64>,
+    /// The served tier's mean over the same folds with the posture term added, mm, when
+    /// it was cross-validated (version 3: a table that has the term).
+    pub posture_cv_mean_mm: Option<f64>,
 }
 
 /// A regular grid of cubic cells over an axis-aligned box of the base frame.
@@ -348,6 +358,13 @@ impl Header {
                     184,
                     t.served_cv_mean_mm.unwrap_or(0.0).to_le_bytes(),
                 );
+                if self.version >= 3 {
+                    put(
+                        &mut b,
+                        192,
+                        t.posture_cv_mean_mm.unwrap_or(0.0).to_le_bytes(),
+                    );
+                }
             }
             put(&mut b, 172, (self.served_field as u32).to_le_bytes());
         }
@@ -408,7 +425,9 @@ impl Header {
                 expected: RKYV_FLAGS,
             });
         }
-        let reserved: [std::ops::Range<usize>; 2] = if version >= 2 {
+        let reserved: [std::ops::Range<usize>; 2] = if version >= 3 {
+            [200..248, 248..248]
+        } else if version >= 2 {
             [192..248, 248..248]
         } else {
             [160..248, 248..248]
@@ -432,6 +451,17 @@ impl Header {
         if !(joint_radius_rad >= 0.0 && joint_radius_rad.is_finite()) {
             return Err(OpenError::Corrupt {
                 what: "joint radius is negative or not finite",
+            });
+        }
+        // The posture term is version 3's, and version 3 is a table with one.
+        if (u32_at(20) & CONTENT_POSTURE != 0) != (version >= 3) {
+            return Err(OpenError::Corrupt {
+                what: "a posture term is stored exactly in a version-3 table",
+            });
+        }
+        if version >= 3 && u32_at(20) & CONTENT_MODEL == 0 {
+            return Err(OpenError::Corrupt {
+                what: "a posture term without a kinematic model",
             });
         }
         let served_field = match (version, u32_at(172)) {
@@ -471,13 +501,24 @@ impl Header {
                     what: "the tuning's served cross-validated mean is negative, implausible or not finite",
                 });
             }
+            let posture = if version >= 3 { f64_at(192) } else { 0.0 };
+            // Written so that NaN fails the test; 0 is "not scored".
+            if !(0.0..=MAX_COORDINATE_MM).contains(&posture) {
+                return Err(OpenError::Corrupt {
+                    what: "the tuning's posture cross-validated mean is negative, implausible or not finite",
+                });
+            }
             Some(Tuning {
                 folds: u32_at(168),
                 cv_mean_mm,
                 served_cv_mean_mm: (served > 0.0).then_some(served),
+                posture_cv_mean_mm: (posture > 0.0).then_some(posture),
             })
         } else {
-            if version >= 2 && (f64_at(176).to_bits() != 0 || f64_at(184).to_bits() != 0) {
+            let posture_bits = if version >= 3 { u64_at(192) } else { 0 };
+            if version >= 2
+                && (f64_at(176).to_bits() != 0 || f64_at(184).to_bits() != 0 || posture_bits != 0)
+            {
                 return Err(OpenError::Corrupt {
                     what: "a cross-validated mean without folds",
                 });
@@ -523,20 +564,33 @@ impl Header {
 }
 
 /// Serialises a version-2 table: the header (with its checksums and lengths filled in from
-/// the payload) followed by the rkyv archive of `data`. The compiler's one way to write a
-/// file.
+/// the payload) followed by the rkyv archive of `data`. The compiler's way to write a
+/// table without a posture term.
 ///
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
-pub fn encode(mut header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
+pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
-    header.version = FORMAT_VERSION;
+    Ok(with_header(header, 2, &payload))
+}
+
+/// Serialises a version-3 table (a table with a posture term) as [`encode`] a version-2
+/// one; the header's [`CONTENT_POSTURE`] flag is set.
+pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
+    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
+    header.content_flags |= CONTENT_POSTURE;
+    Ok(with_header(header, 3, &payload))
+}
+
+/// The header of `payload` at `version`, with its lengths and checksums, then the payload.
+fn with_header(mut header: Header, version: u16, payload: &[u8]) -> Vec<u8> {
+    header.version = version;
     header.rkyv_flags = RKYV_FLAGS;
     header.payload_len = payload.len() as u64;
-    header.payload_checksum = xxhash_rust::xxh3::xxh3_64(&payload);
+    header.payload_checksum = xxhash_rust::xxh3::xxh3_64(payload);
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(&header.to_bytes());
-    out.extend_from_slice(&payload);
-    Ok(out)
+    out.extend_from_slice(payload);
+    out
 }
 
 /// The largest plausible distance of a grid corner or a sample from the robot's base, mm,

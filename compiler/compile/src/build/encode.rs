@@ -64,7 +64,11 @@ pub fn compile_plan_serving(
         served_cells: 0,
         node_sets: 0,
         served_kriging: Vec::new(),
+        posture: None,
     };
+    if model.is_none() && plan.posture != crate::posture::Posture::Off {
+        return Err(BuildError::PostureWithoutModel);
+    }
     if let Some(model) = model {
         for chain in [model.nominal(), model.calibrated()] {
             format::check_chain_plausible(chain)?;

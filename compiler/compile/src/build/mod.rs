@@ -122,6 +122,9 @@ pub struct BuildOptions {
     /// likelihood on these samples (a served-field choice's folds reuse those of all the
     /// training samples); ignored by the method's field.
     pub kriging_choices: Option<crate::nugget_kriging::GivenChoices>,
+    /// Whether a hybrid table gets a posture term ([`crate::posture`]); refused for a
+    /// position-only table and with a joint screen.
+    pub posture: crate::posture::Posture,
 }
 
 impl Default for BuildOptions {
@@ -134,6 +137,7 @@ impl Default for BuildOptions {
             tuning: None,
             served_field: ServedField::Method,
             kriging_choices: None,
+            posture: crate::posture::Posture::Off,
         }
     }
 }
@@ -205,6 +209,21 @@ pub enum BuildError {
     /// A kriging served field was asked of a table that has none (a joint screen).
     #[error("a kriging served field needs a served tier, which a table with a joint screen does not have")]
     KrigingWithoutServedTier,
+    /// A posture term's cell lists would be longer than a query may read.
+    #[error(
+        "the posture term's longest cell list would hold {longest} samples, more than the \
+         {max} a query may read: the samples are too dense for its support"
+    )]
+    PostureTooDense {
+        /// The longest list of the smallest support tried, samples.
+        longest: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A posture term was asked of a table without a kinematic model (it needs the joint
+    /// values every hybrid query gives) or with a joint screen.
+    #[error("a posture term needs a hybrid table (a robot file) without a joint screen")]
+    PostureWithoutModel,
     /// The encoded table does not open: a bug of the compiler, never a property of the
     /// input.
     #[error("the built table does not open: please report this bug")]
@@ -243,6 +262,8 @@ pub struct BuildReport {
     /// (x, y, z, then the orientation's), of the fit serving targets of any configuration;
     /// empty when the nodes hold the method's answer.
     pub served_kriging: Vec<crate::nugget_kriging::GpChoice>,
+    /// A hybrid table's posture term, when it has one.
+    pub posture: Option<crate::posture::PostureReport>,
 }
 
 /// Plans and compiles `samples` into table bytes: [`plan`], then [`compile_plan`].

@@ -54,6 +54,8 @@ pub struct Plan {
     pub served_field: ServedField,
     /// A kriging field's hyperparameters, when given ([`BuildOptions::kriging_choices`]).
     pub kriging_choices: Option<crate::nugget_kriging::GivenChoices>,
+    /// Whether a hybrid table gets a posture term ([`BuildOptions::posture`]).
+    pub posture: crate::posture::Posture,
 }
 
 impl Plan {
@@ -209,6 +211,17 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
     if joint_radius_rad > 0.0 && options.served_field != ServedField::Method {
         return Err(BuildError::KrigingWithoutServedTier);
     }
+    if joint_radius_rad > 0.0 && options.posture != crate::posture::Posture::Off {
+        return Err(BuildError::PostureWithoutModel);
+    }
+    if let crate::posture::Posture::Given(p) = options.posture {
+        let positive = |v: f64| v > 0.0 && v.is_finite();
+        if !(positive(p.radius_mm) && positive(p.length_rad) && positive(p.floor)) {
+            return Err(BuildError::Params(
+                "the posture term's radius, length and floor must be positive and finite",
+            ));
+        }
+    }
     if joint_radius_rad > 0.0 && samples.joints.is_none() {
         return Err(BuildError::Params(
             "a joint radius needs samples with joint angles (columns j1..jn)",
@@ -304,6 +317,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         tuning: options.tuning,
         served_field: options.served_field,
         kriging_choices: options.kriging_choices,
+        posture: options.posture,
         node_bytes,
     })
 }
