@@ -104,11 +104,19 @@ pub fn compile_serving(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
     let residual = residual_samples(samples, model)?;
-    // The posture term learns what the table answers at every sample: all its nodes.
-    let nodes = if plan.posture == crate::posture::Posture::Off {
-        nodes
-    } else {
-        ServedNodes::All
+    // The posture term learns what the table answers at each sample: a table computing
+    // only some nodes computes those that serve the samples too.
+    let serving_samples: Vec<[f64; 3]>;
+    let nodes = match nodes {
+        ServedNodes::Serving(positions) if plan.posture != crate::posture::Posture::Off => {
+            serving_samples = positions
+                .iter()
+                .chain(&samples.nominal_mm)
+                .copied()
+                .collect();
+            ServedNodes::Serving(&serving_samples)
+        }
+        nodes => nodes,
     };
     let (mut bytes, mut report) = build::compile_plan_serving(
         &residual,
