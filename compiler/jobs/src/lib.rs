@@ -36,7 +36,7 @@ pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
 pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
 pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
-pub use plan::{PlanArgs, PlanJob, Planned};
+pub use plan::{CriterionArg, PlanArgs, PlanJob, Planned};
 pub use simulate::{SimulateArgs, SimulateJob, Simulated};
 
 /// Why a job was refused or failed. Refusals of options come before any work.
