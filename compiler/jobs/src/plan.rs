@@ -299,10 +299,18 @@ impl PlanJob {
                 )
             })
             .map_err(|e| JobError::Plan(Box::new(e)))?;
-        if !(planned.log_det.is_finite() && planned.min_distance_mm.is_finite()) {
+        if !(planned.log_det.is_finite()
+            && planned.mean_variance.is_finite()
+            && planned.variance_bound.is_finite()
+            && planned.min_distance_mm.is_finite())
+        {
             return Err(JobError::NonFinite(format!(
-                "the plan's criterion came out non-finite (log det {}, smallest distance {} mm)",
-                planned.log_det, planned.min_distance_mm
+                "the plan's criterion came out non-finite (log det {}, mean prediction variance \
+                 {}, its bound {}, smallest distance {} mm)",
+                planned.log_det,
+                planned.mean_variance,
+                planned.variance_bound,
+                planned.min_distance_mm
             )));
         }
         let closed_form = InverseKinematics::new(&robot).is_ok();
@@ -323,13 +331,16 @@ impl PlanJob {
                 boxes.join(", ")
             ),
             format!(
-                "{} over {} identifiable parameters (log det {:.3}) blended with coverage (weight {}), {} exchange passes at most; smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
+                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {:.4} σ², no {} of the candidates below {:.4} σ²) blended with coverage (weight {}), {} exchange passes at most; smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
                 match options.criterion {
                     Criterion::D => "D-optimality",
                     Criterion::I => "I-optimality (mean prediction variance over the candidates)",
                 },
                 planned.parameters.len(),
                 planned.log_det,
+                planned.mean_variance,
+                planned.poses.len(),
+                planned.variance_bound,
                 options.coverage_weight,
                 options.exchange_passes,
                 planned.min_distance_mm,

@@ -184,6 +184,14 @@ pub struct Plan {
     pub draws: usize,
     /// `log det` of the chosen poses' information (scaled parameters, with the ridge).
     pub log_det: f64,
+    /// The chosen poses' mean prediction variance of the TCP position over the pool, in
+    /// units of the noise variance of one measured coordinate (`tr(W M⁻¹)`, module docs):
+    /// the identified model's mean squared position error at the candidates is this
+    /// times σ², if the model is right.
+    pub mean_variance: f64,
+    /// A lower bound on [`Self::mean_variance`] for any choice of as many poses from the
+    /// pool (module docs, "How good a plan is").
+    pub variance_bound: f64,
     /// The smallest distance between two chosen poses' TCPs, mm.
     pub min_distance_mm: f64,
     /// The path's joint travel, the sum of the largest joint move of each step (rad).
@@ -616,9 +624,76 @@ impl<'a> Design<'a> {
     }
 }
 
-/// The selection (module docs): indices into `candidates` (greedy ones in the order
-/// chosen, exchanged ones in the place of the pose they replaced), the parameters weighed,
-/// and the design's `log det`. `advance` is told of each pose chosen.
+/// What [`select`] chose and what it achieves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// Indices into the candidates: greedy ones in the order chosen, exchanged ones in the
+    /// place of the pose they replaced.
+    pub chosen: Vec<usize>,
+    /// The parameters weighed.
+    pub parameters: Vec<Parameter>,
+    /// [`Plan::log_det`].
+    pub log_det: f64,
+    /// [`Plan::mean_variance`].
+    pub mean_variance: f64,
+    /// [`Plan::variance_bound`].
+    pub variance_bound: f64,
+}
+
+/// Iterations of the multiplicative algorithm behind [`Plan::variance_bound`].
+const BOUND_ITERATIONS: usize = 100;
+
+/// A lower bound on `tr(W M⁻¹)` for any `count` poses of the pool (module docs, "How good
+/// a plan is"): the relaxation to weights `ξᵢ ≥ 0`, `Σ ξᵢ = 1`, with information
+/// `count · M(ξ)`, `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + (ridge / count) I`, is convex, so for any `ξ`
+/// its optimum is at least `φ(ξ) − max_i (dᵢ(ξ) − φ(ξ))`, `φ = tr(W M(ξ)⁻¹)`,
+/// `dᵢ = tr(Bᵢ M(ξ)⁻¹ W M(ξ)⁻¹ Bᵢᵀ)` (the derivative toward candidate `i`); `ξ` is
+/// improved by the multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / φ` to make the bound tight.
+fn variance_bound(
+    stacked: &DMatrix<f64>,
+    workspace: &DMatrix<f64>,
+    count: usize,
+    ridge: f64,
+) -> f64 {
+    let n = stacked.nrows() / 3;
+    let k = stacked.ncols();
+    let mut xi = vec![1.0 / n as f64; n];
+    let mut best = 0.0_f64;
+    for _ in 0..BOUND_ITERATIONS {
+        let mut weighted = stacked.clone();
+        for (i, w) in xi.iter().enumerate() {
+            weighted.rows_mut(3 * i, 3).scale_mut(*w);
+        }
+        let m = stacked.transpose() * weighted + DMatrix::identity(k, k) * (ridge / count as f64);
+        let Some(m_inv) = m.try_inverse() else {
+            break;
+        };
+        let phi = (workspace * &m_inv).trace();
+        let g = &m_inv * workspace * &m_inv;
+        let bg = stacked * g;
+        let d: Vec<f64> = (0..n)
+            .map(|i| {
+                (0..3)
+                    .map(|r| bg.row(3 * i + r).dot(&stacked.row(3 * i + r)))
+                    .sum()
+            })
+            .collect();
+        let largest = d.iter().copied().fold(0.0, f64::max);
+        best = best.max(2.0 * phi - largest);
+        if !(phi > 0.0 && phi.is_finite()) {
+            break;
+        }
+        for (x, di) in xi.iter_mut().zip(&d) {
+            *x *= di / phi;
+        }
+        let total: f64 = xi.iter().sum();
+        xi.iter_mut().for_each(|x| *x /= total);
+    }
+    best / count as f64
+}
+
+/// The selection (module docs), and what it achieves. `advance` is told of each pose
+/// chosen.
 ///
 /// # Errors
 ///
@@ -628,7 +703,7 @@ pub fn select(
     options: &PlanOptions,
     candidates: &[PlannedPose],
     advance: &(dyn Fn(u64) + Sync),
-) -> Result<(Vec<usize>, Vec<Parameter>, f64), PlanError> {
+) -> Result<Selection, PlanError> {
     let joints: Vec<Vec<f64>> = candidates.iter().map(|c| c.joints.clone()).collect();
     let (parameters, blocks) =
         design_jacobians(robot, &joints, options.rank_tolerance).map_err(Box::new)?;
@@ -695,8 +770,18 @@ pub fn select(
         ridge,
     );
     let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
-    let log_det = log_det(&information(&picked, k, ridge));
-    Ok((chosen, parameters, log_det))
+    let m = information(&picked, k, ridge);
+    let mean_variance = m
+        .clone()
+        .try_inverse()
+        .map_or(f64::INFINITY, |m_inv| (&workspace * m_inv).trace());
+    Ok(Selection {
+        log_det: log_det(&m),
+        mean_variance,
+        variance_bound: variance_bound(&stacked, &workspace, options.count, ridge),
+        chosen,
+        parameters,
+    })
 }
 
 /// The index of the largest score, the earlier one on ties.
@@ -840,7 +925,13 @@ pub fn plan(
     stage("drawing candidates", options.pool as u64);
     let (pool, draws) = candidates(robot, options, advance)?;
     stage("selecting", options.count as u64);
-    let (chosen, parameters, log_det) = select(robot, options, &pool, advance)?;
+    let Selection {
+        chosen,
+        parameters,
+        log_det,
+        mean_variance,
+        variance_bound,
+    } = select(robot, options, &pool, advance)?;
     let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
     let (path, path_travel) = order(robot, &picked);
     let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
@@ -856,6 +947,8 @@ pub fn plan(
         pool: pool.len(),
         draws,
         log_det,
+        mean_variance,
+        variance_bound,
         min_distance_mm,
         path_travel,
     })
@@ -1037,7 +1130,8 @@ mod tests {
             ..options(25, 300)
         };
         let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
-        let (_, parameters, chosen) = select(&robot, &o, &pool, &|_| {}).unwrap();
+        let selection = select(&robot, &o, &pool, &|_| {}).unwrap();
+        let (parameters, chosen) = (selection.parameters, selection.log_det);
         let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
         let (_, blocks) = design_jacobians(&robot, &joints, o.rank_tolerance).unwrap();
         let first: Vec<&DMatrix<f64>> = blocks.iter().take(25).collect();
@@ -1138,8 +1232,15 @@ mod tests {
                 exchange_passes: passes,
                 ..options(25, 400)
             };
-            let (greedy, _, greedy_det) = select(&robot, &o(0), &pool, &|_| {}).unwrap();
-            let (exchanged, _, det) = select(&robot, &o(3), &pool, &|_| {}).unwrap();
+            let greedy = select(&robot, &o(0), &pool, &|_| {}).unwrap();
+            let exchanged = select(&robot, &o(3), &pool, &|_| {}).unwrap();
+            // The bound holds for either, and the figure reported is the variance.
+            for s in [&greedy, &exchanged] {
+                assert!(s.variance_bound > 0.0 && s.variance_bound <= s.mean_variance);
+                assert!((s.mean_variance - variance(&s.chosen)).abs() < 1e-9 * s.mean_variance);
+            }
+            let (greedy_det, det) = (greedy.log_det, exchanged.log_det);
+            let (greedy, exchanged) = (greedy.chosen, exchanged.chosen);
             match criterion {
                 Criterion::I => {
                     let (a, b) = (variance(&exchanged), variance(&greedy));
