@@ -645,10 +645,11 @@ const BOUND_ITERATIONS: usize = 100;
 
 /// A lower bound on `tr(W M⁻¹)` for any `count` poses of the pool (module docs, "How good
 /// a plan is"): the relaxation to weights `ξᵢ ≥ 0`, `Σ ξᵢ = 1`, with information
-/// `count · M(ξ)`, `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + (ridge / count) I`, is convex, so for any `ξ`
-/// its optimum is at least `φ(ξ) − max_i (dᵢ(ξ) − φ(ξ))`, `φ = tr(W M(ξ)⁻¹)`,
-/// `dᵢ = tr(Bᵢ M(ξ)⁻¹ W M(ξ)⁻¹ Bᵢᵀ)` (the derivative toward candidate `i`); `ξ` is
-/// improved by the multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / φ` to make the bound tight.
+/// `count · M(ξ)`, `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + (ridge / count) I`, is convex in `ξ`, so for
+/// any `ξ` its optimum is at least `φ(ξ) + Σ ξⱼ dⱼ(ξ) − max_i dᵢ(ξ)` (the tangent plane),
+/// `φ = tr(W M(ξ)⁻¹)`, `−dᵢ = −tr(Bᵢ M(ξ)⁻¹ W M(ξ)⁻¹ Bᵢᵀ)` the derivative in `ξᵢ`; `ξ` is
+/// improved by the multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / Σ ξⱼ dⱼ` to make the bound
+/// tight.
 fn variance_bound(
     stacked: &DMatrix<f64>,
     workspace: &DMatrix<f64>,
@@ -679,7 +680,9 @@ fn variance_bound(
             })
             .collect();
         let largest = d.iter().copied().fold(0.0, f64::max);
-        best = best.max(2.0 * phi - largest);
+        // Σ ξᵢ dᵢ is φ less the ridge's share, which the derivative leaves out.
+        let mean: f64 = xi.iter().zip(&d).map(|(x, di)| x * di).sum();
+        best = best.max(phi + mean - largest);
         if !(phi > 0.0 && phi.is_finite()) {
             break;
         }
@@ -1102,6 +1105,13 @@ mod tests {
             ..options(20, 100)
         };
         let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        // A bound on every choice holds for this one.
+        assert!(
+            p.variance_bound > 0.0 && p.variance_bound <= p.mean_variance,
+            "{} vs {}",
+            p.variance_bound,
+            p.mean_variance
+        );
         for pose in &p.poses {
             let tcp = robot.tcp_pose(&pose.joints);
             let rotation = tcp.rotation.to_rotation_matrix();
