@@ -9,20 +9,36 @@
 //!    when the nominal TCP lies in one of the boxes, within the joint limits, its
 //!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
 //!    the sight cone about the line to the tracker.
-//! 2. **Selection.** Greedy: each step takes the candidate with the best blend of
-//!    - its D-optimality gain, `log det(M + Bᵢᵀ Bᵢ) − log det M = log det(I₃ + Bᵢ M⁻¹ Bᵢᵀ)`,
-//!      `Bᵢ` the candidate's position rows of the identification Jacobian over the
-//!      parameters identifiable on the whole pool, columns scaled to unit norm over the
-//!      pool ([`adwi_robot::calibrate::design_jacobians`]), `M` the information of the
-//!      poses chosen so far (with a small ridge, so that the first steps are defined);
-//!      `M⁻¹` is updated by the Woodbury identity, a rank-3 update per pose;
+//! 2. **Selection.** Greedy, then exchange. `Bᵢ` is the candidate's position rows of the
+//!    identification Jacobian over the parameters identifiable on the whole pool, columns
+//!    scaled to unit norm over the pool ([`adwi_robot::calibrate::design_jacobians`]);
+//!    `M` the information of the poses chosen so far, `Σ BᵢᵀBᵢ` plus a small ridge (so
+//!    that the first steps are defined), its inverse updated by the Woodbury identity, a
+//!    rank-3 update per pose. Each greedy step takes the candidate with the best blend of
+//!    - its gain on the criterion ([`Criterion`]): by default I-optimality, how much it
+//!      lowers the mean prediction variance of the TCP position over the pool,
+//!      `tr(W M⁻¹)`, `W` the pool's mean `BᵢᵀBᵢ` (the pool stands for the workspace);
+//!      or D-optimality, `log det(M + BᵢᵀBᵢ) − log det M`;
 //!    - its coverage: the distance of its TCP to the nearest pose chosen so far (maximin).
 //!
 //!    Each is divided by its largest value over the remaining candidates, and the score is
-//!    `(1 − w) · gain + w · coverage`, `w` the coverage weight. D-optimality alone piles
-//!    poses at the workspace's edges, where the Jacobian is largest; coverage alone ignores
-//!    what the identification needs; the blend is for a table built from the same samples
-//!    as well as for the identification.
+//!    `(1 − w) · gain + w · coverage`, `w` the coverage weight. Then exchange passes
+//!    (Fedorov's, one pose at a time): each chosen pose is taken out and the candidate the
+//!    criterion gains most from put in its place, until a pass changes nothing.
+//!
+//!    Why I-optimality: the held-out error an identification leaves is its prediction
+//!    error over the workspace, which for a model that holds is `σ² tr(W M⁻¹)` on
+//!    average; D-optimality minimises the volume of the parameters' confidence ellipsoid,
+//!    which weighs directions the workspace never sees. docs/measure.md, "Does planning
+//!    pay?", has what each choice measurably gave.
+//!
+//!    **How good a plan is.** No choice of `N` poses from the pool has a mean prediction
+//!    variance below [`Plan::variance_bound`], a lower bound from the convex relaxation of
+//!    the choice to weights (the approximate design's optimum, `variance_bound`); the
+//!    plan reports both, and their ratio bounds its efficiency. That bound is also why
+//!    planned `N` poses cannot match `3N` random ones in the same workspace when it lies
+//!    above the variance of `3N` random poses (about a third of `N` random poses'), as it
+//!    does on the shipped robots (docs/measure.md).
 //! 3. **Order.** Nearest neighbour from the pose nearest the home posture, then 2-opt, in
 //!    the largest joint travel (rad; prismatic joints in metres), which bounds the time of a
 //!    move when the joints move together.
