@@ -832,8 +832,8 @@ fn exchange(
 ) {
     for _ in 0..options.exchange_passes {
         let mut changed = false;
-        for slot in 0..chosen.len() {
-            let out = chosen[slot];
+        for slot in chosen.iter_mut() {
+            let out = *slot;
             if !design.update(&blocks[out], -1.0) {
                 continue;
             }
@@ -849,7 +849,7 @@ fn exchange(
             if swap {
                 taken[out] = false;
                 taken[put] = true;
-                chosen[slot] = put;
+                *slot = put;
                 changed = true;
             }
         }
