@@ -8,7 +8,8 @@
 //!    closed-form solution nearest the home posture, or the numerical one from it). Kept
 //!    when the nominal TCP lies in one of the boxes, within the joint limits, its
 //!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
-//!    the sight cone about the line to the tracker.
+//!    the sight cone about the line to the tracker. Draws are solved in parallel batches
+//!    and taken in draw order.
 //! 2. **Selection.** Greedy, then exchange. `Bᵢ` is the candidate's position rows of the
 //!    identification Jacobian over the parameters identifiable on the whole pool, columns
 //!    scaled to unit norm over the pool ([`adwi_robot::calibrate::design_jacobians`]);
@@ -38,7 +39,7 @@
 //!    plan reports both, and their ratio bounds its efficiency. That bound is also why
 //!    planned `N` poses cannot match `3N` random ones in the same workspace when it lies
 //!    above the variance of `3N` random poses (about a third of `N` random poses'), as it
-//!    does on the shipped robots (docs/measure.md).
+//!    does on the KR150-2 (docs/measure.md).
 //! 3. **Order.** Nearest neighbour from the pose nearest the home posture, then 2-opt, in
 //!    the largest joint travel (rad; prismatic joints in metres), which bounds the time of a
 //!    move when the joints move together.
