@@ -118,7 +118,9 @@ def _sources(samples: Any, what: str) -> List[Union[str, Tuple[str, bytes]]]:
 
 
 #: Options whose values are paths.
-_PATH_OPTIONS = ("robot", "csv", "json", "report", "table", "output", "urdf")
+_PATH_OPTIONS = (
+    "robot", "csv", "json", "report", "table", "output", "urdf", "true_scenario", "true_at",
+)
 
 
 def _options(files: Sequence[Any], options: Dict[str, Any]) -> Dict[str, Any]:
@@ -290,13 +292,15 @@ def calibrate(samples: Samples, **options: Any) -> Dict[str, Any]:
 def plan(output: PathLike, **options: Any) -> Dict[str, Any]:
     """Plan the poses to measure, as ``tablec plan``: reachable candidates in the box
     (``min``, ``max``, ``box``), seen by the tracker, chosen for the identification
-    (D-optimality) blended with coverage, ordered as a short joint-space path, and written
-    to ``output`` (CSV: ``j1..jn`` in degrees, the nominal ``x,y,z,a,b,c``).
+    (I- or D-optimality, ``criterion``) blended with coverage and improved by exchange
+    passes, ordered as a short joint-space path, and written to ``output`` (CSV:
+    ``j1..jn`` in degrees, the nominal ``x,y,z,a,b,c``).
 
     Returns a dict: ``robot``, ``joints_rad``, ``position_mm``, ``abc_deg`` (one row per
     pose, in the order to measure), ``parameters`` (the identifiable ones the selection
-    weighs), ``pool``, ``draws``, ``log_det``, ``min_distance_mm``, ``path_travel`` (rad)
-    and ``written``.
+    weighs), ``pool``, ``draws``, ``log_det``, ``mean_variance`` (the mean prediction
+    variance over the candidates, in σ²) and ``variance_bound`` (no as many candidates do
+    better), ``min_distance_mm``, ``path_travel`` (rad) and ``written``.
     """
     return _adwi.plan(os.fspath(output), **_options([], options))
 
@@ -309,7 +313,8 @@ def iso9283(measurements: Optional[PathLike] = None, **options: Any) -> Dict[str
     Returns a dict: ``positions`` (per position ``name``, ``n``, ``ap_p_mm``,
     ``ap_x_mm``..., ``rp_l_mm``..., the orientation figures or None), ``distance`` (between
     consecutive positions ``from``, ``to``, ``ad_p_mm``..., ``rd_mm``), ``compensated`` (the
-    same for the table's compensation, with ``table``; else None) and ``written``.
+    same for the table's compensation, with ``table``; else None) and ``written`` (with
+    ``report=DIR``, the HTML page ``DIR/index.html`` among them).
     """
     files = [measurements] if measurements is not None else []
     path = os.fspath(measurements) if measurements is not None else None

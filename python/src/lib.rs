@@ -1101,6 +1101,8 @@ fn plan<'py>(
     d.set_item("pool", p.pool)?;
     d.set_item("draws", p.draws)?;
     d.set_item("log_det", p.log_det)?;
+    d.set_item("mean_variance", p.mean_variance)?;
+    d.set_item("variance_bound", p.variance_bound)?;
     d.set_item("min_distance_mm", p.min_distance_mm)?;
     d.set_item("path_travel", p.path_travel)?;
     d.set_item("written", vec![planned.output.display().to_string()])?;

@@ -31,6 +31,8 @@ def test_plan_writes_the_file_tablec_writes(tablec, tmp_path):
     assert len(planned["joints_rad"]) == 12
     positions = np.asarray(planned["position_mm"])
     assert np.all(positions >= [-600, -600, 0]) and np.all(positions <= [600, 600, 700])
+    # No 12 candidates have a lower mean prediction variance than the bound.
+    assert 0 < planned["variance_bound"] <= planned["mean_variance"]
 
 
 def test_plan_refuses_a_request_too_large_with_its_figure(tmp_path):
@@ -55,7 +57,10 @@ def test_iso9283_gives_tablec_s_figures(tablec, tmp_path):
         [tablec, "iso9283", cycles, "--json", tmp_path / "t.json"], check=True, capture_output=True
     )
     expected = json.loads((tmp_path / "t.json").read_text())
-    report = adwi.iso9283(cycles)
+    report = adwi.iso9283(cycles, report=tmp_path / "page")
+    page = (tmp_path / "page" / "index.html").read_text()
+    for p in expected["positions"]:
+        assert f"<td>{p['ap_p_mm']:.4f}</td>" in page and f"<td>{p['rp_l_mm']:.4f}</td>" in page
     assert [p["name"] for p in report["positions"]] == ["P1", "P2", "P3", "P4", "P5"]
     for got, want in zip(report["positions"], expected["positions"]):
         for key in ("n", "ap_p_mm", "ap_x_mm", "rp_l_mm", "ap_a_deg"):

@@ -4,14 +4,17 @@
 use std::path::{Path, PathBuf};
 
 use adwi_compile::write::OutputPlan;
+use adwi_measure::truth::{self, TruthComparison};
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::register::{Refined, Registration};
+use adwi_robot::simulate::Scenario;
 use adwi_robot::Robot;
 use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
+use crate::simulate::read_joint_rows;
 use crate::{JobError, Warning};
 
 /// Identify a robot's kinematic deviations from samples: every option of `tablec
@@ -51,6 +54,16 @@ pub struct CalibrateArgs {
     /// carries them (compliance_urad_per_nm).
     #[arg(long)]
     pub compliance: bool,
+    /// On a simulated robot: compare the identification with the truth of the scenario
+    /// the samples were simulated with (TOML, as `tablec simulate --scenario`), at the
+    /// poses of `--true-at`: the parameter error and the model's position error against
+    /// the true robot (docs/measure.md, "Against the truth").
+    #[arg(long, value_name = "SCENARIO.toml", requires = "true_at")]
+    pub true_scenario: Option<PathBuf>,
+    /// The workspace poses of `--true-scenario`'s comparison: a CSV with joint values
+    /// j1..jn (degrees; mm for prismatic joints), such as held-out samples or a plan.
+    #[arg(long, value_name = "POSES.csv", requires = "true_scenario")]
+    pub true_at: Option<PathBuf>,
 }
 
 impl Default for CalibrateArgs {
@@ -64,6 +77,8 @@ impl Default for CalibrateArgs {
             measured_in: Frame::Base,
             rank_tol: CalibrateOptions::default().rank_tolerance,
             compliance: false,
+            true_scenario: None,
+            true_at: None,
         }
     }
 }
@@ -83,6 +98,7 @@ pub struct CalibrateJob {
     series: Series,
     robot: Robot,
     outputs: OutputPlan,
+    truth: Option<(Scenario, Vec<Vec<f64>>)>,
 }
 
 /// What a calibration found, and what it wrote.
@@ -105,6 +121,8 @@ pub struct Calibrated {
     pub written: Vec<PathBuf>,
     /// What the user should know.
     pub warnings: Vec<Warning>,
+    /// The identification against the simulated robot's truth (`--true-scenario`).
+    pub truth: Option<TruthComparison>,
 }
 
 impl CalibrateJob {
@@ -129,6 +147,40 @@ impl CalibrateJob {
         let mut inputs = Inputs::default();
         inputs.add_sources(&args.samples);
         let file_robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
+        let truth = match (&args.true_scenario, &args.true_at) {
+            (Some(scenario), Some(poses)) => {
+                if args.measured_in == Frame::Tracker {
+                    return Err(JobError::option(
+                        "true_scenario",
+                        "a simulated robot's samples are in its base frame: leave out \
+                         --measured-in tracker",
+                    ));
+                }
+                inputs.add(scenario);
+                inputs.add(poses);
+                let s = Scenario::load(scenario)?;
+                s.actual_robot(&file_robot)?;
+                let q = read_joint_rows(poses, &file_robot)?;
+                if q.is_empty() || q.len() > truth::MAX_POSES {
+                    return Err(JobError::option(
+                        "true_at",
+                        format!(
+                            "{} holds {} poses: give 1 to {}",
+                            poses.display(),
+                            q.len(),
+                            truth::MAX_POSES
+                        ),
+                    ));
+                }
+                Some((s, q))
+            }
+            (None, None) => None,
+            _ => {
+                return Err(JobError::Options(
+                    "--true-scenario and --true-at go together".into(),
+                ))
+            }
+        };
         let outputs = OutputPlan::check(
             &[args.output.as_deref(), args.urdf.as_deref()]
                 .into_iter()
@@ -153,6 +205,7 @@ impl CalibrateJob {
             series,
             robot,
             outputs,
+            truth,
         })
     }
 
@@ -168,6 +221,7 @@ impl CalibrateJob {
             mut series,
             robot,
             outputs,
+            truth,
         } = self;
         series.refine(&options(&args))?;
         let series_warnings = series.warnings();
@@ -185,6 +239,9 @@ impl CalibrateJob {
                 c.position_rms_mm
             )));
         }
+        let truth = truth
+            .map(|(scenario, poses)| truth::compare(&robot, &scenario, &c, &poses, &options(&args)))
+            .transpose()?;
         let sources: Vec<String> = args
             .samples
             .iter()
@@ -241,6 +298,7 @@ impl CalibrateJob {
             written: contents.iter().map(|(p, _)| p.to_path_buf()).collect(),
             warnings,
             calibration: c,
+            truth,
         })
     }
 }

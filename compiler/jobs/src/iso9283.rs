@@ -26,7 +26,7 @@ pub struct Iso9283Args {
     /// Write the five ISO 9283 positions of a cube instead: its centre and edge length,
     /// X,Y,Z,SIDE (mm, base frame), as a plan CSV (--output).
     #[arg(long, value_name = "X,Y,Z,SIDE", value_parser = parse_cube, allow_hyphen_values = true,
-          conflicts_with_all = ["measurements", "json", "table"], requires = "output")]
+          conflicts_with_all = ["measurements", "json", "table", "report"], requires = "output")]
     #[serde(deserialize_with = "cube")]
     pub cube: Option<[f64; 4]>,
     /// The plan's tool orientation A,B,C (KUKA degrees).
@@ -46,6 +46,10 @@ pub struct Iso9283Args {
     /// (a first-order prediction; docs/measure.md says what it can claim).
     #[arg(long, value_name = "TABLE")]
     pub table: Option<PathBuf>,
+    /// Also write the characteristics as an HTML page, DIR/index.html (with --table, as
+    /// measured and as compensated side by side).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 impl Default for Iso9283Args {
@@ -58,6 +62,7 @@ impl Default for Iso9283Args {
             output: None,
             json: None,
             table: None,
+            report: None,
         }
     }
 }
@@ -83,6 +88,21 @@ fn cube<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D::E
     values
         .map(|v| cube_of(v).map_err(serde::de::Error::custom))
         .transpose()
+}
+
+/// The command line that reduces these cycles, as the report page quotes it.
+fn command_line(args: &Iso9283Args) -> String {
+    let mut line = String::from("tablec iso9283");
+    if let Some(m) = &args.measurements {
+        line += &format!(" {}", m.display());
+    }
+    if let Some(t) = &args.table {
+        line += &format!(" --table {}", t.display());
+    }
+    if let Some(r) = &args.report {
+        line += &format!(" --report {}", r.display());
+    }
+    line
 }
 
 /// What to do, checked.
@@ -167,9 +187,11 @@ impl Iso9283Job {
                 ))
             }
             (None, Some([x, y, z, side])) => {
-                if args.json.is_some() || args.table.is_some() {
+                if args.json.is_some() || args.table.is_some() || args.report.is_some() {
                     return Err(JobError::Options(
-                        "--cube writes a plan: --json and --table report on measured cycles".into(),
+                        "--cube writes a plan: --json, --table and --report report on measured \
+                         cycles"
+                            .into(),
                     ));
                 }
                 let Some(output) = &args.output else {
@@ -202,7 +224,7 @@ impl Iso9283Job {
                 if let Some(t) = &args.table {
                     inputs.add(t);
                 }
-                let outputs = OutputPlan::check(
+                let mut outputs = OutputPlan::check(
                     &args
                         .json
                         .iter()
@@ -210,6 +232,9 @@ impl Iso9283Job {
                         .collect::<Vec<&Path>>(),
                     &inputs.paths(),
                 )?;
+                if let Some(dir) = &args.report {
+                    outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
+                }
                 let rows = read_cycles(path).map_err(measure_error)?;
                 let table = match &args.table {
                     Some(t) => {
@@ -283,7 +308,7 @@ impl Iso9283Job {
                     }
                     None => None,
                 };
-                let mut written = Vec::new();
+                let mut contents: Vec<(PathBuf, Vec<u8>)> = Vec::new();
                 if let Some(path) = &args.json {
                     let json = serde_json::json!({
                         "positions": report.positions,
@@ -292,9 +317,22 @@ impl Iso9283Job {
                     });
                     let text = serde_json::to_string_pretty(&json)
                         .map_err(|e| JobError::NonFinite(e.to_string()))?;
-                    outputs.write(&[(path, text.as_bytes())])?;
-                    written.push(path.clone());
+                    contents.push((path.clone(), text.into_bytes()));
                 }
+                if let Some(dir) = &args.report {
+                    let page = adwi_eval::report::iso9283::html(
+                        &report,
+                        compensated.as_ref(),
+                        &command_line(&args),
+                    );
+                    contents.push((dir.join("index.html"), page.into_bytes()));
+                }
+                let borrowed: Vec<(&Path, &[u8])> = contents
+                    .iter()
+                    .map(|(p, b)| (p.as_path(), &b[..]))
+                    .collect();
+                outputs.write(&borrowed)?;
+                let written = contents.into_iter().map(|(p, _)| p).collect();
                 Ok(Iso9283Result {
                     report: Some(report),
                     compensated,
@@ -368,9 +406,11 @@ mod tests {
         let cycles = dir.path().join("cycles.csv");
         std::fs::write(&cycles, measured).unwrap();
         let json = dir.path().join("r.json");
+        let report_dir = dir.path().join("report");
         let result = Iso9283Job::new(Iso9283Args {
             measurements: Some(cycles.clone()),
             json: Some(json.clone()),
+            report: Some(report_dir.clone()),
             ..Iso9283Args::default()
         })
         .unwrap()
@@ -389,6 +429,18 @@ mod tests {
         assert_eq!(written["positions"][0]["n"], 3);
         assert!(written["positions"][0]["rp_l_mm"].is_number());
         assert_eq!(written["distance"].as_array().unwrap().len(), 4);
+        // The page, written with the JSON, holds its figures.
+        assert_eq!(
+            result.written,
+            vec![json.clone(), report_dir.join("index.html")]
+        );
+        let page = std::fs::read_to_string(report_dir.join("index.html")).unwrap();
+        for p in written["positions"].as_array().unwrap() {
+            for key in ["ap_p_mm", "rp_l_mm"] {
+                let v = p[key].as_f64().unwrap();
+                assert!(page.contains(&format!("<td>{v:.4}</td>")), "{key} {v}");
+            }
+        }
 
         // The plan's output is refused with measurements, the measurements as output too.
         let e = Iso9283Job::new(Iso9283Args {

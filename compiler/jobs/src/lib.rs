@@ -36,7 +36,7 @@ pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
 pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
 pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
-pub use plan::{PlanArgs, PlanJob, Planned};
+pub use plan::{CriterionArg, PlanArgs, PlanJob, Planned};
 pub use simulate::{SimulateArgs, SimulateJob, Simulated};
 
 /// Why a job was refused or failed. Refusals of options come before any work.
@@ -96,6 +96,9 @@ pub enum JobError {
     /// A measurement plan that cannot be made.
     #[error(transparent)]
     Plan(Box<adwi_measure::plan::PlanError>),
+    /// An identification that cannot be compared with a simulated robot's truth.
+    #[error(transparent)]
+    Truth(Box<adwi_measure::truth::TruthError>),
     /// A result came out non-finite and is not reported as one.
     #[error("{0}")]
     NonFinite(String),
@@ -121,6 +124,7 @@ boxed_from!(
     Eval: adwi_eval::EvalError,
     Tune: tune::TuneError,
     Output: adwi_compile::write::OutputError,
+    Truth: adwi_measure::truth::TruthError,
 );
 
 impl JobError {

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use adwi_compile::write::OutputPlan;
 use adwi_measure::plan::{
-    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Plan, PlanError,
-    PlanOptions, TrackerSight,
+    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan, PlanError,
+    PlanOptions, TrackerSight, MAX_NUMERICAL_POOL,
 };
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
@@ -39,7 +39,7 @@ pub struct PlanArgs {
     #[arg(long)]
     pub count: usize,
     /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000;
-    /// at most 2,000 solved by numerical inverse kinematics].
+    /// solved by numerical inverse kinematics, 3 × count, at least 300, at most 2,000].
     #[arg(long)]
     pub pool: Option<usize>,
     /// Seed of the candidates: the same seed gives the same file byte for byte.
@@ -62,9 +62,19 @@ pub struct PlanArgs {
     /// How far the tool may turn from an allowed orientation, degrees.
     #[arg(long, default_value_t = 15.0)]
     pub orientation_tolerance: f64,
-    /// The selection's weight on coverage (maximin distance) against D-optimality, 0 to 1.
+    /// The selection's weight on coverage (maximin distance) against the criterion, 0 to 1.
     #[arg(long, default_value_t = 0.3)]
     pub coverage: f64,
+    /// The design criterion: `i` (the mean prediction variance of the TCP position over
+    /// the candidates, what a held-out error measures) or `d` (the log-determinant of the
+    /// identification's information).
+    #[arg(long, value_enum, default_value_t)]
+    pub criterion: CriterionArg,
+    /// Exchange passes after the greedy selection: each pose in turn swapped for the
+    /// candidate that improves the criterion most (0 to 20; a pass that swaps nothing
+    /// ends them).
+    #[arg(long, default_value_t = 2)]
+    pub exchange_passes: usize,
     /// Relative pivot below which a parameter is unidentifiable (as calibrate's).
     #[arg(long, default_value_t = CalibrateOptions::default().rank_tolerance)]
     pub rank_tol: f64,
@@ -92,6 +102,8 @@ impl Default for PlanArgs {
             abc: Vec::new(),
             orientation_tolerance: 15.0,
             coverage: 0.3,
+            criterion: CriterionArg::default(),
+            exchange_passes: 2,
             rank_tol: CalibrateOptions::default().rank_tolerance,
             threads: None,
             output: PathBuf::new(),
@@ -139,14 +151,28 @@ fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<[f64; 2]>, D::E
         .transpose()
 }
 
-/// The default pool: ten candidates per pose, at least 1,000 and at most 20,000 (and at
-/// least the count), within the robot's largest pool.
+/// The design criterion, as the command line names it.
+#[derive(clap::ValueEnum, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CriterionArg {
+    /// D-optimality.
+    D,
+    /// I-optimality.
+    #[default]
+    I,
+}
+
+/// The default pool: ten candidates per pose, at least 1,000 and at most 20,000; three
+/// per pose, at least 300, when they are solved by numerical inverse kinematics (tens of
+/// milliseconds each: 30 poses then plan in seconds, 300 in under half a minute on two
+/// cores); at least the count, within the robot's largest pool.
 fn default_pool(count: usize, largest: usize) -> usize {
-    count
-        .saturating_mul(10)
-        .clamp(1_000, 20_000)
-        .min(largest)
-        .max(count)
+    let pool = if largest == MAX_NUMERICAL_POOL {
+        count.saturating_mul(3).max(300)
+    } else {
+        count.saturating_mul(10).clamp(1_000, 20_000)
+    };
+    pool.min(largest).max(count)
 }
 
 /// A plan checked and sized, ready to run.
@@ -220,6 +246,11 @@ impl PlanJob {
             }),
             coverage_weight: args.coverage,
             rank_tolerance: args.rank_tol,
+            criterion: match args.criterion {
+                CriterionArg::D => Criterion::D,
+                CriterionArg::I => Criterion::I,
+            },
+            exchange_passes: args.exchange_passes,
         };
         let threads = crate::thread_pool(args.threads)?;
         let mut inputs = Inputs::default();
@@ -268,10 +299,18 @@ impl PlanJob {
                 )
             })
             .map_err(|e| JobError::Plan(Box::new(e)))?;
-        if !(planned.log_det.is_finite() && planned.min_distance_mm.is_finite()) {
+        if !(planned.log_det.is_finite()
+            && planned.mean_variance.is_finite()
+            && planned.variance_bound.is_finite()
+            && planned.min_distance_mm.is_finite())
+        {
             return Err(JobError::NonFinite(format!(
-                "the plan's criterion came out non-finite (log det {}, smallest distance {} mm)",
-                planned.log_det, planned.min_distance_mm
+                "the plan's criterion came out non-finite (log det {}, mean prediction variance \
+                 {}, its bound {}, smallest distance {} mm)",
+                planned.log_det,
+                planned.mean_variance,
+                planned.variance_bound,
+                planned.min_distance_mm
             )));
         }
         let closed_form = InverseKinematics::new(&robot).is_ok();
@@ -292,10 +331,18 @@ impl PlanJob {
                 boxes.join(", ")
             ),
             format!(
-                "D-optimality over {} identifiable parameters (log det {:.3}) blended with coverage (weight {}); smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
+                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {:.4} σ², no {} of the candidates below {:.4} σ²) blended with coverage (weight {}), {} exchange passes at most; smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
+                match options.criterion {
+                    Criterion::D => "D-optimality",
+                    Criterion::I => "I-optimality (mean prediction variance over the candidates)",
+                },
                 planned.parameters.len(),
                 planned.log_det,
+                planned.mean_variance,
+                planned.poses.len(),
+                planned.variance_bound,
                 options.coverage_weight,
+                options.exchange_passes,
                 planned.min_distance_mm,
                 planned.path_travel
             ),

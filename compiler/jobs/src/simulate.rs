@@ -87,7 +87,10 @@ impl Default for SimulateArgs {
 }
 
 /// The joint values of every row of a poses file (rad; mm when prismatic).
-fn read_joint_rows(path: &std::path::Path, robot: &Robot) -> Result<Vec<Vec<f64>>, JobError> {
+pub(crate) fn read_joint_rows(
+    path: &std::path::Path,
+    robot: &Robot,
+) -> Result<Vec<Vec<f64>>, JobError> {
     let (columns, options) = crate::args::Reading::default().resolve()?;
     let rows = adwi_samples::read_targets(path, &columns, &options)?;
     rows.into_iter()

@@ -5,7 +5,10 @@
 //!   positions in a cube;
 //! - [`plan`]: which poses to measure so that an identification of the robot's kinematic
 //!   parameters is well determined and the workspace is covered (D-optimal and space-filling
-//!   selection from a reachable candidate pool, ordered as a short joint-space path).
+//!   selection from a reachable candidate pool, ordered as a short joint-space path);
+//! - [`truth`]: how close an identification is to a simulated robot's true parameters and
+//!   positions.
 
 pub mod iso9283;
 pub mod plan;
+pub mod truth;

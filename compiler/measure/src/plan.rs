@@ -8,21 +8,38 @@
 //!    closed-form solution nearest the home posture, or the numerical one from it). Kept
 //!    when the nominal TCP lies in one of the boxes, within the joint limits, its
 //!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
-//!    the sight cone about the line to the tracker.
-//! 2. **Selection.** Greedy: each step takes the candidate with the best blend of
-//!    - its D-optimality gain, `log det(M + Bᵢᵀ Bᵢ) − log det M = log det(I₃ + Bᵢ M⁻¹ Bᵢᵀ)`,
-//!      `Bᵢ` the candidate's position rows of the identification Jacobian over the
-//!      parameters identifiable on the whole pool, columns scaled to unit norm over the
-//!      pool ([`adwi_robot::calibrate::design_jacobians`]), `M` the information of the
-//!      poses chosen so far (with a small ridge, so that the first steps are defined);
-//!      `M⁻¹` is updated by the Woodbury identity, a rank-3 update per pose;
+//!    the sight cone about the line to the tracker. Draws are solved in parallel batches
+//!    and taken in draw order.
+//! 2. **Selection.** Greedy, then exchange. `Bᵢ` is the candidate's position rows of the
+//!    identification Jacobian over the parameters identifiable on the whole pool, columns
+//!    scaled to unit norm over the pool ([`adwi_robot::calibrate::design_jacobians`]);
+//!    `M` the information of the poses chosen so far, `Σ BᵢᵀBᵢ` plus a small ridge (so
+//!    that the first steps are defined), its inverse updated by the Woodbury identity, a
+//!    rank-3 update per pose. Each greedy step takes the candidate with the best blend of
+//!    - its gain on the criterion ([`Criterion`]): by default I-optimality, how much it
+//!      lowers the mean prediction variance of the TCP position over the pool,
+//!      `tr(W M⁻¹)`, `W` the pool's mean `BᵢᵀBᵢ` (the pool stands for the workspace);
+//!      or D-optimality, `log det(M + BᵢᵀBᵢ) − log det M`;
 //!    - its coverage: the distance of its TCP to the nearest pose chosen so far (maximin).
 //!
 //!    Each is divided by its largest value over the remaining candidates, and the score is
-//!    `(1 − w) · gain + w · coverage`, `w` the coverage weight. D-optimality alone piles
-//!    poses at the workspace's edges, where the Jacobian is largest; coverage alone ignores
-//!    what the identification needs; the blend is for a table built from the same samples
-//!    as well as for the identification.
+//!    `(1 − w) · gain + w · coverage`, `w` the coverage weight. Then exchange passes
+//!    (Fedorov's, one pose at a time): each chosen pose is taken out and the candidate the
+//!    criterion gains most from put in its place, until a pass changes nothing.
+//!
+//!    Why I-optimality: the held-out error an identification leaves is its prediction
+//!    error over the workspace, which for a model that holds is `σ² tr(W M⁻¹)` on
+//!    average; D-optimality minimises the volume of the parameters' confidence ellipsoid,
+//!    which weighs directions the workspace never sees. docs/measure.md, "Does planning
+//!    pay?", has what each choice measurably gave.
+//!
+//!    **How good a plan is.** No choice of `N` poses from the pool has a mean prediction
+//!    variance below [`Plan::variance_bound`], a lower bound from the convex relaxation of
+//!    the choice to weights (the approximate design's optimum, `variance_bound`); the
+//!    plan reports both, and their ratio bounds its efficiency. That bound is also why
+//!    planned `N` poses cannot match `3N` random ones in the same workspace when it lies
+//!    above the variance of `3N` random poses (about a third of `N` random poses'), as it
+//!    does on the KR150-2 (docs/measure.md).
 //! 3. **Order.** Nearest neighbour from the pose nearest the home posture, then 2-opt, in
 //!    the largest joint travel (rad; prismatic joints in metres), which bounds the time of a
 //!    move when the joints move together.
@@ -39,7 +56,7 @@ use adwi_robot::{IkSolution, InverseKinematics, Robot};
 use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -62,6 +79,8 @@ pub fn max_pool(robot: &Robot, orientations: bool) -> usize {
         MAX_POOL
     }
 }
+/// Draws solved together (in parallel) when drawing candidates.
+const SOLVE_BATCH: usize = 64;
 /// Draws per pool candidate before the constraints are deemed too tight: the draws stop
 /// there and the pool is what was found.
 pub const DRAWS_PER_CANDIDATE: usize = 200;
@@ -92,6 +111,20 @@ pub struct AllowedOrientations {
     pub tolerance_deg: f64,
 }
 
+/// What the selection optimises (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Criterion {
+    /// D-optimality: the log-determinant of the identification's information.
+    D,
+    /// I-optimality: the mean prediction variance of the TCP position over the workspace
+    /// (the pool), what a held-out error measures.
+    #[default]
+    I,
+}
+
+/// The most exchange passes after the greedy selection.
+pub const MAX_EXCHANGE_PASSES: usize = 20;
+
 /// What to plan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanOptions {
@@ -111,6 +144,11 @@ pub struct PlanOptions {
     pub coverage_weight: f64,
     /// The relative pivot below which a parameter is unidentifiable (as calibrate's).
     pub rank_tolerance: f64,
+    /// The criterion the selection optimises.
+    pub criterion: Criterion,
+    /// Exchange passes after the greedy selection (at most; a pass that changes nothing
+    /// ends them), 0 to [`MAX_EXCHANGE_PASSES`].
+    pub exchange_passes: usize,
 }
 
 /// Why a plan cannot be made.
@@ -163,6 +201,14 @@ pub struct Plan {
     pub draws: usize,
     /// `log det` of the chosen poses' information (scaled parameters, with the ridge).
     pub log_det: f64,
+    /// The chosen poses' mean prediction variance of the TCP position over the pool, in
+    /// units of the noise variance of one measured coordinate (`tr(W M⁻¹)`, module docs):
+    /// the identified model's mean squared position error at the candidates is this
+    /// times σ², if the model is right.
+    pub mean_variance: f64,
+    /// A lower bound on [`Self::mean_variance`] for any choice of as many poses from the
+    /// pool (module docs, "How good a plan is").
+    pub variance_bound: f64,
     /// The smallest distance between two chosen poses' TCPs, mm.
     pub min_distance_mm: f64,
     /// The path's joint travel, the sum of the largest joint move of each step (rad).
@@ -267,15 +313,27 @@ pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
             ),
         ));
     }
+    if options.exchange_passes > MAX_EXCHANGE_PASSES {
+        return Err(option(
+            "exchange_passes",
+            format!(
+                "{} passes: give 0 to {MAX_EXCHANGE_PASSES}",
+                options.exchange_passes
+            ),
+        ));
+    }
+    // Each greedy step and each exchange of a pose weighs every candidate.
     let p = Parameter::all_of(robot).len() as f64;
-    let work = options.count as f64 * options.pool as f64 * p * p;
+    let rounds = 1.0 + options.exchange_passes as f64;
+    let work = rounds * options.count as f64 * options.pool as f64 * p * p;
     if work > MAX_SELECTION_WORK {
         return Err(option(
             "count",
             format!(
-                "{} poses from {} candidates over {p} parameters is {work:.1e} multiply-adds, \
-                 more than {MAX_SELECTION_WORK:.0e} (about a minute on one core): ask for fewer \
-                 poses or a smaller pool",
+                "{} poses from {} candidates over {p} parameters, {rounds} rounds (greedy and \
+                 exchange passes), is {work:.1e} multiply-adds, more than \
+                 {MAX_SELECTION_WORK:.0e} (about a minute on one core): ask for fewer poses, \
+                 a smaller pool or fewer exchange passes",
                 options.count, options.pool
             ),
         ));
@@ -361,47 +419,70 @@ pub fn candidates(
         .map(|(min, max)| (0..3).map(|a| max[a] - min[a]).product())
         .collect();
     let total_volume: f64 = volumes.iter().sum();
-    let mut found = Vec::with_capacity(options.pool);
-    let mut draws = 0;
-    while found.len() < options.pool && draws < max_draws {
-        draws += 1;
-        let q: Vec<f64> = match &options.orientations {
-            None => ranges
+    // A draw: joint values, or a pose to solve. The draws are made in order from the seed;
+    // batches of them are solved in parallel and taken in draw order, so the pool is the
+    // same at any thread count (and the same as drawing and solving one at a time).
+    enum Draw {
+        Joints(Vec<f64>),
+        Pose(nalgebra::Isometry3<f64>),
+    }
+    let draw = |rng: &mut ChaCha8Rng| match &options.orientations {
+        None => Draw::Joints(
+            ranges
                 .iter()
                 .map(|&[lo, hi]| rng.gen_range(lo..=hi))
                 .collect(),
-            Some(allowed) => {
-                // A pose in the boxes (each by its volume), turned from an allowed
-                // orientation by up to the tolerance, and its joints nearest home.
-                let mut pick = rng.gen_range(0.0..total_volume);
-                let mut k = 0;
-                while k + 1 < volumes.len() && pick >= volumes[k] {
-                    pick -= volumes[k];
-                    k += 1;
-                }
-                let (min, max) = options.boxes_mm[k];
-                let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
-                let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
-                let z: f64 = rng.gen_range(-1.0..=1.0);
-                let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
-                let r = (1.0 - z * z).max(0.0).sqrt();
-                let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
-                let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
-                let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
-                let pose = isometry_from_parts(position, &rotation);
-                let solution = match &closed_form {
-                    Some(ik) => nearest_home(robot, ik.solve(&pose)),
-                    None => solve_near(robot, &pose, robot.home()),
-                };
-                match solution {
-                    Some(q) => q,
-                    None => continue,
+        ),
+        Some(allowed) => {
+            // A pose in the boxes (each by its volume), turned from an allowed
+            // orientation by up to the tolerance.
+            let mut pick = rng.gen_range(0.0..total_volume);
+            let mut k = 0;
+            while k + 1 < volumes.len() && pick >= volumes[k] {
+                pick -= volumes[k];
+                k += 1;
+            }
+            let (min, max) = options.boxes_mm[k];
+            let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
+            let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
+            let z: f64 = rng.gen_range(-1.0..=1.0);
+            let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
+            let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
+            let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
+            Draw::Pose(isometry_from_parts(position, &rotation))
+        }
+    };
+    // Joints nearest home for a pose (closed form, or numerical from home), then the
+    // constraints.
+    let solve = |d: &Draw| -> Option<PlannedPose> {
+        let q = match d {
+            Draw::Joints(q) => q.clone(),
+            Draw::Pose(pose) => match &closed_form {
+                Some(ik) => nearest_home(robot, ik.solve(pose))?,
+                None => solve_near(robot, pose, robot.home())?,
+            },
+        };
+        admissible(robot, options, &as_written(robot, &q))
+    };
+    let mut found = Vec::with_capacity(options.pool);
+    let mut draws = 0;
+    while found.len() < options.pool && draws < max_draws {
+        let batch = (options.pool - found.len())
+            .clamp(1, SOLVE_BATCH)
+            .min(max_draws - draws);
+        let drawn: Vec<Draw> = (0..batch).map(|_| draw(&mut rng)).collect();
+        let solved: Vec<Option<PlannedPose>> = drawn.par_iter().map(solve).collect();
+        for pose in solved {
+            draws += 1;
+            if let Some(pose) = pose {
+                found.push(pose);
+                advance(1);
+                if found.len() == options.pool {
+                    break;
                 }
             }
-        };
-        if let Some(pose) = admissible(robot, options, &as_written(robot, &q)) {
-            found.push(pose);
-            advance(1);
         }
     }
     if found.len() < options.count {
@@ -442,18 +523,197 @@ fn log_det(m: &DMatrix<f64>) -> f64 {
     }
 }
 
-/// `log det(I₃ + B M⁻¹ Bᵀ)`, the gain of adding block `B` to information `M`.
+/// `log det(I₃ + B M⁻¹ Bᵀ)`, the gain of adding block `B` to information `M`: the
+/// reference of [`Design::gains`] for D-optimality.
+#[cfg(test)]
 fn gain(b: &DMatrix<f64>, m_inv: &DMatrix<f64>) -> f64 {
     let s: DMatrix<f64> = DMatrix::identity(3, 3) + b * m_inv * b.transpose();
     s.determinant().max(f64::MIN_POSITIVE).ln()
+}
+
+/// `tr(W M⁻¹) − tr(W (M + BᵀB)⁻¹) = tr((I₃ + B M⁻¹ Bᵀ)⁻¹ B G Bᵀ)` with `G = M⁻¹ W M⁻¹`:
+/// how much adding block `B` lowers the mean prediction variance (Woodbury): the
+/// reference of [`Design::gains`] for I-optimality.
+#[cfg(test)]
+fn variance_gain(b: &DMatrix<f64>, m_inv: &DMatrix<f64>, g: &DMatrix<f64>) -> f64 {
+    let bm = b * m_inv;
+    let s: DMatrix<f64> = DMatrix::identity(3, 3) + &bm * b.transpose();
+    let t: DMatrix<f64> = b * g * b.transpose();
+    match s.cholesky() {
+        Some(c) => c.solve(&t).trace().max(0.0),
+        None => 0.0,
+    }
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (Vector3::from(a) - Vector3::from(b)).norm()
 }
 
-/// The greedy selection (module docs): indices into `candidates`, in the order chosen.
-/// `advance` is told of each pose chosen.
+/// `M⁻¹` updated for adding (`sign` 1) or removing (`sign` −1) block `B`, by Woodbury:
+/// `(M ± BᵀB)⁻¹ = M⁻¹ ∓ M⁻¹Bᵀ (I ± B M⁻¹ Bᵀ)⁻¹ B M⁻¹`. `None` when the 3 × 3 system is
+/// singular (a removal that would leave `M` singular).
+fn updated(m_inv: &DMatrix<f64>, b: &DMatrix<f64>, sign: f64) -> Option<DMatrix<f64>> {
+    let mb = m_inv * b.transpose();
+    let s: DMatrix<f64> = DMatrix::identity(3, 3) * sign + b * &mb;
+    let s_inv = s.try_inverse()?;
+    Some(m_inv - &mb * s_inv * mb.transpose())
+}
+
+/// What a criterion needs of the current design: `M⁻¹`, and for I-optimality
+/// `G = M⁻¹ W M⁻¹`; and every candidate's block stacked (3 rows each), so that the gains
+/// of all candidates are a few matrix products rather than one small product each.
+struct Design<'a> {
+    criterion: Criterion,
+    workspace: &'a DMatrix<f64>,
+    stacked: &'a DMatrix<f64>,
+    m_inv: DMatrix<f64>,
+    g: DMatrix<f64>,
+}
+
+/// Candidates per parallel chunk of the gains: each chunk's products are computed alone,
+/// so the gains are the same at any thread count.
+const GAIN_CHUNK: usize = 256;
+
+impl<'a> Design<'a> {
+    fn new(
+        criterion: Criterion,
+        workspace: &'a DMatrix<f64>,
+        stacked: &'a DMatrix<f64>,
+        m_inv: DMatrix<f64>,
+    ) -> Self {
+        let mut d = Design {
+            criterion,
+            workspace,
+            stacked,
+            m_inv,
+            g: DMatrix::zeros(0, 0),
+        };
+        d.refresh();
+        d
+    }
+
+    fn refresh(&mut self) {
+        if self.criterion == Criterion::I {
+            self.g = &self.m_inv * self.workspace * &self.m_inv;
+        }
+    }
+
+    /// Every candidate's gain against the current design: [`gain`] or
+    /// [`variance_gain`], computed from the stacked products.
+    fn gains(&self) -> Vec<f64> {
+        let n = self.stacked.nrows() / 3;
+        let chunks: Vec<usize> = (0..n).step_by(GAIN_CHUNK).collect();
+        chunks
+            .par_iter()
+            .flat_map_iter(|&start| {
+                let len = GAIN_CHUNK.min(n - start);
+                let b = self.stacked.rows(3 * start, 3 * len);
+                let bm = b * &self.m_inv;
+                let bg = (self.criterion == Criterion::I).then(|| b * &self.g);
+                (0..len)
+                    .map(|i| {
+                        let rows = |m: &DMatrix<f64>| {
+                            Matrix3::from_fn(|r, c| m.row(3 * i + r).dot(&b.row(3 * i + c)))
+                        };
+                        let s = Matrix3::identity() + rows(&bm);
+                        match &bg {
+                            None => s.determinant().max(f64::MIN_POSITIVE).ln(),
+                            Some(bg) => s
+                                .cholesky()
+                                .map_or(0.0, |c| c.solve(&rows(bg)).trace().max(0.0)),
+                        }
+                    })
+                    .collect::<Vec<f64>>()
+            })
+            .collect()
+    }
+
+    /// Adds (`sign` 1) or removes (`sign` −1) a block; `false` when that is singular.
+    fn update(&mut self, b: &DMatrix<f64>, sign: f64) -> bool {
+        match updated(&self.m_inv, b, sign) {
+            Some(m) => {
+                self.m_inv = m;
+                self.refresh();
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// What [`select`] chose and what it achieves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// Indices into the candidates: greedy ones in the order chosen, exchanged ones in the
+    /// place of the pose they replaced.
+    pub chosen: Vec<usize>,
+    /// The parameters weighed.
+    pub parameters: Vec<Parameter>,
+    /// [`Plan::log_det`].
+    pub log_det: f64,
+    /// [`Plan::mean_variance`].
+    pub mean_variance: f64,
+    /// [`Plan::variance_bound`].
+    pub variance_bound: f64,
+}
+
+/// Iterations of the multiplicative algorithm behind [`Plan::variance_bound`].
+const BOUND_ITERATIONS: usize = 100;
+
+/// A lower bound on `tr(W M⁻¹)` for any `count` poses of the pool (module docs, "How good
+/// a plan is"): the relaxation to weights `ξᵢ ≥ 0`, `Σ ξᵢ = 1`, with information
+/// `count · M(ξ)`, `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + (ridge / count) I`, is convex in `ξ`, so for
+/// any `ξ` its optimum is at least `φ(ξ) + Σ ξⱼ dⱼ(ξ) − max_i dᵢ(ξ)` (the tangent plane),
+/// `φ = tr(W M(ξ)⁻¹)`, `−dᵢ = −tr(Bᵢ M(ξ)⁻¹ W M(ξ)⁻¹ Bᵢᵀ)` the derivative in `ξᵢ`; `ξ` is
+/// improved by the multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / Σ ξⱼ dⱼ` to make the bound
+/// tight.
+fn variance_bound(
+    stacked: &DMatrix<f64>,
+    workspace: &DMatrix<f64>,
+    count: usize,
+    ridge: f64,
+) -> f64 {
+    let n = stacked.nrows() / 3;
+    let k = stacked.ncols();
+    let mut xi = vec![1.0 / n as f64; n];
+    let mut best = 0.0_f64;
+    for _ in 0..BOUND_ITERATIONS {
+        let mut weighted = stacked.clone();
+        for (i, w) in xi.iter().enumerate() {
+            weighted.rows_mut(3 * i, 3).scale_mut(*w);
+        }
+        let m = stacked.transpose() * weighted + DMatrix::identity(k, k) * (ridge / count as f64);
+        let Some(m_inv) = m.try_inverse() else {
+            break;
+        };
+        let phi = (workspace * &m_inv).trace();
+        let g = &m_inv * workspace * &m_inv;
+        let bg = stacked * g;
+        let d: Vec<f64> = (0..n)
+            .map(|i| {
+                (0..3)
+                    .map(|r| bg.row(3 * i + r).dot(&stacked.row(3 * i + r)))
+                    .sum()
+            })
+            .collect();
+        let largest = d.iter().copied().fold(0.0, f64::max);
+        // Σ ξᵢ dᵢ is φ less the ridge's share, which the derivative leaves out.
+        let mean: f64 = xi.iter().zip(&d).map(|(x, di)| x * di).sum();
+        best = best.max(phi + mean - largest);
+        if !(phi > 0.0 && phi.is_finite()) {
+            break;
+        }
+        for (x, di) in xi.iter_mut().zip(&d) {
+            *x *= di / phi;
+        }
+        let total: f64 = xi.iter().sum();
+        xi.iter_mut().for_each(|x| *x /= total);
+    }
+    best / count as f64
+}
+
+/// The selection (module docs), and what it achieves. `advance` is told of each pose
+/// chosen.
 ///
 /// # Errors
 ///
@@ -463,7 +723,7 @@ pub fn select(
     options: &PlanOptions,
     candidates: &[PlannedPose],
     advance: &(dyn Fn(u64) + Sync),
-) -> Result<(Vec<usize>, Vec<Parameter>, f64), PlanError> {
+) -> Result<Selection, PlanError> {
     let joints: Vec<Vec<f64>> = candidates.iter().map(|c| c.joints.clone()).collect();
     let (parameters, blocks) =
         design_jacobians(robot, &joints, options.rank_tolerance).map_err(Box::new)?;
@@ -471,13 +731,25 @@ pub fn select(
     // Unit columns over the pool: one pose holds about 1/pool of each; the ridge is a
     // thousandth of that, so that the first poses are chosen by what they add.
     let ridge = 1e-3 / candidates.len() as f64;
-    let mut m_inv = DMatrix::identity(k, k) / ridge;
+    // The pool stands for the workspace: its mean information is W of I-optimality.
+    let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
+    let workspace = information(&all, k, 0.0) / candidates.len() as f64;
+    let mut stacked = DMatrix::zeros(3 * blocks.len(), k);
+    for (i, b) in blocks.iter().enumerate() {
+        stacked.rows_mut(3 * i, 3).copy_from(b);
+    }
+    let mut design = Design::new(
+        options.criterion,
+        &workspace,
+        &stacked,
+        DMatrix::identity(k, k) / ridge,
+    );
     let mut nearest = vec![f64::INFINITY; candidates.len()];
     let mut taken = vec![false; candidates.len()];
     let mut chosen = Vec::with_capacity(options.count);
     let w = options.coverage_weight;
     for _ in 0..options.count {
-        let gains: Vec<f64> = blocks.par_iter().map(|b| gain(b, &m_inv)).collect();
+        let gains = design.gains();
         let open = || (0..candidates.len()).filter(|&i| !taken[i]);
         let max_gain = open().map(|i| gains[i]).fold(0.0, f64::max);
         let max_cover = open()
@@ -497,25 +769,10 @@ pub fn select(
             };
             (1.0 - w) * g + w * c
         };
-        let best = open()
-            .fold(None, |best: Option<(usize, f64)>, i| {
-                let s = score(i);
-                match best {
-                    Some((_, b)) if b >= s => best,
-                    _ => Some((i, s)),
-                }
-            })
-            .map(|(i, _)| i)
-            .expect("the pool holds at least count candidates");
+        let best = best_of(open(), score).expect("the pool holds at least count candidates");
         taken[best] = true;
         chosen.push(best);
-        // Woodbury: (M + BᵀB)⁻¹ = M⁻¹ − M⁻¹Bᵀ (I + B M⁻¹ Bᵀ)⁻¹ B M⁻¹.
-        let b = &blocks[best];
-        let mb = &m_inv * b.transpose();
-        let s: DMatrix<f64> = DMatrix::identity(3, 3) + b * &mb;
-        if let Some(s_inv) = s.try_inverse() {
-            m_inv -= &mb * s_inv * mb.transpose();
-        }
+        design.update(&blocks[best], 1.0);
         let p = candidates[best].position_mm;
         nearest
             .par_iter_mut()
@@ -523,9 +780,90 @@ pub fn select(
             .for_each(|(d, c)| *d = d.min(distance(c.position_mm, p)));
         advance(1);
     }
+    exchange(
+        options,
+        &blocks,
+        &mut design,
+        &mut chosen,
+        &mut taken,
+        k,
+        ridge,
+    );
     let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
-    let log_det = log_det(&information(&picked, k, ridge));
-    Ok((chosen, parameters, log_det))
+    let m = information(&picked, k, ridge);
+    let mean_variance = m
+        .clone()
+        .try_inverse()
+        .map_or(f64::INFINITY, |m_inv| (&workspace * m_inv).trace());
+    Ok(Selection {
+        log_det: log_det(&m),
+        mean_variance,
+        variance_bound: variance_bound(&stacked, &workspace, options.count, ridge),
+        chosen,
+        parameters,
+    })
+}
+
+/// The index of the largest score, the earlier one on ties.
+fn best_of(indices: impl Iterator<Item = usize>, score: impl Fn(usize) -> f64) -> Option<usize> {
+    indices
+        .fold(None, |best: Option<(usize, f64)>, i| {
+            let s = score(i);
+            match best {
+                Some((_, b)) if b >= s => best,
+                _ => Some((i, s)),
+            }
+        })
+        .map(|(i, _)| i)
+}
+
+/// Exchange passes after the greedy choice (Fedorov's exchange, one pose at a time): each
+/// chosen pose in turn is taken out, and the candidate (itself included) that the
+/// criterion gains most from put in its place; a pass that changes nothing ends them.
+/// The coverage term is not weighed here: it shapes the greedy start, and an exchange
+/// only ever improves the criterion.
+fn exchange(
+    options: &PlanOptions,
+    blocks: &[DMatrix<f64>],
+    design: &mut Design<'_>,
+    chosen: &mut [usize],
+    taken: &mut [bool],
+    k: usize,
+    ridge: f64,
+) {
+    for _ in 0..options.exchange_passes {
+        let mut changed = false;
+        for slot in chosen.iter_mut() {
+            let out = *slot;
+            if !design.update(&blocks[out], -1.0) {
+                continue;
+            }
+            let gains = design.gains();
+            let best = best_of((0..blocks.len()).filter(|&i| i == out || !taken[i]), |i| {
+                gains[i]
+            })
+            .unwrap_or(out);
+            // Only a clear gain swaps, so that rounding cannot cycle two candidates.
+            let swap = best != out && gains[best] > gains[out] * (1.0 + 1e-9) + 1e-12;
+            let put = if swap { best } else { out };
+            design.update(&blocks[put], 1.0);
+            if swap {
+                taken[out] = false;
+                taken[put] = true;
+                *slot = put;
+                changed = true;
+            }
+        }
+        // A fresh inverse after each pass: the rank-3 updates accumulate rounding.
+        let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
+        if let Some(m_inv) = information(&picked, k, ridge).try_inverse() {
+            design.m_inv = m_inv;
+            design.refresh();
+        }
+        if !changed {
+            break;
+        }
+    }
 }
 
 /// The largest joint travel between two joint vectors: revolute joints in rad, prismatic
@@ -607,7 +945,13 @@ pub fn plan(
     stage("drawing candidates", options.pool as u64);
     let (pool, draws) = candidates(robot, options, advance)?;
     stage("selecting", options.count as u64);
-    let (chosen, parameters, log_det) = select(robot, options, &pool, advance)?;
+    let Selection {
+        chosen,
+        parameters,
+        log_det,
+        mean_variance,
+        variance_bound,
+    } = select(robot, options, &pool, advance)?;
     let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
     let (path, path_travel) = order(robot, &picked);
     let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
@@ -623,6 +967,8 @@ pub fn plan(
         pool: pool.len(),
         draws,
         log_det,
+        mean_variance,
+        variance_bound,
         min_distance_mm,
         path_travel,
     })
@@ -709,6 +1055,8 @@ mod tests {
             orientations: None,
             coverage_weight: 0.3,
             rank_tolerance: 1e-6,
+            criterion: Criterion::I,
+            exchange_passes: 2,
         }
     }
 
@@ -774,6 +1122,13 @@ mod tests {
             ..options(20, 100)
         };
         let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        // A bound on every choice holds for this one.
+        assert!(
+            p.variance_bound > 0.0 && p.variance_bound <= p.mean_variance,
+            "{} vs {}",
+            p.variance_bound,
+            p.mean_variance
+        );
         for pose in &p.poses {
             let tcp = robot.tcp_pose(&pose.joints);
             let rotation = tcp.rotation.to_rotation_matrix();
@@ -798,10 +1153,12 @@ mod tests {
         let robot = ur5();
         let o = PlanOptions {
             coverage_weight: 0.0,
+            criterion: Criterion::D,
             ..options(25, 300)
         };
         let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
-        let (_, parameters, chosen) = select(&robot, &o, &pool, &|_| {}).unwrap();
+        let selection = select(&robot, &o, &pool, &|_| {}).unwrap();
+        let (parameters, chosen) = (selection.parameters, selection.log_det);
         let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
         let (_, blocks) = design_jacobians(&robot, &joints, o.rank_tolerance).unwrap();
         let first: Vec<&DMatrix<f64>> = blocks.iter().take(25).collect();
@@ -830,6 +1187,99 @@ mod tests {
         with.push(b);
         let direct = log_det(&information(&with, k, 1e-3)) - log_det(&m);
         assert!((gain(b, &m_inv) - direct).abs() < 1e-6 * direct.abs().max(1.0));
+    }
+
+    /// The stacked, chunked gains equal the per-block formulas, and the I-optimality gain
+    /// is the drop of `tr(W M⁻¹)` computed outright.
+    #[test]
+    fn the_stacked_gains_are_the_per_block_gains() {
+        let robot = ur5();
+        let o = options(5, 600);
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
+        let (parameters, blocks) = design_jacobians(&robot, &joints, 1e-6).unwrap();
+        let k = parameters.len();
+        let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
+        let workspace = information(&all, k, 0.0) / blocks.len() as f64;
+        let mut stacked = DMatrix::zeros(3 * blocks.len(), k);
+        for (i, b) in blocks.iter().enumerate() {
+            stacked.rows_mut(3 * i, 3).copy_from(b);
+        }
+        let some: Vec<&DMatrix<f64>> = blocks.iter().step_by(7).take(40).collect();
+        let m = information(&some, k, 1e-3);
+        let m_inv = m.clone().try_inverse().unwrap();
+        for criterion in [Criterion::D, Criterion::I] {
+            let design = Design::new(criterion, &workspace, &stacked, m_inv.clone());
+            let gains = design.gains();
+            assert_eq!(gains.len(), blocks.len());
+            for (b, fast) in blocks.iter().zip(&gains) {
+                let slow = match criterion {
+                    Criterion::D => gain(b, &m_inv),
+                    Criterion::I => variance_gain(b, &m_inv, &design.g),
+                };
+                assert!(
+                    (fast - slow).abs() <= 1e-9 * slow.abs().max(1e-12),
+                    "{fast} vs {slow}"
+                );
+            }
+        }
+        let b = &blocks[3];
+        let mut with = some.clone();
+        with.push(b);
+        let after = information(&with, k, 1e-3).try_inverse().unwrap();
+        let direct = (&workspace * &m_inv).trace() - (&workspace * after).trace();
+        let g = &m_inv * &workspace * &m_inv;
+        let woodbury = variance_gain(b, &m_inv, &g);
+        assert!(
+            (woodbury - direct).abs() < 1e-8 * direct.abs(),
+            "{woodbury} vs {direct}"
+        );
+    }
+
+    /// Exchange passes never make the criterion worse than the greedy choice: the mean
+    /// prediction variance over the pool, and the log det, on the same pool.
+    #[test]
+    fn exchange_improves_on_the_greedy_choice() {
+        let robot = ur5();
+        let (pool, _) = candidates(&robot, &options(25, 400), &|_| {}).unwrap();
+        let joints: Vec<Vec<f64>> = pool.iter().map(|c| c.joints.clone()).collect();
+        let (_, blocks) = design_jacobians(&robot, &joints, 1e-6).unwrap();
+        let k = blocks[0].ncols();
+        let ridge = 1e-3 / pool.len() as f64;
+        let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
+        let workspace = information(&all, k, 0.0) / pool.len() as f64;
+        let variance = |chosen: &[usize]| {
+            let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
+            (&workspace * information(&picked, k, ridge).try_inverse().unwrap()).trace()
+        };
+        for criterion in [Criterion::I, Criterion::D] {
+            let o = |passes| PlanOptions {
+                criterion,
+                coverage_weight: 0.0,
+                exchange_passes: passes,
+                ..options(25, 400)
+            };
+            let greedy = select(&robot, &o(0), &pool, &|_| {}).unwrap();
+            let exchanged = select(&robot, &o(3), &pool, &|_| {}).unwrap();
+            // The bound holds for either, and the figure reported is the variance.
+            for s in [&greedy, &exchanged] {
+                assert!(s.variance_bound > 0.0 && s.variance_bound <= s.mean_variance);
+                assert!((s.mean_variance - variance(&s.chosen)).abs() < 1e-9 * s.mean_variance);
+            }
+            let (greedy_det, det) = (greedy.log_det, exchanged.log_det);
+            let (greedy, exchanged) = (greedy.chosen, exchanged.chosen);
+            match criterion {
+                Criterion::I => {
+                    let (a, b) = (variance(&exchanged), variance(&greedy));
+                    assert!(a <= b * (1.0 + 1e-9), "{a} vs {b}");
+                }
+                Criterion::D => assert!(det >= greedy_det - 1e-9, "{det} vs {greedy_det}"),
+            }
+            let mut distinct = exchanged.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(distinct.len(), 25);
+        }
     }
 
     #[test]

@@ -20,6 +20,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::registration::print_series_registration(i + 2, r);
     }
     print_identification(&calibrated.calibration, None);
+    if let Some(t) = &calibrated.truth {
+        print_truth(t);
+    }
     for path in &calibrated.written {
         println!("wrote          {}", path.display());
     }
@@ -54,5 +57,29 @@ pub fn print_identification(c: &Calibration, table_residual_rms_mm: Option<f64>)
     print!(
         "{}",
         adwi_eval::output::parameter_table(&adwi_eval::ParameterRow::of(c))
+    );
+}
+
+/// The identification against the simulated robot's truth: the parameter error (lengths
+/// and angles apart) and the position error over the workspace poses.
+fn print_truth(t: &adwi_measure::truth::TruthComparison) {
+    let rms =
+        |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.4} {unit}"));
+    let lengths = t
+        .parameters
+        .iter()
+        .filter(|p| p.parameter.is_length())
+        .count();
+    println!(
+        "truth params   identified − true RMS {} ({lengths} lengths), {} ({} angles); {} of them not identified here (counted at 0), {} identified here only (not compared)",
+        rms(t.length_rms_mm, "mm"),
+        rms(t.angle_rms_mrad, "mrad"),
+        t.parameters.len() - lengths,
+        t.missed,
+        t.not_compared
+    );
+    println!(
+        "truth position |model − true robot| over {} poses: mean {:.4} mm, RMS {:.4} mm, max {:.4} mm",
+        t.poses, t.position_mean_mm, t.position_rms_mm, t.position_max_mm
     );
 }

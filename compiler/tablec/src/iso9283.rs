@@ -6,7 +6,8 @@ use adwi_measure::iso9283::{Report, ISO_CYCLES};
 
 /// ISO 9283:1998 pose characteristics of measured cycles: pose accuracy AP and
 /// repeatability RP per position, distance accuracy AD and repeatability RD between
-/// consecutive positions; or the standard's five cube positions as a plan (--cube).
+/// consecutive positions (as text, --json and an HTML page, --report); or the standard's
+/// five cube positions as a plan (--cube).
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]

@@ -3,8 +3,8 @@
 use adwi_jobs::{PlanArgs, PlanJob};
 
 /// Plan the poses to measure: reachable candidates in the box (seen by the tracker),
-/// chosen for the identification (D-optimality) and for coverage, ordered as a short
-/// joint-space path.
+/// chosen for the identification (I- or D-optimality) and for coverage, ordered as a
+/// short joint-space path.
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -33,6 +33,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         p.parameters.len(),
         p.min_distance_mm,
         p.path_travel
+    );
+    println!(
+        "variance       mean prediction variance over the candidates {:.4} σ²; no {} of them below {:.4} σ² (efficiency ≥ {:.2})",
+        p.mean_variance,
+        p.poses.len(),
+        p.variance_bound,
+        p.variance_bound / p.mean_variance
     );
     println!("wrote          {}", planned.output.display());
     Ok(())

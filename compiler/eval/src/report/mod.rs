@@ -11,6 +11,7 @@
 
 use std::fmt::Write as _;
 
+pub mod iso9283;
 mod plots;
 
 use super::{Evaluation, MethodResult, ParameterRow};
@@ -53,19 +54,12 @@ fn figure(page: &mut String, svgs: &[String], caption: &str) {
     );
 }
 
-/// The report page. `command` is the command line that produced the evaluation, shown so
-/// the page says how to regenerate it.
-///
-/// # Errors
-///
-/// [`ReportError::Plot`] if a plot cannot be drawn.
-pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
-    let orientation = e.uncompensated_orientation_mrad.is_some();
-    let mut page = String::new();
-    let _ = write!(
-        page,
+/// The page's head, its style and its title as the first heading: every report page
+/// looks alike.
+fn head(title: &str) -> String {
+    format!(
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
-         <title>Compensation evaluation</title>\n<style>\
+         <title>{title}</title>\n<style>\
          body{{font-family:sans-serif;margin:24px;max-width:1320px;color:#222}}\
          table{{border-collapse:collapse;margin:12px 0}}\
          th,td{{border:1px solid #ccc;padding:4px 10px;text-align:right}}\
@@ -79,8 +73,23 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
          .legend{{list-style:none;padding:0;margin:14px 0;font-size:13px}} .legend li{{margin:3px 0}}\
          .mark{{display:inline-block;width:22px;height:0;margin-right:8px;vertical-align:middle}}\
          td.text,th.text{{text-align:left}}\
-         </style>\n</head>\n<body>\n<h1>Compensation evaluation</h1>\n<p>{}</p>\n\
-         <p>Command: <code>{}</code></p>\n",
+         </style>\n</head>\n<body>\n<h1>{title}</h1>\n",
+        title = escape(title)
+    )
+}
+
+/// The report page. `command` is the command line that produced the evaluation, shown so
+/// the page says how to regenerate it.
+///
+/// # Errors
+///
+/// [`ReportError::Plot`] if a plot cannot be drawn.
+pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
+    let orientation = e.uncompensated_orientation_mrad.is_some();
+    let mut page = head("Compensation evaluation");
+    let _ = write!(
+        page,
+        "<p>{}</p>\n<p>Command: <code>{}</code></p>\n",
         escape(&e.protocol),
         escape(command)
     );
