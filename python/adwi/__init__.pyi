@@ -112,6 +112,7 @@ def build(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     served_field: str = "auto",
+    posture: str = "auto",
     robot: Optional[PathLike] = None,
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
@@ -158,6 +159,7 @@ def evaluate(
     bounds: Optional[Sequence[float]] = None,
     joint_radius: Optional[float] = None,
     served_field: str = "auto",
+    posture: str = "auto",
     csv: Optional[PathLike] = None,
     json: Optional[PathLike] = None,
     report: Optional[PathLike] = None,
@@ -181,6 +183,8 @@ def calibrate(
     measured_in: str = "base",
     rank_tol: float = 0.001,
     compliance: bool = False,
+    true_scenario: Optional[PathLike] = None,
+    true_at: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """Identify the robot's kinematic deviations from samples, as tablec calibrate, and
     write the calibrated robot files."""
@@ -203,6 +207,8 @@ def plan(
     abc: Optional[Sequence[Sequence[float]]] = None,
     orientation_tolerance: float = 15.0,
     coverage: float = 0.3,
+    criterion: str = "i",
+    exchange_passes: int = 2,
     rank_tol: float = 0.001,
     threads: Optional[int] = None,
 ) -> Dict[str, Any]:
@@ -217,6 +223,7 @@ def iso9283(
     output: Optional[PathLike] = None,
     json: Optional[PathLike] = None,
     table: Optional[PathLike] = None,
+    report: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """ISO 9283 pose characteristics of measured cycles, as tablec iso9283, or the cube's
     five positions written as a plan (cube, output)."""
