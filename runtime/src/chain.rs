@@ -395,7 +395,8 @@ impl Chain {
 /// costs per joint 9 multiply-adds of that sum and one 3 × 4 product, with the sine and
 /// cosine of `q` given (computed once for both chains). The gravity torques come from
 /// suffix sums over the links in one pass instead of a double loop. [`Chain::tcp_pose`] and
-/// [`Chain::loaded_tcp_pose`] are the reference this is held to (tests: some units in the last place of the reach).
+/// [`Chain::loaded_tcp_pose`] are the reference this is held to (tests: some units in the
+/// last place of the reach).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct FoldedChain {
     joints: [FoldedJoint; MAX_JOINTS],
