@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use adwi_compile::write::OutputPlan;
 use adwi_measure::plan::{
-    check, max_pool, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan, PlanError,
-    PlanOptions, TrackerSight, MAX_NUMERICAL_POOL,
+    check, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan, PlanError,
+    PlanOptions, TrackerSight,
 };
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
@@ -38,8 +38,7 @@ pub struct PlanArgs {
     /// Poses to plan.
     #[arg(long)]
     pub count: usize,
-    /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000;
-    /// solved by numerical inverse kinematics, 3 × count, at least 300, at most 2,000].
+    /// Candidates to choose from [default: 10 × count, at least 1,000, at most 20,000].
     #[arg(long)]
     pub pool: Option<usize>,
     /// Seed of the candidates: the same seed gives the same file byte for byte.
@@ -162,17 +161,10 @@ pub enum CriterionArg {
     I,
 }
 
-/// The default pool: ten candidates per pose, at least 1,000 and at most 20,000; three
-/// per pose, at least 300, when they are solved by numerical inverse kinematics (tens of
-/// milliseconds each: 30 poses then plan in seconds, 300 in under half a minute on two
-/// cores); at least the count, within the robot's largest pool.
-fn default_pool(count: usize, largest: usize) -> usize {
-    let pool = if largest == MAX_NUMERICAL_POOL {
-        count.saturating_mul(3).max(300)
-    } else {
-        count.saturating_mul(10).clamp(1_000, 20_000)
-    };
-    pool.min(largest).max(count)
+/// The default pool: ten candidates per pose, at least 1,000 and at most 20,000; at least
+/// the count.
+fn default_pool(count: usize) -> usize {
+    count.saturating_mul(10).clamp(1_000, 20_000).max(count)
 }
 
 /// A plan checked and sized, ready to run.
@@ -257,8 +249,7 @@ impl PlanJob {
         let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
         let mut options = options;
         if args.pool.is_none() {
-            let largest = max_pool(&robot, options.orientations.is_some());
-            options.pool = default_pool(args.count, largest);
+            options.pool = default_pool(args.count);
         }
         // Sized before any work: counts, boxes, the tracker, the selection's arithmetic.
         check(&robot, &options).map_err(|e| match e {

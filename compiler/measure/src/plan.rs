@@ -5,7 +5,8 @@
 //!    vectors drawn uniformly within the joint limits (the robot's sampling ranges); with
 //!    them, TCP poses drawn uniformly in the boxes, turned from an allowed orientation by
 //!    a random rotation up to the tolerance, and solved by inverse kinematics (the
-//!    closed-form solution nearest the home posture, or the numerical one from it). Kept
+//!    closed-form solution nearest the home posture, or the numerical one from the
+//!    postures of a [`PostureTable`] nearest the pose). Kept
 //!    when the nominal TCP lies in one of the boxes, within the joint limits, its
 //!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
 //!    the sight cone about the line to the tracker. Draws are solved in parallel batches
@@ -50,7 +51,7 @@
 use std::fmt::Write as _;
 
 use adwi_robot::calibrate::{design_jacobians, Parameter};
-use adwi_robot::ik::solve_near;
+use adwi_robot::ik::PostureTable;
 use adwi_robot::model::{isometry_from_parts, JointKind};
 use adwi_robot::{IkSolution, InverseKinematics, Robot};
 use adwi_samples::pose::{
@@ -65,20 +66,6 @@ use rayon::prelude::*;
 pub const MAX_POSES: usize = 5_000;
 /// The largest candidate pool.
 pub const MAX_POOL: usize = 50_000;
-/// The largest pool solved by numerical inverse kinematics (allowed orientations on a
-/// robot without the closed form): each candidate costs milliseconds, from home and up to
-/// [`adwi_robot::ik::FURTHER_SEEDS`] further starts, so this is a couple of minutes.
-pub const MAX_NUMERICAL_POOL: usize = 2_000;
-
-/// The largest pool for `robot`: [`MAX_NUMERICAL_POOL`] when candidates are solved by
-/// numerical inverse kinematics, else [`MAX_POOL`].
-pub fn max_pool(robot: &Robot, orientations: bool) -> usize {
-    if orientations && InverseKinematics::new(robot).is_err() {
-        MAX_NUMERICAL_POOL
-    } else {
-        MAX_POOL
-    }
-}
 /// Draws solved together (in parallel) when drawing candidates.
 const SOLVE_BATCH: usize = 64;
 /// Draws per pool candidate before the constraints are deemed too tight: the draws stop
@@ -236,19 +223,12 @@ pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
             format!("{} poses: give 1 to {MAX_POSES}", options.count),
         ));
     }
-    let largest = max_pool(robot, options.orientations.is_some());
-    if options.pool < options.count || options.pool > largest {
+    if options.pool < options.count || options.pool > MAX_POOL {
         return Err(option(
             "pool",
             format!(
-                "{} candidates: give at least the count ({}) and at most {largest}{}",
-                options.pool,
-                options.count,
-                if largest < MAX_POOL {
-                    " (solved by numerical inverse kinematics, milliseconds each)"
-                } else {
-                    ""
-                }
+                "{} candidates: give at least the count ({}) and at most {MAX_POOL}",
+                options.pool, options.count
             ),
         ));
     }
@@ -412,7 +392,20 @@ pub fn candidates(
         .map(|i| robot.sampling_range(i))
         .collect();
     let max_draws = options.pool.saturating_mul(DRAWS_PER_CANDIDATE);
-    let closed_form = InverseKinematics::new(robot).ok();
+    // Poses are solved in closed form (the solution nearest home) or, without it, from the
+    // drawn postures nearest the pose (a fraction of a millisecond, where the posture
+    // nearest home took tens): any posture within the limits does for a candidate.
+    enum Solver {
+        ClosedForm(Box<InverseKinematics>),
+        Table(PostureTable),
+    }
+    let solver = options
+        .orientations
+        .as_ref()
+        .map(|_| match InverseKinematics::new(robot) {
+            Ok(ik) => Solver::ClosedForm(Box::new(ik)),
+            Err(_) => Solver::Table(PostureTable::new(robot)),
+        });
     let volumes: Vec<f64> = options
         .boxes_mm
         .iter()
@@ -454,14 +447,13 @@ pub fn candidates(
             Draw::Pose(isometry_from_parts(position, &rotation))
         }
     };
-    // Joints nearest home for a pose (closed form, or numerical from home), then the
-    // constraints.
+    // Joints for a pose, then the constraints.
     let solve = |d: &Draw| -> Option<PlannedPose> {
         let q = match d {
             Draw::Joints(q) => q.clone(),
-            Draw::Pose(pose) => match &closed_form {
-                Some(ik) => nearest_home(robot, ik.solve(pose))?,
-                None => solve_near(robot, pose, robot.home())?,
+            Draw::Pose(pose) => match solver.as_ref()? {
+                Solver::ClosedForm(ik) => nearest_home(robot, ik.solve(pose))?,
+                Solver::Table(table) => table.solve(robot, pose)?,
             },
         };
         admissible(robot, options, &as_written(robot, &q))
@@ -1144,6 +1136,43 @@ mod tests {
             let t = tcp.translation.vector;
             assert!((1350.0..=2150.0).contains(&t.x) && (850.0..=1650.0).contains(&t.z));
         }
+    }
+
+    /// A seven-axis arm has no closed form: its candidates are solved from the posture
+    /// table, and the plan keeps every constraint and is the same at any thread count.
+    #[test]
+    fn a_seven_axis_arm_plans_at_allowed_orientations_the_same_at_any_thread_count() {
+        let robot = Robot::load(adwi_robot::model::shipped_file("iiwa14", "robot.toml")).unwrap();
+        let o = PlanOptions {
+            boxes_mm: vec![([400.0, -200.0, 300.0], [600.0, 200.0, 600.0])],
+            tracker: None,
+            orientations: Some(AllowedOrientations {
+                abc_deg: vec![[0.0, 180.0, 0.0]],
+                tolerance_deg: 5.0,
+            }),
+            ..options(20, 200)
+        };
+        let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        let down = rotation_from_kuka_abc_deg([0.0, 180.0, 0.0]);
+        for pose in &p.poses {
+            assert!(robot.within_limits(&pose.joints));
+            let tcp = robot.tcp_pose(&pose.joints);
+            assert!(
+                down.angle_to(&tcp.rotation.to_rotation_matrix())
+                    .to_degrees()
+                    <= 5.0
+            );
+            let t = tcp.translation.vector;
+            let (min, max) = o.boxes_mm[0];
+            assert!((0..3).all(|a| min[a] <= t[a] && t[a] <= max[a]), "{t:?}");
+        }
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let written = write_csv(&robot, &p, &[], None);
+        let alone = one.install(|| plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap());
+        assert_eq!(written, write_csv(&robot, &alone, &[], None));
     }
 
     /// The greedy choice is D-better than the same number of the pool's first
