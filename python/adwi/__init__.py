@@ -277,12 +277,17 @@ def calibrate(samples: Samples, **options: Any) -> Dict[str, Any]:
     write the calibrated robot as a robot file (``output``) and as URDF (``urdf``), all
     or neither.
 
-    Returns a dict: ``identified`` (parameter: value, mm or rad), ``unidentifiable``,
+    Returns a dict: the keys ``tablec calibrate --json`` writes, ``robot``, ``samples``,
     ``condition_number``, ``iterations``, ``converged``, ``initial_position_rms_mm``,
     ``position_rms_mm``, ``orientation_rms_rad``, ``parameters`` (each one's ``name``,
-    ``unit``, ``value``, ``standard_error``, ``status``, ``reason``), ``registration``
-    (tracker-frame samples), ``written`` and ``warnings`` (also issued as
-    :class:`AdwiWarning`).
+    ``unit``, ``value``, ``held_estimate``, ``standard_error``, ``correlated_with``,
+    ``correlation``, ``status``, ``reason``) and ``truth`` (with ``true_scenario`` and
+    ``true_at``: the parameter error, ``length_rms_mm``, ``angle_rms_mrad`` and each
+    parameter's ``identified`` and ``truth``, and the model's position error against the
+    true robot, ``position_mean_mm``, ``position_rms_mm``, ``position_max_mm`` over
+    ``poses``; else None); and ``identified`` (parameter: value, mm or rad),
+    ``unidentifiable``, ``registration`` (tracker-frame samples), ``written`` and
+    ``warnings`` (also issued as :class:`AdwiWarning`).
     """
     fields = _adwi.calibrate(_sources(samples, "samples"), **_options([samples], options))
     _warn(fields["warnings"])

@@ -185,6 +185,7 @@ def calibrate(
     compliance: bool = False,
     true_scenario: Optional[PathLike] = None,
     true_at: Optional[PathLike] = None,
+    json: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
     """Identify the robot's kinematic deviations from samples, as tablec calibrate, and
     write the calibrated robot files."""

@@ -565,20 +565,11 @@ fn calibrate<'py>(
     args.samples = sources.into_iter().map(Into::into).collect();
     let calibrated = run_job(py, || CalibrateJob::new(args)?.run())?;
     let d = calibration_dict(py, &calibrated.calibration, None)?;
-    d.set_item("robot", &calibrated.robot_name)?;
-    d.set_item("samples", calibrated.samples)?;
-    let parameters = PyList::empty(py);
-    for row in adwi_eval::ParameterRow::of(&calibrated.calibration) {
-        let p = PyDict::new(py);
-        p.set_item("name", row.name)?;
-        p.set_item("unit", row.unit)?;
-        p.set_item("value", row.value)?;
-        p.set_item("standard_error", row.standard_error)?;
-        p.set_item("status", row.status)?;
-        p.set_item("reason", row.reason)?;
-        parameters.append(p)?;
-    }
-    d.set_item("parameters", parameters)?;
+    // What `--json` writes (the figures, the parameters, the truth), by the same code.
+    let report = pythonize::pythonize(py, &calibrated.report())
+        .map_err(|e| AdwiError::new_err(e.to_string()))?
+        .downcast_into::<PyDict>()?;
+    d.update(report.as_mapping())?;
     d.set_item(
         "registration",
         calibrated

@@ -9,7 +9,7 @@ import pytest
 
 import adwi
 
-from conftest import UR5
+from conftest import KR150, UR5
 
 
 def test_plan_writes_the_file_tablec_writes(tablec, tmp_path):
@@ -80,3 +80,34 @@ def test_iso9283_with_a_table_reports_the_compensation(kr150_table, tmp_path):
     # Attained exactly as commanded: what remains is the table's predicted error, its
     # repeatability nothing.
     assert all(p["ap_p_mm"] > 0.5 and p["rp_l_mm"] < 1e-9 for p in compensated)
+
+
+def test_calibrate_reports_the_truth_comparison_tablec_writes(tablec, tmp_path):
+    robot = KR150 / "robot.toml"
+    scenario = KR150 / "scenario_geometric.toml"
+    samples = tmp_path / "measured.csv"
+    subprocess.run(
+        [tablec, "simulate", "--robot", robot, "--scenario", scenario, "--min", "1350,50,850",
+         "--max", "2150,850,1650", "--random", "30", "--abc", "0,90,0", "--seed", "1",
+         "-o", samples],
+        check=True,
+        capture_output=True,
+    )
+    truth = dict(true_scenario=scenario, true_at=KR150 / "validation.csv")
+    subprocess.run(
+        [tablec, "calibrate", samples, "--robot", robot, "--true-scenario", scenario,
+         "--true-at", truth["true_at"], "--json", tmp_path / "t.json"],
+        check=True,
+        capture_output=True,
+    )
+    expected = json.loads((tmp_path / "t.json").read_text())
+    got = adwi.calibrate(samples, robot=robot, **truth)
+    for key, value in expected.items():
+        assert got[key] == value, key
+    t = got["truth"]
+    assert t["poses"] == 1000
+    assert 0 < t["position_mean_mm"] <= t["position_rms_mm"] <= t["position_max_mm"]
+    lengths = [p for p in t["parameters"] if p["unit"] == "mm"]
+    rms = np.sqrt(np.mean([(p["identified"] - p["truth"]) ** 2 for p in lengths]))
+    assert abs(rms - t["length_rms_mm"]) < 1e-12
+    assert adwi.calibrate(samples, robot=robot)["truth"] is None

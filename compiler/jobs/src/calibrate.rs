@@ -64,6 +64,10 @@ pub struct CalibrateArgs {
     /// j1..jn (degrees; mm for prismatic joints), such as held-out samples or a plan.
     #[arg(long, value_name = "POSES.csv", requires = "true_scenario")]
     pub true_at: Option<PathBuf>,
+    /// Write the identification as JSON: its figures, every parameter as the report lists
+    /// it, and with `--true-scenario` the comparison with the truth (`truth`, else null).
+    #[arg(long, value_name = "PATH")]
+    pub json: Option<PathBuf>,
 }
 
 impl Default for CalibrateArgs {
@@ -79,6 +83,7 @@ impl Default for CalibrateArgs {
             compliance: false,
             true_scenario: None,
             true_at: None,
+            json: None,
         }
     }
 }
@@ -182,10 +187,14 @@ impl CalibrateJob {
             }
         };
         let outputs = OutputPlan::check(
-            &[args.output.as_deref(), args.urdf.as_deref()]
-                .into_iter()
-                .flatten()
-                .collect::<Vec<&Path>>(),
+            &[
+                args.output.as_deref(),
+                args.urdf.as_deref(),
+                args.json.as_deref(),
+            ]
+            .into_iter()
+            .flatten()
+            .collect::<Vec<&Path>>(),
             &inputs.paths(),
         )?;
         let (columns, read) = args.reading.resolve()?;
@@ -279,6 +288,16 @@ impl CalibrateJob {
                 .map_err(JobError::robot(path))?;
             contents.push((path, text.into_bytes()));
         }
+        if let Some(path) = &args.json {
+            let text = serde_json::to_string_pretty(&report(
+                &robot.name,
+                samples.len(),
+                &c,
+                truth.as_ref(),
+            ))
+            .map_err(|e| JobError::NonFinite(e.to_string()))?;
+            contents.push((path, text.into_bytes()));
+        }
         let borrowed: Vec<(&Path, &[u8])> = contents.iter().map(|(p, b)| (*p, &b[..])).collect();
         outputs.write(&borrowed)?;
         let registration = registered.map(|r| {
@@ -300,5 +319,113 @@ impl CalibrateJob {
             calibration: c,
             truth,
         })
+    }
+}
+
+impl Calibrated {
+    /// What `--json` wrote ([`report`]).
+    pub fn report(&self) -> serde_json::Value {
+        report(
+            &self.robot_name,
+            self.samples,
+            &self.calibration,
+            self.truth.as_ref(),
+        )
+    }
+}
+
+/// What `--json` writes, and the Python binding returns with its own keys added: the
+/// identification's figures, its parameters as the reports list them, and the comparison
+/// with the truth (null without one).
+fn report(
+    robot_name: &str,
+    samples: usize,
+    c: &Calibration,
+    truth: Option<&TruthComparison>,
+) -> serde_json::Value {
+    serde_json::json!({
+        "robot": robot_name,
+        "samples": samples,
+        "condition_number": c.condition_number,
+        "iterations": c.iterations,
+        "converged": c.converged,
+        "initial_position_rms_mm": c.initial_position_rms_mm,
+        "position_rms_mm": c.position_rms_mm,
+        "orientation_rms_rad": c.orientation_rms_rad,
+        "parameters": adwi_eval::ParameterRow::of(c),
+        "truth": truth,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{SimulateArgs, SimulateJob};
+
+    /// `--json` writes the identification and the comparison with the truth that the job
+    /// returns, under the keys the Python binding takes from it.
+    #[test]
+    fn the_json_holds_the_truth_comparison_the_job_returns() {
+        let dir = tempfile::tempdir().unwrap();
+        let kr150 = adwi_robot::model::shipped_robot_path("kr150-2");
+        let tables = kr150.parent().unwrap().to_path_buf();
+        let scenario = tables.join("scenario_geometric.toml");
+        let samples = dir.path().join("measured.csv");
+        SimulateJob::new(SimulateArgs {
+            robot: RobotArgs {
+                robot: Some(kr150.clone()),
+                ..RobotArgs::default()
+            },
+            scenario: scenario.clone(),
+            min: Some([1350.0, 50.0, 850.0]),
+            max: Some([2150.0, 850.0, 1650.0]),
+            random: Some(30),
+            abc: [0.0, 90.0, 0.0],
+            seed: 1,
+            output: samples.clone(),
+            ..SimulateArgs::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        let json = dir.path().join("c.json");
+        let calibrated = CalibrateJob::new(CalibrateArgs {
+            samples: vec![Source::File(samples)],
+            robot: RobotArgs {
+                robot: Some(kr150),
+                ..RobotArgs::default()
+            },
+            true_scenario: Some(scenario),
+            true_at: Some(tables.join("validation.csv")),
+            json: Some(json.clone()),
+            ..CalibrateArgs::default()
+        })
+        .unwrap()
+        .run()
+        .unwrap();
+        let text = std::fs::read_to_string(&json).unwrap();
+        assert_eq!(
+            text,
+            serde_json::to_string_pretty(&calibrated.report()).unwrap()
+        );
+        let written: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let truth = calibrated.truth.unwrap();
+        let t = &written["truth"];
+        assert_eq!(t["poses"], 1000);
+        let close = |v: &serde_json::Value, expected: f64| {
+            (v.as_f64().unwrap() - expected).abs() <= 1e-12 * expected.abs()
+        };
+        assert!(close(&t["position_rms_mm"], truth.position_rms_mm));
+        assert!(close(&t["length_rms_mm"], truth.length_rms_mm.unwrap()));
+        assert_eq!(
+            t["parameters"].as_array().unwrap().len(),
+            truth.parameters.len()
+        );
+        assert_eq!(
+            t["parameters"][0]["parameter"],
+            truth.parameters[0].parameter.to_string()
+        );
+        assert_eq!(written["samples"], 30);
+        assert_eq!(calibrated.written, vec![json]);
     }
 }

@@ -54,7 +54,8 @@ pub enum TruthError {
     NonFinite(&'static str),
 }
 
-/// One parameter, identified against true.
+/// One parameter, identified against true. Serialized as `{"parameter": its name,
+/// "unit": its unit, "identified", "truth"}`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterError {
     /// The parameter.
@@ -65,8 +66,21 @@ pub struct ParameterError {
     pub truth: f64,
 }
 
-/// An identification against the truth (module docs).
-#[derive(Debug, Clone, PartialEq)]
+impl serde::Serialize for ParameterError {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut s = serializer.serialize_struct("ParameterError", 4)?;
+        s.serialize_field("parameter", &self.parameter.to_string())?;
+        s.serialize_field("unit", self.parameter.unit())?;
+        s.serialize_field("identified", &self.identified)?;
+        s.serialize_field("truth", &self.truth)?;
+        s.end()
+    }
+}
+
+/// An identification against the truth (module docs); serialized with these field names,
+/// as `tablec calibrate --json` writes it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TruthComparison {
     /// Every parameter the reference identifies, in column order, with the calibration's
     /// value (zero where it held the parameter at nominal or could not identify it).
