@@ -161,6 +161,14 @@ pub enum CriterionArg {
     I,
 }
 
+/// The smallest distance between two poses as the plan's header and `tablec plan` say it.
+pub fn smallest_distance(min_distance_mm: Option<f64>) -> String {
+    match min_distance_mm {
+        Some(d) => format!("smallest TCP distance {d:.1} mm"),
+        None => "a single pose".into(),
+    }
+}
+
 /// The default pool: ten candidates per pose, at least 1,000 and at most 20,000; at least
 /// the count.
 fn default_pool(count: usize) -> usize {
@@ -293,11 +301,11 @@ impl PlanJob {
         if !(planned.log_det.is_finite()
             && planned.mean_variance.is_finite()
             && planned.variance_bound.is_finite()
-            && planned.min_distance_mm.is_finite())
+            && planned.min_distance_mm.is_none_or(f64::is_finite))
         {
             return Err(JobError::NonFinite(format!(
                 "the plan's criterion came out non-finite (log det {}, mean prediction variance \
-                 {}, its bound {}, smallest distance {} mm)",
+                 {}, its bound {}, smallest distance {:?} mm)",
                 planned.log_det,
                 planned.mean_variance,
                 planned.variance_bound,
@@ -322,7 +330,7 @@ impl PlanJob {
                 boxes.join(", ")
             ),
             format!(
-                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {:.4} σ², no {} of the candidates below {:.4} σ²) blended with coverage (weight {}), {} exchange passes at most; smallest TCP distance {:.1} mm; joint travel {:.2} rad.",
+                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {:.4} σ², no {} of the candidates below {:.4} σ²) blended with coverage (weight {}), {} exchange passes at most; {}; joint travel {:.2} rad.",
                 match options.criterion {
                     Criterion::D => "D-optimality",
                     Criterion::I => "I-optimality (mean prediction variance over the candidates)",
@@ -334,7 +342,7 @@ impl PlanJob {
                 planned.variance_bound,
                 options.coverage_weight,
                 options.exchange_passes,
-                planned.min_distance_mm,
+                smallest_distance(planned.min_distance_mm),
                 planned.path_travel
             ),
             "Columns: commanded j1..jn (deg; mm for prismatic joints); nominal x,y,z (mm) and a,b,c (KUKA deg) at them; config (IK branch) for closed-form robots.".into(),

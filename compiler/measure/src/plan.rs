@@ -196,8 +196,8 @@ pub struct Plan {
     /// A lower bound on [`Self::mean_variance`] for any choice of as many poses from the
     /// pool (module docs, "How good a plan is").
     pub variance_bound: f64,
-    /// The smallest distance between two chosen poses' TCPs, mm.
-    pub min_distance_mm: f64,
+    /// The smallest distance between two chosen poses' TCPs, mm; `None` for a single pose.
+    pub min_distance_mm: Option<f64>,
     /// The path's joint travel, the sum of the largest joint move of each step (rad).
     pub path_travel: f64,
 }
@@ -947,12 +947,15 @@ pub fn plan(
     let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
     let (path, path_travel) = order(robot, &picked);
     let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
-    let mut min_distance_mm = f64::INFINITY;
-    for (i, a) in poses.iter().enumerate() {
-        for b in &poses[i + 1..] {
-            min_distance_mm = min_distance_mm.min(distance(a.position_mm, b.position_mm));
-        }
-    }
+    let min_distance_mm = poses
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| {
+            poses[i + 1..]
+                .iter()
+                .map(|b| distance(a.position_mm, b.position_mm))
+        })
+        .reduce(f64::min);
     Ok(Plan {
         poses,
         parameters,
@@ -1136,6 +1139,18 @@ mod tests {
             let t = tcp.translation.vector;
             assert!((1350.0..=2150.0).contains(&t.x) && (850.0..=1650.0).contains(&t.z));
         }
+    }
+
+    /// A single pose has no smallest distance to report, and is planned.
+    #[test]
+    fn one_pose_is_planned_without_a_smallest_distance() {
+        let robot = ur5();
+        let p = plan(&robot, &options(1, 20), &|_, _| {}, &|_| {}).unwrap();
+        assert_eq!(p.poses.len(), 1);
+        assert_eq!(p.min_distance_mm, None);
+        let two = plan(&robot, &options(2, 20), &|_, _| {}, &|_| {}).unwrap();
+        let d = distance(two.poses[0].position_mm, two.poses[1].position_mm);
+        assert_eq!(two.min_distance_mm, Some(d));
     }
 
     /// A seven-axis arm has no closed form: its candidates are solved from the posture

@@ -28,10 +28,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         p.draws
     );
     println!(
-        "criterion      log det {:.3} over {} identifiable parameters; smallest TCP distance {:.1} mm; joint travel {:.2} rad",
+        "criterion      log det {:.3} over {} identifiable parameters; {}; joint travel {:.2} rad",
         p.log_det,
         p.parameters.len(),
-        p.min_distance_mm,
+        adwi_jobs::plan::smallest_distance(p.min_distance_mm),
         p.path_travel
     );
     println!(
