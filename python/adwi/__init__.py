@@ -305,7 +305,8 @@ def plan(output: PathLike, **options: Any) -> Dict[str, Any]:
     pose, in the order to measure), ``parameters`` (the identifiable ones the selection
     weighs), ``pool``, ``draws``, ``log_det``, ``mean_variance`` (the mean prediction
     variance over the candidates, in σ²) and ``variance_bound`` (no as many candidates do
-    better), ``min_distance_mm``, ``path_travel`` (rad) and ``written``.
+    better), ``min_distance_mm`` (None for a single pose), ``path_travel`` (rad) and
+    ``written``.
     """
     return _adwi.plan(os.fspath(output), **_options([], options))
 
