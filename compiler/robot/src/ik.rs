@@ -667,13 +667,12 @@ impl PostureTable {
     /// (as [`solve_near`]'s first stage) from each of the [`TABLE_STARTS`] postures of the
     /// table nearest the pose, nearest first (position distance plus the rotation angle
     /// weighted by [`ORIENTATION_WEIGHT_MM_PER_RAD`]; ties to the earlier drawn), the
-    /// first that ends within the limits; `None` when none does.
-    ///
-    /// # Panics
-    ///
-    /// When `robot` is not the robot the table was drawn for (another joint count).
+    /// first that ends within the limits; `None` when none does, or when `robot` has
+    /// another joint count than the robot the table was drawn for.
     pub fn solve(&self, robot: &Robot, tcp_pose: &Isometry3<f64>) -> Option<Vec<f64>> {
-        assert_eq!(robot.joint_count(), self.joint_count, "the table's robot");
+        if robot.joint_count() != self.joint_count {
+            return None;
+        }
         let target = transform_from_isometry(tcp_pose);
         self.nearest(tcp_pose).into_iter().find_map(|k| {
             let start = &self.postures[k * self.joint_count..(k + 1) * self.joint_count];
