@@ -222,11 +222,12 @@ fn split_choice_notes(e: &Evaluation) -> Vec<String> {
         .map(|c| c.split + 1)
         .max()
         .unwrap_or(0);
+    // "fold 2 " before each split's choice in k-fold, nothing with one split.
     let name = |split: usize| {
         if splits > 1 {
-            format!("fold {}", split + 1)
+            format!("fold {} ", split + 1)
         } else {
-            "the samples".to_string()
+            String::new()
         }
     };
     for method in e.methods.iter().map(|m| m.method) {
@@ -240,10 +241,11 @@ fn split_choice_notes(e: &Evaluation) -> Vec<String> {
         }
         let fields: Vec<String> = choices
             .iter()
-            .map(|c| format!("{} {}", name(c.split), c.served_field))
+            .map(|c| format!("{}{}", name(c.split), c.served_field))
             .collect();
         notes.push(format!(
-            "{method}: served field per split: {}",
+            "{method}: served field {}{}",
+            if splits > 1 { "per split: " } else { "" },
             fields.join(", ")
         ));
         let decided: Vec<_> = choices
@@ -259,7 +261,7 @@ fn split_choice_notes(e: &Evaluation) -> Vec<String> {
             .iter()
             .map(|(split, p)| {
                 format!(
-                    "{} {} ({} → {} mm)",
+                    "{}{} ({} → {} mm)",
                     name(*split),
                     if p.on { "on" } else { "off" },
                     mm(p.without_mm),
@@ -267,12 +269,20 @@ fn split_choice_notes(e: &Evaluation) -> Vec<String> {
                 )
             })
             .collect();
-        notes.push(format!(
-            "{method}: posture term decided on each split's training samples (their \
-             cross-validated mean without → with it): on in {on} of {}: {}",
-            decided.len(),
-            each.join(", ")
-        ));
+        notes.push(if splits > 1 {
+            format!(
+                "{method}: posture term decided on each split's training samples (their \
+                 cross-validated mean without → with it): on in {on} of {}: {}",
+                decided.len(),
+                each.join(", ")
+            )
+        } else {
+            format!(
+                "{method}: posture term decided on the training samples (their \
+                 cross-validated mean without → with it): {}",
+                each.join(", ")
+            )
+        });
     }
     notes
 }
