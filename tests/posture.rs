@@ -245,3 +245,119 @@ fn a_fitted_term_is_byte_identical_at_one_and_two_threads() {
     assert_eq!(Table::from_vec(&one).unwrap().header().version, 3);
     assert!(one == build(2), "the bytes depend on the thread count");
 }
+
+/// `tablec eval` with the term left to `auto` (the default) decides it on each split's
+/// training samples alone, by the build's own decision: every fold's verdict and figures in
+/// the JSON are what `auto_choice` (what `tablec build` runs) finds on that fold's
+/// training samples. A third of the KR150-2 samples keeps the folds' cross-validations
+/// short.
+#[test]
+fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
+    use adwi_compile::build::ServedField;
+    use adwi_jobs::{ServedFieldChoice, TableArgs};
+    use adwi_robot::calibrate::CalibrateOptions;
+    use adwi_robot::model::shipped_robot_path;
+
+    let dir = tempfile::tempdir().unwrap();
+    let robot_path = shipped_robot_path("kr150-2");
+    let text = std::fs::read_to_string(robot_path.parent().unwrap().join("samples.csv")).unwrap();
+    let mut kept = String::new();
+    let mut rows = 0;
+    for line in text.lines() {
+        let data =
+            !line.starts_with('#') && line.starts_with(|c: char| c == '-' || c.is_ascii_digit());
+        if data {
+            rows += 1;
+            if rows % 3 != 1 {
+                continue;
+            }
+        }
+        kept.push_str(line);
+        kept.push('\n');
+    }
+    let samples_path = dir.path().join("samples.csv");
+    std::fs::write(&samples_path, kept).unwrap();
+    let folds = 2;
+    let out = common::tablec(
+        &[
+            "eval",
+            "samples.csv",
+            "--robot",
+            robot_path.to_str().unwrap(),
+            "--folds",
+            &folds.to_string(),
+            "--methods",
+            "hybrid-trilinear",
+            "--served-field",
+            "method",
+            "--json",
+            "eval.json",
+        ],
+        dir.path(),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("posture term decided on each split's training samples"),
+        "{stdout}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("eval.json")).unwrap())
+            .unwrap();
+    let choices = json["split_choices"].as_array().unwrap();
+    assert_eq!(choices.len(), folds);
+
+    let robot = adwi_robot::Robot::load(&robot_path).unwrap();
+    let samples =
+        adwi_samples::read_samples(&samples_path, &adwi_samples::ColumnMap::default()).unwrap();
+    let options = TableArgs {
+        served_field: ServedFieldChoice::Given(ServedField::Method),
+        ..TableArgs::default()
+    }
+    .build_options();
+    let splits = adwi_eval::baselines::k_fold_splits(samples.len(), folds, 0).unwrap();
+    for (split, (fold, choice)) in splits.iter().zip(choices).enumerate() {
+        assert_eq!(choice["split"], split);
+        assert_eq!(choice["method"], "hybrid-trilinear");
+        assert_eq!(choice["served_field"], "method");
+        let train = samples.subset(&fold.train);
+        let auto = adwi_jobs::tune::auto_choice(
+            &train,
+            Some(&robot),
+            &options,
+            &CalibrateOptions::default(),
+            false,
+            true,
+        )
+        .unwrap();
+        let decided = auto.posture.unwrap();
+        let posture = &choice["posture"];
+        assert_eq!(posture["on"], decided.chosen, "fold {split}");
+        assert_eq!(
+            posture["without_mm"].as_f64(),
+            decided.without_mm,
+            "fold {split}"
+        );
+        assert_eq!(posture["with_mm"].as_f64(), decided.with_mm, "fold {split}");
+    }
+    // Held-out points never take part: the folds' figures differ from one another and
+    // from what the decision on every sample finds.
+    let all = adwi_jobs::tune::auto_choice(
+        &samples,
+        Some(&robot),
+        &options,
+        &CalibrateOptions::default(),
+        false,
+        true,
+    )
+    .unwrap()
+    .posture
+    .unwrap();
+    for choice in choices {
+        assert_ne!(choice["posture"]["with_mm"].as_f64(), all.with_mm);
+    }
+}

@@ -59,6 +59,17 @@ pub fn wendland(t: f64) -> f64 {
     }
 }
 
+/// The squared Euclidean distance of two joint vectors, rad² (over the shorter one).
+#[inline]
+pub fn joint_distance_squared_rad2(a_rad: &[f64], b_rad: impl IntoIterator<Item = f64>) -> f64 {
+    let mut sum = 0.0;
+    for (a, b) in a_rad.iter().zip(b_rad) {
+        let d = a - b;
+        sum += d * d;
+    }
+    sum
+}
+
 /// The posture term's parameters (module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PostureParams {
@@ -81,15 +92,26 @@ impl PostureParams {
         joints_rad: &[f64],
         sample_joints_rad: impl IntoIterator<Item = f64>,
     ) -> f64 {
-        if distance2_mm2.is_nan() || distance2_mm2 >= self.radius_mm * self.radius_mm {
-            return 0.0;
+        self.weight_squared(
+            distance2_mm2,
+            joint_distance_squared_rad2(joints_rad, sample_joints_rad),
+        )
+    }
+
+    /// [`weight_at`](Self::weight_at) from the squared distances, zero outside either
+    /// support (and for a NaN) without a square root or a division: most samples a
+    /// served query lists are outside one support or the other.
+    #[inline]
+    pub fn weight_squared(&self, distance2_mm2: f64, joint_distance2_rad2: f64) -> f64 {
+        // `&`, not `&&`: one branch, rarely taken, instead of a first one taken about as
+        // often as not. Written so that NaN fails the test.
+        let inside = (distance2_mm2 < self.radius_mm * self.radius_mm)
+            & (joint_distance2_rad2 < self.length_rad * self.length_rad);
+        if inside {
+            self.weight_at(distance2_mm2.sqrt(), joint_distance2_rad2.sqrt())
+        } else {
+            0.0
         }
-        let mut dq2_rad2 = 0.0;
-        for (q, qi) in joints_rad.iter().zip(sample_joints_rad) {
-            let d = q - qi;
-            dq2_rad2 += d * d;
-        }
-        self.weight_at(distance2_mm2.sqrt(), dq2_rad2.sqrt())
     }
 
     /// `w_i` of a sample `distance_mm` from the target and `joint_distance_rad` (Euclidean)
@@ -164,6 +186,9 @@ pub fn reference(
     params.term(weight_sum, weighted_mm).map(|v| v * fade)
 }
 
+/// The list entries a served query tests in one block ([`PreparedPosture::term`]).
+const POSTURE_BLOCK: usize = 64;
+
 /// A table's posture term, prepared at open.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct PreparedPosture {
@@ -210,26 +235,41 @@ impl PreparedPosture {
         let residuals = record.residuals_mm.as_slice();
         let joints = record.joints_rad.as_slice();
         let r2 = self.params.radius_mm * self.params.radius_mm;
+        let position = |i: usize| Some(positions.get(i)?.map(|v| v.to_native()));
+        // Two passes over each block of the list, because about half a list is in reach
+        // and almost none of that half near in joint space: a test on the position in the
+        // loop that weighs would be mispredicted about as often as not, and weighing every
+        // entry reads and sums the joints of all. The first pass keeps the samples in
+        // reach without a branch, the second weighs those alone; both keep the list's
+        // order, so the sums are the reference's. (Blocks keep the buffer a few cache
+        // lines, cleared per block.)
         let mut weight_sum = 0.0;
         let mut weighted_mm = [0.0; 3];
-        for i in list {
-            let i = i.to_native() as usize;
-            let xi = positions.get(i)?.map(|v| v.to_native());
-            let d2 = crate::method::distance_squared_mm2(x, xi);
-            // Most listed samples are out of reach: rejected before their joints are read.
-            if d2.is_nan() || d2 >= r2 {
-                continue;
+        for block in list.chunks(POSTURE_BLOCK) {
+            let mut near = [0u32; POSTURE_BLOCK];
+            let mut count = 0;
+            for i in block {
+                let i = i.to_native();
+                let d2 = crate::method::distance_squared_mm2(x, position(i as usize)?);
+                // Written at the next free place either way (there is one: `count` is at
+                // most the entries tested before), kept by counting it; NaN is not kept.
+                if let Some(slot) = near.get_mut(count) {
+                    *slot = i;
+                }
+                count += usize::from(d2 < r2);
             }
-            let from = i * self.joint_count;
-            let qi = joints.get(from..from + self.joint_count)?;
-            let w = self
-                .params
-                .weight(d2, joints_rad, qi.iter().map(|v| v.to_native()));
-            if w > 0.0 {
-                weight_sum += w;
-                let ri = residuals.get(i)?;
-                for (s, r) in weighted_mm.iter_mut().zip(ri.iter()) {
-                    *s += w * r.to_native();
+            for &i in near.get(..count)? {
+                let i = i as usize;
+                let d2 = crate::method::distance_squared_mm2(x, position(i)?);
+                let from = i * self.joint_count;
+                let qi = joints.get(from..from + self.joint_count)?;
+                let dq2 = joint_distance_squared_rad2(joints_rad, qi.iter().map(|v| v.to_native()));
+                let w = self.params.weight_squared(d2, dq2);
+                if w > 0.0 {
+                    weight_sum += w;
+                    for (s, r) in weighted_mm.iter_mut().zip(residuals.get(i)?.iter()) {
+                        *s += w * r.to_native();
+                    }
                 }
             }
         }

@@ -19,7 +19,9 @@
 //!    entries but make it read six times: a served query's tail latency is what counts);
 //!    each cell lists, ascending, every sample within `R` of its box. A list longer than
 //!    [`MAX_POSTURE_CANDIDATES`] is refused with its length (the leave-one-out's choice
-//!    falls back to the best candidate whose lists fit).
+//!    falls back to the best candidate whose lists fit). The record numbers the samples by
+//!    posture cell ([`PostureLists::in_cell_order`]), so that a list reads a few ascending
+//!    runs of positions, joints and residuals rather than indices scattered over them.
 //!
 //! Whether a table gets the term at all is the build's decision (`tablec build`'s
 //! cross-validation): this module fits it when asked.
@@ -180,7 +182,7 @@ pub fn fit(
     let mut longest = 0;
     for &(loo_with_mm, c) in &scored {
         let params = candidates[c];
-        let lists = lists(&params, grid, &samples.nominal_mm)?;
+        let mut lists = lists(&params, grid, &samples.nominal_mm)?;
         let max_list_len = lists.longest();
         if max_list_len > MAX_POSTURE_CANDIDATES {
             longest = longest.max(max_list_len);
@@ -194,6 +196,7 @@ pub fn fit(
             max_list_len,
             list_entries: lists.entries.len(),
         };
+        let order = lists.in_cell_order(grid, &samples.nominal_mm);
         let record = v3::PostureRecord {
             radius_mm: params.radius_mm,
             length_rad: params.length_rad,
@@ -202,9 +205,9 @@ pub fn fit(
             dims: lists.dims,
             cell_offsets: lists.offsets,
             cell_samples: lists.entries,
-            positions_mm: samples.nominal_mm.clone(),
-            joints_rad: joints.as_flat().to_vec(),
-            residuals_mm: residuals_mm.to_vec(),
+            positions_mm: order.iter().map(|&i| samples.nominal_mm[i]).collect(),
+            joints_rad: order.iter().flat_map(|&i| joints.row(i)).copied().collect(),
+            residuals_mm: order.iter().map(|&i| residuals_mm[i]).collect(),
         };
         return Ok((report, record));
     }
@@ -274,6 +277,40 @@ pub struct PostureLists {
 }
 
 impl PostureLists {
+    /// Numbers the samples (at `positions_mm`, over the table's `grid`) by ascending
+    /// posture cell, x fastest, then by their own order, and the lists with them, each
+    /// list still ascending: the record's sample `k` is `positions_mm[order[k]]` for the
+    /// `order` returned. A list then reads its samples' positions, joints and residuals
+    /// as a few ascending runs of memory (one per row of cells its support covers),
+    /// instead of indices scattered over the whole record. A sample outside the posture
+    /// grid (the table's box given smaller than the samples') comes last.
+    pub fn in_cell_order(&mut self, grid: &Grid, positions_mm: &[[f64; 3]]) -> Vec<usize> {
+        let posture_grid = Grid {
+            origin_mm: grid.origin_mm,
+            cell_mm: self.cell_mm,
+            dims: self.dims,
+        };
+        let mut order: Vec<usize> = (0..positions_mm.len()).collect();
+        order.sort_by_key(|&i| {
+            (
+                posture_grid.cell_of(positions_mm[i]).unwrap_or(usize::MAX),
+                i,
+            )
+        });
+        let mut rank = vec![0u32; order.len()];
+        for (k, &i) in order.iter().enumerate() {
+            rank[i] = k as u32;
+        }
+        for w in self.offsets.windows(2) {
+            let list = &mut self.entries[w[0] as usize..w[1] as usize];
+            for e in list.iter_mut() {
+                *e = rank[*e as usize];
+            }
+            list.sort_unstable();
+        }
+        order
+    }
+
     /// The longest list.
     pub fn longest(&self) -> usize {
         self.offsets

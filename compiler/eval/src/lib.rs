@@ -49,7 +49,7 @@ pub mod output;
 pub mod report;
 
 pub use calibration::{CalibrationSummary, ParameterRow};
-pub use options::{EvalOptions, ServedFieldRule};
+pub use options::{EvalOptions, PostureDecision, SplitChoice, SplitChoiceRecord, SplitRule};
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -513,6 +513,10 @@ pub struct Evaluation {
     pub skipped: Vec<(Method, String)>,
     /// What kinematic identification found, per split.
     pub calibrations: Vec<CalibrationSummary>,
+    /// What each split's served-tier tables were built with, when chosen from the split's
+    /// training samples ([`EvalOptions::split_rule`]): the served field and whether a
+    /// hybrid table got the posture term.
+    pub split_choices: Vec<SplitChoiceRecord>,
     /// The noise floor of the first split's training samples ([`crate::noise_floor`]): of the
     /// residuals its identified model leaves when a robot is given, else of the measured
     /// errors. With a validation set that is every sample; in k-fold cross-validation the
@@ -632,6 +636,7 @@ pub fn evaluate(
 
     let mut collected = Collected::new(&methods, points.len());
     let mut calibrations = Vec::new();
+    let mut split_choices = Vec::new();
     let mut identified = Vec::new();
     let mut floor = None;
 
@@ -661,12 +666,22 @@ pub fn evaluate(
             if collected.unsupported.contains_key(&method) {
                 continue;
             }
+            let (build, choice) = options::build_options_for(method, train, options);
+            if let Some(choice) = choice {
+                split_choices.push(SplitChoiceRecord {
+                    split,
+                    method,
+                    served_field: choice.served_field.name(),
+                    posture: choice.posture,
+                });
+            }
             let outcome = predict_split(
                 method,
                 train,
                 &test_points,
                 calibration.as_ref(),
                 options,
+                &build,
                 orientation,
             )?;
             collected.record(method, test, outcome);
@@ -675,6 +690,7 @@ pub fn evaluate(
     let mut evaluation = assemble(description, samples, &points, orientation, collected);
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;
+    evaluation.split_choices = split_choices;
     evaluation.noise_floor = floor;
     evaluation.identified = identified;
     Ok(evaluation)
@@ -863,6 +879,7 @@ fn assemble(
         methods,
         skipped: Vec::new(),
         calibrations: Vec::new(),
+        split_choices: Vec::new(),
         noise_floor: None,
         comparison,
         identified: Vec::new(),
@@ -930,6 +947,7 @@ fn predict_split(
     test: &SampleSet,
     calibration: Option<&Calibration>,
     options: &EvalOptions,
+    build: &BuildOptions,
     orientation: bool,
 ) -> Result<SplitOutcome, EvalError> {
     let targets: Vec<Target> = (0..test.len())
@@ -955,12 +973,7 @@ fn predict_split(
             ))
         }
         Method::Paper | Method::PaperTrilinear => {
-            let table = compile_table(
-                method,
-                train,
-                &options::build_options_for(method, train, options),
-                nodes,
-            )?;
+            let table = compile_table(method, train, build, nodes)?;
             let exact = method == Method::Paper;
             targets
                 .iter()
@@ -1014,7 +1027,7 @@ fn predict_split(
             // The real hybrid table: model and residuals compiled together, opened and
             // queried with the point's joint angles, as a controller would.
             let model = c.prepared_model();
-            let bytes = build::plan(train, &options::build_options_for(method, train, options))
+            let bytes = build::plan(train, build)
                 .and_then(|plan| {
                     adwi_compile::hybrid::compile_serving(train, &model, &plan, nodes, &|_| {})
                 })

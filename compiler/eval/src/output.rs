@@ -136,6 +136,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     if let Some(c) = &e.comparison {
         notes.extend(comparison_notes(e, c));
     }
+    notes.extend(split_choice_notes(e));
     for (method, reason) in &e.skipped {
         notes.push(format!("{method}: not run: {reason}"));
     }
@@ -210,6 +211,82 @@ pub fn parameter_table(rows: &[ParameterRow]) -> String {
 }
 
 /// The noise floor in words: the nuggets, the total variance and the mean they imply.
+/// Per served-tier method whose table was chosen per split: the served field of each
+/// split and, for a hybrid table, in which splits the posture term was turned on, with
+/// the cross-validated means it was decided on.
+fn split_choice_notes(e: &Evaluation) -> Vec<String> {
+    let mut notes = Vec::new();
+    let splits = e
+        .split_choices
+        .iter()
+        .map(|c| c.split + 1)
+        .max()
+        .unwrap_or(0);
+    // "fold 2 " before each split's choice in k-fold, nothing with one split.
+    let name = |split: usize| {
+        if splits > 1 {
+            format!("fold {} ", split + 1)
+        } else {
+            String::new()
+        }
+    };
+    for method in e.methods.iter().map(|m| m.method) {
+        let choices: Vec<_> = e
+            .split_choices
+            .iter()
+            .filter(|c| c.method == method)
+            .collect();
+        if choices.is_empty() {
+            continue;
+        }
+        let fields: Vec<String> = choices
+            .iter()
+            .map(|c| format!("{}{}", name(c.split), c.served_field))
+            .collect();
+        notes.push(format!(
+            "{method}: served field {}{}",
+            if splits > 1 { "per split: " } else { "" },
+            fields.join(", ")
+        ));
+        let decided: Vec<_> = choices
+            .iter()
+            .filter_map(|c| c.posture.map(|p| (c.split, p)))
+            .collect();
+        if decided.is_empty() {
+            continue;
+        }
+        let on = decided.iter().filter(|(_, p)| p.on).count();
+        let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.4}"));
+        let each: Vec<String> = decided
+            .iter()
+            .map(|(split, p)| {
+                format!(
+                    "{}{} ({} → {} mm)",
+                    name(*split),
+                    if p.on { "on" } else { "off" },
+                    mm(p.without_mm),
+                    mm(p.with_mm)
+                )
+            })
+            .collect();
+        notes.push(if splits > 1 {
+            format!(
+                "{method}: posture term decided on each split's training samples (their \
+                 cross-validated mean without → with it): on in {on} of {}: {}",
+                decided.len(),
+                each.join(", ")
+            )
+        } else {
+            format!(
+                "{method}: posture term decided on the training samples (their \
+                 cross-validated mean without → with it): {}",
+                each.join(", ")
+            )
+        });
+    }
+    notes
+}
+
 fn noise_floor_note(floor: &crate::noise_floor::NoiseFloor) -> String {
     let nugget =
         |n: Option<f64>, e: Option<&crate::noise_floor::NuggetEstimate>, unit: &str| match (n, e) {

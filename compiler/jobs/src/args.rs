@@ -223,8 +223,8 @@ pub struct TableArgs {
     pub served_field: ServedFieldChoice,
     /// A hybrid table's posture term, what the residual owes to the arm's posture and not
     /// to the position alone (joint elasticity, gear errors of a redundant arm's elbow):
-    /// `auto` adds it when cross-validation on the samples alone says it helps (a build;
-    /// `eval` scores the table without it unless given `on`); `on`, always; `off`, never.
+    /// `auto` adds it when cross-validation on the samples alone says it helps (`eval`:
+    /// on each split's training samples alone); `on`, always; `off`, never.
     #[arg(long, value_name = "WHEN", default_value_t = PostureChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub posture: PostureChoice,

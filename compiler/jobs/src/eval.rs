@@ -3,16 +3,18 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::build::ServedField;
+use adwi_compile::build::BuildOptions;
 use adwi_compile::write::OutputPlan;
-use adwi_eval::{EvalOptions, Evaluation, Method, Protocol, ServedFieldRule};
+use adwi_eval::{
+    EvalOptions, Evaluation, Method, PostureDecision, Protocol, SplitChoice, SplitRule,
+};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
 
-use crate::args::{parsed, Frame, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+use crate::args::{parsed, Frame, PostureChoice, Reading, RobotArgs, ServedFieldChoice, TableArgs};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
 use crate::{JobError, Warning};
@@ -269,31 +271,13 @@ impl EvalJob {
                     None => file_robot,
                 };
                 let build = args.options.build_options();
-                // As a build without a given served field: chosen from each split's
-                // training samples alone.
-                let served_field =
-                    (args.options.served_field == ServedFieldChoice::Auto).then(|| {
-                        let (robot, build) = (robot.clone(), build.clone());
-                        ServedFieldRule(std::sync::Arc::new(
-                            move |train: &SampleSet, hybrid: bool| {
-                                // A position-only table's field is chosen as a build
-                                // without a robot chooses it: for paper-trilinear.
-                                crate::tune::auto_served_field(
-                                    train,
-                                    robot.as_ref().filter(|_| hybrid),
-                                    &build,
-                                    &calibrate,
-                                )
-                                .map_or(ServedField::Method, |auto| auto.choice.field())
-                            },
-                        ))
-                    });
+                let split_rule = split_rule(&args.options, robot.as_ref(), &build, &calibrate);
                 let options = EvalOptions {
                     methods: args.methods.clone(),
                     build,
                     robot,
                     calibrate,
-                    served_field,
+                    split_rule,
                     ..EvalOptions::default()
                 };
                 // The tables the methods build are sized now, from every sample: a grid
@@ -434,6 +418,64 @@ impl EvalJob {
             warnings,
         })
     }
+}
+
+/// What a split's served-tier table is built with, decided as a build decides what it is
+/// not given ([`crate::tune::auto_choice`], the same code): the served field when `auto`,
+/// and a hybrid table's posture term when `auto`, from the split's training samples alone.
+/// `None` when everything is given. A split too small to cross-validate gets what a build
+/// would then write: the method's field, no term.
+fn split_rule(
+    table: &TableArgs,
+    robot: Option<&Robot>,
+    build: &BuildOptions,
+    calibrate: &CalibrateOptions,
+) -> Option<SplitRule> {
+    let choose_field = table.served_field == ServedFieldChoice::Auto;
+    // As a build: the term is decided for a hybrid table without a joint screen.
+    let choose_posture = table.posture == PostureChoice::Auto
+        && robot.is_some()
+        && build.joint_radius_deg.unwrap_or(0.0) == 0.0;
+    if !(choose_field || choose_posture) {
+        return None;
+    }
+    let (robot, build, calibrate) = (robot.cloned(), build.clone(), *calibrate);
+    Some(SplitRule(std::sync::Arc::new(
+        move |train: &SampleSet, hybrid: bool| {
+            let posture = choose_posture && hybrid;
+            if !(choose_field || posture) {
+                return SplitChoice {
+                    served_field: build.served_field,
+                    posture: None,
+                };
+            }
+            // A position-only table's field is chosen as a build without a robot
+            // chooses it: for paper-trilinear.
+            let chosen = crate::tune::auto_choice(
+                train,
+                robot.as_ref().filter(|_| hybrid),
+                &build,
+                &calibrate,
+                choose_field,
+                posture,
+            );
+            let mut options = build.clone();
+            if let Ok(auto) = &chosen {
+                auto.apply(&mut options);
+            }
+            SplitChoice {
+                served_field: options.served_field,
+                posture: posture.then(|| {
+                    let decided = chosen.ok().and_then(|auto| auto.posture);
+                    PostureDecision {
+                        without_mm: decided.and_then(|p| p.without_mm),
+                        with_mm: decided.and_then(|p| p.with_mm),
+                        on: decided.is_some_and(|p| p.chosen),
+                    }
+                }),
+            }
+        },
+    )))
 }
 
 /// The first `n` points, when limited.

@@ -58,7 +58,9 @@ pub struct PostureRecord {
     pub cell_offsets: Vec<u32>,
     /// Concatenated lists of sample indices, each ascending.
     pub cell_samples: Vec<u32>,
-    /// Each sample's nominal position, mm, base frame.
+    /// Each sample's nominal position, mm, base frame. The term numbers its samples on its
+    /// own (the compiler orders them by posture cell, so that a list reads a few ascending
+    /// runs of memory); any order is valid.
     pub positions_mm: Vec<[f64; 3]>,
     /// Each sample's joint values, row after row (the header's joint count per row).
     pub joints_rad: Vec<f64>,
