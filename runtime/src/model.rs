@@ -178,27 +178,28 @@ impl PreparedModel {
             *sc = v.sin_cos();
         }
         let [nominal, calibrated] = &self.folded;
-        let nominal = nominal.tcp_pose(q, &sin_cos[..n]);
-        let (calibrated_mm, calibrated_rotation) =
-            calibrated.loaded_tcp(q, &sin_cos[..n], rotation);
-        let (position_mm, rotation_rad) = match calibrated_rotation {
-            Some(rotation) => pose_error(
-                &nominal,
-                &Transform {
+        let sin_cos = &sin_cos[..n];
+        let (calibrated_mm, calibrated_rotation) = calibrated.loaded_tcp(q, sin_cos, rotation);
+        let (nominal_mm, approach, rotation_rad) = match calibrated_rotation {
+            Some(rotation) => {
+                let nominal = nominal.tcp_pose(q, sin_cos);
+                let calibrated = Transform {
                     rotation,
                     translation_mm: calibrated_mm,
-                },
-            ),
-            None => (
-                [0, 1, 2].map(|a| calibrated_mm[a] - nominal.translation_mm[a]),
-                [0.0; 3],
-            ),
+                };
+                let rotation_rad = pose_error(&nominal, &calibrated).1;
+                (nominal.translation_mm, approach(&nominal), rotation_rad)
+            }
+            None => {
+                let (nominal_mm, approach) = nominal.reach::<true>(q, sin_cos);
+                (nominal_mm, approach, [0.0; 3])
+            }
         };
         Some(ModelAt {
-            position_mm,
+            position_mm: [0, 1, 2].map(|a| calibrated_mm[a] - nominal_mm[a]),
             rotation_rad,
-            approach: approach(&nominal),
-            nominal_tcp_mm: nominal.translation_mm,
+            approach,
+            nominal_tcp_mm: nominal_mm,
         })
     }
 
