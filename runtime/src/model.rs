@@ -174,9 +174,7 @@ impl PreparedModel {
             return None;
         }
         let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
-        for (sc, v) in sin_cos.iter_mut().zip(q) {
-            *sc = v.sin_cos();
-        }
+        crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
         let (calibrated_mm, calibrated_rotation) = calibrated.loaded_tcp(q, sin_cos, rotation);
