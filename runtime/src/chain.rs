@@ -470,6 +470,36 @@ impl ReachChain {
     }
 }
 
+impl ReachChain {
+    /// Joint `j` of the walk from the tool back: `point` and, when `APPROACH`, the
+    /// direction `approach`, from the joint's moving frame at joint value `value` (with
+    /// `(sin, cos)` of it) into its parent's.
+    #[inline(always)]
+    fn step<const APPROACH: bool>(
+        &self,
+        j: usize,
+        value: f64,
+        (s, c): (f64, f64),
+        point: &mut [f64; 3],
+        approach: &mut [f64; 3],
+    ) {
+        let frame = &self.frames[j];
+        if self.prismatic[j] {
+            point[2] += value;
+        } else {
+            let turn = |v: [f64; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
+            *point = turn(*point);
+            if APPROACH {
+                *approach = turn(*approach);
+            }
+        }
+        *point = frame.transform_point(*point);
+        if APPROACH {
+            *approach = frame.rotate_vector(*approach);
+        }
+    }
+}
+
 /// A rotation taking z onto the unit vector `k` (its third column is `k`): the identity
 /// for z itself, so that an MD-H chain's frames are not touched.
 fn z_onto(k: [f64; 3]) -> [[f64; 3]; 3] {
@@ -598,23 +628,36 @@ impl FoldedChain {
         let mut point = z.tool_mm;
         let mut approach = if APPROACH { z.tool_approach } else { [0.0; 3] };
         for j in (0..n).rev() {
-            let frame = &z.frames[j];
-            if z.prismatic[j] {
-                point[2] += q[j];
-            } else {
-                let (s, c) = sin_cos[j];
-                let turn = |v: [f64; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-                point = turn(point);
-                if APPROACH {
-                    approach = turn(approach);
-                }
-            }
-            point = frame.transform_point(point);
-            if APPROACH {
-                approach = frame.rotate_vector(approach);
-            }
+            z.step::<APPROACH>(j, q[j], sin_cos[j], &mut point, &mut approach);
         }
         (point, approach)
+    }
+
+    /// [`FoldedChain::reach`] of two chains at the same joint values in one walk, which
+    /// interleaves their independent arithmetic: `a`'s position and approach axis, and
+    /// `b`'s position. `None` unless both have the [`ReachChain`] form, `b` has no gravity
+    /// compliance, and they have the same joint count.
+    #[inline]
+    pub(crate) fn reach_pair(
+        a: &FoldedChain,
+        b: &FoldedChain,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+    ) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+        let (Some(za), Some(zb)) = (&a.reach, &b.reach) else {
+            return None;
+        };
+        if b.gravity.is_some() || a.len != b.len {
+            return None;
+        }
+        let n = a.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let (mut point_a, mut approach) = (za.tool_mm, za.tool_approach);
+        let (mut point_b, mut unused) = (zb.tool_mm, [0.0; 3]);
+        for j in (0..n).rev() {
+            za.step::<true>(j, q[j], sin_cos[j], &mut point_a, &mut approach);
+            zb.step::<false>(j, q[j], sin_cos[j], &mut point_b, &mut unused);
+        }
+        Some((point_a, approach, point_b))
     }
 
     /// The TCP pose at joint values `q` given their sines and cosines
@@ -1141,6 +1184,11 @@ mod tests {
             let (alone_mm, no_approach) = folded.reach::<false>(q, &sin_cos);
             prop_assert_eq!(alone_mm, tcp_mm);
             prop_assert_eq!(no_approach, [0.0; 3]);
+            let pair = FoldedChain::reach_pair(&folded, &folded, q, &sin_cos);
+            prop_assert_eq!(pair.is_some(), unit_axes && chain.compliance.is_none());
+            if let Some(pair) = pair {
+                prop_assert_eq!(pair, (tcp_mm, approach, tcp_mm));
+            }
             let loaded_mm = folded.loaded_tcp(q, &sin_cos, false).0;
             let loaded = chain.loaded_tcp_pose(q).unwrap();
             for a in 0..3 {
