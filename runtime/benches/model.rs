@@ -10,9 +10,10 @@
 //!   by joint, without and with its gravity deflection (a second pass);
 //! - `model/at_by_chains`: the model part as the two chains compute it (the reference);
 //! - `model/at`: the model part with the orientation error, as a query of a table with
-//!   orientations computes it (chains folded at open, shared `sin_cos`); `model/at_position`
-//!   without it, as a table without orientations does (both chains walked from the tool
-//!   back; with compliance, as `model/at` without the logarithm).
+//!   orientations computes it (chains folded at open, shared `sin_cos`);
+//! - `model/at_position`: the model part without the orientation error and with a
+//!   calibrated chain without compliance, as a query of the UR5 table built from the
+//!   shipped measurements computes it (both chains walked together from the tool back).
 //!
 //! Run: `cargo bench -p adwi-runtime --bench model`. Under `cargo test` it runs once in
 //! criterion's test mode.
@@ -95,8 +96,10 @@ fn bench(c: &mut Criterion) {
         b.iter(|| model_at_by_chains(&model, black_box(next())))
     });
     group.bench_function("at", |b| b.iter(|| model.at(black_box(next()))));
+    // The shipped UR5 table's case: a calibrated chain without compliance, no orientations.
+    let rigid = PreparedModel::new(nominal, ur5(1.0, 0.0)).expect("equal joint counts");
     group.bench_function("at_position", |b| {
-        b.iter(|| model.at_position(black_box(next())))
+        b.iter(|| rigid.at_position(black_box(next())))
     });
     group.finish();
 }

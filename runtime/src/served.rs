@@ -241,7 +241,7 @@ pub(crate) enum Site {
 
 /// The cell a target of configuration `config` at `position_mm` is served from, or why
 /// there is none (the module docs: a hybrid table's field fades and never misses).
-#[inline]
+#[inline(always)]
 pub(crate) fn site(
     grid: &ServedGrid,
     data: &ArchivedTableData,
@@ -341,7 +341,7 @@ fn prefetch_bytes<T>(values: &[T]) {
 /// the axis costs a forward kinematics a miss need not pay); another `S` is
 /// [`Status::InvalidInput`]. A position-only table's cell with a corner without a value
 /// is [`Status::UncoveredCell`]. Never allocates or panics.
-#[inline]
+#[inline(always)]
 pub(crate) fn blend_site<const S: usize>(
     grid: &ServedGrid,
     data: &ArchivedTableData,

@@ -510,12 +510,13 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
-        // The served cell first, its nodes asked of memory before the model's arithmetic,
-        // which then hides their latency.
+        // The served cell first; a hybrid table asks for its nodes' memory before the
+        // model's arithmetic, which then hides their latency (without a model part there is
+        // nothing to hide it behind).
         let site = match (payload, &self.served, tier) {
             (Payload::V2(d), Some(grid), Tier::Served) => {
                 let site = crate::served::site(grid, d, target.position_mm, target.config);
-                if let Ok(site) = &site {
+                if let (Ok(site), Some(_)) = (&site, &self.model) {
                     crate::served::prefetch(grid, d, site, self.has_orientation());
                 }
                 Some(site)
@@ -545,24 +546,25 @@ impl<D: AsRef<[u8]>> Table<D> {
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
             Payload::V2(d) => match (&self.served, site) {
-                (Some(grid), Some(site)) => {
+                (Some(_), Some(Err(status))) => Correction::failed(status),
+                (Some(grid), Some(Ok(site))) => {
                     let orientation = self.has_orientation();
-                    let site = site.and_then(|site| {
-                        if h.served_field.node_stride() == 1 {
-                            crate::served::blend_site::<1>(grid, d, &site, orientation)
-                                .map(|terms| terms.correction())
-                        } else {
+                    if h.served_field.node_stride() == 1 {
+                        match crate::served::blend_site::<1>(grid, d, &site, orientation) {
+                            Ok(terms) => terms.correction(),
+                            Err(status) => Correction::failed(status),
+                        }
+                    } else {
+                        match crate::served::blend_site::<4>(grid, d, &site, orientation) {
+                            Err(status) => Correction::failed(status),
                             // Validation admits such a field in hybrid tables only, and
                             // those were given joint values above.
-                            crate::served::blend_site::<4>(grid, d, &site, orientation).and_then(
-                                |terms| match &model_at {
-                                    Some(at) => Ok(terms.turned(at.approach)),
-                                    None => Err(Status::InvalidInput),
-                                },
-                            )
+                            Ok(terms) => match &model_at {
+                                Some(at) => terms.turned(at.approach),
+                                None => Correction::failed(Status::InvalidInput),
+                            },
                         }
-                    });
-                    site.unwrap_or_else(Correction::failed)
+                    }
                 }
                 _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
             },
