@@ -3,13 +3,17 @@
 //! a calibrated chain that differs by a few tenths of a millimetre and milliradian and has
 //! gravity compliance:
 //!
-//! - `model/sin_cos`: the sines and cosines of six joint angles, the floor of any forward
-//!   kinematics;
+//! - `model/sin_cos`: the sines and cosines of six joint angles by the library's `sin_cos`,
+//!   the floor of any forward kinematics; `model/trig_sin_cos_each`: the same by
+//!   [`adwi_runtime::trig::sin_cos_each`], the query path's;
 //! - `model/nominal_tcp_pose`, `model/loaded_tcp_pose`: one chain's forward kinematics, joint
 //!   by joint, without and with its gravity deflection (a second pass);
 //! - `model/at_by_chains`: the model part as the two chains compute it (the reference);
-//! - `model/at`: the model part as a query computes it (chains folded at open, shared
-//!   `sin_cos`).
+//! - `model/at`: the model part with the orientation error, as a query of a table with
+//!   orientations computes it (chains folded at open, shared `sin_cos`);
+//! - `model/at_position`: the model part without the orientation error and with a
+//!   calibrated chain without compliance, as a query of the UR5 table built from the
+//!   shipped measurements computes it (both chains walked together from the tool back).
 //!
 //! Run: `cargo bench -p adwi-runtime --bench model`. Under `cargo test` it runs once in
 //! criterion's test mode.
@@ -75,6 +79,13 @@ fn bench(c: &mut Criterion) {
     group.bench_function("sin_cos", |b| {
         b.iter(|| black_box(next()).map(f64::sin_cos))
     });
+    group.bench_function("trig_sin_cos_each", |b| {
+        b.iter(|| {
+            let mut out = [(0.0, 1.0); 6];
+            adwi_runtime::trig::sin_cos_each(black_box(next()), &mut out);
+            out
+        })
+    });
     group.bench_function("nominal_tcp_pose", |b| {
         b.iter(|| model.nominal().tcp_pose(black_box(next())))
     });
@@ -85,6 +96,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| model_at_by_chains(&model, black_box(next())))
     });
     group.bench_function("at", |b| b.iter(|| model.at(black_box(next()))));
+    // The shipped UR5 table's case: a calibrated chain without compliance, no orientations.
+    let rigid = PreparedModel::new(nominal, ur5(1.0, 0.0)).expect("equal joint counts");
+    group.bench_function("at_position", |b| {
+        b.iter(|| rigid.at_position(black_box(next())))
+    });
     group.finish();
 }
 

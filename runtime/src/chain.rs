@@ -406,6 +406,118 @@ pub(crate) struct FoldedChain {
     /// Whether every revolute joint's axis is a unit vector to 1e-13, so that its rotations
     /// compose exactly ([`FoldedChain::loaded_tcp`]).
     unit_axes: bool,
+    /// The chain for its TCP's position and approach axis alone ([`ReachChain`]), when
+    /// every axis is a unit vector to rounding.
+    reach: Option<ReachChain>,
+}
+
+/// A chain re-expressed for [`FoldedChain::reach`]: each joint's frame turned so that its
+/// axis is z, and its offset folded into the fixed part before it,
+///
+/// ```text
+/// T(q) = Z_1 · J(q_1) · Z_2 · J(q_2) ⋯ Z_n · J(q_n) · tool_z,   J(q) = Rz(q) or Tz(q)
+/// ```
+///
+/// (`Z_j = Q_{j−1}ᵀ · O_j · Q_j · J(o_j)`, with `Q_j` a rotation taking z onto joint `j`'s
+/// axis, and `tool_z = Q_nᵀ · tool`). Taken from the tool back to the base, a point and a
+/// direction cost a joint a turn about z (4 products, given `sin q` and `cos q`) and a
+/// 3 × 4 product each, where composing frames costs a 3 × 3 and a 3 × 4 product.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ReachChain {
+    frames: [Transform; MAX_JOINTS],
+    prismatic: [bool; MAX_JOINTS],
+    /// The TCP's position and approach (z) axis in the last joint's turned frame.
+    tool_mm: [f64; 3],
+    tool_approach: [f64; 3],
+}
+
+impl ReachChain {
+    /// The re-expressed form of a chain whose axes are unit vectors.
+    fn new(chain: &Chain) -> ReachChain {
+        let mut frames = [Transform::IDENTITY; MAX_JOINTS];
+        let mut prismatic = [false; MAX_JOINTS];
+        // `Q_{j−1}ᵀ`, carried into the next joint's frame.
+        let mut carry = Transform::IDENTITY;
+        for (j, joint) in chain.joints().iter().enumerate() {
+            let origin = if j == 0 {
+                chain.base.compose(&joint.origin)
+            } else {
+                joint.origin
+            };
+            let turn = Transform {
+                rotation: z_onto(joint.axis),
+                translation_mm: [0.0; 3],
+            };
+            let offset = match joint.kind {
+                JointKind::Revolute => ChainJoint::default().motion(joint.offset),
+                JointKind::Prismatic => Transform {
+                    translation_mm: [0.0, 0.0, joint.offset],
+                    ..Transform::IDENTITY
+                },
+            };
+            frames[j] = carry.compose(&origin).compose(&turn).compose(&offset);
+            prismatic[j] = joint.kind == JointKind::Prismatic;
+            carry = turn.inverse();
+        }
+        let tool = carry.compose(&chain.tool);
+        let r = &tool.rotation;
+        ReachChain {
+            frames,
+            prismatic,
+            tool_mm: tool.translation_mm,
+            tool_approach: [r[0][2], r[1][2], r[2][2]],
+        }
+    }
+}
+
+impl ReachChain {
+    /// Joint `j` of the walk from the tool back: `point` and, when `APPROACH`, the
+    /// direction `approach`, from the joint's moving frame at joint value `value` (with
+    /// `(sin, cos)` of it) into its parent's.
+    #[inline(always)]
+    fn step<const APPROACH: bool>(
+        &self,
+        j: usize,
+        value: f64,
+        (s, c): (f64, f64),
+        point: &mut [f64; 3],
+        approach: &mut [f64; 3],
+    ) {
+        let frame = &self.frames[j];
+        if self.prismatic[j] {
+            point[2] += value;
+        } else {
+            let turn = |v: [f64; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
+            *point = turn(*point);
+            if APPROACH {
+                *approach = turn(*approach);
+            }
+        }
+        *point = frame.transform_point(*point);
+        if APPROACH {
+            *approach = frame.rotate_vector(*approach);
+        }
+    }
+}
+
+/// A rotation taking z onto the unit vector `k` (its third column is `k`): the identity
+/// for z itself, so that an MD-H chain's frames are not touched.
+fn z_onto(k: [f64; 3]) -> [[f64; 3]; 3] {
+    if k == [0.0, 0.0, 1.0] {
+        return Transform::IDENTITY.rotation;
+    }
+    // Any unit vector across `k`: from the coordinate axis least along it.
+    let helper = if k[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let along = dot(helper, k);
+    let x = [0, 1, 2].map(|a| helper[a] - along * k[a]);
+    let norm = dot(x, x).sqrt();
+    let x = x.map(|v| v / norm);
+    let y = cross(k, x);
+    [0, 1, 2].map(|i| [x[i], y[i], k[i]])
 }
 
 /// One joint of a [`FoldedChain`]: `O · M(q + o) = [fixed + cos q · cos_part + sin q ·
@@ -475,13 +587,77 @@ impl FoldedChain {
             .joints()
             .iter()
             .all(|j| j.kind == JointKind::Prismatic || within(dot(j.axis, j.axis), 1.0, 1e-13));
+        // Unit to a few units in the last place: a rotation built on such an axis is the
+        // chains' own Rodrigues rotation to rounding.
+        let exactly_unit = chain
+            .joints()
+            .iter()
+            .all(|j| within(dot(j.axis, j.axis), 1.0, 4.0 * f64::EPSILON));
         FoldedChain {
             joints,
             len: chain.len,
             tool: chain.tool,
             gravity,
             unit_axes,
+            reach: exactly_unit.then(|| ReachChain::new(chain)),
         }
+    }
+
+    /// The TCP's position, and its approach axis when `APPROACH` (zero otherwise), at
+    /// joint values `q` given their sines and cosines, without compliance: what
+    /// [`FoldedChain::tcp_pose`] gives of them, from the tool back to the base
+    /// ([`ReachChain`]) when the chain has that form. Both slices hold at least the chain's
+    /// joint count (the caller's check).
+    #[inline]
+    pub(crate) fn reach<const APPROACH: bool>(
+        &self,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+    ) -> ([f64; 3], [f64; 3]) {
+        let Some(z) = &self.reach else {
+            let pose = self.tcp_pose(q, sin_cos);
+            let r = &pose.rotation;
+            let approach = if APPROACH {
+                [r[0][2], r[1][2], r[2][2]]
+            } else {
+                [0.0; 3]
+            };
+            return (pose.translation_mm, approach);
+        };
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let mut point = z.tool_mm;
+        let mut approach = if APPROACH { z.tool_approach } else { [0.0; 3] };
+        for j in (0..n).rev() {
+            z.step::<APPROACH>(j, q[j], sin_cos[j], &mut point, &mut approach);
+        }
+        (point, approach)
+    }
+
+    /// [`FoldedChain::reach`] of two chains at the same joint values in one walk, which
+    /// interleaves their independent arithmetic: `a`'s position and approach axis, and
+    /// `b`'s position. `None` unless both have the [`ReachChain`] form, `b` has no gravity
+    /// compliance, and they have the same joint count.
+    #[inline]
+    pub(crate) fn reach_pair(
+        a: &FoldedChain,
+        b: &FoldedChain,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+    ) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+        let (Some(za), Some(zb)) = (&a.reach, &b.reach) else {
+            return None;
+        };
+        if b.gravity.is_some() || a.len != b.len {
+            return None;
+        }
+        let n = a.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let (mut point_a, mut approach) = (za.tool_mm, za.tool_approach);
+        let (mut point_b, mut unused) = (zb.tool_mm, [0.0; 3]);
+        for j in (0..n).rev() {
+            za.step::<true>(j, q[j], sin_cos[j], &mut point_a, &mut approach);
+            zb.step::<false>(j, q[j], sin_cos[j], &mut point_b, &mut unused);
+        }
+        Some((point_a, approach, point_b))
     }
 
     /// The TCP pose at joint values `q` given their sines and cosines
@@ -527,6 +703,9 @@ impl FoldedChain {
         rotation: bool,
     ) -> ([f64; 3], Option<[[f64; 3]; 3]>) {
         let Some(g) = &self.gravity else {
+            if !rotation {
+                return (self.reach::<false>(q, sin_cos).0, None);
+            }
             let pose = self.tcp_pose(q, sin_cos);
             return (pose.translation_mm, rotation.then_some(pose.rotation));
         };
@@ -995,6 +1174,59 @@ mod tests {
                         prop_assert!(off <= 1e-14, "{fast:?} vs {reference:?}");
                     }
                 }
+            }
+            // The position and approach axis alone, from the tool back (unit axes) or from
+            // the pose (axes validation admits but the re-expression does not take).
+            let unit_axes = chain.joints().iter().all(|j| (dot(j.axis, j.axis) - 1.0).abs() <= 4.0 * f64::EPSILON);
+            prop_assert_eq!(folded.reach.is_some(), unit_axes);
+            let reference = chain.tcp_pose(q).unwrap();
+            let (tcp_mm, approach) = folded.reach::<true>(q, &sin_cos);
+            let (alone_mm, no_approach) = folded.reach::<false>(q, &sin_cos);
+            prop_assert_eq!(alone_mm, tcp_mm);
+            prop_assert_eq!(no_approach, [0.0; 3]);
+            let pair = FoldedChain::reach_pair(&folded, &folded, q, &sin_cos);
+            prop_assert_eq!(pair.is_some(), unit_axes && chain.compliance.is_none());
+            if let Some(pair) = pair {
+                prop_assert_eq!(pair, (tcp_mm, approach, tcp_mm));
+            }
+            let loaded_mm = folded.loaded_tcp(q, &sin_cos, false).0;
+            let loaded = chain.loaded_tcp_pose(q).unwrap();
+            for a in 0..3 {
+                let off_mm = (tcp_mm[a] - reference.translation_mm[a]).abs();
+                prop_assert!(off_mm <= tolerance_mm, "{tcp_mm:?} vs {reference:?}");
+                let off = (approach[a] - reference.rotation[a][2]).abs();
+                prop_assert!(off <= 1e-14, "{approach:?} vs {reference:?}");
+                let off_mm = (loaded_mm[a] - loaded.translation_mm[a]).abs();
+                prop_assert!(off_mm <= tolerance_mm, "{loaded_mm:?} vs {loaded:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn an_mdh_chain_and_coordinate_axes_are_not_turned() {
+        assert_eq!(z_onto([0.0, 0.0, 1.0]), Transform::IDENTITY.rotation);
+        for k in [
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, -1.0],
+            [0.0, -1.0, 0.0],
+        ] {
+            let q = z_onto(k);
+            assert_eq!([q[0][2], q[1][2], q[2][2]], k);
+            assert!(orthonormal(&q));
+            // Exact: entries of 0 and ±1 only.
+            assert!(
+                q.iter().flatten().all(|v| [0.0, 1.0, -1.0].contains(v)),
+                "{q:?}"
+            );
+        }
+        let chain =
+            Chain::from_mdh(Transform::IDENTITY, &kr150(), Transform::IDENTITY, None).unwrap();
+        let reach = FoldedChain::new(&chain).reach.unwrap();
+        for (j, joint) in chain.joints().iter().enumerate().skip(1) {
+            // A z axis and no offset: the joint's own origin.
+            if joint.offset == 0.0 {
+                assert_eq!(reach.frames[j], joint.origin);
             }
         }
     }

@@ -54,6 +54,7 @@ mod swap;
 mod table;
 #[doc(hidden)]
 pub mod testing;
+pub mod trig;
 mod validate;
 
 pub use correction::{Compensation, Correction, Residual, Status, Target};

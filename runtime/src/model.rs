@@ -31,13 +31,17 @@
 //!
 //! This module evaluates the model part: everything here is allocation-free and panic-free.
 //! A query's costs, on top of the ordinary query ([`crate::Table::query_with_joints`]): one
-//! `sin_cos` per joint, shared by both chains; one pass down each chain, folded at open
-//! (constant parts multiplied out: `FoldedChain` in [`crate::chain`]); the gravity deflection
-//! by turning the calibrated TCP about each joint's axis; and a 3 × 3 logarithm when the table
-//! has orientations. [`PreparedModel::error`] and the others evaluate the chains joint by
-//! joint, as the compiler fits the residuals with them; the query path is held to them to
-//! 1e-12 mm (joints within half a turn of zero; beyond, the chains' own rounding of each
-//! angle before its `sin_cos` adds a few 1e-13 mm per joint).
+//! sine and cosine per joint, shared by both chains, two joints at a time
+//! ([`crate::trig::sin_cos_each`]); then, for a table without orientations whose calibrated
+//! chain has no gravity compliance, one walk of both chains together from the tool back to
+//! the base, a point a joint (and the nominal approach axis) ([`PreparedModel::at_position`]);
+//! otherwise one pass down each chain, folded at open (constant parts multiplied out:
+//! `FoldedChain` in [`crate::chain`]), the gravity deflection by turning the calibrated TCP
+//! about each joint's axis, and a 3 × 3 logarithm when the table has orientations.
+//! [`PreparedModel::error`] and the others evaluate the chains joint by joint, as the
+//! compiler fits the residuals with them; the query path is held to them to 4e-12 mm
+//! (joints within half a turn of zero; beyond, the chains' own rounding of each angle
+//! before its `sin_cos` adds a few 1e-13 mm per joint).
 
 use crate::chain::{Chain, FoldedChain, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
@@ -159,10 +163,21 @@ impl PreparedModel {
     ///
     /// The query path: the chains folded at preparation and one `sin_cos` per joint
     /// shared by both ([`crate::chain`]'s `FoldedChain`); equal to the chains' own forward
-    /// kinematics ([`crate::testing::model_at_by_chains`]) to 1e-12 mm (module docs).
+    /// kinematics ([`crate::testing::model_at_by_chains`]) to 4e-12 mm (module docs).
     #[inline]
     pub fn at(&self, q: &[f64]) -> Option<ModelAt> {
         self.evaluate(q, true)
+    }
+
+    /// [`PreparedModel::at`] without the orientation error (zero), as a query of a table
+    /// whose samples have no orientation computes it: the nominal TCP's position and
+    /// approach axis and the calibrated TCP's position alone, from the tool back to the
+    /// base, both chains in one walk (`FoldedChain::reach_pair` in [`crate::chain`]), when
+    /// their axes are unit vectors to rounding and the calibrated chain has no gravity
+    /// compliance. `None` as `error`.
+    #[inline]
+    pub fn at_position(&self, q: &[f64]) -> Option<ModelAt> {
+        self.evaluate(q, false)
     }
 
     /// [`PreparedModel::at`], with the orientation error computed only when `rotation`
@@ -174,31 +189,42 @@ impl PreparedModel {
             return None;
         }
         let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
-        for (sc, v) in sin_cos.iter_mut().zip(q) {
-            *sc = v.sin_cos();
-        }
+        crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
-        let nominal = nominal.tcp_pose(q, &sin_cos[..n]);
-        let (calibrated_mm, calibrated_rotation) =
-            calibrated.loaded_tcp(q, &sin_cos[..n], rotation);
-        let (position_mm, rotation_rad) = match calibrated_rotation {
-            Some(rotation) => pose_error(
-                &nominal,
-                &Transform {
+        let sin_cos = &sin_cos[..n];
+        if !rotation {
+            if let Some((nominal_mm, approach, calibrated_mm)) =
+                FoldedChain::reach_pair(nominal, calibrated, q, sin_cos)
+            {
+                return Some(ModelAt {
+                    position_mm: [0, 1, 2].map(|a| calibrated_mm[a] - nominal_mm[a]),
+                    rotation_rad: [0.0; 3],
+                    approach,
+                    nominal_tcp_mm: nominal_mm,
+                });
+            }
+        }
+        let (calibrated_mm, calibrated_rotation) = calibrated.loaded_tcp(q, sin_cos, rotation);
+        let (nominal_mm, approach, rotation_rad) = match calibrated_rotation {
+            Some(rotation) => {
+                let nominal = nominal.tcp_pose(q, sin_cos);
+                let calibrated = Transform {
                     rotation,
                     translation_mm: calibrated_mm,
-                },
-            ),
-            None => (
-                [0, 1, 2].map(|a| calibrated_mm[a] - nominal.translation_mm[a]),
-                [0.0; 3],
-            ),
+                };
+                let rotation_rad = pose_error(&nominal, &calibrated).1;
+                (nominal.translation_mm, approach(&nominal), rotation_rad)
+            }
+            None => {
+                let (nominal_mm, approach) = nominal.reach::<true>(q, sin_cos);
+                (nominal_mm, approach, [0.0; 3])
+            }
         };
         Some(ModelAt {
-            position_mm,
+            position_mm: [0, 1, 2].map(|a| calibrated_mm[a] - nominal_mm[a]),
             rotation_rad,
-            approach: approach(&nominal),
-            nominal_tcp_mm: nominal.translation_mm,
+            approach,
+            nominal_tcp_mm: nominal_mm,
         })
     }
 

@@ -222,24 +222,32 @@ impl ServedTerms<4> {
     }
 }
 
-/// The served field's node vectors at `position_mm` for a target of configuration
-/// `config`, blended trilinearly term by term (position, and orientation when
-/// `orientation`), or why there are none. `S` is the table's stride (1, or 4 for a
-/// tool-axis field, whose terms the caller turns with the axis once it knows the field
-/// answers: the axis costs a forward kinematics a miss need not pay); another `S` is
-/// [`Status::InvalidInput`]. A hybrid table's field fades where it has no value (the
-/// module docs) and never misses. Never allocates or panics.
-#[inline]
-pub(crate) fn serve<const S: usize>(
+/// Where a target's served value comes from ([`site`]): found before the blend, so that a
+/// hybrid query can ask for the nodes' memory ([`prefetch`]) while it computes its model
+/// part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Site {
+    /// The node of the cell's minimum corner (counted in nodes from the first of the node
+    /// values, its set's offset included), the target's fractional position in the cell,
+    /// and outside the grid the fade factor of a hybrid table's residual.
+    Cell {
+        first: usize,
+        fraction: [f64; 3],
+        fade: Option<f64>,
+    },
+    /// No field here: a hybrid table's model alone.
+    ModelOnly,
+}
+
+/// The cell a target of configuration `config` at `position_mm` is served from, or why
+/// there is none (the module docs: a hybrid table's field fades and never misses).
+#[inline(always)]
+pub(crate) fn site(
     grid: &ServedGrid,
     data: &ArchivedTableData,
     position_mm: [f64; 3],
     config: Option<u8>,
-    orientation: bool,
-) -> Result<ServedTerms<S>, Status> {
-    if grid.stride != S {
-        return Err(Status::InvalidInput);
-    }
+) -> Result<Site, Status> {
     let (base, fraction, fade) = match (grid.locate(position_mm), grid.fade_mm) {
         (Some((base, fraction)), _) => (base, fraction, None),
         (None, None) => return Err(Status::OutsideGrid),
@@ -249,7 +257,7 @@ pub(crate) fn serve<const S: usize>(
                 .ok_or(Status::OutsideGrid)?;
             let fade = smoothstep(1.0 - distance_mm / length_mm);
             if fade <= 0.0 {
-                return Ok(ServedTerms::MODEL_ONLY);
+                return Ok(Site::ModelOnly);
             }
             (base, fraction, Some(fade))
         }
@@ -259,12 +267,98 @@ pub(crate) fn serve<const S: usize>(
     let first_set = match config {
         Some(c) if grid.with_configs => match data.node_sets.iter().find(|s| s.config == c) {
             Some(set) => set.first_node.to_native() as usize,
-            None if grid.fade_mm.is_some() => return Ok(ServedTerms::MODEL_ONLY),
+            None if grid.fade_mm.is_some() => return Ok(Site::ModelOnly),
             None => return Err(Status::NoAdmissibleNeighbour),
         },
         _ => grid.first_any,
     };
-    let first = first_set + base;
+    Ok(Site::Cell {
+        first: first_set + base,
+        fraction,
+        fade,
+    })
+}
+
+/// Asks the processor to bring a cell's node values (and their orientation terms when
+/// `orientation`) into its cache without waiting for them: a hybrid query calls this before
+/// its model part, whose arithmetic then hides the memory's latency. Reads nothing and
+/// changes no answer; a hint only, and none on other architectures than x86-64.
+#[inline]
+pub(crate) fn prefetch(
+    grid: &ServedGrid,
+    data: &ArchivedTableData,
+    site: &Site,
+    orientation: bool,
+) {
+    let Site::Cell { first, .. } = *site else {
+        return;
+    };
+    let cell = |values: &[rkyv::Archived<[f64; 3]>]| {
+        // The cell's 8 corners are 4 runs of 2 neighbouring nodes along x.
+        for corner in [0, 2, 4, 6] {
+            let Some(node) = first.checked_add(grid.corners[corner]) else {
+                return;
+            };
+            let run = node
+                .checked_mul(grid.stride)
+                .and_then(|start| values.get(start..start.checked_add(2 * grid.stride)?));
+            if let Some(run) = run {
+                prefetch_bytes(run);
+            }
+        }
+    };
+    cell(data.node_errors_mm.as_slice());
+    if orientation {
+        cell(data.node_orientation_errors_rad.as_slice());
+    }
+}
+
+/// Prefetches every cache line `values` spans.
+#[inline]
+fn prefetch_bytes<T>(values: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        const LINE: usize = 64;
+        let len = std::mem::size_of_val(values);
+        let start = values.as_ptr().cast::<i8>();
+        // Every line from the first byte's, in steps of a line, and the last byte's.
+        let lines = (0..len).step_by(LINE).chain(len.checked_sub(1));
+        for offset in lines {
+            // SAFETY: a prefetch is a hint that reads nothing architecturally and never
+            // faults, whatever the address; these are within `values` anyway. SSE, which
+            // the instruction needs, is part of x86-64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = values;
+}
+
+/// The node vectors of a [`site`], blended trilinearly term by term (position, and
+/// orientation when `orientation`). `S` is the table's stride (1, or 4 for a tool-axis
+/// field, whose terms the caller turns with the axis once it knows the field answers:
+/// the axis costs a forward kinematics a miss need not pay); another `S` is
+/// [`Status::InvalidInput`]. A position-only table's cell with a corner without a value
+/// is [`Status::UncoveredCell`]. Never allocates or panics.
+#[inline(always)]
+pub(crate) fn blend_site<const S: usize>(
+    grid: &ServedGrid,
+    data: &ArchivedTableData,
+    site: &Site,
+    orientation: bool,
+) -> Result<ServedTerms<S>, Status> {
+    if grid.stride != S {
+        return Err(Status::InvalidInput);
+    }
+    let Site::Cell {
+        first,
+        fraction,
+        fade,
+    } = *site
+    else {
+        return Ok(ServedTerms::MODEL_ONLY);
+    };
     let weights = trilinear_weights(fraction);
     let nodes = data.node_errors_mm.as_slice();
     let blended = blend::<S>(nodes, first, &grid.corners, &weights).ok_or(Status::InvalidInput)?;

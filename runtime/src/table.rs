@@ -510,6 +510,19 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
+        // The served cell first; a hybrid table asks for its nodes' memory before the
+        // model's arithmetic, which then hides their latency (without a model part there is
+        // nothing to hide it behind).
+        let site = match (payload, &self.served, tier) {
+            (Payload::V2(d), Some(grid), Tier::Served) => {
+                let site = crate::served::site(grid, d, target.position_mm, target.config);
+                if let (Ok(site), Some(_)) = (&site, &self.model) {
+                    crate::served::prefetch(grid, d, site, self.has_orientation());
+                }
+                Some(site)
+            }
+            _ => None,
+        };
         // A hybrid table's model at the joint values, once: its error, the approach axis a
         // field turning with the tool needs, and where the joints put the nominal TCP.
         let model_at = match (&self.model, joints_rad) {
@@ -532,17 +545,17 @@ impl<D: AsRef<[u8]>> Table<D> {
         };
         let mut correction = match payload {
             Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
-            Payload::V2(d) => match (&self.served, tier) {
-                (Some(grid), Tier::Served) => {
-                    let (p, config) = (target.position_mm, target.config);
+            Payload::V2(d) => match (&self.served, site) {
+                (Some(_), Some(Err(status))) => Correction::failed(status),
+                (Some(grid), Some(Ok(site))) => {
                     let orientation = self.has_orientation();
                     if h.served_field.node_stride() == 1 {
-                        match crate::served::serve::<1>(grid, d, p, config, orientation) {
+                        match crate::served::blend_site::<1>(grid, d, &site, orientation) {
                             Ok(terms) => terms.correction(),
                             Err(status) => Correction::failed(status),
                         }
                     } else {
-                        match crate::served::serve::<4>(grid, d, p, config, orientation) {
+                        match crate::served::blend_site::<4>(grid, d, &site, orientation) {
                             Err(status) => Correction::failed(status),
                             // Validation admits such a field in hybrid tables only, and
                             // those were given joint values above.

@@ -333,12 +333,19 @@ pub fn bench_queries<D: AsRef<[u8]>>(
     let params = *table.method();
     let kd = KdTreeMethod::new(records.clone(), params);
     let model = table.model().copied();
+    let orientation = table.has_orientation();
     // Where no sample is admissible a hybrid table's exact tier answers the model alone,
-    // and so does every contender: each then does the work the table does.
+    // and so does every contender: each then does the work the table does, the model as
+    // the table computes it (without the orientation error when it has no orientations).
     let with_model = |estimate: Option<Estimate>, q: Option<&[f64]>| -> Option<[f64; 3]> {
         match (&model, q) {
             (Some(m), Some(q)) => {
-                let p = m.at(q)?.position_mm;
+                let at = if orientation {
+                    m.at(q)
+                } else {
+                    m.at_position(q)
+                };
+                let p = at?.position_mm;
                 let e = estimate.map_or([0.0; 3], |e| e.position_error_mm);
                 Some([0, 1, 2].map(|a| e[a] + p[a]))
             }

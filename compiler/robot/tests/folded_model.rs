@@ -81,12 +81,21 @@ fn calibrated(robot: &Robot, small: &[[f64; 6]]) -> Chain {
 /// if either has no answer.
 fn difference(model: &PreparedModel, q: &[f64]) -> Option<(f64, f64)> {
     let fast = model.at(q)?;
+    // Without the orientation error: another walk down the chains (from the tool back).
+    let position = model.at_position(q)?;
     let reference = model_at_by_chains(model, q)?;
     let off = |x: [f64; 3], y: [f64; 3]| (0..3).map(|a| (x[a] - y[a]).abs()).fold(0.0, f64::max);
+    if position.rotation_rad != [0.0; 3] {
+        return None;
+    }
     Some((
         off(fast.position_mm, reference.position_mm)
-            .max(off(fast.nominal_tcp_mm, reference.nominal_tcp_mm)),
-        off(fast.approach, reference.approach).max(off(fast.rotation_rad, reference.rotation_rad)),
+            .max(off(fast.nominal_tcp_mm, reference.nominal_tcp_mm))
+            .max(off(position.position_mm, reference.position_mm))
+            .max(off(position.nominal_tcp_mm, reference.nominal_tcp_mm)),
+        off(fast.approach, reference.approach)
+            .max(off(fast.rotation_rad, reference.rotation_rad))
+            .max(off(position.approach, reference.approach)),
     ))
 }
 
