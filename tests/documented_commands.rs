@@ -9,6 +9,8 @@
 //! `cargo test`/`build`/`install` by CI itself, `pip`, `python` and `python/run-tests` by
 //! the Python package's tests, `cc` by `c_abi.rs`.
 //!
+//! Each document is a test of its own, so documents run side by side.
+//!
 //! A block too costly to run here carries, on the line before it, a comment naming the
 //! test that runs it, `<!-- tested by module::test -->`; that test must exist.
 
@@ -220,40 +222,94 @@ fn run_block(doc: &Path, block: &Block, dir: &tempfile::TempDir) {
     eprintln!("{place}: {:.1} s", started.elapsed().as_secs_f64());
 }
 
-#[test]
-fn every_documented_command_runs_as_written() {
-    let tests = std::fs::read_dir(repo("tests"))
+/// The names of the tests a `tested by` comment may name: every `fn` of `tests/*.rs`.
+fn test_sources() -> String {
+    std::fs::read_dir(repo("tests"))
         .unwrap()
         .filter_map(|e| {
             let p = e.unwrap().path();
             (p.extension()? == "rs").then(|| std::fs::read_to_string(p).unwrap())
         })
         .collect::<Vec<_>>()
-        .join("\n");
+        .join("\n")
+}
+
+/// Runs one document's blocks in order in a fresh folder, and checks that each test a
+/// block names exists. Returns how many blocks ran here.
+fn run_document(relative: &str) -> usize {
+    let doc = repo(relative);
+    let tests = test_sources();
+    let text = std::fs::read_to_string(&doc).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for link in ["tables", "tests"] {
+        std::os::unix::fs::symlink(repo(link), dir.path().join(link)).unwrap();
+    }
     let mut ran = 0;
-    for doc in documents() {
-        let text = std::fs::read_to_string(&doc).unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        for link in ["tables", "tests"] {
-            std::os::unix::fs::symlink(repo(link), dir.path().join(link)).unwrap();
-        }
-        for block in blocks(&text) {
-            match &block.tested_by {
-                Some(test) => {
-                    let name = test.rsplit("::").next().unwrap();
-                    assert!(
-                        tests.contains(&format!("fn {name}()")),
-                        "{}:{}: the test {test} named for this block does not exist",
-                        doc.display(),
-                        block.line
-                    );
-                }
-                None => {
-                    run_block(&doc, &block, &dir);
-                    ran += 1;
-                }
+    for block in blocks(&text) {
+        match &block.tested_by {
+            Some(test) => {
+                let name = test.rsplit("::").next().unwrap();
+                assert!(
+                    tests.contains(&format!("fn {name}()")),
+                    "{}:{}: the test {test} named for this block does not exist",
+                    doc.display(),
+                    block.line
+                );
+            }
+            None => {
+                run_block(&doc, &block, &dir);
+                ran += 1;
             }
         }
     }
-    assert!(ran >= 5, "{ran} blocks run");
+    ran
+}
+
+/// One test per document, so that the test harness runs documents side by side (each
+/// document's blocks stay in order: a table built above is queried below).
+macro_rules! documents_run_as_written {
+    ($($test:ident => $path:literal,)*) => {
+        /// The documents with a test of their own.
+        const DOCUMENTS: &[&str] = &[$($path),*];
+        $(
+            #[test]
+            fn $test() {
+                run_document($path);
+            }
+        )*
+    };
+}
+
+documents_run_as_written! {
+    readme_commands_run_as_written => "README.md",
+    cli_commands_run_as_written => "docs/cli.md",
+    evaluation_commands_run_as_written => "docs/evaluation.md",
+    measure_commands_run_as_written => "docs/measure.md",
+    method_commands_run_as_written => "docs/method.md",
+    programs_commands_run_as_written => "docs/programs.md",
+    python_commands_run_as_written => "docs/python.md",
+    runtime_commands_run_as_written => "docs/runtime.md",
+    samples_commands_run_as_written => "docs/samples.md",
+    tracker_commands_run_as_written => "docs/tracker.md",
+}
+
+#[test]
+fn every_document_has_its_test_and_commands_are_run() {
+    let listed: Vec<PathBuf> = DOCUMENTS.iter().map(|p| repo(p)).collect();
+    assert_eq!(
+        documents(),
+        listed,
+        "each document needs its line in documents_run_as_written!"
+    );
+    let run_here: usize = DOCUMENTS
+        .iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(repo(p)).unwrap();
+            blocks(&text)
+                .iter()
+                .filter(|b| b.tested_by.is_none())
+                .count()
+        })
+        .sum();
+    assert!(run_here >= 5, "{run_here} blocks run");
 }
