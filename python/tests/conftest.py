@@ -13,6 +13,16 @@ KR150 = REPO / "tables" / "kr150-2"
 PAPER = REPO / "tables" / "paper"
 UR5 = REPO / "tables" / "ur5"
 UR5_GRID = UR5 / "measurements" / "3D_UR5_uncalibrated_grid_cleaned.csv"
+# The options of the shared tables (fixtures below): choosing the served field and the
+# posture term cross-validates the whole build several times, which the tests of that
+# choice do once each.
+KR150_OPTIONS = {"served_field": "method"}
+UR5_HYBRID_OPTIONS = {
+    "robot": UR5 / "robot.toml",
+    "cell": 30,
+    "served_field": "method",
+    "posture": "off",
+}
 UR5_RANDOM = UR5 / "measurements" / "3D_UR5_uncalibrated_random_cleaned.csv"
 UR5_COLUMNS = (
     "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,"
@@ -57,23 +67,24 @@ def tablec() -> Path:
 
 @pytest.fixture(scope="session")
 def kr150_table(tmp_path_factory) -> Path:
-    """The default KR150-2 table, built by adwi.build."""
+    """The KR150-2 table with the method's served field, built by adwi.build: the tests
+    that use it are about the table, not about the choice of field (test_build.py checks
+    the default build, choice included, against tablec's)."""
     import adwi
 
     path = tmp_path_factory.mktemp("kr150") / "kr150.tbl"
-    adwi.build(KR150 / "samples.csv", path)
+    adwi.build(KR150 / "samples.csv", path, **KR150_OPTIONS)
     return path
 
 
 @pytest.fixture(scope="session")
 def ur5_hybrid_table(tmp_path_factory) -> Path:
-    """The UR5 hybrid table (README's accuracy command: 30 mm cells), built by adwi.build."""
+    """The UR5 hybrid table (30 mm cells) with the method's served field and no posture
+    term, built by adwi.build: its tests are about hybrid tables, not the choice of field."""
     import adwi
 
     path = tmp_path_factory.mktemp("ur5") / "ur5-hybrid.tbl"
-    adwi.build(
-        UR5_GRID, path, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", cell=30
-    )
+    adwi.build(UR5_GRID, path, columns=UR5_COLUMNS, **UR5_HYBRID_OPTIONS)
     return path
 
 

@@ -8,17 +8,39 @@ import pandas as pd
 import pytest
 
 import adwi
-from conftest import KR150, PAPER, UR5, UR5_COLUMNS, UR5_GRID, read_frame
+from conftest import (
+    KR150,
+    KR150_OPTIONS,
+    PAPER,
+    UR5,
+    UR5_COLUMNS,
+    UR5_GRID,
+    UR5_HYBRID_OPTIONS,
+    read_frame,
+)
 
 # The worked example's target and prediction (docs/method.md; tests/worked_example.rs).
 P1 = [2000.0, 700.0, 1000.0]
 P1_PREDICTED_MM = [0.044584991, 0.995639127, -0.230310237]
 
 
-def test_table_is_byte_identical_to_tablec(tablec, kr150_table, tmp_path):
+def test_default_table_is_byte_identical_to_tablec(tablec, tmp_path):
+    ours = tmp_path / "adwi.tbl"
+    report = adwi.build(KR150 / "samples.csv", ours)
     out = tmp_path / "tablec.tbl"
     subprocess.run(
         [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(out)],
+        check=True,
+    )
+    assert out.read_bytes() == ours.read_bytes()
+    assert report.served_field in ("method", "kriging")
+
+
+def test_table_is_byte_identical_to_tablec(tablec, kr150_table, tmp_path):
+    out = tmp_path / "tablec.tbl"
+    subprocess.run(
+        [str(tablec), "build", "--quiet", str(KR150 / "samples.csv"), "-o", str(out),
+         "--served-field", "method"],
         check=True,
     )
     assert out.read_bytes() == kr150_table.read_bytes()
@@ -100,7 +122,7 @@ def test_options_reach_the_table_as_tablec_gives_them(tablec, tmp_path):
 
 def test_report(kr150_table):
     table = adwi.Table.open(kr150_table)
-    report = adwi.build(KR150 / "samples.csv", kr150_table.with_name("again.tbl"))
+    report = adwi.build(KR150 / "samples.csv", kr150_table.with_name("again.tbl"), **KR150_OPTIONS)
     assert report.samples == 729 == table.sample_count
     assert report.bytes == os.path.getsize(kr150_table)
     assert report["cells"] == report.cells == int(np.prod(report.grid_dims))
@@ -125,15 +147,15 @@ def test_worked_example(tmp_path):
 
 def test_dataframe_gives_the_same_table_as_the_file(kr150_table, tmp_path):
     frame = read_frame(KR150 / "samples.csv", comment="#")
-    adwi.build(frame, tmp_path / "frame.tbl")
+    adwi.build(frame, tmp_path / "frame.tbl", **KR150_OPTIONS)
     assert (tmp_path / "frame.tbl").read_bytes() == kr150_table.read_bytes()
 
 
 def test_array_gives_the_same_table_as_its_columns(tmp_path):
     frame = read_frame(KR150 / "samples.csv", comment="#")
     columns = ["x", "y", "z", "dx", "dy", "dz"] + [f"j{i}" for i in range(1, 7)]
-    adwi.build(frame[columns], tmp_path / "frame.tbl")
-    report = adwi.build(frame[columns].to_numpy(), tmp_path / "array.tbl")
+    adwi.build(frame[columns], tmp_path / "frame.tbl", **KR150_OPTIONS)
+    report = adwi.build(frame[columns].to_numpy(), tmp_path / "array.tbl", **KR150_OPTIONS)
     assert (tmp_path / "array.tbl").read_bytes() == (tmp_path / "frame.tbl").read_bytes()
     assert report.source == "<samples array>"
     table = adwi.Table.open(tmp_path / "array.tbl")
@@ -193,7 +215,7 @@ def test_replaces_an_existing_table_atomically(kr150_table, tmp_path):
     out = tmp_path / "t.tbl"
     adwi.build(PAPER / "worked_example_p1.csv", out)
     held = adwi.Table.open(out)  # mapped while replaced
-    adwi.build(KR150 / "samples.csv", out)
+    adwi.build(KR150 / "samples.csv", out, **KR150_OPTIONS)
     assert out.read_bytes() == kr150_table.read_bytes()
     assert held.sample_count == 8 and adwi.Table.open(out).sample_count == 729
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.tbl"]
@@ -228,8 +250,7 @@ def test_hybrid_report(ur5_hybrid_table):
         UR5_GRID,
         ur5_hybrid_table.with_name("again.tbl"),
         columns=UR5_COLUMNS,
-        robot=UR5 / "robot.toml",
-        cell=30,
+        **UR5_HYBRID_OPTIONS,
     )
     assert report.hybrid and report.calibration is not None
     c = report.calibration
@@ -244,21 +265,20 @@ def test_compliant_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
         UR5_GRID,
         ours,
         columns=UR5_COLUMNS,
-        robot=UR5 / "robot.toml",
-        cell=30,
         compliance=True,
+        **UR5_HYBRID_OPTIONS,
     )
     theirs = tmp_path / "tablec.tbl"
     subprocess.run(
         [str(tablec), "build", "--quiet", str(UR5_GRID), "-o", str(theirs),
          "--columns", UR5_COLUMNS, "--robot", str(UR5 / "robot.toml"),
-         "--compliance", "--cell", "30"],
+         "--compliance", "--cell", "30", "--served-field", "method", "--posture", "off"],
         check=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()
     assert "compliance2" in report.calibration["identified"]
     plain = tmp_path / "plain.tbl"
-    adwi.build(UR5_GRID, plain, columns=UR5_COLUMNS, robot=UR5 / "robot.toml", cell=30)
+    adwi.build(UR5_GRID, plain, columns=UR5_COLUMNS, **UR5_HYBRID_OPTIONS)
     assert plain.read_bytes() != ours.read_bytes()
     with pytest.raises(adwi.AdwiError, match="no link masses"):
         adwi.build(KR150 / "samples.csv", tmp_path / "k.tbl", robot=KR150 / "robot.toml",
