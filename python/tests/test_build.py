@@ -164,9 +164,9 @@ def test_array_gives_the_same_table_as_its_columns(tmp_path):
 
 def test_dataframe_with_mapped_columns(tmp_path):
     frame = read_frame(UR5_GRID)
-    adwi.build(UR5_GRID, tmp_path / "file.tbl", columns=UR5_COLUMNS)
+    adwi.build(UR5_GRID, tmp_path / "file.tbl", columns=UR5_COLUMNS, served_field="method")
     mapping = dict(item.split("=") for item in UR5_COLUMNS.split(","))
-    adwi.build(frame, tmp_path / "frame.tbl", columns=mapping)
+    adwi.build(frame, tmp_path / "frame.tbl", columns=mapping, served_field="method")
     assert (tmp_path / "frame.tbl").read_bytes() == (tmp_path / "file.tbl").read_bytes()
 
 
