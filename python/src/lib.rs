@@ -9,8 +9,8 @@
 use std::path::PathBuf;
 
 use adwi_jobs::{
-    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args,
-    Iso9283Job, JobError, PlanArgs, PlanJob, Silent,
+    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args, Iso9283Job,
+    JobError, PlanArgs, PlanJob, Silent,
 };
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
@@ -132,8 +132,7 @@ fn apart(job: &str) -> &'static [&'static str] {
 /// `[(name, help, default or None)]` of a job's options, for the docstrings.
 #[pyfunction]
 fn options(job: &str) -> PyResult<Vec<(String, String, Option<String>)>> {
-    let command = job_options(job)
-        .ok_or_else(|| AdwiError::new_err(format!("no job '{job}'")))?;
+    let command = job_options(job).ok_or_else(|| AdwiError::new_err(format!("no job '{job}'")))?;
     Ok(command
         .get_arguments()
         .filter(|a| !apart(job).contains(&a.get_id().as_str()) && !a.is_hide_set())
@@ -436,7 +435,6 @@ fn build<'py>(
     Ok(d)
 }
 
-
 /// What [`evaluate`] returns: the records, the warnings, with tracker-frame samples
 /// their registration and a validation set's own (registered apart), and the comparison
 /// of the methods with the best.
@@ -550,7 +548,6 @@ fn evaluate<'py>(
         comparison,
     ))
 }
-
 
 /// `tablec calibrate` ([`CalibrateJob`]): the identification, the files written and the
 /// warnings, as a dict.
@@ -979,7 +976,11 @@ fn compensate_program<'py>(
     max_joint_change_deg: f64,
     strict: bool,
     max_seconds: f64,
-) -> PyResult<(Bound<'py, pyo3::types::PyBytes>, Bound<'py, PyList>, Bound<'py, PyDict>)> {
+) -> PyResult<(
+    Bound<'py, pyo3::types::PyBytes>,
+    Bound<'py, PyList>,
+    Bound<'py, PyDict>,
+)> {
     use adwi_programs::{CompensateJob, CompensateOptions, Format};
     let mut options = CompensateOptions::new(table, program);
     options.output = output;
@@ -991,7 +992,10 @@ fn compensate_program<'py>(
         })?),
     };
     options.robot = robot;
-    options.links = adwi_robot::LinkNames { base_link, tip_link };
+    options.links = adwi_robot::LinkNames {
+        base_link,
+        tip_link,
+    };
     options.tool = tool;
     options.base = base;
     options.table_tool = table_tool;
@@ -1041,7 +1045,11 @@ fn compensate_program<'py>(
     summary.set_item("largest_correction_mm", s.largest.as_ref().map(|l| l.0))?;
     summary.set_item("largest_at", s.largest.as_ref().map(|l| l.1.clone()))?;
     summary.set_item("text", s.to_string())?;
-    Ok((pyo3::types::PyBytes::new(py, &done.output), targets, summary))
+    Ok((
+        pyo3::types::PyBytes::new(py, &done.output),
+        targets,
+        summary,
+    ))
 }
 
 #[pymodule]
