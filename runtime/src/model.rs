@@ -181,9 +181,11 @@ impl PreparedModel {
     }
 
     /// [`PreparedModel::at`], with the orientation error computed only when `rotation`
-    /// (zero otherwise): a table whose samples have no orientation never reads it.
+    /// (zero otherwise): a table whose samples have no orientation never reads it. A
+    /// table's query calls it with [`crate::Table::has_orientation`], so a caller doing
+    /// the work a table does (a benchmark's contender) calls it the same way.
     #[inline]
-    pub(crate) fn evaluate(&self, q: &[f64], rotation: bool) -> Option<ModelAt> {
+    pub fn evaluate(&self, q: &[f64], rotation: bool) -> Option<ModelAt> {
         let n = self.joint_count();
         if q.len() != n || n > MAX_JOINTS {
             return None;

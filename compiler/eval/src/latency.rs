@@ -340,12 +340,7 @@ pub fn bench_queries<D: AsRef<[u8]>>(
     let with_model = |estimate: Option<Estimate>, q: Option<&[f64]>| -> Option<[f64; 3]> {
         match (&model, q) {
             (Some(m), Some(q)) => {
-                let at = if orientation {
-                    m.at(q)
-                } else {
-                    m.at_position(q)
-                };
-                let p = at?.position_mm;
+                let p = m.evaluate(q, orientation)?.position_mm;
                 let e = estimate.map_or([0.0; 3], |e| e.position_error_mm);
                 Some([0, 1, 2].map(|a| e[a] + p[a]))
             }
