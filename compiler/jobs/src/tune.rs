@@ -540,16 +540,27 @@ pub fn auto_choice(
     } else {
         samples
     };
+    let given = [options.served_field];
+    let fields: &[ServedField] = if choose_field {
+        &[ServedField::Method, ServedField::Kriging]
+    } else {
+        &given
+    };
     // The kriging's hyperparameters, chosen once by likelihood on all these samples (a
     // hybrid table's: of the residuals of the model identified from them), are reused by
-    // every fold: each fold then solves its kriging instead of searching again.
-    let model = robot
-        .map(|r| adwi_robot::calibrate::identify(r, samples, calibrate))
-        .transpose()
-        .map_err(TuneError::Identify)?
-        .map(|c| c.prepared_model());
-    let kriging_choices = adwi_compile::build::kriging_choices(samples, model.as_ref())
-        .map_err(TuneError::Kriging)?;
+    // every fold: each fold then solves its kriging instead of searching again. Without a
+    // kriging among the fields tried nothing would use them, and their search is most of a
+    // choice's cost.
+    let kriging_choices = if fields.iter().any(|&f| f != ServedField::Method) {
+        let model = robot
+            .map(|r| adwi_robot::calibrate::identify(r, samples, calibrate))
+            .transpose()
+            .map_err(TuneError::Identify)?
+            .map(|c| c.prepared_model());
+        adwi_compile::build::kriging_choices(samples, model.as_ref()).map_err(TuneError::Kriging)?
+    } else {
+        options.kriging_choices
+    };
     let options = &BuildOptions {
         kriging_choices,
         ..options.clone()
@@ -574,12 +585,6 @@ pub fn auto_choice(
         exact,
         method,
     )?;
-    let given = [options.served_field];
-    let fields: &[ServedField] = if choose_field {
-        &[ServedField::Method, ServedField::Kriging]
-    } else {
-        &given
-    };
     let choice = served_field_among(
         fields,
         samples,
