@@ -629,6 +629,10 @@ fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
             "hybrid-trilinear",
             "--served-field",
             "kriging",
+            // What the field reaches, not whether the posture term would add to it (its
+            // decision costs twice the evaluation; `posture.rs` tests it).
+            "--posture",
+            "off",
             "--cell",
             "50",
             "--csv",
