@@ -749,3 +749,51 @@ fn a_table_built_before_is_scored_as_the_method_that_built_it() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("scores the table as it was built"));
 }
+
+/// Splits run side by side, as many at a time as the pool has threads: an evaluation is
+/// the same to the bit whatever that number (1; 2; 3, whose last batch of 5 folds has 2),
+/// a method no split can build (`grid` on these samples) included.
+#[test]
+fn an_evaluation_is_the_same_at_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = crate::common::ur5_grid();
+    let robot = repo().join("tables/ur5/robot.toml");
+    let run = |threads: &str| -> (Vec<u8>, Vec<u8>) {
+        let json = format!("threads-{threads}.json");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
+            .args([
+                "eval",
+                grid.to_str().unwrap(),
+                "--folds",
+                "5",
+                "--columns",
+                crate::common::UR5_MAP,
+                "--robot",
+                robot.to_str().unwrap(),
+                "--cell",
+                "30",
+                "--methods",
+                "paper,kinematic,hybrid-trilinear,grid",
+                "--served-field",
+                "method",
+                "--posture",
+                "off",
+                "--json",
+                &json,
+            ])
+            .env("RAYON_NUM_THREADS", threads)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        ok(&o);
+        (std::fs::read(dir.path().join(&json)).unwrap(), o.stdout)
+    };
+    let one = run("1");
+    let text = String::from_utf8_lossy(&one.1);
+    assert!(
+        text.contains("kinematic") && text.contains("grid"),
+        "{text}"
+    );
+    assert_eq!(run("2"), one);
+    assert_eq!(run("3"), one);
+}

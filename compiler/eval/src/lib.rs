@@ -53,6 +53,8 @@ pub use options::{EvalOptions, PostureDecision, SplitChoice, SplitChoiceRecord, 
 
 use std::collections::BTreeMap;
 use std::fmt;
+
+use rayon::prelude::*;
 use std::str::FromStr;
 
 use adwi_runtime::{Residual, Status, Table, Target, Tier};
@@ -640,51 +642,82 @@ pub fn evaluate(
     let mut identified = Vec::new();
     let mut floor = None;
 
-    for (split, (train, test)) in splits.iter().enumerate() {
-        let test_points = subset(&points, test);
-        let calibration = if methods.iter().any(|m| m.needs_robot()) {
-            let robot = options.robot.as_ref().expect("checked by choose_methods");
-            let method = *methods
-                .iter()
-                .find(|m| m.needs_robot())
-                .expect("a method that needs the robot");
-            let c = match options.identified.get(split) {
-                Some(c) => c.clone(),
-                None => calibrate::identify(robot, train, &options.calibrate)
-                    .map_err(|source| EvalError::Calibrate { method, source })?,
+    // One split's identification, choices and predictions: independent of every other
+    // split's, so splits run side by side (identification runs on one thread). A batch of
+    // as many splits as the pool has threads at a time bounds the memory in flight to that
+    // many splits'; the results are taken in split order, as one after the other would
+    // give them, to the bit.
+    let run_split =
+        |split: usize, (train, test): &(SampleSet, Vec<usize>), unsupported: &[Method]| {
+            let test_points = subset(&points, test);
+            let calibration = if methods.iter().any(|m| m.needs_robot()) {
+                let robot = options.robot.as_ref().expect("checked by choose_methods");
+                let method = *methods
+                    .iter()
+                    .find(|m| m.needs_robot())
+                    .expect("a method that needs the robot");
+                Some(match options.identified.get(split) {
+                    Some(c) => c.clone(),
+                    None => calibrate::identify(robot, train, &options.calibrate)
+                        .map_err(|source| EvalError::Calibrate { method, source })?,
+                })
+            } else {
+                None
             };
-            calibrations.push(CalibrationSummary::new(split, &c));
-            identified.push(c.clone());
-            Some(c)
-        } else {
-            None
-        };
-        if split == 0 {
-            floor = Some(training_noise_floor(train, calibration.as_ref()));
-        }
-        for &method in &methods {
-            if collected.unsupported.contains_key(&method) {
-                continue;
-            }
-            let (build, choice) = options::build_options_for(method, train, options);
-            if let Some(choice) = choice {
-                split_choices.push(SplitChoiceRecord {
+            let floor = (split == 0).then(|| training_noise_floor(train, calibration.as_ref()));
+            let mut outcomes = Vec::with_capacity(methods.len());
+            for &method in &methods {
+                if unsupported.contains(&method) {
+                    continue;
+                }
+                let (build, choice) = options::build_options_for(method, train, options);
+                let choice = choice.map(|choice| SplitChoiceRecord {
                     split,
                     method,
                     served_field: choice.served_field.name(),
                     posture: choice.posture,
                 });
+                let outcome = predict_split(
+                    method,
+                    train,
+                    &test_points,
+                    calibration.as_ref(),
+                    options,
+                    &build,
+                    orientation,
+                );
+                outcomes.push((method, choice, outcome));
             }
-            let outcome = predict_split(
-                method,
-                train,
-                &test_points,
-                calibration.as_ref(),
-                options,
-                &build,
-                orientation,
-            )?;
-            collected.record(method, test, outcome);
+            Ok::<_, EvalError>((calibration, floor, outcomes))
+        };
+    let in_flight = rayon::current_num_threads().max(1);
+    for (batch, chunk) in splits.chunks(in_flight).enumerate() {
+        let unsupported: Vec<Method> = collected.unsupported.keys().copied().collect();
+        let runs: Vec<_> = chunk
+            .par_iter()
+            .enumerate()
+            .map(|(i, split)| run_split(batch * in_flight + i, split, &unsupported))
+            .collect();
+        for (i, run) in runs.into_iter().enumerate() {
+            let split = batch * in_flight + i;
+            let (calibration, split_floor, outcomes) = run?;
+            if let Some(c) = calibration {
+                calibrations.push(CalibrationSummary::new(split, &c));
+                identified.push(c);
+            }
+            if split_floor.is_some() {
+                floor = split_floor;
+            }
+            for (method, choice, outcome) in outcomes {
+                // A method an earlier split found unsupported is not evaluated again (nor
+                // its failure in this split reported, as one split after the other would).
+                if collected.unsupported.contains_key(&method) {
+                    continue;
+                }
+                let outcome = outcome?;
+                split_choices.extend(choice);
+                collected.record(method, &splits[split].1, outcome);
+            }
         }
     }
     let mut evaluation = assemble(description, samples, &points, orientation, collected);
