@@ -319,22 +319,26 @@ fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
         ..TableArgs::default()
     }
     .build_options();
-    let splits = adwi_eval::baselines::k_fold_splits(samples.len(), folds, 0).unwrap();
-    for (split, (fold, choice)) in splits.iter().zip(choices).enumerate() {
-        assert_eq!(choice["split"], split);
-        assert_eq!(choice["method"], "hybrid-trilinear");
-        assert_eq!(choice["served_field"], "method");
-        let train = samples.subset(&fold.train);
-        let auto = adwi_jobs::tune::auto_choice(
-            &train,
+    // The build's own decision of the posture term on `train` (the method's served field).
+    let decide = |train: &adwi_samples::SampleSet| {
+        adwi_jobs::tune::auto_choice(
+            train,
             Some(&robot),
             &options,
             &CalibrateOptions::default(),
             false,
             true,
         )
-        .unwrap();
-        let decided = auto.posture.unwrap();
+        .unwrap()
+        .posture
+        .unwrap()
+    };
+    let splits = adwi_eval::baselines::k_fold_splits(samples.len(), folds, 0).unwrap();
+    for (split, (fold, choice)) in splits.iter().zip(choices).enumerate() {
+        assert_eq!(choice["split"], split);
+        assert_eq!(choice["method"], "hybrid-trilinear");
+        assert_eq!(choice["served_field"], "method");
+        let decided = decide(&samples.subset(&fold.train));
         let posture = &choice["posture"];
         assert_eq!(posture["on"], decided.chosen, "fold {split}");
         assert_eq!(
@@ -346,17 +350,7 @@ fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
     }
     // Held-out points never take part: the folds' figures differ from one another and
     // from what the decision on every sample finds.
-    let all = adwi_jobs::tune::auto_choice(
-        &samples,
-        Some(&robot),
-        &options,
-        &CalibrateOptions::default(),
-        false,
-        true,
-    )
-    .unwrap()
-    .posture
-    .unwrap();
+    let all = decide(&samples);
     for choice in choices {
         assert_ne!(choice["posture"]["with_mm"].as_f64(), all.with_mm);
     }

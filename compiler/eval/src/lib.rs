@@ -53,8 +53,6 @@ pub use options::{EvalOptions, PostureDecision, SplitChoice, SplitChoiceRecord, 
 
 use std::collections::BTreeMap;
 use std::fmt;
-
-use rayon::prelude::*;
 use std::str::FromStr;
 
 use adwi_runtime::{Residual, Status, Table, Target, Tier};
@@ -63,6 +61,7 @@ use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, Residual
 use adwi_compile::build::{self, BuildError, BuildOptions, ServedNodes};
 use adwi_robot::calibrate::{self, CalibrateError, Calibration};
 use adwi_samples::SampleSet;
+use rayon::prelude::*;
 
 /// A compensation method under evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -640,7 +639,6 @@ pub fn evaluate(
     let mut calibrations = Vec::new();
     let mut split_choices = Vec::new();
     let mut identified = Vec::new();
-    let mut floor = None;
 
     // One split's identification, choices and predictions: independent of every other
     // split's, so splits run side by side (identification runs on one thread). A batch of
@@ -664,7 +662,6 @@ pub fn evaluate(
             } else {
                 None
             };
-            let floor = (split == 0).then(|| training_noise_floor(train, calibration.as_ref()));
             let mut outcomes = Vec::with_capacity(methods.len());
             for &method in &methods {
                 if unsupported.contains(&method) {
@@ -688,7 +685,7 @@ pub fn evaluate(
                 );
                 outcomes.push((method, choice, outcome));
             }
-            Ok::<_, EvalError>((calibration, floor, outcomes))
+            Ok::<_, EvalError>((calibration, outcomes))
         };
     let in_flight = rayon::current_num_threads().max(1);
     for (batch, chunk) in splits.chunks(in_flight).enumerate() {
@@ -700,13 +697,10 @@ pub fn evaluate(
             .collect();
         for (i, run) in runs.into_iter().enumerate() {
             let split = batch * in_flight + i;
-            let (calibration, split_floor, outcomes) = run?;
+            let (calibration, outcomes) = run?;
             if let Some(c) = calibration {
                 calibrations.push(CalibrationSummary::new(split, &c));
                 identified.push(c);
-            }
-            if split_floor.is_some() {
-                floor = split_floor;
             }
             for (method, choice, outcome) in outcomes {
                 // A method an earlier split found unsupported is not evaluated again (nor
@@ -720,6 +714,11 @@ pub fn evaluate(
             }
         }
     }
+    // The noise floor of the first split's training samples, as its identification leaves
+    // them.
+    let floor = splits
+        .first()
+        .map(|(train, _)| training_noise_floor(train, identified.first()));
     let mut evaluation = assemble(description, samples, &points, orientation, collected);
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;
