@@ -26,6 +26,7 @@
 //! in kg·mm²/s² = µN·m and compliances in rad/(kg·mm²/s²).
 
 use crate::kinematics::{MdhJoint, Transform};
+use crate::lanes::{Lanes, Pair};
 
 /// The most joints a chain may have: robots with more axes than this are not served (the
 /// chain lives in fixed-size arrays, so that queries never allocate).
@@ -429,6 +430,92 @@ struct ReachChain {
     /// The TCP's position and approach (z) axis in the last joint's turned frame.
     tool_mm: [f64; 3],
     tool_approach: [f64; 3],
+}
+
+/// [`FoldedChain::reach_pair`] prepared: the two chains' frames interleaved, so that each
+/// joint turns and moves both points in one [`Pair`] per coordinate (`a` in the first lane,
+/// `b` in the second; the approach axis rides in the first lane, the second lane's is never
+/// read). Every lane does the arithmetic [`ReachChain::step`] does, in its order: the walk
+/// gives `reach_pair`'s values to the bit, with one instruction where `reach_pair` has two.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ReachPair {
+    /// Each joint's frame, row by row: the rotation's three entries, then the translation.
+    frames: [[[Pair; 4]; 3]; MAX_JOINTS],
+    prismatic: [bool; MAX_JOINTS],
+    len: usize,
+    tool_mm: [Pair; 3],
+    tool_approach: [Pair; 3],
+}
+
+impl ReachPair {
+    /// The pair of `a` and `b` when [`FoldedChain::reach_pair`] takes them, and their
+    /// joints are of the same kinds.
+    pub(crate) fn new(a: &FoldedChain, b: &FoldedChain) -> Option<ReachPair> {
+        let (Some(za), Some(zb)) = (&a.reach, &b.reach) else {
+            return None;
+        };
+        if b.gravity.is_some() || a.len != b.len || a.len > MAX_JOINTS {
+            return None;
+        }
+        if za.prismatic[..a.len] != zb.prismatic[..a.len] {
+            return None;
+        }
+        let both = |x: [f64; 3], y: [f64; 3]| [0, 1, 2].map(|i| Pair([x[i], y[i]]));
+        let mut frames = [[[Pair([0.0; 2]); 4]; 3]; MAX_JOINTS];
+        for (j, rows) in frames.iter_mut().enumerate().take(a.len) {
+            let (fa, fb) = (&za.frames[j], &zb.frames[j]);
+            *rows = [0, 1, 2].map(|i| {
+                let r = both(fa.rotation[i], fb.rotation[i]);
+                [
+                    r[0],
+                    r[1],
+                    r[2],
+                    Pair([fa.translation_mm[i], fb.translation_mm[i]]),
+                ]
+            });
+        }
+        Some(ReachPair {
+            frames,
+            prismatic: za.prismatic,
+            len: a.len,
+            tool_mm: both(za.tool_mm, zb.tool_mm),
+            tool_approach: both(za.tool_approach, [0.0; 3]),
+        })
+    }
+
+    /// `a`'s TCP position and approach axis, and `b`'s TCP position, at joint values `q`
+    /// given their sines and cosines: [`FoldedChain::reach_pair`]'s values. Both slices hold
+    /// at least the chains' joint count (the caller's check).
+    #[inline]
+    pub(crate) fn walk(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let (mut point, mut approach) = (self.tool_mm, self.tool_approach);
+        for j in (0..n).rev() {
+            let rows = &self.frames[j];
+            if self.prismatic[j] {
+                point[2] = point[2] + Pair::splat(q[j]);
+            } else {
+                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
+                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
+                point = turn(point);
+                approach = turn(approach);
+            }
+            // `Transform::transform_point` and `rotate_vector`, lane by lane (written out:
+            // an array's `map` is a call the compiler does not always inline).
+            let [p, a] = [point, approach];
+            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
+            let turned = |r: &[Pair; 4]| r[0] * a[0] + r[1] * a[1] + r[2] * a[2];
+            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
+            approach = [turned(&rows[0]), turned(&rows[1]), turned(&rows[2])];
+        }
+        let [x, y, z] = point;
+        let [ax, ay, az] = approach;
+        (
+            [x.0[0], y.0[0], z.0[0]],
+            [ax.0[0], ay.0[0], az.0[0]],
+            [x.0[1], y.0[1], z.0[1]],
+        )
+    }
 }
 
 impl ReachChain {
@@ -1137,6 +1224,55 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(512))]
+
+        /// Two chains walked side by side ([`ReachPair`]) give what the walk of each gives
+        /// ([`FoldedChain::reach_pair`]) to the bit: a calibrated chain is the nominal one
+        /// with every frame moved a little, and any joint kinds.
+        #[test]
+        fn a_pair_of_chains_walks_as_each_chain_to_the_bit(
+            chain in any_chain(),
+            moves in proptest::collection::vec((vec3(0.01), vec3(2.0), -0.01..0.01f64), MAX_JOINTS + 2),
+            q in proptest::collection::vec(-7.0..7.0f64, MAX_JOINTS),
+        ) {
+            let q = &q[..chain.joint_count()];
+            let sin_cos: Vec<(f64, f64)> = q.iter().map(|v| v.sin_cos()).collect();
+            let moved = |t: &Transform, (r, p, _): ([f64; 3], [f64; 3], f64)| t.compose(&rigid(r, p));
+            let unit_joints: Vec<ChainJoint> = chain
+                .joints()
+                .iter()
+                .map(|j| ChainJoint { axis: unit(j.axis), ..*j })
+                .collect();
+            let nominal = Chain::new(chain.base, &unit_joints, chain.tool, None).unwrap();
+            let calibrated_joints: Vec<ChainJoint> = unit_joints
+                .iter()
+                .zip(&moves)
+                .map(|(j, &(r, p, o))| ChainJoint {
+                    origin: j.origin.compose(&rigid(r, p)),
+                    offset: j.offset + o,
+                    ..*j
+                })
+                .collect();
+            let [base_move, tool_move] = [moves[MAX_JOINTS], moves[MAX_JOINTS + 1]];
+            let calibrated = Chain::new(
+                moved(&chain.base, base_move),
+                &calibrated_joints,
+                moved(&chain.tool, tool_move),
+                chain.compliance,
+            )
+            .unwrap();
+            let [a, b] = [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)];
+            let each = FoldedChain::reach_pair(&a, &b, q, &sin_cos);
+            let pair = ReachPair::new(&a, &b);
+            prop_assert_eq!(pair.is_some(), each.is_some());
+            if let (Some(pair), Some(each)) = (pair, each) {
+                let walked = pair.walk(q, &sin_cos);
+                let bits = |v: [f64; 3]| v.map(f64::to_bits);
+                prop_assert_eq!(
+                    [bits(walked.0), bits(walked.1), bits(walked.2)],
+                    [bits(each.0), bits(each.1), bits(each.2)]
+                );
+            }
+        }
 
         /// The folded chain of the query path against the chain's own forward kinematics,
         /// joint by joint: any axes, prismatic joints, offsets, base, tool and compliance.

@@ -45,6 +45,7 @@ mod error;
 mod exact;
 pub mod format;
 pub mod kinematics;
+mod lanes;
 pub mod method;
 pub mod model;
 pub mod posture;

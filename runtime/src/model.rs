@@ -43,7 +43,7 @@
 //! (joints within half a turn of zero; beyond, the chains' own rounding of each angle
 //! before its `sin_cos` adds a few 1e-13 mm per joint).
 
-use crate::chain::{Chain, FoldedChain, MAX_JOINTS};
+use crate::chain::{Chain, FoldedChain, ReachPair, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
 use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
 use crate::kinematics::{pose_error, Transform};
@@ -96,25 +96,32 @@ pub struct PreparedModel {
     calibrated: Chain,
     /// Both chains folded for queries ([`PreparedModel::at`]).
     folded: [FoldedChain; 2],
+    /// Both chains' positions walked together, when they have that form
+    /// ([`PreparedModel::at_position`]).
+    pair: Option<ReachPair>,
 }
 
 impl PreparedModel {
     /// The model of two chains of equal joint counts; `None` otherwise.
     pub fn new(nominal: Chain, calibrated: Chain) -> Option<PreparedModel> {
-        (nominal.joint_count() == calibrated.joint_count()).then(|| PreparedModel {
-            nominal,
-            calibrated,
-            folded: [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)],
-        })
+        (nominal.joint_count() == calibrated.joint_count())
+            .then(|| PreparedModel::prepared(nominal, calibrated))
     }
 
     /// A version-1 model (six MD-H joints, tool and base as 12-value rows).
     pub fn from_mdh(model: &KinematicModel) -> PreparedModel {
         let (nominal, calibrated) = (mdh_chain(&model.nominal), mdh_chain(&model.calibrated));
+        PreparedModel::prepared(nominal, calibrated)
+    }
+
+    /// The chains with their query forms.
+    fn prepared(nominal: Chain, calibrated: Chain) -> PreparedModel {
+        let folded = [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)];
         PreparedModel {
             nominal,
             calibrated,
-            folded: [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)],
+            pair: ReachPair::new(&folded[0], &folded[1]),
+            folded,
         }
     }
 
@@ -172,7 +179,8 @@ impl PreparedModel {
     /// [`PreparedModel::at`] without the orientation error (zero), as a query of a table
     /// whose samples have no orientation computes it: the nominal TCP's position and
     /// approach axis and the calibrated TCP's position alone, from the tool back to the
-    /// base, both chains in one walk (`FoldedChain::reach_pair` in [`crate::chain`]), when
+    /// base, both chains in one walk, side by side in vector registers (`ReachPair` in
+    /// [`crate::chain`]; `FoldedChain::reach_pair` if their joints differ in kind), when
     /// their axes are unit vectors to rounding and the calibrated chain has no gravity
     /// compliance. `None` as `error`.
     #[inline]
@@ -195,11 +203,13 @@ impl PreparedModel {
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
         if !rotation {
-            if let Some((nominal_mm, approach, calibrated_mm)) =
-                FoldedChain::reach_pair(nominal, calibrated, q, sin_cos)
-            {
+            let walked = match &self.pair {
+                Some(pair) => Some(pair.walk(q, sin_cos)),
+                None => FoldedChain::reach_pair(nominal, calibrated, q, sin_cos),
+            };
+            if let Some((nominal_mm, approach, calibrated_mm)) = walked {
                 return Some(ModelAt {
-                    position_mm: [0, 1, 2].map(|a| calibrated_mm[a] - nominal_mm[a]),
+                    position_mm: difference(calibrated_mm, nominal_mm),
                     rotation_rad: [0.0; 3],
                     approach,
                     nominal_tcp_mm: nominal_mm,
@@ -223,7 +233,7 @@ impl PreparedModel {
             }
         };
         Some(ModelAt {
-            position_mm: [0, 1, 2].map(|a| calibrated_mm[a] - nominal_mm[a]),
+            position_mm: difference(calibrated_mm, nominal_mm),
             rotation_rad,
             approach,
             nominal_tcp_mm: nominal_mm,
@@ -250,6 +260,13 @@ pub struct ModelAt {
     pub approach: [f64; 3],
     /// The nominal TCP's position, mm, base frame: where the controller puts the tool.
     pub nominal_tcp_mm: [f64; 3],
+}
+
+/// `a − b`, written out (an array's `map` is a call the compiler does not always inline,
+/// and this is on every hybrid query's path).
+#[inline(always)]
+fn difference(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// The approach (z) axis of a TCP pose: the third column of its rotation, base frame.

@@ -209,9 +209,11 @@ impl ServedTerms<4> {
     /// `f + a_x h_x + a_y h_y + a_z h_z`, position and orientation.
     #[inline]
     pub(crate) fn turned(&self, a: [f64; 3]) -> Correction {
-        let turn = |t: &[[f64; 3]; 4]| {
-            [0, 1, 2].map(|c| t[0][c] + a[0] * t[1][c] + a[1] * t[2][c] + a[2] * t[3][c])
+        // Written out: an array's `map` is a call the compiler does not always inline.
+        let component = |t: &[[f64; 3]; 4], c: usize| {
+            t[0][c] + a[0] * t[1][c] + a[1] * t[2][c] + a[2] * t[3][c]
         };
+        let turn = |t: &[[f64; 3]; 4]| [component(t, 0), component(t, 1), component(t, 2)];
         Correction {
             position_error_mm: turn(&self.position_mm),
             orientation_error_rad: turn(&self.orientation_rad),
@@ -393,7 +395,7 @@ pub(crate) fn blend_site<const S: usize>(
             .iter_mut()
             .chain(&mut terms.orientation_rad)
         {
-            *v = v.map(|x| x * fade);
+            *v = [v[0] * fade, v[1] * fade, v[2] * fade];
         }
     }
     Ok(terms)

@@ -16,6 +16,8 @@
 // fdlibm's constants as it writes them, to 21 digits: each the double it names.
 #![allow(clippy::excessive_precision)]
 
+use crate::lanes::{Lanes, Pair};
+
 /// `2⁵² + 2⁵¹`: adding and subtracting it rounds a double below `2⁵¹` to an integer.
 const TO_INT: f64 = 6755399441055744.0;
 const INV_PIO2: f64 = std::f64::consts::FRAC_2_PI;
@@ -54,8 +56,8 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 }
 
 /// [`sin_cos`] of each of `angles` into `out` (as many as the shorter holds): one test of
-/// them all, then two angles at a time without branches, which the compiler runs side by
-/// side in a vector register.
+/// them all, then two angles at a time without branches, side by side in a vector register
+/// ([`crate::lanes`]), each pair's lanes to the bit what [`sin_cos`] gives of each angle.
 #[inline]
 pub fn sin_cos_each(angles: &[f64], out: &mut [(f64, f64)]) {
     let n = angles.len().min(out.len());
@@ -68,10 +70,9 @@ pub fn sin_cos_each(angles: &[f64], out: &mut [(f64, f64)]) {
     }
     let mut pairs = out.chunks_exact_mut(2);
     for (o, x) in (&mut pairs).zip(angles.chunks_exact(2)) {
-        // Two independent evaluations written together: one vector instruction each.
-        let [a, b] = [reduced_sin_cos(x[0]), reduced_sin_cos(x[1])];
-        o[0] = a;
-        o[1] = b;
+        let (sin, cos) = reduced_sin_cos_pair(Pair([x[0], x[1]]));
+        o[0] = (sin.0[0], cos.0[0]);
+        o[1] = (sin.0[1], cos.0[1]);
     }
     if let (Some(o), Some(&x)) = (pairs.into_remainder().first_mut(), angles.last()) {
         *o = reduced_sin_cos(x);
@@ -87,49 +88,73 @@ fn reduces(x: f64) -> bool {
 /// [`sin_cos`] for an angle the reduction serves, without a branch.
 #[inline]
 fn reduced_sin_cos(x: f64) -> (f64, f64) {
-    // The nearest multiple n of π/2 (the sum's last bits hold n mod 4), and `r = x − n π/2`
-    // as `hi + lo` (fdlibm's second round, good to 118 bits, taken always rather than
-    // when the first round cancels).
-    let shifted = x * INV_PIO2 + TO_INT;
-    let n = shifted - TO_INT;
-    let t = x - n * PIO2_1;
-    let w = n * PIO2_2;
+    let (shifted, s, c) = reduced_kernels(x);
+    let (sin, cos) = by_quadrant(shifted.to_bits(), s.to_bits(), c.to_bits());
+    (f64::from_bits(sin), f64::from_bits(cos))
+}
+
+/// [`reduced_sin_cos`] of two angles at once, lane by lane.
+#[inline]
+fn reduced_sin_cos_pair(x: Pair) -> (Pair, Pair) {
+    let (shifted, s, c) = reduced_kernels(x);
+    let (quadrant, s, c) = (shifted.to_bits(), s.to_bits(), c.to_bits());
+    let [a, b] = [0, 1].map(|l| by_quadrant(quadrant[l], s[l], c[l]));
+    (Pair::from_bits([a.0, b.0]), Pair::from_bits([a.1, b.1]))
+}
+
+/// The reduction and the kernels, written once for one angle and for a [`Pair`]: the
+/// nearest multiple `n` of π/2 as `shifted` (whose last bits hold `n mod 4`), and the sine
+/// and cosine of `x − n π/2`.
+#[inline(always)]
+fn reduced_kernels<T: Lanes>(x: T) -> (T, T, T) {
+    let k = T::splat;
+    // The nearest multiple n of π/2, and `r = x − n π/2` as `hi + lo` (fdlibm's second
+    // round, good to 118 bits, taken always rather than when the first round cancels).
+    let shifted = x * k(INV_PIO2) + k(TO_INT);
+    let n = shifted - k(TO_INT);
+    let t = x - n * k(PIO2_1);
+    let w = n * k(PIO2_2);
     let r = t - w;
-    let w = n * PIO2_2T - ((t - r) - w);
+    let w = n * k(PIO2_2T) - ((t - r) - w);
     let hi = r - w;
     let lo = (r - hi) - w;
-    let (s, c) = (kernel_sin(hi, lo), kernel_cos(hi, lo));
-    // Quadrant n mod 4: sin x = (s, c, −s, −c)[n], cos x = (c, −s, −c, s)[n].
-    let quadrant = shifted.to_bits();
-    let swap = quadrant & 1 != 0;
-    let (sin, cos) = if swap { (c, s) } else { (s, c) };
+    (shifted, kernel_sin(hi, lo), kernel_cos(hi, lo))
+}
+
+/// The sine and cosine of an angle (as bits) from those of its reduction by `n` quarter
+/// turns: `sin x = (s, c, −s, −c)[n mod 4]`, `cos x = (c, −s, −c, s)[n mod 4]`, by
+/// selection and sign flips, without a branch.
+#[inline(always)]
+fn by_quadrant(quadrant: u64, s: u64, c: u64) -> (u64, u64) {
+    // All ones for an odd quadrant, which swaps the sine and the cosine.
+    let swap = 0u64.wrapping_sub(quadrant & 1);
+    let (sin, cos) = ((s & !swap) | (c & swap), (c & !swap) | (s & swap));
     let sin_sign = (quadrant & 2) << 62;
     let cos_sign = (quadrant.wrapping_add(1) & 2) << 62;
-    (
-        f64::from_bits(sin.to_bits() ^ sin_sign),
-        f64::from_bits(cos.to_bits() ^ cos_sign),
-    )
+    (sin ^ sin_sign, cos ^ cos_sign)
 }
 
 /// fdlibm's `__sin(x, y, 1)`: `sin(x + y)` for `|x| ≤ π/4`, `|y|` below half an ulp of `x`.
-#[inline]
-fn kernel_sin(x: f64, y: f64) -> f64 {
+#[inline(always)]
+fn kernel_sin<T: Lanes>(x: T, y: T) -> T {
+    let k = T::splat;
     let z = x * x;
     let w = z * z;
-    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let r = k(S2) + z * (k(S3) + z * k(S4)) + z * w * (k(S5) + z * k(S6));
     let v = z * x;
-    x - ((z * (0.5 * y - v * r) - y) - v * S1)
+    x - ((z * (k(0.5) * y - v * r) - y) - v * k(S1))
 }
 
 /// fdlibm's `__cos(x, y)`: `cos(x + y)` for `|x| ≤ π/4`, `|y|` below half an ulp of `x`.
-#[inline]
-fn kernel_cos(x: f64, y: f64) -> f64 {
+#[inline(always)]
+fn kernel_cos<T: Lanes>(x: T, y: T) -> T {
+    let k = T::splat;
     let z = x * x;
     let w = z * z;
-    let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-    let hz = 0.5 * z;
-    let w = 1.0 - hz;
-    w + (((1.0 - w) - hz) + (z * r - x * y))
+    let r = z * (k(C1) + z * (k(C2) + z * k(C3))) + w * w * (k(C4) + z * (k(C5) + z * k(C6)));
+    let hz = k(0.5) * z;
+    let w = k(1.0) - hz;
+    w + (((k(1.0) - w) - hz) + (z * r - x * y))
 }
 
 #[cfg(test)]
@@ -227,6 +252,29 @@ mod tests {
         assert_eq!(short[1], sin_cos(-2.9));
     }
 
+    #[test]
+    fn a_pair_s_lanes_are_each_angle_s_own_to_the_bit() {
+        // Every quadrant and the doubles next to its boundaries, in both lanes and against
+        // a neighbour of another quadrant.
+        let angles: Vec<f64> = (-64_i32..=64)
+            .flat_map(|k| {
+                let at = f64::from(k) * std::f64::consts::FRAC_PI_4;
+                [at, f64::from_bits(at.to_bits() + 1), at + 1e-3, -at]
+            })
+            .collect();
+        for (&a, &b) in angles.iter().zip(angles.iter().rev()) {
+            let (sin, cos) = reduced_sin_cos_pair(Pair([a, b]));
+            for (lane, x) in [a, b].into_iter().enumerate() {
+                let (s, c) = reduced_sin_cos(x);
+                assert_eq!(
+                    [sin.0[lane].to_bits(), cos.0[lane].to_bits()],
+                    [s.to_bits(), c.to_bits()],
+                    "{x}"
+                );
+            }
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(20_000))]
         #[test]
@@ -234,6 +282,19 @@ mod tests {
             let (s, c) = sin_cos(x);
             let (ws, wc) = x.sin_cos();
             prop_assert!(ulps(s, ws) <= 1 && ulps(c, wc) <= 1, "{x}: {s} {c} vs {ws} {wc}");
+        }
+
+        #[test]
+        fn random_pairs_are_their_angles_own_to_the_bit(
+            a in -REDUCED_UP_TO..REDUCED_UP_TO,
+            b in -10.0..10.0_f64,
+        ) {
+            let (sin, cos) = reduced_sin_cos_pair(Pair([a, b]));
+            for (lane, x) in [a, b].into_iter().enumerate() {
+                let (s, c) = reduced_sin_cos(x);
+                prop_assert_eq!(sin.0[lane].to_bits(), s.to_bits());
+                prop_assert_eq!(cos.0[lane].to_bits(), c.to_bits());
+            }
         }
     }
 }
