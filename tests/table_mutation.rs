@@ -10,8 +10,8 @@
 //! The structured test runs `ADWI_MUTATION_CASES` cases (default 200,000: about 10 s on
 //! one core) from seed `ADWI_MUTATION_SEED` (default 1): the same cases on every machine,
 //! however fast; a longer soak gives more cases or another seed. Case `i` depends on the
-//! seed and `i` alone, so
-//! `ADWI_MUTATION_CASE=i` replays one case. It prints the seed, the cases and their time.
+//! seed and `i` alone, so `ADWI_MUTATION_CASE=i` replays one case. It prints the seed, the
+//! cases and their time.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;

@@ -29,13 +29,13 @@ const NY: usize = 3;
 /// fades.
 const MISSING: usize = PER_SET - 1;
 
-/// The nominal and calibrated chains, both bases moved by `shift_mm` (a translation of the
-/// base moves both TCPs alike: the model's error does not change).
-
 /// How far two computations of the model's position error may differ, mm: some units in
 /// the last place of a TCP coordinate about a metre from the base (one unit there is
 /// 1.1e-13 mm).
 const ROUNDING_MM: f64 = 4e-12;
+
+/// The nominal and calibrated chains, both bases moved by `shift_mm` (a translation of the
+/// base moves both TCPs alike: the model's error does not change).
 fn chains_shifted(shift_mm: [f64; 3]) -> (Chain, Chain) {
     let (nominal, calibrated) = chains();
     let shift = |c: Chain| {
