@@ -331,18 +331,24 @@ fn prefetch_bytes<T>(values: &[T]) {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
         const LINE: usize = 64;
         let len = std::mem::size_of_val(values);
+        let Some(last) = len.checked_sub(1) else {
+            return;
+        };
         let start = values.as_ptr().cast::<i8>();
-        // Every line from the first byte's to the last byte's, by a counted loop (an
-        // iterator chain here took a tenth of a hybrid query's samples in `perf`).
-        let before = start as usize % LINE;
-        for line in 0..(before + len).div_ceil(LINE) {
+        let at = |offset: usize| {
             // SAFETY: a prefetch is a hint that reads nothing architecturally and never
-            // faults, whatever the address; these lines hold `values`' bytes anyway. SSE,
-            // which the instruction needs, is part of x86-64.
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(line * LINE).wrapping_sub(before))
-            };
+            // faults, whatever the address; these bytes are `values`' anyway. SSE, which
+            // the instruction needs, is part of x86-64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        };
+        // A byte every line's length from the first, and the last byte: every line the
+        // bytes span, one perhaps twice (a repeat costs nothing), in a count that depends on
+        // the length alone. The lines spanned depend on the address too, and a loop over
+        // them is mispredicted on a random target.
+        for line in 0..last.div_ceil(LINE) {
+            at(line * LINE);
         }
+        at(last);
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = values;
