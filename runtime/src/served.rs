@@ -133,7 +133,9 @@ impl ServedGrid {
             if !(u >= 0.0 && u <= cells as f64) {
                 return None;
             }
-            cell[axis] = (u as usize).min(cells.saturating_sub(1));
+            // `u` is in `[0, cells]` and `cells` in `u32` (the header's `dims`): a cast
+            // to `u32` truncates as one to `usize` would, in fewer instructions.
+            cell[axis] = (u as u32 as usize).min(cells.saturating_sub(1));
             fraction[axis] = (u - cell[axis] as f64).clamp(0.0, 1.0);
         }
         let [nx, nxy] = [self.corners[2], self.corners[4]];
@@ -156,7 +158,7 @@ impl ServedGrid {
             let inside = u.clamp(0.0, cells as f64);
             let outside_mm = (u - inside) * self.cell_mm;
             outside_mm2 += outside_mm * outside_mm;
-            cell[axis] = (inside as usize).min(cells.saturating_sub(1));
+            cell[axis] = (inside as u32 as usize).min(cells.saturating_sub(1));
             fraction[axis] = (inside - cell[axis] as f64).clamp(0.0, 1.0);
         }
         let [nx, nxy] = [self.corners[2], self.corners[4]];
@@ -300,31 +302,53 @@ pub(crate) fn prefetch(
     let Site::Cell { first, .. } = *site else {
         return;
     };
-    prefetch_cell(grid, data.node_errors_mm.as_slice(), first);
-    if orientation {
-        prefetch_cell(grid, data.node_orientation_errors_rad.as_slice(), first);
+    // The stride a constant, so that each run's lines are a fixed count, unrolled.
+    let arrays = [
+        Some(data.node_errors_mm.as_slice()),
+        orientation.then(|| data.node_orientation_errors_rad.as_slice()),
+    ];
+    for values in arrays.into_iter().flatten() {
+        match grid.stride {
+            1 => prefetch_cell::<1>(grid, values, first),
+            _ => prefetch_cell::<4>(grid, values, first),
+        }
     }
 }
 
 /// [`prefetch`] of one array of node values: the cell's 8 corners are 4 runs of 2
-/// neighbouring nodes along x.
-#[inline]
-fn prefetch_cell(grid: &ServedGrid, values: &[rkyv::Archived<[f64; 3]>], first: usize) {
+/// neighbouring nodes along x, in one block checked once (as [`blend`] reads them).
+/// `S` is the table's stride (a run of another is not read: [`blend_site`] refuses it).
+#[inline(always)]
+fn prefetch_cell<const S: usize>(
+    grid: &ServedGrid,
+    values: &[rkyv::Archived<[f64; 3]>],
+    first: usize,
+) {
+    if grid.stride != S {
+        return;
+    }
+    let stride = S;
+    let end = first
+        .checked_add(grid.corners[7])
+        .and_then(|last| last.checked_add(1)?.checked_mul(stride));
+    let block = first
+        .checked_mul(stride)
+        .zip(end)
+        .and_then(|(start, end)| values.get(start..end));
+    let Some(block) = block else {
+        return;
+    };
     for corner in [0, 2, 4, 6] {
-        let Some(node) = first.checked_add(grid.corners[corner]) else {
-            return;
-        };
-        let run = node
-            .checked_mul(grid.stride)
-            .and_then(|start| values.get(start..start.checked_add(2 * grid.stride)?));
-        if let Some(run) = run {
+        // Within the block's length, which did not overflow.
+        let at = grid.corners[corner] * stride;
+        if let Some(run) = block.get(at..at + 2 * stride) {
             prefetch_bytes(run);
         }
     }
 }
 
 /// Prefetches every cache line `values` spans.
-#[inline]
+#[inline(always)]
 fn prefetch_bytes<T>(values: &[T]) {
     #[cfg(target_arch = "x86_64")]
     {
