@@ -47,28 +47,25 @@ impl Pair {
     pub(crate) fn from_bits(bits: [u64; 2]) -> Pair {
         Pair(bits.map(f64::from_bits))
     }
+}
 
-    /// `op` of the two pairs as SSE2 registers.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn sse2(
-        self,
-        o: Pair,
-        op: unsafe fn(
-            std::arch::x86_64::__m128d,
-            std::arch::x86_64::__m128d,
-        ) -> std::arch::x86_64::__m128d,
-    ) -> Pair {
-        use std::arch::x86_64::__m128d;
-        use std::mem::transmute;
-        // SAFETY: `__m128d` is two doubles, as `[f64; 2]` is (a plain bit reinterpretation
-        // both ways), and `op` is an SSE2 arithmetic intrinsic: SSE2 is part of x86-64.
-        unsafe {
-            let (a, b) = (
-                transmute::<[f64; 2], __m128d>(self.0),
-                transmute::<[f64; 2], __m128d>(o.0),
-            );
-            Pair(transmute::<__m128d, [f64; 2]>(op(a, b)))
+/// SSE2, part of every x86-64 processor: a [`Pair`] is one `__m128d` register.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+mod sse2 {
+    pub(super) use std::arch::x86_64::{__m128d, _mm_add_pd, _mm_mul_pd, _mm_sub_pd};
+
+    use super::Pair;
+
+    impl Pair {
+        /// `op` of the two pairs' registers.
+        #[inline(always)]
+        pub(super) fn sse2(self, o: Pair, op: impl FnOnce(__m128d, __m128d) -> __m128d) -> Pair {
+            // SAFETY: two doubles either way, every bit pattern valid in both: a
+            // reinterpretation of the bits.
+            let register = |p: Pair| unsafe { std::mem::transmute::<[f64; 2], __m128d>(p.0) };
+            // SAFETY: as above.
+            let pair = |r: __m128d| Pair(unsafe { std::mem::transmute::<__m128d, [f64; 2]>(r) });
+            pair(op(register(self), register(o)))
         }
     }
 }
@@ -84,9 +81,10 @@ impl Add for Pair {
     type Output = Pair;
     #[inline(always)]
     fn add(self, o: Pair) -> Pair {
-        #[cfg(target_arch = "x86_64")]
-        return Pair::sse2(self, o, std::arch::x86_64::_mm_add_pd);
-        #[cfg(not(target_arch = "x86_64"))]
+        // SAFETY: the intrinsic needs SSE2, which the module's `cfg` has.
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        return self.sse2(o, |a, b| unsafe { sse2::_mm_add_pd(a, b) });
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
         Pair([self.0[0] + o.0[0], self.0[1] + o.0[1]])
     }
 }
@@ -95,9 +93,10 @@ impl Sub for Pair {
     type Output = Pair;
     #[inline(always)]
     fn sub(self, o: Pair) -> Pair {
-        #[cfg(target_arch = "x86_64")]
-        return Pair::sse2(self, o, std::arch::x86_64::_mm_sub_pd);
-        #[cfg(not(target_arch = "x86_64"))]
+        // SAFETY: the intrinsic needs SSE2, which the module's `cfg` has.
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        return self.sse2(o, |a, b| unsafe { sse2::_mm_sub_pd(a, b) });
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
         Pair([self.0[0] - o.0[0], self.0[1] - o.0[1]])
     }
 }
@@ -106,9 +105,10 @@ impl Mul for Pair {
     type Output = Pair;
     #[inline(always)]
     fn mul(self, o: Pair) -> Pair {
-        #[cfg(target_arch = "x86_64")]
-        return Pair::sse2(self, o, std::arch::x86_64::_mm_mul_pd);
-        #[cfg(not(target_arch = "x86_64"))]
+        // SAFETY: the intrinsic needs SSE2, which the module's `cfg` has.
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        return self.sse2(o, |a, b| unsafe { sse2::_mm_mul_pd(a, b) });
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
         Pair([self.0[0] * o.0[0], self.0[1] * o.0[1]])
     }
 }
