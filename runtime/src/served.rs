@@ -308,40 +308,30 @@ pub(crate) fn prefetch(
         orientation.then(|| data.node_orientation_errors_rad.as_slice()),
     ];
     for values in arrays.into_iter().flatten() {
+        // Another stride is not read: `blend_site` refuses it.
         match grid.stride {
             1 => prefetch_cell::<1>(grid, values, first),
-            _ => prefetch_cell::<4>(grid, values, first),
+            4 => prefetch_cell::<4>(grid, values, first),
+            _ => {}
         }
     }
 }
 
-/// [`prefetch`] of one array of node values: the cell's 8 corners are 4 runs of 2
-/// neighbouring nodes along x, in one block checked once (as [`blend`] reads them).
-/// `S` is the table's stride (a run of another is not read: [`blend_site`] refuses it).
+/// [`prefetch`] of one array of node values of stride `S`: the cell's 8 corners are 4 runs
+/// of 2 neighbouring nodes along x, in the block [`blend`] reads ([`cell_block`]).
 #[inline(always)]
 fn prefetch_cell<const S: usize>(
     grid: &ServedGrid,
     values: &[rkyv::Archived<[f64; 3]>],
     first: usize,
 ) {
-    if grid.stride != S {
-        return;
-    }
-    let stride = S;
-    let end = first
-        .checked_add(grid.corners[7])
-        .and_then(|last| last.checked_add(1)?.checked_mul(stride));
-    let block = first
-        .checked_mul(stride)
-        .zip(end)
-        .and_then(|(start, end)| values.get(start..end));
-    let Some(block) = block else {
+    let Some(block) = cell_block::<S>(values, first, &grid.corners) else {
         return;
     };
     for corner in [0, 2, 4, 6] {
         // Within the block's length, which did not overflow.
-        let at = grid.corners[corner] * stride;
-        if let Some(run) = block.get(at..at + 2 * stride) {
+        let at = grid.corners[corner] * S;
+        if let Some(run) = block.get(at..at + 2 * S) {
             prefetch_bytes(run);
         }
     }
@@ -480,12 +470,7 @@ fn blend<const S: usize>(
     weights: &[f64; 8],
 ) -> Option<Blend<S>> {
     // One range check for the whole block of the cell's nodes, then offsets within it.
-    let start = first.checked_mul(S)?;
-    let end = first
-        .checked_add(corners[7])?
-        .checked_add(1)?
-        .checked_mul(S)?;
-    let block = nodes.get(start..end)?;
+    let block = cell_block::<S>(nodes, first, corners)?;
     let mut out = Blend {
         sum: [[0.0; 3]; S],
         missing: 0,
@@ -508,6 +493,23 @@ fn blend<const S: usize>(
         }
     }
     Some(out)
+}
+
+/// The node values from a cell's minimum corner `first` (counted in nodes) to its maximum
+/// one, `S` vectors a node: every corner's, checked once. `None` when they are out of
+/// range or their offsets overflow.
+#[inline(always)]
+fn cell_block<'a, const S: usize>(
+    values: &'a [rkyv::Archived<[f64; 3]>],
+    first: usize,
+    corners: &[usize; 8],
+) -> Option<&'a [rkyv::Archived<[f64; 3]>]> {
+    let start = first.checked_mul(S)?;
+    let end = first
+        .checked_add(corners[7])?
+        .checked_add(1)?
+        .checked_mul(S)?;
+    values.get(start..end)
 }
 
 /// The node values of one set, for inspection: node `(i, j, k)` of set `set`, or `None`
