@@ -7,7 +7,7 @@
 //!
 //! - **Hyperparameters from a subsample.** The length scale (mm), the vertical scale, the
 //!   nugget relative to the sill and the turning weight are properties of the field and of
-//!   the noise, not of the sample count: the likelihood of [`SEARCH_SUBSAMPLE`] samples, evenly
+//!   the noise, not of the sample count: the likelihood of [`SUBSAMPLE`] samples, evenly
 //!   strided through the file's order, chooses them as well as that of all (a stride of a
 //!   tracker's path is a sparser path over the same volume). The subsample depends on the
 //!   data alone, so the build stays byte-identical.
@@ -47,23 +47,19 @@ use crate::nugget_kriging::{
 };
 
 /// Samples whose likelihood chooses the hyperparameters; up to this many samples the fit
-/// is the dense one. A thousand keeps the search to about a minute of CPU with the turning
-/// part, and covers the shipped UR5 (1,000) and KR150-2 (729) sample sets, whose figures
-/// are the dense fit's.
+/// is the dense one, its hyperparameters chosen on the very samples it fits. The search
+/// costs a factorisation per grid point (13 length scales × 4 vertical scales, × 5 weights
+/// of the turning part), cubic in its samples: at a thousand, about 30 s of CPU with the
+/// turning part, and the shipped UR5 (1,000) and KR150-2 (729) sample sets are fitted
+/// densely. A search on 500 strided samples costs an eighth, but on the UR5 its choice
+/// cross-validates worse on the training samples (5-fold 0.0738 against 0.0732 mm, 10-fold
+/// 0.0736 against 0.0733; docs/evaluation.md, "At any size").
 pub const SUBSAMPLE: usize = 1000;
 
 /// Samples in each local system: enough that what the samples beyond them would add stays
 /// within the noise for the length scales the likelihood chooses (64 left half as much
 /// again, tests), few enough that a factorisation costs well under a millisecond.
 pub const NEIGHBOURS: usize = 128;
-
-/// The most samples the hyperparameters' likelihood search sees. The search costs a
-/// factorisation per grid point (13 length scales × 4 vertical scales, × 5 weights of the
-/// turning part): cubic in its samples, it was most of a 1,000-sample hybrid build. On the
-/// UR5's 1,000 samples, hyperparameters searched on 500 of them leave the served field's
-/// 5-fold cross-validation where those of all 1,000 do (docs/evaluation.md, "At any
-/// size").
-pub const SEARCH_SUBSAMPLE: usize = 500;
 
 /// The most nodes along each axis of a block sharing one local system.
 pub const MAX_BLOCK_NODES: usize = 4;
@@ -72,12 +68,9 @@ pub const MAX_BLOCK_NODES: usize = 4;
 /// tests use smaller ones).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LocalSettings {
-    /// The largest sample count fitted densely, and the subsample a local fit's
-    /// hyperparameters are searched on when larger than `search`.
+    /// The largest sample count fitted densely, and the size of the evenly strided
+    /// subsample a local fit's hyperparameters are searched on.
     pub subsample: usize,
-    /// The most samples the likelihood search sees: above, an evenly strided subset of this
-    /// many ([`SEARCH_SUBSAMPLE`]).
-    pub search: usize,
     /// Samples per local system.
     pub neighbours: usize,
 }
@@ -86,7 +79,6 @@ impl Default for LocalSettings {
     fn default() -> Self {
         LocalSettings {
             subsample: SUBSAMPLE,
-            search: SEARCH_SUBSAMPLE,
             neighbours: NEIGHBOURS,
         }
     }
@@ -112,7 +104,7 @@ pub fn search_choices(
         None => ResidualGp::fit_cartesian(inputs, values),
     };
     let n = inputs.len();
-    let m = settings.search.min(settings.subsample).max(3);
+    let m = settings.subsample.max(3);
     if n <= m {
         return dense(inputs, axes, values).map(|fit| fit.choices());
     }
@@ -157,15 +149,10 @@ impl KrigingField {
             Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
             None => ResidualGp::fit_cartesian(inputs, values),
         };
-        let n = inputs.len();
-        if n <= settings.search.min(settings.subsample).max(3) {
+        if inputs.len() <= settings.subsample.max(3) {
             return dense(inputs, axes, values).map(KrigingField::Dense);
         }
         let choices = search_choices(inputs, axes, values, settings)?;
-        if n <= settings.subsample.max(3) {
-            return ResidualGp::with_choices(inputs, axes, values, &choices)
-                .map(KrigingField::Dense);
-        }
         LocalGp::with_choices(inputs, axes, values, &choices, settings.neighbours)
             .map(|fit| KrigingField::Local(Box::new(fit)))
     }
@@ -592,7 +579,6 @@ mod tests {
         for axes in [None, Some(axes.as_slice())] {
             let settings = LocalSettings {
                 subsample: 300,
-                search: 300,
                 neighbours: NEIGHBOURS,
             };
             let local = KrigingField::fit(&inputs, axes, &values, settings).unwrap();
@@ -629,7 +615,6 @@ mod tests {
         let (inputs, axes, values) = case(1500, 2);
         let settings = LocalSettings {
             subsample: 200,
-            search: 200,
             neighbours: NEIGHBOURS,
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
@@ -655,7 +640,6 @@ mod tests {
         let (inputs, axes, values) = case(1500, 4);
         let settings = LocalSettings {
             subsample: 200,
-            search: 200,
             neighbours: NEIGHBOURS,
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
@@ -686,7 +670,6 @@ mod tests {
         let (inputs, axes, values) = case(150, 3);
         let settings = LocalSettings {
             subsample: 150,
-            search: 150,
             neighbours: 16,
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
@@ -711,7 +694,6 @@ mod tests {
         }
         let settings = LocalSettings {
             subsample: 100,
-            search: 100,
             neighbours: 64,
         };
         let fit = KrigingField::fit(&inputs, None, &values, settings).unwrap();
