@@ -99,14 +99,10 @@ pub fn search_choices(
 ) -> Result<Vec<GpChoice>, GpError> {
     check_rows(inputs, values)?;
     check_cartesian(inputs, axes)?;
-    let dense = |inputs: &[Vec<f64>], axes: Option<&[[f64; 3]]>, values: &[Vec<f64>]| match axes {
-        Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
-        None => ResidualGp::fit_cartesian(inputs, values),
-    };
     let n = inputs.len();
     let m = settings.subsample.max(3);
     if n <= m {
-        return dense(inputs, axes, values).map(|fit| fit.choices());
+        return fit_dense(inputs, axes, values).map(|fit| fit.choices());
     }
     // Evenly strided: sample ⌊i n / m⌋ for i < m (n > m, so all distinct).
     let picked: Vec<usize> = (0..m)
@@ -115,7 +111,19 @@ pub fn search_choices(
     let pick =
         |rows: &[Vec<f64>]| -> Vec<Vec<f64>> { picked.iter().map(|&i| rows[i].clone()).collect() };
     let picked_axes: Option<Vec<[f64; 3]>> = axes.map(|a| picked.iter().map(|&i| a[i]).collect());
-    Ok(dense(&pick(inputs), picked_axes.as_deref(), &pick(values))?.choices())
+    Ok(fit_dense(&pick(inputs), picked_axes.as_deref(), &pick(values))?.choices())
+}
+
+/// The dense fit with its likelihood search: turning with `axes` when given.
+fn fit_dense(
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+    values: &[Vec<f64>],
+) -> Result<ResidualGp, GpError> {
+    match axes {
+        Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
+        None => ResidualGp::fit_cartesian(inputs, values),
+    }
 }
 
 /// A kriging field over Cartesian positions (mm, z vertical), dense or local (module docs).
@@ -144,13 +152,8 @@ impl KrigingField {
     ) -> Result<KrigingField, GpError> {
         check_rows(inputs, values)?;
         check_cartesian(inputs, axes)?;
-        let dense = |inputs: &[Vec<f64>], axes: Option<&[[f64; 3]]>, values: &[Vec<f64>]| match axes
-        {
-            Some(axes) => ResidualGp::fit_turning(inputs, axes, values),
-            None => ResidualGp::fit_cartesian(inputs, values),
-        };
         if inputs.len() <= settings.subsample.max(3) {
-            return dense(inputs, axes, values).map(KrigingField::Dense);
+            return fit_dense(inputs, axes, values).map(KrigingField::Dense);
         }
         let choices = search_choices(inputs, axes, values, settings)?;
         LocalGp::with_choices(inputs, axes, values, &choices, settings.neighbours)
