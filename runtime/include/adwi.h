@@ -74,14 +74,18 @@ typedef struct adwi_table adwi_table;
 typedef enum adwi_result {
     ADWI_OK = 0,                  /* success; outputs written */
     ADWI_NULL_POINTER = 1,        /* a required pointer was null */
-    ADWI_INVALID_ARGUMENT = 2,    /* config outside -1..254, tolerance negative or NaN, path not UTF-8 */
+    ADWI_INVALID_ARGUMENT = 2,    /* config outside -1..254, tolerance negative or NaN,
+                                     max_iterations 0, a compensation target not finite,
+                                     unknown open flags, path not UTF-8 */
     ADWI_IO = 3,                  /* the file cannot be read or mapped */
     ADWI_INVALID_TABLE = 4,       /* truncated, corrupt, wrong magic, bad checksum */
     ADWI_UNSUPPORTED_VERSION = 5, /* a format version this runtime does not read */
     ADWI_LOCK = 6,                /* ADWI_OPEN_LOCK_REQUIRED and mlock failed */
     ADWI_PANIC = 7,               /* a bug caught at the boundary */
-    ADWI_INVALID_HANDLE = 8       /* not an open handle: closed already, or never opened
+    ADWI_INVALID_HANDLE = 8,      /* not an open handle: closed already, or never opened
                                      (see adwi_table) */
+    ADWI_OUT_OF_MEMORY = 9        /* adwi_table_open_bytes could not allocate its copy (the
+                                     process is never aborted) */
 } adwi_result;
 
 /* What a query's answer means (adwi_correction.status). */
@@ -148,7 +152,8 @@ typedef struct adwi_compensation {
  * modified while open: replace tables by renaming a new file into place. */
 adwi_result adwi_table_open(const char *path, adwi_table **out);
 
-/* As adwi_table_open, with ADWI_OPEN_* flags. */
+/* As adwi_table_open, with ADWI_OPEN_* flags; any other bit is ADWI_INVALID_ARGUMENT. A
+ * path that is not a regular file (a FIFO, a device) is ADWI_IO at once, never waited on. */
 adwi_result adwi_table_open_with(const char *path, uint32_t flags, adwi_table **out);
 
 /* Copies len bytes into aligned memory and validates them as a table; the caller's buffer

@@ -49,6 +49,9 @@ pub enum AdwiResult {
     /// The handle is not an open table: closed already, or never returned by an open
     /// function (as far as its marker tells).
     InvalidHandle = 8,
+    /// The memory for a copy of the table could not be allocated
+    /// ([`adwi_table_open_bytes`]); the process is not aborted.
+    OutOfMemory = 9,
 }
 
 /// A table as C sees it: behind the opaque `adwi_table` handle, either mapped from a
@@ -168,6 +171,9 @@ pub const ADWI_OPEN_PREFAULT: u32 = 1;
 pub const ADWI_OPEN_LOCK: u32 = 2;
 /// `ADWI_OPEN_LOCK_REQUIRED`: lock the table in memory or fail with `ADWI_LOCK`.
 pub const ADWI_OPEN_LOCK_REQUIRED: u32 = 4;
+/// Every flag this runtime knows: a bit outside it (a flag of a newer header, or a
+/// mistake) is refused with `ADWI_INVALID_ARGUMENT`, not ignored.
+const ADWI_OPEN_KNOWN: u32 = ADWI_OPEN_PREFAULT | ADWI_OPEN_LOCK | ADWI_OPEN_LOCK_REQUIRED;
 
 impl From<Correction> for AdwiCorrection {
     #[inline]
@@ -215,6 +221,7 @@ fn code_of(error: &OpenError) -> AdwiResult {
         OpenError::Io(_) => AdwiResult::Io,
         OpenError::UnsupportedVersion { .. } => AdwiResult::UnsupportedVersion,
         OpenError::Lock(_) => AdwiResult::Lock,
+        OpenError::OutOfMemory { .. } => AdwiResult::OutOfMemory,
         _ => AdwiResult::InvalidTable,
     }
 }
@@ -278,6 +285,14 @@ pub unsafe extern "C" fn adwi_table_open_with(
             record_open_error("the table path is not valid UTF-8".into());
             return AdwiResult::InvalidArgument;
         };
+        if flags & !ADWI_OPEN_KNOWN != 0 {
+            record_open_error(format!(
+                "unknown open flags {:#x}: this runtime knows ADWI_OPEN_PREFAULT, \
+                 ADWI_OPEN_LOCK and ADWI_OPEN_LOCK_REQUIRED ({ADWI_OPEN_KNOWN:#x})",
+                flags & !ADWI_OPEN_KNOWN
+            ));
+            return AdwiResult::InvalidArgument;
+        }
         let options = OpenOptions {
             prefault: flags & ADWI_OPEN_PREFAULT != 0,
             lock: if flags & ADWI_OPEN_LOCK_REQUIRED != 0 {
@@ -318,6 +333,9 @@ pub unsafe extern "C" fn adwi_table_open(
 }
 
 /// Copies `len` bytes at `bytes` into aligned memory and validates them as a table.
+/// Memory that cannot be allocated is `ADWI_OUT_OF_MEMORY`, a length no buffer can have
+/// (more than `isize::MAX`) `ADWI_INVALID_ARGUMENT`: both checked before anything could
+/// panic, so that nothing is printed to the host's stderr and nothing aborts it.
 ///
 /// # Safety
 ///
@@ -334,11 +352,17 @@ pub unsafe extern "C" fn adwi_table_open_bytes(
             record_open_error("a null pointer was passed to adwi_table_open_bytes".into());
             return AdwiResult::NullPointer;
         }
-        // SAFETY: non-null and valid for `len` bytes by the caller's contract.
+        if isize::try_from(len).is_err() {
+            record_open_error(format!(
+                "a buffer of {len} bytes cannot exist: more than isize::MAX bytes"
+            ));
+            return AdwiResult::InvalidArgument;
+        }
+        // SAFETY: non-null and valid for `len` bytes by the caller's contract, and `len`
+        // is at most `isize::MAX`.
         let slice = unsafe { std::slice::from_raw_parts(bytes, len) };
-        let mut aligned = AlignedBytes::with_capacity(len);
-        aligned.extend_from_slice(slice);
-        let result = Table::from_bytes(Backing::Owned(aligned));
+        let result = AlignedBytes::copy_from(slice)
+            .and_then(|aligned| Table::from_bytes(Backing::Owned(aligned)));
         // SAFETY: `out` is non-null; the caller guarantees it is writable.
         unsafe { finish_open(result, out) }
     })
@@ -558,11 +582,16 @@ unsafe fn compensate_c(
         let Some(config) = config_of(config) else {
             return AdwiResult::InvalidArgument;
         };
-        if !(tolerance_mm.is_finite() && tolerance_mm >= 0.0) {
+        if !(tolerance_mm.is_finite() && tolerance_mm >= 0.0) || max_iterations == 0 {
             return AdwiResult::InvalidArgument;
         }
         // SAFETY: non-null, valid for three doubles by contract.
         let position_mm = unsafe { read3(target_mm) };
+        // No command exists for a target that is not a point: refused, rather than
+        // answered with the target itself (a NaN) as the command.
+        if !position_mm.iter().all(|v| v.is_finite()) {
+            return AdwiResult::InvalidArgument;
+        }
         let target = Target {
             position_mm,
             config,
@@ -582,7 +611,9 @@ unsafe fn compensate_c(
 /// The command that lands the robot on `target_mm` by the served field: iterates until
 /// `|command + error(command) − target| <= tolerance_mm` or `max_iterations` queries.
 /// Returns `ADWI_OK` whenever the table answered; `out->converged` and
-/// `out->correction.status` say how well. Does not allocate.
+/// `out->correction.status` say how well; the command is always finite then. A target
+/// that is not finite, a negative or non-finite tolerance and `max_iterations` 0 are
+/// `ADWI_INVALID_ARGUMENT`. Does not allocate.
 ///
 /// # Safety
 ///
@@ -733,6 +764,7 @@ pub extern "C" fn adwi_result_name(code: c_int) -> *const c_char {
         6 => c"cannot lock the table in memory",
         7 => c"internal panic",
         8 => c"invalid handle",
+        9 => c"out of memory",
         _ => c"unknown result",
     };
     name.as_ptr()
@@ -805,6 +837,7 @@ mod tests {
             (AdwiResult::Lock, 6),
             (AdwiResult::Panic, 7),
             (AdwiResult::InvalidHandle, 8),
+            (AdwiResult::OutOfMemory, 9),
         ];
         for (result, value) in results {
             assert_eq!(result as i32, value);

@@ -75,6 +75,11 @@ pub enum OpenError {
     /// A parameter, grid field or stored value is outside the range any real table
     /// respects (an ε of 1e300 mm, say), though the checksums are intact.
     Implausible(crate::format::Implausible),
+    /// The memory for a copy of the table could not be allocated ([`crate::AlignedBytes`]).
+    OutOfMemory {
+        /// The table's length, bytes.
+        len: u64,
+    },
     /// Locking the table in memory was required and failed
     /// ([`crate::residency::Lock::Required`]).
     Lock(std::io::Error),
@@ -135,6 +140,11 @@ impl fmt::Display for OpenError {
             OpenError::Implausible(e) => {
                 write!(f, "table holds an implausible value: {e}; {REBUILD}")
             }
+            OpenError::OutOfMemory { len } => write!(
+                f,
+                "cannot allocate {len} bytes for a copy of the table; open the file by memory \
+                 map instead, or free memory"
+            ),
             OpenError::Lock(e) => write!(
                 f,
                 "cannot lock the table in memory: {e}; raise the locked-memory limit \

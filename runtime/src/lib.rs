@@ -44,6 +44,7 @@ mod correction;
 mod error;
 mod exact;
 pub mod format;
+pub mod input;
 pub mod kinematics;
 mod lanes;
 pub mod method;

@@ -89,14 +89,66 @@ pub struct Exact<'a, D> {
 
 /// An owned copy of a table's bytes, aligned to a cache line (64 bytes): the payload then
 /// starts on one, as in a memory map, and so does every version-2 cell record.
-pub type AlignedBytes = rkyv::util::AlignedVec<64>;
+///
+/// Made by [`AlignedBytes::copy_from`], whose allocation is fallible: a table too large
+/// for the memory left is an error, never an abort of the process that asked (a
+/// controller).
+pub struct AlignedBytes {
+    /// The allocation: `start` bytes of padding, then the table's bytes. Never grown after
+    /// the copy, so the table's bytes never move.
+    buffer: Vec<u8>,
+    /// Where the table's bytes start: the first 64-byte boundary of `buffer`.
+    start: usize,
+}
+
+/// The alignment of [`AlignedBytes`], bytes.
+const CACHE_LINE: usize = 64;
+
+impl AlignedBytes {
+    /// Copies `bytes` into memory aligned to 64 bytes.
+    ///
+    /// # Errors
+    ///
+    /// [`OpenError::OutOfMemory`] when the copy cannot be allocated; nothing is aborted
+    /// and nothing is printed.
+    pub fn copy_from(bytes: &[u8]) -> Result<AlignedBytes, OpenError> {
+        let len = bytes.len();
+        let too_large = || OpenError::OutOfMemory { len: len as u64 };
+        let capacity = len.checked_add(CACHE_LINE - 1).ok_or_else(too_large)?;
+        let mut buffer = Vec::<u8>::new();
+        buffer
+            .try_reserve_exact(capacity)
+            .map_err(|_| too_large())?;
+        let start = buffer.as_ptr().align_offset(CACHE_LINE).min(CACHE_LINE - 1);
+        // Within the capacity reserved: neither reallocates.
+        buffer.resize(start, 0);
+        buffer.extend_from_slice(bytes);
+        Ok(AlignedBytes { buffer, start })
+    }
+}
+
+impl AsRef<[u8]> for AlignedBytes {
+    #[inline]
+    fn as_ref(&self) -> &[u8] {
+        self.buffer.get(self.start..).unwrap_or_default()
+    }
+}
+
+impl std::ops::Deref for AlignedBytes {
+    type Target = [u8];
+    #[inline]
+    fn deref(&self) -> &[u8] {
+        self.as_ref()
+    }
+}
 
 impl Table<memmap2::Mmap> {
     /// Memory-maps and validates the table at `path`.
     ///
     /// # Errors
     ///
-    /// Any [`OpenError`]: the file cannot be read, or fails a check of
+    /// Any [`OpenError`]: the file cannot be read or is not a regular file (a FIFO, a
+    /// device: [`crate::input::open_regular`]), or fails a check of
     /// [`Table::from_bytes`].
     ///
     /// # Safety
@@ -129,7 +181,8 @@ impl Table<memmap2::Mmap> {
         path: impl AsRef<Path>,
         options: OpenOptions,
     ) -> Result<(Table<memmap2::Mmap>, Residency), OpenError> {
-        let file = std::fs::File::open(path)?;
+        // A FIFO or a device is refused at once: never waited on, never read without end.
+        let file = crate::input::open_regular(path.as_ref())?;
         let len = file.metadata()?.len();
         if len < HEADER_LEN as u64 {
             // Also refuses empty files, which cannot be mapped.
@@ -167,17 +220,44 @@ impl Table<memmap2::Mmap> {
     }
 }
 
+/// rkyv's validation message with every address in it ("ptr 0x00007f3a…") given as the
+/// byte of the file it points at: a heap address tells a reader nothing, changes from run
+/// to run, and would tell a C host's log where this process keeps its memory.
+fn without_addresses(error: &impl std::fmt::Display, payload: &[u8]) -> String {
+    use std::fmt::Write;
+    let message = error.to_string();
+    let base = payload.as_ptr() as usize as i128 - HEADER_LEN as i128;
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message.as_str();
+    while let Some(at) = rest.find("0x") {
+        out.push_str(&rest[..at]);
+        let digits = rest[at + 2..]
+            .bytes()
+            .take_while(u8::is_ascii_hexdigit)
+            .count();
+        let token = &rest[at..at + 2 + digits];
+        match u64::from_str_radix(&token[2..], 16) {
+            Ok(address) if digits > 0 => {
+                let _ = write!(out, "file byte {}", address as i128 - base);
+            }
+            _ => out.push_str(token),
+        }
+        rest = &rest[at + 2 + digits..];
+    }
+    out.push_str(rest);
+    out
+}
+
 impl Table<AlignedBytes> {
     /// Copies `bytes` into an aligned buffer and validates it; for bytes of unknown
     /// alignment (a `Vec<u8>`, an `include_bytes!`).
     ///
     /// # Errors
     ///
-    /// As [`Table::from_bytes`].
+    /// [`OpenError::OutOfMemory`] when the copy cannot be allocated, or as
+    /// [`Table::from_bytes`].
     pub fn from_vec(bytes: impl AsRef<[u8]>) -> Result<Table<AlignedBytes>, OpenError> {
-        let mut aligned = AlignedBytes::with_capacity(bytes.as_ref().len());
-        aligned.extend_from_slice(bytes.as_ref());
-        Table::from_bytes(aligned)
+        Table::from_bytes(AlignedBytes::copy_from(bytes.as_ref())?)
     }
 }
 
@@ -231,7 +311,8 @@ impl<D: AsRef<[u8]>> Table<D> {
         if offset != 0 {
             return Err(OpenError::Misaligned { offset });
         }
-        let archive_error = |e: rkyv::rancor::BoxedError| OpenError::Archive(e.to_string());
+        let archive_error =
+            |e: rkyv::rancor::BoxedError| OpenError::Archive(without_addresses(&e, payload));
         let v2_part = |archived: &v2::ArchivedTableData| {
             let model = crate::validate::validate_v2(&header, archived)?;
             let served = (header.node_set_count > 0).then(|| ServedGrid::new(&header, archived));

@@ -42,7 +42,8 @@ _Static_assert(offsetof(adwi_compensation, converged) == 116, "converged");
 _Static_assert(offsetof(adwi_compensation, residual_mm) == 120, "residual_mm");
 _Static_assert(ADWI_OK == 0 && ADWI_NULL_POINTER == 1 && ADWI_INVALID_ARGUMENT == 2 &&
                    ADWI_IO == 3 && ADWI_INVALID_TABLE == 4 && ADWI_UNSUPPORTED_VERSION == 5 &&
-                   ADWI_LOCK == 6 && ADWI_PANIC == 7 && ADWI_INVALID_HANDLE == 8,
+                   ADWI_LOCK == 6 && ADWI_PANIC == 7 && ADWI_INVALID_HANDLE == 8 &&
+                   ADWI_OUT_OF_MEMORY == 9,
                "adwi_result values");
 _Static_assert(ADWI_STATUS_OK == 0 && ADWI_STATUS_OUTSIDE_GRID == 1 &&
                    ADWI_STATUS_NO_NEIGHBOUR == 2 && ADWI_STATUS_INVALID_INPUT == 3 &&
