@@ -385,6 +385,8 @@ fn run_smoke(exe: &Path, dir: &Path) {
         let target = Target {
             position_mm: *p,
             config: (*config >= 0).then_some(*config as u8),
+            rotation_rad: None,
+            tcp_mm: None,
         };
         let c = table.query_target(&target);
         let words: Vec<&str> = queries[i].split_whitespace().skip(1).collect();

@@ -101,6 +101,8 @@ fn queries_and_compensations_allocate_nothing() {
             let target = Target {
                 position_mm: *p,
                 config: if i % 2 == 0 { None } else { Some(1) },
+                rotation_rad: None,
+                tcp_mm: None,
             };
             let a = owned.query_target(&target);
             let b = mapped.query(*p);

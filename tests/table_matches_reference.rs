@@ -135,6 +135,8 @@ fn case() -> impl Strategy<Value = Case> {
                     Target {
                         position_mm,
                         config: (configured && pick % 2 == 0).then_some(pick % 3),
+                        rotation_rad: None,
+                        tcp_mm: None,
                     }
                 })
                 .collect();
@@ -222,6 +224,8 @@ fn served_reference(
         let at = Target {
             position_mm: node,
             config,
+            rotation_rad: None,
+            tcp_mm: None,
         };
         let Some(p) = reference::predict(records, &params, &at) else {
             return Err(Status::UncoveredCell);

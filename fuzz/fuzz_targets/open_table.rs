@@ -42,6 +42,8 @@ fuzz_target!(|data: &[u8]| {
             let target = Target {
                 position_mm: p,
                 config,
+                rotation_rad: None,
+                tcp_mm: None,
             };
             check(&table.query_target(&target));
             for q in &joints {

@@ -870,6 +870,8 @@ impl Table {
                 let target = Target {
                     position_mm: *position,
                     config: config.as_ref().and_then(|c| c[i]),
+                    rotation_rad: None,
+                    tcp_mm: None,
                 };
                 let q = joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
                 let c = table.answer(&target, q, if exact { Tier::Exact } else { Tier::Served });

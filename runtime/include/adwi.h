@@ -135,8 +135,16 @@ typedef struct adwi_correction {
     int32_t status;                  /* ADWI_STATUS_*; other fields are zero unless OK */
     int32_t residual;                /* ADWI_RESIDUAL_*: how much of a hybrid table's
                                         residual field the correction holds */
-    uint32_t reserved;               /* zero (the struct has no padding: memcmp compares) */
+    uint32_t evidence;               /* ADWI_EVIDENCE_* bits: where the answer lies beyond
+                                        the samples (0 within; the struct has no padding:
+                                        memcmp compares) */
 } adwi_correction;
+
+/* adwi_correction.evidence bits: where an answer lies beyond what the table's samples
+ * cover (docs/runtime.md, "Evidence"). A hybrid table's model still answers there. */
+#define ADWI_EVIDENCE_WITHIN 0u      /* within the samples' evidence */
+#define ADWI_EVIDENCE_ORIENTATION 1u /* an approach axis the samples never had */
+#define ADWI_EVIDENCE_TCP 2u         /* a TCP the table cannot relate to its point */
 
 /* The command that lands the robot on a target: command + error(command) = target. */
 typedef struct adwi_compensation {
@@ -184,8 +192,21 @@ adwi_result adwi_table_query_joints_exact(const adwi_table *table, const double 
                                           int32_t config, const double *joints_rad,
                                           size_t n_joints, adwi_correction *out);
 
+/* The served correction at a pose: target_mm is the position of the TCP at tcp_mm (mm,
+ * flange frame; NULL: the table's measured point) with the tool's orientation
+ * rotation_rad (rotation vector, rad, base frame; NULL: not known), reached with the
+ * n_joints values at joints_rad (NULL and 0 for a position-only table). A hybrid table
+ * answers the error at the TCP (its model turns the lever from its point); out->evidence
+ * says where the answer lies beyond the samples. */
+adwi_result adwi_table_query_pose(const adwi_table *table, const double target_mm[3],
+                                  const double *rotation_rad, const double *tcp_mm,
+                                  int32_t config, const double *joints_rad, size_t n_joints,
+                                  adwi_correction *out);
+
 /* Iterates command <- target - error(command) on the served field until the residual is at
- * most tolerance_mm or max_iterations queries were made. */
+ * most tolerance_mm or max_iterations queries were made (at least 1: 0 is
+ * ADWI_INVALID_ARGUMENT, as is a target that is not finite). On ADWI_OK the command is
+ * finite. */
 adwi_result adwi_table_compensate(const adwi_table *table, const double target_mm[3],
                                   int32_t config, double tolerance_mm,
                                   uint32_t max_iterations, adwi_compensation *out);

@@ -135,9 +135,11 @@ pub struct AdwiCorrection {
     /// [`crate::Residual`] as an integer: 0 full, 1 faded, 2 model only (a hybrid
     /// table's residual field, wholly, in part or not at all; 0 for a position-only table).
     pub residual: i32,
-    /// Zero: the struct's tail, named so that it has no padding (every byte written,
-    /// outputs comparable with `memcmp`).
-    pub reserved: u32,
+    /// [`crate::Evidence`] as bits: 0 within the samples' evidence, bit 0 (1) an
+    /// orientation the samples never had, bit 1 (2) a TCP the table cannot place. Also
+    /// the struct's tail, so that it has no padding (every byte written, outputs
+    /// comparable with `memcmp`).
+    pub evidence: u32,
 }
 
 /// `adwi_compensation`: [`Compensation`] with fixed-width fields.
@@ -186,7 +188,7 @@ impl From<Correction> for AdwiCorrection {
             neighbours: c.neighbours,
             status: c.status as i32,
             residual: c.residual as i32,
-            reserved: 0,
+            evidence: u32::from(c.evidence.0),
         }
     }
 }
@@ -416,6 +418,39 @@ unsafe fn query_c(
     out: *mut AdwiCorrection,
     tier: Tier,
 ) -> AdwiResult {
+    // SAFETY: the caller upholds this function's contract, which is `query_pose_c`'s with
+    // no rotation and no TCP.
+    unsafe {
+        query_pose_c(
+            table,
+            target_mm,
+            std::ptr::null(),
+            std::ptr::null(),
+            config,
+            joints,
+            out,
+            tier,
+        )
+    }
+}
+
+/// The shared body of the query exports, with the target's optional orientation and TCP.
+///
+/// # Safety
+///
+/// As [`adwi_table_query_pose`]; `joints` is `None` or a pointer (null or valid for its
+/// count of doubles) and a count.
+#[allow(clippy::too_many_arguments)]
+unsafe fn query_pose_c(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    rotation_rad: *const f64,
+    tcp_mm: *const f64,
+    config: i32,
+    joints: Option<(*const f64, usize)>,
+    out: *mut AdwiCorrection,
+    tier: Tier,
+) -> AdwiResult {
     guarded(|| {
         let joints_null = joints.is_some_and(|(p, _)| p.is_null());
         if table.is_null() || target_mm.is_null() || joints_null || out.is_null() {
@@ -431,10 +466,15 @@ unsafe fn query_c(
         };
         // SAFETY: non-null, valid for three doubles by contract.
         let position_mm = unsafe { read3(target_mm) };
-        let target = Target {
-            position_mm,
-            config,
-        };
+        let mut target = Target::at(position_mm).with_config(config);
+        if !rotation_rad.is_null() {
+            // SAFETY: non-null, valid for three doubles by contract.
+            target = target.with_rotation(unsafe { read3(rotation_rad) });
+        }
+        if !tcp_mm.is_null() {
+            // SAFETY: non-null, valid for three doubles by contract.
+            target = target.with_tcp(unsafe { read3(tcp_mm) });
+        }
         let c = match joints {
             None => match tier {
                 Tier::Served => table.query_target(&target),
@@ -529,6 +569,51 @@ pub unsafe extern "C" fn adwi_table_query_joints(
     }
 }
 
+/// The served correction at a pose: `target_mm` (x, y, z, mm, base frame) is the position
+/// of the TCP at `tcp_mm` (x, y, z, mm, flange frame; null: the table's own measured
+/// point), with the tool's orientation `rotation_rad` (rotation vector, rad, base frame;
+/// null: not known), for configuration `config` (-1 unknown), reached with the `n_joints`
+/// joint values at `joints_rad` (null with `n_joints` 0 for a position-only table). A
+/// hybrid table answers the error at the TCP, its model turning the lever from its point;
+/// `out->evidence` says where the answer lies beyond what the samples cover
+/// ([`crate::Table::answer`]). Returns `ADWI_OK` whenever the table answered; `out->status`
+/// then says whether the correction holds. Does not allocate.
+///
+/// # Safety
+///
+/// As [`adwi_table_query`]; `rotation_rad` and `tcp_mm` are null or valid for three
+/// doubles; `joints_rad` is null or valid for `n_joints` doubles.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn adwi_table_query_pose(
+    table: *const AdwiTable,
+    target_mm: *const f64,
+    rotation_rad: *const f64,
+    tcp_mm: *const f64,
+    config: i32,
+    joints_rad: *const f64,
+    n_joints: usize,
+    out: *mut AdwiCorrection,
+) -> AdwiResult {
+    let joints = (!joints_rad.is_null()).then_some((joints_rad, n_joints));
+    if joints.is_none() && n_joints != 0 {
+        return AdwiResult::NullPointer;
+    }
+    // SAFETY: the caller upholds this function's contract, which is `query_pose_c`'s.
+    unsafe {
+        query_pose_c(
+            table,
+            target_mm,
+            rotation_rad,
+            tcp_mm,
+            config,
+            joints,
+            out,
+            Tier::Served,
+        )
+    }
+}
+
 /// As [`adwi_table_query_joints`], from the exact tier.
 ///
 /// # Safety
@@ -592,10 +677,7 @@ unsafe fn compensate_c(
         if !position_mm.iter().all(|v| v.is_finite()) {
             return AdwiResult::InvalidArgument;
         }
-        let target = Target {
-            position_mm,
-            config,
-        };
+        let target = Target::at(position_mm).with_config(config);
         let c = match tier {
             Tier::Served => table.compensate(&target, tolerance_mm, max_iterations),
             Tier::Exact => table
@@ -817,7 +899,7 @@ mod tests {
         assert_eq!(offset_of!(AdwiCorrection, neighbours), 48);
         assert_eq!(offset_of!(AdwiCorrection, status), 52);
         assert_eq!(offset_of!(AdwiCorrection, residual), 56);
-        assert_eq!(offset_of!(AdwiCorrection, reserved), 60);
+        assert_eq!(offset_of!(AdwiCorrection, evidence), 60);
         assert_eq!(size_of::<AdwiCompensation>(), 128);
         assert_eq!(align_of::<AdwiCompensation>(), 8);
         assert_eq!(offset_of!(AdwiCompensation, command_position_mm), 0);

@@ -87,11 +87,23 @@ impl Residual {
 /// A target: where the controller wants the tool to be.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Target {
-    /// Nominal position, mm, base frame.
+    /// Nominal position, mm, base frame: of the table's point, or of the TCP `tcp_mm`
+    /// when one is named.
     pub position_mm: [f64; 3],
     /// The inverse-kinematics configuration the controller will use, if known: samples
     /// of another configuration are then not admissible.
     pub config: Option<u8>,
+    /// The tool's nominal orientation at the target, rotation vector, rad, base frame, if
+    /// known. A position-only table checks it against the orientations its samples had
+    /// ([`Evidence::ORIENTATION`]); a hybrid table takes the orientation from the joint
+    /// values instead.
+    pub rotation_rad: Option<[f64; 3]>,
+    /// The TCP the target is for, mm, in the flange frame, when it is not the point the
+    /// table's samples measured. A hybrid table then answers the error at this TCP: its
+    /// model's position error at the measured point plus its rotation error turning the
+    /// lever from that point to the TCP ([`crate::Table::query_with_joints`]). A table
+    /// that cannot carry the lever says so ([`Evidence::TCP`]).
+    pub tcp_mm: Option<[f64; 3]>,
 }
 
 impl Target {
@@ -100,6 +112,84 @@ impl Target {
         Target {
             position_mm,
             config: None,
+            rotation_rad: None,
+            tcp_mm: None,
+        }
+    }
+
+    /// This target in configuration `config`.
+    pub fn with_config(self, config: Option<u8>) -> Target {
+        Target { config, ..self }
+    }
+
+    /// This target with the tool's nominal orientation (rotation vector, rad, base frame).
+    pub fn with_rotation(self, rotation_rad: [f64; 3]) -> Target {
+        Target {
+            rotation_rad: Some(rotation_rad),
+            ..self
+        }
+    }
+
+    /// This target for the TCP at `tcp_mm` in the flange frame ([`Target::tcp_mm`]).
+    pub fn with_tcp(self, tcp_mm: [f64; 3]) -> Target {
+        Target {
+            tcp_mm: Some(tcp_mm),
+            ..self
+        }
+    }
+}
+
+/// Where an answer lies beyond what the table's samples cover, one bit a reason; empty
+/// when it lies within (docs/runtime.md, "Evidence"). The positions the samples span are
+/// the grid and the residual flag's ([`Residual`]); these are the rest.
+///
+/// A flagged answer is still the table's best: on a hybrid table the calibrated model
+/// answers beyond the samples (and the residual learnt at other orientations is left
+/// out, [`Residual::ModelOnly`]); on a position-only table nothing carries the answer
+/// there, and `tablec compensate` refuses such targets unless told otherwise.
+#[repr(transparent)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Evidence(pub u8);
+
+impl Evidence {
+    /// Within the samples' evidence, as far as the query says (no bit set).
+    pub const WITHIN: Evidence = Evidence(0);
+    /// The tool's approach axis at the target is farther from every sample's than the
+    /// table's recorded spread ([`crate::format::ApproachCone`]) plus
+    /// [`crate::format::ORIENTATION_MARGIN_RAD`].
+    pub const ORIENTATION: Evidence = Evidence(1);
+    /// A TCP was named that the table cannot relate to its measured point: a
+    /// position-only table (no model to turn the lever) with the TCP more than
+    /// [`crate::format::TCP_MARGIN_MM`] from its point, or a table that does not record
+    /// where its point is on the flange.
+    pub const TCP: Evidence = Evidence(2);
+    /// Every bit defined.
+    pub const KNOWN: u8 = 3;
+
+    /// Whether no bit is set.
+    pub fn is_within(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Whether every bit of `other` is set.
+    pub fn contains(self, other: Evidence) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// The bits of both.
+    #[must_use]
+    pub fn with(self, other: Evidence) -> Evidence {
+        Evidence(self.0 | other.0)
+    }
+
+    /// A short name, as the CLI prints it: `within`, or the reasons joined by `+`
+    /// (`orientation`, `tcp`, `orientation+tcp`).
+    pub fn as_str(self) -> &'static str {
+        match self.0 & Evidence::KNOWN {
+            0 => "within",
+            1 => "orientation",
+            2 => "tcp",
+            _ => "orientation+tcp",
         }
     }
 }
@@ -123,6 +213,9 @@ pub struct Correction {
     /// How much of a hybrid table's residual the correction holds ([`Residual::Full`] for
     /// a position-only table); meaningful only when `status` is `Ok`.
     pub residual: Residual,
+    /// Where the answer lies beyond the samples' evidence ([`Evidence`]); meaningful only
+    /// when `status` is `Ok`.
+    pub evidence: Evidence,
 }
 
 impl Correction {
@@ -133,6 +226,7 @@ impl Correction {
             neighbours: 0,
             status,
             residual: Residual::Full,
+            evidence: Evidence::WITHIN,
         }
     }
 

@@ -136,6 +136,7 @@ pub(crate) fn interpolate(
             neighbours: e.neighbours,
             status: Status::Ok,
             residual: crate::Residual::Full,
+            evidence: crate::Evidence::WITHIN,
         },
         None => Correction::failed(Status::NoAdmissibleNeighbour),
     }

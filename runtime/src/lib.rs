@@ -59,7 +59,7 @@ pub mod testing;
 pub mod trig;
 mod validate;
 
-pub use correction::{Compensation, Correction, Residual, Status, Target};
+pub use correction::{Compensation, Correction, Evidence, Residual, Status, Target};
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};

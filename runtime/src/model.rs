@@ -135,6 +135,33 @@ impl PreparedModel {
         &self.calibrated
     }
 
+    /// The position error at a TCP other than the measured point, from the model's pose
+    /// error at the point (`at`, evaluated with the orientation) and the TCP's lever from
+    /// the point, `lever` in the nominal point's frame (as
+    /// [`crate::format::PointInFlange::lever_of`] gives it). Returns the error at the TCP
+    /// (mm, base frame) and the lever in the base frame (nominal), or `None` without the
+    /// nominal rotation.
+    ///
+    /// The TCP is rigid with the measured point: both ride on the flange, so the
+    /// calibrated pose of one gives the other's. With `x = R_nom · lever` and the rotation
+    /// error `ω` (`R_cal = Exp(ω) · R_nom`):
+    ///
+    /// ```text
+    /// e_tcp = e_point + (Exp(ω) − I) · x
+    /// ```
+    ///
+    /// An identified change of the point's own offset on the flange (the calibrated
+    /// chain's tool) is taken as the flange's: the chain's tool also holds the last
+    /// joint's fixed geometry, so the two cannot be told apart from the chains.
+    #[inline]
+    pub fn error_at_lever(&self, at: &ModelAt, lever: [f64; 3]) -> Option<([f64; 3], [f64; 3])> {
+        let r = at.nominal_rotation?;
+        let x = [0, 1, 2].map(|i| r[i][0] * lever[0] + r[i][1] * lever[1] + r[i][2] * lever[2]);
+        let turn = crate::kinematics::rotation_displacement(at.rotation_rad, x);
+        let e = [0, 1, 2].map(|i| at.position_mm[i] + turn[i]);
+        Some((e, x))
+    }
+
     /// The number of joint values a prediction needs.
     pub fn joint_count(&self) -> usize {
         self.nominal.joint_count()
@@ -213,11 +240,12 @@ impl PreparedModel {
                     rotation_rad: [0.0; 3],
                     approach,
                     nominal_tcp_mm: nominal_mm,
+                    nominal_rotation: None,
                 });
             }
         }
         let (calibrated_mm, calibrated_rotation) = calibrated.loaded_tcp(q, sin_cos, rotation);
-        let (nominal_mm, approach, rotation_rad) = match calibrated_rotation {
+        let (nominal_mm, approach, rotation_rad, nominal_rotation) = match calibrated_rotation {
             Some(rotation) => {
                 let nominal = nominal.tcp_pose(q, sin_cos);
                 let calibrated = Transform {
@@ -225,11 +253,17 @@ impl PreparedModel {
                     translation_mm: calibrated_mm,
                 };
                 let rotation_rad = pose_error(&nominal, &calibrated).1;
-                (nominal.translation_mm, approach(&nominal), rotation_rad)
+                let approach = approach(&nominal);
+                (
+                    nominal.translation_mm,
+                    approach,
+                    rotation_rad,
+                    Some(nominal.rotation),
+                )
             }
             None => {
                 let (nominal_mm, approach) = nominal.reach::<true>(q, sin_cos);
-                (nominal_mm, approach, [0.0; 3])
+                (nominal_mm, approach, [0.0; 3], None)
             }
         };
         Some(ModelAt {
@@ -237,6 +271,7 @@ impl PreparedModel {
             rotation_rad,
             approach,
             nominal_tcp_mm: nominal_mm,
+            nominal_rotation,
         })
     }
 
@@ -260,6 +295,10 @@ pub struct ModelAt {
     pub approach: [f64; 3],
     /// The nominal TCP's position, mm, base frame: where the controller puts the tool.
     pub nominal_tcp_mm: [f64; 3],
+    /// The nominal TCP frame's rotation (row-major, its columns the frame's axes in the
+    /// base frame), when evaluated with the orientation; `None` from the position-only
+    /// walk.
+    pub nominal_rotation: Option<[[f64; 3]; 3]>,
 }
 
 /// `a − b`, written out (an array's `map` is a call the compiler does not always inline,

@@ -202,6 +202,7 @@ impl ServedTerms<1> {
             neighbours: self.nodes,
             status: Status::Ok,
             residual: self.residual,
+            evidence: crate::Evidence::WITHIN,
         }
     }
 }
@@ -227,6 +228,7 @@ impl ServedTerms<4> {
             neighbours: self.nodes,
             status: Status::Ok,
             residual: self.residual,
+            evidence: crate::Evidence::WITHIN,
         }
     }
 }

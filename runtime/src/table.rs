@@ -13,14 +13,14 @@
 
 use std::path::Path;
 
-use crate::correction::{Compensation, Correction, Status, Target};
+use crate::correction::{Compensation, Correction, Evidence, Status, Target};
 use crate::exact::{self, V1, V2};
 use crate::format::{
     v1, v2, v3, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
-    PAYLOAD_ALIGN,
+    MAX_COORDINATE_MM, PAYLOAD_ALIGN, TCP_MARGIN_MM,
 };
 use crate::method::{self, MethodParams, Prediction};
-use crate::model::PreparedModel;
+use crate::model::{ModelAt, PreparedModel};
 use crate::posture::{PostureParams, PreparedPosture};
 use crate::residency::{Lock, OpenOptions, Residency};
 use crate::served::ServedGrid;
@@ -60,6 +60,37 @@ pub struct Table<D> {
 fn joints_tolerance_mm(grid: &Grid) -> f64 {
     crate::served::fade_length_mm(grid.cell_mm)
 }
+
+/// A hybrid query's model part ([`Table::answer`]).
+#[derive(Clone, Copy, Debug)]
+struct ModelPart {
+    /// The model at the query's joint values, with its orientation.
+    at: ModelAt,
+    /// The model's position error at the target's TCP (at the table's point when no TCP
+    /// is named or it cannot be placed), mm, base frame.
+    error_mm: [f64; 3],
+    /// Where the table's point is for the target, mm, base frame: what the residual
+    /// field and the joints' check read.
+    point_mm: [f64; 3],
+    /// Whether a named TCP was placed (the table records its point in the flange).
+    lever_known: bool,
+}
+
+/// Whether a target's values are finite and within the plausible range: positions and
+/// a TCP within [`MAX_COORDINATE_MM`], a rotation of at most a few turns.
+#[inline]
+fn target_is_plausible(target: &Target) -> bool {
+    let within = |v: &[f64; 3], limit: f64| v.iter().all(|x| x.abs() <= limit);
+    // Written so that NaN fails each test.
+    within(&target.position_mm, MAX_COORDINATE_MM)
+        && target.tcp_mm.is_none_or(|t| within(&t, MAX_COORDINATE_MM))
+        && target
+            .rotation_rad
+            .is_none_or(|r| within(&r, MAX_ROTATION_RAD))
+}
+
+/// The largest plausible component of a target's rotation vector, rad: two turns.
+const MAX_ROTATION_RAD: f64 = 4.0 * std::f64::consts::PI;
 
 /// A table's archived payload, by format version.
 #[derive(Clone, Copy, Debug)]
@@ -326,7 +357,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                 crate::validate::validate_v1(&header, archived)?;
                 (crate::model::prepared_model_v1(archived), None, None)
             }
-            2 => {
+            _ if !header.has_posture() => {
                 let archived =
                     rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
                         .map_err(archive_error)?;
@@ -444,7 +475,8 @@ impl<D: AsRef<[u8]>> Table<D> {
     #[inline]
     pub fn posture_record(&self) -> Option<&v3::ArchivedPostureRecord> {
         let bytes = self.data.as_ref();
-        if self.header.version < 3 || (bytes.as_ptr() as usize, bytes.len()) != self.validated_at {
+        if !self.header.has_posture() || (bytes.as_ptr() as usize, bytes.len()) != self.validated_at
+        {
             return None;
         }
         // SAFETY: as in `payload`: these bytes passed `rkyv::access` for version 3.
@@ -466,7 +498,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         Some(unsafe {
             match self.header.version {
                 1 => Payload::V1(rkyv::access_unchecked::<v1::ArchivedTableData>(payload)),
-                2 => Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload)),
+                _ if !self.header.has_posture() => {
+                    Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload))
+                }
                 _ => Payload::V2(&rkyv::access_unchecked::<v3::ArchivedTableData>(payload).base),
             }
         })
@@ -578,7 +612,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if joints_rad.is_none() && self.model.is_some() {
             return Correction::failed(Status::MissingJoints);
         }
-        if !target.position_mm.iter().all(|v| v.is_finite()) {
+        if !target_is_plausible(target) {
             return Correction::failed(Status::InvalidInput);
         }
         if let Some(q) = joints_rad {
@@ -591,11 +625,14 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
-        // The served cell first; a hybrid table asks for its nodes' memory before the
-        // model's arithmetic, which then hides their latency (without a model part there is
-        // nothing to hide it behind).
-        let site = match (payload, &self.served, tier) {
-            (Payload::V2(d), Some(grid), Tier::Served) => {
+        // A hybrid table's model at the joint values, once: its pose error, the approach
+        // axis a field turning with the tool needs and the evidence check reads, where the
+        // joints put the nominal TCP, and, for a named TCP, where the table's point is
+        // (`point`: the target less the lever) and the error at the TCP.
+        // Without a named TCP the served cell is known now: a hybrid table asks for its
+        // nodes' memory before the model's arithmetic, which then hides their latency.
+        let early_site = match (payload, &self.served, tier, target.tcp_mm) {
+            (Payload::V2(d), Some(grid), Tier::Served, None) => {
                 let site = crate::served::site(grid, d, target.position_mm, target.config);
                 if let (Ok(site), Some(_)) = (&site, &self.model) {
                     crate::served::prefetch(grid, d, site, self.has_orientation());
@@ -604,51 +641,61 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             _ => None,
         };
-        // A hybrid table's model at the joint values, once: its error, the approach axis a
-        // field turning with the tool needs, and where the joints put the nominal TCP.
-        let model_at = match (&self.model, joints_rad) {
-            (Some(model), Some(q)) => {
-                let Some(at) = model.evaluate(q, self.has_orientation()) else {
-                    return Correction::failed(Status::InvalidInput);
-                };
-                let off_mm = method::distance_mm(at.nominal_tcp_mm, target.position_mm);
-                // NaN (a chain that overflowed) is refused too.
-                let within = off_mm.partial_cmp(&joints_tolerance_mm(&h.grid));
-                if !matches!(
-                    within,
-                    Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-                ) {
-                    return Correction::failed(Status::JointsMismatch);
-                }
-                Some(at)
-            }
+        let model_part = match (&self.model, joints_rad) {
+            (Some(model), Some(q)) => match self.model_part(model, q, target) {
+                Ok(part) => Some(part),
+                Err(status) => return Correction::failed(status),
+            },
             _ => None,
         };
-        let mut correction = match payload {
-            Payload::V1(d) => exact::interpolate(&V1(d), h, target, joints_rad),
-            Payload::V2(d) => match (&self.served, site) {
-                (Some(_), Some(Err(status))) => Correction::failed(status),
-                (Some(grid), Some(Ok(site))) => {
-                    let orientation = self.has_orientation();
-                    if h.served_field.node_stride() == 1 {
-                        match crate::served::blend_site::<1>(grid, d, &site, orientation) {
-                            Ok(terms) => terms.correction(),
-                            Err(status) => Correction::failed(status),
-                        }
-                    } else {
-                        match crate::served::blend_site::<4>(grid, d, &site, orientation) {
-                            Err(status) => Correction::failed(status),
-                            // Validation admits such a field in hybrid tables only, and
-                            // those were given joint values above.
-                            Ok(terms) => match &model_at {
-                                Some(at) => terms.turned(at.approach),
-                                None => Correction::failed(Status::InvalidInput),
-                            },
+        let point = Target {
+            position_mm: model_part.map_or(target.position_mm, |m| m.point_mm),
+            ..*target
+        };
+        let mut evidence = self.evidence_of(target, model_part.as_ref());
+        // A hybrid table's residual was learnt at its samples' orientations: beyond them
+        // the model answers alone, and says so.
+        let residual_beyond = evidence.contains(Evidence::ORIENTATION) && self.model.is_some();
+        let site = match (payload, &self.served, tier) {
+            _ if residual_beyond => None,
+            _ if early_site.is_some() => early_site,
+            (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
+                grid,
+                d,
+                point.position_mm,
+                point.config,
+            )),
+            _ => None,
+        };
+        let mut correction = if residual_beyond {
+            Correction::model_only()
+        } else {
+            match payload {
+                Payload::V1(d) => exact::interpolate(&V1(d), h, &point, joints_rad),
+                Payload::V2(d) => match (&self.served, site) {
+                    (Some(_), Some(Err(status))) => Correction::failed(status),
+                    (Some(grid), Some(Ok(site))) => {
+                        let orientation = self.has_orientation();
+                        if h.served_field.node_stride() == 1 {
+                            match crate::served::blend_site::<1>(grid, d, &site, orientation) {
+                                Ok(terms) => terms.correction(),
+                                Err(status) => Correction::failed(status),
+                            }
+                        } else {
+                            match crate::served::blend_site::<4>(grid, d, &site, orientation) {
+                                Err(status) => Correction::failed(status),
+                                // Validation admits such a field in hybrid tables only, and
+                                // those were given joint values above.
+                                Ok(terms) => match &model_part {
+                                    Some(m) => terms.turned(m.at.approach),
+                                    None => Correction::failed(Status::InvalidInput),
+                                },
+                            }
                         }
                     }
-                }
-                _ => exact::interpolate(&V2::new(d, h), h, target, joints_rad),
-            },
+                    _ => exact::interpolate(&V2::new(d, h), h, &point, joints_rad),
+                },
+            }
         };
         // A hybrid table's model holds everywhere: where the method has no neighbour, or
         // the target is outside the grid, the answer is the model alone.
@@ -662,10 +709,11 @@ impl<D: AsRef<[u8]>> Table<D> {
         if correction.status != Status::Ok {
             return correction;
         }
-        if let (Some(posture), Some(q), Tier::Served) = (&self.posture, joints_rad, tier) {
+        let posture_applies = !residual_beyond && tier == Tier::Served;
+        if let (Some(posture), Some(q), true) = (&self.posture, joints_rad, posture_applies) {
             let term = self
                 .posture_record()
-                .and_then(|r| posture.term(r, target.position_mm, q));
+                .and_then(|r| posture.term(r, point.position_mm, q));
             let Some(term) = term else {
                 return Correction::failed(Status::InvalidInput);
             };
@@ -673,19 +721,108 @@ impl<D: AsRef<[u8]>> Table<D> {
                 *out += p;
             }
         }
-        if let Some(at) = model_at {
-            for (out, model) in correction.position_error_mm.iter_mut().zip(at.position_mm) {
+        if let Some(m) = model_part {
+            for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
-            // Position-only samples: the table predicts no orientation, the model does.
-            if self.has_orientation() {
-                let orientation = correction.orientation_error_rad.iter_mut();
-                for (out, model) in orientation.zip(at.rotation_rad) {
-                    *out += model;
-                }
+            // The model predicts the orientation error whether or not the samples
+            // measured one: a TCP away from the measured point turns with it, and a
+            // command's orientation is corrected by it.
+            let orientation = correction.orientation_error_rad.iter_mut();
+            for (out, model) in orientation.zip(m.at.rotation_rad) {
+                *out += model;
             }
         }
+        if target.tcp_mm.is_some() && model_part.is_none() {
+            evidence = evidence.with(self.tcp_evidence(target));
+        }
+        correction.evidence = evidence;
         correction.finite_or_failure()
+    }
+
+    /// A hybrid query's model part (see [`Table::answer`]): the model at `q` with its
+    /// orientation, the table's point for the target, the joints' check against that
+    /// point, and the error at the target's TCP.
+    #[inline]
+    fn model_part(
+        &self,
+        model: &PreparedModel,
+        q: &[f64],
+        target: &Target,
+    ) -> Result<ModelPart, Status> {
+        let at = model.evaluate(q, true).ok_or(Status::InvalidInput)?;
+        let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
+            (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
+            _ => None,
+        };
+        let (error_mm, point_mm) = match lever {
+            Some(lever) => {
+                let (error_mm, lever_base) = model
+                    .error_at_lever(&at, lever)
+                    .ok_or(Status::InvalidInput)?;
+                let p = target.position_mm;
+                (error_mm, [0, 1, 2].map(|i| p[i] - lever_base[i]))
+            }
+            None => (at.position_mm, target.position_mm),
+        };
+        let off_mm = method::distance_mm(at.nominal_tcp_mm, point_mm);
+        // NaN (a chain that overflowed) is refused too.
+        let within = off_mm.partial_cmp(&joints_tolerance_mm(&self.header.grid));
+        if !matches!(
+            within,
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        ) {
+            return Err(Status::JointsMismatch);
+        }
+        Ok(ModelPart {
+            at,
+            error_mm,
+            point_mm,
+            lever_known: lever.is_some() || target.tcp_mm.is_none(),
+        })
+    }
+
+    /// Where a query lies beyond the table's recorded evidence ([`Evidence`]): the tool's
+    /// approach axis (a hybrid table's from its joint values, else the target's given
+    /// orientation) against the samples' cone, and a named TCP a hybrid table cannot
+    /// place.
+    #[inline]
+    fn evidence_of(&self, target: &Target, model_part: Option<&ModelPart>) -> Evidence {
+        let mut evidence = Evidence::WITHIN;
+        if let Some(cone) = self.header.evidence.approach {
+            let axis = match (model_part, target.rotation_rad) {
+                (Some(m), _) => Some(m.at.approach),
+                (None, Some(rotation)) => {
+                    let r = crate::kinematics::rotation_from_vector(rotation);
+                    Some([r[0][2], r[1][2], r[2][2]])
+                }
+                (None, None) => None,
+            };
+            if axis.is_some_and(|axis| !cone.holds(axis)) {
+                evidence = evidence.with(Evidence::ORIENTATION);
+            }
+        }
+        if model_part.is_some_and(|m| !m.lever_known) {
+            evidence = evidence.with(Evidence::TCP);
+        }
+        evidence
+    }
+
+    /// A position-only table's word on a named TCP: within its evidence only when the
+    /// table records its point and the TCP is within [`TCP_MARGIN_MM`] of it (nothing turns
+    /// a lever without a model).
+    fn tcp_evidence(&self, target: &Target) -> Evidence {
+        let near = match (target.tcp_mm, self.header.evidence.point_in_flange) {
+            (Some(tcp), Some(point)) => {
+                method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
+            }
+            _ => false,
+        };
+        if near {
+            Evidence::WITHIN
+        } else {
+            Evidence::TCP
+        }
     }
 
     fn compensate_with(

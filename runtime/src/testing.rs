@@ -80,5 +80,6 @@ pub fn model_at_by_chains(model: &PreparedModel, q: &[f64]) -> Option<ModelAt> {
         rotation_rad,
         approach: [r[0][2], r[1][2], r[2][2]],
         nominal_tcp_mm: nominal.translation_mm,
+        nominal_rotation: Some(nominal.rotation),
     })
 }

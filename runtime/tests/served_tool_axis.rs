@@ -153,6 +153,7 @@ fn parts_shifted(field: ServedField, h_scale: f64, shift_mm: [f64; 3]) -> (Heade
         node_set_count: 1,
         tuning: None,
         served_field: field,
+        evidence: Default::default(),
     };
     (header, data)
 }

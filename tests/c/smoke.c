@@ -31,7 +31,7 @@ _Static_assert(offsetof(adwi_correction, orientation_error_rad) == 24, "orientat
 _Static_assert(offsetof(adwi_correction, neighbours) == 48, "neighbours");
 _Static_assert(offsetof(adwi_correction, status) == 52, "status");
 _Static_assert(offsetof(adwi_correction, residual) == 56, "residual");
-_Static_assert(offsetof(adwi_correction, reserved) == 60, "reserved");
+_Static_assert(offsetof(adwi_correction, evidence) == 60, "evidence");
 _Static_assert(sizeof(adwi_compensation) == 128, "sizeof adwi_compensation");
 _Static_assert(_Alignof(adwi_compensation) == 8, "alignof adwi_compensation");
 _Static_assert(offsetof(adwi_compensation, command_position_mm) == 0, "command_position_mm");

@@ -93,6 +93,8 @@ pub fn residuals<D: AsRef<[u8]>>(
             let target = Target {
                 position_mm: samples.nominal_mm[i],
                 config: samples.config.as_ref().map(|c| c[i]),
+                rotation_rad: None,
+                tcp_mm: None,
             };
             let c = table.query_with_joints(&target, joints.row(i));
             if c.status == Status::Ok {

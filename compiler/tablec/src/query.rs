@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::{Correction, Residual, Status, Table, Target, Tier};
+use adwi_runtime::{Correction, Evidence, Residual, Status, Table, Target, Tier};
 use adwi_samples::pose;
 use anyhow::bail;
 
@@ -21,9 +21,11 @@ const COMPENSATE_ITERATIONS: u32 = 50;
             .multiple(true)
             .requires("targets")
     ),
-    after_help = "Exit status: 0 when every target was answered (status ok); 3 when \
-    the table gave no correction for the target, or for at least one row of --targets (the \
-    rows are all written, each with its status, and a count of the unanswered ones goes to \
+    after_help = "Exit status: 0 when every target was answered (status ok) within the \
+    table's evidence; 3 when the table gave no correction for the target, or for at least \
+    one row of --targets, or answered beyond what its samples cover (an orientation they \
+    never had, a TCP it cannot place: the `evidence` line or column says which; the rows \
+    are all written, each with its status, and a count of the unanswered ones goes to \
     standard error); 1 on an error (unreadable table or targets file); 2 on a usage error."
 )]
 pub struct Args {
@@ -46,6 +48,17 @@ pub struct Args {
         conflicts_with = "targets"
     )]
     joints: Option<NumberList>,
+    /// The TCP the target is for, X,Y,Z mm in the flange frame, when it is not the point
+    /// the table's samples measured: a hybrid table answers the error at this TCP (its
+    /// model turns the lever from the measured point); another table flags the answer
+    /// (evidence `tcp`).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        allow_hyphen_values = true,
+        value_parser = adwi_jobs::args::parse_number_list
+    )]
+    tcp: Option<NumberList>,
     /// A CSV of targets (columns x,y,z, optionally config and j1..jn) instead of one pose.
     #[arg(long, conflicts_with = "pose")]
     targets: Option<PathBuf>,
@@ -63,7 +76,69 @@ pub struct Args {
 
 type NumberList = Vec<f64>;
 
+/// A refused argument: a usage error (exit status 2).
+fn usage(message: String) -> anyhow::Error {
+    adwi_jobs::JobError::Options(message).into()
+}
+
+/// Refuses a target or joint value that no robot takes, before the table answers: a
+/// position beyond a kilometre, an angle beyond three turns. Such a value is a typing
+/// error, and an answer to it (a command, `ok`) would be a number that means nothing. A
+/// value that is not finite is the table's to refuse (status `invalid_input`).
+fn check_pose(pose: &[f64]) -> anyhow::Result<()> {
+    let names = ["X", "Y", "Z", "A", "B", "C"];
+    for (i, (name, v)) in names.iter().zip(pose).enumerate() {
+        if !v.is_finite() {
+            continue;
+        }
+        let checked = if i < 3 {
+            adwi_jobs::args::check_coordinate_mm(name, *v)
+        } else {
+            adwi_jobs::args::check_angle_deg(name, *v)
+        };
+        checked.map_err(usage)?;
+    }
+    Ok(())
+}
+
+/// Refuses joint values beyond three turns (revolute joints, degrees) or a kilometre
+/// (prismatic joints, mm). Without a model the joints' kinds are unknown: each is held to
+/// the larger bound.
+fn check_joints<D: AsRef<[u8]>>(table: &Table<D>, joints_deg: &[f64]) -> anyhow::Result<()> {
+    use adwi_runtime::chain::JointKind;
+    let kinds = table.model().map(|m| m.nominal().joints());
+    for (i, v) in joints_deg.iter().enumerate() {
+        let name = format!("--joints J{}", i + 1);
+        let kind = kinds.and_then(|k| k.get(i)).map(|j| j.kind);
+        let checked = match kind {
+            Some(JointKind::Revolute) => adwi_jobs::args::check_angle_deg(&name, *v),
+            _ => adwi_jobs::args::check_coordinate_mm(&name, *v),
+        };
+        checked.map_err(usage)?;
+    }
+    Ok(())
+}
+
+/// The `--tcp` option: three finite coordinates within the plausible range.
+fn tcp_of(tcp: Option<&NumberList>) -> anyhow::Result<Option<[f64; 3]>> {
+    let Some(tcp) = tcp else {
+        return Ok(None);
+    };
+    let [x, y, z] = tcp.as_slice() else {
+        return Err(usage(format!(
+            "--tcp takes X,Y,Z (mm, flange frame); {} values given",
+            tcp.len()
+        )));
+    };
+    for (name, v) in ["--tcp X", "--tcp Y", "--tcp Z"].iter().zip([x, y, z]) {
+        adwi_jobs::args::check_coordinate_mm(name, *v).map_err(usage)?;
+    }
+    Ok(Some([*x, *y, *z]))
+}
+
 pub fn run(args: Args) -> anyhow::Result<Answered> {
+    check_pose(&args.pose)?;
+    let tcp = tcp_of(args.tcp.as_ref())?;
     let table = crate::open_table(&args.table)?;
     if let Some(targets) = &args.targets {
         if let Some(output) = &args.output {
@@ -75,6 +150,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             &args.read,
             args.output.as_deref(),
             args.exact,
+            tcp,
         );
     }
     let (position, abc) = match args.pose.as_slice() {
@@ -82,14 +158,24 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         [x, y, z, a, b, c] => ([*x, *y, *z], Some([*a, *b, *c])),
         _ => bail!("give a target as X Y Z or X Y Z A B C, or --targets FILE"),
     };
+    let finite_abc = abc.filter(|abc| abc.iter().all(|v| v.is_finite()));
     let target = Target {
         position_mm: position,
         config: args.config,
+        rotation_rad: finite_abc.map(|abc| {
+            adwi_runtime::kinematics::rotation_vector(&matrix_of(
+                &pose::rotation_from_kuka_abc_deg(abc),
+            ))
+        }),
+        tcp_mm: tcp,
     };
     let joints_rad: Option<Vec<f64>> = args
         .joints
         .as_ref()
         .map(|q| q.iter().map(|v| v.to_radians()).collect());
+    if let Some(q) = &args.joints {
+        check_joints(&table, q)?;
+    }
     if let (Some(q), Some(n)) = (&joints_rad, table.joint_count()) {
         if q.len() != n {
             bail!(
@@ -107,6 +193,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             neighbours: 0,
             status: Status::InvalidInput,
             residual: Residual::Full,
+            evidence: Evidence::WITHIN,
         }
     } else {
         table.answer(&target, joints_rad.as_deref(), tier(args.exact))
@@ -140,9 +227,10 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     if table.is_hybrid() {
         println!("residual     {}", c.residual.as_str());
     }
+    println!("evidence     {}", evidence_text(&table, c.evidence));
     let e = c.position_error_mm;
     println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
-    if table.has_orientation() {
+    if table.has_orientation() || table.is_hybrid() {
         let r = c.orientation_error_rad;
         println!("orientation  {:.9} {:.9} {:.9} rad", r[0], r[1], r[2]);
     }
@@ -158,7 +246,33 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         let [a, b, c] = pose::kuka_abc_deg_from_rotation(&rotation);
         println!("command abc  {a:.6} {b:.6} {c:.6} deg");
     }
+    if !c.evidence.is_within() {
+        eprintln!(
+            "beyond the table's evidence: {}",
+            evidence_text(&table, c.evidence)
+        );
+        return Ok(Answered::NotAll);
+    }
     Ok(Answered::All)
+}
+
+/// The `evidence` line: `within`, or what lies beyond the samples and who answers there.
+fn evidence_text<D: AsRef<[u8]>>(table: &Table<D>, evidence: Evidence) -> String {
+    if evidence.is_within() {
+        return "within".to_string();
+    }
+    let who = if table.is_hybrid() {
+        "the calibrated model answers"
+    } else {
+        "no model carries the answer"
+    };
+    format!("beyond: {} ({who})", evidence.as_str())
+}
+
+/// A nalgebra rotation as the runtime's row-major matrix.
+fn matrix_of(r: &nalgebra::Rotation3<f64>) -> [[f64; 3]; 3] {
+    let m = r.matrix();
+    [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]])
 }
 
 /// Says how far the joints put the tool from the target, and the unit `--joints` takes.
@@ -237,6 +351,7 @@ fn run_batch(
     read: &adwi_jobs::Reading,
     output: Option<&Path>,
     exact: bool,
+    tcp: Option<[f64; 3]>,
 ) -> anyhow::Result<Answered> {
     let (columns, options) = read.resolve()?;
     let targets = adwi_samples::read_targets(targets, &columns, &options)?;
@@ -251,13 +366,20 @@ fn run_batch(
     writeln!(
         out,
         "x,y,z,pred_dx,pred_dy,pred_dz,pred_rx,pred_ry,pred_rz,neighbours,status,residual,\
-         command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
+         command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status,evidence"
     )?;
-    let orientation = table.has_orientation();
+    // A hybrid table's model predicts the orientation error whether or not the samples
+    // measured one.
+    let orientation = table.has_orientation() || table.is_hybrid();
+    let mut beyond = 0usize;
     let mut unanswered: std::collections::BTreeMap<&str, usize> = Default::default();
     for row in &targets {
         // Rows with joint angles serve hybrid tables and the joint-space screen.
-        let c = table.answer(&row.target, row.joints_rad.as_deref(), tier(exact));
+        let target = Target {
+            tcp_mm: tcp,
+            ..row.target
+        };
+        let c = table.answer(&target, row.joints_rad.as_deref(), tier(exact));
         let p = row.target.position_mm;
         write!(out, "{},{},{}", p[0], p[1], p[2])?;
         if c.status == Status::Ok {
@@ -275,7 +397,7 @@ fn run_batch(
         write!(out, ",{},{}", c.neighbours, c.status.as_str())?;
         if c.status == Status::Ok {
             write!(out, ",{}", c.residual.as_str())?;
-            let command = command(table, &row.target, row.joints_rad.as_deref(), &c, exact);
+            let command = command(table, &target, row.joints_rad.as_deref(), &c, exact);
             let p = command.position_mm;
             write!(out, ",{:.9},{:.9},{:.9}", p[0], p[1], p[2])?;
             if orientation {
@@ -284,10 +406,11 @@ fn run_batch(
             } else {
                 write!(out, ",,,")?;
             }
-            writeln!(out, ",{}", command.status)?;
+            writeln!(out, ",{},{}", command.status, c.evidence.as_str())?;
+            beyond += usize::from(!c.evidence.is_within());
         } else {
             *unanswered.entry(c.status.as_str()).or_default() += 1;
-            writeln!(out, ",,,,,,,,")?;
+            writeln!(out, ",,,,,,,,,")?;
         }
     }
     out.flush()?;
@@ -295,8 +418,18 @@ fn run_batch(
     if let Some(path) = output {
         adwi_compile::write::write_atomically(path, &buffer)?;
     }
+    if beyond > 0 {
+        eprintln!(
+            "{beyond} of {} targets answered beyond the table's evidence (column evidence)",
+            targets.len()
+        );
+    }
     if unanswered.is_empty() {
-        return Ok(Answered::All);
+        return Ok(if beyond == 0 {
+            Answered::All
+        } else {
+            Answered::NotAll
+        });
     }
     let count: usize = unanswered.values().sum();
     let by_status: Vec<String> = unanswered

@@ -10,7 +10,7 @@
 //! |-------:|-----:|-------|
 //! | 0   | 8  | magic `b"ADWITBL\0"` |
 //! | 8   | 2  | endianness mark `0xFEFF` (reads `0xFFFE` on a big-endian misreading) |
-//! | 10  | 2  | format version: 2 ([`v2`]), or 3 ([`v3`]) for a table with a posture term; version 1 ([`v1`]) is still read |
+//! | 10  | 2  | format version: 4 for a table that records its evidence (bytes 200-247), else 2 ([`v2`]), or 3 ([`v3`]) for a table with a posture term; version 1 ([`v1`]) is still read. The payload of a version-4 table is [`v3`]'s when it has a posture term (content flag bit 4), else [`v2`]'s |
 //! | 12  | 4  | header length in bytes (256) |
 //! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
 //! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 sample joint values (v2: stored only for a joint screen), bit 3 kinematic model (a hybrid table), bit 4 posture term (version 3, a hybrid table) |
@@ -37,7 +37,12 @@
 //! | 176 | 8  | v2: that cross-validation's mean position residual, mm (0 when not tuned) |
 //! | 184 | 8  | v2: the same cross-validation's mean position residual of the served tier with the chosen served field, mm (0 when not tuned or without a served tier) |
 //! | 192 | 8  | v3: the same cross-validation's mean position residual of the served tier with the posture term, mm (0 when not cross-validated; v2: reserved, zero) |
-//! | 200 | 48 | reserved, zero |
+//! | 200 | 12 | v4: the samples' mean tool approach axis, a unit vector, base frame, 3 × `f32` ([`ApproachCone`]; zero when not recorded) |
+//! | 212 | 4  | v4: the largest angle of a sample's approach axis from that mean, rad, `f32` |
+//! | 216 | 12 | v4: the table's measured point in the flange frame, translation, mm, 3 × `f32` ([`PointInFlange`]; zero when not recorded) |
+//! | 228 | 12 | v4: the same point's frame in the flange frame, rotation vector, rad, 3 × `f32` |
+//! | 240 | 4  | v4: evidence flags: bit 0 the approach cone is recorded, bit 1 the point in the flange is |
+//! | 244 | 4  | reserved, zero (v2, v3: 200-247 reserved, zero) |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
@@ -60,9 +65,10 @@ pub use v1::{
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
 pub const ENDIAN_MARK: u16 = 0xFEFF;
-/// The newest format version this runtime writes: 3 for a table with a posture term, 2
-/// for any other ([`encode`], [`encode_v3`]).
-pub const FORMAT_VERSION: u16 = 3;
+/// The newest format version this runtime writes: 4 for a table that records its
+/// evidence ([`Header::evidence`]), else 3 for a table with a posture term, 2 for any
+/// other ([`encode`], [`encode_v3`]).
+pub const FORMAT_VERSION: u16 = 4;
 /// The oldest format version this runtime reads.
 pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
 /// The header's length in bytes; the payload starts here.
@@ -131,7 +137,165 @@ pub struct Header {
     pub tuning: Option<Tuning>,
     /// What the served tier's nodes hold (version 2; [`ServedField::Method`] before).
     pub served_field: ServedField,
+    /// What the samples span beyond their positions (version 4; empty before): the
+    /// queries' [`crate::Evidence`] flag is checked against it.
+    pub evidence: EvidenceRecord,
 }
+
+/// How far beyond the samples' approach axes a target's may turn before its answer is
+/// flagged ([`crate::Evidence::ORIENTATION`]), rad: 3°. A residual learnt at one
+/// orientation holds for small changes of it; at the shipped KR150-2 data's 45° it is off
+/// by several times its own scatter.
+pub const ORIENTATION_MARGIN_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
+
+/// How far a named TCP may lie from the table's measured point before a table without a
+/// model flags its answer ([`crate::Evidence::TCP`]), mm: a rotation error of a
+/// milliradian then moves it by a micrometre.
+pub const TCP_MARGIN_MM: f64 = 1.0;
+
+/// What a table's samples span beyond their positions (format version 4, header bytes
+/// 200-247): the orientations the tool had, and where the measured point is on the
+/// flange. Each part is recorded when the compiler knew it (orientation columns or a
+/// robot's joint values for the first, a robot file for the second).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EvidenceRecord {
+    /// The cone of the samples' tool approach axes.
+    pub approach: Option<ApproachCone>,
+    /// The measured point's frame in the flange frame.
+    pub point_in_flange: Option<PointInFlange>,
+}
+
+impl EvidenceRecord {
+    /// Whether nothing is recorded (a table written before version 4, or without either).
+    pub fn is_empty(&self) -> bool {
+        self.approach.is_none() && self.point_in_flange.is_none()
+    }
+}
+
+/// The samples' tool approach axes (the z axis of the tool's frame, base frame) as a cone:
+/// its mean direction and the largest angle of a sample's axis from it. Stored as `f32`:
+/// an envelope needs no more.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ApproachCone {
+    /// The mean axis, a unit vector, base frame.
+    pub axis: [f64; 3],
+    /// The largest angle of a sample's axis from `axis`, rad, in `[0, π]`.
+    pub spread_rad: f64,
+}
+
+impl ApproachCone {
+    /// The cone of `axes` (unit vectors): their normalised mean and the largest angle
+    /// from it, rounded to what the header stores. `None` for no axes; a mean of zero
+    /// length (axes in every direction) gives a cone of half-angle π, which holds any
+    /// axis.
+    pub fn of(axes: impl IntoIterator<Item = [f64; 3]>) -> Option<ApproachCone> {
+        let axes: Vec<[f64; 3]> = axes.into_iter().collect();
+        if axes.is_empty() || axes.iter().flatten().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let mut sum = [0.0; 3];
+        for a in &axes {
+            for (s, v) in sum.iter_mut().zip(a) {
+                *s += v;
+            }
+        }
+        let norm = crate::method::norm_mm(sum);
+        let mean = if norm > 1e-9 * axes.len() as f64 {
+            sum.map(|v| v / norm)
+        } else {
+            [0.0, 0.0, 1.0]
+        };
+        // As stored, so that the compiler's cone and the runtime's are the same one.
+        let mean = unit_f32(mean);
+        let spread_rad = if norm > 1e-9 * axes.len() as f64 {
+            axes.iter()
+                .map(|a| angle_between_rad(mean, *a))
+                .fold(0.0, f64::max)
+        } else {
+            std::f64::consts::PI
+        };
+        // Rounded up, never down: a sample's own axis stays inside.
+        let stored = spread_rad as f32;
+        let stored = if (stored as f64) < spread_rad {
+            f32::from_bits(stored.to_bits() + 1)
+        } else {
+            stored
+        };
+        Some(ApproachCone {
+            axis: mean,
+            spread_rad: (stored as f64).min(std::f64::consts::PI),
+        })
+    }
+
+    /// Whether `axis` (a unit vector, base frame) is within the cone widened by
+    /// [`ORIENTATION_MARGIN_RAD`]. Compares cosines: no inverse trigonometry on a query.
+    #[inline]
+    pub fn holds(&self, axis: [f64; 3]) -> bool {
+        let limit = self.spread_rad + ORIENTATION_MARGIN_RAD;
+        if limit >= std::f64::consts::PI {
+            return true;
+        }
+        let cos = self.axis[0] * axis[0] + self.axis[1] * axis[1] + self.axis[2] * axis[2];
+        // Written so that NaN fails the test.
+        cos >= crate::trig::sin_cos(limit).1
+    }
+}
+
+/// Where the table's measured point is on the flange: its frame's translation and
+/// rotation in the flange frame, as the robot file's tool gives it. Stored as `f32`
+/// (translation to about 1e-5 mm at 200 mm).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PointInFlange {
+    /// The point, mm, flange frame.
+    pub translation_mm: [f64; 3],
+    /// Its frame's rotation in the flange frame, rotation vector, rad.
+    pub rotation_rad: [f64; 3],
+}
+
+impl PointInFlange {
+    /// The point as the header stores it (each value rounded to `f32`).
+    pub fn stored(translation_mm: [f64; 3], rotation_rad: [f64; 3]) -> PointInFlange {
+        PointInFlange {
+            translation_mm: translation_mm.map(|v| v as f32 as f64),
+            rotation_rad: rotation_rad.map(|v| v as f32 as f64),
+        }
+    }
+}
+
+impl PointInFlange {
+    /// The lever from this point to a TCP at `tcp_mm` (flange frame), in the point's own
+    /// frame: `M⁻¹ · t`.
+    #[inline]
+    pub fn lever_of(&self, tcp_mm: [f64; 3]) -> [f64; 3] {
+        let r = crate::kinematics::rotation_from_vector(self.rotation_rad);
+        let d = [0, 1, 2].map(|i| tcp_mm[i] - self.translation_mm[i]);
+        // Rᵀ · d.
+        [0, 1, 2].map(|j| r[0][j] * d[0] + r[1][j] * d[1] + r[2][j] * d[2])
+    }
+}
+
+/// `v` normalised after rounding to `f32`, as the header stores a unit vector (the stored
+/// value read back normalises to itself).
+fn unit_f32(v: [f64; 3]) -> [f64; 3] {
+    v.map(|x| x as f32 as f64)
+}
+
+/// The angle between two vectors, rad, by `atan2(|a × b|, a · b)`: accurate at small
+/// angles, where `acos` of a dot product is not.
+fn angle_between_rad(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let cross = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    crate::method::norm_mm(cross).atan2(dot)
+}
+
+/// Evidence flag: the approach cone is recorded (header bytes 200-215).
+const EVIDENCE_APPROACH: u32 = 1 << 0;
+/// Evidence flag: the point in the flange is recorded (header bytes 216-239).
+const EVIDENCE_POINT: u32 = 1 << 1;
 
 /// What a table's served tier blends between: the values at the grid's nodes.
 ///
@@ -315,6 +479,12 @@ fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]
 }
 
 impl Header {
+    /// Whether the payload holds a posture term ([`v3::TableData`]): version 3, or version
+    /// 4 with [`CONTENT_POSTURE`].
+    pub fn has_posture(&self) -> bool {
+        self.version >= 3 && self.content_flags & CONTENT_POSTURE != 0
+    }
+
     /// The header's 256 bytes, with its checksum.
     pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
         let mut b = [0u8; HEADER_LEN];
@@ -367,6 +537,25 @@ impl Header {
                 }
             }
             put(&mut b, 172, (self.served_field as u32).to_le_bytes());
+        }
+        if self.version >= 4 {
+            let mut flags = 0;
+            let f32s = |b: &mut [u8; HEADER_LEN], offset: usize, v: [f64; 3]| {
+                for (i, x) in v.iter().enumerate() {
+                    put(b, offset + 4 * i, (*x as f32).to_le_bytes());
+                }
+            };
+            if let Some(cone) = self.evidence.approach {
+                f32s(&mut b, 200, cone.axis);
+                put(&mut b, 212, (cone.spread_rad as f32).to_le_bytes());
+                flags |= EVIDENCE_APPROACH;
+            }
+            if let Some(point) = self.evidence.point_in_flange {
+                f32s(&mut b, 216, point.translation_mm);
+                f32s(&mut b, 228, point.rotation_rad);
+                flags |= EVIDENCE_POINT;
+            }
+            put(&mut b, 240, flags.to_le_bytes());
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
@@ -425,7 +614,9 @@ impl Header {
                 expected: RKYV_FLAGS,
             });
         }
-        let reserved: [std::ops::Range<usize>; 2] = if version >= 3 {
+        let reserved: [std::ops::Range<usize>; 2] = if version >= 4 {
+            [244..248, 248..248]
+        } else if version >= 3 {
             [200..248, 248..248]
         } else if version >= 2 {
             [192..248, 248..248]
@@ -453,13 +644,14 @@ impl Header {
                 what: "joint radius is negative or not finite",
             });
         }
-        // The posture term is version 3's, and version 3 is a table with one.
-        if (u32_at(20) & CONTENT_POSTURE != 0) != (version >= 3) {
+        // The posture term came with version 3, and version 3 is a table with one.
+        let posture = u32_at(20) & CONTENT_POSTURE != 0;
+        if (posture && version < 3) || (version == 3 && !posture) {
             return Err(OpenError::Corrupt {
-                what: "a posture term is stored exactly in a version-3 table",
+                what: "a posture term is stored in a version-3 table, or a version-4 one",
             });
         }
-        if version >= 3 && u32_at(20) & CONTENT_MODEL == 0 {
+        if posture && u32_at(20) & CONTENT_MODEL == 0 {
             return Err(OpenError::Corrupt {
                 what: "a posture term without a kinematic model",
             });
@@ -525,6 +717,19 @@ impl Header {
             }
             None
         };
+        let f32_at = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as f64;
+        let f32s_at = |o: usize| [f32_at(o), f32_at(o + 4), f32_at(o + 8)];
+        let evidence = if version >= 4 {
+            evidence_of(
+                u32_at(240),
+                f32s_at(200),
+                f32_at(212),
+                f32s_at(216),
+                f32s_at(228),
+            )?
+        } else {
+            EvidenceRecord::default()
+        };
         Ok(Header {
             version,
             rkyv_flags,
@@ -559,26 +764,86 @@ impl Header {
             node_set_count: if version >= 2 { u32_at(164) } else { 0 },
             tuning,
             served_field,
+            evidence,
         })
     }
 }
 
+/// A version-4 header's evidence fields, checked: known flags only, a unit axis and a
+/// spread within `[0, π]`, a point within the plausible range and a rotation of at most a
+/// turn, and every field that its flag does not announce zero.
+fn evidence_of(
+    flags: u32,
+    axis: [f64; 3],
+    spread_rad: f64,
+    translation_mm: [f64; 3],
+    rotation_rad: [f64; 3],
+) -> Result<EvidenceRecord, crate::OpenError> {
+    use crate::OpenError;
+    let corrupt = |what| Err(OpenError::Corrupt { what });
+    if flags & !(EVIDENCE_APPROACH | EVIDENCE_POINT) != 0 {
+        return corrupt("the evidence flags name an unknown part");
+    }
+    let zero = |v: &[f64]| v.iter().all(|x| x.to_bits() == 0);
+    let approach = if flags & EVIDENCE_APPROACH != 0 {
+        let norm = crate::method::norm_mm(axis);
+        // Written so that NaN fails the test.
+        if !((norm - 1.0).abs() <= 1e-5
+            && (0.0..=std::f64::consts::PI + 1e-6).contains(&spread_rad))
+        {
+            return corrupt("the evidence's approach axis is not a unit vector, or its spread is not within [0, π]");
+        }
+        Some(ApproachCone {
+            axis,
+            spread_rad: spread_rad.min(std::f64::consts::PI),
+        })
+    } else if !zero(&axis) || !zero(&[spread_rad]) {
+        return corrupt("the evidence's approach fields are not zero though not recorded");
+    } else {
+        None
+    };
+    let point_in_flange = if flags & EVIDENCE_POINT != 0 {
+        let turn = crate::method::norm_mm(rotation_rad);
+        let plausible = translation_mm.iter().all(|v| v.abs() <= MAX_COORDINATE_MM);
+        // Written so that NaN fails the test.
+        if !(plausible && turn <= std::f64::consts::TAU) {
+            return corrupt("the evidence's point in the flange is implausible or not finite");
+        }
+        Some(PointInFlange {
+            translation_mm,
+            rotation_rad,
+        })
+    } else if !zero(&translation_mm) || !zero(&rotation_rad) {
+        return corrupt("the evidence's point fields are not zero though not recorded");
+    } else {
+        None
+    };
+    Ok(EvidenceRecord {
+        approach,
+        point_in_flange,
+    })
+}
+
 /// Serialises a version-2 table: the header (with its checksums and lengths filled in from
 /// the payload) followed by the rkyv archive of `data`. The compiler's way to write a
-/// table without a posture term.
+/// table without a posture term. A header that records evidence ([`Header::evidence`])
+/// makes it a version-4 table with the same payload.
 ///
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
 pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
-    Ok(with_header(header, 2, &payload))
+    let version = if header.evidence.is_empty() { 2 } else { 4 };
+    Ok(with_header(header, version, &payload))
 }
 
 /// Serialises a version-3 table (a table with a posture term) as [`encode`] a version-2
-/// one; the header's [`CONTENT_POSTURE`] flag is set.
+/// one; the header's [`CONTENT_POSTURE`] flag is set. A header that records evidence
+/// makes it a version-4 table with the same payload.
 pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     header.content_flags |= CONTENT_POSTURE;
-    Ok(with_header(header, 3, &payload))
+    let version = if header.evidence.is_empty() { 3 } else { 4 };
+    Ok(with_header(header, version, &payload))
 }
 
 /// The header of `payload` at `version`, with its lengths and checksums, then the payload.

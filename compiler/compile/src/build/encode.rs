@@ -194,12 +194,45 @@ pub fn compile_plan_serving(
         } else {
             report.plan.served_field
         },
+        evidence: evidence(samples, model, plan.point_in_flange),
     };
     let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
     adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     report.table_bytes = bytes.len();
     Ok((bytes, report))
+}
+
+/// What the samples span beyond their positions ([`format::EvidenceRecord`]): the cone of
+/// the tool's approach axes, from the model's nominal chain at each sample's joint values
+/// (a hybrid table: the axis its queries compare) or else from the samples' own nominal
+/// orientations; and where the measured point is on the flange, when known.
+fn evidence(
+    samples: &SampleSet,
+    model: Option<&PreparedModel>,
+    point_in_flange: Option<format::PointInFlange>,
+) -> format::EvidenceRecord {
+    let from_joints = model.and_then(|m| {
+        (0..samples.len())
+            .map(|i| m.approach_axis(samples.joints_rad(i)?))
+            .collect::<Option<Vec<_>>>()
+    });
+    let axes = from_joints.or_else(|| {
+        let rotations = samples.nominal_rotation.as_ref()?;
+        Some(
+            rotations
+                .iter()
+                .map(|r| {
+                    let m = r.matrix();
+                    [m[(0, 2)], m[(1, 2)], m[(2, 2)]]
+                })
+                .collect(),
+        )
+    });
+    format::EvidenceRecord {
+        approach: axes.and_then(format::ApproachCone::of),
+        point_in_flange,
+    }
 }
 
 /// A narrow cell record ([`v2::CellRecord`]): the list inline, or its start in `overflow`.

@@ -56,6 +56,10 @@ pub struct Plan {
     pub kriging_choices: Option<crate::nugget_kriging::GivenChoices>,
     /// Whether a hybrid table gets a posture term ([`BuildOptions::posture`]).
     pub posture: crate::posture::Posture,
+    /// Where the samples' measured point is on the flange, when a robot file says
+    /// (recorded as the table's evidence, so that a query can name another TCP); `None`
+    /// from [`plan`], set by a hybrid build.
+    pub point_in_flange: Option<adwi_runtime::format::PointInFlange>,
 }
 
 impl Plan {
@@ -319,6 +323,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         kriging_choices: options.kriging_choices,
         posture: options.posture,
         node_bytes,
+        point_in_flange: None,
     })
 }
 
