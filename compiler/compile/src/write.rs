@@ -138,7 +138,9 @@ impl OutputPlan {
     }
 
     /// Adds an output whose directory the command creates when it writes (a report's
-    /// folder), checked as [`OutputPlan::check`] checks the others.
+    /// folder), checked as [`OutputPlan::check`] checks the others, except that a symbolic
+    /// link already at `output` is never followed: the user named the folder, not what a
+    /// link in it points to, so the link itself is replaced by the new file.
     ///
     /// # Errors
     ///
@@ -153,7 +155,11 @@ impl OutputPlan {
 
     fn add(&mut self, output: &Path, inputs: &[&Path], create: bool) -> Result<(), OutputError> {
         refuse_overwriting(output, inputs)?;
-        let target = regular_target(output)?;
+        let target = if create {
+            in_folder_target(output)?
+        } else {
+            regular_target(output)?
+        };
         let dir = directory_of(&target);
         // A directory the command creates must be creatable: its nearest existing
         // ancestor a directory.
@@ -211,7 +217,11 @@ impl OutputPlan {
                         source: std::io::Error::other("not an output checked before the work"),
                     })?;
                 // Checked again: the file may have been replaced since.
-                regular_target(&planned.given)?;
+                if planned.create_directory {
+                    in_folder_target(&planned.given)?;
+                } else {
+                    regular_target(&planned.given)?;
+                }
                 let dir = directory_of(&planned.target);
                 let failed = |source| OutputError::Write {
                     path: planned.given.clone(),
@@ -279,6 +289,19 @@ fn regular_target(output: &Path) -> Result<PathBuf, OutputError> {
         Ok(output.to_path_buf())
     } else {
         Err(refuse(kind_of(&link)))
+    }
+}
+
+/// Where writing a file inside a report's folder puts its bytes: always the path itself,
+/// a symbolic link there included (the rename replaces the link, never its target); a
+/// refusal for a directory, a FIFO or a device there.
+fn in_folder_target(output: &Path) -> Result<PathBuf, OutputError> {
+    match std::fs::symlink_metadata(output) {
+        Ok(m) if !(m.is_file() || m.file_type().is_symlink()) => Err(OutputError::NotRegular {
+            path: output.to_path_buf(),
+            kind: kind_of(&m),
+        }),
+        _ => Ok(output.to_path_buf()),
     }
 }
 

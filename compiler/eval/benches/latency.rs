@@ -84,8 +84,7 @@ fn bench(c: &mut Criterion) {
     group.bench_function("read_and_deserialise", |b| {
         b.iter(|| {
             let bytes = std::fs::read(&path).expect("read");
-            let mut aligned = AlignedBytes::with_capacity(bytes.len());
-            aligned.extend_from_slice(&bytes);
+            let aligned = AlignedBytes::copy_from(&bytes).expect("memory");
             rkyv::from_bytes::<TableData, rkyv::rancor::Error>(&aligned[HEADER_LEN..])
                 .map(|d| d.samples.len())
         })

@@ -62,12 +62,73 @@ pub struct Continuity {
     pub lines: usize,
 }
 
+/// The most queries one measurement makes: targets per line × lines × tiers. The default
+/// options make 4 million; at a few microseconds a query this bound is minutes, where an
+/// unbounded `--lines` or `--step-mm` was days or never.
+pub const MAX_QUERIES: f64 = 2e8;
+
+impl ContinuityOptions {
+    /// The queries these options make at most on a table with a served tier: lines × (targets
+    /// on a line) × 2 tiers, plus the middles tried. As a float: it may not fit an integer.
+    pub fn queries(&self) -> f64 {
+        let targets = (self.length_mm / self.step_mm).round().max(1.0) + 1.0;
+        self.lines as f64 * (2.0 * targets + 1.0)
+    }
+
+    /// Checks the options before any work: a positive finite step, a length of at least one
+    /// step, and at most [`MAX_QUERIES`] queries.
+    ///
+    /// # Errors
+    ///
+    /// [`ContinuityError::Options`] or [`ContinuityError::TooMuchWork`], with the figures.
+    pub fn check(&self) -> Result<(), ContinuityError> {
+        if !(self.step_mm.is_finite() && self.step_mm > 0.0) {
+            return Err(ContinuityError::Options(format!(
+                "a step of {} mm: give a positive length",
+                self.step_mm
+            )));
+        }
+        if !(self.length_mm.is_finite() && self.length_mm >= self.step_mm) {
+            return Err(ContinuityError::Options(format!(
+                "lines of {} mm at {} mm steps: give a length of at least one step",
+                self.length_mm, self.step_mm
+            )));
+        }
+        let queries = self.queries();
+        if queries > MAX_QUERIES {
+            return Err(ContinuityError::TooMuchWork {
+                lines: self.lines,
+                targets_per_line: (self.length_mm / self.step_mm).round().max(1.0) + 1.0,
+                queries,
+            });
+        }
+        Ok(())
+    }
+}
+
 /// Why continuity cannot be measured on a table.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ContinuityError {
     /// Hybrid tables answer with joint values, which a Cartesian line does not give.
     #[error("a hybrid table's correction needs joint values along the line; measure the table of its residuals (build without --hybrid) instead: the model part is a smooth function of the joints")]
     Hybrid,
+    /// An option out of range.
+    #[error("{0}")]
+    Options(String),
+    /// The options ask for more queries than a measurement makes ([`MAX_QUERIES`]).
+    #[error(
+        "{lines} lines of {targets_per_line} targets on two tiers are {queries:.2e} queries, \
+         more than the {MAX_QUERIES:.0e} one measurement makes (minutes); give fewer lines \
+         (--lines) or a longer step (--step-mm)"
+    )]
+    TooMuchWork {
+        /// Lines asked for.
+        lines: usize,
+        /// Targets on each line.
+        targets_per_line: f64,
+        /// Queries they would make.
+        queries: f64,
+    },
     /// The grid is smaller than a line, or no line's middle is answered.
     #[error("found no line of {length_mm} mm inside the grid with an answered middle")]
     NoLine {
@@ -83,11 +144,13 @@ pub enum ContinuityError {
 ///
 /// # Errors
 ///
-/// [`ContinuityError`] for a hybrid table or a grid with no such line.
+/// [`ContinuityError`] for options refused by [`ContinuityOptions::check`], a hybrid
+/// table or a grid with no such line.
 pub fn continuity<D: AsRef<[u8]>>(
     table: &Table<D>,
     options: &ContinuityOptions,
 ) -> Result<Continuity, ContinuityError> {
+    options.check()?;
     if table.is_hybrid() {
         return Err(ContinuityError::Hybrid);
     }

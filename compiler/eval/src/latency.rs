@@ -487,8 +487,7 @@ pub fn time_runs<R>(repeats: usize, mut f: impl FnMut() -> R) -> Vec<Duration> {
 /// zero-copy access would have to; returns the sample count.
 pub fn deserialise_owned(path: &std::path::Path) -> Option<usize> {
     let bytes = std::fs::read(path).ok()?;
-    let mut aligned = AlignedBytes::with_capacity(bytes.len());
-    aligned.extend_from_slice(&bytes);
+    let aligned = AlignedBytes::copy_from(&bytes).ok()?;
     let payload = aligned.get(HEADER_LEN..)?;
     match Header::from_bytes(&bytes).ok()?.version {
         1 => rkyv::from_bytes::<v1::TableData, rkyv::rancor::Error>(payload)

@@ -302,6 +302,16 @@ pub enum EvalError {
         #[source]
         source: adwi_compile::nugget_kriging::GpError,
     },
+    /// The method predicted none of the points.
+    #[error("{method} predicted none of the {points} points: {reasons}")]
+    NothingPredicted {
+        /// The method.
+        method: Method,
+        /// The points asked.
+        points: usize,
+        /// How many were not predicted, by reason.
+        reasons: String,
+    },
     /// Identification failed.
     #[error("cannot identify the kinematic model for {method}")]
     Calibrate {
@@ -749,6 +759,19 @@ pub fn evaluate_table<D: AsRef<[u8]>>(
                 .into(),
         });
     }
+    // A file with another robot's joint count fails every point the same way: said once,
+    // before any query.
+    if let (Some(expected), Some(given)) = (table.joint_count(), points.joint_count()) {
+        if expected != given {
+            return Err(EvalError::MethodUnavailable {
+                method,
+                reason: format!(
+                    "the table's robot has {expected} joints; the validation points give \
+                     {given} joint values (j1..j{given}) each"
+                ),
+            });
+        }
+    }
     let orientation = points.rotation_error_rad.is_some() && table.has_orientation();
     let mut collected = Collected::new(&[method], points.len());
     let outcome = (0..points.len())
@@ -770,6 +793,20 @@ pub fn evaluate_table<D: AsRef<[u8]>>(
         collected,
     );
     evaluation.samples = table.sample_count();
+    // No point predicted is no evaluation: an error with the reasons, never a report of
+    // nothing called a success.
+    if let Some(result) = evaluation.method(method) {
+        if !points.is_empty() && result.predictions.iter().all(Option::is_none) {
+            let reasons: Vec<String> = (result.not_predicted.iter())
+                .map(|(reason, n)| format!("{n} {reason}"))
+                .collect();
+            return Err(EvalError::NothingPredicted {
+                method,
+                points: points.len(),
+                reasons: reasons.join(", "),
+            });
+        }
+    }
     Ok(evaluation)
 }
 

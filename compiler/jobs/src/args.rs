@@ -306,6 +306,62 @@ fn bounds<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Bounds>, D::E
         .transpose()
 }
 
+/// The largest angle a command takes, degrees: three turns each way
+/// ([`adwi_measure::MAX_ANGLE_DEG`]).
+pub const MAX_ANGLE_DEG: f64 = adwi_measure::MAX_ANGLE_DEG;
+
+/// The largest coordinate a command takes, mm: a table's own bound
+/// ([`adwi_runtime::format::MAX_COORDINATE_MM`], a kilometre).
+pub const MAX_COORDINATE_MM: f64 = adwi_runtime::format::MAX_COORDINATE_MM;
+
+/// Refuses a position coordinate beyond [`MAX_COORDINATE_MM`], naming `what`.
+///
+/// # Errors
+///
+/// The value and the bound, in words.
+pub fn check_coordinate_mm(what: &str, value: f64) -> Result<(), String> {
+    if value.abs() <= MAX_COORDINATE_MM {
+        return Ok(());
+    }
+    Err(format!(
+        "{what} {value} mm is more than {MAX_COORDINATE_MM:e} mm from the base; give \
+         millimetres in the robot's base frame"
+    ))
+}
+
+/// Refuses an angle beyond [`MAX_ANGLE_DEG`], naming `what`.
+///
+/// # Errors
+///
+/// The value and the bound, in words.
+pub fn check_angle_deg(what: &str, value: f64) -> Result<(), String> {
+    if value.abs() <= MAX_ANGLE_DEG {
+        return Ok(());
+    }
+    Err(format!(
+        "{what} {value}° is more than three turns ({MAX_ANGLE_DEG}°); give degrees"
+    ))
+}
+
+/// A frame `X,Y,Z,A,B,C` (mm, KUKA degrees), each value finite and in range
+/// ([`check_coordinate_mm`], [`check_angle_deg`]), such as `--tool 0,0,180,0,0,0`.
+///
+/// # Errors
+///
+/// Not six finite numbers, or one out of range.
+pub fn parse_frame(text: &str) -> Result<[f64; 6], String> {
+    let values: [f64; 6] = parse_number_list(text)?
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("a frame is six numbers X,Y,Z,A,B,C, not {}", v.len()))?;
+    for (name, v) in ["X", "Y", "Z"].iter().zip(&values[..3]) {
+        check_coordinate_mm(name, *v)?;
+    }
+    for (name, v) in ["A", "B", "C"].iter().zip(&values[3..]) {
+        check_angle_deg(name, *v)?;
+    }
+    Ok(values)
+}
+
 /// Parses a comma-separated list of finite numbers, such as `--joints -22.9,1.5,...`.
 ///
 /// # Errors

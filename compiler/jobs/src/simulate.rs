@@ -92,12 +92,15 @@ pub(crate) fn read_joint_rows(
     robot: &Robot,
 ) -> Result<Vec<Vec<f64>>, JobError> {
     let (columns, options) = crate::args::Reading::default().resolve()?;
-    let rows = adwi_samples::read_targets(path, &columns, &options)?;
+    // Joint values are what a pose to measure is: x,y,z may be in the file (a plan has
+    // them) but are not needed.
+    let rows = adwi_samples::read_poses(path, &columns, &options)?;
     rows.into_iter()
-        .enumerate()
-        .map(|(i, row)| match row.joints_rad {
-            Some(q) if q.len() == robot.joint_count() => Ok(q),
-            Some(q) => Err(JobError::option(
+        .map(|q| {
+            if q.len() == robot.joint_count() {
+                return Ok(q);
+            }
+            Err(JobError::option(
                 "poses",
                 format!(
                     "{} gives {} joint values per row; the {} has {} joints",
@@ -106,16 +109,7 @@ pub(crate) fn read_joint_rows(
                     robot.name,
                     robot.joint_count()
                 ),
-            )),
-            None => Err(JobError::option(
-                "poses",
-                format!(
-                    "{} has no joint values (j1..jn) on its row {}: the poses to measure are \
-                     joint vectors",
-                    path.display(),
-                    i + 1
-                ),
-            )),
+            ))
         })
         .collect()
 }

@@ -139,13 +139,19 @@ pub enum Iso9283Error {
     },
 }
 
+/// Whether `text` is a whole number as written: an optional sign, then digits.
+fn is_digits(text: &str) -> bool {
+    let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+}
+
 /// Reads a cycles file ([`parse_cycles`]).
 ///
 /// # Errors
 ///
 /// As [`parse_cycles`], and a file that cannot be read.
 pub fn read_cycles(path: &Path) -> Result<Vec<CycleRow>, Iso9283Error> {
-    let bytes = std::fs::read(path).map_err(|e| Iso9283Error::Io {
+    let bytes = adwi_runtime::input::read_regular(path).map_err(|e| Iso9283Error::Io {
         path: path.display().to_string(),
         reason: e.to_string(),
     })?;
@@ -247,7 +253,12 @@ pub fn parse_cycles(bytes: &[u8]) -> Result<Vec<CycleRow>, Iso9283Error> {
                 line,
                 column: "cycle",
                 text: field(cycle).to_string(),
-                why: "is not a whole number",
+                // Digits that do not fit are a whole number still, only too large.
+                why: if is_digits(field(cycle)) {
+                    "is out of range: a cycle is a whole number up to 4294967295"
+                } else {
+                    "is not a whole number"
+                },
             })?;
         let orientation_abc_deg = match &orientation {
             Some(cols) => Some([
@@ -565,9 +576,19 @@ pub fn compensated(
 /// [`Iso9283Error::Cube`] for a side that is not positive and finite, or a centre not
 /// finite.
 pub fn cube_positions(centre_mm: [f64; 3], side_mm: f64) -> Result<[[f64; 3]; 5], Iso9283Error> {
+    use adwi_runtime::format::MAX_COORDINATE_MM;
     if !(side_mm.is_finite() && side_mm > 0.0 && centre_mm.iter().all(|v| v.is_finite())) {
         return Err(Iso9283Error::Cube(format!(
             "a cube needs a finite centre and a positive side; {side_mm} mm given"
+        )));
+    }
+    // Within a kilometre of the base, as a table's coordinates: the corners then stay
+    // finite (a centre of 1.7e308 mm put infinities into the plan).
+    let reach = centre_mm.iter().map(|v| v.abs()).fold(side_mm, f64::max) + side_mm;
+    if reach > MAX_COORDINATE_MM {
+        return Err(Iso9283Error::Cube(format!(
+            "a cube centred at {centre_mm:?} mm with a side of {side_mm} mm reaches beyond \
+             {MAX_COORDINATE_MM:e} mm from the base; give the workspace in mm"
         )));
     }
     let h = side_mm / 2.0;
@@ -617,6 +638,12 @@ pub fn write_cube_plan(
     }
     if !abc_deg.iter().all(|v| v.is_finite()) {
         return Err(Iso9283Error::Cube("the orientation must be finite".into()));
+    }
+    if !abc_deg.iter().all(|v| v.abs() <= crate::MAX_ANGLE_DEG) {
+        return Err(Iso9283Error::Cube(format!(
+            "the orientation {abc_deg:?}° turns more than three turns ({}°); give degrees",
+            crate::MAX_ANGLE_DEG
+        )));
     }
     let mut out = String::from("position,cycle,x,y,z,a,b,c\n");
     for cycle in 1..=cycles {

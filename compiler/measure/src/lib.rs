@@ -12,3 +12,8 @@
 pub mod iso9283;
 pub mod plan;
 pub mod truth;
+
+/// The largest angle a planned or commanded orientation takes, degrees: three turns each
+/// way. A wrist turns a few times at most; 1e308° is a typing error, whose sine and
+/// cosine mean nothing.
+pub const MAX_ANGLE_DEG: f64 = 1080.0;

@@ -54,6 +54,7 @@ use adwi_robot::calibrate::{design_jacobians, Parameter};
 use adwi_robot::ik::PostureTable;
 use adwi_robot::model::{isometry_from_parts, JointKind};
 use adwi_robot::{IkSolution, InverseKinematics, Robot};
+use adwi_runtime::format::MAX_COORDINATE_MM;
 use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
@@ -217,6 +218,9 @@ fn option(name: &'static str, reason: impl Into<String>) -> PlanError {
 /// [`PlanError::Option`] naming the option and the figure.
 pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
     let finite3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    // Within a kilometre of the base, as a table's coordinates: a box's extents and
+    // volume then stay finite (a box of ±1e200 mm has an infinite volume to draw from).
+    let plausible3 = |v: &[f64; 3]| v.iter().all(|x| x.abs() <= MAX_COORDINATE_MM);
     if !(1..=MAX_POSES).contains(&options.count) {
         return Err(option(
             "count",
@@ -245,9 +249,27 @@ pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
                 format!("{min:?} to {max:?} mm: each minimum must be below its maximum, finite"),
             ));
         }
+        if !(plausible3(min) && plausible3(max)) {
+            return Err(option(
+                "box",
+                format!(
+                    "{min:?} to {max:?} mm: a corner is more than {MAX_COORDINATE_MM:e} mm \
+                     from the base on an axis; give the robot's workspace in mm"
+                ),
+            ));
+        }
     }
     if let Some(t) = &options.tracker {
         let [near, far] = t.range_mm;
+        if finite3(&t.position_mm) && !plausible3(&t.position_mm) {
+            return Err(option(
+                "tracker",
+                format!(
+                    "{:?} mm: more than {MAX_COORDINATE_MM:e} mm from the base on an axis",
+                    t.position_mm
+                ),
+            ));
+        }
         if !(finite3(&t.position_mm)
             && near.is_finite()
             && far.is_finite()

@@ -209,7 +209,8 @@ fn load_naming(
             files: chain(naming),
         });
     }
-    let text = std::fs::read_to_string(path).map_err(read_error)?;
+    // Regular files only: a FIFO is never waited on, a device never read without end.
+    let text = adwi_runtime::input::read_regular_to_string(path).map_err(read_error)?;
     files.push(canonical.clone());
     let is_urdf = path
         .extension()

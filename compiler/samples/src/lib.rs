@@ -651,6 +651,27 @@ fn samples_from_rows(rows: Rows) -> SampleSet {
     })
 }
 
+/// Reads a CSV of poses to measure: joint values `j1..jn` (rad; mm for prismatic joints),
+/// one vector a row, in file order, through the same reader, column mapping and options as
+/// samples; other columns (a plan's x,y,z, say) may be there or not and are not needed.
+///
+/// # Errors
+///
+/// As [`read_samples`], but only joint values are required.
+pub fn read_poses(
+    path: &Path,
+    columns: &ColumnMap,
+    options: &ReadOptions,
+) -> Result<Vec<Vec<f64>>, ReadError> {
+    let rows = parse(path, &read_file(path)?, columns, options, Purpose::Poses)?;
+    Ok(match &rows.joints {
+        Some(joints) => (0..rows.lines.len())
+            .map(|i| joints.row(i).to_vec())
+            .collect(),
+        None => Vec::new(),
+    })
+}
+
 /// A target read from a CSV: where to go and, when the file gives them, the joint values
 /// the controller will use.
 #[derive(Clone, Debug, PartialEq)]

@@ -341,9 +341,10 @@ impl fmt::Display for ReadError {
 
 impl std::error::Error for ReadError {}
 
-/// Reads a whole file.
+/// Reads a whole regular file; a FIFO or a device is refused at once
+/// ([`adwi_runtime::input::read_regular`]).
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
-    std::fs::read(path).map_err(|e| ReadError {
+    adwi_runtime::input::read_regular(path).map_err(|e| ReadError {
         path: path.to_path_buf(),
         line: None,
         column: None,
@@ -361,6 +362,8 @@ pub(crate) enum Purpose {
     /// Raw measurements: joints and measured positions; nominal poses optional; error
     /// columns not read.
     Measurements,
+    /// Poses to measure: joint values; everything else optional.
+    Poses,
 }
 
 /// One numeric column as read: its index in the row, and the factor to millimetres or
@@ -945,7 +948,7 @@ fn resolve(
         ));
     }
 
-    if layout.position.is_none() && purpose != Purpose::Measurements {
+    if layout.position.is_none() && !matches!(purpose, Purpose::Measurements | Purpose::Poses) {
         return Err(missing("x,y,z (nominal position, mm)"));
     }
     match purpose {
@@ -973,6 +976,11 @@ fn resolve(
                          {cols}"
                     )));
                 }
+            }
+        }
+        Purpose::Poses => {
+            if layout.joints.is_none() {
+                return Err(missing("j1..jn (joint values)"));
             }
         }
         Purpose::Measurements => {

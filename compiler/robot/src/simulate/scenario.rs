@@ -204,9 +204,11 @@ impl Scenario {
     /// [`SimulateError::InvalidScenario`] as in [`Scenario::from_toml_str`].
     pub fn load(path: impl AsRef<Path>) -> Result<Scenario, SimulateError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| SimulateError::Read {
-            path: path.to_owned(),
-            source,
+        let text = adwi_runtime::input::read_regular_to_string(path).map_err(|source| {
+            SimulateError::Read {
+                path: path.to_owned(),
+                source,
+            }
         })?;
         Scenario::from_toml_str(&text).map_err(|error| match error {
             SimulateError::Parse { source, .. } => SimulateError::Parse {
