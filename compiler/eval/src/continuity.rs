@@ -234,3 +234,34 @@ fn walk(
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     adwi_runtime::method::distance_mm(a, b)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A billion lines (58 days) and a nanometre step (never ends) are refused with their
+    /// size; the default options and a step of nothing are answered as before.
+    #[test]
+    fn options_are_sized_before_any_work() {
+        let default = ContinuityOptions::default();
+        assert_eq!(default.check(), Ok(()));
+        for options in [
+            ContinuityOptions {
+                lines: 1_000_000_000,
+                ..default
+            },
+            ContinuityOptions {
+                step_mm: 1e-9,
+                ..default
+            },
+        ] {
+            let e = options.check().unwrap_err();
+            assert!(matches!(e, ContinuityError::TooMuchWork { .. }), "{e}");
+            assert!(e.to_string().contains("queries, more than"), "{e}");
+        }
+        for step_mm in [0.0, -1.0, f64::NAN] {
+            let options = ContinuityOptions { step_mm, ..default };
+            assert!(matches!(options.check(), Err(ContinuityError::Options(_))));
+        }
+    }
+}

@@ -863,4 +863,38 @@ mod tests {
         let e = compensated(&rows, |_| Err("outside the table".into())).unwrap_err();
         assert!(matches!(e, Iso9283Error::Compensation { .. }));
     }
+
+    /// A centre or side beyond a kilometre would put infinities in the plan (a centre of
+    /// 1.7e308 mm did); an orientation beyond three turns is a typing error.
+    #[test]
+    fn cubes_and_orientations_beyond_any_workspace_are_refused() {
+        for (centre, side) in [
+            ([1.7e308, 0.0, 0.0], 100.0),
+            ([0.0, 0.0, 0.0], 1e300),
+            ([999_990.0, 0.0, 0.0], 100.0),
+        ] {
+            let e = write_cube_plan(centre, side, [0.0, 90.0, 0.0], 1).unwrap_err();
+            assert!(e.to_string().contains("1e6 mm"), "{e}");
+        }
+        let e = write_cube_plan([1000.0, 0.0, 1000.0], 400.0, [0.0, 1e300, 0.0], 1).unwrap_err();
+        assert!(e.to_string().contains("three turns"), "{e}");
+        let text = write_cube_plan([1000.0, 0.0, 1000.0], 400.0, [0.0, 720.0, 0.0], 1).unwrap();
+        assert!(!text.contains("inf") && !text.contains("NaN"), "{text}");
+    }
+
+    /// Digits too many for a cycle number are out of range, not "not a whole number".
+    #[test]
+    fn a_cycle_number_too_large_is_out_of_range() {
+        let header = "position,cycle,x,y,z,mx,my,mz\n";
+        for (cycle, why) in [
+            ("5000000000", "is out of range"),
+            ("-1", "is out of range"),
+            ("1.5", "is not a whole number"),
+            ("one", "is not a whole number"),
+        ] {
+            let text = format!("{header}P1,{cycle},0,0,0,0,0,0\n");
+            let e = parse_cycles(text.as_bytes()).unwrap_err();
+            assert!(e.to_string().contains(why), "{cycle}: {e}");
+        }
+    }
 }

@@ -845,6 +845,25 @@ mod tests {
         assert_eq!(s.error_mm[0], [0.5, 0.0, -1.0]);
     }
 
+    /// Poses to measure are joint vectors: a file of `j1..jn` alone is read, in order; a
+    /// file without them is refused naming them.
+    #[test]
+    fn poses_are_joint_values_alone() {
+        let dir = std::env::temp_dir().join(format!("adwi-poses-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("poses.csv");
+        std::fs::write(&path, "j1,j2,j3\n0,90,-90\n180,0,0\n").unwrap();
+        let (columns, options) = (ColumnMap::default(), ReadOptions::default());
+        let poses = read_poses(&path, &columns, &options).unwrap();
+        let expected = [[0.0, 90.0, -90.0], [180.0, 0.0, 0.0]]
+            .map(|row| row.map(|v: f64| v.to_radians()).to_vec());
+        assert_eq!(poses, expected);
+        std::fs::write(&path, "x,y,z\n1,2,3\n").unwrap();
+        let e = read_poses(&path, &columns, &options).unwrap_err();
+        assert!(e.to_string().contains("j1..jn"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn measured_orientation_becomes_a_rotation_vector() {
         let s = parse("x,y,z,dx,dy,dz,a,b,c,ma,mb,mc\n1,2,3,0,0,0,0,90,0,0.01,90,0\n").unwrap();
