@@ -239,8 +239,7 @@ fn empty_and_misaligned_buffers_are_refused() {
     let mut shifted = vec![0u8; bytes.len() + 1];
     shifted[1..].copy_from_slice(&bytes);
     // `from_bytes` on a slice that starts one byte past an aligned allocation.
-    let mut aligned = adwi_runtime::AlignedBytes::new();
-    aligned.extend_from_slice(&shifted);
+    let aligned = adwi_runtime::AlignedBytes::copy_from(&shifted).unwrap();
     let err = Table::from_bytes(&aligned[1..]).err().unwrap();
     assert!(matches!(err, OpenError::Misaligned { offset: 1 }), "{err}");
 }
