@@ -245,6 +245,9 @@ impl OutputPlan {
             }
             return Err(e);
         }
+        // Two writers of the same outputs (a program and its report, say) rename one after
+        // the other, never interleaved: the outputs always come from one run.
+        let _lock = lock_directories(staged.iter().map(|(_, p)| directory_of(&p.target)));
         for (i, (temporary, planned)) in staged.iter().enumerate() {
             if let Err(source) = std::fs::rename(temporary, &planned.target) {
                 for (later, _) in &staged[i..] {
@@ -258,6 +261,43 @@ impl OutputPlan {
             sync_directory(directory_of(&planned.target));
         }
         Ok(())
+    }
+}
+
+/// An exclusive lock on each of `dirs` (`flock` on the directory itself, so that no lock
+/// file is left behind), taken in one order by every writer so that two never wait on each
+/// other; released when the returned files are dropped. Best effort: a directory that
+/// cannot be opened or locked is written without.
+fn lock_directories<'a>(dirs: impl Iterator<Item = &'a Path>) -> Vec<std::fs::File> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        use std::os::unix::io::AsRawFd;
+        let mut open: Vec<((u64, u64), std::fs::File)> = dirs
+            .filter_map(|d| {
+                let file = std::fs::File::open(d).ok()?;
+                let m = file.metadata().ok()?;
+                Some(((m.dev(), m.ino()), file))
+            })
+            .collect();
+        open.sort_by_key(|(id, _)| *id);
+        open.dedup_by_key(|(id, _)| *id);
+        open.into_iter()
+            .filter_map(|(_, file)| loop {
+                // SAFETY: `file` is an open descriptor for the whole call.
+                if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX) } == 0 {
+                    break Some(file);
+                }
+                if std::io::Error::last_os_error().kind() != std::io::ErrorKind::Interrupted {
+                    break None;
+                }
+            })
+            .collect()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dirs.count();
+        Vec::new()
     }
 }
 

@@ -436,6 +436,7 @@ impl CompensateJob {
             at = end;
         }
         output.extend_from_slice(&self.bytes[at..]);
+        report.program_xxh3 = Some(xxhash_rust::xxh3::xxh3_64(&output));
         Ok(Compensated { output, report })
     }
 

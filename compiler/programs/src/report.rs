@@ -50,6 +50,9 @@ pub struct TargetLine {
 pub struct Report {
     /// Per target.
     pub targets: Vec<TargetLine>,
+    /// The xxh3-64 hash of the compensated program the report is about, so that a report
+    /// and a program from different runs are never taken for a pair.
+    pub program_xxh3: Option<u64>,
 }
 
 /// The report in figures.
@@ -104,13 +107,18 @@ impl Report {
         self.targets.iter().find(|t| !t.status.corrected())
     }
 
-    /// The report as CSV: one header, one row per target.
+    /// The report as CSV: one header, one row per target; the last column,
+    /// `program_xxh3`, the compensated program's hash as 16 hex digits (empty when there is
+    /// none).
     pub fn to_csv(&self) -> String {
         let mut out = String::from(
             "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
              iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z,\
-             residual\n",
+             residual,program_xxh3\n",
         );
+        let hash = self
+            .program_xxh3
+            .map_or(String::new(), |h| format!("{h:016x}"));
         let opt = |v: Option<f64>, d: usize| v.map_or(String::new(), |v| format!("{v:.d$}"));
         let xyz = |v: Option<[f64; 3]>| {
             v.map_or(",,".to_string(), |p| {
@@ -120,7 +128,7 @@ impl Report {
         for t in &self.targets {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{hash}",
                 csv_field(&t.name),
                 t.line,
                 t.column,
@@ -217,6 +225,7 @@ mod tests {
                 line(TargetStatus::Ok, Some(Residual::ModelOnly)),
                 line(TargetStatus::IkFailed, None),
             ],
+            program_xxh3: Some(0xab),
         };
         let summary = report.summary();
         assert_eq!(
@@ -232,11 +241,12 @@ mod tests {
         );
         let csv = report.to_csv();
         let rows: Vec<&str> = csv.lines().collect();
-        assert!(rows[0].ends_with(",command_z,residual"));
+        assert!(rows[0].ends_with(",command_z,residual,program_xxh3"));
         let flags: Vec<&str> = rows[1..]
             .iter()
-            .map(|r| r.rsplit(',').next().unwrap())
+            .map(|r| r.rsplit(',').nth(1).unwrap())
             .collect();
         assert_eq!(flags, ["full", "faded", "model_only", "model_only", ""]);
+        assert!(rows[1..].iter().all(|r| r.ends_with(",00000000000000ab")));
     }
 }
