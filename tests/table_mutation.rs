@@ -302,6 +302,8 @@ fn targets(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> V
                 2 => Some(rng.gen()),
                 _ => Some(u8::MAX),
             },
+            rotation_rad: None,
+            tcp_mm: None,
         })
         .collect()
 }

@@ -50,6 +50,7 @@ __all__ = [
     "QueryResult",
     "STATUS_NAMES",
     "RESIDUAL_NAMES",
+    "EVIDENCE_NAMES",
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
@@ -64,6 +65,9 @@ STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.STATUS_NAMES)
 #: Residual flags, indexed by code: how much of a hybrid table's residual field an
 #: answer holds (``full``, ``faded``, ``model_only``), as ``tablec query`` prints them.
 RESIDUAL_NAMES: Tuple[str, ...] = tuple(_adwi.RESIDUAL_NAMES)
+#: Evidence flags, indexed by their bits: where an answer lies beyond what the table's
+#: samples cover, as ``tablec query`` prints it.
+EVIDENCE_NAMES: Tuple[str, ...] = ("within", "orientation", "tcp", "orientation+tcp")
 #: ``command_status`` names of ``tablec query --targets``, indexed by code.
 COMMAND_STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.COMMAND_STATUS_NAMES)
 
@@ -387,12 +391,18 @@ class QueryResult:
       (``full``, ``faded``, ``model_only``; always ``full`` for a position-only table),
       ``""`` where the status is not ``ok``; ``residual_code`` the same as integers,
       indexes of :data:`RESIDUAL_NAMES`.
+    - ``evidence`` (N,): where the answer lies beyond what the table's samples cover, as
+      ``tablec query`` prints it (``within``, ``orientation``: an approach axis the samples
+      never had, a hybrid table's model answering alone; ``tcp``: a TCP the table cannot
+      place; ``orientation+tcp``); ``evidence_code`` the same as bits (0 within, 1
+      orientation, 2 TCP).
     """
 
     error_mm: np.ndarray
     orientation_rad: Optional[np.ndarray]
     status_code: np.ndarray
     residual_code: np.ndarray
+    evidence_code: np.ndarray
     neighbours: np.ndarray
 
     def __init__(self, fields: Mapping[str, Any]) -> None:
@@ -400,6 +410,7 @@ class QueryResult:
         self.orientation_rad = fields["orientation_rad"]
         self.status_code = fields["status_code"]
         self.residual_code = fields["residual_code"]
+        self.evidence_code = fields["evidence_code"]
         self.neighbours = fields["neighbours"]
 
     @property
@@ -414,6 +425,11 @@ class QueryResult:
         codes = np.where(self.residual_code == _adwi.NO_RESIDUAL, len(names) - 1,
                          self.residual_code)
         return names[codes]
+
+    @property
+    def evidence(self) -> np.ndarray:
+        """Evidence flag names, (N,) array of str (``within`` where nothing is beyond)."""
+        return np.asarray(EVIDENCE_NAMES)[self.evidence_code & 3]
 
     @property
     def ok(self) -> np.ndarray:
@@ -463,6 +479,15 @@ class Compensation(QueryResult):
         codes = np.where(self.command_status_code == _adwi.NO_COMMAND, len(names) - 1,
                          self.command_status_code)
         return names[codes]
+
+
+def _optional_tcp(tcp: Any) -> Optional[Tuple[float, float, float]]:
+    if tcp is None:
+        return None
+    values = np.asarray(tcp, dtype=np.float64).reshape(-1)
+    if values.shape != (3,):
+        raise AdwiError(f"tcp takes X, Y, Z (mm, flange frame); {values.size} values given")
+    return (float(values[0]), float(values[1]), float(values[2]))
 
 
 def _points(points: Any) -> np.ndarray:
@@ -585,6 +610,7 @@ class Table:
         *,
         config: Any = None,
         joints_unit: str = "deg",
+        tcp: Any = None,
     ) -> QueryResult:
         """Predicted errors at ``points`` ((N, 3), mm, base frame; one point (3,) is one
         row), as ``tablec query --targets`` answers rows ``x,y,z[,config][,j1..jn]``.
@@ -594,6 +620,9 @@ class Table:
         applies a table's joint-space screen. ``config`` ((N,) ints, or one int; negative
         for unknown): the inverse-kinematics configuration. ``exact``: answer from the
         exact tier (the paper's method to the digit) instead of the served field.
+        ``tcp`` (X, Y, Z mm, flange frame): the TCP the points are for, when it is not the
+        point the samples measured (``tablec query --tcp``): a hybrid table answers the
+        error there, its model turning the lever; another flags its answers (``evidence``).
         """
         p = _points(points)
         result = self._raw.query_batch(
@@ -603,6 +632,7 @@ class Table:
             exact=exact,
             compensate=False,
             joints_deg=_joints_deg(joints_unit),
+            tcp=_optional_tcp(tcp),
         )
         return QueryResult(result)
 
@@ -616,6 +646,7 @@ class Table:
         joints_unit: str = "deg",
         tolerance_mm: float = _adwi.COMPENSATE_TOLERANCE_MM,
         max_iterations: int = _adwi.COMPENSATE_ITERATIONS,
+        tcp: Any = None,
     ) -> Compensation:
         """The commands that land the robot on ``points``, as ``tablec query --targets``
         writes them (its ``command_*`` columns): ``command + error(command) = target`` by
@@ -633,6 +664,7 @@ class Table:
             joints_deg=_joints_deg(joints_unit),
             tolerance_mm=tolerance_mm,
             max_iterations=max_iterations,
+            tcp=_optional_tcp(tcp),
         )
         return Compensation(result)
 

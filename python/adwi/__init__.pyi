@@ -21,6 +21,7 @@ __all__ = [
     "QueryResult",
     "STATUS_NAMES",
     "RESIDUAL_NAMES",
+    "EVIDENCE_NAMES",
     "COMMAND_STATUS_NAMES",
     "Table",
     "build",
@@ -30,6 +31,7 @@ __all__ = [
 
 STATUS_NAMES: Tuple[str, ...]
 RESIDUAL_NAMES: Tuple[str, ...]
+EVIDENCE_NAMES: Tuple[str, ...]
 COMMAND_STATUS_NAMES: Tuple[str, ...]
 ARRAY_COLUMNS: Tuple[str, ...]
 
@@ -251,12 +253,15 @@ class QueryResult:
     orientation_rad: Optional[npt.NDArray[np.float64]]
     status_code: npt.NDArray[np.uint8]
     residual_code: npt.NDArray[np.uint8]
+    evidence_code: npt.NDArray[np.uint8]
     neighbours: npt.NDArray[np.uint32]
     def __init__(self, fields: Mapping[str, Any]) -> None: ...
     @property
     def status(self) -> npt.NDArray[np.str_]: ...
     @property
     def residual(self) -> npt.NDArray[np.str_]: ...
+    @property
+    def evidence(self) -> npt.NDArray[np.str_]: ...
     @property
     def ok(self) -> npt.NDArray[np.bool_]: ...
     def __len__(self) -> int: ...
@@ -310,6 +315,7 @@ class Table:
         *,
         config: Optional[npt.ArrayLike] = None,
         joints_unit: str = "deg",
+        tcp: Optional[Sequence[float]] = None,
     ) -> QueryResult: ...
     def compensate(
         self,
@@ -321,6 +327,7 @@ class Table:
         joints_unit: str = "deg",
         tolerance_mm: float = 1e-6,
         max_iterations: int = 50,
+        tcp: Optional[Sequence[float]] = None,
     ) -> Compensation: ...
 
 # Robot programs compensated offline (tablec compensate).

@@ -645,6 +645,7 @@ struct Batch {
     neighbours: Vec<u32>,
     status: Vec<u8>,
     residual_flag: Vec<u8>,
+    evidence: Vec<u8>,
     command: Vec<f64>,
     command_rotation: Vec<f64>,
     command_status: Vec<u8>,
@@ -761,8 +762,11 @@ impl Table {
     /// Answers every row of `points` ((N, 3) mm) as `tablec query --targets` does, with
     /// `joints` ((N, n); degrees when `joints_deg`, as `tablec` reads `j1..jn`, else rad)
     /// and `config` ((N,), negative for unknown) when given, and with
-    /// the commands when `compensate`. The GIL is released during the loop.
-    #[pyo3(signature = (points, joints=None, config=None, exact=false, compensate=false, joints_deg=true, tolerance_mm=COMPENSATE_TOLERANCE_MM, max_iterations=COMPENSATE_ITERATIONS))]
+    /// the commands when `compensate`. `tcp` (X, Y, Z mm, flange frame) names the TCP the
+    /// points are for, as `tablec query --tcp`; `evidence_code` says where each answer lies
+    /// beyond the table's samples (0 within, bit 0 orientation, bit 1 TCP). The GIL is
+    /// released during the loop.
+    #[pyo3(signature = (points, joints=None, config=None, exact=false, compensate=false, joints_deg=true, tolerance_mm=COMPENSATE_TOLERANCE_MM, max_iterations=COMPENSATE_ITERATIONS, tcp=None))]
     #[allow(clippy::too_many_arguments)]
     fn query_batch<'py>(
         &self,
@@ -775,7 +779,15 @@ impl Table {
         joints_deg: bool,
         tolerance_mm: f64,
         max_iterations: u32,
+        tcp: Option<[f64; 3]>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        if let Some(t) = tcp {
+            if !t.iter().all(|v| v.is_finite() && v.abs() <= 1e6) {
+                return Err(AdwiError::new_err(format!(
+                    "tcp must be three finite coordinates within a kilometre, mm; {t:?} given"
+                )));
+            }
+        }
         let p = points.as_array();
         if p.ncols() != 3 {
             return Err(AdwiError::new_err(format!(
@@ -839,7 +851,9 @@ impl Table {
             None => None,
         };
         let table = &self.table;
-        let orientation = table.has_orientation();
+        // A hybrid table's model predicts the orientation error whether or not the samples
+        // measured one.
+        let orientation = table.has_orientation() || table.is_hybrid();
         let batch = py.allow_threads(|| {
             let mut b = Batch {
                 error: vec![f64::NAN; 3 * n],
@@ -851,6 +865,7 @@ impl Table {
                 neighbours: vec![0; n],
                 status: vec![0; n],
                 residual_flag: vec![NO_RESIDUAL; n],
+                evidence: vec![0; n],
                 command: Vec::new(),
                 command_rotation: Vec::new(),
                 command_status: Vec::new(),
@@ -871,7 +886,7 @@ impl Table {
                     position_mm: *position,
                     config: config.as_ref().and_then(|c| c[i]),
                     rotation_rad: None,
-                    tcp_mm: None,
+                    tcp_mm: tcp,
                 };
                 let q = joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
                 let c = table.answer(&target, q, if exact { Tier::Exact } else { Tier::Served });
@@ -881,6 +896,7 @@ impl Table {
                     continue;
                 }
                 b.residual_flag[i] = c.residual as u8;
+                b.evidence[i] = c.evidence.0;
                 b.error[3 * i..3 * i + 3].copy_from_slice(&c.position_error_mm);
                 if orientation {
                     b.orientation[3 * i..3 * i + 3].copy_from_slice(&c.orientation_error_rad);
@@ -911,6 +927,7 @@ impl Table {
         d.set_item("neighbours", vector(py, batch.neighbours))?;
         d.set_item("status_code", vector(py, batch.status))?;
         d.set_item("residual_code", vector(py, batch.residual_flag))?;
+        d.set_item("evidence_code", vector(py, batch.evidence))?;
         if compensate {
             d.set_item("command_mm", matrix(py, batch.command, n)?)?;
             d.set_item(

@@ -36,6 +36,7 @@ def assert_same_answers(rows, result: adwi.Compensation, orientation: bool):
     assert list(result.status) == [r["status"] for r in rows]
     assert list(result.neighbours) == [int(r["neighbours"]) for r in rows]
     assert list(result.residual) == [r["residual"] for r in rows]
+    assert [e if s == "ok" else "" for e, s in zip(result.evidence, result.status)] == [r["evidence"] for r in rows]
     assert list(result.command_status) == [r["command_status"] for r in rows]
     for i, row in enumerate(rows):
         if row["status"] != "ok":

@@ -162,11 +162,8 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     let target = Target {
         position_mm: position,
         config: args.config,
-        rotation_rad: finite_abc.map(|abc| {
-            adwi_runtime::kinematics::rotation_vector(&matrix_of(
-                &pose::rotation_from_kuka_abc_deg(abc),
-            ))
-        }),
+        rotation_rad: finite_abc
+            .map(|abc| pose::rotation_vector(&pose::rotation_from_kuka_abc_deg(abc))),
         tcp_mm: tcp,
     };
     let joints_rad: Option<Vec<f64>> = args
@@ -248,8 +245,8 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     }
     if !c.evidence.is_within() {
         eprintln!(
-            "beyond the table's evidence: {}",
-            evidence_text(&table, c.evidence)
+            "the answer lies beyond what the table's samples cover: {}",
+            c.evidence.as_str()
         );
         return Ok(Answered::NotAll);
     }
@@ -267,12 +264,6 @@ fn evidence_text<D: AsRef<[u8]>>(table: &Table<D>, evidence: Evidence) -> String
         "no model carries the answer"
     };
     format!("beyond: {} ({who})", evidence.as_str())
-}
-
-/// A nalgebra rotation as the runtime's row-major matrix.
-fn matrix_of(r: &nalgebra::Rotation3<f64>) -> [[f64; 3]; 3] {
-    let m = r.matrix();
-    [0, 1, 2].map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]])
 }
 
 /// Says how far the joints put the tool from the target, and the unit `--joints` takes.

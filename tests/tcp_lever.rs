@@ -1,0 +1,161 @@
+//! A program's TCP as the controller applies it: a hybrid table corrects any TCP from its
+//! model's full pose error, so a long tool lands as the measured point does. Checked by the
+//! table's own calibrated model: the calibrated chain at each command's joint values,
+//! carrying the program's TCP rigidly with the measured point, lands on the target.
+
+use std::path::Path;
+
+use adwi_programs::{CompensateJob, CompensateOptions};
+use adwi_runtime::{Evidence, Table, Target};
+
+use crate::common::{build_ur5_hybrid, repo};
+
+/// TCP poses of the UR5 (m and rotation vectors, rad, base frame) in the measured grid, as
+/// PolyScope writes them.
+const POSES: [[f64; 6]; 4] = [
+    [
+        -0.476472, -0.292440, 0.069339, 1.123205, -1.167681, -1.250492,
+    ],
+    [
+        -0.460489, -0.057514, -0.098017, 1.188867, -1.052092, -0.970786,
+    ],
+    [
+        -0.496458, -0.004637, 0.337236, 1.398012, -1.300755, -0.932323,
+    ],
+    [
+        -0.482200, -0.117731, 0.297162, 1.131240, -0.784138, -1.050057,
+    ],
+];
+
+/// The robot file's tool: the measured point in the flange frame, mm.
+const POINT_MM: [f64; 3] = [0.0, 0.09, 31.0];
+
+/// A URScript moving a TCP `tcp_z_m` metres along the flange's z axis to [`POSES`]; line
+/// `3 + i` moves to pose `i`.
+fn script(tcp_z_m: f64) -> String {
+    let mut s = format!("def seam():\n  set_tcp(p[0, 0, {tcp_z_m}, 0, 0, 0])\n");
+    for p in POSES {
+        let p: Vec<String> = p.iter().map(|v| format!("{v}")).collect();
+        s += &format!("  movel(p[{}], a=1.2, v=0.25)\n", p.join(", "));
+    }
+    s += "end\nseam()\n";
+    s
+}
+
+/// For each pose, how far from it the TCP lands by the table's own prediction (its
+/// calibrated model and residual field) when the robot is commanded the compensated joint
+/// values, mm.
+fn landing_errors(dir: &Path, table_path: &Path, tcp_z_m: f64) -> Vec<f64> {
+    let program = dir.join(format!("seam-{tcp_z_m}.script"));
+    std::fs::write(&program, script(tcp_z_m)).unwrap();
+    let mut options = CompensateOptions::new(table_path, &program);
+    options.robot = Some(repo("tables/ur5/robot.toml"));
+    // The lever adds the rotation error times 169 mm to the correction.
+    options.limits.max_correction_mm = 20.0;
+    let done = CompensateJob::new(options).unwrap().run().unwrap();
+    // SAFETY: the test's own file, not modified while mapped.
+    let table = unsafe { Table::open(table_path) }.unwrap();
+    let model = table.model().unwrap();
+    let tcp_mm = [0.0, 0.0, 1000.0 * tcp_z_m];
+    let lever_mm = [0, 1, 2].map(|a| tcp_mm[a] - POINT_MM[a]);
+    let mut errors = Vec::new();
+    for (i, pose) in POSES.iter().enumerate() {
+        let line = done
+            .report
+            .targets
+            .iter()
+            .find(|t| t.line == 3 + i)
+            .unwrap_or_else(|| panic!("no report line for line {}", 3 + i));
+        assert!(line.status.corrected(), "{}: {}", line.place(), line.detail);
+        // The report's joints are in degrees (the UR5's are all revolute).
+        let q: Vec<f64> = line
+            .command_joints
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|v| v.to_radians())
+            .collect();
+        // The table's prediction at the command: its model (the calibrated chain carrying
+        // the TCP rigidly with the point) and its residual field at the point.
+        let nominal = model.nominal().tcp_pose(&q).unwrap();
+        let calibrated = model.calibrated().loaded_tcp_pose(&q).unwrap();
+        let at_point = table.query_with_joints(&Target::at(nominal.translation_mm), &q);
+        assert_eq!(at_point.status, adwi_runtime::Status::Ok);
+        let residual_mm = [0, 1, 2].map(|a| {
+            at_point.position_error_mm[a]
+                - (calibrated.translation_mm[a] - nominal.translation_mm[a])
+        });
+        let carried = calibrated.transform_point(lever_mm);
+        let landed = [0, 1, 2].map(|a| carried[a] + residual_mm[a]);
+        let target_mm = [pose[0], pose[1], pose[2]].map(|v| 1000.0 * v);
+        errors.push(adwi_runtime::method::distance_mm(landed, target_mm));
+    }
+    errors
+}
+
+#[test]
+fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
+    let dir = tempfile::tempdir().unwrap();
+    build_ur5_hybrid(
+        dir.path(),
+        repo("tables/ur5/robot.toml").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5.tbl",
+    );
+    let table = dir.path().join("ur5.tbl");
+    let short = landing_errors(dir.path(), &table, 0.031);
+    let long = landing_errors(dir.path(), &table, 0.2);
+    for (i, (s, l)) in short.iter().zip(&long).enumerate() {
+        // The fixed point's tolerance and the written precision (1e-6 m) bound both.
+        assert!(*s < 0.01, "pose {i}: the 31 mm TCP lands {s} mm off");
+        assert!(*l < 0.01, "pose {i}: the 200 mm TCP lands {l} mm off");
+        assert!(
+            (l - s).abs() < 0.01,
+            "pose {i}: 200 mm {l} mm, 31 mm {s} mm"
+        );
+    }
+    eprintln!("landing errors, mm: 31 mm TCP {short:?}, 200 mm TCP {long:?}");
+}
+
+#[test]
+fn a_query_naming_the_tcp_answers_the_error_there() {
+    let dir = tempfile::tempdir().unwrap();
+    build_ur5_hybrid(
+        dir.path(),
+        repo("tables/ur5/robot.toml").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5.tbl",
+    );
+    // SAFETY: the test's own file, not modified while mapped.
+    let table = unsafe { Table::open(dir.path().join("ur5.tbl")) }.unwrap();
+    let model = table.model().unwrap();
+    // The README's query pose.
+    let q: Vec<f64> = [17.2729, -81.9889, 88.4100, 0.0713, 93.4555, -0.1215]
+        .iter()
+        .map(|v: &f64| v.to_radians())
+        .collect();
+    let nominal = model.nominal().tcp_pose(&q).unwrap();
+    let calibrated = model.calibrated().loaded_tcp_pose(&q).unwrap();
+    let tcp_mm = [0.0, 0.0, 200.0];
+    let lever_mm = [0, 1, 2].map(|a| tcp_mm[a] - POINT_MM[a]);
+    let at_tcp = nominal.transform_point(lever_mm);
+    let got = table.query_with_joints(&Target::at(at_tcp).with_tcp(tcp_mm), &q);
+    let plain = table.query_with_joints(&Target::at(nominal.translation_mm), &q);
+    assert_eq!(got.evidence, Evidence::WITHIN);
+    // The model's part at the TCP, by the chains; the residual as at the point.
+    let model_at_tcp = [0, 1, 2].map(|a| calibrated.transform_point(lever_mm)[a] - at_tcp[a]);
+    let model_at_point =
+        [0, 1, 2].map(|a| calibrated.translation_mm[a] - nominal.translation_mm[a]);
+    for a in 0..3 {
+        let residual = plain.position_error_mm[a] - model_at_point[a];
+        assert!(
+            (got.position_error_mm[a] - (model_at_tcp[a] + residual)).abs() < 1e-9,
+            "{:?} vs {:?} + {residual}",
+            got.position_error_mm,
+            model_at_tcp
+        );
+    }
+    // The lever is felt: the rotation error times 169 mm.
+    let moved = adwi_runtime::method::distance_mm(got.position_error_mm, plain.position_error_mm);
+    assert!(moved > 0.1, "{moved} mm");
+}
