@@ -707,3 +707,147 @@ fn a_posture_near_the_wrist_singularity_is_refused_not_flipped() {
         "{out}"
     );
 }
+
+/// Copies the KRL fixtures `weld.src` and `weld.dat` into `dir`.
+fn weld_pair(dir: &Path) {
+    for name in ["weld.src", "weld.dat"] {
+        std::fs::copy(fixture(name), dir.join(name)).unwrap();
+    }
+}
+
+#[test]
+fn no_output_names_an_input_a_krl_programs_partner_included_by_any_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    weld_pair(d);
+    let original = |name: &str| std::fs::read(fixture(name)).unwrap();
+    std::os::unix::fs::symlink(d.join("weld.dat"), d.join("link.dat")).unwrap();
+    std::fs::hard_link(d.join("weld.src"), d.join("hard.src")).unwrap();
+    let tool = "--tool=0,0,100,0,0,0";
+    for (program, output, report) in [
+        ("weld.src", "weld.dat", None),
+        ("weld.dat", "weld.src", None),
+        ("weld.src", "out.src", Some("weld.dat")),
+        ("weld.dat", "out.dat", Some("weld.src")),
+        ("weld.src", "./weld.dat", None),
+        ("weld.src", "link.dat", None),
+        ("weld.dat", "hard.src", None),
+        ("weld.src", "out.src", Some("../weld.dat")),
+    ] {
+        let mut args = vec!["kr150.tbl", program, "-o", output, tool];
+        if let Some(r) = report {
+            args.extend(["--report", r]);
+        }
+        // `../weld.dat` seen from a folder of hard links: the partner by another path.
+        let cwd = if report == Some("../weld.dat") {
+            std::fs::create_dir_all(d.join("inside")).unwrap();
+            for name in ["kr150.tbl", "weld.src", "weld.dat"] {
+                let _ = std::fs::hard_link(d.join(name), d.join("inside").join(name));
+            }
+            d.join("inside")
+        } else {
+            d.to_path_buf()
+        };
+        let (code, stdout, stderr) = compensate(&cwd, &args);
+        assert_eq!(code, 1, "{args:?}: {stdout}{stderr}");
+        assert!(stderr.contains("refusing to write"), "{args:?}: {stderr}");
+        assert_eq!(std::fs::read(d.join("weld.src")).unwrap(), original("weld.src"));
+        assert_eq!(std::fs::read(d.join("weld.dat")).unwrap(), original("weld.dat"));
+    }
+    // The pair is still compensated into files of its own.
+    let (code, stdout, stderr) = compensate(
+        d,
+        &["kr150.tbl", "weld.src", "-o", "out.src", "--report", "out.csv", tool],
+    );
+    assert_eq!(code, 3, "{stdout}{stderr}");
+}
+
+/// The `program_xxh3` of every row of a report, and the hash of the program it names.
+fn report_hashes(report: &str) -> Vec<String> {
+    let mut lines = report.lines();
+    assert!(lines.next().unwrap().ends_with(",residual,program_xxh3"));
+    lines
+        .map(|l| l.rsplit(',').next().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn concurrent_compensations_leave_a_program_and_its_report_from_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    // Two programs whose compensations differ.
+    let a = std::fs::read_to_string(fixture("targets.csv")).unwrap();
+    std::fs::write(d.join("a.csv"), &a).unwrap();
+    std::fs::write(d.join("b.csv"), a.replace("1500.0;200.0", "1510.0;210.0")).unwrap();
+    let run = |program: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
+            .args(["compensate", "kr150.tbl", program, "-o", "o.csv"])
+            .args(["--report", "o.rep", "-q"])
+            .current_dir(d)
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let mut hashes = std::collections::BTreeSet::new();
+    for trial in 0..150 {
+        let (mut first, mut second) = (run("a.csv"), run("b.csv"));
+        assert!(matches!(first.wait().unwrap().code(), Some(0 | 3)));
+        assert!(matches!(second.wait().unwrap().code(), Some(0 | 3)));
+        let program = std::fs::read(d.join("o.csv")).unwrap();
+        let hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(&program));
+        let report = std::fs::read_to_string(d.join("o.rep")).unwrap();
+        let named = report_hashes(&report);
+        assert!(!named.is_empty());
+        assert!(
+            named.iter().all(|h| *h == hash),
+            "trial {trial}: the program's hash is {hash}, the report names {named:?}"
+        );
+        hashes.insert(hash);
+    }
+    // Both programs won some trials' race, or at least the outputs are the two runs'.
+    assert!(!hashes.is_empty() && hashes.len() <= 2, "{hashes:?}");
+}
+
+#[test]
+fn a_hostile_program_is_an_error_or_an_invalid_target_never_an_abort_or_a_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let robot = kr150_robot();
+    let robot = robot.to_str().unwrap();
+    // RAPID lists 25,000 deep: a located error (exit 1), not a stack overflow (134).
+    let mut deep = b"MODULE M\nCONST robtarget p:=".to_vec();
+    deep.extend(vec![b'['; 25_000]);
+    deep.extend_from_slice(b";\nENDMODULE\n");
+    std::fs::write(d.join("deep.mod"), deep).unwrap();
+    let (code, _, stderr) = compensate(d, &["kr150.tbl", "deep.mod", "-o", "deep-out.mod"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("deep.mod:2:"), "{stderr}");
+    // Values beyond every bound: reported invalid (exit 3), quickly, the rest corrected.
+    std::fs::write(
+        d.join("huge.csv"),
+        "x,y,z,a,b,c\n1.7e308,200,1200,0,90,0\n1e307,1e307,1e307,0,90,0\n1500,200,1200,0,90,0\n",
+    )
+    .unwrap();
+    let started = std::time::Instant::now();
+    let (code, stdout, stderr) = compensate(
+        d,
+        &["kr150.tbl", "huge.csv", "-o", "huge-out.csv", "--robot", robot],
+    );
+    assert_eq!(code, 3, "{stdout}{stderr}");
+    assert!(started.elapsed().as_secs() < 60);
+    assert!(
+        stdout.contains("1 of 3 targets corrected; left unchanged: 2 invalid"),
+        "{stdout}"
+    );
+    std::fs::write(
+        d.join("huge.src"),
+        "DEF huge( )\nLIN {X 1500,Y 200,Z 1200,A 1e308,B 90,C 0}\nEND\n",
+    )
+    .unwrap();
+    let (code, stdout, _) = compensate(d, &["kr150.tbl", "huge.src", "-o", "huge-out.src"]);
+    assert_eq!(code, 3, "{stdout}");
+    assert!(stdout.contains("invalid"), "{stdout}");
+}

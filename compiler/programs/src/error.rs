@@ -8,7 +8,11 @@ use std::path::PathBuf;
 pub enum Error {
     /// A program that does not read as its format: file, line and column (1-based, the
     /// column in bytes), and what was expected.
-    #[error("{file}:{line}:{column}: {message}")]
+    #[error(
+        "{}:{line}:{column}: {}",
+        escape_controls(file),
+        escape_controls(message)
+    )]
     Syntax {
         /// The program file, as given.
         file: String,
@@ -73,7 +77,8 @@ pub enum Error {
     },
     /// `strict`: some target was not corrected, so nothing is written.
     #[error(
-        "{not_corrected} of {total} targets not corrected (strict: nothing written); the first: {first}"
+        "{not_corrected} of {total} targets not corrected (strict: nothing written); the first: {}",
+        escape_controls(first)
     )]
     NotAllCorrected {
         /// Targets left unchanged.
@@ -86,4 +91,24 @@ pub enum Error {
     /// The output would replace an input (or another output), or could not be written.
     #[error(transparent)]
     Write(#[from] adwi_compile::write::OutputError),
+}
+
+/// `text` with every control character (and every character that reorders text on a
+/// terminal) escaped as Rust writes it (`\u{1b}`, `\t`): a message that quotes a file's
+/// bytes never sends a terminal an escape sequence.
+pub fn escape_controls(text: &str) -> std::borrow::Cow<'_, str> {
+    let hostile =
+        |c: char| c.is_control() || matches!(c, '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}');
+    if !text.chars().any(hostile) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if hostile(c) {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    std::borrow::Cow::Owned(out)
 }

@@ -8,6 +8,7 @@ use adwi_runtime::{AlignedBytes, Table};
 use nalgebra::{Isometry3, Vector3};
 
 use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
+use crate::bounds::frame_within;
 use crate::frames::{angle_between, kuka_pose, orientation_values, rotation_of, FrameChain};
 use crate::number::{rewrite, Number};
 use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, TargetKind};
@@ -146,9 +147,11 @@ impl CompensateJob {
             ("base", &o.base),
             ("table tool", &o.table_tool),
         ] {
-            if frame.is_some_and(|f| !f.iter().all(|v| v.is_finite())) {
+            if frame.is_some_and(|f| !crate::bounds::option_frame_within(&f)) {
                 return Err(Error::Option(format!(
-                    "the {name} must be six finite numbers X,Y,Z,A,B,C"
+                    "the {name} must be six numbers X,Y,Z,A,B,C within ±{} mm and ±{}°",
+                    crate::bounds::MAX_POSITION_MM,
+                    crate::bounds::MAX_ANGLE_DEG
                 )));
             }
         }
@@ -161,10 +164,28 @@ impl CompensateJob {
                 ))
             })?,
         };
+        // Every file the job reads is an input no output may name, by any path: the
+        // table, the program, a KRL program's partner (read for the names its motions
+        // use), the robot file and the URDF it names.
+        let partner_path = match format {
+            Format::Krl => partner(&o.program),
+            _ => None,
+        };
+        let (robot, robot_files) = match &o.robot {
+            Some(path) => {
+                let (robot, files) =
+                    Robot::load_with_files(path, &o.links).map_err(|e| Error::Robot {
+                        path: path.clone(),
+                        message: e.to_string(),
+                    })?;
+                (Some(robot), files)
+            }
+            None => (None, Vec::new()),
+        };
         let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
-        if let Some(r) = &o.robot {
-            inputs.push(r);
-        }
+        inputs.extend(partner_path.as_deref());
+        inputs.extend(o.robot.as_deref());
+        inputs.extend(robot_files.iter().map(PathBuf::as_path));
         let outputs = adwi_compile::write::OutputPlan::check(
             &[o.output.as_deref(), o.report.as_deref()]
                 .into_iter()
@@ -204,13 +225,6 @@ impl CompensateJob {
         }
         let bytes = read(&o.program)?;
         let name = o.program.display().to_string();
-        let robot = match &o.robot {
-            Some(path) => Some(Robot::load_with(path, &o.links).map_err(|e| Error::Robot {
-                path: path.clone(),
-                message: e.to_string(),
-            })?),
-            None => None,
-        };
         let (kinematics, table_tool) = kinematics(o, &table, robot)?;
         // The cost of a target is known once the kinematics are: the program is read only
         // as far as the work it may take.
@@ -222,9 +236,9 @@ impl CompensateJob {
         let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
         let program = {
             let src = Source::new(&name, &bytes);
+            crate::bounds::check_line_lengths(&src)?;
             match format {
                 Format::Krl => {
-                    let partner_path = partner(&o.program);
                     let partner_bytes = partner_path.as_deref().and_then(|p| std::fs::read(p).ok());
                     let partner_name = partner_path
                         .map(|p| p.display().to_string())
@@ -232,6 +246,9 @@ impl CompensateJob {
                     let partner_src = partner_bytes
                         .as_deref()
                         .map(|b| Source::new(&partner_name, b));
+                    if let Some(p) = &partner_src {
+                        crate::bounds::check_line_lengths(p)?;
+                    }
                     crate::krl::read_at_most(&src, partner_src.as_ref(), limit)?
                 }
                 Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
@@ -385,7 +402,9 @@ impl CompensateJob {
                     // Never a non-finite number written, whatever the input held.
                     let finite = edits
                         .iter()
-                        .all(|(_, text)| text.parse::<f64>().is_ok_and(f64::is_finite));
+                        .all(|(_, text)| {
+                            text.replace(',', ".").parse::<f64>().is_ok_and(f64::is_finite)
+                        });
                     if finite {
                         Ok(edits)
                     } else {
@@ -473,6 +492,36 @@ impl CompensateJob {
             |n: &Number, value: f64, decimals: usize| -> Option<((usize, usize), String)> {
                 rewrite(n, &bytes[n.span.0..n.span.1], value, decimals).map(|text| (n.span, text))
             };
+        // Every number within its bound before any arithmetic: an absurd value is reported
+        // where it is written, never iterated on.
+        let robot = self.kinematics.as_ref().map(Kinematics::robot);
+        if let Some(why) = crate::bounds::out_of_range(src, &target.kind, robot) {
+            return Err((TargetStatus::Invalid, why));
+        }
+        // A CSV's configuration is 0-254 as in sample files; a robot solved in closed form
+        // has the eight of `adwi_robot::Configuration`.
+        if let (TargetKind::Cartesian(c), Some(k)) = (&target.kind, &self.kinematics) {
+            if let ConfigHint::Configuration(bits) = c.config {
+                if bits >= 8 && k.has_configurations() {
+                    return Err((
+                        TargetStatus::Invalid,
+                        format!("configuration {bits} is not one of the robot's 0-7"),
+                    ));
+                }
+            }
+        }
+        if chains
+            .iter()
+            .any(|c| !(frame_within(&c.base) && frame_within(&c.tool)))
+        {
+            return Err((
+                TargetStatus::Invalid,
+                format!(
+                    "its tool or work object is not within ±{} mm",
+                    crate::bounds::MAX_POSITION_MM
+                ),
+            ));
+        }
         match &target.kind {
             TargetKind::Incomplete(why) => Err((TargetStatus::Incomplete, why.clone())),
             TargetKind::Cartesian(c) => {

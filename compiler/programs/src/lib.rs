@@ -37,6 +37,7 @@
 
 #![deny(missing_docs)]
 
+pub mod bounds;
 pub mod correct;
 pub mod csv;
 mod error;
@@ -52,7 +53,7 @@ pub mod source;
 pub mod urscript;
 
 pub use correct::{Limits, TargetStatus};
-pub use error::Error;
+pub use error::{escape_controls, Error};
 pub use job::{
     CompensateJob, CompensateOptions, Compensated, DEFAULT_MAX_CORRECTION_MM,
     DEFAULT_MAX_JOINT_CHANGE_DEG,

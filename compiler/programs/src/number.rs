@@ -22,6 +22,8 @@ pub struct NumberStyle {
     pub bare_point: bool,
     /// The exponent, when the number has one.
     pub exponent: Option<ExponentStyle>,
+    /// Whether the decimal mark is a comma (a CSV file's `1500,25`).
+    pub decimal_comma: bool,
 }
 
 /// How an exponent is written: `e5`, `E+05`, `E-005`.
@@ -128,6 +130,7 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Option<Number> {
             plus,
             bare_point: integer_digits == 0,
             exponent,
+            decimal_comma: false,
         },
     })
 }
@@ -191,6 +194,9 @@ pub fn format_number(value: f64, style: &NumberStyle, required_decimals: usize) 
     }
     if style.plus && !text.starts_with('-') {
         text.insert(0, '+');
+    }
+    if style.decimal_comma {
+        text = text.replace('.', ",");
     }
     text
 }
@@ -334,6 +340,7 @@ mod tests {
                         plus,
                         digits,
                     }),
+                    decimal_comma: false,
                 },
             )
     }

@@ -92,7 +92,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             truncated_at = Some(lexer.pos);
             break;
         }
-        let statement = next_statement(&mut lexer);
+        let statement = next_statement(src, &mut lexer)?;
         if statement.is_empty() {
             if lexer.pos >= src.bytes.len() {
                 break;
@@ -311,19 +311,30 @@ const BLOCK_WORDS: [&str; 25] = [
     "ENDRECORD",
 ];
 
+/// The most tokens a statement may have: a robtarget has some sixty, an array of a
+/// thousand targets sixty thousand; a statement without its `;` running on through a huge
+/// file is refused before its token list takes some twenty times the file's size.
+pub const MAX_STATEMENT_TOKENS: usize = 1 << 20;
+
 /// The tokens up to the next `;` (line ends skipped), the `;` excluded; or up to the line
 /// end, for a line opening or closing a block.
-fn next_statement(lexer: &mut Lexer) -> Vec<Token> {
+fn next_statement(src: &Source, lexer: &mut Lexer) -> Result<Vec<Token>, Error> {
     let mut tokens: Vec<Token> = Vec::new();
     let mut block = false;
     let mut line_start = true;
     loop {
+        if tokens.len() >= MAX_STATEMENT_TOKENS {
+            return Err(src.error(
+                tokens[0].start,
+                format!("a statement of more than {MAX_STATEMENT_TOKENS} tokens: a ';' missing?"),
+            ));
+        }
         let t = lexer.next_token();
         match t.kind {
-            Tok::Newline if block => return tokens,
+            Tok::Newline if block => return Ok(tokens),
             Tok::Newline => line_start = true,
-            Tok::Eof => return tokens,
-            Tok::Punct(b';') => return tokens,
+            Tok::Eof => return Ok(tokens),
+            Tok::Punct(b';') => return Ok(tokens),
             _ => {
                 // A line opening or closing a block, or a `%%%` header line, also ends
                 // whatever came before it without a `;`.
@@ -333,7 +344,7 @@ fn next_statement(lexer: &mut Lexer) -> Vec<Token> {
                             && BLOCK_WORDS.contains(&lexer.text(t).to_ascii_uppercase().as_str())));
                 if opens && !tokens.is_empty() {
                     lexer.pos = t.start;
-                    return tokens;
+                    return Ok(tokens);
                 }
                 if opens {
                     block = true;
@@ -407,21 +418,42 @@ fn arguments<'t>(src: &Source, tokens: &'t [Token]) -> Result<Vec<Argument<'t>>,
     Ok(out)
 }
 
+/// How deep lists may nest in a value: a robtarget nests two deep, a record of records a
+/// few more; a deeper value is refused where it passes the bound, never read by a recursion
+/// as deep as the file is long.
+pub const MAX_NESTING: usize = 32;
+
 /// The value starting at `tokens[i]`: a list, a signed number, or a single other token.
 fn value(src: &Source, tokens: &[Token], i: usize) -> Result<(Value, usize), Error> {
+    nested_value(src, tokens, i, 0)
+}
+
+/// [`value`] inside `depth` lists.
+fn nested_value(
+    src: &Source,
+    tokens: &[Token],
+    i: usize,
+    depth: usize,
+) -> Result<(Value, usize), Error> {
     let end_offset = tokens.last().map_or(0, |t| t.end);
     let Some(t) = tokens.get(i) else {
         return Err(src.error(end_offset, "expected a value"));
     };
     match t.kind {
         Tok::Punct(b'[') => {
+            if depth >= MAX_NESTING {
+                return Err(src.error(
+                    t.start,
+                    format!("lists nested more than {MAX_NESTING} deep"),
+                ));
+            }
             let mut items = Vec::new();
             let mut j = i + 1;
             if tokens.get(j).is_some_and(|t| t.is(b']')) {
                 return Ok((Value::List(items, t.start), j + 1));
             }
             loop {
-                let (item, next) = value(src, tokens, j)?;
+                let (item, next) = nested_value(src, tokens, j, depth + 1)?;
                 items.push(item);
                 match tokens.get(next) {
                     Some(t) if t.is(b',') => j = next + 1,

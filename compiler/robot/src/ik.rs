@@ -527,6 +527,9 @@ fn newton(
         Some(transform_pose_error(&chain.tcp_pose(q)?, target))
     };
     let mut error = error_at(&q_rad)?;
+    if !(q_rad.iter().all(|v| v.is_finite()) && error.iter().all(|v| v.is_finite())) {
+        return None;
+    }
     for _ in 0..NEWTON_MAX_STEPS {
         if converged(&error) {
             break;
@@ -537,7 +540,12 @@ fn newton(
         let step = jacobian
             .lu()
             .solve(&error)
-            .or_else(|| jacobian.svd(true, true).solve(&error, 1e-12).ok())?;
+            .or_else(|| {
+                jacobian
+                    .try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)?
+                    .solve(&error, 1e-12)
+                    .ok()
+            })?;
         for (q, dq) in q_rad.iter_mut().zip(step.iter()) {
             *q += dq;
         }
@@ -785,6 +793,10 @@ fn walk_toward(
     q
 }
 
+/// The most sweeps an SVD of a Jacobian may take: a 6×n Jacobian converges in a few dozen;
+/// one that does not (non-finite entries) is given up on rather than iterated on forever.
+const SVD_MAX_ITERATIONS: usize = 1000;
+
 /// A null-space pull below this (rad, mm) ends the walk toward the seed.
 const NULL_SPACE_TOLERANCE: f64 = 1e-12;
 
@@ -819,13 +831,17 @@ fn to_pose(
 ) -> Option<DVector<f64>> {
     for _ in 0..max_steps {
         let (jacobian, e, error) = weighted(chain, target, &q)?;
+        // A non-finite pose or posture has no step: refused, never iterated on.
+        if !(e.iter().all(|v| v.is_finite()) && jacobian.iter().all(|v| v.is_finite())) {
+            return None;
+        }
         // A thousand times tighter than asked: one more Newton step costs little.
         if error.fixed_rows::<3>(0).norm() <= 1e-3 * POSITION_TOLERANCE_MM
             && error.fixed_rows::<3>(3).norm() <= 1e-3 * ORIENTATION_TOLERANCE_RAD
         {
             return Some(q);
         }
-        let svd = jacobian.svd(true, true);
+        let svd = jacobian.try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)?;
         let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
         let sigma = &svd.singular_values;
         let largest = sigma.max();
@@ -860,7 +876,8 @@ fn to_pose(
 
 /// The part of `v` in the null space of the chain's Jacobian at `q`: `(I − J⁺J) v`.
 fn null_space_part(chain: &Chain, q: &DVector<f64>, v: &DVector<f64>) -> Option<DVector<f64>> {
-    let svd = joint_jacobian(chain, q.as_slice()).svd(false, true);
+    let svd =
+        joint_jacobian(chain, q.as_slice()).try_svd(false, true, f64::EPSILON, SVD_MAX_ITERATIONS)?;
     let v_t = svd.v_t.as_ref()?;
     let largest = svd.singular_values.max();
     let mut out = v.clone();

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use adwi_programs::{CompensateJob, CompensateOptions, Format};
+use adwi_programs::{escape_controls, CompensateJob, CompensateOptions, Format};
 
 use crate::Answered;
 
@@ -100,7 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!(" {v:.4} {unit}"));
         println!(
             "{:<24} {}:{:<5} {:<10} {}{}{}{}",
-            t.name,
+            escape_controls(&t.name),
             t.line,
             t.column,
             t.kind,
@@ -110,12 +110,12 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             if t.detail.is_empty() {
                 String::new()
             } else {
-                format!(" ({})", t.detail)
+                format!(" ({})", escape_controls(&t.detail))
             },
         );
     }
     let summary = done.report.summary();
-    println!("{summary}");
+    println!("{}", escape_controls(&summary.to_string()));
     Ok(if summary.corrected == summary.total {
         Answered::All
     } else {

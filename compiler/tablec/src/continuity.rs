@@ -23,21 +23,15 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.step_mm.is_finite() && args.step_mm > 0.0,
-        "--step-mm must be a positive length"
-    );
-    anyhow::ensure!(
-        args.length_mm.is_finite() && args.length_mm >= args.step_mm,
-        "--length-mm must be at least one step"
-    );
-    let table = crate::open_table(&args.table)?;
     let options = ContinuityOptions {
         lines: args.lines,
         length_mm: args.length_mm,
         step_mm: args.step_mm,
         seed: args.seed,
     };
+    // Sized before the table is opened: refused in milliseconds, with the figure.
+    options.check()?;
+    let table = crate::open_table(&args.table)?;
     let c = continuity(&table, &options)?;
     println!(
         "{} lines of {} mm at {} mm steps",
