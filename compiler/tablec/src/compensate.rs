@@ -67,10 +67,7 @@ pub struct Args {
 type Frame = [f64; 6];
 
 fn frame(text: &str) -> Result<Frame, String> {
-    let values = adwi_jobs::args::parse_number_list(text)?;
-    values
-        .try_into()
-        .map_err(|v: Vec<f64>| format!("a frame is six numbers X,Y,Z,A,B,C, not {}", v.len()))
+    adwi_jobs::args::parse_frame(text)
 }
 
 pub fn run(args: Args) -> anyhow::Result<Answered> {
