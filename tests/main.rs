@@ -13,7 +13,6 @@ mod documented_commands;
 mod eval;
 mod hostile_csv;
 mod hostile_inputs;
-mod hostile_inputs;
 mod implausible_samples;
 mod latency_guard;
 mod no_alloc;
