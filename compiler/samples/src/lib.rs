@@ -73,6 +73,7 @@ mod plausible;
 pub mod pose;
 mod reader;
 mod repeats;
+mod series;
 
 pub use columns::{
     orientation_columns, AngleUnit, ColumnMap, ColumnMapError, LengthUnit, Unit, UnitError,
@@ -80,12 +81,14 @@ pub use columns::{
 };
 pub use measurements::{Measurements, MeasurementsError};
 pub use plausible::{
-    SampleWarning, MAX_PLAUSIBLE_ERROR_RMS_MM, MAX_PLAUSIBLE_EXTENT_MM, MIN_PLAUSIBLE_EXTENT_MM,
+    SampleWarning, MAX_PLAUSIBLE_ERROR_RMS_MM, MAX_PLAUSIBLE_EXTENT_MM,
+    MAX_PLAUSIBLE_ROTATION_ERROR_DEG, MIN_PLAUSIBLE_EXTENT_MM,
 };
 pub use reader::{
     Choice, Decimal, Delimiter, MappedColumnMissing, ReadError, ReadErrorKind, ReadOptions,
 };
 pub use repeats::{RepeatReport, REPEAT_RESOLUTION};
+pub use series::{check_series, SeriesConflict, SeriesRows, MAX_SERIES_SCALE_RATIO};
 
 use reader::{parse, read_file, Purpose, Rows};
 
@@ -701,6 +704,8 @@ pub fn read_targets(
             target: adwi_runtime::Target {
                 position_mm: nominal[i],
                 config: rows.config.as_ref().map(|c| c[i]),
+                rotation_rad: None,
+                tcp_mm: None,
             },
             joints_rad: rows.joints.as_ref().map(|j| j.row(i).to_vec()),
         })

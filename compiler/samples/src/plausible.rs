@@ -17,6 +17,12 @@ pub const MAX_PLAUSIBLE_EXTENT_MM: f64 = 100_000.0;
 /// robots are off by a few millimetres, the largest and most loaded by a few tens.
 pub const MAX_PLAUSIBLE_ERROR_RMS_MM: f64 = 100.0;
 
+/// The largest orientation error a robot plausibly has, degrees: robots miss their
+/// commanded orientation by hundredths to tenths of a degree (an uncalibrated UR5's flange
+/// by up to 0.74°); 5° is an error in degrees read as radians (0.0873 read as rad), or
+/// no orientation error at all. The reader refuses a sample beyond it.
+pub const MAX_PLAUSIBLE_ROTATION_ERROR_DEG: f64 = 5.0;
+
 /// The extents a robot's samples span, for guessing a unit: 5 cm to 50 m.
 const ROBOT_EXTENT_MM: std::ops::RangeInclusive<f64> = 50.0..=50_000.0;
 
@@ -141,7 +147,7 @@ impl SampleSet {
 
 /// A number as people read it: four significant digits, plain in the usual range, in
 /// exponent form outside it.
-fn number(value: f64) -> String {
+pub(crate) fn number(value: f64) -> String {
     let value: f64 = format!("{value:.3e}").parse().unwrap_or(value);
     if value == 0.0 || (1e-4..1e9).contains(&value.abs()) {
         format!("{value}")

@@ -6,6 +6,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+use adwi_runtime::format::MAX_COORDINATE_MM;
 use adwi_runtime::method::CONFIG_UNKNOWN;
 use nalgebra::Rotation3;
 
@@ -14,6 +15,7 @@ use super::columns::{
     MAX_JOINTS,
 };
 use super::Joints;
+use crate::plausible::number;
 use crate::pose::Convention;
 
 /// The character between fields.
@@ -219,6 +221,22 @@ pub enum ReadErrorKind {
     BadConfig(String),
     /// A field is not UTF-8.
     NotUtf8,
+    /// A position, error or measured coordinate beyond
+    /// [`adwi_runtime::format::MAX_COORDINATE_MM`] (1 km), or one that overflowed in its
+    /// unit's conversion: no robot's, a unit or a damaged field.
+    ImplausibleCoordinate {
+        /// The value, mm (infinite when the conversion overflowed).
+        value_mm: f64,
+    },
+    /// An orientation error beyond [`crate::MAX_PLAUSIBLE_ROTATION_ERROR_DEG`]: no robot
+    /// turns that far from its command.
+    ImplausibleRotationError {
+        /// The error's angle as read, rad (infinite when its norm overflows).
+        angle_rad: f64,
+        /// The unit the rotation vector `rx,ry,rz` was read in; `None` for an error
+        /// computed from a nominal and a measured orientation.
+        vector_unit: Option<AngleUnit>,
+    },
     /// The CSV syntax is broken (e.g. an unterminated quote).
     Syntax(String),
 }
@@ -334,6 +352,56 @@ impl fmt::Display for ReadError {
                 )
             }
             ReadErrorKind::NotUtf8 => write!(f, "field is not valid UTF-8"),
+            ReadErrorKind::ImplausibleCoordinate { value_mm } => write!(
+                f,
+                "{} mm is beyond the ±{} mm (1 km) within which every robot's positions and \
+                 errors lie: a unit, a misplaced column or a damaged field",
+                number(*value_mm),
+                number(adwi_runtime::format::MAX_COORDINATE_MM)
+            ),
+            ReadErrorKind::ImplausibleRotationError {
+                angle_rad,
+                vector_unit,
+            } => {
+                let limit = crate::MAX_PLAUSIBLE_ROTATION_ERROR_DEG;
+                if angle_rad.to_degrees().is_finite() {
+                    write!(
+                        f,
+                        "an orientation error of {} (a rotation of {} rad)",
+                        degrees(*angle_rad),
+                        number(*angle_rad)
+                    )?;
+                } else {
+                    write!(f, "an orientation error of {} rad", number(*angle_rad))?;
+                }
+                write!(
+                    f,
+                    ", more than the {limit}° by which any robot's orientation misses its command"
+                )?;
+                match vector_unit {
+                    // Degrees read as radians: the error as degrees would be a robot's.
+                    Some(AngleUnit::Radian) if *angle_rad <= limit => {
+                        write!(
+                            f,
+                            ": rx,ry,rz look like degrees read as radians (read as degrees, \
+                             {}); give their columns the unit deg (rx:deg,ry:deg,rz:deg, or \
+                             rx=COLUMN:deg,... in --columns)",
+                            degrees(angle_rad.to_radians())
+                        )
+                    }
+                    Some(_) => write!(
+                        f,
+                        ": no unit makes it a robot's; is the column an orientation rather \
+                         than its error, or another quantity?"
+                    ),
+                    None => write!(
+                        f,
+                        ": the measured orientation is that far from the nominal one; are both \
+                         in one convention and one unit, and the measured one in the robot's \
+                         base frame (a tracker's frame needs --measured-in tracker)?"
+                    ),
+                }
+            }
             ReadErrorKind::Syntax(e) => write!(f, "malformed CSV: {e}"),
         }
     }
@@ -559,17 +627,49 @@ pub(crate) fn parse(
         let mut triple = |cols: [Field; 3]| -> Result<[f64; 3], ReadError> {
             Ok([number(cols[0])?, number(cols[1])?, number(cols[2])?])
         };
+        // Lengths of samples and measurements within 1 km, in millimetres (a unit's
+        // conversion may overflow a finite field); targets and poses are checked where
+        // they are used.
+        let length = |cols: [Field; 3], v: [f64; 3]| -> Result<[f64; 3], ReadError> {
+            match (0..3).find(|&a| !(v[a].abs() <= MAX_COORDINATE_MM)) {
+                Some(a) if matches!(purpose, Purpose::Samples | Purpose::Measurements) => {
+                    let index = cols[a].index;
+                    Err(error(
+                        Some(line),
+                        Some((index + 1, names[index].clone())),
+                        ReadErrorKind::ImplausibleCoordinate { value_mm: v[a] },
+                    ))
+                }
+                _ => Ok(v),
+            }
+        };
         if let (Some(cols), Some(v)) = (layout.position, rows.nominal_mm.as_mut()) {
-            v.push(triple(cols)?);
+            v.push(length(cols, triple(cols)?)?);
         }
         if let (Some(cols), Some(v)) = (layout.delta, rows.delta_mm.as_mut()) {
-            v.push(triple(cols)?);
+            v.push(length(cols, triple(cols)?)?);
         }
         if let (Some(cols), Some(v)) = (layout.measured, rows.measured_mm.as_mut()) {
-            v.push(triple(cols)?);
+            v.push(length(cols, triple(cols)?)?);
         }
         if let (Some(cols), Some(v)) = (layout.rotation_vector, rows.rotation_vector_rad.as_mut()) {
-            v.push(triple(cols)?);
+            let r = triple(cols)?;
+            if purpose == Purpose::Samples {
+                let unit = if cols[0].scale.abs() == 1.0 {
+                    AngleUnit::Radian
+                } else {
+                    AngleUnit::Degree
+                };
+                check_rotation_error(r, Some(unit)).map_err(|kind| {
+                    // The column of the largest component: the one to look at.
+                    let a = (0..3)
+                        .max_by(|&i, &j| r[i].abs().total_cmp(&r[j].abs()))
+                        .unwrap_or(0);
+                    let index = cols[a].index;
+                    error(Some(line), Some((index + 1, names[index].clone())), kind)
+                })?;
+            }
+            v.push(r);
         }
         for (part, out) in [
             (&layout.nominal_orientation, &mut rows.nominal_rotation),
@@ -590,6 +690,20 @@ pub(crate) fn parse(
                 })?;
                 out.push(rotation);
             }
+        }
+        // An error computed from the orientations is checked as a given one is.
+        if let (Purpose::Samples, None, Some(m), Some(nominal), Some(measured)) = (
+            purpose,
+            layout.rotation_vector,
+            &layout.measured_orientation,
+            rows.nominal_rotation.as_ref().and_then(|r| r.last()),
+            rows.measured_rotation.as_ref().and_then(|r| r.last()),
+        ) {
+            let r = crate::pose::orientation_error(nominal, measured);
+            check_rotation_error(r, None).map_err(|kind| {
+                let first = m.fields[0].index;
+                error(Some(line), Some((first + 1, names[first].clone())), kind)
+            })?;
         }
         if let (Some(cols), Some(joints)) = (&layout.joints, rows.joints.as_mut()) {
             let q = &mut joint_row[..cols.len()];
@@ -619,6 +733,26 @@ pub(crate) fn parse(
         return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
     }
     Ok(rows)
+}
+
+/// Refuses an orientation error (rotation vector, rad) beyond
+/// [`crate::MAX_PLAUSIBLE_ROTATION_ERROR_DEG`], or whose norm is not finite.
+fn check_rotation_error(r: [f64; 3], vector_unit: Option<AngleUnit>) -> Result<(), ReadErrorKind> {
+    // Scaled by the largest component, so that a norm of finite components only
+    // overflows when it exceeds f64's range.
+    let largest = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let angle_rad = if largest > 0.0 {
+        largest * r.iter().map(|v| (v / largest).powi(2)).sum::<f64>().sqrt()
+    } else {
+        0.0
+    };
+    if angle_rad.to_degrees() <= crate::MAX_PLAUSIBLE_ROTATION_ERROR_DEG {
+        return Ok(());
+    }
+    Err(ReadErrorKind::ImplausibleRotationError {
+        angle_rad,
+        vector_unit,
+    })
 }
 
 /// The number in a field, in the file's unit: trimmed, with the file's decimal mark,
@@ -696,6 +830,11 @@ fn number_at(
         return Err(ReadErrorKind::NotFinite(truncated(text)));
     }
     Ok(value)
+}
+
+/// An angle in radians as people read it, in degrees: four significant digits.
+fn degrees(angle_rad: f64) -> String {
+    format!("{}°", number(angle_rad.to_degrees()))
 }
 
 fn truncated(text: &str) -> String {
@@ -1122,6 +1261,98 @@ mod tests {
         }
     }
 
+    /// Orientation errors in degrees where radians are expected (a KR150-2 sample's
+    /// 0.096° read as 0.096 rad, 5.5°), and values no unit makes a robot's, are refused
+    /// where they are read, with line and column; those of a robot are read.
+    #[test]
+    fn orientation_errors_beyond_any_robots_are_refused_with_line_and_column() {
+        let header = "x,y,z,dx,dy,dz,rx,ry,rz\n";
+        let good = "1000,0,500,0.1,0.2,0.3,0.000029,0.0011,0.00063\n";
+        let s = samples(&format!("{header}{good}{good}"));
+        assert_eq!(
+            s.rotation_error_rad.unwrap()[0],
+            [0.000029, 0.0011, 0.00063]
+        );
+        refused(
+            &format!("{header}{good}1000,100,500,0.1,0.2,0.3,0.0017,0.096,0.035\n"),
+            "",
+            ReadOptions::default(),
+            &[
+                "s.csv:3:8 (column 'ry'): an orientation error of 5.855° (a rotation of 0.1022 rad)",
+                "more than the 5° by which any robot's orientation misses its command",
+                "look like degrees read as radians (read as degrees, 0.1022°)",
+                "rx:deg,ry:deg,rz:deg",
+            ],
+        );
+        // Mapped in degrees, the same numbers are a robot's.
+        assert!(read(
+            &format!("{header}1000,100,500,0.1,0.2,0.3,0.0017,0.096,0.035\n"),
+            "rx:deg,ry:deg,rz:deg",
+            ReadOptions::default()
+        )
+        .is_ok());
+        for absurd in ["1e20", "1e308", "-1.7976931348623157e308"] {
+            refused(
+                &format!("{header}{good}1000,100,500,0.1,0.2,0.3,{absurd},0,0\n"),
+                "",
+                ReadOptions::default(),
+                &["s.csv:3:7 (column 'rx')", "no unit makes it a robot's"],
+            );
+        }
+        // Three components of 1e308: the norm overflows, and is refused all the same.
+        refused(
+            &format!("{header}1e3,1,5e2,0,0,0,1e308,1e308,1e308\n"),
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:9 (column 'rz'): an orientation error of 1.732e308 rad, more than"],
+        );
+        // Computed from orientations: a measured orientation 10° from the nominal one.
+        refused(
+            "x,y,z,dx,dy,dz,a,b,c,ma,mb,mc\n1000,0,500,0,0,0,0,90,0,0.01,90,0\n\
+             1000,0,600,0,0,0,0,90,0,10,90,0\n",
+            "",
+            ReadOptions::default(),
+            &[
+                "s.csv:3:10 (column 'ma')",
+                "an orientation error of 10°",
+                "are both in one convention and one unit",
+            ],
+        );
+    }
+
+    /// Positions and errors beyond a kilometre, or overflowing in their unit's conversion,
+    /// are refused with line and column (a build once failed on them with "radius must be
+    /// finite and positive").
+    #[test]
+    fn coordinates_beyond_a_kilometre_are_refused_with_line_and_column() {
+        let header = "x,y,z,dx,dy,dz\n";
+        refused(
+            &format!("{header}1000,0,500,0.1,0,0\n1e308,0,500,0.1,0,0\n"),
+            "",
+            ReadOptions::default(),
+            &["s.csv:3:1 (column 'x'): 1e308 mm is beyond the ±1000000 mm (1 km)"],
+        );
+        refused(
+            &format!("{header}1000,0,500,0.1,0,2e6\n"),
+            "",
+            ReadOptions::default(),
+            &["s.csv:2:6 (column 'dz'): 2000000 mm"],
+        );
+        // Finite in metres, infinite in millimetres.
+        refused(
+            &format!("{header}1.7e308,0,0.5,0,0,0\n"),
+            "x:m,y:m,z:m",
+            ReadOptions::default(),
+            &["s.csv:2:1 (column 'x'): inf mm"],
+        );
+        assert!(read(
+            &format!("{header}999999,0,0,0,0,0\n"),
+            "",
+            ReadOptions::default()
+        )
+        .is_ok());
+    }
+
     #[test]
     fn the_separator_is_the_one_the_header_uses_most() {
         assert_eq!(Delimiter::detect(b"x,y,z"), Delimiter::Comma);
@@ -1153,9 +1384,9 @@ mod tests {
 
     #[test]
     fn decimal_commas_are_read_where_commas_do_not_separate() {
-        let s = samples("x;y;z;dx;dy;dz\n1234,56;-2,5;3;0,125;-1,5E-3;2,02011E+13\n5;6;7;0;0;0\n");
+        let s = samples("x;y;z;dx;dy;dz\n1234,56;-2,5;3;0,125;-1,5E-3;2,02011E+2\n5;6;7;0;0;0\n");
         assert_eq!(s.nominal_mm[0], [1234.56, -2.5, 3.0]);
-        assert_eq!(s.error_mm[0], [0.125, -1.5e-3, 2.02011e13]);
+        assert_eq!(s.error_mm[0], [0.125, -1.5e-3, 2.02011e2]);
         let s = samples("x\ty\tz\tdx\tdy\tdz\n1,5\t2\t3\t0\t0\t0\n");
         assert_eq!(s.nominal_mm[0], [1.5, 2.0, 3.0]);
         // A decimal point in a semicolon file is read as such.
