@@ -77,6 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
+    print_evidence(&h.evidence, h.version);
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {
         Some(t) => println!(
@@ -211,4 +212,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// What the samples span beyond their positions (format version 4): the answers beyond it
+/// carry the evidence flag.
+fn print_evidence(e: &adwi_runtime::format::EvidenceRecord, version: u16) {
+    if version < 4 {
+        println!(
+            "evidence        not recorded (format version {version}): answers are never flagged"
+        );
+        return;
+    }
+    match e.approach {
+        Some(cone) => {
+            let [x, y, z] = cone.axis;
+            println!(
+                "evidence        tool approach axes within {:.2}° of ({x:.4}, {y:.4}, {z:.4}), base frame; \
+                 answers beyond that and {:.0}° more are flagged `orientation`",
+                cone.spread_rad.to_degrees(),
+                adwi_runtime::format::ORIENTATION_MARGIN_RAD.to_degrees()
+            );
+        }
+        None => println!("evidence        the samples' orientations are not known: not checked"),
+    }
+    match e.point_in_flange {
+        Some(p) => {
+            let [x, y, z] = p.translation_mm;
+            println!(
+                "                measured point ({x:.3}, {y:.3}, {z:.3}) mm in the flange frame: \
+                 a query may name another TCP"
+            );
+        }
+        None => println!(
+            "                measured point on the flange not recorded: a named TCP is flagged `tcp`"
+        ),
+    }
 }
