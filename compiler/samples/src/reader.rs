@@ -631,7 +631,7 @@ pub(crate) fn parse(
         // conversion may overflow a finite field); targets and poses are checked where
         // they are used.
         let length = |cols: [Field; 3], v: [f64; 3]| -> Result<[f64; 3], ReadError> {
-            match (0..3).find(|&a| !(v[a].abs() <= MAX_COORDINATE_MM)) {
+            match (0..3).find(|&a| v[a].abs() > MAX_COORDINATE_MM || v[a].is_nan()) {
                 Some(a) if matches!(purpose, Purpose::Samples | Purpose::Measurements) => {
                     let index = cols[a].index;
                     Err(error(
