@@ -9,6 +9,7 @@
 //! Forward kinematics is not here: every robot is a runtime [`adwi_runtime::chain::Chain`],
 //! so that one implementation serves simulation, identification and queries.
 
+pub mod agreement;
 pub mod calibrate;
 pub mod error;
 pub mod error_model;

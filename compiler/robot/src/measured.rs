@@ -182,14 +182,35 @@ impl Registered {
         robot: Robot,
     ) -> Result<(Registered, SampleSet), MeasuredError> {
         let measurements = input.measurements(columns, read)?;
-        let registration = register(&robot, &measurements, &RegisterOptions::default())
-            .map_err(MeasuredError::register(&input))?;
+        Registered::from_measurements(input.name(), &measurements, robot)
+    }
+
+    /// Registers tracker-frame measurements read already (`name` names them in messages)
+    /// to `robot`, as [`Registered::read`] does.
+    ///
+    /// # Errors
+    ///
+    /// As [`Registered::read`].
+    pub fn from_measurements(
+        name: &Path,
+        measurements: &Measurements,
+        robot: Robot,
+    ) -> Result<(Registered, SampleSet), MeasuredError> {
+        let failed = |source| MeasuredError::Register {
+            path: name.to_path_buf(),
+            source,
+        };
+        let registration =
+            register(&robot, measurements, &RegisterOptions::default()).map_err(failed)?;
         let registered = Registered {
             robot: registration.robot(&robot)?,
             registration,
             file_robot: robot,
         };
-        let samples = registered.to_samples(&input, &measurements)?;
+        let samples = registered
+            .registration
+            .to_samples(&registered.file_robot, measurements)
+            .map_err(failed)?;
         Ok((registered, samples))
     }
 
