@@ -166,12 +166,8 @@ impl BuildJob {
             compliance: args.compliance,
             ..CalibrateOptions::default()
         };
-        let series = crate::series::read(
-            &args.samples,
-            &columns,
-            &read,
-            file_robot.clone().filter(|_| tracker),
-        )?;
+        let series =
+            crate::series::read(&args.samples, &columns, &read, file_robot.as_ref(), tracker)?;
         let robot = match &series.registered {
             Some(r) => Some(r.robot.clone()),
             None => file_robot,

@@ -199,12 +199,8 @@ impl CalibrateJob {
         )?;
         let (columns, read) = args.reading.resolve()?;
         let tracker = args.measured_in == Frame::Tracker;
-        let series = crate::series::read(
-            &args.samples,
-            &columns,
-            &read,
-            tracker.then(|| file_robot.clone()),
-        )?;
+        let series =
+            crate::series::read(&args.samples, &columns, &read, Some(&file_robot), tracker)?;
         let robot = match &series.registered {
             Some(r) => r.robot.clone(),
             None => file_robot,

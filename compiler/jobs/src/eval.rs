@@ -8,6 +8,7 @@ use adwi_compile::write::OutputPlan;
 use adwi_eval::{
     EvalOptions, Evaluation, Method, PostureDecision, Protocol, SplitChoice, SplitRule,
 };
+use adwi_robot::agreement::{check_base_frame, check_registered};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
@@ -243,16 +244,28 @@ impl EvalJob {
                     &args.samples,
                     &columns,
                     &read,
-                    file_robot.clone().filter(|_| tracker),
+                    file_robot.as_ref(),
+                    tracker,
                 )?;
                 let held_out = match (&args.validation, args.folds) {
                     (Some(v), None) => {
                         // Read once now, so that a bad file is refused before any work;
-                        // registered in `run`, once the samples are.
+                        // registered in `run`, once the samples are. Held to the robot as
+                        // the samples are: through the samples' registration when it is
+                        // theirs (registered apart, it is registered in `run`).
                         if tracker {
-                            v.input().measurements(&columns, &read)?;
+                            let rows = v.input().measurements(&columns, &read)?;
+                            if let (Some(r), false) =
+                                (&series.registered, args.register_validation_apart)
+                            {
+                                let points = r.samples(v.input(), &columns, &read)?;
+                                check_registered(&r.file_robot, &rows, &points, v.name())?;
+                            }
                         } else {
-                            v.input().samples(&columns, &read)?;
+                            let points = v.input().samples(&columns, &read)?;
+                            if let Some(robot) = &file_robot {
+                                check_base_frame(robot, &points, v.name())?;
+                            }
                         }
                         HeldOut::Validation {
                             source: v.clone(),

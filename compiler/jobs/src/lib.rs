@@ -51,6 +51,13 @@ pub enum JobError {
     /// Tracker-frame measurements that cannot be registered to the robot.
     #[error(transparent)]
     Measured(Box<adwi_robot::measured::MeasuredError>),
+    /// Series that cannot be trained together: one given twice, one in another unit.
+    #[error(transparent)]
+    Series(Box<adwi_samples::SeriesConflict>),
+    /// Samples the robot file does not fit: its nominal forward kinematics does not put
+    /// their joints near their positions (a unit, another robot, a column map).
+    #[error(transparent)]
+    Disagreement(Box<adwi_robot::agreement::Disagreement>),
     /// A robot file that cannot be loaded.
     #[error("cannot load the robot {}", path.display())]
     Robot {
@@ -118,6 +125,8 @@ macro_rules! boxed_from {
 boxed_from!(
     Read: adwi_samples::ReadError,
     Measured: adwi_robot::measured::MeasuredError,
+    Series: adwi_samples::SeriesConflict,
+    Disagreement: adwi_robot::agreement::Disagreement,
     Simulate: adwi_robot::simulate::SimulateError,
     Build: adwi_compile::build::BuildError,
     Calibrate: adwi_robot::calibrate::CalibrateError,

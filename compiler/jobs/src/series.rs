@@ -15,11 +15,12 @@
 //! coordinate descent, the transforms given the model and the model given the
 //! transforms, towards their joint least-squares fit).
 
+use adwi_robot::agreement;
 use adwi_robot::calibrate::{identify, CalibrateOptions};
 use adwi_robot::measured::{MeasuredError, Registered};
 use adwi_robot::register::{register_moved, Registration};
 use adwi_robot::Robot;
-use adwi_samples::{ColumnMap, Measurements, ReadOptions, SampleSet};
+use adwi_samples::{check_series, ColumnMap, Measurements, ReadOptions, SampleSet, SeriesRows};
 
 use crate::inputs::Source;
 use crate::JobError;
@@ -48,36 +49,66 @@ struct Later {
     first_samples: SampleSet,
 }
 
-/// Reads `sources` as one sample set: registered to `tracker_robot` when given (their
-/// poses are in a tracker's frames), otherwise as they are. Series after the first are
+/// Reads `sources` as one sample set: registered to `robot` when `tracker` (their poses
+/// are in a tracker's frames), otherwise as they are. Series after the first are
 /// registered to the nominal robot here; [`Series::refine`] registers them again to the
 /// robot identified from all of them (work a job does in its `run`, after every check).
 ///
+/// Samples that cannot be right are refused here, before any work: a series given twice or
+/// in another length unit than the others ([`check_series`]), and with a robot, samples
+/// its nominal forward kinematics does not put near their positions
+/// ([`adwi_robot::agreement`]: base-frame samples as read, tracker-frame ones as
+/// registered).
+///
 /// # Errors
 ///
-/// A file's reading error, a registration failing, series with different columns.
+/// A file's reading error, a registration failing, series with different columns, series
+/// that conflict, samples that disagree with the robot.
 pub(crate) fn read(
     sources: &[Source],
     columns: &ColumnMap,
     read: &ReadOptions,
-    tracker_robot: Option<Robot>,
+    robot: Option<&Robot>,
+    tracker: bool,
 ) -> Result<Series, JobError> {
-    let Some(robot) = tracker_robot else {
-        let sets = sources
-            .iter()
-            .map(|s| s.input().samples(columns, read))
-            .collect::<Result<Vec<_>, _>>()?;
-        return Ok(Series {
-            samples: concat(sets)?,
-            registered: None,
-            others: Vec::new(),
-            later: None,
-        });
+    let robot = match robot {
+        Some(robot) if tracker => robot.clone(),
+        _ => {
+            let sets = sources
+                .iter()
+                .map(|s| s.input().samples(columns, read))
+                .collect::<Result<Vec<_>, _>>()?;
+            check_series(&rows(sources, &sets, |s| &s.nominal_mm))?;
+            if let Some(robot) = robot {
+                for (source, set) in sources.iter().zip(&sets) {
+                    agreement::check_base_frame(robot, set, source.name())?;
+                }
+            }
+            return Ok(Series {
+                samples: concat(sets)?,
+                registered: None,
+                others: Vec::new(),
+                later: None,
+            });
+        }
     };
+    let mut measurements = sources
+        .iter()
+        .map(|s| s.input().measurements(columns, read))
+        .collect::<Result<Vec<_>, _>>()?;
+    check_series(&rows(sources, &measurements, |m| &m.measured_mm))?;
     let (first, rest) = sources
         .split_first()
         .ok_or_else(|| JobError::Options("give the samples file".into()))?;
-    let (registered, first_samples) = Registered::read(first.input(), columns, read, robot)?;
+    let first_measurements = measurements.remove(0);
+    let (registered, first_samples) =
+        Registered::from_measurements(first.name(), &first_measurements, robot)?;
+    agreement::check_registered(
+        &registered.file_robot,
+        &first_measurements,
+        &first_samples,
+        first.name(),
+    )?;
     if rest.is_empty() {
         return Ok(Series {
             samples: first_samples,
@@ -88,19 +119,37 @@ pub(crate) fn read(
     }
     let later = Later {
         names: rest.iter().map(|s| s.name().to_path_buf()).collect(),
-        measurements: rest
-            .iter()
-            .map(|s| s.input().measurements(columns, read))
-            .collect::<Result<_, _>>()?,
+        measurements,
         first_samples,
     };
-    let (others, samples) = later.register(&registered, &registered.robot)?;
+    let (others, sets) = later.register_each(&registered, &registered.robot)?;
+    for ((name, m), set) in later.names.iter().zip(&later.measurements).zip(&sets[1..]) {
+        agreement::check_registered(&registered.file_robot, m, set, name)?;
+    }
     Ok(Series {
-        samples,
+        samples: concat(sets)?,
         registered: Some(registered),
         others,
         later: Some(later),
     })
+}
+
+/// The series as [`check_series`] sees them, with `positions` of each one's contents.
+fn rows<'a, T>(
+    sources: &'a [Source],
+    contents: &'a [T],
+    positions: fn(&T) -> &Vec<[f64; 3]>,
+) -> Vec<SeriesRows<'a, T>> {
+    sources
+        .iter()
+        .zip(contents)
+        .map(|(source, content)| SeriesRows {
+            name: source.name(),
+            file: source.path(),
+            content,
+            positions_mm: positions(content),
+        })
+        .collect()
 }
 
 impl Series {
@@ -156,6 +205,16 @@ impl Later {
         first: &Registered,
         model: &Robot,
     ) -> Result<(Vec<Registration>, SampleSet), JobError> {
+        let (registrations, sets) = self.register_each(first, model)?;
+        Ok((registrations, concat(sets)?))
+    }
+
+    /// As [`Later::register`], every series' samples apart, the first series' first.
+    fn register_each(
+        &self,
+        first: &Registered,
+        model: &Robot,
+    ) -> Result<(Vec<Registration>, Vec<SampleSet>), JobError> {
         let mut sets = vec![self.first_samples.clone()];
         let mut registrations = Vec::new();
         for (name, m) in self.names.iter().zip(&self.measurements) {
@@ -167,7 +226,7 @@ impl Later {
             sets.push(r.to_samples(&first.file_robot, m).map_err(failed)?);
             registrations.push(r);
         }
-        Ok((registrations, concat(sets)?))
+        Ok((registrations, sets))
     }
 }
 
@@ -176,4 +235,330 @@ fn concat(sets: Vec<SampleSet>) -> Result<SampleSet, JobError> {
         return Ok(sets.into_iter().next().expect("one"));
     }
     SampleSet::concat(&sets).map_err(|e| JobError::Options(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    use adwi_robot::agreement::{Disagreement, Reading as Fit, UnitMistake};
+    use adwi_samples::SeriesConflict;
+
+    use crate::args::{Reading, RobotArgs};
+    use crate::{BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, JobError, Source};
+
+    fn shipped(path: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tables")
+            .join(path)
+    }
+
+    /// The README's column map of the UR5 measurements.
+    const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
+                           j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+
+    /// The UR5 grid with its joint columns (7..12) or its position columns (1..6) turned
+    /// into another unit by `convert`, in memory.
+    fn ur5_grid(columns: std::ops::Range<usize>, convert: impl Fn(f64) -> f64) -> Source {
+        ur5_grid_edited(|_, column, v| {
+            if columns.contains(&column) {
+                convert(v)
+            } else {
+                v
+            }
+        })
+    }
+
+    /// The UR5 grid with every value `edit(row, column, value)` (rows from 0 after the
+    /// header), in memory.
+    fn ur5_grid_edited(edit: impl Fn(usize, usize, f64) -> f64) -> Source {
+        let text = std::fs::read_to_string(shipped(
+            "ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv",
+        ))
+        .unwrap();
+        let mut lines = text.lines();
+        let mut out = format!("{}\n", lines.next().unwrap());
+        for (row, line) in lines.enumerate() {
+            let fields: Vec<String> = line
+                .split(',')
+                .enumerate()
+                .map(|(i, f)| format!("{}", edit(row, i, f.parse::<f64>().unwrap())))
+                .collect();
+            out.push_str(&fields.join(","));
+            out.push('\n');
+        }
+        Source::Memory {
+            name: "ur5-converted.csv".into(),
+            bytes: out.into_bytes(),
+        }
+    }
+
+    fn build(samples: Vec<Source>, robot: Option<&str>, map: &str) -> Result<BuildJob, JobError> {
+        BuildJob::new(BuildArgs {
+            samples,
+            output: std::env::temp_dir().join("never-written.tbl"),
+            reading: Reading {
+                columns: Some(map.into()),
+                ..Reading::default()
+            },
+            robot: RobotArgs {
+                robot: robot.map(shipped),
+                ..RobotArgs::default()
+            },
+            ..BuildArgs::default()
+        })
+    }
+
+    #[test]
+    fn ur5_joints_in_radians_read_as_degrees_are_refused_with_the_unit() {
+        let e = build(
+            vec![ur5_grid(7..13, f64::to_radians)],
+            Some("ur5/robot.toml"),
+            UR5_MAP,
+        )
+        .err()
+        .expect("refused");
+        let JobError::Disagreement(d) = &e else {
+            panic!("{e}")
+        };
+        let Disagreement::Systematic {
+            missed,
+            samples,
+            fitting: Some(fitting),
+            ..
+        } = d.as_ref()
+        else {
+            panic!("{e}")
+        };
+        assert_eq!((*missed, *samples), (1000, 1000), "{e}");
+        assert_eq!(
+            fitting.reading,
+            Fit::Units(vec![UnitMistake::JointsInRadians])
+        );
+        assert!(fitting.worst_mm < 1.0, "{e}");
+        assert!(
+            e.to_string()
+                .contains("they fit with the joint values in radians"),
+            "{e}"
+        );
+        println!("{e}");
+    }
+
+    #[test]
+    fn ur5_positions_in_metres_are_refused_with_the_unit() {
+        let e = build(
+            vec![ur5_grid(1..7, |v| v / 1000.0)],
+            Some("ur5/robot.toml"),
+            UR5_MAP,
+        )
+        .err()
+        .expect("refused");
+        let JobError::Disagreement(d) = &e else {
+            panic!("{e}")
+        };
+        let Disagreement::Systematic {
+            fitting: Some(fitting),
+            ..
+        } = d.as_ref()
+        else {
+            panic!("{e}")
+        };
+        assert_eq!(
+            fitting.reading,
+            Fit::Units(vec![UnitMistake::PositionsInMetres]),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("give the position columns the unit m"),
+            "{e}"
+        );
+    }
+
+    /// The KR150-2's samples identified with the UR5's robot file: no reading fits, and
+    /// the message asks whether the robot file is this robot's.
+    #[test]
+    fn kr150_samples_with_the_ur5_robot_file_are_refused() {
+        let e = CalibrateJob::new(CalibrateArgs {
+            samples: vec![Source::File(shipped("kr150-2/samples.csv"))],
+            robot: RobotArgs {
+                robot: Some(shipped("ur5/robot.toml")),
+                ..RobotArgs::default()
+            },
+            ..CalibrateArgs::default()
+        })
+        .err()
+        .expect("refused");
+        let JobError::Disagreement(d) = &e else {
+            panic!("{e}")
+        };
+        let Disagreement::Systematic {
+            missed,
+            samples,
+            median_mm,
+            fitting: None,
+            ..
+        } = d.as_ref()
+        else {
+            panic!("{e}")
+        };
+        assert_eq!((*missed, *samples), (729, 729), "{e}");
+        assert!(*median_mm > 500.0, "{e}");
+        assert!(
+            e.to_string().contains("is the robot file this robot's"),
+            "{e}"
+        );
+        // With its own robot file the same samples are accepted.
+        CalibrateJob::new(CalibrateArgs {
+            samples: vec![Source::File(shipped("kr150-2/samples.csv"))],
+            robot: RobotArgs {
+                robot: Some(shipped("kr150-2/robot.toml")),
+                ..RobotArgs::default()
+            },
+            ..CalibrateArgs::default()
+        })
+        .unwrap();
+    }
+
+    /// Three damaged rows among a thousand good ones (a joint off by 20°) are named by
+    /// line, not dropped.
+    #[test]
+    fn a_few_rows_the_robot_does_not_fit_are_named_by_line() {
+        let damaged = [10, 400, 998];
+        let samples = ur5_grid_edited(|row, column, v| {
+            if column == 8 && damaged.contains(&row) {
+                v + 20.0
+            } else {
+                v
+            }
+        });
+        let e = build(vec![samples], Some("ur5/robot.toml"), UR5_MAP)
+            .err()
+            .expect("refused");
+        let JobError::Disagreement(d) = &e else {
+            panic!("{e}")
+        };
+        let Disagreement::Outliers { outliers, .. } = d.as_ref() else {
+            panic!("{e}")
+        };
+        let lines: Vec<u64> = outliers.iter().map(|m| m.line).collect();
+        // Row r is on line r + 2, after the header.
+        assert_eq!(lines, [12, 402, 1000], "{e}");
+        assert!(
+            e.to_string().contains("correct or remove these rows"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_same_series_twice_is_refused() {
+        let grid = shipped("ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
+        let e = build(
+            vec![Source::File(grid.clone()), Source::File(grid.clone())],
+            None,
+            UR5_MAP,
+        )
+        .err()
+        .expect("refused");
+        assert!(
+            matches!(&e, JobError::Series(c) if matches!(c.as_ref(), SeriesConflict::SameFile { first: 1, again: 2, .. })),
+            "{e}"
+        );
+        // A copy of it (here in memory): the same rows.
+        let e = build(
+            vec![Source::File(grid), ur5_grid(0..0, |v| v)],
+            None,
+            UR5_MAP,
+        )
+        .err()
+        .expect("refused");
+        assert!(
+            matches!(&e, JobError::Series(c) if matches!(c.as_ref(), SeriesConflict::SameRows { again: 2, .. })),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_series_in_metres_among_series_in_millimetres_is_refused_by_name() {
+        let measurements = shipped("ur5/measurements");
+        let e = build(
+            vec![
+                Source::File(measurements.join("3D_UR5_uncalibrated_grid_cleaned.csv")),
+                Source::File(measurements.join("3D_UR5_uncalibrated_random_cleaned.csv")),
+                ur5_grid(1..7, |v| v / 1000.0),
+            ],
+            None,
+            UR5_MAP,
+        )
+        .err()
+        .expect("refused");
+        assert!(
+            matches!(&e, JobError::Series(c) if matches!(c.as_ref(), SeriesConflict::Scale { series: 3, .. })),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("series 3 (ur5-converted.csv)"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("metres read as millimetres"), "{e}");
+    }
+
+    /// The UR10's tracker-frame series C with its joints (radians) read as degrees: the
+    /// registration cannot fit them, and registered again with the joints in radians they
+    /// fit.
+    #[test]
+    fn tracker_measurements_with_joints_in_the_wrong_unit_are_refused_after_registration() {
+        let text = std::fs::read_to_string(shipped(
+            "ur10/measurements/Series_C/measurements_random_poses.csv",
+        ))
+        .unwrap();
+        let head: String = text.lines().take(301).map(|l| format!("{l}\n")).collect();
+        let map = |unit: &str| {
+            format!(
+                "j1=shoulder_pan_joint{unit},j2=shoulder_lift_joint{unit},j3=elbow_joint{unit},\
+                 j4=wrist_1_joint{unit},j5=wrist_2_joint{unit},j6=wrist_3_joint{unit},\
+                 mx=measurement_x,my=measurement_y,mz=measurement_z"
+            )
+        };
+        let job = |unit: &str| {
+            BuildJob::new(BuildArgs {
+                samples: vec![Source::Memory {
+                    name: "series-c.csv".into(),
+                    bytes: head.clone().into_bytes(),
+                }],
+                output: std::env::temp_dir().join("never-written.tbl"),
+                reading: Reading {
+                    columns: Some(map(unit)),
+                    ..Reading::default()
+                },
+                robot: RobotArgs {
+                    robot: Some(shipped("ur10/robot.toml")),
+                    ..RobotArgs::default()
+                },
+                measured_in: crate::Frame::Tracker,
+                ..BuildArgs::default()
+            })
+        };
+        job(":rad").unwrap();
+        let e = job("").err().expect("refused");
+        let JobError::Disagreement(d) = &e else {
+            panic!("{e}")
+        };
+        let Disagreement::Systematic {
+            fitting: Some(fitting),
+            ..
+        } = d.as_ref()
+        else {
+            panic!("{e}")
+        };
+        assert_eq!(
+            fitting.reading,
+            Fit::Units(vec![UnitMistake::JointsInRadians]),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("registered to the robot file"),
+            "{e}"
+        );
+    }
 }
