@@ -154,6 +154,17 @@ pub struct Fitting {
     pub worst_mm: f64,
 }
 
+/// How well samples the robot file fits agree with it: their misses' figures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Agreement {
+    /// Samples compared (none without joint values).
+    pub samples: usize,
+    /// The median miss, mm.
+    pub median_mm: f64,
+    /// The worst miss, when there were samples.
+    pub worst: Option<Miss>,
+}
+
 /// The frame the samples' positions were compared in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Compared {
@@ -361,7 +372,7 @@ fn subset(n: usize) -> Vec<usize> {
     (0..n).step_by(stride).collect()
 }
 
-/// Judges `misses` (one per sample, with its line): `Ok` when none exceeds
+/// Judges `misses` (one per sample, with its line): their figures when none exceeds
 /// [`MAX_NOMINAL_MISS_MM`], otherwise the refusal, systematic when the median does
 /// (`diagnose` then names the reading that fits).
 fn judge(
@@ -369,17 +380,24 @@ fn judge(
     compared: Compared,
     misses: Vec<Miss>,
     diagnose: impl FnOnce() -> Option<Fitting>,
-) -> Result<(), Disagreement> {
+) -> Result<Agreement, Disagreement> {
+    let mut all: Vec<f64> = misses.iter().map(|m| m.miss_mm).collect();
+    let median_mm = median(&mut all);
     let missing: Vec<Miss> = misses
         .iter()
         .copied()
         .filter(|m| m.miss_mm > MAX_NOMINAL_MISS_MM)
         .collect();
     if missing.is_empty() {
-        return Ok(());
+        return Ok(Agreement {
+            samples: misses.len(),
+            median_mm,
+            worst: misses
+                .iter()
+                .copied()
+                .max_by(|a, b| a.miss_mm.total_cmp(&b.miss_mm)),
+        });
     }
-    let mut all: Vec<f64> = misses.iter().map(|m| m.miss_mm).collect();
-    let median_mm = median(&mut all);
     if median_mm > MAX_NOMINAL_MISS_MM {
         let worst = missing
             .iter()
@@ -472,9 +490,9 @@ fn spread_mm(points: impl Iterator<Item = Vector3<f64>> + Clone) -> f64 {
 }
 
 /// Checks base-frame samples against `robot` (module docs): every sample's nominal TCP at
-/// its joints within [`MAX_NOMINAL_MISS_MM`] of its commanded position. Samples without
-/// joint values, or with another count than the robot's joints, are not checked here (the
-/// identification refuses them in its own words).
+/// its joints within [`MAX_NOMINAL_MISS_MM`] of its commanded position; returns the
+/// misses' figures. Samples without joint values, or with another count than the robot's
+/// joints, are not checked here (the identification refuses them in its own words).
 ///
 /// # Errors
 ///
@@ -483,13 +501,17 @@ pub fn check_base_frame(
     robot: &Robot,
     samples: &SampleSet,
     path: &Path,
-) -> Result<(), Disagreement> {
+) -> Result<Agreement, Disagreement> {
     let Some(joints) = samples
         .joints
         .as_ref()
         .filter(|j| j.count() == robot.joint_count())
     else {
-        return Ok(());
+        return Ok(Agreement {
+            samples: 0,
+            median_mm: 0.0,
+            worst: None,
+        });
     };
     let tcp = |q: &[f64]| -> Vector3<f64> { robot.tcp_pose(q).translation.vector };
     let miss = |q: &[f64], p: [f64; 3], scale: f64| -> f64 {
@@ -626,8 +648,9 @@ fn rigid_fit(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<(Matrix3<f64>
 
 /// Checks tracker-frame samples after their registration (module docs): every registered
 /// sample's error — the measured position against the registered robot's prediction —
-/// within [`MAX_NOMINAL_MISS_MM`]. `measurements` are the rows the samples were registered
-/// from, on which the usual unit mistakes are tried by registering them again.
+/// within [`MAX_NOMINAL_MISS_MM`]; returns the misses' figures. `measurements` are the
+/// rows the samples were registered from, on which the usual unit mistakes are tried by
+/// registering them again.
 ///
 /// # Errors
 ///
@@ -637,7 +660,7 @@ pub fn check_registered(
     measurements: &Measurements,
     registered: &SampleSet,
     path: &Path,
-) -> Result<(), Disagreement> {
+) -> Result<Agreement, Disagreement> {
     let misses: Vec<Miss> = (0..registered.len())
         .map(|i| {
             let e = registered.error_mm[i];
@@ -725,10 +748,72 @@ mod tests {
         }
     }
 
+    /// Every shipped data set fits its robot file (no false refusal), with room: the UR5's
+    /// measurements and the KR150-2's simulated samples in the base frame, the UR10's
+    /// three tracker-frame series each registered on its own. Prints the figures.
     #[test]
-    fn the_shipped_ur5_grid_fits_its_robot_file() {
-        let (robot, samples) = ur5();
-        check_base_frame(&robot, &samples, Path::new("grid.csv")).unwrap();
+    fn the_shipped_data_fit_their_robot_files() {
+        let tables = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tables");
+        let read = adwi_samples::ReadOptions::default();
+        let ur5_map = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
+                       j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+        let base = [
+            (
+                "ur5",
+                "ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv",
+                ur5_map,
+            ),
+            (
+                "ur5",
+                "ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv",
+                ur5_map,
+            ),
+            ("kr150-2", "kr150-2/samples.csv", ""),
+            ("kr150-2", "kr150-2/validation.csv", ""),
+        ];
+        let mut figures = Vec::new();
+        for (robot, file, map) in base {
+            let robot = Robot::load(shipped_robot_path(robot)).unwrap();
+            let map = adwi_samples::ColumnMap::parse(map).unwrap();
+            let samples = adwi_samples::read_samples(&tables.join(file), &map).unwrap();
+            let agreement = check_base_frame(&robot, &samples, Path::new(file)).unwrap();
+            figures.push((file, agreement));
+        }
+        let ur10 = Robot::load(shipped_robot_path("ur10")).unwrap();
+        let ur10_map = adwi_samples::ColumnMap::parse(
+            "j1=shoulder_pan_joint:rad,j2=shoulder_lift_joint:rad,j3=elbow_joint:rad,\
+             j4=wrist_1_joint:rad,j5=wrist_2_joint:rad,j6=wrist_3_joint:rad,\
+             mx=measurement_x,my=measurement_y,mz=measurement_z,\
+             mex=measurement_rx:deg,mey=measurement_ry:deg,mez=measurement_rz:deg",
+        )
+        .unwrap();
+        for file in [
+            "ur10/measurements/Series_A/measurements_grid.csv",
+            "ur10/measurements/Series_B/measurements_joint_configurations.csv",
+            "ur10/measurements/Series_C/measurements_random_poses.csv",
+        ] {
+            let rows =
+                adwi_samples::read_measurements(&tables.join(file), &ur10_map, &read).unwrap();
+            let (_, samples) = crate::measured::Registered::from_measurements(
+                Path::new(file),
+                &rows,
+                ur10.clone(),
+            )
+            .unwrap();
+            let agreement = check_registered(&ur10, &rows, &samples, Path::new(file)).unwrap();
+            figures.push((file, agreement));
+        }
+        for (file, a) in figures {
+            let worst = a.worst.expect("samples compared");
+            println!(
+                "{file}: {} samples, median miss {:.4} mm, worst {:.4} mm (line {})",
+                a.samples, a.median_mm, worst.miss_mm, worst.line
+            );
+            assert!(
+                a.samples > 0 && worst.miss_mm < MAX_NOMINAL_MISS_MM / 2.0,
+                "{file}"
+            );
+        }
     }
 
     /// Positions in another frame (shifted and turned) are diagnosed as such, with the
