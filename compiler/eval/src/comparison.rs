@@ -114,6 +114,7 @@ mod tests {
                         position_error_mm: p,
                         orientation_error_rad: None,
                         residual: None,
+                        evidence: None,
                     })
                 })
                 .collect(),
@@ -123,6 +124,7 @@ mod tests {
                 .then(|| ResidualStats::from_residuals(&residuals).unwrap()),
             orientation_mrad: None,
             before_position_mm: None,
+            beyond_evidence: None,
             residual: None,
         }
     }

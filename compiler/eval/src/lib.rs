@@ -55,7 +55,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use adwi_runtime::{Residual, Status, Table, Target, Tier};
+use adwi_runtime::{Evidence, Residual, Status, Table, Target, Tier};
 
 use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, ResidualStats};
 use adwi_compile::build::{self, BuildError, BuildOptions, ServedNodes};
@@ -335,6 +335,10 @@ pub struct PointPrediction {
     /// other method (counted in [`MethodResult::residual`]).
     #[serde(skip)]
     pub residual: Option<Residual>,
+    /// Where a table's answer lies beyond its samples' evidence, when the table records
+    /// it (format version 4); `None` for every other method.
+    #[serde(skip)]
+    pub evidence: Option<Evidence>,
 }
 
 /// A hybrid table's answered points by residual flag ([`Residual`]): where the residual
@@ -391,6 +395,9 @@ pub struct MethodResult {
     /// A hybrid table's answered points by residual flag; `None` for other methods.
     #[serde(flatten)]
     pub residual: Option<ResidualCounts>,
+    /// Points a table answered beyond its samples' evidence (an orientation they never
+    /// had, a TCP it cannot place), when the table records its evidence; `None` otherwise.
+    pub beyond_evidence: Option<usize>,
 }
 
 impl MethodResult {
@@ -427,6 +434,7 @@ impl MethodResult {
         }
         let mut lines = self.not_predicted_summary();
         lines.extend(self.residual_summary());
+        lines.extend(self.evidence_summary());
         lines.join("; ")
     }
 
@@ -442,6 +450,16 @@ impl MethodResult {
                 Residual::Faded.as_str(),
                 c.residual_model_only,
                 Residual::ModelOnly.as_str()
+            )
+        })
+    }
+
+    /// The points a table answered beyond its samples' evidence, in words, when any was.
+    pub fn evidence_summary(&self) -> Option<String> {
+        self.beyond_evidence.filter(|&n| n > 0).map(|n| {
+            format!(
+                "{n} of {} answered beyond the samples' evidence (an orientation they never had, or a TCP the table cannot place)",
+                self.predicted()
             )
         })
     }
@@ -463,6 +481,17 @@ impl MethodResult {
             })
             .collect()
     }
+}
+
+/// How many of `predictions` lie beyond their table's evidence; `None` when none carries
+/// the flag (not a table that records its evidence).
+fn beyond_evidence(predictions: &[Option<PointPrediction>]) -> Option<usize> {
+    let flags: Vec<Evidence> = predictions
+        .iter()
+        .flatten()
+        .filter_map(|p| p.evidence)
+        .collect();
+    (!flags.is_empty()).then(|| flags.iter().filter(|e| !e.is_within()).count())
 }
 
 /// How many examples of each kind of miss an evaluation keeps.
@@ -776,9 +805,15 @@ pub fn evaluate_table<D: AsRef<[u8]>>(
     let mut collected = Collected::new(&[method], points.len());
     let outcome = (0..points.len())
         .map(|i| {
+            // The point's orientation, when the file gives one: a position-only table
+            // checks it against its samples'.
+            let rotation_rad = (points.nominal_rotation.as_ref())
+                .map(|r| adwi_samples::pose::rotation_vector(&r[i]));
             let target = Target {
                 position_mm: points.nominal_mm[i],
                 config: points.config.as_ref().map(|c| c[i]),
+                rotation_rad,
+                tcp_mm: None,
             };
             table_prediction(table, &target, points.joints_rad(i), false, orientation)
         })
@@ -902,6 +937,7 @@ fn assemble(
                     orientation_mrad: None,
                     before_position_mm: None,
                     residual: None,
+                    beyond_evidence: None,
                 };
             }
             let mut position = Vec::new();
@@ -930,6 +966,7 @@ fn assemble(
                 },
                 before_position_mm: nonempty(&before),
                 residual: ResidualCounts::of(&predicted),
+                beyond_evidence: beyond_evidence(&predicted),
                 predictions: predicted,
             }
         })
@@ -1023,6 +1060,8 @@ fn predict_split(
         .map(|i| Target {
             position_mm: test.nominal_mm[i],
             config: test.config.as_ref().map(|c| c[i]),
+            rotation_rad: None,
+            tcp_mm: None,
         })
         .collect();
     fn joints_rad(set: &SampleSet, i: usize) -> &[f64] {
@@ -1086,6 +1125,7 @@ fn predict_split(
                         position_error_mm: p,
                         orientation_error_rad: orientation.then_some(r),
                         residual: None,
+                        evidence: None,
                     })
                 })
                 .collect()
@@ -1154,6 +1194,7 @@ fn table_prediction<D: AsRef<[u8]>>(
         orientation_error_rad: (orientation && table.has_orientation())
             .then_some(c.orientation_error_rad),
         residual: table.is_hybrid().then_some(c.residual),
+        evidence: (table.header().version >= 4).then_some(c.evidence),
     })
 }
 
@@ -1184,6 +1225,7 @@ fn baseline_predictions<B: baselines::Baseline>(
                 position_error_mm: p,
                 orientation_error_rad: r,
                 residual: None,
+                evidence: None,
             })
         })
         .collect())
