@@ -13,6 +13,7 @@
  * prints is "name value ...",
  * for the Rust test to compare with what it expects.
  */
+#include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -202,6 +203,15 @@ int main(int argc, char **argv) {
         }
         printf("query_joints_agree %d %d\n", memcmp(&a, &b, sizeof a) == 0,
                memcmp(&e, &c, sizeof e) == 0);
+        /* A target that is not a point has no command: refused, never ADWI_OK with NaN. */
+        if (!(isfinite(x) && isfinite(y) && isfinite(z))) {
+            adwi_compensation before = k;
+            printf("compensate_refused %d %d %d\n",
+                   (int)adwi_table_compensate(table, p, config, 1e-9, 50, &k),
+                   (int)adwi_table_compensate_exact(table, p, config, 1e-9, 50, &k),
+                   memcmp(&k, &before, sizeof k) == 0);
+            continue;
+        }
         if (adwi_table_compensate(table, p, config, 1e-9, 50, &k) != ADWI_OK) {
             printf("compensate_failed\n");
             return 1;
