@@ -75,6 +75,31 @@ pub enum Error {
         /// The bound, seconds.
         limit_seconds: f64,
     },
+    /// The program would take more memory than the job allows: refused before any target
+    /// is corrected, with its size and the estimate. Reading stops once the targets read
+    /// exceed the bound, so a huge program is refused without being held.
+    #[error(
+        "{file}: {bytes} bytes, {}: about {} MB of memory, more than the {} MB allowed \
+         (max_memory_bytes); refused before any work",
+        if let Some(at) = read_bytes { format!("more than {targets} targets in its first {at} bytes") } else { format!("{targets} targets") },
+        estimated_bytes.div_ceil(1_000_000),
+        limit_bytes / 1_000_000
+    )]
+    TooMuchMemory {
+        /// The program file.
+        file: String,
+        /// Its size.
+        bytes: usize,
+        /// The targets read.
+        targets: usize,
+        /// The bytes read before reading stopped, when it stopped early.
+        read_bytes: Option<usize>,
+        /// The estimated memory, bytes (extrapolated by the file's size when reading
+        /// stopped early).
+        estimated_bytes: u64,
+        /// The bound, bytes.
+        limit_bytes: u64,
+    },
     /// `strict`: some target was not corrected, so nothing is written.
     #[error(
         "{not_corrected} of {total} targets not corrected (strict: nothing written); the first: {}",

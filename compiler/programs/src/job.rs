@@ -49,7 +49,18 @@ pub struct CompensateOptions {
     pub strict: bool,
     /// The estimated seconds of work beyond which the job is refused before any.
     pub max_seconds: f64,
+    /// The estimated memory beyond which the job is refused before any work, bytes
+    /// ([`BYTES_PER_TARGET`] a target, and three times the program's size).
+    pub max_memory_bytes: u64,
 }
+
+/// The default bound of a job's memory: 4 GiB, some two million targets.
+pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 4 << 30;
+
+/// What a target is estimated to take from its reading to the written report, bytes: its
+/// numbers, frames, report line, replacements and CSV row, with room for twelve joints
+/// (about 1,300 bytes a target on average were measured for a million-row CSV of poses).
+pub const BYTES_PER_TARGET: u64 = 2048;
 
 /// The default bound of a correction: larger than any calibrated robot's error, small
 /// enough to catch a table of another robot or a wrong frame.
@@ -83,6 +94,7 @@ impl CompensateOptions {
             },
             strict: false,
             max_seconds: 300.0,
+            max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
         }
     }
 }
@@ -234,6 +246,26 @@ impl CompensateJob {
             Some(_) => SECONDS_PER_TARGET[2],
         };
         let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
+        // Memory: the program, its output and its line starts, and every target read; the
+        // program is read only as far as the memory allows.
+        let program_memory = 3 * bytes.len() as u64;
+        let memory_targets = o.max_memory_bytes.saturating_sub(program_memory) / BYTES_PER_TARGET;
+        let memory_refused = |targets: usize, read_bytes: Option<usize>| {
+            let scale = read_bytes.map_or(1.0, |at| bytes.len() as f64 / at.max(1) as f64);
+            Error::TooMuchMemory {
+                file: name.clone(),
+                bytes: bytes.len(),
+                targets,
+                read_bytes,
+                estimated_bytes: program_memory
+                    + (BYTES_PER_TARGET as f64 * targets as f64 * scale) as u64,
+                limit_bytes: o.max_memory_bytes,
+            }
+        };
+        if program_memory > o.max_memory_bytes {
+            return Err(memory_refused(0, None));
+        }
+        let limit = limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX));
         let program = {
             let src = Source::new(&name, &bytes);
             crate::bounds::check_line_lengths(&src)?;
@@ -258,6 +290,9 @@ impl CompensateJob {
         };
         if let Some(at) = program.truncated_at {
             let targets = program.targets.len();
+            if targets as u64 > memory_targets {
+                return Err(memory_refused(targets, Some(at)));
+            }
             return Err(Error::TooLarge {
                 file: name,
                 bytes: bytes.len(),
@@ -324,6 +359,9 @@ impl CompensateJob {
                     }
                 }
             }
+            // Most targets have one chain: not the four a growing list reserves (some 500
+            // bytes a target).
+            list.shrink_to_fit();
             chains.push(list);
         }
         let seconds = cost * program.targets.len() as f64;
@@ -367,8 +405,12 @@ impl CompensateJob {
     /// corrected.
     pub fn run(&self) -> Result<Compensated, Error> {
         let src = Source::new(&self.name, &self.bytes);
-        let mut edits: Vec<Edit> = Vec::new();
+        // Every target's replacements, their texts one after the other in `texts`: a few
+        // dozen bytes a number rather than a string each.
+        let mut edits: Vec<((usize, usize), std::ops::Range<usize>)> = Vec::new();
+        let mut texts = String::new();
         let mut report = Report::default();
+        report.targets.reserve_exact(self.program.targets.len());
         let mut seed: Vec<f64> = self
             .kinematics
             .as_ref()
@@ -415,7 +457,13 @@ impl CompensateJob {
                     }
                 });
             match result {
-                Ok(new_edits) => edits.extend(new_edits),
+                Ok(new_edits) => {
+                    for (span, text) in new_edits {
+                        let start = texts.len();
+                        texts.push_str(&text);
+                        edits.push((span, start..texts.len()));
+                    }
+                }
                 Err((status, detail)) => {
                     entry.status = status;
                     entry.detail = detail;
@@ -446,12 +494,12 @@ impl CompensateJob {
             }
         }
         edits.sort_by_key(|(span, _)| span.0);
-        let mut output = Vec::with_capacity(self.bytes.len() + edits.len() * 4);
+        let mut output = Vec::with_capacity(self.bytes.len() + texts.len());
         let mut at = 0;
         for ((start, end), text) in edits {
             debug_assert!(start >= at, "targets never overlap");
             output.extend_from_slice(&self.bytes[at..start]);
-            output.extend_from_slice(text.as_bytes());
+            output.extend_from_slice(&texts.as_bytes()[text]);
             at = end;
         }
         output.extend_from_slice(&self.bytes[at..]);

@@ -55,8 +55,8 @@ pub mod urscript;
 pub use correct::{Limits, TargetStatus};
 pub use error::{escape_controls, Error};
 pub use job::{
-    CompensateJob, CompensateOptions, Compensated, DEFAULT_MAX_CORRECTION_MM,
-    DEFAULT_MAX_JOINT_CHANGE_DEG,
+    CompensateJob, CompensateOptions, Compensated, BYTES_PER_TARGET, DEFAULT_MAX_CORRECTION_MM,
+    DEFAULT_MAX_JOINT_CHANGE_DEG, DEFAULT_MAX_MEMORY_BYTES,
 };
 pub use program::{Format, Program};
 pub use report::{Report, Summary, TargetLine};

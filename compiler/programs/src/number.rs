@@ -13,7 +13,7 @@ use std::ops::Range;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct NumberStyle {
     /// Digits after the decimal point (of the mantissa, with an exponent).
-    pub decimals: usize,
+    pub decimals: u16,
     /// Whether a decimal point is written (`1500.` has one and no decimals).
     pub point: bool,
     /// Whether a positive number carries a `+`.
@@ -34,7 +34,7 @@ pub struct ExponentStyle {
     /// Whether a non-negative exponent carries a `+`.
     pub plus: bool,
     /// The least number of exponent digits (zero-padded).
-    pub digits: usize,
+    pub digits: u16,
 }
 
 /// A number found in a file: where it is, its value and its style.
@@ -111,7 +111,7 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Option<Number> {
             exponent = Some(ExponentStyle {
                 marker,
                 plus: exp_plus,
-                digits: j - digits_start,
+                digits: saturating_u16(j - digits_start),
             });
             i = j;
         }
@@ -125,7 +125,7 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Option<Number> {
         span: (start, i),
         value,
         style: NumberStyle {
-            decimals,
+            decimals: saturating_u16(decimals),
             point,
             plus,
             bare_point: integer_digits == 0,
@@ -133,6 +133,12 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Option<Number> {
             decimal_comma: false,
         },
     })
+}
+
+/// A count of digits as a style keeps it: beyond 65,535 (a line's worth) an `f64` has long
+/// run out of digits, and the count only pads a number nobody writes.
+fn saturating_u16(count: usize) -> u16 {
+    u16::try_from(count).unwrap_or(u16::MAX)
 }
 
 /// The most decimals ever written: beyond it an `f64` has no digits left.
@@ -145,9 +151,11 @@ const MAX_DECIMALS: usize = 17;
 pub fn format_number(value: f64, style: &NumberStyle, required_decimals: usize) -> String {
     let mut text = match style.exponent {
         None => {
-            let decimals = style.decimals.max(required_decimals).min(MAX_DECIMALS);
+            let decimals = usize::from(style.decimals)
+                .max(required_decimals)
+                .min(MAX_DECIMALS);
             let mut text = format!("{value:.decimals$}");
-            trim_zeros(&mut text, style.decimals, style.point);
+            trim_zeros(&mut text, usize::from(style.decimals), style.point);
             text
         }
         Some(exp) => {
@@ -157,11 +165,11 @@ pub fn format_number(value: f64, style: &NumberStyle, required_decimals: usize) 
                 value.abs().log10().floor() as i64
             };
             let needed = (required_decimals as i64 + magnitude).max(0) as usize;
-            let decimals = style.decimals.max(needed).min(MAX_DECIMALS);
+            let decimals = usize::from(style.decimals).max(needed).min(MAX_DECIMALS);
             let rust = format!("{value:.decimals$e}");
             let (mantissa, exponent) = rust.split_once('e').unwrap_or((&rust, "0"));
             let mut mantissa = mantissa.to_string();
-            trim_zeros(&mut mantissa, style.decimals, style.point);
+            trim_zeros(&mut mantissa, usize::from(style.decimals), style.point);
             let exponent: i64 = exponent.parse().unwrap_or(0);
             let sign = if exponent < 0 {
                 "-"
@@ -174,7 +182,7 @@ pub fn format_number(value: f64, style: &NumberStyle, required_decimals: usize) 
                 "{mantissa}{}{sign}{:0width$}",
                 exp.marker as char,
                 exponent.abs(),
-                width = exp.digits
+                width = usize::from(exp.digits)
             )
         }
     };
@@ -231,7 +239,7 @@ pub fn rewrite(
             number.value.abs().log10().floor() as i32
         }
     });
-    let own_unit = 10f64.powi(exponent - number.style.decimals as i32);
+    let own_unit = 10f64.powi(exponent - i32::from(number.style.decimals));
     let required_unit = 10f64.powi(-(required_decimals as i32));
     let half_unit = 0.5 * own_unit.min(required_unit);
     if (new_value - number.value).abs() <= half_unit {
@@ -323,11 +331,11 @@ mod tests {
 
     fn style_strategy() -> impl Strategy<Value = NumberStyle> {
         (
-            0..9usize,
+            0..9u16,
             any::<bool>(),
             any::<bool>(),
             any::<bool>(),
-            prop::option::of((any::<bool>(), any::<bool>(), 1..4usize)),
+            prop::option::of((any::<bool>(), any::<bool>(), 1..4u16)),
         )
             .prop_map(
                 |(decimals, point, plus, bare_point, exponent)| NumberStyle {

@@ -284,3 +284,39 @@ fn a_syntax_error_never_carries_a_files_control_bytes() {
     assert!(!err.chars().any(|c| c.is_control()), "{err:?}");
     assert!(err.contains("\\u{1b}[2J"), "{err}");
 }
+
+#[test]
+fn a_program_needing_more_memory_than_allowed_is_refused_before_it_is_read_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("t.tbl");
+    std::fs::write(&table, table_bytes()).unwrap();
+    let path = dir.path().join("p.csv");
+    let mut text = String::from("x,y,z\n");
+    for i in 0..20_000 {
+        text += &format!("{},200,1200\n", 1400 + i % 500);
+    }
+    std::fs::write(&path, &text).unwrap();
+    let mut options = CompensateOptions::new(&table, &path);
+    // Room for the program and some thousand targets, not twenty thousand.
+    options.max_memory_bytes = 3 * text.len() as u64 + 1000 * adwi_programs::BYTES_PER_TARGET;
+    let err = CompensateJob::new(options.clone()).err().expect("refused");
+    let Error::TooMuchMemory {
+        targets,
+        read_bytes: Some(read),
+        estimated_bytes,
+        limit_bytes,
+        ..
+    } = &err
+    else {
+        panic!("{err}");
+    };
+    assert!(*targets <= 1001 && *read < text.len() / 10, "{err}");
+    assert!(*estimated_bytes > *limit_bytes, "{err}");
+    assert!(
+        err.to_string().contains("MB of memory, more than the"),
+        "{err}"
+    );
+    // With the memory the estimate asks for, the job goes ahead.
+    options.max_memory_bytes = estimated_bytes + 1_000_000;
+    assert!(CompensateJob::new(options).is_ok());
+}

@@ -59,6 +59,10 @@ pub struct Args {
     /// Refuse, before any work, a program estimated to take longer than this, seconds.
     #[arg(long, default_value_t = 300.0)]
     max_seconds: f64,
+    /// Refuse, before any work, a program estimated to need more memory than this, MB
+    /// (about 2 KB a target, and three times the program's size).
+    #[arg(long, default_value_t = adwi_programs::DEFAULT_MAX_MEMORY_BYTES / 1_000_000)]
+    max_memory_mb: u64,
     /// Print only the targets left unchanged and the summary.
     #[arg(short, long)]
     quiet: bool,
@@ -84,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     options.limits.max_joint_change_deg = args.max_joint_change_deg;
     options.strict = args.strict;
     options.max_seconds = args.max_seconds;
+    options.max_memory_bytes = args.max_memory_mb.saturating_mul(1_000_000);
     let job = CompensateJob::new(options)?;
     let done = job.run()?;
     job.write(&done)?;
