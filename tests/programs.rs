@@ -211,6 +211,8 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
             Some([0.0, 0.0, 150.0, 0.0, 0.0, 0.0]),
             Some([-150.0, 20.0, 0.0, 0.5, 0.0, 0.0]),
         ),
+        // The tool option stands for the TOOL_DATA[1] the inline form names.
+        ("weld.src", Some([0.0, 0.0, 150.0, 0.0, 0.0, 0.0]), None),
     ] {
         let (job, done) = run_job(&table, &fixture(program), &kr150_robot(), |o| {
             o.tool = tool;
@@ -256,10 +258,16 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
                 UnitQuaternion::from_rotation_matrix(&rotation),
             );
             let chain = match target.uses.first() {
-                // RAPID: the module's gun and fixture; the table's point is the flange.
+                // RAPID: the module's gun and fixture; KRL: the frames the inline forms
+                // select, the options standing for those not given; the table's point is
+                // the flange.
                 Some(u) => FrameChain {
-                    base: u.base.unwrap(),
-                    tool: u.tool.unwrap(),
+                    base: u
+                        .base
+                        .unwrap_or_else(|| base.as_ref().map_or_else(Isometry3::identity, to_pose)),
+                    tool: u
+                        .tool
+                        .unwrap_or_else(|| tool.as_ref().map_or_else(Isometry3::identity, to_pose)),
                     table_tool: Isometry3::identity(),
                 },
                 None => FrameChain {
@@ -302,9 +310,14 @@ fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
         |_| {},
     );
     let summary = done.report.summary();
-    assert_eq!(summary.corrected, summary.total, "{summary}");
-    assert_eq!(summary.total, 7);
-    for t in &done.report.targets {
+    // `movel(pose_trans(approach, offset))`: an offset from a target the correction moves,
+    // reported.
+    assert_eq!((summary.corrected, summary.total), (7, 8), "{summary}");
+    assert_eq!(
+        done.report.first_not_corrected().map(|t| t.status.as_str()),
+        Some("relative")
+    );
+    for t in done.report.targets.iter().filter(|t| t.status.corrected()) {
         let c = t.command_mm.unwrap();
         let joints: Vec<String> = t
             .command_joints
@@ -372,8 +385,21 @@ fn a_simulated_kr150_executing_the_compensated_programs_lands_within_the_tables_
     let robot = Robot::load(kr150_robot()).unwrap();
     let scenario = Scenario::load(repo("tables/kr150-2/scenario.toml")).unwrap();
     let (mut before, mut after) = (Vec::new(), Vec::new());
-    for program in ["weld.dat", "weld.src", "targets.csv", "cell.mod"] {
-        let (job, done) = run_job(&table, &fixture(program), &kr150_robot(), |_| {});
+    // The KRL seam in its fixture and with its torch, as the configuration gives them; the
+    // weld program's gun (TOOL_DATA[1]) as the tool option.
+    let gun = [0.0, 0.0, 150.0, 0.0, 0.0, 0.0];
+    for (program, tool, config) in [
+        ("weld.dat", None, None),
+        ("weld.src", Some(gun), None),
+        ("targets.csv", None, None),
+        ("cell.mod", None, None),
+        ("seam.dat", None, Some(fixture("config.dat"))),
+        ("seam.mod", None, None),
+    ] {
+        let (job, done) = run_job(&table, &fixture(program), &kr150_robot(), |o| {
+            o.tool = tool;
+            o.krl_config = config;
+        });
         let name = format!("out-{program}");
         let src = Source::new(&name, &done.output);
         let partner = std::fs::read(fixture(
@@ -402,12 +428,19 @@ fn a_simulated_kr150_executing_the_compensated_programs_lands_within_the_tables_
             }
             match (&original.kind, &compensated.kind) {
                 (TargetKind::Cartesian(o), TargetKind::Cartesian(c)) => {
-                    let (tool, base) = original
-                        .uses
-                        .first()
-                        .map_or((Isometry3::identity(), Isometry3::identity()), |u| {
-                            (u.tool.unwrap(), u.base.unwrap())
-                        });
+                    let option_tool = tool.map_or_else(Isometry3::identity, |t| {
+                        adwi_programs::frames::kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]])
+                    });
+                    let (tool, base) =
+                        original
+                            .uses
+                            .first()
+                            .map_or((option_tool, Isometry3::identity()), |u| {
+                                (
+                                    u.tool.unwrap_or(option_tool),
+                                    u.base.unwrap_or_else(Isometry3::identity),
+                                )
+                            });
                     let pose = |t: &adwi_programs::program::CartesianTarget| {
                         let r = adwi_programs::frames::rotation_of(t.orientation.as_ref().unwrap())
                             .unwrap();
@@ -509,7 +542,7 @@ fn targets_not_corrected_are_counted_and_strict_writes_nothing() {
         dir.path(),
         &[table, program, "-o", "strict.csv", "--strict"],
     );
-    assert_eq!(code, 1);
+    assert_eq!(code, 3);
     assert!(stderr.contains("1 of 4 targets not corrected (strict: nothing written); the first: row 6 (6:1) outside: outside_grid"), "{stderr}");
     assert!(!dir.path().join("strict.csv").exists());
     // A bound below every correction refuses them all: the output is the input.
@@ -752,13 +785,27 @@ fn no_output_names_an_input_a_krl_programs_partner_included_by_any_path() {
         let (code, stdout, stderr) = compensate(&cwd, &args);
         assert_eq!(code, 1, "{args:?}: {stdout}{stderr}");
         assert!(stderr.contains("refusing to write"), "{args:?}: {stderr}");
-        assert_eq!(std::fs::read(d.join("weld.src")).unwrap(), original("weld.src"));
-        assert_eq!(std::fs::read(d.join("weld.dat")).unwrap(), original("weld.dat"));
+        assert_eq!(
+            std::fs::read(d.join("weld.src")).unwrap(),
+            original("weld.src")
+        );
+        assert_eq!(
+            std::fs::read(d.join("weld.dat")).unwrap(),
+            original("weld.dat")
+        );
     }
     // The pair is still compensated into files of its own.
     let (code, stdout, stderr) = compensate(
         d,
-        &["kr150.tbl", "weld.src", "-o", "out.src", "--report", "out.csv", tool],
+        &[
+            "kr150.tbl",
+            "weld.src",
+            "-o",
+            "out.src",
+            "--report",
+            "out.csv",
+            tool,
+        ],
     );
     assert_eq!(code, 3, "{stdout}{stderr}");
 }
@@ -834,7 +881,14 @@ fn a_hostile_program_is_an_error_or_an_invalid_target_never_an_abort_or_a_hang()
     let started = std::time::Instant::now();
     let (code, stdout, stderr) = compensate(
         d,
-        &["kr150.tbl", "huge.csv", "-o", "huge-out.csv", "--robot", robot],
+        &[
+            "kr150.tbl",
+            "huge.csv",
+            "-o",
+            "huge-out.csv",
+            "--robot",
+            robot,
+        ],
     );
     assert_eq!(code, 3, "{stdout}{stderr}");
     assert!(started.elapsed().as_secs() < 60);
@@ -850,4 +904,503 @@ fn a_hostile_program_is_an_error_or_an_invalid_target_never_an_abort_or_a_hang()
     let (code, stdout, _) = compensate(d, &["kr150.tbl", "huge.src", "-o", "huge-out.src"]);
     assert_eq!(code, 3, "{stdout}");
     assert!(stdout.contains("invalid"), "{stdout}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Every motion instruction accounted for: each target corrected in the tool and base (work
+// object) its motion uses, as the controller applies them, or reported with its place and
+// reason. The fixtures are written as the vendors' tools write them (KSS 8 inline forms and
+// a `$config.dat`, a RobotStudio module with Arc, Trigg, DO, Sync and Search moves, a
+// PolyScope script with waypoints on a feature); every corrected target is checked by the
+// table's own model at the TCP the program uses.
+
+/// Where the table's own model lands a command: the flange commanded at `flange` lands at
+/// its position plus the table's position error there, turned by the table's orientation
+/// error; the TCP `tool` rides on it. The distance from `target_tcp`, mm.
+fn landing_error_at_tcp_mm(
+    table: &adwi_runtime::Table<adwi_runtime::AlignedBytes>,
+    flange: &Isometry3<f64>,
+    tool: &Isometry3<f64>,
+    target_tcp: &Isometry3<f64>,
+) -> f64 {
+    let c = table.query(flange.translation.vector.into());
+    assert_eq!(c.status, adwi_runtime::Status::Ok, "{flange:?}");
+    let error = nalgebra::Vector3::from(c.position_error_mm);
+    let turn = UnitQuaternion::from_scaled_axis(nalgebra::Vector3::from(c.orientation_error_rad));
+    let landed = Isometry3::from_parts(
+        (flange.translation.vector + error).into(),
+        turn * flange.rotation,
+    );
+    ((landed * tool).translation.vector - target_tcp.translation.vector).norm()
+}
+
+/// The pose a Cartesian target writes (mm; URScript's metres scaled).
+fn written_pose(target: &adwi_programs::program::ProgramTarget) -> Isometry3<f64> {
+    let TargetKind::Cartesian(c) = &target.kind else {
+        panic!("{} is not Cartesian", target.name)
+    };
+    let scale = c.unit.mm();
+    let r = adwi_programs::frames::rotation_of(c.orientation.as_ref().unwrap()).unwrap();
+    Isometry3::from_parts(
+        nalgebra::Translation3::new(
+            c.position[0].value * scale,
+            c.position[1].value * scale,
+            c.position[2].value * scale,
+        ),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
+}
+
+/// A frame turned `a_deg` about z and shifted by `xyz` mm.
+fn frame_z(xyz: [f64; 3], a_deg: f64) -> Isometry3<f64> {
+    Isometry3::new(
+        nalgebra::Vector3::from(xyz),
+        nalgebra::Vector3::z() * a_deg.to_radians(),
+    )
+}
+
+/// Each named target of `before` and `after` (the program as read and as written), in
+/// `frames` (base, tool), landed by the table's model before and after compensation.
+fn landings(
+    table_path: &Path,
+    before: &adwi_programs::Program,
+    after: &adwi_programs::Program,
+    frames: &[(&str, Isometry3<f64>, Isometry3<f64>)],
+) -> Vec<(String, f64, f64)> {
+    let table = adwi_runtime::Table::from_vec(std::fs::read(table_path).unwrap()).unwrap();
+    let find = |p: &adwi_programs::Program, name: &str| {
+        p.targets
+            .iter()
+            .find(|t| t.name == name)
+            .unwrap_or_else(|| panic!("{name} not read"))
+            .clone()
+    };
+    frames
+        .iter()
+        .map(|(name, base, tool)| {
+            let target_tcp = base * written_pose(&find(before, name));
+            let command_tcp = base * written_pose(&find(after, name));
+            let land = |tcp: &Isometry3<f64>| {
+                landing_error_at_tcp_mm(&table, &(tcp * tool.inverse()), tool, &target_tcp)
+            };
+            (name.to_string(), land(&target_tcp), land(&command_tcp))
+        })
+        .collect()
+}
+
+/// The report's line of `name` (the first, when several share it).
+fn line_of<'r>(report: &'r Report, name: &str) -> &'r adwi_programs::TargetLine {
+    report
+        .targets
+        .iter()
+        .find(|t| t.name == name)
+        .unwrap_or_else(|| panic!("no line for {name}"))
+}
+
+#[test]
+fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let (job, done) = run_job(&table, &fixture("seam.dat"), &kr150_robot(), |o| {
+        o.krl_config = Some(fixture("config.dat"));
+    });
+    let report = &done.report;
+    for name in ["XP1", "XP2", "XP3", "XP4", "XP5", "XP6", "XSPARE"] {
+        assert!(
+            line_of(report, name).status.corrected(),
+            "{name}: {report:?}"
+        );
+    }
+    // The frame the inline form of P7 selects is not in the configuration: named.
+    let xp7 = line_of(report, "XP7");
+    assert_eq!(xp7.status.as_str(), "frame_unknown");
+    assert!(
+        xp7.detail
+            .starts_with("work object BASE_DATA[3] not given (used at ")
+            && xp7.detail.contains("seam.src:66:1)"),
+        "{}",
+        xp7.detail
+    );
+    // On the track: E1 moves the robot, which the table does not know.
+    let xp8 = line_of(report, "XP8");
+    assert_eq!(xp8.status.as_str(), "external_axis");
+    assert!(xp8.detail.starts_with("E1 1500.0: "), "{}", xp8.detail);
+    assert!(line_of(report, "XSPARE").detail.starts_with("unused: "));
+    assert_eq!(report.summary().total, 9);
+    // By the table's own model, each corrected target lands at its TCP: the torch
+    // (TOOL_DATA[1], 180 mm) and gripper (TOOL_DATA[2]) in the fixture (BASE_DATA[1], turned
+    // 30°) and the second table (BASE_DATA[2]), as $config.dat declares them.
+    let torch = frame_z([0.0, 0.0, 180.0], 0.0);
+    let gripper = frame_z([0.0, 25.0, 120.0], 0.0);
+    let fixture_base = frame_z([1600.0, 250.0, 750.0], 30.0);
+    let table2 = frame_z([1400.0, 500.0, 900.0], 0.0);
+    let partner = std::fs::read(fixture("seam.src")).unwrap();
+    let partner = Source::new("seam.src", &partner);
+    let after =
+        adwi_programs::krl::read(&Source::new("out.dat", &done.output), Some(&partner)).unwrap();
+    let landed = landings(
+        &table,
+        job.program(),
+        &after,
+        &[
+            ("XP1", fixture_base, torch),
+            ("XP2", fixture_base, torch),
+            ("XP3", fixture_base, torch),
+            ("XP4", fixture_base, torch),
+            ("XP5", fixture_base, gripper),
+            ("XP6", table2, gripper),
+        ],
+    );
+    for (name, before, after) in &landed {
+        eprintln!("{name}: {before:.4} mm uncompensated, {after:.2e} mm compensated");
+        assert!(*before > 1.5, "{name}: {before}");
+        // The written numbers' rounding (1e-4 mm, 1e-6°) and the fixed point's 1e-6 mm.
+        assert!(*after < 2e-4, "{name}: {after}");
+    }
+    assert_eq!(
+        check_against_query(dir.path(), &table, report, "seam.dat"),
+        7
+    );
+}
+
+#[test]
+fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let table = build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = table.to_str().unwrap();
+    for name in ["seam.src", "seam.dat", "config.dat"] {
+        std::fs::copy(fixture(name), d.join(name)).unwrap();
+    }
+    // Without the configuration, TOOL_DATA[1] is named, never corrected as the flange.
+    let (code, stdout, _) = compensate(d, &[table, "seam.dat", "-o", "out.dat"]);
+    assert_eq!(code, 3, "{stdout}");
+    assert!(
+        stdout.contains("XP1                      18:12    cartesian  frame_unknown (tool TOOL_DATA[1] not given (used at seam.src:33:1): give it in the KRL configuration (--krl-config), or as the tool option)"),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .contains("1 of 9 targets corrected; left unchanged: 1 external_axis, 7 frame_unknown"),
+        "{stdout}"
+    );
+    // The .src holds motions, its targets are in the .dat: refused, naming the .dat.
+    let (code, stdout, stderr) = compensate(
+        d,
+        &[
+            table,
+            "seam.src",
+            "-o",
+            "out.src",
+            "--krl-config",
+            "config.dat",
+        ],
+    );
+    assert_eq!(code, 1, "{stdout}");
+    assert_eq!(
+        stderr.trim(),
+        "error: seam.src:25:1: PTP moves the robot, but the program holds no target it can correct: its motions' targets are declared in seam.dat; compensate that file (the motions that use them are read from this one)"
+    );
+    assert!(!d.join("out.src").exists());
+    // The .src reports what it writes itself: LIN_REL, and XHOME of $config.dat.
+    let options = {
+        let mut o = CompensateOptions::new(d.join("kr150.tbl"), d.join("seam.src"));
+        o.krl_config = Some(d.join("config.dat"));
+        o
+    };
+    assert!(CompensateJob::new(options).is_err());
+    // --strict: any target unaccounted is exit status 3, and nothing written.
+    let (code, _, stderr) = compensate(
+        d,
+        &[
+            table,
+            "seam.dat",
+            "-o",
+            "strict.dat",
+            "--krl-config",
+            "config.dat",
+            "--strict",
+        ],
+    );
+    assert_eq!(code, 3, "{stderr}");
+    assert!(
+        stderr.contains("2 of 9 targets not corrected (strict: nothing written); the first: XP7 (32:12) frame_unknown: work object BASE_DATA[3] not given"),
+        "{stderr}"
+    );
+    assert!(!d.join("strict.dat").exists());
+}
+
+#[test]
+fn rapid_arc_trigg_do_sync_search_and_array_targets_land_with_the_torch_in_the_fixture() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let (job, done) = run_job(&table, &fixture("seam.mod"), &kr150_robot(), |_| {});
+    let report = &done.report;
+    let statuses: Vec<(String, String, usize)> = report
+        .targets
+        .iter()
+        .map(|t| (t.name.clone(), t.status.as_str().to_string(), t.line))
+        .collect();
+    let expected = [
+        ("pApproach", "ok", 16),
+        ("pSeamStart", "ok", 17),
+        ("pSeam{1}", "ok", 18),
+        ("pSeam{2}", "ok", 18),
+        ("pSeam{3}", "ok", 18),
+        ("pSeamEnd", "ok", 19),
+        ("pTrigg", "ok", 20),
+        ("pDO", "ok", 21),
+        ("pSync", "ok", 22),
+        ("pSearchEnd", "ok", 23),
+        ("pOffsOnly", "relative", 24),
+        ("pTrack", "external_axis", 25),
+        ("pSpot", "unknown_motion", 26),
+        ("MoveL", "dynamic", 43),
+        ("MoveL", "relative", 44),
+        ("MoveL", "relative", 45),
+        ("SpotL", "unknown_motion", 47),
+    ];
+    let expected: Vec<(String, String, usize)> = expected
+        .iter()
+        .map(|(n, s, l)| (n.to_string(), s.to_string(), *l))
+        .collect();
+    assert_eq!(statuses, expected);
+    assert!(
+        line_of(report, "pOffsOnly")
+            .detail
+            .starts_with("used only by MoveL Offs(pOffsOnly,0,0,50)"),
+        "{report:?}"
+    );
+    let torch = frame_z([0.0, 0.0, 180.0], 0.0);
+    let w = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        0.965925826,
+        0.0,
+        0.0,
+        0.258819045,
+    ));
+    let fixture_base = Isometry3::from_parts(nalgebra::Translation3::new(1600.0, 250.0, 750.0), w);
+    let after = adwi_programs::rapid::read(&Source::new("out.mod", &done.output)).unwrap();
+    let names = [
+        "pApproach",
+        "pSeamStart",
+        "pSeam{1}",
+        "pSeam{2}",
+        "pSeam{3}",
+        "pSeamEnd",
+        "pTrigg",
+        "pDO",
+        "pSync",
+        "pSearchEnd",
+    ];
+    let frames: Vec<_> = names.iter().map(|n| (*n, fixture_base, torch)).collect();
+    for (name, before, after) in landings(&table, job.program(), &after, &frames) {
+        eprintln!("{name}: {before:.4} mm uncompensated, {after:.2e} mm compensated");
+        assert!(before > 1.5, "{name}: {before}");
+        assert!(after < 2e-4, "{name}: {after}");
+    }
+    // Nothing else changed: the refused targets and every other byte are as written.
+    let out = String::from_utf8(done.output.clone()).unwrap();
+    let original = std::fs::read_to_string(fixture("seam.mod")).unwrap();
+    for line in [24, 25, 26, 43, 44, 45, 47] {
+        assert_eq!(out.lines().nth(line - 1), original.lines().nth(line - 1));
+    }
+}
+
+#[test]
+fn polyscope_waypoints_through_get_inverse_kin_and_a_feature_land_by_the_hybrid_model() {
+    let dir = tempfile::tempdir().unwrap();
+    build_ur5_hybrid(
+        dir.path(),
+        repo("tables/ur5/robot.toml").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5-hybrid.tbl",
+    );
+    let table_path = dir.path().join("ur5-hybrid.tbl");
+    let (_, done) = run_job(
+        &table_path,
+        &fixture("waypoints.script"),
+        &repo("tables/ur5/robot.toml"),
+        |_| {},
+    );
+    let report = &done.report;
+    let statuses: Vec<(&str, &str, usize)> = report
+        .targets
+        .iter()
+        .map(|t| (t.name.as_str(), t.status.as_str(), t.line))
+        .collect();
+    assert_eq!(
+        statuses,
+        [
+            ("Waypoint_1_p", "ok", 19),
+            ("Waypoint_2_p", "ok", 21),
+            ("movel", "ok", 35),
+            ("movep", "ok", 38),
+            ("movel", "relative", 41),
+            ("movej", "ok", 44),
+        ]
+    );
+    // Independently of the reader's frames: the waypoints on Plane_1 are Plane_1 · p, in
+    // metres and rotation vectors as PolyScope writes them.
+    let pose_m = |v: [f64; 6]| {
+        Isometry3::new(
+            nalgebra::Vector3::new(v[0], v[1], v[2]) * 1000.0,
+            nalgebra::Vector3::new(v[3], v[4], v[5]),
+        )
+    };
+    let plane = pose_m([-0.45, -0.2, 0.02, 0.0, 0.0, 0.4]);
+    let literals = |bytes: &[u8]| -> Vec<[f64; 6]> {
+        let text = String::from_utf8(bytes.to_vec()).unwrap();
+        text.lines()
+            .filter(|l| l.contains("pose_trans(Plane_1, p["))
+            .map(|l| {
+                let inner = l.split("p[").nth(1).unwrap().split(']').next().unwrap();
+                let v: Vec<f64> = inner
+                    .split(',')
+                    .map(|x| x.trim().parse().unwrap())
+                    .collect();
+                v.try_into().unwrap()
+            })
+            .collect()
+    };
+    let table = adwi_runtime::Table::from_vec(std::fs::read(&table_path).unwrap()).unwrap();
+    let original = std::fs::read(fixture("waypoints.script")).unwrap();
+    let lines: Vec<&adwi_programs::TargetLine> = report
+        .targets
+        .iter()
+        .filter(|t| t.name == "movel" || t.name == "movep")
+        .filter(|t| t.status.corrected())
+        .collect();
+    for ((p, c), line) in literals(&original)
+        .into_iter()
+        .zip(literals(&done.output))
+        .zip(lines)
+    {
+        let target = plane * pose_m(p);
+        let command = plane * pose_m(c);
+        // The TCP set_tcp sets is the table's point (the UR5's 31 mm tool).
+        let point = nalgebra::Vector3::from(line.point_mm.unwrap());
+        assert!(
+            (target.translation.vector - point).norm() < 1e-6,
+            "{}",
+            line.place()
+        );
+        let q: Vec<f64> = line
+            .command_joints
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|v| v.to_radians())
+            .collect();
+        let at = command.translation.vector;
+        let c = table.query_with_joints(&adwi_runtime::Target::at([at.x, at.y, at.z]), &q);
+        assert_eq!(c.status, adwi_runtime::Status::Ok);
+        let landed = at + nalgebra::Vector3::from(c.position_error_mm);
+        let miss = (landed - target.translation.vector).norm();
+        let before = {
+            let t = target.translation.vector;
+            let c = table.query_with_joints(&adwi_runtime::Target::at([t.x, t.y, t.z]), &q);
+            (t + nalgebra::Vector3::from(c.position_error_mm) - t).norm()
+        };
+        eprintln!(
+            "{}: {before:.4} mm uncompensated, {miss:.2e} mm compensated",
+            line.place()
+        );
+        assert!(before > 1.0, "{}: {before}", line.place());
+        // 12 decimals of a metre: the fixed point's 1e-6 mm.
+        assert!(miss < 1e-5, "{}: {miss}", line.place());
+    }
+}
+
+#[test]
+fn cr_only_line_ends_read_as_lf_and_utf16_and_programs_of_another_dialect_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let table = build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = table.to_str().unwrap();
+    let crlf = std::fs::read(fixture("seam.dat")).unwrap();
+    let cr: Vec<u8> = String::from_utf8(crlf.clone())
+        .unwrap()
+        .replace("\r\n", "\r")
+        .into_bytes();
+    std::fs::write(d.join("seam.dat"), &crlf).unwrap();
+    std::fs::copy(fixture("seam.src"), d.join("seam.src")).unwrap();
+    std::fs::create_dir(d.join("cr")).unwrap();
+    std::fs::write(d.join("cr/seam.dat"), &cr).unwrap();
+    let src_cr = String::from_utf8(std::fs::read(fixture("seam.src")).unwrap())
+        .unwrap()
+        .replace("\r\n", "\r");
+    std::fs::write(d.join("cr/seam.src"), src_cr).unwrap();
+    let config = fixture("config.dat");
+    let config = config.to_str().unwrap();
+    let run = |program: &str, out: &str| {
+        compensate(
+            d,
+            &[
+                table,
+                program,
+                "-o",
+                out,
+                "--krl-config",
+                config,
+                "--report",
+                &format!("{out}.csv"),
+            ],
+        )
+    };
+    let (code_lf, stdout_lf, _) = run("seam.dat", "lf.dat");
+    let (code_cr, stdout_cr, _) = run("cr/seam.dat", "cr.dat");
+    assert_eq!((code_lf, code_cr), (3, 3));
+    // The same lines, places and figures: a CR ends a line as a CRLF does.
+    assert_eq!(
+        stdout_lf.replace("seam.src", "cr/seam.src"),
+        stdout_cr,
+        "{stdout_cr}"
+    );
+    assert!(
+        stdout_cr.contains("7 of 9 targets corrected"),
+        "{stdout_cr}"
+    );
+    let written_cr = std::fs::read(d.join("cr.dat")).unwrap();
+    let written_lf = String::from_utf8(std::fs::read(d.join("lf.dat")).unwrap()).unwrap();
+    assert_eq!(written_cr, written_lf.replace("\r\n", "\r").into_bytes());
+    // UTF-16 with its byte-order mark: refused by name, nothing written.
+    let utf16: Vec<u8> = [0xff, 0xfe]
+        .into_iter()
+        .chain(crlf.iter().flat_map(|b| [*b, 0]))
+        .collect();
+    std::fs::create_dir(d.join("u16")).unwrap();
+    std::fs::write(d.join("u16/seam.dat"), utf16).unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "u16/seam.dat", "-o", "u16.dat"]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("u16/seam.dat:1:1: UTF-16 text (byte-order mark FF FE)"),
+        "{stderr}"
+    );
+    assert!(!d.join("u16.dat").exists());
+    // A RAPID module and a PolyScope script under KRL's extension: refused by name.
+    std::fs::copy(fixture("seam.mod"), d.join("module.src")).unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "module.src", "-o", "module-out.src"]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("module.src:1:1: this reads as ABB RAPID ('MODULE' at its line 1), not KUKA KRL as its extension says"),
+        "{stderr}"
+    );
+    std::fs::copy(fixture("waypoints.script"), d.join("waypoints.dat")).unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "waypoints.dat", "-o", "w-out.dat"]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("this reads as URScript ('def' at its line 1)"),
+        "{stderr}"
+    );
+    // A file that moves the robot without a target this reader finds is an error, never
+    // "0 of 0 targets corrected".
+    std::fs::write(d.join("moves.mod"), "MODULE Moves\n  PROC main()\n    MoveL pElsewhere, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n").unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "moves.mod", "-o", "moves-out.mod"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("moves.mod:3:5: MoveL moves the robot, but the program holds no target it can correct (not_declared: MoveL pElsewhere: not declared in this module"), "{stderr}");
+    assert!(!d.join("moves-out.mod").exists());
+    std::fs::write(d.join("empty.src"), "DEF empty( )\nEND\n").unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "empty.src", "-o", "empty-out.src"]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("no target and no motion found"), "{stderr}");
 }

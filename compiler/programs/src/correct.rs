@@ -43,6 +43,10 @@ pub enum TargetStatus {
     /// Not corrected: the target's numbers give no finite pose or command (a value far
     /// beyond any workspace).
     Invalid,
+    /// Not corrected: a motion the reader found but whose target no command computed
+    /// offline lands (an offset, a run-time value, a frame not given, an external axis,
+    /// an unknown motion), named by its reason.
+    Unaccounted(crate::program::Reason),
 }
 
 impl TargetStatus {
@@ -66,6 +70,7 @@ impl TargetStatus {
             TargetStatus::NeedsOrientation => "needs_orientation",
             TargetStatus::AmbiguousFrame => "ambiguous_frame",
             TargetStatus::Invalid => "invalid",
+            TargetStatus::Unaccounted(reason) => reason.as_str(),
         }
     }
 }

@@ -193,6 +193,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 joints,
             })),
             uses: Vec::new(),
+            refused: None,
         });
     }
     // A file of decimal commas gets them in every number rewritten, those it wrote
@@ -219,6 +220,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         format: Format::Csv,
         targets,
         truncated_at,
+        first_motion: None,
     })
 }
 

@@ -7,11 +7,11 @@ use adwi_robot::{Geometry, Joint, LinkNames, Robot};
 use adwi_runtime::{AlignedBytes, Table};
 use nalgebra::{Isometry3, Vector3};
 
-use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
 use crate::bounds::frame_within;
+use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
 use crate::frames::{angle_between, kuka_pose, orientation_values, rotation_of, FrameChain};
 use crate::number::{rewrite, Number};
-use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, TargetKind};
+use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, Reason, TargetKind};
 use crate::report::{Report, TargetLine};
 use crate::source::Source;
 use crate::Error;
@@ -40,6 +40,10 @@ pub struct CompensateOptions {
     pub tool: Option<[f64; 6]>,
     /// The work object (base) in the robot's base frame, likewise; `None`: the base frame.
     pub base: Option<[f64; 6]>,
+    /// A KUKA controller's `$config.dat` (or any file of `TOOL_DATA[n]={…}` and
+    /// `BASE_DATA[n]={…}` lines): the numbered tools and bases a KRL program selects
+    /// ([`crate::krl::read_config`]).
+    pub krl_config: Option<PathBuf>,
     /// The table's measured point in the flange frame; `None`: a hybrid table's own (with
     /// a robot file), else the robot file's tool, else the flange.
     pub table_tool: Option<[f64; 6]>,
@@ -85,6 +89,7 @@ impl CompensateOptions {
             links: LinkNames::default(),
             tool: None,
             base: None,
+            krl_config: None,
             table_tool: None,
             limits: Limits {
                 max_correction_mm: DEFAULT_MAX_CORRECTION_MM,
@@ -117,10 +122,14 @@ pub struct CompensateJob {
     name: String,
     program: Program,
     kinematics: Option<Kinematics>,
-    /// Per target, its frame chains (one per distinct use; none for joint targets).
-    chains: Vec<Vec<FrameChain>>,
+    /// Per target, its frame chains (one per distinct use; none for joint targets), or why
+    /// its frames are not known.
+    chains: Vec<Result<Vec<FrameChain>, correct::Failure>>,
     /// The program and the report, checked before any work.
     outputs: adwi_compile::write::OutputPlan,
+    /// Whether the reader saw the program's motions (a KRL data list read without its
+    /// `.src` did not), so that a declared target no motion moves to is unused.
+    motions_seen: bool,
 }
 
 /// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
@@ -197,6 +206,7 @@ impl CompensateJob {
         let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
         inputs.extend(partner_path.as_deref());
         inputs.extend(o.robot.as_deref());
+        inputs.extend(o.krl_config.as_deref());
         inputs.extend(robot_files.iter().map(PathBuf::as_path));
         let outputs = adwi_compile::write::OutputPlan::check(
             &[o.output.as_deref(), o.report.as_deref()]
@@ -237,6 +247,21 @@ impl CompensateJob {
         }
         let bytes = read(&o.program)?;
         let name = o.program.display().to_string();
+        // Text a reader can read, in the dialect the job takes it for, before any work.
+        crate::dialect::check(&Source::new(&name, &bytes), format, o.format.is_some())?;
+        let krl_frames = match &o.krl_config {
+            None => crate::krl::KrlFrames::default(),
+            Some(_) if format != Format::Krl => {
+                return Err(Error::Option(
+                    "the KRL configuration (krl_config) is for KRL programs".into(),
+                ))
+            }
+            Some(path) => {
+                let config = read(path)?;
+                let config_name = path.display().to_string();
+                crate::krl::read_config(&Source::new(&config_name, &config))?
+            }
+        };
         let (kinematics, table_tool) = kinematics(o, &table, robot)?;
         // The cost of a target is known once the kinematics are: the program is read only
         // as far as the work it may take.
@@ -271,8 +296,11 @@ impl CompensateJob {
             crate::bounds::check_line_lengths(&src)?;
             match format {
                 Format::Krl => {
-                    let partner_bytes = partner_path.as_deref().and_then(|p| std::fs::read(p).ok());
+                    let partner_bytes = partner_path
+                        .as_deref()
+                        .and_then(|p| std::fs::read(p).ok());
                     let partner_name = partner_path
+                        .as_ref()
                         .map(|p| p.display().to_string())
                         .unwrap_or_default();
                     let partner_src = partner_bytes
@@ -281,7 +309,7 @@ impl CompensateJob {
                     if let Some(p) = &partner_src {
                         crate::bounds::check_line_lengths(p)?;
                     }
-                    crate::krl::read_at_most(&src, partner_src.as_ref(), limit)?
+                    crate::krl::read_with(&src, partner_src.as_ref(), &krl_frames, limit)?
                 }
                 Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
                 Format::UrScript => crate::urscript::read_at_most(&src, limit)?,
@@ -302,8 +330,46 @@ impl CompensateJob {
                 limit_seconds: o.max_seconds,
             });
         }
-        // Frames: every use resolved, or the job refused at the use that cannot be.
         let src = Source::new(&name, &bytes);
+        // A program that moves has targets: one whose targets this reader does not find
+        // (another file's, another dialect's) is refused, never "0 of 0 corrected".
+        let refused_all = program.targets.iter().all(|t| t.refused.is_some());
+        let no_numbers = program
+            .targets
+            .iter()
+            .all(|t| matches!(t.kind, TargetKind::Motion));
+        let pair = format == Format::Krl && partner_path.is_some();
+        if program.targets.is_empty()
+            || (program.first_motion.is_some() && (no_numbers || (refused_all && pair)))
+        {
+            let (at, message) = match program.first_motion {
+                Some(at) => {
+                    let word = src.text(at, src.identifier_end(at, b"$#_"));
+                    let elsewhere = match (&partner_path, format) {
+                        (Some(p), Format::Krl) => format!(
+                            ": its motions' targets are declared in {}; compensate that file (the motions that use them are read from this one)",
+                            p.display()
+                        ),
+                        _ => program
+                            .targets
+                            .iter()
+                            .find_map(|t| t.refused.as_ref())
+                            .map_or(String::new(), |r| format!(" ({}: {})", r.reason.as_str(), r.detail)),
+                    };
+                    (at, format!("{word} moves the robot, but the program holds no target it can correct{elsewhere}"))
+                }
+                None => (
+                    0,
+                    format!(
+                    "no target and no motion found: nothing to compensate (is it a {} program?)",
+                    format.name()
+                ),
+                ),
+            };
+            return Err(src.error(at, message));
+        }
+        // Frames: every use resolved; a use whose frame no input gives leaves its target
+        // unchanged, said in its report line.
         let default_tool = o
             .tool
             .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]));
@@ -311,15 +377,30 @@ impl CompensateJob {
             .base
             .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]))
             .unwrap_or_else(Isometry3::identity);
+        // The options stand for one undeclared tool and one undeclared work object: the
+        // names the program's uses leave undeclared, tools first.
+        let mut undeclared: [Vec<&str>; 2] = [Vec::new(), Vec::new()];
+        for target in program.targets.iter().filter(|t| t.refused.is_none()) {
+            for m in target.uses.iter().flat_map(|u| &u.undeclared) {
+                let names = &mut undeclared[usize::from(m.base)];
+                if !names.contains(&m.name.as_str()) {
+                    names.push(&m.name);
+                }
+            }
+        }
+        let frame_unknown =
+            |why: String| Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why));
         let mut chains = Vec::with_capacity(program.targets.len());
-        for target in &program.targets {
+        'targets: for target in &program.targets {
             let mut list: Vec<FrameChain> = Vec::new();
-            if matches!(target.kind, TargetKind::Cartesian(_)) {
+            if matches!(target.kind, TargetKind::Cartesian(_)) && target.refused.is_none() {
                 let default_use = [FrameUse {
                     tool: None,
                     base: None,
                     offset: target.offset,
+                    elsewhere: None,
                     undeclared: Vec::new(),
+                    unknown: Vec::new(),
                 }];
                 let uses = if target.uses.is_empty() {
                     &default_use[..]
@@ -328,17 +409,45 @@ impl CompensateJob {
                 };
                 for u in uses {
                     let (base, at) = (u.base, u.offset);
-                    let tool = u.tool.or(default_tool);
-                    for missing in &u.undeclared {
-                        let given = if missing.starts_with("work object") {
-                            o.base.is_some()
+                    let place = u.elsewhere.clone().unwrap_or_else(|| {
+                        let (line, column) = src.location(at);
+                        format!("{line}:{column}")
+                    });
+                    if let Some(why) = u.unknown.first() {
+                        chains.push(frame_unknown(format!("{why} (used at {place})")));
+                        continue 'targets;
+                    }
+                    for m in &u.undeclared {
+                        let (given, option) = if m.base {
+                            (o.base.is_some(), "base")
                         } else {
-                            o.tool.is_some()
+                            (o.tool.is_some(), "tool")
                         };
+                        let numbered = format == Format::Krl
+                            && (m.name.starts_with("TOOL_DATA") || m.name.starts_with("BASE_DATA"));
+                        let how = if numbered {
+                            format!("give it in the KRL configuration (--krl-config), or as the {option} option")
+                        } else {
+                            format!("give it as the {option} option")
+                        };
+                        let names = &undeclared[usize::from(m.base)];
                         if !given {
-                            return Err(src.error(at, format!("{missing} is not declared in the program: give it as an option ({})", if missing.starts_with("work object") { "base" } else { "tool" })));
+                            chains.push(frame_unknown(format!(
+                                "{} not given (used at {place}): {how}",
+                                m.describe()
+                            )));
+                            continue 'targets;
+                        }
+                        if names.len() > 1 {
+                            chains.push(frame_unknown(format!(
+                                "{} not given (used at {place}): the {option} option stands for one, and the program names {}",
+                                m.describe(),
+                                names.join(", ")
+                            )));
+                            continue 'targets;
                         }
                     }
+                    let tool = u.tool.or(default_tool);
                     let chain = match (tool, table_tool) {
                         (None, _) => FrameChain {
                             base: base.unwrap_or(default_base),
@@ -362,7 +471,7 @@ impl CompensateJob {
             // Most targets have one chain: not the four a growing list reserves (some 500
             // bytes a target).
             list.shrink_to_fit();
-            chains.push(list);
+            chains.push(Ok(list));
         }
         let seconds = cost * program.targets.len() as f64;
         if seconds > o.max_seconds {
@@ -375,7 +484,13 @@ impl CompensateJob {
                 limit_seconds: o.max_seconds,
             });
         }
+        let motions_seen = match format {
+            Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
+            Format::Rapid => true,
+            Format::UrScript | Format::Csv => false,
+        };
         Ok(CompensateJob {
+            motions_seen,
             options,
             table,
             bytes,
@@ -425,6 +540,7 @@ impl CompensateJob {
                     TargetKind::Cartesian(_) => "cartesian",
                     TargetKind::Joints(_) => "joints",
                     TargetKind::Incomplete(_) => "incomplete",
+                    TargetKind::Motion => "motion",
                 },
                 status: TargetStatus::Ok,
                 detail: String::new(),
@@ -438,24 +554,27 @@ impl CompensateJob {
                 residual_mm: None,
                 residual: None,
             };
-            let result = self
-                .target(&src, target, chains, &mut seed, &mut entry)
-                .and_then(|edits| {
-                    // Never a non-finite number written, whatever the input held.
-                    let finite = edits
-                        .iter()
-                        .all(|(_, text)| {
-                            text.replace(',', ".").parse::<f64>().is_ok_and(f64::is_finite)
-                        });
-                    if finite {
-                        Ok(edits)
-                    } else {
-                        Err((
-                            TargetStatus::Invalid,
-                            "the command is not finite".to_string(),
-                        ))
-                    }
+            let result = match (&target.refused, chains) {
+                (Some(r), _) => Err((TargetStatus::Unaccounted(r.reason), r.detail.clone())),
+                (None, Err(why)) => Err(why.clone()),
+                (None, Ok(chains)) => self.target(&src, target, chains, &mut seed, &mut entry),
+            }
+            .and_then(|edits| {
+                // Never a non-finite number written, whatever the input held.
+                let finite = edits.iter().all(|(_, text)| {
+                    text.replace(',', ".")
+                        .parse::<f64>()
+                        .is_ok_and(f64::is_finite)
                 });
+                if finite {
+                    Ok(edits)
+                } else {
+                    Err((
+                        TargetStatus::Invalid,
+                        "the command is not finite".to_string(),
+                    ))
+                }
+            });
             match result {
                 Ok(new_edits) => {
                     for (span, text) in new_edits {
@@ -468,6 +587,22 @@ impl CompensateJob {
                     entry.status = status;
                     entry.detail = detail;
                 }
+            }
+            // A declared target no motion moves to: corrected in the options' frames, and
+            // said to be unused.
+            let declared = self.motions_seen
+                && matches!(
+                    target.kind,
+                    TargetKind::Cartesian(_) | TargetKind::Joints(_)
+                );
+            if declared && target.uses.is_empty() && target.refused.is_none() {
+                let unused = "unused: no motion of the program moves to it";
+                let frames = matches!(target.kind, TargetKind::Cartesian(_));
+                entry.detail = match (entry.detail.is_empty(), frames) {
+                    (true, true) => format!("{unused}; in the options' frames"),
+                    (true, false) => unused.to_string(),
+                    (false, _) => format!("{}; {unused}", entry.detail),
+                };
             }
             report.targets.push(entry);
         }
@@ -572,6 +707,11 @@ impl CompensateJob {
         }
         match &target.kind {
             TargetKind::Incomplete(why) => Err((TargetStatus::Incomplete, why.clone())),
+            // Always refused by its reader; no numbers to correct.
+            TargetKind::Motion => Err((
+                TargetStatus::Unaccounted(Reason::Dynamic),
+                "no numbers written".into(),
+            )),
             TargetKind::Cartesian(c) => {
                 let [chain] = chains else {
                     return Err((

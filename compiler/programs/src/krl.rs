@@ -9,20 +9,37 @@
 //!   a motion in the file or in its partner (`P.src` for `P.dat` and back): frames are as
 //!   often base or tool offsets, which must not change;
 //! - aggregates written in a motion: `PTP {A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}`,
-//!   `LIN {X 1500,Y 0,Z 1200,A 0,B 90,C 0}`, `CIRC {…},{…}` (and `SPTP`, `SLIN`,
-//!   `SCIRC`). Relative motions (`PTP_REL`, `LIN_REL`) write offsets: they are left alone.
+//!   `LIN {X 1500,Y 0,Z 1200,A 0,B 90,C 0}`, `CIRC {…},{…}`.
 //!
-//! KRL is case-insensitive; statements are one per line; `;` starts a comment. The tool
-//! and base (`$TOOL`, `$BASE`, `TOOL_DATA[n]`) live in the controller's configuration, not
-//! in the program: the job's `tool` and `base` options give them.
+//! Every motion of [`MOTIONS`] is accounted for: its targets are corrected in the tool and
+//! base the controller will apply, or reported (a [`Refusal`]): relative motions
+//! (`LIN_REL`), targets computed at run time (`LIN XP1:XOFF`, a function), names declared
+//! in neither file of the pair (`XHOME` of `$config.dat`), targets that move an external
+//! axis (`E1` of a track), frames not given.
+//!
+//! The tool and base of a motion are those the controller applies, read in file order:
+//! `$TOOL = TOOL_DATA[n]`, `$BASE = BASE_DATA[n]` (or `$NULLFRAME`, or a frame aggregate),
+//! `BAS(#TOOL, n)`, `BAS(#BASE, n)`, an inline form's `FDAT_ACT = FPn` (the `FDAT`'s
+//! `TOOL_NO` and `BASE_NO`, from either file), its `;FOLD … Tool[n] Base[m]` line, and a
+//! spline motion's `WITH $TOOL = STOOL2(FPn), $BASE = SBASE(FPn.BASE_NO)` (for that motion
+//! only). `TOOL_DATA[n]` and `BASE_DATA[n]` come from the controller's `$config.dat`
+//! ([`read_config`]); number 0 is `$NULLFRAME` (the flange; the world, taken as the
+//! robot's base frame). Before any of these, the job's `tool` and `base` options stand for
+//! the controller's current `$TOOL` and `$BASE`. An external TCP (`IPO_FRAME #TCP`) is
+//! refused.
+//!
+//! KRL is case-insensitive; statements are one per line; `;` starts a comment.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
+use nalgebra::Isometry3;
+
+use crate::frames::kuka_pose;
 use crate::lex::{Language, Lexer, Tok, Token};
 use crate::number::Number;
 use crate::program::{
-    AngleUnit, CartesianTarget, ConfigHint, Format, JointTarget, LengthUnit, Orientation, Program,
-    ProgramTarget, TargetKind,
+    AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
+    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
 };
 use crate::source::{same_name, Source};
 use crate::Error;
@@ -33,7 +50,48 @@ const KRL: Language = Language {
     ident_extra: b"$#",
 };
 
-const MOTIONS: [&str; 6] = ["PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC"];
+/// A motion instruction of KRL: its name, how many targets it takes (its first
+/// arguments), and what becomes of them. KRL motions name no tool or base: those are the
+/// controller's `$TOOL` and `$BASE` when the motion runs (module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct Motion {
+    /// The instruction.
+    pub name: &'static str,
+    /// Its targets: 1, or 2 for a circle (auxiliary point, end point).
+    pub targets: usize,
+    /// `None`: its targets are corrected; else why they are reported and left unchanged.
+    pub refused: Option<Reason>,
+}
+
+const fn motion(name: &'static str, targets: usize, refused: Option<Reason>) -> Motion {
+    Motion {
+        name,
+        targets,
+        refused,
+    }
+}
+
+/// The motion instructions of KRL (KSS 8), every one accounted for.
+pub const MOTIONS: [Motion; 15] = [
+    motion("PTP", 1, None),
+    motion("LIN", 1, None),
+    motion("CIRC", 2, None),
+    motion("SPTP", 1, None),
+    motion("SLIN", 1, None),
+    motion("SCIRC", 2, None),
+    motion("SPL", 1, None),
+    motion("PTP_REL", 1, Some(Reason::Relative)),
+    motion("LIN_REL", 1, Some(Reason::Relative)),
+    motion("CIRC_REL", 2, Some(Reason::Relative)),
+    motion("SPTP_REL", 1, Some(Reason::Relative)),
+    motion("SLIN_REL", 1, Some(Reason::Relative)),
+    motion("SCIRC_REL", 2, Some(Reason::Relative)),
+    motion("ASYPTP", 1, Some(Reason::ExternalAxis)),
+    motion("ASYCANCEL", 0, Some(Reason::ExternalAxis)),
+];
+
+/// Words that may follow a motion's targets (approximation, circle angle, `WITH`).
+const AFTER_TARGETS: [&str; 7] = ["C_PTP", "C_DIS", "C_VEL", "C_ORI", "C_SPL", "CA", "WITH"];
 
 /// The target types, and whether each is Cartesian.
 const TYPES: [(&str, Kind); 5] = [
@@ -51,14 +109,110 @@ enum Kind {
     Joints,
 }
 
+/// The controller's numbered tools and bases (`TOOL_DATA[n]`, `BASE_DATA[n]`), as its
+/// `$config.dat` declares them: frames in the flange and in the world (the robot's base)
+/// frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KrlFrames {
+    /// `TOOL_DATA[n]` by n.
+    pub tools: HashMap<u32, Isometry3<f64>>,
+    /// `BASE_DATA[n]` by n.
+    pub bases: HashMap<u32, Isometry3<f64>>,
+}
+
+/// Reads the `TOOL_DATA[n]={X …,Y …,Z …,A …,B …,C …}` and `BASE_DATA[n]=…` lines of a
+/// `$config.dat` (any other line is skipped).
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at a `TOOL_DATA`/`BASE_DATA` line whose index or frame does not read
+/// (all six of X, Y, Z, A, B, C are needed), or that gives one frame twice.
+pub fn read_config(src: &Source) -> Result<KrlFrames, Error> {
+    let mut frames = KrlFrames::default();
+    let mut lexer = Lexer::new(src, KRL);
+    while let Some(line) = lexer.line() {
+        let mut i = 0;
+        while ["DECL", "GLOBAL", "FRAME"]
+            .iter()
+            .any(|w| word_is(src, line.get(i), w))
+        {
+            i += 1;
+        }
+        let Some(first) = line.get(i) else { continue };
+        let base = if word_is(src, Some(first), "TOOL_DATA") {
+            false
+        } else if word_is(src, Some(first), "BASE_DATA") {
+            true
+        } else {
+            continue;
+        };
+        // A declaration of the array alone (`DECL FRAME TOOL_DATA[16]`) has no value.
+        let Some(eq) = line.iter().position(|t| t.is(b'=')) else {
+            continue;
+        };
+        let n = match (line.get(i + 1), line.get(i + 2), line.get(i + 3)) {
+            (Some(o), Some(n), Some(c))
+                if o.is(b'[') && n.kind == Tok::Number && c.is(b']') && eq == i + 4 =>
+            {
+                let v = src.number(n.start, "an index")?.value;
+                if v.fract() != 0.0 || !(1.0..=u32::MAX as f64).contains(&v) {
+                    return Err(src.error(n.start, "the index of a frame is an integer from 1"));
+                }
+                v as u32
+            }
+            _ => {
+                return Err(src.error(
+                    first.start,
+                    "expected TOOL_DATA[n]={X …,Y …,Z …,A …,B …,C …} (n a number)",
+                ))
+            }
+        };
+        if !line.get(eq + 1).is_some_and(|t| t.is(b'{')) {
+            return Err(src.error(
+                line.get(eq + 1).map_or(line[eq].end, |t| t.start),
+                "expected a frame {X …,Y …,Z …,A …,B …,C …}",
+            ));
+        }
+        let pose = frame_aggregate(src, &line, eq + 1)?;
+        let map = if base {
+            &mut frames.bases
+        } else {
+            &mut frames.tools
+        };
+        if map.insert(n, pose).is_some() {
+            return Err(src.error(first.start, format!("{} given twice", frame_name(base, n))));
+        }
+    }
+    Ok(frames)
+}
+
+/// The frame of a complete `{X,Y,Z,A,B,C}` aggregate at `line[open]`.
+fn frame_aggregate(src: &Source, line: &[Token], open: usize) -> Result<Isometry3<f64>, Error> {
+    let (kind, _, _) = aggregate(src, line, open, Some(Kind::Frame))?;
+    match kind {
+        TargetKind::Cartesian(c) => match c.orientation {
+            Some(Orientation::KukaAbcDeg(abc)) => {
+                Ok(kuka_pose(c.position.map(|n| n.value), abc.map(|n| n.value)))
+            }
+            _ => Err(src.error(line[open].start, "a frame needs A, B and C")),
+        },
+        _ => Err(src.error(line[open].start, "a frame needs X, Y, Z, A, B and C")),
+    }
+}
+
+fn frame_name(base: bool, n: u32) -> String {
+    format!("{}[{n}]", if base { "BASE_DATA" } else { "TOOL_DATA" })
+}
+
 /// Reads the targets of a KRL file; `partner` is the other file of its `.src`/`.dat`
-/// pair, read only for the names its motions use.
+/// pair, read for the motions that use this file's targets and the `FDAT`s they name.
+/// Numbered tools and bases are not known ([`read_with`] takes them).
 ///
 /// # Errors
 ///
 /// [`Error::Syntax`] at the first malformed target aggregate.
 pub fn read(src: &Source, partner: Option<&Source>) -> Result<Program, Error> {
-    read_at_most(src, partner, usize::MAX)
+    read_with(src, partner, &KrlFrames::default(), usize::MAX)
 }
 
 /// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
@@ -71,54 +225,369 @@ pub fn read_at_most(
     partner: Option<&Source>,
     limit: usize,
 ) -> Result<Program, Error> {
-    let mut used = motion_names(src)?;
-    if let Some(p) = partner {
-        // The partner is context only: a file that does not read gives no names.
-        used.extend(motion_names(p).unwrap_or_default());
-    }
-    let mut targets = Vec::new();
-    let mut lexer = Lexer::new(src, KRL);
-    while let Some(line) = lexer.line() {
-        statement(src, &line, &used, &mut targets)?;
-        if targets.len() > limit {
-            return Ok(Program {
-                format: Format::Krl,
-                targets,
-                truncated_at: Some(lexer.pos),
-            });
-        }
-    }
-    Ok(Program {
-        format: Format::Krl,
-        targets,
-        truncated_at: None,
-    })
+    read_with(src, partner, &KrlFrames::default(), limit)
 }
 
-/// The names (upper case) that motions of `src` move to.
-fn motion_names(src: &Source) -> Result<HashSet<String>, Error> {
-    let mut names = HashSet::new();
-    let mut lexer = Lexer::new(src, KRL);
-    while let Some(line) = lexer.line() {
-        let Some(first) = line.first() else { continue };
-        if first.kind == Tok::Ident && is_motion(src, first) {
-            for t in &line[1..] {
-                match t.kind {
-                    Tok::Ident => {
-                        names.insert(src.text(t.start, t.end).to_ascii_uppercase());
-                    }
-                    Tok::Punct(b',') => {}
-                    _ => break,
+/// [`read_at_most`] with the controller's numbered tools and bases.
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_with(
+    src: &Source,
+    partner: Option<&Source>,
+    frames: &KrlFrames,
+    limit: usize,
+) -> Result<Program, Error> {
+    // The FDATs and declared names of both files.
+    let mut fdats = HashMap::new();
+    let mut declared_here = HashSet::new();
+    let mut declared_there = HashSet::new();
+    declarations(src, &mut fdats, &mut declared_here);
+    if let Some(p) = partner {
+        declarations(p, &mut fdats, &mut declared_there);
+    }
+    let context = Context {
+        frames,
+        fdats: &fdats,
+        declared_here: &declared_here,
+        declared_there: &declared_there,
+        partner_name: partner.map(|p| p.name),
+    };
+    let mut scan = Scan::default();
+    let truncated_at = scan_file(src, &context, true, limit, &mut scan)?;
+    if let Some(p) = partner {
+        // The partner is context only: what does not read there gives no uses.
+        let mut other = Scan::default();
+        if scan_file(p, &context, false, usize::MAX, &mut other).is_ok() {
+            scan.unknown_uses.extend(other.unknown_uses);
+            scan.expression_uses.extend(other.expression_uses);
+            scan.uses
+                .extend(other.uses.into_iter().map(|(name, mut u)| {
+                    let (line, column) = p.location(u.offset);
+                    u.elsewhere = Some(format!("{}:{line}:{column}", p.name));
+                    (name, u)
+                }));
+        }
+    }
+    let mut uses: HashMap<String, Vec<FrameUse>> = HashMap::new();
+    for (name, u) in scan.uses {
+        uses.entry(name).or_default().push(u);
+    }
+    let mut targets = Vec::with_capacity(scan.targets.len());
+    for (mut target, key, kind) in scan.targets {
+        if let Some(key) = key {
+            let found = uses.get(&key);
+            // A FRAME no motion moves to is a base or tool offset, not a target.
+            if kind == Some(Kind::Frame) && found.is_none() {
+                continue;
+            }
+            target.uses = found.cloned().unwrap_or_default();
+            // A motion not in the table moves to it: its frames are not known.
+            if let Some((_, by)) = scan.unknown_uses.iter().find(|(n, _)| *n == key) {
+                target.refused.get_or_insert(Refusal::new(
+                    Reason::UnknownMotion,
+                    format!("moved to by {by}, a motion this reader does not know"),
+                ));
+            }
+            // Moved to only through an expression: no one correction holds for it.
+            if let Some((_, by)) = scan.expression_uses.iter().find(|(n, _)| *n == key) {
+                if target.uses.is_empty() {
+                    target.refused.get_or_insert(Refusal::new(
+                        Reason::Dynamic,
+                        format!("used only by {by}, computed when the program runs"),
+                    ));
                 }
             }
         }
+        targets.push(target);
     }
-    Ok(names)
+    targets.sort_by_key(|t| t.offset);
+    Ok(Program {
+        format: Format::Krl,
+        targets,
+        truncated_at,
+        first_motion: scan.first_motion,
+    })
 }
 
-fn is_motion(src: &Source, t: &Token) -> bool {
+/// What the files declare: `FDAT`s and target names.
+struct Context<'a> {
+    frames: &'a KrlFrames,
+    fdats: &'a HashMap<String, Fdat>,
+    declared_here: &'a HashSet<String>,
+    declared_there: &'a HashSet<String>,
+    partner_name: Option<&'a str>,
+}
+
+/// An `FDAT`: the tool and base a motion's inline form selects.
+#[derive(Clone, Copy, Debug, Default)]
+struct Fdat {
+    tool_no: Option<u32>,
+    base_no: Option<u32>,
+    external_tcp: bool,
+}
+
+/// A frame as the controller will have it when a motion runs.
+#[derive(Clone, Debug)]
+enum FrameState {
+    /// Nothing in the program set it: the job's option.
+    Initial,
+    Known(Isometry3<f64>),
+    /// A numbered frame the job was not given.
+    Undeclared(String),
+    /// A frame no input gives.
+    Unknown(String),
+}
+
+#[derive(Clone, Debug)]
+struct State {
+    tool: FrameState,
+    base: FrameState,
+}
+
+/// What a file's scan found.
+#[derive(Default)]
+struct Scan {
+    /// Targets of the file, with their declared name (upper case) and type when declared.
+    targets: Vec<(ProgramTarget, Option<String>, Option<Kind>)>,
+    /// Named uses: the name (upper case) and the frames.
+    uses: Vec<(String, FrameUse)>,
+    /// Names moved to by a motion not in [`MOTIONS`]: the name, the motion and its place.
+    unknown_uses: Vec<(String, String)>,
+    /// Names a motion takes inside an expression (`XP1:XOFF`): the name and the motion.
+    expression_uses: Vec<(String, String)>,
+    first_motion: Option<usize>,
+}
+
+/// The `FDAT`s and declared target names (upper case) of a file; what does not read is
+/// skipped (the scan reports it).
+fn declarations(src: &Source, fdats: &mut HashMap<String, Fdat>, names: &mut HashSet<String>) {
+    let mut lexer = Lexer::new(src, KRL);
+    while let Some(line) = lexer.line() {
+        let mut i = 0;
+        while ["DECL", "GLOBAL", "CONST"]
+            .iter()
+            .any(|w| word_is(src, line.get(i), w))
+        {
+            i += 1;
+        }
+        let (Some(ty), Some(name)) = (line.get(i), line.get(i + 1)) else {
+            continue;
+        };
+        if name.kind != Tok::Ident {
+            continue;
+        }
+        let key = src.text(name.start, name.end).to_ascii_uppercase();
+        if type_of(src, ty).is_some() {
+            names.insert(key);
+        } else if word_is(src, Some(ty), "FDAT") {
+            let mut fdat = Fdat::default();
+            for (k, t) in line.iter().enumerate() {
+                let next = line.get(k + 1);
+                let number = || {
+                    next.filter(|n| n.kind == Tok::Number)
+                        .and_then(|n| crate::number::parse_number(src.bytes, n.start))
+                        .filter(|n| {
+                            n.value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&n.value)
+                        })
+                        .map(|n| n.value as u32)
+                };
+                if word_is(src, Some(t), "TOOL_NO") {
+                    fdat.tool_no = number();
+                } else if word_is(src, Some(t), "BASE_NO") {
+                    fdat.base_no = number();
+                } else if word_is(src, Some(t), "IPO_FRAME") {
+                    fdat.external_tcp = word_is(src, next, "#TCP");
+                }
+            }
+            fdats.insert(key, fdat);
+        }
+    }
+}
+
+/// Scans a file in order: its targets (`this_file`), the uses of named targets and the
+/// frames of every motion. Returns where reading stopped past `limit` targets.
+fn scan_file(
+    src: &Source,
+    context: &Context,
+    this_file: bool,
+    limit: usize,
+    scan: &mut Scan,
+) -> Result<Option<usize>, Error> {
+    let mut state = State {
+        tool: FrameState::Initial,
+        base: FrameState::Initial,
+    };
+    let mut lexer = Lexer::new(src, KRL);
+    loop {
+        let line_start = lexer.pos;
+        let Some(line) = lexer.line() else { break };
+        // An inline form's fold line names its tool and base: `;FOLD LIN P2 … Tool[1]
+        // Base[2];%{PE}`.
+        let comment_from = line.last().map_or(line_start, |t| t.end);
+        fold_frames(src, comment_from, lexer.pos, context, &mut state);
+        statement(src, &line, context, this_file, &mut state, scan)?;
+        if scan.targets.len() > limit {
+            return Ok(Some(lexer.pos));
+        }
+    }
+    Ok(None)
+}
+
+/// The tool and base a `;FOLD` comment in `from..to` names, applied to `state`.
+fn fold_frames(src: &Source, from: usize, to: usize, context: &Context, state: &mut State) {
+    let text = &src.bytes[from.min(to)..to];
+    let Some(semi) = text.iter().position(|b| *b == b';') else {
+        return;
+    };
+    let comment = &text[semi + 1..];
+    let trimmed = comment.trim_ascii_start();
+    if !(trimmed.len() >= 5 && same_name(&trimmed[..5], b"FOLD ")) {
+        return;
+    }
+    // Only the fold's title, before its `;%{PE}` parameters.
+    let title = trimmed.split(|b| *b == b';').next().unwrap_or(&[]);
+    for (word, base) in [(&b"TOOL["[..], false), (&b"BASE["[..], true)] {
+        let found = title
+            .windows(word.len())
+            .position(|w| same_name(w, word))
+            .and_then(|at| {
+                let digits = &title[at + word.len()..];
+                let end = digits.iter().position(|b| !b.is_ascii_digit())?;
+                (digits.get(end) == Some(&b']') && end > 0)
+                    .then(|| {
+                        std::str::from_utf8(&digits[..end])
+                            .ok()?
+                            .parse::<u32>()
+                            .ok()
+                    })
+                    .flatten()
+            });
+        if let Some(n) = found {
+            let frame = numbered(context.frames, base, n);
+            if base {
+                state.base = frame;
+            } else {
+                state.tool = frame;
+            }
+        }
+    }
+}
+
+/// A numbered frame: `$NULLFRAME` for 0, else the controller's.
+fn numbered(frames: &KrlFrames, base: bool, n: u32) -> FrameState {
+    if n == 0 {
+        return FrameState::Known(Isometry3::identity());
+    }
+    let map = if base { &frames.bases } else { &frames.tools };
+    match map.get(&n) {
+        Some(f) => FrameState::Known(*f),
+        None => FrameState::Undeclared(frame_name(base, n)),
+    }
+}
+
+/// The frames an `FDAT` selects.
+fn fdat_frames(context: &Context, name: &str, at: (usize, usize)) -> (FrameState, FrameState) {
+    match context.fdats.get(&name.to_ascii_uppercase()) {
+        Some(f) => {
+            let tool = if f.external_tcp {
+                FrameState::Unknown(format!(
+                    "an external TCP (IPO_FRAME #TCP in {name}): a stationary tool is not supported"
+                ))
+            } else {
+                f.tool_no
+                    .map_or(FrameState::Unknown(format!("{name} has no TOOL_NO")), |n| {
+                        numbered(context.frames, false, n)
+                    })
+            };
+            let base = f
+                .base_no
+                .map_or(FrameState::Unknown(format!("{name} has no BASE_NO")), |n| {
+                    numbered(context.frames, true, n)
+                });
+            (tool, base)
+        }
+        None => {
+            let why = format!(
+                "the FDAT {name} named at {}:{} is declared in neither file",
+                at.0, at.1
+            );
+            (FrameState::Unknown(why.clone()), FrameState::Unknown(why))
+        }
+    }
+}
+
+/// The frame an expression `tokens` assigns to `$TOOL` (`base` false) or `$BASE`.
+fn frame_expression(
+    src: &Source,
+    tokens: &[Token],
+    context: &Context,
+    base: bool,
+    at: usize,
+) -> FrameState {
+    let (line, column) = src.location(at);
+    let unknown = || {
+        FrameState::Unknown(format!(
+            "{} set by an expression at {line}:{column}",
+            if base { "$BASE" } else { "$TOOL" }
+        ))
+    };
+    let word = |k: usize, w: &str| word_is(src, tokens.get(k), w);
+    match tokens {
+        [t] if word(0, "$NULLFRAME") => {
+            let _ = t;
+            FrameState::Known(Isometry3::identity())
+        }
+        [_, o, n, c]
+            if (word(0, "TOOL_DATA") || word(0, "BASE_DATA"))
+                && o.is(b'[')
+                && n.kind == Tok::Number
+                && c.is(b']') =>
+        {
+            match crate::number::parse_number(src.bytes, n.start) {
+                Some(v) if v.value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&v.value) => {
+                    numbered(context.frames, word(0, "BASE_DATA"), v.value as u32)
+                }
+                _ => unknown(),
+            }
+        }
+        // A spline motion's `STOOL2(FPn)` and `SBASE(FPn.BASE_NO)`.
+        [_, o, f, c] if word(0, "STOOL2") && o.is(b'(') && f.kind == Tok::Ident && c.is(b')') => {
+            fdat_frames(context, &src.text(f.start, f.end), (line, column)).0
+        }
+        [_, o, f, d, n, c]
+            if word(0, "SBASE")
+                && o.is(b'(')
+                && f.kind == Tok::Ident
+                && d.is(b'.')
+                && word(4, "BASE_NO")
+                && c.is(b')') =>
+        {
+            let _ = n;
+            fdat_frames(context, &src.text(f.start, f.end), (line, column)).1
+        }
+        [o, ..] if o.is(b'{') => match frame_aggregate(src, tokens, 0) {
+            Ok(f) => FrameState::Known(f),
+            Err(_) => unknown(),
+        },
+        _ => unknown(),
+    }
+}
+
+fn is_motion(src: &Source, t: &Token) -> Option<&'static Motion> {
     let word = &src.bytes[t.start..t.end];
-    MOTIONS.iter().any(|m| same_name(word, m.as_bytes()))
+    (t.kind == Tok::Ident)
+        .then(|| MOTIONS.iter().find(|m| same_name(word, m.name.as_bytes())))
+        .flatten()
+}
+
+/// A word that looks like a motion but is not in [`MOTIONS`] (`LIN_ABS`, `SPL_REL`).
+fn looks_like_motion(src: &Source, t: &Token) -> bool {
+    let word = src.text(t.start, t.end).to_ascii_uppercase();
+    ["PTP_", "LIN_", "CIRC_", "SPTP_", "SLIN_", "SCIRC_", "SPL_"]
+        .iter()
+        .any(|p| word.starts_with(p))
 }
 
 fn word_is(src: &Source, t: Option<&Token>, word: &str) -> bool {
@@ -138,11 +607,102 @@ fn type_of(src: &Source, t: &Token) -> Option<Kind> {
         .flatten()
 }
 
+/// The end of the argument starting at `line[i]`: the next top-level `,`, a word that
+/// follows a motion's targets, or the line's end.
+fn argument_end(src: &Source, line: &[Token], i: usize) -> usize {
+    let mut depth = 0i32;
+    let mut k = i;
+    while let Some(t) = line.get(k) {
+        match t.kind {
+            Tok::Punct(b'{' | b'(' | b'[') => depth += 1,
+            Tok::Punct(b'}' | b')' | b']') => depth -= 1,
+            Tok::Punct(b',') if depth <= 0 => return k,
+            Tok::Ident
+                if depth <= 0
+                    && k > i
+                    && AFTER_TARGETS.iter().any(|w| word_is(src, Some(t), w)) =>
+            {
+                return k
+            }
+            _ => {}
+        }
+        k += 1;
+    }
+    k
+}
+
+/// A motion's frames: the state, with its `WITH $TOOL = …, $BASE = …` for it alone.
+fn frame_use(state: &State, offset: usize) -> FrameUse {
+    let mut u = FrameUse {
+        tool: None,
+        base: None,
+        offset,
+        elsewhere: None,
+        undeclared: Vec::new(),
+        unknown: Vec::new(),
+    };
+    for (frame, base) in [(&state.tool, false), (&state.base, true)] {
+        match frame {
+            FrameState::Initial => {}
+            FrameState::Known(f) => {
+                if base {
+                    u.base = Some(*f);
+                } else {
+                    u.tool = Some(*f);
+                }
+            }
+            FrameState::Undeclared(name) => u.undeclared.push(Undeclared {
+                base,
+                name: name.clone(),
+            }),
+            FrameState::Unknown(why) => u.unknown.push(why.clone()),
+        }
+    }
+    u
+}
+
+/// The system-variable assignments of a `WITH` list (or of a statement): `(variable,
+/// tokens of its value)`.
+fn assignments<'t>(src: &Source, tokens: &'t [Token]) -> Vec<(String, &'t [Token], usize)> {
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < tokens.len() {
+        let end = {
+            let mut depth = 0i32;
+            let mut e = k;
+            while let Some(t) = tokens.get(e) {
+                match t.kind {
+                    Tok::Punct(b'{' | b'(' | b'[') => depth += 1,
+                    Tok::Punct(b'}' | b')' | b']') => depth -= 1,
+                    Tok::Punct(b',') if depth <= 0 => break,
+                    _ => {}
+                }
+                e += 1;
+            }
+            e
+        };
+        let piece = &tokens[k..end];
+        if let [name, eq, value @ ..] = piece {
+            if name.kind == Tok::Ident && eq.is(b'=') {
+                out.push((
+                    src.text(name.start, name.end).to_ascii_uppercase(),
+                    value,
+                    name.start,
+                ));
+            }
+        }
+        k = end + 1;
+    }
+    out
+}
+
 fn statement(
     src: &Source,
     line: &[Token],
-    used: &HashSet<String>,
-    targets: &mut Vec<ProgramTarget>,
+    context: &Context,
+    this_file: bool,
+    state: &mut State,
+    scan: &mut Scan,
 ) -> Result<(), Error> {
     let Some(first) = line.first() else {
         return Ok(());
@@ -150,34 +710,276 @@ fn statement(
     if first.kind != Tok::Ident {
         return Ok(());
     }
-    if is_motion(src, first) {
-        let motion = src.text(first.start, first.end).to_ascii_uppercase();
-        let mut i = 1;
-        while let Some(t) = line.get(i) {
-            if t.is(b'{') {
-                let (kind, end) = aggregate(src, line, i, None)?;
-                targets.push(ProgramTarget {
-                    name: motion.clone(),
-                    offset: t.start,
-                    kind,
-                    uses: Vec::new(),
-                });
-                i = end;
-            } else if t.kind == Tok::Ident {
-                i += 1;
-            } else {
-                break;
+    let first_word = src.text(first.start, first.end).to_ascii_uppercase();
+    // The controller's frames, as the program sets them.
+    match first_word.as_str() {
+        "$TOOL" | "$BASE" | "$IPO_MODE" => {
+            for (name, value, at) in assignments(src, line) {
+                apply(src, &name, value, at, context, state);
             }
-            // CIRC and SCIRC take two targets: auxiliary point, end point.
-            if line.get(i).is_some_and(|t| t.is(b',')) {
-                i += 1;
-            } else {
-                break;
+            return Ok(());
+        }
+        "FDAT_ACT" => {
+            if let (Some(eq), Some(f)) = (line.get(1), line.get(2)) {
+                if eq.is(b'=') {
+                    let at = src.location(f.start);
+                    (state.tool, state.base) = if f.kind == Tok::Ident && line.len() == 3 {
+                        fdat_frames(context, &src.text(f.start, f.end), at)
+                    } else {
+                        let why = format!("FDAT_ACT set by an expression at {}:{}", at.0, at.1);
+                        (FrameState::Unknown(why.clone()), FrameState::Unknown(why))
+                    };
+                }
             }
+            return Ok(());
+        }
+        "BAS" => {
+            // BAS(#TOOL, n), BAS(#BASE, n).
+            if let [_, o, which, comma, n, c] = line {
+                let base = word_is(src, Some(which), "#BASE");
+                if o.is(b'(')
+                    && comma.is(b',')
+                    && c.is(b')')
+                    && (base || word_is(src, Some(which), "#TOOL"))
+                {
+                    let frame = match crate::number::parse_number(src.bytes, n.start) {
+                        Some(v)
+                            if n.kind == Tok::Number
+                                && v.value.fract() == 0.0
+                                && v.value >= 0.0
+                                && v.value <= u32::MAX as f64 =>
+                        {
+                            numbered(context.frames, base, v.value as u32)
+                        }
+                        _ => {
+                            let (l, c) = src.location(first.start);
+                            FrameState::Unknown(format!(
+                                "BAS sets the {} by an expression at {l}:{c}",
+                                if base { "base" } else { "tool" }
+                            ))
+                        }
+                    };
+                    if base {
+                        state.base = frame;
+                    } else {
+                        state.tool = frame;
+                    }
+                }
+            }
+            return Ok(());
+        }
+        _ => {}
+    }
+    if let Some(m) = is_motion(src, first) {
+        return motion_statement(src, line, m, context, this_file, state, scan);
+    }
+    if looks_like_motion(src, first) && !line.get(1).is_some_and(|t| t.is(b'(') || t.is(b'=')) {
+        scan.first_motion.get_or_insert(first.start);
+        let (l, c) = src.location(first.start);
+        for t in line[1..].iter().filter(|t| t.kind == Tok::Ident) {
+            scan.unknown_uses.push((
+                src.text(t.start, t.end).to_ascii_uppercase(),
+                format!("{first_word} ({}:{l}:{c})", src.name),
+            ));
+        }
+        if this_file {
+            scan.targets.push((
+                refused_motion(
+                    src,
+                    first,
+                    Reason::UnknownMotion,
+                    format!("{first_word} is not a KRL motion this reader knows"),
+                ),
+                None,
+                None,
+            ));
         }
         return Ok(());
     }
-    // [DECL] [GLOBAL] [CONST] TYPE NAME = {...}, in any order of the first three.
+    if !this_file {
+        return Ok(());
+    }
+    declaration(src, line, scan)
+}
+
+/// `$TOOL`, `$BASE` or `$IPO_MODE` assigned `value`.
+fn apply(
+    src: &Source,
+    name: &str,
+    value: &[Token],
+    at: usize,
+    context: &Context,
+    state: &mut State,
+) {
+    match name {
+        "$TOOL" => state.tool = frame_expression(src, value, context, false, at),
+        "$BASE" => state.base = frame_expression(src, value, context, true, at),
+        "$IPO_MODE" => {
+            let external = match value {
+                [t] if word_is(src, Some(t), "#BASE") => false,
+                // A spline motion's `SIPO_MODE(FPn.IPO_FRAME)`: the FDAT's.
+                [f, o, n, ..] if word_is(src, Some(f), "SIPO_MODE") && o.is(b'(') => context
+                    .fdats
+                    .get(&src.text(n.start, n.end).to_ascii_uppercase())
+                    .is_none_or(|f| f.external_tcp),
+                _ => true,
+            };
+            if external {
+                let (l, c) = src.location(at);
+                state.tool = FrameState::Unknown(format!(
+                    "an external TCP ($IPO_MODE at {l}:{c}): a stationary tool is not supported"
+                ));
+            }
+        }
+        _ => {}
+    }
+}
+
+/// A report entry for a motion whose target is not corrected.
+fn refused_motion(src: &Source, at: &Token, reason: Reason, detail: String) -> ProgramTarget {
+    ProgramTarget {
+        name: src.text(at.start, at.end),
+        offset: at.start,
+        kind: TargetKind::Motion,
+        uses: Vec::new(),
+        refused: Some(Refusal::new(reason, detail)),
+    }
+}
+
+fn motion_statement(
+    src: &Source,
+    line: &[Token],
+    m: &Motion,
+    context: &Context,
+    this_file: bool,
+    state: &mut State,
+    scan: &mut Scan,
+) -> Result<(), Error> {
+    let first = &line[0];
+    scan.first_motion.get_or_insert(first.start);
+    let motion = m.name;
+    // Where the targets end: the first word that follows them, or the line's end.
+    let mut i = 1;
+    let mut args: Vec<(usize, usize)> = Vec::new();
+    while args.len() < m.targets && i < line.len() {
+        if word_is(src, line.get(i), "WITH") {
+            break;
+        }
+        let end = argument_end(src, line, i);
+        args.push((i, end));
+        i = end;
+        if line.get(i).is_some_and(|t| t.is(b',')) {
+            i += 1;
+        } else {
+            break;
+        }
+    }
+    // Frames given for this motion alone.
+    let mut frames = state.clone();
+    if let Some(w) = line.iter().position(|t| word_is(src, Some(t), "WITH")) {
+        for (name, value, at) in assignments(src, &line[w + 1..]) {
+            apply(src, &name, value, at, context, &mut frames);
+        }
+    }
+    let frame = frame_use(&frames, first.start);
+    if let Some(reason) = m.refused {
+        if this_file {
+            let written = src.text(first.start, line.last().map_or(first.end, |t| t.end));
+            let detail = match reason {
+                Reason::Relative => {
+                    format!("{motion}: an offset from where the robot stands when it runs")
+                }
+                _ => format!("{motion}: an external axis motion; the table has no such axis"),
+            };
+            let _ = written;
+            scan.targets
+                .push((refused_motion(src, first, reason, detail), None, None));
+        }
+        return Ok(());
+    }
+    for &(start, end) in &args {
+        let tokens = &line[start..end];
+        match tokens {
+            [t, ..] if t.is(b'{') => {
+                let (kind, after, external) = aggregate(src, line, start, None)?;
+                if after != end {
+                    return Err(src.error(
+                        line.get(after).map_or(t.start, |t| t.start),
+                        "expected ',' or the end of the motion after the aggregate",
+                    ));
+                }
+                if this_file {
+                    scan.targets.push((
+                        ProgramTarget {
+                            name: motion.to_string(),
+                            offset: t.start,
+                            kind,
+                            uses: vec![frame.clone()],
+                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                        },
+                        None,
+                        None,
+                    ));
+                }
+            }
+            [t] if t.kind == Tok::Ident => {
+                let name = src.text(t.start, t.end);
+                let key = name.to_ascii_uppercase();
+                if context.declared_here.contains(&key) || context.declared_there.contains(&key) {
+                    scan.uses.push((key, frame.clone()));
+                } else if this_file {
+                    let partner = context
+                        .partner_name
+                        .map_or(String::new(), |p| format!(" nor in {p}"));
+                    scan.targets.push((
+                        refused_motion(
+                            src,
+                            t,
+                            Reason::NotDeclared,
+                            format!("{motion} {name}: {name} is declared neither in this file{partner} (a global of another module or of $config.dat)"),
+                        ),
+                        None,
+                        None,
+                    ));
+                }
+            }
+            [t, ..] => {
+                let text = src.text(t.start, tokens.last().map_or(t.end, |l| l.end));
+                let (l, c) = src.location(t.start);
+                for n in tokens.iter().filter(|n| n.kind == Tok::Ident) {
+                    scan.expression_uses.push((
+                        src.text(n.start, n.end).to_ascii_uppercase(),
+                        format!("{motion} {text} ({}:{l}:{c})", src.name),
+                    ));
+                }
+                if !this_file {
+                    continue;
+                }
+                scan.targets.push((
+                    refused_motion(
+                        src,
+                        t,
+                        Reason::Dynamic,
+                        format!("{motion} {text}: a target computed when the program runs"),
+                    ),
+                    None,
+                    None,
+                ));
+            }
+            _ => {}
+        }
+    }
+    if args.len() < m.targets && this_file {
+        return Err(src.error(
+            line.last().map_or(first.end, |t| t.end),
+            format!("{motion} needs {} target(s)", m.targets),
+        ));
+    }
+    Ok(())
+}
+
+/// `[DECL] [GLOBAL] [CONST] TYPE NAME = {...}`, in any order of the first three.
+fn declaration(src: &Source, line: &[Token], scan: &mut Scan) -> Result<(), Error> {
     let mut i = 0;
     while ["DECL", "GLOBAL", "CONST"]
         .iter()
@@ -196,25 +998,27 @@ fn statement(
         return Ok(());
     }
     let name_text = src.text(name.start, name.end);
-    if kind == Kind::Frame && !used.contains(&name_text.to_ascii_uppercase()) {
-        return Ok(());
-    }
     if !line.get(i + 3).is_some_and(|t| t.is(b'{')) {
         return Err(src.error(
             line.get(i + 3).map_or(eq.end, |t| t.start),
             format!("expected an aggregate {{...}} after '{name_text}='"),
         ));
     }
-    let (target, end) = aggregate(src, line, i + 3, Some(kind))?;
+    let (target, end, external) = aggregate(src, line, i + 3, Some(kind))?;
     if let Some(t) = line.get(end) {
         return Err(src.error(t.start, "expected the end of the line after the aggregate"));
     }
-    targets.push(ProgramTarget {
-        name: name_text,
-        offset: name.start,
-        kind: target,
-        uses: Vec::new(),
-    });
+    scan.targets.push((
+        ProgramTarget {
+            name: name_text.clone(),
+            offset: name.start,
+            kind: target,
+            uses: Vec::new(),
+            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+        },
+        Some(name_text.to_ascii_uppercase()),
+        Some(kind),
+    ));
     Ok(())
 }
 
@@ -225,13 +1029,14 @@ enum Value {
     Other,
 }
 
-/// The aggregate starting at `line[open]` (a `{`): its target, and the index after its `}`.
+/// The aggregate starting at `line[open]` (a `{`): its target, the index after its `}`,
+/// and the external axes it moves (any of E1-E6 not zero), said for a report.
 fn aggregate(
     src: &Source,
     line: &[Token],
     open: usize,
     declared: Option<Kind>,
-) -> Result<(TargetKind, usize), Error> {
+) -> Result<(TargetKind, usize, Option<String>), Error> {
     let mut i = open + 1;
     let mut kind = declared;
     // An optional type prefix: {E6POS: X 1, ...}.
@@ -370,6 +1175,24 @@ fn aggregate(
             ),
         ));
     }
+    // An external axis moved: a track carries the robot, a turntable the work; the table
+    // knows neither.
+    let moved: Vec<String> = components
+        .iter()
+        .filter(|(c, ..)| c.len() == 2 && c.starts_with('E'))
+        .filter_map(|(c, _, _, v, _)| match v {
+            Value::Number(n) if n.value != 0.0 => {
+                Some(format!("{c} {}", src.text(n.span.0, n.span.1)))
+            }
+            _ => None,
+        })
+        .collect();
+    let external = (!moved.is_empty()).then(|| {
+        format!(
+            "{}: an external axis (a track, a turntable) the table does not have",
+            moved.join(", ")
+        )
+    });
     let target = match kind {
         Kind::Joints => {
             let mut joints = Vec::new();
@@ -417,6 +1240,7 @@ fn aggregate(
                             return Ok((
                                 TargetKind::Incomplete("A, B and C given in part".into()),
                                 i,
+                                external,
                             ))
                         }
                     },
@@ -431,7 +1255,7 @@ fn aggregate(
             }
         }
     };
-    Ok((target, i))
+    Ok((target, i, external))
 }
 
 /// The value of KRL's `'B0110'` (binary) or `'H1F'` (hexadecimal) literal.
@@ -463,7 +1287,13 @@ mod tests {
              DECL FDAT FP1={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE,POINT2[] \" \"}\nENDDAT\n\
              PTP {X 1,Y 2,Z 3} C_PTP\nLIN_REL {X 10}\nlin xp1\n",
         );
-        assert_eq!(t.len(), 3);
+        // XP1 (used by `lin xp1`), XHOME, the PTP's aggregate, and LIN_REL reported.
+        assert_eq!(t.len(), 4);
+        assert_eq!(t[0].uses.len(), 1);
+        assert_eq!(
+            t[3].refused.as_ref().map(|r| r.reason),
+            Some(Reason::Relative)
+        );
         let TargetKind::Cartesian(c) = &t[0].kind else {
             panic!()
         };

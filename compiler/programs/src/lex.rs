@@ -16,7 +16,7 @@ pub enum Tok {
     Str,
     /// One byte of punctuation.
     Punct(u8),
-    /// A line end (`\n`; a `\r` before it is blank).
+    /// A line end: `\n`, `\r\n` (the `\r` is blank) or a `\r` alone.
     Newline,
     /// The end of the file.
     Eof,
@@ -71,9 +71,11 @@ impl<'s, 'a> Lexer<'s, 'a> {
         let mut i = self.pos;
         loop {
             match src.at(i) {
-                Some(b' ' | b'\t' | b'\r' | 0x0c) => i += 1,
+                // A CR before an LF is blank; a CR alone ends a line (old Mac files).
+                Some(b'\r') if src.at(i + 1) == Some(b'\n') => i += 1,
+                Some(b' ' | b'\t' | 0x0c) => i += 1,
                 Some(b) if b == self.lang.comment => {
-                    while src.at(i).is_some_and(|b| b != b'\n') {
+                    while src.at(i).is_some_and(|b| b != b'\n' && b != b'\r') {
                         i += 1;
                     }
                 }
@@ -83,10 +85,13 @@ impl<'s, 'a> Lexer<'s, 'a> {
         let start = i;
         let (kind, end) = match src.at(i) {
             None => (Tok::Eof, i),
-            Some(b'\n') => (Tok::Newline, i + 1),
+            Some(b'\n' | b'\r') => (Tok::Newline, i + 1),
             Some(b) if self.lang.quotes.contains(&b) => {
                 let mut j = i + 1;
-                while src.at(j).is_some_and(|c| c != b && c != b'\n') {
+                while src
+                    .at(j)
+                    .is_some_and(|c| c != b && c != b'\n' && c != b'\r')
+                {
                     j += 1;
                 }
                 if src.at(j) == Some(b) {

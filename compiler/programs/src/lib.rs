@@ -40,6 +40,7 @@
 pub mod bounds;
 pub mod correct;
 pub mod csv;
+pub mod dialect;
 mod error;
 pub mod frames;
 mod job;

@@ -65,6 +65,67 @@ pub struct ProgramTarget {
     /// The frames it is commanded in, one per use the reader saw (none: the job's
     /// defaults).
     pub uses: Vec<FrameUse>,
+    /// Why the reader leaves it unchanged, when it does: a motion whose target the program
+    /// offsets, computes or names without declaring it, or a target beyond what a table
+    /// answers (an external axis). `None`: the job corrects it.
+    pub refused: Option<Refusal>,
+}
+
+/// Why a motion's target is reported and left unchanged rather than corrected: the
+/// reader found the motion, but no command computed offline lands it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Refusal {
+    /// The kind of reason.
+    pub reason: Reason,
+    /// What, in the program's words (the expression, the frame, the axis).
+    pub detail: String,
+}
+
+/// The kinds of [`Refusal`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Reason {
+    /// An offset from a pose the controller knows only at run time (KRL `LIN_REL`, RAPID
+    /// `Offs`/`RelTool`, URScript `pose_trans` of a target): one correction of the
+    /// written numbers cannot hold for every pose it is added to.
+    Relative,
+    /// A target computed at run time (a function's result, a variable the program assigns
+    /// as it runs).
+    Dynamic,
+    /// A frame the motion uses (a tool, a base or work object) whose value neither the
+    /// program nor the job's options give.
+    FrameUnknown,
+    /// A target with an external axis (a linear track, a turntable) moved: where the robot
+    /// or the work stands is not in the table.
+    ExternalAxis,
+    /// A call that looks like a motion but is not in the dialect's table of motions.
+    UnknownMotion,
+    /// A motion to a name declared neither in the file nor in its partner (a global of
+    /// another module or of the controller's configuration).
+    NotDeclared,
+}
+
+impl Reason {
+    /// Its name in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Reason::Relative => "relative",
+            Reason::Dynamic => "dynamic",
+            Reason::FrameUnknown => "frame_unknown",
+            Reason::ExternalAxis => "external_axis",
+            Reason::UnknownMotion => "unknown_motion",
+            Reason::NotDeclared => "not_declared",
+        }
+    }
+}
+
+impl Refusal {
+    /// A refusal for `reason`, saying `detail`.
+    pub fn new(reason: Reason, detail: impl Into<String>) -> Refusal {
+        Refusal {
+            reason,
+            detail: detail.into(),
+        }
+    }
 }
 
 /// What a target is.
@@ -78,6 +139,10 @@ pub enum TargetKind {
     /// coordinates: the controller takes the rest from where the robot stands), so no
     /// command can be computed for it; the text names what is missing.
     Incomplete(String),
+    /// A motion whose target the file writes no numbers for (an expression, or a name it
+    /// does not declare): always [`ProgramTarget::refused`], reported with the motion's
+    /// place.
+    Motion,
 }
 
 /// A length unit of a program's positions.
@@ -202,9 +267,37 @@ pub struct FrameUse {
     pub base: Option<Isometry3<f64>>,
     /// Where the use is written (the motion instruction), for messages.
     pub offset: usize,
-    /// The frames the use names but the program does not declare (`tool gun`), which the
-    /// job's options must then give.
-    pub undeclared: Vec<String>,
+    /// The use's place when another file holds it (a KRL `.dat`'s target moved to by its
+    /// `.src`): `file:line:column`; `None`: `offset` in the target's own file.
+    pub elsewhere: Option<String>,
+    /// The frames the use names but the program does not declare (RAPID `gun`, KRL
+    /// `TOOL_DATA[1]` without `--krl-config`), which the job's `tool` or `base` option may
+    /// then stand for (one name each).
+    pub undeclared: Vec<Undeclared>,
+    /// Frames the use depends on that no input can give (a `$BASE` computed at run time,
+    /// a `set_tcp` of an expression, a stationary tool): the target is left unchanged,
+    /// with this said.
+    pub unknown: Vec<String>,
+}
+
+/// A frame a use names without the program giving its value.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Undeclared {
+    /// A work object (base), or else a tool.
+    pub base: bool,
+    /// Its name as the program writes it (`gun`, `BASE_DATA[2]`).
+    pub name: String,
+}
+
+impl Undeclared {
+    /// `tool NAME` or `work object NAME`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} {}",
+            if self.base { "work object" } else { "tool" },
+            self.name
+        )
+    }
 }
 
 /// A program read: its targets in the order they are written.
@@ -217,4 +310,7 @@ pub struct Program {
     /// Where reading stopped, when the program holds more targets than the reader was
     /// allowed to read (the job sizes its work by them: crate docs): the byte offset.
     pub truncated_at: Option<usize>,
+    /// Where its first motion instruction is written (any, those whose targets another file
+    /// declares too): a program that moves must have targets to correct.
+    pub first_motion: Option<usize>,
 }

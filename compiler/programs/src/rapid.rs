@@ -17,7 +17,7 @@
 //!
 //! RAPID is case-insensitive; statements end with `;`; `!` starts a comment.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
@@ -25,9 +25,9 @@ use crate::lex::{Language, Lexer, Tok, Token};
 use crate::number::Number;
 use crate::program::{
     AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
-    Program, ProgramTarget, TargetKind,
+    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
 };
-use crate::source::Source;
+use crate::source::{same_name, Source};
 use crate::Error;
 
 const RAPID: Language = Language {
@@ -57,6 +57,7 @@ impl Value {
 type Declared = Result<Isometry3<f64>, String>;
 
 /// Where a move uses a target, and with which frames (names upper-cased).
+#[derive(Clone)]
 struct Use {
     tool: String,
     tool_at: usize,
@@ -80,12 +81,17 @@ pub fn read(src: &Source) -> Result<Program, Error> {
 /// As [`read`].
 pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let mut lexer = Lexer::new(src, RAPID);
-    let mut tools: HashMap<String, Declared> = HashMap::new();
-    let mut wobjs: HashMap<String, Declared> = HashMap::new();
+    let mut decl = Declarations::default();
     // Named targets, with their uses collected as moves are read.
     let mut targets: Vec<(ProgramTarget, Vec<Use>)> = Vec::new();
-    let mut by_name: HashMap<String, usize> = HashMap::new();
-    let mut pending_uses: Vec<(String, Use)> = Vec::new();
+    let mut pending_uses: Vec<(Named, Use, Token, &'static str)> = Vec::new();
+    let mut procs: HashSet<String> = HashSet::new();
+    // Statements that look like motions but are not in the table, with the names they
+    // take.
+    let mut unknown_moves: Vec<(Token, Vec<String>)> = Vec::new();
+    let mut first_motion = None;
+    // Names a move takes inside an expression (`Offs(p20, …)`): the first such use.
+    let mut in_expressions: HashMap<String, (Reason, String)> = HashMap::new();
     let mut truncated_at = None;
     loop {
         if targets.len() > limit {
@@ -118,37 +124,67 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             words.get(i).map(String::as_str),
             Some("CONST" | "PERS" | "VAR")
         ) {
-            declaration(
-                src,
-                &statement[i + 1..],
-                &mut tools,
-                &mut wobjs,
-                &mut targets,
-                &mut by_name,
-            )?;
+            declaration(src, &statement[i + 1..], &mut decl, &mut targets)?;
+            continue;
+        }
+        if matches!(
+            words.get(i).map(String::as_str),
+            Some("PROC" | "FUNC" | "TRAP")
+        ) {
+            let k = if words.get(i).is_some_and(|w| w == "FUNC") {
+                i + 2
+            } else {
+                i + 1
+            };
+            if let Some(w) = words.get(k) {
+                procs.insert(w.clone());
+            }
+            continue;
+        }
+        // A target assigned as the program runs: `p10 := CRobT();`, `p10.trans.z := 5;`.
+        if let Some(name) = assigned(src, &statement) {
+            decl.assigned.entry(name).or_insert(statement[0].start);
             continue;
         }
         // The move may follow a compact IF's condition or a CASE label on its line.
-        let slots_of = |t: &Token| -> Option<(&'static [usize], usize, &'static str)> {
-            if t.kind != Tok::Ident {
-                return None;
-            }
-            match src.text(t.start, t.end).to_ascii_uppercase().as_str() {
-                "MOVEJ" => Some((&[0], 3, "MoveJ")),
-                "MOVEL" => Some((&[0], 3, "MoveL")),
-                "MOVEABSJ" => Some((&[0], 3, "MoveAbsJ")),
-                "MOVEC" => Some((&[0, 1], 4, "MoveC")),
-                _ => None,
-            }
-        };
-        let Some((at, (target_slots, tool_slot, instruction))) = statement
+        let Some((at, m)) = statement
             .iter()
             .enumerate()
-            .find_map(|(k, t)| slots_of(t).map(|s| (k, s)))
+            .find_map(|(k, t)| motion_of(src, t).map(|m| (k, m)))
         else {
+            if let Some(t) = statement.first().filter(|t| looks_like_motion(src, t)) {
+                first_motion.get_or_insert(t.start);
+                let names = arguments(src, &statement[1..])
+                    .map(|args| {
+                        args.iter()
+                            .filter_map(|a| match a.positional {
+                                [n] if n.kind == Tok::Ident => {
+                                    Some(src.text(n.start, n.end).to_ascii_uppercase())
+                                }
+                                _ => None,
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                unknown_moves.push((*t, names));
+            }
             continue;
         };
         let statement = &statement[at..];
+        first_motion.get_or_insert(statement[0].start);
+        let instruction = m.name;
+        if let Some(reason) = m.refused {
+            targets.push((
+                refused_motion(
+                    src,
+                    &statement[0],
+                    reason,
+                    format!("{instruction}: moves external axes only; the table has no such axis"),
+                ),
+                Vec::new(),
+            ));
+            continue;
+        }
         let args = arguments(src, &statement[1..])?;
         let positional: Vec<&[Token]> = args
             .iter()
@@ -156,7 +192,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             .map(|a| a.positional)
             .collect();
         let Some(tool) = positional
-            .get(tool_slot)
+            .get(m.tool)
             .filter(|t| t.len() == 1 && t[0].kind == Tok::Ident)
         else {
             return Err(src.error(
@@ -164,7 +200,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 format!(
                     "{} needs its tool as argument {} (a tooldata name)",
                     src.text(statement[0].start, statement[0].end),
-                    tool_slot + 1
+                    m.tool + 1
                 ),
             ));
         };
@@ -188,66 +224,235 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             wobj: wobj.clone(),
             at: statement[0].start,
         };
-        for &slot in target_slots {
+        // A search's found point is written by the controller.
+        if let Some(found) = m.found.and_then(|slot| positional.get(slot)) {
+            if let Some(t) = found.first().filter(|t| t.kind == Tok::Ident) {
+                decl.assigned
+                    .entry(src.text(t.start, t.end).to_ascii_uppercase())
+                    .or_insert(t.start);
+            }
+        }
+        for &slot in m.targets {
             let Some(arg) = positional.get(slot) else {
                 return Err(src.error(
                     statement[0].start,
                     format!("{instruction} needs a target as argument {}", slot + 1),
                 ));
             };
-            match arg {
+            match *arg {
                 [t] if t.kind == Tok::Ident => {
-                    pending_uses.push((src.text(t.start, t.end).to_ascii_uppercase(), make_use()));
+                    let name = src.text(t.start, t.end).to_ascii_uppercase();
+                    pending_uses.push((Named::One(name), make_use(), *t, instruction));
+                }
+                // An array's element: `seam{2}`, or any of them: `seam{i}`.
+                [t, open, index @ .., close]
+                    if t.kind == Tok::Ident && open.is(b'{') && close.is(b'}') =>
+                {
+                    let name = src.text(t.start, t.end).to_ascii_uppercase();
+                    let named = match index {
+                        [n] if n.kind == Tok::Number => {
+                            Named::One(format!("{name}{{{}}}", src.text(n.start, n.end)))
+                        }
+                        _ => Named::All(name),
+                    };
+                    pending_uses.push((named, make_use(), *t, instruction));
                 }
                 [t, ..] if t.is(b'[') => {
                     let (value, end) = value(src, arg, 0)?;
                     if end != arg.len() {
                         return Err(src.error(arg[end].start, "expected ',' after the target"));
                     }
-                    let kind = if instruction == "MoveAbsJ" {
+                    let (kind, external) = if m.joints {
                         joint_target(src, &value)?
                     } else {
                         robtarget(src, &value)?
                     };
-                    let name = src.text(statement[0].start, statement[0].end);
                     targets.push((
                         ProgramTarget {
-                            name,
+                            name: instruction.to_string(),
                             offset: t.start,
                             kind,
                             uses: Vec::new(),
+                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
                         },
                         vec![make_use()],
                     ));
                 }
-                // An expression (Offs(p10, 0, 0, 100), RelTool(...), an array element):
-                // not a target the program writes.
-                _ => {}
+                [t, open, ..] if t.kind == Tok::Ident && open.is(b'(') => {
+                    let call = src.text(t.start, t.end);
+                    let text = src.text(t.start, arg[arg.len() - 1].end);
+                    let (reason, detail) = if call.eq_ignore_ascii_case("Offs")
+                        || call.eq_ignore_ascii_case("RelTool")
+                    {
+                        (
+                            Reason::Relative,
+                            format!(
+                                "{instruction} {text}: an offset computed when the program runs"
+                            ),
+                        )
+                    } else {
+                        (
+                            Reason::Dynamic,
+                            format!(
+                                "{instruction} {text}: a target computed when the program runs"
+                            ),
+                        )
+                    };
+                    for n in arg.iter().filter(|n| n.kind == Tok::Ident) {
+                        in_expressions
+                            .entry(src.text(n.start, n.end).to_ascii_uppercase())
+                            .or_insert((reason, detail.clone()));
+                    }
+                    targets.push((refused_motion(src, t, reason, detail), Vec::new()));
+                }
+                [t, ..] => {
+                    let text = src.text(t.start, arg[arg.len() - 1].end);
+                    targets.push((
+                        refused_motion(
+                            src,
+                            t,
+                            Reason::Dynamic,
+                            format!(
+                                "{instruction} {text}: a target computed when the program runs"
+                            ),
+                        ),
+                        Vec::new(),
+                    ));
+                }
+                [] => {}
             }
         }
     }
-    for (name, u) in pending_uses {
-        if let Some(&k) = by_name.get(&name) {
-            targets[k].1.push(u);
+    // A target an unknown motion moves to is not corrected either: its frames are not
+    // known.
+    let mut moved_by_unknown: HashMap<String, (String, usize)> = HashMap::new();
+    for (t, names) in unknown_moves {
+        let word = src.text(t.start, t.end);
+        if !procs.contains(&word.to_ascii_uppercase()) {
+            for name in names {
+                moved_by_unknown
+                    .entry(name)
+                    .or_insert((word.clone(), t.start));
+            }
+            targets.push((
+                refused_motion(
+                    src,
+                    &t,
+                    Reason::UnknownMotion,
+                    format!("{word} is not a RAPID motion this reader knows"),
+                ),
+                Vec::new(),
+            ));
+        }
+    }
+    let by_name: HashMap<String, usize> = targets
+        .iter()
+        .enumerate()
+        .filter(|(_, (t, _))| !matches!(t.kind, TargetKind::Motion))
+        .map(|(k, (t, _))| (t.name.to_ascii_uppercase(), k))
+        .collect();
+    for (named, u, t, instruction) in pending_uses {
+        let found: Vec<usize> = match &named {
+            Named::One(name) => by_name.get(name).copied().into_iter().collect(),
+            Named::All(name) => decl
+                .arrays
+                .get(name)
+                .map(|keys| {
+                    keys.iter()
+                        .filter_map(|k| by_name.get(k).copied())
+                        .collect()
+                })
+                .unwrap_or_default(),
+        };
+        if found.is_empty() {
+            let (name, reason, why) = match &named {
+                Named::One(n) | Named::All(n)
+                    if decl.names.contains(n.split('{').next().unwrap_or(n)) =>
+                {
+                    (
+                        n.clone(),
+                        Reason::Dynamic,
+                        "declared without a value this reader reads: given when the program runs",
+                    )
+                }
+                Named::One(n) | Named::All(n) => (
+                    n.clone(),
+                    Reason::NotDeclared,
+                    "not declared in this module (another module's, or the controller's)",
+                ),
+            };
+            let written = src.text(t.start, t.end);
+            let _ = name;
+            targets.push((
+                refused_motion(src, &t, reason, format!("{instruction} {written}: {why}")),
+                Vec::new(),
+            ));
+            continue;
+        }
+        for k in found {
+            targets[k].1.push(u.clone());
         }
     }
     let mut out = Vec::with_capacity(targets.len());
     for (mut target, uses) in targets {
+        let base_name = target
+            .name
+            .split('{')
+            .next()
+            .unwrap_or("")
+            .to_ascii_uppercase();
+        if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) {
+            if let Some((word, at)) = moved_by_unknown.get(&base_name) {
+                let (line, column) = src.location(*at);
+                target.refused = Some(Refusal::new(
+                    Reason::UnknownMotion,
+                    format!(
+                        "moved to by {word} ({line}:{column}), a motion this reader does not know"
+                    ),
+                ));
+            }
+        }
+        // A target moved to only through an expression: no one correction holds for it.
+        if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) && uses.is_empty()
+        {
+            if let Some((reason, detail)) = in_expressions.get(&base_name) {
+                target.refused = Some(Refusal::new(*reason, format!("used only by {detail}")));
+            }
+        }
+        if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) {
+            if let Some(&at) = decl.assigned.get(&base_name) {
+                let (line, column) = src.location(at);
+                target.refused = Some(Refusal::new(
+                    Reason::Dynamic,
+                    format!(
+                        "{} is assigned as the program runs ({line}:{column}): its declared value is not what the robot moves to",
+                        target.name
+                    ),
+                ));
+            }
+        }
         for u in uses {
+            let mut unknown = Vec::new();
             let tool = match u.tool.as_str() {
                 "TOOL0" => Some(Isometry3::identity()),
-                name => match tools.get(name) {
+                name => match decl.tools.get(name) {
                     Some(Ok(t)) => Some(*t),
-                    Some(Err(why)) => return Err(src.error(u.tool_at, why.clone())),
+                    Some(Err(why)) => {
+                        unknown.push(why.clone());
+                        Some(Isometry3::identity())
+                    }
                     None => None,
                 },
             };
             let base = match &u.wobj {
                 None => Some(Isometry3::identity()),
                 Some((name, _)) if name == "WOBJ0" => Some(Isometry3::identity()),
-                Some((name, at)) => match wobjs.get(name) {
+                Some((name, _)) => match decl.wobjs.get(name) {
                     Some(Ok(t)) => Some(*t),
-                    Some(Err(why)) => return Err(src.error(*at, why.clone())),
+                    Some(Err(why)) => {
+                        unknown.push(why.clone());
+                        Some(Isometry3::identity())
+                    }
                     None => None,
                 },
             };
@@ -255,30 +460,207 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 tool,
                 base,
                 offset: u.at,
+                elsewhere: None,
                 undeclared: [
-                    tool.is_none()
-                        .then(|| format!("tool {}", src.text(u.tool_at, u.tool_at + u.tool.len()))),
-                    base.is_none().then(|| {
-                        format!(
-                            "work object {}",
-                            u.wobj
-                                .as_ref()
-                                .map_or(String::new(), |(n, at)| src.text(*at, at + n.len()))
-                        )
+                    tool.is_none().then(|| Undeclared {
+                        base: false,
+                        name: src.text(u.tool_at, u.tool_at + u.tool.len()),
+                    }),
+                    base.is_none().then(|| Undeclared {
+                        base: true,
+                        name: u
+                            .wobj
+                            .as_ref()
+                            .map_or(String::new(), |(n, at)| src.text(*at, at + n.len())),
                     }),
                 ]
                 .into_iter()
                 .flatten()
                 .collect(),
+                unknown,
             });
         }
         out.push(target);
     }
+    out.sort_by_key(|t| t.offset);
     Ok(Program {
         format: Format::Rapid,
         targets: out,
         truncated_at,
+        first_motion,
     })
+}
+
+/// A motion instruction of RAPID: its name, which positional arguments are its targets,
+/// which its tool (its work object is the `\WObj` option, `wobj0` when absent), and what
+/// becomes of them.
+#[derive(Clone, Copy, Debug)]
+pub struct Motion {
+    /// The instruction.
+    pub name: &'static str,
+    /// The positional arguments that are targets (0-based).
+    pub targets: &'static [usize],
+    /// The positional argument that is the tool.
+    pub tool: usize,
+    /// Whether its targets are `jointtarget`s.
+    pub joints: bool,
+    /// The positional argument the controller writes a found point to (a search's).
+    pub found: Option<usize>,
+    /// `None`: its targets are corrected; else why it is reported and left unchanged.
+    pub refused: Option<Reason>,
+}
+
+const fn mv(name: &'static str, targets: &'static [usize], tool: usize) -> Motion {
+    Motion {
+        name,
+        targets,
+        tool,
+        joints: false,
+        found: None,
+        refused: None,
+    }
+}
+
+/// The motion instructions of RAPID (RobotWare 6 and 7, with Arc), every one accounted
+/// for: `ToPoint` (and `CirPoint`) corrected in the move's tool and work object.
+pub const MOTIONS: [Motion; 29] = [
+    mv("MoveJ", &[0], 3),
+    mv("MoveL", &[0], 3),
+    mv("MoveC", &[0, 1], 4),
+    Motion {
+        joints: true,
+        ..mv("MoveAbsJ", &[0], 3)
+    },
+    mv("MoveJDO", &[0], 3),
+    mv("MoveLDO", &[0], 3),
+    mv("MoveCDO", &[0, 1], 4),
+    mv("MoveJAO", &[0], 3),
+    mv("MoveLAO", &[0], 3),
+    mv("MoveCAO", &[0, 1], 4),
+    mv("MoveJGO", &[0], 3),
+    mv("MoveLGO", &[0], 3),
+    mv("MoveCGO", &[0, 1], 4),
+    mv("MoveJSync", &[0], 3),
+    mv("MoveLSync", &[0], 3),
+    mv("MoveCSync", &[0, 1], 4),
+    // TriggL ToPoint, Speed, Trigg_1, Zone, Tool.
+    mv("TriggJ", &[0], 4),
+    mv("TriggL", &[0], 4),
+    mv("TriggC", &[0, 1], 5),
+    // ArcL ToPoint, Speed, Seam, Weld, Zone, Tool.
+    mv("ArcL", &[0], 5),
+    mv("ArcLStart", &[0], 5),
+    mv("ArcLEnd", &[0], 5),
+    mv("ArcC", &[0, 1], 6),
+    mv("ArcCStart", &[0, 1], 6),
+    mv("ArcCEnd", &[0, 1], 6),
+    // SearchL Signal, SearchPoint, ToPoint, Speed, Tool.
+    Motion {
+        found: Some(1),
+        ..mv("SearchL", &[2], 4)
+    },
+    Motion {
+        found: Some(1),
+        ..mv("SearchC", &[2, 3], 5)
+    },
+    Motion {
+        found: Some(1),
+        ..mv("SearchJ", &[2], 4)
+    },
+    Motion {
+        refused: Some(Reason::ExternalAxis),
+        ..mv("MoveExtJ", &[], 0)
+    },
+];
+
+fn motion_of(src: &Source, t: &Token) -> Option<&'static Motion> {
+    (t.kind == Tok::Ident)
+        .then(|| {
+            MOTIONS
+                .iter()
+                .find(|m| same_name(&src.bytes[t.start..t.end], m.name.as_bytes()))
+        })
+        .flatten()
+}
+
+/// A statement's first word that looks like a motion but is not in [`MOTIONS`]: `Move…`,
+/// `Search…`, or an application's `ArcL…`, `TriggL…`, `SpotL`, `PaintL`, `DispL`, `CapL`
+/// (`TriggIO`, `ArcKill` are not motions).
+fn looks_like_motion(src: &Source, t: &Token) -> bool {
+    if t.kind != Tok::Ident {
+        return false;
+    }
+    let word = src.text(t.start, t.end).to_ascii_uppercase();
+    if word.starts_with("MOVE") || word.starts_with("SEARCH") {
+        return true;
+    }
+    ["ARC", "TRIGG", "CAP", "PAINT", "DISP", "SPOT"]
+        .iter()
+        .any(|p| {
+            word.strip_prefix(p).is_some_and(|rest| {
+                let mut chars = rest.chars();
+                matches!(chars.next(), Some('L' | 'J' | 'C'))
+                    && ["", "START", "END", "IOS", "SYNC", "DO", "AO", "GO"]
+                        .contains(&chars.as_str())
+            })
+        })
+}
+
+/// The target a statement assigns (`p10 := …`, `p10.trans.z := …`, `seam{2} := …`),
+/// upper case.
+fn assigned(src: &Source, statement: &[Token]) -> Option<String> {
+    let first = statement.first().filter(|t| t.kind == Tok::Ident)?;
+    let assign = statement
+        .windows(2)
+        .position(|w| w[0].is(b':') && w[1].is(b'=') && w[1].start == w[0].end)?;
+    let before = &statement[1..assign];
+    let plain = before.iter().all(|t| {
+        t.kind == Tok::Ident
+            || t.kind == Tok::Number
+            || t.is(b'.')
+            || t.is(b'{')
+            || t.is(b'}')
+            || t.is(b',')
+    });
+    (plain && before.first().is_none_or(|t| t.is(b'.') || t.is(b'{')))
+        .then(|| src.text(first.start, first.end).to_ascii_uppercase())
+}
+
+/// What a move names as its target.
+enum Named {
+    One(String),
+    /// Every element of an array (an index computed at run time).
+    All(String),
+}
+
+/// A report entry for a move whose target is not corrected.
+fn refused_motion(src: &Source, at: &Token, reason: Reason, detail: String) -> ProgramTarget {
+    let _ = src;
+    ProgramTarget {
+        name: detail
+            .split(' ')
+            .next()
+            .unwrap_or_default()
+            .trim_end_matches(':')
+            .to_string(),
+        offset: at.start,
+        kind: TargetKind::Motion,
+        uses: Vec::new(),
+        refused: Some(Refusal::new(reason, detail)),
+    }
+}
+
+/// What the module declares besides its targets.
+#[derive(Default)]
+struct Declarations {
+    tools: HashMap<String, Declared>,
+    wobjs: HashMap<String, Declared>,
+    /// Every robtarget and jointtarget name declared, with or without a value.
+    names: HashSet<String>,
+    /// Per array, its elements' names (`SEAM{1}`…).
+    arrays: HashMap<String, Vec<String>>,
+    /// Targets the program assigns as it runs, and where first.
+    assigned: HashMap<String, usize>,
 }
 
 /// Words that open or close a block: a line starting with one is a statement of its own
@@ -527,8 +909,8 @@ fn list<'v>(src: &Source, v: &'v Value, n: usize, what: &str) -> Result<&'v [Val
     }
 }
 
-/// A robtarget value.
-fn robtarget(src: &Source, v: &Value) -> Result<TargetKind, Error> {
+/// A robtarget value, and the external axes it moves.
+fn robtarget(src: &Source, v: &Value) -> Result<(TargetKind, Option<String>), Error> {
     let parts = list(
         src,
         v,
@@ -548,17 +930,44 @@ fn robtarget(src: &Source, v: &Value) -> Result<TargetKind, Error> {
     if !matches!(parts[3], Value::List(..)) {
         return Err(src.error(parts[3].offset(), "expected extax [eax_a,...,eax_f]"));
     }
-    Ok(TargetKind::Cartesian(Box::new(CartesianTarget {
-        position,
-        unit: LengthUnit::Millimetre,
-        orientation: Some(Orientation::QuaternionWxyz(rotation)),
-        config: ConfigHint::RapidConf(cf),
-        joints: Vec::new(),
-    })))
+    Ok((
+        TargetKind::Cartesian(Box::new(CartesianTarget {
+            position,
+            unit: LengthUnit::Millimetre,
+            orientation: Some(Orientation::QuaternionWxyz(rotation)),
+            config: ConfigHint::RapidConf(cf),
+            joints: Vec::new(),
+        })),
+        external_axes(src, &parts[3]),
+    ))
 }
 
-/// A jointtarget value.
-fn joint_target(src: &Source, v: &Value) -> Result<TargetKind, Error> {
+/// The external axes an `extax` list moves (any value but 9E9, "not used"), said for a
+/// report.
+fn external_axes(src: &Source, extax: &Value) -> Option<String> {
+    let Value::List(items, _) = extax else {
+        return None;
+    };
+    let moved: Vec<String> = items
+        .iter()
+        .zip(["eax_a", "eax_b", "eax_c", "eax_d", "eax_e", "eax_f"])
+        .filter_map(|(v, name)| match v {
+            Value::Number(n) if n.value.abs() < 8.9e9 => {
+                Some(format!("{name} {}", src.text(n.span.0, n.span.1)))
+            }
+            _ => None,
+        })
+        .collect();
+    (!moved.is_empty()).then(|| {
+        format!(
+            "{}: an external axis (a track, a positioner) the table does not have",
+            moved.join(", ")
+        )
+    })
+}
+
+/// A jointtarget value, and the external axes it moves.
+fn joint_target(src: &Source, v: &Value) -> Result<(TargetKind, Option<String>), Error> {
     let parts = list(
         src,
         v,
@@ -566,10 +975,13 @@ fn joint_target(src: &Source, v: &Value) -> Result<TargetKind, Error> {
         "a jointtarget [[rax_1,...,rax_6],[eax_a,...,eax_f]]",
     )?;
     let joints = numbers::<6>(src, &parts[0], "robax [rax_1,...,rax_6]")?;
-    Ok(TargetKind::Joints(JointTarget {
-        joints: joints.to_vec(),
-        unit: AngleUnit::Degree,
-    }))
+    Ok((
+        TargetKind::Joints(JointTarget {
+            joints: joints.to_vec(),
+            unit: AngleUnit::Degree,
+        }),
+        external_axes(src, &parts[1]),
+    ))
 }
 
 /// A pose `[[x,y,z],[q1,q2,q3,q4]]` (mm, quaternion w first).
@@ -596,14 +1008,12 @@ fn is_true(src: &Source, v: &Value) -> Option<bool> {
     }
 }
 
-/// A declaration after its `CONST`/`PERS`/`VAR`: `type name [:= value]`.
+/// A declaration after its `CONST`/`PERS`/`VAR`: `type name [{n}] [:= value]`.
 fn declaration(
     src: &Source,
     tokens: &[Token],
-    tools: &mut HashMap<String, Declared>,
-    wobjs: &mut HashMap<String, Declared>,
+    decl: &mut Declarations,
     targets: &mut Vec<(ProgramTarget, Vec<Use>)>,
-    by_name: &mut HashMap<String, usize>,
 ) -> Result<(), Error> {
     let (Some(ty), Some(name)) = (tokens.first(), tokens.get(1)) else {
         return Ok(());
@@ -618,35 +1028,89 @@ fn declaration(
     ) {
         return Ok(());
     }
-    // An array (name{n}) or a declaration without a value.
-    let (Some(c), Some(e)) = (tokens.get(2), tokens.get(3)) else {
+    let key = src.text(name.start, name.end).to_ascii_uppercase();
+    let is_target = matches!(ty_name.as_str(), "robtarget" | "jointtarget");
+    if is_target {
+        decl.names.insert(key.clone());
+    }
+    // An array of targets, `name{n} := [t1, …, tn]` (one dimension).
+    let mut at = 2;
+    let mut length = None;
+    if tokens.get(2).is_some_and(|t| t.is(b'{')) {
+        match (tokens.get(3), tokens.get(4)) {
+            (Some(n), Some(close)) if n.kind == Tok::Number && close.is(b'}') && is_target => {
+                length = Some(src.text(n.start, n.end));
+                at = 5;
+            }
+            // Arrays of frames, of more dimensions or sized by a constant: their targets
+            // are not read (a move to them is reported).
+            _ => return Ok(()),
+        }
+    }
+    // A declaration without a value.
+    let (Some(c), Some(e)) = (tokens.get(at), tokens.get(at + 1)) else {
         return Ok(());
     };
     if !(c.is(b':') && e.is(b'=')) {
         return Ok(());
     }
-    let (v, end) = value(src, tokens, 4)?;
+    let (v, end) = value(src, tokens, at + 2)?;
     if let Some(t) = tokens.get(end) {
         return Err(src.error(t.start, "expected ';' after the value"));
     }
-    let key = src.text(name.start, name.end).to_ascii_uppercase();
     match ty_name.as_str() {
         "robtarget" | "jointtarget" => {
-            let kind = if ty_name == "robtarget" {
-                robtarget(src, &v)?
-            } else {
-                joint_target(src, &v)?
+            let read = |v: &Value| {
+                if ty_name == "robtarget" {
+                    robtarget(src, v)
+                } else {
+                    joint_target(src, v)
+                }
             };
-            by_name.insert(key, targets.len());
-            targets.push((
-                ProgramTarget {
-                    name: src.text(name.start, name.end),
-                    offset: name.start,
-                    kind,
-                    uses: Vec::new(),
-                },
-                Vec::new(),
-            ));
+            let name_text = src.text(name.start, name.end);
+            match length {
+                None => {
+                    let (kind, external) = read(&v)?;
+                    targets.push((
+                        ProgramTarget {
+                            name: name_text,
+                            offset: name.start,
+                            kind,
+                            uses: Vec::new(),
+                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                        },
+                        Vec::new(),
+                    ));
+                }
+                Some(n) => {
+                    let Value::List(items, list_at) = &v else {
+                        return Err(src.error(v.offset(), format!("expected {n} targets in [ ]")));
+                    };
+                    if n.parse::<usize>().ok() != Some(items.len()) {
+                        return Err(src.error(
+                            *list_at,
+                            format!("{name_text}{{{n}}} holds {} targets", items.len()),
+                        ));
+                    }
+                    let mut keys = Vec::with_capacity(items.len());
+                    for (k, item) in items.iter().enumerate() {
+                        let (kind, external) = read(item)?;
+                        let element = format!("{name_text}{{{}}}", k + 1);
+                        keys.push(element.to_ascii_uppercase());
+                        targets.push((
+                            ProgramTarget {
+                                name: element,
+                                offset: item.offset(),
+                                kind,
+                                uses: Vec::new(),
+                                refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                            },
+                            Vec::new(),
+                        ));
+                    }
+                    decl.arrays.insert(key, keys);
+                }
+            }
         }
         "tooldata" => {
             let parts = list(
@@ -663,7 +1127,7 @@ fn declaration(
                 )),
                 None => return Err(src.error(parts[0].offset(), "robhold: expected TRUE or FALSE")),
             };
-            tools.insert(key, declared);
+            decl.tools.insert(key, declared);
         }
         _ => {
             let parts = list(
@@ -688,7 +1152,7 @@ fn declaration(
                     )
                 }
             };
-            wobjs.insert(key, declared);
+            decl.wobjs.insert(key, declared);
         }
     }
     Ok(())
@@ -714,7 +1178,12 @@ mod tests {
     #[test]
     fn targets_with_their_frames() {
         let p = read(&Source::new("m.mod", MODULE.as_bytes())).unwrap();
-        assert_eq!(p.targets.len(), 3);
+        // p10, home, MoveJ's inline target, and the move to Offs(p10, …) reported.
+        assert_eq!(p.targets.len(), 4);
+        assert_eq!(
+            p.targets[3].refused.as_ref().map(|r| r.reason),
+            Some(Reason::Relative)
+        );
         assert_eq!(p.targets[0].name, "p10");
         assert_eq!(p.targets[0].uses.len(), 1);
         let u = &p.targets[0].uses[0];

@@ -16,12 +16,13 @@ pub struct Source<'a> {
 impl<'a> Source<'a> {
     /// The source of `bytes`, called `name` in messages.
     pub fn new(name: &'a str, bytes: &'a [u8]) -> Source<'a> {
+        // Lines end with LF, CRLF or a CR alone (as the lexer reads them).
         let mut line_starts = vec![0];
         line_starts.extend(
             bytes
                 .iter()
                 .enumerate()
-                .filter(|(_, b)| **b == b'\n')
+                .filter(|&(i, b)| *b == b'\n' || (*b == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
                 .map(|(i, _)| i + 1),
         );
         Source {

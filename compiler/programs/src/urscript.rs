@@ -13,7 +13,7 @@
 //! `set_tcp` of another expression leaves the TCP unknown to the reader: the job's `tool`
 //! option must give it. Statements are one per line; `#` starts a comment.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use nalgebra::Isometry3;
 
@@ -21,7 +21,7 @@ use crate::lex::{Language, Lexer, Tok, Token};
 use crate::number::Number;
 use crate::program::{
     AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
-    Program, ProgramTarget, TargetKind,
+    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
 };
 use crate::source::Source;
 use crate::Error;
@@ -72,20 +72,38 @@ pub fn read(src: &Source) -> Result<Program, Error> {
 ///
 /// As [`read`].
 pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
+    // The script's own functions: a call of one is not a motion, whatever its name.
+    let mut functions: HashSet<String> = HashSet::new();
+    {
+        let mut lexer = Lexer::new(src, URSCRIPT);
+        while let Some(line) = lexer.line() {
+            if let [d, name, ..] = line.as_slice() {
+                if word(src, d, "def") && name.kind == Tok::Ident {
+                    functions.insert(src.text(name.start, name.end));
+                }
+            }
+        }
+    }
     let mut lexer = Lexer::new(src, URSCRIPT);
     let mut candidates: Vec<Candidate> = Vec::new();
-    // Per variable, its assignments (candidate indices) in file order.
-    let mut assignments: HashMap<String, Vec<usize>> = HashMap::new();
+    // Per variable, its last assignment so far.
+    let mut last: HashMap<String, Assign> = HashMap::new();
+    // Per variable, its last assignment in the file.
+    let mut last_in_file: HashMap<String, Assign> = HashMap::new();
     // Uses of variables not yet assigned: resolved to the variable's last assignment.
-    let mut late_uses: Vec<(String, FrameUse)> = Vec::new();
+    let mut late_uses: Vec<(String, FrameUse, Token, String)> = Vec::new();
+    // `pose_trans(F, X)` whose frame is a variable: refused if F is itself a target.
+    let mut frames_used: Vec<(String, usize)> = Vec::new();
+    let mut refused: Vec<ProgramTarget> = Vec::new();
     let mut tcp = Tcp::Default;
+    let mut first_motion = None;
     let mut truncated_at = None;
     while let Some(line) = lexer.line() {
         if candidates.len() > limit {
             truncated_at = Some(lexer.pos);
             break;
         }
-        // An assignment: [global|local] NAME = literal.
+        // An assignment: [global|local] NAME = value.
         let mut i = 0;
         if line
             .first()
@@ -98,19 +116,21 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 && eq.is(b'=')
                 && !line.get(i + 2).is_some_and(|t| t.is(b'='))
             {
-                if let Some((literal, _)) = literal(src, &line, i + 2)? {
-                    let key = src.text(name.start, name.end);
-                    assignments
-                        .entry(key.clone())
-                        .or_default()
-                        .push(candidates.len());
-                    candidates.push(Candidate {
-                        name: key,
-                        offset: line[i + 2].start,
-                        literal,
-                        uses: Vec::new(),
-                    });
-                }
+                let key = src.text(name.start, name.end);
+                let assign = match literal(src, &line, i + 2)? {
+                    Some((literal, end)) if end == line.len() => {
+                        candidates.push(Candidate {
+                            name: key.clone(),
+                            offset: line[i + 2].start,
+                            literal,
+                            uses: Vec::new(),
+                        });
+                        Assign::Literal(candidates.len() - 1)
+                    }
+                    _ => Assign::Expression(line.get(i + 2).map_or(eq.end, |t| t.start)),
+                };
+                last.insert(key.clone(), assign);
+                last_in_file.insert(key, assign);
             }
         }
         // Calls anywhere on the line.
@@ -122,22 +142,30 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 continue;
             }
             let call = src.text(t.start, t.end);
-            let slots = match call.as_str() {
-                "movel" | "movej" | "movep" => 1,
-                "movec" => 2,
-                "set_tcp" => {
-                    tcp = match argument(src, &line, k + 2, &candidates, &assignments)? {
-                        Some(Literal::Pose(p)) => Tcp::Known(pose_mm(&p)),
-                        _ => Tcp::Unknown(t.start),
-                    };
-                    k += 2;
-                    continue;
+            if call == "set_tcp" {
+                tcp = match argument(src, &line, k + 2, &candidates, &last)? {
+                    Some(Literal::Pose(p)) => Tcp::Known(pose_mm(&p)),
+                    _ => Tcp::Unknown(t.start),
+                };
+                k += 2;
+                continue;
+            }
+            let Some(m) = MOTIONS.iter().find(|m| m.name == call) else {
+                if (call.starts_with("move") || call.starts_with("servo"))
+                    && !functions.contains(&call)
+                {
+                    first_motion.get_or_insert(t.start);
+                    refused.push(refused_call(
+                        t,
+                        &call,
+                        Reason::UnknownMotion,
+                        format!("{call} is not a URScript motion this reader knows"),
+                    ));
                 }
-                _ => {
-                    k += 1;
-                    continue;
-                }
+                k += 1;
+                continue;
             };
+            first_motion.get_or_insert(t.start);
             let frame = FrameUse {
                 tool: match tcp {
                     Tcp::Known(t) => Some(t),
@@ -146,43 +174,37 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 // URScript poses are in the robot's base frame.
                 base: Some(Isometry3::identity()),
                 offset: t.start,
+                elsewhere: None,
                 undeclared: match tcp {
                     Tcp::Unknown(at) => {
                         let (line, column) = src.location(at);
-                        vec![format!("the TCP set by set_tcp at {line}:{column}")]
+                        vec![Undeclared {
+                            base: false,
+                            name: format!("the TCP set by set_tcp at {line}:{column}"),
+                        }]
                     }
                     _ => Vec::new(),
                 },
+                unknown: Vec::new(),
             };
             let mut j = k + 2;
-            for _ in 0..slots {
-                match line.get(j) {
-                    Some(a)
-                        if a.kind == Tok::Ident
-                            && !line.get(j + 1).is_some_and(|t| t.is(b'[') || t.is(b'(')) =>
-                    {
-                        let name = src.text(a.start, a.end);
-                        match assignments.get(&name).and_then(|v| v.last()) {
-                            Some(&c) => candidates[c].uses.push(frame.clone()),
-                            None => late_uses.push((name, frame.clone())),
-                        }
-                        j += 1;
-                    }
-                    Some(_) => {
-                        if let Some((literal, end)) = literal(src, &line, j)? {
-                            candidates.push(Candidate {
-                                name: call.clone(),
-                                offset: line[j].start,
-                                literal,
-                                uses: vec![frame.clone()],
-                            });
-                            j = end;
-                        } else {
-                            break;
-                        }
-                    }
-                    None => break,
+            for _ in 0..m.targets {
+                let end = argument_end(&line, j);
+                if end == j {
+                    break;
                 }
+                let arg = &line[j..end];
+                let mut reader = Reader {
+                    src,
+                    candidates: &mut candidates,
+                    last: &last,
+                    late_uses: &mut late_uses,
+                    frames_used: &mut frames_used,
+                    refused: &mut refused,
+                    call: &call,
+                };
+                reader.target(arg, frame.clone())?;
+                j = end;
                 if line.get(j).is_some_and(|t| t.is(b',')) {
                     j += 1;
                 } else {
@@ -192,12 +214,55 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             k += 2;
         }
     }
-    for (name, frame) in late_uses {
-        if let Some(&c) = assignments.get(&name).and_then(|v| v.last()) {
-            candidates[c].uses.push(frame);
+    for (name, frame, at, call) in late_uses {
+        match last_in_file.get(&name) {
+            Some(Assign::Literal(c)) => candidates[*c].uses.push(frame),
+            Some(Assign::Expression(e)) => {
+                let (l, c) = src.location(*e);
+                refused.push(refused_call(
+                    &at,
+                    &call,
+                    Reason::Dynamic,
+                    format!("{call}({name}): {name} is computed when the script runs ({l}:{c})"),
+                ));
+            }
+            None => refused.push(refused_call(
+                &at,
+                &call,
+                Reason::Dynamic,
+                format!(
+                    "{call}({name}): {name} is not assigned in the script (given when it runs)"
+                ),
+            )),
         }
     }
-    let targets = candidates
+    // A frame that is itself a target: the composed pose moves with the frame's
+    // correction, which no correction of the offset can undo.
+    for (frame, c) in frames_used {
+        let is_target = candidates.iter().any(|o| {
+            o.name == frame && o.uses.iter().any(|u| u.base == Some(Isometry3::identity()))
+        });
+        if is_target {
+            let candidate = &mut candidates[c];
+            let uses = std::mem::take(&mut candidate.uses);
+            for u in uses {
+                refused.push(ProgramTarget {
+                    name: "pose_trans".into(),
+                    offset: u.offset,
+                    kind: TargetKind::Motion,
+                    uses: Vec::new(),
+                    refused: Some(Refusal::new(
+                        Reason::Relative,
+                        format!(
+                            "pose_trans({frame}, {}): an offset from {frame}, itself a target the correction moves",
+                            candidate.name
+                        ),
+                    )),
+                });
+            }
+        }
+    }
+    let mut targets: Vec<ProgramTarget> = candidates
         .into_iter()
         .filter(|c| !c.uses.is_empty())
         .map(|c| ProgramTarget {
@@ -220,13 +285,268 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 }),
             },
             uses: c.uses,
+            refused: None,
         })
         .collect();
+    targets.extend(refused);
+    targets.sort_by_key(|t| t.offset);
     Ok(Program {
         format: Format::UrScript,
         targets,
         truncated_at,
+        first_motion,
     })
+}
+
+/// A motion of URScript: its name and how many targets it takes (its first arguments).
+/// A URScript motion names no frame: its poses are in the robot's base frame, its TCP the
+/// one `set_tcp` last set.
+#[derive(Clone, Copy, Debug)]
+pub struct Motion {
+    /// The function.
+    pub name: &'static str,
+    /// Its targets: 1, or 2 for `movec` (via point, end point).
+    pub targets: usize,
+}
+
+/// The motions of URScript (e-Series and CB3), every one accounted for. A target is a
+/// pose literal or joint list, a variable holding one, `get_inverse_kin(pose, …)` of one
+/// (`movej` to a pose, as PolyScope writes it) or `pose_trans(feature, pose)` with a
+/// feature that holds a pose literal (a waypoint relative to a feature); anything else is
+/// reported.
+pub const MOTIONS: [Motion; 6] = [
+    Motion {
+        name: "movej",
+        targets: 1,
+    },
+    Motion {
+        name: "movel",
+        targets: 1,
+    },
+    Motion {
+        name: "movep",
+        targets: 1,
+    },
+    Motion {
+        name: "movec",
+        targets: 2,
+    },
+    Motion {
+        name: "servoj",
+        targets: 1,
+    },
+    Motion {
+        name: "servoc",
+        targets: 1,
+    },
+];
+
+/// A variable's assignment: a literal (the candidate's index) or an expression (where).
+#[derive(Clone, Copy, Debug)]
+enum Assign {
+    Literal(usize),
+    Expression(usize),
+}
+
+/// The end of the call argument starting at `line[i]`: its `,` or the call's `)`.
+fn argument_end(line: &[Token], i: usize) -> usize {
+    let mut depth = 0i32;
+    let mut k = i;
+    while let Some(t) = line.get(k) {
+        match t.kind {
+            Tok::Punct(b'(' | b'[') => depth += 1,
+            Tok::Punct(b')' | b']') if depth == 0 => return k,
+            Tok::Punct(b')' | b']') => depth -= 1,
+            Tok::Punct(b',') if depth == 0 => return k,
+            _ => {}
+        }
+        k += 1;
+    }
+    k
+}
+
+fn refused_call(at: &Token, call: &str, reason: Reason, detail: String) -> ProgramTarget {
+    ProgramTarget {
+        name: call.to_string(),
+        offset: at.start,
+        kind: TargetKind::Motion,
+        uses: Vec::new(),
+        refused: Some(Refusal::new(reason, detail)),
+    }
+}
+
+/// Reads one target argument of a motion.
+struct Reader<'r, 's, 'a> {
+    src: &'r Source<'a>,
+    candidates: &'r mut Vec<Candidate>,
+    last: &'r HashMap<String, Assign>,
+    late_uses: &'r mut Vec<(String, FrameUse, Token, String)>,
+    frames_used: &'r mut Vec<(String, usize)>,
+    refused: &'r mut Vec<ProgramTarget>,
+    call: &'s str,
+}
+
+impl Reader<'_, '_, '_> {
+    fn target(&mut self, arg: &[Token], frame: FrameUse) -> Result<(), Error> {
+        let src = self.src;
+        let call = self.call.to_string();
+        let text = src.text(arg[0].start, arg[arg.len() - 1].end);
+        let refuse = |this: &mut Self, reason: Reason, why: &str| {
+            this.refused.push(refused_call(
+                &arg[0],
+                &call,
+                reason,
+                format!("{call}({text}): {why}"),
+            ));
+        };
+        // A literal.
+        if let Some((literal, end)) = literal(src, arg, 0)? {
+            if end == arg.len() {
+                self.candidates.push(Candidate {
+                    name: call.clone(),
+                    offset: arg[0].start,
+                    literal,
+                    uses: vec![frame],
+                });
+                return Ok(());
+            }
+        }
+        match arg {
+            // A variable.
+            [t] if t.kind == Tok::Ident => {
+                let name = src.text(t.start, t.end);
+                match self.last.get(&name) {
+                    Some(Assign::Literal(c)) => self.candidates[*c].uses.push(frame),
+                    Some(Assign::Expression(at)) => {
+                        let (l, c) = src.location(*at);
+                        refuse(
+                            self,
+                            Reason::Dynamic,
+                            &format!("{name} is computed when the script runs ({l}:{c})"),
+                        );
+                    }
+                    None => self.late_uses.push((name, frame, *t, call.clone())),
+                }
+            }
+            // PolyScope's `movej(get_inverse_kin(Waypoint_1_p, qnear=Waypoint_1_q))`: the
+            // TCP goes to the pose.
+            [f, open, inner @ .., close]
+                if word(src, f, "get_inverse_kin") && open.is(b'(') && close.is(b')') =>
+            {
+                let end = argument_end(inner, 0);
+                if end == 0 {
+                    refuse(
+                        self,
+                        Reason::Dynamic,
+                        "a pose computed when the script runs",
+                    );
+                    return Ok(());
+                }
+                let pose = &inner[..end];
+                let before = self.refused.len();
+                self.target(pose, frame)?;
+                let _ = before;
+            }
+            // A waypoint relative to a feature: `pose_trans(Plane_1, p[…])`.
+            [f, open, inner @ .., close]
+                if word(src, f, "pose_trans") && open.is(b'(') && close.is(b')') =>
+            {
+                let split = argument_end(inner, 0);
+                let (Some(feature), Some(pose)) = (
+                    Some(&inner[..split]).filter(|s| !s.is_empty()),
+                    inner.get(split + 1..).filter(|s| !s.is_empty()),
+                ) else {
+                    refuse(
+                        self,
+                        Reason::Dynamic,
+                        "a pose computed when the script runs",
+                    );
+                    return Ok(());
+                };
+                let feature_pose = match feature {
+                    [v] if v.kind == Tok::Ident => match self.last.get(&src.text(v.start, v.end)) {
+                        Some(Assign::Literal(c)) => match &self.candidates[*c].literal {
+                            Literal::Pose(p) => Some((pose_mm(p), Some(src.text(v.start, v.end)))),
+                            Literal::Joints(_) => None,
+                        },
+                        _ => None,
+                    },
+                    _ => match literal(src, feature, 0)? {
+                        Some((Literal::Pose(p), end)) if end == feature.len() => {
+                            Some((pose_mm(&p), None))
+                        }
+                        _ => None,
+                    },
+                };
+                let Some((base, feature_name)) = feature_pose else {
+                    let reason = if text.contains("get_actual_tcp_pose")
+                        || text.contains("get_target_tcp_pose")
+                    {
+                        Reason::Relative
+                    } else {
+                        Reason::Dynamic
+                    };
+                    refuse(
+                        self,
+                        reason,
+                        "an offset from a pose the script computes when it runs",
+                    );
+                    return Ok(());
+                };
+                let mut in_feature = frame.clone();
+                in_feature.base = Some(base);
+                let count = self.candidates.len();
+                let before = self.refused.len();
+                self.target(pose, in_feature)?;
+                // The offset's candidate, to refuse should the feature be a target itself.
+                if let Some(name) = feature_name {
+                    if self.refused.len() == before {
+                        let c = if self.candidates.len() > count {
+                            Some(count)
+                        } else {
+                            match pose {
+                                [v] if v.kind == Tok::Ident => {
+                                    match self.last.get(&src.text(v.start, v.end)) {
+                                        Some(Assign::Literal(c)) => Some(*c),
+                                        _ => None,
+                                    }
+                                }
+                                _ => None,
+                            }
+                        };
+                        if let Some(c) = c {
+                            self.frames_used.push((name, c));
+                        }
+                    }
+                }
+            }
+            _ => {
+                let relative = [
+                    "pose_add",
+                    "pose_sub",
+                    "get_actual_tcp_pose",
+                    "get_target_tcp_pose",
+                    "get_actual_joint_positions",
+                ]
+                .iter()
+                .any(|w| text.contains(w));
+                if relative {
+                    refuse(
+                        self,
+                        Reason::Relative,
+                        "an offset from where the robot stands when the script runs",
+                    );
+                } else {
+                    refuse(
+                        self,
+                        Reason::Dynamic,
+                        "a target computed when the script runs",
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 fn word(src: &Source, t: &Token, w: &str) -> bool {
@@ -249,15 +569,15 @@ fn argument(
     line: &[Token],
     i: usize,
     candidates: &[Candidate],
-    assignments: &HashMap<String, Vec<usize>>,
+    last: &HashMap<String, Assign>,
 ) -> Result<Option<Literal>, Error> {
     if let Some(t) = line.get(i) {
         if t.kind == Tok::Ident && line.get(i + 1).is_some_and(|t| t.is(b')')) {
             let name = src.text(t.start, t.end);
-            return Ok(assignments
-                .get(&name)
-                .and_then(|v| v.last())
-                .map(|&c| candidates[c].literal.clone()));
+            return Ok(match last.get(&name) {
+                Some(Assign::Literal(c)) => Some(candidates[*c].literal.clone()),
+                _ => None,
+            });
         }
     }
     Ok(literal(src, line, i)?.map(|(l, _)| l))
@@ -328,7 +648,15 @@ mod tests {
                     set_tcp(p[0, 0, 0.031, 0, 0, 0])\n  movel(p[0.4, -0.2, 0.3, 0, 3.14159, 0], a=1.2, v=0.25)\n\
                     movel(pose_trans(p[0.4, -0.2, 0.3, 0, 3.14159, 0], offset))\nend\n";
         let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
-        assert_eq!(p.targets.len(), 2);
+        // `offset` is a target too: in the frame pose_trans puts it in.
+        assert_eq!(p.targets.len(), 3);
+        assert_eq!(p.targets[1].name, "offset");
+        let base = p.targets[1].uses[0].base.unwrap();
+        assert!((base.translation.vector.x - 400.0).abs() < 1e-9);
+        let p = Program {
+            targets: vec![p.targets[0].clone(), p.targets[2].clone()],
+            ..p
+        };
         assert_eq!(p.targets[0].name, "start");
         assert!(matches!(p.targets[0].kind, TargetKind::Joints(ref j) if j.joints.len() == 6));
         assert_eq!(p.targets[0].uses[0].tool, None);

@@ -69,7 +69,13 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
         Err(Error::Syntax {
             file, line, column, ..
         }) => {
-            let lines = bytes.iter().filter(|b| **b == b'\n').count() + 1;
+            // Lines end with LF, CRLF or a CR alone.
+            let lines = bytes
+                .iter()
+                .enumerate()
+                .filter(|&(i, b)| *b == b'\n' || (*b == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
+                .count()
+                + 1;
             prop_assert_eq!(file, name);
             prop_assert!(
                 line >= 1 && line <= lines && column >= 1,

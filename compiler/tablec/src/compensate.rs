@@ -11,8 +11,9 @@ use crate::Answered;
 #[command(
     after_help = "Exit status: 0 when every target was corrected; 3 when some target \
     was left unchanged (the program is still written, each target's status in the report); \
-    1 on an error (a malformed program, an unreadable input, a refused output, --strict with a \
-    target left unchanged: nothing is written); 2 on a usage error."
+    with --strict, 3 and nothing written; 1 on an error (a malformed program, a program that \
+    moves but holds no target, an unreadable input, a refused output: nothing is written); 2 on \
+    a usage error."
 )]
 pub struct Args {
     /// The correction table.
@@ -39,6 +40,12 @@ pub struct Args {
     /// does not declare it [default: the base frame].
     #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
     base: Option<Frame>,
+    /// A KUKA controller's $config.dat (or a file of its TOOL_DATA[n]={X ..,Y ..,Z ..,A ..,B
+    /// ..,C ..} and BASE_DATA[n]={...} lines): the numbered tools and bases a KRL program
+    /// selects ($TOOL = TOOL_DATA[n], an FDAT's TOOL_NO and BASE_NO, an inline form's
+    /// Tool[n] Base[n]).
+    #[arg(long, value_name = "PATH")]
+    krl_config: Option<PathBuf>,
     /// The point the table's samples measured, in the flange frame, X,Y,Z,A,B,C [default: a
     /// hybrid table's own (with --robot); else the robot file's tool; else the flange].
     #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
@@ -83,6 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     options.robot = args.robot.robot;
     options.tool = args.tool;
     options.base = args.base;
+    options.krl_config = args.krl_config;
     options.table_tool = args.table_tool;
     options.limits.max_correction_mm = args.max_correction_mm;
     options.limits.max_joint_change_deg = args.max_joint_change_deg;
@@ -90,7 +98,15 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     options.max_seconds = args.max_seconds;
     options.max_memory_bytes = args.max_memory_mb.saturating_mul(1_000_000);
     let job = CompensateJob::new(options)?;
-    let done = job.run()?;
+    let done = match job.run() {
+        // --strict: every target unaccounted or not corrected is the exit status 3 that
+        // any target left unchanged gives, with nothing written.
+        Err(e @ adwi_programs::Error::NotAllCorrected { .. }) => {
+            eprintln!("error: {e}");
+            return Ok(Answered::NotAll);
+        }
+        done => done?,
+    };
     job.write(&done)?;
     for t in done
         .report
