@@ -52,7 +52,11 @@
 //! column: a wrong field count, a field that is not a number, NaN or infinite, a number
 //! with the other decimal mark, a zero quaternion, a missing or incomplete group of
 //! columns, a mapped column the header lacks (with the header's closest names), two
-//! conventions on one side, mixed units in a group, an empty file.
+//! conventions on one side, mixed units in a group, an empty file; and values no robot
+//! has: a position, error or measured coordinate beyond 1 km, an orientation error beyond
+//! [`MAX_PLAUSIBLE_ROTATION_ERROR_DEG`] (with its likely cause: degrees read as radians).
+//! Several series trained together are checked by [`check_series`]: none given twice, none
+//! in another length unit than the others.
 //!
 //! Samples that read but look wrong for a robot in millimetres — a file in metres spans a
 //! millimetre — are flagged by [`SampleSet::plausibility_warnings`], typed, for the caller
