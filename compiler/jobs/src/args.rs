@@ -324,8 +324,9 @@ pub fn check_coordinate_mm(what: &str, value: f64) -> Result<(), String> {
         return Ok(());
     }
     Err(format!(
-        "{what} {value} mm is more than {MAX_COORDINATE_MM:e} mm from the base; give \
-         millimetres in the robot's base frame"
+        "{what} {} mm is more than {MAX_COORDINATE_MM:e} mm from the base; give \
+         millimetres in the robot's base frame",
+        short(value)
     ))
 }
 
@@ -339,8 +340,19 @@ pub fn check_angle_deg(what: &str, value: f64) -> Result<(), String> {
         return Ok(());
     }
     Err(format!(
-        "{what} {value}° is more than three turns ({MAX_ANGLE_DEG}°); give degrees"
+        "{what} {}° is more than three turns ({MAX_ANGLE_DEG}°); give degrees",
+        short(value)
     ))
+}
+
+/// A number as a message shows it: as written up to a billion, in exponent form beyond
+/// (1e308 printed in full is 309 digits).
+fn short(value: f64) -> String {
+    if value.abs() < 1e9 {
+        value.to_string()
+    } else {
+        format!("{value:e}")
+    }
 }
 
 /// A frame `X,Y,Z,A,B,C` (mm, KUKA degrees), each value finite and in range
