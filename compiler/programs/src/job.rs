@@ -224,7 +224,7 @@ impl CompensateJob {
             }
         }
         let read = |path: &Path| {
-            std::fs::read(path).map_err(|source| Error::Read {
+            adwi_runtime::input::read_regular(path).map_err(|source| Error::Read {
                 path: path.to_path_buf(),
                 source,
             })
@@ -298,7 +298,7 @@ impl CompensateJob {
                 Format::Krl => {
                     let partner_bytes = partner_path
                         .as_deref()
-                        .and_then(|p| std::fs::read(p).ok());
+                        .and_then(|p| adwi_runtime::input::read_regular(p).ok());
                     let partner_name = partner_path
                         .as_ref()
                         .map(|p| p.display().to_string())
