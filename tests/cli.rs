@@ -331,15 +331,16 @@ fn ur5_data_builds_through_a_column_mapping_and_answers_a_targets_file() {
         lines.next(),
         Some(
             "x,y,z,pred_dx,pred_dy,pred_dz,pred_rx,pred_ry,pred_rz,neighbours,status,residual,\
-             command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status"
+             command_x,command_y,command_z,command_rx,command_ry,command_rz,command_status,evidence"
         )
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 20);
     for row in rows {
         let fields: Vec<&str> = row.split(',').collect();
-        assert_eq!(fields.len(), 19, "{row}");
+        assert_eq!(fields.len(), 20, "{row}");
         assert_eq!(fields[10..12], ["ok", "full"], "{row}");
+        assert_eq!(fields[19], "within", "{row}");
         assert!(fields[3].parse::<f64>().unwrap().abs() < 10.0);
         // Position only: blank orientation.
         assert_eq!(&fields[6..9], &["", "", ""]);

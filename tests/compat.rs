@@ -212,8 +212,8 @@ fn the_version_1_hybrid_table_opens_and_gives_its_recorded_answers() {
         // refused when they do not reach the target.
         if status != Status::Ok {
             let model = table.model().unwrap();
-            // The model as a query of a table without orientations computes it.
-            let at = model.at_position(&q).unwrap();
+            // The model as a hybrid query computes it (with its orientation).
+            let at = model.at(&q).unwrap();
             let off_mm = adwi_runtime::method::distance_mm(at.nominal_tcp_mm, p);
             if off_mm > table.joints_tolerance_mm().unwrap() {
                 assert_eq!(c.status, Status::JointsMismatch, "{p:?}");
@@ -225,7 +225,12 @@ fn the_version_1_hybrid_table_opens_and_gives_its_recorded_answers() {
         }
         assert_eq!(c.status, status, "{p:?} {joints_deg:?}");
         assert_eq!(c.neighbours, neighbours, "{p:?} {joints_deg:?}");
-        assert_eq!(c.orientation_error_rad, [0.0; 3], "{p:?}");
+        // The model's orientation error, which a hybrid table reports whether or not its
+        // samples measured one.
+        let rotation = table.model().unwrap().error(&q).unwrap().1;
+        for (got, want) in c.orientation_error_rad.iter().zip(rotation) {
+            assert!((got - want).abs() <= 1e-12, "{p:?}: {got} vs {want}");
+        }
         match error {
             Some(e) => {
                 for (got, want) in c.position_error_mm.iter().zip(e) {
@@ -412,4 +417,83 @@ fn the_version_3_table_opens_and_gives_its_recorded_answers() {
         assert_eq!((c.status, c.neighbours), (Status::Ok, 8));
         assert_close(&c.position_error_mm, &exact, "exact");
     }
+}
+
+/// `tables/compat/v4/README.md`'s answers at the poses and joint angles of
+/// [`V2_HYBRID_ANSWERS`]: served and exact position errors (mm), the model's orientation
+/// error (rad), and the served error at a 200 mm TCP on the flange's z axis (mm).
+type V4HybridAnswer = ([f64; 3], [f64; 3], [f64; 3], [f64; 3]);
+
+const V4_HYBRID_ANSWERS: [V4HybridAnswer; 3] = [
+    (
+        [-2.4471808475893266, -0.395809105868331, -0.6735556792868956],
+        [-2.4306982922279166, -0.4127493204655287, -0.6718471731482983],
+        [0.010788686959380851, 0.00394292365207006, 0.001982701490489588],
+        [-2.442829779092675, -0.5135009907636434, -0.4631887087667412],
+    ),
+    (
+        [-2.6610676417950305, -0.08228687639944124, -0.6846993156266301],
+        [-2.650718765095082, -0.04779975133963073, -0.7093840424986455],
+        [0.01047111470808937, 0.005183879332500223, 0.0006991805178936392],
+        [-2.8079637556121115, 0.1351190494586014, -0.09665427284109733],
+    ),
+    (
+        [-2.5139413913681508, -0.26671482227712545, -0.5179220688773808],
+        [-2.5167293911953155, -0.26227402773869285, -0.5056079723545379],
+        [0.009071593866342343, 0.008264315596956567, 0.0026492628915198223],
+        [-2.7630794931717824, -0.32429063873732794, 0.5147744364509882],
+    ),
+];
+
+#[test]
+fn the_version_4_table_opens_and_gives_its_recorded_answers() {
+    use adwi_runtime::Evidence;
+    let path = root().join("tables/compat/v4/ur5_hybrid.tbl");
+    // SAFETY: a committed fixture, not modified while the test runs.
+    let table = unsafe { Table::open(path) }.unwrap();
+    let header = table.header();
+    assert_eq!(header.version, 4);
+    assert_eq!(header.source_hash, 0x543d_a92b_eccb_c6c5);
+    let point = header.evidence.point_in_flange.unwrap();
+    assert_eq!(point.translation_mm, [0.0, 0.09f32 as f64, 31.0]);
+    assert_eq!(point.rotation_rad, [0.0; 3]);
+    let cone = header.evidence.approach.unwrap();
+    let axis = [-0.9811967015266418, -0.18234983086585999, 0.06325812637805939];
+    assert_eq!((cone.axis, cone.spread_rad), (axis, 0.42157110571861267));
+    let model = table.model().unwrap();
+    let close = |got: &[f64; 3], want: &[f64; 3], what: &str| {
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() <= 1e-12, "{what}: {got:?} vs {want:?}");
+        }
+    };
+    for ((p, joints_deg, _, _), (served, exact, rotation, tcp)) in
+        V2_HYBRID_ANSWERS.iter().zip(V4_HYBRID_ANSWERS)
+    {
+        let q = joints_deg.map(f64::to_radians);
+        let target = Target::at(*p);
+        let c = table.query_with_joints(&target, &q);
+        assert_eq!((c.status, c.evidence), (Status::Ok, Evidence::WITHIN));
+        close(&c.position_error_mm, &served, "served");
+        close(&c.orientation_error_rad, &rotation, "orientation");
+        let c = table.exact().query_with_joints(&target, &q);
+        close(&c.position_error_mm, &exact, "exact");
+        // The 200 mm TCP: 169 mm along the flange's z axis from the point, less its y.
+        let nominal = model.nominal().tcp_pose(&q).unwrap();
+        let at_tcp = nominal.transform_point([0.0, -(0.09f32 as f64), 169.0]);
+        let c = table.query_with_joints(&Target::at(at_tcp).with_tcp([0.0, 0.0, 200.0]), &q);
+        assert_eq!((c.status, c.evidence), (Status::Ok, Evidence::WITHIN));
+        close(&c.position_error_mm, &tcp, "tcp");
+    }
+    // The first pose with its wrist turned 60°: an approach axis the samples never had.
+    // The model answers alone, and says so.
+    let mut q = V2_HYBRID_ANSWERS[0].1.map(f64::to_radians);
+    q[4] += 60f64.to_radians();
+    let at = model.nominal().tcp_pose(&q).unwrap().translation_mm;
+    let c = table.query_with_joints(&Target::at(at), &q);
+    assert_eq!(c.status, Status::Ok);
+    assert_eq!(c.evidence, Evidence::ORIENTATION);
+    assert_eq!(c.residual, Residual::ModelOnly);
+    let (position, rotation) = model.error(&q).unwrap();
+    close(&c.position_error_mm, &position, "model alone");
+    close(&c.orientation_error_rad, &rotation, "model alone");
 }
