@@ -243,15 +243,17 @@ pub fn read_with(
     let mut fdats = HashMap::new();
     let mut declared_here = HashSet::new();
     let mut declared_there = HashSet::new();
-    declarations(src, &mut fdats, &mut declared_here);
+    let mut arrays = HashMap::new();
+    declarations(src, &mut fdats, &mut declared_here, &mut arrays);
     if let Some(p) = partner {
-        declarations(p, &mut fdats, &mut declared_there);
+        declarations(p, &mut fdats, &mut declared_there, &mut arrays);
     }
     let context = Context {
         frames,
         fdats: &fdats,
         declared_here: &declared_here,
         declared_there: &declared_there,
+        arrays: &arrays,
         partner_name: partner.map(|p| p.name),
     };
     let mut scan = Scan::default();
@@ -277,12 +279,23 @@ pub fn read_with(
     let mut targets = Vec::with_capacity(scan.targets.len());
     for (mut target, key, kind) in scan.targets {
         if let Some(key) = key {
-            let found = uses.get(&key);
+            // An array's element is moved to by its index, or by an index computed at run
+            // time (`LIN XPA[I]`: every element).
+            let every = key
+                .split_once('[')
+                .and_then(|(array, _)| uses.get(&format!("{array}[*]")));
+            let found: Vec<FrameUse> = uses
+                .get(&key)
+                .into_iter()
+                .chain(every)
+                .flatten()
+                .cloned()
+                .collect();
             // A FRAME no motion moves to is a base or tool offset, not a target.
-            if kind == Some(Kind::Frame) && found.is_none() {
+            if kind == Some(Kind::Frame) && found.is_empty() {
                 continue;
             }
-            target.uses = found.cloned().unwrap_or_default();
+            target.uses = found;
             // A motion not in the table moves to it: its frames are not known.
             if let Some((_, by)) = scan.unknown_uses.iter().find(|(n, _)| *n == key) {
                 target.refused.get_or_insert(Refusal::new(
@@ -317,6 +330,8 @@ struct Context<'a> {
     fdats: &'a HashMap<String, Fdat>,
     declared_here: &'a HashSet<String>,
     declared_there: &'a HashSet<String>,
+    /// Arrays of targets (`DECL E6POS XPA[5]`), by name, with their type.
+    arrays: &'a HashMap<String, Kind>,
     partner_name: Option<&'a str>,
 }
 
@@ -362,7 +377,12 @@ struct Scan {
 
 /// The `FDAT`s and declared target names (upper case) of a file; what does not read is
 /// skipped (the scan reports it).
-fn declarations(src: &Source, fdats: &mut HashMap<String, Fdat>, names: &mut HashSet<String>) {
+fn declarations(
+    src: &Source,
+    fdats: &mut HashMap<String, Fdat>,
+    names: &mut HashSet<String>,
+    arrays: &mut HashMap<String, Kind>,
+) {
     let mut lexer = Lexer::new(src, KRL);
     while let Some(line) = lexer.line() {
         let mut i = 0;
@@ -379,7 +399,11 @@ fn declarations(src: &Source, fdats: &mut HashMap<String, Fdat>, names: &mut Has
             continue;
         }
         let key = src.text(name.start, name.end).to_ascii_uppercase();
-        if type_of(src, ty).is_some() {
+        if let Some(kind) = type_of(src, ty) {
+            // `DECL E6POS XPA[5]`: an array, its elements assigned on lines of their own.
+            if line.get(i + 2).is_some_and(|t| t.is(b'[')) {
+                arrays.insert(key.clone(), kind);
+            }
             names.insert(key);
         } else if word_is(src, Some(ty), "FDAT") {
             let mut fdat = Fdat::default();
@@ -799,7 +823,46 @@ fn statement(
     if !this_file {
         return Ok(());
     }
+    // An array's element: `XPA[2]={X …}`.
+    if let [name, open, n, close, eq, brace, ..] = line {
+        let array = src.text(name.start, name.end).to_ascii_uppercase();
+        if let Some(&kind) = context.arrays.get(&array) {
+            if open.is(b'[')
+                && n.kind == Tok::Number
+                && close.is(b']')
+                && eq.is(b'=')
+                && brace.is(b'{')
+            {
+                let (target, end, external) = aggregate(src, line, 5, Some(kind))?;
+                if let Some(t) = line.get(end) {
+                    return Err(
+                        src.error(t.start, "expected the end of the line after the aggregate")
+                    );
+                }
+                scan.targets.push((
+                    ProgramTarget {
+                        name: src.text(name.start, close.end),
+                        offset: name.start,
+                        kind: target,
+                        uses: Vec::new(),
+                        refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                    },
+                    Some(element_key(&array, &src.text(n.start, n.end))),
+                    Some(kind),
+                ));
+                return Ok(());
+            }
+        }
+    }
     declaration(src, line, scan)
+}
+
+/// The key of an array's element: the name upper case, the index as a number (`XPA[2]`).
+fn element_key(array: &str, index: &str) -> String {
+    let n = index
+        .parse::<f64>()
+        .map_or(index.to_string(), |v| format!("{v}"));
+    format!("{array}[{n}]")
 }
 
 /// `$TOOL`, `$BASE` or `$IPO_MODE` assigned `value`.
@@ -921,6 +984,21 @@ fn motion_statement(
                         None,
                     ));
                 }
+            }
+            [t, open, index @ .., close]
+                if t.kind == Tok::Ident
+                    && open.is(b'[')
+                    && close.is(b']')
+                    && context
+                        .arrays
+                        .contains_key(&src.text(t.start, t.end).to_ascii_uppercase()) =>
+            {
+                let array = src.text(t.start, t.end).to_ascii_uppercase();
+                let key = match index {
+                    [n] if n.kind == Tok::Number => element_key(&array, &src.text(n.start, n.end)),
+                    _ => format!("{array}[*]"),
+                };
+                scan.uses.push((key, frame.clone()));
             }
             [t] if t.kind == Tok::Ident => {
                 let name = src.text(t.start, t.end);
@@ -1307,6 +1385,21 @@ mod tests {
         );
         assert!(matches!(t[1].kind, TargetKind::Joints(ref j) if j.joints.len() == 6));
         assert!(matches!(t[2].kind, TargetKind::Cartesian(ref c) if c.orientation.is_none()));
+    }
+
+    #[test]
+    fn array_elements_are_targets_moved_to_by_their_index_or_any_index() {
+        let text = "DECL E6POS XPA[3]\nXPA[1]={X 1,Y 2,Z 3,A 0,B 90,C 0}\nXPA[2]={X 4,Y 5,Z 6,A 0,B 90,C 0}\n\
+                    XPA[3]={X 7,Y 8,Z 9,A 0,B 90,C 0}\n$TOOL = $NULLFRAME\nLIN XPA[2]\nFOR I=1 TO 3\nLIN XPA[I]\nENDFOR\n";
+        let t = targets(text);
+        assert_eq!(
+            t.iter()
+                .map(|t| (t.name.as_str(), t.uses.len()))
+                .collect::<Vec<_>>(),
+            [("XPA[1]", 1), ("XPA[2]", 2), ("XPA[3]", 1)]
+        );
+        assert!(t.iter().all(|t| t.refused.is_none()));
+        assert_eq!(t[0].uses[0].tool, Some(Isometry3::identity()));
     }
 
     #[test]
