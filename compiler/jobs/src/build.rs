@@ -291,6 +291,16 @@ impl BuildJob {
                 let identified = pool.install(|| identify(robot, &samples, &calibrate))?;
                 progress.stage("compiling", Some(plan.cells() as u64));
                 let model = identified.prepared_model();
+                // The point the samples measured, on the flange: a query may name another
+                // TCP, whose lever the model turns.
+                let tool = robot.tool();
+                let plan = adwi_compile::build::Plan {
+                    point_in_flange: Some(adwi_runtime::format::PointInFlange::stored(
+                        tool.translation_mm,
+                        adwi_runtime::kinematics::rotation_vector(&tool.rotation),
+                    )),
+                    ..plan
+                };
                 let built = pool
                     .install(|| adwi_compile::hybrid::compile(&samples, &model, &plan, &advance))?;
                 warnings.extend(crate::calibration_warnings(&identified));

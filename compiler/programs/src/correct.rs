@@ -311,6 +311,8 @@ pub fn solve<D: AsRef<[u8]>>(
                 &Target {
                     position_mm: point.translation.vector.into(),
                     config,
+                    rotation_rad: None,
+                    tcp_mm: None,
                 },
                 &q,
             );
@@ -354,6 +356,8 @@ pub fn solve<D: AsRef<[u8]>>(
             &Target {
                 position_mm: p.into(),
                 config,
+                rotation_rad: None,
+                tcp_mm: None,
             },
             limits.tolerance_mm,
             limits.max_iterations,
