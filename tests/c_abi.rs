@@ -345,6 +345,24 @@ fn run_smoke(exe: &Path, dir: &Path) {
             );
         }
     }
+    // The pose query: a TCP this version-2 table cannot place (it does not record its
+    // point) is flagged, and every value is the Rust API's.
+    let poses: Vec<&str> = stdout.lines().filter(|l| l.starts_with("pose ")).collect();
+    assert_eq!(poses.len(), hybrid_targets.len(), "{stdout}");
+    for ((p, q), line) in hybrid_targets.iter().zip(poses) {
+        let target = Target::at(*p)
+            .with_rotation([std::f64::consts::PI, 0.0, 0.0])
+            .with_tcp([0.0, 0.0, 200.0]);
+        let c = hybrid.query_with_joints(&target, q);
+        assert_eq!(c.evidence, adwi_runtime::Evidence::TCP);
+        let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+        let want = [c.status as i32, c.residual as i32, i32::from(c.evidence.0)];
+        assert_eq!(words[..3], want.map(|v| v.to_string()), "{p:?}");
+        let values = c.position_error_mm.iter().chain(&c.orientation_error_rad);
+        for (word, v) in words[3..].iter().zip(values) {
+            assert_eq!(word.parse::<f64>().unwrap(), *v);
+        }
+    }
     assert!(stdout.lines().last() == Some("done"), "{stdout}");
 
     // Answers: bit for bit the Rust API's (17 significant digits round-trip a double).

@@ -249,6 +249,19 @@ int main(int argc, char **argv) {
         }
         printf("hybrid %d %u %d %.17g %.17g %.17g\n", h.status, h.neighbours, h.residual,
                h.position_error_mm[0], h.position_error_mm[1], h.position_error_mm[2]);
+        /* The same target for a 200 mm TCP, the tool pointing down the base's z axis. */
+        const double tcp[3] = {0.0, 0.0, 200.0};
+        const double down[3] = {3.141592653589793, 0.0, 0.0};
+        adwi_correction t;
+        if (adwi_table_query_pose(hybrid, p, down, tcp, -1, q, 6, &t) != ADWI_OK ||
+            adwi_table_query_pose(hybrid, p, NULL, NULL, -1, NULL, 6, &h) != ADWI_NULL_POINTER) {
+            printf("pose_failed\n");
+            return 1;
+        }
+        printf("pose %d %d %u %.17g %.17g %.17g %.17g %.17g %.17g\n", t.status, t.residual,
+               t.evidence, t.position_error_mm[0], t.position_error_mm[1],
+               t.position_error_mm[2], t.orientation_error_rad[0], t.orientation_error_rad[1],
+               t.orientation_error_rad[2]);
     }
     printf("hybrid_close %d\n", (int)adwi_table_close(hybrid));
     printf("done\n");
