@@ -1000,6 +1000,25 @@ fn motion_statement(
                 };
                 scan.uses.push((key, frame.clone()));
             }
+            // A system variable (`$POS_ACT`, `$AXIS_ACT`): where the robot stands when the
+            // motion runs.
+            [t] if t.kind == Tok::Ident && src.bytes[t.start] == b'$' => {
+                if this_file {
+                    let name = src.text(t.start, t.end);
+                    scan.targets.push((
+                        refused_motion(
+                            src,
+                            t,
+                            Reason::Dynamic,
+                            format!(
+                                "{motion} {name}: a system variable, read when the program runs"
+                            ),
+                        ),
+                        None,
+                        None,
+                    ));
+                }
+            }
             [t] if t.kind == Tok::Ident => {
                 let name = src.text(t.start, t.end);
                 let key = name.to_ascii_uppercase();
@@ -1400,6 +1419,12 @@ mod tests {
         );
         assert!(t.iter().all(|t| t.refused.is_none()));
         assert_eq!(t[0].uses[0].tool, Some(Isometry3::identity()));
+        // A system variable is where the robot stands: computed when the program runs.
+        let t = targets("PTP $POS_ACT\n");
+        assert_eq!(
+            t[0].refused.as_ref().map(|r| r.reason),
+            Some(Reason::Dynamic)
+        );
     }
 
     #[test]
