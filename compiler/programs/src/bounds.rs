@@ -38,7 +38,9 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// prismatic.
 pub fn out_of_range(src: &Source, kind: &TargetKind, robot: Option<&Robot>) -> Option<String> {
     let beyond = |n: &Number, what: &str, value: f64, bound: f64, unit: &str| {
-        (!(value.abs() <= bound)).then(|| {
+        // NaN is beyond every bound.
+        let within = value.abs() <= bound;
+        (!within).then(|| {
             let (line, column) = src.location(n.span.0);
             format!(
                 "{what} {} at {line}:{column} is beyond ±{bound} {unit}",

@@ -65,7 +65,7 @@ fn statuses(name: &str, program: &[u8], robot: Option<&str>) -> Vec<(TargetStatu
     let path = dir.path().join(name);
     std::fs::write(&path, program).unwrap();
     let mut options = CompensateOptions::new(&table, &path);
-    options.robot = robot.map(|r| repo(r));
+    options.robot = robot.map(repo);
     options.tool = Some([0.0, 0.0, 100.0, 0.0, 0.0, 0.0]);
     options.base = Some([0.0; 6]);
     let job = CompensateJob::new(options).unwrap();
