@@ -559,10 +559,7 @@ fn frame_expression(
     };
     let word = |k: usize, w: &str| word_is(src, tokens.get(k), w);
     match tokens {
-        [t] if word(0, "$NULLFRAME") => {
-            let _ = t;
-            FrameState::Known(Isometry3::identity())
-        }
+        [_] if word(0, "$NULLFRAME") => FrameState::Known(Isometry3::identity()),
         [_, o, n, c]
             if (word(0, "TOOL_DATA") || word(0, "BASE_DATA"))
                 && o.is(b'[')
@@ -580,7 +577,7 @@ fn frame_expression(
         [_, o, f, c] if word(0, "STOOL2") && o.is(b'(') && f.kind == Tok::Ident && c.is(b')') => {
             fdat_frames(context, &src.text(f.start, f.end), (line, column)).0
         }
-        [_, o, f, d, n, c]
+        [_, o, f, d, _, c]
             if word(0, "SBASE")
                 && o.is(b'(')
                 && f.kind == Tok::Ident
@@ -588,7 +585,6 @@ fn frame_expression(
                 && word(4, "BASE_NO")
                 && c.is(b')') =>
         {
-            let _ = n;
             fdat_frames(context, &src.text(f.start, f.end), (line, column)).1
         }
         [o, ..] if o.is(b'{') => match frame_aggregate(src, tokens, 0) {
@@ -947,14 +943,12 @@ fn motion_statement(
     let frame = frame_use(&frames, first.start);
     if let Some(reason) = m.refused {
         if this_file {
-            let written = src.text(first.start, line.last().map_or(first.end, |t| t.end));
             let detail = match reason {
                 Reason::Relative => {
                     format!("{motion}: an offset from where the robot stands when it runs")
                 }
                 _ => format!("{motion}: an external axis motion; the table has no such axis"),
             };
-            let _ = written;
             scan.targets
                 .push((refused_motion(src, first, reason, detail), None, None));
         }

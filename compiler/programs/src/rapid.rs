@@ -176,7 +176,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         if let Some(reason) = m.refused {
             targets.push((
                 refused_motion(
-                    src,
+                    instruction,
                     &statement[0],
                     reason,
                     format!("{instruction}: moves external axes only; the table has no such axis"),
@@ -303,13 +303,13 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                             .entry(src.text(n.start, n.end).to_ascii_uppercase())
                             .or_insert((reason, detail.clone()));
                     }
-                    targets.push((refused_motion(src, t, reason, detail), Vec::new()));
+                    targets.push((refused_motion(instruction, t, reason, detail), Vec::new()));
                 }
                 [t, ..] => {
                     let text = src.text(t.start, arg[arg.len() - 1].end);
                     targets.push((
                         refused_motion(
-                            src,
+                            instruction,
                             t,
                             Reason::Dynamic,
                             format!(
@@ -336,7 +336,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             }
             targets.push((
                 refused_motion(
-                    src,
+                    &word,
                     &t,
                     Reason::UnknownMotion,
                     format!("{word} is not a RAPID motion this reader knows"),
@@ -365,26 +365,35 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 .unwrap_or_default(),
         };
         if found.is_empty() {
-            let (name, reason, why) = match &named {
-                Named::One(n) | Named::All(n)
-                    if decl.names.contains(n.split('{').next().unwrap_or(n)) =>
-                {
-                    (
-                        n.clone(),
-                        Reason::Dynamic,
-                        "declared without a value this reader reads: given when the program runs",
-                    )
-                }
-                Named::One(n) | Named::All(n) => (
-                    n.clone(),
+            let (Named::One(n) | Named::All(n)) = &named;
+            let array = n.split('{').next().unwrap_or(n);
+            let (reason, why) = if let Some(&at) = decl.assigned.get(array) {
+                let (line, column) = src.location(at);
+                (
+                    Reason::Dynamic,
+                    format!("assigned as the program runs ({line}:{column})"),
+                )
+            } else if decl.names.contains(array) {
+                (
+                    Reason::Dynamic,
+                    "declared without a value this reader reads: given when the program runs"
+                        .to_string(),
+                )
+            } else {
+                (
                     Reason::NotDeclared,
-                    "not declared in this module (another module's, or the controller's)",
-                ),
+                    "not declared in this module (another module's, or the controller's)"
+                        .to_string(),
+                )
             };
             let written = src.text(t.start, t.end);
-            let _ = name;
             targets.push((
-                refused_motion(src, &t, reason, format!("{instruction} {written}: {why}")),
+                refused_motion(
+                    instruction,
+                    &t,
+                    reason,
+                    format!("{instruction} {written}: {why}"),
+                ),
                 Vec::new(),
             ));
             continue;
@@ -633,16 +642,10 @@ enum Named {
     All(String),
 }
 
-/// A report entry for a move whose target is not corrected.
-fn refused_motion(src: &Source, at: &Token, reason: Reason, detail: String) -> ProgramTarget {
-    let _ = src;
+/// A report entry for a move (`instruction`, at `at`) whose target is not corrected.
+fn refused_motion(instruction: &str, at: &Token, reason: Reason, detail: String) -> ProgramTarget {
     ProgramTarget {
-        name: detail
-            .split(' ')
-            .next()
-            .unwrap_or_default()
-            .trim_end_matches(':')
-            .to_string(),
+        name: instruction.to_string(),
         offset: at.start,
         kind: TargetKind::Motion,
         uses: Vec::new(),

@@ -442,10 +442,7 @@ impl Reader<'_, '_, '_> {
                     );
                     return Ok(());
                 }
-                let pose = &inner[..end];
-                let before = self.refused.len();
-                self.target(pose, frame)?;
-                let _ = before;
+                self.target(&inner[..end], frame)?;
             }
             // A waypoint relative to a feature: `pose_trans(Plane_1, p[…])`.
             [f, open, inner @ .., close]
