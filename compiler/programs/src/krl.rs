@@ -995,10 +995,10 @@ fn motion_statement(
                 scan.uses.push((key, frame.clone()));
             }
             // A system variable (`$POS_ACT`, `$AXIS_ACT`): where the robot stands when the
-            // motion runs.
+            // motion runs (none declares it: the partner's are not reported here).
             [t] if t.kind == Tok::Ident && src.bytes[t.start] == b'$' => {
+                let name = src.text(t.start, t.end);
                 if this_file {
-                    let name = src.text(t.start, t.end);
                     scan.targets.push((
                         refused_motion(
                             src,
