@@ -159,3 +159,70 @@ fn a_query_naming_the_tcp_answers_the_error_there() {
     let moved = adwi_runtime::method::distance_mm(got.position_error_mm, plain.position_error_mm);
     assert!(moved > 0.1, "{moved} mm");
 }
+
+/// A position-only table's targets at orientations its samples never had are refused by
+/// name (exit 3), unless `--beyond-evidence`; then they are corrected and counted.
+#[test]
+fn compensate_refuses_a_position_only_tables_targets_beyond_its_samples_orientations() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = repo("tables/kr150-2/samples.csv");
+    let build = crate::common::tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--served-field",
+            "method",
+            "-o",
+            "kr150.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(
+        build.status.success(),
+        "{}",
+        String::from_utf8_lossy(&build.stderr)
+    );
+    // The samples' orientation, then B = 45 and A = 90 (KUKA degrees).
+    std::fs::write(
+        dir.path().join("t.csv"),
+        "x,y,z,a,b,c\n2000,700,1000,0,90,0\n2000,700,1000,0,45,0\n1800,600,1200,90,90,0\n",
+    )
+    .unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let mut args = vec!["compensate", "kr150.tbl", "t.csv", "-o", out, "--report"];
+        let report = format!("{out}.report.csv");
+        args.push(&report);
+        args.extend_from_slice(extra);
+        let o = crate::common::tablec(&args, dir.path());
+        let report = std::fs::read_to_string(dir.path().join(&report)).unwrap_or_default();
+        (o.status.code(), report)
+    };
+    let (code, report) = run(&[], "refused.csv");
+    assert_eq!(code, Some(3));
+    let statuses: Vec<(String, String)> = report
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[4].to_string(), f[f.len() - 2].to_string())
+        })
+        .collect();
+    let expected = [
+        ("ok", "within"),
+        ("beyond_evidence", "orientation"),
+        ("beyond_evidence", "orientation"),
+    ];
+    assert_eq!(
+        statuses,
+        expected.map(|(s, e)| (s.to_string(), e.to_string()))
+    );
+    let (code, report) = run(&["--beyond-evidence"], "corrected.csv");
+    assert_eq!(code, Some(0));
+    let evidence: Vec<&str> = report
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').rev().nth(1).unwrap())
+        .collect();
+    assert_eq!(evidence, ["within", "orientation", "orientation"]);
+}

@@ -720,6 +720,7 @@ def compensate_program(
     max_joint_change_deg: float = 2.0,
     strict: bool = False,
     max_seconds: float = 300.0,
+    beyond_evidence: bool = False,
 ) -> CompensatedProgram:
     """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
     URScript or CSV program replaced by the command that lands on it (docs/programs.md).
@@ -729,7 +730,9 @@ def compensate_program(
     extension). ``robot``: a robot file, for joint targets and the posture checks.
     ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
     tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
-    leaving any target unchanged. A malformed program raises :class:`AdwiError` naming
+    leaving any target unchanged. ``beyond_evidence``: correct a position-only table's
+    targets at orientations its samples never had instead of refusing them (status
+    ``beyond_evidence``; each target's ``evidence`` says where it lies). A malformed program raises :class:`AdwiError` naming
     ``file:line:column``.
     """
     path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
@@ -750,5 +753,6 @@ def compensate_program(
         max_joint_change_deg=max_joint_change_deg,
         strict=strict,
         max_seconds=max_seconds,
+        beyond_evidence=beyond_evidence,
     )
     return CompensatedProgram(bytes(out), targets, summary)

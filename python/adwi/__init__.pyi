@@ -358,4 +358,5 @@ def compensate_program(
     max_joint_change_deg: float = 2.0,
     strict: bool = False,
     max_seconds: float = 300.0,
+    beyond_evidence: bool = False,
 ) -> CompensatedProgram: ...

@@ -976,7 +976,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -995,6 +995,7 @@ fn compensate_program<'py>(
     max_joint_change_deg: f64,
     strict: bool,
     max_seconds: f64,
+    beyond_evidence: bool,
 ) -> PyResult<(
     Bound<'py, pyo3::types::PyBytes>,
     Bound<'py, PyList>,
@@ -1022,6 +1023,7 @@ fn compensate_program<'py>(
     options.limits.max_joint_change_deg = max_joint_change_deg;
     options.strict = strict;
     options.max_seconds = max_seconds;
+    options.limits.beyond_evidence = beyond_evidence;
     let done = py
         .allow_threads(|| -> Result<_, adwi_programs::Error> {
             let job = CompensateJob::new(options)?;
@@ -1045,6 +1047,7 @@ fn compensate_program<'py>(
         d.set_item("iterations", t.iterations)?;
         d.set_item("residual_mm", t.residual_mm)?;
         d.set_item("residual", t.residual.map(Residual::as_str))?;
+        d.set_item("evidence", t.evidence.map(adwi_runtime::Evidence::as_str))?;
         d.set_item("point_mm", t.point_mm)?;
         d.set_item("command_mm", t.command_mm)?;
         d.set_item("command_joints", t.command_joints.clone())?;
@@ -1061,6 +1064,7 @@ fn compensate_program<'py>(
     summary.set_item("not_corrected", not_corrected)?;
     summary.set_item("residual_faded", s.faded)?;
     summary.set_item("residual_model_only", s.model_only)?;
+    summary.set_item("beyond_evidence", s.beyond_evidence)?;
     summary.set_item("largest_correction_mm", s.largest.as_ref().map(|l| l.0))?;
     summary.set_item("largest_at", s.largest.as_ref().map(|l| l.1.clone()))?;
     summary.set_item("text", s.to_string())?;

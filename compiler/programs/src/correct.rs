@@ -7,7 +7,7 @@ use std::f64::consts::TAU;
 use adwi_robot::ik::{configuration_of, solve_near, JOINT_COUNT};
 use adwi_robot::{Configuration, InverseKinematics, Robot};
 use adwi_runtime::kinematics::MdhJoint;
-use adwi_runtime::{Residual, Status, Table, Target};
+use adwi_runtime::{Evidence, Residual, Status, Table, Target};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// What became of a target.
@@ -47,6 +47,10 @@ pub enum TargetStatus {
     /// offline lands (an offset, a run-time value, a frame not given, an external axis,
     /// an unknown motion), named by its reason.
     Unaccounted(crate::program::Reason),
+    /// Refused: a position-only table would answer beyond what its samples cover (an
+    /// orientation they never had), where nothing carries its answer
+    /// ([`adwi_runtime::Evidence`]); [`Limits::beyond_evidence`] corrects it anyway.
+    BeyondEvidence(Evidence),
 }
 
 impl TargetStatus {
@@ -71,6 +75,7 @@ impl TargetStatus {
             TargetStatus::AmbiguousFrame => "ambiguous_frame",
             TargetStatus::Invalid => "invalid",
             TargetStatus::Unaccounted(reason) => reason.as_str(),
+            TargetStatus::BeyondEvidence(_) => "beyond_evidence",
         }
     }
 }
@@ -87,6 +92,10 @@ pub struct Limits {
     pub tolerance_mm: f64,
     /// The fixed point's iterations (queries).
     pub max_iterations: u32,
+    /// Correct a position-only table's targets beyond its samples' evidence too (an
+    /// orientation they never had), instead of refusing them. A hybrid table's model
+    /// answers there either way, and the report says so.
+    pub beyond_evidence: bool,
 }
 
 /// What the program says of the posture: a configuration and, per joint, its turn.
@@ -228,6 +237,8 @@ pub struct Command {
     /// How much of a hybrid table's residual field the correction at the command held
     /// ([`Residual::Full`] for a position-only table).
     pub residual: Residual,
+    /// Where the correction at the command lies beyond the table's evidence.
+    pub evidence: Evidence,
 }
 
 /// Why no command was found, and the details for the report.
@@ -330,6 +341,7 @@ pub fn solve<D: AsRef<[u8]>>(
                     converged: true,
                     residual_mm,
                     residual: c.residual,
+                    evidence: c.evidence,
                 });
                 break;
             }
@@ -356,7 +368,9 @@ pub fn solve<D: AsRef<[u8]>>(
             &Target {
                 position_mm: p.into(),
                 config,
-                rotation_rad: None,
+                // The point's orientation, which a position-only table checks against
+                // its samples'.
+                rotation_rad: Some(target.rotation.scaled_axis().into()),
                 tcp_mm: None,
             },
             limits.tolerance_mm,
@@ -398,8 +412,24 @@ pub fn solve<D: AsRef<[u8]>>(
             converged: true,
             residual_mm: comp.residual_mm,
             residual: comp.correction.residual,
+            evidence: comp.correction.evidence,
         }
     };
+    // A position-only table beyond its samples: nothing carries its answer there (a
+    // hybrid table's model does, and its report line says so).
+    if !command.evidence.is_within() && !table.is_hybrid() && !limits.beyond_evidence {
+        return Err((
+            TargetStatus::BeyondEvidence(command.evidence),
+            format!(
+                "the table's samples never had this {} (--beyond-evidence corrects it anyway)",
+                if command.evidence.contains(Evidence::ORIENTATION) {
+                    "orientation"
+                } else {
+                    "TCP"
+                }
+            ),
+        ));
+    }
     if let (Some(k), Some(q), Some(qc)) = (kinematics, &target_joints, &command.joints) {
         if k.configuration(q) != k.configuration(qc) {
             return Err((

@@ -96,6 +96,7 @@ impl CompensateOptions {
                 max_joint_change_deg: DEFAULT_MAX_JOINT_CHANGE_DEG,
                 tolerance_mm: 1e-6,
                 max_iterations: 50,
+                beyond_evidence: false,
             },
             strict: false,
             max_seconds: 300.0,
@@ -553,6 +554,7 @@ impl CompensateJob {
                 iterations: 0,
                 residual_mm: None,
                 residual: None,
+                evidence: None,
             };
             let result = match (&target.refused, chains) {
                 (Some(r), _) => Err((TargetStatus::Unaccounted(r.reason), r.detail.clone())),
@@ -584,6 +586,9 @@ impl CompensateJob {
                     }
                 }
                 Err((status, detail)) => {
+                    if let TargetStatus::BeyondEvidence(evidence) = status {
+                        entry.evidence = Some(evidence);
+                    }
                     entry.status = status;
                     entry.detail = detail;
                 }
@@ -886,6 +891,7 @@ fn fill(
     entry.iterations = command.iterations;
     entry.residual_mm = Some(command.residual_mm);
     entry.residual = Some(command.residual);
+    entry.evidence = Some(command.evidence);
     if let (Some(k), Some(a), Some(b)) = (kinematics, &command.target_joints, &command.joints) {
         entry.joint_change_deg = Some(correct::joint_change(k.robot(), a, b));
     }

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
-use adwi_runtime::Residual;
+use adwi_runtime::{Evidence, Residual};
 
 use crate::correct::TargetStatus;
 
@@ -43,6 +43,9 @@ pub struct TargetLine {
     /// How much of a hybrid table's residual field the correction held (`full` for a
     /// position-only table), when a command was computed.
     pub residual: Option<Residual>,
+    /// Where the correction lies beyond the table's evidence, when a command was computed
+    /// (a hybrid table's model answering at an orientation its samples never had).
+    pub evidence: Option<Evidence>,
 }
 
 /// The report: a line per target, in the order the program writes them.
@@ -68,6 +71,9 @@ pub struct Summary {
     pub faded: usize,
     /// Targets corrected by a hybrid table's model alone.
     pub model_only: usize,
+    /// Targets corrected beyond the table's evidence (by a hybrid table's model, or with
+    /// `beyond_evidence`).
+    pub beyond_evidence: usize,
     /// The largest correction made (mm), and the target it was made to.
     pub largest: Option<(f64, String)>,
 }
@@ -98,6 +104,9 @@ impl Report {
             not_corrected,
             faded: corrected_with(Residual::Faded),
             model_only: corrected_with(Residual::ModelOnly),
+            beyond_evidence: (self.targets.iter())
+                .filter(|t| t.status.corrected() && t.evidence.is_some_and(|e| !e.is_within()))
+                .count(),
             largest,
         }
     }
@@ -116,7 +125,7 @@ impl Report {
         out.push_str(
             "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
              iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z,\
-             residual,program_xxh3\n",
+             residual,evidence,program_xxh3\n",
         );
         let hash = self
             .program_xxh3
@@ -130,7 +139,7 @@ impl Report {
         for t in &self.targets {
             let _ = writeln!(
                 out,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{hash}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{hash}",
                 csv_field(&t.name),
                 t.line,
                 t.column,
@@ -145,6 +154,7 @@ impl Report {
                 xyz(t.point_mm),
                 xyz(t.command_mm),
                 t.residual.map_or("", Residual::as_str),
+                t.evidence.map_or("", Evidence::as_str),
             );
         }
         out
@@ -167,6 +177,13 @@ impl std::fmt::Display for Summary {
                 f,
                 " ({} with a faded residual, {} by the calibrated model alone)",
                 self.faded, self.model_only
+            )?;
+        }
+        if self.beyond_evidence > 0 {
+            write!(
+                f,
+                "; {} beyond the samples' evidence (an orientation they never had)",
+                self.beyond_evidence
             )?;
         }
         if !self.not_corrected.is_empty() {
@@ -214,6 +231,7 @@ mod tests {
             iterations: 1,
             residual_mm: None,
             residual,
+            evidence: None,
         }
     }
 
@@ -243,10 +261,10 @@ mod tests {
         );
         let csv = report.to_csv();
         let rows: Vec<&str> = csv.lines().collect();
-        assert!(rows[0].ends_with(",command_z,residual,program_xxh3"));
+        assert!(rows[0].ends_with(",command_z,residual,evidence,program_xxh3"));
         let flags: Vec<&str> = rows[1..]
             .iter()
-            .map(|r| r.rsplit(',').nth(1).unwrap())
+            .map(|r| r.rsplit(',').nth(2).unwrap())
             .collect();
         assert_eq!(flags, ["full", "faded", "model_only", "model_only", ""]);
         assert!(rows[1..].iter().all(|r| r.ends_with(",00000000000000ab")));

@@ -10,7 +10,8 @@ use crate::Answered;
 #[derive(clap::Args)]
 #[command(
     after_help = "Exit status: 0 when every target was corrected; 3 when some target \
-    was left unchanged (the program is still written, each target's status in the report); \
+    was left unchanged (the program is still written, each target's status in the report), \
+    a position-only table's target beyond its samples' evidence among them; \
     with --strict, 3 and nothing written; 1 on an error (a malformed program, a program that \
     moves but holds no target, an unreadable input, a refused output: nothing is written); 2 on \
     a usage error."
@@ -60,6 +61,11 @@ pub struct Args {
     /// Fail, writing nothing, when any target would be left unchanged.
     #[arg(long)]
     strict: bool,
+    /// Correct targets a position-only table answers beyond what its samples cover (an
+    /// orientation they never had) instead of refusing them (status beyond_evidence). A
+    /// hybrid table's calibrated model answers there either way, and the report says so.
+    #[arg(long)]
+    beyond_evidence: bool,
     /// Write the per-target report as CSV too.
     #[arg(long, value_name = "FILE")]
     report: Option<PathBuf>,
@@ -95,6 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     options.limits.max_correction_mm = args.max_correction_mm;
     options.limits.max_joint_change_deg = args.max_joint_change_deg;
     options.strict = args.strict;
+    options.limits.beyond_evidence = args.beyond_evidence;
     options.max_seconds = args.max_seconds;
     options.max_memory_bytes = args.max_memory_mb.saturating_mul(1_000_000);
     let job = CompensateJob::new(options)?;
