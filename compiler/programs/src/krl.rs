@@ -1422,6 +1422,52 @@ mod tests {
     }
 
     #[test]
+    fn motions_take_the_frames_the_program_selects_as_it_runs() {
+        let config = read_config(&Source::new(
+            "$config.dat",
+            b"FRAME TOOL_DATA[16]\nTOOL_DATA[1]={X 0,Y 0,Z 180,A 0,B 0,C 0}\n\
+              BASE_DATA[2]={X 1000,Y 0,Z 0,A 0,B 0,C 0}\n",
+        ))
+        .unwrap();
+        let dat = "DEFDAT P\nDECL FDAT FP1={TOOL_NO 1,BASE_NO 2,IPO_FRAME #BASE}\n\
+                   DECL FDAT FP2={TOOL_NO 1,BASE_NO 0,IPO_FRAME #TCP}\n\
+                   DECL E6POS XA={X 1,Y 2,Z 3,A 0,B 90,C 0}\nDECL E6POS XB={X 1,Y 2,Z 3,A 0,B 90,C 0}\n\
+                   DECL E6POS XC={X 1,Y 2,Z 3,A 0,B 90,C 0}\nDECL E6POS XD={X 1,Y 2,Z 3,A 0,B 90,C 0}\n\
+                   DECL E6POS XE={X 1,Y 2,Z 3,A 0,B 90,C 0}\nDECL E6POS XF={X 1,Y 2,Z 3,A 0,B 90,C 0}\nENDDAT\n";
+        let src = "DEF P( )\n$TOOL = TOOL_DATA[1]\nLIN XA\n\
+                   ;FOLD LIN P2 Vel=2 m/s CPDAT1 Tool[0] Base[3];%{PE}\nLIN XB\n;ENDFOLD\n\
+                   FDAT_ACT=FP1\nSLIN XC WITH $TOOL = STOOL2(FP2), $IPO_MODE = SIPO_MODE(FP2.IPO_FRAME)\n\
+                   LIN XD\nBAS(#TOOL,0)\n$BASE = BASE_DATA[I]\nLIN XE\nEND\n";
+        let dat = Source::new("p.dat", dat.as_bytes());
+        let src = Source::new("p.src", src.as_bytes());
+        let p = read_with(&dat, Some(&src), &config, usize::MAX).unwrap();
+        let uses: Vec<&FrameUse> = p.targets[..5].iter().map(|t| &t.uses[0]).collect();
+        let z = |f: Option<Isometry3<f64>>| f.map(|f| f.translation.vector.z);
+        let x = |f: Option<Isometry3<f64>>| f.map(|f| f.translation.vector.x);
+        // $TOOL = TOOL_DATA[1]; $BASE as the options give it.
+        assert_eq!((z(uses[0].tool), uses[0].base), (Some(180.0), None));
+        // The fold's Tool[0] (the flange) and Base[3] (not in the configuration).
+        assert_eq!(z(uses[1].tool), Some(0.0));
+        assert_eq!(uses[1].undeclared[0].name, "BASE_DATA[3]");
+        // WITH, for XC alone: an external TCP.
+        assert!(
+            uses[2].unknown[0].starts_with("an external TCP"),
+            "{:?}",
+            uses[2]
+        );
+        // FDAT_ACT=FP1 lasts: TOOL_DATA[1] in BASE_DATA[2].
+        assert_eq!(
+            (z(uses[3].tool), x(uses[3].base)),
+            (Some(180.0), Some(1000.0))
+        );
+        // BAS(#TOOL,0), then a base computed at run time.
+        assert_eq!(z(uses[4].tool), Some(0.0));
+        assert!(uses[4].unknown[0].starts_with("$BASE set by an expression at 11:1"));
+        // XF: no motion moves to it.
+        assert!(p.targets[5].uses.is_empty());
+    }
+
+    #[test]
     fn frames_are_targets_only_when_a_motion_moves_to_them() {
         let text = "DECL FRAME F1={X 1,Y 2,Z 3,A 0,B 0,C 0}\nDECL FRAME F2={X 1,Y 2,Z 3,A 0,B 0,C 0}\nLIN F2\n";
         let t = targets(text);

@@ -1198,6 +1198,57 @@ mod tests {
     }
 
     #[test]
+    fn every_motion_of_the_table_takes_its_tool_and_work_object() {
+        let t = |x: i32| format!("[[{x},0,500],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]");
+        let text = format!(
+            "MODULE M\n\
+             PERS tooldata gun:=[TRUE,[[0,0,200],[1,0,0,0]],[5,[0,0,100],[1,0,0,0],0,0,0]];\n\
+             TASK PERS wobjdata fix:=[FALSE,TRUE,\"\",[[1000,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n\
+             CONST robtarget a:={};\nCONST robtarget b:={};\nCONST robtarget s{{2}}:=[{},{}];\n\
+             VAR robtarget found;\n\
+             PROC main()\n\
+               TriggL a,v500,gunon\\T2:=gunoff,z10,gun\\WObj:=fix;\n\
+               ArcL s{{i}},v100,seam1,weld1\\Weave:=w1,z1,gun\\WObj:=fix;\n\
+               SearchL\\Stop,di1,found,b,v50,gun\\WObj:=fix;\n\
+               MoveL found,v50,fine,gun\\WObj:=fix;\n\
+               MoveToHome;\n  SpotL b,vmax,gun1,gun;\n\
+             ENDPROC\nPROC MoveToHome()\nENDPROC\nENDMODULE\n",
+            t(1),
+            t(2),
+            t(3),
+            t(4)
+        );
+        let p = read(&Source::new("m.mod", text.as_bytes())).unwrap();
+        let seen: Vec<(&str, Option<Reason>, usize)> = p
+            .targets
+            .iter()
+            .map(|t| {
+                (
+                    t.name.as_str(),
+                    t.refused.as_ref().map(|r| r.reason),
+                    t.uses.len(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("a", None, 1),
+                // SearchL moves to b; SpotL too, which this reader does not know.
+                ("b", Some(Reason::UnknownMotion), 1),
+                ("s{1}", None, 1),
+                ("s{2}", None, 1),
+                ("MoveL", Some(Reason::Dynamic), 0),
+                ("SpotL", Some(Reason::UnknownMotion), 0),
+            ]
+        );
+        // TriggL's tool is its fifth argument; the work object its \WObj.
+        let u = &p.targets[0].uses[0];
+        assert_eq!(u.tool.unwrap().translation.vector.z, 200.0);
+        assert_eq!(u.base.unwrap().translation.vector.x, 1000.0);
+    }
+
+    #[test]
     fn malformed_targets_are_located() {
         let err = read(&Source::new(
             "m.mod",

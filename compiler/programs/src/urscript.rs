@@ -180,7 +180,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                         let (line, column) = src.location(at);
                         vec![Undeclared {
                             base: false,
-                            name: format!("the TCP set by set_tcp at {line}:{column}"),
+                            name: format!("set by set_tcp at {line}:{column}"),
                         }]
                     }
                     _ => Vec::new(),
@@ -660,6 +660,39 @@ mod tests {
         assert_eq!(p.targets[1].name, "movel");
         let tool = p.targets[1].uses[0].tool.unwrap();
         assert!((tool.translation.vector.z - 31.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn polyscope_forms_are_targets_and_every_other_motion_is_reported() {
+        let text = "def p():\n  global Plane_1=p[0.1,0,0,0,0,0]\n  global W_p=p[0.4,-0.2,0.3,0,3.14,0]\n\
+                    global W_q=[0,-1.5,1.5,0,1.5,0]\n  set_tcp(get_tcp_offset())\n\
+                    movej(get_inverse_kin(W_p, qnear=W_q), a=1.4)\n\
+                    movel(pose_trans(Plane_1, p[0,0,0.1,0,3.14,0]))\n  x = get_actual_tcp_pose()\n\
+                    movel(x)\n  movel(pose_add(get_actual_tcp_pose(), p[0,0,0.01,0,0,0]))\n  moveq(W_p)\nend\n";
+        let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
+        let seen: Vec<(&str, Option<Reason>)> = p
+            .targets
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("W_p", None),
+                ("movel", None),
+                ("movel", Some(Reason::Dynamic)),
+                ("movel", Some(Reason::Relative)),
+                ("moveq", Some(Reason::UnknownMotion)),
+            ]
+        );
+        // The TCP set_tcp sets from an expression: the tool option must stand for it.
+        let w = &p.targets[0].uses[0];
+        assert_eq!(w.undeclared[0].name, "set by set_tcp at 5:3");
+        // The waypoint on Plane_1 is in its frame.
+        let on_plane = p.targets[1].uses[0].base.unwrap();
+        assert!((on_plane.translation.vector.x - 100.0).abs() < 1e-9);
+        // W_q, only the IK's seed, is not a target.
+        assert!(p.targets.iter().all(|t| t.name != "W_q"));
     }
 
     #[test]
