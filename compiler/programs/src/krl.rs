@@ -72,7 +72,7 @@ const fn motion(name: &'static str, targets: usize, refused: Option<Reason>) -> 
 }
 
 /// The motion instructions of KRL (KSS 8), every one accounted for.
-pub const MOTIONS: [Motion; 15] = [
+pub const MOTIONS: [Motion; 14] = [
     motion("PTP", 1, None),
     motion("LIN", 1, None),
     motion("CIRC", 2, None),
@@ -87,7 +87,6 @@ pub const MOTIONS: [Motion; 15] = [
     motion("SLIN_REL", 1, Some(Reason::Relative)),
     motion("SCIRC_REL", 2, Some(Reason::Relative)),
     motion("ASYPTP", 1, Some(Reason::ExternalAxis)),
-    motion("ASYCANCEL", 0, Some(Reason::ExternalAxis)),
 ];
 
 /// Words that may follow a motion's targets (approximation, circle angle, `WITH`).
