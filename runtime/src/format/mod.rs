@@ -181,6 +181,9 @@ pub struct ApproachCone {
     pub axis: [f64; 3],
     /// The largest angle of a sample's axis from `axis`, rad, in `[0, π]`.
     pub spread_rad: f64,
+    /// `cos(spread + margin)`, or −2 when that reaches π (every axis holds): computed once,
+    /// so that a query compares a dot product and takes no cosine.
+    cos_limit: f64,
 }
 
 impl ApproachCone {
@@ -221,23 +224,34 @@ impl ApproachCone {
         } else {
             stored
         };
-        Some(ApproachCone {
-            axis: mean,
-            spread_rad: (stored as f64).min(std::f64::consts::PI),
-        })
+        Some(ApproachCone::new(
+            mean,
+            (stored as f64).min(std::f64::consts::PI),
+        ))
+    }
+
+    /// The cone of mean `axis` (a unit vector) and half-angle `spread_rad`.
+    pub fn new(axis: [f64; 3], spread_rad: f64) -> ApproachCone {
+        let limit = spread_rad + ORIENTATION_MARGIN_RAD;
+        let cos_limit = if limit >= std::f64::consts::PI {
+            -2.0
+        } else {
+            crate::trig::sin_cos(limit).1
+        };
+        ApproachCone {
+            axis,
+            spread_rad,
+            cos_limit,
+        }
     }
 
     /// Whether `axis` (a unit vector, base frame) is within the cone widened by
     /// [`ORIENTATION_MARGIN_RAD`]. Compares cosines: no inverse trigonometry on a query.
     #[inline]
     pub fn holds(&self, axis: [f64; 3]) -> bool {
-        let limit = self.spread_rad + ORIENTATION_MARGIN_RAD;
-        if limit >= std::f64::consts::PI {
-            return true;
-        }
         let cos = self.axis[0] * axis[0] + self.axis[1] * axis[1] + self.axis[2] * axis[2];
         // Written so that NaN fails the test.
-        cos >= crate::trig::sin_cos(limit).1
+        cos >= self.cos_limit
     }
 }
 
@@ -793,10 +807,10 @@ fn evidence_of(
         {
             return corrupt("the evidence's approach axis is not a unit vector, or its spread is not within [0, π]");
         }
-        Some(ApproachCone {
+        Some(ApproachCone::new(
             axis,
-            spread_rad: spread_rad.min(std::f64::consts::PI),
-        })
+            spread_rad.min(std::f64::consts::PI),
+        ))
     } else if !zero(&axis) || !zero(&[spread_rad]) {
         return corrupt("the evidence's approach fields are not zero though not recorded");
     } else {
