@@ -246,6 +246,16 @@ impl CompensateJob {
                 o.program.display()
             )));
         }
+        // The partner is read whole too: bounded as the program is, before it is read.
+        if let Some(p) = &partner_path {
+            let partner_size = std::fs::metadata(p).map_or(0, |m| m.len());
+            if partner_size > MAX_PROGRAM_BYTES {
+                return Err(Error::Option(format!(
+                    "{}: {partner_size} bytes, more than the {MAX_PROGRAM_BYTES} a program's partner may have",
+                    p.display()
+                )));
+            }
+        }
         let bytes = read(&o.program)?;
         let name = o.program.display().to_string();
         // Text a reader can read, in the dialect the job takes it for, before any work.

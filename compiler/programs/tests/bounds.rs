@@ -320,3 +320,29 @@ fn a_program_needing_more_memory_than_allowed_is_refused_before_it_is_read_whole
     options.max_memory_bytes = estimated_bytes + 1_000_000;
     assert!(CompensateJob::new(options).is_ok());
 }
+
+#[test]
+fn a_krl_partner_larger_than_a_program_may_be_is_refused_before_it_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("t.tbl");
+    std::fs::write(&table, table_bytes()).unwrap();
+    let program = dir.path().join("p.src");
+    std::fs::write(
+        &program,
+        "DEF p( )\nLIN {X 1500,Y 200,Z 1200,A 0,B 90,C 0}\nEND\n",
+    )
+    .unwrap();
+    // A sparse file of 2 GiB: refused by its size, in no time and no memory.
+    let partner = std::fs::File::create(dir.path().join("p.dat")).unwrap();
+    partner.set_len(2 << 30).unwrap();
+    let err = within(20, move || {
+        CompensateJob::new(CompensateOptions::new(&table, &program))
+            .err()
+            .map(|e| e.to_string())
+    })
+    .expect("refused");
+    assert!(
+        err.contains("p.dat: 2147483648 bytes, more than the"),
+        "{err}"
+    );
+}
