@@ -122,7 +122,13 @@ fn queries_and_compensations_allocate_nothing() {
                     capi::adwi_table_compensate(handle, p.as_ptr(), -1, 1e-9, 20, &mut comp_c),
                 )
             };
-            assert_eq!(codes, (AdwiResult::Ok, AdwiResult::Ok));
+            // A target that is not finite has no command: the C compensation refuses it.
+            let compensated = if p.iter().all(|v| v.is_finite()) {
+                AdwiResult::Ok
+            } else {
+                AdwiResult::InvalidArgument
+            };
+            assert_eq!(codes, (AdwiResult::Ok, compensated));
             ok += usize::from(a.status == Status::Ok);
             converged += usize::from(k.converged);
             let terms = [
