@@ -273,7 +273,25 @@ pub fn read_with(
     }
     let mut uses: HashMap<String, Vec<FrameUse>> = HashMap::new();
     for (name, u) in scan.uses {
-        uses.entry(name).or_default().push(u);
+        let list = uses.entry(name.clone()).or_default();
+        // A motion to any element of an array: once per frames, so that many such
+        // motions and a long array stay linear.
+        let same = |v: &FrameUse| {
+            (&v.tool, &v.base, &v.undeclared, &v.unknown)
+                == (&u.tool, &u.base, &u.undeclared, &u.unknown)
+        };
+        if !(name.ends_with("[*]") && list.iter().any(same)) {
+            list.push(u);
+        }
+    }
+    // The first motion not in the table, and the first expression, naming each target.
+    let mut unknown_uses: HashMap<String, String> = HashMap::new();
+    for (name, by) in scan.unknown_uses {
+        unknown_uses.entry(name).or_insert(by);
+    }
+    let mut expression_uses: HashMap<String, String> = HashMap::new();
+    for (name, by) in scan.expression_uses {
+        expression_uses.entry(name).or_insert(by);
     }
     let mut targets = Vec::with_capacity(scan.targets.len());
     for (mut target, key, kind) in scan.targets {
@@ -296,14 +314,14 @@ pub fn read_with(
             }
             target.uses = found;
             // A motion not in the table moves to it: its frames are not known.
-            if let Some((_, by)) = scan.unknown_uses.iter().find(|(n, _)| *n == key) {
+            if let Some(by) = unknown_uses.get(&key) {
                 target.refused.get_or_insert(Refusal::new(
                     Reason::UnknownMotion,
                     format!("moved to by {by}, a motion this reader does not know"),
                 ));
             }
             // Moved to only through an expression: no one correction holds for it.
-            if let Some((_, by)) = scan.expression_uses.iter().find(|(n, _)| *n == key) {
+            if let Some(by) = expression_uses.get(&key) {
                 if target.uses.is_empty() {
                     target.refused.get_or_insert(Refusal::new(
                         Reason::Dynamic,

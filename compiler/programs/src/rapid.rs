@@ -351,7 +351,20 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         .filter(|(_, (t, _))| !matches!(t.kind, TargetKind::Motion))
         .map(|(k, (t, _))| (t.name.to_ascii_uppercase(), k))
         .collect();
+    // A move to any element of an array gives every element its frames: once per tool and
+    // work object, so that a module of many such moves and a long array stays linear.
+    let mut every: HashSet<(String, String, Option<String>)> = HashSet::new();
     for (named, u, t, instruction) in pending_uses {
+        if let Named::All(array) = &named {
+            let frames = (
+                array.clone(),
+                u.tool.clone(),
+                u.wobj.as_ref().map(|w| w.0.clone()),
+            );
+            if decl.arrays.contains_key(array) && !every.insert(frames) {
+                continue;
+            }
+        }
         let found: Vec<usize> = match &named {
             Named::One(name) => by_name.get(name).copied().into_iter().collect(),
             Named::All(name) => decl
