@@ -93,18 +93,29 @@ fn landing_errors(dir: &Path, table_path: &Path, tcp_z_m: f64) -> Vec<f64> {
     errors
 }
 
+/// The UR5 hybrid table both tests read, built once: its folder and its path.
+fn ur5_table() -> &'static (tempfile::TempDir, std::path::PathBuf) {
+    static TABLE: std::sync::OnceLock<(tempfile::TempDir, std::path::PathBuf)> =
+        std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        build_ur5_hybrid(
+            dir.path(),
+            repo("tables/ur5/robot.toml").to_str().unwrap(),
+            &["--cell", "30"],
+            "ur5.tbl",
+        );
+        let path = dir.path().join("ur5.tbl");
+        (dir, path)
+    })
+}
+
 #[test]
 fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
     let dir = tempfile::tempdir().unwrap();
-    build_ur5_hybrid(
-        dir.path(),
-        repo("tables/ur5/robot.toml").to_str().unwrap(),
-        &["--cell", "30"],
-        "ur5.tbl",
-    );
-    let table = dir.path().join("ur5.tbl");
-    let short = landing_errors(dir.path(), &table, 0.031);
-    let long = landing_errors(dir.path(), &table, 0.2);
+    let table = &ur5_table().1;
+    let short = landing_errors(dir.path(), table, 0.031);
+    let long = landing_errors(dir.path(), table, 0.2);
     for (i, (s, l)) in short.iter().zip(&long).enumerate() {
         // The fixed point's tolerance and the written precision (1e-6 m) bound both.
         assert!(*s < 0.01, "pose {i}: the 31 mm TCP lands {s} mm off");
@@ -119,15 +130,8 @@ fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
 
 #[test]
 fn a_query_naming_the_tcp_answers_the_error_there() {
-    let dir = tempfile::tempdir().unwrap();
-    build_ur5_hybrid(
-        dir.path(),
-        repo("tables/ur5/robot.toml").to_str().unwrap(),
-        &["--cell", "30"],
-        "ur5.tbl",
-    );
-    // SAFETY: the test's own file, not modified while mapped.
-    let table = unsafe { Table::open(dir.path().join("ur5.tbl")) }.unwrap();
+    // SAFETY: the tests' own file, not modified while mapped.
+    let table = unsafe { Table::open(&ur5_table().1) }.unwrap();
     let model = table.model().unwrap();
     // The README's query pose.
     let q: Vec<f64> = [17.2729, -81.9889, 88.4100, 0.0713, 93.4555, -0.1215]

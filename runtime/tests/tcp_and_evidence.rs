@@ -91,18 +91,12 @@ fn chains(q: &[f64; 6]) -> (Chain, Chain) {
     (moved(nominal), moved(calibrated))
 }
 
-/// A hybrid table of [`chains`] at `q`, its served field the constant [`RESIDUAL_MM`],
-/// recording `evidence`.
-fn table(q: &[f64; 6], evidence: EvidenceRecord) -> Table<adwi_runtime::AlignedBytes> {
-    Table::from_vec(table_bytes(q, evidence)).unwrap()
-}
-
-/// The bytes of [`table`].
-fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
-    let (nominal, calibrated) = chains(q);
+/// One sample at [`POINT_MM`] listed by every cell, the served field the constant
+/// [`RESIDUAL_MM`], and `model` (a hybrid table's).
+fn data(model: Option<ModelRecord>) -> v2::TableData {
     let mut cell = [0u16; 32];
     cell[0] = 1;
-    let data = v2::TableData {
+    v2::TableData {
         cells: vec![cell; 4],
         samples: vec![QuerySample {
             actual_mm: POINT_MM,
@@ -114,12 +108,24 @@ fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
             first_node: 0,
         }],
         node_errors_mm: vec![RESIDUAL_MM; PER_SET],
-        model: Some(ModelRecord {
-            nominal: ChainRecord::from_chain(&nominal),
-            calibrated: ChainRecord::from_chain(&calibrated),
-        }),
+        model,
         ..v2::TableData::default()
-    };
+    }
+}
+
+/// A hybrid table of [`chains`] at `q`, its served field the constant [`RESIDUAL_MM`],
+/// recording `evidence`.
+fn table(q: &[f64; 6], evidence: EvidenceRecord) -> Table<adwi_runtime::AlignedBytes> {
+    Table::from_vec(table_bytes(q, evidence)).unwrap()
+}
+
+/// The bytes of [`table`].
+fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
+    let (nominal, calibrated) = chains(q);
+    let data = data(Some(ModelRecord {
+        nominal: ChainRecord::from_chain(&nominal),
+        calibrated: ChainRecord::from_chain(&calibrated),
+    }));
     let header = Header {
         version: FORMAT_VERSION,
         rkyv_flags: RKYV_FLAGS,
@@ -327,22 +333,7 @@ fn forged_evidence_is_refused_at_open() {
 /// A position-only table checks the orientation the caller gives against its samples'.
 #[test]
 fn a_position_only_table_flags_an_orientation_its_samples_never_had() {
-    let mut cell = [0u16; 32];
-    cell[0] = 1;
-    let data = v2::TableData {
-        cells: vec![cell; 4],
-        samples: vec![QuerySample {
-            actual_mm: POINT_MM,
-            norm_mm: method::norm_mm(POINT_MM),
-        }],
-        errors_mm: vec![RESIDUAL_MM],
-        node_sets: vec![NodeSet {
-            config: method::CONFIG_UNKNOWN,
-            first_node: 0,
-        }],
-        node_errors_mm: vec![RESIDUAL_MM; PER_SET],
-        ..v2::TableData::default()
-    };
+    let data = data(None);
     // KUKA A, B, C = 0, 90, 0: the approach axis is x.
     let header = Header {
         version: FORMAT_VERSION,
