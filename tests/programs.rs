@@ -238,6 +238,9 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
             adwi_programs::Format::Rapid => adwi_programs::rapid::read(&src),
             adwi_programs::Format::Csv => adwi_programs::csv::read(&src),
             adwi_programs::Format::UrScript => adwi_programs::urscript::read(&src),
+            adwi_programs::Format::Gcode => {
+                adwi_programs::gcode::read(&src, &job.options().gcode).map(|r| r.program)
+            }
         }
         .unwrap();
         assert_eq!(written.targets.len(), done.report.targets.len());

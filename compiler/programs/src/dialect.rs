@@ -67,6 +67,7 @@ fn long_name(format: Format) -> &'static str {
         Format::Rapid => "ABB RAPID",
         Format::UrScript => "URScript",
         Format::Csv => "a CSV of poses",
+        Format::Gcode => "G-code",
     }
 }
 
@@ -122,6 +123,8 @@ fn signs(src: &Source) -> Vec<(Format, usize, String)> {
                 .any(|w| starts(w))
         {
             Some(Format::UrScript)
+        } else if gcode_block(&upper) {
+            Some(Format::Gcode)
         } else {
             None
         };
@@ -142,6 +145,27 @@ fn signs(src: &Source) -> Vec<(Format, usize, String)> {
         start = end + 1;
     }
     found
+}
+
+/// Whether a line (upper case) starts as a G-code block: `G` and a digit, or a block
+/// number `N10` followed by a `G` or `M` code.
+fn gcode_block(upper: &[u8]) -> bool {
+    let code = |s: &[u8]| s.len() > 1 && matches!(s[0], b'G' | b'M') && s[1].is_ascii_digit();
+    if upper.first() == Some(&b'G') {
+        return code(upper);
+    }
+    match upper.strip_prefix(b"N") {
+        Some(rest) => {
+            let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+            let after = &rest[digits..];
+            let blanks = after
+                .iter()
+                .take_while(|b| matches!(b, b' ' | b'\t'))
+                .count();
+            digits > 0 && code(&after[blanks..])
+        }
+        None => false,
+    }
 }
 
 #[cfg(test)]

@@ -56,6 +56,8 @@ pub struct CompensateOptions {
     /// The estimated memory beyond which the job is refused before any work, bytes
     /// ([`BYTES_PER_TARGET`] a target, and three times the program's size).
     pub max_memory_bytes: u64,
+    /// A G-code program's A, B, C convention, work offsets and arc tolerance.
+    pub gcode: crate::gcode::GcodeOptions,
 }
 
 /// The default bound of a job's memory: 4 GiB, some two million targets.
@@ -101,6 +103,7 @@ impl CompensateOptions {
             strict: false,
             max_seconds: 300.0,
             max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
+            gcode: crate::gcode::GcodeOptions::default(),
         }
     }
 }
@@ -131,6 +134,8 @@ pub struct CompensateJob {
     /// Whether the reader saw the program's motions (a KRL data list read without its
     /// `.src` did not), so that a declared target no motion moves to is unused.
     motions_seen: bool,
+    /// A G-code program's arcs, per target (empty for other formats).
+    arcs: Vec<Option<Box<crate::gcode::Arc>>>,
 }
 
 /// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
@@ -161,6 +166,19 @@ impl CompensateJob {
         {
             return Err(Error::Option("max_correction_mm, max_joint_change_deg and the tolerance must be finite and positive, the iterations at least 1".into()));
         }
+        let gcode = &o.gcode;
+        if !positive(gcode.arc_tolerance_mm)
+            || gcode
+                .work_offsets
+                .iter()
+                .any(|(n, f)| !(54..=59).contains(n) || !crate::bounds::option_frame_within(f))
+        {
+            return Err(Error::Option(format!(
+                "the arc tolerance must be finite and positive, and each work offset G54-G59 six numbers within ±{} mm and ±{}°",
+                crate::bounds::MAX_POSITION_MM,
+                crate::bounds::MAX_ANGLE_DEG
+            )));
+        }
         if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
             return Err(Error::Option("max_seconds must be positive".into()));
         }
@@ -181,7 +199,7 @@ impl CompensateJob {
             Some(f) => f,
             None => Format::from_path(&o.program).ok_or_else(|| {
                 Error::Option(format!(
-                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv); give it (krl, rapid, urscript, csv)",
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap); give it (krl, rapid, urscript, csv, gcode)",
                     o.program.display()
                 ))
             })?,
@@ -302,6 +320,7 @@ impl CompensateJob {
             return Err(memory_refused(0, None));
         }
         let limit = limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX));
+        let mut arcs = Vec::new();
         let program = {
             let src = Source::new(&name, &bytes);
             crate::bounds::check_line_lengths(&src)?;
@@ -325,6 +344,11 @@ impl CompensateJob {
                 Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
                 Format::UrScript => crate::urscript::read_at_most(&src, limit)?,
                 Format::Csv => crate::csv::read_at_most(&src, limit)?,
+                Format::Gcode => {
+                    let read = crate::gcode::read_at_most(&src, &o.gcode, limit)?;
+                    arcs = read.arcs;
+                    read.program
+                }
             }
         };
         if let Some(at) = program.truncated_at {
@@ -498,7 +522,7 @@ impl CompensateJob {
         let motions_seen = match format {
             Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
             Format::Rapid => true,
-            Format::UrScript | Format::Csv => false,
+            Format::UrScript | Format::Csv | Format::Gcode => false,
         };
         Ok(CompensateJob {
             motions_seen,
@@ -510,6 +534,7 @@ impl CompensateJob {
             kinematics,
             chains,
             outputs,
+            arcs,
         })
     }
 
@@ -541,7 +566,12 @@ impl CompensateJob {
             .kinematics
             .as_ref()
             .map_or_else(Vec::new, |k| k.robot().home().to_vec());
-        for (target, chains) in self.program.targets.iter().zip(&self.chains) {
+        // A G-code program's: where each target's block leaves the tool in the compensated
+        // program (mm, its frame), and the numbers rewritten (their first byte).
+        let gcode = self.program.format == Format::Gcode;
+        let mut ends: Vec<Option<[f64; 3]>> = Vec::new();
+        let mut rewritten: std::collections::HashSet<usize> = std::collections::HashSet::new();
+        for (i, (target, chains)) in self.program.targets.iter().zip(&self.chains).enumerate() {
             let (line, column) = src.location(target.offset);
             let mut entry = TargetLine {
                 name: target.name.clone(),
@@ -569,7 +599,23 @@ impl CompensateJob {
             let result = match (&target.refused, chains) {
                 (Some(r), _) => Err((TargetStatus::Unaccounted(r.reason), r.detail.clone())),
                 (None, Err(why)) => Err(why.clone()),
-                (None, Ok(chains)) => self.target(&src, target, chains, &mut seed, &mut entry),
+                (None, Ok(chains)) => {
+                    let mut end = None;
+                    let edits = self.target(&src, target, chains, &mut seed, &mut entry, &mut end);
+                    if gcode {
+                        let block = GcodeBlock {
+                            src: &src,
+                            index: i,
+                            chains,
+                            end,
+                            ends: &ends,
+                            rewritten: &rewritten,
+                        };
+                        self.gcode_block(&block, edits, &seed, &entry)
+                    } else {
+                        edits
+                    }
+                }
             }
             .and_then(|edits| {
                 // Never a non-finite number written, whatever the input held.
@@ -587,6 +633,24 @@ impl CompensateJob {
                     ))
                 }
             });
+            if gcode {
+                ends.push(match (&target.kind, &result) {
+                    (TargetKind::Cartesian(c), Ok(edits)) => {
+                        let mut end = c.position.map(|n| n.value);
+                        for ((start, _), text) in edits {
+                            if let Some(k) = c.position.iter().position(|n| n.span.0 == *start) {
+                                end[k] = text.parse().unwrap_or(end[k]);
+                            }
+                            rewritten.insert(*start);
+                        }
+                        Some(end.map(|v| v * c.unit.mm()))
+                    }
+                    (TargetKind::Cartesian(c), Err(_)) => {
+                        Some(c.position.map(|n| n.value * c.unit.mm()))
+                    }
+                    _ => None,
+                });
+            }
             match result {
                 Ok(new_edits) => {
                     for (span, text) in new_edits {
@@ -683,6 +747,7 @@ impl CompensateJob {
         chains: &[FrameChain],
         seed: &mut Vec<f64>,
         entry: &mut TargetLine,
+        end: &mut Option<[f64; 3]>,
     ) -> Result<Vec<Edit>, correct::Failure> {
         let limits = &self.options.limits;
         let bytes = src.bytes;
@@ -783,6 +848,7 @@ impl CompensateJob {
                     seed.clone_from(q);
                 }
                 let new_pose = chain.program_pose(&command.point);
+                *end = Some(new_pose.translation.vector.into());
                 let moved = (new_pose.translation.vector - pose.translation.vector).norm();
                 let new_rotation = new_pose.rotation.to_rotation_matrix();
                 let turned = angle_between(&new_rotation, &rotation);
@@ -884,6 +950,135 @@ impl CompensateJob {
 
 /// A replacement: the bytes `start..end` of the program, and their new text.
 type Edit = ((usize, usize), String);
+
+/// A G-code target's block as the run has reached it.
+struct GcodeBlock<'a> {
+    src: &'a Source<'a>,
+    /// The target's index.
+    index: usize,
+    chains: &'a [FrameChain],
+    /// Its command's position, mm, its frame (when solved).
+    end: Option<[f64; 3]>,
+    /// The targets before it: where each leaves the tool in the compensated program.
+    ends: &'a [Option<[f64; 3]>],
+    /// The first bytes of the numbers rewritten so far.
+    rewritten: &'a std::collections::HashSet<usize>,
+}
+
+impl CompensateJob {
+    /// A G-code target's edits kept only when they stay on its own block (the modal A, B,
+    /// C another block writes are not rewritten, nor used when that block's were), and an
+    /// arc's centre moved with its ends ([`crate::gcode::correct_arc`]).
+    fn gcode_block(
+        &self,
+        block: &GcodeBlock,
+        edits: Result<Vec<Edit>, correct::Failure>,
+        seed: &[f64],
+        entry: &TargetLine,
+    ) -> Result<Vec<Edit>, correct::Failure> {
+        let mut edits = edits?;
+        let src = block.src;
+        let target = &self.program.targets[block.index];
+        let TargetKind::Cartesian(c) = &target.kind else {
+            return Ok(edits);
+        };
+        let bytes = src.bytes;
+        let line_start = bytes[..target.offset]
+            .iter()
+            .rposition(|b| *b == b'\n' || *b == b'\r')
+            .map_or(0, |p| p + 1);
+        let line_end = bytes[target.offset..]
+            .iter()
+            .position(|b| *b == b'\n' || *b == b'\r')
+            .map_or(bytes.len(), |p| target.offset + p);
+        let elsewhere = |n: &Number| n.span.0 < line_start || n.span.1 > line_end;
+        if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
+            if let Some(n) = abc.iter().find(|n| elsewhere(n)) {
+                let (line, _) = src.location(n.span.0);
+                let incomplete = |why: String| Err((TargetStatus::Incomplete, why));
+                if edits
+                    .iter()
+                    .any(|((start, end), _)| *start < line_start || *end > line_end)
+                {
+                    return incomplete(format!(
+                        "A, B, C not written on this block (modal from line {line}), and the correction turns the tool by {:.6}°",
+                        entry.rotation_deg.unwrap_or(0.0)
+                    ));
+                }
+                if abc
+                    .iter()
+                    .any(|n| elsewhere(n) && block.rewritten.contains(&n.span.0))
+                {
+                    return incomplete(format!(
+                        "A, B, C not written on this block: modal from line {line}, whose A, B, C the correction rewrote"
+                    ));
+                }
+            }
+        }
+        let Some(arc) = self.arcs.get(block.index).and_then(Option::as_ref) else {
+            return Ok(edits);
+        };
+        let arc_refused = |why: String| Err((TargetStatus::Unaccounted(Reason::ArcTolerance), why));
+        let Some(start_out) = block.ends.get(arc.start_target).copied().flatten() else {
+            return arc_refused("its start's block was not read as a target".into());
+        };
+        let end_mm = c.position.map(|n| n.value * c.unit.mm());
+        let end_out = block.end.unwrap_or(end_mm);
+        let [chain] = block.chains else {
+            return arc_refused("its frames are not one".into());
+        };
+        let rotation = match &c.orientation {
+            Some(o) => rotation_of(o),
+            None => None,
+        };
+        let limits = &self.options.limits;
+        let posture = Posture::default();
+        let mut correct_point = |p: [f64; 3]| -> Result<[f64; 3], String> {
+            let pose = Isometry3::from_parts(
+                Vector3::from(p).into(),
+                nalgebra::UnitQuaternion::from_rotation_matrix(
+                    &rotation.unwrap_or_else(nalgebra::Rotation3::identity),
+                ),
+            );
+            let point = chain.table_point(&pose);
+            let command = correct::solve(
+                &self.table,
+                self.kinematics.as_ref(),
+                limits,
+                correct::Request {
+                    target: &point,
+                    orientation: rotation.is_some(),
+                    posture: &posture,
+                    target_joints: None,
+                    seed,
+                },
+            )
+            .map_err(|(status, detail)| format!("{} {detail}", status.as_str()))?;
+            Ok(chain.program_pose(&command.point).translation.vector.into())
+        };
+        let centre = crate::gcode::correct_arc(
+            arc,
+            end_mm,
+            start_out,
+            end_out,
+            self.options.gcode.arc_tolerance_mm,
+            &mut correct_point,
+        );
+        match centre {
+            Ok(numbers) => {
+                for (n, value) in numbers {
+                    if let Some(text) =
+                        rewrite(&n, &bytes[n.span.0..n.span.1], value, c.unit.decimals())
+                    {
+                        edits.push((n.span, text));
+                    }
+                }
+                Ok(edits)
+            }
+            Err(why) => arc_refused(why),
+        }
+    }
+}
 
 /// The report's figures of a solved command.
 fn fill(

@@ -16,19 +16,28 @@ pub enum Format {
     UrScript,
     /// A CSV of poses, as `tablec query --targets` reads them.
     Csv,
+    /// G-code (ISO 6983): a `.nc`, `.ngc`, `.gcode` or `.tap` file.
+    Gcode,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 4] = [Format::Krl, Format::Rapid, Format::UrScript, Format::Csv];
+    pub const ALL: [Format; 5] = [
+        Format::Krl,
+        Format::Rapid,
+        Format::UrScript,
+        Format::Csv,
+        Format::Gcode,
+    ];
 
-    /// The name the command line takes (`krl`, `rapid`, `urscript`, `csv`).
+    /// The name the command line takes (`krl`, `rapid`, `urscript`, `csv`, `gcode`).
     pub fn name(self) -> &'static str {
         match self {
             Format::Krl => "krl",
             Format::Rapid => "rapid",
             Format::UrScript => "urscript",
             Format::Csv => "csv",
+            Format::Gcode => "gcode",
         }
     }
 
@@ -38,7 +47,8 @@ impl Format {
     }
 
     /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
-    /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV.
+    /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
+    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code.
     pub fn from_path(path: &std::path::Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
@@ -46,6 +56,7 @@ impl Format {
             "mod" | "modx" | "prg" | "sys" => Format::Rapid,
             "script" | "urscript" => Format::UrScript,
             "csv" => Format::Csv,
+            "nc" | "ngc" | "gcode" | "tap" => Format::Gcode,
             _ => return None,
         })
     }
@@ -102,6 +113,10 @@ pub enum Reason {
     /// A motion to a name declared neither in the file nor in its partner (a global of
     /// another module or of the controller's configuration).
     NotDeclared,
+    /// A G-code arc whose centre, moved with its corrected ends, does not keep the arc
+    /// within the tolerance of the corrected path (or whose path the table does not
+    /// correct throughout).
+    ArcTolerance,
 }
 
 impl Reason {
@@ -114,6 +129,7 @@ impl Reason {
             Reason::ExternalAxis => "external_axis",
             Reason::UnknownMotion => "unknown_motion",
             Reason::NotDeclared => "not_declared",
+            Reason::ArcTolerance => "arc_tolerance",
         }
     }
 }
@@ -152,6 +168,8 @@ pub enum LengthUnit {
     Millimetre,
     /// Metres (URScript).
     Metre,
+    /// Inches (G-code after `G20`).
+    Inch,
 }
 
 impl LengthUnit {
@@ -160,14 +178,17 @@ impl LengthUnit {
         match self {
             LengthUnit::Millimetre => 1.0,
             LengthUnit::Metre => 1000.0,
+            LengthUnit::Inch => 25.4,
         }
     }
 
-    /// The decimals that keep a length to 1e-4 mm (rule 1 of the crate docs): 4 in mm, 7 in m.
+    /// The decimals that keep a length to 1e-4 mm (rule 1 of the crate docs): 4 in mm, 7 in m,
+    /// 6 in inches.
     pub fn decimals(self) -> usize {
         match self {
             LengthUnit::Millimetre => 4,
             LengthUnit::Metre => 7,
+            LengthUnit::Inch => 6,
         }
     }
 }

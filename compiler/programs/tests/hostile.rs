@@ -1,14 +1,14 @@
 //! Hostile programs: the fixtures mutated byte by byte, and random bytes, through every
 //! reader and the whole job. Every outcome is a program or an error located by file, line
 //! and column; never a panic, never a non-finite number written. Every case goes through
-//! every dialect (KRL `.src` and `.dat`, RAPID, URScript, CSV), a fixed number of cases
+//! every dialect (KRL `.src` and `.dat`, RAPID, URScript, CSV, G-code), a fixed number of cases
 //! (the same on every machine, a few seconds in all).
 
 use adwi_programs::source::Source;
 use adwi_programs::{CompensateJob, CompensateOptions, Error, Format};
 use proptest::prelude::*;
 
-const FIXTURES: [(&str, &[u8]); 5] = [
+const FIXTURES: [(&str, &[u8]); 6] = [
     (
         "weld.dat",
         include_bytes!("../../../tests/programs/weld.dat"),
@@ -29,10 +29,14 @@ const FIXTURES: [(&str, &[u8]); 5] = [
         "targets.csv",
         include_bytes!("../../../tests/programs/targets.csv"),
     ),
+    (
+        "pocket.nc",
+        include_bytes!("../../../tests/programs/pocket.nc"),
+    ),
 ];
 
 /// Bytes that matter to the readers, and some that do not.
-const ALPHABET: &[u8] = b"0123456789.-+eE{}[](),;:=!#%\"'\\ \t\r\nXYZABCSTpP\xdf\x00";
+const ALPHABET: &[u8] = b"0123456789.-+eE{}[](),;:=!#%\"'\\ \t\r\nXYZABCSTpPGNIJR\xdf\x00";
 
 /// A mutation: at a position (a fraction of the length), replace, insert or delete a byte.
 fn mutations() -> impl Strategy<Value = Vec<(f64, u8, usize)>> {
@@ -63,6 +67,14 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
         Format::Rapid => adwi_programs::rapid::read(&src),
         Format::UrScript => adwi_programs::urscript::read(&src),
         Format::Csv => adwi_programs::csv::read(&src),
+        Format::Gcode => adwi_programs::gcode::read(
+            &src,
+            &adwi_programs::gcode::GcodeOptions {
+                work_offsets: vec![(54, [1750.0, 450.0, 1200.0, 0.0, 0.0, 0.0])],
+                ..Default::default()
+            },
+        )
+        .map(|r| r.program),
     };
     match result {
         Ok(_) => Ok(()),
@@ -175,6 +187,7 @@ fn job_on_a_mutated_program(
         }
         options.tool = Some([0.0, 0.0, 100.0, 0.0, 0.0, 0.0]);
         options.base = Some([0.0; 6]);
+        options.gcode.work_offsets = vec![(54, [1750.0, 450.0, 1200.0, 0.0, 0.0, 0.0])];
         if let Ok(job) = CompensateJob::new(options) {
             let done = job.run().unwrap();
             prop_assert_eq!(done.report.targets.len(), job.program().targets.len());

@@ -19,14 +19,14 @@ use crate::Answered;
 pub struct Args {
     /// The correction table.
     table: PathBuf,
-    /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script) or a CSV of
-    /// poses (.csv).
+    /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script), G-code
+    /// (.nc, .ngc, .gcode, .tap) or a CSV of poses (.csv).
     program: PathBuf,
     /// The compensated program (never one of the inputs; written atomically).
     #[arg(short, long)]
     output: PathBuf,
     /// The program's format [default: by its extension].
-    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv"])]
+    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode"])]
     format: Option<String>,
     /// A robot file (TOML, or URDF by its .urdf extension, with --base-link/--tip-link):
     /// for joint targets, and to check every command's posture (inverse kinematics in the
@@ -51,6 +51,19 @@ pub struct Args {
     /// hybrid table's own (with --robot); else the robot file's tool; else the flange].
     #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = frame)]
     table_tool: Option<Frame>,
+    /// G-code: how A, B, C (degrees) write the tool's orientation: kuka, R = Rz(A)·Ry(B)·Rx(C);
+    /// xyz, fixed-axis rotations about x by A, then y by B, then z by C.
+    #[arg(long, value_name = "CONVENTION", default_value = "kuka", value_parser = ["kuka", "xyz"])]
+    gcode_abc: String,
+    /// G-code: a work offset G54-G59 in the robot's base frame, G54=X,Y,Z[,A,B,C] (mm, KUKA
+    /// degrees); repeat for each the program selects (a move in one not given is reported
+    /// frame_unknown).
+    #[arg(long, value_name = "G5n=X,Y,Z[,A,B,C]", allow_hyphen_values = true, value_parser = adwi_programs::gcode::parse_work_offset)]
+    work_offset: Vec<(u8, [f64; 6])>,
+    /// G-code: how far a corrected arc (G2/G3, its centre moved with its ends) may lie from
+    /// the corrected path, mm; an arc beyond it is left unchanged (arc_tolerance).
+    #[arg(long, default_value_t = adwi_programs::gcode::DEFAULT_ARC_TOLERANCE_MM)]
+    arc_tolerance_mm: f64,
     /// Refuse (leave unchanged, report) a correction larger than this, mm.
     #[arg(long, default_value_t = adwi_programs::DEFAULT_MAX_CORRECTION_MM)]
     max_correction_mm: f64,
@@ -104,6 +117,11 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     options.limits.beyond_evidence = args.beyond_evidence;
     options.max_seconds = args.max_seconds;
     options.max_memory_bytes = args.max_memory_mb.saturating_mul(1_000_000);
+    options.gcode = adwi_programs::gcode::GcodeOptions {
+        abc: adwi_programs::gcode::AbcConvention::from_name(&args.gcode_abc).unwrap_or_default(),
+        work_offsets: args.work_offset,
+        arc_tolerance_mm: args.arc_tolerance_mm,
+    };
     let job = CompensateJob::new(options)?;
     let done = match job.run() {
         // --strict: every target unaccounted or not corrected is the exit status 3 that
