@@ -721,6 +721,7 @@ def compensate_program(
     strict: bool = False,
     max_seconds: float = 300.0,
     beyond_evidence: bool = False,
+    krl_config: Optional[Union[str, os.PathLike]] = None,
 ) -> CompensatedProgram:
     """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
     URScript or CSV program replaced by the command that lands on it (docs/programs.md).
@@ -732,7 +733,9 @@ def compensate_program(
     tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
     leaving any target unchanged. ``beyond_evidence``: correct a position-only table's
     targets at orientations its samples never had instead of refusing them (status
-    ``beyond_evidence``; each target's ``evidence`` says where it lies). A malformed program raises :class:`AdwiError` naming
+    ``beyond_evidence``; each target's ``evidence`` says where it lies). ``krl_config``: a
+    KUKA controller's ``$config.dat``, whose ``TOOL_DATA[n]`` and ``BASE_DATA[n]`` a KRL
+    program selects (tablec's ``--krl-config``). A malformed program raises :class:`AdwiError` naming
     ``file:line:column``.
     """
     path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
@@ -754,5 +757,6 @@ def compensate_program(
         strict=strict,
         max_seconds=max_seconds,
         beyond_evidence=beyond_evidence,
+        krl_config=path(krl_config),
     )
     return CompensatedProgram(bytes(out), targets, summary)

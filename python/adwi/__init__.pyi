@@ -359,4 +359,5 @@ def compensate_program(
     strict: bool = False,
     max_seconds: float = 300.0,
     beyond_evidence: bool = False,
+    krl_config: Optional[PathLike] = None,
 ) -> CompensatedProgram: ...

@@ -976,7 +976,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -996,6 +996,7 @@ fn compensate_program<'py>(
     strict: bool,
     max_seconds: f64,
     beyond_evidence: bool,
+    krl_config: Option<PathBuf>,
 ) -> PyResult<(
     Bound<'py, pyo3::types::PyBytes>,
     Bound<'py, PyList>,
@@ -1024,6 +1025,7 @@ fn compensate_program<'py>(
     options.strict = strict;
     options.max_seconds = max_seconds;
     options.limits.beyond_evidence = beyond_evidence;
+    options.krl_config = krl_config;
     let done = py
         .allow_threads(|| -> Result<_, adwi_programs::Error> {
             let job = CompensateJob::new(options)?;

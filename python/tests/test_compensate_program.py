@@ -39,6 +39,31 @@ def test_the_kr150_programs_match_tablec(tablec, kr150_table, tmp_path, program)
             assert all(f"{v:.9f}" == r[f"command_{a}"] for v, a in zip(t["command_mm"], "xyz"))
 
 
+def test_a_krl_seam_in_the_frames_of_its_config_dat_matches_tablec(tablec, kr150_table, tmp_path):
+    robot = KR150 / "robot.toml"
+    config = PROGRAMS / "config.dat"
+    done = adwi.compensate_program(
+        kr150_table, PROGRAMS / "seam.dat", robot=robot, krl_config=config
+    )
+    cli_out = tmp_path / "cli-seam.dat"
+    run = subprocess.run(
+        [tablec, "compensate", kr150_table, PROGRAMS / "seam.dat", "-o", cli_out,
+         "--robot", robot, "--krl-config", config],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 3, run.stderr
+    assert cli_out.read_bytes() == done.output
+    statuses = {t["name"]: t["status"] for t in done.targets}
+    assert statuses["XP7"] == "frame_unknown" and statuses["XP8"] == "external_axis"
+    assert (done.summary["corrected"], done.summary["total"]) == (7, 9)
+    # Without the configuration, the torch of TOOL_DATA[1] is named, not taken as the flange.
+    bare = adwi.compensate_program(kr150_table, PROGRAMS / "seam.dat", robot=robot)
+    assert [t for t in bare.targets if t["name"] == "XP1"][0]["detail"].startswith(
+        "tool TOOL_DATA[1] not given"
+    )
+
+
 def test_the_ur5_hybrid_program_and_its_frames(ur5_hybrid_table, tmp_path):
     done = adwi.compensate_program(
         ur5_hybrid_table, PROGRAMS / "pick.script", robot=UR5 / "robot.toml"
