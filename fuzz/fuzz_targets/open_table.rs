@@ -31,8 +31,10 @@ fuzz_target!(|data: &[u8]| {
     }
     // Joint angles: none moved, a sample's, read from the input's tail, not finite.
     let mut joints = vec![[0.0; 6], [0.0, 0.0, 0.0, 0.0, 0.0, f64::NAN]];
-    if let Some(q) = table.data().and_then(|d| d.joints_rad.first()) {
-        joints.push(q.map(|v| v.to_native()));
+    if let Some(adwi_runtime::Payload::V2(d)) = table.payload() {
+        if let Some(q) = d.joints_rad.get(..6) {
+            joints.push(std::array::from_fn(|i| q[i].to_native()));
+        }
     }
     for q in words.chunks_exact(6).take(2) {
         joints.push([q[0], q[1], q[2], q[3], q[4], q[5]]);
