@@ -622,9 +622,11 @@ fn is_motion(src: &Source, t: &Token) -> Option<&'static Motion> {
 /// A word that looks like a motion but is not in [`MOTIONS`] (`LIN_ABS`, `SPL_REL`).
 fn looks_like_motion(src: &Source, t: &Token) -> bool {
     let word = src.text(t.start, t.end).to_ascii_uppercase();
-    ["PTP_", "LIN_", "CIRC_", "SPTP_", "SLIN_", "SCIRC_", "SPL_"]
-        .iter()
-        .any(|p| word.starts_with(p))
+    // `PTP_SPLINE … ENDSPLINE` opens a block of spline motions; it moves nothing itself.
+    word != "PTP_SPLINE"
+        && ["PTP_", "LIN_", "CIRC_", "SPTP_", "SLIN_", "SCIRC_", "SPL_"]
+            .iter()
+            .any(|p| word.starts_with(p))
 }
 
 fn word_is(src: &Source, t: Option<&Token>, word: &str) -> bool {
@@ -1435,6 +1437,19 @@ mod tests {
         assert_eq!(
             t[0].refused.as_ref().map(|r| r.reason),
             Some(Reason::Dynamic)
+        );
+        // A spline block opens with PTP_SPLINE, which moves nothing; LIN_ABS is no motion
+        // this reader knows.
+        let t = targets(
+            "PTP_SPLINE SB1\nSPTP {A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}\nENDSPLINE\nLIN_ABS XP1\n",
+        );
+        let seen: Vec<(&str, Option<Reason>)> = t
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect();
+        assert_eq!(
+            seen,
+            [("SPTP", None), ("LIN_ABS", Some(Reason::UnknownMotion))]
         );
     }
 
