@@ -23,9 +23,9 @@ const PARAMS: PostureParams = PostureParams {
 
 struct Fixture {
     samples: adwi_samples::SampleSet,
-    /// Built without the term (version 2).
+    /// Built without the term (version 4: the samples' orientations recorded).
     without: Vec<u8>,
-    /// The same build with the term of [`PARAMS`] (version 3).
+    /// The same build with the term of [`PARAMS`] (version 4 with the term).
     with: Vec<u8>,
 }
 
@@ -93,12 +93,14 @@ fn pose_near(
 }
 
 #[test]
-fn a_table_with_the_term_is_version_3_and_one_without_is_version_2() {
+fn a_table_with_the_term_holds_it_and_one_without_is_the_same_table_without() {
     let f = fixture();
     let without = Table::from_vec(&f.without).unwrap();
     let with = Table::from_vec(&f.with).unwrap();
-    assert_eq!(without.header().version, 2);
-    assert_eq!(with.header().version, 3);
+    // Both record their evidence (version 4); the payload is version 3's with the term,
+    // version 2's without.
+    assert_eq!((without.header().version, with.header().version), (4, 4));
+    assert!(!without.header().has_posture() && with.header().has_posture());
     assert!(without.posture().is_none());
     assert_eq!(with.posture(), Some(PARAMS));
     // The term off writes what a build without the option writes, byte for byte.
@@ -242,7 +244,7 @@ fn a_fitted_term_is_byte_identical_at_one_and_two_threads() {
         pool.install(|| common::hybrid_table_bytes(&samples, &model, &options(Posture::Fit)))
     };
     let one = build(1);
-    assert_eq!(Table::from_vec(&one).unwrap().header().version, 3);
+    assert!(Table::from_vec(&one).unwrap().header().has_posture());
     assert!(one == build(2), "the bytes depend on the thread count");
 }
 

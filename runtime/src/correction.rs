@@ -143,10 +143,10 @@ impl Target {
 /// when it lies within (docs/runtime.md, "Evidence"). The positions the samples span are
 /// the grid and the residual flag's ([`Residual`]); these are the rest.
 ///
-/// A flagged answer is still the table's best: on a hybrid table the calibrated model
-/// answers beyond the samples (and the residual learnt at other orientations is left
-/// out, [`Residual::ModelOnly`]); on a position-only table nothing carries the answer
-/// there, and `tablec compensate` refuses such targets unless told otherwise.
+/// A flagged answer is still the table's best, and continuous across the evidence's edge:
+/// on a hybrid table the calibrated model carries it beyond the samples; on a
+/// position-only table nothing does, and `tablec compensate` refuses such targets unless
+/// told otherwise.
 #[repr(transparent)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Evidence(pub u8);

@@ -652,12 +652,11 @@ impl<D: AsRef<[u8]>> Table<D> {
             position_mm: model_part.map_or(target.position_mm, |m| m.point_mm),
             ..*target
         };
+        // Flagged, not switched: the answer stays continuous across the edge of the
+        // samples' evidence (on the KR150-2 hybrid table the residual left in changes the
+        // figures beyond it by under 0.002 mm).
         let mut evidence = self.evidence_of(target, model_part.as_ref());
-        // A hybrid table's residual was learnt at its samples' orientations: beyond them
-        // the model answers alone, and says so.
-        let residual_beyond = evidence.contains(Evidence::ORIENTATION) && self.model.is_some();
         let site = match (payload, &self.served, tier) {
-            _ if residual_beyond => None,
             _ if early_site.is_some() => early_site,
             (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
                 grid,
@@ -667,35 +666,31 @@ impl<D: AsRef<[u8]>> Table<D> {
             )),
             _ => None,
         };
-        let mut correction = if residual_beyond {
-            Correction::model_only()
-        } else {
-            match payload {
-                Payload::V1(d) => exact::interpolate(&V1(d), h, &point, joints_rad),
-                Payload::V2(d) => match (&self.served, site) {
-                    (Some(_), Some(Err(status))) => Correction::failed(status),
-                    (Some(grid), Some(Ok(site))) => {
-                        let orientation = self.has_orientation();
-                        if h.served_field.node_stride() == 1 {
-                            match crate::served::blend_site::<1>(grid, d, &site, orientation) {
-                                Ok(terms) => terms.correction(),
-                                Err(status) => Correction::failed(status),
-                            }
-                        } else {
-                            match crate::served::blend_site::<4>(grid, d, &site, orientation) {
-                                Err(status) => Correction::failed(status),
-                                // Validation admits such a field in hybrid tables only, and
-                                // those were given joint values above.
-                                Ok(terms) => match &model_part {
-                                    Some(m) => terms.turned(m.at.approach),
-                                    None => Correction::failed(Status::InvalidInput),
-                                },
-                            }
+        let mut correction = match payload {
+            Payload::V1(d) => exact::interpolate(&V1(d), h, &point, joints_rad),
+            Payload::V2(d) => match (&self.served, site) {
+                (Some(_), Some(Err(status))) => Correction::failed(status),
+                (Some(grid), Some(Ok(site))) => {
+                    let orientation = self.has_orientation();
+                    if h.served_field.node_stride() == 1 {
+                        match crate::served::blend_site::<1>(grid, d, &site, orientation) {
+                            Ok(terms) => terms.correction(),
+                            Err(status) => Correction::failed(status),
+                        }
+                    } else {
+                        match crate::served::blend_site::<4>(grid, d, &site, orientation) {
+                            Err(status) => Correction::failed(status),
+                            // Validation admits such a field in hybrid tables only, and
+                            // those were given joint values above.
+                            Ok(terms) => match &model_part {
+                                Some(m) => terms.turned(m.at.approach),
+                                None => Correction::failed(Status::InvalidInput),
+                            },
                         }
                     }
-                    _ => exact::interpolate(&V2::new(d, h), h, &point, joints_rad),
-                },
-            }
+                }
+                _ => exact::interpolate(&V2::new(d, h), h, &point, joints_rad),
+            },
         };
         // A hybrid table's model holds everywhere: where the method has no neighbour, or
         // the target is outside the grid, the answer is the model alone.
@@ -709,8 +704,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if correction.status != Status::Ok {
             return correction;
         }
-        let posture_applies = !residual_beyond && tier == Tier::Served;
-        if let (Some(posture), Some(q), true) = (&self.posture, joints_rad, posture_applies) {
+        if let (Some(posture), Some(q), Tier::Served) = (&self.posture, joints_rad, tier) {
             let term = self
                 .posture_record()
                 .and_then(|r| posture.term(r, point.position_mm, q));
