@@ -19,6 +19,7 @@ mod no_alloc;
 mod outputs;
 mod posture;
 mod programs;
+mod programs_gcode;
 mod robot_mutation;
 mod robots;
 mod shipped_kr150_data;
