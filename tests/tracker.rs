@@ -223,8 +223,9 @@ fn measured_in_tracker_needs_a_robot() {
 }
 
 /// A validation series measured after the tracker moved: read through the samples'
-/// registration its errors hold the move; registered apart (the probe kept), the
-/// calibration predicts it as well as the samples themselves.
+/// registration its errors hold the move, far beyond any robot's, and it is refused as
+/// samples the robot does not fit; registered apart (the probe kept), the calibration
+/// predicts it as well as the samples themselves.
 #[test]
 fn a_validation_series_from_a_moved_tracker_is_registered_apart() {
     let dir = tempfile::tempdir().unwrap();
@@ -238,7 +239,7 @@ fn a_validation_series_from_a_moved_tracker_is_registered_apart() {
         .compose(&tracker());
     write_series(dir.path(), "moved.csv", &deviations, &moved, 4);
     let robot = repo("tables/ur10/robot.toml");
-    let kinematic_mean_mm = |apart: bool| -> f64 {
+    let eval = |apart: bool| {
         let mut args = vec![
             "eval",
             "train.csv",
@@ -254,23 +255,27 @@ fn a_validation_series_from_a_moved_tracker_is_registered_apart() {
         if apart {
             args.push("--register-validation-apart");
         }
-        let o = tablec(&args, dir.path());
-        let (out, err) = text(&o);
-        assert!(o.status.success(), "{err}");
-        assert_eq!(
-            out.contains("validation     registered apart"),
-            apart,
-            "{out}"
-        );
-        line(&out, "kinematic ")
-            .split_whitespace()
-            .nth(4)
-            .unwrap()
-            .parse()
-            .unwrap()
+        tablec(&args, dir.path())
     };
-    assert!(kinematic_mean_mm(false) > 1.0);
-    assert!(kinematic_mean_mm(true) < 1e-6);
+    let o = eval(false);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("moved.csv: registered to the robot file, the measured positions lie more")
+            && err.contains("are the rows one tracker frame's"),
+        "{err}"
+    );
+    let o = eval(true);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("validation     registered apart"), "{out}");
+    let mean: f64 = line(&out, "kinematic ")
+        .split_whitespace()
+        .nth(4)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(mean < 1e-6, "{out}");
 }
 
 /// Two series of one robot measured from two tracker positions train one calibration:

@@ -193,6 +193,14 @@ pub enum Warning {
     Samples(adwi_samples::SampleWarning),
     /// A registration of tracker-frame measurements whose fit no robot's error explains.
     Registration(adwi_robot::register::RegisterWarning),
+    /// Samples the robot file fits only with another tool or base frame than its own
+    /// ([`adwi_robot::agreement`]): the identification takes it up.
+    Agreement {
+        /// The samples file.
+        path: PathBuf,
+        /// The tool or frame, and how well the samples fit with it.
+        fitting: adwi_robot::agreement::Fitting,
+    },
     /// The served field could not be chosen by cross-validation (too few samples, or a
     /// fold that could not be evaluated): the table serves the method's own answer.
     ServedFieldNotChosen {
@@ -246,6 +254,14 @@ impl fmt::Display for Warning {
             }
             Warning::Samples(w) => write!(f, "{w}"),
             Warning::Registration(w) => write!(f, "{w}"),
+            Warning::Agreement { path, fitting } => write!(
+                f,
+                "{}: the robot file's nominal forward kinematics puts the tool more than {} mm \
+                 from the samples' commanded x,y,z, but they fit {fitting}: the identification \
+                 takes it up; give it in the robot file for a model that describes the samples",
+                path.display(),
+                adwi_robot::agreement::MAX_NOMINAL_MISS_MM
+            ),
         }
     }
 }

@@ -40,6 +40,8 @@ pub(crate) struct Series {
     pub others: Vec<Registration>,
     /// What registers the later series again once the robot is identified.
     later: Option<Later>,
+    /// Series the robot file fits only with another tool or base frame.
+    agreement: Vec<crate::Warning>,
 }
 
 /// Tracker-frame series after the first, kept to be registered again.
@@ -79,9 +81,16 @@ pub(crate) fn read(
                 .map(|s| s.input().samples(columns, read))
                 .collect::<Result<Vec<_>, _>>()?;
             check_series(&rows(sources, &sets, |s| &s.nominal_mm))?;
+            let mut warnings = Vec::new();
             if let Some(robot) = robot {
                 for (source, set) in sources.iter().zip(&sets) {
-                    agreement::check_base_frame(robot, set, source.name())?;
+                    let agreed = agreement::check_base_frame(robot, set, source.name())?;
+                    if let Some(fitting) = agreed.reading {
+                        warnings.push(crate::Warning::Agreement {
+                            path: source.name().to_path_buf(),
+                            fitting,
+                        });
+                    }
                 }
             }
             return Ok(Series {
@@ -89,6 +98,7 @@ pub(crate) fn read(
                 registered: None,
                 others: Vec::new(),
                 later: None,
+                agreement: warnings,
             });
         }
     };
@@ -115,6 +125,7 @@ pub(crate) fn read(
             registered: Some(registered),
             others: Vec::new(),
             later: None,
+            agreement: Vec::new(),
         });
     }
     let later = Later {
@@ -131,6 +142,7 @@ pub(crate) fn read(
         registered: Some(registered),
         others,
         later: Some(later),
+        agreement: Vec::new(),
     })
 }
 
@@ -156,12 +168,13 @@ impl Series {
     /// What the samples and their registrations warn about: samples that look like
     /// another unit, registrations no robot's error explains.
     pub(crate) fn warnings(&self) -> Vec<crate::Warning> {
-        let mut out: Vec<crate::Warning> = self
-            .samples
-            .plausibility_warnings()
-            .into_iter()
-            .map(crate::Warning::Samples)
-            .collect();
+        let mut out: Vec<crate::Warning> = self.agreement.clone();
+        out.extend(
+            self.samples
+                .plausibility_warnings()
+                .into_iter()
+                .map(crate::Warning::Samples),
+        );
         let registrations = self
             .registered
             .iter()

@@ -134,6 +134,8 @@ pub enum Reading {
         translation_mm: [f64; 3],
         /// Its rotation angle, degrees.
         rotation_deg: f64,
+        /// Its rotation, a rotation vector, rad.
+        rotation_rad: [f64; 3],
     },
     /// The commanded positions of another tool than the robot file's: a tool offset on
     /// the flange fits them.
@@ -155,7 +157,7 @@ pub struct Fitting {
 }
 
 /// How well samples the robot file fits agree with it: their misses' figures.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Agreement {
     /// Samples compared (none without joint values).
     pub samples: usize,
@@ -163,6 +165,11 @@ pub struct Agreement {
     pub median_mm: f64,
     /// The worst miss, when there were samples.
     pub worst: Option<Miss>,
+    /// Another tool or base frame than the robot file's under which every sample fits,
+    /// when the robot file's own does not: the identification takes it up (its tool and
+    /// base parameters; an error model does not depend on a constant offset), so the
+    /// samples are accepted and the caller warns.
+    pub reading: Option<Fitting>,
 }
 
 /// The frame the samples' positions were compared in.
@@ -195,7 +202,7 @@ pub enum Disagreement {
         /// The worst miss.
         worst: Miss,
         /// The reading that fits, when one of the usual mistakes explains the misses.
-        fitting: Option<Fitting>,
+        fitting: Option<Box<Fitting>>,
     },
     /// A few samples miss among samples that fit: damaged or misplaced rows.
     #[error("{}", outliers_text(self))]
@@ -211,6 +218,43 @@ pub enum Disagreement {
         /// Every sample that misses by more than [`MAX_NOMINAL_MISS_MM`], in file order.
         outliers: Vec<Miss>,
     },
+}
+
+impl std::fmt::Display for Fitting {
+    /// The reading in words, with its figures: what a warning about accepted samples says.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let figures = format!(
+            "median miss {} mm, worst {} mm",
+            mm(self.median_mm),
+            mm(self.worst_mm)
+        );
+        match &self.reading {
+            Reading::Units(mistakes) => {
+                let whats: Vec<&str> = mistakes.iter().map(|m| m.what()).collect();
+                write!(f, "with {} ({figures})", whats.join(" and "))
+            }
+            Reading::Frame {
+                translation_mm: t,
+                rotation_deg,
+                ..
+            } => write!(
+                f,
+                "in a frame {}, {}, {} mm and {rotation_deg:.2}° from the robot file's base \
+                 ({figures})",
+                mm(t[0]),
+                mm(t[1]),
+                mm(t[2])
+            ),
+            Reading::Tool { translation_mm: t } => write!(
+                f,
+                "with a tool at ({}, {}, {}) mm on the flange instead of the robot file's \
+                 ({figures})",
+                mm(t[0]),
+                mm(t[1]),
+                mm(t[2])
+            ),
+        }
+    }
 }
 
 /// A length as messages write it: two decimals, exponent form beyond a million.
@@ -257,7 +301,7 @@ fn systematic_text(d: &Disagreement) -> String {
         mm(worst.miss_mm),
         worst.line
     );
-    match fitting {
+    match fitting.as_deref() {
         Some(Fitting {
             reading,
             median_mm,
@@ -277,6 +321,7 @@ fn systematic_text(d: &Disagreement) -> String {
                 Reading::Frame {
                     translation_mm: t,
                     rotation_deg,
+                    ..
                 } => text.push_str(&format!(
                     ": a rigid transform of the robot's positions (translation {}, {}, {} mm, \
                      rotation {rotation_deg:.2}°) fits them ({figures}): the positions are in \
@@ -396,6 +441,7 @@ fn judge(
                 .iter()
                 .copied()
                 .max_by(|a, b| a.miss_mm.total_cmp(&b.miss_mm)),
+            reading: None,
         });
     }
     if median_mm > MAX_NOMINAL_MISS_MM {
@@ -411,7 +457,7 @@ fn judge(
             samples: misses.len(),
             median_mm,
             worst,
-            fitting: diagnose(),
+            fitting: diagnose().map(Box::new),
         });
     }
     Err(Disagreement::Outliers {
@@ -511,6 +557,7 @@ pub fn check_base_frame(
             samples: 0,
             median_mm: 0.0,
             worst: None,
+            reading: None,
         });
     };
     let tcp = |q: &[f64]| -> Vector3<f64> { robot.tcp_pose(q).translation.vector };
@@ -523,9 +570,61 @@ pub fn check_base_frame(
             miss_mm: miss(joints.row(i), samples.nominal_mm[i], 1.0),
         })
         .collect();
-    judge(path, Compared::Base, misses, || {
+    let judged = judge(path, Compared::Base, misses, || {
         diagnose_base(robot, joints, &samples.nominal_mm, &subset(samples.len()))
-    })
+    });
+    // Another tool or base frame: accepted when every sample fits with it.
+    let Err(Disagreement::Systematic {
+        fitting: Some(fitting),
+        ..
+    }) = &judged
+    else {
+        return judged;
+    };
+    if matches!(fitting.reading, Reading::Units(_)) {
+        return judged;
+    }
+    let under: Vec<Miss> = (0..samples.len())
+        .map(|i| Miss {
+            line: samples.lines[i],
+            miss_mm: miss_under(
+                robot,
+                &fitting.reading,
+                joints.row(i),
+                samples.nominal_mm[i],
+            ),
+        })
+        .collect();
+    match judge(path, Compared::Base, under, || None) {
+        Ok(agreement) => Ok(Agreement {
+            reading: Some(fitting.as_ref().clone()),
+            ..agreement
+        }),
+        Err(_) => judged,
+    }
+}
+
+/// The miss of a sample at joints `q` commanded to `p` under another tool or base frame
+/// (a unit reading is not one: the samples' own miss).
+fn miss_under(robot: &Robot, reading: &Reading, q: &[f64], p: [f64; 3]) -> f64 {
+    let pose = robot.tcp_pose(q);
+    let at = match reading {
+        Reading::Tool { translation_mm } => {
+            let flange = pose * isometry_from_transform(&robot.tool()).inverse();
+            flange.rotation * Vector3::from(*translation_mm) + flange.translation.vector
+        }
+        Reading::Frame {
+            translation_mm,
+            rotation_rad,
+            ..
+        } => {
+            nalgebra::Rotation3::from_scaled_axis(Vector3::from(*rotation_rad))
+                * pose.translation.vector
+                + Vector3::from(*translation_mm)
+        }
+        Reading::Units(_) => pose.translation.vector,
+    };
+    finite_or_infinite((at - Vector3::from(p)).norm())
 }
 
 /// The reading of base-frame samples that fits (module docs), tried at `at`.
@@ -578,12 +677,13 @@ fn diagnose_base(
             .zip(&target)
             .map(|(a, b)| finite_or_infinite((rotation * a + translation - b).norm()))
             .collect();
-        let angle = nalgebra::Rotation3::from_matrix_unchecked(rotation).angle();
+        let turn = nalgebra::Rotation3::from_matrix_unchecked(rotation);
         fittings.push((
             fitting(
                 Reading::Frame {
                     translation_mm: translation.into(),
-                    rotation_deg: angle.to_degrees(),
+                    rotation_deg: turn.angle().to_degrees(),
+                    rotation_rad: turn.scaled_axis().into(),
                 },
                 misses,
             ),
@@ -739,15 +839,6 @@ mod tests {
         (robot, adwi_samples::read_samples(&path, &map).unwrap())
     }
 
-    fn fitting(e: Disagreement) -> Reading {
-        match e {
-            Disagreement::Systematic {
-                fitting: Some(f), ..
-            } => f.reading,
-            other => panic!("{other}"),
-        }
-    }
-
     /// Every shipped data set fits its robot file (no false refusal), with room: the UR5's
     /// measurements and the KR150-2's simulated samples in the base frame, the UR10's
     /// three tracker-frame series each registered on its own. Prints the figures.
@@ -816,24 +907,24 @@ mod tests {
         }
     }
 
-    /// Positions in another frame (shifted and turned) are diagnosed as such, with the
-    /// transform; positions of another tool, with the tool.
+    /// Positions in another frame (shifted and turned), or of another tool, are accepted
+    /// with that frame or tool named (the identification takes it up); with a row damaged
+    /// besides, they are refused naming it.
     #[test]
-    fn another_frame_and_another_tool_are_named() {
+    fn another_frame_and_another_tool_are_accepted_and_named() {
         let (robot, samples) = ur5();
         let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.3);
         let mut moved = samples.clone();
         for p in &mut moved.nominal_mm {
             *p = (turn * Vector3::from(*p) + Vector3::new(100.0, -50.0, 30.0)).into();
         }
-        let e = check_base_frame(&robot, &moved, Path::new("moved.csv")).unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("another frame than the robot file's base"),
-            "{e}"
-        );
-        let Reading::Frame { rotation_deg, .. } = fitting(e) else {
-            panic!()
+        let a = check_base_frame(&robot, &moved, Path::new("moved.csv")).unwrap();
+        let Some(Fitting {
+            reading: Reading::Frame { rotation_deg, .. },
+            ..
+        }) = a.reading
+        else {
+            panic!("{a:?}")
         };
         assert!(
             (rotation_deg - 0.3f64.to_degrees()).abs() < 0.01,
@@ -846,13 +937,30 @@ mod tests {
             let flange = robot.tcp_pose(joints.row(i)).rotation;
             *p = (Vector3::from(*p) + flange * Vector3::new(0.0, 0.0, 150.0)).into();
         }
-        let e = check_base_frame(&robot, &tooled, Path::new("tooled.csv")).unwrap_err();
-        let Reading::Tool { translation_mm } = fitting(e) else {
-            panic!()
+        let a = check_base_frame(&robot, &tooled, Path::new("tooled.csv")).unwrap();
+        let Some(Fitting {
+            reading: Reading::Tool { translation_mm },
+            ..
+        }) = &a.reading
+        else {
+            panic!("{a:?}")
         };
         assert!(
             (translation_mm[2] - 181.0).abs() < 0.1,
             "{translation_mm:?}"
+        );
+        let text = a.reading.as_ref().unwrap().to_string();
+        assert!(
+            text.starts_with("with a tool at (-0.00, 0.09, 181.00) mm on the flange instead"),
+            "{text}"
+        );
+        // One row 100 mm off besides: refused, naming the tool that fits the others.
+        tooled.nominal_mm[7][0] += 100.0;
+        let e = check_base_frame(&robot, &tooled, Path::new("tooled.csv")).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("a tool at (-0.00, 0.09, 181.00) mm on the flange fits"),
+            "{e}"
         );
     }
 }
