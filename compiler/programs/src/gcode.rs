@@ -26,9 +26,6 @@
 //! `G54`-`G59` select a work offset, which the job's options give; a move in one they do
 //! not give is refused by its name (`frame_unknown`).
 
-use nalgebra::Isometry3;
-
-use crate::frames::kuka_pose;
 use crate::number::{parse_number, Number};
 use crate::program::{
     CartesianTarget, ConfigHint, Format, FrameUse, LengthUnit, Orientation, Program, ProgramTarget,
@@ -186,6 +183,10 @@ pub struct Read {
     pub program: Program,
     /// Per target (same order), its arc.
     pub arcs: Vec<Option<Box<Arc>>>,
+    /// Per target, the work offset it is commanded in (54-59, one the options give), 0 for
+    /// none (the job's base): kept beside the targets, whose own frame uses stay empty, so
+    /// that a long program's targets take no frame list each.
+    pub work_offsets: Vec<u8>,
 }
 
 /// A word's value: a number, or an expression (`#1`, `[#2+1]`) known when the program runs.
@@ -289,6 +290,7 @@ fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Er
 fn refuse(
     targets: &mut Vec<ProgramTarget>,
     arcs: &mut Vec<Option<Box<Arc>>>,
+    offsets: &mut Vec<u8>,
     at: usize,
     name: String,
     reason: Reason,
@@ -302,6 +304,7 @@ fn refuse(
         refused: Some(Refusal::new(reason, detail)),
     });
     arcs.push(None);
+    offsets.push(0);
 }
 
 /// A G or M code's number in tenths (`G1` 10, `G90.1` 901, `G54.1` 541), `None` beyond.
@@ -351,6 +354,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
     let bytes = src.bytes;
     let mut targets: Vec<ProgramTarget> = Vec::new();
     let mut arcs: Vec<Option<Box<Arc>>> = Vec::new();
+    let mut offsets: Vec<u8> = Vec::new();
     let mut first_motion = None;
     let mut truncated_at = None;
     // The modal state.
@@ -372,11 +376,6 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
     let mut position: [Option<f64>; 3] = [None; 3];
     // The target whose end is where the tool is, when a block wrote it in full.
     let mut at_target: Option<usize> = None;
-    let bases: Vec<(u8, Isometry3<f64>)> = options
-        .work_offsets
-        .iter()
-        .map(|(n, f)| (*n, kuka_pose([f[0], f[1], f[2]], [f[3], f[4], f[5]])))
-        .collect();
     let mut start = 0;
     let mut line_number = 0;
     while start < bytes.len() {
@@ -544,7 +543,15 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
         }
         if let Some((name, at, reason, detail)) = other_motion {
             first_motion.get_or_insert(at);
-            refuse(&mut targets, &mut arcs, at, name, reason, detail);
+            refuse(
+                &mut targets,
+                &mut arcs,
+                &mut offsets,
+                at,
+                name,
+                reason,
+                detail,
+            );
             if has_position {
                 position = [None; 3];
                 at_target = None;
@@ -564,6 +571,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
             refuse(
                 &mut targets,
                 &mut arcs,
+                &mut offsets,
                 at,
                 src.text(at, at + 1),
                 Reason::UnknownMotion,
@@ -664,7 +672,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
         } else {
             match &work {
                 Some((wname, number)) => {
-                    let given = number.and_then(|n| bases.iter().find(|b| b.0 == n));
+                    let given = number.and_then(|n| options.work_offsets.iter().find(|b| b.0 == n));
                     given.is_none().then(|| {
                         (
                             Reason::FrameUnknown,
@@ -678,24 +686,22 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
             }
         };
         if let Some((reason, detail)) = refusal {
-            refuse(&mut targets, &mut arcs, at, name, reason, detail);
+            refuse(
+                &mut targets,
+                &mut arcs,
+                &mut offsets,
+                at,
+                name,
+                reason,
+                detail,
+            );
             continue;
         }
-        let base = match &work {
-            Some((_, Some(n))) => bases.iter().find(|b| b.0 == *n).map(|b| b.1),
-            _ => None,
+        let work_offset = match &work {
+            Some((_, Some(n))) => *n,
+            _ => 0,
         };
-        let uses = match base {
-            Some(base) => vec![FrameUse {
-                tool: None,
-                base: Some(base),
-                offset: at,
-                elsewhere: None,
-                undeclared: Vec::new(),
-                unknown: Vec::new(),
-            }],
-            None => Vec::new(),
-        };
+        let uses: Vec<FrameUse> = Vec::new();
         let unit = if inch {
             LengthUnit::Inch
         } else {
@@ -725,6 +731,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
                 missing.join(", ")
             )));
             arcs.push(None);
+            offsets.push(work_offset);
             continue;
         }
         // A, B, C: written, or modal when the program has written all three.
@@ -750,6 +757,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
                         never.join(", ")
                     )));
                     arcs.push(None);
+                    offsets.push(work_offset);
                     continue;
                 }
             }
@@ -810,6 +818,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
                 Err(why) => {
                     targets.push(incomplete(why));
                     arcs.push(None);
+                    offsets.push(work_offset);
                     continue;
                 }
             }
@@ -830,7 +839,9 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
             refused: None,
         });
         arcs.push(arc);
+        offsets.push(work_offset);
     }
+    debug_assert_eq!(offsets.len(), targets.len());
     Ok(Read {
         program: Program {
             format: Format::Gcode,
@@ -839,6 +850,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
             first_motion,
         },
         arcs,
+        work_offsets: offsets,
     })
 }
 

@@ -321,6 +321,7 @@ impl CompensateJob {
         }
         let limit = limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX));
         let mut arcs = Vec::new();
+        let mut work_offsets = Vec::new();
         let program = {
             let src = Source::new(&name, &bytes);
             crate::bounds::check_line_lengths(&src)?;
@@ -347,6 +348,7 @@ impl CompensateJob {
                 Format::Gcode => {
                     let read = crate::gcode::read_at_most(&src, &o.gcode, limit)?;
                     arcs = read.arcs;
+                    work_offsets = read.work_offsets;
                     read.program
                 }
             }
@@ -426,12 +428,18 @@ impl CompensateJob {
         let frame_unknown =
             |why: String| Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why));
         let mut chains = Vec::with_capacity(program.targets.len());
-        'targets: for target in &program.targets {
+        // A G-code target's work offset, by its number.
+        let work_offset = |index: usize| {
+            let number = work_offsets.get(index)?;
+            let f = o.gcode.work_offsets.iter().find(|w| w.0 == *number)?.1;
+            Some(kuka_pose([f[0], f[1], f[2]], [f[3], f[4], f[5]]))
+        };
+        'targets: for (index, target) in program.targets.iter().enumerate() {
             let mut list: Vec<FrameChain> = Vec::new();
             if matches!(target.kind, TargetKind::Cartesian(_)) && target.refused.is_none() {
                 let default_use = [FrameUse {
                     tool: None,
-                    base: None,
+                    base: work_offset(index),
                     offset: target.offset,
                     elsewhere: None,
                     undeclared: Vec::new(),
@@ -570,7 +578,7 @@ impl CompensateJob {
         // program (mm, its frame), and the numbers rewritten (their first byte).
         let gcode = self.program.format == Format::Gcode;
         let mut ends: Vec<Option<[f64; 3]>> = Vec::new();
-        let mut rewritten: std::collections::HashSet<usize> = std::collections::HashSet::new();
+        let mut rewritten: Vec<usize> = Vec::new();
         for (i, (target, chains)) in self.program.targets.iter().zip(&self.chains).enumerate() {
             let (line, column) = src.location(target.offset);
             let mut entry = TargetLine {
@@ -640,8 +648,12 @@ impl CompensateJob {
                         for ((start, _), text) in edits {
                             if let Some(k) = c.position.iter().position(|n| n.span.0 == *start) {
                                 end[k] = text.parse().unwrap_or(end[k]);
+                            } else if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
+                                // In the order of the file: targets are.
+                                if abc.iter().any(|n| n.span.0 == *start) {
+                                    rewritten.push(*start);
+                                }
                             }
-                            rewritten.insert(*start);
                         }
                         Some(end.map(|v| v * c.unit.mm()))
                     }
@@ -728,12 +740,13 @@ impl CompensateJob {
     ///
     /// [`Error::Write`] when a file cannot be written (none is then replaced).
     pub fn write(&self, done: &Compensated) -> Result<(), Error> {
-        let report = done.report.to_csv();
+        // The report's text only when it is written (some 250 bytes a target).
+        let report = self.options.report.as_ref().map(|_| done.report.to_csv());
         let mut contents: Vec<(&Path, &[u8])> = Vec::new();
         if let Some(path) = &self.options.output {
             contents.push((path, &done.output));
         }
-        if let Some(path) = &self.options.report {
+        if let (Some(path), Some(report)) = (&self.options.report, &report) {
             contents.push((path, report.as_bytes()));
         }
         Ok(self.outputs.write(&contents)?)
@@ -961,8 +974,8 @@ struct GcodeBlock<'a> {
     end: Option<[f64; 3]>,
     /// The targets before it: where each leaves the tool in the compensated program.
     ends: &'a [Option<[f64; 3]>],
-    /// The first bytes of the numbers rewritten so far.
-    rewritten: &'a std::collections::HashSet<usize>,
+    /// The first bytes of the A, B, C numbers rewritten so far, ascending.
+    rewritten: &'a [usize],
 }
 
 impl CompensateJob {
@@ -1007,7 +1020,7 @@ impl CompensateJob {
                 }
                 if abc
                     .iter()
-                    .any(|n| elsewhere(n) && block.rewritten.contains(&n.span.0))
+                    .any(|n| elsewhere(n) && block.rewritten.binary_search(&n.span.0).is_ok())
                 {
                     return incomplete(format!(
                         "A, B, C not written on this block: modal from line {line}, whose A, B, C the correction rewrote"
