@@ -216,13 +216,13 @@ fn kr150_g_code_commands_land_on_their_targets_by_tablec_query() {
     assert!(largest > 1.0 && largest < 5.0, "{largest}");
 }
 
-/// The written arcs of `output`: per corrected arc block, its plane's centre, start and end
-/// (mm, program frame), and its direction; the start is the previous target's written end.
-fn written_arcs(
-    output: &[u8],
-    options: &GcodeOptions,
-    corrected: &[bool],
-) -> Vec<([f64; 2], [f64; 3], [f64; 3], bool, [f64; 3])> {
+/// An arc as a program writes it: its centre in its plane, its start and end (mm, program
+/// frame), and whether it turns clockwise.
+type WrittenArc = ([f64; 2], [f64; 3], [f64; 3], bool);
+
+/// The arcs of `output` at the blocks `corrected` marks; the start is the previous target's
+/// written end.
+fn written_arcs(output: &[u8], options: &GcodeOptions, corrected: &[bool]) -> Vec<WrittenArc> {
     let src = Source::new("out.nc", output);
     let read = adwi_programs::gcode::read(&src, options).unwrap();
     let ends: Vec<Option<[f64; 3]>> = read
@@ -242,8 +242,7 @@ fn written_arcs(
         }
         let start = ends[arc.start_target].unwrap();
         let end = ends[i].unwrap();
-        // Nominal written geometry from the original: passed back by the caller.
-        arcs.push((arc.centre_mm, start, end, arc.clockwise, arc.start_mm));
+        arcs.push((arc.centre_mm, start, end, arc.clockwise));
     }
     arcs
 }
@@ -271,7 +270,7 @@ fn corrected_arcs_stay_within_their_tolerance_of_the_commands_along_them() {
     let (g54x, g54y, g54z) = (G54[0], G54[1], G54[2]);
     let mut checked = 0;
     let mut worst: f64 = 0.0;
-    for ((c0, s0, e0, cw, _), (c1, s1, e1, _, _)) in before.iter().zip(&after) {
+    for ((c0, s0, e0, cw), (c1, s1, e1, _)) in before.iter().zip(&after) {
         // Points along the original arc, in the base frame.
         let polar = |c: &[f64; 2], p: &[f64; 3]| {
             (
