@@ -645,16 +645,19 @@ impl CompensateJob {
                 ends.push(match (&target.kind, &result) {
                     (TargetKind::Cartesian(c), Ok(edits)) => {
                         let mut end = c.position.map(|n| n.value);
+                        let from = rewritten.len();
                         for ((start, _), text) in edits {
                             if let Some(k) = c.position.iter().position(|n| n.span.0 == *start) {
                                 end[k] = text.parse().unwrap_or(end[k]);
                             } else if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
-                                // In the order of the file: targets are.
                                 if abc.iter().any(|n| n.span.0 == *start) {
                                     rewritten.push(*start);
                                 }
                             }
                         }
+                        // Ascending: the targets are in the file's order, and a block's own
+                        // numbers (C, B, A in the fixed-axis convention) sorted.
+                        rewritten[from..].sort_unstable();
                         Some(end.map(|v| v * c.unit.mm()))
                     }
                     (TargetKind::Cartesian(c), Err(_)) => {
