@@ -674,11 +674,13 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
                 Some((wname, number)) => {
                     let given = number.and_then(|n| options.work_offsets.iter().find(|b| b.0 == n));
                     given.is_none().then(|| {
+                        let how = match number {
+                            Some(_) => format!("give it as --work-offset {wname}=X,Y,Z[,A,B,C]"),
+                            None => "the options give G54-G59 only".to_string(),
+                        };
                         (
                             Reason::FrameUnknown,
-                            format!(
-                                "work offset {wname} not given: give it as --work-offset {wname}=X,Y,Z[,A,B,C]"
-                            ),
+                            format!("work offset {wname} not given: {how}"),
                         )
                     })
                 }
@@ -1176,7 +1178,7 @@ mod tests {
     fn every_other_motion_is_reported_by_its_reason() {
         let text = "G21 G90 G54\nG0 X1 Y2 Z3\nG28 X0 Y0 Z0\nG53 G0 Z0\nG91 G1 X1 Y1 Z1\nG90\n\
                     G41 D1 G1 X1 Y2 Z3\nG40\nG81 X1 Y2 Z-3 R1\nG80\nG68 X0 Y0 R30\nG1 X1 Y2 Z3\nG69\n\
-                    G1 X1 Y2 U4 Z1\nG1 X#1 Y2 Z3\nG5.1 X1 Y2 Z3\nG55\nG1 X1 Y2 Z3\n";
+                    G1 X1 Y2 U4 Z1\nG1 X#1 Y2 Z3\nG5.1 X1 Y2 Z3\nG59.1\nG1 X1 Y2 Z3\nG55\nG1 X1 Y2 Z3\n";
         let options = GcodeOptions {
             work_offsets: vec![(54, [0.0; 6])],
             ..GcodeOptions::default()
@@ -1197,7 +1199,16 @@ mod tests {
                 "dynamic",
                 "unknown_motion",
                 "frame_unknown",
+                "frame_unknown",
             ]
+        );
+        let extended = r.program.targets[r.program.targets.len() - 2]
+            .refused
+            .as_ref()
+            .unwrap();
+        assert_eq!(
+            extended.detail,
+            "work offset G59.1 not given: the options give G54-G59 only"
         );
         let last = r.program.targets.last().unwrap().refused.as_ref().unwrap();
         assert_eq!(
