@@ -1009,7 +1009,9 @@ fn compensate_program<'py>(
     options.format = match format.as_deref() {
         None => None,
         Some(name) => Some(Format::from_name(name).ok_or_else(|| {
-            AdwiError::new_err(format!("format '{name}': one of krl, rapid, urscript, csv, gcode"))
+            AdwiError::new_err(format!(
+                "format '{name}': one of krl, rapid, urscript, csv, gcode"
+            ))
         })?),
     };
     options.robot = robot;

@@ -537,15 +537,12 @@ fn newton(
         let jacobian: nalgebra::Matrix6<f64> = joint_jacobian(chain, &q_rad)
             .fixed_view::<6, 6>(0, 0)
             .into_owned();
-        let step = jacobian
-            .lu()
-            .solve(&error)
-            .or_else(|| {
-                jacobian
-                    .try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)?
-                    .solve(&error, 1e-12)
-                    .ok()
-            })?;
+        let step = jacobian.lu().solve(&error).or_else(|| {
+            jacobian
+                .try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)?
+                .solve(&error, 1e-12)
+                .ok()
+        })?;
         for (q, dq) in q_rad.iter_mut().zip(step.iter()) {
             *q += dq;
         }
@@ -876,8 +873,12 @@ fn to_pose(
 
 /// The part of `v` in the null space of the chain's Jacobian at `q`: `(I − J⁺J) v`.
 fn null_space_part(chain: &Chain, q: &DVector<f64>, v: &DVector<f64>) -> Option<DVector<f64>> {
-    let svd =
-        joint_jacobian(chain, q.as_slice()).try_svd(false, true, f64::EPSILON, SVD_MAX_ITERATIONS)?;
+    let svd = joint_jacobian(chain, q.as_slice()).try_svd(
+        false,
+        true,
+        f64::EPSILON,
+        SVD_MAX_ITERATIONS,
+    )?;
     let v_t = svd.v_t.as_ref()?;
     let largest = svd.singular_values.max();
     let mut out = v.clone();
