@@ -139,6 +139,10 @@ pub enum Iso9283Error {
     },
 }
 
+/// The largest magnitude a cycles file's number may have: mm for positions, degrees for
+/// angles ([`adwi_runtime::format::MAX_COORDINATE_MM`]).
+const MAX_FIELD: f64 = adwi_runtime::format::MAX_COORDINATE_MM;
+
 /// Whether `text` is a whole number as written: an optional sign, then digits.
 fn is_digits(text: &str) -> bool {
     let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
@@ -222,7 +226,15 @@ pub fn parse_cycles(bytes: &[u8]) -> Result<Vec<CycleRow>, Iso9283Error> {
         let number = |i: usize, column: &'static str| -> Result<f64, Iso9283Error> {
             let text = field(i);
             match text.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
+                // No robot's position reaches a kilometre nor its angle 1e6 degrees:
+                // beyond, the deviations and their squares stop meaning anything.
+                Ok(v) if v.abs() <= MAX_FIELD => Ok(v),
+                Ok(v) if v.is_finite() => Err(Iso9283Error::Field {
+                    line,
+                    column,
+                    text: text.to_string(),
+                    why: "is beyond any robot's workspace (1e6 mm, 1e6 degrees)",
+                }),
                 _ => Err(Iso9283Error::Field {
                     line,
                     column,
@@ -759,6 +771,60 @@ mod tests {
         assert!((p1.ap_a_deg.unwrap() - 0.166667).abs() < 1e-5, "{p1:?}");
         assert!((p1.rp_a_deg.unwrap() - 0.754983).abs() < 1e-5, "{p1:?}");
         assert!(p1.ap_b_deg.unwrap().abs() < 1e-12 && p1.rp_b_deg.unwrap().abs() < 1e-12);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(2000))]
+
+        /// Cycles files mutated byte by byte: read and characterised, or refused with a
+        /// reason; never a panic, never a non-finite figure (the fuzz target
+        /// `iso9283_cycles` runs the same check unbounded).
+        #[test]
+        fn hostile_cycles_are_refused_or_give_finite_figures(
+            mutations in proptest::collection::vec((0.0..1.0f64, 0..3u8, 0..ALPHABET.len()), 1..8),
+        ) {
+            let mut bytes = CYCLES.as_bytes().to_vec();
+            for (at, op, b) in mutations {
+                let i = ((at * bytes.len() as f64) as usize).min(bytes.len());
+                match op {
+                    0 if i < bytes.len() => bytes[i] = ALPHABET[b],
+                    1 => bytes.insert(i, ALPHABET[b]),
+                    _ if i < bytes.len() => {
+                        bytes.remove(i);
+                    }
+                    _ => {}
+                }
+            }
+            if let Ok(rows) = parse_cycles(&bytes) {
+                if let Ok(report) = characteristics(&rows) {
+                    let json = serde_json::to_string(&report).unwrap_or_default();
+                    proptest::prop_assert!(!json.contains("NaN") && !json.contains("inf"), "{}", json);
+                }
+            }
+        }
+    }
+
+    /// Bytes that matter to the cycles reader, and some that do not.
+    const ALPHABET: &[u8] = b"0123456789.-+eE,#\" \t\r\nxyzmabcPcycle\xff\x00";
+
+    /// Two positions, three cycles each.
+    const CYCLES: &str = "position,cycle,x,y,z,mx,my,mz\n\
+        P1,1,1000,0,1000,1000.1,0.02,999.95\n\
+        P1,2,1000,0,1000,1000.12,0.01,999.96\n\
+        P1,3,1000,0,1000,1000.09,0.03,999.94\n\
+        P2,1,1200,100,900,1200.2,100.01,900.05\n\
+        P2,2,1200,100,900,1200.18,100.03,900.04\n\
+        P2,3,1200,100,900,1200.21,100.02,900.06\n";
+
+    #[test]
+    fn a_position_beyond_any_workspace_is_refused_where_read() {
+        let text = CYCLES.replace("1000.12", "1e300");
+        let error = parse_cycles(text.as_bytes()).unwrap_err().to_string();
+        assert!(
+            error.contains("line 3") && error.contains("1e300"),
+            "{error}"
+        );
+        assert!(error.contains("beyond any robot's workspace"), "{error}");
     }
 
     #[test]
