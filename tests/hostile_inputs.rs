@@ -607,3 +607,33 @@ fn simulate_poses_need_joint_values_only() {
     let rows = written.lines().filter(|l| !l.starts_with('#')).count();
     assert_eq!(rows, 3, "{written}");
 }
+
+/// Messages quote what they read: a file's control bytes (an escape sequence, a bell) are
+/// shown escaped, never sent to the terminal, by every command.
+#[test]
+fn control_bytes_quoted_from_a_file_are_escaped_in_every_message() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("samples.csv"),
+        b"x,y,z,dx,dy,dz\n1,2,3,0.1,0.2,\x1b[31mBAD\x07\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("cycles.csv"),
+        b"position,cycle,x,y,z,mx,my,mz\nP1,1,1000,0,1000,\x1b[31mX,0,0\n",
+    )
+    .unwrap();
+    for args in [
+        &["build", "samples.csv", "-o", "t.tbl"][..],
+        &["iso9283", "cycles.csv"][..],
+    ] {
+        let o = tablec_bounded(args, dir.path());
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let err = stderr(&o);
+        assert!(
+            !err.contains('\x1b') && !err.contains('\x07'),
+            "{args:?}: {err:?}"
+        );
+        assert!(err.contains("\\u{1b}[31m"), "{args:?}: {err}");
+    }
+}

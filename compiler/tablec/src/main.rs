@@ -88,9 +88,11 @@ fn main() -> ExitCode {
         Ok(Answered::All) => ExitCode::SUCCESS,
         Ok(Answered::NotAll) => ExitCode::from(EXIT_UNANSWERED),
         Err(e) => {
-            eprintln!("error: {e}");
+            // Messages quote what they read (a field, a line): a file's control bytes are
+            // shown escaped, never sent to the terminal.
+            eprintln!("error: {}", terminal_safe(&e.to_string()));
             for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+                eprintln!("  caused by: {}", terminal_safe(&cause.to_string()));
             }
             // A refused combination of options is a usage error, as clap's own are.
             let usage = matches!(
@@ -106,8 +108,19 @@ fn main() -> ExitCode {
 /// the user should know.
 pub fn warn(warnings: &[adwi_jobs::Warning]) {
     for w in warnings {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", terminal_safe(&w.to_string()));
     }
+}
+
+/// `text` with every control character but its line ends escaped
+/// ([`adwi_programs::escape_controls`], line by line): what a message quotes of a file
+/// cannot move the cursor, change colours or ring the terminal.
+fn terminal_safe(text: &str) -> String {
+    let lines: Vec<_> = text
+        .split('\n')
+        .map(adwi_programs::escape_controls)
+        .collect();
+    lines.join("\n")
 }
 
 /// Piped into `head`, a command-line tool should end quietly when its reader goes away.
