@@ -229,4 +229,13 @@ fn compensate_refuses_a_position_only_tables_targets_beyond_its_samples_orientat
         .map(|l| l.split(',').rev().nth(1).unwrap())
         .collect();
     assert_eq!(evidence, ["within", "orientation", "orientation"]);
+    // A program that writes no orientation is not checked against the samples' (an
+    // orientation it does not give is not one they never had).
+    std::fs::write(
+        dir.path().join("t.csv"),
+        "x,y,z\n2000,700,1000\n1800,600,1200\n",
+    )
+    .unwrap();
+    let (code, report) = run(&[], "positions.csv");
+    assert_eq!(code, Some(0), "{report}");
 }

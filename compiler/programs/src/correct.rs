@@ -369,8 +369,8 @@ pub fn solve<D: AsRef<[u8]>>(
                 position_mm: p.into(),
                 config,
                 // The point's orientation, which a position-only table checks against
-                // its samples'.
-                rotation_rad: Some(target.rotation.scaled_axis().into()),
+                // its samples', when the program writes one.
+                rotation_rad: orientation.then(|| target.rotation.scaled_axis().into()),
                 tcp_mm: None,
             },
             limits.tolerance_mm,
