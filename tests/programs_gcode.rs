@@ -519,3 +519,44 @@ fn a_generated_program_of_100000_blocks_is_accounted_for_block_by_block() {
         std::fs::write(path, &text).unwrap();
     }
 }
+
+/// Plain 3-axis G-code in a work offset (no A, B, C, no tool): its positions map through
+/// the offset alone and are corrected in position.
+#[test]
+fn three_axis_g_code_in_a_work_offset_is_corrected_in_position() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::repo("tables/kr150-2/samples.csv");
+    let o = crate::common::tablec(
+        &[
+            "build",
+            "-q",
+            table.to_str().unwrap(),
+            "--served-field",
+            "method",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(
+        dir.path().join("p.nc"),
+        "G21 G90 G54\nG0 X100. Y100. Z50.\nG1 X150. Y120. Z40. F500\nM30\n",
+    )
+    .unwrap();
+    let o = crate::common::tablec(
+        &[
+            "compensate",
+            "t.tbl",
+            "p.nc",
+            "-o",
+            "out.nc",
+            "--work-offset",
+            "G54=1750,450,1200",
+        ],
+        dir.path(),
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("2 of 2 targets corrected"), "{stdout}");
+}

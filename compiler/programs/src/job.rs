@@ -828,8 +828,10 @@ impl CompensateJob {
                 };
                 let given_joints: Option<Vec<f64>> = (!c.joints.is_empty())
                     .then(|| c.joints.iter().map(|n| n.value.to_radians()).collect());
-                let identity_frames =
-                    chain.base == Isometry3::identity() && chain.tool == chain.table_tool;
+                // With the program's TCP the table's point, a position maps through the
+                // work object alone (`W · p`): the orientation it does not write plays no
+                // part, as in plain 3-axis G-code in G54.
+                let position_maps = chain.tool == chain.table_tool;
                 let (rotation, orientation) = match (rotation, &given_joints, &self.kinematics) {
                     (Some(r), ..) => (r, true),
                     // A CSV row's joints give the orientation the pose does not write.
@@ -837,7 +839,7 @@ impl CompensateJob {
                         Some(p) => (p.rotation.to_rotation_matrix(), true),
                         None => return Err((TargetStatus::Incomplete, format!("{} joint values for a robot of {}", q.len(), k.robot().joint_count()))),
                     },
-                    (None, ..) if identity_frames && !self.table.is_hybrid() => (nalgebra::Rotation3::identity(), false),
+                    (None, ..) if position_maps && !self.table.is_hybrid() => (nalgebra::Rotation3::identity(), false),
                     (None, ..) => return Err((TargetStatus::NeedsOrientation, "the target writes no orientation, which its frames or the table's posture need".into())),
                 };
                 let pose = Isometry3::from_parts(
