@@ -379,7 +379,8 @@ class QueryResult:
     - ``error_mm`` (N, 3): predicted position error, actual − nominal, mm; NaN where the
       status is not ``ok``.
     - ``orientation_rad`` (N, 3) or None: predicted orientation error (rotation vector,
-      rad, base frame); None for position-only tables.
+      rad, base frame); None for a position-only table whose samples have no orientation
+      (a hybrid table's model always gives one).
     - ``status`` (N,): status names as ``tablec query`` prints them (``ok``,
       ``outside_grid``, ``no_neighbour``, ``invalid_input``, ``missing_joints``,
       ``numerical_failure``, ``uncovered_cell``, ``joints_mismatch``: a hybrid table's
