@@ -625,10 +625,6 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
-        // A hybrid table's model at the joint values, once: its pose error, the approach
-        // axis a field turning with the tool needs and the evidence check reads, where the
-        // joints put the nominal TCP, and, for a named TCP, where the table's point is
-        // (`point`: the target less the lever) and the error at the TCP.
         // Without a named TCP the served cell is known now: a hybrid table asks for its
         // nodes' memory before the model's arithmetic, which then hides their latency.
         let early_site = match (payload, &self.served, tier, target.tcp_mm) {
@@ -641,6 +637,10 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             _ => None,
         };
+        // A hybrid table's model at the joint values, once: its pose error, the approach
+        // axis a field turning with the tool needs and the evidence check reads, where the
+        // joints put the nominal TCP, and, for a named TCP, where the table's point is
+        // (`point`: the target less the lever) and the error at the TCP.
         let model_part = match (&self.model, joints_rad) {
             (Some(model), Some(q)) => match self.model_part(model, q, target) {
                 Ok(part) => Some(part),
@@ -655,7 +655,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         // Flagged, not switched: the answer stays continuous across the edge of the
         // samples' evidence (on the KR150-2 hybrid table the residual left in changes the
         // figures beyond it by under 0.002 mm).
-        let mut evidence = self.evidence_of(target, model_part.as_ref());
+        let evidence = self.evidence_of(target, model_part.as_ref());
         let site = match (payload, &self.served, tier) {
             _ if early_site.is_some() => early_site,
             (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
@@ -727,9 +727,6 @@ impl<D: AsRef<[u8]>> Table<D> {
                 *out += model;
             }
         }
-        if target.tcp_mm.is_some() && model_part.is_none() {
-            evidence = evidence.with(self.tcp_evidence(target));
-        }
         correction.evidence = evidence;
         correction.finite_or_failure()
     }
@@ -778,8 +775,7 @@ impl<D: AsRef<[u8]>> Table<D> {
 
     /// Where a query lies beyond the table's recorded evidence ([`Evidence`]): the tool's
     /// approach axis (a hybrid table's from its joint values, else the target's given
-    /// orientation) against the samples' cone, and a named TCP a hybrid table cannot
-    /// place.
+    /// orientation) against the samples' cone, and a named TCP the table cannot place.
     #[inline]
     fn evidence_of(&self, target: &Target, model_part: Option<&ModelPart>) -> Evidence {
         let mut evidence = Evidence::WITHIN;
@@ -796,27 +792,25 @@ impl<D: AsRef<[u8]>> Table<D> {
                 evidence = evidence.with(Evidence::ORIENTATION);
             }
         }
-        if model_part.is_some_and(|m| !m.lever_known) {
+        // A hybrid table turns a named TCP's lever when it knows its point; a position-only
+        // table has nothing to turn it with, so only a TCP within [`TCP_MARGIN_MM`] of its
+        // recorded point is within its evidence.
+        let tcp_placed = match (
+            model_part,
+            target.tcp_mm,
+            self.header.evidence.point_in_flange,
+        ) {
+            (Some(m), ..) => m.lever_known,
+            (None, None, _) => true,
+            (None, Some(tcp), Some(point)) => {
+                method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
+            }
+            (None, Some(_), None) => false,
+        };
+        if !tcp_placed {
             evidence = evidence.with(Evidence::TCP);
         }
         evidence
-    }
-
-    /// A position-only table's word on a named TCP: within its evidence only when the
-    /// table records its point and the TCP is within [`TCP_MARGIN_MM`] of it (nothing turns
-    /// a lever without a model).
-    fn tcp_evidence(&self, target: &Target) -> Evidence {
-        let near = match (target.tcp_mm, self.header.evidence.point_in_flange) {
-            (Some(tcp), Some(point)) => {
-                method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
-            }
-            _ => false,
-        };
-        if near {
-            Evidence::WITHIN
-        } else {
-            Evidence::TCP
-        }
     }
 
     fn compensate_with(
