@@ -239,3 +239,65 @@ fn compensate_refuses_a_position_only_tables_targets_beyond_its_samples_orientat
     let (code, report) = run(&[], "positions.csv");
     assert_eq!(code, Some(0), "{report}");
 }
+
+/// A position-only table without orientation errors cannot turn a TCP's lever: a program
+/// whose TCP lies 169 mm from the measured point is refused by name (`beyond_evidence`,
+/// the TCP), where the measured point's own TCP is corrected.
+#[test]
+fn compensate_refuses_a_lever_a_table_without_orientations_cannot_turn() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = crate::common::ur5_grid();
+    let o = crate::common::tablec(
+        &[
+            "build",
+            "-q",
+            grid.to_str().unwrap(),
+            "--columns",
+            crate::common::UR5_MAP,
+            "--served-field",
+            "method",
+            "-o",
+            "ur5p.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let robot = repo("tables/ur5/robot.toml");
+    for (tcp_z_m, code, status) in [(0.031, 0, "ok"), (0.2, 3, "beyond_evidence")] {
+        let program = format!("seam-{tcp_z_m}.script");
+        std::fs::write(dir.path().join(&program), script(tcp_z_m)).unwrap();
+        let report = format!("{program}.csv");
+        let o = crate::common::tablec(
+            &[
+                "compensate",
+                "ur5p.tbl",
+                &program,
+                "--robot",
+                robot.to_str().unwrap(),
+                "-o",
+                "out.script",
+                "--report",
+                &report,
+            ],
+            dir.path(),
+        );
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(code), "{stdout}");
+        let report = std::fs::read_to_string(dir.path().join(&report)).unwrap();
+        // The 200 mm TCP moves some table points off the served field (`outside`); every
+        // other target is refused for its lever.
+        let statuses: Vec<String> = (report.lines().skip(1))
+            .map(|row| row.split(',').nth(4).unwrap().to_string())
+            .collect();
+        assert!(statuses.iter().any(|s| s == status), "{report}");
+        assert!(
+            statuses
+                .iter()
+                .all(|s| s == status || (code == 3 && s == "outside")),
+            "{report}"
+        );
+        if code == 3 {
+            assert!(stdout.contains("TCP lever"), "{stdout}");
+        }
+    }
+}

@@ -258,6 +258,10 @@ pub struct Request<'a> {
     pub target_joints: Option<&'a [f64]>,
     /// The posture the inverse kinematics starts nearest.
     pub seed: &'a [f64],
+    /// How far the program's TCP lies from the table's point, mm ([`crate::frames::FrameChain::lever_mm`]):
+    /// a table with neither a model nor orientation errors cannot correct the turn the
+    /// robot's rotation error gives that lever.
+    pub lever_mm: f64,
 }
 
 /// Solves the command of one table point.
@@ -277,6 +281,7 @@ pub fn solve<D: AsRef<[u8]>>(
         posture,
         target_joints,
         seed,
+        lever_mm,
     } = request;
     let target_joints = target_joints.map(<[f64]>::to_vec);
     let kinematics = kinematics.filter(|_| orientation);
@@ -415,6 +420,13 @@ pub fn solve<D: AsRef<[u8]>>(
             evidence: comp.correction.evidence,
         }
     };
+    // The TCP rides on the table's point: the frames turn it with the point's correction,
+    // which a table with neither a model nor orientation errors does not know. A lever
+    // its samples did not measure is then beyond their evidence.
+    let lever_unknown = !table.is_hybrid() && !table.has_orientation();
+    if lever_unknown && lever_mm > adwi_runtime::format::TCP_MARGIN_MM {
+        command.evidence = command.evidence.with(Evidence::TCP);
+    }
     // A position-only table beyond its samples: nothing carries its answer there (a
     // hybrid table's model does, and its report line says so).
     if !command.evidence.is_within() && !table.is_hybrid() && !limits.beyond_evidence {
@@ -425,7 +437,7 @@ pub fn solve<D: AsRef<[u8]>>(
                 if command.evidence.contains(Evidence::ORIENTATION) {
                     "orientation"
                 } else {
-                    "TCP"
+                    "TCP lever: the table has no orientation errors to turn it with"
                 }
             ),
         ));

@@ -36,6 +36,15 @@ impl FrameChain {
         self.base * target * self.tool.inverse() * self.table_tool
     }
 
+    /// How far the program's TCP lies from the table's point, mm: the lever the robot's
+    /// rotation error turns between them (`|(T⁻¹ · M).translation|`).
+    pub fn lever_mm(&self) -> f64 {
+        (self.tool.inverse() * self.table_tool)
+            .translation
+            .vector
+            .norm()
+    }
+
     /// The target pose in the work object that puts the table's point at `point`: the
     /// inverse of [`FrameChain::table_point`].
     pub fn program_pose(&self, point: &Isometry3<f64>) -> Isometry3<f64> {

@@ -859,6 +859,7 @@ impl CompensateJob {
                         posture: &posture,
                         target_joints: given_joints.as_deref(),
                         seed: &near,
+                        lever_mm: chain.lever_mm(),
                     },
                 );
                 let command = command?;
@@ -941,6 +942,8 @@ impl CompensateJob {
                         posture: &posture,
                         target_joints: Some(&q),
                         seed: &q,
+                        // The joints move the table's point itself.
+                        lever_mm: 0.0,
                     },
                 )?;
                 let qc = command.joints.clone().unwrap_or_else(|| q.clone());
@@ -1069,6 +1072,7 @@ impl CompensateJob {
                     posture: &posture,
                     target_joints: None,
                     seed,
+                    lever_mm: chain.lever_mm(),
                 },
             )
             .map_err(|(status, detail)| format!("{} {detail}", status.as_str()))?;
