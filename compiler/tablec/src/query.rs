@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use adwi_runtime::{Correction, Evidence, Residual, Status, Table, Target, Tier};
+use adwi_runtime::{Correction, Evidence, Status, Table, Target, Tier};
 use adwi_samples::pose;
 use anyhow::bail;
 
@@ -158,12 +158,12 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         [x, y, z, a, b, c] => ([*x, *y, *z], Some([*a, *b, *c])),
         _ => bail!("give a target as X Y Z or X Y Z A B C, or --targets FILE"),
     };
-    let finite_abc = abc.filter(|abc| abc.iter().all(|v| v.is_finite()));
+    // A non-finite orientation gives a non-finite rotation vector, which the table refuses
+    // as it does a non-finite position (`invalid_input`): no command can be computed for it.
     let target = Target {
         position_mm: position,
         config: args.config,
-        rotation_rad: finite_abc
-            .map(|abc| pose::rotation_vector(&pose::rotation_from_kuka_abc_deg(abc))),
+        rotation_rad: abc.map(|abc| pose::rotation_vector(&pose::rotation_from_kuka_abc_deg(abc))),
         tcp_mm: tcp,
     };
     let joints_rad: Option<Vec<f64>> = args
@@ -181,20 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
             );
         }
     }
-    // A non-finite orientation is refused as a non-finite position is: no command can be
-    // computed for it.
-    let c = if abc.is_some_and(|abc| !abc.iter().all(|v| v.is_finite())) {
-        Correction {
-            position_error_mm: [0.0; 3],
-            orientation_error_rad: [0.0; 3],
-            neighbours: 0,
-            status: Status::InvalidInput,
-            residual: Residual::Full,
-            evidence: Evidence::WITHIN,
-        }
-    } else {
-        table.answer(&target, joints_rad.as_deref(), tier(args.exact))
-    };
+    let c = table.answer(&target, joints_rad.as_deref(), tier(args.exact));
     println!(
         "target       {:.6} {:.6} {:.6} mm",
         position[0], position[1], position[2]
