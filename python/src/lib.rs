@@ -1160,10 +1160,17 @@ fn iso9283<'py>(
             let report = report.downcast_into::<PyDict>()?;
             d.set_item("positions", report.get_item("positions")?)?;
             d.set_item("distance", report.get_item("distance")?)?;
+            d.set_item(
+                "orientation_convention",
+                report.get_item("orientation_convention")?,
+            )?;
+            d.set_item("notes", report.get_item("notes")?)?;
         }
         None => {
             d.set_item("positions", PyList::empty(py))?;
             d.set_item("distance", PyList::empty(py))?;
+            d.set_item("orientation_convention", py.None())?;
+            d.set_item("notes", PyList::empty(py))?;
         }
     }
     d.set_item("compensated", convert(&result.compensated)?)?;

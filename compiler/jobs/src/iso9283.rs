@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use adwi_compile::write::OutputPlan;
 use adwi_measure::iso9283::{
-    characteristics, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error, Report,
-    ISO_CYCLES,
+    characteristics_between, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error,
+    Report, ISO_CYCLES,
 };
 use adwi_runtime::Status;
 use serde::Deserialize;
@@ -29,8 +29,10 @@ pub struct Iso9283Args {
           conflicts_with_all = ["measurements", "json", "table", "report"], requires = "output")]
     #[serde(deserialize_with = "cube")]
     pub cube: Option<[f64; 4]>,
-    /// The plan's tool orientation A,B,C (KUKA degrees).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,90,0")]
+    /// The plan's tool orientation A,B,C (KUKA degrees, R = Rz(A)·Ry(B)·Rx(C); the
+    /// standard's a, b, c about x, y, z are C, B, A). The default tilts the tool 45° from
+    /// pointing down, away from the gimbal lock at B = ±90° where a and c are undefined.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true, default_value = "0,45,0")]
     pub abc: [f64; 3],
     /// Cycles the plan repeats the five positions (ISO 9283 asks for 30).
     #[arg(long, default_value_t = ISO_CYCLES)]
@@ -38,6 +40,11 @@ pub struct Iso9283Args {
     /// The plan CSV to write (with --cube).
     #[arg(long, short, value_name = "PLAN.csv")]
     pub output: Option<PathBuf>,
+    /// A pair of positions whose distance accuracy and repeatability to compute,
+    /// FROM,TO (repeatable; default the standard's P2,P4).
+    #[arg(long = "distance", value_name = "FROM,TO", value_parser = parse_pair)]
+    #[serde(deserialize_with = "pairs")]
+    pub distance: Vec<(String, String)>,
     /// Also write the characteristics as JSON.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
@@ -57,9 +64,10 @@ impl Default for Iso9283Args {
         Iso9283Args {
             measurements: None,
             cube: None,
-            abc: [0.0, 90.0, 0.0],
+            abc: [0.0, 45.0, 0.0],
             cycles: ISO_CYCLES,
             output: None,
+            distance: Vec::new(),
             json: None,
             table: None,
             report: None,
@@ -80,6 +88,27 @@ fn cube_of(values: Vec<f64>) -> Result<[f64; 4], String> {
             v.len()
         )
     })
+}
+
+/// `FROM,TO`: two position names.
+fn parse_pair(text: &str) -> Result<(String, String), String> {
+    match text.split(',').map(str::trim).collect::<Vec<_>>()[..] {
+        [from, to] if !from.is_empty() && !to.is_empty() && from != to => {
+            Ok((from.to_string(), to.to_string()))
+        }
+        _ => Err(format!(
+            "'{text}': give two different position names, FROM,TO (P2,P4, say)"
+        )),
+    }
+}
+
+/// Pairs from Python's `distance=["P2,P4", ...]`.
+fn pairs<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<(String, String)>, D::Error> {
+    let texts: Vec<String> = Vec::deserialize(d)?;
+    texts
+        .iter()
+        .map(|t| parse_pair(t).map_err(serde::de::Error::custom))
+        .collect()
 }
 
 /// A cube from a list of four numbers (Python's `cube=[...]`).
@@ -187,10 +216,14 @@ impl Iso9283Job {
                 ))
             }
             (None, Some([x, y, z, side])) => {
-                if args.json.is_some() || args.table.is_some() || args.report.is_some() {
+                if args.json.is_some()
+                    || args.table.is_some()
+                    || args.report.is_some()
+                    || !args.distance.is_empty()
+                {
                     return Err(JobError::Options(
-                        "--cube writes a plan: --json, --table and --report report on measured \
-                         cycles"
+                        "--cube writes a plan: --json, --table, --report and --distance report \
+                         on measured cycles"
                             .into(),
                     ));
                 }
@@ -283,7 +316,10 @@ impl Iso9283Job {
                 })
             }
             Work::Report { rows, table } => {
-                let report = finite(characteristics(&rows).map_err(measure_error)?)?;
+                let reduce = |rows: &[CycleRow]| {
+                    characteristics_between(rows, &args.distance).map_err(measure_error)
+                };
+                let report = finite(reduce(&rows)?)?;
                 let compensated = match table.as_deref() {
                     Some((path, table)) => {
                         let rows = compensated(&rows, |row| {
@@ -304,7 +340,7 @@ impl Iso9283Job {
                             }
                         })
                         .map_err(measure_error)?;
-                        Some(finite(characteristics(&rows).map_err(measure_error)?)?)
+                        Some(finite(reduce(&rows)?)?)
                     }
                     None => None,
                 };
@@ -313,6 +349,8 @@ impl Iso9283Job {
                     let json = serde_json::json!({
                         "positions": report.positions,
                         "distance": report.distance,
+                        "orientation_convention": report.orientation_convention,
+                        "notes": report.notes,
                         "compensated": compensated,
                     });
                     let text = serde_json::to_string_pretty(&json)
@@ -392,7 +430,7 @@ mod tests {
         // each cycle.
         let text = std::fs::read_to_string(&plan).unwrap();
         let mut measured = String::from("position,cycle,x,y,z,mx,my,mz\n");
-        for line in text.lines().skip(1) {
+        for line in text.lines().filter(|l| !l.starts_with('#')).skip(1) {
             let f: Vec<&str> = line.split(',').collect();
             let v: Vec<f64> = f[1..5].iter().map(|t| t.parse().unwrap()).collect();
             let (cycle, x, y, z) = (v[0], v[1], v[2], v[3]);
@@ -428,7 +466,10 @@ mod tests {
         assert_eq!(written["positions"][0]["name"], "P1");
         assert_eq!(written["positions"][0]["n"], 3);
         assert!(written["positions"][0]["rp_l_mm"].is_number());
-        assert_eq!(written["distance"].as_array().unwrap().len(), 4);
+        // The standard's distance pair, P2 and P4.
+        assert_eq!(written["distance"].as_array().unwrap().len(), 1);
+        assert_eq!(written["distance"][0]["from"], "P2");
+        assert_eq!(written["distance"][0]["to"], "P4");
         // The page, written with the JSON, holds its figures.
         assert_eq!(
             result.written,

@@ -10,10 +10,15 @@
 //! - pose repeatability `RP`: the radius of the sphere about that barycentre,
 //!   `RP_l = l̄ + 3 S_l`, `l_j` the distance of attained position `j` to the barycentre and
 //!   `S_l` their standard deviation (with `n − 1`); per orientation angle `±3 S_a`;
-//! - distance accuracy `AD` and repeatability `RD`, between two poses the robot moves
-//!   between in each cycle: the attained distance `D_j = |P_1j − P_2j|` against the
+//! - distance accuracy `AD` and repeatability `RD`, between the standard's two poses P2
+//!   and P4 (or pairs named): the attained distance `D_j = |P_1j − P_2j|` against the
 //!   commanded `D_c`, `AD_P = D̄ − D_c`, per axis `AD_x = D̄_x − D_cx` with
 //!   `D_xj = |x_1j − x_2j|`, and `RD = ±3 S_D`.
+//!
+//! Orientation angles are the standard's `a`, `b`, `c`: rotations about the base x, y and
+//! z axes ([`ORIENTATION_CONVENTION`]). The cycles file gives KUKA A, B, C (about z, y, x),
+//! the project's convention for `a,b,c` columns; both compose as `Rz·Ry·Rx`, so the
+//! standard's `a, b, c` are KUKA's `C, B, A` of the same rotation.
 //!
 //! The measured cycles are a small CSV ([`parse_cycles`]): the plan [`write_cube_plan`]
 //! writes, with the attained pose's columns added.
@@ -33,6 +38,23 @@ pub const MAX_ROWS: usize = 1_000_000;
 
 /// The number of cycles ISO 9283 asks for, per pose.
 pub const ISO_CYCLES: u32 = 30;
+
+/// The orientation convention of every orientation figure, as each output states it.
+pub const ORIENTATION_CONVENTION: &str = "ISO 9283 a, b, c: rotations about the base x, y, z, \
+     R = Rz(c)·Ry(b)·Rx(a), degrees (the cycles file's KUKA a, b, c, R = Rz(a)·Ry(b)·Rx(c), \
+     are its c, b, a)";
+
+/// The positions of a cube's cycle in the order the standard runs them: P1, P5, P4, P3,
+/// P2 (then P1 of the next cycle).
+pub const CUBE_SEQUENCE: [usize; 5] = [0, 4, 3, 2, 1];
+
+/// The pair of positions whose distance the standard measures: P2 and P4, the ends of a
+/// diagonal of the measurement plane.
+pub const DISTANCE_PAIR: (&str, &str) = ("P2", "P4");
+
+/// An ISO 9283 `b` within this of ±90° (degrees) is near the convention's gimbal lock:
+/// `a` and `c` are then not separately defined and their figures mean little.
+const GIMBAL_MARGIN_DEG: f64 = 10.0;
 
 /// Two commanded poses of one position farther apart than this (mm, degrees) are two
 /// poses, not one: the file is refused.
@@ -120,6 +142,9 @@ pub enum Iso9283Error {
     /// No rows.
     #[error("no measured cycles")]
     Empty,
+    /// A distance pair naming a position the cycles do not have.
+    #[error("no position named '{0}' in the cycles: a distance pair names two measured positions")]
+    UnknownPosition(String),
     /// More rows than [`MAX_ROWS`].
     #[error("more than {MAX_ROWS} rows: {rows} and counting")]
     TooManyRows {
@@ -314,7 +339,8 @@ pub struct PoseCharacteristics {
     pub ap_y_mm: f64,
     /// AP_z, mm.
     pub ap_z_mm: f64,
-    /// Orientation accuracy AP_a = ā − a_c, degrees, when orientations were measured.
+    /// Orientation accuracy AP_a = ā − a_c, degrees, `a` about the base x axis
+    /// ([`ORIENTATION_CONVENTION`]), when orientations were measured.
     pub ap_a_deg: Option<f64>,
     /// AP_b, degrees.
     pub ap_b_deg: Option<f64>,
@@ -363,11 +389,17 @@ pub struct DistanceCharacteristics {
 /// Every characteristic of a set of measured cycles.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
-    /// Per position, in the order of first appearance.
+    /// Per position, in the order of their names (P1, P2, ..., P10).
     pub positions: Vec<PoseCharacteristics>,
-    /// Between each position and the next in that order (the motions of a cycle), when
-    /// both were measured in at least two common cycles.
+    /// Between the pairs asked for (the standard's P2 and P4 by default), each when both
+    /// were measured in at least two common cycles.
     pub distance: Vec<DistanceCharacteristics>,
+    /// The convention of the orientation figures ([`ORIENTATION_CONVENTION`]), when
+    /// orientation was measured.
+    pub orientation_convention: Option<&'static str>,
+    /// What the figures cannot say: a distance pair not measured, orientation near the
+    /// convention's gimbal lock.
+    pub notes: Vec<String>,
 }
 
 /// The mean and the sample standard deviation (with `n − 1`) of `values`, `n ≥ 2`.
@@ -442,11 +474,12 @@ fn pose_characteristics(rows: &[&CycleRow]) -> PoseCharacteristics {
     let l = rows.iter().map(|r| distance(r.attained_mm, bary));
     let (l_mean_mm, s_l_mm) = mean_and_sd(l);
     let angles = rows[0].orientation_abc_deg.map(|_| {
-        [0, 1, 2].map(|a| {
+        // The standard's a, b, c (about x, y, z) are KUKA's C, B, A.
+        [2, 1, 0].map(|k| {
             // Attained minus commanded, wrapped: ā − a_c is the mean of the differences.
             let d = rows.iter().map(move |r| {
                 let [commanded, attained] = r.orientation_abc_deg.expect("all rows or none");
-                wrap_deg(attained[a] - commanded[a])
+                wrap_deg(attained[k] - commanded[k])
             });
             mean_and_sd(d)
         })
@@ -516,30 +549,106 @@ fn distance_characteristics(
     })
 }
 
-/// The characteristics of measured cycles: per position, and between consecutive
-/// positions.
+/// The characteristics of measured cycles: per position, and between the standard's
+/// distance pair P2 and P4 when the cycles name both ([`characteristics_between`]).
+///
+/// # Errors
+///
+/// As [`characteristics_between`].
+pub fn characteristics(rows: &[CycleRow]) -> Result<Report, Iso9283Error> {
+    characteristics_between(rows, &[])
+}
+
+/// A natural order of names: `P2` before `P10`, the digits at the end compared as a
+/// number.
+fn name_key(name: &str) -> (&str, u64, &str) {
+    let digits = name.len() - name.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+    let (stem, tail) = name.split_at(name.len() - digits);
+    (stem, tail.parse().unwrap_or(u64::MAX), name)
+}
+
+/// The characteristics of measured cycles: per position (in the order of their names),
+/// and the distance characteristics between each pair of `pairs`, or without pairs the
+/// standard's P2 and P4 when both are measured. A pair not measured in two common cycles
+/// is left out with a note.
 ///
 /// # Errors
 ///
 /// No rows, a position commanded to two poses or measured twice in a cycle, a position
-/// with fewer than two cycles.
-pub fn characteristics(rows: &[CycleRow]) -> Result<Report, Iso9283Error> {
+/// with fewer than two cycles, a pair naming a position the cycles do not have.
+pub fn characteristics_between(
+    rows: &[CycleRow],
+    pairs: &[(String, String)],
+) -> Result<Report, Iso9283Error> {
     if rows.is_empty() {
         return Err(Iso9283Error::Empty);
     }
-    let groups = by_position(rows)?;
+    let mut groups = by_position(rows)?;
     if let Some(g) = groups.iter().find(|g| g.len() < 2) {
         return Err(Iso9283Error::TooFewCycles {
             position: g[0].position.clone(),
             n: g.len(),
         });
     }
+    groups.sort_by(|a, b| name_key(&a[0].position).cmp(&name_key(&b[0].position)));
+    let find = |name: &str| groups.iter().find(|g| g[0].position == name);
+    let mut notes = Vec::new();
+    let mut distance = Vec::new();
+    if pairs.is_empty() {
+        let (from, to) = DISTANCE_PAIR;
+        match (find(from), find(to)) {
+            (Some(a), Some(b)) => match distance_characteristics(a, b) {
+                Some(d) => distance.push(d),
+                None => notes.push(format!(
+                    "{from} and {to} are measured in fewer than two common cycles: no distance \
+                     characteristics"
+                )),
+            },
+            _ => notes.push(format!(
+                "no positions named {from} and {to}, the standard's distance pair: no distance \
+                 characteristics (name a pair to compute them)"
+            )),
+        }
+    }
+    for (from, to) in pairs {
+        let (Some(a), Some(b)) = (find(from), find(to)) else {
+            let missing = if find(from).is_none() { from } else { to };
+            return Err(Iso9283Error::UnknownPosition(missing.clone()));
+        };
+        match distance_characteristics(a, b) {
+            Some(d) => distance.push(d),
+            None => notes.push(format!(
+                "{from} and {to} are measured in fewer than two common cycles: no distance \
+                 characteristics"
+            )),
+        }
+    }
+    let positions: Vec<PoseCharacteristics> =
+        groups.iter().map(|g| pose_characteristics(g)).collect();
+    let oriented = rows[0].orientation_abc_deg.is_some();
+    if oriented {
+        let near: Vec<&str> = groups
+            .iter()
+            .filter(|g| {
+                let b = g[0].orientation_abc_deg.expect("oriented")[0][1];
+                (wrap_deg(b).abs() - 90.0).abs() < GIMBAL_MARGIN_DEG
+            })
+            .map(|g| g[0].position.as_str())
+            .collect();
+        if !near.is_empty() {
+            notes.push(format!(
+                "{} commanded with b within {GIMBAL_MARGIN_DEG}° of ±90°, the gimbal lock of \
+                 the a, b, c convention: their a and c figures mean little; measure orientation \
+                 away from it (b = 45°, say)",
+                near.join(", ")
+            ));
+        }
+    }
     Ok(Report {
-        positions: groups.iter().map(|g| pose_characteristics(g)).collect(),
-        distance: groups
-            .windows(2)
-            .filter_map(|w| distance_characteristics(&w[0], &w[1]))
-            .collect(),
+        positions,
+        distance,
+        orientation_convention: oriented.then_some(ORIENTATION_CONVENTION),
+        notes,
     })
 }
 
@@ -628,9 +737,12 @@ pub fn cube_positions(centre_mm: [f64; 3], side_mm: f64) -> Result<[[f64; 3]; 5]
 /// The most cycles a cube plan writes.
 pub const MAX_CYCLES: u32 = 10_000;
 
-/// A cube plan as CSV: `position,cycle,x,y,z,a,b,c`, P1..P5 in each of `cycles` cycles,
-/// every pose at the tool orientation `abc_deg` (KUKA degrees). The robot runs it; the
-/// measurement adds `mx,my,mz` (and `ma,mb,mc`) and the file is read by [`parse_cycles`].
+/// A cube plan as CSV: a `#` line stating the conventions, then
+/// `position,cycle,x,y,z,a,b,c`, the five positions in each of `cycles` cycles in the
+/// standard's sequence P1, P5, P4, P3, P2 ([`CUBE_SEQUENCE`]), every pose at the tool
+/// orientation `abc_deg` (KUKA A, B, C degrees, what the controller takes). The robot runs
+/// it; the measurement adds `mx,my,mz` (and `ma,mb,mc`) and the file is read by
+/// [`parse_cycles`].
 ///
 /// # Errors
 ///
@@ -657,9 +769,14 @@ pub fn write_cube_plan(
             crate::MAX_ANGLE_DEG
         )));
     }
-    let mut out = String::from("position,cycle,x,y,z,a,b,c\n");
+    let mut out = format!(
+        "# ISO 9283 cube: centre {centre_mm:?} mm, side {side_mm} mm; each cycle P1, P5, P4, \
+         P3, P2; x, y, z mm, base frame; a, b, c KUKA A, B, C degrees, R = Rz(a)·Ry(b)·Rx(c) \
+         (the standard's a, b, c about x, y, z are c, b, a)\nposition,cycle,x,y,z,a,b,c\n"
+    );
     for cycle in 1..=cycles {
-        for (k, p) in positions.iter().enumerate() {
+        for k in CUBE_SEQUENCE {
+            let p = positions[k];
             let _ = writeln!(
                 out,
                 "P{},{cycle},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
@@ -715,7 +832,7 @@ mod tests {
             row("P1", 3, c1, [2.0, 2.0, 3.0]),
             row("P2", 3, c2, [102.0, 2.0, 3.0]),
         ];
-        let report = characteristics(&rows).unwrap();
+        let report = characteristics_between(&rows, &[("P1".into(), "P2".into())]).unwrap();
         let p1 = &report.positions[0];
         assert_eq!(p1.n, 3);
         assert_eq!([p1.ap_x_mm, p1.ap_y_mm, p1.ap_z_mm], [1.0, 1.0, 1.0]);
@@ -740,9 +857,10 @@ mod tests {
     /// D̄_z = 0.4/3 = 0.133333, AD_z = 0.133333.
     /// S_D² = ((10.2 − D̄)² + (9.9 − D̄)² + (10.212247 − D̄)²)/2
     ///      = (0.009200 + 0.041650 + 0.011700)/2 = 0.031275: RD = 3 · 0.176847 = 0.530540.
-    /// Orientation of P1: commanded a = 179.9°, attained −179.9°, 179.8°, −179.7°:
-    /// differences (wrapped) 0.2, −0.1, 0.4: AP_a = 0.5/3 = 0.166667°;
-    /// S_a² = (0.033333² + 0.266667² + 0.233333²)/2 = 0.063333, RP_a = 3 · 0.251661 = 0.754983°.
+    /// Orientation of P1: commanded KUKA A = 179.9° (about z: the standard's c), attained
+    /// −179.9°, 179.8°, −179.7°: differences (wrapped) 0.2, −0.1, 0.4: AP_c = 0.5/3 =
+    /// 0.166667°; S_c² = (0.033333² + 0.266667² + 0.233333²)/2 = 0.063333,
+    /// RP_c = 3 · 0.251661 = 0.754983°.
     #[test]
     fn distances_and_wrapped_angles_are_those_worked_by_hand() {
         let c1 = [0.0, 0.0, 0.0];
@@ -759,7 +877,7 @@ mod tests {
             oriented(row("P1", 3, c1, [0.0; 3]), -179.7),
             oriented(row("P2", 3, c2, [10.2, 0.3, 0.4]), 179.9),
         ];
-        let report = characteristics(&rows).unwrap();
+        let report = characteristics_between(&rows, &[("P1".into(), "P2".into())]).unwrap();
         let d = &report.distance[0];
         assert!((d.mean_mm - 10.104082).abs() < 1e-6, "{d:?}");
         assert!((d.ad_p_mm - 0.104082).abs() < 1e-6, "{d:?}");
@@ -768,9 +886,110 @@ mod tests {
         assert!((d.ad_z_mm - 0.4 / 3.0).abs() < 1e-9, "{d:?}");
         assert!((d.rd_mm - 0.530540).abs() < 1e-5, "{d:?}");
         let p1 = &report.positions[0];
-        assert!((p1.ap_a_deg.unwrap() - 0.166667).abs() < 1e-5, "{p1:?}");
-        assert!((p1.rp_a_deg.unwrap() - 0.754983).abs() < 1e-5, "{p1:?}");
-        assert!(p1.ap_b_deg.unwrap().abs() < 1e-12 && p1.rp_b_deg.unwrap().abs() < 1e-12);
+        assert!((p1.ap_c_deg.unwrap() - 0.166667).abs() < 1e-5, "{p1:?}");
+        assert!((p1.rp_c_deg.unwrap() - 0.754983).abs() < 1e-5, "{p1:?}");
+        for v in [p1.ap_a_deg, p1.rp_a_deg, p1.ap_b_deg, p1.rp_b_deg] {
+            assert!(v.unwrap().abs() < 1e-12, "{p1:?}");
+        }
+        assert_eq!(report.orientation_convention, Some(ORIENTATION_CONVENTION));
+    }
+
+    /// The standard's a, b, c turn about x, y, z: a tool turned 0.3° about the base x
+    /// axis (KUKA C, the last of A, B, C) is off in a alone, one about z (KUKA A) in c.
+    #[test]
+    fn orientation_figures_are_the_standards_angles_about_x_y_z() {
+        let oriented = |cycle: u32, attained: [f64; 3]| CycleRow {
+            orientation_abc_deg: Some([[0.0, 45.0, 0.0], attained]),
+            ..row("P1", cycle, [0.0; 3], [0.0; 3])
+        };
+        let rows = [
+            oriented(1, [0.0, 45.0, 0.3]),
+            oriented(2, [0.0, 45.0, 0.3]),
+            oriented(3, [0.2, 45.0, 0.3]),
+            oriented(4, [0.2, 45.0, 0.3]),
+        ];
+        let p = characteristics(&rows).unwrap().positions[0].clone();
+        assert!((p.ap_a_deg.unwrap() - 0.3).abs() < 1e-12, "{p:?}");
+        assert!((p.ap_c_deg.unwrap() - 0.1).abs() < 1e-12, "{p:?}");
+        assert!(p.ap_b_deg.unwrap().abs() < 1e-12, "{p:?}");
+        // A rotation about x is exactly the standard's a: R = Rz(c)·Ry(b)·Rx(a).
+        let r = rotation_from_kuka_abc_deg([0.0, 45.0, 0.3]);
+        let iso = nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), 0.0)
+            * nalgebra::Rotation3::from_axis_angle(
+                &nalgebra::Vector3::y_axis(),
+                45f64.to_radians(),
+            )
+            * nalgebra::Rotation3::from_axis_angle(
+                &nalgebra::Vector3::x_axis(),
+                0.3f64.to_radians(),
+            );
+        assert!((r.matrix() - iso.matrix()).abs().max() < 1e-12);
+    }
+
+    /// The distance characteristics are those of the standard's pair P2 and P4, not of
+    /// positions consecutive in the file; a cube's cycle runs P1, P5, P4, P3, P2.
+    #[test]
+    fn distances_are_the_standards_pair_and_the_cycle_its_sequence() {
+        let text = write_cube_plan([1000.0, 0.0, 1000.0], 400.0, [0.0, 45.0, 0.0], 3).unwrap();
+        let rows: Vec<String> = text
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .skip(1)
+            .take(5)
+            .map(|l| l.split(',').next().unwrap().to_string())
+            .collect();
+        assert_eq!(rows, ["P1", "P5", "P4", "P3", "P2"]);
+        let measured = measured_as_commanded(&text);
+        let report = characteristics(&parse_cycles(measured.as_bytes()).unwrap()).unwrap();
+        assert_eq!(report.distance.len(), 1, "{:?}", report.distance);
+        let d = &report.distance[0];
+        assert_eq!((d.from.as_str(), d.to.as_str(), d.n), ("P2", "P4", 3));
+        // P2 and P4 are the ends of a diagonal of the measurement plane: 80 % of the
+        // cube's space diagonal apart.
+        assert!(
+            (d.commanded_mm - 0.8 * 400.0 * 3f64.sqrt()).abs() < 1e-3,
+            "{d:?}"
+        );
+        let names: Vec<&str> = report.positions.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["P1", "P2", "P3", "P4", "P5"]);
+        // Other cycles name their own pair; a position not measured is refused.
+        let report = characteristics_between(
+            &parse_cycles(measured.as_bytes()).unwrap(),
+            &[("P1".into(), "P3".into())],
+        )
+        .unwrap();
+        assert_eq!(report.distance[0].to, "P3");
+        let e = characteristics_between(
+            &parse_cycles(measured.as_bytes()).unwrap(),
+            &[("P1".into(), "P9".into())],
+        )
+        .unwrap_err();
+        assert_eq!(e, Iso9283Error::UnknownPosition("P9".into()));
+        // At the old default 0,90,0 the a and c figures are flagged.
+        let text = write_cube_plan([1000.0, 0.0, 1000.0], 400.0, [0.0, 90.0, 0.0], 2).unwrap();
+        let report =
+            characteristics(&parse_cycles(measured_as_commanded(&text).as_bytes()).unwrap())
+                .unwrap();
+        assert!(
+            report.notes.iter().any(|n| n.contains("gimbal lock")),
+            "{:?}",
+            report.notes
+        );
+    }
+
+    /// A plan with the attained columns added, attained exactly as commanded.
+    fn measured_as_commanded(plan: &str) -> String {
+        let mut measured = String::new();
+        for line in plan.lines().filter(|l| !l.starts_with('#')) {
+            let f: Vec<&str> = line.split(',').collect();
+            let extra = if f[0] == "position" {
+                "mx,my,mz,ma,mb,mc".to_string()
+            } else {
+                f[2..8].join(",")
+            };
+            measured.push_str(&format!("{line},{extra}\n"));
+        }
+        measured
     }
 
     proptest::proptest! {
@@ -830,18 +1049,9 @@ mod tests {
     #[test]
     fn a_cube_plan_reads_back_as_cycles_at_the_standard_positions() {
         let text = write_cube_plan([1000.0, 0.0, 1000.0], 400.0, [0.0, 90.0, 0.0], 2).unwrap();
-        assert_eq!(text.lines().count(), 1 + 10);
+        assert_eq!(text.lines().count(), 2 + 10);
         // Measured exactly where commanded: the plan plus the attained columns.
-        let mut measured = String::new();
-        for (i, line) in text.lines().enumerate() {
-            let f: Vec<&str> = line.split(',').collect();
-            let extra = if i == 0 {
-                "mx,my,mz,ma,mb,mc".to_string()
-            } else {
-                f[2..8].join(",")
-            };
-            measured.push_str(&format!("{line},{extra}\n"));
-        }
+        let measured = measured_as_commanded(&text);
         let rows = parse_cycles(measured.as_bytes()).unwrap();
         let report = characteristics(&rows).unwrap();
         let names: Vec<&str> = report.positions.iter().map(|p| p.name.as_str()).collect();

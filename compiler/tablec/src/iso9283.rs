@@ -5,9 +5,9 @@ use adwi_jobs::{Iso9283Args, Iso9283Job};
 use adwi_measure::iso9283::{Report, ISO_CYCLES};
 
 /// ISO 9283:1998 pose characteristics of measured cycles: pose accuracy AP and
-/// repeatability RP per position, distance accuracy AD and repeatability RD between
-/// consecutive positions (as text, --json and an HTML page, --report); or the standard's
-/// five cube positions as a plan (--cube).
+/// repeatability RP per position, distance accuracy AD and repeatability RD between the
+/// standard's P2 and P4 or the pairs named (as text, --json and an HTML page, --report);
+/// or the standard's five cube positions as a plan (--cube).
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -23,6 +23,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!();
         println!("compensated by the table (each attained pose less the predicted error at its command):");
         print_report(report);
+    }
+    if result.report.is_none() {
+        println!(
+            "plan           each cycle P1, P5, P4, P3, P2 (ISO 9283); a, b, c are KUKA A, B, C \
+             degrees, R = Rz(a)·Ry(b)·Rx(c) (the standard's a, b, c about x, y, z are c, b, a)"
+        );
     }
     for path in &result.written {
         println!("wrote          {}", path.display());
@@ -79,5 +85,11 @@ fn print_report(report: &Report) {
     let fewest = report.positions.iter().map(|p| p.n).min().unwrap_or(0);
     if fewest < ISO_CYCLES as usize {
         println!("note           {fewest} cycles at the fewest: ISO 9283 asks for {ISO_CYCLES}");
+    }
+    if let Some(convention) = report.orientation_convention {
+        println!("orientation    {convention}");
+    }
+    for note in &report.notes {
+        println!("note           {note}");
     }
 }

@@ -25,9 +25,15 @@ pub fn html(measured: &Report, compensated: Option<&Report>, command: &str) -> S
         "<p>ISO 9283:1998 pose characteristics of measured cycles: position accuracy \
          AP<sub>P</sub> (the barycentre's distance to the commanded position, 7.2.1) and \
          repeatability RP<sub>l</sub> (l̄ + 3 S<sub>l</sub>, 7.2.2) per position; distance \
-         accuracy AD and repeatability RD between consecutive positions (7.4). Lengths in mm, \
-         base frame; angles in degrees, KUKA A, B, C. docs/measure.md has the formulas.</p>\n",
+         accuracy AD and repeatability RD between the standard's P2 and P4 or the pairs \
+         named (7.4). Lengths in mm, base frame. docs/measure.md has the formulas.</p>\n",
     );
+    if let Some(convention) = measured.orientation_convention {
+        let _ = writeln!(page, "<p>Orientation: {}.</p>", escape(convention));
+    }
+    for note in &measured.notes {
+        let _ = writeln!(page, "<p>Note: {}</p>", escape(note));
+    }
     let _ = writeln!(page, "<h2>Pose accuracy and repeatability</h2>");
     positions_table(&mut page, measured);
     if let Some(c) = compensated {
@@ -161,7 +167,12 @@ fn distance_table(page: &mut String, report: &Report, which: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use adwi_measure::iso9283::{characteristics, CycleRow};
+    use adwi_measure::iso9283::{characteristics_between, CycleRow, Report};
+
+    /// The characteristics with the distance between the two positions.
+    fn characteristics(rows: &[CycleRow]) -> Result<Report, adwi_measure::iso9283::Iso9283Error> {
+        characteristics_between(rows, &[("P1".into(), "P<2>".into())])
+    }
 
     /// Two positions, three cycles, attained positions off by known amounts.
     fn cycles(offset_mm: f64, orientation: bool) -> Vec<CycleRow> {
@@ -226,6 +237,10 @@ mod tests {
             assert!(page.contains("P&lt;2&gt;") && !page.contains("P<2>"));
             assert!(page.contains("3 cycles at the fewest"));
             assert_eq!(page.contains("AP<sub>a</sub>"), orientation);
+            assert_eq!(
+                page.contains("rotations about the base x, y, z"),
+                orientation
+            );
         }
         let alone = html(
             &characteristics(&cycles(0.3, false)).unwrap(),
