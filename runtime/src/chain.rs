@@ -27,6 +27,7 @@
 
 use crate::kinematics::{MdhJoint, Transform};
 use crate::lanes::{Lanes, Pair};
+use crate::model::ModelAt;
 
 /// The most joints a chain may have: robots with more axes than this are not served (the
 /// chain lives in fixed-size arrays, so that queries never allocate).
@@ -427,16 +428,18 @@ pub(crate) struct FoldedChain {
 struct ReachChain {
     frames: [Transform; MAX_JOINTS],
     prismatic: [bool; MAX_JOINTS],
-    /// The TCP's position and approach (z) axis in the last joint's turned frame.
+    /// The TCP's position, approach (z) axis and x axis in the last joint's turned frame.
     tool_mm: [f64; 3],
     tool_approach: [f64; 3],
+    tool_across: [f64; 3],
 }
 
 /// [`FoldedChain::reach_pair`] prepared: the two chains' frames interleaved, so that each
 /// joint turns and moves both points in one [`Pair`] per coordinate (`a` in the first lane,
-/// `b` in the second; the approach axis rides in the first lane, the second lane's is never
-/// read). Every lane does the arithmetic [`ReachChain::step`] does, in its order: the walk
-/// gives `reach_pair`'s values to the bit, with one instruction where `reach_pair` has two.
+/// `b` in the second; so do both chains' approach axes, and for [`ReachPair::walk_posed`]
+/// their x axes). Every lane does the arithmetic [`ReachChain::step`] does, in its order:
+/// the walk gives `reach_pair`'s values to the bit, with one instruction where
+/// `reach_pair` has two.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ReachPair {
     /// Each joint's frame, row by row: the rotation's three entries, then the translation.
@@ -445,6 +448,99 @@ pub(crate) struct ReachPair {
     len: usize,
     tool_mm: [Pair; 3],
     tool_approach: [Pair; 3],
+    /// The TCP frame's x axis in the last joint's turned frame, both chains.
+    tool_across: [Pair; 3],
+}
+
+/// Both chains' TCP frames from one walk ([`ReachPair::walk_posed`]), base frame: the
+/// position, the x axis and the approach (z) axis of each; the y axis is `z × x`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PosedPair {
+    pub(crate) a_mm: [f64; 3],
+    pub(crate) a_x: [f64; 3],
+    pub(crate) a_z: [f64; 3],
+    pub(crate) b_mm: [f64; 3],
+    pub(crate) b_x: [f64; 3],
+    pub(crate) b_z: [f64; 3],
+}
+
+impl PosedPair {
+    /// The model's values at these frames, `a` the nominal chain's and `b` the calibrated
+    /// one's ([`crate::model::PreparedModel::at`]): the nominal rotation's columns `x`,
+    /// `z × x`, `z`, and the orientation error from the columns without forming
+    /// `R_b · R_aᵀ`: with `n_c` and `k_c` the nominal and calibrated columns, that product
+    /// is `Σ_c k_c n_cᵀ`, so its skew part (`sin θ` times the axis) is `½ Σ_c n_c × k_c` and
+    /// its trace `Σ_c n_c · k_c` ([`small_rotation_vector`]).
+    #[inline]
+    pub(crate) fn model_at(&self) -> ModelAt {
+        let nominal = [self.a_x, cross(self.a_z, self.a_x), self.a_z];
+        let calibrated = [self.b_x, cross(self.b_z, self.b_x), self.b_z];
+        let mut sin_axis = [0.0; 3];
+        let mut trace = 0.0;
+        for (n, k) in nominal.iter().zip(&calibrated) {
+            let turn = cross(*n, *k);
+            for (s, t) in sin_axis.iter_mut().zip(turn) {
+                *s += t;
+            }
+            trace += dot(*n, *k);
+        }
+        let sin_axis = [0.5 * sin_axis[0], 0.5 * sin_axis[1], 0.5 * sin_axis[2]];
+        let rotation_rad =
+            small_rotation_vector(sin_axis, 0.5 * (trace - 1.0)).unwrap_or_else(|| {
+                // R_b · R_aᵀ[i][l] = Σ_c k_c[i] n_c[l], for a turn beyond the series.
+                let e = [0, 1, 2].map(|i| {
+                    [0, 1, 2].map(|l| {
+                        calibrated[0][i] * nominal[0][l]
+                            + calibrated[1][i] * nominal[1][l]
+                            + calibrated[2][i] * nominal[2][l]
+                    })
+                });
+                crate::kinematics::rotation_vector(&e)
+            });
+        let [x, y, z] = nominal;
+        ModelAt {
+            position_mm: [
+                self.b_mm[0] - self.a_mm[0],
+                self.b_mm[1] - self.a_mm[1],
+                self.b_mm[2] - self.a_mm[2],
+            ],
+            rotation_rad,
+            approach: z,
+            nominal_tcp_mm: self.a_mm,
+            nominal_rotation: Some([[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]]),
+        }
+    }
+}
+
+/// The rotation vector of a rotation given `sin θ` times its axis and `cos θ`, for the
+/// turns a calibration identifies (the UR5's reach 0.015 rad): `θ / sin θ = asin(s) / s`
+/// by its series in `s²` to `s¹²` (the next term is under 1e-20 relative for `s ≤ 0.05`),
+/// where [`crate::kinematics::rotation_vector`] takes an `atan2`. `None` from `s = 0.05`
+/// (2.9°) or for `cos θ ≤ 0`: the general logarithm then.
+#[inline]
+fn small_rotation_vector(sin_axis: [f64; 3], cos_angle: f64) -> Option<[f64; 3]> {
+    let s2 = dot(sin_axis, sin_axis);
+    if !(s2 < 2.5e-3 && cos_angle > 0.0) {
+        return None;
+    }
+    // (2n)! / (4ⁿ (n!)² (2n + 1)), n = 1..6; Estrin's form in s², s⁴ and s⁸.
+    let [c1, c2, c3, c4, c5, c6] = [
+        1.0 / 6.0,
+        3.0 / 40.0,
+        5.0 / 112.0,
+        35.0 / 1152.0,
+        63.0 / 2816.0,
+        231.0 / 13312.0,
+    ];
+    let s4 = s2 * s2;
+    let low = (1.0 + c1 * s2) + s4 * (c2 + c3 * s2);
+    let high = (c4 + c5 * s2) + s4 * c6;
+    let scale = low + (s4 * s4) * high;
+    Some([
+        sin_axis[0] * scale,
+        sin_axis[1] * scale,
+        sin_axis[2] * scale,
+    ])
 }
 
 impl ReachPair {
@@ -479,8 +575,58 @@ impl ReachPair {
             prismatic: za.prismatic,
             len: a.len,
             tool_mm: both(za.tool_mm, zb.tool_mm),
-            tool_approach: both(za.tool_approach, [0.0; 3]),
+            tool_approach: both(za.tool_approach, zb.tool_approach),
+            tool_across: both(za.tool_across, zb.tool_across),
         })
+    }
+
+    /// Both chains' TCP frames at joint values `q` given their sines and cosines, from one
+    /// walk from the tool back: the point and the approach axis as [`ReachPair::walk`]
+    /// walks them (the same values to the bit), and the x axis beside them, turned and
+    /// rotated as the approach axis is. What a hybrid query's orientation error and TCP
+    /// lever need, for a third more work a joint than the position alone, where composing
+    /// each chain's frames down the chain took twice the walk. Both slices hold at least
+    /// the chains' joint count (the caller's check).
+    #[inline]
+    pub(crate) fn walk_posed(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> PosedPair {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        let (mut point, mut approach, mut across) =
+            (self.tool_mm, self.tool_approach, self.tool_across);
+        for j in (0..n).rev() {
+            let rows = &self.frames[j];
+            if self.prismatic[j] {
+                point[2] = point[2] + Pair::splat(q[j]);
+            } else {
+                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
+                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
+                point = turn(point);
+                approach = turn(approach);
+                across = turn(across);
+            }
+            let [p, a, x] = [point, approach, across];
+            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
+            let turned = |r: &[Pair; 4], v: [Pair; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
+            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
+            approach = [
+                turned(&rows[0], a),
+                turned(&rows[1], a),
+                turned(&rows[2], a),
+            ];
+            across = [
+                turned(&rows[0], x),
+                turned(&rows[1], x),
+                turned(&rows[2], x),
+            ];
+        }
+        let lane = |v: [Pair; 3], l: usize| [v[0].0[l], v[1].0[l], v[2].0[l]];
+        PosedPair {
+            a_mm: lane(point, 0),
+            a_x: lane(across, 0),
+            a_z: lane(approach, 0),
+            b_mm: lane(point, 1),
+            b_x: lane(across, 1),
+            b_z: lane(approach, 1),
+        }
     }
 
     /// `a`'s TCP position and approach axis, and `b`'s TCP position, at joint values `q`
@@ -553,6 +699,7 @@ impl ReachChain {
             prismatic,
             tool_mm: tool.translation_mm,
             tool_approach: [r[0][2], r[1][2], r[2][2]],
+            tool_across: [r[0][0], r[1][0], r[2][0]],
         }
     }
 }
@@ -1222,6 +1369,39 @@ mod tests {
         }
     }
 
+    /// A unit-axis copy of `chain` without compliance, and the same with every frame
+    /// moved by `moves` (a rotation vector, a translation and an offset each: the joints'
+    /// origins, then the base and the tool), as a calibration moves them.
+    fn nominal_and_moved(chain: &Chain, moves: &[([f64; 3], [f64; 3], f64)]) -> (Chain, Chain) {
+        let unit_joints: Vec<ChainJoint> = chain
+            .joints()
+            .iter()
+            .map(|j| ChainJoint {
+                axis: unit(j.axis),
+                ..*j
+            })
+            .collect();
+        let nominal = Chain::new(chain.base, &unit_joints, chain.tool, None).unwrap();
+        let moved_joints: Vec<ChainJoint> = unit_joints
+            .iter()
+            .zip(moves)
+            .map(|(j, &(r, p, o))| ChainJoint {
+                origin: j.origin.compose(&rigid(r, p)),
+                offset: j.offset + o,
+                ..*j
+            })
+            .collect();
+        let moved = |t: &Transform, (r, p, _): ([f64; 3], [f64; 3], f64)| t.compose(&rigid(r, p));
+        let calibrated = Chain::new(
+            moved(&chain.base, moves[MAX_JOINTS]),
+            &moved_joints,
+            moved(&chain.tool, moves[MAX_JOINTS + 1]),
+            None,
+        )
+        .unwrap();
+        (nominal, calibrated)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(512))]
 
@@ -1272,6 +1452,54 @@ mod tests {
                     [bits(each.0), bits(each.1), bits(each.2)]
                 );
             }
+        }
+
+        /// Both chains' TCP frames from one walk ([`ReachPair::walk_posed`]): the point and
+        /// approach axis to the bit as [`ReachPair::walk`] has them, and the model's values
+        /// ([`PosedPair::model_at`]: the orientation error by the series or, beyond it, by
+        /// the general logarithm) as the two chains' own forward kinematics and
+        /// [`crate::kinematics::pose_error`] give them, to their rounding. Frames moved by up
+        /// to `turn` rad about each axis, from a calibration's milliradians to 0.1 rad.
+        #[test]
+        fn a_posed_pair_walk_gives_the_chains_frames_and_their_orientation_error(
+            chain in any_chain(),
+            moves in proptest::collection::vec((vec3(1.0), vec3(2.0), -1.0..1.0f64), MAX_JOINTS + 2),
+            turn in prop_oneof![Just(1e-4), Just(1e-3), Just(1e-2), Just(0.1)],
+            q in proptest::collection::vec(-7.0..7.0f64, MAX_JOINTS),
+        ) {
+            let q = &q[..chain.joint_count()];
+            let sin_cos: Vec<(f64, f64)> = q.iter().map(|v| v.sin_cos()).collect();
+            let moves: Vec<_> = moves.iter().map(|&(r, p, o)| (r.map(|v| v * turn), p, o * turn)).collect();
+            let (nominal, calibrated) = nominal_and_moved(&chain, &moves);
+            let [a, b] = [FoldedChain::new(&nominal), FoldedChain::new(&calibrated)];
+            let Some(pair) = ReachPair::new(&a, &b) else {
+                return Ok(());
+            };
+            let posed = pair.walk_posed(q, &sin_cos);
+            let walked = pair.walk(q, &sin_cos);
+            let bits = |v: [f64; 3]| v.map(f64::to_bits);
+            prop_assert_eq!(
+                [bits(posed.a_mm), bits(posed.a_z), bits(posed.b_mm)],
+                [bits(walked.0), bits(walked.1), bits(walked.2)]
+            );
+            let at = posed.model_at();
+            let (reference_a, reference_b) = (nominal.tcp_pose(q).unwrap(), calibrated.tcp_pose(q).unwrap());
+            let (position_mm, rotation_rad) = crate::kinematics::pose_error(&reference_a, &reference_b);
+            let off = |x: [f64; 3], y: [f64; 3]| (0..3).map(|i| (x[i] - y[i]).abs()).fold(0.0, f64::max);
+            let reach_mm = dot(reference_a.translation_mm, reference_a.translation_mm).sqrt()
+                + chain.joints().iter().map(|j| dot(j.origin.translation_mm, j.origin.translation_mm).sqrt()).sum::<f64>()
+                + 1000.0;
+            let tolerance_mm = 1e-14 * reach_mm;
+            prop_assert!(off(at.position_mm, position_mm) <= tolerance_mm, "{at:?} vs {position_mm:?}");
+            prop_assert!(off(at.nominal_tcp_mm, reference_a.translation_mm) <= tolerance_mm);
+            let r = &reference_a.rotation;
+            let columns = |m: &[[f64; 3]; 3], c: usize| [m[0][c], m[1][c], m[2][c]];
+            let rotation = at.nominal_rotation.unwrap();
+            for c in 0..3 {
+                prop_assert!(off(columns(&rotation, c), columns(r, c)) <= 1e-14, "{rotation:?} vs {r:?}");
+            }
+            prop_assert_eq!(at.approach, posed.a_z);
+            prop_assert!(off(at.rotation_rad, rotation_rad) <= 4e-15, "{:?} vs {rotation_rad:?}", at.rotation_rad);
         }
 
         /// The folded chain of the query path against the chain's own forward kinematics,

@@ -229,6 +229,9 @@ impl PreparedModel {
         crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
+        if let (true, Some(pair)) = (rotation, &self.pair) {
+            return Some(pair.walk_posed(q, sin_cos).model_at());
+        }
         if !rotation {
             let walked = match &self.pair {
                 Some(pair) => Some(pair.walk(q, sin_cos)),
