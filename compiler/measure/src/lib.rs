@@ -3,6 +3,8 @@
 //! - [`iso9283`]: the pose accuracy and repeatability, and the distance accuracy and
 //!   repeatability, of ISO 9283:1998 from measured cycles, and the standard's five test
 //!   positions in a cube;
+//! - [`path`]: the path characteristics of ISO 9283:1998 (accuracy, repeatability,
+//!   cornering, velocity) from a tracker stream, and the standard's test paths in a cube;
 //! - [`plan`]: which poses to measure so that an identification of the robot's kinematic
 //!   parameters is well determined and the workspace is covered (D-optimal and space-filling
 //!   selection from a reachable candidate pool, ordered as a short joint-space path);
@@ -10,6 +12,7 @@
 //!   positions.
 
 pub mod iso9283;
+pub mod path;
 pub mod plan;
 pub mod truth;
 
