@@ -52,6 +52,7 @@
 use crate::correction::{Correction, Residual, Status};
 use crate::format::v2::ArchivedTableData;
 use crate::format::{Header, CONTENT_MODEL};
+use crate::lanes::{Lanes, Pair};
 
 /// What a served query needs of the grid, prepared once at open: the node strides and the
 /// first node of the set serving targets of unknown configuration.
@@ -478,6 +479,12 @@ fn blend<const S: usize>(
         missing: 0,
         contributed: false,
     };
+    // A node's `3 S` values in pairs, side by side ([`crate::lanes`]): each lane sums as
+    // `x += weight · v` does, in the same order, so the sums are the scalar ones to the
+    // bit. An odd count's last pair carries a zero beside its value, never read.
+    const MOST: usize = 6;
+    let pairs = (3 * S).div_ceil(2).min(MOST);
+    let mut sums = [Pair([0.0; 2]); MOST];
     for (c, (&corner, &weight)) in corners.iter().zip(weights).enumerate() {
         // Within the block's length, which did not overflow.
         let at = corner * S;
@@ -488,10 +495,16 @@ fn blend<const S: usize>(
             continue;
         }
         out.contributed |= weight > 0.0;
-        for (s, term) in out.sum.iter_mut().zip(node) {
-            for (x, v) in s.iter_mut().zip(term.iter()) {
-                *x += weight * v.to_native();
-            }
+        let value = |k: usize| node.get(k / 3).map_or(0.0, |v| v[k % 3].to_native());
+        let w = Pair::splat(weight);
+        for (p, sum) in sums.iter_mut().enumerate().take(pairs) {
+            *sum = *sum + w * Pair([value(2 * p), value(2 * p + 1)]);
+        }
+    }
+    for (t, term) in out.sum.iter_mut().enumerate() {
+        for (i, x) in term.iter_mut().enumerate() {
+            let k = 3 * t + i;
+            *x = sums[(k / 2).min(MOST - 1)].0[k % 2];
         }
     }
     Some(out)
