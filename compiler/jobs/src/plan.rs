@@ -3,10 +3,12 @@
 
 use std::path::PathBuf;
 
+use adwi_compile::nugget_kriging::ResidualGp;
 use adwi_compile::write::OutputPlan;
+use adwi_measure::field::{FieldPrior, Kernel};
 use adwi_measure::plan::{
-    check, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan, PlanError,
-    PlanOptions, TrackerSight,
+    check, check_options, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan,
+    PlanError, PlanOptions, Prior, SetFigures, TrackerSight,
 };
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
@@ -65,10 +67,19 @@ pub struct PlanArgs {
     #[arg(long, default_value_t = 0.3)]
     pub coverage: f64,
     /// The design criterion: `i` (the mean prediction variance of the TCP position over
-    /// the candidates, what a held-out error measures) or `d` (the log-determinant of the
-    /// identification's information).
+    /// the candidates, what a held-out error measures), `a` (the parameters' mean squared
+    /// error, mm and mrad), `ia` (both, each relative to a spread design) or `d` (the
+    /// log-determinant of the identification's information).
     #[arg(long, value_enum, default_value_t)]
     pub criterion: CriterionArg,
+    /// Samples measured already (a sample file with j1..jn, as build reads; repeatable):
+    /// the plan adds the poses they lack, and covers where they are not.
+    #[arg(long)]
+    pub measured: Vec<PathBuf>,
+    /// A table built from the samples measured already: the poses go where its residual
+    /// field's kriging variance is largest and most reducible (instead of the coverage).
+    #[arg(long)]
+    pub table: Option<PathBuf>,
     /// Exchange passes after the greedy selection: each pose in turn swapped for the
     /// candidate that improves the criterion most (0 to 20; a pass that swaps nothing
     /// ends them).
@@ -102,6 +113,8 @@ impl Default for PlanArgs {
             orientation_tolerance: 15.0,
             coverage: 0.3,
             criterion: CriterionArg::default(),
+            measured: Vec::new(),
+            table: None,
             exchange_passes: 2,
             rank_tol: CalibrateOptions::default().rank_tolerance,
             threads: None,
@@ -159,6 +172,10 @@ pub enum CriterionArg {
     /// I-optimality.
     #[default]
     I,
+    /// A-optimality on the parameters (mm, mrad).
+    A,
+    /// I- and A-optimality together.
+    Ia,
 }
 
 /// The smallest distance between two poses as the plan's header and `tablec plan` say it.
@@ -173,6 +190,119 @@ pub fn smallest_distance(min_distance_mm: Option<f64>) -> String {
 /// the count.
 fn default_pool(count: usize) -> usize {
     count.saturating_mul(10).clamp(1_000, 20_000).max(count)
+}
+
+/// The poses measured already (`--measured`) and the table's residual field (`--table`);
+/// `None` without either.
+fn prior(args: &PlanArgs, robot: &Robot) -> Result<Option<Prior>, JobError> {
+    if args.measured.is_empty() && args.table.is_none() {
+        return Ok(None);
+    }
+    let mut prior = Prior::default();
+    for path in &args.measured {
+        let samples = adwi_samples::read_samples(path, &adwi_samples::ColumnMap::default())?;
+        if samples.joints.is_none() {
+            return Err(JobError::option(
+                "measured",
+                format!(
+                    "{}: no joint columns (j1..j{}); the plan weighs measured poses by their joints",
+                    path.display(),
+                    robot.joint_count()
+                ),
+            ));
+        }
+        for i in 0..samples.len() {
+            let q = samples.joints_rad(i).expect("checked").to_vec();
+            prior.joints.push(q);
+            let (n, e) = (samples.nominal_mm[i], samples.error_mm[i]);
+            prior
+                .positions_mm
+                .push([n[0] + e[0], n[1] + e[1], n[2] + e[2]]);
+        }
+    }
+    if let Some(path) = &args.table {
+        prior.field = Some(table_field(path)?);
+    }
+    Ok(Some(prior))
+}
+
+/// A table's samples, their residuals, and the kernel the residual field's likelihood
+/// chooses for them (as a kriging served field's build does).
+fn table_field(path: &std::path::Path) -> Result<FieldPrior, JobError> {
+    // SAFETY: the mapping lives for this function; tablec and the Python package replace
+    // tables by rename, never in place.
+    let table = unsafe { adwi_runtime::Table::open(path) }.map_err(|source| JobError::Table {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let unreadable = || {
+        JobError::option(
+            "table",
+            format!(
+                "{}: a version-1 table does not keep its samples' residuals apart; build it again",
+                path.display()
+            ),
+        )
+    };
+    let Some(adwi_runtime::Payload::V2(data)) = table.payload() else {
+        return Err(unreadable());
+    };
+    let native =
+        |v: &adwi_runtime::format::v2::ArchivedQuerySample| v.actual_mm.map(|x| x.to_native());
+    let positions_mm: Vec<[f64; 3]> = data.samples.iter().map(native).collect();
+    let residuals_mm: Vec<[f64; 3]> = data
+        .errors_mm
+        .iter()
+        .map(|e| e.map(|x| x.to_native()))
+        .collect();
+    let n = positions_mm.len();
+    if !(3..=adwi_measure::field::MAX_FIELD_SAMPLES).contains(&n) {
+        return Err(JobError::option(
+            "table",
+            format!(
+                "{}: {n} samples; the residual field's variance needs 3 to {}",
+                path.display(),
+                adwi_measure::field::MAX_FIELD_SAMPLES
+            ),
+        ));
+    }
+    let inputs: Vec<Vec<f64>> = positions_mm.iter().map(|p| p.to_vec()).collect();
+    let values: Vec<Vec<f64>> = residuals_mm.iter().map(|r| r.to_vec()).collect();
+    let gp = ResidualGp::fit_cartesian(&inputs, &values).map_err(|e| {
+        JobError::option(
+            "table",
+            format!(
+                "{}: its residual field cannot be fitted: {e}",
+                path.display()
+            ),
+        )
+    })?;
+    let choices = gp.choices();
+    let kernel = |c: usize| Kernel {
+        length_scale_mm: choices[c].length_scale,
+        vertical_scale: choices[c].vertical_scale,
+        relative_nugget: choices[c].relative_nugget,
+    };
+    Ok(FieldPrior {
+        positions_mm,
+        residuals_mm,
+        kernels: [kernel(0), kernel(1), kernel(2)],
+    })
+}
+
+/// The figures of a set of poses, one line.
+pub fn figures_line(f: &SetFigures) -> String {
+    let o = match &f.observability {
+        Some(o) => format!(
+            "O1 {:.4} O2 {:.2e} O3 {:.4} O4 {:.2e} O5 {:.4}, noise amplification {:.3}",
+            o.o1, o.o2, o.o3, o.o4, o.o5, o.noise_amplification
+        ),
+        None => "a parameter undetermined: no observability indices".into(),
+    };
+    format!(
+        "{:>5} poses: mean prediction variance {:.4} σ², parameter variance {:.4} σ²; {o}",
+        f.poses, f.mean_variance, f.parameter_variance
+    )
 }
 
 /// A plan checked and sized, ready to run.
@@ -249,22 +379,32 @@ impl PlanJob {
             criterion: match args.criterion {
                 CriterionArg::D => Criterion::D,
                 CriterionArg::I => Criterion::I,
+                CriterionArg::A => Criterion::A,
+                CriterionArg::Ia => Criterion::Ia,
             },
             exchange_passes: args.exchange_passes,
+            prior: None,
         };
-        let threads = crate::thread_pool(args.threads)?;
-        let mut inputs = Inputs::default();
-        let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
         let mut options = options;
         if args.pool.is_none() {
             options.pool = default_pool(args.count);
         }
-        // Sized before any work: counts, boxes, the tracker, the selection's arithmetic.
-        check(&robot, &options).map_err(|e| match e {
+        let refused = |e: PlanError| match e {
             PlanError::Option { name, reason } => JobError::option(name, reason),
             e => JobError::Plan(Box::new(e)),
-        })?;
+        };
+        // Every option checked before any file is read.
+        check_options(&options).map_err(refused)?;
+        let threads = crate::thread_pool(args.threads)?;
+        let mut inputs = Inputs::default();
+        let robot = load_robot(&args.robot, &mut inputs)?.expect("checked");
+        for path in args.measured.iter().chain(&args.table) {
+            inputs.add(path);
+        }
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
+        options.prior = prior(&args, &robot)?;
+        // Sized before any work: the measured poses, the selection's arithmetic.
+        check(&robot, &options).map_err(refused)?;
         Ok(PlanJob {
             args,
             robot,
@@ -334,6 +474,8 @@ impl PlanJob {
                 match options.criterion {
                     Criterion::D => "D-optimality",
                     Criterion::I => "I-optimality (mean prediction variance over the candidates)",
+                    Criterion::A => "A-optimality (parameters in mm and mrad)",
+                    Criterion::Ia => "I- and A-optimality",
                 },
                 planned.parameters.len(),
                 planned.log_det,

@@ -8,11 +8,16 @@
 //! - [`plan`]: which poses to measure so that an identification of the robot's kinematic
 //!   parameters is well determined and the workspace is covered (D-optimal and space-filling
 //!   selection from a reachable candidate pool, ordered as a short joint-space path);
+//! - [`observability`]: the classical observability indices O1-O5 of a set of poses;
+//! - [`field`]: a table's residual field's kriging variance, for planning where to measure
+//!   next;
 //! - [`truth`]: how close an identification is to a simulated robot's true parameters and
 //!   positions.
 
+pub mod field;
 pub mod iso9283;
 pub mod path;
+pub mod observability;
 pub mod plan;
 pub mod truth;
 

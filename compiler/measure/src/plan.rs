@@ -50,7 +50,7 @@
 
 use std::fmt::Write as _;
 
-use adwi_robot::calibrate::{design_jacobians, Parameter};
+use adwi_robot::calibrate::{design_jacobians_scaled, Parameter};
 use adwi_robot::ik::PostureTable;
 use adwi_robot::model::{isometry_from_parts, JointKind};
 use adwi_robot::{IkSolution, InverseKinematics, Robot};
@@ -62,6 +62,9 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+
+use crate::field::{FieldError, FieldPrior, FieldVariance};
+use crate::observability::{observability, per_display_unit, Observability};
 
 /// The most poses a plan holds.
 pub const MAX_POSES: usize = 5_000;
@@ -108,6 +111,27 @@ pub enum Criterion {
     /// (the pool), what a held-out error measures.
     #[default]
     I,
+    /// A-optimality on the parameters in millimetres and milliradians: the predicted mean
+    /// squared parameter error, lengths and angles each averaged over their count (what
+    /// the parameter error against a truth measures).
+    A,
+    /// I- and A-optimality together: the sum of the two criteria, each divided by its
+    /// value for a design spread like the pool (so that neither's unit decides).
+    Ia,
+}
+
+/// Poses measured before this plan, and what they left: the plan continues from them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Prior {
+    /// The measured poses' joint values (rad; mm for prismatic joints): their information
+    /// starts the design, so that the new poses add what they lack.
+    pub joints: Vec<Vec<f64>>,
+    /// Positions measured already (mm, base frame): a candidate's coverage is its
+    /// distance to the nearest of them and of the poses taken.
+    pub positions_mm: Vec<[f64; 3]>,
+    /// A table's residual field: its reducible kriging variance ([`crate::field`]) takes
+    /// the place of the coverage in the selection.
+    pub field: Option<FieldPrior>,
 }
 
 /// The most exchange passes after the greedy selection.
@@ -137,6 +161,8 @@ pub struct PlanOptions {
     /// Exchange passes after the greedy selection (at most; a pass that changes nothing
     /// ends them), 0 to [`MAX_EXCHANGE_PASSES`].
     pub exchange_passes: usize,
+    /// Poses measured already, which the plan continues; `None` for a first plan.
+    pub prior: Option<Prior>,
 }
 
 /// Why a plan cannot be made.
@@ -163,6 +189,9 @@ pub enum PlanError {
     /// The identification's Jacobian cannot be formed.
     #[error(transparent)]
     Jacobian(#[from] Box<adwi_robot::calibrate::CalibrateError>),
+    /// The table's residual field's variance cannot be computed.
+    #[error(transparent)]
+    Field(#[from] FieldError),
 }
 
 /// One planned pose.
@@ -201,6 +230,38 @@ pub struct Plan {
     pub min_distance_mm: Option<f64>,
     /// The path's joint travel, the sum of the largest joint move of each step (rad).
     pub path_travel: f64,
+    /// The criterion's value for the chosen poses (per σ²; for D-optimality, the mean
+    /// prediction variance).
+    pub criterion_value: f64,
+    /// A lower bound on it for any choice of as many poses from the pool: the
+    /// efficiency is at least `criterion_bound / criterion_value`.
+    pub criterion_bound: f64,
+    /// The chosen poses' figures (with the poses measured before, when the plan continues
+    /// them).
+    pub planned: SetFigures,
+    /// The same figures for random poses drawn from the same workspace apart from the
+    /// pool (never the candidates themselves): as many as planned, then twice as many.
+    /// Empty when the workspace did not yield that many.
+    pub random: Vec<SetFigures>,
+    /// The table's residual field's variance, mean over the candidates (mm², summed over
+    /// x, y, z): before this plan, after the planned poses, after the first random set;
+    /// `None` without a table.
+    pub field_variance_mm2: Option<[f64; 3]>,
+}
+
+/// What a set of poses achieves, in the units of one measured coordinate's noise σ.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SetFigures {
+    /// Poses in the set.
+    pub poses: usize,
+    /// Mean prediction variance of the TCP position over the pool, per σ².
+    pub mean_variance: f64,
+    /// Predicted mean squared parameter error, lengths (mm²) and angles (mrad²) each
+    /// averaged over their count and added, per σ² (mm²).
+    pub parameter_variance: f64,
+    /// The observability indices ([`crate::observability`]); `None` when a parameter is
+    /// undetermined.
+    pub observability: Option<Observability>,
 }
 
 fn option(name: &'static str, reason: impl Into<String>) -> PlanError {
@@ -211,12 +272,24 @@ fn option(name: &'static str, reason: impl Into<String>) -> PlanError {
 }
 
 /// Checks the options and sizes the work before any: the counts, the boxes, the tracker,
-/// the orientations, and the selection's arithmetic against [`MAX_SELECTION_WORK`].
+/// the orientations ([`check_options`]), the measured poses, and the selection's
+/// arithmetic against [`MAX_SELECTION_WORK`].
 ///
 /// # Errors
 ///
 /// [`PlanError::Option`] naming the option and the figure.
 pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
+    check_options(options)?;
+    check_sized(robot, options)
+}
+
+/// The checks that need no robot: counts, boxes, tracker, orientations, weights; run
+/// before any file is read.
+///
+/// # Errors
+///
+/// [`PlanError::Option`] naming the option and the figure.
+pub fn check_options(options: &PlanOptions) -> Result<(), PlanError> {
     let finite3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
     // Within a kilometre of the base, as a table's coordinates: a box's extents and
     // volume then stay finite (a box of ±1e200 mm has an infinite volume to draw from).
@@ -324,6 +397,35 @@ pub fn check(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
             ),
         ));
     }
+    Ok(())
+}
+
+/// The checks that need the robot: the measured poses' joints, and the work.
+fn check_sized(robot: &Robot, options: &PlanOptions) -> Result<(), PlanError> {
+    let finite3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    if let Some(prior) = &options.prior {
+        let n = robot.joint_count();
+        if let Some(q) = prior.joints.iter().find(|q| q.len() != n) {
+            return Err(option(
+                "measured",
+                format!(
+                    "a measured pose has {} joint values, the robot {n}",
+                    q.len()
+                ),
+            ));
+        }
+        if !prior.joints.iter().flatten().all(|v| v.is_finite())
+            || !prior.positions_mm.iter().all(finite3)
+        {
+            return Err(option("measured", "a measured pose is not finite"));
+        }
+        if prior.joints.len() > MAX_POOL || prior.positions_mm.len() > MAX_POOL {
+            return Err(option(
+                "measured",
+                format!("more than {MAX_POOL} poses measured already"),
+            ));
+        }
+    }
     // Each greedy step and each exchange of a pose weighs every candidate.
     let p = Parameter::all_of(robot).len() as f64;
     let rounds = 1.0 + options.exchange_passes as f64;
@@ -409,7 +511,23 @@ pub fn candidates(
     options: &PlanOptions,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<PlannedPose>, usize), PlanError> {
+    candidates_from(robot, options, 0, advance)
+}
+
+/// [`candidates`] from stream `stream` of the seed: stream 0 is the pool, another stream
+/// draws other poses from the same workspace.
+///
+/// # Errors
+///
+/// As [`candidates`].
+pub fn candidates_from(
+    robot: &Robot,
+    options: &PlanOptions,
+    stream: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<PlannedPose>, usize), PlanError> {
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    rng.set_stream(stream);
     let ranges: Vec<[f64; 2]> = (0..robot.joint_count())
         .map(|i| robot.sampling_range(i))
         .collect();
@@ -522,11 +640,15 @@ fn nearest_home(robot: &Robot, solutions: Vec<IkSolution>) -> Option<Vec<f64>> {
 
 /// The information of a set of poses: `ridge · I + Σ BᵢᵀBᵢ`.
 fn information(blocks: &[&DMatrix<f64>], k: usize, ridge: f64) -> DMatrix<f64> {
-    let mut m = DMatrix::identity(k, k) * ridge;
+    with_blocks(DMatrix::identity(k, k) * ridge, blocks)
+}
+
+/// `base + Σ BᵢᵀBᵢ`.
+fn with_blocks(mut base: DMatrix<f64>, blocks: &[&DMatrix<f64>]) -> DMatrix<f64> {
     for b in blocks {
-        m += b.transpose() * *b;
+        base += b.transpose() * *b;
     }
-    m
+    base
 }
 
 /// `log det` of a symmetric positive definite matrix, by Cholesky.
@@ -545,9 +667,10 @@ fn gain(b: &DMatrix<f64>, m_inv: &DMatrix<f64>) -> f64 {
     s.determinant().max(f64::MIN_POSITIVE).ln()
 }
 
-/// `tr(W M⁻¹) − tr(W (M + BᵀB)⁻¹) = tr((I₃ + B M⁻¹ Bᵀ)⁻¹ B G Bᵀ)` with `G = M⁻¹ W M⁻¹`:
-/// how much adding block `B` lowers the mean prediction variance (Woodbury): the
-/// reference of [`Design::gains`] for I-optimality.
+/// `tr(L M⁻¹) − tr(L (M + BᵀB)⁻¹) = tr((I₃ + B M⁻¹ Bᵀ)⁻¹ B G Bᵀ)` with `G = M⁻¹ L M⁻¹`:
+/// how much adding block `B` lowers a linear criterion `tr(L M⁻¹)` (Woodbury; `L = W` is
+/// the mean prediction variance): the reference of [`Design::gains`] for the linear
+/// criteria.
 #[cfg(test)]
 fn variance_gain(b: &DMatrix<f64>, m_inv: &DMatrix<f64>, g: &DMatrix<f64>) -> f64 {
     let bm = b * m_inv;
@@ -573,12 +696,14 @@ fn updated(m_inv: &DMatrix<f64>, b: &DMatrix<f64>, sign: f64) -> Option<DMatrix<
     Some(m_inv - &mb * s_inv * mb.transpose())
 }
 
-/// What a criterion needs of the current design: `M⁻¹`, and for I-optimality
-/// `G = M⁻¹ W M⁻¹`; and every candidate's block stacked (3 rows each), so that the gains
-/// of all candidates are a few matrix products rather than one small product each.
+/// What a criterion needs of the current design: `M⁻¹`, and for a linear criterion
+/// `tr(L M⁻¹)` the matrix `G = M⁻¹ L M⁻¹`; and every candidate's block stacked (3 rows
+/// each), so that the gains of all candidates are a few matrix products rather than one
+/// small product each.
 struct Design<'a> {
     criterion: Criterion,
-    workspace: &'a DMatrix<f64>,
+    /// `L` of the linear criterion (unused for D-optimality).
+    weight: &'a DMatrix<f64>,
     stacked: &'a DMatrix<f64>,
     m_inv: DMatrix<f64>,
     g: DMatrix<f64>,
@@ -591,13 +716,13 @@ const GAIN_CHUNK: usize = 256;
 impl<'a> Design<'a> {
     fn new(
         criterion: Criterion,
-        workspace: &'a DMatrix<f64>,
+        weight: &'a DMatrix<f64>,
         stacked: &'a DMatrix<f64>,
         m_inv: DMatrix<f64>,
     ) -> Self {
         let mut d = Design {
             criterion,
-            workspace,
+            weight,
             stacked,
             m_inv,
             g: DMatrix::zeros(0, 0),
@@ -606,9 +731,13 @@ impl<'a> Design<'a> {
         d
     }
 
+    fn linear(&self) -> bool {
+        self.criterion != Criterion::D
+    }
+
     fn refresh(&mut self) {
-        if self.criterion == Criterion::I {
-            self.g = &self.m_inv * self.workspace * &self.m_inv;
+        if self.linear() {
+            self.g = &self.m_inv * self.weight * &self.m_inv;
         }
     }
 
@@ -623,7 +752,7 @@ impl<'a> Design<'a> {
                 let len = GAIN_CHUNK.min(n - start);
                 let b = self.stacked.rows(3 * start, 3 * len);
                 let bm = b * &self.m_inv;
-                let bg = (self.criterion == Criterion::I).then(|| b * &self.g);
+                let bg = self.linear().then(|| b * &self.g);
                 (0..len)
                     .map(|i| {
                         let rows = |m: &DMatrix<f64>| {
@@ -669,26 +798,29 @@ pub struct Selection {
     pub mean_variance: f64,
     /// [`Plan::variance_bound`].
     pub variance_bound: f64,
+    /// [`Plan::criterion_value`].
+    pub criterion_value: f64,
+    /// [`Plan::criterion_bound`].
+    pub criterion_bound: f64,
 }
 
 /// Iterations of the multiplicative algorithm behind [`Plan::variance_bound`].
 const BOUND_ITERATIONS: usize = 100;
 
-/// A lower bound on `tr(W M⁻¹)` for any `count` poses of the pool (module docs, "How good
-/// a plan is"): the relaxation to weights `ξᵢ ≥ 0`, `Σ ξᵢ = 1`, with information
-/// `count · M(ξ)`, `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + (ridge / count) I`, is convex in `ξ`, so for
-/// any `ξ` its optimum is at least `φ(ξ) + Σ ξⱼ dⱼ(ξ) − max_i dᵢ(ξ)` (the tangent plane),
-/// `φ = tr(W M(ξ)⁻¹)`, `−dᵢ = −tr(Bᵢ M(ξ)⁻¹ W M(ξ)⁻¹ Bᵢᵀ)` the derivative in `ξᵢ`; `ξ` is
-/// improved by the multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / Σ ξⱼ dⱼ` to make the bound
-/// tight.
+/// A lower bound on `tr(L M⁻¹)` for any `count` poses of the pool added to `base` (the
+/// ridge, and the information of poses measured before) (module docs, "How good a plan
+/// is"): the relaxation to weights `ξᵢ ≥ 0`, `Σ ξᵢ = 1`, with information `count · M(ξ)`,
+/// `M(ξ) = Σ ξᵢ BᵢᵀBᵢ + base / count`, is convex in `ξ`, so for any `ξ` its optimum is at
+/// least `φ(ξ) + Σ ξⱼ dⱼ(ξ) − max_i dᵢ(ξ)` (the tangent plane), `φ = tr(L M(ξ)⁻¹)`,
+/// `−dᵢ = −tr(Bᵢ M(ξ)⁻¹ L M(ξ)⁻¹ Bᵢᵀ)` the derivative in `ξᵢ`; `ξ` is improved by the
+/// multiplicative algorithm `ξᵢ ← ξᵢ dᵢ / Σ ξⱼ dⱼ` to make the bound tight.
 fn variance_bound(
     stacked: &DMatrix<f64>,
-    workspace: &DMatrix<f64>,
+    weight: &DMatrix<f64>,
     count: usize,
-    ridge: f64,
+    base: &DMatrix<f64>,
 ) -> f64 {
     let n = stacked.nrows() / 3;
-    let k = stacked.ncols();
     let mut xi = vec![1.0 / n as f64; n];
     let mut best = 0.0_f64;
     for _ in 0..BOUND_ITERATIONS {
@@ -696,12 +828,12 @@ fn variance_bound(
         for (i, w) in xi.iter().enumerate() {
             weighted.rows_mut(3 * i, 3).scale_mut(*w);
         }
-        let m = stacked.transpose() * weighted + DMatrix::identity(k, k) * (ridge / count as f64);
+        let m = stacked.transpose() * weighted + base / count as f64;
         let Some(m_inv) = m.try_inverse() else {
             break;
         };
-        let phi = (workspace * &m_inv).trace();
-        let g = &m_inv * workspace * &m_inv;
+        let phi = (weight * &m_inv).trace();
+        let g = &m_inv * weight * &m_inv;
         let bg = stacked * g;
         let d: Vec<f64> = (0..n)
             .map(|i| {
@@ -711,19 +843,167 @@ fn variance_bound(
             })
             .collect();
         let largest = d.iter().copied().fold(0.0, f64::max);
-        // Σ ξᵢ dᵢ is φ less the ridge's share, which the derivative leaves out.
+        // Σ ξᵢ dᵢ is φ less the base's share, which the derivative leaves out.
         let mean: f64 = xi.iter().zip(&d).map(|(x, di)| x * di).sum();
         best = best.max(phi + mean - largest);
         if !(phi > 0.0 && phi.is_finite()) {
             break;
         }
+        let total_d: f64 = mean;
+        if !(total_d > 0.0) {
+            break;
+        }
         for (x, di) in xi.iter_mut().zip(&d) {
-            *x *= di / phi;
+            *x *= di / total_d;
         }
         let total: f64 = xi.iter().sum();
         xi.iter_mut().for_each(|x| *x /= total);
     }
     best / count as f64
+}
+
+/// The identification's Jacobians of the pool, of further poses (the random comparison)
+/// and of the poses measured before, over the parameters identifiable on all of them
+/// together, in one scaling; and what the criteria weigh.
+pub struct Prepared {
+    /// The parameters, in the blocks' column order.
+    pub parameters: Vec<Parameter>,
+    /// The pool's blocks.
+    pub pool: Vec<DMatrix<f64>>,
+    /// The further poses' blocks.
+    pub extra: Vec<DMatrix<f64>>,
+    /// The measured poses' blocks.
+    pub prior: Vec<DMatrix<f64>>,
+    /// Per column, the factor from a scaled block's column to mm per mm or per mrad.
+    pub display: Vec<f64>,
+    /// The ridge of the information.
+    pub ridge: f64,
+    /// `W`: the pool's mean information (the mean prediction variance's weight).
+    pub workspace: DMatrix<f64>,
+    /// `L_A`: the parameters' variances in mm² and mrad², each group by its count.
+    pub parameter_weight: DMatrix<f64>,
+    /// The information a plan starts from: the ridge and the measured poses'.
+    pub base: DMatrix<f64>,
+}
+
+impl Prepared {
+    /// The Jacobians and weights for `pool`, `extra` and `prior` joint vectors.
+    ///
+    /// # Errors
+    ///
+    /// [`PlanError::Jacobian`] when the identification's Jacobian cannot be formed.
+    pub fn new(
+        robot: &Robot,
+        pool: &[PlannedPose],
+        extra: &[PlannedPose],
+        prior: &[Vec<f64>],
+        rank_tolerance: f64,
+    ) -> Result<Prepared, PlanError> {
+        let joints: Vec<Vec<f64>> = pool
+            .iter()
+            .chain(extra)
+            .map(|c| c.joints.clone())
+            .chain(prior.iter().cloned())
+            .collect();
+        let (parameters, mut blocks, scales) =
+            design_jacobians_scaled(robot, &joints, rank_tolerance).map_err(Box::new)?;
+        let k = parameters.len();
+        let prior_blocks = blocks.split_off(pool.len() + extra.len());
+        let extra_blocks = blocks.split_off(pool.len());
+        // Columns have unit norm over all the poses: one pose holds about 1/poses of each;
+        // the ridge is a thousandth of that, so that the first poses are chosen by what
+        // they add.
+        let ridge = 1e-3 / joints.len() as f64;
+        let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
+        let workspace = information(&all, k, 0.0) / pool.len() as f64;
+        let display: Vec<f64> = parameters
+            .iter()
+            .zip(&scales)
+            .map(|(&p, &s)| {
+                if s > 0.0 {
+                    per_display_unit(p) / s
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let lengths = parameters.iter().filter(|p| p.is_length()).count().max(1) as f64;
+        let angles = parameters.iter().filter(|p| !p.is_length()).count().max(1) as f64;
+        let parameter_weight = DMatrix::from_fn(k, k, |r, c| {
+            if r != c || display[c] == 0.0 {
+                0.0
+            } else {
+                let group = if parameters[c].is_length() {
+                    lengths
+                } else {
+                    angles
+                };
+                1.0 / (display[c] * display[c] * group)
+            }
+        });
+        let prior_refs: Vec<&DMatrix<f64>> = prior_blocks.iter().collect();
+        let base = information(&prior_refs, k, ridge);
+        Ok(Prepared {
+            parameters,
+            pool: blocks,
+            extra: extra_blocks,
+            prior: prior_blocks,
+            display,
+            ridge,
+            workspace,
+            parameter_weight,
+            base,
+        })
+    }
+
+    /// `L` of a linear criterion: `W`, `L_A`, or their sum each divided by its value for
+    /// information `W` (a design spread like the pool).
+    fn weight(&self, criterion: Criterion) -> DMatrix<f64> {
+        match criterion {
+            Criterion::D | Criterion::I => self.workspace.clone(),
+            Criterion::A => self.parameter_weight.clone(),
+            Criterion::Ia => {
+                let k = self.workspace.nrows();
+                let spread = (&self.workspace + DMatrix::identity(k, k) * self.ridge)
+                    .try_inverse()
+                    .unwrap_or_else(|| DMatrix::identity(k, k));
+                let i = (&self.workspace * &spread).trace();
+                let a = (&self.parameter_weight * &spread).trace();
+                if i > 0.0 && a > 0.0 && i.is_finite() && a.is_finite() {
+                    &self.workspace / i + &self.parameter_weight / a
+                } else {
+                    self.workspace.clone()
+                }
+            }
+        }
+    }
+
+    /// What a set of poses achieves (with the measured poses): [`SetFigures`].
+    pub fn figures(&self, blocks: &[&DMatrix<f64>]) -> SetFigures {
+        let m = with_blocks(self.base.clone(), blocks);
+        let (mean_variance, parameter_variance) = match m.try_inverse() {
+            Some(m_inv) => (
+                (&self.workspace * &m_inv).trace(),
+                (&self.parameter_weight * &m_inv).trace(),
+            ),
+            None => (f64::INFINITY, f64::INFINITY),
+        };
+        let rows: Vec<&DMatrix<f64>> = self.prior.iter().chain(blocks.iter().copied()).collect();
+        let k = self.parameters.len();
+        let mut j = DMatrix::zeros(3 * rows.len(), k);
+        for (i, b) in rows.iter().enumerate() {
+            j.rows_mut(3 * i, 3).copy_from(b);
+        }
+        for (c, f) in self.display.iter().enumerate() {
+            j.column_mut(c).scale_mut(*f);
+        }
+        SetFigures {
+            poses: rows.len(),
+            mean_variance,
+            parameter_variance,
+            observability: observability(&j, rows.len()),
+        }
+    }
 }
 
 /// The selection (module docs), and what it achieves. `advance` is told of each pose
@@ -738,36 +1018,76 @@ pub fn select(
     candidates: &[PlannedPose],
     advance: &(dyn Fn(u64) + Sync),
 ) -> Result<Selection, PlanError> {
-    let joints: Vec<Vec<f64>> = candidates.iter().map(|c| c.joints.clone()).collect();
-    let (parameters, blocks) =
-        design_jacobians(robot, &joints, options.rank_tolerance).map_err(Box::new)?;
-    let k = parameters.len();
-    // Unit columns over the pool: one pose holds about 1/pool of each; the ridge is a
-    // thousandth of that, so that the first poses are chosen by what they add.
-    let ridge = 1e-3 / candidates.len() as f64;
-    // The pool stands for the workspace: its mean information is W of I-optimality.
-    let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
-    let workspace = information(&all, k, 0.0) / candidates.len() as f64;
+    let prior = options.prior.as_ref();
+    let prepared = Prepared::new(
+        robot,
+        candidates,
+        &[],
+        prior.map_or(&[][..], |p| &p.joints[..]),
+        options.rank_tolerance,
+    )?;
+    let mut field = match prior.and_then(|p| p.field.as_ref()) {
+        Some(f) => {
+            let at: Vec<[f64; 3]> = candidates.iter().map(|c| c.position_mm).collect();
+            Some(FieldVariance::new(f, &at)?)
+        }
+        None => None,
+    };
+    Ok(select_prepared(
+        options,
+        candidates,
+        &prepared,
+        field.as_mut(),
+        advance,
+    ))
+}
+
+/// [`select`] on Jacobians computed already; `field` is conditioned on the poses chosen.
+pub fn select_prepared(
+    options: &PlanOptions,
+    candidates: &[PlannedPose],
+    prepared: &Prepared,
+    mut field: Option<&mut FieldVariance>,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Selection {
+    let blocks = &prepared.pool;
+    let k = prepared.parameters.len();
+    let weight = prepared.weight(options.criterion);
     let mut stacked = DMatrix::zeros(3 * blocks.len(), k);
     for (i, b) in blocks.iter().enumerate() {
         stacked.rows_mut(3 * i, 3).copy_from(b);
     }
-    let mut design = Design::new(
-        options.criterion,
-        &workspace,
-        &stacked,
-        DMatrix::identity(k, k) / ridge,
-    );
-    let mut nearest = vec![f64::INFINITY; candidates.len()];
+    let start = prepared
+        .base
+        .clone()
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::identity(k, k) / prepared.ridge);
+    let mut design = Design::new(options.criterion, &weight, &stacked, start);
+    // Coverage counts from the positions measured already.
+    let measured: &[[f64; 3]] = options.prior.as_ref().map_or(&[], |p| &p.positions_mm[..]);
+    let mut nearest: Vec<f64> = candidates
+        .par_iter()
+        .map(|c| {
+            measured
+                .iter()
+                .map(|&m| distance(c.position_mm, m))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
     let mut taken = vec![false; candidates.len()];
     let mut chosen = Vec::with_capacity(options.count);
     let w = options.coverage_weight;
     for _ in 0..options.count {
         let gains = design.gains();
+        // With a table, the field's reducible variance stands for the coverage.
+        let cover: Vec<f64> = match field.as_deref() {
+            Some(f) => f.reducible_mm2(),
+            None => nearest.clone(),
+        };
         let open = || (0..candidates.len()).filter(|&i| !taken[i]);
         let max_gain = open().map(|i| gains[i]).fold(0.0, f64::max);
         let max_cover = open()
-            .map(|i| nearest[i])
+            .map(|i| cover[i])
             .filter(|d| d.is_finite())
             .fold(0.0, f64::max);
         let score = |i: usize| {
@@ -776,8 +1096,8 @@ pub fn select(
             } else {
                 0.0
             };
-            let c = if max_cover > 0.0 && nearest[i].is_finite() {
-                nearest[i] / max_cover
+            let c = if max_cover > 0.0 && cover[i].is_finite() {
+                cover[i] / max_cover
             } else {
                 1.0
             };
@@ -787,6 +1107,9 @@ pub fn select(
         taken[best] = true;
         chosen.push(best);
         design.update(&blocks[best], 1.0);
+        if let Some(f) = field.as_deref_mut() {
+            f.take(best);
+        }
         let p = candidates[best].position_mm;
         nearest
             .par_iter_mut()
@@ -796,26 +1119,43 @@ pub fn select(
     }
     exchange(
         options,
-        &blocks,
+        blocks,
         &mut design,
         &mut chosen,
         &mut taken,
-        k,
-        ridge,
+        &prepared.base,
     );
     let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
-    let m = information(&picked, k, ridge);
-    let mean_variance = m
-        .clone()
-        .try_inverse()
-        .map_or(f64::INFINITY, |m_inv| (&workspace * m_inv).trace());
-    Ok(Selection {
+    let m = with_blocks(prepared.base.clone(), &picked);
+    let m_inv = m.clone().try_inverse();
+    let trace = |l: &DMatrix<f64>| {
+        m_inv
+            .as_ref()
+            .map_or(f64::INFINITY, |m_inv| (l * m_inv).trace())
+    };
+    let mean_variance = trace(&prepared.workspace);
+    let i_bound = variance_bound(&stacked, &prepared.workspace, options.count, &prepared.base);
+    let (criterion_value, criterion_bound) = match options.criterion {
+        Criterion::D | Criterion::I => (mean_variance, i_bound),
+        other => (
+            trace(&weight),
+            variance_bound(
+                &stacked,
+                &prepared.weight(other),
+                options.count,
+                &prepared.base,
+            ),
+        ),
+    };
+    Selection {
         log_det: log_det(&m),
         mean_variance,
-        variance_bound: variance_bound(&stacked, &workspace, options.count, ridge),
+        variance_bound: i_bound,
+        criterion_value,
+        criterion_bound,
         chosen,
-        parameters,
-    })
+        parameters: prepared.parameters.clone(),
+    }
 }
 
 /// The index of the largest score, the earlier one on ties.
@@ -842,8 +1182,7 @@ fn exchange(
     design: &mut Design<'_>,
     chosen: &mut [usize],
     taken: &mut [bool],
-    k: usize,
-    ridge: f64,
+    base: &DMatrix<f64>,
 ) {
     for _ in 0..options.exchange_passes {
         let mut changed = false;
@@ -870,7 +1209,7 @@ fn exchange(
         }
         // A fresh inverse after each pass: the rank-3 updates accumulate rounding.
         let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &blocks[i]).collect();
-        if let Some(m_inv) = information(&picked, k, ridge).try_inverse() {
+        if let Some(m_inv) = with_blocks(base.clone(), &picked).try_inverse() {
             design.m_inv = m_inv;
             design.refresh();
         }
@@ -958,14 +1297,94 @@ pub fn plan(
     check(robot, options)?;
     stage("drawing candidates", options.pool as u64);
     let (pool, draws) = candidates(robot, options, advance)?;
+    // The random comparison: twice the count drawn from the same workspace in another
+    // stream of the seed, apart from the pool.
+    let random_count = (2 * options.count).min(MAX_POOL);
+    stage("drawing random poses to compare", random_count as u64);
+    let random = candidates_from(
+        robot,
+        &PlanOptions {
+            pool: random_count,
+            count: random_count,
+            ..options.clone()
+        },
+        RANDOM_STREAM,
+        advance,
+    )
+    .map(|(found, _)| found)
+    .unwrap_or_default();
     stage("selecting", options.count as u64);
+    let prior = options.prior.as_ref();
+    let prepared = Prepared::new(
+        robot,
+        &pool,
+        &random,
+        prior.map_or(&[][..], |p| &p.joints[..]),
+        options.rank_tolerance,
+    )?;
+    let positions =
+        |poses: &[PlannedPose]| -> Vec<[f64; 3]> { poses.iter().map(|c| c.position_mm).collect() };
+    let field_prior = prior.and_then(|p| p.field.as_ref());
+    let mut field = match field_prior {
+        Some(f) => Some(FieldVariance::new(f, &positions(&pool))?),
+        None => None,
+    };
+    let field_before = field.as_ref().map(|f| mean(&f.variance_mm2()));
     let Selection {
         chosen,
         parameters,
         log_det,
         mean_variance,
         variance_bound,
-    } = select(robot, options, &pool, advance)?;
+        criterion_value,
+        criterion_bound,
+    } = select_prepared(options, &pool, &prepared, field.as_mut(), advance);
+    let field_variance_mm2 = match (field_before, field_prior) {
+        (Some(before), Some(f)) => {
+            // The same field conditioned on the first random set instead, over the pool.
+            let mut with_random = FieldVariance::new(
+                &FieldPrior {
+                    positions_mm: f
+                        .positions_mm
+                        .iter()
+                        .copied()
+                        .chain(random.iter().take(options.count).map(|c| c.position_mm))
+                        .collect(),
+                    residuals_mm: f
+                        .residuals_mm
+                        .iter()
+                        .copied()
+                        .chain(std::iter::repeat_n(
+                            [0.0; 3],
+                            options.count.min(random.len()),
+                        ))
+                        .collect(),
+                    kernels: f.kernels,
+                },
+                &positions(&pool),
+            );
+            let planned = field.as_ref().map(|f| mean(&f.variance_mm2()));
+            let random = with_random
+                .as_mut()
+                .map(|f| mean(&f.variance_mm2()))
+                .unwrap_or(f64::NAN);
+            planned.map(|p| [before, p, random])
+        }
+        _ => None,
+    };
+    let planned_blocks: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &prepared.pool[i]).collect();
+    let planned_figures = prepared.figures(&planned_blocks);
+    let random_figures: Vec<SetFigures> = if random.len() == random_count {
+        [options.count, random_count]
+            .iter()
+            .map(|&n| {
+                let blocks: Vec<&DMatrix<f64>> = prepared.extra.iter().take(n).collect();
+                prepared.figures(&blocks)
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
     let (path, path_travel) = order(robot, &picked);
     let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
@@ -988,8 +1407,20 @@ pub fn plan(
         variance_bound,
         min_distance_mm,
         path_travel,
+        criterion_value,
+        criterion_bound,
+        planned: planned_figures,
+        random: random_figures,
+        field_variance_mm2,
     })
 }
+
+fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len().max(1) as f64
+}
+
+/// The seed's stream of the random poses a plan is compared with (the pool's is 0).
+const RANDOM_STREAM: u64 = 1;
 
 /// The configuration label of a joint vector, for robots with a closed form.
 pub type ConfigLabel<'a> = dyn Fn(&[f64]) -> u8 + 'a;
@@ -1053,6 +1484,7 @@ pub fn write_csv(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use adwi_robot::calibrate::design_jacobians;
 
     fn ur5() -> Robot {
         Robot::load(adwi_robot::model::shipped_robot_path("ur5")).unwrap()
@@ -1074,6 +1506,7 @@ mod tests {
             rank_tolerance: 1e-6,
             criterion: Criterion::I,
             exchange_passes: 2,
+            prior: None,
         }
     }
 
@@ -1281,7 +1714,7 @@ mod tests {
             for (b, fast) in blocks.iter().zip(&gains) {
                 let slow = match criterion {
                     Criterion::D => gain(b, &m_inv),
-                    Criterion::I => variance_gain(b, &m_inv, &design.g),
+                    _ => variance_gain(b, &m_inv, &design.g),
                 };
                 assert!(
                     (fast - slow).abs() <= 1e-9 * slow.abs().max(1e-12),
@@ -1340,6 +1773,7 @@ mod tests {
                     assert!(a <= b * (1.0 + 1e-9), "{a} vs {b}");
                 }
                 Criterion::D => assert!(det >= greedy_det - 1e-9, "{det} vs {greedy_det}"),
+                _ => unreachable!("only I and D are exchanged here"),
             }
             let mut distinct = exchanged.clone();
             distinct.sort_unstable();

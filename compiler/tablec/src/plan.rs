@@ -41,6 +41,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         p.variance_bound,
         p.variance_bound / p.mean_variance
     );
+    if p.criterion_value != p.mean_variance || p.criterion_bound != p.variance_bound {
+        println!(
+            "criterion      {:.4} σ²; no {} of the candidates below {:.4} σ² (efficiency ≥ {:.2})",
+            p.criterion_value,
+            p.poses.len(),
+            p.criterion_bound,
+            p.criterion_bound / p.criterion_value
+        );
+    }
+    println!("planned     {}", adwi_jobs::plan::figures_line(&p.planned));
+    match p.random.as_slice() {
+        [] => println!("random         the workspace gave too few further poses to compare with"),
+        sets => {
+            for f in sets {
+                println!("random      {}", adwi_jobs::plan::figures_line(f));
+            }
+            println!(
+                "               (random poses drawn from the same workspace apart from the candidates; variances over the candidates)"
+            );
+        }
+    }
+    if let Some([before, after, random]) = p.field_variance_mm2 {
+        println!(
+            "field          the table's residual field's variance, mean over the candidates: {before:.3e} mm² before, {after:.3e} mm² after the plan, {random:.3e} mm² after as many random poses"
+        );
+    }
     println!("wrote          {}", planned.output.display());
     Ok(())
 }

@@ -664,6 +664,22 @@ pub fn design_jacobians(
     joints: &[Vec<f64>],
     rank_tolerance: f64,
 ) -> Result<(Vec<Parameter>, Vec<DMatrix<f64>>), CalibrateError> {
+    design_jacobians_scaled(robot, joints, rank_tolerance)
+        .map(|(parameters, blocks, _)| (parameters, blocks))
+}
+
+/// [`design_jacobians`], with each kept column's scale: a block's column is the physical
+/// derivative (mm per mm, mm per rad) times its scale, so that a design can weigh the
+/// parameters in their own units too.
+///
+/// # Errors
+///
+/// As [`design_jacobians`].
+pub fn design_jacobians_scaled(
+    robot: &Robot,
+    joints: &[Vec<f64>],
+    rank_tolerance: f64,
+) -> Result<(Vec<Parameter>, Vec<DMatrix<f64>>, Vec<f64>), CalibrateError> {
     if let Some(q) = joints.iter().find(|q| q.len() != robot.joint_count()) {
         return Err(CalibrateError::JointCount {
             robot: robot.joint_count(),
@@ -702,7 +718,7 @@ pub fn design_jacobians(
         .iter()
         .map(|b| DMatrix::from_fn(3, kept.len(), |r, k| b[(r, kept[k])] * scales[kept[k]]))
         .collect();
-    Ok((parameters, blocks))
+    Ok((parameters, blocks, kept.iter().map(|&c| scales[c]).collect()))
 }
 
 /// Sample `i` as a measurement, its values checked finite and plausible: joints within
