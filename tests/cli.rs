@@ -551,7 +551,8 @@ fn query_takes_negative_joint_angles() {
         ],
         dir.path(),
     );
-    assert_eq!(o.status.code(), Some(1));
+    // A usage error: the joints the table takes are an option's values.
+    assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("6 joint angles"), "{}", stderr(&o));
 }
 

@@ -16,6 +16,7 @@ mod hostile_inputs;
 mod implausible_samples;
 mod latency_guard;
 mod no_alloc;
+mod options_first;
 mod outputs;
 mod posture;
 mod programs;

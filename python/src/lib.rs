@@ -15,7 +15,7 @@ use adwi_jobs::{
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
-use adwi_runtime::{Correction, Residual, Status, Table as RuntimeTable, Target, Tier};
+use adwi_runtime::{Residual, Status, Table as RuntimeTable, Target};
 use anyhow::Context;
 use clap::Args as _;
 use numpy::ndarray::{Array1, Array2};
@@ -34,9 +34,7 @@ create_exception!(
      of the inputs."
 );
 
-/// The fixed-point compensation's tolerance, mm, and iteration bound, as `tablec query`'s.
-const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
-const COMPENSATE_ITERATIONS: u32 = 50;
+use adwi_jobs::query::{CommandStatus, FixedPoint, COMPENSATE_ITERATIONS, COMPENSATE_TOLERANCE_MM};
 
 /// Every status, indexed by its code (`Status as u8`).
 const STATUSES: [Status; 8] = [
@@ -75,7 +73,11 @@ const _: () = {
 
 /// The `command_status` names of `tablec query --targets`, indexed by code; code
 /// [`NO_COMMAND`] is a row without a command (its status is not `ok`).
-const COMMAND_STATUSES: [&str; 3] = ["converged", "not_converged", "first_order"];
+const COMMAND_STATUSES: [&str; 3] = [
+    CommandStatus::ALL[0].as_str(),
+    CommandStatus::ALL[1].as_str(),
+    CommandStatus::ALL[2].as_str(),
+];
 const NO_COMMAND: u8 = 255;
 
 /// An error as tablec prints it (its causes after colons), raised as [`AdwiError`].
@@ -592,52 +594,6 @@ struct Table {
     path: PathBuf,
 }
 
-/// The command for an answered target, as `tablec query` computes it: the fixed point of
-/// `command + error(command) = target`; with joint angles, the first-order
-/// `target − error`.
-struct Command {
-    position_mm: [f64; 3],
-    rotation_rad: [f64; 3],
-    status: u8,
-    iterations: u32,
-    residual_mm: f64,
-}
-
-fn command<D: AsRef<[u8]>>(
-    table: &RuntimeTable<D>,
-    target: &Target,
-    joints_rad: Option<&[f64]>,
-    c: &Correction,
-    exact: bool,
-    tolerance_mm: f64,
-    max_iterations: u32,
-) -> Command {
-    if joints_rad.is_some() {
-        let e = c.position_error_mm;
-        return Command {
-            position_mm: [0, 1, 2].map(|a| target.position_mm[a] - e[a]),
-            rotation_rad: c.orientation_error_rad.map(|v| -v),
-            status: 2,
-            iterations: 0,
-            residual_mm: f64::NAN,
-        };
-    }
-    let comp = if exact {
-        table
-            .exact()
-            .compensate(target, tolerance_mm, max_iterations)
-    } else {
-        table.compensate(target, tolerance_mm, max_iterations)
-    };
-    Command {
-        position_mm: comp.command_position_mm,
-        rotation_rad: comp.command_rotation_rad,
-        status: if comp.converged { 0 } else { 1 },
-        iterations: comp.iterations,
-        residual_mm: comp.residual_mm,
-    }
-}
-
 /// Per-row results of a batch, flat.
 struct Batch {
     error: Vec<f64>,
@@ -850,10 +806,13 @@ impl Table {
             }
             None => None,
         };
+        let fixed_point = if compensate {
+            Some(FixedPoint::new(tolerance_mm, max_iterations).map_err(adwi_error)?)
+        } else {
+            None
+        };
         let table = &self.table;
-        // A hybrid table's model predicts the orientation error whether or not the samples
-        // measured one.
-        let orientation = table.has_orientation() || table.is_hybrid();
+        let orientation = adwi_jobs::query::answers_orientation(table);
         let batch = py.allow_threads(|| {
             let mut b = Batch {
                 error: vec![f64::NAN; 3 * n],
@@ -889,7 +848,7 @@ impl Table {
                     tcp_mm: tcp,
                 };
                 let q = joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
-                let c = table.answer(&target, q, if exact { Tier::Exact } else { Tier::Served });
+                let (c, cmd) = adwi_jobs::query::answer(table, &target, q, exact, fixed_point);
                 b.neighbours[i] = c.neighbours;
                 b.status[i] = c.status as u8;
                 if c.status != Status::Ok {
@@ -901,15 +860,14 @@ impl Table {
                 if orientation {
                     b.orientation[3 * i..3 * i + 3].copy_from_slice(&c.orientation_error_rad);
                 }
-                if compensate {
-                    let cmd = command(table, &target, q, &c, exact, tolerance_mm, max_iterations);
+                if let Some(cmd) = cmd {
                     b.command[3 * i..3 * i + 3].copy_from_slice(&cmd.position_mm);
                     if orientation {
                         b.command_rotation[3 * i..3 * i + 3].copy_from_slice(&cmd.rotation_rad);
                     }
-                    b.command_status[i] = cmd.status;
+                    b.command_status[i] = cmd.status.code();
                     b.iterations[i] = cmd.iterations;
-                    b.residual[i] = cmd.residual_mm;
+                    b.residual[i] = cmd.fixed_point_residual_mm.unwrap_or(f64::NAN);
                 }
             }
             b

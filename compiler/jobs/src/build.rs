@@ -400,5 +400,8 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
     if args.output.as_os_str().is_empty() {
         return Err(JobError::Options("give the table's path (-o TABLE)".into()));
     }
-    Ok(())
+    // The table's options, before any file is read: a wrong k or w1 + w2 is a usage error
+    // whatever the samples.
+    adwi_compile::build::check_options(&args.table.build_options())
+        .map_err(|e| JobError::Options(e.to_string()))
 }

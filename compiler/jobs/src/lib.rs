@@ -23,6 +23,7 @@ pub mod eval;
 mod inputs;
 pub mod iso9283;
 pub mod plan;
+pub mod query;
 mod series;
 pub mod simulate;
 pub mod tune;
@@ -37,6 +38,7 @@ pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
 pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
 pub use plan::{CriterionArg, PlanArgs, PlanJob, Planned};
+pub use query::{QueryArgs, QueryJob, QueryResult};
 pub use simulate::{SimulateArgs, SimulateJob, Simulated};
 
 /// Why a job was refused or failed. Refusals of options come before any work.

@@ -91,8 +91,8 @@ pub fn kriging_choices(
     }
 }
 pub use plan::{
-    estimated_table_bytes, human_bytes, max_covered_cells, plan, Plan, CELLS_PER_SPACING,
-    MAX_CELLS, RADIUS_PER_SPACING,
+    check_options, estimated_table_bytes, human_bytes, max_covered_cells, plan, Plan,
+    CELLS_PER_SPACING, MAX_CELLS, RADIUS_PER_SPACING,
 };
 
 use adwi_samples::SampleSet;

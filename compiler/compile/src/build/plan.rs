@@ -187,24 +187,19 @@ pub fn human_bytes(bytes: u128) -> String {
     }
 }
 
-/// Resolves a build's options against its samples: derives ε, the cell edge and the grid
-/// where not given, and checks everything the runtime will check, before any work.
+/// Checks every option that does not depend on the samples (the method's parameters, a
+/// given ε, cell and bounds, the joint screen and the terms it excludes), so that a build
+/// refuses them before it reads a file. [`plan`] checks them again with what the samples
+/// derive.
 ///
 /// # Errors
 ///
-/// Parameters out of range, underivable defaults, a grid too large or implausible.
-pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildError> {
-    let spacing_mm = derivation_spacing_mm(samples);
-    let derive = |what| {
-        spacing_mm
-            .filter(|s| *s > 0.0)
-            .ok_or(BuildError::CannotDerive(what))
-    };
-    let radius_mm = match options.method.radius_mm {
-        Some(r) => r,
-        None => RADIUS_PER_SPACING * derive("the radius")?,
-    };
-    let params = options.method.with_radius(radius_mm);
+/// The first option out of range, or a combination that cannot be built.
+pub fn check_options(options: &BuildOptions) -> Result<(), BuildError> {
+    // A derived ε is checked by `plan`; any positive stand-in checks the other parameters.
+    let params = options
+        .method
+        .with_radius(options.method.radius_mm.unwrap_or(1.0));
     params.validate().map_err(BuildError::Params)?;
     let joint_radius_rad = options.joint_radius_deg.unwrap_or(0.0).to_radians();
     if !(joint_radius_rad.is_finite() && joint_radius_rad >= 0.0) {
@@ -226,6 +221,45 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
             ));
         }
     }
+    if let Some(cell_mm) = options.cell_mm {
+        if !(cell_mm.is_finite() && cell_mm > 0.0) {
+            return Err(BuildError::Params("cell size must be finite and positive"));
+        }
+    }
+    if let Some((lo, hi)) = options.bounds_mm {
+        if !(0..3).all(|a| lo[a].is_finite() && hi[a].is_finite() && lo[a] < hi[a]) {
+            return Err(BuildError::Bounds(format!(
+                "{lo:?} to {hi:?}: each minimum must be below its maximum, all finite"
+            )));
+        }
+        for v in lo.iter().chain(&hi) {
+            format::check_coordinate("a grid bound (mm)", *v)?;
+        }
+    }
+    Ok(())
+}
+
+/// Resolves a build's options against its samples: derives ε, the cell edge and the grid
+/// where not given, and checks everything the runtime will check, before any work.
+///
+/// # Errors
+///
+/// Parameters out of range, underivable defaults, a grid too large or implausible.
+pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildError> {
+    let spacing_mm = derivation_spacing_mm(samples);
+    let derive = |what| {
+        spacing_mm
+            .filter(|s| *s > 0.0)
+            .ok_or(BuildError::CannotDerive(what))
+    };
+    let radius_mm = match options.method.radius_mm {
+        Some(r) => r,
+        None => RADIUS_PER_SPACING * derive("the radius")?,
+    };
+    check_options(options)?;
+    let params = options.method.with_radius(radius_mm);
+    params.validate().map_err(BuildError::Params)?;
+    let joint_radius_rad = options.joint_radius_deg.unwrap_or(0.0).to_radians();
     if joint_radius_rad > 0.0 && samples.joints.is_none() {
         return Err(BuildError::Params(
             "a joint radius needs samples with joint angles (columns j1..jn)",
