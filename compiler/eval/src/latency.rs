@@ -333,18 +333,22 @@ pub fn bench_queries<D: AsRef<[u8]>>(
     let params = *table.method();
     let kd = KdTreeMethod::new(records.clone(), params);
     let model = table.model().copied();
-    let orientation = table.has_orientation();
     // Where no sample is admissible a hybrid table's exact tier answers the model alone,
-    // and so does every contender: each then does the work the table does, the model as
-    // the table computes it (without the orientation error when it has no orientations).
-    let with_model = |estimate: Option<Estimate>, q: Option<&[f64]>| -> Option<[f64; 3]> {
+    // and so does every contender: each then does the work the table does, the model with
+    // its orientation error (every hybrid answer carries it), added to the estimate.
+    let with_model = |estimate: Option<Estimate>, q: Option<&[f64]>| -> Option<[[f64; 3]; 2]> {
         match (&model, q) {
             (Some(m), Some(q)) => {
-                let p = m.evaluate(q, orientation)?.position_mm;
-                let e = estimate.map_or([0.0; 3], |e| e.position_error_mm);
-                Some([0, 1, 2].map(|a| e[a] + p[a]))
+                let at = m.evaluate(q, true)?;
+                let (e, r) = estimate.map_or(([0.0; 3], [0.0; 3]), |e| {
+                    (e.position_error_mm, e.orientation_error_rad)
+                });
+                Some([
+                    [0, 1, 2].map(|a| e[a] + at.position_mm[a]),
+                    [0, 1, 2].map(|a| r[a] + at.rotation_rad[a]),
+                ])
             }
-            _ => estimate.map(|e| e.position_error_mm),
+            _ => estimate.map(|e| [e.position_error_mm, e.orientation_error_rad]),
         }
     };
     let brute = |t: &Target| {
@@ -411,10 +415,14 @@ pub fn bench_queries<D: AsRef<[u8]>>(
             };
             timings.push((contender, Summary::of(times)?, batch));
         }
-        let same = |input: &(Target, Option<Vec<f64>>), other: Option<[f64; 3]>| {
+        let same = |input: &(Target, Option<Vec<f64>>), other: Option<[[f64; 3]; 2]>| {
             let c = exact(input);
             match other {
-                Some(p) => c.status == Status::Ok && c.position_error_mm == p,
+                Some([p, r]) => {
+                    c.status == Status::Ok
+                        && c.position_error_mm == p
+                        && c.orientation_error_rad == r
+                }
                 None => c.status != Status::Ok,
             }
         };
@@ -532,6 +540,33 @@ pub fn hybrid_workload<D: AsRef<[u8]>>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every contender does the work the table does: on a hybrid table the k-d tree and the
+    /// brute force add the model with its orientation error, as every hybrid answer carries
+    /// it, and so answer exactly as the exact tier, position and orientation.
+    #[test]
+    fn on_a_hybrid_table_every_contender_answers_as_the_exact_tier() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../tables/compat/v4/ur5_hybrid.tbl"
+        );
+        let table = Table::from_vec(std::fs::read(path).expect("the shipped table"))
+            .expect("a valid table");
+        assert!(table.is_hybrid());
+        let options = BenchOptions {
+            queries: 300,
+            reference_queries: 20,
+            seed: 3,
+        };
+        let timer = Timer { overhead_ns: 0.0 };
+        let results = bench_queries(&table, &timer, &options).expect("poses in the grid");
+        for w in &results {
+            assert!(w.answered.1 > 0, "{}: nothing answered", w.name);
+            for (agreed, of) in w.agreement {
+                assert!(of > 0 && agreed == of, "{}: {agreed} of {of}", w.name);
+            }
+        }
+    }
 
     #[test]
     fn percentiles_are_nearest_rank() {
