@@ -20,6 +20,7 @@ mod options_first;
 mod outputs;
 mod posture;
 mod programs;
+mod programs_fanuc;
 mod programs_gcode;
 mod robot_mutation;
 mod robots;

@@ -241,6 +241,7 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
             adwi_programs::Format::Gcode => {
                 adwi_programs::gcode::read(&src, &job.options().gcode).map(|r| r.program)
             }
+            adwi_programs::Format::Fanuc => adwi_programs::fanuc::read(&src, &job.options().fanuc),
         }
         .unwrap();
         assert_eq!(written.targets.len(), done.report.targets.len());
@@ -670,7 +671,7 @@ fn docs_examples_run_as_written() {
             _ => {}
         }
     }
-    assert_eq!(blocks.len(), 5, "{blocks:?}");
+    assert_eq!(blocks.len(), 6, "{blocks:?}");
     for (commands, expected) in &blocks {
         let mut output = String::new();
         for command in commands {

@@ -723,6 +723,9 @@ def compensate_program(
     max_seconds: float = 300.0,
     beyond_evidence: bool = False,
     krl_config: Optional[Union[str, os.PathLike]] = None,
+    fanuc_uframes: Optional[Dict[int, Sequence[float]]] = None,
+    fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
+    fanuc_frames: Optional[Union[str, os.PathLike]] = None,
 ) -> CompensatedProgram:
     """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
     URScript or CSV program replaced by the command that lands on it (docs/programs.md).
@@ -736,7 +739,10 @@ def compensate_program(
     targets at orientations its samples never had instead of refusing them (status
     ``beyond_evidence``; each target's ``evidence`` says where it lies). ``krl_config``: a
     KUKA controller's ``$config.dat``, whose ``TOOL_DATA[n]`` and ``BASE_DATA[n]`` a KRL
-    program selects (tablec's ``--krl-config``). A malformed program raises :class:`AdwiError` naming
+    program selects (tablec's ``--krl-config``). ``fanuc_uframes``, ``fanuc_utools``: a
+    Fanuc program's user and tool frames by number, ``{n: [X, Y, Z, W, P, R]}`` (mm,
+    degrees), and ``fanuc_frames`` the controller's ``SYSFRAME.VA`` (tablec's
+    ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``). A malformed program raises :class:`AdwiError` naming
     ``file:line:column``.
     """
     path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
@@ -759,5 +765,12 @@ def compensate_program(
         max_seconds=max_seconds,
         beyond_evidence=beyond_evidence,
         krl_config=path(krl_config),
+        fanuc_uframes=None
+        if fanuc_uframes is None
+        else {int(n): frame(f) for n, f in fanuc_uframes.items()},
+        fanuc_utools=None
+        if fanuc_utools is None
+        else {int(n): frame(f) for n, f in fanuc_utools.items()},
+        fanuc_frames=path(fanuc_frames),
     )
     return CompensatedProgram(bytes(out), targets, summary)

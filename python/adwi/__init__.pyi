@@ -360,4 +360,7 @@ def compensate_program(
     max_seconds: float = 300.0,
     beyond_evidence: bool = False,
     krl_config: Optional[PathLike] = None,
+    fanuc_uframes: Optional[Dict[int, Sequence[float]]] = None,
+    fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
+    fanuc_frames: Optional[PathLike] = None,
 ) -> CompensatedProgram: ...

@@ -934,7 +934,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -955,6 +955,9 @@ fn compensate_program<'py>(
     max_seconds: f64,
     beyond_evidence: bool,
     krl_config: Option<PathBuf>,
+    fanuc_uframes: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
+    fanuc_utools: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
+    fanuc_frames: Option<PathBuf>,
 ) -> PyResult<(
     Bound<'py, pyo3::types::PyBytes>,
     Bound<'py, PyList>,
@@ -968,7 +971,8 @@ fn compensate_program<'py>(
         None => None,
         Some(name) => Some(Format::from_name(name).ok_or_else(|| {
             AdwiError::new_err(format!(
-                "format '{name}': one of krl, rapid, urscript, csv, gcode"
+                "format '{name}': one of {}",
+                Format::ALL.map(Format::name).join(", ")
             ))
         })?),
     };
@@ -986,6 +990,12 @@ fn compensate_program<'py>(
     options.max_seconds = max_seconds;
     options.limits.beyond_evidence = beyond_evidence;
     options.krl_config = krl_config;
+    // Fanuc user and tool frames by number, X, Y, Z, W, P, R (mm, degrees).
+    options.fanuc = adwi_programs::fanuc::FanucOptions {
+        user_frames: fanuc_uframes.unwrap_or_default().into_iter().collect(),
+        tool_frames: fanuc_utools.unwrap_or_default().into_iter().collect(),
+        frames_file: fanuc_frames,
+    };
     let done = py
         .allow_threads(|| -> Result<_, adwi_programs::Error> {
             let job = CompensateJob::new(options)?;

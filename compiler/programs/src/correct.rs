@@ -116,6 +116,8 @@ pub enum Turn {
     Negative(bool),
     /// ABB robconf: the quadrant `floor(q / 90°)`.
     Quadrant(i64),
+    /// Fanuc's turn number k: −180° + 360°k < q ≤ 180° + 360°k.
+    Revolution(i64),
 }
 
 impl Turn {
@@ -124,6 +126,7 @@ impl Turn {
             Turn::Any => true,
             Turn::Negative(n) => (q_rad < 0.0) == n,
             Turn::Quadrant(k) => (q_rad.to_degrees() / 90.0).floor() as i64 == k,
+            Turn::Revolution(k) => ((q_rad.to_degrees() - 180.0) / 360.0).ceil() as i64 == k,
         }
     }
 }

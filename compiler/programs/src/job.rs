@@ -58,6 +58,8 @@ pub struct CompensateOptions {
     pub max_memory_bytes: u64,
     /// A G-code program's A, B, C convention, work offsets and arc tolerance.
     pub gcode: crate::gcode::GcodeOptions,
+    /// A Fanuc program's numbered user and tool frames, and a frame file.
+    pub fanuc: crate::fanuc::FanucOptions,
 }
 
 /// The default bound of a job's memory: 4 GiB, some two million targets.
@@ -104,6 +106,7 @@ impl CompensateOptions {
             max_seconds: 300.0,
             max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
             gcode: crate::gcode::GcodeOptions::default(),
+            fanuc: crate::fanuc::FanucOptions::default(),
         }
     }
 }
@@ -179,6 +182,18 @@ impl CompensateJob {
                 crate::bounds::MAX_ANGLE_DEG
             )));
         }
+        if o.fanuc
+            .user_frames
+            .iter()
+            .chain(&o.fanuc.tool_frames)
+            .any(|(n, f)| *n == 0 || !crate::bounds::option_frame_within(f))
+        {
+            return Err(Error::Option(format!(
+                "each Fanuc user and tool frame must be numbered from 1 and six numbers within ±{} mm and ±{}°",
+                crate::bounds::MAX_POSITION_MM,
+                crate::bounds::MAX_ANGLE_DEG
+            )));
+        }
         if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
             return Err(Error::Option("max_seconds must be positive".into()));
         }
@@ -199,7 +214,7 @@ impl CompensateJob {
             Some(f) => f,
             None => Format::from_path(&o.program).ok_or_else(|| {
                 Error::Option(format!(
-                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap); give it (krl, rapid, urscript, csv, gcode)",
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .ls); give it (krl, rapid, urscript, csv, gcode, fanuc)",
                     o.program.display()
                 ))
             })?,
@@ -226,6 +241,7 @@ impl CompensateJob {
         inputs.extend(partner_path.as_deref());
         inputs.extend(o.robot.as_deref());
         inputs.extend(o.krl_config.as_deref());
+        inputs.extend(o.fanuc.frames_file.as_deref());
         inputs.extend(robot_files.iter().map(PathBuf::as_path));
         let outputs = adwi_compile::write::OutputPlan::check(
             &[o.output.as_deref(), o.report.as_deref()]
@@ -291,6 +307,38 @@ impl CompensateJob {
                 crate::krl::read_config(&Source::new(&config_name, &config))?
             }
         };
+        // A Fanuc frame file gives the frames the options do not.
+        let fanuc = match &o.fanuc.frames_file {
+            None => o.fanuc.clone(),
+            Some(_) if format != Format::Fanuc => {
+                return Err(Error::Option(
+                    "the Fanuc frame file is for Fanuc programs".into(),
+                ))
+            }
+            Some(path) => {
+                if std::fs::metadata(path).map_or(0, |m| m.len()) > MAX_PROGRAM_BYTES {
+                    return Err(Error::Option(format!(
+                        "{}: more than the {MAX_PROGRAM_BYTES} bytes a frame file may have",
+                        path.display()
+                    )));
+                }
+                let file = read(path)?;
+                let file_name = path.display().to_string();
+                let from_file = crate::fanuc::read_frames(&Source::new(&file_name, &file))?;
+                let mut merged = o.fanuc.clone();
+                for (n, f) in from_file.user_frames {
+                    if !merged.user_frames.iter().any(|u| u.0 == n) {
+                        merged.user_frames.push((n, f));
+                    }
+                }
+                for (n, f) in from_file.tool_frames {
+                    if !merged.tool_frames.iter().any(|u| u.0 == n) {
+                        merged.tool_frames.push((n, f));
+                    }
+                }
+                merged
+            }
+        };
         let (kinematics, table_tool) = kinematics(o, &table, robot)?;
         // The cost of a target is known once the kinematics are: the program is read only
         // as far as the work it may take.
@@ -351,6 +399,7 @@ impl CompensateJob {
                     work_offsets = read.work_offsets;
                     read.program
                 }
+                Format::Fanuc => crate::fanuc::read_at_most(&src, &fanuc, limit)?,
             }
         };
         if let Some(at) = program.truncated_at {
@@ -530,7 +579,7 @@ impl CompensateJob {
         let motions_seen = match format {
             Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
             Format::Rapid => true,
-            Format::UrScript | Format::Csv | Format::Gcode => false,
+            Format::UrScript | Format::Csv | Format::Gcode | Format::Fanuc => false,
         };
         Ok(CompensateJob {
             motions_seen,
@@ -1189,6 +1238,19 @@ fn posture(hint: &ConfigHint, kinematics: Option<&Kinematics>) -> Posture {
                     3 => Turn::Quadrant(cf4),
                     5 => Turn::Quadrant(cf6),
                     _ => Turn::Any,
+                })
+                .collect(),
+        },
+        ConfigHint::FanucConfig {
+            configuration: bits,
+            turns,
+        } => Posture {
+            configuration: bits.and_then(configuration),
+            // Fanuc's turn numbers are those of J4, J5 and J6.
+            turns: (0..joints.min(6))
+                .map(|i| match i.checked_sub(3).and_then(|k| turns[k]) {
+                    Some(k) => Turn::Revolution(i64::from(k)),
+                    None => Turn::Any,
                 })
                 .collect(),
         },

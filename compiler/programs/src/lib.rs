@@ -3,7 +3,7 @@
 //! Most industrial controllers cannot link a library into their motion loop; there a
 //! calibration reaches the robot as a filtered program: every target replaced by the
 //! command that lands on it. [`CompensateJob`] does that for KUKA KRL (`.src`, `.dat`), ABB
-//! RAPID (`.mod`), Universal Robots URScript, G-code (`.nc`) and a plain CSV of poses, with a correction
+//! RAPID (`.mod`), Universal Robots URScript, G-code (`.nc`), Fanuc TP (`.ls`) and a plain CSV of poses, with a correction
 //! table ([`adwi_runtime::Table`]):
 //!
 //! 1. **Only the numbers of targets change.** The program is read as bytes, never decoded;
@@ -32,7 +32,7 @@
 //! # Ok::<(), adwi_programs::Error>(())
 //! ```
 //!
-//! The formats' readers: [`krl`], [`rapid`], [`urscript`], [`gcode`], [`csv`]. The method and the
+//! The formats' readers: [`krl`], [`rapid`], [`urscript`], [`gcode`], [`fanuc`], [`csv`]. The method and the
 //! frames are documented with worked examples in `docs/programs.md`.
 
 #![deny(missing_docs)]
@@ -42,6 +42,7 @@ pub mod correct;
 pub mod csv;
 pub mod dialect;
 mod error;
+pub mod fanuc;
 pub mod frames;
 pub mod gcode;
 mod job;

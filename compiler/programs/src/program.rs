@@ -18,16 +18,19 @@ pub enum Format {
     Csv,
     /// G-code (ISO 6983): a `.nc`, `.ngc`, `.gcode` or `.tap` file.
     Gcode,
+    /// Fanuc TP in its ASCII form: a `.ls` program.
+    Fanuc,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 5] = [
+    pub const ALL: [Format; 6] = [
         Format::Krl,
         Format::Rapid,
         Format::UrScript,
         Format::Csv,
         Format::Gcode,
+        Format::Fanuc,
     ];
 
     /// The name the command line takes (`krl`, `rapid`, `urscript`, `csv`, `gcode`).
@@ -38,6 +41,7 @@ impl Format {
             Format::UrScript => "urscript",
             Format::Csv => "csv",
             Format::Gcode => "gcode",
+            Format::Fanuc => "fanuc",
         }
     }
 
@@ -48,7 +52,7 @@ impl Format {
 
     /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
     /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
-    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code.
+    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.ls` Fanuc TP.
     pub fn from_path(path: &std::path::Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
@@ -57,6 +61,7 @@ impl Format {
             "script" | "urscript" => Format::UrScript,
             "csv" => Format::Csv,
             "nc" | "ngc" | "gcode" | "tap" => Format::Gcode,
+            "ls" => Format::Fanuc,
             _ => return None,
         })
     }
@@ -266,6 +271,15 @@ pub enum ConfigHint {
     /// This project's inverse-kinematics configuration (a CSV's `config`, as sample
     /// files write it): bit 0 shoulder back, bit 1 elbow down, bit 2 wrist flipped.
     Configuration(u8),
+    /// Fanuc `CONFIG : 'N U T, 0, 0, 0'`: the configuration in this project's labels
+    /// (`None` when the letters do not give all three), and the turn numbers of J4, J5
+    /// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k).
+    FanucConfig {
+        /// Bit 0 shoulder back (`B`), bit 1 elbow down (`D`), bit 2 wrist flipped (`F`).
+        configuration: Option<u8>,
+        /// The turn numbers, as written.
+        turns: [Option<i8>; 3],
+    },
 }
 
 /// A joint target's numbers.

@@ -75,6 +75,7 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
             },
         )
         .map(|r| r.program),
+        Format::Fanuc => adwi_programs::fanuc::read(&src, &Default::default()),
     };
     match result {
         Ok(_) => Ok(()),

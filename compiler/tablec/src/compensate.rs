@@ -20,13 +20,13 @@ pub struct Args {
     /// The correction table.
     table: PathBuf,
     /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script), G-code
-    /// (.nc, .ngc, .gcode, .tap) or a CSV of poses (.csv).
+    /// (.nc, .ngc, .gcode, .tap), Fanuc TP (.ls) or a CSV of poses (.csv).
     program: PathBuf,
     /// The compensated program (never one of the inputs; written atomically).
     #[arg(short, long)]
     output: PathBuf,
     /// The program's format [default: by its extension].
-    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode"])]
+    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode", "fanuc"])]
     format: Option<String>,
     /// A robot file (TOML, or URDF by its .urdf extension, with --base-link/--tip-link):
     /// for joint targets, and to check every command's posture (inverse kinematics in the
@@ -64,6 +64,19 @@ pub struct Args {
     /// the corrected path, mm; an arc beyond it is left unchanged (arc_tolerance).
     #[arg(long, default_value_t = adwi_programs::gcode::DEFAULT_ARC_TOLERANCE_MM)]
     arc_tolerance_mm: f64,
+    /// Fanuc: a user frame in the world frame, n=X,Y,Z,W,P,R (mm; degrees about the fixed
+    /// x, y, z, as the FRAME menu shows it); repeat for each UF n the positions use (user
+    /// frame 0 is the world). A position in a frame not given is reported frame_unknown.
+    #[arg(long, value_name = "n=X,Y,Z,W,P,R", allow_hyphen_values = true, value_parser = adwi_programs::fanuc::parse_frame)]
+    fanuc_uframe: Vec<(u16, [f64; 6])>,
+    /// Fanuc: a tool frame (the TCP in the faceplate frame), n=X,Y,Z,W,P,R; repeat for each
+    /// UT n the positions use (tool frame 0 is the faceplate).
+    #[arg(long, value_name = "n=X,Y,Z,W,P,R", allow_hyphen_values = true, value_parser = adwi_programs::fanuc::parse_frame)]
+    fanuc_utool: Vec<(u16, [f64; 6])>,
+    /// Fanuc: the controller's frame file (SYSFRAME.VA, its $MNUFRAME and $MNUTOOL), for the
+    /// frames --fanuc-uframe and --fanuc-utool do not give.
+    #[arg(long, value_name = "PATH")]
+    fanuc_frames: Option<PathBuf>,
     /// Refuse (leave unchanged, report) a correction larger than this, mm.
     #[arg(long, default_value_t = adwi_programs::DEFAULT_MAX_CORRECTION_MM)]
     max_correction_mm: f64,
@@ -121,6 +134,11 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         abc: adwi_programs::gcode::AbcConvention::from_name(&args.gcode_abc).unwrap_or_default(),
         work_offsets: args.work_offset,
         arc_tolerance_mm: args.arc_tolerance_mm,
+    };
+    options.fanuc = adwi_programs::fanuc::FanucOptions {
+        user_frames: args.fanuc_uframe,
+        tool_frames: args.fanuc_utool,
+        frames_file: args.fanuc_frames,
     };
     let job = CompensateJob::new(options)?;
     let done = match job.run() {

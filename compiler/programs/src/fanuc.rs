@@ -1,0 +1,1240 @@
+//! Fanuc TP programs in their ASCII form (`.ls`), as a teach pendant saves them and as
+//! offline tools (ROBOGUIDE) write them.
+//!
+//! A program has sections: `/PROG name`, `/ATTR`, optionally `/APPL`, then `/MN` (the
+//! statements, `   1:J P[1] 100% FINE    ;`, a circular motion's end point on a
+//! continuation line `    :  P[4] 500mm/sec FINE    ;`), `/POS` (the positions) and
+//! `/END`. The targets are the positions of `/POS`:
+//!
+//! ```text
+//! P[1:"weld start"]{
+//!    GP1:
+//!     UF : 1, UT : 2,     CONFIG : 'N U T, 0, 0, 0',
+//!     X =  1234.567  mm,  Y =  -100.000  mm,  Z =   500.000  mm,
+//!     W =   180.000 deg,  P =      .000 deg,  R =   -90.000 deg
+//! };
+//! ```
+//!
+//! X, Y, Z in the user frame `UF` (mm), of the TCP of the tool frame `UT`; W, P, R
+//! (degrees) rotations about the fixed x, y and z axes: `R = Rz(R)·Ry(P)·Rx(W)`, KUKA's
+//! `A, B, C` read as `R, P, W`. A joint position writes `J1 = … deg` to `J6` instead. Each
+//! position carries its own frame numbers, which the controller applies when it moves to
+//! it; user frame 0 is the world frame (taken as the robot's base frame) and tool frame 0
+//! the faceplate (the flange). Numbered frames come from the job's options or a frame file
+//! ([`read_frames`]); a position in a frame neither gives is left unchanged, naming the
+//! frame.
+//!
+//! Every motion statement of `/MN` is accounted for ([`MOTIONS`]): a position moved to by
+//! `J`, `L`, `C` (via and end) or `A` is corrected in its frames; a motion with an offset
+//! (`Offset`, `Offset,PR[n]`, `Tool_Offset`, `VOFFSET`, `INC`) is reported `relative`, one
+//! to a position register (`PR[n]`) or an indirect position `dynamic`, a remote TCP
+//! (`RTCP`) `frame_unknown`, a position the program does not hold `not_declared`. A
+//! position that moves a second motion group (`GP2`: a positioner, a rail) or an extended
+//! axis (`E1`) is `external_axis`.
+
+use std::collections::HashMap;
+
+use nalgebra::Isometry3;
+
+use crate::frames::kuka_pose;
+use crate::number::{parse_number, Number};
+use crate::program::{
+    AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
+    Program, ProgramTarget, Reason, Refusal, TargetKind,
+};
+use crate::source::Source;
+use crate::Error;
+
+/// The motion instructions of `/MN`: the letter, how many positions it moves to, and what
+/// it is. Every one is corrected when it moves to positions of `/POS` without an offset.
+pub const MOTIONS: [(&str, usize, &str); 4] = [
+    ("J", 1, "joint motion"),
+    ("L", 1, "linear motion"),
+    ("C", 2, "circular motion (via, end)"),
+    ("A", 1, "circular arc motion"),
+];
+
+/// The options of a motion statement that offset its target as the controller runs, and
+/// why such a motion is reported rather than corrected.
+const OFFSETS: [(&str, Reason, &str); 5] = [
+    (
+        "OFFSET",
+        Reason::Relative,
+        "an offset the controller adds to the position as it runs",
+    ),
+    (
+        "TOOL_OFFSET",
+        Reason::Relative,
+        "an offset in the tool frame the controller adds as it runs",
+    ),
+    (
+        "VOFFSET",
+        Reason::Relative,
+        "a vision offset the controller adds as it runs",
+    ),
+    (
+        "INC",
+        Reason::Relative,
+        "an incremental move: the position is added to where the robot stands",
+    ),
+    (
+        "RTCP",
+        Reason::FrameUnknown,
+        "a remote TCP (a stationary tool), which no option gives",
+    ),
+];
+
+/// The numbered frames a Fanuc program's positions use, beyond its text.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FanucOptions {
+    /// User frames: the number (1 and up) and `[X, Y, Z, W, P, R]` (mm, degrees) in the
+    /// world frame, as the controller's `FRAME` menu writes it.
+    pub user_frames: Vec<(u16, [f64; 6])>,
+    /// Tool frames: the number and `[X, Y, Z, W, P, R]` of the TCP in the faceplate frame.
+    pub tool_frames: Vec<(u16, [f64; 6])>,
+    /// A controller's frame file (`SYSFRAME.VA`, [`read_frames`]): the frames the options
+    /// do not give are taken from it.
+    pub frames_file: Option<std::path::PathBuf>,
+}
+
+impl FanucOptions {
+    fn user(&self, n: u16) -> Option<&[f64; 6]> {
+        self.user_frames.iter().find(|f| f.0 == n).map(|f| &f.1)
+    }
+
+    fn tool(&self, n: u16) -> Option<&[f64; 6]> {
+        self.tool_frames.iter().find(|f| f.0 == n).map(|f| &f.1)
+    }
+}
+
+/// A pose from Fanuc `X, Y, Z` (mm) and `W, P, R` (degrees): `R = Rz(R)·Ry(P)·Rx(W)`.
+pub fn wpr_pose(frame: &[f64; 6]) -> Isometry3<f64> {
+    kuka_pose(
+        [frame[0], frame[1], frame[2]],
+        [frame[5], frame[4], frame[3]],
+    )
+}
+
+/// Parses a numbered frame as the command line writes it: `N=X,Y,Z` or `N=X,Y,Z,W,P,R`
+/// (mm, degrees), N from 1.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn parse_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
+    let usage = "a frame is N=X,Y,Z[,W,P,R] (N from 1; mm, degrees)";
+    let (name, values) = text.split_once('=').ok_or_else(|| usage.to_string())?;
+    let number = name
+        .trim()
+        .parse::<u16>()
+        .ok()
+        .filter(|n| *n >= 1)
+        .ok_or_else(|| format!("'{}': {usage}", name.trim()))?;
+    let numbers: Vec<f64> = values
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{values}': {usage}"))?;
+    let mut frame = [0.0; 6];
+    match numbers.len() {
+        3 | 6 => frame[..numbers.len()].copy_from_slice(&numbers),
+        _ => return Err(format!("'{values}': {usage}")),
+    }
+    if !crate::bounds::option_frame_within(&frame) {
+        return Err(format!(
+            "'{values}': within ±{} mm and ±{}°",
+            crate::bounds::MAX_POSITION_MM,
+            crate::bounds::MAX_ANGLE_DEG
+        ));
+    }
+    Ok((number, frame))
+}
+
+/// Reads a controller's frame file: the ASCII dump of its system variables
+/// `$MNUFRAME` (user frames) and `$MNUTOOL` (tool frames), as `SYSFRAME.VA` holds them:
+///
+/// ```text
+/// [*SYSTEM*]$MNUFRAME  Storage: SHADOW  Access: RW  : ARRAY[1,9] OF POSITION
+///     [1,1] =
+///   Group: 1   Config: N D B, 0, 0, 0
+///   X:  1500.000   Y:   200.000   Z:  -300.000
+///   W:     0.000   P:     0.000   R:    30.000
+///     [1,2] = Uninitialized
+/// ```
+///
+/// Group 1's frames are read (`[1,n]`, frame n); an uninitialized one is not given.
+/// Every other variable of the file is skipped.
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at a frame whose six numbers do not read, or beyond the bounds.
+pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
+    let bytes = src.bytes;
+    let mut out = FanucOptions::default();
+    // The variable being read: user frames (true), tool frames (false), or another.
+    let mut variable: Option<bool> = None;
+    let mut start = 0;
+    while start < bytes.len() {
+        let (line, next) = line_at(bytes, start);
+        start = next;
+        let at = skip_space(bytes, line.0, line.1);
+        let text = &bytes[at..line.1];
+        if text.starts_with(b"[") && !text.starts_with(b"[1,") && !text.starts_with(b"[2,") {
+            // A variable's header: `[*SYSTEM*]$MNUFRAME  Storage: …`.
+            let name_end = text
+                .iter()
+                .position(|b| b.is_ascii_whitespace())
+                .unwrap_or(text.len());
+            let name = text[..name_end].to_ascii_uppercase();
+            variable = if name.ends_with(b"$MNUFRAME") {
+                Some(true)
+            } else if name.ends_with(b"$MNUTOOL") {
+                Some(false)
+            } else {
+                None
+            };
+            continue;
+        }
+        let Some(user) = variable else { continue };
+        // An element: `[g,n] =` and, unless uninitialized, its lines.
+        let Some(close) = text.iter().position(|b| *b == b']') else {
+            continue;
+        };
+        if !text.starts_with(b"[") {
+            continue;
+        }
+        let index = String::from_utf8_lossy(&text[1..close]).into_owned();
+        let Some((group, number)) = index.split_once(',') else {
+            continue;
+        };
+        let (Ok(group), Ok(number)) = (group.trim().parse::<u16>(), number.trim().parse::<u16>())
+        else {
+            return Err(src.error(at, format!("[{index}]: expected [group,frame]")));
+        };
+        if text
+            .windows(13)
+            .any(|w| w.eq_ignore_ascii_case(b"uninitialized"))
+        {
+            continue;
+        }
+        // X, Y, Z, W, P, R as `X:  1500.000` pairs on the lines that follow, up to the next
+        // element or variable.
+        let mut values: [Option<f64>; 6] = [None; 6];
+        let mut scan = start;
+        while scan < bytes.len() {
+            let (l, n) = line_at(bytes, scan);
+            let first = skip_space(bytes, l.0, l.1);
+            if bytes.get(first) == Some(&b'[') {
+                break;
+            }
+            let mut i = first;
+            while i < l.1 {
+                let b = bytes[i].to_ascii_uppercase();
+                let axis = b"XYZWPR".iter().position(|a| *a == b);
+                let colon = skip_blanks(bytes, i + 1, l.1);
+                let word_start = i == l.0 || !bytes[i - 1].is_ascii_alphanumeric();
+                match axis {
+                    Some(k) if word_start && bytes.get(colon) == Some(&b':') => {
+                        let v = skip_blanks(bytes, colon + 1, l.1);
+                        let number = parse_number(&bytes[..l.1], v).ok_or_else(|| {
+                            src.error(v, format!("{}: expected a number", b as char))
+                        })?;
+                        values[k] = Some(number.value);
+                        i = number.span.1;
+                    }
+                    _ => i += 1,
+                }
+            }
+            scan = n;
+        }
+        start = scan;
+        if group != 1 {
+            continue;
+        }
+        let frame = match values {
+            [Some(x), Some(y), Some(z), Some(w), Some(p), Some(r)] => [x, y, z, w, p, r],
+            _ => {
+                return Err(src.error(
+                    at,
+                    format!("[{index}]: a frame needs all six of X, Y, Z, W, P, R"),
+                ))
+            }
+        };
+        if !crate::bounds::option_frame_within(&frame) {
+            return Err(src.error(
+                at,
+                format!(
+                    "[{index}]: a frame within ±{} mm and ±{}°",
+                    crate::bounds::MAX_POSITION_MM,
+                    crate::bounds::MAX_ANGLE_DEG
+                ),
+            ));
+        }
+        let list = if user {
+            &mut out.user_frames
+        } else {
+            &mut out.tool_frames
+        };
+        if list.iter().any(|f| f.0 == number) {
+            return Err(src.error(at, format!("[{index}]: frame {number} given twice")));
+        }
+        list.push((number, frame));
+    }
+    Ok(out)
+}
+
+/// The line starting at `start`: its content's range and where the next line starts
+/// (lines end with LF, CRLF or a CR alone).
+fn line_at(bytes: &[u8], start: usize) -> ((usize, usize), usize) {
+    let end = bytes[start..]
+        .iter()
+        .position(|b| *b == b'\n' || *b == b'\r')
+        .map_or(bytes.len(), |p| start + p);
+    let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
+        end + 2
+    } else {
+        end + 1
+    };
+    ((start, end), next)
+}
+
+fn skip_space(bytes: &[u8], mut i: usize, end: usize) -> usize {
+    while i < end && bytes[i].is_ascii_whitespace() {
+        i += 1;
+    }
+    i
+}
+
+fn skip_blanks(bytes: &[u8], mut i: usize, end: usize) -> usize {
+    while i < end && matches!(bytes[i], b' ' | b'\t') {
+        i += 1;
+    }
+    i
+}
+
+/// A position designator of a statement: `P[3]`, `P[3:label]`, `PR[2]`, `PR[R[1]]`.
+#[derive(Clone, Debug)]
+struct Designator {
+    /// Where `P` or `PR` starts.
+    at: usize,
+    /// Past its `]`.
+    end: usize,
+    /// A position register rather than a position.
+    register: bool,
+    /// Its number, when written directly (`None`: indirect, `P[R[1]]`).
+    number: Option<u32>,
+    /// An option's argument (`Offset,PR[1]`), not a target.
+    argument: bool,
+}
+
+/// A word at bracket depth 0 of a statement.
+#[derive(Clone, Copy, Debug)]
+struct StatementWord {
+    start: usize,
+    end: usize,
+}
+
+/// A statement of `/MN`, over its line and continuation lines: its text's ranges up to its
+/// `;`.
+struct Statement {
+    ranges: Vec<(usize, usize)>,
+}
+
+impl Statement {
+    /// Its words and designators at bracket depth 0.
+    fn scan(&self, src: &Source) -> Result<(Vec<StatementWord>, Vec<Designator>), Error> {
+        let bytes = src.bytes;
+        let mut words = Vec::new();
+        let mut designators = Vec::new();
+        // The last non-blank byte seen before a word, across ranges.
+        let mut before: u8 = b' ';
+        for &(start, end) in &self.ranges {
+            let mut i = start;
+            while i < end {
+                let b = bytes[i];
+                if b.is_ascii_alphabetic() || b == b'_' || b == b'$' {
+                    let w = src.identifier_end(i, b"$").min(end).max(i + 1);
+                    let word = &bytes[i..w];
+                    if bytes.get(w) == Some(&b'[') && w < end {
+                        let close = matching_bracket(bytes, w, end)
+                            .ok_or_else(|| src.error(w, "a '[' without its ']'"))?;
+                        if word.eq_ignore_ascii_case(b"P") || word.eq_ignore_ascii_case(b"PR") {
+                            let inside = &bytes[w + 1..close];
+                            let digits = inside.iter().take_while(|b| b.is_ascii_digit()).count();
+                            let direct = digits > 0
+                                && matches!(inside.get(digits), None | Some(b':'))
+                                && digits <= 9;
+                            let number = direct
+                                .then(|| std::str::from_utf8(&inside[..digits]).ok())
+                                .flatten()
+                                .and_then(|t| t.parse().ok());
+                            designators.push(Designator {
+                                at: i,
+                                end: close + 1,
+                                register: word.len() == 2,
+                                number,
+                                argument: before == b',',
+                            });
+                        } else {
+                            words.push(StatementWord { start: i, end: w });
+                        }
+                        before = b']';
+                        i = close + 1;
+                        continue;
+                    }
+                    words.push(StatementWord { start: i, end: w });
+                    before = bytes[w - 1];
+                    i = w;
+                    continue;
+                }
+                if b == b'[' {
+                    let close = matching_bracket(bytes, i, end)
+                        .ok_or_else(|| src.error(i, "a '[' without its ']'"))?;
+                    i = close + 1;
+                    before = b']';
+                    continue;
+                }
+                if !matches!(b, b' ' | b'\t') {
+                    before = b;
+                }
+                i += 1;
+            }
+        }
+        Ok((words, designators))
+    }
+}
+
+/// The `]` closing the `[` at `open`, before `end`.
+fn matching_bracket(bytes: &[u8], open: usize, end: usize) -> Option<usize> {
+    let mut depth = 0usize;
+    for (k, b) in bytes[open..end].iter().enumerate() {
+        match b {
+            b'[' => depth += 1,
+            b']' => {
+                depth -= 1;
+                if depth == 0 {
+                    return Some(open + k);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The statements of the `/MN` section `start..end`, and where each line of it starts.
+fn statements(bytes: &[u8], start: usize, end: usize) -> Vec<Statement> {
+    let mut out: Vec<Statement> = Vec::new();
+    // Whether the last statement is still open (no `;` yet).
+    let mut open = false;
+    let mut at = start;
+    while at < end {
+        let ((s, e), next) = line_at(bytes, at);
+        at = next;
+        let e = e.min(end);
+        let first = skip_blanks(bytes, s, e);
+        let digits = bytes[first..e]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count();
+        let content = if digits > 0 && bytes.get(first + digits) == Some(&b':') {
+            open = true;
+            out.push(Statement { ranges: Vec::new() });
+            first + digits + 1
+        } else if bytes.get(first) == Some(&b':') && open {
+            first + 1
+        } else {
+            // Not a statement's line (a `------ ;` closing a time-before block).
+            continue;
+        };
+        let semicolon = bytes[content..e].iter().position(|b| *b == b';');
+        let stop = semicolon.map_or(e, |p| content + p);
+        if let Some(last) = out.last_mut() {
+            last.ranges.push((content, stop));
+        }
+        if semicolon.is_some() {
+            open = false;
+        }
+    }
+    out
+}
+
+/// What a `/MN` motion does to a position.
+#[derive(Clone, Debug)]
+struct Use {
+    /// Where the motion is written.
+    at: usize,
+    /// The motion's words (`L P[5]`), for messages.
+    motion: String,
+    /// Why it is reported rather than corrected, when it is.
+    refused: Option<(Reason, String)>,
+}
+
+/// Reads the targets of a Fanuc `.ls` program.
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at the first malformed position or statement.
+pub fn read(src: &Source, options: &FanucOptions) -> Result<Program, Error> {
+    read_at_most(src, options, usize::MAX)
+}
+
+/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(src: &Source, options: &FanucOptions, limit: usize) -> Result<Program, Error> {
+    let bytes = src.bytes;
+    // The sections: `/MN` and `/POS` ranges.
+    let mut mn: Option<(usize, usize)> = None;
+    let mut pos: Option<(usize, usize)> = None;
+    let mut current: Option<(&str, usize)> = None;
+    let mut at = 0;
+    loop {
+        let done = at >= bytes.len();
+        let ((s, e), next) = if done {
+            ((bytes.len(), bytes.len()), bytes.len())
+        } else {
+            line_at(bytes, at)
+        };
+        at = next;
+        let first = skip_blanks(bytes, s, e);
+        let header = bytes.get(first) == Some(&b'/')
+            && bytes.get(first + 1).is_some_and(u8::is_ascii_uppercase);
+        if header || done {
+            match current.take() {
+                Some(("MN", start)) => mn = Some((start, s)),
+                Some(("POS", start)) => pos = Some((start, s)),
+                _ => {}
+            }
+        }
+        if done {
+            break;
+        }
+        if header {
+            let word_end = src.identifier_end(first + 1, b"").min(e);
+            let name = match &bytes[first + 1..word_end] {
+                b"MN" => "MN",
+                b"POS" => "POS",
+                _ => "",
+            };
+            if (name == "MN" && mn.is_some()) || (name == "POS" && pos.is_some()) {
+                return Err(src.error(first, format!("a second /{name} section")));
+            }
+            current = Some((name, next.min(bytes.len())));
+        }
+    }
+
+    let mut targets: Vec<ProgramTarget> = Vec::new();
+    let mut first_motion = None;
+    let mut truncated_at = None;
+    // Per position number, the motions that use it.
+    let mut uses: HashMap<u32, Vec<Use>> = HashMap::new();
+    // Frames the program sets as it runs: (user, number) and the statement's place.
+    let mut set_frames: Vec<(bool, u16, usize)> = Vec::new();
+    // Motions to positions `/POS` may not hold, checked once it is read.
+    let mut pending: Vec<(u32, Use)> = Vec::new();
+    if let Some((s, e)) = mn {
+        for statement in statements(bytes, s, e) {
+            let Some(&(first_start, first_end)) = statement.ranges.first() else {
+                continue;
+            };
+            let at = skip_blanks(bytes, first_start, first_end);
+            if at >= first_end || bytes[at] == b'!' || bytes[at..first_end].starts_with(b"//") {
+                // An empty line, a comment, a statement commented out.
+                continue;
+            }
+            let (words, designators) = statement.scan(src)?;
+            let Some(first) = words.first() else { continue };
+            let word = &bytes[first.start..first.end];
+            // `UFRAME[2]=PR[1]`, `UTOOL[1]=…`: a frame set as the program runs.
+            if word.eq_ignore_ascii_case(b"UFRAME") || word.eq_ignore_ascii_case(b"UTOOL") {
+                let open = first.end;
+                if bytes.get(open) == Some(&b'[') {
+                    let digits_end = (open + 1..first_end)
+                        .find(|i| !bytes[*i].is_ascii_digit())
+                        .unwrap_or(first_end);
+                    if let Ok(n) = src.text(open + 1, digits_end).parse::<u16>() {
+                        set_frames.push((word.eq_ignore_ascii_case(b"UFRAME"), n, at));
+                    }
+                }
+                continue;
+            }
+            let letter = word.len() == 1 && word[0].is_ascii_uppercase();
+            let target = designators.first().filter(|d| !d.argument);
+            // A motion: one letter, a blank, and the position (`L P[2]`), never an
+            // assignment such as `R[1]=PR[1,3]`.
+            let motion = target.is_some_and(|d| {
+                letter
+                    && first.start == at
+                    && d.at > first.end
+                    && bytes[first.end..d.at]
+                        .iter()
+                        .all(|b| matches!(b, b' ' | b'\t'))
+            });
+            if !motion {
+                continue;
+            }
+            first_motion.get_or_insert(at);
+            let letter = word[0] as char;
+            let moves: Vec<&Designator> = designators.iter().filter(|d| !d.argument).collect();
+            let motion_text = |d: &Designator| format!("{letter} {}", src.text(d.at, d.end));
+            let known = MOTIONS.iter().find(|m| m.0.as_bytes() == word);
+            let count = known.map_or(1, |m| m.1);
+            // The motion's offsets, found among its words.
+            let offset = words.iter().skip(1).find_map(|w| {
+                let text = bytes[w.start..w.end].to_ascii_uppercase();
+                OFFSETS.iter().find(|o| o.0.as_bytes() == text).map(|o| {
+                    // With its argument when it has one (`Offset,PR[1]`).
+                    let argument = designators
+                        .iter()
+                        .find(|d| d.argument && d.at > w.end && d.at <= w.end + 2);
+                    let end = argument.map_or(w.end, |d| d.end);
+                    (o.1, format!("{}: {}", src.text(w.start, end), o.2))
+                })
+            });
+            let refusal = |d: &Designator| -> Option<(Reason, String)> {
+                if known.is_none() {
+                    return Some((
+                        Reason::UnknownMotion,
+                        format!("{letter} is not a Fanuc motion this reader knows"),
+                    ));
+                }
+                if d.register {
+                    return Some((
+                        Reason::Dynamic,
+                        "a position register, whose value the controller holds or the program sets as it runs".to_string(),
+                    ));
+                }
+                if d.number.is_none() {
+                    return Some((
+                        Reason::Dynamic,
+                        "a position chosen as the program runs".to_string(),
+                    ));
+                }
+                offset.clone()
+            };
+            if moves.len() < count {
+                let d = moves[0];
+                targets.push(ProgramTarget {
+                    name: motion_text(d),
+                    offset: at,
+                    kind: TargetKind::Incomplete(format!(
+                        "{letter}: a circular motion needs its via and its end point, and writes {}",
+                        moves.len()
+                    )),
+                    uses: Vec::new(),
+                    refused: None,
+                });
+                continue;
+            }
+            for d in moves.iter().take(count) {
+                let u = Use {
+                    at: d.at,
+                    motion: motion_text(d),
+                    refused: refusal(d),
+                };
+                match (u.refused.clone(), d.number) {
+                    (Some((reason, why)), number) => {
+                        targets.push(ProgramTarget {
+                            name: u.motion.clone(),
+                            offset: d.at,
+                            kind: TargetKind::Motion,
+                            uses: Vec::new(),
+                            refused: Some(Refusal::new(reason, why)),
+                        });
+                        if let (Some(n), false) = (number, d.register) {
+                            uses.entry(n).or_default().push(u);
+                        }
+                    }
+                    (None, Some(n)) => pending.push((n, u)),
+                    (None, None) => {}
+                }
+                if targets.len() > limit {
+                    truncated_at = Some(d.at);
+                    break;
+                }
+            }
+            if truncated_at.is_some() {
+                break;
+            }
+        }
+    }
+    // The positions of `/POS`.
+    let mut positions: Vec<(u32, ProgramTarget)> = Vec::new();
+    if let (Some((s, e)), None) = (pos, truncated_at) {
+        let mut i = s;
+        while i < e {
+            i = skip_space(bytes, i, e);
+            if i >= e {
+                break;
+            }
+            if !(bytes[i..e].starts_with(b"P[")) {
+                return Err(src.error(
+                    i,
+                    format!("expected a position P[n]{{…}}; found {}", src.describe(i)),
+                ));
+            }
+            let (n, target, next) = position(src, i, e, options, &set_frames)?;
+            if let Some(first) = positions.iter().find(|p| p.0 == n) {
+                let (line, _) = src.location(first.1.offset);
+                return Err(src.error(i, format!("P[{n}] twice (first at line {line})")));
+            }
+            positions.push((n, target));
+            i = next;
+            if targets.len() + positions.len() > limit {
+                truncated_at = Some(i.min(bytes.len()));
+                break;
+            }
+        }
+    }
+    // Motions to positions: each position's uses, or the motion said not declared.
+    for (n, u) in pending {
+        if positions.iter().any(|p| p.0 == n) {
+            uses.entry(n).or_default().push(u);
+        } else {
+            targets.push(ProgramTarget {
+                name: u.motion.clone(),
+                offset: u.at,
+                kind: TargetKind::Motion,
+                uses: Vec::new(),
+                refused: Some(Refusal::new(
+                    Reason::NotDeclared,
+                    format!("P[{n}] is not in the program's /POS section"),
+                )),
+            });
+        }
+    }
+    for (n, mut target) in positions {
+        let list = uses.remove(&n).unwrap_or_default();
+        let plain = list.iter().find(|u| u.refused.is_none());
+        match (plain, list.first()) {
+            (Some(u), _) => {
+                if let Some(first) = target.uses.first_mut() {
+                    first.offset = u.at;
+                }
+            }
+            (None, Some(u)) if target.refused.is_none() => {
+                let (reason, why) = u.refused.clone().expect("a refused use");
+                let (line, column) = src.location(u.at);
+                target.refused = Some(Refusal::new(
+                    reason,
+                    format!("used only by {} ({line}:{column}): {why}", u.motion),
+                ));
+            }
+            _ => {}
+        }
+        targets.push(target);
+    }
+    targets.sort_by_key(|t| t.offset);
+    Ok(Program {
+        format: Format::Fanuc,
+        targets,
+        truncated_at,
+        first_motion,
+    })
+}
+
+/// A field of a position: its name (upper case), where, and its value.
+struct Field {
+    name: String,
+    value: FieldValue,
+}
+
+enum FieldValue {
+    /// `UF : 1`: a word.
+    Word(String),
+    /// `CONFIG : 'N U T, 0, 0, 0'`: the text between the quotes.
+    Text(usize, usize),
+    /// `X =  1234.567  mm`.
+    Number(Number),
+}
+
+/// The position `P[n]{ … };` at `at`: its number, its target and where the next starts.
+fn position(
+    src: &Source,
+    at: usize,
+    end: usize,
+    options: &FanucOptions,
+    set_frames: &[(bool, u16, usize)],
+) -> Result<(u32, ProgramTarget, usize), Error> {
+    let bytes = src.bytes;
+    let open = at + 1;
+    let close = matching_bracket(bytes, open, end)
+        .ok_or_else(|| src.error(open, "a '[' without its ']'"))?;
+    let inside = &bytes[open + 1..close];
+    let digits = inside.iter().take_while(|b| b.is_ascii_digit()).count();
+    let number: u32 = std::str::from_utf8(&inside[..digits])
+        .ok()
+        .filter(|_| digits > 0 && digits <= 9 && matches!(inside.get(digits), None | Some(b':')))
+        .and_then(|t| t.parse().ok())
+        .ok_or_else(|| src.error(open + 1, "a position's number: P[n] or P[n:\"comment\"]"))?;
+    let name = format!("P[{number}]");
+    let brace = skip_space(bytes, close + 1, end);
+    if bytes.get(brace) != Some(&b'{') || brace >= end {
+        return Err(src.error(brace, format!("{name}: expected '{{'")));
+    }
+    let body_end = (brace..end)
+        .find(|i| bytes[*i] == b'}')
+        .ok_or_else(|| src.error(brace, format!("{name}: its '{{' has no '}}'")))?;
+    let mut next = body_end + 1;
+    if bytes.get(next) == Some(&b';') {
+        next += 1;
+    }
+    // The fields, by group.
+    let mut groups: Vec<(u32, usize, Vec<Field>)> = Vec::new();
+    let mut i = brace + 1;
+    loop {
+        while i < body_end && (bytes[i].is_ascii_whitespace() || bytes[i] == b',') {
+            i += 1;
+        }
+        if i >= body_end {
+            break;
+        }
+        let word_end = src.identifier_end(i, b"").min(body_end);
+        if word_end == i {
+            return Err(src.error(
+                i,
+                format!(
+                    "{name}: expected a field (UF, X, J1…), found {}",
+                    src.describe(i)
+                ),
+            ));
+        }
+        let word = src.text(i, word_end).to_ascii_uppercase();
+        let field_at = i;
+        i = skip_blanks(bytes, word_end, body_end);
+        if let Some(g) = word.strip_prefix("GP") {
+            if bytes.get(i) == Some(&b':') && i < body_end {
+                let g: u32 = g
+                    .parse()
+                    .map_err(|_| src.error(field_at, format!("{name}: a group GPn")))?;
+                groups.push((g, field_at, Vec::new()));
+                i += 1;
+                continue;
+            }
+        }
+        let Some(group) = groups.last_mut() else {
+            return Err(src.error(field_at, format!("{name}: a field before its group (GP1:)")));
+        };
+        let value = match bytes.get(i) {
+            Some(b':') if i < body_end => {
+                i = skip_blanks(bytes, i + 1, body_end);
+                if bytes.get(i) == Some(&b'\'') {
+                    let q = (i + 1..body_end)
+                        .find(|k| bytes[*k] == b'\'')
+                        .ok_or_else(|| src.error(i, format!("{name}: a quote without its end")))?;
+                    let v = FieldValue::Text(i + 1, q);
+                    i = q + 1;
+                    v
+                } else {
+                    let s = i;
+                    while i < body_end && !(bytes[i].is_ascii_whitespace() || bytes[i] == b',') {
+                        i += 1;
+                    }
+                    FieldValue::Word(src.text(s, i))
+                }
+            }
+            Some(b'=') if i < body_end => {
+                let v = skip_blanks(bytes, i + 1, body_end);
+                let n = parse_number(&bytes[..body_end], v).ok_or_else(|| {
+                    src.error(
+                        v,
+                        format!("{name}: {word} must be a number, found {}", src.describe(v)),
+                    )
+                })?;
+                i = skip_blanks(bytes, n.span.1, body_end);
+                // Its unit: `mm`, `deg`.
+                i = src.identifier_end(i, b"").min(body_end).max(i);
+                FieldValue::Number(n)
+            }
+            _ => {
+                return Err(src.error(
+                    i.min(body_end),
+                    format!("{name}: expected ':' or '=' after {word}"),
+                ))
+            }
+        };
+        group.2.push(Field { name: word, value });
+    }
+    let incomplete = |why: String| ProgramTarget {
+        name: name.clone(),
+        offset: at,
+        kind: TargetKind::Incomplete(why),
+        uses: Vec::new(),
+        refused: None,
+    };
+    let Some((_, _, fields)) = groups.iter().find(|g| g.0 == 1) else {
+        return Ok((number, incomplete("no group 1 (GP1) data".into()), next));
+    };
+    let number_of = |key: &str| {
+        fields.iter().find_map(|f| match &f.value {
+            FieldValue::Number(n) if f.name == key => Some(*n),
+            _ => None,
+        })
+    };
+    // A second motion group, or an extended axis of group 1 (a rail integrated with the
+    // robot): the position is read, and reported.
+    let group_refusal = if let Some((g, gat, _)) = groups.iter().find(|g| g.0 != 1) {
+        let (line, _) = src.location(*gat);
+        Some(Refusal::new(
+            Reason::ExternalAxis,
+            format!("GP{g} (line {line}): a second motion group (a positioner, a rail, another robot) moves with it, which the table does not have"),
+        ))
+    } else {
+        fields.iter().find_map(|f| match &f.value {
+            FieldValue::Number(n) if f.name.starts_with('E') && n.value != 0.0 => {
+                Some(Refusal::new(
+                    Reason::ExternalAxis,
+                    format!(
+                        "{} {}: an extended axis (a rail, a positioner) the table does not have",
+                        f.name,
+                        src.text(n.span.0, n.span.1)
+                    ),
+                ))
+            }
+            _ => None,
+        })
+    };
+    let refuse = |mut target: ProgramTarget| {
+        target.refused = group_refusal.clone();
+        target
+    };
+    let cartesian: Vec<Option<Number>> = ["X", "Y", "Z", "W", "P", "R"]
+        .iter()
+        .map(|k| number_of(k))
+        .collect();
+    let joints: Vec<Number> = (1..=9).map_while(|k| number_of(&format!("J{k}"))).collect();
+    if cartesian.iter().all(Option::is_none) {
+        if joints.is_empty() {
+            return Ok((
+                number,
+                incomplete("neither X, Y, Z, W, P, R nor J1… written".into()),
+                next,
+            ));
+        }
+        return Ok((
+            number,
+            refuse(ProgramTarget {
+                name,
+                offset: at,
+                kind: TargetKind::Joints(JointTarget {
+                    joints,
+                    unit: AngleUnit::Degree,
+                }),
+                uses: Vec::new(),
+                refused: None,
+            }),
+            next,
+        ));
+    }
+    let missing: Vec<&str> = ["X", "Y", "Z", "W", "P", "R"]
+        .into_iter()
+        .zip(&cartesian)
+        .filter(|(_, n)| n.is_none())
+        .map(|(k, _)| k)
+        .collect();
+    if !missing.is_empty() {
+        return Ok((
+            number,
+            incomplete(format!("{} not written", missing.join(", "))),
+            next,
+        ));
+    }
+    let c: Vec<Number> = cartesian.into_iter().flatten().collect();
+    // The frames, by number.
+    let mut unknown = Vec::new();
+    let mut frame = |key: &str, user: bool| -> Option<Isometry3<f64>> {
+        let what = if user { "user frame" } else { "tool frame" };
+        let Some(f) = fields.iter().find(|f| f.name == key) else {
+            unknown.push(format!("{key} not written: its {what} is not known"));
+            return None;
+        };
+        let FieldValue::Word(text) = &f.value else {
+            unknown.push(format!("{key}: its {what} is not a number"));
+            return None;
+        };
+        let Ok(n) = text.parse::<u16>() else {
+            unknown.push(format!("{what} {text}: not a frame number"));
+            return None;
+        };
+        if let Some((_, _, place)) = set_frames.iter().find(|s| s.0 == user && s.1 == n) {
+            let (line, column) = src.location(*place);
+            unknown.push(format!(
+                "{what} {n} is set as the program runs ({line}:{column})"
+            ));
+            return None;
+        }
+        if n == 0 {
+            // The world frame, and the faceplate.
+            return Some(Isometry3::identity());
+        }
+        let given = if user {
+            options.user(n)
+        } else {
+            options.tool(n)
+        };
+        match given {
+            Some(f) => Some(wpr_pose(f)),
+            None => {
+                let option = if user { "uframe" } else { "utool" };
+                unknown.push(format!(
+                    "{what} {n} not given: give it as --fanuc-{option} {n}=X,Y,Z,W,P,R or in the frame file (--fanuc-frames)"
+                ));
+                None
+            }
+        }
+    };
+    let base = frame("UF", true);
+    let tool = frame("UT", false);
+    let config = fields
+        .iter()
+        .find_map(|f| match f.value {
+            FieldValue::Text(s, e) if f.name == "CONFIG" => Some(config_hint(&bytes[s..e])),
+            _ => None,
+        })
+        .unwrap_or(ConfigHint::None);
+    Ok((
+        number,
+        refuse(ProgramTarget {
+            name,
+            offset: at,
+            kind: TargetKind::Cartesian(Box::new(CartesianTarget {
+                position: [c[0], c[1], c[2]],
+                unit: LengthUnit::Millimetre,
+                orientation: Some(Orientation::KukaAbcDeg([c[5], c[4], c[3]])),
+                config,
+                joints: Vec::new(),
+            })),
+            uses: vec![FrameUse {
+                tool,
+                base,
+                offset: at,
+                elsewhere: None,
+                undeclared: Vec::new(),
+                unknown,
+            }],
+            refused: None,
+        }),
+        next,
+    ))
+}
+
+/// A position's `CONFIG : 'N U T, 0, 0, 0'`: the wrist (`N` no flip, `F` flip), the elbow
+/// (`U` up, `D` down), the shoulder (`T` front, `B` back), and the turn numbers of J4, J5
+/// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k).
+fn config_hint(text: &[u8]) -> ConfigHint {
+    let text = String::from_utf8_lossy(text).to_ascii_uppercase();
+    let mut parts = text.split(',');
+    let letters = parts.next().unwrap_or("");
+    let mut bits: u8 = 0;
+    let mut seen = 0;
+    for word in letters.split_whitespace() {
+        match word {
+            "N" | "U" | "T" => seen += 1,
+            "F" => {
+                bits |= 4;
+                seen += 1;
+            }
+            "D" => {
+                bits |= 2;
+                seen += 1;
+            }
+            "B" => {
+                bits |= 1;
+                seen += 1;
+            }
+            _ => {}
+        }
+    }
+    let turns: Vec<Option<i8>> = parts
+        .map(|t| t.trim().parse::<i8>().ok().filter(|k| (-4..=4).contains(k)))
+        .collect();
+    let turn = |k: usize| turns.get(k).copied().flatten();
+    ConfigHint::FanucConfig {
+        configuration: (seen == 3).then_some(bits),
+        turns: [turn(0), turn(1), turn(2)],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const WELD: &str = "/PROG  WELD\n/ATTR\nOWNER\t\t= MNEDITOR;\n/MN\n   1:  UTOOL_NUM=1 ;\n\
+        \x20  2:J P[1] 100% FINE    ;\n   3:L P[2:seam start] 500mm/sec CNT100    ;\n\
+        \x20  4:C P[3]    \n    :  P[4] 200mm/sec FINE    ;\n   5:L P[2:seam start] 100mm/sec FINE Offset,PR[1]    ;\n\
+        \x20  6:L PR[3] 100mm/sec FINE    ;\n   7:  !back home ;\n   8:  //L P[9] 100mm/sec FINE    ;\n\
+        \x20  9:L P[5] 100mm/sec FINE Tool_Offset,PR[2:tool z]    ;\n  10:J P[6] 50% FINE    ;\n  11:L P[8] 100mm/sec FINE    ;\n\
+        /POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1=    0.000 deg,\tJ2=   10.000 deg,\tJ3=  -20.000 deg,\n\
+        \tJ4=    0.000 deg,\tJ5=  -70.000 deg,\tJ6=    0.000 deg\n};\n\
+        P[2:\"seam start\"]{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\
+        \tX =   100.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n};\n\
+        P[3]{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'F D B, 0, 1, -1',\n\
+        \tX =   150.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n};\n\
+        P[4]{\n   GP1:\n\tUF : 4, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\
+        \tX =   200.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n};\n\
+        P[5]{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\
+        \tX =   250.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n};\n\
+        P[6]{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\
+        \tX =   250.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n\
+        \x20  GP2:\n\tUF : 0, UT : 1,\n\tJ1=    90.000 deg\n};\n/END\n";
+
+    fn options() -> FanucOptions {
+        FanucOptions {
+            user_frames: vec![(1, [1500.0, 0.0, 500.0, 0.0, 0.0, 30.0])],
+            tool_frames: vec![(1, [0.0, 0.0, 200.0, 0.0, 0.0, 0.0])],
+            frames_file: None,
+        }
+    }
+
+    fn status(t: &ProgramTarget) -> String {
+        match (&t.refused, &t.kind) {
+            (Some(r), _) => r.reason.as_str().to_string(),
+            (None, TargetKind::Cartesian(_)) if t.uses.iter().any(|u| !u.unknown.is_empty()) => {
+                "frame_unknown".into()
+            }
+            (None, TargetKind::Cartesian(_)) => "cartesian".into(),
+            (None, TargetKind::Joints(_)) => "joints".into(),
+            (None, TargetKind::Incomplete(_)) => "incomplete".into(),
+            (None, TargetKind::Motion) => "motion".into(),
+        }
+    }
+
+    #[test]
+    fn every_motion_and_position_is_accounted_for() {
+        let p = read(&Source::new("weld.ls", WELD.as_bytes()), &options()).unwrap();
+        let seen: Vec<(String, String)> = p
+            .targets
+            .iter()
+            .map(|t| (t.name.clone(), status(t)))
+            .collect();
+        let want = [
+            ("L P[2:seam start]", "relative"),
+            ("L PR[3]", "dynamic"),
+            ("L P[5]", "relative"),
+            ("L P[8]", "not_declared"),
+            ("P[1]", "joints"),
+            ("P[2]", "cartesian"),
+            ("P[3]", "cartesian"),
+            ("P[4]", "frame_unknown"),
+            ("P[5]", "relative"),
+            ("P[6]", "external_axis"),
+        ];
+        let want: Vec<(String, String)> = want
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect();
+        assert_eq!(seen, want);
+        let p4 = &p.targets[7].uses[0].unknown[0];
+        assert!(p4.starts_with("user frame 4 not given"), "{p4}");
+        let p5 = p.targets[8].refused.as_ref().unwrap();
+        assert!(
+            p5.detail
+                .starts_with("used only by L P[5] (14:8): Tool_Offset,PR[2:tool z]: an offset"),
+            "{}",
+            p5.detail
+        );
+        // W, P, R read as KUKA's A, B, C in reverse: R, P, W.
+        let TargetKind::Cartesian(c) = &p.targets[5].kind else {
+            unreachable!()
+        };
+        let Some(Orientation::KukaAbcDeg(abc)) = c.orientation else {
+            unreachable!()
+        };
+        assert_eq!(abc.map(|n| n.value), [90.0, 0.0, -180.0]);
+        // P[3]'s configuration: flip, elbow down, shoulder back; turns 0, 1, -1.
+        let TargetKind::Cartesian(c) = &p.targets[6].kind else {
+            unreachable!()
+        };
+        assert_eq!(
+            c.config,
+            ConfigHint::FanucConfig {
+                configuration: Some(7),
+                turns: [Some(0), Some(1), Some(-1)]
+            }
+        );
+        // The user frame is its base, the tool frame its tool.
+        let base = p.targets[5].uses[0].base.unwrap();
+        assert!((base.translation.vector.x - 1500.0).abs() < 1e-9);
+        assert_eq!(p.first_motion, Some(WELD.find("J P[1]").unwrap()));
+    }
+
+    #[test]
+    fn a_frame_the_program_sets_as_it_runs_is_named() {
+        let text = WELD.replace("   1:  UTOOL_NUM=1 ;", "   1:  UFRAME[1]=PR[9] ;");
+        let p = read(&Source::new("weld.ls", text.as_bytes()), &options()).unwrap();
+        let p2 = p.targets.iter().find(|t| t.name == "P[2]").unwrap();
+        assert_eq!(
+            p2.uses[0].unknown,
+            ["user frame 1 is set as the program runs (5:8)"]
+        );
+    }
+
+    #[test]
+    fn the_frame_file_gives_group_one_frames() {
+        let va = "[*SYSTEM*]$MNUFRAME  Storage: SHADOW  Access: RW  : ARRAY[1,9] OF POSITION Reg\n\
+                  \x20   [1,1] = \n  Group: 1   Config: N D B, 0, 0, 0\n  X:  1500.000   Y:   200.000   Z:  -300.000\n\
+                  \x20 W:     0.000   P:     0.000   R:    30.000\n    [1,2] = Uninitialized\n\
+                  \x20   [2,1] = \n  Group: 2   Config: N D B, 0, 0, 0\n  X:     1.000   Y:     2.000   Z:     3.000\n\
+                  \x20 W:     0.000   P:     0.000   R:     0.000\n\
+                  [*SYSTEM*]$MNUFRAMENUM  Storage: SHADOW  Access: RW  : ARRAY[2] OF BYTE\n  [1] = 1\n\
+                  [*SYSTEM*]$MNUTOOL  Storage: SHADOW  Access: RW  : ARRAY[1,10] OF POSITION Reg\n\
+                  \x20   [1,1] = 'torch'\n  Group: 1   Config: N D B, 0, 0, 0\n  X:     0.000   Y:     0.000   Z:   180.000\n\
+                  \x20 W:     0.000   P:   -45.000   R:     0.000\n";
+        let f = read_frames(&Source::new("SYSFRAME.VA", va.as_bytes())).unwrap();
+        assert_eq!(
+            f.user_frames,
+            [(1, [1500.0, 200.0, -300.0, 0.0, 0.0, 30.0])]
+        );
+        assert_eq!(f.tool_frames, [(1, [0.0, 0.0, 180.0, 0.0, -45.0, 0.0])]);
+        let bad = va.replace("R:    30.000", "R:    x");
+        let err = read_frames(&Source::new("SYSFRAME.VA", bad.as_bytes())).unwrap_err();
+        assert!(err.to_string().starts_with("SYSFRAME.VA:5:"), "{err}");
+    }
+
+    #[test]
+    fn frames_parse_as_the_command_line_writes_them() {
+        assert_eq!(
+            parse_frame("2=1,2,3").unwrap(),
+            (2, [1.0, 2.0, 3.0, 0.0, 0.0, 0.0])
+        );
+        assert_eq!(parse_frame("1=0,0,200,0,-90,0").unwrap().1[4], -90.0);
+        assert!(parse_frame("0=1,2,3").is_err());
+        assert!(parse_frame("1=1,2").is_err());
+        assert!(parse_frame("1=1,2,nan").is_err());
+    }
+
+    #[test]
+    fn wpr_turns_about_fixed_x_then_y_then_z() {
+        // W 90 alone: about x, y goes to z.
+        let pose = wpr_pose(&[0.0, 0.0, 0.0, 90.0, 0.0, 0.0]);
+        let y = pose.rotation * nalgebra::Vector3::y();
+        assert!((y - nalgebra::Vector3::z()).norm() < 1e-12, "{y}");
+        // W 90 then R 90 (about the fixed z): x stays x under W, then goes to y.
+        let pose = wpr_pose(&[0.0, 0.0, 0.0, 90.0, 0.0, 90.0]);
+        let x = pose.rotation * nalgebra::Vector3::x();
+        assert!((x - nalgebra::Vector3::y()).norm() < 1e-12, "{x}");
+        let z = pose.rotation * nalgebra::Vector3::z();
+        // z goes to -y under W 90, then to x under R 90.
+        assert!((z - nalgebra::Vector3::x()).norm() < 1e-12, "{z}");
+    }
+
+    #[test]
+    fn a_malformed_position_is_located() {
+        let text = "/PROG A\n/MN\n   1:L P[1] 100mm/sec FINE    ;\n/POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 1,\n\tX = abc mm\n};\n/END\n";
+        let err = read(&Source::new("a.ls", text.as_bytes()), &options()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "a.ls:8:6: P[1]: X must be a number, found 'abc mm'"
+        );
+        let text = "/PROG A\n/MN\n   1:L P[1 100mm/sec FINE    ;\n/END\n";
+        let err = read(&Source::new("a.ls", text.as_bytes()), &options()).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("a.ls:3:9: a '[' without its ']'"),
+            "{err}"
+        );
+    }
+}

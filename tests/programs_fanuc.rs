@@ -1,0 +1,455 @@
+//! Fanuc TP programs (`.ls`) compensated offline (`tablec compensate`, format `fanuc`): a
+//! weld program as a teach pendant saves it (`tests/programs/fanuc_weld.ls`, CRLF) and a
+//! raster as an offline tool writes it (`fanuc_gen.ls`), their frames from the
+//! controller's `SYSFRAME.VA` (`fanuc_sysframe.va`), with the KR150-2 table and a table
+//! that corrects nothing. Every written position is read back through its user and tool
+//! frames and checked against `tablec query`; every motion that is not corrected is
+//! reported by its reason.
+
+use std::path::{Path, PathBuf};
+
+use adwi_programs::fanuc::FanucOptions;
+use adwi_programs::frames::{rotation_of, FrameChain};
+use adwi_programs::program::TargetKind;
+use adwi_programs::source::Source;
+use adwi_programs::{CompensateJob, CompensateOptions, Compensated};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+
+use crate::common::{repo, tablec};
+
+fn fixture(name: &str) -> PathBuf {
+    repo(&format!("tests/programs/{name}"))
+}
+
+fn frames_file() -> PathBuf {
+    fixture("fanuc_sysframe.va")
+}
+
+fn robot() -> PathBuf {
+    repo("tables/kr150-2/robot.toml")
+}
+
+fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--served-field",
+            "method",
+            "-o",
+            out,
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join(out)
+}
+
+fn kr150_table(dir: &Path) -> PathBuf {
+    build(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl")
+}
+
+/// `tablec compensate` with `args`: exit code, standard output and error.
+fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    let mut all = vec!["compensate"];
+    all.extend_from_slice(args);
+    let o = tablec(&all, dir);
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// `tablec query --targets` at `points` (base frame, mm): per point, the predicted error.
+fn query(dir: &Path, table: &Path, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut csv = String::from("x,y,z\n");
+    for p in points {
+        csv += &format!("{},{},{}\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(dir.join("points.csv"), csv).unwrap();
+    let o = tablec(
+        &[
+            "query",
+            table.to_str().unwrap(),
+            "--targets",
+            "points.csv",
+            "-o",
+            "answers.csv",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let answers = std::fs::read_to_string(dir.join("answers.csv")).unwrap();
+    let rows: Vec<[f64; 3]> = answers
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            let f = |i: usize| v[i].parse::<f64>().unwrap();
+            [f(3), f(4), f(5)]
+        })
+        .collect();
+    assert_eq!(rows.len(), points.len());
+    rows
+}
+
+/// The job on a fixture with the KR150-2 robot and the frame file.
+fn job(table: &Path, program: &Path) -> (CompensateJob, Compensated) {
+    let mut options = CompensateOptions::new(table, program);
+    options.robot = Some(robot());
+    options.fanuc.frames_file = Some(frames_file());
+    let job = CompensateJob::new(options).unwrap();
+    let done = job.run().unwrap();
+    (job, done)
+}
+
+/// The frame file's frames, as the reader takes them.
+fn frames() -> FanucOptions {
+    let bytes = std::fs::read(frames_file()).unwrap();
+    adwi_programs::fanuc::read_frames(&Source::new("fanuc_sysframe.va", &bytes)).unwrap()
+}
+
+#[test]
+fn a_table_that_corrects_nothing_reproduces_fanuc_programs_byte_for_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("x,y,z,dx,dy,dz,rx,ry,rz\n");
+    for i in 0..=9 {
+        for j in 0..=9 {
+            for k in 0..=9 {
+                let p = [
+                    1300.0 + 100.0 * i as f64,
+                    100.0 * j as f64,
+                    800.0 + 100.0 * k as f64,
+                ];
+                csv += &format!("{},{},{},0,0,0,0,0,0\n", p[0], p[1], p[2]);
+            }
+        }
+    }
+    std::fs::write(dir.path().join("zero.csv"), csv).unwrap();
+    let table = build(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
+    for (program, corrected) in [("fanuc_weld.ls", 7), ("fanuc_gen.ls", 41)] {
+        let out = dir.path().join("out.ls");
+        let (code, stdout, stderr) = compensate(
+            dir.path(),
+            &[
+                table.to_str().unwrap(),
+                fixture(program).to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--robot",
+                robot().to_str().unwrap(),
+                "--fanuc-frames",
+                frames_file().to_str().unwrap(),
+            ],
+        );
+        assert!(code == 0 || code == 3, "{program}: {stderr}");
+        assert_eq!(
+            stdout.lines().filter(|l| l.contains(" ok ")).count(),
+            corrected,
+            "{stdout}"
+        );
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            std::fs::read(fixture(program)).unwrap(),
+            "{program}: {stdout}"
+        );
+    }
+}
+
+#[test]
+fn kr150_fanuc_positions_land_on_their_targets_through_their_user_and_tool_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_table(dir.path());
+    let kr150 = adwi_robot::Robot::load(robot()).unwrap();
+    let options = frames();
+    for (program, expected) in [("fanuc_weld.ls", 7), ("fanuc_gen.ls", 41)] {
+        let (_, done) = job(&table, &fixture(program));
+        let summary = done.report.summary();
+        assert_eq!(summary.corrected, expected, "{program}: {summary}");
+        // Read back: each corrected position's written numbers, through its frames, are its
+        // command to the written precision.
+        let src = Source::new("out.ls", &done.output);
+        let written = adwi_programs::fanuc::read(&src, &options).unwrap();
+        assert_eq!(written.targets.len(), done.report.targets.len());
+        let mut commands = Vec::new();
+        let mut points = Vec::new();
+        let mut largest: f64 = 0.0;
+        for (target, line) in written.targets.iter().zip(&done.report.targets) {
+            if !line.status.corrected() {
+                continue;
+            }
+            let command = match &target.kind {
+                TargetKind::Cartesian(c) => {
+                    let rotation = rotation_of(c.orientation.as_ref().unwrap()).unwrap();
+                    let pose = Isometry3::from_parts(
+                        Vector3::from(c.position.map(|n| n.value)).into(),
+                        UnitQuaternion::from_rotation_matrix(&rotation),
+                    );
+                    let u = &target.uses[0];
+                    // The KR150-2's samples measured its flange: the table's point.
+                    let chain = FrameChain {
+                        base: u.base.unwrap(),
+                        tool: u.tool.unwrap(),
+                        table_tool: Isometry3::identity(),
+                    };
+                    chain.table_point(&pose).translation.vector
+                }
+                TargetKind::Joints(j) => {
+                    let q: Vec<f64> = j.joints.iter().map(|n| n.value.to_radians()).collect();
+                    kr150.tcp_pose(&q).translation.vector
+                }
+                _ => unreachable!("{}", line.place()),
+            };
+            let expected = Vector3::from(line.command_mm.unwrap());
+            assert!(
+                (command - expected).norm() <= 1e-4,
+                "{program} {}: {}",
+                line.place(),
+                (command - expected).norm()
+            );
+            commands.push(command.into());
+            points.push(line.point_mm.unwrap());
+            largest = largest.max(line.correction_mm.unwrap());
+        }
+        assert_eq!(commands.len(), expected);
+        // |C + e(C) − P| by tablec query at every written command.
+        let mut worst: f64 = 0.0;
+        for (error, (c, p)) in query(dir.path(), &table, &commands)
+            .iter()
+            .zip(commands.iter().zip(&points))
+        {
+            let landed = Vector3::from(*c) + Vector3::from(*error);
+            worst = worst.max((landed - Vector3::from(*p)).norm());
+        }
+        eprintln!("{program}: {summary}; |C + e(C) - P| at most {worst:.3e} mm");
+        assert!(worst <= 1e-4, "{program}: {worst}");
+        assert!(largest > 1.0 && largest < 5.0, "{largest}");
+    }
+}
+
+#[test]
+fn every_fanuc_motion_and_position_is_accounted_for_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_table(dir.path());
+    let report = dir.path().join("report.csv");
+    let (code, stdout, stderr) = compensate(
+        dir.path(),
+        &[
+            table.to_str().unwrap(),
+            fixture("fanuc_weld.ls").to_str().unwrap(),
+            "-o",
+            "out.ls",
+            "--robot",
+            robot().to_str().unwrap(),
+            "--fanuc-frames",
+            frames_file().to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, 3, "{stderr}");
+    let rows: Vec<(String, String, String)> = csv::Reader::from_path(&report)
+        .unwrap()
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (r[0].to_string(), r[4].to_string(), r[5].to_string())
+        })
+        .collect();
+    let seen: Vec<(&str, &str)> = rows.iter().map(|r| (r.0.as_str(), r.1.as_str())).collect();
+    assert_eq!(
+        seen,
+        [
+            ("L P[6]", "relative"),
+            ("L P[7]", "relative"),
+            ("L P[10]", "relative"),
+            ("J PR[3:Service]", "dynamic"),
+            ("P[1]", "ok"),
+            ("P[2]", "ok"),
+            ("P[3]", "ok"),
+            ("P[4]", "ok"),
+            ("P[5]", "ok"),
+            ("P[6]", "ok"),
+            ("P[7]", "relative"),
+            ("P[8]", "ok"),
+            ("P[9]", "frame_unknown"),
+            ("P[10]", "relative"),
+            ("P[11]", "external_axis"),
+        ],
+        "{stdout}"
+    );
+    let detail = |name: &str| rows.iter().find(|r| r.0 == name).unwrap().2.clone();
+    assert!(
+        detail("L P[6]").starts_with("Offset,PR[1:Lift 30]: an offset"),
+        "{}",
+        detail("L P[6]")
+    );
+    assert!(detail("L P[10]").starts_with("INC: an incremental move"));
+    assert!(
+        detail("P[7]").starts_with("used only by L P[7] (36:8): Tool_Offset,PR[2:Back 20]"),
+        "{}",
+        detail("P[7]")
+    );
+    assert!(
+        detail("P[9]").starts_with("user frame 3 not given"),
+        "{}",
+        detail("P[9]")
+    );
+    assert!(detail("P[11]").starts_with("GP2 (line 113): a second motion group"));
+    // Only the corrected positions' numbers changed; CRLF kept.
+    let before = std::fs::read_to_string(fixture("fanuc_weld.ls")).unwrap();
+    let after = std::fs::read_to_string(dir.path().join("out.ls")).unwrap();
+    assert_eq!(before.lines().count(), after.lines().count());
+    assert_eq!(
+        after.matches("\r\n").count(),
+        before.matches("\r\n").count()
+    );
+    let changed: Vec<usize> = before
+        .lines()
+        .zip(after.lines())
+        .enumerate()
+        .filter(|(_, (a, b))| a != b)
+        .map(|(i, _)| i + 1)
+        .collect();
+    // Two lines per corrected Cartesian position (X Y Z, W P R), two for the joints.
+    assert_eq!(
+        changed,
+        [51, 52, 57, 58, 63, 64, 69, 70, 75, 76, 81, 82, 93, 94],
+        "{after}"
+    );
+    for line in changed {
+        let (a, b) = (
+            before.lines().nth(line - 1).unwrap(),
+            after.lines().nth(line - 1).unwrap(),
+        );
+        // The same words, only the numbers between them changed.
+        let words = |s: &str| -> Vec<String> {
+            s.split(|c: char| c.is_ascii_digit() || c == '.' || c == '-' || c == ' ')
+                .filter(|w| !w.is_empty())
+                .map(String::from)
+                .collect()
+        };
+        assert_eq!(words(a), words(b), "{a} / {b}");
+    }
+}
+
+#[test]
+fn a_fanuc_position_is_corrected_as_the_same_krl_target_is() {
+    // P[3] of the weld is XP1 of the KRL seam: the same torch (UT 1, TOOL_DATA[1]) in the
+    // same fixture (UF 1, BASE_DATA[1]); W, P, R = C, B, A.
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_table(dir.path());
+    let (_, fanuc) = job(&table, &fixture("fanuc_weld.ls"));
+    let mut options = CompensateOptions::new(&table, fixture("seam.dat"));
+    options.robot = Some(robot());
+    options.krl_config = Some(fixture("config.dat"));
+    let krl = CompensateJob::new(options).unwrap().run().unwrap();
+    let p3 = fanuc
+        .report
+        .targets
+        .iter()
+        .find(|t| t.name == "P[3]")
+        .unwrap();
+    let xp1 = krl.report.targets.iter().find(|t| t.name == "XP1").unwrap();
+    let gap = |a: [f64; 3], b: [f64; 3]| (Vector3::from(a) - Vector3::from(b)).norm();
+    assert!(gap(p3.point_mm.unwrap(), xp1.point_mm.unwrap()) < 1e-9);
+    assert!(gap(p3.command_mm.unwrap(), xp1.command_mm.unwrap()) < 1e-9);
+    assert!((p3.correction_mm.unwrap() - xp1.correction_mm.unwrap()).abs() < 1e-9);
+}
+
+#[test]
+fn a_frame_not_given_is_named_and_the_options_stand_before_the_frame_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_table(dir.path());
+    let weld = fixture("fanuc_weld.ls");
+    let kr150 = robot();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            table.to_str().unwrap(),
+            weld.to_str().unwrap(),
+            "-o",
+            "out.ls",
+            "--robot",
+            kr150.to_str().unwrap(),
+            "--report",
+            "r.csv",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let (code, stdout, stderr) = compensate(dir.path(), &args);
+        assert!(code == 0 || code == 3, "{stderr}");
+        let rows: Vec<Vec<String>> = csv::Reader::from_path(dir.path().join("r.csv"))
+            .unwrap()
+            .records()
+            .map(|r| r.unwrap().iter().map(String::from).collect())
+            .collect();
+        (stdout, rows)
+    };
+    // No frames: every Cartesian position names its user frame; the joint position needs
+    // none.
+    let (stdout, rows) = run(&[]);
+    let p3 = rows.iter().find(|r| r[0] == "P[3]").unwrap();
+    assert_eq!(p3[4], "frame_unknown");
+    assert!(p3[5].starts_with("user frame 1 not given"), "{}", p3[5]);
+    assert!(stdout.contains("1 of 15 targets corrected"), "{stdout}");
+    // The user frame by option, the tool frame not: the tool is named.
+    let (_, rows) = run(&["--fanuc-uframe", "1=1600,250,750,0,0,30"]);
+    let p3 = rows.iter().find(|r| r[0] == "P[3]").unwrap();
+    assert!(p3[5].starts_with("tool frame 1 not given"), "{}", p3[5]);
+    // An option stands before the frame file: user frame 1 10 mm further along x moves the
+    // table's point of P[3] by 10 mm.
+    let file = frames_file();
+    let (_, from_file) = run(&["--fanuc-frames", file.to_str().unwrap()]);
+    let (_, moved) = run(&[
+        "--fanuc-frames",
+        file.to_str().unwrap(),
+        "--fanuc-uframe",
+        "1=1610,250,750,0,0,30",
+        "--fanuc-uframe",
+        "3=1400,500,900,0,0,0",
+    ]);
+    let point_x = |rows: &[Vec<String>], name: &str| -> f64 {
+        rows.iter().find(|r| r[0] == name).unwrap()[11]
+            .parse()
+            .unwrap()
+    };
+    assert!((point_x(&moved, "P[3]") - point_x(&from_file, "P[3]") - 10.0).abs() < 1e-9);
+    // User frame 3, given by option, corrects P[9].
+    let p9 = moved.iter().find(|r| r[0] == "P[9]").unwrap();
+    assert_eq!(p9[4], "ok", "{p9:?}");
+    // A frame file is for Fanuc programs.
+    let (code, _, stderr) = compensate(
+        dir.path(),
+        &[
+            table.to_str().unwrap(),
+            fixture("targets.csv").to_str().unwrap(),
+            "-o",
+            "out.csv",
+            "--fanuc-frames",
+            file.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("the Fanuc frame file is for Fanuc programs"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_fanuc_program_saved_as_another_dialect_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_table(dir.path());
+    std::fs::copy(fixture("fanuc_weld.ls"), dir.path().join("weld.src")).unwrap();
+    let (code, _, stderr) = compensate(
+        dir.path(),
+        &[table.to_str().unwrap(), "weld.src", "-o", "out.src"],
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("this reads as Fanuc TP ('/PROG' at its line 1), not KUKA KRL"),
+        "{stderr}"
+    );
+}
