@@ -45,6 +45,7 @@ mod error;
 mod exact;
 pub mod format;
 pub mod input;
+pub mod joint_terms;
 pub mod kinematics;
 mod lanes;
 pub mod method;

@@ -46,6 +46,7 @@
 use crate::chain::{Chain, FoldedChain, ReachPair, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
 use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
+use crate::joint_terms::JointTerms;
 use crate::kinematics::{pose_error, Transform};
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
@@ -97,8 +98,13 @@ pub struct PreparedModel {
     /// Both chains folded for queries ([`PreparedModel::at`]).
     folded: [FoldedChain; 2],
     /// Both chains' positions walked together, when they have that form
-    /// ([`PreparedModel::at_position`]).
+    /// ([`PreparedModel::at_position`]) and the model has no joint-space terms.
     pair: Option<ReachPair>,
+    /// The calibrated chain's joint-space terms ([`crate::joint_terms`]): it stands at
+    /// `q'` of the commanded `q`.
+    terms: JointTerms,
+    /// Whether any term is not zero.
+    has_terms: bool,
 }
 
 impl PreparedModel {
@@ -122,7 +128,41 @@ impl PreparedModel {
             calibrated,
             pair: ReachPair::new(&folded[0], &folded[1]),
             folded,
+            terms: JointTerms::NONE,
+            has_terms: false,
         }
+    }
+
+    /// The model with the calibrated chain's joint-space terms ([`crate::joint_terms`]);
+    /// `None` when they do not fit its joints ([`JointTerms::check`]).
+    pub fn with_joint_terms(mut self, terms: JointTerms) -> Option<PreparedModel> {
+        let n = self.calibrated.joint_count();
+        let mut kinds = [crate::chain::JointKind::Prismatic; MAX_JOINTS];
+        for (k, j) in kinds.iter_mut().zip(self.calibrated.joints()) {
+            *k = j.kind;
+        }
+        terms.check(&kinds[..n]).ok()?;
+        self.terms = terms;
+        self.has_terms = !terms.is_none();
+        if self.has_terms {
+            self.pair = None;
+        }
+        Some(self)
+    }
+
+    /// The calibrated chain's joint-space terms ([`JointTerms::NONE`] without).
+    pub fn joint_terms(&self) -> &JointTerms {
+        &self.terms
+    }
+
+    /// Where the calibrated chain stands, before gravity, when commanded `q`: `q'` of its
+    /// joint-space terms. `None` when `q` does not have one value per joint.
+    #[inline]
+    fn moved(&self, q: &[f64]) -> Option<[f64; MAX_JOINTS]> {
+        if q.len() != self.joint_count() {
+            return None;
+        }
+        self.terms.joints(q)
     }
 
     /// The chain the controller commands with.
@@ -174,7 +214,8 @@ impl PreparedModel {
     #[inline]
     pub fn error(&self, q: &[f64]) -> Option<([f64; 3], [f64; 3])> {
         let nominal = self.nominal.tcp_pose(q)?;
-        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
+        let moved = self.moved(q)?;
+        let calibrated = self.calibrated.loaded_tcp_pose(&moved[..q.len()])?;
         Some(pose_error(&nominal, &calibrated))
     }
 
@@ -186,7 +227,8 @@ impl PreparedModel {
     #[inline]
     pub fn error_with_approach(&self, q: &[f64]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
         let nominal = self.nominal.tcp_pose(q)?;
-        let calibrated = self.calibrated.loaded_tcp_pose(q)?;
+        let moved = self.moved(q)?;
+        let calibrated = self.calibrated.loaded_tcp_pose(&moved[..q.len()])?;
         let (position_mm, rotation_rad) = pose_error(&nominal, &calibrated);
         Some((position_mm, rotation_rad, approach(&nominal)))
     }
@@ -232,7 +274,7 @@ impl PreparedModel {
         if let (true, Some(pair)) = (rotation, &self.pair) {
             return Some(pair.walk_posed(q, sin_cos).model_at());
         }
-        if !rotation {
+        if !rotation && !self.has_terms {
             let walked = match &self.pair {
                 Some(pair) => Some(pair.walk(q, sin_cos)),
                 None => FoldedChain::reach_pair(nominal, calibrated, q, sin_cos),
@@ -247,7 +289,22 @@ impl PreparedModel {
                 });
             }
         }
-        let (calibrated_mm, calibrated_rotation) = calibrated.loaded_tcp(q, sin_cos, rotation);
+        // With joint-space terms the calibrated chain stands at q' (module
+        // `joint_terms`), its own sines and cosines; the nominal chain at q.
+        // (Declared here, filled only with terms: a table without pays nothing.)
+        let mut moved;
+        let mut moved_sin_cos;
+        let (calibrated_q, calibrated_sin_cos) = if self.has_terms {
+            moved = [0.0; MAX_JOINTS];
+            moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+            self.terms.apply(q, sin_cos, &mut moved[..n]);
+            crate::trig::sin_cos_each(&moved[..n], &mut moved_sin_cos);
+            (&moved[..n], &moved_sin_cos[..n])
+        } else {
+            (q, sin_cos)
+        };
+        let (calibrated_mm, calibrated_rotation) =
+            calibrated.loaded_tcp(calibrated_q, calibrated_sin_cos, rotation);
         let (nominal_mm, approach, rotation_rad, nominal_rotation) = match calibrated_rotation {
             Some(rotation) => {
                 let nominal = nominal.tcp_pose(q, sin_cos);

@@ -16,7 +16,7 @@ use std::path::Path;
 use crate::correction::{Compensation, Correction, Evidence, Status, Target};
 use crate::exact::{self, V1, V2};
 use crate::format::{
-    v1, v2, v3, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
+    v1, v2, v3, v5, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
     MAX_COORDINATE_MM, PAYLOAD_ALIGN, TCP_MARGIN_MM,
 };
 use crate::method::{self, MethodParams, Prediction};
@@ -357,6 +357,26 @@ impl<D: AsRef<[u8]>> Table<D> {
                 crate::validate::validate_v1(&header, archived)?;
                 (crate::model::prepared_model_v1(archived), None, None)
             }
+            _ if header.has_joint_terms() => {
+                let archived =
+                    rkyv::access::<v5::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
+                        .map_err(archive_error)?;
+                let (model, served) = v2_part(&archived.base)?;
+                let corrupt = OpenError::Corrupt {
+                    what: "joint-space terms that do not fit the calibrated chain (non-finite, beyond 0.1 rad, on a prismatic joint or beyond the chain)",
+                };
+                let model = match (model, archived.joint_terms.to_terms()) {
+                    (Some(m), Some(terms)) => Some(m.with_joint_terms(terms).ok_or(corrupt)?),
+                    _ => return Err(corrupt),
+                };
+                let posture = if header.has_posture() {
+                    crate::validate::validate_posture(&header, &archived.posture)?;
+                    Some(PreparedPosture::new(&header, &archived.posture))
+                } else {
+                    None
+                };
+                (model, served, posture)
+            }
             _ if !header.has_posture() => {
                 let archived =
                     rkyv::access::<v2::ArchivedTableData, rkyv::rancor::BoxedError>(payload)
@@ -479,8 +499,14 @@ impl<D: AsRef<[u8]>> Table<D> {
         {
             return None;
         }
+        let payload = &bytes[HEADER_LEN..];
+        if self.header.has_joint_terms() {
+            // SAFETY: as in `payload`: these bytes passed `rkyv::access` for version 5.
+            let data = unsafe { rkyv::access_unchecked::<v5::ArchivedTableData>(payload) };
+            return Some(&data.posture);
+        }
         // SAFETY: as in `payload`: these bytes passed `rkyv::access` for version 3.
-        let data = unsafe { rkyv::access_unchecked::<v3::ArchivedTableData>(&bytes[HEADER_LEN..]) };
+        let data = unsafe { rkyv::access_unchecked::<v3::ArchivedTableData>(payload) };
         Some(&data.posture)
     }
 
@@ -498,6 +524,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         Some(unsafe {
             match self.header.version {
                 1 => Payload::V1(rkyv::access_unchecked::<v1::ArchivedTableData>(payload)),
+                _ if self.header.has_joint_terms() => {
+                    Payload::V2(&rkyv::access_unchecked::<v5::ArchivedTableData>(payload).base)
+                }
                 _ if !self.header.has_posture() => {
                     Payload::V2(rkyv::access_unchecked::<v2::ArchivedTableData>(payload))
                 }

@@ -433,8 +433,23 @@ pub fn add_term(
         rkyv::deserialize::<_, rkyv::rancor::Error>(archived)
             .map_err(|e| BuildError::Encode(e.to_string()))?;
     let header = adwi_runtime::format::Header { tuning, ..header };
-    let bytes = adwi_runtime::format::encode_v3(header, &v3::TableData { base, posture })
-        .map_err(|e| BuildError::Encode(e.to_string()))?;
+    let model = table.model().expect("checked above");
+    let bytes = if model.joint_terms().is_none() {
+        adwi_runtime::format::encode_v3(header, &v3::TableData { base, posture })
+    } else {
+        // The model's joint-space terms kept: a version-5 table with the posture term.
+        let joint_terms = adwi_runtime::format::v5::JointTermsRecord::from_terms(
+            model.joint_terms(),
+            model.joint_count(),
+        );
+        let data = adwi_runtime::format::v5::TableData {
+            base,
+            posture,
+            joint_terms,
+        };
+        adwi_runtime::format::encode_v5(header, &data, true)
+    }
+    .map_err(|e| BuildError::Encode(e.to_string()))?;
     Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     Ok((bytes, report))
 }

@@ -58,6 +58,11 @@ pub struct BuildArgs {
     /// must give link masses (mass_kg, com_mm per joint).
     #[arg(long)]
     pub compliance: bool,
+    /// Kinematic identification: identify each revolute joint's joint-space terms up to
+    /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
+    /// where the information criterion (BIC) supports it.
+    #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
+    pub harmonics: u8,
     /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
     /// tracker's own frame: joints j1..jn and measured mx,my,mz, optionally a measured
     /// orientation; the tracker-to-base and flange-to-probe transforms are registered
@@ -89,6 +94,7 @@ impl Default for BuildArgs {
             robot: RobotArgs::default(),
             hybrid: false,
             compliance: false,
+            harmonics: CalibrateOptions::default().harmonics,
             measured_in: Frame::Base,
             tune: false,
             tune_folds: 5,
@@ -164,6 +170,7 @@ impl BuildJob {
         let tracker = args.measured_in == Frame::Tracker;
         let calibrate = CalibrateOptions {
             compliance: args.compliance,
+            harmonics: args.harmonics,
             ..CalibrateOptions::default()
         };
         let series =

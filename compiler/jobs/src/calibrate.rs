@@ -54,6 +54,11 @@ pub struct CalibrateArgs {
     /// carries them (compliance_urad_per_nm).
     #[arg(long)]
     pub compliance: bool,
+    /// Kinematic identification: identify each revolute joint's joint-space terms up to
+    /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
+    /// where the information criterion (BIC) supports it.
+    #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
+    pub harmonics: u8,
     /// On a simulated robot: compare the identification with the truth of the scenario
     /// the samples were simulated with (TOML, as `tablec simulate --scenario`), at the
     /// poses of `--true-at`: the parameter error and the model's position error against
@@ -81,6 +86,7 @@ impl Default for CalibrateArgs {
             measured_in: Frame::Base,
             rank_tol: CalibrateOptions::default().rank_tolerance,
             compliance: false,
+            harmonics: CalibrateOptions::default().harmonics,
             true_scenario: None,
             true_at: None,
             json: None,
@@ -93,6 +99,7 @@ fn options(args: &CalibrateArgs) -> CalibrateOptions {
     CalibrateOptions {
         rank_tolerance: args.rank_tol,
         compliance: args.compliance,
+        harmonics: args.harmonics,
         ..CalibrateOptions::default()
     }
 }

@@ -87,6 +87,11 @@ pub struct EvalArgs {
     /// masses (mass_kg, com_mm per joint).
     #[arg(long)]
     pub compliance: bool,
+    /// Kinematic identification: identify each revolute joint's joint-space terms up to
+    /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
+    /// where the information criterion (BIC) supports it.
+    #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
+    pub harmonics: u8,
     #[command(flatten)]
     #[serde(flatten)]
     pub options: TableArgs,
@@ -118,6 +123,7 @@ impl Default for EvalArgs {
             rank_tol: CalibrateOptions::default().rank_tolerance,
             keep_untrustworthy: false,
             compliance: false,
+            harmonics: CalibrateOptions::default().harmonics,
             options: TableArgs::default(),
             csv: None,
             json: None,
@@ -238,6 +244,7 @@ impl EvalJob {
                     rank_tolerance: args.rank_tol,
                     hold_untrustworthy: !args.keep_untrustworthy,
                     compliance: args.compliance,
+                    harmonics: args.harmonics,
                     ..CalibrateOptions::default()
                 };
                 let series = crate::series::read(

@@ -246,12 +246,23 @@ impl Registered {
         read: &ReadOptions,
     ) -> Result<(Registration, SampleSet), MeasuredError> {
         let measurements = input.measurements(columns, read)?;
-        let registration = register_moved(
-            &self.registration,
-            calibration.calibrated_robot(),
-            &measurements,
-        )
-        .map_err(MeasuredError::register(&input))?;
+        // Fitted to the TCP the whole identified model predicts: its joint-space terms
+        // move the joints the calibrated robot is evaluated at.
+        let mut moved = measurements.clone();
+        if !calibration.joint_terms().is_none() {
+            let n = moved.joints.count();
+            let mut joints = adwi_samples::Joints::new(n);
+            for q in measurements.joints.rows() {
+                match calibration.joint_terms().joints(q) {
+                    Some(m) => joints.push(&m[..n]),
+                    None => joints.push(q),
+                }
+            }
+            moved.joints = joints;
+        }
+        let registration =
+            register_moved(&self.registration, calibration.calibrated_robot(), &moved)
+                .map_err(MeasuredError::register(&input))?;
         let samples = registration
             .to_samples(&self.file_robot, &measurements)
             .map_err(MeasuredError::register(&input))?;

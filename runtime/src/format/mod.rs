@@ -56,6 +56,7 @@ use rkyv::{Archive, Deserialize, Serialize};
 pub mod v1;
 pub mod v2;
 pub mod v3;
+pub mod v5;
 
 pub use v1::{
     joint_rows, joint_rows_to_mdh, rows_of, transform_of, KinematicModel, ModelParams, JOINT_COUNT,
@@ -65,10 +66,11 @@ pub use v1::{
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
 pub const ENDIAN_MARK: u16 = 0xFEFF;
-/// The newest format version this runtime writes: 4 for a table that records its
-/// evidence ([`Header::evidence`]), else 3 for a table with a posture term, 2 for any
-/// other ([`encode`], [`encode_v3`]).
-pub const FORMAT_VERSION: u16 = 4;
+/// The newest format version this runtime writes: 5 for a hybrid table whose model has
+/// joint-space terms ([`encode_v5`]), else 4 for a table that records its evidence
+/// ([`Header::evidence`]), else 3 for a table with a posture term, 2 for any other
+/// ([`encode`], [`encode_v3`]).
+pub const FORMAT_VERSION: u16 = 5;
 /// The oldest format version this runtime reads.
 pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
 /// The header's length in bytes; the payload starts here.
@@ -99,9 +101,16 @@ pub const CONTENT_MODEL: u32 = 1 << 3;
 /// Content flag: the table carries a posture term ([`crate::posture`], version 3, exactly
 /// then).
 pub const CONTENT_POSTURE: u32 = 1 << 4;
+/// Content flag: the calibrated model has joint-space terms ([`crate::joint_terms`],
+/// version 5, exactly then).
+pub const CONTENT_JOINT_TERMS: u32 = 1 << 5;
 /// Every content flag this format version defines; a table naming others is refused.
-pub const CONTENT_KNOWN: u32 =
-    CONTENT_ORIENTATION | CONTENT_CONFIG | CONTENT_JOINTS | CONTENT_MODEL | CONTENT_POSTURE;
+pub const CONTENT_KNOWN: u32 = CONTENT_ORIENTATION
+    | CONTENT_CONFIG
+    | CONTENT_JOINTS
+    | CONTENT_MODEL
+    | CONTENT_POSTURE
+    | CONTENT_JOINT_TERMS;
 
 /// The decoded header: identification, integrity fields and the build parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -499,6 +508,12 @@ impl Header {
         self.version >= 3 && self.content_flags & CONTENT_POSTURE != 0
     }
 
+    /// Whether the payload is version 5's ([`v5::TableData`]): a model with joint-space
+    /// terms.
+    pub fn has_joint_terms(&self) -> bool {
+        self.version >= 5 && self.content_flags & CONTENT_JOINT_TERMS != 0
+    }
+
     /// The header's 256 bytes, with its checksum.
     pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
         let mut b = [0u8; HEADER_LEN];
@@ -663,6 +678,18 @@ impl Header {
         if (posture && version < 3) || (version == 3 && !posture) {
             return Err(OpenError::Corrupt {
                 what: "a posture term is stored in a version-3 table, or a version-4 one",
+            });
+        }
+        // Joint-space terms came with version 5, and version 5 is a table with them.
+        let terms = u32_at(20) & CONTENT_JOINT_TERMS != 0;
+        if terms != (version == 5) {
+            return Err(OpenError::Corrupt {
+                what: "joint-space terms are stored in a version-5 table, and only there",
+            });
+        }
+        if terms && u32_at(20) & CONTENT_MODEL == 0 {
+            return Err(OpenError::Corrupt {
+                what: "joint-space terms without a kinematic model",
             });
         }
         if posture && u32_at(20) & CONTENT_MODEL == 0 {
@@ -858,6 +885,24 @@ pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rk
     header.content_flags |= CONTENT_POSTURE;
     let version = if header.evidence.is_empty() { 3 } else { 4 };
     Ok(with_header(header, version, &payload))
+}
+
+/// Serialises a version-5 table (a hybrid table whose model has joint-space terms) as
+/// [`encode`] a version-2 one; the header's [`CONTENT_JOINT_TERMS`] flag is set, and
+/// [`CONTENT_POSTURE`] when `posture_term` (else `data.posture` is not read).
+pub fn encode_v5(
+    mut header: Header,
+    data: &v5::TableData,
+    posture_term: bool,
+) -> Result<Vec<u8>, rkyv::rancor::Error> {
+    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
+    header.content_flags |= CONTENT_JOINT_TERMS;
+    if posture_term {
+        header.content_flags |= CONTENT_POSTURE;
+    } else {
+        header.content_flags &= !CONTENT_POSTURE;
+    }
+    Ok(with_header(header, 5, &payload))
 }
 
 /// The header of `payload` at `version`, with its lengths and checksums, then the payload.

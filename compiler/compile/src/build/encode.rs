@@ -196,7 +196,21 @@ pub fn compile_plan_serving(
         },
         evidence: evidence(samples, model, plan.point_in_flange),
     };
-    let bytes = format::encode(header, &data).map_err(|e| BuildError::Encode(e.to_string()))?;
+    // A model with joint-space terms is a version-5 table; any other is written as before.
+    let bytes = match model.filter(|m| !m.joint_terms().is_none()) {
+        Some(m) => {
+            let joint_terms =
+                format::v5::JointTermsRecord::from_terms(m.joint_terms(), joint_count);
+            let data = format::v5::TableData {
+                base: data,
+                joint_terms,
+                ..format::v5::TableData::default()
+            };
+            format::encode_v5(header, &data, false)
+        }
+        None => format::encode(header, &data),
+    }
+    .map_err(|e| BuildError::Encode(e.to_string()))?;
     // Opened once as the runtime will: a table the runtime refuses is never written.
     adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     report.table_bytes = bytes.len();

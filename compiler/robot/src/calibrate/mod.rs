@@ -157,6 +157,7 @@ pub use parameters::{Parameter, MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM};
 pub use trust::{HoldReason, ParameterReport, ParameterStatus};
 
 use adwi_runtime::chain::{Chain, JointKind};
+use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::model::PreparedModel;
 use nalgebra::{DMatrix, DVector};
 
@@ -165,7 +166,7 @@ use crate::model::Robot;
 use crate::plausible::{check, number, Quantity};
 use adwi_samples::SampleSet;
 
-use model::{loaded, Model};
+use model::{loaded_with_terms, Model};
 use solver::{Measurement, Problem};
 use trust::Assessment;
 
@@ -194,6 +195,10 @@ pub struct CalibrateOptions {
     /// Identify each revolute joint's gravity compliance with the geometry (module docs,
     /// "Gravity compliance"): the robot file must give link masses.
     pub compliance: bool,
+    /// Identify each revolute joint's joint-space terms up to this harmonic (0: none, 1:
+    /// `sin q, cos q`, 2: and `sin 2q, cos 2q`; module docs, "Joint-space terms"); each
+    /// kept only where the likelihood supports it (BIC).
+    pub harmonics: u8,
 }
 
 impl Default for CalibrateOptions {
@@ -206,6 +211,7 @@ impl Default for CalibrateOptions {
             hold_untrustworthy: true,
             significance: 3.0,
             compliance: false,
+            harmonics: 0,
         }
     }
 }
@@ -362,6 +368,7 @@ pub struct Calibration {
     pub converged: bool,
     nominal: Robot,
     calibrated: Robot,
+    joint_terms: JointTerms,
 }
 
 impl Calibration {
@@ -410,7 +417,10 @@ impl Calibration {
     ///
     /// When `q` does not have one value per joint.
     pub fn predict_error(&self, q: &[f64]) -> ([f64; 3], [f64; 3]) {
-        let e = transform_pose_error(&self.nominal.tcp_transform(q), &loaded(&self.calibrated, q));
+        let e = transform_pose_error(
+            &self.nominal.tcp_transform(q),
+            &loaded_with_terms(&self.calibrated, &self.joint_terms, q),
+        );
         ([e[0], e[1], e[2]], [e[3], e[4], e[5]])
     }
 
@@ -428,6 +438,16 @@ impl Calibration {
         let (nominal, calibrated) = self.chains();
         PreparedModel::new(nominal, calibrated)
             .expect("one robot's two chains have its joint count")
+            .with_joint_terms(self.joint_terms)
+            .expect("identified terms are finite, plausible and on revolute joints")
+    }
+
+    /// The identified joint-space terms ([`JointTerms::NONE`] when none was identified or
+    /// asked for; module docs, "Joint-space terms"). A robot file cannot hold them: the
+    /// calibrated robot ([`Self::calibrated_robot`]) is the model without them, the
+    /// hybrid table's model part ([`Self::prepared_model`]) the model with them.
+    pub fn joint_terms(&self) -> &JointTerms {
+        &self.joint_terms
     }
 }
 
@@ -466,6 +486,12 @@ pub fn identify(
             reason: "must be finite and positive",
         });
     }
+    if options.harmonics > 2 {
+        return Err(CalibrateError::InvalidOption {
+            name: "harmonics",
+            reason: "must be 0, 1 or 2",
+        });
+    }
     if options.compliance && robot.gravity_model().is_none() {
         return Err(CalibrateError::NoLinkMasses {
             robot: robot.name.clone(),
@@ -485,7 +511,7 @@ pub fn identify(
         .map(|i| measurement(robot, samples, i))
         .collect::<Result<_, _>>()?;
     let problem = Problem {
-        model: Model::new(robot, options.compliance),
+        model: Model::new(robot, options.compliance, options.harmonics),
         measurements,
         rows_per_sample: if samples.rotation_error_rad.is_some() {
             6
@@ -544,6 +570,7 @@ pub fn identify(
                     &file_values,
                     k,
                     options.significance,
+                    fit.r.len(),
                 );
                 a.reason.is_some().then_some((c, a))
             })
@@ -570,7 +597,13 @@ pub fn identify(
         })
         .collect();
     for (k, &c) in fit.kept.iter().enumerate() {
-        let a = fit.assess(parameters, &file_values, k, options.significance);
+        let a = fit.assess(
+            parameters,
+            &file_values,
+            k,
+            options.significance,
+            fit.r.len(),
+        );
         report[c].value = fit.x[c];
         report[c].standard_error = Some(a.standard_error);
         report[c].strongest_correlation = a.correlation;
@@ -643,6 +676,7 @@ pub fn identify(
         converged: fit.converged,
         deviations: fit.x,
         nominal: robot.clone(),
+        joint_terms: with_ranges(fit.state.terms, &problem.measurements),
         calibrated: fit.state.robot,
     })
 }
@@ -686,7 +720,7 @@ pub fn design_jacobians_scaled(
             samples: q.len(),
         });
     }
-    let model = Model::new(robot, false);
+    let model = Model::new(robot, false, 0);
     let x = DVector::zeros(model.len());
     let state = model.state(&x)?;
     let blocks: Vec<DMatrix<f64>> = joints
@@ -718,7 +752,30 @@ pub fn design_jacobians_scaled(
         .iter()
         .map(|b| DMatrix::from_fn(3, kept.len(), |r, k| b[(r, kept[k])] * scales[kept[k]]))
         .collect();
-    Ok((parameters, blocks, kept.iter().map(|&c| scales[c]).collect()))
+    Ok((
+        parameters,
+        blocks,
+        kept.iter().map(|&c| scales[c]).collect(),
+    ))
+}
+
+/// `terms` with each joint's range the commanded angles of `measurements` span: beyond
+/// it the terms are held at the nearer end ([`adwi_runtime::joint_terms`]), which changes
+/// nothing at the measurements themselves.
+fn with_ranges(mut terms: JointTerms, measurements: &[Measurement]) -> JointTerms {
+    if terms.is_none() {
+        return JointTerms::NONE;
+    }
+    for (j, range) in terms.range_rad.iter_mut().enumerate() {
+        let angles = measurements.iter().filter_map(|m| m.q.get(j).copied());
+        let (lo, hi) = angles.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+            (lo.min(q), hi.max(q))
+        });
+        if lo <= hi {
+            *range = [lo, hi];
+        }
+    }
+    terms
 }
 
 /// Sample `i` as a measurement, its values checked finite and plausible: joints within

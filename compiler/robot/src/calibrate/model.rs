@@ -3,6 +3,7 @@
 //! "Identification").
 
 use adwi_runtime::chain::JointKind;
+use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::kinematics::Transform;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
@@ -31,17 +32,22 @@ pub(super) struct Model {
     pub(super) tool_translation: usize,
     /// Per compliance column (they follow the base's), its joint.
     pub(super) compliance_joints: Vec<usize>,
+    /// Per joint-space term column (they follow the compliances): joint, harmonic, cosine.
+    pub(super) term_columns: Vec<(usize, u8, bool)>,
 }
 
 /// A parameter state: the calibrated robot it describes.
 #[derive(Debug, Clone)]
 pub(super) struct State {
     pub(super) robot: Robot,
+    /// The joint-space terms ([`JointTerms::NONE`] without).
+    pub(super) terms: JointTerms,
 }
 
 impl Model {
-    /// The model of `robot`'s geometry, and of its joints' compliances when `compliance`.
-    pub(super) fn new(robot: &Robot, compliance: bool) -> Model {
+    /// The model of `robot`'s geometry, of its joints' compliances when `compliance`, and
+    /// of its joint-space terms up to harmonic `harmonics` (0: none).
+    pub(super) fn new(robot: &Robot, compliance: bool, harmonics: u8) -> Model {
         let mut parameters = Parameter::all_of(robot);
         let tool_translation = parameters
             .iter()
@@ -60,7 +66,21 @@ impl Model {
             })
             .collect();
         parameters.extend(compliances);
+        let terms = Parameter::joint_terms_of(robot, harmonics);
+        let term_columns = terms
+            .iter()
+            .map(|p| match *p {
+                Parameter::JointTerm {
+                    joint,
+                    harmonic,
+                    cosine,
+                } => (joint, harmonic, cosine),
+                _ => unreachable!("joint_terms_of gives joint terms"),
+            })
+            .collect();
+        parameters.extend(terms);
         Model {
+            term_columns,
             robot: robot.clone(),
             multiplicative: [tool_translation + 3, tool_translation + 9],
             tool_translation,
@@ -72,6 +92,11 @@ impl Model {
     /// The first compliance column.
     pub(super) fn first_compliance(&self) -> usize {
         self.tool_translation + 12
+    }
+
+    /// The first joint-space term column.
+    pub(super) fn first_term(&self) -> usize {
+        self.first_compliance() + self.compliance_joints.len()
     }
 
     /// Per column, what the robot file gives for that parameter: the joint's compliance
@@ -153,14 +178,25 @@ impl Model {
             }
             calibrated = calibrated.with_compliances(&compliances).map_err(invalid)?;
         }
-        Ok(State { robot: calibrated })
+        let mut terms = JointTerms::NONE;
+        for (k, &(joint, harmonic, cosine)) in self.term_columns.iter().enumerate() {
+            let slot = 2 * (harmonic as usize - 1) + cosine as usize;
+            terms.coefficients_rad[joint][slot] = x[self.first_term() + k];
+        }
+        Ok(State {
+            robot: calibrated,
+            terms,
+        })
     }
 
     /// The predicted pose error of a state at `q`: `[dp (mm); δ (rad)]`, base frame: the
     /// state's TCP, deflected by gravity ([`Chain::loaded_tcp_pose`](adwi_runtime::chain::Chain::loaded_tcp_pose)), against the nominal
     /// commanded one.
     pub(super) fn error(&self, state: &State, q: &[f64]) -> nalgebra::Vector6<f64> {
-        transform_pose_error(&self.robot.tcp_transform(q), &loaded(&state.robot, q))
+        transform_pose_error(
+            &self.robot.tcp_transform(q),
+            &loaded_with_terms(&state.robot, &state.terms, q),
+        )
     }
 
     /// The 6 × p Jacobian of the base-frame pose error with respect to the parameters at
@@ -175,6 +211,13 @@ impl Model {
         let mut j = DMatrix::zeros(6, self.len());
         let chain = state.robot.chain();
         let n = chain.joint_count();
+        // The joint-space terms move the joints before gravity deflects them.
+        let moved = state
+            .terms
+            .joints(commanded)
+            .expect("one joint value per joint");
+        let terms_of = commanded;
+        let commanded = &moved[..n];
         let loaded_joints = chain
             .loaded_joints(commanded)
             .expect("one joint value per joint");
@@ -277,6 +320,18 @@ impl Model {
                     .copy_from(&(screw.pose_error_column(&tcp) * (torques[joint] * URAD_PER_NM)));
             }
         }
+        // A joint-space term turns its joint by its harmonic of the commanded angle.
+        for (k, &(joint, harmonic, cosine)) in self.term_columns.iter().enumerate() {
+            let angle = f64::from(harmonic) * terms_of[joint];
+            let factor = if cosine { angle.cos() } else { angle.sin() };
+            let screw = Screw::of_joint(
+                &frames[joint].0,
+                chain.joints()[joint].axis,
+                JointKind::Revolute,
+            );
+            j.column_mut(self.first_term() + k)
+                .copy_from(&(screw.pose_error_column(&tcp) * factor));
+        }
         j
     }
 
@@ -304,6 +359,15 @@ pub(super) fn loaded(robot: &Robot, q: &[f64]) -> Transform {
             robot.joint_count()
         )
     })
+}
+
+/// As [`loaded`], the joints first moved by the joint-space terms `terms`
+/// ([`JointTerms::joints`]).
+pub(super) fn loaded_with_terms(robot: &Robot, terms: &JointTerms, q: &[f64]) -> Transform {
+    let moved = terms
+        .joints(q)
+        .unwrap_or_else(|| panic!("{} joint values for a robot", q.len()));
+    loaded(robot, &moved[..q.len()])
 }
 
 /// `Trans(t) · Exp(r)`: a small perturbation of a joint origin (mm, rad).

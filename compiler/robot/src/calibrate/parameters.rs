@@ -52,6 +52,17 @@ pub enum Parameter {
         /// Joint index, 0-based.
         joint: usize,
     },
+    /// A joint-space term of a revolute joint (0-based), rad: the coefficient of
+    /// `sin(h·q)` (or `cos(h·q)` when `cosine`) in the joint's angle error
+    /// ([`adwi_runtime::joint_terms`]; module docs, "Joint-space terms").
+    JointTerm {
+        /// Joint index, 0-based.
+        joint: usize,
+        /// The harmonic, 1 or 2.
+        harmonic: u8,
+        /// The cosine's coefficient rather than the sine's.
+        cosine: bool,
+    },
 }
 
 impl Parameter {
@@ -68,13 +79,41 @@ impl Parameter {
             Parameter::OriginRotation { .. }
             | Parameter::ToolRotation(_)
             | Parameter::BaseRotation(_)
-            | Parameter::Compliance { .. } => false,
+            | Parameter::Compliance { .. }
+            | Parameter::JointTerm { .. } => false,
         }
     }
 
     /// Whether the parameter is a joint's gravity compliance (µrad/(N·m)).
     pub fn is_compliance(self) -> bool {
         matches!(self, Parameter::Compliance { .. })
+    }
+
+    /// Whether the parameter is a joint-space term (rad).
+    pub fn is_joint_term(self) -> bool {
+        matches!(self, Parameter::JointTerm { .. })
+    }
+
+    /// The joint-space terms of `robot` up to harmonic `harmonics` (0, 1 or 2): per
+    /// revolute joint `sin q, cos q` (then `sin 2q, cos 2q`), in column order (they follow
+    /// the compliances).
+    pub fn joint_terms_of(robot: &Robot, harmonics: u8) -> Vec<Parameter> {
+        let mut out = Vec::new();
+        for joint in 0..robot.joint_count() {
+            if robot.joint_kind(joint) != JointKind::Revolute {
+                continue;
+            }
+            for harmonic in 1..=harmonics.min(2) {
+                for cosine in [false, true] {
+                    out.push(Parameter::JointTerm {
+                        joint,
+                        harmonic,
+                        cosine,
+                    });
+                }
+            }
+        }
+        out
     }
 
     /// The unit of its value: `mm`, `rad`, or `µrad/(N·m)` for a compliance.
@@ -152,6 +191,19 @@ impl std::fmt::Display for Parameter {
             Parameter::BaseTranslation(a) => write!(f, "base {}", AXES[a]),
             Parameter::BaseRotation(a) => write!(f, "base r{}", AXES[a]),
             Parameter::Compliance { joint } => write!(f, "compliance{}", joint + 1),
+            Parameter::JointTerm {
+                joint,
+                harmonic,
+                cosine,
+            } => {
+                let function = if cosine { "cos" } else { "sin" };
+                let times = if harmonic == 1 {
+                    String::new()
+                } else {
+                    harmonic.to_string()
+                };
+                write!(f, "{function} {times}q{}", joint + 1)
+            }
         }
     }
 }
@@ -169,6 +221,7 @@ impl Parameter {
             Parameter::ToolRotation(_) => degrees(10.0),
             Parameter::BaseTranslation(_) => 50.0,
             Parameter::BaseRotation(_) => degrees(10.0),
+            Parameter::JointTerm { .. } => MAX_PLAUSIBLE_JOINT_TERM_RAD,
             p if p.is_length() => 5.0,
             _ => degrees(5.0),
         }
@@ -187,6 +240,10 @@ impl Parameter {
         }
     }
 }
+
+/// The largest plausible coefficient of a joint-space term, rad (0.5°): a gear's
+/// transmission error is of arcminutes; a term this large explains something else.
+pub const MAX_PLAUSIBLE_JOINT_TERM_RAD: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
 /// The largest plausible gravity compliance of a joint, µrad/(N·m) (module docs, "Trust").
 pub const MAX_PLAUSIBLE_COMPLIANCE_URAD_PER_NM: f64 = 100.0;

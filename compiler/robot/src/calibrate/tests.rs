@@ -42,7 +42,7 @@ fn simulate(
     seed: u64,
 ) -> SampleSet {
     simulate_model(
-        &Model::new(robot, false),
+        &Model::new(robot, false, 0),
         truth,
         q,
         orientation,
@@ -128,7 +128,7 @@ fn parameters_of_mdh_and_chain_robots() {
 #[test]
 fn jacobian_matches_finite_differences_of_the_exact_model() {
     for robot in [kr150(), iiwa()] {
-        let model = Model::new(&robot, false);
+        let model = Model::new(&robot, false, 0);
         let all: Vec<usize> = (0..model.len()).collect();
         let x = deviations_on(&model.parameters, &all, 3);
         let state = model.state(&x).unwrap();
@@ -192,7 +192,7 @@ fn compliant_deviations_on(parameters: &[Parameter], columns: &[usize], seed: u6
 #[test]
 fn compliance_jacobian_matches_finite_differences() {
     for robot in [ur5(), iiwa()] {
-        let model = Model::new(&robot, true);
+        let model = Model::new(&robot, true, 0);
         let all: Vec<usize> = (0..model.len()).collect();
         let x = compliant_deviations_on(&model.parameters, &all, 3);
         let state = model.state(&x).unwrap();
@@ -264,7 +264,7 @@ fn compliance_jacobian_matches_finite_differences() {
 #[test]
 fn recovers_known_compliances_from_noise_free_data() {
     for robot in [ur5(), iiwa()] {
-        let model = Model::new(&robot, true);
+        let model = Model::new(&robot, true, 0);
         let q = poses(&robot, 120, 1);
         let options = CalibrateOptions {
             compliance: true,
@@ -347,7 +347,7 @@ fn implausible_compliances_are_held_and_massless_robots_refused() {
     );
 
     let robot = ur5();
-    let model = Model::new(&robot, true);
+    let model = Model::new(&robot, true, 0);
     let q = poses(&robot, 120, 4);
     let column = |joint| {
         model
@@ -412,7 +412,7 @@ fn recovers(robot: &Robot, samples: usize) -> f64 {
         assert!(c.position_rms_mm < 1e-9, "{}", c.position_rms_mm);
         assert!(c.initial_position_rms_mm > 0.1);
         // Predictions at unseen poses equal the simulated errors.
-        let model = Model::new(robot, false);
+        let model = Model::new(robot, false, 0);
         let truth_state = model.state(&truth).unwrap();
         for q in poses(robot, 10, 9) {
             let expected = model.error(&truth_state, &q);
@@ -751,7 +751,7 @@ fn stored_model_agrees_with_the_identification() {
     // With compliance identified, the stored calibrated chain carries it and predicts
     // the same deflected poses.
     let robot = ur5();
-    let model = Model::new(&robot, true);
+    let model = Model::new(&robot, true, 0);
     let q = poses(&robot, 80, 12);
     let all: Vec<usize> = (0..model.len()).collect();
     let truth = compliant_deviations_on(&model.parameters, &all, 4);
@@ -853,7 +853,7 @@ fn written_calibrated_robots_reproduce_the_calibrated_model() {
     // With compliance identified, the robot file carries it: read again, it deflects
     // as the calibrated model does, and so does the file read a second time.
     for robot in [ur5(), iiwa()] {
-        let model = Model::new(&robot, true);
+        let model = Model::new(&robot, true, 0);
         let q = poses(&robot, 120, 7);
         let all: Vec<usize> = (0..model.len()).collect();
         let truth = compliant_deviations_on(&model.parameters, &all, 8);
@@ -973,4 +973,190 @@ fn implausible_samples_are_refused_before_iterating() {
     let mut r = r;
     r[5] = f64::NAN;
     assert_eq!(first_non_finite(&r, &j), Some((5, None)));
+}
+
+/// Realistic joint-space terms on the term columns among `columns`: 0.2-0.5 mrad, sign
+/// at random; the rest as [`deviations_on`].
+fn terms_on(parameters: &[Parameter], columns: &[usize], seed: u64) -> DVector<f64> {
+    let mut x = deviations_on(parameters, columns, seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed + 2000);
+    for &c in columns {
+        if parameters[c].is_joint_term() {
+            let m = rng.gen_range(2e-4..5e-4);
+            x[c] = if rng.gen::<bool>() { m } else { -m };
+        }
+    }
+    x
+}
+
+/// Every joint-space term column against central differences of the exact model, whose
+/// joints the terms move before the chain (and gravity) acts.
+#[test]
+fn joint_term_jacobian_matches_finite_differences() {
+    for (robot, compliance) in [(kr150(), false), (ur5(), true), (iiwa(), false)] {
+        let model = Model::new(&robot, compliance, 2);
+        let all: Vec<usize> = (0..model.len()).collect();
+        let x = terms_on(&model.parameters, &all, 3);
+        let state = model.state(&x).unwrap();
+        assert!(!state.terms.is_none());
+        let q = &poses(&robot, 1, 5)[0];
+        let j = model.jacobian(&x, &state, q);
+        let h = 1e-7;
+        for c in model.first_term()..model.len() {
+            let mut d = DVector::zeros(model.len());
+            d[c] = h;
+            let plus = model.error(&model.state(&model.step(&x, &d)).unwrap(), q);
+            let minus = model.error(&model.state(&model.step(&x, &(-&d))).unwrap(), q);
+            let numeric = (plus - minus) / (2.0 * h);
+            let scale = j.column(c).norm().max(1.0);
+            // With compliance the torques follow the moved joints, which the column
+            // leaves out (as for the geometry's columns): c·∂τ/∂q, about 1e-4 here.
+            let tolerance = if compliance { 1e-3 } else { 1e-6 } * scale;
+            for a in 0..6 {
+                // log(R_actual R_nominalᵀ) differs from the rotation perturbation by the
+                // inverse left Jacobian of SO(3), as for every column.
+                let tolerance = if a < 3 { tolerance } else { 2e-2 * scale };
+                assert!(
+                    (numeric[a] - j[(a, c)]).abs() < tolerance,
+                    "{}: {} row {a}: {} vs {}",
+                    robot.name,
+                    model.parameters[c],
+                    numeric[a],
+                    j[(a, c)]
+                );
+            }
+        }
+    }
+}
+
+/// Joint-space terms simulated on the exact model are recovered from noise-free data,
+/// every one the data see identified, and the stored model (the runtime's, with its
+/// terms) predicts the true robot's error.
+#[test]
+fn recovers_known_joint_terms_from_noise_free_data() {
+    for robot in [kr150(), iiwa()] {
+        let model = Model::new(&robot, false, 2);
+        let q = poses(&robot, 300, 1);
+        let options = CalibrateOptions {
+            harmonics: 2,
+            ..CalibrateOptions::default()
+        };
+        let p = model.len();
+        let zero = simulate_model(&model, &DVector::zeros(p), &q, true, 0.0, 0);
+        // What the poses can separate: nothing is held for want of evidence.
+        let everything = CalibrateOptions {
+            hold_untrustworthy: false,
+            ..options
+        };
+        let structure = identify(&robot, &zero, &everything).unwrap();
+        let columns = columns_of(&structure);
+        let terms = columns
+            .iter()
+            .filter(|&&c| model.parameters[c].is_joint_term())
+            .count();
+        assert!(terms >= 8, "{}: {:?}", robot.name, structure.identified);
+        let truth = terms_on(&model.parameters, &columns, 2);
+        let samples = simulate_model(&model, &truth, &q, true, 0.0, 0);
+        let c = identify(&robot, &samples, &options).unwrap();
+        assert_eq!(c.identified, structure.identified, "{}", robot.name);
+        for i in 0..p {
+            let gap = (c.deviations[i] - truth[i]).abs();
+            assert!(
+                gap <= 1e-6,
+                "{}, {}: identified {} true {}",
+                robot.name,
+                c.parameters[i],
+                c.deviations[i],
+                truth[i]
+            );
+        }
+        assert!(!c.joint_terms().is_none());
+        let truth_state = model.state(&truth).unwrap();
+        let stored = c.prepared_model();
+        for q in poses(&robot, 10, 9) {
+            let expected = model.error(&truth_state, &q);
+            let (position, rotation) = stored.error(&q).unwrap();
+            let at = stored.at(&q).unwrap();
+            for a in 0..3 {
+                assert!((expected[a] - position[a]).abs() < 1e-6);
+                assert!((expected[a + 3] - rotation[a]).abs() < 1e-9);
+                assert!((at.position_mm[a] - position[a]).abs() < 1e-9);
+                assert!((at.rotation_rad[a] - rotation[a]).abs() < 1e-12);
+                let (predicted, _) = c.predict_error(&q);
+                assert!((predicted[a] - position[a]).abs() < 1e-9);
+            }
+        }
+    }
+}
+
+/// Terms the data carry no trace of are held, each with the information criterion's
+/// reason, and the model is the one without them; terms as large as a gear's are kept.
+#[test]
+fn joint_terms_without_support_are_held_by_the_information_criterion() {
+    let robot = kr150();
+    let model = Model::new(&robot, false, 2);
+    let q = poses(&robot, 400, 1);
+    let options = CalibrateOptions {
+        harmonics: 2,
+        ..CalibrateOptions::default()
+    };
+    let p = model.len();
+    let zero = simulate_model(&model, &DVector::zeros(p), &q, false, 0.0, 0);
+    let columns = columns_of(&identify(&robot, &zero, &options).unwrap());
+    // Geometry only, and 0.05 mm of noise: no term is in the data.
+    let mut truth = deviations_on(&model.parameters, &columns, 4);
+    for c in model.first_term()..p {
+        truth[c] = 0.0;
+    }
+    let samples = simulate_model(&model, &truth, &q, false, 0.05, 7);
+    let c = identify(&robot, &samples, &options).unwrap();
+    let identified_terms: Vec<_> = c.identified.iter().filter(|p| p.is_joint_term()).collect();
+    // At 400 × 3 coordinates, sqrt(ln m) = 2.7, below the significance of 3: the terms
+    // are held as undetermined or unsupported, and none survives by chance here.
+    assert!(identified_terms.is_empty(), "{identified_terms:?}");
+    assert!(c.held().iter().any(|r| r.parameter.is_joint_term()));
+    assert!(c.joint_terms().is_none());
+    // Joint 2's first harmonic as large as a gear's: identified.
+    let sin_q2 = model
+        .parameters
+        .iter()
+        .position(|p| {
+            *p == Parameter::JointTerm {
+                joint: 1,
+                harmonic: 1,
+                cosine: false,
+            }
+        })
+        .unwrap();
+    truth[sin_q2] = 3e-4;
+    let samples = simulate_model(&model, &truth, &q, false, 0.05, 7);
+    let c = identify(&robot, &samples, &options).unwrap();
+    let r = &c.report[sin_q2];
+    assert_eq!(r.status, ParameterStatus::Identified, "{}", r.reason());
+    let se = r.standard_error.unwrap();
+    assert!((r.value - 3e-4).abs() < 4.0 * se, "{} ± {se}", r.value);
+    assert_eq!(r.parameter.to_string(), "sin q2");
+}
+
+/// The threshold of the information criterion and its hold reason in words.
+#[test]
+fn the_information_criterion_threshold_is_the_root_of_ln_m() {
+    assert!((super::trust::bic_threshold(3000) - 3000f64.ln().sqrt()).abs() < 1e-15);
+    let reason = HoldReason::Unsupported {
+        value: 2e-5,
+        standard_error: 1e-5,
+        threshold: 2.83,
+    };
+    let parameter = Parameter::JointTerm {
+        joint: 2,
+        harmonic: 2,
+        cosine: true,
+    };
+    assert_eq!(parameter.to_string(), "cos 2q3");
+    let text = reason.describe(parameter);
+    assert!(
+        text.contains("+0.0200 mrad") && text.contains("2.0 standard errors"),
+        "{text}"
+    );
+    assert!(text.contains("BIC") && text.contains("2.8"), "{text}");
 }

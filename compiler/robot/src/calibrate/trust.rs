@@ -23,6 +23,17 @@ pub enum HoldReason {
         /// The estimate's standard error, µrad/(N·m).
         standard_error: f64,
     },
+    /// A joint-space term the likelihood does not support: adding it lowers the
+    /// Bayesian information criterion less than its price, `z² = (value / SE)² < ln m`
+    /// for `m` measured coordinates (module docs, "Joint-space terms").
+    Unsupported {
+        /// The estimate, rad.
+        value: f64,
+        /// Its standard error, rad.
+        standard_error: f64,
+        /// `sqrt(ln m)`: the `|value| / SE` a term must exceed.
+        threshold: f64,
+    },
     /// Its estimate is within a few standard errors of zero.
     Undetermined {
         /// The estimate, mm or rad.
@@ -55,6 +66,17 @@ impl HoldReason {
                 standard_error,
             } => format!(
                 "undetermined: estimate {} within {:.1} standard errors ({}) of zero",
+                show(value),
+                value.abs() / standard_error,
+                show(standard_error).trim_start_matches('+')
+            ),
+            HoldReason::Unsupported {
+                value,
+                standard_error,
+                threshold,
+            } => format!(
+                "not supported: estimate {} is {:.1} standard errors ({}) from zero, the \
+                 information criterion (BIC) asks for {threshold:.1}",
                 show(value),
                 value.abs() / standard_error,
                 show(standard_error).trim_start_matches('+')
@@ -165,6 +187,7 @@ impl Fit {
         file_values: &[f64],
         k: usize,
         significance: f64,
+        coordinates: usize,
     ) -> Assessment {
         let c = self.kept[k];
         let parameter = parameters[c];
@@ -185,7 +208,13 @@ impl Fit {
             })
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
         let bound = parameter.plausible_bound();
-        let floor = parameter.negligible_standard_error();
+        // A joint-space term is kept for its evidence alone: a small standard error does
+        // not make an estimate of noise a gear's (the criterion below judges it).
+        let floor = if parameter.is_joint_term() {
+            0.0
+        } else {
+            parameter.negligible_standard_error()
+        };
         let determined = standard_error <= floor || value.abs() > significance * standard_error;
         let (reason, severity) = if whole.abs() > bound {
             (
@@ -202,6 +231,18 @@ impl Fit {
                     standard_error,
                 }),
                 1e6 + whole.abs() / standard_error.max(f64::MIN_POSITIVE),
+            )
+        } else if parameter.is_joint_term()
+            && determined
+            && value.abs() <= bic_threshold(coordinates) * standard_error
+        {
+            (
+                Some(HoldReason::Unsupported {
+                    value,
+                    standard_error,
+                    threshold: bic_threshold(coordinates),
+                }),
+                standard_error / value.abs().max(f64::MIN_POSITIVE),
             )
         } else if !determined {
             (
@@ -222,4 +263,11 @@ impl Fit {
             severity,
         }
     }
+}
+
+/// The `|value| / SE` above which one more parameter lowers the Bayesian information
+/// criterion of a least-squares fit of `coordinates` measured coordinates: `z² > ln m`
+/// (the Wald statistic against the criterion's price of one parameter).
+pub(super) fn bic_threshold(coordinates: usize) -> f64 {
+    (coordinates.max(2) as f64).ln().sqrt()
 }

@@ -1,0 +1,203 @@
+//! Joint-space error terms of a calibrated model: errors periodic in a joint's angle.
+//!
+//! A joint's gear train (strain-wave or cycloidal gears, the encoder's mounting) turns the
+//! joint by slightly more or less than commanded, by an amount that repeats with the
+//! joint's angle. Its first two harmonics are the part a calibration can see over one
+//! turn of the joint:
+//!
+//! ```text
+//! q_j' = q_j + a1_j sin q_j + b1_j cos q_j + a2_j sin 2q_j + b2_j cos 2q_j
+//! ```
+//!
+//! `q` the commanded joint angle, `q'` the one the arm turns to (rad), before its gravity
+//! deflection. A term is known only over the angles it was identified from: beyond the
+//! joint's range of those (`range_rad`) it is held at its value at the range's nearer end
+//! rather than extrapolated, since two harmonics fitted over part of a turn can swing far
+//! outside it. Unlike a residual learnt in the base frame, such a term moves with the arm:
+//! it predicts the same joint error wherever the joint's angle recurs, in any other part of
+//! the workspace. The calibrated chain of a hybrid table is evaluated at `q'`
+//! ([`crate::model::PreparedModel`]); a revolute joint's terms only (a prismatic joint's
+//! are zero).
+//!
+//! Cost on the query path: per joint a few multiplications from the `sin_cos` of `q`
+//! already taken (the second harmonic by the double-angle formulas), and one more
+//! `sin_cos` per joint of `q'` for the calibrated chain. Allocation-free and panic-free.
+
+use crate::chain::{ChainError, JointKind, MAX_JOINTS};
+
+/// Coefficients per joint: `[a1, b1, a2, b2]`, rad (module docs).
+pub const COEFFICIENTS_PER_JOINT: usize = 4;
+
+/// The largest coefficient a table may carry, rad (0.1 rad, 5.7°): a calibration holds
+/// anything beyond a few mrad as implausible, and a term this large is no small error.
+pub const MAX_COEFFICIENT_RAD: f64 = 0.1;
+
+/// The joint-space terms of a calibrated chain (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointTerms {
+    /// Per joint `[a1, b1, a2, b2]`, rad; zero beyond the chain's joints.
+    pub coefficients_rad: [[f64; COEFFICIENTS_PER_JOINT]; MAX_JOINTS],
+    /// Per joint the range of commanded angles `[lowest, highest]` the terms were
+    /// identified from, rad: beyond it a term is held at the nearer end's value.
+    pub range_rad: [[f64; 2]; MAX_JOINTS],
+}
+
+impl JointTerms {
+    /// No term: `q' = q`.
+    pub const NONE: JointTerms = JointTerms {
+        coefficients_rad: [[0.0; COEFFICIENTS_PER_JOINT]; MAX_JOINTS],
+        range_rad: [[f64::NEG_INFINITY, f64::INFINITY]; MAX_JOINTS],
+    };
+
+    /// Terms of the first `joints.len()` joints; `None` for more than [`MAX_JOINTS`].
+    pub fn new(joints: &[[f64; COEFFICIENTS_PER_JOINT]]) -> Option<JointTerms> {
+        let mut terms = JointTerms::NONE;
+        terms
+            .coefficients_rad
+            .get_mut(..joints.len())?
+            .copy_from_slice(joints);
+        Some(terms)
+    }
+
+    /// Whether every coefficient is zero (the model has no joint-space terms).
+    pub fn is_none(&self) -> bool {
+        self.coefficients_rad.iter().flatten().all(|&c| c == 0.0)
+    }
+
+    /// Checks the terms against a chain's joints: finite, within
+    /// [`MAX_COEFFICIENT_RAD`], zero for a prismatic joint and beyond the chain; every
+    /// range ordered (no NaN).
+    ///
+    /// # Errors
+    ///
+    /// [`ChainError::Invalid`] naming what is wrong.
+    pub fn check(&self, kinds: &[JointKind]) -> Result<(), ChainError> {
+        for [lo, hi] in self.range_rad {
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return Err(ChainError::Invalid("a joint term's range is not ordered"));
+            }
+        }
+        for (j, c) in self.coefficients_rad.iter().enumerate() {
+            if !c.iter().all(|v| v.is_finite()) {
+                return Err(ChainError::Invalid("a joint term is not finite"));
+            }
+            if c.iter().any(|v| v.abs() > MAX_COEFFICIENT_RAD) {
+                return Err(ChainError::Invalid("a joint term is beyond 0.1 rad"));
+            }
+            let revolute = kinds.get(j) == Some(&JointKind::Revolute);
+            if !revolute && c.iter().any(|&v| v != 0.0) {
+                return Err(ChainError::Invalid(
+                    "a joint term on a prismatic joint or beyond the chain",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Joint `j`'s term at its commanded angle `q`, from that angle's sine and cosine,
+    /// rad (zero beyond [`MAX_JOINTS`]); beyond the term's range, at the nearer end.
+    #[inline]
+    pub fn offset(&self, j: usize, q: f64, sin_cos: (f64, f64)) -> f64 {
+        let (Some(&[a1, b1, a2, b2]), Some(&[lo, hi])) =
+            (self.coefficients_rad.get(j), self.range_rad.get(j))
+        else {
+            return 0.0;
+        };
+        let (sin, cos) = if q < lo {
+            lo.sin_cos()
+        } else if q > hi {
+            hi.sin_cos()
+        } else {
+            sin_cos
+        };
+        let sin2 = 2.0 * sin * cos;
+        let cos2 = (cos - sin) * (cos + sin);
+        a1 * sin + b1 * cos + a2 * sin2 + b2 * cos2
+    }
+
+    /// `q'` (module docs) of commanded `q` whose sines and cosines are `sin_cos`, into
+    /// `out`; as many joints as the shortest of the three.
+    #[inline]
+    pub fn apply(&self, q: &[f64], sin_cos: &[(f64, f64)], out: &mut [f64]) {
+        for (j, ((o, &value), &sc)) in out.iter_mut().zip(q).zip(sin_cos).enumerate() {
+            *o = value + self.offset(j, value, sc);
+        }
+    }
+
+    /// `q'` of commanded `q` (module docs), the sines and cosines taken here; `None` for
+    /// more than [`MAX_JOINTS`] values.
+    pub fn joints(&self, q: &[f64]) -> Option<[f64; MAX_JOINTS]> {
+        let mut out = [0.0; MAX_JOINTS];
+        let out_q = out.get_mut(..q.len())?;
+        for (j, (o, &value)) in out_q.iter_mut().zip(q).enumerate() {
+            *o = value + self.offset(j, value, value.sin_cos());
+        }
+        Some(out)
+    }
+}
+
+impl Default for JointTerms {
+    fn default() -> Self {
+        JointTerms::NONE
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_offset_is_the_two_harmonics_of_the_commanded_angle() {
+        let mut terms = JointTerms::NONE;
+        terms.coefficients_rad[2] = [1e-3, -2e-3, 5e-4, 7e-4];
+        for q in [-3.0, -1.1, 0.0, 0.4, 2.9, 7.5] {
+            let want = 1e-3 * f64::sin(q) - 2e-3 * f64::cos(q)
+                + 5e-4 * f64::sin(2.0 * q)
+                + 7e-4 * f64::cos(2.0 * q);
+            let got = terms.offset(2, q, f64::sin_cos(q));
+            assert!((got - want).abs() < 1e-17, "{q}: {got} vs {want}");
+            assert_eq!(terms.offset(1, q, f64::sin_cos(q)), 0.0);
+        }
+        let q = [0.1, 0.2, 0.3];
+        let moved = terms.joints(&q).unwrap();
+        assert_eq!(moved[..2], q[..2]);
+        assert_eq!(moved[2], 0.3 + terms.offset(2, 0.3, f64::sin_cos(0.3)));
+        assert!(terms.joints(&[0.0; MAX_JOINTS + 1]).is_none());
+    }
+
+    /// Beyond the range the terms were identified over, a term is its value at the
+    /// nearer end, not the harmonics extrapolated.
+    #[test]
+    fn beyond_its_range_a_term_is_held_at_the_nearer_end() {
+        let mut terms = JointTerms::NONE;
+        terms.coefficients_rad[0] = [1e-3, -2e-3, 5e-4, 7e-4];
+        terms.range_rad[0] = [-0.5, 1.0];
+        let at = |q: f64| terms.offset(0, q, q.sin_cos());
+        assert_eq!(at(-2.0), at(-0.5));
+        assert_eq!(at(3.0), at(1.0));
+        assert_ne!(at(0.2), at(1.0));
+        assert_eq!(terms.joints(&[3.0]).unwrap()[0], 3.0 + at(1.0));
+        terms.range_rad[0] = [1.0, -1.0];
+        assert!(terms.check(&[JointKind::Revolute]).is_err());
+        terms.range_rad[0] = [f64::NAN, 1.0];
+        assert!(terms.check(&[JointKind::Revolute]).is_err());
+    }
+
+    #[test]
+    fn check_refuses_non_finite_large_and_prismatic_terms() {
+        let kinds = [JointKind::Revolute, JointKind::Prismatic];
+        let mut terms = JointTerms::NONE;
+        terms.coefficients_rad[0] = [1e-3, 0.0, 0.0, -1e-3];
+        assert!(terms.check(&kinds).is_ok());
+        terms.coefficients_rad[0][1] = f64::NAN;
+        assert!(terms.check(&kinds).is_err());
+        terms.coefficients_rad[0][1] = 0.2;
+        assert!(terms.check(&kinds).is_err());
+        terms.coefficients_rad[0][1] = 0.0;
+        terms.coefficients_rad[1][0] = 1e-3;
+        assert!(terms.check(&kinds).is_err());
+        terms.coefficients_rad[1][0] = 0.0;
+        terms.coefficients_rad[2][0] = 1e-3;
+        assert!(terms.check(&kinds).is_err());
+    }
+}
