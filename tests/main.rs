@@ -14,6 +14,7 @@ mod eval;
 mod hostile_csv;
 mod hostile_inputs;
 mod implausible_samples;
+mod iso9283_path;
 mod latency_guard;
 mod no_alloc;
 mod options_first;

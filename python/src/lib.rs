@@ -1142,6 +1142,16 @@ fn iso9283<'py>(
         }
     }
     d.set_item("compensated", convert(&result.compensated)?)?;
+    // The path characteristics of a tracker stream (path=..., command=...).
+    let convert_path = |report: &Option<adwi_measure::path::PathReport>| -> PyResult<_> {
+        report
+            .as_ref()
+            .map(|r| pythonize::pythonize(py, r))
+            .transpose()
+            .map_err(|e| AdwiError::new_err(e.to_string()))
+    };
+    d.set_item("path", convert_path(&result.path)?)?;
+    d.set_item("path_compensated", convert_path(&result.path_compensated)?)?;
     let written: Vec<String> = result
         .written
         .iter()

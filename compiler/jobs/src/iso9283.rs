@@ -8,6 +8,9 @@ use adwi_measure::iso9283::{
     characteristics_between, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error,
     Report, ISO_CYCLES,
 };
+use adwi_measure::path::{
+    self, read_command, read_stream, write_path_plan, MeasuredPath, PathReport,
+};
 use adwi_runtime::Status;
 use serde::Deserialize;
 
@@ -21,8 +24,28 @@ use crate::JobError;
 pub struct Iso9283Args {
     /// Measured cycles (CSV: position, cycle, x, y, z, mx, my, mz, optionally a, b, c with
     /// ma, mb, mc; docs/measure.md).
-    #[arg(value_name = "MEASUREMENTS.csv", required_unless_present = "cube")]
+    #[arg(value_name = "MEASUREMENTS.csv", required_unless_present_any = ["cube", "path"])]
     pub measurements: Option<PathBuf>,
+    /// A tracker stream to reduce to the path characteristics instead (CSV: t, x, y, z,
+    /// optionally path and cycle; docs/measure.md), with its commanded path (--command).
+    #[arg(long, value_name = "STREAM.csv", requires = "command", conflicts_with_all = ["measurements", "cube"])]
+    pub path: Option<PathBuf>,
+    /// The commanded path(s) the stream ran (CSV: path, kind, x, y, z, vx, vy, vz, speed;
+    /// `--cube ... --path-plan` writes one).
+    #[arg(long, value_name = "PATH.csv", requires = "path")]
+    pub command: Option<PathBuf>,
+    /// With --cube: write the standard's test paths in the cube (line, circles, rectangle)
+    /// as a command file (--output) instead of the pose plan.
+    #[arg(long, requires = "cube")]
+    pub path_plan: bool,
+    /// The test paths' commanded speed, mm/s (with --path-plan).
+    #[arg(
+        long,
+        value_name = "MM_PER_S",
+        default_value_t = 100.0,
+        requires = "path_plan"
+    )]
+    pub speed: f64,
     /// Write the five ISO 9283 positions of a cube instead: its centre and edge length,
     /// X,Y,Z,SIDE (mm, base frame), as a plan CSV (--output).
     #[arg(long, value_name = "X,Y,Z,SIDE", value_parser = parse_cube, allow_hyphen_values = true,
@@ -63,6 +86,10 @@ impl Default for Iso9283Args {
     fn default() -> Iso9283Args {
         Iso9283Args {
             measurements: None,
+            path: None,
+            command: None,
+            path_plan: false,
+            speed: 100.0,
             cube: None,
             abc: [0.0, 45.0, 0.0],
             cycles: ISO_CYCLES,
@@ -125,6 +152,9 @@ fn command_line(args: &Iso9283Args) -> String {
     if let Some(m) = &args.measurements {
         line += &format!(" {}", m.display());
     }
+    if let (Some(p), Some(c)) = (&args.path, &args.command) {
+        line += &format!(" --path {} --command {}", p.display(), c.display());
+    }
     if let Some(t) = &args.table {
         line += &format!(" --table {}", t.display());
     }
@@ -141,7 +171,12 @@ enum Work {
         rows: Vec<CycleRow>,
         table: Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>,
     },
-    /// Write a cube plan.
+    /// Reduce a tracker stream, and with a table its compensation.
+    Path {
+        paths: Vec<MeasuredPath>,
+        table: Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>,
+    },
+    /// Write a cube plan (poses or paths).
     Plan { text: String },
 }
 
@@ -159,12 +194,54 @@ pub struct Iso9283Result {
     pub report: Option<Report>,
     /// Those of the cycles as the table's compensation would attain them.
     pub compensated: Option<Report>,
+    /// The path characteristics of a tracker stream (with --path).
+    pub path: Option<PathReport>,
+    /// Those of the stream as the table's compensation would attain it.
+    pub path_compensated: Option<PathReport>,
     /// The files written.
     pub written: Vec<PathBuf>,
 }
 
 fn measure_error(e: Iso9283Error) -> JobError {
     JobError::Measure(Box::new(e))
+}
+
+fn path_error(e: path::PathError) -> JobError {
+    JobError::Measure(Box::new(Iso9283Error::Path(e)))
+}
+
+/// Opens a table for the compensation.
+fn open_table(t: &Path) -> Result<adwi_runtime::Table<memmap2::Mmap>, JobError> {
+    // SAFETY: the mapping lives as long as the job; tablec and the Python package replace
+    // tables by rename, never in place.
+    unsafe { adwi_runtime::Table::open(t) }.map_err(|source| JobError::Table {
+        path: t.to_path_buf(),
+        source,
+    })
+}
+
+/// The path report, unless a figure came out non-finite.
+fn finite_path(report: PathReport) -> Result<PathReport, JobError> {
+    let json = serde_json::to_value(&report).map_err(|e| JobError::NonFinite(e.to_string()))?;
+    fn all_finite(v: &serde_json::Value) -> bool {
+        match v {
+            serde_json::Value::Null => false,
+            serde_json::Value::Array(a) => a.iter().all(all_finite),
+            serde_json::Value::Object(o) => o
+                .iter()
+                .all(|(k, v)| (k == "velocity" && v.is_null()) || all_finite(v)),
+            _ => true,
+        }
+    }
+    if all_finite(&json) {
+        Ok(report)
+    } else {
+        Err(JobError::NonFinite(
+            "an ISO 9283 path characteristic came out non-finite: the stream holds implausible \
+             coordinates"
+                .into(),
+        ))
+    }
 }
 
 /// The report, unless a characteristic came out non-finite (coordinates near the largest
@@ -207,85 +284,156 @@ impl Iso9283Job {
     /// A refused option or combination, an unreadable input, an output that is an input.
     pub fn new(args: Iso9283Args) -> Result<Iso9283Job, JobError> {
         let mut inputs = Inputs::default();
-        let (work, outputs) = match (&args.measurements, args.cube) {
-            (Some(_), Some(_)) | (None, None) => {
+        if args.path_plan && args.cube.is_none() {
+            return Err(JobError::option(
+                "path-plan",
+                "writes the test paths of a cube: give --cube",
+            ));
+        }
+        if args.speed != 100.0 && !args.path_plan {
+            return Err(JobError::option(
+                "speed",
+                "is the test paths' speed: give it with --cube ... --path-plan",
+            ));
+        }
+        if !(args.speed > 0.0 && args.speed <= 1e6) {
+            return Err(JobError::option(
+                "speed",
+                format!("{} mm/s: give a speed above 0 mm/s", args.speed),
+            ));
+        }
+        if args.command.is_some() != args.path.is_some() {
+            return Err(JobError::Options(
+                "--path (the tracker stream) and --command (the commanded path) go together".into(),
+            ));
+        }
+        if let (Some(stream), Some(command)) = (&args.path, &args.command) {
+            if args.measurements.is_some() || args.cube.is_some() {
                 return Err(JobError::Options(
-                    "give the measured cycles (MEASUREMENTS.csv) or a cube to plan (--cube), \
-                     one of them"
+                    "--path reduces a tracker stream: measured cycles and --cube are other \
+                     tests, one at a time"
                         .into(),
-                ))
+                ));
             }
-            (None, Some([x, y, z, side])) => {
-                if args.json.is_some()
-                    || args.table.is_some()
-                    || args.report.is_some()
-                    || !args.distance.is_empty()
-                {
-                    return Err(JobError::Options(
+            let plan_only = Iso9283Args::default();
+            if args.cycles != plan_only.cycles
+                || args.abc != plan_only.abc
+                || !args.distance.is_empty()
+                || args.output.is_some()
+            {
+                return Err(JobError::Options(
+                    "--cycles, --abc, --distance and --output are for pose cycles and plans; \
+                     --path reports to standard output, --json and --report"
+                        .into(),
+                ));
+            }
+            inputs.add(stream);
+            inputs.add(command);
+            if let Some(t) = &args.table {
+                inputs.add(t);
+            }
+            let mut outputs = OutputPlan::check(
+                &args
+                    .json
+                    .iter()
+                    .map(PathBuf::as_path)
+                    .collect::<Vec<&Path>>(),
+                &inputs.paths(),
+            )?;
+            if let Some(dir) = &args.report {
+                outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
+            }
+            let commands = read_command(command).map_err(path_error)?;
+            let stream = read_stream(stream).map_err(path_error)?;
+            let paths = path::measured_paths(&stream, &commands).map_err(path_error)?;
+            let table = match &args.table {
+                Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
+                None => None,
+            };
+            return Ok(Iso9283Job {
+                args,
+                work: Work::Path { paths, table },
+                outputs,
+            });
+        }
+        let (work, outputs) =
+            match (&args.measurements, args.cube) {
+                (Some(_), Some(_)) | (None, None) => return Err(JobError::Options(
+                    "give the measured cycles (MEASUREMENTS.csv), a tracker stream (--path) or a \
+                     cube to plan (--cube), one of them"
+                        .into(),
+                )),
+                (None, Some([x, y, z, side])) => {
+                    if args.json.is_some()
+                        || args.table.is_some()
+                        || args.report.is_some()
+                        || !args.distance.is_empty()
+                    {
+                        return Err(JobError::Options(
                         "--cube writes a plan: --json, --table, --report and --distance report \
                          on measured cycles"
                             .into(),
                     ));
-                }
-                let Some(output) = &args.output else {
-                    return Err(JobError::option(
-                        "output",
-                        "--cube writes its plan there: give it",
+                    }
+                    let Some(output) = &args.output else {
+                        return Err(JobError::option(
+                            "output",
+                            "--cube writes its plan there: give it",
+                        ));
+                    };
+                    if args.path_plan && args.cycles != ISO_CYCLES {
+                        return Err(JobError::option(
+                        "cycles",
+                        "repeats the pose plan; a path plan is run as many times as the test asks",
                     ));
-                };
-                let text = write_cube_plan([x, y, z], side, args.abc, args.cycles)
+                    }
+                    let text = if args.path_plan {
+                        write_path_plan([x, y, z], side, args.abc, args.speed)
+                    } else {
+                        write_cube_plan([x, y, z], side, args.abc, args.cycles)
+                    }
                     .map_err(|e| JobError::option("cube", e))?;
-                (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
-            }
-            (Some(path), None) => {
-                let plan_only = Iso9283Args::default();
-                if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
-                    return Err(JobError::Options(
+                    (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
+                }
+                (Some(path), None) => {
+                    let plan_only = Iso9283Args::default();
+                    if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
+                        return Err(JobError::Options(
                         "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
                          their own"
                             .into(),
                     ));
-                }
-                if args.output.is_some() {
-                    return Err(JobError::option(
+                    }
+                    if args.output.is_some() {
+                        return Err(JobError::option(
                         "output",
                         "writes a cube's plan (--cube); the report goes to standard output and \
                          --json",
                     ));
-                }
-                inputs.add(path);
-                if let Some(t) = &args.table {
-                    inputs.add(t);
-                }
-                let mut outputs = OutputPlan::check(
-                    &args
-                        .json
-                        .iter()
-                        .map(PathBuf::as_path)
-                        .collect::<Vec<&Path>>(),
-                    &inputs.paths(),
-                )?;
-                if let Some(dir) = &args.report {
-                    outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
-                }
-                let rows = read_cycles(path).map_err(measure_error)?;
-                let table = match &args.table {
-                    Some(t) => {
-                        // SAFETY: the mapping lives as long as the job; tablec and the
-                        // Python package replace tables by rename, never in place.
-                        let table = unsafe { adwi_runtime::Table::open(t) }.map_err(|source| {
-                            JobError::Table {
-                                path: t.clone(),
-                                source,
-                            }
-                        })?;
-                        Some(Box::new((t.clone(), table)))
                     }
-                    None => None,
-                };
-                (Work::Report { rows, table }, outputs)
-            }
-        };
+                    inputs.add(path);
+                    if let Some(t) = &args.table {
+                        inputs.add(t);
+                    }
+                    let mut outputs = OutputPlan::check(
+                        &args
+                            .json
+                            .iter()
+                            .map(PathBuf::as_path)
+                            .collect::<Vec<&Path>>(),
+                        &inputs.paths(),
+                    )?;
+                    if let Some(dir) = &args.report {
+                        outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
+                    }
+                    let rows = read_cycles(path).map_err(measure_error)?;
+                    let table = match &args.table {
+                        Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
+                        None => None,
+                    };
+                    (Work::Report { rows, table }, outputs)
+                }
+            };
         Ok(Iso9283Job {
             args,
             work,
@@ -312,7 +460,68 @@ impl Iso9283Job {
                 Ok(Iso9283Result {
                     report: None,
                     compensated: None,
+                    path: None,
+                    path_compensated: None,
                     written: vec![output],
+                })
+            }
+            Work::Path { paths, table } => {
+                let report = finite_path(path::characteristics(&paths).map_err(path_error)?)?;
+                let compensated = match table.as_deref() {
+                    Some((tpath, table)) => {
+                        let paths = path::compensated(&paths, |c| {
+                            let q = table.query(c);
+                            match q.status {
+                                Status::Ok => Ok(q.position_error_mm),
+                                Status::MissingJoints => Err(format!(
+                                    "{} is a hybrid table: its correction needs joint values, \
+                                     which a tracker stream does not carry",
+                                    tpath.display()
+                                )),
+                                s => Err(format!(
+                                    "{} gives no correction at the commanded point {c:?} mm: {}",
+                                    tpath.display(),
+                                    s.as_str()
+                                )),
+                            }
+                        })
+                        .map_err(path_error)?;
+                        Some(finite_path(
+                            path::characteristics(&paths).map_err(path_error)?,
+                        )?)
+                    }
+                    None => None,
+                };
+                let mut contents: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+                if let Some(p) = &args.json {
+                    let json = serde_json::json!({
+                        "paths": report.paths,
+                        "notes": report.notes,
+                        "compensated": compensated,
+                    });
+                    let text = serde_json::to_string_pretty(&json)
+                        .map_err(|e| JobError::NonFinite(e.to_string()))?;
+                    contents.push((p.clone(), text.into_bytes()));
+                }
+                if let Some(dir) = &args.report {
+                    let page = adwi_eval::report::iso9283::path_html(
+                        &report,
+                        compensated.as_ref(),
+                        &command_line(&args),
+                    );
+                    contents.push((dir.join("index.html"), page.into_bytes()));
+                }
+                let borrowed: Vec<(&Path, &[u8])> = contents
+                    .iter()
+                    .map(|(p, b)| (p.as_path(), &b[..]))
+                    .collect();
+                outputs.write(&borrowed)?;
+                Ok(Iso9283Result {
+                    report: None,
+                    compensated: None,
+                    path: Some(report),
+                    path_compensated: compensated,
+                    written: contents.into_iter().map(|(p, _)| p).collect(),
                 })
             }
             Work::Report { rows, table } => {
@@ -374,6 +583,8 @@ impl Iso9283Job {
                 Ok(Iso9283Result {
                     report: Some(report),
                     compensated,
+                    path: None,
+                    path_compensated: None,
                     written,
                 })
             }

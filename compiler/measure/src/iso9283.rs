@@ -142,6 +142,9 @@ pub enum Iso9283Error {
     /// No rows.
     #[error("no measured cycles")]
     Empty,
+    /// A path command or tracker stream that cannot be read or reduced.
+    #[error(transparent)]
+    Path(#[from] crate::path::PathError),
     /// A distance pair naming a position the cycles do not have.
     #[error("no position named '{0}' in the cycles: a distance pair names two measured positions")]
     UnknownPosition(String),

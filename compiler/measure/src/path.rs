@@ -350,6 +350,18 @@ impl CommandPath {
             .collect()
     }
 
+    /// The length of the arc a chord of `chord` mm spans where the path is at `s`: the
+    /// chord itself on a line, `2R·asin(chord/2R)` on an arc of radius `R` (the speed over
+    /// a 50 ms window on a 24 mm circle at 200 mm/s would read 0.7 % slow from the chord).
+    fn arc_of_chord(&self, s: f64, chord: f64) -> f64 {
+        match self.segments[self.segment_at(s)].geometry {
+            Geometry::Arc { radius, .. } if chord < 2.0 * radius => {
+                2.0 * radius * (chord / (2.0 * radius)).asin()
+            }
+            _ => chord,
+        }
+    }
+
     /// The one commanded speed of the segments that end after `from` and start before
     /// `to`, when they all give the same.
     fn speed_between(&self, from: f64, to: f64) -> Option<f64> {
@@ -1347,9 +1359,9 @@ fn velocity_characteristics(
                     && p.t_s - h >= t0
                     && p.t_s + h <= t1
             })
-            .map(|(p, _)| {
-                (position_at(pts, p.t_s + h) - position_at(pts, p.t_s - h)).norm()
-                    / VELOCITY_WINDOW_S
+            .map(|(p, &s)| {
+                let chord = (position_at(pts, p.t_s + h) - position_at(pts, p.t_s - h)).norm();
+                path.arc_of_chord(s, chord) / VELOCITY_WINDOW_S
             })
             .collect();
         if speeds.len() < 2 {

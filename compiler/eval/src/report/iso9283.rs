@@ -7,6 +7,7 @@
 use std::fmt::Write as _;
 
 use adwi_measure::iso9283::{PoseCharacteristics, Report, ISO_CYCLES};
+use adwi_measure::path::PathReport;
 
 use super::{escape, head};
 
@@ -162,6 +163,110 @@ fn distance_table(page: &mut String, report: &Report, which: &str) {
         );
     }
     page.push_str("</table>\n");
+}
+
+/// The path characteristics as a page (`tablec iso9283 --path ... --report DIR`): per path
+/// AT_P and RT_P, per corner CR and CO, the velocity figures; with a table the same as its
+/// compensation would attain them beside the measured ones.
+pub fn path_html(measured: &PathReport, compensated: Option<&PathReport>, command: &str) -> String {
+    let mut page = head("ISO 9283 path characteristics");
+    let _ = writeln!(page, "<p>Command: <code>{}</code></p>", escape(command));
+    page.push_str(
+        "<p>ISO 9283:1998 path characteristics of a tracker stream (clause 8): path accuracy \
+         AT<sub>P</sub> (the largest distance of a normal plane's barycentre to the commanded \
+         point) and repeatability RT<sub>P</sub> (the largest l̄ + 3 S<sub>l</sub>), cornering \
+         round-off CR and overshoot CO, path velocity accuracy AV, repeatability RV and \
+         fluctuation FV. Lengths in mm, base frame. docs/measure.md has the formulas.</p>\n",
+    );
+    let reports: Vec<(&str, &PathReport)> = std::iter::once(("measured", measured))
+        .chain(compensated.map(|c| ("compensated", c)))
+        .collect();
+    page.push_str(
+        "<h2>Path accuracy and repeatability</h2>\n<table>\n<tr><th>path</th><th></th>\
+         <th>n</th><th>length mm</th><th>planes</th><th>AT<sub>P</sub> mm</th><th>at s mm</th>\
+         <th>mean AT mm</th><th>RT<sub>P</sub> mm</th><th>at s mm</th></tr>\n",
+    );
+    for (label, r) in &reports {
+        for p in &r.paths {
+            let _ = writeln!(
+                page,
+                "<tr><td>{}</td><td>{label}</td><td>{}</td><td>{:.3}</td><td>{}</td>\
+                 <td>{:.4}</td><td>{:.1}</td><td>{:.4}</td><td>{:.4}</td><td>{:.1}</td></tr>",
+                escape(&p.name),
+                p.n,
+                p.length_mm,
+                p.planes,
+                p.at_p_mm,
+                p.at_p_at_mm,
+                p.at_mean_mm,
+                p.rt_p_mm,
+                p.rt_p_at_mm
+            );
+        }
+    }
+    page.push_str("</table>\n");
+    if measured.paths.iter().any(|p| !p.corners.is_empty()) {
+        page.push_str(
+            "<h2>Cornering</h2>\n<table>\n<tr><th>path</th><th></th><th>corner</th>\
+             <th>x, y, z mm</th><th>CR mm</th><th>CR max mm</th><th>CO mm</th>\
+             <th>CO max mm</th></tr>\n",
+        );
+        for (label, r) in &reports {
+            for p in &r.paths {
+                for c in &p.corners {
+                    let [x, y, z] = c.point_mm;
+                    let _ = writeln!(
+                        page,
+                        "<tr><td>{}</td><td>{label}</td><td>{}</td><td>{x:.3}, {y:.3}, {z:.3}</td>\
+                         <td>{:.4}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td></tr>",
+                        escape(&p.name),
+                        c.corner,
+                        c.cr_mm,
+                        c.cr_max_mm,
+                        c.co_mm,
+                        c.co_max_mm
+                    );
+                }
+            }
+        }
+        page.push_str("</table>\n");
+    }
+    if measured.paths.iter().any(|p| p.velocity.is_some()) {
+        page.push_str(
+            "<h2>Path velocity</h2>\n<table>\n<tr><th>path</th><th></th><th>v<sub>c</sub> \
+             mm/s</th><th>v̄ mm/s</th><th>AV %</th><th>RV ±%</th><th>FV mm/s</th></tr>\n",
+        );
+        for (label, r) in &reports {
+            for p in &r.paths {
+                if let Some(v) = &p.velocity {
+                    let _ = writeln!(
+                        page,
+                        "<tr><td>{}</td><td>{label}</td><td>{:.3}</td><td>{:.4}</td>\
+                         <td>{:.4}</td><td>{:.4}</td><td>{:.4}</td></tr>",
+                        escape(&p.name),
+                        v.commanded_mm_s,
+                        v.mean_mm_s,
+                        v.av_percent,
+                        v.rv_percent,
+                        v.fv_mm_s
+                    );
+                }
+            }
+        }
+        page.push_str("</table>\n");
+    }
+    if compensated.is_some() {
+        page.push_str(
+            "<p>Compensated: each point of a cycle less the table's predicted error at the \
+             commanded point it is tracked to. On real data this is a prediction, not a \
+             measurement (docs/measure.md).</p>\n",
+        );
+    }
+    for note in &measured.notes {
+        let _ = writeln!(page, "<p>Note: {}</p>", escape(note));
+    }
+    page.push_str("</body>\n</html>\n");
+    page
 }
 
 #[cfg(test)]
