@@ -499,6 +499,12 @@ fn query_exit_status_says_whether_the_target_was_answered() {
         "{}",
         stderr(&outside)
     );
+    // Where the grid is, so that the user sees how far off the target is.
+    assert!(
+        stderr(&outside).contains("the table's grid spans x "),
+        "{}",
+        stderr(&outside)
+    );
     let nan = tablec(&["query", "t.tbl", "nan", "50", "500"], dir.path());
     assert_eq!(nan.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&nan.stdout).contains("invalid_input"));
@@ -1308,7 +1314,7 @@ fn a_tool_axis_served_field_is_built_recorded_and_served() {
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let line = out
         .lines()
-        .find(|l| l.starts_with("served field   kriging-tool-axis; by likelihood"))
+        .find(|l| l.starts_with("served field   kriging (tool-axis part); by likelihood"))
         .unwrap_or_else(|| panic!("{out}"));
     for component in ["x ℓ", "y ℓ", "z ℓ"] {
         assert!(line.contains(component), "{line}");

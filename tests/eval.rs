@@ -460,8 +460,8 @@ fn hybrid_build_reports_the_calibration_and_warns_about_unidentifiable_parameter
     );
     assert!(
         stderr.contains(
-            "warning: 14 kinematic parameters cannot be identified from these samples and \
-             stay at nominal"
+            "note: 14 kinematic parameters are not observable in these samples and stay at \
+             nominal, as is usual"
         ),
         "{stderr}"
     );

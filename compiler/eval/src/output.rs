@@ -340,18 +340,34 @@ fn comparison_notes(e: &Evaluation, c: &crate::comparison::Comparison) -> Vec<St
             )
         })
         .collect();
-    let mut notes = vec![format!(
-        "point by point against {} (mean {:.4}{} mm, ± one standard error): {} mm; a \
-         difference within two standard errors is not resolved by these {points} points",
-        c.reference.name(),
-        stats.mean_norm,
-        plus_minus(stats.mean_norm_standard_error),
-        if differences.is_empty() {
-            "no other method".to_string()
+    let mut notes = vec![if differences.is_empty() {
+        // One method alone: what it leaves, against what the robot did without it.
+        let u = &e.uncompensated_position_mm;
+        let before = if u.mean_norm > 0.0 {
+            let removed = 100.0 * (1.0 - stats.mean_norm / u.mean_norm);
+            format!(
+                "; uncompensated {:.4} mm: it removes {removed:.0} % of the error",
+                u.mean_norm
+            )
         } else {
+            String::new()
+        };
+        format!(
+            "{} leaves {:.4}{} mm mean (± one standard error over these {points} points){before}",
+            c.reference.name(),
+            stats.mean_norm,
+            plus_minus(stats.mean_norm_standard_error),
+        )
+    } else {
+        format!(
+            "point by point against {} (mean {:.4}{} mm, ± one standard error): {} mm; a \
+             difference within two standard errors is not resolved by these {points} points",
+            c.reference.name(),
+            stats.mean_norm,
+            plus_minus(stats.mean_norm_standard_error),
             differences.join(", ")
-        }
-    )];
+        )
+    }];
     let offset = |m: &MethodResult| {
         let s = m.position_mm.as_ref()?;
         let p = s.mean_per_axis_p_value?;

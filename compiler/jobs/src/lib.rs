@@ -61,10 +61,12 @@ pub enum JobError {
     #[error(transparent)]
     Disagreement(Box<adwi_robot::agreement::Disagreement>),
     /// A robot file that cannot be loaded.
-    #[error("cannot load the robot {}", path.display())]
+    #[error("cannot load the robot {}{hint}", path.display())]
     Robot {
         /// The robot file.
         path: PathBuf,
+        /// What to give instead, when the file does not exist.
+        hint: &'static str,
         /// Why.
         #[source]
         source: Box<adwi_robot::RobotError>,
@@ -147,9 +149,26 @@ impl JobError {
     pub(crate) fn robot(path: &Path) -> impl FnOnce(adwi_robot::RobotError) -> JobError + '_ {
         move |source| JobError::Robot {
             path: path.to_path_buf(),
+            hint: if is_not_found(&source) {
+                ROBOT_NOT_FOUND_HINT
+            } else {
+                ""
+            },
             source: Box::new(source),
         }
     }
+}
+
+/// What a missing robot file's message adds: what a robot file is, and the ones the
+/// repository ships.
+const ROBOT_NOT_FOUND_HINT: &str = ": no such file (a robot file is TOML or URDF, see \
+    docs/cli.md; the repository ships tables/kr150-2/robot.toml, \
+    tables/ur5/robot.toml, tables/ur10/robot.toml and tables/iiwa14/robot.toml)";
+
+/// Whether a robot file could not be loaded because it does not exist.
+fn is_not_found(e: &adwi_robot::RobotError) -> bool {
+    matches!(e, adwi_robot::RobotError::Read { source, .. }
+        if source.kind() == std::io::ErrorKind::NotFound)
 }
 
 /// An option's name as both front ends understand it: `--tune-folds (tune_folds)`.
@@ -211,6 +230,15 @@ pub enum Warning {
     },
 }
 
+impl Warning {
+    /// Whether this is a note rather than a warning: what every identification of such
+    /// samples reports (parameters no position measurement separates), not a sign that
+    /// something went wrong.
+    pub fn is_note(&self) -> bool {
+        matches!(self, Warning::Unidentifiable { .. })
+    }
+}
+
 impl fmt::Display for Warning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -239,8 +267,10 @@ impl fmt::Display for Warning {
                     .collect();
                 write!(
                     f,
-                    "{} kinematic parameters cannot be identified from these samples and stay \
-                     at nominal (independent fraction in brackets): {}",
+                    "{} kinematic parameters are not observable in these samples and stay at \
+                     nominal, as is usual (each is redundant with others, or needs what the \
+                     samples lack, an orientation or another posture; independent fraction in \
+                     brackets): {}",
                     names.len(),
                     names.join(", ")
                 )

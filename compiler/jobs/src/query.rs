@@ -370,8 +370,14 @@ impl QueryJob {
                     }
                     _ => None,
                 };
+                let grid_mm = (c.status == Status::OutsideGrid).then(|| {
+                    let g = table.grid();
+                    let max = [0, 1, 2].map(|a| g.origin_mm[a] + g.cell_mm * f64::from(g.dims[a]));
+                    [g.origin_mm, max]
+                });
                 Ok(QueryResult::One(Box::new(PointAnswer {
                     target_mm: one.target.position_mm,
+                    grid_mm,
                     tier: tier_name,
                     answer: Answer::of(table, &c, orientation),
                     command,
@@ -624,6 +630,8 @@ pub struct PointAnswer {
     pub command_abc_deg: Option<[f64; 3]>,
     /// For a `joints_mismatch`: how far the joints put the tool.
     pub joints_off: Option<JointsOff>,
+    /// For an `outside_grid`: the grid's minimum and maximum corners, mm, base frame.
+    pub grid_mm: Option<[[f64; 3]; 2]>,
 }
 
 impl PointAnswer {

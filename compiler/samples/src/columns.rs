@@ -304,6 +304,35 @@ pub enum ColumnMapError {
     },
 }
 
+/// The column names within a small edit of `name` (a typing error), closest first.
+fn closest_columns(name: &str) -> Vec<&'static str> {
+    let name = name.to_ascii_lowercase();
+    let allowed = (name.chars().count() / 3).max(1);
+    let close: Vec<(usize, &'static str)> = CANONICAL_COLUMNS
+        .iter()
+        .map(|c| (strsim::damerau_levenshtein(&name, c), *c))
+        .filter(|(d, _)| *d <= allowed)
+        .collect();
+    let Some(best) = close.iter().map(|c| c.0).min() else {
+        return Vec::new();
+    };
+    // Among the nearest, the names that share the most of the typed one's start (`xx` is
+    // `x` doubled more likely than `dx` mistyped).
+    let mut nearest: Vec<(f64, &'static str)> = close
+        .into_iter()
+        .filter(|(d, _)| *d == best)
+        .map(|(_, c)| (strsim::jaro_winkler(&name, c), c))
+        .collect();
+    nearest.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(b.1)));
+    let top = nearest.first().map_or(0.0, |c| c.0);
+    nearest
+        .into_iter()
+        .take_while(|(similarity, _)| *similarity >= top - 0.05)
+        .take(4)
+        .map(|(_, c)| c)
+        .collect()
+}
+
 impl fmt::Display for ColumnMapError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -312,11 +341,18 @@ impl fmt::Display for ColumnMapError {
                 "column mapping '{item}' is not of the form name=column, name=column:unit or \
                  name:unit"
             ),
-            ColumnMapError::UnknownName { item, name } => write!(
-                f,
-                "column mapping '{item}': '{name}' is not one of {}",
-                CANONICAL_COLUMNS.join(", ")
-            ),
+            ColumnMapError::UnknownName { item, name } => {
+                write!(f, "column mapping '{item}': '{name}' is not a column name")?;
+                match closest_columns(name).as_slice() {
+                    [] => write!(
+                        f,
+                        " (x, y, z; dx, dy, dz or mx, my, mz; an orientation as a, b, c and \
+                         its kin; j1..j12; config: docs/samples.md lists them all)"
+                    ),
+                    [one] => write!(f, ": did you mean '{one}'?"),
+                    several => write!(f, ": did you mean one of {}?", several.join(", ")),
+                }
+            }
             ColumnMapError::NoSource(item) => {
                 write!(f, "column mapping '{item}' names no source column")
             }
@@ -490,7 +526,21 @@ mod tests {
     #[test]
     fn bad_mappings_are_refused_with_the_reason() {
         let err = |spec| ColumnMap::parse(spec).unwrap_err().to_string();
-        assert!(err("q=x_t").contains("'q' is not one of"));
+        assert!(err("q=x_t").contains("'q' is not a column name"));
+        // A typing error is answered with the names it is closest to, not all of them.
+        assert!(
+            err("xx=x_t").contains("did you mean 'x'?"),
+            "{}",
+            err("xx=x_t")
+        );
+        assert!(err("dzz=e").contains("did you mean 'dz'?"));
+        assert!(
+            err("confg=e").contains("did you mean 'config'?"),
+            "{}",
+            err("confg=e")
+        );
+        assert!(!err("xx=x_t").contains("config"));
+        assert!(err("tempreature=t").contains("docs/samples.md"));
         assert!(err("x=a,x=b").contains("maps 'x' twice"));
         assert!(err("x").contains("not of the form"));
         assert!(err("x=").contains("names no source"));

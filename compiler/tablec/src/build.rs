@@ -156,7 +156,7 @@ fn describe_served_field(report: &BuildReport) -> String {
     if report.node_sets == 0 {
         return "none (the exact tier answers)".to_string();
     }
-    let name = report.plan.served_field.name();
+    let name = crate::served_field_name(report.plan.served_field);
     if report.served_kriging.is_empty() {
         return name.to_string();
     }
@@ -238,9 +238,9 @@ fn print_served_candidates(
             .cv_mean_mm
             .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
         println!(
-            "  {} served field {:<17} ({parameters}): {mean}, {} missed",
+            "  {} served field {:<24} ({parameters}): {mean}, {} missed",
             if c.field == chosen { "*" } else { " " },
-            c.field.name(),
+            crate::served_field_name(c.field),
             c.missed
         );
     }

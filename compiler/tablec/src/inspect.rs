@@ -86,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             t.cv_mean_mm,
             t.served_cv_mean_mm.map_or(String::new(), |m| format!(
                 "; served field {} chosen by the same folds: {m:.4} mm mean",
-                h.served_field.name()
+                crate::served_field_name(h.served_field)
             ))
         ),
         None => println!("cross-validated no (parameters and served field given)"),

@@ -108,7 +108,8 @@ fn main() -> ExitCode {
 /// the user should know.
 pub fn warn(warnings: &[adwi_jobs::Warning]) {
     for w in warnings {
-        eprintln!("warning: {}", terminal_safe(&w.to_string()));
+        let kind = if w.is_note() { "note" } else { "warning" };
+        eprintln!("{kind}: {}", terminal_safe(&w.to_string()));
     }
 }
 
@@ -148,7 +149,7 @@ fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memm
 pub fn describe_method(m: &adwi_runtime::method::MethodParams) -> String {
     format!(
         "ε {} mm, k {}, w1 {}, w2 {}, r {}, [λ] {} 1/mm, [ζ] {} 1/mm², screen (40) {}",
-        m.radius_mm,
+        micrometres(m.radius_mm),
         m.max_neighbours,
         m.w1,
         m.w2,
@@ -157,6 +158,27 @@ pub fn describe_method(m: &adwi_runtime::method::MethodParams) -> String {
         m.zeta_min_per_mm2,
         if m.consistency_screen { "on" } else { "off" }
     )
+}
+
+/// A served field as the options name it: on a hybrid table `kriging` holds a part that
+/// turns with the tool's approach axis (its older name, `kriging-tool-axis`, is not what a
+/// user asked for).
+pub fn served_field_name(field: adwi_runtime::format::ServedField) -> &'static str {
+    use adwi_runtime::format::ServedField;
+    match field {
+        ServedField::KrigingToolAxis => "kriging (tool-axis part)",
+        other => other.name(),
+    }
+}
+
+/// A length in mm to the micrometre, without trailing zeros: a derived ε reads `66.787`,
+/// not `66.78746957755581` (the table keeps every digit).
+pub fn micrometres(mm: f64) -> String {
+    let text = format!("{mm:.3}");
+    match text.find('.') {
+        Some(_) => text.trim_end_matches('0').trim_end_matches('.').to_string(),
+        None => text,
+    }
 }
 
 /// The joint-space screen in words, as `build` and `inspect` print it.

@@ -108,6 +108,13 @@ fn print_one(p: &PointAnswer) -> Answered {
     );
     let (Some(e), Some(command)) = (a.error_mm, &p.command) else {
         eprintln!("no correction: {}", a.status);
+        if let Some([lo, hi]) = p.grid_mm {
+            eprintln!(
+                "the table's grid spans x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} mm \
+                 (base frame)",
+                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+            );
+        }
         if let Some(off) = p.joints_off {
             eprintln!(
                 "the joints' nominal forward kinematics puts the tool {:.1} mm from the \

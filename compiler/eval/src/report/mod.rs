@@ -159,7 +159,9 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
             return "<td>—</td>".to_string();
         };
         if method == Some(c.reference) {
-            return "<td>best</td>".to_string();
+            // "best" says something only beside another method.
+            let alone = c.against.is_empty();
+            return format!("<td>{}</td>", if alone { "—" } else { "best" });
         }
         let d = c.against.iter().find(|d| Some(d.method) == method);
         let text = d.map_or("—".to_string(), |d| {
@@ -562,16 +564,19 @@ fn locations_section(page: &mut String, e: &Evaluation) -> Result<(), ReportErro
     page.push_str("<h2>Where the samples and evaluated points lie</h2>\n");
     let svgs = vec![locations_svg(e, View::Top)?, locations_svg(e, View::Side)?];
     let same = e.training_nominal_mm == e.nominal_mm;
+    // A table evaluated on its own keeps its samples' positions to itself.
+    let training = match e.training_nominal_mm.len() {
+        0 => "table's samples (not in the table file: not drawn)".to_string(),
+        n => format!("{n} training samples ({}dark grey dots)", swatch(TRAINING)),
+    };
     figure(
         page,
         &svgs,
         &format!(
-            "Nominal positions of the {} training samples ({}dark grey dots) and the {} \
+            "Nominal positions of the {training} and the {} \
              evaluated points ({}blue rings), {} (left) and {} (right), base frame, equal \
              scales on both axes; evaluated points outside the cloud of samples are \
              extrapolation.{}",
-            e.training_nominal_mm.len(),
-            swatch(TRAINING),
             e.nominal_mm.len(),
             swatch(EVALUATED),
             View::Top.name(),
