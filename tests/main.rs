@@ -23,6 +23,7 @@ mod posture;
 mod programs;
 mod programs_fanuc;
 mod programs_gcode;
+mod programs_yaskawa;
 mod robot_mutation;
 mod robots;
 mod shipped_kr150_data;

@@ -241,6 +241,9 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
             adwi_programs::Format::Gcode => {
                 adwi_programs::gcode::read(&src, &job.options().gcode).map(|r| r.program)
             }
+            adwi_programs::Format::Yaskawa => {
+                adwi_programs::yaskawa::read(&src, &job.options().yaskawa)
+            }
             adwi_programs::Format::Fanuc => adwi_programs::fanuc::read(&src, &job.options().fanuc),
         }
         .unwrap();

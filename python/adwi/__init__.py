@@ -726,6 +726,9 @@ def compensate_program(
     fanuc_uframes: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_frames: Optional[Union[str, os.PathLike]] = None,
+    yaskawa_tools: Optional[Dict[int, Sequence[float]]] = None,
+    yaskawa_users: Optional[Dict[int, Sequence[float]]] = None,
+    yaskawa_pulses_per_deg: Optional[Sequence[float]] = None,
 ) -> CompensatedProgram:
     """``tablec compensate TABLE PROGRAM -o OUTPUT``: every target of a KUKA KRL, ABB RAPID,
     URScript or CSV program replaced by the command that lands on it (docs/programs.md).
@@ -742,7 +745,11 @@ def compensate_program(
     program selects (tablec's ``--krl-config``). ``fanuc_uframes``, ``fanuc_utools``: a
     Fanuc program's user and tool frames by number, ``{n: [X, Y, Z, W, P, R]}`` (mm,
     degrees), and ``fanuc_frames`` the controller's ``SYSFRAME.VA`` (tablec's
-    ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``). A malformed program raises :class:`AdwiError` naming
+    ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``). ``yaskawa_tools``,
+    ``yaskawa_users``: a Yaskawa job's tool files and user frames by number, ``{n: [X, Y, Z,
+    Rx, Ry, Rz]}`` (mm, degrees about the fixed x, y, z), and ``yaskawa_pulses_per_deg`` its
+    axes' encoder pulses per degree (tablec's ``--yaskawa-tool``, ``--yaskawa-user``,
+    ``--yaskawa-pulses-per-deg``). A malformed program raises :class:`AdwiError` naming
     ``file:line:column``.
     """
     path = lambda p: None if p is None else os.fspath(p)  # noqa: E731
@@ -772,5 +779,12 @@ def compensate_program(
         if fanuc_utools is None
         else {int(n): frame(f) for n, f in fanuc_utools.items()},
         fanuc_frames=path(fanuc_frames),
+        yaskawa_tools=None
+        if yaskawa_tools is None
+        else {int(n): frame(f) for n, f in yaskawa_tools.items()},
+        yaskawa_users=None
+        if yaskawa_users is None
+        else {int(n): frame(f) for n, f in yaskawa_users.items()},
+        yaskawa_pulses_per_deg=frame(yaskawa_pulses_per_deg),
     )
     return CompensatedProgram(bytes(out), targets, summary)

@@ -934,7 +934,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -958,6 +958,9 @@ fn compensate_program<'py>(
     fanuc_uframes: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
     fanuc_utools: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
     fanuc_frames: Option<PathBuf>,
+    yaskawa_tools: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
+    yaskawa_users: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
+    yaskawa_pulses_per_deg: Option<Vec<f64>>,
 ) -> PyResult<(
     Bound<'py, pyo3::types::PyBytes>,
     Bound<'py, PyList>,
@@ -995,6 +998,13 @@ fn compensate_program<'py>(
         user_frames: fanuc_uframes.unwrap_or_default().into_iter().collect(),
         tool_frames: fanuc_utools.unwrap_or_default().into_iter().collect(),
         frames_file: fanuc_frames,
+    };
+    // Yaskawa tool files and user frames by number, X, Y, Z, Rx, Ry, Rz (mm, degrees), and
+    // the axes' pulses per degree.
+    options.yaskawa = adwi_programs::yaskawa::YaskawaOptions {
+        tools: yaskawa_tools.unwrap_or_default().into_iter().collect(),
+        users: yaskawa_users.unwrap_or_default().into_iter().collect(),
+        pulses_per_deg: yaskawa_pulses_per_deg,
     };
     let done = py
         .allow_threads(|| -> Result<_, adwi_programs::Error> {

@@ -68,6 +68,7 @@ fn long_name(format: Format) -> &'static str {
         Format::UrScript => "URScript",
         Format::Csv => "a CSV of poses",
         Format::Gcode => "G-code",
+        Format::Yaskawa => "Yaskawa INFORM",
         Format::Fanuc => "Fanuc TP",
     }
 }
@@ -126,6 +127,11 @@ fn signs(src: &Source) -> Vec<(Format, usize, String)> {
             Some(Format::UrScript)
         } else if gcode_block(&upper) {
             Some(Format::Gcode)
+        } else if ["/JOB", "//POS", "//INST", "///NPOS", "///POSTYPE"]
+            .iter()
+            .any(|w| starts(w))
+        {
+            Some(Format::Yaskawa)
         } else if ["/PROG ", "/ATTR", "/MN", "/POS", "/END"]
             .iter()
             .any(|w| starts(w))

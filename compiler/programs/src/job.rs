@@ -58,6 +58,8 @@ pub struct CompensateOptions {
     pub max_memory_bytes: u64,
     /// A G-code program's A, B, C convention, work offsets and arc tolerance.
     pub gcode: crate::gcode::GcodeOptions,
+    /// A Yaskawa job's numbered tools and user frames, and its axes' pulses per degree.
+    pub yaskawa: crate::yaskawa::YaskawaOptions,
     /// A Fanuc program's numbered user and tool frames, and a frame file.
     pub fanuc: crate::fanuc::FanucOptions,
 }
@@ -106,6 +108,7 @@ impl CompensateOptions {
             max_seconds: 300.0,
             max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
             gcode: crate::gcode::GcodeOptions::default(),
+            yaskawa: crate::yaskawa::YaskawaOptions::default(),
             fanuc: crate::fanuc::FanucOptions::default(),
         }
     }
@@ -182,6 +185,22 @@ impl CompensateJob {
                 crate::bounds::MAX_ANGLE_DEG
             )));
         }
+        let yaskawa = &o.yaskawa;
+        if let Some(per) = &yaskawa.pulses_per_deg {
+            crate::yaskawa::check_pulses_per_deg(per).map_err(Error::Option)?;
+        }
+        if yaskawa
+            .tools
+            .iter()
+            .chain(&yaskawa.users)
+            .any(|(_, f)| !crate::bounds::option_frame_within(f))
+        {
+            return Err(Error::Option(format!(
+                "each Yaskawa tool and user frame must be six numbers within ±{} mm and ±{}°",
+                crate::bounds::MAX_POSITION_MM,
+                crate::bounds::MAX_ANGLE_DEG
+            )));
+        }
         if o.fanuc
             .user_frames
             .iter()
@@ -214,7 +233,7 @@ impl CompensateJob {
             Some(f) => f,
             None => Format::from_path(&o.program).ok_or_else(|| {
                 Error::Option(format!(
-                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .ls); give it (krl, rapid, urscript, csv, gcode, fanuc)",
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .jbi, .ls); give it (krl, rapid, urscript, csv, gcode, yaskawa, fanuc)",
                     o.program.display()
                 ))
             })?,
@@ -399,6 +418,7 @@ impl CompensateJob {
                     work_offsets = read.work_offsets;
                     read.program
                 }
+                Format::Yaskawa => crate::yaskawa::read_at_most(&src, &o.yaskawa, limit)?,
                 Format::Fanuc => crate::fanuc::read_at_most(&src, &fanuc, limit)?,
             }
         };
@@ -517,7 +537,13 @@ impl CompensateJob {
                         };
                         let numbered = format == Format::Krl
                             && (m.name.starts_with("TOOL_DATA") || m.name.starts_with("BASE_DATA"));
-                        let how = if numbered {
+                        let yaskawa_number = (format == Format::Yaskawa)
+                            .then(|| m.name.split_once(' ').map(|(_, n)| n))
+                            .flatten();
+                        let how = if let Some(n) = yaskawa_number {
+                            let flag = if m.base { "user" } else { "tool" };
+                            format!("give it as --yaskawa-{flag} {n}=X,Y,Z,Rx,Ry,Rz, or as the {option} option")
+                        } else if numbered {
                             format!("give it in the KRL configuration (--krl-config), or as the {option} option")
                         } else {
                             format!("give it as the {option} option")
@@ -579,7 +605,9 @@ impl CompensateJob {
         let motions_seen = match format {
             Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
             Format::Rapid => true,
-            Format::UrScript | Format::Csv | Format::Gcode | Format::Fanuc => false,
+            Format::UrScript | Format::Csv | Format::Gcode | Format::Yaskawa | Format::Fanuc => {
+                false
+            }
         };
         Ok(CompensateJob {
             motions_seen,
@@ -934,9 +962,17 @@ impl CompensateJob {
                         format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
                     ));
                 }
+                // A Yaskawa controller holds positions in micrometres and 0.0001°, and its
+                // jobs write them so: finer decimals are not its to read.
+                let yaskawa = self.program.format == Format::Yaskawa;
+                let (length_decimals, angle_decimals) = if yaskawa {
+                    (3, 4)
+                } else {
+                    (c.unit.decimals(), 6)
+                };
                 let mut edits = Vec::new();
                 for (n, v) in c.position.iter().zip(new_pose.translation.vector.iter()) {
-                    edits.extend(number_edit(n, v / scale, c.unit.decimals()));
+                    edits.extend(number_edit(n, v / scale, length_decimals));
                 }
                 if let Some(o) = &c.orientation {
                     // An orientation the correction does not turn keeps its numbers (and its
@@ -944,7 +980,7 @@ impl CompensateJob {
                     if turned > 1e-12 {
                         let values = orientation_values(o, &new_rotation);
                         let (numbers, decimals): (&[Number], usize) = match o {
-                            Orientation::KukaAbcDeg(n) => (n, 6),
+                            Orientation::KukaAbcDeg(n) => (n, angle_decimals),
                             Orientation::QuaternionWxyz(n) => (n, 9),
                             Orientation::RotationVectorRad(n) => (n, 8),
                         };
@@ -1008,10 +1044,24 @@ impl CompensateJob {
                         format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
                     ));
                 }
+                // A Yaskawa job's joints are encoder pulses, written as whole pulses.
+                let pulses = (self.program.format == Format::Yaskawa)
+                    .then_some(self.options.yaskawa.pulses_per_deg.as_ref())
+                    .flatten();
                 Ok(j.joints
                     .iter()
                     .zip(&qc)
-                    .filter_map(|(n, v)| number_edit(n, v / j.unit.rad(), j.unit.decimals()))
+                    .enumerate()
+                    .filter_map(|(i, (n, v))| match pulses.and_then(|p| p.get(i)) {
+                        Some(per_deg) => crate::yaskawa::pulse_text(
+                            n,
+                            &bytes[n.span.0..n.span.1],
+                            v.to_degrees(),
+                            *per_deg,
+                        )
+                        .map(|text| (n.span, text)),
+                        None => number_edit(n, v / j.unit.rad(), j.unit.decimals()),
+                    })
                     .collect())
             }
         }

@@ -18,18 +18,21 @@ pub enum Format {
     Csv,
     /// G-code (ISO 6983): a `.nc`, `.ngc`, `.gcode` or `.tap` file.
     Gcode,
+    /// Yaskawa INFORM: a `.jbi` job.
+    Yaskawa,
     /// Fanuc TP in its ASCII form: a `.ls` program.
     Fanuc,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 6] = [
+    pub const ALL: [Format; 7] = [
         Format::Krl,
         Format::Rapid,
         Format::UrScript,
         Format::Csv,
         Format::Gcode,
+        Format::Yaskawa,
         Format::Fanuc,
     ];
 
@@ -41,6 +44,7 @@ impl Format {
             Format::UrScript => "urscript",
             Format::Csv => "csv",
             Format::Gcode => "gcode",
+            Format::Yaskawa => "yaskawa",
             Format::Fanuc => "fanuc",
         }
     }
@@ -52,7 +56,7 @@ impl Format {
 
     /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
     /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
-    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.ls` Fanuc TP.
+    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.jbi` Yaskawa INFORM; `.ls` Fanuc TP.
     pub fn from_path(path: &std::path::Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
@@ -61,6 +65,7 @@ impl Format {
             "script" | "urscript" => Format::UrScript,
             "csv" => Format::Csv,
             "nc" | "ngc" | "gcode" | "tap" => Format::Gcode,
+            "jbi" => Format::Yaskawa,
             "ls" => Format::Fanuc,
             _ => return None,
         })

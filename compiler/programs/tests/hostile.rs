@@ -1,14 +1,14 @@
 //! Hostile programs: the fixtures mutated byte by byte, and random bytes, through every
 //! reader and the whole job. Every outcome is a program or an error located by file, line
 //! and column; never a panic, never a non-finite number written. Every case goes through
-//! every dialect (KRL `.src` and `.dat`, RAPID, URScript, CSV, G-code), a fixed number of cases
+//! every dialect (KRL `.src` and `.dat`, RAPID, URScript, CSV, G-code, Yaskawa), a fixed number of cases
 //! (the same on every machine, a few seconds in all).
 
 use adwi_programs::source::Source;
 use adwi_programs::{CompensateJob, CompensateOptions, Error, Format};
 use proptest::prelude::*;
 
-const FIXTURES: [(&str, &[u8]); 6] = [
+const FIXTURES: [(&str, &[u8]); 7] = [
     (
         "weld.dat",
         include_bytes!("../../../tests/programs/weld.dat"),
@@ -32,6 +32,10 @@ const FIXTURES: [(&str, &[u8]); 6] = [
     (
         "pocket.nc",
         include_bytes!("../../../tests/programs/pocket.nc"),
+    ),
+    (
+        "bracket.jbi",
+        include_bytes!("../../../tests/programs/bracket.jbi"),
     ),
 ];
 
@@ -75,6 +79,7 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
             },
         )
         .map(|r| r.program),
+        Format::Yaskawa => adwi_programs::yaskawa::read(&src, &yaskawa_options()),
         Format::Fanuc => adwi_programs::fanuc::read(&src, &Default::default()),
     };
     match result {
@@ -99,6 +104,15 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
             Ok(())
         }
         Err(e) => Err(TestCaseError::fail(format!("not a syntax error: {e}"))),
+    }
+}
+
+/// A Yaskawa job's tools, user frames and pulses per degree (the bracket's cell).
+fn yaskawa_options() -> adwi_programs::yaskawa::YaskawaOptions {
+    adwi_programs::yaskawa::YaskawaOptions {
+        tools: vec![(1, [0.0, 0.0, 180.0, 0.0, 0.0, 0.0])],
+        users: vec![(1, [1600.0, 250.0, 750.0, 0.0, 0.0, 30.0])],
+        pulses_per_deg: Some(vec![1456.356, 1456.356, 1350.0, 910.222, 910.222, 555.556]),
     }
 }
 
@@ -189,6 +203,7 @@ fn job_on_a_mutated_program(
         options.tool = Some([0.0, 0.0, 100.0, 0.0, 0.0, 0.0]);
         options.base = Some([0.0; 6]);
         options.gcode.work_offsets = vec![(54, [1750.0, 450.0, 1200.0, 0.0, 0.0, 0.0])];
+        options.yaskawa = yaskawa_options();
         if let Ok(job) = CompensateJob::new(options) {
             let done = job.run().unwrap();
             prop_assert_eq!(done.report.targets.len(), job.program().targets.len());

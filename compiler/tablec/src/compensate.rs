@@ -20,13 +20,13 @@ pub struct Args {
     /// The correction table.
     table: PathBuf,
     /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script), G-code
-    /// (.nc, .ngc, .gcode, .tap), Fanuc TP (.ls) or a CSV of poses (.csv).
+    /// (.nc, .ngc, .gcode, .tap), Yaskawa INFORM (.jbi), Fanuc TP (.ls) or a CSV of poses (.csv).
     program: PathBuf,
     /// The compensated program (never one of the inputs; written atomically).
     #[arg(short, long)]
     output: PathBuf,
     /// The program's format [default: by its extension].
-    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode", "fanuc"])]
+    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode", "yaskawa", "fanuc"])]
     format: Option<String>,
     /// A robot file (TOML, or URDF by its .urdf extension, with --base-link/--tip-link):
     /// for joint targets, and to check every command's posture (inverse kinematics in the
@@ -64,6 +64,20 @@ pub struct Args {
     /// the corrected path, mm; an arc beyond it is left unchanged (arc_tolerance).
     #[arg(long, default_value_t = adwi_programs::gcode::DEFAULT_ARC_TOLERANCE_MM)]
     arc_tolerance_mm: f64,
+    /// Yaskawa: a tool file, n=X,Y,Z,Rx,Ry,Rz (mm; degrees about the fixed x, y, z, as the
+    /// pendant shows it); repeat for each ///TOOL n the job uses (a position with a tool not
+    /// given is reported frame_unknown).
+    #[arg(long, value_name = "n=X,Y,Z,Rx,Ry,Rz", allow_hyphen_values = true, value_parser = adwi_programs::yaskawa::parse_numbered_frame)]
+    yaskawa_tool: Vec<(u16, [f64; 6])>,
+    /// Yaskawa: a user frame in the robot's base frame, n=X,Y,Z,Rx,Ry,Rz; repeat for each
+    /// ///USER n the job uses.
+    #[arg(long, value_name = "n=X,Y,Z,Rx,Ry,Rz", allow_hyphen_values = true, value_parser = adwi_programs::yaskawa::parse_numbered_frame)]
+    yaskawa_user: Vec<(u16, [f64; 6])>,
+    /// Yaskawa: the encoder pulses per degree of each axis (S,L,U,R,B,T; negative for an
+    /// axis counted against the robot file's joint), for PULSE positions; without it they
+    /// are reported, not corrected.
+    #[arg(long, value_name = "a,b,c,d,e,f", allow_hyphen_values = true, value_parser = adwi_programs::yaskawa::parse_pulses_per_deg)]
+    yaskawa_pulses_per_deg: Option<Pulses>,
     /// Fanuc: a user frame in the world frame, n=X,Y,Z,W,P,R (mm; degrees about the fixed
     /// x, y, z, as the FRAME menu shows it); repeat for each UF n the positions use (user
     /// frame 0 is the world). A position in a frame not given is reported frame_unknown.
@@ -108,6 +122,8 @@ pub struct Args {
 }
 
 type Frame = [f64; 6];
+/// Pulses per degree, per axis (an alias, so that the argument takes one value).
+type Pulses = Vec<f64>;
 
 fn frame(text: &str) -> Result<Frame, String> {
     adwi_jobs::args::parse_frame(text)
@@ -134,6 +150,11 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         abc: adwi_programs::gcode::AbcConvention::from_name(&args.gcode_abc).unwrap_or_default(),
         work_offsets: args.work_offset,
         arc_tolerance_mm: args.arc_tolerance_mm,
+    };
+    options.yaskawa = adwi_programs::yaskawa::YaskawaOptions {
+        tools: args.yaskawa_tool,
+        users: args.yaskawa_user,
+        pulses_per_deg: args.yaskawa_pulses_per_deg,
     };
     options.fanuc = adwi_programs::fanuc::FanucOptions {
         user_frames: args.fanuc_uframe,

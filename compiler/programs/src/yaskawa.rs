@@ -1,0 +1,855 @@
+//! Yaskawa INFORM jobs (`.jbi`), as the pendant saves them and offline tools write them.
+//!
+//! A job is a `/JOB` header, a `//POS` section of position data and an `//INST` section of
+//! instructions:
+//!
+//! ```text
+//! /JOB
+//! //NAME WELD1
+//! //POS
+//! ///NPOS 3,0,0,0,0,0
+//! ///TOOL 1
+//! ///POSTYPE PULSE
+//! ///PULSE
+//! C00000=0,0,0,0,-45000,0
+//! ///USER 2
+//! ///POSTYPE USER
+//! ///RECTAN
+//! ///RCONF 0,0,0,0,0,0,0,0
+//! C00001=250.000,0.000,100.000,180.0000,0.0000,0.0000
+//! //INST
+//! ///DATE 2024/03/11 09:12
+//! ///ATTR SC,RW
+//! ///GROUP1 RB1
+//! NOP
+//! MOVJ C00000 VJ=25.00
+//! MOVL C00001 V=100.0 PL=0
+//! END
+//! ```
+//!
+//! The targets are the `C` positions. Each takes the frames the `///` lines above it set:
+//! `///TOOL n` the tool file, `///POSTYPE` the frame (`ROBOT` and `BASE` the robot's base
+//! frame, `USER` the user frame `///USER n`, `PULSE` joint positions in encoder pulses).
+//! A Cartesian position is X, Y, Z (mm) and Rx, Ry, Rz (degrees) about the fixed axes x,
+//! then y, then z: `R = Rz(Rz)·Ry(Ry)·Rx(Rx)` (KUKA's A, B, C read as Rz, Ry, Rx). The
+//! numbered tools and user frames come from the job's options ([`YaskawaOptions`]); a
+//! number they do not give is named (`tool TOOL 2 not given`). Pulses need the robot's
+//! pulses per degree per axis, from the options; without them a pulse position is
+//! reported, never guessed. `///RCONF` is kept as written.
+//!
+//! Every instruction that moves is accounted for: `MOVJ`, `MOVL`, `MOVC`, `MOVS` to a `C`
+//! position are the motions whose targets are corrected; a move to a `P` variable (which
+//! the controller holds, and the program may set as it runs), `IMOV` (an increment), a
+//! move between `SFTON` and `SFTOF` (a shift added as it runs), a move with a base or
+//! station axis (`BC`, `EC`, `+MOVJ`), and any other motion-looking instruction are
+//! reported where they are written.
+
+use nalgebra::Isometry3;
+
+use crate::frames::kuka_pose;
+use crate::number::{parse_number, Number};
+use crate::program::{
+    AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
+    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
+};
+use crate::source::Source;
+use crate::Error;
+
+/// What a Yaskawa job needs beyond its text.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct YaskawaOptions {
+    /// The tool files: the number and the TCP in the flange frame, `[X, Y, Z, Rx, Ry, Rz]`
+    /// (mm, degrees, Yaskawa's convention).
+    pub tools: Vec<(u16, [f64; 6])>,
+    /// The user frames: the number and the frame in the robot's base frame, likewise.
+    pub users: Vec<(u16, [f64; 6])>,
+    /// Encoder pulses per degree, per axis (S, L, U, R, B, T), for `PULSE` positions:
+    /// negative for an axis whose pulses count against the robot file's joint.
+    pub pulses_per_deg: Option<Vec<f64>>,
+}
+
+/// A pose from Yaskawa's `X, Y, Z` (mm) and `Rx, Ry, Rz` (degrees, about the fixed axes x,
+/// then y, then z).
+pub fn pose(frame: &[f64; 6]) -> Isometry3<f64> {
+    kuka_pose(
+        [frame[0], frame[1], frame[2]],
+        [frame[5], frame[4], frame[3]],
+    )
+}
+
+/// Parses a numbered frame as the command line writes it: `n=X,Y,Z,Rx,Ry,Rz`.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn parse_numbered_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
+    let usage = "a numbered frame is n=X,Y,Z,Rx,Ry,Rz (mm, degrees about fixed x, y, z)";
+    let (number, values) = text.split_once('=').ok_or_else(|| usage.to_string())?;
+    let number: u16 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{}': {usage}", number.trim()))?;
+    let numbers: Vec<f64> = values
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{values}': {usage}"))?;
+    let frame: [f64; 6] = numbers
+        .try_into()
+        .map_err(|_| format!("'{values}': {usage}"))?;
+    if !crate::bounds::option_frame_within(&frame) {
+        return Err(format!(
+            "'{values}': within ±{} mm and ±{}°",
+            crate::bounds::MAX_POSITION_MM,
+            crate::bounds::MAX_ANGLE_DEG
+        ));
+    }
+    Ok((number, frame))
+}
+
+/// Parses pulses per degree as the command line writes them: one finite, non-zero number
+/// per axis, `a,b,c,d,e,f`.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn parse_pulses_per_deg(text: &str) -> Result<Vec<f64>, String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{text}': pulses per degree are numbers, one per axis"))?;
+    check_pulses_per_deg(&values)?;
+    Ok(values)
+}
+
+/// Checks pulses per degree: 1 to 12 axes, each finite, non-zero and at most 1e7 in size.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn check_pulses_per_deg(values: &[f64]) -> Result<(), String> {
+    if values.is_empty() || values.len() > crate::bounds::MAX_JOINTS {
+        return Err(format!(
+            "{} pulses per degree: one per axis, at most {}",
+            values.len(),
+            crate::bounds::MAX_JOINTS
+        ));
+    }
+    if let Some(v) = values
+        .iter()
+        .find(|v| !(v.is_finite() && **v != 0.0 && v.abs() <= 1e7))
+    {
+        return Err(format!(
+            "{v} pulses per degree: each must be finite, non-zero and within ±1e7"
+        ));
+    }
+    Ok(())
+}
+
+/// The rewritten text of a pulse count: `number` is a [`JointTarget`]'s joint in degrees as
+/// this reader gives it (its span the written pulses), `new_deg` the joint's new value.
+/// `None` when the written pulses already hold it (within half a pulse).
+pub fn pulse_text(number: &Number, original: &[u8], new_deg: f64, per_deg: f64) -> Option<String> {
+    let written = Number {
+        value: (number.value * per_deg).round(),
+        ..*number
+    };
+    crate::number::rewrite(&written, original, (new_deg * per_deg).round(), 0)
+}
+
+/// The frame a position's `///POSTYPE` line gives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PosType {
+    Pulse,
+    Robot,
+    Base,
+    User,
+    Tool,
+    MasterTool,
+}
+
+/// Reads the targets of a Yaskawa job.
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at the first malformed line.
+pub fn read(src: &Source, options: &YaskawaOptions) -> Result<Program, Error> {
+    read_at_most(src, options, usize::MAX)
+}
+
+/// A position read: its target index, and the uses refused (a move under `SFTON`, by
+/// `REFP`), kept to report a position moved to only through them.
+struct Position {
+    target: usize,
+    refused_uses: Vec<Refusal>,
+    direct: bool,
+}
+
+/// The end of the line starting at `start`, and where the next starts.
+fn line_end(bytes: &[u8], start: usize) -> (usize, usize) {
+    let end = bytes[start..]
+        .iter()
+        .position(|b| *b == b'\n' || *b == b'\r')
+        .map_or(bytes.len(), |p| start + p);
+    let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
+        end + 2
+    } else {
+        end + 1
+    };
+    (end, next)
+}
+
+/// The whitespace-separated words of `start..end`, with their offsets.
+fn words(bytes: &[u8], start: usize, end: usize) -> Vec<(usize, &[u8])> {
+    let mut out = Vec::new();
+    let mut i = start;
+    while i < end {
+        while i < end && matches!(bytes[i], b' ' | b'\t') {
+            i += 1;
+        }
+        let s = i;
+        while i < end && !matches!(bytes[i], b' ' | b'\t') {
+            i += 1;
+        }
+        if i > s {
+            out.push((s, &bytes[s..i]));
+        }
+    }
+    out
+}
+
+/// Whether `word` names a variable of `prefix` followed by digits (`C00001`, `BC00002`).
+fn variable(word: &[u8], prefix: &[u8]) -> bool {
+    word.len() > prefix.len()
+        && word[..prefix.len()].eq_ignore_ascii_case(prefix)
+        && word[prefix.len()..].iter().all(u8::is_ascii_digit)
+}
+
+/// A variable's number (`C00012` 12), for matching `C12` with `C00012`.
+fn variable_number(word: &[u8], prefix: usize) -> Option<u64> {
+    std::str::from_utf8(&word[prefix..]).ok()?.parse().ok()
+}
+
+/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(
+    src: &Source,
+    options: &YaskawaOptions,
+    limit: usize,
+) -> Result<Program, Error> {
+    let bytes = src.bytes;
+    let mut targets: Vec<ProgramTarget> = Vec::new();
+    let mut positions: Vec<Position> = Vec::new();
+    // The positions by their number (`C00012` and `C12` are one).
+    let mut by_number: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    let mut truncated_at = None;
+    let mut first_motion = None;
+    #[derive(PartialEq)]
+    enum Section {
+        Header,
+        Pos,
+        Inst,
+    }
+    let mut section = Section::Header;
+    // The //POS section's state.
+    let mut tool: u16 = 0;
+    let mut user: Option<(u16, usize)> = None;
+    let mut postype: Option<(PosType, usize)> = None;
+    // The //INST section's: the shift in force (SFTON) and its line.
+    let mut shift: Option<(String, usize)> = None;
+    let mut start = 0;
+    let mut line_number = 0;
+    while start < bytes.len() {
+        let (end, next) = line_end(bytes, start);
+        line_number += 1;
+        let mut at = start;
+        if at == 0 && bytes.starts_with(b"\xef\xbb\xbf") {
+            at = 3;
+        }
+        start = next;
+        at = src.skip_blanks(at).min(end);
+        let line = &bytes[at..end];
+        if line.is_empty() {
+            continue;
+        }
+        if targets.len() > limit {
+            truncated_at = Some(at);
+            break;
+        }
+        let upper: Vec<u8> = line.iter().take(16).map(u8::to_ascii_uppercase).collect();
+        if upper.starts_with(b"//POS") && !upper.starts_with(b"///") {
+            section = Section::Pos;
+            continue;
+        }
+        if upper.starts_with(b"//INST") {
+            section = Section::Inst;
+            continue;
+        }
+        if upper.starts_with(b"/") && !upper.starts_with(b"///") {
+            // `/JOB`, `//NAME`, and the other sections' headers.
+            if section == Section::Pos {
+                section = Section::Header;
+            }
+            continue;
+        }
+        match section {
+            Section::Header => {}
+            Section::Pos => {
+                if upper.starts_with(b"///") {
+                    let w = words(bytes, at + 3, end);
+                    let Some(&(key_at, key)) = w.first() else {
+                        continue;
+                    };
+                    let key = key.to_ascii_uppercase();
+                    let value = w.get(1).copied();
+                    let number = |what: &str| -> Result<u16, Error> {
+                        value
+                            .and_then(|(_, v)| std::str::from_utf8(v).ok()?.parse::<u16>().ok())
+                            .ok_or_else(|| {
+                                src.error(
+                                    value.map_or(end, |v| v.0),
+                                    format!("///{what} needs its number, 0-65535"),
+                                )
+                            })
+                    };
+                    match key.as_slice() {
+                        b"TOOL" => tool = number("TOOL")?,
+                        b"USER" => user = Some((number("USER")?, line_number)),
+                        b"POSTYPE" => {
+                            let kind = match value.map(|v| v.1.to_ascii_uppercase()).as_deref() {
+                                Some(b"PULSE") => PosType::Pulse,
+                                Some(b"ROBOT") => PosType::Robot,
+                                Some(b"BASE") => PosType::Base,
+                                Some(b"USER") => PosType::User,
+                                Some(b"TOOL") => PosType::Tool,
+                                Some(b"MTOOL") => PosType::MasterTool,
+                                _ => {
+                                    return Err(src.error(
+                                        value.map_or(key_at, |v| v.0),
+                                        "///POSTYPE is PULSE, BASE, ROBOT, USER, TOOL or MTOOL",
+                                    ))
+                                }
+                            };
+                            postype = Some((kind, line_number));
+                        }
+                        // NPOS, RECTAN, PULSE, RCONF and the rest: kept as written.
+                        _ => {}
+                    }
+                    continue;
+                }
+                let Some(eq) = line.iter().position(|b| *b == b'=') else {
+                    return Err(src.error(
+                        at,
+                        format!(
+                            "expected a position (C00001=...) or a /// line, found {}",
+                            src.describe(at)
+                        ),
+                    ));
+                };
+                let name = &line[..eq];
+                let name_ok = [&b"C"[..], b"BC", b"EC", b"P", b"BP", b"EX"]
+                    .iter()
+                    .any(|p| variable(name, p));
+                if !name_ok {
+                    return Err(src.error(
+                        at,
+                        format!(
+                            "'{}' is not a position variable (C, BC, EC, P, BP, EX and digits)",
+                            src.text(at, at + eq)
+                        ),
+                    ));
+                }
+                // The values: numbers separated by commas.
+                let mut numbers: Vec<Number> = Vec::new();
+                let mut i = at + eq + 1;
+                loop {
+                    i = src.skip_blanks(i).min(end);
+                    let n = parse_number(&bytes[..end], i).ok_or_else(|| {
+                        src.error(i, format!("expected a number, found {}", src.describe(i)))
+                    })?;
+                    numbers.push(n);
+                    i = src.skip_blanks(n.span.1).min(end);
+                    if i >= end {
+                        break;
+                    }
+                    if bytes[i] != b',' {
+                        return Err(src.error(
+                            i,
+                            format!(
+                                "expected ',' or the end of the line, found {}",
+                                src.describe(i)
+                            ),
+                        ));
+                    }
+                    i += 1;
+                    if numbers.len() > crate::bounds::MAX_JOINTS {
+                        return Err(
+                            src.error(i, format!("more than {} values", crate::bounds::MAX_JOINTS))
+                        );
+                    }
+                }
+                // Only the robot's C positions are targets; BC, EC (base and station
+                // axes) and P values are not.
+                if !variable(name, b"C") {
+                    continue;
+                }
+                let Some((kind, _)) = postype else {
+                    return Err(src.error(
+                        at,
+                        "a position before any ///POSTYPE line: its frame is not known",
+                    ));
+                };
+                let (target_kind, refused, uses) =
+                    position(src, options, &numbers, kind, tool, user, at);
+                if let Some(n) = variable_number(name, 1) {
+                    by_number.entry(n).or_insert(positions.len());
+                }
+                positions.push(Position {
+                    target: targets.len(),
+                    refused_uses: Vec::new(),
+                    direct: false,
+                });
+                targets.push(ProgramTarget {
+                    name: src.text(at, at + eq),
+                    offset: at,
+                    kind: target_kind,
+                    uses,
+                    refused,
+                });
+            }
+            Section::Inst => {
+                if upper.starts_with(b"///") || upper.starts_with(b"'") {
+                    continue;
+                }
+                let w = words(bytes, at, end);
+                let Some(&(op_at, op)) = w.first() else {
+                    continue;
+                };
+                let op_upper = op.to_ascii_uppercase();
+                let op_name = src.text(op_at, op_at + op.len());
+                let refuse = |targets: &mut Vec<ProgramTarget>, reason: Reason, detail: String| {
+                    targets.push(ProgramTarget {
+                        name: op_name.clone(),
+                        offset: op_at,
+                        kind: TargetKind::Motion,
+                        uses: Vec::new(),
+                        refused: Some(Refusal::new(reason, detail)),
+                    });
+                };
+                match op_upper.as_slice() {
+                    b"SFTON" => {
+                        // The instruction as written, its shift and frame (`SFTON P010 UF#(1)`).
+                        let what = src.text(at, at + line.trim_ascii_end().len());
+                        shift = Some((what, line_number));
+                        continue;
+                    }
+                    b"SFTOF" => {
+                        shift = None;
+                        continue;
+                    }
+                    _ => {}
+                }
+                let motion = matches!(op_upper.as_slice(), b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
+                let refp = op_upper.as_slice() == b"REFP";
+                let looks = op_upper.starts_with(b"MOV")
+                    || op_upper.starts_with(b"IMOV")
+                    || op_upper.starts_with(b"SMOV")
+                    || op_upper.starts_with(b"EIMOV")
+                    || op_upper.starts_with(b"SYMOV");
+                if !(motion || refp || looks) {
+                    continue;
+                }
+                if !refp {
+                    first_motion.get_or_insert(op_at);
+                }
+                let c = w.iter().skip(1).find(|(_, t)| variable(t, b"C"));
+                let external = w
+                    .iter()
+                    .skip(1)
+                    .find(|(_, t)| variable(t, b"BC") || variable(t, b"EC") || t.starts_with(b"+"));
+                let variable_word = w.iter().skip(1).find(|(_, t)| {
+                    let u = t.to_ascii_uppercase();
+                    variable(&u, b"P")
+                        || variable(&u, b"LP")
+                        || u.starts_with(b"P[")
+                        || u.starts_with(b"LP[")
+                });
+                let place = |s: usize, t: &[u8]| src.text(s, s + t.len());
+                // What becomes of the move: a use of its C position, or a reason.
+                let reason: Option<(Reason, String)> = if op_upper.starts_with(b"IMOV") {
+                    Some((
+                        Reason::Relative,
+                        format!("{op_name}: an increment from where the robot stands when it runs"),
+                    ))
+                } else if !motion && !refp {
+                    Some((
+                        Reason::UnknownMotion,
+                        format!("{op_name} is not a Yaskawa motion this reader corrects"),
+                    ))
+                } else if let Some((s, t)) = external {
+                    Some((
+                        Reason::ExternalAxis,
+                        format!(
+                            "{}: a base or station axis (a track, a positioner) the table does not have",
+                            place(*s, t)
+                        ),
+                    ))
+                } else if let (None, Some((s, t))) = (c, variable_word) {
+                    Some((
+                        Reason::Dynamic,
+                        format!(
+                            "{op_name} {}: a position variable the controller holds, which the program may set as it runs",
+                            place(*s, t)
+                        ),
+                    ))
+                } else if c.is_none() {
+                    Some((Reason::Dynamic, format!("{op_name}: no C position written")))
+                } else if let Some((what, l)) = &shift {
+                    Some((
+                        Reason::Relative,
+                        format!("{op_name} under {what} (line {l}): a shift the controller adds as it runs"),
+                    ))
+                } else if refp {
+                    Some((
+                        Reason::UnknownMotion,
+                        format!(
+                            "{op_name}: a reference point (weaving, a wall), not a motion target"
+                        ),
+                    ))
+                } else {
+                    None
+                };
+                let found = c.map(|(s, t)| {
+                    let p = variable_number(t, 1).and_then(|n| by_number.get(&n).copied());
+                    (*s, t, p)
+                });
+                match (found, reason) {
+                    (Some((s, t, None)), _) => {
+                        if refp {
+                            continue;
+                        }
+                        refuse(
+                            &mut targets,
+                            Reason::NotDeclared,
+                            format!("{op_name} {}: not in the job's //POS section", place(s, t)),
+                        );
+                    }
+                    (Some((_, _, Some(p))), Some((reason, detail))) => {
+                        positions[p]
+                            .refused_uses
+                            .push(Refusal::new(reason, detail.clone()));
+                        if !refp {
+                            refuse(&mut targets, reason, detail);
+                        }
+                    }
+                    (Some((_, _, Some(p))), None) => {
+                        let target = &mut targets[positions[p].target];
+                        // The position's frames, now used by a motion (the first).
+                        let own = target.offset;
+                        if let Some(first) = target.uses.first_mut() {
+                            if first.offset == own {
+                                first.offset = op_at;
+                            }
+                        }
+                        // Moved to directly: corrected, whatever else moves to it.
+                        positions[p].direct = true;
+                    }
+                    (None, Some((reason, detail))) => refuse(&mut targets, reason, detail),
+                    (None, None) => {}
+                }
+            }
+        }
+    }
+    // A position moved to only through refused uses is refused with the first; one moved
+    // to directly is corrected.
+    for p in &positions {
+        if p.direct {
+            continue;
+        }
+        if let Some(r) = p.refused_uses.first() {
+            let target = &mut targets[p.target];
+            if target.refused.is_none() {
+                target.refused = Some(Refusal::new(
+                    r.reason,
+                    format!("moved to only as {}", r.detail),
+                ));
+            }
+        }
+    }
+    Ok(Program {
+        format: Format::Yaskawa,
+        targets,
+        truncated_at,
+        first_motion,
+    })
+}
+
+/// A `C` position's target: what it is, why it is refused, and its frames.
+fn position(
+    src: &Source,
+    options: &YaskawaOptions,
+    numbers: &[Number],
+    kind: PosType,
+    tool: u16,
+    user: Option<(u16, usize)>,
+    at: usize,
+) -> (TargetKind, Option<Refusal>, Vec<FrameUse>) {
+    let _ = src;
+    if kind == PosType::Pulse {
+        let target = match &options.pulses_per_deg {
+            None => TargetKind::Incomplete(
+                "a PULSE position: its encoder pulses need the robot's pulses per degree per axis, which no option gives (--yaskawa-pulses-per-deg a,b,c,d,e,f)".into(),
+            ),
+            Some(per) if per.len() != numbers.len() => TargetKind::Incomplete(format!(
+                "{} pulse values, and pulses per degree for {} axes",
+                numbers.len(),
+                per.len()
+            )),
+            Some(per) => TargetKind::Joints(JointTarget {
+                joints: numbers
+                    .iter()
+                    .zip(per)
+                    .map(|(n, p)| Number {
+                        value: n.value / p,
+                        ..*n
+                    })
+                    .collect(),
+                unit: AngleUnit::Degree,
+            }),
+        };
+        return (target, None, Vec::new());
+    }
+    let mut refused = None;
+    let target = if numbers.len() != 6 {
+        if numbers.len() == 7 {
+            refused = Some(Refusal::new(
+                Reason::ExternalAxis,
+                "a seventh value (Re, a seven-axis arm's elbow), beyond the six the table's robot has",
+            ));
+        }
+        TargetKind::Incomplete(format!(
+            "{} values: a Cartesian position is X, Y, Z, Rx, Ry, Rz",
+            numbers.len()
+        ))
+    } else {
+        TargetKind::Cartesian(Box::new(CartesianTarget {
+            position: [numbers[0], numbers[1], numbers[2]],
+            unit: LengthUnit::Millimetre,
+            orientation: Some(Orientation::KukaAbcDeg([
+                numbers[5], numbers[4], numbers[3],
+            ])),
+            config: ConfigHint::None,
+            joints: Vec::new(),
+        }))
+    };
+    let mut frame = FrameUse {
+        tool: None,
+        base: None,
+        offset: at,
+        elsewhere: None,
+        undeclared: Vec::new(),
+        unknown: Vec::new(),
+    };
+    match options.tools.iter().find(|t| t.0 == tool) {
+        Some((_, f)) => frame.tool = Some(pose(f)),
+        None => frame.undeclared.push(Undeclared {
+            base: false,
+            name: format!("TOOL {tool}"),
+        }),
+    }
+    match kind {
+        PosType::Robot | PosType::Base => frame.base = Some(Isometry3::identity()),
+        PosType::User => match user {
+            None => frame
+                .unknown
+                .push("///POSTYPE USER with no ///USER line before it".into()),
+            Some((n, _)) => match options.users.iter().find(|u| u.0 == n) {
+                Some((_, f)) => frame.base = Some(pose(f)),
+                None => frame.undeclared.push(Undeclared {
+                    base: true,
+                    name: format!("USER {n}"),
+                }),
+            },
+        },
+        PosType::Tool => frame.unknown.push(
+            "POSTYPE TOOL: a position in the tool's frame, where the robot stands when it runs"
+                .into(),
+        ),
+        PosType::MasterTool => frame
+            .unknown
+            .push("POSTYPE MTOOL: a position in a stationary (external) tool's frame".into()),
+        PosType::Pulse => {}
+    }
+    (target, refused, vec![frame])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn options() -> YaskawaOptions {
+        YaskawaOptions {
+            tools: vec![(1, [0.0, 0.0, 180.0, 0.0, 0.0, 0.0])],
+            users: vec![(1, [1600.0, 250.0, 750.0, 0.0, 0.0, 30.0])],
+            pulses_per_deg: None,
+        }
+    }
+
+    fn statuses(p: &Program) -> Vec<(String, &'static str)> {
+        p.targets
+            .iter()
+            .map(|t| {
+                (
+                    t.name.clone(),
+                    match (&t.refused, &t.kind) {
+                        (Some(r), _) => r.reason.as_str(),
+                        (None, TargetKind::Incomplete(_)) => "incomplete",
+                        (None, TargetKind::Cartesian(_)) => "cartesian",
+                        (None, TargetKind::Joints(_)) => "joints",
+                        (None, TargetKind::Motion) => "motion",
+                    },
+                )
+            })
+            .collect()
+    }
+
+    const JOB: &str = "/JOB\r\n//NAME T\r\n//POS\r\n///NPOS 4,0,0,0,0,0\r\n///TOOL 1\r\n\
+        ///POSTYPE PULSE\r\n///PULSE\r\nC00000=1000,-2000,3000,0,0,0\r\n///POSTYPE ROBOT\r\n///RECTAN\r\n\
+        ///RCONF 0,0,0,0,0,0,0,0\r\nC00001=1950.000,380.000,1300.000,10.0000,80.0000,-5.0000\r\n\
+        ///USER 1\r\n///POSTYPE USER\r\n///RECTAN\r\nC00002=300.000,100.000,450.000,0.0000,90.0000,-30.0000\r\n\
+        ///USER 3\r\nC00003=1.000,2.000,3.000,0.0000,0.0000,0.0000\r\n//INST\r\n///DATE 2026/11/20 14:32\r\n\
+        ///ATTR SC,RW\r\n///GROUP1 RB1\r\nNOP\r\n'A COMMENT MOVL C00009\r\nMOVJ C00000 VJ=25.00\r\n\
+        MOVL C00001 V=100.0 PL=0\r\nSFTON P001\r\nMOVL C00002 V=50.0\r\nSFTOF\r\nIMOV P002 V=10.0\r\n\
+        MOVL P003 V=10.0\r\nMOVL C00003 BC00000 V=10.0\r\nMOVL C00007 V=10.0\r\nSMOVL C00001 V=10.0\r\nEND\r\n";
+
+    #[test]
+    fn positions_take_their_frames_and_every_move_is_accounted_for() {
+        let p = read(&Source::new("t.jbi", JOB.as_bytes()), &options()).unwrap();
+        let s: Vec<&str> = statuses(&p).into_iter().map(|s| s.1).collect();
+        assert_eq!(
+            s,
+            [
+                "incomplete",     // C00000: pulses, no pulses per degree given
+                "cartesian",      // C00001
+                "relative",       // C00002: moved to only under SFTON
+                "external_axis",  // C00003: moved to only with a base axis
+                "relative",       // MOVL C00002 under SFTON
+                "relative",       // IMOV
+                "dynamic",        // MOVL P003
+                "external_axis",  // MOVL C00003 BC00000
+                "not_declared",   // MOVL C00007
+                "unknown_motion", // SMOVL
+            ]
+        );
+        // Rx, Ry, Rz about fixed x, y, z: KUKA's A, B, C are Rz, Ry, Rx.
+        let TargetKind::Cartesian(c) = &p.targets[1].kind else {
+            unreachable!()
+        };
+        let Some(Orientation::KukaAbcDeg(abc)) = c.orientation else {
+            unreachable!()
+        };
+        assert_eq!(abc.map(|n| n.value), [-5.0, 80.0, 10.0]);
+        // Robot frame: the base frame; the torch of tool 1; user frame 1 from the options.
+        let u = &p.targets[1].uses[0];
+        assert_eq!(u.base, Some(Isometry3::identity()));
+        assert_eq!(u.tool, Some(pose(&[0.0, 0.0, 180.0, 0.0, 0.0, 0.0])));
+        assert_eq!(u.offset, JOB.find("MOVL C00001").unwrap());
+        let u = &p.targets[2].uses[0];
+        assert_eq!(u.base, Some(pose(&[1600.0, 250.0, 750.0, 0.0, 0.0, 30.0])));
+        assert!(p.targets[2]
+            .refused
+            .as_ref()
+            .unwrap()
+            .detail
+            .contains("under SFTON P001 (line 27)"));
+        // User frame 3 is not given: named.
+        assert_eq!(
+            p.targets[3].uses[0].undeclared,
+            vec![Undeclared {
+                base: true,
+                name: "USER 3".into()
+            }]
+        );
+        assert_eq!(p.first_motion, JOB.find("MOVJ C00000"));
+    }
+
+    #[test]
+    fn pulses_are_degrees_by_the_options_pulses_per_degree() {
+        let mut o = options();
+        o.pulses_per_deg = Some(vec![100.0, -200.0, 1000.0, 1.0, 1.0, 1.0]);
+        let p = read(&Source::new("t.jbi", JOB.as_bytes()), &o).unwrap();
+        let TargetKind::Joints(j) = &p.targets[0].kind else {
+            panic!("{:?}", p.targets[0].kind)
+        };
+        assert_eq!(
+            j.joints.iter().map(|n| n.value).collect::<Vec<_>>(),
+            [10.0, 10.0, 3.0, 0.0, 0.0, 0.0]
+        );
+        // Written back as whole pulses, kept within half a pulse.
+        let n = j.joints[1];
+        assert_eq!(pulse_text(&n, b"-2000", 10.001, -200.0), None);
+        assert_eq!(
+            pulse_text(&n, b"-2000", 10.5, -200.0).as_deref(),
+            Some("-2100")
+        );
+        o.pulses_per_deg = Some(vec![100.0; 5]);
+        let p = read(&Source::new("t.jbi", JOB.as_bytes()), &o).unwrap();
+        let TargetKind::Incomplete(why) = &p.targets[0].kind else {
+            unreachable!()
+        };
+        assert_eq!(why, "6 pulse values, and pulses per degree for 5 axes");
+    }
+
+    #[test]
+    fn malformed_lines_are_located() {
+        let err = |text: &str| {
+            read(&Source::new("t.jbi", text.as_bytes()), &options())
+                .unwrap_err()
+                .to_string()
+        };
+        let head = "/JOB\n//NAME T\n//POS\n///NPOS 1,0,0,0,0,0\n///POSTYPE ROBOT\n";
+        assert_eq!(
+            err(&format!("{head}C00001=1.0,2.0,x,0,0,0\n")),
+            "t.jbi:6:16: expected a number, found 'x,0,0,0'"
+        );
+        assert_eq!(
+            err(&format!("{head}C00001=1.0 2.0\n")),
+            "t.jbi:6:12: expected ',' or the end of the line, found '2.0'"
+        );
+        assert_eq!(
+            err(&format!("{head}Q00001=1.0\n")),
+            "t.jbi:6:1: 'Q00001' is not a position variable (C, BC, EC, P, BP, EX and digits)"
+        );
+        assert_eq!(
+            err("/JOB\n//POS\nC00001=1,2,3,4,5,6\n"),
+            "t.jbi:3:1: a position before any ///POSTYPE line: its frame is not known"
+        );
+        assert_eq!(
+            err("/JOB\n//POS\n///POSTYPE JOINT\n"),
+            "t.jbi:3:12: ///POSTYPE is PULSE, BASE, ROBOT, USER, TOOL or MTOOL"
+        );
+        assert_eq!(
+            err("/JOB\n//POS\n///TOOL x\n"),
+            "t.jbi:3:9: ///TOOL needs its number, 0-65535"
+        );
+    }
+
+    #[test]
+    fn options_parse_as_the_command_line_writes_them() {
+        assert_eq!(
+            parse_numbered_frame("2=1,2,3,0,90,0").unwrap(),
+            (2, [1.0, 2.0, 3.0, 0.0, 90.0, 0.0])
+        );
+        assert!(parse_numbered_frame("2=1,2,3").is_err());
+        assert!(parse_numbered_frame("x=1,2,3,4,5,6").is_err());
+        assert!(parse_numbered_frame("1=1,2,3,4,5,nan").is_err());
+        assert_eq!(parse_pulses_per_deg("1,-2.5").unwrap(), [1.0, -2.5]);
+        assert!(parse_pulses_per_deg("1,0").is_err());
+        assert!(parse_pulses_per_deg("1,inf").is_err());
+        assert!(parse_pulses_per_deg("").is_err());
+    }
+}
