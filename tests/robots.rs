@@ -374,7 +374,8 @@ fn a_seven_joint_robot_from_simulation_to_hybrid_queries() {
             assert!((error[a] - measured).abs() < 0.05, "{error:?} vs {first:?}");
         }
     }
+    // Six joint values for a seven-joint robot: a usage error.
     let o = query(&six, false);
-    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
     assert!(stderr(&o).contains("7 joint"), "{}", stderr(&o));
 }
