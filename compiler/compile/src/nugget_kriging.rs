@@ -713,7 +713,33 @@ impl Tridiagonal {
     /// of `centred`: `n − 2` Householder reflections, each applied to the trailing block
     /// as a rank-2 update in the same pass over it as the next reflection's product with
     /// it (LAPACK's `dsytd2`, fused), about 4/3 n³ flops.
-    fn new(mut k: DMatrix<f64>, centred: &DMatrix<f64>) -> Tridiagonal {
+    ///
+    /// On x86-64 with AVX the same code is compiled for it and chosen at run time: its
+    /// loops are elementwise or sum in four fixed interleaved sums ([`dot`]), so four lanes
+    /// give the two lanes' bits, and the tables do not depend on the processor.
+    fn new(k: DMatrix<f64>, centred: &DMatrix<f64>) -> Tridiagonal {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the processor has AVX (checked just above).
+            return unsafe { Tridiagonal::new_avx(k, centred) };
+        }
+        Tridiagonal::reduce(k, centred)
+    }
+
+    /// [`Tridiagonal::reduce`] compiled for AVX (without FMA, which would round otherwise).
+    ///
+    /// # Safety
+    ///
+    /// The processor must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn new_avx(k: DMatrix<f64>, centred: &DMatrix<f64>) -> Tridiagonal {
+        Tridiagonal::reduce(k, centred)
+    }
+
+    /// The reduction ([`Tridiagonal::new`]).
+    #[inline(always)]
+    fn reduce(mut k: DMatrix<f64>, centred: &DMatrix<f64>) -> Tridiagonal {
         let n = k.nrows();
         let a = k.as_mut_slice();
         let mut values: Vec<Vec<f64>> = centred
@@ -834,7 +860,7 @@ fn reflection(x: &mut [f64]) -> (f64, f64) {
 }
 
 /// `column −= v w_j + w v_j`, one column of a symmetric rank-2 update.
-#[inline]
+#[inline(always)]
 fn rank_two_update(column: &mut [f64], v: &[f64], w: &[f64], vj: f64, wj: f64) {
     for ((a, vi), wi) in column.iter_mut().zip(v).zip(w) {
         *a -= vi * wj + wi * vj;
@@ -842,6 +868,7 @@ fn rank_two_update(column: &mut [f64], v: &[f64], w: &[f64], vj: f64, wj: f64) {
 }
 
 /// A dot product in four interleaved sums (they vectorise).
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut sums = [0.0; 4];
     let (chunks_a, chunks_b) = (a.chunks_exact(4), b.chunks_exact(4));
@@ -1152,6 +1179,27 @@ mod tests {
             column.add_scalar_mut(-mean);
         }
         (distances, gram, centred)
+    }
+
+    /// The reduction chosen at run time (AVX where the processor has it) gives the plain
+    /// compilation's bits, so that a table does not depend on the processor that built it.
+    #[test]
+    fn the_reduction_is_the_same_to_the_bit_on_any_processor() {
+        for (seed, n) in [(1, 7), (2, 64), (3, 203)] {
+            let (distances, gram, centred) = scoring_case(n, 3, 300 + seed);
+            let spacing = median_nearest_distance(&distances);
+            let k = covariance(&distances, Some(&gram), 2.0 * spacing, 0.3);
+            let chosen = Tridiagonal::new(k.clone(), &centred);
+            let plain = Tridiagonal::reduce(k, &centred);
+            let bits = |t: &Tridiagonal| -> Vec<u64> {
+                (t.diagonal.iter())
+                    .chain(&t.off_diagonal)
+                    .chain(t.values.iter().flatten())
+                    .map(|v| v.to_bits())
+                    .collect()
+            };
+            assert_eq!(bits(&chosen), bits(&plain), "n = {n}");
+        }
     }
 
     #[test]
