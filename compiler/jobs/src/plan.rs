@@ -553,6 +553,29 @@ mod tests {
         assert!(e.to_string().contains("100000 poses"), "{e}");
     }
 
+    /// An option out of range is refused before any file is read: a robot file that does
+    /// not exist is not what the refusal names.
+    #[test]
+    fn options_are_refused_before_any_file_is_read() {
+        let args = PlanArgs {
+            robot: RobotArgs {
+                robot: Some("/nonexistent/robot.toml".into()),
+                ..RobotArgs::default()
+            },
+            min: Some([0.0; 3]),
+            max: Some([1.0; 3]),
+            count: 5,
+            coverage: 2.0,
+            measured: vec!["/nonexistent/measured.csv".into()],
+            table: Some("/nonexistent/t.tbl".into()),
+            output: "/nonexistent/p.csv".into(),
+            ..PlanArgs::default()
+        };
+        let e = PlanJob::new(args).err().unwrap();
+        assert!(matches!(e, JobError::Options(_)), "{e}");
+        assert!(e.to_string().contains("coverage"), "{e}");
+    }
+
     /// A plan measured by `simulate --poses`: the samples are at the planned joints, in
     /// the plan's order.
     #[test]

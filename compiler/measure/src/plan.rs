@@ -862,6 +862,46 @@ fn variance_bound(
     best / count as f64
 }
 
+/// A second lower bound on `tr(L M⁻¹)` for any `count` distinct poses of the pool added
+/// to `base`: the relaxation with each candidate's weight at most `1 / count` (every
+/// choice of distinct poses is one of its points) is convex too, and its tangent plane at
+/// the chosen poses' weights (`1 / count` each) bounds it below by `φ + mean over the
+/// chosen of dᵢ − mean of the count largest dᵢ` ([`variance_bound`]'s notation): tight
+/// when no exchange of one pose helps, where the uncapped bound leaves the gap of weights
+/// no set of distinct poses can take.
+fn capped_bound(
+    stacked: &DMatrix<f64>,
+    weight: &DMatrix<f64>,
+    base: &DMatrix<f64>,
+    chosen: &[usize],
+) -> f64 {
+    let count = chosen.len();
+    let mut m = base.clone();
+    for &i in chosen {
+        let b = stacked.rows(3 * i, 3);
+        m += b.transpose() * b;
+    }
+    let Some(m_inv) = m.try_inverse() else {
+        return 0.0;
+    };
+    // In the weights' scale: M(ξ) is that information divided by the count.
+    let m_inv = m_inv * count as f64;
+    let phi = (weight * &m_inv).trace();
+    let g = &m_inv * weight * &m_inv;
+    let bg = stacked * g;
+    let mut d: Vec<f64> = (0..stacked.nrows() / 3)
+        .map(|i| {
+            (0..3)
+                .map(|r| bg.row(3 * i + r).dot(&stacked.row(3 * i + r)))
+                .sum()
+        })
+        .collect();
+    let at: f64 = chosen.iter().map(|&i| d[i]).sum::<f64>() / count as f64;
+    d.sort_by(|a, b| b.total_cmp(a));
+    let top: f64 = d.iter().take(count).sum::<f64>() / count as f64;
+    ((phi + at - top) / count as f64).max(0.0)
+}
+
 /// The identification's Jacobians of the pool, of further poses (the random comparison)
 /// and of the poses measured before, over the parameters identifiable on all of them
 /// together, in one scaling; and what the criteria weigh.
@@ -1134,18 +1174,18 @@ pub fn select_prepared(
             .map_or(f64::INFINITY, |m_inv| (l * m_inv).trace())
     };
     let mean_variance = trace(&prepared.workspace);
-    let i_bound = variance_bound(&stacked, &prepared.workspace, options.count, &prepared.base);
+    let bound = |l: &DMatrix<f64>| {
+        variance_bound(&stacked, l, options.count, &prepared.base).max(capped_bound(
+            &stacked,
+            l,
+            &prepared.base,
+            &chosen,
+        ))
+    };
+    let i_bound = bound(&prepared.workspace);
     let (criterion_value, criterion_bound) = match options.criterion {
         Criterion::D | Criterion::I => (mean_variance, i_bound),
-        other => (
-            trace(&weight),
-            variance_bound(
-                &stacked,
-                &prepared.weight(other),
-                options.count,
-                &prepared.base,
-            ),
-        ),
+        other => (trace(&weight), bound(&prepared.weight(other))),
     };
     Selection {
         log_det: log_det(&m),
@@ -1324,12 +1364,19 @@ pub fn plan(
     )?;
     let positions =
         |poses: &[PlannedPose]| -> Vec<[f64; 3]> { poses.iter().map(|c| c.position_mm).collect() };
+    // The field over the pool and the first random set: the selection weighs the pool's
+    // candidates; the random set is conditioned on apart, for the comparison.
+    let random_n = options.count.min(random.len());
     let field_prior = prior.and_then(|p| p.field.as_ref());
     let mut field = match field_prior {
-        Some(f) => Some(FieldVariance::new(f, &positions(&pool))?),
+        Some(f) => {
+            let mut at = positions(&pool);
+            at.extend(positions(&random[..random_n]));
+            Some(FieldVariance::new(f, &at)?)
+        }
         None => None,
     };
-    let field_before = field.as_ref().map(|f| mean(&f.variance_mm2()));
+    let before = field.clone();
     let Selection {
         chosen,
         parameters,
@@ -1339,39 +1386,19 @@ pub fn plan(
         criterion_value,
         criterion_bound,
     } = select_prepared(options, &pool, &prepared, field.as_mut(), advance);
-    let field_variance_mm2 = match (field_before, field_prior) {
-        (Some(before), Some(f)) => {
-            // The same field conditioned on the first random set instead, over the pool.
-            let mut with_random = FieldVariance::new(
-                &FieldPrior {
-                    positions_mm: f
-                        .positions_mm
-                        .iter()
-                        .copied()
-                        .chain(random.iter().take(options.count).map(|c| c.position_mm))
-                        .collect(),
-                    residuals_mm: f
-                        .residuals_mm
-                        .iter()
-                        .copied()
-                        .chain(std::iter::repeat_n(
-                            [0.0; 3],
-                            options.count.min(random.len()),
-                        ))
-                        .collect(),
-                    kernels: f.kernels,
-                },
-                &positions(&pool),
-            );
-            let planned = field.as_ref().map(|f| mean(&f.variance_mm2()));
-            let random = with_random
-                .as_mut()
-                .map(|f| mean(&f.variance_mm2()))
-                .unwrap_or(f64::NAN);
-            planned.map(|p| [before, p, random])
-        }
-        _ => None,
-    };
+    let field_variance_mm2 = before.map(|before| {
+        let over_pool = |f: &FieldVariance| mean(&f.variance_mm2()[..pool.len()]);
+        let conditioned = |indices: &mut dyn Iterator<Item = usize>| {
+            let mut f = before.clone();
+            indices.for_each(|i| f.take(i));
+            over_pool(&f)
+        };
+        [
+            over_pool(&before),
+            conditioned(&mut chosen.iter().copied()),
+            conditioned(&mut (pool.len()..pool.len() + random_n)),
+        ]
+    });
     let planned_blocks: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &prepared.pool[i]).collect();
     let planned_figures = prepared.figures(&planned_blocks);
     let random_figures: Vec<SetFigures> = if random.len() == random_count {
@@ -1707,7 +1734,7 @@ mod tests {
         let some: Vec<&DMatrix<f64>> = blocks.iter().step_by(7).take(40).collect();
         let m = information(&some, k, 1e-3);
         let m_inv = m.clone().try_inverse().unwrap();
-        for criterion in [Criterion::D, Criterion::I] {
+        for criterion in [Criterion::D, Criterion::I, Criterion::A, Criterion::Ia] {
             let design = Design::new(criterion, &workspace, &stacked, m_inv.clone());
             let gains = design.gains();
             assert_eq!(gains.len(), blocks.len());
@@ -1810,6 +1837,189 @@ mod tests {
         assert!(
             matches!(e, PlanError::TooFewCandidates { found: 0, .. }),
             "{e}"
+        );
+    }
+
+    /// The random poses compared with are drawn from the same workspace apart from the
+    /// pool (none of them a candidate), as many as planned and twice as many, and their
+    /// figures are those of their own information over the pool's workspace.
+    #[test]
+    fn the_random_comparison_is_drawn_apart_from_the_pool() {
+        let robot = ur5();
+        let o = options(15, 150);
+        let p = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        assert_eq!(
+            p.random.iter().map(|f| f.poses).collect::<Vec<_>>(),
+            [15, 30]
+        );
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let random = candidates_from(
+            &robot,
+            &PlanOptions {
+                pool: 30,
+                count: 30,
+                ..o.clone()
+            },
+            RANDOM_STREAM,
+            &|_| {},
+        )
+        .unwrap()
+        .0;
+        assert!(random
+            .iter()
+            .all(|r| pool.iter().all(|c| c.joints != r.joints)));
+        // Recomputed outright: the mean prediction variance of the first 15 random poses
+        // over the pool, with the same parameters and scaling.
+        let prepared = Prepared::new(&robot, &pool, &random, &[], o.rank_tolerance).unwrap();
+        let first: Vec<&DMatrix<f64>> = prepared.extra.iter().take(15).collect();
+        let m_inv = with_blocks(prepared.base.clone(), &first)
+            .try_inverse()
+            .unwrap();
+        let direct = (&prepared.workspace * m_inv).trace();
+        let reported = p.random[0].mean_variance;
+        assert!(
+            (direct - reported).abs() < 1e-9 * direct,
+            "{direct} vs {reported}"
+        );
+        // More poses, less variance; and the plan's figures are its own.
+        assert!(p.random[1].mean_variance < p.random[0].mean_variance);
+        assert!((p.planned.mean_variance - p.mean_variance).abs() < 1e-9 * p.mean_variance);
+        assert!(p.planned.observability.is_some());
+    }
+
+    /// The A criterion's weight is the parameters' variances in mm and mrad: its trace
+    /// against `M⁻¹` is the mean squared error of the lengths plus that of the angles,
+    /// computed from the physical Jacobian outright.
+    #[test]
+    fn the_parameter_variance_is_in_millimetres_and_milliradians() {
+        let robot = ur5();
+        let o = options(5, 200);
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let prepared = Prepared::new(&robot, &pool, &[], &[], 1e-3).unwrap();
+        let some: Vec<&DMatrix<f64>> = prepared.pool.iter().take(60).collect();
+        let figures = prepared.figures(&some);
+        // The physical Jacobian (mm per mm, mm per mrad).
+        let k = prepared.parameters.len();
+        let mut j = DMatrix::zeros(3 * some.len(), k);
+        for (i, b) in some.iter().enumerate() {
+            j.rows_mut(3 * i, 3).copy_from(b);
+        }
+        for (c, f) in prepared.display.iter().enumerate() {
+            j.column_mut(c).scale_mut(*f);
+        }
+        // The ridge, as the scaled information has it: `ridge · I` there is
+        // `ridge · D²` here.
+        let ridge = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+            k,
+            prepared.display.iter().map(|f| prepared.ridge * f * f),
+        ));
+        let covariance = (j.transpose() * &j + ridge).try_inverse().unwrap();
+        let group = |length: bool| {
+            let cols: Vec<usize> = (0..k)
+                .filter(|&c| prepared.parameters[c].is_length() == length)
+                .collect();
+            cols.iter().map(|&c| covariance[(c, c)]).sum::<f64>() / cols.len() as f64
+        };
+        let direct = group(true) + group(false);
+        assert!(
+            (figures.parameter_variance - direct).abs() < 1e-4 * direct,
+            "{} vs {direct}",
+            figures.parameter_variance
+        );
+    }
+
+    /// A plan that continues from poses measured already adds what they lack: its poses
+    /// with them have a lower mean prediction variance than as many random poses with
+    /// them, and its bound counts them.
+    #[test]
+    fn a_plan_continues_from_the_poses_measured_already() {
+        let robot = ur5();
+        let first = plan(&robot, &options(12, 150), &|_, _| {}, &|_| {}).unwrap();
+        let o = PlanOptions {
+            seed: 9,
+            prior: Some(Prior {
+                joints: first.poses.iter().map(|p| p.joints.clone()).collect(),
+                positions_mm: first.poses.iter().map(|p| p.position_mm).collect(),
+                field: None,
+            }),
+            ..options(12, 150)
+        };
+        let second = plan(&robot, &o, &|_, _| {}, &|_| {}).unwrap();
+        assert_eq!(second.planned.poses, 24);
+        assert_eq!(second.random[0].poses, 24);
+        assert!(
+            second.planned.mean_variance < second.random[0].mean_variance,
+            "{} vs {}",
+            second.planned.mean_variance,
+            second.random[0].mean_variance
+        );
+        assert!(second.variance_bound <= second.mean_variance);
+        // Without the measured poses the same candidates give a plan of 12 alone.
+        let alone = plan(
+            &robot,
+            &PlanOptions {
+                prior: None,
+                ..o.clone()
+            },
+            &|_, _| {},
+            &|_| {},
+        )
+        .unwrap();
+        assert!(alone.mean_variance > second.mean_variance);
+        let mut bad = o;
+        bad.prior.as_mut().unwrap().joints[0].pop();
+        let e = check(&robot, &bad).unwrap_err();
+        assert!(e.to_string().contains("joint values"), "{e}");
+    }
+
+    /// Both bounds hold for every choice: on a pool of 12 candidates, no 9 of them (all
+    /// 220 choices tried) have a mean prediction variance below the bound the plan
+    /// reports, and the bound is at most the plan's own value.
+    #[test]
+    fn the_bounds_hold_for_every_choice_of_distinct_poses() {
+        let robot = ur5();
+        let o = PlanOptions {
+            coverage_weight: 0.0,
+            ..options(9, 12)
+        };
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let prepared = Prepared::new(&robot, &pool, &[], &[], o.rank_tolerance).unwrap();
+        let s = select_prepared(&o, &pool, &prepared, None, &|_| {});
+        let variance = |chosen: &[usize]| {
+            let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &prepared.pool[i]).collect();
+            (&prepared.workspace
+                * with_blocks(prepared.base.clone(), &picked)
+                    .try_inverse()
+                    .unwrap())
+            .trace()
+        };
+        // Every choice of 9 of 12 leaves out 3.
+        let mut best = f64::INFINITY;
+        for a in 0..12 {
+            for b in a + 1..12 {
+                for c in b + 1..12 {
+                    let chosen: Vec<usize> =
+                        (0..12).filter(|&i| i != a && i != b && i != c).collect();
+                    best = best.min(variance(&chosen));
+                }
+            }
+        }
+        assert!(
+            s.variance_bound <= best * (1.0 + 1e-9),
+            "{} vs {best}",
+            s.variance_bound
+        );
+        assert!(s.mean_variance >= best * (1.0 - 1e-9));
+        assert!(s.variance_bound <= s.mean_variance);
+        let k = prepared.parameters.len();
+        let mut stacked = DMatrix::zeros(36, k);
+        for (i, b) in prepared.pool.iter().enumerate() {
+            stacked.rows_mut(3 * i, 3).copy_from(b);
+        }
+        let capped = capped_bound(&stacked, &prepared.workspace, &prepared.base, &s.chosen);
+        assert!(
+            capped >= 0.0 && capped <= best * (1.0 + 1e-9),
+            "{capped} vs {best}"
         );
     }
 }
