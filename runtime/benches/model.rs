@@ -13,7 +13,9 @@
 //!   orientations computes it (chains folded at open, shared `sin_cos`);
 //! - `model/at_position`: the model part without the orientation error and with a
 //!   calibrated chain without compliance, as a query of the UR5 table built from the
-//!   shipped measurements computes it (both chains walked together from the tool back).
+//!   shipped measurements computes it (both chains walked together from the tool back);
+//! - `model/at_rigid`: the same chains with the orientation error, as every query of that
+//!   table computes them (both TCP frames, point and two axes, in one walk).
 //!
 //! Run: `cargo bench -p adwi-runtime --bench model`. Under `cargo test` it runs once in
 //! criterion's test mode.
@@ -101,6 +103,9 @@ fn bench(c: &mut Criterion) {
     group.bench_function("at_position", |b| {
         b.iter(|| rigid.at_position(black_box(next())))
     });
+    // The same chains with the orientation error, as every hybrid query of that table
+    // computes them (both TCP frames in one walk from the tool back).
+    group.bench_function("at_rigid", |b| b.iter(|| rigid.at(black_box(next()))));
     group.finish();
 }
 
