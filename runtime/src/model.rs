@@ -32,12 +32,14 @@
 //! This module evaluates the model part: everything here is allocation-free and panic-free.
 //! A query's costs, on top of the ordinary query ([`crate::Table::query_with_joints`]): one
 //! sine and cosine per joint, shared by both chains, two joints at a time
-//! ([`crate::trig::sin_cos_each`]); then, for a table without orientations whose calibrated
-//! chain has no gravity compliance, one walk of both chains together from the tool back to
-//! the base, a point a joint (and the nominal approach axis) ([`PreparedModel::at_position`]);
-//! otherwise one pass down each chain, folded at open (constant parts multiplied out:
-//! `FoldedChain` in [`crate::chain`]), the gravity deflection by turning the calibrated TCP
-//! about each joint's axis, and a 3 × 3 logarithm when the table has orientations.
+//! ([`crate::trig::sin_cos_each`]); then, when the calibrated chain has no gravity
+//! compliance, one walk of both chains together from the tool back to the base, the TCP's
+//! point, approach axis and x axis a joint (`ReachPair::walk_posed` in [`crate::chain`]),
+//! and the orientation error from the two frames' columns by asin's series (every hybrid
+//! answer carries it; [`PreparedModel::at_position`] walks the point and the approach axis
+//! alone); otherwise one pass down each chain, folded at open (constant parts multiplied
+//! out: `FoldedChain` in [`crate::chain`]), the gravity deflection by turning the calibrated
+//! TCP about each joint's axis, and a 3 × 3 logarithm.
 //! [`PreparedModel::error`] and the others evaluate the chains joint by joint, as the
 //! compiler fits the residuals with them; the query path is held to them to 4e-12 mm
 //! (joints within half a turn of zero; beyond, the chains' own rounding of each angle
