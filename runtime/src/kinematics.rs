@@ -1,10 +1,11 @@
 //! Forward kinematics of a serial robot in the MD-H convention (Hayati-modified
 //! Denavit-Hartenberg), on plain `f64` arrays.
 //!
-//! This lives in the runtime, not only in the compiler, so that a calibrated kinematic model
-//! can be evaluated inside the allocation-free query path with the very same code the
-//! compiler uses to simulate and identify it: one forward kinematics, never two that drift.
-//! Nothing here allocates or panics.
+//! The link transform and [`forward`], the plain product of link transforms, are the one
+//! geometry the compiler simulates and identifies with and the runtime's model is built
+//! from. The served query walks its chain with its own fast form (`chain`, position and
+//! rotation in one pass), which its tests hold equal to [`forward`], the slow, obvious
+//! reference. Nothing here allocates or panics.
 //!
 //! The link transform of joint `i` is
 //!
@@ -54,50 +55,6 @@ impl MdhJoint {
             self.alpha_rad.sin_cos(),
             self.beta_rad.sin_cos(),
             (q_rad + self.theta_offset_rad).sin_cos(),
-        )
-    }
-
-    /// The joint with the sines and cosines of its constant angles computed once, for
-    /// callers that evaluate it at many joint values (a hybrid table's queries).
-    pub fn prepare(&self) -> PreparedJoint {
-        PreparedJoint {
-            a_mm: self.a_mm,
-            d_mm: self.d_mm,
-            sin_cos_alpha: self.alpha_rad.sin_cos(),
-            sin_cos_beta: self.beta_rad.sin_cos(),
-            sin_cos_theta_offset: self.theta_offset_rad.sin_cos(),
-        }
-    }
-}
-
-/// An [`MdhJoint`] with the sines and cosines of α, β and the θ offset precomputed: a link
-/// transform then costs one `sin_cos` (of the joint variable) instead of four.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PreparedJoint {
-    /// Link length `a`, mm.
-    pub a_mm: f64,
-    /// Link offset `d`, mm.
-    pub d_mm: f64,
-    /// `(sin α, cos α)`.
-    pub sin_cos_alpha: (f64, f64),
-    /// `(sin β, cos β)`.
-    pub sin_cos_beta: (f64, f64),
-    /// `(sin θ_offset, cos θ_offset)`.
-    pub sin_cos_theta_offset: (f64, f64),
-}
-
-impl PreparedJoint {
-    /// The link transform at joint variable `q`, given `(sin q, cos q)`: the offset is added
-    /// by the angle-addition formulas.
-    #[inline]
-    pub fn transform(&self, (sin_q, cos_q): (f64, f64)) -> Transform {
-        let (so, co) = self.sin_cos_theta_offset;
-        link_transform(
-            self.a_mm,
-            self.d_mm,
-            self.sin_cos_alpha,
-            self.sin_cos_beta,
-            (sin_q * co + cos_q * so, cos_q * co - sin_q * so),
         )
     }
 }
@@ -222,22 +179,6 @@ pub fn forward<const N: usize>(
     let mut pose = Transform::IDENTITY;
     for (joint, &q) in joints.iter().zip(q_rad) {
         pose = pose.compose(&joint.transform(q));
-    }
-    pose.compose(tool)
-}
-
-/// As [`forward`], for prepared joints and the sines and cosines of the joint variables
-/// (`sin_cos_q[i] = q_i.sin_cos()`): evaluating two models at the same joint angles then
-/// takes one set of `sin_cos`.
-#[inline]
-pub fn forward_prepared<const N: usize>(
-    joints: &[PreparedJoint; N],
-    tool: &Transform,
-    sin_cos_q: &[(f64, f64); N],
-) -> Transform {
-    let mut pose = Transform::IDENTITY;
-    for (joint, &sc) in joints.iter().zip(sin_cos_q) {
-        pose = pose.compose(&joint.transform(sc));
     }
     pose.compose(tool)
 }
@@ -504,24 +445,6 @@ mod tests {
         let z = flange.rotate_vector([0.0, 0.0, 1.0]);
         let expected = [0, 1, 2].map(|i| flange.translation_mm[i] + 100.0 * z[i]);
         assert_close(tcp.translation_mm, expected, 1e-9);
-    }
-
-    #[test]
-    fn prepared_joints_agree_with_the_direct_transform() {
-        let mut joints = kr150();
-        joints[1].theta_offset_rad = -0.3;
-        joints[2].beta_rad = 2e-4;
-        let q = [0.1, -0.7, 2.2, 0.3, -0.4, 1.1];
-        let direct = forward(&joints, &Transform::IDENTITY, &q);
-        let prepared = forward_prepared(
-            &joints.map(|j| j.prepare()),
-            &Transform::IDENTITY,
-            &q.map(f64::sin_cos),
-        );
-        for i in 0..3 {
-            assert_close(prepared.rotation[i], direct.rotation[i], 1e-15);
-        }
-        assert_close(prepared.translation_mm, direct.translation_mm, 1e-11);
     }
 
     #[test]
