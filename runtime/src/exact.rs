@@ -64,6 +64,38 @@ fn candidates_at<'a>(
     source.candidates(cell).ok_or(Status::NoAdmissibleNeighbour)
 }
 
+/// Asks the processor to bring the candidate record of the cell holding `position_mm`
+/// (a version-2 table) into its cache without waiting for it: a hybrid query of the exact
+/// tier calls this before its model part, whose arithmetic then hides the memory's
+/// latency (the records of a fine grid are megabytes, read at random). Reads nothing and
+/// changes no answer; a hint only, and none on other architectures than x86-64.
+#[inline]
+pub(crate) fn prefetch(data: &v2::ArchivedTableData, header: &Header, position_mm: [f64; 3]) {
+    let Some(cell) = header.grid.cell_of(position_mm) else {
+        return;
+    };
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let at = |first: *const i8, len: usize| {
+            // SAFETY: a prefetch is a hint that reads nothing architecturally and never
+            // faults, whatever the address; these bytes are the record's anyway. SSE, which
+            // the instruction needs, is part of x86-64.
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(first);
+                _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(len.saturating_sub(1)));
+            }
+        };
+        if let Some(record) = data.cells.get(cell) {
+            at(record.as_ptr().cast(), std::mem::size_of_val(record));
+        } else if let Some(record) = data.cells_wide.get(cell) {
+            at(record.as_ptr().cast(), std::mem::size_of_val(record));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (data, cell);
+}
+
 /// The `k` nearest admissible samples for `target` among `candidates`, with the
 /// joint-space screen when the table has one and `joints_rad` is given. Returned by value
 /// and not inside a `Result`, so that it is built in place rather than copied.

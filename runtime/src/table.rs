@@ -666,6 +666,12 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             _ => None,
         };
+        // Likewise the exact tier's candidate record.
+        if let (Payload::V2(d), Tier::Exact, None, Some(_)) =
+            (payload, tier, target.tcp_mm, &self.model)
+        {
+            exact::prefetch(d, h, target.position_mm);
+        }
         // A hybrid table's model at the joint values, once: its pose error, the approach
         // axis a field turning with the tool needs and the evidence check reads, where the
         // joints put the nominal TCP, and, for a named TCP, where the table's point is
