@@ -36,8 +36,12 @@ type V3 = Vector3<f64>;
 /// refused with their count before any is read (split them per path).
 pub const MAX_STREAM_ROWS: u64 = 2_000_000;
 
-/// The most segments a command file may hold.
-pub const MAX_COMMAND_ROWS: u64 = 100_000;
+/// The most rows a command file may hold.
+pub const MAX_COMMAND_ROWS: u64 = 10_000;
+
+/// The most segments of one path: the standard's have one to four; a point is tracked
+/// along the path by projecting it on the segments near its predecessor's, at most these.
+pub const MAX_SEGMENTS: usize = 1_000;
 
 /// The cycles the standard asks for per path characteristic.
 pub const ISO_PATH_CYCLES: usize = 10;
@@ -318,22 +322,31 @@ impl CommandPath {
         corners.iter().any(|c| (s - c.s).abs() <= c.zone)
     }
 
-    /// The arc length of `p`'s nearest point on the path within `window` mm of `s_prev`
-    /// (or anywhere, when none is), and its distance.
+    /// The arc length of `p`'s nearest point on the segments within `window` mm of
+    /// `s_prev` (preferring a point itself within the window), and its distance. Only those
+    /// segments are looked at, so that a point costs a few projections, not one per segment.
     fn track(&self, p: &V3, s_prev: f64, window: f64) -> (f64, f64) {
+        let lo = self
+            .starts_mm
+            .partition_point(|&a| a < s_prev - window)
+            .saturating_sub(1);
+        let hi = self
+            .starts_mm
+            .partition_point(|&a| a <= s_prev + window)
+            .max(lo + 1);
         let mut best: Option<(f64, f64)> = None;
-        let mut anywhere: Option<(f64, f64)> = None;
-        for (seg, start) in self.segments.iter().zip(&self.starts_mm) {
+        let mut near: Option<(f64, f64)> = None;
+        for (seg, start) in self.segments[lo..hi].iter().zip(&self.starts_mm[lo..hi]) {
             let (s, d) = seg.geometry.project(p);
             let s = s + start;
-            if anywhere.is_none_or(|(_, e)| d < e) {
-                anywhere = Some((s, d));
+            if near.is_none_or(|(_, e)| d < e) {
+                near = Some((s, d));
             }
             if (s - s_prev).abs() <= window && best.is_none_or(|(_, e)| d < e) {
                 best = Some((s, d));
             }
         }
-        best.or(anywhere).expect("a path has a segment")
+        best.or(near).expect("a path has a segment")
     }
 
     /// The arc length of each point, tracked from the path's start.
@@ -600,6 +613,11 @@ pub fn parse_command(bytes: impl Read, file: &str) -> Result<Vec<CommandPath>, P
         };
         if geometry.length() < 1e-6 {
             return Err(row_error("the segment has no length".into()));
+        }
+        if current.segments.len() == MAX_SEGMENTS {
+            return Err(row_error(format!(
+                "path '{name}' has more than {MAX_SEGMENTS} segments"
+            )));
         }
         let speed_mm_s = match speed_col {
             Some(i) if !record.get(i).unwrap_or("").is_empty() => {

@@ -298,3 +298,58 @@ fn the_speed_on_a_small_circle_is_not_read_slow_from_the_chord() {
     let v = c.velocity.unwrap();
     assert!(v.av_percent.abs() < 0.01, "{v:?}");
 }
+
+/// Bytes that matter to the stream and command readers, and some that do not.
+const ALPHABET: &[u8] = b"0123456789.-+eE,#\" \t\r\nxyztpathkindlinearcstartvcycle\xff\x00";
+
+/// Mutates `text` at the places and with the bytes drawn.
+fn mutate(text: &str, mutations: &[(f64, u8, usize)]) -> Vec<u8> {
+    let mut bytes = text.as_bytes().to_vec();
+    for &(at, op, b) in mutations {
+        let i = ((at * bytes.len() as f64) as usize).min(bytes.len());
+        match op {
+            0 if i < bytes.len() => bytes[i] = ALPHABET[b],
+            1 => bytes.insert(i, ALPHABET[b]),
+            _ if i < bytes.len() => {
+                bytes.remove(i);
+            }
+            _ => {}
+        }
+    }
+    bytes
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+
+    /// Streams and commands mutated byte by byte: reduced, or refused with a reason; never
+    /// a panic, never a non-finite figure.
+    #[test]
+    fn hostile_streams_and_commands_are_refused_or_give_finite_figures(
+        stream_mutations in proptest::collection::vec((0.0..1.0f64, 0..3u8, 0..ALPHABET.len()), 0..6),
+        command_mutations in proptest::collection::vec((0.0..1.0f64, 0..3u8, 0..ALPHABET.len()), 0..4),
+    ) {
+        let command = "path,kind,x,y,z,vx,vy,vz,speed\n\
+            r,start,1000,0,1000,,,,\n\
+            r,line,1100,0,1000,,,,100\n\
+            r,arc,1100,100,1000,1150,50,1000,100\n\
+            r,line,1000,0,1000,,,,100\n";
+        // The stream of the command as written; the reduction against the mutated one.
+        let original = parse_command(command.as_bytes(), "c.csv").unwrap();
+        let sim = Simulation { rate_hz: 50.0, dwell_s: 0.3, ..quiet(2) };
+        let text = simulated_stream(&original[0], &sim);
+        let Ok(commands) = parse_command(&mutate(command, &command_mutations)[..], "c.csv") else {
+            return Ok(());
+        };
+        let Ok(stream) = parse_stream(&mutate(&text, &stream_mutations)[..], "s.csv") else {
+            return Ok(());
+        };
+        let Ok(measured) = measured_paths(&stream, &commands) else {
+            return Ok(());
+        };
+        if let Ok(report) = characteristics(&measured) {
+            let json = serde_json::to_string(&report).unwrap_or_default();
+            proptest::prop_assert!(!json.contains("NaN") && !json.contains("inf") && !json.contains("null,"), "{}", json);
+        }
+    }
+}
