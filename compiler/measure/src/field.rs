@@ -195,7 +195,7 @@ impl FieldVariance {
         let candidates = &self.candidates;
         for c in &mut self.components {
             let denominator = c.variance[index] + c.noise_mm2;
-            if !(denominator > 0.0) {
+            if denominator.is_nan() || denominator <= 0.0 {
                 continue;
             }
             let z_at = c.z.column(index).into_owned();

@@ -850,7 +850,7 @@ fn variance_bound(
             break;
         }
         let total_d: f64 = mean;
-        if !(total_d > 0.0) {
+        if total_d.is_nan() || total_d <= 0.0 {
             break;
         }
         for (x, di) in xi.iter_mut().zip(&d) {

@@ -702,6 +702,10 @@ pub fn design_jacobians(
         .map(|(parameters, blocks, _)| (parameters, blocks))
 }
 
+/// The parameters, their position Jacobian blocks and each column's scale
+/// ([`design_jacobians_scaled`]).
+pub type ScaledDesign = (Vec<Parameter>, Vec<DMatrix<f64>>, Vec<f64>);
+
 /// [`design_jacobians`], with each kept column's scale: a block's column is the physical
 /// derivative (mm per mm, mm per rad) times its scale, so that a design can weigh the
 /// parameters in their own units too.
@@ -713,7 +717,7 @@ pub fn design_jacobians_scaled(
     robot: &Robot,
     joints: &[Vec<f64>],
     rank_tolerance: f64,
-) -> Result<(Vec<Parameter>, Vec<DMatrix<f64>>, Vec<f64>), CalibrateError> {
+) -> Result<ScaledDesign, CalibrateError> {
     if let Some(q) = joints.iter().find(|q| q.len() != robot.joint_count()) {
         return Err(CalibrateError::JointCount {
             robot: robot.joint_count(),
