@@ -80,6 +80,36 @@ def test_the_ur5_hybrid_program_and_its_frames(ur5_hybrid_table, tmp_path):
         adwi.compensate_program(ur5_hybrid_table, PROGRAMS / "pick.script")
 
 
+def test_a_yaskawa_job_in_its_tool_files_user_frames_and_pulses_matches_tablec(
+    tablec, kr150_table, tmp_path
+):
+    robot = KR150 / "robot.toml"
+    pulses = [1456.356, 1456.356, 1350.0, 910.222, 910.222, 555.556]
+    done = adwi.compensate_program(
+        kr150_table,
+        PROGRAMS / "bracket.jbi",
+        robot=robot,
+        yaskawa_tools={1: [0, 0, 180, 0, 0, 0]},
+        yaskawa_users={1: [1600, 250, 750, 0, 0, 30]},
+        yaskawa_pulses_per_deg=pulses,
+    )
+    cli_out = tmp_path / "cli-bracket.jbi"
+    run = subprocess.run(
+        [tablec, "compensate", kr150_table, PROGRAMS / "bracket.jbi", "-o", cli_out,
+         "--robot", robot, "--yaskawa-tool", "1=0,0,180,0,0,0",
+         "--yaskawa-user", "1=1600,250,750,0,0,30",
+         "--yaskawa-pulses-per-deg", ",".join(str(p) for p in pulses)],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 3, run.stderr
+    assert cli_out.read_bytes() == done.output
+    assert done.summary["text"] in run.stdout
+    assert (done.summary["corrected"], done.summary["total"]) == (9, 15)
+    statuses = {t["name"]: t["status"] for t in done.targets}
+    assert statuses["C00000"] == "ok" and statuses["C00010"] == "frame_unknown"
+
+
 def test_refusals(kr150_table, tmp_path):
     bad = tmp_path / "bad.src"
     bad.write_bytes(b"DEF bad( )\r\nLIN {X 1500,Y 2oo,Z 1200}\r\nEND\r\n")
