@@ -594,8 +594,98 @@ struct Table {
     path: PathBuf,
 }
 
+/// The rows of a batch, checked and copied while the GIL is held (no other thread can
+/// change them while they are answered).
+struct BatchRows {
+    positions: Vec<[f64; 3]>,
+    config: Option<Vec<Option<u8>>>,
+    /// Values per row and the values, radians.
+    joints: Option<(usize, Vec<f64>)>,
+}
+
+impl BatchRows {
+    fn of<'py>(
+        table: &RuntimeTable<memmap2::Mmap>,
+        points: &PyReadonlyArray2<'py, f64>,
+        joints: Option<&PyReadonlyArray2<'py, f64>>,
+        config: Option<&PyReadonlyArray1<'py, i64>>,
+        joints_deg: bool,
+    ) -> PyResult<BatchRows> {
+        let p = points.as_array();
+        if p.ncols() != 3 {
+            return Err(AdwiError::new_err(format!(
+                "points must be an (N, 3) array of positions, mm; its shape is {:?}",
+                p.shape()
+            )));
+        }
+        let n = p.nrows();
+        let positions = p.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+        let joints = match joints {
+            Some(j) => {
+                let j = j.as_array();
+                if j.nrows() != n {
+                    return Err(AdwiError::new_err(format!(
+                        "joints has {} rows, points {n}",
+                        j.nrows()
+                    )));
+                }
+                if let Some(count) = table.joint_count() {
+                    if j.ncols() != count {
+                        return Err(AdwiError::new_err(format!(
+                            "joints must have the robot's {count} joint values per row, J1..J{count}; {} given",
+                            j.ncols()
+                        )));
+                    }
+                }
+                // Degrees to radians by `f64::to_radians`, as `tablec query --joints`
+                // (the reader's factor gives the same bits).
+                let values = j
+                    .iter()
+                    .map(|&v| if joints_deg { v.to_radians() } else { v })
+                    .collect();
+                Some((j.ncols(), values))
+            }
+            None => None,
+        };
+        let config = match config {
+            Some(c) => {
+                let c = c.as_array();
+                if c.len() != n {
+                    return Err(AdwiError::new_err(format!(
+                        "config has {} values, points {n} rows",
+                        c.len()
+                    )));
+                }
+                let mut out = Vec::with_capacity(n);
+                for &v in c.iter() {
+                    out.push(match v {
+                        v if v < 0 => None,
+                        v if v <= 254 => Some(v as u8),
+                        v => {
+                            return Err(AdwiError::new_err(format!(
+                                "configuration {v} out of range: 0 to 254, or negative for unknown"
+                            )))
+                        }
+                    });
+                }
+                Some(out)
+            }
+            None => None,
+        };
+        Ok(BatchRows {
+            positions,
+            config,
+            joints,
+        })
+    }
+}
+
 /// Per-row results of a batch, flat.
 struct Batch {
+    /// Whether the answers carry orientation errors.
+    with_orientation: bool,
+    /// Whether the commands were asked for.
+    with_commands: bool,
     error: Vec<f64>,
     orientation: Vec<f64>,
     neighbours: Vec<u32>,
@@ -607,6 +697,106 @@ struct Batch {
     command_status: Vec<u8>,
     iterations: Vec<u32>,
     residual: Vec<f64>,
+}
+
+impl Batch {
+    /// Every row answered as `tablec query --targets` answers it ([`adwi_jobs::query::answer`]).
+    fn answer(
+        table: &RuntimeTable<memmap2::Mmap>,
+        rows: &BatchRows,
+        exact: bool,
+        fixed_point: Option<FixedPoint>,
+        tcp: Option<[f64; 3]>,
+    ) -> Batch {
+        let n = rows.positions.len();
+        let orientation = adwi_jobs::query::answers_orientation(table);
+        let compensate = fixed_point.is_some();
+        let rows_of = |on: bool, len: usize| if on { vec![f64::NAN; len] } else { Vec::new() };
+        let mut b = Batch {
+            with_orientation: orientation,
+            with_commands: compensate,
+            error: vec![f64::NAN; 3 * n],
+            orientation: rows_of(orientation, 3 * n),
+            neighbours: vec![0; n],
+            status: vec![0; n],
+            residual_flag: vec![NO_RESIDUAL; n],
+            evidence: vec![0; n],
+            command: rows_of(compensate, 3 * n),
+            command_rotation: rows_of(compensate && orientation, 3 * n),
+            command_status: if compensate {
+                vec![NO_COMMAND; n]
+            } else {
+                Vec::new()
+            },
+            iterations: if compensate { vec![0; n] } else { Vec::new() },
+            residual: rows_of(compensate, n),
+        };
+        for (i, position) in rows.positions.iter().enumerate() {
+            let target = Target {
+                position_mm: *position,
+                config: rows.config.as_ref().and_then(|c| c[i]),
+                rotation_rad: None,
+                tcp_mm: tcp,
+            };
+            let q = rows.joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
+            let (c, cmd) = adwi_jobs::query::answer(table, &target, q, exact, fixed_point);
+            b.neighbours[i] = c.neighbours;
+            b.status[i] = c.status as u8;
+            if c.status != Status::Ok {
+                continue;
+            }
+            b.residual_flag[i] = c.residual as u8;
+            b.evidence[i] = c.evidence.0;
+            b.error[3 * i..3 * i + 3].copy_from_slice(&c.position_error_mm);
+            if orientation {
+                b.orientation[3 * i..3 * i + 3].copy_from_slice(&c.orientation_error_rad);
+            }
+            if let Some(cmd) = cmd {
+                b.command[3 * i..3 * i + 3].copy_from_slice(&cmd.position_mm);
+                if orientation {
+                    b.command_rotation[3 * i..3 * i + 3].copy_from_slice(&cmd.rotation_rad);
+                }
+                b.command_status[i] = cmd.status.code();
+                b.iterations[i] = cmd.iterations;
+                b.residual[i] = cmd.fixed_point_residual_mm.unwrap_or(f64::NAN);
+            }
+        }
+        b
+    }
+
+    /// The arrays as the Python side reads them (`adwi.Answer`).
+    fn into_dict(self, py: Python<'_>, n: usize) -> PyResult<Bound<'_, PyDict>> {
+        let d = PyDict::new(py);
+        let orientation = self.with_orientation;
+        d.set_item("error_mm", matrix(py, self.error, n)?)?;
+        d.set_item(
+            "orientation_rad",
+            if orientation {
+                Some(matrix(py, self.orientation, n)?)
+            } else {
+                None
+            },
+        )?;
+        d.set_item("neighbours", vector(py, self.neighbours))?;
+        d.set_item("status_code", vector(py, self.status))?;
+        d.set_item("residual_code", vector(py, self.residual_flag))?;
+        d.set_item("evidence_code", vector(py, self.evidence))?;
+        if self.with_commands {
+            d.set_item("command_mm", matrix(py, self.command, n)?)?;
+            d.set_item(
+                "command_rotation_rad",
+                if orientation {
+                    Some(matrix(py, self.command_rotation, n)?)
+                } else {
+                    None
+                },
+            )?;
+            d.set_item("command_status_code", vector(py, self.command_status))?;
+            d.set_item("iterations", vector(py, self.iterations))?;
+            d.set_item("residual_mm", vector(py, self.residual))?;
+        }
+        Ok(d)
+    }
 }
 
 fn matrix<'py>(py: Python<'py>, values: Vec<f64>, n: usize) -> PyResult<PyObject> {
@@ -744,163 +934,21 @@ impl Table {
                 )));
             }
         }
-        let p = points.as_array();
-        if p.ncols() != 3 {
-            return Err(AdwiError::new_err(format!(
-                "points must be an (N, 3) array of positions, mm; its shape is {:?}",
-                p.shape()
-            )));
-        }
-        let n = p.nrows();
-        // Copied while the GIL is held: no other thread can change them during the loop.
-        let positions: Vec<[f64; 3]> = p.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-        let joints: Option<(usize, Vec<f64>)> = match &joints {
-            Some(j) => {
-                let j = j.as_array();
-                if j.nrows() != n {
-                    return Err(AdwiError::new_err(format!(
-                        "joints has {} rows, points {n}",
-                        j.nrows()
-                    )));
-                }
-                if let Some(count) = self.table.joint_count() {
-                    if j.ncols() != count {
-                        return Err(AdwiError::new_err(format!(
-                            "joints must have the robot's {count} joint values per row, J1..J{count}; {} given",
-                            j.ncols()
-                        )));
-                    }
-                }
-                // Degrees to radians by `f64::to_radians`, as `tablec query --joints`
-                // (the reader's factor gives the same bits).
-                let values = j
-                    .iter()
-                    .map(|&v| if joints_deg { v.to_radians() } else { v })
-                    .collect();
-                Some((j.ncols(), values))
-            }
-            None => None,
-        };
-        let config: Option<Vec<Option<u8>>> = match &config {
-            Some(c) => {
-                let c = c.as_array();
-                if c.len() != n {
-                    return Err(AdwiError::new_err(format!(
-                        "config has {} values, points {n} rows",
-                        c.len()
-                    )));
-                }
-                let mut out = Vec::with_capacity(n);
-                for &v in c.iter() {
-                    out.push(match v {
-                        v if v < 0 => None,
-                        v if v <= 254 => Some(v as u8),
-                        v => {
-                            return Err(AdwiError::new_err(format!(
-                                "configuration {v} out of range: 0 to 254, or negative for unknown"
-                            )))
-                        }
-                    });
-                }
-                Some(out)
-            }
-            None => None,
-        };
         let fixed_point = if compensate {
             Some(FixedPoint::new(tolerance_mm, max_iterations).map_err(adwi_error)?)
         } else {
             None
         };
-        let table = &self.table;
-        let orientation = adwi_jobs::query::answers_orientation(table);
-        let batch = py.allow_threads(|| {
-            let mut b = Batch {
-                error: vec![f64::NAN; 3 * n],
-                orientation: if orientation {
-                    vec![f64::NAN; 3 * n]
-                } else {
-                    Vec::new()
-                },
-                neighbours: vec![0; n],
-                status: vec![0; n],
-                residual_flag: vec![NO_RESIDUAL; n],
-                evidence: vec![0; n],
-                command: Vec::new(),
-                command_rotation: Vec::new(),
-                command_status: Vec::new(),
-                iterations: Vec::new(),
-                residual: Vec::new(),
-            };
-            if compensate {
-                b.command = vec![f64::NAN; 3 * n];
-                if orientation {
-                    b.command_rotation = vec![f64::NAN; 3 * n];
-                }
-                b.command_status = vec![NO_COMMAND; n];
-                b.iterations = vec![0; n];
-                b.residual = vec![f64::NAN; n];
-            }
-            for (i, position) in positions.iter().enumerate() {
-                let target = Target {
-                    position_mm: *position,
-                    config: config.as_ref().and_then(|c| c[i]),
-                    rotation_rad: None,
-                    tcp_mm: tcp,
-                };
-                let q = joints.as_ref().map(|(m, v)| &v[i * m..(i + 1) * m]);
-                let (c, cmd) = adwi_jobs::query::answer(table, &target, q, exact, fixed_point);
-                b.neighbours[i] = c.neighbours;
-                b.status[i] = c.status as u8;
-                if c.status != Status::Ok {
-                    continue;
-                }
-                b.residual_flag[i] = c.residual as u8;
-                b.evidence[i] = c.evidence.0;
-                b.error[3 * i..3 * i + 3].copy_from_slice(&c.position_error_mm);
-                if orientation {
-                    b.orientation[3 * i..3 * i + 3].copy_from_slice(&c.orientation_error_rad);
-                }
-                if let Some(cmd) = cmd {
-                    b.command[3 * i..3 * i + 3].copy_from_slice(&cmd.position_mm);
-                    if orientation {
-                        b.command_rotation[3 * i..3 * i + 3].copy_from_slice(&cmd.rotation_rad);
-                    }
-                    b.command_status[i] = cmd.status.code();
-                    b.iterations[i] = cmd.iterations;
-                    b.residual[i] = cmd.fixed_point_residual_mm.unwrap_or(f64::NAN);
-                }
-            }
-            b
-        });
-        let d = PyDict::new(py);
-        d.set_item("error_mm", matrix(py, batch.error, n)?)?;
-        d.set_item(
-            "orientation_rad",
-            if orientation {
-                Some(matrix(py, batch.orientation, n)?)
-            } else {
-                None
-            },
+        let rows = BatchRows::of(
+            &self.table,
+            &points,
+            joints.as_ref(),
+            config.as_ref(),
+            joints_deg,
         )?;
-        d.set_item("neighbours", vector(py, batch.neighbours))?;
-        d.set_item("status_code", vector(py, batch.status))?;
-        d.set_item("residual_code", vector(py, batch.residual_flag))?;
-        d.set_item("evidence_code", vector(py, batch.evidence))?;
-        if compensate {
-            d.set_item("command_mm", matrix(py, batch.command, n)?)?;
-            d.set_item(
-                "command_rotation_rad",
-                if orientation {
-                    Some(matrix(py, batch.command_rotation, n)?)
-                } else {
-                    None
-                },
-            )?;
-            d.set_item("command_status_code", vector(py, batch.command_status))?;
-            d.set_item("iterations", vector(py, batch.iterations))?;
-            d.set_item("residual_mm", vector(py, batch.residual))?;
-        }
-        Ok(d)
+        let table = &self.table;
+        let batch = py.allow_threads(|| Batch::answer(table, &rows, exact, fixed_point, tcp));
+        batch.into_dict(py, rows.positions.len())
     }
 
     fn __repr__(&self) -> String {
