@@ -15,6 +15,7 @@ mod hostile_csv;
 mod hostile_inputs;
 mod implausible_samples;
 mod iso9283_path;
+mod joint_terms;
 mod latency_guard;
 mod no_alloc;
 mod options_first;

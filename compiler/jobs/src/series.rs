@@ -16,10 +16,11 @@
 //! transforms, towards their joint least-squares fit).
 
 use adwi_robot::agreement;
-use adwi_robot::calibrate::{identify, CalibrateOptions};
+use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::measured::{MeasuredError, Registered};
 use adwi_robot::register::{register_moved, Registration};
 use adwi_robot::Robot;
+use adwi_runtime::joint_terms::JointTerms;
 use adwi_samples::{check_series, ColumnMap, Measurements, ReadOptions, SampleSet, SeriesRows};
 
 use crate::inputs::Source;
@@ -133,7 +134,7 @@ pub(crate) fn read(
         measurements,
         first_samples,
     };
-    let (others, sets) = later.register_each(&registered, &registered.robot)?;
+    let (others, sets) = later.register_each(&registered, &registered.robot, &JointTerms::NONE)?;
     for ((name, m), set) in later.names.iter().zip(&later.measurements).zip(&sets[1..]) {
         agreement::check_registered(&registered.file_robot, m, set, name)?;
     }
@@ -200,25 +201,26 @@ impl Series {
         // The first series' own calibration: what the others are registered to first, so
         // that no series' misregistration has yet leaked into the model.
         let first = identify(&registered.robot, &later.first_samples, calibrate)?;
-        (self.others, self.samples) = later.register(registered, first.calibrated_robot())?;
+        (self.others, self.samples) = later.register(registered, &first)?;
         for _ in 0..REFINEMENTS {
             let calibration = identify(&registered.robot, &self.samples, calibrate)?;
-            (self.others, self.samples) =
-                later.register(registered, calibration.calibrated_robot())?;
+            (self.others, self.samples) = later.register(registered, &calibration)?;
         }
         Ok(())
     }
 }
 
 impl Later {
-    /// The later series registered to `model` (the probe the first series'): their
-    /// transforms, and every series' samples together.
+    /// The later series registered to the model `calibration` identified (the probe the
+    /// first series'; the TCP its joint-space terms move too): their transforms, and
+    /// every series' samples together.
     fn register(
         &self,
         first: &Registered,
-        model: &Robot,
+        model: &Calibration,
     ) -> Result<(Vec<Registration>, SampleSet), JobError> {
-        let (registrations, sets) = self.register_each(first, model)?;
+        let (registrations, sets) =
+            self.register_each(first, model.calibrated_robot(), model.joint_terms())?;
         Ok((registrations, concat(sets)?))
     }
 
@@ -227,6 +229,7 @@ impl Later {
         &self,
         first: &Registered,
         model: &Robot,
+        terms: &JointTerms,
     ) -> Result<(Vec<Registration>, Vec<SampleSet>), JobError> {
         let mut sets = vec![self.first_samples.clone()];
         let mut registrations = Vec::new();
@@ -235,12 +238,35 @@ impl Later {
                 path: name.clone(),
                 source,
             };
-            let r = register_moved(&first.registration, model, m).map_err(failed)?;
+            let r = register_moved(&first.registration, model, &moved_by_terms(m, terms))
+                .map_err(failed)?;
             sets.push(r.to_samples(&first.file_robot, m).map_err(failed)?);
             registrations.push(r);
         }
         Ok((registrations, sets))
     }
+}
+
+/// `m` with its joints where the joint-space terms `terms` move them: what a model with
+/// terms stands at (the measurements themselves when it has none).
+fn moved_by_terms<'a>(
+    m: &'a Measurements,
+    terms: &JointTerms,
+) -> std::borrow::Cow<'a, Measurements> {
+    if terms.is_none() {
+        return std::borrow::Cow::Borrowed(m);
+    }
+    let n = m.joints.count();
+    let mut joints = adwi_samples::Joints::new(n);
+    for q in m.joints.rows() {
+        match terms.joints(q) {
+            Some(moved) => joints.push(&moved[..n]),
+            None => joints.push(q),
+        }
+    }
+    let mut moved = m.clone();
+    moved.joints = joints;
+    std::borrow::Cow::Owned(moved)
 }
 
 fn concat(sets: Vec<SampleSet>) -> Result<SampleSet, JobError> {

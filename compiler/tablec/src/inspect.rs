@@ -77,6 +77,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
+    if let Some(terms) = table
+        .model()
+        .map(|m| m.joint_terms())
+        .filter(|t| !t.is_none())
+    {
+        let n = table.joint_count().unwrap_or(0);
+        for (j, (c, [lo, hi])) in terms.coefficients_rad[..n]
+            .iter()
+            .zip(terms.range_rad)
+            .enumerate()
+            .filter(|(_, (c, _))| c.iter().any(|&v| v != 0.0))
+        {
+            println!(
+                "joint terms     joint {}: {:+.4} sin q {:+.4} cos q {:+.4} sin 2q {:+.4} cos 2q mrad, held beyond [{:.1}, {:.1}]°",
+                j + 1,
+                c[0] * 1e3,
+                c[1] * 1e3,
+                c[2] * 1e3,
+                c[3] * 1e3,
+                lo.to_degrees(),
+                hi.to_degrees()
+            );
+        }
+    }
     print_evidence(&h.evidence, h.version);
     println!("method          {}", crate::describe_method(&h.method));
     match h.tuning {

@@ -1,0 +1,138 @@
+//! Joint-space terms end to end: a hybrid table whose model has them is format version 5,
+//! opens, and answers with its model's terms from both tiers; the committed version-5
+//! fixture (`tables/compat/v5/`) gives its recorded answers.
+
+use std::path::{Path, PathBuf};
+
+use adwi_runtime::format::{CONTENT_JOINT_TERMS, CONTENT_MODEL};
+use adwi_runtime::{Status, Table, Target};
+use adwi_samples::{read_samples, ColumnMap};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
+                       j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
+
+/// `tables/compat/v5/README.md`'s answers at the first three random UR5 poses: served
+/// position error, exact position error (mm), orientation error (rad).
+const V5_ANSWERS: [([f64; 3], [f64; 3], [f64; 3]); 3] = [
+    (
+        [-2.436734916, -0.390571989, -0.675120641],
+        [-2.425876347, -0.410141247, -0.677008046],
+        [0.010603301, 0.004822871, 0.001168579],
+    ),
+    (
+        [-2.639977496, -0.070398894, -0.696099140],
+        [-2.639653291, -0.041591150, -0.723128726],
+        [0.010368814, 0.005758638, -0.000038137],
+    ),
+    (
+        [-2.489707849, -0.245725413, -0.524019117],
+        [-2.495394645, -0.242277981, -0.508036170],
+        [0.008752342, 0.008916288, 0.002087621],
+    ),
+];
+
+/// The version-5 fixture opens, carries joint-space terms (joints 1, 2, 4 and 5), and
+/// gives its recorded answers from both tiers; its model part is the prepared model's
+/// error with the terms, which differs from the chains' without them.
+#[test]
+fn the_version_5_table_opens_and_gives_its_recorded_answers() {
+    let path = root().join("tables/compat/v5/ur5_hybrid_terms.tbl");
+    // SAFETY: a committed fixture, not modified while the test runs.
+    let table = unsafe { Table::open(&path) }.unwrap();
+    let h = table.header();
+    assert_eq!(h.version, 5);
+    assert_ne!(h.content_flags & CONTENT_JOINT_TERMS, 0);
+    assert_ne!(h.content_flags & CONTENT_MODEL, 0);
+    let model = table.model().unwrap();
+    let terms = model.joint_terms();
+    assert!(!terms.is_none());
+    let points = read_samples(
+        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
+        &ColumnMap::parse(UR5_MAP).unwrap(),
+    )
+    .unwrap();
+    for (i, (served, exact, rotation)) in V5_ANSWERS.iter().enumerate() {
+        let q = points.joints_rad(i).unwrap();
+        let target = Target::at(points.nominal_mm[i]);
+        let s = table.query_with_joints(&target, q);
+        let e = table.exact().query_with_joints(&target, q);
+        assert_eq!((s.status, e.status), (Status::Ok, Status::Ok), "pose {i}");
+        for a in 0..3 {
+            // Recorded to 9 decimals.
+            assert!(
+                (s.position_error_mm[a] - served[a]).abs() < 1e-9,
+                "pose {i}: {s:?}"
+            );
+            assert!(
+                (e.position_error_mm[a] - exact[a]).abs() < 1e-9,
+                "pose {i}: {e:?}"
+            );
+            let r = s.orientation_error_rad;
+            assert!((r[a] - rotation[a]).abs() < 1e-9, "pose {i}: {s:?}");
+        }
+        // The query's model part is the prepared model's (with the terms) to the query
+        // path's rounding, and the terms change it.
+        let at = model.at(q).unwrap();
+        let (position, _) = model.error(q).unwrap();
+        let without =
+            adwi_runtime::model::PreparedModel::new(*model.nominal(), *model.calibrated())
+                .unwrap()
+                .error(q)
+                .unwrap()
+                .0;
+        let moved: f64 = (0..3)
+            .map(|a| (position[a] - without[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            moved > 1e-3,
+            "pose {i}: the terms move the model by {moved} mm"
+        );
+        for a in 0..3 {
+            assert!((at.position_mm[a] - position[a]).abs() < 1e-9);
+        }
+    }
+}
+
+/// Built without terms, a hybrid table is written as before (version 4, no flag); with
+/// `--harmonics 1` it is version 5 and its answers differ by the terms.
+#[test]
+fn only_a_model_with_terms_makes_a_version_5_table() {
+    let dir = std::env::temp_dir().join(format!("adwi-joint-terms-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let samples = root().join("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
+    let robot = root().join("tables/ur5/robot.toml");
+    let mut versions = Vec::new();
+    for harmonics in ["0", "1"] {
+        let out = dir.join(format!("h{harmonics}.tbl"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
+            .args([
+                "build",
+                "--quiet",
+                "--cell",
+                "100",
+                "--served-field",
+                "method",
+            ])
+            .args(["--posture", "off", "--harmonics", harmonics, "-o"])
+            .arg(&out)
+            .arg(&samples)
+            .args(["--columns", UR5_MAP, "--robot"])
+            .arg(&robot)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let table = Table::from_vec(std::fs::read(&out).unwrap()).unwrap();
+        versions.push((
+            table.header().version,
+            table.header().content_flags & CONTENT_JOINT_TERMS != 0,
+            table.model().unwrap().joint_terms().is_none(),
+        ));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(versions, [(4, false, true), (5, true, false)]);
+}
