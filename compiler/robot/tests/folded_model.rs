@@ -170,6 +170,33 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// A calibrated chain without gravity compliance, as the shipped UR5 measurements
+    /// identify it: both chains' TCP frames come from one walk from the tool back, and the
+    /// orientation error from their columns by asin's series (`ReachPair::walk_posed`),
+    /// held to the chains as the compliant case is, rotations to 4e-15 rad.
+    #[test]
+    fn the_rigid_model_walked_from_the_tool_back_equals_the_chains(
+        which in 0..ROBOTS.len(),
+        small in proptest::collection::vec(proptest::array::uniform6(-1.0..1.0f64), 14),
+        fractions in proptest::collection::vec(0.0..=1.0f64, 7),
+    ) {
+        let (robot, model, q) = model_and_joints(which, &small, &fractions, true);
+        let mut rigid = *model.calibrated();
+        rigid.compliance = None;
+        let model = PreparedModel::new(*robot.chain(), rigid).expect("equal joint counts");
+        let (mm, rad) = difference(&model, &q).expect("one value per joint");
+        prop_assert!(mm <= ROUNDING_MM && rad <= 4e-15, "{:?} at {q:?}: {mm} mm, {rad}", ROBOTS[which]);
+        // The frames' rotation too, which a named TCP's lever turns.
+        let fast = model.at(&q).expect("one value per joint").nominal_rotation.expect("with the rotation");
+        let reference = model_at_by_chains(&model, &q).expect("one value per joint").nominal_rotation.expect("with the rotation");
+        let off = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| (fast[i][j] - reference[i][j]).abs()).fold(0.0, f64::max);
+        prop_assert!(off <= 4e-15, "{:?}: rotation off by {off}", ROBOTS[which]);
+    }
+}
+
 /// The gravity deflection is really exercised: the calibrated chain of a robot with masses
 /// deflects by more than the tolerance the fast path is held to, by many orders.
 #[test]
