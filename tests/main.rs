@@ -20,6 +20,7 @@ mod latency_guard;
 mod no_alloc;
 mod options_first;
 mod outputs;
+mod plan_rounds;
 mod posture;
 mod programs;
 mod programs_fanuc;
