@@ -218,60 +218,10 @@ fn kr150_yaskawa_positions_land_at_the_torch_in_their_frames_and_the_rest_are_na
     );
     // Read back: each corrected position's written numbers, in its frames, land at the
     // torch's tip on the target by the table's own model.
-    let read = |bytes: &[u8]| {
-        adwi_programs::yaskawa::read(&Source::new("b.jbi", bytes), &job.options().yaskawa).unwrap()
-    };
-    let before = read(&std::fs::read(&program).unwrap());
-    let after = read(&done.output);
-    let table_tool = Isometry3::identity();
-    let mut worst_tcp: f64 = 0.0;
-    let mut worst_point: f64 = 0.0;
-    let mut worst_exact: f64 = 0.0;
-    let mut off: f64 = f64::INFINITY;
-    let mut largest: f64 = 0.0;
-    let mut checked = 0;
-    for ((b, a), line) in before
-        .targets
-        .iter()
-        .zip(&after.targets)
-        .zip(&done.report.targets)
-    {
-        if line.status.as_str() != "ok" {
-            continue;
-        }
-        let u = &b.uses[0];
-        let chain = FrameChain {
-            base: u.base.unwrap(),
-            tool: u.tool.unwrap(),
-            table_tool,
-        };
-        let target = written_pose(b);
-        let (tcp, point) = landing(
-            &table,
-            &chain,
-            &written_pose(a),
-            &target,
-            line.point_mm.unwrap(),
-        );
-        let (uncompensated, _) = landing(&table, &chain, &target, &target, line.point_mm.unwrap());
-        // The command before the controller's rounding: the fixed point itself.
-        let command = Vector3::from(line.command_mm.unwrap());
-        let answer = table.query(command.into());
-        let exact_gap = (command + Vector3::from(answer.position_error_mm)
-            - Vector3::from(line.point_mm.unwrap()))
-        .norm();
-        worst_exact = worst_exact.max(exact_gap);
-        worst_tcp = worst_tcp.max(tcp);
-        worst_point = worst_point.max(point);
-        off = off.min(uncompensated);
-        largest = largest.max(line.correction_mm.unwrap());
-        checked += 1;
-    }
-    assert_eq!(checked, 8);
-    eprintln!(
-        "bracket.jbi: {}; at the torch by the table's model: {off:.3} mm or more uncompensated, at most {worst_tcp:.2e} mm compensated; |C + e(C) - P| at most {worst_exact:.2e} mm for the command, {worst_point:.2e} mm as written; largest correction {largest:.4} mm",
-        done.report.summary()
-    );
+    let l = landings(&table, &job, &done, &program);
+    assert_eq!(l.checked, 8);
+    eprintln!("bracket.jbi: {}; {l}", done.report.summary());
+    let (worst_exact, worst_tcp, worst_point, off) = (l.exact, l.tcp, l.written, l.uncompensated);
     // The controller's resolution: 0.001 mm and 0.0001° (a 180 mm torch turns 0.0001° into
     // 3e-4 mm), rounded to the half.
     assert!(worst_exact <= 1e-4, "{worst_exact}");
@@ -299,6 +249,100 @@ fn kr150_yaskawa_positions_land_at_the_torch_in_their_frames_and_the_rest_are_na
             assert_eq!(decimals, if k < 3 { 3 } else { 4 }, "{w}");
         }
     }
+}
+
+/// What the table's own model makes of a job's corrected positions, read back from the
+/// written job through each position's frames.
+struct Landings {
+    checked: usize,
+    /// The largest distance of the torch from its target, uncompensated (the least of them).
+    uncompensated: f64,
+    /// The largest distance of the torch from its target, as written.
+    tcp: f64,
+    /// The largest |C + e(C) − P| at the table's point, for the command as written and for
+    /// the fixed point's command before rounding.
+    written: f64,
+    exact: f64,
+    largest: f64,
+}
+
+impl std::fmt::Display for Landings {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "{} positions: at the torch by the table's model {:.3} mm or more uncompensated, at most {:.2e} mm compensated; |C + e(C) - P| at most {:.2e} mm for the command, {:.2e} mm as written; largest correction {:.4} mm",
+            self.checked, self.uncompensated, self.tcp, self.exact, self.written, self.largest
+        )
+    }
+}
+
+fn landings(
+    table: &adwi_runtime::Table<adwi_runtime::AlignedBytes>,
+    job: &CompensateJob,
+    done: &adwi_programs::Compensated,
+    program: &Path,
+) -> Landings {
+    let read = |bytes: &[u8]| {
+        adwi_programs::yaskawa::read(&Source::new("b.jbi", bytes), &job.options().yaskawa).unwrap()
+    };
+    let before = read(&std::fs::read(program).unwrap());
+    let after = read(&done.output);
+    let mut l = Landings {
+        checked: 0,
+        uncompensated: f64::INFINITY,
+        tcp: 0.0,
+        written: 0.0,
+        exact: 0.0,
+        largest: 0.0,
+    };
+    for ((b, a), line) in before
+        .targets
+        .iter()
+        .zip(&after.targets)
+        .zip(&done.report.targets)
+    {
+        if line.status.as_str() != "ok" || !matches!(b.kind, TargetKind::Cartesian(_)) {
+            continue;
+        }
+        let u = &b.uses[0];
+        let chain = FrameChain {
+            base: u.base.unwrap(),
+            tool: u.tool.unwrap(),
+            table_tool: Isometry3::identity(),
+        };
+        let target = written_pose(b);
+        let point = line.point_mm.unwrap();
+        let (tcp, gap) = landing(table, &chain, &written_pose(a), &target, point);
+        let (uncompensated, _) = landing(table, &chain, &target, &target, point);
+        // The command before the controller's rounding: the fixed point itself.
+        let command = Vector3::from(line.command_mm.unwrap());
+        let answer = table.query(command.into());
+        let exact =
+            (command + Vector3::from(answer.position_error_mm) - Vector3::from(point)).norm();
+        l.exact = l.exact.max(exact);
+        l.tcp = l.tcp.max(tcp);
+        l.written = l.written.max(gap);
+        l.uncompensated = l.uncompensated.min(uncompensated);
+        l.largest = l.largest.max(line.correction_mm.unwrap());
+        l.checked += 1;
+    }
+    l
+}
+
+#[test]
+fn kr150_generated_trace_lands_at_the_torch_in_its_user_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let table_path = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = adwi_runtime::Table::from_vec(std::fs::read(&table_path).unwrap()).unwrap();
+    let program = fixture("trace.jbi");
+    let job = CompensateJob::new(options(&table_path, &program)).unwrap();
+    let done = job.run().unwrap();
+    let l = landings(&table, &job, &done, &program);
+    eprintln!("trace.jbi: {}; {l}", done.report.summary());
+    assert_eq!(l.checked, 41);
+    assert!(l.exact <= 1e-4, "{l}");
+    assert!(l.tcp <= 1.5e-3 && l.written <= 1.5e-3, "{l}");
+    assert!(l.uncompensated > 1.0, "{l}");
 }
 
 #[test]
