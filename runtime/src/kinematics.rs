@@ -255,9 +255,9 @@ fn exp_coefficients(theta2: f64) -> (f64, f64) {
     }
 }
 
-/// `a × b`.
+/// `a × b`: the one cross product of the runtime.
 #[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],

@@ -43,6 +43,7 @@
 //! whose error disagrees most with the prediction and recomputes, until it holds; dropped
 //! neighbours are not replaced by farther ones.
 
+use crate::kinematics::cross;
 use std::mem::MaybeUninit;
 
 /// The largest neighbour count `k` a table may use; selections are fixed-size arrays.
@@ -880,15 +881,6 @@ pub fn predict(
 #[inline]
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 #[inline]
