@@ -211,11 +211,15 @@ def plan(
     orientation_tolerance: float = 15.0,
     coverage: float = 0.3,
     criterion: str = "i",
+    measured: Optional[Sequence[PathLike]] = None,
+    table: Optional[PathLike] = None,
     exchange_passes: int = 2,
     rank_tol: float = 0.001,
     threads: Optional[int] = None,
 ) -> Dict[str, Any]:
-    """Plan the poses to measure, as tablec plan, and write them to output."""
+    """Plan the poses to measure, as tablec plan, and write them to output; the dict
+    carries the plan's figures and those of random poses from the same workspace
+    ("planned", "random": poses, mean_variance, parameter_variance, observability)."""
 
 def iso9283(
     measurements: Optional[PathLike] = None,

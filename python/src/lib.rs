@@ -1155,6 +1155,16 @@ fn plan<'py>(
     d.set_item("log_det", p.log_det)?;
     d.set_item("mean_variance", p.mean_variance)?;
     d.set_item("variance_bound", p.variance_bound)?;
+    d.set_item("criterion_value", p.criterion_value)?;
+    d.set_item("criterion_bound", p.criterion_bound)?;
+    d.set_item("planned", pythonize::pythonize(py, &p.planned)?)?;
+    let random = p
+        .random
+        .iter()
+        .map(|f| pythonize::pythonize(py, f))
+        .collect::<Result<Vec<_>, _>>()?;
+    d.set_item("random", random)?;
+    d.set_item("field_variance_mm2", p.field_variance_mm2)?;
     d.set_item("min_distance_mm", p.min_distance_mm)?;
     d.set_item("path_travel", p.path_travel)?;
     d.set_item("written", vec![planned.output.display().to_string()])?;
