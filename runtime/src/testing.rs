@@ -44,7 +44,15 @@ pub fn repair_header(bytes: &mut [u8]) {
     }
     bytes[0..8].copy_from_slice(&MAGIC);
     bytes[8..10].copy_from_slice(&ENDIAN_MARK.to_le_bytes());
-    bytes[10..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    // The newest version of the payload the content flags name: version 5 holds
+    // joint-space terms, and only it; version 4 any other payload.
+    let flags = u32::from_le_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
+    let version = if flags & crate::format::CONTENT_JOINT_TERMS != 0 {
+        FORMAT_VERSION
+    } else {
+        4
+    };
+    bytes[10..12].copy_from_slice(&version.to_le_bytes());
     bytes[12..16].copy_from_slice(&(HEADER_LEN as u32).to_le_bytes());
     bytes[16..20].copy_from_slice(&RKYV_FLAGS.to_le_bytes());
     reseal(bytes);
