@@ -92,8 +92,8 @@ fn the_version_5_table_opens_and_gives_its_recorded_answers() {
             moved > 1e-3,
             "pose {i}: the terms move the model by {moved} mm"
         );
-        for a in 0..3 {
-            assert!((at.position_mm[a] - position[a]).abs() < 1e-9);
+        for (query, exact) in at.position_mm.iter().zip(position) {
+            assert!((query - exact).abs() < 1e-9, "pose {i}: {query} vs {exact}");
         }
     }
 }
