@@ -134,7 +134,9 @@ pub struct CompensateJob {
     kinematics: Option<Kinematics>,
     /// Per target, its frame chains (one per distinct use; none for joint targets), or why
     /// its frames are not known.
-    chains: Vec<Result<Vec<FrameChain>, correct::Failure>>,
+    /// A target's list is shared with the target before it when the two are the same (a
+    /// long program's targets mostly are): one list, not one each.
+    chains: Vec<Result<std::sync::Arc<[FrameChain]>, correct::Failure>>,
     /// The program and the report, checked before any work.
     outputs: adwi_compile::write::OutputPlan,
     /// Whether the reader saw the program's motions (a KRL data list read without its
@@ -389,7 +391,7 @@ impl CompensateJob {
         let limit = limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX));
         let mut arcs = Vec::new();
         let mut work_offsets = Vec::new();
-        let program = {
+        let mut program = {
             let src = Source::new(&name, &bytes);
             crate::bounds::check_line_lengths(&src)?;
             match format {
@@ -422,6 +424,9 @@ impl CompensateJob {
                 Format::Fanuc => crate::fanuc::read_at_most(&src, &fanuc, limit)?,
             }
         };
+        // A growing list reserves up to twice what it holds: the targets are kept to the run's
+        // end.
+        program.targets.shrink_to_fit();
         if let Some(at) = program.truncated_at {
             let targets = program.targets.len();
             if targets as u64 > memory_targets {
@@ -497,6 +502,7 @@ impl CompensateJob {
         let frame_unknown =
             |why: String| Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why));
         let mut chains = Vec::with_capacity(program.targets.len());
+        let mut last: Option<std::sync::Arc<[FrameChain]>> = None;
         // A G-code target's work offset, by its number.
         let work_offset = |index: usize| {
             let number = work_offsets.get(index)?;
@@ -586,10 +592,19 @@ impl CompensateJob {
                     }
                 }
             }
-            // Most targets have one chain: not the four a growing list reserves (some 500
-            // bytes a target).
-            list.shrink_to_fit();
-            chains.push(Ok(list));
+            // The list of the target before, when it is the same: a long program's targets
+            // take no list each (168 bytes a chain).
+            let same = match &last {
+                Some(l) => {
+                    let l: &[FrameChain] = l;
+                    l.len() == list.len() && l.iter().zip(&list).all(|(a, b)| same_chain(a, b))
+                }
+                None => false,
+            };
+            if !same {
+                last = Some(std::sync::Arc::from(list));
+            }
+            chains.push(Ok(last.clone().expect("a list")));
         }
         let seconds = cost * program.targets.len() as f64;
         if seconds > o.max_seconds {
@@ -640,9 +655,35 @@ impl CompensateJob {
     /// [`Error::NotAllCorrected`] when the job is strict and some target was not
     /// corrected.
     pub fn run(&self) -> Result<Compensated, Error> {
+        // The output written as the targets are corrected, when their replacements come in
+        // the file's order (every reader's targets do, in practice); else, again, with
+        // every replacement kept and sorted.
+        match self.run_with(true)? {
+            Some(done) => Ok(done),
+            None => Ok(self
+                .run_with(false)?
+                .expect("a run that keeps its replacements always finishes")),
+        }
+    }
+
+    /// [`CompensateJob::run`]: `streaming`, the output written as the targets come, `None`
+    /// when a replacement comes before one written already.
+    fn run_with(&self, streaming: bool) -> Result<Option<Compensated>, Error> {
         let src = Source::new(&self.name, &self.bytes);
-        // Every target's replacements, their texts one after the other in `texts`: a few
-        // dozen bytes a number rather than a string each.
+        // Streaming: the output so far, and the byte of the program it has reached.
+        let mut output: Vec<u8> = Vec::new();
+        let mut at = 0;
+        if streaming {
+            // A rewritten target grows by some 27 bytes (a G-code block's A, B, C from `0.` to
+            // `6.030297`): reserved once, not grown by doubling.
+            output.reserve_exact(
+                self.bytes
+                    .len()
+                    .saturating_add(self.program.targets.len().saturating_mul(32)),
+            );
+        }
+        // Else every target's replacements, their texts one after the other in `texts`: a
+        // few dozen bytes a number rather than a string each.
         let mut edits: Vec<((usize, usize), std::ops::Range<usize>)> = Vec::new();
         let mut texts = String::new();
         let mut report = Report::default();
@@ -653,9 +694,15 @@ impl CompensateJob {
             .map_or_else(Vec::new, |k| k.robot().home().to_vec());
         // A G-code program's: where each target's block leaves the tool in the compensated
         // program (mm, its frame), and the numbers rewritten (their first byte).
+        // Only the ends an arc starts from are kept, by target, and the bytes as u32 (a
+        // program has at most 2^30): a long program's few bytes a target.
         let gcode = self.program.format == Format::Gcode;
-        let mut ends: Vec<Option<[f64; 3]>> = Vec::new();
-        let mut rewritten: Vec<usize> = Vec::new();
+        let mut arc_starts: Vec<usize> =
+            self.arcs.iter().flatten().map(|a| a.start_target).collect();
+        arc_starts.sort_unstable();
+        arc_starts.dedup();
+        let mut ends: Vec<(usize, [f64; 3])> = Vec::new();
+        let mut rewritten: Vec<u32> = Vec::new();
         for (i, (target, chains)) in self.program.targets.iter().zip(&self.chains).enumerate() {
             let (line, column) = src.location(target.offset);
             let mut entry = TargetLine {
@@ -719,7 +766,7 @@ impl CompensateJob {
                 }
             });
             if gcode {
-                ends.push(match (&target.kind, &result) {
+                let end = match (&target.kind, &result) {
                     (TargetKind::Cartesian(c), Ok(edits)) => {
                         let mut end = c.position.map(|n| n.value);
                         let from = rewritten.len();
@@ -728,7 +775,7 @@ impl CompensateJob {
                                 end[k] = text.parse().unwrap_or(end[k]);
                             } else if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
                                 if abc.iter().any(|n| n.span.0 == *start) {
-                                    rewritten.push(*start);
+                                    rewritten.extend(u32::try_from(*start).ok());
                                 }
                             }
                         }
@@ -741,9 +788,29 @@ impl CompensateJob {
                         Some(c.position.map(|n| n.value * c.unit.mm()))
                     }
                     _ => None,
-                });
+                };
+                if let (Some(end), Ok(_)) = (end, arc_starts.binary_search(&i)) {
+                    ends.push((i, end));
+                }
             }
             match result {
+                Ok(mut new_edits) if streaming => {
+                    new_edits.sort_by_key(|(span, _)| span.0);
+                    for ((start, end), text) in new_edits {
+                        if start < at {
+                            return Ok(None);
+                        }
+                        // Grown an eighth at a time: a rewritten number is longer than the
+                        // written one, by an unknown share of the program.
+                        let more = start - at + text.len();
+                        if output.capacity() - output.len() < more {
+                            output.reserve_exact(more.max(output.capacity() / 8));
+                        }
+                        output.extend_from_slice(&self.bytes[at..start]);
+                        output.extend_from_slice(text.as_bytes());
+                        at = end;
+                    }
+                }
                 Ok(new_edits) => {
                     for (span, text) in new_edits {
                         let start = texts.len();
@@ -799,18 +866,19 @@ impl CompensateJob {
                 });
             }
         }
-        edits.sort_by_key(|(span, _)| span.0);
-        let mut output = Vec::with_capacity(self.bytes.len() + texts.len());
-        let mut at = 0;
-        for ((start, end), text) in edits {
-            debug_assert!(start >= at, "targets never overlap");
-            output.extend_from_slice(&self.bytes[at..start]);
-            output.extend_from_slice(&texts.as_bytes()[text]);
-            at = end;
+        if !streaming {
+            edits.sort_by_key(|(span, _)| span.0);
+            output.reserve_exact(self.bytes.len() + texts.len());
+            for ((start, end), text) in edits {
+                debug_assert!(start >= at, "targets never overlap");
+                output.extend_from_slice(&self.bytes[at..start]);
+                output.extend_from_slice(&texts.as_bytes()[text]);
+                at = end;
+            }
         }
         output.extend_from_slice(&self.bytes[at..]);
         report.program_xxh3 = Some(xxhash_rust::xxh3::xxh3_64(&output));
-        Ok(Compensated { output, report })
+        Ok(Some(Compensated { output, report }))
     }
 
     /// Writes the compensated program and the report where the options say, both or
@@ -1079,10 +1147,11 @@ struct GcodeBlock<'a> {
     chains: &'a [FrameChain],
     /// Its command's position, mm, its frame (when solved).
     end: Option<[f64; 3]>,
-    /// The targets before it: where each leaves the tool in the compensated program.
-    ends: &'a [Option<[f64; 3]>],
+    /// The targets before it that an arc starts from: where each leaves the tool in the
+    /// compensated program, by target, ascending.
+    ends: &'a [(usize, [f64; 3])],
     /// The first bytes of the A, B, C numbers rewritten so far, ascending.
-    rewritten: &'a [usize],
+    rewritten: &'a [u32],
 }
 
 impl CompensateJob {
@@ -1125,10 +1194,11 @@ impl CompensateJob {
                         entry.rotation_deg.unwrap_or(0.0)
                     ));
                 }
-                if abc
-                    .iter()
-                    .any(|n| elsewhere(n) && block.rewritten.binary_search(&n.span.0).is_ok())
-                {
+                if abc.iter().any(|n| {
+                    elsewhere(n)
+                        && u32::try_from(n.span.0)
+                            .is_ok_and(|s| block.rewritten.binary_search(&s).is_ok())
+                }) {
                     return incomplete(format!(
                         "A, B, C not written on this block: modal from line {line}, whose A, B, C the correction rewrote"
                     ));
@@ -1139,7 +1209,12 @@ impl CompensateJob {
             return Ok(edits);
         };
         let arc_refused = |why: String| Err((TargetStatus::Unaccounted(Reason::ArcTolerance), why));
-        let Some(start_out) = block.ends.get(arc.start_target).copied().flatten() else {
+        let start_out = block
+            .ends
+            .binary_search_by_key(&arc.start_target, |e| e.0)
+            .ok()
+            .map(|k| block.ends[k].1);
+        let Some(start_out) = start_out else {
             return arc_refused("its start's block was not read as a target".into());
         };
         let end_mm = c.position.map(|n| n.value * c.unit.mm());
