@@ -27,7 +27,23 @@
 
 use crate::kinematics::{MdhJoint, Transform};
 use crate::lanes::{Lanes, Pair};
-use crate::model::ModelAt;
+
+/// The model at one set of joint values ([`crate::model::PreparedModel::at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelAt {
+    /// The predicted position error, mm, base frame.
+    pub position_mm: [f64; 3],
+    /// The predicted orientation error (rotation vector), rad, base frame.
+    pub rotation_rad: [f64; 3],
+    /// The nominal TCP's approach axis, a unit vector, base frame.
+    pub approach: [f64; 3],
+    /// The nominal TCP's position, mm, base frame: where the controller puts the tool.
+    pub nominal_tcp_mm: [f64; 3],
+    /// The nominal TCP frame's rotation (row-major, its columns the frame's axes in the
+    /// base frame), when evaluated with the orientation; `None` from the position-only
+    /// walk.
+    pub nominal_rotation: Option<[[f64; 3]; 3]>,
+}
 
 /// The most joints a chain may have: robots with more axes than this are not served (the
 /// chain lives in fixed-size arrays, so that queries never allocate).

@@ -346,22 +346,8 @@ impl PreparedModel {
     }
 }
 
-/// The model at one set of joint values ([`PreparedModel::at`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ModelAt {
-    /// The predicted position error, mm, base frame.
-    pub position_mm: [f64; 3],
-    /// The predicted orientation error (rotation vector), rad, base frame.
-    pub rotation_rad: [f64; 3],
-    /// The nominal TCP's approach axis, a unit vector, base frame.
-    pub approach: [f64; 3],
-    /// The nominal TCP's position, mm, base frame: where the controller puts the tool.
-    pub nominal_tcp_mm: [f64; 3],
-    /// The nominal TCP frame's rotation (row-major, its columns the frame's axes in the
-    /// base frame), when evaluated with the orientation; `None` from the position-only
-    /// walk.
-    pub nominal_rotation: Option<[[f64; 3]; 3]>,
-}
+// The model's answer at joint values is defined beside the chain walk that makes it.
+pub use crate::chain::ModelAt;
 
 /// `a − b`, written out (an array's `map` is a call the compiler does not always inline,
 /// and this is on every hybrid query's path).
