@@ -8,9 +8,7 @@ use adwi_measure::iso9283::{
     characteristics_between, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error,
     Report, ISO_CYCLES,
 };
-use adwi_measure::path::{
-    self, read_command, read_stream, write_path_plan, MeasuredPath, PathReport,
-};
+use adwi_measure::path::{self, read_command, read_stream, MeasuredPath, PathReport};
 use adwi_runtime::Status;
 use serde::Deserialize;
 
@@ -356,84 +354,85 @@ impl Iso9283Job {
                 outputs,
             });
         }
-        let (work, outputs) =
-            match (&args.measurements, args.cube) {
-                (Some(_), Some(_)) | (None, None) => return Err(JobError::Options(
+        let (work, outputs) = match (&args.measurements, args.cube) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(JobError::Options(
                     "give the measured cycles (MEASUREMENTS.csv), a tracker stream (--path) or a \
                      cube to plan (--cube), one of them"
                         .into(),
-                )),
-                (None, Some([x, y, z, side])) => {
-                    if args.json.is_some()
-                        || args.table.is_some()
-                        || args.report.is_some()
-                        || !args.distance.is_empty()
-                    {
-                        return Err(JobError::Options(
+                ))
+            }
+            (None, Some([x, y, z, side])) => {
+                if args.json.is_some()
+                    || args.table.is_some()
+                    || args.report.is_some()
+                    || !args.distance.is_empty()
+                {
+                    return Err(JobError::Options(
                         "--cube writes a plan: --json, --table, --report and --distance report \
                          on measured cycles"
                             .into(),
                     ));
-                    }
-                    let Some(output) = &args.output else {
-                        return Err(JobError::option(
-                            "output",
-                            "--cube writes its plan there: give it",
-                        ));
-                    };
-                    if args.path_plan && args.cycles != ISO_CYCLES {
-                        return Err(JobError::option(
+                }
+                let Some(output) = &args.output else {
+                    return Err(JobError::option(
+                        "output",
+                        "--cube writes its plan there: give it",
+                    ));
+                };
+                if args.path_plan && args.cycles != ISO_CYCLES {
+                    return Err(JobError::option(
                         "cycles",
                         "repeats the pose plan; a path plan is run as many times as the test asks",
                     ));
-                    }
-                    let text = if args.path_plan {
-                        write_path_plan([x, y, z], side, args.abc, args.speed)
-                    } else {
-                        write_cube_plan([x, y, z], side, args.abc, args.cycles)
-                    }
-                    .map_err(|e| JobError::option("cube", e))?;
-                    (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
                 }
-                (Some(path), None) => {
-                    let plan_only = Iso9283Args::default();
-                    if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
-                        return Err(JobError::Options(
+                let text = if args.path_plan {
+                    adwi_measure::iso9283::write_path_plan([x, y, z], side, args.abc, args.speed)
+                } else {
+                    write_cube_plan([x, y, z], side, args.abc, args.cycles)
+                }
+                .map_err(|e| JobError::option("cube", e))?;
+                (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
+            }
+            (Some(path), None) => {
+                let plan_only = Iso9283Args::default();
+                if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
+                    return Err(JobError::Options(
                         "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
                          their own"
                             .into(),
                     ));
-                    }
-                    if args.output.is_some() {
-                        return Err(JobError::option(
+                }
+                if args.output.is_some() {
+                    return Err(JobError::option(
                         "output",
                         "writes a cube's plan (--cube); the report goes to standard output and \
                          --json",
                     ));
-                    }
-                    inputs.add(path);
-                    if let Some(t) = &args.table {
-                        inputs.add(t);
-                    }
-                    let mut outputs = OutputPlan::check(
-                        &args
-                            .json
-                            .iter()
-                            .map(PathBuf::as_path)
-                            .collect::<Vec<&Path>>(),
-                        &inputs.paths(),
-                    )?;
-                    if let Some(dir) = &args.report {
-                        outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
-                    }
-                    let rows = read_cycles(path).map_err(measure_error)?;
-                    let table = match &args.table {
-                        Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
-                        None => None,
-                    };
-                    (Work::Report { rows, table }, outputs)
                 }
-            };
+                inputs.add(path);
+                if let Some(t) = &args.table {
+                    inputs.add(t);
+                }
+                let mut outputs = OutputPlan::check(
+                    &args
+                        .json
+                        .iter()
+                        .map(PathBuf::as_path)
+                        .collect::<Vec<&Path>>(),
+                    &inputs.paths(),
+                )?;
+                if let Some(dir) = &args.report {
+                    outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
+                }
+                let rows = read_cycles(path).map_err(measure_error)?;
+                let table = match &args.table {
+                    Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
+                    None => None,
+                };
+                (Work::Report { rows, table }, outputs)
+            }
+        };
         Ok(Iso9283Job {
             args,
             work,

@@ -796,6 +796,74 @@ pub fn write_cube_plan(
     Ok(out)
 }
 
+/// The commanded paths of a cube for the path tests, as a command file: the line from P2
+/// to P4 (a diagonal of the measurement plane), a circle about P1 in that plane of
+/// diameter 80 % of the side, a small circle of a tenth of its diameter, and the rectangle
+/// P2, P3, P4, P5 (docs/measure.md says which of these the standard's text was confirmed
+/// for). Every segment at `speed_mm_s`; `abc_deg` the tool orientation (KUKA A, B, C) for
+/// the controller.
+///
+/// # Errors
+///
+/// As [`cube_positions`]; a speed not above 0 or beyond 1e6 mm/s.
+pub fn write_path_plan(
+    centre_mm: [f64; 3],
+    side_mm: f64,
+    abc_deg: [f64; 3],
+    speed_mm_s: f64,
+) -> Result<String, Iso9283Error> {
+    let p = cube_positions(centre_mm, side_mm)?;
+    if !(speed_mm_s > 0.0 && speed_mm_s <= adwi_runtime::format::MAX_COORDINATE_MM) {
+        return Err(Iso9283Error::Cube(format!(
+            "a path speed of {speed_mm_s} mm/s: give mm/s above 0"
+        )));
+    }
+    let v = |a: [f64; 3]| nalgebra::Vector3::from(a);
+    let centre = v(p[0]);
+    // The measurement plane: vertical, along the horizontal diagonal (1, 1, 0)/√2.
+    let across = nalgebra::Vector3::new(1.0, 1.0, 0.0).normalize();
+    let up = nalgebra::Vector3::z();
+    let mut out = format!(
+        "# ISO 9283 path test: cube centre {centre_mm:?} mm, side {side_mm} mm; x, y, z and vx, \
+         vy, vz mm, base frame; speed mm/s; a, b, c KUKA A, B, C degrees, \
+         R = Rz(a)·Ry(b)·Rx(c)\npath,kind,x,y,z,vx,vy,vz,speed,a,b,c\n"
+    );
+    let abc = format!("{:.4},{:.4},{:.4}", abc_deg[0], abc_deg[1], abc_deg[2]);
+    let mut row =
+        |path: &str, kind: &str, q: nalgebra::Vector3<f64>, via: Option<nalgebra::Vector3<f64>>| {
+            let via = via.map_or(",,".to_string(), |w| {
+                format!("{:.4},{:.4},{:.4}", w.x, w.y, w.z)
+            });
+            let speed = if kind == "start" {
+                String::new()
+            } else {
+                format!("{speed_mm_s}")
+            };
+            out.push_str(&format!(
+                "{path},{kind},{:.4},{:.4},{:.4},{via},{speed},{abc}\n",
+                q.x, q.y, q.z
+            ));
+        };
+    row("line", "start", v(p[1]), None);
+    row("line", "line", v(p[3]), None);
+    for (name, radius) in [("circle", 0.4 * side_mm), ("small_circle", 0.04 * side_mm)] {
+        let top = centre + up * radius;
+        row(name, "start", top, None);
+        row(
+            name,
+            "arc",
+            centre - up * radius,
+            Some(centre + across * radius),
+        );
+        row(name, "arc", top, Some(centre - across * radius));
+    }
+    row("rectangle", "start", v(p[1]), None);
+    for k in [2, 3, 4, 1] {
+        row("rectangle", "line", v(p[k]), None);
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

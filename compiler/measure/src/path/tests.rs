@@ -1,4 +1,5 @@
 use super::*;
+use crate::iso9283::write_path_plan;
 
 /// The standard's test paths of a 600 mm cube at 200 mm/s.
 fn plan() -> Vec<CommandPath> {
