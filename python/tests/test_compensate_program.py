@@ -120,5 +120,5 @@ def test_refusals(kr150_table, tmp_path):
     assert not (tmp_path / "o.csv").exists()
     with pytest.raises(adwi.AdwiError, match="refusing to write"):
         adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", PROGRAMS / "targets.csv")
-    with pytest.raises(adwi.AdwiError, match="format 'fanuc'"):
-        adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", format="fanuc")
+    with pytest.raises(adwi.AdwiError, match="format 'nosuch': one of krl, rapid, urscript, csv, gcode"):
+        adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", format="nosuch")
