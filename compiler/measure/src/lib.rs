@@ -16,8 +16,8 @@
 
 pub mod field;
 pub mod iso9283;
-pub mod path;
 pub mod observability;
+pub mod path;
 pub mod plan;
 pub mod truth;
 
