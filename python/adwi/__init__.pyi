@@ -120,6 +120,7 @@ def build(
     tip_link: Optional[str] = None,
     hybrid: bool = False,
     compliance: bool = False,
+    harmonics: int = 0,
     measured_in: str = "base",
     tune: bool = False,
     tune_folds: int = 5,
@@ -149,6 +150,7 @@ def evaluate(
     rank_tol: float = 0.001,
     keep_untrustworthy: bool = False,
     compliance: bool = False,
+    harmonics: int = 0,
     cell: Optional[float] = None,
     radius: Optional[float] = None,
     k: Optional[int] = None,
@@ -185,6 +187,7 @@ def calibrate(
     measured_in: str = "base",
     rank_tol: float = 0.001,
     compliance: bool = False,
+    harmonics: int = 0,
     true_scenario: Optional[PathLike] = None,
     true_at: Optional[PathLike] = None,
     json: Optional[PathLike] = None,
@@ -224,16 +227,22 @@ def plan(
 def iso9283(
     measurements: Optional[PathLike] = None,
     *,
+    path: Optional[PathLike] = None,
+    command: Optional[PathLike] = None,
+    path_plan: bool = False,
+    speed: float = 100,
     cube: Optional[Sequence[float]] = None,
-    abc: Sequence[float] = (0, 90, 0),
+    abc: Sequence[float] = (0, 45, 0),
     cycles: int = 30,
     output: Optional[PathLike] = None,
+    distance: Optional[Sequence[str]] = None,
     json: Optional[PathLike] = None,
     table: Optional[PathLike] = None,
     report: Optional[PathLike] = None,
 ) -> Dict[str, Any]:
-    """ISO 9283 pose characteristics of measured cycles, as tablec iso9283, or the cube's
-    five positions written as a plan (cube, output)."""
+    """ISO 9283 pose characteristics of measured cycles, as tablec iso9283; path
+    characteristics of a tracker stream (path, command); or the cube's five positions, or
+    its test paths (path_plan), written as a plan (cube, output)."""
 
 class Evaluation(List[Dict[str, Any]]):
     """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
