@@ -134,8 +134,9 @@ fn words(line: &str, variables: &BTreeMap<String, String>) -> Vec<String> {
 }
 
 /// The commands of other tools, and the test or script that runs them.
-const ELSEWHERE: [(&str, &str); 8] = [
+const ELSEWHERE: [(&str, &str); 9] = [
     ("cargo test", "CI (.ci/run)"),
+    (".ci/run", "CI itself, on a clean clone"),
     (
         ". .venv/bin/activate",
         "python/run-tests (its own virtual environment)",
