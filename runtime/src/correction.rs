@@ -272,6 +272,15 @@ impl Compensation {
     }
 }
 
+/// The fixed point's usual tolerance, mm: a command is accepted once the table predicts it
+/// lands within this of the target (far below any robot's repeatability). tablec, the
+/// Python package and program compensation all use it.
+pub const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
+/// The fixed point's usual iteration bound: it contracts by the error's gradient (a few per
+/// cent per millimetre), so it converges in a handful; the bound only ends a table that
+/// does not.
+pub const COMPENSATE_ITERATIONS: u32 = 50;
+
 /// The command that makes the robot land on a target, found by fixed-point iteration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Compensation {

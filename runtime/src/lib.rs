@@ -60,7 +60,10 @@ pub mod testing;
 pub mod trig;
 mod validate;
 
-pub use correction::{Compensation, Correction, Evidence, Residual, Status, Target};
+pub use correction::{
+    Compensation, Correction, Evidence, Residual, Status, Target, COMPENSATE_ITERATIONS,
+    COMPENSATE_TOLERANCE_MM,
+};
 pub use error::OpenError;
 pub use residency::{Lock, OpenOptions, Residency};
 pub use swap::{Current, Retired, TableSwap};

@@ -15,12 +15,7 @@ use memmap2::Mmap;
 
 use crate::{args, JobError, Reading};
 
-/// The fixed point's tolerance, mm: the command is accepted once the table predicts it
-/// lands within this of the target (far below any robot's repeatability).
-pub const COMPENSATE_TOLERANCE_MM: f64 = 1e-6;
-/// The fixed point's iteration bound: it contracts by the error's gradient (a few per cent
-/// per millimetre), so it converges in a handful; the bound only ends a table that does not.
-pub const COMPENSATE_ITERATIONS: u32 = 50;
+pub use adwi_runtime::{COMPENSATE_ITERATIONS, COMPENSATE_TOLERANCE_MM};
 
 /// How the command for a target is found.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -133,7 +128,7 @@ impl Command {
 }
 
 /// The tier `exact` asks for.
-pub fn tier(exact: bool) -> Tier {
+fn tier(exact: bool) -> Tier {
     if exact {
         Tier::Exact
     } else {

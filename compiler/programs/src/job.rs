@@ -100,8 +100,8 @@ impl CompensateOptions {
             limits: Limits {
                 max_correction_mm: DEFAULT_MAX_CORRECTION_MM,
                 max_joint_change_deg: DEFAULT_MAX_JOINT_CHANGE_DEG,
-                tolerance_mm: 1e-6,
-                max_iterations: 50,
+                tolerance_mm: adwi_runtime::COMPENSATE_TOLERANCE_MM,
+                max_iterations: adwi_runtime::COMPENSATE_ITERATIONS,
                 beyond_evidence: false,
             },
             strict: false,
