@@ -1,4 +1,4 @@
-//! Every output of every command goes through one writer (`adwi_compile::write::
+//! Every output of every command goes through one writer (`adwi_output::
 //! OutputPlan`): checked before any work, written complete beside its target and renamed
 //! into place, all outputs of a command or none, never over an input, never over a FIFO,
 //! a device or a directory.

@@ -4,14 +4,13 @@
 //!   cell, the encoded table;
 //! - [`hybrid`]: a hybrid table from samples and a given kinematic model (its residuals);
 //! - [`reference`]: the brute-force reference every compiled table is tested against;
-//! - [`write`]: writing the file without ever losing data;
 //! - [`inspect`]: what a table holds, in figures;
 //! - [`nugget_kriging`]: kriging with a nugget, what a kriging served field holds;
 //! - [`local_kriging`]: the same at any number of samples, from neighbours.
 //!
 //! The method itself lives in [`adwi_runtime::method`]; this crate calls it, never
 //! re-implements it. Kinematic identification, which finds the model of a hybrid table, is
-//! `adwi-robot`'s.
+//! `adwi-robot`'s; writing the file without ever losing data is `adwi-output`'s.
 
 pub mod build;
 pub mod hybrid;
@@ -20,4 +19,3 @@ pub mod local_kriging;
 pub mod nugget_kriging;
 pub mod posture;
 pub mod reference;
-pub mod write;

@@ -19,8 +19,8 @@ use std::path::Path;
 
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_compile::reference;
-use adwi_compile::write::write_atomically;
 use adwi_eval::latency::{self, KdTreeMethod};
+use adwi_output::write_atomically;
 use adwi_runtime::format::{v2::TableData, HEADER_LEN};
 use adwi_runtime::{AlignedBytes, Table, Target};
 use adwi_samples::{read_samples, ColumnMap};

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildOptions, BuildReport, Plan};
-use adwi_compile::write::OutputPlan;
+use adwi_output::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;

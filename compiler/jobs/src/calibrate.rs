@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::write::OutputPlan;
 use adwi_measure::truth::{self, TruthComparison};
+use adwi_output::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::register::{Refined, Registration};
 use adwi_robot::simulate::Scenario;

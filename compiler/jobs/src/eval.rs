@@ -4,10 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use adwi_compile::build::BuildOptions;
-use adwi_compile::write::OutputPlan;
 use adwi_eval::{
     EvalOptions, Evaluation, Method, PostureDecision, Protocol, SplitChoice, SplitRule,
 };
+use adwi_output::OutputPlan;
 use adwi_robot::agreement::{check_base_frame, check_registered};
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::register::{Refined, Registration};

@@ -3,12 +3,12 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_compile::write::OutputPlan;
 use adwi_measure::iso9283::{
     characteristics_between, compensated, read_cycles, write_cube_plan, CycleRow, Iso9283Error,
     Report, ISO_CYCLES,
 };
 use adwi_measure::path::{self, read_command, read_stream, MeasuredPath, PathReport};
+use adwi_output::OutputPlan;
 use adwi_runtime::Status;
 use serde::Deserialize;
 

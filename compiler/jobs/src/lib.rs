@@ -10,7 +10,7 @@
 //!   input, sizes the work and checks every output (not an input, not two outputs in one
 //!   file, not a FIFO or a device) — **before any work**, so that a bad request fails in
 //!   milliseconds with one message — and `run` then does the work, writes its outputs all
-//!   or nothing ([`adwi_compile::write::OutputPlan`]) and returns typed results and typed
+//!   or nothing ([`adwi_output::OutputPlan`]) and returns typed results and typed
 //!   [`Warning`]s.
 //!
 //! Front ends map their arguments onto `*Args` and print or convert the results; neither
@@ -97,7 +97,7 @@ pub enum JobError {
     },
     /// An output refused before any work, or that could not be written.
     #[error(transparent)]
-    Output(Box<adwi_compile::write::OutputError>),
+    Output(Box<adwi_output::OutputError>),
     /// Worker threads could not be started.
     #[error("cannot start worker threads: {0}")]
     Threads(String),
@@ -136,7 +136,7 @@ boxed_from!(
     Calibrate: adwi_robot::calibrate::CalibrateError,
     Eval: adwi_eval::EvalError,
     Tune: tune::TuneError,
-    Output: adwi_compile::write::OutputError,
+    Output: adwi_output::OutputError,
     Truth: adwi_measure::truth::TruthError,
 );
 

@@ -4,12 +4,12 @@
 use std::path::PathBuf;
 
 use adwi_compile::nugget_kriging::ResidualGp;
-use adwi_compile::write::OutputPlan;
 use adwi_measure::field::{FieldPrior, Kernel};
 use adwi_measure::plan::{
     check, check_options, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan,
     PlanError, PlanOptions, Prior, SetFigures, TrackerSight,
 };
+use adwi_output::OutputPlan;
 use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
 use serde::Deserialize;

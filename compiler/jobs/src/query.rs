@@ -7,7 +7,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use adwi_compile::write::{write_atomically, OutputPlan};
+use adwi_output::{write_atomically, OutputPlan};
 use adwi_runtime::chain::JointKind;
 use adwi_runtime::{Correction, Status, Table, Target, Tier};
 use adwi_samples::pose;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use adwi_compile::write::OutputPlan;
+use adwi_output::OutputPlan;
 use adwi_robot::simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
@@ -240,7 +240,7 @@ impl SimulateJob {
         comments.extend(args.comment);
         let mut bytes = Vec::new();
         write_csv(&samples, &comments, &mut bytes).map_err(|source| {
-            JobError::from(adwi_compile::write::OutputError::Write {
+            JobError::from(adwi_output::OutputError::Write {
                 path: args.output.clone(),
                 source,
             })

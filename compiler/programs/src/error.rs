@@ -115,7 +115,7 @@ pub enum Error {
     },
     /// The output would replace an input (or another output), or could not be written.
     #[error(transparent)]
-    Write(#[from] adwi_compile::write::OutputError),
+    Write(#[from] adwi_output::OutputError),
 }
 
 /// `text` with every control character (and every character that reorders text on a

@@ -138,7 +138,7 @@ pub struct CompensateJob {
     /// long program's targets mostly are): one list, not one each.
     chains: Vec<Result<std::sync::Arc<[FrameChain]>, correct::Failure>>,
     /// The program and the report, checked before any work.
-    outputs: adwi_compile::write::OutputPlan,
+    outputs: adwi_output::OutputPlan,
     /// Whether the reader saw the program's motions (a KRL data list read without its
     /// `.src` did not), so that a declared target no motion moves to is unused.
     motions_seen: bool,
@@ -264,7 +264,7 @@ impl CompensateJob {
         inputs.extend(o.krl_config.as_deref());
         inputs.extend(o.fanuc.frames_file.as_deref());
         inputs.extend(robot_files.iter().map(PathBuf::as_path));
-        let outputs = adwi_compile::write::OutputPlan::check(
+        let outputs = adwi_output::OutputPlan::check(
             &[o.output.as_deref(), o.report.as_deref()]
                 .into_iter()
                 .flatten()
@@ -882,7 +882,7 @@ impl CompensateJob {
     }
 
     /// Writes the compensated program and the report where the options say, both or
-    /// neither ([`adwi_compile::write::OutputPlan`], checked when the job was made).
+    /// neither ([`adwi_output::OutputPlan`], checked when the job was made).
     ///
     /// # Errors
     ///

@@ -46,7 +46,7 @@ sample. Open: memory map + full validation vs. reading the file and deserialisin
 copy (rkyv validation, no semantic checks).";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let outputs = adwi_compile::write::OutputPlan::check(
+    let outputs = adwi_output::OutputPlan::check(
         &args.json.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
         &[&args.table],
     )?;

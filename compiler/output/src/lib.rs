@@ -1,6 +1,10 @@
 //! Writing output files so that nothing is ever lost: no partial file, no damaged
 //! existing file, no temporary file left behind, no input overwritten — one writer for
 //! every output of every command ([`OutputPlan`]).
+//!
+//! The policy sits at the bottom of the workspace, below every crate that writes a file
+//! (tables, programs, reports, samples): it depends on nothing of adwi, so each writer
+//! takes it without taking the table compiler.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
