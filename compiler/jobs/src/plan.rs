@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use adwi_compile::nugget_kriging::ResidualGp;
 use adwi_measure::field::{FieldPrior, Kernel};
 use adwi_measure::plan::{
-    check, check_options, plan, write_csv, AllowedOrientations, ConfigLabel, Criterion, Plan,
-    PlanError, PlanOptions, Prior, SetFigures, TrackerSight,
+    check, check_options, plan, write_csv, AllowedOrientations, Branches, ConfigLabel, Criterion,
+    Plan, PlanError, PlanOptions, Prior, SetFigures, TrackerSight,
 };
 use adwi_output::OutputPlan;
 use adwi_robot::calibrate::CalibrateOptions;
@@ -57,12 +57,25 @@ pub struct PlanArgs {
     /// the line to the tracker.
     #[arg(long, requires = "tracker")]
     pub sight_cone_deg: Option<f64>,
+    /// The tracker's maximum permissible error of a point coordinate, A + B·d: A (µm) and
+    /// B (µm per m of distance to the tracker), as data sheets give it (ISO 10360-10). Each
+    /// pose's information is weighed by 1/σ², σ = MPE/2, so that far poses count less and
+    /// the variances are in mm².
+    #[arg(long, value_name = "A,B", value_parser = parse_pair, requires = "tracker")]
+    #[serde(deserialize_with = "pair")]
+    pub tracker_mpe_um: Option<[f64; 2]>,
     /// An allowed tool orientation A,B,C (KUKA degrees; repeatable) [default: any].
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub abc: Vec<[f64; 3]>,
     /// How far the tool may turn from an allowed orientation, degrees.
     #[arg(long, default_value_t = 15.0)]
     pub orientation_tolerance: f64,
+    /// Inverse-kinematics branches of a pose (with --abc): `home`, the one the robot works
+    /// in (nearest the home posture); `all`, every branch within the limits (shoulder,
+    /// elbow and wrist flips; another elbow angle of a redundant arm) as further
+    /// candidates, the workspace staying the home branch's.
+    #[arg(long, value_enum, default_value_t)]
+    pub branches: BranchesArg,
     /// The selection's weight on coverage (maximin distance) against the criterion, 0 to 1.
     #[arg(long, default_value_t = 0.3)]
     pub coverage: f64,
@@ -109,8 +122,10 @@ impl Default for PlanArgs {
             tracker: None,
             tracker_range: None,
             sight_cone_deg: None,
+            tracker_mpe_um: None,
             abc: Vec::new(),
             orientation_tolerance: 15.0,
+            branches: BranchesArg::default(),
             coverage: 0.3,
             criterion: CriterionArg::default(),
             measured: Vec::new(),
@@ -176,6 +191,17 @@ pub enum CriterionArg {
     A,
     /// I- and A-optimality together.
     Ia,
+}
+
+/// The inverse-kinematics branches, as the command line names them.
+#[derive(clap::ValueEnum, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum BranchesArg {
+    /// The branch nearest the home posture.
+    #[default]
+    Home,
+    /// Every branch within the limits.
+    All,
 }
 
 /// The smallest distance between two poses as the plan's header and `tablec plan` say it.
@@ -290,8 +316,19 @@ fn table_field(path: &std::path::Path) -> Result<FieldPrior, JobError> {
     })
 }
 
-/// The figures of a set of poses, one line.
-pub fn figures_line(f: &SetFigures) -> String {
+/// The units of a plan's variances: per σ², or mm² (and mm², mrad² for the parameters)
+/// when the tracker's MPE weighs the poses.
+pub fn variance_units(plan: &Plan) -> (&'static str, &'static str) {
+    if plan.tracker_sigma_mm.is_some() {
+        ("mm²", "mm², mrad²")
+    } else {
+        ("σ²", "σ²")
+    }
+}
+
+/// The figures of a set of poses of `plan`, one line.
+pub fn figures_line(plan: &Plan, f: &SetFigures) -> String {
+    let (unit, parameter_unit) = variance_units(plan);
     let o = match &f.observability {
         Some(o) => format!(
             "O1 {:.4} O2 {:.2e} O3 {:.4} O4 {:.2e} O5 {:.4}, noise amplification {:.3}",
@@ -300,9 +337,21 @@ pub fn figures_line(f: &SetFigures) -> String {
         None => "a parameter undetermined: no observability indices".into(),
     };
     format!(
-        "{:>5} poses: mean prediction variance {:.4} σ², parameter variance {:.4} σ²; {o}",
-        f.poses, f.mean_variance, f.parameter_variance
+        "{:>5} poses: mean prediction variance {} {unit}, parameter variance {} {parameter_unit}; {o}",
+        f.poses,
+        figure(plan, f.mean_variance),
+        figure(plan, f.parameter_variance)
     )
+}
+
+/// A variance of `plan` as printed: four decimals per σ², three significant digits in mm²
+/// (a few 10⁻⁴ mm² from a tracker).
+pub fn figure(plan: &Plan, v: f64) -> String {
+    if plan.tracker_sigma_mm.is_some() {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
 }
 
 /// A plan checked and sized, ready to run.
@@ -352,17 +401,22 @@ impl PlanJob {
                 .iter()
                 .map(|b| ([b[0], b[1], b[2]], [b[3], b[4], b[5]])),
         );
-        if args.tracker.is_none() && (args.tracker_range.is_some() || args.sight_cone_deg.is_some())
+        if args.tracker.is_none()
+            && (args.tracker_range.is_some()
+                || args.sight_cone_deg.is_some()
+                || args.tracker_mpe_um.is_some())
         {
             return Err(JobError::option(
                 "tracker",
-                "--tracker-range and --sight-cone-deg need the tracker's position",
+                "--tracker-range, --sight-cone-deg and --tracker-mpe-um need the tracker's \
+                 position",
             ));
         }
         let tracker = args.tracker.map(|position_mm| TrackerSight {
             position_mm,
             range_mm: args.tracker_range.unwrap_or([0.0, f64::MAX]),
             sight_cone_deg: args.sight_cone_deg,
+            mpe_um: args.tracker_mpe_um,
         });
         let options = PlanOptions {
             boxes_mm,
@@ -384,6 +438,10 @@ impl PlanJob {
             },
             exchange_passes: args.exchange_passes,
             prior: None,
+            branches: match args.branches {
+                BranchesArg::Home => Branches::Home,
+                BranchesArg::All => Branches::All,
+            },
         };
         let mut options = options;
         if args.pool.is_none() {
@@ -459,7 +517,8 @@ impl PlanJob {
             .iter()
             .map(|(a, b)| format!("{a:?} to {b:?}"))
             .collect();
-        let comments = [
+        let (unit, _) = variance_units(&planned);
+        let mut comments = vec![
             format!(
                 "{} poses of the {} planned by tablec plan, seed {}, from {} candidates ({} draws) in {} mm.",
                 planned.poses.len(),
@@ -470,7 +529,7 @@ impl PlanJob {
                 boxes.join(", ")
             ),
             format!(
-                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {:.4} σ², no {} of the candidates below {:.4} σ²) blended with coverage (weight {}), {} exchange passes at most; {}; joint travel {:.2} rad.",
+                "{} over {} identifiable parameters (log det {:.3}; mean prediction variance {} {unit}, no {} of the candidates below {} {unit}) blended with coverage (weight {}), {} exchange passes at most; {}; joint travel {:.2} rad.",
                 match options.criterion {
                     Criterion::D => "D-optimality",
                     Criterion::I => "I-optimality (mean prediction variance over the candidates)",
@@ -479,9 +538,9 @@ impl PlanJob {
                 },
                 planned.parameters.len(),
                 planned.log_det,
-                planned.mean_variance,
+                figure(&planned, planned.mean_variance),
                 planned.poses.len(),
-                planned.variance_bound,
+                figure(&planned, planned.variance_bound),
                 options.coverage_weight,
                 options.exchange_passes,
                 smallest_distance(planned.min_distance_mm),
@@ -489,6 +548,23 @@ impl PlanJob {
             ),
             "Columns: commanded j1..jn (deg; mm for prismatic joints); nominal x,y,z (mm) and a,b,c (KUKA deg) at them; config (IK branch) for closed-form robots.".into(),
         ];
+        // Said only when used, so that a plan without them is written as before.
+        let mut said = Vec::new();
+        if let (Some([lo, hi]), Some([a, b])) = (
+            planned.tracker_sigma_mm,
+            options.tracker.as_ref().and_then(|t| t.mpe_um),
+        ) {
+            said.push(format!(
+                "Weighed by the tracker's uncertainty: MPE {a} µm + {b} µm/m, σ = MPE/2 = {lo:.4} to {hi:.4} mm per coordinate over the candidates."
+            ));
+        }
+        if options.branches == Branches::All {
+            said.push(format!(
+                "Every inverse-kinematics branch: {} of the candidates in the home branch (the workspace the variance is over), {} of the poses in another.",
+                planned.workspace_candidates, planned.other_branches
+            ));
+        }
+        comments.splice(2..2, said);
         let text = write_csv(
             &robot,
             &planned,

@@ -53,7 +53,7 @@ use std::fmt::Write as _;
 use adwi_robot::calibrate::{design_jacobians_scaled, Parameter};
 use adwi_robot::ik::PostureTable;
 use adwi_robot::model::{isometry_from_parts, JointKind};
-use adwi_robot::{IkSolution, InverseKinematics, Robot};
+use adwi_robot::{InverseKinematics, Robot};
 use adwi_runtime::format::MAX_COORDINATE_MM;
 use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, rotation_from_kuka_abc_deg, rotation_from_vector,
@@ -91,6 +91,41 @@ pub struct TrackerSight {
     /// The reflector's acceptance: the tool's z axis within this angle of the line to the
     /// tracker, degrees; `None` for any direction.
     pub sight_cone_deg: Option<f64>,
+    /// The tracker's maximum permissible error of a point coordinate, `A + B·d` (ISO
+    /// 10360-10 style: `[A µm, B µm per m]`, `d` the distance to the tracker): each pose's
+    /// information is weighed by `1/σ²`, `σ = MPE/2` (data sheets state typical errors as
+    /// half the MPE), so that the variances come out in mm² and a far pose counts less.
+    /// `None`: every pose measured alike, variances per σ².
+    pub mpe_um: Option<[f64; 2]>,
+}
+
+impl TrackerSight {
+    /// The standard deviation of one measured coordinate at `position_mm`, mm (`MPE/2`);
+    /// `None` without an MPE.
+    pub fn sigma_mm(&self, position_mm: [f64; 3]) -> Option<f64> {
+        let [a_um, b_um_per_m] = self.mpe_um?;
+        let d_m = distance(position_mm, self.position_mm) / 1000.0;
+        Some((a_um + b_um_per_m * d_m) / 2.0 / 1000.0)
+    }
+}
+
+/// The largest MPE term accepted, µm (or µm per m): a millimetre is no laser tracker.
+pub const MAX_MPE_UM: f64 = 1000.0;
+
+/// Which inverse-kinematics solutions of a drawn pose become candidates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Branches {
+    /// The one the robot works in: the closed-form solution nearest the home posture, or
+    /// the posture-table solution.
+    #[default]
+    Home,
+    /// Every branch: each closed-form solution within the limits (shoulder, elbow and
+    /// wrist flips), or for robots without the closed form the posture-table solution and
+    /// one reached from a posture drawn within the limits (another elbow angle of a
+    /// redundant arm). The workspace, which the mean prediction variance weighs and the
+    /// random poses are drawn from, stays the home branch's poses: the other branches are
+    /// measured for what they tell of the parameters.
+    All,
 }
 
 /// The tool orientations allowed, each within a tolerance.
@@ -163,6 +198,8 @@ pub struct PlanOptions {
     pub exchange_passes: usize,
     /// Poses measured already, which the plan continues; `None` for a first plan.
     pub prior: Option<Prior>,
+    /// Which inverse-kinematics branches become candidates (with allowed orientations).
+    pub branches: Branches,
 }
 
 /// Why a plan cannot be made.
@@ -203,6 +240,9 @@ pub struct PlannedPose {
     pub position_mm: [f64; 3],
     /// The nominal TCP orientation, KUKA A, B, C degrees.
     pub abc_deg: [f64; 3],
+    /// Whether the pose is of the workspace (the home branch, [`Branches`]) rather than
+    /// another branch measured for the parameters' sake.
+    pub workspace: bool,
 }
 
 /// A plan and what it achieves.
@@ -247,6 +287,14 @@ pub struct Plan {
     /// x, y, z): before this plan, after the planned poses, after the first random set;
     /// `None` without a table.
     pub field_variance_mm2: Option<[f64; 3]>,
+    /// The smallest and largest standard deviation of a measured coordinate over the
+    /// candidates (mm) when the tracker's MPE weighs them: the variances are then in mm²
+    /// (and mm², mrad² for the parameters) rather than per σ².
+    pub tracker_sigma_mm: Option<[f64; 2]>,
+    /// Candidates of the workspace's branch (all of them unless every branch is drawn).
+    pub workspace_candidates: usize,
+    /// Planned poses of another branch than the workspace's.
+    pub other_branches: usize,
 }
 
 /// What a set of poses achieves, in the units of one measured coordinate's noise σ.
@@ -361,6 +409,25 @@ pub fn check_options(options: &PlanOptions) -> Result<(), PlanError> {
                 ));
             }
         }
+        if let Some([a, b]) = t.mpe_um {
+            let term = |v: f64| v.is_finite() && (0.0..=MAX_MPE_UM).contains(&v);
+            if !(term(a) && term(b) && a > 0.0) {
+                return Err(option(
+                    "tracker_mpe_um",
+                    format!(
+                        "{a},{b}: give A > 0 µm and B ≥ 0 µm per m, each at most {MAX_MPE_UM} \
+                         (the MPE A + B·d of a point coordinate)"
+                    ),
+                ));
+            }
+        }
+    }
+    if options.branches == Branches::All && options.orientations.is_none() {
+        return Err(option(
+            "branches",
+            "every branch needs allowed orientations (--abc): joint values drawn within the \
+             limits take every branch already",
+        ));
     }
     if let Some(o) = &options.orientations {
         if o.abc_deg.is_empty() || !o.abc_deg.iter().all(finite3) {
@@ -496,6 +563,7 @@ fn admissible(robot: &Robot, options: &PlanOptions, q: &[f64]) -> Option<Planned
         joints: q.to_vec(),
         position_mm,
         abc_deg: kuka_abc_deg_from_rotation(&rotation),
+        workspace: true,
     })
 }
 
@@ -555,10 +623,15 @@ pub fn candidates_from(
     // A draw: joint values, or a pose to solve. The draws are made in order from the seed;
     // batches of them are solved in parallel and taken in draw order, so the pool is the
     // same at any thread count (and the same as drawing and solving one at a time).
+    // With every branch, a robot without the closed form also gets a posture drawn
+    // within the limits to start from (drawn here, in order, so that the pool is the same
+    // at any thread count).
     enum Draw {
         Joints(Vec<f64>),
-        Pose(nalgebra::Isometry3<f64>),
+        Pose(nalgebra::Isometry3<f64>, Option<Vec<f64>>),
     }
+    let every_branch = options.branches == Branches::All;
+    let numerical = matches!(solver, Some(Solver::Table(_)));
     let draw = |rng: &mut ChaCha8Rng| match &options.orientations {
         None => Draw::Joints(
             ranges
@@ -584,19 +657,63 @@ pub fn candidates_from(
             let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
             let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
             let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
-            Draw::Pose(isometry_from_parts(position, &rotation))
+            let start = (every_branch && numerical).then(|| {
+                ranges
+                    .iter()
+                    .map(|&[lo, hi]| rng.gen_range(lo..=hi))
+                    .collect()
+            });
+            Draw::Pose(isometry_from_parts(position, &rotation), start)
         }
     };
-    // Joints for a pose, then the constraints.
-    let solve = |d: &Draw| -> Option<PlannedPose> {
-        let q = match d {
-            Draw::Joints(q) => q.clone(),
-            Draw::Pose(pose) => match solver.as_ref()? {
-                Solver::ClosedForm(ik) => nearest_home(robot, ik.solve(pose))?,
-                Solver::Table(table) => table.solve(robot, pose)?,
+    // Joints for a pose (the home branch first, then the others with every branch), then
+    // the constraints.
+    let solve = |d: &Draw| -> Vec<PlannedPose> {
+        let solutions: Vec<(Vec<f64>, bool)> = match d {
+            Draw::Joints(q) => vec![(q.clone(), true)],
+            Draw::Pose(pose, start) => match solver.as_ref() {
+                None => Vec::new(),
+                Some(Solver::ClosedForm(ik)) => {
+                    let all = ik.solve(pose);
+                    let home = nearest_home(robot, all.iter().map(|s| s.q_rad.to_vec()));
+                    let mut out: Vec<(Vec<f64>, bool)> =
+                        home.iter().map(|q| (q.clone(), true)).collect();
+                    if every_branch {
+                        out.extend(
+                            all.into_iter()
+                                .map(|s| s.q_rad.to_vec())
+                                .filter(|q| Some(q) != home.as_ref())
+                                .map(|q| (q, false)),
+                        );
+                    }
+                    out
+                }
+                Some(Solver::Table(table)) => {
+                    let home = table.solve(robot, pose);
+                    let mut out: Vec<(Vec<f64>, bool)> =
+                        home.iter().map(|q| (q.clone(), true)).collect();
+                    let other = start
+                        .as_ref()
+                        .and_then(|s| adwi_robot::ik::solve_from(robot, pose, s));
+                    if let Some(q) = other {
+                        // Another posture, not the home one found again.
+                        let apart = home.as_ref().is_none_or(|h| travel(robot, h, &q) > 1e-3);
+                        if apart {
+                            out.push((q, false));
+                        }
+                    }
+                    out
+                }
             },
         };
-        admissible(robot, options, &as_written(robot, &q))
+        solutions
+            .into_iter()
+            .filter_map(|(q, workspace)| {
+                let mut pose = admissible(robot, options, &as_written(robot, &q))?;
+                pose.workspace = workspace;
+                Some(pose)
+            })
+            .collect()
     };
     let mut found = Vec::with_capacity(options.pool);
     let mut draws = 0;
@@ -605,14 +722,14 @@ pub fn candidates_from(
             .clamp(1, SOLVE_BATCH)
             .min(max_draws - draws);
         let drawn: Vec<Draw> = (0..batch).map(|_| draw(&mut rng)).collect();
-        let solved: Vec<Option<PlannedPose>> = drawn.par_iter().map(solve).collect();
-        for pose in solved {
+        let solved: Vec<Vec<PlannedPose>> = drawn.par_iter().map(solve).collect();
+        'draws: for poses in solved {
             draws += 1;
-            if let Some(pose) = pose {
+            for pose in poses {
                 found.push(pose);
                 advance(1);
                 if found.len() == options.pool {
-                    break;
+                    break 'draws;
                 }
             }
         }
@@ -629,13 +746,10 @@ pub fn candidates_from(
 
 /// Of closed-form solutions, the one nearest the home posture, as `tablec simulate`
 /// chooses.
-fn nearest_home(robot: &Robot, solutions: Vec<IkSolution>) -> Option<Vec<f64>> {
+fn nearest_home(robot: &Robot, solutions: impl Iterator<Item = Vec<f64>>) -> Option<Vec<f64>> {
     let home = robot.home();
     let distance = |q: &[f64]| -> f64 { q.iter().zip(home).map(|(a, b)| (a - b).powi(2)).sum() };
-    solutions
-        .into_iter()
-        .map(|s| s.q_rad.to_vec())
-        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+    solutions.min_by(|a, b| distance(a).total_cmp(&distance(b)))
 }
 
 /// The information of a set of poses: `ridge · I + Σ BᵢᵀBᵢ`.
@@ -924,6 +1038,9 @@ pub struct Prepared {
     pub parameter_weight: DMatrix<f64>,
     /// The information a plan starts from: the ridge and the measured poses'.
     pub base: DMatrix<f64>,
+    /// Each block's weight `1/σ²` (mm⁻²) from the tracker's MPE, pool, further poses and
+    /// measured poses in turn; empty without one (every weight 1, variances per σ²).
+    pub weights: Vec<f64>,
 }
 
 impl Prepared {
@@ -938,6 +1055,7 @@ impl Prepared {
         extra: &[PlannedPose],
         prior: &[Vec<f64>],
         rank_tolerance: f64,
+        tracker: Option<&TrackerSight>,
     ) -> Result<Prepared, PlanError> {
         let joints: Vec<Vec<f64>> = pool
             .iter()
@@ -948,14 +1066,50 @@ impl Prepared {
         let (parameters, mut blocks, scales) =
             design_jacobians_scaled(robot, &joints, rank_tolerance).map_err(Box::new)?;
         let k = parameters.len();
-        let prior_blocks = blocks.split_off(pool.len() + extra.len());
-        let extra_blocks = blocks.split_off(pool.len());
+        let mut prior_blocks = blocks.split_off(pool.len() + extra.len());
+        let mut extra_blocks = blocks.split_off(pool.len());
         // Columns have unit norm over all the poses: one pose holds about 1/poses of each;
         // the ridge is a thousandth of that, so that the first poses are chosen by what
         // they add.
-        let ridge = 1e-3 / joints.len() as f64;
-        let all: Vec<&DMatrix<f64>> = blocks.iter().collect();
-        let workspace = information(&all, k, 0.0) / pool.len() as f64;
+        let mut ridge = 1e-3 / joints.len() as f64;
+        // The workspace is the home branch's candidates: other branches are measured, not
+        // worked at. (Without other branches, every candidate.)
+        let at_work: Vec<&DMatrix<f64>> = blocks
+            .iter()
+            .zip(pool)
+            .filter(|(_, c)| c.workspace)
+            .map(|(b, _)| b)
+            .collect();
+        let workspace = information(&at_work, k, 0.0) / at_work.len().max(1) as f64;
+        // The tracker's uncertainty: each block scaled by 1/σ, its information by 1/σ²; the
+        // ridge by the pool's mean weight, so that it stays as small beside the poses.
+        let positions: Vec<[f64; 3]> = pool
+            .iter()
+            .chain(extra)
+            .map(|c| c.position_mm)
+            .chain(prior.iter().map(|q| {
+                let p = robot.tcp_pose(q).translation.vector;
+                [p.x, p.y, p.z]
+            }))
+            .collect();
+        let weights: Vec<f64> = match tracker.filter(|t| t.mpe_um.is_some()) {
+            Some(t) => positions
+                .iter()
+                .map(|&p| t.sigma_mm(p).map_or(1.0, |s| 1.0 / (s * s)))
+                .collect(),
+            None => Vec::new(),
+        };
+        if !weights.is_empty() {
+            for (b, w) in blocks
+                .iter_mut()
+                .chain(extra_blocks.iter_mut())
+                .chain(prior_blocks.iter_mut())
+                .zip(&weights)
+            {
+                b.scale_mut(w.sqrt());
+            }
+            ridge *= mean(&weights[..pool.len()]);
+        }
         let display: Vec<f64> = parameters
             .iter()
             .zip(&scales)
@@ -993,7 +1147,14 @@ impl Prepared {
             workspace,
             parameter_weight,
             base,
+            weights,
         })
+    }
+
+    /// Whether the variances are in mm² (weighed by the tracker's uncertainty) rather than
+    /// per σ².
+    pub fn weighted(&self) -> bool {
+        !self.weights.is_empty()
     }
 
     /// `L` of a linear criterion: `W`, `L_A`, or their sum each divided by its value for
@@ -1018,8 +1179,28 @@ impl Prepared {
         }
     }
 
-    /// What a set of poses achieves (with the measured poses): [`SetFigures`].
-    pub fn figures(&self, blocks: &[&DMatrix<f64>]) -> SetFigures {
+    /// What a set of poses achieves (with the measured poses): [`SetFigures`], for the
+    /// candidates `pool` (indices) and the first `extra` further poses.
+    pub fn figures(&self, pool: &[usize], extra: usize) -> SetFigures {
+        let blocks: Vec<&DMatrix<f64>> = pool
+            .iter()
+            .map(|&i| &self.pool[i])
+            .chain(self.extra.iter().take(extra))
+            .collect();
+        // The weights of those blocks, to undo for the observability indices, which are of
+        // the Jacobian as such.
+        let unweigh: Vec<f64> = if self.weighted() {
+            let (n, e) = (self.pool.len(), self.extra.len());
+            self.weights[n + e..]
+                .iter()
+                .chain(pool.iter().map(|&i| &self.weights[i]))
+                .chain(self.weights[n..n + extra.min(e)].iter())
+                .map(|w| 1.0 / w.sqrt())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let blocks = &blocks[..];
         let m = with_blocks(self.base.clone(), blocks);
         let (mean_variance, parameter_variance) = match m.try_inverse() {
             Some(m_inv) => (
@@ -1033,6 +1214,9 @@ impl Prepared {
         let mut j = DMatrix::zeros(3 * rows.len(), k);
         for (i, b) in rows.iter().enumerate() {
             j.rows_mut(3 * i, 3).copy_from(b);
+            if let Some(u) = unweigh.get(i) {
+                j.rows_mut(3 * i, 3).scale_mut(*u);
+            }
         }
         for (c, f) in self.display.iter().enumerate() {
             j.column_mut(c).scale_mut(*f);
@@ -1065,6 +1249,7 @@ pub fn select(
         &[],
         prior.map_or(&[][..], |p| &p.joints[..]),
         options.rank_tolerance,
+        options.tracker.as_ref(),
     )?;
     let mut field = match prior.and_then(|p| p.field.as_ref()) {
         Some(f) => {
@@ -1338,7 +1523,7 @@ pub fn plan(
     stage("drawing candidates", options.pool as u64);
     let (pool, draws) = candidates(robot, options, advance)?;
     // The random comparison: twice the count drawn from the same workspace in another
-    // stream of the seed, apart from the pool.
+    // stream of the seed, apart from the pool; the workspace's branch only.
     let random_count = (2 * options.count).min(MAX_POOL);
     stage("drawing random poses to compare", random_count as u64);
     let random = candidates_from(
@@ -1346,6 +1531,7 @@ pub fn plan(
         &PlanOptions {
             pool: random_count,
             count: random_count,
+            branches: Branches::Home,
             ..options.clone()
         },
         RANDOM_STREAM,
@@ -1361,6 +1547,7 @@ pub fn plan(
         &random,
         prior.map_or(&[][..], |p| &p.joints[..]),
         options.rank_tolerance,
+        options.tracker.as_ref(),
     )?;
     let positions =
         |poses: &[PlannedPose]| -> Vec<[f64; 3]> { poses.iter().map(|c| c.position_mm).collect() };
@@ -1399,19 +1586,26 @@ pub fn plan(
             conditioned(&mut (pool.len()..pool.len() + random_n)),
         ]
     });
-    let planned_blocks: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &prepared.pool[i]).collect();
-    let planned_figures = prepared.figures(&planned_blocks);
+    let planned_figures = prepared.figures(&chosen, 0);
     let random_figures: Vec<SetFigures> = if random.len() == random_count {
         [options.count, random_count]
             .iter()
-            .map(|&n| {
-                let blocks: Vec<&DMatrix<f64>> = prepared.extra.iter().take(n).collect();
-                prepared.figures(&blocks)
-            })
+            .map(|&n| prepared.figures(&[], n))
             .collect()
     } else {
         Vec::new()
     };
+    let tracker_sigma_mm = prepared.weighted().then(|| {
+        let sigma = prepared.weights[..pool.len()]
+            .iter()
+            .map(|w| 1.0 / w.sqrt());
+        [
+            sigma.clone().fold(f64::INFINITY, f64::min),
+            sigma.fold(0.0, f64::max),
+        ]
+    });
+    let other_branches = chosen.iter().filter(|&&i| !pool[i].workspace).count();
+    let workspace_candidates = pool.iter().filter(|c| c.workspace).count();
     let picked: Vec<PlannedPose> = chosen.iter().map(|&i| pool[i].clone()).collect();
     let (path, path_travel) = order(robot, &picked);
     let poses: Vec<PlannedPose> = path.iter().map(|&i| picked[i].clone()).collect();
@@ -1439,6 +1633,9 @@ pub fn plan(
         planned: planned_figures,
         random: random_figures,
         field_variance_mm2,
+        tracker_sigma_mm,
+        workspace_candidates,
+        other_branches,
     })
 }
 
@@ -1527,6 +1724,7 @@ mod tests {
                 position_mm: [2000.0, 0.0, 500.0],
                 range_mm: [500.0, 3000.0],
                 sight_cone_deg: Some(70.0),
+                mpe_um: None,
             }),
             orientations: None,
             coverage_weight: 0.3,
@@ -1534,6 +1732,7 @@ mod tests {
             criterion: Criterion::I,
             exchange_passes: 2,
             prior: None,
+            branches: Branches::Home,
         }
     }
 
@@ -1870,7 +2069,7 @@ mod tests {
             .all(|r| pool.iter().all(|c| c.joints != r.joints)));
         // Recomputed outright: the mean prediction variance of the first 15 random poses
         // over the pool, with the same parameters and scaling.
-        let prepared = Prepared::new(&robot, &pool, &random, &[], o.rank_tolerance).unwrap();
+        let prepared = Prepared::new(&robot, &pool, &random, &[], o.rank_tolerance, None).unwrap();
         let first: Vec<&DMatrix<f64>> = prepared.extra.iter().take(15).collect();
         let m_inv = with_blocks(prepared.base.clone(), &first)
             .try_inverse()
@@ -1895,9 +2094,9 @@ mod tests {
         let robot = ur5();
         let o = options(5, 200);
         let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
-        let prepared = Prepared::new(&robot, &pool, &[], &[], 1e-3).unwrap();
+        let prepared = Prepared::new(&robot, &pool, &[], &[], 1e-3, None).unwrap();
         let some: Vec<&DMatrix<f64>> = prepared.pool.iter().take(60).collect();
-        let figures = prepared.figures(&some);
+        let figures = prepared.figures(&(0..60).collect::<Vec<_>>(), 0);
         // The physical Jacobian (mm per mm, mm per mrad).
         let k = prepared.parameters.len();
         let mut j = DMatrix::zeros(3 * some.len(), k);
@@ -1983,7 +2182,7 @@ mod tests {
             ..options(9, 12)
         };
         let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
-        let prepared = Prepared::new(&robot, &pool, &[], &[], o.rank_tolerance).unwrap();
+        let prepared = Prepared::new(&robot, &pool, &[], &[], o.rank_tolerance, None).unwrap();
         let s = select_prepared(&o, &pool, &prepared, None, &|_| {});
         let variance = |chosen: &[usize]| {
             let picked: Vec<&DMatrix<f64>> = chosen.iter().map(|&i| &prepared.pool[i]).collect();
@@ -2021,5 +2220,161 @@ mod tests {
             capped >= 0.0 && capped <= best * (1.0 + 1e-9),
             "{capped} vs {best}"
         );
+    }
+
+    fn kr150(count: usize, pool: usize, branches: Branches) -> (Robot, PlanOptions) {
+        let robot = Robot::load(adwi_robot::model::shipped_robot_path("kr150-2")).unwrap();
+        let o = PlanOptions {
+            boxes_mm: vec![([1350.0, 50.0, 850.0], [2150.0, 850.0, 1650.0])],
+            tracker: None,
+            orientations: Some(AllowedOrientations {
+                abc_deg: vec![[0.0, 90.0, 0.0]],
+                tolerance_deg: 5.0,
+            }),
+            coverage_weight: 0.0,
+            branches,
+            seed: 1,
+            ..options(count, pool)
+        };
+        (robot, o)
+    }
+
+    /// With every branch, the pool holds the home branch's candidates of the same draws
+    /// and the other branches' (wrist flips, at this orientation): a plan from it predicts
+    /// the home branch's positions better than any choice from the home branch alone can
+    /// (the narrow pool's bound), over the same workspace.
+    #[test]
+    fn a_plan_from_every_branch_beats_the_home_branchs_bound() {
+        let (robot, wide) = kr150(30, 900, Branches::All);
+        let w = plan(&robot, &wide, &|_, _| {}, &|_| {}).unwrap();
+        assert!(
+            w.workspace_candidates < w.pool && w.other_branches > 0,
+            "{w:?}"
+        );
+        // The narrow pool: the same draws' home solutions, the same candidates in order.
+        let (_, narrow) = kr150(30, w.workspace_candidates, Branches::Home);
+        let n = plan(&robot, &narrow, &|_, _| {}, &|_| {}).unwrap();
+        let (wide_pool, _) = candidates(&robot, &wide, &|_| {}).unwrap();
+        let (narrow_pool, _) = candidates(&robot, &narrow, &|_| {}).unwrap();
+        let home: Vec<&PlannedPose> = wide_pool.iter().filter(|c| c.workspace).collect();
+        assert_eq!(home.len(), narrow_pool.len());
+        assert!(home
+            .iter()
+            .zip(&narrow_pool)
+            .all(|(a, b)| a.joints == b.joints));
+        assert!(
+            w.mean_variance < n.variance_bound,
+            "every branch {} against the home branch's bound {} (its plan {})",
+            w.mean_variance,
+            n.variance_bound,
+            n.mean_variance
+        );
+        // Every pose keeps the constraints, whichever its branch.
+        for pose in &w.poses {
+            assert!(robot.within_limits(&pose.joints));
+            let t = robot.tcp_pose(&pose.joints).translation.vector;
+            assert!((1350.0..=2150.0).contains(&t.x) && (850.0..=1650.0).contains(&t.z));
+        }
+    }
+
+    /// A redundant arm's other branch is another posture of the same pose: another elbow
+    /// angle, within the limits, at the allowed orientation.
+    #[test]
+    fn a_seven_axis_arms_other_branch_is_another_posture_of_the_pose() {
+        let robot = Robot::load(adwi_robot::model::shipped_file("iiwa14", "robot.toml")).unwrap();
+        let o = PlanOptions {
+            boxes_mm: vec![([400.0, -200.0, 300.0], [600.0, 200.0, 600.0])],
+            tracker: None,
+            orientations: Some(AllowedOrientations {
+                abc_deg: vec![[0.0, 180.0, 0.0]],
+                tolerance_deg: 5.0,
+            }),
+            branches: Branches::All,
+            ..options(10, 60)
+        };
+        let (pool, _) = candidates(&robot, &o, &|_| {}).unwrap();
+        let mut pairs = 0;
+        for w in pool.windows(2) {
+            if w[0].workspace && !w[1].workspace {
+                pairs += 1;
+                assert!(distance(w[0].position_mm, w[1].position_mm) < 1e-3);
+                assert!(travel(&robot, &w[0].joints, &w[1].joints) > 1e-3);
+                assert!(robot.within_limits(&w[1].joints));
+            }
+        }
+        assert!(pairs > 5, "{pairs} poses with another posture");
+    }
+
+    /// A constant MPE weighs every pose alike: the same poses, the variances σ² times the
+    /// per-σ² ones. A steep MPE against the distance draws the plan toward the tracker:
+    /// the poses it weighs down are the far ones.
+    #[test]
+    fn the_tracker_weighs_far_poses_down() {
+        let robot = ur5();
+        let with = |mpe_um: Option<[f64; 2]>| PlanOptions {
+            tracker: Some(TrackerSight {
+                position_mm: [2000.0, 0.0, 500.0],
+                range_mm: [500.0, 3000.0],
+                sight_cone_deg: Some(70.0),
+                mpe_um,
+            }),
+            coverage_weight: 0.0,
+            ..options(20, 300)
+        };
+        let plain = plan(&robot, &with(None), &|_, _| {}, &|_| {}).unwrap();
+        let flat = plan(&robot, &with(Some([20.0, 0.0])), &|_, _| {}, &|_| {}).unwrap();
+        assert_eq!(plain.poses, flat.poses);
+        let sigma2 = 0.01_f64.powi(2);
+        for (a, b) in [
+            (plain.mean_variance, flat.mean_variance),
+            (plain.variance_bound, flat.variance_bound),
+            (plain.random[1].mean_variance, flat.random[1].mean_variance),
+        ] {
+            assert!((a * sigma2 - b).abs() < 1e-6 * b, "{a} σ² against {b} mm²");
+        }
+        assert_eq!(flat.tracker_sigma_mm, Some([0.01, 0.01]));
+        // The observability indices are the Jacobian's, unweighted.
+        let (a, b) = (
+            plain.planned.observability.unwrap(),
+            flat.planned.observability.unwrap(),
+        );
+        for (x, y) in [
+            (a.o1, b.o1),
+            (a.o3, b.o3),
+            (a.noise_amplification, b.noise_amplification),
+        ] {
+            assert!((x - y).abs() < 1e-9 * x, "{x} against {y}");
+        }
+        let steep = plan(&robot, &with(Some([1.0, 200.0])), &|_, _| {}, &|_| {}).unwrap();
+        let reach = |p: &Plan| {
+            p.poses
+                .iter()
+                .map(|q| distance(q.position_mm, [2000.0, 0.0, 500.0]))
+                .sum::<f64>()
+                / p.poses.len() as f64
+        };
+        assert!(
+            reach(&steep) < reach(&plain) - 50.0,
+            "{} mm against {} mm",
+            reach(&steep),
+            reach(&plain)
+        );
+        let [near, far] = steep.tracker_sigma_mm.unwrap();
+        assert!(near < far);
+    }
+
+    #[test]
+    fn tracker_mpe_and_branches_are_checked_before_any_work() {
+        let mut o = options(5, 50);
+        o.tracker.as_mut().unwrap().mpe_um = Some([-1.0, 6.0]);
+        let e = check_options(&o).unwrap_err();
+        assert!(e.to_string().contains("tracker_mpe_um"), "{e}");
+        o.tracker.as_mut().unwrap().mpe_um = Some([15.0, f64::NAN]);
+        assert!(check_options(&o).is_err());
+        o.tracker.as_mut().unwrap().mpe_um = Some([15.0, 6.0]);
+        check_options(&o).unwrap();
+        o.branches = Branches::All;
+        let e = check_options(&o).unwrap_err();
+        assert!(e.to_string().contains("branches"), "{e}");
     }
 }

@@ -611,6 +611,28 @@ pub fn solve_near(robot: &Robot, tcp_pose: &Isometry3<f64>, seed: &[f64]) -> Opt
     best.map(|(_, q)| q.as_slice().to_vec())
 }
 
+/// A posture of `robot` within its limits reaching `tcp_pose` by damped least squares from
+/// `start` alone (as [`solve_near`]'s first stage, at most [`TABLE_MAX_STEPS`] steps),
+/// without the walk toward it or further starts: from a start drawn within the limits, the
+/// posture of whichever branch (or elbow angle of a redundant arm) lies nearest it. `None`
+/// when the pose is not reached, the posture breaks a limit, or `start` has another joint
+/// count than `robot`.
+pub fn solve_from(robot: &Robot, tcp_pose: &Isometry3<f64>, start: &[f64]) -> Option<Vec<f64>> {
+    if start.len() != robot.joint_count() {
+        return None;
+    }
+    let target = transform_from_isometry(tcp_pose);
+    let q = to_pose(
+        robot.chain(),
+        &target,
+        DVector::from_column_slice(start),
+        TABLE_MAX_STEPS,
+    )?;
+    robot
+        .within_limits(q.as_slice())
+        .then(|| q.as_slice().to_vec())
+}
+
 /// Starting postures [`solve_near`] tries, uniformly within the joint ranges, when the
 /// seed's solution breaks a limit.
 pub const FURTHER_SEEDS: usize = 32;

@@ -34,28 +34,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         adwi_jobs::plan::smallest_distance(p.min_distance_mm),
         p.path_travel
     );
+    let (unit, _) = adwi_jobs::plan::variance_units(p);
+    let figure = |v: f64| adwi_jobs::plan::figure(p, v);
+    if let Some([lo, hi]) = p.tracker_sigma_mm {
+        println!(
+            "tracker        σ {lo:.4} to {hi:.4} mm per coordinate over the candidates (MPE/2 at their distances): each pose weighed by 1/σ², variances in mm²"
+        );
+    }
+    if p.workspace_candidates != p.pool {
+        println!(
+            "branches       {} of the candidates in the home branch (the workspace the variances are over), {} of the planned poses in another",
+            p.workspace_candidates, p.other_branches
+        );
+    }
     println!(
-        "variance       mean prediction variance over the candidates {:.4} σ²; no {} of them below {:.4} σ² (efficiency ≥ {:.2})",
-        p.mean_variance,
+        "variance       mean prediction variance over the candidates {} {unit}; no {} of them below {} {unit} (efficiency ≥ {:.2})",
+        figure(p.mean_variance),
         p.poses.len(),
-        p.variance_bound,
+        figure(p.variance_bound),
         p.variance_bound / p.mean_variance
     );
     if p.criterion_value != p.mean_variance || p.criterion_bound != p.variance_bound {
         println!(
-            "criterion      {:.4} σ²; no {} of the candidates below {:.4} σ² (efficiency ≥ {:.2})",
-            p.criterion_value,
+            "criterion      {} {unit}; no {} of the candidates below {} {unit} (efficiency ≥ {:.2})",
+            figure(p.criterion_value),
             p.poses.len(),
-            p.criterion_bound,
+            figure(p.criterion_bound),
             p.criterion_bound / p.criterion_value
         );
     }
-    println!("planned     {}", adwi_jobs::plan::figures_line(&p.planned));
+    println!(
+        "planned     {}",
+        adwi_jobs::plan::figures_line(p, &p.planned)
+    );
     match p.random.as_slice() {
         [] => println!("random         the workspace gave too few further poses to compare with"),
         sets => {
             for f in sets {
-                println!("random      {}", adwi_jobs::plan::figures_line(f));
+                println!("random      {}", adwi_jobs::plan::figures_line(p, f));
             }
             println!(
                 "               (random poses drawn from the same workspace apart from the candidates; variances over the candidates)"
