@@ -1060,8 +1060,13 @@ fn continuity_reports_both_tiers_along_lines() {
     );
     assert!(served_largest_mm < 1e-3, "{out}");
     assert!(exact_largest_mm > 10.0 * served_largest_mm, "{out}");
-    let o = tablec(&["continuity", "t.tbl", "--step-mm", "0"], dir.path());
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    // Options out of range are usage errors, refused before the table is read.
+    for bad in [["--step-mm", "0"], ["--lines", "0"]] {
+        let mut args = vec!["continuity", "t.tbl"];
+        args.extend(bad);
+        let o = tablec(&args, dir.path());
+        assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", stderr(&o));
+    }
 }
 
 /// `tablec build --tune`: k and ε chosen by cross-validation on the samples, every

@@ -414,7 +414,8 @@ fn continuity_refuses_unbounded_work_at_once() {
         all.extend(args);
         let started = Instant::now();
         let o = tablec_bounded(&all, dir.path());
-        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        // A usage error, as every refused option is.
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
         assert!(started.elapsed() < Duration::from_secs(5), "{args:?}");
         assert!(stderr(&o).contains("queries, more than"), "{}", stderr(&o));
     }

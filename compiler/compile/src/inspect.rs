@@ -5,7 +5,7 @@ use adwi_runtime::format::v2;
 use adwi_runtime::{Payload, Table};
 
 /// A table's contents in figures.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Summary {
     /// Cells in the grid.
     pub cells: usize,
@@ -28,7 +28,7 @@ pub struct Summary {
 }
 
 /// One cell in detail.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CellDetail {
     /// The cell's linear index and `(ix, iy, iz)`.
     pub index: usize,

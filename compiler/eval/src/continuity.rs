@@ -34,7 +34,7 @@ impl Default for ContinuityOptions {
 }
 
 /// What one tier's corrections do along the lines.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct TierContinuity {
     /// Steps between two answered targets.
     pub answered_steps: usize,
@@ -52,7 +52,7 @@ pub struct TierContinuity {
 }
 
 /// Both tiers along the same lines.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Continuity {
     /// The served field (`Table::query_target`); `None` for a table without one.
     pub served: Option<TierContinuity>,

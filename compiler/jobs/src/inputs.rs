@@ -109,3 +109,17 @@ pub(crate) fn load_robot(args: &RobotArgs, inputs: &mut Inputs) -> Result<Option
     }
     Ok(Some(robot))
 }
+
+/// Opens a table by memory map, for the length of a job.
+///
+/// # Errors
+///
+/// [`JobError::Table`] naming the file.
+pub(crate) fn open_table(path: &Path) -> Result<adwi_runtime::Table<memmap2::Mmap>, JobError> {
+    // SAFETY: the mapping lives as long as the job; tablec and the Python package replace
+    // tables by rename, never in place.
+    unsafe { adwi_runtime::Table::open(path) }.map_err(|source| JobError::Table {
+        path: path.to_path_buf(),
+        source,
+    })
+}

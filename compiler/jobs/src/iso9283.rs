@@ -13,7 +13,7 @@ use adwi_runtime::Status;
 use serde::Deserialize;
 
 use crate::args::{parse_number_list, parse_triple};
-use crate::inputs::Inputs;
+use crate::inputs::{open_table, Inputs};
 use crate::JobError;
 
 /// ISO 9283 pose characteristics: every option of `tablec iso9283`.
@@ -206,16 +206,6 @@ fn measure_error(e: Iso9283Error) -> JobError {
 
 fn path_error(e: path::PathError) -> JobError {
     JobError::Measure(Box::new(Iso9283Error::Path(e)))
-}
-
-/// Opens a table for the compensation.
-fn open_table(t: &Path) -> Result<adwi_runtime::Table<memmap2::Mmap>, JobError> {
-    // SAFETY: the mapping lives as long as the job; tablec and the Python package replace
-    // tables by rename, never in place.
-    unsafe { adwi_runtime::Table::open(t) }.map_err(|source| JobError::Table {
-        path: t.to_path_buf(),
-        source,
-    })
 }
 
 /// The path report, unless a figure came out non-finite.

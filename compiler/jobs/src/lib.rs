@@ -17,10 +17,13 @@
 //! calls a step of a pipeline itself.
 
 pub mod args;
+pub mod bench;
 pub mod build;
 pub mod calibrate;
+pub mod continuity;
 pub mod eval;
 mod inputs;
+pub mod inspect;
 pub mod iso9283;
 pub mod plan;
 pub mod query;
@@ -32,10 +35,13 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use args::{Frame, PostureChoice, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+pub use bench::{BenchArgs, BenchJob, Benched};
 pub use build::{BuildArgs, BuildJob, Built};
 pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
+pub use continuity::{ContinuityArgs, ContinuityJob, ContinuityResult};
 pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
+pub use inspect::{InspectArgs, InspectJob, Inspected};
 pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
 pub use plan::{CriterionArg, PlanArgs, PlanJob, Planned};
 pub use query::{QueryArgs, QueryJob, QueryResult};
@@ -113,6 +119,16 @@ pub enum JobError {
     /// A result came out non-finite and is not reported as one.
     #[error("{0}")]
     NonFinite(String),
+    /// Continuity that cannot be measured on this table: a hybrid one, or a grid without
+    /// a line of the length asked for.
+    #[error(transparent)]
+    Continuity(Box<adwi_eval::continuity::ContinuityError>),
+    /// A benchmark without a workload.
+    #[error("{0}")]
+    Bench(String),
+    /// A table whose bytes changed after it was validated (a file rewritten in place).
+    #[error("table bytes changed after validation")]
+    TableChanged,
 }
 
 /// The large errors of the steps, boxed so that a job's `Result` stays small.

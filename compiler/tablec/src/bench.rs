@@ -1,35 +1,12 @@
-//! `tablec bench`: query and open latency of a table's two tiers, next to a k-d tree and
-//! the brute force.
+//! `tablec bench`: the bench job ([`adwi_jobs::BenchJob`]), its percentiles and its
+//! openings printed as tables, with the method in words.
 
-use std::path::PathBuf;
-use std::time::Duration;
-
-use adwi_eval::latency::{self, BenchOptions, KdTreeMethod, Timer};
-use adwi_runtime::Table;
-use anyhow::Context;
+use adwi_jobs::{BenchArgs, BenchJob};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The table.
-    table: PathBuf,
-    /// Timed queries per workload for the table's tiers and the k-d tree.
-    #[arg(long, default_value_t = 100_000)]
-    queries: usize,
-    /// Timed queries per workload for the brute-force reference (slow: every sample per
-    /// query).
-    #[arg(long, default_value_t = 2_000)]
-    reference_queries: usize,
-    /// Timed repetitions of each way of opening the table.
-    #[arg(long, default_value_t = 20)]
-    open_repeats: usize,
-    /// Seed of the random targets and the trajectory.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Also write the percentiles as JSON: {"random": {...}, "trajectory": {...}}, each
-    /// with the contenders "trilinear", "exact", "kdtree" and "brute", each
-    /// {"p50_ns": .., "p99_ns": ..}.
-    #[arg(long, value_name = "FILE")]
-    json: Option<PathBuf>,
+    #[command(flatten)]
+    job: BenchArgs,
 }
 
 const METHOD: &str = "\
@@ -46,40 +23,26 @@ sample. Open: memory map + full validation vs. reading the file and deserialisin
 copy (rkyv validation, no semantic checks).";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let outputs = adwi_output::OutputPlan::check(
-        &args.json.iter().map(|p| p.as_path()).collect::<Vec<_>>(),
-        &[&args.table],
-    )?;
-    let table = crate::open_table(&args.table)?;
-    let params = *table.method();
-    let grid = *table.grid();
+    let b = BenchJob::new(args.job)?.run()?;
     println!("{METHOD}\n");
     println!(
         "table {}: {} samples, {} cells of {} mm, k = {}, epsilon = {} mm{}",
-        args.table.display(),
-        table.sample_count(),
-        grid.cell_count().unwrap_or(0),
-        grid.cell_mm,
-        params.max_neighbours,
-        params.radius_mm,
-        if table.has_served_field() {
+        b.table.display(),
+        b.samples,
+        b.cells,
+        b.cell_mm,
+        b.max_neighbours,
+        b.radius_mm,
+        if b.has_served_field {
             ""
         } else {
             " (no served tier: 'trilinear' is the exact tier)"
         }
     );
-    let timer = Timer::calibrate();
     println!(
         "clock overhead {:.1} ns per timed region\n",
-        timer.overhead_ns
+        b.clock_overhead_ns
     );
-    let options = BenchOptions {
-        queries: args.queries,
-        reference_queries: args.reference_queries,
-        seed: args.seed,
-    };
-    let results = latency::bench_queries(&table, &timer, &options)
-        .context("no workload: a hybrid table without a pose in its grid, or changed bytes")?;
     println!(
         "{:<11} {:<10} {:>8} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
         "workload",
@@ -92,121 +55,56 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "mean ns",
         "batch ns"
     );
-    for w in &results {
-        for (contender, s, batch) in &w.timings {
+    for w in &b.workloads {
+        for t in &w.timings {
+            let s = &t.summary;
             println!(
                 "{:<11} {:<10} {:>8} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0} {:>10.0}",
                 w.name,
-                contender.name(),
+                t.contender,
                 s.count,
                 s.p50_ns,
                 s.p99_ns,
                 s.p999_ns,
                 s.max_ns,
                 s.mean_ns,
-                batch
+                t.batch_ns
             );
         }
     }
     println!();
-    for w in &results {
-        let p50 = |i: usize| w.timings[i].1.p50_ns.max(1.0);
-        let p99 = |i: usize| w.timings[i].1.p99_ns.max(1.0);
+    for w in &b.workloads {
+        let p50 = |i: usize| w.timings[i].summary.p50_ns.max(1.0);
+        let p99 = |i: usize| w.timings[i].summary.p99_ns.max(1.0);
         println!(
             "{}: {} targets, {} answered by the served field, {} by the exact tier; the k-d \
              tree is {:.1}x the trilinear p50 ({:.1}x at p99) and {:.1}x the exact p50 ({:.1}x \
              at p99); exact answers identical to the k-d tree's {}/{}, to the brute force's {}/{}",
             w.name,
             w.targets,
-            w.answered.0,
-            w.answered.1,
+            w.answered_served,
+            w.answered_exact,
             p50(2) / p50(0),
             p99(2) / p99(0),
             p50(2) / p50(1),
             p99(2) / p99(1),
-            w.agreement[0].0,
-            w.agreement[0].1,
-            w.agreement[1].0,
-            w.agreement[1].1,
+            w.kdtree_agreement.same,
+            w.kdtree_agreement.of,
+            w.brute_agreement.same,
+            w.brute_agreement.of,
         );
     }
-    if let Some(path) = &args.json {
-        outputs.write(&[(path, json(&results).as_bytes())])?;
-    }
-
-    println!("\nopen ({} runs each)", args.open_repeats);
+    println!("\nopen ({} runs each)", b.open_repeats);
     println!("{:<44} {:>12} {:>12}", "", "median us", "max us");
-    let path = &args.table;
-    let records = latency::records_of(&table);
-    let open_rows: [(&str, Vec<Duration>); 4] = [
-        (
-            "mmap + full validation (Table::open)",
-            latency::time_runs(args.open_repeats, || {
-                // SAFETY: the file is not modified while this benchmark runs.
-                unsafe { Table::open(path) }.map(|t| t.sample_count())
-            }),
-        ),
-        (
-            "read + full validation (Table::from_vec)",
-            latency::time_runs(args.open_repeats, || {
-                std::fs::read(path)
-                    .ok()
-                    .and_then(|b| Table::from_vec(b).ok().map(|t| t.sample_count()))
-            }),
-        ),
-        (
-            "read + deserialise an owned copy (rkyv)",
-            latency::time_runs(args.open_repeats, || latency::deserialise_owned(path)),
-        ),
-        (
-            "k-d tree start-up: build the tree",
-            latency::time_runs(args.open_repeats, || {
-                KdTreeMethod::new(records.clone(), params)
-            }),
-        ),
-    ];
-    let bytes = std::fs::metadata(path).map_or(0, |m| m.len());
-    for (name, runs) in open_rows {
-        let median = runs[runs.len() / 2];
-        println!(
-            "{name:<44} {:>12.1} {:>12.1}",
-            micros(median),
-            micros(runs[runs.len() - 1])
-        );
-        if name.starts_with("mmap") {
+    for (i, o) in b.open.iter().enumerate() {
+        println!("{:<44} {:>12.1} {:>12.1}", o.way, o.median_us, o.max_us);
+        // The memory map's row comes first.
+        if i == 0 {
             println!(
                 "{:<44} {:>12.2}",
-                "  (validated GB/s at the median)",
-                bytes as f64 / median.as_secs_f64().max(1e-12) / 1e9
+                "  (validated GB/s at the median)", b.validated_gb_per_s
             );
         }
     }
     Ok(())
-}
-
-fn micros(d: Duration) -> f64 {
-    d.as_nanos() as f64 / 1e3
-}
-
-/// `{"random": {"trilinear": {"p50_ns": .., "p99_ns": ..}, ...}, "trajectory": {...}}`.
-fn json(results: &[latency::WorkloadResult]) -> String {
-    let workloads: Vec<String> = results
-        .iter()
-        .map(|w| {
-            let contenders: Vec<String> = w
-                .timings
-                .iter()
-                .map(|(c, s, _)| {
-                    format!(
-                        "\"{}\": {{\"p50_ns\": {:.1}, \"p99_ns\": {:.1}}}",
-                        c.name(),
-                        s.p50_ns,
-                        s.p99_ns
-                    )
-                })
-                .collect();
-            format!("\"{}\": {{{}}}", w.name, contenders.join(", "))
-        })
-        .collect();
-    format!("{{{}}}\n", workloads.join(", "))
 }

@@ -1,41 +1,21 @@
-//! `tablec continuity`.
+//! `tablec continuity`: the continuity job ([`adwi_jobs::ContinuityJob`]), both tiers
+//! printed as a table.
 
-use std::path::PathBuf;
-
-use adwi_eval::continuity::{continuity, ContinuityOptions, TierContinuity};
+use adwi_jobs::continuity::TierContinuity;
+use adwi_jobs::{ContinuityArgs, ContinuityJob};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The table (not hybrid).
-    table: PathBuf,
-    /// Number of straight lines, each inside the grid with an answered middle.
-    #[arg(long, default_value_t = ContinuityOptions::default().lines)]
-    lines: usize,
-    /// Length of each line, mm.
-    #[arg(long, default_value_t = ContinuityOptions::default().length_mm)]
-    length_mm: f64,
-    /// Distance between consecutive targets, mm.
-    #[arg(long, default_value_t = ContinuityOptions::default().step_mm)]
-    step_mm: f64,
-    /// Seed of the lines.
-    #[arg(long, default_value_t = ContinuityOptions::default().seed)]
-    seed: u64,
+    #[command(flatten)]
+    job: ContinuityArgs,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let options = ContinuityOptions {
-        lines: args.lines,
-        length_mm: args.length_mm,
-        step_mm: args.step_mm,
-        seed: args.seed,
-    };
-    // Sized before the table is opened: refused in milliseconds, with the figure.
-    options.check()?;
-    let table = crate::open_table(&args.table)?;
-    let c = continuity(&table, &options)?;
+    let result = ContinuityJob::new(args.job)?.run()?;
+    let c = &result.continuity;
     println!(
         "{} lines of {} mm at {} mm steps",
-        c.lines, options.length_mm, options.step_mm
+        c.lines, result.length_mm, result.step_mm
     );
     println!(
         "{:<8} {:>14} {:>16} {:>12} {:>14} {:>12}",

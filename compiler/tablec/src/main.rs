@@ -136,15 +136,6 @@ fn restore_default_sigpipe() {
     }
 }
 
-/// Opens a table by memory map.
-fn open_table(path: &std::path::Path) -> anyhow::Result<adwi_runtime::Table<memmap2::Mmap>> {
-    use anyhow::Context;
-    // SAFETY: tablec never writes a table in place (it renames complete files), and the
-    // process holds the mapping only for the duration of one command.
-    unsafe { adwi_runtime::Table::open(path) }
-        .with_context(|| format!("cannot open table {}", path.display()))
-}
-
 /// The method's parameters in one line, as `build` and `inspect` print them.
 pub fn describe_method(m: &adwi_runtime::method::MethodParams) -> String {
     format!(
