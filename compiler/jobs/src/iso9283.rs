@@ -167,12 +167,12 @@ enum Work {
     /// Reduce measured cycles, and with a table their compensation.
     Report {
         rows: Vec<CycleRow>,
-        table: Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>,
+        table: OpenTable,
     },
     /// Reduce a tracker stream, and with a table its compensation.
     Path {
         paths: Vec<MeasuredPath>,
-        table: Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>,
+        table: OpenTable,
     },
     /// Write a cube plan (poses or paths).
     Plan { text: String },
@@ -263,6 +263,160 @@ fn finite(report: Report) -> Result<Report, JobError> {
     }
 }
 
+/// The test paths' options: a path plan needs a cube, and its speed is a speed.
+fn check_path_plan_options(args: &Iso9283Args) -> Result<(), JobError> {
+    if args.path_plan && args.cube.is_none() {
+        return Err(JobError::option(
+            "path-plan",
+            "writes the test paths of a cube: give --cube",
+        ));
+    }
+    if args.speed != 100.0 && !args.path_plan {
+        return Err(JobError::option(
+            "speed",
+            "is the test paths' speed: give it with --cube ... --path-plan",
+        ));
+    }
+    if !(args.speed > 0.0 && args.speed <= 1e6) {
+        return Err(JobError::option(
+            "speed",
+            format!("{} mm/s: give a speed above 0 mm/s", args.speed),
+        ));
+    }
+    Ok(())
+}
+
+/// The JSON and the report page checked against `inputs`.
+fn report_outputs(args: &Iso9283Args, inputs: &Inputs) -> Result<OutputPlan, JobError> {
+    let mut outputs = OutputPlan::check(
+        &args
+            .json
+            .iter()
+            .map(PathBuf::as_path)
+            .collect::<Vec<&Path>>(),
+        &inputs.paths(),
+    )?;
+    if let Some(dir) = &args.report {
+        outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
+    }
+    Ok(outputs)
+}
+
+/// The table to compensate by, open, with its path.
+type OpenTable = Option<Box<(PathBuf, adwi_runtime::Table<memmap2::Mmap>)>>;
+
+/// Opens the table of `--table`, if given.
+fn open_compensation(args: &Iso9283Args) -> Result<OpenTable, JobError> {
+    match &args.table {
+        Some(t) => Ok(Some(Box::new((t.clone(), open_table(t)?)))),
+        None => Ok(None),
+    }
+}
+
+/// A tracker stream and its commanded paths, read; the outputs checked first.
+fn path_work(
+    args: &Iso9283Args,
+    stream: &Path,
+    command: &Path,
+) -> Result<(Work, OutputPlan), JobError> {
+    if args.measurements.is_some() || args.cube.is_some() {
+        return Err(JobError::Options(
+            "--path reduces a tracker stream: measured cycles and --cube are other \
+             tests, one at a time"
+                .into(),
+        ));
+    }
+    let plan_only = Iso9283Args::default();
+    if args.cycles != plan_only.cycles
+        || args.abc != plan_only.abc
+        || !args.distance.is_empty()
+        || args.output.is_some()
+    {
+        return Err(JobError::Options(
+            "--cycles, --abc, --distance and --output are for pose cycles and plans; \
+             --path reports to standard output, --json and --report"
+                .into(),
+        ));
+    }
+    let mut inputs = Inputs::default();
+    inputs.add(stream);
+    inputs.add(command);
+    if let Some(t) = &args.table {
+        inputs.add(t);
+    }
+    let outputs = report_outputs(args, &inputs)?;
+    let commands = read_command(command).map_err(path_error)?;
+    let stream = read_stream(stream).map_err(path_error)?;
+    let paths = path::measured_paths(&stream, &commands).map_err(path_error)?;
+    let table = open_compensation(args)?;
+    Ok((Work::Path { paths, table }, outputs))
+}
+
+/// A cube's plan (its poses, or its test paths), computed; its output checked.
+fn plan_work(
+    args: &Iso9283Args,
+    [x, y, z, side]: [f64; 4],
+) -> Result<(Work, OutputPlan), JobError> {
+    if args.json.is_some()
+        || args.table.is_some()
+        || args.report.is_some()
+        || !args.distance.is_empty()
+    {
+        return Err(JobError::Options(
+            "--cube writes a plan: --json, --table, --report and --distance report \
+             on measured cycles"
+                .into(),
+        ));
+    }
+    let Some(output) = &args.output else {
+        return Err(JobError::option(
+            "output",
+            "--cube writes its plan there: give it",
+        ));
+    };
+    if args.path_plan && args.cycles != ISO_CYCLES {
+        return Err(JobError::option(
+            "cycles",
+            "repeats the pose plan; a path plan is run as many times as the test asks",
+        ));
+    }
+    let text = if args.path_plan {
+        adwi_measure::iso9283::write_path_plan([x, y, z], side, args.abc, args.speed)
+    } else {
+        write_cube_plan([x, y, z], side, args.abc, args.cycles)
+    }
+    .map_err(|e| JobError::option("cube", e))?;
+    Ok((Work::Plan { text }, OutputPlan::check(&[output], &[])?))
+}
+
+/// Measured cycles, read, and the table to compensate them by; the outputs checked first.
+fn report_work(args: &Iso9283Args, cycles: &Path) -> Result<(Work, OutputPlan), JobError> {
+    let plan_only = Iso9283Args::default();
+    if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
+        return Err(JobError::Options(
+            "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
+             their own"
+                .into(),
+        ));
+    }
+    if args.output.is_some() {
+        return Err(JobError::option(
+            "output",
+            "writes a cube's plan (--cube); the report goes to standard output and \
+             --json",
+        ));
+    }
+    let mut inputs = Inputs::default();
+    inputs.add(cycles);
+    if let Some(t) = &args.table {
+        inputs.add(t);
+    }
+    let outputs = report_outputs(args, &inputs)?;
+    let rows = read_cycles(cycles).map_err(measure_error)?;
+    let table = open_compensation(args)?;
+    Ok((Work::Report { rows, table }, outputs))
+}
+
 impl Iso9283Job {
     /// Checks `args`, reads the cycles and opens the table, or computes the plan; checks
     /// the outputs.
@@ -271,156 +425,23 @@ impl Iso9283Job {
     ///
     /// A refused option or combination, an unreadable input, an output that is an input.
     pub fn new(args: Iso9283Args) -> Result<Iso9283Job, JobError> {
-        let mut inputs = Inputs::default();
-        if args.path_plan && args.cube.is_none() {
-            return Err(JobError::option(
-                "path-plan",
-                "writes the test paths of a cube: give --cube",
-            ));
-        }
-        if args.speed != 100.0 && !args.path_plan {
-            return Err(JobError::option(
-                "speed",
-                "is the test paths' speed: give it with --cube ... --path-plan",
-            ));
-        }
-        if !(args.speed > 0.0 && args.speed <= 1e6) {
-            return Err(JobError::option(
-                "speed",
-                format!("{} mm/s: give a speed above 0 mm/s", args.speed),
-            ));
-        }
-        if args.command.is_some() != args.path.is_some() {
-            return Err(JobError::Options(
-                "--path (the tracker stream) and --command (the commanded path) go together".into(),
-            ));
-        }
-        if let (Some(stream), Some(command)) = (&args.path, &args.command) {
-            if args.measurements.is_some() || args.cube.is_some() {
-                return Err(JobError::Options(
-                    "--path reduces a tracker stream: measured cycles and --cube are other \
-                     tests, one at a time"
-                        .into(),
-                ));
-            }
-            let plan_only = Iso9283Args::default();
-            if args.cycles != plan_only.cycles
-                || args.abc != plan_only.abc
-                || !args.distance.is_empty()
-                || args.output.is_some()
-            {
-                return Err(JobError::Options(
-                    "--cycles, --abc, --distance and --output are for pose cycles and plans; \
-                     --path reports to standard output, --json and --report"
-                        .into(),
-                ));
-            }
-            inputs.add(stream);
-            inputs.add(command);
-            if let Some(t) = &args.table {
-                inputs.add(t);
-            }
-            let mut outputs = OutputPlan::check(
-                &args
-                    .json
-                    .iter()
-                    .map(PathBuf::as_path)
-                    .collect::<Vec<&Path>>(),
-                &inputs.paths(),
-            )?;
-            if let Some(dir) = &args.report {
-                outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
-            }
-            let commands = read_command(command).map_err(path_error)?;
-            let stream = read_stream(stream).map_err(path_error)?;
-            let paths = path::measured_paths(&stream, &commands).map_err(path_error)?;
-            let table = match &args.table {
-                Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
-                None => None,
-            };
-            return Ok(Iso9283Job {
-                args,
-                work: Work::Path { paths, table },
-                outputs,
-            });
-        }
-        let (work, outputs) = match (&args.measurements, args.cube) {
-            (Some(_), Some(_)) | (None, None) => {
+        check_path_plan_options(&args)?;
+        let (work, outputs) = match (&args.path, &args.command, &args.measurements, args.cube) {
+            (Some(stream), Some(command), _, _) => path_work(&args, stream, command)?,
+            (None, None, Some(_), Some(_)) | (None, None, None, None) => {
                 return Err(JobError::Options(
                     "give the measured cycles (MEASUREMENTS.csv), a tracker stream (--path) or a \
                      cube to plan (--cube), one of them"
                         .into(),
                 ))
             }
-            (None, Some([x, y, z, side])) => {
-                if args.json.is_some()
-                    || args.table.is_some()
-                    || args.report.is_some()
-                    || !args.distance.is_empty()
-                {
-                    return Err(JobError::Options(
-                        "--cube writes a plan: --json, --table, --report and --distance report \
-                         on measured cycles"
-                            .into(),
-                    ));
-                }
-                let Some(output) = &args.output else {
-                    return Err(JobError::option(
-                        "output",
-                        "--cube writes its plan there: give it",
-                    ));
-                };
-                if args.path_plan && args.cycles != ISO_CYCLES {
-                    return Err(JobError::option(
-                        "cycles",
-                        "repeats the pose plan; a path plan is run as many times as the test asks",
-                    ));
-                }
-                let text = if args.path_plan {
-                    adwi_measure::iso9283::write_path_plan([x, y, z], side, args.abc, args.speed)
-                } else {
-                    write_cube_plan([x, y, z], side, args.abc, args.cycles)
-                }
-                .map_err(|e| JobError::option("cube", e))?;
-                (Work::Plan { text }, OutputPlan::check(&[output], &[])?)
-            }
-            (Some(path), None) => {
-                let plan_only = Iso9283Args::default();
-                if args.cycles != plan_only.cycles || args.abc != plan_only.abc {
-                    return Err(JobError::Options(
-                        "--cycles and --abc shape a cube's plan (--cube); measured cycles carry \
-                         their own"
-                            .into(),
-                    ));
-                }
-                if args.output.is_some() {
-                    return Err(JobError::option(
-                        "output",
-                        "writes a cube's plan (--cube); the report goes to standard output and \
-                         --json",
-                    ));
-                }
-                inputs.add(path);
-                if let Some(t) = &args.table {
-                    inputs.add(t);
-                }
-                let mut outputs = OutputPlan::check(
-                    &args
-                        .json
-                        .iter()
-                        .map(PathBuf::as_path)
-                        .collect::<Vec<&Path>>(),
-                    &inputs.paths(),
-                )?;
-                if let Some(dir) = &args.report {
-                    outputs.check_in_new_directory(&dir.join("index.html"), &inputs.paths())?;
-                }
-                let rows = read_cycles(path).map_err(measure_error)?;
-                let table = match &args.table {
-                    Some(t) => Some(Box::new((t.clone(), open_table(t)?))),
-                    None => None,
-                };
-                (Work::Report { rows, table }, outputs)
+            (None, None, None, Some(cube)) => plan_work(&args, cube)?,
+            (None, None, Some(cycles), None) => report_work(&args, cycles)?,
+            _ => {
+                return Err(JobError::Options(
+                    "--path (the tracker stream) and --command (the commanded path) go together"
+                        .into(),
+                ))
             }
         };
         Ok(Iso9283Job {
