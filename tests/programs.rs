@@ -245,6 +245,7 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
                 adwi_programs::yaskawa::read(&src, &job.options().yaskawa)
             }
             adwi_programs::Format::Fanuc => adwi_programs::fanuc::read(&src, &job.options().fanuc),
+            adwi_programs::Format::Val3 => adwi_programs::staubli::read(&src, &[]),
         }
         .unwrap();
         assert_eq!(written.targets.len(), done.report.targets.len());

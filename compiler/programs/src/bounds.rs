@@ -68,7 +68,7 @@ pub fn out_of_range(src: &Source, kind: &TargetKind, robot: Option<&Robot>) -> O
             }
             let angles = match &c.orientation {
                 None => None,
-                Some(Orientation::KukaAbcDeg(abc)) => abc
+                Some(Orientation::KukaAbcDeg(abc) | Orientation::XyzIntrinsicDeg(abc)) => abc
                     .iter()
                     .find_map(|n| beyond(n, "an angle", n.value, MAX_ANGLE_DEG, "°")),
                 Some(Orientation::QuaternionWxyz(q)) => q.iter().find_map(|n| {

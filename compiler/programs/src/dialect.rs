@@ -70,6 +70,7 @@ fn long_name(format: Format) -> &'static str {
         Format::Gcode => "G-code",
         Format::Yaskawa => "Yaskawa INFORM",
         Format::Fanuc => "Fanuc TP",
+        Format::Val3 => "Stäubli VAL3",
     }
 }
 
@@ -137,6 +138,11 @@ fn signs(src: &Source) -> Vec<(Format, usize, String)> {
             .any(|w| starts(w))
         {
             Some(Format::Fanuc)
+        } else if ["<DATABASE", "<DATAS>", "<PROJECT", "<PROGRAMS"]
+            .iter()
+            .any(|w| starts(w))
+        {
+            Some(Format::Val3)
         } else {
             None
         };

@@ -73,7 +73,27 @@ pub fn rotation_of(orientation: &Orientation) -> Option<Rotation3<f64>> {
         Orientation::RotationVectorRad(v) => {
             Some(adwi_samples::pose::rotation_from_vector(v.map(|n| n.value)))
         }
+        Orientation::XyzIntrinsicDeg(v) => {
+            Some(rotation_from_xyz_intrinsic_deg(v.map(|n| n.value)))
+        }
     }
+}
+
+/// Stäubli's `R = Rx(rx)·Ry(ry)·Rz(rz)` (degrees): the transpose of KUKA's
+/// `Rz(−rz)·Ry(−ry)·Rx(−rx)`.
+pub fn rotation_from_xyz_intrinsic_deg(rxyz: [f64; 3]) -> Rotation3<f64> {
+    adwi_samples::pose::rotation_from_kuka_abc_deg([-rxyz[2], -rxyz[1], -rxyz[0]]).inverse()
+}
+
+/// Stäubli angles of `rotation` nearest `original` (degrees), through
+/// [`kuka_abc_near`] of the transpose: at ry = ±90°, where only rx ± rz is defined, the
+/// written rx is kept.
+pub fn xyz_intrinsic_near(rotation: &Rotation3<f64>, original: [f64; 3]) -> [f64; 3] {
+    let [a, b, c] = kuka_abc_near(
+        &rotation.inverse(),
+        [-original[2], -original[1], -original[0]],
+    );
+    [-c, -b, -a].map(|v| if v == 0.0 { 0.0 } else { v })
 }
 
 /// The numbers that write `rotation` in `orientation`'s convention, chosen nearest the
@@ -83,6 +103,9 @@ pub fn rotation_of(orientation: &Orientation) -> Option<Rotation3<f64>> {
 pub fn orientation_values(orientation: &Orientation, rotation: &Rotation3<f64>) -> Vec<f64> {
     match orientation {
         Orientation::KukaAbcDeg(abc) => kuka_abc_near(rotation, abc.map(|n| n.value)).to_vec(),
+        Orientation::XyzIntrinsicDeg(v) => {
+            xyz_intrinsic_near(rotation, v.map(|n| n.value)).to_vec()
+        }
         Orientation::QuaternionWxyz(q) => {
             let unit = UnitQuaternion::from_rotation_matrix(rotation);
             let new = [unit.w, unit.i, unit.j, unit.k];

@@ -235,7 +235,7 @@ impl CompensateJob {
             Some(f) => f,
             None => Format::from_path(&o.program).ok_or_else(|| {
                 Error::Option(format!(
-                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .jbi, .ls); give it (krl, rapid, urscript, csv, gcode, yaskawa, fanuc)",
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .jbi, .ls, .pjx, .dtx); give it (krl, rapid, urscript, csv, gcode, yaskawa, fanuc, val3)",
                     o.program.display()
                 ))
             })?,
@@ -247,6 +247,13 @@ impl CompensateJob {
             Format::Krl => partner(&o.program),
             _ => None,
         };
+        // A VAL3 application: its data file is the program whose numbers change, its
+        // project and programs are read beside it.
+        let application = match format {
+            Format::Val3 => Some(crate::staubli::Application::locate(&o.program)?),
+            _ => None,
+        };
+        let program_path: &Path = application.as_ref().map_or(&o.program, |a| &a.data);
         let (robot, robot_files) = match &o.robot {
             Some(path) => {
                 let (robot, files) =
@@ -260,6 +267,7 @@ impl CompensateJob {
         };
         let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
         inputs.extend(partner_path.as_deref());
+        inputs.extend(application.iter().flat_map(|a| a.files()));
         inputs.extend(o.robot.as_deref());
         inputs.extend(o.krl_config.as_deref());
         inputs.extend(o.fanuc.frames_file.as_deref());
@@ -289,16 +297,16 @@ impl CompensateJob {
             path: o.table.clone(),
             source,
         })?;
-        let size = std::fs::metadata(&o.program)
+        let size = std::fs::metadata(program_path)
             .map_err(|source| Error::Read {
-                path: o.program.clone(),
+                path: program_path.to_path_buf(),
                 source,
             })?
             .len();
         if size > MAX_PROGRAM_BYTES {
             return Err(Error::Option(format!(
                 "{}: {size} bytes, more than the {MAX_PROGRAM_BYTES} a program may have",
-                o.program.display()
+                program_path.display()
             )));
         }
         // The partner is read whole too: bounded as the program is, before it is read.
@@ -311,8 +319,8 @@ impl CompensateJob {
                 )));
             }
         }
-        let bytes = read(&o.program)?;
-        let name = o.program.display().to_string();
+        let bytes = read(program_path)?;
+        let name = program_path.display().to_string();
         // Text a reader can read, in the dialect the job takes it for, before any work.
         crate::dialect::check(&Source::new(&name, &bytes), format, o.format.is_some())?;
         let krl_frames = match &o.krl_config {
@@ -422,6 +430,14 @@ impl CompensateJob {
                 }
                 Format::Yaskawa => crate::yaskawa::read_at_most(&src, &o.yaskawa, limit)?,
                 Format::Fanuc => crate::fanuc::read_at_most(&src, &fanuc, limit)?,
+                Format::Val3 => {
+                    let files = application
+                        .as_ref()
+                        .map_or_else(|| Ok(Vec::new()), |a| a.read_programs())?;
+                    let programs: Vec<Source> =
+                        files.iter().map(|(n, b)| Source::new(n, b)).collect();
+                    crate::staubli::read_at_most(&src, &programs, limit)?
+                }
             }
         };
         // A growing list reserves up to twice what it holds: the targets are kept to the run's
@@ -620,9 +636,12 @@ impl CompensateJob {
         let motions_seen = match format {
             Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
             Format::Rapid => true,
-            Format::UrScript | Format::Csv | Format::Gcode | Format::Yaskawa | Format::Fanuc => {
-                false
-            }
+            Format::UrScript
+            | Format::Csv
+            | Format::Gcode
+            | Format::Yaskawa
+            | Format::Fanuc
+            | Format::Val3 => false,
         };
         Ok(CompensateJob {
             motions_seen,
@@ -752,7 +771,8 @@ impl CompensateJob {
             .and_then(|edits| {
                 // Never a non-finite number written, whatever the input held.
                 let finite = edits.iter().all(|(_, text)| {
-                    text.replace(',', ".")
+                    crate::staubli::edit_number(text)
+                        .replace(',', ".")
                         .parse::<f64>()
                         .is_ok_and(f64::is_finite)
                 });
@@ -1039,8 +1059,18 @@ impl CompensateJob {
                     (c.unit.decimals(), 6)
                 };
                 let mut edits = Vec::new();
-                for (n, v) in c.position.iter().zip(new_pose.translation.vector.iter()) {
-                    edits.extend(number_edit(n, v / scale, length_decimals));
+                // A VAL3 attribute the file omits (its number's span empty) is inserted.
+                let names = crate::staubli::CARTESIAN;
+                for (k, (n, v)) in c
+                    .position
+                    .iter()
+                    .zip(new_pose.translation.vector.iter())
+                    .enumerate()
+                {
+                    edits.extend(
+                        number_edit(n, v / scale, length_decimals)
+                            .map(|e| crate::staubli::inserted(e, names[k])),
+                    );
                 }
                 if let Some(o) = &c.orientation {
                     // An orientation the correction does not turn keeps its numbers (and its
@@ -1051,9 +1081,13 @@ impl CompensateJob {
                             Orientation::KukaAbcDeg(n) => (n, angle_decimals),
                             Orientation::QuaternionWxyz(n) => (n, 9),
                             Orientation::RotationVectorRad(n) => (n, 8),
+                            Orientation::XyzIntrinsicDeg(n) => (n, angle_decimals),
                         };
-                        for (n, v) in numbers.iter().zip(values) {
-                            edits.extend(number_edit(n, v, decimals));
+                        for (k, (n, v)) in numbers.iter().zip(values).enumerate() {
+                            edits.extend(
+                                number_edit(n, v, decimals)
+                                    .map(|e| crate::staubli::inserted(e, names[(k + 3).min(5)])),
+                            );
                         }
                     }
                 }
@@ -1128,7 +1162,8 @@ impl CompensateJob {
                             *per_deg,
                         )
                         .map(|text| (n.span, text)),
-                        None => number_edit(n, v / j.unit.rad(), j.unit.decimals()),
+                        None => number_edit(n, v / j.unit.rad(), j.unit.decimals())
+                            .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
                     })
                     .collect())
             }

@@ -3,7 +3,7 @@
 //! Most industrial controllers cannot link a library into their motion loop; there a
 //! calibration reaches the robot as a filtered program: every target replaced by the
 //! command that lands on it. [`CompensateJob`] does that for KUKA KRL (`.src`, `.dat`), ABB
-//! RAPID (`.mod`), Universal Robots URScript, G-code (`.nc`), Yaskawa INFORM (`.jbi`), Fanuc TP (`.ls`) and a plain CSV of poses, with a correction
+//! RAPID (`.mod`), Universal Robots URScript, G-code (`.nc`), Yaskawa INFORM (`.jbi`), Fanuc TP (`.ls`), Stäubli VAL3 (`.pjx`, `.dtx`) and a plain CSV of poses, with a correction
 //! table ([`adwi_runtime::Table`]):
 //!
 //! 1. **Only the numbers of targets change.** The program is read as bytes, never decoded;
@@ -32,7 +32,7 @@
 //! # Ok::<(), adwi_programs::Error>(())
 //! ```
 //!
-//! The formats' readers: [`krl`], [`rapid`], [`urscript`], [`gcode`], [`yaskawa`], [`fanuc`], [`csv`]. The method and the
+//! The formats' readers: [`krl`], [`rapid`], [`urscript`], [`gcode`], [`yaskawa`], [`fanuc`], [`staubli`], [`csv`]. The method and the
 //! frames are documented with worked examples in `docs/programs.md`.
 
 #![deny(missing_docs)]
@@ -53,6 +53,7 @@ pub mod program;
 pub mod rapid;
 pub mod report;
 pub mod source;
+pub mod staubli;
 pub mod urscript;
 pub mod yaskawa;
 

@@ -22,11 +22,13 @@ pub enum Format {
     Yaskawa,
     /// Fanuc TP in its ASCII form: a `.ls` program.
     Fanuc,
+    /// Stäubli VAL3: an application (`.pjx`), its data (`.dtx`) corrected.
+    Val3,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 7] = [
+    pub const ALL: [Format; 8] = [
         Format::Krl,
         Format::Rapid,
         Format::UrScript,
@@ -34,6 +36,7 @@ impl Format {
         Format::Gcode,
         Format::Yaskawa,
         Format::Fanuc,
+        Format::Val3,
     ];
 
     /// The name the command line takes (`krl`, `rapid`, `urscript`, `csv`, `gcode`).
@@ -46,6 +49,7 @@ impl Format {
             Format::Gcode => "gcode",
             Format::Yaskawa => "yaskawa",
             Format::Fanuc => "fanuc",
+            Format::Val3 => "val3",
         }
     }
 
@@ -56,7 +60,8 @@ impl Format {
 
     /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
     /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
-    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.jbi` Yaskawa INFORM; `.ls` Fanuc TP.
+    /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.jbi` Yaskawa INFORM; `.ls` Fanuc TP; `.pjx`,
+    /// `.dtx` a Stäubli VAL3 application.
     pub fn from_path(path: &std::path::Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
@@ -67,6 +72,7 @@ impl Format {
             "nc" | "ngc" | "gcode" | "tap" => Format::Gcode,
             "jbi" => Format::Yaskawa,
             "ls" => Format::Fanuc,
+            "pjx" | "dtx" => Format::Val3,
             _ => return None,
         })
     }
@@ -127,6 +133,9 @@ pub enum Reason {
     /// within the tolerance of the corrected path (or whose path the table does not
     /// correct throughout).
     ArcTolerance,
+    /// A target no motion instruction moves to, which the dialect leaves as written (a
+    /// VAL3 point used only by other code, or by none).
+    NotMoved,
 }
 
 impl Reason {
@@ -140,6 +149,7 @@ impl Reason {
             Reason::UnknownMotion => "unknown_motion",
             Reason::NotDeclared => "not_declared",
             Reason::ArcTolerance => "arc_tolerance",
+            Reason::NotMoved => "not_moved",
         }
     }
 }
@@ -256,6 +266,9 @@ pub enum Orientation {
     QuaternionWxyz([Number; 4]),
     /// A rotation vector, radians (Universal Robots' rx, ry, rz).
     RotationVectorRad([Number; 3]),
+    /// Stäubli rx, ry, rz, degrees, about x, then the new y, then the new z:
+    /// `R = Rx(rx)·Ry(ry)·Rz(rz)`.
+    XyzIntrinsicDeg([Number; 3]),
 }
 
 /// What a program says about the configuration of the arm at a target.

@@ -81,6 +81,7 @@ fn read(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
         .map(|r| r.program),
         Format::Yaskawa => adwi_programs::yaskawa::read(&src, &yaskawa_options()),
         Format::Fanuc => adwi_programs::fanuc::read(&src, &Default::default()),
+        Format::Val3 => adwi_programs::staubli::read(&src, &[]),
     };
     match result {
         Ok(_) => Ok(()),

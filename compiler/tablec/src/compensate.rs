@@ -20,13 +20,15 @@ pub struct Args {
     /// The correction table.
     table: PathBuf,
     /// The program: KUKA KRL (.src, .dat), ABB RAPID (.mod), URScript (.script), G-code
-    /// (.nc, .ngc, .gcode, .tap), Yaskawa INFORM (.jbi), Fanuc TP (.ls) or a CSV of poses (.csv).
+    /// (.nc, .ngc, .gcode, .tap), Yaskawa INFORM (.jbi), Fanuc TP (.ls), a Stäubli VAL3
+    /// application (its .pjx, or its folder with --format val3: the output is its corrected
+    /// .dtx) or a CSV of poses (.csv).
     program: PathBuf,
     /// The compensated program (never one of the inputs; written atomically).
     #[arg(short, long)]
     output: PathBuf,
     /// The program's format [default: by its extension].
-    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode", "yaskawa", "fanuc"])]
+    #[arg(long, value_parser = ["krl", "rapid", "urscript", "csv", "gcode", "yaskawa", "fanuc", "val3"])]
     format: Option<String>,
     /// A robot file (TOML, or URDF by its .urdf extension, with --base-link/--tip-link):
     /// for joint targets, and to check every command's posture (inverse kinematics in the

@@ -1,0 +1,1723 @@
+//! Stäubli VAL3 applications, as Stäubli Robotics Suite (SRS) and the controller save them
+//! and offline tools write them.
+//!
+//! An application is a folder: `<app>.pjx` (the project: its programs and its data file),
+//! `<app>.dtx` (the data, XML) and one `.pgx` per program (XML, the code in a CDATA
+//! section). The targets are the `pointRx` and `jointRx` values of the `.dtx`:
+//!
+//! ```text
+//! <Data name="pPart" access="public" xsi:type="array" type="pointRx" size="2">
+//!   <Value key="0" x="412.5" y="-80" z="25" ry="90" shoulder="lefty" fatherId="fPart[0]" />
+//!   <Value key="1" x="512.5" y="-80" z="25" ry="90" fatherId="fPart[0]" />
+//! </Data>
+//! ```
+//!
+//! x, y, z (mm) and rx, ry, rz (degrees, about x, then the new y, then the new z:
+//! `R = Rx(rx)·Ry(ry)·Rz(rz)`) of the TCP of the motion's tool in the point's frame,
+//! `fatherId`, which chains through the file's `frame` data to `world[0]` (taken as the
+//! robot's base frame). SRS omits an attribute whose value is 0: its number is read as 0
+//! with an empty span where the attribute goes, and a correction inserts it
+//! (` z="1.25"`), every other byte kept.
+//!
+//! The code tells which values are motion targets: `movej(p, tTool, mDesc)`,
+//! `movel(…)` and `movec(pVia, pEnd, tTool, mDesc)` move the TCP of the tool (a `tool`
+//! data chained to `flange[0]`) to a point; `movej` to a `jointRx` moves the joints.
+//! `appro(p, trsf)` and `compose(p, frame, trsf)` are offsets computed as the program runs
+//! (`relative`); any other expression, a local variable or a parameter is `dynamic`; a
+//! name the data does not hold is `not_declared`; a point assigned by the code
+//! (`pPart[0] = here(tGripper, world)`) is `dynamic`; a point no motion moves to is left as
+//! written (`not_moved`), with where the code uses it.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use crate::frames::rotation_from_xyz_intrinsic_deg;
+use crate::number::{parse_number, Number, NumberStyle};
+use crate::program::{
+    AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
+    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
+};
+use crate::source::Source;
+use crate::Error;
+
+/// The most bytes a project or program file may have: read whole.
+const MAX_FILE_BYTES: u64 = 1 << 28;
+/// The most programs an application may list.
+const MAX_PROGRAMS: usize = 4096;
+/// The deepest XML nesting read, and the longest frame or tool chain.
+const MAX_DEPTH: usize = 64;
+
+/// The names of a Cartesian value's numbers, in the order [`Orientation::XyzIntrinsicDeg`]
+/// and the position take them.
+pub const CARTESIAN: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+
+/// The files of a VAL3 application.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Application {
+    /// The project, when there is one.
+    pub project: Option<PathBuf>,
+    /// The data file, whose values are corrected.
+    pub data: PathBuf,
+    /// The programs, whose code tells which values are motion targets.
+    pub programs: Vec<PathBuf>,
+}
+
+fn read_bounded(path: &Path) -> Result<Vec<u8>, Error> {
+    let size = std::fs::metadata(path)
+        .map_err(|source| Error::Read {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .len();
+    if size > MAX_FILE_BYTES {
+        return Err(Error::Option(format!(
+            "{}: {size} bytes, more than the {MAX_FILE_BYTES} a VAL3 project or program may have",
+            path.display()
+        )));
+    }
+    adwi_runtime::input::read_regular(path).map_err(|source| Error::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn has_extension(path: &Path, ext: &str) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+}
+
+impl Application {
+    /// The application of `path`: its `.pjx` (the data and programs it lists, beside it),
+    /// its folder (which holds one `.pjx`), or its `.dtx` (with the `.pjx` of the same name
+    /// beside it, else every `.pgx` of its folder).
+    ///
+    /// # Errors
+    ///
+    /// An unreadable or malformed project, a folder without one `.pjx`, a project that
+    /// lists no data file or more than one.
+    pub fn locate(path: &Path) -> Result<Application, Error> {
+        let folder = |p: &Path| p.parent().map_or_else(PathBuf::new, Path::to_path_buf);
+        let listing = |dir: &Path, ext: &str| -> Result<Vec<PathBuf>, Error> {
+            let entries = std::fs::read_dir(dir).map_err(|source| Error::Read {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+            let mut found: Vec<PathBuf> = entries
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| p.is_file() && has_extension(p, ext))
+                .collect();
+            found.sort();
+            Ok(found)
+        };
+        if path.is_dir() {
+            let projects = listing(path, "pjx")?;
+            return match projects.as_slice() {
+                [one] => Application::from_project(one),
+                _ => Err(Error::Option(format!(
+                    "{}: a VAL3 application's folder holds one .pjx project, this one {}",
+                    path.display(),
+                    projects.len()
+                ))),
+            };
+        }
+        if has_extension(path, "dtx") {
+            let project = path.with_extension("pjx");
+            if project.is_file() {
+                let app = Application::from_project(&project)?;
+                if app.data.file_name() == path.file_name() {
+                    return Ok(app);
+                }
+            }
+            let programs = listing(&folder(path), "pgx")?;
+            return Ok(Application {
+                project: None,
+                data: path.to_path_buf(),
+                programs,
+            });
+        }
+        Application::from_project(path)
+    }
+
+    fn from_project(path: &Path) -> Result<Application, Error> {
+        let bytes = read_bounded(path)?;
+        let name = path.display().to_string();
+        let src = Source::new(&name, &bytes);
+        let dir = path.parent().map_or_else(PathBuf::new, Path::to_path_buf);
+        let mut data: Vec<(usize, PathBuf)> = Vec::new();
+        let mut programs = Vec::new();
+        let mut saw_project = false;
+        let mut xml = Xml::new(&src);
+        while let Some(tag) = xml.next()? {
+            if tag.closing {
+                continue;
+            }
+            let file = tag.attribute(&src, b"file");
+            match tag.local_name(&bytes) {
+                b"Project" => saw_project = true,
+                b"Program" => {
+                    let (at, file) =
+                        file.ok_or_else(|| src.error(tag.start, "a <Program> without its file"))?;
+                    if programs.len() == MAX_PROGRAMS {
+                        return Err(src.error(at, format!("more than {MAX_PROGRAMS} programs")));
+                    }
+                    programs.push(dir.join(relative(&src, at, &file)?));
+                }
+                b"Data" => {
+                    let (at, file) =
+                        file.ok_or_else(|| src.error(tag.start, "a <Data> without its file"))?;
+                    data.push((at, dir.join(relative(&src, at, &file)?)));
+                }
+                _ => {}
+            }
+        }
+        if !saw_project {
+            return Err(src.error(0, "not a VAL3 project: no <Project> element"));
+        }
+        match data.as_slice() {
+            [(_, one)] => Ok(Application {
+                project: Some(path.to_path_buf()),
+                data: one.clone(),
+                programs,
+            }),
+            [] => Err(src.error(0, "the project lists no data file (<Data file=\"….dtx\"/>)")),
+            [_, (at, _), ..] => Err(src.error(
+                *at,
+                "the project lists more than one data file: compensate each as its own .dtx",
+            )),
+        }
+    }
+
+    /// Every file the application's job reads: the project, the data and the programs.
+    pub fn files(&self) -> Vec<&Path> {
+        let mut files: Vec<&Path> = self.project.iter().map(PathBuf::as_path).collect();
+        files.push(&self.data);
+        files.extend(self.programs.iter().map(PathBuf::as_path));
+        files
+    }
+
+    /// The programs' names (as the paths display) and bytes, each bounded.
+    ///
+    /// # Errors
+    ///
+    /// A program that cannot be read or is too large.
+    pub fn read_programs(&self) -> Result<Vec<(String, Vec<u8>)>, Error> {
+        self.programs
+            .iter()
+            .map(|p| Ok((p.display().to_string(), read_bounded(p)?)))
+            .collect()
+    }
+}
+
+/// A project's file name, refused when it leaves the application's folder.
+fn relative(src: &Source, at: usize, file: &str) -> Result<PathBuf, Error> {
+    let path = PathBuf::from(file.replace('\\', "/"));
+    let plain = path
+        .components()
+        .all(|c| matches!(c, std::path::Component::Normal(_)));
+    if !plain || file.is_empty() {
+        return Err(src.error(
+            at,
+            format!("'{file}': a program or data file of the project is named within its folder"),
+        ));
+    }
+    Ok(path)
+}
+
+/// One XML tag: where it is, its name and attributes (spans of their names and values).
+struct Tag {
+    start: usize,
+    /// The byte after the tag's name (where an attribute is inserted when none precedes).
+    name_end: usize,
+    name: (usize, usize),
+    attributes: Vec<Attribute>,
+    closing: bool,
+    empty: bool,
+}
+
+struct Attribute {
+    name: (usize, usize),
+    /// The value, within the quotes.
+    value: (usize, usize),
+}
+
+impl Tag {
+    fn local_name<'b>(&self, bytes: &'b [u8]) -> &'b [u8] {
+        let name = &bytes[self.name.0..self.name.1];
+        match name.iter().rposition(|b| *b == b':') {
+            Some(p) => &name[p + 1..],
+            None => name,
+        }
+    }
+
+    fn find(&self, bytes: &[u8], name: &[u8]) -> Option<&Attribute> {
+        self.attributes
+            .iter()
+            .find(|a| &bytes[a.name.0..a.name.1] == name)
+    }
+
+    /// An attribute's value's offset and text.
+    fn attribute(&self, src: &Source, name: &[u8]) -> Option<(usize, String)> {
+        self.find(src.bytes, name)
+            .map(|a| (a.value.0, src.text(a.value.0, a.value.1)))
+    }
+}
+
+/// A minimal reader of the tags of an XML file: comments, processing instructions,
+/// declarations and CDATA sections skipped (a CDATA section's span kept for the code).
+struct Xml<'s, 'a> {
+    src: &'s Source<'a>,
+    at: usize,
+    /// The CDATA sections passed, their contents' spans.
+    cdata: Vec<(usize, usize)>,
+}
+
+impl<'s, 'a> Xml<'s, 'a> {
+    fn new(src: &'s Source<'a>) -> Xml<'s, 'a> {
+        let at = if src.bytes.starts_with(b"\xef\xbb\xbf") {
+            3
+        } else {
+            0
+        };
+        Xml {
+            src,
+            at,
+            cdata: Vec::new(),
+        }
+    }
+
+    fn find(&self, from: usize, what: &[u8]) -> Option<usize> {
+        self.src.bytes[from.min(self.src.bytes.len())..]
+            .windows(what.len())
+            .position(|w| w == what)
+            .map(|p| from + p)
+    }
+
+    fn next(&mut self) -> Result<Option<Tag>, Error> {
+        let bytes = self.src.bytes;
+        loop {
+            let Some(open) = bytes[self.at..].iter().position(|b| *b == b'<') else {
+                return Ok(None);
+            };
+            let start = self.at + open;
+            let rest = &bytes[start..];
+            let skip = |this: &mut Self, end: &[u8], what: &str| -> Result<(), Error> {
+                match this.find(start + 2, end) {
+                    Some(e) => {
+                        this.at = e + end.len();
+                        Ok(())
+                    }
+                    None => Err(this.src.error(
+                        start,
+                        format!(
+                            "{what} not closed ('{}' missing)",
+                            String::from_utf8_lossy(end)
+                        ),
+                    )),
+                }
+            };
+            if rest.starts_with(b"<!--") {
+                skip(self, b"-->", "a comment")?;
+                continue;
+            }
+            if rest.starts_with(b"<![CDATA[") {
+                let from = start + 9;
+                skip(self, b"]]>", "a CDATA section")?;
+                self.cdata.push((from, self.at - 3));
+                continue;
+            }
+            if rest.starts_with(b"<?") {
+                skip(self, b"?>", "a processing instruction")?;
+                continue;
+            }
+            if rest.starts_with(b"<!") {
+                skip(self, b">", "a declaration")?;
+                continue;
+            }
+            return self.tag(start).map(Some);
+        }
+    }
+
+    fn tag(&mut self, start: usize) -> Result<Tag, Error> {
+        let src = self.src;
+        let bytes = src.bytes;
+        let mut i = start + 1;
+        let closing = bytes.get(i) == Some(&b'/');
+        if closing {
+            i += 1;
+        }
+        let name_start = i;
+        while i < bytes.len() && is_name_byte(bytes[i]) {
+            i += 1;
+        }
+        if i == name_start {
+            return Err(src.error(
+                start,
+                format!(
+                    "expected an element's name after '<', found {}",
+                    src.describe(i)
+                ),
+            ));
+        }
+        let name = (name_start, i);
+        let name_end = i;
+        let mut attributes = Vec::new();
+        loop {
+            while i < bytes.len() && bytes[i].is_ascii_whitespace() {
+                i += 1;
+            }
+            match bytes.get(i) {
+                None => {
+                    return Err(src.error(
+                        start,
+                        "an element not closed ('>' missing): the file ends inside it",
+                    ))
+                }
+                Some(b'>') => {
+                    self.at = i + 1;
+                    return Ok(Tag {
+                        start,
+                        name_end,
+                        name,
+                        attributes,
+                        closing,
+                        empty: false,
+                    });
+                }
+                Some(b'/') if bytes.get(i + 1) == Some(&b'>') && !closing => {
+                    self.at = i + 2;
+                    return Ok(Tag {
+                        start,
+                        name_end,
+                        name,
+                        attributes,
+                        closing,
+                        empty: true,
+                    });
+                }
+                Some(_) if closing => {
+                    return Err(src.error(
+                        i,
+                        format!(
+                            "expected '>' closing the element, found {}",
+                            src.describe(i)
+                        ),
+                    ))
+                }
+                Some(_) => {}
+            }
+            let attribute_start = i;
+            while i < bytes.len() && is_name_byte(bytes[i]) {
+                i += 1;
+            }
+            if i == attribute_start {
+                return Err(src.error(
+                    i,
+                    format!(
+                        "expected an attribute, '>' or '/>', found {}",
+                        src.describe(i)
+                    ),
+                ));
+            }
+            let attribute_name = (attribute_start, i);
+            while i < bytes.len() && bytes[i].is_ascii_whitespace() {
+                i += 1;
+            }
+            if bytes.get(i) != Some(&b'=') {
+                return Err(src.error(
+                    i,
+                    format!(
+                        "expected '=' after the attribute {}, found {}",
+                        src.text(attribute_start, attribute_name.1),
+                        src.describe(i)
+                    ),
+                ));
+            }
+            i += 1;
+            while i < bytes.len() && bytes[i].is_ascii_whitespace() {
+                i += 1;
+            }
+            let quote = match bytes.get(i) {
+                Some(q @ (b'"' | b'\'')) => *q,
+                _ => {
+                    return Err(src.error(
+                        i,
+                        format!("expected a quoted value, found {}", src.describe(i)),
+                    ))
+                }
+            };
+            let value_start = i + 1;
+            let Some(len) = bytes[value_start..].iter().position(|b| *b == quote) else {
+                return Err(src.error(
+                    i,
+                    "an attribute's value not closed: the file ends inside it",
+                ));
+            };
+            let value = (value_start, value_start + len);
+            if attributes.iter().any(|a: &Attribute| {
+                bytes[a.name.0..a.name.1] == bytes[attribute_name.0..attribute_name.1]
+            }) {
+                return Err(src.error(
+                    attribute_start,
+                    format!(
+                        "the attribute {} twice",
+                        src.text(attribute_name.0, attribute_name.1)
+                    ),
+                ));
+            }
+            attributes.push(Attribute {
+                name: attribute_name,
+                value,
+            });
+            i = value.1 + 1;
+        }
+    }
+}
+
+fn is_name_byte(b: u8) -> bool {
+    b.is_ascii_alphanumeric() || matches!(b, b'_' | b':' | b'-' | b'.') || b >= 0x80
+}
+
+/// What a `Data` holds, of the types this reader reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Point,
+    Joint,
+    Frame,
+    Tool,
+    Other,
+}
+
+/// One value of a `pointRx`, `jointRx`, `frame` or `tool` data.
+struct Value {
+    key: String,
+    /// The `<Value` tag's first byte.
+    offset: usize,
+    numbers: Vec<Number>,
+    /// `fatherId`'s text and offset.
+    father: Option<(String, usize)>,
+}
+
+/// A `Data` of the file.
+struct Data {
+    name: String,
+    kind: Kind,
+    type_name: String,
+    offset: usize,
+    values: Vec<Value>,
+}
+
+impl Data {
+    fn value(&self, key: &str) -> Option<usize> {
+        self.values.iter().position(|v| v.key == key)
+    }
+
+    /// A frame's or tool's pose in its father.
+    fn pose(&self, index: usize) -> Isometry3<f64> {
+        let n = &self.values[index].numbers;
+        Isometry3::from_parts(
+            Translation3::from(Vector3::new(n[0].value, n[1].value, n[2].value)),
+            UnitQuaternion::from_rotation_matrix(&rotation_from_xyz_intrinsic_deg([
+                n[3].value, n[4].value, n[5].value,
+            ])),
+        )
+    }
+}
+
+/// Reads the data file's values.
+fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
+    let bytes = src.bytes;
+    let mut xml = Xml::new(src);
+    let mut data: Vec<Data> = Vec::new();
+    // The elements open, by name span; the Data open (its index and depth).
+    let mut open: Vec<(usize, usize)> = Vec::new();
+    let mut in_data: Option<(usize, usize)> = None;
+    let mut saw_database = false;
+    while let Some(tag) = xml.next()? {
+        let local = tag.local_name(bytes);
+        if tag.closing {
+            let Some(top) = open.pop() else {
+                return Err(src.error(
+                    tag.start,
+                    format!("</{}> closes no element", src.text(tag.name.0, tag.name.1)),
+                ));
+            };
+            if bytes[top.0..top.1] != bytes[tag.name.0..tag.name.1] {
+                return Err(src.error(
+                    tag.start,
+                    format!(
+                        "</{}> closes <{}> (line {})",
+                        src.text(tag.name.0, tag.name.1),
+                        src.text(top.0, top.1),
+                        src.location(top.0).0
+                    ),
+                ));
+            }
+            if in_data.is_some_and(|(_, depth)| depth == open.len()) {
+                in_data = None;
+            }
+            continue;
+        }
+        if local == b"Database" {
+            saw_database = true;
+        }
+        let depth = open.len();
+        if !tag.empty {
+            if open.len() == MAX_DEPTH {
+                return Err(src.error(
+                    tag.start,
+                    format!("elements nested more than {MAX_DEPTH} deep"),
+                ));
+            }
+            open.push(tag.name);
+        }
+        if local == b"Data" && in_data.is_none() {
+            let name = tag
+                .attribute(src, b"name")
+                .ok_or_else(|| src.error(tag.start, "a <Data> without its name"))?;
+            let type_name = tag.attribute(src, b"type").map(|t| t.1).unwrap_or_default();
+            let kind = match type_name.as_str() {
+                "pointRx" => Kind::Point,
+                "jointRx" => Kind::Joint,
+                "frame" => Kind::Frame,
+                "tool" => Kind::Tool,
+                _ => Kind::Other,
+            };
+            if data.iter().any(|d| d.name == name.1) {
+                return Err(src.error(name.0, format!("the data {} twice", name.1)));
+            }
+            data.push(Data {
+                name: name.1,
+                kind,
+                type_name,
+                offset: tag.start,
+                values: Vec::new(),
+            });
+            if !tag.empty {
+                in_data = Some((data.len() - 1, depth));
+            }
+            continue;
+        }
+        let Some((index, data_depth)) = in_data else {
+            continue;
+        };
+        if local != b"Value" || depth != data_depth + 1 {
+            continue;
+        }
+        let d = &mut data[index];
+        if d.kind == Kind::Other {
+            continue;
+        }
+        let key = tag
+            .attribute(src, b"key")
+            .ok_or_else(|| src.error(tag.start, "a <Value> without its key"))?;
+        if d.values.iter().any(|v| v.key == key.1) {
+            return Err(src.error(key.0, format!("the key {} twice in {}", key.1, d.name)));
+        }
+        let names: Vec<String> = match d.kind {
+            Kind::Joint => {
+                let mut names: Vec<String> = (1..=6).map(|j| format!("j{j}")).collect();
+                // A seventh or further axis, when written.
+                for j in 7..=crate::bounds::MAX_JOINTS {
+                    if tag.find(bytes, format!("j{j}").as_bytes()).is_some() {
+                        names.truncate(j - 1);
+                        names.extend((names.len() + 1..=j).map(|k| format!("j{k}")));
+                    }
+                }
+                names
+            }
+            _ => CARTESIAN.iter().map(|s| s.to_string()).collect(),
+        };
+        // An omitted number goes after the last attribute written before it, in the
+        // order key, then the numbers; after the element's name when none is.
+        let mut after = tag
+            .find(bytes, b"key")
+            .map_or(tag.name_end, |a| a.value.1 + 1);
+        let mut numbers = Vec::with_capacity(names.len());
+        for name in &names {
+            match tag.find(bytes, name.as_bytes()) {
+                Some(a) => {
+                    let n = parse_number(&bytes[..a.value.1], a.value.0)
+                        .filter(|n| n.span.1 == a.value.1)
+                        .ok_or_else(|| {
+                            src.error(
+                                a.value.0,
+                                format!(
+                                    "{name} must be a number, found '{}'",
+                                    src.text(a.value.0, a.value.1)
+                                ),
+                            )
+                        })?;
+                    numbers.push(n);
+                    after = after.max(a.value.1 + 1);
+                }
+                None => numbers.push(Number {
+                    span: (after, after),
+                    value: 0.0,
+                    style: NumberStyle {
+                        decimals: 0,
+                        point: false,
+                        plus: false,
+                        bare_point: false,
+                        exponent: None,
+                        decimal_comma: false,
+                    },
+                }),
+            }
+        }
+        let father = tag.attribute(src, b"fatherId").map(|(at, text)| (text, at));
+        d.values.push(Value {
+            key: key.1,
+            offset: tag.start,
+            numbers,
+            father,
+        });
+    }
+    if let Some(top) = open.last() {
+        return Err(src.error(
+            top.0,
+            format!(
+                "<{}> is not closed: the file ends inside it",
+                src.text(top.0, top.1)
+            ),
+        ));
+    }
+    if !saw_database {
+        return Err(src.error(0, "not a VAL3 data file: no <Database> element"));
+    }
+    Ok(data)
+}
+
+/// A reference to data in the code: its name and key (`None`: an index computed as the
+/// program runs, any element).
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Reference {
+    name: String,
+    key: Option<String>,
+}
+
+/// Reads a reference that is the whole of `text`: `name`, `name[3]`, `name["a"]`,
+/// `name[i]`.
+fn reference(text: &str) -> Option<Reference> {
+    let text = text.trim();
+    let name_end = text
+        .bytes()
+        .position(|b| !(b.is_ascii_alphanumeric() || b == b'_'))
+        .unwrap_or(text.len());
+    let name = &text[..name_end];
+    if name.is_empty() || name.as_bytes()[0].is_ascii_digit() {
+        return None;
+    }
+    let rest = text[name_end..].trim();
+    if rest.is_empty() {
+        return Some(Reference {
+            name: name.to_string(),
+            key: Some("0".into()),
+        });
+    }
+    let index = rest.strip_prefix('[')?.strip_suffix(']')?.trim();
+    let key = if !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit()) {
+        Some(index.trim_start_matches('0').to_string()).map(|k| {
+            if k.is_empty() {
+                "0".into()
+            } else {
+                k
+            }
+        })
+    } else if index.len() >= 2 && index.starts_with('"') && index.ends_with('"') {
+        Some(index[1..index.len() - 1].to_string())
+    } else {
+        None
+    };
+    Some(Reference {
+        name: name.to_string(),
+        key,
+    })
+}
+
+/// A motion's target argument, as this reader takes it.
+enum Argument {
+    /// A data reference.
+    Data(Reference),
+    /// An offset from a reference (`appro`, `compose`): the function's name.
+    Offset(&'static str, Option<Reference>),
+    /// Any other expression.
+    Expression,
+}
+
+fn argument(text: &str) -> Argument {
+    let t = text.trim();
+    for f in ["appro", "compose"] {
+        if let Some(rest) = t.strip_prefix(f) {
+            if let Some(inner) = rest.trim_start().strip_prefix('(') {
+                let first = split_arguments(inner.as_bytes(), 0)
+                    .and_then(|(args, _)| args.first().map(|(s, e)| inner[*s..*e].to_string()));
+                return Argument::Offset(f, first.as_deref().and_then(reference));
+            }
+        }
+    }
+    match reference(t) {
+        Some(r) => Argument::Data(r),
+        None => Argument::Expression,
+    }
+}
+
+/// The arguments of a call whose `(` is just before `bytes[from]`: their spans (trimmed),
+/// and the byte after the closing `)`. `None` when it is not closed.
+fn split_arguments(bytes: &[u8], from: usize) -> Option<(Vec<(usize, usize)>, usize)> {
+    let mut depth = 0usize;
+    let mut args = Vec::new();
+    let mut start = from;
+    let mut i = from;
+    let trimmed = |s: usize, e: usize| {
+        let mut s = s;
+        let mut e = e;
+        while s < e && bytes[s].is_ascii_whitespace() {
+            s += 1;
+        }
+        while e > s && bytes[e - 1].is_ascii_whitespace() {
+            e -= 1;
+        }
+        (s, e)
+    };
+    while i < bytes.len() {
+        match bytes[i] {
+            b'"' => {
+                i += 1;
+                while i < bytes.len() && bytes[i] != b'"' {
+                    i += 1;
+                }
+            }
+            b'(' | b'[' | b'{' => depth += 1,
+            b')' | b']' | b'}' if depth > 0 => depth -= 1,
+            b')' => {
+                let last = trimmed(start, i);
+                if last.0 < last.1 || !args.is_empty() {
+                    args.push(last);
+                }
+                return Some((args, i + 1));
+            }
+            b',' if depth == 0 => {
+                args.push(trimmed(start, i));
+                start = i + 1;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    None
+}
+
+/// What the code does with the data: the motions and their targets, the data it assigns,
+/// and where it names each data otherwise.
+#[derive(Default)]
+struct Code {
+    motions: Vec<Motion>,
+    /// Data assigned as the programs run: the reference and the place.
+    assigned: Vec<(Reference, String)>,
+    /// The first place the code names each data outside a motion's targets.
+    named: std::collections::HashMap<String, String>,
+    /// Names local to a program (its locals and parameters), with the program.
+    locals: std::collections::HashMap<String, String>,
+    /// The application's programs' names.
+    programs: Vec<String>,
+}
+
+struct Motion {
+    /// `movej`, `movel`, `movec`, or the other motion-looking call.
+    instruction: String,
+    place: String,
+    /// The call as written, for messages (its first 80 characters).
+    text: String,
+    /// The targets' arguments' texts; the tool's.
+    targets: Vec<String>,
+    tool: Option<String>,
+    /// Why it is not read as a motion, when it is not.
+    unknown: Option<String>,
+}
+
+/// The motion instructions this reader corrects, with their target arguments and the
+/// argument holding the tool (counted from 0).
+pub const MOTIONS: [(&str, &[usize], usize); 3] = [
+    ("movej", &[0], 1),
+    ("movel", &[0], 1),
+    ("movec", &[0, 1], 2),
+];
+
+fn read_code(programs: &[Source], code: &mut Code) -> Result<(), Error> {
+    for src in programs {
+        crate::bounds::check_line_lengths(src)?;
+        let bytes = src.bytes;
+        let mut xml = Xml::new(src);
+        let mut program = String::new();
+        let mut saw_programs = false;
+        while let Some(tag) = xml.next()? {
+            if tag.closing {
+                continue;
+            }
+            match tag.local_name(bytes) {
+                b"Programs" => saw_programs = true,
+                b"Program" => {
+                    if let Some((_, name)) = tag.attribute(src, b"name") {
+                        code.programs.push(name.clone());
+                        program = name;
+                    }
+                }
+                b"Local" | b"Parameter" => {
+                    if let Some((_, name)) = tag.attribute(src, b"name") {
+                        code.locals.entry(name).or_insert_with(|| program.clone());
+                    }
+                }
+                _ => {}
+            }
+        }
+        if !saw_programs {
+            return Err(src.error(0, "not a VAL3 program: no <Programs> element"));
+        }
+        for (start, end) in xml.cdata.clone() {
+            read_statements(src, start, end, code);
+        }
+    }
+    Ok(())
+}
+
+/// Reads the code between `start` and `end` of `src`: its motions, assignments and names.
+fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
+    let bytes = &src.bytes[..end];
+    let place = |at: usize| {
+        let (line, column) = src.location(at);
+        format!("{}:{line}:{column}", src.name)
+    };
+    let mut i = start;
+    // The end of the last motion's arguments: names within them are its targets.
+    let mut within_motion = 0;
+    let mut previous_word: (usize, usize) = (0, 0);
+    while i < end {
+        let b = bytes[i];
+        if b == b'/' && bytes.get(i + 1) == Some(&b'/') {
+            while i < end && bytes[i] != b'\n' && bytes[i] != b'\r' {
+                i += 1;
+            }
+            continue;
+        }
+        if b == b'"' {
+            i += 1;
+            while i < end && bytes[i] != b'"' && bytes[i] != b'\n' {
+                i += 1;
+            }
+            i += 1;
+            continue;
+        }
+        if !(b.is_ascii_alphabetic() || b == b'_') {
+            i += 1;
+            continue;
+        }
+        let word_start = i;
+        while i < end && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_') {
+            i += 1;
+        }
+        let word = String::from_utf8_lossy(&bytes[word_start..i]).into_owned();
+        let after_member = word_start > 0 && bytes[word_start - 1] == b'.';
+        let called = bytes[previous_word.0..previous_word.1] == *b"call";
+        previous_word = (word_start, i);
+        if after_member {
+            continue;
+        }
+        let mut j = i;
+        while j < end && matches!(bytes[j], b' ' | b'\t') {
+            j += 1;
+        }
+        let is_call = bytes.get(j) == Some(&b'(');
+        let motion = MOTIONS.iter().find(|m| m.0 == word);
+        let looks = word.to_ascii_lowercase().starts_with("move") || word.starts_with("alterMove");
+        if is_call && !called && (motion.is_some() || looks) && !code.programs.contains(&word) {
+            let Some((args, close)) = split_arguments(bytes, j + 1) else {
+                i = j + 1;
+                continue;
+            };
+            let text = String::from_utf8_lossy(&bytes[word_start..close.min(word_start + 80)])
+                .into_owned();
+            let texts: Vec<String> = args
+                .iter()
+                .map(|(s, e)| String::from_utf8_lossy(&bytes[*s..*e]).into_owned())
+                .collect();
+            let mut m = Motion {
+                instruction: word.clone(),
+                place: place(word_start),
+                text,
+                targets: Vec::new(),
+                tool: None,
+                unknown: None,
+            };
+            match motion {
+                Some((_, targets, tool)) if texts.len() > *tool => {
+                    m.targets = targets.iter().map(|k| texts[*k].clone()).collect();
+                    m.tool = Some(texts[*tool].clone());
+                }
+                Some((_, _, tool)) => {
+                    m.unknown = Some(format!(
+                        "{word} with {} arguments: the tool is its argument {}",
+                        texts.len(),
+                        tool + 1
+                    ));
+                }
+                None => {
+                    m.targets = texts.first().cloned().into_iter().collect();
+                    m.unknown = Some(format!("{word} is not a VAL3 motion this reader corrects"));
+                }
+            }
+            code.motions.push(m);
+            within_motion = close;
+            // The arguments are read again for the names they hold, which are not targets
+            // (the tool, the motion descriptor).
+            i = j + 1;
+            continue;
+        }
+        if word == "setFrame" && is_call {
+            // setFrame(origin, x, xy, frame): the frame computed as the program runs.
+            if let Some((args, _)) = split_arguments(bytes, j + 1) {
+                if let Some((s, e)) = args.get(3) {
+                    if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
+                        code.assigned.push((r, place(*s)));
+                    }
+                }
+            }
+        }
+        // An assignment: the reference, any fields, then '=' (not '==').
+        let mut k = j;
+        if bytes.get(k) == Some(&b'[') {
+            let mut depth = 0;
+            while k < end {
+                match bytes[k] {
+                    b'[' => depth += 1,
+                    b']' => {
+                        depth -= 1;
+                        if depth == 0 {
+                            k += 1;
+                            break;
+                        }
+                    }
+                    _ => {}
+                }
+                k += 1;
+            }
+        }
+        let reference_end = k;
+        while k < end
+            && (bytes[k].is_ascii_alphanumeric() || matches!(bytes[k], b'.' | b'_' | b' ' | b'\t'))
+        {
+            k += 1;
+        }
+        let assigns = bytes.get(k) == Some(&b'=') && bytes.get(k + 1) != Some(&b'=');
+        if assigns {
+            if let Some(r) = reference(&String::from_utf8_lossy(&bytes[word_start..reference_end]))
+            {
+                code.assigned.push((r, place(word_start)));
+            }
+        } else if word_start >= within_motion {
+            code.named.entry(word).or_insert_with(|| place(word_start));
+        }
+    }
+}
+
+/// Reads the targets of a VAL3 application: its data file `src` and its programs.
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at the first malformed element of any file.
+pub fn read(src: &Source, programs: &[Source]) -> Result<Program, Error> {
+    read_at_most(src, programs, usize::MAX)
+}
+
+/// A point's or joint value's uses by the code.
+#[derive(Default)]
+struct Uses {
+    frames: Vec<FrameUse>,
+    refused: Vec<Refusal>,
+    direct: bool,
+}
+
+/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+///
+/// # Errors
+///
+/// As [`read`].
+pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<Program, Error> {
+    let data = read_data(src)?;
+    let mut code = Code::default();
+    read_code(programs, &mut code)?;
+    let find = |name: &str| data.iter().position(|d| d.name == name);
+    let assigned = |name: &str, key: &str| {
+        code.assigned
+            .iter()
+            .find(|(r, _)| r.name == name && r.key.as_deref().is_none_or(|k| k == key))
+    };
+    // Per data, per value: the uses.
+    let mut uses: Vec<Vec<Uses>> = data
+        .iter()
+        .map(|d| d.values.iter().map(|_| Uses::default()).collect())
+        .collect();
+    let mut refused_motions: Vec<ProgramTarget> = Vec::new();
+    let refuse_motion =
+        |list: &mut Vec<ProgramTarget>, m: &Motion, at: usize, reason: Reason, why: String| {
+            list.push(ProgramTarget {
+                name: m.instruction.clone(),
+                offset: at,
+                kind: TargetKind::Motion,
+                uses: Vec::new(),
+                refused: Some(Refusal::new(
+                    reason,
+                    format!("{} at {}: {why}", crate::escape_controls(&m.text), m.place),
+                )),
+            });
+        };
+    for m in &code.motions {
+        if let Some(why) = &m.unknown {
+            let reason = Reason::UnknownMotion;
+            refuse_motion(&mut refused_motions, m, 0, reason, why.clone());
+            for t in &m.targets {
+                if let Argument::Data(r) = argument(t) {
+                    if let Some(d) = find(&r.name) {
+                        for (k, v) in data[d].values.iter().enumerate() {
+                            if r.key.as_deref().is_none_or(|key| key == v.key) {
+                                uses[d][k].refused.push(Refusal::new(
+                                    reason,
+                                    format!("{} ({}): {why}", m.instruction, m.place),
+                                ));
+                            }
+                        }
+                    }
+                }
+            }
+            continue;
+        }
+        let tool = m.tool.as_deref().map(|t| tool_frame(&data, &code, t));
+        for t in &m.targets {
+            let (r, offset) = match argument(t) {
+                Argument::Data(r) => (r, None),
+                Argument::Offset(f, r) => (
+                    r.unwrap_or(Reference {
+                        name: String::new(),
+                        key: None,
+                    }),
+                    Some(f),
+                ),
+                Argument::Expression => {
+                    refuse_motion(
+                        &mut refused_motions,
+                        m,
+                        0,
+                        Reason::Dynamic,
+                        format!(
+                            "'{}' is computed as the program runs",
+                            crate::escape_controls(t.trim())
+                        ),
+                    );
+                    continue;
+                }
+            };
+            let Some(d) = find(&r.name) else {
+                let (reason, why) = match code.locals.get(&r.name) {
+                    Some(p) => (
+                        Reason::Dynamic,
+                        format!(
+                            "{} is a local variable or parameter of {p}, set as the program runs",
+                            r.name
+                        ),
+                    ),
+                    None if offset.is_some() => (
+                        Reason::Relative,
+                        format!(
+                            "an offset ({}) computed as the program runs",
+                            offset.unwrap_or_default()
+                        ),
+                    ),
+                    None => (
+                        Reason::NotDeclared,
+                        format!("{} is not in the application's data", r.name),
+                    ),
+                };
+                refuse_motion(&mut refused_motions, m, 0, reason, why);
+                continue;
+            };
+            let kind = data[d].kind;
+            if !matches!(kind, Kind::Point | Kind::Joint) {
+                refuse_motion(
+                    &mut refused_motions,
+                    m,
+                    data[d].offset,
+                    Reason::Dynamic,
+                    format!(
+                        "{} is a {}, not a pointRx or jointRx",
+                        r.name, data[d].type_name
+                    ),
+                );
+                continue;
+            }
+            let keys: Vec<usize> = match &r.key {
+                Some(key) => match data[d].value(key) {
+                    Some(k) => vec![k],
+                    None => {
+                        refuse_motion(
+                            &mut refused_motions,
+                            m,
+                            data[d].offset,
+                            Reason::NotDeclared,
+                            format!("{}[{key}] has no value in the data", r.name),
+                        );
+                        continue;
+                    }
+                },
+                None => (0..data[d].values.len()).collect(),
+            };
+            if let Some(f) = offset {
+                let why = format!("{f}(…): an offset computed as the program runs");
+                refuse_motion(
+                    &mut refused_motions,
+                    m,
+                    data[d].offset,
+                    Reason::Relative,
+                    why.clone(),
+                );
+                for k in keys {
+                    uses[d][k].refused.push(Refusal::new(
+                        Reason::Relative,
+                        format!("{} ({}): {why}", m.text, m.place),
+                    ));
+                }
+                continue;
+            }
+            for k in keys {
+                let u = &mut uses[d][k];
+                u.direct = true;
+                if kind == Kind::Point {
+                    let mut frame = FrameUse {
+                        tool: None,
+                        base: None,
+                        offset: data[d].values[k].offset,
+                        elsewhere: Some(m.place.clone()),
+                        undeclared: Vec::new(),
+                        unknown: Vec::new(),
+                    };
+                    match &tool {
+                        Some(Ok(t)) => frame.tool = Some(*t),
+                        Some(Err(Missing::Undeclared(name))) => frame.undeclared.push(Undeclared {
+                            base: false,
+                            name: name.clone(),
+                        }),
+                        Some(Err(Missing::Unknown(why))) => frame.unknown.push(why.clone()),
+                        None => {}
+                    }
+                    match father_frame(
+                        &data,
+                        &code,
+                        data[d].values[k].father.as_ref().map(|f| f.0.as_str()),
+                        0,
+                    ) {
+                        Ok(b) => frame.base = Some(b),
+                        Err(Missing::Undeclared(name)) => {
+                            frame.undeclared.push(Undeclared { base: true, name })
+                        }
+                        Err(Missing::Unknown(why)) => frame.unknown.push(why),
+                    }
+                    if !u.frames.contains(&frame) {
+                        u.frames.push(frame);
+                    }
+                }
+            }
+        }
+    }
+    let mut targets: Vec<ProgramTarget> = Vec::new();
+    let mut truncated_at = None;
+    'data: for (d, item) in data.iter().enumerate() {
+        if !matches!(item.kind, Kind::Point | Kind::Joint) {
+            continue;
+        }
+        for (k, v) in item.values.iter().enumerate() {
+            if targets.len() >= limit {
+                truncated_at = Some(v.offset);
+                break 'data;
+            }
+            let u = std::mem::take(&mut uses[d][k]);
+            let name = format!("{}[{}]", item.name, v.key);
+            let kind = match item.kind {
+                Kind::Point => TargetKind::Cartesian(Box::new(CartesianTarget {
+                    position: [v.numbers[0], v.numbers[1], v.numbers[2]],
+                    unit: LengthUnit::Millimetre,
+                    orientation: Some(Orientation::XyzIntrinsicDeg([
+                        v.numbers[3],
+                        v.numbers[4],
+                        v.numbers[5],
+                    ])),
+                    config: ConfigHint::None,
+                    joints: Vec::new(),
+                })),
+                _ => TargetKind::Joints(JointTarget {
+                    joints: v.numbers.clone(),
+                    unit: AngleUnit::Degree,
+                }),
+            };
+            let refused = if let (true, Some((_, at))) = (u.direct, assigned(&item.name, &v.key)) {
+                Some(Refusal::new(
+                    Reason::Dynamic,
+                    format!("assigned as the program runs ({at})"),
+                ))
+            } else if u.direct {
+                None
+            } else if let Some(r) = u.refused.first() {
+                Some(Refusal::new(
+                    r.reason,
+                    format!("moved to only as {}", r.detail),
+                ))
+            } else {
+                Some(Refusal::new(
+                    Reason::NotMoved,
+                    match code.named.get(&item.name) {
+                        Some(at) => format!(
+                            "no motion moves to it; the code uses it otherwise (first at {at})"
+                        ),
+                        None => "no motion moves to it, and no program names it".to_string(),
+                    },
+                ))
+            };
+            targets.push(ProgramTarget {
+                name,
+                offset: v.offset,
+                kind,
+                uses: u.frames,
+                refused,
+            });
+        }
+    }
+    if truncated_at.is_none() {
+        targets.extend(refused_motions);
+        if targets.len() > limit {
+            truncated_at = Some(src.bytes.len());
+        }
+    }
+    Ok(Program {
+        format: Format::Val3,
+        targets,
+        truncated_at,
+        first_motion: None,
+    })
+}
+
+/// Why a frame or tool is not known.
+enum Missing {
+    /// Named, but not in the data: the job's options may stand for it.
+    Undeclared(String),
+    /// Known only as the program runs, or not a frame.
+    Unknown(String),
+}
+
+/// Splits `name[key]` (a `fatherId`).
+fn father_reference(text: &str) -> Option<Reference> {
+    reference(text)
+}
+
+/// The frame a `fatherId` names, in the world frame.
+fn father_frame(
+    data: &[Data],
+    code: &Code,
+    father: Option<&str>,
+    depth: usize,
+) -> Result<Isometry3<f64>, Missing> {
+    let Some(father) = father.map(str::trim).filter(|f| !f.is_empty()) else {
+        return Ok(Isometry3::identity());
+    };
+    let Some(r) = father_reference(father) else {
+        return Err(Missing::Unknown(format!(
+            "fatherId '{}' is not a frame's name",
+            crate::escape_controls(father)
+        )));
+    };
+    if r.name == "world" {
+        return Ok(Isometry3::identity());
+    }
+    if depth >= MAX_DEPTH {
+        return Err(Missing::Unknown(format!(
+            "the frame chain through {father} is more than {MAX_DEPTH} deep (a cycle)"
+        )));
+    }
+    let Some(d) = data.iter().find(|d| d.name == r.name) else {
+        return Err(Missing::Undeclared(father.to_string()));
+    };
+    if d.kind != Kind::Frame {
+        return Err(Missing::Unknown(format!(
+            "fatherId {father} is a {}, not a frame",
+            d.type_name
+        )));
+    }
+    let key = r.key.unwrap_or_default();
+    let Some(k) = d.value(&key) else {
+        return Err(Missing::Undeclared(father.to_string()));
+    };
+    if let Some((_, at)) = code
+        .assigned
+        .iter()
+        .find(|(a, _)| a.name == d.name && a.key.as_deref().is_none_or(|x| x == key))
+    {
+        return Err(Missing::Unknown(format!(
+            "frame {father} is set as the program runs ({at})"
+        )));
+    }
+    let up = father_frame(
+        data,
+        code,
+        d.values[k].father.as_ref().map(|f| f.0.as_str()),
+        depth + 1,
+    )?;
+    Ok(up * d.pose(k))
+}
+
+/// The TCP of the tool a motion names, in the flange frame.
+fn tool_frame(data: &[Data], code: &Code, text: &str) -> Result<Isometry3<f64>, Missing> {
+    tool_chain(data, code, text.trim(), 0)
+}
+
+fn tool_chain(
+    data: &[Data],
+    code: &Code,
+    text: &str,
+    depth: usize,
+) -> Result<Isometry3<f64>, Missing> {
+    let Some(r) = reference(text) else {
+        return Err(Missing::Unknown(format!(
+            "tool '{}' is computed as the program runs",
+            crate::escape_controls(text)
+        )));
+    };
+    if r.name == "flange" {
+        return Ok(Isometry3::identity());
+    }
+    if depth >= MAX_DEPTH {
+        return Err(Missing::Unknown(format!(
+            "the tool chain through {text} is more than {MAX_DEPTH} deep (a cycle)"
+        )));
+    }
+    let Some(key) = r.key else {
+        return Err(Missing::Unknown(format!(
+            "tool {text}: its index is computed as the program runs"
+        )));
+    };
+    let Some(d) = data.iter().find(|d| d.name == r.name) else {
+        return Err(match code.locals.get(&r.name) {
+            Some(p) => Missing::Unknown(format!(
+                "tool {text} is a local variable or parameter of {p}"
+            )),
+            None => Missing::Undeclared(text.to_string()),
+        });
+    };
+    if d.kind != Kind::Tool {
+        return Err(Missing::Unknown(format!(
+            "{text} is a {}, not a tool",
+            d.type_name
+        )));
+    }
+    let Some(k) = d.value(&key) else {
+        return Err(Missing::Undeclared(text.to_string()));
+    };
+    if let Some((_, at)) = code
+        .assigned
+        .iter()
+        .find(|(a, _)| a.name == d.name && a.key.as_deref().is_none_or(|x| x == key))
+    {
+        return Err(Missing::Unknown(format!(
+            "tool {text} is set as the program runs ({at})"
+        )));
+    }
+    let father = d.values[k]
+        .father
+        .as_ref()
+        .map_or("flange[0]", |f| f.0.as_str());
+    let up = tool_chain(data, code, father, depth + 1)?;
+    Ok(up * d.pose(k))
+}
+
+/// The text that writes an edit of a VAL3 number: an omitted attribute (the edit's span
+/// empty) is inserted with its name, ` z="1.25"`; any other edit is kept. A text that is
+/// not a finite number is kept as it is, for the job to refuse.
+pub fn inserted(edit: ((usize, usize), String), name: &str) -> ((usize, usize), String) {
+    let (span, text) = edit;
+    if span.0 != span.1 || !text.parse::<f64>().is_ok_and(f64::is_finite) {
+        return (span, text);
+    }
+    (span, format!(" {name}=\"{text}\""))
+}
+
+/// The number an edit writes: an inserted attribute's value ([`inserted`]), else the
+/// edit's text.
+pub fn edit_number(text: &str) -> &str {
+    match text.strip_prefix(' ').and_then(|t| t.split_once("=\"")) {
+        Some((name, value)) if name.bytes().all(|b| b.is_ascii_alphanumeric()) => {
+            value.strip_suffix('"').unwrap_or(text)
+        }
+        _ => text,
+    }
+}
+
+/// The name of joint `index` (from 0) of a `jointRx`: `j1`, `j2`, ….
+pub fn joint_name(index: usize) -> String {
+    format!("j{}", index + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frames::xyz_intrinsic_near;
+    use nalgebra::{Rotation3, Vector3};
+
+    const DTX: &str = "\u{feff}<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n\
+<Database xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xmlns=\"http://www.staubli.com/robotics/VAL3/Data/2\">\r\n\
+  <Datas>\r\n\
+    <Data name=\"fPart\" access=\"public\" xsi:type=\"array\" type=\"frame\" size=\"1\">\r\n\
+      <Value key=\"0\" x=\"1600\" y=\"250\" z=\"750\" rz=\"30\" fatherId=\"world[0]\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"fSub\" access=\"public\" xsi:type=\"array\" type=\"frame\" size=\"1\">\r\n\
+      <Value key=\"0\" x=\"10\" fatherId=\"fPart[0]\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"tTorch\" access=\"public\" xsi:type=\"array\" type=\"tool\" size=\"1\">\r\n\
+      <Value key=\"0\" z=\"180\" fatherId=\"flange[0]\" ioLink=\"valve1\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"jHome\" access=\"public\" xsi:type=\"array\" type=\"jointRx\" size=\"1\">\r\n\
+      <Value key=\"0\" j2=\"-90\" j3=\"90\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"pSeam\" access=\"public\" xsi:type=\"array\" type=\"pointRx\" size=\"4\">\r\n\
+      <Value key=\"0\" x=\"300\" y=\"100\" z=\"20\" rx=\"180\" rz=\"-30\" shoulder=\"lefty\" fatherId=\"fPart[0]\" />\r\n\
+      <Value key=\"1\" x=\"320\" y=\"100\" rx=\"180\" fatherId=\"fSub[0]\" />\r\n\
+      <Value key=\"2\" x=\"340\" fatherId=\"fGone[0]\" />\r\n\
+      <Value key=\"3\" x=\"360\" fatherId=\"world[0]\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"pRef\" access=\"public\" xsi:type=\"array\" type=\"pointRx\" size=\"1\">\r\n\
+      <Value key=\"0\" x=\"1\" />\r\n\
+    </Data>\r\n\
+    <Data name=\"nCount\" access=\"public\" xsi:type=\"array\" type=\"num\" size=\"1\" />\r\n\
+  </Datas>\r\n\
+</Database>\r\n";
+
+    const PGX: &str = "<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n\
+<Programs xmlns=\"http://www.staubli.com/robotics/VAL3/Program/2\">\r\n\
+  <Program name=\"start\" access=\"public\">\r\n\
+    <Locals>\r\n      <Local name=\"lPoint\" type=\"pointRx\" xsi:type=\"array\" size=\"1\" />\r\n    </Locals>\r\n\
+    <Code><![CDATA[begin\r\n\
+  // movel(pRef, tTorch, mNom) is a comment\r\n\
+  movej(jHome, tTorch, mNom)\r\n\
+  movel(pSeam[0], tTorch, mNom)\r\n\
+  nTraj = movel(appro(pSeam[1], trApp), tTorch, mNom)\r\n\
+  movec(pSeam[1], pSeam[2], tTorch, mNom)\r\n\
+  movel(lPoint, tTorch, mNom)\r\n\
+  movel(here(tTorch, world), tTorch, mNom)\r\n\
+  movel(pMissing, tTorch, mNom)\r\n\
+  movelf(pSeam[3], tTorch, mNom)\r\n\
+  pSeam[3] = here(tTorch, world)\r\n\
+  movel(pSeam[3], tTorch, mNom)\r\n\
+  nCount = distance(pRef, pSeam[0])\r\n\
+  waitEndMove()\r\n\
+end]]></Code>\r\n\
+  </Program>\r\n\
+</Programs>\r\n";
+
+    fn statuses(p: &Program) -> Vec<String> {
+        p.targets
+            .iter()
+            .map(|t| {
+                let s = match (&t.refused, &t.kind) {
+                    (Some(r), _) => r.reason.as_str(),
+                    (None, TargetKind::Cartesian(_)) => "cartesian",
+                    (None, TargetKind::Joints(_)) => "joints",
+                    (None, _) => "other",
+                };
+                format!("{} {s}", t.name)
+            })
+            .collect()
+    }
+
+    fn read_both() -> Program {
+        read(
+            &Source::new("app.dtx", DTX.as_bytes()),
+            &[Source::new("start.pgx", PGX.as_bytes())],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn motions_name_the_targets_and_every_other_use_is_reported() {
+        let p = read_both();
+        assert_eq!(
+            statuses(&p),
+            [
+                "jHome[0] joints",
+                "pSeam[0] cartesian",
+                "pSeam[1] cartesian",
+                "pSeam[2] cartesian",
+                "pSeam[3] dynamic",
+                "pRef[0] not_moved",
+                "movel relative",
+                "movel dynamic",
+                "movel dynamic",
+                "movel not_declared",
+                "movelf unknown_motion",
+            ]
+        );
+        let detail = |name: &str| {
+            p.targets
+                .iter()
+                .find(|t| t.name == name)
+                .and_then(|t| t.refused.as_ref())
+                .map(|r| r.detail.clone())
+                .unwrap()
+        };
+        assert_eq!(
+            detail("pRef[0]"),
+            "no motion moves to it; the code uses it otherwise (first at start.pgx:19:19)"
+        );
+        assert_eq!(
+            detail("pSeam[3]"),
+            "assigned as the program runs (start.pgx:17:1)"
+        );
+        // The omitted attributes: zeros with an empty span after the last one written.
+        let TargetKind::Cartesian(c) = &p.targets[1].kind else {
+            unreachable!()
+        };
+        let Some(Orientation::XyzIntrinsicDeg(r)) = c.orientation else {
+            unreachable!()
+        };
+        assert_eq!(r.map(|n| n.value), [180.0, 0.0, -30.0]);
+        let rx_end = DTX.find("rx=\"180\" rz").unwrap() + "rx=\"180\"".len();
+        assert_eq!(r[1].span, (rx_end, rx_end));
+        // Frames: the fixture chained to the world, the torch to the flange.
+        let u = &p.targets[1].uses[0];
+        let part = Isometry3::from_parts(
+            Translation3::new(1600.0, 250.0, 750.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 30f64.to_radians()),
+        );
+        assert!(
+            (u.base.unwrap().to_homogeneous() - part.to_homogeneous())
+                .abs()
+                .max()
+                < 1e-9
+        );
+        assert_eq!(
+            u.tool.unwrap().translation.vector,
+            Vector3::new(0.0, 0.0, 180.0)
+        );
+        assert_eq!(u.elsewhere.as_deref(), Some("start.pgx:10:1"));
+        // A chain of two frames.
+        let u = &p.targets[2].uses[0];
+        let sub = part * Translation3::new(10.0, 0.0, 0.0);
+        assert!(
+            (u.base.unwrap().to_homogeneous() - sub.to_homogeneous())
+                .abs()
+                .max()
+                < 1e-9
+        );
+        // A father the data does not hold: named.
+        assert_eq!(
+            p.targets[3].uses[0].undeclared,
+            vec![Undeclared {
+                base: true,
+                name: "fGone[0]".into()
+            }]
+        );
+    }
+
+    #[test]
+    fn the_angles_turn_about_x_then_the_new_y_then_the_new_z() {
+        let r = rotation_from_xyz_intrinsic_deg([30.0, 40.0, 50.0]);
+        let reference = Rotation3::from_axis_angle(&Vector3::x_axis(), 30f64.to_radians())
+            * Rotation3::from_axis_angle(&Vector3::y_axis(), 40f64.to_radians())
+            * Rotation3::from_axis_angle(&Vector3::z_axis(), 50f64.to_radians());
+        assert!((r.matrix() - reference.matrix()).abs().max() < 1e-12);
+        // rx 90: y goes onto z.
+        let r = rotation_from_xyz_intrinsic_deg([90.0, 0.0, 0.0]);
+        assert!((r * Vector3::y() - Vector3::z()).norm() < 1e-12);
+        // Angles read back from a rotation rebuild it; at ry = 90° rx is kept.
+        for v in [
+            [10.0, -20.0, 170.0],
+            [-135.0, 60.0, 5.0],
+            [25.0, 90.0, 40.0],
+            [0.0, -90.0, 0.0],
+        ] {
+            let r = rotation_from_xyz_intrinsic_deg(v);
+            let near = xyz_intrinsic_near(&r, v);
+            let back = rotation_from_xyz_intrinsic_deg(near);
+            assert!(
+                (r.matrix() - back.matrix()).abs().max() < 1e-9,
+                "{v:?} {near:?}"
+            );
+            assert!((near[0] - v[0]).abs() < 1e-9, "{v:?} {near:?}");
+        }
+    }
+
+    #[test]
+    fn an_omitted_attribute_is_inserted_with_its_name() {
+        assert_eq!(
+            inserted(((5, 5), "1.25".into()), "z"),
+            ((5, 5), " z=\"1.25\"".into())
+        );
+        assert_eq!(
+            inserted(((5, 8), "1.25".into()), "z"),
+            ((5, 8), "1.25".into())
+        );
+        // A number that is not finite is left for the job to refuse.
+        assert_eq!(
+            inserted(((5, 5), "NaN".into()), "z"),
+            ((5, 5), "NaN".into())
+        );
+    }
+
+    #[test]
+    fn malformed_files_are_located() {
+        let err = |dtx: &str| {
+            read(&Source::new("a.dtx", dtx.as_bytes()), &[])
+                .unwrap_err()
+                .to_string()
+        };
+        let head =
+            "<?xml version=\"1.0\"?>\n<Database>\n<Datas>\n<Data name=\"p\" type=\"pointRx\">\n";
+        assert_eq!(
+            err(&format!(
+                "{head}<Value key=\"0\" x=\"1.5mm\" />\n</Data></Datas></Database>\n"
+            )),
+            "a.dtx:5:19: x must be a number, found '1.5mm'"
+        );
+        assert_eq!(
+            err(&format!("{head}<Value key=\"0\" x=\"1.5")),
+            "a.dtx:5:18: an attribute's value not closed: the file ends inside it"
+        );
+        assert_eq!(
+            err(&format!("{head}<Value key=\"0\" x=\"1\" />\n")),
+            "a.dtx:4:2: <Data> is not closed: the file ends inside it"
+        );
+        assert_eq!(
+            err(&format!(
+                "{head}<Value key=\"0\" />\n<Value key=\"0\" />\n</Data></Datas></Database>"
+            )),
+            "a.dtx:6:13: the key 0 twice in p"
+        );
+        assert_eq!(
+            err("<Datas></Database>"),
+            "a.dtx:1:8: </Database> closes <Datas> (line 1)"
+        );
+        assert_eq!(
+            err("<Datas/>"),
+            "a.dtx:1:1: not a VAL3 data file: no <Database> element"
+        );
+        let err = read(
+            &Source::new("a.dtx", b"<Database/>"),
+            &[Source::new(
+                "s.pgx",
+                b"<Programs><Program name=\"s\"><Code><![CDATA[movel(",
+            )],
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            err,
+            "s.pgx:1:35: a CDATA section not closed (']]>' missing)"
+        );
+    }
+}
