@@ -605,7 +605,38 @@ impl ReachPair {
     /// the chains' joint count (the caller's check).
     #[inline]
     pub(crate) fn walk_posed(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> PosedPair {
-        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        self.walk_posed_by(q, sin_cos.len(), |j| {
+            (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1))
+        })
+    }
+
+    /// [`ReachPair::walk_posed`] with each chain at its own revolute angles: `a` turned by
+    /// `a_sin_cos`, `b` by `b_sin_cos` (a calibrated chain with joint-space terms stands at
+    /// `q'`, [`crate::joint_terms`]); a prismatic joint moves both by `q`. Each lane is
+    /// the one-chain walk at its angles, in its order.
+    #[inline]
+    pub(crate) fn walk_posed_apart(
+        &self,
+        q: &[f64],
+        a_sin_cos: &[(f64, f64)],
+        b_sin_cos: &[(f64, f64)],
+    ) -> PosedPair {
+        self.walk_posed_by(q, a_sin_cos.len().min(b_sin_cos.len()), |j| {
+            let ((sa, ca), (sb, cb)) = (a_sin_cos[j], b_sin_cos[j]);
+            (Pair([sa, sb]), Pair([ca, cb]))
+        })
+    }
+
+    /// The walk of [`ReachPair::walk_posed`], joint `j`'s turn by `turn_of(j)`, its sines
+    /// and cosines lane by lane, for `j` below `len`.
+    #[inline(always)]
+    fn walk_posed_by(
+        &self,
+        q: &[f64],
+        len: usize,
+        turn_of: impl Fn(usize) -> (Pair, Pair),
+    ) -> PosedPair {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(len);
         let (mut point, mut approach, mut across) =
             (self.tool_mm, self.tool_approach, self.tool_across);
         for j in (0..n).rev() {
@@ -613,7 +644,7 @@ impl ReachPair {
             if self.prismatic[j] {
                 point[2] = point[2] + Pair::splat(q[j]);
             } else {
-                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
+                let (s, c) = turn_of(j);
                 let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
                 point = turn(point);
                 approach = turn(approach);
@@ -650,14 +681,43 @@ impl ReachPair {
     /// at least the chains' joint count (the caller's check).
     #[inline]
     pub(crate) fn walk(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> ([f64; 3], [f64; 3], [f64; 3]) {
-        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+        self.walk_by(q, sin_cos.len(), |j| {
+            (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1))
+        })
+    }
+
+    /// [`ReachPair::walk`] with each chain at its own revolute angles, as
+    /// [`ReachPair::walk_posed_apart`].
+    #[inline]
+    pub(crate) fn walk_apart(
+        &self,
+        q: &[f64],
+        a_sin_cos: &[(f64, f64)],
+        b_sin_cos: &[(f64, f64)],
+    ) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        self.walk_by(q, a_sin_cos.len().min(b_sin_cos.len()), |j| {
+            let ((sa, ca), (sb, cb)) = (a_sin_cos[j], b_sin_cos[j]);
+            (Pair([sa, sb]), Pair([ca, cb]))
+        })
+    }
+
+    /// The walk of [`ReachPair::walk`], joint `j`'s turn by `turn_of(j)`, for `j` below
+    /// `len`.
+    #[inline(always)]
+    fn walk_by(
+        &self,
+        q: &[f64],
+        len: usize,
+        turn_of: impl Fn(usize) -> (Pair, Pair),
+    ) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let n = self.len.min(MAX_JOINTS).min(q.len()).min(len);
         let (mut point, mut approach) = (self.tool_mm, self.tool_approach);
         for j in (0..n).rev() {
             let rows = &self.frames[j];
             if self.prismatic[j] {
                 point[2] = point[2] + Pair::splat(q[j]);
             } else {
-                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
+                let (s, c) = turn_of(j);
                 let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
                 point = turn(point);
                 approach = turn(approach);

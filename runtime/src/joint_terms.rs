@@ -20,8 +20,12 @@
 //! are zero).
 //!
 //! Cost on the query path: per joint a few multiplications from the `sin_cos` of `q`
-//! already taken (the second harmonic by the double-angle formulas), and one more
-//! `sin_cos` per joint of `q'` for the calibrated chain. Allocation-free and panic-free.
+//! already taken (the second harmonic by the double-angle formulas, a held end's value
+//! computed at open), and the sine and cosine of `q'` from those of `q` by the
+//! angle-addition formulas (a term's own sine and cosine by their series; a `sin_cos` of
+//! `q'` only for terms that may exceed 1/64 rad). The calibrated chain then walks beside
+//! the nominal one as it does without terms, each at its own angles
+//! ([`crate::model::PreparedModel`]). Allocation-free and panic-free.
 
 use crate::chain::{ChainError, JointKind, MAX_JOINTS};
 
@@ -133,6 +137,120 @@ impl JointTerms {
             *o = value + self.offset(j, value, value.sin_cos());
         }
         Some(out)
+    }
+}
+
+/// [`JointTerms`] ready for the query path ([`crate::model::PreparedModel`]): each joint's
+/// held values (its term at the ends of its range) computed once, so that a commanded
+/// angle beyond the range costs no `sin_cos`, and the sines and cosines of `q'` taken from
+/// those of `q` by the angle-addition formulas when every term is small.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PreparedTerms {
+    coefficients_rad: [[f64; COEFFICIENTS_PER_JOINT]; MAX_JOINTS],
+    range_rad: [[f64; 2]; MAX_JOINTS],
+    /// Joint `j`'s term at `range_rad[j][0]` and at `range_rad[j][1]`, rad, as
+    /// [`JointTerms::offset`] computes it there (zero at an infinite end, never read).
+    held_rad: [[f64; 2]; MAX_JOINTS],
+    /// Whether every joint's term is at most [`SMALL_TERM_RAD`] at any angle (the sum of
+    /// its coefficients' magnitudes bounds it): [`PreparedTerms::moved_sin_cos`] then
+    /// applies.
+    small: bool,
+}
+
+/// The largest term, rad, whose sine and cosine [`PreparedTerms::moved_sin_cos`] takes by
+/// its Taylor series (exact to rounding up to 2⁻⁶; the terms a calibration keeps are a
+/// few mrad).
+const SMALL_TERM_RAD: f64 = 1.0 / 64.0;
+
+impl PreparedTerms {
+    /// The terms prepared (any terms; [`JointTerms::check`] is the caller's).
+    pub(crate) fn new(terms: &JointTerms) -> PreparedTerms {
+        let mut held_rad = [[0.0; 2]; MAX_JOINTS];
+        for (j, (held, range)) in held_rad.iter_mut().zip(&terms.range_rad).enumerate() {
+            for (h, &end) in held.iter_mut().zip(range) {
+                if end.is_finite() {
+                    *h = terms.offset(j, end, end.sin_cos());
+                }
+            }
+        }
+        let bound = |c: &[f64; COEFFICIENTS_PER_JOINT]| c.iter().map(|v| v.abs()).sum::<f64>();
+        PreparedTerms {
+            coefficients_rad: terms.coefficients_rad,
+            range_rad: terms.range_rad,
+            held_rad,
+            small: terms
+                .coefficients_rad
+                .iter()
+                .all(|c| bound(c) <= SMALL_TERM_RAD),
+        }
+    }
+
+    /// [`JointTerms::offset`] of joint `j` (`j <` [`MAX_JOINTS`], else zero), to the bit,
+    /// with the held values read rather than computed.
+    #[inline(always)]
+    pub(crate) fn offset(&self, j: usize, q: f64, (sin, cos): (f64, f64)) -> f64 {
+        let (Some(&[a1, b1, a2, b2]), Some(&[lo, hi]), Some(&[held_lo, held_hi])) = (
+            self.coefficients_rad.get(j),
+            self.range_rad.get(j),
+            self.held_rad.get(j),
+        ) else {
+            return 0.0;
+        };
+        if q < lo {
+            return held_lo;
+        }
+        if q > hi {
+            return held_hi;
+        }
+        let sin2 = 2.0 * sin * cos;
+        let cos2 = (cos - sin) * (cos + sin);
+        a1 * sin + b1 * cos + a2 * sin2 + b2 * cos2
+    }
+
+    /// [`JointTerms::apply`], to the bit.
+    #[inline]
+    pub(crate) fn apply(&self, q: &[f64], sin_cos: &[(f64, f64)], out: &mut [f64]) {
+        for (j, ((o, &value), &sc)) in out.iter_mut().zip(q).zip(sin_cos).enumerate() {
+            *o = value + self.offset(j, value, sc);
+        }
+    }
+
+    /// The sines and cosines of `q'` (module docs) into `out`, from those of the commanded
+    /// `q`, `sin_cos`, by the angle-addition formulas with the term `δ`: `sin q' = sin q +
+    /// (cos q sin δ − sin q (1 − cos δ))`, `cos q' = cos q − (sin q sin δ + cos q (1 −
+    /// cos δ))`, `sin δ` and `1 − cos δ` by their Taylor series. `false`, with `out`
+    /// untouched, when a term may exceed [`SMALL_TERM_RAD`] (the caller then takes the
+    /// `sin_cos` of `q'` itself).
+    ///
+    /// Each result is within a few units of 2⁻⁵³ of `sin_cos(q + δ)` computed from the
+    /// same `sin q` and `cos q` exactly: the correction is at most `δ` and is rounded
+    /// once, where `sin_cos` of the rounded `q'` adds its own error of up to 2⁻⁵¹ and the
+    /// rounding of `q + δ` (2⁻⁵³ of `q`).
+    #[inline]
+    pub(crate) fn moved_sin_cos(
+        &self,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+        out: &mut [(f64, f64)],
+    ) -> bool {
+        if !self.small {
+            return false;
+        }
+        for (j, ((o, &value), &(s, c))) in out.iter_mut().zip(q).zip(sin_cos).enumerate() {
+            let d = self.offset(j, value, (s, c));
+            // `small_sin_cos`'s series (module `chain`): sin δ to δ⁷, 1 − cos δ to δ⁸.
+            let d2 = d * d;
+            let sin_d = d
+                * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
+            let versine_d = d2
+                * 0.5
+                * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
+            *o = (
+                s + (c * sin_d - s * versine_d),
+                c - (s * sin_d + c * versine_d),
+            );
+        }
+        true
     }
 }
 

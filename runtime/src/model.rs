@@ -37,7 +37,9 @@
 //! point, approach axis and x axis a joint (`ReachPair::walk_posed` in [`crate::chain`]),
 //! and the orientation error from the two frames' columns by asin's series (every hybrid
 //! answer carries it; [`PreparedModel::at_position`] walks the point and the approach axis
-//! alone); otherwise one pass down each chain, folded at open (constant parts multiplied
+//! alone). With joint-space terms the walk is the same, the calibrated lane turned at `q'`
+//! (its sines and cosines from `q`'s by angle addition, [`crate::joint_terms`]). Otherwise
+//! (gravity compliance) one pass down each chain, folded at open (constant parts multiplied
 //! out: `FoldedChain` in [`crate::chain`]), the gravity deflection by turning the calibrated
 //! TCP about each joint's axis, and a 3 × 3 logarithm.
 //! [`PreparedModel::error`] and the others evaluate the chains joint by joint, as the
@@ -48,7 +50,7 @@
 use crate::chain::{Chain, FoldedChain, ReachPair, MAX_JOINTS};
 use crate::format::v1::{ArchivedKinematicModel, ArchivedModelParams, ArchivedTableData};
 use crate::format::{joint_rows_to_mdh, transform_of, KinematicModel, ModelParams, JOINT_COUNT};
-use crate::joint_terms::JointTerms;
+use crate::joint_terms::{JointTerms, PreparedTerms};
 use crate::kinematics::{pose_error, Transform};
 
 /// The tool centre point's pose in the measurement (world) frame at joint angles `q_rad`:
@@ -99,12 +101,14 @@ pub struct PreparedModel {
     calibrated: Chain,
     /// Both chains folded for queries ([`PreparedModel::at`]).
     folded: [FoldedChain; 2],
-    /// Both chains' positions walked together, when they have that form
-    /// ([`PreparedModel::at_position`]) and the model has no joint-space terms.
+    /// Both chains walked together, when they have that form
+    /// ([`PreparedModel::at_position`]); with joint-space terms each at its own angles.
     pair: Option<ReachPair>,
     /// The calibrated chain's joint-space terms ([`crate::joint_terms`]): it stands at
     /// `q'` of the commanded `q`.
     terms: JointTerms,
+    /// `terms` for the query path.
+    prepared_terms: PreparedTerms,
     /// Whether any term is not zero.
     has_terms: bool,
 }
@@ -131,6 +135,7 @@ impl PreparedModel {
             pair: ReachPair::new(&folded[0], &folded[1]),
             folded,
             terms: JointTerms::NONE,
+            prepared_terms: PreparedTerms::new(&JointTerms::NONE),
             has_terms: false,
         }
     }
@@ -145,10 +150,8 @@ impl PreparedModel {
         }
         terms.check(&kinds[..n]).ok()?;
         self.terms = terms;
+        self.prepared_terms = PreparedTerms::new(&terms);
         self.has_terms = !terms.is_none();
-        if self.has_terms {
-            self.pair = None;
-        }
         Some(self)
     }
 
@@ -273,8 +276,11 @@ impl PreparedModel {
         crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
-        if let (true, Some(pair)) = (rotation, &self.pair) {
+        if let (true, Some(pair), false) = (rotation, &self.pair, self.has_terms) {
             return Some(pair.walk_posed(q, sin_cos).model_at());
+        }
+        if let (Some(pair), true) = (&self.pair, self.has_terms) {
+            return Some(self.walk_apart(pair, q, sin_cos, rotation));
         }
         if !rotation && !self.has_terms {
             let walked = match &self.pair {
@@ -299,7 +305,7 @@ impl PreparedModel {
         let (calibrated_q, calibrated_sin_cos) = if self.has_terms {
             moved = [0.0; MAX_JOINTS];
             moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
-            self.terms.apply(q, sin_cos, &mut moved[..n]);
+            self.prepared_terms.apply(q, sin_cos, &mut moved[..n]);
             crate::trig::sin_cos_each(&moved[..n], &mut moved_sin_cos);
             (&moved[..n], &moved_sin_cos[..n])
         } else {
@@ -335,6 +341,39 @@ impl PreparedModel {
             nominal_tcp_mm: nominal_mm,
             nominal_rotation,
         })
+    }
+
+    /// [`PreparedModel::evaluate`] of a model with joint-space terms whose chains walk
+    /// together: the calibrated lane turned by the sines and cosines of `q'`, from those of
+    /// `q` by angle addition ([`PreparedTerms::moved_sin_cos`]) or, for a term that may be
+    /// large, by `sin_cos` of `q'`. `q` and `sin_cos` hold the chains' joint count.
+    #[inline]
+    fn walk_apart(
+        &self,
+        pair: &ReachPair,
+        q: &[f64],
+        sin_cos: &[(f64, f64)],
+        rotation: bool,
+    ) -> ModelAt {
+        let n = q.len().min(sin_cos.len()).min(MAX_JOINTS);
+        let mut moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+        let moved_sin_cos = &mut moved_sin_cos[..n];
+        if !self.prepared_terms.moved_sin_cos(q, sin_cos, moved_sin_cos) {
+            let mut moved = [0.0; MAX_JOINTS];
+            self.prepared_terms.apply(q, sin_cos, &mut moved[..n]);
+            crate::trig::sin_cos_each(&moved[..n], moved_sin_cos);
+        }
+        if rotation {
+            return pair.walk_posed_apart(q, sin_cos, moved_sin_cos).model_at();
+        }
+        let (nominal_mm, approach, calibrated_mm) = pair.walk_apart(q, sin_cos, moved_sin_cos);
+        ModelAt {
+            position_mm: difference(calibrated_mm, nominal_mm),
+            rotation_rad: [0.0; 3],
+            approach,
+            nominal_tcp_mm: nominal_mm,
+            nominal_rotation: None,
+        }
     }
 
     /// The nominal TCP's approach axis at `q` alone (as [`PreparedModel::error_with_approach`]
@@ -430,5 +469,129 @@ mod tests {
             assert!((got - want).abs() < 1e-12, "{p:?}");
         }
         assert!(r.iter().all(|v| v.abs() < 1e-15), "{r:?}");
+    }
+
+    /// A UR5's MD-H rows (`tables/ur5/robot.toml`), the calibrated one moved by tenths of a
+    /// millimetre and milliradian, with a tool offset; `terms` on the calibrated chain.
+    fn ur5_with_terms(moves: &[[f64; 3]; 6], terms: JointTerms) -> PreparedModel {
+        use std::f64::consts::FRAC_PI_2;
+        let rows = [
+            [0.0, 89.159, FRAC_PI_2],
+            [-425.0, 0.0, 0.0],
+            [-392.25, 0.0, 0.0],
+            [0.0, 109.15, FRAC_PI_2],
+            [0.0, 94.65, -FRAC_PI_2],
+            [0.0, 82.3, 0.0],
+        ];
+        let mut tool = rows_of(&Transform::IDENTITY);
+        tool[7] = 0.09;
+        tool[11] = 31.0;
+        let params = |m: &[[f64; 3]; 6]| ModelParams {
+            joints: [0, 1, 2, 3, 4, 5].map(|j| {
+                let [a, d, alpha] = rows[j];
+                [
+                    a + m[j][0],
+                    d + m[j][1],
+                    alpha + m[j][2] * 1e-3,
+                    0.0,
+                    -m[j][2] * 1e-3,
+                ]
+            }),
+            tool,
+            base: rows_of(&Transform::IDENTITY),
+        };
+        PreparedModel::from_mdh(&KinematicModel {
+            nominal: params(&[[0.0; 3]; 6]),
+            calibrated: params(moves),
+        })
+        .with_joint_terms(terms)
+        .expect("terms within the bounds, on revolute joints")
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The query path of a model with joint-space terms walks both chains together,
+        /// the calibrated one at `q'` (its sines and cosines by angle addition for small
+        /// terms, by `sin_cos` of `q'` for large ones), and is held to the chains' own
+        /// forward kinematics joint by joint (`PreparedModel::error`, the library's
+        /// `sin_cos`, `q'` rounded before it) within 1e-12 mm and 2e-15 rad: the two differ
+        /// in the sines' and cosines' last bits (2⁻⁵¹ at most, a few 1e-13 mm at the
+        /// UR5's reach) and in the order of the chains' products, as the walk without
+        /// terms does (`chain::tests`).
+        #[test]
+        fn a_model_with_joint_terms_walks_as_the_chains_at_the_moved_angles(
+            q in proptest::array::uniform6(-3.2..3.2f64),
+            moves in proptest::array::uniform6(proptest::array::uniform3(-0.5..0.5f64)),
+            coefficients in proptest::array::uniform6(proptest::array::uniform4(-4e-3..4e-3f64)),
+            ranges in proptest::array::uniform6((-3.0..0.0f64, 0.0..3.0f64)),
+            large in proptest::bool::weighted(0.3),
+        ) {
+            let mut terms = JointTerms::NONE;
+            for j in 0..6 {
+                terms.coefficients_rad[j] = coefficients[j].map(|c| if large { 20.0 * c } else { c });
+                terms.range_rad[j] = [ranges[j].0, ranges[j].1];
+            }
+            let model = ur5_with_terms(&moves, terms);
+            prop_assert!(model.pair.is_some(), "a rigid calibrated chain walks in pairs");
+            let at = model.at(&q).unwrap();
+            let position = model.at_position(&q).unwrap();
+            let (position_mm, rotation_rad) = model.error(&q).unwrap();
+            let nominal = model.nominal().tcp_pose(&q).unwrap();
+            for a in 0..3 {
+                prop_assert!((at.position_mm[a] - position_mm[a]).abs() <= 1e-12, "{at:?} vs {position_mm:?}");
+                prop_assert!((at.rotation_rad[a] - rotation_rad[a]).abs() <= 2e-15, "{at:?} vs {rotation_rad:?}");
+                prop_assert!((at.nominal_tcp_mm[a] - nominal.translation_mm[a]).abs() <= 1e-12);
+                prop_assert!((at.approach[a] - nominal.rotation[a][2]).abs() <= 2e-15);
+                // The position-only walk is the posed walk's point and approach, to the bit.
+                prop_assert_eq!(position.position_mm[a].to_bits(), at.position_mm[a].to_bits());
+                prop_assert_eq!(position.approach[a].to_bits(), at.approach[a].to_bits());
+            }
+        }
+
+        /// The prepared terms give `JointTerms::offset` to the bit inside and beyond the
+        /// range (the held ends computed once, not per query), and the angle-addition
+        /// sines and cosines of `q'` are within 2⁻⁵⁰ of the library's `sin_cos(q')`:
+        /// `trig::sin_cos` of `q`, which they start from, is within 2⁻⁵¹ of it, and the
+        /// correction by `δ` adds a few units of 2⁻⁵³.
+        #[test]
+        fn prepared_terms_are_the_terms_and_their_moved_sines_the_moved_angles(
+            q in proptest::array::uniform6(-6.0..6.0f64),
+            coefficients in proptest::array::uniform6(proptest::array::uniform4(-3.9e-3..3.9e-3f64)),
+            ranges in proptest::array::uniform6((-3.0..0.0f64, 0.0..3.0f64)),
+        ) {
+            let mut terms = JointTerms::NONE;
+            for j in 0..6 {
+                terms.coefficients_rad[j] = coefficients[j];
+                terms.range_rad[j] = [ranges[j].0, ranges[j].1];
+            }
+            let prepared = PreparedTerms::new(&terms);
+            let mut sin_cos = [(0.0, 1.0); 6];
+            crate::trig::sin_cos_each(&q, &mut sin_cos);
+            let mut moved = [0.0; 6];
+            terms.apply(&q, &sin_cos, &mut moved);
+            let mut fast = [0.0; 6];
+            prepared.apply(&q, &sin_cos, &mut fast);
+            prop_assert_eq!(moved.map(f64::to_bits), fast.map(f64::to_bits));
+            let mut moved_sin_cos = [(0.0, 1.0); 6];
+            prop_assert!(prepared.moved_sin_cos(&q, &sin_cos, &mut moved_sin_cos));
+            for j in 0..6 {
+                let (s, c) = moved[j].sin_cos();
+                let bound = 4.0 * f64::EPSILON;
+                prop_assert!((moved_sin_cos[j].0 - s).abs() <= bound, "{j}: {:?} vs {:?}", moved_sin_cos[j], (s, c));
+                prop_assert!((moved_sin_cos[j].1 - c).abs() <= bound, "{j}: {:?} vs {:?}", moved_sin_cos[j], (s, c));
+            }
+        }
+    }
+
+    /// Terms that may exceed 1/64 rad take `sin_cos` of `q'` instead of the series.
+    #[test]
+    fn large_terms_are_not_moved_by_the_series() {
+        let mut terms = JointTerms::NONE;
+        terms.coefficients_rad[1] = [0.01, 0.01, 0.0, 0.0];
+        let prepared = PreparedTerms::new(&terms);
+        let mut out = [(0.0, 1.0); 2];
+        assert!(!prepared.moved_sin_cos(&[0.3, 0.4], &[(0.0, 1.0); 2], &mut out));
+        assert_eq!(out, [(0.0, 1.0); 2]);
     }
 }
