@@ -53,6 +53,13 @@ pub enum TargetStatus {
     BeyondEvidence(Evidence),
 }
 
+/// A status by its name ([`TargetStatus::as_str`]), as the report's CSV writes it.
+impl serde::Serialize for TargetStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
 impl TargetStatus {
     /// Whether the target was corrected (its numbers replaced).
     pub fn corrected(self) -> bool {

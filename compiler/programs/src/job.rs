@@ -12,7 +12,7 @@ use crate::correct::{self, Kinematics, Limits, Posture, TargetStatus, Turn};
 use crate::frames::{angle_between, kuka_pose, orientation_values, rotation_of, FrameChain};
 use crate::number::{rewrite, Number};
 use crate::program::{ConfigHint, Format, FrameUse, Orientation, Program, Reason, TargetKind};
-use crate::report::{Report, TargetLine};
+use crate::report::{CsvRows, Report, Summary, TargetLine};
 use crate::source::Source;
 use crate::Error;
 
@@ -114,57 +114,15 @@ impl CompensateOptions {
     }
 }
 
-/// A compensated program: its bytes and the report.
-#[derive(Clone, Debug)]
-pub struct Compensated {
-    /// The program with every corrected target's numbers replaced.
-    pub output: Vec<u8>,
-    /// Per target, what was done.
-    pub report: Report,
-}
-
-/// A job whose options and inputs have all been checked: [`CompensateJob::run`] only
-/// corrects.
-pub struct CompensateJob {
-    options: CompensateOptions,
-    table: Table<AlignedBytes>,
-    bytes: Vec<u8>,
-    name: String,
-    program: Program,
-    kinematics: Option<Kinematics>,
-    /// Per target, its frame chains (one per distinct use; none for joint targets), or why
-    /// its frames are not known.
-    /// A target's list is shared with the target before it when the two are the same (a
-    /// long program's targets mostly are): one list, not one each.
-    chains: Vec<Result<std::sync::Arc<[FrameChain]>, correct::Failure>>,
-    /// The program and the report, checked before any work.
-    outputs: adwi_output::OutputPlan,
-    /// Whether the reader saw the program's motions (a KRL data list read without its
-    /// `.src` did not), so that a declared target no motion moves to is unused.
-    motions_seen: bool,
-    /// A G-code program's arcs, per target (empty for other formats).
-    arcs: Vec<Option<Box<crate::gcode::Arc>>>,
-}
-
-/// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
-/// inverse kinematics, with a numerical one — two to four times what was measured
-/// (docs/programs.md, "Cost"), so that the estimate errs on the side of refusing.
-const SECONDS_PER_TARGET: [f64; 3] = [1e-5, 3e-5, 2e-4];
-
-/// How many bytes a program may have at most: read into memory whole.
-const MAX_PROGRAM_BYTES: u64 = 1 << 30;
-
-impl CompensateJob {
-    /// Checks every option, opens the table and the robot, reads the program, resolves
-    /// every target's frames and sizes the work — before any target is corrected.
+impl CompensateOptions {
+    /// Checks every option and every combination of options, reading no file: the
+    /// program's format, by the option or the program's extension.
     ///
     /// # Errors
     ///
-    /// The first problem found: a bad option, an unreadable input, a malformed program
-    /// (file, line and column), an output that is an input, or more work than
-    /// `max_seconds`.
-    pub fn new(options: CompensateOptions) -> Result<CompensateJob, Error> {
-        let o = &options;
+    /// [`Error::Option`], naming the first option refused.
+    pub fn check(&self) -> Result<Format, Error> {
+        let o = self;
         let limits = &o.limits;
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(limits.max_correction_mm)
@@ -240,6 +198,84 @@ impl CompensateJob {
                 ))
             })?,
         };
+        if o.krl_config.is_some() && format != Format::Krl {
+            return Err(Error::Option(
+                "the KRL configuration (krl_config) is for KRL programs".into(),
+            ));
+        }
+        if o.fanuc.frames_file.is_some() && format != Format::Fanuc {
+            return Err(Error::Option(
+                "the Fanuc frame file is for Fanuc programs".into(),
+            ));
+        }
+        Ok(format)
+    }
+}
+
+/// A compensated program: its bytes and the report.
+#[derive(Clone, Debug)]
+pub struct Compensated {
+    /// The program with every corrected target's numbers replaced.
+    pub output: Vec<u8>,
+    /// Per target, what was done.
+    pub report: Report,
+}
+
+/// A compensated program whose report was handed on line by line
+/// ([`CompensateJob::run_each`]): its bytes, and the report's figures.
+#[derive(Clone, Debug)]
+pub struct Summarized {
+    /// The program with every corrected target's numbers replaced.
+    pub output: Vec<u8>,
+    /// The report in figures.
+    pub summary: Summary,
+    /// The compensated program's xxh3-64 hash, as the report's rows name it.
+    pub program_xxh3: u64,
+}
+
+/// A job whose options and inputs have all been checked: [`CompensateJob::run`] only
+/// corrects.
+pub struct CompensateJob {
+    options: CompensateOptions,
+    table: Table<AlignedBytes>,
+    bytes: Vec<u8>,
+    name: String,
+    program: Program,
+    kinematics: Option<Kinematics>,
+    /// Per target, its frame chains (one per distinct use; none for joint targets), or why
+    /// its frames are not known.
+    /// A target's list is shared with the target before it when the two are the same (a
+    /// long program's targets mostly are): one list, not one each.
+    chains: Vec<Result<std::sync::Arc<[FrameChain]>, correct::Failure>>,
+    /// The program and the report, checked before any work.
+    outputs: adwi_output::OutputPlan,
+    /// Whether the reader saw the program's motions (a KRL data list read without its
+    /// `.src` did not), so that a declared target no motion moves to is unused.
+    motions_seen: bool,
+    /// A G-code program's arcs, per target (empty for other formats).
+    arcs: Vec<Option<Box<crate::gcode::Arc>>>,
+}
+
+/// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
+/// inverse kinematics, with a numerical one — two to four times what was measured
+/// (docs/programs.md, "Cost"), so that the estimate errs on the side of refusing.
+const SECONDS_PER_TARGET: [f64; 3] = [1e-5, 3e-5, 2e-4];
+
+/// How many bytes a program may have at most: read into memory whole.
+const MAX_PROGRAM_BYTES: u64 = 1 << 30;
+
+impl CompensateJob {
+    /// Checks every option, opens the table and the robot, reads the program, resolves
+    /// every target's frames and sizes the work — before any target is corrected.
+    ///
+    /// # Errors
+    ///
+    /// The first problem found: a bad option, an unreadable input, a malformed program
+    /// (file, line and column), an output that is an input, or more work than
+    /// `max_seconds`.
+    pub fn new(options: CompensateOptions) -> Result<CompensateJob, Error> {
+        let format = options.check()?;
+        let o = &options;
         // Every file the job reads is an input no output may name, by any path: the
         // table, the program, a KRL program's partner (read for the names its motions
         // use), the robot file and the URDF it names.
@@ -674,20 +710,68 @@ impl CompensateJob {
     /// [`Error::NotAllCorrected`] when the job is strict and some target was not
     /// corrected.
     pub fn run(&self) -> Result<Compensated, Error> {
+        let mut targets = Vec::with_capacity(self.program.targets.len());
+        let done = self.run_each(|line| targets.push(line))?;
+        Ok(Compensated {
+            output: done.output,
+            report: Report {
+                targets,
+                program_xxh3: Some(done.program_xxh3),
+            },
+        })
+    }
+
+    /// Corrects every target as [`CompensateJob::run`] does, but hands each target's report
+    /// line to `each` as it is made, in the program's order, and keeps only the summary: a
+    /// long program's lines need not be held to its end.
+    ///
+    /// # Errors
+    ///
+    /// As [`CompensateJob::run`] (`each` has then seen every line).
+    pub fn run_each(&self, mut each: impl FnMut(TargetLine)) -> Result<Summarized, Error> {
         // The output written as the targets are corrected, when their replacements come in
         // the file's order (every reader's targets do, in practice); else, again, with
-        // every replacement kept and sorted.
-        match self.run_with(true)? {
+        // every replacement kept and sorted, the lines handed on already not handed again
+        // (a run makes the same lines each time).
+        let mut handed = 0;
+        match self.run_with(true, &mut each, &mut handed)? {
             Some(done) => Ok(done),
             None => Ok(self
-                .run_with(false)?
+                .run_with(false, &mut each, &mut handed)?
                 .expect("a run that keeps its replacements always finishes")),
         }
     }
 
-    /// [`CompensateJob::run`]: `streaming`, the output written as the targets come, `None`
-    /// when a replacement comes before one written already.
-    fn run_with(&self, streaming: bool) -> Result<Option<Compensated>, Error> {
+    /// Corrects every target and writes the outputs (the program, and the report as CSV
+    /// when the options name one), keeping of the report only its summary and the CSV's
+    /// text; `each` sees every target's line as it is made.
+    ///
+    /// # Errors
+    ///
+    /// As [`CompensateJob::run`] and [`CompensateJob::write`]: nothing is then written.
+    pub fn run_and_write(&self, mut each: impl FnMut(TargetLine)) -> Result<Summarized, Error> {
+        let mut rows = (self.options.report.as_ref())
+            .map(|_| CsvRows::with_capacity(self.program.targets.len()));
+        let done = self.run_each(|line| {
+            if let Some(rows) = &mut rows {
+                rows.push(&line);
+            }
+            each(line);
+        })?;
+        let csv = rows.map(|rows| rows.finish(Some(done.program_xxh3)));
+        self.write_bytes(&done.output, csv.as_deref())?;
+        Ok(done)
+    }
+
+    /// [`CompensateJob::run_each`]: `streaming`, the output written as the targets come,
+    /// `None` when a replacement comes before one written already; the lines from
+    /// `handed` on handed to `each`, `handed` counting them.
+    fn run_with(
+        &self,
+        streaming: bool,
+        each: &mut impl FnMut(TargetLine),
+        handed: &mut usize,
+    ) -> Result<Option<Summarized>, Error> {
         let src = Source::new(&self.name, &self.bytes);
         // Streaming: the output so far, and the byte of the program it has reached.
         let mut output: Vec<u8> = Vec::new();
@@ -705,8 +789,9 @@ impl CompensateJob {
         // few dozen bytes a number rather than a string each.
         let mut edits: Vec<((usize, usize), std::ops::Range<usize>)> = Vec::new();
         let mut texts = String::new();
-        let mut report = Report::default();
-        report.targets.reserve_exact(self.program.targets.len());
+        let mut summary = Summary::default();
+        // The first target not corrected, for a strict job's refusal.
+        let mut first_not_corrected: Option<String> = None;
         let mut seed: Vec<f64> = self
             .kinematics
             .as_ref()
@@ -862,29 +947,30 @@ impl CompensateJob {
                     (false, _) => format!("{}; {unused}", entry.detail),
                 };
             }
-            report.targets.push(entry);
-        }
-        if self.options.strict {
-            if let Some(first) = report.first_not_corrected() {
-                return Err(Error::NotAllCorrected {
-                    not_corrected: report
-                        .targets
-                        .iter()
-                        .filter(|t| !t.status.corrected())
-                        .count(),
-                    total: report.targets.len(),
-                    first: format!(
-                        "{} {}{}",
-                        first.place(),
-                        first.status.as_str(),
-                        if first.detail.is_empty() {
-                            String::new()
-                        } else {
-                            format!(": {}", first.detail)
-                        }
-                    ),
-                });
+            summary.add(&entry);
+            if first_not_corrected.is_none() && !entry.status.corrected() {
+                first_not_corrected = Some(format!(
+                    "{} {}{}",
+                    entry.place(),
+                    entry.status.as_str(),
+                    if entry.detail.is_empty() {
+                        String::new()
+                    } else {
+                        format!(": {}", entry.detail)
+                    }
+                ));
             }
+            if i >= *handed {
+                each(entry);
+                *handed += 1;
+            }
+        }
+        if let (true, Some(first)) = (self.options.strict, first_not_corrected) {
+            return Err(Error::NotAllCorrected {
+                not_corrected: summary.total - summary.corrected,
+                total: summary.total,
+                first,
+            });
         }
         if !streaming {
             edits.sort_by_key(|(span, _)| span.0);
@@ -897,8 +983,12 @@ impl CompensateJob {
             }
         }
         output.extend_from_slice(&self.bytes[at..]);
-        report.program_xxh3 = Some(xxhash_rust::xxh3::xxh3_64(&output));
-        Ok(Some(Compensated { output, report }))
+        let program_xxh3 = xxhash_rust::xxh3::xxh3_64(&output);
+        Ok(Some(Summarized {
+            output,
+            summary,
+            program_xxh3,
+        }))
     }
 
     /// Writes the compensated program and the report where the options say, both or
@@ -910,11 +1000,17 @@ impl CompensateJob {
     pub fn write(&self, done: &Compensated) -> Result<(), Error> {
         // The report's text only when it is written (some 250 bytes a target).
         let report = self.options.report.as_ref().map(|_| done.report.to_csv());
+        self.write_bytes(&done.output, report.as_deref())
+    }
+
+    /// Writes the program's bytes and the report's CSV where the options say, both or
+    /// neither.
+    fn write_bytes(&self, output: &[u8], report: Option<&str>) -> Result<(), Error> {
         let mut contents: Vec<(&Path, &[u8])> = Vec::new();
         if let Some(path) = &self.options.output {
-            contents.push((path, &done.output));
+            contents.push((path, output));
         }
-        if let (Some(path), Some(report)) = (&self.options.report, &report) {
+        if let (Some(path), Some(report)) = (&self.options.report, report) {
             contents.push((path, report.as_bytes()));
         }
         Ok(self.outputs.write(&contents)?)

@@ -60,8 +60,8 @@ pub mod yaskawa;
 pub use correct::{Limits, TargetStatus};
 pub use error::{escape_controls, Error};
 pub use job::{
-    CompensateJob, CompensateOptions, Compensated, BYTES_PER_TARGET, DEFAULT_MAX_CORRECTION_MM,
-    DEFAULT_MAX_JOINT_CHANGE_DEG, DEFAULT_MAX_MEMORY_BYTES,
+    CompensateJob, CompensateOptions, Compensated, Summarized, BYTES_PER_TARGET,
+    DEFAULT_MAX_CORRECTION_MM, DEFAULT_MAX_JOINT_CHANGE_DEG, DEFAULT_MAX_MEMORY_BYTES,
 };
 pub use program::{Format, Program};
-pub use report::{Report, Summary, TargetLine};
+pub use report::{CsvRows, Report, Summary, TargetLine};

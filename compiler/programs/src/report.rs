@@ -8,7 +8,7 @@ use adwi_runtime::{Evidence, Residual};
 use crate::correct::TargetStatus;
 
 /// One target's line of the report.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TargetLine {
     /// Its name, or the instruction writing it inline.
     pub name: String,
@@ -42,14 +42,16 @@ pub struct TargetLine {
     pub residual_mm: Option<f64>,
     /// How much of a hybrid table's residual field the correction held (`full` for a
     /// position-only table), when a command was computed.
+    #[serde(serialize_with = "named_residual")]
     pub residual: Option<Residual>,
     /// Where the correction lies beyond the table's evidence, when a command was computed
     /// (a hybrid table's model answering at an orientation its samples never had).
+    #[serde(serialize_with = "named_evidence")]
     pub evidence: Option<Evidence>,
 }
 
 /// The report: a line per target, in the order the program writes them.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Report {
     /// Per target.
     pub targets: Vec<TargetLine>,
@@ -59,7 +61,7 @@ pub struct Report {
 }
 
 /// The report in figures.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Summary {
     /// Targets in the program.
     pub total: usize,
@@ -81,34 +83,11 @@ pub struct Summary {
 impl Report {
     /// The counts and the largest correction.
     pub fn summary(&self) -> Summary {
-        let mut not_corrected = BTreeMap::new();
-        let mut largest: Option<(f64, String)> = None;
+        let mut summary = Summary::default();
         for t in &self.targets {
-            if t.status.corrected() {
-                if let Some(c) = t.correction_mm {
-                    if largest.as_ref().is_none_or(|(l, _)| c > *l) {
-                        largest = Some((c, t.place()));
-                    }
-                }
-            } else {
-                *not_corrected.entry(t.status.as_str()).or_default() += 1;
-            }
+            summary.add(t);
         }
-        let corrected_with = |flag| {
-            let with = |t: &&TargetLine| t.status.corrected() && t.residual == Some(flag);
-            self.targets.iter().filter(with).count()
-        };
-        Summary {
-            total: self.targets.len(),
-            corrected: self.targets.iter().filter(|t| t.status.corrected()).count(),
-            not_corrected,
-            faded: corrected_with(Residual::Faded),
-            model_only: corrected_with(Residual::ModelOnly),
-            beyond_evidence: (self.targets.iter())
-                .filter(|t| t.status.corrected() && t.evidence.is_some_and(|e| !e.is_within()))
-                .count(),
-            largest,
-        }
+        summary
     }
 
     /// The first target not corrected, if any.
@@ -120,44 +99,129 @@ impl Report {
     /// `program_xxh3`, the compensated program's hash as 16 hex digits (empty when there is
     /// none).
     pub fn to_csv(&self) -> String {
+        let mut rows = CsvRows::with_capacity(self.targets.len());
+        for t in &self.targets {
+            rows.push(t);
+        }
+        rows.finish(self.program_xxh3)
+    }
+}
+
+impl Summary {
+    /// Counts one more target: a report's summary is its targets added in order, so that
+    /// a run that keeps no line still gives the same figures.
+    pub fn add(&mut self, t: &TargetLine) {
+        self.total += 1;
+        if !t.status.corrected() {
+            *self.not_corrected.entry(t.status.as_str()).or_default() += 1;
+            return;
+        }
+        self.corrected += 1;
+        if let Some(c) = t.correction_mm {
+            // The first of equal corrections is the largest.
+            if self.largest.as_ref().is_none_or(|(l, _)| c > *l) {
+                self.largest = Some((c, t.place()));
+            }
+        }
+        match t.residual {
+            Some(Residual::Faded) => self.faded += 1,
+            Some(Residual::ModelOnly) => self.model_only += 1,
+            _ => {}
+        }
+        if t.evidence.is_some_and(|e| !e.is_within()) {
+            self.beyond_evidence += 1;
+        }
+    }
+}
+
+/// The report's CSV written a row at a time, as the targets are corrected: the compensated
+/// program's hash, which ends every row, is known only at the end, so each row is written
+/// with a placeholder of the hash's width and the placeholders are filled in by
+/// [`CsvRows::finish`]; a long program's report is held as its text alone, some 200 bytes
+/// a target, never as its lines as well.
+#[derive(Clone, Debug)]
+pub struct CsvRows {
+    text: String,
+    /// Where each row's hash placeholder starts.
+    hashes: Vec<usize>,
+}
+
+/// The hash's placeholder: as wide as the hash's 16 hex digits.
+const HASH_PLACEHOLDER: &str = "################";
+
+impl CsvRows {
+    /// The header, with room reserved for `rows` rows.
+    pub fn with_capacity(rows: usize) -> CsvRows {
         // About two hundred bytes a row: reserved once, not doubled as the rows come.
-        let mut out = String::with_capacity(256 + 224 * self.targets.len());
-        out.push_str(
+        let mut text = String::with_capacity(256 + 224 * rows);
+        text.push_str(
             "name,line,column,kind,status,detail,correction_mm,rotation_deg,joint_change_deg,\
              iterations,residual_mm,point_x,point_y,point_z,command_x,command_y,command_z,\
              residual,evidence,program_xxh3\n",
         );
-        let hash = self
-            .program_xxh3
-            .map_or(String::new(), |h| format!("{h:016x}"));
+        CsvRows {
+            text,
+            hashes: Vec::with_capacity(rows),
+        }
+    }
+
+    /// One target's row.
+    pub fn push(&mut self, t: &TargetLine) {
         let opt = |v: Option<f64>, d: usize| v.map_or(String::new(), |v| format!("{v:.d$}"));
         let xyz = |v: Option<[f64; 3]>| {
             v.map_or(",,".to_string(), |p| {
                 format!("{:.9},{:.9},{:.9}", p[0], p[1], p[2])
             })
         };
-        for t in &self.targets {
-            let _ = writeln!(
-                out,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{hash}",
-                csv_field(&t.name),
-                t.line,
-                t.column,
-                t.kind,
-                t.status.as_str(),
-                csv_field(&t.detail),
-                opt(t.correction_mm, 6),
-                opt(t.rotation_deg, 6),
-                opt(t.joint_change_deg, 6),
-                t.iterations,
-                t.residual_mm.map_or(String::new(), |v| format!("{v:.3e}")),
-                xyz(t.point_mm),
-                xyz(t.command_mm),
-                t.residual.map_or("", Residual::as_str),
-                t.evidence.map_or("", Evidence::as_str),
-            );
+        let _ = write!(
+            self.text,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},",
+            csv_field(&t.name),
+            t.line,
+            t.column,
+            t.kind,
+            t.status.as_str(),
+            csv_field(&t.detail),
+            opt(t.correction_mm, 6),
+            opt(t.rotation_deg, 6),
+            opt(t.joint_change_deg, 6),
+            t.iterations,
+            t.residual_mm.map_or(String::new(), |v| format!("{v:.3e}")),
+            xyz(t.point_mm),
+            xyz(t.command_mm),
+            t.residual.map_or("", Residual::as_str),
+            t.evidence.map_or("", Evidence::as_str),
+        );
+        self.hashes.push(self.text.len());
+        self.text.push_str(HASH_PLACEHOLDER);
+        self.text.push('\n');
+    }
+
+    /// The CSV, every row ending in the program's hash (16 hex digits; empty when there
+    /// is none).
+    pub fn finish(mut self, program_xxh3: Option<u64>) -> String {
+        match program_xxh3 {
+            Some(h) => {
+                let hash = format!("{h:016x}");
+                // As wide as its placeholder: each is replaced where it stands, nothing
+                // after it moves.
+                for &at in &self.hashes {
+                    self.text
+                        .replace_range(at..at + HASH_PLACEHOLDER.len(), &hash);
+                }
+                self.text
+            }
+            None => {
+                let mut out = String::with_capacity(self.text.len());
+                let mut from = 0;
+                for &at in &self.hashes {
+                    out.push_str(&self.text[from..at]);
+                    from = at + HASH_PLACEHOLDER.len();
+                }
+                out.push_str(&self.text[from..]);
+                out
+            }
         }
-        out
     }
 }
 
@@ -199,6 +263,16 @@ impl std::fmt::Display for Summary {
         }
         Ok(())
     }
+}
+
+/// A residual's flag by the name the CSV gives it.
+fn named_residual<S: serde::Serializer>(r: &Option<Residual>, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_some(&r.map(Residual::as_str))
+}
+
+/// An evidence by the name the CSV gives it.
+fn named_evidence<S: serde::Serializer>(e: &Option<Evidence>, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_some(&e.map(Evidence::as_str))
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line end.
