@@ -17,19 +17,25 @@ fn refused(args: &[&str]) -> (Option<i32>, String) {
 #[test]
 fn the_tracker_model_and_the_branches_are_refused_before_any_work() {
     let cases: &[(&[&str], &str)] = &[
-        (&["--tracker-mpe-um", "30,12"], "--tracker"),
+        (&["--tracker-mpe-um", "30,12"], "not provided:\n  --tracker"),
         (
             &["--tracker", "0,0,0", "--tracker-mpe-um", "30"],
             "two numbers",
         ),
-        (&["--tracker", "0,0,0", "--tracker-mpe-um=-1,12"], "mpe"),
-        (&["--tracker", "0,0,0", "--tracker-mpe-um", "30,inf"], "mpe"),
+        (
+            &["--tracker", "0,0,0", "--tracker-mpe-um=-1,12"],
+            "give a > 0 µm",
+        ),
+        (
+            &["--tracker", "0,0,0", "--tracker-mpe-um", "30,inf"],
+            "not a finite",
+        ),
         (
             &["--tracker", "0,0,0", "--tracker-mpe-um", "5000,12"],
-            "mpe",
+            "at most 1000",
         ),
-        (&["--branches", "all"], "branches"),
-        (&["--branches", "sideways"], "branches"),
+        (&["--branches", "all"], "needs allowed orientations"),
+        (&["--branches", "sideways"], "possible values: home, all"),
     ];
     for (options, needle) in cases {
         let mut args = vec![

@@ -10,13 +10,21 @@
 //!    when the nominal TCP lies in one of the boxes, within the joint limits, its
 //!    orientation is allowed, and a laser tracker sees it: the TCP within the tracker's range and the tool's approach axis (z) within
 //!    the sight cone about the line to the tracker. Draws are solved in parallel batches
-//!    and taken in draw order.
+//!    and taken in draw order. With every branch ([`Branches::All`]) each pose gives a
+//!    candidate per inverse-kinematics solution within the limits; the workspace — the
+//!    poses the mean prediction variance is over and the random comparison is drawn
+//!    from — stays the home branch's, since the other branches are measured only for
+//!    what they tell of the parameters (measuring poses the work does not use is what
+//!    moves the bound below twice as many random poses, on the KR150-2).
 //! 2. **Selection.** Greedy, then exchange. `Bᵢ` is the candidate's position rows of the
 //!    identification Jacobian over the parameters identifiable on the whole pool, columns
 //!    scaled to unit norm over the pool ([`adwi_robot::calibrate::design_jacobians`]);
 //!    `M` the information of the poses chosen so far, `Σ BᵢᵀBᵢ` plus a small ridge (so
 //!    that the first steps are defined), its inverse updated by the Woodbury identity, a
-//!    rank-3 update per pose. Each greedy step takes the candidate with the best blend of
+//!    rank-3 update per pose. With the tracker's MPE ([`TrackerSight::mpe_um`]) each
+//!    block is `Bᵢ/σᵢ`, the noise of a coordinate at that distance, so that `M` is the
+//!    weighted least squares' information and the variances are in mm². Each greedy step
+//!    takes the candidate with the best blend of
 //!    - its gain on the criterion ([`Criterion`]): by default I-optimality, how much it
 //!      lowers the mean prediction variance of the TCP position over the pool,
 //!      `tr(W M⁻¹)`, `W` the pool's mean `BᵢᵀBᵢ` (the pool stands for the workspace);
