@@ -239,65 +239,13 @@ impl Robot {
         tool: Transform,
         home: Vec<f64>,
     ) -> Result<Robot, RobotError> {
-        let n = geometry.len();
-        if n == 0 || n > MAX_JOINTS {
-            return Err(RobotError::JointCount { found: n });
-        }
-        if joints.len() != n {
-            return Err(RobotError::Invalid {
-                field: "joints".into(),
-                reason: format!("{} joint descriptions for {n} joints", joints.len()),
-            });
-        }
-        if home.len() != n {
-            return Err(RobotError::HomeLength {
-                expected: n,
-                found: home.len(),
-            });
-        }
+        check_counts(&geometry, &joints, &home)?;
         for (t, what) in [(&base, "base"), (&tool, "tool")] {
             check_all(&t.translation_mm, Quantity::LengthMm, || {
                 format!("{what} translation_mm")
             })?;
         }
-        match &geometry {
-            Geometry::Mdh(rows) => {
-                for (i, row) in rows.iter().enumerate() {
-                    let values = [
-                        ("a_mm", row.a_mm, Quantity::LengthMm),
-                        ("d_mm", row.d_mm, Quantity::LengthMm),
-                        ("alpha_deg", row.alpha_rad.to_degrees(), Quantity::AngleDeg),
-                        ("beta_deg", row.beta_rad.to_degrees(), Quantity::AngleDeg),
-                        (
-                            "theta_offset_deg",
-                            row.theta_offset_rad.to_degrees(),
-                            Quantity::AngleDeg,
-                        ),
-                    ];
-                    for (key, value, quantity) in values {
-                        check(value, quantity, || format!("joint {} {key}", i + 1))?;
-                    }
-                }
-            }
-            Geometry::Chain(rows) => {
-                for (i, row) in rows.iter().enumerate() {
-                    let number = i + 1;
-                    check_all(&row.origin.translation_mm, Quantity::LengthMm, || {
-                        format!("joint {number} xyz_mm")
-                    })?;
-                    match row.kind {
-                        JointKind::Revolute => {
-                            check(row.offset.to_degrees(), Quantity::AngleDeg, || {
-                                format!("joint {number} offset_deg")
-                            })?
-                        }
-                        JointKind::Prismatic => check(row.offset, Quantity::LengthMm, || {
-                            format!("joint {number} offset_mm")
-                        })?,
-                    }
-                }
-            }
-        }
+        check_geometry(&geometry)?;
         let mut chain = match &geometry {
             Geometry::Mdh(rows) => Chain::from_mdh(base, rows, tool, None),
             Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
@@ -305,77 +253,11 @@ impl Robot {
         .map_err(RobotError::Chain)?;
         let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
         for (i, (joint, &kind)) in joints.iter().zip(&kinds).enumerate() {
-            let number = i + 1;
-            let unit = unit_of(kind);
-            let [lower, upper] = joint.limits;
-            if lower.is_nan() || upper.is_nan() {
-                return Err(RobotError::NonFinite {
-                    field: format!("joint {number} limits"),
-                });
-            }
-            // NaN was refused above; [inf, inf] and [-inf, -inf] are empty too.
-            if lower >= upper || lower == f64::INFINITY || upper == f64::NEG_INFINITY {
-                return Err(RobotError::EmptyLimits {
-                    joint: number,
-                    lower: to_unit(lower, kind),
-                    upper: to_unit(upper, kind),
-                    unit,
-                });
-            }
-            let quantity = match kind {
-                JointKind::Revolute => Quantity::JointLimitDeg,
-                JointKind::Prismatic => Quantity::LengthMm,
-            };
-            for (i, value) in joint.limits.into_iter().enumerate() {
-                if value.is_finite() {
-                    check(to_unit(value, kind), quantity, || {
-                        format!("joint {number} limits_{unit}[{i}]")
-                    })?;
-                }
-            }
-            if let Some(inertial) = &joint.inertial {
-                check_inertial(inertial, || format!("joint {number}"))?;
-            }
-            if let Some(c) = joint.compliance_urad_per_nm {
-                check(c, Quantity::ComplianceUradPerNm, || {
-                    format!("joint {number} compliance_urad_per_nm")
-                })?;
-                if kind != JointKind::Revolute {
-                    return Err(RobotError::Invalid {
-                        field: format!("joint {number} compliance_urad_per_nm"),
-                        reason: "a compliance is given for revolute joints only".into(),
-                    });
-                }
-            }
+            check_joint(i + 1, joint, kind)?;
         }
         chain.compliance = compliance_of(&joints, None, &chain.tool);
-        // Composed (fixed joints folded in, a tool after a URDF's tip), the chain's
-        // translations must still be within the bound (the table format's, which
-        // `adwi_runtime::format::check_chain_plausible` holds exactly; here to rounding, so
-        // that a robot file the tool writes reads again).
-        for (t, what) in [(&chain.base, "base"), (&chain.tool, "tool")] {
-            check_all(&t.translation_mm, Quantity::LengthMm, || {
-                format!("the robot's {what} translation (mm, composed)")
-            })?;
-        }
-        for (i, joint) in chain.joints().iter().enumerate() {
-            check_all(&joint.origin.translation_mm, Quantity::LengthMm, || {
-                format!("joint {} origin (mm, composed)", i + 1)
-            })?;
-        }
-        for (i, ((&value, joint), &kind)) in home.iter().zip(&joints).zip(&kinds).enumerate() {
-            finite(value, || format!("home_deg[{i}]"))?;
-            let [lower, upper] = joint.limits;
-            if !(lower..=upper).contains(&value) {
-                return Err(RobotError::HomeOutsideLimits {
-                    joint: i + 1,
-                    home: to_unit(value, kind),
-                    lower: to_unit(lower, kind),
-                    upper: to_unit(upper, kind),
-                    unit: unit_of(kind),
-                });
-            }
-        }
+        check_composed(&chain)?;
+        check_home(&home, &joints, &kinds)?;
         Ok(Robot {
             name,
             geometry,
@@ -943,6 +825,156 @@ pub fn shipped_file(robot: &str, file: &str) -> PathBuf {
         .join("../../tables")
         .join(robot)
         .join(file)
+}
+
+/// The joint count within the runtime's bound, and one joint description and one home
+/// value per joint.
+fn check_counts(geometry: &Geometry, joints: &[Joint], home: &[f64]) -> Result<(), RobotError> {
+    let n = geometry.len();
+    if n == 0 || n > MAX_JOINTS {
+        return Err(RobotError::JointCount { found: n });
+    }
+    if joints.len() != n {
+        return Err(RobotError::Invalid {
+            field: "joints".into(),
+            reason: format!("{} joint descriptions for {n} joints", joints.len()),
+        });
+    }
+    if home.len() != n {
+        return Err(RobotError::HomeLength {
+            expected: n,
+            found: home.len(),
+        });
+    }
+    Ok(())
+}
+
+/// Every length and angle of the geometry as given, plausible.
+fn check_geometry(geometry: &Geometry) -> Result<(), RobotError> {
+    match geometry {
+        Geometry::Mdh(rows) => {
+            for (i, row) in rows.iter().enumerate() {
+                let values = [
+                    ("a_mm", row.a_mm, Quantity::LengthMm),
+                    ("d_mm", row.d_mm, Quantity::LengthMm),
+                    ("alpha_deg", row.alpha_rad.to_degrees(), Quantity::AngleDeg),
+                    ("beta_deg", row.beta_rad.to_degrees(), Quantity::AngleDeg),
+                    (
+                        "theta_offset_deg",
+                        row.theta_offset_rad.to_degrees(),
+                        Quantity::AngleDeg,
+                    ),
+                ];
+                for (key, value, quantity) in values {
+                    check(value, quantity, || format!("joint {} {key}", i + 1))?;
+                }
+            }
+        }
+        Geometry::Chain(rows) => {
+            for (i, row) in rows.iter().enumerate() {
+                let number = i + 1;
+                check_all(&row.origin.translation_mm, Quantity::LengthMm, || {
+                    format!("joint {number} xyz_mm")
+                })?;
+                match row.kind {
+                    JointKind::Revolute => {
+                        check(row.offset.to_degrees(), Quantity::AngleDeg, || {
+                            format!("joint {number} offset_deg")
+                        })?
+                    }
+                    JointKind::Prismatic => check(row.offset, Quantity::LengthMm, || {
+                        format!("joint {number} offset_mm")
+                    })?,
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Joint `number`'s limits (a non-empty range of plausible values), its inertial and its
+/// compliance (revolute joints only).
+fn check_joint(number: usize, joint: &Joint, kind: JointKind) -> Result<(), RobotError> {
+    let unit = unit_of(kind);
+    let [lower, upper] = joint.limits;
+    if lower.is_nan() || upper.is_nan() {
+        return Err(RobotError::NonFinite {
+            field: format!("joint {number} limits"),
+        });
+    }
+    // NaN was refused above; [inf, inf] and [-inf, -inf] are empty too.
+    if lower >= upper || lower == f64::INFINITY || upper == f64::NEG_INFINITY {
+        return Err(RobotError::EmptyLimits {
+            joint: number,
+            lower: to_unit(lower, kind),
+            upper: to_unit(upper, kind),
+            unit,
+        });
+    }
+    let quantity = match kind {
+        JointKind::Revolute => Quantity::JointLimitDeg,
+        JointKind::Prismatic => Quantity::LengthMm,
+    };
+    for (i, value) in joint.limits.into_iter().enumerate() {
+        if value.is_finite() {
+            check(to_unit(value, kind), quantity, || {
+                format!("joint {number} limits_{unit}[{i}]")
+            })?;
+        }
+    }
+    if let Some(inertial) = &joint.inertial {
+        check_inertial(inertial, || format!("joint {number}"))?;
+    }
+    if let Some(c) = joint.compliance_urad_per_nm {
+        check(c, Quantity::ComplianceUradPerNm, || {
+            format!("joint {number} compliance_urad_per_nm")
+        })?;
+        if kind != JointKind::Revolute {
+            return Err(RobotError::Invalid {
+                field: format!("joint {number} compliance_urad_per_nm"),
+                reason: "a compliance is given for revolute joints only".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The composed chain's translations (fixed joints folded in, a tool after a URDF's tip)
+/// still within the bound.
+fn check_composed(chain: &Chain) -> Result<(), RobotError> {
+    // Composed (fixed joints folded in, a tool after a URDF's tip), the chain's
+    // translations must still be within the bound (the table format's, which
+    // `adwi_runtime::format::check_chain_plausible` holds exactly; here to rounding, so
+    // that a robot file the tool writes reads again).
+    for (t, what) in [(&chain.base, "base"), (&chain.tool, "tool")] {
+        check_all(&t.translation_mm, Quantity::LengthMm, || {
+            format!("the robot's {what} translation (mm, composed)")
+        })?;
+    }
+    for (i, joint) in chain.joints().iter().enumerate() {
+        check_all(&joint.origin.translation_mm, Quantity::LengthMm, || {
+            format!("joint {} origin (mm, composed)", i + 1)
+        })?;
+    }
+    Ok(())
+}
+
+/// Each home value finite and within its joint's limits.
+fn check_home(home: &[f64], joints: &[Joint], kinds: &[JointKind]) -> Result<(), RobotError> {
+    for (i, ((&value, joint), &kind)) in home.iter().zip(joints).zip(kinds).enumerate() {
+        finite(value, || format!("home_deg[{i}]"))?;
+        let [lower, upper] = joint.limits;
+        if !(lower..=upper).contains(&value) {
+            return Err(RobotError::HomeOutsideLimits {
+                joint: i + 1,
+                home: to_unit(value, kind),
+                lower: to_unit(lower, kind),
+                upper: to_unit(upper, kind),
+                unit: unit_of(kind),
+            });
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

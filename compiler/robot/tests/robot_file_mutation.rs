@@ -18,11 +18,11 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use adwi_robot::calibrate::{identify, CalibrateOptions};
+use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::simulate::{simulate, write_csv, Positions, SamplingPlan, Scenario};
 use adwi_robot::testing::mutate;
 use adwi_robot::{LinkNames, Robot};
-use adwi_samples::{parse_samples, ColumnMap};
+use adwi_samples::{parse_samples, ColumnMap, SampleSet};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -132,14 +132,63 @@ fn finite(what: &str, values: impl IntoIterator<Item = f64>) -> Result<(), Strin
     }
 }
 
+/// A step of a case: its value, or the outcome that ends the case there (`Err` inside), or
+/// a failure of the test (`Err` outside).
+type Step<T> = Result<Result<T, Outcome>, String>;
+
 /// One case: a seed file mutated one to three times, then every call down the line.
 fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Outcome), String> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(case);
     let kind = [Kind::Toml, Kind::Urdf, Kind::Naming, Kind::Scenario][rng.gen_range(0..4)];
-    let mutations = rng.gen_range(1..=3);
     let case_dir = dir.join(format!("case{case}"));
     std::fs::create_dir_all(&case_dir).map_err(|e| e.to_string())?;
+    let (robot_path, scenario_text) = write_mutated(seeds, &case_dir, kind, &mut rng);
+    let outcome = follow(&robot_path, kind, scenario_text.as_deref(), case, &case_dir)?;
+    Ok((kind, outcome))
+}
+
+/// Every call down the line on the case's files: load, simulate, identify, write back;
+/// how far it went.
+fn follow(
+    robot_path: &Path,
+    kind: Kind,
+    scenario_text: Option<&str>,
+    case: u64,
+    case_dir: &Path,
+) -> Result<Outcome, String> {
+    let robot = match load(robot_path, kind)? {
+        Ok(robot) => robot,
+        Err(outcome) => return Ok(outcome),
+    };
+    let samples = match simulated_samples(&robot, scenario_text, case)? {
+        Ok(samples) => samples,
+        Err(outcome) => return Ok(outcome),
+    };
+    let options = CalibrateOptions {
+        compliance: case % 2 == 0 && robot.gravity_model().is_some(),
+        ..CalibrateOptions::default()
+    };
+    let c = match identify(&robot, &samples, &options) {
+        Ok(c) => c,
+        Err(e) => {
+            bounded("identifying", &e)?;
+            return Ok(Outcome::IdentificationRefused);
+        }
+    };
+    written_back(&c, case_dir)?;
+    Ok(Outcome::Calibrated)
+}
+
+/// The case's files: a seed of `kind` mutated one to three times, written to `case_dir`;
+/// the robot file to load, and a mutated scenario's text.
+fn write_mutated(
+    seeds: &Seeds,
+    case_dir: &Path,
+    kind: Kind,
+    rng: &mut ChaCha8Rng,
+) -> (PathBuf, Option<String>) {
+    let mutations = rng.gen_range(1..=3);
     let write = |name: &str, text: &str| -> PathBuf {
         let path = case_dir.join(name);
         std::fs::write(&path, text).unwrap();
@@ -160,13 +209,13 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
             match scenario {
                 Some(mut s) => {
                     for _ in 0..mutations {
-                        mutate(&mut s, false, &mut rng);
+                        mutate(&mut s, false, rng);
                     }
                     scenario_text = Some(s);
                 }
                 None => {
                     for _ in 0..mutations {
-                        mutate(&mut text, false, &mut rng);
+                        mutate(&mut text, false, rng);
                     }
                 }
             }
@@ -175,7 +224,7 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
         Kind::Urdf | Kind::Naming => {
             let mut text = seeds.urdfs[rng.gen_range(0..seeds.urdfs.len())].clone();
             for _ in 0..mutations {
-                mutate(&mut text, true, &mut rng);
+                mutate(&mut text, true, rng);
             }
             let urdf = write("robot.urdf", &text);
             if kind == Kind::Naming {
@@ -188,26 +237,35 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
             }
         }
     };
+    (robot_path, scenario_text)
+}
 
-    let robot = match Robot::load_with_files(&robot_path, &LinkNames::default()) {
+/// The robot of the case's file, which read the files it should.
+fn load(robot_path: &Path, kind: Kind) -> Step<Robot> {
+    match Robot::load_with_files(robot_path, &LinkNames::default()) {
         Ok((robot, files)) => {
             let expected = if kind == Kind::Naming { 2 } else { 1 };
             if files.len() != expected {
                 return Err(format!("{} files read: {files:?}", files.len()));
             }
-            robot
+            Ok(Ok(robot))
         }
         Err(e) => {
             bounded("loading", &e)?;
-            return Ok((kind, Outcome::Refused));
+            Ok(Err(Outcome::Refused))
         }
-    };
-    let scenario = match &scenario_text {
+    }
+}
+
+/// 40 random poses of `robot` simulated under the scenario (perfect without one), every
+/// value finite, written as CSV and read back as samples.
+fn simulated_samples(robot: &Robot, scenario_text: Option<&str>, case: u64) -> Step<SampleSet> {
+    let scenario = match scenario_text {
         Some(text) => match Scenario::from_toml_str(text) {
             Ok(s) => s,
             Err(e) => {
                 bounded("the scenario", &e)?;
-                return Ok((kind, Outcome::Refused));
+                return Ok(Err(Outcome::Refused));
             }
         },
         None => Scenario::perfect(robot.joint_count()),
@@ -222,11 +280,11 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
         config: None,
         seed: case,
     };
-    let simulated = match simulate(&robot, &scenario, &plan) {
+    let simulated = match simulate(robot, &scenario, &plan) {
         Ok(s) => s,
         Err(e) => {
             bounded("simulating", &e)?;
-            return Ok((kind, Outcome::SimulationRefused));
+            return Ok(Err(Outcome::SimulationRefused));
         }
     };
     for s in &simulated {
@@ -245,17 +303,12 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
     write_csv(&simulated, &[], &mut csv).map_err(|e| e.to_string())?;
     let samples = parse_samples(Path::new("simulated.csv"), &csv, &ColumnMap::default())
         .map_err(|e| format!("the simulated samples do not read back: {e}"))?;
-    let options = CalibrateOptions {
-        compliance: case % 2 == 0 && robot.gravity_model().is_some(),
-        ..CalibrateOptions::default()
-    };
-    let c = match identify(&robot, &samples, &options) {
-        Ok(c) => c,
-        Err(e) => {
-            bounded("identifying", &e)?;
-            return Ok((kind, Outcome::IdentificationRefused));
-        }
-    };
+    Ok(Ok(samples))
+}
+
+/// Every identified value finite, and the calibrated robot written as a robot file and as
+/// URDF (into `case_dir`), each loading again.
+fn written_back(c: &Calibration, case_dir: &Path) -> Result<(), String> {
     finite(
         "an identified value",
         c.deviations
@@ -280,7 +333,8 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
     let urdf = calibrated
         .to_urdf_string(&[])
         .map_err(|e| format!("the calibrated robot cannot be written as URDF: {e}"))?;
-    let urdf_path = write("calibrated.urdf", &urdf);
+    let urdf_path = case_dir.join("calibrated.urdf");
+    std::fs::write(&urdf_path, &urdf).unwrap();
     Robot::load_with(
         &urdf_path,
         &LinkNames {
@@ -289,7 +343,7 @@ fn run_case(seeds: &Seeds, dir: &Path, seed: u64, case: u64) -> Result<(Kind, Ou
         },
     )
     .map_err(|e| format!("the calibrated URDF does not load: {}\n{urdf}", chain(&e)))?;
-    Ok((kind, Outcome::Calibrated))
+    Ok(())
 }
 
 #[test]

@@ -472,170 +472,24 @@ pub fn identify(
     samples: &SampleSet,
     options: &CalibrateOptions,
 ) -> Result<Calibration, CalibrateError> {
-    if !(options.rank_tolerance > 0.0 && options.rank_tolerance < 1.0) {
-        return Err(CalibrateError::InvalidOption {
-            name: "rank_tolerance",
-            reason: "must be between 0 and 1 (exclusive)",
-        });
-    }
-    if !(options.orientation_weight_mm_per_rad.is_finite()
-        && options.orientation_weight_mm_per_rad > 0.0)
-    {
-        return Err(CalibrateError::InvalidOption {
-            name: "orientation_weight_mm_per_rad",
-            reason: "must be finite and positive",
-        });
-    }
-    if options.harmonics > 2 {
-        return Err(CalibrateError::InvalidOption {
-            name: "harmonics",
-            reason: "must be 0, 1 or 2",
-        });
-    }
-    if options.compliance && robot.gravity_model().is_none() {
-        return Err(CalibrateError::NoLinkMasses {
-            robot: robot.name.clone(),
-        });
-    }
-    let joints = samples
-        .joints
-        .as_ref()
-        .ok_or(CalibrateError::MissingJoints)?;
-    if joints.count() != robot.joint_count() {
-        return Err(CalibrateError::JointCount {
-            robot: robot.joint_count(),
-            samples: joints.count(),
-        });
-    }
-    let measurements: Vec<Measurement> = (0..samples.len())
-        .map(|i| measurement(robot, samples, i))
-        .collect::<Result<_, _>>()?;
-    let problem = Problem {
-        model: Model::new(robot, options.compliance, options.harmonics),
-        measurements,
-        rows_per_sample: if samples.rotation_error_rad.is_some() {
-            6
-        } else {
-            3
-        },
-        weight: options.orientation_weight_mm_per_rad,
-    };
-    let p = problem.model.len();
-    let nominal_x = DVector::zeros(p);
-    let nominal_state = problem.model.state(&nominal_x)?;
-    let (r0, j0) = problem.linearise(&nominal_x, &nominal_state, true);
-    if let Some((row, column)) = first_non_finite(&r0, &j0) {
-        let index = row / problem.rows_per_sample;
-        return Err(CalibrateError::NonFiniteModel {
-            robot: robot.name.clone(),
-            index,
-            line: samples.lines.get(index).copied(),
-            what: match column {
-                None => "the predicted error".into(),
-                Some(c) => format!("the column of {}", problem.model.parameters[c]),
-            },
-        });
-    }
-    let column_norms: Vec<f64> = (0..p).map(|c| j0.column(c).norm()).collect();
-    let largest = column_norms.iter().copied().fold(0.0, f64::max);
-    if largest == 0.0 {
-        return Err(CalibrateError::NothingIdentifiable);
-    }
-    // Unit columns: pivoting then compares parameters independently of their units. A
-    // column of (numerically) nothing cannot be scaled and is unidentifiable outright.
-    let scales: Vec<f64> = column_norms
-        .iter()
-        .map(|&n| if n > 1e-12 * largest { 1.0 / n } else { 0.0 })
-        .collect();
-    let initial_position_rms_mm = problem.position_rms(&r0);
-
+    check_options(robot, options)?;
+    let problem = problem_of(robot, samples, options)?;
+    let start = Linearised::at_nominal(&problem, robot, samples)?;
+    let initial_position_rms_mm = start.position_rms_mm;
     // Fit, assess, hold the least trustworthy parameter at nominal, fit again (module
     // docs, "Trust").
     let file_values = problem.model.file_values();
-    let mut held: Vec<(usize, Assessment)> = Vec::new();
-    let mut start = nominal_x;
-    let fit = loop {
-        let held_columns: Vec<usize> = held.iter().map(|(c, _)| *c).collect();
-        let fit = problem.solve(&j0, &scales, &held_columns, start, options)?;
-        if !options.hold_untrustworthy {
-            break fit;
-        }
-        let worst = fit
-            .kept
-            .iter()
-            .enumerate()
-            .filter_map(|(k, &c)| {
-                let a = fit.assess(
-                    &problem.model.parameters,
-                    &file_values,
-                    k,
-                    options.significance,
-                    fit.r.len(),
-                );
-                a.reason.is_some().then_some((c, a))
-            })
-            .max_by(|a, b| a.1.severity.total_cmp(&b.1.severity));
-        match worst {
-            Some((c, assessment)) => {
-                held.push((c, assessment));
-                start = fit.x.clone();
-                start[c] = 0.0;
-            }
-            None => break fit,
-        }
-    };
-
+    let (fit, held) = fit_holding_untrustworthy(&problem, &start, &file_values, options)?;
     let parameters = &problem.model.parameters;
-    let mut report: Vec<ParameterReport> = parameters
-        .iter()
-        .map(|&parameter| ParameterReport {
-            parameter,
-            value: 0.0,
-            standard_error: None,
-            strongest_correlation: None,
-            status: ParameterStatus::Identified,
-        })
-        .collect();
-    for (k, &c) in fit.kept.iter().enumerate() {
-        let a = fit.assess(
-            parameters,
-            &file_values,
-            k,
-            options.significance,
-            fit.r.len(),
-        );
-        report[c].value = fit.x[c];
-        report[c].standard_error = Some(a.standard_error);
-        report[c].strongest_correlation = a.correlation;
-    }
-    for (&(c, ratio), like) in fit.dropped.iter().zip(&fit.resembles) {
-        report[c].status = ParameterStatus::Unidentifiable {
-            independent_fraction: ratio,
-            most_like: like.map(|k| parameters[k]),
-        };
-    }
-    for (c, a) in held {
-        report[c].standard_error = Some(a.standard_error);
-        report[c].strongest_correlation = a.correlation;
-        report[c].status = ParameterStatus::Held {
-            estimate: a.value,
-            reason: a.reason.expect("only failing parameters are held"),
-        };
-    }
-    let mut standard_errors = vec![None; p];
+    let report = parameter_report(parameters, &fit, held, &file_values, options);
+    let mut standard_errors = vec![None; problem.model.len()];
     for &c in &fit.kept {
         standard_errors[c] = report[c].standard_error;
     }
-    let orientation_rms_rad = samples.rotation_error_rad.as_ref().map(|_| {
-        let sum: f64 = (0..problem.measurements.len())
-            .map(|s| {
-                fit.r
-                    .fixed_rows::<3>(s * problem.rows_per_sample + 3)
-                    .norm_squared()
-            })
-            .sum();
-        (sum / problem.measurements.len() as f64).sqrt() / problem.weight
-    });
+    let orientation_rms_rad = samples
+        .rotation_error_rad
+        .as_ref()
+        .map(|_| orientation_rms_rad(&problem, &fit));
     let position_rms_mm = problem.position_rms(&fit.r);
     let checks = [
         ("position RMS", position_rms_mm),
@@ -679,6 +533,223 @@ pub fn identify(
         joint_terms: with_ranges(fit.state.terms, &problem.measurements),
         calibrated: fit.state.robot,
     })
+}
+
+/// The options within their ranges, and link masses for a compliance.
+fn check_options(robot: &Robot, options: &CalibrateOptions) -> Result<(), CalibrateError> {
+    if !(options.rank_tolerance > 0.0 && options.rank_tolerance < 1.0) {
+        return Err(CalibrateError::InvalidOption {
+            name: "rank_tolerance",
+            reason: "must be between 0 and 1 (exclusive)",
+        });
+    }
+    if !(options.orientation_weight_mm_per_rad.is_finite()
+        && options.orientation_weight_mm_per_rad > 0.0)
+    {
+        return Err(CalibrateError::InvalidOption {
+            name: "orientation_weight_mm_per_rad",
+            reason: "must be finite and positive",
+        });
+    }
+    if options.harmonics > 2 {
+        return Err(CalibrateError::InvalidOption {
+            name: "harmonics",
+            reason: "must be 0, 1 or 2",
+        });
+    }
+    if options.compliance && robot.gravity_model().is_none() {
+        return Err(CalibrateError::NoLinkMasses {
+            robot: robot.name.clone(),
+        });
+    }
+    Ok(())
+}
+
+/// The least-squares problem of `samples`: one measurement per sample (its joint values,
+/// one per joint of the robot), three rows each, six with orientation errors.
+fn problem_of(
+    robot: &Robot,
+    samples: &SampleSet,
+    options: &CalibrateOptions,
+) -> Result<Problem, CalibrateError> {
+    let joints = samples
+        .joints
+        .as_ref()
+        .ok_or(CalibrateError::MissingJoints)?;
+    if joints.count() != robot.joint_count() {
+        return Err(CalibrateError::JointCount {
+            robot: robot.joint_count(),
+            samples: joints.count(),
+        });
+    }
+    let measurements: Vec<Measurement> = (0..samples.len())
+        .map(|i| measurement(robot, samples, i))
+        .collect::<Result<_, _>>()?;
+    Ok(Problem {
+        model: Model::new(robot, options.compliance, options.harmonics),
+        measurements,
+        rows_per_sample: if samples.rotation_error_rad.is_some() {
+            6
+        } else {
+            3
+        },
+        weight: options.orientation_weight_mm_per_rad,
+    })
+}
+
+/// The problem linearised at the nominal model, where every fit starts.
+struct Linearised {
+    /// The Jacobian.
+    jacobian: DMatrix<f64>,
+    /// Each column's scale to unit norm (0 for a column of nothing).
+    scales: Vec<f64>,
+    /// The position RMS before any fit, mm.
+    position_rms_mm: f64,
+}
+
+impl Linearised {
+    /// The nominal model's residuals and Jacobian, every value finite, some column not
+    /// nothing.
+    fn at_nominal(
+        problem: &Problem,
+        robot: &Robot,
+        samples: &SampleSet,
+    ) -> Result<Linearised, CalibrateError> {
+        let p = problem.model.len();
+        let nominal_x = DVector::zeros(p);
+        let nominal_state = problem.model.state(&nominal_x)?;
+        let (r0, j0) = problem.linearise(&nominal_x, &nominal_state, true);
+        if let Some((row, column)) = first_non_finite(&r0, &j0) {
+            let index = row / problem.rows_per_sample;
+            return Err(CalibrateError::NonFiniteModel {
+                robot: robot.name.clone(),
+                index,
+                line: samples.lines.get(index).copied(),
+                what: match column {
+                    None => "the predicted error".into(),
+                    Some(c) => format!("the column of {}", problem.model.parameters[c]),
+                },
+            });
+        }
+        let column_norms: Vec<f64> = (0..p).map(|c| j0.column(c).norm()).collect();
+        let largest = column_norms.iter().copied().fold(0.0, f64::max);
+        if largest == 0.0 {
+            return Err(CalibrateError::NothingIdentifiable);
+        }
+        // Unit columns: pivoting then compares parameters independently of their units. A
+        // column of (numerically) nothing cannot be scaled and is unidentifiable outright.
+        let scales: Vec<f64> = column_norms
+            .iter()
+            .map(|&n| if n > 1e-12 * largest { 1.0 / n } else { 0.0 })
+            .collect();
+        Ok(Linearised {
+            position_rms_mm: problem.position_rms(&r0),
+            jacobian: j0,
+            scales,
+        })
+    }
+}
+
+/// Fits from the nominal model; with `hold_untrustworthy`, holds the least trustworthy
+/// parameter at nominal and fits again until every kept one can be trusted. The fit, and
+/// the parameters held with their assessment.
+fn fit_holding_untrustworthy(
+    problem: &Problem,
+    start: &Linearised,
+    file_values: &[f64],
+    options: &CalibrateOptions,
+) -> Result<(solver::Fit, Vec<(usize, Assessment)>), CalibrateError> {
+    let mut held: Vec<(usize, Assessment)> = Vec::new();
+    let mut x = DVector::zeros(problem.model.len());
+    loop {
+        let held_columns: Vec<usize> = held.iter().map(|(c, _)| *c).collect();
+        let fit = problem.solve(&start.jacobian, &start.scales, &held_columns, x, options)?;
+        if !options.hold_untrustworthy {
+            return Ok((fit, held));
+        }
+        let worst = fit
+            .kept
+            .iter()
+            .enumerate()
+            .filter_map(|(k, &c)| {
+                let a = fit.assess(
+                    &problem.model.parameters,
+                    file_values,
+                    k,
+                    options.significance,
+                    fit.r.len(),
+                );
+                a.reason.is_some().then_some((c, a))
+            })
+            .max_by(|a, b| a.1.severity.total_cmp(&b.1.severity));
+        match worst {
+            Some((c, assessment)) => {
+                held.push((c, assessment));
+                x = fit.x.clone();
+                x[c] = 0.0;
+            }
+            None => return Ok((fit, held)),
+        }
+    }
+}
+
+/// Every parameter's value, standard error, strongest correlation and status.
+fn parameter_report(
+    parameters: &[Parameter],
+    fit: &solver::Fit,
+    held: Vec<(usize, Assessment)>,
+    file_values: &[f64],
+    options: &CalibrateOptions,
+) -> Vec<ParameterReport> {
+    let mut report: Vec<ParameterReport> = parameters
+        .iter()
+        .map(|&parameter| ParameterReport {
+            parameter,
+            value: 0.0,
+            standard_error: None,
+            strongest_correlation: None,
+            status: ParameterStatus::Identified,
+        })
+        .collect();
+    for (k, &c) in fit.kept.iter().enumerate() {
+        let a = fit.assess(
+            parameters,
+            file_values,
+            k,
+            options.significance,
+            fit.r.len(),
+        );
+        report[c].value = fit.x[c];
+        report[c].standard_error = Some(a.standard_error);
+        report[c].strongest_correlation = a.correlation;
+    }
+    for (&(c, ratio), like) in fit.dropped.iter().zip(&fit.resembles) {
+        report[c].status = ParameterStatus::Unidentifiable {
+            independent_fraction: ratio,
+            most_like: like.map(|k| parameters[k]),
+        };
+    }
+    for (c, a) in held {
+        report[c].standard_error = Some(a.standard_error);
+        report[c].strongest_correlation = a.correlation;
+        report[c].status = ParameterStatus::Held {
+            estimate: a.value,
+            reason: a.reason.expect("only failing parameters are held"),
+        };
+    }
+    report
+}
+
+/// The RMS of the fit's orientation residuals, rad.
+fn orientation_rms_rad(problem: &Problem, fit: &solver::Fit) -> f64 {
+    let sum: f64 = (0..problem.measurements.len())
+        .map(|s| {
+            fit.r
+                .fixed_rows::<3>(s * problem.rows_per_sample + 3)
+                .norm_squared()
+        })
+        .sum();
+    (sum / problem.measurements.len() as f64).sqrt() / problem.weight
 }
 
 /// The identification's position Jacobians at the nominal model, for choosing poses to

@@ -134,140 +134,206 @@ pub(crate) fn robot_from_urdf_str(text: &str, links: &LinkNames) -> Result<Robot
 /// that cannot be modelled; [`RobotError::NonFinite`] or [`RobotError::Implausible`] for a
 /// number outside its range; and the validation errors of [`Robot::new`].
 pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot, RobotError> {
-    for (count, max, what) in [
-        (urdf.links.len(), MAX_URDF_LINKS, "links"),
-        (urdf.joints.len(), MAX_URDF_JOINTS, "joints"),
-    ] {
-        if count > max {
-            return Err(chain_error(format!(
-                "{count} {what}, more than the {max} a URDF file may have"
-            )));
-        }
+    let tree = Tree::of(urdf)?;
+    let base = base_link(urdf, links, &tree)?;
+    let tip = tip_link(urdf, links, &tree, &base)?;
+    let path = path_between(urdf, &tree, &base, &tip)?;
+    let (movable, fixed_before, fixed_after) = split_at_fixed(urdf, &path)?;
+    let mut rows = Vec::with_capacity(movable.len());
+    let mut joints = Vec::with_capacity(movable.len());
+    let mut home = Vec::with_capacity(movable.len());
+    for (&j, before) in movable.iter().zip(&fixed_before) {
+        let (row, joint) = movable_joint(urdf, &tree, j, before)?;
+        home.push(home_within(joint.limits));
+        rows.push(row);
+        joints.push(joint);
     }
-    let mut link_index = HashMap::new();
-    for (i, link) in urdf.links.iter().enumerate() {
-        if link_index.insert(link.name.as_str(), i).is_some() {
-            return Err(chain_error(format!(
-                "two links are named '{}'",
-                shown(&link.name)
-            )));
-        }
-    }
-    let mut joint_names = std::collections::HashSet::new();
-    for joint in &urdf.joints {
-        if !joint_names.insert(joint.name.as_str()) {
-            return Err(chain_error(format!(
-                "two joints are named '{}'",
-                shown(&joint.name)
-            )));
-        }
-    }
-    crate::plausible::check_name(&urdf.name)?;
-    check::check_numbers(urdf)?;
-    // Each link's parent joint, and each link's child joints.
-    let mut parent_joint: HashMap<&str, usize> = HashMap::new();
-    let mut child_joints: HashMap<&str, Vec<usize>> = HashMap::new();
-    for (j, joint) in urdf.joints.iter().enumerate() {
-        for end in [&joint.parent.link, &joint.child.link] {
-            if !link_index.contains_key(end.as_str()) {
-                return Err(chain_error(format!(
-                    "joint '{}' names the link '{}', which the file does not have",
-                    shown(&joint.name),
-                    shown(end)
-                )));
-            }
-        }
-        if parent_joint.insert(joint.child.link.as_str(), j).is_some() {
-            return Err(chain_error(format!(
-                "link '{}' is the child of two joints: not a tree",
-                shown(&joint.child.link)
-            )));
-        }
-        child_joints
-            .entry(joint.parent.link.as_str())
-            .or_default()
-            .push(j);
-    }
-    let base = match &links.base_link {
-        Some(name) => {
-            if !link_index.contains_key(name.as_str()) {
-                return Err(chain_error(format!(
-                    "no link named '{}' (base link)",
-                    shown(name)
-                )));
-            }
-            name.clone()
-        }
-        None => {
-            let roots: Vec<&str> = urdf
-                .links
-                .iter()
-                .map(|l| l.name.as_str())
-                .filter(|l| !parent_joint.contains_key(l))
-                .collect();
-            match roots.as_slice() {
-                [root] => (*root).to_owned(),
-                _ => {
-                    return Err(chain_error(format!(
-                        "{} root links ({}): name the base link",
-                        roots.len(),
-                        first_few(&roots, NAMES_SHOWN)
-                    )))
-                }
-            }
-        }
+    let tool = product(urdf, &fixed_after);
+    let name = if urdf.name.is_empty() {
+        "URDF robot".to_owned()
+    } else {
+        urdf.name.clone()
     };
-    let tip = match &links.tip_link {
-        Some(name) => {
-            if !link_index.contains_key(name.as_str()) {
+    let mut robot = Robot::new(
+        name,
+        Geometry::Chain(rows),
+        joints,
+        Transform::IDENTITY,
+        tool,
+        home,
+    )?;
+    robot.set_urdf_source(UrdfSource {
+        robot: urdf.clone(),
+        tip_link: tip,
+        movable,
+        fixed_before,
+        fixed_after,
+    });
+    Ok(robot)
+}
+
+/// A URDF file's links and joints as a tree, checked: within the limits, every name once,
+/// every link a joint names present, no link the child of two joints.
+struct Tree<'a> {
+    /// Each link's index, by name.
+    link_index: HashMap<&'a str, usize>,
+    /// Each link's parent joint.
+    parent_joint: HashMap<&'a str, usize>,
+    /// Each link's child joints.
+    child_joints: HashMap<&'a str, Vec<usize>>,
+}
+
+impl<'a> Tree<'a> {
+    fn of(urdf: &'a urdf_rs::Robot) -> Result<Tree<'a>, RobotError> {
+        for (count, max, what) in [
+            (urdf.links.len(), MAX_URDF_LINKS, "links"),
+            (urdf.joints.len(), MAX_URDF_JOINTS, "joints"),
+        ] {
+            if count > max {
                 return Err(chain_error(format!(
-                    "no link named '{}' (tip link)",
-                    shown(name)
+                    "{count} {what}, more than the {max} a URDF file may have"
                 )));
             }
-            name.clone()
         }
-        None => {
-            // The leaves below the base, depth first.
-            let mut leaves = Vec::new();
-            let mut stack = vec![base.as_str()];
-            let mut visited = 0;
-            while let Some(link) = stack.pop() {
-                visited += 1;
-                if visited > urdf.links.len() {
-                    return Err(chain_error("the joints form a cycle".into()));
-                }
-                match child_joints.get(link) {
-                    Some(children) if !children.is_empty() => {
-                        for &j in children.iter().rev() {
-                            stack.push(urdf.joints[j].child.link.as_str());
-                        }
-                    }
-                    _ => leaves.push(link),
-                }
+        let mut link_index = HashMap::new();
+        for (i, link) in urdf.links.iter().enumerate() {
+            if link_index.insert(link.name.as_str(), i).is_some() {
+                return Err(chain_error(format!(
+                    "two links are named '{}'",
+                    shown(&link.name)
+                )));
             }
-            match leaves.as_slice() {
-                [leaf] => (*leaf).to_owned(),
-                _ => {
+        }
+        let mut joint_names = std::collections::HashSet::new();
+        for joint in &urdf.joints {
+            if !joint_names.insert(joint.name.as_str()) {
+                return Err(chain_error(format!(
+                    "two joints are named '{}'",
+                    shown(&joint.name)
+                )));
+            }
+        }
+        crate::plausible::check_name(&urdf.name)?;
+        check::check_numbers(urdf)?;
+        let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+        let mut child_joints: HashMap<&str, Vec<usize>> = HashMap::new();
+        for (j, joint) in urdf.joints.iter().enumerate() {
+            for end in [&joint.parent.link, &joint.child.link] {
+                if !link_index.contains_key(end.as_str()) {
                     return Err(chain_error(format!(
-                        "{} leaf links below '{}' ({}): name the tip link",
-                        leaves.len(),
-                        shown(&base),
-                        first_few(&leaves, NAMES_SHOWN)
-                    )))
+                        "joint '{}' names the link '{}', which the file does not have",
+                        shown(&joint.name),
+                        shown(end)
+                    )));
                 }
             }
+            if parent_joint.insert(joint.child.link.as_str(), j).is_some() {
+                return Err(chain_error(format!(
+                    "link '{}' is the child of two joints: not a tree",
+                    shown(&joint.child.link)
+                )));
+            }
+            child_joints
+                .entry(joint.parent.link.as_str())
+                .or_default()
+                .push(j);
         }
-    };
+        Ok(Tree {
+            link_index,
+            parent_joint,
+            child_joints,
+        })
+    }
+}
+
+/// The base link: the one named, or the file's one root.
+fn base_link(urdf: &urdf_rs::Robot, links: &LinkNames, tree: &Tree) -> Result<String, RobotError> {
+    if let Some(name) = &links.base_link {
+        if !tree.link_index.contains_key(name.as_str()) {
+            return Err(chain_error(format!(
+                "no link named '{}' (base link)",
+                shown(name)
+            )));
+        }
+        return Ok(name.clone());
+    }
+    let roots: Vec<&str> = urdf
+        .links
+        .iter()
+        .map(|l| l.name.as_str())
+        .filter(|l| !tree.parent_joint.contains_key(l))
+        .collect();
+    match roots.as_slice() {
+        [root] => Ok((*root).to_owned()),
+        _ => Err(chain_error(format!(
+            "{} root links ({}): name the base link",
+            roots.len(),
+            first_few(&roots, NAMES_SHOWN)
+        ))),
+    }
+}
+
+/// The tip link: the one named, or the one leaf below `base`.
+fn tip_link(
+    urdf: &urdf_rs::Robot,
+    links: &LinkNames,
+    tree: &Tree,
+    base: &str,
+) -> Result<String, RobotError> {
+    if let Some(name) = &links.tip_link {
+        if !tree.link_index.contains_key(name.as_str()) {
+            return Err(chain_error(format!(
+                "no link named '{}' (tip link)",
+                shown(name)
+            )));
+        }
+        return Ok(name.clone());
+    }
+    // The leaves below the base, depth first.
+    let mut leaves = Vec::new();
+    let mut stack = vec![base];
+    let mut visited = 0;
+    while let Some(link) = stack.pop() {
+        visited += 1;
+        if visited > urdf.links.len() {
+            return Err(chain_error("the joints form a cycle".into()));
+        }
+        match tree.child_joints.get(link) {
+            Some(children) if !children.is_empty() => {
+                for &j in children.iter().rev() {
+                    stack.push(urdf.joints[j].child.link.as_str());
+                }
+            }
+            _ => leaves.push(link),
+        }
+    }
+    match leaves.as_slice() {
+        [leaf] => Ok((*leaf).to_owned()),
+        _ => Err(chain_error(format!(
+            "{} leaf links below '{}' ({}): name the tip link",
+            leaves.len(),
+            shown(base),
+            first_few(&leaves, NAMES_SHOWN)
+        ))),
+    }
+}
+
+/// The joints from `base` down to `tip`, in order.
+fn path_between(
+    urdf: &urdf_rs::Robot,
+    tree: &Tree,
+    base: &str,
+    tip: &str,
+) -> Result<Vec<usize>, RobotError> {
     // The joints from the tip up to the base, then reversed.
     let mut path = Vec::new();
-    let mut link = tip.as_str();
+    let mut link = tip;
     while link != base {
-        let Some(&j) = parent_joint.get(link) else {
+        let Some(&j) = tree.parent_joint.get(link) else {
             return Err(chain_error(format!(
                 "link '{}' is not below link '{}'",
-                shown(&tip),
-                shown(&base)
+                shown(tip),
+                shown(base)
             )));
         };
         if path.len() > urdf.joints.len() {
@@ -277,11 +343,19 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         link = urdf.joints[j].parent.link.as_str();
     }
     path.reverse();
+    Ok(path)
+}
 
+/// The movable joints of `path`, the fixed joints before each, and those after the last.
+type SplitChain = (Vec<usize>, Vec<Vec<usize>>, Vec<usize>);
+
+/// `path` split at its fixed joints ([`SplitChain`]), every joint one a serial chain can
+/// hold, and as many movable joints as a table takes.
+fn split_at_fixed(urdf: &urdf_rs::Robot, path: &[usize]) -> Result<SplitChain, RobotError> {
     let mut movable = Vec::new();
     let mut fixed_before = Vec::new();
     let mut pending = Vec::new();
-    for &j in &path {
+    for &j in path {
         let joint = &urdf.joints[j];
         if joint.mimic.is_some() {
             return Err(chain_error(format!(
@@ -309,85 +383,79 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
             found: movable.len(),
         });
     }
-    let fixed_after = pending;
+    Ok((movable, fixed_before, pending))
+}
 
-    let mut rows = Vec::with_capacity(movable.len());
-    let mut joints = Vec::with_capacity(movable.len());
-    let mut home = Vec::with_capacity(movable.len());
-    for (&j, before) in movable.iter().zip(&fixed_before) {
-        let joint = &urdf.joints[j];
-        let axis = unit_axis(joint.axis.xyz.0).ok_or_else(|| {
-            chain_error(format!(
-                "joint '{}' has an axis of zero length",
-                shown(&joint.name)
-            ))
-        })?;
-        let (kind, limits) = match joint.joint_type {
-            JointType::Continuous => (JointKind::Revolute, [f64::NEG_INFINITY, f64::INFINITY]),
-            JointType::Revolute => (JointKind::Revolute, [joint.limit.lower, joint.limit.upper]),
-            _ => (
-                JointKind::Prismatic,
-                [joint.limit.lower * 1000.0, joint.limit.upper * 1000.0],
-            ),
-        };
-        // A missing <limit> reads as [0, 0]; NaN never compares less.
-        if limits[0].partial_cmp(&limits[1]) != Some(std::cmp::Ordering::Less) {
-            return Err(chain_error(format!(
-                "joint '{}' has limits lower {} upper {}: a {} joint needs lower < upper",
-                shown(&joint.name),
-                joint.limit.lower,
-                joint.limit.upper,
-                if kind == JointKind::Revolute {
-                    "revolute"
-                } else {
-                    "prismatic"
-                }
-            )));
-        }
-        rows.push(ChainJoint {
-            origin: product(urdf, before).compose(&transform_of_pose(&joint.origin)),
-            axis,
-            kind,
-            offset: 0.0,
-        });
-        joints.push(Joint {
-            name: joint.name.clone(),
-            limits,
-            inertial: body_inertial(urdf, &joint.child.link, &link_index, &child_joints),
-            compliance_urad_per_nm: None,
-        });
-        home.push(if (limits[0]..=limits[1]).contains(&0.0) {
-            0.0
-        } else if limits[0].is_finite() && limits[1].is_finite() {
-            0.5 * (limits[0] + limits[1])
-        } else if limits[0].is_finite() {
-            limits[0]
-        } else {
-            limits[1]
-        });
-    }
-    let tool = product(urdf, &fixed_after);
-    let name = if urdf.name.is_empty() {
-        "URDF robot".to_owned()
-    } else {
-        urdf.name.clone()
+/// Movable joint `j` as a row of the chain (its origin after the fixed joints `before`)
+/// and as a joint description (limits, in mm for a prismatic joint; the inertial of the
+/// body it moves).
+fn movable_joint(
+    urdf: &urdf_rs::Robot,
+    tree: &Tree,
+    j: usize,
+    before: &[usize],
+) -> Result<(ChainJoint, Joint), RobotError> {
+    let joint = &urdf.joints[j];
+    let axis = unit_axis(joint.axis.xyz.0).ok_or_else(|| {
+        chain_error(format!(
+            "joint '{}' has an axis of zero length",
+            shown(&joint.name)
+        ))
+    })?;
+    let (kind, limits) = match joint.joint_type {
+        JointType::Continuous => (JointKind::Revolute, [f64::NEG_INFINITY, f64::INFINITY]),
+        JointType::Revolute => (JointKind::Revolute, [joint.limit.lower, joint.limit.upper]),
+        _ => (
+            JointKind::Prismatic,
+            [joint.limit.lower * 1000.0, joint.limit.upper * 1000.0],
+        ),
     };
-    let mut robot = Robot::new(
-        name,
-        Geometry::Chain(rows),
-        joints,
-        Transform::IDENTITY,
-        tool,
-        home,
-    )?;
-    robot.set_urdf_source(UrdfSource {
-        robot: urdf.clone(),
-        tip_link: tip,
-        movable,
-        fixed_before,
-        fixed_after,
-    });
-    Ok(robot)
+    // A missing <limit> reads as [0, 0]; NaN never compares less.
+    if limits[0].partial_cmp(&limits[1]) != Some(std::cmp::Ordering::Less) {
+        return Err(chain_error(format!(
+            "joint '{}' has limits lower {} upper {}: a {} joint needs lower < upper",
+            shown(&joint.name),
+            joint.limit.lower,
+            joint.limit.upper,
+            if kind == JointKind::Revolute {
+                "revolute"
+            } else {
+                "prismatic"
+            }
+        )));
+    }
+    let row = ChainJoint {
+        origin: product(urdf, before).compose(&transform_of_pose(&joint.origin)),
+        axis,
+        kind,
+        offset: 0.0,
+    };
+    let description = Joint {
+        name: joint.name.clone(),
+        limits,
+        inertial: body_inertial(
+            urdf,
+            &joint.child.link,
+            &tree.link_index,
+            &tree.child_joints,
+        ),
+        compliance_urad_per_nm: None,
+    };
+    Ok((row, description))
+}
+
+/// A home value within `limits`: zero when they hold it, else their middle, else the
+/// finite end.
+fn home_within(limits: [f64; 2]) -> f64 {
+    if (limits[0]..=limits[1]).contains(&0.0) {
+        0.0
+    } else if limits[0].is_finite() && limits[1].is_finite() {
+        0.5 * (limits[0] + limits[1])
+    } else if limits[0].is_finite() {
+        limits[0]
+    } else {
+        limits[1]
+    }
 }
 
 /// The mass and centre of mass (mm, in `link`'s frame) of `link` and every link fixed to
