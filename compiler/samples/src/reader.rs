@@ -499,30 +499,16 @@ pub(crate) fn parse(
     };
     // Spreadsheets start UTF-8 files with a byte-order mark.
     let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
-    // Comment lines are removed here rather than by the CSV reader, whose line numbers do
-    // not count them consistently; `physical[n - 1]` is the file line of filtered line n.
-    // Most files have none, and are read in place.
-    let has_comments =
-        bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#');
-    let mut filtered = Vec::new();
-    let mut physical = Vec::new();
-    if has_comments {
-        filtered.reserve(bytes.len());
-        for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
-            if line.first() != Some(&b'#') {
-                filtered.extend_from_slice(line);
-                physical.push(i as u64 + 1);
-            }
-        }
-    }
-    let data: &[u8] = if has_comments { &filtered } else { bytes };
+    let uncommented = without_comments(bytes);
+    let data: &[u8] = uncommented.as_ref().map_or(bytes, |(data, _)| data);
     let mut lines = LineCounter {
         data,
         byte: 0,
         line: 1,
-        physical: has_comments.then_some(physical.as_slice()),
+        physical: uncommented
+            .as_ref()
+            .map(|(_, physical)| physical.as_slice()),
     };
-
     // The header line: the first that is not blank (the CSV reader skips blank lines).
     let header_text = data
         .split(|&b| b == b'\n')
@@ -540,31 +526,7 @@ pub(crate) fn parse(
         .has_headers(false)
         .flexible(true)
         .from_reader(data);
-    let mut header = csv::ByteRecord::new();
-    match reader.read_byte_record(&mut header) {
-        Ok(true) => {}
-        Ok(false) => return Err(error(None, None, ReadErrorKind::Empty)),
-        Err(e) => return Err(csv_error(path, e, &mut lines)),
-    }
-    let header_line = lines.of(header.position());
-    let mut names = Vec::with_capacity(header.len());
-    // A set beside the list: a linear `contains` per column is quadratic in the column
-    // count, minutes for a hostile header of a million columns.
-    let mut distinct = std::collections::HashSet::with_capacity(header.len());
-    for field in header.iter() {
-        let name = std::str::from_utf8(field.trim_ascii())
-            .map_err(|_| error(Some(header_line), None, ReadErrorKind::NotUtf8))?
-            .to_ascii_lowercase();
-        if !name.is_empty() && !distinct.insert(name.clone()) {
-            return Err(error(
-                Some(header_line),
-                Some((names.len() + 1, name.clone())),
-                ReadErrorKind::DuplicateColumn(name),
-            ));
-        }
-        names.push(name);
-    }
-    drop(distinct);
+    let (names, header_line) = read_header(path, &mut reader, &mut lines)?;
     let header_info = HeaderInfo {
         names: &names,
         delimiter,
@@ -572,27 +534,22 @@ pub(crate) fn parse(
     };
     let layout = resolve(&header_info, columns, options, purpose)
         .map_err(|kind| error(Some(header_line), None, kind))?;
-
-    let mut decimal = match options.decimal {
-        Some(d) => Some((d, Choice::Given)),
-        None if delimiter == Delimiter::Comma => Some((Decimal::Point, Choice::CommaSeparated)),
-        None => None,
-    };
     // Rows are at most the lines of the file: reserve once rather than grow.
     let rows_hint = data.iter().filter(|&&b| b == b'\n').count() + 1;
-    let mut rows = Rows {
-        nominal_mm: layout.position.map(|_| Vec::with_capacity(rows_hint)),
-        delta_mm: layout.delta.map(|_| Vec::with_capacity(rows_hint)),
-        measured_mm: layout.measured.map(|_| Vec::with_capacity(rows_hint)),
-        nominal_rotation: layout.nominal_orientation.as_ref().map(|_| Vec::new()),
-        measured_rotation: layout.measured_orientation.as_ref().map(|_| Vec::new()),
-        rotation_vector_rad: layout.rotation_vector.map(|_| Vec::new()),
-        joints: layout.joints.as_ref().map(|j| Joints::new(j.len())),
-        config: layout.config.map(|_| Vec::new()),
-        lines: Vec::with_capacity(rows_hint),
+    let mut rows = Rows::for_layout(&layout, rows_hint);
+    let mut row_reader = RowReader {
+        path,
+        names: &names,
+        layout: &layout,
+        purpose,
+        decimal: match options.decimal {
+            Some(d) => Some((d, Choice::Given)),
+            None if delimiter == Delimiter::Comma => Some((Decimal::Point, Choice::CommaSeparated)),
+            None => None,
+        },
+        joint_row: [0.0; MAX_JOINTS],
+        orientation: [0.0; 4],
     };
-    let mut joint_row = [0.0; MAX_JOINTS];
-    let mut orientation = [0.0; 4];
     // One record buffer for every row.
     let mut record = csv::ByteRecord::new();
     loop {
@@ -613,8 +570,132 @@ pub(crate) fn parse(
                 },
             ));
         }
+        row_reader.read(&record, line, &mut rows)?;
+        rows.lines.push(line);
+    }
+    if rows.lines.is_empty() {
+        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
+    }
+    Ok(rows)
+}
+
+/// `bytes` without its comment lines, and the file line of each line kept
+/// (`physical[n - 1]` is the file line of kept line n); `None` when it has none, as most
+/// files, which are then read in place. Comment lines are removed here rather than by the
+/// CSV reader, whose line numbers do not count them consistently.
+fn without_comments(bytes: &[u8]) -> Option<(Vec<u8>, Vec<u64>)> {
+    let has_comments =
+        bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#');
+    if !has_comments {
+        return None;
+    }
+    let mut filtered = Vec::with_capacity(bytes.len());
+    let mut physical = Vec::new();
+    for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
+        if line.first() != Some(&b'#') {
+            filtered.extend_from_slice(line);
+            physical.push(i as u64 + 1);
+        }
+    }
+    Some((filtered, physical))
+}
+
+/// The header's column names, trimmed and in lower case, each once; and its line.
+fn read_header(
+    path: &Path,
+    reader: &mut csv::Reader<&[u8]>,
+    lines: &mut LineCounter<'_>,
+) -> Result<(Vec<String>, u64), ReadError> {
+    let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
+        path: path.to_path_buf(),
+        line,
+        column,
+        kind,
+    };
+    let mut header = csv::ByteRecord::new();
+    match reader.read_byte_record(&mut header) {
+        Ok(true) => {}
+        Ok(false) => return Err(error(None, None, ReadErrorKind::Empty)),
+        Err(e) => return Err(csv_error(path, e, lines)),
+    }
+    let header_line = lines.of(header.position());
+    let mut names = Vec::with_capacity(header.len());
+    // A set beside the list: a linear `contains` per column is quadratic in the column
+    // count, minutes for a hostile header of a million columns.
+    let mut distinct = std::collections::HashSet::with_capacity(header.len());
+    for field in header.iter() {
+        let name = std::str::from_utf8(field.trim_ascii())
+            .map_err(|_| error(Some(header_line), None, ReadErrorKind::NotUtf8))?
+            .to_ascii_lowercase();
+        if !name.is_empty() && !distinct.insert(name.clone()) {
+            return Err(error(
+                Some(header_line),
+                Some((names.len() + 1, name.clone())),
+                ReadErrorKind::DuplicateColumn(name),
+            ));
+        }
+        names.push(name);
+    }
+    Ok((names, header_line))
+}
+
+impl Rows {
+    /// Empty rows of the parts `layout` found, room for `rows_hint` rows reserved.
+    fn for_layout(layout: &Layout, rows_hint: usize) -> Rows {
+        Rows {
+            nominal_mm: layout.position.map(|_| Vec::with_capacity(rows_hint)),
+            delta_mm: layout.delta.map(|_| Vec::with_capacity(rows_hint)),
+            measured_mm: layout.measured.map(|_| Vec::with_capacity(rows_hint)),
+            nominal_rotation: layout.nominal_orientation.as_ref().map(|_| Vec::new()),
+            measured_rotation: layout.measured_orientation.as_ref().map(|_| Vec::new()),
+            rotation_vector_rad: layout.rotation_vector.map(|_| Vec::new()),
+            joints: layout.joints.as_ref().map(|j| Joints::new(j.len())),
+            config: layout.config.map(|_| Vec::new()),
+            lines: Vec::with_capacity(rows_hint),
+        }
+    }
+}
+
+/// Reads each row's fields into [`Rows`] by the columns found; its buffers serve every
+/// row.
+struct RowReader<'a> {
+    path: &'a Path,
+    names: &'a [String],
+    layout: &'a Layout,
+    purpose: Purpose,
+    /// The decimal separator, once given or seen.
+    decimal: Option<(Decimal, Choice)>,
+    joint_row: [f64; MAX_JOINTS],
+    orientation: [f64; 4],
+}
+
+impl RowReader<'_> {
+    /// Reads the row `record` at file line `line` into `rows` (its line aside): every
+    /// number in its unit, lengths and orientation errors checked.
+    fn read(
+        &mut self,
+        record: &csv::ByteRecord,
+        line: u64,
+        rows: &mut Rows,
+    ) -> Result<(), ReadError> {
+        let RowReader {
+            path,
+            names,
+            layout,
+            purpose,
+            decimal,
+            joint_row,
+            orientation,
+        } = self;
+        let (path, names, layout, purpose) = (*path, *names, *layout, *purpose);
+        let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
+            path: path.to_path_buf(),
+            line,
+            column,
+            kind,
+        };
         let mut number = |f: Field| -> Result<f64, ReadError> {
-            number_at(&record[f.index], &mut decimal, line, f.index, &names)
+            number_at(&record[f.index], decimal, line, f.index, names)
                 .map(|v| v * f.scale)
                 .map_err(|kind| {
                     error(
@@ -727,12 +808,8 @@ pub(crate) fn parse(
                 })?;
             configs.push(config);
         }
-        rows.lines.push(line);
+        Ok(())
     }
-    if rows.lines.is_empty() {
-        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
-    }
-    Ok(rows)
 }
 
 /// Refuses an orientation error (rotation vector, rad) beyond
@@ -969,19 +1046,7 @@ fn resolve(
         wanted: wanted.to_string(),
         found: header.describe(),
     };
-    // A column the mapping names must be there: absent, it is a typo, not an absent group
-    // (`dx=xdif` would read as "dy,dz without dx", `j1=joint1` drop the joints silently).
-    for (name, source) in map.mapped() {
-        if !names.contains(&source.name) {
-            return Err(ReadErrorKind::MappedColumnMissing(Box::new(
-                MappedColumnMissing {
-                    name,
-                    column: source.name.clone(),
-                    closest: closest_names(&source.name, names),
-                },
-            )));
-        }
-    }
+    check_mapped_columns(map, names)?;
     let find = |canonical: &str| -> Option<(usize, Source)> {
         let source = map.find(canonical)?;
         let index = names.iter().position(|n| *n == source.name)?;
@@ -1052,30 +1117,65 @@ fn resolve(
         config: find("config").map(|(i, _)| i),
         ..Layout::default()
     };
-    for measured in [false, true] {
-        let mut found: Option<OrientationFields> = None;
-        for convention in Convention::ALL {
-            let cols = orientation_columns(convention, measured);
-            if let Some(fields) = group(cols)? {
-                if let Some(first) = &found {
-                    return Err(ReadErrorKind::ConflictingColumns(format!(
-                        "two conventions for the {} orientation, '{}' and '{}': keep one",
-                        if measured { "measured" } else { "nominal" },
-                        orientation_columns(first.convention, measured).join(","),
-                        cols.join(",")
-                    )));
-                }
-                found = Some(OrientationFields { convention, fields });
-            }
-        }
-        if measured {
-            layout.measured_orientation = found;
-        } else {
-            layout.nominal_orientation = found;
+    layout.nominal_orientation = orientation(false, &group)?;
+    layout.measured_orientation = orientation(true, &group)?;
+    layout.joints = joints(names, &find, &scale)?;
+    check_quaternion_is_not_joints(&layout, map, names)?;
+    check_purpose(&mut layout, purpose, &missing)?;
+    Ok(layout)
+}
+
+/// A column the mapping names must be there: absent, it is a typo, not an absent group
+/// (`dx=xdif` would read as "dy,dz without dx", `j1=joint1` drop the joints silently).
+fn check_mapped_columns(map: &ColumnMap, names: &[String]) -> Result<(), ReadErrorKind> {
+    for (name, source) in map.mapped() {
+        if !names.contains(&source.name) {
+            return Err(ReadErrorKind::MappedColumnMissing(Box::new(
+                MappedColumnMissing {
+                    name,
+                    column: source.name.clone(),
+                    closest: closest_names(&source.name, names),
+                },
+            )));
         }
     }
-    layout.joints = joints(names, &find, &scale)?;
-    // Joint angles named q1..q6 are no quaternion q1..q4.
+    Ok(())
+}
+
+/// The columns of a group, all or none, in one unit ([`resolve`]).
+type GroupOf<'a> = dyn Fn(&[&str]) -> Result<Option<Vec<Field>>, ReadErrorKind> + 'a;
+
+/// The columns of the nominal (or `measured`) orientation: one convention at most, its
+/// columns found by `group` ([`resolve`]).
+fn orientation(
+    measured: bool,
+    group: &GroupOf,
+) -> Result<Option<OrientationFields>, ReadErrorKind> {
+    let mut found: Option<OrientationFields> = None;
+    for convention in Convention::ALL {
+        let cols = orientation_columns(convention, measured);
+        if let Some(fields) = group(cols)? {
+            if let Some(first) = &found {
+                return Err(ReadErrorKind::ConflictingColumns(format!(
+                    "two conventions for the {} orientation, '{}' and '{}': keep one",
+                    if measured { "measured" } else { "nominal" },
+                    orientation_columns(first.convention, measured).join(","),
+                    cols.join(",")
+                )));
+            }
+            found = Some(OrientationFields { convention, fields });
+        }
+    }
+    Ok(found)
+}
+
+/// Refuses a quaternion q1..q4 in a file that has q5: joint angles named q1..q6 are no
+/// quaternion.
+fn check_quaternion_is_not_joints(
+    layout: &Layout,
+    map: &ColumnMap,
+    names: &[String],
+) -> Result<(), ReadErrorKind> {
     if matches!(&layout.nominal_orientation, Some(o) if o.convention == Convention::QuaternionWxyz)
         && !map.maps("q1")
         && names.iter().any(|n| n == "q5")
@@ -1086,7 +1186,15 @@ fn resolve(
                 .into(),
         ));
     }
+    Ok(())
+}
 
+/// What `purpose` requires of the columns found (and, for measurements, drops).
+fn check_purpose(
+    layout: &mut Layout,
+    purpose: Purpose,
+    missing: &dyn Fn(&str) -> ReadErrorKind,
+) -> Result<(), ReadErrorKind> {
     if layout.position.is_none() && !matches!(purpose, Purpose::Measurements | Purpose::Poses) {
         return Err(missing("x,y,z (nominal position, mm)"));
     }
@@ -1134,7 +1242,7 @@ fn resolve(
             layout.rotation_vector = None;
         }
     }
-    Ok(layout)
+    Ok(())
 }
 
 /// The header names closest to `wanted` by edit distance (at most three, closest first,
