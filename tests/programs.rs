@@ -675,7 +675,7 @@ fn docs_examples_run_as_written() {
             _ => {}
         }
     }
-    assert_eq!(blocks.len(), 6, "{blocks:?}");
+    assert_eq!(blocks.len(), 7, "{blocks:?}");
     for (commands, expected) in &blocks {
         let mut output = String::new();
         for command in commands {
