@@ -61,6 +61,11 @@ pub(crate) struct ServedGrid {
     origin_mm: [f64; 3],
     cell_mm: f64,
     cells: [usize; 3],
+    /// `cells` as doubles (exact: each is a `u32`, the header's `dims`), and the last cell
+    /// of each axis (`cells − 1`, 0 for none): what every query's [`ServedGrid::locate`]
+    /// compares and clamps with, converted once.
+    cells_f64: [f64; 3],
+    last_cell: [u32; 3],
     /// Node offsets of a cell's 8 corners from its minimum one, x fastest.
     corners: [usize; 8],
     /// The first node of the first set (targets of unknown configuration).
@@ -105,6 +110,8 @@ impl ServedGrid {
             origin_mm: grid.origin_mm,
             cell_mm: grid.cell_mm,
             cells: grid.dims.map(|d| d as usize),
+            cells_f64: grid.dims.map(f64::from),
+            last_cell: grid.dims.map(|d| d.saturating_sub(1)),
             corners: [0, 1, nx, nx + 1, nxy, nxy + 1, nxy + nx, nxy + nx + 1],
             first_any: data
                 .node_sets
@@ -117,29 +124,33 @@ impl ServedGrid {
         }
     }
 
+    /// Whether [`blend_strict`] serves this grid: one vector a node and no fade (a
+    /// position-only table's field).
+    #[inline]
+    pub(crate) fn is_strict(&self) -> bool {
+        self.stride == 1 && self.fade_mm.is_none()
+    }
+
     /// The node index of the target's cell's minimum corner (x fastest over `dims + 1`
     /// nodes per axis) and the target's fractional position in the cell, each in
     /// `[0, 1]`; `None` outside the grid or for a non-finite position. Cells are half-open
     /// except at the grid's maximum faces, as [`crate::format::Grid::cell_of`] has them.
     #[inline]
     fn locate(&self, position_mm: [f64; 3]) -> Option<(usize, [f64; 3])> {
-        let mut cell = [0usize; 3];
-        let mut fraction = [0.0; 3];
-        for axis in 0..3 {
-            // A division, not a multiplication by the reciprocal, so that the cell is the one
-            // `Grid::cell_of` finds, to the last bit at cell faces.
-            let u = (position_mm[axis] - self.origin_mm[axis]) / self.cell_mm;
-            let cells = self.cells[axis];
-            // Written so that NaN fails the test.
-            if !(u >= 0.0 && u <= cells as f64) {
-                return None;
-            }
-            // `u` is in `[0, cells]` and `cells` in `u32` (the header's `dims`): a cast
-            // to `u32` truncates as one to `usize` would, in fewer instructions.
-            cell[axis] = (u as u32 as usize).min(cells.saturating_sub(1));
-            fraction[axis] = (u - cell[axis] as f64).clamp(0.0, 1.0);
+        // A division, not a multiplication by the reciprocal, so that the cell is the one
+        // `Grid::cell_of` finds, to the last bit at cell faces.
+        let u = [0, 1, 2].map(|a| (position_mm[a] - self.origin_mm[a]) / self.cell_mm);
+        // Written so that NaN fails the test; one branch for the three axes.
+        let inside = |a: usize| u[a] >= 0.0 && u[a] <= self.cells_f64[a];
+        if !(inside(0) & inside(1) & inside(2)) {
+            return None;
         }
+        // `u` is in `[0, cells]` and `cells` in `u32` (the header's `dims`): a cast to
+        // `u32` truncates as one to `usize` would, in fewer instructions.
+        let cell = [0, 1, 2].map(|a| (u[a] as u32).min(self.last_cell[a]));
+        let fraction = [0, 1, 2].map(|a| (u[a] - f64::from(cell[a])).clamp(0.0, 1.0));
         let [nx, nxy] = [self.corners[2], self.corners[4]];
+        let cell = cell.map(|c| c as usize);
         Some((cell[0] + nx * cell[1] + nxy * cell[2], fraction))
     }
 
@@ -435,6 +446,69 @@ pub(crate) fn blend_site<const S: usize>(
     Ok(terms)
 }
 
+/// [`blend_site`] of a table whose field neither fades nor turns with the tool (a
+/// position-only table's: one vector a node, a corner without a value refused), as a
+/// correction: the same sums to the bit, the 8 corners blended without a test each. A
+/// missing corner holds NaN in every component and spreads it through its sums (even at
+/// weight 0), so a NaN sum is [`Status::UncoveredCell`], as `blend_site`'s test of each
+/// corner says; validated values are finite and plausible, so nothing else makes one.
+/// Another grid is [`Status::InvalidInput`]. Never allocates or panics.
+#[inline(always)]
+pub(crate) fn blend_strict(
+    grid: &ServedGrid,
+    data: &ArchivedTableData,
+    site: &Site,
+    orientation: bool,
+) -> Result<Correction, Status> {
+    let Site::Cell {
+        first,
+        fraction,
+        fade: None,
+    } = *site
+    else {
+        return Err(Status::InvalidInput);
+    };
+    if grid.stride != 1 || grid.fade_mm.is_some() {
+        return Err(Status::InvalidInput);
+    }
+    let weights = trilinear_weights(fraction);
+    let sum = |nodes: &[rkyv::Archived<[f64; 3]>]| -> Option<[f64; 3]> {
+        let block = cell_block::<1>(nodes, first, &grid.corners)?;
+        // `blend`'s pairs: x and y in one, z beside a zero; each lane `x += w · v` in the
+        // corners' order.
+        let (mut xy, mut z) = (Pair([0.0; 2]), Pair([0.0; 2]));
+        for (&corner, &weight) in grid.corners.iter().zip(&weights) {
+            let node = block.get(corner)?;
+            let w = Pair::splat(weight);
+            xy = xy + w * Pair([node[0].to_native(), node[1].to_native()]);
+            z = z + w * Pair([node[2].to_native(), 0.0]);
+        }
+        Some([xy.0[0], xy.0[1], z.0[0]])
+    };
+    let position_mm = sum(data.node_errors_mm.as_slice()).ok_or(Status::InvalidInput)?;
+    let defined = |v: &[f64; 3]| !(v[0].is_nan() | v[1].is_nan() | v[2].is_nan());
+    if !defined(&position_mm) {
+        return Err(Status::UncoveredCell);
+    }
+    let orientation_error_rad = if orientation {
+        let r = sum(data.node_orientation_errors_rad.as_slice()).ok_or(Status::InvalidInput)?;
+        if !defined(&r) {
+            return Err(Status::UncoveredCell);
+        }
+        r
+    } else {
+        [0.0; 3]
+    };
+    Ok(Correction {
+        position_error_mm: position_mm,
+        orientation_error_rad,
+        neighbours: 8,
+        status: Status::Ok,
+        residual: Residual::Full,
+        evidence: crate::Evidence::WITHIN,
+    })
+}
+
 /// The weights of the 8 corners, in the order `corners` lists them in [`serve`]:
 /// x fastest, then y, then z.
 #[inline]
@@ -599,6 +673,8 @@ mod tests {
             origin_mm: [0.0; 3],
             cell_mm: 10.0,
             cells: [2, 3, 4],
+            cells_f64: [2.0, 3.0, 4.0],
+            last_cell: [1, 2, 3],
             corners: [0, 1, 3, 4, 12, 13, 15, 16],
             first_any: 0,
             with_configs: false,

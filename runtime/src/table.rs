@@ -654,6 +654,13 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
+        if let (None, None, Payload::V2(d), Some(grid), Tier::Served) =
+            (&self.model, &self.posture, payload, &self.served, tier)
+        {
+            if grid.is_strict() {
+                return self.served_without_model(target, d, grid);
+            }
+        }
         // Without a named TCP the served cell is known now: a hybrid table asks for its
         // nodes' memory before the model's arithmetic, which then hides their latency.
         let early_site = match (payload, &self.served, tier, target.tcp_mm) {
@@ -763,6 +770,31 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         correction.evidence = evidence;
+        correction.finite_or_failure()
+    }
+
+    /// [`Table::answer`]'s served query of a table without a model or a posture term whose
+    /// field neither fades nor turns with the tool (a position-only table's): the same
+    /// answer to the bit, by the steps that table takes and no test of the others (the
+    /// target's cell, its 8 nodes blended by [`crate::served::blend_strict`], the evidence
+    /// flag, the last guard).
+    #[inline(always)]
+    fn served_without_model(
+        &self,
+        target: &Target,
+        data: &v2::ArchivedTableData,
+        grid: &ServedGrid,
+    ) -> Correction {
+        let site = match crate::served::site(grid, data, target.position_mm, target.config) {
+            Ok(site) => site,
+            Err(status) => return Correction::failed(status),
+        };
+        let orientation = self.has_orientation();
+        let mut correction = match crate::served::blend_strict(grid, data, &site, orientation) {
+            Ok(correction) => correction,
+            Err(status) => return Correction::failed(status),
+        };
+        correction.evidence = self.evidence_of(target, None);
         correction.finite_or_failure()
     }
 
@@ -918,5 +950,92 @@ impl<D: AsRef<[u8]>> Exact<'_, D> {
     ) -> Compensation {
         self.table
             .compensate_with(target, tolerance_mm, max_iterations, Tier::Exact)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Table::answer`]'s general served path for a table without a model: the cell's
+    /// nodes by [`crate::served::blend_site`] (a test of each corner), then the evidence
+    /// and the last guard, as every table's served query took them.
+    fn served_by_blend_site<D: AsRef<[u8]>>(table: &Table<D>, target: &Target) -> Correction {
+        if !target_is_plausible(target) {
+            return Correction::failed(Status::InvalidInput);
+        }
+        let (Some(Payload::V2(d)), Some(grid)) = (table.payload(), &table.served) else {
+            return Correction::failed(Status::InvalidInput);
+        };
+        let site = match crate::served::site(grid, d, target.position_mm, target.config) {
+            Ok(site) => site,
+            Err(status) => return Correction::failed(status),
+        };
+        let orientation = table.has_orientation();
+        let mut correction = match crate::served::blend_site::<1>(grid, d, &site, orientation) {
+            Ok(terms) => terms.correction(),
+            Err(status) => return Correction::failed(status),
+        };
+        correction.evidence = table.evidence_of(target, None);
+        correction.finite_or_failure()
+    }
+
+    fn bits(c: &Correction) -> ([u64; 6], u32, Status, crate::Residual, Evidence) {
+        let mut v = [0; 6];
+        for (o, x) in v
+            .iter_mut()
+            .zip(c.position_error_mm.iter().chain(&c.orientation_error_rad))
+        {
+            *o = x.to_bits();
+        }
+        (v, c.neighbours, c.status, c.residual, c.evidence)
+    }
+
+    /// A position-only table's served query (`served_without_model`, its corners blended
+    /// without a test each) answers as the general path to the bit, status and flags
+    /// included, at targets in covered and uncovered cells, on cell faces, on the grid's
+    /// faces, outside it, and at non-finite positions.
+    #[test]
+    fn a_position_only_served_query_answers_as_the_general_path_to_the_bit() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../tables/compat/v2/worked_example.tbl"
+        );
+        let table = Table::from_vec(std::fs::read(path).unwrap()).unwrap();
+        assert!(table.model().is_none() && table.has_served_field());
+        let grid = *table.grid();
+        let (lo, hi) = (grid.origin_mm, grid.max_mm());
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut statuses = std::collections::BTreeSet::new();
+        for i in 0..40_000 {
+            let mut p = [0, 1, 2].map(|a| lo[a] - 10.0 + next() * (hi[a] - lo[a] + 20.0));
+            match i % 8 {
+                // On a cell face, and on the grid's faces.
+                1 => p[0] = lo[0] + (p[0] - lo[0]).div_euclid(grid.cell_mm) * grid.cell_mm,
+                2 => p[1] = hi[1],
+                3 => p[2] = lo[2],
+                4 if i % 64 == 4 => p[1] = f64::NAN,
+                _ => {}
+            }
+            let target = Target::at(p).with_config((i % 3 == 0).then_some(1));
+            let fast = table.query_target(&target);
+            let general = served_by_blend_site(&table, &target);
+            assert_eq!(bits(&fast), bits(&general), "{target:?}");
+            statuses.insert(fast.status as u8);
+        }
+        for status in [
+            Status::Ok,
+            Status::OutsideGrid,
+            Status::InvalidInput,
+            Status::UncoveredCell,
+        ] {
+            assert!(statuses.contains(&(status as u8)), "{status:?} not met");
+        }
     }
 }
