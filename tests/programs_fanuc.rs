@@ -431,7 +431,8 @@ fn a_frame_not_given_is_named_and_the_options_stand_before_the_frame_file() {
             file.to_str().unwrap(),
         ],
     );
-    assert_eq!(code, 1, "{stderr}");
+    // A usage error, refused before any file is read.
+    assert_eq!(code, 2, "{stderr}");
     assert!(
         stderr.contains("the Fanuc frame file is for Fanuc programs"),
         "{stderr}"

@@ -9,8 +9,8 @@
 use std::path::PathBuf;
 
 use adwi_jobs::{
-    BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args, Iso9283Job,
-    JobError, PlanArgs, PlanJob, Silent,
+    compensate, BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args,
+    Iso9283Job, JobError, PlanArgs, PlanJob, RobotArgs, Silent,
 };
 use adwi_robot::calibrate::Calibration;
 use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
@@ -976,13 +976,13 @@ impl Table {
 }
 
 // ---------------------------------------------------------------------------------------
-// Robot programs compensated offline: `tablec compensate` (adwi_programs::CompensateJob).
+// Robot programs compensated offline: `tablec compensate` (adwi_jobs::CompensateJob).
 
 /// `tablec compensate`: the job checks every option and input before any work, corrects
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=adwi_programs::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=adwi_programs::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=300.0, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=compensate::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=compensate::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=compensate::DEFAULT_MAX_SECONDS, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -1014,56 +1014,44 @@ fn compensate_program<'py>(
     Bound<'py, PyList>,
     Bound<'py, PyDict>,
 )> {
-    use adwi_programs::{CompensateJob, CompensateOptions, Format};
-    let mut options = CompensateOptions::new(table, program);
-    options.output = output;
-    options.report = report;
-    options.format = match format.as_deref() {
-        None => None,
-        Some(name) => Some(Format::from_name(name).ok_or_else(|| {
-            AdwiError::new_err(format!(
-                "format '{name}': one of {}",
-                Format::ALL.map(Format::name).join(", ")
-            ))
-        })?),
-    };
-    options.robot = robot;
-    options.links = adwi_robot::LinkNames {
+    use compensate::{CompensateArgs, CompensateJob};
+    let mut args = CompensateArgs::new(table, program);
+    args.output = output;
+    args.report = report;
+    args.format = format;
+    args.robot = RobotArgs {
+        robot,
         base_link,
         tip_link,
     };
-    options.tool = tool;
-    options.base = base;
-    options.table_tool = table_tool;
-    options.limits.max_correction_mm = max_correction_mm;
-    options.limits.max_joint_change_deg = max_joint_change_deg;
-    options.strict = strict;
-    options.max_seconds = max_seconds;
-    options.limits.beyond_evidence = beyond_evidence;
-    options.krl_config = krl_config;
+    args.tool = tool;
+    args.base = base;
+    args.table_tool = table_tool;
+    args.max_correction_mm = max_correction_mm;
+    args.max_joint_change_deg = max_joint_change_deg;
+    args.strict = strict;
+    args.max_seconds = max_seconds;
+    args.beyond_evidence = beyond_evidence;
+    args.krl_config = krl_config;
     // Fanuc user and tool frames by number, X, Y, Z, W, P, R (mm, degrees).
-    options.fanuc = adwi_programs::fanuc::FanucOptions {
-        user_frames: fanuc_uframes.unwrap_or_default().into_iter().collect(),
-        tool_frames: fanuc_utools.unwrap_or_default().into_iter().collect(),
-        frames_file: fanuc_frames,
-    };
+    args.fanuc_uframe = fanuc_uframes.unwrap_or_default().into_iter().collect();
+    args.fanuc_utool = fanuc_utools.unwrap_or_default().into_iter().collect();
+    args.fanuc_frames = fanuc_frames;
     // Yaskawa tool files and user frames by number, X, Y, Z, Rx, Ry, Rz (mm, degrees), and
     // the axes' pulses per degree.
-    options.yaskawa = adwi_programs::yaskawa::YaskawaOptions {
-        tools: yaskawa_tools.unwrap_or_default().into_iter().collect(),
-        users: yaskawa_users.unwrap_or_default().into_iter().collect(),
-        pulses_per_deg: yaskawa_pulses_per_deg,
-    };
+    args.yaskawa_tool = yaskawa_tools.unwrap_or_default().into_iter().collect();
+    args.yaskawa_user = yaskawa_users.unwrap_or_default().into_iter().collect();
+    args.yaskawa_pulses_per_deg = yaskawa_pulses_per_deg;
     let done = py
-        .allow_threads(|| -> Result<_, adwi_programs::Error> {
-            let job = CompensateJob::new(options)?;
+        .allow_threads(|| -> Result<_, adwi_jobs::JobError> {
+            let job = CompensateJob::new(args)?;
             let done = job.run()?;
             job.write(&done)?;
             Ok(done)
         })
         .map_err(|e| AdwiError::new_err(e.to_string()))?;
     let targets = PyList::empty(py);
-    for t in &done.report.targets {
+    for t in &done.targets {
         let d = PyDict::new(py);
         d.set_item("name", &t.name)?;
         d.set_item("line", t.line)?;
@@ -1083,7 +1071,7 @@ fn compensate_program<'py>(
         d.set_item("command_joints", t.command_joints.clone())?;
         targets.append(d)?;
     }
-    let s = done.report.summary();
+    let s = &done.summary;
     let summary = PyDict::new(py);
     summary.set_item("total", s.total)?;
     summary.set_item("corrected", s.corrected)?;

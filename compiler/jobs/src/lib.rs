@@ -20,6 +20,7 @@ pub mod args;
 pub mod bench;
 pub mod build;
 pub mod calibrate;
+pub mod compensate;
 pub mod continuity;
 pub mod eval;
 mod inputs;
@@ -38,6 +39,7 @@ pub use args::{Frame, PostureChoice, Reading, RobotArgs, ServedFieldChoice, Tabl
 pub use bench::{BenchArgs, BenchJob, Benched};
 pub use build::{BuildArgs, BuildJob, Built};
 pub use calibrate::{CalibrateArgs, CalibrateJob, Calibrated};
+pub use compensate::{CompensateArgs, CompensateJob};
 pub use continuity::{ContinuityArgs, ContinuityJob, ContinuityResult};
 pub use eval::{EvalArgs, EvalJob, Evaluated};
 pub use inputs::Source;
@@ -116,6 +118,11 @@ pub enum JobError {
     /// An identification that cannot be compared with a simulated robot's truth.
     #[error(transparent)]
     Truth(Box<adwi_measure::truth::TruthError>),
+    /// A program that cannot be compensated: an input, a malformed program (file, line
+    /// and column), an output, more work than allowed, or with `strict` a target left
+    /// unchanged.
+    #[error(transparent)]
+    Program(Box<adwi_programs::Error>),
     /// A result came out non-finite and is not reported as one.
     #[error("{0}")]
     NonFinite(String),

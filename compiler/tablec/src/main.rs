@@ -114,12 +114,12 @@ pub fn warn(warnings: &[adwi_jobs::Warning]) {
 }
 
 /// `text` with every control character but its line ends escaped
-/// ([`adwi_programs::escape_controls`], line by line): what a message quotes of a file
+/// ([`adwi_jobs::compensate::escape_controls`], line by line): what a message quotes of a file
 /// cannot move the cursor, change colours or ring the terminal.
 fn terminal_safe(text: &str) -> String {
     let lines: Vec<_> = text
         .split('\n')
-        .map(adwi_programs::escape_controls)
+        .map(adwi_jobs::compensate::escape_controls)
         .collect();
     lines.join("\n")
 }
