@@ -308,9 +308,12 @@ def plan(output: PathLike, **options: Any) -> Dict[str, Any]:
     Returns a dict: ``robot``, ``joints_rad``, ``position_mm``, ``abc_deg`` (one row per
     pose, in the order to measure), ``parameters`` (the identifiable ones the selection
     weighs), ``pool``, ``draws``, ``log_det``, ``mean_variance`` (the mean prediction
-    variance over the candidates, in σ²) and ``variance_bound`` (no as many candidates do
-    better), ``min_distance_mm`` (None for a single pose), ``path_travel`` (rad) and
-    ``written``.
+    variance over the candidates, in σ², or in mm² when ``tracker_mpe_um`` weighs the
+    poses) and ``variance_bound`` (no as many candidates do better),
+    ``tracker_sigma_mm`` (the smallest and largest σ of a coordinate over the candidates,
+    None without ``tracker_mpe_um``), ``workspace_candidates`` and ``other_branches``
+    (candidates of the home branch, planned poses of another, with ``branches="all"``),
+    ``min_distance_mm`` (None for a single pose), ``path_travel`` (rad) and ``written``.
     """
     return _adwi.plan(os.fspath(output), **_options([], options))
 

@@ -1153,6 +1153,10 @@ fn plan<'py>(
         .collect::<Result<Vec<_>, _>>()?;
     d.set_item("random", random)?;
     d.set_item("field_variance_mm2", p.field_variance_mm2)?;
+    // With the tracker's MPE the variances are in mm², not per σ².
+    d.set_item("tracker_sigma_mm", p.tracker_sigma_mm)?;
+    d.set_item("workspace_candidates", p.workspace_candidates)?;
+    d.set_item("other_branches", p.other_branches)?;
     d.set_item("min_distance_mm", p.min_distance_mm)?;
     d.set_item("path_travel", p.path_travel)?;
     d.set_item("written", vec![planned.output.display().to_string()])?;
