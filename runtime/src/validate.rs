@@ -24,8 +24,8 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
             "the content flags name contents this version does not know",
         ));
     }
-    let grid = &header.grid;
-    let cells = grid
+    let cells = header
+        .grid
         .cell_count()
         .filter(|&n| n > 0 && n < u32::MAX as usize)
         .ok_or(corrupt("grid size is zero or too large"))?;
@@ -36,6 +36,29 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
     if n != header.sample_count as usize || n >= u32::MAX as usize {
         return Err(corrupt("sample count differs from the header"));
     }
+    check_samples_v1(header, a)?;
+    check_joints_and_model_v1(header, a)?;
+    if a.actual_norms_mm.len() != n
+        || a.samples
+            .iter()
+            .zip(a.actual_norms_mm.iter())
+            .any(|(s, norm)| {
+                method::norm_mm(s.actual_mm.map(|v| v.to_native())) != norm.to_native()
+            })
+    {
+        return Err(corrupt("a sample's stored norm is not |actual|"));
+    }
+    if a.centre_weights.len() != a.centre_samples.len() {
+        return Err(corrupt("base weight arrays differ in length"));
+    }
+    check_cells_v1(header, a)?;
+    Ok(())
+}
+
+/// Every sample finite, its actual position nominal + error, without an orientation or
+/// configuration the content flags do not name; the parameters plausible for the box of
+/// the samples.
+fn check_samples_v1(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
     let with_orientation = header.content_flags & CONTENT_ORIENTATION != 0;
     let with_config = header.content_flags & CONTENT_CONFIG != 0;
     for s in a.samples.iter() {
@@ -70,11 +93,18 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
     let samples_box_mm = format::bounding_box(positions);
     format::check_plausible(
         &header.method,
-        grid,
+        &header.grid,
         header.joint_radius_rad,
         samples_box_mm,
     )
     .map_err(OpenError::Implausible)?;
+    Ok(())
+}
+
+/// Joint angles (finite, one set per sample) and a model exactly where the content flags
+/// name them; the model's parameters finite and plausible.
+fn check_joints_and_model_v1(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
+    let n = a.samples.len();
     let with_joints = header.content_flags & CONTENT_JOINTS != 0;
     if header.joint_radius_rad > 0.0 && !with_joints {
         return Err(corrupt("a joint radius without sample joint angles"));
@@ -106,20 +136,15 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
         }
         None => {}
     }
-    if a.actual_norms_mm.len() != n
-        || a.samples
-            .iter()
-            .zip(a.actual_norms_mm.iter())
-            .any(|(s, norm)| {
-                method::norm_mm(s.actual_mm.map(|v| v.to_native())) != norm.to_native()
-            })
-    {
-        return Err(corrupt("a sample's stored norm is not |actual|"));
-    }
-    if a.centre_weights.len() != a.centre_samples.len() {
-        return Err(corrupt("base weight arrays differ in length"));
-    }
-    let k = header.method.max_neighbours as usize;
+    Ok(())
+}
+
+/// Every cell's candidate list in bounds, naming existing samples once each; its base
+/// weights ([`check_base_weights`]).
+fn check_cells_v1(header: &Header, a: &ArchivedTableData) -> Result<(), OpenError> {
+    let n = a.samples.len();
+    let grid = &header.grid;
+    let cells = a.cells.len();
     let mut checked_list = None;
     let mut seen = vec![0u64; n.div_ceil(64)];
     let offsets = a.centre_offsets.as_slice();
@@ -134,7 +159,6 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
             "base weight offsets do not run from 0 to the weight count",
         ));
     }
-    let radius_squared_mm2 = header.method.radius_mm * header.method.radius_mm;
     // The cell's (ix, iy, iz), x fastest, counted rather than divided out of the index.
     let mut coords = [0usize; 3];
     for (c, centre_range) in a.cells.iter().zip(offsets.windows(2)) {
@@ -156,67 +180,92 @@ pub(crate) fn validate_v1(header: &Header, a: &ArchivedTableData) -> Result<(), 
             .ok_or(corrupt("a cell's candidate list is out of bounds"))?;
         // Cells sharing a list are usually adjacent: check each distinct range once in a row.
         if checked_list.as_ref() != Some(&list) {
-            let list_samples = &a.list_samples[list.clone()];
-            if list_samples.iter().any(|&i| i.to_native() as usize >= n) {
-                return Err(corrupt(
-                    "a candidate list names a sample that does not exist",
-                ));
-            }
-            // A sample listed twice would be selected twice.
-            for i in list_samples {
-                let i = i.to_native() as usize;
-                let (word, bit) = (i / 64, 1u64 << (i % 64));
-                if seen[word] & bit != 0 {
-                    return Err(corrupt("a candidate list names a sample twice"));
-                }
-                seen[word] |= bit;
-            }
-            list_samples
-                .iter()
-                .for_each(|i| seen[i.to_native() as usize / 64] = 0);
+            check_list(&a.list_samples[list.clone()], n, &mut seen)?;
             checked_list = Some(list);
         }
         let centre = centre_range[0].to_native() as usize..centre_range[1].to_native() as usize;
-        if centre.len() > k {
-            return Err(corrupt("a cell has more base weights than k"));
+        check_base_weights(header, a, here, centre)?;
+    }
+    Ok(())
+}
+
+/// A candidate list names existing samples, each once; `seen` is a bit per sample, all
+/// clear, and left clear.
+fn check_list(
+    list_samples: &[rkyv::Archived<u32>],
+    n: usize,
+    seen: &mut [u64],
+) -> Result<(), OpenError> {
+    if list_samples.iter().any(|&i| i.to_native() as usize >= n) {
+        return Err(corrupt(
+            "a candidate list names a sample that does not exist",
+        ));
+    }
+    // A sample listed twice would be selected twice.
+    for i in list_samples {
+        let i = i.to_native() as usize;
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if seen[word] & bit != 0 {
+            return Err(corrupt("a candidate list names a sample twice"));
         }
-        if a.centre_samples[centre.clone()]
-            .iter()
-            .any(|&i| i.to_native() as usize >= n)
-        {
-            return Err(corrupt("a base weight names a sample that does not exist"));
+        seen[word] |= bit;
+    }
+    list_samples
+        .iter()
+        .for_each(|i| seen[i.to_native() as usize / 64] = 0);
+    Ok(())
+}
+
+/// Cell `here`'s base weights (`centre`, a range of the weight arrays): at most k, naming
+/// existing samples, the nearest within ε of the cell's centre, each in [0, 1], summing
+/// to 1.
+fn check_base_weights(
+    header: &Header,
+    a: &ArchivedTableData,
+    here: [usize; 3],
+    centre: std::ops::Range<usize>,
+) -> Result<(), OpenError> {
+    let n = a.samples.len();
+    let grid = &header.grid;
+    if centre.len() > header.method.max_neighbours as usize {
+        return Err(corrupt("a cell has more base weights than k"));
+    }
+    if a.centre_samples[centre.clone()]
+        .iter()
+        .any(|&i| i.to_native() as usize >= n)
+    {
+        return Err(corrupt("a base weight names a sample that does not exist"));
+    }
+    // The base weights were selected at the cell's centre, so their nearest sample is
+    // within ε of it (computed as the compiler computes it, so never refused for a
+    // table it wrote): a grid edited to another shape or place with the same cell
+    // count fails here. One sample a cell keeps the cost of opening low.
+    if let Some(nearest) = a.centre_samples[centre.clone()].first() {
+        let (lo, hi) = grid.cell_box(here);
+        let middle = [0, 1, 2].map(|axis| 0.5 * (lo[axis] + hi[axis]));
+        let nearest = a
+            .samples
+            .get(nearest.to_native() as usize)
+            .map_or([0.0; 3], |s| s.actual_mm.map(|v| v.to_native()));
+        let key = method::distance_squared_mm2(nearest, middle);
+        if key > header.method.radius_mm * header.method.radius_mm || key.is_nan() {
+            return Err(corrupt(
+                "a cell's nearest base weight is beyond ε of its centre: the grid does not \
+                 match its cells",
+            ));
         }
-        // The base weights were selected at the cell's centre, so their nearest sample is
-        // within ε of it (computed as the compiler computes it, so never refused for a
-        // table it wrote): a grid edited to another shape or place with the same cell
-        // count fails here. One sample a cell keeps the cost of opening low.
-        if let Some(nearest) = a.centre_samples[centre.clone()].first() {
-            let (lo, hi) = grid.cell_box(here);
-            let middle = [0, 1, 2].map(|axis| 0.5 * (lo[axis] + hi[axis]));
-            let nearest = a
-                .samples
-                .get(nearest.to_native() as usize)
-                .map_or([0.0; 3], |s| s.actual_mm.map(|v| v.to_native()));
-            let key = method::distance_squared_mm2(nearest, middle);
-            if key > radius_squared_mm2 || key.is_nan() {
-                return Err(corrupt(
-                    "a cell's nearest base weight is beyond ε of its centre: the grid does not \
-                     match its cells",
-                ));
-            }
-        }
-        let weights = &a.centre_weights[centre.clone()];
-        // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.
-        if !weights
-            .iter()
-            .all(|q| (0.0..=1.0 + 1e-12).contains(&q.to_native()))
-        {
-            return Err(corrupt("a base weight is outside [0, 1]"));
-        }
-        let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
-        if !centre.is_empty() && (sum - 1.0).abs() > 1e-9 {
-            return Err(corrupt("a cell's base weights do not sum to 1"));
-        }
+    }
+    let weights = &a.centre_weights[centre.clone()];
+    // Up to 1 + 1e-12: a lone neighbour's ω1 + ω2 may round just above 1.
+    if !weights
+        .iter()
+        .all(|q| (0.0..=1.0 + 1e-12).contains(&q.to_native()))
+    {
+        return Err(corrupt("a base weight is outside [0, 1]"));
+    }
+    let sum: f64 = weights.iter().map(|q| q.to_native()).sum();
+    if !centre.is_empty() && (sum - 1.0).abs() > 1e-9 {
+        return Err(corrupt("a cell's base weights do not sum to 1"));
     }
     Ok(())
 }
