@@ -15,7 +15,9 @@
 //!   calibrated chain without compliance, as a query of the UR5 table built from the
 //!   shipped measurements computes it (both chains walked together from the tool back);
 //! - `model/at_rigid`: the same chains with the orientation error, as every query of that
-//!   table computes them (both TCP frames, point and two axes, in one walk).
+//!   table computes them (both TCP frames, point and two axes, in one walk);
+//! - `model/at_terms`: the same with joint-space terms (first harmonics) on the calibrated
+//!   chain, as a table built with `--harmonics 1` computes it (the calibrated lane at `q'`).
 //!
 //! Run: `cargo bench -p adwi-runtime --bench model`. Under `cargo test` it runs once in
 //! criterion's test mode.
@@ -23,6 +25,7 @@
 use std::hint::black_box;
 
 use adwi_runtime::chain::{Chain, Compliance};
+use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::kinematics::{MdhJoint, Transform};
 use adwi_runtime::model::PreparedModel;
 use adwi_runtime::testing::model_at_by_chains;
@@ -106,6 +109,21 @@ fn bench(c: &mut Criterion) {
     // The same chains with the orientation error, as every hybrid query of that table
     // computes them (both TCP frames in one walk from the tool back).
     group.bench_function("at_rigid", |b| b.iter(|| rigid.at(black_box(next()))));
+    // The same with first harmonics on every joint (a UR5 table built with `--harmonics
+    // 1`): the calibrated chain at `q'`, walked beside the nominal one.
+    let mut terms = JointTerms::NONE;
+    for (j, c) in terms.coefficients_rad.iter_mut().take(6).enumerate() {
+        *c = [
+            4e-4 * (j as f64 + 1.0).sin(),
+            6e-4 * (j as f64).cos(),
+            0.0,
+            0.0,
+        ];
+    }
+    let harmonic = rigid
+        .with_joint_terms(terms)
+        .expect("first harmonics of revolute joints");
+    group.bench_function("at_terms", |b| b.iter(|| harmonic.at(black_box(next()))));
     group.finish();
 }
 
