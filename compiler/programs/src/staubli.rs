@@ -28,6 +28,7 @@
 //! (`pPart[0] = here(tGripper, world)`) is `dynamic`; a point no motion moves to is left as
 //! written (`not_moved`), with where the code uses it.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -507,11 +508,36 @@ struct Data {
     type_name: String,
     offset: usize,
     values: Vec<Value>,
+    /// The values' indices by key.
+    keys: HashMap<String, usize>,
+}
+
+/// The data of the file, and their index by name.
+struct Datas {
+    list: Vec<Data>,
+    names: HashMap<String, usize>,
+}
+
+impl std::ops::Deref for Datas {
+    type Target = [Data];
+    fn deref(&self) -> &[Data] {
+        &self.list
+    }
+}
+
+impl Datas {
+    fn index(&self, name: &str) -> Option<usize> {
+        self.names.get(name).copied()
+    }
+
+    fn get(&self, name: &str) -> Option<&Data> {
+        self.index(name).map(|i| &self.list[i])
+    }
 }
 
 impl Data {
     fn value(&self, key: &str) -> Option<usize> {
-        self.values.iter().position(|v| v.key == key)
+        self.keys.get(key).copied()
     }
 
     /// A frame's or tool's pose in its father.
@@ -527,10 +553,11 @@ impl Data {
 }
 
 /// Reads the data file's values.
-fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
+fn read_data(src: &Source) -> Result<Datas, Error> {
     let bytes = src.bytes;
     let mut xml = Xml::new(src);
     let mut data: Vec<Data> = Vec::new();
+    let mut names: HashMap<String, usize> = HashMap::new();
     // The elements open, by name span; the Data open (its index and depth).
     let mut open: Vec<(usize, usize)> = Vec::new();
     let mut in_data: Option<(usize, usize)> = None;
@@ -585,7 +612,7 @@ fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
                 "tool" => Kind::Tool,
                 _ => Kind::Other,
             };
-            if data.iter().any(|d| d.name == name.1) {
+            if names.insert(name.1.clone(), data.len()).is_some() {
                 return Err(src.error(name.0, format!("the data {} twice", name.1)));
             }
             data.push(Data {
@@ -594,6 +621,7 @@ fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
                 type_name,
                 offset: tag.start,
                 values: Vec::new(),
+                keys: HashMap::new(),
             });
             if !tag.empty {
                 in_data = Some((data.len() - 1, depth));
@@ -613,7 +641,7 @@ fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
         let key = tag
             .attribute(src, b"key")
             .ok_or_else(|| src.error(tag.start, "a <Value> without its key"))?;
-        if d.values.iter().any(|v| v.key == key.1) {
+        if d.keys.insert(key.1.clone(), d.values.len()).is_some() {
             return Err(src.error(key.0, format!("the key {} twice in {}", key.1, d.name)));
         }
         let names: Vec<String> = match d.kind {
@@ -687,7 +715,7 @@ fn read_data(src: &Source) -> Result<Vec<Data>, Error> {
     if !saw_database {
         return Err(src.error(0, "not a VAL3 data file: no <Database> element"));
     }
-    Ok(data)
+    Ok(Datas { list: data, names })
 }
 
 /// A reference to data in the code: its name and key (`None`: an index computed as the
@@ -815,14 +843,32 @@ fn split_arguments(bytes: &[u8], from: usize) -> Option<(Vec<(usize, usize)>, us
 #[derive(Default)]
 struct Code {
     motions: Vec<Motion>,
-    /// Data assigned as the programs run: the reference and the place.
-    assigned: Vec<(Reference, String)>,
+    /// Data assigned as the programs run, by name: the key (`None`: any) and the place.
+    assigned: HashMap<String, Vec<(Option<String>, String)>>,
     /// The first place the code names each data outside a motion's targets.
     named: std::collections::HashMap<String, String>,
     /// Names local to a program (its locals and parameters), with the program.
     locals: std::collections::HashMap<String, String>,
     /// The application's programs' names.
     programs: Vec<String>,
+}
+
+impl Code {
+    fn assign(&mut self, r: Reference, place: String) {
+        self.assigned
+            .entry(r.name)
+            .or_default()
+            .push((r.key, place));
+    }
+
+    /// Where the code first assigns `name[key]`, if it does.
+    fn assigned_at(&self, name: &str, key: &str) -> Option<&str> {
+        self.assigned
+            .get(name)?
+            .iter()
+            .find(|(k, _)| k.as_deref().is_none_or(|k| k == key))
+            .map(|(_, at)| at.as_str())
+    }
 }
 
 struct Motion {
@@ -980,7 +1026,7 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
             if let Some((args, _)) = split_arguments(bytes, j + 1) {
                 if let Some((s, e)) = args.get(3) {
                     if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
-                        code.assigned.push((r, place(*s)));
+                        code.assign(r, place(*s));
                     }
                 }
             }
@@ -1014,7 +1060,7 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
         if assigns {
             if let Some(r) = reference(&String::from_utf8_lossy(&bytes[word_start..reference_end]))
             {
-                code.assigned.push((r, place(word_start)));
+                code.assign(r, place(word_start));
             }
         } else if word_start >= within_motion {
             code.named.entry(word).or_insert_with(|| place(word_start));
@@ -1048,12 +1094,8 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
     let data = read_data(src)?;
     let mut code = Code::default();
     read_code(programs, &mut code)?;
-    let find = |name: &str| data.iter().position(|d| d.name == name);
-    let assigned = |name: &str, key: &str| {
-        code.assigned
-            .iter()
-            .find(|(r, _)| r.name == name && r.key.as_deref().is_none_or(|k| k == key))
-    };
+    let find = |name: &str| data.index(name);
+    let assigned = |name: &str, key: &str| code.assigned_at(name, key);
     // Per data, per value: the uses.
     let mut uses: Vec<Vec<Uses>> = data
         .iter()
@@ -1259,7 +1301,7 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
                     unit: AngleUnit::Degree,
                 }),
             };
-            let refused = if let (true, Some((_, at))) = (u.direct, assigned(&item.name, &v.key)) {
+            let refused = if let (true, Some(at)) = (u.direct, assigned(&item.name, &v.key)) {
                 Some(Refusal::new(
                     Reason::Dynamic,
                     format!("assigned as the program runs ({at})"),
@@ -1320,7 +1362,7 @@ fn father_reference(text: &str) -> Option<Reference> {
 
 /// The frame a `fatherId` names, in the world frame.
 fn father_frame(
-    data: &[Data],
+    data: &Datas,
     code: &Code,
     father: Option<&str>,
     depth: usize,
@@ -1342,7 +1384,7 @@ fn father_frame(
             "the frame chain through {father} is more than {MAX_DEPTH} deep (a cycle)"
         )));
     }
-    let Some(d) = data.iter().find(|d| d.name == r.name) else {
+    let Some(d) = data.get(&r.name) else {
         return Err(Missing::Undeclared(father.to_string()));
     };
     if d.kind != Kind::Frame {
@@ -1355,11 +1397,7 @@ fn father_frame(
     let Some(k) = d.value(&key) else {
         return Err(Missing::Undeclared(father.to_string()));
     };
-    if let Some((_, at)) = code
-        .assigned
-        .iter()
-        .find(|(a, _)| a.name == d.name && a.key.as_deref().is_none_or(|x| x == key))
-    {
+    if let Some(at) = code.assigned_at(&d.name, &key) {
         return Err(Missing::Unknown(format!(
             "frame {father} is set as the program runs ({at})"
         )));
@@ -1374,12 +1412,12 @@ fn father_frame(
 }
 
 /// The TCP of the tool a motion names, in the flange frame.
-fn tool_frame(data: &[Data], code: &Code, text: &str) -> Result<Isometry3<f64>, Missing> {
+fn tool_frame(data: &Datas, code: &Code, text: &str) -> Result<Isometry3<f64>, Missing> {
     tool_chain(data, code, text.trim(), 0)
 }
 
 fn tool_chain(
-    data: &[Data],
+    data: &Datas,
     code: &Code,
     text: &str,
     depth: usize,
@@ -1403,7 +1441,7 @@ fn tool_chain(
             "tool {text}: its index is computed as the program runs"
         )));
     };
-    let Some(d) = data.iter().find(|d| d.name == r.name) else {
+    let Some(d) = data.get(&r.name) else {
         return Err(match code.locals.get(&r.name) {
             Some(p) => Missing::Unknown(format!(
                 "tool {text} is a local variable or parameter of {p}"
@@ -1420,11 +1458,7 @@ fn tool_chain(
     let Some(k) = d.value(&key) else {
         return Err(Missing::Undeclared(text.to_string()));
     };
-    if let Some((_, at)) = code
-        .assigned
-        .iter()
-        .find(|(a, _)| a.name == d.name && a.key.as_deref().is_none_or(|x| x == key))
-    {
+    if let Some(at) = code.assigned_at(&d.name, &key) {
         return Err(Missing::Unknown(format!(
             "tool {text} is set as the program runs ({at})"
         )));
@@ -1650,6 +1684,18 @@ end]]></Code>\r\n\
             );
             assert!((near[0] - v[0]).abs() < 1e-9, "{v:?} {near:?}");
         }
+    }
+
+    #[test]
+    fn a_data_file_taken_for_another_dialect_is_refused_by_name() {
+        let err = crate::dialect::check(&Source::new("w.src", DTX.as_bytes()), Format::Krl, false)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("this reads as Stäubli VAL3 ('<Database' at its line 2), not KUKA KRL"),
+            "{err}"
+        );
+        crate::dialect::check(&Source::new("w.dtx", DTX.as_bytes()), Format::Val3, false).unwrap();
     }
 
     #[test]
