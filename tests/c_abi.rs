@@ -239,25 +239,45 @@ fn run_smoke(exe: &Path, dir: &Path) {
         ([grid_max[0] + 1.0, 700.0, 1000.0], -1),
         ([f64::NAN, 700.0, 1000.0], -1),
     ];
+    let hybrid_path = workspace().join("tables/compat/v2/ur5_hybrid.tbl");
+    let hybrid = Table::from_vec(std::fs::read(&hybrid_path).unwrap()).unwrap();
+    let hybrid_targets = hybrid_targets(&hybrid);
+    let input = smoke_input(&targets, &hybrid_targets);
+    let tables = [
+        table_path,
+        dir.join("missing.tbl"),
+        corrupt_path,
+        hybrid_path,
+    ];
+    let stdout = run_program(exe, &tables, &input);
+    check_refusals(&stdout, &corrupt);
+    check_hybrid_answers(&stdout, &hybrid, &hybrid_targets);
+    assert!(stdout.lines().last() == Some("done"), "{stdout}");
+    check_answers(&stdout, &table, &targets);
+    check_worked_example(&stdout, &table);
+}
+
+/// The smoke program's standard input: a line per target (x y z config), then `hybrid`
+/// and a line per hybrid target (x y z and its joint values).
+fn smoke_input(targets: &[([f64; 3], i32)], hybrid_targets: &[([f64; 3], [f64; 6])]) -> String {
     let mut input: String = targets
         .iter()
         .map(|(p, c)| format!("{:?} {:?} {:?} {c}\n", p[0], p[1], p[2]))
         .collect::<String>()
         .replace("NaN", "nan");
-    let hybrid_path = workspace().join("tables/compat/v2/ur5_hybrid.tbl");
-    let hybrid = Table::from_vec(std::fs::read(&hybrid_path).unwrap()).unwrap();
-    let hybrid_targets = hybrid_targets(&hybrid);
     input.push_str("hybrid\n");
-    for (p, q) in &hybrid_targets {
+    for (p, q) in hybrid_targets {
         let words: Vec<String> = p.iter().chain(q).map(|v| format!("{v:?}")).collect();
         input.push_str(&words.join(" "));
         input.push('\n');
     }
+    input
+}
+
+/// Runs `exe` on `tables` with `input`; its standard output, once it succeeded.
+fn run_program(exe: &Path, tables: &[PathBuf], input: &str) -> String {
     let mut child = Command::new(exe)
-        .arg(&table_path)
-        .arg(dir.join("missing.tbl"))
-        .arg(&corrupt_path)
-        .arg(&hybrid_path)
+        .args(tables)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -277,6 +297,12 @@ fn run_smoke(exe: &Path, dir: &Path) {
         String::from_utf8_lossy(&output.stderr)
     );
 
+    stdout
+}
+
+/// Every refusal with its documented code: null pointers, a missing and a corrupt table
+/// (the message the Rust API gives), bad arguments, bogus handles.
+fn check_refusals(stdout: &str, corrupt: &[u8]) {
     // Refusals: ADWI_NULL_POINTER 1, ADWI_INVALID_ARGUMENT 2, ADWI_IO 3,
     // ADWI_INVALID_TABLE 4.
     assert_eq!(line(&stdout, "open_null_path")[0], "1");
@@ -291,7 +317,7 @@ fn run_smoke(exe: &Path, dir: &Path) {
         let words = line(&stdout, name);
         assert_eq!(words[0], "4", "{name}: {stdout}");
         // The message length reported equals the Rust error's.
-        let expected = Table::from_vec(&corrupt).err().unwrap().to_string();
+        let expected = Table::from_vec(corrupt).err().unwrap().to_string();
         assert_eq!(words[1], expected.len().to_string(), "{name}: {stdout}");
         assert!(stdout.contains(&expected), "{stdout}");
     }
@@ -328,6 +354,15 @@ fn run_smoke(exe: &Path, dir: &Path) {
     assert_eq!(line(&stdout, "result_name_8"), ["invalid", "handle"]);
     assert_eq!(line(&stdout, "close"), ["0", "0", "0"]);
     assert_eq!(line(&stdout, "hybrid_close"), ["0"]);
+}
+
+/// The hybrid table's answers at its targets with joint values, and as poses with a TCP
+/// the table cannot place: every value the Rust API's.
+fn check_hybrid_answers(
+    stdout: &str,
+    hybrid: &Table<adwi_runtime::AlignedBytes>,
+    hybrid_targets: &[([f64; 3], [f64; 6])],
+) {
     let hybrids: Vec<&str> = stdout
         .lines()
         .filter(|l| l.starts_with("hybrid "))
@@ -363,9 +398,15 @@ fn run_smoke(exe: &Path, dir: &Path) {
             assert_eq!(word.parse::<f64>().unwrap(), *v);
         }
     }
-    assert!(stdout.lines().last() == Some("done"), "{stdout}");
+}
 
-    // Answers: bit for bit the Rust API's (17 significant digits round-trip a double).
+/// The worked example table's answers and compensations, through both tiers: bit for bit
+/// the Rust API's (17 significant digits round-trip a double).
+fn check_answers(
+    stdout: &str,
+    table: &Table<adwi_runtime::AlignedBytes>,
+    targets: &[([f64; 3], i32)],
+) {
     let queries: Vec<&str> = stdout.lines().filter(|l| l.starts_with("query ")).collect();
     let compensations: Vec<&str> = stdout
         .lines()
@@ -408,12 +449,6 @@ fn run_smoke(exe: &Path, dir: &Path) {
     assert_eq!(exacts.len(), targets.len(), "{stdout}");
     assert_eq!(exact_compensations.len(), finite_count, "{stdout}");
     let mut compensated = 0;
-    let parse = |w: &str| -> f64 {
-        match w {
-            "nan" | "-nan" => f64::NAN,
-            _ => w.parse().unwrap(),
-        }
-    };
     for (i, (p, config)) in targets.iter().enumerate() {
         let target = Target {
             position_mm: *p,
@@ -427,9 +462,13 @@ fn run_smoke(exe: &Path, dir: &Path) {
         assert_eq!(words[1], c.neighbours.to_string(), "target {p:?}");
         assert_eq!(words[2], (c.residual as i32).to_string(), "target {p:?}");
         for axis in 0..3 {
-            assert_eq!(parse(words[3 + axis]), c.position_error_mm[axis], "{p:?}");
             assert_eq!(
-                parse(words[6 + axis]),
+                c_number(words[3 + axis]),
+                c.position_error_mm[axis],
+                "{p:?}"
+            );
+            assert_eq!(
+                c_number(words[6 + axis]),
                 c.orientation_error_rad[axis],
                 "{p:?}"
             );
@@ -439,7 +478,11 @@ fn run_smoke(exe: &Path, dir: &Path) {
         assert_eq!(words[0], (e.status as i32).to_string(), "target {p:?}");
         assert_eq!(words[1], e.neighbours.to_string(), "target {p:?}");
         for axis in 0..3 {
-            assert_eq!(parse(words[2 + axis]), e.position_error_mm[axis], "{p:?}");
+            assert_eq!(
+                c_number(words[2 + axis]),
+                e.position_error_mm[axis],
+                "{p:?}"
+            );
         }
         if !finite[i] {
             continue;
@@ -458,21 +501,24 @@ fn run_smoke(exe: &Path, dir: &Path) {
             assert_eq!(words[1], k.iterations.to_string());
             assert_eq!(words[2], i32::from(k.converged).to_string());
             for axis in 0..3 {
-                let got = parse(words[3 + axis]);
+                let got = c_number(words[3 + axis]);
                 let want = k.command_position_mm[axis];
                 assert!(got == want || (got.is_nan() && want.is_nan()), "{p:?}");
             }
-            let residual = parse(words[6]);
+            let residual = c_number(words[6]);
             assert!(residual == k.residual_mm || (residual.is_nan() && k.residual_mm.is_nan()));
         }
     }
+}
 
-    // The worked example's printed prediction, through C's exact tier.
+/// The worked example's printed prediction, through C's exact tier.
+fn check_worked_example(stdout: &str, table: &Table<adwi_runtime::AlignedBytes>) {
+    let exacts: Vec<&str> = stdout.lines().filter(|l| l.starts_with("exact ")).collect();
     let p1: Vec<f64> = exacts[0]
         .split_whitespace()
         .skip(3)
         .take(3)
-        .map(parse)
+        .map(c_number)
         .collect();
     assert_eq!(exacts[0].split_whitespace().nth(1), Some("0"));
     for axis in 0..3 {
@@ -488,4 +534,12 @@ fn run_smoke(exe: &Path, dir: &Path) {
         Status::Ok,
         "the Rust API answers P1 too"
     );
+}
+
+/// A number as the smoke program prints it (`nan` for a NaN).
+fn c_number(w: &str) -> f64 {
+    match w {
+        "nan" | "-nan" => f64::NAN,
+        _ => w.parse().unwrap(),
+    }
 }
