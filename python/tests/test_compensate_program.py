@@ -110,6 +110,25 @@ def test_a_yaskawa_job_in_its_tool_files_user_frames_and_pulses_matches_tablec(
     assert statuses["C00000"] == "ok" and statuses["C00010"] == "frame_unknown"
 
 
+def test_a_val3_application_matches_tablec(tablec, kr150_table, tmp_path):
+    robot = KR150 / "robot.toml"
+    application = PROGRAMS / "staubli" / "weld" / "weld.pjx"
+    done = adwi.compensate_program(kr150_table, application, robot=robot)
+    cli_out = tmp_path / "cli-weld.dtx"
+    run = subprocess.run(
+        [tablec, "compensate", kr150_table, application, "-o", cli_out, "--robot", robot],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 3, run.stderr
+    assert cli_out.read_bytes() == done.output
+    assert done.summary["text"] in run.stdout
+    assert (done.summary["corrected"], done.summary["total"]) == (9, 16)
+    statuses = {t["name"]: t["status"] for t in done.targets}
+    assert statuses["pApproach[0]"] == "ok" and statuses["pLost[0]"] == "frame_unknown"
+    assert statuses["pRef[0]"] == "not_moved"
+
+
 def test_refusals(kr150_table, tmp_path):
     bad = tmp_path / "bad.src"
     bad.write_bytes(b"DEF bad( )\r\nLIN {X 1500,Y 2oo,Z 1200}\r\nEND\r\n")
