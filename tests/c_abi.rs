@@ -4,9 +4,8 @@
 //! run on a table built from the paper's worked example. Its answers must equal the Rust
 //! API's bit for bit, and every bad input must give its documented code.
 //!
-//! The test builds the libraries itself (`cargo rustc -p adwi-runtime --lib`, into a
-//! target directory of its own so that it never waits on the lock of the build running
-//! it), so it needs nothing built beforehand; it needs a C compiler (`cc`).
+//! The libraries are those the build of this test made (the runtime's crate types include
+//! `staticlib` and `cdylib`); it needs a C compiler (`cc`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -27,44 +26,70 @@ fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Builds the runtime's static and shared libraries; returns their directory and the
-/// native libraries rustc lists for the static one.
+/// The runtime's static and shared libraries, as the build of this test made them: the
+/// runtime's crate types include `staticlib` and `cdylib`, so cargo writes
+/// `libadwi_runtime.a` and `.so` beside its rlib, in the `deps` folder this test binary runs
+/// from, in the same rustc run as the rlib the test links. Returns that folder and the
+/// native libraries rustc lists for the static library.
 fn libraries() -> (PathBuf, String) {
-    let target_dir = workspace().join("target").join("c-abi");
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    // `cargo rustc` builds every crate type of the manifest (rlib, staticlib, cdylib);
-    // cargo replays the note when the build is fresh. Unoptimised: what the C program
-    // checks does not depend on it, and the runtime and its dependencies compile in three
-    // quarters of the time (18.6 s against 24.8 s from nothing).
-    let output = Command::new(cargo)
-        .current_dir(workspace())
-        .args(["rustc", "-p", "adwi-runtime", "--lib"])
-        .args(["--config", "profile.dev.opt-level=0"])
-        .args(["--", "--print"])
-        .arg("native-static-libs")
-        .env("CARGO_TARGET_DIR", &target_dir)
-        .output()
-        .expect("cannot run cargo");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        output.status.success(),
-        "cargo rustc -p adwi-runtime failed:\n{stderr}"
-    );
-    let native = stderr
-        .lines()
-        .find_map(|l| l.split("native-static-libs: ").nth(1))
-        .unwrap_or_else(|| panic!("no native-static-libs note in:\n{stderr}"))
-        .trim()
-        .to_string();
-    let dir = target_dir.join("debug");
-    for lib in ["libadwi_runtime.a", "libadwi_runtime.so"] {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let dir = exe
+        .parent()
+        .expect("the test binary's folder")
+        .to_path_buf();
+    for lib in [
+        "libadwi_runtime.a",
+        "libadwi_runtime.so",
+        "libadwi_runtime.rlib",
+    ] {
         assert!(
             dir.join(lib).exists(),
             "{lib} was not built in {}",
             dir.display()
         );
     }
-    (dir, native)
+    (dir.clone(), native_static_libs(&dir))
+}
+
+/// What `rustc --print native-static-libs` lists for the runtime's static library, asked
+/// of a static library holding the runtime's compiled rlib and nothing else: rustc bundles
+/// it and its dependencies as they are (no compilation) and lists every native library
+/// they link, the runtime's list.
+fn native_static_libs(deps: &Path) -> String {
+    let scratch = tempfile::tempdir().unwrap();
+    let source = scratch.path().join("runtime_only.rs");
+    std::fs::write(&source, "pub use adwi_runtime::*;\n").unwrap();
+    let mut extern_runtime = std::ffi::OsString::from("adwi_runtime=");
+    extern_runtime.push(deps.join("libadwi_runtime.rlib"));
+    let mut dependencies = std::ffi::OsString::from("dependency=");
+    dependencies.push(deps);
+    // From the workspace, so that rustup picks the toolchain that built the rlib.
+    let output = Command::new("rustc")
+        .current_dir(workspace())
+        .args(["--edition", "2021", "--crate-type", "staticlib"])
+        .args([
+            "--crate-name",
+            "runtime_only",
+            "--print",
+            "native-static-libs",
+        ])
+        .arg("--extern")
+        .arg(extern_runtime)
+        .arg("-L")
+        .arg(dependencies)
+        .arg("--out-dir")
+        .arg(scratch.path())
+        .arg(&source)
+        .output()
+        .expect("cannot run rustc");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "rustc failed:\n{stderr}");
+    stderr
+        .lines()
+        .find_map(|l| l.split("native-static-libs: ").nth(1))
+        .unwrap_or_else(|| panic!("no native-static-libs note in:\n{stderr}"))
+        .trim()
+        .to_string()
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
