@@ -9,7 +9,10 @@
 //! `cargo test`/`build`/`install` by CI itself, `pip`, `python` and `python/run-tests` by
 //! the Python package's tests, `cc` by `c_abi.rs`.
 //!
-//! Each document is a test of its own, so documents run side by side.
+//! Each document is a test of its own, so documents run side by side. A `build` another
+//! document or test runs with the same arguments in a folder holding the same files (the
+//! README's and docs/method.md's first table) is run once in the test process, the others
+//! getting its output and table (`common::tablec_once`): a build is deterministic.
 //!
 //! A block too costly to run here carries, on the line before it, a comment naming the
 //! test that runs it, `<!-- tested by module::test -->`; that test must exist.
@@ -209,7 +212,9 @@ fn run_block(doc: &Path, block: &Block, dir: &tempfile::TempDir) {
                 );
             }
             let args: Vec<&str> = args.iter().map(String::as_str).collect();
-            let o = crate::common::tablec(&args, dir.path());
+            // A build another document or test ran as written, in a folder holding the
+            // same files, is run once ([`crate::common::tablec_once`]).
+            let o = crate::common::tablec_once(&args, dir.path());
             let code = o.status.code();
             let answers = matches!(args.first(), Some(&"query") | Some(&"compensate"));
             assert!(
@@ -241,10 +246,7 @@ fn run_document(relative: &str) -> usize {
     let doc = repo(relative);
     let tests = test_sources();
     let text = std::fs::read_to_string(&doc).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    for link in ["tables", "tests"] {
-        std::os::unix::fs::symlink(repo(link), dir.path().join(link)).unwrap();
-    }
+    let dir = crate::common::repository_folder();
     let mut ran = 0;
     for block in blocks(&text) {
         match &block.tested_by {

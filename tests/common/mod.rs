@@ -6,6 +6,9 @@
 use adwi_compile::build::{compile, BuildOptions};
 use adwi_samples::{parse_samples, ColumnMap};
 
+mod once;
+pub use once::{repository_folder, tablec_once};
+
 /// A deterministic generator (SplitMix64): the same tables on every run.
 pub struct SplitMix(pub u64);
 
