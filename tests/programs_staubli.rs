@@ -298,6 +298,21 @@ fn kr150_val3_points_land_at_the_torch_in_their_frames_and_the_rest_are_named() 
     assert!(l.written <= 1e-4, "{l}");
     assert!(l.tcp <= 2e-4, "{l}");
     assert!(l.uncompensated > 1.0, "{l}");
+    // The home, read back: its written joints through the robot's forward kinematics put
+    // the table's point on its target by the table's model likewise.
+    let kr150 = adwi_robot::Robot::load(repo("tables/kr150-2/robot.toml")).unwrap();
+    let after = read(&pjx, &done.output);
+    let TargetKind::Joints(j) = &after.targets[0].kind else {
+        panic!("{}", after.targets[0].name)
+    };
+    let q: Vec<f64> = j.joints.iter().map(|n| n.value.to_radians()).collect();
+    let c = kr150.tcp_pose(&q).translation.vector;
+    let home = &done.report.targets[0];
+    let answer = table.query(c.into());
+    let gap = (c + Vector3::from(answer.position_error_mm) - Vector3::from(home.point_mm.unwrap()))
+        .norm();
+    eprintln!("weld: jHome[0] as written: |C + e(C) - P| {gap:.2e} mm");
+    assert!(gap <= 1e-4, "{gap}");
     // Only the corrected values' lines changed; the byte-order mark and CRLF are kept, and
     // an attribute the file omitted is inserted where the correction gives it a value.
     let original = std::fs::read(&data).unwrap();
