@@ -107,10 +107,10 @@ pub struct PreparedModel {
     /// The calibrated chain's joint-space terms ([`crate::joint_terms`]): it stands at
     /// `q'` of the commanded `q`.
     terms: JointTerms,
-    /// `terms` for the query path.
-    prepared_terms: PreparedTerms,
     /// Whether any term is not zero.
     has_terms: bool,
+    /// `terms` for the query path.
+    prepared_terms: PreparedTerms,
 }
 
 impl PreparedModel {
@@ -347,7 +347,8 @@ impl PreparedModel {
     /// together: the calibrated lane turned by the sines and cosines of `q'`, from those of
     /// `q` by angle addition ([`PreparedTerms::moved_sin_cos`]) or, for a term that may be
     /// large, by `sin_cos` of `q'`. `q` and `sin_cos` hold the chains' joint count.
-    #[inline]
+    /// Not inlined: in [`PreparedModel::evaluate`] it slowed the walk without terms.
+    #[inline(never)]
     fn walk_apart(
         &self,
         pair: &ReachPair,
