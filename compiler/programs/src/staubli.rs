@@ -1687,6 +1687,36 @@ end]]></Code>\r\n\
     }
 
     #[test]
+    fn a_point_handed_to_a_program_is_not_followed_into_its_parameter() {
+        let dtx = "<Database><Datas><Data name=\"pPart\" type=\"pointRx\">\n\
+            <Value key=\"2\" x=\"1\" /></Data></Datas></Database>\n";
+        let start = "<Programs><Program name=\"start\"><Code><![CDATA[\ncall pick(pPart[2])\n]]></Code></Program></Programs>\n";
+        let pick = "<Programs><Program name=\"pick\"><Parameters><Parameter name=\"x_pTarget\" type=\"pointRx\" /></Parameters>\n\
+            <Code><![CDATA[\nmovel(x_pTarget, flange, mNom)\n]]></Code></Program></Programs>\n";
+        let p = read(
+            &Source::new("a.dtx", dtx.as_bytes()),
+            &[
+                Source::new("start.pgx", start.as_bytes()),
+                Source::new("pick.pgx", pick.as_bytes()),
+            ],
+        )
+        .unwrap();
+        assert_eq!(statuses(&p), ["pPart[2] not_moved", "movel dynamic"]);
+        let why = |i: usize| p.targets[i].refused.as_ref().unwrap().detail.clone();
+        assert_eq!(
+            why(0),
+            "no motion moves to it; the code uses it otherwise (first at start.pgx:2:11)"
+        );
+        assert!(
+            why(1).ends_with(
+                "x_pTarget is a local variable or parameter of pick, set as the program runs"
+            ),
+            "{}",
+            why(1)
+        );
+    }
+
+    #[test]
     fn a_data_file_taken_for_another_dialect_is_refused_by_name() {
         let err = crate::dialect::check(&Source::new("w.src", DTX.as_bytes()), Format::Krl, false)
             .unwrap_err()
