@@ -276,401 +276,35 @@ impl CompensateJob {
     pub fn new(options: CompensateOptions) -> Result<CompensateJob, Error> {
         let format = options.check()?;
         let o = &options;
-        // Every file the job reads is an input no output may name, by any path: the
-        // table, the program, a KRL program's partner (read for the names its motions
-        // use), the robot file and the URDF it names.
-        let partner_path = match format {
-            Format::Krl => partner(&o.program),
-            _ => None,
-        };
-        // A VAL3 application: its data file is the program whose numbers change, its
-        // project and programs are read beside it.
-        let application = match format {
-            Format::Val3 => Some(crate::staubli::Application::locate(&o.program)?),
-            _ => None,
-        };
-        let program_path: &Path = application.as_ref().map_or(&o.program, |a| &a.data);
-        let (robot, robot_files) = match &o.robot {
-            Some(path) => {
-                let (robot, files) =
-                    Robot::load_with_files(path, &o.links).map_err(|e| Error::Robot {
-                        path: path.clone(),
-                        message: e.to_string(),
-                    })?;
-                (Some(robot), files)
-            }
-            None => (None, Vec::new()),
-        };
-        let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
-        inputs.extend(partner_path.as_deref());
-        inputs.extend(application.iter().flat_map(|a| a.files()));
-        inputs.extend(o.robot.as_deref());
-        inputs.extend(o.krl_config.as_deref());
-        inputs.extend(o.fanuc.frames_file.as_deref());
-        inputs.extend(robot_files.iter().map(PathBuf::as_path));
-        let outputs = adwi_output::OutputPlan::check(
-            &[o.output.as_deref(), o.report.as_deref()]
-                .into_iter()
-                .flatten()
-                .collect::<Vec<_>>(),
-            &inputs,
-        )?;
-        if let (Some(a), Some(b)) = (&o.output, &o.report) {
-            if a == b {
-                return Err(Error::Option(format!(
-                    "the output and the report are both {}",
-                    a.display()
-                )));
-            }
-        }
-        let read = |path: &Path| {
-            adwi_runtime::input::read_regular(path).map_err(|source| Error::Read {
-                path: path.to_path_buf(),
-                source,
-            })
-        };
-        let table = Table::from_vec(read(&o.table)?).map_err(|source| Error::Table {
+        let mut inputs = Inputs::locate(o, format)?;
+        let table = Table::from_vec(read_input(&o.table)?).map_err(|source| Error::Table {
             path: o.table.clone(),
             source,
         })?;
-        let size = std::fs::metadata(program_path)
-            .map_err(|source| Error::Read {
-                path: program_path.to_path_buf(),
-                source,
-            })?
-            .len();
-        if size > MAX_PROGRAM_BYTES {
-            return Err(Error::Option(format!(
-                "{}: {size} bytes, more than the {MAX_PROGRAM_BYTES} a program may have",
-                program_path.display()
-            )));
-        }
-        // The partner is read whole too: bounded as the program is, before it is read.
-        if let Some(p) = &partner_path {
-            let partner_size = std::fs::metadata(p).map_or(0, |m| m.len());
-            if partner_size > MAX_PROGRAM_BYTES {
-                return Err(Error::Option(format!(
-                    "{}: {partner_size} bytes, more than the {MAX_PROGRAM_BYTES} a program's partner may have",
-                    p.display()
-                )));
-            }
-        }
-        let bytes = read(program_path)?;
+        let program_path = inputs.program_path(o);
+        let bytes = read_program(program_path, inputs.partner.as_deref())?;
         let name = program_path.display().to_string();
         // Text a reader can read, in the dialect the job takes it for, before any work.
         crate::dialect::check(&Source::new(&name, &bytes), format, o.format.is_some())?;
-        let krl_frames = match &o.krl_config {
-            None => crate::krl::KrlFrames::default(),
-            Some(_) if format != Format::Krl => {
-                return Err(Error::Option(
-                    "the KRL configuration (krl_config) is for KRL programs".into(),
-                ))
-            }
-            Some(path) => {
-                let config = read(path)?;
-                let config_name = path.display().to_string();
-                crate::krl::read_config(&Source::new(&config_name, &config))?
-            }
-        };
-        // A Fanuc frame file gives the frames the options do not.
-        let fanuc = match &o.fanuc.frames_file {
-            None => o.fanuc.clone(),
-            Some(_) if format != Format::Fanuc => {
-                return Err(Error::Option(
-                    "the Fanuc frame file is for Fanuc programs".into(),
-                ))
-            }
-            Some(path) => {
-                if std::fs::metadata(path).map_or(0, |m| m.len()) > MAX_PROGRAM_BYTES {
-                    return Err(Error::Option(format!(
-                        "{}: more than the {MAX_PROGRAM_BYTES} bytes a frame file may have",
-                        path.display()
-                    )));
-                }
-                let file = read(path)?;
-                let file_name = path.display().to_string();
-                let from_file = crate::fanuc::read_frames(&Source::new(&file_name, &file))?;
-                let mut merged = o.fanuc.clone();
-                for (n, f) in from_file.user_frames {
-                    if !merged.user_frames.iter().any(|u| u.0 == n) {
-                        merged.user_frames.push((n, f));
-                    }
-                }
-                for (n, f) in from_file.tool_frames {
-                    if !merged.tool_frames.iter().any(|u| u.0 == n) {
-                        merged.tool_frames.push((n, f));
-                    }
-                }
-                merged
-            }
-        };
-        let (kinematics, table_tool) = kinematics(o, &table, robot)?;
-        // The cost of a target is known once the kinematics are: the program is read only
-        // as far as the work it may take.
-        let cost = match &kinematics {
-            None => SECONDS_PER_TARGET[0],
-            Some(k) if k.has_configurations() => SECONDS_PER_TARGET[1],
-            Some(_) => SECONDS_PER_TARGET[2],
-        };
-        let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
-        // Memory: the program, its output and its line starts, and every target read; the
-        // program is read only as far as the memory allows.
-        let program_memory = 3 * bytes.len() as u64;
-        let memory_targets = o.max_memory_bytes.saturating_sub(program_memory) / BYTES_PER_TARGET;
-        let memory_refused = |targets: usize, read_bytes: Option<usize>| {
-            let scale = read_bytes.map_or(1.0, |at| bytes.len() as f64 / at.max(1) as f64);
-            Error::TooMuchMemory {
-                file: name.clone(),
-                bytes: bytes.len(),
-                targets,
-                read_bytes,
-                estimated_bytes: program_memory
-                    + (BYTES_PER_TARGET as f64 * targets as f64 * scale) as u64,
-                limit_bytes: o.max_memory_bytes,
-            }
-        };
-        if program_memory > o.max_memory_bytes {
-            return Err(memory_refused(0, None));
-        }
-        let limit = limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX));
-        let mut arcs = Vec::new();
-        let mut work_offsets = Vec::new();
-        let mut program = {
-            let src = Source::new(&name, &bytes);
-            crate::bounds::check_line_lengths(&src)?;
-            match format {
-                Format::Krl => {
-                    let partner_bytes = partner_path
-                        .as_deref()
-                        .and_then(|p| adwi_runtime::input::read_regular(p).ok());
-                    let partner_name = partner_path
-                        .as_ref()
-                        .map(|p| p.display().to_string())
-                        .unwrap_or_default();
-                    let partner_src = partner_bytes
-                        .as_deref()
-                        .map(|b| Source::new(&partner_name, b));
-                    if let Some(p) = &partner_src {
-                        crate::bounds::check_line_lengths(p)?;
-                    }
-                    crate::krl::read_with(&src, partner_src.as_ref(), &krl_frames, limit)?
-                }
-                Format::Rapid => crate::rapid::read_at_most(&src, limit)?,
-                Format::UrScript => crate::urscript::read_at_most(&src, limit)?,
-                Format::Csv => crate::csv::read_at_most(&src, limit)?,
-                Format::Gcode => {
-                    let read = crate::gcode::read_at_most(&src, &o.gcode, limit)?;
-                    arcs = read.arcs;
-                    work_offsets = read.work_offsets;
-                    read.program
-                }
-                Format::Yaskawa => crate::yaskawa::read_at_most(&src, &o.yaskawa, limit)?,
-                Format::Fanuc => crate::fanuc::read_at_most(&src, &fanuc, limit)?,
-                Format::Val3 => {
-                    let files = application
-                        .as_ref()
-                        .map_or_else(|| Ok(Vec::new()), |a| a.read_programs())?;
-                    let programs: Vec<Source> =
-                        files.iter().map(|(n, b)| Source::new(n, b)).collect();
-                    crate::staubli::read_at_most(&src, &programs, limit)?
-                }
-            }
-        };
+        let frame_files = FrameFiles::read(o)?;
+        let (kinematics, table_tool) = kinematics(o, &table, inputs.robot.take())?;
+        let budget = Budget::new(o, kinematics.as_ref(), &name, bytes.len())?;
+        let src = Source::new(&name, &bytes);
+        let ReadProgram {
+            mut program,
+            arcs,
+            work_offsets,
+        } = read_targets(o, format, &src, &inputs, &frame_files, budget.limit)?;
         // A growing list reserves up to twice what it holds: the targets are kept to the run's
         // end.
         program.targets.shrink_to_fit();
-        if let Some(at) = program.truncated_at {
-            let targets = program.targets.len();
-            if targets as u64 > memory_targets {
-                return Err(memory_refused(targets, Some(at)));
-            }
-            return Err(Error::TooLarge {
-                file: name,
-                bytes: bytes.len(),
-                targets,
-                read_bytes: Some(at),
-                seconds: cost * targets as f64 * bytes.len() as f64 / at.max(1) as f64,
-                limit_seconds: o.max_seconds,
-            });
-        }
-        let src = Source::new(&name, &bytes);
-        // A program that moves has targets: one whose targets this reader does not find
-        // (another file's, another dialect's) is refused, never "0 of 0 corrected".
-        let refused_all = program.targets.iter().all(|t| t.refused.is_some());
-        let no_numbers = program
-            .targets
-            .iter()
-            .all(|t| matches!(t.kind, TargetKind::Motion));
-        let pair = format == Format::Krl && partner_path.is_some();
-        if program.targets.is_empty()
-            || (program.first_motion.is_some() && (no_numbers || (refused_all && pair)))
-        {
-            let (at, message) = match program.first_motion {
-                Some(at) => {
-                    let word = src.text(at, src.identifier_end(at, b"$#_"));
-                    let elsewhere = match (&partner_path, format) {
-                        (Some(p), Format::Krl) => format!(
-                            ": its motions' targets are declared in {}; compensate that file (the motions that use them are read from this one)",
-                            p.display()
-                        ),
-                        _ => program
-                            .targets
-                            .iter()
-                            .find_map(|t| t.refused.as_ref())
-                            .map_or(String::new(), |r| format!(" ({}: {})", r.reason.as_str(), r.detail)),
-                    };
-                    (at, format!("{word} moves the robot, but the program holds no target it can correct{elsewhere}"))
-                }
-                None => (
-                    0,
-                    format!(
-                    "no target and no motion found: nothing to compensate (is it a {} program?)",
-                    format.name()
-                ),
-                ),
-            };
-            return Err(src.error(at, message));
-        }
-        // Frames: every use resolved; a use whose frame no input gives leaves its target
-        // unchanged, said in its report line.
-        let default_tool = o
-            .tool
-            .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]));
-        let default_base = o
-            .base
-            .map(|t| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]))
-            .unwrap_or_else(Isometry3::identity);
-        // The options stand for one undeclared tool and one undeclared work object: the
-        // names the program's uses leave undeclared, tools first.
-        let mut undeclared: [Vec<&str>; 2] = [Vec::new(), Vec::new()];
-        for target in program.targets.iter().filter(|t| t.refused.is_none()) {
-            for m in target.uses.iter().flat_map(|u| &u.undeclared) {
-                let names = &mut undeclared[usize::from(m.base)];
-                if !names.contains(&m.name.as_str()) {
-                    names.push(&m.name);
-                }
-            }
-        }
-        let frame_unknown =
-            |why: String| Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why));
-        let mut chains = Vec::with_capacity(program.targets.len());
-        let mut last: Option<std::sync::Arc<[FrameChain]>> = None;
-        // A G-code target's work offset, by its number.
-        let work_offset = |index: usize| {
-            let number = work_offsets.get(index)?;
-            let f = o.gcode.work_offsets.iter().find(|w| w.0 == *number)?.1;
-            Some(kuka_pose([f[0], f[1], f[2]], [f[3], f[4], f[5]]))
-        };
-        'targets: for (index, target) in program.targets.iter().enumerate() {
-            let mut list: Vec<FrameChain> = Vec::new();
-            if matches!(target.kind, TargetKind::Cartesian(_)) && target.refused.is_none() {
-                let default_use = [FrameUse {
-                    tool: None,
-                    base: work_offset(index),
-                    offset: target.offset,
-                    elsewhere: None,
-                    undeclared: Vec::new(),
-                    unknown: Vec::new(),
-                }];
-                let uses = if target.uses.is_empty() {
-                    &default_use[..]
-                } else {
-                    &target.uses[..]
-                };
-                for u in uses {
-                    let (base, at) = (u.base, u.offset);
-                    let place = u.elsewhere.clone().unwrap_or_else(|| {
-                        let (line, column) = src.location(at);
-                        format!("{line}:{column}")
-                    });
-                    if let Some(why) = u.unknown.first() {
-                        chains.push(frame_unknown(format!("{why} (used at {place})")));
-                        continue 'targets;
-                    }
-                    for m in &u.undeclared {
-                        let (given, option) = if m.base {
-                            (o.base.is_some(), "base")
-                        } else {
-                            (o.tool.is_some(), "tool")
-                        };
-                        let numbered = format == Format::Krl
-                            && (m.name.starts_with("TOOL_DATA") || m.name.starts_with("BASE_DATA"));
-                        let yaskawa_number = (format == Format::Yaskawa)
-                            .then(|| m.name.split_once(' ').map(|(_, n)| n))
-                            .flatten();
-                        let how = if let Some(n) = yaskawa_number {
-                            let flag = if m.base { "user" } else { "tool" };
-                            format!("give it as --yaskawa-{flag} {n}=X,Y,Z,Rx,Ry,Rz, or as the {option} option")
-                        } else if numbered {
-                            format!("give it in the KRL configuration (--krl-config), or as the {option} option")
-                        } else {
-                            format!("give it as the {option} option")
-                        };
-                        let names = &undeclared[usize::from(m.base)];
-                        if !given {
-                            chains.push(frame_unknown(format!(
-                                "{} not given (used at {place}): {how}",
-                                m.describe()
-                            )));
-                            continue 'targets;
-                        }
-                        if names.len() > 1 {
-                            chains.push(frame_unknown(format!(
-                                "{} not given (used at {place}): the {option} option stands for one, and the program names {}",
-                                m.describe(),
-                                names.join(", ")
-                            )));
-                            continue 'targets;
-                        }
-                    }
-                    let tool = u.tool.or(default_tool);
-                    let chain = match (tool, table_tool) {
-                        (None, _) => FrameChain {
-                            base: base.unwrap_or(default_base),
-                            tool: Isometry3::identity(),
-                            table_tool: Isometry3::identity(),
-                        },
-                        (Some(tool), Some(table_tool)) => FrameChain {
-                            base: base.unwrap_or(default_base),
-                            tool,
-                            table_tool,
-                        },
-                        (Some(_), None) => {
-                            return Err(src.error(at, "this use names a tool, but where the table's point is on the flange is not known: give the table tool or a robot file"));
-                        }
-                    };
-                    if !list.iter().any(|c| same_chain(c, &chain)) {
-                        list.push(chain);
-                    }
-                }
-            }
-            // The list of the target before, when it is the same: a long program's targets
-            // take no list each (168 bytes a chain).
-            let same = match &last {
-                Some(l) => {
-                    let l: &[FrameChain] = l;
-                    l.len() == list.len() && l.iter().zip(&list).all(|(a, b)| same_chain(a, b))
-                }
-                None => false,
-            };
-            if !same {
-                last = Some(std::sync::Arc::from(list));
-            }
-            chains.push(Ok(last.clone().expect("a list")));
-        }
-        let seconds = cost * program.targets.len() as f64;
-        if seconds > o.max_seconds {
-            return Err(Error::TooLarge {
-                file: name,
-                bytes: bytes.len(),
-                targets: program.targets.len(),
-                read_bytes: None,
-                seconds,
-                limit_seconds: o.max_seconds,
-            });
-        }
+        budget.refuse_truncated(&program)?;
+        refuse_nothing_to_compensate(&src, &program, format, inputs.partner.as_deref())?;
+        let chains = FrameContext::new(o, &src, format, &program, &work_offsets, table_tool)
+            .chains(&program)?;
+        budget.refuse_too_long(program.targets.len())?;
         let motions_seen = match format {
-            Format::Krl => partner_path.is_some() || program.first_motion.is_some(),
+            Format::Krl => inputs.partner.is_some() || program.first_motion.is_some(),
             Format::Rapid => true,
             Format::UrScript
             | Format::Csv
@@ -688,7 +322,7 @@ impl CompensateJob {
             program,
             kinematics,
             chains,
-            outputs,
+            outputs: inputs.outputs,
             arcs,
         })
     }
@@ -773,22 +407,7 @@ impl CompensateJob {
         handed: &mut usize,
     ) -> Result<Option<Summarized>, Error> {
         let src = Source::new(&self.name, &self.bytes);
-        // Streaming: the output so far, and the byte of the program it has reached.
-        let mut output: Vec<u8> = Vec::new();
-        let mut at = 0;
-        if streaming {
-            // A rewritten target grows by some 27 bytes (a G-code block's A, B, C from `0.` to
-            // `6.030297`): reserved once, not grown by doubling.
-            output.reserve_exact(
-                self.bytes
-                    .len()
-                    .saturating_add(self.program.targets.len().saturating_mul(32)),
-            );
-        }
-        // Else every target's replacements, their texts one after the other in `texts`: a
-        // few dozen bytes a number rather than a string each.
-        let mut edits: Vec<((usize, usize), std::ops::Range<usize>)> = Vec::new();
-        let mut texts = String::new();
+        let mut output = Output::new(streaming, &self.bytes, self.program.targets.len());
         let mut summary = Summary::default();
         // The first target not corrected, for a strict job's refusal.
         let mut first_not_corrected: Option<String> = None;
@@ -796,131 +415,23 @@ impl CompensateJob {
             .kinematics
             .as_ref()
             .map_or_else(Vec::new, |k| k.robot().home().to_vec());
-        // A G-code program's: where each target's block leaves the tool in the compensated
-        // program (mm, its frame), and the numbers rewritten (their first byte).
-        // Only the ends an arc starts from are kept, by target, and the bytes as u32 (a
-        // program has at most 2^30): a long program's few bytes a target.
-        let gcode = self.program.format == Format::Gcode;
-        let mut arc_starts: Vec<usize> =
-            self.arcs.iter().flatten().map(|a| a.start_target).collect();
-        arc_starts.sort_unstable();
-        arc_starts.dedup();
-        let mut ends: Vec<(usize, [f64; 3])> = Vec::new();
-        let mut rewritten: Vec<u32> = Vec::new();
+        let mut gcode = (self.program.format == Format::Gcode).then(|| GcodeEnds::new(&self.arcs));
         for (i, (target, chains)) in self.program.targets.iter().zip(&self.chains).enumerate() {
-            let (line, column) = src.location(target.offset);
-            let mut entry = TargetLine {
-                name: target.name.clone(),
-                line,
-                column,
-                kind: match target.kind {
-                    TargetKind::Cartesian(_) => "cartesian",
-                    TargetKind::Joints(_) => "joints",
-                    TargetKind::Incomplete(_) => "incomplete",
-                    TargetKind::Motion => "motion",
-                },
-                status: TargetStatus::Ok,
-                detail: String::new(),
-                correction_mm: None,
-                rotation_deg: None,
-                joint_change_deg: None,
-                point_mm: None,
-                command_mm: None,
-                command_joints: None,
-                iterations: 0,
-                residual_mm: None,
-                residual: None,
-                evidence: None,
+            let mut entry = report_line(&src, target);
+            let block = Block {
+                src: &src,
+                index: i,
+                target,
+                chains,
             };
-            let result = match (&target.refused, chains) {
-                (Some(r), _) => Err((TargetStatus::Unaccounted(r.reason), r.detail.clone())),
-                (None, Err(why)) => Err(why.clone()),
-                (None, Ok(chains)) => {
-                    let mut end = None;
-                    let edits = self.target(&src, target, chains, &mut seed, &mut entry, &mut end);
-                    if gcode {
-                        let block = GcodeBlock {
-                            src: &src,
-                            index: i,
-                            chains,
-                            end,
-                            ends: &ends,
-                            rewritten: &rewritten,
-                        };
-                        self.gcode_block(&block, edits, &seed, &entry)
-                    } else {
-                        edits
-                    }
-                }
-            }
-            .and_then(|edits| {
-                // Never a non-finite number written, whatever the input held.
-                let finite = edits.iter().all(|(_, text)| {
-                    crate::staubli::edit_number(text)
-                        .replace(',', ".")
-                        .parse::<f64>()
-                        .is_ok_and(f64::is_finite)
-                });
-                if finite {
-                    Ok(edits)
-                } else {
-                    Err((
-                        TargetStatus::Invalid,
-                        "the command is not finite".to_string(),
-                    ))
-                }
-            });
-            if gcode {
-                let end = match (&target.kind, &result) {
-                    (TargetKind::Cartesian(c), Ok(edits)) => {
-                        let mut end = c.position.map(|n| n.value);
-                        let from = rewritten.len();
-                        for ((start, _), text) in edits {
-                            if let Some(k) = c.position.iter().position(|n| n.span.0 == *start) {
-                                end[k] = text.parse().unwrap_or(end[k]);
-                            } else if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
-                                if abc.iter().any(|n| n.span.0 == *start) {
-                                    rewritten.extend(u32::try_from(*start).ok());
-                                }
-                            }
-                        }
-                        // Ascending: the targets are in the file's order, and a block's own
-                        // numbers (C, B, A in the fixed-axis convention) sorted.
-                        rewritten[from..].sort_unstable();
-                        Some(end.map(|v| v * c.unit.mm()))
-                    }
-                    (TargetKind::Cartesian(c), Err(_)) => {
-                        Some(c.position.map(|n| n.value * c.unit.mm()))
-                    }
-                    _ => None,
-                };
-                if let (Some(end), Ok(_)) = (end, arc_starts.binary_search(&i)) {
-                    ends.push((i, end));
-                }
+            let result = self.target_edits(&block, &mut seed, &mut entry, gcode.as_ref());
+            if let Some(gcode) = &mut gcode {
+                gcode.record(i, target, &result);
             }
             match result {
-                Ok(mut new_edits) if streaming => {
-                    new_edits.sort_by_key(|(span, _)| span.0);
-                    for ((start, end), text) in new_edits {
-                        if start < at {
-                            return Ok(None);
-                        }
-                        // Grown an eighth at a time: a rewritten number is longer than the
-                        // written one, by an unknown share of the program.
-                        let more = start - at + text.len();
-                        if output.capacity() - output.len() < more {
-                            output.reserve_exact(more.max(output.capacity() / 8));
-                        }
-                        output.extend_from_slice(&self.bytes[at..start]);
-                        output.extend_from_slice(text.as_bytes());
-                        at = end;
-                    }
-                }
-                Ok(new_edits) => {
-                    for (span, text) in new_edits {
-                        let start = texts.len();
-                        texts.push_str(&text);
-                        edits.push((span, start..texts.len()));
+                Ok(edits) => {
+                    if !output.take(&self.bytes, edits) {
+                        return Ok(None);
                     }
                 }
                 Err((status, detail)) => {
@@ -931,34 +442,10 @@ impl CompensateJob {
                     entry.detail = detail;
                 }
             }
-            // A declared target no motion moves to: corrected in the options' frames, and
-            // said to be unused.
-            let declared = self.motions_seen
-                && matches!(
-                    target.kind,
-                    TargetKind::Cartesian(_) | TargetKind::Joints(_)
-                );
-            if declared && target.uses.is_empty() && target.refused.is_none() {
-                let unused = "unused: no motion of the program moves to it";
-                let frames = matches!(target.kind, TargetKind::Cartesian(_));
-                entry.detail = match (entry.detail.is_empty(), frames) {
-                    (true, true) => format!("{unused}; in the options' frames"),
-                    (true, false) => unused.to_string(),
-                    (false, _) => format!("{}; {unused}", entry.detail),
-                };
-            }
+            self.say_if_unused(target, &mut entry);
             summary.add(&entry);
             if first_not_corrected.is_none() && !entry.status.corrected() {
-                first_not_corrected = Some(format!(
-                    "{} {}{}",
-                    entry.place(),
-                    entry.status.as_str(),
-                    if entry.detail.is_empty() {
-                        String::new()
-                    } else {
-                        format!(": {}", entry.detail)
-                    }
-                ));
+                first_not_corrected = Some(not_corrected(&entry));
             }
             if i >= *handed {
                 each(entry);
@@ -972,23 +459,80 @@ impl CompensateJob {
                 first,
             });
         }
-        if !streaming {
-            edits.sort_by_key(|(span, _)| span.0);
-            output.reserve_exact(self.bytes.len() + texts.len());
-            for ((start, end), text) in edits {
-                debug_assert!(start >= at, "targets never overlap");
-                output.extend_from_slice(&self.bytes[at..start]);
-                output.extend_from_slice(&texts.as_bytes()[text]);
-                at = end;
-            }
-        }
-        output.extend_from_slice(&self.bytes[at..]);
+        let output = output.finish(&self.bytes);
         let program_xxh3 = xxhash_rust::xxh3::xxh3_64(&output);
         Ok(Some(Summarized {
             output,
             summary,
             program_xxh3,
         }))
+    }
+
+    /// A target's edits (a G-code block's kept only where they may go, its arc's centre
+    /// moved), never a non-finite number; or why it is left unchanged.
+    fn target_edits(
+        &self,
+        block: &Block,
+        seed: &mut Vec<f64>,
+        entry: &mut TargetLine,
+        gcode: Option<&GcodeEnds>,
+    ) -> Result<Vec<Edit>, correct::Failure> {
+        let edits = match (&block.target.refused, block.chains) {
+            (Some(r), _) => Err((TargetStatus::Unaccounted(r.reason), r.detail.clone())),
+            (None, Err(why)) => Err(why.clone()),
+            (None, Ok(chains)) => {
+                let mut end = None;
+                let edits = self.target(block.src, block.target, chains, seed, entry, &mut end);
+                match gcode {
+                    Some(gcode) => {
+                        let block = GcodeBlock {
+                            src: block.src,
+                            index: block.index,
+                            chains,
+                            end,
+                            ends: &gcode.ends,
+                            rewritten: &gcode.rewritten,
+                        };
+                        self.gcode_block(&block, edits, seed, entry)
+                    }
+                    None => edits,
+                }
+            }
+        }?;
+        // Never a non-finite number written, whatever the input held.
+        let finite = edits.iter().all(|(_, text)| {
+            crate::staubli::edit_number(text)
+                .replace(',', ".")
+                .parse::<f64>()
+                .is_ok_and(f64::is_finite)
+        });
+        if finite {
+            Ok(edits)
+        } else {
+            Err((
+                TargetStatus::Invalid,
+                "the command is not finite".to_string(),
+            ))
+        }
+    }
+
+    /// A declared target no motion moves to: corrected in the options' frames, and said
+    /// to be unused.
+    fn say_if_unused(&self, target: &crate::program::ProgramTarget, entry: &mut TargetLine) {
+        let declared = self.motions_seen
+            && matches!(
+                target.kind,
+                TargetKind::Cartesian(_) | TargetKind::Joints(_)
+            );
+        if declared && target.uses.is_empty() && target.refused.is_none() {
+            let unused = "unused: no motion of the program moves to it";
+            let frames = matches!(target.kind, TargetKind::Cartesian(_));
+            entry.detail = match (entry.detail.is_empty(), frames) {
+                (true, true) => format!("{unused}; in the options' frames"),
+                (true, false) => unused.to_string(),
+                (false, _) => format!("{}; {unused}", entry.detail),
+            };
+        }
     }
 
     /// Writes the compensated program and the report where the options say, both or
@@ -1026,12 +570,27 @@ impl CompensateJob {
         entry: &mut TargetLine,
         end: &mut Option<[f64; 3]>,
     ) -> Result<Vec<Edit>, correct::Failure> {
-        let limits = &self.options.limits;
-        let bytes = src.bytes;
-        let number_edit =
-            |n: &Number, value: f64, decimals: usize| -> Option<((usize, usize), String)> {
-                rewrite(n, &bytes[n.span.0..n.span.1], value, decimals).map(|text| (n.span, text))
-            };
+        self.refuse_invalid(src, target, chains)?;
+        match &target.kind {
+            TargetKind::Incomplete(why) => Err((TargetStatus::Incomplete, why.clone())),
+            // Always refused by its reader; no numbers to correct.
+            TargetKind::Motion => Err((
+                TargetStatus::Unaccounted(Reason::Dynamic),
+                "no numbers written".into(),
+            )),
+            TargetKind::Cartesian(c) => self.cartesian(src, c, chains, seed, entry, end),
+            TargetKind::Joints(j) => self.joints(src, j, seed, entry),
+        }
+    }
+
+    /// Refuses a target whose numbers, configuration or frames are out of bounds: an
+    /// absurd value is reported where it is written, never iterated on.
+    fn refuse_invalid(
+        &self,
+        src: &Source,
+        target: &crate::program::ProgramTarget,
+        chains: &[FrameChain],
+    ) -> Result<(), correct::Failure> {
         // Every number within its bound before any arithmetic: an absurd value is reported
         // where it is written, never iterated on.
         let robot = self.kinematics.as_ref().map(Kinematics::robot);
@@ -1062,208 +621,263 @@ impl CompensateJob {
                 ),
             ));
         }
-        match &target.kind {
-            TargetKind::Incomplete(why) => Err((TargetStatus::Incomplete, why.clone())),
-            // Always refused by its reader; no numbers to correct.
-            TargetKind::Motion => Err((
-                TargetStatus::Unaccounted(Reason::Dynamic),
-                "no numbers written".into(),
-            )),
-            TargetKind::Cartesian(c) => {
-                let [chain] = chains else {
-                    return Err((
-                        TargetStatus::AmbiguousFrame,
-                        format!("used with {} different tools or work objects", chains.len()),
-                    ));
-                };
-                let scale = c.unit.mm();
-                let position = Vector3::from(c.position.map(|n| n.value * scale));
-                let rotation = match &c.orientation {
-                    Some(o) => Some(rotation_of(o).ok_or_else(|| {
-                        (
-                            TargetStatus::Incomplete,
-                            "a zero quaternion is no orientation".to_string(),
-                        )
-                    })?),
-                    None => None,
-                };
-                let given_joints: Option<Vec<f64>> = (!c.joints.is_empty())
-                    .then(|| c.joints.iter().map(|n| n.value.to_radians()).collect());
-                // With the program's TCP the table's point, a position maps through the
-                // work object alone (`W · p`): the orientation it does not write plays no
-                // part, as in plain 3-axis G-code in G54.
-                let position_maps = chain.tool == chain.table_tool;
-                let (rotation, orientation) = match (rotation, &given_joints, &self.kinematics) {
-                    (Some(r), ..) => (r, true),
-                    // A CSV row's joints give the orientation the pose does not write.
-                    (None, Some(q), Some(k)) => match k.forward(q) {
-                        Some(p) => (p.rotation.to_rotation_matrix(), true),
-                        None => return Err((TargetStatus::Incomplete, format!("{} joint values for a robot of {}", q.len(), k.robot().joint_count()))),
-                    },
-                    (None, ..) if position_maps && !self.table.is_hybrid() => (nalgebra::Rotation3::identity(), false),
-                    (None, ..) => return Err((TargetStatus::NeedsOrientation, "the target writes no orientation, which its frames or the table's posture need".into())),
-                };
-                let pose = Isometry3::from_parts(
-                    position.into(),
-                    nalgebra::UnitQuaternion::from_rotation_matrix(&rotation),
-                );
-                let point = chain.table_point(&pose);
-                let posture = posture(&c.config, self.kinematics.as_ref());
-                let near = given_joints.clone().unwrap_or_else(|| seed.clone());
-                let command = correct::solve(
-                    &self.table,
-                    self.kinematics.as_ref(),
-                    limits,
-                    correct::Request {
-                        target: &point,
-                        orientation,
-                        posture: &posture,
-                        target_joints: given_joints.as_deref(),
-                        seed: &near,
-                        lever_mm: chain.lever_mm(),
-                    },
-                );
-                let command = command?;
-                if let Some(q) = &command.target_joints {
-                    seed.clone_from(q);
-                }
-                let new_pose = chain.program_pose(&command.point);
-                *end = Some(new_pose.translation.vector.into());
-                let moved = (new_pose.translation.vector - pose.translation.vector).norm();
-                let new_rotation = new_pose.rotation.to_rotation_matrix();
-                let turned = angle_between(&new_rotation, &rotation);
-                fill(
-                    entry,
-                    &point,
-                    &command,
-                    self.kinematics.as_ref(),
-                    moved,
-                    orientation.then_some(turned),
-                );
-                if moved > limits.max_correction_mm {
-                    return Err((
-                        TargetStatus::TooLarge,
-                        format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
-                    ));
-                }
-                // A Yaskawa controller holds positions in micrometres and 0.0001°, and its
-                // jobs write them so: finer decimals are not its to read.
-                let yaskawa = self.program.format == Format::Yaskawa;
-                let (length_decimals, angle_decimals) = if yaskawa {
-                    (3, 4)
-                } else {
-                    (c.unit.decimals(), 6)
-                };
-                let mut edits = Vec::new();
-                // A VAL3 attribute the file omits (its number's span empty) is inserted.
-                let names = crate::staubli::CARTESIAN;
-                for (k, (n, v)) in c
-                    .position
-                    .iter()
-                    .zip(new_pose.translation.vector.iter())
-                    .enumerate()
-                {
-                    edits.extend(
-                        number_edit(n, v / scale, length_decimals)
-                            .map(|e| crate::staubli::inserted(e, names[k])),
-                    );
-                }
-                if let Some(o) = &c.orientation {
-                    // An orientation the correction does not turn keeps its numbers (and its
-                    // way of writing a rotation several ways, such as KUKA's at B = ±90°).
-                    if turned > 1e-12 {
-                        let values = orientation_values(o, &new_rotation);
-                        let (numbers, decimals): (&[Number], usize) = match o {
-                            Orientation::KukaAbcDeg(n) => (n, angle_decimals),
-                            Orientation::QuaternionWxyz(n) => (n, 9),
-                            Orientation::RotationVectorRad(n) => (n, 8),
-                            Orientation::XyzIntrinsicDeg(n) => (n, angle_decimals),
-                        };
-                        for (k, (n, v)) in numbers.iter().zip(values).enumerate() {
-                            edits.extend(
-                                number_edit(n, v, decimals)
-                                    .map(|e| crate::staubli::inserted(e, names[(k + 3).min(5)])),
-                            );
-                        }
-                    }
-                }
-                if let Some(q) = &command.joints {
-                    for (n, v) in c.joints.iter().zip(q) {
-                        edits.extend(number_edit(n, v.to_degrees(), 6));
-                    }
-                }
-                Ok(edits)
-            }
-            TargetKind::Joints(j) => {
-                let Some(k) = &self.kinematics else {
-                    return Err((
-                        TargetStatus::NeedsRobot,
-                        "joint targets need a robot file (or a hybrid table)".into(),
-                    ));
-                };
-                let n = k.robot().joint_count();
-                if j.joints.len() != n {
+        Ok(())
+    }
+
+    /// A Cartesian target's edits: its pose through its frames to the table's point, the
+    /// command solved there and written back in the program's frames and style.
+    fn cartesian(
+        &self,
+        src: &Source,
+        c: &crate::program::CartesianTarget,
+        chains: &[FrameChain],
+        seed: &mut Vec<f64>,
+        entry: &mut TargetLine,
+        end: &mut Option<[f64; 3]>,
+    ) -> Result<Vec<Edit>, correct::Failure> {
+        let limits = &self.options.limits;
+        let [chain] = chains else {
+            return Err((
+                TargetStatus::AmbiguousFrame,
+                format!("used with {} different tools or work objects", chains.len()),
+            ));
+        };
+        let scale = c.unit.mm();
+        let position = Vector3::from(c.position.map(|n| n.value * scale));
+        let rotation = match &c.orientation {
+            Some(o) => Some(rotation_of(o).ok_or_else(|| {
+                (
+                    TargetStatus::Incomplete,
+                    "a zero quaternion is no orientation".to_string(),
+                )
+            })?),
+            None => None,
+        };
+        let given_joints: Option<Vec<f64>> =
+            (!c.joints.is_empty()).then(|| c.joints.iter().map(|n| n.value.to_radians()).collect());
+        // With the program's TCP the table's point, a position maps through the
+        // work object alone (`W · p`): the orientation it does not write plays no
+        // part, as in plain 3-axis G-code in G54.
+        let position_maps = chain.tool == chain.table_tool;
+        let (rotation, orientation) = match (rotation, &given_joints, &self.kinematics) {
+            (Some(r), ..) => (r, true),
+            // A CSV row's joints give the orientation the pose does not write.
+            (None, Some(q), Some(k)) => match k.forward(q) {
+                Some(p) => (p.rotation.to_rotation_matrix(), true),
+                None => {
                     return Err((
                         TargetStatus::Incomplete,
-                        format!("{} joint values for a robot of {n}", j.joints.len()),
-                    ));
+                        format!(
+                            "{} joint values for a robot of {}",
+                            q.len(),
+                            k.robot().joint_count()
+                        ),
+                    ))
                 }
-                let q: Vec<f64> = j.joints.iter().map(|v| v.value * j.unit.rad()).collect();
-                let point = k.forward(&q).expect("one value per joint");
-                let posture = Posture {
-                    configuration: k.configuration(&q),
-                    turns: Vec::new(),
+            },
+            (None, ..) if position_maps && !self.table.is_hybrid() => {
+                (nalgebra::Rotation3::identity(), false)
+            }
+            (None, ..) => return Err((
+                TargetStatus::NeedsOrientation,
+                "the target writes no orientation, which its frames or the table's posture need"
+                    .into(),
+            )),
+        };
+        let pose = Isometry3::from_parts(
+            position.into(),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&rotation),
+        );
+        let point = chain.table_point(&pose);
+        let posture = posture(&c.config, self.kinematics.as_ref());
+        let near = given_joints.clone().unwrap_or_else(|| seed.clone());
+        let command = correct::solve(
+            &self.table,
+            self.kinematics.as_ref(),
+            limits,
+            correct::Request {
+                target: &point,
+                orientation,
+                posture: &posture,
+                target_joints: given_joints.as_deref(),
+                seed: &near,
+                lever_mm: chain.lever_mm(),
+            },
+        );
+        let command = command?;
+        if let Some(q) = &command.target_joints {
+            seed.clone_from(q);
+        }
+        let new_pose = chain.program_pose(&command.point);
+        *end = Some(new_pose.translation.vector.into());
+        let moved = (new_pose.translation.vector - pose.translation.vector).norm();
+        let new_rotation = new_pose.rotation.to_rotation_matrix();
+        let turned = angle_between(&new_rotation, &rotation);
+        fill(
+            entry,
+            &point,
+            &command,
+            self.kinematics.as_ref(),
+            moved,
+            orientation.then_some(turned),
+        );
+        if moved > limits.max_correction_mm {
+            return Err((
+                TargetStatus::TooLarge,
+                format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
+            ));
+        }
+        Ok(self.cartesian_edits(src, c, &new_pose, turned, command.joints.as_deref()))
+    }
+
+    /// A corrected Cartesian target's numbers rewritten: its position, its orientation
+    /// when the correction turns it, and the joints it writes beside them.
+    fn cartesian_edits(
+        &self,
+        src: &Source,
+        c: &crate::program::CartesianTarget,
+        new_pose: &Isometry3<f64>,
+        turned: f64,
+        joints: Option<&[f64]>,
+    ) -> Vec<Edit> {
+        let bytes = src.bytes;
+        let number_edit =
+            |n: &Number, value: f64, decimals: usize| -> Option<((usize, usize), String)> {
+                rewrite(n, &bytes[n.span.0..n.span.1], value, decimals).map(|text| (n.span, text))
+            };
+        let scale = c.unit.mm();
+        let new_rotation = new_pose.rotation.to_rotation_matrix();
+        // A Yaskawa controller holds positions in micrometres and 0.0001°, and its
+        // jobs write them so: finer decimals are not its to read.
+        let yaskawa = self.program.format == Format::Yaskawa;
+        let (length_decimals, angle_decimals) = if yaskawa {
+            (3, 4)
+        } else {
+            (c.unit.decimals(), 6)
+        };
+        let mut edits = Vec::new();
+        // A VAL3 attribute the file omits (its number's span empty) is inserted.
+        let names = crate::staubli::CARTESIAN;
+        for (k, (n, v)) in c
+            .position
+            .iter()
+            .zip(new_pose.translation.vector.iter())
+            .enumerate()
+        {
+            edits.extend(
+                number_edit(n, v / scale, length_decimals)
+                    .map(|e| crate::staubli::inserted(e, names[k])),
+            );
+        }
+        if let Some(o) = &c.orientation {
+            // An orientation the correction does not turn keeps its numbers (and its
+            // way of writing a rotation several ways, such as KUKA's at B = ±90°).
+            if turned > 1e-12 {
+                let values = orientation_values(o, &new_rotation);
+                let (numbers, decimals): (&[Number], usize) = match o {
+                    Orientation::KukaAbcDeg(n) => (n, angle_decimals),
+                    Orientation::QuaternionWxyz(n) => (n, 9),
+                    Orientation::RotationVectorRad(n) => (n, 8),
+                    Orientation::XyzIntrinsicDeg(n) => (n, angle_decimals),
                 };
-                seed.clone_from(&q);
-                let command = correct::solve(
-                    &self.table,
-                    Some(k),
-                    limits,
-                    correct::Request {
-                        target: &point,
-                        orientation: true,
-                        posture: &posture,
-                        target_joints: Some(&q),
-                        seed: &q,
-                        // The joints move the table's point itself.
-                        lever_mm: 0.0,
-                    },
-                )?;
-                let qc = command.joints.clone().unwrap_or_else(|| q.clone());
-                let moved = (command.point.translation.vector - point.translation.vector).norm();
-                let turned = angle_between(
-                    &command.point.rotation.to_rotation_matrix(),
-                    &point.rotation.to_rotation_matrix(),
-                );
-                fill(entry, &point, &command, Some(k), moved, Some(turned));
-                if moved > limits.max_correction_mm {
-                    return Err((
-                        TargetStatus::TooLarge,
-                        format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
-                    ));
+                for (k, (n, v)) in numbers.iter().zip(values).enumerate() {
+                    edits.extend(
+                        number_edit(n, v, decimals)
+                            .map(|e| crate::staubli::inserted(e, names[(k + 3).min(5)])),
+                    );
                 }
-                // A Yaskawa job's joints are encoder pulses, written as whole pulses.
-                let pulses = (self.program.format == Format::Yaskawa)
-                    .then_some(self.options.yaskawa.pulses_per_deg.as_ref())
-                    .flatten();
-                Ok(j.joints
-                    .iter()
-                    .zip(&qc)
-                    .enumerate()
-                    .filter_map(|(i, (n, v))| match pulses.and_then(|p| p.get(i)) {
-                        Some(per_deg) => crate::yaskawa::pulse_text(
-                            n,
-                            &bytes[n.span.0..n.span.1],
-                            v.to_degrees(),
-                            *per_deg,
-                        )
-                        .map(|text| (n.span, text)),
-                        None => number_edit(n, v / j.unit.rad(), j.unit.decimals())
-                            .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
-                    })
-                    .collect())
             }
         }
+        if let Some(q) = joints {
+            for (n, v) in c.joints.iter().zip(q) {
+                edits.extend(number_edit(n, v.to_degrees(), 6));
+            }
+        }
+        edits
+    }
+
+    /// A joint target's edits: its joints through the forward kinematics, the command
+    /// solved in the same configuration and written back as joints.
+    fn joints(
+        &self,
+        src: &Source,
+        j: &crate::program::JointTarget,
+        seed: &mut Vec<f64>,
+        entry: &mut TargetLine,
+    ) -> Result<Vec<Edit>, correct::Failure> {
+        let limits = &self.options.limits;
+        let bytes = src.bytes;
+        let number_edit =
+            |n: &Number, value: f64, decimals: usize| -> Option<((usize, usize), String)> {
+                rewrite(n, &bytes[n.span.0..n.span.1], value, decimals).map(|text| (n.span, text))
+            };
+        let Some(k) = &self.kinematics else {
+            return Err((
+                TargetStatus::NeedsRobot,
+                "joint targets need a robot file (or a hybrid table)".into(),
+            ));
+        };
+        let n = k.robot().joint_count();
+        if j.joints.len() != n {
+            return Err((
+                TargetStatus::Incomplete,
+                format!("{} joint values for a robot of {n}", j.joints.len()),
+            ));
+        }
+        let q: Vec<f64> = j.joints.iter().map(|v| v.value * j.unit.rad()).collect();
+        let point = k.forward(&q).expect("one value per joint");
+        let posture = Posture {
+            configuration: k.configuration(&q),
+            turns: Vec::new(),
+        };
+        seed.clone_from(&q);
+        let command = correct::solve(
+            &self.table,
+            Some(k),
+            limits,
+            correct::Request {
+                target: &point,
+                orientation: true,
+                posture: &posture,
+                target_joints: Some(&q),
+                seed: &q,
+                // The joints move the table's point itself.
+                lever_mm: 0.0,
+            },
+        )?;
+        let qc = command.joints.clone().unwrap_or_else(|| q.clone());
+        let moved = (command.point.translation.vector - point.translation.vector).norm();
+        let turned = angle_between(
+            &command.point.rotation.to_rotation_matrix(),
+            &point.rotation.to_rotation_matrix(),
+        );
+        fill(entry, &point, &command, Some(k), moved, Some(turned));
+        if moved > limits.max_correction_mm {
+            return Err((
+                TargetStatus::TooLarge,
+                format!("{moved:.4} mm (bound {} mm)", limits.max_correction_mm),
+            ));
+        }
+        // A Yaskawa job's joints are encoder pulses, written as whole pulses.
+        let pulses = (self.program.format == Format::Yaskawa)
+            .then_some(self.options.yaskawa.pulses_per_deg.as_ref())
+            .flatten();
+        Ok(j.joints
+            .iter()
+            .zip(&qc)
+            .enumerate()
+            .filter_map(|(i, (n, v))| match pulses.and_then(|p| p.get(i)) {
+                Some(per_deg) => crate::yaskawa::pulse_text(
+                    n,
+                    &bytes[n.span.0..n.span.1],
+                    v.to_degrees(),
+                    *per_deg,
+                )
+                .map(|text| (n.span, text)),
+                None => number_edit(n, v / j.unit.rad(), j.unit.decimals())
+                    .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
+            })
+            .collect())
     }
 }
 
@@ -1403,6 +1017,758 @@ impl CompensateJob {
                 Ok(edits)
             }
             Err(why) => arc_refused(why),
+        }
+    }
+}
+
+/// The files a job reads beside its table and program, and its outputs, found and
+/// checked before any is read.
+struct Inputs {
+    /// A KRL program's partner (read for the names its motions use).
+    partner: Option<PathBuf>,
+    /// A VAL3 application: its data file is the program whose numbers change, its project
+    /// and programs are read beside it.
+    application: Option<crate::staubli::Application>,
+    /// The robot file's robot.
+    robot: Option<Robot>,
+    /// The program and the report, checked never to be an input.
+    outputs: adwi_output::OutputPlan,
+}
+
+impl Inputs {
+    /// Every file the job reads is an input no output may name, by any path: the table,
+    /// the program, a KRL program's partner, a VAL3 application's files, the robot file
+    /// and the URDF it names, the frame files.
+    fn locate(o: &CompensateOptions, format: Format) -> Result<Inputs, Error> {
+        let partner = match format {
+            Format::Krl => partner(&o.program),
+            _ => None,
+        };
+        let application = match format {
+            Format::Val3 => Some(crate::staubli::Application::locate(&o.program)?),
+            _ => None,
+        };
+        let (robot, robot_files) = match &o.robot {
+            Some(path) => {
+                let (robot, files) =
+                    Robot::load_with_files(path, &o.links).map_err(|e| Error::Robot {
+                        path: path.clone(),
+                        message: e.to_string(),
+                    })?;
+                (Some(robot), files)
+            }
+            None => (None, Vec::new()),
+        };
+        let mut inputs: Vec<&Path> = vec![&o.table, &o.program];
+        inputs.extend(partner.as_deref());
+        inputs.extend(application.iter().flat_map(|a| a.files()));
+        inputs.extend(o.robot.as_deref());
+        inputs.extend(o.krl_config.as_deref());
+        inputs.extend(o.fanuc.frames_file.as_deref());
+        inputs.extend(robot_files.iter().map(PathBuf::as_path));
+        let outputs = adwi_output::OutputPlan::check(
+            &[o.output.as_deref(), o.report.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>(),
+            &inputs,
+        )?;
+        if let (Some(a), Some(b)) = (&o.output, &o.report) {
+            if a == b {
+                return Err(Error::Option(format!(
+                    "the output and the report are both {}",
+                    a.display()
+                )));
+            }
+        }
+        Ok(Inputs {
+            partner,
+            application,
+            robot,
+            outputs,
+        })
+    }
+
+    /// The file whose numbers change: the program, or a VAL3 application's data file.
+    fn program_path<'a>(&'a self, o: &'a CompensateOptions) -> &'a Path {
+        self.application.as_ref().map_or(&o.program, |a| &a.data)
+    }
+}
+
+/// A file's bytes, whole.
+fn read_input(path: &Path) -> Result<Vec<u8>, Error> {
+    adwi_runtime::input::read_regular(path).map_err(|source| Error::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The program's bytes, it and its partner first bounded in size (both are read whole).
+fn read_program(program_path: &Path, partner_path: Option<&Path>) -> Result<Vec<u8>, Error> {
+    let size = std::fs::metadata(program_path)
+        .map_err(|source| Error::Read {
+            path: program_path.to_path_buf(),
+            source,
+        })?
+        .len();
+    if size > MAX_PROGRAM_BYTES {
+        return Err(Error::Option(format!(
+            "{}: {size} bytes, more than the {MAX_PROGRAM_BYTES} a program may have",
+            program_path.display()
+        )));
+    }
+    // The partner is read whole too: bounded as the program is, before it is read.
+    if let Some(p) = partner_path {
+        let partner_size = std::fs::metadata(p).map_or(0, |m| m.len());
+        if partner_size > MAX_PROGRAM_BYTES {
+            return Err(Error::Option(format!(
+                "{}: {partner_size} bytes, more than the {MAX_PROGRAM_BYTES} a program's partner may have",
+                p.display()
+            )));
+        }
+    }
+    read_input(program_path)
+}
+
+/// The frames a controller's files give: a KUKA `$config.dat`'s numbered tools and bases,
+/// a Fanuc frame file's frames merged under the options'.
+struct FrameFiles {
+    krl: crate::krl::KrlFrames,
+    fanuc: crate::fanuc::FanucOptions,
+}
+
+impl FrameFiles {
+    /// Reads the files the options name (each checked, by [`CompensateOptions::check`],
+    /// to be for the program's format).
+    fn read(o: &CompensateOptions) -> Result<FrameFiles, Error> {
+        let krl = match &o.krl_config {
+            None => crate::krl::KrlFrames::default(),
+            Some(path) => {
+                let config = read_input(path)?;
+                let config_name = path.display().to_string();
+                crate::krl::read_config(&Source::new(&config_name, &config))?
+            }
+        };
+        // A Fanuc frame file gives the frames the options do not.
+        let fanuc = match &o.fanuc.frames_file {
+            None => o.fanuc.clone(),
+            Some(path) => {
+                if std::fs::metadata(path).map_or(0, |m| m.len()) > MAX_PROGRAM_BYTES {
+                    return Err(Error::Option(format!(
+                        "{}: more than the {MAX_PROGRAM_BYTES} bytes a frame file may have",
+                        path.display()
+                    )));
+                }
+                let file = read_input(path)?;
+                let file_name = path.display().to_string();
+                let from_file = crate::fanuc::read_frames(&Source::new(&file_name, &file))?;
+                let mut merged = o.fanuc.clone();
+                for (n, f) in from_file.user_frames {
+                    if !merged.user_frames.iter().any(|u| u.0 == n) {
+                        merged.user_frames.push((n, f));
+                    }
+                }
+                for (n, f) in from_file.tool_frames {
+                    if !merged.tool_frames.iter().any(|u| u.0 == n) {
+                        merged.tool_frames.push((n, f));
+                    }
+                }
+                merged
+            }
+        };
+        Ok(FrameFiles { krl, fanuc })
+    }
+}
+
+/// The work and memory a program may take, known once the kinematics are: the program is
+/// read only as far as they allow.
+struct Budget {
+    /// The program file, as named.
+    name: String,
+    /// Its size, bytes.
+    bytes: usize,
+    /// Estimated seconds a target.
+    cost: f64,
+    /// At most this many targets are read.
+    limit: usize,
+    /// The program, its output and its line starts, bytes.
+    program_memory: u64,
+    /// The targets the memory bound leaves room for.
+    memory_targets: u64,
+    /// The bounds.
+    max_seconds: f64,
+    max_memory_bytes: u64,
+}
+
+impl Budget {
+    fn new(
+        o: &CompensateOptions,
+        kinematics: Option<&Kinematics>,
+        name: &str,
+        bytes: usize,
+    ) -> Result<Budget, Error> {
+        let cost = match kinematics {
+            None => SECONDS_PER_TARGET[0],
+            Some(k) if k.has_configurations() => SECONDS_PER_TARGET[1],
+            Some(_) => SECONDS_PER_TARGET[2],
+        };
+        let limit = (o.max_seconds / cost).floor().min(usize::MAX as f64) as usize;
+        // Memory: the program, its output and its line starts, and every target read; the
+        // program is read only as far as the memory allows.
+        let program_memory = 3 * bytes as u64;
+        let memory_targets = o.max_memory_bytes.saturating_sub(program_memory) / BYTES_PER_TARGET;
+        let budget = Budget {
+            name: name.to_string(),
+            bytes,
+            cost,
+            limit: limit.min(usize::try_from(memory_targets).unwrap_or(usize::MAX)),
+            program_memory,
+            memory_targets,
+            max_seconds: o.max_seconds,
+            max_memory_bytes: o.max_memory_bytes,
+        };
+        if program_memory > o.max_memory_bytes {
+            return Err(budget.memory_refused(0, None));
+        }
+        Ok(budget)
+    }
+
+    fn memory_refused(&self, targets: usize, read_bytes: Option<usize>) -> Error {
+        let scale = read_bytes.map_or(1.0, |at| self.bytes as f64 / at.max(1) as f64);
+        Error::TooMuchMemory {
+            file: self.name.clone(),
+            bytes: self.bytes,
+            targets,
+            read_bytes,
+            estimated_bytes: self.program_memory
+                + (BYTES_PER_TARGET as f64 * targets as f64 * scale) as u64,
+            limit_bytes: self.max_memory_bytes,
+        }
+    }
+
+    /// Refuses a program whose reading stopped at the bound, by the bound it reached.
+    fn refuse_truncated(&self, program: &Program) -> Result<(), Error> {
+        let Some(at) = program.truncated_at else {
+            return Ok(());
+        };
+        let targets = program.targets.len();
+        if targets as u64 > self.memory_targets {
+            return Err(self.memory_refused(targets, Some(at)));
+        }
+        Err(Error::TooLarge {
+            file: self.name.clone(),
+            bytes: self.bytes,
+            targets,
+            read_bytes: Some(at),
+            seconds: self.cost * targets as f64 * self.bytes as f64 / at.max(1) as f64,
+            limit_seconds: self.max_seconds,
+        })
+    }
+
+    /// Refuses a program of more targets than the work allows.
+    fn refuse_too_long(&self, targets: usize) -> Result<(), Error> {
+        let seconds = self.cost * targets as f64;
+        if seconds > self.max_seconds {
+            return Err(Error::TooLarge {
+                file: self.name.clone(),
+                bytes: self.bytes,
+                targets,
+                read_bytes: None,
+                seconds,
+                limit_seconds: self.max_seconds,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A program as its dialect's reader read it, with what only G-code has.
+struct ReadProgram {
+    program: Program,
+    /// A G-code program's arcs, per target.
+    arcs: Vec<Option<Box<crate::gcode::Arc>>>,
+    /// A G-code program's work offsets, per target.
+    work_offsets: Vec<u8>,
+}
+
+/// The program's targets, by its dialect's reader, at most `limit` of them.
+fn read_targets(
+    o: &CompensateOptions,
+    format: Format,
+    src: &Source,
+    inputs: &Inputs,
+    frame_files: &FrameFiles,
+    limit: usize,
+) -> Result<ReadProgram, Error> {
+    crate::bounds::check_line_lengths(src)?;
+    let program = match format {
+        Format::Krl => {
+            let partner_path = &inputs.partner;
+            let partner_bytes = partner_path
+                .as_deref()
+                .and_then(|p| adwi_runtime::input::read_regular(p).ok());
+            let partner_name = partner_path
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default();
+            let partner_src = partner_bytes
+                .as_deref()
+                .map(|b| Source::new(&partner_name, b));
+            if let Some(p) = &partner_src {
+                crate::bounds::check_line_lengths(p)?;
+            }
+            crate::krl::read_with(src, partner_src.as_ref(), &frame_files.krl, limit)?
+        }
+        Format::Rapid => crate::rapid::read_at_most(src, limit)?,
+        Format::UrScript => crate::urscript::read_at_most(src, limit)?,
+        Format::Csv => crate::csv::read_at_most(src, limit)?,
+        Format::Gcode => {
+            let read = crate::gcode::read_at_most(src, &o.gcode, limit)?;
+            return Ok(ReadProgram {
+                program: read.program,
+                arcs: read.arcs,
+                work_offsets: read.work_offsets,
+            });
+        }
+        Format::Yaskawa => crate::yaskawa::read_at_most(src, &o.yaskawa, limit)?,
+        Format::Fanuc => crate::fanuc::read_at_most(src, &frame_files.fanuc, limit)?,
+        Format::Val3 => {
+            let files = inputs
+                .application
+                .as_ref()
+                .map_or_else(|| Ok(Vec::new()), |a| a.read_programs())?;
+            let programs: Vec<Source> = files.iter().map(|(n, b)| Source::new(n, b)).collect();
+            crate::staubli::read_at_most(src, &programs, limit)?
+        }
+    };
+    Ok(ReadProgram {
+        program,
+        arcs: Vec::new(),
+        work_offsets: Vec::new(),
+    })
+}
+
+/// A program that moves has targets: one whose targets this reader does not find
+/// (another file's, another dialect's) is refused, never "0 of 0 corrected".
+fn refuse_nothing_to_compensate(
+    src: &Source,
+    program: &Program,
+    format: Format,
+    partner_path: Option<&Path>,
+) -> Result<(), Error> {
+    let refused_all = program.targets.iter().all(|t| t.refused.is_some());
+    let no_numbers = program
+        .targets
+        .iter()
+        .all(|t| matches!(t.kind, TargetKind::Motion));
+    let pair = format == Format::Krl && partner_path.is_some();
+    if !(program.targets.is_empty()
+        || (program.first_motion.is_some() && (no_numbers || (refused_all && pair))))
+    {
+        return Ok(());
+    }
+    let (at, message) = match program.first_motion {
+        Some(at) => {
+            let word = src.text(at, src.identifier_end(at, b"$#_"));
+            let elsewhere = match (partner_path, format) {
+                (Some(p), Format::Krl) => format!(
+                    ": its motions' targets are declared in {}; compensate that file (the motions that use them are read from this one)",
+                    p.display()
+                ),
+                _ => program
+                    .targets
+                    .iter()
+                    .find_map(|t| t.refused.as_ref())
+                    .map_or(String::new(), |r| format!(" ({}: {})", r.reason.as_str(), r.detail)),
+            };
+            (at, format!("{word} moves the robot, but the program holds no target it can correct{elsewhere}"))
+        }
+        None => (
+            0,
+            format!(
+                "no target and no motion found: nothing to compensate (is it a {} program?)",
+                format.name()
+            ),
+        ),
+    };
+    Err(src.error(at, message))
+}
+
+/// A target's frame chains, one per distinct use, or why its frames are not known.
+type Chains = Result<std::sync::Arc<[FrameChain]>, correct::Failure>;
+
+/// What resolves the frames of a program's uses: a use whose frame no input gives leaves
+/// its target unchanged, said in its report line.
+struct FrameContext<'a> {
+    o: &'a CompensateOptions,
+    src: &'a Source<'a>,
+    format: Format,
+    default_tool: Option<Isometry3<f64>>,
+    default_base: Isometry3<f64>,
+    /// The names the program's uses leave undeclared, tools first: the options stand for
+    /// one undeclared tool and one undeclared work object.
+    undeclared: [Vec<&'a str>; 2],
+    /// A G-code program's work offsets, per target.
+    work_offsets: &'a [u8],
+    /// The table's point in the flange frame, when known.
+    table_tool: Option<Isometry3<f64>>,
+}
+
+impl<'a> FrameContext<'a> {
+    fn new(
+        o: &'a CompensateOptions,
+        src: &'a Source<'a>,
+        format: Format,
+        program: &'a Program,
+        work_offsets: &'a [u8],
+        table_tool: Option<Isometry3<f64>>,
+    ) -> FrameContext<'a> {
+        let pose = |t: [f64; 6]| kuka_pose([t[0], t[1], t[2]], [t[3], t[4], t[5]]);
+        let mut undeclared: [Vec<&str>; 2] = [Vec::new(), Vec::new()];
+        for target in program.targets.iter().filter(|t| t.refused.is_none()) {
+            for m in target.uses.iter().flat_map(|u| &u.undeclared) {
+                let names = &mut undeclared[usize::from(m.base)];
+                if !names.contains(&m.name.as_str()) {
+                    names.push(&m.name);
+                }
+            }
+        }
+        FrameContext {
+            o,
+            src,
+            format,
+            default_tool: o.tool.map(pose),
+            default_base: o.base.map(pose).unwrap_or_else(Isometry3::identity),
+            undeclared,
+            work_offsets,
+            table_tool,
+        }
+    }
+
+    /// Every target's chains; a target's list shared with the target before it when the
+    /// two are the same (a long program's targets mostly are): one list, not one each
+    /// (168 bytes a chain).
+    fn chains(&self, program: &Program) -> Result<Vec<Chains>, Error> {
+        let mut chains = Vec::with_capacity(program.targets.len());
+        let mut last: Option<std::sync::Arc<[FrameChain]>> = None;
+        for (index, target) in program.targets.iter().enumerate() {
+            let list = match self.target_chains(index, target)? {
+                Ok(list) => list,
+                Err(why) => {
+                    chains.push(Err(why));
+                    continue;
+                }
+            };
+            let shared = match &last {
+                Some(l) if same_chains(l, &list) => l.clone(),
+                _ => std::sync::Arc::from(list),
+            };
+            last = Some(shared.clone());
+            chains.push(Ok(shared));
+        }
+        Ok(chains)
+    }
+
+    /// One target's distinct chains (none for a joint or refused target).
+    fn target_chains(
+        &self,
+        index: usize,
+        target: &crate::program::ProgramTarget,
+    ) -> Result<Result<Vec<FrameChain>, correct::Failure>, Error> {
+        let mut list: Vec<FrameChain> = Vec::new();
+        if !matches!(target.kind, TargetKind::Cartesian(_)) || target.refused.is_some() {
+            return Ok(Ok(list));
+        }
+        let default_use = [FrameUse {
+            tool: None,
+            base: self.work_offset(index),
+            offset: target.offset,
+            elsewhere: None,
+            undeclared: Vec::new(),
+            unknown: Vec::new(),
+        }];
+        let uses = if target.uses.is_empty() {
+            &default_use[..]
+        } else {
+            &target.uses[..]
+        };
+        for u in uses {
+            let (base, at) = (u.base, u.offset);
+            let place = u.elsewhere.clone().unwrap_or_else(|| {
+                let (line, column) = self.src.location(at);
+                format!("{line}:{column}")
+            });
+            if let Some(why) = self.unknown(u, &place) {
+                return Ok(Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why)));
+            }
+            let tool = u.tool.or(self.default_tool);
+            let chain = match (tool, self.table_tool) {
+                (None, _) => FrameChain {
+                    base: base.unwrap_or(self.default_base),
+                    tool: Isometry3::identity(),
+                    table_tool: Isometry3::identity(),
+                },
+                (Some(tool), Some(table_tool)) => FrameChain {
+                    base: base.unwrap_or(self.default_base),
+                    tool,
+                    table_tool,
+                },
+                (Some(_), None) => {
+                    return Err(self.src.error(at, "this use names a tool, but where the table's point is on the flange is not known: give the table tool or a robot file"));
+                }
+            };
+            if !list.iter().any(|c| same_chain(c, &chain)) {
+                list.push(chain);
+            }
+        }
+        Ok(Ok(list))
+    }
+
+    /// A G-code target's work offset, by its number.
+    fn work_offset(&self, index: usize) -> Option<Isometry3<f64>> {
+        let number = self.work_offsets.get(index)?;
+        let f = self.o.gcode.work_offsets.iter().find(|w| w.0 == *number)?.1;
+        Some(kuka_pose([f[0], f[1], f[2]], [f[3], f[4], f[5]]))
+    }
+
+    /// Why a use's frames are not known: a frame its reader could not resolve, or one it
+    /// leaves undeclared that the options do not give (or give for another name too).
+    fn unknown(&self, u: &FrameUse, place: &str) -> Option<String> {
+        if let Some(why) = u.unknown.first() {
+            return Some(format!("{why} (used at {place})"));
+        }
+        let o = self.o;
+        for m in &u.undeclared {
+            let (given, option) = if m.base {
+                (o.base.is_some(), "base")
+            } else {
+                (o.tool.is_some(), "tool")
+            };
+            let numbered = self.format == Format::Krl
+                && (m.name.starts_with("TOOL_DATA") || m.name.starts_with("BASE_DATA"));
+            let yaskawa_number = (self.format == Format::Yaskawa)
+                .then(|| m.name.split_once(' ').map(|(_, n)| n))
+                .flatten();
+            let how = if let Some(n) = yaskawa_number {
+                let flag = if m.base { "user" } else { "tool" };
+                format!("give it as --yaskawa-{flag} {n}=X,Y,Z,Rx,Ry,Rz, or as the {option} option")
+            } else if numbered {
+                format!(
+                    "give it in the KRL configuration (--krl-config), or as the {option} option"
+                )
+            } else {
+                format!("give it as the {option} option")
+            };
+            let names = &self.undeclared[usize::from(m.base)];
+            if !given {
+                return Some(format!(
+                    "{} not given (used at {place}): {how}",
+                    m.describe()
+                ));
+            }
+            if names.len() > 1 {
+                return Some(format!(
+                    "{} not given (used at {place}): the {option} option stands for one, and the program names {}",
+                    m.describe(),
+                    names.join(", ")
+                ));
+            }
+        }
+        None
+    }
+}
+
+/// Whether two lists of frame chains are the same to rounding.
+fn same_chains(a: &[FrameChain], b: &[FrameChain]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(a, b)| same_chain(a, b))
+}
+
+/// A target as the run reaches it.
+struct Block<'a> {
+    src: &'a Source<'a>,
+    /// The target's index.
+    index: usize,
+    target: &'a crate::program::ProgramTarget,
+    chains: &'a Chains,
+}
+
+/// A target's report line before it is corrected: where it is written and what it is.
+fn report_line(src: &Source, target: &crate::program::ProgramTarget) -> TargetLine {
+    let (line, column) = src.location(target.offset);
+    TargetLine {
+        name: target.name.clone(),
+        line,
+        column,
+        kind: match target.kind {
+            TargetKind::Cartesian(_) => "cartesian",
+            TargetKind::Joints(_) => "joints",
+            TargetKind::Incomplete(_) => "incomplete",
+            TargetKind::Motion => "motion",
+        },
+        status: TargetStatus::Ok,
+        detail: String::new(),
+        correction_mm: None,
+        rotation_deg: None,
+        joint_change_deg: None,
+        point_mm: None,
+        command_mm: None,
+        command_joints: None,
+        iterations: 0,
+        residual_mm: None,
+        residual: None,
+        evidence: None,
+    }
+}
+
+/// A target left unchanged, as a strict job's refusal names it.
+fn not_corrected(entry: &TargetLine) -> String {
+    format!(
+        "{} {}{}",
+        entry.place(),
+        entry.status.as_str(),
+        if entry.detail.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", entry.detail)
+        }
+    )
+}
+
+/// The compensated program as the run makes it.
+enum Output {
+    /// Written as the targets come: the output so far, and the byte of the program it has
+    /// reached.
+    Streaming { bytes: Vec<u8>, at: usize },
+    /// Every target's replacements kept, their texts one after the other in `texts` (a
+    /// few dozen bytes a number rather than a string each), written at the end.
+    Kept {
+        edits: Vec<((usize, usize), std::ops::Range<usize>)>,
+        texts: String,
+    },
+}
+
+impl Output {
+    fn new(streaming: bool, program: &[u8], targets: usize) -> Output {
+        if !streaming {
+            return Output::Kept {
+                edits: Vec::new(),
+                texts: String::new(),
+            };
+        }
+        // A rewritten target grows by some 27 bytes (a G-code block's A, B, C from `0.` to
+        // `6.030297`): reserved once, not grown by doubling.
+        let mut bytes = Vec::new();
+        bytes.reserve_exact(program.len().saturating_add(targets.saturating_mul(32)));
+        Output::Streaming { bytes, at: 0 }
+    }
+
+    /// Takes a target's edits; `false` when one comes before the bytes written already.
+    fn take(&mut self, program: &[u8], mut new_edits: Vec<Edit>) -> bool {
+        match self {
+            Output::Streaming { bytes, at } => {
+                new_edits.sort_by_key(|(span, _)| span.0);
+                for ((start, end), text) in new_edits {
+                    if start < *at {
+                        return false;
+                    }
+                    // Grown an eighth at a time: a rewritten number is longer than the
+                    // written one, by an unknown share of the program.
+                    let more = start - *at + text.len();
+                    if bytes.capacity() - bytes.len() < more {
+                        bytes.reserve_exact(more.max(bytes.capacity() / 8));
+                    }
+                    bytes.extend_from_slice(&program[*at..start]);
+                    bytes.extend_from_slice(text.as_bytes());
+                    *at = end;
+                }
+            }
+            Output::Kept { edits, texts } => {
+                for (span, text) in new_edits {
+                    let start = texts.len();
+                    texts.push_str(&text);
+                    edits.push((span, start..texts.len()));
+                }
+            }
+        }
+        true
+    }
+
+    /// The compensated program's bytes.
+    fn finish(self, program: &[u8]) -> Vec<u8> {
+        let (mut output, at) = match self {
+            Output::Streaming { bytes, at } => (bytes, at),
+            Output::Kept { mut edits, texts } => {
+                edits.sort_by_key(|(span, _)| span.0);
+                let mut output = Vec::new();
+                output.reserve_exact(program.len() + texts.len());
+                let mut at = 0;
+                for ((start, end), text) in edits {
+                    debug_assert!(start >= at, "targets never overlap");
+                    output.extend_from_slice(&program[at..start]);
+                    output.extend_from_slice(&texts.as_bytes()[text]);
+                    at = end;
+                }
+                (output, at)
+            }
+        };
+        output.extend_from_slice(&program[at..]);
+        output
+    }
+}
+
+/// A G-code program's run so far: where each target's block an arc starts from leaves
+/// the tool in the compensated program (mm, its frame), and the A, B, C numbers rewritten
+/// (their first byte). Only the ends an arc starts from are kept, by target, and the
+/// bytes as u32 (a program has at most 2^30): a long program's few bytes a target.
+struct GcodeEnds {
+    /// The targets an arc starts from, ascending.
+    arc_starts: Vec<usize>,
+    ends: Vec<(usize, [f64; 3])>,
+    rewritten: Vec<u32>,
+}
+
+impl GcodeEnds {
+    fn new(arcs: &[Option<Box<crate::gcode::Arc>>]) -> GcodeEnds {
+        let mut arc_starts: Vec<usize> = arcs.iter().flatten().map(|a| a.start_target).collect();
+        arc_starts.sort_unstable();
+        arc_starts.dedup();
+        GcodeEnds {
+            arc_starts,
+            ends: Vec::new(),
+            rewritten: Vec::new(),
+        }
+    }
+
+    /// Records where target `i`'s block leaves the tool, and the A, B, C it rewrote.
+    fn record(
+        &mut self,
+        i: usize,
+        target: &crate::program::ProgramTarget,
+        result: &Result<Vec<Edit>, correct::Failure>,
+    ) {
+        let end = match (&target.kind, result) {
+            (TargetKind::Cartesian(c), Ok(edits)) => {
+                let mut end = c.position.map(|n| n.value);
+                let from = self.rewritten.len();
+                for ((start, _), text) in edits {
+                    if let Some(k) = c.position.iter().position(|n| n.span.0 == *start) {
+                        end[k] = text.parse().unwrap_or(end[k]);
+                    } else if let Some(Orientation::KukaAbcDeg(abc)) = &c.orientation {
+                        if abc.iter().any(|n| n.span.0 == *start) {
+                            self.rewritten.extend(u32::try_from(*start).ok());
+                        }
+                    }
+                }
+                // Ascending: the targets are in the file's order, and a block's own
+                // numbers (C, B, A in the fixed-axis convention) sorted.
+                self.rewritten[from..].sort_unstable();
+                Some(end.map(|v| v * c.unit.mm()))
+            }
+            (TargetKind::Cartesian(c), Err(_)) => Some(c.position.map(|n| n.value * c.unit.mm())),
+            _ => None,
+        };
+        if let (Some(end), Ok(_)) = (end, self.arc_starts.binary_search(&i)) {
+            self.ends.push((i, end));
         }
     }
 }
