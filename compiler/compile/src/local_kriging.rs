@@ -36,6 +36,7 @@
 //! Up to [`SUBSAMPLE`] samples the dense fit is used as it is ([`KrigingField::Dense`]).
 
 use std::num::NonZero;
+use std::sync::Mutex;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::DMatrix;
@@ -48,10 +49,10 @@ use crate::nugget_kriging::{
 
 /// Samples whose likelihood chooses the hyperparameters; up to this many samples the fit
 /// is the dense one, its hyperparameters chosen on the very samples it fits. The search
-/// costs a factorisation per grid point (13 length scales × 4 vertical scales, × 5 weights
-/// of the turning part), cubic in its samples: at a thousand, about 30 s of CPU with the
-/// turning part, and the shipped UR5 (1,000) and KR150-2 (729) sample sets are fitted
-/// densely. A search on 500 strided samples costs an eighth, but on the UR5 its choice
+/// costs a reduction, cubic in its samples, per setting its climb visits (of 13 length
+/// scales × 4 vertical scales, × 5 weights of the turning part; [`crate::nugget_kriging`]):
+/// on the UR5's thousand, 64 of the 260 with the turning part, and the shipped UR5 (1,000)
+/// and KR150-2 (729) sample sets are fitted densely. A search on 500 strided samples costs an eighth, but on the UR5 its choice
 /// cross-validates worse on the training samples (5-fold 0.0738 against 0.0732 mm, 10-fold
 /// 0.0736 against 0.0733; docs/evaluation.md, "At any size").
 pub const SUBSAMPLE: usize = 1000;
@@ -88,6 +89,11 @@ impl Default for LocalSettings {
 /// samples up to `settings.subsample`, else on an evenly strided subsample of that many,
 /// without predicting anything.
 ///
+/// The process remembers its last [`REMEMBERED_SEARCHES`] searches by the samples searched,
+/// to the bit: an evaluation builds two tables on each fold's samples (`paper` and
+/// `paper-trilinear`, `hybrid` and `hybrid-trilinear`), and the second is given the first's
+/// choice, which is what its own search would find.
+///
 /// # Errors
 ///
 /// As [`ResidualGp::fit_turning`].
@@ -102,7 +108,7 @@ pub fn search_choices(
     let n = inputs.len();
     let m = settings.subsample.max(3);
     if n <= m {
-        return fit_dense(inputs, axes, values).map(|fit| fit.choices());
+        return remembered_search(&SEARCHES, inputs, axes, values);
     }
     // Evenly strided: sample ⌊i n / m⌋ for i < m (n > m, so all distinct).
     let picked: Vec<usize> = (0..m)
@@ -111,7 +117,79 @@ pub fn search_choices(
     let pick =
         |rows: &[Vec<f64>]| -> Vec<Vec<f64>> { picked.iter().map(|&i| rows[i].clone()).collect() };
     let picked_axes: Option<Vec<[f64; 3]>> = axes.map(|a| picked.iter().map(|&i| a[i]).collect());
-    Ok(fit_dense(&pick(inputs), picked_axes.as_deref(), &pick(values))?.choices())
+    remembered_search(
+        &SEARCHES,
+        &pick(inputs),
+        picked_axes.as_deref(),
+        &pick(values),
+    )
+}
+
+/// How many searches [`search_choices`] remembers: an evaluation's folds run side by side,
+/// each building its tables one after the other.
+pub const REMEMBERED_SEARCHES: usize = 8;
+
+/// A search remembered: everything it depended on, to the bit ([`search_key`]), and its
+/// choices.
+type Remembered = (Vec<u64>, Vec<GpChoice>);
+
+/// The searches remembered, the least recently used first.
+static SEARCHES: Mutex<Vec<Remembered>> = Mutex::new(Vec::new());
+
+/// The dense search's choices on these very samples, remembered in `store` (at most
+/// [`REMEMBERED_SEARCHES`]) or searched and then remembered.
+fn remembered_search(
+    store: &Mutex<Vec<Remembered>>,
+    inputs: &[Vec<f64>],
+    axes: Option<&[[f64; 3]]>,
+    values: &[Vec<f64>],
+) -> Result<Vec<GpChoice>, GpError> {
+    let key = search_key(inputs, axes, values);
+    let recall = |searches: &mut Vec<Remembered>| {
+        let found = searches.iter().position(|(k, _)| *k == key)?;
+        let entry = searches.remove(found);
+        let choices = entry.1.clone();
+        searches.push(entry);
+        Some(choices)
+    };
+    // Entries are pushed whole, so a thread that panicked holding the lock left none
+    // half-written.
+    let lock = || {
+        store
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    };
+    if let Some(choices) = recall(&mut lock()) {
+        return Ok(choices);
+    }
+    let choices = fit_dense(inputs, axes, values)?.choices();
+    let mut searches = lock();
+    // Another thread may have searched the same samples meanwhile: remembered once.
+    if recall(&mut searches).is_none() {
+        if searches.len() >= REMEMBERED_SEARCHES {
+            searches.remove(0);
+        }
+        searches.push((key, choices.clone()));
+    }
+    Ok(choices)
+}
+
+/// Everything a dense search depends on, to the bit: the samples' inputs, axes (when
+/// given) and values.
+fn search_key(inputs: &[Vec<f64>], axes: Option<&[[f64; 3]]>, values: &[Vec<f64>]) -> Vec<u64> {
+    let mut key = vec![
+        inputs.len() as u64,
+        inputs[0].len() as u64,
+        values[0].len() as u64,
+        u64::from(axes.is_some()),
+    ];
+    key.extend(
+        (inputs.iter().flatten())
+            .chain(axes.into_iter().flatten().flatten())
+            .chain(values.iter().flatten())
+            .map(|v| v.to_bits()),
+    );
+    key
 }
 
 /// The dense fit with its likelihood search: turning with `axes` when given.
@@ -482,6 +560,44 @@ mod tests {
 
     /// Inputs, axes and values.
     type Case = (Vec<Vec<f64>>, Vec<[f64; 3]>, Vec<Vec<f64>>);
+
+    #[test]
+    fn a_search_on_the_same_samples_is_recalled_and_another_searched() {
+        let store = Mutex::new(Vec::new());
+        let (inputs, axes, values) = case(60, 31);
+        let searched = fit_dense(&inputs, Some(&axes), &values).unwrap().choices();
+        let first = remembered_search(&store, &inputs, Some(&axes), &values).unwrap();
+        assert_eq!(first, searched);
+        // What is remembered is what the samples get back, without a search: a marked
+        // entry under their key comes back as it is.
+        let mut marked = searched.clone();
+        marked[0].log_likelihood = 1234.5;
+        store.lock().unwrap()[0].1 = marked.clone();
+        let again = remembered_search(&store, &inputs, Some(&axes), &values).unwrap();
+        assert_eq!(again, marked);
+        // One value one unit in the last place off, or the same samples without axes, are
+        // other samples: searched, and remembered beside.
+        let mut nudged = values.clone();
+        nudged[17][1] = f64::from_bits(nudged[17][1].to_bits() + 1);
+        let other = remembered_search(&store, &inputs, Some(&axes), &nudged).unwrap();
+        assert_eq!(
+            other,
+            fit_dense(&inputs, Some(&axes), &nudged).unwrap().choices()
+        );
+        let plain = remembered_search(&store, &inputs, None, &values).unwrap();
+        assert_eq!(plain, fit_dense(&inputs, None, &values).unwrap().choices());
+        assert_eq!(store.lock().unwrap().len(), 3);
+        // The least recently used is forgotten first.
+        for seed in 0..REMEMBERED_SEARCHES as u64 {
+            let (inputs, _, values) = case(12, 40 + seed);
+            remembered_search(&store, &inputs, None, &values).unwrap();
+        }
+        let kept = store.lock().unwrap();
+        assert_eq!(kept.len(), REMEMBERED_SEARCHES);
+        assert!(kept
+            .iter()
+            .all(|(k, _)| *k != search_key(&inputs, Some(&axes), &values)));
+    }
 
     /// `n` samples in a 1 m cube (mm) with a smooth field plus noise, two components, and
     /// each sample's unit axis; the field's first component turns with the axis.

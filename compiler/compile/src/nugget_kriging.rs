@@ -51,9 +51,10 @@
 //! point along any axis, or along both of the (vertical, length) or the (length,
 //! modulation) plane's diagonals, which follow those ridges ([`CLIMB_STEPS`]). Each
 //! component's choice is so a best among its neighbours, found on the UR5, UR10 and
-//! KR150-2 sample sets (and their folds) at the exhaustive grid's very point with a
-//! quarter to two fifths of its reductions; `tests` hold it to the grid's likelihood on
-//! random fields. Each step's settings are reduced in parallel and the steps follow from
+//! KR150-2 sample sets (and the UR5's folds) at the exhaustive grid's very point with a
+//! quarter to a half of its reductions (the UR5's 1,000 samples with the turning part:
+//! 64 of 260; the UR10's series A: 83); `tests` hold it to the grid's likelihood on random
+//! fields. Each step's settings are reduced in parallel and the steps follow from
 //! the scores alone, so nothing depends on the thread count. A component none of whose
 //! reduced settings is positive definite has every setting reduced, as before.
 //!
