@@ -23,6 +23,7 @@ mod outputs;
 mod plan_branches;
 mod plan_rounds;
 mod posture;
+mod residual_weight;
 mod programs;
 mod programs_fanuc;
 mod programs_gcode;

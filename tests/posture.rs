@@ -320,16 +320,19 @@ fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
         served_field: ServedFieldChoice::Given(ServedField::Method),
         ..TableArgs::default()
     }
-    .build_options();
+    .build_options(ServedField::Method);
     // The build's own decision of the posture term on `train` (the method's served field).
     let decide = |train: &adwi_samples::SampleSet| {
-        adwi_jobs::tune::auto_choice(
+        let ask = adwi_jobs::choice::Ask {
+            posture: true,
+            ..Default::default()
+        };
+        adwi_jobs::choice::auto_choice(
             train,
             Some(&robot),
             &options,
             &CalibrateOptions::default(),
-            false,
-            true,
+            ask,
         )
         .unwrap()
         .posture

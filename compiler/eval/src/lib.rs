@@ -40,8 +40,10 @@
 
 pub mod baselines;
 mod calibration;
+pub mod choice;
 pub mod comparison;
 pub mod continuity;
+pub mod folds;
 pub mod latency;
 pub mod noise_floor;
 mod options;
@@ -250,6 +252,61 @@ pub enum Protocol {
         /// Seed of the split.
         seed: u64,
     },
+    /// Cross-validation by region: `folds` spatial blocks of the samples' nominal
+    /// positions, each one fold ([`folds::block_splits`]).
+    Blocks {
+        /// The blocks, at least 2.
+        folds: usize,
+        /// Seed of the blocks' k-means.
+        seed: u64,
+    },
+    /// Leave one series out: sample `i` belongs to series `series[i]`, and each series is
+    /// predicted from the others ([`folds::group_splits`]).
+    Series(Vec<usize>),
+}
+
+impl Protocol {
+    /// The training and held-out indices of each split of `samples`, and the protocol in
+    /// words; `None` for a validation set (its only split is every sample).
+    fn splits(
+        &self,
+        samples: &SampleSet,
+    ) -> Option<Result<(Vec<baselines::Fold>, String), EvalError>> {
+        let n = samples.len();
+        let invalid = |folds| baselines::stats::StatsError::InvalidFolds {
+            sample_count: n,
+            folds,
+        };
+        Some(match self {
+            Protocol::Validation(_) => return None,
+            Protocol::KFold { folds, seed } => baselines::k_fold_splits(n, *folds, *seed)
+                .map(|s| {
+                    let text =
+                        format!("{folds}-fold cross-validation of {n} samples (seed {seed})");
+                    (s, text)
+                })
+                .map_err(EvalError::from),
+            Protocol::Blocks { folds, seed } => folds::block_splits(&samples.nominal_mm, *folds, *seed)
+                .map(|s| {
+                    let text = format!(
+                        "{folds}-fold cross-validation by region of {n} samples (spatial blocks, seed {seed})"
+                    );
+                    (s, text)
+                })
+                .map_err(EvalError::from),
+            Protocol::Series(series) if series.len() == n => match folds::group_splits(series) {
+                Some(s) => {
+                    let text = format!(
+                        "leave-one-series-out validation of {n} samples in {} series",
+                        s.len()
+                    );
+                    Ok((s, text))
+                }
+                None => Err(EvalError::from(invalid(1))),
+            },
+            Protocol::Series(series) => Err(EvalError::from(invalid(series.len()))),
+        })
+    }
 }
 
 /// Why an evaluation could not run at all (a method that cannot handle the data is not an
@@ -645,32 +702,39 @@ pub fn evaluate(
     protocol: &Protocol,
     options: &EvalOptions,
 ) -> Result<Evaluation, EvalError> {
-    let (splits, points, description): (Vec<(SampleSet, Vec<usize>)>, SampleSet, String) =
-        match protocol {
-            Protocol::Validation(validation) => (
-                vec![(samples.clone(), (0..validation.len()).collect())],
-                validation.clone(),
-                format!(
-                    "built from {} samples, evaluated at {} validation points",
-                    samples.len(),
-                    validation.len()
-                ),
+    // Each split: its training samples, their series (when several), the held-out points.
+    type Split = (SampleSet, Option<Vec<usize>>, Vec<usize>);
+    let series_of = |train: &[usize]| {
+        (options.series.as_ref())
+            .filter(|s| s.len() == samples.len())
+            .map(|s| train.iter().map(|&i| s[i]).collect::<Vec<_>>())
+    };
+    let (splits, points, description): (Vec<Split>, SampleSet, String) = match protocol {
+        Protocol::Validation(validation) => (
+            vec![(
+                samples.clone(),
+                series_of(&(0..samples.len()).collect::<Vec<_>>()),
+                (0..validation.len()).collect(),
+            )],
+            validation.clone(),
+            format!(
+                "built from {} samples, evaluated at {} validation points",
+                samples.len(),
+                validation.len()
             ),
-            Protocol::KFold { folds, seed } => {
-                let splits = baselines::k_fold_splits(samples.len(), *folds, *seed)?;
-                (
-                    splits
-                        .into_iter()
-                        .map(|f| (subset(samples, &f.train), f.test))
-                        .collect(),
-                    samples.clone(),
-                    format!(
-                        "{folds}-fold cross-validation of {} samples (seed {seed})",
-                        samples.len()
-                    ),
-                )
-            }
-        };
+        ),
+        held_out => {
+            let (splits, description) = held_out.splits(samples).expect("not a validation set")?;
+            (
+                splits
+                    .into_iter()
+                    .map(|f| (subset(samples, &f.train), series_of(&f.train), f.test))
+                    .collect(),
+                samples.clone(),
+                description,
+            )
+        }
+    };
     let (methods, skipped) = choose_methods(samples, &points, options)?;
     let orientation = samples.rotation_error_rad.is_some() && points.rotation_error_rad.is_some();
 
@@ -684,48 +748,61 @@ pub fn evaluate(
     // as many splits as the pool has threads at a time bounds the memory in flight to that
     // many splits'; the results are taken in split order, as one after the other would
     // give them, to the bit.
-    let run_split =
-        |split: usize, (train, test): &(SampleSet, Vec<usize>), unsupported: &[Method]| {
-            let test_points = subset(&points, test);
-            let calibration = if methods.iter().any(|m| m.needs_robot()) {
-                let robot = options.robot.as_ref().expect("checked by choose_methods");
-                let method = *methods
-                    .iter()
-                    .find(|m| m.needs_robot())
-                    .expect("a method that needs the robot");
-                Some(match options.identified.get(split) {
-                    Some(c) => c.clone(),
-                    None => calibrate::identify(robot, train, &options.calibrate)
-                        .map_err(|source| EvalError::Calibrate { method, source })?,
-                })
-            } else {
-                None
-            };
-            let mut outcomes = Vec::with_capacity(methods.len());
-            for &method in &methods {
-                if unsupported.contains(&method) {
-                    continue;
-                }
-                let (build, choice) = options::build_options_for(method, train, options);
-                let choice = choice.map(|choice| SplitChoiceRecord {
-                    split,
-                    method,
-                    served_field: choice.served_field.name(),
-                    posture: choice.posture,
-                });
-                let outcome = predict_split(
-                    method,
-                    train,
-                    &test_points,
-                    calibration.as_ref(),
-                    options,
-                    &build,
-                    orientation,
-                );
-                outcomes.push((method, choice, outcome));
-            }
-            Ok::<_, EvalError>((calibration, outcomes))
+    let run_split = |split: usize, (train, train_series, test): &Split, unsupported: &[Method]| {
+        let test_points = subset(&points, test);
+        let calibration = if methods.iter().any(|m| m.needs_robot()) {
+            let robot = options.robot.as_ref().expect("checked by choose_methods");
+            let method = *methods
+                .iter()
+                .find(|m| m.needs_robot())
+                .expect("a method that needs the robot");
+            Some(match options.identified.get(split) {
+                Some(c) => c.clone(),
+                None => calibrate::identify(robot, train, &options.calibrate)
+                    .map_err(|source| EvalError::Calibrate { method, source })?,
+            })
+        } else {
+            None
         };
+        let mut outcomes = Vec::with_capacity(methods.len());
+        for &method in &methods {
+            if unsupported.contains(&method) {
+                continue;
+            }
+            let (build, choice) = options::build_options_for(
+                method,
+                train,
+                train_series.as_deref(),
+                calibration.as_ref(),
+                options,
+            );
+            // A learned residual weight scales what the table's residual field holds.
+            let weighted = match (choice.and_then(|c| c.residual_weight), &calibration) {
+                (Some(w), Some(c)) if w.weight != 1.0 => {
+                    Some(choice::weighted_residuals(train, c, w.weight))
+                }
+                _ => None,
+            };
+            let choice = choice.map(|choice| SplitChoiceRecord {
+                split,
+                method,
+                served_field: choice.served_field.name(),
+                posture: choice.posture,
+                residual_weight: choice.residual_weight,
+            });
+            let outcome = predict_split(
+                method,
+                weighted.as_ref().unwrap_or(train),
+                &test_points,
+                calibration.as_ref(),
+                options,
+                &build,
+                orientation,
+            );
+            outcomes.push((method, choice, outcome));
+        }
+        Ok::<_, EvalError>((calibration, outcomes))
+    };
     let in_flight = rayon::current_num_threads().max(1);
     for (batch, chunk) in splits.chunks(in_flight).enumerate() {
         let unsupported: Vec<Method> = collected.unsupported.keys().copied().collect();
@@ -749,7 +826,7 @@ pub fn evaluate(
                 }
                 let outcome = outcome?;
                 split_choices.extend(choice);
-                collected.record(method, &splits[split].1, outcome);
+                collected.record(method, &splits[split].2, outcome);
             }
         }
     }
@@ -757,7 +834,7 @@ pub fn evaluate(
     // them.
     let floor = splits
         .first()
-        .map(|(train, _)| training_noise_floor(train, identified.first()));
+        .map(|(train, _, _)| training_noise_floor(train, identified.first()));
     let mut evaluation = assemble(description, samples, &points, orientation, collected);
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;

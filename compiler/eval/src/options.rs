@@ -9,6 +9,7 @@ use adwi_robot::Robot;
 use adwi_samples::SampleSet;
 
 use crate::baselines::{GridParams, IdwParams, KrigingParams};
+use crate::choice::{auto_choice, Ask, ResidualWeight};
 use crate::Method;
 
 /// What to evaluate and with which parameters; the default evaluates every applicable
@@ -33,6 +34,9 @@ pub struct EvalOptions {
     /// protocol and identification options made it ([`Evaluation::identified`]): several
     /// evaluations then identify once per split. Empty: identified here.
     pub identified: Vec<Calibration>,
+    /// The series of each sample (its index among the files read), when several: a
+    /// split's residual weight is then learned by leaving one series out.
+    pub series: Option<Vec<usize>>,
     /// Chooses what the served-tier methods' tables (`paper-trilinear`,
     /// `hybrid-trilinear`) are built with from each split's training samples alone, as a
     /// build decides what it is not given (the served field, a hybrid table's posture
@@ -40,20 +44,20 @@ pub struct EvalOptions {
     pub split_rule: Option<SplitRule>,
 }
 
-/// What a split's table is built with, chosen from its training samples alone, for a
-/// hybrid table (`true`: by its residuals) or a position-only one: what
-/// [`EvalOptions::split_rule`] holds. A rule, not a fixed choice, so that no held-out
-/// point ever takes part in it.
-#[derive(Clone)]
-pub struct SplitRule(
-    #[allow(clippy::type_complexity)]
-    pub  std::sync::Arc<dyn Fn(&SampleSet, bool) -> SplitChoice + Send + Sync>,
-);
-
-impl std::fmt::Debug for SplitRule {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("SplitRule(..)")
-    }
+/// What a split's served-tier table (`paper-trilinear`, `hybrid-trilinear`) is built with
+/// when [`EvalOptions::build`] leaves it to be chosen: decided on the split's training
+/// samples alone, as a build decides what it is not given ([`crate::choice::auto_choice`],
+/// the same code), so that no held-out point ever takes part. A split too small to
+/// cross-validate gets what a build would then write: the method's field, no term.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SplitRule {
+    /// The served field is chosen (else `build`'s).
+    pub choose_field: bool,
+    /// A hybrid table's posture term is decided (else as `build` says).
+    pub choose_posture: bool,
+    /// A hybrid table's residual weight is learned from the split's training samples, by
+    /// their series or regions ([`crate::choice::CrossValidation::residual_weight`]).
+    pub weigh_residual: bool,
 }
 
 /// What a [`SplitRule`] chose for one split's table.
@@ -64,10 +68,13 @@ pub struct SplitChoice {
     /// The posture term's decision, when the rule made it (a hybrid table, the term
     /// neither asked for nor refused); `None`: as `build` says.
     pub posture: Option<PostureDecision>,
+    /// The residual field's weight and its evidence, when the rule learned it (a hybrid
+    /// table; none when the held-out points could not tell).
+    pub residual_weight: Option<ResidualWeight>,
 }
 
 /// Whether a split's hybrid table gets the posture term, by the cross-validation a build
-/// makes on its training samples (`adwi_jobs::tune::posture_choice`).
+/// makes on its training samples ([`crate::choice::CrossValidation::posture`]).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PostureDecision {
     /// The served tier's cross-validated mean without the term, mm.
@@ -90,32 +97,91 @@ pub struct SplitChoiceRecord {
     pub served_field: &'static str,
     /// The posture term's decision, when made per split.
     pub posture: Option<PostureDecision>,
+    /// The residual field's weight and its evidence, when learned per split.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_weight: Option<ResidualWeight>,
 }
 
-/// The build options of `method` on the training samples `train`: `options.build`, with
-/// what a served-tier method's table is built with chosen from `train` when a rule is
-/// given, and that choice.
+/// The build options of `method` on the training samples `train` (identified as
+/// `calibration`, for a hybrid table): `options.build`, with what a served-tier method's
+/// table is built with chosen from `train` when a rule is given, and that choice.
 pub(crate) fn build_options_for(
     method: Method,
     train: &SampleSet,
+    train_series: Option<&[usize]>,
+    calibration: Option<&Calibration>,
     options: &EvalOptions,
 ) -> (BuildOptions, Option<SplitChoice>) {
-    match (&options.split_rule, method) {
-        (Some(rule), Method::PaperTrilinear | Method::HybridTrilinear) => {
-            let choice = (rule.0)(train, method == Method::HybridTrilinear);
-            let mut build = BuildOptions {
-                served_field: choice.served_field,
-                ..options.build.clone()
-            };
-            if let Some(decision) = choice.posture {
-                build.posture = if decision.on {
-                    Posture::Fit
-                } else {
-                    Posture::Off
-                };
+    let Some(rule) = options.split_rule else {
+        return (options.build.clone(), None);
+    };
+    let hybrid = match method {
+        Method::PaperTrilinear => false,
+        Method::HybridTrilinear => true,
+        _ => return (options.build.clone(), None),
+    };
+    let choice = split_choice(rule, train, train_series, hybrid, calibration, options);
+    let mut build = BuildOptions {
+        served_field: choice.served_field,
+        ..options.build.clone()
+    };
+    if let Some(decision) = choice.posture {
+        build.posture = if decision.on {
+            Posture::Fit
+        } else {
+            Posture::Off
+        };
+    }
+    (build, Some(choice))
+}
+
+/// What `rule` chooses for a split's table on `train`: a hybrid table's (by its residuals,
+/// the model identified as `calibration`) or a position-only one's, as a build without a
+/// robot chooses it.
+fn split_choice(
+    rule: SplitRule,
+    train: &SampleSet,
+    train_series: Option<&[usize]>,
+    hybrid: bool,
+    calibration: Option<&Calibration>,
+    options: &EvalOptions,
+) -> SplitChoice {
+    let build = &options.build;
+    let posture = rule.choose_posture && hybrid;
+    let weight = rule.weigh_residual && hybrid;
+    if !(rule.choose_field || posture || weight) {
+        return SplitChoice {
+            served_field: build.served_field,
+            posture: None,
+            residual_weight: None,
+        };
+    }
+    let robot = options.robot.as_ref().filter(|_| hybrid);
+    let ask = Ask {
+        field: rule.choose_field,
+        posture,
+        identified: calibration.filter(|_| hybrid),
+        weight,
+        series: train_series,
+    };
+    let chosen = auto_choice(train, robot, build, &options.calibrate, ask);
+    let mut chosen_options = build.clone();
+    if let Ok(auto) = &chosen {
+        auto.apply(&mut chosen_options);
+    }
+    let residual_weight = (chosen.as_ref().ok())
+        .filter(|_| weight)
+        .and_then(|auto| auto.residual_weight);
+    SplitChoice {
+        served_field: chosen_options.served_field,
+        residual_weight,
+        posture: posture.then(|| {
+            let decided = chosen.ok().and_then(|auto| auto.posture);
+            PostureDecision {
+                without_mm: decided.and_then(|p| p.without_mm),
+                with_mm: decided.and_then(|p| p.with_mm),
+                on: decided.is_some_and(|p| p.chosen),
             }
-            (build, Some(choice))
-        }
-        _ => (options.build.clone(), None),
+        }),
     }
 }

@@ -248,6 +248,29 @@ fn split_choice_notes(e: &Evaluation) -> Vec<String> {
             if splits > 1 { "per split: " } else { "" },
             fields.join(", ")
         ));
+        let weights: Vec<String> = choices
+            .iter()
+            .filter_map(|c| {
+                c.residual_weight.map(|w| {
+                    format!(
+                        "{}{:.3} (held-out mean {:.4} mm; model alone {:.4}, whole field {:.4})",
+                        name(c.split),
+                        w.weight,
+                        w.weighted_mm,
+                        w.model_mm,
+                        w.full_mm
+                    )
+                })
+            })
+            .collect();
+        if !weights.is_empty() {
+            notes.push(format!(
+                "{method}: residual weight learned from {} training samples' held-out series \
+                 or regions: {}",
+                if splits > 1 { "each split's" } else { "the" },
+                weights.join(", ")
+            ));
+        }
         let decided: Vec<_> = choices
             .iter()
             .filter_map(|c| c.posture.map(|p| (c.split, p)))

@@ -104,6 +104,16 @@ pub enum ServedFieldChoice {
     Given(ServedField),
 }
 
+impl ServedFieldChoice {
+    /// The field given; `None` for `auto`.
+    pub fn fixed(self) -> Option<ServedField> {
+        match self {
+            ServedFieldChoice::Auto => None,
+            ServedFieldChoice::Given(field) => Some(field),
+        }
+    }
+}
+
 impl std::str::FromStr for ServedFieldChoice {
     type Err = String;
 
@@ -132,8 +142,8 @@ impl std::fmt::Display for ServedFieldChoice {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PostureChoice {
     /// Added when the build's cross-validation on the training samples says it helps by
-    /// the documented margin ([`crate::tune::POSTURE_MIN_GAIN_FRACTION`],
-    /// [`crate::tune::POSTURE_MIN_GAIN_MM`]); never for a position-only table.
+    /// the documented margin ([`crate::choice::POSTURE_MIN_GAIN_FRACTION`],
+    /// [`crate::choice::POSTURE_MIN_GAIN_MM`]); never for a position-only table.
     #[default]
     Auto,
     /// Always added (a hybrid table).
@@ -161,6 +171,39 @@ impl std::fmt::Display for PostureChoice {
             PostureChoice::Auto => "auto",
             PostureChoice::On => "on",
             PostureChoice::Off => "off",
+        })
+    }
+}
+
+/// How much of a hybrid table's residual field the table holds, as asked for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ResidualWeightChoice {
+    /// A weight in [0, 1] learned from held-out data: each series predicted from the
+    /// others when several are given, else each spatial block of the samples from the
+    /// others ([`crate::choice::CrossValidation::residual_weight`]).
+    Auto,
+    /// The whole field.
+    #[default]
+    Full,
+}
+
+impl std::str::FromStr for ResidualWeightChoice {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<ResidualWeightChoice, String> {
+        match text {
+            "auto" => Ok(ResidualWeightChoice::Auto),
+            "full" => Ok(ResidualWeightChoice::Full),
+            _ => Err(format!("'{text}': choose auto or full")),
+        }
+    }
+}
+
+impl std::fmt::Display for ResidualWeightChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ResidualWeightChoice::Auto => "auto",
+            ResidualWeightChoice::Full => "full",
         })
     }
 }
@@ -228,6 +271,13 @@ pub struct TableArgs {
     #[arg(long, value_name = "WHEN", default_value_t = PostureChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub posture: PostureChoice,
+    /// A hybrid table's residual field weight: `full`, the whole field; `auto`, a weight in
+    /// [0, 1] learned from held-out data (each series predicted from the others when
+    /// several are given, else each of 5 spatial blocks of the samples from the others):
+    /// a field that does not carry to poses elsewhere is faded toward the model alone.
+    #[arg(long, value_name = "WEIGHT", default_value_t = ResidualWeightChoice::Full)]
+    #[serde(deserialize_with = "parsed::value")]
+    pub residual_weight: ResidualWeightChoice,
 }
 
 impl Default for TableArgs {
@@ -246,14 +296,15 @@ impl Default for TableArgs {
             joint_radius: None,
             served_field: ServedFieldChoice::Auto,
             posture: PostureChoice::Auto,
+            residual_weight: ResidualWeightChoice::Full,
         }
     }
 }
 
 impl TableArgs {
-    /// The compiler's options, the served field as given or, when to be chosen, the
-    /// method's answer until the choice is made.
-    pub fn build_options(&self) -> BuildOptions {
+    /// The compiler's options with `served_field`: the one given
+    /// ([`ServedFieldChoice::fixed`]), or the one chosen for `auto`.
+    pub fn build_options(&self, served_field: ServedField) -> BuildOptions {
         let (w1, w2) = adwi_compile::build::resolve_weights(self.w1, self.w2);
         BuildOptions {
             method: MethodParams {
@@ -271,10 +322,7 @@ impl TableArgs {
             joint_radius_deg: self.joint_radius,
             tuning: None,
             kriging_choices: None,
-            served_field: match self.served_field {
-                ServedFieldChoice::Given(field) => field,
-                ServedFieldChoice::Auto => ServedField::Method,
-            },
+            served_field,
             posture: match self.posture {
                 PostureChoice::On => Posture::Fit,
                 PostureChoice::Auto | PostureChoice::Off => Posture::Off,

@@ -8,7 +8,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use adwi_compile::build::{compile_plan, BuildOptions, BuildReport, Plan};
+use adwi_compile::build::{compile_plan, BuildReport, Plan, ServedField};
+use adwi_eval::choice::{auto_choice, Ask, CrossValidation, ServedFieldDecision, TuneReport};
 use adwi_output::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::register::{Refined, Registration};
@@ -17,10 +18,9 @@ use adwi_samples::{RepeatReport, SampleSet};
 use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs, TableArgs};
-use crate::args::{PostureChoice, ServedFieldChoice};
+use crate::args::{PostureChoice, ResidualWeightChoice, ServedFieldChoice};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
-use crate::tune::{AutoServedField, TuneReport};
 use crate::{JobError, Progress, Warning};
 
 /// Compile a sample database into a correction table: every option of `tablec build`.
@@ -109,7 +109,6 @@ pub struct BuildJob {
     args: BuildArgs,
     series: Series,
     robot: Option<Robot>,
-    options: BuildOptions,
     plan: Plan,
     outputs: OutputPlan,
     pool: rayon::ThreadPool,
@@ -133,9 +132,9 @@ pub struct Built {
     pub report: BuildReport,
     /// The cross-validation that chose the options (`tune`).
     pub tuning: Option<TuneReport>,
-    /// The cross-validation that chose the served field, without `tune` (`served_field`
-    /// `auto`, the default).
-    pub served_choice: Option<AutoServedField>,
+    /// The served field, resolved before the table was encoded, without `tune`: chosen by
+    /// cross-validation (`served_field` or `posture` `auto`, the defaults) or fixed.
+    pub served_field: Option<ServedFieldDecision>,
     /// A hybrid table's identification, and the RMS of the residuals its table holds, mm.
     pub calibration: Option<(Calibration, f64)>,
     /// Tracker-frame samples' registration, and both transforms as the identification
@@ -179,8 +178,10 @@ impl BuildJob {
             Some(r) => Some(r.robot.clone()),
             None => file_robot,
         };
-        let options = args.table.build_options();
-        let plan = adwi_compile::build::plan(&series.samples, &options)?;
+        // Sized with the field given, or the method's own where one is to be chosen: a
+        // chosen kriging field is sized again once chosen.
+        let sized = args.table.build_options(unchosen_field(&args));
+        let plan = adwi_compile::build::plan(&series.samples, &sized)?;
         let mut warnings = series.warnings();
         if plan.is_mostly_empty() {
             warnings.push(Warning::MostlyEmptyGrid {
@@ -194,7 +195,6 @@ impl BuildJob {
             args,
             series,
             robot,
-            options,
             plan,
             outputs,
             pool,
@@ -214,8 +214,8 @@ impl BuildJob {
         &self.series.samples
     }
 
-    /// Runs the build: tuning when asked, the identification of a hybrid table's model,
-    /// the compilation, and the write.
+    /// Runs the build: the identification of a hybrid table's model, tuning when asked or
+    /// the served field's choice (on that identification), the compilation, and the write.
     ///
     /// # Errors
     ///
@@ -226,7 +226,6 @@ impl BuildJob {
             args,
             mut series,
             robot,
-            mut options,
             mut plan,
             outputs,
             pool,
@@ -234,70 +233,83 @@ impl BuildJob {
             mut warnings,
             started,
         } = self;
+        let unchosen = unchosen_field(&args);
+        let base = args.table.build_options(unchosen);
         if args.samples.len() > 1 {
             progress.stage("registering the series", None);
             pool.install(|| series.refine(&calibrate))?;
-            plan = adwi_compile::build::plan(&series.samples, &options)?;
+            plan = adwi_compile::build::plan(&series.samples, &base)?;
         }
         let Series {
             samples,
+            labels,
             registered,
             others,
             ..
         } = series;
-        let mut tuning = None;
-        let mut served_choice = None;
-        let choose_field = args.table.served_field == ServedFieldChoice::Auto;
-        let choose_posture = args.table.posture == PostureChoice::Auto && robot.is_some();
-        if args.tune {
-            progress.stage("tuning", None);
-            let report = pool.install(|| {
-                crate::tune::tune(
-                    &samples,
-                    robot.as_ref(),
-                    &options,
-                    &calibrate,
-                    args.tune_folds,
-                    0,
-                    choose_field,
-                    choose_posture && plan.joint_radius_rad == 0.0,
-                )
-            })?;
-            options = report.options.clone();
-            plan = adwi_compile::build::plan(&samples, &options)?;
-            tuning = Some(report);
-        } else if (choose_field || choose_posture) && plan.joint_radius_rad == 0.0 {
-            // Never a reason for a build to fail that would succeed with the method's own
-            // field: without the evidence, that one.
-            progress.stage("choosing the served field", None);
-            let chosen = pool.install(|| {
-                crate::tune::auto_choice(
-                    &samples,
-                    robot.as_ref(),
-                    &options,
-                    &calibrate,
-                    choose_field,
-                    choose_posture,
-                )
-            });
-            match chosen {
-                Ok(choice) => {
-                    choice.apply(&mut options);
-                    plan = adwi_compile::build::plan(&samples, &options)?;
-                    served_choice = Some(choice);
-                }
-                Err(e) => warnings.push(Warning::ServedFieldNotChosen {
-                    reason: error_chain(&e),
-                }),
-            }
-        }
-        let advance = |n| progress.advance(n);
-        let (bytes, report, calibration) = match &robot {
+        // Identified once: the model the table holds, and the residuals the served
+        // field's kriging is fitted to when one is chosen.
+        let identified = match &robot {
             Some(robot) => {
                 progress.stage("identifying", None);
-                let identified = pool.install(|| identify(robot, &samples, &calibrate))?;
+                Some(pool.install(|| identify(robot, &samples, &calibrate))?)
+            }
+            None => None,
+        };
+        let choose_field = args.table.served_field == ServedFieldChoice::Auto;
+        let choose_posture = args.table.posture == PostureChoice::Auto && robot.is_some();
+        let choose_weight =
+            args.table.residual_weight == ResidualWeightChoice::Auto && robot.is_some();
+        let served_tier = plan.joint_radius_rad == 0.0;
+        let (options, tuning, served_field) = if args.tune {
+            progress.stage("tuning", None);
+            let report =
+                pool.install(|| {
+                    CrossValidation::new(&samples, robot.as_ref(), calibrate, args.tune_folds, 0)?
+                        .tune(&base, choose_field, choose_posture && served_tier)
+                })?;
+            (report.options.clone(), Some(report), None)
+        } else {
+            let decision = if (choose_field || choose_posture || choose_weight) && served_tier {
+                // Never a reason for a build to fail that would succeed with the method's
+                // own field: without the evidence, that one.
+                progress.stage("choosing the served field", None);
+                let ask = Ask {
+                    field: choose_field,
+                    posture: choose_posture,
+                    identified: identified.as_ref(),
+                    weight: choose_weight,
+                    series: labels.as_deref(),
+                };
+                let chosen =
+                    pool.install(|| auto_choice(&samples, robot.as_ref(), &base, &calibrate, ask));
+                match chosen {
+                    Ok(choice) => ServedFieldDecision::Chosen(Box::new(choice)),
+                    Err(e) => {
+                        warnings.push(Warning::ServedFieldNotChosen {
+                            reason: error_chain(&e),
+                        });
+                        ServedFieldDecision::Fixed(unchosen)
+                    }
+                }
+            } else {
+                ServedFieldDecision::Fixed(unchosen)
+            };
+            let mut options = args.table.build_options(decision.field());
+            decision.apply(&mut options);
+            (options, None, Some(decision))
+        };
+        let plan = adwi_compile::build::plan(&samples, &options)?;
+        let advance = |n| progress.advance(n);
+        let (bytes, report, calibration) = match robot.as_ref().zip(identified) {
+            Some((robot, identified)) => {
                 progress.stage("compiling", Some(plan.cells() as u64));
                 let model = identified.prepared_model();
+                // A learned residual weight scales the residuals the table holds.
+                let weight = served_field.as_ref().map_or(1.0, |d| d.residual_weight());
+                let weighted = (weight != 1.0)
+                    .then(|| adwi_eval::choice::weighted_residuals(&samples, &identified, weight));
+                let table_samples = weighted.as_ref().unwrap_or(&samples);
                 // The point the samples measured, on the flange: a query may name another
                 // TCP, whose lever the model turns.
                 let tool = robot.tool();
@@ -308,8 +320,9 @@ impl BuildJob {
                     )),
                     ..plan
                 };
-                let built = pool
-                    .install(|| adwi_compile::hybrid::compile(&samples, &model, &plan, &advance))?;
+                let built = pool.install(|| {
+                    adwi_compile::hybrid::compile(table_samples, &model, &plan, &advance)
+                })?;
                 warnings.extend(crate::calibration_warnings(&identified));
                 (
                     built.bytes,
@@ -341,7 +354,7 @@ impl BuildJob {
             repeats: samples.repeats,
             report,
             tuning,
-            served_choice,
+            served_field,
             calibration,
             registration,
             series_registrations: others,
@@ -349,6 +362,14 @@ impl BuildJob {
             seconds: started.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// The field a table serves where none is chosen: the one given, else the method's own.
+fn unchosen_field(args: &BuildArgs) -> ServedField {
+    args.table
+        .served_field
+        .fixed()
+        .unwrap_or(ServedField::Method)
 }
 
 /// An error and its sources, in one line.
@@ -409,6 +430,6 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
     }
     // The table's options, before any file is read: a wrong k or w1 + w2 is a usage error
     // whatever the samples.
-    adwi_compile::build::check_options(&args.table.build_options())
+    adwi_compile::build::check_options(&args.table.build_options(unchosen_field(args)))
         .map_err(|e| JobError::Options(e.to_string()))
 }

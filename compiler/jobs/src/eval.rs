@@ -4,9 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use adwi_compile::build::BuildOptions;
-use adwi_eval::{
-    EvalOptions, Evaluation, Method, PostureDecision, Protocol, SplitChoice, SplitRule,
-};
+use adwi_compile::build::ServedField;
+use adwi_eval::{EvalOptions, Evaluation, Method, Protocol, SplitRule};
 use adwi_output::OutputPlan;
 use adwi_robot::agreement::{check_base_frame, check_registered};
 use adwi_robot::calibrate::CalibrateOptions;
@@ -15,7 +14,10 @@ use adwi_robot::Robot;
 use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
 
-use crate::args::{parsed, Frame, PostureChoice, Reading, RobotArgs, ServedFieldChoice, TableArgs};
+use crate::args::{
+    parsed, Frame, PostureChoice, Reading, ResidualWeightChoice, RobotArgs, ServedFieldChoice,
+    TableArgs,
+};
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::series::Series;
 use crate::{JobError, Warning};
@@ -49,6 +51,11 @@ pub struct EvalArgs {
     /// Seed of the k-fold split.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// With --folds: also hold out by region, as many spatial blocks of the samples'
+    /// nominal positions as folds (several series: each series in turn), and report that
+    /// figure after the random folds': what poses elsewhere, or the next series, see.
+    #[arg(long)]
+    pub by_region: bool,
     #[command(flatten)]
     #[serde(flatten)]
     pub reading: Reading,
@@ -115,6 +122,7 @@ impl Default for EvalArgs {
             limit: None,
             folds: None,
             seed: 0,
+            by_region: false,
             reading: Reading::default(),
             methods: None,
             robot: RobotArgs::default(),
@@ -160,8 +168,12 @@ enum HeldOut {
         limit: Option<usize>,
         apart: bool,
     },
-    /// k-fold cross-validation of the samples.
-    Folds { folds: usize, seed: u64 },
+    /// k-fold cross-validation of the samples, and by region when `by_region`.
+    Folds {
+        folds: usize,
+        seed: u64,
+        by_region: bool,
+    },
 }
 
 /// An evaluation checked and loaded, ready to run.
@@ -178,6 +190,8 @@ pub struct EvalJob {
 pub struct Evaluated {
     /// Every method's figures, predictions and identification.
     pub evaluation: Evaluation,
+    /// The same methods held out by region or by series (`by_region`).
+    pub by_region: Option<Evaluation>,
     /// Tracker-frame samples' registration, and both transforms as an identification of
     /// all samples refined them.
     pub registration: Option<(Registration, Refined)>,
@@ -283,6 +297,7 @@ impl EvalJob {
                     (None, Some(folds)) => HeldOut::Folds {
                         folds,
                         seed: args.seed,
+                        by_region: args.by_region,
                     },
                     _ => unreachable!("checked"),
                 };
@@ -290,8 +305,14 @@ impl EvalJob {
                     Some(r) => Some(r.robot.clone()),
                     None => file_robot,
                 };
-                let build = args.options.build_options();
-                let split_rule = split_rule(&args.options, robot.as_ref(), &build, &calibrate);
+                // The methods' tables serve the field given; `auto` is chosen on each split's
+                // training samples for the served-tier methods ([`split_rule`]), the exact
+                // tier's serve none.
+                let given = args.options.served_field.fixed();
+                let build = args
+                    .options
+                    .build_options(given.unwrap_or(ServedField::Method));
+                let split_rule = split_rule(&args.options, robot.is_some(), &build);
                 let options = EvalOptions {
                     methods: args.methods.clone(),
                     build,
@@ -338,7 +359,7 @@ impl EvalJob {
         } = self;
         let mut warnings = Vec::new();
         let mut series_registrations = Vec::new();
-        let (evaluation, registration, validation_registration) = match subject {
+        let (evaluation, by_region, registration, validation_registration) = match subject {
             Subject::Table {
                 table,
                 path,
@@ -351,7 +372,7 @@ impl EvalJob {
                     points.len()
                 );
                 let evaluation = adwi_eval::evaluate_table(&table, &points, description)?;
-                (evaluation, None, None)
+                (evaluation, None, None, None)
             }
             Subject::Methods {
                 mut series,
@@ -364,12 +385,17 @@ impl EvalJob {
                 warnings.extend(series.warnings());
                 let Series {
                     samples,
+                    labels,
                     registered,
                     others,
                     ..
                 } = series;
                 series_registrations = others;
+                // Several series: a split's residual weight is learned by leaving one out.
+                let mut options = options;
+                options.series = labels;
                 let mut registered_apart = None;
+                let mut regions = None;
                 let protocol = match held_out {
                     HeldOut::Validation {
                         source,
@@ -389,9 +415,23 @@ impl EvalJob {
                         limit(&mut points, n);
                         Protocol::Validation(points)
                     }
-                    HeldOut::Folds { folds, seed } => Protocol::KFold { folds, seed },
+                    HeldOut::Folds {
+                        folds,
+                        seed,
+                        by_region,
+                    } => {
+                        regions = by_region.then(|| match &options.series {
+                            Some(series) => Protocol::Series(series.clone()),
+                            None => Protocol::Blocks { folds, seed },
+                        });
+                        Protocol::KFold { folds, seed }
+                    }
                 };
                 let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+                let by_region = match &regions {
+                    Some(regions) => Some(adwi_eval::evaluate(&samples, regions, &options)?),
+                    None => None,
+                };
                 if let Some(c) = evaluation.identified.first() {
                     warnings.extend(crate::calibration_warnings(c));
                 }
@@ -401,7 +441,7 @@ impl EvalJob {
                 let all_samples = match (&registered_apart, &protocol) {
                     (Some((_, c)), _) => Some(c),
                     (None, Protocol::Validation(_)) => evaluation.identified.first(),
-                    (None, Protocol::KFold { .. }) => None,
+                    (None, _) => None,
                 };
                 let registration = match registered {
                     Some(r) => {
@@ -410,7 +450,12 @@ impl EvalJob {
                     }
                     None => None,
                 };
-                (evaluation, registration, registered_apart.map(|(r, _)| r))
+                (
+                    evaluation,
+                    by_region,
+                    registration,
+                    registered_apart.map(|(r, _)| r),
+                )
             }
         };
         let mut contents: Vec<(&Path, Vec<u8>)> = Vec::new();
@@ -431,6 +476,7 @@ impl EvalJob {
         outputs.write(&borrowed)?;
         Ok(Evaluated {
             evaluation,
+            by_region,
             registration,
             series_registrations,
             validation_registration,
@@ -440,62 +486,18 @@ impl EvalJob {
     }
 }
 
-/// What a split's served-tier table is built with, decided as a build decides what it is
-/// not given ([`crate::tune::auto_choice`], the same code): the served field when `auto`,
-/// and a hybrid table's posture term when `auto`, from the split's training samples alone.
-/// `None` when everything is given. A split too small to cross-validate gets what a build
-/// would then write: the method's field, no term.
-fn split_rule(
-    table: &TableArgs,
-    robot: Option<&Robot>,
-    build: &BuildOptions,
-    calibrate: &CalibrateOptions,
-) -> Option<SplitRule> {
-    let choose_field = table.served_field == ServedFieldChoice::Auto;
-    // As a build: the term is decided for a hybrid table without a joint screen.
-    let choose_posture = table.posture == PostureChoice::Auto
-        && robot.is_some()
-        && build.joint_radius_deg.unwrap_or(0.0) == 0.0;
-    if !(choose_field || choose_posture) {
-        return None;
-    }
-    let (robot, build, calibrate) = (robot.cloned(), build.clone(), *calibrate);
-    Some(SplitRule(std::sync::Arc::new(
-        move |train: &SampleSet, hybrid: bool| {
-            let posture = choose_posture && hybrid;
-            if !(choose_field || posture) {
-                return SplitChoice {
-                    served_field: build.served_field,
-                    posture: None,
-                };
-            }
-            // A position-only table's field is chosen as a build without a robot
-            // chooses it: for paper-trilinear.
-            let chosen = crate::tune::auto_choice(
-                train,
-                robot.as_ref().filter(|_| hybrid),
-                &build,
-                &calibrate,
-                choose_field,
-                posture,
-            );
-            let mut options = build.clone();
-            if let Ok(auto) = &chosen {
-                auto.apply(&mut options);
-            }
-            SplitChoice {
-                served_field: options.served_field,
-                posture: posture.then(|| {
-                    let decided = chosen.ok().and_then(|auto| auto.posture);
-                    PostureDecision {
-                        without_mm: decided.and_then(|p| p.without_mm),
-                        with_mm: decided.and_then(|p| p.with_mm),
-                        on: decided.is_some_and(|p| p.chosen),
-                    }
-                }),
-            }
-        },
-    )))
+/// What a split's served-tier table is decided on its training samples, as a build
+/// decides what it is not given: the served field when `auto`, and a hybrid table's
+/// posture term and residual weight when `auto` (without a joint screen, as a build). `None` when everything
+/// is given.
+fn split_rule(table: &TableArgs, robot: bool, build: &BuildOptions) -> Option<SplitRule> {
+    let served_tier = build.joint_radius_deg.unwrap_or(0.0) == 0.0;
+    let rule = SplitRule {
+        choose_field: table.served_field == ServedFieldChoice::Auto,
+        choose_posture: table.posture == PostureChoice::Auto && robot && served_tier,
+        weigh_residual: table.residual_weight == ResidualWeightChoice::Auto && robot && served_tier,
+    };
+    (rule.choose_field || rule.choose_posture || rule.weigh_residual).then_some(rule)
 }
 
 /// The first `n` points, when limited.
@@ -557,6 +559,9 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
     }
     if let Some(0) = args.limit {
         return Err(JobError::option("limit", "give at least 1 point"));
+    }
+    if args.by_region && args.folds.is_none() {
+        return refuse("--by-region (by_region) holds out regions as folds: give --folds K");
     }
     if args.limit.is_some() && args.validation.is_none() {
         return refuse("--limit (limit) keeps the first validation points: give --validation");

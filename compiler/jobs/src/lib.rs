@@ -30,7 +30,8 @@ pub mod plan;
 pub mod query;
 mod series;
 pub mod simulate;
-pub mod tune;
+/// The table's choices by evidence, made beside evaluation.
+pub use adwi_eval::choice;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -93,7 +94,7 @@ pub enum JobError {
     Eval(Box<adwi_eval::EvalError>),
     /// The cross-validation that chooses the table's parameters failed.
     #[error(transparent)]
-    Tune(Box<tune::TuneError>),
+    Tune(Box<choice::TuneError>),
     /// A table that cannot be opened.
     #[error("cannot open table {}", path.display())]
     Table {
@@ -158,7 +159,7 @@ boxed_from!(
     Build: adwi_compile::build::BuildError,
     Calibrate: adwi_robot::calibrate::CalibrateError,
     Eval: adwi_eval::EvalError,
-    Tune: tune::TuneError,
+    Tune: choice::TuneError,
     Output: adwi_output::OutputError,
     Truth: adwi_measure::truth::TruthError,
 );

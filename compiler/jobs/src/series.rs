@@ -34,6 +34,9 @@ pub const REFINEMENTS: usize = 1;
 pub(crate) struct Series {
     /// Every sample, series after series.
     pub samples: SampleSet,
+    /// The series of each sample (its file's index), when several were read: a pose two
+    /// series command alike is one sample, the first series'.
+    pub labels: Option<Vec<usize>>,
     /// Tracker-frame series: the first one's registration, with the robot every method
     /// starts from (the registered probe as its tool).
     pub registered: Option<Registered>,
@@ -94,8 +97,10 @@ pub(crate) fn read(
                     }
                 }
             }
+            let (samples, labels) = concat(sets)?;
             return Ok(Series {
-                samples: concat(sets)?,
+                samples,
+                labels,
                 registered: None,
                 others: Vec::new(),
                 later: None,
@@ -123,6 +128,7 @@ pub(crate) fn read(
     if rest.is_empty() {
         return Ok(Series {
             samples: first_samples,
+            labels: None,
             registered: Some(registered),
             others: Vec::new(),
             later: None,
@@ -138,8 +144,10 @@ pub(crate) fn read(
     for ((name, m), set) in later.names.iter().zip(&later.measurements).zip(&sets[1..]) {
         agreement::check_registered(&registered.file_robot, m, set, name)?;
     }
+    let (samples, labels) = concat(sets)?;
     Ok(Series {
-        samples: concat(sets)?,
+        samples,
+        labels,
         registered: Some(registered),
         others,
         later: Some(later),
@@ -201,10 +209,11 @@ impl Series {
         // The first series' own calibration: what the others are registered to first, so
         // that no series' misregistration has yet leaked into the model.
         let first = identify(&registered.robot, &later.first_samples, calibrate)?;
-        (self.others, self.samples) = later.register(registered, &first)?;
+        (self.others, (self.samples, self.labels)) = later.register(registered, &first)?;
         for _ in 0..REFINEMENTS {
             let calibration = identify(&registered.robot, &self.samples, calibrate)?;
-            (self.others, self.samples) = later.register(registered, &calibration)?;
+            (self.others, (self.samples, self.labels)) =
+                later.register(registered, &calibration)?;
         }
         Ok(())
     }
@@ -218,7 +227,7 @@ impl Later {
         &self,
         first: &Registered,
         model: &Calibration,
-    ) -> Result<(Vec<Registration>, SampleSet), JobError> {
+    ) -> Result<(Vec<Registration>, Labelled), JobError> {
         let (registrations, sets) =
             self.register_each(first, model.calibrated_robot(), model.joint_terms())?;
         Ok((registrations, concat(sets)?))
@@ -269,11 +278,41 @@ fn moved_by_terms<'a>(
     std::borrow::Cow::Owned(moved)
 }
 
-fn concat(sets: Vec<SampleSet>) -> Result<SampleSet, JobError> {
+/// Samples, and the series of each when several were read.
+type Labelled = (SampleSet, Option<Vec<usize>>);
+
+/// The series as one sample set, and the series of each sample when several.
+fn concat(sets: Vec<SampleSet>) -> Result<Labelled, JobError> {
     if sets.len() == 1 {
-        return Ok(sets.into_iter().next().expect("one"));
+        return Ok((sets.into_iter().next().expect("one"), None));
     }
-    SampleSet::concat(&sets).map_err(|e| JobError::Options(e.to_string()))
+    let samples = SampleSet::concat(&sets).map_err(|e| JobError::Options(e.to_string()))?;
+    let labels = labels(&sets, &samples);
+    Ok((samples, Some(labels)))
+}
+
+/// The series of each of `merged`'s samples: the first of `sets` that commands its pose
+/// (nominal position to the nanometre and joint values to the nanoradian), else the first.
+fn labels(sets: &[SampleSet], merged: &SampleSet) -> Vec<usize> {
+    let key = |set: &SampleSet, i: usize| {
+        let mut key: Vec<i64> = set.nominal_mm[i]
+            .iter()
+            .map(|v| (v * 1e6).round() as i64)
+            .collect();
+        if let Some(q) = set.joints_rad(i) {
+            key.extend(q.iter().map(|v| (v * 1e9).round() as i64));
+        }
+        key
+    };
+    let mut first = std::collections::HashMap::new();
+    for (series, set) in sets.iter().enumerate() {
+        for i in 0..set.len() {
+            first.entry(key(set, i)).or_insert(series);
+        }
+    }
+    (0..merged.len())
+        .map(|i| first.get(&key(merged, i)).copied().unwrap_or(0))
+        .collect()
 }
 
 #[cfg(test)]
@@ -599,5 +638,33 @@ mod tests {
             e.to_string().contains("registered to the robot file"),
             "{e}"
         );
+    }
+}
+
+#[cfg(test)]
+mod label_tests {
+    use adwi_samples::SampleSet;
+
+    /// Samples at `x` (mm) along the base's x axis, errors zero.
+    fn at(x: &[f64]) -> SampleSet {
+        SampleSet {
+            nominal_mm: x.iter().map(|&x| [x, 0.0, 0.0]).collect(),
+            error_mm: vec![[0.0; 3]; x.len()],
+            lines: (1..=x.len() as u64).collect(),
+            ..SampleSet::default()
+        }
+    }
+
+    #[test]
+    fn each_sample_is_labelled_with_its_series_and_a_shared_pose_with_the_first() {
+        let (samples, labels) = super::concat(vec![at(&[0.0, 10.0]), at(&[20.0, 10.0, 30.0])])
+            .unwrap();
+        let labels = labels.unwrap();
+        assert_eq!(labels.len(), samples.len());
+        for (i, p) in samples.nominal_mm.iter().enumerate() {
+            let expected = if p[0] == 20.0 || p[0] == 30.0 { 1 } else { 0 };
+            assert_eq!(labels[i], expected, "sample at {p:?}");
+        }
+        assert!(super::concat(vec![at(&[0.0])]).unwrap().1.is_none());
     }
 }

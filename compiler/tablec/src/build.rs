@@ -59,7 +59,7 @@ fn print_summary(built: &Built) {
     if let Some(t) = &built.tuning {
         print_tuning(t);
     }
-    if let Some(c) = &built.served_choice {
+    if let Some(c) = built.served_field.as_ref().and_then(|d| d.evidence()) {
         print_served_choice(c);
     }
     println!("spacing        {spacing} (median nearest-neighbour distance, or the volume per sample of clustered samples)");
@@ -122,7 +122,9 @@ fn print_summary(built: &Built) {
 
 /// Whether the table has a posture term, its parameters and the evidence.
 fn describe_posture(built: &adwi_jobs::build::Built) -> String {
-    let choice = (built.served_choice.as_ref().and_then(|c| c.posture))
+    let choice = (built.served_field.as_ref())
+        .and_then(|d| d.evidence())
+        .and_then(|c| c.posture)
         .or(built.tuning.as_ref().and_then(|t| t.posture));
     let evidence = choice.map_or(String::new(), |c| {
         let mean = |m: Option<f64>| m.map_or("—".to_string(), |m| format!("{m:.4} mm"));
@@ -131,8 +133,8 @@ fn describe_posture(built: &adwi_jobs::build::Built) -> String {
              {} mm lower)",
             mean(c.without_mm),
             mean(c.with_mm),
-            100.0 * adwi_jobs::tune::POSTURE_MIN_GAIN_FRACTION,
-            adwi_jobs::tune::POSTURE_MIN_GAIN_MM
+            100.0 * adwi_jobs::choice::POSTURE_MIN_GAIN_FRACTION,
+            adwi_jobs::choice::POSTURE_MIN_GAIN_MM
         )
     });
     match &built.report.posture {
@@ -190,7 +192,7 @@ fn describe_served_field(report: &BuildReport) -> String {
 }
 
 /// Every candidate of --tune with its cross-validated mean, the chosen one marked.
-fn print_tuning(report: &adwi_jobs::tune::TuneReport) {
+fn print_tuning(report: &adwi_jobs::choice::TuneReport) {
     println!(
         "tuning         {}-fold cross-validation of `{}` on the samples alone:",
         report.folds,
@@ -216,7 +218,7 @@ fn print_tuning(report: &adwi_jobs::tune::TuneReport) {
 
 /// The served field chosen by default: each field's cross-validated mean, the chosen one
 /// marked.
-fn print_served_choice(auto: &adwi_jobs::tune::AutoServedField) {
+fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
     let exact = auto
         .exact_cv_mean_mm
         .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
@@ -226,10 +228,30 @@ fn print_served_choice(auto: &adwi_jobs::tune::AutoServedField) {
         auto.choice.folds, auto.samples
     );
     print_served_candidates(&auto.choice.candidates, auto.choice.field(), "the build's");
+    if let Some(w) = &auto.residual_weight {
+        let held_out = if w.by_series {
+            format!("{} series, each predicted from the others", w.splits)
+        } else {
+            format!(
+                "{} spatial blocks, each predicted from the others",
+                w.splits
+            )
+        };
+        let why = if w.weight < 1.0 {
+            "the field is faded toward the model alone where it does not carry"
+        } else {
+            "the whole field carries"
+        };
+        println!(
+            "residual weight {:.3}: held-out mean {:.4} mm with it, {:.4} mm with the model \
+             alone, {:.4} mm with the whole field ({} points of {held_out}): {why}",
+            w.weight, w.weighted_mm, w.model_mm, w.full_mm, w.points
+        );
+    }
 }
 
 fn print_served_candidates(
-    candidates: &[adwi_jobs::tune::ServedCandidate],
+    candidates: &[adwi_jobs::choice::ServedCandidate],
     chosen: adwi_compile::build::ServedField,
     parameters: &str,
 ) {

@@ -34,6 +34,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "{}",
             adwi_eval::output::terminal_table(&evaluated.evaluation)
         );
+        if let Some(by_region) = &evaluated.by_region {
+            print!("{}", adwi_eval::output::terminal_table(by_region));
+        }
         if let Some(page) = &evaluated.report_page {
             println!("report: {}", page.display());
         }

@@ -1,0 +1,891 @@
+//! The table's choices by evidence: cross-validation of candidate options on the training
+//! samples alone, beside the evaluation it runs. Validation points never take part: a
+//! choice made on them would be fitted to them.
+//!
+//! [`CrossValidation`] holds what every candidate is scored on — the samples, the robot of
+//! a hybrid table, the identification options and the folds — and each fold's
+//! identification once made, so that every candidate on the same folds reuses it.
+//!
+//! - [`CrossValidation::tune`] (`tablec build --tune`): the neighbour count `k` and the
+//!   radius ε as a multiple of the sample spacing, scored by the mean position residual of
+//!   the method the table serves (`paper`, or `hybrid` with a robot). A candidate that
+//!   leaves points unpredicted never beats one that predicts more: the choice is the lowest
+//!   mean among those that miss the fewest.
+//! - [`CrossValidation::served_field`]: what the served field's nodes hold
+//!   ([`ServedField`]), the method's own answer or kriging with a nugget of the samples'
+//!   errors, scored on the served tier (`paper-trilinear`, or `hybrid-trilinear`); a table
+//!   with a joint screen has no served tier and keeps the method's.
+//! - [`CrossValidation::posture`]: whether a hybrid table gains from the posture term.
+//!
+//! [`auto_choice`] is what every build makes by default, without `--tune`, and what an
+//! evaluation makes on each split's training samples ([`crate::SplitRule`]): the build's
+//! own parameters, [`AUTO_FOLDS`] folds, at most [`AUTO_MAX_SAMPLES`] samples.
+
+use std::cell::RefCell;
+
+use adwi_compile::build::{BuildOptions, ServedField, Tuning};
+use adwi_compile::nugget_kriging::GivenChoices;
+use adwi_compile::posture::Posture;
+use adwi_robot::calibrate::{CalibrateError, CalibrateOptions, Calibration};
+use adwi_robot::Robot;
+use adwi_samples::SampleSet;
+
+use crate::{evaluate, EvalError, EvalOptions, Method, Protocol};
+
+/// The neighbour counts tried.
+pub const K_CANDIDATES: [u32; 3] = [4, 8, 12];
+/// The radii tried, in sample spacings (the default is 2).
+pub const RADIUS_CANDIDATES_SPACINGS: [f64; 3] = [1.5, 2.0, 3.0];
+
+/// One candidate's cross-validated figures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    /// The neighbour count.
+    pub k: u32,
+    /// The radius, mm.
+    pub radius_mm: f64,
+    /// Mean position residual over the predicted held-out points, mm; `None` when none was
+    /// predicted.
+    pub cv_mean_mm: Option<f64>,
+    /// Held-out points not predicted.
+    pub missed: usize,
+}
+
+/// One served field's cross-validated figures, with the chosen `k` and ε.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServedCandidate {
+    /// What the nodes hold.
+    pub field: ServedField,
+    /// Mean position residual of the served tier over the predicted held-out points, mm.
+    pub cv_mean_mm: Option<f64>,
+    /// Held-out points the served tier did not predict.
+    pub missed: usize,
+}
+
+/// What tuning found: every candidate, and the options chosen.
+#[derive(Clone, Debug)]
+pub struct TuneReport {
+    /// The method scored.
+    pub method: Method,
+    /// The folds.
+    pub folds: usize,
+    /// Every candidate, in the order tried.
+    pub candidates: Vec<Candidate>,
+    /// The index of the chosen one.
+    pub chosen: usize,
+    /// The served fields tried with the chosen `k` and ε (none with a joint screen).
+    pub served: Vec<ServedCandidate>,
+    /// The posture term's cross-validation, when asked for (a hybrid table).
+    pub posture: Option<PostureChoice>,
+    /// The build options with the chosen parameters and the tuning recorded.
+    pub options: BuildOptions,
+}
+
+/// Why a choice could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum TuneError {
+    /// The samples have no spacing to scale radii by (fewer than two positions).
+    #[error("the samples have no spacing to scale the candidate radii by")]
+    NoSpacing,
+    /// Fewer than two folds.
+    #[error("tuning needs at least 2 folds")]
+    Folds,
+    /// The samples' identification failed (the hyperparameters of a hybrid table's kriging
+    /// are those of its residuals).
+    #[error("cannot identify the robot from the samples")]
+    Identify(#[source] CalibrateError),
+    /// The kriging's hyperparameters could not be chosen.
+    #[error("cannot fit the kriging of the served field")]
+    Kriging(#[source] adwi_compile::build::BuildError),
+    /// Too few samples to cross-validate a choice by default ([`AUTO_MIN_SAMPLES`]).
+    #[error("{0} samples; at least {AUTO_MIN_SAMPLES} are cross-validated")]
+    TooFewSamples(usize),
+    /// No candidate predicted a single held-out point.
+    #[error("no candidate predicted any held-out point")]
+    NothingPredicted,
+    /// An evaluation failed.
+    #[error(transparent)]
+    Eval(#[from] EvalError),
+}
+
+/// The folds every candidate of a choice is scored on, and what they share: one value
+/// instead of the same parameters handed to every scoring function.
+#[derive(Debug)]
+pub struct CrossValidation<'a> {
+    samples: &'a SampleSet,
+    robot: Option<&'a Robot>,
+    calibrate: CalibrateOptions,
+    /// How samples are held out: random folds, spatial blocks or whole series.
+    protocol: Protocol,
+    /// How many splits the protocol makes.
+    folds: usize,
+    /// Each fold's identification of a hybrid table's model, made by the first evaluation
+    /// and reused by every later one.
+    identified: RefCell<Vec<Calibration>>,
+}
+
+impl<'a> CrossValidation<'a> {
+    /// `folds`-fold cross-validation of `samples` split with `seed`; a hybrid table's when
+    /// `robot` is given, identified with `calibrate`.
+    ///
+    /// # Errors
+    ///
+    /// [`TuneError::Folds`] for fewer than two folds.
+    pub fn new(
+        samples: &'a SampleSet,
+        robot: Option<&'a Robot>,
+        calibrate: CalibrateOptions,
+        folds: usize,
+        seed: u64,
+    ) -> Result<CrossValidation<'a>, TuneError> {
+        if folds < 2 {
+            return Err(TuneError::Folds);
+        }
+        CrossValidation::held_out(samples, robot, calibrate, Protocol::KFold { folds, seed })
+    }
+
+    /// Cross-validation of `samples` by `protocol` (random folds, spatial blocks or whole
+    /// series held out; not a validation set).
+    ///
+    /// # Errors
+    ///
+    /// [`TuneError::Folds`] for a protocol of fewer than two splits or a validation set.
+    pub fn held_out(
+        samples: &'a SampleSet,
+        robot: Option<&'a Robot>,
+        calibrate: CalibrateOptions,
+        protocol: Protocol,
+    ) -> Result<CrossValidation<'a>, TuneError> {
+        let folds = match &protocol {
+            Protocol::Validation(_) => return Err(TuneError::Folds),
+            Protocol::KFold { folds, .. } | Protocol::Blocks { folds, .. } => *folds,
+            Protocol::Series(series) => {
+                let mut labels = series.clone();
+                labels.sort_unstable();
+                labels.dedup();
+                labels.len()
+            }
+        };
+        if folds < 2 {
+            return Err(TuneError::Folds);
+        }
+        Ok(CrossValidation {
+            samples,
+            robot,
+            calibrate,
+            protocol,
+            folds,
+            identified: RefCell::new(Vec::new()),
+        })
+    }
+
+    /// The fold count.
+    pub fn folds(&self) -> usize {
+        self.folds
+    }
+
+    /// The method a table serves exactly: the hybrid with a robot, else the paper's.
+    fn exact_method(&self) -> Method {
+        if self.robot.is_some() {
+            Method::Hybrid
+        } else {
+            Method::Paper
+        }
+    }
+
+    /// The served tier of [`CrossValidation::exact_method`]'s table.
+    fn served_method(&self) -> Method {
+        if self.robot.is_some() {
+            Method::HybridTrilinear
+        } else {
+            Method::PaperTrilinear
+        }
+    }
+
+    /// One candidate's cross-validated mean position residual of `method` (`None` when no
+    /// held-out point was predicted) and its missed points, on the same folds as every
+    /// other; the first evaluation identifies each fold's model, every later one reuses it.
+    ///
+    /// # Errors
+    ///
+    /// The evaluation failing.
+    pub fn score(
+        &self,
+        method: Method,
+        build: BuildOptions,
+    ) -> Result<(Option<f64>, usize), TuneError> {
+        let options = EvalOptions {
+            methods: Some(vec![method]),
+            build,
+            robot: self.robot.cloned(),
+            calibrate: self.calibrate,
+            identified: self.identified.borrow().clone(),
+            ..EvalOptions::default()
+        };
+        let evaluation = self.evaluate(options)?;
+        let n = self.samples.len();
+        let result = evaluation.method(method);
+        Ok((
+            result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+            result.map_or(n, |r| n - r.predicted()),
+        ))
+    }
+
+    /// The evaluation of `options` on these folds, each fold's identification made once.
+    fn evaluate(&self, options: EvalOptions) -> Result<crate::Evaluation, TuneError> {
+        let evaluation = evaluate(self.samples, &self.protocol, &options)?;
+        if self.identified.borrow().is_empty() {
+            *self.identified.borrow_mut() = evaluation.identified.clone();
+        }
+        Ok(evaluation)
+    }
+
+    /// The weight `s` in [0, 1] of a hybrid table's residual field that these folds'
+    /// held-out points favour: the model identified on each fold's training samples plus
+    /// `s` times the residual its served tier (`hybrid-trilinear`, as `options` build it)
+    /// adds, at the lowest mean position residual over the points both predict. The mean
+    /// norm is convex in `s`; the minimum is found by golden-section search and compared
+    /// with both ends. `None` without a robot or a point both predict.
+    ///
+    /// # Errors
+    ///
+    /// The evaluation failing.
+    pub fn residual_weight(
+        &self,
+        options: &BuildOptions,
+    ) -> Result<Option<ResidualWeight>, TuneError> {
+        if self.robot.is_none() {
+            return Ok(None);
+        }
+        // Built apart: the borrow of `identified` ends before the evaluation records it.
+        let options = EvalOptions {
+            methods: Some(vec![Method::Kinematic, Method::HybridTrilinear]),
+            build: options.clone(),
+            robot: self.robot.cloned(),
+            calibrate: self.calibrate,
+            identified: self.identified.borrow().clone(),
+            ..EvalOptions::default()
+        };
+        let evaluation = self.evaluate(options)?;
+        let (Some(model), Some(hybrid)) = (
+            evaluation.method(Method::Kinematic),
+            evaluation.method(Method::HybridTrilinear),
+        ) else {
+            return Ok(None);
+        };
+        // Per point: what the model leaves, and what the residual field adds to it.
+        let points: Vec<([f64; 3], [f64; 3])> = (model.predictions.iter())
+            .zip(&hybrid.predictions)
+            .zip(&evaluation.measured_error_mm)
+            .filter_map(|((m, h), e)| {
+                let (m, h) = (m.as_ref()?, h.as_ref()?);
+                let left = [0, 1, 2].map(|a| e[a] - m.position_error_mm[a]);
+                let field = [0, 1, 2].map(|a| h.position_error_mm[a] - m.position_error_mm[a]);
+                Some((left, field))
+            })
+            .collect();
+        Ok(
+            weight_minimising(&points).map(|(weight, weighted_mm)| ResidualWeight {
+                weight,
+                weighted_mm,
+                model_mm: mean_left(&points, 0.0),
+                full_mm: mean_left(&points, 1.0),
+                points: points.len(),
+                splits: self.folds,
+                by_series: matches!(self.protocol, Protocol::Series(_)),
+            }),
+        )
+    }
+
+    /// Chooses `k` and ε, the other options as in `base`; then, when `choose_field`, the
+    /// served field with them ([`CrossValidation::served_field`]), and when
+    /// `choose_posture` (a hybrid table), the posture term.
+    ///
+    /// # Errors
+    ///
+    /// [`TuneError`].
+    pub fn tune(
+        &self,
+        base: &BuildOptions,
+        choose_field: bool,
+        choose_posture: bool,
+    ) -> Result<TuneReport, TuneError> {
+        let spacing = self.samples.spacing_mm().ok_or(TuneError::NoSpacing)?;
+        let method = self.exact_method();
+        let mut candidates = Vec::new();
+        for &k in &K_CANDIDATES {
+            for &spacings in &RADIUS_CANDIDATES_SPACINGS {
+                let mut build = base.clone();
+                build.method.max_neighbours = k;
+                build.method.radius_mm = Some(spacings * spacing);
+                let (cv_mean_mm, missed) = self.score(method, build)?;
+                candidates.push(Candidate {
+                    k,
+                    radius_mm: spacings * spacing,
+                    cv_mean_mm,
+                    missed,
+                });
+            }
+        }
+        let chosen = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)))
+            .ok_or(TuneError::NothingPredicted)?;
+        let mut options = base.clone();
+        options.method.max_neighbours = candidates[chosen].k;
+        options.method.radius_mm = Some(candidates[chosen].radius_mm);
+        options.tuning = Some(Tuning {
+            folds: self.folds as u32,
+            cv_mean_mm: candidates[chosen].cv_mean_mm.unwrap_or(0.0),
+            served_cv_mean_mm: None,
+            posture_cv_mean_mm: None,
+        });
+        let served = if choose_field {
+            let choice = self.served_field(&options)?;
+            options.served_field = choice.field();
+            if let Some(tuning) = &mut options.tuning {
+                tuning.served_cv_mean_mm = choice.chosen_cv_mean_mm();
+            }
+            choice.candidates
+        } else {
+            Vec::new()
+        };
+        let posture = if choose_posture && self.robot.is_some() {
+            // The chosen field's figure on these folds, scored above when it was chosen.
+            let without_mm = match options.tuning.and_then(|t| t.served_cv_mean_mm) {
+                Some(mean) => Some(mean),
+                None => self
+                    .served_field_among(&[options.served_field], &options)?
+                    .chosen_cv_mean_mm(),
+            };
+            let posture = self.posture(&options, without_mm)?;
+            if posture.chosen {
+                options.posture = Posture::Fit;
+                if let Some(tuning) = &mut options.tuning {
+                    tuning.served_cv_mean_mm = posture.without_mm;
+                    tuning.posture_cv_mean_mm = posture.with_mm;
+                }
+            }
+            Some(posture)
+        } else {
+            None
+        };
+        Ok(TuneReport {
+            method,
+            folds: self.folds,
+            candidates,
+            chosen,
+            served,
+            posture,
+            options,
+        })
+    }
+
+    /// What the served field's nodes should hold, scored on the served tier: the method's
+    /// own answer against kriging with a nugget (which turns with the tool's axis where its
+    /// likelihood says so: one kind), the other options as in `options`. A table with a
+    /// joint screen has no served tier: no candidate, the method's.
+    ///
+    /// # Errors
+    ///
+    /// An evaluation failing.
+    pub fn served_field(&self, options: &BuildOptions) -> Result<ServedChoice, TuneError> {
+        if options.joint_radius_deg.is_some_and(|r| r > 0.0) {
+            return Ok(ServedChoice::default());
+        }
+        self.served_field_among(&[ServedField::Method, ServedField::Kriging], options)
+    }
+
+    /// [`CrossValidation::served_field`] among `fields`: each is tried in `options` in
+    /// place of the field it holds.
+    ///
+    /// # Errors
+    ///
+    /// An evaluation failing.
+    pub fn served_field_among(
+        &self,
+        fields: &[ServedField],
+        options: &BuildOptions,
+    ) -> Result<ServedChoice, TuneError> {
+        let method = self.served_method();
+        let mut candidates = Vec::new();
+        for &field in fields {
+            let build = BuildOptions {
+                served_field: field,
+                ..options.clone()
+            };
+            let (cv_mean_mm, missed) = self.score(method, build)?;
+            candidates.push(ServedCandidate {
+                field,
+                cv_mean_mm,
+                missed,
+            });
+        }
+        // The same cells are served either way; ties keep the method's own answer.
+        let chosen = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)));
+        Ok(ServedChoice {
+            folds: self.folds,
+            candidates,
+            chosen,
+        })
+    }
+
+    /// Whether a hybrid table's served tier (`hybrid-trilinear`, as `options` build it)
+    /// gains from the posture term on these folds: `without_mm` is the figure of the field
+    /// chosen on them, the term is fitted on each fold's training samples alone, and added
+    /// when it lowers the mean by at least [`POSTURE_MIN_GAIN_FRACTION`] and
+    /// [`POSTURE_MIN_GAIN_MM`].
+    ///
+    /// # Errors
+    ///
+    /// An evaluation failing (a position-only cross-validation has no hybrid table).
+    pub fn posture(
+        &self,
+        options: &BuildOptions,
+        without_mm: Option<f64>,
+    ) -> Result<PostureChoice, TuneError> {
+        let build = BuildOptions {
+            posture: Posture::Fit,
+            ..options.clone()
+        };
+        let (with_mm, _) = self.score(Method::HybridTrilinear, build)?;
+        let chosen = match (without_mm, with_mm) {
+            (Some(without), Some(with)) => {
+                let gain = without - with;
+                gain >= POSTURE_MIN_GAIN_MM && gain >= POSTURE_MIN_GAIN_FRACTION * without
+            }
+            _ => false,
+        };
+        Ok(PostureChoice {
+            without_mm,
+            with_mm,
+            chosen,
+        })
+    }
+}
+
+/// The served fields tried and the one chosen ([`CrossValidation::served_field`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ServedChoice {
+    /// The folds.
+    pub folds: usize,
+    /// Every field tried, in order (none for a table without a served tier).
+    pub candidates: Vec<ServedCandidate>,
+    /// The index of the chosen one, if any predicted a held-out point.
+    pub chosen: Option<usize>,
+}
+
+impl ServedChoice {
+    /// The field chosen: the method's own answer when none was.
+    pub fn field(&self) -> ServedField {
+        self.chosen
+            .map_or(ServedField::Method, |i| self.candidates[i].field)
+    }
+
+    /// The chosen field's cross-validated mean, mm.
+    pub fn chosen_cv_mean_mm(&self) -> Option<f64> {
+        self.chosen.and_then(|i| self.candidates[i].cv_mean_mm)
+    }
+}
+
+/// The residual weight held-out points favour ([`CrossValidation::residual_weight`]), and
+/// the evidence.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ResidualWeight {
+    /// The weight `s` of the residual field, in [0, 1].
+    pub weight: f64,
+    /// The held-out mean position residual with the weight, mm: what the build expects
+    /// on new poses.
+    pub weighted_mm: f64,
+    /// The same with the model alone (`s` = 0), mm.
+    pub model_mm: f64,
+    /// The same with the whole residual field (`s` = 1), mm.
+    pub full_mm: f64,
+    /// The held-out points both predicted.
+    pub points: usize,
+    /// The splits they were held out by.
+    pub splits: usize,
+    /// Whether the splits are series (each left out in turn), not spatial blocks.
+    pub by_series: bool,
+}
+
+/// The mean norm of `left − s · field` over `points`, mm.
+fn mean_left(points: &[([f64; 3], [f64; 3])], s: f64) -> f64 {
+    let sum: f64 = points
+        .iter()
+        .map(|(left, field)| {
+            let r = [0, 1, 2].map(|a| left[a] - s * field[a]);
+            (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt()
+        })
+        .sum();
+    sum / points.len() as f64
+}
+
+/// The `s` in [0, 1] minimising [`mean_left`], and that mean; `None` for no point. Golden
+/// section search on the convex mean, then the better of its minimum and either end (a
+/// minimum at an end is then exact).
+fn weight_minimising(points: &[([f64; 3], [f64; 3])]) -> Option<(f64, f64)> {
+    if points.is_empty() {
+        return None;
+    }
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    let mut c = b - ratio * (b - a);
+    let mut d = a + ratio * (b - a);
+    let (mut fc, mut fd) = (mean_left(points, c), mean_left(points, d));
+    // 60 steps narrow [0, 1] to below 1e-12.
+    for _ in 0..60 {
+        if fc <= fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - ratio * (b - a);
+            fc = mean_left(points, c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + ratio * (b - a);
+            fd = mean_left(points, d);
+        }
+    }
+    let middle = (a + b) / 2.0;
+    [0.0, 1.0, middle]
+        .into_iter()
+        .map(|s| (s, mean_left(points, s)))
+        .filter(|(_, mean)| mean.is_finite())
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+}
+
+/// The fewest samples the served field's choice by default cross-validates: with fewer,
+/// the folds are too small to tell two fields apart, and the method's own answer is served.
+pub const AUTO_MIN_SAMPLES: usize = 25;
+/// The folds of the served field's choice by default ([`auto_choice`]).
+pub const AUTO_FOLDS: usize = 5;
+/// The most samples the served field's choice by default cross-validates: above, an evenly
+/// strided subset of this many, so that the choice costs a bounded time whatever the
+/// sample count (the table itself is built from all of them).
+pub const AUTO_MAX_SAMPLES: usize = 1000;
+
+/// The served field chosen by default, and the evidence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoServedField {
+    /// The served fields tried and the one chosen.
+    pub choice: ServedChoice,
+    /// The exact tier's cross-validated mean on the same folds, mm (the method the table
+    /// computes, with the build's parameters).
+    pub exact_cv_mean_mm: Option<f64>,
+    /// How many of the samples were cross-validated ([`AUTO_MAX_SAMPLES`] at most).
+    pub samples: usize,
+    /// The kriging's hyperparameters every fold used: the table's, when kriging is chosen.
+    pub kriging_choices: Option<GivenChoices>,
+    /// The posture term's cross-validation, when it was asked for (a hybrid table).
+    pub posture: Option<PostureChoice>,
+    /// The residual field's weight learned from held-out series or regions, when it was
+    /// asked for (a hybrid table).
+    pub residual_weight: Option<ResidualWeight>,
+}
+
+/// The posture term's cross-validation ([`CrossValidation::posture`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PostureChoice {
+    /// The served tier's mean without the term (the chosen field's), mm.
+    pub without_mm: Option<f64>,
+    /// The same with the term, mm.
+    pub with_mm: Option<f64>,
+    /// Whether the term is added: it improved the mean by the margin.
+    pub chosen: bool,
+}
+
+/// The least relative improvement of the cross-validated mean for which a build adds the
+/// posture term.
+pub const POSTURE_MIN_GAIN_FRACTION: f64 = 0.02;
+/// The least absolute improvement of the cross-validated mean for which a build adds the
+/// posture term, mm: below, the term's evidence is within what a different fold split
+/// moves.
+pub const POSTURE_MIN_GAIN_MM: f64 = 0.005;
+
+impl AutoServedField {
+    /// `options` with the chosen field (and the kriging's hyperparameters, when chosen)
+    /// and the evidence recorded.
+    pub fn apply(&self, options: &mut BuildOptions) {
+        options.served_field = self.choice.field();
+        options.tuning = self.tuning();
+        if options.served_field != ServedField::Method {
+            options.kriging_choices = self.kriging_choices;
+        }
+        if self.posture.is_some_and(|p| p.chosen) {
+            options.posture = Posture::Fit;
+        }
+    }
+
+    /// What the table's header records of it.
+    pub fn tuning(&self) -> Option<Tuning> {
+        Some(Tuning {
+            folds: self.choice.folds as u32,
+            cv_mean_mm: self.exact_cv_mean_mm?,
+            served_cv_mean_mm: self.choice.chosen_cv_mean_mm(),
+            posture_cv_mean_mm: self.posture.filter(|p| p.chosen).and_then(|p| p.with_mm),
+        })
+    }
+}
+
+/// What a table's served field holds (and whether a hybrid table has the posture term),
+/// resolved before the table is encoded: chosen by the samples' cross-validation, with the
+/// evidence, or fixed (given, or the method's own where nothing is chosen).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ServedFieldDecision {
+    /// Chosen by [`auto_choice`].
+    Chosen(Box<AutoServedField>),
+    /// Not chosen: this field, no posture term beyond what the options say.
+    Fixed(ServedField),
+}
+
+impl ServedFieldDecision {
+    /// The field the table serves.
+    pub fn field(&self) -> ServedField {
+        match self {
+            ServedFieldDecision::Chosen(auto) => auto.choice.field(),
+            ServedFieldDecision::Fixed(field) => *field,
+        }
+    }
+
+    /// The cross-validation that chose it, when one did.
+    pub fn evidence(&self) -> Option<&AutoServedField> {
+        match self {
+            ServedFieldDecision::Chosen(auto) => Some(auto),
+            ServedFieldDecision::Fixed(_) => None,
+        }
+    }
+
+    /// The weight of a hybrid table's residual field: the one learned, else 1.
+    pub fn residual_weight(&self) -> f64 {
+        self.evidence()
+            .and_then(|auto| auto.residual_weight)
+            .map_or(1.0, |w| w.weight)
+    }
+
+    /// `options` with the decided field (and with the chosen one's evidence, the kriging's
+    /// hyperparameters and the posture term).
+    pub fn apply(&self, options: &mut BuildOptions) {
+        match self {
+            ServedFieldDecision::Chosen(auto) => auto.apply(options),
+            ServedFieldDecision::Fixed(field) => options.served_field = *field,
+        }
+    }
+}
+
+/// What a build decides by default that it is not given ([`auto_choice`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Ask<'c> {
+    /// Choose the served field (else only `options.served_field` is scored).
+    pub field: bool,
+    /// Decide a hybrid table's posture term.
+    pub posture: bool,
+    /// The identification of exactly these samples with these options, when the caller
+    /// made it: the kriging's hyperparameters are those of its residuals, and the robot is
+    /// not identified from the same samples twice.
+    pub identified: Option<&'c Calibration>,
+    /// Learn a hybrid table's residual weight ([`CrossValidation::residual_weight`]): by
+    /// leaving out one series at a time when `series` labels two or more, else by
+    /// [`AUTO_FOLDS`] spatial blocks.
+    pub weight: bool,
+    /// The series of each sample (its index among the files read), when several.
+    pub series: Option<&'c [usize]>,
+}
+
+/// The choice a build makes by default: on at most [`AUTO_MAX_SAMPLES`] of the samples,
+/// [`AUTO_FOLDS`]-fold cross-validation (seed 0) of the exact tier with `options`, of the
+/// served field among the method's and kriging's when `ask.field` (else of
+/// `options.served_field` alone), then, when `ask.posture` and a robot is given, of the
+/// posture term, all on the same folds.
+///
+/// # Errors
+///
+/// Too few samples, the identification or the kriging's fit failing, an evaluation
+/// failing.
+pub fn auto_choice(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &CalibrateOptions,
+    ask: Ask<'_>,
+) -> Result<AutoServedField, TuneError> {
+    if samples.len() < AUTO_MIN_SAMPLES {
+        return Err(TuneError::TooFewSamples(samples.len()));
+    }
+    let subset;
+    let (samples, identified, series) = if samples.len() > AUTO_MAX_SAMPLES {
+        let stride = samples.len() as f64 / AUTO_MAX_SAMPLES as f64;
+        let indices: Vec<usize> = (0..AUTO_MAX_SAMPLES)
+            .map(|i| (i as f64 * stride) as usize)
+            .collect();
+        subset = samples.subset(&indices);
+        let series = ask
+            .series
+            .map(|labels| indices.iter().map(|&i| labels[i]).collect::<Vec<_>>());
+        // Another sample set: the caller's identification is not its own.
+        (&subset, None, series)
+    } else {
+        (samples, ask.identified, ask.series.map(<[usize]>::to_vec))
+    };
+    let given = [options.served_field];
+    let fields: &[ServedField] = if ask.field {
+        &[ServedField::Method, ServedField::Kriging]
+    } else {
+        &given
+    };
+    // The kriging's hyperparameters, chosen once by likelihood on all these samples (a
+    // hybrid table's: of the residuals of the model identified from them), are reused by
+    // every fold: each fold then solves its kriging instead of searching again. Without a
+    // kriging among the fields tried nothing would use them, and their search is most of a
+    // choice's cost.
+    let kriging_choices = if fields.iter().any(|&f| f != ServedField::Method) {
+        let model = match (robot, identified) {
+            (None, _) => None,
+            (Some(_), Some(c)) => Some(c.prepared_model()),
+            (Some(r), None) => Some(
+                adwi_robot::calibrate::identify(r, samples, calibrate)
+                    .map_err(TuneError::Identify)?
+                    .prepared_model(),
+            ),
+        };
+        adwi_compile::build::kriging_choices(samples, model.as_ref()).map_err(TuneError::Kriging)?
+    } else {
+        options.kriging_choices
+    };
+    let options = &BuildOptions {
+        kriging_choices,
+        ..options.clone()
+    };
+    let cv = CrossValidation::new(samples, robot, *calibrate, AUTO_FOLDS, 0)?;
+    let method = BuildOptions {
+        served_field: ServedField::Method,
+        ..options.clone()
+    };
+    let (exact_cv_mean_mm, _) = cv.score(cv.exact_method(), method)?;
+    let choice = cv.served_field_among(fields, options)?;
+    let posture = if ask.posture && robot.is_some() {
+        let chosen = BuildOptions {
+            served_field: choice.field(),
+            ..options.clone()
+        };
+        Some(cv.posture(&chosen, choice.chosen_cv_mean_mm())?)
+    } else {
+        None
+    };
+    let residual_weight = if ask.weight && robot.is_some() {
+        // Several series: each predicted from the others, as the next series will be;
+        // one: each region from the others, as poses elsewhere will be.
+        let protocol = match series.filter(|s| crate::folds::group_splits(s).is_some()) {
+            Some(series) => Protocol::Series(series),
+            None => Protocol::Blocks {
+                folds: AUTO_FOLDS,
+                seed: 0,
+            },
+        };
+        let chosen = BuildOptions {
+            served_field: choice.field(),
+            posture: if posture.is_some_and(|p| p.chosen) {
+                Posture::Fit
+            } else {
+                options.posture
+            },
+            ..options.clone()
+        };
+        CrossValidation::held_out(samples, robot, *calibrate, protocol)?.residual_weight(&chosen)?
+    } else {
+        None
+    };
+    Ok(AutoServedField {
+        choice,
+        exact_cv_mean_mm,
+        samples: samples.len(),
+        kriging_choices,
+        posture,
+        residual_weight,
+    })
+}
+
+/// `samples` with the residual `calibration` leaves of each error scaled by `weight`: the
+/// error of the model plus `weight` times the rest (position and, when the samples carry
+/// them, orientation). A hybrid table compiled from them holds the residual field scaled
+/// by `weight` beside the same model, in the same format: how a learned weight is applied.
+///
+/// # Panics
+///
+/// When the samples carry no joint angles (a hybrid table's samples do).
+pub fn weighted_residuals(
+    samples: &SampleSet,
+    calibration: &Calibration,
+    weight: f64,
+) -> SampleSet {
+    let mut out = samples.clone();
+    for i in 0..samples.len() {
+        let joints = samples
+            .joints_rad(i)
+            .expect("a hybrid table's samples have joints");
+        let (p, r) = calibration.predict_error(joints);
+        let e = samples.error_mm[i];
+        out.error_mm[i] = [0, 1, 2].map(|a| p[a] + weight * (e[a] - p[a]));
+        if let Some(rotation) = &mut out.rotation_error_rad {
+            let m = rotation[i];
+            rotation[i] = [0, 1, 2].map(|a| r[a] + weight * (m[a] - r[a]));
+        }
+    }
+    out
+}
+
+/// The index of the best of `(mean, missed)` scores: the lowest mean among those that miss
+/// the fewest, the first on a tie; `None` when none has a mean.
+fn best(scores: impl Iterator<Item = (Option<f64>, usize)>) -> Option<usize> {
+    scores
+        .enumerate()
+        .filter_map(|(i, (mean, missed))| mean.map(|m| (i, missed, m)))
+        .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
+        .map(|(i, _, _)| i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn best_prefers_fewest_missed_then_lowest_mean_then_first() {
+        let scores = [
+            (Some(0.2), 1),
+            (Some(0.3), 0),
+            (Some(0.1), 2),
+            (Some(0.3), 0),
+        ];
+        assert_eq!(best(scores.into_iter()), Some(1));
+        assert_eq!(best([(None, 0), (Some(1.0), 3)].into_iter()), Some(1));
+        assert_eq!(best([(None, 0)].into_iter()), None);
+    }
+
+    #[test]
+    fn residual_weight_is_the_fraction_of_the_field_that_held_out_points_show() {
+        let field = [[0.3, -0.1, 0.2], [0.0, 0.4, -0.2], [-0.5, 0.1, 0.1]];
+        // What the model leaves is 40 % of what the field adds: the weight is 0.4.
+        let points: Vec<_> = field.iter().map(|f| (f.map(|v| 0.4 * v), *f)).collect();
+        let (weight, mean) = weight_minimising(&points).unwrap();
+        assert!((weight - 0.4).abs() < 1e-6, "{weight}");
+        assert!(mean < 1e-6);
+        // A field that carries nothing gets weight 0, one that carries all of it 1.
+        let none: Vec<_> = field.iter().map(|f| ([0.0; 3], *f)).collect();
+        assert_eq!(weight_minimising(&none).unwrap().0, 0.0);
+        let all: Vec<_> = field.iter().map(|f| (*f, *f)).collect();
+        assert_eq!(weight_minimising(&all).unwrap().0, 1.0);
+        // Against it: the weight stays in [0, 1].
+        let against: Vec<_> = field.iter().map(|f| (f.map(|v| -v), *f)).collect();
+        assert_eq!(weight_minimising(&against).unwrap().0, 0.0);
+        assert!(weight_minimising(&[]).is_none());
+    }
+
+    #[test]
+    fn cross_validation_refuses_fewer_than_two_folds() {
+        let samples = SampleSet::default();
+        assert!(matches!(
+            CrossValidation::new(&samples, None, CalibrateOptions::default(), 1, 0),
+            Err(TuneError::Folds)
+        ));
+    }
+}
