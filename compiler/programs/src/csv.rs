@@ -73,41 +73,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let Some(header) = rows.next(&mut reader)? else {
         return Err(src.error(src.bytes.len(), "no header row: expected columns x,y,z"));
     };
-    let names: Vec<String> = rows
-        .spans
-        .iter()
-        .map(|&(s, e)| src.text(s, e).trim().to_ascii_lowercase())
-        .collect();
-    let column = |name: &str| names.iter().position(|n| n == name);
-    let (Some(x), Some(y), Some(z)) = (column("x"), column("y"), column("z")) else {
-        return Err(src.error(
-            header,
-            format!(
-                "missing column x, y or z (position, mm); the header, separated by '{}', is: {}",
-                (delimiter as char).escape_default(),
-                names.join(", ")
-            ),
-        ));
-    };
-    let abc = match (column("a"), column("b"), column("c")) {
-        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
-        (None, None, None) => None,
-        _ => return Err(src.error(header, "columns a, b, c (KUKA angles) come together")),
-    };
-    let joints: Vec<usize> = (1..=crate::bounds::MAX_JOINTS + 1)
-        .map_while(|k| column(&format!("j{k}")))
-        .collect();
-    if joints.len() > crate::bounds::MAX_JOINTS {
-        return Err(src.error(
-            header,
-            format!(
-                "more than {} joint columns (j1..j{} are read)",
-                crate::bounds::MAX_JOINTS,
-                crate::bounds::MAX_JOINTS
-            ),
-        ));
-    }
-    let config = column("config");
+    let columns = Columns::of_header(src, &rows.spans, header, delimiter)?;
     // The decimal mark: a point in comma-separated files, else the first number's with one.
     let mut comma_decimal = (delimiter == b',').then_some((false, 0));
     let mut targets = Vec::new();
@@ -117,7 +83,105 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             truncated_at = Some(row);
             break;
         }
-        let spans = &rows.spans;
+        targets.push(columns.target(src, row, &rows.spans, &mut comma_decimal)?);
+    }
+    // A file of decimal commas gets them in every number rewritten, those it wrote
+    // without a mark included.
+    if let Some((true, _)) = comma_decimal {
+        mark_decimal_commas(&mut targets);
+    }
+    Ok(Program {
+        format: Format::Csv,
+        targets,
+        truncated_at,
+        first_motion: None,
+    })
+}
+
+/// The columns a CSV program's header names: x, y, z, and a, b, c, j1.., config when
+/// present.
+struct Columns {
+    names: Vec<String>,
+    x: usize,
+    y: usize,
+    z: usize,
+    abc: Option<[usize; 3]>,
+    joints: Vec<usize>,
+    config: Option<usize>,
+}
+
+impl Columns {
+    /// The header's columns, `spans` its fields, `header` where it starts.
+    fn of_header(
+        src: &Source,
+        spans: &[(usize, usize)],
+        header: usize,
+        delimiter: u8,
+    ) -> Result<Columns, Error> {
+        let names: Vec<String> = spans
+            .iter()
+            .map(|&(s, e)| src.text(s, e).trim().to_ascii_lowercase())
+            .collect();
+        let column = |name: &str| names.iter().position(|n| n == name);
+        let (Some(x), Some(y), Some(z)) = (column("x"), column("y"), column("z")) else {
+            return Err(src.error(
+                header,
+                format!(
+                    "missing column x, y or z (position, mm); the header, separated by '{}', is: {}",
+                    (delimiter as char).escape_default(),
+                    names.join(", ")
+                ),
+            ));
+        };
+        let abc = match (column("a"), column("b"), column("c")) {
+            (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+            (None, None, None) => None,
+            _ => return Err(src.error(header, "columns a, b, c (KUKA angles) come together")),
+        };
+        let joints: Vec<usize> = (1..=crate::bounds::MAX_JOINTS + 1)
+            .map_while(|k| column(&format!("j{k}")))
+            .collect();
+        if joints.len() > crate::bounds::MAX_JOINTS {
+            return Err(src.error(
+                header,
+                format!(
+                    "more than {} joint columns (j1..j{} are read)",
+                    crate::bounds::MAX_JOINTS,
+                    crate::bounds::MAX_JOINTS
+                ),
+            ));
+        }
+        let config = column("config");
+        Ok(Columns {
+            names,
+            x,
+            y,
+            z,
+            abc,
+            joints,
+            config,
+        })
+    }
+
+    /// A row's target: `spans` its fields, `comma_decimal` the file's decimal mark as far
+    /// as it is known.
+    fn target(
+        &self,
+        src: &Source,
+        row: usize,
+        spans: &[(usize, usize)],
+        comma_decimal: &mut Option<(bool, usize)>,
+    ) -> Result<ProgramTarget, Error> {
+        let Columns {
+            names,
+            x,
+            y,
+            z,
+            abc,
+            joints,
+            config,
+        } = self;
+        let (x, y, z, abc, config) = (*x, *y, *z, *abc, *config);
         if spans.len() != names.len() {
             return Err(src.error(
                 row,
@@ -130,13 +194,13 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         }
         let mut number = |k: usize| -> Result<Number, Error> {
             let (s, e) = spans[k];
-            field_number(src, (s, e), &mut comma_decimal).ok_or_else(|| {
+            field_number(src, (s, e), comma_decimal).ok_or_else(|| {
                 src.error(
                     s,
                     format!(
                         "(column '{}'): not a number{}: '{}'",
                         names[k],
-                        match comma_decimal {
+                        match *comma_decimal {
                             Some((true, at)) => format!(
                                 " with a decimal comma, as the first number with a mark ({}:{})",
                                 src.location(at).0,
@@ -182,7 +246,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             .map(|&k| number(k))
             .collect::<Result<Vec<_>, _>>()?;
         let (line, _) = src.location(row);
-        targets.push(ProgramTarget {
+        Ok(ProgramTarget {
             name: format!("row {line}"),
             offset: row,
             kind: TargetKind::Cartesian(Box::new(CartesianTarget {
@@ -194,34 +258,28 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             })),
             uses: Vec::new(),
             refused: None,
-        });
+        })
     }
-    // A file of decimal commas gets them in every number rewritten, those it wrote
-    // without a mark included.
-    if let Some((true, _)) = comma_decimal {
-        for t in &mut targets {
-            if let TargetKind::Cartesian(c) = &mut t.kind {
-                let orientation = match &mut c.orientation {
-                    Some(Orientation::KukaAbcDeg(n)) => &mut n[..],
-                    _ => &mut [],
-                };
-                for n in c
-                    .position
-                    .iter_mut()
-                    .chain(orientation)
-                    .chain(&mut c.joints)
-                {
-                    n.style.decimal_comma = true;
-                }
+}
+
+/// Every number of every target marked to be written with a decimal comma.
+fn mark_decimal_commas(targets: &mut [ProgramTarget]) {
+    for t in targets {
+        if let TargetKind::Cartesian(c) = &mut t.kind {
+            let orientation = match &mut c.orientation {
+                Some(Orientation::KukaAbcDeg(n)) => &mut n[..],
+                _ => &mut [],
+            };
+            for n in c
+                .position
+                .iter_mut()
+                .chain(orientation)
+                .chain(&mut c.joints)
+            {
+                n.style.decimal_comma = true;
             }
         }
     }
-    Ok(Program {
-        format: Format::Csv,
-        targets,
-        truncated_at,
-        first_motion: None,
-    })
 }
 
 /// The rows of a file as the `csv` crate reads them, each field located in the file.
