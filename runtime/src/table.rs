@@ -545,7 +545,11 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query(&self, position_mm: [f64; 3]) -> Correction {
-        self.answer(&Target::at(position_mm), None, Tier::Served)
+        let target = Target::at(position_mm);
+        if let Some(correction) = self.served_without_model(&target) {
+            return correction;
+        }
+        self.answer(&target, None, Tier::Served)
     }
 
     /// The served correction at a target. Never allocates, locks or panics.
@@ -553,6 +557,9 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query_target(&self, target: &Target) -> Correction {
+        if let Some(correction) = self.served_without_model(target) {
+            return correction;
+        }
         self.answer(target, None, Tier::Served)
     }
 
@@ -654,13 +661,6 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
-        if let (None, None, Payload::V2(d), Some(grid), Tier::Served) =
-            (&self.model, &self.posture, payload, &self.served, tier)
-        {
-            if grid.is_strict() {
-                return self.served_without_model(target, d, grid);
-            }
-        }
         // Without a named TCP the served cell is known now: a hybrid table asks for its
         // nodes' memory before the model's arithmetic, which then hides their latency.
         let early_site = match (payload, &self.served, tier, target.tcp_mm) {
@@ -774,12 +774,29 @@ impl<D: AsRef<[u8]>> Table<D> {
     }
 
     /// [`Table::answer`]'s served query of a table without a model or a posture term whose
-    /// field neither fades nor turns with the tool (a position-only table's): the same
-    /// answer to the bit, by the steps that table takes and no test of the others (the
-    /// target's cell, its 8 nodes blended by [`crate::served::blend_strict`], the evidence
-    /// flag, the last guard).
+    /// field neither fades nor turns with the tool (a position-only table's), for
+    /// [`Table::query`] and [`Table::query_target`]: the same answer to the bit, by the
+    /// steps that table takes and no test of the others (the target's cell, its 8 nodes
+    /// blended by [`crate::served::blend_strict`], the evidence flag, the last guard).
+    /// `None` for another table, or a target or bytes `answer` refuses (it then says why).
+    /// Kept out of `answer`, whose other tiers and tables it slowed there.
     #[inline(always)]
-    fn served_without_model(
+    fn served_without_model(&self, target: &Target) -> Option<Correction> {
+        let (None, None, Some(grid)) = (&self.model, &self.posture, &self.served) else {
+            return None;
+        };
+        if !grid.is_strict() || !target_is_plausible(target) {
+            return None;
+        }
+        let Some(Payload::V2(data)) = self.payload() else {
+            return None;
+        };
+        Some(self.served_strict(target, data, grid))
+    }
+
+    /// [`Table::served_without_model`] of a plausible target.
+    #[inline(always)]
+    fn served_strict(
         &self,
         target: &Target,
         data: &v2::ArchivedTableData,
