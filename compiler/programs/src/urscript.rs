@@ -391,14 +391,6 @@ impl Reader<'_, '_, '_> {
         let src = self.src;
         let call = self.call.to_string();
         let text = src.text(arg[0].start, arg[arg.len() - 1].end);
-        let refuse = |this: &mut Self, reason: Reason, why: &str| {
-            this.refused.push(refused_call(
-                &arg[0],
-                &call,
-                reason,
-                format!("{call}({text}): {why}"),
-            ));
-        };
         // A literal.
         if let Some((literal, end)) = literal(src, arg, 0)? {
             if end == arg.len() {
@@ -419,8 +411,8 @@ impl Reader<'_, '_, '_> {
                     Some(Assign::Literal(c)) => self.candidates[*c].uses.push(frame),
                     Some(Assign::Expression(at)) => {
                         let (l, c) = src.location(*at);
-                        refuse(
-                            self,
+                        self.refuse_target(
+                            arg,
                             Reason::Dynamic,
                             &format!("{name} is computed when the script runs ({l}:{c})"),
                         );
@@ -435,8 +427,8 @@ impl Reader<'_, '_, '_> {
             {
                 let end = argument_end(inner, 0);
                 if end == 0 {
-                    refuse(
-                        self,
+                    self.refuse_target(
+                        arg,
                         Reason::Dynamic,
                         "a pose computed when the script runs",
                     );
@@ -448,74 +440,7 @@ impl Reader<'_, '_, '_> {
             [f, open, inner @ .., close]
                 if word(src, f, "pose_trans") && open.is(b'(') && close.is(b')') =>
             {
-                let split = argument_end(inner, 0);
-                let (Some(feature), Some(pose)) = (
-                    Some(&inner[..split]).filter(|s| !s.is_empty()),
-                    inner.get(split + 1..).filter(|s| !s.is_empty()),
-                ) else {
-                    refuse(
-                        self,
-                        Reason::Dynamic,
-                        "a pose computed when the script runs",
-                    );
-                    return Ok(());
-                };
-                let feature_pose = match feature {
-                    [v] if v.kind == Tok::Ident => match self.last.get(&src.text(v.start, v.end)) {
-                        Some(Assign::Literal(c)) => match &self.candidates[*c].literal {
-                            Literal::Pose(p) => Some((pose_mm(p), Some(src.text(v.start, v.end)))),
-                            Literal::Joints(_) => None,
-                        },
-                        _ => None,
-                    },
-                    _ => match literal(src, feature, 0)? {
-                        Some((Literal::Pose(p), end)) if end == feature.len() => {
-                            Some((pose_mm(&p), None))
-                        }
-                        _ => None,
-                    },
-                };
-                let Some((base, feature_name)) = feature_pose else {
-                    let reason = if text.contains("get_actual_tcp_pose")
-                        || text.contains("get_target_tcp_pose")
-                    {
-                        Reason::Relative
-                    } else {
-                        Reason::Dynamic
-                    };
-                    refuse(
-                        self,
-                        reason,
-                        "an offset from a pose the script computes when it runs",
-                    );
-                    return Ok(());
-                };
-                let mut in_feature = frame.clone();
-                in_feature.base = Some(base);
-                let count = self.candidates.len();
-                let before = self.refused.len();
-                self.target(pose, in_feature)?;
-                // The offset's candidate, to refuse should the feature be a target itself.
-                if let Some(name) = feature_name {
-                    if self.refused.len() == before {
-                        let c = if self.candidates.len() > count {
-                            Some(count)
-                        } else {
-                            match pose {
-                                [v] if v.kind == Tok::Ident => {
-                                    match self.last.get(&src.text(v.start, v.end)) {
-                                        Some(Assign::Literal(c)) => Some(*c),
-                                        _ => None,
-                                    }
-                                }
-                                _ => None,
-                            }
-                        };
-                        if let Some(c) = c {
-                            self.frames_used.push((name, c));
-                        }
-                    }
-                }
+                self.feature_target(arg, inner, frame)?;
             }
             _ => {
                 let relative = [
@@ -528,14 +453,14 @@ impl Reader<'_, '_, '_> {
                 .iter()
                 .any(|w| text.contains(w));
                 if relative {
-                    refuse(
-                        self,
+                    self.refuse_target(
+                        arg,
                         Reason::Relative,
                         "an offset from where the robot stands when the script runs",
                     );
                 } else {
-                    refuse(
-                        self,
+                    self.refuse_target(
+                        arg,
                         Reason::Dynamic,
                         "a target computed when the script runs",
                     );
@@ -543,6 +468,93 @@ impl Reader<'_, '_, '_> {
             }
         }
         Ok(())
+    }
+
+    /// A waypoint relative to a feature, `pose_trans(feature, pose)` (`inner` its
+    /// arguments): the pose a target in the feature's frame, when the feature is a pose
+    /// literal; else refused.
+    fn feature_target(
+        &mut self,
+        arg: &[Token],
+        inner: &[Token],
+        frame: FrameUse,
+    ) -> Result<(), Error> {
+        let src = self.src;
+        let text = src.text(arg[0].start, arg[arg.len() - 1].end);
+        let split = argument_end(inner, 0);
+        let (Some(feature), Some(pose)) = (
+            Some(&inner[..split]).filter(|s| !s.is_empty()),
+            inner.get(split + 1..).filter(|s| !s.is_empty()),
+        ) else {
+            self.refuse_target(arg, Reason::Dynamic, "a pose computed when the script runs");
+            return Ok(());
+        };
+        let feature_pose = match feature {
+            [v] if v.kind == Tok::Ident => match self.last.get(&src.text(v.start, v.end)) {
+                Some(Assign::Literal(c)) => match &self.candidates[*c].literal {
+                    Literal::Pose(p) => Some((pose_mm(p), Some(src.text(v.start, v.end)))),
+                    Literal::Joints(_) => None,
+                },
+                _ => None,
+            },
+            _ => match literal(src, feature, 0)? {
+                Some((Literal::Pose(p), end)) if end == feature.len() => Some((pose_mm(&p), None)),
+                _ => None,
+            },
+        };
+        let Some((base, feature_name)) = feature_pose else {
+            let reason =
+                if text.contains("get_actual_tcp_pose") || text.contains("get_target_tcp_pose") {
+                    Reason::Relative
+                } else {
+                    Reason::Dynamic
+                };
+            self.refuse_target(
+                arg,
+                reason,
+                "an offset from a pose the script computes when it runs",
+            );
+            return Ok(());
+        };
+        let mut in_feature = frame.clone();
+        in_feature.base = Some(base);
+        let count = self.candidates.len();
+        let before = self.refused.len();
+        self.target(pose, in_feature)?;
+        // The offset's candidate, to refuse should the feature be a target itself.
+        if let Some(name) = feature_name {
+            if self.refused.len() == before {
+                let c = if self.candidates.len() > count {
+                    Some(count)
+                } else {
+                    match pose {
+                        [v] if v.kind == Tok::Ident => {
+                            match self.last.get(&src.text(v.start, v.end)) {
+                                Some(Assign::Literal(c)) => Some(*c),
+                                _ => None,
+                            }
+                        }
+                        _ => None,
+                    }
+                };
+                if let Some(c) = c {
+                    self.frames_used.push((name, c));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses the current call's target `arg`, with the reason.
+    fn refuse_target(&mut self, arg: &[Token], reason: Reason, why: &str) {
+        let call = self.call.to_string();
+        let text = self.src.text(arg[0].start, arg[arg.len() - 1].end);
+        self.refused.push(refused_call(
+            &arg[0],
+            &call,
+            reason,
+            format!("{call}({text}): {why}"),
+        ));
     }
 }
 
