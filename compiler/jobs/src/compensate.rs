@@ -298,15 +298,17 @@ impl CompensateJob {
     ///
     /// [`JobError::Program`] when a file cannot be written (none is then replaced).
     pub fn write(&self, done: &Compensated) -> Result<(), JobError> {
-        let report = adwi_programs::Report {
-            targets: done.targets.clone(),
-            program_xxh3: Some(done.program_xxh3),
-        };
-        let compensated = adwi_programs::Compensated {
-            output: done.output.clone(),
-            report,
-        };
-        self.job.write(&compensated).map_err(program)
+        // The report's text only when it is written, from the lines as they are.
+        let csv = self.job.options().report.as_ref().map(|_| {
+            let mut rows = adwi_programs::CsvRows::with_capacity(done.targets.len());
+            for t in &done.targets {
+                rows.push(t);
+            }
+            rows.finish(Some(done.program_xxh3))
+        });
+        self.job
+            .write_bytes(&done.output, csv.as_deref())
+            .map_err(program)
     }
 
     /// Corrects every target and writes the outputs, handing each target's report line
@@ -389,6 +391,52 @@ mod tests {
             message.contains("cannot tell the program's format"),
             "{message}"
         );
+    }
+
+    #[test]
+    fn a_run_written_whole_and_one_written_as_it_goes_write_the_same_files() {
+        use adwi_compile::build::{compile, BuildOptions};
+        use adwi_samples::{parse_samples, ColumnMap};
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let mut samples = String::from("x,y,z,dx,dy,dz\n");
+        for i in 0..5 {
+            for j in 0..5 {
+                for k in 0..5 {
+                    let p = [1300 + 200 * i, -100 + 200 * j, 700 + 200 * k];
+                    samples += &format!("{},{},{},1,0,0\n", p[0], p[1], p[2]);
+                }
+            }
+        }
+        let samples =
+            parse_samples("t.csv".as_ref(), samples.as_bytes(), &ColumnMap::default()).unwrap();
+        let table = compile(&samples, &BuildOptions::default(), &|_| {})
+            .unwrap()
+            .0;
+        std::fs::write(d.join("t.tbl"), table).unwrap();
+        std::fs::write(
+            d.join("p.csv"),
+            "x,y,z\n1500,200,1200\n9000,0,0\n1600,300,1100\n",
+        )
+        .unwrap();
+        let job = |name: &str| {
+            let mut args = CompensateArgs::new(d.join("t.tbl"), d.join("p.csv"));
+            args.output = Some(d.join(format!("{name}.csv")));
+            args.report = Some(d.join(format!("{name}.rep")));
+            CompensateJob::new(args).unwrap()
+        };
+        let whole = job("whole");
+        let done = whole.run().unwrap();
+        whole.write(&done).unwrap();
+        let mut lines = Vec::new();
+        let written = job("going").run_and_write(|l| lines.push(l)).unwrap();
+        assert_eq!(lines, done.targets);
+        assert_eq!(written.summary, done.summary);
+        assert_eq!((done.summary.corrected, done.summary.total), (2, 3));
+        for ext in ["csv", "rep"] {
+            let read = |name: &str| std::fs::read(d.join(format!("{name}.{ext}"))).unwrap();
+            assert_eq!(read("whole"), read("going"), "{ext}");
+        }
     }
 
     #[test]

@@ -547,9 +547,13 @@ impl CompensateJob {
         self.write_bytes(&done.output, report.as_deref())
     }
 
-    /// Writes the program's bytes and the report's CSV where the options say, both or
-    /// neither.
-    fn write_bytes(&self, output: &[u8], report: Option<&str>) -> Result<(), Error> {
+    /// Writes the program's bytes and the report's CSV ([`CsvRows`]) where the options
+    /// say, both or neither.
+    ///
+    /// # Errors
+    ///
+    /// As [`CompensateJob::write`].
+    pub fn write_bytes(&self, output: &[u8], report: Option<&str>) -> Result<(), Error> {
         let mut contents: Vec<(&Path, &[u8])> = Vec::new();
         if let Some(path) = &self.options.output {
             contents.push((path, output));
