@@ -330,37 +330,37 @@ fn run_program(exe: &Path, tables: &[PathBuf], input: &str) -> String {
 fn check_refusals(stdout: &str, corrupt: &[u8]) {
     // Refusals: ADWI_NULL_POINTER 1, ADWI_INVALID_ARGUMENT 2, ADWI_IO 3,
     // ADWI_INVALID_TABLE 4.
-    assert_eq!(line(&stdout, "open_null_path")[0], "1");
-    assert_eq!(line(&stdout, "open_null_out"), ["1"]);
-    let missing = line(&stdout, "open_missing");
+    assert_eq!(line(stdout, "open_null_path")[0], "1");
+    assert_eq!(line(stdout, "open_null_out"), ["1"]);
+    let missing = line(stdout, "open_missing");
     assert_eq!(missing[0], "3", "{stdout}");
     assert!(
         stdout.contains("cannot read the table | cannot read the table:"),
         "{stdout}"
     );
     for name in ["open_corrupt_bytes", "open_corrupt_file"] {
-        let words = line(&stdout, name);
+        let words = line(stdout, name);
         assert_eq!(words[0], "4", "{name}: {stdout}");
         // The message length reported equals the Rust error's.
         let expected = Table::from_vec(corrupt).err().unwrap().to_string();
         assert_eq!(words[1], expected.len().to_string(), "{name}: {stdout}");
         assert!(stdout.contains(&expected), "{stdout}");
     }
-    assert_eq!(line(&stdout, "open_null_bytes"), ["1"]);
-    assert_eq!(line(&stdout, "handle_untouched"), ["1"]);
-    assert_eq!(line(&stdout, "open")[..2], ["0", "0"]);
-    assert_eq!(line(&stdout, "open_bytes"), ["0"]);
-    assert_eq!(line(&stdout, "sample_count"), ["0", "8"]);
-    assert_eq!(line(&stdout, "query_null_table"), ["1"]);
-    assert_eq!(line(&stdout, "query_null_target"), ["1"]);
-    assert_eq!(line(&stdout, "query_null_out"), ["1"]);
-    assert_eq!(line(&stdout, "query_bad_config"), ["2"]);
-    assert_eq!(line(&stdout, "query_untouched"), ["1"]);
-    assert_eq!(line(&stdout, "query_joints_null_joints"), ["1"]);
-    assert_eq!(line(&stdout, "query_joints_too_many"), ["2"]);
-    assert_eq!(line(&stdout, "joint_count"), ["0", "0"]);
-    assert_eq!(line(&stdout, "compensate_null_out"), ["1"]);
-    assert_eq!(line(&stdout, "compensate_bad_tolerance"), ["2"]);
+    assert_eq!(line(stdout, "open_null_bytes"), ["1"]);
+    assert_eq!(line(stdout, "handle_untouched"), ["1"]);
+    assert_eq!(line(stdout, "open")[..2], ["0", "0"]);
+    assert_eq!(line(stdout, "open_bytes"), ["0"]);
+    assert_eq!(line(stdout, "sample_count"), ["0", "8"]);
+    assert_eq!(line(stdout, "query_null_table"), ["1"]);
+    assert_eq!(line(stdout, "query_null_target"), ["1"]);
+    assert_eq!(line(stdout, "query_null_out"), ["1"]);
+    assert_eq!(line(stdout, "query_bad_config"), ["2"]);
+    assert_eq!(line(stdout, "query_untouched"), ["1"]);
+    assert_eq!(line(stdout, "query_joints_null_joints"), ["1"]);
+    assert_eq!(line(stdout, "query_joints_too_many"), ["2"]);
+    assert_eq!(line(stdout, "joint_count"), ["0", "0"]);
+    assert_eq!(line(stdout, "compensate_null_out"), ["1"]);
+    assert_eq!(line(stdout, "compensate_bad_tolerance"), ["2"]);
     // ADWI_INVALID_HANDLE 8, from every function, for each of the three bogus handles.
     let refusals: Vec<&str> = stdout
         .lines()
@@ -375,10 +375,10 @@ fn check_refusals(stdout: &str, corrupt: &[u8]) {
         3,
         "{stdout}"
     );
-    assert_eq!(line(&stdout, "invalid_handle_memory_untouched"), ["1"]);
-    assert_eq!(line(&stdout, "result_name_8"), ["invalid", "handle"]);
-    assert_eq!(line(&stdout, "close"), ["0", "0", "0"]);
-    assert_eq!(line(&stdout, "hybrid_close"), ["0"]);
+    assert_eq!(line(stdout, "invalid_handle_memory_untouched"), ["1"]);
+    assert_eq!(line(stdout, "result_name_8"), ["invalid", "handle"]);
+    assert_eq!(line(stdout, "close"), ["0", "0", "0"]);
+    assert_eq!(line(stdout, "hybrid_close"), ["0"]);
 }
 
 /// The hybrid table's answers at its targets with joint values, and as poses with a TCP

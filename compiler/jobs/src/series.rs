@@ -657,8 +657,8 @@ mod label_tests {
 
     #[test]
     fn each_sample_is_labelled_with_its_series_and_a_shared_pose_with_the_first() {
-        let (samples, labels) = super::concat(vec![at(&[0.0, 10.0]), at(&[20.0, 10.0, 30.0])])
-            .unwrap();
+        let (samples, labels) =
+            super::concat(vec![at(&[0.0, 10.0]), at(&[20.0, 10.0, 30.0])]).unwrap();
         let labels = labels.unwrap();
         assert_eq!(labels.len(), samples.len());
         for (i, p) in samples.nominal_mm.iter().enumerate() {
