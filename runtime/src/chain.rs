@@ -605,44 +605,10 @@ impl ReachPair {
     /// the chains' joint count (the caller's check).
     #[inline]
     pub(crate) fn walk_posed(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> PosedPair {
-        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
-        let (mut point, mut approach, mut across) =
-            (self.tool_mm, self.tool_approach, self.tool_across);
-        for j in (0..n).rev() {
-            let rows = &self.frames[j];
-            if self.prismatic[j] {
-                point[2] = point[2] + Pair::splat(q[j]);
-            } else {
-                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
-                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-                point = turn(point);
-                approach = turn(approach);
-                across = turn(across);
-            }
-            let [p, a, x] = [point, approach, across];
-            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
-            let turned = |r: &[Pair; 4], v: [Pair; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
-            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
-            approach = [
-                turned(&rows[0], a),
-                turned(&rows[1], a),
-                turned(&rows[2], a),
-            ];
-            across = [
-                turned(&rows[0], x),
-                turned(&rows[1], x),
-                turned(&rows[2], x),
-            ];
-        }
-        let lane = |v: [Pair; 3], l: usize| [v[0].0[l], v[1].0[l], v[2].0[l]];
-        PosedPair {
-            a_mm: lane(point, 0),
-            a_x: lane(across, 0),
-            a_z: lane(approach, 0),
-            b_mm: lane(point, 1),
-            b_x: lane(across, 1),
-            b_z: lane(approach, 1),
-        }
+        self.walk_posed_by(q, sin_cos.len(), |j| {
+            let (s, c) = sin_cos[j];
+            (Pair::splat(s), Pair::splat(c))
+        })
     }
 
     /// [`ReachPair::walk_posed`] with each chain at its own revolute angles: `a` turned by
