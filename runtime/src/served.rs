@@ -468,7 +468,7 @@ pub(crate) fn blend_strict(
     else {
         return Err(Status::InvalidInput);
     };
-    if grid.stride != 1 || grid.fade_mm.is_some() {
+    if !grid.is_strict() {
         return Err(Status::InvalidInput);
     }
     let weights = trilinear_weights(fraction);
