@@ -11,7 +11,7 @@ use adwi_programs::source::Source;
 use adwi_programs::{CompensateJob, CompensateOptions, Report};
 use nalgebra::{Isometry3, UnitQuaternion};
 
-use crate::common::{build_ur5_hybrid, repo, tablec};
+use crate::common::{build_ur5_hybrid, compensate, method_table, repo, tablec};
 
 fn fixture(name: &str) -> PathBuf {
     repo("tests/programs").join(name)
@@ -19,26 +19,6 @@ fn fixture(name: &str) -> PathBuf {
 
 fn kr150_robot() -> PathBuf {
     repo("tables/kr150-2/robot.toml")
-}
-
-/// `tablec build` of `samples` into `dir/out`, serving the method's own field (the figures
-/// checked here are those of the programs' arithmetic, not of the field's choice); it must
-/// succeed.
-fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--served-field",
-            "method",
-            "-o",
-            out,
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join(out)
 }
 
 /// Samples with zero errors on a lattice over `min..=max` (mm, step mm), with zero
@@ -63,18 +43,6 @@ fn zero_samples(dir: &Path, name: &str, min: [f64; 3], max: [f64; 3], step: f64)
     path
 }
 
-/// `tablec compensate` with `args`; returns its exit code and standard output.
-fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let mut all = vec!["compensate"];
-    all.extend_from_slice(args);
-    let o = tablec(&all, dir);
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
-
 #[test]
 fn a_table_that_corrects_nothing_reproduces_every_program_byte_for_byte() {
     let dir = tempfile::tempdir().unwrap();
@@ -85,7 +53,7 @@ fn a_table_that_corrects_nothing_reproduces_every_program_byte_for_byte() {
         [2200.0, 900.0, 1700.0],
         100.0,
     );
-    let kr = build(dir.path(), &kr, "kr-zero.tbl");
+    let kr = method_table(dir.path(), &kr, "kr-zero.tbl");
     let ur = zero_samples(
         dir.path(),
         "ur-zero.csv",
@@ -93,7 +61,7 @@ fn a_table_that_corrects_nothing_reproduces_every_program_byte_for_byte() {
         [-150.0, 100.0, 500.0],
         50.0,
     );
-    let ur = build(dir.path(), &ur, "ur-zero.tbl");
+    let ur = method_table(dir.path(), &ur, "ur-zero.tbl");
     let ur5 = repo("tables/ur5/robot.toml");
     for (table, program, robot) in [
         (&kr, "weld.dat", kr150_robot()),
@@ -198,7 +166,7 @@ fn check_against_query(dir: &Path, table: &Path, report: &Report, what: &str) ->
 #[test]
 fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let mut checked = 0;
     for (program, tool, base) in [
         ("weld.dat", None, None),
@@ -392,7 +360,7 @@ fn a_simulated_kr150_executing_the_compensated_programs_lands_within_the_tables_
     use adwi_robot::simulate::Scenario;
     use adwi_robot::{Configuration, InverseKinematics, Robot};
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let robot = Robot::load(kr150_robot()).unwrap();
     let scenario = Scenario::load(repo("tables/kr150-2/scenario.toml")).unwrap();
     let (mut before, mut after) = (Vec::new(), Vec::new());
@@ -522,7 +490,7 @@ fn a_simulated_kr150_executing_the_compensated_programs_lands_within_the_tables_
 #[test]
 fn targets_not_corrected_are_counted_and_strict_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = table.to_str().unwrap();
     let program = fixture("targets.csv");
     let program = program.to_str().unwrap();
@@ -600,7 +568,7 @@ fn targets_not_corrected_are_counted_and_strict_writes_nothing() {
 #[test]
 fn a_million_targets_are_sized_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let mut csv = String::with_capacity(30_000_000);
     csv.push_str("x,y,z,a,b,c\n");
     for i in 0..1_000_000 {
@@ -706,7 +674,7 @@ fn docs_examples_run_as_written() {
 #[test]
 fn a_posture_near_the_wrist_singularity_is_refused_not_flipped() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     // A5 at -0.002°: the correction's small turn of the flange swings A4 and A6; at -1° it
     // does not. At +0.01° the wrist is not flipped, a configuration the KR150-2 samples
     // (configuration 4) do not hold.
@@ -765,7 +733,7 @@ fn weld_pair(dir: &Path) {
 fn no_output_names_an_input_a_krl_programs_partner_included_by_any_path() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     weld_pair(d);
     let original = |name: &str| std::fs::read(fixture(name)).unwrap();
     std::os::unix::fs::symlink(d.join("weld.dat"), d.join("link.dat")).unwrap();
@@ -839,7 +807,7 @@ fn report_hashes(report: &str) -> Vec<String> {
 fn concurrent_compensations_leave_a_program_and_its_report_from_one_run() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     // Two programs whose compensations differ.
     let a = std::fs::read_to_string(fixture("targets.csv")).unwrap();
     std::fs::write(d.join("a.csv"), &a).unwrap();
@@ -877,7 +845,7 @@ fn concurrent_compensations_leave_a_program_and_its_report_from_one_run() {
 fn a_hostile_program_is_an_error_or_an_invalid_target_never_an_abort_or_a_hang() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let robot = kr150_robot();
     let robot = robot.to_str().unwrap();
     // RAPID lists 25,000 deep: a located error (exit 1), not a stack overflow (134).
@@ -1016,7 +984,7 @@ fn line_of<'r>(report: &'r Report, name: &str) -> &'r adwi_programs::TargetLine 
 #[test]
 fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let (job, done) = run_job(&table, &fixture("seam.dat"), &kr150_robot(), |o| {
         o.krl_config = Some(fixture("config.dat"));
     });
@@ -1083,7 +1051,7 @@ fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select(
 fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let table = build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = table.to_str().unwrap();
     for name in ["seam.src", "seam.dat", "config.dat"] {
         std::fs::copy(fixture(name), d.join(name)).unwrap();
@@ -1149,7 +1117,7 @@ fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_ref
 #[test]
 fn rapid_arc_trigg_do_sync_search_and_array_targets_land_with_the_torch_in_the_fixture() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let (job, done) = run_job(&table, &fixture("seam.mod"), &kr150_robot(), |_| {});
     let report = &done.report;
     let statuses: Vec<(String, String, usize)> = report
@@ -1331,7 +1299,7 @@ fn polyscope_waypoints_through_get_inverse_kin_and_a_feature_land_by_the_hybrid_
 fn cr_only_line_ends_read_as_lf_and_utf16_and_programs_of_another_dialect_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let table = build(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = table.to_str().unwrap();
     let crlf = std::fs::read(fixture("seam.dat")).unwrap();
     let cr: Vec<u8> = String::from_utf8(crlf.clone())

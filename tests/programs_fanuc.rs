@@ -15,7 +15,7 @@ use adwi_programs::source::Source;
 use adwi_programs::{CompensateJob, CompensateOptions, Compensated};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{repo, tablec};
+use crate::common::{compensate, method_table, repo, tablec};
 
 fn fixture(name: &str) -> PathBuf {
     repo(&format!("tests/programs/{name}"))
@@ -29,37 +29,8 @@ fn robot() -> PathBuf {
     repo("tables/kr150-2/robot.toml")
 }
 
-fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--served-field",
-            "method",
-            "-o",
-            out,
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join(out)
-}
-
 fn kr150_table(dir: &Path) -> PathBuf {
-    build(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl")
-}
-
-/// `tablec compensate` with `args`: exit code, standard output and error.
-fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let mut all = vec!["compensate"];
-    all.extend_from_slice(args);
-    let o = tablec(&all, dir);
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    method_table(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl")
 }
 
 /// `tablec query --targets` at `points` (base frame, mm): per point, the predicted error.
@@ -128,7 +99,7 @@ fn a_table_that_corrects_nothing_reproduces_fanuc_programs_byte_for_byte() {
         }
     }
     std::fs::write(dir.path().join("zero.csv"), csv).unwrap();
-    let table = build(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
+    let table = method_table(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
     for (program, corrected) in [("fanuc_weld.ls", 7), ("fanuc_gen.ls", 41)] {
         let out = dir.path().join("out.ls");
         let (code, stdout, stderr) = compensate(

@@ -13,7 +13,7 @@ use adwi_programs::source::Source;
 use adwi_programs::{CompensateJob, CompensateOptions};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{repo, tablec};
+use crate::common::{compensate, method_table, repo, tablec};
 
 /// The pocket's work offset: its origin in the KR150-2's workspace.
 const G54: [f64; 6] = [1750.0, 450.0, 1200.0, 0.0, 0.0, 0.0];
@@ -23,37 +23,8 @@ fn pocket() -> PathBuf {
     repo("tests/programs/pocket.nc")
 }
 
-fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--served-field",
-            "method",
-            "-o",
-            out,
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join(out)
-}
-
 fn kr150_table(dir: &Path) -> PathBuf {
-    build(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl")
-}
-
-/// `tablec compensate` with `args`: exit code, standard output and error.
-fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let mut all = vec!["compensate"];
-    all.extend_from_slice(args);
-    let o = tablec(&all, dir);
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    method_table(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl")
 }
 
 /// `tablec query --targets` at `points` (base frame, mm): per point, the predicted error
@@ -117,7 +88,7 @@ fn a_table_that_corrects_nothing_reproduces_g_code_byte_for_byte() {
         }
     }
     std::fs::write(dir.path().join("zero.csv"), csv).unwrap();
-    let table = build(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
+    let table = method_table(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
     // A program in inches with CRLF line ends, modal axes, block numbers and comments.
     let inches = "%\r\nO0002 (INCH, CRLF)\r\nN5 G20 G90 G17\r\nN10 G0 X59.0551 Y17.7165 Z47.2441 A0 B90 C0\r\n\
                   N15 G1 X60.0551 Y17.7165 Z47.2441 F40. (cut)\r\n\

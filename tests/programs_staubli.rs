@@ -15,39 +15,10 @@ use adwi_programs::staubli::Application;
 use adwi_programs::{CompensateJob, CompensateOptions};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{repo, tablec};
+use crate::common::{compensate, method_table, repo};
 
 fn application(name: &str) -> PathBuf {
     repo(&format!("tests/programs/staubli/{name}/{name}.pjx"))
-}
-
-fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--served-field",
-            "method",
-            "-o",
-            out,
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join(out)
-}
-
-/// `tablec compensate` with `args`: exit code, standard output and error.
-fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let mut all = vec!["compensate"];
-    all.extend_from_slice(args);
-    let o = tablec(&all, dir);
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
 }
 
 /// The application's data read with its programs, from `bytes` in place of its `.dtx`.
@@ -75,7 +46,7 @@ fn a_table_that_corrects_nothing_reproduces_val3_data_byte_for_byte() {
         }
     }
     std::fs::write(dir.path().join("zero.csv"), csv).unwrap();
-    let table = build(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
+    let table = method_table(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
     for (name, corrected) in [("weld", 9), ("raster", 300)] {
         let out = dir.path().join(format!("out-{name}.dtx"));
         let (code, stdout, stderr) = compensate(
@@ -210,7 +181,7 @@ fn landings(
 }
 
 fn kr150(dir: &Path) -> (PathBuf, adwi_runtime::Table<adwi_runtime::AlignedBytes>) {
-    let path = build(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let path = method_table(dir, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = adwi_runtime::Table::from_vec(std::fs::read(&path).unwrap()).unwrap();
     (path, table)
 }

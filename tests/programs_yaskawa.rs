@@ -13,7 +13,7 @@ use adwi_programs::yaskawa::{pose, YaskawaOptions};
 use adwi_programs::{CompensateJob, CompensateOptions};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{repo, tablec};
+use crate::common::{compensate, method_table, repo};
 
 /// The torch (tool 1) and the fixture (user frame 1) of the jobs' cell, as the pendant
 /// shows them: X, Y, Z mm, Rx, Ry, Rz degrees.
@@ -24,35 +24,6 @@ const PULSES: [f64; 6] = [1456.356, 1456.356, 1350.0, 910.222, 910.222, 555.556]
 
 fn fixture(name: &str) -> PathBuf {
     repo(&format!("tests/programs/{name}"))
-}
-
-fn build(dir: &Path, samples: &Path, out: &str) -> PathBuf {
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--served-field",
-            "method",
-            "-o",
-            out,
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join(out)
-}
-
-/// `tablec compensate` with `args`: exit code, standard output and error.
-fn compensate(dir: &Path, args: &[&str]) -> (i32, String, String) {
-    let mut all = vec!["compensate"];
-    all.extend_from_slice(args);
-    let o = tablec(&all, dir);
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
 }
 
 fn options(table: &Path, program: &Path) -> CompensateOptions {
@@ -91,7 +62,7 @@ fn a_table_that_corrects_nothing_reproduces_yaskawa_jobs_byte_for_byte() {
         }
     }
     std::fs::write(dir.path().join("zero.csv"), csv).unwrap();
-    let table = build(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
+    let table = method_table(dir.path(), &dir.path().join("zero.csv"), "zero.tbl");
     for (program, corrected) in [("bracket.jbi", 9), ("trace.jbi", 41)] {
         let out = dir.path().join(format!("out-{program}"));
         let (code, stdout, stderr) = compensate(
@@ -165,7 +136,7 @@ fn written_pose(target: &adwi_programs::program::ProgramTarget) -> Isometry3<f64
 #[test]
 fn kr150_yaskawa_positions_land_at_the_torch_in_their_frames_and_the_rest_are_named() {
     let dir = tempfile::tempdir().unwrap();
-    let table_path = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table_path = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = adwi_runtime::Table::from_vec(std::fs::read(&table_path).unwrap()).unwrap();
     let program = fixture("bracket.jbi");
     let job = CompensateJob::new(options(&table_path, &program)).unwrap();
@@ -332,7 +303,7 @@ fn landings(
 #[test]
 fn kr150_generated_trace_lands_at_the_torch_in_its_user_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let table_path = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table_path = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let table = adwi_runtime::Table::from_vec(std::fs::read(&table_path).unwrap()).unwrap();
     let program = fixture("trace.jbi");
     let job = CompensateJob::new(options(&table_path, &program)).unwrap();
@@ -348,7 +319,7 @@ fn kr150_generated_trace_lands_at_the_torch_in_its_user_frame() {
 #[test]
 fn pulse_positions_are_corrected_in_whole_pulses_with_a_robot_and_named_without() {
     let dir = tempfile::tempdir().unwrap();
-    let table_path = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table_path = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let program = fixture("bracket.jbi");
     let mut o = options(&table_path, &program);
     o.robot = Some(repo("tables/kr150-2/robot.toml"));
@@ -391,7 +362,7 @@ fn pulse_positions_are_corrected_in_whole_pulses_with_a_robot_and_named_without(
 #[test]
 fn a_generated_trace_in_a_user_frame_is_corrected_whole_and_its_frames_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
-    let table = build(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let (code, stdout, stderr) = compensate(
         dir.path(),
         &[

@@ -202,3 +202,39 @@ pub fn hybrid_table_bytes(
         .unwrap()
         .bytes
 }
+
+/// `tablec build` of `samples` into `dir/out`, serving the method's own field (what the
+/// program tests check is the programs' arithmetic, not the field's choice); it must
+/// succeed.
+pub fn method_table(
+    dir: &std::path::Path,
+    samples: &std::path::Path,
+    out: &str,
+) -> std::path::PathBuf {
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--served-field",
+            "method",
+            "-o",
+            out,
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join(out)
+}
+
+/// `tablec compensate` with `args`: exit code, standard output and error.
+pub fn compensate(dir: &std::path::Path, args: &[&str]) -> (i32, String, String) {
+    let mut all = vec!["compensate"];
+    all.extend_from_slice(args);
+    let o = tablec(&all, dir);
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
