@@ -357,8 +357,8 @@ fn stats(v: &[f64]) -> (f64, f64) {
 
 #[test]
 fn a_simulated_kr150_executing_the_compensated_programs_lands_within_the_tables_accuracy() {
-    use adwi_robot::simulate::Scenario;
     use adwi_robot::{Configuration, InverseKinematics, Robot};
+    use adwi_simulate::Scenario;
     let dir = tempfile::tempdir().unwrap();
     let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
     let robot = Robot::load(kr150_robot()).unwrap();

@@ -3,10 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_robot::simulate::{
+use adwi_robot::Robot;
+use adwi_simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
-use adwi_robot::Robot;
 
 fn shipped(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -7,8 +7,8 @@ use adwi_measure::truth::{self, TruthComparison};
 use adwi_output::OutputPlan;
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::register::{Refined, Registration};
-use adwi_robot::simulate::Scenario;
 use adwi_robot::Robot;
+use adwi_simulate::Scenario;
 use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs};

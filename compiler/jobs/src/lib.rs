@@ -82,7 +82,7 @@ pub enum JobError {
     },
     /// A simulation that cannot run (its scenario, its plan).
     #[error(transparent)]
-    Simulate(Box<adwi_robot::simulate::SimulateError>),
+    Simulate(Box<adwi_simulate::SimulateError>),
     /// The table cannot be built from these samples and options.
     #[error(transparent)]
     Build(Box<adwi_compile::build::BuildError>),
@@ -155,7 +155,7 @@ boxed_from!(
     Measured: adwi_robot::measured::MeasuredError,
     Series: adwi_samples::SeriesConflict,
     Disagreement: adwi_robot::agreement::Disagreement,
-    Simulate: adwi_robot::simulate::SimulateError,
+    Simulate: adwi_simulate::SimulateError,
     Build: adwi_compile::build::BuildError,
     Calibrate: adwi_robot::calibrate::CalibrateError,
     Eval: adwi_eval::EvalError,

@@ -511,7 +511,7 @@ impl PlanJob {
             )));
         }
         let closed_form = InverseKinematics::new(&robot).is_ok();
-        let label = |q: &[f64]| adwi_robot::simulate::label(&robot, q).bits();
+        let label = |q: &[f64]| adwi_simulate::label(&robot, q).bits();
         let boxes: Vec<String> = options
             .boxes_mm
             .iter()

@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 
 use adwi_output::OutputPlan;
-use adwi_robot::simulate::{
+use adwi_robot::{Configuration, Robot};
+use adwi_simulate::{
     describe, position_error_stats_mm, simulate, write_csv, Positions, SamplingPlan, Scenario,
 };
-use adwi_robot::{Configuration, Robot};
 use serde::Deserialize;
 
 use crate::args::{parse_triple, RobotArgs};

@@ -28,9 +28,9 @@
 
 use adwi_robot::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration, Parameter};
 use adwi_robot::error_model::pose_error;
-use adwi_robot::simulate::{Scenario, SimulateError};
 use adwi_robot::Robot;
 use adwi_samples::{Joints, SampleSet};
+use adwi_simulate::{Scenario, SimulateError};
 use nalgebra::Vector3;
 
 /// The most workspace poses a comparison takes (each costs a reference identification's

@@ -2,9 +2,9 @@
 //! [`urdf`] files), inverse kinematics ([`ik`]), the first-order pose error model
 //! ([`error_model`]), kinematic identification from measured samples ([`calibrate`]), the
 //! registration of laser-tracker measurements to the robot ([`register`]; [`measured`] reads
-//! tracker-frame sample files through it) and the simulation of sample databases
-//! ([`simulate`]), for any serial robot of 1 to
-//! [`adwi_runtime::chain::MAX_JOINTS`] revolute or prismatic joints.
+//! tracker-frame sample files through it), for any serial robot of 1 to
+//! [`adwi_runtime::chain::MAX_JOINTS`] revolute or prismatic joints. The simulation of
+//! sample databases is `adwi-simulate`'s.
 //!
 //! Forward kinematics is not here: every robot is a runtime [`adwi_runtime::chain::Chain`],
 //! so that one implementation serves simulation, identification and queries.
@@ -19,7 +19,6 @@ pub mod measured;
 pub mod model;
 pub mod plausible;
 pub mod register;
-pub mod simulate;
 pub mod testing;
 pub mod toml_error;
 pub mod urdf;

@@ -27,6 +27,10 @@
 //! With every input inside them, a robot's positions stay within a few km and its gravity
 //! torques within 10¹³ N·m, so that every deflection, pose and error computed from them is
 //! finite; the outputs are checked finite all the same before they are returned.
+//!
+//! The checks ([`check`], [`check_all`], [`Quantity`]) are public so that the crates reading
+//! the robot's other inputs (error scenarios in `adwi-simulate`, tracker registrations and
+//! identification options in `adwi-identify`) hold them to these same ranges.
 
 use adwi_runtime::format::Implausible;
 
@@ -82,7 +86,7 @@ const ROUNDING: f64 = 1e-9;
 
 /// What a number is, and so the range it must lie in (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Quantity {
+pub enum Quantity {
     /// A length or position, mm.
     LengthMm,
     /// A length or position, m (URDF).
@@ -195,7 +199,7 @@ impl Quantity {
 /// Checks `value` as a `quantity`: [`RobotError::NonFinite`] for NaN or an infinity where
 /// the quantity must be finite, [`RobotError::Implausible`] outside its range; `field`
 /// names it as the file does (`joint 2 a_mm`).
-pub(crate) fn check(
+pub fn check(
     value: f64,
     quantity: Quantity,
     field: impl FnOnce() -> String,
@@ -213,7 +217,7 @@ pub(crate) fn check(
 }
 
 /// [`check`] of every component of `values`, named `field[i]`.
-pub(crate) fn check_all(
+pub fn check_all(
     values: &[f64],
     quantity: Quantity,
     field: impl Fn() -> String,
@@ -225,8 +229,9 @@ pub(crate) fn check_all(
 }
 
 /// A number as people read it: plain in the usual range, in exponent form outside it (the
-/// plain form of 1e-300 has 300 zeros), as the runtime's messages write them.
-pub(crate) fn number(value: f64) -> String {
+/// plain form of 1e-300 has 300 zeros), as the runtime's messages write them; public so
+/// that the messages about every input of a robot write numbers alike.
+pub fn number(value: f64) -> String {
     if value == 0.0 || (1e-4..1e9).contains(&value.abs()) {
         format!("{value}")
     } else {

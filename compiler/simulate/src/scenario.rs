@@ -40,7 +40,7 @@ use super::*;
 /// frame `i` for a robot described in MD-H (frame `n`, the flange, for the payload), the
 /// joint's frame after its motion for any other robot (the last joint's for the payload).
 /// Gravity is −z of the frame poses are given in. Every value must lie in its plausible
-/// range ([`crate::plausible`]). A scenario file names no other file: [`Scenario::load`]
+/// range ([`adwi_robot::plausible`]). A scenario file names no other file: [`Scenario::load`]
 /// reads that one file (a caller checking outputs against inputs needs no more).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
@@ -228,13 +228,13 @@ impl Scenario {
     ///
     /// [`SimulateError::Parse`] for malformed TOML or unknown keys;
     /// [`SimulateError::InvalidScenario`] for a joint count outside 1 to 12, a value
-    /// outside its plausible range ([`crate::plausible`]: a deviation beyond 1 km or 720°,
+    /// outside its plausible range ([`adwi_robot::plausible`]: a deviation beyond 1 km or 720°,
     /// a stiffness below 100 N·m/rad, a mass beyond 10⁶ kg, a σ beyond 1 m, ...), with the
     /// joint and key, or a link number outside the joints.
     pub fn from_toml_str(text: &str) -> Result<Scenario, SimulateError> {
         let file: ScenarioFile = toml::from_str(text).map_err(|error| SimulateError::Parse {
             path: PathBuf::new(),
-            source: crate::toml_error::TomlError::new(&error, text),
+            source: adwi_robot::toml_error::TomlError::new(&error, text),
         })?;
         let invalid = |message: String| SimulateError::InvalidScenario(message);
         let n = file.joints.len();

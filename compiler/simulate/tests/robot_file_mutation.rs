@@ -19,10 +19,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::simulate::{simulate, write_csv, Positions, SamplingPlan, Scenario};
 use adwi_robot::testing::mutate;
 use adwi_robot::{LinkNames, Robot};
 use adwi_samples::{parse_samples, ColumnMap, SampleSet};
+use adwi_simulate::{simulate, write_csv, Positions, SamplingPlan, Scenario};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

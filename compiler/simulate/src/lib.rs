@@ -24,7 +24,7 @@
 //! one tool orientation (optionally spread). A six-axis robot with a spherical wrist is
 //! solved in closed form ([`InverseKinematics`], the solution closest to home or the plan's
 //! configuration); any other robot of six or more joints by damped least squares from its
-//! home posture ([`crate::ik::solve_near`]: the solution nearest home, documented there);
+//! home posture ([`adwi_robot::ik::solve_near`]: the solution nearest home, documented there);
 //! fewer joints cannot reach arbitrary poses and take joint-space plans only.
 //!
 //! Joint space ([`Positions::JointRandom`], [`Positions::JointGrid`]), for any robot: joint
@@ -35,7 +35,7 @@
 //!
 //! A plan's sample count is computed from its numbers before anything is allocated
 //! ([`SamplingPlan::sample_count`]) and refused beyond [`MAX_SAMPLES`]; every number of a
-//! scenario lies in its plausible range ([`crate::plausible`]), and every simulated value is
+//! scenario lies in its plausible range ([`adwi_robot::plausible`]), and every simulated value is
 //! checked finite before it is returned.
 //!
 //! Everything random comes from ChaCha8 seeded by the plan's seed (stream 0 for poses and
@@ -52,14 +52,14 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
-use crate::error_model::{apply_deviations, JointDeviation};
-use crate::ik::{configuration_of, solve_near};
-use crate::model::{
+use adwi_robot::error_model::{apply_deviations, JointDeviation};
+use adwi_robot::ik::{configuration_of, solve_near};
+use adwi_robot::model::{
     chain_frames, isometry_from_parts, isometry_from_transform, mdh_constant_part,
     transform_from_xyz_rpy, Geometry, MAX_JOINTS,
 };
-use crate::plausible::{check, check_all, number, Quantity};
-use crate::{Configuration, IkError, InverseKinematics, Robot};
+use adwi_robot::plausible::{check, check_all, number, Quantity};
+use adwi_robot::{Configuration, IkError, InverseKinematics, Robot};
 use adwi_samples::pose::{
     kuka_abc_deg_from_rotation, orientation_error, rotation_from_kuka_abc_deg, rotation_from_vector,
 };
@@ -106,7 +106,7 @@ pub enum SimulateError {
         path: PathBuf,
         /// The TOML error, with line and column.
         #[source]
-        source: crate::toml_error::TomlError,
+        source: adwi_robot::toml_error::TomlError,
     },
     /// A scenario value is unusable.
     #[error("scenario: {0}")]
@@ -744,7 +744,7 @@ pub fn simulate(
 }
 
 /// The configuration label of joint values `q` of a robot with the closed form
-/// ([`InverseKinematics::new`](crate::ik::InverseKinematics::new) accepts it).
+/// ([`InverseKinematics::new`](adwi_robot::ik::InverseKinematics::new) accepts it).
 ///
 /// # Panics
 ///
@@ -926,8 +926,8 @@ pub fn position_error_stats_mm(samples: &[SimulatedSample]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::error_model::{deviation_vector, pose_error, pose_error_jacobian};
-    use crate::model::{shipped_file, shipped_robot_path};
+    use adwi_robot::error_model::{deviation_vector, pose_error, pose_error_jacobian};
+    use adwi_robot::model::{shipped_file, shipped_robot_path};
 
     fn kr150() -> Robot {
         Robot::load(shipped_robot_path("kr150-2")).unwrap()
@@ -1253,17 +1253,19 @@ mod tests {
         // At the edges of every range, the samples are finite all the same.
         let mut scenario = shipped_scenario();
         for (i, k) in scenario.stiffness_nm_per_rad.iter_mut().enumerate() {
-            *k = Some(crate::plausible::MIN_STIFFNESS_NM_PER_RAD);
-            scenario.gears[i].amplitude_rad = crate::plausible::MAX_GEAR_AMPLITUDE_DEG.to_radians();
-            scenario.gears[i].periods_per_rev = crate::plausible::MAX_GEAR_PERIODS_PER_REV;
+            *k = Some(adwi_robot::plausible::MIN_STIFFNESS_NM_PER_RAD);
+            scenario.gears[i].amplitude_rad =
+                adwi_robot::plausible::MAX_GEAR_AMPLITUDE_DEG.to_radians();
+            scenario.gears[i].periods_per_rev = adwi_robot::plausible::MAX_GEAR_PERIODS_PER_REV;
         }
         for mass in &mut scenario.masses {
-            mass.mass_kg = crate::plausible::MAX_MASS_KG;
-            mass.centre_of_gravity_mm = [crate::plausible::MAX_LENGTH_MM; 3];
+            mass.mass_kg = adwi_robot::plausible::MAX_MASS_KG;
+            mass.centre_of_gravity_mm = [adwi_robot::plausible::MAX_LENGTH_MM; 3];
         }
-        scenario.measurement.sigma_mm = crate::plausible::MAX_SIGMA_MM;
-        scenario.measurement.sigma_per_m_mm = crate::plausible::MAX_SIGMA_MM;
-        scenario.measurement.orientation_sigma_rad = crate::plausible::MAX_ORIENTATION_SIGMA_RAD;
+        scenario.measurement.sigma_mm = adwi_robot::plausible::MAX_SIGMA_MM;
+        scenario.measurement.sigma_per_m_mm = adwi_robot::plausible::MAX_SIGMA_MM;
+        scenario.measurement.orientation_sigma_rad =
+            adwi_robot::plausible::MAX_ORIENTATION_SIGMA_RAD;
         let samples = simulate(&kr150(), &scenario, &small_lattice()).unwrap();
         assert!(samples.iter().all(|s| s
             .error_mm
@@ -1440,7 +1442,7 @@ centre_of_gravity_mm = [0.0, 0.0, 100.0]
                 set.joints.as_mut().unwrap().push(&q);
                 set.lines.push(i as u64 + 2);
             }
-            let c = crate::calibrate::identify(&robot, &set, &Default::default()).unwrap();
+            let c = adwi_robot::calibrate::identify(&robot, &set, &Default::default()).unwrap();
             // Rigid: only the file's rounding to 1e-6 is left. Compliant: the gravity sag
             // and the gear error are left, which no kinematic model represents.
             let left = c.position_rms_mm;
