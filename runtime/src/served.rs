@@ -124,6 +124,12 @@ impl ServedGrid {
         }
     }
 
+    /// Vectors per node: 1, or 4 for a field that turns with the tool.
+    #[inline]
+    pub(crate) fn stride(&self) -> usize {
+        self.stride
+    }
+
     /// Whether [`blend_strict`] serves this grid: one vector a node and no fade (a
     /// position-only table's field).
     #[inline]
@@ -135,11 +141,14 @@ impl ServedGrid {
     /// nodes per axis) and the target's fractional position in the cell, each in
     /// `[0, 1]`; `None` outside the grid or for a non-finite position. Cells are half-open
     /// except at the grid's maximum faces, as [`crate::format::Grid::cell_of`] has them.
-    #[inline]
+    #[inline(always)]
     fn locate(&self, position_mm: [f64; 3]) -> Option<(usize, [f64; 3])> {
         // A division, not a multiplication by the reciprocal, so that the cell is the one
         // `Grid::cell_of` finds, to the last bit at cell faces.
-        let u = [0, 1, 2].map(|a| (position_mm[a] - self.origin_mm[a]) / self.cell_mm);
+        // Each axis written out: an array's `map` was compiled as a call returning through
+        // memory, whose reload stalled the processor's store forwarding.
+        let along = |a: usize| (position_mm[a] - self.origin_mm[a]) / self.cell_mm;
+        let u = [along(0), along(1), along(2)];
         // Written so that NaN fails the test; one branch for the three axes.
         let inside = |a: usize| u[a] >= 0.0 && u[a] <= self.cells_f64[a];
         if !(inside(0) & inside(1) & inside(2)) {
@@ -147,11 +156,13 @@ impl ServedGrid {
         }
         // `u` is in `[0, cells]` and `cells` in `u32` (the header's `dims`): a cast to
         // `u32` truncates as one to `usize` would, in fewer instructions.
-        let cell = [0, 1, 2].map(|a| (u[a] as u32).min(self.last_cell[a]));
-        let fraction = [0, 1, 2].map(|a| (u[a] - f64::from(cell[a])).clamp(0.0, 1.0));
+        let cell_of = |a: usize| (u[a] as u32).min(self.last_cell[a]);
+        let cell = [cell_of(0), cell_of(1), cell_of(2)];
+        let fraction_of = |a: usize| (u[a] - f64::from(cell[a])).clamp(0.0, 1.0);
+        let fraction = [fraction_of(0), fraction_of(1), fraction_of(2)];
         let [nx, nxy] = [self.corners[2], self.corners[4]];
-        let cell = cell.map(|c| c as usize);
-        Some((cell[0] + nx * cell[1] + nxy * cell[2], fraction))
+        let index = cell[0] as usize + nx * cell[1] as usize + nxy * cell[2] as usize;
+        Some((index, fraction))
     }
 
     /// [`ServedGrid::locate`] of the grid box's point nearest to `position_mm`, and the

@@ -20,7 +20,7 @@ use crate::format::{
     MAX_COORDINATE_MM, PAYLOAD_ALIGN, TCP_MARGIN_MM,
 };
 use crate::method::{self, MethodParams, Prediction};
-use crate::model::{ModelAt, PreparedModel};
+use crate::model::PreparedModel;
 use crate::posture::{PostureParams, PreparedPosture};
 use crate::residency::{Lock, OpenOptions, Residency};
 use crate::served::ServedGrid;
@@ -64,8 +64,11 @@ fn joints_tolerance_mm(grid: &Grid) -> f64 {
 /// A hybrid query's model part ([`Table::answer`]).
 #[derive(Clone, Copy, Debug)]
 struct ModelPart {
-    /// The model at the query's joint values, with its orientation.
-    at: ModelAt,
+    /// The model's orientation error at the query's joint values (rotation vector, rad,
+    /// base frame).
+    rotation_rad: [f64; 3],
+    /// The nominal TCP's approach axis at the query's joint values, base frame.
+    approach: [f64; 3],
     /// The model's position error at the target's TCP (at the table's point when no TCP
     /// is named or it cannot be placed), mm, base frame.
     error_mm: [f64; 3],
@@ -583,7 +586,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// on them).
     #[inline]
     pub fn query_with_joints(&self, target: &Target, joints_rad: &[f64]) -> Correction {
-        self.answer(target, Some(joints_rad), Tier::Served)
+        match self.hybrid_served(target, joints_rad) {
+            Some((model, grid, data)) => self.served_hybrid(target, joints_rad, model, grid, data),
+            None => self.answer(target, Some(joints_rad), Tier::Served),
+        }
     }
 
     /// The command that lands the robot on `target` by the served field
@@ -725,7 +731,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                             // Validation admits such a field in hybrid tables only, and
                             // those were given joint values above.
                             Ok(terms) => match &model_part {
-                                Some(m) => terms.turned(m.at.approach),
+                                Some(m) => terms.turned(m.approach),
                                 None => Correction::failed(Status::InvalidInput),
                             },
                         }
@@ -757,7 +763,7 @@ impl<D: AsRef<[u8]>> Table<D> {
                 *out += p;
             }
         }
-        if let Some(m) = model_part {
+        if let Some(m) = &model_part {
             for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
@@ -765,7 +771,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             // measured one: a TCP away from the measured point turns with it, and a
             // command's orientation is corrected by it.
             let orientation = correction.orientation_error_rad.iter_mut();
-            for (out, model) in orientation.zip(m.at.rotation_rad) {
+            for (out, model) in orientation.zip(m.rotation_rad) {
                 *out += model;
             }
         }
@@ -815,10 +821,106 @@ impl<D: AsRef<[u8]>> Table<D> {
         correction.finite_or_failure()
     }
 
+    /// Whether [`Table::served_hybrid`] answers a served query of `target` at `joints_rad`
+    /// as [`Table::answer`] does: a hybrid table without a posture term, a plausible
+    /// target, finite joint values of the table's count and the validated bytes; with what
+    /// it reads. `None` for another table or query (`answer` then says why).
+    ///
+    /// The answer is not wrapped in an `Option` here: an `Option<Correction>` returned
+    /// through memory was copied in pieces of other widths than those stored, a stall of
+    /// the processor's store forwarding each.
+    #[inline(always)]
+    fn hybrid_served(
+        &self,
+        target: &Target,
+        joints_rad: &[f64],
+    ) -> Option<(&PreparedModel, &ServedGrid, &v2::ArchivedTableData)> {
+        let (Some(model), None, Some(grid)) = (&self.model, &self.posture, &self.served) else {
+            return None;
+        };
+        let joints_fit = joints_rad.len() == self.header.joint_count as usize
+            && joints_rad.iter().all(|v| v.is_finite());
+        if !joints_fit || !target_is_plausible(target) {
+            return None;
+        }
+        match self.payload() {
+            Some(Payload::V2(data)) => Some((model, grid, data)),
+            _ => None,
+        }
+    }
+
+    /// [`Table::answer`]'s served query of a hybrid table without a posture term, for
+    /// [`Table::query_with_joints`] once [`Table::hybrid_served`] has checked it: the
+    /// same answer to the bit, by the steps that table takes in the same order (the
+    /// target's cell and its prefetch, the model part, the evidence flag, the blend, the
+    /// model added, the last guard), without the tests and the moves of the other tiers
+    /// and tables.
+    #[inline(always)]
+    fn served_hybrid(
+        &self,
+        target: &Target,
+        q: &[f64],
+        model: &PreparedModel,
+        grid: &ServedGrid,
+        data: &v2::ArchivedTableData,
+    ) -> Correction {
+        let orientation = self.has_orientation();
+        // As in `answer`: without a named TCP the cell is known before the model part.
+        let early_site = match target.tcp_mm {
+            None => {
+                let site = crate::served::site(grid, data, target.position_mm, target.config);
+                if let Ok(site) = &site {
+                    crate::served::prefetch(grid, data, site, orientation);
+                }
+                Some(site)
+            }
+            Some(_) => None,
+        };
+        let m = match self.model_part(model, q, target) {
+            Ok(part) => part,
+            Err(status) => return Correction::failed(status),
+        };
+        let evidence = self.evidence_of(target, Some(&m));
+        let site = match early_site {
+            Some(site) => site,
+            None => crate::served::site(grid, data, m.point_mm, target.config),
+        };
+        let blended = match site {
+            Ok(site) if grid.stride() == 1 => {
+                match crate::served::blend_site::<1>(grid, data, &site, orientation) {
+                    Ok(terms) => Ok(terms.correction()),
+                    Err(status) => Err(status),
+                }
+            }
+            Ok(site) => match crate::served::blend_site::<4>(grid, data, &site, orientation) {
+                Ok(terms) => Ok(terms.turned(m.approach)),
+                Err(status) => Err(status),
+            },
+            Err(status) => Err(status),
+        };
+        let residual = match blended {
+            Ok(correction) => correction,
+            // The model holds everywhere: where the residual has nothing, the model alone.
+            Err(Status::OutsideGrid | Status::NoAdmissibleNeighbour) => Correction::model_only(),
+            Err(status) => return Correction::failed(status),
+        };
+        // The residual plus the model, as `answer` adds them; built once, in place (a
+        // correction written field by field and then copied whole was reloaded in wider
+        // pieces than stored, a stall of the processor's store forwarding).
+        let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+        Correction {
+            position_error_mm: plus(residual.position_error_mm, m.error_mm),
+            orientation_error_rad: plus(residual.orientation_error_rad, m.rotation_rad),
+            evidence,
+            ..residual
+        }
+        .finite_or_failure()
+    }
+
     /// A hybrid query's model part (see [`Table::answer`]): the model at `q` with its
     /// orientation, the table's point for the target, the joints' check against that
     /// point, and the error at the target's TCP.
-    #[inline]
+    #[inline(always)]
     fn model_part(
         &self,
         model: &PreparedModel,
@@ -850,7 +952,8 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Err(Status::JointsMismatch);
         }
         Ok(ModelPart {
-            at,
+            rotation_rad: at.rotation_rad,
+            approach: at.approach,
             error_mm,
             point_mm,
             lever_known: lever.is_some() || target.tcp_mm.is_none(),
@@ -860,12 +963,12 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// Where a query lies beyond the table's recorded evidence ([`Evidence`]): the tool's
     /// approach axis (a hybrid table's from its joint values, else the target's given
     /// orientation) against the samples' cone, and a named TCP the table cannot place.
-    #[inline]
+    #[inline(always)]
     fn evidence_of(&self, target: &Target, model_part: Option<&ModelPart>) -> Evidence {
         let mut evidence = Evidence::WITHIN;
         if let Some(cone) = self.header.evidence.approach {
             let axis = match (model_part, target.rotation_rad) {
-                (Some(m), _) => Some(m.at.approach),
+                (Some(m), _) => Some(m.approach),
                 (None, Some(rotation)) => {
                     let r = crate::kinematics::rotation_from_vector(rotation);
                     Some([r[0][2], r[1][2], r[2][2]])
@@ -1006,6 +1109,116 @@ mod tests {
             *o = x.to_bits();
         }
         (v, c.neighbours, c.status, c.residual, c.evidence)
+    }
+
+    /// A compatibility fixture's bytes, opened.
+    fn fixture(path: &str) -> Table<AlignedBytes> {
+        let path = format!("{}/../tables/compat/{path}", env!("CARGO_MANIFEST_DIR"));
+        Table::from_vec(std::fs::read(path).unwrap()).unwrap()
+    }
+
+    /// The version-4 UR5 hybrid fixture with a field that turns with the tool (each node's
+    /// `f` its value, its `h` terms made up from it) and, when `orientation`, orientation
+    /// errors made up likewise: the served paths of a tool-axis table, whose values need
+    /// not be a fit of anything to be served alike by both.
+    fn tool_axis_fixture(orientation: bool) -> Table<AlignedBytes> {
+        let table = fixture("v4/ur5_hybrid.tbl");
+        let Some(Payload::V2(archived)) = table.payload() else {
+            panic!("a version-2 payload");
+        };
+        let mut data: v2::TableData =
+            rkyv::deserialize::<v2::TableData, rkyv::rancor::Error>(archived).unwrap();
+        let turn = |v: [f64; 3], t: usize| {
+            if t == 0 || crate::served::is_missing(&v) {
+                v
+            } else {
+                [v[1] * 0.3 / t as f64, -v[2] * 0.2, v[0] * 0.1 * t as f64]
+            }
+        };
+        let four = |values: &[[f64; 3]]| -> Vec<[f64; 3]> {
+            values
+                .iter()
+                .flat_map(|&v| (0..4).map(move |t| turn(v, t)))
+                .collect()
+        };
+        let mut header = *table.header();
+        header.served_field = crate::format::ServedField::KrigingToolAxis;
+        if orientation {
+            header.content_flags |= CONTENT_ORIENTATION;
+            let small = |v: &[f64; 3]| v.map(|x| x * 1e-3);
+            data.orientation_errors_rad = data.errors_mm.iter().map(small).collect();
+            let nodes: Vec<[f64; 3]> = data.node_errors_mm.iter().map(small).collect();
+            data.node_orientation_errors_rad = four(&nodes);
+        }
+        data.node_errors_mm = four(&data.node_errors_mm);
+        Table::from_vec(crate::format::encode(header, &data).unwrap()).unwrap()
+    }
+
+    /// A hybrid table's served query by joint values (`query_with_joints`: its own steps,
+    /// its answer built in place) answers as the general path (`answer`) to the bit,
+    /// status and flags included: at random poses whose nominal TCP lies in the grid, near
+    /// it (the residual fading) and far from it (the model alone), at targets moved from
+    /// the TCP (beyond the joints' tolerance), with a named TCP, an orientation or a
+    /// configuration, with joint values in degrees, non-finite or of another count; on
+    /// tables of format versions 1 to 5 (with joint-space terms, with a posture term,
+    /// which takes the general path) and with a field that turns with the tool, with and
+    /// without orientations.
+    #[test]
+    fn a_hybrid_served_query_answers_as_the_general_path_to_the_bit() {
+        let tables = [
+            fixture("v1/ur5_hybrid.tbl"),
+            fixture("v2/ur5_hybrid.tbl"),
+            fixture("v3/ur5_hybrid_posture.tbl"),
+            fixture("v4/ur5_hybrid.tbl"),
+            fixture("v5/ur5_hybrid_terms.tbl"),
+            tool_axis_fixture(false),
+            tool_axis_fixture(true),
+        ];
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut seen = std::collections::BTreeSet::new();
+        for table in &tables {
+            let model = table.model().unwrap();
+            for i in 0..6_000 {
+                let mut q: Vec<f64> = (0..6).map(|_| -3.2 + 6.4 * next()).collect();
+                let mut target = Target::at(model.nominal().tcp_pose(&q).unwrap().translation_mm);
+                match i % 12 {
+                    1 => target.position_mm[0] += 60.0 * next() - 30.0,
+                    2 => target.config = Some((i % 3) as u8),
+                    3 => target.rotation_rad = Some([next(), -next(), 2.0 * next()]),
+                    4 => target.tcp_mm = Some([40.0 * next(), -20.0, 150.0 * next()]),
+                    5 => target.tcp_mm = Some([0.0, 0.09, 31.0]),
+                    6 if i % 48 == 6 => q[3] = f64::NAN,
+                    7 if i % 48 == 7 => q.truncate(5),
+                    8 => q.iter_mut().for_each(|v| *v = v.to_degrees()),
+                    9 if i % 48 == 9 => target.position_mm[2] = f64::INFINITY,
+                    _ => {}
+                }
+                let fast = table.query_with_joints(&target, &q);
+                let general = table.answer(&target, Some(&q), Tier::Served);
+                assert_eq!(bits(&fast), bits(&general), "{target:?} {q:?}");
+                seen.insert((fast.status as u8, fast.residual as u8, fast.evidence.0));
+            }
+        }
+        for (status, residual) in [
+            (Status::Ok, crate::Residual::Full),
+            (Status::Ok, crate::Residual::Faded),
+            (Status::Ok, crate::Residual::ModelOnly),
+            (Status::JointsMismatch, crate::Residual::Full),
+            (Status::InvalidInput, crate::Residual::Full),
+        ] {
+            assert!(
+                seen.iter()
+                    .any(|s| (s.0, s.1) == (status as u8, residual as u8)),
+                "{status:?} {residual:?} not met"
+            );
+        }
+        assert!(seen.iter().any(|s| s.2 != 0), "no answer flagged");
     }
 
     /// A position-only table's served query (`served_without_model`, its corners blended
