@@ -28,8 +28,8 @@
 
 use crate::number::{parse_number, Number};
 use crate::program::{
-    CartesianTarget, ConfigHint, Format, FrameUse, LengthUnit, Orientation, Program, ProgramTarget,
-    Reason, Refusal, TargetKind,
+    CartesianTarget, ConfigHint, Format, LengthUnit, Orientation, Program, ProgramTarget, Reason,
+    Refusal, TargetKind,
 };
 use crate::source::Source;
 use crate::Error;
@@ -100,24 +100,7 @@ pub fn parse_work_offset(text: &str) -> Result<(u8, [f64; 6]), String> {
         .and_then(|n| n.parse::<u8>().ok())
         .filter(|n| (54..=59).contains(n))
         .ok_or_else(|| format!("'{}': {usage}", name.trim()))?;
-    let numbers: Vec<f64> = values
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{values}': {usage}"))?;
-    let mut frame = [0.0; 6];
-    match numbers.len() {
-        3 | 6 => frame[..numbers.len()].copy_from_slice(&numbers),
-        _ => return Err(format!("'{values}': {usage}")),
-    }
-    if !crate::bounds::option_frame_within(&frame) {
-        return Err(format!(
-            "'{values}': within ±{} mm and ±{}°",
-            crate::bounds::MAX_POSITION_MM,
-            crate::bounds::MAX_ANGLE_DEG
-        ));
-    }
-    Ok((number, frame))
+    Ok((number, crate::number::option_frame(values, usage)?))
 }
 
 /// The plane of an arc: its two in-plane axes (u, v) and its normal, as indices of X, Y, Z.
@@ -287,26 +270,6 @@ fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Er
     Ok(Some(out))
 }
 
-fn refuse(
-    targets: &mut Vec<ProgramTarget>,
-    arcs: &mut Vec<Option<Box<Arc>>>,
-    offsets: &mut Vec<u8>,
-    at: usize,
-    name: String,
-    reason: Reason,
-    detail: String,
-) {
-    targets.push(ProgramTarget {
-        name,
-        offset: at,
-        kind: TargetKind::Motion,
-        uses: Vec::new(),
-        refused: Some(Refusal::new(reason, detail)),
-    });
-    arcs.push(None);
-    offsets.push(0);
-}
-
 /// A G or M code's number in tenths (`G1` 10, `G90.1` 901, `G54.1` 541), `None` beyond.
 fn code(n: &Number) -> Option<u32> {
     let tenths = n.value * 10.0;
@@ -326,6 +289,19 @@ enum Mode {
     Cycle(u32),
 }
 
+impl Mode {
+    /// The code that names it in reports (`G0`, `G81`).
+    fn name(self) -> String {
+        match self {
+            Mode::Rapid => "G0".to_string(),
+            Mode::Linear => "G1".to_string(),
+            Mode::Arc { clockwise: true } => "G2".to_string(),
+            Mode::Arc { clockwise: false } => "G3".to_string(),
+            Mode::Cycle(g) => format!("G{}", g / 10),
+        }
+    }
+}
+
 /// Something that puts the program's moves in a frame the options do not give, or offsets
 /// them as the controller runs: what, where, and the reason.
 #[derive(Clone, Debug)]
@@ -335,6 +311,688 @@ struct Modal {
 }
 
 const AXES: &[u8; 6] = b"XYZABC";
+
+/// What the reader has found so far: the targets, and beside each its arc and work offset.
+#[derive(Default)]
+struct Found {
+    targets: Vec<ProgramTarget>,
+    arcs: Vec<Option<Box<Arc>>>,
+    offsets: Vec<u8>,
+    first_motion: Option<usize>,
+}
+
+impl Found {
+    /// A target and what stands beside it.
+    fn push(&mut self, target: ProgramTarget, arc: Option<Box<Arc>>, work_offset: u8) {
+        self.targets.push(target);
+        self.arcs.push(arc);
+        self.offsets.push(work_offset);
+    }
+
+    /// A motion reported where it is written and left unchanged.
+    fn refuse(&mut self, at: usize, name: String, reason: Reason, detail: String) {
+        let target = ProgramTarget {
+            name,
+            offset: at,
+            kind: TargetKind::Motion,
+            uses: Vec::new(),
+            refused: Some(Refusal::new(reason, detail)),
+        };
+        self.push(target, None, 0);
+    }
+}
+
+/// A motion a block commands that no target of this reader stands for (a return to a
+/// stored position, a G code computed or unknown): reported by its code.
+struct OtherMotion {
+    name: String,
+    at: usize,
+    reason: Reason,
+    detail: String,
+}
+
+/// What a block's G codes say beyond the modes they set.
+#[derive(Default)]
+struct BlockCodes {
+    /// The motion code it writes, and where.
+    motion: Option<(Mode, usize)>,
+    /// `G53`: its axis words are machine coordinates.
+    machine: bool,
+    /// Its axis words are data (a dwell's time, an offset set), not a move.
+    data: bool,
+    /// A motion it commands that is not a target.
+    other_motion: Option<OtherMotion>,
+}
+
+/// A block's axis words: the numbers of X Y Z A B C it writes, and the first expression
+/// among them.
+struct Written {
+    numbers: [Option<Number>; 6],
+    expression: Option<usize>,
+}
+
+impl Written {
+    fn of(axis_words: &[&Word]) -> Written {
+        let mut written = Written {
+            numbers: [None; 6],
+            expression: None,
+        };
+        for w in axis_words {
+            match (AXES.iter().position(|a| *a == w.letter), w.value) {
+                (_, Value::Expression) => {
+                    written.expression.get_or_insert(w.at);
+                }
+                (Some(i), Value::Number(n)) => written.numbers[i] = Some(n),
+                _ => {}
+            }
+        }
+        written
+    }
+}
+
+/// A block as the reader sees it: its words, where it is, and where its line ends.
+struct Block<'b, 'a> {
+    src: &'b Source<'a>,
+    words: &'b [Word],
+    line_number: usize,
+    end: usize,
+}
+
+/// A move a block commands in a motion mode: its axis words, and what names it.
+struct Move {
+    written: Written,
+    /// `G53`: machine coordinates.
+    machine: bool,
+    mode: Mode,
+    /// The mode's code (`G1`).
+    name: String,
+    /// Where the move is written: its motion code, else its first axis word.
+    at: usize,
+}
+
+/// What becomes of a block's motion.
+enum Outcome {
+    /// Reported and left unchanged.
+    Refused(Reason, String),
+    /// A target the block writes only in part.
+    Incomplete(String),
+    /// A target to correct: its orientation and the arc it ends.
+    Target {
+        orientation: Option<Orientation>,
+        arc: Option<Box<Arc>>,
+    },
+}
+
+/// The modal state: what a block inherits from the blocks before it.
+struct State {
+    inch: bool,
+    absolute: bool,
+    arc_absolute: bool,
+    plane: Plane,
+    mode: Option<Mode>,
+    /// The work offset selected: None before any (the job's base), else its name and number.
+    work: Option<(String, Option<u8>)>,
+    // Cutter compensation, tool length, rotation, scaling…: each by its group.
+    cutter: Option<Modal>,
+    length: Option<Modal>,
+    transform: Option<Modal>,
+    run_offset: Option<Modal>,
+    /// Per axis X Y Z A B C, the number that last wrote it (absolute) and its line.
+    modal: [Option<(Number, usize)>; 6],
+    /// Where the tool is, mm (program frame), when known.
+    position: [Option<f64>; 3],
+    /// The target whose end is where the tool is, when a block wrote it in full.
+    at_target: Option<usize>,
+}
+
+impl State {
+    fn new() -> State {
+        State {
+            inch: false,
+            absolute: true,
+            arc_absolute: false,
+            plane: Plane::Xy,
+            mode: None,
+            work: None,
+            cutter: None,
+            length: None,
+            transform: None,
+            run_offset: None,
+            modal: [None; 6],
+            position: [None; 3],
+            at_target: None,
+        }
+    }
+
+    fn unit_mm(&self) -> f64 {
+        if self.inch {
+            25.4
+        } else {
+            1.0
+        }
+    }
+
+    /// The block's codes, in the order a controller applies them: the modes they set, and
+    /// what they say of the block.
+    fn read_codes(&mut self, block: &Block) -> BlockCodes {
+        let mut codes = BlockCodes::default();
+        for w in block.words {
+            let Value::Number(n) = w.value else {
+                if w.letter == b'G' {
+                    codes.other_motion = Some(OtherMotion {
+                        name: "G".into(),
+                        at: w.at,
+                        reason: Reason::Dynamic,
+                        detail: "a G code computed when the program runs".into(),
+                    });
+                }
+                continue;
+            };
+            if w.letter != b'G' {
+                continue;
+            }
+            let name = w.text(block.src);
+            match code(&n) {
+                Some(g) => self.apply_g(g, name, w.at, block, &mut codes),
+                None => {
+                    codes.other_motion = Some(OtherMotion {
+                        detail: format!("{name} is not a G code this reader knows"),
+                        name,
+                        at: w.at,
+                        reason: Reason::UnknownMotion,
+                    });
+                }
+            }
+        }
+        codes
+    }
+
+    /// Applies the G code `g` (in tenths), written `name` at `at`.
+    fn apply_g(&mut self, g: u32, name: String, at: usize, block: &Block, codes: &mut BlockCodes) {
+        match g {
+            0 => codes.motion = Some((Mode::Rapid, at)),
+            10 => codes.motion = Some((Mode::Linear, at)),
+            20 => codes.motion = Some((Mode::Arc { clockwise: true }, at)),
+            30 => codes.motion = Some((Mode::Arc { clockwise: false }, at)),
+            170 => self.plane = Plane::Xy,
+            180 => self.plane = Plane::Zx,
+            190 => self.plane = Plane::Yz,
+            200 => self.inch = true,
+            210 => self.inch = false,
+            900 => self.absolute = true,
+            910 => self.absolute = false,
+            901 => self.arc_absolute = true,
+            911 => self.arc_absolute = false,
+            530 => codes.machine = true,
+            540..=590 if g % 10 == 0 => {
+                let number = (g / 10) as u8;
+                self.work = Some((format!("G{number}"), Some(number)));
+            }
+            541 | 591 | 592 | 593 => self.work = Some((name, None)),
+            800 => self.mode = None,
+            730 | 740 | 760 | 810..=890 if g % 10 == 0 || g == 730 => {
+                codes.motion = Some((Mode::Cycle(g), at));
+            }
+            40 => codes.data = true,
+            280 | 300 | 281 | 301 => {
+                codes.other_motion = Some(OtherMotion {
+                    detail: format!(
+                        "{name}: a return to a reference position the controller stores"
+                    ),
+                    name,
+                    at,
+                    reason: Reason::Dynamic,
+                });
+            }
+            // Exact stop, feed and spindle modes, path modes, return levels: no motion.
+            610 | 611 | 640 | 930 | 940 | 950 | 960 | 970 | 980 | 990 | 90 => {}
+            _ => {
+                if !self.apply_offset_code(g, &name, block, codes) {
+                    codes.other_motion = Some(OtherMotion {
+                        detail: format!("{name} is not a G code this reader corrects"),
+                        name,
+                        at,
+                        reason: Reason::UnknownMotion,
+                    });
+                }
+            }
+        }
+    }
+
+    /// Applies a code of the groups that offset or transform the moves as the controller
+    /// runs (cutter compensation, tool length, rotation and scaling, offsets set by the
+    /// program); `false` when `g` is none of them.
+    fn apply_offset_code(
+        &mut self,
+        g: u32,
+        name: &str,
+        block: &Block,
+        codes: &mut BlockCodes,
+    ) -> bool {
+        let line_number = block.line_number;
+        // The word that names the offset's register (`D`, `H`), as written after the code.
+        let register = |letter: u8| {
+            block
+                .words
+                .iter()
+                .find(|w| w.letter == letter)
+                .map(|w| format!(" {}", w.text(block.src)))
+                .unwrap_or_default()
+        };
+        match g {
+            400 => self.cutter = None,
+            410 | 420 | 411 | 421 => {
+                self.cutter = Some(Modal {
+                    what: format!(
+                        "{name}{} (line {line_number}): the controller offsets the path by the cutter's radius as it runs",
+                        register(b'D')
+                    ),
+                    reason: Reason::Relative,
+                });
+            }
+            430 | 431 | 432 | 433 | 434 | 435 | 440 | 450 | 460 | 470 | 480 => {
+                self.length = Some(Modal {
+                    what: format!(
+                        "the tool length offset {name}{} (line {line_number}), which no option gives",
+                        register(b'H')
+                    ),
+                    reason: Reason::FrameUnknown,
+                });
+            }
+            490 => self.length = None,
+            680 | 681 | 682 | 160 | 510 | 511 | 501 => {
+                self.transform = Some(Modal {
+                    what: format!(
+                        "{name} (line {line_number}): a rotation, scaling, mirror or polar coordinates the controller applies as it runs"
+                    ),
+                    reason: Reason::FrameUnknown,
+                });
+                // Its words are the transform's centre, angle and factors.
+                codes.data = g != 160;
+            }
+            690 | 150 | 500 => self.transform = None,
+            520 | 920 | 100 => {
+                self.run_offset = Some(Modal {
+                    what: format!(
+                        "{name} (line {line_number}): an offset the program sets as it runs"
+                    ),
+                    reason: Reason::FrameUnknown,
+                });
+                codes.data = true;
+            }
+            921 | 922 => self.run_offset = None,
+            _ => return false,
+        }
+        true
+    }
+
+    /// Forgets where the tool is: a move the reader cannot follow.
+    fn lose_position(&mut self) {
+        self.position = [None; 3];
+        self.at_target = None;
+        self.modal = [None; 6];
+    }
+
+    /// The state after a move that writes `written`, whatever becomes of its target.
+    fn advance(&mut self, written: &Written, machine: bool, line_number: usize) {
+        self.at_target = None;
+        if machine || written.expression.is_some() {
+            self.modal = [None; 6];
+            self.position = [None; 3];
+            return;
+        }
+        let unit_mm = self.unit_mm();
+        for i in 0..6 {
+            let Some(n) = written.numbers[i] else {
+                continue;
+            };
+            if self.absolute {
+                self.modal[i] = Some((n, line_number));
+                if i < 3 {
+                    self.position[i] = Some(n.value * unit_mm);
+                }
+            } else {
+                self.modal[i] = None;
+                if i < 3 {
+                    self.position[i] = self.position[i].map(|p| p + n.value * unit_mm);
+                }
+            }
+        }
+    }
+
+    /// Why the move `name` is left unchanged, if it is: a value computed as the program
+    /// runs, an external axis, machine coordinates, a canned cycle, an offset or transform
+    /// in force, incremental mode, or a work offset the options do not give.
+    fn refusal(
+        &self,
+        block: &Block,
+        mv: &Move,
+        options: &GcodeOptions,
+    ) -> Option<(Reason, String)> {
+        let (src, name) = (block.src, &mv.name);
+        if let Some(e) = mv.written.expression {
+            Some((
+                Reason::Dynamic,
+                format!(
+                    "{}: a value computed when the program runs",
+                    src.text(e, words_end(src, e, block.end))
+                ),
+            ))
+        } else if let Some(w) = block.words.iter().find(|w| b"UVW".contains(&w.letter)) {
+            Some((
+                Reason::ExternalAxis,
+                format!("{}: an axis beyond the robot's six", w.text(src)),
+            ))
+        } else if mv.machine {
+            Some((
+                Reason::FrameUnknown,
+                "G53: machine coordinates, which no option gives".into(),
+            ))
+        } else if let Mode::Cycle(g) = mv.mode {
+            Some((
+                Reason::UnknownMotion,
+                format!(
+                    "{name}: a canned cycle (G{}), whose moves the controller computes as it runs",
+                    if g % 10 == 0 {
+                        (g / 10).to_string()
+                    } else {
+                        format!("{}.{}", g / 10, g % 10)
+                    }
+                ),
+            ))
+        } else if let Some(m) = [
+            &self.transform,
+            &self.run_offset,
+            &self.length,
+            &self.cutter,
+        ]
+        .into_iter()
+        .flatten()
+        .next()
+        {
+            Some((m.reason, format!("{name} under {}", m.what)))
+        } else if !self.absolute {
+            Some((
+                Reason::Relative,
+                format!("{name} in G91: an incremental move from where the previous one ended"),
+            ))
+        } else {
+            self.work_refusal(options)
+        }
+    }
+
+    /// A work offset selected that the options do not give.
+    fn work_refusal(&self, options: &GcodeOptions) -> Option<(Reason, String)> {
+        let (wname, number) = self.work.as_ref()?;
+        let given = number.and_then(|n| options.work_offsets.iter().find(|b| b.0 == n));
+        given.is_none().then(|| {
+            let how = match number {
+                Some(_) => format!("give it as --work-offset {wname}=X,Y,Z[,A,B,C]"),
+                None => "the options give G54-G59 only".to_string(),
+            };
+            (
+                Reason::FrameUnknown,
+                format!("work offset {wname} not given: {how}"),
+            )
+        })
+    }
+
+    /// The number of the work offset in force, 0 for the job's base.
+    fn work_offset(&self) -> u8 {
+        match &self.work {
+            Some((_, Some(n))) => *n,
+            _ => 0,
+        }
+    }
+
+    /// X, Y, Z the block leaves to the blocks before it, named with where they were last
+    /// written; an empty list when it writes all three.
+    fn missing_position(&self, written: &Written) -> Vec<String> {
+        (0..3)
+            .filter(|i| written.numbers[*i].is_none())
+            .map(|i| {
+                let axis = AXES[i] as char;
+                match self.modal[i] {
+                    Some((_, l)) => format!("{axis} (modal from line {l})"),
+                    None => format!("{axis} (never written)"),
+                }
+            })
+            .collect()
+    }
+
+    /// A, B, C: written, or modal when the program has written all three; `Err` naming
+    /// those never written.
+    fn orientation(
+        &self,
+        written: &Written,
+        abc: AbcConvention,
+    ) -> Result<Option<Orientation>, String> {
+        let used_abc = (3..6).any(|i| written.numbers[i].is_some() || self.modal[i].is_some());
+        if !used_abc {
+            return Ok(None);
+        }
+        let values: Vec<Option<Number>> = (3..6)
+            .map(|i| written.numbers[i].or(self.modal[i].map(|m| m.0)))
+            .collect();
+        match (values[0], values[1], values[2]) {
+            (Some(a), Some(b), Some(c)) => Ok(Some(match abc {
+                AbcConvention::Kuka => Orientation::KukaAbcDeg([a, b, c]),
+                AbcConvention::FixedXyz => Orientation::KukaAbcDeg([c, b, a]),
+            })),
+            _ => {
+                let never: Vec<&str> = ["A", "B", "C"]
+                    .into_iter()
+                    .zip(&values)
+                    .filter(|(_, n)| n.is_none())
+                    .map(|(a, _)| a)
+                    .collect();
+                Err(format!(
+                    "{} never written: the tool's orientation is not known",
+                    never.join(", ")
+                ))
+            }
+        }
+    }
+
+    /// The arc a `G2`/`G3` block ends, from where the tool is; `Err` why it cannot be
+    /// followed (several turns, an unknown start, no centre or a radius that does not fit).
+    fn arc(&self, words: &[Word], written: &Written, clockwise: bool) -> Result<Arc, String> {
+        let plane = self.plane;
+        let unit_mm = self.unit_mm();
+        let find = |letter: u8| {
+            words.iter().find_map(|w| match w.value {
+                Value::Number(n) if w.letter == letter => Some(n),
+                _ => None,
+            })
+        };
+        let end_mm: [f64; 3] =
+            std::array::from_fn(|i| written.numbers[i].map_or(0.0, |n| n.value) * unit_mm);
+        let start = match (self.at_target, self.position) {
+            (Some(t), [Some(x), Some(y), Some(z)]) => Some((t, [x, y, z])),
+            _ => None,
+        };
+        if let Some(p) = find(b'P').filter(|p| p.value != 1.0) {
+            return Err(format!("P{}: an arc of several turns", p.value));
+        }
+        let Some((start_target, start_mm)) = start else {
+            return Err(
+                "its start (the previous motion's end) is not a point the program writes in full"
+                    .into(),
+            );
+        };
+        let (centre_mm, centre) = match find(b'R') {
+            Some(r) => (
+                centre_from_radius(start_mm, end_mm, r.value * unit_mm, clockwise, plane)?,
+                Centre::Radius(r),
+            ),
+            None => {
+                let [u, v, _] = plane.axes();
+                let offset_letter = |axis: usize| b"IJK"[axis];
+                let numbers = [find(offset_letter(u)), find(offset_letter(v))];
+                let value = |k: usize| numbers[k].map_or(0.0, |n| n.value) * unit_mm;
+                let centre_mm = if self.arc_absolute {
+                    [value(0), value(1)]
+                } else {
+                    [start_mm[u] + value(0), start_mm[v] + value(1)]
+                };
+                if numbers.iter().all(Option::is_none) {
+                    return Err("neither a centre (I, J, K of its plane) nor a radius R".into());
+                }
+                let absolute = self.arc_absolute;
+                (centre_mm, Centre::Offsets { numbers, absolute })
+            }
+        };
+        Ok(Arc {
+            clockwise,
+            plane,
+            start_target,
+            start_mm,
+            centre_mm,
+            centre,
+            unit_mm,
+        })
+    }
+
+    /// What becomes of a move in `mode` that writes `written`, by the state before it.
+    fn outcome(&self, block: &Block, mv: &Move, options: &GcodeOptions) -> Outcome {
+        if let Some((reason, detail)) = self.refusal(block, mv, options) {
+            return Outcome::Refused(reason, detail);
+        }
+        let written = &mv.written;
+        let missing = self.missing_position(written);
+        if !missing.is_empty() {
+            return Outcome::Incomplete(format!(
+                "{} not written on this block: the compensated program changes numbers only, and a modal axis holds the previous block's corrected value",
+                missing.join(", ")
+            ));
+        }
+        let orientation = match self.orientation(written, options.abc) {
+            Ok(orientation) => orientation,
+            Err(why) => return Outcome::Incomplete(why),
+        };
+        let arc = match mv.mode {
+            Mode::Arc { clockwise } => match self.arc(block.words, written, clockwise) {
+                Ok(arc) => Some(Box::new(arc)),
+                Err(why) => return Outcome::Incomplete(why),
+            },
+            _ => None,
+        };
+        Outcome::Target { orientation, arc }
+    }
+}
+
+/// A target to correct, or left incomplete, named `name` at `offset`.
+fn target(name: String, offset: usize, kind: TargetKind) -> ProgramTarget {
+    ProgramTarget {
+        name,
+        offset,
+        kind,
+        uses: Vec::new(),
+        refused: None,
+    }
+}
+
+/// The reader: the modal state and what it has found.
+struct Reader<'o> {
+    options: &'o GcodeOptions,
+    state: State,
+    found: Found,
+}
+
+impl Reader<'_> {
+    /// Reads one block (its words, not empty).
+    fn block(&mut self, block: &Block) {
+        let work_before = self.state.work.clone();
+        let codes = self.state.read_codes(block);
+        let axis_words: Vec<&Word> = block
+            .words
+            .iter()
+            .filter(|w| b"XYZABCUVWIJKR".contains(&w.letter))
+            .collect();
+        let has_position = block.words.iter().any(|w| b"XYZABCUVW".contains(&w.letter));
+        if self.state.work != work_before {
+            // An arc after the change starts in another frame than the last target's.
+            self.state.at_target = None;
+        }
+        if codes.data {
+            return;
+        }
+        if let Some(other) = codes.other_motion {
+            self.found.first_motion.get_or_insert(other.at);
+            self.found
+                .refuse(other.at, other.name, other.reason, other.detail);
+            if has_position {
+                self.state.lose_position();
+            }
+            return;
+        }
+        if let Some((m, _)) = codes.motion {
+            self.state.mode = Some(m);
+        }
+        let Some(first_axis) = axis_words.first() else {
+            return;
+        };
+        let Some(mode) = self.state.mode else {
+            let at = first_axis.at;
+            self.found.first_motion.get_or_insert(at);
+            self.found.refuse(
+                at,
+                block.src.text(at, at + 1),
+                Reason::UnknownMotion,
+                "axis words with no motion mode (G0, G1, G2, G3) in force".into(),
+            );
+            return;
+        };
+        let mv = Move {
+            written: Written::of(&axis_words),
+            machine: codes.machine,
+            mode,
+            name: mode.name(),
+            at: codes.motion.map_or(first_axis.at, |m| m.1),
+        };
+        self.found.first_motion.get_or_insert(mv.at);
+        let outcome = self.state.outcome(block, &mv, self.options);
+        self.state
+            .advance(&mv.written, mv.machine, block.line_number);
+        self.push(outcome, mv);
+    }
+
+    /// Records what became of a move.
+    fn push(&mut self, outcome: Outcome, mv: Move) {
+        let work_offset = self.state.work_offset();
+        match outcome {
+            Outcome::Refused(reason, detail) => {
+                self.found.refuse(mv.at, mv.name, reason, detail);
+            }
+            Outcome::Incomplete(why) => {
+                self.found.push(
+                    target(mv.name, mv.at, TargetKind::Incomplete(why)),
+                    None,
+                    work_offset,
+                );
+            }
+            Outcome::Target { orientation, arc } => {
+                let [x, y, z] =
+                    [0, 1, 2].map(|i| mv.written.numbers[i].expect("all three written"));
+                let unit = if self.state.inch {
+                    LengthUnit::Inch
+                } else {
+                    LengthUnit::Millimetre
+                };
+                let kind = TargetKind::Cartesian(Box::new(CartesianTarget {
+                    position: [x, y, z],
+                    unit,
+                    orientation,
+                    config: ConfigHint::None,
+                    joints: Vec::new(),
+                }));
+                self.state.at_target = Some(self.found.targets.len());
+                self.found
+                    .push(target(mv.name, mv.at, kind), arc, work_offset);
+            }
+        }
+    }
+}
 
 /// Reads the targets of a G-code program.
 ///
@@ -351,508 +1009,38 @@ pub fn read(src: &Source, options: &GcodeOptions) -> Result<Read, Error> {
 ///
 /// As [`read`].
 pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Result<Read, Error> {
-    let bytes = src.bytes;
-    let mut targets: Vec<ProgramTarget> = Vec::new();
-    let mut arcs: Vec<Option<Box<Arc>>> = Vec::new();
-    let mut offsets: Vec<u8> = Vec::new();
-    let mut first_motion = None;
+    let mut reader = Reader {
+        options,
+        state: State::new(),
+        found: Found::default(),
+    };
     let mut truncated_at = None;
-    // The modal state.
-    let mut inch = false;
-    let mut absolute = true;
-    let mut arc_absolute = false;
-    let mut plane = Plane::Xy;
-    let mut mode: Option<Mode> = None;
-    // The work offset selected: None before any (the job's base), else its name and number.
-    let mut work: Option<(String, Option<u8>)> = None;
-    // Cutter compensation, tool length, rotation, scaling…: each by its group.
-    let mut cutter: Option<Modal> = None;
-    let mut length: Option<Modal> = None;
-    let mut transform: Option<Modal> = None;
-    let mut run_offset: Option<Modal> = None;
-    // Per axis X Y Z A B C, the number that last wrote it (absolute) and its line.
-    let mut modal: [Option<(Number, usize)>; 6] = [None; 6];
-    // Where the tool is, mm (program frame), when known.
-    let mut position: [Option<f64>; 3] = [None; 3];
-    // The target whose end is where the tool is, when a block wrote it in full.
-    let mut at_target: Option<usize> = None;
-    let mut start = 0;
-    let mut line_number = 0;
-    while start < bytes.len() {
-        let end = bytes[start..]
-            .iter()
-            .position(|b| *b == b'\n' || *b == b'\r')
-            .map_or(bytes.len(), |p| start + p);
-        let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
-            end + 2
-        } else {
-            end + 1
-        };
-        line_number += 1;
-        let line_start = start;
-        start = next;
-        if targets.len() > limit {
-            truncated_at = Some(line_start);
+    for line in src.lines() {
+        if reader.found.targets.len() > limit {
+            truncated_at = Some(line.start);
             break;
         }
-        let Some(words) = words(src, line_start, end)? else {
-            continue;
-        };
-        if words.is_empty() {
-            continue;
+        match words(src, line.start, line.end)? {
+            Some(words) if !words.is_empty() => reader.block(&Block {
+                src,
+                words: &words,
+                line_number: line.number,
+                end: line.end,
+            }),
+            _ => {}
         }
-        // The block's codes, in the order a controller applies them: modes first, then
-        // the motion.
-        let mut motion: Option<(Mode, usize)> = None;
-        let mut machine = false;
-        // A block whose axis words are data (a dwell's time, an offset set), not a move.
-        let mut data = false;
-        let work_before = work.clone();
-        let mut other_motion: Option<(String, usize, Reason, String)> = None;
-        let g_text = |w: &Word| src.text(w.at, w.value_end(src)).to_ascii_uppercase();
-        for w in &words {
-            let Value::Number(n) = w.value else {
-                if w.letter == b'G' {
-                    other_motion = Some((
-                        "G".into(),
-                        w.at,
-                        Reason::Dynamic,
-                        "a G code computed when the program runs".into(),
-                    ));
-                }
-                continue;
-            };
-            if w.letter != b'G' {
-                continue;
-            }
-            let Some(g) = code(&n) else {
-                other_motion = Some((
-                    g_text(w),
-                    w.at,
-                    Reason::UnknownMotion,
-                    format!("{} is not a G code this reader knows", g_text(w)),
-                ));
-                continue;
-            };
-            let name = g_text(w);
-            match g {
-                0 => motion = Some((Mode::Rapid, w.at)),
-                10 => motion = Some((Mode::Linear, w.at)),
-                20 => motion = Some((Mode::Arc { clockwise: true }, w.at)),
-                30 => motion = Some((Mode::Arc { clockwise: false }, w.at)),
-                170 => plane = Plane::Xy,
-                180 => plane = Plane::Zx,
-                190 => plane = Plane::Yz,
-                200 => inch = true,
-                210 => inch = false,
-                900 => absolute = true,
-                910 => absolute = false,
-                901 => arc_absolute = true,
-                911 => arc_absolute = false,
-                530 => machine = true,
-                540..=590 if g % 10 == 0 => {
-                    let number = (g / 10) as u8;
-                    work = Some((format!("G{number}"), Some(number)));
-                }
-                541 | 591 | 592 | 593 => work = Some((name.clone(), None)),
-                400 => cutter = None,
-                410 | 420 | 411 | 421 => {
-                    let d = words
-                        .iter()
-                        .find(|w| w.letter == b'D')
-                        .map(|w| format!(" {}", g_text(w)))
-                        .unwrap_or_default();
-                    cutter = Some(Modal {
-                        what: format!(
-                            "{name}{d} (line {line_number}): the controller offsets the path by the cutter's radius as it runs"
-                        ),
-                        reason: Reason::Relative,
-                    });
-                }
-                430 | 431 | 432 | 433 | 434 | 435 | 440 | 450 | 460 | 470 | 480 => {
-                    let h = words
-                        .iter()
-                        .find(|w| w.letter == b'H')
-                        .map(|w| format!(" {}", g_text(w)))
-                        .unwrap_or_default();
-                    length = Some(Modal {
-                        what: format!(
-                            "the tool length offset {name}{h} (line {line_number}), which no option gives"
-                        ),
-                        reason: Reason::FrameUnknown,
-                    });
-                }
-                490 => length = None,
-                680 | 681 | 682 | 160 | 510 | 511 | 501 => {
-                    transform = Some(Modal {
-                        what: format!(
-                            "{name} (line {line_number}): a rotation, scaling, mirror or polar coordinates the controller applies as it runs"
-                        ),
-                        reason: Reason::FrameUnknown,
-                    });
-                    // Its words are the transform's centre, angle and factors.
-                    data = g != 160;
-                }
-                690 | 150 | 500 => transform = None,
-                520 | 920 | 100 => {
-                    run_offset = Some(Modal {
-                        what: format!(
-                            "{name} (line {line_number}): an offset the program sets as it runs"
-                        ),
-                        reason: Reason::FrameUnknown,
-                    });
-                    data = true;
-                }
-                921 | 922 => run_offset = None,
-                280 | 300 | 281 | 301 => {
-                    other_motion = Some((
-                        name.clone(),
-                        w.at,
-                        Reason::Dynamic,
-                        format!("{name}: a return to a reference position the controller stores"),
-                    ));
-                }
-                800 => mode = None,
-                730 | 740 | 760 | 810..=890 if g % 10 == 0 || g == 730 => {
-                    motion = Some((Mode::Cycle(g), w.at));
-                }
-                40 => data = true,
-                // Exact stop, feed and spindle modes, path modes, return levels: no motion.
-                610 | 611 | 640 | 930 | 940 | 950 | 960 | 970 | 980 | 990 | 90 => {}
-                _ => {
-                    other_motion = Some((
-                        name.clone(),
-                        w.at,
-                        Reason::UnknownMotion,
-                        format!("{name} is not a G code this reader corrects"),
-                    ));
-                }
-            }
-        }
-        let axis_words: Vec<&Word> = words
-            .iter()
-            .filter(|w| b"XYZABCUVWIJKR".contains(&w.letter))
-            .collect();
-        let has_position = words.iter().any(|w| b"XYZABCUVW".contains(&w.letter));
-        if work != work_before {
-            // An arc after the change starts in another frame than the last target's.
-            at_target = None;
-        }
-        if data {
-            continue;
-        }
-        if let Some((name, at, reason, detail)) = other_motion {
-            first_motion.get_or_insert(at);
-            refuse(
-                &mut targets,
-                &mut arcs,
-                &mut offsets,
-                at,
-                name,
-                reason,
-                detail,
-            );
-            if has_position {
-                position = [None; 3];
-                at_target = None;
-                modal = [None; 6];
-            }
-            continue;
-        }
-        if let Some((m, _)) = motion {
-            mode = Some(m);
-        }
-        if axis_words.is_empty() {
-            continue;
-        }
-        let Some(mode_now) = mode else {
-            let at = axis_words[0].at;
-            first_motion.get_or_insert(at);
-            refuse(
-                &mut targets,
-                &mut arcs,
-                &mut offsets,
-                at,
-                src.text(at, at + 1),
-                Reason::UnknownMotion,
-                "axis words with no motion mode (G0, G1, G2, G3) in force".into(),
-            );
-            continue;
-        };
-        let at = motion.map_or(axis_words[0].at, |m| m.1);
-        first_motion.get_or_insert(at);
-        let name = match mode_now {
-            Mode::Rapid => "G0".to_string(),
-            Mode::Linear => "G1".to_string(),
-            Mode::Arc { clockwise: true } => "G2".to_string(),
-            Mode::Arc { clockwise: false } => "G3".to_string(),
-            Mode::Cycle(g) => format!("G{}", g / 10),
-        };
-        let unit_mm = if inch { 25.4 } else { 1.0 };
-        // Where the tool goes, as far as the program says; the modal numbers after it.
-        let mut written: [Option<Number>; 6] = [None; 6];
-        let mut expression: Option<usize> = None;
-        for w in &axis_words {
-            match (AXES.iter().position(|a| *a == w.letter), w.value) {
-                (_, Value::Expression) => {
-                    expression.get_or_insert(w.at);
-                }
-                (Some(i), Value::Number(n)) => written[i] = Some(n),
-                _ => {}
-            }
-        }
-        let previous_position = position;
-        let previous_target = at_target;
-        let previous_modal = modal;
-        // The state after the block, whatever becomes of its target.
-        at_target = None;
-        if absolute && !machine && expression.is_none() {
-            for i in 0..6 {
-                if let Some(n) = written[i] {
-                    modal[i] = Some((n, line_number));
-                    if i < 3 {
-                        position[i] = Some(n.value * unit_mm);
-                    }
-                }
-            }
-        } else if !absolute && !machine && expression.is_none() {
-            for i in 0..6 {
-                if let Some(n) = written[i] {
-                    modal[i] = None;
-                    if i < 3 {
-                        position[i] = position[i].map(|p| p + n.value * unit_mm);
-                    }
-                }
-            }
-        } else {
-            modal = [None; 6];
-            position = [None; 3];
-        }
-        let refusal: Option<(Reason, String)> = if let Some(e) = expression {
-            Some((
-                Reason::Dynamic,
-                format!(
-                    "{}: a value computed when the program runs",
-                    src.text(e, words_end(src, e, end))
-                ),
-            ))
-        } else if let Some(w) = words.iter().find(|w| b"UVW".contains(&w.letter)) {
-            Some((
-                Reason::ExternalAxis,
-                format!("{}: an axis beyond the robot's six", g_text(w)),
-            ))
-        } else if machine {
-            Some((
-                Reason::FrameUnknown,
-                "G53: machine coordinates, which no option gives".into(),
-            ))
-        } else if let Mode::Cycle(g) = mode_now {
-            Some((
-                Reason::UnknownMotion,
-                format!(
-                    "{name}: a canned cycle (G{}), whose moves the controller computes as it runs",
-                    if g % 10 == 0 {
-                        (g / 10).to_string()
-                    } else {
-                        format!("{}.{}", g / 10, g % 10)
-                    }
-                ),
-            ))
-        } else if let Some(m) = [&transform, &run_offset, &length, &cutter]
-            .into_iter()
-            .flatten()
-            .next()
-        {
-            Some((m.reason, format!("{name} under {}", m.what)))
-        } else if !absolute {
-            Some((
-                Reason::Relative,
-                format!("{name} in G91: an incremental move from where the previous one ended"),
-            ))
-        } else {
-            match &work {
-                Some((wname, number)) => {
-                    let given = number.and_then(|n| options.work_offsets.iter().find(|b| b.0 == n));
-                    given.is_none().then(|| {
-                        let how = match number {
-                            Some(_) => format!("give it as --work-offset {wname}=X,Y,Z[,A,B,C]"),
-                            None => "the options give G54-G59 only".to_string(),
-                        };
-                        (
-                            Reason::FrameUnknown,
-                            format!("work offset {wname} not given: {how}"),
-                        )
-                    })
-                }
-                None => None,
-            }
-        };
-        if let Some((reason, detail)) = refusal {
-            refuse(
-                &mut targets,
-                &mut arcs,
-                &mut offsets,
-                at,
-                name,
-                reason,
-                detail,
-            );
-            continue;
-        }
-        let work_offset = match &work {
-            Some((_, Some(n))) => *n,
-            _ => 0,
-        };
-        let uses: Vec<FrameUse> = Vec::new();
-        let unit = if inch {
-            LengthUnit::Inch
-        } else {
-            LengthUnit::Millimetre
-        };
-        // X, Y, Z written on the block, or said missing.
-        let missing: Vec<String> = (0..3)
-            .filter(|i| written[*i].is_none())
-            .map(|i| {
-                let axis = AXES[i] as char;
-                match previous_modal[i] {
-                    Some((_, l)) => format!("{axis} (modal from line {l})"),
-                    None => format!("{axis} (never written)"),
-                }
-            })
-            .collect();
-        let incomplete = |why: String| ProgramTarget {
-            name: name.clone(),
-            offset: at,
-            kind: TargetKind::Incomplete(why),
-            uses: uses.clone(),
-            refused: None,
-        };
-        if !missing.is_empty() {
-            targets.push(incomplete(format!(
-                "{} not written on this block: the compensated program changes numbers only, and a modal axis holds the previous block's corrected value",
-                missing.join(", ")
-            )));
-            arcs.push(None);
-            offsets.push(work_offset);
-            continue;
-        }
-        // A, B, C: written, or modal when the program has written all three.
-        let used_abc = (3..6).any(|i| written[i].is_some() || previous_modal[i].is_some());
-        let orientation = if used_abc {
-            let abc: Vec<Option<Number>> = (3..6)
-                .map(|i| written[i].or(previous_modal[i].map(|m| m.0)))
-                .collect();
-            match (abc[0], abc[1], abc[2]) {
-                (Some(a), Some(b), Some(c)) => Some(match options.abc {
-                    AbcConvention::Kuka => Orientation::KukaAbcDeg([a, b, c]),
-                    AbcConvention::FixedXyz => Orientation::KukaAbcDeg([c, b, a]),
-                }),
-                _ => {
-                    let never: Vec<&str> = ["A", "B", "C"]
-                        .into_iter()
-                        .zip(&abc)
-                        .filter(|(_, n)| n.is_none())
-                        .map(|(a, _)| a)
-                        .collect();
-                    targets.push(incomplete(format!(
-                        "{} never written: the tool's orientation is not known",
-                        never.join(", ")
-                    )));
-                    arcs.push(None);
-                    offsets.push(work_offset);
-                    continue;
-                }
-            }
-        } else {
-            None
-        };
-        let mut arc = None;
-        if let Mode::Arc { clockwise } = mode_now {
-            let [u, v, _] = plane.axes();
-            let offset_letter = |axis: usize| b"IJK"[axis];
-            let find = |letter: u8| {
-                words.iter().find_map(|w| match w.value {
-                    Value::Number(n) if w.letter == letter => Some(n),
-                    _ => None,
-                })
-            };
-            let end_mm: [f64; 3] =
-                std::array::from_fn(|i| written[i].map_or(0.0, |n| n.value) * unit_mm);
-            let start_mm = match (previous_target, previous_position) {
-                (Some(t), [Some(x), Some(y), Some(z)]) => Some((t, [x, y, z])),
-                _ => None,
-            };
-            let turns = find(b'P').filter(|p| p.value != 1.0);
-            let geometry: Result<(usize, [f64; 3], [f64; 2], Centre), String> = match (start_mm, turns) {
-                (_, Some(p)) => Err(format!("P{}: an arc of several turns", p.value)),
-                (None, _) => Err("its start (the previous motion's end) is not a point the program writes in full".into()),
-                (Some((t, s)), None) => match find(b'R') {
-                    Some(r) => centre_from_radius(s, end_mm, r.value * unit_mm, clockwise, plane)
-                        .map(|c| (t, s, c, Centre::Radius(r))),
-                    None => {
-                        let numbers = [find(offset_letter(u)), find(offset_letter(v))];
-                        let value = |k: usize| numbers[k].map_or(0.0, |n| n.value) * unit_mm;
-                        let centre = if arc_absolute {
-                            [value(0), value(1)]
-                        } else {
-                            [s[u] + value(0), s[v] + value(1)]
-                        };
-                        if numbers.iter().all(Option::is_none) {
-                            Err("neither a centre (I, J, K of its plane) nor a radius R".into())
-                        } else {
-                            Ok((t, s, centre, Centre::Offsets { numbers, absolute: arc_absolute }))
-                        }
-                    }
-                },
-            };
-            match geometry {
-                Ok((start_target, start_mm, centre_mm, centre)) => {
-                    arc = Some(Box::new(Arc {
-                        clockwise,
-                        plane,
-                        start_target,
-                        start_mm,
-                        centre_mm,
-                        centre,
-                        unit_mm,
-                    }));
-                }
-                Err(why) => {
-                    targets.push(incomplete(why));
-                    arcs.push(None);
-                    offsets.push(work_offset);
-                    continue;
-                }
-            }
-        }
-        let [x, y, z] = [written[0], written[1], written[2]].map(|n| n.expect("all three written"));
-        at_target = Some(targets.len());
-        targets.push(ProgramTarget {
-            name,
-            offset: at,
-            kind: TargetKind::Cartesian(Box::new(CartesianTarget {
-                position: [x, y, z],
-                unit,
-                orientation,
-                config: ConfigHint::None,
-                joints: Vec::new(),
-            })),
-            uses,
-            refused: None,
-        });
-        arcs.push(arc);
-        offsets.push(work_offset);
     }
-    debug_assert_eq!(offsets.len(), targets.len());
+    let found = reader.found;
+    debug_assert_eq!(found.offsets.len(), found.targets.len());
     Ok(Read {
         program: Program {
             format: Format::Gcode,
-            targets,
+            targets: found.targets,
             truncated_at,
-            first_motion,
+            first_motion: found.first_motion,
         },
-        arcs,
-        work_offsets: offsets,
+        arcs: found.arcs,
+        work_offsets: found.offsets,
     })
 }
 
@@ -863,6 +1051,11 @@ impl Word {
             Value::Number(n) => n.span.1,
             Value::Expression => words_end(src, self.at, src.bytes.len()),
         }
+    }
+
+    /// The word's text, upper case (`G1`, `D12`, `U5.`).
+    fn text(&self, src: &Source) -> String {
+        src.text(self.at, self.value_end(src)).to_ascii_uppercase()
     }
 }
 

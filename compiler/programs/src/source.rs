@@ -39,6 +39,22 @@ impl<'a> Source<'a> {
         (line, offset - start + 1)
     }
 
+    /// Its lines, first to last: each line's content without its line end (LF, CRLF or a
+    /// CR alone); a line end at the end of the file starts no line.
+    pub fn lines(&self) -> Lines<'_> {
+        Lines {
+            bytes: self.bytes,
+            start: 0,
+            number: 0,
+        }
+    }
+
+    /// The line starting at `start`: where its content ends and where the next line
+    /// starts.
+    pub fn line_at(&self, start: usize) -> (usize, usize) {
+        line_at(self.bytes, start)
+    }
+
     /// A syntax error at `offset`.
     pub fn error(&self, offset: usize, message: impl Into<String>) -> Error {
         let (line, column) = self.location(offset);
@@ -112,6 +128,57 @@ impl<'a> Source<'a> {
         }
         format!("'{}'", self.text(i, end))
     }
+}
+
+/// A line of a source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Line {
+    /// Its number, from 1.
+    pub number: usize,
+    /// Its first byte.
+    pub start: usize,
+    /// One past its content's last byte (where its line end is).
+    pub end: usize,
+}
+
+/// The lines of a source ([`Source::lines`]).
+pub struct Lines<'a> {
+    bytes: &'a [u8],
+    start: usize,
+    number: usize,
+}
+
+impl Iterator for Lines<'_> {
+    type Item = Line;
+
+    fn next(&mut self) -> Option<Line> {
+        if self.start >= self.bytes.len() {
+            return None;
+        }
+        let (end, next) = line_at(self.bytes, self.start);
+        self.number += 1;
+        let line = Line {
+            number: self.number,
+            start: self.start,
+            end,
+        };
+        self.start = next;
+        Some(line)
+    }
+}
+
+/// The end of the content of the line starting at `start`, and where the next starts.
+fn line_at(bytes: &[u8], start: usize) -> (usize, usize) {
+    let end = bytes[start..]
+        .iter()
+        .position(|b| *b == b'\n' || *b == b'\r')
+        .map_or(bytes.len(), |p| start + p);
+    let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
+        end + 2
+    } else {
+        end + 1
+    };
+    (end, next)
 }
 
 /// Whether two identifiers are equal ignoring ASCII case (KRL and RAPID are
