@@ -130,24 +130,7 @@ pub fn parse_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
         .ok()
         .filter(|n| *n >= 1)
         .ok_or_else(|| format!("'{}': {usage}", name.trim()))?;
-    let numbers: Vec<f64> = values
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{values}': {usage}"))?;
-    let mut frame = [0.0; 6];
-    match numbers.len() {
-        3 | 6 => frame[..numbers.len()].copy_from_slice(&numbers),
-        _ => return Err(format!("'{values}': {usage}")),
-    }
-    if !crate::bounds::option_frame_within(&frame) {
-        return Err(format!(
-            "'{values}': within ±{} mm and ±{}°",
-            crate::bounds::MAX_POSITION_MM,
-            crate::bounds::MAX_ANGLE_DEG
-        ));
-    }
-    Ok((number, frame))
+    Ok((number, crate::number::option_frame(values, usage)?))
 }
 
 /// Reads a controller's frame file: the ASCII dump of its system variables
@@ -175,7 +158,8 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
     let mut variable: Option<bool> = None;
     let mut start = 0;
     while start < bytes.len() {
-        let (line, next) = line_at(bytes, start);
+        let (end, next) = src.line_at(start);
+        let line = (start, end);
         start = next;
         let at = skip_space(bytes, line.0, line.1);
         let text = &bytes[at..line.1];
@@ -222,7 +206,8 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         let mut values: [Option<f64>; 6] = [None; 6];
         let mut scan = start;
         while scan < bytes.len() {
-            let (l, n) = line_at(bytes, scan);
+            let (end, n) = src.line_at(scan);
+            let l = (scan, end);
             let first = skip_space(bytes, l.0, l.1);
             if bytes.get(first) == Some(&b'[') {
                 break;
@@ -281,21 +266,6 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         list.push((number, frame));
     }
     Ok(out)
-}
-
-/// The line starting at `start`: its content's range and where the next line starts
-/// (lines end with LF, CRLF or a CR alone).
-fn line_at(bytes: &[u8], start: usize) -> ((usize, usize), usize) {
-    let end = bytes[start..]
-        .iter()
-        .position(|b| *b == b'\n' || *b == b'\r')
-        .map_or(bytes.len(), |p| start + p);
-    let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
-        end + 2
-    } else {
-        end + 1
-    };
-    ((start, end), next)
 }
 
 fn skip_space(bytes: &[u8], mut i: usize, end: usize) -> usize {
@@ -423,13 +393,15 @@ fn matching_bracket(bytes: &[u8], open: usize, end: usize) -> Option<usize> {
 }
 
 /// The statements of the `/MN` section `start..end`, and where each line of it starts.
-fn statements(bytes: &[u8], start: usize, end: usize) -> Vec<Statement> {
+fn statements(src: &Source, start: usize, end: usize) -> Vec<Statement> {
+    let bytes = src.bytes;
     let mut out: Vec<Statement> = Vec::new();
     // Whether the last statement is still open (no `;` yet).
     let mut open = false;
     let mut at = start;
     while at < end {
-        let ((s, e), next) = line_at(bytes, at);
+        let s = at;
+        let (e, next) = src.line_at(at);
         at = next;
         let e = e.min(end);
         let first = skip_blanks(bytes, s, e);
@@ -485,255 +457,345 @@ pub fn read(src: &Source, options: &FanucOptions) -> Result<Program, Error> {
 ///
 /// As [`read`].
 pub fn read_at_most(src: &Source, options: &FanucOptions, limit: usize) -> Result<Program, Error> {
-    let bytes = src.bytes;
-    // The sections: `/MN` and `/POS` ranges.
-    let mut mn: Option<(usize, usize)> = None;
-    let mut pos: Option<(usize, usize)> = None;
-    let mut current: Option<(&str, usize)> = None;
-    let mut at = 0;
-    loop {
-        let done = at >= bytes.len();
-        let ((s, e), next) = if done {
-            ((bytes.len(), bytes.len()), bytes.len())
-        } else {
-            line_at(bytes, at)
+    let sections = Sections::of(src)?;
+    let mut motions = Motions::default();
+    if let Some((s, e)) = sections.mn {
+        for statement in statements(src, s, e) {
+            motions.statement(src, &statement, limit)?;
+            if motions.truncated_at.is_some() {
+                break;
+            }
+        }
+    }
+    let mut positions: Vec<(u32, ProgramTarget)> = Vec::new();
+    if let (Some((s, e)), None) = (sections.pos, motions.truncated_at) {
+        motions.truncated_at =
+            read_positions(src, (s, e), options, &motions, limit, &mut positions)?;
+    }
+    Ok(motions.program(src, positions))
+}
+
+/// The sections of a program the reader reads: `/MN` and `/POS`, each's byte range.
+struct Sections {
+    mn: Option<(usize, usize)>,
+    pos: Option<(usize, usize)>,
+}
+
+impl Sections {
+    /// The sections of `src`; a second `/MN` or `/POS` is an error.
+    fn of(src: &Source) -> Result<Sections, Error> {
+        let bytes = src.bytes;
+        let mut sections = Sections {
+            mn: None,
+            pos: None,
         };
-        at = next;
-        let first = skip_blanks(bytes, s, e);
-        let header = bytes.get(first) == Some(&b'/')
-            && bytes.get(first + 1).is_some_and(u8::is_ascii_uppercase);
-        if header || done {
-            match current.take() {
-                Some(("MN", start)) => mn = Some((start, s)),
-                Some(("POS", start)) => pos = Some((start, s)),
-                _ => {}
-            }
-        }
-        if done {
-            break;
-        }
-        if header {
-            let word_end = src.identifier_end(first + 1, b"").min(e);
-            let name = match &bytes[first + 1..word_end] {
-                b"MN" => "MN",
-                b"POS" => "POS",
-                _ => "",
+        let mut current: Option<(&str, usize)> = None;
+        let mut at = 0;
+        loop {
+            let done = at >= bytes.len();
+            let (s, (e, next)) = if done {
+                (bytes.len(), (bytes.len(), bytes.len()))
+            } else {
+                (at, src.line_at(at))
             };
-            if (name == "MN" && mn.is_some()) || (name == "POS" && pos.is_some()) {
-                return Err(src.error(first, format!("a second /{name} section")));
+            at = next;
+            let first = skip_blanks(bytes, s, e);
+            let header = bytes.get(first) == Some(&b'/')
+                && bytes.get(first + 1).is_some_and(u8::is_ascii_uppercase);
+            if header || done {
+                match current.take() {
+                    Some(("MN", start)) => sections.mn = Some((start, s)),
+                    Some(("POS", start)) => sections.pos = Some((start, s)),
+                    _ => {}
+                }
             }
-            current = Some((name, next.min(bytes.len())));
+            if done {
+                return Ok(sections);
+            }
+            if header {
+                let word_end = src.identifier_end(first + 1, b"").min(e);
+                let name = match &bytes[first + 1..word_end] {
+                    b"MN" => "MN",
+                    b"POS" => "POS",
+                    _ => "",
+                };
+                if (name == "MN" && sections.mn.is_some())
+                    || (name == "POS" && sections.pos.is_some())
+                {
+                    return Err(src.error(first, format!("a second /{name} section")));
+                }
+                current = Some((name, next.min(bytes.len())));
+            }
+        }
+    }
+}
+
+/// What the `/MN` section says: the motions reported, the uses of each position, and the
+/// frames the program sets as it runs.
+#[derive(Default)]
+struct Motions {
+    targets: Vec<ProgramTarget>,
+    first_motion: Option<usize>,
+    truncated_at: Option<usize>,
+    /// Per position number, the motions that use it.
+    uses: HashMap<u32, Vec<Use>>,
+    /// Frames the program sets as it runs: (user, number) and the statement's place.
+    set_frames: Vec<(bool, u16, usize)>,
+    /// Motions to positions `/POS` may not hold, checked once it is read.
+    pending: Vec<(u32, Use)>,
+}
+
+impl Motions {
+    /// Reads a statement of `/MN`: a frame set, a motion, or neither.
+    fn statement(
+        &mut self,
+        src: &Source,
+        statement: &Statement,
+        limit: usize,
+    ) -> Result<(), Error> {
+        let bytes = src.bytes;
+        let Some(&(first_start, first_end)) = statement.ranges.first() else {
+            return Ok(());
+        };
+        let at = skip_blanks(bytes, first_start, first_end);
+        if at >= first_end || bytes[at] == b'!' || bytes[at..first_end].starts_with(b"//") {
+            // An empty line, a comment, a statement commented out.
+            return Ok(());
+        }
+        let (words, designators) = statement.scan(src)?;
+        let Some(first) = words.first() else {
+            return Ok(());
+        };
+        let word = &bytes[first.start..first.end];
+        // `UFRAME[2]=PR[1]`, `UTOOL[1]=…`: a frame set as the program runs.
+        if word.eq_ignore_ascii_case(b"UFRAME") || word.eq_ignore_ascii_case(b"UTOOL") {
+            let open = first.end;
+            if bytes.get(open) == Some(&b'[') {
+                let digits_end = (open + 1..first_end)
+                    .find(|i| !bytes[*i].is_ascii_digit())
+                    .unwrap_or(first_end);
+                if let Ok(n) = src.text(open + 1, digits_end).parse::<u16>() {
+                    self.set_frames
+                        .push((word.eq_ignore_ascii_case(b"UFRAME"), n, at));
+                }
+            }
+            return Ok(());
+        }
+        let letter = word.len() == 1 && word[0].is_ascii_uppercase();
+        let target = designators.first().filter(|d| !d.argument);
+        // A motion: one letter, a blank, and the position (`L P[2]`), never an
+        // assignment such as `R[1]=PR[1,3]`.
+        let motion = target.is_some_and(|d| {
+            letter
+                && first.start == at
+                && d.at > first.end
+                && bytes[first.end..d.at]
+                    .iter()
+                    .all(|b| matches!(b, b' ' | b'\t'))
+        });
+        if motion {
+            self.motion(src, at, &words, &designators, limit);
+        }
+        Ok(())
+    }
+
+    /// A motion at `at` (its words and designators): each position it moves to, used or
+    /// reported.
+    fn motion(
+        &mut self,
+        src: &Source,
+        at: usize,
+        words: &[StatementWord],
+        designators: &[Designator],
+        limit: usize,
+    ) {
+        self.first_motion.get_or_insert(at);
+        let word = &src.bytes[words[0].start..words[0].end];
+        let letter = word[0] as char;
+        let moves: Vec<&Designator> = designators.iter().filter(|d| !d.argument).collect();
+        let motion_text = |d: &Designator| format!("{letter} {}", src.text(d.at, d.end));
+        let known = MOTIONS.iter().find(|m| m.0.as_bytes() == word);
+        let count = known.map_or(1, |m| m.1);
+        if moves.len() < count {
+            let d = moves[0];
+            self.targets.push(ProgramTarget {
+                name: motion_text(d),
+                offset: at,
+                kind: TargetKind::Incomplete(format!(
+                    "{letter}: a circular motion needs its via and its end point, and writes {}",
+                    moves.len()
+                )),
+                uses: Vec::new(),
+                refused: None,
+            });
+            return;
+        }
+        let offset = motion_offset(src, words, designators);
+        for d in moves.iter().take(count) {
+            let u = Use {
+                at: d.at,
+                motion: motion_text(d),
+                refused: if known.is_none() {
+                    Some((
+                        Reason::UnknownMotion,
+                        format!("{letter} is not a Fanuc motion this reader knows"),
+                    ))
+                } else {
+                    position_refusal(d).or_else(|| offset.clone())
+                },
+            };
+            self.use_position(d, u);
+            if self.targets.len() > limit {
+                self.truncated_at = Some(d.at);
+                return;
+            }
         }
     }
 
-    let mut targets: Vec<ProgramTarget> = Vec::new();
-    let mut first_motion = None;
-    let mut truncated_at = None;
-    // Per position number, the motions that use it.
-    let mut uses: HashMap<u32, Vec<Use>> = HashMap::new();
-    // Frames the program sets as it runs: (user, number) and the statement's place.
-    let mut set_frames: Vec<(bool, u16, usize)> = Vec::new();
-    // Motions to positions `/POS` may not hold, checked once it is read.
-    let mut pending: Vec<(u32, Use)> = Vec::new();
-    if let Some((s, e)) = mn {
-        for statement in statements(bytes, s, e) {
-            let Some(&(first_start, first_end)) = statement.ranges.first() else {
-                continue;
-            };
-            let at = skip_blanks(bytes, first_start, first_end);
-            if at >= first_end || bytes[at] == b'!' || bytes[at..first_end].starts_with(b"//") {
-                // An empty line, a comment, a statement commented out.
-                continue;
-            }
-            let (words, designators) = statement.scan(src)?;
-            let Some(first) = words.first() else { continue };
-            let word = &bytes[first.start..first.end];
-            // `UFRAME[2]=PR[1]`, `UTOOL[1]=…`: a frame set as the program runs.
-            if word.eq_ignore_ascii_case(b"UFRAME") || word.eq_ignore_ascii_case(b"UTOOL") {
-                let open = first.end;
-                if bytes.get(open) == Some(&b'[') {
-                    let digits_end = (open + 1..first_end)
-                        .find(|i| !bytes[*i].is_ascii_digit())
-                        .unwrap_or(first_end);
-                    if let Ok(n) = src.text(open + 1, digits_end).parse::<u16>() {
-                        set_frames.push((word.eq_ignore_ascii_case(b"UFRAME"), n, at));
-                    }
-                }
-                continue;
-            }
-            let letter = word.len() == 1 && word[0].is_ascii_uppercase();
-            let target = designators.first().filter(|d| !d.argument);
-            // A motion: one letter, a blank, and the position (`L P[2]`), never an
-            // assignment such as `R[1]=PR[1,3]`.
-            let motion = target.is_some_and(|d| {
-                letter
-                    && first.start == at
-                    && d.at > first.end
-                    && bytes[first.end..d.at]
-                        .iter()
-                        .all(|b| matches!(b, b' ' | b'\t'))
-            });
-            if !motion {
-                continue;
-            }
-            first_motion.get_or_insert(at);
-            let letter = word[0] as char;
-            let moves: Vec<&Designator> = designators.iter().filter(|d| !d.argument).collect();
-            let motion_text = |d: &Designator| format!("{letter} {}", src.text(d.at, d.end));
-            let known = MOTIONS.iter().find(|m| m.0.as_bytes() == word);
-            let count = known.map_or(1, |m| m.1);
-            // The motion's offsets, found among its words.
-            let offset = words.iter().skip(1).find_map(|w| {
-                let text = bytes[w.start..w.end].to_ascii_uppercase();
-                OFFSETS.iter().find(|o| o.0.as_bytes() == text).map(|o| {
-                    // With its argument when it has one (`Offset,PR[1]`).
-                    let argument = designators
-                        .iter()
-                        .find(|d| d.argument && d.at > w.end && d.at <= w.end + 2);
-                    let end = argument.map_or(w.end, |d| d.end);
-                    (o.1, format!("{}: {}", src.text(w.start, end), o.2))
-                })
-            });
-            let refusal = |d: &Designator| -> Option<(Reason, String)> {
-                if known.is_none() {
-                    return Some((
-                        Reason::UnknownMotion,
-                        format!("{letter} is not a Fanuc motion this reader knows"),
-                    ));
-                }
-                if d.register {
-                    return Some((
-                        Reason::Dynamic,
-                        "a position register, whose value the controller holds or the program sets as it runs".to_string(),
-                    ));
-                }
-                if d.number.is_none() {
-                    return Some((
-                        Reason::Dynamic,
-                        "a position chosen as the program runs".to_string(),
-                    ));
-                }
-                offset.clone()
-            };
-            if moves.len() < count {
-                let d = moves[0];
-                targets.push(ProgramTarget {
-                    name: motion_text(d),
-                    offset: at,
-                    kind: TargetKind::Incomplete(format!(
-                        "{letter}: a circular motion needs its via and its end point, and writes {}",
-                        moves.len()
-                    )),
+    /// A motion's use `u` of the position `d`: reported when refused (and kept among the
+    /// position's uses), else waiting for `/POS`.
+    fn use_position(&mut self, d: &Designator, u: Use) {
+        match (u.refused.clone(), d.number) {
+            (Some((reason, why)), number) => {
+                self.targets.push(ProgramTarget {
+                    name: u.motion.clone(),
+                    offset: d.at,
+                    kind: TargetKind::Motion,
                     uses: Vec::new(),
-                    refused: None,
+                    refused: Some(Refusal::new(reason, why)),
                 });
-                continue;
+                if let (Some(n), false) = (number, d.register) {
+                    self.uses.entry(n).or_default().push(u);
+                }
             }
-            for d in moves.iter().take(count) {
-                let u = Use {
-                    at: d.at,
-                    motion: motion_text(d),
-                    refused: refusal(d),
-                };
-                match (u.refused.clone(), d.number) {
-                    (Some((reason, why)), number) => {
-                        targets.push(ProgramTarget {
-                            name: u.motion.clone(),
-                            offset: d.at,
-                            kind: TargetKind::Motion,
-                            uses: Vec::new(),
-                            refused: Some(Refusal::new(reason, why)),
-                        });
-                        if let (Some(n), false) = (number, d.register) {
-                            uses.entry(n).or_default().push(u);
-                        }
+            (None, Some(n)) => self.pending.push((n, u)),
+            (None, None) => {}
+        }
+    }
+
+    /// The program: the positions with their uses, and the motions reported.
+    fn program(mut self, src: &Source, positions: Vec<(u32, ProgramTarget)>) -> Program {
+        // Motions to positions: each position's uses, or the motion said not declared.
+        for (n, u) in std::mem::take(&mut self.pending) {
+            if positions.iter().any(|p| p.0 == n) {
+                self.uses.entry(n).or_default().push(u);
+            } else {
+                self.targets.push(ProgramTarget {
+                    name: u.motion.clone(),
+                    offset: u.at,
+                    kind: TargetKind::Motion,
+                    uses: Vec::new(),
+                    refused: Some(Refusal::new(
+                        Reason::NotDeclared,
+                        format!("P[{n}] is not in the program's /POS section"),
+                    )),
+                });
+            }
+        }
+        for (n, mut target) in positions {
+            let list = self.uses.remove(&n).unwrap_or_default();
+            let plain = list.iter().find(|u| u.refused.is_none());
+            match (plain, list.first()) {
+                (Some(u), _) => {
+                    if let Some(first) = target.uses.first_mut() {
+                        first.offset = u.at;
                     }
-                    (None, Some(n)) => pending.push((n, u)),
-                    (None, None) => {}
                 }
-                if targets.len() > limit {
-                    truncated_at = Some(d.at);
-                    break;
+                (None, Some(u)) if target.refused.is_none() => {
+                    let (reason, why) = u.refused.clone().expect("a refused use");
+                    let (line, column) = src.location(u.at);
+                    target.refused = Some(Refusal::new(
+                        reason,
+                        format!("used only by {} ({line}:{column}): {why}", u.motion),
+                    ));
                 }
+                _ => {}
             }
-            if truncated_at.is_some() {
-                break;
-            }
+            self.targets.push(target);
+        }
+        self.targets.sort_by_key(|t| t.offset);
+        Program {
+            format: Format::Fanuc,
+            targets: self.targets,
+            truncated_at: self.truncated_at,
+            first_motion: self.first_motion,
         }
     }
-    // The positions of `/POS`.
-    let mut positions: Vec<(u32, ProgramTarget)> = Vec::new();
-    if let (Some((s, e)), None) = (pos, truncated_at) {
-        let mut i = s;
-        while i < e {
-            i = skip_space(bytes, i, e);
-            if i >= e {
-                break;
-            }
-            if !(bytes[i..e].starts_with(b"P[")) {
-                return Err(src.error(
-                    i,
-                    format!("expected a position P[n]{{…}}; found {}", src.describe(i)),
-                ));
-            }
-            let (n, target, next) = position(src, i, e, options, &set_frames)?;
-            if let Some(first) = positions.iter().find(|p| p.0 == n) {
-                let (line, _) = src.location(first.1.offset);
-                return Err(src.error(i, format!("P[{n}] twice (first at line {line})")));
-            }
-            positions.push((n, target));
-            i = next;
-            if targets.len() + positions.len() > limit {
-                truncated_at = Some(i.min(bytes.len()));
-                break;
-            }
-        }
+}
+
+/// Why a known motion's position `d` is not corrected, by the position itself: a
+/// register, or a number chosen as the program runs.
+fn position_refusal(d: &Designator) -> Option<(Reason, String)> {
+    if d.register {
+        return Some((
+            Reason::Dynamic,
+            "a position register, whose value the controller holds or the program sets as it runs"
+                .to_string(),
+        ));
     }
-    // Motions to positions: each position's uses, or the motion said not declared.
-    for (n, u) in pending {
-        if positions.iter().any(|p| p.0 == n) {
-            uses.entry(n).or_default().push(u);
-        } else {
-            targets.push(ProgramTarget {
-                name: u.motion.clone(),
-                offset: u.at,
-                kind: TargetKind::Motion,
-                uses: Vec::new(),
-                refused: Some(Refusal::new(
-                    Reason::NotDeclared,
-                    format!("P[{n}] is not in the program's /POS section"),
-                )),
-            });
-        }
+    if d.number.is_none() {
+        return Some((
+            Reason::Dynamic,
+            "a position chosen as the program runs".to_string(),
+        ));
     }
-    for (n, mut target) in positions {
-        let list = uses.remove(&n).unwrap_or_default();
-        let plain = list.iter().find(|u| u.refused.is_none());
-        match (plain, list.first()) {
-            (Some(u), _) => {
-                if let Some(first) = target.uses.first_mut() {
-                    first.offset = u.at;
-                }
-            }
-            (None, Some(u)) if target.refused.is_none() => {
-                let (reason, why) = u.refused.clone().expect("a refused use");
-                let (line, column) = src.location(u.at);
-                target.refused = Some(Refusal::new(
-                    reason,
-                    format!("used only by {} ({line}:{column}): {why}", u.motion),
-                ));
-            }
-            _ => {}
-        }
-        targets.push(target);
-    }
-    targets.sort_by_key(|t| t.offset);
-    Ok(Program {
-        format: Format::Fanuc,
-        targets,
-        truncated_at,
-        first_motion,
+    None
+}
+
+/// The motion's offset, found among its words (`Offset,PR[1]`, `Tool_Offset`, `INC`…),
+/// with its argument when it has one.
+fn motion_offset(
+    src: &Source,
+    words: &[StatementWord],
+    designators: &[Designator],
+) -> Option<(Reason, String)> {
+    words.iter().skip(1).find_map(|w| {
+        let text = src.bytes[w.start..w.end].to_ascii_uppercase();
+        OFFSETS.iter().find(|o| o.0.as_bytes() == text).map(|o| {
+            let argument = designators
+                .iter()
+                .find(|d| d.argument && d.at > w.end && d.at <= w.end + 2);
+            let end = argument.map_or(w.end, |d| d.end);
+            (o.1, format!("{}: {}", src.text(w.start, end), o.2))
+        })
     })
+}
+
+/// Reads the positions of `/POS` (`s..e`) into `positions`; where reading stopped, when
+/// the targets reach `limit`.
+fn read_positions(
+    src: &Source,
+    (s, e): (usize, usize),
+    options: &FanucOptions,
+    motions: &Motions,
+    limit: usize,
+    positions: &mut Vec<(u32, ProgramTarget)>,
+) -> Result<Option<usize>, Error> {
+    let bytes = src.bytes;
+    let mut i = s;
+    while i < e {
+        i = skip_space(bytes, i, e);
+        if i >= e {
+            break;
+        }
+        if !(bytes[i..e].starts_with(b"P[")) {
+            return Err(src.error(
+                i,
+                format!("expected a position P[n]{{…}}; found {}", src.describe(i)),
+            ));
+        }
+        let (n, target, next) = position(src, i, e, options, &motions.set_frames)?;
+        if let Some(first) = positions.iter().find(|p| p.0 == n) {
+            let (line, _) = src.location(first.1.offset);
+            return Err(src.error(i, format!("P[{n}] twice (first at line {line})")));
+        }
+        positions.push((n, target));
+        i = next;
+        if motions.targets.len() + positions.len() > limit {
+            return Ok(Some(i.min(bytes.len())));
+        }
+    }
+    Ok(None)
 }
 
 /// A field of a position: its name (upper case), where, and its value.
@@ -751,6 +813,9 @@ enum FieldValue {
     Number(Number),
 }
 
+/// A position's fields, by group: the group's number, where it is written, its fields.
+type Group = (u32, usize, Vec<Field>);
+
 /// The position `P[n]{ … };` at `at`: its number, its target and where the next starts.
 fn position(
     src: &Source,
@@ -759,6 +824,23 @@ fn position(
     options: &FanucOptions,
     set_frames: &[(bool, u16, usize)],
 ) -> Result<(u32, ProgramTarget, usize), Error> {
+    let (number, brace, body_end) = position_head(src, at, end)?;
+    let mut next = body_end + 1;
+    if src.bytes.get(next) == Some(&b';') {
+        next += 1;
+    }
+    let name = format!("P[{number}]");
+    let groups = groups(src, &name, brace + 1, body_end)?;
+    let frames = FrameFields {
+        src,
+        options,
+        set_frames,
+    };
+    Ok((number, frames.target(name, at, &groups), next))
+}
+
+/// A position's number, its `{` and its `}`.
+fn position_head(src: &Source, at: usize, end: usize) -> Result<(u32, usize, usize), Error> {
     let bytes = src.bytes;
     let open = at + 1;
     let close = matching_bracket(bytes, open, end)
@@ -778,19 +860,19 @@ fn position(
     let body_end = (brace..end)
         .find(|i| bytes[*i] == b'}')
         .ok_or_else(|| src.error(brace, format!("{name}: its '{{' has no '}}'")))?;
-    let mut next = body_end + 1;
-    if bytes.get(next) == Some(&b';') {
-        next += 1;
-    }
-    // The fields, by group.
-    let mut groups: Vec<(u32, usize, Vec<Field>)> = Vec::new();
-    let mut i = brace + 1;
+    Ok((number, brace, body_end))
+}
+
+/// The fields of the position `name`'s body `i..body_end`, by group (`GP1:`).
+fn groups(src: &Source, name: &str, mut i: usize, body_end: usize) -> Result<Vec<Group>, Error> {
+    let bytes = src.bytes;
+    let mut groups: Vec<Group> = Vec::new();
     loop {
         while i < body_end && (bytes[i].is_ascii_whitespace() || bytes[i] == b',') {
             i += 1;
         }
         if i >= body_end {
-            break;
+            return Ok(groups);
         }
         let word_end = src.identifier_end(i, b"").min(body_end);
         if word_end == i {
@@ -818,134 +900,187 @@ fn position(
         let Some(group) = groups.last_mut() else {
             return Err(src.error(field_at, format!("{name}: a field before its group (GP1:)")));
         };
-        let value = match bytes.get(i) {
-            Some(b':') if i < body_end => {
-                i = skip_blanks(bytes, i + 1, body_end);
-                if bytes.get(i) == Some(&b'\'') {
-                    let q = (i + 1..body_end)
-                        .find(|k| bytes[*k] == b'\'')
-                        .ok_or_else(|| src.error(i, format!("{name}: a quote without its end")))?;
-                    let v = FieldValue::Text(i + 1, q);
-                    i = q + 1;
-                    v
-                } else {
-                    let s = i;
-                    while i < body_end && !(bytes[i].is_ascii_whitespace() || bytes[i] == b',') {
-                        i += 1;
-                    }
-                    FieldValue::Word(src.text(s, i))
-                }
-            }
-            Some(b'=') if i < body_end => {
-                let v = skip_blanks(bytes, i + 1, body_end);
-                let n = parse_number(&bytes[..body_end], v).ok_or_else(|| {
-                    src.error(
-                        v,
-                        format!("{name}: {word} must be a number, found {}", src.describe(v)),
-                    )
-                })?;
-                i = skip_blanks(bytes, n.span.1, body_end);
-                // Its unit: `mm`, `deg`.
-                i = src.identifier_end(i, b"").min(body_end).max(i);
-                FieldValue::Number(n)
-            }
-            _ => {
-                return Err(src.error(
-                    i.min(body_end),
-                    format!("{name}: expected ':' or '=' after {word}"),
-                ))
-            }
-        };
+        let (value, after) = field_value(src, name, &word, i, body_end)?;
+        i = after;
         group.2.push(Field { name: word, value });
     }
-    let incomplete = |why: String| ProgramTarget {
-        name: name.clone(),
-        offset: at,
-        kind: TargetKind::Incomplete(why),
-        uses: Vec::new(),
-        refused: None,
-    };
-    let Some((_, _, fields)) = groups.iter().find(|g| g.0 == 1) else {
-        return Ok((number, incomplete("no group 1 (GP1) data".into()), next));
-    };
-    let number_of = |key: &str| {
-        fields.iter().find_map(|f| match &f.value {
-            FieldValue::Number(n) if f.name == key => Some(*n),
-            _ => None,
-        })
-    };
-    // A second motion group, or an extended axis of group 1 (a rail integrated with the
-    // robot): the position is read, and reported.
-    let group_refusal = if let Some((g, gat, _)) = groups.iter().find(|g| g.0 != 1) {
+}
+
+/// The value of the field `word` whose `:` or `=` is at `i`, and where it ends.
+fn field_value(
+    src: &Source,
+    name: &str,
+    word: &str,
+    mut i: usize,
+    body_end: usize,
+) -> Result<(FieldValue, usize), Error> {
+    let bytes = src.bytes;
+    match bytes.get(i) {
+        Some(b':') if i < body_end => {
+            i = skip_blanks(bytes, i + 1, body_end);
+            if bytes.get(i) == Some(&b'\'') {
+                let q = (i + 1..body_end)
+                    .find(|k| bytes[*k] == b'\'')
+                    .ok_or_else(|| src.error(i, format!("{name}: a quote without its end")))?;
+                Ok((FieldValue::Text(i + 1, q), q + 1))
+            } else {
+                let s = i;
+                while i < body_end && !(bytes[i].is_ascii_whitespace() || bytes[i] == b',') {
+                    i += 1;
+                }
+                Ok((FieldValue::Word(src.text(s, i)), i))
+            }
+        }
+        Some(b'=') if i < body_end => {
+            let v = skip_blanks(bytes, i + 1, body_end);
+            let n = parse_number(&bytes[..body_end], v).ok_or_else(|| {
+                src.error(
+                    v,
+                    format!("{name}: {word} must be a number, found {}", src.describe(v)),
+                )
+            })?;
+            i = skip_blanks(bytes, n.span.1, body_end);
+            // Its unit: `mm`, `deg`.
+            i = src.identifier_end(i, b"").min(body_end).max(i);
+            Ok((FieldValue::Number(n), i))
+        }
+        _ => Err(src.error(
+            i.min(body_end),
+            format!("{name}: expected ':' or '=' after {word}"),
+        )),
+    }
+}
+
+/// The number a group's field `key` holds.
+fn number_of(fields: &[Field], key: &str) -> Option<Number> {
+    fields.iter().find_map(|f| match &f.value {
+        FieldValue::Number(n) if f.name == key => Some(*n),
+        _ => None,
+    })
+}
+
+/// A second motion group, or an extended axis of group 1 (a rail integrated with the
+/// robot): the position is read, and reported.
+fn group_refusal(src: &Source, groups: &[Group], fields: &[Field]) -> Option<Refusal> {
+    if let Some((g, gat, _)) = groups.iter().find(|g| g.0 != 1) {
         let (line, _) = src.location(*gat);
-        Some(Refusal::new(
+        return Some(Refusal::new(
             Reason::ExternalAxis,
             format!("GP{g} (line {line}): a second motion group (a positioner, a rail, another robot) moves with it, which the table does not have"),
-        ))
-    } else {
-        fields.iter().find_map(|f| match &f.value {
-            FieldValue::Number(n) if f.name.starts_with('E') && n.value != 0.0 => {
-                Some(Refusal::new(
-                    Reason::ExternalAxis,
-                    format!(
-                        "{} {}: an extended axis (a rail, a positioner) the table does not have",
-                        f.name,
-                        src.text(n.span.0, n.span.1)
-                    ),
-                ))
+        ));
+    }
+    fields.iter().find_map(|f| match &f.value {
+        FieldValue::Number(n) if f.name.starts_with('E') && n.value != 0.0 => Some(Refusal::new(
+            Reason::ExternalAxis,
+            format!(
+                "{} {}: an extended axis (a rail, a positioner) the table does not have",
+                f.name,
+                src.text(n.span.0, n.span.1)
+            ),
+        )),
+        _ => None,
+    })
+}
+
+/// What a position's frame numbers (`UF`, `UT`) stand for: the options, and the frames
+/// the program sets as it runs.
+struct FrameFields<'s, 'a> {
+    src: &'s Source<'a>,
+    options: &'s FanucOptions,
+    set_frames: &'s [(bool, u16, usize)],
+}
+
+impl FrameFields<'_, '_> {
+    /// The target of the position `name` at `at`, from its groups' fields.
+    fn target(&self, name: String, at: usize, groups: &[Group]) -> ProgramTarget {
+        let target = |kind: TargetKind| ProgramTarget {
+            name,
+            offset: at,
+            kind,
+            uses: Vec::new(),
+            refused: None,
+        };
+        let Some((_, _, fields)) = groups.iter().find(|g| g.0 == 1) else {
+            return target(TargetKind::Incomplete("no group 1 (GP1) data".into()));
+        };
+        let refused = group_refusal(self.src, groups, fields);
+        let cartesian: Vec<Option<Number>> = ["X", "Y", "Z", "W", "P", "R"]
+            .iter()
+            .map(|k| number_of(fields, k))
+            .collect();
+        let joints: Vec<Number> = (1..=9)
+            .map_while(|k| number_of(fields, &format!("J{k}")))
+            .collect();
+        if cartesian.iter().all(Option::is_none) {
+            if joints.is_empty() {
+                return target(TargetKind::Incomplete(
+                    "neither X, Y, Z, W, P, R nor J1… written".into(),
+                ));
             }
-            _ => None,
-        })
-    };
-    let refuse = |mut target: ProgramTarget| {
-        target.refused = group_refusal.clone();
-        target
-    };
-    let cartesian: Vec<Option<Number>> = ["X", "Y", "Z", "W", "P", "R"]
-        .iter()
-        .map(|k| number_of(k))
-        .collect();
-    let joints: Vec<Number> = (1..=9).map_while(|k| number_of(&format!("J{k}"))).collect();
-    if cartesian.iter().all(Option::is_none) {
-        if joints.is_empty() {
-            return Ok((
-                number,
-                incomplete("neither X, Y, Z, W, P, R nor J1… written".into()),
-                next,
-            ));
+            let kind = TargetKind::Joints(JointTarget {
+                joints,
+                unit: AngleUnit::Degree,
+            });
+            return ProgramTarget {
+                refused,
+                ..target(kind)
+            };
         }
-        return Ok((
-            number,
-            refuse(ProgramTarget {
-                name,
+        let missing: Vec<&str> = ["X", "Y", "Z", "W", "P", "R"]
+            .into_iter()
+            .zip(&cartesian)
+            .filter(|(_, n)| n.is_none())
+            .map(|(k, _)| k)
+            .collect();
+        if !missing.is_empty() {
+            return target(TargetKind::Incomplete(format!(
+                "{} not written",
+                missing.join(", ")
+            )));
+        }
+        let c: Vec<Number> = cartesian.into_iter().flatten().collect();
+        let mut unknown = Vec::new();
+        let base = self.frame(fields, "UF", true, &mut unknown);
+        let tool = self.frame(fields, "UT", false, &mut unknown);
+        let config = fields
+            .iter()
+            .find_map(|f| match f.value {
+                FieldValue::Text(s, e) if f.name == "CONFIG" => {
+                    Some(config_hint(&self.src.bytes[s..e]))
+                }
+                _ => None,
+            })
+            .unwrap_or(ConfigHint::None);
+        let kind = TargetKind::Cartesian(Box::new(CartesianTarget {
+            position: [c[0], c[1], c[2]],
+            unit: LengthUnit::Millimetre,
+            orientation: Some(Orientation::KukaAbcDeg([c[5], c[4], c[3]])),
+            config,
+            joints: Vec::new(),
+        }));
+        ProgramTarget {
+            uses: vec![FrameUse {
+                tool,
+                base,
                 offset: at,
-                kind: TargetKind::Joints(JointTarget {
-                    joints,
-                    unit: AngleUnit::Degree,
-                }),
-                uses: Vec::new(),
-                refused: None,
-            }),
-            next,
-        ));
+                elsewhere: None,
+                undeclared: Vec::new(),
+                unknown,
+            }],
+            refused,
+            ..target(kind)
+        }
     }
-    let missing: Vec<&str> = ["X", "Y", "Z", "W", "P", "R"]
-        .into_iter()
-        .zip(&cartesian)
-        .filter(|(_, n)| n.is_none())
-        .map(|(k, _)| k)
-        .collect();
-    if !missing.is_empty() {
-        return Ok((
-            number,
-            incomplete(format!("{} not written", missing.join(", "))),
-            next,
-        ));
-    }
-    let c: Vec<Number> = cartesian.into_iter().flatten().collect();
-    // The frames, by number.
-    let mut unknown = Vec::new();
-    let mut frame = |key: &str, user: bool| -> Option<Isometry3<f64>> {
+
+    /// The frame the field `key` numbers (a user frame, or else a tool frame); `None`,
+    /// with why said in `unknown`, when it is not known.
+    fn frame(
+        &self,
+        fields: &[Field],
+        key: &str,
+        user: bool,
+        unknown: &mut Vec<String>,
+    ) -> Option<Isometry3<f64>> {
         let what = if user { "user frame" } else { "tool frame" };
         let Some(f) = fields.iter().find(|f| f.name == key) else {
             unknown.push(format!("{key} not written: its {what} is not known"));
@@ -959,8 +1094,8 @@ fn position(
             unknown.push(format!("{what} {text}: not a frame number"));
             return None;
         };
-        if let Some((_, _, place)) = set_frames.iter().find(|s| s.0 == user && s.1 == n) {
-            let (line, column) = src.location(*place);
+        if let Some((_, _, place)) = self.set_frames.iter().find(|s| s.0 == user && s.1 == n) {
+            let (line, column) = self.src.location(*place);
             unknown.push(format!(
                 "{what} {n} is set as the program runs ({line}:{column})"
             ));
@@ -971,9 +1106,9 @@ fn position(
             return Some(Isometry3::identity());
         }
         let given = if user {
-            options.user(n)
+            self.options.user(n)
         } else {
-            options.tool(n)
+            self.options.tool(n)
         };
         match given {
             Some(f) => Some(wpr_pose(f)),
@@ -985,40 +1120,7 @@ fn position(
                 None
             }
         }
-    };
-    let base = frame("UF", true);
-    let tool = frame("UT", false);
-    let config = fields
-        .iter()
-        .find_map(|f| match f.value {
-            FieldValue::Text(s, e) if f.name == "CONFIG" => Some(config_hint(&bytes[s..e])),
-            _ => None,
-        })
-        .unwrap_or(ConfigHint::None);
-    Ok((
-        number,
-        refuse(ProgramTarget {
-            name,
-            offset: at,
-            kind: TargetKind::Cartesian(Box::new(CartesianTarget {
-                position: [c[0], c[1], c[2]],
-                unit: LengthUnit::Millimetre,
-                orientation: Some(Orientation::KukaAbcDeg([c[5], c[4], c[3]])),
-                config,
-                joints: Vec::new(),
-            })),
-            uses: vec![FrameUse {
-                tool,
-                base,
-                offset: at,
-                elsewhere: None,
-                undeclared: Vec::new(),
-                unknown,
-            }],
-            refused: None,
-        }),
-        next,
-    ))
+    }
 }
 
 /// A position's `CONFIG : 'N U T, 0, 0, 0'`: the wrist (`N` no flip, `F` flip), the elbow
