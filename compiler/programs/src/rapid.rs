@@ -81,20 +81,10 @@ pub fn read(src: &Source) -> Result<Program, Error> {
 /// As [`read`].
 pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     let mut lexer = Lexer::new(src, RAPID);
-    let mut decl = Declarations::default();
-    // Named targets, with their uses collected as moves are read.
-    let mut targets: Vec<(ProgramTarget, Vec<Use>)> = Vec::new();
-    let mut pending_uses: Vec<(Named, Use, Token, &'static str)> = Vec::new();
-    let mut procs: HashSet<String> = HashSet::new();
-    // Statements that look like motions but are not in the table, with the names they
-    // take.
-    let mut unknown_moves: Vec<(Token, Vec<String>)> = Vec::new();
-    let mut first_motion = None;
-    // Names a move takes inside an expression (`Offs(p20, …)`): the first such use.
-    let mut in_expressions: HashMap<String, (Reason, String)> = HashMap::new();
+    let mut module = Module::default();
     let mut truncated_at = None;
     loop {
-        if targets.len() > limit {
+        if module.targets.len() > limit {
             truncated_at = Some(lexer.pos);
             break;
         }
@@ -105,6 +95,52 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             }
             continue;
         }
+        module.statement(src, &statement)?;
+    }
+    let moved_by_unknown = module.refuse_unknown_moves(src);
+    module.resolve_uses(src);
+    let mut targets: Vec<ProgramTarget> = std::mem::take(&mut module.targets)
+        .into_iter()
+        .map(|(target, uses)| module.finish(src, target, uses, &moved_by_unknown))
+        .collect();
+    targets.sort_by_key(|t| t.offset);
+    Ok(Program {
+        format: Format::Rapid,
+        targets,
+        truncated_at,
+        first_motion: module.first_motion,
+    })
+}
+
+/// A move's use of a target it names, waiting for the module's declarations to be read.
+struct PendingUse {
+    named: Named,
+    used: Use,
+    at: Token,
+    instruction: &'static str,
+}
+
+/// What a module's statements say: its declarations and targets, and the moves that use
+/// them, gathered before the uses are resolved.
+#[derive(Default)]
+struct Module {
+    decl: Declarations,
+    /// Named targets, with their uses collected as moves are read.
+    targets: Vec<(ProgramTarget, Vec<Use>)>,
+    pending_uses: Vec<PendingUse>,
+    procs: HashSet<String>,
+    /// Statements that look like motions but are not in the table, with the names they
+    /// take.
+    unknown_moves: Vec<(Token, Vec<String>)>,
+    first_motion: Option<usize>,
+    /// Names a move takes inside an expression (`Offs(p20, …)`): the first such use.
+    in_expressions: HashMap<String, (Reason, String)>,
+}
+
+impl Module {
+    /// Reads a statement: a declaration, a routine's head, an assignment, a motion or a
+    /// statement that looks like one.
+    fn statement(&mut self, src: &Source, statement: &[Token]) -> Result<(), Error> {
         let words: Vec<String> = statement
             .iter()
             .take(6)
@@ -120,61 +156,67 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         if matches!(words.first().map(String::as_str), Some("LOCAL" | "TASK")) {
             i += 1;
         }
-        if matches!(
-            words.get(i).map(String::as_str),
-            Some("CONST" | "PERS" | "VAR")
-        ) {
-            declaration(src, &statement[i + 1..], &mut decl, &mut targets)?;
-            continue;
-        }
-        if matches!(
-            words.get(i).map(String::as_str),
-            Some("PROC" | "FUNC" | "TRAP")
-        ) {
-            let k = if words.get(i).is_some_and(|w| w == "FUNC") {
-                i + 2
-            } else {
-                i + 1
-            };
-            if let Some(w) = words.get(k) {
-                procs.insert(w.clone());
+        match words.get(i).map(String::as_str) {
+            Some("CONST" | "PERS" | "VAR") => {
+                return declaration(src, &statement[i + 1..], &mut self.decl, &mut self.targets);
             }
-            continue;
+            Some(routine @ ("PROC" | "FUNC" | "TRAP")) => {
+                let k = if routine == "FUNC" { i + 2 } else { i + 1 };
+                if let Some(w) = words.get(k) {
+                    self.procs.insert(w.clone());
+                }
+                return Ok(());
+            }
+            _ => {}
         }
         // A target assigned as the program runs: `p10 := CRobT();`, `p10.trans.z := 5;`.
-        if let Some(name) = assigned(src, &statement) {
-            decl.assigned.entry(name).or_insert(statement[0].start);
-            continue;
+        if let Some(name) = assigned(src, statement) {
+            self.decl.assigned.entry(name).or_insert(statement[0].start);
+            return Ok(());
         }
         // The move may follow a compact IF's condition or a CASE label on its line.
-        let Some((at, m)) = statement
+        match statement
             .iter()
             .enumerate()
             .find_map(|(k, t)| motion_of(src, t).map(|m| (k, m)))
-        else {
-            if let Some(t) = statement.first().filter(|t| looks_like_motion(src, t)) {
-                first_motion.get_or_insert(t.start);
-                let names = arguments(src, &statement[1..])
-                    .map(|args| {
-                        args.iter()
-                            .filter_map(|a| match a.positional {
-                                [n] if n.kind == Tok::Ident => {
-                                    Some(src.text(n.start, n.end).to_ascii_uppercase())
-                                }
-                                _ => None,
-                            })
-                            .collect()
-                    })
-                    .unwrap_or_default();
-                unknown_moves.push((*t, names));
+        {
+            Some((at, m)) => self.motion(src, &statement[at..], m),
+            None => {
+                self.unknown_motion(src, statement);
+                Ok(())
             }
-            continue;
+        }
+    }
+
+    /// A statement whose first word looks like a motion the table does not hold: kept
+    /// with the names it takes, reported once the routines are known.
+    fn unknown_motion(&mut self, src: &Source, statement: &[Token]) {
+        let Some(t) = statement.first().filter(|t| looks_like_motion(src, t)) else {
+            return;
         };
-        let statement = &statement[at..];
-        first_motion.get_or_insert(statement[0].start);
+        self.first_motion.get_or_insert(t.start);
+        let names = arguments(src, &statement[1..])
+            .map(|args| {
+                args.iter()
+                    .filter_map(|a| match a.positional {
+                        [n] if n.kind == Tok::Ident => {
+                            Some(src.text(n.start, n.end).to_ascii_uppercase())
+                        }
+                        _ => None,
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        self.unknown_moves.push((*t, names));
+    }
+
+    /// A motion instruction `m`, the statement's first token: its tool, work object and
+    /// targets.
+    fn motion(&mut self, src: &Source, statement: &[Token], m: &Motion) -> Result<(), Error> {
+        self.first_motion.get_or_insert(statement[0].start);
         let instruction = m.name;
         if let Some(reason) = m.refused {
-            targets.push((
+            self.targets.push((
                 refused_motion(
                     instruction,
                     &statement[0],
@@ -183,7 +225,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 ),
                 Vec::new(),
             ));
-            continue;
+            return Ok(());
         }
         let args = arguments(src, &statement[1..])?;
         let positional: Vec<&[Token]> = args
@@ -191,43 +233,12 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             .filter(|a| !a.positional.is_empty())
             .map(|a| a.positional)
             .collect();
-        let Some(tool) = positional
-            .get(m.tool)
-            .filter(|t| t.len() == 1 && t[0].kind == Tok::Ident)
-        else {
-            return Err(src.error(
-                statement[0].start,
-                format!(
-                    "{} needs its tool as argument {} (a tooldata name)",
-                    src.text(statement[0].start, statement[0].end),
-                    m.tool + 1
-                ),
-            ));
-        };
-        let wobj = args
-            .iter()
-            .flat_map(|a| &a.options)
-            .find(|(name, _)| src.text(name.start, name.end).eq_ignore_ascii_case("WObj"))
-            .map(|(_, value)| match value {
-                [t] if t.kind == Tok::Ident => {
-                    Ok((src.text(t.start, t.end).to_ascii_uppercase(), t.start))
-                }
-                _ => Err(src.error(
-                    value.first().map_or(statement[0].start, |t| t.start),
-                    "\\WObj:= takes a wobjdata name",
-                )),
-            })
-            .transpose()?;
-        let make_use = || Use {
-            tool: src.text(tool[0].start, tool[0].end).to_ascii_uppercase(),
-            tool_at: tool[0].start,
-            wobj: wobj.clone(),
-            at: statement[0].start,
-        };
+        let used = motion_use(src, statement, m, &args, &positional)?;
         // A search's found point is written by the controller.
         if let Some(found) = m.found.and_then(|slot| positional.get(slot)) {
             if let Some(t) = found.first().filter(|t| t.kind == Tok::Ident) {
-                decl.assigned
+                self.decl
+                    .assigned
                     .entry(src.text(t.start, t.end).to_ascii_uppercase())
                     .or_insert(t.start);
             }
@@ -239,102 +250,132 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                     format!("{instruction} needs a target as argument {}", slot + 1),
                 ));
             };
-            match *arg {
-                [t] if t.kind == Tok::Ident => {
-                    let name = src.text(t.start, t.end).to_ascii_uppercase();
-                    pending_uses.push((Named::One(name), make_use(), *t, instruction));
-                }
-                // An array's element: `seam{2}`, or any of them: `seam{i}`.
-                [t, open, index @ .., close]
-                    if t.kind == Tok::Ident && open.is(b'{') && close.is(b'}') =>
-                {
-                    let name = src.text(t.start, t.end).to_ascii_uppercase();
-                    let named = match index {
-                        [n] if n.kind == Tok::Number => {
-                            Named::One(format!("{name}{{{}}}", src.text(n.start, n.end)))
-                        }
-                        _ => Named::All(name),
-                    };
-                    pending_uses.push((named, make_use(), *t, instruction));
-                }
-                [t, ..] if t.is(b'[') => {
-                    let (value, end) = value(src, arg, 0)?;
-                    if end != arg.len() {
-                        return Err(src.error(arg[end].start, "expected ',' after the target"));
-                    }
-                    let (kind, external) = if m.joints {
-                        joint_target(src, &value)?
-                    } else {
-                        robtarget(src, &value)?
-                    };
-                    targets.push((
-                        ProgramTarget {
-                            name: instruction.to_string(),
-                            offset: t.start,
-                            kind,
-                            uses: Vec::new(),
-                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                        },
-                        vec![make_use()],
-                    ));
-                }
-                [t, open, ..] if t.kind == Tok::Ident && open.is(b'(') => {
-                    let call = src.text(t.start, t.end);
-                    let text = src.text(t.start, arg[arg.len() - 1].end);
-                    let (reason, detail) = if call.eq_ignore_ascii_case("Offs")
-                        || call.eq_ignore_ascii_case("RelTool")
-                    {
-                        (
-                            Reason::Relative,
-                            format!(
-                                "{instruction} {text}: an offset computed when the program runs"
-                            ),
-                        )
-                    } else {
-                        (
-                            Reason::Dynamic,
-                            format!(
-                                "{instruction} {text}: a target computed when the program runs"
-                            ),
-                        )
-                    };
-                    for n in arg.iter().filter(|n| n.kind == Tok::Ident) {
-                        in_expressions
-                            .entry(src.text(n.start, n.end).to_ascii_uppercase())
-                            .or_insert((reason, detail.clone()));
-                    }
-                    targets.push((refused_motion(instruction, t, reason, detail), Vec::new()));
-                }
-                [t, ..] => {
-                    let text = src.text(t.start, arg[arg.len() - 1].end);
-                    targets.push((
-                        refused_motion(
-                            instruction,
-                            t,
-                            Reason::Dynamic,
-                            format!(
-                                "{instruction} {text}: a target computed when the program runs"
-                            ),
-                        ),
-                        Vec::new(),
-                    ));
-                }
-                [] => {}
-            }
+            self.motion_target(src, arg, m, &used)?;
         }
+        Ok(())
     }
-    // A target an unknown motion moves to is not corrected either: its frames are not
-    // known.
-    let mut moved_by_unknown: HashMap<String, (String, usize)> = HashMap::new();
-    for (t, names) in unknown_moves {
-        let word = src.text(t.start, t.end);
-        if !procs.contains(&word.to_ascii_uppercase()) {
+
+    /// One target argument `arg` of a motion `m`, used with the frames of `used`: a name,
+    /// an array's element, a value written inline, or an expression.
+    fn motion_target(
+        &mut self,
+        src: &Source,
+        arg: &[Token],
+        m: &Motion,
+        used: &Use,
+    ) -> Result<(), Error> {
+        let instruction = m.name;
+        match *arg {
+            [t] if t.kind == Tok::Ident => {
+                let name = src.text(t.start, t.end).to_ascii_uppercase();
+                self.pending(Named::One(name), used, t, instruction);
+            }
+            // An array's element: `seam{2}`, or any of them: `seam{i}`.
+            [t, open, ref index @ .., close]
+                if t.kind == Tok::Ident && open.is(b'{') && close.is(b'}') =>
+            {
+                let name = src.text(t.start, t.end).to_ascii_uppercase();
+                let named = match index {
+                    [n] if n.kind == Tok::Number => {
+                        Named::One(format!("{name}{{{}}}", src.text(n.start, n.end)))
+                    }
+                    _ => Named::All(name),
+                };
+                self.pending(named, used, t, instruction);
+            }
+            [t, ..] if t.is(b'[') => {
+                let (value, end) = value(src, arg, 0)?;
+                if end != arg.len() {
+                    return Err(src.error(arg[end].start, "expected ',' after the target"));
+                }
+                let (kind, external) = if m.joints {
+                    joint_target(src, &value)?
+                } else {
+                    robtarget(src, &value)?
+                };
+                self.targets.push((
+                    ProgramTarget {
+                        name: instruction.to_string(),
+                        offset: t.start,
+                        kind,
+                        uses: Vec::new(),
+                        refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                    },
+                    vec![used.clone()],
+                ));
+            }
+            [t, open, ..] if t.kind == Tok::Ident && open.is(b'(') => {
+                self.computed_target(src, arg, instruction);
+            }
+            [t, ..] => {
+                let text = src.text(t.start, arg[arg.len() - 1].end);
+                self.targets.push((
+                    refused_motion(
+                        instruction,
+                        &t,
+                        Reason::Dynamic,
+                        format!("{instruction} {text}: a target computed when the program runs"),
+                    ),
+                    Vec::new(),
+                ));
+            }
+            [] => {}
+        }
+        Ok(())
+    }
+
+    fn pending(&mut self, named: Named, used: &Use, at: Token, instruction: &'static str) {
+        self.pending_uses.push(PendingUse {
+            named,
+            used: used.clone(),
+            at,
+            instruction,
+        });
+    }
+
+    /// A target a function computes (`Offs(p20, 0, 0, 5)`, `RelTool(…)`, `CRobT()`):
+    /// refused, and the names it takes remembered for the targets used only so.
+    fn computed_target(&mut self, src: &Source, arg: &[Token], instruction: &str) {
+        let t = &arg[0];
+        let call = src.text(t.start, t.end);
+        let text = src.text(t.start, arg[arg.len() - 1].end);
+        let (reason, detail) =
+            if call.eq_ignore_ascii_case("Offs") || call.eq_ignore_ascii_case("RelTool") {
+                (
+                    Reason::Relative,
+                    format!("{instruction} {text}: an offset computed when the program runs"),
+                )
+            } else {
+                (
+                    Reason::Dynamic,
+                    format!("{instruction} {text}: a target computed when the program runs"),
+                )
+            };
+        for n in arg.iter().filter(|n| n.kind == Tok::Ident) {
+            self.in_expressions
+                .entry(src.text(n.start, n.end).to_ascii_uppercase())
+                .or_insert((reason, detail.clone()));
+        }
+        self.targets
+            .push((refused_motion(instruction, t, reason, detail), Vec::new()));
+    }
+
+    /// Reports the motions this reader does not know (a call of the module's own routine
+    /// is none), and returns the names they move to, with the motion's word and place: a
+    /// target such a motion moves to is not corrected either, its frames not known.
+    fn refuse_unknown_moves(&mut self, src: &Source) -> HashMap<String, (String, usize)> {
+        let mut moved_by_unknown: HashMap<String, (String, usize)> = HashMap::new();
+        for (t, names) in std::mem::take(&mut self.unknown_moves) {
+            let word = src.text(t.start, t.end);
+            if self.procs.contains(&word.to_ascii_uppercase()) {
+                continue;
+            }
             for name in names {
                 moved_by_unknown
                     .entry(name)
                     .or_insert((word.clone(), t.start));
             }
-            targets.push((
+            self.targets.push((
                 refused_motion(
                     &word,
                     &t,
@@ -344,172 +385,249 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 Vec::new(),
             ));
         }
+        moved_by_unknown
     }
-    let by_name: HashMap<String, usize> = targets
-        .iter()
-        .enumerate()
-        .filter(|(_, (t, _))| !matches!(t.kind, TargetKind::Motion))
-        .map(|(k, (t, _))| (t.name.to_ascii_uppercase(), k))
-        .collect();
-    // A move to any element of an array gives every element its frames: once per tool and
-    // work object, so that a module of many such moves and a long array stays linear.
-    let mut every: HashSet<(String, String, Option<String>)> = HashSet::new();
-    for (named, u, t, instruction) in pending_uses {
-        if let Named::All(array) = &named {
-            let frames = (
-                array.clone(),
-                u.tool.clone(),
-                u.wobj.as_ref().map(|w| w.0.clone()),
-            );
-            if decl.arrays.contains_key(array) && !every.insert(frames) {
+
+    /// Gives each use to the targets it names; a use of a name no target answers is
+    /// reported where it is written.
+    fn resolve_uses(&mut self, src: &Source) {
+        let by_name: HashMap<String, usize> = self
+            .targets
+            .iter()
+            .enumerate()
+            .filter(|(_, (t, _))| !matches!(t.kind, TargetKind::Motion))
+            .map(|(k, (t, _))| (t.name.to_ascii_uppercase(), k))
+            .collect();
+        // A move to any element of an array gives every element its frames: once per tool
+        // and work object, so that a module of many such moves and a long array stays
+        // linear.
+        let mut every: HashSet<(String, String, Option<String>)> = HashSet::new();
+        for pending in std::mem::take(&mut self.pending_uses) {
+            let PendingUse {
+                named,
+                used,
+                at,
+                instruction,
+            } = pending;
+            if let Named::All(array) = &named {
+                let frames = (
+                    array.clone(),
+                    used.tool.clone(),
+                    used.wobj.as_ref().map(|w| w.0.clone()),
+                );
+                if self.decl.arrays.contains_key(array) && !every.insert(frames) {
+                    continue;
+                }
+            }
+            let found: Vec<usize> = match &named {
+                Named::One(name) => by_name.get(name).copied().into_iter().collect(),
+                Named::All(name) => self
+                    .decl
+                    .arrays
+                    .get(name)
+                    .map(|keys| {
+                        keys.iter()
+                            .filter_map(|k| by_name.get(k).copied())
+                            .collect()
+                    })
+                    .unwrap_or_default(),
+            };
+            if found.is_empty() {
+                let (Named::One(n) | Named::All(n)) = &named;
+                let (reason, why) = self.why_unresolved(src, n);
+                let written = src.text(at.start, at.end);
+                self.targets.push((
+                    refused_motion(
+                        instruction,
+                        &at,
+                        reason,
+                        format!("{instruction} {written}: {why}"),
+                    ),
+                    Vec::new(),
+                ));
                 continue;
             }
-        }
-        let found: Vec<usize> = match &named {
-            Named::One(name) => by_name.get(name).copied().into_iter().collect(),
-            Named::All(name) => decl
-                .arrays
-                .get(name)
-                .map(|keys| {
-                    keys.iter()
-                        .filter_map(|k| by_name.get(k).copied())
-                        .collect()
-                })
-                .unwrap_or_default(),
-        };
-        if found.is_empty() {
-            let (Named::One(n) | Named::All(n)) = &named;
-            let array = n.split('{').next().unwrap_or(n);
-            let (reason, why) = if let Some(&at) = decl.assigned.get(array) {
-                let (line, column) = src.location(at);
-                (
-                    Reason::Dynamic,
-                    format!("assigned as the program runs ({line}:{column})"),
-                )
-            } else if decl.names.contains(array) {
-                (
-                    Reason::Dynamic,
-                    "declared without a value this reader reads: given when the program runs"
-                        .to_string(),
-                )
-            } else {
-                (
-                    Reason::NotDeclared,
-                    "not declared in this module (another module's, or the controller's)"
-                        .to_string(),
-                )
-            };
-            let written = src.text(t.start, t.end);
-            targets.push((
-                refused_motion(
-                    instruction,
-                    &t,
-                    reason,
-                    format!("{instruction} {written}: {why}"),
-                ),
-                Vec::new(),
-            ));
-            continue;
-        }
-        for k in found {
-            targets[k].1.push(u.clone());
+            for k in found {
+                self.targets[k].1.push(used.clone());
+            }
         }
     }
-    let mut out = Vec::with_capacity(targets.len());
-    for (mut target, uses) in targets {
-        let base_name = target
-            .name
-            .split('{')
-            .next()
-            .unwrap_or("")
-            .to_ascii_uppercase();
-        if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) {
-            if let Some((word, at)) = moved_by_unknown.get(&base_name) {
-                let (line, column) = src.location(*at);
-                target.refused = Some(Refusal::new(
-                    Reason::UnknownMotion,
-                    format!(
-                        "moved to by {word} ({line}:{column}), a motion this reader does not know"
-                    ),
-                ));
-            }
+
+    /// Why a move's target `name` stands for no target read: assigned as the program runs,
+    /// declared without a value, or not declared here.
+    fn why_unresolved(&self, src: &Source, name: &str) -> (Reason, String) {
+        let array = name.split('{').next().unwrap_or(name);
+        if let Some(&at) = self.decl.assigned.get(array) {
+            let (line, column) = src.location(at);
+            (
+                Reason::Dynamic,
+                format!("assigned as the program runs ({line}:{column})"),
+            )
+        } else if self.decl.names.contains(array) {
+            (
+                Reason::Dynamic,
+                "declared without a value this reader reads: given when the program runs"
+                    .to_string(),
+            )
+        } else {
+            (
+                Reason::NotDeclared,
+                "not declared in this module (another module's, or the controller's)".to_string(),
+            )
         }
-        // A target moved to only through an expression: no one correction holds for it.
-        if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) && uses.is_empty()
-        {
-            if let Some((reason, detail)) = in_expressions.get(&base_name) {
-                target.refused = Some(Refusal::new(*reason, format!("used only by {detail}")));
-            }
-        }
+    }
+
+    /// A target with its uses' frames, refused when a motion this reader does not know
+    /// moves to it, when only expressions use it, or when the program assigns it.
+    fn finish(
+        &self,
+        src: &Source,
+        mut target: ProgramTarget,
+        uses: Vec<Use>,
+        moved_by_unknown: &HashMap<String, (String, usize)>,
+    ) -> ProgramTarget {
         if target.refused.is_none() && !matches!(target.kind, TargetKind::Motion) {
-            if let Some(&at) = decl.assigned.get(&base_name) {
-                let (line, column) = src.location(at);
-                target.refused = Some(Refusal::new(
-                    Reason::Dynamic,
-                    format!(
-                        "{} is assigned as the program runs ({line}:{column}): its declared value is not what the robot moves to",
-                        target.name
-                    ),
-                ));
-            }
+            let base_name = target
+                .name
+                .split('{')
+                .next()
+                .unwrap_or("")
+                .to_ascii_uppercase();
+            target.refused = self.refusal(
+                src,
+                &target.name,
+                &base_name,
+                uses.is_empty(),
+                moved_by_unknown,
+            );
         }
         for u in uses {
-            let mut unknown = Vec::new();
-            let tool = match u.tool.as_str() {
-                "TOOL0" => Some(Isometry3::identity()),
-                name => match decl.tools.get(name) {
-                    Some(Ok(t)) => Some(*t),
-                    Some(Err(why)) => {
-                        unknown.push(why.clone());
-                        Some(Isometry3::identity())
-                    }
-                    None => None,
-                },
-            };
-            let base = match &u.wobj {
-                None => Some(Isometry3::identity()),
-                Some((name, _)) if name == "WOBJ0" => Some(Isometry3::identity()),
-                Some((name, _)) => match decl.wobjs.get(name) {
-                    Some(Ok(t)) => Some(*t),
-                    Some(Err(why)) => {
-                        unknown.push(why.clone());
-                        Some(Isometry3::identity())
-                    }
-                    None => None,
-                },
-            };
-            target.uses.push(FrameUse {
-                tool,
-                base,
-                offset: u.at,
-                elsewhere: None,
-                undeclared: [
-                    tool.is_none().then(|| Undeclared {
-                        base: false,
-                        name: src.text(u.tool_at, u.tool_at + u.tool.len()),
-                    }),
-                    base.is_none().then(|| Undeclared {
-                        base: true,
-                        name: u
-                            .wobj
-                            .as_ref()
-                            .map_or(String::new(), |(n, at)| src.text(*at, at + n.len())),
-                    }),
-                ]
-                .into_iter()
-                .flatten()
-                .collect(),
-                unknown,
-            });
+            target.uses.push(self.frame_use(src, &u));
         }
-        out.push(target);
+        target
     }
-    out.sort_by_key(|t| t.offset);
-    Ok(Program {
-        format: Format::Rapid,
-        targets: out,
-        truncated_at,
-        first_motion,
+
+    /// Why a declared target `name` (its array's name `base_name`) is left unchanged, if
+    /// it is; `unused` when no move names it.
+    fn refusal(
+        &self,
+        src: &Source,
+        name: &str,
+        base_name: &str,
+        unused: bool,
+        moved_by_unknown: &HashMap<String, (String, usize)>,
+    ) -> Option<Refusal> {
+        if let Some((word, at)) = moved_by_unknown.get(base_name) {
+            let (line, column) = src.location(*at);
+            return Some(Refusal::new(
+                Reason::UnknownMotion,
+                format!("moved to by {word} ({line}:{column}), a motion this reader does not know"),
+            ));
+        }
+        // A target moved to only through an expression: no one correction holds for it.
+        if unused {
+            if let Some((reason, detail)) = self.in_expressions.get(base_name) {
+                return Some(Refusal::new(*reason, format!("used only by {detail}")));
+            }
+        }
+        let &at = self.decl.assigned.get(base_name)?;
+        let (line, column) = src.location(at);
+        Some(Refusal::new(
+            Reason::Dynamic,
+            format!(
+                "{name} is assigned as the program runs ({line}:{column}): its declared value is not what the robot moves to"
+            ),
+        ))
+    }
+
+    /// The frames of a use: its tool and work object as the module declares them (`tool0`
+    /// and `wobj0` the flange and the world), or named undeclared.
+    fn frame_use(&self, src: &Source, u: &Use) -> FrameUse {
+        let mut unknown = Vec::new();
+        let mut declared = |found: Option<&Declared>| match found {
+            Some(Ok(t)) => Some(*t),
+            Some(Err(why)) => {
+                unknown.push(why.clone());
+                Some(Isometry3::identity())
+            }
+            None => None,
+        };
+        let tool = match u.tool.as_str() {
+            "TOOL0" => Some(Isometry3::identity()),
+            name => declared(self.decl.tools.get(name)),
+        };
+        let base = match &u.wobj {
+            None => Some(Isometry3::identity()),
+            Some((name, _)) if name == "WOBJ0" => Some(Isometry3::identity()),
+            Some((name, _)) => declared(self.decl.wobjs.get(name)),
+        };
+        FrameUse {
+            tool,
+            base,
+            offset: u.at,
+            elsewhere: None,
+            undeclared: [
+                tool.is_none().then(|| Undeclared {
+                    base: false,
+                    name: src.text(u.tool_at, u.tool_at + u.tool.len()),
+                }),
+                base.is_none().then(|| Undeclared {
+                    base: true,
+                    name: u
+                        .wobj
+                        .as_ref()
+                        .map_or(String::new(), |(n, at)| src.text(*at, at + n.len())),
+                }),
+            ]
+            .into_iter()
+            .flatten()
+            .collect(),
+            unknown,
+        }
+    }
+}
+
+/// The frames a motion `m` (the statement's first token) moves in: its tool argument and
+/// its `\WObj`.
+fn motion_use(
+    src: &Source,
+    statement: &[Token],
+    m: &Motion,
+    args: &[Argument],
+    positional: &[&[Token]],
+) -> Result<Use, Error> {
+    let Some(tool) = positional
+        .get(m.tool)
+        .filter(|t| t.len() == 1 && t[0].kind == Tok::Ident)
+    else {
+        return Err(src.error(
+            statement[0].start,
+            format!(
+                "{} needs its tool as argument {} (a tooldata name)",
+                src.text(statement[0].start, statement[0].end),
+                m.tool + 1
+            ),
+        ));
+    };
+    let wobj = args
+        .iter()
+        .flat_map(|a| &a.options)
+        .find(|(name, _)| src.text(name.start, name.end).eq_ignore_ascii_case("WObj"))
+        .map(|(_, value)| match value {
+            [t] if t.kind == Tok::Ident => {
+                Ok((src.text(t.start, t.end).to_ascii_uppercase(), t.start))
+            }
+            _ => Err(src.error(
+                value.first().map_or(statement[0].start, |t| t.start),
+                "\\WObj:= takes a wobjdata name",
+            )),
+        })
+        .transpose()?;
+    Ok(Use {
+        tool: src.text(tool[0].start, tool[0].end).to_ascii_uppercase(),
+        tool_at: tool[0].start,
+        wobj,
+        at: statement[0].start,
     })
 }
 
