@@ -72,9 +72,45 @@ pub fn read(src: &Source) -> Result<Program, Error> {
 ///
 /// As [`read`].
 pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
-    // The script's own functions: a call of one is not a motion, whatever its name.
-    let mut functions: HashSet<String> = HashSet::new();
-    {
+    let mut script = Script::new(src);
+    let mut lexer = Lexer::new(src, URSCRIPT);
+    let mut truncated_at = None;
+    while let Some(line) = lexer.line() {
+        if script.candidates.len() > limit {
+            truncated_at = Some(lexer.pos);
+            break;
+        }
+        script.assignment(src, &line)?;
+        script.calls(src, &line)?;
+    }
+    script.resolve_late_uses(src);
+    script.refuse_offsets_from_targets();
+    Ok(script.program(truncated_at))
+}
+
+/// What a script says, line by line: its literals that may be targets and the uses of
+/// each, its variables' assignments, the TCP it sets, and the motions refused.
+struct Script {
+    /// The script's own functions: a call of one is not a motion, whatever its name.
+    functions: HashSet<String>,
+    candidates: Vec<Candidate>,
+    /// Per variable, its last assignment so far.
+    last: HashMap<String, Assign>,
+    /// Per variable, its last assignment in the file.
+    last_in_file: HashMap<String, Assign>,
+    /// Uses of variables not yet assigned: resolved to the variable's last assignment.
+    late_uses: Vec<(String, FrameUse, Token, String)>,
+    /// `pose_trans(F, X)` whose frame is a variable: refused if F is itself a target.
+    frames_used: Vec<(String, usize)>,
+    refused: Vec<ProgramTarget>,
+    tcp: Tcp,
+    first_motion: Option<usize>,
+}
+
+impl Script {
+    /// A script about to be read, its functions known.
+    fn new(src: &Source) -> Script {
+        let mut functions: HashSet<String> = HashSet::new();
         let mut lexer = Lexer::new(src, URSCRIPT);
         while let Some(line) = lexer.line() {
             if let [d, name, ..] = line.as_slice() {
@@ -83,27 +119,21 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 }
             }
         }
-    }
-    let mut lexer = Lexer::new(src, URSCRIPT);
-    let mut candidates: Vec<Candidate> = Vec::new();
-    // Per variable, its last assignment so far.
-    let mut last: HashMap<String, Assign> = HashMap::new();
-    // Per variable, its last assignment in the file.
-    let mut last_in_file: HashMap<String, Assign> = HashMap::new();
-    // Uses of variables not yet assigned: resolved to the variable's last assignment.
-    let mut late_uses: Vec<(String, FrameUse, Token, String)> = Vec::new();
-    // `pose_trans(F, X)` whose frame is a variable: refused if F is itself a target.
-    let mut frames_used: Vec<(String, usize)> = Vec::new();
-    let mut refused: Vec<ProgramTarget> = Vec::new();
-    let mut tcp = Tcp::Default;
-    let mut first_motion = None;
-    let mut truncated_at = None;
-    while let Some(line) = lexer.line() {
-        if candidates.len() > limit {
-            truncated_at = Some(lexer.pos);
-            break;
+        Script {
+            functions,
+            candidates: Vec::new(),
+            last: HashMap::new(),
+            last_in_file: HashMap::new(),
+            late_uses: Vec::new(),
+            frames_used: Vec::new(),
+            refused: Vec::new(),
+            tcp: Tcp::Default,
+            first_motion: None,
         }
-        // An assignment: [global|local] NAME = value.
+    }
+
+    /// A line's assignment, if it is one: `[global|local] NAME = value`.
+    fn assignment(&mut self, src: &Source, line: &[Token]) -> Result<(), Error> {
         let mut i = 0;
         if line
             .first()
@@ -111,29 +141,33 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         {
             i = 1;
         }
-        if let (Some(name), Some(eq)) = (line.get(i), line.get(i + 1)) {
-            if name.kind == Tok::Ident
-                && eq.is(b'=')
-                && !line.get(i + 2).is_some_and(|t| t.is(b'='))
-            {
-                let key = src.text(name.start, name.end);
-                let assign = match literal(src, &line, i + 2)? {
-                    Some((literal, end)) if end == line.len() => {
-                        candidates.push(Candidate {
-                            name: key.clone(),
-                            offset: line[i + 2].start,
-                            literal,
-                            uses: Vec::new(),
-                        });
-                        Assign::Literal(candidates.len() - 1)
-                    }
-                    _ => Assign::Expression(line.get(i + 2).map_or(eq.end, |t| t.start)),
-                };
-                last.insert(key.clone(), assign);
-                last_in_file.insert(key, assign);
-            }
+        let (Some(name), Some(eq)) = (line.get(i), line.get(i + 1)) else {
+            return Ok(());
+        };
+        if name.kind != Tok::Ident || !eq.is(b'=') || line.get(i + 2).is_some_and(|t| t.is(b'=')) {
+            return Ok(());
         }
-        // Calls anywhere on the line.
+        let key = src.text(name.start, name.end);
+        let assign = match literal(src, line, i + 2)? {
+            Some((literal, end)) if end == line.len() => {
+                self.candidates.push(Candidate {
+                    name: key.clone(),
+                    offset: line[i + 2].start,
+                    literal,
+                    uses: Vec::new(),
+                });
+                Assign::Literal(self.candidates.len() - 1)
+            }
+            _ => Assign::Expression(line.get(i + 2).map_or(eq.end, |t| t.start)),
+        };
+        self.last.insert(key.clone(), assign);
+        self.last_in_file.insert(key, assign);
+        Ok(())
+    }
+
+    /// The calls anywhere on a line: `set_tcp`, the motions, and calls that look like
+    /// motions.
+    fn calls(&mut self, src: &Source, line: &[Token]) -> Result<(), Error> {
         let mut k = 0;
         while k + 1 < line.len() {
             let (t, open) = (&line[k], &line[k + 1]);
@@ -143,7 +177,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             }
             let call = src.text(t.start, t.end);
             if call == "set_tcp" {
-                tcp = match argument(src, &line, k + 2, &candidates, &last)? {
+                self.tcp = match argument(src, line, k + 2, &self.candidates, &self.last)? {
                     Some(Literal::Pose(p)) => Tcp::Known(pose_mm(&p)),
                     _ => Tcp::Unknown(t.start),
                 };
@@ -152,10 +186,10 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             }
             let Some(m) = MOTIONS.iter().find(|m| m.name == call) else {
                 if (call.starts_with("move") || call.starts_with("servo"))
-                    && !functions.contains(&call)
+                    && !self.functions.contains(&call)
                 {
-                    first_motion.get_or_insert(t.start);
-                    refused.push(refused_call(
+                    self.first_motion.get_or_insert(t.start);
+                    self.refused.push(refused_call(
                         t,
                         &call,
                         Reason::UnknownMotion,
@@ -165,88 +199,118 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
                 k += 1;
                 continue;
             };
-            first_motion.get_or_insert(t.start);
-            let frame = FrameUse {
-                tool: match tcp {
-                    Tcp::Known(t) => Some(t),
-                    Tcp::Default | Tcp::Unknown(_) => None,
-                },
-                // URScript poses are in the robot's base frame.
-                base: Some(Isometry3::identity()),
-                offset: t.start,
-                elsewhere: None,
-                undeclared: match tcp {
-                    Tcp::Unknown(at) => {
-                        let (line, column) = src.location(at);
-                        vec![Undeclared {
-                            base: false,
-                            name: format!("set by set_tcp at {line}:{column}"),
-                        }]
-                    }
-                    _ => Vec::new(),
-                },
-                unknown: Vec::new(),
-            };
-            let mut j = k + 2;
-            for _ in 0..m.targets {
-                let end = argument_end(&line, j);
-                if end == j {
-                    break;
-                }
-                let arg = &line[j..end];
-                let mut reader = Reader {
-                    src,
-                    candidates: &mut candidates,
-                    last: &last,
-                    late_uses: &mut late_uses,
-                    frames_used: &mut frames_used,
-                    refused: &mut refused,
-                    call: &call,
-                };
-                reader.target(arg, frame.clone())?;
-                j = end;
-                if line.get(j).is_some_and(|t| t.is(b',')) {
-                    j += 1;
-                } else {
-                    break;
-                }
-            }
+            self.first_motion.get_or_insert(t.start);
+            self.motion(src, line, k + 2, m, &call, self.frame_use(src, t.start))?;
             k += 2;
         }
+        Ok(())
     }
-    for (name, frame, at, call) in late_uses {
-        match last_in_file.get(&name) {
-            Some(Assign::Literal(c)) => candidates[*c].uses.push(frame),
-            Some(Assign::Expression(e)) => {
-                let (l, c) = src.location(*e);
-                refused.push(refused_call(
+
+    /// The frames of a motion at `at`: the TCP `set_tcp` last set, in the robot's base
+    /// frame.
+    fn frame_use(&self, src: &Source, at: usize) -> FrameUse {
+        FrameUse {
+            tool: match self.tcp {
+                Tcp::Known(t) => Some(t),
+                Tcp::Default | Tcp::Unknown(_) => None,
+            },
+            // URScript poses are in the robot's base frame.
+            base: Some(Isometry3::identity()),
+            offset: at,
+            elsewhere: None,
+            undeclared: match self.tcp {
+                Tcp::Unknown(set_at) => {
+                    let (line, column) = src.location(set_at);
+                    vec![Undeclared {
+                        base: false,
+                        name: format!("set by set_tcp at {line}:{column}"),
+                    }]
+                }
+                _ => Vec::new(),
+            },
+            unknown: Vec::new(),
+        }
+    }
+
+    /// The targets of the motion `m` (`call`) whose arguments start at `line[j]`, each used
+    /// in `frame`.
+    fn motion(
+        &mut self,
+        src: &Source,
+        line: &[Token],
+        mut j: usize,
+        m: &Motion,
+        call: &str,
+        frame: FrameUse,
+    ) -> Result<(), Error> {
+        for _ in 0..m.targets {
+            let end = argument_end(line, j);
+            if end == j {
+                break;
+            }
+            let mut reader = Reader {
+                src,
+                candidates: &mut self.candidates,
+                last: &self.last,
+                late_uses: &mut self.late_uses,
+                frames_used: &mut self.frames_used,
+                refused: &mut self.refused,
+                call,
+            };
+            reader.target(&line[j..end], frame.clone())?;
+            j = end;
+            if line.get(j).is_some_and(|t| t.is(b',')) {
+                j += 1;
+            } else {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives the uses of variables assigned only later in the file to their last
+    /// assignment; a use of an expression or of a name never assigned is refused.
+    fn resolve_late_uses(&mut self, src: &Source) {
+        for (name, frame, at, call) in std::mem::take(&mut self.late_uses) {
+            match self.last_in_file.get(&name) {
+                Some(Assign::Literal(c)) => self.candidates[*c].uses.push(frame),
+                Some(Assign::Expression(e)) => {
+                    let (l, c) = src.location(*e);
+                    self.refused.push(refused_call(
+                        &at,
+                        &call,
+                        Reason::Dynamic,
+                        format!(
+                            "{call}({name}): {name} is computed when the script runs ({l}:{c})"
+                        ),
+                    ));
+                }
+                None => self.refused.push(refused_call(
                     &at,
                     &call,
                     Reason::Dynamic,
-                    format!("{call}({name}): {name} is computed when the script runs ({l}:{c})"),
-                ));
+                    format!(
+                        "{call}({name}): {name} is not assigned in the script (given when it runs)"
+                    ),
+                )),
             }
-            None => refused.push(refused_call(
-                &at,
-                &call,
-                Reason::Dynamic,
-                format!(
-                    "{call}({name}): {name} is not assigned in the script (given when it runs)"
-                ),
-            )),
         }
     }
-    // A frame that is itself a target: the composed pose moves with the frame's
-    // correction, which no correction of the offset can undo.
-    for (frame, c) in frames_used {
-        let is_target = candidates.iter().any(|o| {
-            o.name == frame && o.uses.iter().any(|u| u.base == Some(Isometry3::identity()))
-        });
-        if is_target {
-            let candidate = &mut candidates[c];
+
+    /// Refuses the offsets from a frame that is itself a target: the composed pose moves
+    /// with the frame's correction, which no correction of the offset can undo.
+    fn refuse_offsets_from_targets(&mut self) {
+        for (frame, c) in std::mem::take(&mut self.frames_used) {
+            let is_target = self.candidates.iter().any(|o| {
+                o.name == frame && o.uses.iter().any(|u| u.base == Some(Isometry3::identity()))
+            });
+            if !is_target {
+                continue;
+            }
+            let candidate = &mut self.candidates[c];
             let uses = std::mem::take(&mut candidate.uses);
             for u in uses {
-                refused.push(ProgramTarget {
+                self.refused.push(ProgramTarget {
                     name: "pose_trans".into(),
                     offset: u.offset,
                     kind: TargetKind::Motion,
@@ -262,40 +326,45 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
             }
         }
     }
-    let mut targets: Vec<ProgramTarget> = candidates
-        .into_iter()
-        .filter(|c| !c.uses.is_empty())
-        .map(|c| ProgramTarget {
-            name: c.name,
-            offset: c.offset,
-            kind: match c.literal {
-                Literal::Pose(pose) => {
-                    let [x, y, z, rx, ry, rz] = *pose;
-                    TargetKind::Cartesian(Box::new(CartesianTarget {
-                        position: [x, y, z],
-                        unit: LengthUnit::Metre,
-                        orientation: Some(Orientation::RotationVectorRad([rx, ry, rz])),
-                        config: ConfigHint::None,
-                        joints: Vec::new(),
-                    }))
-                }
-                Literal::Joints(joints) => TargetKind::Joints(JointTarget {
-                    joints,
-                    unit: AngleUnit::Radian,
-                }),
-            },
-            uses: c.uses,
-            refused: None,
-        })
-        .collect();
-    targets.extend(refused);
-    targets.sort_by_key(|t| t.offset);
-    Ok(Program {
-        format: Format::UrScript,
-        targets,
-        truncated_at,
-        first_motion,
-    })
+
+    /// The program: the literals a motion uses, and the motions refused.
+    fn program(self, truncated_at: Option<usize>) -> Program {
+        let mut targets: Vec<ProgramTarget> = self
+            .candidates
+            .into_iter()
+            .filter(|c| !c.uses.is_empty())
+            .map(|c| ProgramTarget {
+                name: c.name,
+                offset: c.offset,
+                kind: match c.literal {
+                    Literal::Pose(pose) => {
+                        let [x, y, z, rx, ry, rz] = *pose;
+                        TargetKind::Cartesian(Box::new(CartesianTarget {
+                            position: [x, y, z],
+                            unit: LengthUnit::Metre,
+                            orientation: Some(Orientation::RotationVectorRad([rx, ry, rz])),
+                            config: ConfigHint::None,
+                            joints: Vec::new(),
+                        }))
+                    }
+                    Literal::Joints(joints) => TargetKind::Joints(JointTarget {
+                        joints,
+                        unit: AngleUnit::Radian,
+                    }),
+                },
+                uses: c.uses,
+                refused: None,
+            })
+            .collect();
+        targets.extend(self.refused);
+        targets.sort_by_key(|t| t.offset);
+        Program {
+            format: Format::UrScript,
+            targets,
+            truncated_at,
+            first_motion: self.first_motion,
+        }
+    }
 }
 
 /// A motion of URScript: its name and how many targets it takes (its first arguments).
