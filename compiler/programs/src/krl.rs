@@ -936,22 +936,7 @@ fn motion_statement(
     let first = &line[0];
     scan.first_motion.get_or_insert(first.start);
     let motion = m.name;
-    // Where the targets end: the first word that follows them, or the line's end.
-    let mut i = 1;
-    let mut args: Vec<(usize, usize)> = Vec::new();
-    while args.len() < m.targets && i < line.len() {
-        if word_is(src, line.get(i), "WITH") {
-            break;
-        }
-        let end = argument_end(src, line, i);
-        args.push((i, end));
-        i = end;
-        if line.get(i).is_some_and(|t| t.is(b',')) {
-            i += 1;
-        } else {
-            break;
-        }
-    }
+    let args = motion_arguments(src, line, m.targets);
     // Frames given for this motion alone.
     let mut frames = state.clone();
     if let Some(w) = line.iter().position(|t| word_is(src, Some(t), "WITH")) {
@@ -973,36 +958,74 @@ fn motion_statement(
         }
         return Ok(());
     }
+    let targets = MotionTargets {
+        src,
+        line,
+        motion,
+        context,
+        this_file,
+        frame: &frame,
+    };
     for &(start, end) in &args {
-        let tokens = &line[start..end];
+        targets.argument(start, end, scan)?;
+    }
+    if args.len() < m.targets && this_file {
+        return Err(src.error(
+            line.last().map_or(first.end, |t| t.end),
+            format!("{motion} needs {} target(s)", m.targets),
+        ));
+    }
+    Ok(())
+}
+
+/// The ranges of a motion's target arguments (at most `count`): up to the first word that
+/// follows them (`WITH`), or the line's end.
+fn motion_arguments(src: &Source, line: &[Token], count: usize) -> Vec<(usize, usize)> {
+    let mut i = 1;
+    let mut args: Vec<(usize, usize)> = Vec::new();
+    while args.len() < count && i < line.len() {
+        if word_is(src, line.get(i), "WITH") {
+            break;
+        }
+        let end = argument_end(src, line, i);
+        args.push((i, end));
+        i = end;
+        if line.get(i).is_some_and(|t| t.is(b',')) {
+            i += 1;
+        } else {
+            break;
+        }
+    }
+    args
+}
+
+/// The targets of one motion statement, as the file it is read in sees them: `this_file`
+/// when they are reported here (a `.dat`'s partner `.src` only gives its targets' uses).
+struct MotionTargets<'m, 'a> {
+    src: &'m Source<'a>,
+    line: &'m [Token],
+    /// The motion's name (`LIN`).
+    motion: &'static str,
+    context: &'m Context<'m>,
+    this_file: bool,
+    /// The frames the motion moves in.
+    frame: &'m FrameUse,
+}
+
+impl MotionTargets<'_, '_> {
+    /// The target argument `line[start..end]`: an aggregate, an array's element, a system
+    /// variable, a declared name, or an expression.
+    fn argument(&self, start: usize, end: usize, scan: &mut Scan) -> Result<(), Error> {
+        let (src, motion) = (self.src, self.motion);
+        let tokens = &self.line[start..end];
         match tokens {
-            [t, ..] if t.is(b'{') => {
-                let (kind, after, external) = aggregate(src, line, start, None)?;
-                if after != end {
-                    return Err(src.error(
-                        line.get(after).map_or(t.start, |t| t.start),
-                        "expected ',' or the end of the motion after the aggregate",
-                    ));
-                }
-                if this_file {
-                    scan.targets.push((
-                        ProgramTarget {
-                            name: motion.to_string(),
-                            offset: t.start,
-                            kind,
-                            uses: vec![frame.clone()],
-                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                        },
-                        None,
-                        None,
-                    ));
-                }
-            }
+            [t, ..] if t.is(b'{') => self.aggregate(t, start, end, scan)?,
             [t, open, index @ .., close]
                 if t.kind == Tok::Ident
                     && open.is(b'[')
                     && close.is(b']')
-                    && context
+                    && self
+                        .context
                         .arrays
                         .contains_key(&src.text(t.start, t.end).to_ascii_uppercase()) =>
             {
@@ -1011,48 +1034,20 @@ fn motion_statement(
                     [n] if n.kind == Tok::Number => element_key(&array, &src.text(n.start, n.end)),
                     _ => format!("{array}[*]"),
                 };
-                scan.uses.push((key, frame.clone()));
+                scan.uses.push((key, self.frame.clone()));
             }
             // A system variable (`$POS_ACT`, `$AXIS_ACT`): where the robot stands when the
             // motion runs (none declares it: the partner's are not reported here).
             [t] if t.kind == Tok::Ident && src.bytes[t.start] == b'$' => {
                 let name = src.text(t.start, t.end);
-                if this_file {
-                    scan.targets.push((
-                        refused_motion(
-                            src,
-                            t,
-                            Reason::Dynamic,
-                            format!(
-                                "{motion} {name}: a system variable, read when the program runs"
-                            ),
-                        ),
-                        None,
-                        None,
-                    ));
-                }
+                self.refuse(
+                    t,
+                    Reason::Dynamic,
+                    format!("{motion} {name}: a system variable, read when the program runs"),
+                    scan,
+                );
             }
-            [t] if t.kind == Tok::Ident => {
-                let name = src.text(t.start, t.end);
-                let key = name.to_ascii_uppercase();
-                if context.declared_here.contains(&key) || context.declared_there.contains(&key) {
-                    scan.uses.push((key, frame.clone()));
-                } else if this_file {
-                    let partner = context
-                        .partner_name
-                        .map_or(String::new(), |p| format!(" nor in {p}"));
-                    scan.targets.push((
-                        refused_motion(
-                            src,
-                            t,
-                            Reason::NotDeclared,
-                            format!("{motion} {name}: {name} is declared neither in this file{partner} (a global of another module or of $config.dat)"),
-                        ),
-                        None,
-                        None,
-                    ));
-                }
-            }
+            [t] if t.kind == Tok::Ident => self.name(t, scan),
             [t, ..] => {
                 let text = src.text(t.start, tokens.last().map_or(t.end, |l| l.end));
                 let (l, c) = src.location(t.start);
@@ -1062,30 +1057,71 @@ fn motion_statement(
                         format!("{motion} {text} ({}:{l}:{c})", src.name),
                     ));
                 }
-                if !this_file {
-                    continue;
-                }
-                scan.targets.push((
-                    refused_motion(
-                        src,
-                        t,
-                        Reason::Dynamic,
-                        format!("{motion} {text}: a target computed when the program runs"),
-                    ),
-                    None,
-                    None,
-                ));
+                self.refuse(
+                    t,
+                    Reason::Dynamic,
+                    format!("{motion} {text}: a target computed when the program runs"),
+                    scan,
+                );
             }
             _ => {}
         }
+        Ok(())
     }
-    if args.len() < m.targets && this_file {
-        return Err(src.error(
-            line.last().map_or(first.end, |t| t.end),
-            format!("{motion} needs {} target(s)", m.targets),
-        ));
+
+    /// An aggregate written inline (`LIN {X 1, Y 2, Z 3}`), its `{` at `line[start]`.
+    fn aggregate(&self, t: &Token, start: usize, end: usize, scan: &mut Scan) -> Result<(), Error> {
+        let (kind, after, external) = aggregate(self.src, self.line, start, None)?;
+        if after != end {
+            return Err(self.src.error(
+                self.line.get(after).map_or(t.start, |t| t.start),
+                "expected ',' or the end of the motion after the aggregate",
+            ));
+        }
+        if self.this_file {
+            scan.targets.push((
+                ProgramTarget {
+                    name: self.motion.to_string(),
+                    offset: t.start,
+                    kind,
+                    uses: vec![self.frame.clone()],
+                    refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+                },
+                None,
+                None,
+            ));
+        }
+        Ok(())
     }
-    Ok(())
+
+    /// A target named: used, when this file or its partner declares it; else reported.
+    fn name(&self, t: &Token, scan: &mut Scan) {
+        let name = self.src.text(t.start, t.end);
+        let key = name.to_ascii_uppercase();
+        let context = self.context;
+        if context.declared_here.contains(&key) || context.declared_there.contains(&key) {
+            scan.uses.push((key, self.frame.clone()));
+            return;
+        }
+        let partner = context
+            .partner_name
+            .map_or(String::new(), |p| format!(" nor in {p}"));
+        let motion = self.motion;
+        self.refuse(
+            t,
+            Reason::NotDeclared,
+            format!("{motion} {name}: {name} is declared neither in this file{partner} (a global of another module or of $config.dat)"),
+            scan,
+        );
+    }
+
+    /// Reports the motion's target at `t` as left unchanged, when this file reports it.
+    fn refuse(&self, t: &Token, reason: Reason, detail: String, scan: &mut Scan) {
+        if self.this_file {
+            scan.targets
+                .push((refused_motion(self.src, t, reason, detail), None, None));
+        }
+    }
 }
 
 /// `[DECL] [GLOBAL] [CONST] TYPE NAME = {...}`, in any order of the first three.
@@ -1139,6 +1175,150 @@ enum Value {
     Other,
 }
 
+/// A component of an aggregate: `X 1500.25`, `S 'B010'`.
+struct Component {
+    /// Its name, upper case.
+    name: String,
+    /// Where its name is written.
+    at: usize,
+    /// Where its value is written.
+    value_at: usize,
+    value: Value,
+    /// Its value as a non-negative integer, when it is one.
+    integer: Option<u32>,
+}
+
+/// The components of an aggregate, in the order written.
+struct Components(Vec<Component>);
+
+impl Components {
+    fn get(&self, name: &str) -> Option<&Component> {
+        self.0.iter().find(|c| c.name == name)
+    }
+
+    fn has(&self, name: &str) -> bool {
+        self.get(name).is_some()
+    }
+
+    /// The number of the component `name`, if written; an error if it is not a number.
+    fn number(&self, src: &Source, name: &str) -> Result<Option<Number>, Error> {
+        match self.get(name) {
+            None => Ok(None),
+            Some(Component {
+                value: Value::Number(v),
+                ..
+            }) => Ok(Some(*v)),
+            Some(c) => Err(src.error(c.value_at, format!("{name} must be a number"))),
+        }
+    }
+
+    /// The integer of the component `name` (Status, Turn), if written.
+    fn integer(&self, src: &Source, name: &str) -> Result<Option<u32>, Error> {
+        match self.get(name) {
+            None => Ok(None),
+            Some(c) => c.integer.map(Some).ok_or_else(|| {
+                src.error(
+                    c.value_at,
+                    format!("{name} must be a non-negative integer or a 'B…' literal"),
+                )
+            }),
+        }
+    }
+
+    /// An error at the first component a target of `kind` does not have.
+    fn check_names(&self, src: &Source, kind: Kind) -> Result<(), Error> {
+        let allowed: &[&str] = match kind {
+            Kind::Joints => &[
+                "A1", "A2", "A3", "A4", "A5", "A6", "E1", "E2", "E3", "E4", "E5", "E6",
+            ],
+            Kind::Cartesian | Kind::Frame => &[
+                "X", "Y", "Z", "A", "B", "C", "S", "T", "E1", "E2", "E3", "E4", "E5", "E6",
+            ],
+        };
+        match self.0.iter().find(|c| !allowed.contains(&c.name.as_str())) {
+            Some(c) => Err(src.error(
+                c.at,
+                format!(
+                    "{} is not a component of this target (one of {})",
+                    c.name,
+                    allowed.join(", ")
+                ),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// The external axes moved (any of E1-E6 not zero), said for a report: a track carries
+    /// the robot, a turntable the work; the table knows neither.
+    fn external_axes(&self, src: &Source) -> Option<String> {
+        let moved: Vec<String> = self
+            .0
+            .iter()
+            .filter(|c| c.name.len() == 2 && c.name.starts_with('E'))
+            .filter_map(|c| match &c.value {
+                Value::Number(n) if n.value != 0.0 => {
+                    Some(format!("{} {}", c.name, src.text(n.span.0, n.span.1)))
+                }
+                _ => None,
+            })
+            .collect();
+        (!moved.is_empty()).then(|| {
+            format!(
+                "{}: an external axis (a track, a turntable) the table does not have",
+                moved.join(", ")
+            )
+        })
+    }
+
+    /// A joint target: A1 up to the last axis given, none missing between.
+    fn joints(&self, src: &Source) -> Result<TargetKind, Error> {
+        const AXES: [&str; 6] = ["A1", "A2", "A3", "A4", "A5", "A6"];
+        let mut joints = Vec::new();
+        for a in AXES {
+            match self.number(src, a)? {
+                Some(n) => joints.push(n),
+                None => break,
+            }
+        }
+        let given = AXES.iter().filter(|a| self.has(a)).count();
+        Ok(if joints.len() != given || joints.is_empty() {
+            TargetKind::Incomplete("axes missing between A1 and the last one given".into())
+        } else {
+            TargetKind::Joints(JointTarget {
+                joints,
+                unit: AngleUnit::Degree,
+            })
+        })
+    }
+
+    /// A Cartesian target: X, Y, Z, and A, B, C, Status and Turn when given.
+    fn cartesian(&self, src: &Source) -> Result<TargetKind, Error> {
+        let number = |n: &str| self.number(src, n);
+        let position = [number("X")?, number("Y")?, number("Z")?];
+        let abc = [number("A")?, number("B")?, number("C")?];
+        let (status, turn) = (self.integer(src, "S")?, self.integer(src, "T")?);
+        let [Some(x), Some(y), Some(z)] = position else {
+            return Ok(TargetKind::Incomplete("X, Y and Z not all given".into()));
+        };
+        let orientation = match abc {
+            [Some(a), Some(b), Some(c)] => Some(Orientation::KukaAbcDeg([a, b, c])),
+            [None, None, None] => None,
+            _ => return Ok(TargetKind::Incomplete("A, B and C given in part".into())),
+        };
+        Ok(TargetKind::Cartesian(Box::new(CartesianTarget {
+            position: [x, y, z],
+            unit: LengthUnit::Millimetre,
+            orientation,
+            config: if status.is_some() || turn.is_some() {
+                ConfigHint::KukaStatusTurn { status, turn }
+            } else {
+                ConfigHint::None
+            },
+            joints: Vec::new(),
+        })))
+    }
+}
+
 /// The aggregate starting at `line[open]` (a `{`): its target, the index after its `}`,
 /// and the external axes it moves (any of E1-E6 not zero), said for a report.
 fn aggregate(
@@ -1147,32 +1327,53 @@ fn aggregate(
     open: usize,
     declared: Option<Kind>,
 ) -> Result<(TargetKind, usize, Option<String>), Error> {
-    let mut i = open + 1;
-    let mut kind = declared;
-    // An optional type prefix: {E6POS: X 1, ...}.
-    if let (Some(t), Some(colon)) = (line.get(i), line.get(i + 1)) {
-        if colon.is(b':') {
-            kind = Some(type_of(src, t).ok_or_else(|| {
-                src.error(
-                    t.start,
-                    format!(
-                        "{} is not a target type (E6POS, POS, FRAME, E6AXIS, AXIS)",
-                        src.describe(t.start)
-                    ),
-                )
-            })?);
-            i += 2;
-        }
+    let (written, first) = aggregate_type(src, line, open + 1)?;
+    let (components, after) = components(src, line, first)?;
+    let kind = match written.or(declared) {
+        Some(k) => k,
+        None if components.has("A1") => Kind::Joints,
+        None => Kind::Cartesian,
+    };
+    components.check_names(src, kind)?;
+    let external = components.external_axes(src);
+    let target = match kind {
+        Kind::Joints => components.joints(src)?,
+        Kind::Cartesian | Kind::Frame => components.cartesian(src)?,
+    };
+    Ok((target, after, external))
+}
+
+/// An aggregate's optional type prefix at `line[i]` (`{E6POS: X 1, ...}`): the type, and
+/// where its components start.
+fn aggregate_type(src: &Source, line: &[Token], i: usize) -> Result<(Option<Kind>, usize), Error> {
+    let (Some(t), Some(colon)) = (line.get(i), line.get(i + 1)) else {
+        return Ok((None, i));
+    };
+    if !colon.is(b':') {
+        return Ok((None, i));
     }
-    let mut components: Vec<(String, usize, usize, Value, Option<u32>)> = Vec::new();
+    let kind = type_of(src, t).ok_or_else(|| {
+        src.error(
+            t.start,
+            format!(
+                "{} is not a target type (E6POS, POS, FRAME, E6AXIS, AXIS)",
+                src.describe(t.start)
+            ),
+        )
+    })?;
+    Ok((Some(kind), i + 2))
+}
+
+/// The components of an aggregate from `line[i]` to its `}`, and the index after it.
+fn components(src: &Source, line: &[Token], mut i: usize) -> Result<(Components, usize), Error> {
+    let mut components: Vec<Component> = Vec::new();
     let end_of_line = line.last().map_or(0, |t| t.end);
     loop {
         let Some(t) = line.get(i) else {
             return Err(src.error(end_of_line, "unterminated aggregate: expected '}'"));
         };
         if t.is(b'}') && components.is_empty() {
-            i += 1;
-            break;
+            return Ok((Components(components), i + 1));
         }
         if t.kind != Tok::Ident {
             return Err(src.error(
@@ -1184,63 +1385,25 @@ fn aggregate(
             ));
         }
         let name = src.text(t.start, t.end).to_ascii_uppercase();
-        if components.iter().any(|(n, ..)| *n == name) {
+        if components.iter().any(|c| c.name == name) {
             return Err(src.error(t.start, format!("component {name} given twice")));
         }
         i += 1;
         let Some(v) = line.get(i) else {
             return Err(src.error(end_of_line, format!("expected a value for {name}")));
         };
-        let (value, integer, next) = match v.kind {
-            Tok::Number | Tok::Punct(b'-' | b'+') => {
-                let n = src.number(v.start, &name)?;
-                // A signed number is one or two tokens: skip those it covers.
-                let mut j = i;
-                while line.get(j).is_some_and(|t| t.start < n.span.1) {
-                    j += 1;
-                }
-                let integer = (n.value.fract() == 0.0
-                    && (0.0..=u32::MAX as f64).contains(&n.value))
-                .then_some(n.value as u32);
-                (Value::Number(n), integer, j)
-            }
-            Tok::Str => (Value::Other, bit_literal(&src.bytes[v.start..v.end]), i + 1),
-            Tok::Ident => (Value::Other, None, i + 1),
-            Tok::Punct(b'{') => {
-                // A nested aggregate: skipped.
-                let mut depth = 0;
-                let mut j = i;
-                while let Some(t) = line.get(j) {
-                    if t.is(b'{') {
-                        depth += 1;
-                    } else if t.is(b'}') {
-                        depth -= 1;
-                        if depth == 0 {
-                            break;
-                        }
-                    }
-                    j += 1;
-                }
-                (Value::Other, None, j + 1)
-            }
-            _ => {
-                return Err(src.error(
-                    v.start,
-                    format!(
-                        "expected a value for {name}, found {}",
-                        src.describe(v.start)
-                    ),
-                ))
-            }
-        };
-        components.push((name, t.start, v.start, value, integer));
+        let (value, integer, next) = component_value(src, line, i, &name)?;
+        components.push(Component {
+            name,
+            at: t.start,
+            value_at: v.start,
+            value,
+            integer,
+        });
         i = next;
         match line.get(i) {
             Some(t) if t.is(b',') => i += 1,
-            Some(t) if t.is(b'}') => {
-                i += 1;
-                break;
-            }
+            Some(t) if t.is(b'}') => return Ok((Components(components), i + 1)),
             Some(t) => {
                 return Err(src.error(
                     t.start,
@@ -1250,122 +1413,58 @@ fn aggregate(
             None => return Err(src.error(end_of_line, "unterminated aggregate: expected '}'")),
         }
     }
-    let has = |n: &str| components.iter().any(|(c, ..)| c == n);
-    let kind = match kind {
-        Some(k) => k,
-        None if has("A1") => Kind::Joints,
-        None => Kind::Cartesian,
-    };
-    let number = |n: &str| -> Result<Option<Number>, Error> {
-        match components.iter().find(|(c, ..)| c == n) {
-            None => Ok(None),
-            Some((_, _, _, Value::Number(v), _)) => Ok(Some(*v)),
-            Some((_, _, at, Value::Other, _)) => {
-                Err(src.error(*at, format!("{n} must be a number")))
+}
+
+/// The value of the component `name` at `line[i]`: the value, its integer when it is a
+/// non-negative one, and the index after it.
+fn component_value(
+    src: &Source,
+    line: &[Token],
+    i: usize,
+    name: &str,
+) -> Result<(Value, Option<u32>, usize), Error> {
+    let v = &line[i];
+    Ok(match v.kind {
+        Tok::Number | Tok::Punct(b'-' | b'+') => {
+            let n = src.number(v.start, name)?;
+            // A signed number is one or two tokens: skip those it covers.
+            let mut j = i;
+            while line.get(j).is_some_and(|t| t.start < n.span.1) {
+                j += 1;
             }
+            let integer = (n.value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&n.value))
+                .then_some(n.value as u32);
+            (Value::Number(n), integer, j)
         }
-    };
-    let allowed: &[&str] = match kind {
-        Kind::Joints => &[
-            "A1", "A2", "A3", "A4", "A5", "A6", "E1", "E2", "E3", "E4", "E5", "E6",
-        ],
-        Kind::Cartesian | Kind::Frame => &[
-            "X", "Y", "Z", "A", "B", "C", "S", "T", "E1", "E2", "E3", "E4", "E5", "E6",
-        ],
-    };
-    if let Some((name, at, ..)) = components
-        .iter()
-        .find(|(c, ..)| !allowed.contains(&c.as_str()))
-    {
-        return Err(src.error(
-            *at,
-            format!(
-                "{name} is not a component of this target (one of {})",
-                allowed.join(", ")
-            ),
-        ));
-    }
-    // An external axis moved: a track carries the robot, a turntable the work; the table
-    // knows neither.
-    let moved: Vec<String> = components
-        .iter()
-        .filter(|(c, ..)| c.len() == 2 && c.starts_with('E'))
-        .filter_map(|(c, _, _, v, _)| match v {
-            Value::Number(n) if n.value != 0.0 => {
-                Some(format!("{c} {}", src.text(n.span.0, n.span.1)))
-            }
-            _ => None,
-        })
-        .collect();
-    let external = (!moved.is_empty()).then(|| {
-        format!(
-            "{}: an external axis (a track, a turntable) the table does not have",
-            moved.join(", ")
-        )
-    });
-    let target = match kind {
-        Kind::Joints => {
-            let mut joints = Vec::new();
-            for a in ["A1", "A2", "A3", "A4", "A5", "A6"] {
-                match number(a)? {
-                    Some(n) => joints.push(n),
-                    None => break,
+        Tok::Str => (Value::Other, bit_literal(&src.bytes[v.start..v.end]), i + 1),
+        Tok::Ident => (Value::Other, None, i + 1),
+        Tok::Punct(b'{') => {
+            // A nested aggregate: skipped.
+            let mut depth = 0;
+            let mut j = i;
+            while let Some(t) = line.get(j) {
+                if t.is(b'{') {
+                    depth += 1;
+                } else if t.is(b'}') {
+                    depth -= 1;
+                    if depth == 0 {
+                        break;
+                    }
                 }
+                j += 1;
             }
-            let given = ["A1", "A2", "A3", "A4", "A5", "A6"]
-                .iter()
-                .filter(|a| has(a))
-                .count();
-            if joints.len() != given || joints.is_empty() {
-                TargetKind::Incomplete("axes missing between A1 and the last one given".into())
-            } else {
-                TargetKind::Joints(JointTarget {
-                    joints,
-                    unit: AngleUnit::Degree,
-                })
-            }
+            (Value::Other, None, j + 1)
         }
-        Kind::Cartesian | Kind::Frame => {
-            let position = [number("X")?, number("Y")?, number("Z")?];
-            let abc = [number("A")?, number("B")?, number("C")?];
-            let integer = |n: &str| -> Result<Option<u32>, Error> {
-                match components.iter().find(|(c, ..)| c == n) {
-                    None => Ok(None),
-                    Some((_, _, at, _, None)) => Err(src.error(
-                        *at,
-                        format!("{n} must be a non-negative integer or a 'B…' literal"),
-                    )),
-                    Some((.., v)) => Ok(*v),
-                }
-            };
-            let (status, turn) = (integer("S")?, integer("T")?);
-            match position {
-                [Some(x), Some(y), Some(z)] => TargetKind::Cartesian(Box::new(CartesianTarget {
-                    position: [x, y, z],
-                    unit: LengthUnit::Millimetre,
-                    orientation: match abc {
-                        [Some(a), Some(b), Some(c)] => Some(Orientation::KukaAbcDeg([a, b, c])),
-                        [None, None, None] => None,
-                        _ => {
-                            return Ok((
-                                TargetKind::Incomplete("A, B and C given in part".into()),
-                                i,
-                                external,
-                            ))
-                        }
-                    },
-                    config: if status.is_some() || turn.is_some() {
-                        ConfigHint::KukaStatusTurn { status, turn }
-                    } else {
-                        ConfigHint::None
-                    },
-                    joints: Vec::new(),
-                })),
-                _ => TargetKind::Incomplete("X, Y and Z not all given".into()),
-            }
+        _ => {
+            return Err(src.error(
+                v.start,
+                format!(
+                    "expected a value for {name}, found {}",
+                    src.describe(v.start)
+                ),
+            ))
         }
-    };
-    Ok((target, i, external))
+    })
 }
 
 /// The value of KRL's `'B0110'` (binary) or `'H1F'` (hexadecimal) literal.
