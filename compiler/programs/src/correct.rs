@@ -323,20 +323,107 @@ pub fn solve<D: AsRef<[u8]>>(
         .configuration
         .filter(|_| table.has_config())
         .map(|c| c.bits());
-    let p = target.translation.vector;
-    let mut command = if table.is_hybrid() {
-        let (kinematics, q0) = (
-            kinematics.expect("checked above"),
-            target_joints.clone().expect("solved above"),
-        );
+    let solving = Solving {
+        table,
+        limits,
+        target,
+        posture,
+        config,
+    };
+    let mut command = match kinematics {
+        Some(k) if table.is_hybrid() => {
+            solving.hybrid(k, target_joints.clone().expect("solved above"))?
+        }
+        _ => solving.position_table(kinematics, orientation, target_joints.as_deref())?,
+    };
+    // The TCP rides on the table's point: the frames turn it with the point's correction,
+    // which a table with neither a model nor orientation errors does not know. A lever
+    // its samples did not measure is then beyond their evidence.
+    let lever_unknown = !table.is_hybrid() && !table.has_orientation();
+    if lever_unknown && lever_mm > adwi_runtime::format::TCP_MARGIN_MM {
+        command.evidence = command.evidence.with(Evidence::TCP);
+    }
+    check_evidence(table, limits, &command)?;
+    if let (Some(k), Some(q), Some(qc)) = (kinematics, &target_joints, &command.joints) {
+        check_posture(k, limits, q, qc)?;
+    }
+    command.target_joints = target_joints;
+    Ok(command)
+}
+
+/// A position-only table's command beyond its samples: refused unless the limits allow it
+/// (nothing carries its answer there; a hybrid table's model does, and its report line
+/// says so).
+fn check_evidence<D: AsRef<[u8]>>(
+    table: &Table<D>,
+    limits: &Limits,
+    command: &Command,
+) -> Result<(), Failure> {
+    if command.evidence.is_within() || table.is_hybrid() || limits.beyond_evidence {
+        return Ok(());
+    }
+    Err((
+        TargetStatus::BeyondEvidence(command.evidence),
+        format!(
+            "the table's samples never had this {} (--beyond-evidence corrects it anyway)",
+            if command.evidence.contains(Evidence::ORIENTATION) {
+                "orientation"
+            } else {
+                "TCP lever: the table has no orientation errors to turn it with"
+            }
+        ),
+    ))
+}
+
+/// The command's posture `qc` against the target's `q`: the same configuration, and no
+/// joint moving beyond the limit.
+fn check_posture(k: &Kinematics, limits: &Limits, q: &[f64], qc: &[f64]) -> Result<(), Failure> {
+    if k.configuration(q) != k.configuration(qc) {
+        return Err((
+            TargetStatus::ConfigurationChanged,
+            format!(
+                "configuration {} at the target, {} at the command",
+                k.configuration(q).map_or(0, |c| c.bits()),
+                k.configuration(qc).map_or(0, |c| c.bits())
+            ),
+        ));
+    }
+    let jump = joint_change(k.robot(), q, qc);
+    if jump > limits.max_joint_change_deg {
+        return Err((
+            TargetStatus::JointJump,
+            format!(
+                "a joint moves {jump:.3}° (bound {}°)",
+                limits.max_joint_change_deg
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// One target being solved: the table's point there, the posture the command must keep,
+/// and the configuration the table is asked in.
+struct Solving<'a, D> {
+    table: &'a Table<D>,
+    limits: &'a Limits,
+    target: &'a Isometry3<f64>,
+    posture: Posture,
+    config: Option<u8>,
+}
+
+impl<D: AsRef<[u8]>> Solving<'_, D> {
+    /// A hybrid table's command: the fixed point of `command + error(command) = target`,
+    /// each query at the command's posture, solved from the target's `q0`.
+    fn hybrid(&self, kinematics: &Kinematics, q0: Vec<f64>) -> Result<Command, Failure> {
+        let (table, limits, target) = (self.table, self.limits, self.target);
+        let p = target.translation.vector;
         let mut point = *target;
-        let mut q = q0.clone();
-        let mut out = None;
+        let mut q = q0;
         for iteration in 1..=limits.max_iterations.max(1) {
             let c = table.query_with_joints(
                 &Target {
                     position_mm: point.translation.vector.into(),
-                    config,
+                    config: self.config,
                     rotation_rad: None,
                     tcp_mm: None,
                 },
@@ -348,7 +435,7 @@ pub fn solve<D: AsRef<[u8]>>(
             let e = Vector3::from(c.position_error_mm);
             let residual_mm = (point.translation.vector + e - p).norm();
             if residual_mm <= limits.tolerance_mm {
-                out = Some(Command {
+                return Ok(Command {
                     point,
                     target_joints: None,
                     joints: Some(q),
@@ -358,31 +445,40 @@ pub fn solve<D: AsRef<[u8]>>(
                     residual: c.residual,
                     evidence: c.evidence,
                 });
-                break;
             }
             point = Isometry3::from_parts(
                 Translation3::from(p - e),
                 UnitQuaternion::from_scaled_axis(-Vector3::from(c.orientation_error_rad))
                     * target.rotation,
             );
-            q = kinematics.inverse(&point, &posture, &q).ok_or_else(|| {
-                (
-                    TargetStatus::IkFailed,
-                    "no posture reaches the command in the target's configuration".to_string(),
-                )
-            })?;
+            q = kinematics
+                .inverse(&point, &self.posture, &q)
+                .ok_or_else(|| {
+                    (
+                        TargetStatus::IkFailed,
+                        "no posture reaches the command in the target's configuration".to_string(),
+                    )
+                })?;
         }
-        out.ok_or_else(|| {
-            (
-                TargetStatus::NotConverged,
-                format!("{} iterations", limits.max_iterations),
-            )
-        })?
-    } else {
+        Err((
+            TargetStatus::NotConverged,
+            format!("{} iterations", limits.max_iterations),
+        ))
+    }
+
+    /// A position-only table's command: the table's own fixed point, with the command's
+    /// posture solved near the target's when there are kinematics and a target posture.
+    fn position_table(
+        &self,
+        kinematics: Option<&Kinematics>,
+        orientation: bool,
+        target_joints: Option<&[f64]>,
+    ) -> Result<Command, Failure> {
+        let (table, limits, target) = (self.table, self.limits, self.target);
         let comp = table.compensate(
             &Target {
-                position_mm: p.into(),
-                config,
+                position_mm: target.translation.vector.into(),
+                config: self.config,
                 // The point's orientation, which a position-only table checks against
                 // its samples', when the program writes one.
                 rotation_rad: orientation.then(|| target.rotation.scaled_axis().into()),
@@ -410,8 +506,8 @@ pub fn solve<D: AsRef<[u8]>>(
             Translation3::from(Vector3::from(comp.command_position_mm)),
             rotation,
         );
-        let joints = match (kinematics, &target_joints) {
-            (Some(k), Some(q)) => Some(k.inverse(&point, &posture, q).ok_or_else(|| {
+        let joints = match (kinematics, target_joints) {
+            (Some(k), Some(q)) => Some(k.inverse(&point, &self.posture, q).ok_or_else(|| {
                 (
                     TargetStatus::IkFailed,
                     "no posture reaches the command in the target's configuration".to_string(),
@@ -419,7 +515,7 @@ pub fn solve<D: AsRef<[u8]>>(
             })?),
             _ => None,
         };
-        Command {
+        Ok(Command {
             point,
             target_joints: None,
             joints,
@@ -428,54 +524,8 @@ pub fn solve<D: AsRef<[u8]>>(
             residual_mm: comp.residual_mm,
             residual: comp.correction.residual,
             evidence: comp.correction.evidence,
-        }
-    };
-    // The TCP rides on the table's point: the frames turn it with the point's correction,
-    // which a table with neither a model nor orientation errors does not know. A lever
-    // its samples did not measure is then beyond their evidence.
-    let lever_unknown = !table.is_hybrid() && !table.has_orientation();
-    if lever_unknown && lever_mm > adwi_runtime::format::TCP_MARGIN_MM {
-        command.evidence = command.evidence.with(Evidence::TCP);
+        })
     }
-    // A position-only table beyond its samples: nothing carries its answer there (a
-    // hybrid table's model does, and its report line says so).
-    if !command.evidence.is_within() && !table.is_hybrid() && !limits.beyond_evidence {
-        return Err((
-            TargetStatus::BeyondEvidence(command.evidence),
-            format!(
-                "the table's samples never had this {} (--beyond-evidence corrects it anyway)",
-                if command.evidence.contains(Evidence::ORIENTATION) {
-                    "orientation"
-                } else {
-                    "TCP lever: the table has no orientation errors to turn it with"
-                }
-            ),
-        ));
-    }
-    if let (Some(k), Some(q), Some(qc)) = (kinematics, &target_joints, &command.joints) {
-        if k.configuration(q) != k.configuration(qc) {
-            return Err((
-                TargetStatus::ConfigurationChanged,
-                format!(
-                    "configuration {} at the target, {} at the command",
-                    k.configuration(q).map_or(0, |c| c.bits()),
-                    k.configuration(qc).map_or(0, |c| c.bits())
-                ),
-            ));
-        }
-        let jump = joint_change(k.robot(), q, qc);
-        if jump > limits.max_joint_change_deg {
-            return Err((
-                TargetStatus::JointJump,
-                format!(
-                    "a joint moves {jump:.3}° (bound {}°)",
-                    limits.max_joint_change_deg
-                ),
-            ));
-        }
-    }
-    command.target_joints = target_joints;
-    Ok(command)
 }
 
 /// The largest change of one joint between two postures: degrees for a revolute joint, mm
