@@ -5,6 +5,9 @@ use nalgebra::Isometry3;
 
 use crate::number::Number;
 
+/// The units of a program's positions and joints: the sample files' own.
+pub use adwi_samples::{AngleUnit, LengthUnit};
+
 /// A program format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
@@ -179,66 +182,6 @@ pub enum TargetKind {
     /// does not declare): always [`ProgramTarget::refused`], reported with the motion's
     /// place.
     Motion,
-}
-
-/// A length unit of a program's positions.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LengthUnit {
-    /// Millimetres (KRL, RAPID, CSV).
-    Millimetre,
-    /// Metres (URScript).
-    Metre,
-    /// Inches (G-code after `G20`).
-    Inch,
-}
-
-impl LengthUnit {
-    /// Millimetres per unit.
-    pub fn mm(self) -> f64 {
-        match self {
-            LengthUnit::Millimetre => 1.0,
-            LengthUnit::Metre => 1000.0,
-            LengthUnit::Inch => 25.4,
-        }
-    }
-
-    /// The decimals that keep a length to 1e-4 mm (rule 1 of the crate docs): 4 in mm, 7 in m,
-    /// 6 in inches.
-    pub fn decimals(self) -> usize {
-        match self {
-            LengthUnit::Millimetre => 4,
-            LengthUnit::Metre => 7,
-            LengthUnit::Inch => 6,
-        }
-    }
-}
-
-/// An angle unit of a program's joints.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AngleUnit {
-    /// Degrees (KRL, RAPID, CSV).
-    Degree,
-    /// Radians (URScript).
-    Radian,
-}
-
-impl AngleUnit {
-    /// Radians per unit.
-    pub fn rad(self) -> f64 {
-        match self {
-            AngleUnit::Degree => std::f64::consts::PI / 180.0,
-            AngleUnit::Radian => 1.0,
-        }
-    }
-
-    /// The decimals that keep an angle to 1e-6° (rule 1 of the crate docs): 6 in degrees,
-    /// 8 in radians.
-    pub fn decimals(self) -> usize {
-        match self {
-            AngleUnit::Degree => 6,
-            AngleUnit::Radian => 8,
-        }
-    }
 }
 
 /// A Cartesian target's numbers.

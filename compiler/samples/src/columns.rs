@@ -45,14 +45,17 @@ pub fn orientation_columns(convention: Convention, measured: bool) -> &'static [
     }
 }
 
-/// The unit of position columns (nominal, error and measured positions).
+/// A length unit: of position columns (nominal, error and measured positions), and of a
+/// robot program's positions.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LengthUnit {
-    /// Millimetres, the unit of everything the reader returns.
+    /// Millimetres, the unit of everything the reader returns (KRL, RAPID, CSV programs).
     #[default]
     Millimetre,
-    /// Metres.
+    /// Metres (URScript programs).
     Metre,
+    /// Inches: G-code after `G20` (a mapping does not take them).
+    Inch,
 }
 
 impl LengthUnit {
@@ -61,19 +64,32 @@ impl LengthUnit {
         match self {
             LengthUnit::Millimetre => 1.0,
             LengthUnit::Metre => 1000.0,
+            LengthUnit::Inch => 25.4,
         }
     }
 
-    /// The unit's symbol, as written in a mapping: `mm` or `m`.
+    /// The unit's symbol, as written in a mapping: `mm` or `m` (`in` for inches).
     pub fn symbol(self) -> &'static str {
         match self {
             LengthUnit::Millimetre => "mm",
             LengthUnit::Metre => "m",
+            LengthUnit::Inch => "in",
+        }
+    }
+
+    /// The decimals that keep a length to 1e-4 mm, as a compensated program writes its
+    /// positions: 4 in mm, 7 in m, 6 in inches.
+    pub fn decimals(self) -> usize {
+        match self {
+            LengthUnit::Millimetre => 4,
+            LengthUnit::Metre => 7,
+            LengthUnit::Inch => 6,
         }
     }
 }
 
-/// The unit of angle columns (joint angles, orientation angles, rotation vectors).
+/// An angle unit: of angle columns (joint angles, orientation angles, rotation vectors),
+/// and of a robot program's joints (degrees in KRL, RAPID, CSV; radians in URScript).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum AngleUnit {
     /// Degrees.
@@ -99,6 +115,15 @@ impl AngleUnit {
         match self {
             AngleUnit::Degree => "deg",
             AngleUnit::Radian => "rad",
+        }
+    }
+
+    /// The decimals that keep an angle to 1e-6°, as a compensated program writes its
+    /// joints: 6 in degrees, 8 in radians.
+    pub fn decimals(self) -> usize {
+        match self {
+            AngleUnit::Degree => 6,
+            AngleUnit::Radian => 8,
         }
     }
 }
