@@ -256,8 +256,8 @@ fn a_fitted_term_is_byte_identical_at_one_and_two_threads() {
 #[test]
 fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
     use adwi_compile::build::ServedField;
+    use adwi_identify::calibrate::CalibrateOptions;
     use adwi_jobs::{ServedFieldChoice, TableArgs};
-    use adwi_robot::calibrate::CalibrateOptions;
     use adwi_robot::model::shipped_robot_path;
 
     let dir = tempfile::tempdir().unwrap();

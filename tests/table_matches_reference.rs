@@ -378,7 +378,7 @@ fn joint_case() -> impl Strategy<Value = (Case, Vec<[f64; 6]>)> {
 struct HybridFixture {
     table: Table<adwi_runtime::AlignedBytes>,
     screened: Table<adwi_runtime::AlignedBytes>,
-    calibration: adwi_robot::calibrate::Calibration,
+    calibration: adwi_identify::calibrate::Calibration,
     residuals: Vec<adwi_runtime::format::SampleRecord>,
     joints: adwi_samples::Joints,
     robot: adwi_robot::Robot,
@@ -550,7 +550,7 @@ fn a_tool_axis_served_field_answers_the_turning_kriging_at_its_nodes() {
     let samples = all.subset(&picked);
     let robot = adwi_robot::Robot::load(common::repo("tables/ur5/robot.toml")).unwrap();
     let calibration =
-        adwi_robot::calibrate::identify(&robot, &samples, &Default::default()).unwrap();
+        adwi_identify::calibrate::identify(&robot, &samples, &Default::default()).unwrap();
     let model = calibration.prepared_model();
     let options = BuildOptions {
         cell_mm: Some(60.0),

@@ -8,12 +8,12 @@
 
 use std::path::PathBuf;
 
+use adwi_identify::calibrate::Calibration;
+use adwi_identify::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_jobs::{
     compensate, BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args,
     Iso9283Job, JobError, PlanArgs, PlanJob, RobotArgs, Silent,
 };
-use adwi_robot::calibrate::Calibration;
-use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
 use adwi_runtime::{Residual, Status, Table as RuntimeTable, Target};
 use anyhow::Context;

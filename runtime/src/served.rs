@@ -483,28 +483,19 @@ pub(crate) fn blend_strict(
         return Err(Status::InvalidInput);
     }
     let weights = trilinear_weights(fraction);
-    // A function, not a closure: the closure was compiled as a call returning through
-    // memory.
-    #[inline(always)]
-    fn sum_of(
-        nodes: &[rkyv::Archived<[f64; 3]>],
-        first: usize,
-        corners: &[usize; 8],
-        weights: &[f64; 8],
-    ) -> Option<[f64; 3]> {
-        let block = cell_block::<1>(nodes, first, corners)?;
+    let sum = |nodes: &[rkyv::Archived<[f64; 3]>]| -> Option<[f64; 3]> {
+        let block = cell_block::<1>(nodes, first, &grid.corners)?;
         // `blend`'s pairs: x and y in one, z beside a zero; each lane `x += w · v` in the
         // corners' order.
         let (mut xy, mut z) = (Pair([0.0; 2]), Pair([0.0; 2]));
-        for (&corner, &weight) in corners.iter().zip(weights) {
+        for (&corner, &weight) in grid.corners.iter().zip(&weights) {
             let node = block.get(corner)?;
             let w = Pair::splat(weight);
             xy = xy + w * Pair([node[0].to_native(), node[1].to_native()]);
             z = z + w * Pair([node[2].to_native(), 0.0]);
         }
         Some([xy.0[0], xy.0[1], z.0[0]])
-    }
-    let sum = |nodes| sum_of(nodes, first, &grid.corners, &weights);
+    };
     let position_mm = sum(data.node_errors_mm.as_slice()).ok_or(Status::InvalidInput)?;
     let defined = |v: &[f64; 3]| !(v[0].is_nan() | v[1].is_nan() | v[2].is_nan());
     if !defined(&position_mm) {

@@ -549,10 +549,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     #[inline]
     pub fn query(&self, position_mm: [f64; 3]) -> Correction {
         let target = Target::at(position_mm);
-        match self.strict_served(&target) {
-            Some((grid, data)) => self.served_strict(&target, data, grid),
-            None => self.answer(&target, None, Tier::Served),
+        if let Some(correction) = self.served_without_model(&target) {
+            return correction;
         }
+        self.answer(&target, None, Tier::Served)
     }
 
     /// The served correction at a target. Never allocates, locks or panics.
@@ -560,10 +560,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query_target(&self, target: &Target) -> Correction {
-        match self.strict_served(target) {
-            Some((grid, data)) => self.served_strict(target, data, grid),
-            None => self.answer(target, None, Tier::Served),
+        if let Some(correction) = self.served_without_model(target) {
+            return correction;
         }
+        self.answer(target, None, Tier::Served)
     }
 
     /// The served correction at a target that the controller will reach with joint values
@@ -779,32 +779,28 @@ impl<D: AsRef<[u8]>> Table<D> {
         correction.finite_or_failure()
     }
 
-    /// Whether [`Table::served_strict`] answers a served query of `target` as
-    /// [`Table::answer`] does: a table without a model or a posture term whose field
-    /// neither fades nor turns with the tool (a position-only table's), a plausible target
-    /// and the validated bytes; with what it reads. `None` for another table, or a target
-    /// or bytes `answer` refuses (it then says why). Kept out of `answer`, whose other
-    /// tiers and tables it slowed there; the answer not wrapped in an `Option`, as
-    /// [`Table::hybrid_served`] says why.
+    /// [`Table::answer`]'s served query of a table without a model or a posture term whose
+    /// field neither fades nor turns with the tool (a position-only table's), for
+    /// [`Table::query`] and [`Table::query_target`]: the same answer to the bit, by the
+    /// steps that table takes and no test of the others (the target's cell, its 8 nodes
+    /// blended by [`crate::served::blend_strict`], the evidence flag, the last guard).
+    /// `None` for another table, or a target or bytes `answer` refuses (it then says why).
+    /// Kept out of `answer`, whose other tiers and tables it slowed there.
     #[inline(always)]
-    fn strict_served(&self, target: &Target) -> Option<(&ServedGrid, &v2::ArchivedTableData)> {
+    fn served_without_model(&self, target: &Target) -> Option<Correction> {
         let (None, None, Some(grid)) = (&self.model, &self.posture, &self.served) else {
             return None;
         };
         if !grid.is_strict() || !target_is_plausible(target) {
             return None;
         }
-        match self.payload() {
-            Some(Payload::V2(data)) => Some((grid, data)),
-            _ => None,
-        }
+        let Some(Payload::V2(data)) = self.payload() else {
+            return None;
+        };
+        Some(self.served_strict(target, data, grid))
     }
 
-    /// [`Table::answer`]'s served query of a position-only table, for [`Table::query`] and
-    /// [`Table::query_target`] once [`Table::strict_served`] has checked it: the same
-    /// answer to the bit, by the steps that table takes and no test of the others (the
-    /// target's cell, its 8 nodes blended by [`crate::served::blend_strict`], the evidence
-    /// flag, the last guard).
+    /// [`Table::served_without_model`] of a plausible target.
     #[inline(always)]
     fn served_strict(
         &self,
@@ -817,15 +813,12 @@ impl<D: AsRef<[u8]>> Table<D> {
             Err(status) => return Correction::failed(status),
         };
         let orientation = self.has_orientation();
-        let blended = match crate::served::blend_strict(grid, data, &site, orientation) {
+        let mut correction = match crate::served::blend_strict(grid, data, &site, orientation) {
             Ok(correction) => correction,
             Err(status) => return Correction::failed(status),
         };
-        Correction {
-            evidence: self.evidence_of(target, None),
-            ..blended
-        }
-        .finite_or_failure()
+        correction.evidence = self.evidence_of(target, None);
+        correction.finite_or_failure()
     }
 
     /// Whether [`Table::served_hybrid`] answers a served query of `target` at `joints_rad`
@@ -1228,7 +1221,7 @@ mod tests {
         assert!(seen.iter().any(|s| s.2 != 0), "no answer flagged");
     }
 
-    /// A position-only table's served query (`served_strict`, its corners blended
+    /// A position-only table's served query (`served_without_model`, its corners blended
     /// without a test each) answers as the general path to the bit, status and flags
     /// included, at targets in covered and uncovered cells, on cell faces, on the grid's
     /// faces, outside it, and at non-finite positions.

@@ -85,9 +85,9 @@ pub fn targets(seed: u64, count: usize) -> Vec<[f64; 3]> {
 pub fn kr150_calibration() -> (
     adwi_robot::Robot,
     adwi_samples::SampleSet,
-    adwi_robot::calibrate::Calibration,
+    adwi_identify::calibrate::Calibration,
 ) {
-    use adwi_robot::calibrate::{identify, CalibrateOptions};
+    use adwi_identify::calibrate::{identify, CalibrateOptions};
     use adwi_robot::{model::shipped_robot_path, Robot};
     use adwi_samples::read_samples;
     let robot_path = shipped_robot_path("kr150-2");
@@ -122,7 +122,7 @@ pub fn hybrid_reference_predict(
     sample_joints: &adwi_samples::Joints,
     params: &adwi_runtime::method::MethodParams,
     joint_radius_rad: f64,
-    calibration: &adwi_robot::calibrate::Calibration,
+    calibration: &adwi_identify::calibrate::Calibration,
     orientation: bool,
     target: &adwi_runtime::Target,
     joints_rad: &[f64],

@@ -10,7 +10,7 @@
 //!
 //! Building one:
 //!
-//! 1. identify the kinematic deviations (`adwi_robot::calibrate::identify`, which gives
+//! 1. identify the kinematic deviations (`adwi_identify::calibrate::identify`, which gives
 //!    the [`KinematicModel`] this module takes);
 //! 2. compute each sample's *residual*: measured error minus the calibrated model's
 //!    predicted error at the sample's joint angles, position and (when measured)

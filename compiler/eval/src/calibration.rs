@@ -1,7 +1,7 @@
 //! What an identification found, as the reports show it: the summary of each split's
 //! calibration and a row per parameter.
 
-use adwi_robot::calibrate::{self, Calibration, Parameter};
+use adwi_identify::calibrate::{self, Calibration, Parameter};
 
 /// What identification found, for reports.
 #[derive(Debug, Clone, serde::Serialize)]

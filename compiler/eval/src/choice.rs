@@ -26,7 +26,7 @@ use std::cell::RefCell;
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
 use adwi_compile::nugget_kriging::GivenChoices;
 use adwi_compile::posture::Posture;
-use adwi_robot::calibrate::{CalibrateError, CalibrateOptions, Calibration};
+use adwi_identify::calibrate::{CalibrateError, CalibrateOptions, Calibration};
 use adwi_robot::Robot;
 use adwi_samples::SampleSet;
 
@@ -743,7 +743,7 @@ pub fn auto_choice(
             (None, _) => None,
             (Some(_), Some(c)) => Some(c.prepared_model()),
             (Some(r), None) => Some(
-                adwi_robot::calibrate::identify(r, samples, calibrate)
+                adwi_identify::calibrate::identify(r, samples, calibrate)
                     .map_err(TuneError::Identify)?
                     .prepared_model(),
             ),

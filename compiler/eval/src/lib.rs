@@ -22,7 +22,7 @@
 //!   angles, degrees), by brute force; the paper's remark that "close" really means close
 //!   joint angles, taken literally;
 //! - `idw`, `grid`, `kriging`: the [`crate::baselines`];
-//! - `kinematic`: model-based calibration ([`adwi_robot::calibrate`]) predicting the error at the
+//! - `kinematic`: model-based calibration ([`adwi_identify::calibrate`]) predicting the error at the
 //!   point's joint angles;
 //! - `hybrid`: the real hybrid table ([`adwi_compile::hybrid::compile`]): kinematic calibration,
 //!   then the `paper` table built from what the calibrated model leaves unexplained, both
@@ -61,7 +61,7 @@ use adwi_runtime::{Evidence, Residual, Status, Table, Target, Tier};
 
 use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, ResidualStats};
 use adwi_compile::build::{self, BuildError, BuildOptions, ServedNodes};
-use adwi_robot::calibrate::{self, CalibrateError, Calibration};
+use adwi_identify::calibrate::{self, CalibrateError, Calibration};
 use adwi_samples::SampleSet;
 use rayon::prelude::*;
 

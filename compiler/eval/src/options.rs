@@ -4,7 +4,7 @@
 
 use adwi_compile::build::{BuildOptions, ServedField};
 use adwi_compile::posture::Posture;
-use adwi_robot::calibrate::{CalibrateOptions, Calibration};
+use adwi_identify::calibrate::{CalibrateOptions, Calibration};
 use adwi_robot::Robot;
 use adwi_samples::SampleSet;
 

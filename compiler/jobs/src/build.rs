@@ -10,9 +10,9 @@ use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildReport, Plan, ServedField};
 use adwi_eval::choice::{auto_choice, Ask, CrossValidation, ServedFieldDecision, TuneReport};
+use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_identify::register::{Refined, Registration};
 use adwi_output::OutputPlan;
-use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_samples::{RepeatReport, SampleSet};
 use serde::Deserialize;

@@ -3,10 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
+use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_identify::register::{Refined, Registration};
 use adwi_measure::truth::{self, TruthComparison};
 use adwi_output::OutputPlan;
-use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_simulate::Scenario;
 use serde::Deserialize;

@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use adwi_compile::build::BuildOptions;
 use adwi_compile::build::ServedField;
 use adwi_eval::{EvalOptions, Evaluation, Method, Protocol, SplitRule};
+use adwi_identify::agreement::{check_base_frame, check_registered};
+use adwi_identify::calibrate::CalibrateOptions;
+use adwi_identify::register::{Refined, Registration};
 use adwi_output::OutputPlan;
-use adwi_robot::agreement::{check_base_frame, check_registered};
-use adwi_robot::calibrate::CalibrateOptions;
-use adwi_robot::register::{Refined, Registration};
 use adwi_robot::Robot;
 use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
@@ -404,7 +404,7 @@ impl EvalJob {
                     } => {
                         // Registered apart, into the frame of the samples' calibration
                         // alone, as the kinematic method makes it.
-                        let (mut points, made) = adwi_robot::measured::read_validation(
+                        let (mut points, made) = adwi_identify::measured::read_validation(
                             source.input(),
                             &columns,
                             &read,

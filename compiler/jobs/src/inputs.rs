@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use adwi_robot::measured::Input;
+use adwi_identify::measured::Input;
 use adwi_robot::Robot;
 
 use crate::args::RobotArgs;

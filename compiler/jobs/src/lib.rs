@@ -61,14 +61,14 @@ pub enum JobError {
     Read(Box<adwi_samples::ReadError>),
     /// Tracker-frame measurements that cannot be registered to the robot.
     #[error(transparent)]
-    Measured(Box<adwi_robot::measured::MeasuredError>),
+    Measured(Box<adwi_identify::measured::MeasuredError>),
     /// Series that cannot be trained together: one given twice, one in another unit.
     #[error(transparent)]
     Series(Box<adwi_samples::SeriesConflict>),
     /// Samples the robot file does not fit: its nominal forward kinematics does not put
     /// their joints near their positions (a unit, another robot, a column map).
     #[error(transparent)]
-    Disagreement(Box<adwi_robot::agreement::Disagreement>),
+    Disagreement(Box<adwi_identify::agreement::Disagreement>),
     /// A robot file that cannot be loaded.
     #[error("cannot load the robot {}{hint}", path.display())]
     Robot {
@@ -88,7 +88,7 @@ pub enum JobError {
     Build(Box<adwi_compile::build::BuildError>),
     /// The kinematic identification failed.
     #[error(transparent)]
-    Calibrate(Box<adwi_robot::calibrate::CalibrateError>),
+    Calibrate(Box<adwi_identify::calibrate::CalibrateError>),
     /// The evaluation failed.
     #[error(transparent)]
     Eval(Box<adwi_eval::EvalError>),
@@ -152,12 +152,12 @@ macro_rules! boxed_from {
 
 boxed_from!(
     Read: adwi_samples::ReadError,
-    Measured: adwi_robot::measured::MeasuredError,
+    Measured: adwi_identify::measured::MeasuredError,
     Series: adwi_samples::SeriesConflict,
-    Disagreement: adwi_robot::agreement::Disagreement,
+    Disagreement: adwi_identify::agreement::Disagreement,
     Simulate: adwi_simulate::SimulateError,
     Build: adwi_compile::build::BuildError,
-    Calibrate: adwi_robot::calibrate::CalibrateError,
+    Calibrate: adwi_identify::calibrate::CalibrateError,
     Eval: adwi_eval::EvalError,
     Tune: choice::TuneError,
     Output: adwi_output::OutputError,
@@ -237,14 +237,14 @@ pub enum Warning {
     /// Samples that look wrong for a robot measured in millimetres (a file in metres, say).
     Samples(adwi_samples::SampleWarning),
     /// A registration of tracker-frame measurements whose fit no robot's error explains.
-    Registration(adwi_robot::register::RegisterWarning),
+    Registration(adwi_identify::register::RegisterWarning),
     /// Samples the robot file fits only with another tool or base frame than its own
-    /// ([`adwi_robot::agreement`]): the identification takes it up.
+    /// ([`adwi_identify::agreement`]): the identification takes it up.
     Agreement {
         /// The samples file.
         path: PathBuf,
         /// The tool or frame, and how well the samples fit with it.
-        fitting: adwi_robot::agreement::Fitting,
+        fitting: adwi_identify::agreement::Fitting,
     },
     /// The served field could not be chosen by cross-validation (too few samples, or a
     /// fold that could not be evaluated): the table serves the method's own answer.
@@ -316,14 +316,14 @@ impl fmt::Display for Warning {
                  from the samples' commanded x,y,z, but they fit {fitting}: the identification \
                  takes it up; give it in the robot file for a model that describes the samples",
                 path.display(),
-                adwi_robot::agreement::MAX_NOMINAL_MISS_MM
+                adwi_identify::agreement::MAX_NOMINAL_MISS_MM
             ),
         }
     }
 }
 
 /// What an identification warns about.
-pub(crate) fn calibration_warnings(c: &adwi_robot::calibrate::Calibration) -> Vec<Warning> {
+pub(crate) fn calibration_warnings(c: &adwi_identify::calibrate::Calibration) -> Vec<Warning> {
     let mut warnings = Vec::new();
     if !c.unidentifiable.is_empty() {
         warnings.push(Warning::Unidentifiable {

@@ -4,13 +4,13 @@
 use std::path::PathBuf;
 
 use adwi_compile::nugget_kriging::ResidualGp;
+use adwi_identify::calibrate::CalibrateOptions;
 use adwi_measure::field::{FieldPrior, Kernel};
 use adwi_measure::plan::{
     check, check_options, plan, write_csv, AllowedOrientations, Branches, ConfigLabel, Criterion,
     Plan, PlanError, PlanOptions, Prior, SetFigures, TrackerSight,
 };
 use adwi_output::OutputPlan;
-use adwi_robot::calibrate::CalibrateOptions;
 use adwi_robot::{InverseKinematics, Robot};
 use serde::Deserialize;
 

@@ -15,10 +15,10 @@
 //! coordinate descent, the transforms given the model and the model given the
 //! transforms, towards their joint least-squares fit).
 
-use adwi_robot::agreement;
-use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
-use adwi_robot::measured::{MeasuredError, Registered};
-use adwi_robot::register::{register_moved, Registration};
+use adwi_identify::agreement;
+use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_identify::measured::{MeasuredError, Registered};
+use adwi_identify::register::{register_moved, Registration};
 use adwi_robot::Robot;
 use adwi_runtime::joint_terms::JointTerms;
 use adwi_samples::{check_series, ColumnMap, Measurements, ReadOptions, SampleSet, SeriesRows};
@@ -63,7 +63,7 @@ struct Later {
 /// Samples that cannot be right are refused here, before any work: a series given twice or
 /// in another length unit than the others ([`check_series`]), and with a robot, samples
 /// its nominal forward kinematics does not put near their positions
-/// ([`adwi_robot::agreement`]: base-frame samples as read, tracker-frame ones as
+/// ([`adwi_identify::agreement`]: base-frame samples as read, tracker-frame ones as
 /// registered).
 ///
 /// # Errors
@@ -319,7 +319,7 @@ fn labels(sets: &[SampleSet], merged: &SampleSet) -> Vec<usize> {
 mod tests {
     use std::path::{Path, PathBuf};
 
-    use adwi_robot::agreement::{Disagreement, Reading as Fit, UnitMistake};
+    use adwi_identify::agreement::{Disagreement, Reading as Fit, UnitMistake};
     use adwi_samples::SeriesConflict;
 
     use crate::args::{Reading, RobotArgs};

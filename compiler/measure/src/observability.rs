@@ -16,7 +16,7 @@
 //! mrad) per millimetre of noise on one measured coordinate, what a parameter error
 //! comes to if the model holds. docs/measure.md has the references in full.
 
-use adwi_robot::calibrate::Parameter;
+use adwi_identify::calibrate::Parameter;
 use nalgebra::DMatrix;
 
 /// The indices of one set of poses (module docs).

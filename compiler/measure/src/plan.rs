@@ -18,7 +18,7 @@
 //!    moves the bound below twice as many random poses, on the KR150-2).
 //! 2. **Selection.** Greedy, then exchange. `Bᵢ` is the candidate's position rows of the
 //!    identification Jacobian over the parameters identifiable on the whole pool, columns
-//!    scaled to unit norm over the pool ([`adwi_robot::calibrate::design_jacobians`]);
+//!    scaled to unit norm over the pool ([`adwi_identify::calibrate::design_jacobians`]);
 //!    `M` the information of the poses chosen so far, `Σ BᵢᵀBᵢ` plus a small ridge (so
 //!    that the first steps are defined), its inverse updated by the Woodbury identity, a
 //!    rank-3 update per pose. With the tracker's MPE ([`TrackerSight::mpe_um`]) each
@@ -58,7 +58,7 @@
 
 use std::fmt::Write as _;
 
-use adwi_robot::calibrate::{design_jacobians_scaled, Parameter};
+use adwi_identify::calibrate::{design_jacobians_scaled, Parameter};
 use adwi_robot::ik::PostureTable;
 use adwi_robot::model::{isometry_from_parts, JointKind};
 use adwi_robot::{InverseKinematics, Robot};
@@ -233,7 +233,7 @@ pub enum PlanError {
     },
     /// The identification's Jacobian cannot be formed.
     #[error(transparent)]
-    Jacobian(#[from] Box<adwi_robot::calibrate::CalibrateError>),
+    Jacobian(#[from] Box<adwi_identify::calibrate::CalibrateError>),
     /// The table's residual field's variance cannot be computed.
     #[error(transparent)]
     Field(#[from] FieldError),
@@ -1716,7 +1716,7 @@ pub fn write_csv(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use adwi_robot::calibrate::design_jacobians;
+    use adwi_identify::calibrate::design_jacobians;
 
     fn ur5() -> Robot {
         Robot::load(adwi_robot::model::shipped_robot_path("ur5")).unwrap()

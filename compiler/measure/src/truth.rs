@@ -26,7 +26,9 @@
 //! parameter error measures what the noise and the choice of poses cost, not what the
 //! kinematic model cannot explain (the position error measures that too).
 
-use adwi_robot::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration, Parameter};
+use adwi_identify::calibrate::{
+    identify, CalibrateError, CalibrateOptions, Calibration, Parameter,
+};
 use adwi_robot::error_model::pose_error;
 use adwi_robot::Robot;
 use adwi_samples::{Joints, SampleSet};

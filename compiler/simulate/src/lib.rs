@@ -1442,7 +1442,7 @@ centre_of_gravity_mm = [0.0, 0.0, 100.0]
                 set.joints.as_mut().unwrap().push(&q);
                 set.lines.push(i as u64 + 2);
             }
-            let c = adwi_robot::calibrate::identify(&robot, &set, &Default::default()).unwrap();
+            let c = adwi_identify::calibrate::identify(&robot, &set, &Default::default()).unwrap();
             // Rigid: only the file's rounding to 1e-6 is left. Compliant: the gravity sag
             // and the gear error are left, which no kinematic model represents.
             let left = c.position_rms_mm;

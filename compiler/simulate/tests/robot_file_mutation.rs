@@ -18,7 +18,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use adwi_robot::calibrate::{identify, CalibrateOptions, Calibration};
+use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_robot::testing::mutate;
 use adwi_robot::{LinkNames, Robot};
 use adwi_samples::{parse_samples, ColumnMap, SampleSet};

@@ -1,8 +1,8 @@
 //! `tablec calibrate`: the calibration job ([`adwi_jobs::CalibrateJob`]), its parameters
 //! printed with their standard errors.
 
+use adwi_identify::calibrate::Calibration;
 use adwi_jobs::{CalibrateArgs, CalibrateJob};
-use adwi_robot::calibrate::Calibration;
 
 #[derive(clap::Args)]
 pub struct Args {

@@ -1,7 +1,7 @@
 //! Printing a registration of tracker-frame measurements (`--measured-in tracker`): the
 //! transforms and the residuals they leave.
 
-use adwi_robot::register::{translation_and_rotation_deg, Refined, Registration};
+use adwi_identify::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_runtime::kinematics::Transform;
 
 /// Prints the registration: both transforms and the rigid fit's residuals.
@@ -21,7 +21,7 @@ pub fn print_registration(r: &Registration) {
 }
 
 /// Prints both transforms as an identification of the registered samples refined them
-/// ([`Registration::refined`](adwi_robot::register::Registration::refined)), with the
+/// ([`Registration::refined`](adwi_identify::register::Registration::refined)), with the
 /// identified model's residuals.
 pub fn print_refined(refined: &Refined) {
     println!("refined        by the identification's base and tool parameters:");
@@ -29,7 +29,7 @@ pub fn print_refined(refined: &Refined) {
 }
 
 /// Prints a validation set's own registration
-/// ([`adwi_robot::measured::Registered::samples_registered_apart`]):
+/// ([`adwi_identify::measured::Registered::samples_registered_apart`]):
 /// its tracker-to-base transform and the calibrated model's residuals.
 pub fn print_validation_registration(r: &Registration) {
     println!(

@@ -43,9 +43,9 @@ use adwi_samples::{Measurements, MeasurementsError, SampleSet};
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 
 use crate::calibrate::Calibration;
-use crate::model::{rotation_of, transform_from_parts, JointKind};
-use crate::plausible::{check as check_plausible, check_all, Quantity};
-use crate::Robot;
+use adwi_robot::model::{rotation_of, transform_from_parts, JointKind};
+use adwi_robot::plausible::{check as check_plausible, check_all, Quantity};
+use adwi_robot::Robot;
 
 /// How to register.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,7 +90,7 @@ pub enum RegisterError {
         line: u64,
     },
     /// A value is beyond any robot's and any tracker's: a measured coordinate beyond 1 km,
-    /// a joint beyond ten turns ([`crate::plausible`]).
+    /// a joint beyond ten turns ([`adwi_robot::plausible`]).
     #[error("measurement row {line}: {what}")]
     Implausible {
         /// The row's source line.
@@ -429,7 +429,7 @@ impl Registration {
     /// # Errors
     ///
     /// As [`Robot::with_parts`] (not for a probe this registration found).
-    pub fn robot(&self, robot: &Robot) -> Result<Robot, crate::RobotError> {
+    pub fn robot(&self, robot: &Robot) -> Result<Robot, adwi_robot::RobotError> {
         robot.with_parts(
             robot.name.clone(),
             robot.base(),
@@ -582,7 +582,7 @@ fn rows_of(robot: &Robot, measurements: &Measurements) -> Result<Vec<Row>, Regis
             if !finite {
                 return Err(RegisterError::NonFinite { line });
             }
-            let implausible = |e: crate::RobotError| RegisterError::Implausible {
+            let implausible = |e: adwi_robot::RobotError| RegisterError::Implausible {
                 line,
                 what: e.to_string(),
             };
@@ -784,8 +784,8 @@ fn rms_max(values: &[f64]) -> (f64, f64) {
 mod tests {
     use super::*;
     use crate::calibrate::{identify, CalibrateOptions, Parameter};
-    use crate::error_model::{apply_deviations, deviations_from_vector, PARAMETERS_PER_JOINT};
-    use crate::model::{shipped_robot_path, Geometry};
+    use adwi_robot::error_model::{apply_deviations, deviations_from_vector, PARAMETERS_PER_JOINT};
+    use adwi_robot::model::{shipped_robot_path, Geometry};
     use adwi_samples::pose::rotation_from_vector;
     use adwi_samples::Joints;
     use rand::{Rng, SeedableRng};

@@ -3,8 +3,8 @@
 
 use adwi_runtime::chain::JointKind;
 
-use crate::error_model::MdhParameter;
-use crate::model::{Geometry, Robot};
+use adwi_robot::error_model::MdhParameter;
+use adwi_robot::model::{Geometry, Robot};
 
 /// One identifiable quantity of the calibration model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -12,7 +12,7 @@
 //! parameters, in this column order ([`Calibration::parameters`]):
 //!
 //! - per joint, for a robot described in MD-H, the deviations `(Δa, Δd, Δα, Δθ, Δβ)` of its
-//!   MD-H row, mm and rad, as in [`crate::error_model`];
+//!   MD-H row, mm and rad, as in [`adwi_robot::error_model`];
 //! - per joint, for any other robot (URDF, TOML chain joints): the deviation of its offset
 //!   (`Δoffset`, rad, or mm for a prismatic joint), and for every joint but the first a
 //!   small perturbation of its origin, `O' = O · Trans(Δx, Δy, Δz) · Exp(Δrx, Δry, Δrz)`:
@@ -58,7 +58,7 @@
 //! stiffness in N·m/µrad inverted. The actual pose is then always the runtime's
 //! [`Chain::loaded_tcp_pose`] of the calibrated chain with its compliances, so the stored
 //! model reproduces the identification. When the robot file gives compliances
-//! (`compliance_urad_per_nm`, [`crate::model`]), the nominal model of where the arm
+//! (`compliance_urad_per_nm`, [`adwi_robot::model`]), the nominal model of where the arm
 //! stands carries them: without the option they stay as the file gives them, with it the
 //! identified value is the deviation from them, as the geometry's is from the file's
 //! geometry. The commanded pose the errors are measured from is the chain without
@@ -70,7 +70,7 @@
 //! (3 position rows, and 3 orientation rows when the samples carry orientation errors,
 //! weighted by [`CalibrateOptions::orientation_weight_mm_per_rad`]). The Jacobian is
 //! analytic, every column a screw of the current parameters: the MD-H columns are the error
-//! model's ([`crate::error_model::mdh_screws`]); an offset turns (or slides) about its
+//! model's ([`adwi_robot::error_model::mdh_screws`]); an offset turns (or slides) about its
 //! joint's axis; an origin translation slides along an axis of the origin's frame; an
 //! origin rotation `r` turns about `R_O · J_l(r) · e_k` (`J_l` the left Jacobian of SO(3), so
 //! that the column is exact at any `r`) through the origin; the tool and base columns are
@@ -161,9 +161,9 @@ use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::model::PreparedModel;
 use nalgebra::{DMatrix, DVector};
 
-use crate::error_model::transform_pose_error;
-use crate::model::Robot;
-use crate::plausible::{check, number, Quantity};
+use adwi_robot::error_model::transform_pose_error;
+use adwi_robot::model::Robot;
+use adwi_robot::plausible::{check, number, Quantity};
 use adwi_samples::SampleSet;
 
 use model::{loaded_with_terms, Model};
@@ -854,7 +854,7 @@ fn with_ranges(mut terms: JointTerms, measurements: &[Measurement]) -> JointTerm
 }
 
 /// Sample `i` as a measurement, its values checked finite and plausible: joints within
-/// ten turns (1 km when prismatic, [`crate::plausible`]), errors within
+/// ten turns (1 km when prismatic, [`adwi_robot::plausible`]), errors within
 /// [`MAX_PLAUSIBLE_ERROR_MM`] and [`MAX_PLAUSIBLE_ROTATION_ERROR_RAD`].
 fn measurement(
     robot: &Robot,

@@ -7,11 +7,11 @@ use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::kinematics::Transform;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
-use crate::error_model::{
-    apply_deviations, deviations_from_vector, mdh_screws, transform_pose_error, vector,
-    MdhParameter, Screw, PARAMETERS_PER_JOINT,
+use adwi_robot::error_model::{
+    apply_deviations, deviations_from_vector, mdh_screws, transform_pose_error, MdhParameter,
+    Screw, PARAMETERS_PER_JOINT,
 };
-use crate::model::{
+use adwi_robot::model::{
     chain_frames, mdh_constant_part, rotation_of, transform_from_parts, Geometry, Robot,
     URAD_PER_NM,
 };
@@ -158,7 +158,7 @@ impl Model {
             [0, 1, 2].map(|a| b[a] + x[c + 6 + a]),
             &(rotation_from_vector(three(c + 9)) * rotation_of(&base)),
         );
-        let invalid = |e: crate::model::RobotError| CalibrateError::InvalidModel {
+        let invalid = |e: adwi_robot::model::RobotError| CalibrateError::InvalidModel {
             robot: robot.name.clone(),
             reason: e.to_string(),
         };
@@ -223,7 +223,7 @@ impl Model {
             .expect("one joint value per joint");
         let q = &loaded_joints[..n];
         let (frames, tcp_pose) = chain_frames(chain, q);
-        let tcp = vector(tcp_pose.translation_mm);
+        let tcp = Vector3::from(tcp_pose.translation_mm);
         let mut put = |column: usize, screw: &Screw| {
             j.column_mut(column)
                 .copy_from(&screw.pose_error_column(&tcp));
@@ -263,7 +263,7 @@ impl Model {
                                 column + 3 + axis,
                                 &Screw::Revolute {
                                     axis: rg * (jl * e),
-                                    point_mm: vector(before.translation_mm),
+                                    point_mm: Vector3::from(before.translation_mm),
                                 },
                             );
                         }
@@ -275,7 +275,7 @@ impl Model {
         };
         let c = self.tool_translation;
         let rf = rotation_of(&flange);
-        let base_origin = vector(chain.base.translation_mm);
+        let base_origin = Vector3::from(chain.base.translation_mm);
         for axis in 0..3 {
             let e = Vector3::ith(axis, 1.0);
             let flange_axis = rf * e;

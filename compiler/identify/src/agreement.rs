@@ -31,9 +31,9 @@ use std::path::{Path, PathBuf};
 use adwi_samples::{Joints, Measurements, SampleSet};
 use nalgebra::{Matrix3, Vector3};
 
-use crate::model::{isometry_from_transform, JointKind};
 use crate::register::{register, RegisterOptions};
-use crate::Robot;
+use adwi_robot::model::{isometry_from_transform, JointKind};
+use adwi_robot::Robot;
 
 /// The largest distance from a sample's commanded position to the nominal TCP at its
 /// joints, mm: the floor of the runtime's joints tolerance
@@ -824,7 +824,7 @@ fn diagnose_registered(robot: &Robot, measurements: &Measurements) -> Option<Fit
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::shipped_robot_path;
+    use adwi_robot::model::shipped_robot_path;
 
     /// The UR5 robot and its grid samples, as the README maps them.
     fn ur5() -> (Robot, SampleSet) {

@@ -16,7 +16,7 @@ use crate::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration};
 use crate::register::{
     register, register_moved, Refined, RegisterError, RegisterOptions, Registration,
 };
-use crate::{Robot, RobotError};
+use adwi_robot::{Robot, RobotError};
 
 /// A sample file: on disk, or its CSV text in memory (a DataFrame's, say), named by `name`
 /// in messages as the file would be.

@@ -1,9 +1,10 @@
 use super::model::{loaded, Model};
 use super::*;
-use crate::error_model::{transform_pose_error, vector, MdhParameter};
-use crate::model::URAD_PER_NM;
-use crate::model::{shipped_file, shipped_robot_path};
+use adwi_robot::error_model::{transform_pose_error, MdhParameter};
+use adwi_robot::model::URAD_PER_NM;
+use adwi_robot::model::{shipped_file, shipped_robot_path};
 use adwi_samples::Joints;
+use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -827,9 +828,9 @@ fn written_calibrated_robots_reproduce_the_calibrated_model() {
         let from_toml = Robot::load(&toml_path).unwrap();
         let from_urdf = Robot::load_with(
             &urdf_path,
-            &crate::urdf::LinkNames {
+            &adwi_robot::urdf::LinkNames {
                 base_link: None,
-                tip_link: Some(crate::urdf::TCP_LINK.into()),
+                tip_link: Some(adwi_robot::urdf::TCP_LINK.into()),
             },
         )
         .unwrap();
@@ -875,11 +876,15 @@ fn written_calibrated_robots_reproduce_the_calibrated_model() {
         for q in poses(&robot, 200, 10) {
             let want = loaded(calibrated, &q);
             let got = loaded(&back, &q);
-            largest =
-                largest.max((vector(got.translation_mm) - vector(want.translation_mm)).norm());
+            largest = largest.max(
+                (Vector3::from(got.translation_mm) - Vector3::from(want.translation_mm)).norm(),
+            );
             // The deflection is there: the loaded pose is not the commanded one.
             let still = calibrated.tcp_transform(&q);
-            assert!((vector(still.translation_mm) - vector(want.translation_mm)).norm() > 1e-3);
+            assert!(
+                (Vector3::from(still.translation_mm) - Vector3::from(want.translation_mm)).norm()
+                    > 1e-3
+            );
         }
         println!(
             "{}: written calibrated robot file with compliances agrees to {largest:.2e} mm",
