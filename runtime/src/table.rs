@@ -549,10 +549,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     #[inline]
     pub fn query(&self, position_mm: [f64; 3]) -> Correction {
         let target = Target::at(position_mm);
-        if let Some(correction) = self.served_without_model(&target) {
-            return correction;
+        match self.strict_served(&target) {
+            Some((grid, data)) => self.served_strict(&target, data, grid),
+            None => self.answer(&target, None, Tier::Served),
         }
-        self.answer(&target, None, Tier::Served)
     }
 
     /// The served correction at a target. Never allocates, locks or panics.
@@ -560,10 +560,10 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// A hybrid table answers [`Status::MissingJoints`]: use [`Table::query_with_joints`].
     #[inline]
     pub fn query_target(&self, target: &Target) -> Correction {
-        if let Some(correction) = self.served_without_model(target) {
-            return correction;
+        match self.strict_served(target) {
+            Some((grid, data)) => self.served_strict(target, data, grid),
+            None => self.answer(target, None, Tier::Served),
         }
-        self.answer(target, None, Tier::Served)
     }
 
     /// The served correction at a target that the controller will reach with joint values
@@ -690,10 +690,20 @@ impl<D: AsRef<[u8]>> Table<D> {
         // joints put the nominal TCP, and, for a named TCP, where the table's point is
         // (`point`: the target less the lever) and the error at the TCP.
         let model_part = match (&self.model, joints_rad) {
-            (Some(model), Some(q)) => match self.model_part(model, q, target) {
-                Ok(part) => Some(part),
-                Err(status) => return Correction::failed(status),
-            },
+            (Some(model), Some(q)) => {
+                match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
+                    let within = off_mm2
+                        .sqrt()
+                        .partial_cmp(&joints_tolerance_mm(&self.header.grid));
+                    matches!(
+                        within,
+                        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+                    )
+                }) {
+                    Ok(part) => Some(part),
+                    Err(status) => return Correction::failed(status),
+                }
+            }
             _ => None,
         };
         let point = Target {
@@ -779,28 +789,32 @@ impl<D: AsRef<[u8]>> Table<D> {
         correction.finite_or_failure()
     }
 
-    /// [`Table::answer`]'s served query of a table without a model or a posture term whose
-    /// field neither fades nor turns with the tool (a position-only table's), for
-    /// [`Table::query`] and [`Table::query_target`]: the same answer to the bit, by the
-    /// steps that table takes and no test of the others (the target's cell, its 8 nodes
-    /// blended by [`crate::served::blend_strict`], the evidence flag, the last guard).
-    /// `None` for another table, or a target or bytes `answer` refuses (it then says why).
-    /// Kept out of `answer`, whose other tiers and tables it slowed there.
+    /// Whether [`Table::served_strict`] answers a served query of `target` as
+    /// [`Table::answer`] does: a table without a model or a posture term whose field
+    /// neither fades nor turns with the tool (a position-only table's), a plausible target
+    /// and the validated bytes; with what it reads. `None` for another table, or a target
+    /// or bytes `answer` refuses (it then says why). Kept out of `answer`, whose other
+    /// tiers and tables it slowed there; the answer not wrapped in an `Option`, as
+    /// [`Table::hybrid_served`] says why.
     #[inline(always)]
-    fn served_without_model(&self, target: &Target) -> Option<Correction> {
+    fn strict_served(&self, target: &Target) -> Option<(&ServedGrid, &v2::ArchivedTableData)> {
         let (None, None, Some(grid)) = (&self.model, &self.posture, &self.served) else {
             return None;
         };
         if !grid.is_strict() || !target_is_plausible(target) {
             return None;
         }
-        let Some(Payload::V2(data)) = self.payload() else {
-            return None;
-        };
-        Some(self.served_strict(target, data, grid))
+        match self.payload() {
+            Some(Payload::V2(data)) => Some((grid, data)),
+            _ => None,
+        }
     }
 
-    /// [`Table::served_without_model`] of a plausible target.
+    /// [`Table::answer`]'s served query of a position-only table, for [`Table::query`] and
+    /// [`Table::query_target`] once [`Table::strict_served`] has checked it: the same
+    /// answer to the bit, by the steps that table takes and no test of the others (the
+    /// target's cell, its 8 nodes blended by [`crate::served::blend_strict`], the evidence
+    /// flag, the last guard).
     #[inline(always)]
     fn served_strict(
         &self,
@@ -813,12 +827,15 @@ impl<D: AsRef<[u8]>> Table<D> {
             Err(status) => return Correction::failed(status),
         };
         let orientation = self.has_orientation();
-        let mut correction = match crate::served::blend_strict(grid, data, &site, orientation) {
+        let blended = match crate::served::blend_strict(grid, data, &site, orientation) {
             Ok(correction) => correction,
             Err(status) => return Correction::failed(status),
         };
-        correction.evidence = self.evidence_of(target, None);
-        correction.finite_or_failure()
+        Correction {
+            evidence: self.evidence_of(target, None),
+            ..blended
+        }
+        .finite_or_failure()
     }
 
     /// Whether [`Table::served_hybrid`] answers a served query of `target` at `joints_rad`
@@ -876,7 +893,9 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             Some(_) => None,
         };
-        let m = match self.model_part(model, q, target) {
+        let m = match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
+            grid.joints_within(off_mm2)
+        }) {
             Ok(part) => part,
             Err(status) => return Correction::failed(status),
         };
@@ -898,21 +917,34 @@ impl<D: AsRef<[u8]>> Table<D> {
             },
             Err(status) => Err(status),
         };
-        let residual = match blended {
-            Ok(correction) => correction,
+        // The residual's fields apart, not a correction: one merged from two branches was
+        // written field by field and then copied whole, reloaded in wider pieces than
+        // stored (a stall of the processor's store forwarding).
+        let parts = |c: Correction| {
+            (
+                c.position_error_mm,
+                c.orientation_error_rad,
+                c.neighbours,
+                c.residual,
+            )
+        };
+        let (position_mm, orientation_rad, neighbours, residual) = match blended {
+            Ok(correction) => parts(correction),
             // The model holds everywhere: where the residual has nothing, the model alone.
-            Err(Status::OutsideGrid | Status::NoAdmissibleNeighbour) => Correction::model_only(),
+            Err(Status::OutsideGrid | Status::NoAdmissibleNeighbour) => {
+                parts(Correction::model_only())
+            }
             Err(status) => return Correction::failed(status),
         };
-        // The residual plus the model, as `answer` adds them; built once, in place (a
-        // correction written field by field and then copied whole was reloaded in wider
-        // pieces than stored, a stall of the processor's store forwarding).
+        // The residual plus the model, as `answer` adds them; built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
         Correction {
-            position_error_mm: plus(residual.position_error_mm, m.error_mm),
-            orientation_error_rad: plus(residual.orientation_error_rad, m.rotation_rad),
+            position_error_mm: plus(position_mm, m.error_mm),
+            orientation_error_rad: plus(orientation_rad, m.rotation_rad),
+            neighbours,
+            status: Status::Ok,
+            residual,
             evidence,
-            ..residual
         }
         .finite_or_failure()
     }
@@ -924,10 +956,11 @@ impl<D: AsRef<[u8]>> Table<D> {
     fn model_part(
         &self,
         model: &PreparedModel,
-        q: &[f64],
+        at: Option<crate::model::ModelAt>,
         target: &Target,
+        joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
-        let at = model.evaluate(q, true).ok_or(Status::InvalidInput)?;
+        let at = at.ok_or(Status::InvalidInput)?;
         let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
             _ => None,
@@ -942,13 +975,8 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             None => (at.position_mm, target.position_mm),
         };
-        let off_mm = method::distance_mm(at.nominal_tcp_mm, point_mm);
         // NaN (a chain that overflowed) is refused too.
-        let within = off_mm.partial_cmp(&joints_tolerance_mm(&self.header.grid));
-        if !matches!(
-            within,
-            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-        ) {
+        if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
         }
         Ok(ModelPart {
@@ -1221,7 +1249,7 @@ mod tests {
         assert!(seen.iter().any(|s| s.2 != 0), "no answer flagged");
     }
 
-    /// A position-only table's served query (`served_without_model`, its corners blended
+    /// A position-only table's served query (`served_strict`, its corners blended
     /// without a test each) answers as the general path to the bit, status and flags
     /// included, at targets in covered and uncovered cells, on cell faces, on the grid's
     /// faces, outside it, and at non-finite positions.
