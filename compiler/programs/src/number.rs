@@ -341,6 +341,27 @@ mod tests {
     }
 
     #[test]
+    fn an_option_frame_takes_three_or_six_numbers_within_bounds() {
+        let usage = "N=X,Y,Z[,A,B,C]";
+        assert_eq!(
+            option_frame("1, 2,3", usage),
+            Ok([1.0, 2.0, 3.0, 0.0, 0.0, 0.0])
+        );
+        assert_eq!(
+            option_frame("1,2,3,4,5,6", usage),
+            Ok([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+        );
+        assert_eq!(option_frame("1,2", usage), Err(format!("'1,2': {usage}")));
+        assert_eq!(
+            option_frame("1,x,3", usage),
+            Err(format!("'1,x,3': {usage}"))
+        );
+        assert!(option_frame("1e9,0,0", usage)
+            .unwrap_err()
+            .contains("within"));
+    }
+
+    #[test]
     fn a_value_the_text_already_holds_is_not_rewritten() {
         let text = "1500.0";
         let n = parsed(text);

@@ -186,3 +186,32 @@ fn line_at(bytes: &[u8], start: usize) -> (usize, usize) {
 pub fn same_name(a: &[u8], b: &[u8]) -> bool {
     a.eq_ignore_ascii_case(b)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lines_of(text: &str) -> Vec<(usize, &str)> {
+        let src = Source::new("t", text.as_bytes());
+        src.lines()
+            .map(|l| (l.number, &text[l.start..l.end]))
+            .collect()
+    }
+
+    #[test]
+    fn lines_end_at_lf_crlf_or_a_lone_cr_and_a_final_line_end_starts_none() {
+        assert_eq!(
+            lines_of("a\nbb\r\nc\rd"),
+            [(1, "a"), (2, "bb"), (3, "c"), (4, "d")]
+        );
+        assert_eq!(lines_of("a\n"), [(1, "a")]);
+        assert_eq!(lines_of("\n\r\n"), [(1, ""), (2, "")]);
+        assert!(lines_of("").is_empty());
+        // The lines' numbers are those errors are located by.
+        let text = "x\r\ny\rz\n";
+        let src = Source::new("t", text.as_bytes());
+        for line in src.lines() {
+            assert_eq!(src.location(line.start), (line.number, 1));
+        }
+    }
+}
