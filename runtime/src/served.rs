@@ -78,6 +78,10 @@ pub(crate) struct ServedGrid {
     /// A hybrid table's fade length ([`fade_length_mm`]): its residual fades to zero
     /// where it has no value. `None`: a position-only table, which refuses there.
     fade_mm: Option<f64>,
+    /// [`squared_within`] the fade length, which is also a hybrid table's bound on the
+    /// distance from the nominal TCP at the query's joint values to the target
+    /// ([`crate::Table::joints_tolerance_mm`]): that check on squares, without a root.
+    joints_within_mm2: f64,
 }
 
 /// The distance from the grid box over which a hybrid table's residual fades to zero:
@@ -91,6 +95,30 @@ pub(crate) struct ServedGrid {
 /// residual a cell away is still the field's best guess.
 pub fn fade_length_mm(cell_mm: f64) -> f64 {
     (2.0 * cell_mm).max(20.0)
+}
+
+/// The largest double `T` whose square root is at most `length_mm` (positive and
+/// finite): `d2 ≤ T` exactly when `√d2 ≤ length_mm`, for every `d2` (NaN and infinity
+/// fail both), since the square root is correctly rounded and so never decreases. A query
+/// then compares a squared distance with `T` and takes no root, with the decisions of the
+/// root's comparison to the last bit. Found at open, from `length_mm²` a few steps of one
+/// unit in the last place each way.
+pub(crate) fn squared_within(length_mm: f64) -> f64 {
+    // Positive finite doubles are ordered as their bits: one unit up or down is one bit
+    // pattern up or down.
+    let up = |t: f64| f64::from_bits(t.to_bits() + 1);
+    let down = |t: f64| f64::from_bits(t.to_bits() - 1);
+    let mut t = length_mm * length_mm;
+    if !(t.is_finite() && t > 0.0) {
+        return t;
+    }
+    while t > 0.0 && t.sqrt() > length_mm {
+        t = down(t);
+    }
+    while up(t).is_finite() && up(t).sqrt() <= length_mm {
+        t = up(t);
+    }
+    t
 }
 
 /// `3t² − 2t³` for `t` clamped to `[0, 1]`: 0 and 1 at the ends, with zero slope there.
@@ -121,6 +149,7 @@ impl ServedGrid {
             stride: header.served_field.node_stride(),
             fade_mm: (header.content_flags & CONTENT_MODEL != 0)
                 .then(|| fade_length_mm(grid.cell_mm)),
+            joints_within_mm2: squared_within(fade_length_mm(grid.cell_mm)),
         }
     }
 
@@ -128,6 +157,15 @@ impl ServedGrid {
     #[inline]
     pub(crate) fn stride(&self) -> usize {
         self.stride
+    }
+
+    /// Whether a squared distance `d2` (mm²) from the nominal TCP at the query's joint
+    /// values to the target is within a hybrid table's bound
+    /// ([`crate::Table::joints_tolerance_mm`]): `√d2 ≤` the bound, decided on squares
+    /// ([`squared_within`]). NaN is not.
+    #[inline(always)]
+    pub(crate) fn joints_within(&self, d2_mm2: f64) -> bool {
+        d2_mm2 <= self.joints_within_mm2
     }
 
     /// Whether [`blend_strict`] serves this grid: one vector a node and no fade (a
@@ -687,6 +725,28 @@ mod tests {
         assert_eq!(trilinear_weights([1.0, 0.0, 1.0])[5], 1.0);
     }
 
+    /// On squares the joints' check decides as on roots, to the last bit: at the bound's
+    /// square and every double within 64 units in the last place of it, for fade lengths
+    /// of every grid (two cells, at least 20 mm) and others.
+    #[test]
+    fn the_squared_bound_decides_as_the_root_does() {
+        let mut lengths = vec![20.0, 33.393734788777906, 1e-3, 7.0, 1234.5678, 3e5];
+        lengths.extend((1..2_000).map(|i| fade_length_mm(0.37 * f64::from(i))));
+        for length in lengths {
+            let bound = squared_within(length);
+            assert!(bound.sqrt() <= length);
+            let square = length * length;
+            for d2 in (-64..=64_i64)
+                .flat_map(|k| {
+                    [square, bound].map(|t| f64::from_bits((t.to_bits() as i64 + k) as u64))
+                })
+                .chain([0.0, f64::NAN, f64::INFINITY, f64::MAX])
+            {
+                assert_eq!(d2 <= bound, d2.sqrt() <= length, "{length} {d2}");
+            }
+        }
+    }
+
     #[test]
     fn locate_puts_the_maximum_face_in_the_last_cell() {
         let grid = ServedGrid {
@@ -700,6 +760,7 @@ mod tests {
             with_configs: false,
             stride: 1,
             fade_mm: None,
+            joints_within_mm2: squared_within(20.0),
         };
         let (base, f) = grid.locate([20.0, 30.0, 40.0]).unwrap();
         assert_eq!(f, [1.0; 3]);

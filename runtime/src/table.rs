@@ -690,10 +690,20 @@ impl<D: AsRef<[u8]>> Table<D> {
         // joints put the nominal TCP, and, for a named TCP, where the table's point is
         // (`point`: the target less the lever) and the error at the TCP.
         let model_part = match (&self.model, joints_rad) {
-            (Some(model), Some(q)) => match self.model_part(model, q, target) {
-                Ok(part) => Some(part),
-                Err(status) => return Correction::failed(status),
-            },
+            (Some(model), Some(q)) => {
+                match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
+                    let within = off_mm2
+                        .sqrt()
+                        .partial_cmp(&joints_tolerance_mm(&self.header.grid));
+                    matches!(
+                        within,
+                        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+                    )
+                }) {
+                    Ok(part) => Some(part),
+                    Err(status) => return Correction::failed(status),
+                }
+            }
             _ => None,
         };
         let point = Target {
@@ -883,7 +893,9 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             Some(_) => None,
         };
-        let m = match self.model_part(model, q, target) {
+        let m = match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
+            grid.joints_within(off_mm2)
+        }) {
             Ok(part) => part,
             Err(status) => return Correction::failed(status),
         };
@@ -905,21 +917,34 @@ impl<D: AsRef<[u8]>> Table<D> {
             },
             Err(status) => Err(status),
         };
-        let residual = match blended {
-            Ok(correction) => correction,
+        // The residual's fields apart, not a correction: one merged from two branches was
+        // written field by field and then copied whole, reloaded in wider pieces than
+        // stored (a stall of the processor's store forwarding).
+        let parts = |c: Correction| {
+            (
+                c.position_error_mm,
+                c.orientation_error_rad,
+                c.neighbours,
+                c.residual,
+            )
+        };
+        let (position_mm, orientation_rad, neighbours, residual) = match blended {
+            Ok(correction) => parts(correction),
             // The model holds everywhere: where the residual has nothing, the model alone.
-            Err(Status::OutsideGrid | Status::NoAdmissibleNeighbour) => Correction::model_only(),
+            Err(Status::OutsideGrid | Status::NoAdmissibleNeighbour) => {
+                parts(Correction::model_only())
+            }
             Err(status) => return Correction::failed(status),
         };
-        // The residual plus the model, as `answer` adds them; built once, in place (a
-        // correction written field by field and then copied whole was reloaded in wider
-        // pieces than stored, a stall of the processor's store forwarding).
+        // The residual plus the model, as `answer` adds them; built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
         Correction {
-            position_error_mm: plus(residual.position_error_mm, m.error_mm),
-            orientation_error_rad: plus(residual.orientation_error_rad, m.rotation_rad),
+            position_error_mm: plus(position_mm, m.error_mm),
+            orientation_error_rad: plus(orientation_rad, m.rotation_rad),
+            neighbours,
+            status: Status::Ok,
+            residual,
             evidence,
-            ..residual
         }
         .finite_or_failure()
     }
@@ -931,10 +956,11 @@ impl<D: AsRef<[u8]>> Table<D> {
     fn model_part(
         &self,
         model: &PreparedModel,
-        q: &[f64],
+        at: Option<crate::model::ModelAt>,
         target: &Target,
+        joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
-        let at = model.evaluate(q, true).ok_or(Status::InvalidInput)?;
+        let at = at.ok_or(Status::InvalidInput)?;
         let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
             _ => None,
@@ -949,13 +975,8 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             None => (at.position_mm, target.position_mm),
         };
-        let off_mm = method::distance_mm(at.nominal_tcp_mm, point_mm);
         // NaN (a chain that overflowed) is refused too.
-        let within = off_mm.partial_cmp(&joints_tolerance_mm(&self.header.grid));
-        if !matches!(
-            within,
-            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-        ) {
+        if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
         }
         Ok(ModelPart {
