@@ -15,7 +15,7 @@ use adwi_programs::staubli::Application;
 use adwi_programs::{CompensateJob, CompensateOptions};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{compensate, method_table, repo};
+use crate::common::{compensate, method_table, repo, tablec};
 
 fn application(name: &str) -> PathBuf {
     repo(&format!("tests/programs/staubli/{name}/{name}.pjx"))
@@ -200,6 +200,28 @@ fn kr150_val3_points_land_at_the_torch_in_their_frames_and_the_rest_are_named() 
     let data = repo("tests/programs/staubli/weld/weld.dtx");
     let job = CompensateJob::new(options(&table_path, &pjx)).unwrap();
     let done = job.run().unwrap();
+    weld_statuses_say_why(&done);
+    weld_commands_land(&table, &pjx, &data, &done);
+    weld_changes_only_its_corrected_values(&data, &done);
+    // Round trip: the written data compensated again by a table that corrects nothing,
+    // read back, holds the same targets with the same statuses' kinds.
+    let again = read(&pjx, &done.output);
+    assert_eq!(
+        again
+            .targets
+            .iter()
+            .map(|t| t.name.clone())
+            .collect::<Vec<_>>(),
+        done.report
+            .targets
+            .iter()
+            .map(|t| t.name.clone())
+            .collect::<Vec<_>>()
+    );
+}
+
+/// The weld application's statuses, and why each point not corrected is left.
+fn weld_statuses_say_why(done: &adwi_programs::Compensated) {
     let statuses: Vec<String> = done
         .report
         .targets
@@ -261,18 +283,25 @@ fn kr150_val3_points_land_at_the_torch_in_their_frames_and_the_rest_are_named() 
         detail("pSpare[0]"),
         "no motion moves to it, and no program names it"
     );
-    // Read back: every corrected point's written numbers, in its frame chain and with the
-    // torch, put the table's point on its target by the table's own model.
-    let l = landings(&table, &pjx, &data, &done);
+}
+
+/// Read back: every corrected point's written numbers, in its frame chain and with the
+/// torch, put the table's point on its target by the table's own model; the home's joints
+/// likewise through the robot's forward kinematics.
+fn weld_commands_land(
+    table: &adwi_runtime::Table<adwi_runtime::AlignedBytes>,
+    pjx: &Path,
+    data: &Path,
+    done: &adwi_programs::Compensated,
+) {
+    let l = landings(table, pjx, data, done);
     assert_eq!(l.checked, 8);
     eprintln!("weld: {}; {l}", done.report.summary());
     assert!(l.written <= 1e-4, "{l}");
     assert!(l.tcp <= 2e-4, "{l}");
     assert!(l.uncompensated > 1.0, "{l}");
-    // The home, read back: its written joints through the robot's forward kinematics put
-    // the table's point on its target by the table's model likewise.
     let kr150 = adwi_robot::Robot::load(repo("tables/kr150-2/robot.toml")).unwrap();
-    let after = read(&pjx, &done.output);
+    let after = read(pjx, &done.output);
     let TargetKind::Joints(j) = &after.targets[0].kind else {
         panic!("{}", after.targets[0].name)
     };
@@ -284,9 +313,12 @@ fn kr150_val3_points_land_at_the_torch_in_their_frames_and_the_rest_are_named() 
         .norm();
     eprintln!("weld: jHome[0] as written: |C + e(C) - P| {gap:.2e} mm");
     assert!(gap <= 1e-4, "{gap}");
-    // Only the corrected values' lines changed; the byte-order mark and CRLF are kept, and
-    // an attribute the file omitted is inserted where the correction gives it a value.
-    let original = std::fs::read(&data).unwrap();
+}
+
+/// Only the corrected values' lines changed; the byte-order mark and CRLF are kept, and an
+/// attribute the file omitted is inserted where the correction gives it a value.
+fn weld_changes_only_its_corrected_values(data: &Path, done: &adwi_programs::Compensated) {
+    let original = std::fs::read(data).unwrap();
     let written = &done.output;
     assert!(written.starts_with(b"\xef\xbb\xbf"));
     let original = String::from_utf8(original).unwrap();
@@ -340,21 +372,6 @@ fn kr150_val3_points_land_at_the_torch_in_their_frames_and_the_rest_are_named() 
         };
         assert_eq!(line(&original), line(&written), "{unchanged}");
     }
-    // Round trip: the written data compensated again by a table that corrects nothing,
-    // read back, holds the same targets with the same statuses' kinds.
-    let again = read(&pjx, &done.output);
-    assert_eq!(
-        again
-            .targets
-            .iter()
-            .map(|t| t.name.clone())
-            .collect::<Vec<_>>(),
-        done.report
-            .targets
-            .iter()
-            .map(|t| t.name.clone())
-            .collect::<Vec<_>>()
-    );
 }
 
 #[test]
@@ -537,5 +554,171 @@ fn hostile_val3_files_give_located_errors_never_a_panic() {
     assert!(
         stdout.contains("p[0]") && stdout.contains("invalid (a position 1e308 at 1:66"),
         "{stdout}"
+    );
+}
+
+/// The KR150-2 hybrid table built in `dir`: the robot file's kinematics with the model
+/// calibrated on the shipped samples (all in one wrist branch, J5 < 0), whose answer
+/// depends on the posture.
+fn kr150_hybrid(dir: &Path) -> PathBuf {
+    let samples = repo("tables/kr150-2/samples.csv");
+    let robot = repo("tables/kr150-2/robot.toml");
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--served-field",
+            "method",
+            "--posture",
+            "off",
+            "-o",
+            "kr150-hybrid.tbl",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("kr150-hybrid.tbl")
+}
+
+/// A VAL3 application in `dir` of one point over the KR150-2's samples (their
+/// orientation), moved to with the flange as the tool, its value written with `config`
+/// (its `shoulder`, `elbow` and `wrist` attributes).
+fn one_point_application(dir: &Path, config: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(
+        dir.join("branch.pjx"),
+        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n\
+         <Project xmlns=\"http://www.staubli.com/robotics/VAL3/Project/3\">\r\n\
+         \x20 <Parameters version=\"s8.12\" stackSize=\"5000\" millimeterUnit=\"true\" />\r\n\
+         \x20 <Programs>\r\n    <Program file=\"start.pgx\" />\r\n  </Programs>\r\n\
+         \x20 <Database>\r\n    <Data file=\"branch.dtx\" />\r\n  </Database>\r\n\
+         \x20 <Libraries />\r\n</Project>\r\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("start.pgx"),
+        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n\
+         <Programs xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xmlns=\"http://www.staubli.com/robotics/VAL3/Program/2\">\r\n\
+         \x20 <Program name=\"start\" access=\"public\">\r\n\
+         \x20   <Code><![CDATA[begin\r\n  movej(pTarget[0], tFlange, mNom)\r\n  waitEndMove()\r\nend\r\n]]></Code>\r\n\
+         \x20 </Program>\r\n</Programs>\r\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("branch.dtx"),
+        format!(
+            "<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n\
+             <Database xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xmlns=\"http://www.staubli.com/robotics/VAL3/Data/2\">\r\n\
+             \x20 <Datas>\r\n\
+             \x20   <Data name=\"mNom\" access=\"public\" xsi:type=\"array\" type=\"mdesc\" size=\"1\">\r\n\
+             \x20     <Value key=\"0\" accel=\"100\" vel=\"100\" decel=\"100\" tmax=\"99999\" rmax=\"99999\" blend=\"off\" leave=\"50\" reach=\"50\" />\r\n\
+             \x20   </Data>\r\n\
+             \x20   <Data name=\"pTarget\" access=\"public\" xsi:type=\"array\" type=\"pointRx\" size=\"1\">\r\n\
+             \x20     <Value key=\"0\" x=\"1750\" y=\"450\" z=\"1250\" ry=\"90\" {config} fatherId=\"world[0]\" />\r\n\
+             \x20   </Data>\r\n\
+             \x20   <Data name=\"tFlange\" access=\"public\" xsi:type=\"array\" type=\"tool\" size=\"1\">\r\n\
+             \x20     <Value key=\"0\" fatherId=\"flange[0]\" />\r\n\
+             \x20   </Data>\r\n\
+             \x20 </Datas>\r\n</Database>\r\n"
+        ),
+    )
+    .unwrap();
+    dir.join("branch.pjx")
+}
+
+/// A report line's command posture (radians), checked to be the command's by forward
+/// kinematics (the robot file's tool is the flange: the table's point), and the
+/// configuration the robot's geometry gives it.
+fn command_posture(line: &adwi_programs::TargetLine) -> (Vec<f64>, adwi_robot::Configuration) {
+    let robot = adwi_robot::Robot::load(repo("tables/kr150-2/robot.toml")).unwrap();
+    let q: Vec<f64> = line
+        .command_joints
+        .as_ref()
+        .unwrap_or_else(|| panic!("{}: no command posture", line.name))
+        .iter()
+        .map(|d| d.to_radians())
+        .collect();
+    let at = robot.tcp_pose(&q).translation.vector;
+    let gap = (at - Vector3::from(line.command_mm.unwrap())).norm();
+    assert!(gap < 1e-6, "{}: {gap} mm", line.name);
+    let rows: [adwi_runtime::kinematics::MdhJoint; 6] = robot.mdh().unwrap().try_into().unwrap();
+    let configuration = adwi_robot::ik::configuration_of(&rows, &q.clone().try_into().unwrap());
+    (q, configuration)
+}
+
+#[test]
+fn a_hybrid_table_solves_a_val3_point_on_its_written_wrist_not_the_nearest() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_hybrid(dir.path());
+    let mut flips = Vec::new();
+    for wrist in ["wfree", "wnegative", "wpositive"] {
+        let config = format!("shoulder=\"lefty\" elbow=\"epositive\" wrist=\"{wrist}\"");
+        let pjx = one_point_application(&dir.path().join(wrist), &config);
+        let done = CompensateJob::new(options(&table, &pjx))
+            .unwrap()
+            .run()
+            .unwrap();
+        let line = &done.report.targets[0];
+        assert_eq!(line.status.as_str(), "ok", "{wrist}: {}", line.detail);
+        let (q, configuration) = command_posture(line);
+        eprintln!(
+            "val3 {wrist}: J4 {:.3}°, J5 {:.3}°, configuration {}, correction {:.4} mm, |C + e(C) - P| {:.2e} mm",
+            q[3].to_degrees(),
+            q[4].to_degrees(),
+            configuration.bits(),
+            line.correction_mm.unwrap(),
+            line.residual_mm.unwrap()
+        );
+        // Stäubli's wrist is the sign of J5, as the robot file counts it; the elbow J3's.
+        match wrist {
+            "wpositive" => assert!(q[4] >= 0.0, "{q:?}"),
+            "wnegative" => assert!(q[4] < 0.0, "{q:?}"),
+            _ => {}
+        }
+        assert!(q[2] >= 0.0, "{wrist}: epositive, {q:?}");
+        assert!(!configuration.shoulder_back(), "{wrist}: lefty");
+        flips.push(configuration.wrist_flip());
+    }
+    // Free, the controller's choice: the branch nearest the home posture, J5 < 0. The
+    // written wpositive is the other branch, and lands there; wnegative on the nearest.
+    assert_eq!(flips, [true, true, false]);
+}
+
+#[test]
+fn a_val3_config_that_cannot_be_read_or_kept_leaves_the_point_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_hybrid(dir.path());
+    let pjx = one_point_application(
+        &dir.path().join("upright"),
+        "shoulder=\"upright\" elbow=\"epositive\"",
+    );
+    let done = CompensateJob::new(options(&table, &pjx))
+        .unwrap()
+        .run()
+        .unwrap();
+    let line = &done.report.targets[0];
+    assert_eq!(line.status.as_str(), "invalid");
+    assert_eq!(
+        line.detail,
+        "shoulder is righty, lefty, ssame or sfree, found 'upright' (line 8, column 82): left as written, not corrected in a posture the program does not give"
+    );
+    // A seven-axis robot has no shoulder, elbow and wrist labels to keep a written one in.
+    let position_table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let pjx = one_point_application(
+        &dir.path().join("iiwa"),
+        "shoulder=\"lefty\" wrist=\"wpositive\"",
+    );
+    let mut o = CompensateOptions::new(&position_table, &pjx);
+    o.robot = Some(repo("tables/iiwa14/robot.toml"));
+    let done = CompensateJob::new(o).unwrap().run().unwrap();
+    let line = &done.report.targets[0];
+    assert_eq!(line.status.as_str(), "invalid", "{}", line.detail);
+    assert_eq!(
+        line.detail,
+        "the written configuration (shoulder lefty, elbow free, wrist wpositive) is not one a robot of 7 joints without closed-form configurations has: left as written, not corrected in a posture the program does not give"
     );
 }

@@ -428,3 +428,158 @@ fn yaskawa_angles_are_fixed_axis_rx_ry_rz() {
     let expected = nalgebra::Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
     assert!((m - expected).abs().max() < 1e-12, "{m}");
 }
+
+/// A job in `dir` of one Cartesian position over the KR150-2's samples (their
+/// orientation) in the robot frame with the flange as the tool, after `///RCONF rconf`
+/// (no `///RCONF` line when `None`).
+fn one_position_job(dir: &Path, rconf: Option<&str>) -> PathBuf {
+    let rconf = rconf.map_or(String::new(), |r| format!("///RCONF {r}\r\n"));
+    let path = dir.join(format!(
+        "branch-{}.jbi",
+        rconf.len() + dir.read_dir().unwrap().count()
+    ));
+    std::fs::write(
+        &path,
+        format!(
+            "/JOB\r\n//NAME BRANCH\r\n//POS\r\n///NPOS 1,0,0,0,0,0\r\n///TOOL 0\r\n///POSTYPE ROBOT\r\n\
+             ///RECTAN\r\n{rconf}C00000=1750.000,450.000,1250.000,0.0000,90.0000,0.0000\r\n//INST\r\n\
+             ///DATE 2026/11/20 14:32\r\n///ATTR SC,RW\r\n///GROUP1 RB1\r\nNOP\r\nMOVL C00000 V=100.0\r\nEND\r\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// The KR150-2 hybrid table built in `dir` (the robot file's kinematics and the model
+/// calibrated on the shipped samples, all of them flipped: J4 near 0°, J5 < 0).
+fn kr150_hybrid(dir: &Path) -> PathBuf {
+    let samples = repo("tables/kr150-2/samples.csv");
+    let robot = repo("tables/kr150-2/robot.toml");
+    let o = crate::common::tablec(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--served-field",
+            "method",
+            "--posture",
+            "off",
+            "-o",
+            "kr150-hybrid.tbl",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("kr150-hybrid.tbl")
+}
+
+/// The job's one position compensated by `table` with the KR150-2 robot file: its report
+/// line.
+fn compensate_one(table: &Path, job: &Path) -> adwi_programs::TargetLine {
+    let mut o = CompensateOptions::new(table, job);
+    o.robot = Some(repo("tables/kr150-2/robot.toml"));
+    o.yaskawa = YaskawaOptions {
+        tools: vec![(0, [0.0; 6])],
+        users: Vec::new(),
+        pulses_per_deg: None,
+    };
+    let done = CompensateJob::new(o).unwrap().run().unwrap();
+    done.report.targets[0].clone()
+}
+
+/// A report line's command posture (degrees), checked to be the command's by forward
+/// kinematics (the robot file's tool is the flange: the table's point), and the
+/// configuration the robot's geometry gives it.
+fn command_posture(line: &adwi_programs::TargetLine) -> (Vec<f64>, adwi_robot::Configuration) {
+    let robot = adwi_robot::Robot::load(repo("tables/kr150-2/robot.toml")).unwrap();
+    let deg = line.command_joints.clone().unwrap();
+    let q: Vec<f64> = deg.iter().map(|d| d.to_radians()).collect();
+    let at = robot.tcp_pose(&q).translation.vector;
+    let gap = (at - Vector3::from(line.command_mm.unwrap())).norm();
+    assert!(gap < 1e-6, "{}: {gap} mm", line.name);
+    let rows: [adwi_runtime::kinematics::MdhJoint; 6] = robot.mdh().unwrap().try_into().unwrap();
+    let configuration = adwi_robot::ik::configuration_of(&rows, &q.try_into().unwrap());
+    (deg, configuration)
+}
+
+#[test]
+fn a_hybrid_table_solves_a_yaskawa_position_on_its_written_rconf_not_the_nearest() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_hybrid(dir.path());
+    let run = |rconf: Option<&str>| {
+        let line = compensate_one(&table, &one_position_job(dir.path(), rconf));
+        assert_eq!(line.status.as_str(), "ok", "{rconf:?}: {}", line.detail);
+        let (q, configuration) = command_posture(&line);
+        eprintln!(
+            "yaskawa RCONF {rconf:?}: J4 {:.3}°, J5 {:.3}°, J6 {:.3}°, configuration {}, correction {:.4} mm, |C + e(C) - P| {:.2e} mm",
+            q[3],
+            q[4],
+            q[5],
+            configuration.bits(),
+            line.correction_mm.unwrap(),
+            line.residual_mm.unwrap()
+        );
+        (q, configuration)
+    };
+    // Flip: the R axis (J4) within (−90°, 90°], turn for turn.
+    let flipped = |j4: f64| {
+        let r = j4.rem_euclid(360.0);
+        r <= 90.0 || r > 270.0
+    };
+    // Nothing written: the branch nearest the home posture, the flipped one.
+    let (nearest, nearest_c) = run(None);
+    assert!(flipped(nearest[3]), "{nearest:?}");
+    // Written flip: that branch.
+    let (flip, flip_c) = run(Some("0,0,0,0,0,0,0,0"));
+    assert!(flipped(flip[3]) && flip[3] < 180.0, "{flip:?}");
+    assert_eq!(flip_c, nearest_c);
+    // Written no flip, R under 180°: the other wrist, J4 turned half a turn the short way
+    // below 180°, the other wrist label.
+    let (no_flip, no_flip_c) = run(Some("1,0,0,0,0,0,0,0"));
+    assert!(!flipped(no_flip[3]) && no_flip[3] < 180.0, "{no_flip:?}");
+    assert_ne!(no_flip_c.wrist_flip(), nearest_c.wrist_flip());
+    assert_eq!(no_flip[4].signum(), -nearest[4].signum());
+    // Written no flip, R at 180° or more: the same wrist, J4 the turn above 180°.
+    let (above, above_c) = run(Some("1,0,0,1,0,0,0,0"));
+    assert!(!flipped(above[3]) && above[3] >= 180.0, "{above:?}");
+    assert_eq!(above_c, no_flip_c);
+    assert!(
+        (above[3] - 360.0 - no_flip[3]).abs() < 1e-6,
+        "{above:?} {no_flip:?}"
+    );
+    // The lower arm (elbow down), which the KR150-2 cannot reach there within its
+    // limits: not the reachable upper arm in its place, but the target left as written.
+    let line = compensate_one(
+        &table,
+        &one_position_job(dir.path(), Some("0,1,0,0,0,0,0,0")),
+    );
+    assert_eq!(line.status.as_str(), "ik_failed");
+    assert_eq!(
+        line.detail,
+        "no posture reaches the target in its written configuration (RCONF flip, lower arm, front, R < 180°, T < 180°, S < 180°)"
+    );
+}
+
+#[test]
+fn a_yaskawa_rconf_that_cannot_be_read_leaves_the_position_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = kr150_hybrid(dir.path());
+    let line = compensate_one(
+        &table,
+        &one_position_job(dir.path(), Some("0,2,0,0,0,0,0,0")),
+    );
+    assert_eq!(line.status.as_str(), "invalid");
+    assert_eq!(
+        line.detail,
+        "a ///RCONF field is 0 or 1, found '2' (line 8, column 12): left as written, not corrected in a posture the program does not give"
+    );
+    let line = compensate_one(
+        &table,
+        &one_position_job(dir.path(), Some("0,0,0,0,0,0,1,0")),
+    );
+    assert_eq!(line.status.as_str(), "invalid");
+    assert!(line.detail.contains("after the sixth"), "{}", line.detail);
+}

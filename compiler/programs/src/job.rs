@@ -612,6 +612,9 @@ impl CompensateJob {
                     ));
                 }
             }
+            if let Some(why) = unmapped_configuration(src, &c.config, k) {
+                return Err((TargetStatus::Invalid, why));
+            }
         }
         if chains
             .iter()
@@ -693,8 +696,11 @@ impl CompensateJob {
             nalgebra::UnitQuaternion::from_rotation_matrix(&rotation),
         );
         let point = chain.table_point(&pose);
-        let posture = posture(&c.config, self.kinematics.as_ref());
         let near = given_joints.clone().unwrap_or_else(|| seed.clone());
+        let posture = match &self.kinematics {
+            Some(k) if orientation => written_posture(&c.config, k, &point, &near)?,
+            k => posture(&c.config, k.as_ref()),
+        };
         let command = correct::solve(
             &self.table,
             self.kinematics.as_ref(),
@@ -1867,6 +1873,11 @@ fn posture(hint: &ConfigHint, kinematics: Option<&Kinematics>) -> Posture {
                 })
                 .collect(),
         },
+        // Resolved on the robot's geometry by `written_posture`; nothing to keep without
+        // a robot, or when unreadable (refused before).
+        ConfigHint::Val3 { .. }
+        | ConfigHint::YaskawaRconf { .. }
+        | ConfigHint::Unreadable { .. } => Posture::default(),
         ConfigHint::FanucConfig {
             configuration: bits,
             turns,
@@ -1881,6 +1892,187 @@ fn posture(hint: &ConfigHint, kinematics: Option<&Kinematics>) -> Posture {
                 .collect(),
         },
     }
+}
+
+/// Why a configuration the target writes cannot be kept on the robot: unreadable as
+/// written, or written for an arm with shoulder, elbow and wrist labels the robot has not
+/// (no closed-form inverse kinematics: seven axes, a wrist that is not spherical). `None`
+/// when it can, or when nothing is written.
+fn unmapped_configuration(src: &Source, hint: &ConfigHint, k: &Kinematics) -> Option<String> {
+    let unmapped = "left as written, not corrected in a posture the program does not give";
+    match *hint {
+        ConfigHint::Unreadable { span, expected } => {
+            let (line, column) = src.location(span.0);
+            let found = if span.1 > span.0 {
+                format!("'{}'", src.text(span.0, span.1))
+            } else {
+                src.describe(span.0)
+            };
+            Some(format!(
+                "{expected}, found {found} (line {line}, column {column}): {unmapped}"
+            ))
+        }
+        ConfigHint::Val3 { .. } | ConfigHint::YaskawaRconf { .. } if !k.has_configurations() => {
+            Some(format!(
+                "the written configuration ({}) is not one a robot of {} joints without closed-form configurations has: {unmapped}",
+                written_configuration(hint),
+                k.robot().joint_count()
+            ))
+        }
+        _ => None,
+    }
+}
+
+/// A VAL3 `config` or a Yaskawa `///RCONF` in words, for the report.
+fn written_configuration(hint: &ConfigHint) -> String {
+    let either = |v: Option<bool>, yes: &str, no: &str, free: &str| match v {
+        Some(true) => yes.to_string(),
+        Some(false) => no.to_string(),
+        None => free.to_string(),
+    };
+    match *hint {
+        ConfigHint::Val3 {
+            righty,
+            elbow_positive,
+            wrist_positive,
+        } => format!(
+            "shoulder {}, elbow {}, wrist {}",
+            either(righty, "righty", "lefty", "free"),
+            either(elbow_positive, "epositive", "enegative", "free"),
+            either(wrist_positive, "wpositive", "wnegative", "free")
+        ),
+        ConfigHint::YaskawaRconf {
+            no_flip,
+            lower_arm,
+            rear,
+            at_least_180: [r, t, s],
+        } => {
+            let angle = |axis: &str, at_least: bool| {
+                format!("{axis} {} 180°", if at_least { "≥" } else { "<" })
+            };
+            format!(
+                "RCONF {}, {}, {}, {}, {}, {}",
+                if no_flip { "no flip" } else { "flip" },
+                if lower_arm { "lower arm" } else { "upper arm" },
+                if rear { "rear" } else { "front" },
+                angle("R", r),
+                angle("T", t),
+                angle("S", s)
+            )
+        }
+        _ => String::new(),
+    }
+}
+
+/// The posture the target's configuration writes, resolved at the target `point` on the
+/// robot's geometry where the vendor defines it by joint values: a VAL3 `config` (the
+/// shoulder a label, the elbow and wrist the signs of J3 and J5) and a Yaskawa `///RCONF`
+/// (the shoulder and arm labels, the flip J4 within (−90°, 90°] turn for turn, the R, T
+/// and S axes at 180° or more). The label taken is the one nearest `near` among those the
+/// written parts allow (the controller's choice where a part is free); the command keeps
+/// it and the joint constraints. Other hints as [`posture`] maps them.
+fn written_posture(
+    hint: &ConfigHint,
+    k: &Kinematics,
+    point: &Isometry3<f64>,
+    near: &[f64],
+) -> Result<Posture, correct::Failure> {
+    let any = vec![Turn::Any; k.robot().joint_count()];
+    let fail = || {
+        (
+            TargetStatus::IkFailed,
+            format!(
+                "no posture reaches the target in its written configuration ({})",
+                written_configuration(hint)
+            ),
+        )
+    };
+    match *hint {
+        ConfigHint::Val3 {
+            righty,
+            elbow_positive,
+            wrist_positive,
+        } => {
+            let mut turns = any;
+            if let Some(positive) = elbow_positive {
+                turns[2] = Turn::Negative(!positive);
+            }
+            if let Some(positive) = wrist_positive {
+                turns[4] = Turn::Negative(!positive);
+            }
+            let labels = (0u8..8).filter(|b| righty.is_none_or(|r| (b & 1 == 1) == r));
+            let (configuration, _) =
+                nearest_label(k, point, near, labels, &turns, |_| true).ok_or_else(fail)?;
+            Ok(Posture {
+                configuration: Some(configuration),
+                turns,
+            })
+        }
+        ConfigHint::YaskawaRconf {
+            no_flip,
+            lower_arm,
+            rear,
+            at_least_180,
+        } => {
+            let labels = u8::from(rear) | u8::from(lower_arm) << 1;
+            // Flip: J4 within (−90°, 90°] turn for turn; one of the two wrists has it.
+            let flip = |q: &[f64]| {
+                let r = q[3].to_degrees().rem_euclid(360.0);
+                let flipped = r <= 90.0 || r > 270.0;
+                flipped != no_flip
+            };
+            let (configuration, q) =
+                nearest_label(k, point, near, [labels, labels | 4].into_iter(), &any, flip)
+                    .ok_or_else(fail)?;
+            // R (J4), T (J6), S (J1) under 180° or not: the turn nearest `near` that holds.
+            let mut turns = any;
+            for (joint, at_least) in [
+                (3, at_least_180[0]),
+                (5, at_least_180[1]),
+                (0, at_least_180[2]),
+            ] {
+                let [lower, upper] = k.robot().joints()[joint].limits;
+                let seed = near.get(joint).copied().unwrap_or(q[joint]);
+                let v = (-2..=2)
+                    .map(|t| q[joint] + std::f64::consts::TAU * f64::from(t))
+                    .filter(|v| (lower..=upper).contains(v))
+                    .filter(|v| (v.to_degrees() >= 180.0) == at_least)
+                    .min_by(|a, b| (a - seed).abs().total_cmp(&(b - seed).abs()))
+                    .ok_or_else(fail)?;
+                turns[joint] = Turn::Revolution(((v.to_degrees() - 180.0) / 360.0).ceil() as i64);
+            }
+            Ok(Posture {
+                configuration: Some(configuration),
+                turns,
+            })
+        }
+        _ => Ok(posture(hint, Some(k))),
+    }
+}
+
+/// The configuration label among `labels` whose posture reaching `point` with `turns`
+/// and holding `holds` lies nearest `near`, with that posture.
+fn nearest_label(
+    k: &Kinematics,
+    point: &Isometry3<f64>,
+    near: &[f64],
+    labels: impl Iterator<Item = u8>,
+    turns: &[Turn],
+    holds: impl Fn(&[f64]) -> bool,
+) -> Option<(adwi_robot::Configuration, Vec<f64>)> {
+    let distance = |q: &[f64]| -> f64 { q.iter().zip(near).map(|(a, b)| (a - b) * (a - b)).sum() };
+    labels
+        .filter_map(adwi_robot::Configuration::from_bits)
+        .filter_map(|c| {
+            let posture = Posture {
+                configuration: Some(c),
+                turns: turns.to_vec(),
+            };
+            k.inverse(point, &posture, near)
+                .filter(|q| holds(q))
+                .map(|q| (c, q))
+        })
+        .min_by(|a, b| distance(&a.1).total_cmp(&distance(&b.1)))
 }
 
 /// The kinematics whose TCP is the table's point, and that point in the flange frame when

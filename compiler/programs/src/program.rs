@@ -241,6 +241,39 @@ pub enum ConfigHint {
         /// The turn numbers, as written.
         turns: [Option<i8>; 3],
     },
+    /// Stäubli VAL3 `config` of a `pointRx`, each part as written; `None` where the
+    /// controller chooses (`ssame`, `sfree`, `esame`, `efree`, `wsame`, `wfree`, or the
+    /// attribute omitted, which is `same`).
+    Val3 {
+        /// `righty` (true): the wrist centre behind joint 1's axis (this project's
+        /// shoulder back), or `lefty`.
+        righty: Option<bool>,
+        /// `epositive` (true): J3 ≥ 0 as the robot file counts it, or `enegative`.
+        elbow_positive: Option<bool>,
+        /// `wpositive` (true): J5 ≥ 0 as the robot file counts it, or `wnegative`.
+        wrist_positive: Option<bool>,
+    },
+    /// Yaskawa `///RCONF l,m,n,o,p,q,…`: the manipulator type of the Cartesian positions
+    /// after it.
+    YaskawaRconf {
+        /// `l`: 0 flip (the R axis, J4, within (−90°, 90°] turn for turn), 1 no flip.
+        no_flip: bool,
+        /// `m`: 0 upper arm, 1 lower arm (this project's elbow down).
+        lower_arm: bool,
+        /// `n`: 0 front, 1 rear (this project's shoulder back).
+        rear: bool,
+        /// `o`, `p`, `q`: the R (J4), T (J6) and S (J1) axis at 180° or more.
+        at_least_180: [bool; 3],
+    },
+    /// A configuration the program writes but the reader cannot read or map (a value out
+    /// of range, a field it does not know): the target is not corrected in a posture the
+    /// program does not give.
+    Unreadable {
+        /// Where the value is written (bytes of the target's file).
+        span: (usize, usize),
+        /// What was expected there.
+        expected: &'static str,
+    },
 }
 
 /// A joint target's numbers.

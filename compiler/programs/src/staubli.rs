@@ -499,6 +499,8 @@ struct Value {
     numbers: Vec<Number>,
     /// `fatherId`'s text and offset.
     father: Option<(String, usize)>,
+    /// A point's configuration.
+    config: ConfigHint,
 }
 
 /// A `Data` of the file.
@@ -565,23 +567,7 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
     while let Some(tag) = xml.next()? {
         let local = tag.local_name(bytes);
         if tag.closing {
-            let Some(top) = open.pop() else {
-                return Err(src.error(
-                    tag.start,
-                    format!("</{}> closes no element", src.text(tag.name.0, tag.name.1)),
-                ));
-            };
-            if bytes[top.0..top.1] != bytes[tag.name.0..tag.name.1] {
-                return Err(src.error(
-                    tag.start,
-                    format!(
-                        "</{}> closes <{}> (line {})",
-                        src.text(tag.name.0, tag.name.1),
-                        src.text(top.0, top.1),
-                        src.location(top.0).0
-                    ),
-                ));
-            }
+            close(src, &tag, &mut open)?;
             if in_data.is_some_and(|(_, depth)| depth == open.len()) {
                 in_data = None;
             }
@@ -601,28 +587,12 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
             open.push(tag.name);
         }
         if local == b"Data" && in_data.is_none() {
-            let name = tag
-                .attribute(src, b"name")
-                .ok_or_else(|| src.error(tag.start, "a <Data> without its name"))?;
-            let type_name = tag.attribute(src, b"type").map(|t| t.1).unwrap_or_default();
-            let kind = match type_name.as_str() {
-                "pointRx" => Kind::Point,
-                "jointRx" => Kind::Joint,
-                "frame" => Kind::Frame,
-                "tool" => Kind::Tool,
-                _ => Kind::Other,
-            };
-            if names.insert(name.1.clone(), data.len()).is_some() {
-                return Err(src.error(name.0, format!("the data {} twice", name.1)));
+            let d = data_element(src, &tag)?;
+            if names.insert(d.name.clone(), data.len()).is_some() {
+                let at = tag.attribute(src, b"name").map_or(tag.start, |n| n.0);
+                return Err(src.error(at, format!("the data {} twice", d.name)));
             }
-            data.push(Data {
-                name: name.1,
-                kind,
-                type_name,
-                offset: tag.start,
-                values: Vec::new(),
-                keys: HashMap::new(),
-            });
+            data.push(d);
             if !tag.empty {
                 in_data = Some((data.len() - 1, depth));
             }
@@ -638,70 +608,9 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
         if d.kind == Kind::Other {
             continue;
         }
-        let key = tag
-            .attribute(src, b"key")
-            .ok_or_else(|| src.error(tag.start, "a <Value> without its key"))?;
-        if d.keys.insert(key.1.clone(), d.values.len()).is_some() {
-            return Err(src.error(key.0, format!("the key {} twice in {}", key.1, d.name)));
-        }
-        let names: Vec<String> = match d.kind {
-            Kind::Joint => {
-                let mut names: Vec<String> = (1..=6).map(|j| format!("j{j}")).collect();
-                // A seventh or further axis, when written.
-                for j in 7..=crate::bounds::MAX_JOINTS {
-                    if tag.find(bytes, format!("j{j}").as_bytes()).is_some() {
-                        names.truncate(j - 1);
-                        names.extend((names.len() + 1..=j).map(|k| format!("j{k}")));
-                    }
-                }
-                names
-            }
-            _ => CARTESIAN.iter().map(|s| s.to_string()).collect(),
-        };
-        // An omitted number goes after the last attribute written before it, in the
-        // order key, then the numbers; after the element's name when none is.
-        let mut after = tag
-            .find(bytes, b"key")
-            .map_or(tag.name_end, |a| a.value.1 + 1);
-        let mut numbers = Vec::with_capacity(names.len());
-        for name in &names {
-            match tag.find(bytes, name.as_bytes()) {
-                Some(a) => {
-                    let n = parse_number(&bytes[..a.value.1], a.value.0)
-                        .filter(|n| n.span.1 == a.value.1)
-                        .ok_or_else(|| {
-                            src.error(
-                                a.value.0,
-                                format!(
-                                    "{name} must be a number, found '{}'",
-                                    src.text(a.value.0, a.value.1)
-                                ),
-                            )
-                        })?;
-                    numbers.push(n);
-                    after = after.max(a.value.1 + 1);
-                }
-                None => numbers.push(Number {
-                    span: (after, after),
-                    value: 0.0,
-                    style: NumberStyle {
-                        decimals: 0,
-                        point: false,
-                        plus: false,
-                        bare_point: false,
-                        exponent: None,
-                        decimal_comma: false,
-                    },
-                }),
-            }
-        }
-        let father = tag.attribute(src, b"fatherId").map(|(at, text)| (text, at));
-        d.values.push(Value {
-            key: key.1,
-            offset: tag.start,
-            numbers,
-            father,
-        });
+        let v = value_element(src, &tag, d)?;
+        d.keys.insert(v.key.clone(), d.values.len());
+        d.values.push(v);
     }
     if let Some(top) = open.last() {
         return Err(src.error(
@@ -716,6 +625,190 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
         return Err(src.error(0, "not a VAL3 data file: no <Database> element"));
     }
     Ok(Datas { list: data, names })
+}
+
+/// A closing tag checked against the element it closes, which it pops.
+fn close(src: &Source, tag: &Tag, open: &mut Vec<(usize, usize)>) -> Result<(), Error> {
+    let bytes = src.bytes;
+    let Some(top) = open.pop() else {
+        return Err(src.error(
+            tag.start,
+            format!("</{}> closes no element", src.text(tag.name.0, tag.name.1)),
+        ));
+    };
+    if bytes[top.0..top.1] != bytes[tag.name.0..tag.name.1] {
+        return Err(src.error(
+            tag.start,
+            format!(
+                "</{}> closes <{}> (line {})",
+                src.text(tag.name.0, tag.name.1),
+                src.text(top.0, top.1),
+                src.location(top.0).0
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A `<Data>` element: its name and type, no values yet.
+fn data_element(src: &Source, tag: &Tag) -> Result<Data, Error> {
+    let name = tag
+        .attribute(src, b"name")
+        .ok_or_else(|| src.error(tag.start, "a <Data> without its name"))?;
+    let type_name = tag.attribute(src, b"type").map(|t| t.1).unwrap_or_default();
+    let kind = match type_name.as_str() {
+        "pointRx" => Kind::Point,
+        "jointRx" => Kind::Joint,
+        "frame" => Kind::Frame,
+        "tool" => Kind::Tool,
+        _ => Kind::Other,
+    };
+    Ok(Data {
+        name: name.1,
+        kind,
+        type_name,
+        offset: tag.start,
+        values: Vec::new(),
+        keys: HashMap::new(),
+    })
+}
+
+/// A `<Value>` of `data` (a `pointRx`, `jointRx`, `frame` or `tool`): its key, which no
+/// value before it has, numbers, father and (a point's) configuration.
+fn value_element(src: &Source, tag: &Tag, data: &Data) -> Result<Value, Error> {
+    let kind = data.kind;
+    let key = tag
+        .attribute(src, b"key")
+        .ok_or_else(|| src.error(tag.start, "a <Value> without its key"))?;
+    if data.keys.contains_key(&key.1) {
+        return Err(src.error(key.0, format!("the key {} twice in {}", key.1, data.name)));
+    }
+    let father = tag.attribute(src, b"fatherId").map(|(at, text)| (text, at));
+    let config = match kind {
+        Kind::Point => val3_config(src, tag),
+        _ => ConfigHint::None,
+    };
+    Ok(Value {
+        key: key.1,
+        offset: tag.start,
+        numbers: value_numbers(src, tag, kind)?,
+        father,
+        config,
+    })
+}
+
+/// A value's numbers by their attributes' names (`j1`… for a `jointRx`, [`CARTESIAN`]
+/// for the rest); an omitted one is 0 with an empty span where a correction inserts it.
+fn value_numbers(src: &Source, tag: &Tag, kind: Kind) -> Result<Vec<Number>, Error> {
+    let bytes = src.bytes;
+    let names: Vec<String> = match kind {
+        Kind::Joint => {
+            let mut names: Vec<String> = (1..=6).map(|j| format!("j{j}")).collect();
+            // A seventh or further axis, when written.
+            for j in 7..=crate::bounds::MAX_JOINTS {
+                if tag.find(bytes, format!("j{j}").as_bytes()).is_some() {
+                    names.truncate(j - 1);
+                    names.extend((names.len() + 1..=j).map(|k| format!("j{k}")));
+                }
+            }
+            names
+        }
+        _ => CARTESIAN.iter().map(|s| s.to_string()).collect(),
+    };
+    // An omitted number goes after the last attribute written before it, in the
+    // order key, then the numbers; after the element's name when none is.
+    let mut after = tag
+        .find(bytes, b"key")
+        .map_or(tag.name_end, |a| a.value.1 + 1);
+    let mut numbers = Vec::with_capacity(names.len());
+    for name in &names {
+        match tag.find(bytes, name.as_bytes()) {
+            Some(a) => {
+                let n = parse_number(&bytes[..a.value.1], a.value.0)
+                    .filter(|n| n.span.1 == a.value.1)
+                    .ok_or_else(|| {
+                        src.error(
+                            a.value.0,
+                            format!(
+                                "{name} must be a number, found '{}'",
+                                src.text(a.value.0, a.value.1)
+                            ),
+                        )
+                    })?;
+                numbers.push(n);
+                after = after.max(a.value.1 + 1);
+            }
+            None => numbers.push(Number {
+                span: (after, after),
+                value: 0.0,
+                style: NumberStyle {
+                    decimals: 0,
+                    point: false,
+                    plus: false,
+                    bare_point: false,
+                    exponent: None,
+                    decimal_comma: false,
+                },
+            }),
+        }
+    }
+    Ok(numbers)
+}
+
+/// A `pointRx` value's `config` (the VAL3 manual's `config` type): `shoulder` `righty` or
+/// `lefty`, `elbow` `epositive` or `enegative` (J3 ≥ 0 or not), `wrist` `wpositive` or
+/// `wnegative` (J5 ≥ 0 or not); `ssame`/`sfree`, `esame`/`efree`, `wsame`/`wfree`, and an
+/// omitted attribute (SRS omits the default, `same`) leave the part to the controller. A
+/// value that is none of these is [`ConfigHint::Unreadable`].
+fn val3_config(src: &Source, tag: &Tag) -> ConfigHint {
+    let part = |name: &[u8], words: [&str; 4], expected: &'static str| {
+        let Some(a) = tag.find(src.bytes, name) else {
+            return Ok(None);
+        };
+        match words
+            .iter()
+            .position(|w| w.as_bytes() == &src.bytes[a.value.0..a.value.1])
+        {
+            Some(0) => Ok(Some(true)),
+            Some(1) => Ok(Some(false)),
+            Some(_) => Ok(None),
+            None => Err(ConfigHint::Unreadable {
+                span: a.value,
+                expected,
+            }),
+        }
+    };
+    let parts = (
+        part(
+            b"shoulder",
+            ["righty", "lefty", "ssame", "sfree"],
+            "shoulder is righty, lefty, ssame or sfree",
+        ),
+        part(
+            b"elbow",
+            ["epositive", "enegative", "esame", "efree"],
+            "elbow is epositive, enegative, esame or efree",
+        ),
+        part(
+            b"wrist",
+            ["wpositive", "wnegative", "wsame", "wfree"],
+            "wrist is wpositive, wnegative, wsame or wfree",
+        ),
+    );
+    match parts {
+        (Ok(righty), Ok(elbow_positive), Ok(wrist_positive)) => {
+            if righty.is_none() && elbow_positive.is_none() && wrist_positive.is_none() {
+                ConfigHint::None
+            } else {
+                ConfigHint::Val3 {
+                    righty,
+                    elbow_positive,
+                    wrist_positive,
+                }
+            }
+        }
+        (Err(e), ..) | (_, Err(e), _) | (.., Err(e)) => e,
+    }
 }
 
 /// A reference to data in the code: its name and key (`None`: an index computed as the
@@ -1094,245 +1187,16 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
     let data = read_data(src)?;
     let mut code = Code::default();
     read_code(programs, &mut code)?;
-    let find = |name: &str| data.index(name);
-    let assigned = |name: &str, key: &str| code.assigned_at(name, key);
-    // Per data, per value: the uses.
-    let mut uses: Vec<Vec<Uses>> = data
-        .iter()
-        .map(|d| d.values.iter().map(|_| Uses::default()).collect())
-        .collect();
-    let mut refused_motions: Vec<ProgramTarget> = Vec::new();
-    let refuse_motion =
-        |list: &mut Vec<ProgramTarget>, m: &Motion, at: usize, reason: Reason, why: String| {
-            list.push(ProgramTarget {
-                name: m.instruction.clone(),
-                offset: at,
-                kind: TargetKind::Motion,
-                uses: Vec::new(),
-                refused: Some(Refusal::new(
-                    reason,
-                    format!("{} at {}: {why}", crate::escape_controls(&m.text), m.place),
-                )),
-            });
-        };
+    let mut walk = MotionWalk::new(&data, &code);
     for m in &code.motions {
-        if let Some(why) = &m.unknown {
-            let reason = Reason::UnknownMotion;
-            refuse_motion(&mut refused_motions, m, 0, reason, why.clone());
-            for t in &m.targets {
-                if let Argument::Data(r) = argument(t) {
-                    if let Some(d) = find(&r.name) {
-                        for (k, v) in data[d].values.iter().enumerate() {
-                            if r.key.as_deref().is_none_or(|key| key == v.key) {
-                                uses[d][k].refused.push(Refusal::new(
-                                    reason,
-                                    format!("{} ({}): {why}", m.instruction, m.place),
-                                ));
-                            }
-                        }
-                    }
-                }
-            }
-            continue;
-        }
-        let tool = m.tool.as_deref().map(|t| tool_frame(&data, &code, t));
-        for t in &m.targets {
-            let (r, offset) = match argument(t) {
-                Argument::Data(r) => (r, None),
-                Argument::Offset(f, r) => (
-                    r.unwrap_or(Reference {
-                        name: String::new(),
-                        key: None,
-                    }),
-                    Some(f),
-                ),
-                Argument::Expression => {
-                    refuse_motion(
-                        &mut refused_motions,
-                        m,
-                        0,
-                        Reason::Dynamic,
-                        format!(
-                            "'{}' is computed as the program runs",
-                            crate::escape_controls(t.trim())
-                        ),
-                    );
-                    continue;
-                }
-            };
-            let Some(d) = find(&r.name) else {
-                let (reason, why) = match code.locals.get(&r.name) {
-                    Some(p) => (
-                        Reason::Dynamic,
-                        format!(
-                            "{} is a local variable or parameter of {p}, set as the program runs",
-                            r.name
-                        ),
-                    ),
-                    None if offset.is_some() => (
-                        Reason::Relative,
-                        format!(
-                            "an offset ({}) computed as the program runs",
-                            offset.unwrap_or_default()
-                        ),
-                    ),
-                    None => (
-                        Reason::NotDeclared,
-                        format!("{} is not in the application's data", r.name),
-                    ),
-                };
-                refuse_motion(&mut refused_motions, m, 0, reason, why);
-                continue;
-            };
-            let kind = data[d].kind;
-            if !matches!(kind, Kind::Point | Kind::Joint) {
-                refuse_motion(
-                    &mut refused_motions,
-                    m,
-                    data[d].offset,
-                    Reason::Dynamic,
-                    format!(
-                        "{} is a {}, not a pointRx or jointRx",
-                        r.name, data[d].type_name
-                    ),
-                );
-                continue;
-            }
-            let keys: Vec<usize> = match &r.key {
-                Some(key) => match data[d].value(key) {
-                    Some(k) => vec![k],
-                    None => {
-                        refuse_motion(
-                            &mut refused_motions,
-                            m,
-                            data[d].offset,
-                            Reason::NotDeclared,
-                            format!("{}[{key}] has no value in the data", r.name),
-                        );
-                        continue;
-                    }
-                },
-                None => (0..data[d].values.len()).collect(),
-            };
-            if let Some(f) = offset {
-                let why = format!("{f}(…): an offset computed as the program runs");
-                refuse_motion(
-                    &mut refused_motions,
-                    m,
-                    data[d].offset,
-                    Reason::Relative,
-                    why.clone(),
-                );
-                for k in keys {
-                    uses[d][k].refused.push(Refusal::new(
-                        Reason::Relative,
-                        format!("{} ({}): {why}", m.text, m.place),
-                    ));
-                }
-                continue;
-            }
-            for k in keys {
-                let u = &mut uses[d][k];
-                u.direct = true;
-                if kind == Kind::Point {
-                    let mut frame = FrameUse {
-                        tool: None,
-                        base: None,
-                        offset: data[d].values[k].offset,
-                        elsewhere: Some(m.place.clone()),
-                        undeclared: Vec::new(),
-                        unknown: Vec::new(),
-                    };
-                    match &tool {
-                        Some(Ok(t)) => frame.tool = Some(*t),
-                        Some(Err(Missing::Undeclared(name))) => frame.undeclared.push(Undeclared {
-                            base: false,
-                            name: name.clone(),
-                        }),
-                        Some(Err(Missing::Unknown(why))) => frame.unknown.push(why.clone()),
-                        None => {}
-                    }
-                    match father_frame(
-                        &data,
-                        &code,
-                        data[d].values[k].father.as_ref().map(|f| f.0.as_str()),
-                        0,
-                    ) {
-                        Ok(b) => frame.base = Some(b),
-                        Err(Missing::Undeclared(name)) => {
-                            frame.undeclared.push(Undeclared { base: true, name })
-                        }
-                        Err(Missing::Unknown(why)) => frame.unknown.push(why),
-                    }
-                    if !u.frames.contains(&frame) {
-                        u.frames.push(frame);
-                    }
-                }
-            }
-        }
+        walk.motion(m);
     }
-    let mut targets: Vec<ProgramTarget> = Vec::new();
-    let mut truncated_at = None;
-    'data: for (d, item) in data.iter().enumerate() {
-        if !matches!(item.kind, Kind::Point | Kind::Joint) {
-            continue;
-        }
-        for (k, v) in item.values.iter().enumerate() {
-            if targets.len() >= limit {
-                truncated_at = Some(v.offset);
-                break 'data;
-            }
-            let u = std::mem::take(&mut uses[d][k]);
-            let name = format!("{}[{}]", item.name, v.key);
-            let kind = match item.kind {
-                Kind::Point => TargetKind::Cartesian(Box::new(CartesianTarget {
-                    position: [v.numbers[0], v.numbers[1], v.numbers[2]],
-                    unit: LengthUnit::Millimetre,
-                    orientation: Some(Orientation::XyzIntrinsicDeg([
-                        v.numbers[3],
-                        v.numbers[4],
-                        v.numbers[5],
-                    ])),
-                    config: ConfigHint::None,
-                    joints: Vec::new(),
-                })),
-                _ => TargetKind::Joints(JointTarget {
-                    joints: v.numbers.clone(),
-                    unit: AngleUnit::Degree,
-                }),
-            };
-            let refused = if let (true, Some(at)) = (u.direct, assigned(&item.name, &v.key)) {
-                Some(Refusal::new(
-                    Reason::Dynamic,
-                    format!("assigned as the program runs ({at})"),
-                ))
-            } else if u.direct {
-                None
-            } else if let Some(r) = u.refused.first() {
-                Some(Refusal::new(
-                    r.reason,
-                    format!("moved to only as {}", r.detail),
-                ))
-            } else {
-                Some(Refusal::new(
-                    Reason::NotMoved,
-                    match code.named.get(&item.name) {
-                        Some(at) => format!(
-                            "no motion moves to it; the code uses it otherwise (first at {at})"
-                        ),
-                        None => "no motion moves to it, and no program names it".to_string(),
-                    },
-                ))
-            };
-            targets.push(ProgramTarget {
-                name,
-                offset: v.offset,
-                kind,
-                uses: u.frames,
-                refused,
-            });
-        }
-    }
+    let MotionWalk {
+        mut uses,
+        refused_motions,
+        ..
+    } = walk;
+    let (mut targets, mut truncated_at) = data_targets(&data, &code, &mut uses, limit);
     if truncated_at.is_none() {
         targets.extend(refused_motions);
         if targets.len() > limit {
@@ -1345,6 +1209,282 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
         truncated_at,
         first_motion: None,
     })
+}
+
+/// The code's motions walked for the data they move to: each value's uses (its frames,
+/// or why not), and the motions refused as a whole.
+struct MotionWalk<'d> {
+    data: &'d Datas,
+    code: &'d Code,
+    /// Per data, per value: the uses.
+    uses: Vec<Vec<Uses>>,
+    refused_motions: Vec<ProgramTarget>,
+}
+
+impl<'d> MotionWalk<'d> {
+    fn new(data: &'d Datas, code: &'d Code) -> MotionWalk<'d> {
+        MotionWalk {
+            data,
+            code,
+            uses: data
+                .iter()
+                .map(|d| d.values.iter().map(|_| Uses::default()).collect())
+                .collect(),
+            refused_motions: Vec::new(),
+        }
+    }
+
+    /// A motion reported as a whole, with what it is and why.
+    fn refuse_motion(&mut self, m: &Motion, at: usize, reason: Reason, why: String) {
+        self.refused_motions.push(ProgramTarget {
+            name: m.instruction.clone(),
+            offset: at,
+            kind: TargetKind::Motion,
+            uses: Vec::new(),
+            refused: Some(Refusal::new(
+                reason,
+                format!("{} at {}: {why}", crate::escape_controls(&m.text), m.place),
+            )),
+        });
+    }
+
+    /// One motion: each target argument's data used in the motion's tool, or the motion
+    /// (and what it names) reported.
+    fn motion(&mut self, m: &Motion) {
+        if let Some(why) = &m.unknown {
+            self.unknown_motion(m, why);
+            return;
+        }
+        let tool = m
+            .tool
+            .as_deref()
+            .map(|t| tool_frame(self.data, self.code, t));
+        for t in &m.targets {
+            self.argument(m, tool.as_ref(), t);
+        }
+    }
+
+    /// A call that looks like a motion but is not one this reader corrects: reported, and
+    /// every value it names refused with it.
+    fn unknown_motion(&mut self, m: &Motion, why: &str) {
+        let reason = Reason::UnknownMotion;
+        self.refuse_motion(m, 0, reason, why.to_string());
+        for t in &m.targets {
+            let Argument::Data(r) = argument(t) else {
+                continue;
+            };
+            let Some(d) = self.data.index(&r.name) else {
+                continue;
+            };
+            for (k, v) in self.data[d].values.iter().enumerate() {
+                if r.key.as_deref().is_none_or(|key| key == v.key) {
+                    self.uses[d][k].refused.push(Refusal::new(
+                        reason,
+                        format!("{} ({}): {why}", m.instruction, m.place),
+                    ));
+                }
+            }
+        }
+    }
+
+    /// A target argument `t` of motion `m`: the values it moves to directly, each with its
+    /// frames in `tool`; an expression, a local, a name the data lacks, data of another
+    /// type, a key with no value or an offset reported.
+    fn argument(&mut self, m: &Motion, tool: Option<&Result<Isometry3<f64>, Missing>>, t: &str) {
+        let (data, code) = (self.data, self.code);
+        let (r, offset) = match argument(t) {
+            Argument::Data(r) => (r, None),
+            Argument::Offset(f, r) => (
+                r.unwrap_or(Reference {
+                    name: String::new(),
+                    key: None,
+                }),
+                Some(f),
+            ),
+            Argument::Expression => {
+                let why = format!(
+                    "'{}' is computed as the program runs",
+                    crate::escape_controls(t.trim())
+                );
+                self.refuse_motion(m, 0, Reason::Dynamic, why);
+                return;
+            }
+        };
+        let Some(d) = data.index(&r.name) else {
+            let (reason, why) = match code.locals.get(&r.name) {
+                Some(p) => (
+                    Reason::Dynamic,
+                    format!(
+                        "{} is a local variable or parameter of {p}, set as the program runs",
+                        r.name
+                    ),
+                ),
+                None if offset.is_some() => (
+                    Reason::Relative,
+                    format!(
+                        "an offset ({}) computed as the program runs",
+                        offset.unwrap_or_default()
+                    ),
+                ),
+                None => (
+                    Reason::NotDeclared,
+                    format!("{} is not in the application's data", r.name),
+                ),
+            };
+            self.refuse_motion(m, 0, reason, why);
+            return;
+        };
+        let item = &data[d];
+        if !matches!(item.kind, Kind::Point | Kind::Joint) {
+            let why = format!(
+                "{} is a {}, not a pointRx or jointRx",
+                r.name, item.type_name
+            );
+            self.refuse_motion(m, item.offset, Reason::Dynamic, why);
+            return;
+        }
+        let keys: Vec<usize> = match &r.key {
+            Some(key) => match item.value(key) {
+                Some(k) => vec![k],
+                None => {
+                    let why = format!("{}[{key}] has no value in the data", r.name);
+                    self.refuse_motion(m, item.offset, Reason::NotDeclared, why);
+                    return;
+                }
+            },
+            None => (0..item.values.len()).collect(),
+        };
+        if let Some(f) = offset {
+            let why = format!("{f}(…): an offset computed as the program runs");
+            self.refuse_motion(m, item.offset, Reason::Relative, why.clone());
+            for k in keys {
+                self.uses[d][k].refused.push(Refusal::new(
+                    Reason::Relative,
+                    format!("{} ({}): {why}", m.text, m.place),
+                ));
+            }
+            return;
+        }
+        for k in keys {
+            let u = &mut self.uses[d][k];
+            u.direct = true;
+            if item.kind == Kind::Point {
+                let frame = point_frames(data, code, &item.values[k], m, tool);
+                if !u.frames.contains(&frame) {
+                    u.frames.push(frame);
+                }
+            }
+        }
+    }
+}
+
+/// A point's frames as motion `m` moves to it: the motion's tool, and the point's father
+/// chained to the world; or what is not known of them.
+fn point_frames(
+    data: &Datas,
+    code: &Code,
+    value: &Value,
+    m: &Motion,
+    tool: Option<&Result<Isometry3<f64>, Missing>>,
+) -> FrameUse {
+    let mut frame = FrameUse {
+        tool: None,
+        base: None,
+        offset: value.offset,
+        elsewhere: Some(m.place.clone()),
+        undeclared: Vec::new(),
+        unknown: Vec::new(),
+    };
+    match tool {
+        Some(Ok(t)) => frame.tool = Some(*t),
+        Some(Err(Missing::Undeclared(name))) => frame.undeclared.push(Undeclared {
+            base: false,
+            name: name.clone(),
+        }),
+        Some(Err(Missing::Unknown(why))) => frame.unknown.push(why.clone()),
+        None => {}
+    }
+    match father_frame(data, code, value.father.as_ref().map(|f| f.0.as_str()), 0) {
+        Ok(b) => frame.base = Some(b),
+        Err(Missing::Undeclared(name)) => frame.undeclared.push(Undeclared { base: true, name }),
+        Err(Missing::Unknown(why)) => frame.unknown.push(why),
+    }
+    frame
+}
+
+/// The data's points and joint values as targets, in the file's order, each with its uses
+/// (at most `limit`: then where reading stopped).
+fn data_targets(
+    data: &Datas,
+    code: &Code,
+    uses: &mut [Vec<Uses>],
+    limit: usize,
+) -> (Vec<ProgramTarget>, Option<usize>) {
+    let mut targets: Vec<ProgramTarget> = Vec::new();
+    for (d, item) in data.iter().enumerate() {
+        if !matches!(item.kind, Kind::Point | Kind::Joint) {
+            continue;
+        }
+        for (k, v) in item.values.iter().enumerate() {
+            if targets.len() >= limit {
+                return (targets, Some(v.offset));
+            }
+            let u = std::mem::take(&mut uses[d][k]);
+            let kind = match item.kind {
+                Kind::Point => TargetKind::Cartesian(Box::new(CartesianTarget {
+                    position: [v.numbers[0], v.numbers[1], v.numbers[2]],
+                    unit: LengthUnit::Millimetre,
+                    orientation: Some(Orientation::XyzIntrinsicDeg([
+                        v.numbers[3],
+                        v.numbers[4],
+                        v.numbers[5],
+                    ])),
+                    config: v.config,
+                    joints: Vec::new(),
+                })),
+                _ => TargetKind::Joints(JointTarget {
+                    joints: v.numbers.clone(),
+                    unit: AngleUnit::Degree,
+                }),
+            };
+            targets.push(ProgramTarget {
+                name: format!("{}[{}]", item.name, v.key),
+                offset: v.offset,
+                kind,
+                refused: value_refusal(code, item, v, &u),
+                uses: u.frames,
+            });
+        }
+    }
+    (targets, None)
+}
+
+/// Why a value is left as written: assigned by the code although moved to, moved to only
+/// through refused uses (the first named), or moved to by no motion; `None` when moved to.
+fn value_refusal(code: &Code, item: &Data, v: &Value, u: &Uses) -> Option<Refusal> {
+    if let (true, Some(at)) = (u.direct, code.assigned_at(&item.name, &v.key)) {
+        Some(Refusal::new(
+            Reason::Dynamic,
+            format!("assigned as the program runs ({at})"),
+        ))
+    } else if u.direct {
+        None
+    } else if let Some(r) = u.refused.first() {
+        Some(Refusal::new(
+            r.reason,
+            format!("moved to only as {}", r.detail),
+        ))
+    } else {
+        Some(Refusal::new(
+            Reason::NotMoved,
+            match code.named.get(&item.name) {
+                Some(at) => {
+                    format!("no motion moves to it; the code uses it otherwise (first at {at})")
+                }
+                None => "no motion moves to it, and no program names it".to_string(),
+            },
+        ))
+    }
 }
 
 /// Why a frame or tool is not known.
@@ -1743,6 +1883,52 @@ end]]></Code>\r\n\
             inserted(((5, 5), "NaN".into()), "z"),
             ((5, 5), "NaN".into())
         );
+    }
+
+    #[test]
+    fn a_points_config_is_read_as_written_and_same_or_free_is_the_controllers() {
+        let config = |attributes: &str| {
+            let dtx = format!(
+                "<Database><Datas><Data name=\"p\" type=\"pointRx\">\n<Value key=\"0\" x=\"1\" {attributes} />\n</Data></Datas></Database>"
+            );
+            let p = read(&Source::new("a.dtx", dtx.as_bytes()), &[]).unwrap();
+            let TargetKind::Cartesian(c) = &p.targets[0].kind else {
+                panic!("{:?}", p.targets[0].kind)
+            };
+            c.config
+        };
+        assert_eq!(
+            config("shoulder=\"righty\" elbow=\"enegative\" wrist=\"wpositive\""),
+            ConfigHint::Val3 {
+                righty: Some(true),
+                elbow_positive: Some(false),
+                wrist_positive: Some(true),
+            }
+        );
+        assert_eq!(
+            config("shoulder=\"lefty\" elbow=\"efree\" wrist=\"wnegative\""),
+            ConfigHint::Val3 {
+                righty: Some(false),
+                elbow_positive: None,
+                wrist_positive: Some(false),
+            }
+        );
+        // Omitted (SRS's default, `same`) or free throughout: the controller chooses.
+        assert_eq!(config(""), ConfigHint::None);
+        assert_eq!(
+            config("shoulder=\"ssame\" elbow=\"esame\" wrist=\"wfree\""),
+            ConfigHint::None
+        );
+        // A value that is none of VAL3's: where it is written, and what was expected.
+        let bad = config("shoulder=\"lefty\" elbow=\"up\"");
+        let ConfigHint::Unreadable { span, expected } = bad else {
+            panic!("{bad:?}")
+        };
+        assert_eq!(expected, "elbow is epositive, enegative, esame or efree");
+        let line = "<Value key=\"0\" x=\"1\" shoulder=\"lefty\" elbow=\"up\" />";
+        let start = "<Database><Datas><Data name=\"p\" type=\"pointRx\">\n".len();
+        let at = start + line.find("up").unwrap();
+        assert_eq!(span, (at, at + 2));
     }
 
     #[test]

@@ -242,25 +242,9 @@ pub fn read_at_most(
     limit: usize,
 ) -> Result<Program, Error> {
     let bytes = src.bytes;
-    let mut targets: Vec<ProgramTarget> = Vec::new();
-    let mut positions: Vec<Position> = Vec::new();
-    // The positions by their number (`C00012` and `C12` are one).
-    let mut by_number: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    let mut reader = Reader::new(src, options);
     let mut truncated_at = None;
-    let mut first_motion = None;
-    #[derive(PartialEq)]
-    enum Section {
-        Header,
-        Pos,
-        Inst,
-    }
     let mut section = Section::Header;
-    // The //POS section's state.
-    let mut tool: u16 = 0;
-    let mut user: Option<(u16, usize)> = None;
-    let mut postype: Option<(PosType, usize)> = None;
-    // The //INST section's: the shift in force (SFTON) and its line.
-    let mut shift: Option<(String, usize)> = None;
     let mut start = 0;
     let mut line_number = 0;
     while start < bytes.len() {
@@ -276,7 +260,7 @@ pub fn read_at_most(
         if line.is_empty() {
             continue;
         }
-        if targets.len() > limit {
+        if reader.targets.len() > limit {
             truncated_at = Some(at);
             break;
         }
@@ -296,309 +280,480 @@ pub fn read_at_most(
             }
             continue;
         }
+        let line = Line {
+            at,
+            end,
+            number: line_number,
+        };
         match section {
             Section::Header => {}
-            Section::Pos => {
-                if upper.starts_with(b"///") {
-                    let w = words(bytes, at + 3, end);
-                    let Some(&(key_at, key)) = w.first() else {
-                        continue;
-                    };
-                    let key = key.to_ascii_uppercase();
-                    let value = w.get(1).copied();
-                    let number = |what: &str| -> Result<u16, Error> {
-                        value
-                            .and_then(|(_, v)| std::str::from_utf8(v).ok()?.parse::<u16>().ok())
-                            .ok_or_else(|| {
-                                src.error(
-                                    value.map_or(end, |v| v.0),
-                                    format!("///{what} needs its number, 0-65535"),
-                                )
-                            })
-                    };
-                    match key.as_slice() {
-                        b"TOOL" => tool = number("TOOL")?,
-                        b"USER" => user = Some((number("USER")?, line_number)),
-                        b"POSTYPE" => {
-                            let kind = match value.map(|v| v.1.to_ascii_uppercase()).as_deref() {
-                                Some(b"PULSE") => PosType::Pulse,
-                                Some(b"ROBOT") => PosType::Robot,
-                                Some(b"BASE") => PosType::Base,
-                                Some(b"USER") => PosType::User,
-                                Some(b"TOOL") => PosType::Tool,
-                                Some(b"MTOOL") => PosType::MasterTool,
-                                _ => {
-                                    return Err(src.error(
-                                        value.map_or(key_at, |v| v.0),
-                                        "///POSTYPE is PULSE, BASE, ROBOT, USER, TOOL or MTOOL",
-                                    ))
-                                }
-                            };
-                            postype = Some((kind, line_number));
-                        }
-                        // NPOS, RECTAN, PULSE, RCONF and the rest: kept as written.
-                        _ => {}
-                    }
-                    continue;
-                }
-                let Some(eq) = line.iter().position(|b| *b == b'=') else {
-                    return Err(src.error(
-                        at,
-                        format!(
-                            "expected a position (C00001=...) or a /// line, found {}",
-                            src.describe(at)
-                        ),
-                    ));
-                };
-                let name = &line[..eq];
-                let name_ok = [&b"C"[..], b"BC", b"EC", b"P", b"BP", b"EX"]
-                    .iter()
-                    .any(|p| variable(name, p));
-                if !name_ok {
-                    return Err(src.error(
-                        at,
-                        format!(
-                            "'{}' is not a position variable (C, BC, EC, P, BP, EX and digits)",
-                            src.text(at, at + eq)
-                        ),
-                    ));
-                }
-                // The values: numbers separated by commas.
-                let mut numbers: Vec<Number> = Vec::new();
-                let mut i = at + eq + 1;
-                loop {
-                    i = src.skip_blanks(i).min(end);
-                    let n = parse_number(&bytes[..end], i).ok_or_else(|| {
-                        src.error(i, format!("expected a number, found {}", src.describe(i)))
-                    })?;
-                    numbers.push(n);
-                    i = src.skip_blanks(n.span.1).min(end);
-                    if i >= end {
-                        break;
-                    }
-                    if bytes[i] != b',' {
+            Section::Pos if upper.starts_with(b"///") => reader.directive(line)?,
+            Section::Pos => reader.position(line)?,
+            Section::Inst if upper.starts_with(b"///") || upper.starts_with(b"'") => {}
+            Section::Inst => reader.instruction(line),
+        }
+    }
+    Ok(reader.finish(truncated_at))
+}
+
+/// The part of the job a line is in.
+#[derive(PartialEq)]
+enum Section {
+    Header,
+    Pos,
+    Inst,
+}
+
+/// A line's content: where it starts (after blanks) and ends, and its number.
+#[derive(Clone, Copy)]
+struct Line {
+    at: usize,
+    end: usize,
+    number: usize,
+}
+
+/// The reader as it walks the job: the targets so far, the `//POS` section's frames and
+/// configuration in force, and the `//INST` section's shift.
+struct Reader<'s, 'a> {
+    src: &'s Source<'a>,
+    options: &'s YaskawaOptions,
+    targets: Vec<ProgramTarget>,
+    positions: Vec<Position>,
+    /// The positions by their number (`C00012` and `C12` are one).
+    by_number: std::collections::HashMap<u64, usize>,
+    first_motion: Option<usize>,
+    tool: u16,
+    user: Option<(u16, usize)>,
+    postype: Option<(PosType, usize)>,
+    /// The last `///RCONF`'s configuration: it holds for the positions after it.
+    rconf: ConfigHint,
+    /// The shift in force (`SFTON`) and its line.
+    shift: Option<(String, usize)>,
+}
+
+impl<'s, 'a> Reader<'s, 'a> {
+    fn new(src: &'s Source<'a>, options: &'s YaskawaOptions) -> Reader<'s, 'a> {
+        Reader {
+            src,
+            options,
+            targets: Vec::new(),
+            positions: Vec::new(),
+            by_number: std::collections::HashMap::new(),
+            first_motion: None,
+            tool: 0,
+            user: None,
+            postype: None,
+            rconf: ConfigHint::None,
+            shift: None,
+        }
+    }
+
+    /// A `///` line of `//POS`: the tool, user frame, position type or configuration of the
+    /// positions after it (`NPOS`, `RECTAN`, `PULSE` and the rest are kept as written).
+    fn directive(&mut self, line: Line) -> Result<(), Error> {
+        let (src, end) = (self.src, line.end);
+        let w = words(src.bytes, line.at + 3, end);
+        let Some(&(key_at, key)) = w.first() else {
+            return Ok(());
+        };
+        let key = key.to_ascii_uppercase();
+        let value = w.get(1).copied();
+        let number = |what: &str| -> Result<u16, Error> {
+            value
+                .and_then(|(_, v)| std::str::from_utf8(v).ok()?.parse::<u16>().ok())
+                .ok_or_else(|| {
+                    src.error(
+                        value.map_or(end, |v| v.0),
+                        format!("///{what} needs its number, 0-65535"),
+                    )
+                })
+        };
+        match key.as_slice() {
+            b"TOOL" => self.tool = number("TOOL")?,
+            b"USER" => self.user = Some((number("USER")?, line.number)),
+            b"POSTYPE" => {
+                let kind = match value.map(|v| v.1.to_ascii_uppercase()).as_deref() {
+                    Some(b"PULSE") => PosType::Pulse,
+                    Some(b"ROBOT") => PosType::Robot,
+                    Some(b"BASE") => PosType::Base,
+                    Some(b"USER") => PosType::User,
+                    Some(b"TOOL") => PosType::Tool,
+                    Some(b"MTOOL") => PosType::MasterTool,
+                    _ => {
                         return Err(src.error(
-                            i,
-                            format!(
-                                "expected ',' or the end of the line, found {}",
-                                src.describe(i)
-                            ),
-                        ));
+                            value.map_or(key_at, |v| v.0),
+                            "///POSTYPE is PULSE, BASE, ROBOT, USER, TOOL or MTOOL",
+                        ))
                     }
-                    i += 1;
-                    if numbers.len() > crate::bounds::MAX_JOINTS {
-                        return Err(
-                            src.error(i, format!("more than {} values", crate::bounds::MAX_JOINTS))
-                        );
-                    }
-                }
-                // Only the robot's C positions are targets; BC, EC (base and station
-                // axes) and P values are not.
-                if !variable(name, b"C") {
-                    continue;
-                }
-                let Some((kind, _)) = postype else {
-                    return Err(src.error(
-                        at,
-                        "a position before any ///POSTYPE line: its frame is not known",
-                    ));
                 };
-                let (target_kind, refused, uses) =
-                    position(src, options, &numbers, kind, tool, user, at);
-                if let Some(n) = variable_number(name, 1) {
-                    by_number.entry(n).or_insert(positions.len());
-                }
-                positions.push(Position {
-                    target: targets.len(),
-                    refused_uses: Vec::new(),
-                    direct: false,
-                });
-                targets.push(ProgramTarget {
-                    name: src.text(at, at + eq),
-                    offset: at,
-                    kind: target_kind,
-                    uses,
-                    refused,
-                });
+                self.postype = Some((kind, line.number));
             }
-            Section::Inst => {
-                if upper.starts_with(b"///") || upper.starts_with(b"'") {
-                    continue;
-                }
-                let w = words(bytes, at, end);
-                let Some(&(op_at, op)) = w.first() else {
-                    continue;
-                };
-                let op_upper = op.to_ascii_uppercase();
-                let op_name = src.text(op_at, op_at + op.len());
-                let refuse = |targets: &mut Vec<ProgramTarget>, reason: Reason, detail: String| {
-                    targets.push(ProgramTarget {
-                        name: op_name.clone(),
-                        offset: op_at,
-                        kind: TargetKind::Motion,
-                        uses: Vec::new(),
-                        refused: Some(Refusal::new(reason, detail)),
-                    });
-                };
-                match op_upper.as_slice() {
-                    b"SFTON" => {
-                        // The instruction as written, its shift and frame (`SFTON P010 UF#(1)`).
-                        let what = src.text(at, at + line.trim_ascii_end().len());
-                        shift = Some((what, line_number));
-                        continue;
-                    }
-                    b"SFTOF" => {
-                        shift = None;
-                        continue;
-                    }
-                    _ => {}
-                }
-                let motion = matches!(op_upper.as_slice(), b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
-                let refp = op_upper.as_slice() == b"REFP";
-                let looks = op_upper.starts_with(b"MOV")
-                    || op_upper.starts_with(b"IMOV")
-                    || op_upper.starts_with(b"SMOV")
-                    || op_upper.starts_with(b"EIMOV")
-                    || op_upper.starts_with(b"SYMOV");
-                if !(motion || refp || looks) {
-                    continue;
-                }
+            b"RCONF" => self.rconf = rconf(src.bytes, key_at + key.len(), end),
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// A position line of `//POS` (`C00001=…`, `BC…`, `P…`): a `C` position is a target in
+    /// the frames and configuration in force.
+    fn position(&mut self, line: Line) -> Result<(), Error> {
+        let (src, at) = (self.src, line.at);
+        let text = &src.bytes[at..line.end];
+        let Some(eq) = text.iter().position(|b| *b == b'=') else {
+            return Err(src.error(
+                at,
+                format!(
+                    "expected a position (C00001=...) or a /// line, found {}",
+                    src.describe(at)
+                ),
+            ));
+        };
+        let name = &text[..eq];
+        let name_ok = [&b"C"[..], b"BC", b"EC", b"P", b"BP", b"EX"]
+            .iter()
+            .any(|p| variable(name, p));
+        if !name_ok {
+            return Err(src.error(
+                at,
+                format!(
+                    "'{}' is not a position variable (C, BC, EC, P, BP, EX and digits)",
+                    src.text(at, at + eq)
+                ),
+            ));
+        }
+        let numbers = values(src, at + eq + 1, line.end)?;
+        // Only the robot's C positions are targets; BC, EC (base and station axes) and P
+        // values are not.
+        if !variable(name, b"C") {
+            return Ok(());
+        }
+        let Some((kind, _)) = self.postype else {
+            return Err(src.error(
+                at,
+                "a position before any ///POSTYPE line: its frame is not known",
+            ));
+        };
+        let frames = Frames {
+            kind,
+            tool: self.tool,
+            user: self.user,
+            config: self.rconf,
+        };
+        let (target_kind, refused, uses) = position(self.options, &numbers, frames, at);
+        if let Some(n) = variable_number(name, 1) {
+            self.by_number.entry(n).or_insert(self.positions.len());
+        }
+        self.positions.push(Position {
+            target: self.targets.len(),
+            refused_uses: Vec::new(),
+            direct: false,
+        });
+        self.targets.push(ProgramTarget {
+            name: src.text(at, at + eq),
+            offset: at,
+            kind: target_kind,
+            uses,
+            refused,
+        });
+        Ok(())
+    }
+
+    /// An instruction of `//INST`: a shift begun or ended, or a motion, which uses its `C`
+    /// position or is reported with its reason.
+    fn instruction(&mut self, line: Line) {
+        let src = self.src;
+        let w = words(src.bytes, line.at, line.end);
+        let Some(&(op_at, op)) = w.first() else {
+            return;
+        };
+        let op_upper = op.to_ascii_uppercase();
+        match op_upper.as_slice() {
+            b"SFTON" => {
+                // The instruction as written, its shift and frame (`SFTON P010 UF#(1)`).
+                let text = &src.bytes[line.at..line.end];
+                let what = src.text(line.at, line.at + text.trim_ascii_end().len());
+                self.shift = Some((what, line.number));
+                return;
+            }
+            b"SFTOF" => {
+                self.shift = None;
+                return;
+            }
+            _ => {}
+        }
+        let motion = matches!(op_upper.as_slice(), b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
+        let refp = op_upper.as_slice() == b"REFP";
+        let looks = op_upper.starts_with(b"MOV")
+            || op_upper.starts_with(b"IMOV")
+            || op_upper.starts_with(b"SMOV")
+            || op_upper.starts_with(b"EIMOV")
+            || op_upper.starts_with(b"SYMOV");
+        if !(motion || refp || looks) {
+            return;
+        }
+        if !refp {
+            self.first_motion.get_or_insert(op_at);
+        }
+        let op_name = src.text(op_at, op_at + op.len());
+        let c = w.iter().skip(1).find(|(_, t)| variable(t, b"C"));
+        let reason = self.move_reason(&op_name, &op_upper, &w, c.is_some());
+        let found = c.map(|(s, t)| {
+            let p = variable_number(t, 1).and_then(|n| self.by_number.get(&n).copied());
+            (*s, t, p)
+        });
+        let refuse = |targets: &mut Vec<ProgramTarget>, reason: Reason, detail: String| {
+            targets.push(ProgramTarget {
+                name: op_name.clone(),
+                offset: op_at,
+                kind: TargetKind::Motion,
+                uses: Vec::new(),
+                refused: Some(Refusal::new(reason, detail)),
+            });
+        };
+        match (found, reason) {
+            (Some((s, t, None)), _) => {
                 if !refp {
-                    first_motion.get_or_insert(op_at);
+                    let place = src.text(s, s + t.len());
+                    refuse(
+                        &mut self.targets,
+                        Reason::NotDeclared,
+                        format!("{op_name} {place}: not in the job's //POS section"),
+                    );
                 }
-                let c = w.iter().skip(1).find(|(_, t)| variable(t, b"C"));
-                let external = w
-                    .iter()
-                    .skip(1)
-                    .find(|(_, t)| variable(t, b"BC") || variable(t, b"EC") || t.starts_with(b"+"));
-                let variable_word = w.iter().skip(1).find(|(_, t)| {
-                    let u = t.to_ascii_uppercase();
-                    variable(&u, b"P")
-                        || variable(&u, b"LP")
-                        || u.starts_with(b"P[")
-                        || u.starts_with(b"LP[")
-                });
-                let place = |s: usize, t: &[u8]| src.text(s, s + t.len());
-                // What becomes of the move: a use of its C position, or a reason.
-                let reason: Option<(Reason, String)> = if op_upper.starts_with(b"IMOV") {
-                    Some((
-                        Reason::Relative,
-                        format!("{op_name}: an increment from where the robot stands when it runs"),
-                    ))
-                } else if !motion && !refp {
-                    Some((
-                        Reason::UnknownMotion,
-                        format!("{op_name} is not a Yaskawa motion this reader corrects"),
-                    ))
-                } else if let Some((s, t)) = external {
-                    Some((
-                        Reason::ExternalAxis,
-                        format!(
-                            "{}: a base or station axis (a track, a positioner) the table does not have",
-                            place(*s, t)
-                        ),
-                    ))
-                } else if let (None, Some((s, t))) = (c, variable_word) {
-                    Some((
-                        Reason::Dynamic,
-                        format!(
-                            "{op_name} {}: a position variable the controller holds, which the program may set as it runs",
-                            place(*s, t)
-                        ),
-                    ))
-                } else if c.is_none() {
-                    Some((Reason::Dynamic, format!("{op_name}: no C position written")))
-                } else if let Some((what, l)) = &shift {
-                    Some((
-                        Reason::Relative,
-                        format!("{op_name} under {what} (line {l}): a shift the controller adds as it runs"),
-                    ))
-                } else if refp {
-                    Some((
-                        Reason::UnknownMotion,
-                        format!(
-                            "{op_name}: a reference point (weaving, a wall), not a motion target"
-                        ),
-                    ))
-                } else {
-                    None
-                };
-                let found = c.map(|(s, t)| {
-                    let p = variable_number(t, 1).and_then(|n| by_number.get(&n).copied());
-                    (*s, t, p)
-                });
-                match (found, reason) {
-                    (Some((s, t, None)), _) => {
-                        if refp {
-                            continue;
-                        }
-                        refuse(
-                            &mut targets,
-                            Reason::NotDeclared,
-                            format!("{op_name} {}: not in the job's //POS section", place(s, t)),
-                        );
+            }
+            (Some((_, _, Some(p))), Some((reason, detail))) => {
+                self.positions[p]
+                    .refused_uses
+                    .push(Refusal::new(reason, detail.clone()));
+                if !refp {
+                    refuse(&mut self.targets, reason, detail);
+                }
+            }
+            (Some((_, _, Some(p))), None) => {
+                let target = &mut self.targets[self.positions[p].target];
+                // The position's frames, now used by a motion (the first).
+                let own = target.offset;
+                if let Some(first) = target.uses.first_mut() {
+                    if first.offset == own {
+                        first.offset = op_at;
                     }
-                    (Some((_, _, Some(p))), Some((reason, detail))) => {
-                        positions[p]
-                            .refused_uses
-                            .push(Refusal::new(reason, detail.clone()));
-                        if !refp {
-                            refuse(&mut targets, reason, detail);
-                        }
-                    }
-                    (Some((_, _, Some(p))), None) => {
-                        let target = &mut targets[positions[p].target];
-                        // The position's frames, now used by a motion (the first).
-                        let own = target.offset;
-                        if let Some(first) = target.uses.first_mut() {
-                            if first.offset == own {
-                                first.offset = op_at;
-                            }
-                        }
-                        // Moved to directly: corrected, whatever else moves to it.
-                        positions[p].direct = true;
-                    }
-                    (None, Some((reason, detail))) => refuse(&mut targets, reason, detail),
-                    (None, None) => {}
+                }
+                // Moved to directly: corrected, whatever else moves to it.
+                self.positions[p].direct = true;
+            }
+            (None, Some((reason, detail))) => refuse(&mut self.targets, reason, detail),
+            (None, None) => {}
+        }
+    }
+
+    /// Why a motion's `C` position is not corrected as moved to by it (an increment, a
+    /// base or station axis, a variable, a shift, a reference point), or `None`.
+    fn move_reason(
+        &self,
+        op_name: &str,
+        op_upper: &[u8],
+        w: &[(usize, &[u8])],
+        has_c: bool,
+    ) -> Option<(Reason, String)> {
+        let src = self.src;
+        let motion = matches!(op_upper, b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
+        let refp = op_upper == b"REFP";
+        let external = w
+            .iter()
+            .skip(1)
+            .find(|(_, t)| variable(t, b"BC") || variable(t, b"EC") || t.starts_with(b"+"));
+        let variable_word = w.iter().skip(1).find(|(_, t)| {
+            let u = t.to_ascii_uppercase();
+            variable(&u, b"P")
+                || variable(&u, b"LP")
+                || u.starts_with(b"P[")
+                || u.starts_with(b"LP[")
+        });
+        let place = |s: usize, t: &[u8]| src.text(s, s + t.len());
+        if op_upper.starts_with(b"IMOV") {
+            Some((
+                Reason::Relative,
+                format!("{op_name}: an increment from where the robot stands when it runs"),
+            ))
+        } else if !motion && !refp {
+            Some((
+                Reason::UnknownMotion,
+                format!("{op_name} is not a Yaskawa motion this reader corrects"),
+            ))
+        } else if let Some((s, t)) = external {
+            Some((
+                Reason::ExternalAxis,
+                format!(
+                    "{}: a base or station axis (a track, a positioner) the table does not have",
+                    place(*s, t)
+                ),
+            ))
+        } else if let (false, Some((s, t))) = (has_c, variable_word) {
+            Some((
+                Reason::Dynamic,
+                format!(
+                    "{op_name} {}: a position variable the controller holds, which the program may set as it runs",
+                    place(*s, t)
+                ),
+            ))
+        } else if !has_c {
+            Some((Reason::Dynamic, format!("{op_name}: no C position written")))
+        } else if let Some((what, l)) = &self.shift {
+            Some((
+                Reason::Relative,
+                format!(
+                    "{op_name} under {what} (line {l}): a shift the controller adds as it runs"
+                ),
+            ))
+        } else if refp {
+            Some((
+                Reason::UnknownMotion,
+                format!("{op_name}: a reference point (weaving, a wall), not a motion target"),
+            ))
+        } else {
+            None
+        }
+    }
+
+    /// The program: a position moved to only through refused uses is refused with the
+    /// first; one moved to directly is corrected.
+    fn finish(mut self, truncated_at: Option<usize>) -> Program {
+        for p in &self.positions {
+            if p.direct {
+                continue;
+            }
+            if let Some(r) = p.refused_uses.first() {
+                let target = &mut self.targets[p.target];
+                if target.refused.is_none() {
+                    target.refused = Some(Refusal::new(
+                        r.reason,
+                        format!("moved to only as {}", r.detail),
+                    ));
+                }
+            }
+        }
+        Program {
+            format: Format::Yaskawa,
+            targets: self.targets,
+            truncated_at,
+            first_motion: self.first_motion,
+        }
+    }
+}
+
+/// A position's values: numbers separated by commas, to the end of the line.
+fn values(src: &Source, from: usize, end: usize) -> Result<Vec<Number>, Error> {
+    let bytes = src.bytes;
+    let mut numbers: Vec<Number> = Vec::new();
+    let mut i = from;
+    loop {
+        i = src.skip_blanks(i).min(end);
+        let n = parse_number(&bytes[..end], i)
+            .ok_or_else(|| src.error(i, format!("expected a number, found {}", src.describe(i))))?;
+        numbers.push(n);
+        i = src.skip_blanks(n.span.1).min(end);
+        if i >= end {
+            break;
+        }
+        if bytes[i] != b',' {
+            return Err(src.error(
+                i,
+                format!(
+                    "expected ',' or the end of the line, found {}",
+                    src.describe(i)
+                ),
+            ));
+        }
+        i += 1;
+        if numbers.len() > crate::bounds::MAX_JOINTS {
+            return Err(src.error(i, format!("more than {} values", crate::bounds::MAX_JOINTS)));
+        }
+    }
+    Ok(numbers)
+}
+
+/// `///RCONF l,m,n,o,p,q[,…]` (after `RCONF`, `from..end`), as Yaskawa's job data format
+/// gives it: `l` 0 flip, 1 no flip; `m` 0 upper arm, 1 lower arm; `n` 0 front, 1 rear;
+/// `o`, `p`, `q` the R, T and S axes under 180° (0) or at 180° or more (1); the fields
+/// after them unused (0) on the controllers whose format this reader knows. Anything else
+/// is [`ConfigHint::Unreadable`]: a field out of range, missing, or set that this reader
+/// does not map.
+fn rconf(bytes: &[u8], from: usize, end: usize) -> ConfigHint {
+    let mut fields: Vec<((usize, usize), Option<i64>)> = Vec::new();
+    let mut i = from;
+    while i <= end {
+        let stop = bytes[i..end]
+            .iter()
+            .position(|b| *b == b',')
+            .map_or(end, |p| i + p);
+        let (mut s, mut e) = (i, stop);
+        while s < e && matches!(bytes[s], b' ' | b'\t') {
+            s += 1;
+        }
+        while e > s && matches!(bytes[e - 1], b' ' | b'\t') {
+            e -= 1;
+        }
+        let value = std::str::from_utf8(&bytes[s..e])
+            .ok()
+            .and_then(|t| t.parse::<i64>().ok());
+        fields.push(((s, e), value));
+        i = stop + 1;
+    }
+    if fields.len() < 6 {
+        let span = fields.last().map_or((end, end), |f| f.0);
+        return ConfigHint::Unreadable {
+            span: (span.1, span.1),
+            expected: "///RCONF has six fields or more (flip, arm, front, R, T, S)",
+        };
+    }
+    let mut bit = [false; 6];
+    for (k, (span, value)) in fields.iter().enumerate() {
+        let expected = if k < 6 {
+            "a ///RCONF field is 0 or 1"
+        } else {
+            "a ///RCONF field after the sixth is 0 (unused), a setting this reader does not map"
+        };
+        match value {
+            Some(0) => {}
+            Some(1) if k < 6 => bit[k] = true,
+            _ => {
+                return ConfigHint::Unreadable {
+                    span: *span,
+                    expected,
                 }
             }
         }
     }
-    // A position moved to only through refused uses is refused with the first; one moved
-    // to directly is corrected.
-    for p in &positions {
-        if p.direct {
-            continue;
-        }
-        if let Some(r) = p.refused_uses.first() {
-            let target = &mut targets[p.target];
-            if target.refused.is_none() {
-                target.refused = Some(Refusal::new(
-                    r.reason,
-                    format!("moved to only as {}", r.detail),
-                ));
-            }
-        }
+    ConfigHint::YaskawaRconf {
+        no_flip: bit[0],
+        lower_arm: bit[1],
+        rear: bit[2],
+        at_least_180: [bit[3], bit[4], bit[5]],
     }
-    Ok(Program {
-        format: Format::Yaskawa,
-        targets,
-        truncated_at,
-        first_motion,
-    })
+}
+
+/// What a position takes from the `///` lines above it.
+#[derive(Clone, Copy)]
+struct Frames {
+    kind: PosType,
+    tool: u16,
+    user: Option<(u16, usize)>,
+    config: ConfigHint,
 }
 
 /// A `C` position's target: what it is, why it is refused, and its frames.
 fn position(
-    src: &Source,
     options: &YaskawaOptions,
     numbers: &[Number],
-    kind: PosType,
-    tool: u16,
-    user: Option<(u16, usize)>,
+    frames: Frames,
     at: usize,
 ) -> (TargetKind, Option<Refusal>, Vec<FrameUse>) {
-    let _ = src;
+    let Frames {
+        kind,
+        tool,
+        user,
+        config,
+    } = frames;
     if kind == PosType::Pulse {
         let target = match &options.pulses_per_deg {
             None => TargetKind::Incomplete(
@@ -642,7 +797,7 @@ fn position(
             orientation: Some(Orientation::KukaAbcDeg([
                 numbers[5], numbers[4], numbers[3],
             ])),
-            config: ConfigHint::None,
+            config,
             joints: Vec::new(),
         }))
     };
@@ -725,6 +880,69 @@ mod tests {
         ///ATTR SC,RW\r\n///GROUP1 RB1\r\nNOP\r\n'A COMMENT MOVL C00009\r\nMOVJ C00000 VJ=25.00\r\n\
         MOVL C00001 V=100.0 PL=0\r\nSFTON P001\r\nMOVL C00002 V=50.0\r\nSFTOF\r\nIMOV P002 V=10.0\r\n\
         MOVL P003 V=10.0\r\nMOVL C00003 BC00000 V=10.0\r\nMOVL C00007 V=10.0\r\nSMOVL C00001 V=10.0\r\nEND\r\n";
+
+    #[test]
+    fn rconf_holds_for_the_positions_after_it_and_is_read_field_by_field() {
+        let job = |rconf: &str| {
+            format!(
+                "/JOB\r\n//POS\r\n///NPOS 3,0,0,0,0,0\r\n///TOOL 1\r\n///POSTYPE ROBOT\r\n///RECTAN\r\n\
+                 C00000=1.000,2.000,3.000,0.0000,90.0000,0.0000\r\n{rconf}\r\n\
+                 C00001=1.000,2.000,3.000,0.0000,90.0000,0.0000\r\n\
+                 C00002=1.000,2.000,3.000,0.0000,90.0000,0.0000\r\n//INST\r\nNOP\r\nEND\r\n"
+            )
+        };
+        let configs = |rconf: &str| -> Vec<ConfigHint> {
+            let text = job(rconf);
+            let p = read(&Source::new("t.jbi", text.as_bytes()), &options()).unwrap();
+            p.targets
+                .iter()
+                .map(|t| match &t.kind {
+                    TargetKind::Cartesian(c) => c.config,
+                    other => panic!("{other:?}"),
+                })
+                .collect()
+        };
+        // Before any ///RCONF nothing is written; after it, every position takes it.
+        let written = ConfigHint::YaskawaRconf {
+            no_flip: true,
+            lower_arm: false,
+            rear: true,
+            at_least_180: [false, true, false],
+        };
+        assert_eq!(
+            configs("///RCONF 1,0,1,0,1,0,0,0"),
+            [ConfigHint::None, written, written]
+        );
+        // The six fields of an older controller's job alone.
+        assert_eq!(configs("///RCONF 1,0,1,0,1,0")[1], written);
+        // A field out of range, a field beyond the sixth set, or too few: unreadable,
+        // located at the field.
+        let unreadable = |rconf: &str| -> (String, &'static str) {
+            let text = job(rconf);
+            match configs(rconf)[1] {
+                ConfigHint::Unreadable { span, expected } => {
+                    (text[span.0..span.1].to_string(), expected)
+                }
+                other => panic!("{rconf}: {other:?}"),
+            }
+        };
+        assert_eq!(
+            unreadable("///RCONF 0,2,0,0,0,0,0,0"),
+            ("2".to_string(), "a ///RCONF field is 0 or 1")
+        );
+        assert_eq!(
+            unreadable("///RCONF 0,0,0,0,0,0,1,0"),
+            (
+                "1".to_string(),
+                "a ///RCONF field after the sixth is 0 (unused), a setting this reader does not map"
+            )
+        );
+        assert_eq!(unreadable("///RCONF 0,0,x,0,0,0").0, "x".to_string());
+        assert_eq!(
+            unreadable("///RCONF 0,0,0").1,
+            "///RCONF has six fields or more (flip, arm, front, R, T, S)"
+        );
+    }
 
     #[test]
     fn positions_take_their_frames_and_every_move_is_accounted_for() {
