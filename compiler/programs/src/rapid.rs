@@ -1194,102 +1194,120 @@ fn declaration(
     }
     match ty_name.as_str() {
         "robtarget" | "jointtarget" => {
-            let read = |v: &Value| {
-                if ty_name == "robtarget" {
-                    robtarget(src, v)
-                } else {
-                    joint_target(src, v)
-                }
-            };
+            let is_robtarget = ty_name == "robtarget";
             let name_text = src.text(name.start, name.end);
             match length {
-                None => {
-                    let (kind, external) = read(&v)?;
-                    targets.push((
-                        ProgramTarget {
-                            name: name_text,
-                            offset: name.start,
-                            kind,
-                            uses: Vec::new(),
-                            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                        },
-                        Vec::new(),
-                    ));
-                }
+                None => targets.push((
+                    declared_target(src, is_robtarget, name_text, name.start, &v)?,
+                    Vec::new(),
+                )),
                 Some(n) => {
-                    let Value::List(items, list_at) = &v else {
-                        return Err(src.error(v.offset(), format!("expected {n} targets in [ ]")));
-                    };
-                    if n.parse::<usize>().ok() != Some(items.len()) {
-                        return Err(src.error(
-                            *list_at,
-                            format!("{name_text}{{{n}}} holds {} targets", items.len()),
-                        ));
-                    }
-                    let mut keys = Vec::with_capacity(items.len());
-                    for (k, item) in items.iter().enumerate() {
-                        let (kind, external) = read(item)?;
-                        let element = format!("{name_text}{{{}}}", k + 1);
-                        keys.push(element.to_ascii_uppercase());
-                        targets.push((
-                            ProgramTarget {
-                                name: element,
-                                offset: item.offset(),
-                                kind,
-                                uses: Vec::new(),
-                                refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                            },
-                            Vec::new(),
-                        ));
-                    }
+                    let elements = array_targets(src, is_robtarget, &name_text, &n, &v)?;
+                    let keys = elements
+                        .iter()
+                        .map(|t| t.name.to_ascii_uppercase())
+                        .collect();
                     decl.arrays.insert(key, keys);
+                    targets.extend(elements.into_iter().map(|t| (t, Vec::new())));
                 }
             }
         }
         "tooldata" => {
-            let parts = list(
-                src,
-                &v,
-                3,
-                "a tooldata [robhold,[[x,y,z],[q1,q2,q3,q4]],tload]",
-            )?;
-            let frame = pose(src, &parts[1], "tframe [[x,y,z],[q1,q2,q3,q4]]")?;
-            let declared = match is_true(src, &parts[0]) {
-                Some(true) => Ok(frame),
-                Some(false) => Err(format!(
-                    "tool {key} is a stationary tool (robhold FALSE): not supported"
-                )),
-                None => return Err(src.error(parts[0].offset(), "robhold: expected TRUE or FALSE")),
-            };
+            let declared = tooldata(src, &key, &v)?;
             decl.tools.insert(key, declared);
         }
         _ => {
-            let parts = list(
-                src,
-                &v,
-                5,
-                "a wobjdata [robhold,ufprog,ufmec,uframe,oframe]",
-            )?;
-            let uframe = pose(src, &parts[3], "uframe [[x,y,z],[q1,q2,q3,q4]]")?;
-            let oframe = pose(src, &parts[4], "oframe [[x,y,z],[q1,q2,q3,q4]]")?;
-            let declared = match (is_true(src, &parts[0]), is_true(src, &parts[1])) {
-                (Some(false), Some(true)) => Ok(uframe * oframe),
-                (Some(true), _) => Err(format!(
-                    "work object {key} is held by the robot (robhold TRUE): not supported"
-                )),
-                (Some(false), Some(false)) => Err(format!(
-                    "work object {key} has a moving user frame (ufprog FALSE): not supported"
-                )),
-                _ => {
-                    return Err(
-                        src.error(parts[0].offset(), "robhold, ufprog: expected TRUE or FALSE")
-                    )
-                }
-            };
+            let declared = wobjdata(src, &key, &v)?;
             decl.wobjs.insert(key, declared);
         }
     }
     Ok(())
+}
+
+/// The target a `robtarget` (`is_robtarget`, or else a `jointtarget`) declaration's value `v` writes,
+/// named `name` at `offset`.
+fn declared_target(
+    src: &Source,
+    is_robtarget: bool,
+    name: String,
+    offset: usize,
+    v: &Value,
+) -> Result<ProgramTarget, Error> {
+    let (kind, external) = if is_robtarget {
+        robtarget(src, v)?
+    } else {
+        joint_target(src, v)?
+    };
+    Ok(ProgramTarget {
+        name,
+        offset,
+        kind,
+        uses: Vec::new(),
+        refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+    })
+}
+
+/// The targets of an array `name{n}`'s value `v`, `[t1, …, tn]`: `name{1}` to `name{n}`.
+fn array_targets(
+    src: &Source,
+    is_robtarget: bool,
+    name: &str,
+    n: &str,
+    v: &Value,
+) -> Result<Vec<ProgramTarget>, Error> {
+    let Value::List(items, list_at) = v else {
+        return Err(src.error(v.offset(), format!("expected {n} targets in [ ]")));
+    };
+    if n.parse::<usize>().ok() != Some(items.len()) {
+        return Err(src.error(
+            *list_at,
+            format!("{name}{{{n}}} holds {} targets", items.len()),
+        ));
+    }
+    items
+        .iter()
+        .enumerate()
+        .map(|(k, item)| {
+            let element = format!("{name}{{{}}}", k + 1);
+            declared_target(src, is_robtarget, element, item.offset(), item)
+        })
+        .collect()
+}
+
+/// The tool a `tooldata` value `v` declares as `key`, or why it cannot be used.
+fn tooldata(src: &Source, key: &str, v: &Value) -> Result<Declared, Error> {
+    let parts = list(
+        src,
+        v,
+        3,
+        "a tooldata [robhold,[[x,y,z],[q1,q2,q3,q4]],tload]",
+    )?;
+    let frame = pose(src, &parts[1], "tframe [[x,y,z],[q1,q2,q3,q4]]")?;
+    match is_true(src, &parts[0]) {
+        Some(true) => Ok(Ok(frame)),
+        Some(false) => Ok(Err(format!(
+            "tool {key} is a stationary tool (robhold FALSE): not supported"
+        ))),
+        None => Err(src.error(parts[0].offset(), "robhold: expected TRUE or FALSE")),
+    }
+}
+
+/// The work object a `wobjdata` value `v` declares as `key` (`uframe · oframe`), or why
+/// it cannot be used.
+fn wobjdata(src: &Source, key: &str, v: &Value) -> Result<Declared, Error> {
+    let parts = list(src, v, 5, "a wobjdata [robhold,ufprog,ufmec,uframe,oframe]")?;
+    let uframe = pose(src, &parts[3], "uframe [[x,y,z],[q1,q2,q3,q4]]")?;
+    let oframe = pose(src, &parts[4], "oframe [[x,y,z],[q1,q2,q3,q4]]")?;
+    match (is_true(src, &parts[0]), is_true(src, &parts[1])) {
+        (Some(false), Some(true)) => Ok(Ok(uframe * oframe)),
+        (Some(true), _) => Ok(Err(format!(
+            "work object {key} is held by the robot (robhold TRUE): not supported"
+        ))),
+        (Some(false), Some(false)) => Ok(Err(format!(
+            "work object {key} has a moving user frame (ufprog FALSE): not supported"
+        ))),
+        _ => Err(src.error(parts[0].offset(), "robhold, ufprog: expected TRUE or FALSE")),
+    }
 }
 
 #[cfg(test)]
