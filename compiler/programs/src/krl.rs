@@ -735,6 +735,8 @@ fn assignments<'t>(src: &Source, tokens: &'t [Token]) -> Vec<(String, &'t [Token
     out
 }
 
+/// Reads one statement: a frame set, a motion, a statement that looks like one, an
+/// array's element or a declaration.
 fn statement(
     src: &Source,
     line: &[Token],
@@ -750,13 +752,36 @@ fn statement(
         return Ok(());
     }
     let first_word = src.text(first.start, first.end).to_ascii_uppercase();
-    // The controller's frames, as the program sets them.
-    match first_word.as_str() {
+    if frame_statement(src, line, &first_word, context, state) {
+        return Ok(());
+    }
+    if let Some(m) = is_motion(src, first) {
+        return motion_statement(src, line, m, context, this_file, state, scan);
+    }
+    if looks_like_motion(src, first) && !line.get(1).is_some_and(|t| t.is(b'(') || t.is(b'=')) {
+        unknown_motion(src, line, &first_word, this_file, scan);
+        return Ok(());
+    }
+    if !this_file || array_element(src, line, context, scan)? {
+        return Ok(());
+    }
+    declaration(src, line, scan)
+}
+
+/// A statement that sets the controller's frames, as the program sets them (`$TOOL`,
+/// `$BASE`, `$IPO_MODE`, `FDAT_ACT`, `BAS`): applied to `state`; `false` for any other.
+fn frame_statement(
+    src: &Source,
+    line: &[Token],
+    first_word: &str,
+    context: &Context,
+    state: &mut State,
+) -> bool {
+    match first_word {
         "$TOOL" | "$BASE" | "$IPO_MODE" => {
             for (name, value, at) in assignments(src, line) {
                 apply(src, &name, value, at, context, state);
             }
-            return Ok(());
         }
         "FDAT_ACT" => {
             if let (Some(eq), Some(f)) = (line.get(1), line.get(2)) {
@@ -770,106 +795,113 @@ fn statement(
                     };
                 }
             }
-            return Ok(());
         }
-        "BAS" => {
-            // BAS(#TOOL, n), BAS(#BASE, n).
-            if let [_, o, which, comma, n, c] = line {
-                let base = word_is(src, Some(which), "#BASE");
-                if o.is(b'(')
-                    && comma.is(b',')
-                    && c.is(b')')
-                    && (base || word_is(src, Some(which), "#TOOL"))
-                {
-                    let frame = match crate::number::parse_number(src.bytes, n.start) {
-                        Some(v)
-                            if n.kind == Tok::Number
-                                && v.value.fract() == 0.0
-                                && v.value >= 0.0
-                                && v.value <= u32::MAX as f64 =>
-                        {
-                            numbered(context.frames, base, v.value as u32)
-                        }
-                        _ => {
-                            let (l, c) = src.location(first.start);
-                            FrameState::Unknown(format!(
-                                "BAS sets the {} by an expression at {l}:{c}",
-                                if base { "base" } else { "tool" }
-                            ))
-                        }
-                    };
-                    if base {
-                        state.base = frame;
-                    } else {
-                        state.tool = frame;
-                    }
-                }
-            }
-            return Ok(());
+        "BAS" => bas(src, line, context, state),
+        _ => return false,
+    }
+    true
+}
+
+/// `BAS(#TOOL, n)`, `BAS(#BASE, n)`: the numbered frame selected.
+fn bas(src: &Source, line: &[Token], context: &Context, state: &mut State) {
+    let [first, o, which, comma, n, c] = line else {
+        return;
+    };
+    let base = word_is(src, Some(which), "#BASE");
+    if !(o.is(b'(') && comma.is(b',') && c.is(b')') && (base || word_is(src, Some(which), "#TOOL")))
+    {
+        return;
+    }
+    let frame = match crate::number::parse_number(src.bytes, n.start) {
+        Some(v)
+            if n.kind == Tok::Number
+                && v.value.fract() == 0.0
+                && v.value >= 0.0
+                && v.value <= u32::MAX as f64 =>
+        {
+            numbered(context.frames, base, v.value as u32)
         }
-        _ => {}
-    }
-    if let Some(m) = is_motion(src, first) {
-        return motion_statement(src, line, m, context, this_file, state, scan);
-    }
-    if looks_like_motion(src, first) && !line.get(1).is_some_and(|t| t.is(b'(') || t.is(b'=')) {
-        scan.first_motion.get_or_insert(first.start);
-        let (l, c) = src.location(first.start);
-        for t in line[1..].iter().filter(|t| t.kind == Tok::Ident) {
-            scan.unknown_uses.push((
-                src.text(t.start, t.end).to_ascii_uppercase(),
-                format!("{first_word} ({}:{l}:{c})", src.name),
-            ));
+        _ => {
+            let (l, c) = src.location(first.start);
+            FrameState::Unknown(format!(
+                "BAS sets the {} by an expression at {l}:{c}",
+                if base { "base" } else { "tool" }
+            ))
         }
-        if this_file {
-            scan.targets.push((
-                refused_motion(
-                    src,
-                    first,
-                    Reason::UnknownMotion,
-                    format!("{first_word} is not a KRL motion this reader knows"),
-                ),
-                None,
-                None,
-            ));
-        }
-        return Ok(());
+    };
+    if base {
+        state.base = frame;
+    } else {
+        state.tool = frame;
     }
-    if !this_file {
-        return Ok(());
+}
+
+/// A statement whose first word looks like a motion this reader does not know: the names
+/// it takes kept (their targets are not corrected either), the motion reported.
+fn unknown_motion(
+    src: &Source,
+    line: &[Token],
+    first_word: &str,
+    this_file: bool,
+    scan: &mut Scan,
+) {
+    let first = &line[0];
+    scan.first_motion.get_or_insert(first.start);
+    let (l, c) = src.location(first.start);
+    for t in line[1..].iter().filter(|t| t.kind == Tok::Ident) {
+        scan.unknown_uses.push((
+            src.text(t.start, t.end).to_ascii_uppercase(),
+            format!("{first_word} ({}:{l}:{c})", src.name),
+        ));
     }
-    // An array's element: `XPA[2]={X …}`.
-    if let [name, open, n, close, eq, brace, ..] = line {
-        let array = src.text(name.start, name.end).to_ascii_uppercase();
-        if let Some(&kind) = context.arrays.get(&array) {
-            if open.is(b'[')
-                && n.kind == Tok::Number
-                && close.is(b']')
-                && eq.is(b'=')
-                && brace.is(b'{')
-            {
-                let (target, end, external) = aggregate(src, line, 5, Some(kind))?;
-                if let Some(t) = line.get(end) {
-                    return Err(
-                        src.error(t.start, "expected the end of the line after the aggregate")
-                    );
-                }
-                scan.targets.push((
-                    ProgramTarget {
-                        name: src.text(name.start, close.end),
-                        offset: name.start,
-                        kind: target,
-                        uses: Vec::new(),
-                        refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                    },
-                    Some(element_key(&array, &src.text(n.start, n.end))),
-                    Some(kind),
-                ));
-                return Ok(());
-            }
-        }
+    if this_file {
+        scan.targets.push((
+            refused_motion(
+                src,
+                first,
+                Reason::UnknownMotion,
+                format!("{first_word} is not a KRL motion this reader knows"),
+            ),
+            None,
+            None,
+        ));
     }
-    declaration(src, line, scan)
+}
+
+/// An array's element given its value: `XPA[2]={X …}`; `false` when the line is none.
+fn array_element(
+    src: &Source,
+    line: &[Token],
+    context: &Context,
+    scan: &mut Scan,
+) -> Result<bool, Error> {
+    let [name, open, n, close, eq, brace, ..] = line else {
+        return Ok(false);
+    };
+    let array = src.text(name.start, name.end).to_ascii_uppercase();
+    let Some(&kind) = context.arrays.get(&array) else {
+        return Ok(false);
+    };
+    if !(open.is(b'[') && n.kind == Tok::Number && close.is(b']') && eq.is(b'=') && brace.is(b'{'))
+    {
+        return Ok(false);
+    }
+    let (target, end, external) = aggregate(src, line, 5, Some(kind))?;
+    if let Some(t) = line.get(end) {
+        return Err(src.error(t.start, "expected the end of the line after the aggregate"));
+    }
+    scan.targets.push((
+        ProgramTarget {
+            name: src.text(name.start, close.end),
+            offset: name.start,
+            kind: target,
+            uses: Vec::new(),
+            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+        },
+        Some(element_key(&array, &src.text(n.start, n.end))),
+        Some(kind),
+    ));
+    Ok(true)
 }
 
 /// The key of an array's element: the name upper case, the index as a number (`XPA[2]`).
