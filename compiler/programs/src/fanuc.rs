@@ -164,19 +164,7 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         let at = skip_space(bytes, line.0, line.1);
         let text = &bytes[at..line.1];
         if text.starts_with(b"[") && !text.starts_with(b"[1,") && !text.starts_with(b"[2,") {
-            // A variable's header: `[*SYSTEM*]$MNUFRAME  Storage: …`.
-            let name_end = text
-                .iter()
-                .position(|b| b.is_ascii_whitespace())
-                .unwrap_or(text.len());
-            let name = text[..name_end].to_ascii_uppercase();
-            variable = if name.ends_with(b"$MNUFRAME") {
-                Some(true)
-            } else if name.ends_with(b"$MNUTOOL") {
-                Some(false)
-            } else {
-                None
-            };
+            variable = frame_variable(text);
             continue;
         }
         let Some(user) = variable else { continue };
@@ -201,37 +189,7 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         {
             continue;
         }
-        // X, Y, Z, W, P, R as `X:  1500.000` pairs on the lines that follow, up to the next
-        // element or variable.
-        let mut values: [Option<f64>; 6] = [None; 6];
-        let mut scan = start;
-        while scan < bytes.len() {
-            let (end, n) = src.line_at(scan);
-            let l = (scan, end);
-            let first = skip_space(bytes, l.0, l.1);
-            if bytes.get(first) == Some(&b'[') {
-                break;
-            }
-            let mut i = first;
-            while i < l.1 {
-                let b = bytes[i].to_ascii_uppercase();
-                let axis = b"XYZWPR".iter().position(|a| *a == b);
-                let colon = skip_blanks(bytes, i + 1, l.1);
-                let word_start = i == l.0 || !bytes[i - 1].is_ascii_alphanumeric();
-                match axis {
-                    Some(k) if word_start && bytes.get(colon) == Some(&b':') => {
-                        let v = skip_blanks(bytes, colon + 1, l.1);
-                        let number = parse_number(&bytes[..l.1], v).ok_or_else(|| {
-                            src.error(v, format!("{}: expected a number", b as char))
-                        })?;
-                        values[k] = Some(number.value);
-                        i = number.span.1;
-                    }
-                    _ => i += 1,
-                }
-            }
-            scan = n;
-        }
+        let (values, scan) = frame_values(src, start)?;
         start = scan;
         if group != 1 {
             continue;
@@ -266,6 +224,58 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         list.push((number, frame));
     }
     Ok(out)
+}
+
+/// Which frames a variable's header names (`[*SYSTEM*]$MNUFRAME  Storage: …`): user
+/// frames (true), tool frames (false), or neither.
+fn frame_variable(text: &[u8]) -> Option<bool> {
+    let name_end = text
+        .iter()
+        .position(|b| b.is_ascii_whitespace())
+        .unwrap_or(text.len());
+    let name = text[..name_end].to_ascii_uppercase();
+    if name.ends_with(b"$MNUFRAME") {
+        Some(true)
+    } else if name.ends_with(b"$MNUTOOL") {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// X, Y, Z, W, P, R of a frame element, as `X:  1500.000` pairs on the lines from `start`
+/// up to the next element or variable; and where that one starts.
+fn frame_values(src: &Source, start: usize) -> Result<([Option<f64>; 6], usize), Error> {
+    let bytes = src.bytes;
+    let mut values: [Option<f64>; 6] = [None; 6];
+    let mut scan = start;
+    while scan < bytes.len() {
+        let (end, n) = src.line_at(scan);
+        let l = (scan, end);
+        let first = skip_space(bytes, l.0, l.1);
+        if bytes.get(first) == Some(&b'[') {
+            break;
+        }
+        let mut i = first;
+        while i < l.1 {
+            let b = bytes[i].to_ascii_uppercase();
+            let axis = b"XYZWPR".iter().position(|a| *a == b);
+            let colon = skip_blanks(bytes, i + 1, l.1);
+            let word_start = i == l.0 || !bytes[i - 1].is_ascii_alphanumeric();
+            match axis {
+                Some(k) if word_start && bytes.get(colon) == Some(&b':') => {
+                    let v = skip_blanks(bytes, colon + 1, l.1);
+                    let number = parse_number(&bytes[..l.1], v)
+                        .ok_or_else(|| src.error(v, format!("{}: expected a number", b as char)))?;
+                    values[k] = Some(number.value);
+                    i = number.span.1;
+                }
+                _ => i += 1,
+            }
+        }
+        scan = n;
+    }
+    Ok((values, scan))
 }
 
 fn skip_space(bytes: &[u8], mut i: usize, end: usize) -> usize {
