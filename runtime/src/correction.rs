@@ -239,6 +239,34 @@ impl Correction {
         }
     }
 
+    /// The answer of these parts, [`Status::Ok`], or [`Status::NumericalFailure`] if a
+    /// value is not finite: [`Correction::finite_or_failure`] of the correction they make,
+    /// written for a query's fast path so that the answer's fields are stored once, where
+    /// the caller wants them (a correction built whole and then checked was copied, its
+    /// last fields reloaded in a wider piece than they were stored in: a stall of the
+    /// processor's store forwarding).
+    #[inline(always)]
+    pub(crate) fn ok_if_finite(
+        position_error_mm: [f64; 3],
+        orientation_error_rad: [f64; 3],
+        neighbours: u32,
+        residual: Residual,
+        evidence: Evidence,
+    ) -> Correction {
+        let values = position_error_mm.iter().chain(&orientation_error_rad);
+        if !values.into_iter().all(|v| v.is_finite()) {
+            return Correction::failed(Status::NumericalFailure);
+        }
+        Correction {
+            position_error_mm,
+            orientation_error_rad,
+            neighbours,
+            status: Status::Ok,
+            residual,
+            evidence,
+        }
+    }
+
     /// This correction, or [`Status::NumericalFailure`] if it claims [`Status::Ok`] with
     /// a non-finite value: the last line of defence of every query path, so that no caller
     /// is ever told to command a NaN.

@@ -484,12 +484,13 @@ pub(crate) fn blend_site<const S: usize>(
         },
     };
     if let Some(fade) = fade {
-        for v in terms
-            .position_mm
-            .iter_mut()
-            .chain(&mut terms.orientation_rad)
-        {
-            *v = [v[0] * fade, v[1] * fade, v[2] * fade];
+        // Term by term, by value: a loop of references into `terms` kept it in memory,
+        // stored in pieces of other widths than the caller then read (a stall of the
+        // processor's store forwarding).
+        let scale = |v: [f64; 3]| [v[0] * fade, v[1] * fade, v[2] * fade];
+        for t in 0..S {
+            terms.position_mm[t] = scale(terms.position_mm[t]);
+            terms.orientation_rad[t] = scale(terms.orientation_rad[t]);
         }
     }
     Ok(terms)

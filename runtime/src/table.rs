@@ -831,11 +831,13 @@ impl<D: AsRef<[u8]>> Table<D> {
             Ok(correction) => correction,
             Err(status) => return Correction::failed(status),
         };
-        Correction {
-            evidence: self.evidence_of(target, None),
-            ..blended
-        }
-        .finite_or_failure()
+        Correction::ok_if_finite(
+            blended.position_error_mm,
+            blended.orientation_error_rad,
+            blended.neighbours,
+            blended.residual,
+            self.evidence_of(target, None),
+        )
     }
 
     /// Whether [`Table::served_hybrid`] answers a served query of `target` at `joints_rad`
@@ -938,15 +940,13 @@ impl<D: AsRef<[u8]>> Table<D> {
         };
         // The residual plus the model, as `answer` adds them; built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-        Correction {
-            position_error_mm: plus(position_mm, m.error_mm),
-            orientation_error_rad: plus(orientation_rad, m.rotation_rad),
+        Correction::ok_if_finite(
+            plus(position_mm, m.error_mm),
+            plus(orientation_rad, m.rotation_rad),
             neighbours,
-            status: Status::Ok,
             residual,
             evidence,
-        }
-        .finite_or_failure()
+        )
     }
 
     /// A hybrid query's model part (see [`Table::answer`]): the model at `q` with its
@@ -960,7 +960,10 @@ impl<D: AsRef<[u8]>> Table<D> {
         target: &Target,
         joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
-        let at = at.ok_or(Status::InvalidInput)?;
+        // Not `ok_or`: its `Result` was copied through memory in misaligned pieces.
+        let Some(at) = at else {
+            return Err(Status::InvalidInput);
+        };
         let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
             _ => None,
