@@ -1,7 +1,7 @@
 //! Mutated robot files and scenarios through the real `tablec`: `simulate` with a mutated
 //! KR150-2 robot file or error scenario, then `calibrate` of what it wrote; `calibrate` of
 //! the UR5's laser-tracker measurements with a mutated UR5 URDF (directly, or named by a
-//! robot file). The end-to-end counterpart of the robot crate's
+//! robot file). The end-to-end counterpart of the simulate crate's
 //! `tests/robot_file_mutation.rs`, with the same mutations (`adwi_robot::testing`).
 //!
 //! Whatever the files: `tablec` exits 0 or 1 (never a panic's 101, never a signal), its

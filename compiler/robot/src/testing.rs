@@ -1,7 +1,7 @@
-//! Structured mutation of robot-file and scenario text, for the mutation tests (the robot
-//! crate's and the end-to-end tests through `tablec`): the edits a hostile user makes, so
-//! that every range check, every parser limit and every message bound is reached. Not
-//! part of the supported API.
+//! Structured mutation of robot-file and scenario text, for the mutation tests
+//! (`adwi-simulate`'s and the end-to-end tests through `tablec`): the edits a hostile user
+//! makes, so that every range check, every parser limit and every message bound is reached.
+//! Not part of the supported API.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
