@@ -19,18 +19,23 @@
 //!
 //! [`auto_choice`] is what every build makes by default, without `--tune`, and what an
 //! evaluation makes on each split's training samples ([`crate::SplitRule`]): the build's
-//! own parameters, [`AUTO_FOLDS`] folds, at most [`AUTO_MAX_SAMPLES`] samples.
+//! own parameters, at most [`AUTO_MAX_SAMPLES`] samples, held out as use holds them out
+//! ([`CrossValidation::matching_use`]): random folds leave every held-out sample among
+//! training samples a few millimetres away, where a field that interpolates its
+//! neighbours' noise looks better than on poses measured elsewhere or on another day.
 
 use std::cell::RefCell;
 
 use adwi_compile::build::{BuildOptions, ServedField, Tuning};
 use adwi_compile::nugget_kriging::GivenChoices;
 use adwi_compile::posture::Posture;
-use adwi_identify::calibrate::{CalibrateError, CalibrateOptions, Calibration};
+use adwi_identify::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration};
 use adwi_robot::Robot;
 use adwi_samples::SampleSet;
+use rayon::prelude::*;
 
-use crate::{evaluate, EvalError, EvalOptions, Method, Protocol};
+use crate::baselines::Fold;
+use crate::{evaluate, EvalError, EvalOptions, Method, MethodResult, Protocol};
 
 /// The neighbour counts tried.
 pub const K_CANDIDATES: [u32; 3] = [4, 8, 12];
@@ -90,12 +95,12 @@ pub enum TuneError {
     /// Fewer than two folds.
     #[error("tuning needs at least 2 folds")]
     Folds,
-    /// The samples' identification failed (the hyperparameters of a hybrid table's kriging
-    /// are those of its residuals).
-    #[error("cannot identify the robot from the samples")]
+    /// A fold's identification failed (a hybrid table's kriging is fitted to the residuals
+    /// of its model).
+    #[error("cannot identify the robot from a fold's training samples")]
     Identify(#[source] CalibrateError),
-    /// The kriging's hyperparameters could not be chosen.
-    #[error("cannot fit the kriging of the served field")]
+    /// A fold's kriging hyperparameters could not be chosen.
+    #[error("cannot fit the kriging of a fold's served field")]
     Kriging(#[source] adwi_compile::build::BuildError),
     /// Too few samples to cross-validate a choice by default ([`AUTO_MIN_SAMPLES`]).
     #[error("{0} samples; at least {AUTO_MIN_SAMPLES} are cross-validated")]
@@ -119,9 +124,19 @@ pub struct CrossValidation<'a> {
     protocol: Protocol,
     /// How many splits the protocol makes.
     folds: usize,
-    /// Each fold's identification of a hybrid table's model, made by the first evaluation
-    /// and reused by every later one.
+    /// Each split's training and held-out samples.
+    splits: Vec<Fold>,
+    /// Each fold's identification of a hybrid table's model, made once, before the first
+    /// evaluation, and reused by every one.
     identified: RefCell<Vec<Calibration>>,
+    /// Each fold's kriging hyperparameters, searched once by likelihood on its training
+    /// samples alone ([`FOLD_SEARCH_SAMPLES`] at most) and given to every kriging field of
+    /// its tables: no held-out point takes part in the field it is scored by.
+    kriging: RefCell<Option<Vec<Option<GivenChoices>>>>,
+    /// Each method's results on these folds with the options its tables were built with:
+    /// a later choice that scores the same (the residual weight of the field and posture
+    /// chosen before it) takes them instead of building the folds' tables again.
+    scored: RefCell<Vec<(Method, BuildOptions, MethodResult)>>,
 }
 
 impl<'a> CrossValidation<'a> {
@@ -169,14 +184,57 @@ impl<'a> CrossValidation<'a> {
         if folds < 2 {
             return Err(TuneError::Folds);
         }
+        let (splits, _) = protocol.splits(samples).ok_or(TuneError::Folds)??;
         Ok(CrossValidation {
             samples,
             robot,
             calibrate,
             protocol,
             folds,
+            splits,
             identified: RefCell::new(Vec::new()),
+            kriging: RefCell::new(None),
+            scored: RefCell::new(Vec::new()),
         })
+    }
+
+    /// The cross-validation whose held-out points are what a table's use holds out: with
+    /// `series` labelling two or more series, each series predicted from the others (as
+    /// the next series will be); else, for a hybrid table (`robot` given), each of
+    /// [`AUTO_FOLDS`] spatial blocks from the others (as poses elsewhere in the workspace
+    /// will be); else [`AUTO_FOLDS`] random folds (seed 0): a position-only table answers
+    /// only within ε of its samples, so a held-out region would score nothing.
+    ///
+    /// # Errors
+    ///
+    /// None in practice ([`CrossValidation::held_out`] with at least two splits).
+    pub fn matching_use(
+        samples: &'a SampleSet,
+        robot: Option<&'a Robot>,
+        calibrate: CalibrateOptions,
+        series: Option<Vec<usize>>,
+    ) -> Result<CrossValidation<'a>, TuneError> {
+        let protocol = match series.filter(|s| crate::folds::group_splits(s).is_some()) {
+            Some(series) => Protocol::Series(series),
+            None if robot.is_some() => Protocol::Blocks {
+                folds: AUTO_FOLDS,
+                seed: 0,
+            },
+            None => Protocol::KFold {
+                folds: AUTO_FOLDS,
+                seed: 0,
+            },
+        };
+        CrossValidation::held_out(samples, robot, calibrate, protocol)
+    }
+
+    /// How these folds hold points out.
+    pub fn held_out_by(&self) -> HeldOut {
+        match self.protocol {
+            Protocol::Series(_) => HeldOut::Series,
+            Protocol::Blocks { .. } => HeldOut::Blocks,
+            Protocol::KFold { .. } | Protocol::Validation(_) => HeldOut::RandomFolds,
+        }
     }
 
     /// The fold count.
@@ -214,30 +272,104 @@ impl<'a> CrossValidation<'a> {
         method: Method,
         build: BuildOptions,
     ) -> Result<(Option<f64>, usize), TuneError> {
-        let options = EvalOptions {
-            methods: Some(vec![method]),
-            build,
-            robot: self.robot.cloned(),
-            calibrate: self.calibrate,
-            identified: self.identified.borrow().clone(),
-            ..EvalOptions::default()
-        };
-        let evaluation = self.evaluate(options)?;
         let n = self.samples.len();
-        let result = evaluation.method(method);
+        let result = self.results(&[method], &build)?.pop().flatten();
         Ok((
-            result.and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+            (result.as_ref()).and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
             result.map_or(n, |r| n - r.predicted()),
         ))
     }
 
-    /// The evaluation of `options` on these folds, each fold's identification made once.
-    fn evaluate(&self, options: EvalOptions) -> Result<crate::Evaluation, TuneError> {
-        let evaluation = evaluate(self.samples, &self.protocol, &options)?;
-        if self.identified.borrow().is_empty() {
-            *self.identified.borrow_mut() = evaluation.identified.clone();
+    /// Each of `methods`' results on these folds with tables built as `build` says: those
+    /// scored before with the same options as they were, the others evaluated together
+    /// (each fold's identification made once). `None` for a method the evaluation did not
+    /// run.
+    fn results(
+        &self,
+        methods: &[Method],
+        build: &BuildOptions,
+    ) -> Result<Vec<Option<MethodResult>>, TuneError> {
+        let known = |method: Method| {
+            (self.scored.borrow().iter())
+                .find(|(m, b, _)| *m == method && b == build)
+                .map(|(_, _, r)| r.clone())
+        };
+        let missing: Vec<Method> = methods
+            .iter()
+            .copied()
+            .filter(|&m| known(m).is_none())
+            .collect();
+        if !missing.is_empty() {
+            let identified = self.identified()?;
+            let kriging =
+                if build.served_field != ServedField::Method && build.kriging_choices.is_none() {
+                    self.fold_kriging(&identified)?
+                } else {
+                    Vec::new()
+                };
+            let options = EvalOptions {
+                methods: Some(missing.clone()),
+                build: build.clone(),
+                robot: self.robot.cloned(),
+                calibrate: self.calibrate,
+                identified,
+                split_kriging_choices: kriging,
+                ..EvalOptions::default()
+            };
+            let evaluation = evaluate(self.samples, &self.protocol, &options)?;
+            let mut scored = self.scored.borrow_mut();
+            for method in missing {
+                if let Some(result) = evaluation.method(method) {
+                    scored.push((method, build.clone(), result.clone()));
+                }
+            }
         }
-        Ok(evaluation)
+        Ok(methods.iter().map(|&m| known(m)).collect())
+    }
+
+    /// Each fold's identification of a hybrid table's model from its training samples
+    /// (none without a robot), made once, the folds side by side.
+    fn identified(&self) -> Result<Vec<Calibration>, TuneError> {
+        let Some(robot) = self.robot else {
+            return Ok(Vec::new());
+        };
+        if self.identified.borrow().is_empty() {
+            let (samples, calibrate) = (self.samples, &self.calibrate);
+            let identified = (self.splits.par_iter())
+                .map(|fold| identify(robot, &samples.subset(&fold.train), calibrate))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(TuneError::Identify)?;
+            *self.identified.borrow_mut() = identified;
+        }
+        Ok(self.identified.borrow().clone())
+    }
+
+    /// Each fold's kriging hyperparameters, searched by likelihood on its training samples
+    /// alone (a hybrid table's: on the residuals of the model `identified` from them), on
+    /// at most [`FOLD_SEARCH_SAMPLES`] of them evenly strided; searched once, the folds
+    /// side by side.
+    fn fold_kriging(
+        &self,
+        identified: &[Calibration],
+    ) -> Result<Vec<Option<GivenChoices>>, TuneError> {
+        if let Some(known) = &*self.kriging.borrow() {
+            return Ok(known.clone());
+        }
+        let samples = self.samples;
+        let searched = (self.splits.par_iter().enumerate())
+            .map(|(i, fold)| {
+                let n = fold.train.len();
+                let m = FOLD_SEARCH_SAMPLES.min(n);
+                let picked: Vec<usize> = (0..m)
+                    .map(|j| fold.train[(j as u128 * n as u128 / m as u128) as usize])
+                    .collect();
+                let model = identified.get(i).map(Calibration::prepared_model);
+                adwi_compile::build::kriging_choices(&samples.subset(&picked), model.as_ref())
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(TuneError::Kriging)?;
+        *self.kriging.borrow_mut() = Some(searched.clone());
+        Ok(searched)
     }
 
     /// The weight `s` in [0, 1] of a hybrid table's residual field that these folds'
@@ -257,26 +389,16 @@ impl<'a> CrossValidation<'a> {
         if self.robot.is_none() {
             return Ok(None);
         }
-        // Built apart: the borrow of `identified` ends before the evaluation records it.
-        let options = EvalOptions {
-            methods: Some(vec![Method::Kinematic, Method::HybridTrilinear]),
-            build: options.clone(),
-            robot: self.robot.cloned(),
-            calibrate: self.calibrate,
-            identified: self.identified.borrow().clone(),
-            ..EvalOptions::default()
-        };
-        let evaluation = self.evaluate(options)?;
-        let (Some(model), Some(hybrid)) = (
-            evaluation.method(Method::Kinematic),
-            evaluation.method(Method::HybridTrilinear),
-        ) else {
+        let mut results = self
+            .results(&[Method::Kinematic, Method::HybridTrilinear], options)?
+            .into_iter();
+        let (Some(Some(model)), Some(Some(hybrid))) = (results.next(), results.next()) else {
             return Ok(None);
         };
         // Per point: what the model leaves, and what the residual field adds to it.
         let points: Vec<([f64; 3], [f64; 3])> = (model.predictions.iter())
             .zip(&hybrid.predictions)
-            .zip(&evaluation.measured_error_mm)
+            .zip(&self.samples.error_mm)
             .filter_map(|((m, h), e)| {
                 let (m, h) = (m.as_ref()?, h.as_ref()?);
                 let left = [0, 1, 2].map(|a| e[a] - m.position_error_mm[a]);
@@ -292,7 +414,7 @@ impl<'a> CrossValidation<'a> {
                 full_mm: mean_left(&points, 1.0),
                 points: points.len(),
                 splits: self.folds,
-                by_series: matches!(self.protocol, Protocol::Series(_)),
+                by_series: self.held_out_by() == HeldOut::Series,
             }),
         )
     }
@@ -423,6 +545,7 @@ impl<'a> CrossValidation<'a> {
         let chosen = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)));
         Ok(ServedChoice {
             folds: self.folds,
+            held_out: self.held_out_by(),
             candidates,
             chosen,
         })
@@ -462,11 +585,36 @@ impl<'a> CrossValidation<'a> {
     }
 }
 
+/// How a cross-validation holds points out ([`CrossValidation::held_out_by`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HeldOut {
+    /// Random folds of the pooled samples.
+    #[default]
+    RandomFolds,
+    /// Spatial blocks of the samples' nominal positions.
+    Blocks,
+    /// Whole series, each in turn.
+    Series,
+}
+
+impl HeldOut {
+    /// The splits in words, for `folds` of them.
+    pub fn describe(self, folds: usize) -> String {
+        match self {
+            HeldOut::RandomFolds => format!("{folds}-fold cross-validation"),
+            HeldOut::Blocks => format!("{folds} spatial blocks, each predicted from the others"),
+            HeldOut::Series => format!("{folds} series, each predicted from the others"),
+        }
+    }
+}
+
 /// The served fields tried and the one chosen ([`CrossValidation::served_field`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ServedChoice {
     /// The folds.
     pub folds: usize,
+    /// How the folds hold points out.
+    pub held_out: HeldOut,
     /// Every field tried, in order (none for a table without a served tier).
     pub candidates: Vec<ServedCandidate>,
     /// The index of the chosen one, if any predicted a held-out point.
@@ -555,6 +703,12 @@ fn weight_minimising(points: &[([f64; 3], [f64; 3])]) -> Option<(f64, f64)> {
         .min_by(|x, y| x.1.total_cmp(&y.1))
 }
 
+/// The most of a fold's training samples its kriging's hyperparameters are searched on
+/// (evenly strided): the search is cubic in its samples, and a fold's, made on 400 instead
+/// of up to 1,000 as the table's own, keeps a choice's five searches within a fifth of the
+/// table's one. The field is then fitted to all of the fold's training samples.
+pub const FOLD_SEARCH_SAMPLES: usize = 400;
+
 /// The fewest samples the served field's choice by default cross-validates: with fewer,
 /// the folds are too small to tell two fields apart, and the method's own answer is served.
 pub const AUTO_MIN_SAMPLES: usize = 25;
@@ -575,8 +729,6 @@ pub struct AutoServedField {
     pub exact_cv_mean_mm: Option<f64>,
     /// How many of the samples were cross-validated ([`AUTO_MAX_SAMPLES`] at most).
     pub samples: usize,
-    /// The kriging's hyperparameters every fold used: the table's, when kriging is chosen.
-    pub kriging_choices: Option<GivenChoices>,
     /// The posture term's cross-validation, when it was asked for (a hybrid table).
     pub posture: Option<PostureChoice>,
     /// The residual field's weight learned from held-out series or regions, when it was
@@ -604,14 +756,12 @@ pub const POSTURE_MIN_GAIN_FRACTION: f64 = 0.02;
 pub const POSTURE_MIN_GAIN_MM: f64 = 0.005;
 
 impl AutoServedField {
-    /// `options` with the chosen field (and the kriging's hyperparameters, when chosen)
-    /// and the evidence recorded.
+    /// `options` with the chosen field and the evidence recorded. A kriging field's
+    /// hyperparameters are not among them: each fold searched its own on its training
+    /// samples, and the table searches its own on all of them.
     pub fn apply(&self, options: &mut BuildOptions) {
         options.served_field = self.choice.field();
         options.tuning = self.tuning();
-        if options.served_field != ServedField::Method {
-            options.kriging_choices = self.kriging_choices;
-        }
         if self.posture.is_some_and(|p| p.chosen) {
             options.posture = Posture::Fit;
         }
@@ -663,8 +813,8 @@ impl ServedFieldDecision {
             .map_or(1.0, |w| w.weight)
     }
 
-    /// `options` with the decided field (and with the chosen one's evidence, the kriging's
-    /// hyperparameters and the posture term).
+    /// `options` with the decided field (and with the chosen one's evidence and the
+    /// posture term).
     pub fn apply(&self, options: &mut BuildOptions) {
         match self {
             ServedFieldDecision::Chosen(auto) => auto.apply(options),
@@ -680,28 +830,30 @@ pub struct Ask<'c> {
     pub field: bool,
     /// Decide a hybrid table's posture term.
     pub posture: bool,
-    /// The identification of exactly these samples with these options, when the caller
-    /// made it: the kriging's hyperparameters are those of its residuals, and the robot is
-    /// not identified from the same samples twice.
-    pub identified: Option<&'c Calibration>,
-    /// Learn a hybrid table's residual weight ([`CrossValidation::residual_weight`]): by
-    /// leaving out one series at a time when `series` labels two or more, else by
-    /// [`AUTO_FOLDS`] spatial blocks.
+    /// Learn a hybrid table's residual weight ([`CrossValidation::residual_weight`]).
     pub weight: bool,
-    /// The series of each sample (its index among the files read), when several.
+    /// The series of each sample (its index among the files read), when several: every
+    /// choice is then made by leaving one series out at a time
+    /// ([`CrossValidation::matching_use`]).
     pub series: Option<&'c [usize]>,
 }
 
-/// The choice a build makes by default: on at most [`AUTO_MAX_SAMPLES`] of the samples,
-/// [`AUTO_FOLDS`]-fold cross-validation (seed 0) of the exact tier with `options`, of the
-/// served field among the method's and kriging's when `ask.field` (else of
-/// `options.served_field` alone), then, when `ask.posture` and a robot is given, of the
-/// posture term, all on the same folds.
+/// The choice a build makes by default, on at most [`AUTO_MAX_SAMPLES`] of the samples
+/// (evenly strided), all on the same folds, those that match the table's use
+/// ([`CrossValidation::matching_use`]: each series from the others, else each spatial
+/// block from the others, else random folds for a position-only table): the exact tier
+/// with `options`; the served field among the method's and kriging's when `ask.field`
+/// (else `options.served_field` alone); when `ask.posture` and a robot is given, the
+/// posture term; when `ask.weight` and a robot is given, the residual field's weight.
+///
+/// A kriging field's hyperparameters are searched by likelihood on each fold's training
+/// samples alone, as the table's own are on all of them: no held-out point takes part in
+/// the field it is predicted by. The posture term is fitted after the table it corrects,
+/// on the same residuals, so its folds' fields reuse those searches.
 ///
 /// # Errors
 ///
-/// Too few samples, the identification or the kriging's fit failing, an evaluation
-/// failing.
+/// Too few samples, an identification or a kriging's fit failing, an evaluation failing.
 pub fn auto_choice(
     samples: &SampleSet,
     robot: Option<&Robot>,
@@ -713,7 +865,7 @@ pub fn auto_choice(
         return Err(TuneError::TooFewSamples(samples.len()));
     }
     let subset;
-    let (samples, identified, series) = if samples.len() > AUTO_MAX_SAMPLES {
+    let (samples, series) = if samples.len() > AUTO_MAX_SAMPLES {
         let stride = samples.len() as f64 / AUTO_MAX_SAMPLES as f64;
         let indices: Vec<usize> = (0..AUTO_MAX_SAMPLES)
             .map(|i| (i as f64 * stride) as usize)
@@ -722,10 +874,9 @@ pub fn auto_choice(
         let series = ask
             .series
             .map(|labels| indices.iter().map(|&i| labels[i]).collect::<Vec<_>>());
-        // Another sample set: the caller's identification is not its own.
-        (&subset, None, series)
+        (&subset, series)
     } else {
-        (samples, ask.identified, ask.series.map(<[usize]>::to_vec))
+        (samples, ask.series.map(<[usize]>::to_vec))
     };
     let given = [options.served_field];
     let fields: &[ServedField] = if ask.field {
@@ -733,65 +884,32 @@ pub fn auto_choice(
     } else {
         &given
     };
-    // The kriging's hyperparameters, chosen once by likelihood on all these samples (a
-    // hybrid table's: of the residuals of the model identified from them), are reused by
-    // every fold: each fold then solves its kriging instead of searching again. Without a
-    // kriging among the fields tried nothing would use them, and their search is most of a
-    // choice's cost.
-    let kriging_choices = if fields.iter().any(|&f| f != ServedField::Method) {
-        let model = match (robot, identified) {
-            (None, _) => None,
-            (Some(_), Some(c)) => Some(c.prepared_model()),
-            (Some(r), None) => Some(
-                adwi_identify::calibrate::identify(r, samples, calibrate)
-                    .map_err(TuneError::Identify)?
-                    .prepared_model(),
-            ),
-        };
-        adwi_compile::build::kriging_choices(samples, model.as_ref()).map_err(TuneError::Kriging)?
-    } else {
-        options.kriging_choices
-    };
-    let options = &BuildOptions {
-        kriging_choices,
-        ..options.clone()
-    };
-    let cv = CrossValidation::new(samples, robot, *calibrate, AUTO_FOLDS, 0)?;
+    let cv = CrossValidation::matching_use(samples, robot, *calibrate, series)?;
     let method = BuildOptions {
         served_field: ServedField::Method,
         ..options.clone()
     };
     let (exact_cv_mean_mm, _) = cv.score(cv.exact_method(), method)?;
     let choice = cv.served_field_among(fields, options)?;
+    let chosen = BuildOptions {
+        served_field: choice.field(),
+        ..options.clone()
+    };
     let posture = if ask.posture && robot.is_some() {
-        let chosen = BuildOptions {
-            served_field: choice.field(),
-            ..options.clone()
-        };
         Some(cv.posture(&chosen, choice.chosen_cv_mean_mm())?)
     } else {
         None
     };
     let residual_weight = if ask.weight && robot.is_some() {
-        // Several series: each predicted from the others, as the next series will be;
-        // one: each region from the others, as poses elsewhere will be.
-        let protocol = match series.filter(|s| crate::folds::group_splits(s).is_some()) {
-            Some(series) => Protocol::Series(series),
-            None => Protocol::Blocks {
-                folds: AUTO_FOLDS,
-                seed: 0,
-            },
-        };
         let chosen = BuildOptions {
-            served_field: choice.field(),
             posture: if posture.is_some_and(|p| p.chosen) {
                 Posture::Fit
             } else {
-                options.posture
+                chosen.posture
             },
-            ..options.clone()
+            ..chosen
         };
-        CrossValidation::held_out(samples, robot, *calibrate, protocol)?.residual_weight(&chosen)?
+        cv.residual_weight(&chosen)?
     } else {
         None
     };
@@ -799,7 +917,6 @@ pub fn auto_choice(
         choice,
         exact_cv_mean_mm,
         samples: samples.len(),
-        kriging_choices,
         posture,
         residual_weight,
     })
@@ -878,6 +995,100 @@ mod tests {
         let against: Vec<_> = field.iter().map(|f| (f.map(|v| -v), *f)).collect();
         assert_eq!(weight_minimising(&against).unwrap().0, 0.0);
         assert!(weight_minimising(&[]).is_none());
+    }
+
+    /// Every third sample of the shipped KR150-2 lattice (243), and its robot.
+    fn kr150_third() -> (SampleSet, Robot) {
+        let robot_path = adwi_robot::model::shipped_robot_path("kr150-2");
+        let samples = adwi_samples::read_samples(
+            &robot_path.parent().unwrap().join("samples.csv"),
+            &adwi_samples::ColumnMap::default(),
+        )
+        .unwrap();
+        let every_third: Vec<usize> = (0..samples.len()).step_by(3).collect();
+        (
+            samples.subset(&every_third),
+            Robot::load(&robot_path).unwrap(),
+        )
+    }
+
+    #[test]
+    fn choices_hold_out_series_else_regions_of_a_hybrid_table_else_random_folds() {
+        let (samples, robot) = kr150_third();
+        let calibrate = CalibrateOptions::default();
+        let by = |robot: Option<&Robot>, series: Option<Vec<usize>>| {
+            let cv = CrossValidation::matching_use(&samples, robot, calibrate, series).unwrap();
+            (cv.held_out_by(), cv.folds())
+        };
+        let halves: Vec<usize> = (0..samples.len())
+            .map(|i| usize::from(i % 2 == 1))
+            .collect();
+        assert_eq!(by(Some(&robot), Some(halves.clone())), (HeldOut::Series, 2));
+        assert_eq!(by(None, Some(halves)), (HeldOut::Series, 2));
+        // One series labelled is no series to hold out.
+        let one = Some(vec![0; samples.len()]);
+        assert_eq!(by(Some(&robot), one.clone()), (HeldOut::Blocks, AUTO_FOLDS));
+        assert_eq!(by(Some(&robot), None), (HeldOut::Blocks, AUTO_FOLDS));
+        assert_eq!(by(None, one), (HeldOut::RandomFolds, AUTO_FOLDS));
+    }
+
+    /// The kriging candidate's figure is the one its folds give when each searches the
+    /// kriging's hyperparameters on its own training samples: no held-out point takes part
+    /// in the field it is predicted by (hyperparameters searched on all the samples once
+    /// and given to every fold gave another figure).
+    #[test]
+    fn a_kriging_candidate_is_fitted_on_each_folds_training_samples_alone() {
+        let (samples, _) = kr150_third();
+        let options = BuildOptions::default();
+        let ask = Ask {
+            field: true,
+            ..Ask::default()
+        };
+        let auto =
+            auto_choice(&samples, None, &options, &CalibrateOptions::default(), ask).unwrap();
+        let kriging = (auto.choice.candidates.iter())
+            .find(|c| c.field == ServedField::Kriging)
+            .unwrap();
+        let each_fold_its_own = evaluate(
+            &samples,
+            &Protocol::KFold {
+                folds: AUTO_FOLDS,
+                seed: 0,
+            },
+            &EvalOptions {
+                methods: Some(vec![Method::PaperTrilinear]),
+                build: BuildOptions {
+                    served_field: ServedField::Kriging,
+                    kriging_choices: None,
+                    ..options.clone()
+                },
+                ..EvalOptions::default()
+            },
+        )
+        .unwrap();
+        let expected = each_fold_its_own.method(Method::PaperTrilinear).unwrap();
+        assert_eq!(
+            kriging.cv_mean_mm,
+            expected.position_mm.as_ref().map(|p| p.mean_norm)
+        );
+        assert_eq!(kriging.missed, samples.len() - expected.predicted());
+        // Searched on all of them and given to every fold, the held-out points take part.
+        let all = adwi_compile::build::kriging_choices(&samples, None).unwrap();
+        let cv = CrossValidation::new(&samples, None, CalibrateOptions::default(), 5, 0).unwrap();
+        let given = BuildOptions {
+            kriging_choices: all,
+            ..options
+        };
+        let (leaked, _) = cv
+            .score(
+                Method::PaperTrilinear,
+                BuildOptions {
+                    served_field: ServedField::Kriging,
+                    ..given
+                },
+            )
+            .unwrap();
+        assert_ne!(kriging.cv_mean_mm, leaked);
     }
 
     #[test]

@@ -769,13 +769,8 @@ pub fn evaluate(
             if unsupported.contains(&method) {
                 continue;
             }
-            let (build, choice) = options::build_options_for(
-                method,
-                train,
-                train_series.as_deref(),
-                calibration.as_ref(),
-                options,
-            );
+            let (build, choice) =
+                options::build_options_for(method, split, train, train_series.as_deref(), options);
             // A learned residual weight scales what the table's residual field holds.
             let weighted = match (choice.and_then(|c| c.residual_weight), &calibration) {
                 (Some(w), Some(c)) if w.weight != 1.0 => {

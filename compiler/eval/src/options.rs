@@ -3,6 +3,7 @@
 //! training samples.
 
 use adwi_compile::build::{BuildOptions, ServedField};
+use adwi_compile::nugget_kriging::GivenChoices;
 use adwi_compile::posture::Posture;
 use adwi_identify::calibrate::{CalibrateOptions, Calibration};
 use adwi_robot::Robot;
@@ -34,6 +35,10 @@ pub struct EvalOptions {
     /// protocol and identification options made it ([`Evaluation::identified`]): several
     /// evaluations then identify once per split. Empty: identified here.
     pub identified: Vec<Calibration>,
+    /// Each split's kriging hyperparameters, when searched before on its training samples
+    /// alone ([`crate::choice::CrossValidation`]): a kriging served field of the split's
+    /// tables takes them instead of searching its own. Empty: each table searches.
+    pub split_kriging_choices: Vec<Option<GivenChoices>>,
     /// The series of each sample (its index among the files read), when several: a
     /// split's residual weight is then learned by leaving one series out.
     pub series: Option<Vec<usize>>,
@@ -102,28 +107,33 @@ pub struct SplitChoiceRecord {
     pub residual_weight: Option<ResidualWeight>,
 }
 
-/// The build options of `method` on the training samples `train` (identified as
-/// `calibration`, for a hybrid table): `options.build`, with what a served-tier method's
-/// table is built with chosen from `train` when a rule is given, and that choice.
+/// The build options of `method` on split `split`'s training samples `train`:
+/// `options.build` (with the split's kriging hyperparameters, when given), with what a
+/// served-tier method's table is built with chosen from `train` when a rule is given, and
+/// that choice.
 pub(crate) fn build_options_for(
     method: Method,
+    split: usize,
     train: &SampleSet,
     train_series: Option<&[usize]>,
-    calibration: Option<&Calibration>,
     options: &EvalOptions,
 ) -> (BuildOptions, Option<SplitChoice>) {
+    let mut given = options.build.clone();
+    if given.kriging_choices.is_none() {
+        given.kriging_choices = options.split_kriging_choices.get(split).copied().flatten();
+    }
     let Some(rule) = options.split_rule else {
-        return (options.build.clone(), None);
+        return (given, None);
     };
     let hybrid = match method {
         Method::PaperTrilinear => false,
         Method::HybridTrilinear => true,
-        _ => return (options.build.clone(), None),
+        _ => return (given, None),
     };
-    let choice = split_choice(rule, train, train_series, hybrid, calibration, options);
+    let choice = split_choice(rule, train, train_series, hybrid, options);
     let mut build = BuildOptions {
         served_field: choice.served_field,
-        ..options.build.clone()
+        ..given
     };
     if let Some(decision) = choice.posture {
         build.posture = if decision.on {
@@ -135,15 +145,13 @@ pub(crate) fn build_options_for(
     (build, Some(choice))
 }
 
-/// What `rule` chooses for a split's table on `train`: a hybrid table's (by its residuals,
-/// the model identified as `calibration`) or a position-only one's, as a build without a
-/// robot chooses it.
+/// What `rule` chooses for a split's table on `train`: a hybrid table's or a position-only
+/// one's, as a build without a robot chooses it.
 fn split_choice(
     rule: SplitRule,
     train: &SampleSet,
     train_series: Option<&[usize]>,
     hybrid: bool,
-    calibration: Option<&Calibration>,
     options: &EvalOptions,
 ) -> SplitChoice {
     let build = &options.build;
@@ -160,7 +168,6 @@ fn split_choice(
     let ask = Ask {
         field: rule.choose_field,
         posture,
-        identified: calibration.filter(|_| hybrid),
         weight,
         series: train_series,
     };

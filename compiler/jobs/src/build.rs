@@ -277,7 +277,6 @@ impl BuildJob {
                 let ask = Ask {
                     field: choose_field,
                     posture: choose_posture,
-                    identified: identified.as_ref(),
                     weight: choose_weight,
                     series: labels.as_deref(),
                 };

@@ -223,9 +223,9 @@ fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
         .exact_cv_mean_mm
         .map_or("—".to_string(), |m| format!("{m:.4} mm mean"));
     println!(
-        "served field   chosen by {}-fold cross-validation on {} of the samples alone (the \
-         exact tier: {exact}):",
-        auto.choice.folds, auto.samples
+        "served field   chosen by {} on {} of the samples alone (the exact tier: {exact}):",
+        auto.choice.held_out.describe(auto.choice.folds),
+        auto.samples
     );
     print_served_candidates(&auto.choice.candidates, auto.choice.field(), "the build's");
     if let Some(w) = &auto.residual_weight {
