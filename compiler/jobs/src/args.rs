@@ -181,9 +181,9 @@ pub enum ResidualWeightChoice {
     /// A weight in [0, 1] learned from held-out data: each series predicted from the
     /// others when several are given, else each spatial block of the samples from the
     /// others ([`crate::choice::CrossValidation::residual_weight`]).
+    #[default]
     Auto,
     /// The whole field.
-    #[default]
     Full,
 }
 
@@ -254,7 +254,8 @@ pub struct TableArgs {
     #[arg(long, value_name = "DEG")]
     pub joint_radius: Option<f64>,
     /// What the served field's nodes hold: `auto` chooses by cross-validation on the
-    /// samples alone; `method`, the method's own answer (what the exact tier answers,
+    /// samples alone (a hybrid table's held out by series, or by spatial blocks of one
+    /// series); `method`, the method's own answer (what the exact tier answers,
     /// tabulated); `kriging`, kriging with a nugget of the samples' errors (a hybrid
     /// table's residuals) in Cartesian distance, which smooths their measurement noise; on
     /// a hybrid table with a part that turns with the nominal tool's approach axis at the
@@ -271,11 +272,11 @@ pub struct TableArgs {
     #[arg(long, value_name = "WHEN", default_value_t = PostureChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub posture: PostureChoice,
-    /// A hybrid table's residual field weight: `full`, the whole field; `auto`, a weight in
-    /// [0, 1] learned from held-out data (each series predicted from the others when
-    /// several are given, else each of 5 spatial blocks of the samples from the others):
-    /// a field that does not carry to poses elsewhere is faded toward the model alone.
-    #[arg(long, value_name = "WEIGHT", default_value_t = ResidualWeightChoice::Full)]
+    /// A hybrid table's residual field weight: `auto`, a weight in [0, 1] learned from
+    /// held-out data (each series predicted from the others when several are given, else
+    /// each of 5 spatial blocks of the samples from the others): a field that does not
+    /// carry to poses elsewhere is faded toward the model alone; `full`, the whole field.
+    #[arg(long, value_name = "WEIGHT", default_value_t = ResidualWeightChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub residual_weight: ResidualWeightChoice,
 }
@@ -296,7 +297,7 @@ impl Default for TableArgs {
             joint_radius: None,
             served_field: ServedFieldChoice::Auto,
             posture: PostureChoice::Auto,
-            residual_weight: ResidualWeightChoice::Full,
+            residual_weight: ResidualWeightChoice::Auto,
         }
     }
 }
