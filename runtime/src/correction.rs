@@ -270,7 +270,7 @@ impl Correction {
     /// This correction, or [`Status::NumericalFailure`] if it claims [`Status::Ok`] with
     /// a non-finite value: the last line of defence of every query path, so that no caller
     /// is ever told to command a NaN.
-    #[inline(always)]
+    #[inline]
     pub(crate) fn finite_or_failure(self) -> Correction {
         let values = self
             .position_error_mm
