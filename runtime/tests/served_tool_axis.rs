@@ -154,6 +154,7 @@ fn parts_shifted(field: ServedField, h_scale: f64, shift_mm: [f64; 3]) -> (Heade
         tuning: None,
         served_field: field,
         evidence: Default::default(),
+        merge_voxel_mm: None,
     };
     (header, data)
 }

@@ -142,6 +142,7 @@ fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
         tuning: None,
         served_field: ServedField::Method,
         evidence,
+        merge_voxel_mm: None,
     };
     let bytes = encode(header, &data).unwrap();
     assert_eq!(
@@ -352,6 +353,7 @@ fn a_position_only_table_flags_an_orientation_its_samples_never_had() {
             approach: ApproachCone::of([[1.0, 0.0, 0.0]]),
             point_in_flange: None,
         },
+        merge_voxel_mm: None,
     };
     let table = Table::from_vec(encode(header, &data).unwrap()).unwrap();
     let at_b = |b_deg: f64| Target::at(POINT_MM).with_rotation([0.0, b_deg.to_radians(), 0.0]);

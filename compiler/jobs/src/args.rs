@@ -279,6 +279,17 @@ pub struct TableArgs {
     #[arg(long, value_name = "WEIGHT", default_value_t = ResidualWeightChoice::Auto)]
     #[serde(deserialize_with = "parsed::value")]
     pub residual_weight: ResidualWeightChoice,
+    /// Samples averaged within voxels of this edge, mm, before the table is built; 0
+    /// keeps every sample [default: with a derived cell, none when the table fits
+    /// --max-table-mb, else the finest voxel of 1/64 to 1/4 of the sample spacing that
+    /// fits it].
+    #[arg(long, value_name = "MM")]
+    pub merge_voxel: Option<f64>,
+    /// The most the table may take, MB (10⁶ bytes), with a derived cell: samples too many
+    /// are merged within it, and a build that cannot keep it is refused before any work
+    /// [default: 64, merging where that helps, else the table takes what its samples need].
+    #[arg(long, value_name = "MB")]
+    pub max_table_mb: Option<f64>,
 }
 
 impl Default for TableArgs {
@@ -298,6 +309,8 @@ impl Default for TableArgs {
             served_field: ServedFieldChoice::Auto,
             posture: PostureChoice::Auto,
             residual_weight: ResidualWeightChoice::Auto,
+            merge_voxel: None,
+            max_table_mb: None,
         }
     }
 }
@@ -328,6 +341,11 @@ impl TableArgs {
                 PostureChoice::On => Posture::Fit,
                 PostureChoice::Auto | PostureChoice::Off => Posture::Off,
             },
+            merge_voxel_mm: self.merge_voxel,
+            // Not finite or not positive: 0, which the build refuses.
+            max_table_bytes: self
+                .max_table_mb
+                .map(|mb| if mb.is_finite() && mb > 0.0 { (mb * 1e6) as u128 } else { 0 }),
         }
     }
 }

@@ -10,7 +10,7 @@
 //! |-------:|-----:|-------|
 //! | 0   | 8  | magic `b"ADWITBL\0"` |
 //! | 8   | 2  | endianness mark `0xFEFF` (reads `0xFFFE` on a big-endian misreading) |
-//! | 10  | 2  | format version: 4 for a table that records its evidence (bytes 200-247), else 2 ([`v2`]), or 3 ([`v3`]) for a table with a posture term; version 1 ([`v1`]) is still read. The payload of a version-4 table is [`v3`]'s when it has a posture term (content flag bit 4), else [`v2`]'s |
+//! | 10  | 2  | format version: 4 for a table that records its evidence (bytes 200-243) or merged samples (bytes 244-247), else 2 ([`v2`]), or 3 ([`v3`]) for a table with a posture term; version 1 ([`v1`]) is still read. The payload of a version-4 table is [`v3`]'s when it has a posture term (content flag bit 4), else [`v2`]'s |
 //! | 12  | 4  | header length in bytes (256) |
 //! | 16  | 4  | rkyv format flags: bit 0 little-endian, bit 1 aligned primitives, bits 8-15 pointer width in bytes |
 //! | 20  | 4  | content flags: bit 0 orientation errors, bit 1 configurations, bit 2 sample joint values (v2: stored only for a joint screen), bit 3 kinematic model (a hybrid table), bit 4 posture term (version 3, a hybrid table) |
@@ -42,7 +42,7 @@
 //! | 216 | 12 | v4: the table's measured point in the flange frame, translation, mm, 3 × `f32` ([`PointInFlange`]; zero when not recorded) |
 //! | 228 | 12 | v4: the same point's frame in the flange frame, rotation vector, rad, 3 × `f32` |
 //! | 240 | 4  | v4: evidence flags: bit 0 the approach cone is recorded, bit 1 the point in the flange is |
-//! | 244 | 4  | reserved, zero (v2, v3: 200-247 reserved, zero) |
+//! | 244 | 4  | v4: the samples' merge voxel, mm, `f32` ([`Header::merge_voxel_mm`]): the edge of the voxels within which the measured samples (of one configuration) were averaged into the table's samples; 0 when every measured sample is a sample of the table (v2, v3: 200-247 reserved, zero) |
 //! | 248 | 8  | header checksum, XXH3-64 of bytes 0..248 |
 //!
 //! The payload starts at offset 256, a multiple of 64: in a memory map (page-aligned) the
@@ -149,6 +149,12 @@ pub struct Header {
     /// What the samples span beyond their positions (version 4; empty before): the
     /// queries' [`crate::Evidence`] flag is checked against it.
     pub evidence: EvidenceRecord,
+    /// The edge of the voxels within which the measured samples were averaged into the
+    /// table's samples, mm (version 4, header bytes 244-247, an `f32`); `None` when the
+    /// table holds every measured sample. A build merges only samples too many for the
+    /// table's size bound (a tracked path's thousands a second): both tiers then answer
+    /// from the voxel averages, and [`Header::sample_count`] counts those.
+    pub merge_voxel_mm: Option<f64>,
 }
 
 /// How far beyond the samples' approach axes a target's may turn before its answer is
@@ -514,6 +520,12 @@ impl Header {
         self.version >= 5 && self.content_flags & CONTENT_JOINT_TERMS != 0
     }
 
+    /// Whether the header records what only version 4 (and 5) can hold: evidence
+    /// ([`Header::evidence`]) or merged samples ([`Header::merge_voxel_mm`]).
+    pub fn records_version_4(&self) -> bool {
+        !self.evidence.is_empty() || self.merge_voxel_mm.is_some()
+    }
+
     /// The header's 256 bytes, with its checksum.
     pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
         let mut b = [0u8; HEADER_LEN];
@@ -585,6 +597,8 @@ impl Header {
                 flags |= EVIDENCE_POINT;
             }
             put(&mut b, 240, flags.to_le_bytes());
+            let voxel_mm = self.merge_voxel_mm.unwrap_or(0.0) as f32;
+            put(&mut b, 244, voxel_mm.to_le_bytes());
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&b[..248]);
         put(&mut b, 248, checksum.to_le_bytes());
@@ -644,7 +658,7 @@ impl Header {
             });
         }
         let reserved: [std::ops::Range<usize>; 2] = if version >= 4 {
-            [244..248, 248..248]
+            [248..248, 248..248]
         } else if version >= 3 {
             [200..248, 248..248]
         } else if version >= 2 {
@@ -771,6 +785,11 @@ impl Header {
         } else {
             EvidenceRecord::default()
         };
+        let merge_voxel_mm = if version >= 4 {
+            merge_voxel_of(f32_at(244))?
+        } else {
+            None
+        };
         Ok(Header {
             version,
             rkyv_flags,
@@ -806,8 +825,28 @@ impl Header {
             tuning,
             served_field,
             evidence,
+            merge_voxel_mm,
         })
     }
+}
+
+/// The smallest merge voxel a table records, mm: a nanometre, far below any tracker's
+/// resolution, so that a smaller one is damage.
+pub const MIN_MERGE_VOXEL_MM: f64 = 1e-6;
+
+/// A version-4 header's merge voxel (bytes 244-247): 0 for none, else finite, within
+/// [`MIN_MERGE_VOXEL_MM`] and [`MAX_COORDINATE_MM`].
+fn merge_voxel_of(voxel_mm: f64) -> Result<Option<f64>, crate::OpenError> {
+    if voxel_mm.to_bits() == 0 {
+        return Ok(None);
+    }
+    // Written so that NaN fails the test.
+    if !(MIN_MERGE_VOXEL_MM..=MAX_COORDINATE_MM).contains(&voxel_mm) {
+        return Err(crate::OpenError::Corrupt {
+            what: "the merge voxel is neither 0 nor within 1e-6 to 1e6 mm",
+        });
+    }
+    Ok(Some(voxel_mm))
 }
 
 /// A version-4 header's evidence fields, checked: known flags only, a unit axis and a
@@ -868,22 +907,23 @@ fn evidence_of(
 /// Serialises a version-2 table: the header (with its checksums and lengths filled in from
 /// the payload) followed by the rkyv archive of `data`. The compiler's way to write a
 /// table without a posture term. A header that records evidence ([`Header::evidence`])
-/// makes it a version-4 table with the same payload.
+/// or merged samples ([`Header::merge_voxel_mm`]) makes it a version-4 table with the
+/// same payload.
 ///
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
 pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
-    let version = if header.evidence.is_empty() { 2 } else { 4 };
+    let version = if header.records_version_4() { 4 } else { 2 };
     Ok(with_header(header, version, &payload))
 }
 
 /// Serialises a version-3 table (a table with a posture term) as [`encode`] a version-2
-/// one; the header's [`CONTENT_POSTURE`] flag is set. A header that records evidence
-/// makes it a version-4 table with the same payload.
+/// one; the header's [`CONTENT_POSTURE`] flag is set. A header that records evidence or
+/// merged samples makes it a version-4 table with the same payload.
 pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     header.content_flags |= CONTENT_POSTURE;
-    let version = if header.evidence.is_empty() { 3 } else { 4 };
+    let version = if header.records_version_4() { 4 } else { 3 };
     Ok(with_header(header, version, &payload))
 }
 

@@ -40,6 +40,39 @@ pub(super) fn candidate_lists(
     lists
 }
 
+/// The bytes the candidate lists of `grid` take beyond their cell records (the overflow
+/// entries of lists longer than a record holds), predicted from every `stride`-th cell's
+/// list and scaled: the same lists the build computes, for a fraction of its work.
+pub(super) fn predicted_overflow_bytes(
+    records: &[SampleRecord],
+    params: &MethodParams,
+    joint_screen: bool,
+    grid: &Grid,
+    stride: usize,
+) -> u128 {
+    let index = SpatialIndex::new(records, params.radius_mm);
+    let inline = if records.len() <= adwi_runtime::format::v2::NARROW_SAMPLES {
+        adwi_runtime::format::v2::INLINE_CANDIDATES
+    } else {
+        adwi_runtime::format::v2::INLINE_CANDIDATES_WIDE
+    };
+    let cells = grid.cell_count().unwrap_or(0);
+    let stride = stride.max(1);
+    let entries: u128 = (0..cells)
+        .into_par_iter()
+        .step_by(stride)
+        .map(|cell| {
+            let len = candidate_list(records, &index, params, joint_screen, grid, cell).len();
+            if len > inline {
+                len as u128
+            } else {
+                0
+            }
+        })
+        .sum();
+    entries * stride as u128 * 4
+}
+
 /// Samples bucketed by actual position in cubes of edge ≥ ε, so that the samples within ε
 /// of a box are found in the buckets the grown box overlaps.
 struct SpatialIndex {

@@ -39,7 +39,8 @@ pub fn compile_plan(
     )
 }
 
-/// [`compile_plan`] computing only the served tier's `nodes`.
+/// [`compile_plan`] computing only the served tier's `nodes`. Samples the plan merges
+/// ([`Plan::merge`]) are merged first: both tiers answer from the voxel averages.
 ///
 /// # Errors
 ///
@@ -52,7 +53,15 @@ pub fn compile_plan_serving(
     nodes: ServedNodes<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
-    let Plan { params, grid, .. } = *plan;
+    let merged;
+    let samples = match plan.merge {
+        Some(m) => {
+            merged = super::merge::merge(samples, m.voxel_mm);
+            &merged
+        }
+        None => samples,
+    };
+    let joint_count = checked_joint_count(samples, plan, model)?;
     let mut report = BuildReport {
         plan: *plan,
         cells_covered: 0,
@@ -66,6 +75,47 @@ pub fn compile_plan_serving(
         served_kriging: Vec::new(),
         posture: None,
     };
+    let joint_screen = plan.joint_radius_rad > 0.0;
+    let records = samples.records();
+    let lists = candidate_lists(&records, &plan.params, joint_screen, &plan.grid, progress);
+    let mut data = exact_tier(samples, &records, &lists, model, joint_screen, &mut report);
+    // The served tier: the exact method at every node, one set per target configuration
+    // (none with a joint screen: its admissible samples depend on the joint values).
+    if !joint_screen {
+        served_tier(
+            samples,
+            &records,
+            &lists,
+            plan,
+            model,
+            nodes,
+            &mut data,
+            &mut report,
+        )?;
+    }
+    drop((lists, records));
+    let header = header(
+        samples,
+        plan,
+        model,
+        source_hash,
+        joint_count,
+        &data,
+        &report,
+    );
+    let bytes = encode(header, data, model, joint_count)?;
+    report.table_bytes = bytes.len();
+    Ok((bytes, report))
+}
+
+/// The checks a model and the samples' joint values must pass before any work: a model's
+/// chains plausible, its joint count the samples', a posture term only with a model. The
+/// joint count the header records (the samples', else the model's, else 0).
+fn checked_joint_count(
+    samples: &SampleSet,
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+) -> Result<usize, BuildError> {
     if model.is_none() && plan.posture != crate::posture::Posture::Off {
         return Err(BuildError::PostureWithoutModel);
     }
@@ -74,21 +124,28 @@ pub fn compile_plan_serving(
             format::check_chain_plausible(chain)?;
         }
     }
-    let joint_count = match (&samples.joints, model) {
-        (Some(j), Some(m)) if j.count() != m.joint_count() => {
-            return Err(BuildError::JointCount {
-                model: m.joint_count(),
-                samples: j.count(),
-            })
-        }
-        (Some(j), _) => j.count(),
-        (None, Some(m)) => m.joint_count(),
-        (None, None) => 0,
-    };
-    let joint_screen = plan.joint_radius_rad > 0.0;
-    let records = samples.records();
-    let lists = candidate_lists(&records, &params, joint_screen, &grid, progress);
+    match (&samples.joints, model) {
+        (Some(j), Some(m)) if j.count() != m.joint_count() => Err(BuildError::JointCount {
+            model: m.joint_count(),
+            samples: j.count(),
+        }),
+        (Some(j), _) => Ok(j.count()),
+        (None, Some(m)) => Ok(m.joint_count()),
+        (None, None) => Ok(0),
+    }
+}
 
+/// The exact tier's part of the payload: the samples, their errors, the candidate lists in
+/// their cell records (narrow or wide by the sample count) and the model; the lists'
+/// figures go to `report`.
+fn exact_tier(
+    samples: &SampleSet,
+    records: &[format::SampleRecord],
+    lists: &[Vec<u32>],
+    model: Option<&PreparedModel>,
+    joint_screen: bool,
+    report: &mut BuildReport,
+) -> v2::TableData {
     let mut data = v2::TableData {
         samples: records
             .iter()
@@ -112,7 +169,7 @@ pub fn compile_plan_serving(
     };
     let narrow = records.len() <= v2::NARROW_SAMPLES;
     let mut distinct = std::collections::HashSet::new();
-    for list in &lists {
+    for list in lists {
         if narrow {
             data.cells.push(narrow_record(list, &mut data.overflow));
         } else {
@@ -128,36 +185,61 @@ pub fn compile_plan_serving(
     }
     report.mean_list_len /= report.cells_covered.max(1) as f64;
     report.distinct_lists = distinct.len();
+    data
+}
 
-    // The served tier: the exact method at every node, one set per target configuration
-    // (none with a joint screen: its admissible samples depend on the joint values).
-    if !joint_screen {
-        let field = NodeField::new(plan.served_field, plan.kriging_choices, samples, model)?;
-        let computed = match nodes {
-            ServedNodes::All => None,
-            ServedNodes::Serving(positions) => Some(serving_nodes(&grid, positions)),
-        };
-        let served = NodeValues::compute(
-            &records,
-            &params,
-            &grid,
-            &lists,
-            samples,
-            &field,
-            computed.as_deref(),
-        )?;
-        report.node_sets = served.sets.len();
-        report.served_cells = served.served_cells(&grid);
-        report.served_kriging = served.kriging_choices;
-        // The kind written: a kriging turns with the tool only where the likelihood says.
-        report.plan.served_field = served.served_field;
-        data.node_sets = served.sets;
-        data.node_errors_mm = served.position_mm;
-        if samples.rotation_error_rad.is_some() {
-            data.node_orientation_errors_rad = served.orientation_rad;
-        }
+/// The served tier's nodes into `data` (those `nodes` asks for), and their figures and
+/// the field written into `report`.
+#[allow(clippy::too_many_arguments)]
+fn served_tier(
+    samples: &SampleSet,
+    records: &[format::SampleRecord],
+    lists: &[Vec<u32>],
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+    nodes: ServedNodes<'_>,
+    data: &mut v2::TableData,
+    report: &mut BuildReport,
+) -> Result<(), BuildError> {
+    let field = NodeField::new(plan.served_field, plan.kriging_choices, samples, model)?;
+    let computed = match nodes {
+        ServedNodes::All => None,
+        ServedNodes::Serving(positions) => Some(serving_nodes(&plan.grid, positions)),
+    };
+    let served = NodeValues::compute(
+        records,
+        &plan.params,
+        &plan.grid,
+        lists,
+        samples,
+        &field,
+        computed.as_deref(),
+    )?;
+    report.node_sets = served.sets.len();
+    report.served_cells = served.served_cells(&plan.grid);
+    report.served_kriging = served.kriging_choices;
+    // The kind written: a kriging turns with the tool only where the likelihood says.
+    report.plan.served_field = served.served_field;
+    data.node_sets = served.sets;
+    data.node_errors_mm = served.position_mm;
+    if samples.rotation_error_rad.is_some() {
+        data.node_orientation_errors_rad = served.orientation_rad;
     }
+    Ok(())
+}
 
+/// The table's header: what the samples carry, the plan's parameters and grid, the served
+/// field written, the evidence, and the merge.
+fn header(
+    samples: &SampleSet,
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+    source_hash: u64,
+    joint_count: usize,
+    data: &v2::TableData,
+    report: &BuildReport,
+) -> Header {
+    let joint_screen = plan.joint_radius_rad > 0.0;
     let mut content = 0;
     if samples.rotation_error_rad.is_some() {
         content |= CONTENT_ORIENTATION;
@@ -171,15 +253,15 @@ pub fn compile_plan_serving(
     if data.model.is_some() {
         content |= CONTENT_MODEL;
     }
-    let header = Header {
+    Header {
         version: format::FORMAT_VERSION,
         rkyv_flags: format::RKYV_FLAGS,
         content_flags: content,
         payload_len: 0,
         payload_checksum: 0,
         source_hash,
-        method: params,
-        grid,
+        method: plan.params,
+        grid: plan.grid,
         sample_count: samples.len() as u32,
         joint_radius_rad: plan.joint_radius_rad,
         joint_count: if joint_screen || model.is_some() {
@@ -195,8 +277,19 @@ pub fn compile_plan_serving(
             report.plan.served_field
         },
         evidence: evidence(samples, model, plan.point_in_flange),
-    };
-    // A model with joint-space terms is a version-5 table; any other is written as before.
+        merge_voxel_mm: plan.merge.map(|m| m.voxel_mm),
+    }
+}
+
+/// The table's bytes: a version-5 payload for a model with joint-space terms, else the
+/// version-2 one (version 4 when the header records evidence or a merge); opened once as
+/// the runtime will, so that a table the runtime refuses is never written.
+fn encode(
+    header: Header,
+    data: v2::TableData,
+    model: Option<&PreparedModel>,
+    joint_count: usize,
+) -> Result<Vec<u8>, BuildError> {
     let bytes = match model.filter(|m| !m.joint_terms().is_none()) {
         Some(m) => {
             let joint_terms =
@@ -211,10 +304,8 @@ pub fn compile_plan_serving(
         None => format::encode(header, &data),
     }
     .map_err(|e| BuildError::Encode(e.to_string()))?;
-    // Opened once as the runtime will: a table the runtime refuses is never written.
     adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
-    report.table_bytes = bytes.len();
-    Ok((bytes, report))
+    Ok(bytes)
 }
 
 /// What the samples span beyond their positions ([`format::EvidenceRecord`]): the cone of

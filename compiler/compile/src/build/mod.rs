@@ -47,6 +47,7 @@
 
 mod candidates;
 mod encode;
+pub mod merge;
 mod nodes;
 mod plan;
 
@@ -91,8 +92,9 @@ pub fn kriging_choices(
     }
 }
 pub use plan::{
-    check_options, estimated_table_bytes, human_bytes, max_covered_cells, plan, Plan,
-    CELLS_PER_SPACING, MAX_CELLS, RADIUS_PER_SPACING,
+    check_options, estimated_table_bytes, human_bytes, max_covered_cells, plan,
+    predicted_table_bytes, Plan, CELLS_PER_SPACING, MAX_CELLS, MAX_DERIVED_TABLE_BYTES,
+    RADIUS_PER_SPACING,
 };
 
 use adwi_samples::SampleSet;
@@ -125,6 +127,15 @@ pub struct BuildOptions {
     /// Whether a hybrid table gets a posture term ([`crate::posture`]); refused for a
     /// position-only table and with a joint screen.
     pub posture: crate::posture::Posture,
+    /// The voxel edge, mm, within which samples are averaged before the table is built
+    /// ([`merge`]): `None` merges only samples too many for a derived cell's size bound
+    /// (the finest voxel that fits it), `Some(0.0)` never merges.
+    pub merge_voxel_mm: Option<f64>,
+    /// The most a table with a derived cell may take, bytes: `None` is
+    /// [`MAX_DERIVED_TABLE_BYTES`], beyond which samples too many are merged where
+    /// merging can bring them within it. A bound given is a promise: a build that cannot
+    /// keep it (samples a spacing apart, too many to merge) is refused before any work.
+    pub max_table_bytes: Option<u128>,
 }
 
 impl Default for BuildOptions {
@@ -138,6 +149,8 @@ impl Default for BuildOptions {
             served_field: ServedField::Method,
             kriging_choices: None,
             posture: crate::posture::Posture::Off,
+            merge_voxel_mm: None,
+            max_table_bytes: None,
         }
     }
 }
@@ -181,6 +194,21 @@ pub enum BuildError {
         estimated_bytes: u128,
         /// The limit.
         max: usize,
+    },
+    /// The table cannot be kept within the bound given.
+    #[error(
+        "{samples} samples do not fit a table of {}, even averaged within voxels of \
+         {voxel_mm} mm (samples that far apart are not redundant): give a larger bound, a \
+         --merge-voxel, or fewer samples",
+        human_bytes(*max_bytes)
+    )]
+    TableBound {
+        /// The samples measured.
+        samples: usize,
+        /// The coarsest voxel tried, mm.
+        voxel_mm: f64,
+        /// The bound, bytes.
+        max_bytes: u128,
     },
     /// A hybrid table needs the samples' joint angles, at which its model is evaluated.
     #[error("a hybrid table needs samples with joint angles (columns j1..jn)")]

@@ -5,6 +5,7 @@
 use adwi_runtime::format::{self, Grid};
 use adwi_runtime::method::MethodParams;
 
+use super::merge::{merged_count, SampleMerge, MERGE_FRACTIONS};
 use super::{BuildError, BuildOptions, ServedField, Tuning};
 use adwi_samples::SampleSet;
 
@@ -42,8 +43,11 @@ pub struct Plan {
     pub radius_derived: bool,
     /// Whether the cell edge was derived from the spacing.
     pub cell_derived: bool,
-    /// The number of samples planned for.
+    /// The number of samples planned for (measured).
     pub samples: usize,
+    /// Whether the samples are merged in voxels before the table is built, and the count
+    /// left ([`super::merge`]): `None` keeps every sample.
+    pub merge: Option<SampleMerge>,
     /// The cross-validation that chose the options, for the header.
     pub tuning: Option<Tuning>,
     /// Bytes of served values per node of the grid, at most (the estimate's).
@@ -68,10 +72,19 @@ impl Plan {
         self.grid.cell_count().unwrap_or(0)
     }
 
+    /// The number of samples the table holds: the measured ones, or their voxel averages.
+    pub fn table_samples(&self) -> usize {
+        self.merge.map_or(self.samples, |m| m.merged)
+    }
+
     /// At most how many cells can hold candidates ([`max_covered_cells`]).
     pub fn coverable_cells(&self) -> f64 {
-        max_covered_cells(self.samples, self.params.radius_mm, self.grid.cell_mm)
-            .min(self.cells() as f64)
+        max_covered_cells(
+            self.table_samples(),
+            self.params.radius_mm,
+            self.grid.cell_mm,
+        )
+        .min(self.cells() as f64)
     }
 
     /// Whether most of a large grid lies farther than ε from every sample, as it does for
@@ -84,7 +97,7 @@ impl Plan {
     pub fn estimated_table_bytes(&self) -> u128 {
         estimated_table_bytes(
             self.grid.dims.map(u128::from),
-            self.samples,
+            self.table_samples(),
             self.params.radius_mm,
             self.grid.cell_mm,
             self.params.max_neighbours,
@@ -221,6 +234,19 @@ pub fn check_options(options: &BuildOptions) -> Result<(), BuildError> {
             ));
         }
     }
+    if options.max_table_bytes == Some(0) {
+        return Err(BuildError::Params(
+            "the table's bound must be positive and finite",
+        ));
+    }
+    if let Some(voxel_mm) = options.merge_voxel_mm.filter(|v| *v != 0.0) {
+        check_merge_voxel(recordable_voxel_mm(voxel_mm))?;
+        if options.posture != crate::posture::Posture::Off {
+            return Err(BuildError::Params(
+                "a posture term holds every sample: its table cannot merge them",
+            ));
+        }
+    }
     if let Some(cell_mm) = options.cell_mm {
         if !(cell_mm.is_finite() && cell_mm > 0.0) {
             return Err(BuildError::Params("cell size must be finite and positive"));
@@ -288,33 +314,80 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
     // Cells per axis; saturating: a tiny cell makes each count reach u128::MAX (`as`
     // saturates).
     let dims_for = |cell_mm: f64| [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell_mm).ceil().max(1.0));
-    let estimate = |cell_mm: f64| {
+    let estimate_with = |cell_mm: f64, table_samples: usize| {
         estimated_table_bytes(
             dims_for(cell_mm).map(|d| d as u128),
-            samples.len(),
+            table_samples,
             radius_mm,
             cell_mm,
             params.max_neighbours,
             node_bytes,
         )
     };
-    let cell_mm = match options.cell_mm {
-        Some(c) => c,
+    let (cell_mm, merge) = match options.cell_mm {
+        Some(c) => (c, given_merge(samples, options.merge_voxel_mm)?),
         None => {
-            let fine = derive("the cell size")? / CELLS_PER_SPACING;
+            let spacing_mm = derive("the cell size")?;
+            let fine = spacing_mm / CELLS_PER_SPACING;
             // Cells beyond the grid's largest extent make it no smaller: what a table of
-            // one cell per axis takes is the samples' own part, which no cell shrinks. The
-            // budget is never below twice that (a million samples take more than 64 MB
-            // whatever the cell).
+            // one cell per axis takes is the samples' own part, which no cell shrinks.
             let extent = (0..3).map(|a| hi[a] - lo[a]).fold(fine, f64::max);
-            let budget = MAX_DERIVED_TABLE_BYTES.max(estimate(extent).saturating_mul(2));
-            if estimate(fine) <= budget {
-                fine
-            } else {
-                smallest_cell_within(fine, extent, |c| estimate(c) <= budget)
-            }
+            // The smallest cell whose table, of `n` samples, is estimated within the
+            // bound, which is never below twice the samples' own part (samples too many
+            // for 64 MB whatever the cell, and not merged).
+            let bound = options.max_table_bytes.unwrap_or(MAX_DERIVED_TABLE_BYTES);
+            let cell_for = |n: usize| {
+                let budget = bound.max(estimate_with(extent, n).saturating_mul(2));
+                if estimate_with(fine, n) <= budget {
+                    fine
+                } else {
+                    smallest_cell_within(fine, extent, |c| estimate_with(c, n) <= budget)
+                }
+            };
+            let predicted = |merged: &SampleSet| {
+                let cell_mm = cell_for(merged.len());
+                let grid = Grid {
+                    origin_mm: lo,
+                    cell_mm,
+                    dims: dims_for(cell_mm).map(|d| d as u32),
+                };
+                predicted_table_bytes(merged, &params, &grid, node_bytes, joint_radius_rad > 0.0)
+            };
+            // Up to 65,535 samples whose own part fits, the estimate alone sizes the
+            // table (as it always has); beyond, or with a bound given, the table's size is
+            // predicted, and samples it cannot hold are merged.
+            let checked = options.max_table_bytes.is_some()
+                || samples.len() > adwi_runtime::format::v2::NARROW_SAMPLES
+                || estimate_with(extent, samples.len()).saturating_mul(2) > bound;
+            let merge = match options.merge_voxel_mm {
+                None if !checked => None,
+                // A posture term holds every sample's joints and residual: its table keeps
+                // them all.
+                None if options.posture != crate::posture::Posture::Off => None,
+                None if predicted(samples) <= bound => None,
+                None => {
+                    let merge =
+                        bounded_merge(samples, spacing_mm, |merged| predicted(merged) <= bound);
+                    match (merge, options.max_table_bytes) {
+                        (None, Some(max_bytes)) => {
+                            return Err(BuildError::TableBound {
+                                samples: samples.len(),
+                                voxel_mm: recordable_voxel_mm(
+                                    spacing_mm * MERGE_FRACTIONS[MERGE_FRACTIONS.len() - 1],
+                                ),
+                                max_bytes,
+                            })
+                        }
+                        (merge, _) => merge,
+                    }
+                }
+                given => given_merge(samples, given)?,
+            };
+            (cell_for(merge.map_or(samples.len(), |m| m.merged)), merge)
         }
     };
+    let table_samples = merge.map_or(samples.len(), |m| m.merged);
+    let estimate = |cell_mm: f64| estimate_with(cell_mm, table_samples);
     if !(cell_mm.is_finite() && cell_mm > 0.0) {
         return Err(BuildError::Params("cell size must be finite and positive"));
     }
@@ -352,6 +425,7 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         radius_derived: options.method.radius_mm.is_none(),
         cell_derived: options.cell_mm.is_none(),
         samples: samples.len(),
+        merge,
         tuning: options.tuning,
         served_field: options.served_field,
         kriging_choices: options.kriging_choices,
@@ -359,6 +433,113 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
         node_bytes,
         point_in_flange: None,
     })
+}
+
+/// The merge a derived cell's table needs ([`super::merge`]): none when the samples' own
+/// part of the table `fits` (tables of up to a few hundred thousand samples, built as
+/// before), else the finest voxel of [`MERGE_FRACTIONS`] of `spacing_mm` whose merged count
+/// `fits`; none when even the coarsest leaves too many (samples a spacing apart are not
+/// redundant: they are kept, and the table takes what they need).
+fn bounded_merge(
+    samples: &SampleSet,
+    spacing_mm: f64,
+    fits: impl Fn(&SampleSet) -> bool,
+) -> Option<SampleMerge> {
+    MERGE_FRACTIONS.iter().find_map(|fraction| {
+        let voxel_mm = recordable_voxel_mm(spacing_mm * fraction);
+        let merged = super::merge::merge(samples, voxel_mm);
+        fits(&merged).then_some(SampleMerge {
+            voxel_mm,
+            measured: samples.len(),
+            merged: merged.len(),
+        })
+    })
+}
+
+/// Cells whose candidate lists [`predicted_table_bytes`] computes, at most: a few
+/// thousand, evenly strided, predict the lists' bytes to a per cent or two.
+const PREDICTION_CELLS: usize = 4096;
+
+/// What a table of `samples` on `grid` takes, bytes, predicted before it is built: its
+/// cell records, the samples' query blocks and errors, the served nodes at `node_bytes`
+/// each (an upper bound: a kriging that may turn with the tool is counted at four vectors
+/// per node), and the long candidate lists' overflow, computed for every few hundredth
+/// cell and scaled ([`super::candidates::predicted_overflow_bytes`]).
+pub fn predicted_table_bytes(
+    samples: &SampleSet,
+    params: &MethodParams,
+    grid: &Grid,
+    node_bytes: u128,
+    joint_screen: bool,
+) -> u128 {
+    let cells = grid.cell_count().unwrap_or(usize::MAX) as u128;
+    let nodes = grid
+        .dims
+        .iter()
+        .map(|&d| u128::from(d) + 1)
+        .product::<u128>();
+    let per_sample = 32
+        + 24
+        + if samples.rotation_error_rad.is_some() {
+            24
+        } else {
+            0
+        }
+        + u128::from(samples.config.is_some())
+        + if joint_screen {
+            8 * samples.joint_count().unwrap_or(0) as u128
+        } else {
+            0
+        };
+    let records = samples.records();
+    let stride = (cells as usize).div_ceil(PREDICTION_CELLS);
+    let overflow =
+        super::candidates::predicted_overflow_bytes(&records, params, joint_screen, grid, stride);
+    format::HEADER_LEN as u128
+        + cells * 64
+        + overflow
+        + samples.len() as u128 * per_sample
+        + nodes * node_bytes
+}
+
+/// A merge asked for ([`BuildOptions::merge_voxel_mm`]): none for 0 (or not asked), else
+/// the voxel as the header records it.
+fn given_merge(
+    samples: &SampleSet,
+    voxel_mm: Option<f64>,
+) -> Result<Option<SampleMerge>, BuildError> {
+    match voxel_mm {
+        None => Ok(None),
+        Some(0.0) => Ok(None),
+        Some(v) => {
+            let voxel_mm = recordable_voxel_mm(v);
+            check_merge_voxel(voxel_mm)?;
+            Ok(Some(SampleMerge {
+                voxel_mm,
+                measured: samples.len(),
+                merged: merged_count(samples, voxel_mm),
+            }))
+        }
+    }
+}
+
+/// `voxel_mm` as the header's `f32` holds it, so that the voxel merged with is the one
+/// recorded.
+fn recordable_voxel_mm(voxel_mm: f64) -> f64 {
+    voxel_mm as f32 as f64
+}
+
+/// A merge voxel the runtime accepts: within [`format::MIN_MERGE_VOXEL_MM`] and the
+/// workspace bound.
+fn check_merge_voxel(voxel_mm: f64) -> Result<(), BuildError> {
+    // Written so that NaN fails the test.
+    if (format::MIN_MERGE_VOXEL_MM..=format::MAX_COORDINATE_MM).contains(&voxel_mm) {
+        Ok(())
+    } else {
+        Err(BuildError::Params(
+            "the merge voxel must be 0 (no merge) or within 1e-6 to 1e6 mm",
+        ))
+    }
 }
 
 /// The smallest cell edge above `fine` that `fits` (to a thousandth of itself), for a
