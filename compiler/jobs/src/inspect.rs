@@ -302,6 +302,9 @@ fn header<S: Serializer>(h: &Header, s: S) -> Result<S::Ok, S::Error> {
         tuning: Option<Tuning>,
         served_field: &'static str,
         evidence: Evidence,
+        /// Absent for a table holding every measured sample, as before the field was.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        merge_voxel_mm: Option<f64>,
     }
     let m = h.method;
     Fields {
@@ -347,6 +350,7 @@ fn header<S: Serializer>(h: &Header, s: S) -> Result<S::Ok, S::Error> {
             }),
             point_in_flange_mm: h.evidence.point_in_flange.map(|p| p.translation_mm),
         },
+        merge_voxel_mm: h.merge_voxel_mm,
     }
     .serialize(s)
 }

@@ -48,6 +48,13 @@ fn print_file(t: &Inspected) {
         h.sample_count,
         t.content.join(", ")
     );
+    if let Some(voxel_mm) = h.merge_voxel_mm {
+        println!(
+            "merged          the measured samples averaged within {voxel_mm:.4} mm voxels (one per \
+             voxel and configuration): both tiers answer from these {} averages",
+            h.sample_count
+        );
+    }
 }
 
 /// The robot's joints, and the calibrated model's compliance and joint-space terms.
