@@ -17,6 +17,7 @@ mod implausible_samples;
 mod iso9283_path;
 mod joint_terms;
 mod latency_guard;
+mod merged_samples;
 mod no_alloc;
 mod options_first;
 mod outputs;

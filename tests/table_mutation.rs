@@ -61,7 +61,7 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
 }
 
 /// The header's fields: offset and width in bytes, with the f64 fields apart.
-const HEADER_INTEGERS: [(usize, usize); 16] = [
+const HEADER_INTEGERS: [(usize, usize); 17] = [
     (0, 8),   // magic
     (8, 2),   // endianness mark
     (10, 2),  // version
@@ -78,6 +78,7 @@ const HEADER_INTEGERS: [(usize, usize); 16] = [
     (144, 4), // grid size z
     (148, 4), // sample count
     (160, 8), // reserved (first word; any reserved byte below)
+    (244, 4), // version 4: the merge voxel (f32); reserved before
 ];
 /// ε, ω1, ω2, r, [λ], [ζ], cell edge, origin x, y, z, joint radius.
 const HEADER_F64: [usize; 11] = [56, 64, 72, 80, 88, 96, 104, 112, 120, 128, 152];
@@ -711,6 +712,58 @@ fn hostile_headers_with_valid_checksums_are_refused() {
         }
     }
     assert!(opened.is_empty(), "{}", opened.join("\n"));
+}
+
+/// A version-4 table whose samples (a tracked line, 0.1 mm apart) were merged in 1 mm
+/// voxels.
+fn merged_table() -> Vec<u8> {
+    let mut csv = String::from("x,y,z,dx,dy,dz\n");
+    for i in 0..2000 {
+        let x = 1000.0 + 0.1 * f64::from(i);
+        csv += &format!("{x},500,800,{},0.2,-0.1\n", 0.1 + 1e-4 * f64::from(i));
+    }
+    let s = parse_samples("line.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
+    let options = BuildOptions {
+        merge_voxel_mm: Some(1.0),
+        cell_mm: Some(20.0),
+        method: adwi_runtime::method::MethodParams::paper(Some(10.0)),
+        ..BuildOptions::default()
+    };
+    compile(&s, &options, &|_| {}).unwrap().0
+}
+
+#[test]
+fn hostile_merge_voxels_with_valid_checksums_are_refused() {
+    let base = merged_table();
+    let table = Table::from_vec(&base).unwrap();
+    assert_eq!(table.header().version, 4);
+    assert_eq!(table.header().merge_voxel_mm, Some(1.0));
+    assert_eq!(table.sample_count(), 200);
+    let voxel = |v: f32| (244, v.to_le_bytes().to_vec());
+    for (name, value) in [
+        ("NaN", f32::NAN),
+        ("inf", f32::INFINITY),
+        ("negative", -1.0),
+        ("-0", -0.0),
+        ("below a nanometre", 1e-7),
+        ("subnormal", 1e-40),
+        ("beyond a kilometre", 2e6),
+    ] {
+        match Table::from_vec(with_header_edits(&base, &[voxel(value)])) {
+            Ok(_) => panic!("merge voxel {name} opened"),
+            Err(e) => assert!(e.to_string().contains("merge voxel"), "{name}: {e}"),
+        }
+    }
+    // Any plausible voxel, or none, opens: the record does not change what is answered.
+    for value in [0.0, 0.5, 100.0] {
+        Table::from_vec(with_header_edits(&base, &[voxel(value)])).unwrap();
+    }
+    // A version-2 table has no such field: its bytes 244-247 are reserved.
+    let v2 = seed("worked_example.tbl");
+    let Err(err) = Table::from_vec(with_header_edits(&v2, &[voxel(1.0)])) else {
+        panic!("a version-2 table with a merge voxel opened");
+    };
+    assert!(err.to_string().contains("reserved"), "{err}");
 }
 
 #[test]
