@@ -604,133 +604,16 @@ pub fn candidates_from(
 ) -> Result<(Vec<PlannedPose>, usize), PlanError> {
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     rng.set_stream(stream);
-    let ranges: Vec<[f64; 2]> = (0..robot.joint_count())
-        .map(|i| robot.sampling_range(i))
-        .collect();
+    let sampler = Sampler::new(robot, options);
     let max_draws = options.pool.saturating_mul(DRAWS_PER_CANDIDATE);
-    // Poses are solved in closed form (the solution nearest home) or, without it, from the
-    // drawn postures nearest the pose (a fraction of a millisecond, where the posture
-    // nearest home took tens): any posture within the limits does for a candidate.
-    enum Solver {
-        ClosedForm(Box<InverseKinematics>),
-        Table(PostureTable),
-    }
-    let solver = options
-        .orientations
-        .as_ref()
-        .map(|_| match InverseKinematics::new(robot) {
-            Ok(ik) => Solver::ClosedForm(Box::new(ik)),
-            Err(_) => Solver::Table(PostureTable::new(robot)),
-        });
-    let volumes: Vec<f64> = options
-        .boxes_mm
-        .iter()
-        .map(|(min, max)| (0..3).map(|a| max[a] - min[a]).product())
-        .collect();
-    let total_volume: f64 = volumes.iter().sum();
-    // A draw: joint values, or a pose to solve. The draws are made in order from the seed;
-    // batches of them are solved in parallel and taken in draw order, so the pool is the
-    // same at any thread count (and the same as drawing and solving one at a time).
-    // With every branch, a robot without the closed form also gets a posture drawn
-    // within the limits to start from (drawn here, in order, so that the pool is the same
-    // at any thread count).
-    enum Draw {
-        Joints(Vec<f64>),
-        Pose(nalgebra::Isometry3<f64>, Option<Vec<f64>>),
-    }
-    let every_branch = options.branches == Branches::All;
-    let numerical = matches!(solver, Some(Solver::Table(_)));
-    let draw = |rng: &mut ChaCha8Rng| match &options.orientations {
-        None => Draw::Joints(
-            ranges
-                .iter()
-                .map(|&[lo, hi]| rng.gen_range(lo..=hi))
-                .collect(),
-        ),
-        Some(allowed) => {
-            // A pose in the boxes (each by its volume), turned from an allowed
-            // orientation by up to the tolerance.
-            let mut pick = rng.gen_range(0.0..total_volume);
-            let mut k = 0;
-            while k + 1 < volumes.len() && pick >= volumes[k] {
-                pick -= volumes[k];
-                k += 1;
-            }
-            let (min, max) = options.boxes_mm[k];
-            let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
-            let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
-            let z: f64 = rng.gen_range(-1.0..=1.0);
-            let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
-            let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
-            let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
-            let start = (every_branch && numerical).then(|| {
-                ranges
-                    .iter()
-                    .map(|&[lo, hi]| rng.gen_range(lo..=hi))
-                    .collect()
-            });
-            Draw::Pose(isometry_from_parts(position, &rotation), start)
-        }
-    };
-    // Joints for a pose (the home branch first, then the others with every branch), then
-    // the constraints.
-    let solve = |d: &Draw| -> Vec<PlannedPose> {
-        let solutions: Vec<(Vec<f64>, bool)> = match d {
-            Draw::Joints(q) => vec![(q.clone(), true)],
-            Draw::Pose(pose, start) => match solver.as_ref() {
-                None => Vec::new(),
-                Some(Solver::ClosedForm(ik)) => {
-                    let all = ik.solve(pose);
-                    let home = nearest_home(robot, all.iter().map(|s| s.q_rad.to_vec()));
-                    let mut out: Vec<(Vec<f64>, bool)> =
-                        home.iter().map(|q| (q.clone(), true)).collect();
-                    if every_branch {
-                        out.extend(
-                            all.into_iter()
-                                .map(|s| s.q_rad.to_vec())
-                                .filter(|q| Some(q) != home.as_ref())
-                                .map(|q| (q, false)),
-                        );
-                    }
-                    out
-                }
-                Some(Solver::Table(table)) => {
-                    let home = table.solve(robot, pose);
-                    let mut out: Vec<(Vec<f64>, bool)> =
-                        home.iter().map(|q| (q.clone(), true)).collect();
-                    let other = start
-                        .as_ref()
-                        .and_then(|s| adwi_robot::ik::solve_from(robot, pose, s));
-                    if let Some(q) = other {
-                        // Another posture, not the home one found again.
-                        let apart = home.as_ref().is_none_or(|h| travel(robot, h, &q) > 1e-3);
-                        if apart {
-                            out.push((q, false));
-                        }
-                    }
-                    out
-                }
-            },
-        };
-        solutions
-            .into_iter()
-            .filter_map(|(q, workspace)| {
-                let mut pose = admissible(robot, options, &as_written(robot, &q))?;
-                pose.workspace = workspace;
-                Some(pose)
-            })
-            .collect()
-    };
     let mut found = Vec::with_capacity(options.pool);
     let mut draws = 0;
     while found.len() < options.pool && draws < max_draws {
         let batch = (options.pool - found.len())
             .clamp(1, SOLVE_BATCH)
             .min(max_draws - draws);
-        let drawn: Vec<Draw> = (0..batch).map(|_| draw(&mut rng)).collect();
-        let solved: Vec<Vec<PlannedPose>> = drawn.par_iter().map(solve).collect();
+        let drawn: Vec<Draw> = (0..batch).map(|_| sampler.draw(&mut rng)).collect();
+        let solved: Vec<Vec<PlannedPose>> = drawn.par_iter().map(|d| sampler.solve(d)).collect();
         'draws: for poses in solved {
             draws += 1;
             for pose in poses {
@@ -750,6 +633,162 @@ pub fn candidates_from(
         });
     }
     Ok((found, draws))
+}
+
+/// How a candidate's pose is solved: in closed form (the solution nearest home) or,
+/// without it, from the drawn postures nearest the pose (a fraction of a millisecond,
+/// where the posture nearest home took tens): any posture within the limits does for a
+/// candidate.
+enum Solver {
+    ClosedForm(Box<InverseKinematics>),
+    Table(PostureTable),
+}
+
+/// A draw: joint values, or a pose to solve. With every branch, a robot without the
+/// closed form also gets a posture drawn within the limits to start from (drawn in
+/// order with the pose, so that the pool is the same at any thread count).
+enum Draw {
+    Joints(Vec<f64>),
+    Pose(nalgebra::Isometry3<f64>, Option<Vec<f64>>),
+}
+
+/// The candidates' sampling: what is drawn from the seed, and how a draw becomes poses.
+/// The draws are made in order from the seed; batches of them are solved in parallel and
+/// taken in draw order, so the pool is the same at any thread count (and the same as
+/// drawing and solving one at a time).
+struct Sampler<'a> {
+    robot: &'a Robot,
+    options: &'a PlanOptions,
+    /// Each joint's sampling range.
+    ranges: Vec<[f64; 2]>,
+    /// Each box's volume, mm³, and their sum: a pose is drawn in a box by its volume.
+    volumes: Vec<f64>,
+    total_volume: f64,
+    /// The solver of drawn poses (none when joints are drawn).
+    solver: Option<Solver>,
+    every_branch: bool,
+}
+
+impl<'a> Sampler<'a> {
+    fn new(robot: &'a Robot, options: &'a PlanOptions) -> Sampler<'a> {
+        let ranges: Vec<[f64; 2]> = (0..robot.joint_count())
+            .map(|i| robot.sampling_range(i))
+            .collect();
+        let solver = options
+            .orientations
+            .as_ref()
+            .map(|_| match InverseKinematics::new(robot) {
+                Ok(ik) => Solver::ClosedForm(Box::new(ik)),
+                Err(_) => Solver::Table(PostureTable::new(robot)),
+            });
+        let volumes: Vec<f64> = options
+            .boxes_mm
+            .iter()
+            .map(|(min, max)| (0..3).map(|a| max[a] - min[a]).product())
+            .collect();
+        let total_volume: f64 = volumes.iter().sum();
+        Sampler {
+            robot,
+            options,
+            ranges,
+            volumes,
+            total_volume,
+            solver,
+            every_branch: options.branches == Branches::All,
+        }
+    }
+
+    /// Joint values drawn within the sampling ranges.
+    fn joints(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.ranges
+            .iter()
+            .map(|&[lo, hi]| rng.gen_range(lo..=hi))
+            .collect()
+    }
+
+    /// The next draw.
+    fn draw(&self, rng: &mut ChaCha8Rng) -> Draw {
+        let Some(allowed) = &self.options.orientations else {
+            return Draw::Joints(self.joints(rng));
+        };
+        // A pose in the boxes (each by its volume), turned from an allowed orientation by
+        // up to the tolerance.
+        let mut pick = rng.gen_range(0.0..self.total_volume);
+        let mut k = 0;
+        while k + 1 < self.volumes.len() && pick >= self.volumes[k] {
+            pick -= self.volumes[k];
+            k += 1;
+        }
+        let (min, max) = self.options.boxes_mm[k];
+        let position: [f64; 3] = std::array::from_fn(|a| rng.gen_range(min[a]..=max[a]));
+        let abc = allowed.abc_deg[rng.gen_range(0..allowed.abc_deg.len())];
+        let z: f64 = rng.gen_range(-1.0..=1.0);
+        let azimuth: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let angle = rng.gen_range(0.0..=allowed.tolerance_deg).to_radians();
+        let turn = [r * azimuth.cos(), r * azimuth.sin(), z].map(|v| v * angle);
+        let rotation = rotation_from_vector(turn) * rotation_from_kuka_abc_deg(abc);
+        let numerical = matches!(self.solver, Some(Solver::Table(_)));
+        let start = (self.every_branch && numerical).then(|| self.joints(rng));
+        Draw::Pose(isometry_from_parts(position, &rotation), start)
+    }
+
+    /// The admissible candidates of a draw: its postures (the home branch first, then the
+    /// others with every branch), as written to the file, within the constraints.
+    fn solve(&self, d: &Draw) -> Vec<PlannedPose> {
+        let (robot, options) = (self.robot, self.options);
+        self.postures(d)
+            .into_iter()
+            .filter_map(|(q, workspace)| {
+                let mut pose = admissible(robot, options, &as_written(robot, &q))?;
+                pose.workspace = workspace;
+                Some(pose)
+            })
+            .collect()
+    }
+
+    /// A draw's postures, each with whether it is the home branch (`workspace`).
+    fn postures(&self, d: &Draw) -> Vec<(Vec<f64>, bool)> {
+        let robot = self.robot;
+        let (pose, start) = match d {
+            Draw::Joints(q) => return vec![(q.clone(), true)],
+            Draw::Pose(pose, start) => (pose, start),
+        };
+        match self.solver.as_ref() {
+            None => Vec::new(),
+            Some(Solver::ClosedForm(ik)) => {
+                let all = ik.solve(pose);
+                let home = nearest_home(robot, all.iter().map(|s| s.q_rad.to_vec()));
+                let mut out: Vec<(Vec<f64>, bool)> =
+                    home.iter().map(|q| (q.clone(), true)).collect();
+                if self.every_branch {
+                    out.extend(
+                        all.into_iter()
+                            .map(|s| s.q_rad.to_vec())
+                            .filter(|q| Some(q) != home.as_ref())
+                            .map(|q| (q, false)),
+                    );
+                }
+                out
+            }
+            Some(Solver::Table(table)) => {
+                let home = table.solve(robot, pose);
+                let mut out: Vec<(Vec<f64>, bool)> =
+                    home.iter().map(|q| (q.clone(), true)).collect();
+                let other = start
+                    .as_ref()
+                    .and_then(|s| adwi_robot::ik::solve_from(robot, pose, s));
+                if let Some(q) = other {
+                    // Another posture, not the home one found again.
+                    let apart = home.as_ref().is_none_or(|h| travel(robot, h, &q) > 1e-3);
+                    if apart {
+                        out.push((q, false));
+                    }
+                }
+                out
+            }
+        }
+    }
 }
 
 /// Of closed-form solutions, the one nearest the home posture, as `tablec simulate`
