@@ -704,7 +704,7 @@ fn a_val3_config_that_cannot_be_read_or_kept_leaves_the_point_as_written() {
     assert_eq!(line.status.as_str(), "invalid");
     assert_eq!(
         line.detail,
-        "shoulder is righty, lefty, ssame or sfree, found 'upright' (line 8, column 82): left as written, not corrected in a posture the program does not give"
+        "shoulder is righty, lefty, ssame or sfree, found 'upright' (line 8, column 66): left as written, not corrected in a posture the program does not give"
     );
     // A seven-axis robot has no shoulder, elbow and wrist labels to keep a written one in.
     let position_table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
