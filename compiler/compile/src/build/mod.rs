@@ -93,8 +93,8 @@ pub fn kriging_choices(
 }
 pub use plan::{
     check_options, estimated_table_bytes, human_bytes, max_covered_cells, plan,
-    predicted_table_bytes, Plan, CELLS_PER_SPACING, MAX_CELLS, MAX_DERIVED_TABLE_BYTES,
-    RADIUS_PER_SPACING,
+    predicted_node_bytes, predicted_table_bytes, Plan, CELLS_PER_SPACING, MAX_CELLS,
+    MAX_DERIVED_TABLE_BYTES, RADIUS_PER_SPACING,
 };
 
 use adwi_samples::SampleSet;

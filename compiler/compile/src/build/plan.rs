@@ -344,30 +344,42 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
                     smallest_cell_within(fine, extent, |c| estimate_with(c, n) <= budget)
                 }
             };
-            let predicted = |merged: &SampleSet| {
-                let cell_mm = cell_for(merged.len());
+            // What a table of `merged` samples takes with cells of `cell_mm`.
+            let predicted = |merged: &SampleSet, cell_mm: f64| {
                 let grid = Grid {
                     origin_mm: lo,
                     cell_mm,
                     dims: dims_for(cell_mm).map(|d| d as u32),
                 };
+                let node_bytes = predicted_node_bytes(merged, options.served_field);
                 predicted_table_bytes(merged, &params, &grid, node_bytes, joint_radius_rad > 0.0)
             };
+            // The cell every sample would have: a merge keeps it (the served tier's grid
+            // as before) where it can.
+            let cell_mm = cell_for(samples.len());
             // Up to 65,535 samples whose own part fits, the estimate alone sizes the
             // table (as it always has); beyond, or with a bound given, the table's size is
             // predicted, and samples it cannot hold are merged.
             let checked = options.max_table_bytes.is_some()
                 || samples.len() > adwi_runtime::format::v2::NARROW_SAMPLES
                 || estimate_with(extent, samples.len()).saturating_mul(2) > bound;
-            let merge = match options.merge_voxel_mm {
-                None if !checked => None,
+            match options.merge_voxel_mm {
+                None if !checked => (cell_mm, None),
                 // A posture term holds every sample's joints and residual: its table keeps
                 // them all.
-                None if options.posture != crate::posture::Posture::Off => None,
-                None if predicted(samples) <= bound => None,
+                None if options.posture != crate::posture::Posture::Off => (cell_mm, None),
+                None if predicted(samples, cell_mm) <= bound => (cell_mm, None),
                 None => {
-                    let merge =
-                        bounded_merge(samples, spacing_mm, |merged| predicted(merged) <= bound);
+                    // The served tier's grid kept; else the cell grown with the merged
+                    // samples, as for samples that few.
+                    let kept = bounded_merge(samples, spacing_mm, |merged| {
+                        predicted(merged, cell_mm) <= bound
+                    });
+                    let merge = kept.or_else(|| {
+                        bounded_merge(samples, spacing_mm, |merged| {
+                            predicted(merged, cell_for(merged.len())) <= bound
+                        })
+                    });
                     match (merge, options.max_table_bytes) {
                         (None, Some(max_bytes)) => {
                             return Err(BuildError::TableBound {
@@ -378,12 +390,13 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
                                 max_bytes,
                             })
                         }
-                        (merge, _) => merge,
+                        (None, None) => (cell_mm, None),
+                        (Some(m), _) if kept.is_some() => (cell_mm, Some(m)),
+                        (Some(m), _) => (cell_for(m.merged), Some(m)),
                     }
                 }
-                given => given_merge(samples, given)?,
-            };
-            (cell_for(merge.map_or(samples.len(), |m| m.merged)), merge)
+                given => (cell_mm, given_merge(samples, given)?),
+            }
         }
     };
     let table_samples = merge.map_or(samples.len(), |m| m.merged);
@@ -435,18 +448,24 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
     })
 }
 
-/// The merge a derived cell's table needs ([`super::merge`]): none when the samples' own
-/// part of the table `fits` (tables of up to a few hundred thousand samples, built as
-/// before), else the finest voxel of [`MERGE_FRACTIONS`] of `spacing_mm` whose merged count
-/// `fits`; none when even the coarsest leaves too many (samples a spacing apart are not
-/// redundant: they are kept, and the table takes what they need).
+/// The finest voxel of [`MERGE_FRACTIONS`] of `spacing_mm` whose merged samples' table
+/// `fits` ([`super::merge`]); none when even the coarsest leaves too many (samples a
+/// spacing apart are not redundant).
 fn bounded_merge(
     samples: &SampleSet,
     spacing_mm: f64,
     fits: impl Fn(&SampleSet) -> bool,
 ) -> Option<SampleMerge> {
+    // A voxel that merges no more than the last one tried fits no better: not predicted
+    // again (samples a spacing apart are refused in a fraction of a second).
+    let mut tried = samples.len();
     MERGE_FRACTIONS.iter().find_map(|fraction| {
         let voxel_mm = recordable_voxel_mm(spacing_mm * fraction);
+        let count = merged_count(samples, voxel_mm);
+        if count == tried {
+            return None;
+        }
+        tried = count;
         let merged = super::merge::merge(samples, voxel_mm);
         fits(&merged).then_some(SampleMerge {
             voxel_mm,
@@ -456,14 +475,38 @@ fn bounded_merge(
     })
 }
 
+/// Bytes of the served field's nodes per node of the grid, as a table of `samples` with
+/// `served_field` writes them: 24 per vector, one vector per node (four for
+/// [`ServedField::KrigingToolAxis`] asked), twice with orientation, one node set (sets of
+/// equal values share their nodes: a single configuration's is the set of every sample),
+/// else one per configuration and one for targets of unknown configuration. A hybrid
+/// table's kriging that turns with the tool where the likelihood says takes four vectors
+/// a node, which this does not foresee.
+pub fn predicted_node_bytes(samples: &SampleSet, served_field: ServedField) -> u128 {
+    let stride = served_field.node_stride() as u128;
+    let orientation = if samples.rotation_error_rad.is_some() {
+        2
+    } else {
+        1
+    };
+    let mut configs: Vec<u8> = samples.config.clone().unwrap_or_default();
+    configs.sort_unstable();
+    configs.dedup();
+    let sets = if configs.len() <= 1 {
+        1
+    } else {
+        1 + configs.len() as u128
+    };
+    24 * stride * orientation * sets
+}
+
 /// Cells whose candidate lists [`predicted_table_bytes`] computes, at most: a few
 /// thousand, evenly strided, predict the lists' bytes to a per cent or two.
 const PREDICTION_CELLS: usize = 4096;
 
 /// What a table of `samples` on `grid` takes, bytes, predicted before it is built: its
 /// cell records, the samples' query blocks and errors, the served nodes at `node_bytes`
-/// each (an upper bound: a kriging that may turn with the tool is counted at four vectors
-/// per node), and the long candidate lists' overflow, computed for every few hundredth
+/// each ([`predicted_node_bytes`]; none with a joint screen), and the long candidate lists' overflow, computed for every few hundredth
 /// cell and scaled ([`super::candidates::predicted_overflow_bytes`]).
 pub fn predicted_table_bytes(
     samples: &SampleSet,
@@ -499,7 +542,7 @@ pub fn predicted_table_bytes(
         + cells * 64
         + overflow
         + samples.len() as u128 * per_sample
-        + nodes * node_bytes
+        + if joint_screen { 0 } else { nodes * node_bytes }
 }
 
 /// A merge asked for ([`BuildOptions::merge_voxel_mm`]): none for 0 (or not asked), else
