@@ -179,7 +179,9 @@ class BuildReport:
     component, x, y, z then orientation: dicts of ``length_scale_mm`` (horizontal),
     ``vertical_scale`` (vertical distances are multiplied by it), ``relative_nugget`` and
     ``modulation``, the weight of the part turning with the tool; empty for the
-    method's nodes), ``hybrid``, ``calibration`` (dict or None), ``registration`` (dict,
+    method's nodes), ``hybrid``, ``calibration`` (dict or None: ``identified``,
+    ``unidentifiable``, the residuals, and ``parameters``, every parameter's ``value``,
+    ``standard_error`` and ``status`` as :func:`calibrate` returns them), ``registration`` (dict,
     with ``measured_in="tracker"``, or None), ``tuning`` (dict or None), ``warnings``,
     ``seconds``.
 
@@ -263,17 +265,32 @@ def evaluate(
     ``position_mean_se_mm`` (the standard error of the position mean),
     ``position_offset_p`` (the p value of the residuals' shared offset) and ``note``;
     ``pandas.DataFrame(records)`` takes them. Its ``registration`` and
-    ``validation_registration`` are the registrations ``tablec eval`` prints, or None. The
-    GIL is released while evaluating.
+    ``validation_registration`` are the registrations ``tablec eval`` prints, or None; with
+    ``folds`` and ``by_region=True``, its ``by_region`` is the evaluation held out by region
+    (or by series), the second table ``tablec eval --by-region`` prints. The GIL is
+    released while evaluating.
     """
     sources = [] if samples is None else _sources(samples, "samples")
-    records, messages, registration, validation_registration, comparison = _adwi.evaluate(
+    (
+        records,
+        messages,
+        registration,
+        validation_registration,
+        comparison,
+        by_region,
+    ) = _adwi.evaluate(
         sources,
         None if validation is None else _source(validation, "validation"),
         **_options([samples, validation], options),
     )
     _warn(messages)
-    return Evaluation(records, registration, validation_registration, comparison)
+    return Evaluation(
+        records,
+        registration,
+        validation_registration,
+        comparison,
+        None if by_region is None else Evaluation(by_region),
+    )
 
 
 def calibrate(samples: Samples, **options: Any) -> Dict[str, Any]:
@@ -357,11 +374,16 @@ class Evaluation(list):
       ``points`` both predicted, ``mean_difference_mm`` of its residual norm minus the
       reference's, and its ``standard_error_mm``), smallest difference first. None when no
       method has residuals.
+    - ``by_region``: with ``folds`` and ``by_region=True``, the same methods held out by
+      region (spatial blocks of the samples, or each series in turn), an
+      :class:`Evaluation` whose records are the rows of the second table ``tablec eval
+      --by-region`` prints; otherwise None.
     """
 
     registration: Optional[Dict[str, Any]]
     validation_registration: Optional[Dict[str, Any]]
     comparison: Optional[Dict[str, Any]]
+    by_region: Optional["Evaluation"]
 
     def __init__(
         self,
@@ -369,11 +391,13 @@ class Evaluation(list):
         registration: Optional[Dict[str, Any]] = None,
         validation_registration: Optional[Dict[str, Any]] = None,
         comparison: Optional[Dict[str, Any]] = None,
+        by_region: Optional["Evaluation"] = None,
     ) -> None:
         super().__init__(records)
         self.registration = registration
         self.validation_registration = validation_registration
         self.comparison = comparison
+        self.by_region = by_region
 
 
 class QueryResult:

@@ -251,17 +251,20 @@ def iso9283(
 
 class Evaluation(List[Dict[str, Any]]):
     """evaluate()'s records, with the registrations tablec eval prints for tracker-frame
-    samples (None otherwise) and the methods against the best, point by point."""
+    samples (None otherwise), the methods against the best, point by point, and with
+    by_region=True the evaluation held out by region."""
 
     registration: Optional[Dict[str, Any]]
     validation_registration: Optional[Dict[str, Any]]
     comparison: Optional[Dict[str, Any]]
+    by_region: Optional["Evaluation"]
     def __init__(
         self,
         records: Sequence[Dict[str, Any]] = ...,
         registration: Optional[Dict[str, Any]] = None,
         validation_registration: Optional[Dict[str, Any]] = None,
         comparison: Optional[Dict[str, Any]] = None,
+        by_region: Optional["Evaluation"] = None,
     ) -> None: ...
 
 class QueryResult:

@@ -8,13 +8,11 @@
 
 use std::path::PathBuf;
 
-use adwi_identify::calibrate::Calibration;
-use adwi_identify::register::{translation_and_rotation_deg, Refined, Registration};
 use adwi_jobs::{
-    compensate, BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, EvalArgs, EvalJob, Iso9283Args,
-    Iso9283Job, JobError, PlanArgs, PlanJob, RobotArgs, Silent,
+    compensate, BuildArgs, BuildJob, CalibrateArgs, CalibrateJob, CalibrationSummary, EvalArgs,
+    EvalJob, Iso9283Args, Iso9283Job, JobError, PlanArgs, PlanJob, RegistrationSummary, RobotArgs,
+    Silent,
 };
-use adwi_runtime::kinematics::Transform;
 use adwi_runtime::{Residual, Status, Table as RuntimeTable, Target};
 use anyhow::Context;
 use clap::Args as _;
@@ -80,9 +78,10 @@ const COMMAND_STATUSES: [&str; 3] = [
 ];
 const NO_COMMAND: u8 = 255;
 
-/// An error as tablec prints it (its causes after colons), raised as [`AdwiError`].
+/// An error as tablec prints it (its causes after colons), raised as [`AdwiError`], each
+/// option named as Python's keyword arguments name it ([`adwi_jobs::keyword_spelling`]).
 fn adwi_error(e: impl Into<anyhow::Error>) -> PyErr {
-    AdwiError::new_err(format!("{:#}", e.into()))
+    AdwiError::new_err(adwi_jobs::keyword_spelling(&format!("{:#}", e.into())))
 }
 
 /// Where samples come from: a file, or CSV text made from a DataFrame or an array (named
@@ -106,8 +105,9 @@ impl From<Source> for adwi_jobs::Source {
 }
 
 /// The options of a job (`build`, `evaluate`, `calibrate`): each one's name, help text
-/// and default as `tablec --help` gives them, the arguments Python passes apart (the
-/// sources, the output) left out. `__init__.py` documents the functions from it.
+/// and default as `tablec --help` gives them, the parameters of the Python function's own
+/// signature (the sources, the output) left out. `__init__.py` documents the functions
+/// from it.
 fn job_options(job: &str) -> Option<clap::Command> {
     let command = clap::Command::new("adwi");
     Some(match job {
@@ -120,8 +120,9 @@ fn job_options(job: &str) -> Option<clap::Command> {
     })
 }
 
-/// The arguments a job's Python function takes apart from its keyword options.
-fn apart(job: &str) -> &'static [&'static str] {
+/// The parameters a job's Python function names in its signature, which are therefore not
+/// among its keyword `**options`.
+fn signature_parameters(job: &str) -> &'static [&'static str] {
     match job {
         "build" => &["samples", "output"],
         "evaluate" => &["samples", "validation"],
@@ -137,7 +138,7 @@ fn options(job: &str) -> PyResult<Vec<(String, String, Option<String>)>> {
     let command = job_options(job).ok_or_else(|| AdwiError::new_err(format!("no job '{job}'")))?;
     Ok(command
         .get_arguments()
-        .filter(|a| !apart(job).contains(&a.get_id().as_str()) && !a.is_hide_set())
+        .filter(|a| !signature_parameters(job).contains(&a.get_id().as_str()) && !a.is_hide_set())
         .map(|a| {
             let help = a.get_help().map(|h| h.to_string()).unwrap_or_default();
             let default = a
@@ -163,7 +164,7 @@ fn job_args<T: serde::de::DeserializeOwned>(
     let known: Vec<String> = command
         .get_arguments()
         .map(|a| a.get_id().to_string())
-        .filter(|id| !apart(job).contains(&id.as_str()))
+        .filter(|id| !signature_parameters(job).contains(&id.as_str()))
         .collect();
     for key in kwargs.keys() {
         let key: String = key.extract()?;
@@ -238,21 +239,23 @@ fn array_csv(
     Ok(pyo3::types::PyBytes::new(py, out.as_bytes()).unbind())
 }
 
-/// What identification found, as `tablec build` (hybrid) prints it.
+/// What identification found ([`CalibrationSummary`]), as `tablec build` (hybrid) prints
+/// it: the identified values and the unidentifiable parameters by name, the figures, and
+/// with `residual_rms_mm` what a hybrid table's residual tier starts from.
 fn calibration_dict<'py>(
     py: Python<'py>,
-    c: &Calibration,
+    c: &CalibrationSummary,
     residual_rms_mm: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let identified = PyDict::new(py);
-    for p in &c.identified {
-        identified.set_item(p.to_string(), c.value(*p))?;
+    for (p, value) in &c.identified {
+        identified.set_item(p, *value)?;
     }
     d.set_item("identified", identified)?;
     let unidentifiable = PyDict::new(py);
     for (p, ratio) in &c.unidentifiable {
-        unidentifiable.set_item(p.to_string(), *ratio)?;
+        unidentifiable.set_item(p, *ratio)?;
     }
     d.set_item("unidentifiable", unidentifiable)?;
     d.set_item("condition_number", c.condition_number)?;
@@ -265,51 +268,23 @@ fn calibration_dict<'py>(
     Ok(d)
 }
 
-/// A transform as `tablec` prints it (translation, mm; rotation vector, deg) and as its
-/// rotation matrix (row-major), for those who apply it.
-fn transform_dict<'py>(py: Python<'py>, t: &Transform) -> PyResult<Bound<'py, PyDict>> {
-    let (translation_mm, rotation_deg) = translation_and_rotation_deg(t);
-    let d = PyDict::new(py);
-    d.set_item("translation_mm", translation_mm)?;
-    d.set_item("rotation_vector_deg", rotation_deg)?;
-    d.set_item("rotation", t.rotation)?;
-    Ok(d)
+/// A value as a dict (or list) by its `Serialize` form: what `--json` writes and the
+/// Python package returns are one definition.
+fn to_python<'py, T: serde::Serialize + ?Sized>(
+    py: Python<'py>,
+    value: &T,
+) -> PyResult<Bound<'py, PyAny>> {
+    pythonize::pythonize(py, value).map_err(|e| AdwiError::new_err(e.to_string()))
 }
 
-/// The registration of tracker-frame measurements, as `tablec` prints it: the rigid fit,
-/// and both transforms as an identification of the registered samples refined them.
+/// The registration of tracker-frame measurements, as `tablec` prints it
+/// ([`RegistrationSummary`]): the rigid fit, and both transforms as an identification of
+/// the registered samples refined them.
 fn registration_dict<'py>(
     py: Python<'py>,
-    r: &Registration,
-    refined: Option<&Refined>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("rows", r.rows)?;
-    d.set_item("orientation", r.orientation)?;
-    d.set_item("iterations", r.iterations)?;
-    transforms_into(py, &d, &r.fit())?;
-    let refined = match refined {
-        Some(f) => {
-            let rd = PyDict::new(py);
-            transforms_into(py, &rd, f)?;
-            Some(rd)
-        }
-        None => None,
-    };
-    d.set_item("refined", refined)?;
-    Ok(d)
-}
-
-/// Both transforms and the residuals they leave, under the same keys for the rigid fit and
-/// for the refined transforms.
-fn transforms_into(py: Python<'_>, d: &Bound<'_, PyDict>, t: &Refined) -> PyResult<()> {
-    d.set_item("base_in_tracker", transform_dict(py, &t.base_in_tracker)?)?;
-    d.set_item("probe", transform_dict(py, &t.probe)?)?;
-    d.set_item("position_rms_mm", t.position_rms_mm)?;
-    d.set_item("position_max_mm", t.position_max_mm)?;
-    d.set_item("orientation_rms_rad", t.orientation_rms_rad)?;
-    d.set_item("orientation_max_rad", t.orientation_max_rad)?;
-    Ok(())
+    r: Option<&RegistrationSummary>,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    r.map(|r| to_python(py, r)).transpose()
 }
 
 /// A job's warnings, as `tablec` prints them after `warning: `.
@@ -421,16 +396,20 @@ fn build<'py>(
         built
             .calibration
             .as_ref()
-            .map(|(c, rms)| calibration_dict(py, c, Some(*rms)))
+            .map(|(c, rms)| -> PyResult<_> {
+                let summary = CalibrationSummary::of(c);
+                let d = calibration_dict(py, &summary, Some(*rms))?;
+                // Every parameter with its standard error and status, as `calibrate`'s.
+                d.set_item("parameters", to_python(py, &summary.parameters)?)?;
+                Ok(d)
+            })
             .transpose()?,
     )?;
+    let registration =
+        (built.registration.as_ref()).map(|(r, refined)| RegistrationSummary::of(r, Some(refined)));
     d.set_item(
         "registration",
-        built
-            .registration
-            .as_ref()
-            .map(|(r, refined)| registration_dict(py, r, Some(refined)))
-            .transpose()?,
+        registration_dict(py, registration.as_ref())?,
     )?;
     d.set_item("warnings", warning_texts(&built.warnings))?;
     d.set_item("seconds", built.seconds)?;
@@ -438,21 +417,24 @@ fn build<'py>(
 }
 
 /// What [`evaluate`] returns: the records, the warnings, with tracker-frame samples
-/// their registration and a validation set's own (registered apart), and the comparison
-/// of the methods with the best.
+/// their registration and a validation set's own (registered apart), the comparison of
+/// the methods with the best, and the records held out by region.
 type Evaluated<'py> = (
-    Bound<'py, PyList>,
+    Bound<'py, PyAny>,
     Vec<String>,
-    Option<Bound<'py, PyDict>>,
-    Option<Bound<'py, PyDict>>,
-    Option<Bound<'py, PyDict>>,
+    Option<Bound<'py, PyAny>>,
+    Option<Bound<'py, PyAny>>,
+    Option<Bound<'py, PyAny>>,
+    Option<Bound<'py, PyAny>>,
 );
 
 /// `tablec eval` ([`EvalJob`]). Returns (records, warnings, registration, validation
-/// registration, comparison): one record per row of `tablec eval --csv` (the
-/// uncompensated errors, then one per method), with the same keys, figures in full
-/// precision; the registrations as `tablec eval` prints them, or None; the methods against
-/// the best, point by point, as `"comparison"` in `tablec eval --json`.
+/// registration, comparison, by-region records): one record per row of `tablec eval
+/// --csv` (the uncompensated errors, then one per method), with the same keys, figures in
+/// full precision; the registrations as `tablec eval` prints them, or None; the methods
+/// against the best, point by point, as `"comparison"` in `tablec eval --json`; with
+/// `by_region`, the records of the evaluation held out by region (or by series), as the
+/// second table `tablec eval --by-region` prints, else None.
 #[pyfunction]
 #[pyo3(signature = (sources, validation=None, **options))]
 fn evaluate<'py>(
@@ -465,89 +447,20 @@ fn evaluate<'py>(
     args.samples = sources.into_iter().map(Into::into).collect();
     args.validation = validation.map(Into::into);
     let evaluated = run_job(py, || EvalJob::new(args)?.run("adwi.evaluate"))?;
-    let e = &evaluated.evaluation;
-    let warnings = warning_texts(&evaluated.warnings);
-    let records = PyList::empty(py);
-    let record = |label: &str,
-                  predicted: usize,
-                  not_predicted: usize,
-                  position: Option<&adwi_eval::baselines::ResidualStats>,
-                  orientation: Option<&adwi_eval::baselines::ResidualStats>,
-                  note: String|
-     -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        d.set_item("method", label)?;
-        d.set_item("predicted", predicted)?;
-        d.set_item("not_predicted", not_predicted)?;
-        for (prefix, unit, s) in [
-            ("position", "mm", position),
-            ("orientation", "mrad", orientation),
-        ] {
-            let figures = s.map(|s| [s.mean_norm, s.rms_norm, s.p95_norm, s.max_norm]);
-            for (i, name) in ["mean", "rms", "p95", "max"].into_iter().enumerate() {
-                d.set_item(format!("{prefix}_{name}_{unit}"), figures.map(|f| f[i]))?;
-            }
-        }
-        let [se, p] = adwi_eval::output::resolution(position);
-        d.set_item("position_mean_se_mm", se)?;
-        d.set_item("position_offset_p", p)?;
-        d.set_item("note", note)?;
-        Ok(d)
-    };
-    records.append(record(
-        "uncompensated",
-        e.nominal_mm.len(),
-        0,
-        Some(&e.uncompensated_position_mm),
-        e.uncompensated_orientation_mrad.as_ref(),
-        String::new(),
-    )?)?;
-    for m in &e.methods {
-        let note = m.note();
-        records.append(record(
-            m.method.name(),
-            m.predicted(),
-            m.not_predicted_count(),
-            m.position_mm.as_ref(),
-            m.orientation_mrad.as_ref(),
-            note,
-        )?)?;
-    }
-    let registration = evaluated
-        .registration
-        .as_ref()
-        .map(|(r, refined)| registration_dict(py, r, Some(refined)))
+    let (registration, validation_registration) = evaluated.registration_summaries();
+    let comparison = (evaluated.evaluation.comparison.as_ref())
+        .map(|c| to_python(py, c))
         .transpose()?;
-    let validation_registration = evaluated
-        .validation_registration
-        .as_ref()
-        .map(|r| registration_dict(py, r, None))
-        .transpose()?;
-    let comparison = e
-        .comparison
-        .as_ref()
-        .map(|c| -> PyResult<Bound<'py, PyDict>> {
-            let d = PyDict::new(py);
-            d.set_item("reference", c.reference.name())?;
-            let against = PyList::empty(py);
-            for a in &c.against {
-                let row = PyDict::new(py);
-                row.set_item("method", a.method.name())?;
-                row.set_item("points", a.points)?;
-                row.set_item("mean_difference_mm", a.mean_difference_mm)?;
-                row.set_item("standard_error_mm", a.standard_error_mm)?;
-                against.append(row)?;
-            }
-            d.set_item("against", against)?;
-            Ok(d)
-        })
+    let by_region = (evaluated.by_region_records())
+        .map(|r| to_python(py, &r))
         .transpose()?;
     Ok((
-        records,
-        warnings,
-        registration,
-        validation_registration,
+        to_python(py, &evaluated.records())?,
+        warning_texts(&evaluated.warnings),
+        registration_dict(py, registration.as_ref())?,
+        registration_dict(py, validation_registration.as_ref())?,
         comparison,
+        by_region,
     ))
 }
 
@@ -563,19 +476,14 @@ fn calibrate<'py>(
     let mut args: CalibrateArgs = job_args(py, "calibrate", options)?;
     args.samples = sources.into_iter().map(Into::into).collect();
     let calibrated = run_job(py, || CalibrateJob::new(args)?.run())?;
-    let d = calibration_dict(py, &calibrated.calibration, None)?;
+    let d = calibration_dict(py, &calibrated.summary(), None)?;
     // What `--json` writes (the figures, the parameters, the truth), by the same code.
-    let report = pythonize::pythonize(py, &calibrated.report())
-        .map_err(|e| AdwiError::new_err(e.to_string()))?
-        .downcast_into::<PyDict>()?;
+    let report = to_python(py, &calibrated.report())?.downcast_into::<PyDict>()?;
     d.update(report.as_mapping())?;
+    let (registration, _) = calibrated.registration_summaries();
     d.set_item(
         "registration",
-        calibrated
-            .registration
-            .as_ref()
-            .map(|(r, refined)| registration_dict(py, r, Some(refined)))
-            .transpose()?,
+        registration_dict(py, registration.as_ref())?,
     )?;
     let written: Vec<String> = calibrated
         .written
@@ -1176,14 +1084,12 @@ fn iso9283<'py>(
     args.measurements = measurements;
     let result = run_job(py, || Iso9283Job::new(args)?.run())?;
     let d = PyDict::new(py);
-    let convert = |report: &Option<adwi_measure::iso9283::Report>| -> PyResult<_> {
-        report
-            .as_ref()
-            .map(|r| pythonize::pythonize(py, r))
-            .transpose()
-            .map_err(|e| AdwiError::new_err(e.to_string()))
-    };
-    match convert(&result.report)? {
+    match result
+        .report
+        .as_ref()
+        .map(|r| to_python(py, r))
+        .transpose()?
+    {
         Some(report) => {
             let report = report.downcast_into::<PyDict>()?;
             d.set_item("positions", report.get_item("positions")?)?;
@@ -1201,17 +1107,15 @@ fn iso9283<'py>(
             d.set_item("notes", PyList::empty(py))?;
         }
     }
-    d.set_item("compensated", convert(&result.compensated)?)?;
+    let convert = |report: Option<&_>| report.map(|r| to_python(py, r)).transpose();
+    d.set_item("compensated", convert(result.compensated.as_ref())?)?;
     // The path characteristics of a tracker stream (path=..., command=...).
-    let convert_path = |report: &Option<adwi_measure::path::PathReport>| -> PyResult<_> {
-        report
-            .as_ref()
-            .map(|r| pythonize::pythonize(py, r))
-            .transpose()
-            .map_err(|e| AdwiError::new_err(e.to_string()))
-    };
-    d.set_item("path", convert_path(&result.path)?)?;
-    d.set_item("path_compensated", convert_path(&result.path_compensated)?)?;
+    let convert_path = |report: Option<&_>| report.map(|r| to_python(py, r)).transpose();
+    d.set_item("path", convert_path(result.path.as_ref())?)?;
+    d.set_item(
+        "path_compensated",
+        convert_path(result.path_compensated.as_ref())?,
+    )?;
     let written: Vec<String> = result
         .written
         .iter()

@@ -1,5 +1,11 @@
-//! What an identification found, as the reports show it: the summary of each split's
-//! calibration and a row per parameter.
+//! What an identification found, written once for every front end: the summary of a
+//! calibration (the evaluation's splits, `tablec calibrate`, a hybrid build, the Python
+//! package) and a row per parameter, every identified, held and unidentifiable term with
+//! its value and standard error (joint-space terms and compliances among them). Its JSON
+//! form is the evaluation's (`calibrations`), its text [`CalibrationSummary::text`] and
+//! [`CalibrationSummary::parameter_table`].
+
+use std::fmt::Write as _;
 
 use adwi_identify::calibrate::{self, Calibration, Parameter};
 
@@ -28,6 +34,13 @@ pub struct CalibrationSummary {
     pub held: usize,
     /// Every parameter: value, standard error, strongest correlation, status and reason.
     pub parameters: Vec<ParameterRow>,
+    /// Orientation RMS after identification, rad, as `tablec calibrate --json` and the
+    /// Python package give it (the evaluation's JSON gives [`Self::orientation_rms_mrad`]).
+    #[serde(skip)]
+    pub orientation_rms_rad: Option<f64>,
+    /// The residual standard deviation σ of one weighted measured coordinate, mm.
+    #[serde(skip)]
+    pub residual_sigma_mm: f64,
 }
 
 /// One parameter of an identification, for reports ([`calibrate::ParameterReport`]).
@@ -54,6 +67,39 @@ pub struct ParameterRow {
 }
 
 impl ParameterRow {
+    /// Whether the parameter was identified (its value is the model's).
+    pub fn is_identified(&self) -> bool {
+        self.status == "identified"
+    }
+
+    /// The unit the tables show the value in, and the factor from [`Self::unit`] to it:
+    /// angles in mrad, lengths in mm, compliances in µrad/(N·m).
+    pub fn shown_unit(&self) -> (f64, &'static str) {
+        if self.unit == "rad" {
+            (1e3, "mrad")
+        } else {
+            (1.0, self.unit)
+        }
+    }
+
+    /// The value as the tables show it: signed, to four decimals in [`Self::shown_unit`];
+    /// `0` unless identified (a held or unidentifiable parameter stays at nominal).
+    pub fn value_text(&self) -> String {
+        if self.is_identified() {
+            format!("{:+.4}", self.value * self.shown_unit().0)
+        } else {
+            "0".to_string()
+        }
+    }
+
+    /// The standard error as the tables show it, to four decimals in
+    /// [`Self::shown_unit`], `—` without one (unidentifiable).
+    pub fn standard_error_text(&self) -> String {
+        self.standard_error.map_or("—".to_string(), |s| {
+            format!("{:.4}", s * self.shown_unit().0)
+        })
+    }
+
     /// The rows of a calibration, in column order.
     pub fn of(c: &Calibration) -> Vec<ParameterRow> {
         c.report
@@ -77,7 +123,9 @@ impl ParameterRow {
 }
 
 impl CalibrationSummary {
-    pub(crate) fn new(split: usize, c: &Calibration) -> Self {
+    /// The summary of `c`, identified on split `split` (0 for a validation set, a
+    /// calibration or a build; the fold otherwise).
+    pub fn new(split: usize, c: &Calibration) -> Self {
         let named = |p: Parameter| p.to_string();
         CalibrationSummary {
             split,
@@ -99,6 +147,111 @@ impl CalibrationSummary {
             converged: c.converged,
             held: c.held().len(),
             parameters: ParameterRow::of(c),
+            orientation_rms_rad: c.orientation_rms_rad,
+            residual_sigma_mm: c.residual_sigma_mm,
         }
+    }
+
+    /// The summary of a calibration made on all the samples given (`tablec calibrate`, a
+    /// hybrid build).
+    pub fn of(c: &Calibration) -> Self {
+        Self::new(0, c)
+    }
+
+    /// How many parameters were identified, held at nominal and unidentifiable, as every
+    /// summary opens.
+    pub fn counts(&self) -> String {
+        format!(
+            "{} parameters identified, {} held at nominal, {} unidentifiable",
+            self.identified.len(),
+            self.held,
+            self.unidentifiable.len()
+        )
+    }
+
+    /// The summary as `tablec calibrate` and a hybrid `tablec build` print it: the counts,
+    /// the residuals before and after (and, for a hybrid table, what its residual tier
+    /// starts from, `table_residual_rms_mm`), then [`Self::parameter_table`].
+    pub fn text(&self, table_residual_rms_mm: Option<f64>) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "calibration    {}, condition number {:.1}, {} iterations{}",
+            self.counts(),
+            self.condition_number,
+            self.iterations,
+            if self.converged {
+                ""
+            } else {
+                " (not converged)"
+            }
+        );
+        let table = table_residual_rms_mm
+            .map_or(String::new(), |r| format!(" (table residuals {r:.4} mm)"));
+        let _ = writeln!(
+            out,
+            "position RMS   {:.4} mm before, {:.4} mm after; residual σ {:.4} mm per \
+             coordinate{table}",
+            self.initial_position_rms_mm, self.position_rms_mm, self.residual_sigma_mm
+        );
+        if let Some(r) = self.orientation_rms_rad {
+            let _ = writeln!(out, "orient. RMS    {:.4} mrad after", r * 1e3);
+        }
+        out.push_str(&self.parameter_table());
+        out
+    }
+
+    /// The summary in one line, as the evaluation's text ends with one per
+    /// identification (`of` of them: each fold's is numbered when there are several).
+    pub fn line(&self, of: usize) -> String {
+        format!(
+            "kinematic identification{}: {}, condition number {:.1}, position RMS {:.4} → \
+             {:.4} mm over the training samples, {} iterations{}",
+            if of > 1 {
+                format!(" (fold {})", self.split + 1)
+            } else {
+                String::new()
+            },
+            self.counts(),
+            self.condition_number,
+            self.initial_position_rms_mm,
+            self.position_rms_mm,
+            self.iterations,
+            if self.converged {
+                ""
+            } else {
+                " (NOT converged)"
+            }
+        )
+    }
+
+    /// The parameters as an aligned table: value, standard error (lengths in mm, angles
+    /// in mrad, compliances in µrad/(N·m)), strongest correlation, status and, when not
+    /// identified, why.
+    pub fn parameter_table(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} reason",
+            "parameter", "value", "SE", "", "strongest corr.", "status"
+        );
+        for r in &self.parameters {
+            let correlation = match (&r.correlated_with, r.correlation) {
+                (Some(p), Some(rho)) => format!("{rho:+.2} {p}"),
+                _ => "—".to_string(),
+            };
+            let _ = writeln!(
+                out,
+                "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} {}",
+                r.name,
+                r.value_text(),
+                r.standard_error_text(),
+                r.shown_unit().1,
+                correlation,
+                r.status,
+                r.reason
+            );
+        }
+        out
     }
 }

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use crate::baselines::ResidualStats;
 
-use super::{Evaluation, MethodResult, ParameterRow};
+use super::{Evaluation, MethodResult};
 
 /// One row of the figures: a label, counts and statistics.
 struct Row<'a> {
@@ -50,7 +50,7 @@ fn figures(s: Option<&ResidualStats>) -> [Option<f64>; 4] {
 
 /// How well the points know a position mean: its standard error, mm, and the p value of
 /// the residuals' shared offset.
-pub fn resolution(s: Option<&ResidualStats>) -> [Option<f64>; 2] {
+fn resolution(s: Option<&ResidualStats>) -> [Option<f64>; 2] {
     s.map_or([None; 2], |s| {
         [s.mean_norm_standard_error, s.mean_per_axis_p_value]
     })
@@ -144,68 +144,13 @@ pub fn terminal_table(e: &Evaluation) -> String {
         let _ = writeln!(out, "  {note}");
     }
     for c in &e.calibrations {
-        let _ = writeln!(
-            out,
-            "  kinematic identification{}: {} parameters identified, {} held at nominal, {} \
-             unidentifiable, condition number {:.1}, position RMS {:.4} → {:.4} mm over the \
-             training samples, {} iterations{}",
-            if e.calibrations.len() > 1 {
-                format!(" (fold {})", c.split + 1)
-            } else {
-                String::new()
-            },
-            c.identified.len(),
-            c.held,
-            c.unidentifiable.len(),
-            c.condition_number,
-            c.initial_position_rms_mm,
-            c.position_rms_mm,
-            c.iterations,
-            if c.converged { "" } else { " (NOT converged)" }
-        );
+        let _ = writeln!(out, "  {}", c.line(e.calibrations.len()));
     }
     if let Some(c) = e.calibrations.first() {
         if e.calibrations.len() > 1 {
             let _ = writeln!(out, "  parameters identified in fold 1:");
         }
-        out.push_str(&parameter_table(&c.parameters));
-    }
-    out
-}
-
-/// The identification's parameters as an aligned table: value, standard error (lengths in
-/// mm, angles in mrad, compliances in µrad/(N·m)), strongest correlation, status and, when
-/// not identified, why.
-pub fn parameter_table(rows: &[ParameterRow]) -> String {
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} reason",
-        "parameter", "value", "SE", "", "strongest corr.", "status"
-    );
-    for r in rows {
-        let (scale, unit) = if r.unit == "rad" {
-            (1e3, "mrad")
-        } else {
-            (1.0, r.unit)
-        };
-        let value = if r.status == "identified" {
-            format!("{:+.4}", r.value * scale)
-        } else {
-            "0".to_string()
-        };
-        let se = r
-            .standard_error
-            .map_or("—".to_string(), |s| format!("{:.4}", s * scale));
-        let correlation = match (&r.correlated_with, r.correlation) {
-            (Some(p), Some(rho)) => format!("{rho:+.2} {p}"),
-            _ => "—".to_string(),
-        };
-        let _ = writeln!(
-            out,
-            "  {:<11} {:>10} {:>9} {:<4} {:<20} {:<14} {}",
-            r.name, value, se, unit, correlation, r.status, r.reason
-        );
+        out.push_str(&c.parameter_table());
     }
     out
 }
@@ -443,24 +388,93 @@ pub(crate) fn rounded_zero(v: f64) -> f64 {
 /// The p value below which the terminal names a method whose residuals share an offset.
 const OFFSET_SIGNIFICANCE: f64 = 0.01;
 
-/// The figures as CSV: one row per method (and `uncompensated`); empty fields where a
-/// figure does not exist. After the figures of [`terminal_table`], the standard error of the
+/// One row of the figures as the CSV writes it and the Python package returns it, the
+/// figures in full precision: those of [`terminal_table`], then the standard error of the
 /// position mean and the p value of the residuals' shared offset
-/// ([`ResidualStats::mean_per_axis_p_value`]).
+/// ([`ResidualStats::mean_per_axis_p_value`]); `None` where a figure does not exist.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Record {
+    /// `uncompensated`, or the method's name.
+    pub method: String,
+    /// Points predicted.
+    pub predicted: usize,
+    /// Points not predicted.
+    pub not_predicted: usize,
+    /// Mean position residual norm, mm.
+    pub position_mean_mm: Option<f64>,
+    /// RMS position residual norm, mm.
+    pub position_rms_mm: Option<f64>,
+    /// 95th percentile (nearest rank) of the position residual norms, mm.
+    pub position_p95_mm: Option<f64>,
+    /// Largest position residual norm, mm.
+    pub position_max_mm: Option<f64>,
+    /// Mean orientation residual norm, mrad.
+    pub orientation_mean_mrad: Option<f64>,
+    /// RMS orientation residual norm, mrad.
+    pub orientation_rms_mrad: Option<f64>,
+    /// 95th percentile of the orientation residual norms, mrad.
+    pub orientation_p95_mrad: Option<f64>,
+    /// Largest orientation residual norm, mrad.
+    pub orientation_max_mrad: Option<f64>,
+    /// Standard error of the mean position residual norm, mm.
+    pub position_mean_se_mm: Option<f64>,
+    /// p value of the position residuals' shared offset.
+    pub position_offset_p: Option<f64>,
+    /// Why points were missed or a method not supported; empty otherwise.
+    pub note: String,
+}
+
+/// The rows of the figures: `uncompensated`, then one per method.
+pub fn records(e: &Evaluation) -> Vec<Record> {
+    rows(e)
+        .into_iter()
+        .map(|row| {
+            let [position_mean_mm, position_rms_mm, position_p95_mm, position_max_mm] =
+                figures(row.position);
+            let [orientation_mean_mrad, orientation_rms_mrad, orientation_p95_mrad, orientation_max_mrad] =
+                figures(row.orientation);
+            let [position_mean_se_mm, position_offset_p] = resolution(row.position);
+            Record {
+                method: row.label.to_string(),
+                predicted: row.predicted,
+                not_predicted: row.not_predicted,
+                position_mean_mm,
+                position_rms_mm,
+                position_p95_mm,
+                position_max_mm,
+                orientation_mean_mrad,
+                orientation_rms_mrad,
+                orientation_p95_mrad,
+                orientation_max_mrad,
+                position_mean_se_mm,
+                position_offset_p,
+                note: row.note,
+            }
+        })
+        .collect()
+}
+
+/// The figures as CSV: one row per method (and `uncompensated`), the fields of
+/// [`Record`]; empty fields where a figure does not exist.
 pub fn csv(e: &Evaluation) -> String {
     let mut out = String::from(
         "method,predicted,not_predicted,position_mean_mm,position_rms_mm,position_p95_mm,\
          position_max_mm,orientation_mean_mrad,orientation_rms_mrad,orientation_p95_mrad,\
          orientation_max_mrad,position_mean_se_mm,position_offset_p,note\n",
     );
-    for row in rows(e) {
-        let _ = write!(out, "{},{},{}", row.label, row.predicted, row.not_predicted);
-        let [se, p] = resolution(row.position);
-        for v in figures(row.position)
-            .into_iter()
-            .chain(figures(row.orientation))
-            .chain([se])
-        {
+    for r in records(e) {
+        let _ = write!(out, "{},{},{}", r.method, r.predicted, r.not_predicted);
+        for v in [
+            r.position_mean_mm,
+            r.position_rms_mm,
+            r.position_p95_mm,
+            r.position_max_mm,
+            r.orientation_mean_mrad,
+            r.orientation_rms_mrad,
+            r.orientation_p95_mrad,
+            r.orientation_max_mrad,
+            r.position_mean_se_mm,
+        ] {
             match v {
                 Some(v) => {
                     let _ = write!(out, ",{v:.9}");
@@ -469,13 +483,13 @@ pub fn csv(e: &Evaluation) -> String {
             }
         }
         // A p value spans many decades: four significant digits, not nine decimals.
-        match p {
+        match r.position_offset_p {
             Some(p) => {
                 let _ = write!(out, ",{p:.3e}");
             }
             None => out.push(','),
         }
-        let _ = writeln!(out, ",\"{}\"", row.note.replace('"', "\"\""));
+        let _ = writeln!(out, ",\"{}\"", r.note.replace('"', "\"\""));
     }
     out
 }

@@ -504,8 +504,8 @@ impl RobotArgs {
     pub(crate) fn check(&self) -> Result<(), JobError> {
         if self.robot.is_none() && (self.base_link.is_some() || self.tip_link.is_some()) {
             return Err(JobError::Options(
-                "base_link and tip_link name the links of a URDF robot: give the robot file \
-                 (--robot)"
+                "--base-link and --tip-link name the links of a URDF robot: give the robot \
+                 file (--robot)"
                     .into(),
             ));
         }

@@ -393,7 +393,7 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
     }
     if args.compliance && !robot {
         return Err(JobError::Options(
-            "--compliance (compliance) is identified with the robot's geometry: give the robot \
+            "--compliance is identified with the robot's geometry: give the robot \
              file (--robot)"
                 .into(),
         ));
@@ -415,7 +415,7 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
     if args.tune {
         if args.table.radius.is_some() || args.table.k.is_some() {
             return Err(JobError::Options(
-                "--tune (tune) chooses k and the radius ε: give --tune, or --k/--radius, not \
+                "--tune chooses k and the radius ε: give --tune, or --k/--radius, not \
                  both"
                     .into(),
             ));

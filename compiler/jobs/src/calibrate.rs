@@ -1,6 +1,7 @@
 //! The calibration job: a robot's kinematic deviations identified from samples, and the
 //! calibrated robot written as a robot file and as URDF (`tablec calibrate`).
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
@@ -13,9 +14,10 @@ use serde::Deserialize;
 
 use crate::args::{Frame, Reading, RobotArgs};
 use crate::inputs::{load_robot, Inputs, Source};
+use crate::registration::RegistrationSummary;
 use crate::series::Series;
 use crate::simulate::read_joint_rows;
-use crate::{JobError, Warning};
+use crate::{CalibrationSummary, JobError, Warning};
 
 /// Identify a robot's kinematic deviations from samples: every option of `tablec
 /// calibrate`.
@@ -295,7 +297,7 @@ impl CalibrateJob {
             let text = serde_json::to_string_pretty(&report(
                 &robot.name,
                 samples.len(),
-                &c,
+                &CalibrationSummary::of(&c),
                 truth.as_ref(),
             ))
             .map_err(|e| JobError::NonFinite(e.to_string()))?;
@@ -331,10 +333,74 @@ impl Calibrated {
         report(
             &self.robot_name,
             self.samples,
-            &self.calibration,
+            &self.summary(),
             self.truth.as_ref(),
         )
     }
+
+    /// What the identification found, as every front end gives it.
+    pub fn summary(&self) -> CalibrationSummary {
+        CalibrationSummary::of(&self.calibration)
+    }
+
+    /// The registrations of tracker-frame series, each as the front ends give it: the
+    /// samples' (refined by the identification), then each later series'.
+    pub fn registration_summaries(
+        &self,
+    ) -> (Option<RegistrationSummary>, Vec<RegistrationSummary>) {
+        (
+            (self.registration.as_ref())
+                .map(|(r, refined)| RegistrationSummary::of(r, Some(refined))),
+            (self.series_registrations.iter())
+                .map(|r| RegistrationSummary::of(r, None))
+                .collect(),
+        )
+    }
+
+    /// What `tablec calibrate` prints: the registrations, the identification's summary,
+    /// the comparison with the truth, and the files written.
+    pub fn text(&self) -> String {
+        let mut out = crate::registration::registrations_text(
+            self.registration.as_ref(),
+            &self.series_registrations,
+            true,
+        );
+        out.push_str(&self.summary().text(None));
+        if let Some(t) = &self.truth {
+            out.push_str(&truth_text(t));
+        }
+        for path in &self.written {
+            let _ = writeln!(out, "wrote          {}", path.display());
+        }
+        out
+    }
+}
+
+/// The identification against the simulated robot's truth: the parameter error (lengths
+/// and angles apart) and the position error over the workspace poses.
+fn truth_text(t: &TruthComparison) -> String {
+    let rms =
+        |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.4} {unit}"));
+    let lengths = t
+        .parameters
+        .iter()
+        .filter(|p| p.parameter.is_length())
+        .count();
+    format!(
+        "truth params   identified − true RMS {} ({lengths} lengths), {} ({} angles); {} of \
+         them not identified here (counted at 0), {} identified here only (not compared)\n\
+         truth position |model − true robot| over {} poses: mean {:.4} mm, RMS {:.4} mm, max \
+         {:.4} mm\n",
+        rms(t.length_rms_mm, "mm"),
+        rms(t.angle_rms_mrad, "mrad"),
+        t.parameters.len() - lengths,
+        t.missed,
+        t.not_compared,
+        t.poses,
+        t.position_mean_mm,
+        t.position_rms_mm,
+        t.position_max_mm
+    )
 }
 
 /// What `--json` writes, and the Python binding returns with its own keys added: the
@@ -343,7 +409,7 @@ impl Calibrated {
 fn report(
     robot_name: &str,
     samples: usize,
-    c: &Calibration,
+    c: &CalibrationSummary,
     truth: Option<&TruthComparison>,
 ) -> serde_json::Value {
     serde_json::json!({
@@ -355,7 +421,7 @@ fn report(
         "initial_position_rms_mm": c.initial_position_rms_mm,
         "position_rms_mm": c.position_rms_mm,
         "orientation_rms_rad": c.orientation_rms_rad,
-        "parameters": adwi_eval::ParameterRow::of(c),
+        "parameters": c.parameters,
         "truth": truth,
     })
 }

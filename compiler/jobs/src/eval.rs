@@ -19,6 +19,7 @@ use crate::args::{
     TableArgs,
 };
 use crate::inputs::{load_robot, Inputs, Source};
+use crate::registration::RegistrationSummary;
 use crate::series::Series;
 use crate::{JobError, Warning};
 
@@ -203,6 +204,50 @@ pub struct Evaluated {
     pub report_page: Option<PathBuf>,
     /// What the user should know.
     pub warnings: Vec<Warning>,
+}
+
+impl Evaluated {
+    /// What `tablec eval` prints: the registrations of tracker-frame samples (the
+    /// validation set's last), the figures, and those held out by region.
+    pub fn text(&self) -> String {
+        let mut out = crate::registration::registrations_text(
+            self.registration.as_ref(),
+            &self.series_registrations,
+            true,
+        );
+        if let Some(v) = &self.validation_registration {
+            out.push_str(&RegistrationSummary::of(v, None).validation_text());
+        }
+        out.push_str(&adwi_eval::output::terminal_table(&self.evaluation));
+        if let Some(by_region) = &self.by_region {
+            out.push_str(&adwi_eval::output::terminal_table(by_region));
+        }
+        out
+    }
+
+    /// The figures' rows as `tablec eval --csv` writes them, in full precision:
+    /// `uncompensated`, then one per method.
+    pub fn records(&self) -> Vec<adwi_eval::output::Record> {
+        adwi_eval::output::records(&self.evaluation)
+    }
+
+    /// The rows of the evaluation held out by region (`by_region`), as [`Self::records`].
+    pub fn by_region_records(&self) -> Option<Vec<adwi_eval::output::Record>> {
+        self.by_region.as_ref().map(adwi_eval::output::records)
+    }
+
+    /// The registrations of tracker-frame samples as the front ends give them: the
+    /// samples' (refined by an identification of all of them) and the validation set's
+    /// own.
+    pub fn registration_summaries(
+        &self,
+    ) -> (Option<RegistrationSummary>, Option<RegistrationSummary>) {
+        (
+            (self.registration.as_ref())
+                .map(|(r, refined)| RegistrationSummary::of(r, Some(refined))),
+            (self.validation_registration.as_ref()).map(|r| RegistrationSummary::of(r, None)),
+        )
+    }
 }
 
 impl EvalJob {
@@ -513,11 +558,11 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
     let refuse = |text: &str| Err(JobError::Options(text.into()));
     if args.table_file.is_some() {
         if args.validation.is_none() {
-            return refuse("--table (table) is scored at a validation set: give --validation");
+            return refuse("--table is scored at a validation set: give --validation");
         }
         if !args.samples.is_empty() || args.folds.is_some() {
             return refuse(
-                "--table (table) scores a table built before at --validation: give no samples \
+                "--table scores a table built before at --validation: give no samples \
                  file and no --folds",
             );
         }
@@ -526,13 +571,13 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
             || args.options != TableArgs::default()
         {
             return refuse(
-                "--table (table) scores the table as it was built: no --methods, --robot or \
+                "--table scores the table as it was built: no --methods, --robot or \
                  table options",
             );
         }
         if args.measured_in != Frame::Base {
             return refuse(
-                "--table (table) reads the validation set in the robot's base frame (the \
+                "--table reads the validation set in the robot's base frame (the \
                  table's)",
             );
         }
@@ -561,10 +606,10 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
         return Err(JobError::option("limit", "give at least 1 point"));
     }
     if args.by_region && args.folds.is_none() {
-        return refuse("--by-region (by_region) holds out regions as folds: give --folds K");
+        return refuse("--by-region holds out regions as folds: give --folds K");
     }
     if args.limit.is_some() && args.validation.is_none() {
-        return refuse("--limit (limit) keeps the first validation points: give --validation");
+        return refuse("--limit keeps the first validation points: give --validation");
     }
     let robot = args.robot.robot.is_some();
     if args.measured_in == Frame::Tracker && !robot {
@@ -576,20 +621,20 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
     if args.register_validation_apart {
         if args.validation.is_none() {
             return refuse(
-                "--register-validation-apart (register_validation_apart) needs a validation \
+                "--register-validation-apart needs a validation \
                  set (--validation)",
             );
         }
         if args.measured_in != Frame::Tracker {
             return refuse(
-                "--register-validation-apart (register_validation_apart) needs --measured-in \
+                "--register-validation-apart needs --measured-in \
                  tracker",
             );
         }
     }
     if args.compliance && !robot {
         return refuse(
-            "--compliance (compliance) is identified with the robot's geometry: give the robot \
+            "--compliance is identified with the robot's geometry: give the robot \
              file (--robot)",
         );
     }

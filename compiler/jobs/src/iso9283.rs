@@ -1,6 +1,7 @@
 //! The ISO 9283 job: pose and distance characteristics of measured cycles, or the
 //! standard's cube positions written as a plan to measure (`tablec iso9283`).
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use adwi_measure::iso9283::{
@@ -198,6 +199,173 @@ pub struct Iso9283Result {
     pub path_compensated: Option<PathReport>,
     /// The files written.
     pub written: Vec<PathBuf>,
+    /// Whether the plan written is the standard's test paths (`--path-plan`) rather than
+    /// its cube positions.
+    pub path_plan: bool,
+}
+
+impl Iso9283Result {
+    /// What `tablec iso9283` prints: the characteristics as a table per position and per
+    /// distance (or per path, corner and velocity), measured then compensated; or what a
+    /// plan holds; then the files written.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        if let Some(report) = &self.report {
+            report_text(&mut out, report);
+        }
+        if let Some(report) = &self.compensated {
+            out.push_str(
+                "\ncompensated by the table (each attained pose less the predicted error at its \
+                 command):\n",
+            );
+            report_text(&mut out, report);
+        }
+        if let Some(report) = &self.path {
+            path_text(&mut out, report);
+        }
+        if let Some(report) = &self.path_compensated {
+            out.push_str(
+                "\ncompensated by the table (each point less the predicted error at its \
+                 commanded point):\n",
+            );
+            path_text(&mut out, report);
+        }
+        if self.report.is_none() && self.path.is_none() {
+            out.push_str(if self.path_plan {
+                "plan           paths line (P2 to P4), circle and small_circle (about P1), \
+                 rectangle (P2, P3, P4, P5); a, b, c are KUKA A, B, C degrees, \
+                 R = Rz(a)·Ry(b)·Rx(c)\n"
+            } else {
+                "plan           each cycle P1, P5, P4, P3, P2 (ISO 9283); a, b, c are KUKA A, B, \
+                 C degrees, R = Rz(a)·Ry(b)·Rx(c) (the standard's a, b, c about x, y, z are c, \
+                 b, a)\n"
+            });
+        }
+        for path in &self.written {
+            let _ = writeln!(out, "wrote          {}", path.display());
+        }
+        out
+    }
+}
+
+/// Per path AT and RT, per corner CR and CO, and the velocity figures.
+fn path_text(out: &mut String, report: &PathReport) {
+    let _ = writeln!(
+        out,
+        "{:<14} {:>4} {:>10} {:>6} {:>9} {:>9} {:>9}",
+        "path", "n", "length mm", "planes", "AT_P mm", "mean AT", "RT_P mm"
+    );
+    for p in &report.paths {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>4} {:>10.3} {:>6} {:>9.4} {:>9.4} {:>9.4}",
+            p.name, p.n, p.length_mm, p.planes, p.at_p_mm, p.at_mean_mm, p.rt_p_mm
+        );
+    }
+    if report.paths.iter().any(|p| !p.corners.is_empty()) {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>6} {:>9} {:>9} {:>9} {:>9}",
+            "corner", "", "CR mm", "CR max", "CO mm", "CO max"
+        );
+        for p in &report.paths {
+            for c in &p.corners {
+                let _ = writeln!(
+                    out,
+                    "{:<14} {:>6} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+                    p.name, c.corner, c.cr_mm, c.cr_max_mm, c.co_mm, c.co_max_mm
+                );
+            }
+        }
+    }
+    if report.paths.iter().any(|p| p.velocity.is_some()) {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>10} {:>10} {:>9} {:>9} {:>9}",
+            "velocity", "v_c mm/s", "mean mm/s", "AV %", "RV ±%", "FV mm/s"
+        );
+        for p in &report.paths {
+            if let Some(v) = &p.velocity {
+                let _ = writeln!(
+                    out,
+                    "{:<14} {:>10.3} {:>10.4} {:>9.4} {:>9.4} {:>9.4}",
+                    p.name, v.commanded_mm_s, v.mean_mm_s, v.av_percent, v.rv_percent, v.fv_mm_s
+                );
+            }
+        }
+    }
+    for note in &report.notes {
+        let _ = writeln!(out, "note           {note}");
+    }
+}
+
+/// Per position AP and RP (mm; orientation degrees when measured), then AD and RD.
+fn report_text(out: &mut String, report: &Report) {
+    let oriented = report.positions.iter().any(|p| p.ap_a_deg.is_some());
+    let _ = write!(
+        out,
+        "{:<10} {:>4} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "position", "n", "AP_P mm", "AP_x mm", "AP_y mm", "AP_z mm", "RP_l mm"
+    );
+    if oriented {
+        let _ = write!(
+            out,
+            " {:>8} {:>8} {:>8} {:>9} {:>9} {:>9}",
+            "AP_a °", "AP_b °", "AP_c °", "RP_a ±°", "RP_b ±°", "RP_c ±°"
+        );
+    }
+    out.push('\n');
+    for p in &report.positions {
+        let _ = write!(
+            out,
+            "{:<10} {:>4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+            p.name, p.n, p.ap_p_mm, p.ap_x_mm, p.ap_y_mm, p.ap_z_mm, p.rp_l_mm
+        );
+        let angles = [
+            p.ap_a_deg, p.ap_b_deg, p.ap_c_deg, p.rp_a_deg, p.rp_b_deg, p.rp_c_deg,
+        ];
+        if let [Some(a), Some(b), Some(c), Some(ra), Some(rb), Some(rc)] = angles {
+            let _ = write!(
+                out,
+                " {a:>8.4} {b:>8.4} {c:>8.4} {ra:>9.4} {rb:>9.4} {rc:>9.4}"
+            );
+        }
+        out.push('\n');
+    }
+    if !report.distance.is_empty() {
+        let _ = writeln!(
+            out,
+            "{:<21} {:>4} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "distance", "n", "D_c mm", "AD_P mm", "AD_x mm", "AD_y mm", "AD_z mm", "RD ±mm"
+        );
+        for d in &report.distance {
+            let _ = writeln!(
+                out,
+                "{:<21} {:>4} {:>10.3} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+                format!("{} - {}", d.from, d.to),
+                d.n,
+                d.commanded_mm,
+                d.ad_p_mm,
+                d.ad_x_mm,
+                d.ad_y_mm,
+                d.ad_z_mm,
+                d.rd_mm
+            );
+        }
+    }
+    let fewest = report.positions.iter().map(|p| p.n).min().unwrap_or(0);
+    if fewest < ISO_CYCLES as usize {
+        let _ = writeln!(
+            out,
+            "note           {fewest} cycles at the fewest: ISO 9283 asks for {ISO_CYCLES}"
+        );
+    }
+    if let Some(convention) = report.orientation_convention {
+        let _ = writeln!(out, "orientation    {convention}");
+    }
+    for note in &report.notes {
+        let _ = writeln!(out, "note           {note}");
+    }
 }
 
 fn measure_error(e: Iso9283Error) -> JobError {
@@ -473,6 +641,7 @@ impl Iso9283Job {
                     path: None,
                     path_compensated: None,
                     written: vec![output],
+                    path_plan: args.path_plan,
                 })
             }
             Work::Path { paths, table } => {
@@ -532,6 +701,7 @@ impl Iso9283Job {
                     path: Some(report),
                     path_compensated: compensated,
                     written: contents.into_iter().map(|(p, _)| p).collect(),
+                    path_plan: false,
                 })
             }
             Work::Report { rows, table } => {
@@ -596,6 +766,7 @@ impl Iso9283Job {
                     path: None,
                     path_compensated: None,
                     written,
+                    path_plan: false,
                 })
             }
         }

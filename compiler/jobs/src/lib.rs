@@ -28,10 +28,13 @@ pub mod inspect;
 pub mod iso9283;
 pub mod plan;
 pub mod query;
+pub mod registration;
 mod series;
 pub mod simulate;
 /// The table's choices by evidence, made beside evaluation.
 pub use adwi_eval::choice;
+/// What an identification found, as every front end gives it.
+pub use adwi_eval::CalibrationSummary;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -48,6 +51,7 @@ pub use inspect::{InspectArgs, InspectJob, Inspected};
 pub use iso9283::{Iso9283Args, Iso9283Job, Iso9283Result};
 pub use plan::{CriterionArg, PlanArgs, PlanJob, Planned};
 pub use query::{QueryArgs, QueryJob, QueryResult};
+pub use registration::RegistrationSummary;
 pub use simulate::{SimulateArgs, SimulateJob, Simulated};
 
 /// Why a job was refused or failed. Refusals of options come before any work.
@@ -195,9 +199,41 @@ fn is_not_found(e: &adwi_robot::RobotError) -> bool {
         if source.kind() == std::io::ErrorKind::NotFound)
 }
 
-/// An option's name as both front ends understand it: `--tune-folds (tune_folds)`.
+/// An option's name as the command line spells it: `--tune-folds`. A job's messages name
+/// options so; the Python package raises them with its keywords' spelling
+/// ([`keyword_spelling`]), so that each front end names only its own.
 pub(crate) fn flag(name: &str) -> String {
-    format!("--{} ({name})", name.replace('_', "-"))
+    format!("--{}", name.replace('_', "-"))
+}
+
+/// `message` with every option named as Python's keyword arguments name it: `--tune-folds`
+/// becomes `tune_folds`. Only a flag that stands as a word of its own is renamed (after
+/// the start, a space or an opening bracket or quote), not two hyphens inside a path.
+pub fn keyword_spelling(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    let mut previous: Option<char> = None;
+    while let Some(at) = rest.find("--") {
+        let (before, from) = rest.split_at(at);
+        out.push_str(before);
+        let previous_char = before.chars().next_back().or(previous);
+        let name_len = from[2..]
+            .find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'))
+            .unwrap_or(from.len() - 2);
+        let name = &from[2..2 + name_len];
+        let standalone = previous_char.is_none_or(|c| c.is_whitespace() || "([{'\"`,".contains(c));
+        if standalone && name.starts_with(|c: char| c.is_ascii_lowercase()) {
+            out.push_str(&name.replace('-', "_"));
+            rest = &from[2 + name_len..];
+            previous = name.chars().next_back();
+        } else {
+            out.push_str("--");
+            rest = &from[2..];
+            previous = Some('-');
+        }
+    }
+    out.push_str(rest);
+    out
 }
 
 /// What a job warns about: the work was done, but the user should know.
@@ -498,8 +534,29 @@ mod tests {
         let e = BuildJob::new(args).err().unwrap();
         assert!(
             e.to_string()
-                .contains("--threads (threads): 1000000 worker threads"),
+                .starts_with("--threads: 1000000 worker threads"),
             "{e}"
         );
+    }
+
+    /// A refused option is named as the command line spells it, and as Python's keyword
+    /// arguments spell it in the Python package's messages, never both.
+    #[test]
+    fn each_front_end_names_an_option_in_its_own_spelling() {
+        let e = JobError::option("tune_folds", "give at least 2 folds, not --folds 1");
+        assert_eq!(
+            e.to_string(),
+            "--tune-folds: give at least 2 folds, not --folds 1"
+        );
+        assert_eq!(
+            keyword_spelling(&e.to_string()),
+            "tune_folds: give at least 2 folds, not folds 1"
+        );
+        // A path's hyphens, a negative number and an em dash are not options.
+        assert_eq!(
+            keyword_spelling("cannot read /tmp/a--b.csv: -1 (--register-validation-apart)"),
+            "cannot read /tmp/a--b.csv: -1 (register_validation_apart)"
+        );
+        assert_eq!(keyword_spelling("-- a --"), "-- a --");
     }
 }

@@ -43,13 +43,13 @@ pub(crate) struct Series {
     /// Tracker-frame series: the registrations of the second series on.
     pub others: Vec<Registration>,
     /// What registers the later series again once the robot is identified.
-    later: Option<Later>,
+    later_series: Option<LaterSeries>,
     /// Series the robot file fits only with another tool or base frame.
     agreement: Vec<crate::Warning>,
 }
 
 /// Tracker-frame series after the first, kept to be registered again.
-struct Later {
+struct LaterSeries {
     names: Vec<std::path::PathBuf>,
     measurements: Vec<Measurements>,
     first_samples: SampleSet,
@@ -103,7 +103,7 @@ pub(crate) fn read(
                 labels,
                 registered: None,
                 others: Vec::new(),
-                later: None,
+                later_series: None,
                 agreement: warnings,
             });
         }
@@ -131,11 +131,11 @@ pub(crate) fn read(
             labels: None,
             registered: Some(registered),
             others: Vec::new(),
-            later: None,
+            later_series: None,
             agreement: Vec::new(),
         });
     }
-    let later = Later {
+    let later = LaterSeries {
         names: rest.iter().map(|s| s.name().to_path_buf()).collect(),
         measurements,
         first_samples,
@@ -150,7 +150,7 @@ pub(crate) fn read(
         labels,
         registered: Some(registered),
         others,
-        later: Some(later),
+        later_series: Some(later),
         agreement: Vec::new(),
     })
 }
@@ -203,7 +203,7 @@ impl Series {
     ///
     /// The identification or a registration failing.
     pub(crate) fn refine(&mut self, calibrate: &CalibrateOptions) -> Result<(), JobError> {
-        let (Some(later), Some(registered)) = (&self.later, &self.registered) else {
+        let (Some(later), Some(registered)) = (&self.later_series, &self.registered) else {
             return Ok(());
         };
         // The first series' own calibration: what the others are registered to first, so
@@ -219,7 +219,7 @@ impl Series {
     }
 }
 
-impl Later {
+impl LaterSeries {
     /// The later series registered to the model `calibration` identified (the probe the
     /// first series'; the TCP its joint-space terms move too): their transforms, and
     /// every series' samples together.
@@ -233,7 +233,7 @@ impl Later {
         Ok((registrations, concat(sets)?))
     }
 
-    /// As [`Later::register`], every series' samples apart, the first series' first.
+    /// As [`LaterSeries::register`], every series' samples apart, the first series' first.
     fn register_each(
         &self,
         first: &Registered,

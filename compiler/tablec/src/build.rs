@@ -1,8 +1,8 @@
 //! `tablec build`: the build job ([`adwi_jobs::BuildJob`]), with a progress bar and the
 //! summary of what was built.
 
-use adwi_compile::build::{BuildReport, ServedField};
-use adwi_jobs::{BuildArgs, BuildJob, Built};
+use adwi_jobs::{BuildArgs, BuildJob, Built, CalibrationSummary, RegistrationSummary};
+use adwi_runtime::format::ServedField;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -93,16 +93,18 @@ fn print_summary(built: &Built) {
         report.mean_list_len,
         report.max_list_len
     );
-    if let Some((registration, _)) = &built.registration {
-        crate::registration::print_registration(registration);
+    let registration =
+        (built.registration.as_ref()).map(|(r, refined)| RegistrationSummary::of(r, Some(refined)));
+    if let Some(r) = &registration {
+        print!("{}", r.text());
     }
     for (i, r) in built.series_registrations.iter().enumerate() {
-        crate::registration::print_series_registration(i + 2, r);
+        print!("{}", RegistrationSummary::of(r, None).series_text(i + 2));
     }
     if let Some((c, residual_rms_mm)) = &built.calibration {
-        crate::calibrate::print_identification(c, Some(*residual_rms_mm));
-        if let Some((_, refined)) = &built.registration {
-            crate::registration::print_refined(refined);
+        print!("{}", CalibrationSummary::of(c).text(Some(*residual_rms_mm)));
+        if let Some(r) = &registration {
+            print!("{}", r.refined_text());
         }
     }
     println!("method         {}", crate::describe_method(&m));
@@ -110,7 +112,7 @@ fn print_summary(built: &Built) {
         "joint screen   {}",
         crate::describe_joint_screen(plan.joint_radius_rad)
     );
-    println!("served field   {}", describe_served_field(report));
+    println!("served field   {}", describe_served_field(built));
     println!("posture term   {}", describe_posture(built));
     println!(
         "wrote          {} ({} bytes) in {:.2} s",
@@ -154,7 +156,8 @@ fn describe_posture(built: &adwi_jobs::build::Built) -> String {
 }
 
 /// What the served field's nodes hold, with a kriging's hyperparameters per component.
-fn describe_served_field(report: &BuildReport) -> String {
+fn describe_served_field(built: &Built) -> String {
+    let report = &built.report;
     if report.node_sets == 0 {
         return "none (the exact tier answers)".to_string();
     }
@@ -252,7 +255,7 @@ fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
 
 fn print_served_candidates(
     candidates: &[adwi_jobs::choice::ServedCandidate],
-    chosen: adwi_compile::build::ServedField,
+    chosen: ServedField,
     parameters: &str,
 ) {
     for c in candidates {

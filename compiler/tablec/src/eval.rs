@@ -20,23 +20,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let evaluated = job.run(&command)?;
     crate::warn(&evaluated.warnings);
     if !args.quiet {
-        if let Some((registration, refined)) = &evaluated.registration {
-            crate::registration::print_registration(registration);
-            crate::registration::print_refined(refined);
-        }
-        for (i, r) in evaluated.series_registrations.iter().enumerate() {
-            crate::registration::print_series_registration(i + 2, r);
-        }
-        if let Some(v) = &evaluated.validation_registration {
-            crate::registration::print_validation_registration(v);
-        }
-        print!(
-            "{}",
-            adwi_eval::output::terminal_table(&evaluated.evaluation)
-        );
-        if let Some(by_region) = &evaluated.by_region {
-            print!("{}", adwi_eval::output::terminal_table(by_region));
-        }
+        print!("{}", evaluated.text());
         if let Some(page) = &evaluated.report_page {
             println!("report: {}", page.display());
         }

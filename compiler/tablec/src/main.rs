@@ -15,7 +15,6 @@ mod iso9283;
 mod plan;
 mod progress;
 mod query;
-mod registration;
 mod simulate;
 
 /// Approximation-degree weighted interpolation of robot positioning errors.
@@ -23,11 +22,13 @@ mod simulate;
 #[command(name = "tablec", version, about, long_about = None)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    job: Job,
 }
 
+// The subcommands, one per job of `adwi_jobs` (a `Command` there is what a robot is
+// commanded to).
 #[derive(Subcommand)]
-enum Command {
+enum Job {
     /// Compile a sample database (CSV) into a correction table.
     Build(build::Args),
     /// Predict the correction at one target, or at every row of a targets CSV.
@@ -71,18 +72,18 @@ fn main() -> ExitCode {
     restore_default_sigpipe();
     let cli = Cli::parse();
     let done = |r: anyhow::Result<()>| r.map(|()| Answered::All);
-    let result = match cli.command {
-        Command::Build(args) => done(build::run(args)),
-        Command::Query(args) => query::run(args),
-        Command::Compensate(args) => compensate::run(args),
-        Command::Calibrate(args) => done(calibrate::run(args)),
-        Command::Inspect(args) => done(inspect::run(args)),
-        Command::Simulate(args) => done(simulate::run(args)),
-        Command::Eval(args) => done(eval::run(args)),
-        Command::Bench(args) => done(bench::run(args)),
-        Command::Continuity(args) => done(continuity::run(args)),
-        Command::Iso9283(args) => done(iso9283::run(args)),
-        Command::Plan(args) => done(plan::run(args)),
+    let result = match cli.job {
+        Job::Build(args) => done(build::run(args)),
+        Job::Query(args) => query::run(args),
+        Job::Compensate(args) => compensate::run(args),
+        Job::Calibrate(args) => done(calibrate::run(args)),
+        Job::Inspect(args) => done(inspect::run(args)),
+        Job::Simulate(args) => done(simulate::run(args)),
+        Job::Eval(args) => done(eval::run(args)),
+        Job::Bench(args) => done(bench::run(args)),
+        Job::Continuity(args) => done(continuity::run(args)),
+        Job::Iso9283(args) => done(iso9283::run(args)),
+        Job::Plan(args) => done(plan::run(args)),
     };
     match result {
         Ok(Answered::All) => ExitCode::SUCCESS,

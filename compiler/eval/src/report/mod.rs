@@ -119,103 +119,29 @@ pub fn html(e: &Evaluation, command: &str) -> Result<String, ReportError> {
     Ok(page)
 }
 
-/// The figures table, with the noise floor row and line.
+/// The figures table, with the noise floor row, then what the floor, the standard errors
+/// and the comparison with the best method mean, and the methods not run.
 fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
     let floor_mm = e.noise_floor.as_ref().and_then(|f| f.best_mean_mm);
-    page.push_str("<h2>Figures</h2>\n<table><tr><th>method</th><th>predicted</th><th>missed</th><th>mean mm</th><th>RMS mm</th><th>p95 mm</th><th>max mm</th>");
-    if floor_mm.is_some() {
-        page.push_str("<th>mean ÷ floor</th>");
-    }
-    page.push_str("<th>± SE mm</th><th>against best mm</th>");
-    if orientation {
-        page.push_str("<th>mean mrad</th><th>RMS mrad</th><th>p95 mrad</th><th>max mrad</th>");
-    }
-    page.push_str("<th class=\"note\">notes</th></tr>\n");
-    let stat_cells = |s: Option<&crate::baselines::ResidualStats>, ratio: bool| {
-        let mut cells = match s {
-            Some(s) => [s.mean_norm, s.rms_norm, s.p95_norm, s.max_norm].map(Some),
-            None => [None; 4],
-        }
-        .map(cell)
-        .map(|c| format!("<td>{c}</td>"))
-        .concat();
-        if let (Some(floor), true) = (floor_mm, ratio) {
-            let r = s.map(|s| s.mean_norm / floor);
-            let _ = write!(
-                cells,
-                "<td>{}</td>",
-                r.map_or("—".to_string(), |r| format!("{r:.2}"))
-            );
-        }
-        if ratio {
-            let se = s.and_then(|s| s.mean_norm_standard_error);
-            let _ = write!(cells, "<td>{}</td>", cell(se));
-        }
-        cells
-    };
-    // The paired difference from the best method, ± its standard error.
-    let against = |method: Option<crate::Method>| -> String {
-        let Some(c) = &e.comparison else {
-            return "<td>—</td>".to_string();
-        };
-        if method == Some(c.reference) {
-            // "best" says something only beside another method.
-            let alone = c.against.is_empty();
-            return format!("<td>{}</td>", if alone { "—" } else { "best" });
-        }
-        let d = c.against.iter().find(|d| Some(d.method) == method);
-        let text = d.map_or("—".to_string(), |d| {
-            format!(
-                "{:+.4}{}",
-                d.mean_difference_mm,
-                crate::output::plus_minus(d.standard_error_mm)
-            )
-        });
-        format!("<td>{text}</td>")
-    };
+    figures_header(page, floor_mm.is_some(), orientation);
     let _ = write!(
         page,
         "<tr><td>{}uncompensated</td><td>{}</td><td>0</td>{}",
         swatch(BEFORE),
         e.nominal_mm.len(),
-        stat_cells(Some(&e.uncompensated_position_mm), true)
+        stat_cells(Some(&e.uncompensated_position_mm), floor_mm, true)
     );
-    page.push_str(&against(None));
+    page.push_str(&against_best(e, None));
     if orientation {
         page.push_str(&stat_cells(
             e.uncompensated_orientation_mrad.as_ref(),
+            floor_mm,
             false,
         ));
     }
     page.push_str("<td class=\"note\">the measured errors</td></tr>\n");
     for m in &e.methods {
-        let mut note = m.method.description().to_string();
-        if let Some(reason) = &m.unsupported {
-            note = format!("unsupported: {reason}");
-        }
-        if m.unsupported.is_none() {
-            for line in m
-                .not_predicted_summary()
-                .into_iter()
-                .chain(m.residual_summary())
-            {
-                let _ = write!(note, "; {line}");
-            }
-        }
-        let _ = write!(
-            page,
-            "<tr><td>{}{}</td><td>{}</td><td>{}</td>{}",
-            swatch(colour(m)),
-            m.method,
-            m.predicted(),
-            m.not_predicted_count(),
-            stat_cells(m.position_mm.as_ref(), true)
-        );
-        page.push_str(&against(Some(m.method)));
-        if orientation {
-            page.push_str(&stat_cells(m.orientation_mrad.as_ref(), false));
-        }
-        let _ = writeln!(page, "<td class=\"note\">{}</td></tr>", escape(&note));
+        method_row(page, e, m, floor_mm, orientation);
     }
     if let Some(floor) = floor_mm {
         let _ = write!(
@@ -229,40 +155,8 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
         page.push_str("<td class=\"note\">the mean a perfect predictor would leave</td></tr>\n");
     }
     page.push_str("</table>\n");
-    if let Some(f) = &e.noise_floor {
-        let nugget = |n: Option<f64>| n.map_or("none".to_string(), |n| format!("{n:.5} mm²"));
-        let _ = writeln!(
-            page,
-            "<p>Noise floor: {}. Nugget of the variogram of the {} of the {} training \
-             samples: {} against Cartesian distance, {} against joint distance; their total variance \
-             is {:.5} mm². The nugget is the variance no predictor can explain (measurement \
-             noise and variation shorter than the sample spacing); \"mean ÷ floor\" says how \
-             many times that floor a method's mean residual is.</p>",
-            f.best_mean_mm.map_or(
-                "no mean estimated (too few sample pairs)".to_string(),
-                |m| format!("a perfect predictor would leave <b>{m:.4} mm</b> mean (Gaussian, per-axis σ² = smaller nugget / 3)")
-            ),
-            escape(&f.basis),
-            f.samples,
-            nugget(f.nugget_mm2_cartesian),
-            nugget(f.nugget_mm2_joint),
-            f.total_variance_mm2,
-        );
-    }
-    if let Some(c) = &e.comparison {
-        let _ = writeln!(
-            page,
-            "<p>\"± SE\" is the standard error of the mean residual: how closely these {} \
-             points pin it down. \"against best\" is, point by point over the points both \
-             predicted, a method's residual minus that of <b>{}</b> (the lowest mean of the \
-             methods that missed no point), ± its standard error: a point hard for one method \
-             is hard for a similar one, so it resolves smaller differences between similar \
-             methods than the means' standard errors suggest, and a difference within two of \
-             its standard errors is not resolved by these points.</p>",
-            e.nominal_mm.len(),
-            c.reference
-        );
-    }
+    noise_floor_paragraph(page, e);
+    comparison_paragraph(page, e);
     if !e.skipped.is_empty() {
         page.push_str("<p>Not run: ");
         let list: Vec<String> = e
@@ -273,6 +167,153 @@ fn figures_section(page: &mut String, e: &Evaluation, orientation: bool) {
         page.push_str(&list.join(", "));
         page.push_str("</p>\n");
     }
+}
+
+/// The heading and the figures table's header row: the ratio to the noise floor when
+/// there is one, the orientation columns when measured.
+fn figures_header(page: &mut String, floor: bool, orientation: bool) {
+    page.push_str("<h2>Figures</h2>\n<table><tr><th>method</th><th>predicted</th><th>missed</th><th>mean mm</th><th>RMS mm</th><th>p95 mm</th><th>max mm</th>");
+    if floor {
+        page.push_str("<th>mean ÷ floor</th>");
+    }
+    page.push_str("<th>± SE mm</th><th>against best mm</th>");
+    if orientation {
+        page.push_str("<th>mean mrad</th><th>RMS mrad</th><th>p95 mrad</th><th>max mrad</th>");
+    }
+    page.push_str("<th class=\"note\">notes</th></tr>\n");
+}
+
+/// A method's row: its figures, its comparison with the best, and its note (why it did
+/// not run, the points it missed, how its residual field was used).
+fn method_row(
+    page: &mut String,
+    e: &Evaluation,
+    m: &MethodResult,
+    floor_mm: Option<f64>,
+    orientation: bool,
+) {
+    let mut note = m.method.description().to_string();
+    if let Some(reason) = &m.unsupported {
+        note = format!("unsupported: {reason}");
+    }
+    if m.unsupported.is_none() {
+        for line in m
+            .not_predicted_summary()
+            .into_iter()
+            .chain(m.residual_summary())
+        {
+            let _ = write!(note, "; {line}");
+        }
+    }
+    let _ = write!(
+        page,
+        "<tr><td>{}{}</td><td>{}</td><td>{}</td>{}",
+        swatch(colour(m)),
+        m.method,
+        m.predicted(),
+        m.not_predicted_count(),
+        stat_cells(m.position_mm.as_ref(), floor_mm, true)
+    );
+    page.push_str(&against_best(e, Some(m.method)));
+    if orientation {
+        page.push_str(&stat_cells(m.orientation_mrad.as_ref(), floor_mm, false));
+    }
+    let _ = writeln!(page, "<td class=\"note\">{}</td></tr>", escape(&note));
+}
+
+/// The cells of one set of residual statistics: mean, RMS, p95 and max; for positions
+/// (`position`) also the mean's ratio to the noise floor and its standard error.
+fn stat_cells(
+    s: Option<&crate::baselines::ResidualStats>,
+    floor_mm: Option<f64>,
+    position: bool,
+) -> String {
+    let mut cells = match s {
+        Some(s) => [s.mean_norm, s.rms_norm, s.p95_norm, s.max_norm].map(Some),
+        None => [None; 4],
+    }
+    .map(cell)
+    .map(|c| format!("<td>{c}</td>"))
+    .concat();
+    if let (Some(floor), true) = (floor_mm, position) {
+        let r = s.map(|s| s.mean_norm / floor);
+        let _ = write!(
+            cells,
+            "<td>{}</td>",
+            r.map_or("—".to_string(), |r| format!("{r:.2}"))
+        );
+    }
+    if position {
+        let se = s.and_then(|s| s.mean_norm_standard_error);
+        let _ = write!(cells, "<td>{}</td>", cell(se));
+    }
+    cells
+}
+
+/// The cell of a method's paired difference from the best method, ± its standard error
+/// (`None`: the measured errors, never compared).
+fn against_best(e: &Evaluation, method: Option<crate::Method>) -> String {
+    let Some(c) = &e.comparison else {
+        return "<td>—</td>".to_string();
+    };
+    if method == Some(c.reference) {
+        // "best" says something only beside another method.
+        let alone = c.against.is_empty();
+        return format!("<td>{}</td>", if alone { "—" } else { "best" });
+    }
+    let d = c.against.iter().find(|d| Some(d.method) == method);
+    let text = d.map_or("—".to_string(), |d| {
+        format!(
+            "{:+.4}{}",
+            d.mean_difference_mm,
+            crate::output::plus_minus(d.standard_error_mm)
+        )
+    });
+    format!("<td>{text}</td>")
+}
+
+/// What the noise floor is and how it was estimated.
+fn noise_floor_paragraph(page: &mut String, e: &Evaluation) {
+    let Some(f) = &e.noise_floor else {
+        return;
+    };
+    let nugget = |n: Option<f64>| n.map_or("none".to_string(), |n| format!("{n:.5} mm²"));
+    let _ = writeln!(
+        page,
+        "<p>Noise floor: {}. Nugget of the variogram of the {} of the {} training \
+         samples: {} against Cartesian distance, {} against joint distance; their total variance \
+         is {:.5} mm². The nugget is the variance no predictor can explain (measurement \
+         noise and variation shorter than the sample spacing); \"mean ÷ floor\" says how \
+         many times that floor a method's mean residual is.</p>",
+        f.best_mean_mm.map_or(
+            "no mean estimated (too few sample pairs)".to_string(),
+            |m| format!("a perfect predictor would leave <b>{m:.4} mm</b> mean (Gaussian, per-axis σ² = smaller nugget / 3)")
+        ),
+        escape(&f.basis),
+        f.samples,
+        nugget(f.nugget_mm2_cartesian),
+        nugget(f.nugget_mm2_joint),
+        f.total_variance_mm2,
+    );
+}
+
+/// What the standard errors and the comparison with the best method say.
+fn comparison_paragraph(page: &mut String, e: &Evaluation) {
+    let Some(c) = &e.comparison else {
+        return;
+    };
+    let _ = writeln!(
+        page,
+        "<p>\"± SE\" is the standard error of the mean residual: how closely these {} \
+         points pin it down. \"against best\" is, point by point over the points both \
+         predicted, a method's residual minus that of <b>{}</b> (the lowest mean of the \
+         methods that missed no point), ± its standard error: a point hard for one method \
+         is hard for a similar one, so it resolves smaller differences between similar \
+         methods than the means' standard errors suggest, and a difference within two of \
+         its standard errors is not resolved by these points.</p>",
+        e.nominal_mm.len(),
+        c.reference
+    );
 }
 
 /// The cumulative distribution of position residual norms per method.
@@ -698,18 +739,15 @@ fn parameters_section(page: &mut String, e: &Evaluation) {
     };
     let _ = write!(
         page,
-        "<h2>Kinematic identification{}</h2>\n<p>{} parameters identified, {} held at \
-         nominal, {} unidentifiable; condition number of the identified parameters' scaled \
-         Jacobian {:.1}; position RMS over the training samples {:.4} mm before, {:.4} mm \
-         after{}; {} iterations{}.</p>\n",
+        "<h2>Kinematic identification{}</h2>\n<p>{}; condition number of the identified \
+         parameters' scaled Jacobian {:.1}; position RMS over the training samples {:.4} mm \
+         before, {:.4} mm after{}; {} iterations{}.</p>\n",
         if e.calibrations.len() > 1 {
             format!(", fold {} of {}", c.split + 1, e.calibrations.len())
         } else {
             String::new()
         },
-        c.identified.len(),
-        c.held,
-        c.unidentifiable.len(),
+        c.counts(),
         c.condition_number,
         c.initial_position_rms_mm,
         c.position_rms_mm,
@@ -726,21 +764,10 @@ fn parameters_section(page: &mut String, e: &Evaluation) {
          <th class=\"text\">strongest correlation</th><th class=\"text\">status</th><th class=\"note\">reason</th></tr>\n",
     );
     for r in parameter_order(&c.parameters) {
-        let (scale, unit) = if r.unit == "rad" {
-            (1e3, "mrad")
-        } else {
-            (1.0, "mm")
-        };
-        let identified = r.status == "identified";
-        let value = if identified {
-            format!("{:+.4}", r.value * scale)
-        } else {
-            "0".to_string()
-        };
-        let se = r
-            .standard_error
-            .map_or("—".to_string(), |s| format!("{:.4}", s * scale));
-        let ratio = match (identified, r.standard_error) {
+        let unit = r.shown_unit().1;
+        let value = r.value_text();
+        let se = r.standard_error_text();
+        let ratio = match (r.is_identified(), r.standard_error) {
             (true, Some(s)) if s > 0.0 => format!("{:.1}", r.value.abs() / s),
             _ => "—".to_string(),
         };
