@@ -19,6 +19,7 @@ mod joint_terms;
 mod latency_guard;
 mod merged_samples;
 mod no_alloc;
+mod option_spelling;
 mod options_first;
 mod outputs;
 mod plan_branches;

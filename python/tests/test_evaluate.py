@@ -149,3 +149,76 @@ def test_errors():
         adwi.evaluate(KR150 / "samples.csv", folds=3, methods=["nope"])
     with pytest.raises(adwi.AdwiError, match="limit"):
         adwi.evaluate(KR150 / "samples.csv", validation=KR150 / "validation.csv", limit=0)
+
+
+def by_region_table(text):
+    """The rows of the second figures table `tablec eval --by-region` prints: method,
+    predicted, missed and the four position figures, as printed."""
+    tables = [t for t in text.split("\nmethod ") if "│" in t][1:]
+    assert len(tables) == 2, text
+    rows = {}
+    for line in tables[1].splitlines()[1:]:
+        cells = line.replace("│", " ").split()
+        if len(cells) < 7 or not cells[1].isdigit():
+            continue
+        rows[cells[0]] = cells[1:7]
+    return rows
+
+
+def test_by_region_returns_the_table_tablec_prints(tablec, tmp_path):
+    options = dict(folds=3, seed=1, methods=["paper", "idw"])
+    records = adwi.evaluate(KR150 / "samples.csv", by_region=True, **options)
+    assert records.by_region is not None
+    assert [r["method"] for r in records.by_region] == ["uncompensated", "paper", "idw"]
+    assert set(records.by_region[0]) == set(records[0])
+    # Held out by region, not the random folds again.
+    assert records.by_region[1]["position_mean_mm"] != records[1]["position_mean_mm"]
+    printed = subprocess.run(
+        [
+            str(tablec), "eval", KR150 / "samples.csv", "--folds", "3", "--seed", "1",
+            "--methods", "paper,idw", "--by-region",
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    rows = by_region_table(printed)
+    assert sorted(rows) == ["idw", "paper", "uncompensated"]
+    for record in records.by_region:
+        row = rows[record["method"]]
+        assert int(row[0]) == record["predicted"]
+        assert int(row[1]) == record["not_predicted"]
+        for printed_value, key in zip(row[2:], ["mean", "rms", "p95", "max"]):
+            assert printed_value == format(record[f"position_{key}_mm"], ".4f"), key
+    # Without by_region there is no second evaluation.
+    assert adwi.evaluate(KR150 / "samples.csv", **options).by_region is None
+
+
+def test_a_refused_option_is_named_by_its_keyword_alone(tmp_path):
+    cases = [
+        (
+            lambda: adwi.evaluate(
+                KR150 / "samples.csv", validation=KR150 / "validation.csv", by_region=True
+            ),
+            "by_region",
+        ),
+        (
+            lambda: adwi.evaluate(
+                KR150 / "samples.csv", folds=3, register_validation_apart=True
+            ),
+            "register_validation_apart",
+        ),
+        (
+            lambda: adwi.build(
+                KR150 / "samples.csv", tmp_path / "t.tbl", tune=True, tune_folds=1
+            ),
+            "tune_folds",
+        ),
+        (lambda: adwi.evaluate(KR150 / "samples.csv", folds=3, base_link="b"), "base_link"),
+    ]
+    for call, keyword in cases:
+        with pytest.raises(adwi.AdwiError) as refused:
+            call()
+        message = str(refused.value)
+        assert keyword in message, message
+        assert "--" + keyword.replace("_", "-") not in message, message
