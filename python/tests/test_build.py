@@ -61,7 +61,7 @@ def test_tune_chooses_as_tablec_and_records_the_choice(tablec, tmp_path):
     assert 0.0 < report.tuning["served_cv_mean_mm"] < 0.2
     plain = adwi.build(KR150 / "samples.csv", tmp_path / "plain.tbl", served_field="method")
     assert plain.tuning is None
-    with pytest.raises(adwi.AdwiError, match="tune\\) chooses k and the radius"):
+    with pytest.raises(adwi.AdwiError, match="^tune chooses k and the radius ε: give tune, or k/radius"):
         adwi.build(KR150 / "samples.csv", tmp_path / "both.tbl", tune=True, k=8)
 
 

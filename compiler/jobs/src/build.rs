@@ -407,7 +407,7 @@ fn check(args: &BuildArgs) -> Result<(), JobError> {
     }
     if args.measured_in == Frame::Tracker && !robot {
         return Err(JobError::Options(
-            "--measured-in tracker (measured_in='tracker') needs the robot file the \
+            "--measured-in tracker needs the robot file the \
              measurements are registered to (--robot)"
                 .into(),
         ));

@@ -614,7 +614,7 @@ fn check(args: &EvalArgs) -> Result<(), JobError> {
     let robot = args.robot.robot.is_some();
     if args.measured_in == Frame::Tracker && !robot {
         return refuse(
-            "--measured-in tracker (measured_in='tracker') needs the robot file the \
+            "--measured-in tracker needs the robot file the \
              measurements are registered to (--robot)",
         );
     }

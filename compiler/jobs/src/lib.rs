@@ -207,8 +207,8 @@ pub(crate) fn flag(name: &str) -> String {
 }
 
 /// `message` with every option named as Python's keyword arguments name it: `--tune-folds`
-/// becomes `tune_folds`. Only a flag that stands as a word of its own is renamed (after
-/// the start, a space or an opening bracket or quote), not two hyphens inside a path.
+/// becomes `tune_folds`. Only a flag that stands as a word of its own is renamed, not two
+/// hyphens inside a path's name.
 pub fn keyword_spelling(message: &str) -> String {
     let mut out = String::with_capacity(message.len());
     let mut rest = message;
@@ -221,7 +221,9 @@ pub fn keyword_spelling(message: &str) -> String {
             .find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'))
             .unwrap_or(from.len() - 2);
         let name = &from[2..2 + name_len];
-        let standalone = previous_char.is_none_or(|c| c.is_whitespace() || "([{'\"`,".contains(c));
+        // A flag stands after the start, a space, an opening bracket or quote, a comma, or
+        // the slash between alternatives (`--k/--radius`).
+        let standalone = previous_char.is_none_or(|c| c.is_whitespace() || "([{'\"`,/".contains(c));
         if standalone && name.starts_with(|c: char| c.is_ascii_lowercase()) {
             out.push_str(&name.replace('-', "_"));
             rest = &from[2 + name_len..];
@@ -558,5 +560,9 @@ mod tests {
             "cannot read /tmp/a--b.csv: -1 (register_validation_apart)"
         );
         assert_eq!(keyword_spelling("-- a --"), "-- a --");
+        assert_eq!(
+            keyword_spelling("give --tune, or --k/--radius"),
+            "give tune, or k/radius"
+        );
     }
 }
