@@ -255,3 +255,43 @@ impl CalibrationSummary {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(unit: &'static str, status: &'static str, value: f64) -> ParameterRow {
+        ParameterRow {
+            name: "p".to_string(),
+            unit,
+            value,
+            held_estimate: None,
+            standard_error: Some(0.5 * value.abs()),
+            correlated_with: None,
+            correlation: None,
+            status,
+            reason: String::new(),
+        }
+    }
+
+    /// The terminal's table and the report show a row alike: angles in mrad, lengths in
+    /// mm, a compliance in its own unit (the report once called it mm); a parameter not
+    /// identified is 0 with its standard error kept.
+    #[test]
+    fn a_row_is_shown_in_its_unit_angles_in_mrad() {
+        let angle = row("rad", "identified", -2e-4);
+        assert_eq!(angle.shown_unit(), (1e3, "mrad"));
+        assert_eq!(
+            (angle.value_text(), angle.standard_error_text()),
+            ("-0.2000".to_string(), "0.1000".to_string())
+        );
+        let compliance = row("µrad/(N·m)", "identified", 1.25);
+        assert_eq!(compliance.shown_unit(), (1.0, "µrad/(N·m)"));
+        assert_eq!(compliance.value_text(), "+1.2500");
+        let held = row("mm", "held", 0.3);
+        assert_eq!(
+            (held.value_text(), held.standard_error_text()),
+            ("0".to_string(), "0.1500".to_string())
+        );
+    }
+}
