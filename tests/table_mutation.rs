@@ -34,8 +34,9 @@ fn env_or(name: &str, default: u64) -> u64 {
 }
 
 /// The fuzz target's seed tables, small tables of real builds (`fuzz/seeds/README.md`):
-/// positions only, orientation with configurations, the worked example, and a hybrid
-/// table with joint angles, a kinematic model and a joint-space screen.
+/// positions only, orientation with configurations, the worked example, a hybrid table
+/// with joint angles, a kinematic model and a joint-space screen, and a table of merged
+/// samples (version 4).
 fn seeds() -> Vec<(String, Vec<u8>)> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/seeds/open_table");
     let mut out: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
@@ -47,10 +48,16 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         })
         .collect();
     out.sort();
-    assert!(out.len() >= 9, "seed tables missing from {}", dir.display());
+    assert!(out.len() >= 10, "seed tables missing from {}", dir.display());
     for (name, bytes) in &out {
         let table = Table::from_vec(bytes).unwrap_or_else(|e| panic!("seed {name}: {e}"));
-        let version = if name.starts_with("v1_") { 1 } else { 2 };
+        let version = if name.starts_with("v1_") {
+            1
+        } else if name.starts_with("merged_") {
+            4
+        } else {
+            2
+        };
         assert_eq!(table.header().version, version, "{name}");
         if name.contains("hybrid") {
             assert!(table.is_hybrid(), "{name}");
