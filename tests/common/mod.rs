@@ -168,14 +168,17 @@ pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out:
         robot,
         "--hybrid",
     ];
-    // The method's own served field and no posture term unless asked otherwise: the tests
-    // that use this table check its figures, not the choices a default build makes (tests
-    // of their own).
+    // The method's own served field, no posture term and the whole residual field unless
+    // asked otherwise: the tests that use this table check its figures, not the choices a
+    // default build makes (tests of their own).
     if !extra.contains(&"--served-field") {
         args.extend(["--served-field", "method"]);
     }
     if !extra.contains(&"--posture") {
         args.extend(["--posture", "off"]);
+    }
+    if !extra.contains(&"--residual-weight") {
+        args.extend(["--residual-weight", "full"]);
     }
     args.extend_from_slice(extra);
     args.extend(["-o", out]);
