@@ -131,6 +131,33 @@ pub fn option_frame_within(frame: &[f64; 6]) -> bool {
         && frame[3..].iter().all(|v| v.abs() <= MAX_ANGLE_DEG)
 }
 
+/// The frame a command-line option writes after its name's `=`: `X,Y,Z` or
+/// `X,Y,Z,A,B,C` (mm, degrees; the angles 0 when not written), within the bounds of a
+/// frame; the error quotes the values and says `usage`.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn option_frame(values: &str, usage: &str) -> Result<[f64; 6], String> {
+    let numbers: Vec<f64> = values
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{values}': {usage}"))?;
+    let mut frame = [0.0; 6];
+    match numbers.len() {
+        3 | 6 => frame[..numbers.len()].copy_from_slice(&numbers),
+        _ => return Err(format!("'{values}': {usage}")),
+    }
+    if !option_frame_within(&frame) {
+        return Err(format!(
+            "'{values}': within ±{} mm and ±{}°",
+            MAX_POSITION_MM, MAX_ANGLE_DEG
+        ));
+    }
+    Ok(frame)
+}
+
 /// The first line of `src` longer than [`MAX_LINE_BYTES`]: an error with its line and its
 /// length, found by one pass over the bytes before any is split into tokens.
 ///
@@ -152,4 +179,30 @@ pub fn check_line_lengths(src: &Source) -> Result<(), crate::Error> {
         start += line.len();
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_option_frame_takes_three_or_six_numbers_within_bounds() {
+        let usage = "N=X,Y,Z[,A,B,C]";
+        assert_eq!(
+            option_frame("1, 2,3", usage),
+            Ok([1.0, 2.0, 3.0, 0.0, 0.0, 0.0])
+        );
+        assert_eq!(
+            option_frame("1,2,3,4,5,6", usage),
+            Ok([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+        );
+        assert_eq!(option_frame("1,2", usage), Err(format!("'1,2': {usage}")));
+        assert_eq!(
+            option_frame("1,x,3", usage),
+            Err(format!("'1,x,3': {usage}"))
+        );
+        assert!(option_frame("1e9,0,0", usage)
+            .unwrap_err()
+            .contains("within"));
+    }
 }

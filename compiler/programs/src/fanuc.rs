@@ -130,7 +130,7 @@ pub fn parse_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
         .ok()
         .filter(|n| *n >= 1)
         .ok_or_else(|| format!("'{}': {usage}", name.trim()))?;
-    Ok((number, crate::number::option_frame(values, usage)?))
+    Ok((number, crate::bounds::option_frame(values, usage)?))
 }
 
 /// Reads a controller's frame file: the ASCII dump of its system variables

@@ -100,7 +100,7 @@ pub fn parse_work_offset(text: &str) -> Result<(u8, [f64; 6]), String> {
         .and_then(|n| n.parse::<u8>().ok())
         .filter(|n| (54..=59).contains(n))
         .ok_or_else(|| format!("'{}': {usage}", name.trim()))?;
-    Ok((number, crate::number::option_frame(values, usage)?))
+    Ok((number, crate::bounds::option_frame(values, usage)?))
 }
 
 /// The plane of an arc: its two in-plane axes (u, v) and its normal, as indices of X, Y, Z.

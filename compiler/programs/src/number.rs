@@ -135,34 +135,6 @@ pub fn parse_number(bytes: &[u8], start: usize) -> Option<Number> {
     })
 }
 
-/// The frame a command-line option writes after its name's `=`: `X,Y,Z` or
-/// `X,Y,Z,A,B,C` (mm, degrees; the angles 0 when not written), within the bounds of a
-/// frame; the error quotes the values and says `usage`.
-///
-/// # Errors
-///
-/// A message saying what is wrong.
-pub fn option_frame(values: &str, usage: &str) -> Result<[f64; 6], String> {
-    let numbers: Vec<f64> = values
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{values}': {usage}"))?;
-    let mut frame = [0.0; 6];
-    match numbers.len() {
-        3 | 6 => frame[..numbers.len()].copy_from_slice(&numbers),
-        _ => return Err(format!("'{values}': {usage}")),
-    }
-    if !crate::bounds::option_frame_within(&frame) {
-        return Err(format!(
-            "'{values}': within ±{} mm and ±{}°",
-            crate::bounds::MAX_POSITION_MM,
-            crate::bounds::MAX_ANGLE_DEG
-        ));
-    }
-    Ok(frame)
-}
-
 /// A count of digits as a style keeps it: beyond 65,535 (a line's worth) an `f64` has long
 /// run out of digits, and the count only pads a number nobody writes.
 fn saturating_u16(count: usize) -> u16 {
@@ -338,27 +310,6 @@ mod tests {
             "1.25e-3"
         );
         assert_eq!(format_number(2.0, &parsed("1500.").style, 4), "2.");
-    }
-
-    #[test]
-    fn an_option_frame_takes_three_or_six_numbers_within_bounds() {
-        let usage = "N=X,Y,Z[,A,B,C]";
-        assert_eq!(
-            option_frame("1, 2,3", usage),
-            Ok([1.0, 2.0, 3.0, 0.0, 0.0, 0.0])
-        );
-        assert_eq!(
-            option_frame("1,2,3,4,5,6", usage),
-            Ok([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
-        );
-        assert_eq!(option_frame("1,2", usage), Err(format!("'1,2': {usage}")));
-        assert_eq!(
-            option_frame("1,x,3", usage),
-            Err(format!("'1,x,3': {usage}"))
-        );
-        assert!(option_frame("1e9,0,0", usage)
-            .unwrap_err()
-            .contains("within"));
     }
 
     #[test]

@@ -186,20 +186,6 @@ struct Position {
     direct: bool,
 }
 
-/// The end of the line starting at `start`, and where the next starts.
-fn line_end(bytes: &[u8], start: usize) -> (usize, usize) {
-    let end = bytes[start..]
-        .iter()
-        .position(|b| *b == b'\n' || *b == b'\r')
-        .map_or(bytes.len(), |p| start + p);
-    let next = if bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
-        end + 2
-    } else {
-        end + 1
-    };
-    (end, next)
-}
-
 /// The whitespace-separated words of `start..end`, with their offsets.
 fn words(bytes: &[u8], start: usize, end: usize) -> Vec<(usize, &[u8])> {
     let mut out = Vec::new();
@@ -248,7 +234,7 @@ pub fn read_at_most(
     let mut start = 0;
     let mut line_number = 0;
     while start < bytes.len() {
-        let (end, next) = line_end(bytes, start);
+        let (end, next) = src.line_at(start);
         line_number += 1;
         let mut at = start;
         if at == 0 && bytes.starts_with(b"\xef\xbb\xbf") {
