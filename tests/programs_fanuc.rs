@@ -425,3 +425,71 @@ fn a_fanuc_program_saved_as_another_dialect_is_refused_by_name() {
         "{stderr}"
     );
 }
+
+/// A Fanuc program in `dir` of one position over the KR150-2's samples (their orientation),
+/// in the world frame with tool 1 at the faceplate, its `CONFIG` written as `config`.
+fn one_position_program(dir: &Path, config: &str) -> PathBuf {
+    let path = dir.join(format!("branch-{}.ls", dir.read_dir().unwrap().count()));
+    std::fs::write(
+        &path,
+        format!(
+            "/PROG  BRANCH\n/ATTR\nOWNER\t\t= MNEDITOR;\n/MN\n   1:  UFRAME_NUM=0 ;\n   2:  UTOOL_NUM=1 ;\n\
+             \x20  3:L P[1] 100mm/sec FINE    ;\n/POS\nP[1]{{\n   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : '{config}',\n\
+             \tX =   1750.000  mm,\tY =    450.000  mm,\tZ =   1250.000  mm,\n\
+             \tW =       .000 deg,\tP =     90.000 deg,\tR =       .000 deg\n}};\n/END\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// The program's one position compensated by `table` with the KR150-2 robot file and tool
+/// 1 at the faceplate: its report line.
+fn compensate_one_position(table: &Path, program: &Path) -> adwi_programs::TargetLine {
+    let mut o = CompensateOptions::new(table, program);
+    o.robot = Some(robot());
+    o.fanuc = FanucOptions {
+        user_frames: Vec::new(),
+        tool_frames: vec![(1, [0.0; 6])],
+        frames_file: None,
+    };
+    let done = CompensateJob::new(o).unwrap().run().unwrap();
+    done.report.targets[0].clone()
+}
+
+/// With a hybrid table a position is solved in the posture its CONFIG writes; a CONFIG the
+/// reader cannot read (a letter of no pair, a pair given twice, a pair missing, a turn that
+/// is not a whole number from −4 to 4, a SCARA's) leaves the position as written, named,
+/// instead of a correction in a posture the program does not give.
+#[test]
+fn a_fanuc_config_that_cannot_be_read_leaves_the_position_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::kr150_hybrid_table(dir.path());
+    let written =
+        compensate_one_position(&table, &one_position_program(dir.path(), "F U T, 0, 0, 0"));
+    assert_eq!(written.status.as_str(), "ok", "{}", written.detail);
+    for config in [
+        "F U X, 0, 0, 0",
+        "F U U, 0, 0, 0",
+        "F U, 0, 0, 0",
+        "F U T, 0, 0.5, 0",
+        "F U T, 0, 0, 9",
+        "F U T, 0, 0",
+        "N, 0, 0, 0",
+    ] {
+        let line = compensate_one_position(&table, &one_position_program(dir.path(), config));
+        assert_eq!(line.status.as_str(), "invalid", "{config}: {}", line.detail);
+        assert!(
+            line.detail
+                .starts_with("a Fanuc CONFIG is 'N|F U|D T|B, j4, j5, j6'")
+                && line
+                    .detail
+                    .contains(&format!("found '{config}' (line 11, column 29)"))
+                && line
+                    .detail
+                    .ends_with("not corrected in a posture the program does not give"),
+            "{config}: {}",
+            line.detail
+        );
+    }
+}

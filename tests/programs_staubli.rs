@@ -557,33 +557,6 @@ fn hostile_val3_files_give_located_errors_never_a_panic() {
     );
 }
 
-/// The KR150-2 hybrid table built in `dir`: the robot file's kinematics with the model
-/// calibrated on the shipped samples (all in one wrist branch, J5 < 0), whose answer
-/// depends on the posture.
-fn kr150_hybrid(dir: &Path) -> PathBuf {
-    let samples = repo("tables/kr150-2/samples.csv");
-    let robot = repo("tables/kr150-2/robot.toml");
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--robot",
-            robot.to_str().unwrap(),
-            "--hybrid",
-            "--served-field",
-            "method",
-            "--posture",
-            "off",
-            "-o",
-            "kr150-hybrid.tbl",
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("kr150-hybrid.tbl")
-}
-
 /// A VAL3 application in `dir` of one point over the KR150-2's samples (their
 /// orientation), moved to with the flange as the tool, its value written with `config`
 /// (its `shoulder`, `elbow` and `wrist` attributes).
@@ -653,7 +626,7 @@ fn command_posture(line: &adwi_programs::TargetLine) -> (Vec<f64>, adwi_robot::C
 #[test]
 fn a_hybrid_table_solves_a_val3_point_on_its_written_wrist_not_the_nearest() {
     let dir = tempfile::tempdir().unwrap();
-    let table = kr150_hybrid(dir.path());
+    let table = crate::common::kr150_hybrid_table(dir.path());
     let mut flips = Vec::new();
     for wrist in ["wfree", "wnegative", "wpositive"] {
         let config = format!("shoulder=\"lefty\" elbow=\"epositive\" wrist=\"{wrist}\"");
@@ -691,7 +664,7 @@ fn a_hybrid_table_solves_a_val3_point_on_its_written_wrist_not_the_nearest() {
 #[test]
 fn a_val3_config_that_cannot_be_read_or_kept_leaves_the_point_as_written() {
     let dir = tempfile::tempdir().unwrap();
-    let table = kr150_hybrid(dir.path());
+    let table = crate::common::kr150_hybrid_table(dir.path());
     let pjx = one_point_application(
         &dir.path().join("upright"),
         "shoulder=\"upright\" elbow=\"epositive\"",

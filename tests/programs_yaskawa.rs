@@ -450,32 +450,6 @@ fn one_position_job(dir: &Path, rconf: Option<&str>) -> PathBuf {
     path
 }
 
-/// The KR150-2 hybrid table built in `dir` (the robot file's kinematics and the model
-/// calibrated on the shipped samples, all of them flipped: J4 near 0°, J5 < 0).
-fn kr150_hybrid(dir: &Path) -> PathBuf {
-    let samples = repo("tables/kr150-2/samples.csv");
-    let robot = repo("tables/kr150-2/robot.toml");
-    let o = crate::common::tablec(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--robot",
-            robot.to_str().unwrap(),
-            "--hybrid",
-            "--served-field",
-            "method",
-            "--posture",
-            "off",
-            "-o",
-            "kr150-hybrid.tbl",
-        ],
-        dir,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("kr150-hybrid.tbl")
-}
-
 /// The job's one position compensated by `table` with the KR150-2 robot file: its report
 /// line.
 fn compensate_one(table: &Path, job: &Path) -> adwi_programs::TargetLine {
@@ -508,7 +482,7 @@ fn command_posture(line: &adwi_programs::TargetLine) -> (Vec<f64>, adwi_robot::C
 #[test]
 fn a_hybrid_table_solves_a_yaskawa_position_on_its_written_rconf_not_the_nearest() {
     let dir = tempfile::tempdir().unwrap();
-    let table = kr150_hybrid(dir.path());
+    let table = crate::common::kr150_hybrid_table(dir.path());
     let run = |rconf: Option<&str>| {
         let line = compensate_one(&table, &one_position_job(dir.path(), rconf));
         assert_eq!(line.status.as_str(), "ok", "{rconf:?}: {}", line.detail);
@@ -566,7 +540,7 @@ fn a_hybrid_table_solves_a_yaskawa_position_on_its_written_rconf_not_the_nearest
 #[test]
 fn a_yaskawa_rconf_that_cannot_be_read_leaves_the_position_as_written() {
     let dir = tempfile::tempdir().unwrap();
-    let table = kr150_hybrid(dir.path());
+    let table = crate::common::kr150_hybrid_table(dir.path());
     let line = compensate_one(
         &table,
         &one_position_job(dir.path(), Some("0,2,0,0,0,0,0,0")),

@@ -230,6 +230,34 @@ pub fn method_table(
     dir.join(out)
 }
 
+/// The KR150-2 hybrid table built in `dir` as `kr150-hybrid.tbl`: the robot file's
+/// kinematics with the model calibrated on the shipped samples (all in one wrist branch,
+/// J4 near 0°, J5 < 0), the method's field and no posture term, so that its answer depends
+/// on the posture a program writes. Built once per test process ([`tablec_once`]).
+pub fn kr150_hybrid_table(dir: &std::path::Path) -> std::path::PathBuf {
+    let samples = repo("tables/kr150-2/samples.csv");
+    let robot = repo("tables/kr150-2/robot.toml");
+    let o = tablec_once(
+        &[
+            "build",
+            "-q",
+            samples.to_str().unwrap(),
+            "--robot",
+            robot.to_str().unwrap(),
+            "--hybrid",
+            "--served-field",
+            "method",
+            "--posture",
+            "off",
+            "-o",
+            "kr150-hybrid.tbl",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join("kr150-hybrid.tbl")
+}
+
 /// `tablec compensate` with `args`: exit code, standard output and error.
 pub fn compensate(dir: &std::path::Path, args: &[&str]) -> (i32, String, String) {
     let mut all = vec!["compensate"];

@@ -1056,7 +1056,7 @@ impl FrameFields<'_, '_> {
             .iter()
             .find_map(|f| match f.value {
                 FieldValue::Text(s, e) if f.name == "CONFIG" => {
-                    Some(config_hint(&self.src.bytes[s..e]))
+                    Some(config_hint(&self.src.bytes[s..e], (s, e)))
                 }
                 _ => None,
             })
@@ -1135,38 +1135,53 @@ impl FrameFields<'_, '_> {
 
 /// A position's `CONFIG : 'N U T, 0, 0, 0'`: the wrist (`N` no flip, `F` flip), the elbow
 /// (`U` up, `D` down), the shoulder (`T` front, `B` back), and the turn numbers of J4, J5
-/// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k).
-fn config_hint(text: &[u8]) -> ConfigHint {
+/// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k). `span` is where the text is written.
+///
+/// A CONFIG that is not one letter of each pair and three whole turn numbers (a SCARA's,
+/// a misspelt one) is [`ConfigHint::Unreadable`]: the controller reads it in a way this
+/// reader does not, so a target solved in any posture would be a guess.
+fn config_hint(text: &[u8], span: (usize, usize)) -> ConfigHint {
+    const EXPECTED: &str =
+        "a Fanuc CONFIG is 'N|F U|D T|B, j4, j5, j6' (one letter of each pair, three turn numbers from -4 to 4)";
+    let unreadable = ConfigHint::Unreadable {
+        span,
+        expected: EXPECTED,
+    };
     let text = String::from_utf8_lossy(text).to_ascii_uppercase();
     let mut parts = text.split(',');
     let letters = parts.next().unwrap_or("");
     let mut bits: u8 = 0;
-    let mut seen = 0;
+    // Which of wrist, elbow and shoulder a letter has given.
+    let mut given = [false; 3];
     for word in letters.split_whitespace() {
-        match word {
-            "N" | "U" | "T" => seen += 1,
-            "F" => {
-                bits |= 4;
-                seen += 1;
-            }
-            "D" => {
-                bits |= 2;
-                seen += 1;
-            }
-            "B" => {
-                bits |= 1;
-                seen += 1;
-            }
-            _ => {}
+        let (which, bit) = match word {
+            "N" => (0, 0),
+            "F" => (0, 4),
+            "U" => (1, 0),
+            "D" => (1, 2),
+            "T" => (2, 0),
+            "B" => (2, 1),
+            _ => return unreadable,
+        };
+        if given[which] {
+            return unreadable;
         }
+        given[which] = true;
+        bits |= bit;
     }
-    let turns: Vec<Option<i8>> = parts
+    if given != [true; 3] {
+        return unreadable;
+    }
+    let turns: Vec<i8> = match parts
         .map(|t| t.trim().parse::<i8>().ok().filter(|k| (-4..=4).contains(k)))
-        .collect();
-    let turn = |k: usize| turns.get(k).copied().flatten();
+        .collect::<Option<Vec<i8>>>()
+    {
+        Some(turns) if turns.len() == 3 => turns,
+        _ => return unreadable,
+    };
     ConfigHint::FanucConfig {
-        configuration: (seen == 3).then_some(bits),
-        turns: [turn(0), turn(1), turn(2)],
+        configuration: Some(bits),
+        turns: [Some(turns[0]), Some(turns[1]), Some(turns[2])],
     }
 }
 

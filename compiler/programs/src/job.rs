@@ -1912,7 +1912,12 @@ fn unmapped_configuration(src: &Source, hint: &ConfigHint, k: &Kinematics) -> Op
                 "{expected}, found {found} (line {line}, column {column}): {unmapped}"
             ))
         }
-        ConfigHint::Val3 { .. } | ConfigHint::YaskawaRconf { .. } if !k.has_configurations() => {
+        ConfigHint::Val3 { .. }
+        | ConfigHint::YaskawaRconf { .. }
+        | ConfigHint::FanucConfig {
+            configuration: Some(_),
+            ..
+        } if !k.has_configurations() => {
             Some(format!(
                 "the written configuration ({}) is not one a robot of {} joints without closed-form configurations has: {unmapped}",
                 written_configuration(hint),
@@ -1958,6 +1963,21 @@ fn written_configuration(hint: &ConfigHint) -> String {
                 angle("R", r),
                 angle("T", t),
                 angle("S", s)
+            )
+        }
+        ConfigHint::FanucConfig {
+            configuration: Some(bits),
+            turns,
+        } => {
+            let turn = |t: Option<i8>| t.map_or_else(|| "?".to_string(), |t| t.to_string());
+            format!(
+                "CONFIG '{} {} {}, {}, {}, {}'",
+                if bits & 4 != 0 { "F" } else { "N" },
+                if bits & 2 != 0 { "D" } else { "U" },
+                if bits & 1 != 0 { "B" } else { "T" },
+                turn(turns[0]),
+                turn(turns[1]),
+                turn(turns[2])
             )
         }
         _ => String::new(),
