@@ -48,7 +48,11 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         })
         .collect();
     out.sort();
-    assert!(out.len() >= 10, "seed tables missing from {}", dir.display());
+    assert!(
+        out.len() >= 10,
+        "seed tables missing from {}",
+        dir.display()
+    );
     for (name, bytes) in &out {
         let table = Table::from_vec(bytes).unwrap_or_else(|e| panic!("seed {name}: {e}"));
         let version = if name.starts_with("v1_") {

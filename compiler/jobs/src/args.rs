@@ -343,9 +343,13 @@ impl TableArgs {
             },
             merge_voxel_mm: self.merge_voxel,
             // Not finite or not positive: 0, which the build refuses.
-            max_table_bytes: self
-                .max_table_mb
-                .map(|mb| if mb.is_finite() && mb > 0.0 { (mb * 1e6) as u128 } else { 0 }),
+            max_table_bytes: self.max_table_mb.map(|mb| {
+                if mb.is_finite() && mb > 0.0 {
+                    (mb * 1e6) as u128
+                } else {
+                    0
+                }
+            }),
         }
     }
 }
