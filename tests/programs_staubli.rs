@@ -15,7 +15,7 @@ use adwi_programs::staubli::Application;
 use adwi_programs::{CompensateJob, CompensateOptions};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::common::{compensate, method_table, repo, tablec};
+use crate::common::{compensate, method_table, repo};
 
 fn application(name: &str) -> PathBuf {
     repo(&format!("tests/programs/staubli/{name}/{name}.pjx"))
