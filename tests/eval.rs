@@ -703,6 +703,9 @@ fn a_table_built_before_is_scored_as_the_method_that_built_it() {
             "30",
             "--served-field",
             "method",
+            // The table's residual field is whole (`build_ur5_hybrid`).
+            "--residual-weight",
+            "full",
             "--methods",
             "hybrid-trilinear",
             "--json",
