@@ -34,50 +34,105 @@ pub struct SampleMerge {
     pub merged: usize,
 }
 
-/// Each sample's voxel and configuration, with its index: sorted, the samples of one voxel
-/// are adjacent and in source order.
-fn voxel_keys(samples: &SampleSet, voxel_mm: f64) -> Vec<([i64; 3], u8, u32)> {
-    let Some((lo, _)) = samples.nominal_bounds_mm() else {
-        return Vec::new();
-    };
-    let mut keys: Vec<([i64; 3], u8, u32)> = (0..samples.len())
-        .map(|i| {
-            let p = samples.nominal_mm[i];
-            // Finite samples within the workspace bound: the quotient fits an i64.
-            let key = [0, 1, 2].map(|a| ((p[a] - lo[a]) / voxel_mm).floor() as i64);
-            let config = samples.config.as_ref().map_or(0, |c| c[i]);
-            (key, config, i as u32)
+/// Where each sample falls: its voxel, its configuration and, with joint values, the cell
+/// of each joint in steps of `voxel_mm` over the samples' reach (rad; mm for a prismatic
+/// joint, which then merges only nearly equal values). Samples at one position in other arm
+/// poses (a pose measured in several orientations) are not one sample: their joint values
+/// and errors do not average into any pose the arm takes. A joint turned by less than the
+/// step moves the point by at most about a voxel, so a tracked path still merges.
+struct Voxels<'a> {
+    samples: &'a SampleSet,
+    lo_mm: [f64; 3],
+    voxel_mm: f64,
+    joint_step: f64,
+}
+
+impl<'a> Voxels<'a> {
+    fn new(samples: &'a SampleSet, voxel_mm: f64) -> Option<Voxels<'a>> {
+        let (lo_mm, _) = samples.nominal_bounds_mm()?;
+        let reach_mm = samples
+            .nominal_mm
+            .iter()
+            .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+            .fold(voxel_mm, f64::max);
+        Some(Voxels {
+            samples,
+            lo_mm,
+            voxel_mm,
+            joint_step: voxel_mm / reach_mm,
         })
-        .collect();
-    keys.sort_unstable_by_key(|&(key, config, i)| (config, key, i));
-    keys
+    }
+
+    /// Sample `i`'s configuration and voxel.
+    fn cell(&self, i: usize) -> (u8, [i64; 3]) {
+        let p = self.samples.nominal_mm[i];
+        // Finite samples within the workspace bound: the quotient fits an i64.
+        let key = [0, 1, 2].map(|a| ((p[a] - self.lo_mm[a]) / self.voxel_mm).floor() as i64);
+        (self.samples.config.as_ref().map_or(0, |c| c[i]), key)
+    }
+
+    /// Samples `i` and `j` ordered by configuration, voxel, then joint cells.
+    fn order(&self, i: usize, j: usize) -> std::cmp::Ordering {
+        self.cell(i).cmp(&self.cell(j)).then_with(|| {
+            let Some(joints) = self.samples.joints.as_ref() else {
+                return std::cmp::Ordering::Equal;
+            };
+            let step = |q: f64| (q / self.joint_step).floor() as i64;
+            joints
+                .row(i)
+                .iter()
+                .map(|&q| step(q))
+                .cmp(joints.row(j).iter().map(|&q| step(q)))
+        })
+    }
+
+    /// The sample indices sorted so that those merged together are adjacent, each group in
+    /// source order.
+    fn sorted(&self) -> Vec<u32> {
+        let mut order: Vec<u32> = (0..self.samples.len() as u32).collect();
+        order.sort_unstable_by(|&i, &j| self.order(i as usize, j as usize).then_with(|| i.cmp(&j)));
+        order
+    }
+
+    /// Whether samples `i` and `j` are merged together.
+    fn together(&self, i: u32, j: u32) -> bool {
+        self.order(i as usize, j as usize).is_eq()
+    }
 }
 
-/// How many samples a merge in voxels of `voxel_mm` leaves (one per voxel and
-/// configuration), without merging.
+/// How many samples a merge in voxels of `voxel_mm` leaves (one per voxel, configuration
+/// and joint cells), without merging.
 pub fn merged_count(samples: &SampleSet, voxel_mm: f64) -> usize {
-    let keys = voxel_keys(samples, voxel_mm);
-    keys.windows(2)
-        .filter(|w| (w[0].0, w[0].1) != (w[1].0, w[1].1))
+    let Some(voxels) = Voxels::new(samples, voxel_mm) else {
+        return 0;
+    };
+    let order = voxels.sorted();
+    order
+        .windows(2)
+        .filter(|w| !voxels.together(w[0], w[1]))
         .count()
-        + usize::from(!keys.is_empty())
+        + usize::from(!order.is_empty())
 }
 
-/// `samples` merged in voxels of `voxel_mm`: per voxel and configuration one sample, the
-/// mean of its members' nominal positions, position and orientation errors and joint
-/// values; its nominal orientation, source line and configuration are its first member's.
+/// `samples` merged in voxels of `voxel_mm`: per voxel, configuration and joint cells one
+/// sample, the mean of its members' nominal positions, position and orientation errors and
+/// joint values; its nominal orientation, source line and configuration are its first
+/// member's.
 pub fn merge(samples: &SampleSet, voxel_mm: f64) -> SampleSet {
-    let keys = voxel_keys(samples, voxel_mm);
+    let Some(voxels) = Voxels::new(samples, voxel_mm) else {
+        return samples.clone();
+    };
+    let order = voxels.sorted();
     // The groups, each its members' indices in source order, ordered by first member.
     let mut groups: Vec<Vec<u32>> = Vec::new();
-    for (j, &(key, config, i)) in keys.iter().enumerate() {
-        if j > 0 && (keys[j - 1].0, keys[j - 1].1) == (key, config) {
+    for (j, &i) in order.iter().enumerate() {
+        if j > 0 && voxels.together(order[j - 1], i) {
             groups.last_mut().expect("a group was opened").push(i);
         } else {
             groups.push(vec![i]);
         }
     }
-    drop(keys);
+    drop(order);
     groups.sort_unstable_by_key(|g| g[0]);
     let firsts: Vec<usize> = groups.iter().map(|g| g[0] as usize).collect();
     let mut merged = samples.subset(&firsts);
@@ -160,6 +215,41 @@ mod tests {
         assert_eq!(m.lines[3], s.lines[30]);
         // A voxel finer than the step keeps every sample as it was.
         assert_eq!(merge(&s, 0.05), s);
+    }
+
+    /// One position measured in two arm poses (joint values far apart) stays two samples;
+    /// a path whose joints turn by a fraction of the voxel's angle still merges.
+    #[test]
+    fn samples_of_other_arm_poses_at_one_position_are_never_merged() {
+        let mut csv = String::from("x,y,z,dx,dy,dz,j1,j2,j3,j4,j5,j6\n");
+        for i in 0..4 {
+            // Rows 0 and 2 in one pose, rows 1 and 3 with the wrist turned by 1° (joints in
+            // degrees, read as radians).
+            let wrist = if i % 2 == 0 { 0.0 } else { 1.0 };
+            csv += &format!(
+                "{},500,800,0.1,0.1,0.1,0.1,0.2,0.3,{wrist},0.5,0.6\n",
+                1000.0 + 0.01 * f64::from(i)
+            );
+        }
+        let s = parse_samples("a.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
+        assert_eq!(merged_count(&s, 1.0), 2);
+        let m = merge(&s, 1.0);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m.joints.as_ref().unwrap().row(1)[3], 1f64.to_radians());
+        assert_eq!(m.nominal_mm[1][0], (1000.01 + 1000.03) / 2.0);
+        // A joint turning by 1e-6° a sample (well under a µm at this reach) merges in 1 mm
+        // voxels.
+        let mut csv = String::from("x,y,z,dx,dy,dz,j1,j2,j3,j4,j5,j6\n");
+        for i in 0..10 {
+            let q = 0.1 + 1e-6 * f64::from(i);
+            csv += &format!(
+                "{},500,800,0.1,0.1,0.1,{q},0.2,0.3,0.4,0.5,0.6\n",
+                1000.0 + 0.001 * f64::from(i)
+            );
+        }
+        let s = parse_samples("p.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
+        assert_eq!(merged_count(&s, 1.0), merge(&s, 1.0).len());
+        assert!(merged_count(&s, 1.0) <= 2, "{}", merged_count(&s, 1.0));
     }
 
     #[test]
