@@ -118,7 +118,7 @@ pub fn compile_serving(
         }
         nodes => nodes,
     };
-    let (mut bytes, mut report) = build::compile_plan_serving(
+    let compiled = build::encode::compile_plan_values(
         &residual,
         plan,
         Some(model),
@@ -126,13 +126,11 @@ pub fn compile_serving(
         nodes,
         progress,
     )?;
-    if plan.posture != crate::posture::Posture::Off {
-        let (with_term, posture) =
-            crate::posture::add_term(&bytes, samples, plan.posture, plan.tuning)?;
-        report.table_bytes = with_term.len();
-        report.posture = Some(posture);
-        bytes = with_term;
-    }
+    let (bytes, report) = if plan.posture == crate::posture::Posture::Off {
+        (compiled.bytes, compiled.report)
+    } else {
+        crate::posture::add_term(compiled, samples, model, plan.posture, plan.tuning)?
+    };
     let sum: f64 = residual
         .error_mm
         .iter()

@@ -32,7 +32,9 @@ use adwi_runtime::posture::PostureParams;
 use adwi_runtime::{Status, Table, Target};
 use adwi_samples::SampleSet;
 
-use crate::build::BuildError;
+use crate::build::encode::{joint_terms_record, Compiled};
+use crate::build::{BuildError, BuildReport};
+use adwi_runtime::model::PreparedModel;
 
 /// What a build does about the posture term.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -397,59 +399,57 @@ pub fn lists(
     })
 }
 
-/// `table` (a version-2 hybrid table of `samples`, built without the term) with the
-/// posture term fitted as `posture` asks (never [`Posture::Off`]), its header's tuning
-/// as `tuning` says: the bytes of the version-3 table and the fit's report.
+/// `table` (a hybrid table of `samples` compiled without the term, whose bytes answer the
+/// residuals of step 1) with the posture term fitted as `posture` asks (never
+/// [`Posture::Off`]), its header's tuning as `tuning` says: the bytes of the table with the
+/// term (version 3, or 5 with the `model`'s joint-space terms) and its build report, the
+/// fit's report in it. The
+/// payload is extended from the values the compiler holds, not decoded from its bytes.
 ///
 /// # Errors
 ///
 /// [`BuildError::MissingJoints`], [`BuildError::PostureTooDense`], an encoding failure,
 /// and [`BuildError::Unopenable`] for a table the runtime would refuse (a bug).
-pub fn add_term(
-    table_bytes: &[u8],
+pub(crate) fn add_term(
+    table: Compiled,
     samples: &SampleSet,
+    model: &PreparedModel,
     posture: Posture,
     tuning: Option<Tuning>,
-) -> Result<(Vec<u8>, PostureReport), BuildError> {
-    let table = Table::from_vec(table_bytes).map_err(BuildError::Unopenable)?;
-    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
-        return Err(BuildError::Params(
-            "the posture term is added to a version-2 table",
-        ));
-    };
-    if table.model().is_none() {
-        return Err(BuildError::PostureWithoutModel);
-    }
-    let residuals_mm = residuals(samples, &table)?;
-    let header = *table.header();
-    let (report, posture) = fit(
+) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    let residuals_mm = residuals(
+        samples,
+        &Table::from_vec(&table.bytes).map_err(BuildError::Unopenable)?,
+    )?;
+    let (fitted, posture) = fit(
         samples,
         &residuals_mm,
-        &header.grid,
-        header.method.radius_mm,
+        &table.header.grid,
+        table.header.method.radius_mm,
         posture,
     )?;
-    let base: adwi_runtime::format::v2::TableData =
-        rkyv::deserialize::<_, rkyv::rancor::Error>(archived)
-            .map_err(|e| BuildError::Encode(e.to_string()))?;
-    let header = adwi_runtime::format::Header { tuning, ..header };
-    let model = table.model().expect("checked above");
+    let header = adwi_runtime::format::Header {
+        tuning,
+        ..table.header
+    };
+    let base = table.data;
     let bytes = if model.joint_terms().is_none() {
         adwi_runtime::format::encode_v3(header, &v3::TableData { base, posture })
     } else {
         // The model's joint-space terms kept: a version-5 table with the posture term.
-        let joint_terms = adwi_runtime::format::v5::JointTermsRecord::from_terms(
-            model.joint_terms(),
-            model.joint_count(),
-        );
         let data = adwi_runtime::format::v5::TableData {
             base,
             posture,
-            joint_terms,
+            joint_terms: joint_terms_record(model, table.joint_count),
         };
         adwi_runtime::format::encode_v5(header, &data, true)
     }
     .map_err(|e| BuildError::Encode(e.to_string()))?;
     Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    let report = BuildReport {
+        table_bytes: bytes.len(),
+        posture: Some(fitted),
+        ..table.report
+    };
     Ok((bytes, report))
 }

@@ -53,6 +53,35 @@ pub fn compile_plan_serving(
     nodes: ServedNodes<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
+    let compiled = compile_plan_values(samples, plan, model, source_hash, nodes, progress)?;
+    Ok((compiled.bytes, compiled.report))
+}
+
+/// A table compiled in memory: the bytes of its file, and the header and payload they
+/// encode, kept as values so that a later stage (the posture term, [`crate::posture`])
+/// extends the table without decoding its own output.
+pub(crate) struct Compiled {
+    /// The table file's bytes, opened once as the runtime will.
+    pub bytes: Vec<u8>,
+    /// The header the bytes begin with (its payload length and checksum as written).
+    pub header: Header,
+    /// The version-2 payload (the base of a version-5 one with joint-space terms).
+    pub data: v2::TableData,
+    /// The joint count the header records.
+    pub joint_count: usize,
+    /// The build's figures.
+    pub report: BuildReport,
+}
+
+/// [`compile_plan_serving`], the table's values kept beside its bytes.
+pub(crate) fn compile_plan_values(
+    samples: &SampleSet,
+    plan: &Plan,
+    model: Option<&PreparedModel>,
+    source_hash: u64,
+    nodes: ServedNodes<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Compiled, BuildError> {
     let merged;
     let samples = match plan.merge {
         Some(m) => {
@@ -103,9 +132,15 @@ pub fn compile_plan_serving(
         &data,
         &report,
     );
-    let bytes = encode(header, data, model, joint_count)?;
+    let (bytes, data) = encode(header, data, model, joint_count)?;
     report.table_bytes = bytes.len();
-    Ok((bytes, report))
+    Ok(Compiled {
+        bytes,
+        header,
+        data,
+        joint_count,
+        report,
+    })
 }
 
 /// The checks a model and the samples' joint values must pass before any work: a model's
@@ -289,23 +324,29 @@ fn encode(
     data: v2::TableData,
     model: Option<&PreparedModel>,
     joint_count: usize,
-) -> Result<Vec<u8>, BuildError> {
-    let bytes = match model.filter(|m| !m.joint_terms().is_none()) {
+) -> Result<(Vec<u8>, v2::TableData), BuildError> {
+    let (bytes, data) = match model.filter(|m| !m.joint_terms().is_none()) {
         Some(m) => {
-            let joint_terms =
-                format::v5::JointTermsRecord::from_terms(m.joint_terms(), joint_count);
             let data = format::v5::TableData {
                 base: data,
-                joint_terms,
+                joint_terms: joint_terms_record(m, joint_count),
                 ..format::v5::TableData::default()
             };
-            format::encode_v5(header, &data, false)
+            (format::encode_v5(header, &data, false), data.base)
         }
-        None => format::encode(header, &data),
-    }
-    .map_err(|e| BuildError::Encode(e.to_string()))?;
+        None => (format::encode(header, &data), data),
+    };
+    let bytes = bytes.map_err(|e| BuildError::Encode(e.to_string()))?;
     adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
-    Ok(bytes)
+    Ok((bytes, data))
+}
+
+/// The model's joint-space terms as a version-5 table records them.
+pub(crate) fn joint_terms_record(
+    model: &PreparedModel,
+    joint_count: usize,
+) -> format::v5::JointTermsRecord {
+    format::v5::JointTermsRecord::from_terms(model.joint_terms(), joint_count)
 }
 
 /// What the samples span beyond their positions ([`format::EvidenceRecord`]): the cone of

@@ -46,7 +46,7 @@
 //! ([`compile_plan`]).
 
 mod candidates;
-mod encode;
+pub(crate) mod encode;
 pub mod merge;
 mod nodes;
 mod plan;
