@@ -20,8 +20,10 @@ use crate::Target;
 pub(crate) trait ExactSource {
     /// The candidate list of `cell`, or `None` when out of range.
     fn candidates(&self, cell: usize) -> Option<Candidates<'_>>;
-    /// Sample `i`'s actual position (mm) and configuration.
-    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)>;
+    /// Sample `i`'s actual position, mm.
+    fn actual(&self, i: u32) -> Option<[f64; 3]>;
+    /// Sample `i`'s configuration ([`CONFIG_UNKNOWN`] when out of range).
+    fn config(&self, i: u32) -> u8;
     /// Sample `i`'s `|actual|`, mm.
     fn norm(&self, i: u32) -> f64;
     /// Sample `i`'s errors.
@@ -109,20 +111,43 @@ fn select_among(
 ) -> Selection {
     let radius_rad = header.joint_radius_rad;
     let screen = joints_rad.filter(|_| radius_rad > 0.0);
-    method::select(
-        &header.method,
-        target.position_mm,
-        target.config,
-        candidates,
-        |i| {
-            if let Some(target_joints) = screen {
-                if !source.joints_within(i, target_joints, radius_rad) {
-                    return None;
-                }
+    let target_config = target.config;
+    // Asked only of a candidate within ε that would enter the selection: the
+    // configuration, then the joint screen.
+    let admissible = |i: u32| {
+        target_config.is_none_or(|_| method::config_matches(source.config(i), target_config))
+            && screen.is_none_or(|q| source.joints_within(i, q, radius_rad))
+    };
+    let (params, target_mm) = (&header.method, target.position_mm);
+    let actual = |i: u32| source.actual(i);
+    // One loop for each width of index, and one without screens beyond the distance (a
+    // target without configuration on a table without joint screen: the usual query), so
+    // that a candidate's step tests neither.
+    macro_rules! each_width {
+        ($admissible:expr) => {
+            match candidates {
+                Candidates::Narrow(list) => method::select_nearest(
+                    params,
+                    target_mm,
+                    list.map(|v| u32::from(v.to_native())),
+                    actual,
+                    $admissible,
+                ),
+                Candidates::Wide(list) => method::select_nearest(
+                    params,
+                    target_mm,
+                    list.map(|v| v.to_native()),
+                    actual,
+                    $admissible,
+                ),
             }
-            source.actual_and_config(i)
-        },
-    )
+        };
+    }
+    if target_config.is_none() && screen.is_none() {
+        each_width!(|_| true)
+    } else {
+        each_width!(admissible)
+    }
 }
 
 /// The `k` nearest admissible samples for `target` in its cell ([`select_among`]).
@@ -151,7 +176,7 @@ pub(crate) fn interpolate(
     };
     let selection = select_among(source, header, target, joints_rad, candidates);
     let sample = |i: u32| {
-        let (actual, _) = source.actual_and_config(i).unwrap_or(([0.0; 3], 0));
+        let actual = source.actual(i).unwrap_or([0.0; 3]);
         (actual, source.norm(i), source.error(i))
     };
     let orientation = header.content_flags & CONTENT_ORIENTATION != 0;
@@ -182,7 +207,7 @@ pub(crate) fn explain(
     joints_rad: Option<&[f64]>,
 ) -> Result<Prediction, Status> {
     let selection = select(source, header, target, joints_rad)?;
-    let actual = |i: u32| source.actual_and_config(i).map_or([0.0; 3], |(a, _)| a);
+    let actual = |i: u32| source.actual(i).unwrap_or([0.0; 3]);
     let neighbours = method::neighbours(target.position_mm, &selection, actual);
     method::predict(&header.method, neighbours.as_slice(), |i| source.error(i))
         .ok_or(Status::NoAdmissibleNeighbour)
@@ -203,9 +228,18 @@ impl ExactSource for V1<'_> {
     }
 
     #[inline]
-    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)> {
+    fn actual(&self, i: u32) -> Option<[f64; 3]> {
         let s = self.0.samples.get(i as usize)?;
-        Some((s.actual_mm.map(|v| v.to_native()), s.config))
+        let a = &s.actual_mm;
+        Some([a[0].to_native(), a[1].to_native(), a[2].to_native()])
+    }
+
+    #[inline]
+    fn config(&self, i: u32) -> u8 {
+        self.0
+            .samples
+            .get(i as usize)
+            .map_or(CONFIG_UNKNOWN, |s| s.config)
     }
 
     #[inline]
@@ -281,15 +315,19 @@ impl ExactSource for V2<'_> {
     }
 
     #[inline]
-    fn actual_and_config(&self, i: u32) -> Option<([f64; 3], u8)> {
+    fn actual(&self, i: u32) -> Option<[f64; 3]> {
         let s = self.data.samples.get(i as usize)?;
-        let config = self
-            .data
+        let a = &s.actual_mm;
+        Some([a[0].to_native(), a[1].to_native(), a[2].to_native()])
+    }
+
+    #[inline]
+    fn config(&self, i: u32) -> u8 {
+        self.data
             .configs
             .get(i as usize)
             .copied()
-            .unwrap_or(CONFIG_UNKNOWN);
-        Some((s.actual_mm.map(|v| v.to_native()), config))
+            .unwrap_or(CONFIG_UNKNOWN)
     }
 
     #[inline]
@@ -303,8 +341,12 @@ impl ExactSource for V2<'_> {
     #[inline]
     fn error(&self, i: u32) -> SampleError {
         let i = i as usize;
-        let three =
-            |v: Option<&Archived<[f64; 3]>>| v.map_or([0.0; 3], |v| v.map(|x| x.to_native()));
+        // Element by element: an array `map` here compiled to copies through the stack
+        // whose reloads waited on the stores before them, a stall every neighbour.
+        let three = |v: Option<&Archived<[f64; 3]>>| match v {
+            Some(v) => [v[0].to_native(), v[1].to_native(), v[2].to_native()],
+            None => [0.0; 3],
+        };
         SampleError {
             position_mm: three(self.data.errors_mm.get(i)),
             orientation_rad: if self.orientation {

@@ -474,6 +474,86 @@ pub fn select(
     selection
 }
 
+/// [`select`] for a table's exact tier, with the same result to the bit: the `k` nearest
+/// admissible samples among `candidates`, ties by the smaller index.
+///
+/// `actual_of(i)` gives sample `i`'s actual position (mm), or `None` to skip it;
+/// `admissible(i)` the rest of its admissibility (configuration, joint screen), asked only
+/// of a candidate within ε that would enter the selection. Without λ or ζ thresholds (a
+/// table's usual method) a candidate costs a distance and one comparison with the `k`-th
+/// key kept, not a call to [`Selection::offer`]; the few that enter are placed by
+/// insertion, as `offer` places them. With thresholds this is [`select`] itself.
+#[inline]
+pub fn select_nearest(
+    params: &MethodParams,
+    target_mm: [f64; 3],
+    candidates: impl IntoIterator<Item = u32>,
+    actual_of: impl Fn(u32) -> Option<[f64; 3]>,
+    admissible: impl Fn(u32) -> bool,
+) -> Selection {
+    if params.has_degree_thresholds() {
+        return select(params, target_mm, None, candidates, |i| {
+            if admissible(i) {
+                actual_of(i).map(|a| (a, CONFIG_UNKNOWN))
+            } else {
+                None
+            }
+        });
+    }
+    let mut selection = Selection::new(params.max_neighbours);
+    if !params.target_in_range(target_mm) {
+        return selection;
+    }
+    let capacity = selection.capacity;
+    let radius_squared = params.radius_mm * params.radius_mm;
+    // The kept keys and indices, nearest first; `len` of them set. Locals, not `Slots`,
+    // so that they live in registers and the stack without length bookkeeping.
+    let mut keys_mm2 = [0.0f64; MAX_NEIGHBOURS];
+    let mut samples = [0u32; MAX_NEIGHBOURS];
+    let mut len = 0usize;
+    // The last slot a newcomer may take: the farthest kept drops off once `k` are kept.
+    let last_slot = (capacity - 1).min(MAX_NEIGHBOURS - 1);
+    // The `k`-th key kept and its sample, read only once `k` are kept.
+    let (mut bound, mut bound_sample) = (0.0, 0);
+    for index in candidates {
+        let Some(actual_mm) = actual_of(index) else {
+            continue;
+        };
+        let key = distance_squared_mm2(actual_mm, target_mm);
+        // Written as `within` so that a NaN distance is rejected too.
+        let within = key <= radius_squared;
+        if !within {
+            continue;
+        }
+        // Once `k` are kept, a candidate must precede the `k`-th (`would_accept`).
+        if len == capacity && !(key < bound || (key == bound && index < bound_sample)) {
+            continue;
+        }
+        if !admissible(index) {
+            continue;
+        }
+        let mut slot = len.min(last_slot);
+        while slot > 0 {
+            let (d, s) = (keys_mm2[slot - 1], samples[slot - 1]);
+            if !(key < d || (key == d && index < s)) {
+                break;
+            }
+            keys_mm2[slot] = d;
+            samples[slot] = s;
+            slot -= 1;
+        }
+        keys_mm2[slot] = key;
+        samples[slot] = index;
+        len = (len + 1).min(capacity);
+        (bound, bound_sample) = (keys_mm2[last_slot], samples[last_slot]);
+    }
+    for (&s, &k) in samples.iter().zip(&keys_mm2).take(len) {
+        selection.samples.push(s);
+        selection.keys_mm2.push(k);
+    }
+    selection
+}
+
 /// The weights of selected neighbours, in selection order; `Σ q_i = 1` when non-empty.
 #[derive(Clone, Copy, Debug)]
 pub struct Weights {
@@ -928,6 +1008,72 @@ mod tests {
             }
             let got: Vec<u32> = s.samples().to_vec();
             assert_eq!(got, vec![2, 0, 1]);
+        }
+    }
+
+    use proptest::prelude::*;
+
+    /// Sample positions on a coarse lattice around the target (so that equal distances,
+    /// and so ties broken by index, are common), some of them not finite; a configuration
+    /// for each; and a candidate list that may repeat or skip samples.
+    fn scene() -> impl Strategy<Value = (Vec<([f64; 3], u8)>, Vec<u32>)> {
+        let coordinate = prop_oneof![
+            8 => (-6i32..=6).prop_map(|v| 1000.0 + 5.0 * f64::from(v)),
+            1 => Just(f64::NAN),
+            1 => Just(1000.0),
+        ];
+        let sample = (
+            [coordinate.clone(), coordinate.clone(), coordinate],
+            prop_oneof![Just(CONFIG_UNKNOWN), 0u8..3],
+        );
+        proptest::collection::vec(sample, 0..80).prop_flat_map(|samples| {
+            // Indices up to a few past the end: absent samples are skipped.
+            let count = samples.len() as u32 + 3;
+            let list = proptest::collection::vec(0..count, 0..120);
+            (Just(samples), list)
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// The exact tier's selection keeps what the general one keeps, in the same
+        /// order, for any k, radius, thresholds, configuration and candidate order.
+        #[test]
+        fn select_nearest_equals_select(
+            (samples, list) in scene(),
+            k in 1u32..=16,
+            radius_mm in prop_oneof![Just(12.5), 1.0..40.0f64],
+            thresholds in any::<bool>(),
+            target_config in prop_oneof![Just(None), (0u8..3).prop_map(Some)],
+            refused in any::<u64>(),
+        ) {
+            let target = [1000.0, 1000.0, 1000.0];
+            let mut params = MethodParams::paper(radius_mm);
+            params.max_neighbours = k;
+            if thresholds {
+                params.lambda_min_per_mm = 1e-5;
+                params.zeta_min_per_mm2 = 1e-9;
+            }
+            // Some samples refused by the caller's own screen (the joint screen's place).
+            let allowed = |i: u32| refused >> (i % 64) & 1 == 0;
+            let reference = select(&params, target, target_config, list.iter().copied(), |i| {
+                let &(actual, config) = samples.get(i as usize)?;
+                allowed(i).then_some((actual, config))
+            });
+            let fast = select_nearest(
+                &params,
+                target,
+                list.iter().copied(),
+                |i| samples.get(i as usize).map(|s| s.0),
+                |i| {
+                    let config = samples.get(i as usize).map_or(CONFIG_UNKNOWN, |s| s.1);
+                    config_matches(config, target_config) && allowed(i)
+                },
+            );
+            prop_assert_eq!(fast.samples(), reference.samples());
+            let bits = |s: &Selection| s.keys_mm2().iter().map(|k| k.to_bits()).collect::<Vec<_>>();
+            prop_assert_eq!(bits(&fast), bits(&reference));
         }
     }
 
