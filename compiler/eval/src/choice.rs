@@ -16,6 +16,9 @@
 //!   errors, scored on the served tier (`paper-trilinear`, or `hybrid-trilinear`); a table
 //!   with a joint screen has no served tier and keeps the method's.
 //! - [`CrossValidation::posture`]: whether a hybrid table gains from the posture term.
+//! - [`CrossValidation::choose_harmonics`]: the identification's harmonic count of the
+//!   joint-space terms (`--harmonics auto`), scored by the model alone, made first: every
+//!   later choice's folds are identified with the count chosen.
 //!
 //! [`default_choices`] is what every build makes by default, without `--tune`, and what an
 //! evaluation makes on each split's training samples ([`crate::SplitRule`]): the build's
@@ -1015,6 +1018,9 @@ pub struct Ask<'c> {
 /// with `options`; the served field among the method's and kriging's when `ask.field`
 /// (else `options.served_field` alone); when `ask.posture` and a robot is given, the
 /// posture term; when `ask.weight` and a robot is given, the residual field's weight.
+/// When `ask.harmonics` and a robot is given, the identification's harmonic count is
+/// chosen first ([`CrossValidation::choose_harmonics`]) and the other choices' folds are
+/// identified with it; asked for alone, no table is scored.
 ///
 /// A kriging field's hyperparameters are searched by likelihood on each fold's training
 /// samples alone, as the table's own are on all of them: no held-out point takes part in
