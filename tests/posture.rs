@@ -250,7 +250,7 @@ fn a_fitted_term_is_byte_identical_at_one_and_two_threads() {
 
 /// `tablec eval` with the term left to `auto` (the default) decides it on each split's
 /// training samples alone, by the build's own decision: every fold's verdict and figures in
-/// the JSON are what `auto_choice` (what `tablec build` runs) finds on that fold's
+/// the JSON are what `default_choices` (what `tablec build` runs) finds on that fold's
 /// training samples. A third of the KR150-2 samples keeps the folds' cross-validations
 /// short.
 #[test]
@@ -327,7 +327,7 @@ fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
             posture: true,
             ..Default::default()
         };
-        adwi_jobs::choice::auto_choice(
+        adwi_jobs::choice::default_choices(
             train,
             Some(&robot),
             &options,

@@ -16,8 +16,11 @@
 //!   errors, scored on the served tier (`paper-trilinear`, or `hybrid-trilinear`); a table
 //!   with a joint screen has no served tier and keeps the method's.
 //! - [`CrossValidation::posture`]: whether a hybrid table gains from the posture term.
+//! - [`CrossValidation::choose_harmonics`]: the identification's harmonic count of the
+//!   joint-space terms (`--harmonics auto`), scored by the model alone, made first: every
+//!   later choice's folds are identified with the count chosen.
 //!
-//! [`auto_choice`] is what every build makes by default, without `--tune`, and what an
+//! [`default_choices`] is what every build makes by default, without `--tune`, and what an
 //! evaluation makes on each split's training samples ([`crate::SplitRule`]): the build's
 //! own parameters, at most [`AUTO_MAX_SAMPLES`] samples, held out as use holds them out
 //! ([`CrossValidation::matching_use`]): random folds leave every held-out sample among
@@ -119,6 +122,8 @@ pub enum TuneError {
 pub struct CrossValidation<'a> {
     samples: &'a SampleSet,
     robot: Option<&'a Robot>,
+    /// The identification every candidate's folds are identified with (the harmonic count
+    /// [`CrossValidation::choose_harmonics`] chose, once it has).
     calibrate: CalibrateOptions,
     /// How samples are held out: random folds, spatial blocks or whole series.
     protocol: Protocol,
@@ -126,17 +131,17 @@ pub struct CrossValidation<'a> {
     folds: usize,
     /// Each split's training and held-out samples.
     splits: Vec<Fold>,
-    /// Each fold's identification of a hybrid table's model, made once, before the first
-    /// evaluation, and reused by every one.
-    identified: RefCell<Vec<Calibration>>,
+    /// Each fold's identification of a hybrid table's model with each identification's
+    /// options, made once, before the first evaluation with them, and reused by every one.
+    identified: RefCell<Vec<(CalibrateOptions, Vec<Calibration>)>>,
     /// Each fold's kriging hyperparameters, searched once by likelihood on its training
     /// samples alone ([`FOLD_SEARCH_SAMPLES`] at most) and given to every kriging field of
     /// its tables: no held-out point takes part in the field it is scored by.
-    kriging: RefCell<Option<Vec<Option<GivenChoices>>>>,
+    kriging: RefCell<Vec<(CalibrateOptions, Vec<Option<GivenChoices>>)>>,
     /// Each method's results on these folds with the options its tables were built with:
     /// a later choice that scores the same (the residual weight of the field and posture
     /// chosen before it) takes them instead of building the folds' tables again.
-    scored: RefCell<Vec<(Method, BuildOptions, MethodResult)>>,
+    scored: RefCell<Vec<(CalibrateOptions, Method, BuildOptions, MethodResult)>>,
 }
 
 impl<'a> CrossValidation<'a> {
@@ -193,7 +198,7 @@ impl<'a> CrossValidation<'a> {
             folds,
             splits,
             identified: RefCell::new(Vec::new()),
-            kriging: RefCell::new(None),
+            kriging: RefCell::new(Vec::new()),
             scored: RefCell::new(Vec::new()),
         })
     }
@@ -289,10 +294,20 @@ impl<'a> CrossValidation<'a> {
         methods: &[Method],
         build: &BuildOptions,
     ) -> Result<Vec<Option<MethodResult>>, TuneError> {
+        self.results_with(&self.calibrate, methods, build)
+    }
+
+    /// [`CrossValidation::results`] with the folds' models identified with `calibrate`.
+    fn results_with(
+        &self,
+        calibrate: &CalibrateOptions,
+        methods: &[Method],
+        build: &BuildOptions,
+    ) -> Result<Vec<Option<MethodResult>>, TuneError> {
         let known = |method: Method| {
             (self.scored.borrow().iter())
-                .find(|(m, b, _)| *m == method && b == build)
-                .map(|(_, _, r)| r.clone())
+                .find(|(c, m, b, _)| c == calibrate && *m == method && b == build)
+                .map(|(_, _, _, r)| r.clone())
         };
         let missing: Vec<Method> = methods
             .iter()
@@ -300,10 +315,10 @@ impl<'a> CrossValidation<'a> {
             .filter(|&m| known(m).is_none())
             .collect();
         if !missing.is_empty() {
-            let identified = self.identified()?;
+            let identified = self.identified(calibrate)?;
             let kriging =
                 if build.served_field != ServedField::Method && build.kriging_choices.is_none() {
-                    self.fold_kriging(&identified)?
+                    self.fold_kriging(calibrate, &identified)?
                 } else {
                     Vec::new()
                 };
@@ -311,7 +326,7 @@ impl<'a> CrossValidation<'a> {
                 methods: Some(missing.clone()),
                 build: build.clone(),
                 robot: self.robot.cloned(),
-                calibrate: self.calibrate,
+                calibrate: *calibrate,
                 identified,
                 split_kriging_choices: kriging,
                 ..EvalOptions::default()
@@ -320,7 +335,7 @@ impl<'a> CrossValidation<'a> {
             let mut scored = self.scored.borrow_mut();
             for method in missing {
                 if let Some(result) = evaluation.method(method) {
-                    scored.push((method, build.clone(), result.clone()));
+                    scored.push((*calibrate, method, build.clone(), result.clone()));
                 }
             }
         }
@@ -328,20 +343,26 @@ impl<'a> CrossValidation<'a> {
     }
 
     /// Each fold's identification of a hybrid table's model from its training samples
-    /// (none without a robot), made once, the folds side by side.
-    fn identified(&self) -> Result<Vec<Calibration>, TuneError> {
+    /// with `calibrate` (none without a robot), made once, the folds side by side.
+    fn identified(&self, calibrate: &CalibrateOptions) -> Result<Vec<Calibration>, TuneError> {
         let Some(robot) = self.robot else {
             return Ok(Vec::new());
         };
-        if self.identified.borrow().is_empty() {
-            let (samples, calibrate) = (self.samples, &self.calibrate);
-            let identified = (self.splits.par_iter())
-                .map(|fold| identify(robot, &samples.subset(&fold.train), calibrate))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(TuneError::Identify)?;
-            *self.identified.borrow_mut() = identified;
+        let known = |identified: &[(CalibrateOptions, Vec<Calibration>)]| {
+            (identified.iter())
+                .find(|(c, _)| c == calibrate)
+                .map(|(_, folds)| folds.clone())
+        };
+        if let Some(folds) = known(&self.identified.borrow()) {
+            return Ok(folds);
         }
-        Ok(self.identified.borrow().clone())
+        let samples = self.samples;
+        let identified = (self.splits.par_iter())
+            .map(|fold| identify(robot, &samples.subset(&fold.train), calibrate))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(TuneError::Identify)?;
+        (self.identified.borrow_mut()).push((*calibrate, identified.clone()));
+        Ok(identified)
     }
 
     /// Each fold's kriging hyperparameters, searched by likelihood on its training samples
@@ -350,10 +371,14 @@ impl<'a> CrossValidation<'a> {
     /// side by side.
     fn fold_kriging(
         &self,
+        calibrate: &CalibrateOptions,
         identified: &[Calibration],
     ) -> Result<Vec<Option<GivenChoices>>, TuneError> {
-        if let Some(known) = &*self.kriging.borrow() {
-            return Ok(known.clone());
+        let known = (self.kriging.borrow().iter())
+            .find(|(c, _)| c == calibrate)
+            .map(|(_, searched)| searched.clone());
+        if let Some(known) = known {
+            return Ok(known);
         }
         let samples = self.samples;
         let searched = (self.splits.par_iter().enumerate())
@@ -368,8 +393,98 @@ impl<'a> CrossValidation<'a> {
             })
             .collect::<Result<Vec<_>, _>>()
             .map_err(TuneError::Kriging)?;
-        *self.kriging.borrow_mut() = Some(searched.clone());
+        (self.kriging.borrow_mut()).push((*calibrate, searched.clone()));
         Ok(searched)
+    }
+
+    /// Chooses the identification's harmonic count (`--harmonics auto`) among `counts`,
+    /// fewest terms first, on these folds, and identifies every later candidate's folds
+    /// with the count chosen: the one of lowest held-out mean, or a count of fewer terms
+    /// whose mean is within the noise of that one's (the standard error of the two means'
+    /// difference, point by point: more terms must improve the figure by more than what a
+    /// different draw of the points moves it). A count whose folds cannot be identified
+    /// (more terms than a fold's samples determine) is no candidate.
+    ///
+    /// Each count is scored by its model alone (`kinematic`), not by the model with the
+    /// residual field: the terms are part of the model, which is what every pose of use
+    /// receives, inside the samples' volume and beyond it, while the residual field only
+    /// reaches poses near the samples and its weight is learned afterwards on these same
+    /// folds, with the count chosen ([`CrossValidation::residual_weight`]): a field scored
+    /// here would reward a count for what the field, not the model, explains where the
+    /// folds' samples are dense. It is also the cheap score: one identification per fold
+    /// and count, and no table.
+    ///
+    /// # Errors
+    ///
+    /// The first count's identification or an evaluation failing; no count predicting a
+    /// held-out point.
+    pub fn choose_harmonics(&mut self, counts: &[u8]) -> Result<HarmonicsChoice, TuneError> {
+        let n = self.samples.len();
+        let model_alone = BuildOptions::default();
+        let mut candidates = Vec::with_capacity(counts.len());
+        let mut residuals = Vec::with_capacity(counts.len());
+        for (i, &harmonics) in counts.iter().enumerate() {
+            let calibrate = CalibrateOptions {
+                harmonics,
+                ..self.calibrate
+            };
+            let result = match self.results_with(&calibrate, &[Method::Kinematic], &model_alone) {
+                Ok(mut results) => results.pop().flatten(),
+                Err(TuneError::Identify(_)) if i > 0 => None,
+                Err(e) => return Err(e),
+            };
+            // Each held-out point's position residual norm, mm.
+            let norms: Vec<Option<f64>> = match &result {
+                Some(r) => (r.predictions.iter())
+                    .zip(&self.samples.error_mm)
+                    .map(|(p, e)| {
+                        let p = p.as_ref()?;
+                        let d = [0, 1, 2].map(|a| e[a] - p.position_error_mm[a]);
+                        Some((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+                    })
+                    .collect(),
+                None => vec![None; n],
+            };
+            candidates.push(HarmonicsCandidate {
+                harmonics,
+                cv_mean_mm: (result.as_ref())
+                    .and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+                noise_mm: None,
+                missed: result.map_or(n, |r| n - r.predicted()),
+            });
+            residuals.push(norms);
+        }
+        let lowest = best(candidates.iter().map(|c| (c.cv_mean_mm, c.missed)))
+            .ok_or(TuneError::NothingPredicted)?;
+        for (candidate, norms) in candidates.iter_mut().zip(&residuals) {
+            if candidate.cv_mean_mm.is_some() {
+                candidate.noise_mm = paired_standard_error(norms, &residuals[lowest]);
+            }
+        }
+        let (best_mean, best_missed) = (candidates[lowest].cv_mean_mm, candidates[lowest].missed);
+        let chosen = (0..lowest)
+            .find(|&i| {
+                let c = &candidates[i];
+                match (c.cv_mean_mm, best_mean, c.noise_mm) {
+                    (Some(mean), Some(best), Some(noise)) => {
+                        c.missed <= best_missed && mean - best <= noise
+                    }
+                    _ => false,
+                }
+            })
+            .unwrap_or(lowest);
+        self.calibrate.harmonics = candidates[chosen].harmonics;
+        Ok(HarmonicsChoice {
+            folds: self.folds,
+            held_out: self.held_out_by(),
+            candidates,
+            chosen: self.calibrate.harmonics,
+        })
+    }
+
+    /// The identification options every candidate's folds are identified with.
+    pub fn calibrate(&self) -> &CalibrateOptions {
+        &self.calibrate
     }
 
     /// The weight `s` in [0, 1] of a hybrid table's residual field that these folds'
@@ -475,7 +590,7 @@ impl<'a> CrossValidation<'a> {
             let without_mm = match options.tuning.and_then(|t| t.served_cv_mean_mm) {
                 Some(mean) => Some(mean),
                 None => self
-                    .served_field_among(&[options.served_field], &options)?
+                    .choose_served_field(&[options.served_field], &options)?
                     .chosen_cv_mean_mm(),
             };
             let posture = self.posture(&options, without_mm)?;
@@ -513,7 +628,7 @@ impl<'a> CrossValidation<'a> {
         if options.joint_radius_deg.is_some_and(|r| r > 0.0) {
             return Ok(ServedChoice::default());
         }
-        self.served_field_among(&[ServedField::Method, ServedField::Kriging], options)
+        self.choose_served_field(&[ServedField::Method, ServedField::Kriging], options)
     }
 
     /// [`CrossValidation::served_field`] among `fields`: each is tried in `options` in
@@ -522,7 +637,7 @@ impl<'a> CrossValidation<'a> {
     /// # Errors
     ///
     /// An evaluation failing.
-    pub fn served_field_among(
+    pub fn choose_served_field(
         &self,
         fields: &[ServedField],
         options: &BuildOptions,
@@ -586,7 +701,8 @@ impl<'a> CrossValidation<'a> {
 }
 
 /// How a cross-validation holds points out ([`CrossValidation::held_out_by`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum HeldOut {
     /// Random folds of the pooled samples.
     #[default]
@@ -703,6 +819,55 @@ fn weight_minimising(points: &[([f64; 3], [f64; 3])]) -> Option<(f64, f64)> {
         .min_by(|x, y| x.1.total_cmp(&y.1))
 }
 
+/// The harmonic counts of the joint-space terms a build chooses among by default
+/// (`--harmonics auto`, [`CrossValidation::choose_harmonics`]).
+pub const HARMONICS_CANDIDATES: [u8; 3] = [0, 1, 2];
+
+/// One harmonic count's cross-validated figures ([`CrossValidation::choose_harmonics`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct HarmonicsCandidate {
+    /// The count: each revolute joint's terms up to this harmonic.
+    pub harmonics: u8,
+    /// Mean position residual of the model alone over the predicted held-out points, mm;
+    /// `None` when the folds could not be identified with this count.
+    pub cv_mean_mm: Option<f64>,
+    /// The standard error of this count's mean less the lowest mean, the points paired,
+    /// mm (0 for the lowest).
+    pub noise_mm: Option<f64>,
+    /// Held-out points not predicted.
+    pub missed: usize,
+}
+
+/// The harmonic count chosen, and the evidence ([`CrossValidation::choose_harmonics`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HarmonicsChoice {
+    /// The splits.
+    pub folds: usize,
+    /// How they hold points out.
+    pub held_out: HeldOut,
+    /// Every count tried, fewest terms first.
+    pub candidates: Vec<HarmonicsCandidate>,
+    /// The count chosen.
+    pub chosen: u8,
+}
+
+/// The standard error of the mean of `a − b` over the points both give, mm; `None` for
+/// fewer than two such points.
+fn paired_standard_error(a: &[Option<f64>], b: &[Option<f64>]) -> Option<f64> {
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .filter_map(|(a, b)| Some((*a)? - (*b)?))
+        .collect();
+    if d.len() < 2 {
+        return None;
+    }
+    let m = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / m;
+    let variance = d.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (m - 1.0);
+    Some((variance / m).sqrt())
+}
+
 /// The most of a fold's training samples its kriging's hyperparameters are searched on
 /// (evenly strided): the search is cubic in its samples, and a fold's, made on 400 instead
 /// of up to 1,000 as the table's own, keeps a choice's five searches within a fifth of the
@@ -712,7 +877,7 @@ pub const FOLD_SEARCH_SAMPLES: usize = 400;
 /// The fewest samples the served field's choice by default cross-validates: with fewer,
 /// the folds are too small to tell two fields apart, and the method's own answer is served.
 pub const AUTO_MIN_SAMPLES: usize = 25;
-/// The folds of the served field's choice by default ([`auto_choice`]).
+/// The folds of the served field's choice by default ([`default_choices`]).
 pub const AUTO_FOLDS: usize = 5;
 /// The most samples the served field's choice by default cross-validates: above, an evenly
 /// strided subset of this many, so that the choice costs a bounded time whatever the
@@ -734,6 +899,10 @@ pub struct AutoServedField {
     /// The residual field's weight learned from held-out series or regions, when it was
     /// asked for (a hybrid table).
     pub residual_weight: Option<ResidualWeight>,
+    /// The identification's harmonic count chosen first, on the same folds, when it was
+    /// asked for (a hybrid table): every other choice's folds are identified with it, and
+    /// so is the table's model.
+    pub harmonics: Option<HarmonicsChoice>,
 }
 
 /// The posture term's cross-validation ([`CrossValidation::posture`]).
@@ -783,7 +952,7 @@ impl AutoServedField {
 /// evidence, or fixed (given, or the method's own where nothing is chosen).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ServedFieldDecision {
-    /// Chosen by [`auto_choice`].
+    /// Chosen by [`default_choices`].
     Chosen(Box<AutoServedField>),
     /// Not chosen: this field, no posture term beyond what the options say.
     Fixed(ServedField),
@@ -823,7 +992,7 @@ impl ServedFieldDecision {
     }
 }
 
-/// What a build decides by default that it is not given ([`auto_choice`]).
+/// What a build decides by default that it is not given ([`default_choices`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Ask<'c> {
     /// Choose the served field (else only `options.served_field` is scored).
@@ -832,6 +1001,10 @@ pub struct Ask<'c> {
     pub posture: bool,
     /// Learn a hybrid table's residual weight ([`CrossValidation::residual_weight`]).
     pub weight: bool,
+    /// Choose the identification's harmonic count among [`HARMONICS_CANDIDATES`]
+    /// ([`CrossValidation::choose_harmonics`]), before the other choices, which are then
+    /// made with it (a hybrid table).
+    pub harmonics: bool,
     /// The series of each sample (its index among the files read), when several: every
     /// choice is then made by leaving one series out at a time
     /// ([`CrossValidation::matching_use`]).
@@ -845,6 +1018,9 @@ pub struct Ask<'c> {
 /// with `options`; the served field among the method's and kriging's when `ask.field`
 /// (else `options.served_field` alone); when `ask.posture` and a robot is given, the
 /// posture term; when `ask.weight` and a robot is given, the residual field's weight.
+/// When `ask.harmonics` and a robot is given, the identification's harmonic count is
+/// chosen first ([`CrossValidation::choose_harmonics`]) and the other choices' folds are
+/// identified with it; asked for alone, no table is scored.
 ///
 /// A kriging field's hyperparameters are searched by likelihood on each fold's training
 /// samples alone, as the table's own are on all of them: no held-out point takes part in
@@ -854,7 +1030,7 @@ pub struct Ask<'c> {
 /// # Errors
 ///
 /// Too few samples, an identification or a kriging's fit failing, an evaluation failing.
-pub fn auto_choice(
+pub fn default_choices(
     samples: &SampleSet,
     robot: Option<&Robot>,
     options: &BuildOptions,
@@ -878,19 +1054,34 @@ pub fn auto_choice(
     } else {
         (samples, ask.series.map(<[usize]>::to_vec))
     };
+    let mut cv = CrossValidation::matching_use(samples, robot, *calibrate, series)?;
+    let harmonics = if ask.harmonics && robot.is_some() {
+        Some(cv.choose_harmonics(&HARMONICS_CANDIDATES)?)
+    } else {
+        None
+    };
+    if !(ask.field || ask.posture || ask.weight) {
+        return Ok(AutoServedField {
+            choice: ServedChoice::default(),
+            exact_cv_mean_mm: None,
+            samples: samples.len(),
+            posture: None,
+            residual_weight: None,
+            harmonics,
+        });
+    }
     let given = [options.served_field];
     let fields: &[ServedField] = if ask.field {
         &[ServedField::Method, ServedField::Kriging]
     } else {
         &given
     };
-    let cv = CrossValidation::matching_use(samples, robot, *calibrate, series)?;
     let method = BuildOptions {
         served_field: ServedField::Method,
         ..options.clone()
     };
     let (exact_cv_mean_mm, _) = cv.score(cv.exact_method(), method)?;
-    let choice = cv.served_field_among(fields, options)?;
+    let choice = cv.choose_served_field(fields, options)?;
     let chosen = BuildOptions {
         served_field: choice.field(),
         ..options.clone()
@@ -919,6 +1110,7 @@ pub fn auto_choice(
         samples: samples.len(),
         posture,
         residual_weight,
+        harmonics,
     })
 }
 
@@ -1045,7 +1237,7 @@ mod tests {
             ..Ask::default()
         };
         let auto =
-            auto_choice(&samples, None, &options, &CalibrateOptions::default(), ask).unwrap();
+            default_choices(&samples, None, &options, &CalibrateOptions::default(), ask).unwrap();
         let kriging = (auto.choice.candidates.iter())
             .find(|c| c.field == ServedField::Kriging)
             .unwrap();

@@ -614,6 +614,9 @@ pub struct Evaluation {
     /// training samples ([`EvalOptions::split_rule`]): the served field and whether a
     /// hybrid table got the posture term.
     pub split_choices: Vec<SplitChoiceRecord>,
+    /// The harmonic count of each split's identification, when chosen from its training
+    /// samples (`--harmonics auto`; with a validation set, chosen on every sample).
+    pub harmonics_choices: Vec<SplitHarmonics>,
     /// The noise floor of the first split's training samples ([`crate::noise_floor`]): of the
     /// residuals its identified model leaves when a robot is given, else of the measured
     /// errors. With a validation set that is every sample; in k-fold cross-validation the
@@ -627,6 +630,17 @@ pub struct Evaluation {
     /// the JSON ([`Evaluation::calibrations`] is).
     #[serde(skip)]
     pub identified: Vec<Calibration>,
+}
+
+/// The harmonic count one split's model was identified with, as chosen on its training
+/// samples ([`Evaluation::harmonics_choices`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SplitHarmonics {
+    /// The split (fold), from 0.
+    pub split: usize,
+    /// The counts tried, their held-out means, and the one chosen.
+    #[serde(flatten)]
+    pub choice: choice::HarmonicsChoice,
 }
 
 impl Evaluation {
@@ -741,6 +755,7 @@ pub fn evaluate(
     let mut collected = Collected::new(&methods, points.len());
     let mut calibrations = Vec::new();
     let mut split_choices = Vec::new();
+    let mut harmonics_choices = Vec::new();
     let mut identified = Vec::new();
 
     // One split's identification, choices and predictions: independent of every other
@@ -750,7 +765,29 @@ pub fn evaluate(
     // give them, to the bit.
     let run_split = |split: usize, (train, train_series, test): &Split, unsupported: &[Method]| {
         let test_points = subset(&points, test);
-        let calibration = if methods.iter().any(|m| m.needs_robot()) {
+        let needs_robot = methods.iter().any(|m| m.needs_robot());
+        // The split's harmonic count, chosen on its training samples alone as a build
+        // chooses it; too few of them to choose by, none.
+        let harmonics = (options.choose_harmonics && needs_robot && options.identified.is_empty())
+            .then(|| {
+                let ask = choice::Ask {
+                    harmonics: true,
+                    series: train_series.as_deref(),
+                    ..choice::Ask::default()
+                };
+                let robot = options.robot.as_ref();
+                choice::default_choices(train, robot, &options.build, &options.calibrate, ask)
+                    .ok()
+                    .and_then(|auto| auto.harmonics)
+            })
+            .flatten();
+        let split_calibrate = calibrate::CalibrateOptions {
+            harmonics: harmonics
+                .as_ref()
+                .map_or(options.calibrate.harmonics, |h| h.chosen),
+            ..options.calibrate
+        };
+        let calibration = if needs_robot {
             let robot = options.robot.as_ref().expect("checked by choose_methods");
             let method = *methods
                 .iter()
@@ -758,7 +795,7 @@ pub fn evaluate(
                 .expect("a method that needs the robot");
             Some(match options.identified.get(split) {
                 Some(c) => c.clone(),
-                None => calibrate::identify(robot, train, &options.calibrate)
+                None => calibrate::identify(robot, train, &split_calibrate)
                     .map_err(|source| EvalError::Calibrate { method, source })?,
             })
         } else {
@@ -769,8 +806,14 @@ pub fn evaluate(
             if unsupported.contains(&method) {
                 continue;
             }
-            let (build, choice) =
-                options::build_options_for(method, split, train, train_series.as_deref(), options);
+            let (build, choice) = options::build_options_for(
+                method,
+                split,
+                train,
+                train_series.as_deref(),
+                &split_calibrate,
+                options,
+            );
             // A learned residual weight scales what the table's residual field holds.
             let weighted = match (choice.and_then(|c| c.residual_weight), &calibration) {
                 (Some(w), Some(c)) if w.weight != 1.0 => {
@@ -796,7 +839,8 @@ pub fn evaluate(
             );
             outcomes.push((method, choice, outcome));
         }
-        Ok::<_, EvalError>((calibration, outcomes))
+        let harmonics = harmonics.map(|choice| SplitHarmonics { split, choice });
+        Ok::<_, EvalError>((calibration, harmonics, outcomes))
     };
     let in_flight = rayon::current_num_threads().max(1);
     for (batch, chunk) in splits.chunks(in_flight).enumerate() {
@@ -808,7 +852,8 @@ pub fn evaluate(
             .collect();
         for (i, run) in runs.into_iter().enumerate() {
             let split = batch * in_flight + i;
-            let (calibration, outcomes) = run?;
+            let (calibration, harmonics, outcomes) = run?;
+            harmonics_choices.extend(harmonics);
             if let Some(c) = calibration {
                 calibrations.push(CalibrationSummary::new(split, &c));
                 identified.push(c);
@@ -834,6 +879,7 @@ pub fn evaluate(
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;
     evaluation.split_choices = split_choices;
+    evaluation.harmonics_choices = harmonics_choices;
     evaluation.noise_floor = floor;
     evaluation.identified = identified;
     Ok(evaluation)
@@ -1058,6 +1104,7 @@ fn assemble(
         skipped: Vec::new(),
         calibrations: Vec::new(),
         split_choices: Vec::new(),
+        harmonics_choices: Vec::new(),
         noise_floor: None,
         comparison,
         identified: Vec::new(),

@@ -10,7 +10,7 @@ use adwi_robot::Robot;
 use adwi_samples::SampleSet;
 
 use crate::baselines::{GridParams, IdwParams, KrigingParams};
-use crate::choice::{auto_choice, Ask, ResidualWeight};
+use crate::choice::{default_choices, Ask, ResidualWeight};
 use crate::Method;
 
 /// What to evaluate and with which parameters; the default evaluates every applicable
@@ -47,11 +47,16 @@ pub struct EvalOptions {
     /// build decides what it is not given (the served field, a hybrid table's posture
     /// term); `None`: `build` as it is.
     pub split_rule: Option<SplitRule>,
+    /// Chooses each split's harmonic count of the joint-space terms from its training
+    /// samples alone, as a build does by default
+    /// ([`crate::choice::CrossValidation::choose_harmonics`]); `calibrate.harmonics` is
+    /// then where the choice starts, not the count. Only with a robot.
+    pub choose_harmonics: bool,
 }
 
 /// What a split's served-tier table (`paper-trilinear`, `hybrid-trilinear`) is built with
 /// when [`EvalOptions::build`] leaves it to be chosen: decided on the split's training
-/// samples alone, as a build decides what it is not given ([`crate::choice::auto_choice`],
+/// samples alone, as a build decides what it is not given ([`crate::choice::default_choices`],
 /// the same code), so that no held-out point ever takes part. A split too small to
 /// cross-validate gets what a build would then write: the method's field, no term.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -107,7 +112,8 @@ pub struct SplitChoiceRecord {
     pub residual_weight: Option<ResidualWeight>,
 }
 
-/// The build options of `method` on split `split`'s training samples `train`:
+/// The build options of `method` on split `split`'s training samples `train`, its model
+/// identified with `calibrate`:
 /// `options.build` (with the split's kriging hyperparameters, when given), with what a
 /// served-tier method's table is built with chosen from `train` when a rule is given, and
 /// that choice.
@@ -116,6 +122,7 @@ pub(crate) fn build_options_for(
     split: usize,
     train: &SampleSet,
     train_series: Option<&[usize]>,
+    calibrate: &CalibrateOptions,
     options: &EvalOptions,
 ) -> (BuildOptions, Option<SplitChoice>) {
     let mut given = options.build.clone();
@@ -130,7 +137,7 @@ pub(crate) fn build_options_for(
         Method::HybridTrilinear => true,
         _ => return (given, None),
     };
-    let choice = split_choice(rule, train, train_series, hybrid, options);
+    let choice = split_choice(rule, train, train_series, hybrid, calibrate, options);
     let mut build = BuildOptions {
         served_field: choice.served_field,
         ..given
@@ -152,6 +159,7 @@ fn split_choice(
     train: &SampleSet,
     train_series: Option<&[usize]>,
     hybrid: bool,
+    calibrate: &CalibrateOptions,
     options: &EvalOptions,
 ) -> SplitChoice {
     let build = &options.build;
@@ -169,9 +177,10 @@ fn split_choice(
         field: rule.choose_field,
         posture,
         weight,
+        harmonics: false,
         series: train_series,
     };
-    let chosen = auto_choice(train, robot, build, &options.calibrate, ask);
+    let chosen = default_choices(train, robot, build, calibrate, ask);
     let mut chosen_options = build.clone();
     if let Ok(auto) = &chosen {
         auto.apply(&mut chosen_options);

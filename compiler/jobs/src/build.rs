@@ -9,7 +9,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use adwi_compile::build::{compile_plan, BuildReport, Plan, ServedField};
-use adwi_eval::choice::{auto_choice, Ask, CrossValidation, ServedFieldDecision, TuneReport};
+use adwi_eval::choice::{
+    default_choices, Ask, CrossValidation, HarmonicsChoice, ServedFieldDecision, TuneReport,
+    HARMONICS_CANDIDATES,
+};
 use adwi_identify::calibrate::{identify, CalibrateOptions, Calibration};
 use adwi_identify::register::{Refined, Registration};
 use adwi_output::OutputPlan;
@@ -60,9 +63,13 @@ pub struct BuildArgs {
     pub compliance: bool,
     /// Kinematic identification: identify each revolute joint's joint-space terms up to
     /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
-    /// where the information criterion (BIC) supports it.
-    #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
-    pub harmonics: u8,
+    /// where the information criterion (BIC) supports it; `auto`, the count of 0, 1 or 2
+    /// whose model predicts held-out samples best (each series from the others when
+    /// several are given, else each of 5 spatial blocks from the others), fewer terms
+    /// unless more improve it by more than its noise.
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
+    #[serde(deserialize_with = "Harmonics::deserialize")]
+    pub harmonics: Harmonics,
     /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
     /// tracker's own frame: joints j1..jn and measured mx,my,mz, optionally a measured
     /// orientation; the tracker-to-base and flange-to-probe transforms are registered
@@ -94,11 +101,71 @@ impl Default for BuildArgs {
             robot: RobotArgs::default(),
             hybrid: false,
             compliance: false,
-            harmonics: CalibrateOptions::default().harmonics,
+            harmonics: Harmonics::Auto,
             measured_in: Frame::Base,
             tune: false,
             tune_folds: 5,
             threads: None,
+        }
+    }
+}
+
+/// The identification's joint-space terms as asked for (`--harmonics`): a count, or
+/// chosen by cross-validation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Harmonics {
+    /// Chosen among 0, 1 and 2 on held-out samples that match use
+    /// ([`adwi_eval::choice::CrossValidation::choose_harmonics`]).
+    #[default]
+    Auto,
+    /// Each revolute joint's terms up to this harmonic (0, 1 or 2).
+    Count(u8),
+}
+
+impl Harmonics {
+    /// The count given, `None` for `auto`.
+    pub fn fixed(self) -> Option<u8> {
+        match self {
+            Harmonics::Auto => None,
+            Harmonics::Count(n) => Some(n),
+        }
+    }
+
+    /// `auto`, or a count as a number or its text (the Python front end's `harmonics=2`).
+    pub(crate) fn deserialize<'de, D: serde::Deserializer<'de>>(
+        d: D,
+    ) -> Result<Harmonics, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Given {
+            Count(u8),
+            Text(String),
+        }
+        match Given::deserialize(d)? {
+            Given::Count(n) => n.to_string().parse(),
+            Given::Text(text) => text.parse(),
+        }
+        .map_err(serde::de::Error::custom)
+    }
+}
+
+impl std::str::FromStr for Harmonics {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Harmonics, String> {
+        match text {
+            "auto" => Ok(Harmonics::Auto),
+            "0" | "1" | "2" => Ok(Harmonics::Count(text.as_bytes()[0] - b'0')),
+            _ => Err(format!("'{text}': choose auto, 0, 1 or 2")),
+        }
+    }
+}
+
+impl std::fmt::Display for Harmonics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Harmonics::Auto => f.write_str("auto"),
+            Harmonics::Count(n) => write!(f, "{n}"),
         }
     }
 }
@@ -132,6 +199,9 @@ pub struct Built {
     pub report: BuildReport,
     /// The cross-validation that chose the options (`tune`).
     pub tuning: Option<TuneReport>,
+    /// The identification's harmonic count chosen by cross-validation (`--harmonics auto`,
+    /// the default, with a robot), with the evidence.
+    pub harmonics: Option<HarmonicsChoice>,
     /// The served field, resolved before the table was encoded, without `tune`: chosen by
     /// cross-validation (`served_field` or `posture` `auto`, the defaults) or fixed.
     pub served_field: Option<ServedFieldDecision>,
@@ -167,9 +237,10 @@ impl BuildJob {
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
         let (columns, read) = args.reading.resolve()?;
         let tracker = args.measured_in == Frame::Tracker;
+        // `auto` registers several series and starts its choice without terms.
         let calibrate = CalibrateOptions {
             compliance: args.compliance,
-            harmonics: args.harmonics,
+            harmonics: args.harmonics.fixed().unwrap_or(0),
             ..CalibrateOptions::default()
         };
         let series =
@@ -240,50 +311,59 @@ impl BuildJob {
             pool.install(|| series.refine(&calibrate))?;
             plan = adwi_compile::build::plan(&series.samples, &base)?;
         }
-        let Series {
-            samples,
-            labels,
-            registered,
-            others,
-            ..
-        } = series;
-        // Identified once: the model the table holds, and the residuals the served
-        // field's kriging is fitted to when one is chosen.
-        let identified = match &robot {
-            Some(robot) => {
-                progress.stage("identifying", None);
-                Some(pool.install(|| identify(robot, &samples, &calibrate))?)
-            }
-            None => None,
-        };
+        let mut calibrate = calibrate;
+        let choose_harmonics = args.harmonics == Harmonics::Auto && robot.is_some();
         let choose_field = args.table.served_field == ServedFieldChoice::Auto;
         let choose_posture = args.table.posture == PostureChoice::Auto && robot.is_some();
         let choose_weight =
             args.table.residual_weight == ResidualWeightChoice::Auto && robot.is_some();
         let served_tier = plan.joint_radius_rad == 0.0;
+        let mut harmonics = None;
         let (options, tuning, served_field) = if args.tune {
             progress.stage("tuning", None);
-            let report =
-                pool.install(|| {
-                    CrossValidation::new(&samples, robot.as_ref(), calibrate, args.tune_folds, 0)?
-                        .tune(&base, choose_field, choose_posture && served_tier)
-                })?;
+            let report = pool.install(|| {
+                let mut cv = CrossValidation::new(
+                    &series.samples,
+                    robot.as_ref(),
+                    calibrate,
+                    args.tune_folds,
+                    0,
+                )?;
+                if choose_harmonics {
+                    harmonics = Some(cv.choose_harmonics(&HARMONICS_CANDIDATES)?);
+                    calibrate = *cv.calibrate();
+                }
+                cv.tune(&base, choose_field, choose_posture && served_tier)
+            })?;
             (report.options.clone(), Some(report), None)
         } else {
-            let decision = if (choose_field || choose_posture || choose_weight) && served_tier {
+            let table_choices = (choose_field || choose_posture || choose_weight) && served_tier;
+            let decision = if table_choices || choose_harmonics {
                 // Never a reason for a build to fail that would succeed with the method's
-                // own field: without the evidence, that one.
+                // own field and no terms: without the evidence, those.
                 progress.stage("choosing the served field", None);
                 let ask = Ask {
-                    field: choose_field,
-                    posture: choose_posture,
-                    weight: choose_weight,
-                    series: labels.as_deref(),
+                    field: choose_field && table_choices,
+                    posture: choose_posture && table_choices,
+                    weight: choose_weight && table_choices,
+                    harmonics: choose_harmonics,
+                    series: series.labels.as_deref(),
                 };
-                let chosen =
-                    pool.install(|| auto_choice(&samples, robot.as_ref(), &base, &calibrate, ask));
+                let chosen = pool.install(|| {
+                    default_choices(&series.samples, robot.as_ref(), &base, &calibrate, ask)
+                });
                 match chosen {
-                    Ok(choice) => ServedFieldDecision::Chosen(Box::new(choice)),
+                    Ok(mut choice) => {
+                        harmonics = choice.harmonics.take();
+                        if let Some(h) = &harmonics {
+                            calibrate.harmonics = h.chosen;
+                        }
+                        if table_choices {
+                            ServedFieldDecision::Chosen(Box::new(choice))
+                        } else {
+                            ServedFieldDecision::Fixed(unchosen)
+                        }
+                    }
                     Err(e) => {
                         warnings.push(Warning::ServedFieldNotChosen {
                             reason: error_chain(&e),
@@ -297,6 +377,26 @@ impl BuildJob {
             let mut options = args.table.build_options(decision.field());
             decision.apply(&mut options);
             (options, None, Some(decision))
+        };
+        // Several series were registered to the model without terms; with terms chosen,
+        // again to the model with them, as `--harmonics N` registers them.
+        if args.samples.len() > 1 && calibrate.harmonics > 0 && choose_harmonics {
+            progress.stage("registering the series", None);
+            pool.install(|| series.refine(&calibrate))?;
+        }
+        let Series {
+            samples,
+            registered,
+            others,
+            ..
+        } = series;
+        // Identified once, with the count chosen: the model the table holds.
+        let identified = match &robot {
+            Some(robot) => {
+                progress.stage("identifying", None);
+                Some(pool.install(|| identify(robot, &samples, &calibrate))?)
+            }
+            None => None,
         };
         let plan = adwi_compile::build::plan(&samples, &options)?;
         let advance = |n| progress.advance(n);
@@ -353,6 +453,7 @@ impl BuildJob {
             repeats: samples.repeats,
             report,
             tuning,
+            harmonics,
             served_field,
             calibration,
             registration,

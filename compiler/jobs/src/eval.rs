@@ -18,6 +18,7 @@ use crate::args::{
     parsed, Frame, PostureChoice, Reading, ResidualWeightChoice, RobotArgs, ServedFieldChoice,
     TableArgs,
 };
+use crate::build::Harmonics;
 use crate::inputs::{load_robot, Inputs, Source};
 use crate::registration::RegistrationSummary;
 use crate::series::Series;
@@ -97,9 +98,12 @@ pub struct EvalArgs {
     pub compliance: bool,
     /// Kinematic identification: identify each revolute joint's joint-space terms up to
     /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
-    /// where the information criterion (BIC) supports it.
-    #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
-    pub harmonics: u8,
+    /// where the information criterion (BIC) supports it; `auto`, chosen among 0, 1 and 2
+    /// as `tablec build` chooses it, on the training samples alone (each split's own in
+    /// cross-validation).
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
+    #[serde(deserialize_with = "Harmonics::deserialize")]
+    pub harmonics: Harmonics,
     #[command(flatten)]
     #[serde(flatten)]
     pub options: TableArgs,
@@ -132,7 +136,7 @@ impl Default for EvalArgs {
             rank_tol: CalibrateOptions::default().rank_tolerance,
             keep_untrustworthy: false,
             compliance: false,
-            harmonics: CalibrateOptions::default().harmonics,
+            harmonics: Harmonics::Auto,
             options: TableArgs::default(),
             csv: None,
             json: None,
@@ -303,7 +307,7 @@ impl EvalJob {
                     rank_tolerance: args.rank_tol,
                     hold_untrustworthy: !args.keep_untrustworthy,
                     compliance: args.compliance,
-                    harmonics: args.harmonics,
+                    harmonics: args.harmonics.fixed().unwrap_or(0),
                     ..CalibrateOptions::default()
                 };
                 let series = crate::series::read(
@@ -358,12 +362,14 @@ impl EvalJob {
                     .options
                     .build_options(given.unwrap_or(ServedField::Method));
                 let split_rule = split_rule(&args.options, robot.is_some(), &build);
+                let choose_harmonics = args.harmonics == Harmonics::Auto && robot.is_some();
                 let options = EvalOptions {
                     methods: args.methods.clone(),
                     build,
                     robot,
                     calibrate,
                     split_rule,
+                    choose_harmonics,
                     ..EvalOptions::default()
                 };
                 // The tables the methods build are sized now, from every sample: a grid
@@ -427,6 +433,34 @@ impl EvalJob {
                 options,
             } => {
                 series.refine(&options.calibrate)?;
+                let mut options = options;
+                // With a validation set the one split is every sample: the harmonic count
+                // is chosen on them here, before the validation set is registered to the
+                // model (with its terms, as `--harmonics N` registers it); several series
+                // are registered again to the model with the terms chosen.
+                let mut harmonics = None;
+                if options.choose_harmonics && matches!(held_out, HeldOut::Validation { .. }) {
+                    let ask = adwi_eval::choice::Ask {
+                        harmonics: true,
+                        series: series.labels.as_deref(),
+                        ..adwi_eval::choice::Ask::default()
+                    };
+                    let chosen = adwi_eval::choice::default_choices(
+                        &series.samples,
+                        options.robot.as_ref(),
+                        &options.build,
+                        &options.calibrate,
+                        ask,
+                    );
+                    if let Some(choice) = chosen.ok().and_then(|auto| auto.harmonics) {
+                        options.calibrate.harmonics = choice.chosen;
+                        if choice.chosen > 0 {
+                            series.refine(&options.calibrate)?;
+                        }
+                        harmonics = Some(adwi_eval::SplitHarmonics { split: 0, choice });
+                    }
+                    options.choose_harmonics = false;
+                }
                 warnings.extend(series.warnings());
                 let Series {
                     samples,
@@ -437,7 +471,6 @@ impl EvalJob {
                 } = series;
                 series_registrations = others;
                 // Several series: a split's residual weight is learned by leaving one out.
-                let mut options = options;
                 options.series = labels;
                 let mut registered_apart = None;
                 let mut regions = None;
@@ -472,7 +505,8 @@ impl EvalJob {
                         Protocol::KFold { folds, seed }
                     }
                 };
-                let evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+                let mut evaluation = adwi_eval::evaluate(&samples, &protocol, &options)?;
+                evaluation.harmonics_choices.extend(harmonics);
                 let by_region = match &regions {
                     Some(regions) => Some(adwi_eval::evaluate(&samples, regions, &options)?),
                     None => None,

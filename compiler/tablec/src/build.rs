@@ -56,6 +56,9 @@ fn print_summary(built: &Built) {
             r.poses, r.rows, r.max_rows_per_pose, r.position_max_mm, r.position_rms_mm
         );
     }
+    if let Some(h) = &built.harmonics {
+        print_harmonics_choice(h);
+    }
     if let Some(t) = &built.tuning {
         print_tuning(t);
     }
@@ -216,6 +219,35 @@ fn print_tuning(report: &adwi_jobs::choice::TuneReport) {
     if let Some(chosen) = report.candidates.get(report.chosen) {
         let parameters = format!("k {}, ε {:.3} mm", chosen.k, chosen.radius_mm);
         print_served_candidates(&report.served, report.options.served_field, &parameters);
+    }
+}
+
+/// The harmonic count chosen by default: each count's held-out mean of the model alone,
+/// the chosen one marked.
+fn print_harmonics_choice(choice: &adwi_jobs::choice::HarmonicsChoice) {
+    println!(
+        "harmonics      chosen by {}, the model alone (fewer terms unless more lower the \
+         mean by more than its noise):",
+        choice.held_out.describe(choice.folds)
+    );
+    for c in &choice.candidates {
+        let mean = c
+            .cv_mean_mm
+            .map_or("not identified".to_string(), |m| format!("{m:.4} mm mean"));
+        let noise = c
+            .noise_mm
+            .filter(|n| *n > 0.0)
+            .map_or(String::new(), |n| format!(" (noise ±{n:.4} mm)"));
+        println!(
+            "  {} harmonics {}: {mean}{noise}, {} missed",
+            if c.harmonics == choice.chosen {
+                "*"
+            } else {
+                " "
+            },
+            c.harmonics,
+            c.missed
+        );
     }
 }
 
