@@ -67,7 +67,10 @@ STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.STATUS_NAMES)
 RESIDUAL_NAMES: Tuple[str, ...] = tuple(_adwi.RESIDUAL_NAMES)
 #: Evidence flags, indexed by their bits: where an answer lies beyond what the table's
 #: samples cover, as ``tablec query`` prints it.
-EVIDENCE_NAMES: Tuple[str, ...] = ("within", "orientation", "tcp", "orientation+tcp")
+EVIDENCE_NAMES: Tuple[str, ...] = (
+    "within", "orientation", "tcp", "orientation+tcp",
+    "joints", "orientation+joints", "tcp+joints", "orientation+tcp+joints",
+)
 #: ``command_status`` names of ``tablec query --targets``, indexed by code.
 COMMAND_STATUS_NAMES: Tuple[str, ...] = tuple(_adwi.COMMAND_STATUS_NAMES)
 
@@ -457,7 +460,7 @@ class QueryResult:
     @property
     def evidence(self) -> np.ndarray:
         """Evidence flag names, (N,) array of str (``within`` where nothing is beyond)."""
-        return np.asarray(EVIDENCE_NAMES)[self.evidence_code & 3]
+        return np.asarray(EVIDENCE_NAMES)[self.evidence_code & 7]
 
     @property
     def ok(self) -> np.ndarray:

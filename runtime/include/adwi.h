@@ -145,6 +145,8 @@ typedef struct adwi_correction {
 #define ADWI_EVIDENCE_WITHIN 0u      /* within the samples' evidence */
 #define ADWI_EVIDENCE_ORIENTATION 1u /* an approach axis the samples never had */
 #define ADWI_EVIDENCE_TCP 2u         /* a TCP the table cannot relate to its point */
+#define ADWI_EVIDENCE_JOINTS 4u      /* a joint beyond the angles its model terms were
+                                        identified over */
 
 /* The command that lands the robot on a target: command + error(command) = target. */
 typedef struct adwi_compensation {

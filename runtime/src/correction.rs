@@ -163,8 +163,13 @@ impl Evidence {
     /// [`crate::format::TCP_MARGIN_MM`] from its point, or a table that does not record
     /// where its point is on the flange.
     pub const TCP: Evidence = Evidence(2);
+    /// A joint whose joint-space terms the model carries ([`crate::joint_terms`]) is
+    /// commanded more than [`crate::joint_terms::TERMS_MARGIN_RAD`] beyond the angles the
+    /// terms were identified over: the model holds the term at its range's end there, a
+    /// value no sample measured.
+    pub const JOINTS: Evidence = Evidence(4);
     /// Every bit defined.
-    pub const KNOWN: u8 = 3;
+    pub const KNOWN: u8 = 7;
 
     /// Whether no bit is set.
     pub fn is_within(self) -> bool {
@@ -182,14 +187,18 @@ impl Evidence {
         Evidence(self.0 | other.0)
     }
 
-    /// A short name, as the CLI prints it: `within`, or the reasons joined by `+`
-    /// (`orientation`, `tcp`, `orientation+tcp`).
+    /// A short name, as the CLI prints it: `within`, or the reasons joined by `+` in the
+    /// order of their bits (`orientation`, `tcp`, `joints`, `orientation+tcp`, ...).
     pub fn as_str(self) -> &'static str {
         match self.0 & Evidence::KNOWN {
             0 => "within",
             1 => "orientation",
             2 => "tcp",
-            _ => "orientation+tcp",
+            3 => "orientation+tcp",
+            4 => "joints",
+            5 => "orientation+joints",
+            6 => "tcp+joints",
+            _ => "orientation+tcp+joints",
         }
     }
 }

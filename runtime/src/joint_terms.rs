@@ -29,6 +29,12 @@
 
 use crate::chain::{ChainError, JointKind, MAX_JOINTS};
 
+/// How far beyond the angles a joint's terms were identified over a commanded angle may be,
+/// rad (3°), before the answer is flagged ([`crate::Evidence::JOINTS`]): the held value is
+/// continuous at the range's ends, and a few degrees past them the term a gear gives has
+/// not moved far from it; beyond that the held value is no evidence of the joint's error.
+pub const TERMS_MARGIN_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
+
 /// Coefficients per joint: `[a1, b1, a2, b2]`, rad (module docs).
 pub const COEFFICIENTS_PER_JOINT: usize = 4;
 
@@ -205,6 +211,21 @@ impl PreparedTerms {
         let sin2 = 2.0 * sin * cos;
         let cos2 = (cos - sin) * (cos + sin);
         a1 * sin + b1 * cos + a2 * sin2 + b2 * cos2
+    }
+
+    /// Whether a joint with a term is commanded more than [`TERMS_MARGIN_RAD`] beyond the
+    /// range its terms were identified over (`q` one angle per joint, rad). A joint
+    /// without terms (all four coefficients zero) is never beyond.
+    #[inline]
+    pub(crate) fn beyond(&self, q: &[f64]) -> bool {
+        let mut beyond = false;
+        for ((&value, c), &[lo, hi]) in q.iter().zip(&self.coefficients_rad).zip(&self.range_rad) {
+            let has_term = c.iter().any(|&v| v != 0.0);
+            // Branch-free over the joints: a comparison each, or-ed.
+            beyond |=
+                has_term & ((value < lo - TERMS_MARGIN_RAD) | (value > hi + TERMS_MARGIN_RAD));
+        }
+        beyond
     }
 
     /// [`JointTerms::apply`], to the bit.

@@ -713,7 +713,12 @@ impl<D: AsRef<[u8]>> Table<D> {
         // Flagged, not switched: the answer stays continuous across the edge of the
         // samples' evidence (on the KR150-2 hybrid table the residual left in changes the
         // figures beyond it by under 0.002 mm).
-        let evidence = self.evidence_of(target, model_part.as_ref());
+        let mut evidence = self.evidence_of(target, model_part.as_ref());
+        if let (Some(model), Some(q)) = (&self.model, joints_rad) {
+            if model.beyond_terms(q) {
+                evidence = evidence.with(Evidence::JOINTS);
+            }
+        }
         let site = match (payload, &self.served, tier) {
             _ if early_site.is_some() => early_site,
             (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
@@ -901,7 +906,10 @@ impl<D: AsRef<[u8]>> Table<D> {
             Ok(part) => part,
             Err(status) => return Correction::failed(status),
         };
-        let evidence = self.evidence_of(target, Some(&m));
+        let mut evidence = self.evidence_of(target, Some(&m));
+        if model.beyond_terms(q) {
+            evidence = evidence.with(Evidence::JOINTS);
+        }
         let site = match early_site {
             Some(site) => site,
             None => crate::served::site(grid, data, m.point_mm, target.config),

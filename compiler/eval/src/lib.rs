@@ -515,7 +515,7 @@ impl MethodResult {
     pub fn evidence_summary(&self) -> Option<String> {
         self.beyond_evidence.filter(|&n| n > 0).map(|n| {
             format!(
-                "{n} of {} answered beyond the samples' evidence (an orientation they never had, or a TCP the table cannot place)",
+                "{n} of {} answered beyond the samples' evidence (an orientation they never had, a TCP the table cannot place, or a joint beyond its model's terms)",
                 self.predicted()
             )
         })

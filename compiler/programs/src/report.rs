@@ -246,7 +246,7 @@ impl std::fmt::Display for Summary {
         if self.beyond_evidence > 0 {
             write!(
                 f,
-                "; {} beyond the samples' evidence (an orientation they never had)",
+                "; {} beyond the samples' evidence (an orientation, a TCP or joint angles they never had)",
                 self.beyond_evidence
             )?;
         }
