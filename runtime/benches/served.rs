@@ -9,7 +9,9 @@
 //!   cell's 8 nodes and the last guard;
 //! - `served/hybrid_exact`: the same queries by the exact tier (`Table::exact`);
 //! - `served/position_only`: `Table::query_target` of the version-2 position-only table
-//!   (`tables/compat/v2/worked_example.tbl`) at random targets in its covered cells.
+//!   (`tables/compat/v2/worked_example.tbl`) at random targets in its covered cells;
+//! - `served/position_only_exact`: the same targets by the exact tier: the cell's
+//!   candidates screened, the `k` nearest selected and weighed.
 //!
 //! The tables are small, so their cells stay in cache: `tablec bench` on a table of the
 //! size a controller serves times the memory's part too.
@@ -81,6 +83,12 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             i = (i + 1) % targets.len();
             position_only.query_target(black_box(&targets[i]))
+        })
+    });
+    group.bench_function("position_only_exact", |b| {
+        b.iter(|| {
+            i = (i + 1) % targets.len();
+            position_only.exact().query_target(black_box(&targets[i]))
         })
     });
     group.finish();
