@@ -158,6 +158,9 @@ const CLIMB_STEPS: [[isize; 3]; 14] = [
 /// rounding of either could reorder.
 const SCREEN_MARGIN: f64 = 1e-6;
 
+/// A Cholesky factorisation of a search's system.
+type Factor = Cholesky<f64, Dyn>;
+
 /// The most exact scorings whose factorisations a search keeps for its fit
 /// ([`ResidualGp::fit_turning`]): one per component of position and orientation, and as
 /// many again for near-ties.
@@ -412,8 +415,8 @@ impl ResidualGp {
         // Beyond a few (near-ties), only the scores, so that memory stays a few matrices.
         let keep = rescored.len() <= KEPT_FACTORS;
         let mut exact_scores: Vec<Option<Option<Vec<f64>>>> = vec![None; screened.len()];
-        let mut factors: Vec<(usize, Cholesky<f64, Dyn>)> = Vec::new();
-        let results: Vec<Option<(Vec<f64>, Option<Cholesky<f64, Dyn>>)>> = rescored
+        let mut factors: Vec<(usize, Factor)> = Vec::new();
+        let results: Vec<Option<(Vec<f64>, Option<Factor>)>> = rescored
             .par_iter()
             .map(|&i| factored(i).map(|(scores, factor)| (scores, keep.then_some(factor))))
             .collect();
@@ -461,7 +464,7 @@ impl ResidualGp {
                 }
             })
             .collect();
-        let known: Vec<([u64; 4], Cholesky<f64, Dyn>)> = factors
+        let known: Vec<([u64; 4], Factor)> = factors
             .into_iter()
             .filter(|(i, _)| chosen.iter().any(|(c, _)| c == i))
             .map(|(i, factor)| {
@@ -505,7 +508,7 @@ impl ResidualGp {
         means: &[f64],
         centred: &DMatrix<f64>,
         choices: Vec<GpChoice>,
-        mut known: Vec<([u64; 4], Cholesky<f64, Dyn>)>,
+        mut known: Vec<([u64; 4], Factor)>,
     ) -> Result<ResidualGp, GpError> {
         let n = inputs.len();
         let key = |c: &GpChoice| {
@@ -521,7 +524,7 @@ impl ResidualGp {
         points.sort_unstable();
         points.dedup();
         let gram = axes.map(gram_matrix);
-        let given: Vec<Option<Cholesky<f64, Dyn>>> = points
+        let given: Vec<Option<Factor>> = points
             .iter()
             .map(|p| {
                 let at = known.iter().position(|(k, _)| k == p)?;
@@ -877,10 +880,7 @@ fn log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<Vec<f64>> 
 }
 
 /// [`log_likelihoods`], with the Cholesky factor of `a` that gave them.
-fn factored_log_likelihoods(
-    a: DMatrix<f64>,
-    centred: &DMatrix<f64>,
-) -> Option<(Vec<f64>, Cholesky<f64, Dyn>)> {
+fn factored_log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<(Vec<f64>, Factor)> {
     let n = a.nrows() as f64;
     let chol = a.cholesky()?;
     let log_det: f64 = 2.0
