@@ -120,6 +120,11 @@ fn with_two_series_the_build_chooses_by_leaving_each_series_out() {
         stdout.contains("served field   chosen by 2 series, each predicted from the others"),
         "{stdout}"
     );
+    // The harmonic count is chosen first, on the same splits.
+    assert!(
+        stdout.contains("harmonics      chosen by 2 series, each predicted from the others"),
+        "{stdout}"
+    );
     assert!(
         stdout.contains("2 series, each predicted from the others): "),
         "{stdout}"
