@@ -191,7 +191,7 @@ fn simulated_kr150(dir: &Path, name: &str, gear: bool) -> PathBuf {
     csv
 }
 
-/// The harmonic count a build chooses by default (`--harmonics auto`): none where the
+/// The harmonic count `--harmonics auto` chooses: none where the
 /// errors are geometric, the first harmonic where joint 2 has a periodic transmission
 /// error of one period per revolution; each count scored on the same 5 spatial blocks.
 #[test]

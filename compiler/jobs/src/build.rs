@@ -67,7 +67,7 @@ pub struct BuildArgs {
     /// whose model predicts held-out samples best (each series from the others when
     /// several are given, else each of 5 spatial blocks from the others), fewer terms
     /// unless more improve it by more than its noise.
-    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Count(0))]
     #[serde(deserialize_with = "Harmonics::deserialize")]
     pub harmonics: Harmonics,
     /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
@@ -101,7 +101,7 @@ impl Default for BuildArgs {
             robot: RobotArgs::default(),
             hybrid: false,
             compliance: false,
-            harmonics: Harmonics::Auto,
+            harmonics: Harmonics::Count(0),
             measured_in: Frame::Base,
             tune: false,
             tune_folds: 5,

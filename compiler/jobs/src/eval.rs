@@ -101,7 +101,7 @@ pub struct EvalArgs {
     /// where the information criterion (BIC) supports it; `auto`, chosen among 0, 1 and 2
     /// as `tablec build` chooses it, on the training samples alone (each split's own in
     /// cross-validation).
-    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Count(0))]
     #[serde(deserialize_with = "Harmonics::deserialize")]
     pub harmonics: Harmonics,
     #[command(flatten)]
@@ -136,7 +136,7 @@ impl Default for EvalArgs {
             rank_tol: CalibrateOptions::default().rank_tolerance,
             keep_untrustworthy: false,
             compliance: false,
-            harmonics: Harmonics::Auto,
+            harmonics: Harmonics::Count(0),
             options: TableArgs::default(),
             csv: None,
             json: None,
