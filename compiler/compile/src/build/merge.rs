@@ -48,6 +48,8 @@ struct Voxels {
     /// Integers per key: the configuration, three voxel indices, one cell per joint.
     stride: usize,
     keys: Vec<i64>,
+    /// A hash of each key: the sort compares these, and keys only where they are equal.
+    hashes: Vec<u64>,
 }
 
 impl Voxels {
@@ -75,7 +77,12 @@ impl Voxels {
                 );
             }
         }
-        Some(Voxels { stride, keys })
+        let hashes = keys.chunks_exact(stride).map(hash_key).collect();
+        Some(Voxels {
+            stride,
+            keys,
+            hashes,
+        })
     }
 
     fn key(&self, i: u32) -> &[i64] {
@@ -84,12 +91,17 @@ impl Voxels {
     }
 
     /// The sample indices sorted so that those merged together are adjacent, each group in
-    /// source order.
+    /// source order: by key hash, key, then index (a total order, so the same at any run).
     fn sorted(&self) -> Vec<u32> {
-        let n = self.keys.len() / self.stride;
-        let mut order: Vec<u32> = (0..n as u32).collect();
-        order.sort_unstable_by(|&i, &j| self.key(i).cmp(self.key(j)).then_with(|| i.cmp(&j)));
-        order
+        let mut order: Vec<(u64, u32)> = (self.hashes.iter().enumerate())
+            .map(|(i, &h)| (h, i as u32))
+            .collect();
+        order.sort_unstable_by(|&(h, i), &(g, j)| {
+            h.cmp(&g)
+                .then_with(|| self.key(i).cmp(self.key(j)))
+                .then(i.cmp(&j))
+        });
+        order.into_iter().map(|(_, i)| i).collect()
     }
 
     /// Whether samples `i` and `j` are merged together.
@@ -111,6 +123,15 @@ impl Voxels {
         groups.sort_unstable_by_key(|g| order[g.start]);
         groups
     }
+}
+
+/// A hash of a voxel key (64-bit multiply-xorshift mixing of each integer): fixed, so the
+/// same samples sort the same on every machine.
+fn hash_key(key: &[i64]) -> u64 {
+    key.iter().fold(0x9e37_79b9_7f4a_7c15, |h, &k| {
+        let x = (h ^ k as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x ^ (x >> 31)
+    })
 }
 
 /// How many samples a merge in voxels of `voxel_mm` leaves (one per voxel, configuration
@@ -135,7 +156,6 @@ fn count_sorted(voxels: &Voxels, order: &[u32]) -> usize {
 pub(super) struct Merging<'a> {
     samples: &'a SampleSet,
     voxels: Option<(Voxels, Vec<u32>)>,
-    voxel_mm: f64,
 }
 
 impl<'a> Merging<'a> {
@@ -144,11 +164,7 @@ impl<'a> Merging<'a> {
             let order = v.sorted();
             (v, order)
         });
-        Merging {
-            samples,
-            voxels,
-            voxel_mm,
-        }
+        Merging { samples, voxels }
     }
 
     /// The samples the merge leaves ([`merged_count`]).
@@ -164,11 +180,6 @@ impl<'a> Merging<'a> {
             Some((voxels, order)) => merge_sorted(self.samples, &voxels, &order),
             None => self.samples.clone(),
         }
-    }
-
-    /// The voxel edge, mm.
-    pub(super) fn voxel_mm(&self) -> f64 {
-        self.voxel_mm
     }
 }
 

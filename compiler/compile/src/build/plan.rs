@@ -368,15 +368,21 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
                 // A posture term holds every sample's joints and residual: its table keeps
                 // them all.
                 None if options.posture != crate::posture::Posture::Off => (cell_mm, None),
-                None if predicted(samples, cell_mm) <= bound => (cell_mm, None),
+                None if own_bytes(samples, samples.len()) <= bound
+                    && predicted(samples, cell_mm) <= bound =>
+                {
+                    (cell_mm, None)
+                }
                 None => {
                     // The served tier's grid kept; else the cell grown with the merged
-                    // samples, as for samples that few.
-                    let kept = bounded_merge(samples, spacing_mm, bound, |merged| {
+                    // samples, as for samples that few. Each voxel's count is sorted for
+                    // once.
+                    let mut counts = [None; MERGE_FRACTIONS.len()];
+                    let kept = bounded_merge(samples, spacing_mm, bound, &mut counts, |merged| {
                         predicted(merged, cell_mm) <= bound
                     });
                     let merge = kept.or_else(|| {
-                        bounded_merge(samples, spacing_mm, bound, |merged| {
+                        bounded_merge(samples, spacing_mm, bound, &mut counts, |merged| {
                             predicted(merged, cell_for(merged.len())) <= bound
                         })
                     });
@@ -457,27 +463,34 @@ fn bounded_merge(
     samples: &SampleSet,
     spacing_mm: f64,
     bound: u128,
+    counts: &mut [Option<usize>; MERGE_FRACTIONS.len()],
     fits: impl Fn(&SampleSet) -> bool,
 ) -> Option<SampleMerge> {
     // A voxel that merges no more than the last one tried fits no better: not predicted
     // again (samples a spacing apart are refused in a fraction of a second).
     let mut tried = samples.len();
-    MERGE_FRACTIONS.iter().find_map(|fraction| {
-        let merging = Merging::new(samples, recordable_voxel_mm(spacing_mm * fraction));
-        let count = merging.count();
-        let hopeless = count == tried || own_bytes(samples, count) > bound;
-        tried = count;
-        if hopeless {
-            return None;
-        }
-        let voxel_mm = merging.voxel_mm();
-        let merged = merging.merge();
-        fits(&merged).then_some(SampleMerge {
-            voxel_mm,
-            measured: samples.len(),
-            merged: merged.len(),
+    MERGE_FRACTIONS
+        .iter()
+        .zip(counts)
+        .find_map(|(fraction, known)| {
+            let voxel_mm = recordable_voxel_mm(spacing_mm * fraction);
+            let mut merging = None;
+            let count = *known
+                .get_or_insert_with(|| merging.insert(Merging::new(samples, voxel_mm)).count());
+            let hopeless = count == tried || own_bytes(samples, count) > bound;
+            tried = count;
+            if hopeless {
+                return None;
+            }
+            let merged = merging
+                .unwrap_or_else(|| Merging::new(samples, voxel_mm))
+                .merge();
+            fits(&merged).then_some(SampleMerge {
+                voxel_mm,
+                measured: samples.len(),
+                merged: merged.len(),
+            })
         })
-    })
 }
 
 /// Bytes every table of `count` of these samples holds whatever its grid: the header and
