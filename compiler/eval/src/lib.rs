@@ -689,6 +689,10 @@ fn choose_methods(
     }
 }
 
+/// Samples beyond which an evaluation runs its splits one at a time (the threads working
+/// within each): a million samples' splits two at a time took 1.4 GB.
+pub const ONE_SPLIT_AT_A_TIME: usize = 100_000;
+
 /// Runs the evaluation.
 ///
 /// # Errors
@@ -804,7 +808,13 @@ pub fn evaluate(
         }
         Ok::<_, EvalError>((calibration, outcomes))
     };
-    let in_flight = rayon::current_num_threads().max(1);
+    // Beyond [`ONE_SPLIT_AT_A_TIME`] samples a split's training copy, merge and tables take
+    // hundreds of megabytes: one split at a time, each with every thread.
+    let in_flight = if samples.len() > ONE_SPLIT_AT_A_TIME {
+        1
+    } else {
+        rayon::current_num_threads().max(1)
+    };
     for (batch, chunk) in splits.chunks(in_flight).enumerate() {
         let unsupported: Vec<Method> = collected.unsupported.keys().copied().collect();
         let runs: Vec<_> = chunk
