@@ -715,14 +715,15 @@ pub fn evaluate(
             .filter(|s| s.len() == samples.len())
             .map(|s| train.iter().map(|&i| s[i]).collect::<Vec<_>>())
     };
-    let (splits, points, description): (Vec<Split>, SampleSet, String) = match protocol {
+    // The held-out points: the validation set's, or the samples themselves (not a copy).
+    let (splits, points, description): (Vec<Split>, &SampleSet, String) = match protocol {
         Protocol::Validation(validation) => (
             vec![(
                 (0..samples.len()).collect(),
                 series_of(&(0..samples.len()).collect::<Vec<_>>()),
                 (0..validation.len()).collect(),
             )],
-            validation.clone(),
+            validation,
             format!(
                 "built from {} samples, evaluated at {} validation points",
                 samples.len(),
@@ -739,12 +740,12 @@ pub fn evaluate(
                         (f.train, series, f.test)
                     })
                     .collect(),
-                samples.clone(),
+                samples,
                 description,
             )
         }
     };
-    let (methods, skipped) = choose_methods(samples, &points, options)?;
+    let (methods, skipped) = choose_methods(samples, points, options)?;
     let orientation = samples.rotation_error_rad.is_some() && points.rotation_error_rad.is_some();
 
     let mut collected = Collected::new(&methods, points.len());
@@ -759,7 +760,7 @@ pub fn evaluate(
     // give them, to the bit.
     let run_split = |split: usize, (train, train_series, test): &Split, unsupported: &[Method]| {
         let train = &subset(samples, train);
-        let test_points = subset(&points, test);
+        let test_points = subset(points, test);
         let calibration = if methods.iter().any(|m| m.needs_robot()) {
             let robot = options.robot.as_ref().expect("checked by choose_methods");
             let method = *methods
@@ -846,7 +847,7 @@ pub fn evaluate(
     let floor = splits
         .first()
         .map(|(train, _, _)| training_noise_floor(&subset(samples, train), identified.first()));
-    let mut evaluation = assemble(description, samples, &points, orientation, collected);
+    let mut evaluation = assemble(description, samples, points, orientation, collected);
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;
     evaluation.split_choices = split_choices;
