@@ -183,3 +183,62 @@ fn a_merge_voxel_out_of_range_is_refused_as_an_option() {
     };
     assert!(adwi_compile::build::check_options(&options).is_err());
 }
+
+/// An evaluation of samples too many for the bound scores each held-out point with the
+/// merged table a build of that fold's training samples makes (the held-out points in none
+/// of its voxel averages), to the bit; and `idw` from that fold's training samples alone.
+#[test]
+fn each_fold_is_scored_with_the_merged_table_its_training_samples_build() {
+    use adwi_eval::baselines::{k_fold_splits, Idw, IdwParams};
+    use adwi_eval::{evaluate, EvalOptions, Method, Protocol};
+    use adwi_runtime::{Target, Tier};
+    let s = tracked_path(10_000);
+    let bound = 1_500_000;
+    let build = BuildOptions {
+        max_table_bytes: Some(bound),
+        ..BuildOptions::default()
+    };
+    let options = EvalOptions {
+        methods: Some(vec![Method::Paper, Method::Idw]),
+        build: build.clone(),
+        ..EvalOptions::default()
+    };
+    let evaluation = evaluate(&s, &Protocol::KFold { folds: 5, seed: 4 }, &options).unwrap();
+    let paper = evaluation.method(Method::Paper).unwrap();
+    let idw = evaluation.method(Method::Idw).unwrap();
+    let mut scored = 0;
+    for fold in k_fold_splits(s.len(), 5, 4).unwrap() {
+        let train = s.subset(&fold.train);
+        let merge = plan(&train, &build)
+            .unwrap()
+            .merge
+            .expect("a fold's samples merged");
+        assert!(merge.merged < train.len());
+        let bytes = bytes_of(&train, &build).unwrap();
+        assert!(bytes.len() as u128 <= bound, "{} bytes", bytes.len());
+        let table = Table::from_vec(&bytes).unwrap();
+        assert_eq!(table.sample_count(), merge.merged);
+        let reference = Idw::new(&train.nominal_mm, &train.error_mm, IdwParams::default()).unwrap();
+        for &i in &fold.test {
+            let target = Target {
+                position_mm: s.nominal_mm[i],
+                config: None,
+                rotation_rad: None,
+                tcp_mm: None,
+            };
+            let answer = table.answer(&target, None, Tier::Exact);
+            match &paper.predictions[i] {
+                Some(p) => {
+                    assert_eq!(answer.status, Status::Ok);
+                    assert_eq!(p.position_error_mm, answer.position_error_mm, "point {i}");
+                    scored += 1;
+                }
+                None => assert_ne!(answer.status, Status::Ok),
+            }
+            let want = reference.predict(s.nominal_mm[i]).unwrap();
+            let got = idw.predictions[i].as_ref().unwrap().position_error_mm;
+            assert_eq!(got, want, "point {i}");
+        }
+    }
+    assert!(scored > 9_000, "{scored} of 10,000 held-out points scored");
+}

@@ -703,6 +703,10 @@ fn choose_methods(
     }
 }
 
+/// Samples beyond which an evaluation runs its splits one at a time (the threads working
+/// within each): a million samples' splits two at a time took 1.4 GB.
+pub const ONE_SPLIT_AT_A_TIME: usize = 100_000;
+
 /// Runs the evaluation.
 ///
 /// # Errors
@@ -716,21 +720,24 @@ pub fn evaluate(
     protocol: &Protocol,
     options: &EvalOptions,
 ) -> Result<Evaluation, EvalError> {
-    // Each split: its training samples, their series (when several), the held-out points.
-    type Split = (SampleSet, Option<Vec<usize>>, Vec<usize>);
+    // Each split: its training samples' indices, their series (when several), the held-out
+    // points. The training samples are copied out as each split runs: every split's copy
+    // at once would be the samples four times over (a million samples, 600 MB more).
+    type Split = (Vec<usize>, Option<Vec<usize>>, Vec<usize>);
     let series_of = |train: &[usize]| {
         (options.series.as_ref())
             .filter(|s| s.len() == samples.len())
             .map(|s| train.iter().map(|&i| s[i]).collect::<Vec<_>>())
     };
-    let (splits, points, description): (Vec<Split>, SampleSet, String) = match protocol {
+    // The held-out points: the validation set's, or the samples themselves (not a copy).
+    let (splits, points, description): (Vec<Split>, &SampleSet, String) = match protocol {
         Protocol::Validation(validation) => (
             vec![(
-                samples.clone(),
+                (0..samples.len()).collect(),
                 series_of(&(0..samples.len()).collect::<Vec<_>>()),
                 (0..validation.len()).collect(),
             )],
-            validation.clone(),
+            validation,
             format!(
                 "built from {} samples, evaluated at {} validation points",
                 samples.len(),
@@ -742,14 +749,17 @@ pub fn evaluate(
             (
                 splits
                     .into_iter()
-                    .map(|f| (subset(samples, &f.train), series_of(&f.train), f.test))
+                    .map(|f| {
+                        let series = series_of(&f.train);
+                        (f.train, series, f.test)
+                    })
                     .collect(),
-                samples.clone(),
+                samples,
                 description,
             )
         }
     };
-    let (methods, skipped) = choose_methods(samples, &points, options)?;
+    let (methods, skipped) = choose_methods(samples, points, options)?;
     let orientation = samples.rotation_error_rad.is_some() && points.rotation_error_rad.is_some();
 
     let mut collected = Collected::new(&methods, points.len());
@@ -764,7 +774,8 @@ pub fn evaluate(
     // many splits'; the results are taken in split order, as one after the other would
     // give them, to the bit.
     let run_split = |split: usize, (train, train_series, test): &Split, unsupported: &[Method]| {
-        let test_points = subset(&points, test);
+        let train = &subset(samples, train);
+        let test_points = subset(points, test);
         let needs_robot = methods.iter().any(|m| m.needs_robot());
         // The split's harmonic count, chosen on its training samples alone as a build
         // chooses it; too few of them to choose by, none.
@@ -842,7 +853,13 @@ pub fn evaluate(
         let harmonics = harmonics.map(|choice| SplitHarmonics { split, choice });
         Ok::<_, EvalError>((calibration, harmonics, outcomes))
     };
-    let in_flight = rayon::current_num_threads().max(1);
+    // Beyond [`ONE_SPLIT_AT_A_TIME`] samples a split's training copy, merge and tables take
+    // hundreds of megabytes: one split at a time, each with every thread.
+    let in_flight = if samples.len() > ONE_SPLIT_AT_A_TIME {
+        1
+    } else {
+        rayon::current_num_threads().max(1)
+    };
     for (batch, chunk) in splits.chunks(in_flight).enumerate() {
         let unsupported: Vec<Method> = collected.unsupported.keys().copied().collect();
         let runs: Vec<_> = chunk
@@ -874,8 +891,8 @@ pub fn evaluate(
     // them.
     let floor = splits
         .first()
-        .map(|(train, _, _)| training_noise_floor(train, identified.first()));
-    let mut evaluation = assemble(description, samples, &points, orientation, collected);
+        .map(|(train, _, _)| training_noise_floor(&subset(samples, train), identified.first()));
+    let mut evaluation = assemble(description, samples, points, orientation, collected);
     evaluation.skipped = skipped;
     evaluation.calibrations = calibrations;
     evaluation.split_choices = split_choices;
@@ -1319,7 +1336,7 @@ fn table_prediction<D: AsRef<[u8]>>(
 
 /// Builds a baseline for position errors (and one for orientation errors when evaluated)
 /// and predicts at every target.
-fn baseline_predictions<B: baselines::Baseline>(
+fn baseline_predictions<B: baselines::Baseline + Sync>(
     method: Method,
     train: &SampleSet,
     targets: &[Target],
@@ -1332,8 +1349,10 @@ fn baseline_predictions<B: baselines::Baseline>(
         (Some(r), true) => Some(make(r).map_err(wrap)?),
         _ => None,
     };
+    // Held-out points side by side, collected in their order: the same list at any thread
+    // count.
     Ok(targets
-        .iter()
+        .par_iter()
         .map(|t| {
             let p = position.predict(t.position_mm).map_err(Miss::baseline)?;
             let r = match &rotation {

@@ -499,12 +499,24 @@ pub(crate) fn parse(
     };
     // Spreadsheets start UTF-8 files with a byte-order mark.
     let bytes = bytes.strip_prefix(BOM).unwrap_or(bytes);
-    let uncommented = without_comments(bytes);
-    let data: &[u8] = uncommented.as_ref().map_or(bytes, |(data, _)| data);
+    // Comment lines only above the header (as `tablec simulate` writes them) are skipped in
+    // place; elsewhere the text is copied without them.
+    let (leading, rest) = leading_comments(bytes);
+    let uncommented = if rest.len() < bytes.len() && !has_comment_lines(rest) {
+        None
+    } else {
+        without_comments(bytes)
+    };
+    let (data, leading): (&[u8], u64) = match &uncommented {
+        Some((data, _)) => (data, 0),
+        None if rest.len() < bytes.len() => (rest, leading),
+        None => (bytes, 0),
+    };
     let mut lines = LineCounter {
         data,
         byte: 0,
         line: 1,
+        leading,
         physical: uncommented
             .as_ref()
             .map(|(_, physical)| physical.as_slice()),
@@ -579,14 +591,31 @@ pub(crate) fn parse(
     Ok(rows)
 }
 
+/// The number of comment lines that start `bytes`, and the text after them.
+fn leading_comments(bytes: &[u8]) -> (u64, &[u8]) {
+    let mut rest = bytes;
+    let mut count = 0;
+    while rest.first() == Some(&b'#') {
+        count += 1;
+        rest = match rest.iter().position(|&b| b == b'\n') {
+            Some(end) => &rest[end + 1..],
+            None => &[],
+        };
+    }
+    (count, rest)
+}
+
+/// Whether any line of `bytes` is a comment line.
+fn has_comment_lines(bytes: &[u8]) -> bool {
+    bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#')
+}
+
 /// `bytes` without its comment lines, and the file line of each line kept
 /// (`physical[n - 1]` is the file line of kept line n); `None` when it has none, as most
 /// files, which are then read in place. Comment lines are removed here rather than by the
 /// CSV reader, whose line numbers do not count them consistently.
 fn without_comments(bytes: &[u8]) -> Option<(Vec<u8>, Vec<u64>)> {
-    let has_comments =
-        bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#');
-    if !has_comments {
+    if !has_comment_lines(bytes) {
         return None;
     }
     let mut filtered = Vec::with_capacity(bytes.len());
@@ -946,6 +975,8 @@ struct LineCounter<'a> {
     /// A byte offset and the 1-based line it is on, where the last count stopped.
     byte: usize,
     line: u64,
+    /// Comment lines above `data` in the file, when only those were skipped.
+    leading: u64,
     /// The file line of each line of `data`, when comment lines were removed from it.
     physical: Option<&'a [u64]>,
 }
@@ -975,7 +1006,7 @@ impl LineCounter<'_> {
                 .get(self.line as usize - 1)
                 .copied()
                 .unwrap_or(self.line),
-            None => self.line,
+            None => self.leading + self.line,
         }
     }
 }

@@ -40,64 +40,98 @@ pub struct SampleMerge {
 /// poses (a pose measured in several orientations) are not one sample: their joint values
 /// and errors do not average into any pose the arm takes. A joint turned by less than the
 /// step moves the point by at most about a voxel, so a tracked path still merges.
-struct Voxels<'a> {
-    samples: &'a SampleSet,
-    lo_mm: [f64; 3],
-    voxel_mm: f64,
-    joint_step: f64,
+///
+/// Each sample's key (configuration, voxel, joint cells) is computed once: a sort of a
+/// million samples then compares integers instead of dividing and flooring in every
+/// comparison.
+struct Voxels {
+    /// Integers per key: the configuration, three voxel indices, one cell per joint.
+    stride: usize,
+    keys: Vec<i64>,
+    /// A hash of each key: the sort compares these, and keys only where they are equal.
+    hashes: Vec<u64>,
 }
 
-impl<'a> Voxels<'a> {
-    fn new(samples: &'a SampleSet, voxel_mm: f64) -> Option<Voxels<'a>> {
+impl Voxels {
+    fn new(samples: &SampleSet, voxel_mm: f64) -> Option<Voxels> {
         let (lo_mm, _) = samples.nominal_bounds_mm()?;
         let reach_mm = samples
             .nominal_mm
             .iter()
             .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
             .fold(voxel_mm, f64::max);
+        let joint_step = voxel_mm / reach_mm;
+        let joints = samples.joints.as_ref();
+        let stride = 4 + joints.map_or(0, |j| j.count());
+        let mut keys = Vec::with_capacity(samples.len() * stride);
+        for (i, p) in samples.nominal_mm.iter().enumerate() {
+            keys.push(i64::from(samples.config.as_ref().map_or(0, |c| c[i])));
+            // Finite samples within the workspace bound: the quotient fits an i64.
+            keys.extend((0..3).map(|a| ((p[a] - lo_mm[a]) / voxel_mm).floor() as i64));
+            if let Some(joints) = joints {
+                keys.extend(
+                    joints
+                        .row(i)
+                        .iter()
+                        .map(|&q| (q / joint_step).floor() as i64),
+                );
+            }
+        }
+        let hashes = keys.chunks_exact(stride).map(hash_key).collect();
         Some(Voxels {
-            samples,
-            lo_mm,
-            voxel_mm,
-            joint_step: voxel_mm / reach_mm,
+            stride,
+            keys,
+            hashes,
         })
     }
 
-    /// Sample `i`'s configuration and voxel.
-    fn cell(&self, i: usize) -> (u8, [i64; 3]) {
-        let p = self.samples.nominal_mm[i];
-        // Finite samples within the workspace bound: the quotient fits an i64.
-        let key = [0, 1, 2].map(|a| ((p[a] - self.lo_mm[a]) / self.voxel_mm).floor() as i64);
-        (self.samples.config.as_ref().map_or(0, |c| c[i]), key)
-    }
-
-    /// Samples `i` and `j` ordered by configuration, voxel, then joint cells.
-    fn order(&self, i: usize, j: usize) -> std::cmp::Ordering {
-        self.cell(i).cmp(&self.cell(j)).then_with(|| {
-            let Some(joints) = self.samples.joints.as_ref() else {
-                return std::cmp::Ordering::Equal;
-            };
-            let step = |q: f64| (q / self.joint_step).floor() as i64;
-            joints
-                .row(i)
-                .iter()
-                .map(|&q| step(q))
-                .cmp(joints.row(j).iter().map(|&q| step(q)))
-        })
+    fn key(&self, i: u32) -> &[i64] {
+        let i = i as usize;
+        &self.keys[i * self.stride..(i + 1) * self.stride]
     }
 
     /// The sample indices sorted so that those merged together are adjacent, each group in
-    /// source order.
+    /// source order: by key hash, key, then index (a total order, so the same at any run).
     fn sorted(&self) -> Vec<u32> {
-        let mut order: Vec<u32> = (0..self.samples.len() as u32).collect();
-        order.sort_unstable_by(|&i, &j| self.order(i as usize, j as usize).then_with(|| i.cmp(&j)));
-        order
+        let mut order: Vec<(u64, u32)> = (self.hashes.iter().enumerate())
+            .map(|(i, &h)| (h, i as u32))
+            .collect();
+        order.sort_unstable_by(|&(h, i), &(g, j)| {
+            h.cmp(&g)
+                .then_with(|| self.key(i).cmp(self.key(j)))
+                .then(i.cmp(&j))
+        });
+        order.into_iter().map(|(_, i)| i).collect()
     }
 
     /// Whether samples `i` and `j` are merged together.
     fn together(&self, i: u32, j: u32) -> bool {
-        self.order(i as usize, j as usize).is_eq()
+        self.key(i) == self.key(j)
     }
+
+    /// The groups of `order` ([`Voxels::sorted`]) as ranges of it, ordered by first member
+    /// (each group's first entry, its lowest index).
+    fn groups(&self, order: &[u32]) -> Vec<std::ops::Range<usize>> {
+        let mut groups = Vec::new();
+        let mut start = 0;
+        for j in 1..=order.len() {
+            if j == order.len() || !self.together(order[j - 1], order[j]) {
+                groups.push(start..j);
+                start = j;
+            }
+        }
+        groups.sort_unstable_by_key(|g| order[g.start]);
+        groups
+    }
+}
+
+/// A hash of a voxel key (64-bit multiply-xorshift mixing of each integer): fixed, so the
+/// same samples sort the same on every machine.
+fn hash_key(key: &[i64]) -> u64 {
+    key.iter().fold(0x9e37_79b9_7f4a_7c15, |h, &k| {
+        let x = (h ^ k as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x ^ (x >> 31)
+    })
 }
 
 /// How many samples a merge in voxels of `voxel_mm` leaves (one per voxel, configuration
@@ -106,7 +140,10 @@ pub fn merged_count(samples: &SampleSet, voxel_mm: f64) -> usize {
     let Some(voxels) = Voxels::new(samples, voxel_mm) else {
         return 0;
     };
-    let order = voxels.sorted();
+    count_sorted(&voxels, &voxels.sorted())
+}
+
+fn count_sorted(voxels: &Voxels, order: &[u32]) -> usize {
     order
         .windows(2)
         .filter(|w| !voxels.together(w[0], w[1]))
@@ -114,28 +151,53 @@ pub fn merged_count(samples: &SampleSet, voxel_mm: f64) -> usize {
         + usize::from(!order.is_empty())
 }
 
+/// A merge in voxels of `voxel_mm`, planned once: the count it leaves known before the
+/// samples are averaged, which [`Merging::merge`] then does from the same sort.
+pub(super) struct Merging<'a> {
+    samples: &'a SampleSet,
+    voxels: Option<(Voxels, Vec<u32>)>,
+}
+
+impl<'a> Merging<'a> {
+    pub(super) fn new(samples: &'a SampleSet, voxel_mm: f64) -> Merging<'a> {
+        let voxels = Voxels::new(samples, voxel_mm).map(|v| {
+            let order = v.sorted();
+            (v, order)
+        });
+        Merging { samples, voxels }
+    }
+
+    /// The samples the merge leaves ([`merged_count`]).
+    pub(super) fn count(&self) -> usize {
+        self.voxels
+            .as_ref()
+            .map_or(0, |(voxels, order)| count_sorted(voxels, order))
+    }
+
+    /// The merged samples ([`merge`]).
+    pub(super) fn merge(self) -> SampleSet {
+        match self.voxels {
+            Some((voxels, order)) => merge_sorted(self.samples, &voxels, &order),
+            None => self.samples.clone(),
+        }
+    }
+}
+
 /// `samples` merged in voxels of `voxel_mm`: per voxel, configuration and joint cells one
 /// sample, the mean of its members' nominal positions, position and orientation errors and
 /// joint values; its nominal orientation, source line and configuration are its first
 /// member's.
 pub fn merge(samples: &SampleSet, voxel_mm: f64) -> SampleSet {
-    let Some(voxels) = Voxels::new(samples, voxel_mm) else {
-        return samples.clone();
-    };
-    let order = voxels.sorted();
-    // The groups, each its members' indices in source order, ordered by first member.
-    let mut groups: Vec<Vec<u32>> = Vec::new();
-    for (j, &i) in order.iter().enumerate() {
-        if j > 0 && voxels.together(order[j - 1], i) {
-            groups.last_mut().expect("a group was opened").push(i);
-        } else {
-            groups.push(vec![i]);
-        }
-    }
-    drop(order);
-    groups.sort_unstable_by_key(|g| g[0]);
-    let firsts: Vec<usize> = groups.iter().map(|g| g[0] as usize).collect();
+    Merging::new(samples, voxel_mm).merge()
+}
+
+fn merge_sorted(samples: &SampleSet, voxels: &Voxels, order: &[u32]) -> SampleSet {
+    // The groups, each a run of `order` (its members in source order), ordered by first
+    // member.
+    let groups = voxels.groups(order);
+    let firsts: Vec<usize> = groups.iter().map(|g| order[g.start] as usize).collect();
     let mut merged = samples.subset(&firsts);
+    drop(firsts);
     let mean3 = |values: &[[f64; 3]], group: &[u32]| {
         let mut sum = [0.0; 3];
         for &i in group {
@@ -145,7 +207,8 @@ pub fn merge(samples: &SampleSet, voxel_mm: f64) -> SampleSet {
         }
         sum.map(|s| s / group.len() as f64)
     };
-    for (out, group) in groups.iter().enumerate() {
+    for (out, range) in groups.iter().enumerate() {
+        let group = &order[range.clone()];
         if group.len() == 1 {
             continue;
         }
@@ -161,7 +224,8 @@ pub fn merge(samples: &SampleSet, voxel_mm: f64) -> SampleSet {
     if let Some(from) = samples.joints.as_ref() {
         let mut joints = adwi_samples::Joints::new(from.count());
         let mut mean = vec![0.0; from.count()];
-        for group in &groups {
+        for range in &groups {
+            let group = &order[range.clone()];
             mean.fill(0.0);
             for &i in group {
                 for (s, v) in mean.iter_mut().zip(from.row(i as usize)) {
@@ -250,6 +314,113 @@ mod tests {
         let s = parse_samples("p.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
         assert_eq!(merged_count(&s, 1.0), merge(&s, 1.0).len());
         assert!(merged_count(&s, 1.0) <= 2, "{}", merged_count(&s, 1.0));
+    }
+
+    /// The merge as first written: each sample's key computed where needed, the groups
+    /// gathered in a map, each averaged in source order.
+    fn reference_merge(samples: &SampleSet, voxel_mm: f64) -> SampleSet {
+        use std::collections::BTreeMap;
+        let (lo, _) = samples.nominal_bounds_mm().unwrap();
+        let reach = (samples.nominal_mm.iter())
+            .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+            .fold(voxel_mm, f64::max);
+        let step = voxel_mm / reach;
+        let mut groups: BTreeMap<(u8, Vec<i64>), Vec<usize>> = BTreeMap::new();
+        for (i, p) in samples.nominal_mm.iter().enumerate() {
+            let mut key: Vec<i64> = (0..3)
+                .map(|a| ((p[a] - lo[a]) / voxel_mm).floor() as i64)
+                .collect();
+            if let Some(j) = &samples.joints {
+                key.extend(j.row(i).iter().map(|q| (q / step).floor() as i64));
+            }
+            let config = samples.config.as_ref().map_or(0, |c| c[i]);
+            groups.entry((config, key)).or_default().push(i);
+        }
+        let mut groups: Vec<Vec<usize>> = groups.into_values().collect();
+        groups.sort_by_key(|g| g[0]);
+        let mut out = samples.subset(&groups.iter().map(|g| g[0]).collect::<Vec<_>>());
+        let mean = |v: &[[f64; 3]], g: &[usize]| {
+            let mut s = [0.0; 3];
+            for &i in g {
+                (0..3).for_each(|a| s[a] += v[i][a]);
+            }
+            s.map(|x| x / g.len() as f64)
+        };
+        let mut joints = samples
+            .joints
+            .as_ref()
+            .map(|j| adwi_samples::Joints::new(j.count()));
+        for (k, g) in groups.iter().enumerate() {
+            out.nominal_mm[k] = mean(&samples.nominal_mm, g);
+            out.error_mm[k] = mean(&samples.error_mm, g);
+            if let (Some(o), Some(r)) = (&mut out.rotation_error_rad, &samples.rotation_error_rad) {
+                o[k] = mean(r, g);
+            }
+            if let (Some(into), Some(from)) = (&mut joints, &samples.joints) {
+                let mut m = vec![0.0; from.count()];
+                for &i in g {
+                    m.iter_mut().zip(from.row(i)).for_each(|(s, v)| *s += v);
+                }
+                m.iter_mut().for_each(|s| *s /= g.len() as f64);
+                into.push(&m);
+            }
+        }
+        if joints.is_some() {
+            out.joints = joints;
+        }
+        out
+    }
+
+    /// The merge (keys computed once, groups as runs of one sort) gives the reference's
+    /// samples to the bit, and the count it plans, on random walks with and without
+    /// joints and configurations, at every voxel a build tries.
+    #[test]
+    fn the_merge_is_the_reference_merge_to_the_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for case in 0..12 {
+            let with_joints = case % 2 == 0;
+            let with_config = case % 3 == 0;
+            let mut csv = String::from("x,y,z,dx,dy,dz,rx,ry,rz");
+            csv += if with_joints {
+                ",j1,j2,j3,j4,j5,j6"
+            } else {
+                ""
+            };
+            csv += if with_config { ",config\n" } else { "\n" };
+            let mut p = [1200.0, 300.0, 900.0];
+            let mut q = [10.0, -40.0, 90.0, 5.0, -30.0, 0.0];
+            for _ in 0..rng.gen_range(50..600) {
+                p.iter_mut().for_each(|v| *v += rng.gen_range(-0.4..0.4));
+                q.iter_mut().for_each(|v| *v += rng.gen_range(-0.01..0.01));
+                csv += &format!(
+                    "{},{},{},{},{},{},{},{},{}",
+                    p[0],
+                    p[1],
+                    p[2],
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1e-3..1e-3),
+                    rng.gen_range(-1e-3..1e-3),
+                    rng.gen_range(-1e-3..1e-3)
+                );
+                if with_joints {
+                    q.iter().for_each(|v| csv += &format!(",{v}"));
+                }
+                if with_config {
+                    csv += &format!(",{}", rng.gen_range(0..2));
+                }
+                csv += "\n";
+            }
+            let s = parse_samples("w.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
+            for fraction in MERGE_FRACTIONS {
+                let voxel_mm = 8.0 * fraction;
+                let want = reference_merge(&s, voxel_mm);
+                assert_eq!(merge(&s, voxel_mm), want, "case {case}, voxel {voxel_mm}");
+                assert_eq!(merged_count(&s, voxel_mm), want.len());
+            }
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@
 use adwi_runtime::format::{self, Grid};
 use adwi_runtime::method::MethodParams;
 
-use super::merge::{merged_count, SampleMerge, MERGE_FRACTIONS};
+use super::merge::{merged_count, Merging, SampleMerge, MERGE_FRACTIONS};
 use super::{BuildError, BuildOptions, ServedField, Tuning};
 use adwi_samples::SampleSet;
 
@@ -368,15 +368,21 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
                 // A posture term holds every sample's joints and residual: its table keeps
                 // them all.
                 None if options.posture != crate::posture::Posture::Off => (cell_mm, None),
-                None if predicted(samples, cell_mm) <= bound => (cell_mm, None),
+                None if own_bytes(samples, samples.len()) <= bound
+                    && predicted(samples, cell_mm) <= bound =>
+                {
+                    (cell_mm, None)
+                }
                 None => {
                     // The served tier's grid kept; else the cell grown with the merged
-                    // samples, as for samples that few.
-                    let kept = bounded_merge(samples, spacing_mm, |merged| {
+                    // samples, as for samples that few. Each voxel's count is sorted for
+                    // once.
+                    let mut counts = [None; MERGE_FRACTIONS.len()];
+                    let kept = bounded_merge(samples, spacing_mm, bound, &mut counts, |merged| {
                         predicted(merged, cell_mm) <= bound
                     });
                     let merge = kept.or_else(|| {
-                        bounded_merge(samples, spacing_mm, |merged| {
+                        bounded_merge(samples, spacing_mm, bound, &mut counts, |merged| {
                             predicted(merged, cell_for(merged.len())) <= bound
                         })
                     });
@@ -450,29 +456,65 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
 
 /// The finest voxel of [`MERGE_FRACTIONS`] of `spacing_mm` whose merged samples' table
 /// `fits` ([`super::merge`]); none when even the coarsest leaves too many (samples a
-/// spacing apart are not redundant).
+/// spacing apart are not redundant). A count of merged samples whose own part (header and
+/// per-sample bytes, which every table of them holds whatever its cell) already exceeds
+/// `bound` is neither merged nor predicted: no table of them fits.
 fn bounded_merge(
     samples: &SampleSet,
     spacing_mm: f64,
+    bound: u128,
+    counts: &mut [Option<usize>; MERGE_FRACTIONS.len()],
     fits: impl Fn(&SampleSet) -> bool,
 ) -> Option<SampleMerge> {
     // A voxel that merges no more than the last one tried fits no better: not predicted
     // again (samples a spacing apart are refused in a fraction of a second).
     let mut tried = samples.len();
-    MERGE_FRACTIONS.iter().find_map(|fraction| {
-        let voxel_mm = recordable_voxel_mm(spacing_mm * fraction);
-        let count = merged_count(samples, voxel_mm);
-        if count == tried {
-            return None;
-        }
-        tried = count;
-        let merged = super::merge::merge(samples, voxel_mm);
-        fits(&merged).then_some(SampleMerge {
-            voxel_mm,
-            measured: samples.len(),
-            merged: merged.len(),
+    MERGE_FRACTIONS
+        .iter()
+        .zip(counts)
+        .find_map(|(fraction, known)| {
+            let voxel_mm = recordable_voxel_mm(spacing_mm * fraction);
+            let mut merging = None;
+            let count = *known
+                .get_or_insert_with(|| merging.insert(Merging::new(samples, voxel_mm)).count());
+            let hopeless = count == tried || own_bytes(samples, count) > bound;
+            tried = count;
+            if hopeless {
+                return None;
+            }
+            let merged = merging
+                .unwrap_or_else(|| Merging::new(samples, voxel_mm))
+                .merge();
+            fits(&merged).then_some(SampleMerge {
+                voxel_mm,
+                measured: samples.len(),
+                merged: merged.len(),
+            })
         })
-    })
+}
+
+/// Bytes every table of `count` of these samples holds whatever its grid: the header and
+/// each sample's position and errors ([`predicted_table_bytes`] without cells, candidate
+/// lists or nodes), a lower bound of its size.
+fn own_bytes(samples: &SampleSet, count: usize) -> u128 {
+    format::HEADER_LEN as u128 + count as u128 * per_sample_bytes(samples, false)
+}
+
+/// Bytes of one sample in a table: its query block and position error, its orientation
+/// error when the samples carry them, its configuration, its joint values with a screen.
+fn per_sample_bytes(samples: &SampleSet, joint_screen: bool) -> u128 {
+    32 + 24
+        + if samples.rotation_error_rad.is_some() {
+            24
+        } else {
+            0
+        }
+        + u128::from(samples.config.is_some())
+        + if joint_screen {
+            8 * samples.joint_count().unwrap_or(0) as u128
+        } else {
+            0
+        }
 }
 
 /// Bytes of the served field's nodes per node of the grid, as a table of `samples` with
@@ -521,19 +563,7 @@ pub fn predicted_table_bytes(
         .iter()
         .map(|&d| u128::from(d) + 1)
         .product::<u128>();
-    let per_sample = 32
-        + 24
-        + if samples.rotation_error_rad.is_some() {
-            24
-        } else {
-            0
-        }
-        + u128::from(samples.config.is_some())
-        + if joint_screen {
-            8 * samples.joint_count().unwrap_or(0) as u128
-        } else {
-            0
-        };
+    let per_sample = per_sample_bytes(samples, joint_screen);
     let records = samples.records();
     let stride = (cells as usize).div_ceil(PREDICTION_CELLS);
     let overflow =

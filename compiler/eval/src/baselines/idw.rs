@@ -6,7 +6,7 @@
 //! `d_i` is the distance from `x` to sample `i`. Unlike the approximation degree, the weights
 //! see only distance, not direction.
 
-use super::neighbours::k_nearest;
+use super::neighbours::{KdTree, Neighbour};
 use super::{validate_query, validate_samples, Baseline, BaselineError, NotCovered, PredictError};
 
 /// Parameters of inverse distance weighting.
@@ -66,7 +66,8 @@ impl IdwParams {
 /// mean value if several samples share the position), rather than dividing by zero.
 #[derive(Debug, Clone)]
 pub struct Idw {
-    positions_mm: Vec<[f64; 3]>,
+    /// The samples' positions, for their nearest neighbours.
+    tree: KdTree,
     values: Vec<[f64; 3]>,
     params: IdwParams,
 }
@@ -86,7 +87,7 @@ impl Idw {
         validate_samples(positions_mm, values)?;
         params.validate()?;
         Ok(Self {
-            positions_mm: positions_mm.to_vec(),
+            tree: KdTree::new(positions_mm),
             values: values.to_vec(),
             params,
         })
@@ -106,12 +107,24 @@ impl Idw {
     pub fn predict(&self, query_position_mm: [f64; 3]) -> Result<[f64; 3], PredictError> {
         validate_query(query_position_mm)?;
         let radius_squared = self.params.radius_mm.map(|r| r * r);
-        let neighbours = k_nearest(
-            &self.positions_mm,
-            query_position_mm,
-            self.params.neighbours,
-            radius_squared,
-        );
+        // One buffer per thread: held-out points are predicted side by side, none allocates.
+        thread_local! {
+            static NEIGHBOURS: std::cell::RefCell<Vec<Neighbour>> =
+                const { std::cell::RefCell::new(Vec::new()) };
+        }
+        NEIGHBOURS.with_borrow_mut(|neighbours| {
+            self.tree.k_nearest_into(
+                query_position_mm,
+                self.params.neighbours,
+                radius_squared,
+                neighbours,
+            );
+            self.weighted_mean(neighbours)
+        })
+    }
+
+    /// The inverse-distance-weighted mean of `neighbours` (nearest first).
+    fn weighted_mean(&self, neighbours: &[Neighbour]) -> Result<[f64; 3], PredictError> {
         let Some(nearest) = neighbours.first() else {
             return Err(PredictError::NotCovered(NotCovered::NoSampleWithinRadius {
                 radius_mm: self.params.radius_mm.unwrap_or(f64::INFINITY),
@@ -134,7 +147,7 @@ impl Idw {
             // Weights (d_min / d_i)^p are proportional to 1 / d_i^p but lie in (0, 1], so
             // they neither overflow for tiny distances nor underflow for large ones.
             let half_power = 0.5 * self.params.power;
-            for n in &neighbours {
+            for n in neighbours {
                 let w = (nearest.distance_squared_mm2 / n.distance_squared_mm2).powf(half_power);
                 add_scaled(&mut sum, &self.values[n.index], w);
                 weight_sum += w;
