@@ -403,24 +403,10 @@ impl BuildJob {
         let (bytes, report, calibration) = match robot.as_ref().zip(identified) {
             Some((robot, identified)) => {
                 progress.stage("compiling", Some(plan.cells() as u64));
-                let model = identified.prepared_model();
                 // A learned residual weight scales the residuals the table holds.
                 let weight = served_field.as_ref().map_or(1.0, |d| d.residual_weight());
-                let weighted = (weight != 1.0)
-                    .then(|| adwi_eval::choice::weighted_residuals(&samples, &identified, weight));
-                let table_samples = weighted.as_ref().unwrap_or(&samples);
-                // The point the samples measured, on the flange: a query may name another
-                // TCP, whose lever the model turns.
-                let tool = robot.tool();
-                let plan = adwi_compile::build::Plan {
-                    point_in_flange: Some(adwi_runtime::format::PointInFlange::stored(
-                        tool.translation_mm,
-                        adwi_runtime::kinematics::rotation_vector(&tool.rotation),
-                    )),
-                    ..plan
-                };
                 let built = pool.install(|| {
-                    adwi_compile::hybrid::compile(table_samples, &model, &plan, &advance)
+                    compile_hybrid(robot, &identified, &samples, plan, weight, &advance)
                 })?;
                 warnings.extend(crate::calibration_warnings(&identified));
                 (
@@ -462,6 +448,31 @@ impl BuildJob {
             seconds: started.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// The hybrid table of `samples` and their `identified` model, the residuals scaled by
+/// `weight` (1: as measured), the point the samples measured on the flange recorded so
+/// that a query may name another TCP, whose lever the model turns.
+fn compile_hybrid(
+    robot: &Robot,
+    identified: &Calibration,
+    samples: &SampleSet,
+    plan: Plan,
+    weight: f64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<adwi_compile::hybrid::HybridBuild, adwi_compile::build::BuildError> {
+    let model = identified.prepared_model();
+    let weighted =
+        (weight != 1.0).then(|| adwi_eval::choice::weighted_residuals(samples, identified, weight));
+    let tool = robot.tool();
+    let plan = Plan {
+        point_in_flange: Some(adwi_runtime::format::PointInFlange::stored(
+            tool.translation_mm,
+            adwi_runtime::kinematics::rotation_vector(&tool.rotation),
+        )),
+        ..plan
+    };
+    adwi_compile::hybrid::compile(weighted.as_ref().unwrap_or(samples), &model, &plan, advance)
 }
 
 /// The field a table serves where none is chosen: the one given, else the method's own.

@@ -434,33 +434,12 @@ impl EvalJob {
             } => {
                 series.refine(&options.calibrate)?;
                 let mut options = options;
-                // With a validation set the one split is every sample: the harmonic count
-                // is chosen on them here, before the validation set is registered to the
-                // model (with its terms, as `--harmonics N` registers it); several series
-                // are registered again to the model with the terms chosen.
-                let mut harmonics = None;
-                if options.choose_harmonics && matches!(held_out, HeldOut::Validation { .. }) {
-                    let ask = adwi_eval::choice::Ask {
-                        harmonics: true,
-                        series: series.labels.as_deref(),
-                        ..adwi_eval::choice::Ask::default()
-                    };
-                    let chosen = adwi_eval::choice::default_choices(
-                        &series.samples,
-                        options.robot.as_ref(),
-                        &options.build,
-                        &options.calibrate,
-                        ask,
-                    );
-                    if let Some(choice) = chosen.ok().and_then(|auto| auto.harmonics) {
-                        options.calibrate.harmonics = choice.chosen;
-                        if choice.chosen > 0 {
-                            series.refine(&options.calibrate)?;
-                        }
-                        harmonics = Some(adwi_eval::SplitHarmonics { split: 0, choice });
+                let harmonics = match held_out {
+                    HeldOut::Validation { .. } if options.choose_harmonics => {
+                        harmonics_on_every_sample(&mut series, &mut options)?
                     }
-                    options.choose_harmonics = false;
-                }
+                    _ => None,
+                };
                 warnings.extend(series.warnings());
                 let Series {
                     samples,
@@ -563,6 +542,37 @@ impl EvalJob {
             warnings,
         })
     }
+}
+
+/// With a validation set the one split is every sample: the harmonic count is chosen on
+/// them here, before the validation set is registered to the model (with its terms, as
+/// `--harmonics N` registers it); several series are registered again to the model with
+/// the terms chosen. The splits then take the count as given.
+fn harmonics_on_every_sample(
+    series: &mut Series,
+    options: &mut EvalOptions,
+) -> Result<Option<adwi_eval::SplitHarmonics>, JobError> {
+    options.choose_harmonics = false;
+    let ask = adwi_eval::choice::Ask {
+        harmonics: true,
+        series: series.labels.as_deref(),
+        ..adwi_eval::choice::Ask::default()
+    };
+    let chosen = adwi_eval::choice::default_choices(
+        &series.samples,
+        options.robot.as_ref(),
+        &options.build,
+        &options.calibrate,
+        ask,
+    );
+    let Some(choice) = chosen.ok().and_then(|auto| auto.harmonics) else {
+        return Ok(None);
+    };
+    options.calibrate.harmonics = choice.chosen;
+    if choice.chosen > 0 {
+        series.refine(&options.calibrate)?;
+    }
+    Ok(Some(adwi_eval::SplitHarmonics { split: 0, choice }))
 }
 
 /// What a split's served-tier table is decided on its training samples, as a build
