@@ -1011,6 +1011,26 @@ pub struct Ask<'c> {
     pub series: Option<&'c [usize]>,
 }
 
+/// The harmonic count alone, chosen as [`default_choices`] chooses it (`series` as
+/// [`Ask::series`]); `None` where it cannot be chosen (too few samples, a failed
+/// identification): the caller then keeps the count it was given.
+pub fn harmonics_choice(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &CalibrateOptions,
+    series: Option<&[usize]>,
+) -> Option<HarmonicsChoice> {
+    let ask = Ask {
+        harmonics: true,
+        series,
+        ..Ask::default()
+    };
+    default_choices(samples, robot, options, calibrate, ask)
+        .ok()
+        .and_then(|auto| auto.harmonics)
+}
+
 /// The choice a build makes by default, on at most [`AUTO_MAX_SAMPLES`] of the samples
 /// (evenly strided), all on the same folds, those that match the table's use
 /// ([`CrossValidation::matching_use`]: each series from the others, else each spatial

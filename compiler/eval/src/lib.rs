@@ -781,15 +781,13 @@ pub fn evaluate(
         // chooses it; too few of them to choose by, none.
         let harmonics = (options.choose_harmonics && needs_robot && options.identified.is_empty())
             .then(|| {
-                let ask = choice::Ask {
-                    harmonics: true,
-                    series: train_series.as_deref(),
-                    ..choice::Ask::default()
-                };
-                let robot = options.robot.as_ref();
-                choice::default_choices(train, robot, &options.build, &options.calibrate, ask)
-                    .ok()
-                    .and_then(|auto| auto.harmonics)
+                choice::harmonics_choice(
+                    train,
+                    options.robot.as_ref(),
+                    &options.build,
+                    &options.calibrate,
+                    train_series.as_deref(),
+                )
             })
             .flatten();
         let split_calibrate = calibrate::CalibrateOptions {

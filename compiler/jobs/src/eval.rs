@@ -553,19 +553,13 @@ fn harmonics_on_every_sample(
     options: &mut EvalOptions,
 ) -> Result<Option<adwi_eval::SplitHarmonics>, JobError> {
     options.choose_harmonics = false;
-    let ask = adwi_eval::choice::Ask {
-        harmonics: true,
-        series: series.labels.as_deref(),
-        ..adwi_eval::choice::Ask::default()
-    };
-    let chosen = adwi_eval::choice::default_choices(
+    let Some(choice) = adwi_eval::choice::harmonics_choice(
         &series.samples,
         options.robot.as_ref(),
         &options.build,
         &options.calibrate,
-        ask,
-    );
-    let Some(choice) = chosen.ok().and_then(|auto| auto.harmonics) else {
+        series.labels.as_deref(),
+    ) else {
         return Ok(None);
     };
     options.calibrate.harmonics = choice.chosen;
