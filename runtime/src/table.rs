@@ -77,6 +77,9 @@ struct ModelPart {
     point_mm: [f64; 3],
     /// Whether a named TCP was placed (the table records its point in the flange).
     lever_known: bool,
+    /// Whether a joint with joint-space terms is beyond the angles they were identified
+    /// over ([`Evidence::JOINTS`]).
+    beyond_terms: bool,
 }
 
 /// Whether a target's values are finite and within the plausible range: positions and
@@ -691,7 +694,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         // (`point`: the target less the lever) and the error at the TCP.
         let model_part = match (&self.model, joints_rad) {
             (Some(model), Some(q)) => {
-                match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
+                match self.model_part(model, q, target, |off_mm2| {
                     let within = off_mm2
                         .sqrt()
                         .partial_cmp(&joints_tolerance_mm(&self.header.grid));
@@ -713,12 +716,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         // Flagged, not switched: the answer stays continuous across the edge of the
         // samples' evidence (on the KR150-2 hybrid table the residual left in changes the
         // figures beyond it by under 0.002 mm).
-        let mut evidence = self.evidence_of(target, model_part.as_ref());
-        if let (Some(model), Some(q)) = (&self.model, joints_rad) {
-            if model.beyond_terms(q) {
-                evidence = evidence.with(Evidence::JOINTS);
-            }
-        }
+        let evidence = self.evidence_of(target, model_part.as_ref());
         let site = match (payload, &self.served, tier) {
             _ if early_site.is_some() => early_site,
             (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
@@ -900,16 +898,11 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             Some(_) => None,
         };
-        let m = match self.model_part(model, model.evaluate(q, true), target, |off_mm2| {
-            grid.joints_within(off_mm2)
-        }) {
+        let m = match self.model_part(model, q, target, |off_mm2| grid.joints_within(off_mm2)) {
             Ok(part) => part,
             Err(status) => return Correction::failed(status),
         };
-        let mut evidence = self.evidence_of(target, Some(&m));
-        if model.beyond_terms(q) {
-            evidence = evidence.with(Evidence::JOINTS);
-        }
+        let evidence = self.evidence_of(target, Some(&m));
         let site = match early_site {
             Some(site) => site,
             None => crate::served::site(grid, data, m.point_mm, target.config),
@@ -964,12 +957,12 @@ impl<D: AsRef<[u8]>> Table<D> {
     fn model_part(
         &self,
         model: &PreparedModel,
-        at: Option<crate::model::ModelAt>,
+        q: &[f64],
         target: &Target,
         joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
         // Not `ok_or`: its `Result` was copied through memory in misaligned pieces.
-        let Some(at) = at else {
+        let Some(at) = model.evaluate(q, true) else {
             return Err(Status::InvalidInput);
         };
         let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
@@ -996,12 +989,14 @@ impl<D: AsRef<[u8]>> Table<D> {
             error_mm,
             point_mm,
             lever_known: lever.is_some() || target.tcp_mm.is_none(),
+            beyond_terms: model.beyond_terms(q),
         })
     }
 
     /// Where a query lies beyond the table's recorded evidence ([`Evidence`]): the tool's
     /// approach axis (a hybrid table's from its joint values, else the target's given
-    /// orientation) against the samples' cone, and a named TCP the table cannot place.
+    /// orientation) against the samples' cone, a named TCP the table cannot place, and a
+    /// hybrid table's joints beyond the angles its model's terms were identified over.
     #[inline(always)]
     fn evidence_of(&self, target: &Target, model_part: Option<&ModelPart>) -> Evidence {
         let mut evidence = Evidence::WITHIN;
@@ -1035,6 +1030,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         };
         if !tcp_placed {
             evidence = evidence.with(Evidence::TCP);
+        }
+        if model_part.is_some_and(|m| m.beyond_terms) {
+            evidence = evidence.with(Evidence::JOINTS);
         }
         evidence
     }
