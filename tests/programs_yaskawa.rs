@@ -481,8 +481,23 @@ fn command_posture(line: &adwi_programs::TargetLine) -> (Vec<f64>, adwi_robot::C
 
 #[test]
 fn a_hybrid_table_solves_a_yaskawa_position_on_its_written_rconf_not_the_nearest() {
+    solves_on_the_written_rconf(0);
+}
+
+/// With joint-space terms the model is evaluated at the commanded J4, which the written R
+/// flag (under 180° or not) takes a whole turn apart: one posture of the arm, whose terms
+/// must be the same on either turn (held at the same end of the angles the samples span,
+/// around the circle), so that both turns get the same command, 360° apart in J4.
+#[test]
+fn a_hybrid_table_with_joint_terms_solves_a_yaskawa_position_on_its_written_rconf() {
+    solves_on_the_written_rconf(1);
+}
+
+/// A position written with each `///RCONF` (and none), compensated by the KR150-2 hybrid
+/// table with joint-space terms up to `harmonics`: each on its written branch and turn.
+fn solves_on_the_written_rconf(harmonics: u8) {
     let dir = tempfile::tempdir().unwrap();
-    let table = crate::common::kr150_hybrid_table(dir.path());
+    let table = crate::common::kr150_hybrid_table_with(dir.path(), harmonics);
     let run = |rconf: Option<&str>| {
         let line = compensate_one(&table, &one_position_job(dir.path(), rconf));
         assert_eq!(line.status.as_str(), "ok", "{rconf:?}: {}", line.detail);

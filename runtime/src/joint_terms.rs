@@ -15,7 +15,11 @@
 //! rather than extrapolated, since two harmonics fitted over part of a turn can swing far
 //! outside it. Unlike a residual learnt in the base frame, such a term moves with the arm:
 //! it predicts the same joint error wherever the joint's angle recurs, in any other part of
-//! the workspace. The calibrated chain of a hybrid table is evaluated at `q'`
+//! the workspace, and on any turn of the joint. `q` and `q + 2πk` are the same angle of
+//! the link, which a program tells apart only by the turn it writes (a KUKA Turn, a
+//! Yaskawa `///RCONF` R ≥ 180°): the range is a part of the circle, and a commanded angle
+//! is measured against it around the circle ([`beyond_range`]), so that one posture has
+//! one answer whichever turn reaches it. The calibrated chain of a hybrid table is evaluated at `q'`
 //! ([`crate::model::PreparedModel`]); a revolute joint's terms only (a prismatic joint's
 //! are zero).
 //!
@@ -37,6 +41,34 @@ pub const TERMS_MARGIN_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
 
 /// Coefficients per joint: `[a1, b1, a2, b2]`, rad (module docs).
 pub const COEFFICIENTS_PER_JOINT: usize = 4;
+
+/// Where commanded angle `q` lies against the range `[lo, hi]` (rad) around the circle:
+/// `None` when one of its representatives `q + 2πk` is within (a range of a whole turn or
+/// more holds every angle), else the nearer end (`false` the lower, `true` the upper) and
+/// how far beyond it `q` lies around the circle (rad, at most π; NaN for a non-finite `q`,
+/// which then counts as beyond). Within `[lo, hi]` as written it costs two comparisons.
+#[inline(always)]
+pub fn beyond_range(q: f64, lo: f64, hi: f64) -> Option<(bool, f64)> {
+    if !(q < lo || q > hi) {
+        return None;
+    }
+    let span = hi - lo;
+    if span >= std::f64::consts::TAU {
+        return None;
+    }
+    // `q`'s representative at or above `lo`, less than a turn above it.
+    let r = (q - lo).rem_euclid(std::f64::consts::TAU);
+    if r <= span {
+        return None;
+    }
+    let above_hi = r - span;
+    let below_lo = std::f64::consts::TAU - r;
+    if above_hi <= below_lo {
+        Some((true, above_hi))
+    } else {
+        Some((false, below_lo))
+    }
+}
 
 /// The largest coefficient a table may carry, rad (0.1 rad, 5.7°): a calibration holds
 /// anything beyond a few mrad as implausible, and a term this large is no small error.
@@ -105,7 +137,8 @@ impl JointTerms {
     }
 
     /// Joint `j`'s term at its commanded angle `q`, from that angle's sine and cosine,
-    /// rad (zero beyond [`MAX_JOINTS`]); beyond the term's range, at the nearer end.
+    /// rad (zero beyond [`MAX_JOINTS`]); beyond the term's range around the circle
+    /// ([`beyond_range`]), at the nearer end.
     #[inline]
     pub fn offset(&self, j: usize, q: f64, sin_cos: (f64, f64)) -> f64 {
         let (Some(&[a1, b1, a2, b2]), Some(&[lo, hi])) =
@@ -113,12 +146,10 @@ impl JointTerms {
         else {
             return 0.0;
         };
-        let (sin, cos) = if q < lo {
-            lo.sin_cos()
-        } else if q > hi {
-            hi.sin_cos()
-        } else {
-            sin_cos
+        let (sin, cos) = match beyond_range(q, lo, hi) {
+            None => sin_cos,
+            Some((false, _)) => lo.sin_cos(),
+            Some((true, _)) => hi.sin_cos(),
         };
         let sin2 = 2.0 * sin * cos;
         let cos2 = (cos - sin) * (cos + sin);
@@ -202,11 +233,10 @@ impl PreparedTerms {
         ) else {
             return 0.0;
         };
-        if q < lo {
-            return held_lo;
-        }
-        if q > hi {
-            return held_hi;
+        match beyond_range(q, lo, hi) {
+            None => {}
+            Some((false, _)) => return held_lo,
+            Some((true, _)) => return held_hi,
         }
         let sin2 = 2.0 * sin * cos;
         let cos2 = (cos - sin) * (cos + sin);
@@ -214,16 +244,16 @@ impl PreparedTerms {
     }
 
     /// Whether a joint with a term is commanded more than [`TERMS_MARGIN_RAD`] beyond the
-    /// range its terms were identified over (`q` one angle per joint, rad). A joint
-    /// without terms (all four coefficients zero) is never beyond.
+    /// range its terms were identified over, around the circle ([`beyond_range`]; `q` one
+    /// angle per joint, rad). A joint without terms (all four coefficients zero) is never
+    /// beyond.
     #[inline]
     pub(crate) fn beyond(&self, q: &[f64]) -> bool {
         let mut beyond = false;
         for ((&value, c), &[lo, hi]) in q.iter().zip(&self.coefficients_rad).zip(&self.range_rad) {
             let has_term = c.iter().any(|&v| v != 0.0);
-            // Branch-free over the joints: a comparison each, or-ed.
-            beyond |=
-                has_term & ((value < lo - TERMS_MARGIN_RAD) | (value > hi + TERMS_MARGIN_RAD));
+            beyond |= has_term
+                && beyond_range(value, lo, hi).is_some_and(|(_, by)| by.is_nan() || by > TERMS_MARGIN_RAD);
         }
         beyond
     }
@@ -320,6 +350,41 @@ mod tests {
         assert!(terms.check(&[JointKind::Revolute]).is_err());
         terms.range_rad[0] = [f64::NAN, 1.0];
         assert!(terms.check(&[JointKind::Revolute]).is_err());
+    }
+
+    /// `q` and `q + 2πk` are one angle of the link: the same term on every turn, and an
+    /// angle beyond the range held at the end nearer around the circle, not along the
+    /// number line.
+    #[test]
+    fn a_term_is_the_same_on_every_turn_and_held_at_the_end_nearer_around_the_circle() {
+        use std::f64::consts::TAU;
+        let mut terms = JointTerms::NONE;
+        terms.coefficients_rad[0] = [1e-3, -2e-3, 5e-4, 7e-4];
+        terms.range_rad[0] = [-0.5, 1.0];
+        let prepared = PreparedTerms::new(&terms);
+        let at = |q: f64, sc: (f64, f64)| terms.offset(0, q, sc);
+        for q in [-0.5f64, -0.2, 0.3, 1.0] {
+            let sc = q.sin_cos();
+            for k in [-2.0, -1.0, 1.0, 3.0] {
+                assert_eq!(at(q + k * TAU, sc), at(q, sc), "{q} + {k} turns");
+                assert_eq!(prepared.offset(0, q + k * TAU, sc), at(q, sc));
+                assert!(!prepared.beyond(&[q + k * TAU]));
+            }
+        }
+        // 2.0 lies 1.0 above the upper end, 3.78 below the lower one (around the circle):
+        // the upper end; 5.0 lies 0.78 below the lower end (−1.28): the lower end.
+        for (q, end) in [(2.0f64, 1.0f64), (5.0, -0.5), (2.0 - TAU, 1.0), (-1.5, -0.5)] {
+            assert_eq!(at(q, q.sin_cos()), at(end, end.sin_cos()), "{q}");
+            assert_eq!(prepared.offset(0, q, q.sin_cos()), at(q, q.sin_cos()));
+        }
+        assert_eq!(beyond_range(0.9 + TAU, -0.5, 1.0), None);
+        let (upper, by) = beyond_range(1.0 + 0.5 * TERMS_MARGIN_RAD + TAU, -0.5, 1.0).unwrap();
+        assert!(upper && (by - 0.5 * TERMS_MARGIN_RAD).abs() < 1e-12);
+        assert!(!prepared.beyond(&[1.0 + 0.5 * TERMS_MARGIN_RAD - 2.0 * TAU]));
+        assert!(prepared.beyond(&[-0.5 - 2.0 * TERMS_MARGIN_RAD + TAU]));
+        assert!(prepared.beyond(&[f64::INFINITY]));
+        // A range of a whole turn or more holds every angle.
+        assert_eq!(beyond_range(100.0, -4.0, 4.0), None);
     }
 
     #[test]

@@ -235,27 +235,40 @@ pub fn method_table(
 /// J4 near 0°, J5 < 0), the method's field and no posture term, so that its answer depends
 /// on the posture a program writes. Built once per test process ([`tablec_once`]).
 pub fn kr150_hybrid_table(dir: &std::path::Path) -> std::path::PathBuf {
+    kr150_hybrid_table_with(dir, 0)
+}
+
+/// [`kr150_hybrid_table`] with the model's joint-space terms up to `harmonics` (0 none),
+/// held at their ends beyond the joint angles the samples cover (J4 near 0°): built in
+/// `dir` as `kr150-hybrid.tbl`, or `kr150-hybrid-h{harmonics}.tbl` with terms.
+pub fn kr150_hybrid_table_with(dir: &std::path::Path, harmonics: u8) -> std::path::PathBuf {
     let samples = repo("tables/kr150-2/samples.csv");
     let robot = repo("tables/kr150-2/robot.toml");
-    let o = tablec_once(
-        &[
-            "build",
-            "-q",
-            samples.to_str().unwrap(),
-            "--robot",
-            robot.to_str().unwrap(),
-            "--hybrid",
-            "--served-field",
-            "method",
-            "--posture",
-            "off",
-            "-o",
-            "kr150-hybrid.tbl",
-        ],
-        dir,
-    );
+    let out = if harmonics == 0 {
+        "kr150-hybrid.tbl".to_string()
+    } else {
+        format!("kr150-hybrid-h{harmonics}.tbl")
+    };
+    let harmonics = harmonics.to_string();
+    let mut args = vec![
+        "build",
+        "-q",
+        samples.to_str().unwrap(),
+        "--robot",
+        robot.to_str().unwrap(),
+        "--hybrid",
+        "--served-field",
+        "method",
+        "--posture",
+        "off",
+    ];
+    if harmonics != "0" {
+        args.extend(["--harmonics", harmonics.as_str()]);
+    }
+    args.extend(["-o", out.as_str()]);
+    let o = tablec_once(&args, dir);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    dir.join("kr150-hybrid.tbl")
+    dir.join(out)
 }
 
 /// `tablec compensate` with `args`: exit code, standard output and error.
