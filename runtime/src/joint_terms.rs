@@ -253,7 +253,8 @@ impl PreparedTerms {
         for ((&value, c), &[lo, hi]) in q.iter().zip(&self.coefficients_rad).zip(&self.range_rad) {
             let has_term = c.iter().any(|&v| v != 0.0);
             beyond |= has_term
-                && beyond_range(value, lo, hi).is_some_and(|(_, by)| by.is_nan() || by > TERMS_MARGIN_RAD);
+                && beyond_range(value, lo, hi)
+                    .is_some_and(|(_, by)| by.is_nan() || by > TERMS_MARGIN_RAD);
         }
         beyond
     }
@@ -373,7 +374,12 @@ mod tests {
         }
         // 2.0 lies 1.0 above the upper end, 3.78 below the lower one (around the circle):
         // the upper end; 5.0 lies 0.78 below the lower end (−1.28): the lower end.
-        for (q, end) in [(2.0f64, 1.0f64), (5.0, -0.5), (2.0 - TAU, 1.0), (-1.5, -0.5)] {
+        for (q, end) in [
+            (2.0f64, 1.0f64),
+            (5.0, -0.5),
+            (2.0 - TAU, 1.0),
+            (-1.5, -0.5),
+        ] {
             assert_eq!(at(q, q.sin_cos()), at(end, end.sin_cos()), "{q}");
             assert_eq!(prepared.offset(0, q, q.sin_cos()), at(q, q.sin_cos()));
         }
