@@ -365,6 +365,34 @@ impl<'a> CrossValidation<'a> {
         Ok(identified)
     }
 
+    /// The folds' models identified with the options every later candidate is identified
+    /// with (the harmonic count chosen, once it has been), if they have been.
+    fn fold_models(&self) -> Option<FoldModels> {
+        let identified = (self.identified.borrow().iter())
+            .find(|(c, _)| *c == self.calibrate)
+            .map(|(_, folds)| folds.clone())?;
+        Some(FoldModels {
+            calibrate: self.calibrate,
+            train: self.splits.iter().map(|f| f.train.clone()).collect(),
+            error_mm: self.samples.error_mm.clone(),
+            identified,
+        })
+    }
+
+    /// Takes `models` as the folds' identification with their options, when they were
+    /// identified on these samples and folds (else nothing): the same identifications, not
+    /// made again.
+    fn adopt(&self, models: &FoldModels) {
+        let same = self.robot.is_some()
+            && models.error_mm == self.samples.error_mm
+            && models.train.len() == self.splits.len()
+            && (models.train.iter().zip(&self.splits)).all(|(t, f)| *t == f.train);
+        let mut identified = self.identified.borrow_mut();
+        if same && !identified.iter().any(|(c, _)| *c == models.calibrate) {
+            identified.push((models.calibrate, models.identified.clone()));
+        }
+    }
+
     /// Each fold's kriging hyperparameters, searched by likelihood on its training samples
     /// alone (a hybrid table's: on the residuals of the model `identified` from them), on
     /// at most [`FOLD_SEARCH_SAMPLES`] of them evenly strided; searched once, the folds
@@ -851,6 +879,24 @@ pub struct HarmonicsChoice {
     pub chosen: u8,
 }
 
+/// Each fold's model as one cross-validation identified it, for another cross-validation
+/// of the same samples on the same folds to take instead of identifying them again
+/// ([`Ask::folds`]): an evaluation's split chooses its harmonic count on its training
+/// samples, then its table's choices on the same samples and folds with the count chosen,
+/// as a build makes both on one [`CrossValidation`].
+#[derive(Clone, Debug)]
+pub struct FoldModels {
+    /// The identification's options the folds' models were identified with.
+    calibrate: CalibrateOptions,
+    /// Each fold's training samples (indices into the samples cross-validated).
+    train: Vec<Vec<usize>>,
+    /// The samples cross-validated, position errors (mm): with `train`, what makes
+    /// another cross-validation the same one.
+    error_mm: Vec<[f64; 3]>,
+    /// Each fold's model.
+    identified: Vec<Calibration>,
+}
+
 /// The standard error of the mean of `a − b` over the points both give, mm; `None` for
 /// fewer than two such points.
 fn paired_standard_error(a: &[Option<f64>], b: &[Option<f64>]) -> Option<f64> {
@@ -1009,6 +1055,9 @@ pub struct Ask<'c> {
     /// choice is then made by leaving one series out at a time
     /// ([`CrossValidation::matching_use`]).
     pub series: Option<&'c [usize]>,
+    /// The folds' models an earlier cross-validation of the same samples identified
+    /// ([`harmonics_choice_and_folds`]), taken where they are the ones asked for.
+    pub folds: Option<&'c FoldModels>,
 }
 
 /// The harmonic count alone, chosen as [`default_choices`] chooses it (`series` as
@@ -1021,14 +1070,26 @@ pub fn harmonics_choice(
     calibrate: &CalibrateOptions,
     series: Option<&[usize]>,
 ) -> Option<HarmonicsChoice> {
+    harmonics_choice_and_folds(samples, robot, options, calibrate, series).map(|(h, _)| h)
+}
+
+/// [`harmonics_choice`], with the folds' models of the count chosen: the choices made
+/// after it on the same samples ([`default_choices`] with [`Ask::folds`]) take them
+/// instead of identifying the folds again.
+pub fn harmonics_choice_and_folds(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &CalibrateOptions,
+    series: Option<&[usize]>,
+) -> Option<(HarmonicsChoice, Option<FoldModels>)> {
     let ask = Ask {
         harmonics: true,
         series,
         ..Ask::default()
     };
-    default_choices(samples, robot, options, calibrate, ask)
-        .ok()
-        .and_then(|auto| auto.harmonics)
+    let (auto, folds) = choices_keeping_folds(samples, robot, options, calibrate, ask).ok()?;
+    Some((auto.harmonics?, folds))
 }
 
 /// The choice a build makes by default, on at most [`AUTO_MAX_SAMPLES`] of the samples
@@ -1057,6 +1118,18 @@ pub fn default_choices(
     calibrate: &CalibrateOptions,
     ask: Ask<'_>,
 ) -> Result<AutoServedField, TuneError> {
+    choices_keeping_folds(samples, robot, options, calibrate, ask).map(|(auto, _)| auto)
+}
+
+/// [`default_choices`], with the folds' models identified with the options the choices
+/// ended with (the harmonic count chosen), when any were.
+fn choices_keeping_folds(
+    samples: &SampleSet,
+    robot: Option<&Robot>,
+    options: &BuildOptions,
+    calibrate: &CalibrateOptions,
+    ask: Ask<'_>,
+) -> Result<(AutoServedField, Option<FoldModels>), TuneError> {
     if samples.len() < AUTO_MIN_SAMPLES {
         return Err(TuneError::TooFewSamples(samples.len()));
     }
@@ -1075,20 +1148,24 @@ pub fn default_choices(
         (samples, ask.series.map(<[usize]>::to_vec))
     };
     let mut cv = CrossValidation::matching_use(samples, robot, *calibrate, series)?;
+    if let Some(folds) = ask.folds {
+        cv.adopt(folds);
+    }
     let harmonics = if ask.harmonics && robot.is_some() {
         Some(cv.choose_harmonics(&HARMONICS_CANDIDATES)?)
     } else {
         None
     };
     if !(ask.field || ask.posture || ask.weight) {
-        return Ok(AutoServedField {
+        let auto = AutoServedField {
             choice: ServedChoice::default(),
             exact_cv_mean_mm: None,
             samples: samples.len(),
             posture: None,
             residual_weight: None,
             harmonics,
-        });
+        };
+        return Ok((auto, cv.fold_models()));
     }
     let given = [options.served_field];
     let fields: &[ServedField] = if ask.field {
@@ -1124,14 +1201,15 @@ pub fn default_choices(
     } else {
         None
     };
-    Ok(AutoServedField {
+    let auto = AutoServedField {
         choice,
         exact_cv_mean_mm,
         samples: samples.len(),
         posture,
         residual_weight,
         harmonics,
-    })
+    };
+    Ok((auto, cv.fold_models()))
 }
 
 /// `samples` with the residual `calibration` leaves of each error scaled by `weight`: the

@@ -779,17 +779,22 @@ pub fn evaluate(
         let needs_robot = methods.iter().any(|m| m.needs_robot());
         // The split's harmonic count, chosen on its training samples alone as a build
         // chooses it; too few of them to choose by, none.
-        let harmonics = (options.choose_harmonics && needs_robot && options.identified.is_empty())
-            .then(|| {
-                choice::harmonics_choice(
-                    train,
-                    options.robot.as_ref(),
-                    &options.build,
-                    &options.calibrate,
-                    train_series.as_deref(),
-                )
-            })
-            .flatten();
+        // Its folds' models with the count chosen serve the split's table choices, made on
+        // the same samples and folds.
+        let (harmonics, folds) =
+            (options.choose_harmonics && needs_robot && options.identified.is_empty())
+                .then(|| {
+                    choice::harmonics_choice_and_folds(
+                        train,
+                        options.robot.as_ref(),
+                        &options.build,
+                        &options.calibrate,
+                        train_series.as_deref(),
+                    )
+                })
+                .flatten()
+                .unzip();
+        let folds = folds.flatten();
         let split_calibrate = calibrate::CalibrateOptions {
             harmonics: harmonics
                 .as_ref()
@@ -822,6 +827,7 @@ pub fn evaluate(
                 train_series.as_deref(),
                 &split_calibrate,
                 options,
+                folds.as_ref(),
             );
             // A learned residual weight scales what the table's residual field holds.
             let weighted = match (choice.and_then(|c| c.residual_weight), &calibration) {

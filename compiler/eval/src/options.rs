@@ -10,7 +10,7 @@ use adwi_robot::Robot;
 use adwi_samples::SampleSet;
 
 use crate::baselines::{GridParams, IdwParams, KrigingParams};
-use crate::choice::{default_choices, Ask, ResidualWeight};
+use crate::choice::{default_choices, Ask, FoldModels, ResidualWeight};
 use crate::Method;
 
 /// What to evaluate and with which parameters; the default evaluates every applicable
@@ -116,7 +116,8 @@ pub struct SplitChoiceRecord {
 /// identified with `calibrate`:
 /// `options.build` (with the split's kriging hyperparameters, when given), with what a
 /// served-tier method's table is built with chosen from `train` when a rule is given, and
-/// that choice.
+/// that choice; `folds`, the folds' models the split's harmonic choice identified on
+/// `train` ([`Ask::folds`]).
 pub(crate) fn build_options_for(
     method: Method,
     split: usize,
@@ -124,6 +125,7 @@ pub(crate) fn build_options_for(
     train_series: Option<&[usize]>,
     calibrate: &CalibrateOptions,
     options: &EvalOptions,
+    folds: Option<&FoldModels>,
 ) -> (BuildOptions, Option<SplitChoice>) {
     let mut given = options.build.clone();
     if given.kriging_choices.is_none() {
@@ -137,7 +139,7 @@ pub(crate) fn build_options_for(
         Method::HybridTrilinear => true,
         _ => return (given, None),
     };
-    let choice = split_choice(rule, train, train_series, hybrid, calibrate, options);
+    let choice = split_choice(rule, train, train_series, hybrid, calibrate, options, folds);
     let mut build = BuildOptions {
         served_field: choice.served_field,
         ..given
@@ -161,6 +163,7 @@ fn split_choice(
     hybrid: bool,
     calibrate: &CalibrateOptions,
     options: &EvalOptions,
+    folds: Option<&FoldModels>,
 ) -> SplitChoice {
     let build = &options.build;
     let posture = rule.choose_posture && hybrid;
@@ -179,6 +182,7 @@ fn split_choice(
         weight,
         harmonics: false,
         series: train_series,
+        folds,
     };
     let chosen = default_choices(train, robot, build, calibrate, ask);
     let mut chosen_options = build.clone();

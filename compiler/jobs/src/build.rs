@@ -348,6 +348,7 @@ impl BuildJob {
                     weight: choose_weight && table_choices,
                     harmonics: choose_harmonics,
                     series: series.labels.as_deref(),
+                    folds: None,
                 };
                 let chosen = pool.install(|| {
                     default_choices(&series.samples, robot.as_ref(), &base, &calibrate, ask)
