@@ -794,7 +794,9 @@ pub fn evaluate(
                 })
                 .flatten()
                 .unzip();
-        let folds = folds.flatten();
+        let folds = folds
+            .flatten()
+            .or_else(|| options.split_fold_models.get(split).cloned().flatten());
         let split_calibrate = calibrate::CalibrateOptions {
             harmonics: harmonics
                 .as_ref()

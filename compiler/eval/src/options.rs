@@ -39,6 +39,11 @@ pub struct EvalOptions {
     /// alone ([`crate::choice::CrossValidation`]): a kriging served field of the split's
     /// tables takes them instead of searching its own. Empty: each table searches.
     pub split_kriging_choices: Vec<Option<GivenChoices>>,
+    /// Each split's fold models from its harmonic choice when made before on its training
+    /// samples ([`crate::choice::harmonics_choice_and_folds`]): the split's table choices
+    /// take them where they are of the same samples and folds ([`crate::choice::Ask::folds`]).
+    /// Empty: identified by the choices.
+    pub split_fold_models: Vec<Option<crate::choice::FoldModels>>,
     /// The series of each sample (its index among the files read), when several: a
     /// split's residual weight is then learned by leaving one series out.
     pub series: Option<Vec<usize>>,

@@ -553,7 +553,7 @@ fn harmonics_on_every_sample(
     options: &mut EvalOptions,
 ) -> Result<Option<adwi_eval::SplitHarmonics>, JobError> {
     options.choose_harmonics = false;
-    let Some(choice) = adwi_eval::choice::harmonics_choice(
+    let Some((choice, folds)) = adwi_eval::choice::harmonics_choice_and_folds(
         &series.samples,
         options.robot.as_ref(),
         &options.build,
@@ -566,6 +566,9 @@ fn harmonics_on_every_sample(
     if choice.chosen > 0 {
         series.refine(&options.calibrate)?;
     }
+    // The split's table choices are made on the same samples and folds, unless the series
+    // were registered again (then their samples differ, and the folds are identified anew).
+    options.split_fold_models = vec![folds];
     Ok(Some(adwi_eval::SplitHarmonics { split: 0, choice }))
 }
 
