@@ -493,3 +493,39 @@ fn a_fanuc_config_that_cannot_be_read_leaves_the_position_as_written() {
         );
     }
 }
+
+/// One posture written on two turns of J4 (`CONFIG 'F U T, 0, 0, 0'`, J4 near 27°, and
+/// `'F U T, -1, 0, 0'`, J4 near −333°): with a hybrid table whose model has joint-space
+/// terms, the terms are those of the link's angle, not of the number written, so both get
+/// the same command, its J4 a whole turn apart, each on its written turn.
+#[test]
+fn a_hybrid_table_with_joint_terms_gives_one_posture_one_command_on_either_turn() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::kr150_hybrid_table_with(dir.path(), 1);
+    let run = |config: &str| {
+        let line = compensate_one_position(&table, &one_position_program(dir.path(), config));
+        assert_eq!(line.status.as_str(), "ok", "{config}: {}", line.detail);
+        line
+    };
+    let (near, turned) = (run("F U T, 0, 0, 0"), run("F U T, -1, 0, 0"));
+    let (q, q_turned) = (
+        near.command_joints.clone().unwrap(),
+        turned.command_joints.clone().unwrap(),
+    );
+    assert!(q[3] > -180.0 && q[3] <= 180.0, "{q:?}");
+    assert!(
+        q_turned[3] > -540.0 && q_turned[3] <= -180.0,
+        "{q_turned:?}"
+    );
+    assert!(
+        (q[3] - 360.0 - q_turned[3]).abs() < 1e-6,
+        "{q:?} {q_turned:?}"
+    );
+    for j in [0, 1, 2, 4, 5] {
+        assert!((q[j] - q_turned[j]).abs() < 1e-6, "{q:?} {q_turned:?}");
+    }
+    let gap = (Vector3::from(near.command_mm.unwrap()) - Vector3::from(turned.command_mm.unwrap()))
+        .norm();
+    assert!(gap < 1e-6, "{gap} mm between the commands");
+    assert_eq!(near.evidence, turned.evidence);
+}
