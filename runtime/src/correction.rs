@@ -165,8 +165,8 @@ impl Evidence {
     pub const TCP: Evidence = Evidence(2);
     /// A joint whose joint-space terms the model carries ([`crate::joint_terms`]) is
     /// commanded more than [`crate::joint_terms::TERMS_MARGIN_RAD`] beyond the angles the
-    /// terms were identified over: the model holds the term at its range's end there, a
-    /// value no sample measured.
+    /// terms were identified over, around the circle ([`crate::joint_terms::beyond_range`]):
+    /// the model holds the term at its range's end there, a value no sample measured.
     pub const JOINTS: Evidence = Evidence(4);
     /// Every bit defined.
     pub const KNOWN: u8 = 7;

@@ -80,7 +80,8 @@ pub struct JointTerms {
     /// Per joint `[a1, b1, a2, b2]`, rad; zero beyond the chain's joints.
     pub coefficients_rad: [[f64; COEFFICIENTS_PER_JOINT]; MAX_JOINTS],
     /// Per joint the range of commanded angles `[lowest, highest]` the terms were
-    /// identified from, rad: beyond it a term is held at the nearer end's value.
+    /// identified from, rad: beyond it, around the circle ([`beyond_range`]), a term is
+    /// held at the nearer end's value.
     pub range_rad: [[f64; 2]; MAX_JOINTS],
 }
 

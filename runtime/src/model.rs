@@ -162,8 +162,9 @@ impl PreparedModel {
 
     /// Whether commanded `q` (rad) takes a joint with joint-space terms more than
     /// [`crate::joint_terms::TERMS_MARGIN_RAD`] beyond the angles the terms were
-    /// identified over, where the model holds the term at its range's end rather than
-    /// knowing it ([`crate::Evidence::JOINTS`]). `false` without terms.
+    /// identified over, around the circle ([`crate::joint_terms::beyond_range`]), where
+    /// the model holds the term at its range's end rather than knowing it
+    /// ([`crate::Evidence::JOINTS`]). `false` without terms.
     #[inline]
     pub fn beyond_terms(&self, q: &[f64]) -> bool {
         self.has_terms && self.prepared_terms.beyond(q)

@@ -38,7 +38,8 @@ pub struct JointTermsRecord {
     /// Per joint `[a1, b1, a2, b2]`, rad ([`crate::joint_terms`]).
     pub coefficients_rad: Vec<[f64; COEFFICIENTS_PER_JOINT]>,
     /// Per joint the commanded angles the terms were identified over, `[lowest,
-    /// highest]`, rad: beyond them a term is held at the nearer end.
+    /// highest]`, rad: beyond them a term is held at the end nearer around the circle
+    /// ([`crate::joint_terms::beyond_range`]).
     pub range_rad: Vec<[f64; 2]>,
 }
 
