@@ -1381,6 +1381,48 @@ mod tests {
         assert_ne!(kriging.cv_mean_mm, leaked);
     }
 
+    /// The table choices made with the fold models of the harmonic choice on the same
+    /// samples are the choices made identifying the folds again, to the bit; fold models
+    /// of other samples are not taken.
+    #[test]
+    fn shared_fold_models_give_the_choices_identified_again() {
+        let (samples, robot) = kr150_third();
+        let options = BuildOptions::default();
+        let calibrate = CalibrateOptions::default();
+        let (harmonics, folds) =
+            harmonics_choice_and_folds(&samples, Some(&robot), &options, &calibrate, None).unwrap();
+        let folds = folds.unwrap();
+        assert_eq!(folds.identified.len(), AUTO_FOLDS);
+        assert_eq!(folds.calibrate.harmonics, harmonics.chosen);
+        let calibrate = CalibrateOptions {
+            harmonics: harmonics.chosen,
+            ..calibrate
+        };
+        let ask = |folds| Ask {
+            field: true,
+            weight: true,
+            folds,
+            ..Ask::default()
+        };
+        let again = default_choices(&samples, Some(&robot), &options, &calibrate, ask(None));
+        let shared = default_choices(
+            &samples,
+            Some(&robot),
+            &options,
+            &calibrate,
+            ask(Some(&folds)),
+        );
+        assert_eq!(shared.unwrap(), again.unwrap());
+        // Of other samples (the first 200): not the same folds, not adopted.
+        let other = samples.subset(&(0..200).collect::<Vec<_>>());
+        let cv = CrossValidation::matching_use(&other, Some(&robot), calibrate, None).unwrap();
+        cv.adopt(&folds);
+        assert!(cv.identified.borrow().is_empty());
+        let cv = CrossValidation::matching_use(&samples, Some(&robot), calibrate, None).unwrap();
+        cv.adopt(&folds);
+        assert_eq!(cv.identified.borrow().len(), 1);
+    }
+
     #[test]
     fn cross_validation_refuses_fewer_than_two_folds() {
         let samples = SampleSet::default();
