@@ -49,7 +49,7 @@ pub const COEFFICIENTS_PER_JOINT: usize = 4;
 /// which then counts as beyond). Within `[lo, hi]` as written it costs two comparisons.
 #[inline(always)]
 pub fn beyond_range(q: f64, lo: f64, hi: f64) -> Option<(bool, f64)> {
-    if !(q < lo || q > hi) {
+    if q >= lo && q <= hi {
         return None;
     }
     let span = hi - lo;
@@ -390,6 +390,8 @@ mod tests {
         assert!(!prepared.beyond(&[1.0 + 0.5 * TERMS_MARGIN_RAD - 2.0 * TAU]));
         assert!(prepared.beyond(&[-0.5 - 2.0 * TERMS_MARGIN_RAD + TAU]));
         assert!(prepared.beyond(&[f64::INFINITY]));
+        assert!(prepared.beyond(&[f64::NAN]));
+        assert!(beyond_range(f64::NAN, -0.5, 1.0).is_some());
         // A range of a whole turn or more holds every angle.
         assert_eq!(beyond_range(100.0, -4.0, 4.0), None);
     }
