@@ -794,17 +794,36 @@ pub(crate) fn kernel_terms<'a>(
 ) -> [f64; 4] {
     let (l, vertical) = (choice.length_scale, choice.vertical_scale);
     let mut terms = [mean, 0.0, 0.0, 0.0];
-    for (i, (input, s)) in inputs.zip(weights).enumerate() {
-        let r = matern52(scaled_distance(input, x, vertical), l) * s;
-        terms[0] += r;
-        if let Some(axes) = axes {
-            for k in 0..3 {
-                terms[1 + k] += choice.modulation * r * axes[i][k];
+    // The correlations a chunk at a time ([`crate::matern::matern52_many`]), summed in the
+    // samples' order.
+    let (mut distances, mut correlations) = ([0.0; TERM_CHUNK], [0.0; TERM_CHUNK]);
+    let mut samples = inputs.zip(weights).enumerate();
+    loop {
+        let mut chunk = [(0, 0.0); TERM_CHUNK];
+        let mut count = 0;
+        for (i, (input, &s)) in samples.by_ref().take(TERM_CHUNK) {
+            distances[count] = scaled_distance(input, x, vertical);
+            chunk[count] = (i, s);
+            count += 1;
+        }
+        crate::matern::matern52_many(&distances[..count], l, &mut correlations[..count]);
+        for (&(i, s), &correlation) in chunk[..count].iter().zip(&correlations) {
+            let r = correlation * s;
+            terms[0] += r;
+            if let Some(axes) = axes {
+                for k in 0..3 {
+                    terms[1 + k] += choice.modulation * r * axes[i][k];
+                }
             }
         }
+        if count < TERM_CHUNK {
+            return terms;
+        }
     }
-    terms
 }
+
+/// Samples whose correlations [`kernel_terms`] computes at once.
+const TERM_CHUNK: usize = 64;
 
 /// The covariance of the module docs between two samples at scaled distance `h` whose axes
 /// have inner product `gram` (ignored at `w = 0`): `R(h) (1 + w gram)`.
@@ -862,9 +881,17 @@ fn covariance(
 ) -> DMatrix<f64> {
     let n = distances.nrows();
     let mut k = DMatrix::zeros(n, n);
+    let mut correlations = vec![0.0; n];
     for j in 0..n {
-        for i in j..n {
-            let entry = covariance_entry(distances[(i, j)], l, w, gram.map_or(0.0, |g| g[(i, j)]));
+        // Column j from the diagonal down: the correlations at once, then `R (1 + w G)`
+        // entry by entry as [`covariance_entry`] has it.
+        let below = &mut correlations[j..];
+        crate::matern::matern52_many(&distances.as_slice()[j * n + j..(j + 1) * n], l, below);
+        for (i, &r) in (j..n).zip(below.iter()) {
+            let entry = match gram {
+                Some(g) if w != 0.0 => r * (1.0 + w * g[(i, j)]),
+                _ => r,
+            };
             k[(i, j)] = entry;
             k[(j, i)] = entry;
         }
