@@ -178,6 +178,43 @@ pub(crate) fn matern52_many(h: &[f64], l: f64, out: &mut [f64]) {
     }
 }
 
+/// `h[i] = √((dx[i]² + dy[i]²) + dz[i]²)`, the distances of
+/// [`crate::nugget_kriging::scaled_distance`] from the coordinates' differences (the
+/// vertical one scaled), to the bit: in AVX2 lanes where the processor has them.
+///
+/// # Panics
+///
+/// If the slices differ in length.
+pub(crate) fn distances_3d(dx: &[f64], dy: &[f64], dz: &[f64], h: &mut [f64]) {
+    assert!(dx.len() == h.len() && dy.len() == h.len() && dz.len() == h.len());
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2 (checked just above).
+        unsafe { distances_3d_avx2(dx, dy, dz, h) };
+        return;
+    }
+    distances_3d_portable(dx, dy, dz, h);
+}
+
+/// [`distances_3d`] compiled for AVX2 (elementwise, and a square root is correctly
+/// rounded: the same bits in any number of lanes).
+///
+/// # Safety
+///
+/// The processor must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn distances_3d_avx2(dx: &[f64], dy: &[f64], dz: &[f64], h: &mut [f64]) {
+    distances_3d_portable(dx, dy, dz, h);
+}
+
+#[inline(always)]
+fn distances_3d_portable(dx: &[f64], dy: &[f64], dz: &[f64], h: &mut [f64]) {
+    for (((h, &x), &y), &z) in h.iter_mut().zip(dx).zip(dy).zip(dz) {
+        *h = (x * x + y * y + z * z).sqrt();
+    }
+}
+
 /// [`matern52_many`] in AVX2 and FMA: per four distances `s = √5 h / l`, `exp(−s)` by the
 /// table (lanes outside its arguments by the library), `(1 + s + s²/3) exp(−s)`, each
 /// operation that of the scalar code.

@@ -801,10 +801,30 @@ pub(crate) fn kernel_terms<'a>(
     loop {
         let mut chunk = [(0, 0.0); TERM_CHUNK];
         let mut count = 0;
-        for (i, (input, &s)) in samples.by_ref().take(TERM_CHUNK) {
-            distances[count] = scaled_distance(input, x, vertical);
-            chunk[count] = (i, s);
-            count += 1;
+        if x.len() == 3 {
+            // The coordinates' differences here, their distances in lanes: as
+            // [`scaled_distance`] has them (a vertical scale of 1 multiplies exactly).
+            let mut offsets = [[0.0; TERM_CHUNK]; 3];
+            for (i, (input, &s)) in samples.by_ref().take(TERM_CHUNK) {
+                offsets[0][count] = input[0] - x[0];
+                offsets[1][count] = input[1] - x[1];
+                offsets[2][count] = vertical * (input[2] - x[2]);
+                chunk[count] = (i, s);
+                count += 1;
+            }
+            let [dx, dy, dz] = &offsets;
+            crate::matern::distances_3d(
+                &dx[..count],
+                &dy[..count],
+                &dz[..count],
+                &mut distances[..count],
+            );
+        } else {
+            for (i, (input, &s)) in samples.by_ref().take(TERM_CHUNK) {
+                distances[count] = scaled_distance(input, x, vertical);
+                chunk[count] = (i, s);
+                count += 1;
+            }
         }
         crate::matern::matern52_many(&distances[..count], l, &mut correlations[..count]);
         for (&(i, s), &correlation) in chunk[..count].iter().zip(&correlations) {
@@ -1516,6 +1536,72 @@ mod tests {
                 });
                 let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&got), bits(&want), "s {vertical}, ℓ {l}, w {w}");
+            }
+        }
+    }
+
+    /// Property: [`kernel_terms`] (distances and correlations in lanes, a chunk at a time)
+    /// gives the bits of the obvious sum, sample after sample, of the scalar
+    /// [`matern52`] at [`scaled_distance`]: Cartesian points with and without a vertical
+    /// scale and a turning part, two- and six-dimensional inputs, sample counts below, at
+    /// and across the chunks, and points on a sample (distance 0).
+    #[test]
+    fn the_kernel_terms_are_the_obvious_sum_to_the_bit() {
+        let reference = |choice: &GpChoice,
+                         inputs: &[Vec<f64>],
+                         axes: Option<&[[f64; 3]]>,
+                         weights: &[f64],
+                         x: &[f64]| {
+            let mut terms = [0.5, 0.0, 0.0, 0.0];
+            for (i, (input, s)) in inputs.iter().zip(weights).enumerate() {
+                let r = matern52(
+                    scaled_distance(input, x, choice.vertical_scale),
+                    choice.length_scale,
+                ) * s;
+                terms[0] += r;
+                if let Some(axes) = axes {
+                    for k in 0..3 {
+                        terms[1 + k] += choice.modulation * r * axes[i][k];
+                    }
+                }
+            }
+            terms
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(43);
+        for case in 0..120u64 {
+            let n = [1, 3, 63, 64, 65, 128, 200][case as usize % 7];
+            let dim = [3, 3, 3, 2, 6][case as usize % 5];
+            let inputs = cloud(n, dim, 2000 + case);
+            let axes = unit_axes(n, 3000 + case);
+            let weights: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect();
+            let choice = GpChoice {
+                length_scale: rng.gen_range(0.05..3.0),
+                vertical_scale: if dim == 3 {
+                    [1.0, 0.25, 2.0][case as usize % 3]
+                } else {
+                    1.0
+                },
+                relative_nugget: 0.1,
+                modulation: [0.0, 0.3, 10.0][case as usize % 3],
+                log_likelihood: 0.0,
+            };
+            let axes = (case % 2 == 0).then_some(&axes[..]);
+            let on_a_sample = inputs[n / 2].clone();
+            for x in [cloud(1, dim, 4000 + case).remove(0), on_a_sample] {
+                let got = kernel_terms(
+                    &choice,
+                    0.5,
+                    inputs.iter().map(Vec::as_slice),
+                    axes,
+                    &weights,
+                    &x,
+                );
+                let want = reference(&choice, &inputs, axes, &weights, &x);
+                assert_eq!(
+                    got.map(f64::to_bits),
+                    want.map(f64::to_bits),
+                    "case {case}: {got:?} vs {want:?}"
+                );
             }
         }
     }
