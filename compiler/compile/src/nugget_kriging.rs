@@ -367,7 +367,7 @@ impl ResidualGp {
                 .par_iter()
                 .map(|&i| {
                     let (v, l, w) = setting(i);
-                    let k = covariance(&distances[v], gram.as_ref(), l, w);
+                    let k = lower_covariance(&distances[v], gram.as_ref(), l, w);
                     Tridiagonal::new(k, &centred).log_likelihoods(&NUGGETS)
                 })
                 .collect();
@@ -890,10 +890,29 @@ fn system(
     a
 }
 
-/// `K` of [`system`], without the nugget: each entry below the diagonal computed once and
-/// mirrored (the distances and the Gram matrix are symmetric to the bit, so this is the
-/// matrix entry by entry, at half the exponentials).
+/// `K` of [`system`], without the nugget: [`lower_covariance`] mirrored (the distances and
+/// the Gram matrix are symmetric to the bit, so this is the matrix entry by entry, at half
+/// the exponentials).
 fn covariance(
+    distances: &DMatrix<f64>,
+    gram: Option<&DMatrix<f64>>,
+    l: f64,
+    w: f64,
+) -> DMatrix<f64> {
+    let mut k = lower_covariance(distances, gram, l, w);
+    for j in 0..k.ncols() {
+        for i in j + 1..k.nrows() {
+            k[(j, i)] = k[(i, j)];
+        }
+    }
+    k
+}
+
+/// The lower triangle of [`covariance`] (diagonal included; zeros above it), all that a
+/// reduction ([`Tridiagonal::new`]) reads: column by column, the correlations at once
+/// ([`crate::matern::matern52_many`]), then `R (1 + w G)` entry by entry as
+/// [`covariance_entry`] has it.
+fn lower_covariance(
     distances: &DMatrix<f64>,
     gram: Option<&DMatrix<f64>>,
     l: f64,
@@ -901,19 +920,14 @@ fn covariance(
 ) -> DMatrix<f64> {
     let n = distances.nrows();
     let mut k = DMatrix::zeros(n, n);
-    let mut correlations = vec![0.0; n];
     for j in 0..n {
-        // Column j from the diagonal down: the correlations at once, then `R (1 + w G)`
-        // entry by entry as [`covariance_entry`] has it.
-        let below = &mut correlations[j..];
-        crate::matern::matern52_many(&distances.as_slice()[j * n + j..(j + 1) * n], l, below);
-        for (i, &r) in (j..n).zip(below.iter()) {
-            let entry = match gram {
-                Some(g) if w != 0.0 => r * (1.0 + w * g[(i, j)]),
-                _ => r,
-            };
-            k[(i, j)] = entry;
-            k[(j, i)] = entry;
+        let column = j * n + j..(j + 1) * n;
+        let below = &mut k.as_mut_slice()[column.clone()];
+        crate::matern::matern52_many(&distances.as_slice()[column.clone()], l, below);
+        if let Some(g) = gram.filter(|_| w != 0.0) {
+            for (entry, &g) in below.iter_mut().zip(&g.as_slice()[column]) {
+                *entry *= 1.0 + w * g;
+            }
         }
     }
     k
@@ -1536,6 +1550,44 @@ mod tests {
                 });
                 let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&got), bits(&want), "s {vertical}, ℓ {l}, w {w}");
+            }
+        }
+    }
+
+    /// The search reduces the covariance's lower triangle alone ([`lower_covariance`]):
+    /// it is the full matrix's, and the reductions (blocked, and the unblocked reference)
+    /// read nothing above the diagonal, so they give the full matrix's bits.
+    #[test]
+    fn the_reductions_read_the_lower_triangle_alone() {
+        for (seed, n) in [(1, 5), (2, 40), (3, 97), (4, 150)] {
+            let (distances, gram, centred) = scoring_case(n, 3, 500 + seed);
+            let spacing = median_nearest_distance(&distances);
+            for w in [0.0, 0.3] {
+                let full = covariance(&distances, Some(&gram), 2.0 * spacing, w);
+                let lower = lower_covariance(&distances, Some(&gram), 2.0 * spacing, w);
+                for j in 0..n {
+                    for i in 0..n {
+                        let want = if i >= j { full[(i, j)].to_bits() } else { 0 };
+                        assert_eq!(lower[(i, j)].to_bits(), want, "n {n}, ({i}, {j})");
+                    }
+                }
+                // Above the diagonal, something a reading would notice.
+                let mut marked = lower.clone();
+                for j in 1..n {
+                    for i in 0..j {
+                        marked[(i, j)] = f64::NAN;
+                    }
+                }
+                assert_eq!(
+                    reduction_bits(&Tridiagonal::new(marked.clone(), &centred)),
+                    reduction_bits(&Tridiagonal::new(full.clone(), &centred)),
+                    "n {n}, w {w}"
+                );
+                assert_eq!(
+                    reduction_bits(&Tridiagonal::reduce(marked, &centred)),
+                    reduction_bits(&Tridiagonal::reduce(full, &centred)),
+                    "n {n}, w {w}"
+                );
             }
         }
     }
