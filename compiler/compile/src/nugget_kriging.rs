@@ -852,9 +852,10 @@ pub(crate) fn kernel_terms<'a>(
 const TERM_CHUNK: usize = 64;
 
 /// The covariance of the module docs between two samples at scaled distance `h` whose axes
-/// have inner product `gram` (ignored at `w = 0`): `R(h) (1 + w gram)`.
-#[inline]
-pub(crate) fn covariance_entry(h: f64, l: f64, w: f64, gram: f64) -> f64 {
+/// have inner product `gram` (ignored at `w = 0`): `R(h) (1 + w gram)`. The entry by entry
+/// reference the matrices' fills ([`lower_covariance`], [`cartesian_system`]) are held to.
+#[cfg(test)]
+fn covariance_entry(h: f64, l: f64, w: f64, gram: f64) -> f64 {
     let r = matern52(h, l);
     if w != 0.0 {
         r * (1.0 + w * gram)
@@ -937,6 +938,48 @@ fn lower_covariance(
         }
     }
     k
+}
+
+/// `K + λI` over three-dimensional `points` (Cartesian, mm: the vertical difference scaled
+/// by `vertical`), turning with `axes` (one per point) when given: [`covariance_entry`] at
+/// [`scaled_distance`] for every entry, the nugget added on the diagonal (and `+ 0.0`
+/// elsewhere), to the bit; the lower triangle's distances and correlations in lanes
+/// ([`crate::matern`]), then mirrored (both are symmetric to the bit). A local system of
+/// [`crate::local_kriging`].
+pub(crate) fn cartesian_system(
+    points: &[&[f64]],
+    axes: Option<&[[f64; 3]]>,
+    (l, vertical, lambda, w): (f64, f64, f64, f64),
+) -> DMatrix<f64> {
+    let k = points.len();
+    let mut a = DMatrix::zeros(k, k);
+    let (mut dx, mut dy, mut dz, mut h) = (vec![0.0; k], vec![0.0; k], vec![0.0; k], vec![0.0; k]);
+    for j in 0..k {
+        let m = k - j;
+        for (t, p) in points[j..].iter().enumerate() {
+            dx[t] = p[0] - points[j][0];
+            dy[t] = p[1] - points[j][1];
+            dz[t] = vertical * (p[2] - points[j][2]);
+        }
+        crate::matern::distances_3d(&dx[..m], &dy[..m], &dz[..m], &mut h[..m]);
+        let column = &mut a.as_mut_slice()[j * k + j..(j + 1) * k];
+        crate::matern::matern52_many(&h[..m], l, column);
+        for (i, entry) in (j..k).zip(column.iter_mut()) {
+            if w != 0.0 {
+                let g = axes.map_or(0.0, |a| {
+                    a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
+                });
+                *entry *= 1.0 + w * g;
+            }
+            *entry += if i == j { lambda } else { 0.0 };
+        }
+    }
+    for j in 0..k {
+        for i in j + 1..k {
+            a[(j, i)] = a[(i, j)];
+        }
+    }
+    a
 }
 
 /// Per component, the profiled log-likelihood of the module docs for the system `a`;
@@ -1595,6 +1638,40 @@ mod tests {
                     "n {n}, w {w}"
                 );
             }
+        }
+    }
+
+    /// Property: [`cartesian_system`] (the lower triangle in lanes, mirrored) is the
+    /// obvious matrix of [`covariance_entry`] at every entry plus the nugget, to the bit:
+    /// sizes below, at and beyond the lanes, with and without a vertical scale and axes.
+    #[test]
+    fn the_cartesian_system_is_every_entry_to_the_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(44);
+        for case in 0..60u64 {
+            let k = [1, 2, 5, 8, 33, 128][case as usize % 6];
+            let points = cloud(k, 3, 5000 + case);
+            let axes = unit_axes(k, 6000 + case);
+            let local: Vec<&[f64]> = points.iter().map(Vec::as_slice).collect();
+            let vertical = [1.0, 0.25, 2.0][case as usize % 3];
+            let w = [0.0, 0.3, 10.0][case as usize / 3 % 3];
+            let (l, lambda) = (rng.gen_range(0.05..3.0), rng.gen_range(0.001..2.0));
+            let axes = (case % 2 == 0).then_some(&axes[..]);
+            let got = cartesian_system(&local, axes, (l, vertical, lambda, w));
+            let gram = |i: usize, j: usize| {
+                axes.map_or(0.0, |a| {
+                    a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
+                })
+            };
+            let want = DMatrix::from_fn(k, k, |i, j| {
+                covariance_entry(
+                    scaled_distance(local[i], local[j], vertical),
+                    l,
+                    w,
+                    gram(i, j),
+                ) + if i == j { lambda } else { 0.0 }
+            });
+            let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "case {case}, k {k}");
         }
     }
 
