@@ -20,8 +20,8 @@
 //! The product with the trailing block is half the flops and, left to the compiler, most of
 //! the time: its [`PRODUCT_COLUMNS`] columns' sums and the rows' running sums need more
 //! vector registers than AVX2 has, and each row's sum is a chain of dependent multiply-adds.
-//! The AVX2 version writes that loop with intrinsics ([`product_rows_fma`]), two chunks of
-//! rows at a time so that two chains are in flight; it performs the portable loop's very
+//! The AVX2 version writes that loop with intrinsics ([`product_rows_fma`]), four chunks of
+//! rows at a time so that four chains are in flight; it performs the portable loop's very
 //! operations, lane for lane and in the same order, so the bits stay those of
 //! [`tridiagonalise_portable`] (`tests`).
 
@@ -319,8 +319,8 @@ fn fused_product_rows(
 /// [`product_columns`]' loop over its first `chunks` chunks of [`PRODUCT_LANES`] rows, in
 /// AVX2 and FMA intrinsics: per chunk, the rows' sums `p[r] += Σ_j B[r, c + j] v[c + j]`
 /// taken over the columns in order, and each column's lane sums `sums[j][l] += B[r, c + j]
-/// v[r]`, the portable loop's operations exactly; two chunks at a time, so that their
-/// chains of dependent multiply-adds overlap.
+/// v[r]`, the portable loop's operations exactly; four chunks at a time (then two, then
+/// one), so that their chains of dependent multiply-adds overlap.
 ///
 /// # Safety
 ///
@@ -351,6 +351,28 @@ unsafe fn product_rows_fma(
     // SAFETY (every load and store): rows r..r + PRODUCT_LANES for r below
     // chunks · PRODUCT_LANES, within every slice (asserted above).
     let mut q = 0;
+    // Four chunks at a time: four chains of the rows' sums in flight (each a chain of W
+    // dependent multiply-adds, which two chains left waiting on their latency).
+    while q + 4 <= chunks {
+        let r: [usize; 4] = std::array::from_fn(|c| (q + c) * PRODUCT_LANES);
+        let mut acc = r.map(|r| _mm256_loadu_pd(pr.add(r)));
+        let vq = r.map(|r| _mm256_loadu_pd(vr.add(r)));
+        for j in 0..W {
+            let b = r.map(|r| _mm256_loadu_pd(column[j].add(r)));
+            for c in 0..4 {
+                acc[c] = _mm256_fmadd_pd(b[c], vc[j], acc[c]);
+            }
+            let mut sum = s[j];
+            for c in 0..4 {
+                sum = _mm256_fmadd_pd(b[c], vq[c], sum);
+            }
+            s[j] = sum;
+        }
+        for c in 0..4 {
+            _mm256_storeu_pd(pr.add(r[c]), acc[c]);
+        }
+        q += 4;
+    }
     while q + 2 <= chunks {
         let (r0, r1) = (q * PRODUCT_LANES, (q + 1) * PRODUCT_LANES);
         let mut acc = [_mm256_loadu_pd(pr.add(r0)), _mm256_loadu_pd(pr.add(r1))];

@@ -17,6 +17,7 @@ mod householder;
 pub mod hybrid;
 pub mod inspect;
 pub mod local_kriging;
+mod matern;
 pub mod nugget_kriging;
 pub mod posture;
 pub mod reference;

@@ -43,7 +43,7 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use crate::nugget_kriging::{
-    check_cartesian, check_choices, check_rows, covariance_entry, kernel_terms, scaled_distance,
+    cartesian_system, check_cartesian, check_choices, check_rows, kernel_terms, scaled_distance,
     GpChoice, GpError, ResidualGp,
 };
 
@@ -467,11 +467,6 @@ impl LocalGp {
             .axes
             .as_ref()
             .map(|a| near.iter().map(|&i| a[i]).collect());
-        let gram = |i: usize, j: usize| {
-            local_axes.as_ref().map_or(0.0, |a| {
-                a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2]
-            })
-        };
         let mut out = vec![[0.0; 4]; points.len() * width];
         let mut done = vec![false; width];
         for c in 0..width {
@@ -500,14 +495,7 @@ impl LocalGp {
                 choice.relative_nugget,
                 choice.modulation,
             );
-            let system = DMatrix::from_fn(k, k, |i, j| {
-                covariance_entry(
-                    scaled_distance(local[i], local[j], vertical),
-                    l,
-                    w,
-                    gram(i, j),
-                ) + if i == j { lambda } else { 0.0 }
-            });
+            let system = cartesian_system(&local, local_axes.as_deref(), (l, vertical, lambda, w));
             let factor = system.cholesky().ok_or(GpError::Singular)?;
             let rhs = DMatrix::from_fn(k, group.len(), |i, g| {
                 self.centred[near[i] * width + group[g]]
