@@ -1,5 +1,5 @@
 //! The Matérn 5/2 correlation over many distances at once, four lanes at a time with AVX2
-//! and FMA, to the bit of the scalar [`crate::nugget_kriging::matern52`].
+//! and FMA, to the bit of the scalar [`matern52`].
 //!
 //! A table's kriging nodes each sum the correlation over every sample, per component (the
 //! UR5's 1,000 samples at some 50,000 nodes: 150 million exponentials), and every setting
@@ -15,7 +15,13 @@
 
 use std::sync::OnceLock;
 
-use crate::nugget_kriging::matern52;
+/// Matérn 5/2 correlation at distance `h` for length scale `l`: the scalar definition the
+/// lanes below reproduce to the bit.
+#[inline]
+pub fn matern52(h: f64, l: f64) -> f64 {
+    let s = 5f64.sqrt() * h / l;
+    (1.0 + s + s * s / 3.0) * (-s).exp()
+}
 
 /// `2^(k/128) ≈ H[k] (1 + T[k])` for `k < 128`: `EXP_TABLE[2k]` holds the bits of `T[k]`
 /// (the relative error of `H[k]`, rounded), `EXP_TABLE[2k + 1]` those of `H[k]` (rounded)
@@ -159,7 +165,7 @@ fn check_arguments() -> impl Iterator<Item = f64> {
     spread.chain((1..=4096).map(|i| -64.0 * i as f64 / 4096.0))
 }
 
-/// `out[i] = matern52(h[i], l)` ([`crate::nugget_kriging::matern52`], to the bit): four at
+/// `out[i] = matern52(h[i], l)` ([`matern52`], to the bit): four at
 /// a time where the lanes run ([`vector_exp_agrees`]), else one by one.
 ///
 /// # Panics

@@ -255,12 +255,9 @@ struct Component {
     weights: Vec<f64>,
 }
 
-/// Matérn 5/2 correlation at distance `h` for length scale `l`.
-#[inline]
-pub fn matern52(h: f64, l: f64) -> f64 {
-    let s = 5f64.sqrt() * h / l;
-    (1.0 + s + s * s / 3.0) * (-s).exp()
-}
+/// Matérn 5/2 correlation at distance `h` for length scale `l` (the scalar definition,
+/// beside its lanes in [`crate::matern`]).
+pub use crate::matern::matern52;
 
 fn distance(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
