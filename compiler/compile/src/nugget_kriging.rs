@@ -904,11 +904,7 @@ fn covariance(
     w: f64,
 ) -> DMatrix<f64> {
     let mut k = lower_covariance(distances, gram, l, w);
-    for j in 0..k.ncols() {
-        for i in j + 1..k.nrows() {
-            k[(j, i)] = k[(i, j)];
-        }
-    }
+    k.fill_upper_triangle_with_lower_triangle();
     k
 }
 
@@ -971,11 +967,7 @@ pub(crate) fn cartesian_system(
             *entry += if i == j { lambda } else { 0.0 };
         }
     }
-    for j in 0..k {
-        for i in j + 1..k {
-            a[(j, i)] = a[(i, j)];
-        }
-    }
+    a.fill_upper_triangle_with_lower_triangle();
     a
 }
 
