@@ -13,6 +13,7 @@
 //! `adwi-robot`'s; writing the file without ever losing data is `adwi-output`'s.
 
 pub mod build;
+mod cholesky;
 mod householder;
 pub mod hybrid;
 pub mod inspect;

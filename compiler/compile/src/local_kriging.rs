@@ -496,7 +496,7 @@ impl LocalGp {
                 choice.modulation,
             );
             let system = cartesian_system(&local, local_axes.as_deref(), (l, vertical, lambda, w));
-            let factor = system.cholesky().ok_or(GpError::Singular)?;
+            let factor = crate::cholesky::cholesky(system).ok_or(GpError::Singular)?;
             let rhs = DMatrix::from_fn(k, group.len(), |i, g| {
                 self.centred[near[i] * width + group[g]]
             });

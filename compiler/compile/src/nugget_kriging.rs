@@ -547,7 +547,7 @@ impl ResidualGp {
                 let distances = DMatrix::from_fn(n, n, |i, j| {
                     scaled_distance(&inputs[i], &inputs[j], vertical)
                 });
-                system(&distances, gram.as_ref(), l, lambda, w).cholesky()
+                crate::cholesky::cholesky(system(&distances, gram.as_ref(), l, lambda, w))
             })
             .collect();
         let mut components = Vec::with_capacity(choices.len());
@@ -983,7 +983,7 @@ fn log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<Vec<f64>> 
 /// [`log_likelihoods`], with the Cholesky factor of `a` that gave them.
 fn factored_log_likelihoods(a: DMatrix<f64>, centred: &DMatrix<f64>) -> Option<(Vec<f64>, Factor)> {
     let n = a.nrows() as f64;
-    let chol = a.cholesky()?;
+    let chol = crate::cholesky::cholesky(a)?;
     let log_det: f64 = 2.0
         * chol
             .l_dirty()
