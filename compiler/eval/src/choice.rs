@@ -374,17 +374,25 @@ impl<'a> CrossValidation<'a> {
         Some(FoldModels {
             calibrate: self.calibrate,
             train: self.splits.iter().map(|f| f.train.clone()).collect(),
-            error_mm: self.samples.error_mm.clone(),
+            inputs: self.inputs_fingerprint()?,
             identified,
         })
+    }
+
+    /// The digest of what the folds' models are identified from: the samples, every value,
+    /// and the robot (its whole description, as `Debug` spells it, each number to the bit);
+    /// `None` without a robot.
+    fn inputs_fingerprint(&self) -> Option<[u64; 2]> {
+        let robot = self.robot?;
+        let robot = xxhash_rust::xxh3::xxh3_64(format!("{robot:?}").as_bytes());
+        Some([self.samples.fingerprint(), robot])
     }
 
     /// Takes `models` as the folds' identification with their options, when they were
     /// identified on these samples and folds (else nothing): the same identifications, not
     /// made again.
     fn adopt(&self, models: &FoldModels) {
-        let same = self.robot.is_some()
-            && models.error_mm == self.samples.error_mm
+        let same = self.inputs_fingerprint() == Some(models.inputs)
             && models.train.len() == self.splits.len()
             && (models.train.iter().zip(&self.splits)).all(|(t, f)| *t == f.train);
         let mut identified = self.identified.borrow_mut();
@@ -890,9 +898,10 @@ pub struct FoldModels {
     calibrate: CalibrateOptions,
     /// Each fold's training samples (indices into the samples cross-validated).
     train: Vec<Vec<usize>>,
-    /// The samples cross-validated, position errors (mm): with `train`, what makes
-    /// another cross-validation the same one.
-    error_mm: Vec<[f64; 3]>,
+    /// The digests of the samples cross-validated and of the robot
+    /// ([`CrossValidation::inputs_fingerprint`]): with `train`, what makes another
+    /// cross-validation the same one.
+    inputs: [u64; 2],
     /// Each fold's model.
     identified: Vec<Calibration>,
 }
@@ -1254,6 +1263,7 @@ fn best(scores: impl Iterator<Item = (Option<f64>, usize)>) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use adwi_samples::Joints;
 
     #[test]
     fn best_prefers_fewest_missed_then_lowest_mean_then_first() {
@@ -1416,6 +1426,34 @@ mod tests {
         // Of other samples (the first 200): not the same folds, not adopted.
         let other = samples.subset(&(0..200).collect::<Vec<_>>());
         let cv = CrossValidation::matching_use(&other, Some(&robot), calibrate, None).unwrap();
+        cv.adopt(&folds);
+        assert!(cv.identified.borrow().is_empty());
+        // The same position errors at other joint values: other samples.
+        let mut moved = samples.clone();
+        let joints = moved.joints.as_ref().expect("joint values");
+        let mut rows = Joints::new(joints.row(0).len());
+        for i in 0..joints.len() {
+            let mut row = joints.row(i).to_vec();
+            row[0] += if i == 0 { 1e-9 } else { 0.0 };
+            rows.push(&row);
+        }
+        moved.joints = Some(rows);
+        let cv = CrossValidation::matching_use(&moved, Some(&robot), calibrate, None).unwrap();
+        cv.adopt(&folds);
+        assert!(cv.identified.borrow().is_empty());
+        // The same samples with another robot (its tool 1 mm longer).
+        let mut tool = robot.tool();
+        tool.translation_mm[2] += 1.0;
+        let other_robot = robot
+            .with_parts(
+                robot.name.clone(),
+                robot.base(),
+                tool,
+                robot.home().to_vec(),
+            )
+            .unwrap();
+        let cv =
+            CrossValidation::matching_use(&samples, Some(&other_robot), calibrate, None).unwrap();
         cv.adopt(&folds);
         assert!(cv.identified.borrow().is_empty());
         let cv = CrossValidation::matching_use(&samples, Some(&robot), calibrate, None).unwrap();

@@ -130,6 +130,47 @@ pub struct SampleSet {
 }
 
 impl SampleSet {
+    /// A 64-bit digest (XXH3) of every value a model or a table is made from: nominal
+    /// positions and orientations, errors, joint values and configurations, bit for bit,
+    /// each part marked present or absent. Source lines and the repeats' report are
+    /// left out: they only word messages. Two sets with the same fingerprint are taken
+    /// to be the same samples (a collision by chance is about 1 in 2⁶⁴).
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        let mut values = |present: bool, values: &mut dyn Iterator<Item = f64>| {
+            h.update(&[u8::from(present)]);
+            for v in values {
+                h.update(&v.to_bits().to_le_bytes());
+            }
+        };
+        values(true, &mut self.nominal_mm.iter().flatten().copied());
+        values(true, &mut self.error_mm.iter().flatten().copied());
+        let rotations = self.nominal_rotation.as_deref();
+        values(
+            rotations.is_some(),
+            &mut rotations
+                .into_iter()
+                .flatten()
+                .flat_map(|r| r.matrix().iter().copied().collect::<Vec<_>>()),
+        );
+        let rotation_errors = self.rotation_error_rad.as_deref();
+        values(
+            rotation_errors.is_some(),
+            &mut rotation_errors.into_iter().flatten().flatten().copied(),
+        );
+        let joints = self.joints.as_ref();
+        values(
+            joints.is_some(),
+            &mut joints
+                .map(|j| j.count as f64)
+                .into_iter()
+                .chain(joints.into_iter().flat_map(|j| j.values.iter().copied())),
+        );
+        h.update(&[u8::from(self.config.is_some())]);
+        h.update(self.config.as_deref().unwrap_or(&[]));
+        h.digest()
+    }
+
     /// The number of samples.
     pub fn len(&self) -> usize {
         self.nominal_mm.len()
@@ -783,6 +824,41 @@ mod tests {
             "series 2 differs from the first in joint values (j1..jn, and as many): series \
              trained together need the same columns"
         );
+    }
+
+    #[test]
+    fn the_fingerprint_is_every_value_and_only_the_values() {
+        let base = "x,y,z,a,b,c,dx,dy,dz,rx,ry,rz,j1,j2,config\n\
+                    0,0,0,0,90,0,0.1,0,0,0.001,0,0,1,2,3\n\
+                    10,0,0,0,90,0,0.2,0,0,0,0.001,0,2,3,3\n";
+        let samples = parse(base).unwrap();
+        let print = samples.fingerprint();
+        assert_eq!(print, samples.clone().fingerprint());
+        // The same values on other source lines (a comment above them): the same samples.
+        let commented = parse(&format!("# a comment\n{base}")).unwrap();
+        assert_ne!(commented.lines, samples.lines);
+        assert_eq!(commented.fingerprint(), print);
+        // Any value moved, or a part left out: other samples.
+        let others = [
+            base.replace("\n0,0,0,", "\n0,0,1e-9,"),
+            base.replace("0.1,0,0,0.001", "0.1,0,0,0.002"),
+            base.replace(",90,0,0.2", ",89,0,0.2"),
+            base.replace(",1,2,3\n", ",1,2.5,3\n"),
+            base.replace("2,3,3\n", "2,3,4\n"),
+            base.replace("0.2,0,0,", "0.2,0,-0,"),
+        ];
+        for other in others {
+            assert_ne!(parse(&other).unwrap().fingerprint(), print, "{other}");
+        }
+        let without_joints = parse(
+            "x,y,z,a,b,c,dx,dy,dz,rx,ry,rz\n0,0,0,0,90,0,0.1,0,0,0.001,0,0\n10,0,0,0,90,0,0.2,0,0,0,0.001,0\n",
+        )
+        .unwrap();
+        let mut no_joints = samples.clone();
+        no_joints.joints = None;
+        no_joints.config = None;
+        assert_eq!(without_joints.fingerprint(), no_joints.fingerprint());
+        assert_ne!(no_joints.fingerprint(), print);
     }
 
     fn parse(text: &str) -> Result<SampleSet, ReadError> {
