@@ -494,12 +494,13 @@ pub fn csv(e: &Evaluation) -> String {
     out
 }
 
-/// The whole evaluation as pretty-printed JSON: figures, per-point predictions, and the
-/// kinematic identification.
+/// The whole evaluation as pretty-printed JSON (figures, per-point predictions, and the
+/// kinematic identification), written to `w` as it is encoded: a million samples' is a
+/// gigabyte of text, never held beside the evaluation.
 ///
 /// # Errors
 ///
-/// Only if serialisation fails, which plain numbers and strings do not.
-pub fn json(e: &Evaluation) -> Result<String, serde_json::Error> {
-    serde_json::to_string_pretty(e)
+/// `w`'s error; serialisation itself does not fail on plain numbers and strings.
+pub fn write_json(w: &mut dyn std::io::Write, e: &Evaluation) -> Result<(), serde_json::Error> {
+    serde_json::to_writer_pretty(w, e)
 }

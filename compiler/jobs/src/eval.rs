@@ -9,7 +9,7 @@ use adwi_eval::{EvalOptions, Evaluation, Method, Protocol, SplitRule};
 use adwi_identify::agreement::{check_base_frame, check_registered};
 use adwi_identify::calibrate::CalibrateOptions;
 use adwi_identify::register::{Refined, Registration};
-use adwi_output::OutputPlan;
+use adwi_output::{Content, OutputPlan};
 use adwi_robot::Robot;
 use adwi_samples::{ColumnMap, ReadOptions, SampleSet};
 use serde::Deserialize;
@@ -520,18 +520,24 @@ impl EvalJob {
         if let Some(path) = &csv {
             contents.push((path, adwi_eval::output::csv(&evaluation).into_bytes()));
         }
-        if let Some(path) = &json {
-            let text = adwi_eval::output::json(&evaluation)
-                .map_err(|e| JobError::NonFinite(format!("cannot encode the evaluation: {e}")))?;
-            contents.push((path, text.into_bytes()));
-        }
         if let Some(path) = &page {
             let html = adwi_eval::report::html(&evaluation, command)
                 .map_err(|e| JobError::NonFinite(format!("cannot draw the report: {e}")))?;
             contents.push((path, html.into_bytes()));
         }
-        let borrowed: Vec<(&Path, &[u8])> = contents.iter().map(|(p, b)| (*p, &b[..])).collect();
-        outputs.write(&borrowed)?;
+        // The JSON holds every point's prediction (a gigabyte of text for a million
+        // samples): written as it is encoded, never held beside the evaluation.
+        let write_json = |w: &mut dyn std::io::Write| {
+            adwi_eval::output::write_json(w, &evaluation).map_err(std::io::Error::other)
+        };
+        let mut borrowed: Vec<(&Path, Content<'_>)> = contents
+            .iter()
+            .map(|(p, b)| (*p, Content::Bytes(&b[..])))
+            .collect();
+        if let Some(path) = &json {
+            borrowed.push((path, Content::Written(&write_json)));
+        }
+        outputs.write_contents(&borrowed)?;
         Ok(Evaluated {
             evaluation,
             by_region,

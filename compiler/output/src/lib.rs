@@ -9,6 +9,19 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// What an output file holds: its bytes, or what writes them, for an output too large to
+/// hold in memory beside what it is made from (an evaluation's per-point JSON of a million
+/// samples is a gigabyte of text). Either is written to a temporary file and renamed into
+/// place with the plan's other outputs, all or nothing.
+#[derive(Clone, Copy)]
+pub enum Content<'a> {
+    /// The bytes themselves.
+    Bytes(&'a [u8]),
+    /// A writer of them, given a buffered writer to the temporary file; an error it returns
+    /// leaves nothing written.
+    Written(&'a dyn Fn(&mut dyn Write) -> std::io::Result<()>),
+}
+
 /// Why an output was refused before any work, or could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -209,9 +222,22 @@ impl OutputPlan {
     ///
     /// [`OutputError::Write`] (nothing was replaced), or a refusal found again.
     pub fn write(&self, contents: &[(&Path, &[u8])]) -> Result<(), OutputError> {
+        let contents: Vec<(&Path, Content<'_>)> = contents
+            .iter()
+            .map(|&(path, bytes)| (path, Content::Bytes(bytes)))
+            .collect();
+        self.write_contents(&contents)
+    }
+
+    /// [`OutputPlan::write`] of outputs given as [`Content`]: bytes, or what writes them.
+    ///
+    /// # Errors
+    ///
+    /// As [`OutputPlan::write`]; a writer's error is [`OutputError::Write`] of its output.
+    pub fn write_contents(&self, contents: &[(&Path, Content<'_>)]) -> Result<(), OutputError> {
         let mut staged: Vec<(PathBuf, &Planned)> = Vec::with_capacity(contents.len());
         let result = (|| {
-            for (path, bytes) in contents {
+            for (path, content) in contents {
                 let planned = self
                     .outputs
                     .iter()
@@ -235,7 +261,7 @@ impl OutputPlan {
                     std::fs::create_dir_all(dir).map_err(failed)?;
                 }
                 remove_stale_temporaries(dir);
-                let temporary = stage(dir, bytes).map_err(|source| OutputError::Write {
+                let temporary = stage(dir, content).map_err(|source| OutputError::Write {
                     path: planned.given.clone(),
                     source,
                 })?;
@@ -424,16 +450,16 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     OutputPlan::check(&[path], &[])?.write(&[(path, bytes)])
 }
 
-/// Writes `bytes` complete and flushed to a fresh temporary file in `dir`, and returns
+/// Writes `content` complete and flushed to a fresh temporary file in `dir`, and returns
 /// its name.
-fn stage(dir: &Path, bytes: &[u8]) -> std::io::Result<PathBuf> {
+fn stage(dir: &Path, content: &Content<'_>) -> std::io::Result<PathBuf> {
     #[cfg(target_os = "linux")]
-    match unnamed::stage(dir, bytes) {
+    match unnamed::stage(dir, content) {
         Err(e) if unnamed::unsupported(&e) => {}
         done => return done,
     }
     let (temporary, mut file) = create_named_temporary(dir)?;
-    if let Err(e) = fill(&mut file, bytes) {
+    if let Err(e) = fill(&mut file, content) {
         let _ = std::fs::remove_file(&temporary);
         return Err(e);
     }
@@ -476,9 +502,16 @@ fn create_named_temporary(dir: &Path) -> std::io::Result<(std::path::PathBuf, st
     }
 }
 
-/// Writes the bytes, sets the permissions and flushes them to the disk.
-fn fill(file: &mut std::fs::File, bytes: &[u8]) -> std::io::Result<()> {
-    file.write_all(bytes)?;
+/// Writes the content, sets the permissions and flushes them to the disk.
+fn fill(file: &mut std::fs::File, content: &Content<'_>) -> std::io::Result<()> {
+    match content {
+        Content::Bytes(bytes) => file.write_all(bytes)?,
+        Content::Written(write) => {
+            let mut buffered = std::io::BufWriter::new(&mut *file);
+            write(&mut buffered)?;
+            buffered.flush()?;
+        }
+    }
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
@@ -563,14 +596,14 @@ mod unnamed {
         )
     }
 
-    /// Writes `bytes` to an unnamed file in `dir` and names it once complete.
-    pub fn stage(dir: &Path, bytes: &[u8]) -> std::io::Result<std::path::PathBuf> {
+    /// Writes `content` to an unnamed file in `dir` and names it once complete.
+    pub fn stage(dir: &Path, content: &super::Content<'_>) -> std::io::Result<std::path::PathBuf> {
         let mut file = std::fs::OpenOptions::new()
             .write(true)
             .custom_flags(libc::O_TMPFILE)
             .mode(0o644)
             .open(dir)?;
-        super::fill(&mut file, bytes)?;
+        super::fill(&mut file, content)?;
         link(&file, dir)
     }
 
@@ -602,5 +635,63 @@ mod unnamed {
             }
             attempt += 1;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The files of `dir`, by name.
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_written_output_is_what_its_writer_wrote_beside_the_others() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.json"), dir.path().join("b.txt"));
+        let plan = OutputPlan::check(&[&a, &b], &[]).unwrap();
+        let write = |w: &mut dyn Write| {
+            for i in 0..100_000 {
+                writeln!(w, "{i}")?;
+            }
+            Ok(())
+        };
+        plan.write_contents(&[(&a, Content::Written(&write)), (&b, Content::Bytes(b"b"))])
+            .unwrap();
+        let expected: String = (0..100_000).map(|i| format!("{i}\n")).collect();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), expected);
+        assert_eq!(std::fs::read(&b).unwrap(), b"b");
+        assert_eq!(names(dir.path()), ["a.json", "b.txt"]);
+    }
+
+    #[test]
+    fn a_failing_writer_replaces_nothing_and_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.json"), dir.path().join("b.txt"));
+        std::fs::write(&a, "old a").unwrap();
+        std::fs::write(&b, "old b").unwrap();
+        let plan = OutputPlan::check(&[&b, &a], &[]).unwrap();
+        let failing = |w: &mut dyn Write| {
+            w.write_all(&[b'x'; 100_000])?;
+            Err(std::io::Error::other("the encoder failed"))
+        };
+        let e = plan
+            .write_contents(&[
+                (&b, Content::Bytes(b"new b")),
+                (&a, Content::Written(&failing)),
+            ])
+            .unwrap_err();
+        let cause = std::error::Error::source(&e).map(ToString::to_string);
+        assert_eq!(cause.as_deref(), Some("the encoder failed"), "{e}");
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "old b");
+        assert_eq!(names(dir.path()), ["a.json", "b.txt"]);
     }
 }
