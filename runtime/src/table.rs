@@ -961,8 +961,10 @@ impl<D: AsRef<[u8]>> Table<D> {
         target: &Target,
         joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
-        // Not `ok_or`: its `Result` was copied through memory in misaligned pieces.
-        let Some(at) = model.evaluate(q, true) else {
+        // Not `ok_or`: its `Result` was copied through memory in misaligned pieces. Read
+        // in place, by reference: a binding by value was a `memcpy` of the answer.
+        let evaluated = model.evaluate(q, true);
+        let Some(at) = evaluated.as_ref() else {
             return Err(Status::InvalidInput);
         };
         let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
@@ -972,7 +974,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         let (error_mm, point_mm) = match lever {
             Some(lever) => {
                 let (error_mm, lever_base) = model
-                    .error_at_lever(&at, lever)
+                    .error_at_lever(at, lever)
                     .ok_or(Status::InvalidInput)?;
                 let p = target.position_mm;
                 (error_mm, [0, 1, 2].map(|i| p[i] - lever_base[i]))
