@@ -151,7 +151,7 @@ impl SampleSet {
             &mut rotations
                 .into_iter()
                 .flatten()
-                .flat_map(|r| r.matrix().iter().copied().collect::<Vec<_>>()),
+                .flat_map(|r| r.matrix().iter().copied()),
         );
         let rotation_errors = self.rotation_error_rad.as_deref();
         values(
