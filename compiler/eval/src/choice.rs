@@ -1097,7 +1097,8 @@ pub fn harmonics_choice_and_folds(
         series,
         ..Ask::default()
     };
-    let (auto, folds) = choices_keeping_folds(samples, robot, options, calibrate, ask).ok()?;
+    let (auto, folds) =
+        choices_keeping_folds(samples, robot, options, calibrate, ask, true).ok()?;
     Some((auto.harmonics?, folds))
 }
 
@@ -1127,17 +1128,19 @@ pub fn default_choices(
     calibrate: &CalibrateOptions,
     ask: Ask<'_>,
 ) -> Result<AutoServedField, TuneError> {
-    choices_keeping_folds(samples, robot, options, calibrate, ask).map(|(auto, _)| auto)
+    choices_keeping_folds(samples, robot, options, calibrate, ask, false).map(|(auto, _)| auto)
 }
 
 /// [`default_choices`], with the folds' models identified with the options the choices
-/// ended with (the harmonic count chosen), when any were.
+/// ended with (the harmonic count chosen), when any were and `keep_folds` asks for them:
+/// a caller that drops them does not pay for their copy and digests.
 fn choices_keeping_folds(
     samples: &SampleSet,
     robot: Option<&Robot>,
     options: &BuildOptions,
     calibrate: &CalibrateOptions,
     ask: Ask<'_>,
+    keep_folds: bool,
 ) -> Result<(AutoServedField, Option<FoldModels>), TuneError> {
     if samples.len() < AUTO_MIN_SAMPLES {
         return Err(TuneError::TooFewSamples(samples.len()));
@@ -1174,7 +1177,7 @@ fn choices_keeping_folds(
             residual_weight: None,
             harmonics,
         };
-        return Ok((auto, cv.fold_models()));
+        return Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()));
     }
     let given = [options.served_field];
     let fields: &[ServedField] = if ask.field {
@@ -1218,7 +1221,7 @@ fn choices_keeping_folds(
         residual_weight,
         harmonics,
     };
-    Ok((auto, cv.fold_models()))
+    Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()))
 }
 
 /// `samples` with the residual `calibration` leaves of each error scaled by `weight`: the
