@@ -1071,20 +1071,10 @@ pub struct Ask<'c> {
 
 /// The harmonic count alone, chosen as [`default_choices`] chooses it (`series` as
 /// [`Ask::series`]); `None` where it cannot be chosen (too few samples, a failed
-/// identification): the caller then keeps the count it was given.
-pub fn harmonics_choice(
-    samples: &SampleSet,
-    robot: Option<&Robot>,
-    options: &BuildOptions,
-    calibrate: &CalibrateOptions,
-    series: Option<&[usize]>,
-) -> Option<HarmonicsChoice> {
-    harmonics_choice_and_folds(samples, robot, options, calibrate, series).map(|(h, _)| h)
-}
-
-/// [`harmonics_choice`], with the folds' models of the count chosen: the choices made
-/// after it on the same samples ([`default_choices`] with [`Ask::folds`]) take them
-/// instead of identifying the folds again.
+/// identification): the caller then keeps the count it was given. With it, the folds'
+/// models of the count chosen: the choices made after it on the same samples
+/// ([`default_choices`] with [`Ask::folds`]) take them instead of identifying the folds
+/// again.
 pub fn harmonics_choice_and_folds(
     samples: &SampleSet,
     robot: Option<&Robot>,
