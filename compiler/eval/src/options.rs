@@ -32,7 +32,7 @@ pub struct EvalOptions {
     /// Kriging parameters.
     pub kriging: KrigingParams,
     /// The identification of each split, when an earlier evaluation of the same samples,
-    /// protocol and identification options made it ([`Evaluation::identified`]): several
+    /// protocol and identification options made it ([`crate::Evaluation::identified`]): several
     /// evaluations then identify once per split. Empty: identified here.
     pub identified: Vec<Calibration>,
     /// Each split's kriging hyperparameters, when searched before on its training samples
