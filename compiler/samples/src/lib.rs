@@ -430,6 +430,12 @@ impl Joints {
         self.values.extend_from_slice(row);
     }
 
+    /// `other`'s rows after these (of the same count).
+    pub(crate) fn append(&mut self, mut other: Joints) {
+        debug_assert_eq!(self.count, other.count);
+        self.values.append(&mut other.values);
+    }
+
     /// Values per row: the robot's joint count.
     pub fn count(&self) -> usize {
         self.count

@@ -9,6 +9,7 @@ use std::str::FromStr;
 use adwi_runtime::format::MAX_COORDINATE_MM;
 use adwi_runtime::method::CONFIG_UNKNOWN;
 use nalgebra::Rotation3;
+use rayon::iter::{IntoParallelIterator, IntoParallelRefIterator, ParallelIterator};
 
 use super::columns::{
     orientation_columns, AngleUnit, ColumnMap, LengthUnit, Quantity, Source, Unit, JOINT_COLUMNS,
@@ -468,7 +469,7 @@ struct Layout {
 
 /// The rows of a file, by part, in millimetres and radians; a part is `None` (or empty for
 /// positions) when the file does not have it.
-#[derive(Default)]
+#[derive(Debug, Default, PartialEq)]
 pub(crate) struct Rows {
     pub nominal_mm: Option<Vec<[f64; 3]>>,
     pub delta_mm: Option<Vec<[f64; 3]>>,
@@ -490,6 +491,36 @@ pub(crate) fn parse(
     columns: &ColumnMap,
     options: &ReadOptions,
     purpose: Purpose,
+) -> Result<Rows, ReadError> {
+    parse_in(
+        path,
+        bytes,
+        columns,
+        options,
+        purpose,
+        Cut::Chunks(CHUNK_BYTES),
+    )
+}
+
+/// How the rows after the header are read: the two ways read every text alike (the tests
+/// hold them equal, chunks of a few bytes included).
+#[derive(Clone, Copy, Debug)]
+enum Cut {
+    /// Text without quotes, valid UTF-8, in chunks of about this many bytes of whole lines
+    /// on the thread pool; other text by the CSV reader.
+    Chunks(usize),
+    /// All by the CSV reader, in one pass.
+    #[cfg_attr(not(test), allow(dead_code))]
+    CsvReader,
+}
+
+fn parse_in(
+    path: &Path,
+    bytes: &[u8],
+    columns: &ColumnMap,
+    options: &ReadOptions,
+    purpose: Purpose,
+    cut: Cut,
 ) -> Result<Rows, ReadError> {
     let error = |line: Option<u64>, column: Option<(usize, String)>, kind| ReadError {
         path: path.to_path_buf(),
@@ -531,13 +562,7 @@ pub(crate) fn parse(
         Some(d) => (d, Choice::Given),
         None => (Delimiter::detect(header_text), Choice::Detected),
     };
-    // Fields are trimmed here, not by the CSV reader, which builds a new record per row to
-    // trim: a million-row file must not cost a million allocations.
-    let mut reader = csv::ReaderBuilder::new()
-        .delimiter(delimiter.byte())
-        .has_headers(false)
-        .flexible(true)
-        .from_reader(data);
+    let mut reader = csv_reader(delimiter, data);
     let (names, header_line) = read_header(path, &mut reader, &mut lines)?;
     let header_info = HeaderInfo {
         names: &names,
@@ -547,8 +572,6 @@ pub(crate) fn parse(
     let layout = resolve(&header_info, columns, options, purpose)
         .map_err(|kind| error(Some(header_line), None, kind))?;
     // Rows are at most the lines of the file: reserve once rather than grow.
-    let rows_hint = data.iter().filter(|&&b| b == b'\n').count() + 1;
-    let mut rows = Rows::for_layout(&layout, rows_hint);
     let mut row_reader = RowReader {
         path,
         names: &names,
@@ -562,31 +585,131 @@ pub(crate) fn parse(
         joint_row: [0.0; MAX_JOINTS],
         orientation: [0.0; 4],
     };
-    // One record buffer for every row.
-    let mut record = csv::ByteRecord::new();
-    loop {
-        match reader.read_byte_record(&mut record) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(path, e, &mut lines)),
-        }
-        let line = lines.of(record.position());
-        if record.len() != names.len() {
-            // A blank line is skipped by the reader; a row with one empty field is not.
-            return Err(error(
-                Some(line),
-                None,
-                ReadErrorKind::FieldCount {
-                    expected: names.len() as u64,
-                    found: record.len() as u64,
-                },
-            ));
-        }
-        row_reader.read(&record, line, &mut rows)?;
-        rows.lines.push(line);
+    let body = reader.position().byte() as usize;
+    let chunked = match cut {
+        Cut::Chunks(bytes) => chunks(data, body, bytes),
+        Cut::CsvReader => None,
+    };
+    #[cfg(test)]
+    tests::CHUNKED.with(|c| c.set(c.get() + usize::from(chunked.is_some())));
+    let Some(chunks) = chunked else {
+        // Rows are at most the lines of the file: reserve once rather than grow.
+        let mut rows = Rows::for_layout(&layout, memchr::memchr_iter(b'\n', data).count() + 1);
+        row_reader.read_all(&mut reader, &mut lines, &mut rows)?;
+        return finished(rows).map_err(|kind| error(Some(header_line), None, kind));
+    };
+    // Each chunk's first line's number in `data`, and room for every row.
+    let text_bytes: usize = chunks.iter().map(|(text, _)| text.len()).sum();
+    let mut line = 1 + memchr::memchr_iter(b'\n', &data[..data.len() - text_bytes]).count() as u64;
+    let mut first_lines = Vec::with_capacity(chunks.len());
+    for (_, newlines) in &chunks {
+        first_lines.push(line);
+        line += *newlines as u64;
     }
+    let mut rows = Rows::for_layout(&layout, chunks.iter().map(|(_, n)| n + 1).sum());
+    let lines = &lines;
+    let chunk_rows = |c: usize, row_reader: &mut RowReader<'_>| {
+        let (text, newlines) = chunks[c];
+        let mut rows = Rows::for_layout(&layout, newlines + 1);
+        row_reader.read_lines(text, delimiter, first_lines[c], lines, &mut rows)?;
+        Ok::<Rows, ReadError>(rows)
+    };
+    // Chunks are read in order until the decimal mark is known (the first row, in most
+    // files), then on the thread pool, a few at a time so that their rows are not all held
+    // twice, each wave's rows appended while the next is read. Each chunk stops at its
+    // first error, and the first chunk's error is the file's.
+    let mut next = 0;
+    while next < chunks.len() && (next == 0 || row_reader.decimal.is_none()) {
+        rows.append(chunk_rows(next, &mut row_reader)?);
+        next += 1;
+    }
+    let append = |rows: &mut Rows, read: Vec<Result<Rows, ReadError>>| {
+        read.into_iter().try_for_each(|chunk| {
+            rows.append(chunk?);
+            Ok(())
+        })
+    };
+    let mut read = Vec::new();
+    for wave in (next..chunks.len())
+        .collect::<Vec<_>>()
+        .chunks(CHUNKS_AT_ONCE)
+    {
+        let (appended, wave_read) = rayon::join(
+            || append(&mut rows, std::mem::take(&mut read)),
+            || {
+                wave.par_iter()
+                    .map(|&c| chunk_rows(c, &mut row_reader.clone()))
+                    .collect()
+            },
+        );
+        appended?;
+        read = wave_read;
+    }
+    append(&mut rows, read)?;
+    finished(rows).map_err(|kind| error(Some(header_line), None, kind))
+}
+
+/// Text read in chunks of about this many bytes, on the thread pool.
+const CHUNK_BYTES: usize = 1 << 20;
+
+/// Chunks read at once: enough to keep every thread busy, few enough that their rows are
+/// not held twice for long.
+const CHUNKS_AT_ONCE: usize = 16;
+
+/// The text of `data` after the header (which the CSV reader left at byte `body`) as
+/// chunks of whole lines of about `chunk_bytes`, each with its count of line ends, when it
+/// can be split without the CSV reader: no quotes (whose fields may hold separators and line
+/// ends), valid UTF-8, every `\r` that of a `\r\n`. `None` for text that cannot, which the
+/// CSV reader reads.
+fn chunks(data: &[u8], body: usize, chunk_bytes: usize) -> Option<Vec<(&str, usize)>> {
+    // The CSV reader stops after the header's `\r` of a `\r\n`, before its `\n`.
+    let body = match (body.checked_sub(1).map(|b| data[b]), data.get(body)) {
+        (Some(b'\n'), _) => body,
+        (Some(b'\r'), Some(b'\n')) => body + 1,
+        (_, None) => body,
+        _ => return None,
+    };
+    let mut ranges = Vec::with_capacity((data.len() - body) / chunk_bytes.max(1) + 1);
+    let mut start = body;
+    while start < data.len() {
+        let end = match data.get(start + chunk_bytes..) {
+            Some(rest) => {
+                memchr::memchr(b'\n', rest).map_or(data.len(), |n| start + chunk_bytes + n + 1)
+            }
+            None => data.len(),
+        };
+        ranges.push(start..end);
+        start = end;
+    }
+    // Checked on the thread pool: lines cut at a `\n` are cut at a character's boundary.
+    ranges
+        .into_par_iter()
+        .map(|range| {
+            let bytes = &data[range];
+            let cuttable = memchr::memchr(b'"', bytes).is_none()
+                && memchr::memchr_iter(b'\r', bytes).all(|r| bytes.get(r + 1) == Some(&b'\n'));
+            let text = std::str::from_utf8(bytes).ok().filter(|_| cuttable)?;
+            Some((text, memchr::memchr_iter(b'\n', bytes).count()))
+        })
+        .collect()
+}
+
+/// A CSV reader of `bytes` that leaves the header, the field count and the trimming to this
+/// module.
+fn csv_reader(delimiter: Delimiter, bytes: &[u8]) -> csv::Reader<&[u8]> {
+    // Fields are trimmed here, not by the CSV reader, which builds a new record per row to
+    // trim: a million-row file must not cost a million allocations.
+    csv::ReaderBuilder::new()
+        .delimiter(delimiter.byte())
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(bytes)
+}
+
+/// `rows`, refused when the file has none.
+fn finished(rows: Rows) -> Result<Rows, ReadErrorKind> {
     if rows.lines.is_empty() {
-        return Err(error(Some(header_line), None, ReadErrorKind::NoSamples));
+        return Err(ReadErrorKind::NoSamples);
     }
     Ok(rows)
 }
@@ -607,7 +730,7 @@ fn leading_comments(bytes: &[u8]) -> (u64, &[u8]) {
 
 /// Whether any line of `bytes` is a comment line.
 fn has_comment_lines(bytes: &[u8]) -> bool {
-    bytes.first() == Some(&b'#') || bytes.windows(2).any(|w| w[0] == b'\n' && w[1] == b'#')
+    bytes.first() == Some(&b'#') || memchr::memmem::find(bytes, b"\n#").is_some()
 }
 
 /// `bytes` without its comment lines, and the file line of each line kept
@@ -669,6 +792,26 @@ fn read_header(
 }
 
 impl Rows {
+    /// `other`'s rows after these (both of one layout).
+    fn append(&mut self, other: Rows) {
+        fn join<T>(into: &mut Option<Vec<T>>, from: Option<Vec<T>>) {
+            if let (Some(into), Some(mut from)) = (into.as_mut(), from) {
+                into.append(&mut from);
+            }
+        }
+        join(&mut self.nominal_mm, other.nominal_mm);
+        join(&mut self.delta_mm, other.delta_mm);
+        join(&mut self.measured_mm, other.measured_mm);
+        join(&mut self.nominal_rotation, other.nominal_rotation);
+        join(&mut self.measured_rotation, other.measured_rotation);
+        join(&mut self.rotation_vector_rad, other.rotation_vector_rad);
+        join(&mut self.config, other.config);
+        if let (Some(into), Some(from)) = (self.joints.as_mut(), other.joints) {
+            into.append(from);
+        }
+        self.lines.extend_from_slice(&other.lines);
+    }
+
     /// Empty rows of the parts `layout` found, room for `rows_hint` rows reserved.
     fn for_layout(layout: &Layout, rows_hint: usize) -> Rows {
         Rows {
@@ -687,6 +830,7 @@ impl Rows {
 
 /// Reads each row's fields into [`Rows`] by the columns found; its buffers serve every
 /// row.
+#[derive(Clone)]
 struct RowReader<'a> {
     path: &'a Path,
     names: &'a [String],
@@ -699,11 +843,92 @@ struct RowReader<'a> {
 }
 
 impl RowReader<'_> {
+    /// Reads every record of `reader` into `rows`, each checked to have the header's
+    /// fields.
+    fn read_all(
+        &mut self,
+        reader: &mut csv::Reader<&[u8]>,
+        lines: &mut LineCounter<'_>,
+        rows: &mut Rows,
+    ) -> Result<(), ReadError> {
+        // One record buffer for every row.
+        let mut record = csv::ByteRecord::new();
+        loop {
+            match reader.read_byte_record(&mut record) {
+                Ok(true) => {}
+                Ok(false) => return Ok(()),
+                Err(e) => return Err(csv_error(self.path, e, lines)),
+            }
+            let line = lines.of(record.position());
+            self.read_row(&record, line, rows)?;
+        }
+    }
+
+    /// Reads every line of `text` (quote-free and valid UTF-8: [`chunks`]), whose first is
+    /// line `first_line` of the text `lines` counts, into `rows`, as the CSV reader would:
+    /// blank lines skipped, a `\r` before a `\n` not part of the row.
+    fn read_lines(
+        &mut self,
+        text: &str,
+        delimiter: Delimiter,
+        first_line: u64,
+        lines: &LineCounter<'_>,
+        rows: &mut Rows,
+    ) -> Result<(), ReadError> {
+        let bytes = text.as_bytes();
+        let mut fields: Vec<&str> = Vec::with_capacity(self.names.len());
+        let mut line = first_line;
+        let mut start = 0;
+        // Every separator and line end, found a word at a time; the text after the last
+        // line end is a row too.
+        let ends = memchr::memchr2_iter(b'\n', delimiter.byte(), bytes);
+        for end in ends.chain((bytes.last() != Some(&b'\n')).then_some(bytes.len())) {
+            let field = &text[start..end];
+            start = end + 1;
+            if bytes.get(end) == Some(&delimiter.byte()) {
+                fields.push(field);
+                continue;
+            }
+            fields.push(field.strip_suffix('\r').unwrap_or(field));
+            if !(fields.len() == 1 && fields[0].is_empty()) {
+                self.read_row(fields.as_slice(), lines.file_line(line), rows)?;
+            }
+            fields.clear();
+            line += 1;
+        }
+        Ok(())
+    }
+
+    /// Reads one row at file line `line` into `rows`, its line included, once it has the
+    /// header's number of fields.
+    fn read_row<R: Record + ?Sized>(
+        &mut self,
+        record: &R,
+        line: u64,
+        rows: &mut Rows,
+    ) -> Result<(), ReadError> {
+        if record.len() != self.names.len() {
+            // A blank line is skipped by the reader; a row with one empty field is not.
+            return Err(ReadError {
+                path: self.path.to_path_buf(),
+                line: Some(line),
+                column: None,
+                kind: ReadErrorKind::FieldCount {
+                    expected: self.names.len() as u64,
+                    found: record.len() as u64,
+                },
+            });
+        }
+        self.read(record, line, rows)?;
+        rows.lines.push(line);
+        Ok(())
+    }
+
     /// Reads the row `record` at file line `line` into `rows` (its line aside): every
     /// number in its unit, lengths and orientation errors checked.
-    fn read(
+    fn read<R: Record + ?Sized>(
         &mut self,
-        record: &csv::ByteRecord,
+        record: &R,
         line: u64,
         rows: &mut Rows,
     ) -> Result<(), ReadError> {
@@ -724,7 +949,8 @@ impl RowReader<'_> {
             kind,
         };
         let mut number = |f: Field| -> Result<f64, ReadError> {
-            number_at(&record[f.index], decimal, line, f.index, names)
+            (record.text(f.index))
+                .and_then(|text| number_at(text, decimal, line, f.index, names))
                 .map(|v| v * f.scale)
                 .map_err(|kind| {
                     error(
@@ -823,7 +1049,7 @@ impl RowReader<'_> {
             joints.push(q);
         }
         if let (Some(c), Some(configs)) = (layout.config, rows.config.as_mut()) {
-            let text = String::from_utf8_lossy(record[c].trim_ascii()).into_owned();
+            let text = String::from_utf8_lossy(record.bytes(c).trim_ascii()).into_owned();
             let config: u8 = text
                 .parse()
                 .ok()
@@ -861,18 +1087,52 @@ fn check_rotation_error(r: [f64; 3], vector_unit: Option<AngleUnit>) -> Result<(
     })
 }
 
+/// A row's fields, as the CSV reader gives them or as split from a line.
+trait Record {
+    /// The number of fields.
+    fn len(&self) -> usize;
+    /// Field `i`'s bytes.
+    fn bytes(&self, i: usize) -> &[u8];
+    /// Field `i` as text.
+    fn text(&self, i: usize) -> Result<&str, ReadErrorKind>;
+}
+
+impl Record for csv::ByteRecord {
+    fn len(&self) -> usize {
+        csv::ByteRecord::len(self)
+    }
+    fn bytes(&self, i: usize) -> &[u8] {
+        &self[i]
+    }
+    fn text(&self, i: usize) -> Result<&str, ReadErrorKind> {
+        std::str::from_utf8(&self[i]).map_err(|_| ReadErrorKind::NotUtf8)
+    }
+}
+
+impl Record for [&str] {
+    fn len(&self) -> usize {
+        <[&str]>::len(self)
+    }
+    fn bytes(&self, i: usize) -> &[u8] {
+        self[i].as_bytes()
+    }
+    fn text(&self, i: usize) -> Result<&str, ReadErrorKind> {
+        Ok(self[i])
+    }
+}
+
 /// The number in a field, in the file's unit: trimmed, with the file's decimal mark,
 /// finite. `decimal` is the file's mark once known; the first number with a mark decides it
 /// when it is not.
 fn number_at(
-    raw: &[u8],
+    field: &str,
     decimal: &mut Option<(Decimal, Choice)>,
     line: u64,
     index: usize,
     names: &[String],
 ) -> Result<f64, ReadErrorKind> {
-    let raw = raw.trim_ascii();
-    let text = std::str::from_utf8(raw).map_err(|_| ReadErrorKind::NotUtf8)?;
+    let text = field.trim_ascii();
+    let raw = text.as_bytes();
     let (mut point, mut comma) = (false, false);
     for &b in raw {
         point |= b == b'.';
@@ -982,6 +1242,14 @@ struct LineCounter<'a> {
 }
 
 impl LineCounter<'_> {
+    /// The file line of line `line` (1-based) of the text read.
+    fn file_line(&self, line: u64) -> u64 {
+        match self.physical {
+            Some(physical) => physical.get(line as usize - 1).copied().unwrap_or(line),
+            None => self.leading + line,
+        }
+    }
+
     /// The file line where the record at `position` starts (0 without a position). Counts
     /// forward from the last call, so reading every record counts the text once.
     fn of(&mut self, position: Option<&csv::Position>) -> u64 {
@@ -995,19 +1263,10 @@ impl LineCounter<'_> {
         if start < self.byte {
             (self.byte, self.line) = (0, 1);
         }
-        let newlines = self.data[self.byte..start]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
+        let newlines = memchr::memchr_iter(b'\n', &self.data[self.byte..start]).count();
         self.line += newlines as u64;
         self.byte = start;
-        match self.physical {
-            Some(physical) => physical
-                .get(self.line as usize - 1)
-                .copied()
-                .unwrap_or(self.line),
-            None => self.leading + self.line,
-        }
+        self.file_line(self.line)
     }
 }
 
@@ -1755,6 +2014,110 @@ mod tests {
             "j2:rad",
             ReadOptions::default(),
             &["'j1' is in deg but 'j2' in rad: revolute joints take one unit"],
+        );
+    }
+
+    thread_local! {
+        /// Readings of this thread that took the chunked way.
+        pub(super) static CHUNKED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    }
+
+    /// Reading in chunks on the thread pool gives the CSV reader's rows, or its error, to
+    /// the bit: random files of every layout, both separators and decimal marks, `\n` and
+    /// `\r\n`, blank and comment lines, a last line with or without its end, and faults (a
+    /// field too many or too few, a word, a foreign decimal mark, an empty field, a
+    /// padded field, a quoted one), in chunks of one byte to a megabyte.
+    #[test]
+    fn reading_in_chunks_is_the_csv_readers_reading() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        // Texts read in chunks, by line end.
+        let mut chunked_texts = [0; 2];
+        for case in 0..600 {
+            let sep = if rng.gen_bool(0.3) { ";" } else { "," };
+            let decimal_comma = sep == ";" && rng.gen_bool(0.5);
+            let mut names = vec!["x", "y", "z", "dx", "dy", "dz"];
+            if rng.gen_bool(0.4) {
+                names.extend(["a", "b", "c"]);
+            }
+            if rng.gen_bool(0.4) {
+                names.extend(["j1", "j2", "j3"]);
+            }
+            if rng.gen_bool(0.3) {
+                names.push("config");
+            }
+            let eol = if rng.gen_bool(0.3) { "\r\n" } else { "\n" };
+            let mut text = String::new();
+            if rng.gen_bool(0.3) {
+                text += &format!("# a comment{eol}");
+            }
+            if rng.gen_bool(0.2) {
+                text += eol;
+            }
+            text += &(names.join(sep) + eol);
+            let rows = rng.gen_range(0..40);
+            for r in 0..rows {
+                match rng.gen_range(0..25) {
+                    0 => text += eol,
+                    1 => text += &format!("# between{eol}"),
+                    _ => {}
+                }
+                let mut fields: Vec<String> = (names.iter())
+                    .map(|&name| match name {
+                        "config" => rng.gen_range(0..8).to_string(),
+                        _ => {
+                            let v =
+                                format!("{:.*}", rng.gen_range(0..6), rng.gen_range(-900.0..900.0));
+                            if decimal_comma {
+                                v.replace('.', ",")
+                            } else {
+                                v
+                            }
+                        }
+                    })
+                    .collect();
+                let f = rng.gen_range(0..fields.len());
+                match rng.gen_range(0..80) {
+                    0 => fields.push("1".into()),
+                    1 => drop(fields.pop()),
+                    2 => fields[f] = "word".into(),
+                    3 => fields[f] = "1,5".into(),
+                    4 => fields[f] = "2.5".into(),
+                    5 => fields[f].clear(),
+                    6 => fields[f] = format!(" {} ", fields[f]),
+                    7 => fields[f] = format!("\"{}\"", fields[f]),
+                    _ => {}
+                }
+                text += &fields.join(sep);
+                if r + 1 < rows || rng.gen_bool(0.7) {
+                    text += eol;
+                }
+            }
+            let read = |cut| {
+                parse_in(
+                    Path::new("r.csv"),
+                    text.as_bytes(),
+                    &ColumnMap::default(),
+                    &ReadOptions::default(),
+                    Purpose::Samples,
+                    cut,
+                )
+            };
+            let want = read(Cut::CsvReader);
+            for chunk_bytes in [1, 5, 64, CHUNK_BYTES] {
+                let before = CHUNKED.with(|c| c.get());
+                assert_eq!(
+                    read(Cut::Chunks(chunk_bytes)),
+                    want,
+                    "case {case}, chunks of {chunk_bytes}:\n{text}"
+                );
+                chunked_texts[usize::from(eol == "\r\n")] += CHUNKED.with(|c| c.get()) - before;
+            }
+        }
+        // Most texts are read in chunks, with either line end (the others have quotes).
+        assert!(
+            chunked_texts[0] > 1000 && chunked_texts[1] > 400,
+            "{chunked_texts:?}"
         );
     }
 

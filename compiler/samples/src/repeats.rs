@@ -3,6 +3,7 @@
 //! of the robot and the measuring instrument together.
 
 use nalgebra::Rotation3;
+use rayon::iter::{IntoParallelIterator, ParallelIterator};
 use rustc_hash::FxHashMap;
 
 use super::{Joints, SampleSet};
@@ -89,20 +90,30 @@ pub(crate) fn fold(parts: Parts) -> SampleSet {
     let mut collisions: FxHashMap<u32, u32> = FxHashMap::default();
     // `pose_of[i]`: the first row of row i's pose.
     let mut pose_of: Vec<u32> = Vec::with_capacity(n);
-    let (mut key, mut other, mut bytes) = (Vec::new(), Vec::new(), Vec::new());
+    // The digests, on the thread pool: each row's alone.
+    let digests: Vec<u64> = (0..n)
+        .into_par_iter()
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(key, bytes), i| {
+                parts.pose_key(i, key);
+                bytes.clear();
+                key.iter()
+                    .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
+                xxhash_rust::xxh3::xxh3_64(bytes)
+            },
+        )
+        .collect();
+    let (mut key, mut other) = (Vec::new(), Vec::new());
     let mut repeated = false;
-    for i in 0..n {
-        parts.pose_key(i, &mut key);
-        bytes.clear();
-        key.iter()
-            .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
-        let digest = xxhash_rust::xxh3::xxh3_64(&bytes);
+    for (i, &digest) in digests.iter().enumerate() {
         let mut pose = i as u32;
         match first.get(&digest) {
             None => {
                 first.insert(digest, i as u32);
             }
             Some(&head) => {
+                parts.pose_key(i, &mut key);
                 let mut j = head;
                 loop {
                     parts.pose_key(j as usize, &mut other);
