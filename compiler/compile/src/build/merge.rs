@@ -15,12 +15,17 @@
 //! of each voxel's first sample.
 
 use adwi_samples::SampleSet;
+use rayon::iter::{IndexedParallelIterator, ParallelIterator};
+use rayon::slice::ParallelSliceMut;
 
 /// The voxel edges a build tries, as fractions of the derivation spacing
 /// ([`super::plan::derivation_spacing_mm`]), finest first: a tracked path sampled at 1 kHz
 /// has hundreds of samples per spacing, which the finest voxels already merge; samples a
 /// spacing apart (a lattice, a random cloud) merge only at the coarsest, and are never
 /// merged beyond a quarter of the spacing, where averaging would move the field.
+///
+/// Each is twice the last, and the voxels share one origin, so each voxel is whole voxels of
+/// the finer ones: a coarser voxel never leaves more samples.
 pub const MERGE_FRACTIONS: [f64; 5] = [1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0, 1.0 / 8.0, 1.0 / 4.0];
 
 /// A merge of the samples, as planned: the voxel edge and the count it leaves.
@@ -55,29 +60,38 @@ struct Voxels {
 impl Voxels {
     fn new(samples: &SampleSet, voxel_mm: f64) -> Option<Voxels> {
         let (lo_mm, _) = samples.nominal_bounds_mm()?;
+        // The same reach for every voxel, so that the joint cells of a voxel twice as large
+        // are exactly twice as large and the merges nest ([`MERGE_FRACTIONS`]).
         let reach_mm = samples
             .nominal_mm
             .iter()
             .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
-            .fold(voxel_mm, f64::max);
-        let joint_step = voxel_mm / reach_mm;
+            .fold(0.0, f64::max);
+        // Samples all at the base's origin: one joint cell.
+        let joint_step = if reach_mm > 0.0 {
+            voxel_mm / reach_mm
+        } else {
+            f64::INFINITY
+        };
         let joints = samples.joints.as_ref();
         let stride = 4 + joints.map_or(0, |j| j.count());
-        let mut keys = Vec::with_capacity(samples.len() * stride);
-        for (i, p) in samples.nominal_mm.iter().enumerate() {
-            keys.push(i64::from(samples.config.as_ref().map_or(0, |c| c[i])));
-            // Finite samples within the workspace bound: the quotient fits an i64.
-            keys.extend((0..3).map(|a| ((p[a] - lo_mm[a]) / voxel_mm).floor() as i64));
-            if let Some(joints) = joints {
-                keys.extend(
-                    joints
-                        .row(i)
-                        .iter()
-                        .map(|&q| (q / joint_step).floor() as i64),
-                );
-            }
-        }
-        let hashes = keys.chunks_exact(stride).map(hash_key).collect();
+        let mut keys = vec![0; samples.len() * stride];
+        let hashes = (keys.par_chunks_exact_mut(stride).enumerate())
+            .map(|(i, key)| {
+                let p = samples.nominal_mm[i];
+                key[0] = i64::from(samples.config.as_ref().map_or(0, |c| c[i]));
+                // Finite samples within the workspace bound: the quotient fits an i64.
+                for a in 0..3 {
+                    key[1 + a] = ((p[a] - lo_mm[a]) / voxel_mm).floor() as i64;
+                }
+                if let Some(joints) = joints {
+                    for (k, &q) in key[4..].iter_mut().zip(joints.row(i)) {
+                        *k = (q / joint_step).floor() as i64;
+                    }
+                }
+                hash_key(key)
+            })
+            .collect();
         Some(Voxels {
             stride,
             keys,
@@ -96,7 +110,7 @@ impl Voxels {
         let mut order: Vec<(u64, u32)> = (self.hashes.iter().enumerate())
             .map(|(i, &h)| (h, i as u32))
             .collect();
-        order.sort_unstable_by(|&(h, i), &(g, j)| {
+        order.par_sort_unstable_by(|&(h, i), &(g, j)| {
             h.cmp(&g)
                 .then_with(|| self.key(i).cmp(self.key(j)))
                 .then(i.cmp(&j))
@@ -140,7 +154,25 @@ pub fn merged_count(samples: &SampleSet, voxel_mm: f64) -> usize {
     let Some(voxels) = Voxels::new(samples, voxel_mm) else {
         return 0;
     };
-    count_sorted(&voxels, &voxels.sorted())
+    // Sorted by hash alone (integers compared, not keys); a run of one hash is one voxel
+    // unless its keys differ, which a run then sorts by key to count.
+    let mut order: Vec<(u64, u32)> = (voxels.hashes.iter().enumerate())
+        .map(|(i, &h)| (h, i as u32))
+        .collect();
+    order.par_sort_unstable();
+    order
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|run| {
+            let first = voxels.key(run[0].1);
+            if run.iter().all(|&(_, i)| voxels.key(i) == first) {
+                return 1;
+            }
+            let mut keys: Vec<&[i64]> = run.iter().map(|&(_, i)| voxels.key(i)).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            keys.len()
+        })
+        .sum()
 }
 
 fn count_sorted(voxels: &Voxels, order: &[u32]) -> usize {
@@ -323,7 +355,7 @@ mod tests {
         let (lo, _) = samples.nominal_bounds_mm().unwrap();
         let reach = (samples.nominal_mm.iter())
             .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
-            .fold(voxel_mm, f64::max);
+            .fold(0.0, f64::max);
         let step = voxel_mm / reach;
         let mut groups: BTreeMap<(u8, Vec<i64>), Vec<usize>> = BTreeMap::new();
         for (i, p) in samples.nominal_mm.iter().enumerate() {
@@ -414,11 +446,16 @@ mod tests {
                 csv += "\n";
             }
             let s = parse_samples("w.csv".as_ref(), csv.as_bytes(), &ColumnMap::default()).unwrap();
+            let mut finer = usize::MAX;
             for fraction in MERGE_FRACTIONS {
                 let voxel_mm = 8.0 * fraction;
                 let want = reference_merge(&s, voxel_mm);
                 assert_eq!(merge(&s, voxel_mm), want, "case {case}, voxel {voxel_mm}");
                 assert_eq!(merged_count(&s, voxel_mm), want.len());
+                // The voxels nest: a coarser one never leaves more samples (the refusal
+                // counts the coarsest alone).
+                assert!(want.len() <= finer, "case {case}, voxel {voxel_mm}");
+                finer = want.len();
             }
         }
     }

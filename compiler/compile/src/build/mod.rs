@@ -197,16 +197,22 @@ pub enum BuildError {
     },
     /// The table cannot be kept within the bound given.
     #[error(
-        "{samples} samples do not fit a table of {}, even averaged within voxels of \
-         {voxel_mm} mm (samples that far apart are not redundant): give a larger bound, a \
+        "{samples} samples do not fit a table of {}: averaged within voxels of {voxel_mm:.3} \
+         mm (the coarsest tried: samples that far apart are not redundant) they are {merged} \
+         samples, whose positions and errors alone take {}; give a bound above that, a \
          --merge-voxel, or fewer samples",
-        human_bytes(*max_bytes)
+        human_bytes(*max_bytes),
+        human_bytes(*merged_bytes)
     )]
     TableBound {
         /// The samples measured.
         samples: usize,
         /// The coarsest voxel tried, mm.
         voxel_mm: f64,
+        /// The samples the coarsest voxels leave.
+        merged: usize,
+        /// What those samples alone take in any table, bytes: the least a bound must allow.
+        merged_bytes: u128,
         /// The bound, bytes.
         max_bytes: u128,
     },

@@ -388,13 +388,18 @@ pub fn plan(samples: &SampleSet, options: &BuildOptions) -> Result<Plan, BuildEr
                     });
                     match (merge, options.max_table_bytes) {
                         (None, Some(max_bytes)) => {
+                            let coarsest = MERGE_FRACTIONS.len() - 1;
+                            let voxel_mm =
+                                recordable_voxel_mm(spacing_mm * MERGE_FRACTIONS[coarsest]);
+                            let merged =
+                                counts[coarsest].unwrap_or_else(|| merged_count(samples, voxel_mm));
                             return Err(BuildError::TableBound {
                                 samples: samples.len(),
-                                voxel_mm: recordable_voxel_mm(
-                                    spacing_mm * MERGE_FRACTIONS[MERGE_FRACTIONS.len() - 1],
-                                ),
+                                voxel_mm,
+                                merged,
+                                merged_bytes: own_bytes(samples, merged),
                                 max_bytes,
-                            })
+                            });
                         }
                         (None, None) => (cell_mm, None),
                         (Some(m), _) if kept.is_some() => (cell_mm, Some(m)),
@@ -466,6 +471,17 @@ fn bounded_merge(
     counts: &mut [Option<usize>; MERGE_FRACTIONS.len()],
     fits: impl Fn(&SampleSet) -> bool,
 ) -> Option<SampleMerge> {
+    // The voxels nest (each edge twice the last, on one origin), so the coarsest leaves the
+    // fewest samples: when even their own part exceeds the bound, no voxel's table fits,
+    // and the refusal costs one count, not five.
+    let coarsest = counts.len() - 1;
+    let fewest = *counts[coarsest].get_or_insert_with(|| {
+        let voxel_mm = recordable_voxel_mm(spacing_mm * MERGE_FRACTIONS[coarsest]);
+        merged_count(samples, voxel_mm)
+    });
+    if own_bytes(samples, fewest) > bound {
+        return None;
+    }
     // A voxel that merges no more than the last one tried fits no better: not predicted
     // again (samples a spacing apart are refused in a fraction of a second).
     let mut tried = samples.len();
