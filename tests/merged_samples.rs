@@ -142,6 +142,18 @@ fn a_bound_that_cannot_be_kept_is_refused_before_any_work() {
     let err = plan(&s, &options).unwrap_err();
     assert!(matches!(err, BuildError::TableBound { .. }), "{err}");
     assert!(err.to_string().contains("100.0 kB"), "{err}");
+    // The figure a bound must exceed: the lattice's samples, none merged, and their bytes.
+    let BuildError::TableBound {
+        merged,
+        merged_bytes,
+        ..
+    } = err
+    else {
+        unreachable!()
+    };
+    assert_eq!(merged, 10_000);
+    assert!(err.to_string().contains("they are 10000 samples"), "{err}");
+    assert!(merged_bytes > 500_000, "{merged_bytes}");
     assert!(
         started.elapsed().as_secs_f64() < 1.0,
         "{:?}",

@@ -243,8 +243,10 @@ impl BuildJob {
             harmonics: args.harmonics.fixed().unwrap_or(0),
             ..CalibrateOptions::default()
         };
-        let series =
-            crate::series::read(&args.samples, &columns, &read, file_robot.as_ref(), tracker)?;
+        // Read and sized on the job's threads: a large file is read in chunks.
+        let series = pool.install(|| {
+            crate::series::read(&args.samples, &columns, &read, file_robot.as_ref(), tracker)
+        })?;
         let robot = match &series.registered {
             Some(r) => Some(r.robot.clone()),
             None => file_robot,
@@ -252,7 +254,7 @@ impl BuildJob {
         // Sized with the field given, or the method's own where one is to be chosen: a
         // chosen kriging field is sized again once chosen.
         let sized = args.table.build_options(unchosen_field(&args));
-        let plan = adwi_compile::build::plan(&series.samples, &sized)?;
+        let plan = pool.install(|| adwi_compile::build::plan(&series.samples, &sized))?;
         let mut warnings = series.warnings();
         if plan.is_mostly_empty() {
             warnings.push(Warning::MostlyEmptyGrid {
