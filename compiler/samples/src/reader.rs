@@ -3,6 +3,7 @@
 //! column.
 
 use std::fmt;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
@@ -681,17 +682,20 @@ fn chunks(data: &[u8], body: usize, chunk_bytes: usize) -> Option<Vec<(&str, usi
         ranges.push(start..end);
         start = end;
     }
-    // Checked on the thread pool: lines cut at a `\n` are cut at a character's boundary.
-    ranges
-        .into_par_iter()
-        .map(|range| {
-            let bytes = &data[range];
-            let cuttable = memchr::memchr(b'"', bytes).is_none()
-                && memchr::memchr_iter(b'\r', bytes).all(|r| bytes.get(r + 1) == Some(&b'\n'));
-            let text = std::str::from_utf8(bytes).ok().filter(|_| cuttable)?;
-            Some((text, memchr::memchr_iter(b'\n', bytes).count()))
-        })
-        .collect()
+    // Lines cut at a `\n` are cut at a character's boundary. Checked on the thread pool
+    // when there are several chunks (one is checked here, without waking the pool).
+    let check = |range: Range<usize>| {
+        let bytes = &data[range];
+        let cuttable = memchr::memchr(b'"', bytes).is_none()
+            && memchr::memchr_iter(b'\r', bytes).all(|r| bytes.get(r + 1) == Some(&b'\n'));
+        let text = std::str::from_utf8(bytes).ok().filter(|_| cuttable)?;
+        Some((text, memchr::memchr_iter(b'\n', bytes).count()))
+    };
+    if ranges.len() > 1 {
+        ranges.into_par_iter().map(check).collect()
+    } else {
+        ranges.into_iter().map(check).collect()
+    }
 }
 
 /// A CSV reader of `bytes` that leaves the header, the field count and the trimming to this

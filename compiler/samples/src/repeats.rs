@@ -42,6 +42,10 @@ pub struct RepeatReport {
     pub orientation_rms_mrad: Option<f64>,
 }
 
+/// Rows from which the digests are computed on the thread pool: fewer take less time than
+/// waking it.
+const PARALLEL_ROWS: usize = 1 << 14;
+
 /// A sample set's values before repeated poses are folded.
 pub(crate) struct Parts {
     pub nominal_mm: Vec<[f64; 3]>,
@@ -90,20 +94,23 @@ pub(crate) fn fold(parts: Parts) -> SampleSet {
     let mut collisions: FxHashMap<u32, u32> = FxHashMap::default();
     // `pose_of[i]`: the first row of row i's pose.
     let mut pose_of: Vec<u32> = Vec::with_capacity(n);
-    // The digests, on the thread pool: each row's alone.
-    let digests: Vec<u64> = (0..n)
-        .into_par_iter()
-        .map_init(
-            || (Vec::new(), Vec::new()),
-            |(key, bytes), i| {
-                parts.pose_key(i, key);
-                bytes.clear();
-                key.iter()
-                    .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
-                xxhash_rust::xxh3::xxh3_64(bytes)
-            },
-        )
-        .collect();
+    // The digests, each row's alone: on the thread pool for many rows.
+    let digest = |(key, bytes): &mut (Vec<u64>, Vec<u8>), i: usize| {
+        parts.pose_key(i, key);
+        bytes.clear();
+        key.iter()
+            .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
+        xxhash_rust::xxh3::xxh3_64(bytes)
+    };
+    let digests: Vec<u64> = if n >= PARALLEL_ROWS {
+        (0..n)
+            .into_par_iter()
+            .map_init(|| (Vec::new(), Vec::new()), digest)
+            .collect()
+    } else {
+        let mut buffers = (Vec::new(), Vec::new());
+        (0..n).map(|i| digest(&mut buffers, i)).collect()
+    };
     let (mut key, mut other) = (Vec::new(), Vec::new());
     let mut repeated = false;
     for (i, &digest) in digests.iter().enumerate() {

@@ -26,7 +26,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let b = BenchJob::new(args.job)?.run()?;
     println!("{METHOD}\n");
     println!(
-        "table {}: {} samples, {} cells of {} mm, k = {}, epsilon = {} mm{}",
+        "table {}: {} samples, {} cells of {:.3} mm, k = {}, epsilon = {:.3} mm{}",
         b.table.display(),
         b.samples,
         b.cells,

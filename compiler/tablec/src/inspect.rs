@@ -166,7 +166,7 @@ fn print_tiers(t: &Inspected) {
     let summary = &t.summary;
     let max = g.max_mm();
     println!(
-        "grid            {} × {} × {} cells of {} mm, ({}, {}, {}) to ({}, {}, {}) mm",
+        "grid            {} × {} × {} cells of {:.3} mm, ({:.3}, {:.3}, {:.3}) to ({:.3}, {:.3}, {:.3}) mm",
         g.dims[0],
         g.dims[1],
         g.dims[2],
