@@ -343,11 +343,25 @@ impl EvalJob {
                             apart: args.register_validation_apart,
                         }
                     }
-                    (None, Some(folds)) => HeldOut::Folds {
-                        folds,
-                        seed: args.seed,
-                        by_region: args.by_region,
-                    },
+                    (None, Some(folds)) => {
+                        // More folds than samples is refused before the tables are sized
+                        // (which may merge a million samples), as the split would refuse it.
+                        let sample_count = series.samples.len();
+                        if folds > sample_count {
+                            return Err(adwi_eval::EvalError::from(
+                                adwi_eval::baselines::stats::StatsError::InvalidFolds {
+                                    sample_count,
+                                    folds,
+                                },
+                            )
+                            .into());
+                        }
+                        HeldOut::Folds {
+                            folds,
+                            seed: args.seed,
+                            by_region: args.by_region,
+                        }
+                    }
                     _ => unreachable!("checked"),
                 };
                 let robot: Option<Robot> = match &series.registered {
