@@ -950,6 +950,33 @@ fn a_mostly_empty_grid_is_warned_about() {
     assert!(stderr(&o).contains("mostly empty"), "{}", stderr(&o));
 }
 
+/// A radius far below the samples' spacing leaves the served field's cross-validation
+/// with almost nothing answered: the build says so, and a derived radius does not.
+#[test]
+fn a_served_field_that_answers_few_held_out_points_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("lattice.csv"),
+        crate::common::lattice_csv(3, 1.0),
+    )
+    .unwrap();
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", "-q", "lattice.csv", "-o", "l.tbl"];
+        args.extend_from_slice(extra);
+        let o = tablec(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let warned = build(&["--radius", "1"]);
+    assert!(
+        warned.contains("the served field answered 0 of the 125 samples")
+            && warned.contains("ε = 1.000 mm against a sample spacing of 50.000 mm"),
+        "{warned}"
+    );
+    let derived = build(&[]);
+    assert!(!derived.contains("served field answered"), "{derived}");
+}
+
 /// Builds killed at any moment, including while the table is written, leave no
 /// temporary file once the next build has run in the folder, and never a partial table.
 #[cfg(unix)]

@@ -980,6 +980,14 @@ pub const POSTURE_MIN_GAIN_FRACTION: f64 = 0.02;
 pub const POSTURE_MIN_GAIN_MM: f64 = 0.005;
 
 impl AutoServedField {
+    /// Held-out points the chosen field answered, and the points held out (each sample
+    /// cross-validated is held out once); none answered when no field was chosen.
+    pub fn answered(&self) -> (usize, usize) {
+        let held_out = self.samples;
+        let missed = (self.choice.chosen).map_or(held_out, |i| self.choice.candidates[i].missed);
+        (held_out.saturating_sub(missed), held_out)
+    }
+
     /// `options` with the chosen field and the evidence recorded. A kriging field's
     /// hyperparameters are not among them: each fold searched its own on its training
     /// samples, and the table searches its own on all of them.

@@ -357,6 +357,15 @@ impl BuildJob {
                 });
                 match chosen {
                     Ok(mut choice) => {
+                        let (answered, held_out) = choice.answered();
+                        if table_choices && 2 * answered < held_out {
+                            warnings.push(Warning::FewAnswered {
+                                answered,
+                                held_out,
+                                radius_mm: plan.params.radius_mm,
+                                spacing_mm: plan.spacing_mm,
+                            });
+                        }
                         harmonics = choice.harmonics.take();
                         if let Some(h) = &harmonics {
                             calibrate.harmonics = h.chosen;

@@ -284,6 +284,19 @@ pub enum Warning {
         /// The tool or frame, and how well the samples fit with it.
         fitting: adwi_identify::agreement::Fitting,
     },
+    /// The served field chosen answered fewer than half the points its cross-validation
+    /// held out: most targets near the samples would go unanswered (ε small against the
+    /// samples' spacing), and the choice rests on the few it answered.
+    FewAnswered {
+        /// Held-out points the chosen field answered.
+        answered: usize,
+        /// Points held out.
+        held_out: usize,
+        /// ε, mm.
+        radius_mm: f64,
+        /// The samples' spacing, mm, when derivable.
+        spacing_mm: Option<f64>,
+    },
     /// The served field could not be chosen by cross-validation (too few samples, or a
     /// fold that could not be evaluated): the table serves the method's own answer.
     ServedFieldNotChosen {
@@ -304,6 +317,23 @@ impl Warning {
 impl fmt::Display for Warning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Warning::FewAnswered {
+                answered,
+                held_out,
+                radius_mm,
+                spacing_mm,
+            } => {
+                write!(
+                    f,
+                    "the served field answered {answered} of the {held_out} samples its \
+                     cross-validation held out: most targets will go unanswered, and the \
+                     choice rests on those few; ε = {radius_mm:.3} mm"
+                )?;
+                if let Some(spacing_mm) = spacing_mm {
+                    write!(f, " against a sample spacing of {spacing_mm:.3} mm")?;
+                }
+                write!(f, " (give a larger --radius, or leave it derived)")
+            }
             Warning::ServedFieldNotChosen { reason } => write!(
                 f,
                 "the served field was not chosen by cross-validation ({reason}): it holds the \
