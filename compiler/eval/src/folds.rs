@@ -32,13 +32,12 @@ pub fn block_splits(
     seed: u64,
 ) -> Result<Vec<Fold>, StatsError> {
     let n = nominal_mm.len();
+    crate::baselines::stats::check_folds(n, folds)?;
+    // Positions too few to make `folds` non-empty blocks.
     let invalid = StatsError::InvalidFolds {
         sample_count: n,
         folds,
     };
-    if folds < 2 || folds > n {
-        return Err(invalid);
-    }
     let distance2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     // k-means++: each next centre drawn with probability ∝ the squared distance to the

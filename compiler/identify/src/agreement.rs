@@ -395,11 +395,20 @@ fn outliers_text(d: &Disagreement) -> String {
 /// The median of `values` (reordered in place), 0 for none.
 fn median(values: &mut [f64]) -> f64 {
     // The value a sort would put there, found without sorting a million misses.
-    let middle = values.len() / 2;
-    if middle >= values.len() {
+    if values.is_empty() {
         return 0.0;
     }
+    let middle = values.len() / 2;
     *values.select_nth_unstable_by(middle, f64::total_cmp).1
+}
+
+/// The robot's nominal chain as the query path walks it ([`PreparedModel::at_position`]'s
+/// `nominal_tcp_mm`: the chain's own forward kinematics to 4e-12 mm, in a third of its
+/// time), rigid as [`Robot::tcp_pose`] is; `None` where the runtime cannot prepare it.
+fn rigid_walk(robot: &Robot) -> Option<PreparedModel> {
+    let mut rigid = *robot.chain();
+    rigid.compliance = None;
+    PreparedModel::new(rigid, rigid)
 }
 
 /// Median and worst of misses.
@@ -566,12 +575,7 @@ pub fn check_base_frame(
             reading: None,
         });
     };
-    // Every sample's nominal TCP by the runtime's folded walk (a query's path: the chain's
-    // own forward kinematics to 4e-12 mm, in a third of its time), rigid as
-    // `Robot::tcp_pose` is.
-    let mut rigid = *robot.chain();
-    rigid.compliance = None;
-    let walk = PreparedModel::new(rigid, rigid);
+    let walk = rigid_walk(robot);
     let tcp = |q: &[f64]| -> Vector3<f64> {
         match walk.as_ref().and_then(|w| w.at_position(q)) {
             Some(at) => Vector3::from(at.nominal_tcp_mm),
@@ -939,9 +943,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         for name in ["ur5", "ur10", "kr150-2", "iiwa14"] {
             let robot = Robot::load(shipped_robot_path(name)).unwrap();
-            let mut rigid = *robot.chain();
-            rigid.compliance = None;
-            let walk = PreparedModel::new(rigid, rigid).unwrap();
+            let walk = rigid_walk(&robot).unwrap();
             for _ in 0..2000 {
                 let q: Vec<f64> = (0..robot.joint_count())
                     .map(|_| rng.gen_range(-4.0 * PI..4.0 * PI))

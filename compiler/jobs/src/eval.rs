@@ -346,16 +346,8 @@ impl EvalJob {
                     (None, Some(folds)) => {
                         // More folds than samples is refused before the tables are sized
                         // (which may merge a million samples), as the split would refuse it.
-                        let sample_count = series.samples.len();
-                        if folds > sample_count {
-                            return Err(adwi_eval::EvalError::from(
-                                adwi_eval::baselines::stats::StatsError::InvalidFolds {
-                                    sample_count,
-                                    folds,
-                                },
-                            )
-                            .into());
-                        }
+                        adwi_eval::baselines::stats::check_folds(series.samples.len(), folds)
+                            .map_err(adwi_eval::EvalError::from)?;
                         HeldOut::Folds {
                             folds,
                             seed: args.seed,

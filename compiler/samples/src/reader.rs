@@ -572,7 +572,6 @@ fn parse_in(
     };
     let layout = resolve(&header_info, columns, options, purpose)
         .map_err(|kind| error(Some(header_line), None, kind))?;
-    // Rows are at most the lines of the file: reserve once rather than grow.
     let mut row_reader = RowReader {
         path,
         names: &names,

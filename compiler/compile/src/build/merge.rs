@@ -104,12 +104,17 @@ impl Voxels {
         &self.keys[i * self.stride..(i + 1) * self.stride]
     }
 
+    /// Each sample's key hash and index.
+    fn hashed(&self) -> Vec<(u64, u32)> {
+        (self.hashes.iter().enumerate())
+            .map(|(i, &h)| (h, i as u32))
+            .collect()
+    }
+
     /// The sample indices sorted so that those merged together are adjacent, each group in
     /// source order: by key hash, key, then index (a total order, so the same at any run).
     fn sorted(&self) -> Vec<u32> {
-        let mut order: Vec<(u64, u32)> = (self.hashes.iter().enumerate())
-            .map(|(i, &h)| (h, i as u32))
-            .collect();
+        let mut order = self.hashed();
         order.par_sort_unstable_by(|&(h, i), &(g, j)| {
             h.cmp(&g)
                 .then_with(|| self.key(i).cmp(self.key(j)))
@@ -156,9 +161,7 @@ pub fn merged_count(samples: &SampleSet, voxel_mm: f64) -> usize {
     };
     // Sorted by hash alone (integers compared, not keys); a run of one hash is one voxel
     // unless its keys differ, which a run then sorts by key to count.
-    let mut order: Vec<(u64, u32)> = (voxels.hashes.iter().enumerate())
-        .map(|(i, &h)| (h, i as u32))
-        .collect();
+    let mut order = voxels.hashed();
     order.par_sort_unstable();
     order
         .chunk_by(|a, b| a.0 == b.0)

@@ -185,6 +185,22 @@ pub struct Fold {
     pub test: Vec<usize>,
 }
 
+/// Refuses a fold count that does not split `sample_count` samples: each fold holds at
+/// least one, and there are at least two.
+///
+/// # Errors
+///
+/// [`StatsError::InvalidFolds`] unless `2 <= folds <= sample_count`.
+pub fn check_folds(sample_count: usize, folds: usize) -> Result<(), StatsError> {
+    if folds < 2 || folds > sample_count {
+        return Err(StatsError::InvalidFolds {
+            sample_count,
+            folds,
+        });
+    }
+    Ok(())
+}
+
 /// Splits `sample_count` samples into `folds` folds, deterministically for a given `seed`.
 ///
 /// The samples are shuffled by a Fisher–Yates permutation driven by ChaCha8 seeded with
@@ -202,12 +218,7 @@ pub fn k_fold_splits(
     folds: usize,
     seed: u64,
 ) -> Result<Vec<Fold>, StatsError> {
-    if folds < 2 || folds > sample_count {
-        return Err(StatsError::InvalidFolds {
-            sample_count,
-            folds,
-        });
-    }
+    check_folds(sample_count, folds)?;
     let mut permutation: Vec<usize> = (0..sample_count).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for i in (1..sample_count).rev() {
