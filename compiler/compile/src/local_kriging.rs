@@ -751,7 +751,7 @@ mod tests {
         };
         let fit = KrigingField::fit(&inputs, Some(&axes), &values, settings).unwrap();
         let position = |[i, j, k]: [usize; 3]| [i, j, k].map(|v| 50.0 * v as f64);
-        let wanted = |n: usize| n % 5 != 0;
+        let wanted = |n: usize| !n.is_multiple_of(5);
         let terms = |computed: &(dyn Fn(usize) -> bool + Sync)| {
             fit.lattice_terms([21; 3], 50.0, &position, &wanted, computed, &|t| {
                 t.iter()

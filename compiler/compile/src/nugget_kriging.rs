@@ -41,9 +41,9 @@
 //! 32 columns, with fused multiply-adds ([`crate::householder`]): about 1.5 times faster
 //! than the unblocked one on 900 samples, the same bits on every processor with FMA, and
 //! only the screen's last bits differ from the unblocked one's, so the choices are the
-//! same; its product with the trailing block is written in AVX2 intrinsics, the same bits
-//! again, for 0.8 of the reduction's time. The fit at the choice reuses the factorisation
-//! that scored it.
+//! same; its product with the trailing block is written in AVX2 and in AVX-512 intrinsics
+//! on cache-line-aligned columns, the same bits again. The fit at the choice reuses the
+//! factorisation that scored it.
 //!
 //! A reduction reads the covariance's lower triangle alone, so the search fills only that
 //! ([`lower_covariance`]). Its correlations, and those a table's node sums over every
@@ -1058,7 +1058,7 @@ impl Tridiagonal {
     /// The blocked reduction `reduce` ([`crate::householder::tridiagonalise`] or its
     /// portable compilation) of `k`, carrying the columns of `centred`.
     fn blocked(
-        mut k: DMatrix<f64>,
+        k: DMatrix<f64>,
         centred: &DMatrix<f64>,
         reduce: crate::householder::Reduction,
     ) -> Tridiagonal {
@@ -1067,7 +1067,7 @@ impl Tridiagonal {
             .column_iter()
             .map(|c| c.iter().copied().collect())
             .collect();
-        let (diagonal, off_diagonal) = reduce(k.as_mut_slice(), n, &mut values);
+        let (diagonal, off_diagonal) = reduce(k.as_slice(), n, &mut values);
         Tridiagonal {
             diagonal,
             off_diagonal,
