@@ -2,7 +2,6 @@
 //! samples of some target in it (the build's module docs), found through a spatial index
 //! of the samples' actual positions.
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use adwi_runtime::format::{Grid, SampleRecord};
@@ -28,8 +27,9 @@ pub(super) fn candidate_lists(
     let cells = grid.cell_count().unwrap_or(0);
     let lists: Vec<Vec<u32>> = (0..cells)
         .into_par_iter()
-        .map(|cell| {
-            let candidates = candidate_list(records, &index, params, joint_screen, grid, cell);
+        .map_init(Scratch::default, |scratch, cell| {
+            let candidates =
+                candidate_list(records, &index, params, joint_screen, grid, cell, scratch);
             if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
                 progress(4096);
             }
@@ -61,8 +61,9 @@ pub(super) fn predicted_overflow_bytes(
     let entries: u128 = (0..cells)
         .into_par_iter()
         .step_by(stride)
-        .map(|cell| {
-            let len = candidate_list(records, &index, params, joint_screen, grid, cell).len();
+        .map_init(Scratch::default, |scratch, cell| {
+            let len =
+                candidate_list(records, &index, params, joint_screen, grid, cell, scratch).len();
             if len > inline {
                 len as u128
             } else {
@@ -146,6 +147,23 @@ fn box_distances(p: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
     (near.sqrt(), far.sqrt())
 }
 
+/// Buffers a thread's [`candidate_list`] calls reuse from cell to cell: a table has tens
+/// of thousands of cells, and each list's search, filter and sort would otherwise
+/// allocate their own.
+#[derive(Default)]
+struct Scratch {
+    /// Samples in the buckets the grown cell overlaps.
+    near: Vec<u32>,
+    /// (sample, nearest, farthest distance to the cell's box).
+    reachable: Vec<(u32, f64, f64)>,
+    /// The farthest distances of the samples admissible everywhere in the cell, sorted.
+    all: Vec<f64>,
+    /// The same by configuration: (configuration, farthest distance), sorted by both.
+    by_config: Vec<(u8, f64)>,
+    /// The list with each sample's distance to the cell's centre, to sort by.
+    keyed: Vec<(f64, u32)>,
+}
+
 /// The candidate list of one cell (the build's module docs), nearest the cell's centre
 /// first. `joint_screen`: whether the joint-space screen is on, so that no sample is
 /// certainly admissible.
@@ -156,59 +174,203 @@ fn candidate_list(
     joint_screen: bool,
     grid: &Grid,
     cell: usize,
+    scratch: &mut Scratch,
 ) -> Vec<u32> {
-    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
-    let lo = lo.map(|v| v - BOX_MARGIN_MM);
-    let hi = hi.map(|v| v + BOX_MARGIN_MM);
+    let Scratch {
+        near,
+        reachable,
+        all,
+        by_config,
+        keyed,
+    } = scratch;
+    let (cell_lo, cell_hi) = grid.cell_box(grid.cell_coords(cell));
+    let lo = cell_lo.map(|v| v - BOX_MARGIN_MM);
+    let hi = cell_hi.map(|v| v + BOX_MARGIN_MM);
     let reach = params.radius_mm + DISTANCE_SLACK_MM;
-    let mut near = Vec::new();
-    index.near(lo.map(|v| v - reach), hi.map(|v| v + reach), &mut near);
-
-    // (sample, nearest, farthest distance to the box).
-    let reachable: Vec<(u32, f64, f64)> = near
-        .into_iter()
-        .filter_map(|i| {
-            let (d_near, d_far) = box_distances(records[i as usize].actual_mm, lo, hi);
-            (d_near <= reach).then_some((i, d_near, d_far))
-        })
-        .collect();
-    let k = params.max_neighbours as usize;
-    let mut list: Vec<u32> =
-        if params.has_degree_thresholds() || joint_screen || reachable.len() <= k {
-            reachable.iter().map(|&(i, _, _)| i).collect()
-        } else {
-            // Farthest distances of the samples admissible everywhere in the cell, overall
-            // and per configuration, sorted.
-            let certain =
-                |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
-            let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
-            all.sort_by(f64::total_cmp);
-            let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
-            for r in reachable.iter().filter(certain) {
-                by_config
-                    .entry(records[r.0 as usize].config)
-                    .or_default()
-                    .push(r.2);
-            }
-            by_config
-                .values_mut()
-                .for_each(|v| v.sort_by(f64::total_cmp));
-            let nearer =
-                |sorted: &[f64], d: f64| sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM);
-            reachable
-                .iter()
-                .filter(|&&(i, d_near, _)| {
-                    let config = records[i as usize].config;
-                    let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
-                    nearer(&all, d_near) < k || nearer(same, d_near) < k
-                })
-                .map(|&(i, _, _)| i)
-                .collect()
-        };
+    near.clear();
+    index.near(lo.map(|v| v - reach), hi.map(|v| v + reach), near);
+    reachable.clear();
+    reachable.extend(near.iter().filter_map(|&i| {
+        let (d_near, d_far) = box_distances(records[i as usize].actual_mm, lo, hi);
+        (d_near <= reach).then_some((i, d_near, d_far))
+    }));
     // Nearest to the cell's centre first (see `TableData::list_samples`).
-    let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
-    let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
-    let key = |i: u32| method::distance_mm(records[i as usize].actual_mm, centre);
-    list.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
-    list
+    let centre = [0, 1, 2].map(|a| 0.5 * (cell_lo[a] + cell_hi[a]));
+    let keyed_sample = |i: u32| {
+        (
+            method::distance_mm(records[i as usize].actual_mm, centre),
+            i,
+        )
+    };
+    keyed.clear();
+    let k = params.max_neighbours as usize;
+    if params.has_degree_thresholds() || joint_screen || reachable.len() <= k {
+        keyed.extend(reachable.iter().map(|&(i, _, _)| keyed_sample(i)));
+    } else {
+        // A sample is a candidate unless k samples admissible everywhere in the cell, of
+        // any configuration and of its own, are certainly nearer.
+        let certain =
+            |&&(_, _, far): &&(u32, f64, f64)| far <= params.radius_mm - DISTANCE_SLACK_MM;
+        all.clear();
+        all.extend(reachable.iter().filter(certain).map(|r| r.2));
+        all.sort_by(f64::total_cmp);
+        by_config.clear();
+        by_config.extend(
+            (reachable.iter().filter(certain)).map(|r| (records[r.0 as usize].config, r.2)),
+        );
+        by_config.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        let nearer = |d: f64| move |&far: &f64| far < d - DISTANCE_SLACK_MM;
+        for &(i, d_near, _) in reachable.iter() {
+            let config = records[i as usize].config;
+            let same = &by_config[by_config.partition_point(|c| c.0 < config)
+                ..by_config.partition_point(|c| c.0 <= config)];
+            if all.partition_point(nearer(d_near)) < k
+                || same.partition_point(|(_, far)| nearer(d_near)(far)) < k
+            {
+                keyed.push(keyed_sample(i));
+            }
+        }
+    }
+    keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    keyed.iter().map(|&(_, i)| i).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use std::collections::HashMap;
+
+    /// [`candidate_list`] written plainly, a map per configuration and fresh vectors per
+    /// cell: the reference the buffered one is held to.
+    fn reference_candidate_list(
+        records: &[SampleRecord],
+        index: &SpatialIndex,
+        params: &MethodParams,
+        joint_screen: bool,
+        grid: &Grid,
+        cell: usize,
+    ) -> Vec<u32> {
+        let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+        let lo = lo.map(|v| v - BOX_MARGIN_MM);
+        let hi = hi.map(|v| v + BOX_MARGIN_MM);
+        let reach = params.radius_mm + DISTANCE_SLACK_MM;
+        let mut near = Vec::new();
+        index.near(lo.map(|v| v - reach), hi.map(|v| v + reach), &mut near);
+
+        // (sample, nearest, farthest distance to the box).
+        let reachable: Vec<(u32, f64, f64)> = near
+            .into_iter()
+            .filter_map(|i| {
+                let (d_near, d_far) = box_distances(records[i as usize].actual_mm, lo, hi);
+                (d_near <= reach).then_some((i, d_near, d_far))
+            })
+            .collect();
+        let k = params.max_neighbours as usize;
+        let mut list: Vec<u32> =
+            if params.has_degree_thresholds() || joint_screen || reachable.len() <= k {
+                reachable.iter().map(|&(i, _, _)| i).collect()
+            } else {
+                // Farthest distances of the samples admissible everywhere in the cell, overall
+                // and per configuration, sorted.
+                let certain =
+                    |(_, _, far): &&(u32, f64, f64)| *far <= params.radius_mm - DISTANCE_SLACK_MM;
+                let mut all: Vec<f64> = reachable.iter().filter(certain).map(|r| r.2).collect();
+                all.sort_by(f64::total_cmp);
+                let mut by_config: HashMap<u8, Vec<f64>> = HashMap::new();
+                for r in reachable.iter().filter(certain) {
+                    by_config
+                        .entry(records[r.0 as usize].config)
+                        .or_default()
+                        .push(r.2);
+                }
+                by_config
+                    .values_mut()
+                    .for_each(|v| v.sort_by(f64::total_cmp));
+                let nearer = |sorted: &[f64], d: f64| {
+                    sorted.partition_point(|&far| far < d - DISTANCE_SLACK_MM)
+                };
+                reachable
+                    .iter()
+                    .filter(|&&(i, d_near, _)| {
+                        let config = records[i as usize].config;
+                        let same = by_config.get(&config).map_or(&[][..], Vec::as_slice);
+                        nearer(&all, d_near) < k || nearer(same, d_near) < k
+                    })
+                    .map(|&(i, _, _)| i)
+                    .collect()
+            };
+        // Nearest to the cell's centre first (see `TableData::list_samples`).
+        let (lo, hi) = grid.cell_box(grid.cell_coords(cell));
+        let centre = [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a]));
+        let key = |i: u32| method::distance_mm(records[i as usize].actual_mm, centre);
+        list.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
+        list
+    }
+
+    /// Property: the buffered list (one scratch for every cell, as a thread uses it) is the
+    /// plain reference's, sample for sample and in order, on random sample clouds with
+    /// repeated positions and several configurations, radii below and above the cell,
+    /// every `k` the lists decide with, with and without degree thresholds and the joint
+    /// screen.
+    #[test]
+    fn the_buffered_candidate_list_is_the_reference() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut filtered = 0;
+        for case in 0..200 {
+            let n = rng.gen_range(1..300);
+            let mut records: Vec<SampleRecord> = Vec::with_capacity(n);
+            for _ in 0..n {
+                let actual_mm = if !records.is_empty() && rng.gen_bool(0.1) {
+                    records[rng.gen_range(0..records.len())].actual_mm
+                } else {
+                    [0, 1, 2].map(|_| rng.gen_range(0.0..200.0))
+                };
+                records.push(SampleRecord {
+                    actual_mm,
+                    nominal_mm: actual_mm,
+                    error_mm: [0.0; 3],
+                    rotation_error_rad: [0.0; 3],
+                    config: rng.gen_range(0..4),
+                });
+            }
+            let mut params = MethodParams::paper(rng.gen_range(5.0..90.0));
+            params.max_neighbours = rng.gen_range(1..13);
+            if case % 7 == 3 {
+                params.lambda_min_per_mm = 0.01;
+            }
+            let joint_screen = case % 5 == 4;
+            let grid = Grid {
+                origin_mm: [0, 1, 2].map(|_| rng.gen_range(-20.0..20.0)),
+                cell_mm: rng.gen_range(10.0..45.0),
+                dims: [0, 1, 2].map(|_| rng.gen_range(1..9)),
+            };
+            let index = SpatialIndex::new(&records, params.radius_mm);
+            let mut scratch = Scratch::default();
+            for cell in 0..grid.cell_count().unwrap() {
+                let got = candidate_list(
+                    &records,
+                    &index,
+                    &params,
+                    joint_screen,
+                    &grid,
+                    cell,
+                    &mut scratch,
+                );
+                let want =
+                    reference_candidate_list(&records, &index, &params, joint_screen, &grid, cell);
+                assert_eq!(got, want, "case {case}, cell {cell}");
+                let every = MethodParams {
+                    max_neighbours: u32::MAX,
+                    ..params
+                };
+                let reachable =
+                    reference_candidate_list(&records, &index, &every, false, &grid, cell);
+                filtered += usize::from(got.len() < reachable.len());
+            }
+        }
+        // Lists the certain samples shortened: the filter was exercised.
+        assert!(filtered > 1000, "{filtered} lists shortened");
+    }
 }
