@@ -451,7 +451,7 @@ fn check_product_rows(
 ///
 /// # Safety
 ///
-/// The processor must have AVX-512F.
+/// The processor must have AVX-512F, AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx2,fma")]
 unsafe fn product_rows_avx512(
