@@ -77,7 +77,7 @@ pub(super) fn predicted_overflow_bytes(
 /// Samples bucketed by actual position in cubes of edge ≥ ε, so that the samples within ε
 /// of a box are found in the buckets the grown box overlaps. The buckets are one array of
 /// sample indices, each bucket's a range of it (`starts`, compressed rows): a small ε gives
-/// up to 257³ buckets, mostly empty, which as a vector each took 24 bytes apiece (400 MB).
+/// up to 257³ buckets, mostly empty, which as vectors took 24 bytes apiece (400 MB).
 struct SpatialIndex {
     origin_mm: [f64; 3],
     bucket_mm: f64,
