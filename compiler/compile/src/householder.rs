@@ -50,7 +50,9 @@ const PRODUCT_LANES: usize = 8;
 /// The instruction sets the reduction is compiled for (`reduce`'s `ISA`): the portable
 /// compilation, and the two whose product's rows are written in intrinsics.
 const PORTABLE: u8 = 0;
+#[cfg(target_arch = "x86_64")]
 const AVX2: u8 = 1;
+#[cfg(target_arch = "x86_64")]
 const AVX512: u8 = 2;
 
 /// Columns of the trailing block updated in one pass ([`update`]).
@@ -429,6 +431,7 @@ fn vector_product_rows<const ISA: u8>(
 /// The bounds every load and store of [`product_rows_avx2`] and [`product_rows_avx512`]
 /// stays within: [`PRODUCT_COLUMNS`] columns, each as long as the rows, and `chunks` whole
 /// chunks of [`PRODUCT_LANES`] rows.
+#[cfg(target_arch = "x86_64")]
 fn check_product_rows(
     columns: &[&[f64]],
     vc: &[f64],
