@@ -79,8 +79,8 @@ pub(crate) fn fused_in_hardware() -> bool {
     }
 }
 
-/// Reduces the symmetric `n × n` matrix `a` (column-major; its lower triangle read, and
-/// overwritten) to tridiagonal form `T = Qᵀ A Q` by `n − 2` Householder reflections
+/// Reduces the symmetric `n × n` matrix `a` (column-major; its lower triangle read, on a
+/// copy whose columns start cache lines) to tridiagonal form `T = Qᵀ A Q` by `n − 2` Householder reflections
 /// `I − τ v vᵀ` (`v` leading 1), applying them to each of `values` (`z = Qᵀ y`). Returns
 /// `T`'s diagonal and subdiagonal (signed).
 ///
