@@ -80,9 +80,9 @@ pub(crate) fn fused_in_hardware() -> bool {
 }
 
 /// Reduces the symmetric `n × n` matrix `a` (column-major; its lower triangle read, on a
-/// copy whose columns start cache lines) to tridiagonal form `T = Qᵀ A Q` by `n − 2` Householder reflections
-/// `I − τ v vᵀ` (`v` leading 1), applying them to each of `values` (`z = Qᵀ y`). Returns
-/// `T`'s diagonal and subdiagonal (signed).
+/// copy whose columns start cache lines) to tridiagonal form `T = Qᵀ A Q` by `n − 2`
+/// Householder reflections `I − τ v vᵀ` (`v` leading 1), applying them to each of `values`
+/// (`z = Qᵀ y`). Returns `T`'s diagonal and subdiagonal (signed).
 ///
 /// On x86-64 with AVX-512, or with AVX2 and FMA, the same code is compiled for them and
 /// chosen at run time; the bits are those of [`tridiagonalise_portable`] (module docs).
@@ -296,7 +296,14 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
             sums[t] = x[t].mul_add(y[t], sums[t]);
         }
     }
-    ((sums[0] + sums[4]) + (sums[2] + sums[6])) + ((sums[1] + sums[5]) + (sums[3] + sums[7])) + tail
+    fold(sums) + tail
+}
+
+/// Eight interleaved partial sums added pairwise, in the one order every sum of the
+/// reduction uses ([`dot`], [`product_columns`]' lane sums).
+#[inline(always)]
+fn fold([s0, s1, s2, s3, s4, s5, s6, s7]: [f64; 8]) -> f64 {
+    ((s0 + s4) + (s2 + s6)) + ((s1 + s5) + (s3 + s7))
 }
 
 /// `p[s..] = B v[s..]` for the trailing block `B = A[s.., s..]` of `a` (column `j` at
@@ -370,9 +377,7 @@ fn product_columns<const W: usize, const ISA: u8>(
     let mut tails = [0.0; W];
     single_rows(&column, &vc, v, p, end..n, &mut tails);
     for j in 0..W {
-        let [s0, s1, s2, s3, s4, s5, s6, s7] = sums[j];
-        let lanes = ((s0 + s4) + (s2 + s6)) + ((s1 + s5) + (s3 + s7));
-        p[c + j] += (heads[j] + lanes) + tails[j];
+        p[c + j] += (heads[j] + fold(sums[j])) + tails[j];
     }
 }
 

@@ -243,13 +243,14 @@ fn candidate_list(
             (reachable.iter().filter(certain)).map(|r| (records[r.0 as usize].config, r.2)),
         );
         by_config.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
-        let nearer = |d: f64| move |&far: &f64| far < d - DISTANCE_SLACK_MM;
         for &(i, d_near, _) in reachable.iter() {
             let config = records[i as usize].config;
             let same = &by_config[by_config.partition_point(|c| c.0 < config)
                 ..by_config.partition_point(|c| c.0 <= config)];
-            if all.partition_point(nearer(d_near)) < k
-                || same.partition_point(|(_, far)| nearer(d_near)(far)) < k
+            // Samples certainly nearer than this one lie below the bound.
+            let bound = d_near - DISTANCE_SLACK_MM;
+            if all.partition_point(|&far| far < bound) < k
+                || same.partition_point(|&(_, far)| far < bound) < k
             {
                 keyed.push(keyed_sample(i));
             }
