@@ -862,15 +862,12 @@ fn measurement(
     i: usize,
 ) -> Result<Measurement, CalibrateError> {
     let joints = samples.joints.as_ref().expect("checked by the caller");
-    let m = Measurement {
-        q: joints.row(i).to_vec(),
-        error_mm: samples.error_mm[i],
-        rotation_error_rad: samples.rotation_error_rad.as_ref().map(|r| r[i]),
-    };
+    let q = joints.row(i).to_vec();
+    let error_mm = samples.error_mm[i];
+    let rotation_error_rad = samples.rotation_error_rad.as_ref().map(|r| r[i]);
     let line = samples.lines.get(i).copied();
-    let finite = m.q.iter().chain(&m.error_mm).all(|v| v.is_finite())
-        && m.rotation_error_rad
-            .is_none_or(|r| r.iter().all(|v| v.is_finite()));
+    let finite = q.iter().chain(&error_mm).all(|v| v.is_finite())
+        && rotation_error_rad.is_none_or(|r| r.iter().all(|v| v.is_finite()));
     if !finite {
         return Err(CalibrateError::NonFinite { index: i, line });
     }
@@ -879,7 +876,7 @@ fn measurement(
         line,
         what,
     };
-    for (j, &value) in m.q.iter().enumerate() {
+    for (j, &value) in q.iter().enumerate() {
         let (shown, quantity) = match robot.joint_kind(j) {
             JointKind::Revolute => (value.to_degrees(), Quantity::JointValueDeg),
             JointKind::Prismatic => (value, Quantity::LengthMm),
@@ -888,7 +885,7 @@ fn measurement(
             .map_err(|e| implausible(e.to_string()))?;
     }
     let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let error = norm(m.error_mm);
+    let error = norm(error_mm);
     if error > MAX_PLAUSIBLE_ERROR_MM {
         return Err(implausible(format!(
             "a position error of {} mm, more than the {MAX_PLAUSIBLE_ERROR_MM} mm any \
@@ -897,7 +894,7 @@ fn measurement(
             number(error)
         )));
     }
-    if let Some(r) = m.rotation_error_rad {
+    if let Some(r) = rotation_error_rad {
         let angle = norm(r);
         if angle > MAX_PLAUSIBLE_ROTATION_ERROR_RAD {
             return Err(implausible(format!(
@@ -908,7 +905,13 @@ fn measurement(
             )));
         }
     }
-    Ok(m)
+    Ok(Measurement {
+        nominal_tcp: robot.tcp_transform(&q),
+        sin_cos: model::sin_cos_of(&q),
+        q,
+        error_mm,
+        rotation_error_rad,
+    })
 }
 
 /// The first non-finite entry of the residuals `r` or the Jacobian `j`: its row, and its

@@ -4,6 +4,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use adwi_runtime::kinematics::Transform;
+
 use super::model::{Model, State};
 use super::parameters::Parameter;
 use super::{CalibrateError, CalibrateOptions};
@@ -13,6 +15,11 @@ pub(super) struct Measurement {
     pub(super) q: Vec<f64>,
     pub(super) error_mm: [f64; 3],
     pub(super) rotation_error_rad: Option<[f64; 3]>,
+    /// The nominal robot's TCP at `q`, base frame: what every state's pose is compared
+    /// with, the same at every step of the fit, so computed once.
+    pub(super) nominal_tcp: Transform,
+    /// The sines and cosines of `q`, one per joint, which the joint-space terms read.
+    pub(super) sin_cos: Vec<(f64, f64)>,
 }
 
 /// The least-squares problem: the model and the measurements.
@@ -57,7 +64,7 @@ impl Problem {
             DMatrix::zeros(0, 0)
         };
         for (s, m) in self.measurements.iter().enumerate() {
-            let e = self.model.error(state, &m.q);
+            let e = (self.model).error_from(&m.nominal_tcp, state, &m.q, &m.sin_cos);
             let row = s * self.rows_per_sample;
             for a in 0..3 {
                 r[row + a] = m.error_mm[a] - e[a];
@@ -68,7 +75,7 @@ impl Problem {
                 }
             }
             if with_jacobian {
-                let j = self.model.jacobian(x, state, &m.q);
+                let j = self.model.jacobian_at(x, state, &m.q, &m.sin_cos);
                 for a in 0..self.rows_per_sample {
                     let scale = if a < 3 { 1.0 } else { self.weight };
                     for c in 0..p {
