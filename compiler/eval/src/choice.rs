@@ -34,6 +34,8 @@ use adwi_compile::nugget_kriging::GivenChoices;
 use adwi_compile::posture::Posture;
 use adwi_identify::calibrate::{identify, CalibrateError, CalibrateOptions, Calibration};
 use adwi_robot::Robot;
+use adwi_runtime::chain::JointKind;
+use adwi_runtime::joint_terms::{beyond_range, TERMS_MARGIN_RAD};
 use adwi_samples::SampleSet;
 use rayon::prelude::*;
 
@@ -455,6 +457,27 @@ impl<'a> CrossValidation<'a> {
     /// The first count's identification or an evaluation failing; no count predicting a
     /// held-out point.
     pub fn choose_harmonics(&mut self, counts: &[u8]) -> Result<HarmonicsChoice, TuneError> {
+        // Whole series held out judge the terms only where they answer within their
+        // evidence: at the held-out poses whose joints lie within the angles the other
+        // series span (beyond, a term is held at its range's end and the table flags the
+        // answer `joints`). Where most poses lie beyond, as when the series cover
+        // different turns of a joint, the count is chosen on spatial blocks of every
+        // series' samples instead.
+        let reach = self.terms_reach();
+        if let Some(reach) = reach.as_ref().filter(|r| !r.judges()) {
+            let protocol = Protocol::Blocks {
+                folds: AUTO_FOLDS,
+                seed: 0,
+            };
+            let mut blocks =
+                CrossValidation::held_out(self.samples, self.robot, self.calibrate, protocol)?;
+            let choice = blocks.choose_harmonics(counts)?;
+            self.calibrate.harmonics = choice.chosen;
+            return Ok(HarmonicsChoice {
+                terms_reach: Some(reach.summary()),
+                ..choice
+            });
+        }
         let n = self.samples.len();
         let model_alone = BuildOptions::default();
         let mut candidates = Vec::with_capacity(counts.len());
@@ -469,22 +492,31 @@ impl<'a> CrossValidation<'a> {
                 Err(TuneError::Identify(_)) if i > 0 => None,
                 Err(e) => return Err(e),
             };
-            // Each held-out point's position residual norm, mm.
+            // Each held-out point's position residual norm, mm (`None` where not
+            // predicted, or not judged: beyond the terms' reach).
             let norms: Vec<Option<f64>> = match &result {
                 Some(r) => (r.predictions.iter())
                     .zip(&self.samples.error_mm)
-                    .map(|(p, e)| {
+                    .enumerate()
+                    .map(|(i, (p, e))| {
                         let p = p.as_ref()?;
+                        if reach.as_ref().is_some_and(|r| !r.within[i]) {
+                            return None;
+                        }
                         let d = [0, 1, 2].map(|a| e[a] - p.position_error_mm[a]);
                         Some((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
                     })
                     .collect(),
                 None => vec![None; n],
             };
+            let cv_mean_mm = match (&result, &reach) {
+                (Some(r), None) => r.position_mm.as_ref().map(|p| p.mean_norm),
+                (Some(_), Some(_)) => mean_of(&norms),
+                (None, _) => None,
+            };
             candidates.push(HarmonicsCandidate {
                 harmonics,
-                cv_mean_mm: (result.as_ref())
-                    .and_then(|r| r.position_mm.as_ref().map(|p| p.mean_norm)),
+                cv_mean_mm,
                 noise_mm: None,
                 missed: result.map_or(n, |r| n - r.predicted()),
             });
@@ -515,7 +547,53 @@ impl<'a> CrossValidation<'a> {
             held_out: self.held_out_by(),
             candidates,
             chosen: self.calibrate.harmonics,
+            terms_reach: reach.map(|r| r.summary()),
         })
+    }
+
+    /// With whole series held out and joint values given, which held-out poses lie within
+    /// the joint-space terms' reach: every revolute joint within
+    /// [`TERMS_MARGIN_RAD`] of the angles the other series span, around the circle
+    /// ([`beyond_range`], as a table's query flags `joints`). `None` for other folds.
+    fn terms_reach(&self) -> Option<TermsReach> {
+        if !matches!(self.protocol, Protocol::Series(_)) {
+            return None;
+        }
+        let robot = self.robot?;
+        let joints = self.samples.joint_count()?;
+        let revolute: Vec<usize> = (0..joints)
+            .filter(|&j| robot.joint_kind(j) == JointKind::Revolute)
+            .collect();
+        let mut within = vec![false; self.samples.len()];
+        for fold in &self.splits {
+            let ranges: Vec<(usize, f64, f64)> = (revolute.iter())
+                .map(|&j| {
+                    let angles = fold.train.iter().filter_map(|&i| {
+                        let q = self.samples.joints_rad(i)?;
+                        q.get(j).copied()
+                    });
+                    let (lo, hi) = angles
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                            (lo.min(q), hi.max(q))
+                        });
+                    (j, lo, hi)
+                })
+                .collect();
+            for &i in &fold.test {
+                let Some(q) = self.samples.joints_rad(i) else {
+                    continue;
+                };
+                within[i] = ranges.iter().all(|&(j, lo, hi)| {
+                    lo <= hi
+                        && match beyond_range(q[j], lo, hi) {
+                            None => true,
+                            Some((_, by)) => by <= TERMS_MARGIN_RAD,
+                        }
+                });
+            }
+        }
+        let points = self.splits.iter().map(|f| f.test.len()).sum();
+        Some(TermsReach { points, within })
     }
 
     /// The identification options every candidate's folds are identified with.
@@ -885,6 +963,57 @@ pub struct HarmonicsChoice {
     pub candidates: Vec<HarmonicsCandidate>,
     /// The count chosen.
     pub chosen: u8,
+    /// With several series: how many held-out poses lay within the joint-space terms'
+    /// reach when each series was predicted from the others. The counts are scored at
+    /// those alone; where they are fewer than half, on spatial blocks of every series'
+    /// samples instead (`held_out` says which).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terms_reach: Option<TermsReachSummary>,
+}
+
+/// The held-out poses of whole series within the joint-space terms' reach
+/// ([`HarmonicsChoice::terms_reach`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct TermsReachSummary {
+    /// Held-out poses, every series' together.
+    pub held_out_poses: usize,
+    /// Of those, the poses whose every revolute joint lies within the angles the other
+    /// series span (to [`TERMS_MARGIN_RAD`], around the circle).
+    pub within_range: usize,
+}
+
+impl TermsReachSummary {
+    /// Whether the series judge the counts: at least half their held-out poses within
+    /// reach.
+    pub fn judges(&self) -> bool {
+        2 * self.within_range >= self.held_out_poses && self.within_range > 0
+    }
+}
+
+/// Per sample, whether it lies within the reach of the terms identified without its
+/// series ([`CrossValidation::terms_reach`]).
+struct TermsReach {
+    points: usize,
+    within: Vec<bool>,
+}
+
+impl TermsReach {
+    fn summary(&self) -> TermsReachSummary {
+        TermsReachSummary {
+            held_out_poses: self.points,
+            within_range: self.within.iter().filter(|&&w| w).count(),
+        }
+    }
+
+    fn judges(&self) -> bool {
+        self.summary().judges()
+    }
+}
+
+/// The mean of the values given, `None` for none.
+fn mean_of(values: &[Option<f64>]) -> Option<f64> {
+    let given: Vec<f64> = values.iter().flatten().copied().collect();
+    (!given.is_empty()).then(|| given.iter().sum::<f64>() / given.len() as f64)
 }
 
 /// Each fold's model as one cross-validation identified it, for another cross-validation
@@ -1460,6 +1589,60 @@ mod tests {
         let cv = CrossValidation::matching_use(&samples, Some(&robot), calibrate, None).unwrap();
         cv.adopt(&folds);
         assert_eq!(cv.identified.borrow().len(), 1);
+    }
+
+    /// Series held out judge the harmonic count at their poses within the terms' reach;
+    /// series that cover different angles of a joint cannot, and the count is chosen on
+    /// spatial blocks of all of them, as for one series.
+    #[test]
+    fn series_beyond_each_others_angles_leave_the_count_to_blocks() {
+        let (samples, robot) = kr150_third();
+        let calibrate = CalibrateOptions::default();
+        let q1 = |i: usize| samples.joints_rad(i).unwrap()[0];
+        let mut sorted: Vec<f64> = (0..samples.len()).map(q1).collect();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        // The two halves of the first joint's angles: apart (but for those within the
+        // margin of the other half).
+        let apart: Vec<usize> = (0..samples.len())
+            .map(|i| usize::from(q1(i) >= median))
+            .collect();
+        // Alternate samples: the same angles.
+        let mixed: Vec<usize> = (0..samples.len()).map(|i| i % 2).collect();
+        let reach = |series: &[usize]| {
+            let cv = CrossValidation::matching_use(
+                &samples,
+                Some(&robot),
+                calibrate,
+                Some(series.to_vec()),
+            )
+            .unwrap();
+            cv.terms_reach().unwrap().summary()
+        };
+        let mixed_reach = reach(&mixed);
+        assert_eq!(mixed_reach.held_out_poses, samples.len());
+        assert!(mixed_reach.judges(), "{mixed_reach:?}");
+        let apart_reach = reach(&apart);
+        assert!(!apart_reach.judges(), "{apart_reach:?}");
+        assert!(
+            apart_reach.within_range < samples.len() / 4,
+            "{apart_reach:?}"
+        );
+        // Not asked of blocks or random folds.
+        let blocks = CrossValidation::matching_use(&samples, Some(&robot), calibrate, None);
+        assert!(blocks.unwrap().terms_reach().is_none());
+
+        let mut by_series =
+            CrossValidation::matching_use(&samples, Some(&robot), calibrate, Some(apart)).unwrap();
+        let choice = by_series.choose_harmonics(&HARMONICS_CANDIDATES).unwrap();
+        let mut by_blocks =
+            CrossValidation::matching_use(&samples, Some(&robot), calibrate, None).unwrap();
+        let expected = by_blocks.choose_harmonics(&HARMONICS_CANDIDATES).unwrap();
+        assert_eq!(choice.held_out, HeldOut::Blocks);
+        assert_eq!(choice.terms_reach, Some(apart_reach));
+        assert_eq!(choice.candidates, expected.candidates);
+        assert_eq!(choice.chosen, expected.chosen);
+        assert_eq!(by_series.calibrate().harmonics, expected.chosen);
     }
 
     #[test]

@@ -230,6 +230,20 @@ fn print_harmonics_choice(choice: &adwi_jobs::choice::HarmonicsChoice) {
          mean by more than its noise):",
         choice.held_out.describe(choice.folds)
     );
+    if let Some(reach) = &choice.terms_reach {
+        let (within, poses) = (reach.within_range, reach.held_out_poses);
+        if reach.judges() {
+            println!(
+                "  scored at the {within} of {poses} poses of the series held out whose joints \
+                 lie within the angles the other series span"
+            );
+        } else {
+            println!(
+                "  not by the series held out: {within} of {poses} of their poses lie within \
+                 the angles the other series span, where the terms answer"
+            );
+        }
+    }
     for c in &choice.candidates {
         let mean = c
             .cv_mean_mm
