@@ -234,13 +234,13 @@ fn print_harmonics_choice(choice: &adwi_jobs::choice::HarmonicsChoice) {
         let (within, poses) = (reach.within_range, reach.held_out_poses);
         if reach.judges() {
             println!(
-                "  scored at the {within} of {poses} poses of the series held out whose joints \
-                 lie within the angles the other series span"
+                "  scored at the {within} of the {poses} held-out poses whose joints lie within \
+                 the angles the other series span"
             );
         } else {
             println!(
-                "  not by the series held out: {within} of {poses} of their poses lie within \
-                 the angles the other series span, where the terms answer"
+                "  not by the series held out, which cannot judge the terms: {within} of their \
+                 {poses} poses lie within the joint angles the other series span"
             );
         }
     }
