@@ -108,7 +108,10 @@ fn reduced_sin_cos(x: f64) -> (f64, f64) {
 fn reduced_sin_cos_pair(x: Pair) -> (Pair, Pair) {
     let (shifted, s, c) = reduced_kernels(x);
     let (quadrant, s, c) = (shifted.to_bits(), s.to_bits(), c.to_bits());
-    let [a, b] = [0, 1].map(|l| by_quadrant(quadrant[l], s[l], c[l]));
+    // Lane by lane, written out: an array's `map` here compiled to a call with bounds
+    // checks, each lane's bits through memory.
+    let a = by_quadrant(quadrant[0], s[0], c[0]);
+    let b = by_quadrant(quadrant[1], s[1], c[1]);
     (Pair::from_bits([a.0, b.0]), Pair::from_bits([a.1, b.1]))
 }
 
