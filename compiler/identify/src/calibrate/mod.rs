@@ -907,7 +907,6 @@ fn measurement(
     }
     Ok(Measurement {
         nominal_tcp: robot.tcp_transform(&q),
-        sin_cos: model::sin_cos_of(&q),
         q,
         error_mm,
         rotation_error_rad,

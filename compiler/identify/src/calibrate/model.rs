@@ -2,7 +2,7 @@
 //! vector, with its analytic Jacobian (module docs of [`crate::calibrate`], "The model",
 //! "Identification").
 
-use adwi_runtime::chain::{JointKind, MAX_JOINTS};
+use adwi_runtime::chain::JointKind;
 use adwi_runtime::joint_terms::JointTerms;
 use adwi_runtime::kinematics::Transform;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -194,22 +194,21 @@ impl Model {
     /// commanded one.
     #[cfg(test)]
     pub(super) fn error(&self, state: &State, q: &[f64]) -> nalgebra::Vector6<f64> {
-        self.error_from(&self.robot.tcp_transform(q), state, q, &sin_cos_of(q))
+        self.error_from(&self.robot.tcp_transform(q), state, q)
     }
 
-    /// [`Model::error`] at a measurement's `q`, given what no parameter moves and a fit
-    /// therefore computes once: the nominal TCP at `q` (`self.robot.tcp_transform(q)`) and
-    /// the sines and cosines of `q` (`sin_cos`, one per joint) that the joint-space terms
-    /// read.
+    /// [`Model::error`] given the nominal TCP at `q` (`self.robot.tcp_transform(q)`), which
+    /// no parameter moves: a fit computes it once per measurement, not at every step.
     pub(super) fn error_from(
         &self,
         nominal_tcp: &Transform,
         state: &State,
         q: &[f64],
-        sin_cos: &[(f64, f64)],
     ) -> nalgebra::Vector6<f64> {
-        let moved = moved_joints(&state.terms, q, sin_cos);
-        transform_pose_error(nominal_tcp, &loaded(&state.robot, &moved[..q.len()]))
+        transform_pose_error(
+            nominal_tcp,
+            &loaded_with_terms(&state.robot, &state.terms, q),
+        )
     }
 
     /// The 6 × p Jacobian of the base-frame pose error with respect to the parameters at
@@ -221,23 +220,14 @@ impl Model {
         state: &State,
         commanded: &[f64],
     ) -> DMatrix<f64> {
-        self.jacobian_at(x, state, commanded, &sin_cos_of(commanded))
-    }
-
-    /// [`Model::jacobian`], given the sines and cosines of `commanded` (one per joint),
-    /// which a fit computes once per measurement.
-    pub(super) fn jacobian_at(
-        &self,
-        x: &DVector<f64>,
-        state: &State,
-        commanded: &[f64],
-        sin_cos: &[(f64, f64)],
-    ) -> DMatrix<f64> {
         let mut j = DMatrix::zeros(6, self.len());
         let chain = state.robot.chain();
         let n = chain.joint_count();
         // The joint-space terms move the joints before gravity deflects them.
-        let moved = moved_joints(&state.terms, commanded, sin_cos);
+        let moved = state
+            .terms
+            .joints(commanded)
+            .expect("one joint value per joint");
         let terms_of = commanded;
         let commanded = &moved[..n];
         let loaded_joints = chain
@@ -381,30 +371,6 @@ pub(super) fn loaded(robot: &Robot, q: &[f64]) -> Transform {
             robot.joint_count()
         )
     })
-}
-
-/// `q'` of commanded `q` under `terms` ([`JointTerms::joints`]), from the sines and
-/// cosines of `q` given: the same values, without taking them again. Panics for more
-/// values than [`MAX_JOINTS`], or fewer sines and cosines than values.
-pub(super) fn moved_joints(
-    terms: &JointTerms,
-    q: &[f64],
-    sin_cos: &[(f64, f64)],
-) -> [f64; MAX_JOINTS] {
-    assert!(
-        q.len() <= MAX_JOINTS && sin_cos.len() >= q.len(),
-        "{} joint values for a robot",
-        q.len()
-    );
-    let mut out = [0.0; MAX_JOINTS];
-    terms.apply(q, sin_cos, &mut out[..q.len()]);
-    out
-}
-
-/// The sines and cosines of `q`, one per value (`f64::sin_cos`, as
-/// [`JointTerms::joints`] takes them).
-pub(super) fn sin_cos_of(q: &[f64]) -> Vec<(f64, f64)> {
-    q.iter().map(|v| v.sin_cos()).collect()
 }
 
 /// As [`loaded`], the joints first moved by the joint-space terms `terms`

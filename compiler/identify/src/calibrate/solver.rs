@@ -18,8 +18,6 @@ pub(super) struct Measurement {
     /// The nominal robot's TCP at `q`, base frame: what every state's pose is compared
     /// with, the same at every step of the fit, so computed once.
     pub(super) nominal_tcp: Transform,
-    /// The sines and cosines of `q`, one per joint, which the joint-space terms read.
-    pub(super) sin_cos: Vec<(f64, f64)>,
 }
 
 /// The least-squares problem: the model and the measurements.
@@ -64,7 +62,7 @@ impl Problem {
             DMatrix::zeros(0, 0)
         };
         for (s, m) in self.measurements.iter().enumerate() {
-            let e = (self.model).error_from(&m.nominal_tcp, state, &m.q, &m.sin_cos);
+            let e = self.model.error_from(&m.nominal_tcp, state, &m.q);
             let row = s * self.rows_per_sample;
             for a in 0..3 {
                 r[row + a] = m.error_mm[a] - e[a];
@@ -75,7 +73,7 @@ impl Problem {
                 }
             }
             if with_jacobian {
-                let j = self.model.jacobian_at(x, state, &m.q, &m.sin_cos);
+                let j = self.model.jacobian(x, state, &m.q);
                 for a in 0..self.rows_per_sample {
                     let scale = if a < 3 { 1.0 } else { self.weight };
                     for c in 0..p {
