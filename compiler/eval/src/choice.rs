@@ -474,7 +474,7 @@ impl<'a> CrossValidation<'a> {
             let choice = blocks.choose_harmonics(counts)?;
             self.calibrate.harmonics = choice.chosen;
             return Ok(HarmonicsChoice {
-                terms_reach: Some(reach.summary()),
+                series_reach: Some(reach.summary()),
                 ..choice
             });
         }
@@ -547,7 +547,7 @@ impl<'a> CrossValidation<'a> {
             held_out: self.held_out_by(),
             candidates,
             chosen: self.calibrate.harmonics,
-            terms_reach: reach.map(|r| r.summary()),
+            series_reach: reach.map(|r| r.summary()),
         })
     }
 
@@ -963,18 +963,19 @@ pub struct HarmonicsChoice {
     pub candidates: Vec<HarmonicsCandidate>,
     /// The count chosen.
     pub chosen: u8,
-    /// With several series: how many held-out poses lay within the joint-space terms'
-    /// reach when each series was predicted from the others. The counts are scored at
+    /// With several series: how many held-out poses lay within the joint angles the other
+    /// series span when each series was predicted from the others (the terms' reach). The counts are scored at
     /// those alone; where they are fewer than half, on spatial blocks of every series'
     /// samples instead (`held_out` says which).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub terms_reach: Option<TermsReachSummary>,
+    pub series_reach: Option<SeriesReach>,
 }
 
-/// The held-out poses of whole series within the joint-space terms' reach
-/// ([`HarmonicsChoice::terms_reach`]).
+/// The held-out poses of whole series within the joint angles the other series span: where
+/// a model identified on those answers within its evidence, the joint-space terms
+/// included ([`HarmonicsChoice::series_reach`], [`AutoServedField::series_reach`]).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct TermsReachSummary {
+pub struct SeriesReach {
     /// Held-out poses, every series' together.
     pub held_out_poses: usize,
     /// Of those, the poses whose every revolute joint lies within the angles the other
@@ -982,7 +983,7 @@ pub struct TermsReachSummary {
     pub within_range: usize,
 }
 
-impl TermsReachSummary {
+impl SeriesReach {
     /// Whether the series judge the counts: at least half their held-out poses within
     /// reach.
     pub fn judges(&self) -> bool {
@@ -998,8 +999,8 @@ struct TermsReach {
 }
 
 impl TermsReach {
-    fn summary(&self) -> TermsReachSummary {
-        TermsReachSummary {
+    fn summary(&self) -> SeriesReach {
+        SeriesReach {
             held_out_poses: self.points,
             within_range: self.within.iter().filter(|&&w| w).count(),
         }
@@ -1087,6 +1088,10 @@ pub struct AutoServedField {
     /// asked for (a hybrid table): every other choice's folds are identified with it, and
     /// so is the table's model.
     pub harmonics: Option<HarmonicsChoice>,
+    /// With several series and a robot: how many held-out poses lie within the joint angles
+    /// the other series span. Where few do, the held-out figures above are the model's
+    /// extrapolation to other angles, not what poses within the samples' angles see.
+    pub series_reach: Option<SeriesReach>,
 }
 
 /// The posture term's cross-validation ([`CrossValidation::posture`]).
@@ -1303,6 +1308,7 @@ fn choices_keeping_folds(
             posture: None,
             residual_weight: None,
             harmonics,
+            series_reach: cv.terms_reach().map(|r| r.summary()),
         };
         return Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()));
     }
@@ -1347,6 +1353,7 @@ fn choices_keeping_folds(
         posture,
         residual_weight,
         harmonics,
+        series_reach: cv.terms_reach().map(|r| r.summary()),
     };
     Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()))
 }
@@ -1641,7 +1648,7 @@ mod tests {
             CrossValidation::matching_use(&samples, Some(&robot), calibrate, None).unwrap();
         let expected = by_blocks.choose_harmonics(&counts).unwrap();
         assert_eq!(choice.held_out, HeldOut::Blocks);
-        assert_eq!(choice.terms_reach, Some(apart_reach));
+        assert_eq!(choice.series_reach, Some(apart_reach));
         assert_eq!(choice.candidates, expected.candidates);
         assert_eq!(choice.chosen, expected.chosen);
         assert_eq!(by_series.calibrate().harmonics, expected.chosen);

@@ -230,7 +230,7 @@ fn print_harmonics_choice(choice: &adwi_jobs::choice::HarmonicsChoice) {
          mean by more than its noise):",
         choice.held_out.describe(choice.folds)
     );
-    if let Some(reach) = &choice.terms_reach {
+    if let Some(reach) = &choice.series_reach {
         let (within, poses) = (reach.within_range, reach.held_out_poses);
         if reach.judges() {
             println!(
@@ -277,6 +277,19 @@ fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
         auto.samples
     );
     print_served_candidates(&auto.choice.candidates, auto.choice.field(), "the build's");
+    if let Some(reach) = &auto.series_reach {
+        let (within, poses) = (reach.within_range, reach.held_out_poses);
+        let what = if reach.judges() {
+            "the figures are scored there and beyond"
+        } else {
+            "the figures are the model's extrapolation to other joint angles, not what poses \
+             within the samples' angles see"
+        };
+        println!(
+            "  {within} of the {poses} held-out poses lie within the joint angles the other \
+             series span: {what}"
+        );
+    }
     if let Some(w) = &auto.residual_weight {
         let held_out = if w.by_series {
             format!("{} series, each predicted from the others", w.splits)
