@@ -463,7 +463,7 @@ impl<'a> CrossValidation<'a> {
         // answer `joints`). Where most poses lie beyond, as when the series cover
         // different turns of a joint, the count is chosen on spatial blocks of every
         // series' samples instead.
-        let reach = self.terms_reach();
+        let reach = self.series_reach();
         if let Some(reach) = reach.as_ref().filter(|r| !r.judges()) {
             let protocol = Protocol::Blocks {
                 folds: AUTO_FOLDS,
@@ -555,7 +555,7 @@ impl<'a> CrossValidation<'a> {
     /// the joint-space terms' reach: every revolute joint within
     /// [`TERMS_MARGIN_RAD`] of the angles the other series span, around the circle
     /// ([`beyond_range`], as a table's query flags `joints`). `None` for other folds.
-    fn terms_reach(&self) -> Option<TermsReach> {
+    fn series_reach(&self) -> Option<ReachOfSeries> {
         if !matches!(self.protocol, Protocol::Series(_)) {
             return None;
         }
@@ -593,7 +593,7 @@ impl<'a> CrossValidation<'a> {
             }
         }
         let points = self.splits.iter().map(|f| f.test.len()).sum();
-        Some(TermsReach { points, within })
+        Some(ReachOfSeries { points, within })
     }
 
     /// The identification options every candidate's folds are identified with.
@@ -964,9 +964,9 @@ pub struct HarmonicsChoice {
     /// The count chosen.
     pub chosen: u8,
     /// With several series: how many held-out poses lay within the joint angles the other
-    /// series span when each series was predicted from the others (the terms' reach). The counts are scored at
-    /// those alone; where they are fewer than half, on spatial blocks of every series'
-    /// samples instead (`held_out` says which).
+    /// series span when each series was predicted from the others (the terms' reach). The
+    /// counts are scored at those alone; where they are fewer than half, on spatial blocks
+    /// of every series' samples instead (`held_out` says which).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub series_reach: Option<SeriesReach>,
 }
@@ -991,14 +991,14 @@ impl SeriesReach {
     }
 }
 
-/// Per sample, whether it lies within the reach of the terms identified without its
-/// series ([`CrossValidation::terms_reach`]).
-struct TermsReach {
+/// Per sample, whether it lies within the joint angles of the other series, the reach of
+/// the terms identified without its series ([`CrossValidation::series_reach`]).
+struct ReachOfSeries {
     points: usize,
     within: Vec<bool>,
 }
 
-impl TermsReach {
+impl ReachOfSeries {
     fn summary(&self) -> SeriesReach {
         SeriesReach {
             held_out_poses: self.points,
@@ -1308,7 +1308,7 @@ fn choices_keeping_folds(
             posture: None,
             residual_weight: None,
             harmonics,
-            series_reach: cv.terms_reach().map(|r| r.summary()),
+            series_reach: cv.series_reach().map(|r| r.summary()),
         };
         return Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()));
     }
@@ -1353,7 +1353,7 @@ fn choices_keeping_folds(
         posture,
         residual_weight,
         harmonics,
-        series_reach: cv.terms_reach().map(|r| r.summary()),
+        series_reach: cv.series_reach().map(|r| r.summary()),
     };
     Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()))
 }
@@ -1624,7 +1624,7 @@ mod tests {
                 Some(series.to_vec()),
             )
             .unwrap();
-            cv.terms_reach().unwrap().summary()
+            cv.series_reach().unwrap().summary()
         };
         let mixed_reach = reach(&mixed);
         assert_eq!(mixed_reach.held_out_poses, samples.len());
@@ -1637,7 +1637,7 @@ mod tests {
         );
         // Not asked of blocks or random folds.
         let blocks = CrossValidation::matching_use(&samples, Some(&robot), calibrate, None);
-        assert!(blocks.unwrap().terms_reach().is_none());
+        assert!(blocks.unwrap().series_reach().is_none());
 
         // Counts 0 and 1: the second harmonic adds time, not a case.
         let counts = [0, 1];
