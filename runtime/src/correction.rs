@@ -262,8 +262,7 @@ impl Correction {
         residual: Residual,
         evidence: Evidence,
     ) -> Correction {
-        let values = position_error_mm.iter().chain(&orientation_error_rad);
-        if !values.into_iter().all(|v| v.is_finite()) {
+        if !all_finite(position_error_mm, orientation_error_rad) {
             return Correction::failed(Status::NumericalFailure);
         }
         Correction {
@@ -281,15 +280,22 @@ impl Correction {
     /// is ever told to command a NaN.
     #[inline]
     pub(crate) fn finite_or_failure(self) -> Correction {
-        let values = self
-            .position_error_mm
-            .iter()
-            .chain(&self.orientation_error_rad);
-        if self.status == Status::Ok && !values.into_iter().all(|v| v.is_finite()) {
+        let finite = all_finite(self.position_error_mm, self.orientation_error_rad);
+        if self.status == Status::Ok && !finite {
             return Correction::failed(Status::NumericalFailure);
         }
         self
     }
+}
+
+/// Whether all six values are finite, without a branch: a finite value times zero is
+/// (signed) zero and the sum of zeros is zero, while an infinity or a NaN times zero is NaN,
+/// which no sum leaves and which compares unequal to zero. (An iterator's `all` here was a
+/// call on every query.)
+#[inline(always)]
+fn all_finite(a: [f64; 3], b: [f64; 3]) -> bool {
+    let zeros = (a[0] * 0.0 + a[1] * 0.0) + (a[2] * 0.0 + b[0] * 0.0) + (b[1] * 0.0 + b[2] * 0.0);
+    zeros == 0.0
 }
 
 impl Compensation {
@@ -334,4 +340,43 @@ pub struct Compensation {
     pub converged: bool,
     /// `|command + error(command) − target|` at the returned command, mm.
     pub residual_mm: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The branch-free test is the plain one on every value a double can be, at each of
+    /// the six places, and on pairs of them.
+    #[test]
+    fn all_finite_is_every_value_is_finite() {
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5e-310,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            f64::MIN,
+            f64::EPSILON,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::NAN,
+        ];
+        let reference = |v: &[f64; 6]| v.iter().all(|x| x.is_finite());
+        for (i, &x) in specials.iter().enumerate() {
+            for (j, &y) in specials.iter().enumerate() {
+                for place in 0..6 {
+                    for other in 0..6 {
+                        let mut v = [0.5, -3.0, 1e300, -1e-300, 7.0, f64::MAX];
+                        v[place] = x;
+                        v[other] = y;
+                        let (a, b) = ([v[0], v[1], v[2]], [v[3], v[4], v[5]]);
+                        assert_eq!(all_finite(a, b), reference(&v), "{i} {j} {place} {other}");
+                    }
+                }
+            }
+        }
+    }
 }
