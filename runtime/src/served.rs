@@ -355,7 +355,7 @@ pub(crate) fn site(
 /// `orientation`) into its cache without waiting for them: a hybrid query calls this before
 /// its model part, whose arithmetic then hides the memory's latency. Reads nothing and
 /// changes no answer; a hint only, and none on other architectures than x86-64.
-#[inline]
+#[inline(always)]
 pub(crate) fn prefetch(
     grid: &ServedGrid,
     data: &ArchivedTableData,
