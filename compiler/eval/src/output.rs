@@ -136,6 +136,7 @@ pub fn terminal_table(e: &Evaluation) -> String {
     if let Some(c) = &e.comparison {
         notes.extend(comparison_notes(e, c));
     }
+    notes.extend(harmonics_note(&e.harmonics_choices));
     notes.extend(split_choice_notes(e));
     for (method, reason) in &e.skipped {
         notes.push(format!("{method}: not run: {reason}"));
@@ -153,6 +154,56 @@ pub fn terminal_table(e: &Evaluation) -> String {
         out.push_str(&c.parameter_table());
     }
     out
+}
+
+/// The identification's harmonic count chosen on each split's training samples
+/// (`--harmonics auto`): the count, and with one split the counts' held-out means and how
+/// they were held out; `None` when no count was chosen.
+fn harmonics_note(choices: &[crate::SplitHarmonics]) -> Option<String> {
+    let first = choices.first()?;
+    if let [only] = choices {
+        let c = &only.choice;
+        let means: Vec<String> = (c.candidates.iter())
+            .map(|k| {
+                let mean = k.cv_mean_mm.map_or("—".to_string(), |m| format!("{m:.4}"));
+                format!("{}: {mean}", k.harmonics)
+            })
+            .collect();
+        let reach = match &c.series_reach {
+            Some(r) if !r.judges() => format!(
+                "; not by the series held out, {} of whose {} poses lie within the joint \
+                 angles the other series span",
+                r.within_range, r.held_out_poses
+            ),
+            Some(r) => format!(
+                "; at the {} of {} held-out poses within the joint angles the other series span",
+                r.within_range, r.held_out_poses
+            ),
+            None => String::new(),
+        };
+        return Some(format!(
+            "harmonic count chosen on the training samples by {}, the model alone{reach}: {} \
+             (held-out mean mm by count: {})",
+            c.held_out.describe(c.folds),
+            c.chosen,
+            means.join(", ")
+        ));
+    }
+    let mut counts: Vec<u8> = choices.iter().map(|h| h.choice.chosen).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    let tally: Vec<String> = (counts.iter())
+        .map(|&n| {
+            let splits = choices.iter().filter(|h| h.choice.chosen == n).count();
+            format!("{n} in {splits} of {}", choices.len())
+        })
+        .collect();
+    Some(format!(
+        "harmonic count chosen on each split's training samples by {}, the model alone: {} \
+         splits",
+        first.choice.held_out.describe(first.choice.folds),
+        tally.join(", ")
+    ))
 }
 
 /// The noise floor in words: the nuggets, the total variance and the mean they imply.
@@ -503,4 +554,59 @@ pub fn csv(e: &Evaluation) -> String {
 /// `w`'s error; serialisation itself does not fail on plain numbers and strings.
 pub fn write_json(w: &mut dyn std::io::Write, e: &Evaluation) -> Result<(), serde_json::Error> {
     serde_json::to_writer_pretty(w, e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::choice::{HarmonicsCandidate, HarmonicsChoice, HeldOut, SeriesReach};
+    use crate::SplitHarmonics;
+
+    fn split(split: usize, chosen: u8, series_reach: Option<SeriesReach>) -> SplitHarmonics {
+        let candidate = |harmonics: u8, mean: f64| HarmonicsCandidate {
+            harmonics,
+            cv_mean_mm: Some(mean),
+            noise_mm: None,
+            missed: 0,
+        };
+        SplitHarmonics {
+            split,
+            choice: HarmonicsChoice {
+                folds: 5,
+                held_out: HeldOut::Blocks,
+                candidates: vec![
+                    candidate(0, 0.5184),
+                    candidate(1, 0.5187),
+                    candidate(2, 0.4946),
+                ],
+                chosen,
+                series_reach,
+            },
+        }
+    }
+
+    /// The count chosen is said: with one split its figures and, with series that could
+    /// not judge it, why blocks chose; with several, how many splits chose each count.
+    #[test]
+    fn the_harmonic_count_is_said_with_its_evidence() {
+        assert_eq!(harmonics_note(&[]), None);
+        let reach = SeriesReach {
+            held_out_poses: 1000,
+            within_range: 0,
+        };
+        let one = harmonics_note(&[split(0, 2, Some(reach))]).unwrap();
+        assert_eq!(
+            one,
+            "harmonic count chosen on the training samples by 5 spatial blocks, each predicted \
+             from the others, the model alone; not by the series held out, 0 of whose 1000 \
+             poses lie within the joint angles the other series span: 2 (held-out mean mm by \
+             count: 0: 0.5184, 1: 0.5187, 2: 0.4946)"
+        );
+        let several = harmonics_note(&[split(0, 2, None), split(1, 1, None), split(2, 2, None)]);
+        assert_eq!(
+            several.unwrap(),
+            "harmonic count chosen on each split's training samples by 5 spatial blocks, each \
+             predicted from the others, the model alone: 1 in 1 of 3, 2 in 2 of 3 splits"
+        );
+    }
 }
