@@ -592,8 +592,7 @@ impl<'a> CrossValidation<'a> {
                 });
             }
         }
-        let points = self.splits.iter().map(|f| f.test.len()).sum();
-        Some(ReachOfSeries { points, within })
+        Some(ReachOfSeries { within })
     }
 
     /// The identification options every candidate's folds are identified with.
@@ -992,16 +991,16 @@ impl SeriesReach {
 }
 
 /// Per sample, whether it lies within the joint angles of the other series, the reach of
-/// the terms identified without its series ([`CrossValidation::series_reach`]).
+/// the terms identified without its series ([`CrossValidation::series_reach`]). Each
+/// sample is held out once, by its series, so every sample is a held-out pose.
 struct ReachOfSeries {
-    points: usize,
     within: Vec<bool>,
 }
 
 impl ReachOfSeries {
     fn summary(&self) -> SeriesReach {
         SeriesReach {
-            held_out_poses: self.points,
+            held_out_poses: self.within.len(),
             within_range: self.within.iter().filter(|&&w| w).count(),
         }
     }
