@@ -344,7 +344,7 @@ pub struct Compensation {
 mod tests {
     use super::*;
 
-    /// The branch-free test is the plain one on every value a double can be, at each of
+    /// The joined test is the plain one on every kind of value a double can be, at each of
     /// the six places, and on pairs of them.
     #[test]
     fn all_finite_is_every_value_is_finite() {

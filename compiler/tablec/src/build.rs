@@ -280,7 +280,7 @@ fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
     if let Some(reach) = &auto.series_reach {
         let (within, poses) = (reach.within_range, reach.held_out_poses);
         let what = if reach.judges() {
-            "the figures are scored there and beyond"
+            "the figures count every held-out pose, those beyond included"
         } else {
             "the figures are the model's extrapolation to other joint angles, not what poses \
              within the samples' angles see"
