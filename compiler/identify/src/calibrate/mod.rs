@@ -599,8 +599,8 @@ fn problem_of(
 
 /// The problem linearised at the nominal model, where every fit starts.
 struct Linearised {
-    /// The Jacobian.
-    jacobian: DMatrix<f64>,
+    /// The Jacobian's R factor ([`solver::r_factor`]): what selecting its columns needs.
+    jacobian_factor: DMatrix<f64>,
     /// Each column's scale to unit norm (0 for a column of nothing).
     scales: Vec<f64>,
     /// The position RMS before any fit, mm.
@@ -644,7 +644,7 @@ impl Linearised {
             .collect();
         Ok(Linearised {
             position_rms_mm: problem.position_rms(&r0),
-            jacobian: j0,
+            jacobian_factor: solver::r_factor(&j0),
             scales,
         })
     }
@@ -663,7 +663,13 @@ fn fit_holding_untrustworthy(
     let mut x = DVector::zeros(problem.model.len());
     loop {
         let held_columns: Vec<usize> = held.iter().map(|(c, _)| *c).collect();
-        let fit = problem.solve(&start.jacobian, &start.scales, &held_columns, x, options)?;
+        let fit = problem.solve(
+            &start.jacobian_factor,
+            &start.scales,
+            &held_columns,
+            x,
+            options,
+        )?;
         if !options.hold_untrustworthy {
             return Ok((fit, held));
         }
@@ -820,7 +826,8 @@ pub fn design_jacobians_scaled(
         stacked.column_mut(c).scale_mut(*s);
     }
     let preferred: Vec<bool> = (0..p).map(|c| c >= model.tool_translation).collect();
-    let (mut kept, _) = solver::pivot_columns(&stacked, rank_tolerance, &preferred);
+    let (mut kept, _) =
+        solver::pivot_columns(&solver::r_factor(&stacked), rank_tolerance, &preferred);
     kept.sort_unstable();
     let parameters = kept.iter().map(|&c| model.parameters[c]).collect();
     let blocks = blocks
