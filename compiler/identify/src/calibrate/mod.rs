@@ -184,7 +184,11 @@ pub struct CalibrateOptions {
     pub orientation_weight_mm_per_rad: f64,
     /// At most this many Levenberg–Marquardt iterations.
     pub max_iterations: u32,
-    /// Stop when an accepted step lowers the cost by less than this fraction of it.
+    /// Stop when an accepted step lowers the cost by less than this fraction of it. The
+    /// default, 1e-12, is above the cost's own rounding: the residuals are differences of
+    /// poses metres from the base, computed to about 1e-13 mm, so that below it steps
+    /// "lower" the cost by rounding alone (decreases of 1e-13 of it, iteration after
+    /// iteration), and a step that lowers it by 1e-12 moves the poses by nanometres.
     pub relative_cost_tolerance: f64,
     /// Hold at nominal, one at a time, the kept parameters whose estimates are implausible
     /// or undetermined, and fit again (module docs, "Trust").
@@ -207,7 +211,7 @@ impl Default for CalibrateOptions {
             rank_tolerance: 1e-3,
             orientation_weight_mm_per_rad: 1000.0,
             max_iterations: 100,
-            relative_cost_tolerance: 1e-14,
+            relative_cost_tolerance: 1e-12,
             hold_untrustworthy: true,
             significance: 3.0,
             compliance: false,
