@@ -912,19 +912,17 @@ fn evidence_of(
 ///
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
 pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
-    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     let version = if header.records_version_4() { 4 } else { 2 };
-    Ok(with_header(header, version, &payload))
+    with_header(header, version, data)
 }
 
 /// Serialises a version-3 table (a table with a posture term) as [`encode`] a version-2
 /// one; the header's [`CONTENT_POSTURE`] flag is set. A header that records evidence or
 /// merged samples makes it a version-4 table with the same payload.
 pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
-    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     header.content_flags |= CONTENT_POSTURE;
     let version = if header.records_version_4() { 4 } else { 3 };
-    Ok(with_header(header, version, &payload))
+    with_header(header, version, data)
 }
 
 /// Serialises a version-5 table (a hybrid table whose model has joint-space terms) as
@@ -935,26 +933,43 @@ pub fn encode_v5(
     data: &v5::TableData,
     posture_term: bool,
 ) -> Result<Vec<u8>, rkyv::rancor::Error> {
-    let payload = rkyv::to_bytes::<rkyv::rancor::Error>(data)?;
     header.content_flags |= CONTENT_JOINT_TERMS;
     if posture_term {
         header.content_flags |= CONTENT_POSTURE;
     } else {
         header.content_flags &= !CONTENT_POSTURE;
     }
-    Ok(with_header(header, 5, &payload))
+    with_header(header, 5, data)
 }
 
-/// The header of `payload` at `version`, with its lengths and checksums, then the payload.
-fn with_header(mut header: Header, version: u16, payload: &[u8]) -> Vec<u8> {
+/// The table file of `data` at `version`: the header, with its lengths and checksums,
+/// then the payload. The payload is serialised where the file holds it, after the
+/// header's room, rather than copied there (a table is tens of megabytes): its bytes are
+/// those it has alone, since [`HEADER_LEN`] is a multiple of every alignment the archive
+/// pads to and its pointers are relative.
+fn with_header<T>(
+    mut header: Header,
+    version: u16,
+    data: &T,
+) -> Result<Vec<u8>, rkyv::rancor::Error>
+where
+    T: for<'a> rkyv::Serialize<
+        rkyv::api::high::HighSerializer<
+            Vec<u8>,
+            rkyv::ser::allocator::ArenaHandle<'a>,
+            rkyv::rancor::Error,
+        >,
+    >,
+{
+    const _: () = assert!(HEADER_LEN % PAYLOAD_ALIGN == 0 && HEADER_LEN >= 64);
+    let mut out = rkyv::api::high::to_bytes_in(data, vec![0u8; HEADER_LEN])?;
+    let payload = &out[HEADER_LEN..];
     header.version = version;
     header.rkyv_flags = RKYV_FLAGS;
     header.payload_len = payload.len() as u64;
     header.payload_checksum = xxhash_rust::xxh3::xxh3_64(payload);
-    let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
-    out.extend_from_slice(&header.to_bytes());
-    out.extend_from_slice(payload);
-    out
+    out[..HEADER_LEN].copy_from_slice(&header.to_bytes());
+    Ok(out)
 }
 
 /// The largest plausible distance of a grid corner or a sample from the robot's base, mm,

@@ -337,7 +337,13 @@ fn encode(
         None => (format::encode(header, &data), data),
     };
     let bytes = bytes.map_err(|e| BuildError::Encode(e.to_string()))?;
-    adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    // Validated where they are when they start where the archive must (the system
+    // allocator's blocks do), rather than copied: a table is tens of megabytes.
+    if bytes.as_ptr().align_offset(format::PAYLOAD_ALIGN) == 0 {
+        adwi_runtime::Table::from_bytes(bytes.as_slice()).map_err(BuildError::Unopenable)?;
+    } else {
+        adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    }
     Ok((bytes, data))
 }
 
