@@ -168,11 +168,23 @@ impl JointTerms {
 
     /// `q'` of commanded `q` (module docs), the sines and cosines taken here; `None` for
     /// more than [`MAX_JOINTS`] values.
+    ///
+    /// A joint without terms takes no sine: its offset is `+0` at any finite angle (of
+    /// the four products of zero, the second is `+0` unless the cosine is negative, and
+    /// then the third is, since the sine of twice the angle is positive), so `q + 0.0`
+    /// is the same bits. An identification without terms computes this at every sample
+    /// of every step.
     pub fn joints(&self, q: &[f64]) -> Option<[f64; MAX_JOINTS]> {
         let mut out = [0.0; MAX_JOINTS];
         let out_q = out.get_mut(..q.len())?;
         for (j, (o, &value)) in out_q.iter_mut().zip(q).enumerate() {
-            *o = value + self.offset(j, value, value.sin_cos());
+            let without_terms =
+                (self.coefficients_rad.get(j)).is_none_or(|c| c.iter().all(|&c| c == 0.0));
+            *o = if without_terms && value.is_finite() {
+                value + 0.0
+            } else {
+                value + self.offset(j, value, value.sin_cos())
+            };
         }
         Some(out)
     }
@@ -334,6 +346,54 @@ mod tests {
         assert_eq!(moved[..2], q[..2]);
         assert_eq!(moved[2], 0.3 + terms.offset(2, 0.3, f64::sin_cos(0.3)));
         assert!(terms.joints(&[0.0; MAX_JOINTS + 1]).is_none());
+    }
+
+    /// A joint without terms is moved by its offset computed all the same, to the bit:
+    /// angles of every quadrant, on the axes, signed zeros, subnormals, huge, and not
+    /// finite; ranges open and closed; beside a joint with terms.
+    #[test]
+    fn a_joint_without_terms_is_moved_as_its_offset_says() {
+        let angles = [
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE / 4.0,
+            -f64::MIN_POSITIVE,
+            1e-300,
+            0.3,
+            -0.3,
+            1.9,
+            -1.9,
+            2.8,
+            -2.8,
+            std::f64::consts::FRAC_PI_2,
+            -std::f64::consts::FRAC_PI_2,
+            std::f64::consts::PI,
+            -std::f64::consts::PI,
+            4.0,
+            -4.0,
+            5.5,
+            1e6,
+            -1e15,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        for range in [[f64::NEG_INFINITY, f64::INFINITY], [-0.5, 1.0], [2.0, 3.0]] {
+            let mut terms = JointTerms::NONE;
+            terms.coefficients_rad[1] = [1e-3, -2e-3, 5e-4, 7e-4];
+            terms.range_rad = [range; MAX_JOINTS];
+            for &a in &angles {
+                for &b in &angles {
+                    let q = [a, b, a];
+                    let moved = terms.joints(&q).unwrap();
+                    for j in 0..3 {
+                        let want = q[j] + terms.offset(j, q[j], q[j].sin_cos());
+                        assert_eq!(moved[j].to_bits(), want.to_bits(), "{j}: {q:?} {range:?}");
+                    }
+                }
+            }
+        }
     }
 
     /// Beyond the range the terms were identified over, a term is its value at the
