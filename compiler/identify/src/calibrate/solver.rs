@@ -338,37 +338,28 @@ fn reflect_chunk_compiled() -> ReflectChunk {
     reflect_chunk
 }
 
-/// [`reflect_chunk`] compiled for AVX2.
-///
-/// # Safety
-///
-/// The processor must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn reflect_chunk_avx2(
-    factor: &mut [f64],
-    projected: &mut [f64],
-    chunk: &mut [f64],
-    rhs: &mut [f64; QR_CHUNK_ROWS],
-) {
-    reflect_chunk_body(factor, projected, chunk, rhs);
+/// [`reflect_chunk`] compiled for an instruction set, as `$name`.
+macro_rules! reflect_chunk_for {
+    ($name:ident, $features:literal, $set:literal) => {
+        #[doc = concat!("[`reflect_chunk`] compiled for ", $set, ".")]
+        ///
+        /// # Safety
+        ///
+        #[doc = concat!("The processor must have ", $set, ".")]
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name(
+            factor: &mut [f64],
+            projected: &mut [f64],
+            chunk: &mut [f64],
+            rhs: &mut [f64; QR_CHUNK_ROWS],
+        ) {
+            reflect_chunk_body(factor, projected, chunk, rhs);
+        }
+    };
 }
-
-/// [`reflect_chunk`] compiled for AVX-512.
-///
-/// # Safety
-///
-/// The processor must have AVX-512F.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn reflect_chunk_avx512(
-    factor: &mut [f64],
-    projected: &mut [f64],
-    chunk: &mut [f64],
-    rhs: &mut [f64; QR_CHUNK_ROWS],
-) {
-    reflect_chunk_body(factor, projected, chunk, rhs);
-}
+reflect_chunk_for!(reflect_chunk_avx2, "avx2", "AVX2");
+reflect_chunk_for!(reflect_chunk_avx512, "avx512f", "AVX-512F");
 
 /// Reflects `[R; chunk]` (`R` column-major `n × n`, the chunk column-major with
 /// [`QR_CHUNK_ROWS`] rows) so that the chunk's columns are zero, with `[Qᵀr; rhs]` alike.
