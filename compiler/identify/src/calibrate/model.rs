@@ -197,8 +197,9 @@ impl Model {
         self.error_from(&self.robot.tcp_transform(q), state, q)
     }
 
-    /// [`Model::error`] given the nominal TCP at `q` (`self.robot.tcp_transform(q)`), which
-    /// no parameter moves: a fit computes it once per measurement, not at every step.
+    /// The predicted pose error of a state at `q` (`Model::error`, which the tests use),
+    /// given the nominal TCP at `q` (`self.robot.tcp_transform(q)`), which no parameter
+    /// moves: a fit computes it once per measurement, not at every step.
     pub(super) fn error_from(
         &self,
         nominal_tcp: &Transform,
