@@ -53,14 +53,29 @@ impl Problem {
         state: &State,
         with_jacobian: bool,
     ) -> (DVector<f64>, DMatrix<f64>) {
+        let rows = self.measurements.len() * self.rows_per_sample;
+        let mut jac = DMatrix::zeros(if with_jacobian { rows } else { 0 }, self.model.len());
+        let r = self.linearise_into(x, state, with_jacobian.then_some(&mut jac));
+        (r, jac)
+    }
+
+    /// [`Problem::linearise`], the Jacobian written over `jacobian` (every entry; its
+    /// shape is set first): a fit linearises at every step, and a fresh Jacobian of tens
+    /// of thousands of rows was zeroed and faulted in each time.
+    pub(super) fn linearise_into(
+        &self,
+        x: &DVector<f64>,
+        state: &State,
+        mut jacobian: Option<&mut DMatrix<f64>>,
+    ) -> DVector<f64> {
         let p = self.model.len();
         let rows = self.measurements.len() * self.rows_per_sample;
         let mut r = DVector::zeros(rows);
-        let mut jac = if with_jacobian {
-            DMatrix::zeros(rows, p)
-        } else {
-            DMatrix::zeros(0, 0)
-        };
+        if let Some(jac) = jacobian.as_deref_mut() {
+            if jac.shape() != (rows, p) {
+                *jac = DMatrix::zeros(rows, p);
+            }
+        }
         for (s, m) in self.measurements.iter().enumerate() {
             let e = self.model.error_from(&m.nominal_tcp, state, &m.q);
             let row = s * self.rows_per_sample;
@@ -72,7 +87,7 @@ impl Problem {
                     r[row + 3 + a] = self.weight * (measured[a] - e[a + 3]);
                 }
             }
-            if with_jacobian {
+            if let Some(jac) = jacobian.as_deref_mut() {
                 let j = self.model.jacobian(x, state, &m.q);
                 for a in 0..self.rows_per_sample {
                     let scale = if a < 3 { 1.0 } else { self.weight };
@@ -82,7 +97,7 @@ impl Problem {
                 }
             }
         }
-        (r, jac)
+        r
     }
 
     /// RMS of the position residual norms.
@@ -162,7 +177,8 @@ impl Problem {
         let n = kept.len();
         let mut x = start;
         let mut state = self.model.state(&x)?;
-        let (mut r, mut jac) = self.linearise(&x, &state, true);
+        let mut jac = DMatrix::zeros(0, 0);
+        let mut r = self.linearise_into(&x, &state, Some(&mut jac));
         let mut cost = r.norm_squared();
         let mut mu: f64 = 1e-6;
         let mut iterations = 0;
@@ -184,7 +200,7 @@ impl Problem {
                     mu *= 10.0;
                     continue;
                 };
-                let (candidate_r, _) = self.linearise(&candidate_x, &candidate, false);
+                let candidate_r = self.linearise_into(&candidate_x, &candidate, None);
                 let candidate_cost = candidate_r.norm_squared();
                 if candidate_cost.is_finite() && candidate_cost <= cost {
                     let decrease = cost - candidate_cost;
@@ -204,9 +220,7 @@ impl Problem {
                 // No step lowers the cost any more: a minimum to working precision.
                 converged = true;
             }
-            let (next_r, next_jac) = self.linearise(&x, &state, true);
-            r = next_r;
-            jac = next_jac;
+            r = self.linearise_into(&x, &state, Some(&mut jac));
             if converged {
                 break;
             }
