@@ -272,9 +272,9 @@ pub(super) fn r_factor(jacobian: &DMatrix<f64>) -> DMatrix<f64> {
     thin_qr(jacobian, &columns, &ones, &DVector::zeros(jacobian.nrows())).0
 }
 
-/// Rows of `J` a step of [`thin_qr`] takes at a time (a multiple of [`LANES`]): with 110
-/// columns (a robot with second harmonics) 56 KB, within the level-2 cache with the 97 KB
-/// of `R`.
+/// Rows of `J` a step of [`thin_qr`] takes at a time (a multiple of [`LANES`]): with the
+/// 66 columns of a six-joint robot with second harmonics 34 KB, within the level-1 and
+/// level-2 caches with the 35 KB of `R`.
 const QR_CHUNK_ROWS: usize = 64;
 
 /// Interleaved partial sums of [`dot`].
@@ -288,8 +288,8 @@ const LANES: usize = 8;
 /// Householder reflections applied to `[R; rows]`, [`QR_CHUNK_ROWS`] rows of `J` at a
 /// time (QR updated by rows; the reflections' product is one orthogonal `Q`, backward
 /// stable as a QR of the whole). Each reflection touches only `R`'s row and the chunk,
-/// which stay in cache: on the whole `J` (a UR10 with harmonics: 15,000 × 110, 13 MB)
-/// each reflection streamed every row from memory. `R`'s diagonal may have either sign.
+/// which stay in cache: on the whole `J` (the UR10's series C with second harmonics:
+/// 16,638 × 66, 8.8 MB) each reflection streamed every row from memory. `R`'s diagonal may have either sign.
 fn thin_qr(
     jacobian: &DMatrix<f64>,
     columns: &[usize],
