@@ -1299,6 +1299,11 @@ fn choices_keeping_folds(
     } else {
         None
     };
+    // The harmonic count's choice found it already, on the same series and folds.
+    let series_reach = match &harmonics {
+        Some(h) => h.series_reach,
+        None => cv.series_reach().map(|r| r.summary()),
+    };
     if !(ask.field || ask.posture || ask.weight) {
         let auto = AutoServedField {
             choice: ServedChoice::default(),
@@ -1307,7 +1312,7 @@ fn choices_keeping_folds(
             posture: None,
             residual_weight: None,
             harmonics,
-            series_reach: cv.series_reach().map(|r| r.summary()),
+            series_reach,
         };
         return Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()));
     }
@@ -1352,7 +1357,7 @@ fn choices_keeping_folds(
         posture,
         residual_weight,
         harmonics,
-        series_reach: cv.series_reach().map(|r| r.summary()),
+        series_reach,
     };
     Ok((auto, keep_folds.then(|| cv.fold_models()).flatten()))
 }
