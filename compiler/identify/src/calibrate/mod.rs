@@ -622,7 +622,7 @@ impl Linearised {
         let p = problem.model.len();
         let nominal_x = DVector::zeros(p);
         let nominal_state = problem.model.state(&nominal_x)?;
-        let (r0, j0) = problem.linearise(&nominal_x, &nominal_state, true);
+        let (r0, j0) = problem.linearise(&nominal_x, &nominal_state);
         if let Some((row, column)) = first_non_finite(&r0, &j0) {
             let index = row / problem.rows_per_sample;
             return Err(CalibrateError::NonFiniteModel {

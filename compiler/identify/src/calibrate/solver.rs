@@ -46,22 +46,21 @@ pub(super) struct Fit {
 }
 
 impl Problem {
-    /// The weighted residual vector and (when asked) Jacobian, all columns, of a state.
+    /// The weighted residual vector and Jacobian, all columns, of a state.
     pub(super) fn linearise(
         &self,
         x: &DVector<f64>,
         state: &State,
-        with_jacobian: bool,
     ) -> (DVector<f64>, DMatrix<f64>) {
-        let rows = self.measurements.len() * self.rows_per_sample;
-        let mut jac = DMatrix::zeros(if with_jacobian { rows } else { 0 }, self.model.len());
-        let r = self.linearise_into(x, state, with_jacobian.then_some(&mut jac));
+        let mut jac = DMatrix::zeros(0, 0);
+        let r = self.linearise_into(x, state, Some(&mut jac));
         (r, jac)
     }
 
-    /// [`Problem::linearise`], the Jacobian written over `jacobian` (every entry; its
-    /// shape is set first): a fit linearises at every step, and a fresh Jacobian of tens
-    /// of thousands of rows was zeroed and faulted in each time.
+    /// The weighted residual vector of a state and, when `jacobian` is given, its Jacobian
+    /// written over it (every entry; its shape is set first): a fit linearises at every
+    /// step, and a fresh Jacobian of tens of thousands of rows was zeroed and faulted in
+    /// each time.
     pub(super) fn linearise_into(
         &self,
         x: &DVector<f64>,
