@@ -74,6 +74,11 @@ impl Parts {
             key.push(u64::from(c[i]));
         }
     }
+
+    /// Row `i`'s orientation error (a rotation vector, rad), zero without orientations.
+    fn rotation(&self, i: usize) -> [f64; 3] {
+        self.rotation_error_rad.as_ref().map_or([0.0; 3], |r| r[i])
+    }
 }
 
 /// Running sums of one repeated pose.
@@ -86,13 +91,59 @@ struct Group {
 /// The samples of `parts`, each repeated pose folded into its first row with the mean of
 /// the repeats' errors (position errors, and rotation vectors).
 pub(crate) fn fold(parts: Parts) -> SampleSet {
+    let Some(pose_of) = first_rows_of_poses(&parts) else {
+        return SampleSet {
+            nominal_mm: parts.nominal_mm,
+            error_mm: parts.error_mm,
+            nominal_rotation: parts.nominal_rotation,
+            rotation_error_rad: parts.rotation_error_rad,
+            joints: parts.joints,
+            config: parts.config,
+            lines: parts.lines,
+            repeats: None,
+        };
+    };
+    let means = Means::of(&parts, &pose_of);
+    let report = means.spread(&parts, &pose_of);
+
+    // The first row of each pose, with its pose's mean errors.
+    let keep: Vec<usize> = (0..pose_of.len())
+        .filter(|&i| pose_of[i] as usize == i)
+        .collect();
+    let mean = |i: usize| means.of_pose(i as u32);
+    SampleSet {
+        nominal_mm: keep.iter().map(|&i| parts.nominal_mm[i]).collect(),
+        error_mm: keep
+            .iter()
+            .map(|&i| mean(i).map_or(parts.error_mm[i], |g| g.error_mm))
+            .collect(),
+        nominal_rotation: parts
+            .nominal_rotation
+            .as_ref()
+            .map(|r| keep.iter().map(|&i| r[i]).collect()),
+        rotation_error_rad: parts.rotation_error_rad.as_ref().map(|r| {
+            keep.iter()
+                .map(|&i| mean(i).map_or(r[i], |g| g.rotation_rad))
+                .collect()
+        }),
+        joints: parts.joints.as_ref().map(|j| j.subset(&keep)),
+        config: parts
+            .config
+            .as_ref()
+            .map(|c| keep.iter().map(|&i| c[i]).collect()),
+        lines: keep.iter().map(|&i| parts.lines[i]).collect(),
+        repeats: Some(report),
+    }
+}
+
+/// For each row, the first row that commands its pose; `None` when every pose is given once.
+fn first_rows_of_poses(parts: &Parts) -> Option<Vec<u32>> {
     let n = parts.nominal_mm.len();
     // Rows by a 64-bit digest of their rounded pose; rows whose digests collide but whose
     // poses differ are chained in `collisions`.
     let mut first: FxHashMap<u64, u32> = FxHashMap::default();
     first.reserve(n);
     let mut collisions: FxHashMap<u32, u32> = FxHashMap::default();
-    // `pose_of[i]`: the first row of row i's pose.
     let mut pose_of: Vec<u32> = Vec::with_capacity(n);
     // The digests, each row's alone: on the thread pool for many rows.
     let digest = |(key, bytes): &mut (Vec<u64>, Vec<u8>), i: usize| {
@@ -141,107 +192,85 @@ pub(crate) fn fold(parts: Parts) -> SampleSet {
         }
         pose_of.push(pose);
     }
-    if !repeated {
-        return SampleSet {
-            nominal_mm: parts.nominal_mm,
-            error_mm: parts.error_mm,
-            nominal_rotation: parts.nominal_rotation,
-            rotation_error_rad: parts.rotation_error_rad,
-            joints: parts.joints,
-            config: parts.config,
-            lines: parts.lines,
-            repeats: None,
-        };
-    }
+    repeated.then_some(pose_of)
+}
 
-    // Sums per repeated pose, in first-row order.
-    let mut group_of: FxHashMap<u32, usize> = FxHashMap::default();
-    let mut groups: Vec<Group> = Vec::new();
-    let rotation = |i: usize| parts.rotation_error_rad.as_ref().map_or([0.0; 3], |r| r[i]);
-    for (i, &pose) in pose_of.iter().enumerate() {
-        if pose as usize == i {
-            continue;
-        }
-        let g = *group_of.entry(pose).or_insert_with(|| {
-            let p = pose as usize;
-            groups.push(Group {
-                rows: 1,
-                error_mm: parts.error_mm[p],
-                rotation_rad: rotation(p),
+/// The mean errors of each repeated pose, in first-row order.
+struct Means {
+    /// A repeated pose's first row → its index in `groups`.
+    group_of: FxHashMap<u32, usize>,
+    groups: Vec<Group>,
+}
+
+impl Means {
+    fn of(parts: &Parts, pose_of: &[u32]) -> Means {
+        let mut group_of: FxHashMap<u32, usize> = FxHashMap::default();
+        let mut groups: Vec<Group> = Vec::new();
+        for (i, &pose) in pose_of.iter().enumerate() {
+            if pose as usize == i {
+                continue;
+            }
+            let g = *group_of.entry(pose).or_insert_with(|| {
+                let p = pose as usize;
+                groups.push(Group {
+                    rows: 1,
+                    error_mm: parts.error_mm[p],
+                    rotation_rad: parts.rotation(p),
+                });
+                groups.len() - 1
             });
-            groups.len() - 1
-        });
-        let group = &mut groups[g];
-        group.rows += 1;
-        let (e, r) = (parts.error_mm[i], rotation(i));
-        for a in 0..3 {
-            group.error_mm[a] += e[a];
-            group.rotation_rad[a] += r[a];
+            let group = &mut groups[g];
+            group.rows += 1;
+            let (e, r) = (parts.error_mm[i], parts.rotation(i));
+            for a in 0..3 {
+                group.error_mm[a] += e[a];
+                group.rotation_rad[a] += r[a];
+            }
         }
-    }
-    for g in &mut groups {
-        let k = g.rows as f64;
-        g.error_mm = g.error_mm.map(|v| v / k);
-        g.rotation_rad = g.rotation_rad.map(|v| v / k);
-    }
-    // The spread about the means.
-    let distance = |a: [f64; 3], b: [f64; 3]| {
-        let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-    };
-    let (mut position_max, mut position_sq, mut rotation_max, mut rotation_sq) =
-        (0.0f64, 0.0, 0.0f64, 0.0);
-    let mut rows = 0usize;
-    for (i, &pose) in pose_of.iter().enumerate() {
-        if let Some(&g) = group_of.get(&pose) {
-            let d = distance(parts.error_mm[i], groups[g].error_mm);
-            let r = distance(rotation(i), groups[g].rotation_rad);
-            position_max = position_max.max(d);
-            position_sq += d * d;
-            rotation_max = rotation_max.max(r);
-            rotation_sq += r * r;
-            rows += 1;
+        for g in &mut groups {
+            let k = g.rows as f64;
+            g.error_mm = g.error_mm.map(|v| v / k);
+            g.rotation_rad = g.rotation_rad.map(|v| v / k);
         }
+        Means { group_of, groups }
     }
-    let orientation = parts.rotation_error_rad.is_some();
-    let report = RepeatReport {
-        poses: groups.len(),
-        rows,
-        max_rows_per_pose: groups.iter().map(|g| g.rows).max().unwrap_or(0),
-        position_max_mm: position_max,
-        position_rms_mm: (position_sq / rows as f64).sqrt(),
-        orientation_max_mrad: orientation.then_some(rotation_max * 1e3),
-        orientation_rms_mrad: orientation.then(|| (rotation_sq / rows as f64).sqrt() * 1e3),
-    };
 
-    // The first row of each pose, with its pose's mean errors.
-    let keep: Vec<usize> = (0..n).filter(|&i| pose_of[i] as usize == i).collect();
-    let mean = |i: usize| group_of.get(&(i as u32)).map(|&g| &groups[g]);
-    let mut set = SampleSet {
-        nominal_mm: keep.iter().map(|&i| parts.nominal_mm[i]).collect(),
-        error_mm: keep
-            .iter()
-            .map(|&i| mean(i).map_or(parts.error_mm[i], |g| g.error_mm))
-            .collect(),
-        nominal_rotation: parts
-            .nominal_rotation
-            .as_ref()
-            .map(|r| keep.iter().map(|&i| r[i]).collect()),
-        rotation_error_rad: parts.rotation_error_rad.as_ref().map(|r| {
-            keep.iter()
-                .map(|&i| mean(i).map_or(r[i], |g| g.rotation_rad))
-                .collect()
-        }),
-        joints: parts.joints.as_ref().map(|j| j.subset(&keep)),
-        config: parts
-            .config
-            .as_ref()
-            .map(|c| keep.iter().map(|&i| c[i]).collect()),
-        lines: keep.iter().map(|&i| parts.lines[i]).collect(),
-        repeats: None,
-    };
-    set.repeats = Some(report);
-    set
+    /// The mean of the pose whose first row is `pose`, if it is repeated.
+    fn of_pose(&self, pose: u32) -> Option<&Group> {
+        self.group_of.get(&pose).map(|&g| &self.groups[g])
+    }
+
+    /// The spread of the repeats about their means.
+    fn spread(&self, parts: &Parts, pose_of: &[u32]) -> RepeatReport {
+        let distance = |a: [f64; 3], b: [f64; 3]| {
+            let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+        };
+        let (mut position_max, mut position_sq, mut rotation_max, mut rotation_sq) =
+            (0.0f64, 0.0, 0.0f64, 0.0);
+        let mut rows = 0usize;
+        for (i, &pose) in pose_of.iter().enumerate() {
+            if let Some(g) = self.of_pose(pose) {
+                let d = distance(parts.error_mm[i], g.error_mm);
+                let r = distance(parts.rotation(i), g.rotation_rad);
+                position_max = position_max.max(d);
+                position_sq += d * d;
+                rotation_max = rotation_max.max(r);
+                rotation_sq += r * r;
+                rows += 1;
+            }
+        }
+        let orientation = parts.rotation_error_rad.is_some();
+        RepeatReport {
+            poses: self.groups.len(),
+            rows,
+            max_rows_per_pose: self.groups.iter().map(|g| g.rows).max().unwrap_or(0),
+            position_max_mm: position_max,
+            position_rms_mm: (position_sq / rows as f64).sqrt(),
+            orientation_max_mrad: orientation.then_some(rotation_max * 1e3),
+            orientation_rms_mrad: orientation.then(|| (rotation_sq / rows as f64).sqrt() * 1e3),
+        }
+    }
 }
 
 #[cfg(test)]
