@@ -310,3 +310,90 @@ fn a_stream_too_large_is_refused_with_its_count() {
     );
     assert!(!d.join("o.json").exists());
 }
+
+/// A hybrid table's correction needs the joints, which neither measured cycles nor a
+/// tracker stream carry: both reductions refuse it, naming the table and why, and write
+/// no JSON.
+#[test]
+fn a_hybrid_table_is_refused_by_both_reductions() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let hybrid = crate::common::repo("tables/compat/v4/ur5_hybrid.tbl");
+    let hybrid = hybrid.to_str().unwrap();
+    run(
+        &[
+            "iso9283",
+            "--cube",
+            "400,0,400,100",
+            "--path-plan",
+            "-o",
+            "paths.csv",
+        ],
+        d,
+    );
+    let plan = std::fs::read_to_string(d.join("paths.csv")).unwrap();
+    let paths = parse_command(plan.as_bytes(), "paths.csv").unwrap();
+    std::fs::write(d.join("stream.csv"), stream(&paths[..1], |_| quiet(2))).unwrap();
+    run(
+        &[
+            "iso9283",
+            "--cube",
+            "400,0,400,100",
+            "--cycles",
+            "2",
+            "-o",
+            "plan.csv",
+        ],
+        d,
+    );
+    let plan = std::fs::read_to_string(d.join("plan.csv")).unwrap();
+    let mut cycles = String::new();
+    for line in plan.lines().filter(|l| !l.starts_with('#')) {
+        match line.starts_with("position") {
+            true => cycles.push_str(&format!("{line},mx,my,mz\n")),
+            false => {
+                let xyz: Vec<&str> = line.split(',').skip(2).take(3).collect();
+                cycles.push_str(&format!("{line},{}\n", xyz.join(",")));
+            }
+        }
+    }
+    std::fs::write(d.join("cycles.csv"), cycles).unwrap();
+    for (args, lacking) in [
+        (
+            &[
+                "iso9283",
+                "cycles.csv",
+                "--table",
+                hybrid,
+                "--json",
+                "out.json",
+            ][..],
+            "which cycles do not carry",
+        ),
+        (
+            &[
+                "iso9283",
+                "--path",
+                "stream.csv",
+                "--command",
+                "paths.csv",
+                "--table",
+                hybrid,
+                "--json",
+                "out.json",
+            ][..],
+            "which a tracker stream does not carry",
+        ),
+    ] {
+        let o = tablec(args, d);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!(
+                "{hybrid} is a hybrid table: its correction needs joint values, {lacking}"
+            )),
+            "{args:?}: {err}"
+        );
+        assert!(!d.join("out.json").exists(), "{args:?}");
+    }
+}

@@ -10,7 +10,7 @@ use adwi_measure::iso9283::{
 };
 use adwi_measure::path::{self, read_command, read_stream, MeasuredPath, PathReport};
 use adwi_output::OutputPlan;
-use adwi_runtime::Status;
+use adwi_runtime::{Correction, Status};
 use serde::Deserialize;
 
 use crate::args::{parse_number_list, parse_triple};
@@ -649,20 +649,8 @@ impl Iso9283Job {
                 let compensated = match table.as_deref() {
                     Some((tpath, table)) => {
                         let paths = path::compensated(&paths, |c| {
-                            let q = table.query(c);
-                            match q.status {
-                                Status::Ok => Ok(q.position_error_mm),
-                                Status::MissingJoints => Err(format!(
-                                    "{} is a hybrid table: its correction needs joint values, \
-                                     which a tracker stream does not carry",
-                                    tpath.display()
-                                )),
-                                s => Err(format!(
-                                    "{} gives no correction at the commanded point {c:?} mm: {}",
-                                    tpath.display(),
-                                    s.as_str()
-                                )),
-                            }
+                            correction(tpath, table, c, "a tracker stream does not carry", "point")
+                                .map(|q| q.position_error_mm)
                         })
                         .map_err(path_error)?;
                         Some(finite_path(
@@ -671,36 +659,30 @@ impl Iso9283Job {
                     }
                     None => None,
                 };
-                let mut contents: Vec<(PathBuf, Vec<u8>)> = Vec::new();
-                if let Some(p) = &args.json {
-                    let json = serde_json::json!({
-                        "paths": report.paths,
-                        "notes": report.notes,
-                        "compensated": compensated,
-                    });
-                    let text = serde_json::to_string_pretty(&json)
-                        .map_err(|e| JobError::NonFinite(e.to_string()))?;
-                    contents.push((p.clone(), text.into_bytes()));
-                }
-                if let Some(dir) = &args.report {
-                    let page = adwi_eval::report::iso9283::path_html(
-                        &report,
-                        compensated.as_ref(),
-                        &command_line(&args),
-                    );
-                    contents.push((dir.join("index.html"), page.into_bytes()));
-                }
-                let borrowed: Vec<(&Path, &[u8])> = contents
-                    .iter()
-                    .map(|(p, b)| (p.as_path(), &b[..]))
-                    .collect();
-                outputs.write(&borrowed)?;
+                let written = write_reduction(
+                    &args,
+                    &outputs,
+                    || {
+                        serde_json::json!({
+                            "paths": report.paths,
+                            "notes": report.notes,
+                            "compensated": compensated,
+                        })
+                    },
+                    || {
+                        adwi_eval::report::iso9283::path_html(
+                            &report,
+                            compensated.as_ref(),
+                            &command_line(&args),
+                        )
+                    },
+                )?;
                 Ok(Iso9283Result {
                     report: None,
                     compensated: None,
                     path: Some(report),
                     path_compensated: compensated,
-                    written: contents.into_iter().map(|(p, _)| p).collect(),
+                    written,
                     path_plan: false,
                 })
             }
@@ -712,54 +694,40 @@ impl Iso9283Job {
                 let compensated = match table.as_deref() {
                     Some((path, table)) => {
                         let rows = compensated(&rows, |row| {
-                            let c = table.query(row.commanded_mm);
-                            match c.status {
-                                Status::Ok => Ok((c.position_error_mm, c.orientation_error_rad)),
-                                Status::MissingJoints => Err(format!(
-                                    "{} is a hybrid table: its correction needs joint values, \
-                                     which cycles do not carry",
-                                    path.display()
-                                )),
-                                s => Err(format!(
-                                    "{} gives no correction at the commanded position {:?} mm: {}",
-                                    path.display(),
-                                    row.commanded_mm,
-                                    s.as_str()
-                                )),
-                            }
+                            correction(
+                                path,
+                                table,
+                                row.commanded_mm,
+                                "cycles do not carry",
+                                "position",
+                            )
+                            .map(|c| (c.position_error_mm, c.orientation_error_rad))
                         })
                         .map_err(measure_error)?;
                         Some(finite(reduce(&rows)?)?)
                     }
                     None => None,
                 };
-                let mut contents: Vec<(PathBuf, Vec<u8>)> = Vec::new();
-                if let Some(path) = &args.json {
-                    let json = serde_json::json!({
-                        "positions": report.positions,
-                        "distance": report.distance,
-                        "orientation_convention": report.orientation_convention,
-                        "notes": report.notes,
-                        "compensated": compensated,
-                    });
-                    let text = serde_json::to_string_pretty(&json)
-                        .map_err(|e| JobError::NonFinite(e.to_string()))?;
-                    contents.push((path.clone(), text.into_bytes()));
-                }
-                if let Some(dir) = &args.report {
-                    let page = adwi_eval::report::iso9283::html(
-                        &report,
-                        compensated.as_ref(),
-                        &command_line(&args),
-                    );
-                    contents.push((dir.join("index.html"), page.into_bytes()));
-                }
-                let borrowed: Vec<(&Path, &[u8])> = contents
-                    .iter()
-                    .map(|(p, b)| (p.as_path(), &b[..]))
-                    .collect();
-                outputs.write(&borrowed)?;
-                let written = contents.into_iter().map(|(p, _)| p).collect();
+                let written = write_reduction(
+                    &args,
+                    &outputs,
+                    || {
+                        serde_json::json!({
+                            "positions": report.positions,
+                            "distance": report.distance,
+                            "orientation_convention": report.orientation_convention,
+                            "notes": report.notes,
+                            "compensated": compensated,
+                        })
+                    },
+                    || {
+                        adwi_eval::report::iso9283::html(
+                            &report,
+                            compensated.as_ref(),
+                            &command_line(&args),
+                        )
+                    },
+                )?;
                 Ok(Iso9283Result {
                     report: Some(report),
                     compensated,
@@ -771,6 +739,56 @@ impl Iso9283Job {
             }
         }
     }
+}
+
+/// The table's correction at a commanded position (mm), or why it gives none: `lacking`
+/// says what carries the positions without joints (a hybrid table needs them), `what` the
+/// kind of position.
+fn correction(
+    path: &Path,
+    table: &adwi_runtime::Table<memmap2::Mmap>,
+    commanded_mm: [f64; 3],
+    lacking: &str,
+    what: &str,
+) -> Result<Correction, String> {
+    let c = table.query(commanded_mm);
+    match c.status {
+        Status::Ok => Ok(c),
+        Status::MissingJoints => Err(format!(
+            "{} is a hybrid table: its correction needs joint values, which {lacking}",
+            path.display()
+        )),
+        s => Err(format!(
+            "{} gives no correction at the commanded {what} {commanded_mm:?} mm: {}",
+            path.display(),
+            s.as_str()
+        )),
+    }
+}
+
+/// Writes a reduction's `--json` and `--report` page, whichever were asked for, together
+/// (none is written if one fails); the files written.
+fn write_reduction(
+    args: &Iso9283Args,
+    outputs: &OutputPlan,
+    json: impl FnOnce() -> serde_json::Value,
+    page: impl FnOnce() -> String,
+) -> Result<Vec<PathBuf>, JobError> {
+    let mut contents: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&json())
+            .map_err(|e| JobError::NonFinite(e.to_string()))?;
+        contents.push((path.clone(), text.into_bytes()));
+    }
+    if let Some(dir) = &args.report {
+        contents.push((dir.join("index.html"), page().into_bytes()));
+    }
+    let borrowed: Vec<(&Path, &[u8])> = contents
+        .iter()
+        .map(|(p, b)| (p.as_path(), &b[..]))
+        .collect();
+    outputs.write(&borrowed)?;
+    Ok(contents.into_iter().map(|(p, _)| p).collect())
 }
 
 #[cfg(test)]
