@@ -136,7 +136,8 @@ pub struct AdwiCorrection {
     /// table's residual field, wholly, in part or not at all; 0 for a position-only table).
     pub residual: i32,
     /// [`crate::Evidence`] as bits: 0 within the samples' evidence, bit 0 (1) an
-    /// orientation the samples never had, bit 1 (2) a TCP the table cannot place. Also
+    /// orientation the samples never had, bit 1 (2) a TCP the table cannot place, bit 2
+    /// (4) a joint beyond the angles its model terms were identified over. Also
     /// the struct's tail, so that it has no padding (every byte written, outputs
     /// comparable with `memcmp`).
     pub evidence: u32,
