@@ -543,3 +543,91 @@ fn the_version_4_table_opens_and_gives_its_recorded_answers() {
         "the model's orientation error",
     );
 }
+
+/// `tables/compat/v6/README.md`'s answers: served and exact position errors (mm) and the
+/// served orientation error (rad) at the first three random UR5 poses.
+const V6_ANSWERS: [([f64; 3], [f64; 3], [f64; 3]); 3] = [
+    (
+        [-2.449057494, -0.397001820, -0.673431153],
+        [-2.433766034, -0.412719148, -0.671846109],
+        [0.010788687, 0.003942924, 0.001982701],
+    ),
+    (
+        [-2.664131701, -0.083651455, -0.683472288],
+        [-2.654528067, -0.051653353, -0.706373889],
+        [0.010471115, 0.005183879, 0.000699181],
+    ),
+    (
+        [-2.517010377, -0.264581274, -0.517458894],
+        [-2.519596322, -0.260461172, -0.506034363],
+        [0.009071594, 0.008264316, 0.002649263],
+    ),
+];
+
+/// The version-6 fixture opens, records the angles its samples span, gives its recorded
+/// answers within them from both tiers, and beyond them fades its residual: with the
+/// wrist's last joint turned 1.5° past the samples' range (its TCP still in the grid) the
+/// answer is faded, 10° past it is the model's alone.
+#[test]
+fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
+    let path = root().join("tables/compat/v6/ur5_hybrid.tbl");
+    // SAFETY: a committed fixture, not modified while the test runs.
+    let table = unsafe { Table::open(&path) }.unwrap();
+    assert_eq!(table.header().version, 6);
+    let model = table.model().unwrap();
+    assert!(model.bounds_residual() && model.joint_terms().is_none());
+    let points = read_samples(
+        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
+        &ColumnMap::parse(
+            "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
+             j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6",
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    for (i, (served, exact, rotation)) in V6_ANSWERS.iter().enumerate() {
+        let q = points.joints_rad(i).unwrap();
+        let target = Target::at(points.nominal_mm[i]);
+        let s = table.query_with_joints(&target, q);
+        let e = table.exact().query_with_joints(&target, q);
+        assert_eq!((s.residual, e.residual), (Residual::Full, Residual::Full));
+        for a in 0..3 {
+            // Recorded to 9 decimals.
+            assert!(
+                (s.position_error_mm[a] - served[a]).abs() < 1e-9,
+                "{i}: {s:?}"
+            );
+            assert!(
+                (e.position_error_mm[a] - exact[a]).abs() < 1e-9,
+                "{i}: {e:?}"
+            );
+            let r = s.orientation_error_rad[a];
+            assert!((r - rotation[a]).abs() < 1e-9, "{i}: {s:?}");
+        }
+    }
+    // `tablec inspect` shows the ranges.
+    let o = crate::common::tablec(&["inspect", path.to_str().unwrap()], &root());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("residual joints j1 [-24.4, 56.5], j2 [-105.0, -25.5], j3 [30.1, 140.4]"),
+        "{out}"
+    );
+    let [_, hi] = model.joint_terms().range_rad[5];
+    for (past_deg, residual) in [(1.5, Residual::Faded), (10.0, Residual::ModelOnly)] {
+        let mut q = points.joints_rad(0).unwrap().to_vec();
+        q[5] = hi + f64::to_radians(past_deg);
+        let target = Target::at(model.nominal().tcp_pose(&q).unwrap().translation_mm);
+        for c in [
+            table.query_with_joints(&target, &q),
+            table.exact().query_with_joints(&target, &q),
+        ] {
+            assert_eq!((c.status, c.residual), (Status::Ok, residual), "{c:?}");
+            if residual == Residual::ModelOnly {
+                let (model_mm, _) = model.error(&q).unwrap();
+                for (got, want) in c.position_error_mm.iter().zip(model_mm) {
+                    assert!((got - want).abs() < 1e-9, "{c:?}");
+                }
+            }
+        }
+    }
+}

@@ -98,10 +98,10 @@ fn the_version_5_table_opens_and_gives_its_recorded_answers() {
     }
 }
 
-/// Built without terms, a hybrid table is written as before (version 4, no flag); with
-/// `--harmonics 1` it is version 5 and its answers differ by the terms.
+/// A hybrid table is version 6 with its joint record, with terms or without: its terms
+/// zero without (`--harmonics 0`), not with `--harmonics 1`.
 #[test]
-fn only_a_model_with_terms_makes_a_version_5_table() {
+fn every_hybrid_table_is_version_6_its_terms_with_harmonics_alone() {
     let dir = std::env::temp_dir().join(format!("adwi-joint-terms-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let samples = root().join("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv");
@@ -134,7 +134,7 @@ fn only_a_model_with_terms_makes_a_version_5_table() {
         ));
     }
     std::fs::remove_dir_all(&dir).ok();
-    assert_eq!(versions, [(4, false, true), (5, true, false)]);
+    assert_eq!(versions, [(6, true, true), (6, true, false)]);
 }
 
 /// Simulates 400 random KR150-2 poses (tool turned up to 30° about random axes, so every

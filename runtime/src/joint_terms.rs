@@ -39,6 +39,16 @@ use crate::chain::{ChainError, JointKind, MAX_JOINTS};
 /// not moved far from it; beyond that the held value is no evidence of the joint's error.
 pub const TERMS_MARGIN_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
 
+/// How far beyond the angles its samples span (the recorded ranges) a revolute joint may be
+/// commanded before a version-6 hybrid table's residual has faded to zero, rad (3°). The
+/// residual is learnt in the base frame at the samples' joint angles: at a position the
+/// samples reached with the shoulder, elbow or wrist the other way, or at a joint angle no
+/// sample had, it is no evidence of the error (what depends on the joints is the model's,
+/// which carries there). It fades rather than stops, `s(1 − d / L)` with `s` the smoothstep,
+/// `d` the farthest joint's angle beyond its range and `L` this, so that the answer stays
+/// continuous in the joint values; the same margin as [`TERMS_MARGIN_RAD`].
+pub const RESIDUAL_FADE_RAD: f64 = TERMS_MARGIN_RAD;
+
 /// Coefficients per joint: `[a1, b1, a2, b2]`, rad (module docs).
 pub const COEFFICIENTS_PER_JOINT: usize = 4;
 
@@ -270,6 +280,25 @@ impl PreparedTerms {
                     .is_some_and(|(_, by)| by.is_nan() || by > TERMS_MARGIN_RAD);
         }
         beyond
+    }
+
+    /// The factor on a version-6 hybrid table's residual at commanded `q` (one angle per
+    /// joint, rad, finite): 1 while every joint is within its range around the circle
+    /// ([`beyond_range`]), then the smoothstep of `1 − d /` [`RESIDUAL_FADE_RAD`], `d` the
+    /// largest angle a joint lies beyond its range, down to 0. A joint whose range is
+    /// unbounded (a prismatic joint's) is never beyond.
+    #[inline]
+    pub(crate) fn residual_scale(&self, q: &[f64]) -> f64 {
+        let mut beyond_rad = 0.0f64;
+        for (&value, &[lo, hi]) in q.iter().zip(&self.range_rad) {
+            if let Some((_, by)) = beyond_range(value, lo, hi) {
+                beyond_rad = beyond_rad.max(by);
+            }
+        }
+        if beyond_rad == 0.0 {
+            return 1.0;
+        }
+        crate::served::smoothstep(1.0 - beyond_rad / RESIDUAL_FADE_RAD)
     }
 
     /// [`JointTerms::apply`], to the bit.

@@ -111,6 +111,9 @@ pub struct PreparedModel {
     has_terms: bool,
     /// `terms` for the query path.
     prepared_terms: PreparedTerms,
+    /// Whether the terms' ranges, the angles the samples span, bound the residual
+    /// ([`PreparedModel::residual_scale`]).
+    bounds_residual: bool,
 }
 
 impl PreparedModel {
@@ -137,6 +140,7 @@ impl PreparedModel {
             terms: JointTerms::NONE,
             prepared_terms: PreparedTerms::new(&JointTerms::NONE),
             has_terms: false,
+            bounds_residual: false,
         }
     }
 
@@ -158,6 +162,30 @@ impl PreparedModel {
     /// The calibrated chain's joint-space terms ([`JointTerms::NONE`] without).
     pub fn joint_terms(&self) -> &JointTerms {
         &self.terms
+    }
+
+    /// The model with its terms' ranges bounding the residual too (a version-6 table: the
+    /// ranges are the angles the samples span): [`PreparedModel::residual_scale`].
+    pub fn bounding_residual(mut self) -> PreparedModel {
+        self.bounds_residual = true;
+        self
+    }
+
+    /// Whether the terms' ranges bound the residual ([`PreparedModel::residual_scale`]).
+    pub fn bounds_residual(&self) -> bool {
+        self.bounds_residual
+    }
+
+    /// The factor on a hybrid table's residual at commanded `q` (rad, finite, one per
+    /// joint): 1 within the angles the samples span, fading to 0
+    /// [`crate::joint_terms::RESIDUAL_FADE_RAD`] beyond them; always 1 for a table that
+    /// does not record them (before version 6).
+    #[inline]
+    pub fn residual_scale(&self, q: &[f64]) -> f64 {
+        if !self.bounds_residual {
+            return 1.0;
+        }
+        self.prepared_terms.residual_scale(q)
     }
 
     /// Whether commanded `q` (rad) takes a joint with joint-space terms more than

@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use crate::correction::{Compensation, Correction, Evidence, Status, Target};
+use crate::correction::{Compensation, Correction, Evidence, Residual, Status, Target};
 use crate::exact::{self, V1, V2};
 use crate::format::{
     v1, v2, v3, v5, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
@@ -80,6 +80,37 @@ struct ModelPart {
     /// Whether a joint with joint-space terms is beyond the angles they were identified
     /// over ([`Evidence::JOINTS`]).
     beyond_terms: bool,
+    /// The factor on the residual: below 1 where a joint lies beyond the angles the
+    /// samples span ([`PreparedModel::residual_scale`]).
+    residual_scale: f64,
+}
+
+/// A hybrid answer's residual (its position and orientation parts, the neighbours it
+/// weighed, its flag) scaled by the model part's `scale`
+/// ([`PreparedModel::residual_scale`]): unchanged at 1, none at 0 (the model alone,
+/// [`Residual::ModelOnly`]), else scaled and at least [`Residual::Faded`].
+#[inline(always)]
+fn scaled_residual(
+    scale: f64,
+    parts: ([f64; 3], [f64; 3], u32, Residual),
+) -> ([f64; 3], [f64; 3], u32, Residual) {
+    if scale >= 1.0 {
+        return parts;
+    }
+    if scale <= 0.0 {
+        return ([0.0; 3], [0.0; 3], 0, Residual::ModelOnly);
+    }
+    let (position_mm, orientation_rad, neighbours, residual) = parts;
+    let residual = match residual {
+        Residual::Full => Residual::Faded,
+        other => other,
+    };
+    (
+        position_mm.map(|v| v * scale),
+        orientation_rad.map(|v| v * scale),
+        neighbours,
+        residual,
+    )
 }
 
 /// Whether a target's values are finite and within the plausible range: positions and
@@ -372,7 +403,13 @@ impl<D: AsRef<[u8]>> Table<D> {
                     what: "joint-space terms that do not fit the calibrated chain (non-finite, beyond 0.1 rad, on a prismatic joint or beyond the chain)",
                 };
                 let model = match (model, archived.joint_terms.to_terms()) {
-                    (Some(m), Some(terms)) => Some(m.with_joint_terms(terms).ok_or(corrupt)?),
+                    (Some(m), Some(terms)) => {
+                        let m = m.with_joint_terms(terms).ok_or(corrupt)?;
+                        Some(match header.bounds_residual_by_joints() {
+                            true => m.bounding_residual(),
+                            false => m,
+                        })
+                    }
                     _ => return Err(corrupt),
                 };
                 let posture = if header.has_posture() {
@@ -777,6 +814,21 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         if let Some(m) = &model_part {
+            let c = &mut correction;
+            (
+                c.position_error_mm,
+                c.orientation_error_rad,
+                c.neighbours,
+                c.residual,
+            ) = scaled_residual(
+                m.residual_scale,
+                (
+                    c.position_error_mm,
+                    c.orientation_error_rad,
+                    c.neighbours,
+                    c.residual,
+                ),
+            );
             for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
@@ -939,6 +991,10 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
             Err(status) => return Correction::failed(status),
         };
+        let (position_mm, orientation_rad, neighbours, residual) = scaled_residual(
+            m.residual_scale,
+            (position_mm, orientation_rad, neighbours, residual),
+        );
         // The residual plus the model, as `answer` adds them; built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
         Correction::ok_if_finite(
@@ -992,6 +1048,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             point_mm,
             lever_known: lever.is_some() || target.tcp_mm.is_none(),
             beyond_terms: model.beyond_terms(q),
+            residual_scale: model.residual_scale(q),
         })
     }
 
@@ -1215,13 +1272,123 @@ mod tests {
         Table::from_vec(crate::format::encode(header, &data).unwrap()).unwrap()
     }
 
+    /// The version-5 fixture's payload with every joint's range `[-3, 3]` rad, as three
+    /// tables: version 6 (the ranges bound the residual), the same bytes as version 5
+    /// (they do not) and version 6 with no residual (every sample's and node's error
+    /// zero: its answers are the model's alone).
+    fn bounded_fixtures() -> [Table<AlignedBytes>; 3] {
+        let path = format!(
+            "{}/../tables/compat/v5/ur5_hybrid_terms.tbl",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let file = std::fs::read(path).unwrap();
+        let payload = AlignedBytes::copy_from(&file[crate::format::HEADER_LEN..]).unwrap();
+        let mut data =
+            rkyv::from_bytes::<crate::format::v5::TableData, rkyv::rancor::Error>(&payload)
+                .unwrap();
+        for range in &mut data.joint_terms.range_rad {
+            *range = [-3.0, 3.0];
+        }
+        let header = *Table::from_vec(&file).unwrap().header();
+        let v6 = crate::format::encode_v6(header, &data, false).unwrap();
+        let mut v5 = v6.clone();
+        v5[10..12].copy_from_slice(&5u16.to_le_bytes());
+        let checksum = xxhash_rust::xxh3::xxh3_64(&v5[..248]);
+        v5[248..256].copy_from_slice(&checksum.to_le_bytes());
+        let zero = |v: &mut Vec<[f64; 3]>| v.iter_mut().for_each(|e| *e = [0.0; 3]);
+        zero(&mut data.base.errors_mm);
+        zero(&mut data.base.orientation_errors_rad);
+        zero(&mut data.base.node_errors_mm);
+        zero(&mut data.base.node_orientation_errors_rad);
+        let model_only = crate::format::encode_v6(header, &data, false).unwrap();
+        [v6, v5, model_only].map(|bytes| Table::from_vec(bytes).unwrap())
+    }
+
+    /// The factor on the residual by its definition: the largest angle any joint lies
+    /// from its range around the circle (the nearest of `q + 2πk`), through the
+    /// smoothstep of `1 − d / 3°`.
+    fn reference_scale(q: &[f64], range: [f64; 2]) -> f64 {
+        let mut worst = 0.0f64;
+        for &v in q {
+            let apart = (-3..=3)
+                .map(|k| v + f64::from(k) * std::f64::consts::TAU)
+                .map(|w| (range[0] - w).max(w - range[1]).max(0.0))
+                .fold(f64::INFINITY, f64::min);
+            worst = worst.max(apart);
+        }
+        let t = (1.0 - worst / 3f64.to_radians()).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t)
+    }
+
+    /// Beyond the angles its samples span, a version-6 table's residual fades to zero: in
+    /// both tiers' queries, at random joint values around each joint's range, its answer is the
+    /// model's plus the factor of [`reference_scale`] times the residual the same bytes
+    /// give as version 5 (within 1e-12 mm and rad), flagged full within the ranges, faded
+    /// in the fade and model-only beyond it; within them it is version 5's to the bit.
+    #[test]
+    fn beyond_the_joints_its_samples_span_the_residual_fades_to_the_model() {
+        let [bounded, unbounded, model_only] = bounded_fixtures();
+        let model = bounded.model().unwrap();
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut seen = [0usize; 3];
+        for i in 0..6_000 {
+            // Mostly within ±3 rad; one joint a few degrees either side of an end.
+            let mut q: Vec<f64> = (0..6).map(|_| -2.9 + 5.8 * next()).collect();
+            let edge = if next() < 0.5 { -3.0 } else { 3.0 };
+            q[i % 6] = edge + (next() - 0.5) * 0.15;
+            let target = Target::at(model.nominal().tcp_pose(&q).unwrap().translation_mm);
+            let s = reference_scale(&q, [-3.0, 3.0]);
+            for exact in [false, true] {
+                // The queries a controller calls: the served one takes its own path.
+                let query = |t: &Table<AlignedBytes>| match exact {
+                    false => t.query_with_joints(&target, &q),
+                    true => t.exact().query_with_joints(&target, &q),
+                };
+                let (b, u, m) = (query(&bounded), query(&unbounded), query(&model_only));
+                assert_eq!(b.status, u.status, "{q:?}");
+                if u.status != Status::Ok {
+                    continue;
+                }
+                if s == 1.0 {
+                    assert_eq!(bits(&b), bits(&u), "{q:?}");
+                    seen[0] += 1;
+                    continue;
+                }
+                let expected = |u: &[f64; 3], m: &[f64; 3], k: usize| m[k] + s * (u[k] - m[k]);
+                for k in 0..3 {
+                    let p = expected(&u.position_error_mm, &m.position_error_mm, k);
+                    let r = expected(&u.orientation_error_rad, &m.orientation_error_rad, k);
+                    assert!((b.position_error_mm[k] - p).abs() < 1e-12, "{q:?} {s}");
+                    assert!((b.orientation_error_rad[k] - r).abs() < 1e-12, "{q:?} {s}");
+                }
+                let flag = match (s, u.residual) {
+                    (0.0, _) => crate::Residual::ModelOnly,
+                    (_, crate::Residual::Full) => crate::Residual::Faded,
+                    (_, other) => other,
+                };
+                assert_eq!(b.residual, flag, "{q:?} {s}");
+                seen[if s == 0.0 { 2 } else { 1 }] += 1;
+            }
+        }
+        assert!(
+            seen.iter().all(|&n| n > 100),
+            "within, faded, beyond: {seen:?}"
+        );
+    }
+
     /// A hybrid table's served query by joint values (`query_with_joints`: its own steps,
     /// its answer built in place) answers as the general path (`answer`) to the bit,
     /// status and flags included: at random poses whose nominal TCP lies in the grid, near
     /// it (the residual fading) and far from it (the model alone), at targets moved from
     /// the TCP (beyond the joints' tolerance), with a named TCP, an orientation or a
     /// configuration, with joint values in degrees, non-finite or of another count; on
-    /// tables of format versions 1 to 5 (with joint-space terms, with a posture term,
+    /// tables of format versions 1 to 6 (with joint-space terms, with a posture term,
     /// which takes the general path) and with a field that turns with the tool, with and
     /// without orientations.
     #[test]
@@ -1232,6 +1399,7 @@ mod tests {
             fixture("v3/ur5_hybrid_posture.tbl"),
             fixture("v4/ur5_hybrid.tbl"),
             fixture("v5/ur5_hybrid_terms.tbl"),
+            bounded_fixtures().into_iter().next().unwrap(),
             tool_axis_fixture(false),
             tool_axis_fixture(true),
         ];

@@ -28,6 +28,7 @@
 //! leaves them.
 //!
 
+use adwi_runtime::chain::JointKind;
 use adwi_runtime::model::PreparedModel;
 
 use crate::build::{self, BuildError, BuildReport, Plan, ServedNodes};
@@ -91,6 +92,54 @@ pub fn compile(
     compile_serving(samples, model, plan, ServedNodes::All, progress)
 }
 
+/// `model` with its joint record's ranges the angles `samples` span, as a version-6 table
+/// records them: each revolute joint's lowest and highest commanded angle (a prismatic
+/// joint's unbounded). Beyond them the model's joint-space terms are held at the nearer end
+/// (they were identified from the same samples: the same ranges) and the table's residual
+/// fades to zero ([`adwi_runtime::joint_terms::RESIDUAL_FADE_RAD`]).
+///
+/// # Errors
+///
+/// [`BuildError::MissingJoints`] for samples without joint values,
+/// [`BuildError::JointCount`] for another count than the model's.
+pub fn bounded_by_samples(
+    model: &PreparedModel,
+    samples: &SampleSet,
+) -> Result<PreparedModel, BuildError> {
+    let joints = samples.joints.as_ref().ok_or(BuildError::MissingJoints)?;
+    let count_error = BuildError::JointCount {
+        model: model.joint_count(),
+        samples: joints.count(),
+    };
+    if joints.count() != model.joint_count() {
+        return Err(count_error);
+    }
+    let mut terms = *model.joint_terms();
+    for (j, (range, joint)) in terms
+        .range_rad
+        .iter_mut()
+        .zip(model.calibrated().joints())
+        .enumerate()
+    {
+        *range = [f64::NEG_INFINITY, f64::INFINITY];
+        if joint.kind != JointKind::Revolute {
+            continue;
+        }
+        let (lo, hi) = (0..samples.len())
+            .map(|i| joints.row(i)[j])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                (lo.min(q), hi.max(q))
+            });
+        if lo <= hi {
+            *range = [lo, hi];
+        }
+    }
+    (*model)
+        .with_joint_terms(terms)
+        .map(PreparedModel::bounding_residual)
+        .ok_or(count_error)
+}
+
 /// [`compile`] computing only the served tier's `nodes`.
 ///
 /// # Errors
@@ -103,6 +152,7 @@ pub fn compile_serving(
     nodes: ServedNodes<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
+    let model = &bounded_by_samples(model, samples)?;
     let residual = residual_samples(samples, model)?;
     // The posture term learns what the table answers at each sample: a table computing
     // only some nodes computes those that serve the samples too.

@@ -433,18 +433,14 @@ pub(crate) fn add_term(
         ..table.header
     };
     let base = table.data;
-    let bytes = if model.joint_terms().is_none() {
-        adwi_runtime::format::encode_v3(header, &v3::TableData { base, posture })
-    } else {
-        // The model's joint-space terms kept: a version-5 table with the posture term.
-        let data = adwi_runtime::format::v5::TableData {
-            base,
-            posture,
-            joint_terms: joint_terms_record(model, table.joint_count),
-        };
-        adwi_runtime::format::encode_v5(header, &data, true)
-    }
-    .map_err(|e| BuildError::Encode(e.to_string()))?;
+    // The model's joint record kept: a version-6 table with the posture term.
+    let data = adwi_runtime::format::v5::TableData {
+        base,
+        posture,
+        joint_terms: joint_terms_record(model, table.joint_count),
+    };
+    let bytes = adwi_runtime::format::encode_v6(header, &data, true)
+        .map_err(|e| BuildError::Encode(e.to_string()))?;
     Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
     let report = BuildReport {
         table_bytes: bytes.len(),

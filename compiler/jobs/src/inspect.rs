@@ -56,6 +56,10 @@ pub struct Inspected {
     pub compliance: Option<ComplianceFigures>,
     /// The calibrated model's joint-space terms, each joint that has one.
     pub joint_terms: Vec<JointTerm>,
+    /// Per joint the commanded angles the samples span, degrees, when they bound the
+    /// residual (format version 6): beyond them it fades, to none 3° past. `None` for a
+    /// joint they do not bound (a prismatic one).
+    pub residual_joint_range_deg: Option<Vec<Option<[f64; 2]>>>,
     /// The posture term of the served field, when the table has one.
     #[serde(serialize_with = "posture")]
     pub posture: Option<PostureParams>,
@@ -160,6 +164,7 @@ impl InspectJob {
             hybrid: table.is_hybrid(),
             compliance: compliance(table),
             joint_terms: joint_terms(table),
+            residual_joint_range_deg: residual_joint_range(table),
             posture: table.posture(),
             summary,
             cell: self.cell_mm.map(|p| cell_at(table, p)),
@@ -221,6 +226,16 @@ fn joint_terms(table: &Table<Mmap>) -> Vec<JointTerm> {
             range_deg: [lo.to_degrees(), hi.to_degrees()],
         })
         .collect()
+}
+
+/// The angles the samples span, degrees, where they bound the residual.
+fn residual_joint_range(table: &Table<Mmap>) -> Option<Vec<Option<[f64; 2]>>> {
+    let model = table.model().filter(|m| m.bounds_residual())?;
+    let n = table.joint_count().unwrap_or(0);
+    let ranges = model.joint_terms().range_rad[..n].iter().map(|&[lo, hi]| {
+        (lo.is_finite() && hi.is_finite()).then(|| [lo.to_degrees(), hi.to_degrees()])
+    });
+    Some(ranges.collect())
 }
 
 /// The cell holding `p`, and the exact method's neighbours there.

@@ -85,6 +85,20 @@ fn print_model(t: &Inspected) {
             term.joint, c[0], c[1], c[2], c[3],
         );
     }
+    if let Some(ranges) = &t.residual_joint_range_deg {
+        let joints: Vec<String> = ranges
+            .iter()
+            .enumerate()
+            .map(|(j, r)| match r {
+                Some([lo, hi]) => format!("j{} [{lo:.1}, {hi:.1}]", j + 1),
+                None => format!("j{} any", j + 1),
+            })
+            .collect();
+        println!(
+            "residual joints {}°: the angles the samples span; beyond them the residual fades, to none 3° past (the model alone)",
+            joints.join(", ")
+        );
+    }
 }
 
 /// What the samples span beyond their positions (format version 4): the answers beyond it

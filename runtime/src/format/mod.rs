@@ -49,7 +49,8 @@
 //! archive, and a version-2 table's cell records that open it, start on a cache line. The
 //! payloads: [`v2::TableData`] (what a query reads, and nothing else), [`v3::TableData`]
 //! (the same and a posture term, written only when the table has one: a table without is
-//! version 2, byte for byte) and the older [`v1::TableData`].
+//! version 2, byte for byte), [`v5::TableData`] (the same, a posture term or none, and the
+//! model's joint record: every hybrid table, version 6) and the older [`v1::TableData`].
 
 use rkyv::{Archive, Deserialize, Serialize};
 
@@ -66,11 +67,12 @@ pub use v1::{
 pub const MAGIC: [u8; 8] = *b"ADWITBL\0";
 /// Written as a little-endian `u16`; reading it back any other way gives `0xFFFE`.
 pub const ENDIAN_MARK: u16 = 0xFEFF;
-/// The newest format version this runtime writes: 5 for a hybrid table whose model has
-/// joint-space terms ([`encode_v5`]), else 4 for a table that records its evidence
-/// ([`Header::evidence`]), else 3 for a table with a posture term, 2 for any other
-/// ([`encode`], [`encode_v3`]).
-pub const FORMAT_VERSION: u16 = 5;
+/// The newest format version this runtime writes: 6 for a hybrid table ([`encode_v6`]:
+/// the joints the samples span bound its residual), else 4 for a table that records its
+/// evidence ([`Header::evidence`]), else 3 for a table with a posture term, 2 for any other
+/// ([`encode`], [`encode_v3`]). Version 5 (the joint record on a hybrid table whose model
+/// has joint-space terms, the residual unbounded) is read, no longer written.
+pub const FORMAT_VERSION: u16 = 6;
 /// The oldest format version this runtime reads.
 pub const OLDEST_SUPPORTED_VERSION: u16 = 1;
 /// The header's length in bytes; the payload starts here.
@@ -101,8 +103,10 @@ pub const CONTENT_MODEL: u32 = 1 << 3;
 /// Content flag: the table carries a posture term ([`crate::posture`], version 3, exactly
 /// then).
 pub const CONTENT_POSTURE: u32 = 1 << 4;
-/// Content flag: the calibrated model has joint-space terms ([`crate::joint_terms`],
-/// version 5, exactly then).
+/// Content flag: the payload holds the joint record ([`v5::TableData`]): the calibrated
+/// model's joint-space terms ([`crate::joint_terms`]) and the angles the samples span,
+/// per joint. Version 5 and 6, exactly then (version 5: a model with terms; version 6:
+/// every hybrid table, its terms zero when it has none).
 pub const CONTENT_JOINT_TERMS: u32 = 1 << 5;
 /// Every content flag this format version defines; a table naming others is refused.
 pub const CONTENT_KNOWN: u32 = CONTENT_ORIENTATION
@@ -515,9 +519,17 @@ impl Header {
     }
 
     /// Whether the payload is version 5's ([`v5::TableData`]): a model with joint-space
-    /// terms.
+    /// terms (version 5), or any hybrid table's model and the joints its samples span
+    /// (version 6).
     pub fn has_joint_terms(&self) -> bool {
         self.version >= 5 && self.content_flags & CONTENT_JOINT_TERMS != 0
+    }
+
+    /// Whether the joint record's ranges bound the residual (version 6): beyond the angles
+    /// the samples span, a hybrid table's residual fades to zero
+    /// ([`crate::joint_terms::RESIDUAL_FADE_RAD`]) and the model answers alone.
+    pub fn bounds_residual_by_joints(&self) -> bool {
+        self.version >= 6 && self.has_joint_terms()
     }
 
     /// Whether the header records what only version 4 (and 5) can hold: evidence
@@ -694,11 +706,11 @@ impl Header {
                 what: "a posture term is stored in a version-3 table, or a version-4 one",
             });
         }
-        // Joint-space terms came with version 5, and version 5 is a table with them.
+        // The joint record came with version 5, and versions 5 and 6 are tables with it.
         let terms = u32_at(20) & CONTENT_JOINT_TERMS != 0;
-        if terms != (version == 5) {
+        if terms != (version >= 5) {
             return Err(OpenError::Corrupt {
-                what: "joint-space terms are stored in a version-5 table, and only there",
+                what: "the joint record is stored in a version-5 or 6 table, and only there",
             });
         }
         if terms && u32_at(20) & CONTENT_MODEL == 0 {
@@ -925,10 +937,11 @@ pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rk
     with_header(header, version, data)
 }
 
-/// Serialises a version-5 table (a hybrid table whose model has joint-space terms) as
-/// [`encode`] a version-2 one; the header's [`CONTENT_JOINT_TERMS`] flag is set, and
+/// Serialises a version-6 table (a hybrid table: its model's joint-space terms, zero when
+/// it has none, and the angles its samples span, which bound its residual) as [`encode`] a
+/// version-2 one; the header's [`CONTENT_JOINT_TERMS`] flag is set, and
 /// [`CONTENT_POSTURE`] when `posture_term` (else `data.posture` is not read).
-pub fn encode_v5(
+pub fn encode_v6(
     mut header: Header,
     data: &v5::TableData,
     posture_term: bool,
@@ -939,7 +952,7 @@ pub fn encode_v5(
     } else {
         header.content_flags &= !CONTENT_POSTURE;
     }
-    with_header(header, 5, data)
+    with_header(header, 6, data)
 }
 
 /// The table file of `data` at `version`: the header, with its lengths and checksums,

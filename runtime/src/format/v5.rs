@@ -1,17 +1,20 @@
-//! Version 5 of the payload: a hybrid table whose calibrated model has joint-space terms
-//! ([`crate::joint_terms`]).
+//! The joint record's payload, of versions 5 and 6: a hybrid table's calibrated model's
+//! joint-space terms ([`crate::joint_terms`]) and the angles its samples span.
 //!
-//! Written only for a table that carries them (content flag
-//! [`CONTENT_JOINT_TERMS`](super::CONTENT_JOINT_TERMS)); a table without is written as
-//! before, byte for byte. The version-2 part comes first, archived unchanged, then the
-//! posture term (empty, and never read, without the content flag
-//! [`CONTENT_POSTURE`](super::CONTENT_POSTURE)), then the terms.
+//! Version 5 was written for a hybrid table whose model has terms (a table without was
+//! version 2 to 4), and its ranges hold the terms alone. Version 6 is written for every
+//! hybrid table (its terms zero when it has none), and its ranges also bound the residual:
+//! beyond them it fades to zero ([`crate::joint_terms::RESIDUAL_FADE_RAD`]). Content flag
+//! [`CONTENT_JOINT_TERMS`](super::CONTENT_JOINT_TERMS) in both. The version-2 part comes
+//! first, archived unchanged, then the posture term (empty, and never read, without the
+//! content flag [`CONTENT_POSTURE`](super::CONTENT_POSTURE)), then the record.
 //!
 //! | field | per | bytes | read by |
 //! |---|---|---:|---|
 //! | `base` | table | — | everything a version-2 table holds, read as one ([`super::v2`]) |
 //! | `posture` | table | — | a posture term, as version 3 holds it ([`super::v3`]) |
 //! | `joint_terms.coefficients_rad` | joint | 32 | both tiers: the calibrated chain's joint-space terms `[a1, b1, a2, b2]`, rad |
+//! | `joint_terms.range_rad` | joint | 16 | both tiers: the commanded angles the samples span, `[lowest, highest]`, rad (a revolute joint's; unbounded, `[−∞, +∞]`, for a prismatic one in version 6): the terms are held beyond them; in version 6 the residual fades |
 
 use rkyv::{Archive, Deserialize, Serialize};
 
@@ -37,9 +40,10 @@ pub struct TableData {
 pub struct JointTermsRecord {
     /// Per joint `[a1, b1, a2, b2]`, rad ([`crate::joint_terms`]).
     pub coefficients_rad: Vec<[f64; COEFFICIENTS_PER_JOINT]>,
-    /// Per joint the commanded angles the terms were identified over, `[lowest,
-    /// highest]`, rad: beyond them a term is held at the end nearer around the circle
-    /// ([`crate::joint_terms::beyond_range`]).
+    /// Per joint the commanded angles the samples span (the terms were identified over
+    /// them), `[lowest, highest]`, rad: beyond them a term is held at the end nearer around
+    /// the circle ([`crate::joint_terms::beyond_range`]), and in version 6 the residual
+    /// fades.
     pub range_rad: Vec<[f64; 2]>,
 }
 

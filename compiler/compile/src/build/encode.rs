@@ -317,23 +317,23 @@ fn header(
     }
 }
 
-/// The table's bytes: a version-5 payload for a model with joint-space terms, else the
-/// version-2 one (version 4 when the header records evidence or a merge); opened once as
-/// the runtime will, so that a table the runtime refuses is never written.
+/// The table's bytes: a version-6 payload for a hybrid table (its model's joint record),
+/// else the version-2 one (version 4 when the header records evidence or a merge); opened
+/// once as the runtime will, so that a table the runtime refuses is never written.
 fn encode(
     header: Header,
     data: v2::TableData,
     model: Option<&PreparedModel>,
     joint_count: usize,
 ) -> Result<(Vec<u8>, v2::TableData), BuildError> {
-    let (bytes, data) = match model.filter(|m| !m.joint_terms().is_none()) {
+    let (bytes, data) = match model {
         Some(m) => {
             let data = format::v5::TableData {
                 base: data,
                 joint_terms: joint_terms_record(m, joint_count),
                 ..format::v5::TableData::default()
             };
-            (format::encode_v5(header, &data, false), data.base)
+            (format::encode_v6(header, &data, false), data.base)
         }
         None => (format::encode(header, &data), data),
     };
@@ -348,7 +348,9 @@ fn encode(
     Ok((bytes, data))
 }
 
-/// The model's joint-space terms as a version-5 table records them.
+/// The model's joint record as a version-6 table holds it: its joint-space terms (zero
+/// when it has none) and their ranges, the angles the samples span
+/// ([`crate::hybrid::bounded_by_samples`]).
 pub(crate) fn joint_terms_record(
     model: &PreparedModel,
     joint_count: usize,

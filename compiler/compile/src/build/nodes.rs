@@ -645,7 +645,8 @@ mod tests {
         for _ in 0..150 {
             let (q, p) = pose();
             let e = [0, 1, 2].map(|a| 0.3 + 0.2 * (p[a] / 200.0).sin() + 0.01 * q[a]);
-            let q: Vec<String> = q.iter().map(f64::to_string).collect();
+            // The samples' joint columns are in degrees.
+            let q: Vec<String> = q.iter().map(|v| v.to_degrees().to_string()).collect();
             csv += &format!(
                 "{},{},{},{},{},{},{}\n",
                 p[0],
