@@ -8,6 +8,13 @@
 //!   nominal TCP lies in the grid: the model part, the checks, the evidence flag, the
 //!   cell's 8 nodes and the last guard;
 //! - `served/hybrid_exact`: the same queries by the exact tier (`Table::exact`);
+//! - `served/hybrid_v6`: the same queries of the version-6 fixture
+//!   (`tables/compat/v6/ur5_hybrid.tbl`, the same table with the joints its samples span,
+//!   which bound its residual): most of these poses lie beyond them, where the residual
+//!   fades to the model;
+//! - `served/hybrid_within` and `served/hybrid_within_v6`: both tables at random joint
+//!   poses within the angles the samples span (the poses a controller commands where the
+//!   table was measured), the version-6 one checking them;
 //! - `served/position_only`: `Table::query_target` of the version-2 position-only table
 //!   (`tables/compat/v2/worked_example.tbl`) at random targets in its covered cells;
 //! - `served/position_only_exact`: the same targets by the exact tier: the cell's
@@ -52,6 +59,25 @@ fn bench(c: &mut Criterion) {
             poses.push((target, q));
         }
     }
+    let bounded = table("v6/ur5_hybrid.tbl");
+    let ranges = bounded
+        .model()
+        .expect("a hybrid table")
+        .joint_terms()
+        .range_rad;
+    let mut within: Vec<(Target, [f64; 6])> = Vec::new();
+    while within.len() < 1024 {
+        let q: [f64; 6] = std::array::from_fn(|j| {
+            ranges[j][0] + (ranges[j][1] - ranges[j][0]) * uniform(&mut state)
+        });
+        let tcp = nominal.tcp_pose(&q).expect("six joints").translation_mm;
+        let target = Target::at(tcp);
+        if bounded.query_with_joints(&target, &q).status == Status::Ok
+            && bounded.grid().cell_of(tcp).is_some()
+        {
+            within.push((target, q));
+        }
+    }
     let position_only = table("v2/worked_example.tbl");
     let grid = *position_only.grid();
     let (lo, hi) = (grid.origin_mm, grid.max_mm());
@@ -79,6 +105,19 @@ fn bench(c: &mut Criterion) {
             hybrid.exact().query_with_joints(target, q)
         })
     });
+    for (name, table, poses) in [
+        ("hybrid_v6", &bounded, &poses),
+        ("hybrid_within", &hybrid, &within),
+        ("hybrid_within_v6", &bounded, &within),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                i = (i + 1) % poses.len();
+                let (target, q) = black_box(&poses[i]);
+                table.query_with_joints(target, q)
+            })
+        });
+    }
     group.bench_function("position_only", |b| {
         b.iter(|| {
             i = (i + 1) % targets.len();

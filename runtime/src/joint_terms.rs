@@ -80,6 +80,23 @@ pub fn beyond_range(q: f64, lo: f64, hi: f64) -> Option<(bool, f64)> {
     }
 }
 
+/// How far commanded angle `q` (rad, finite) lies beyond `[lo, hi]` around the circle,
+/// rad: 0 within (or for a range of a whole turn or more, or an unbounded one), else the
+/// shorter way to the nearer end, at most π: [`beyond_range`]'s distance to rounding, for
+/// the query path. Without a branch, which random joint values would mispredict half the
+/// time, and without the exact remainder `beyond_range` takes (a library call): the angle
+/// from the range's middle brought within ±π by the nearest whole number of turns, found
+/// by truncating `d / 2π ± ½` to an integer (saturating beyond 2⁶³ turns, where the angle
+/// stays far beyond). An unbounded range's middle is NaN, and so is `d`: `max` gives 0.
+#[inline(always)]
+pub(crate) fn angle_beyond(q: f64, lo: f64, hi: f64) -> f64 {
+    use std::f64::consts::TAU;
+    let half = 0.5 * (hi - lo);
+    let d = q - (lo + half);
+    let turns = (d * (1.0 / TAU) + 0.5f64.copysign(d)) as i64 as f64;
+    ((d - turns * TAU).abs() - half).max(0.0)
+}
+
 /// The largest coefficient a table may carry, rad (0.1 rad, 5.7°): a calibration holds
 /// anything beyond a few mrad as implausible, and a term this large is no small error.
 pub const MAX_COEFFICIENT_RAD: f64 = 0.1;
@@ -289,11 +306,18 @@ impl PreparedTerms {
     /// unbounded (a prismatic joint's) is never beyond.
     #[inline]
     pub(crate) fn residual_scale(&self, q: &[f64]) -> f64 {
+        // Every joint within its range as written, tested without a branch a joint: the
+        // one branch then goes the way a controller's queries mostly go.
+        let mut within = true;
+        for (&value, &[lo, hi]) in q.iter().zip(&self.range_rad) {
+            within &= (value >= lo) & (value <= hi);
+        }
+        if within {
+            return 1.0;
+        }
         let mut beyond_rad = 0.0f64;
         for (&value, &[lo, hi]) in q.iter().zip(&self.range_rad) {
-            if let Some((_, by)) = beyond_range(value, lo, hi) {
-                beyond_rad = beyond_rad.max(by);
-            }
+            beyond_rad = beyond_rad.max(angle_beyond(value, lo, hi));
         }
         if beyond_rad == 0.0 {
             return 1.0;
@@ -357,6 +381,37 @@ impl Default for JointTerms {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The query path's distance beyond a range is `beyond_range`'s, to 1e-12 rad, at
+    /// angles within and beyond ranges of every width, a few turns away either side, and
+    /// at the ends themselves.
+    #[test]
+    fn the_angle_beyond_a_range_is_beyond_ranges_distance() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for i in 0..200_000 {
+            let lo = -7.0 + 14.0 * next();
+            let hi = lo + 7.0 * next() * next();
+            let q = match i % 5 {
+                0 => lo,
+                1 => hi,
+                _ => -30.0 + 60.0 * next(),
+            };
+            let reference = beyond_range(q, lo, hi).map_or(0.0, |(_, by)| by);
+            let fast = angle_beyond(q, lo, hi);
+            assert!(
+                (fast - reference).abs() < 1e-12,
+                "{q} [{lo}, {hi}]: {fast} vs {reference}"
+            );
+        }
+        assert!(angle_beyond(1e300, -1.0, 1.0) > 0.0);
+        assert_eq!(angle_beyond(5.0, f64::NEG_INFINITY, f64::INFINITY), 0.0);
+    }
 
     #[test]
     fn the_offset_is_the_two_harmonics_of_the_commanded_angle() {

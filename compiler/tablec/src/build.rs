@@ -299,7 +299,8 @@ fn print_served_choice(auto: &adwi_jobs::choice::AutoServedField) {
                 w.splits
             )
         };
-        let why = if w.weight < 1.0 {
+        // Said of the weight as printed: one that rounds to 1.000 keeps the whole field.
+        let why = if w.weight < 0.9995 {
             "the field is faded toward the model alone where it does not carry"
         } else {
             "the whole field carries"
