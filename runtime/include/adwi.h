@@ -117,8 +117,9 @@ enum {
  * residual flag"). */
 enum {
     ADWI_RESIDUAL_FULL = 0,      /* all of it (every position-only table's answer) */
-    ADWI_RESIDUAL_FADED = 1,     /* part of it: a cell corner without a value, or outside
-                                    the grid within the fade length */
+    ADWI_RESIDUAL_FADED = 1,     /* part of it: a cell corner without a value, outside
+                                    the grid within the fade length, or (version 6) a
+                                    joint within 3 degrees beyond the samples' angles */
     ADWI_RESIDUAL_MODEL_ONLY = 2 /* none: the calibrated model alone */
 };
 

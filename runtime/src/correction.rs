@@ -62,11 +62,14 @@ pub enum Residual {
     /// tier: the method answered). Also what a failed query carries (all fields zero).
     #[default]
     Full = 0,
-    /// Part of it: a corner without a value contributed zero, or the target is outside
-    /// the grid within the fade length, where the residual is scaled down.
+    /// Part of it: a corner without a value contributed zero, the target is outside the
+    /// grid within the fade length, or (format version 6) a joint lies within
+    /// [`crate::joint_terms::RESIDUAL_FADE_RAD`] beyond the angles the samples span: the
+    /// residual is scaled down.
     Faded = 1,
     /// None: the correction is the calibrated model's alone (beyond the fade, a
-    /// configuration no sample has, or no neighbour for the exact tier).
+    /// configuration no sample has, a joint beyond the samples' angles and the fade, or no
+    /// neighbour for the exact tier).
     ModelOnly = 2,
 }
 
