@@ -47,6 +47,17 @@ fn stream(paths: &[CommandPath], sim: impl Fn(&CommandPath) -> Simulation) -> St
     out
 }
 
+/// The path plan of a cube (`tablec iso9283 --cube CUBE --path-plan`, `extra` added)
+/// written to `paths.csv` in `dir`, and its paths.
+fn path_plan(cube: &str, extra: &[&str], dir: &std::path::Path) -> Vec<CommandPath> {
+    let mut args = vec!["iso9283", "--cube", cube, "--path-plan"];
+    args.extend(extra);
+    args.extend(["-o", "paths.csv"]);
+    run(&args, dir);
+    let plan = std::fs::read_to_string(dir.join("paths.csv")).unwrap();
+    parse_command(plan.as_bytes(), "paths.csv").unwrap()
+}
+
 fn run(args: &[&str], dir: &std::path::Path) -> String {
     let o = tablec(args, dir);
     assert!(
@@ -65,21 +76,7 @@ fn run(args: &[&str], dir: &std::path::Path) -> String {
 fn the_path_test_runs_as_documented_on_a_simulated_stream() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    run(
-        &[
-            "iso9283",
-            "--cube",
-            "1750,450,1250,600",
-            "--path-plan",
-            "--speed",
-            "200",
-            "-o",
-            "paths.csv",
-        ],
-        d,
-    );
-    let plan = std::fs::read_to_string(d.join("paths.csv")).unwrap();
-    let paths = parse_command(plan.as_bytes(), "paths.csv").unwrap();
+    let paths = path_plan("1750,450,1250,600", &["--speed", "200"], d);
     let text = stream(&paths, |p| match p.name.as_str() {
         "line" => Simulation {
             offset_mm: across(p).map(|v| 0.3 * v),
@@ -161,20 +158,7 @@ fn a_table_compensates_the_path_it_was_measured_on() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("t.tbl"), lattice_table(1, 1.0)).unwrap();
-    run(
-        &[
-            "iso9283",
-            "--cube",
-            "1600,0,900,150",
-            "--path-plan",
-            "-o",
-            "paths.csv",
-        ],
-        d,
-    );
-    let plan = std::fs::read_to_string(d.join("paths.csv")).unwrap();
-    let line: Vec<CommandPath> = parse_command(plan.as_bytes(), "paths.csv")
-        .unwrap()
+    let line: Vec<CommandPath> = path_plan("1600,0,900,150", &[], d)
         .into_iter()
         .filter(|p| p.name == "line")
         .collect();
@@ -320,19 +304,7 @@ fn a_hybrid_table_is_refused_by_both_reductions() {
     let d = dir.path();
     let hybrid = crate::common::repo("tables/compat/v4/ur5_hybrid.tbl");
     let hybrid = hybrid.to_str().unwrap();
-    run(
-        &[
-            "iso9283",
-            "--cube",
-            "400,0,400,100",
-            "--path-plan",
-            "-o",
-            "paths.csv",
-        ],
-        d,
-    );
-    let plan = std::fs::read_to_string(d.join("paths.csv")).unwrap();
-    let paths = parse_command(plan.as_bytes(), "paths.csv").unwrap();
+    let paths = path_plan("400,0,400,100", &[], d);
     std::fs::write(d.join("stream.csv"), stream(&paths[..1], |_| quiet(2))).unwrap();
     run(
         &[

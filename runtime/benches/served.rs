@@ -28,20 +28,13 @@
 
 use std::hint::black_box;
 
+use adwi_runtime::testing::uniform;
 use adwi_runtime::{AlignedBytes, Status, Table, Target};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn table(path: &str) -> Table<AlignedBytes> {
     let path = format!("{}/../tables/compat/{path}", env!("CARGO_MANIFEST_DIR"));
     Table::from_vec(std::fs::read(path).expect("a committed table")).expect("a valid table")
-}
-
-/// A xorshift generator's next value in `[0, 1)`.
-fn uniform(state: &mut u64) -> f64 {
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    (*state >> 11) as f64 / (1u64 << 53) as f64
 }
 
 fn bench(c: &mut Criterion) {

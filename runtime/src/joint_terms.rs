@@ -388,12 +388,7 @@ mod tests {
     #[test]
     fn the_angle_beyond_a_range_is_beyond_ranges_distance() {
         let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::testing::uniform(&mut state);
         for i in 0..200_000 {
             let lo = -7.0 + 14.0 * next();
             let hi = lo + 7.0 * next() * next();

@@ -1293,8 +1293,7 @@ mod tests {
         let v6 = crate::format::encode_v6(header, &data, false).unwrap();
         let mut v5 = v6.clone();
         v5[10..12].copy_from_slice(&5u16.to_le_bytes());
-        let checksum = xxhash_rust::xxh3::xxh3_64(&v5[..248]);
-        v5[248..256].copy_from_slice(&checksum.to_le_bytes());
+        crate::testing::seal_header(&mut v5);
         let zero = |v: &mut Vec<[f64; 3]>| v.iter_mut().for_each(|e| *e = [0.0; 3]);
         zero(&mut data.base.errors_mm);
         zero(&mut data.base.orientation_errors_rad);
@@ -1330,12 +1329,7 @@ mod tests {
         let [bounded, unbounded, model_only] = bounded_fixtures();
         let model = bounded.model().unwrap();
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::testing::uniform(&mut state);
         let mut seen = [0usize; 3];
         for i in 0..6_000 {
             // Mostly within ±3 rad; one joint a few degrees either side of an end.
@@ -1404,12 +1398,7 @@ mod tests {
             tool_axis_fixture(true),
         ];
         let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::testing::uniform(&mut state);
         let mut seen = std::collections::BTreeSet::new();
         for table in &tables {
             let model = table.model().unwrap();
@@ -1465,12 +1454,7 @@ mod tests {
         let grid = *table.grid();
         let (lo, hi) = (grid.origin_mm, grid.max_mm());
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = || crate::testing::uniform(&mut state);
         let mut statuses = std::collections::BTreeSet::new();
         for i in 0..40_000 {
             let mut p = [0, 1, 2].map(|a| lo[a] - 10.0 + next() * (hi[a] - lo[a] + 20.0));

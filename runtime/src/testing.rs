@@ -91,3 +91,12 @@ pub fn model_at_by_chains(model: &PreparedModel, q: &[f64]) -> Option<ModelAt> {
         nominal_rotation: Some(nominal.rotation),
     })
 }
+
+/// A xorshift generator's next value in `[0, 1)`, from and into `state` (not zero): the
+/// tests' and benches' random targets and joint values, the same on every platform.
+pub fn uniform(state: &mut u64) -> f64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    (*state >> 11) as f64 / (1u64 << 53) as f64
+}
