@@ -509,25 +509,36 @@ pub fn deserialise_owned(path: &std::path::Path) -> Option<usize> {
 
 /// A hybrid table answers only with the joint values the controller will use, which only
 /// the controller's inverse kinematics knows for an arbitrary target: the workload is
-/// random joint values (each in ±π; prismatic joints ±π mm), kept where the nominal tool
-/// position falls inside the table's grid, queried there with those values (model
-/// evaluation plus the residual field). `None` for a table without a model, or when no
-/// pose of a million tries falls in the grid.
+/// random joint values, kept where the nominal tool position falls inside the table's
+/// grid, queried there with those values (model evaluation plus the residual field). Each
+/// joint is drawn within the angles the samples span when the table records them
+/// (format version 6: where its residual is served, as a controller commands the arm where
+/// it was measured), else in ±π (prismatic joints ±π mm). `None` for a table without a
+/// model, or when no pose of a million tries falls in the grid.
 pub fn hybrid_workload<D: AsRef<[u8]>>(
     table: &Table<D>,
     queries: usize,
     seed: u64,
 ) -> Option<Vec<(Target, Vec<f64>)>> {
-    let nominal = table.model()?.nominal();
+    let model = table.model()?;
+    let nominal = model.nominal();
     let n = nominal.joint_count();
+    let pi = std::f64::consts::PI;
+    let ranges: Vec<[f64; 2]> = (0..n)
+        .map(|j| match model.joint_terms().range_rad[j] {
+            [lo, hi] if model.bounds_residual() && lo.is_finite() && hi.is_finite() => [lo, hi],
+            _ => [-pi, pi],
+        })
+        .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut out = Vec::with_capacity(queries);
     for _ in 0..1_000_000 {
         if out.len() == queries.max(1) {
             break;
         }
-        let q: Vec<f64> = (0..n)
-            .map(|_| rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))
+        let q: Vec<f64> = ranges
+            .iter()
+            .map(|&[lo, hi]| if lo < hi { rng.gen_range(lo..hi) } else { lo })
             .collect();
         let p = nominal.tcp_pose(&q)?.translation_mm;
         if table.grid().cell_of(p).is_some() {

@@ -15,8 +15,9 @@ median cost of an empty timed region; one untimed warm-up pass first. Percentile
 nearest-rank over all timed queries. 'batch' is the mean per query of one untimed-per-call
 batch, a check on the overhead correction. Workloads: targets uniform in the table's grid,
 and a trajectory of targets 1 mm apart (straight segments of 200 mm, reflected at the
-grid's faces); for a hybrid table, random joint poses whose tool lies in the grid, and
-paths of small joint steps from them. Contenders: the served field (trilinear); the exact
+grid's faces); for a hybrid table, random joint poses whose tool lies in the grid (each
+joint within the angles the samples span when the table records them, format version 6,
+else within +-pi), and paths of small joint steps from them. Contenders: the served field (trilinear); the exact
 tier; a k-d tree (kiddo, built at start-up) finding every sample within epsilon, then the
 same selection and weights (adwi_runtime::method); the brute-force reference over every
 sample. Open: memory map + full validation vs. reading the file and deserialising an owned
