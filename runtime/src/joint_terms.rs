@@ -322,7 +322,7 @@ impl PreparedTerms {
         if beyond_rad == 0.0 {
             return 1.0;
         }
-        crate::served::smoothstep(1.0 - beyond_rad / RESIDUAL_FADE_RAD)
+        crate::fade::smoothstep(1.0 - beyond_rad / RESIDUAL_FADE_RAD)
     }
 
     /// [`JointTerms::apply`], to the bit.

@@ -43,6 +43,7 @@ pub mod chain;
 mod correction;
 mod error;
 mod exact;
+mod fade;
 pub mod format;
 pub mod input;
 pub mod joint_terms;

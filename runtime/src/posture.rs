@@ -147,7 +147,7 @@ pub fn clamped_and_fade(grid: &Grid, position_mm: [f64; 3]) -> Option<([f64; 3],
         outside_mm2 += d * d;
     }
     let length_mm = crate::served::fade_length_mm(grid.cell_mm);
-    let fade = crate::served::smoothstep(1.0 - outside_mm2.sqrt() / length_mm);
+    let fade = crate::fade::smoothstep(1.0 - outside_mm2.sqrt() / length_mm);
     Some((clamped, fade))
 }
 

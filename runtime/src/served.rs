@@ -121,13 +121,6 @@ pub(crate) fn squared_within(length_mm: f64) -> f64 {
     t
 }
 
-/// `3t² − 2t³` for `t` clamped to `[0, 1]`: 0 and 1 at the ends, with zero slope there.
-#[inline]
-pub(crate) fn smoothstep(t: f64) -> f64 {
-    let t = t.clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
-}
-
 impl ServedGrid {
     /// The prepared grid of a validated table with a served tier.
     pub(crate) fn new(header: &Header, data: &ArchivedTableData) -> ServedGrid {
@@ -327,7 +320,7 @@ pub(crate) fn site(
             let (base, fraction, distance_mm) = grid
                 .locate_nearest(position_mm)
                 .ok_or(Status::OutsideGrid)?;
-            let fade = smoothstep(1.0 - distance_mm / length_mm);
+            let fade = crate::fade::smoothstep(1.0 - distance_mm / length_mm);
             if fade <= 0.0 {
                 return Ok(Site::ModelOnly);
             }
