@@ -85,6 +85,23 @@ struct ModelPart {
     residual_scale: f64,
 }
 
+/// [`scaled_residual`] of a correction's residual, in place.
+#[inline(always)]
+fn scale_residual(c: &mut Correction, scale: f64) {
+    let parts = (
+        c.position_error_mm,
+        c.orientation_error_rad,
+        c.neighbours,
+        c.residual,
+    );
+    (
+        c.position_error_mm,
+        c.orientation_error_rad,
+        c.neighbours,
+        c.residual,
+    ) = scaled_residual(scale, parts);
+}
+
 /// A hybrid answer's residual (its position and orientation parts, the neighbours it
 /// weighed, its flag) scaled by the model part's `scale`
 /// ([`PreparedModel::residual_scale`]): unchanged at 1, none at 0 (the model alone,
@@ -814,21 +831,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         if let Some(m) = &model_part {
-            let c = &mut correction;
-            (
-                c.position_error_mm,
-                c.orientation_error_rad,
-                c.neighbours,
-                c.residual,
-            ) = scaled_residual(
-                m.residual_scale,
-                (
-                    c.position_error_mm,
-                    c.orientation_error_rad,
-                    c.neighbours,
-                    c.residual,
-                ),
-            );
+            scale_residual(&mut correction, m.residual_scale);
             for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
