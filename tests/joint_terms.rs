@@ -99,7 +99,8 @@ fn the_version_5_table_opens_and_gives_its_recorded_answers() {
 }
 
 /// A hybrid table is version 6 with its joint record, with terms or without: its terms
-/// zero without (`--harmonics 0`), not with `--harmonics 1`.
+/// zero without (`--harmonics 0`), not with `--harmonics 1`; the build prints the joint
+/// angles its samples span.
 #[test]
 fn every_hybrid_table_is_version_6_its_terms_with_harmonics_alone() {
     let dir = std::env::temp_dir().join(format!("adwi-joint-terms-{}", std::process::id()));
@@ -109,23 +110,22 @@ fn every_hybrid_table_is_version_6_its_terms_with_harmonics_alone() {
     let mut versions = Vec::new();
     for harmonics in ["0", "1"] {
         let out = dir.join(format!("h{harmonics}.tbl"));
-        let status = std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
-            .args([
-                "build",
-                "--quiet",
-                "--cell",
-                "100",
-                "--served-field",
-                "method",
-            ])
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_tablec"))
+            .args(["build", "--cell", "100", "--served-field", "method"])
             .args(["--posture", "off", "--harmonics", harmonics, "-o"])
             .arg(&out)
             .arg(&samples)
             .args(["--columns", UR5_MAP, "--robot"])
             .arg(&robot)
-            .status()
+            .output()
             .unwrap();
-        assert!(status.success());
+        assert!(output.status.success());
+        // The build says where its residual is served, as `inspect` does.
+        let printed = String::from_utf8_lossy(&output.stdout);
+        assert!(
+            printed.contains("residual joints j1 [-24.4, 56.5], j2 [-105.0, -25.5]"),
+            "{printed}"
+        );
         let table = Table::from_vec(std::fs::read(&out).unwrap()).unwrap();
         versions.push((
             table.header().version,

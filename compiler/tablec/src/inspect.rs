@@ -86,18 +86,7 @@ fn print_model(t: &Inspected) {
         );
     }
     if let Some(ranges) = &t.residual_joint_range_deg {
-        let joints: Vec<String> = ranges
-            .iter()
-            .enumerate()
-            .map(|(j, r)| match r {
-                Some([lo, hi]) => format!("j{} [{lo:.1}, {hi:.1}]", j + 1),
-                None => format!("j{} any", j + 1),
-            })
-            .collect();
-        println!(
-            "residual joints {}°: the angles the samples span; beyond them the residual fades, to none 3° past (the model alone)",
-            joints.join(", ")
-        );
+        println!("residual joints {}", crate::describe_joint_ranges(ranges));
     }
 }
 

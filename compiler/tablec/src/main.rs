@@ -184,3 +184,20 @@ pub fn describe_joint_screen(joint_radius_rad: f64) -> String {
         "off".to_string()
     }
 }
+
+/// A hybrid table's joint angles its samples span (degrees per joint, `None` for a joint
+/// they do not bound), beyond which its residual fades: `build` and `inspect` say it alike.
+fn describe_joint_ranges(ranges_deg: &[Option<[f64; 2]>]) -> String {
+    let joints: Vec<String> = ranges_deg
+        .iter()
+        .enumerate()
+        .map(|(j, r)| match r {
+            Some([lo, hi]) => format!("j{} [{lo:.1}, {hi:.1}]", j + 1),
+            None => format!("j{} any", j + 1),
+        })
+        .collect();
+    format!(
+        "{}°: the angles the samples span; beyond them the residual fades, to none 3° past (the model alone)",
+        joints.join(", ")
+    )
+}

@@ -103,6 +103,10 @@ pub(crate) fn compile_plan_values(
         node_sets: 0,
         served_kriging: Vec::new(),
         posture: None,
+        residual_joint_range_rad: match model {
+            Some(m) => m.joint_terms().range_rad[..joint_count].to_vec(),
+            None => Vec::new(),
+        },
     };
     let joint_screen = plan.joint_radius_rad > 0.0;
     let records = samples.records();

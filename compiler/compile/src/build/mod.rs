@@ -298,6 +298,10 @@ pub struct BuildReport {
     pub served_kriging: Vec<crate::nugget_kriging::GpChoice>,
     /// A hybrid table's posture term, when it has one.
     pub posture: Option<crate::posture::PostureReport>,
+    /// A hybrid table's commanded angles the samples span, `[lowest, highest]` rad per
+    /// joint (unbounded for a prismatic one): beyond them its residual fades
+    /// ([`crate::hybrid::bounded_by_samples`]). Empty for a position-only table.
+    pub residual_joint_range_rad: Vec<[f64; 2]>,
 }
 
 /// Plans and compiles `samples` into table bytes: [`plan`], then [`compile_plan`].
