@@ -57,6 +57,8 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         let table = Table::from_vec(bytes).unwrap_or_else(|e| panic!("seed {name}: {e}"));
         let version = if name.starts_with("v1_") {
             1
+        } else if name.starts_with("v6_") {
+            6
         } else if name.starts_with("merged_") {
             4
         } else {
