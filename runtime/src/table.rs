@@ -80,9 +80,6 @@ struct ModelPart {
     /// Whether a joint with joint-space terms is beyond the angles they were identified
     /// over ([`Evidence::JOINTS`]).
     beyond_terms: bool,
-    /// The factor on the residual: below 1 where a joint lies beyond the angles the
-    /// samples span ([`PreparedModel::residual_scale`]).
-    residual_scale: f64,
 }
 
 /// [`scaled_residual`] of a correction's residual, in place.
@@ -724,10 +721,17 @@ impl<D: AsRef<[u8]>> Table<D> {
             return Correction::failed(Status::InvalidInput);
         };
         let h = &self.header;
+        // The factor on a hybrid table's residual at the joint values (1 without a model):
+        // 0 beyond the angles the samples span, where no residual is read at all.
+        let residual_scale = match (&self.model, joints_rad) {
+            (Some(model), Some(q)) => model.residual_scale(q),
+            _ => 1.0,
+        };
+        let residual_read = residual_scale > 0.0;
         // Without a named TCP the served cell is known now: a hybrid table asks for its
         // nodes' memory before the model's arithmetic, which then hides their latency.
         let early_site = match (payload, &self.served, tier, target.tcp_mm) {
-            (Payload::V2(d), Some(grid), Tier::Served, None) => {
+            (Payload::V2(d), Some(grid), Tier::Served, None) if residual_read => {
                 let site = crate::served::site(grid, d, target.position_mm, target.config);
                 if let (Ok(site), Some(_)) = (&site, &self.model) {
                     crate::served::prefetch(grid, d, site, self.has_orientation());
@@ -737,8 +741,8 @@ impl<D: AsRef<[u8]>> Table<D> {
             _ => None,
         };
         // Likewise the exact tier's candidate record.
-        if let (Payload::V2(d), Tier::Exact, None, Some(_)) =
-            (payload, tier, target.tcp_mm, &self.model)
+        if let (Payload::V2(d), Tier::Exact, None, Some(_), true) =
+            (payload, tier, target.tcp_mm, &self.model, residual_read)
         {
             exact::prefetch(d, h, target.position_mm);
         }
@@ -782,6 +786,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             _ => None,
         };
         let mut correction = match payload {
+            _ if !residual_read => Correction::model_only(),
             Payload::V1(d) => exact::interpolate(&V1(d), h, &point, joints_rad),
             Payload::V2(d) => match (&self.served, site) {
                 (Some(_), Some(Err(status))) => Correction::failed(status),
@@ -819,7 +824,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         if correction.status != Status::Ok {
             return correction;
         }
-        if let (Some(posture), Some(q), Tier::Served) = (&self.posture, joints_rad, tier) {
+        if let (Some(posture), Some(q), Tier::Served, true) =
+            (&self.posture, joints_rad, tier, residual_read)
+        {
             let term = self
                 .posture_record()
                 .and_then(|r| posture.term(r, point.position_mm, q));
@@ -831,7 +838,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         if let Some(m) = &model_part {
-            scale_residual(&mut correction, m.residual_scale);
+            scale_residual(&mut correction, residual_scale);
             for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
@@ -942,25 +949,28 @@ impl<D: AsRef<[u8]>> Table<D> {
         data: &v2::ArchivedTableData,
     ) -> Correction {
         let orientation = self.has_orientation();
-        // As in `answer`: without a named TCP the cell is known before the model part.
-        let early_site = match target.tcp_mm {
-            None => {
+        // As in `answer`: the residual's factor first (0: no residual read), and without a
+        // named TCP the cell is known before the model part.
+        let residual_scale = model.residual_scale(q);
+        let early_site = match (target.tcp_mm, residual_scale > 0.0) {
+            (None, true) => {
                 let site = crate::served::site(grid, data, target.position_mm, target.config);
                 if let Ok(site) = &site {
                     crate::served::prefetch(grid, data, site, orientation);
                 }
                 Some(site)
             }
-            Some(_) => None,
+            _ => None,
         };
         let m = match self.model_part(model, q, target, |off_mm2| grid.joints_within(off_mm2)) {
             Ok(part) => part,
             Err(status) => return Correction::failed(status),
         };
         let evidence = self.evidence_of(target, Some(&m));
-        let site = match early_site {
-            Some(site) => site,
-            None => crate::served::site(grid, data, m.point_mm, target.config),
+        let site = match (early_site, residual_scale > 0.0) {
+            (Some(site), _) => site,
+            (None, true) => crate::served::site(grid, data, m.point_mm, target.config),
+            (None, false) => Ok(crate::served::Site::ModelOnly),
         };
         let blended = match site {
             Ok(site) if grid.stride() == 1 => {
@@ -995,7 +1005,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             Err(status) => return Correction::failed(status),
         };
         let (position_mm, orientation_rad, neighbours, residual) = scaled_residual(
-            m.residual_scale,
+            residual_scale,
             (position_mm, orientation_rad, neighbours, residual),
         );
         // The residual plus the model, as `answer` adds them; built once, in place.
@@ -1051,7 +1061,6 @@ impl<D: AsRef<[u8]>> Table<D> {
             point_mm,
             lever_known: lever.is_some() || target.tcp_mm.is_none(),
             beyond_terms: model.beyond_terms(q),
-            residual_scale: model.residual_scale(q),
         })
     }
 
