@@ -612,6 +612,27 @@ fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
         out.contains("residual joints j1 [-24.4, 56.5], j2 [-105.0, -25.5], j3 [30.1, 140.4]"),
         "{out}"
     );
+    // `tablec query` says which joint lies beyond the samples' angles, and how far.
+    let o = crate::common::tablec(
+        &[
+            "query",
+            path.to_str().unwrap(),
+            "-495.480149",
+            "-261.220606",
+            "359.404930",
+            "--joints",
+            "17.2729,-81.9889,88.4100,0.0713,93.4555,30.3",
+        ],
+        &root(),
+    );
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains(
+            "residual     model_only: joint 6 at 30.3° lies 10.0° beyond the -29.4° to 20.3° \
+             the samples span"
+        ),
+        "{out}"
+    );
     let [_, hi] = model.joint_terms().range_rad[5];
     for (past_deg, residual) in [(1.5, Residual::Faded), (10.0, Residual::ModelOnly)] {
         let mut q = points.joints_rad(0).unwrap().to_vec();

@@ -365,6 +365,10 @@ impl QueryJob {
                     }
                     _ => None,
                 };
+                let joint_beyond = match (c.status, joints) {
+                    (Status::Ok, Some(q)) => joint_beyond(table, q),
+                    _ => None,
+                };
                 let grid_mm = (c.status == Status::OutsideGrid).then(|| {
                     let g = table.grid();
                     let max = [0, 1, 2].map(|a| g.origin_mm[a] + g.cell_mm * f64::from(g.dims[a]));
@@ -378,6 +382,7 @@ impl QueryJob {
                     command,
                     command_abc_deg,
                     joints_off,
+                    joint_beyond,
                 })))
             }
             Work::File { rows, output } => {
@@ -532,6 +537,25 @@ fn joints_off<D: AsRef<[u8]>>(
     })
 }
 
+/// The joint farthest beyond the angles a version-6 hybrid table's samples span, when one
+/// is: where the table's residual fades ([`adwi_runtime::joint_terms::RESIDUAL_FADE_RAD`]).
+fn joint_beyond<D: AsRef<[u8]>>(table: &Table<D>, joints_rad: &[f64]) -> Option<JointBeyond> {
+    let model = table.model().filter(|m| m.bounds_residual())?;
+    let ranges = &model.joint_terms().range_rad;
+    let (joint, beyond_rad) = (joints_rad.iter().zip(ranges).enumerate())
+        .filter_map(|(j, (&q, &[lo, hi]))| {
+            adwi_runtime::joint_terms::beyond_range(q, lo, hi).map(|(_, by)| (j, by))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let [lo, hi] = ranges[joint];
+    Some(JointBeyond {
+        joint: joint + 1,
+        angle_deg: joints_rad[joint].to_degrees(),
+        range_deg: [lo.to_degrees(), hi.to_degrees()],
+        beyond_deg: beyond_rad.to_degrees(),
+    })
+}
+
 /// What a query found.
 #[derive(Debug, serde::Serialize)]
 #[serde(untagged)]
@@ -609,6 +633,19 @@ pub struct JointsOff {
     pub tolerance_mm: f64,
 }
 
+/// A joint commanded beyond the angles a hybrid table's samples span.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct JointBeyond {
+    /// The joint, from 1.
+    pub joint: usize,
+    /// Its commanded angle, degrees.
+    pub angle_deg: f64,
+    /// The lowest and highest angles the samples span, degrees.
+    pub range_deg: [f64; 2],
+    /// How far beyond them the angle lies around the circle, degrees.
+    pub beyond_deg: f64,
+}
+
 /// The answer to one target.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PointAnswer {
@@ -625,6 +662,9 @@ pub struct PointAnswer {
     pub command_abc_deg: Option<[f64; 3]>,
     /// For a `joints_mismatch`: how far the joints put the tool.
     pub joints_off: Option<JointsOff>,
+    /// For a hybrid table's answer: the joint farthest beyond the angles its samples span,
+    /// if one is (its residual then fades: `faded` within 3°, `model_only` beyond).
+    pub joint_beyond: Option<JointBeyond>,
     /// For an `outside_grid`: the grid's minimum and maximum corners, mm, base frame.
     pub grid_mm: Option<[[f64; 3]; 2]>,
 }

@@ -125,7 +125,14 @@ fn print_one(p: &PointAnswer) -> Answered {
         return Answered::NotAll;
     };
     if let (true, Some(residual)) = (a.hybrid, a.residual) {
-        println!("residual     {residual}");
+        match &p.joint_beyond {
+            Some(b) => println!(
+                "residual     {residual}: joint {} at {:.1}° lies {:.1}° beyond the {:.1}° to \
+                 {:.1}° the samples span (the residual fades to none 3° past them)",
+                b.joint, b.angle_deg, b.beyond_deg, b.range_deg[0], b.range_deg[1]
+            ),
+            None => println!("residual     {residual}"),
+        }
     }
     println!("evidence     {}", a.evidence_text());
     println!("error        {:.9} {:.9} {:.9} mm", e[0], e[1], e[2]);
