@@ -753,13 +753,8 @@ impl<D: AsRef<[u8]>> Table<D> {
         let model_part = match (&self.model, joints_rad) {
             (Some(model), Some(q)) => {
                 match self.model_part(model, q, target, |off_mm2| {
-                    let within = off_mm2
-                        .sqrt()
-                        .partial_cmp(&joints_tolerance_mm(&self.header.grid));
-                    matches!(
-                        within,
-                        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-                    )
+                    // Written so that NaN (a chain that overflowed) is not within.
+                    off_mm2.sqrt() <= joints_tolerance_mm(&self.header.grid)
                 }) {
                     Ok(part) => Some(part),
                     Err(status) => return Correction::failed(status),
