@@ -40,7 +40,7 @@
 //! - **Position only**: the term corrects the position; the orientation is the served
 //!   field's and the model's.
 //!
-//! [`reference`] is the same sum over every sample, without lists: the definition the fast
+//! [`reference`](fn@reference) is the same sum over every sample, without lists: the definition the fast
 //! path ([`PreparedPosture::term`]) is tested against.
 
 use crate::format::v3::ArchivedPostureRecord;

@@ -2,7 +2,7 @@
 //! a real-time thread ever waits for the disk.
 //!
 //! A memory-mapped table is read through the page cache. Validation at open computes a
-//! checksum over every byte, so every page is resident when [`Table::open`] returns; but
+//! checksum over every byte, so every page is resident when [`crate::Table::open`] returns; but
 //! clean file-backed pages may be evicted later under memory pressure, and the next query
 //! touching one would then block on a page fault that reads the disk. Locking the mapping
 //! (`mlock`) keeps the pages resident for the table's lifetime. Locking can fail where the
@@ -19,11 +19,11 @@ pub enum Lock {
     /// Try to lock; a failure is reported in [`Residency::lock_error`] and the table opens
     /// anyway.
     BestEffort,
-    /// Lock or refuse to open ([`OpenError::Lock`]).
+    /// Lock or refuse to open ([`crate::OpenError::Lock`]).
     Required,
 }
 
-/// How [`Table::open_with`] maps a table.
+/// How [`crate::Table::open_with`] maps a table.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct OpenOptions {
     /// Ask the kernel to fault every page in while mapping (`MAP_POPULATE` on Linux,
@@ -45,7 +45,7 @@ impl OpenOptions {
     }
 }
 
-/// What [`Table::open_with`] achieved about keeping the table in memory.
+/// What [`crate::Table::open_with`] achieved about keeping the table in memory.
 #[derive(Debug)]
 pub struct Residency {
     /// The number of pages touched by prefaulting (0 without [`OpenOptions::prefault`]).

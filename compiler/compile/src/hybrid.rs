@@ -10,8 +10,8 @@
 //!
 //! Building one:
 //!
-//! 1. identify the kinematic deviations (`adwi_identify::calibrate::identify`, which gives
-//!    the [`KinematicModel`] this module takes);
+//! 1. identify the kinematic deviations (`adwi_identify::calibrate::identify`, whose
+//!    calibrated model this module takes as a [`PreparedModel`]);
 //! 2. compute each sample's *residual*: measured error minus the calibrated model's
 //!    predicted error at the sample's joint angles, position and (when measured)
 //!    orientation, with the runtime's own [`adwi_runtime::model::model_error`], so that

@@ -3,7 +3,7 @@
 //! - [`build`]: the table compiler — options resolved into a plan, candidate lists per
 //!   cell, the encoded table;
 //! - [`hybrid`]: a hybrid table from samples and a given kinematic model (its residuals);
-//! - [`reference`]: the brute-force reference every compiled table is tested against;
+//! - [`reference`](mod@reference): the brute-force reference every compiled table is tested against;
 //! - [`inspect`]: what a table holds, in figures;
 //! - [`nugget_kriging`]: kriging with a nugget, what a kriging served field holds;
 //! - [`local_kriging`]: the same at any number of samples, from neighbours.

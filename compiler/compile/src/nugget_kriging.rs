@@ -3,7 +3,7 @@
 //!
 //! What a calibrated kinematic model leaves is part noise (tracker, repeatability) and part
 //! a smooth field it cannot represent (compliance, gear errors, thermal drift). Interpolating
-//! the residuals exactly, as [`super::kriging`] and the paper's weights do, passes the noise
+//! the residuals exactly, as kriging without a nugget and the paper's weights do, passes the noise
 //! on to every prediction. This predictor separates the two: each residual component `y` is
 //! a constant mean plus a zero-mean field with covariance `σ² R(h)` plus independent noise
 //! of variance `σ² λ` (the nugget, relative to the sill), and the prediction at `x` is the

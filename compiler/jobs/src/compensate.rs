@@ -32,6 +32,9 @@ type Pulses = Vec<f64>;
 
 /// What a compensation asks: every option, with its documentation and its default, once
 /// (tablec flattens it; the Python package fills it in).
+// The fields' doc comments are the options' help text, written for a terminal (KRL's
+// `TOOL_DATA[n]` and the like), not for rustdoc's links.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(clap::Args, Clone, Debug)]
 pub struct CompensateArgs {
     /// The correction table.

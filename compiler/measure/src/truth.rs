@@ -177,7 +177,7 @@ pub fn reference(
 /// # Errors
 ///
 /// [`TruthError::Poses`] for no pose, more than [`MAX_POSES`], or a pose of another joint
-/// count; as [`reference`]; [`TruthError::NonFinite`] for a non-finite figure.
+/// count; as [`reference`](fn@reference); [`TruthError::NonFinite`] for a non-finite figure.
 pub fn compare(
     robot: &Robot,
     scenario: &Scenario,

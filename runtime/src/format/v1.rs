@@ -44,9 +44,9 @@ pub struct TableData {
     /// Their weights `q_i` (summing to 1 per cell with neighbours).
     pub centre_weights: Vec<f64>,
     /// Joint angles of each sample, rad, in sample order; empty when the samples carry
-    /// none ([`CONTENT_JOINTS`]).
+    /// none ([`super::CONTENT_JOINTS`]).
     pub joints_rad: Vec<[f64; 6]>,
-    /// The kinematic model of a hybrid table ([`CONTENT_MODEL`]): the sample errors are
+    /// The kinematic model of a hybrid table ([`super::CONTENT_MODEL`]): the sample errors are
     /// then the residuals that the calibrated model leaves, and a correction adds the
     /// model's prediction at the target's joint angles.
     pub model: Option<KinematicModel>,
