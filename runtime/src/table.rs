@@ -772,12 +772,9 @@ impl<D: AsRef<[u8]>> Table<D> {
         let evidence = self.evidence_of(target, model_part.as_ref());
         let site = match (payload, &self.served, tier) {
             _ if early_site.is_some() => early_site,
-            (Payload::V2(d), Some(grid), Tier::Served) => Some(crate::served::site(
-                grid,
-                d,
-                point.position_mm,
-                point.config,
-            )),
+            (Payload::V2(d), Some(grid), Tier::Served) if residual_read => Some(
+                crate::served::site(grid, d, point.position_mm, point.config),
+            ),
             _ => None,
         };
         let mut correction = match payload {
@@ -1310,25 +1307,9 @@ mod tests {
         [v6, v5, model_only].map(|bytes| Table::from_vec(bytes).unwrap())
     }
 
-    /// The factor on the residual by its definition: the largest angle any joint lies
-    /// from its range around the circle (the nearest of `q + 2πk`), through the
-    /// smoothstep of `1 − d / 3°`.
-    fn reference_scale(q: &[f64], range: [f64; 2]) -> f64 {
-        let mut worst = 0.0f64;
-        for &v in q {
-            let apart = (-3..=3)
-                .map(|k| v + f64::from(k) * std::f64::consts::TAU)
-                .map(|w| (range[0] - w).max(w - range[1]).max(0.0))
-                .fold(f64::INFINITY, f64::min);
-            worst = worst.max(apart);
-        }
-        let t = (1.0 - worst / 3f64.to_radians()).clamp(0.0, 1.0);
-        t * t * (3.0 - 2.0 * t)
-    }
-
     /// Beyond the angles its samples span, a version-6 table's residual fades to zero: in
     /// both tiers' queries, at random joint values around each joint's range, its answer is the
-    /// model's plus the factor of [`reference_scale`] times the residual the same bytes
+    /// model's plus the factor of [`crate::testing::reference_residual_scale`] times the residual the same bytes
     /// give as version 5 (within 1e-12 mm and rad), flagged full within the ranges, faded
     /// in the fade and model-only beyond it; within them it is version 5's to the bit.
     #[test]
@@ -1344,7 +1325,7 @@ mod tests {
             let edge = if next() < 0.5 { -3.0 } else { 3.0 };
             q[i % 6] = edge + (next() - 0.5) * 0.15;
             let target = Target::at(model.nominal().tcp_pose(&q).unwrap().translation_mm);
-            let s = reference_scale(&q, [-3.0, 3.0]);
+            let s = crate::testing::reference_residual_scale(&q, &[[-3.0, 3.0]; 6]);
             for exact in [false, true] {
                 // The queries a controller calls: the served one takes its own path.
                 let query = |t: &Table<AlignedBytes>| match exact {

@@ -100,3 +100,20 @@ pub fn uniform(state: &mut u64) -> f64 {
     *state ^= *state << 17;
     (*state >> 11) as f64 / (1u64 << 53) as f64
 }
+
+/// The factor on a version-6 hybrid table's residual at commanded `q` (rad), by its
+/// definition, for the tests that hold [`PreparedModel::residual_scale`] to it: the largest
+/// angle a joint lies from its range `ranges_rad[j]` (the nearest of `q + 2πk`, by brute
+/// force over a few turns), through the smoothstep of `1 − d / 3°`.
+pub fn reference_residual_scale(q: &[f64], ranges_rad: &[[f64; 2]]) -> f64 {
+    let mut worst = 0.0f64;
+    for (&v, &[lo, hi]) in q.iter().zip(ranges_rad) {
+        let apart = (-3..=3)
+            .map(|k| v + f64::from(k) * std::f64::consts::TAU)
+            .map(|w| (lo - w).max(w - hi).max(0.0))
+            .fold(f64::INFINITY, f64::min);
+        worst = worst.max(apart);
+    }
+    let t = (1.0 - worst / 3f64.to_radians()).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}

@@ -147,23 +147,19 @@ pub fn hybrid_reference_predict(
 }
 
 /// The factor on a hybrid table's residual at `joints_rad` (every joint revolute), by its
-/// definition: the largest angle a joint lies beyond the lowest and highest of
-/// `sample_joints` (the nearest of `q + 2πk`), through the smoothstep of `1 − d / 3°`.
+/// definition ([`adwi_runtime::testing::reference_residual_scale`]), with each joint's
+/// range the lowest and highest of `sample_joints`.
 pub fn reference_residual_scale(sample_joints: &adwi_samples::Joints, joints_rad: &[f64]) -> f64 {
-    let mut worst = 0.0f64;
-    for (j, &v) in joints_rad.iter().enumerate() {
-        let column = sample_joints.rows().map(|row| row[j]);
-        let (lo, hi) = column.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
-            (lo.min(q), hi.max(q))
-        });
-        let apart = (-3..=3)
-            .map(|k| v + f64::from(k) * std::f64::consts::TAU)
-            .map(|w| (lo - w).max(w - hi).max(0.0))
-            .fold(f64::INFINITY, f64::min);
-        worst = worst.max(apart);
-    }
-    let t = (1.0 - worst / 3f64.to_radians()).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
+    let ranges: Vec<[f64; 2]> = (0..joints_rad.len())
+        .map(|j| {
+            let column = sample_joints.rows().map(|row| row[j]);
+            let (lo, hi) = column.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                (lo.min(q), hi.max(q))
+            });
+            [lo, hi]
+        })
+        .collect();
+    adwi_runtime::testing::reference_residual_scale(joints_rad, &ranges)
 }
 
 /// The UR5 measurements' column mapping (joint angles included).
