@@ -319,9 +319,7 @@ impl PreparedTerms {
         for (&value, &[lo, hi]) in q.iter().zip(&self.range_rad) {
             beyond_rad = beyond_rad.max(angle_beyond(value, lo, hi));
         }
-        if beyond_rad == 0.0 {
-            return 1.0;
-        }
+        // 1 at no angle beyond (within around the circle), exactly.
         crate::fade::smoothstep(1.0 - beyond_rad / RESIDUAL_FADE_RAD)
     }
 

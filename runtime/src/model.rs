@@ -19,7 +19,8 @@
 //! determine (one position has up to eight inverse-kinematics solutions and any tool
 //! orientation), so a hybrid table must be queried with the joint angles:
 //! [`crate::Table::query_with_joints`]. Queried by position alone
-//! ([`crate::Table::query_target`]) it answers [`crate::Status::MissingJoints`] rather than a residual that is not the error.
+//! ([`crate::Table::query_target`]) it answers [`crate::Status::MissingJoints`] rather than
+//! a residual that is not the error.
 //!
 //! The same joint angles drive the optional joint-space admissibility screen
 //! ([`crate::format::Header::joint_radius_rad`]): a sample is admissible only if each of its

@@ -101,18 +101,19 @@ pub fn compile(
 /// # Errors
 ///
 /// [`BuildError::MissingJoints`] for samples without joint values,
-/// [`BuildError::JointCount`] for another count than the model's.
+/// [`BuildError::JointCount`] for another count than the model's, [`BuildError::Params`]
+/// for a model whose terms do not fit its chain (a model identified as this workspace does
+/// always fits).
 pub fn bounded_by_samples(
     model: &PreparedModel,
     samples: &SampleSet,
 ) -> Result<PreparedModel, BuildError> {
     let joints = samples.joints.as_ref().ok_or(BuildError::MissingJoints)?;
-    let count_error = BuildError::JointCount {
-        model: model.joint_count(),
-        samples: joints.count(),
-    };
     if joints.count() != model.joint_count() {
-        return Err(count_error);
+        return Err(BuildError::JointCount {
+            model: model.joint_count(),
+            samples: joints.count(),
+        });
     }
     let mut terms = *model.joint_terms();
     for (j, (range, joint)) in terms
@@ -137,7 +138,9 @@ pub fn bounded_by_samples(
     (*model)
         .with_joint_terms(terms)
         .map(PreparedModel::bounding_residual)
-        .ok_or(count_error)
+        .ok_or(BuildError::Params(
+            "the model's joint-space terms do not fit its chain",
+        ))
 }
 
 /// [`compile`] computing only the served tier's `nodes`.

@@ -232,10 +232,17 @@ fn joint_terms(table: &Table<Mmap>) -> Vec<JointTerm> {
 fn residual_joint_range(table: &Table<Mmap>) -> Option<Vec<Option<[f64; 2]>>> {
     let model = table.model().filter(|m| m.bounds_residual())?;
     let n = table.joint_count().unwrap_or(0);
-    let ranges = model.joint_terms().range_rad[..n].iter().map(|&[lo, hi]| {
-        (lo.is_finite() && hi.is_finite()).then(|| [lo.to_degrees(), hi.to_degrees()])
-    });
-    Some(ranges.collect())
+    Some(ranges_deg(&model.joint_terms().range_rad[..n]))
+}
+
+/// Recorded joint ranges (rad, unbounded for a joint they do not bound) in degrees, `None`
+/// where unbounded: what `inspect` and a build's report say.
+pub fn ranges_deg(ranges_rad: &[[f64; 2]]) -> Vec<Option<[f64; 2]>> {
+    (ranges_rad.iter())
+        .map(|&[lo, hi]| {
+            (lo.is_finite() && hi.is_finite()).then(|| [lo.to_degrees(), hi.to_degrees()])
+        })
+        .collect()
 }
 
 /// The cell holding `p`, and the exact method's neighbours there.

@@ -118,11 +118,7 @@ fn print_summary(built: &Built) {
     println!("served field   {}", describe_served_field(built));
     println!("posture term   {}", describe_posture(built));
     if !report.residual_joint_range_rad.is_empty() {
-        let degrees: Vec<Option<[f64; 2]>> = (report.residual_joint_range_rad.iter())
-            .map(|&[lo, hi]| {
-                (lo.is_finite() && hi.is_finite()).then(|| [lo.to_degrees(), hi.to_degrees()])
-            })
-            .collect();
+        let degrees = adwi_jobs::inspect::ranges_deg(&report.residual_joint_range_rad);
         println!("residual joints {}", crate::describe_joint_ranges(&degrees));
     }
     println!(
