@@ -578,11 +578,7 @@ fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
     assert!(model.bounds_residual() && model.joint_terms().is_none());
     let points = read_samples(
         &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
-        &ColumnMap::parse(
-            "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
-             j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6",
-        )
-        .unwrap(),
+        &ColumnMap::parse(crate::common::UR5_MAP).unwrap(),
     )
     .unwrap();
     for (i, (served, exact, rotation)) in V6_ANSWERS.iter().enumerate() {
