@@ -28,6 +28,9 @@
 use crate::kinematics::{MdhJoint, Transform};
 use crate::lanes::{Lanes, Pair};
 
+#[cfg(target_arch = "x86_64")]
+mod avx;
+
 /// The model at one set of joint values ([`crate::model::PreparedModel::at`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModelAt {
@@ -440,9 +443,18 @@ pub(crate) struct FoldedChain {
 /// axis, and `tool_z = Q_nᵀ · tool`). Taken from the tool back to the base, a point and a
 /// direction cost a joint a turn about z (4 products, given `sin q` and `cos q`) and a
 /// 3 × 4 product each, where composing frames costs a 3 × 3 and a 3 × 4 product.
+///
+/// The turn is applied to the frame, not to the point: `Z_j · Rz(q)` mixes the frame's
+/// first two columns by `cos q` and `sin q` ([`turned_row`]), which waits only for the
+/// joint's sine and cosine, so that the operations that carry the point from the tool to
+/// the base, each waiting for the one before (the query's latency), are a 3 × 4 product a
+/// joint and no more: three dependent steps ([`moved`]) where turning the point first took
+/// six.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct ReachChain {
-    frames: [Transform; MAX_JOINTS],
+    /// Each joint's frame `Z_j`, row by row: the rotation's three entries, then the
+    /// translation.
+    frames: [[[f64; 4]; 3]; MAX_JOINTS],
     prismatic: [bool; MAX_JOINTS],
     /// The TCP's position, approach (z) axis and x axis in the last joint's turned frame.
     tool_mm: [f64; 3],
@@ -466,6 +478,9 @@ pub(crate) struct ReachPair {
     tool_approach: [Pair; 3],
     /// The TCP frame's x axis in the last joint's turned frame, both chains.
     tool_across: [Pair; 3],
+    /// Whether [`ReachPair::posed_model_at`] walks four lanes wide (x86-64 with AVX2, found
+    /// when the pair is made).
+    wide: bool,
 }
 
 /// Both chains' TCP frames from one walk ([`ReachPair::walk_posed`]), base frame: the
@@ -487,7 +502,7 @@ impl PosedPair {
     /// `R_b · R_aᵀ`: with `n_c` and `k_c` the nominal and calibrated columns, that product
     /// is `Σ_c k_c n_cᵀ`, so its skew part (`sin θ` times the axis) is `½ Σ_c n_c × k_c` and
     /// its trace `Σ_c n_c · k_c` ([`small_rotation_vector`]).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn model_at(&self) -> ModelAt {
         let nominal = [self.a_x, cross(self.a_z, self.a_x), self.a_z];
         let calibrated = [self.b_x, cross(self.b_z, self.b_x), self.b_z];
@@ -526,6 +541,14 @@ impl PosedPair {
             nominal_rotation: Some([[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]]),
         }
     }
+}
+
+/// Whether this processor walks a [`ReachPair`] four lanes wide.
+fn wide_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return avx::available();
+    #[cfg(not(target_arch = "x86_64"))]
+    false
 }
 
 /// The rotation vector of a rotation given `sin θ` times its axis and `cos θ`, for the
@@ -576,15 +599,7 @@ impl ReachPair {
         let mut frames = [[[Pair([0.0; 2]); 4]; 3]; MAX_JOINTS];
         for (j, rows) in frames.iter_mut().enumerate().take(a.len) {
             let (fa, fb) = (&za.frames[j], &zb.frames[j]);
-            *rows = [0, 1, 2].map(|i| {
-                let r = both(fa.rotation[i], fb.rotation[i]);
-                [
-                    r[0],
-                    r[1],
-                    r[2],
-                    Pair([fa.translation_mm[i], fb.translation_mm[i]]),
-                ]
-            });
+            *rows = [0, 1, 2].map(|i| [0, 1, 2, 3].map(|k| Pair([fa[i][k], fb[i][k]])));
         }
         Some(ReachPair {
             frames,
@@ -593,6 +608,7 @@ impl ReachPair {
             tool_mm: both(za.tool_mm, zb.tool_mm),
             tool_approach: both(za.tool_approach, zb.tool_approach),
             tool_across: both(za.tool_across, zb.tool_across),
+            wide: wide_available(),
         })
     }
 
@@ -609,6 +625,26 @@ impl ReachPair {
             let (s, c) = sin_cos[j];
             (Pair::splat(s), Pair::splat(c))
         })
+    }
+
+    /// The model's values at joint values `q` ([`PosedPair::model_at`] of
+    /// [`ReachPair::walk_posed`]), their sines and cosines computed here; on a processor
+    /// with AVX2 four lanes wide and compiled for it ([`ReachPair::wide`]), to the bit.
+    /// `q` holds the chains' joint count (the caller's check). Always `Some`: in the form
+    /// the caller returns, so that the answer is written in its place, not copied there.
+    #[inline]
+    pub(crate) fn posed_model_at(&self, q: &[f64]) -> Option<ModelAt> {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where the processor has AVX2 (`ReachPair::new`).
+            return unsafe { avx::posed_model_at(self, q) };
+        }
+        let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
+        crate::trig::sin_cos_each(q, &mut sin_cos);
+        Some(
+            self.walk_posed(q, &sin_cos[..q.len().min(MAX_JOINTS)])
+                .model_at(),
+        )
     }
 
     /// [`ReachPair::walk_posed`] with each chain at its own revolute angles: `a` turned by
@@ -641,30 +677,21 @@ impl ReachPair {
         let (mut point, mut approach, mut across) =
             (self.tool_mm, self.tool_approach, self.tool_across);
         for j in (0..n).rev() {
-            let rows = &self.frames[j];
-            if self.prismatic[j] {
+            let (s, c) = if self.prismatic[j] {
                 point[2] = point[2] + Pair::splat(q[j]);
+                (Pair::splat(0.0), Pair::splat(1.0))
             } else {
-                let (s, c) = turn_of(j);
-                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-                point = turn(point);
-                approach = turn(approach);
-                across = turn(across);
-            }
+                turn_of(j)
+            };
             let [p, a, x] = [point, approach, across];
-            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
-            let turned = |r: &[Pair; 4], v: [Pair; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
-            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
-            approach = [
-                turned(&rows[0], a),
-                turned(&rows[1], a),
-                turned(&rows[2], a),
-            ];
-            across = [
-                turned(&rows[0], x),
-                turned(&rows[1], x),
-                turned(&rows[2], x),
-            ];
+            // Row by row, each turned as it is used: the three turned rows at once did not
+            // fit SSE2's registers beside the vectors.
+            for (i, row) in self.frames[j].iter().enumerate() {
+                let r = turned_row(row, s, c);
+                point[i] = moved(&r, p);
+                approach[i] = rotated(&r, a);
+                across[i] = rotated(&r, x);
+            }
         }
         let lane = |v: [Pair; 3], l: usize| [v[0].0[l], v[1].0[l], v[2].0[l]];
         PosedPair {
@@ -682,33 +709,10 @@ impl ReachPair {
     /// at least the chains' joint count (the caller's check).
     #[inline]
     pub(crate) fn walk(&self, q: &[f64], sin_cos: &[(f64, f64)]) -> ([f64; 3], [f64; 3], [f64; 3]) {
-        let n = self.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
-        let (mut point, mut approach) = (self.tool_mm, self.tool_approach);
-        for j in (0..n).rev() {
-            let rows = &self.frames[j];
-            if self.prismatic[j] {
-                point[2] = point[2] + Pair::splat(q[j]);
-            } else {
-                let (s, c) = (Pair::splat(sin_cos[j].0), Pair::splat(sin_cos[j].1));
-                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-                point = turn(point);
-                approach = turn(approach);
-            }
-            // `Transform::transform_point` and `rotate_vector`, lane by lane (written out:
-            // an array's `map` is a call the compiler does not always inline).
-            let [p, a] = [point, approach];
-            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
-            let turned = |r: &[Pair; 4]| r[0] * a[0] + r[1] * a[1] + r[2] * a[2];
-            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
-            approach = [turned(&rows[0]), turned(&rows[1]), turned(&rows[2])];
-        }
-        let [x, y, z] = point;
-        let [ax, ay, az] = approach;
-        (
-            [x.0[0], y.0[0], z.0[0]],
-            [ax.0[0], ay.0[0], az.0[0]],
-            [x.0[1], y.0[1], z.0[1]],
-        )
+        self.walk_by(q, sin_cos.len(), |j| {
+            let (s, c) = sin_cos[j];
+            (Pair::splat(s), Pair::splat(c))
+        })
     }
 
     /// [`ReachPair::walk`] with each chain at its own revolute angles, as
@@ -738,22 +742,18 @@ impl ReachPair {
         let n = self.len.min(MAX_JOINTS).min(q.len()).min(len);
         let (mut point, mut approach) = (self.tool_mm, self.tool_approach);
         for j in (0..n).rev() {
-            let rows = &self.frames[j];
-            if self.prismatic[j] {
+            let (s, c) = if self.prismatic[j] {
                 point[2] = point[2] + Pair::splat(q[j]);
+                (Pair::splat(0.0), Pair::splat(1.0))
             } else {
-                let (s, c) = turn_of(j);
-                let turn = |v: [Pair; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-                point = turn(point);
-                approach = turn(approach);
-            }
-            // `Transform::transform_point` and `rotate_vector`, lane by lane (written out:
-            // an array's `map` is a call the compiler does not always inline).
+                turn_of(j)
+            };
             let [p, a] = [point, approach];
-            let moved = |r: &[Pair; 4]| r[3] + (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]);
-            let turned = |r: &[Pair; 4]| r[0] * a[0] + r[1] * a[1] + r[2] * a[2];
-            point = [moved(&rows[0]), moved(&rows[1]), moved(&rows[2])];
-            approach = [turned(&rows[0]), turned(&rows[1]), turned(&rows[2])];
+            for (i, row) in self.frames[j].iter().enumerate() {
+                let r = turned_row(row, s, c);
+                point[i] = moved(&r, p);
+                approach[i] = rotated(&r, a);
+            }
         }
         let [x, y, z] = point;
         let [ax, ay, az] = approach;
@@ -768,7 +768,7 @@ impl ReachPair {
 impl ReachChain {
     /// The re-expressed form of a chain whose axes are unit vectors.
     fn new(chain: &Chain) -> ReachChain {
-        let mut frames = [Transform::IDENTITY; MAX_JOINTS];
+        let mut frames = [[[0.0; 4]; 3]; MAX_JOINTS];
         let mut prismatic = [false; MAX_JOINTS];
         // `Q_{j−1}ᵀ`, carried into the next joint's frame.
         let mut carry = Transform::IDENTITY;
@@ -789,7 +789,7 @@ impl ReachChain {
                     ..Transform::IDENTITY
                 },
             };
-            frames[j] = carry.compose(&origin).compose(&turn).compose(&offset);
+            frames[j] = rows(&carry.compose(&origin).compose(&turn).compose(&offset));
             prismatic[j] = joint.kind == JointKind::Prismatic;
             carry = turn.inverse();
         }
@@ -818,21 +818,50 @@ impl ReachChain {
         point: &mut [f64; 3],
         approach: &mut [f64; 3],
     ) {
-        let frame = &self.frames[j];
-        if self.prismatic[j] {
+        let (s, c) = if self.prismatic[j] {
             point[2] += value;
+            (0.0, 1.0)
         } else {
-            let turn = |v: [f64; 3]| [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
-            *point = turn(*point);
+            (s, c)
+        };
+        let (p, a) = (*point, *approach);
+        for (i, row) in self.frames[j].iter().enumerate() {
+            let r = turned_row(row, s, c);
+            point[i] = moved(&r, p);
             if APPROACH {
-                *approach = turn(*approach);
+                approach[i] = rotated(&r, a);
             }
         }
-        *point = frame.transform_point(*point);
-        if APPROACH {
-            *approach = frame.rotate_vector(*approach);
-        }
     }
+}
+
+/// A frame's rows: the rotation's three entries, then the translation.
+fn rows(frame: &Transform) -> [[f64; 4]; 3] {
+    let (r, t) = (&frame.rotation, &frame.translation_mm);
+    [0, 1, 2].map(|i| [r[i][0], r[i][1], r[i][2], t[i]])
+}
+
+/// A row of a joint's frame turned by its angle, of `Z · Rz(q)`, given `sin q` and `cos q`:
+/// the first two columns mixed, the third and the translation as they are ([`ReachChain`];
+/// a prismatic joint's frame is its row with `sin 0 = 0` and `cos 0 = 1`: itself, but for
+/// the sign of a zero). Written once for one chain and for a [`Pair`] of them, so that
+/// each lane is the one-chain walk's to the bit.
+#[inline(always)]
+fn turned_row<T: Lanes>(r: &[T; 4], s: T, c: T) -> [T; 4] {
+    [r[0] * c + r[1] * s, r[1] * c - r[0] * s, r[2], r[3]]
+}
+
+/// Row `r` of a frame applied to a point: `r · p + t`, summed in pairs, so that the point
+/// waits for a product and two sums.
+#[inline(always)]
+fn moved<T: Lanes>(r: &[T; 4], p: [T; 3]) -> T {
+    (r[0] * p[0] + r[1] * p[1]) + (r[2] * p[2] + r[3])
+}
+
+/// Row `r` of a frame's rotation applied to a direction.
+#[inline(always)]
+fn rotated<T: Lanes>(r: &[T; 4], v: [T; 3]) -> T {
+    (r[0] * v[0] + r[1] * v[1]) + r[2] * v[2]
 }
 
 /// A rotation taking z onto the unit vector `k` (its third column is `k`): the identity
@@ -1397,6 +1426,17 @@ mod tests {
     }
 
     /// A rigid transform from a rotation vector (Rodrigues) and a translation.
+    /// Whether two model values are the same to the bit, field by field.
+    fn same_bits(x: &ModelAt, y: &ModelAt) -> bool {
+        let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+        let rotation = |m: &ModelAt| m.nominal_rotation.map(|r| bits(r.as_flattened()));
+        bits(&x.position_mm) == bits(&y.position_mm)
+            && bits(&x.rotation_rad) == bits(&y.rotation_rad)
+            && bits(&x.approach) == bits(&y.approach)
+            && bits(&x.nominal_tcp_mm) == bits(&y.nominal_tcp_mm)
+            && rotation(x) == rotation(y)
+    }
+
     fn rigid(rotation_rad: [f64; 3], translation_mm: [f64; 3]) -> Transform {
         let joint = ChainJoint::default();
         let angle = dot(rotation_rad, rotation_rad).sqrt();
@@ -1601,6 +1641,19 @@ mod tests {
             }
             prop_assert_eq!(at.approach, posed.a_z);
             prop_assert!(off(at.rotation_rad, rotation_rad) <= 4e-15, "{:?} vs {rotation_rad:?}", at.rotation_rad);
+            // The query's form: the sines and cosines its own, and on a processor with AVX2
+            // the four-lane walk, the two-lane one's to the bit.
+            let narrow = ReachPair { wide: false, ..pair };
+            let ours: Vec<(f64, f64)> = q.iter().map(|&v| crate::trig::sin_cos(v)).collect();
+            let expected = narrow.walk_posed(q, &ours).model_at();
+            prop_assert!(same_bits(&narrow.posed_model_at(q).unwrap(), &expected));
+            prop_assert!(same_bits(&pair.posed_model_at(q).unwrap(), &expected));
+            #[cfg(target_arch = "x86_64")]
+            if avx::available() {
+                // SAFETY: the processor has AVX2.
+                let wide = unsafe { avx::posed_model_at(&pair, q) }.unwrap();
+                prop_assert!(same_bits(&wide, &expected), "{wide:?} vs {expected:?}");
+            }
         }
 
         /// The folded chain of the query path against the chain's own forward kinematics,
@@ -1691,7 +1744,7 @@ mod tests {
         for (j, joint) in chain.joints().iter().enumerate().skip(1) {
             // A z axis and no offset: the joint's own origin.
             if joint.offset == 0.0 {
-                assert_eq!(reach.frames[j], joint.origin);
+                assert_eq!(reach.frames[j], rows(&joint.origin));
             }
         }
     }

@@ -35,6 +35,9 @@ impl Lanes for f64 {
 #[repr(C, align(16))]
 pub(crate) struct Pair(pub(crate) [f64; 2]);
 
+/// Bit patterns lane by lane, where the quadrant selection of [`crate::trig`] has no vector
+/// instructions for them.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
 impl Pair {
     /// The lanes' bit patterns.
     #[inline(always)]

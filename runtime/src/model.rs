@@ -311,13 +311,13 @@ impl PreparedModel {
         if q.len() != n || n > MAX_JOINTS {
             return None;
         }
+        if let (true, Some(pair), false) = (rotation, &self.pair, self.has_terms) {
+            return pair.posed_model_at(q);
+        }
         let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
         crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
-        if let (true, Some(pair), false) = (rotation, &self.pair, self.has_terms) {
-            return Some(pair.walk_posed(q, sin_cos).model_at());
-        }
         if let (Some(pair), true) = (&self.pair, self.has_terms) {
             return Some(self.walk_apart(pair, q, sin_cos, rotation));
         }

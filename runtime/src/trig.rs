@@ -107,9 +107,43 @@ fn reduced_sin_cos(x: f64) -> (f64, f64) {
 #[inline]
 fn reduced_sin_cos_pair(x: Pair) -> (Pair, Pair) {
     let (shifted, s, c) = reduced_kernels(x);
+    by_quadrant_pair(shifted, s, c)
+}
+
+/// [`by_quadrant`] of both lanes, on SSE2's integer lanes: the selection and the signs in
+/// the vector register, where lane by lane each double went to a general register and back.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+fn by_quadrant_pair(shifted: Pair, s: Pair, c: Pair) -> (Pair, Pair) {
+    use std::arch::x86_64::{
+        __m128i, _mm_add_epi64, _mm_and_si128, _mm_andnot_si128, _mm_or_si128, _mm_set1_epi64x,
+        _mm_setzero_si128, _mm_slli_epi64, _mm_sub_epi64, _mm_xor_si128,
+    };
+    // SAFETY: two doubles and two 64-bit integers, every bit pattern valid in both.
+    let bits = |p: Pair| unsafe { std::mem::transmute::<[f64; 2], __m128i>(p.0) };
+    // SAFETY: as above.
+    let pair = |r: __m128i| Pair(unsafe { std::mem::transmute::<__m128i, [f64; 2]>(r) });
+    let (quadrant, s, c) = (bits(shifted), bits(s), bits(c));
+    // SAFETY: SSE2 instructions, which the function's `cfg` has.
+    unsafe {
+        let (one, two) = (_mm_set1_epi64x(1), _mm_set1_epi64x(2));
+        let swap = _mm_sub_epi64(_mm_setzero_si128(), _mm_and_si128(quadrant, one));
+        let sin = _mm_or_si128(_mm_andnot_si128(swap, s), _mm_and_si128(c, swap));
+        let cos = _mm_or_si128(_mm_andnot_si128(swap, c), _mm_and_si128(s, swap));
+        let sin_sign = _mm_slli_epi64::<62>(_mm_and_si128(quadrant, two));
+        let cos_sign = _mm_slli_epi64::<62>(_mm_and_si128(_mm_add_epi64(quadrant, one), two));
+        (
+            pair(_mm_xor_si128(sin, sin_sign)),
+            pair(_mm_xor_si128(cos, cos_sign)),
+        )
+    }
+}
+
+/// [`by_quadrant`] of both lanes, one after the other.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn by_quadrant_pair(shifted: Pair, s: Pair, c: Pair) -> (Pair, Pair) {
     let (quadrant, s, c) = (shifted.to_bits(), s.to_bits(), c.to_bits());
-    // Lane by lane, written out: an array's `map` here compiled to a call with bounds
-    // checks, each lane's bits through memory.
     let a = by_quadrant(quadrant[0], s[0], c[0]);
     let b = by_quadrant(quadrant[1], s[1], c[1]);
     (Pair::from_bits([a.0, b.0]), Pair::from_bits([a.1, b.1]))
@@ -150,6 +184,9 @@ fn by_quadrant(quadrant: u64, s: u64, c: u64) -> (u64, u64) {
     let cos_sign = (quadrant.wrapping_add(1) & 2) << 62;
     (sin ^ sin_sign, cos ^ cos_sign)
 }
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod wide;
 
 #[cfg(test)]
 mod tests {
@@ -264,6 +301,61 @@ mod tests {
         }
     }
 
+    /// [`wide::sin_cos_each`] where it is compiled: in a function compiled for AVX2.
+    ///
+    /// # Safety
+    ///
+    /// The processor has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn wide_sin_cos_each(angles: &[f64], out: &mut [(f64, f64)]) {
+        wide::sin_cos_each(angles, out)
+    }
+
+    /// Four at a time on AVX2, each angle's [`sin_cos`] to the bit: every quadrant and its
+    /// boundaries in every lane, batches of 1 to 12 (the padded last group), and an angle
+    /// beyond the reduction sending the batch to the library.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn four_lanes_are_each_angle_s_own_to_the_bit() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let angles: Vec<f64> = (-64_i32..=64)
+            .flat_map(|k| {
+                let at = f64::from(k) * std::f64::consts::FRAC_PI_4;
+                [at, f64::from_bits(at.to_bits() + 1), at + 1e-3, -at, -0.0]
+            })
+            .collect();
+        for len in 1..=12 {
+            for batch in angles.windows(len) {
+                let mut out = [(0.0, 0.0); 12];
+                // SAFETY: the processor has AVX2 (above).
+                unsafe { wide_sin_cos_each(batch, &mut out) };
+                for (o, &x) in out.iter().zip(batch) {
+                    let (s, c) = sin_cos(x);
+                    assert_eq!(
+                        [o.0.to_bits(), o.1.to_bits()],
+                        [s.to_bits(), c.to_bits()],
+                        "{x}"
+                    );
+                }
+            }
+        }
+        let far = [0.3, 1e300, -2.0, f64::NAN, 5.0];
+        let mut out = [(0.0, 0.0); 5];
+        // SAFETY: as above.
+        unsafe { wide_sin_cos_each(&far, &mut out) };
+        for (o, x) in out.iter().zip(far) {
+            let (s, c) = x.sin_cos();
+            assert_eq!(
+                [o.0.to_bits(), o.1.to_bits()],
+                [s.to_bits(), c.to_bits()],
+                "{x}"
+            );
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(20_000))]
         #[test]
@@ -271,6 +363,22 @@ mod tests {
             let (s, c) = sin_cos(x);
             let (ws, wc) = x.sin_cos();
             prop_assert!(worst([x].into_iter()) <= BOUND, "{x}: {s} {c} vs {ws} {wc}");
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[test]
+        fn random_quads_are_their_angles_own_to_the_bit(
+            angles in proptest::collection::vec(-REDUCED_UP_TO..REDUCED_UP_TO, 1..=12),
+        ) {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                let mut out = [(0.0, 0.0); 12];
+                // SAFETY: the processor has AVX2.
+                unsafe { wide_sin_cos_each(&angles, &mut out) };
+                for (o, &x) in out.iter().zip(&angles) {
+                    let (s, c) = reduced_sin_cos(x);
+                    prop_assert_eq!([o.0.to_bits(), o.1.to_bits()], [s.to_bits(), c.to_bits()]);
+                }
+            }
         }
 
         #[test]
