@@ -1,16 +1,18 @@
-//! [`ReachPair::walk_posed`] four lanes wide, for x86-64 processors with AVX (found at
-//! run time: the baseline x86-64 has SSE2 alone, two lanes).
+//! A hybrid query's model part four lanes wide ([`ReachPair::posed_model_at`]), for x86-64
+//! processors with AVX2 (found when a table is opened: the baseline x86-64 has SSE2 alone,
+//! two lanes).
 //!
 //! The walk carries three vectors per chain from the tool back: the TCP's position, its
 //! approach (z) axis and its x axis. With two lanes (one per chain) each coordinate of
 //! each vector is one instruction; here both chains' axes share one 256-bit register per
-//! coordinate (`[z_a, z_b, x_a, x_b]`), so a joint's turn and rotation of the two axes is
-//! one instruction where it was two, and the point stays a pair. A joint's work falls from
-//! 66 operations to 45.
+//! coordinate (`[z_a, z_b, x_a, x_b]`), so a joint's rotation of the two axes is one
+//! instruction where it was two, and the point stays a pair (the low half of each turned
+//! row). A joint's work falls from 66 vector operations to 51. The sines and cosines come
+//! four at a time ([`crate::trig::wide`]).
 //!
 //! Every lane does the arithmetic of the two-lane walk in its order (the same products and
-//! sums, no fused multiply-add: the `avx` feature alone is enabled, which has none), so the
-//! frames are the two-lane walk's to the bit (tested).
+//! sums; no fused multiply-add, which no enabled feature forms), so the model's values are
+//! the two-lane walk's to the bit (tested).
 
 use std::arch::x86_64::{
     __m128d, _mm256_add_pd, _mm256_broadcast_pd, _mm256_castpd256_pd128, _mm256_mul_pd,
