@@ -543,6 +543,19 @@ impl PosedPair {
     }
 }
 
+/// Whether two model values are the same to the bit, field by field (the four-lane walk's
+/// tests).
+#[cfg(test)]
+pub(crate) fn same_bits(x: &ModelAt, y: &ModelAt) -> bool {
+    let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+    let rotation = |m: &ModelAt| m.nominal_rotation.map(|r| bits(r.as_flattened()));
+    bits(&x.position_mm) == bits(&y.position_mm)
+        && bits(&x.rotation_rad) == bits(&y.rotation_rad)
+        && bits(&x.approach) == bits(&y.approach)
+        && bits(&x.nominal_tcp_mm) == bits(&y.nominal_tcp_mm)
+        && rotation(x) == rotation(y)
+}
+
 /// Whether this processor walks a [`ReachPair`] four lanes wide.
 fn wide_available() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -583,6 +596,15 @@ fn small_rotation_vector(sin_axis: [f64; 3], cos_angle: f64) -> Option<[f64; 3]>
 }
 
 impl ReachPair {
+    /// The pair walked two lanes wide on any processor (the four-lane walk's tests).
+    #[cfg(test)]
+    pub(crate) fn narrowed(self) -> ReachPair {
+        ReachPair {
+            wide: false,
+            ..self
+        }
+    }
+
     /// The pair of `a` and `b` when [`FoldedChain::reach_pair`] takes them, and their
     /// joints are of the same kinds.
     pub(crate) fn new(a: &FoldedChain, b: &FoldedChain) -> Option<ReachPair> {
@@ -643,6 +665,33 @@ impl ReachPair {
         crate::trig::sin_cos_each(q, &mut sin_cos);
         Some(
             self.walk_posed(q, &sin_cos[..q.len().min(MAX_JOINTS)])
+                .model_at(),
+        )
+    }
+
+    /// [`ReachPair::posed_model_at`] with the calibrated chain `b` at its own revolute
+    /// angles: `moved` fills their sines and cosines from `q` and its own (a calibrated
+    /// chain with joint-space terms stands at `q'`, [`crate::joint_terms`]), and both
+    /// chains walk together ([`ReachPair::walk_posed_apart`]); four lanes wide with AVX2,
+    /// to the bit.
+    #[inline]
+    pub(crate) fn posed_model_at_moved(
+        &self,
+        q: &[f64],
+        moved: impl FnOnce(&[f64], &[(f64, f64)], &mut [(f64, f64)]),
+    ) -> Option<ModelAt> {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where the processor has AVX2 (`ReachPair::new`).
+            return unsafe { avx::posed_model_at_moved(self, q, moved) };
+        }
+        let n = q.len().min(MAX_JOINTS);
+        let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
+        crate::trig::sin_cos_each(&q[..n], &mut sin_cos);
+        let mut moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+        moved(&q[..n], &sin_cos[..n], &mut moved_sin_cos[..n]);
+        Some(
+            self.walk_posed_apart(q, &sin_cos[..n], &moved_sin_cos[..n])
                 .model_at(),
         )
     }
@@ -1426,17 +1475,6 @@ mod tests {
     }
 
     /// A rigid transform from a rotation vector (Rodrigues) and a translation.
-    /// Whether two model values are the same to the bit, field by field.
-    fn same_bits(x: &ModelAt, y: &ModelAt) -> bool {
-        let bits = |v: &[f64]| v.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
-        let rotation = |m: &ModelAt| m.nominal_rotation.map(|r| bits(r.as_flattened()));
-        bits(&x.position_mm) == bits(&y.position_mm)
-            && bits(&x.rotation_rad) == bits(&y.rotation_rad)
-            && bits(&x.approach) == bits(&y.approach)
-            && bits(&x.nominal_tcp_mm) == bits(&y.nominal_tcp_mm)
-            && rotation(x) == rotation(y)
-    }
-
     fn rigid(rotation_rad: [f64; 3], translation_mm: [f64; 3]) -> Transform {
         let joint = ChainJoint::default();
         let angle = dot(rotation_rad, rotation_rad).sqrt();
@@ -1643,7 +1681,7 @@ mod tests {
             prop_assert!(off(at.rotation_rad, rotation_rad) <= 4e-15, "{:?} vs {rotation_rad:?}", at.rotation_rad);
             // The query's form: the sines and cosines its own, and on a processor with AVX2
             // the four-lane walk, the two-lane one's to the bit.
-            let narrow = ReachPair { wide: false, ..pair };
+            let narrow = pair.narrowed();
             let ours: Vec<(f64, f64)> = q.iter().map(|&v| crate::trig::sin_cos(v)).collect();
             let expected = narrow.walk_posed(q, &ours).model_at();
             prop_assert!(same_bits(&narrow.posed_model_at(q).unwrap(), &expected));

@@ -311,15 +311,21 @@ impl PreparedModel {
         if q.len() != n || n > MAX_JOINTS {
             return None;
         }
-        if let (true, Some(pair), false) = (rotation, &self.pair, self.has_terms) {
-            return pair.posed_model_at(q);
+        match (rotation, &self.pair, self.has_terms) {
+            (true, Some(pair), false) => return pair.posed_model_at(q),
+            (true, Some(pair), true) => {
+                return pair.posed_model_at_moved(q, |q, sin_cos, moved| {
+                    self.moved_sin_cos(q, sin_cos, moved)
+                })
+            }
+            _ => {}
         }
         let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
         crate::trig::sin_cos_each(q, &mut sin_cos);
         let [nominal, calibrated] = &self.folded;
         let sin_cos = &sin_cos[..n];
         if let (Some(pair), true) = (&self.pair, self.has_terms) {
-            return Some(self.walk_apart(pair, q, sin_cos, rotation));
+            return Some(self.walk_apart(pair, q, sin_cos));
         }
         if !rotation && !self.has_terms {
             let walked = match &self.pair {
@@ -382,30 +388,16 @@ impl PreparedModel {
         })
     }
 
-    /// [`PreparedModel::evaluate`] of a model with joint-space terms whose chains walk
-    /// together: the calibrated lane turned by the sines and cosines of `q'`, from those of
-    /// `q` by angle addition ([`PreparedTerms::moved_sin_cos`]) or, for a term that may be
-    /// large, by `sin_cos` of `q'`. `q` and `sin_cos` hold the chains' joint count.
-    /// Not inlined: in [`PreparedModel::evaluate`] it slowed the walk without terms.
+    /// [`PreparedModel::evaluate`] without the orientation of a model with joint-space terms
+    /// whose chains walk together: the calibrated lane turned by the sines and cosines of
+    /// `q'` ([`PreparedModel::moved_sin_cos`]). `q` and `sin_cos` hold the chains' joint
+    /// count. Not inlined: in [`PreparedModel::evaluate`] it slowed the walk without terms.
     #[inline(never)]
-    fn walk_apart(
-        &self,
-        pair: &ReachPair,
-        q: &[f64],
-        sin_cos: &[(f64, f64)],
-        rotation: bool,
-    ) -> ModelAt {
+    fn walk_apart(&self, pair: &ReachPair, q: &[f64], sin_cos: &[(f64, f64)]) -> ModelAt {
         let n = q.len().min(sin_cos.len()).min(MAX_JOINTS);
         let mut moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
         let moved_sin_cos = &mut moved_sin_cos[..n];
-        if !self.prepared_terms.moved_sin_cos(q, sin_cos, moved_sin_cos) {
-            let mut moved = [0.0; MAX_JOINTS];
-            self.prepared_terms.apply(q, sin_cos, &mut moved[..n]);
-            crate::trig::sin_cos_each(&moved[..n], moved_sin_cos);
-        }
-        if rotation {
-            return pair.walk_posed_apart(q, sin_cos, moved_sin_cos).model_at();
-        }
+        self.moved_sin_cos(&q[..n], &sin_cos[..n], moved_sin_cos);
         let (nominal_mm, approach, calibrated_mm) = pair.walk_apart(q, sin_cos, moved_sin_cos);
         ModelAt {
             position_mm: difference(calibrated_mm, nominal_mm),
@@ -413,6 +405,20 @@ impl PreparedModel {
             approach,
             nominal_tcp_mm: nominal_mm,
             nominal_rotation: None,
+        }
+    }
+
+    /// The sines and cosines of the calibrated chain's angles `q'` (module
+    /// [`crate::joint_terms`]) into `moved`, from `q` and its own by angle addition
+    /// ([`PreparedTerms::moved_sin_cos`]) or, for a term that may be large, by `sin_cos` of
+    /// `q'`. The slices hold the chains' joint count.
+    #[inline]
+    fn moved_sin_cos(&self, q: &[f64], sin_cos: &[(f64, f64)], moved: &mut [(f64, f64)]) {
+        if !self.prepared_terms.moved_sin_cos(q, sin_cos, moved) {
+            let mut angles = [0.0; MAX_JOINTS];
+            let n = q.len().min(MAX_JOINTS);
+            self.prepared_terms.apply(q, sin_cos, &mut angles[..n]);
+            crate::trig::sin_cos_each(&angles[..n], moved);
         }
     }
 
@@ -587,6 +593,10 @@ mod tests {
                 prop_assert_eq!(position.position_mm[a].to_bits(), at.position_mm[a].to_bits());
                 prop_assert_eq!(position.approach[a].to_bits(), at.approach[a].to_bits());
             }
+            // Four lanes wide (on a processor with AVX2) or two, the same bits.
+            let narrow = PreparedModel { pair: model.pair.map(ReachPair::narrowed), ..model };
+            let two = narrow.at(&q).unwrap();
+            prop_assert!(crate::chain::same_bits(&two, &at), "{two:?} vs {at:?}");
         }
 
         /// The prepared terms give `JointTerms::offset` to the bit inside and beyond the

@@ -16,12 +16,12 @@
 
 use std::arch::x86_64::{
     __m128d, _mm256_add_pd, _mm256_broadcast_pd, _mm256_castpd256_pd128, _mm256_mul_pd,
-    _mm256_set1_pd, _mm256_set_m128d, _mm256_storeu_pd, _mm256_sub_pd, _mm_add_pd, _mm_loadu_pd,
-    _mm_mul_pd, _mm_set1_pd, _mm_storeu_pd,
+    _mm256_set_m128d, _mm256_storeu_pd, _mm256_sub_pd, _mm_add_pd, _mm_loadu_pd, _mm_mul_pd,
+    _mm_set1_pd, _mm_storeu_pd,
 };
 
 use super::{ModelAt, PosedPair, ReachPair, MAX_JOINTS};
-use crate::lanes::Pair;
+use crate::lanes::{Lanes, Pair};
 
 /// Whether this processor runs the four-lane walk: std's detection, read once per process
 /// (an atomic load after the first call).
@@ -57,6 +57,31 @@ pub(crate) unsafe fn model_at(pair: &ReachPair, q: &[f64]) -> Option<ModelAt> {
     Some(walk_posed(pair, q, &sin_cos[..q.len().min(MAX_JOINTS)]).model_at())
 }
 
+/// [`ReachPair::posed_model_at_moved`] compiled for AVX2: the chains' sines and cosines
+/// four at a time, the calibrated chain's moved by `moved` (from `q` and its sines and
+/// cosines), the four-lane walk with each chain at its own angles and the model's values.
+///
+/// # Safety
+///
+/// The processor has AVX2 ([`available`]).
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn posed_model_at_moved(
+    pair: &ReachPair,
+    q: &[f64],
+    moved: impl FnOnce(&[f64], &[(f64, f64)], &mut [(f64, f64)]),
+) -> Option<ModelAt> {
+    let n = q.len().min(MAX_JOINTS);
+    let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
+    crate::trig::wide::sin_cos_each(&q[..n], &mut sin_cos);
+    let mut moved_sin_cos = [(0.0, 1.0); MAX_JOINTS];
+    moved(&q[..n], &sin_cos[..n], &mut moved_sin_cos[..n]);
+    let posed = walk_posed_by(pair, q, n, |j| {
+        let ((sa, ca), (sb, cb)) = (sin_cos[j], moved_sin_cos[j]);
+        (Pair([sa, sb]), Pair([ca, cb]))
+    });
+    Some(posed.model_at())
+}
+
 /// [`ReachPair::walk_posed`], to the bit.
 ///
 /// # Safety
@@ -64,7 +89,26 @@ pub(crate) unsafe fn model_at(pair: &ReachPair, q: &[f64]) -> Option<ModelAt> {
 /// As [`model_at`].
 #[inline(always)]
 pub(crate) unsafe fn walk_posed(pair: &ReachPair, q: &[f64], sin_cos: &[(f64, f64)]) -> PosedPair {
-    let n = pair.len.min(MAX_JOINTS).min(q.len()).min(sin_cos.len());
+    walk_posed_by(pair, q, sin_cos.len(), |j| {
+        let (s, c) = sin_cos[j];
+        (Pair::splat(s), Pair::splat(c))
+    })
+}
+
+/// The four-lane walk with joint `j`'s turn by `turn_of(j)`, its sines and cosines chain
+/// by chain (`ReachPair::walk_posed_by`'s, to the bit), for `j` below `len`.
+///
+/// # Safety
+///
+/// As [`model_at`].
+#[inline(always)]
+unsafe fn walk_posed_by(
+    pair: &ReachPair,
+    q: &[f64],
+    len: usize,
+    turn_of: impl Fn(usize) -> (Pair, Pair),
+) -> PosedPair {
+    let n = pair.len.min(MAX_JOINTS).min(q.len()).min(len);
     let load = |p: &Pair| _mm_loadu_pd(p.0.as_ptr());
     let mut point = [
         load(&pair.tool_mm[0]),
@@ -80,11 +124,15 @@ pub(crate) unsafe fn walk_posed(pair: &ReachPair, q: &[f64], sin_cos: &[(f64, f6
     for j in (0..n).rev() {
         let (s, c) = if pair.prismatic[j] {
             point[2] = _mm_add_pd(point[2], _mm_set1_pd(q[j]));
-            (0.0, 1.0)
+            (Pair::splat(0.0), Pair::splat(1.0))
         } else {
-            sin_cos[j]
+            turn_of(j)
         };
-        let (s, c) = (_mm256_set1_pd(s), _mm256_set1_pd(c));
+        // `[a, b, a, b]`: chain `a`'s angle in the lanes of its axes, `b`'s in its own.
+        let (s, c) = (
+            _mm256_set_m128d(load(&s), load(&s)),
+            _mm256_set_m128d(load(&c), load(&c)),
+        );
         let [p0, p1, p2] = point;
         let [v0, v1, v2] = axes;
         for (i, row) in pair.frames[j].iter().enumerate() {
