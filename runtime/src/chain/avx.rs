@@ -30,31 +30,21 @@ pub(crate) fn available() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
-/// [`ReachPair::posed_model_at`] compiled for AVX2: [`model_at`] as a function of its own.
-/// (Inlined instead into a served hybrid query compiled for AVX2 as a whole, it was
-/// slower: 153 ns against 148.)
+/// [`ReachPair::posed_model_at`] compiled for AVX2, to the bit: the joints' sines and
+/// cosines four at a time ([`crate::trig::wide`]), the four-lane walk and the model's values
+/// from the frames, in one function (the model's values written where the query reads them).
+/// Always `Some` (the form the caller returns). The whole served query compiled for AVX2
+/// instead, this inlined into it, was slower: 153 ns against 148.
 ///
 /// # Safety
 ///
 /// The processor has AVX2 ([`available`]).
 #[target_feature(enable = "avx2")]
 pub(crate) unsafe fn posed_model_at(pair: &ReachPair, q: &[f64]) -> Option<ModelAt> {
-    model_at(pair, q)
-}
-
-/// The model's values at joint values `q`, as [`ReachPair::posed_model_at`] gives them to
-/// the bit: the joints' sines and cosines four at a time ([`crate::trig::wide`]), the
-/// four-lane walk, the values from the frames. Always `Some` (the form the caller
-/// returns).
-///
-/// # Safety
-///
-/// Called only from a function compiled for AVX2, on a processor that has it.
-#[inline(always)]
-pub(crate) unsafe fn model_at(pair: &ReachPair, q: &[f64]) -> Option<ModelAt> {
+    let n = q.len().min(MAX_JOINTS);
     let mut sin_cos = [(0.0, 1.0); MAX_JOINTS];
-    crate::trig::wide::sin_cos_each(q, &mut sin_cos);
-    Some(walk_posed(pair, q, &sin_cos[..q.len().min(MAX_JOINTS)]).model_at())
+    crate::trig::wide::sin_cos_each(&q[..n], &mut sin_cos);
+    Some(walk_posed(pair, q, &sin_cos[..n]).model_at())
 }
 
 /// [`ReachPair::posed_model_at_moved`] compiled for AVX2: the chains' sines and cosines
@@ -86,7 +76,8 @@ pub(crate) unsafe fn posed_model_at_moved(
 ///
 /// # Safety
 ///
-/// As [`model_at`].
+/// Called only from a function compiled for AVX2 (inlined there), on a processor that has
+/// it.
 #[inline(always)]
 pub(crate) unsafe fn walk_posed(pair: &ReachPair, q: &[f64], sin_cos: &[(f64, f64)]) -> PosedPair {
     walk_posed_by(pair, q, sin_cos.len(), |j| {
@@ -100,7 +91,8 @@ pub(crate) unsafe fn walk_posed(pair: &ReachPair, q: &[f64], sin_cos: &[(f64, f6
 ///
 /// # Safety
 ///
-/// As [`model_at`].
+/// Called only from a function compiled for AVX2 (inlined there), on a processor that has
+/// it.
 #[inline(always)]
 unsafe fn walk_posed_by(
     pair: &ReachPair,
