@@ -1040,6 +1040,44 @@ fn bench_prints_figures_without_internal_goals() {
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("p50"), "{out}");
     assert!(!out.contains("goal"), "{out}");
+    // A position-only table has no model part to describe.
+    assert!(!out.contains("model part"), "{out}");
+}
+
+/// On a hybrid table `tablec bench` says how wide this processor walks the model's chains,
+/// which its figures depend on (the answers do not).
+#[test]
+fn bench_says_how_wide_a_hybrid_model_part_walks() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = repo("tables/compat/v6/ur5_hybrid.tbl");
+    let o = tablec(
+        &[
+            "bench",
+            table.to_str().unwrap(),
+            "--queries",
+            "2000",
+            "--reference-queries",
+            "50",
+            "--open-repeats",
+            "2",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    #[cfg(target_arch = "x86_64")]
+    let wide = std::arch::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    let wide = false;
+    let lanes = if wide {
+        "4 lanes wide (AVX2)"
+    } else {
+        "2 lanes wide"
+    };
+    assert!(
+        out.contains(&format!("model part: both chains walked {lanes}")),
+        "{out}"
+    );
 }
 
 /// `tablec continuity`: along the same lines, the served field changes by far less than a

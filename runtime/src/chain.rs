@@ -596,6 +596,12 @@ fn small_rotation_vector(sin_axis: [f64; 3], cos_angle: f64) -> Option<[f64; 3]>
 }
 
 impl ReachPair {
+    /// Whether this processor walks the pair four lanes wide.
+    #[inline]
+    pub(crate) fn wide(&self) -> bool {
+        self.wide
+    }
+
     /// The pair walked two lanes wide on any processor (the four-lane walk's tests).
     #[cfg(test)]
     pub(crate) fn narrowed(self) -> ReachPair {

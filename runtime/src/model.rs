@@ -145,6 +145,19 @@ impl PreparedModel {
         }
     }
 
+    /// How many lanes wide this processor walks the model's chains for a query with the
+    /// orientation (every hybrid query): 4 on x86-64 with AVX2, 2 where both chains walk
+    /// together otherwise (SSE2, NEON), 1 where they walk apart (a calibrated chain with
+    /// gravity compliance, or joints of other kinds). The answers are the same to the bit
+    /// at 4 and 2; a benchmark says which it timed.
+    pub fn walk_lanes(&self) -> u32 {
+        match &self.pair {
+            Some(pair) if pair.wide() => 4,
+            Some(_) => 2,
+            None => 1,
+        }
+    }
+
     /// The model with the calibrated chain's joint-space terms ([`crate::joint_terms`]);
     /// `None` when they do not fit its joints ([`JointTerms::check`]).
     pub fn with_joint_terms(mut self, terms: JointTerms) -> Option<PreparedModel> {

@@ -83,6 +83,10 @@ pub struct Benched {
     pub radius_mm: f64,
     /// Whether the table has a served tier (otherwise `trilinear` is the exact tier).
     pub has_served_field: bool,
+    /// A hybrid table's model part on this processor: how many lanes wide its chains walk
+    /// (`PreparedModel::walk_lanes`: 4 with AVX2, 2 otherwise, 1 apart); `None` for a
+    /// position-only table.
+    pub model_walk_lanes: Option<u32>,
     /// The cost of an empty timed region, subtracted from every time, ns.
     pub clock_overhead_ns: f64,
     /// The two workloads, `random` and `trajectory`.
@@ -218,6 +222,7 @@ impl BenchJob {
             max_neighbours: params.max_neighbours,
             radius_mm: params.radius_mm,
             has_served_field: table.has_served_field(),
+            model_walk_lanes: table.model().map(|m| m.walk_lanes()),
             clock_overhead_ns: timer.overhead_ns,
             workloads: results.iter().map(workload).collect(),
             open_repeats: args.open_repeats,

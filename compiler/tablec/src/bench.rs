@@ -40,6 +40,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             " (no served tier: 'trilinear' is the exact tier)"
         }
     );
+    if let Some(lanes) = b.model_walk_lanes {
+        let how = match lanes {
+            4 => "4 lanes wide (AVX2)",
+            2 => "2 lanes wide (this processor has no AVX2; the same answers)",
+            _ => "one chain at a time (gravity compliance or joints of other kinds)",
+        };
+        println!("model part: both chains walked {how}");
+    }
     println!(
         "clock overhead {:.1} ns per timed region\n",
         b.clock_overhead_ns
