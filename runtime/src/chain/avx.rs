@@ -111,7 +111,9 @@ unsafe fn walk_posed_by(
     let axes =
         |i: usize| _mm256_set_m128d(load(&pair.tool_across[i]), load(&pair.tool_approach[i]));
     let mut axes = [axes(0), axes(1), axes(2)];
-    // Each entry `[r_a, r_b]` in both halves, one load.
+    // Each entry `[r_a, r_b]` in both halves, one load. The reference to `__m128d` is
+    // sound: a `Pair` is two doubles aligned to 16 bytes (`repr(C, align(16))`), as the
+    // register's type needs, and every bit pattern is a valid one.
     let wide = |p: &Pair| _mm256_broadcast_pd(&*(p.0.as_ptr() as *const __m128d));
     for j in (0..n).rev() {
         let (s, c) = if pair.prismatic[j] {
