@@ -1019,25 +1019,26 @@ fn killed_builds_leave_no_temporary_files() {
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
 
+/// `tablec bench TABLE` at a small size, run in `dir`: its report.
+fn quick_bench(table: &str, dir: &Path) -> String {
+    let args = [
+        "--queries",
+        "2000",
+        "--reference-queries",
+        "50",
+        "--open-repeats",
+        "2",
+    ];
+    let o = tablec(&[&["bench", table][..], &args].concat(), dir);
+    assert!(o.status.success(), "{}", stderr(&o));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 /// `tablec bench` reports figures and ratios, not the project's internal goals.
 #[test]
 fn bench_prints_figures_without_internal_goals() {
     let dir = good_table();
-    let o = tablec(
-        &[
-            "bench",
-            "t.tbl",
-            "--queries",
-            "2000",
-            "--reference-queries",
-            "50",
-            "--open-repeats",
-            "2",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = String::from_utf8_lossy(&o.stdout);
+    let out = quick_bench("t.tbl", dir.path());
     assert!(out.contains("p50"), "{out}");
     assert!(!out.contains("goal"), "{out}");
     // A position-only table has no model part to describe.
@@ -1050,21 +1051,7 @@ fn bench_prints_figures_without_internal_goals() {
 fn bench_says_how_wide_a_hybrid_model_part_walks() {
     let dir = tempfile::tempdir().unwrap();
     let table = repo("tables/compat/v6/ur5_hybrid.tbl");
-    let o = tablec(
-        &[
-            "bench",
-            table.to_str().unwrap(),
-            "--queries",
-            "2000",
-            "--reference-queries",
-            "50",
-            "--open-repeats",
-            "2",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = String::from_utf8_lossy(&o.stdout);
+    let out = quick_bench(table.to_str().unwrap(), dir.path());
     #[cfg(target_arch = "x86_64")]
     let wide = std::arch::is_x86_feature_detected!("avx2");
     #[cfg(not(target_arch = "x86_64"))]
