@@ -576,30 +576,9 @@ fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
     assert_eq!(table.header().version, 6);
     let model = table.model().unwrap();
     assert!(model.bounds_residual() && model.joint_terms().is_none());
-    let points = read_samples(
-        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
-        &ColumnMap::parse(crate::common::UR5_MAP).unwrap(),
-    )
-    .unwrap();
-    for (i, (served, exact, rotation)) in V6_ANSWERS.iter().enumerate() {
-        let q = points.joints_rad(i).unwrap();
-        let target = Target::at(points.nominal_mm[i]);
-        let s = table.query_with_joints(&target, q);
-        let e = table.exact().query_with_joints(&target, q);
+    let points = crate::common::ur5_random();
+    for (s, e) in crate::common::assert_recorded_ur5_answers(&table, &points, &V6_ANSWERS) {
         assert_eq!((s.residual, e.residual), (Residual::Full, Residual::Full));
-        for a in 0..3 {
-            // Recorded to 9 decimals.
-            assert!(
-                (s.position_error_mm[a] - served[a]).abs() < 1e-9,
-                "{i}: {s:?}"
-            );
-            assert!(
-                (e.position_error_mm[a] - exact[a]).abs() < 1e-9,
-                "{i}: {e:?}"
-            );
-            let r = s.orientation_error_rad[a];
-            assert!((r - rotation[a]).abs() < 1e-9, "{i}: {s:?}");
-        }
     }
     // `tablec inspect` shows the ranges.
     let o = crate::common::tablec(&["inspect", path.to_str().unwrap()], &root());

@@ -5,15 +5,13 @@
 use std::path::{Path, PathBuf};
 
 use adwi_runtime::format::{CONTENT_JOINT_TERMS, CONTENT_MODEL};
-use adwi_runtime::{Status, Table, Target};
-use adwi_samples::{read_samples, ColumnMap};
+use adwi_runtime::{Status, Table};
+
+use crate::common::UR5_MAP;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
-
-const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,j1=joint_1,j2=joint_2,\
-                       j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
 
 /// `tables/compat/v5/README.md`'s answers at the first three random UR5 poses: served
 /// position error, exact position error (mm), orientation error (rad).
@@ -50,30 +48,11 @@ fn the_version_5_table_opens_and_gives_its_recorded_answers() {
     let model = table.model().unwrap();
     let terms = model.joint_terms();
     assert!(!terms.is_none());
-    let points = read_samples(
-        &root().join("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
-        &ColumnMap::parse(UR5_MAP).unwrap(),
-    )
-    .unwrap();
-    for (i, (served, exact, rotation)) in V5_ANSWERS.iter().enumerate() {
-        let q = points.joints_rad(i).unwrap();
-        let target = Target::at(points.nominal_mm[i]);
-        let s = table.query_with_joints(&target, q);
-        let e = table.exact().query_with_joints(&target, q);
+    let points = crate::common::ur5_random();
+    let answers = crate::common::assert_recorded_ur5_answers(&table, &points, &V5_ANSWERS);
+    for (i, (s, e)) in answers.into_iter().enumerate() {
         assert_eq!((s.status, e.status), (Status::Ok, Status::Ok), "pose {i}");
-        for a in 0..3 {
-            // Recorded to 9 decimals.
-            assert!(
-                (s.position_error_mm[a] - served[a]).abs() < 1e-9,
-                "pose {i}: {s:?}"
-            );
-            assert!(
-                (e.position_error_mm[a] - exact[a]).abs() < 1e-9,
-                "pose {i}: {e:?}"
-            );
-            let r = s.orientation_error_rad;
-            assert!((r[a] - rotation[a]).abs() < 1e-9, "pose {i}: {s:?}");
-        }
+        let q = points.joints_rad(i).unwrap();
         // The query's model part is the prepared model's (with the terms) to the query
         // path's rounding, and the terms change it.
         let at = model.at(q).unwrap();

@@ -166,6 +166,42 @@ pub fn reference_residual_scale(sample_joints: &adwi_samples::Joints, joints_rad
 pub const UR5_MAP: &str = "x=x_t,y=y_t,z=z_t,dx=x_dif,dy=y_dif,dz=z_dif,\
                            j1=joint_1,j2=joint_2,j3=joint_3,j4=joint_4,j5=joint_5,j6=joint_6";
 
+/// The UR5's 20 random poses shipped in `tables/ur5/measurements`, read with [`UR5_MAP`].
+pub fn ur5_random() -> adwi_samples::SampleSet {
+    adwi_samples::read_samples(
+        &repo("tables/ur5/measurements/3D_UR5_uncalibrated_random_cleaned.csv"),
+        &ColumnMap::parse(UR5_MAP).unwrap(),
+    )
+    .unwrap()
+}
+
+/// A compatibility fixture's recorded answers (its README's) at the first of the UR5's
+/// random poses (`points`, [`ur5_random`]): for each, the served and exact position errors
+/// (mm) and the served orientation error (rad), each within 1e-9 (recorded to 9
+/// decimals). Returns both tiers' answers, pose by pose, for the caller's own checks.
+pub fn assert_recorded_ur5_answers<D: AsRef<[u8]>>(
+    table: &adwi_runtime::Table<D>,
+    points: &adwi_samples::SampleSet,
+    answers: &[([f64; 3], [f64; 3], [f64; 3])],
+) -> Vec<(adwi_runtime::Correction, adwi_runtime::Correction)> {
+    let mut out = Vec::new();
+    for (i, (served, exact, rotation)) in answers.iter().enumerate() {
+        let q = points.joints_rad(i).unwrap();
+        let target = adwi_runtime::Target::at(points.nominal_mm[i]);
+        let s = table.query_with_joints(&target, q);
+        let e = table.exact().query_with_joints(&target, q);
+        let close = |got: f64, want: f64| (got - want).abs() < 1e-9;
+        for a in 0..3 {
+            assert!(close(s.position_error_mm[a], served[a]), "pose {i}: {s:?}");
+            assert!(close(e.position_error_mm[a], exact[a]), "pose {i}: {e:?}");
+            let r = s.orientation_error_rad[a];
+            assert!(close(r, rotation[a]), "pose {i}: {s:?}");
+        }
+        out.push((s, e));
+    }
+    out
+}
+
 /// The UR5 grid measurements shipped in `tables/ur5/measurements` (the samples).
 pub fn ur5_grid() -> std::path::PathBuf {
     repo("tables/ur5/measurements/3D_UR5_uncalibrated_grid_cleaned.csv")
