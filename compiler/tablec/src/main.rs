@@ -197,7 +197,9 @@ fn describe_joint_ranges(ranges_deg: &[Option<[f64; 2]>]) -> String {
         })
         .collect();
     format!(
-        "{}°: the angles the samples span; beyond them the residual fades, to none 3° past (the model alone)",
-        joints.join(", ")
+        "{}°: the angles the samples span; beyond them the residual fades, to none {:.0}° past \
+         (the model alone)",
+        joints.join(", "),
+        adwi_runtime::joint_terms::RESIDUAL_FADE_RAD.to_degrees()
     )
 }

@@ -128,8 +128,13 @@ fn print_one(p: &PointAnswer) -> Answered {
         match &p.joint_beyond {
             Some(b) => println!(
                 "residual     {residual}: joint {} at {:.1}° lies {:.1}° beyond the {:.1}° to \
-                 {:.1}° the samples span (the residual fades to none 3° past them)",
-                b.joint, b.angle_deg, b.beyond_deg, b.range_deg[0], b.range_deg[1]
+                 {:.1}° the samples span (the residual fades to none {:.0}° past them)",
+                b.joint,
+                b.angle_deg,
+                b.beyond_deg,
+                b.range_deg[0],
+                b.range_deg[1],
+                adwi_runtime::joint_terms::RESIDUAL_FADE_RAD.to_degrees()
             ),
             None => println!("residual     {residual}"),
         }
