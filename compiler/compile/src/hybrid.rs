@@ -31,7 +31,7 @@
 use adwi_runtime::chain::JointKind;
 use adwi_runtime::model::PreparedModel;
 
-use crate::build::{self, BuildError, BuildReport, Plan, ServedNodes};
+use crate::build::{self, BuildError, BuildReport, Plan, Queried};
 use adwi_samples::SampleSet;
 
 /// The samples with their errors replaced by the residuals `model` leaves: measured error
@@ -89,7 +89,7 @@ pub fn compile(
     plan: &Plan,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
-    compile_serving(samples, model, plan, ServedNodes::All, progress)
+    compile_serving(samples, model, plan, Queried::Anywhere, progress)
 }
 
 /// `model` with its joint record's ranges the angles `samples` span, as a version-6 table
@@ -143,7 +143,7 @@ pub fn bounded_by_samples(
         ))
 }
 
-/// [`compile`] computing only the served tier's `nodes`.
+/// [`compile`] computing only what a table `queried` there needs.
 ///
 /// # Errors
 ///
@@ -152,31 +152,30 @@ pub fn compile_serving(
     samples: &SampleSet,
     model: &PreparedModel,
     plan: &Plan,
-    nodes: ServedNodes<'_>,
+    queried: Queried<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<HybridBuild, BuildError> {
     let model = &bounded_by_samples(model, samples)?;
     let residual = residual_samples(samples, model)?;
-    // The posture term learns what the table answers at each sample: a table computing
-    // only some nodes computes those that serve the samples too.
+    // The posture term learns what the table serves at each sample: a table computing
+    // only some nodes and lists computes those that serve the samples too.
     let serving_samples: Vec<[f64; 3]>;
-    let nodes = match nodes {
-        ServedNodes::Serving(positions) if plan.posture != crate::posture::Posture::Off => {
-            serving_samples = positions
-                .iter()
-                .chain(&samples.nominal_mm)
-                .copied()
-                .collect();
-            ServedNodes::Serving(&serving_samples)
+    let queried = match queried {
+        Queried::At { served, exact } if plan.posture != crate::posture::Posture::Off => {
+            serving_samples = served.iter().chain(&samples.nominal_mm).copied().collect();
+            Queried::At {
+                served: &serving_samples,
+                exact,
+            }
         }
-        nodes => nodes,
+        queried => queried,
     };
     let compiled = build::encode::compile_plan_values(
         &residual,
         plan,
         Some(model),
         samples.source_hash(),
-        nodes,
+        queried,
         progress,
     )?;
     let (bytes, report) = if plan.posture == crate::posture::Posture::Off {

@@ -60,7 +60,7 @@ use std::str::FromStr;
 use adwi_runtime::{Evidence, Residual, Status, Table, Target, Tier};
 
 use crate::baselines::{BaselineError, Grid, Idw, Kriging, PredictError, ResidualStats};
-use adwi_compile::build::{self, BuildError, BuildOptions, ServedNodes};
+use adwi_compile::build::{self, BuildError, BuildOptions, Queried};
 use adwi_identify::calibrate::{self, CalibrateError, Calibration};
 use adwi_samples::SampleSet;
 use rayon::prelude::*;
@@ -1209,12 +1209,19 @@ fn predict_split(
     fn joints_rad(set: &SampleSet, i: usize) -> &[f64] {
         set.joints_rad(i).expect("checked by choose_methods")
     }
-    // A table is queried at the targets alone: its served tier needs only the nodes that
-    // serve them, and an exact tier's none.
+    // A table is queried at the targets alone, by one tier: it needs only the nodes that
+    // serve them (an exact tier's none) and the candidate lists they are computed from or
+    // the exact tier reads.
     let positions: Vec<[f64; 3]> = targets.iter().map(|t| t.position_mm).collect();
     let nodes = match method {
-        Method::PaperTrilinear | Method::HybridTrilinear => ServedNodes::Serving(&positions),
-        _ => ServedNodes::Serving(&[]),
+        Method::PaperTrilinear | Method::HybridTrilinear => Queried::At {
+            served: &positions,
+            exact: &[],
+        },
+        _ => Queried::At {
+            served: &[],
+            exact: &positions,
+        },
     };
     let outcome = match method {
         Method::Table => {
@@ -1303,7 +1310,7 @@ fn compile_table(
     method: Method,
     samples: &SampleSet,
     options: &BuildOptions,
-    nodes: ServedNodes<'_>,
+    nodes: Queried<'_>,
 ) -> Result<Table<CompiledBytes>, EvalError> {
     let (bytes, _) = build::compile_serving(samples, options, nodes, &|_| {})
         .map_err(|source| EvalError::Build { method, source })?;

@@ -13,13 +13,15 @@ pub const BOX_MARGIN_MM: f64 = 1e-6;
 /// Slack (mm) in every distance comparison that decides a candidate list.
 pub const DISTANCE_SLACK_MM: f64 = 1e-9;
 
-/// Every cell's candidate list ([`candidate_list`]), in cell order. `progress(n)` is called
-/// as cells complete, with the number just completed (from several threads).
+/// Every cell's candidate list ([`candidate_list`]), in cell order; with `computed` (a
+/// flag per cell), only the flagged cells', the others empty. `progress(n)` is called as
+/// cells complete, with the number just completed (from several threads).
 pub(super) fn candidate_lists(
     records: &[SampleRecord],
     params: &MethodParams,
     joint_screen: bool,
     grid: &Grid,
+    computed: Option<&[bool]>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Vec<Vec<u32>> {
     let index = SpatialIndex::new(records, params.radius_mm);
@@ -28,8 +30,11 @@ pub(super) fn candidate_lists(
     let lists: Vec<Vec<u32>> = (0..cells)
         .into_par_iter()
         .map_init(Scratch::default, |scratch, cell| {
-            let candidates =
-                candidate_list(records, &index, params, joint_screen, grid, cell, scratch);
+            let candidates = if computed.is_none_or(|c| c[cell]) {
+                candidate_list(records, &index, params, joint_screen, grid, cell, scratch)
+            } else {
+                Vec::new()
+            };
             if done.fetch_add(1, Ordering::Relaxed) % 4096 == 4095 {
                 progress(4096);
             }

@@ -10,8 +10,8 @@ use adwi_runtime::method;
 use adwi_runtime::model::PreparedModel;
 
 use super::candidates::candidate_lists;
-use super::nodes::{serving_nodes, NodeField, NodeValues};
-use super::{BuildError, BuildReport, Plan, ServedField, ServedNodes};
+use super::nodes::{adjacent_cells, serving_nodes, NodeField, NodeValues};
+use super::{BuildError, BuildReport, Plan, Queried, ServedField};
 use adwi_samples::SampleSet;
 
 /// Compiles `samples` into table bytes as `plan` (from [`super::plan()`] over the same samples, or
@@ -34,12 +34,12 @@ pub fn compile_plan(
         plan,
         model,
         source_hash,
-        ServedNodes::All,
+        Queried::Anywhere,
         progress,
     )
 }
 
-/// [`compile_plan`] computing only the served tier's `nodes`. Samples the plan merges
+/// [`compile_plan`] computing only what a table `queried` there needs. Samples the plan merges
 /// ([`Plan::merge`]) are merged first: both tiers answer from the voxel averages.
 ///
 /// # Errors
@@ -50,10 +50,10 @@ pub fn compile_plan_serving(
     plan: &Plan,
     model: Option<&PreparedModel>,
     source_hash: u64,
-    nodes: ServedNodes<'_>,
+    queried: Queried<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
-    let compiled = compile_plan_values(samples, plan, model, source_hash, nodes, progress)?;
+    let compiled = compile_plan_values(samples, plan, model, source_hash, queried, progress)?;
     Ok((compiled.bytes, compiled.report))
 }
 
@@ -79,7 +79,7 @@ pub(crate) fn compile_plan_values(
     plan: &Plan,
     model: Option<&PreparedModel>,
     source_hash: u64,
-    nodes: ServedNodes<'_>,
+    queried: Queried<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Compiled, BuildError> {
     let merged;
@@ -110,7 +110,15 @@ pub(crate) fn compile_plan_values(
     };
     let joint_screen = plan.joint_radius_rad > 0.0;
     let records = samples.records();
-    let lists = candidate_lists(&records, &plan.params, joint_screen, &plan.grid, progress);
+    let (nodes, cells) = computed(&plan.grid, queried);
+    let lists = candidate_lists(
+        &records,
+        &plan.params,
+        joint_screen,
+        &plan.grid,
+        cells.as_deref(),
+        progress,
+    );
     let mut data = exact_tier(samples, &records, &lists, model, joint_screen, &mut report);
     // The served tier: the exact method at every node, one set per target configuration
     // (none with a joint screen: its admissible samples depend on the joint values).
@@ -121,7 +129,7 @@ pub(crate) fn compile_plan_values(
             &lists,
             plan,
             model,
-            nodes,
+            nodes.as_deref(),
             &mut data,
             &mut report,
         )?;
@@ -145,6 +153,31 @@ pub(crate) fn compile_plan_values(
         joint_count,
         report,
     })
+}
+
+/// What a table `queried` there computes: a flag per node of a set ([`serving_nodes`])
+/// and per cell (its candidate list), or `None` for all. A cell's list is computed where a
+/// position of either tier lies (a table without a served tier answers its served queries
+/// from it) and where a computed node is a corner (the method's value there is computed
+/// from one of them, the kriging's reach from all).
+fn computed(grid: &format::Grid, queried: Queried<'_>) -> (Option<Vec<bool>>, Option<Vec<bool>>) {
+    let Queried::At { served, exact } = queried else {
+        return (None, None);
+    };
+    let nodes = serving_nodes(grid, served);
+    let mut cells = vec![false; grid.cell_count().unwrap_or(0)];
+    for p in served.iter().chain(exact) {
+        if let Some(cell) = grid.cell_of(*p) {
+            cells[cell] = true;
+        }
+    }
+    let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
+    for (node, _) in nodes.iter().enumerate().filter(|(_, &n)| n) {
+        for cell in adjacent_cells(grid, [node % nx, node / nx % ny, node / (nx * ny)]) {
+            cells[cell] = true;
+        }
+    }
+    (Some(nodes), Some(cells))
 }
 
 /// The checks a model and the samples' joint values must pass before any work: a model's
@@ -228,7 +261,7 @@ fn exact_tier(
     data
 }
 
-/// The served tier's nodes into `data` (those `nodes` asks for), and their figures and
+/// The served tier's nodes into `data` (those flagged in `nodes`, all without), and their figures and
 /// the field written into `report`.
 #[allow(clippy::too_many_arguments)]
 fn served_tier(
@@ -237,15 +270,11 @@ fn served_tier(
     lists: &[Vec<u32>],
     plan: &Plan,
     model: Option<&PreparedModel>,
-    nodes: ServedNodes<'_>,
+    nodes: Option<&[bool]>,
     data: &mut v2::TableData,
     report: &mut BuildReport,
 ) -> Result<(), BuildError> {
     let field = NodeField::new(plan.served_field, plan.kriging_choices, samples, model)?;
-    let computed = match nodes {
-        ServedNodes::All => None,
-        ServedNodes::Serving(positions) => Some(serving_nodes(&plan.grid, positions)),
-    };
     let served = NodeValues::compute(
         records,
         &plan.params,
@@ -253,7 +282,7 @@ fn served_tier(
         lists,
         samples,
         &field,
-        computed.as_deref(),
+        nodes,
     )?;
     report.node_sets = served.sets.len();
     report.served_cells = served.served_cells(&plan.grid);

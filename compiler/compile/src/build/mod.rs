@@ -58,16 +58,25 @@ use adwi_runtime::method::MethodParams;
 pub use candidates::{BOX_MARGIN_MM, DISTANCE_SLACK_MM};
 pub use encode::{compile_plan, compile_plan_serving};
 
-/// Which of the served tier's nodes a build computes.
+/// Where a build's table will be queried, and so what it computes.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ServedNodes<'a> {
-    /// Every node: a table to serve any target.
-    All,
-    /// Only the corners of the cells the runtime blends for targets at these positions
-    /// (mm): the cell holding each, or the grid's cell nearest it outside the grid. The
-    /// other nodes are missing. A table queried at these positions alone (an evaluation's
-    /// held-out points) answers there as the full table does, for a fraction of the nodes.
-    Serving(&'a [[f64; 3]]),
+pub enum Queried<'a> {
+    /// Anywhere: every node and every cell's candidate list, a table to serve any target.
+    Anywhere,
+    /// Only at these positions (mm): by the served tier at `served`, by the exact tier at
+    /// `exact`. The nodes computed are the corners of the cells the runtime blends for the
+    /// `served` positions (the cell holding each, or the grid's cell nearest it outside
+    /// the grid); the candidate lists, those of the cells holding a position of either
+    /// kind and of the cells a computed node is a corner of (what its value is computed
+    /// from). The other nodes are missing and the other lists empty. A table queried at
+    /// these positions alone (an evaluation's held-out points) answers there as the full
+    /// table does, for a fraction of the work.
+    At {
+        /// Positions the served tier is queried at, mm.
+        served: &'a [[f64; 3]],
+        /// Positions the exact tier is queried at, mm.
+        exact: &'a [[f64; 3]],
+    },
 }
 
 /// The hyperparameters a kriging served field of `samples` would choose by likelihood, as
@@ -316,10 +325,10 @@ pub fn compile(
     options: &BuildOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
-    compile_serving(samples, options, ServedNodes::All, progress)
+    compile_serving(samples, options, Queried::Anywhere, progress)
 }
 
-/// [`compile`] computing only the served tier's `nodes`.
+/// [`compile`] computing only what a table `queried` there needs.
 ///
 /// # Errors
 ///
@@ -327,11 +336,18 @@ pub fn compile(
 pub fn compile_serving(
     samples: &SampleSet,
     options: &BuildOptions,
-    nodes: ServedNodes<'_>,
+    queried: Queried<'_>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<u8>, BuildReport), BuildError> {
     let plan = plan(samples, options)?;
-    compile_plan_serving(samples, &plan, None, samples.source_hash(), nodes, progress)
+    compile_plan_serving(
+        samples,
+        &plan,
+        None,
+        samples.source_hash(),
+        queried,
+        progress,
+    )
 }
 
 /// Samples and a build shortcut shared by the unit tests of the build's modules.

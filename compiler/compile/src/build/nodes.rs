@@ -377,7 +377,7 @@ pub(super) fn serving_nodes(grid: &Grid, positions: &[[f64; 3]]) -> Vec<bool> {
 }
 
 /// The cells (linear indices) node `ijk` is a corner of: up to 8, fewer on the grid's faces.
-fn adjacent_cells(grid: &Grid, ijk: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+pub(super) fn adjacent_cells(grid: &Grid, ijk: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
     let range = move |a: usize| ijk[a].saturating_sub(1)..=ijk[a].min(grid.dims[a] as usize - 1);
     range(2).flat_map(move |k| {
         range(1).flat_map(move |j| range(0).map(move |i| grid.linear_index([i, j, k])))
@@ -559,7 +559,7 @@ mod tests {
 
     #[test]
     fn a_table_serving_some_positions_answers_there_as_the_full_table() {
-        use crate::build::{compile_serving, ServedNodes};
+        use crate::build::{compile_serving, Queried};
         use adwi_runtime::{Status, Table};
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
@@ -578,8 +578,11 @@ mod tests {
                 Table::from_vec(compile_serving(&s, &options, nodes, &|_| {}).unwrap().0).unwrap()
             };
             let (full, some) = (
-                table(ServedNodes::All),
-                table(ServedNodes::Serving(&positions)),
+                table(Queried::Anywhere),
+                table(Queried::At {
+                    served: &positions,
+                    exact: &[],
+                }),
             );
             let mut answered = 0;
             for p in &positions {
@@ -591,6 +594,29 @@ mod tests {
                 answered += usize::from(a.status == Status::Ok);
             }
             assert!(answered > 10, "{answered} answered");
+            // Queried by the exact tier there alone: no node, the lists of those cells.
+            let exact = table(Queried::At {
+                served: &[],
+                exact: &positions,
+            });
+            for p in &positions {
+                let target = adwi_runtime::Target::at(*p);
+                let (a, b) = (
+                    full.exact().query_target(&target),
+                    exact.exact().query_target(&target),
+                );
+                assert!(same_answer(&a, &b), "exact at {p:?}: {a:?} vs {b:?}");
+            }
+            let unlisted = (0..200)
+                .map(|_| adwi_runtime::Target::at([0, 1, 2].map(|_| rng.gen_range(1000.0..1400.0))))
+                .filter(|t| {
+                    exact.exact().query_target(t).status != full.exact().query_target(t).status
+                })
+                .count();
+            assert!(
+                unlisted > 0,
+                "{served_field:?}: the exact-only table lists every cell"
+            );
             // Elsewhere, the partial table serves less.
             let unserved = (0..200)
                 .map(|_| [0, 1, 2].map(|_| rng.gen_range(1000.0..1400.0)))
@@ -607,7 +633,7 @@ mod tests {
     fn a_hybrid_table_serving_some_targets_answers_them_as_the_full_table() {
         // Targets beyond the grid box too, where the residual fades out from the nearest
         // cell of the grid.
-        use crate::build::{plan, ServedNodes};
+        use crate::build::{plan, Queried};
         use adwi_runtime::chain::Chain;
         use adwi_runtime::kinematics::{MdhJoint, Transform};
         use adwi_runtime::{Table, Target};
@@ -685,8 +711,11 @@ mod tests {
                 Table::from_vec(built.unwrap().bytes).unwrap()
             };
             let (full, some) = (
-                table(ServedNodes::All),
-                table(ServedNodes::Serving(&positions)),
+                table(Queried::Anywhere),
+                table(Queried::At {
+                    served: &positions,
+                    exact: &[],
+                }),
             );
             let mut faded = 0;
             for (q, p) in &targets {
@@ -702,6 +731,26 @@ mod tests {
                 faded += usize::from(a.residual == adwi_runtime::Residual::Faded);
             }
             assert!(faded > 0, "{served_field:?}: no target beyond the grid box");
+            // Queried by the exact tier there alone: no node, the lists of those cells.
+            let exact = table(Queried::At {
+                served: &[],
+                exact: &positions,
+            });
+            let mut listed = 0;
+            for (q, p) in &targets {
+                let target = Target::at(*p);
+                let (a, b) = (
+                    full.exact().query_with_joints(&target, q),
+                    exact.exact().query_with_joints(&target, q),
+                );
+                assert!(same_answer(&a, &b), "exact at {p:?}: {a:?} vs {b:?}");
+                listed += usize::from(a.neighbours > 0);
+            }
+            // Most targets lie beyond the grid box, where the exact tier has no cell.
+            assert!(
+                listed >= 5,
+                "{served_field:?}: {listed} answered from a list"
+            );
         }
     }
 
