@@ -925,7 +925,7 @@ fn evidence_of(
 /// `header.payload_len`, `payload_checksum`, `version` and `rkyv_flags` are overwritten.
 pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     let version = if header.records_version_4() { 4 } else { 2 };
-    with_header(header, version, data)
+    with_header(header, version, data, data.archived_len_hint())
 }
 
 /// Serialises a version-3 table (a table with a posture term) as [`encode`] a version-2
@@ -934,7 +934,7 @@ pub fn encode(header: Header, data: &v2::TableData) -> Result<Vec<u8>, rkyv::ran
 pub fn encode_v3(mut header: Header, data: &v3::TableData) -> Result<Vec<u8>, rkyv::rancor::Error> {
     header.content_flags |= CONTENT_POSTURE;
     let version = if header.records_version_4() { 4 } else { 3 };
-    with_header(header, version, data)
+    with_header(header, version, data, data.base.archived_len_hint())
 }
 
 /// Serialises a version-6 table (a hybrid table: its model's joint-space terms, zero when
@@ -952,7 +952,7 @@ pub fn encode_v6(
     } else {
         header.content_flags &= !CONTENT_POSTURE;
     }
-    with_header(header, 6, data)
+    with_header(header, 6, data, data.base.archived_len_hint())
 }
 
 /// The table file of `data` at `version`: the header, with its lengths and checksums,
@@ -964,6 +964,7 @@ fn with_header<T>(
     mut header: Header,
     version: u16,
     data: &T,
+    payload_len_hint: usize,
 ) -> Result<Vec<u8>, rkyv::rancor::Error>
 where
     T: for<'a> rkyv::Serialize<
@@ -975,7 +976,12 @@ where
     >,
 {
     const _: () = assert!(HEADER_LEN % PAYLOAD_ALIGN == 0 && HEADER_LEN >= 64);
-    let mut out = rkyv::api::high::to_bytes_in(data, vec![0u8; HEADER_LEN])?;
+    // Room for the whole file at once where the hint allows it (a hint too large to
+    // reserve is no error: the buffer then grows as it is written).
+    let mut room = Vec::new();
+    let _ = room.try_reserve_exact(HEADER_LEN.saturating_add(payload_len_hint));
+    room.resize(HEADER_LEN, 0u8);
+    let mut out = rkyv::api::high::to_bytes_in(data, room)?;
     let payload = &out[HEADER_LEN..];
     header.version = version;
     header.rkyv_flags = RKYV_FLAGS;

@@ -175,6 +175,31 @@ pub struct TableData {
     pub model: Option<ModelRecord>,
 }
 
+impl TableData {
+    /// About the bytes its archive takes: its arrays' (the archive stores them as they
+    /// are in memory) and room for the rest. A hint for the encoder's buffer, so that a
+    /// table of tens of megabytes is written once rather than regrown as it is written.
+    pub fn archived_len_hint(&self) -> usize {
+        use std::mem::size_of_val;
+        [
+            size_of_val(self.cells.as_slice()),
+            size_of_val(self.cells_wide.as_slice()),
+            size_of_val(self.overflow.as_slice()),
+            size_of_val(self.samples.as_slice()),
+            size_of_val(self.errors_mm.as_slice()),
+            size_of_val(self.orientation_errors_rad.as_slice()),
+            size_of_val(self.configs.as_slice()),
+            size_of_val(self.joints_rad.as_slice()),
+            size_of_val(self.node_sets.as_slice()),
+            size_of_val(self.node_errors_mm.as_slice()),
+            size_of_val(self.node_orientation_errors_rad.as_slice()),
+            64 * 1024,
+        ]
+        .iter()
+        .fold(0usize, |sum, n| sum.saturating_add(*n))
+    }
+}
+
 // Layout conversions: the one place where a stored chain becomes the runtime's `Chain`
 // and back.
 

@@ -173,25 +173,25 @@ impl NodeValues {
                 let ijk = [node % nx, node / nx % ny, node / (nx * ny)];
                 (ijk, grid_node_mm(grid, ijk))
             };
-            let values: Vec<NodeTerms> = match field {
+            // Written flat, `stride` vectors a node: the method's one, straight from its
+            // nodes (a node's four vectors and their copy were 8 times the memory, touched
+            // fresh for every table an evaluation builds).
+            let (position, orientation): (Vec<[f64; 3]>, Vec<[f64; 3]>) = match field {
                 NodeField::Method => (0..per_set)
                     .into_par_iter()
                     .map(|node| {
                         if !computed(node) {
-                            return (missing, missing);
+                            return (missing[0], missing[0]);
                         }
                         let (p, r) =
                             node_value(records, params, grid, lists, node_position(node).0, config);
                         if adwi_runtime::served::is_missing(&p) {
-                            (missing, missing)
+                            (missing[0], missing[0])
                         } else {
-                            (
-                                [p, [0.0; 3], [0.0; 3], [0.0; 3]],
-                                [r, [0.0; 3], [0.0; 3], [0.0; 3]],
-                            )
+                            (p, r)
                         }
                     })
-                    .collect(),
+                    .unzip(),
                 NodeField::Kriging(axes, given) => {
                     // The samples a target of this configuration may use (method::select).
                     let seen: Vec<usize> = (0..records.len())
@@ -222,7 +222,7 @@ impl NodeValues {
                         adjacent_cells(grid, node_position(node).0)
                             .any(|cell| lists[cell].iter().any(usable))
                     };
-                    kriging
+                    let terms = kriging
                         .field
                         .lattice_terms(
                             [nx, ny, nz],
@@ -232,20 +232,18 @@ impl NodeValues {
                             &computed,
                             &|terms| kriging.node_terms(terms),
                         )
-                        .map_err(BuildError::Kriging)?
-                        .into_iter()
-                        .map(|v| v.unwrap_or((missing, missing)))
-                        .collect()
+                        .map_err(BuildError::Kriging)?;
+                    let none: NodeTerms = (missing, missing);
+                    let flat = |which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
+                        terms
+                            .iter()
+                            .flat_map(|t| which(t.as_ref().unwrap_or(&none))[..stride].iter())
+                            .copied()
+                            .collect()
+                    };
+                    (flat(|t| &t.0), flat(|t| &t.1))
                 }
             };
-            let flat =
-                |v: &[NodeTerms], which: fn(&NodeTerms) -> &[[f64; 3]; 4]| -> Vec<[f64; 3]> {
-                    v.iter()
-                        .flat_map(|t| which(t)[..stride].iter().copied())
-                        .collect()
-                };
-            let position = flat(&values, |t| &t.0);
-            let orientation = flat(&values, |t| &t.1);
             let first_node = (0..out.sets.len())
                 .map(|s| out.sets[s].first_node as usize)
                 .find(|&first| {
