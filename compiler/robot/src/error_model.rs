@@ -203,12 +203,28 @@ pub fn mdh_screws(
 ) -> (Vec<[Screw; PARAMETERS_PER_JOINT]>, Vector3<f64>) {
     assert_eq!(rows.len(), chain.joint_count(), "one MD-H row per joint");
     let (frames, tcp) = chain_frames(chain, q_rad);
-    let screws = frames
+    let constants: Vec<Transform> = rows.iter().map(mdh_constant_part).collect();
+    (
+        mdh_screws_from(&frames, &constants),
+        vector(tcp.translation_mm),
+    )
+}
+
+/// [`mdh_screws`] from the chain's frames at the joint values ([`chain_frames`]) and each
+/// row's constant part ([`mdh_constant_part`]), computed before: an identification
+/// linearising at every sample has the frames already, and the constant parts are the
+/// same at every sample (their sines and cosines were a third of its trigonometry).
+pub fn mdh_screws_from(
+    frames: &[(Transform, Transform)],
+    constants: &[Transform],
+) -> Vec<[Screw; PARAMETERS_PER_JOINT]> {
+    assert_eq!(frames.len(), constants.len(), "one constant part per joint");
+    frames
         .iter()
-        .zip(rows)
-        .map(|((before, after_motion), row)| {
+        .zip(constants)
+        .map(|((before, after_motion), constant)| {
             // Frame i: after the joint's motion, the link's constant part.
-            let after = after_motion.compose(&mdh_constant_part(row));
+            let after = after_motion.compose(constant);
             let z = vector(before.rotate_vector([0.0, 0.0, 1.0]));
             // x' = R_{i−1}·Rz(θ)·x: the direction `a` translates along and `α` turns about.
             let x_turned = vector(after_motion.rotate_vector([1.0, 0.0, 0.0]));
@@ -235,8 +251,7 @@ pub fn mdh_screws(
             };
             screws
         })
-        .collect();
-    (screws, vector(tcp.translation_mm))
+        .collect()
 }
 
 /// The 6 × 5n first-order pose error of the TCP with respect to the MD-H deviations of the

@@ -8,7 +8,7 @@ use adwi_runtime::kinematics::Transform;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use adwi_robot::error_model::{
-    apply_deviations, deviations_from_vector, mdh_screws, transform_pose_error, MdhParameter,
+    apply_deviations, deviations_from_vector, mdh_screws_from, transform_pose_error, MdhParameter,
     Screw, PARAMETERS_PER_JOINT,
 };
 use adwi_robot::model::{
@@ -42,6 +42,9 @@ pub(super) struct State {
     pub(super) robot: Robot,
     /// The joint-space terms ([`JointTerms::NONE`] without).
     pub(super) terms: JointTerms,
+    /// Each MD-H row's constant part ([`mdh_constant_part`]; empty for another geometry):
+    /// the same at every sample the Jacobian is taken at.
+    mdh_constants: Vec<Transform>,
 }
 
 impl Model {
@@ -183,9 +186,14 @@ impl Model {
             let slot = 2 * (harmonic as usize - 1) + cosine as usize;
             terms.coefficients_rad[joint][slot] = x[self.first_term() + k];
         }
+        let mdh_constants = match calibrated.geometry() {
+            Geometry::Mdh(rows) => rows.iter().map(mdh_constant_part).collect(),
+            Geometry::Chain(_) => Vec::new(),
+        };
         Ok(State {
             robot: calibrated,
             terms,
+            mdh_constants,
         })
     }
 
@@ -244,14 +252,15 @@ impl Model {
         // The frame the tool is given in.
         let flange = match state.robot.geometry() {
             Geometry::Mdh(rows) => {
-                let (screws, _) = mdh_screws(chain, rows, q);
+                assert_eq!(rows.len(), n, "one MD-H row per joint");
+                let screws = mdh_screws_from(&frames, &state.mdh_constants);
                 for (joint, joint_screws) in screws.iter().enumerate() {
                     for (parameter, screw) in MdhParameter::ALL.into_iter().zip(joint_screws) {
                         put(parameter.column(joint), screw);
                     }
                 }
                 let last = rows.len() - 1;
-                frames[last].1.compose(&mdh_constant_part(&rows[last]))
+                frames[last].1.compose(&state.mdh_constants[last])
             }
             Geometry::Chain(joints) => {
                 let Geometry::Chain(nominal) = self.robot.geometry() else {
