@@ -358,16 +358,18 @@ fn joint_vectors(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng
     out
 }
 
-fn check_correction(what: &str, c: &Correction) -> Result<(), String> {
+/// `what` names the call, written only for a failure: a case makes hundreds of calls,
+/// and formatting their arguments each time was a third of this test's time.
+fn check_correction(what: impl FnOnce() -> String, c: &Correction) -> Result<(), String> {
     let values = c.position_error_mm.iter().chain(&c.orientation_error_rad);
     if c.status == Status::Ok {
         // A hybrid table's model alone weighs no neighbour.
         let weighed = c.neighbours > 0 || c.residual == adwi_runtime::Residual::ModelOnly;
         if !values.clone().all(|v| v.is_finite()) || !weighed {
-            return Err(format!("{what}: status ok with {c:?}"));
+            return Err(format!("{}: status ok with {c:?}", what()));
         }
     } else if values.clone().any(|&v| v != 0.0) || c.neighbours != 0 {
-        return Err(format!("{what}: a failure that is not zero: {c:?}"));
+        return Err(format!("{}: a failure that is not zero: {c:?}", what()));
     }
     Ok(())
 }
@@ -377,23 +379,26 @@ fn exercise(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> 
     let joints = joint_vectors(table, rng);
     for target in targets(table, rng) {
         let p = target.position_mm;
-        check_correction(&format!("query {p:?}"), &table.query(p))?;
-        check_correction(&format!("exact query {p:?}"), &table.exact().query(p))?;
+        check_correction(|| format!("query {p:?}"), &table.query(p))?;
+        check_correction(|| format!("exact query {p:?}"), &table.exact().query(p))?;
         let c = table.query_target(&target);
-        check_correction(&format!("query_target {target:?}"), &c)?;
+        check_correction(|| format!("query_target {target:?}"), &c)?;
         if table.is_hybrid() && c.status != Status::MissingJoints {
             return Err(format!("hybrid table answered without joints: {c:?}"));
         }
         for q in &joints {
             let c = table.query_with_joints(&target, q);
-            check_correction(&format!("query_with_joints {target:?} {q:?}"), &c)?;
+            check_correction(|| format!("query_with_joints {target:?} {q:?}"), &c)?;
             let wrong = !q.iter().all(|v| v.is_finite())
                 || table.joint_count().is_some_and(|n| n != q.len());
             if wrong && c.status != Status::InvalidInput {
                 return Err(format!("invalid joints {q:?} answered {c:?}"));
             }
             let exact = table.exact().query_with_joints(&target, q);
-            check_correction(&format!("exact query_with_joints {target:?} {q:?}"), &exact)?;
+            check_correction(
+                || format!("exact query_with_joints {target:?} {q:?}"),
+                &exact,
+            )?;
         }
         if let Ok(e) = table.explain(&target) {
             let values = (e.position_error_mm.iter())
@@ -405,7 +410,7 @@ fn exercise(table: &Table<adwi_runtime::AlignedBytes>, rng: &mut ChaCha8Rng) -> 
         }
         let (tolerance_mm, iterations) = [(1e-6, 10), (0.0, 3), (1e-3, 1)][rng.gen_range(0..3)];
         let k = table.compensate(&target, tolerance_mm, iterations);
-        check_correction(&format!("compensate {target:?}"), &k.correction)?;
+        check_correction(|| format!("compensate {target:?}"), &k.correction)?;
         if k.correction.status == Status::Ok {
             let values = (k.command_position_mm.iter())
                 .chain(&k.command_rotation_rad)
@@ -913,7 +918,7 @@ fn hostile_hybrid_tables_with_valid_checksums_are_refused() {
     let q = [1e300, -1e300, 1e300, 1e300, 1e300, 1e300];
     let sample = archived.samples[0].actual_mm.map(|v| v.to_native());
     let c = table.query_with_joints(&Target::at(sample), &q);
-    check_correction("huge joint angles", &c).unwrap();
+    check_correction(|| "huge joint angles".into(), &c).unwrap();
 }
 
 /// A version-2 hybrid table re-encoded with a damaged chain (checksums and rkyv
