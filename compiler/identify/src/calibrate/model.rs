@@ -229,22 +229,25 @@ impl Model {
         state: &State,
         commanded: &[f64],
     ) -> DMatrix<f64> {
+        self.jacobian_of(x, state, commanded, &Walk::of(state, commanded))
+    }
+
+    /// [`Model::jacobian`] at the walk of `commanded` ([`Walk::of`]), which the error at the
+    /// same joint values reads too.
+    pub(super) fn jacobian_of(
+        &self,
+        x: &DVector<f64>,
+        state: &State,
+        commanded: &[f64],
+        walk: &Walk,
+    ) -> DMatrix<f64> {
         let mut j = DMatrix::zeros(6, self.len());
         let chain = state.robot.chain();
         let n = chain.joint_count();
-        // The joint-space terms move the joints before gravity deflects them.
-        let moved = state
-            .terms
-            .joints(commanded)
-            .expect("one joint value per joint");
         let terms_of = commanded;
-        let commanded = &moved[..n];
-        let loaded_joints = chain
-            .loaded_joints(commanded)
-            .expect("one joint value per joint");
-        let q = &loaded_joints[..n];
-        let (frames, tcp_pose) = chain_frames(chain, q);
-        let tcp = Vector3::from(tcp_pose.translation_mm);
+        let commanded = &walk.moved[..n];
+        let frames = &walk.frames;
+        let tcp = Vector3::from(walk.tcp.translation_mm);
         let mut put = |column: usize, screw: &Screw| {
             j.column_mut(column)
                 .copy_from(&screw.pose_error_column(&tcp));
@@ -368,6 +371,33 @@ impl Model {
             next.rows_mut(start, 3).copy_from(&Vector3::from(v));
         }
         next
+    }
+}
+
+/// A state's arm at commanded joint values: the joints the joint-space terms move them to,
+/// each joint's frames at the values gravity then deflects them to ([`chain_frames`]) and
+/// the TCP. Its TCP is [`loaded_with_terms`]'s to the bit (the same products, in the same
+/// order), so that a linearisation computes the error and the Jacobian from one walk.
+pub(super) struct Walk {
+    moved: [f64; adwi_runtime::chain::MAX_JOINTS],
+    frames: Vec<(Transform, Transform)>,
+    pub(super) tcp: Transform,
+}
+
+impl Walk {
+    pub(super) fn of(state: &State, commanded: &[f64]) -> Walk {
+        let chain = state.robot.chain();
+        let n = chain.joint_count();
+        // The joint-space terms move the joints before gravity deflects them.
+        let moved = state
+            .terms
+            .joints(commanded)
+            .expect("one joint value per joint");
+        let loaded = chain
+            .loaded_joints(&moved[..n])
+            .expect("one joint value per joint");
+        let (frames, tcp) = chain_frames(chain, &loaded[..n]);
+        Walk { moved, frames, tcp }
     }
 }
 

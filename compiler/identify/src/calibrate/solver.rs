@@ -6,9 +6,10 @@ use nalgebra::{DMatrix, DVector};
 
 use adwi_runtime::kinematics::Transform;
 
-use super::model::{Model, State};
+use super::model::{Model, State, Walk};
 use super::parameters::Parameter;
 use super::{CalibrateError, CalibrateOptions};
+use adwi_robot::error_model::transform_pose_error;
 
 /// The measurements of one sample.
 pub(super) struct Measurement {
@@ -76,7 +77,13 @@ impl Problem {
             }
         }
         for (s, m) in self.measurements.iter().enumerate() {
-            let e = self.model.error_from(&m.nominal_tcp, state, &m.q);
+            // With the Jacobian, the error from the walk it is taken at (the same bits as
+            // `error_from`'s, one walk of the arm instead of two).
+            let walk = jacobian.is_some().then(|| Walk::of(state, &m.q));
+            let e = match &walk {
+                Some(walk) => transform_pose_error(&m.nominal_tcp, &walk.tcp),
+                None => self.model.error_from(&m.nominal_tcp, state, &m.q),
+            };
             let row = s * self.rows_per_sample;
             for a in 0..3 {
                 r[row + a] = m.error_mm[a] - e[a];
@@ -86,8 +93,8 @@ impl Problem {
                     r[row + 3 + a] = self.weight * (measured[a] - e[a + 3]);
                 }
             }
-            if let Some(jac) = jacobian.as_deref_mut() {
-                let j = self.model.jacobian(x, state, &m.q);
+            if let (Some(jac), Some(walk)) = (jacobian.as_deref_mut(), &walk) {
+                let j = self.model.jacobian_of(x, state, &m.q, walk);
                 for a in 0..self.rows_per_sample {
                     let scale = if a < 3 { 1.0 } else { self.weight };
                     for c in 0..p {
