@@ -110,7 +110,8 @@ pub(crate) fn compile_plan_values(
     };
     let joint_screen = plan.joint_radius_rad > 0.0;
     let records = samples.records();
-    let (nodes, cells) = computed(&plan.grid, queried);
+    let kriging = !joint_screen && plan.served_field != ServedField::Method;
+    let (nodes, cells) = computed(&plan.grid, queried, kriging);
     let lists = candidate_lists(
         &records,
         &plan.params,
@@ -158,13 +159,22 @@ pub(crate) fn compile_plan_values(
 /// What a table `queried` there computes: a flag per node of a set ([`serving_nodes`])
 /// and per cell (its candidate list), or `None` for all. A cell's list is computed where a
 /// position of either tier lies (a table without a served tier answers its served queries
-/// from it) and where a computed node is a corner (the method's value there is computed
-/// from one of them, the kriging's reach from all).
-fn computed(grid: &format::Grid, queried: Queried<'_>) -> (Option<Vec<bool>>, Option<Vec<bool>>) {
+/// from it) and where a computed node of the method's field is a corner (its value is
+/// computed from one of them). A kriging field computing some nodes needs every list: a
+/// local kriging fits a block of nodes around the centre of those the samples reach,
+/// computed or not, and whether a node is reached is read from its cells' lists.
+fn computed(
+    grid: &format::Grid,
+    queried: Queried<'_>,
+    kriging: bool,
+) -> (Option<Vec<bool>>, Option<Vec<bool>>) {
     let Queried::At { served, exact } = queried else {
         return (None, None);
     };
     let nodes = serving_nodes(grid, served);
+    if kriging && nodes.iter().any(|&n| n) {
+        return (Some(nodes), None);
+    }
     let mut cells = vec![false; grid.cell_count().unwrap_or(0)];
     for p in served.iter().chain(exact) {
         if let Some(cell) = grid.cell_of(*p) {
