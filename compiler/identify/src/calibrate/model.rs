@@ -255,7 +255,6 @@ impl Model {
         // The frame the tool is given in.
         let flange = match state.robot.geometry() {
             Geometry::Mdh(rows) => {
-                assert_eq!(rows.len(), n, "one MD-H row per joint");
                 let screws = mdh_screws_from(frames, &state.mdh_constants);
                 for (joint, joint_screws) in screws.iter().enumerate() {
                     for (parameter, screw) in MdhParameter::ALL.into_iter().zip(joint_screws) {

@@ -1,4 +1,4 @@
-use super::model::{loaded, Model};
+use super::model::{loaded, loaded_with_terms, Model, Walk};
 use super::*;
 use adwi_robot::error_model::{transform_pose_error, MdhParameter};
 use adwi_robot::model::URAD_PER_NM;
@@ -992,6 +992,30 @@ fn terms_on(parameters: &[Parameter], columns: &[usize], seed: u64) -> DVector<f
         }
     }
     x
+}
+
+/// The walk a linearisation reads its error from is the exact model's loaded TCP to the
+/// bit (an MD-H robot, one with compliance, a URDF chain; with joint-space terms), at
+/// states away from nominal: the error and the Jacobian share it, and the fit's
+/// residuals must not move by it.
+#[test]
+fn a_walk_ends_at_the_loaded_tcp_to_the_bit() {
+    let bits = |t: &adwi_runtime::kinematics::Transform| {
+        let mut out: Vec<u64> = t.rotation.iter().flatten().map(|v| v.to_bits()).collect();
+        out.extend(t.translation_mm.iter().map(|v| v.to_bits()));
+        out
+    };
+    for (robot, compliance) in [(kr150(), false), (ur5(), true), (iiwa(), false)] {
+        let model = Model::new(&robot, compliance, 2);
+        let all: Vec<usize> = (0..model.len()).collect();
+        let x = terms_on(&model.parameters, &all, 5);
+        let state = model.state(&x).unwrap();
+        for q in poses(&robot, 200, 9) {
+            let walked = Walk::of(&state, &q).tcp;
+            let exact = loaded_with_terms(&state.robot, &state.terms, &q);
+            assert_eq!(bits(&walked), bits(&exact), "{} at {q:?}", robot.name);
+        }
+    }
 }
 
 /// Every joint-space term column against central differences of the exact model, whose
