@@ -10,7 +10,7 @@ use adwi_runtime::method;
 use adwi_runtime::model::PreparedModel;
 
 use super::candidates::candidate_lists;
-use super::nodes::{adjacent_cells, serving_nodes, NodeField, NodeValues};
+use super::nodes::{node_cells, serving_nodes, NodeField, NodeValues};
 use super::{BuildError, BuildReport, Plan, Queried, ServedField};
 use adwi_samples::SampleSet;
 
@@ -181,9 +181,8 @@ fn computed(
             cells[cell] = true;
         }
     }
-    let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
     for (node, _) in nodes.iter().enumerate().filter(|(_, &n)| n) {
-        for cell in adjacent_cells(grid, [node % nx, node / nx % ny, node / (nx * ny)]) {
+        for cell in node_cells(grid, node) {
             cells[cell] = true;
         }
     }

@@ -219,8 +219,7 @@ impl NodeValues {
                     let usable =
                         |s: &u32| method::config_matches(records[*s as usize].config, config);
                     let reached = |node: usize| {
-                        adjacent_cells(grid, node_position(node).0)
-                            .any(|cell| lists[cell].iter().any(usable))
+                        node_cells(grid, node).any(|cell| lists[cell].iter().any(usable))
                     };
                     let terms = kriging
                         .field
@@ -374,8 +373,15 @@ pub(super) fn serving_nodes(grid: &Grid, positions: &[[f64; 3]]) -> Vec<bool> {
     out
 }
 
+/// The cells (linear indices) node `node` of a set (x fastest over `dims + 1` per axis) is
+/// a corner of ([`adjacent_cells`]).
+pub(super) fn node_cells(grid: &Grid, node: usize) -> impl Iterator<Item = usize> + '_ {
+    let [nx, ny, _] = grid.dims.map(|d| d as usize + 1);
+    adjacent_cells(grid, [node % nx, node / nx % ny, node / (nx * ny)])
+}
+
 /// The cells (linear indices) node `ijk` is a corner of: up to 8, fewer on the grid's faces.
-pub(super) fn adjacent_cells(grid: &Grid, ijk: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
+fn adjacent_cells(grid: &Grid, ijk: [usize; 3]) -> impl Iterator<Item = usize> + '_ {
     let range = move |a: usize| ijk[a].saturating_sub(1)..=ijk[a].min(grid.dims[a] as usize - 1);
     range(2).flat_map(move |k| {
         range(1).flat_map(move |j| range(0).map(move |i| grid.linear_index([i, j, k])))
