@@ -230,6 +230,33 @@ fn a_table_with_a_broken_invariant_but_valid_checksums_is_refused() {
 }
 
 #[test]
+fn a_table_listing_a_sample_twice_in_a_cell_is_refused() {
+    // A cell with two candidates or more names its first twice: checksums and rkyv pass,
+    // the semantic pass must not (a sample listed twice would be selected twice). Every
+    // other cell's list names samples the others name too, so the check's marks are
+    // cleared between cells, or the unchanged table would be refused.
+    let bytes = small_table();
+    let table = Table::from_vec(&bytes).unwrap();
+    let header = *table.header();
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("the compiler writes version 2");
+    };
+    let mut data: adwi_runtime::format::v2::TableData =
+        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    let cell = data.cells.iter().rposition(|r| r[0] >= 2).unwrap();
+    assert!(
+        usize::from(data.cells[cell][0]) <= adwi_runtime::format::v2::INLINE_CANDIDATES,
+        "an inline list"
+    );
+    let unchanged = adwi_runtime::format::encode(header, &data).unwrap();
+    assert!(open(&unchanged).is_ok());
+    data.cells[cell][2] = data.cells[cell][1];
+    let corrupt = adwi_runtime::format::encode(header, &data).unwrap();
+    let err = open(&corrupt).unwrap_err();
+    assert!(err.to_string().contains("names a sample twice"), "{err}");
+}
+
+#[test]
 fn empty_and_misaligned_buffers_are_refused() {
     assert!(matches!(
         open(&[]),

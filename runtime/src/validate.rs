@@ -180,39 +180,13 @@ fn check_cells_v1(header: &Header, a: &ArchivedTableData) -> Result<(), OpenErro
             .ok_or(corrupt("a cell's candidate list is out of bounds"))?;
         // Cells sharing a list are usually adjacent: check each distinct range once in a row.
         if checked_list.as_ref() != Some(&list) {
-            check_list(&a.list_samples[list.clone()], n, &mut seen)?;
+            let samples = a.list_samples[list.clone()].iter();
+            check_list(&mut seen, n, samples.map(|i| i.to_native() as usize))?;
             checked_list = Some(list);
         }
         let centre = centre_range[0].to_native() as usize..centre_range[1].to_native() as usize;
         check_base_weights(header, a, here, centre)?;
     }
-    Ok(())
-}
-
-/// A candidate list names existing samples, each once; `seen` is a bit per sample, all
-/// clear, and left clear.
-fn check_list(
-    list_samples: &[rkyv::Archived<u32>],
-    n: usize,
-    seen: &mut [u64],
-) -> Result<(), OpenError> {
-    if list_samples.iter().any(|&i| i.to_native() as usize >= n) {
-        return Err(corrupt(
-            "a candidate list names a sample that does not exist",
-        ));
-    }
-    // A sample listed twice would be selected twice.
-    for i in list_samples {
-        let i = i.to_native() as usize;
-        let (word, bit) = (i / 64, 1u64 << (i % 64));
-        if seen[word] & bit != 0 {
-            return Err(corrupt("a candidate list names a sample twice"));
-        }
-        seen[word] |= bit;
-    }
-    list_samples
-        .iter()
-        .for_each(|i| seen[i.to_native() as usize / 64] = 0);
     Ok(())
 }
 
@@ -486,33 +460,6 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
     }
     let overflow = a.overflow.as_slice();
     let mut seen = vec![0u64; n.div_ceil(64)];
-    // Checks one list: indices in range and distinct, marking each in `seen`, then clearing
-    // the marks again (a second pass rather than a list of them: no allocation per cell).
-    let mut check_list = |list: &mut dyn Iterator<Item = usize>,
-                          again: &mut dyn Iterator<Item = usize>|
-     -> Result<(), OpenError> {
-        let mut result = Ok(());
-        let mut marked = 0;
-        for i in list {
-            if i >= n {
-                result = Err(corrupt(
-                    "a candidate list names a sample that does not exist",
-                ));
-                break;
-            }
-            let (word, bit) = (i / 64, 1u64 << (i % 64));
-            if seen[word] & bit != 0 {
-                result = Err(corrupt("a candidate list names a sample twice"));
-                break;
-            }
-            seen[word] |= bit;
-            marked += 1;
-        }
-        for i in again.take(marked) {
-            seen[i / 64] = 0;
-        }
-        result
-    };
     let long_list = |start: usize, count: usize| {
         start
             .checked_add(count)
@@ -525,16 +472,23 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
             if record[count + 1..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
-            let list = || record[1..=count].iter().map(|i| i.to_native() as usize);
-            check_list(&mut list(), &mut list())?;
+            check_list(
+                &mut seen,
+                n,
+                record[1..=count].iter().map(|i| i.to_native() as usize),
+            )?;
         } else {
             let start = record[1].to_native() as usize | (record[2].to_native() as usize) << 16;
             if record[3..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
-            let list = long_list(start, count)?;
-            let list = || list.iter().map(|i| i.to_native() as usize);
-            check_list(&mut list(), &mut list())?;
+            check_list(
+                &mut seen,
+                n,
+                long_list(start, count)?
+                    .iter()
+                    .map(|i| i.to_native() as usize),
+            )?;
         }
     }
     for record in a.cells_wide.iter() {
@@ -543,18 +497,55 @@ fn validate_cells(a: &v2::ArchivedTableData, cells: usize, n: usize) -> Result<(
             if record[count + 1..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
-            let list = || record[1..=count].iter().map(|i| i.to_native() as usize);
-            check_list(&mut list(), &mut list())?;
+            check_list(
+                &mut seen,
+                n,
+                record[1..=count].iter().map(|i| i.to_native() as usize),
+            )?;
         } else {
             if record[2..].iter().any(|s| s.to_native() != 0) {
                 return Err(corrupt("a cell record's unused slots are not zero"));
             }
             let list = long_list(record[1].to_native() as usize, count)?;
-            let list = || list.iter().map(|i| i.to_native() as usize);
-            check_list(&mut list(), &mut list())?;
+            check_list(&mut seen, n, list.iter().map(|i| i.to_native() as usize))?;
         }
     }
     Ok(())
+}
+
+/// Checks one candidate list of a table of `n` samples: indices in range and distinct (a
+/// sample listed twice would be selected twice), marking each in `seen` (a bit per sample,
+/// all clear), then clearing the marks again by a second pass over the list rather than a
+/// list of them (no allocation per cell): `seen` is left clear.
+/// Generic over the list, so that each of a table's tens of thousands of lists is read
+/// without a call per index.
+#[inline]
+fn check_list(
+    seen: &mut [u64],
+    n: usize,
+    list: impl Iterator<Item = usize> + Clone,
+) -> Result<(), OpenError> {
+    let mut result = Ok(());
+    let mut marked = 0;
+    for i in list.clone() {
+        if i >= n {
+            result = Err(corrupt(
+                "a candidate list names a sample that does not exist",
+            ));
+            break;
+        }
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if seen[word] & bit != 0 {
+            result = Err(corrupt("a candidate list names a sample twice"));
+            break;
+        }
+        seen[word] |= bit;
+        marked += 1;
+    }
+    for i in list.take(marked) {
+        seen[i / 64] = 0;
+    }
+    result
 }
 
 /// Every cell's first candidate within ε of the cell's box, as the compiler lists them: a

@@ -441,7 +441,9 @@ pub(crate) fn add_term(
     };
     let bytes = adwi_runtime::format::encode_v6(header, &data, true)
         .map_err(|e| BuildError::Encode(e.to_string()))?;
-    Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    if table.opened {
+        crate::build::encode::check_opens(&bytes)?;
+    }
     let report = BuildReport {
         table_bytes: bytes.len(),
         posture: Some(fitted),

@@ -61,8 +61,10 @@ pub fn compile_plan_serving(
 /// encode, kept as values so that a later stage (the posture term, [`crate::posture`])
 /// extends the table without decoding its own output.
 pub(crate) struct Compiled {
-    /// The table file's bytes, opened once as the runtime will.
+    /// The table file's bytes, opened once as the runtime will when `opened`.
     pub bytes: Vec<u8>,
+    /// Whether the build opens its tables to check them ([`Queried::opened_by_build`]).
+    pub opened: bool,
     /// The header the bytes begin with (its payload length and checksum as written).
     pub header: Header,
     /// The version-2 payload (the base of a version-5 one with joint-space terms).
@@ -145,10 +147,12 @@ pub(crate) fn compile_plan_values(
         &data,
         &report,
     );
-    let (bytes, data) = encode(header, data, model, joint_count)?;
+    let opened = queried.opened_by_build();
+    let (bytes, data) = encode(header, data, model, joint_count, opened)?;
     report.table_bytes = bytes.len();
     Ok(Compiled {
         bytes,
+        opened,
         header,
         data,
         joint_count,
@@ -368,12 +372,14 @@ fn header(
 
 /// The table's bytes: a version-6 payload for a hybrid table (its model's joint record),
 /// else the version-2 one (version 4 when the header records evidence or a merge); opened
-/// once as the runtime will, so that a table the runtime refuses is never written.
+/// once as the runtime will when `open` ([`Queried::opened_by_build`]), so that a table the
+/// runtime refuses is never written.
 fn encode(
     header: Header,
     data: v2::TableData,
     model: Option<&PreparedModel>,
     joint_count: usize,
+    open: bool,
 ) -> Result<(Vec<u8>, v2::TableData), BuildError> {
     let (bytes, data) = match model {
         Some(m) => {
@@ -387,14 +393,26 @@ fn encode(
         None => (format::encode(header, &data), data),
     };
     let bytes = bytes.map_err(|e| BuildError::Encode(e.to_string()))?;
-    // Validated where they are when they start where the archive must (the system
-    // allocator's blocks do), rather than copied: a table is tens of megabytes.
-    if bytes.as_ptr().align_offset(format::PAYLOAD_ALIGN) == 0 {
-        adwi_runtime::Table::from_bytes(bytes.as_slice()).map_err(BuildError::Unopenable)?;
-    } else {
-        adwi_runtime::Table::from_vec(&bytes).map_err(BuildError::Unopenable)?;
+    if open {
+        check_opens(&bytes)?;
     }
     Ok((bytes, data))
+}
+
+/// Opens a compiled table's bytes as the runtime will, and refuses them if it would:
+/// validated where they are when they start where the archive must (the system
+/// allocator's blocks do), rather than copied (a table is tens of megabytes).
+///
+/// # Errors
+///
+/// [`BuildError::Unopenable`]: the compiler wrote what the runtime refuses (a bug).
+pub(crate) fn check_opens(bytes: &[u8]) -> Result<(), BuildError> {
+    if bytes.as_ptr().align_offset(format::PAYLOAD_ALIGN) == 0 {
+        adwi_runtime::Table::from_bytes(bytes).map_err(BuildError::Unopenable)?;
+    } else {
+        adwi_runtime::Table::from_vec(bytes).map_err(BuildError::Unopenable)?;
+    }
+    Ok(())
 }
 
 /// The model's joint record as a version-6 table holds it: its joint-space terms (zero

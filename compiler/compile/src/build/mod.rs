@@ -70,13 +70,25 @@ pub enum Queried<'a> {
     /// kind and of the cells a computed node is a corner of (what its value is computed
     /// from). The other nodes are missing and the other lists empty. A table queried at
     /// these positions alone (an evaluation's held-out points) answers there as the full
-    /// table does, for a fraction of the work.
+    /// table does, for a fraction of the work. Such a table is its caller's to query, not a
+    /// file to write: the build does not open it to check it, as it does a table queried
+    /// anywhere, because its caller's open checks it (an evaluation opens every fold table
+    /// it builds, and opening each twice was a tenth of its time).
     At {
         /// Positions the served tier is queried at, mm.
         served: &'a [[f64; 3]],
         /// Positions the exact tier is queried at, mm.
         exact: &'a [[f64; 3]],
     },
+}
+
+impl Queried<'_> {
+    /// Whether the build opens the table it compiled, as the runtime will, before returning
+    /// its bytes: a table queried anywhere may be written to a file, and one the runtime
+    /// would refuse never is; a table queried at some positions is opened by its caller.
+    pub(crate) fn opened_by_build(self) -> bool {
+        matches!(self, Queried::Anywhere)
+    }
 }
 
 /// The hyperparameters a kriging served field of `samples` would choose by likelihood, as
