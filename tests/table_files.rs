@@ -206,18 +206,22 @@ fn wrong_magic_and_versions_are_refused_naming_both_versions() {
     }
 }
 
+/// [`small_table`]'s header and version-2 payload, as values to edit and re-encode (with
+/// valid checksums: what an edit breaks, the semantic pass must catch).
+fn small_table_payload() -> (Header, adwi_runtime::format::v2::TableData) {
+    let table = Table::from_vec(small_table()).unwrap();
+    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
+        panic!("the compiler writes version 2");
+    };
+    let data = rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    (*table.header(), data)
+}
+
 #[test]
 fn a_table_with_a_broken_invariant_but_valid_checksums_is_refused() {
     // Re-encode with a candidate naming a sample that does not exist: checksums and rkyv
     // validation pass, the semantic pass must not.
-    let bytes = small_table();
-    let table = Table::from_vec(&bytes).unwrap();
-    let header = *table.header();
-    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
-        panic!("the compiler writes version 2");
-    };
-    let mut data: adwi_runtime::format::v2::TableData =
-        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    let (header, mut data) = small_table_payload();
     let cell = data.cells.iter().position(|r| r[0] > 0).unwrap();
     data.cells[cell][1] = 99;
     let corrupt = adwi_runtime::format::encode(header, &data).unwrap();
@@ -235,14 +239,7 @@ fn a_table_listing_a_sample_twice_in_a_cell_is_refused() {
     // the semantic pass must not (a sample listed twice would be selected twice). Every
     // other cell's list names samples the others name too, so the check's marks are
     // cleared between cells, or the unchanged table would be refused.
-    let bytes = small_table();
-    let table = Table::from_vec(&bytes).unwrap();
-    let header = *table.header();
-    let Some(adwi_runtime::Payload::V2(archived)) = table.payload() else {
-        panic!("the compiler writes version 2");
-    };
-    let mut data: adwi_runtime::format::v2::TableData =
-        rkyv::deserialize::<_, rkyv::rancor::Error>(archived).unwrap();
+    let (header, mut data) = small_table_payload();
     let cell = data.cells.iter().rposition(|r| r[0] >= 2).unwrap();
     assert!(
         usize::from(data.cells[cell][0]) <= adwi_runtime::format::v2::INLINE_CANDIDATES,
