@@ -564,6 +564,34 @@ const V6_ANSWERS: [([f64; 3], [f64; 3], [f64; 3]); 3] = [
     ),
 ];
 
+/// `tablec query` explains a joints mismatch by the distance the query compared: with
+/// `--tcp`, the named TCP's at the joints from the target (the fixture records its point,
+/// 31 mm out on the flange: a TCP 400 mm out lies 369 mm past it), not the measured
+/// point's, which these joints put on the target.
+#[test]
+fn a_joints_mismatch_is_explained_by_the_distance_the_query_compared() {
+    let path = root().join("tables/compat/v6/ur5_hybrid.tbl");
+    let query = |extra: &[&str]| {
+        let joints = "17.2729,-81.9889,88.4100,0.0713,93.4555,30.3";
+        let mut args = vec!["query", path.to_str().unwrap(), "--joints", joints];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--", "-495.480149", "-261.220606", "359.404930"]);
+        crate::common::tablec(&args, &root())
+    };
+    let o = query(&["--tcp", "0,0,400"]);
+    assert_eq!(o.status.code(), Some(3));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(
+            "the joints' nominal forward kinematics puts the --tcp point 369.0 mm from the \
+             target (the table allows 200.0 mm)"
+        ),
+        "{err}"
+    );
+    // Without the TCP these joints reach the target: answered.
+    assert_eq!(query(&[]).status.code(), Some(0));
+}
+
 /// The version-6 fixture opens, records the angles its samples span, gives its recorded
 /// answers within them from both tiers, and beyond them fades its residual: with the
 /// wrist's last joint turned 1.5° past the samples' range (its TCP still in the grid) the

@@ -20,7 +20,7 @@ use crate::format::{
     MAX_COORDINATE_MM, PAYLOAD_ALIGN, TCP_MARGIN_MM,
 };
 use crate::method::{self, MethodParams, Prediction};
-use crate::model::PreparedModel;
+use crate::model::{ModelAt, PreparedModel};
 use crate::posture::{PostureParams, PreparedPosture};
 use crate::residency::{Lock, OpenOptions, Residency};
 use crate::served::ServedGrid;
@@ -1028,20 +1028,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         let Some(at) = evaluated.as_ref() else {
             return Err(Status::InvalidInput);
         };
-        let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
-            (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
-            _ => None,
-        };
-        let (error_mm, point_mm) = match lever {
-            Some(lever) => {
-                let (error_mm, lever_base) = model
-                    .error_at_lever(at, lever)
-                    .ok_or(Status::InvalidInput)?;
-                let p = target.position_mm;
-                (error_mm, [0, 1, 2].map(|i| p[i] - lever_base[i]))
-            }
-            None => (at.position_mm, target.position_mm),
-        };
+        let (error_mm, point_mm, lever_known) = self.placed(model, at, target)?;
         // NaN (a chain that overflowed) is refused too.
         if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
@@ -1051,9 +1038,52 @@ impl<D: AsRef<[u8]>> Table<D> {
             approach: at.approach,
             error_mm,
             point_mm,
-            lever_known: lever.is_some() || target.tcp_mm.is_none(),
+            lever_known,
             beyond_terms: model.beyond_terms(q),
         })
+    }
+
+    /// Where a hybrid query puts `target` for the model evaluated `at` its joint values:
+    /// the model's position error at the target's TCP, the table's point for the target
+    /// (the target moved back by the TCP's lever when the table records its point in the
+    /// flange, else the target itself), which the joints' nominal TCP must lie near, and
+    /// whether a named TCP was placed.
+    #[inline(always)]
+    fn placed(
+        &self,
+        model: &PreparedModel,
+        at: &ModelAt,
+        target: &Target,
+    ) -> Result<([f64; 3], [f64; 3], bool), Status> {
+        let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
+            (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
+            _ => None,
+        };
+        let lever_known = lever.is_some() || target.tcp_mm.is_none();
+        match lever {
+            Some(lever) => {
+                let (error_mm, lever_base) = model
+                    .error_at_lever(at, lever)
+                    .ok_or(Status::InvalidInput)?;
+                let p = target.position_mm;
+                let point_mm = [0, 1, 2].map(|i| p[i] - lever_base[i]);
+                Ok((error_mm, point_mm, lever_known))
+            }
+            None => Ok((at.position_mm, target.position_mm, lever_known)),
+        }
+    }
+
+    /// How far a hybrid table's nominal TCP at `joints_rad` lies from the table's point
+    /// for `target` (with a named TCP the table records its point for, the target moved
+    /// back by the TCP's lever), mm: what a query compares with
+    /// [`Table::joints_tolerance_mm`] before it answers [`Status::JointsMismatch`].
+    /// `None` for a position-only table or joint values the model cannot evaluate (a
+    /// count other than the table's, a non-finite value).
+    pub fn joints_offset_mm(&self, target: &Target, joints_rad: &[f64]) -> Option<f64> {
+        let model = self.model.as_ref()?;
+        let at = model.evaluate(joints_rad, true)?;
+        let (_, point_mm, _) = self.placed(model, &at, target).ok()?;
+        Some(method::distance_mm(at.nominal_tcp_mm, point_mm))
     }
 
     /// Where a query lies beyond the table's recorded evidence ([`Evidence`]): the tool's

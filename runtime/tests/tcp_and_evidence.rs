@@ -204,6 +204,39 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// `joints_offset_mm` is the distance a query compares with `joints_tolerance_mm`:
+    /// with the table's point recorded, of the named TCP at the joints (the chains walked
+    /// with it as their tool) from the target; without, of the table's point from the
+    /// target. A query refuses exactly the targets it puts beyond the tolerance, and
+    /// answers the others (the model alone beyond the grid).
+    #[test]
+    fn the_joints_offset_is_what_a_query_compares(
+        q in prop::array::uniform6(-3.0..3.0f64),
+        tcp in prop::array::uniform3(-300.0..300.0f64),
+        shift in prop::array::uniform3(-120.0..120.0f64),
+    ) {
+        let (_, _, at_mm) = reference(&q, tcp);
+        let target = Target::at([0, 1, 2].map(|a| at_mm[a] + shift[a])).with_tcp(tcp);
+        for (table, want_mm) in [
+            (table(&q, recorded()), method::norm_mm(shift)),
+            (
+                table(&q, EvidenceRecord::default()),
+                method::distance_mm(POINT_MM, target.position_mm),
+            ),
+        ] {
+            let off = table.joints_offset_mm(&target, &q).unwrap();
+            prop_assert!((off - want_mm).abs() <= 1e-9, "{} against {}", off, want_mm);
+            let tolerance = table.joints_tolerance_mm().unwrap();
+            let want = if off > tolerance { Status::JointsMismatch } else { Status::Ok };
+            prop_assert_eq!(table.query_with_joints(&target, &q).status, want);
+            prop_assert_eq!(table.exact().query_with_joints(&target, &q).status, want);
+        }
+    }
+}
+
 /// At the table's own point (no TCP named) the answer is the model's error at the point,
 /// orientation included, whether or not the samples measured one.
 #[test]

@@ -360,9 +360,7 @@ impl QueryJob {
                     _ => None,
                 };
                 let joints_off = match (c.status, joints) {
-                    (Status::JointsMismatch, Some(q)) => {
-                        joints_off(table, one.target.position_mm, q)
-                    }
+                    (Status::JointsMismatch, Some(q)) => joints_off(table, &one.target, q),
                     _ => None,
                 };
                 let joint_beyond = match (c.status, joints) {
@@ -522,18 +520,18 @@ fn joints_rad<D: AsRef<[u8]>>(table: &Table<D>, joints_deg: &[f64]) -> Result<Ve
     Ok(joints_deg.iter().map(|v| v.to_radians()).collect())
 }
 
-/// How far the joints' nominal forward kinematics puts the tool from the target, and the
+/// How far the joints' nominal forward kinematics puts the table's point from where the
+/// target asks for it (as the query compared them, [`Table::joints_offset_mm`]), and the
 /// distance the table allows, mm.
 fn joints_off<D: AsRef<[u8]>>(
     table: &Table<D>,
-    target_mm: [f64; 3],
+    target: &Target,
     joints_rad: &[f64],
 ) -> Option<JointsOff> {
-    let (model, tolerance_mm) = (table.model()?, table.joints_tolerance_mm()?);
-    let at = model.at(joints_rad)?;
     Some(JointsOff {
-        off_mm: adwi_runtime::method::distance_mm(at.nominal_tcp_mm, target_mm),
-        tolerance_mm,
+        off_mm: table.joints_offset_mm(target, joints_rad)?,
+        tolerance_mm: table.joints_tolerance_mm()?,
+        tcp_placed: target.tcp_mm.is_some() && table.header().evidence.point_in_flange.is_some(),
     })
 }
 
@@ -627,10 +625,15 @@ impl Answer {
 /// How far `--joints` put the tool from the target.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct JointsOff {
-    /// The distance of the joints' nominal TCP from the target, mm.
+    /// The distance of the joints' nominal TCP from the target, mm: of the table's point
+    /// from the target moved back by the `--tcp` lever when `tcp_placed`, else of the
+    /// table's point from the target itself.
     pub off_mm: f64,
     /// The distance the table allows, mm.
     pub tolerance_mm: f64,
+    /// Whether the target named a TCP the table placed (it records its point in the
+    /// flange): the distance is then the named TCP's from the target.
+    pub tcp_placed: bool,
 }
 
 /// A joint commanded beyond the angles a hybrid table's samples span.

@@ -116,8 +116,13 @@ fn print_one(p: &PointAnswer) -> Answered {
             );
         }
         if let Some(off) = p.joints_off {
+            let what = if off.tcp_placed {
+                "the --tcp point"
+            } else {
+                "the tool"
+            };
             eprintln!(
-                "the joints' nominal forward kinematics puts the tool {:.1} mm from the \
+                "the joints' nominal forward kinematics puts {what} {:.1} mm from the \
                  target (the table allows {:.1} mm): --joints takes degrees",
                 off.off_mm, off.tolerance_mm
             );
