@@ -887,11 +887,15 @@ fn system(
     lambda: f64,
     w: f64,
 ) -> DMatrix<f64> {
-    let mut a = covariance(distances, gram, l, w);
-    for i in 0..a.nrows() {
-        a[(i, i)] += lambda;
+    with_nugget(covariance(distances, gram, l, w), lambda)
+}
+
+/// `k + λ I`: [`system`] of the covariance `k`.
+fn with_nugget(mut k: DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
+    for i in 0..k.nrows() {
+        k[(i, i)] += lambda;
     }
-    a
+    k
 }
 
 /// `K` of [`system`], without the nugget: [`lower_covariance`] mirrored (the distances and
@@ -1320,8 +1324,10 @@ fn reference_choices(
         });
         for &l in &LENGTH_SCALES {
             for &w in modulations {
+                // The nuggets share the covariance: [`system`] of each is this plus λ I.
+                let k = covariance(&distances, gram.as_ref(), l * spacing, w);
                 for &lambda in &NUGGETS {
-                    let a = system(&distances, gram.as_ref(), l * spacing, lambda, w);
+                    let a = with_nugget(k.clone(), lambda);
                     let Some(scores) = log_likelihoods(a, &centred) else {
                         continue;
                     };
