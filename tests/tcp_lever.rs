@@ -1,7 +1,10 @@
 //! A program's TCP as the controller applies it: a hybrid table corrects any TCP from its
 //! model's full pose error, so a long tool lands as the measured point does. Checked by the
 //! table's own calibrated model: the calibrated chain at each command's joint values,
-//! carrying the program's TCP rigidly with the measured point, lands on the target.
+//! carrying the program's TCP rigidly with the measured point, lands on the target. The
+//! UR5's samples measured position alone, so a TCP away from their point is beyond their
+//! evidence (the model's rotation error, which turns the lever, is not determined by them):
+//! compensation refuses it unless `--beyond-evidence`, and a query flags it.
 
 use std::path::Path;
 
@@ -52,6 +55,8 @@ fn landing_errors(dir: &Path, table_path: &Path, tcp_z_m: f64) -> Vec<f64> {
     options.robot = Some(repo("tables/ur5/robot.toml"));
     // The lever adds the rotation error times 169 mm to the correction.
     options.limits.max_correction_mm = 20.0;
+    // The table's own prediction at any lever, beyond its samples' evidence or not.
+    options.limits.beyond_evidence = true;
     let done = CompensateJob::new(options).unwrap().run().unwrap();
     // SAFETY: the test's own file, not modified while mapped.
     let table = unsafe { Table::open(table_path) }.unwrap();
@@ -128,6 +133,45 @@ fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
     eprintln!("landing errors, mm: 31 mm TCP {short:?}, 200 mm TCP {long:?}");
 }
 
+/// Without `--beyond-evidence` the UR5 table (samples of position alone) corrects the TCP
+/// at its measured point and refuses the 200 mm one, by name and with the reason.
+#[test]
+fn a_lever_the_samples_did_not_measure_is_refused_by_compensation() {
+    let dir = tempfile::tempdir().unwrap();
+    for (tcp_z_m, refused) in [(0.031, false), (0.2, true)] {
+        let program = dir.path().join(format!("seam-{tcp_z_m}.script"));
+        std::fs::write(&program, script(tcp_z_m)).unwrap();
+        let mut options = CompensateOptions::new(&ur5_table().1, &program);
+        options.robot = Some(repo("tables/ur5/robot.toml"));
+        options.limits.max_correction_mm = 20.0;
+        let done = CompensateJob::new(options).unwrap().run().unwrap();
+        for i in 0..POSES.len() {
+            let line = done
+                .report
+                .targets
+                .iter()
+                .find(|t| t.line == 3 + i)
+                .unwrap();
+            if refused {
+                assert!(
+                    !line.status.corrected(),
+                    "{}: {}",
+                    line.place(),
+                    line.detail
+                );
+                assert!(
+                    line.detail
+                        .contains("TCP lever: the table's samples measured no orientation"),
+                    "{}",
+                    line.detail
+                );
+            } else {
+                assert!(line.status.corrected(), "{}: {}", line.place(), line.detail);
+            }
+        }
+    }
+}
+
 #[test]
 fn a_query_naming_the_tcp_answers_the_error_there() {
     // SAFETY: the tests' own file, not modified while mapped.
@@ -145,7 +189,11 @@ fn a_query_naming_the_tcp_answers_the_error_there() {
     let at_tcp = nominal.transform_point(lever_mm);
     let got = table.query_with_joints(&Target::at(at_tcp).with_tcp(tcp_mm), &q);
     let plain = table.query_with_joints(&Target::at(nominal.translation_mm), &q);
-    assert_eq!(got.evidence, Evidence::WITHIN);
+    // Answered, and flagged: the samples measured position alone.
+    assert_eq!(
+        (got.evidence, plain.evidence),
+        (Evidence::TCP, Evidence::WITHIN)
+    );
     // The model's part at the TCP, by the chains; the residual as at the point.
     let model_at_tcp = [0, 1, 2].map(|a| calibrated.transform_point(lever_mm)[a] - at_tcp[a]);
     let model_at_point =

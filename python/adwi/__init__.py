@@ -425,7 +425,7 @@ class QueryResult:
     - ``evidence`` (N,): where the answer lies beyond what the table's samples cover, as
       ``tablec query`` prints it (``within``, ``orientation``: an approach axis the samples
       never had, a hybrid table's model answering alone; ``tcp``: a TCP the table cannot
-      place; ``orientation+tcp``); ``evidence_code`` the same as bits (0 within, 1
+      place, or whose lever its samples of position alone do not determine; ``orientation+tcp``); ``evidence_code`` the same as bits (0 within, 1
       orientation, 2 TCP).
     """
 

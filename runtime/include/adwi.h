@@ -145,7 +145,8 @@ typedef struct adwi_correction {
  * cover (docs/runtime.md, "Evidence"). A hybrid table's model still answers there. */
 #define ADWI_EVIDENCE_WITHIN 0u      /* within the samples' evidence */
 #define ADWI_EVIDENCE_ORIENTATION 1u /* an approach axis the samples never had */
-#define ADWI_EVIDENCE_TCP 2u         /* a TCP the table cannot relate to its point */
+#define ADWI_EVIDENCE_TCP 2u         /* a TCP the table cannot relate to its point
+                                        by its samples (docs/runtime.md) */
 #define ADWI_EVIDENCE_JOINTS 4u      /* a joint beyond the angles its model terms were
                                         identified over */
 

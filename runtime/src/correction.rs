@@ -161,10 +161,12 @@ impl Evidence {
     /// table's recorded spread ([`crate::format::ApproachCone`]) plus
     /// [`crate::format::ORIENTATION_MARGIN_RAD`].
     pub const ORIENTATION: Evidence = Evidence(1);
-    /// A TCP was named that the table cannot relate to its measured point: a
-    /// position-only table (no model to turn the lever) with the TCP more than
-    /// [`crate::format::TCP_MARGIN_MM`] from its point, or a table that does not record
-    /// where its point is on the flange.
+    /// A TCP was named that the table cannot relate to its measured point by its samples'
+    /// evidence: more than [`crate::format::TCP_MARGIN_MM`] from its point on a
+    /// position-only table (no model to turn the lever) or on a hybrid table whose samples
+    /// measured position alone (its model's rotation error, which turns the lever, is not
+    /// determined by them: docs/runtime.md, "Another TCP"), or any TCP on a table that
+    /// does not record where its point is on the flange.
     pub const TCP: Evidence = Evidence(2);
     /// A joint whose joint-space terms the model carries ([`crate::joint_terms`]) is
     /// commanded more than [`crate::joint_terms::TERMS_MARGIN_RAD`] beyond the angles the

@@ -75,8 +75,8 @@ struct ModelPart {
     /// Where the table's point is for the target, mm, base frame: what the residual
     /// field and the joints' check read.
     point_mm: [f64; 3],
-    /// Whether a named TCP was placed (the table records its point in the flange).
-    lever_known: bool,
+    /// Whether the target's TCP is within the samples' evidence ([`Table::placed`]).
+    tcp_within: bool,
     /// Whether a joint with joint-space terms is beyond the angles they were identified
     /// over ([`Evidence::JOINTS`]).
     beyond_terms: bool,
@@ -1028,7 +1028,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         let Some(at) = evaluated.as_ref() else {
             return Err(Status::InvalidInput);
         };
-        let (error_mm, point_mm, lever_known) = self.placed(model, at, target)?;
+        let (error_mm, point_mm, tcp_within) = self.placed(model, at, target)?;
         // NaN (a chain that overflowed) is refused too.
         if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
@@ -1038,7 +1038,7 @@ impl<D: AsRef<[u8]>> Table<D> {
             approach: at.approach,
             error_mm,
             point_mm,
-            lever_known,
+            tcp_within,
             beyond_terms: model.beyond_terms(q),
         })
     }
@@ -1047,7 +1047,8 @@ impl<D: AsRef<[u8]>> Table<D> {
     /// the model's position error at the target's TCP, the table's point for the target
     /// (the target moved back by the TCP's lever when the table records its point in the
     /// flange, else the target itself), which the joints' nominal TCP must lie near, and
-    /// whether a named TCP was placed.
+    /// whether the TCP is within the samples' evidence (none named; or the point recorded
+    /// and the samples' orientation measured or the TCP within [`TCP_MARGIN_MM`] of it).
     #[inline(always)]
     fn placed(
         &self,
@@ -1055,11 +1056,25 @@ impl<D: AsRef<[u8]>> Table<D> {
         at: &ModelAt,
         target: &Target,
     ) -> Result<([f64; 3], [f64; 3], bool), Status> {
-        let lever = match (target.tcp_mm, self.header.evidence.point_in_flange) {
+        let point = self.header.evidence.point_in_flange;
+        let lever = match (target.tcp_mm, point) {
             (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
             _ => None,
         };
-        let lever_known = lever.is_some() || target.tcp_mm.is_none();
+        // The lever is turned by the model's rotation error, which samples of position at
+        // one point do not determine: they never see the flange's own rotation (the
+        // identification's tool rotations are "not seen by these data"), and the wrist
+        // parameters that trade it against the point's offset are fitted to the positions
+        // alone. So a TCP away from the point is within the samples' evidence only when
+        // they measured orientation too (docs/runtime.md, "Another TCP").
+        let tcp_within = match (target.tcp_mm, point) {
+            (None, _) => true,
+            (Some(tcp), Some(point)) => {
+                self.has_orientation()
+                    || method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
+            }
+            (Some(_), None) => false,
+        };
         match lever {
             Some(lever) => {
                 let (error_mm, lever_base) = model
@@ -1067,9 +1082,9 @@ impl<D: AsRef<[u8]>> Table<D> {
                     .ok_or(Status::InvalidInput)?;
                 let p = target.position_mm;
                 let point_mm = [0, 1, 2].map(|i| p[i] - lever_base[i]);
-                Ok((error_mm, point_mm, lever_known))
+                Ok((error_mm, point_mm, tcp_within))
             }
-            None => Ok((at.position_mm, target.position_mm, lever_known)),
+            None => Ok((at.position_mm, target.position_mm, tcp_within)),
         }
     }
 
@@ -1106,15 +1121,16 @@ impl<D: AsRef<[u8]>> Table<D> {
                 evidence = evidence.with(Evidence::ORIENTATION);
             }
         }
-        // A hybrid table turns a named TCP's lever when it knows its point; a position-only
-        // table has nothing to turn it with, so only a TCP within [`TCP_MARGIN_MM`] of its
-        // recorded point is within its evidence.
+        // A hybrid table turns a named TCP's lever by its model's rotation error, within
+        // the samples' evidence when they measured orientation ([`Table::placed`]); a
+        // position-only table has nothing to turn it with, so only a TCP within
+        // [`TCP_MARGIN_MM`] of its recorded point is within its evidence.
         let tcp_placed = match (
             model_part,
             target.tcp_mm,
             self.header.evidence.point_in_flange,
         ) {
-            (Some(m), ..) => m.lever_known,
+            (Some(m), ..) => m.tcp_within,
             (None, None, _) => true,
             (None, Some(tcp), Some(point)) => {
                 method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM

@@ -8,7 +8,7 @@ use adwi_runtime::chain::Chain;
 use adwi_runtime::format::v2::{self, ChainRecord, ModelRecord, NodeSet, QuerySample};
 use adwi_runtime::format::{
     encode, ApproachCone, EvidenceRecord, Grid, Header, PointInFlange, ServedField, CONTENT_MODEL,
-    FORMAT_VERSION, ORIENTATION_MARGIN_RAD, RKYV_FLAGS,
+    CONTENT_ORIENTATION, FORMAT_VERSION, ORIENTATION_MARGIN_RAD, RKYV_FLAGS, TCP_MARGIN_MM,
 };
 use adwi_runtime::kinematics::{rotation_from_vector, rotation_vector, MdhJoint, Transform};
 use adwi_runtime::method::{self, MethodParams};
@@ -114,22 +114,43 @@ fn data(model: Option<ModelRecord>) -> v2::TableData {
 }
 
 /// A hybrid table of [`chains`] at `q`, its served field the constant [`RESIDUAL_MM`],
-/// recording `evidence`.
+/// recording `evidence`, of samples that measured position alone.
 fn table(q: &[f64; 6], evidence: EvidenceRecord) -> Table<adwi_runtime::AlignedBytes> {
     Table::from_vec(table_bytes(q, evidence)).unwrap()
 }
 
+/// [`table`] of samples that measured orientation too (their orientation residuals zero).
+fn table_with_orientation(
+    q: &[f64; 6],
+    evidence: EvidenceRecord,
+) -> Table<adwi_runtime::AlignedBytes> {
+    Table::from_vec(table_bytes_measuring(q, evidence, true)).unwrap()
+}
+
 /// The bytes of [`table`].
 fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
+    table_bytes_measuring(q, evidence, false)
+}
+
+/// The bytes of [`table`], or of [`table_with_orientation`] when `orientation`.
+fn table_bytes_measuring(q: &[f64; 6], evidence: EvidenceRecord, orientation: bool) -> Vec<u8> {
     let (nominal, calibrated) = chains(q);
-    let data = data(Some(ModelRecord {
+    let mut data = data(Some(ModelRecord {
         nominal: ChainRecord::from_chain(&nominal),
         calibrated: ChainRecord::from_chain(&calibrated),
     }));
+    if orientation {
+        data.orientation_errors_rad = vec![[0.0; 3]; data.samples.len()];
+        data.node_orientation_errors_rad = vec![[0.0; 3]; data.node_errors_mm.len()];
+    }
     let header = Header {
         version: FORMAT_VERSION,
         rkyv_flags: RKYV_FLAGS,
-        content_flags: CONTENT_MODEL,
+        content_flags: if orientation {
+            CONTENT_MODEL | CONTENT_ORIENTATION
+        } else {
+            CONTENT_MODEL
+        },
         payload_len: 0,
         payload_checksum: 0,
         source_hash: 0,
@@ -184,22 +205,36 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// A hybrid table answers the error at a named TCP as the chains walked with that TCP
-    /// as their tool give it, plus the residual at the table's point.
+    /// as their tool give it, plus the residual at the table's point: within its samples'
+    /// evidence when they measured orientation; when they measured position alone, only
+    /// for a TCP within `TCP_MARGIN_MM` of the point (the same answer, flagged `tcp`
+    /// beyond: the model's rotation error, which turns the lever, is not determined by
+    /// positions at one point).
     #[test]
     fn a_named_tcp_is_answered_as_the_chains_with_that_tool(
         q in prop::array::uniform6(-3.0..3.0f64),
         tcp in prop::array::uniform3(-300.0..300.0f64),
+        near in prop::bool::weighted(0.2),
     ) {
-        let table = table(&q, recorded());
+        let point = point_in_flange().translation_mm;
+        // Some TCPs within a millimetre of the point, where either table is within.
+        let tcp = if near { [0, 1, 2].map(|a| point[a] + tcp[a] / 600.0) } else { tcp };
         let (position_mm, rotation_rad, at_mm) = reference(&q, tcp);
-        let got = table.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
-        prop_assert_eq!(got.status, Status::Ok);
-        prop_assert_eq!(got.residual, Residual::Full);
-        prop_assert_eq!(got.evidence, Evidence::WITHIN);
-        for c in 0..3 {
-            let expected = position_mm[c] + RESIDUAL_MM[c];
-            prop_assert!((got.position_error_mm[c] - expected).abs() <= 1e-9, "{:?} vs {:?}", got.position_error_mm, position_mm);
-            prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got.orientation_error_rad, rotation_rad);
+        let within_margin = method::distance_mm(tcp, point) <= TCP_MARGIN_MM;
+        for (table, flagged) in [
+            (table_with_orientation(&q, recorded()), false),
+            (table(&q, recorded()), !within_margin),
+        ] {
+            let got = table.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
+            prop_assert_eq!(got.status, Status::Ok);
+            prop_assert_eq!(got.residual, Residual::Full);
+            let evidence = if flagged { Evidence::TCP } else { Evidence::WITHIN };
+            prop_assert_eq!(got.evidence, evidence);
+            for c in 0..3 {
+                let expected = position_mm[c] + RESIDUAL_MM[c];
+                prop_assert!((got.position_error_mm[c] - expected).abs() <= 1e-9, "{:?} vs {:?}", got.position_error_mm, position_mm);
+                prop_assert!((got.orientation_error_rad[c] - rotation_rad[c]).abs() <= 1e-12, "{:?} vs {:?}", got.orientation_error_rad, rotation_rad);
+            }
         }
     }
 }
@@ -257,8 +292,10 @@ fn a_hybrid_table_answers_the_model_orientation_error_at_its_point() {
 }
 
 /// The lever matters: a 200 mm TCP's error differs from the point's by the rotation error
-/// times the lever (here millimetres), and a table that does not record its point says it
-/// cannot place the TCP instead of answering the point's error as the TCP's.
+/// times the lever (here millimetres); the answer is within the samples' evidence when they
+/// measured orientation, flagged when they measured position alone; and a table that does
+/// not record its point says it cannot place the TCP instead of answering the point's error
+/// as the TCP's.
 #[test]
 fn a_far_tcp_moves_the_answer_and_an_unplaceable_one_is_flagged() {
     let q = [0.3, -0.8, 1.1, 0.4, 0.9, -0.6];
@@ -275,6 +312,15 @@ fn a_far_tcp_moves_the_answer_and_an_unplaceable_one_is_flagged() {
             [0, 1, 2].map(|a| position_mm[a] + RESIDUAL_MM[a])
         ) < 1e-9
     );
+
+    // The samples measured position alone: the 200 mm lever's turn is the model's, which
+    // they do not determine, and the answer says so; with their orientation measured it is
+    // within.
+    assert_eq!(at_tcp.evidence, Evidence::TCP);
+    let measured = table_with_orientation(&q, recorded());
+    let within = measured.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
+    assert_eq!(within.evidence, Evidence::WITHIN);
+    assert_eq!(within.position_error_mm, at_tcp.position_error_mm);
 
     let without = table(&q, EvidenceRecord::default());
     let got = without.query_with_joints(&Target::at(POINT_MM).with_tcp(tcp), &q);

@@ -337,9 +337,11 @@ pub fn solve<D: AsRef<[u8]>>(
         _ => solving.position_table(kinematics, orientation, target_joints.as_deref())?,
     };
     // The TCP rides on the table's point: the frames turn it with the point's correction,
-    // which a table with neither a model nor orientation errors does not know. A lever
-    // its samples did not measure is then beyond their evidence.
-    let lever_unknown = !table.is_hybrid() && !table.has_orientation();
+    // whose rotation a table without orientation errors does not know from its samples (a
+    // hybrid table's model gives one, but samples of position alone do not determine it:
+    // docs/runtime.md, "Another TCP"). A lever its samples did not measure is then beyond
+    // their evidence.
+    let lever_unknown = !table.has_orientation();
     if lever_unknown && lever_mm > adwi_runtime::format::TCP_MARGIN_MM {
         command.evidence = command.evidence.with(Evidence::TCP);
     }
@@ -351,15 +353,17 @@ pub fn solve<D: AsRef<[u8]>>(
     Ok(command)
 }
 
-/// A position-only table's command beyond its samples: refused unless the limits allow it
-/// (nothing carries its answer there; a hybrid table's model does, and its report line
-/// says so).
+/// A command beyond its table's samples: refused unless the limits allow it where nothing
+/// carries its answer (a position-only table beyond its samples, any table at a TCP lever
+/// its samples did not measure); a hybrid table's model carries an orientation its samples
+/// never had, and its report line says so.
 fn check_evidence<D: AsRef<[u8]>>(
     table: &Table<D>,
     limits: &Limits,
     command: &Command,
 ) -> Result<(), Failure> {
-    if command.evidence.is_within() || table.is_hybrid() || limits.beyond_evidence {
+    let carried = table.is_hybrid() && !command.evidence.contains(Evidence::TCP);
+    if command.evidence.is_within() || carried || limits.beyond_evidence {
         return Ok(());
     }
     Err((
@@ -369,7 +373,7 @@ fn check_evidence<D: AsRef<[u8]>>(
             if command.evidence.contains(Evidence::ORIENTATION) {
                 "orientation"
             } else {
-                "TCP lever: the table has no orientation errors to turn it with"
+                "TCP lever: the table's samples measured no orientation to turn it by"
             }
         ),
     ))
