@@ -161,7 +161,7 @@ fn a_lever_the_samples_did_not_measure_is_refused_by_compensation() {
                 );
                 assert!(
                     line.detail
-                        .contains("TCP lever: the table's samples measured no orientation"),
+                        .contains("never had this TCP lever, nor any orientation to turn it by"),
                     "{}",
                     line.detail
                 );

@@ -373,7 +373,7 @@ fn check_evidence<D: AsRef<[u8]>>(
             if command.evidence.contains(Evidence::ORIENTATION) {
                 "orientation"
             } else {
-                "TCP lever: the table's samples measured no orientation to turn it by"
+                "TCP lever, nor any orientation to turn it by"
             }
         ),
     ))
