@@ -237,10 +237,6 @@ proptest! {
             }
         }
     }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// `joints_offset_mm` is the distance a query compares with `joints_tolerance_mm`:
     /// with the table's point recorded, of the named TCP at the joints (the chains walked
