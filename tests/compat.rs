@@ -347,8 +347,19 @@ fn assert_close(got: &[f64; 3], want: &[f64; 3], what: &str) {
 
 #[test]
 fn the_version_2_tables_open_and_give_their_recorded_answers() {
+    let path = root().join("tables/compat/v2/worked_example.tbl");
+    // A table before version 4 records no evidence; `tablec inspect` says what follows.
+    let o = crate::common::tablec(&["inspect", path.to_str().unwrap()], &root());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains(
+            "evidence        not recorded (format version 2): orientations are not checked, \
+             a named TCP is flagged `tcp`"
+        ),
+        "{out}"
+    );
     // SAFETY: committed fixtures, not modified while the test runs.
-    let table = unsafe { Table::open(root().join("tables/compat/v2/worked_example.tbl")) }.unwrap();
+    let table = unsafe { Table::open(&path) }.unwrap();
     assert_eq!(table.header().version, 2);
     assert_eq!(table.header().source_hash, 0xf825_78c5_0b9b_b5e3);
     assert!(table.has_served_field());
@@ -615,6 +626,15 @@ fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
         out.contains("residual joints j1 [-24.4, 56.5], j2 [-105.0, -25.5], j3 [30.1, 140.4]"),
+        "{out}"
+    );
+    // And what a named TCP gets from it: the UR5's samples measured position alone.
+    assert!(
+        out.contains(
+            "measured point (0.000, 0.090, 31.000) mm in the flange frame: a named TCP more \
+             than 1 mm from it is flagged `tcp`: the samples measured no orientation to turn \
+             its lever by"
+        ),
         "{out}"
     );
     // `tablec query` says which joint lies beyond the samples' angles, and how far.

@@ -464,7 +464,8 @@ impl BuildJob {
 
 /// The hybrid table of `samples` and their `identified` model, the residuals scaled by
 /// `weight` (1: as measured), the point the samples measured on the flange recorded so
-/// that a query may name another TCP, whose lever the model turns.
+/// that a query may name another TCP, whose lever the model turns (within the samples'
+/// evidence when they measured orientation, flagged otherwise: `Table::placed`).
 fn compile_hybrid(
     robot: &Robot,
     identified: &Calibration,

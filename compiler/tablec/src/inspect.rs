@@ -2,7 +2,9 @@
 
 use adwi_jobs::inspect::CellAt;
 use adwi_jobs::{InspectArgs, InspectJob, Inspected};
-use adwi_runtime::format::{EvidenceRecord, ServedField};
+use adwi_runtime::format::{
+    Header, ServedField, CONTENT_MODEL, CONTENT_ORIENTATION, TCP_MARGIN_MM,
+};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -14,7 +16,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t = InspectJob::new(args.job)?.run()?;
     print_file(&t);
     print_model(&t);
-    print_evidence(&t.header.evidence, t.header.version);
+    print_evidence(&t.header);
     print_method(&t);
     print_tiers(&t);
     if let Some(cell) = &t.cell {
@@ -92,10 +94,12 @@ fn print_model(t: &Inspected) {
 
 /// What the samples span beyond their positions (format version 4): the answers beyond it
 /// carry the evidence flag.
-fn print_evidence(e: &EvidenceRecord, version: u16) {
+fn print_evidence(h: &Header) {
+    let (e, version) = (&h.evidence, h.version);
     if version < 4 {
         println!(
-            "evidence        not recorded (format version {version}): answers are never flagged"
+            "evidence        not recorded (format version {version}): orientations are not \
+             checked, a named TCP is flagged `tcp`"
         );
         return;
     }
@@ -114,9 +118,23 @@ fn print_evidence(e: &EvidenceRecord, version: u16) {
     match e.point_in_flange {
         Some(p) => {
             let [x, y, z] = p.translation_mm;
+            // As the runtime flags a named TCP (docs/runtime.md, "Another TCP").
+            let has = |flag: u32| h.content_flags & flag != 0;
+            let margin = TCP_MARGIN_MM;
+            let tcp = match (has(CONTENT_MODEL), has(CONTENT_ORIENTATION)) {
+                (true, true) => "a query may name another TCP, whose lever the model turns".into(),
+                (true, false) => format!(
+                    "a named TCP more than {margin} mm from it is flagged `tcp`: the samples \
+                     measured no orientation to turn its lever by"
+                ),
+                (false, _) => format!(
+                    "a named TCP more than {margin} mm from it is flagged `tcp`: no model \
+                     turns its lever"
+                ),
+            };
             println!(
                 "                measured point ({x:.3}, {y:.3}, {z:.3}) mm in the flange frame: \
-                 a query may name another TCP"
+                 {tcp}"
             );
         }
         None => println!(
