@@ -466,6 +466,8 @@ fn hybrid_build_reports_the_calibration_and_warns_about_unidentifiable_parameter
         "{stderr}"
     );
     assert!(stderr.contains("Δtheta1"), "{stderr}");
+    // The KR150-2's samples measured orientation: any TCP is within their evidence.
+    assert!(!stderr.contains("measured position alone"), "{stderr}");
     // The table is hybrid: a position-only query says joint angles are missing.
     let query = tablec(
         &["query", table.to_str().unwrap(), "1750", "450", "1250"],

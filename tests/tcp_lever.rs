@@ -133,6 +133,45 @@ fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
     eprintln!("landing errors, mm: 31 mm TCP {short:?}, 200 mm TCP {long:?}");
 }
 
+/// A hybrid build of samples of position alone says, as it writes the table, that a TCP
+/// away from their point will be flagged.
+#[test]
+fn a_hybrid_build_of_positions_alone_notes_the_lever_it_cannot_vouch_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = crate::common::ur5_grid();
+    let o = crate::common::tablec(
+        &[
+            "build",
+            grid.to_str().unwrap(),
+            "--columns",
+            crate::common::UR5_MAP,
+            "--robot",
+            repo("tables/ur5/robot.toml").to_str().unwrap(),
+            "--cell",
+            "100",
+            "--served-field",
+            "method",
+            "--posture",
+            "off",
+            "--residual-weight",
+            "full",
+            "-o",
+            "t.tbl",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains(
+            "note: the samples measured position alone: a TCP more than 1 mm from their point \
+             is answered by the model's rotation error, which positions do not determine, and \
+             flagged `tcp`"
+        ),
+        "{stderr}"
+    );
+}
+
 /// Without `--beyond-evidence` the UR5 table (samples of position alone) corrects the TCP
 /// at its measured point and refuses the 200 mm one, by name and with the reason.
 #[test]

@@ -421,6 +421,9 @@ impl BuildJob {
                     compile_hybrid(robot, &identified, &samples, plan, weight, &advance)
                 })?;
                 warnings.extend(crate::calibration_warnings(&identified));
+                if samples.rotation_error_rad.is_none() {
+                    warnings.push(Warning::LeverUnmeasured);
+                }
                 (
                     built.bytes,
                     built.report,

@@ -303,6 +303,10 @@ pub enum Warning {
         /// Why.
         reason: String,
     },
+    /// A hybrid table of samples that measured position alone: its model's rotation
+    /// error, which turns a TCP's lever, is not determined by them, so a TCP away from
+    /// the measured point is beyond their evidence (docs/runtime.md, "Another TCP").
+    LeverUnmeasured,
 }
 
 impl Warning {
@@ -310,7 +314,10 @@ impl Warning {
     /// samples reports (parameters no position measurement separates), not a sign that
     /// something went wrong.
     pub fn is_note(&self) -> bool {
-        matches!(self, Warning::Unidentifiable { .. })
+        matches!(
+            self,
+            Warning::Unidentifiable { .. } | Warning::LeverUnmeasured
+        )
     }
 }
 
@@ -376,6 +383,14 @@ impl fmt::Display for Warning {
                 let what: Vec<String> = omissions.iter().map(|o| o.to_string()).collect();
                 write!(f, "{} does not carry: {}", path.display(), what.join("; "))
             }
+            Warning::LeverUnmeasured => write!(
+                f,
+                "the samples measured position alone: a TCP more than {} mm from their point \
+                 is answered by the model's rotation error, which positions do not determine, \
+                 and flagged `tcp` (tablec compensate refuses it without --beyond-evidence); \
+                 samples with orientation (a 6-D tracker target) carry any TCP",
+                adwi_runtime::format::TCP_MARGIN_MM
+            ),
             Warning::Samples(w) => write!(f, "{w}"),
             Warning::Registration(w) => write!(f, "{w}"),
             Warning::Agreement { path, fitting } => write!(
