@@ -138,30 +138,13 @@ fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
 #[test]
 fn a_hybrid_build_of_positions_alone_notes_the_lever_it_cannot_vouch_for() {
     let dir = tempfile::tempdir().unwrap();
-    let grid = crate::common::ur5_grid();
-    let o = crate::common::tablec(
-        &[
-            "build",
-            grid.to_str().unwrap(),
-            "--columns",
-            crate::common::UR5_MAP,
-            "--robot",
-            repo("tables/ur5/robot.toml").to_str().unwrap(),
-            "--cell",
-            "100",
-            "--served-field",
-            "method",
-            "--posture",
-            "off",
-            "--residual-weight",
-            "full",
-            "-o",
-            "t.tbl",
-        ],
+    let robot = repo("tables/ur5/robot.toml");
+    let stderr = build_ur5_hybrid(
         dir.path(),
+        robot.to_str().unwrap(),
+        &["--cell", "100"],
+        "t.tbl",
     );
-    assert!(o.status.success());
-    let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(
         stderr.contains(
             "note: the samples measured position alone: a TCP more than 1 mm from their point \

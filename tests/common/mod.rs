@@ -208,8 +208,8 @@ pub fn ur5_grid() -> std::path::PathBuf {
 }
 
 /// `tablec build -q` of a hybrid table `out` from the UR5 grid with `robot`, and `extra`
-/// arguments, in `dir`; it must succeed.
-pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out: &str) {
+/// arguments, in `dir`; it must succeed. Its standard error (the notes `-q` keeps).
+pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out: &str) -> String {
     let grid = ur5_grid();
     let mut args = vec![
         "build",
@@ -236,7 +236,9 @@ pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out:
     args.extend_from_slice(extra);
     args.extend(["-o", out]);
     let o = tablec(&args, dir);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    stderr
 }
 
 /// A path in the repository.
