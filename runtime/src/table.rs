@@ -17,7 +17,7 @@ use crate::correction::{Compensation, Correction, Evidence, Residual, Status, Ta
 use crate::exact::{self, V1, V2};
 use crate::format::{
     v1, v2, v3, v5, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
-    MAX_COORDINATE_MM, PAYLOAD_ALIGN, TCP_MARGIN_MM,
+    MAX_COORDINATE_MM, PAYLOAD_ALIGN,
 };
 use crate::method::{self, MethodParams, Prediction};
 use crate::model::{ModelAt, PreparedModel};
@@ -75,8 +75,6 @@ struct ModelPart {
     /// Where the table's point is for the target, mm, base frame: what the residual
     /// field and the joints' check read.
     point_mm: [f64; 3],
-    /// Whether the target's TCP is within the samples' evidence ([`Table::placed`]).
-    tcp_within: bool,
     /// Whether a joint with joint-space terms is beyond the angles they were identified
     /// over ([`Evidence::JOINTS`]).
     beyond_terms: bool,
@@ -1028,7 +1026,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         let Some(at) = evaluated.as_ref() else {
             return Err(Status::InvalidInput);
         };
-        let (error_mm, point_mm, tcp_within) = self.placed(model, at, target)?;
+        let (error_mm, point_mm) = self.placed(model, at, target)?;
         // NaN (a chain that overflowed) is refused too.
         if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
@@ -1038,53 +1036,30 @@ impl<D: AsRef<[u8]>> Table<D> {
             approach: at.approach,
             error_mm,
             point_mm,
-            tcp_within,
             beyond_terms: model.beyond_terms(q),
         })
     }
 
     /// Where a hybrid query puts `target` for the model evaluated `at` its joint values:
-    /// the model's position error at the target's TCP, the table's point for the target
-    /// (the target moved back by the TCP's lever when the table records its point in the
-    /// flange, else the target itself), which the joints' nominal TCP must lie near, and
-    /// whether the TCP is within the samples' evidence (none named; or the point recorded
-    /// and the samples' orientation measured or the TCP within [`TCP_MARGIN_MM`] of it).
+    /// the model's position error at the target's TCP, and the table's point for the
+    /// target (the target moved back by the TCP's lever when the table records its point
+    /// in the flange, else the target itself), which the joints' nominal TCP must lie near.
     #[inline(always)]
     fn placed(
         &self,
         model: &PreparedModel,
         at: &ModelAt,
         target: &Target,
-    ) -> Result<([f64; 3], [f64; 3], bool), Status> {
-        let point = self.header.evidence.point_in_flange;
-        let lever = match (target.tcp_mm, point) {
-            (Some(tcp), Some(point)) => Some(point.lever_of(tcp)),
-            _ => None,
-        };
-        // The lever is turned by the model's rotation error, which samples of position at
-        // one point do not determine: they never see the flange's own rotation (the
-        // identification's tool rotations are "not seen by these data"), and the wrist
-        // parameters that trade it against the point's offset are fitted to the positions
-        // alone. So a TCP away from the point is within the samples' evidence only when
-        // they measured orientation too (docs/runtime.md, "Another TCP").
-        let tcp_within = match (target.tcp_mm, point) {
-            (None, _) => true,
+    ) -> Result<([f64; 3], [f64; 3]), Status> {
+        match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => {
-                self.has_orientation()
-                    || method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
-            }
-            (Some(_), None) => false,
-        };
-        match lever {
-            Some(lever) => {
                 let (error_mm, lever_base) = model
-                    .error_at_lever(at, lever)
+                    .error_at_lever(at, point.lever_of(tcp))
                     .ok_or(Status::InvalidInput)?;
                 let p = target.position_mm;
-                let point_mm = [0, 1, 2].map(|i| p[i] - lever_base[i]);
-                Ok((error_mm, point_mm, tcp_within))
+                Ok((error_mm, [0, 1, 2].map(|i| p[i] - lever_base[i])))
             }
-            None => Ok((at.position_mm, target.position_mm, tcp_within)),
+            _ => Ok((at.position_mm, target.position_mm)),
         }
     }
 
@@ -1097,7 +1072,7 @@ impl<D: AsRef<[u8]>> Table<D> {
     pub fn joints_offset_mm(&self, target: &Target, joints_rad: &[f64]) -> Option<f64> {
         let model = self.model.as_ref()?;
         let at = model.evaluate(joints_rad, true)?;
-        let (_, point_mm, _) = self.placed(model, &at, target).ok()?;
+        let (_, point_mm) = self.placed(model, &at, target).ok()?;
         Some(method::distance_mm(at.nominal_tcp_mm, point_mm))
     }
 
@@ -1122,22 +1097,9 @@ impl<D: AsRef<[u8]>> Table<D> {
             }
         }
         // A hybrid table turns a named TCP's lever by its model's rotation error, within
-        // the samples' evidence when they measured orientation ([`Table::placed`]); a
-        // position-only table has nothing to turn it with, so only a TCP within
-        // [`TCP_MARGIN_MM`] of its recorded point is within its evidence.
-        let tcp_placed = match (
-            model_part,
-            target.tcp_mm,
-            self.header.evidence.point_in_flange,
-        ) {
-            (Some(m), ..) => m.tcp_within,
-            (None, None, _) => true,
-            (None, Some(tcp), Some(point)) => {
-                method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
-            }
-            (None, Some(_), None) => false,
-        };
-        if !tcp_placed {
+        // the samples' evidence when they measured orientation; a position-only table has
+        // nothing to turn it with ([`Header::tcp_within_evidence`]).
+        if !self.header.tcp_within_evidence(target.tcp_mm) {
             evidence = evidence.with(Evidence::TCP);
         }
         if model_part.is_some_and(|m| m.beyond_terms) {

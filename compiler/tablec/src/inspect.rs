@@ -2,9 +2,7 @@
 
 use adwi_jobs::inspect::CellAt;
 use adwi_jobs::{InspectArgs, InspectJob, Inspected};
-use adwi_runtime::format::{
-    Header, ServedField, CONTENT_MODEL, CONTENT_ORIENTATION, TCP_MARGIN_MM,
-};
+use adwi_runtime::format::{Header, ServedField, CONTENT_MODEL, TCP_MARGIN_MM};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -119,15 +117,15 @@ fn print_evidence(h: &Header) {
         Some(p) => {
             let [x, y, z] = p.translation_mm;
             // As the runtime flags a named TCP (docs/runtime.md, "Another TCP").
-            let has = |flag: u32| h.content_flags & flag != 0;
             let margin = TCP_MARGIN_MM;
-            let tcp = match (has(CONTENT_MODEL), has(CONTENT_ORIENTATION)) {
-                (true, true) => "a query may name another TCP, whose lever the model turns".into(),
-                (true, false) => format!(
+            let hybrid = h.content_flags & CONTENT_MODEL != 0;
+            let tcp = match (h.turns_measured_lever(), hybrid) {
+                (true, _) => "a query may name another TCP, whose lever the model turns".into(),
+                (false, true) => format!(
                     "a named TCP more than {margin} mm from it is flagged `tcp`: the samples \
                      measured no orientation to turn its lever by"
                 ),
-                (false, _) => format!(
+                (false, false) => format!(
                     "a named TCP more than {margin} mm from it is flagged `tcp`: no model \
                      turns its lever"
                 ),

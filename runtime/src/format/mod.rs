@@ -512,6 +512,29 @@ fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]
 }
 
 impl Header {
+    /// Whether a query turns a named TCP's lever by a rotation error its samples measured:
+    /// a hybrid table (its model turns the lever) of samples with orientation. Positions
+    /// at one point do not determine that rotation (docs/runtime.md, "Another TCP"), and a
+    /// position-only table has nothing to turn the lever with.
+    pub fn turns_measured_lever(&self) -> bool {
+        self.content_flags & CONTENT_MODEL != 0 && self.content_flags & CONTENT_ORIENTATION != 0
+    }
+
+    /// Whether a query naming the TCP `tcp_mm` (flange frame; `None`: the table's own
+    /// point) is within the samples' evidence: its point recorded, and the lever turned by
+    /// a measured rotation ([`Header::turns_measured_lever`]) or the TCP within
+    /// [`TCP_MARGIN_MM`] of the point.
+    pub fn tcp_within_evidence(&self, tcp_mm: Option<[f64; 3]>) -> bool {
+        let Some(tcp) = tcp_mm else {
+            return true;
+        };
+        let Some(point) = self.evidence.point_in_flange else {
+            return false;
+        };
+        self.turns_measured_lever()
+            || crate::method::distance_mm(tcp, point.translation_mm) <= TCP_MARGIN_MM
+    }
+
     /// Whether the payload holds a posture term ([`v3::TableData`]): version 3, or version
     /// 4 with [`CONTENT_POSTURE`].
     pub fn has_posture(&self) -> bool {
