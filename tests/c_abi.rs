@@ -299,9 +299,13 @@ fn smoke_input(targets: &[([f64; 3], i32)], hybrid_targets: &[([f64; 3], [f64; 6
     input
 }
 
-/// Runs `exe` on `tables` with `input`; its standard output, once it succeeded.
+/// Runs `exe` on `tables` with `input`; its standard output, once it succeeded. Without
+/// the library path cargo gives a test: it lists `target/debug` too, where an earlier
+/// `cargo build` may have left an older `libadwi_runtime.so`, and would come before the
+/// executable's own run path to the library this test's build made.
 fn run_program(exe: &Path, tables: &[PathBuf], input: &str) -> String {
     let mut child = Command::new(exe)
+        .env_remove("LD_LIBRARY_PATH")
         .args(tables)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())

@@ -1,10 +1,10 @@
-//! A program's TCP as the controller applies it: a hybrid table corrects any TCP from its
-//! model's full pose error, so a long tool lands as the measured point does. Checked by the
-//! table's own calibrated model: the calibrated chain at each command's joint values,
-//! carrying the program's TCP rigidly with the measured point, lands on the target. The
-//! UR5's samples measured position alone, so a TCP away from their point is beyond their
-//! evidence (the model's rotation error, which turns the lever, is not determined by them):
-//! compensation refuses it unless `--beyond-evidence`, and a query flags it.
+//! A program's TCP as the controller applies it, on the UR5 hybrid table: its samples
+//! measured position alone, which does not determine the rotation error that turns a lever
+//! (docs/runtime.md, "Another TCP"), so the table serves none. A TCP away from their point
+//! is beyond their evidence: compensation refuses it unless `--beyond-evidence`, and a
+//! query flags it; with it, the TCP is carried with the point's correction, unturned, and
+//! lands as the table predicts. (A table whose samples measured orientation turns the
+//! lever by its model: `runtime/tests/tcp_and_evidence.rs` holds that to the chains.)
 
 use std::path::Path;
 
@@ -45,15 +45,14 @@ fn script(tcp_z_m: f64) -> String {
     s
 }
 
-/// For each pose, how far from it the TCP lands by the table's own prediction (its
-/// calibrated model and residual field) when the robot is commanded the compensated joint
-/// values, mm.
+/// For each pose, how far from it the TCP lands by the table's own prediction (the point's
+/// error, its model's and residual's, the lever carried unturned) when the robot is
+/// commanded the compensated joint values, mm.
 fn landing_errors(dir: &Path, table_path: &Path, tcp_z_m: f64) -> Vec<f64> {
     let program = dir.join(format!("seam-{tcp_z_m}.script"));
     std::fs::write(&program, script(tcp_z_m)).unwrap();
     let mut options = CompensateOptions::new(table_path, &program);
     options.robot = Some(repo("tables/ur5/robot.toml"));
-    // The lever adds the rotation error times 169 mm to the correction.
     options.limits.max_correction_mm = 20.0;
     // The table's own prediction at any lever, beyond its samples' evidence or not.
     options.limits.beyond_evidence = true;
@@ -80,18 +79,14 @@ fn landing_errors(dir: &Path, table_path: &Path, tcp_z_m: f64) -> Vec<f64> {
             .iter()
             .map(|v| v.to_radians())
             .collect();
-        // The table's prediction at the command: its model (the calibrated chain carrying
-        // the TCP rigidly with the point) and its residual field at the point.
+        // The table's prediction at the command: the point's error there (no rotation
+        // served), the TCP riding on the point with the nominal orientation.
         let nominal = model.nominal().tcp_pose(&q).unwrap();
-        let calibrated = model.calibrated().loaded_tcp_pose(&q).unwrap();
         let at_point = table.query_with_joints(&Target::at(nominal.translation_mm), &q);
         assert_eq!(at_point.status, adwi_runtime::Status::Ok);
-        let residual_mm = [0, 1, 2].map(|a| {
-            at_point.position_error_mm[a]
-                - (calibrated.translation_mm[a] - nominal.translation_mm[a])
-        });
-        let carried = calibrated.transform_point(lever_mm);
-        let landed = [0, 1, 2].map(|a| carried[a] + residual_mm[a]);
+        assert_eq!(at_point.orientation_error_rad, [0.0; 3]);
+        let carried = nominal.transform_point(lever_mm);
+        let landed = [0, 1, 2].map(|a| carried[a] + at_point.position_error_mm[a]);
         let target_mm = [pose[0], pose[1], pose[2]].map(|v| 1000.0 * v);
         errors.push(adwi_runtime::method::distance_mm(landed, target_mm));
     }
@@ -116,7 +111,7 @@ fn ur5_table() -> &'static (tempfile::TempDir, std::path::PathBuf) {
 }
 
 #[test]
-fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
+fn a_200_mm_tcp_lands_as_the_tables_prediction_carries_it() {
     let dir = tempfile::tempdir().unwrap();
     let table = &ur5_table().1;
     let short = landing_errors(dir.path(), table, 0.031);
@@ -133,10 +128,10 @@ fn a_200_mm_tcp_lands_as_the_measured_point_by_the_tables_own_model() {
     eprintln!("landing errors, mm: 31 mm TCP {short:?}, 200 mm TCP {long:?}");
 }
 
-/// A hybrid build of samples of position alone says, as it writes the table, that a TCP
-/// away from their point will be flagged.
+/// A hybrid build of samples of position alone says, as it writes the table, that it
+/// serves no orientation error and that a TCP away from their point will be flagged.
 #[test]
-fn a_hybrid_build_of_positions_alone_notes_the_lever_it_cannot_vouch_for() {
+fn a_hybrid_build_of_positions_alone_notes_the_rotation_it_cannot_vouch_for() {
     let dir = tempfile::tempdir().unwrap();
     let robot = repo("tables/ur5/robot.toml");
     let stderr = build_ur5_hybrid(
@@ -147,9 +142,10 @@ fn a_hybrid_build_of_positions_alone_notes_the_lever_it_cannot_vouch_for() {
     );
     assert!(
         stderr.contains(
-            "note: the samples measured position alone: a TCP more than 1 mm from their point \
-             is answered by the model's rotation error, which positions do not determine, and \
-             flagged `tcp`"
+            "note: the samples measured position alone: the table corrects position and \
+             serves no orientation error (its model's, which positions do not determine, can \
+             be further from the robot's than none), and a TCP more than 1 mm from their point \
+             is carried unturned and flagged `tcp`"
         ),
         "{stderr}"
     );
@@ -195,7 +191,7 @@ fn a_lever_the_samples_did_not_measure_is_refused_by_compensation() {
 }
 
 #[test]
-fn a_query_naming_the_tcp_answers_the_error_there() {
+fn a_query_naming_a_far_tcp_is_flagged_and_its_lever_carried_unturned() {
     // SAFETY: the tests' own file, not modified while mapped.
     let table = unsafe { Table::open(&ur5_table().1) }.unwrap();
     let model = table.model().unwrap();
@@ -205,7 +201,6 @@ fn a_query_naming_the_tcp_answers_the_error_there() {
         .map(|v: &f64| v.to_radians())
         .collect();
     let nominal = model.nominal().tcp_pose(&q).unwrap();
-    let calibrated = model.calibrated().loaded_tcp_pose(&q).unwrap();
     let tcp_mm = [0.0, 0.0, 200.0];
     let lever_mm = [0, 1, 2].map(|a| tcp_mm[a] - POINT_MM[a]);
     let at_tcp = nominal.transform_point(lever_mm);
@@ -216,22 +211,13 @@ fn a_query_naming_the_tcp_answers_the_error_there() {
         (got.evidence, plain.evidence),
         (Evidence::TCP, Evidence::WITHIN)
     );
-    // The model's part at the TCP, by the chains; the residual as at the point.
-    let model_at_tcp = [0, 1, 2].map(|a| calibrated.transform_point(lever_mm)[a] - at_tcp[a]);
-    let model_at_point =
-        [0, 1, 2].map(|a| calibrated.translation_mm[a] - nominal.translation_mm[a]);
-    for a in 0..3 {
-        let residual = plain.position_error_mm[a] - model_at_point[a];
-        assert!(
-            (got.position_error_mm[a] - (model_at_tcp[a] + residual)).abs() < 1e-9,
-            "{:?} vs {:?} + {residual}",
-            got.position_error_mm,
-            model_at_tcp
-        );
-    }
-    // The lever is felt: the rotation error times 169 mm.
+    // The point's error, carried unturned: no rotation served.
     let moved = adwi_runtime::method::distance_mm(got.position_error_mm, plain.position_error_mm);
-    assert!(moved > 0.1, "{moved} mm");
+    assert!(moved < 1e-9, "{moved} mm");
+    assert_eq!(
+        (got.orientation_error_rad, plain.orientation_error_rad),
+        ([0.0; 3], [0.0; 3])
+    );
 }
 
 /// A position-only table's targets at orientations its samples never had are refused by

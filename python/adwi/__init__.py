@@ -409,8 +409,8 @@ class QueryResult:
     - ``error_mm`` (N, 3): predicted position error, actual − nominal, mm; NaN where the
       status is not ``ok``.
     - ``orientation_rad`` (N, 3) or None: predicted orientation error (rotation vector,
-      rad, base frame); None for a position-only table whose samples have no orientation
-      (a hybrid table's model always gives one).
+      rad, base frame); None for a table whose samples have no orientation, a hybrid
+      table's too (positions at one point do not determine its model's).
     - ``status`` (N,): status names as ``tablec query`` prints them (``ok``,
       ``outside_grid``, ``no_neighbour``, ``invalid_input``, ``missing_joints``,
       ``numerical_failure``, ``uncovered_cell``, ``joints_mismatch``: a hybrid table's
@@ -653,7 +653,8 @@ class Table:
         exact tier (the paper's method to the digit) instead of the served field.
         ``tcp`` (X, Y, Z mm, flange frame): the TCP the points are for, when it is not the
         point the samples measured (``tablec query --tcp``): a hybrid table answers the
-        error there, its model turning the lever; another flags its answers (``evidence``).
+        error there, its model turning the lever (where its samples measured orientation;
+        else unturned, and flagged); another flags its answers (``evidence``).
         """
         p = _points(points)
         result = self._raw.query_batch(

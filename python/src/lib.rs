@@ -617,7 +617,7 @@ impl Batch {
         tcp: Option<[f64; 3]>,
     ) -> Batch {
         let n = rows.positions.len();
-        let orientation = adwi_jobs::query::answers_orientation(table);
+        let orientation = table.has_orientation();
         let compensate = fixed_point.is_some();
         let rows_of = |on: bool, len: usize| if on { vec![f64::NAN; len] } else { Vec::new() };
         let mut b = Batch {

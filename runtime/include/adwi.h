@@ -131,7 +131,7 @@ enum {
 /* The predicted error at a target: command target - position_error_mm to land on it. */
 typedef struct adwi_correction {
     double position_error_mm[3];     /* actual - nominal, mm */
-    double orientation_error_rad[3]; /* rotation vector of R_actual * R_nominal^T, rad; 0 without orientation */
+    double orientation_error_rad[3]; /* rotation vector of R_actual * R_nominal^T, rad; 0 when the samples measured none */
     uint32_t neighbours;             /* neighbours weighted (exact), nodes blended (served: 8) */
     int32_t status;                  /* ADWI_STATUS_*; other fields are zero unless OK */
     int32_t residual;                /* ADWI_RESIDUAL_*: how much of a hybrid table's
@@ -200,7 +200,8 @@ adwi_result adwi_table_query_joints_exact(const adwi_table *table, const double 
  * flange frame; NULL: the table's measured point) with the tool's orientation
  * rotation_rad (rotation vector, rad, base frame; NULL: not known), reached with the
  * n_joints values at joints_rad (NULL and 0 for a position-only table). A hybrid table
- * answers the error at the TCP (its model turns the lever from its point); out->evidence
+ * answers the error at the TCP (its model turns the lever from its point where its samples
+ * measured orientation; else the lever is unturned, and flagged); out->evidence
  * says where the answer lies beyond the samples. */
 adwi_result adwi_table_query_pose(const adwi_table *table, const double target_mm[3],
                                   const double *rotation_rad, const double *tcp_mm,

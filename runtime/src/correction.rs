@@ -217,7 +217,9 @@ pub struct Correction {
     /// Predicted position error (actual − nominal), mm, base frame.
     pub position_error_mm: [f64; 3],
     /// Predicted orientation error, rotation vector of `R_actual · R_nominalᵀ`, rad, base
-    /// frame; zero when the table has no orientation ([`crate::Table::has_orientation`]).
+    /// frame; zero when the table's samples measured none
+    /// ([`crate::Table::has_orientation`]), a hybrid table's too: positions at one point do
+    /// not determine its model's rotation error (docs/runtime.md, "Another TCP").
     pub orientation_error_rad: [f64; 3],
     /// The number of neighbours whose errors were weighted (the exact tier), or of nodes
     /// blended (the served tier: 8).

@@ -832,9 +832,8 @@ impl<D: AsRef<[u8]>> Table<D> {
             for (out, model) in correction.position_error_mm.iter_mut().zip(m.error_mm) {
                 *out += model;
             }
-            // The model predicts the orientation error whether or not the samples
-            // measured one: a TCP away from the measured point turns with it, and a
-            // command's orientation is corrected by it.
+            // The model's orientation error where the samples measured one (zero
+            // otherwise, `model_part`): a command's orientation is corrected by it.
             let orientation = correction.orientation_error_rad.iter_mut();
             for (out, model) in orientation.zip(m.rotation_rad) {
                 *out += model;
@@ -1020,12 +1019,21 @@ impl<D: AsRef<[u8]>> Table<D> {
         target: &Target,
         joints_within: impl FnOnce(f64) -> bool,
     ) -> Result<ModelPart, Status> {
+        // The model's rotation error is served only where the samples measured
+        // orientation: positions at one point do not determine it, and a model fitted to
+        // them can be several times further from the true rotation than no correction
+        // (docs/runtime.md, "Another TCP"). A named TCP still needs the nominal rotation
+        // to place its lever, which then turns by nothing.
+        let rotation = self.has_orientation();
         // Not `ok_or`: its `Result` was copied through memory in misaligned pieces. Read
         // in place, by reference: a binding by value was a `memcpy` of the answer.
-        let evaluated = model.evaluate(q, true);
-        let Some(at) = evaluated.as_ref() else {
+        let mut evaluated = model.evaluate(q, rotation || target.tcp_mm.is_some());
+        let Some(at) = evaluated.as_mut() else {
             return Err(Status::InvalidInput);
         };
+        if !rotation {
+            at.rotation_rad = [0.0; 3];
+        }
         let (error_mm, point_mm) = self.placed(model, at, target)?;
         // NaN (a chain that overflowed) is refused too.
         if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {

@@ -204,12 +204,12 @@ fn recorded() -> EvidenceRecord {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
-    /// A hybrid table answers the error at a named TCP as the chains walked with that TCP
-    /// as their tool give it, plus the residual at the table's point: within its samples'
-    /// evidence when they measured orientation; when they measured position alone, only
-    /// for a TCP within `TCP_MARGIN_MM` of the point (the same answer, flagged `tcp`
-    /// beyond: the model's rotation error, which turns the lever, is not determined by
-    /// positions at one point).
+    /// A hybrid table of samples with orientation answers the error at a named TCP as the
+    /// chains walked with that TCP as their tool give it, plus the residual at the
+    /// table's point, within its samples' evidence. One of samples of position alone
+    /// serves no rotation error (positions at one point do not determine it): the lever
+    /// is carried unturned, the answer the point's error, within the evidence only for a
+    /// TCP within `TCP_MARGIN_MM` of the point and flagged `tcp` beyond.
     #[test]
     fn a_named_tcp_is_answered_as_the_chains_with_that_tool(
         q in prop::array::uniform6(-3.0..3.0f64),
@@ -220,10 +220,11 @@ proptest! {
         // Some TCPs within a millimetre of the point, where either table is within.
         let tcp = if near { [0, 1, 2].map(|a| point[a] + tcp[a] / 600.0) } else { tcp };
         let (position_mm, rotation_rad, at_mm) = reference(&q, tcp);
+        let (point_error_mm, _, _) = reference(&q, point);
         let within_margin = method::distance_mm(tcp, point) <= TCP_MARGIN_MM;
-        for (table, flagged) in [
-            (table_with_orientation(&q, recorded()), false),
-            (table(&q, recorded()), !within_margin),
+        for (table, flagged, position_mm, rotation_rad) in [
+            (table_with_orientation(&q, recorded()), false, position_mm, rotation_rad),
+            (table(&q, recorded()), !within_margin, point_error_mm, [0.0; 3]),
         ] {
             let got = table.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
             prop_assert_eq!(got.status, Status::Ok);
@@ -269,37 +270,46 @@ proptest! {
 }
 
 /// At the table's own point (no TCP named) the answer is the model's error at the point,
-/// orientation included, whether or not the samples measured one.
+/// with the model's orientation error where the samples measured orientation; where they
+/// measured position alone, which does not determine it, with none (zero, as a
+/// position-only table's), the position the same.
 #[test]
-fn a_hybrid_table_answers_the_model_orientation_error_at_its_point() {
+fn a_hybrid_table_answers_the_model_orientation_error_where_its_samples_measured_one() {
     let q = [0.3, -0.8, 1.1, 0.4, 0.9, -0.6];
-    let table = table(&q, recorded());
-    let got = table.query_with_joints(&Target::at(POINT_MM), &q);
     let (nominal, calibrated) = chains(&q);
     let n = nominal.tcp_pose(&q).unwrap();
     let c = calibrated.tcp_pose(&q).unwrap();
     let (position, rotation) = adwi_runtime::kinematics::pose_error(&n, &c);
-    assert_eq!(got.status, Status::Ok);
-    for a in 0..3 {
-        assert!((got.position_error_mm[a] - position[a] - RESIDUAL_MM[a]).abs() < 1e-9);
-        assert!((got.orientation_error_rad[a] - rotation[a]).abs() < 1e-12);
+    assert!(method::norm_mm(rotation) > 1e-3);
+    for (table, served) in [
+        (table_with_orientation(&q, recorded()), rotation),
+        (table(&q, recorded()), [0.0; 3]),
+    ] {
+        let got = table.query_with_joints(&Target::at(POINT_MM), &q);
+        assert_eq!(got.status, Status::Ok);
+        assert_eq!(got.evidence, Evidence::WITHIN);
+        for a in 0..3 {
+            assert!((got.position_error_mm[a] - position[a] - RESIDUAL_MM[a]).abs() < 1e-9);
+            assert!((got.orientation_error_rad[a] - served[a]).abs() < 1e-12);
+        }
+        let exact = table.exact().query_with_joints(&Target::at(POINT_MM), &q);
+        assert_eq!(exact.orientation_error_rad, got.orientation_error_rad);
     }
-    assert!(method::norm_mm(got.orientation_error_rad) > 1e-3);
 }
 
 /// The lever matters: a 200 mm TCP's error differs from the point's by the rotation error
-/// times the lever (here millimetres); the answer is within the samples' evidence when they
-/// measured orientation, flagged when they measured position alone; and a table that does
-/// not record its point says it cannot place the TCP instead of answering the point's error
-/// as the TCP's.
+/// times the lever (here millimetres), within the samples' evidence when they measured
+/// orientation. Samples of position alone do not determine that rotation: the point's
+/// error is carried unturned and flagged. A table that does not record its point says it
+/// cannot place the TCP instead of answering the point's error as the TCP's.
 #[test]
 fn a_far_tcp_moves_the_answer_and_an_unplaceable_one_is_flagged() {
     let q = [0.3, -0.8, 1.1, 0.4, 0.9, -0.6];
     let tcp = [0.0, 0.0, 200.0];
     let (position_mm, _, at_mm) = reference(&q, tcp);
-    let with_point = table(&q, recorded());
-    let at_tcp = with_point.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
-    let at_point = with_point.query_with_joints(&Target::at(POINT_MM), &q);
+    let measured = table_with_orientation(&q, recorded());
+    let at_tcp = measured.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
+    let at_point = measured.query_with_joints(&Target::at(POINT_MM), &q);
     let moved = method::distance_mm(at_tcp.position_error_mm, at_point.position_error_mm);
     assert!(moved > 0.1, "the lever moved the answer by {moved} mm");
     assert!(
@@ -308,15 +318,15 @@ fn a_far_tcp_moves_the_answer_and_an_unplaceable_one_is_flagged() {
             [0, 1, 2].map(|a| position_mm[a] + RESIDUAL_MM[a])
         ) < 1e-9
     );
+    assert_eq!(at_tcp.evidence, Evidence::WITHIN);
 
-    // The samples measured position alone: the 200 mm lever's turn is the model's, which
-    // they do not determine, and the answer says so; with their orientation measured it is
-    // within.
-    assert_eq!(at_tcp.evidence, Evidence::TCP);
-    let measured = table_with_orientation(&q, recorded());
-    let within = measured.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
-    assert_eq!(within.evidence, Evidence::WITHIN);
-    assert_eq!(within.position_error_mm, at_tcp.position_error_mm);
+    // The samples measured position alone: the lever is not turned, and the answer says
+    // it is beyond what they determine.
+    let with_point = table(&q, recorded());
+    let unturned = with_point.query_with_joints(&Target::at(at_mm).with_tcp(tcp), &q);
+    assert_eq!(unturned.evidence, Evidence::TCP);
+    assert_eq!(unturned.orientation_error_rad, [0.0; 3]);
+    assert_eq!(unturned.position_error_mm, at_point.position_error_mm);
 
     let without = table(&q, EvidenceRecord::default());
     let got = without.query_with_joints(&Target::at(POINT_MM).with_tcp(tcp), &q);

@@ -422,7 +422,7 @@ impl BuildJob {
                 })?;
                 warnings.extend(crate::calibration_warnings(&identified));
                 if samples.rotation_error_rad.is_none() {
-                    warnings.push(Warning::LeverUnmeasured);
+                    warnings.push(Warning::RotationUnmeasured);
                 }
                 (
                     built.bytes,

@@ -304,9 +304,10 @@ pub enum Warning {
         reason: String,
     },
     /// A hybrid table of samples that measured position alone: its model's rotation
-    /// error, which turns a TCP's lever, is not determined by them, so a TCP away from
-    /// the measured point is beyond their evidence (docs/runtime.md, "Another TCP").
-    LeverUnmeasured,
+    /// error is not determined by them, so the table serves none, and a TCP away from
+    /// the measured point, whose lever that rotation would turn, is beyond their evidence
+    /// (docs/runtime.md, "Another TCP").
+    RotationUnmeasured,
 }
 
 impl Warning {
@@ -316,7 +317,7 @@ impl Warning {
     pub fn is_note(&self) -> bool {
         matches!(
             self,
-            Warning::Unidentifiable { .. } | Warning::LeverUnmeasured
+            Warning::Unidentifiable { .. } | Warning::RotationUnmeasured
         )
     }
 }
@@ -383,12 +384,14 @@ impl fmt::Display for Warning {
                 let what: Vec<String> = omissions.iter().map(|o| o.to_string()).collect();
                 write!(f, "{} does not carry: {}", path.display(), what.join("; "))
             }
-            Warning::LeverUnmeasured => write!(
+            Warning::RotationUnmeasured => write!(
                 f,
-                "the samples measured position alone: a TCP more than {} mm from their point \
-                 is answered by the model's rotation error, which positions do not determine, \
-                 and flagged `tcp` (tablec compensate refuses it without --beyond-evidence); \
-                 samples with orientation (a 6-D tracker target) carry any TCP",
+                "the samples measured position alone: the table corrects position and serves \
+                 no orientation error (its model's, which positions do not determine, can be \
+                 further from the robot's than none), and a TCP more than {} mm from their \
+                 point is carried unturned and flagged `tcp` (tablec compensate refuses it \
+                 without --beyond-evidence); samples with orientation (a 6-D tracker target) \
+                 carry both",
                 adwi_runtime::format::TCP_MARGIN_MM
             ),
             Warning::Samples(w) => write!(f, "{w}"),

@@ -186,12 +186,6 @@ pub fn answer<D: AsRef<[u8]>>(
     (c, Some(command))
 }
 
-/// Whether a table's answers carry an orientation error: a hybrid table's model predicts
-/// one whether or not its samples measured one.
-pub fn answers_orientation<D: AsRef<[u8]>>(table: &Table<D>) -> bool {
-    table.has_orientation() || table.is_hybrid()
-}
-
 /// What a query asks.
 #[derive(Clone, Debug, Default)]
 pub struct QueryArgs {
@@ -334,7 +328,7 @@ impl QueryJob {
     /// [`JobError::Output`] when the output cannot be written.
     pub fn run(self) -> Result<QueryResult, JobError> {
         let table = &self.table;
-        let orientation = answers_orientation(table);
+        let orientation = table.has_orientation();
         let tier_name = if self.exact || !table.has_served_field() {
             "exact"
         } else {
