@@ -618,12 +618,13 @@ fn the_version_6_table_opens_and_bounds_its_residual_by_its_samples_joints() {
         out.contains("residual joints j1 [-24.4, 56.5], j2 [-105.0, -25.5], j3 [30.1, 140.4]"),
         "{out}"
     );
-    // And what a named TCP gets from it: the UR5's samples measured position alone.
+    // What it serves, and what a named TCP gets: the UR5's samples measured position alone.
     assert!(
         out.contains(
-            "measured point (0.000, 0.090, 31.000) mm in the flange frame: a named TCP more \
-             than 1 mm from it is flagged `tcp`: the samples measured no orientation to turn \
-             its lever by"
+            "measured point (0.000, 0.090, 31.000) mm in the flange frame: no orientation \
+             error is served (the samples measured position alone, which does not determine \
+             the model's), and a named TCP more than 1 mm from it is carried unturned and \
+             flagged `tcp`"
         ),
         "{out}"
     );

@@ -122,8 +122,9 @@ fn print_evidence(h: &Header) {
             let tcp = match (h.turns_measured_lever(), hybrid) {
                 (true, _) => "a query may name another TCP, whose lever the model turns".into(),
                 (false, true) => format!(
-                    "a named TCP more than {margin} mm from it is flagged `tcp`: the samples \
-                     measured no orientation to turn its lever by"
+                    "no orientation error is served (the samples measured position alone, \
+                     which does not determine the model's), and a named TCP more than \
+                     {margin} mm from it is carried unturned and flagged `tcp`"
                 ),
                 (false, false) => format!(
                     "a named TCP more than {margin} mm from it is flagged `tcp`: no model \
