@@ -31,6 +31,8 @@ use crate::program::{
     CartesianTarget, ConfigHint, Format, LengthUnit, Orientation, Program, ProgramTarget, Reason,
     Refusal, TargetKind,
 };
+use std::collections::HashMap;
+
 use crate::source::Source;
 use crate::Error;
 
@@ -186,10 +188,247 @@ struct Word {
     value: Value,
 }
 
-/// The words of the line `start..end`; `None` for a parameter assignment (`#1 = 2`).
-fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Error> {
+/// A statement a line holds beyond its words (Fanuc custom macro B, LinuxCNC o-words).
+#[derive(Clone, Debug)]
+enum Statement {
+    /// `#1 = 2`, `#5221 = 100.`, `IF [#1 EQ 0] THEN #2 = 1`: whether the variable may be a
+    /// system variable (#1000 and above, or an index computed as the program runs), and
+    /// where it is written.
+    Assignment { system: bool, at: usize },
+    /// `GOTO 10`, `IF [#1 EQ 0] GOTO 20`: the label's number (`None`: computed).
+    Jump {
+        label: Option<u32>,
+        conditional: bool,
+    },
+    /// `WHILE [#1 LT 5] DO1`, `DO1`: a loop's start, by its number.
+    Do { id: u32 },
+    /// `END1`: a loop's end.
+    End { id: u32 },
+    /// LinuxCNC `o100 sub`, `o<name> endsub`, `o100 call`, `o100 return`: the o-word (lower
+    /// case) and its keyword (upper case).
+    OWord {
+        name: String,
+        keyword: String,
+        at: usize,
+    },
+}
+
+/// A line read: its words, the statement after them, and whether it is a block-delete
+/// (`/`) block.
+#[derive(Default)]
+struct Parsed {
+    words: Vec<Word>,
+    statement: Option<Statement>,
+    deleted: bool,
+}
+
+/// A whole, non-negative number (a label, a program number), `None` beyond.
+fn whole(n: &Number) -> Option<u32> {
+    (n.value >= 0.0 && n.value < 1e9 && n.value.fract() == 0.0).then_some(n.value as u32)
+}
+
+/// Text as messages quote it: control characters escaped, quotes as written.
+fn shown(text: String) -> String {
+    if !text.chars().any(char::is_control) {
+        return text;
+    }
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
+/// The end of the letters from `i` (before `end`).
+fn letters_end(bytes: &[u8], i: usize, end: usize) -> usize {
+    let mut j = i;
+    while j < end && bytes[j].is_ascii_alphabetic() {
+        j += 1;
+    }
+    j
+}
+
+/// After the bracketed condition that starts at or after `i` (`[#1 EQ 0]`).
+fn after_condition(src: &Source, i: usize, end: usize, keyword: &str) -> Result<usize, Error> {
+    let i = src.skip_blanks(i).min(end);
+    if src.at(i) != Some(b'[') || i >= end {
+        return Err(src.error(
+            i,
+            format!(
+                "{keyword} needs a condition in brackets, found {}",
+                shown(src.describe(i))
+            ),
+        ));
+    }
+    let mut depth = 0i32;
+    for (k, &b) in src.bytes[i..end].iter().enumerate() {
+        match b {
+            b'[' => depth += 1,
+            b']' => {
+                depth -= 1;
+                if depth == 0 {
+                    return Ok(i + k + 1);
+                }
+            }
+            _ => {}
+        }
+    }
+    Err(src.error(i, format!("{keyword}: a '[' without its ']'")))
+}
+
+/// The whole number written at or after `i` (blanks skipped), and where it ends.
+fn label_at(src: &Source, i: usize, end: usize) -> Option<(u32, usize)> {
+    let i = src.skip_blanks(i).min(end);
+    let mut j = i;
+    while j < end && src.bytes[j].is_ascii_digit() {
+        j += 1;
+    }
+    let n = parse_number(&src.bytes[..j], i).filter(|n| n.span.1 == j)?;
+    Some((whole(&n)?, j))
+}
+
+/// The statement whose keyword starts at `i` (`GOTO`, `IF`, `WHILE`, `DO`, `END`, or a
+/// LinuxCNC o-word's keyword after `o100`), `words` the words before it.
+fn statement(src: &Source, i: usize, end: usize, words: &[Word]) -> Result<Statement, Error> {
     let bytes = src.bytes;
-    let mut out = Vec::new();
+    let kw_end = letters_end(bytes, i, end);
+    let keyword = src.text(i, kw_end).to_ascii_uppercase();
+    if let Some(o) = words.last().filter(|w| w.letter == b'O') {
+        let name = match o.value {
+            Value::Number(n) => format!("o{}", n.value),
+            Value::Expression => src.text(o.at, words_end(src, o.at, end)).to_lowercase(),
+        };
+        return oword(src, name, keyword, o.at, i);
+    }
+    let jump = |j: usize, conditional: bool| -> Result<Statement, Error> {
+        let k = src.skip_blanks(j).min(end);
+        let label = match src.at(k) {
+            Some(b'#' | b'[') if k < end => None,
+            _ => match label_at(src, k, end) {
+                Some((n, _)) => Some(n),
+                None => {
+                    return Err(src.error(
+                        k,
+                        format!(
+                            "GOTO needs a block number, found {}",
+                            shown(src.describe(k))
+                        ),
+                    ))
+                }
+            },
+        };
+        Ok(Statement::Jump { label, conditional })
+    };
+    let numbered = |j: usize, what: &str| -> Result<u32, Error> {
+        label_at(src, j, end).map(|(n, _)| n).ok_or_else(|| {
+            src.error(
+                j,
+                format!(
+                    "{what} needs its loop's number (1-3), found {}",
+                    shown(src.describe(j))
+                ),
+            )
+        })
+    };
+    match keyword.as_str() {
+        "GOTO" => jump(kw_end, false),
+        "IF" => {
+            let j = src.skip_blanks(after_condition(src, kw_end, end, "IF")?).min(end);
+            let then_end = letters_end(bytes, j, end);
+            match src.text(j, then_end).to_ascii_uppercase().as_str() {
+                "GOTO" => jump(then_end, true),
+                "THEN" => {
+                    let k = src.skip_blanks(then_end).min(end);
+                    match src.at(k) {
+                        Some(b'#') if k < end => Ok(Statement::Assignment {
+                            system: system_variable(src, k, end),
+                            at: k,
+                        }),
+                        _ => Err(src.error(
+                            k,
+                            format!(
+                                "IF … THEN takes an assignment (#1 = …) here, found {}",
+                                shown(src.describe(k))
+                            ),
+                        )),
+                    }
+                }
+                _ => Err(src.error(
+                    j,
+                    format!("IF [ … ] takes GOTO or THEN, found {}", shown(src.describe(j))),
+                )),
+            }
+        }
+        "WHILE" => {
+            let j = src.skip_blanks(after_condition(src, kw_end, end, "WHILE")?).min(end);
+            let do_end = letters_end(bytes, j, end);
+            if !src.text(j, do_end).eq_ignore_ascii_case("DO") {
+                return Err(src.error(
+                    j,
+                    format!("WHILE [ … ] takes DO1-DO3, found {}", shown(src.describe(j))),
+                ));
+            }
+            Ok(Statement::Do {
+                id: numbered(do_end, "DO")?,
+            })
+        }
+        "DO" => Ok(Statement::Do {
+            id: numbered(kw_end, "DO")?,
+        }),
+        "END" => Ok(Statement::End {
+            id: numbered(kw_end, "END")?,
+        }),
+        _ => Err(src.error(
+            i,
+            format!(
+                "{} is not a word (a letter and a number) or a statement (GOTO, IF, WHILE, DO, END) this reader knows",
+                shown(src.describe(i))
+            ),
+        )),
+    }
+}
+
+/// A LinuxCNC o-word statement: `sub`, `endsub`, `call`, `return` are read; its control
+/// flow (`if`, `while`, `repeat`, …) is refused by name.
+fn oword(
+    src: &Source,
+    name: String,
+    keyword: String,
+    at: usize,
+    kw_at: usize,
+) -> Result<Statement, Error> {
+    match keyword.as_str() {
+        "SUB" | "ENDSUB" | "CALL" | "RETURN" => Ok(Statement::OWord { name, keyword, at }),
+        _ => Err(src.error(
+            kw_at,
+            format!(
+                "{name} {}: LinuxCNC o-word control flow, which this reader does not follow",
+                keyword.to_lowercase()
+            ),
+        )),
+    }
+}
+
+/// Whether the variable assigned at `at` (`#5221`, `#[#1+1]`, `#<depth>`) may be a system
+/// variable: #1000 and above (work offsets, tool data, settings), or an index computed as
+/// the program runs.
+fn system_variable(src: &Source, at: usize, end: usize) -> bool {
+    let i = src.skip_blanks(at + 1).min(end);
+    match src.at(i) {
+        Some(b'[') => true,
+        Some(b'<') => false,
+        _ => label_at(src, i, end).is_none_or(|(n, _)| n >= 1000),
+    }
+}
+
+/// The words of the line `start..end`, and the statement after them.
+fn parse_line(src: &Source, start: usize, end: usize) -> Result<Parsed, Error> {
+    let bytes = src.bytes;
+    let mut out = Parsed::default();
     let mut i = start;
     if i == 0 && bytes.starts_with(b"\xef\xbb\xbf") {
         i = 3;
@@ -197,7 +436,15 @@ fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Er
     while i < end {
         let b = bytes[i];
         match b {
-            b' ' | b'\t' | b'%' | b'/' => i += 1,
+            b' ' | b'\t' | b'%' => i += 1,
+            // Block delete, `/` or `/2` (the switch's number).
+            b'/' => {
+                out.deleted = true;
+                i += 1;
+                while i < end && bytes[i].is_ascii_digit() {
+                    i += 1;
+                }
+            }
             b'(' => {
                 let close = bytes[i..end].iter().position(|&c| c == b')');
                 i = match close {
@@ -207,12 +454,31 @@ fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Er
             }
             b';' => break,
             // A parameter's assignment (`#1 = 2`, `N5 #<depth> = 3`): no motion.
-            b'#' => return Ok(None),
+            b'#' => {
+                out.statement = Some(Statement::Assignment {
+                    system: system_variable(src, i, end),
+                    at: i,
+                });
+                break;
+            }
             _ if b.is_ascii_alphabetic() => {
                 let letter = b.to_ascii_uppercase();
                 let at = i;
+                let next = if i + 1 < end { bytes[i + 1] } else { b' ' };
+                if next.is_ascii_alphabetic() {
+                    out.statement = Some(statement(src, i, end, &out.words)?);
+                    break;
+                }
                 i = src.skip_blanks(i + 1).min(end);
                 let value = match bytes.get(i) {
+                    // A LinuxCNC named o-word: `o<probe> sub`.
+                    Some(b'<') if letter == b'O' && i < end => {
+                        while i < end && bytes[i] != b'>' {
+                            i += 1;
+                        }
+                        i = (i + 1).min(end);
+                        Value::Expression
+                    }
                     Some(b'#' | b'[') if i < end => {
                         let mut depth = 0i32;
                         while i < end {
@@ -247,27 +513,27 @@ fn words(src: &Source, start: usize, end: usize) -> Result<Option<Vec<Word>>, Er
                                     format!(
                                         "the word {} has no number: found {}",
                                         letter as char,
-                                        src.describe(i).escape_default()
+                                        shown(src.describe(i))
                                     ),
                                 ))
                             }
                         }
                     }
                 };
-                out.push(Word { letter, at, value });
+                out.words.push(Word { letter, at, value });
             }
             _ => {
                 return Err(src.error(
                     i,
                     format!(
                         "expected a word (a letter and a number), found {}",
-                        src.describe(i).escape_default()
+                        shown(src.describe(i))
                     ),
                 ))
             }
         }
     }
-    Ok(Some(out))
+    Ok(out)
 }
 
 /// A G or M code's number in tenths (`G1` 10, `G90.1` 901, `G54.1` 541), `None` beyond.
@@ -302,9 +568,115 @@ impl Mode {
     }
 }
 
+/// A group of modes a block inherits: what may become unknown as the program runs (a G
+/// code computed, a subprogram's or a jump's modes, a block-delete block's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Group {
+    Motion,
+    Units,
+    Distance,
+    Plane,
+    ArcDistance,
+    Work,
+    Cutter,
+    Length,
+    Transform,
+    RunOffset,
+    MacroCall,
+    Tool,
+}
+
+impl Group {
+    const ALL: [Group; 12] = [
+        Group::Motion,
+        Group::Units,
+        Group::Distance,
+        Group::Plane,
+        Group::ArcDistance,
+        Group::Work,
+        Group::Cutter,
+        Group::Length,
+        Group::Transform,
+        Group::RunOffset,
+        Group::MacroCall,
+        Group::Tool,
+    ];
+
+    fn bit(self) -> u16 {
+        1 << self as u16
+    }
+
+    /// What it is, in messages.
+    fn what(self) -> &'static str {
+        match self {
+            Group::Motion => "motion mode (G0-G3, cycles)",
+            Group::Units => "units (G20/G21)",
+            Group::Distance => "distance mode (G90/G91)",
+            Group::Plane => "plane (G17-G19)",
+            Group::ArcDistance => "arc centre mode (G90.1/G91.1)",
+            Group::Work => "work offset (G54-G59)",
+            Group::Cutter => "cutter compensation (G40-G42)",
+            Group::Length => "tool length offset (G43/G49)",
+            Group::Transform => "rotation, scaling or polar mode (G68, G51, G16)",
+            Group::RunOffset => "offsets set as the program runs (G10, G52, G92, system variables)",
+            Group::MacroCall => "modal macro call (G66/G67)",
+            Group::Tool => "tool",
+        }
+    }
+
+    /// The status of a move while it is not known: relative where the path may be offset
+    /// or incremental, frame_unknown where the frame may be another, dynamic otherwise.
+    fn reason(self) -> Reason {
+        match self {
+            Group::Distance | Group::Cutter => Reason::Relative,
+            Group::Work | Group::Length | Group::Transform | Group::RunOffset | Group::Tool => {
+                Reason::FrameUnknown
+            }
+            Group::MacroCall => Reason::UnknownMotion,
+            Group::Motion | Group::Units | Group::Plane | Group::ArcDistance => Reason::Dynamic,
+        }
+    }
+
+    /// Whether a move in `mode` depends on it (the plane and the arc centre mode only an
+    /// arc's).
+    fn moves(self, mode: Mode) -> bool {
+        !matches!(self, Group::Plane | Group::ArcDistance) || matches!(mode, Mode::Arc { .. })
+    }
+}
+
+/// The group a G code (in tenths) sets, if any.
+fn group_of(g: u32) -> Option<Group> {
+    Some(match g {
+        0 | 10 | 20 | 30 | 730 | 740 | 760 | 800 => Group::Motion,
+        810..=890 if g % 10 == 0 => Group::Motion,
+        170 | 180 | 190 => Group::Plane,
+        200 | 210 | 700 | 710 => Group::Units,
+        900 | 910 => Group::Distance,
+        901 | 911 => Group::ArcDistance,
+        540..=590 if g % 10 == 0 => Group::Work,
+        541 | 591 | 592 | 593 => Group::Work,
+        400 | 410 | 420 | 411 | 421 => Group::Cutter,
+        430..=435 | 440 | 450 | 460 | 470 | 480 | 490 => Group::Length,
+        680 | 681 | 682 | 160 | 510 | 511 | 501 | 690 | 150 | 500 => Group::Transform,
+        520 | 920 | 100 | 921 | 922 => Group::RunOffset,
+        660 | 670 => Group::MacroCall,
+        _ => return None,
+    })
+}
+
+/// Why a group's mode is not known where a move is: its status and what made it so.
+#[derive(Clone, Debug, PartialEq)]
+struct Unknown {
+    reason: Reason,
+    detail: String,
+}
+
+/// The groups of a mask, `u16` by [`Group::bit`].
+const ALL_GROUPS: u16 = (1 << 12) - 1;
+
 /// Something that puts the program's moves in a frame the options do not give, or offsets
 /// them as the controller runs: what, where, and the reason.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 struct Modal {
     what: String,
     reason: Reason,
@@ -404,6 +776,8 @@ struct Move {
     /// `G53`: machine coordinates.
     machine: bool,
     mode: Mode,
+    /// Whether the block writes its motion code.
+    written_mode: bool,
     /// The mode's code (`G1`).
     name: String,
     /// Where the move is written: its motion code, else its first axis word.
@@ -424,6 +798,7 @@ enum Outcome {
 }
 
 /// The modal state: what a block inherits from the blocks before it.
+#[derive(Clone)]
 struct State {
     inch: bool,
     absolute: bool,
@@ -437,8 +812,19 @@ struct State {
     length: Option<Modal>,
     transform: Option<Modal>,
     run_offset: Option<Modal>,
+    /// A modal macro call (`G66`), until `G67`.
+    macro_call: Option<Modal>,
+    /// The first tool the program selects (`T1`), the one `--tool` describes.
+    first_tool: Option<String>,
+    /// Another tool selected.
+    tool: Option<Modal>,
+    /// Per group, why its mode is not known, when it is not.
+    unknown: [Option<Box<Unknown>>; 12],
     /// Per axis X Y Z A B C, the number that last wrote it (absolute) and its line.
     modal: [Option<(Number, usize)>; 6],
+    /// Per axis, the line after which its value is not known (an incremental move, a
+    /// subprogram, a jump), when no number wrote it since.
+    lost: [Option<usize>; 6],
     /// Where the tool is, mm (program frame), when known.
     position: [Option<f64>; 3],
     /// The target whose end is where the tool is, when a block wrote it in full.
@@ -458,7 +844,12 @@ impl State {
             length: None,
             transform: None,
             run_offset: None,
+            macro_call: None,
+            first_tool: None,
+            tool: None,
+            unknown: Default::default(),
             modal: [None; 6],
+            lost: [None; 6],
             position: [None; 3],
             at_target: None,
         }
@@ -472,6 +863,67 @@ impl State {
         }
     }
 
+    /// Marks the group's mode not known, with why.
+    fn mark(&mut self, group: Group, reason: Reason, detail: String) {
+        self.unknown[group as usize] = Some(Box::new(Unknown { reason, detail }));
+    }
+
+    /// Marks the groups of `mask` not known, each with its own status.
+    fn mark_groups(&mut self, mask: u16, detail: &dyn Fn(Group) -> String) {
+        for g in Group::ALL {
+            if mask & g.bit() != 0 {
+                self.mark(g, g.reason(), detail(g));
+            }
+        }
+    }
+
+    /// Whether the group's mode is the same here as in `other`.
+    fn same(&self, other: &State, group: Group) -> bool {
+        match group {
+            Group::Motion => self.mode == other.mode,
+            Group::Units => self.inch == other.inch,
+            Group::Distance => self.absolute == other.absolute,
+            Group::Plane => self.plane == other.plane,
+            Group::ArcDistance => self.arc_absolute == other.arc_absolute,
+            Group::Work => self.work == other.work,
+            Group::Cutter => self.cutter == other.cutter,
+            Group::Length => self.length == other.length,
+            Group::Transform => self.transform == other.transform,
+            Group::RunOffset => self.run_offset == other.run_offset,
+            Group::MacroCall => self.macro_call == other.macro_call,
+            Group::Tool => self.tool == other.tool && self.first_tool == other.first_tool,
+        }
+    }
+
+    /// The state where this one and `other` meet (a jump's target, the block after a
+    /// block-delete block): a group whose mode differs is not known, `why` says how; the
+    /// tool's position where they differ neither.
+    fn merge(&mut self, other: &State, line_number: usize, why: &dyn Fn(Group) -> String) {
+        for g in Group::ALL {
+            let k = g as usize;
+            if self.unknown[k].is_some() {
+                continue;
+            }
+            if let Some(u) = &other.unknown[k] {
+                self.unknown[k] = Some(u.clone());
+            } else if !self.same(other, g) {
+                self.mark(g, g.reason(), why(g));
+            }
+        }
+        if self.position != other.position || self.at_target != other.at_target {
+            self.position = [None; 3];
+            self.at_target = None;
+        }
+        for i in 0..6 {
+            if self.modal[i].map(|m| m.0.value) != other.modal[i].map(|m| m.0.value)
+                || other.lost[i].is_some()
+            {
+                self.modal[i] = None;
+                self.lost[i] = Some(line_number);
+            }
+        }
+    }
+
     /// The block's codes, in the order a controller applies them: the modes they set, and
     /// what they say of the block.
     fn read_codes(&mut self, block: &Block) -> BlockCodes {
@@ -479,8 +931,16 @@ impl State {
         for w in block.words {
             let Value::Number(n) = w.value else {
                 if w.letter == b'G' {
+                    let detail = format!(
+                        "{} (line {}): a G code computed when the program runs, so the modes after it are not known",
+                        w.text(block.src),
+                        block.line_number
+                    );
+                    for g in Group::ALL {
+                        self.mark(g, Reason::Dynamic, detail.clone());
+                    }
                     codes.other_motion = Some(OtherMotion {
-                        name: "G".into(),
+                        name: w.text(block.src),
                         at: w.at,
                         reason: Reason::Dynamic,
                         detail: "a G code computed when the program runs".into(),
@@ -509,6 +969,9 @@ impl State {
 
     /// Applies the G code `g` (in tenths), written `name` at `at`.
     fn apply_g(&mut self, g: u32, name: String, at: usize, block: &Block, codes: &mut BlockCodes) {
+        if let Some(group) = group_of(g) {
+            self.unknown[group as usize] = None;
+        }
         match g {
             0 => codes.motion = Some((Mode::Rapid, at)),
             10 => codes.motion = Some((Mode::Linear, at)),
@@ -544,6 +1007,43 @@ impl State {
                     reason: Reason::Dynamic,
                 });
             }
+            700 | 710 => {
+                self.mark(
+                    Group::Units,
+                    Reason::UnknownMotion,
+                    format!(
+                        "{name} (line {}): inches (G70) or millimetres (G71) in ISO 6983 and Sinumerik, a finishing or roughing cycle on a Fanuc lathe: no move is corrected until G20 or G21 sets the units",
+                        block.line_number
+                    ),
+                );
+                codes.other_motion = Some(OtherMotion {
+                    detail: format!(
+                        "{name}: units in ISO 6983 and Sinumerik, a cycle on a Fanuc lathe, which this reader cannot tell apart"
+                    ),
+                    name,
+                    at,
+                    reason: Reason::UnknownMotion,
+                });
+            }
+            // A macro call (G65) and a modal one (G66): their words are its arguments.
+            650 => codes.data = true,
+            660 => {
+                self.macro_call = Some(Modal {
+                    what: format!(
+                        "{name}{} (line {}): a modal macro call, run after each move",
+                        block
+                            .words
+                            .iter()
+                            .find(|w| w.letter == b'P')
+                            .map(|w| format!(" {}", w.text(block.src)))
+                            .unwrap_or_default(),
+                        block.line_number
+                    ),
+                    reason: Reason::UnknownMotion,
+                });
+                codes.data = true;
+            }
+            670 => self.macro_call = None,
             // Exact stop, feed and spindle modes, path modes, return levels: no motion.
             610 | 611 | 640 | 930 | 940 | 950 | 960 | 970 | 980 | 990 | 90 => {}
             _ => {
@@ -626,19 +1126,23 @@ impl State {
         true
     }
 
-    /// Forgets where the tool is: a move the reader cannot follow.
-    fn lose_position(&mut self) {
+    /// Forgets where the tool is after line `line_number`: a move the reader cannot
+    /// follow. An axis never written stays so (a program without A, B, C).
+    fn lose_position(&mut self, line_number: usize) {
         self.position = [None; 3];
         self.at_target = None;
-        self.modal = [None; 6];
+        for i in 0..6 {
+            if self.modal[i].take().is_some() || i < 3 {
+                self.lost[i] = Some(line_number);
+            }
+        }
     }
 
     /// The state after a move that writes `written`, whatever becomes of its target.
     fn advance(&mut self, written: &Written, machine: bool, line_number: usize) {
         self.at_target = None;
         if machine || written.expression.is_some() {
-            self.modal = [None; 6];
-            self.position = [None; 3];
+            self.lose_position(line_number);
             return;
         }
         let unit_mm = self.unit_mm();
@@ -648,11 +1152,13 @@ impl State {
             };
             if self.absolute {
                 self.modal[i] = Some((n, line_number));
+                self.lost[i] = None;
                 if i < 3 {
                     self.position[i] = Some(n.value * unit_mm);
                 }
             } else {
                 self.modal[i] = None;
+                self.lost[i] = Some(line_number);
                 if i < 3 {
                     self.position[i] = self.position[i].map(|p| p + n.value * unit_mm);
                 }
@@ -683,6 +1189,8 @@ impl State {
                 Reason::ExternalAxis,
                 format!("{}: an axis beyond the robot's six", w.text(src)),
             ))
+        } else if let Some(u) = self.unknown_for(mv) {
+            Some((u.reason, format!("{name}: {}", u.detail)))
         } else if mv.machine {
             Some((
                 Reason::FrameUnknown,
@@ -701,6 +1209,8 @@ impl State {
                 ),
             ))
         } else if let Some(m) = [
+            &self.tool,
+            &self.macro_call,
             &self.transform,
             &self.run_offset,
             &self.length,
@@ -719,6 +1229,15 @@ impl State {
         } else {
             self.work_refusal(options)
         }
+    }
+
+    /// Why a group the move depends on is not known, if one is: the first, in
+    /// [`Group::ALL`]'s order (the motion mode only when the block writes none).
+    fn unknown_for(&self, mv: &Move) -> Option<&Unknown> {
+        Group::ALL
+            .into_iter()
+            .filter(|g| g.moves(mv.mode) && (*g != Group::Motion || !mv.written_mode))
+            .find_map(|g| self.unknown[g as usize].as_deref())
     }
 
     /// A work offset selected that the options do not give.
@@ -752,9 +1271,10 @@ impl State {
             .filter(|i| written.numbers[*i].is_none())
             .map(|i| {
                 let axis = AXES[i] as char;
-                match self.modal[i] {
-                    Some((_, l)) => format!("{axis} (modal from line {l})"),
-                    None => format!("{axis} (never written)"),
+                match (self.modal[i], self.lost[i]) {
+                    (Some((_, l)), _) => format!("{axis} (modal from line {l})"),
+                    (None, Some(l)) => format!("{axis} (not known after line {l})"),
+                    (None, None) => format!("{axis} (never written)"),
                 }
             })
             .collect()
@@ -767,7 +1287,9 @@ impl State {
         written: &Written,
         abc: AbcConvention,
     ) -> Result<Option<Orientation>, String> {
-        let used_abc = (3..6).any(|i| written.numbers[i].is_some() || self.modal[i].is_some());
+        let used_abc = (3..6).any(|i| {
+            written.numbers[i].is_some() || self.modal[i].is_some() || self.lost[i].is_some()
+        });
         if !used_abc {
             return Ok(None);
         }
@@ -780,15 +1302,19 @@ impl State {
                 AbcConvention::FixedXyz => Orientation::KukaAbcDeg([c, b, a]),
             })),
             _ => {
-                let never: Vec<&str> = ["A", "B", "C"]
+                let missing: Vec<String> = ["A", "B", "C"]
                     .into_iter()
                     .zip(&values)
-                    .filter(|(_, n)| n.is_none())
-                    .map(|(a, _)| a)
+                    .zip(&self.lost[3..])
+                    .filter(|((_, n), _)| n.is_none())
+                    .map(|((a, _), lost)| match lost {
+                        Some(l) => format!("{a} (not known after line {l})"),
+                        None => format!("{a} (never written)"),
+                    })
                     .collect();
                 Err(format!(
-                    "{} never written: the tool's orientation is not known",
-                    never.join(", ")
+                    "{} not written on this block: the tool's orientation is not known",
+                    missing.join(", ")
                 ))
             }
         }
@@ -858,6 +1384,9 @@ impl State {
         if let Some((reason, detail)) = self.refusal(block, mv, options) {
             return Outcome::Refused(reason, detail);
         }
+        if let Some(why) = duplicate(block) {
+            return Outcome::Incomplete(why);
+        }
         let written = &mv.written;
         let missing = self.missing_position(written);
         if !missing.is_empty() {
@@ -881,6 +1410,30 @@ impl State {
     }
 }
 
+/// Why a block that writes an axis or an arc's centre twice (`X-45. X-44.`) is not
+/// corrected: a controller alarms on it.
+fn duplicate(block: &Block) -> Option<String> {
+    let mut first: [Option<&Word>; 26] = [None; 26];
+    for w in block.words {
+        if !b"XYZABCUVWIJKR".contains(&w.letter) {
+            continue;
+        }
+        let slot = &mut first[(w.letter - b'A') as usize];
+        match slot {
+            Some(v) => {
+                return Some(format!(
+                    "{} written twice on this block ({} and {}): a controller alarms on it",
+                    w.letter as char,
+                    v.text(block.src),
+                    w.text(block.src)
+                ))
+            }
+            None => *slot = Some(w),
+        }
+    }
+    None
+}
+
 /// A target to correct, or left incomplete, named `name` at `offset`.
 fn target(name: String, offset: usize, kind: TargetKind) -> ProgramTarget {
     ProgramTarget {
@@ -892,16 +1445,601 @@ fn target(name: String, offset: usize, kind: TargetKind) -> ProgramTarget {
     }
 }
 
+/// The lines a controller reads: up to the closing `%` tape mark (the first `%` line after
+/// a line with anything else); what follows it is kept as written, never read.
+fn program_lines<'s>(src: &'s Source) -> impl Iterator<Item = crate::source::Line> + 's {
+    let mut content = false;
+    src.lines().take_while(move |line| {
+        let mut text = &src.bytes[line.start..line.end];
+        if line.start == 0 {
+            text = text.strip_prefix(b"\xef\xbb\xbf").unwrap_or(text);
+        }
+        match text.iter().find(|b| !matches!(b, b' ' | b'\t')) {
+            Some(b'%') => !content,
+            Some(_) => {
+                content = true;
+                true
+            }
+            None => true,
+        }
+    })
+}
+
+/// The number of a word of `letter` on the block, when whole.
+fn number_of(words: &[Word], letter: u8) -> Option<u32> {
+    words.iter().find_map(|w| match w.value {
+        Value::Number(n) if w.letter == letter => whole(&n),
+        _ => None,
+    })
+}
+
+/// Whether the block writes the M code `m` (in tenths: M30 300).
+fn has_m(words: &[Word], m: &[u32]) -> bool {
+    words.iter().any(|w| match w.value {
+        Value::Number(n) if w.letter == b'M' => code(&n).is_some_and(|c| m.contains(&c)),
+        _ => false,
+    })
+}
+
+/// The codes that end a program or return from a subprogram: M2, M30, M99.
+const ENDS: [u32; 3] = [20, 300, 990];
+
+/// A call of a subprogram or macro: `M98 P2000 L3`, `M97 P100`, `G65 P9010`, `G66 P9100`,
+/// `M198 P3000`, LinuxCNC `o100 call`.
+struct Call {
+    /// The called program's key (`o2000`, `n100` for M97's block number, `o<name>`);
+    /// `None` when computed as the program runs.
+    key: Option<String>,
+    /// As messages name it (`O2000`).
+    program: String,
+    /// The call as written (`M98 P2000`).
+    text: String,
+    /// Where it is written.
+    at: usize,
+}
+
+/// The call a line makes, if any.
+fn call_of(src: &Source, parsed: &Parsed) -> Option<Call> {
+    if let Some(Statement::OWord { name, keyword, at }) = &parsed.statement {
+        return (keyword == "CALL").then(|| Call {
+            key: Some(name.clone()),
+            program: name.clone(),
+            text: format!("{name} call"),
+            at: *at,
+        });
+    }
+    let words = &parsed.words;
+    let word = words.iter().find(|w| match w.value {
+        Value::Number(n) if w.letter == b'M' => matches!(code(&n), Some(970 | 980 | 1980)),
+        Value::Number(n) if w.letter == b'G' => matches!(code(&n), Some(650 | 660)),
+        _ => false,
+    })?;
+    let m97 =
+        word.letter == b'M' && matches!(word.value, Value::Number(n) if code(&n) == Some(970));
+    let m98 =
+        word.letter == b'M' && matches!(word.value, Value::Number(n) if code(&n) == Some(980));
+    let p = words.iter().find(|w| w.letter == b'P');
+    let text = match p {
+        Some(p) => format!("{} {}", word.text(src), p.text(src)),
+        None => word.text(src),
+    };
+    let key = p.and_then(|p| match p.value {
+        Value::Number(n) => whole(&n),
+        Value::Expression => None,
+    });
+    let (key, program) = match key {
+        // Fanuc's M98 P0032000: three times O2000 (the last four digits the program).
+        Some(n) if m98 && n >= 10_000 => {
+            (Some(format!("o{}", n % 10_000)), format!("O{}", n % 10_000))
+        }
+        Some(n) if m97 => (Some(format!("n{n}")), format!("N{n}")),
+        Some(n) => (Some(format!("o{n}")), format!("O{n}")),
+        None => (None, "a program".to_string()),
+    };
+    Some(Call {
+        key,
+        program,
+        text,
+        at: word.at,
+    })
+}
+
+/// The groups a line sets: its G codes', a tool's, a system variable's, every group for
+/// a call or a G code computed as the program runs.
+fn line_mask(src: &Source, parsed: &Parsed) -> u16 {
+    if call_of(src, parsed).is_some() {
+        return ALL_GROUPS;
+    }
+    let mut mask = 0;
+    if let Some(Statement::Assignment { system: true, .. }) = parsed.statement {
+        mask |= Group::RunOffset.bit();
+    }
+    for w in &parsed.words {
+        match (w.letter, w.value) {
+            (b'G', Value::Number(n)) => {
+                if let Some(g) = code(&n).and_then(group_of) {
+                    mask |= g.bit();
+                }
+            }
+            (b'G', Value::Expression) => return ALL_GROUPS,
+            (b'T', _) => mask |= Group::Tool.bit(),
+            _ => {}
+        }
+    }
+    mask
+}
+
+/// What the reader needs to know of the whole program before it reads a block: the
+/// subprograms the file holds and who calls them, and where its jumps and loops go.
+#[derive(Default)]
+struct Structure {
+    /// The programs the file holds (`o2000`; `n100` for a block after the main program's
+    /// end), with the groups their blocks set.
+    bodies: HashMap<String, u16>,
+    /// The first call of each program: `M98 P2000 at line 6`.
+    calls: HashMap<String, String>,
+    /// Each block number's first line.
+    labels: HashMap<u32, usize>,
+    /// Block numbers jumped back to: the groups the blocks between set, and the jump.
+    backward: HashMap<u32, (u16, String)>,
+    /// Loops by their `DO` line: the groups their blocks set, and their `END`'s line.
+    loops: HashMap<usize, (u16, usize)>,
+    /// A jump to a block number computed as the program runs: where.
+    computed_jump: Option<String>,
+}
+
+impl Structure {
+    fn of(src: &Source) -> Result<Structure, Error> {
+        let mut s = Structure::default();
+        // Per line (by number), the groups it sets; the intervals to union.
+        let mut masks: Vec<u16> = Vec::new();
+        let mut intervals: Vec<(usize, usize, Interval)> = Vec::new();
+        let mut open_loops: HashMap<u32, Vec<usize>> = HashMap::new();
+        let mut section: Option<String> = None;
+        let mut first_end: Option<usize> = None;
+        for line in program_lines(src) {
+            let parsed = parse_line(src, line.start, line.end)?;
+            let n = line.number;
+            let mask = line_mask(src, &parsed);
+            if masks.len() <= n {
+                masks.resize(n + 1, 0);
+            }
+            masks[n] = mask;
+            let words = &parsed.words;
+            let header = number_of(words, b'O').filter(|_| parsed.statement.is_none());
+            if let Some(o) = header {
+                section = Some(format!("o{o}"));
+            }
+            if let Some(Statement::OWord { name, keyword, .. }) = &parsed.statement {
+                match keyword.as_str() {
+                    "SUB" => section = Some(name.clone()),
+                    "ENDSUB" => section = None,
+                    _ => {}
+                }
+            }
+            if let Some(label) = number_of(words, b'N') {
+                s.labels.entry(label).or_insert(n);
+                if first_end.is_some_and(|e| e < n) {
+                    s.bodies.insert(format!("n{label}"), ALL_GROUPS);
+                }
+            }
+            if let Some(key) = &section {
+                *s.bodies.entry(key.clone()).or_insert(0) |= mask;
+            }
+            if let Some(call) = call_of(src, &parsed) {
+                if let Some(key) = call.key {
+                    s.calls
+                        .entry(key)
+                        .or_insert_with(|| format!("{} at line {n}", call.text));
+                }
+            }
+            match &parsed.statement {
+                Some(Statement::Jump { label: Some(l), .. }) => {
+                    if let Some(&from) = s.labels.get(l) {
+                        intervals.push((
+                            from,
+                            n,
+                            Interval::Back(*l, format!("GOTO {l} at line {n}")),
+                        ));
+                    }
+                }
+                Some(Statement::Jump { label: None, .. }) => {
+                    s.computed_jump
+                        .get_or_insert_with(|| format!("the GOTO at line {n}"));
+                }
+                Some(Statement::Do { id, .. }) => open_loops.entry(*id).or_default().push(n),
+                Some(Statement::End { id, .. }) => {
+                    if let Some(from) = open_loops.get_mut(id).and_then(Vec::pop) {
+                        intervals.push((from, n, Interval::Loop));
+                    }
+                }
+                _ => {}
+            }
+            if !parsed.deleted && has_m(words, &ENDS) {
+                first_end.get_or_insert(n);
+                section = None;
+            }
+        }
+        if !intervals.is_empty() {
+            // Per group, how many lines up to each set it: a union over any interval in
+            // constant time.
+            let mut prefix: Vec<[u32; 12]> = Vec::with_capacity(masks.len() + 1);
+            let mut count = [0u32; 12];
+            prefix.push(count);
+            for m in &masks {
+                for (k, c) in count.iter_mut().enumerate() {
+                    *c += u32::from(m >> k & 1 == 1);
+                }
+                prefix.push(count);
+            }
+            for (from, to, kind) in intervals {
+                let mask = (0..12)
+                    .filter(|&k| prefix[to + 1][k] > prefix[from][k])
+                    .fold(0u16, |m, k| m | 1 << k);
+                match kind {
+                    Interval::Back(label, jump) => {
+                        let entry = s.backward.entry(label).or_insert((0, jump));
+                        entry.0 |= mask;
+                    }
+                    Interval::Loop => {
+                        s.loops.insert(from, (mask, to));
+                    }
+                }
+            }
+        }
+        Ok(s)
+    }
+}
+
+/// A stretch of lines run again: back to a block number, or a loop.
+enum Interval {
+    Back(u32, String),
+    Loop,
+}
+
+/// Where the reader is: the main program, a subprogram's body (and why its moves are not
+/// corrected), or past the main program's end.
+enum Region {
+    Main,
+    Body(String),
+    After(String),
+}
+
 /// The reader: the modal state and what it has found.
 struct Reader<'o> {
     options: &'o GcodeOptions,
     state: State,
     found: Found,
+    structure: Structure,
+    region: Region,
+    /// The main program's state while the reader is in a subprogram's body before its end.
+    saved: Option<State>,
+    /// Where the main program ends (`M30 at line 8`), once read.
+    main_end: Option<String>,
+    /// Whether a block of the main program has been read.
+    started: bool,
+    /// Whether the line is reached from the one before (not after an unconditional GOTO).
+    reachable: bool,
+    /// Forward jumps not yet at their block number: the state at each and the jump.
+    pending: HashMap<u32, Vec<(State, String)>>,
+    /// Loops by their `END`'s line: the state at their start, and the loop.
+    loop_exits: HashMap<usize, (State, String)>,
 }
 
 impl Reader<'_> {
-    /// Reads one block (its words, not empty).
-    fn block(&mut self, block: &Block) {
+    /// Reads one line.
+    fn line(&mut self, parsed: &Parsed, block: &Block) {
+        let line = block.line_number;
+        let header = number_of(block.words, b'O').filter(|_| parsed.statement.is_none());
+        if let Some(o) = header {
+            self.enter(format!("o{o}"), format!("O{o}"), false);
+        }
+        if let Some(Statement::OWord { name, keyword, .. }) = &parsed.statement {
+            if keyword == "SUB" {
+                self.enter(name.clone(), name.clone(), true);
+            }
+        }
+        let label = number_of(block.words, b'N');
+        if let (Region::After(_), Some(n)) = (&self.region, label) {
+            if let Some(call) = self.structure.calls.get(&format!("n{n}")) {
+                self.region = Region::Body(format!(
+                    "in N{n}, run by {call} in the caller's modes: a subprogram's moves are not corrected"
+                ));
+            }
+        }
+        if matches!(self.region, Region::Main) {
+            self.started = true;
+        }
+        let ends = !parsed.deleted && has_m(block.words, &ENDS);
+        let forced = match &self.region {
+            Region::Main => None,
+            Region::Body(why) | Region::After(why) => Some(why.clone()),
+        };
+        match forced {
+            None => self.main_line(parsed, block, label),
+            Some(why) => {
+                self.block(block, Some(&why));
+                self.call(parsed, block);
+            }
+        }
+        let endsub = matches!(&parsed.statement, Some(Statement::OWord { keyword, .. }) if keyword == "ENDSUB");
+        if ends || endsub {
+            self.leave(block, line, endsub);
+        }
+    }
+
+    /// Enters the program numbered `key` (`o2000`), named `name`: a subprogram's body
+    /// unless it is the main program's own number (a LinuxCNC `sub` never is).
+    fn enter(&mut self, key: String, name: String, sub: bool) {
+        let why = match (self.structure.calls.get(&key), &self.main_end) {
+            (Some(call), _) => format!(
+                "in {name}, run by {call} in the caller's modes: a subprogram's moves are not corrected"
+            ),
+            (None, _) if !sub && !self.started && matches!(self.region, Region::Main) => {
+                // The main program's own number.
+                return;
+            }
+            (None, Some(end)) => format!(
+                "in {name}, after the main program's end ({end}): a subprogram no block of this file calls, run in its caller's modes, is not corrected"
+            ),
+            (None, None) => format!(
+                "in {name}: a program no block of this file calls, run in its caller's modes, is not corrected"
+            ),
+        };
+        if matches!(self.region, Region::Main) {
+            self.saved = Some(std::mem::replace(&mut self.state, State::new()));
+        }
+        self.region = Region::Body(why);
+    }
+
+    /// Leaves the main program or a subprogram at its end (`M30`, `M2`, `M99`, `endsub`).
+    fn leave(&mut self, block: &Block, line: usize, endsub: bool) {
+        let code = block
+            .words
+            .iter()
+            .find(|w| {
+                w.letter == b'M'
+                    && matches!(w.value, Value::Number(n) if code(&n).is_some_and(|c| ENDS.contains(&c)))
+            })
+            .map_or_else(|| "endsub".to_string(), |w| w.text(block.src));
+        match self.region {
+            Region::Main => {
+                self.main_end = Some(format!("{code} at line {line}"));
+            }
+            Region::Body(_) if endsub || code == "M99" => {
+                if let Some(saved) = self.saved.take() {
+                    self.state = saved;
+                }
+            }
+            Region::Body(_) | Region::After(_) => {
+                self.saved = None;
+                self.main_end
+                    .get_or_insert(format!("{code} at line {line}"));
+            }
+        }
+        self.region = match (&self.main_end, self.saved.is_some()) {
+            (Some(end), false) => Region::After(format!(
+                "after the main program's end ({end}): run only when called or jumped to, in the caller's modes, not corrected"
+            )),
+            _ => Region::Main,
+        };
+    }
+
+    /// A line of the main program: its jumps, loops, tool, the block, its call, and what a
+    /// block-delete (`/`) makes of the modes after it.
+    fn main_line(&mut self, parsed: &Parsed, block: &Block, label: Option<u32>) {
+        let line = block.line_number;
+        if let Some(n) = label {
+            self.label(n, line);
+        }
+        let before = parsed.deleted.then(|| self.state.clone());
+        match &parsed.statement {
+            Some(Statement::Jump {
+                label, conditional, ..
+            }) => {
+                if let Some(n) = label {
+                    if self.structure.labels.get(n).is_some_and(|&l| l > line) {
+                        let jump = format!("the GOTO {n} at line {line}");
+                        self.pending
+                            .entry(*n)
+                            .or_default()
+                            .push((self.state.clone(), jump));
+                    }
+                }
+                if !conditional && !parsed.deleted {
+                    self.reachable = false;
+                }
+            }
+            Some(Statement::Do { id, .. }) => {
+                if let Some(&(mask, end)) = self.structure.loops.get(&line) {
+                    let desc = format!("the loop DO{id} of lines {line}-{end}");
+                    self.state.mark_groups(mask, &|g| {
+                        format!("{desc} repeats blocks that may set the {}", g.what())
+                    });
+                    self.state.lose_position(line);
+                    self.loop_exits.insert(end, (self.state.clone(), desc));
+                }
+            }
+            Some(Statement::Assignment { system: true, at }) => {
+                let src = block.src;
+                let name_end = src.bytes[*at..block.end]
+                    .iter()
+                    .position(|b| matches!(b, b'=' | b' ' | b'\t' | b'(' | b';'))
+                    .map_or(block.end, |p| at + p);
+                self.state.unknown[Group::RunOffset as usize] = None;
+                self.state.run_offset = Some(Modal {
+                    what: format!(
+                        "{} written at line {line}: a system variable (#1000 and above: work offsets, tool data, settings) set as the program runs",
+                        shown(src.text(*at, name_end))
+                    ),
+                    reason: Reason::FrameUnknown,
+                });
+            }
+            _ => {}
+        }
+        self.tool(block);
+        self.block(block, None);
+        self.call(parsed, block);
+        if let Some(Statement::End { .. }) = parsed.statement {
+            if let Some((start, desc)) = self.loop_exits.remove(&line) {
+                self.state.merge(&start, line, &|g| {
+                    format!(
+                        "{desc} may run no time: the {} after it is not known",
+                        g.what()
+                    )
+                });
+            }
+        }
+        if let Some(before) = before {
+            let src = block.src;
+            let codes = |g: Group| -> String {
+                block
+                    .words
+                    .iter()
+                    .filter(|w| match (w.letter, w.value) {
+                        (b'G', Value::Number(n)) => code(&n).and_then(group_of) == Some(g),
+                        (b'T', _) => g == Group::Tool,
+                        _ => false,
+                    })
+                    .map(|w| format!(" {}", w.text(src)))
+                    .collect()
+            };
+            self.state.merge(&before, line, &|g| {
+                format!(
+                    "line {line} is a block-delete (/) block{}: the switch decides whether it runs, so the {} after it is not known",
+                    codes(g),
+                    g.what()
+                )
+            });
+        }
+    }
+
+    /// A block number: where jumps land, the state where they meet.
+    fn label(&mut self, n: u32, line: usize) {
+        let forward = self.pending.remove(&n);
+        let back = self.structure.backward.get(&n).cloned();
+        let computed = self.structure.computed_jump.clone();
+        if forward.is_none() && back.is_none() && computed.is_none() {
+            return;
+        }
+        let here = format!("N{n} (line {line})");
+        let mut sources = forward.unwrap_or_default();
+        if !self.reachable && !sources.is_empty() {
+            self.state = sources.remove(0).0;
+        }
+        for (other, jump) in &sources {
+            self.state.merge(other, line, &|g| {
+                format!("{here} is reached by {jump} in another {}", g.what())
+            });
+        }
+        if let Some((mask, jump)) = back {
+            self.state.mark_groups(mask, &|g| {
+                format!(
+                    "{here} is reached again by {jump}, after blocks that may set the {}",
+                    g.what()
+                )
+            });
+            self.state.lose_position(line);
+        }
+        if let Some(jump) = computed {
+            self.state.mark_groups(ALL_GROUPS, &|g| {
+                format!(
+                    "{here} may be reached by {jump}, to a block number computed as the program runs: the {} is not known",
+                    g.what()
+                )
+            });
+            self.state.lose_position(line);
+        }
+        self.reachable = true;
+    }
+
+    /// The tools a block selects: another than the first is a TCP `--tool` does not give.
+    fn tool(&mut self, block: &Block) {
+        let change = has_m(block.words, &[60]);
+        for w in block.words.iter().filter(|w| w.letter == b'T') {
+            let key = match w.value {
+                Value::Number(n) => whole(&n).map(|t| format!("T{t}")),
+                Value::Expression => None,
+            };
+            let state = &mut self.state;
+            match (&state.first_tool, key) {
+                (None, key) => state.first_tool = Some(key.unwrap_or_else(|| w.text(block.src))),
+                (Some(first), Some(key)) if *first == key => {
+                    if change {
+                        state.tool = None;
+                    }
+                }
+                _ => {
+                    state.tool = Some(Modal {
+                        what: format!(
+                            "tool {} selected at line {}: --tool gives one TCP, the first tool's",
+                            w.text(block.src),
+                            block.line_number
+                        ),
+                        reason: Reason::FrameUnknown,
+                    });
+                }
+            }
+            if change {
+                state.unknown[Group::Tool as usize] = None;
+            }
+        }
+    }
+
+    /// A call of a subprogram: one the file holds leaves the groups its blocks set not
+    /// known; one it does not hold is reported, and leaves every mode not known.
+    fn call(&mut self, parsed: &Parsed, block: &Block) {
+        let Some(call) = call_of(block.src, parsed) else {
+            return;
+        };
+        let line = block.line_number;
+        let held = call
+            .key
+            .as_ref()
+            .and_then(|k| self.structure.bodies.get(k).copied());
+        let (mask, what) = match held {
+            Some(mask) => (
+                mask,
+                format!("{}, run by {} at line {line},", call.program, call.text),
+            ),
+            None => {
+                let (reason, detail) = match &call.key {
+                    Some(_) => (
+                        Reason::NotDeclared,
+                        format!(
+                            "{}: {} is not in this file; its moves are not corrected here",
+                            call.text, call.program
+                        ),
+                    ),
+                    None => (
+                        Reason::Dynamic,
+                        format!(
+                            "{}: a program chosen as the program runs; its moves are not corrected here",
+                            call.text
+                        ),
+                    ),
+                };
+                self.found.first_motion.get_or_insert(call.at);
+                let name = call.text.split(' ').next().unwrap_or("M98").to_string();
+                self.found.refuse(call.at, name, reason, detail);
+                (
+                    ALL_GROUPS,
+                    format!(
+                        "{} at line {line}, which this file does not hold,",
+                        call.text
+                    ),
+                )
+            }
+        };
+        self.state.mark_groups(mask, &|g| {
+            format!("{what} may set the {} the moves after it are in", g.what())
+        });
+        self.state.lose_position(line);
+    }
+
+    /// Reads one block (its words, not empty); `forced` says why its moves are not
+    /// corrected, when they are not whatever the modes (a subprogram's body).
+    fn block(&mut self, block: &Block, forced: Option<&str>) {
         let work_before = self.state.work.clone();
         let codes = self.state.read_codes(block);
         let axis_words: Vec<&Word> = block
@@ -917,21 +2055,49 @@ impl Reader<'_> {
         if codes.data {
             return;
         }
+        let line = block.line_number;
         if let Some(other) = codes.other_motion {
             self.found.first_motion.get_or_insert(other.at);
-            self.found
-                .refuse(other.at, other.name, other.reason, other.detail);
+            let detail = match forced {
+                Some(why) => format!("{} {why}", other.name),
+                None => other.detail,
+            };
+            let reason = if forced.is_some() {
+                Reason::Dynamic
+            } else {
+                other.reason
+            };
+            self.found.refuse(other.at, other.name, reason, detail);
             if has_position {
-                self.state.lose_position();
+                self.state.lose_position(line);
             }
             return;
         }
         if let Some((m, _)) = codes.motion {
             self.state.mode = Some(m);
+            self.state.unknown[Group::Motion as usize] = None;
         }
         let Some(first_axis) = axis_words.first() else {
             return;
         };
+        let unknown_mode = self.state.unknown[Group::Motion as usize].clone();
+        let refused = match (forced, unknown_mode) {
+            (Some(why), _) => Some((Reason::Dynamic, why.to_string())),
+            (None, Some(u)) => Some((u.reason, u.detail)),
+            (None, None) => None,
+        };
+        if let Some((reason, why)) = refused {
+            let at = codes.motion.map_or(first_axis.at, |m| m.1);
+            let name = match self.state.mode {
+                Some(mode) => mode.name(),
+                None => block.src.text(at, at + 1),
+            };
+            self.found.first_motion.get_or_insert(at);
+            self.found
+                .refuse(at, name.clone(), reason, format!("{name} {why}"));
+            self.state.lose_position(line);
+            return;
+        }
         let Some(mode) = self.state.mode else {
             let at = first_axis.at;
             self.found.first_motion.get_or_insert(at);
@@ -947,6 +2113,7 @@ impl Reader<'_> {
             written: Written::of(&axis_words),
             machine: codes.machine,
             mode,
+            written_mode: codes.motion.is_some(),
             name: mode.name(),
             at: codes.motion.map_or(first_axis.at, |m| m.1),
         };
@@ -1013,22 +2180,34 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
         options,
         state: State::new(),
         found: Found::default(),
+        structure: Structure::of(src)?,
+        region: Region::Main,
+        saved: None,
+        main_end: None,
+        started: false,
+        reachable: true,
+        pending: HashMap::new(),
+        loop_exits: HashMap::new(),
     };
     let mut truncated_at = None;
-    for line in src.lines() {
+    for line in program_lines(src) {
         if reader.found.targets.len() > limit {
             truncated_at = Some(line.start);
             break;
         }
-        match words(src, line.start, line.end)? {
-            Some(words) if !words.is_empty() => reader.block(&Block {
+        let parsed = parse_line(src, line.start, line.end)?;
+        if parsed.words.is_empty() && parsed.statement.is_none() {
+            continue;
+        }
+        reader.line(
+            &parsed,
+            &Block {
                 src,
-                words: &words,
+                words: &parsed.words,
                 line_number: line.number,
                 end: line.end,
-            }),
-            _ => {}
-        }
+            },
+        );
     }
     let found = reader.found;
     debug_assert_eq!(found.offsets.len(), found.targets.len());
@@ -1487,5 +2666,207 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.to_string().starts_with("p.nc:1:8: a comment"), "{err}");
+    }
+
+    fn g54() -> GcodeOptions {
+        GcodeOptions {
+            work_offsets: vec![(54, [1750.0, 450.0, 1200.0, 0.0, 0.0, 0.0])],
+            ..GcodeOptions::default()
+        }
+    }
+
+    fn detail(r: &Read, k: usize) -> String {
+        match (&r.program.targets[k].refused, &r.program.targets[k].kind) {
+            (Some(refusal), _) => refusal.detail.clone(),
+            (None, TargetKind::Incomplete(why)) => why.clone(),
+            _ => String::new(),
+        }
+    }
+
+    fn only_statuses(r: &Read) -> Vec<&'static str> {
+        statuses(r).into_iter().map(|s| s.1).collect()
+    }
+
+    #[test]
+    fn a_subprograms_moves_are_reported_by_its_call_and_a_call_out_of_the_file_too() {
+        let text = "%\nO1000 (MAIN)\nG21 G90 G17 G54\nG0 X-60. Y-50. Z50. A0. B90. C0.\nG91\n\
+                    M98 P2000 L3\nG90\nG0 X-60. Y-50. Z50. A0. B90. C0.\nM98 P9000\n\
+                    G0 X-60. Y-50. Z50. A0. B90. C0.\nG90 G21 G54 G17 G40 G49 G69 G92.1 G67 G91.1 T1 M6\n\
+                    G0 X-60. Y-50. Z50. A0. B90. C0.\nM30\nO2000 (SUB - RELATIVE STEP)\n\
+                    G1 X10. Y0. Z-1. A0. B90. C0. F300.\nM99\nO3000\nG1 X1. Y2. Z3. A0. B90. C0.\nM99\n%\n";
+        let r = read_text(text, &g54());
+        assert_eq!(
+            only_statuses(&r),
+            [
+                "target",
+                "target",
+                "not_declared",
+                "dynamic",
+                "target",
+                "dynamic",
+                "dynamic"
+            ]
+        );
+        assert_eq!(
+            detail(&r, 2),
+            "M98 P9000: O9000 is not in this file; its moves are not corrected here"
+        );
+        assert!(
+            detail(&r, 3).contains("M98 P9000 at line 9, which this file does not hold,"),
+            "{}",
+            detail(&r, 3)
+        );
+        assert_eq!(
+            detail(&r, 5),
+            "G1 in O2000, run by M98 P2000 at line 6 in the caller's modes: a subprogram's moves are not corrected"
+        );
+        assert!(
+            detail(&r, 6).starts_with("G1 in O3000, after the main program's end (M30 at line 13)")
+        );
+        // A subprogram before the main program, and its G55 the caller's after the call.
+        let text = "O2000\nG55 G1 X10. Y0. Z-1. A0. B90. C0.\nM99\nO1000\nG21 G90 G54\n\
+                    G0 X-60. Y-50. Z50. A0. B90. C0.\nM98 P2000\nG0 X-60. Y-50. Z50. A0. B90. C0.\nM30\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["dynamic", "target", "frame_unknown"]);
+        // G65's words are its arguments; LinuxCNC's o-word subroutines read alike.
+        let text = "o100 sub\nG1 X1 Y2 Z3\no100 endsub\nG21 G90\nG0 X1 Y2 Z3\nG65 P9010 A1. B2. X3.\no100 call\n\
+                    G1 X1 Y2 Z3\nM2\n";
+        let r = read_text(text, &GcodeOptions::default());
+        assert_eq!(
+            only_statuses(&r),
+            ["dynamic", "target", "not_declared", "dynamic"]
+        );
+    }
+
+    #[test]
+    fn after_g70_or_g71_no_move_is_corrected_until_g20_or_g21() {
+        let text = "; SINUMERIK inch\nN10 G17 G90 G54 G70\nN20 G0 X-2.3622 Y-1.9685 Z1.9685 A0. B90. C0.\n\
+                    N30 G20\nN40 G0 X-2.3622 Y-1.9685 Z1.9685 A0. B90. C0.\nN50 M30\n";
+        let r = read_text(text, &g54());
+        assert_eq!(
+            only_statuses(&r),
+            ["unknown_motion", "unknown_motion", "target"]
+        );
+        assert!(
+            detail(&r, 1).starts_with("G0: G70 (line 2): inches (G70)"),
+            "{}",
+            detail(&r, 1)
+        );
+    }
+
+    #[test]
+    fn a_computed_g_code_or_a_system_variable_leaves_the_modes_after_it_unknown() {
+        let text = "%\nG90 G17 G21 G54\n#100=91\nG0 X-60. Y-50. Z50. A0. B90. C0.\nG#100\n\
+                    G1 X-45. Y-35. Z5. A0. B90. C0.\n%\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["target", "dynamic", "dynamic"]);
+        assert!(
+            detail(&r, 2).contains("G#100 (line 5)"),
+            "{}",
+            detail(&r, 2)
+        );
+        let text = "G90 G17 G21 G54\n#1=2.\n#5221=100.\nG1 X-45. Y-35. Z5. A0. B90. C0. F300.\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["frame_unknown"]);
+        assert!(
+            detail(&r, 0).contains("#5221 written at line 3"),
+            "{}",
+            detail(&r, 0)
+        );
+        let r = read_text("G90 G54\n#1=2.\n#999=1\nG1 X1 Y2 Z3\n", &g54());
+        assert_eq!(only_statuses(&r), ["target"]);
+    }
+
+    #[test]
+    fn a_block_delete_block_leaves_either_mode_after_it() {
+        let text = "%\nG21 G91 G17 G54\n/G90\nG1 X10. Y0. Z-1. A0. B90. C0. F300.\nG90\n\
+                    G1 X10. Y0. Z-1.\n/G55\nG1 X10. Y0. Z-1.\n/G54\nG1 X10. Y0. Z-1.\nM30\n%\n";
+        let r = read_text(text, &g54());
+        assert_eq!(
+            only_statuses(&r),
+            ["relative", "target", "frame_unknown", "frame_unknown"]
+        );
+        assert!(
+            detail(&r, 0).contains("line 3 is a block-delete (/) block G90"),
+            "{}",
+            detail(&r, 0)
+        );
+    }
+
+    #[test]
+    fn a_word_written_twice_leaves_its_block_incomplete() {
+        let text = "G90 G17 G21 G54\nG1 X-45. Y-35. Z5. A0. B90. C0. F300.\nG1 X-45. X-44. Y-35. Z5. A0. B90. C0.\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["target", "incomplete"]);
+        assert_eq!(
+            detail(&r, 1),
+            "X written twice on this block (X-45. and X-44.): a controller alarms on it"
+        );
+    }
+
+    #[test]
+    fn moves_after_a_second_tool_are_frame_unknown() {
+        let text = "G90 G17 G21 G54\nT1 D1 M6\nG1 X-45. Y-35. Z5. A0. B90. C0. F300.\nT2\n\
+                    G1 X-45. Y-35. Z5.\nM6 T1\nG1 X-45. Y-35. Z5.\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["target", "frame_unknown", "target"]);
+        assert!(detail(&r, 1).contains("tool T2 selected at line 4: --tool gives one TCP"));
+    }
+
+    #[test]
+    fn messages_quote_text_as_written() {
+        let err = read(
+            &Source::new("p.nc", b"G1 X10 Y'5\n"),
+            &GcodeOptions::default(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "p.nc:1:8: the word Y has no number: found ''5'"
+        );
+    }
+
+    #[test]
+    fn jumps_and_loops_leave_unknown_only_the_modes_that_differ() {
+        // An unconditional GOTO: the block after it is not run, N10 is in G91.
+        let text = "%\nG21 G90 G17 G54\nG0 X-60. Y-50. Z50. A0. B90. C0.\nG91\nGOTO 10\nG90\n\
+                    N10 G1 X10. Y0. Z-1. A0. B90. C0. F300.\nG90\nG1 X10. Y0. Z-1. A0. B90. C0.\nM30\n%\nafter the tape's end X1 Y2 Z3\n";
+        let r = read_text(text, &g54());
+        assert_eq!(only_statuses(&r), ["target", "relative", "target"]);
+        // A conditional one: N20 in G54 or G55.
+        let text = "G21 G90 G17 G54\n#1=0\nG0 X-60. Y-50. Z50. A0. B90. C0.\nIF [#1 EQ 0] GOTO 20\nG55\n\
+                    N20 G1 X10. Y0. Z-1. A0. B90. C0. F300.\nN30 G1 X10. Y0. Z-1.\nIF [#1 EQ 1] GOTO 30\n\
+                    G54 G1 X10. Y0. Z-1. A0. B90. C0.\nM30\n";
+        let r = read_text(text, &g54());
+        assert_eq!(
+            only_statuses(&r),
+            ["target", "frame_unknown", "frame_unknown", "target"]
+        );
+        assert!(detail(&r, 1).contains("N20 (line 6) is reached by the GOTO 20 at line 4"));
+        // N30 is run again after line 8, still in G54 or G55 from N20.
+        assert!(detail(&r, 2).contains("N20 (line 6)"), "{}", detail(&r, 2));
+        // A loop whose blocks change the distance mode; one that does not leaves it known.
+        let text = "G21 G90 G54\n#1=0\nWHILE [#1 LT 3] DO1\nG1 X10. Y0. Z-1.\nG91\n#1=#1+1\nEND1\n\
+                    G1 X10. Y0. Z-1.\nWHILE [#1 LT 6] DO2\nG1 X10. Y0. Z-1.\n#1=#1+1\nEND2\nG90 G1 X10. Y0. Z-1.\n";
+        let r = read_text(text, &g54());
+        assert_eq!(
+            only_statuses(&r),
+            ["relative", "relative", "relative", "target"]
+        );
+        assert!(
+            detail(&r, 0).contains("the loop DO1 of lines 3-7"),
+            "{}",
+            detail(&r, 0)
+        );
+        // LinuxCNC's o-word control flow is refused by name.
+        let err = read(
+            &Source::new("p.nc", b"o101 if [#1 GT 0]\nG1 X1 Y2 Z3\no101 endif\n"),
+            &GcodeOptions::default(),
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string().starts_with("p.nc:1:6: o101 if: LinuxCNC"),
+            "{err}"
+        );
     }
 }
