@@ -2432,6 +2432,12 @@ pub fn correct_arc(
     let chord = du.hypot(dv);
     // A full circle's ends are one point: its centre moves by the mean correction.
     let full = written.sweep >= std::f64::consts::TAU;
+    if full && chord > 1e-6 {
+        return Err(format!(
+            "a full circle (its written start and end one point) whose corrected start and end are {chord:.4} mm apart: the controller would not turn it full"
+        ));
+    }
+    let end_out = if full { start_out } else { end_out };
     let centre = if chord > 1e-9 && !full {
         let mid = [start_out[u] + du / 2.0, start_out[v] + dv / 2.0];
         let (nu, nv) = (-dv / chord, du / chord);
@@ -2867,6 +2873,38 @@ mod tests {
         assert!(
             err.to_string().starts_with("p.nc:1:6: o101 if: LinuxCNC"),
             "{err}"
+        );
+    }
+
+    #[test]
+    fn a_full_circle_whose_corrected_ends_part_is_refused_as_such() {
+        let arc = Arc {
+            clockwise: true,
+            plane: Plane::Xy,
+            start_target: 0,
+            start_mm: [0.0, 40.0, 0.0],
+            centre_mm: [0.0, 20.0],
+            centre: Centre::Offsets {
+                numbers: [parse_number(b"0", 0), parse_number(b"-20", 0)],
+                absolute: false,
+            },
+            unit_mm: 1.0,
+        };
+        let moved = |p: [f64; 3]| [p[0] + 1.0, p[1], p[2]];
+        let end = arc.start_mm;
+        let err = correct_arc(&arc, end, arc.start_mm, moved(end), 0.01, &mut |p| {
+            Ok(moved(p))
+        })
+        .unwrap_err();
+        assert!(err.starts_with("a full circle"), "{err}");
+        // Moved alike at both ends, it stays a full circle about the moved centre.
+        let edits = correct_arc(&arc, end, moved(end), moved(end), 0.01, &mut |p| {
+            Ok(moved(p))
+        })
+        .unwrap();
+        assert!(
+            edits.iter().all(|(n, v)| (n.value - v).abs() < 1e-9),
+            "{edits:?}"
         );
     }
 }
