@@ -25,6 +25,13 @@
 //! `G52`, `G92`, `G10`), canned cycles (`G73`-`G89`), and any other motion-looking code.
 //! `G54`-`G59` select a work offset, which the job's options give; a move in one they do
 //! not give is refused by its name (`frame_unknown`).
+//!
+//! The program is read as the controller runs it where that changes a move's modes: a
+//! subprogram's body (`M98`, `M97`, `G65`, LinuxCNC `o… sub`) is not corrected, naming its
+//! call, and a call leaves unknown the modes the called program may set; where jumps and
+//! loops (`GOTO`, `IF`, `WHILE`/`DO`/`END`), a block-delete block, a G code computed,
+//! a system variable written, `G70`/`G71` or a second tool make a mode unknown, the moves
+//! in it are reported by that mode, naming what made it so, until the program sets it.
 
 use crate::number::{parse_number, Number};
 use crate::program::{
@@ -2014,7 +2021,7 @@ impl Reader<'_> {
                     None => (
                         Reason::Dynamic,
                         format!(
-                            "{}: a program chosen as the program runs; its moves are not corrected here",
+                            "{}: a program not named by a number (computed as the program runs, or not written); its moves are not corrected here",
                             call.text
                         ),
                     ),
