@@ -63,6 +63,8 @@ struct Use {
     tool_at: usize,
     wobj: Option<(String, usize)>,
     at: usize,
+    /// Frames the move names that are parameters of its routine: what its callers pass.
+    frame_params: Vec<String>,
 }
 
 /// Reads the targets of a RAPID module.
@@ -99,6 +101,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     }
     let moved_by_unknown = module.refuse_unknown_moves(src);
     module.resolve_uses(src);
+    module.through_parameters = module.passed_to_moves(src);
     let mut targets: Vec<ProgramTarget> = std::mem::take(&mut module.targets)
         .into_iter()
         .map(|(target, uses)| module.finish(src, target, uses, &moved_by_unknown))
@@ -135,6 +138,18 @@ struct Module {
     first_motion: Option<usize>,
     /// Names a move takes inside an expression (`Offs(p20, …)`): the first such use.
     in_expressions: HashMap<String, (Reason, String)>,
+    /// The routine being read and its parameters, as written, positional ones in order,
+    /// optional (`\switch`) ones left out.
+    routine: Option<(String, Vec<String>)>,
+    /// Every routine's parameters, by its name (upper case).
+    parameter_lists: HashMap<String, Vec<String>>,
+    /// Parameters a move moves to: (routine, positional index) and the move's place.
+    moved_parameters: HashMap<(String, usize), usize>,
+    /// Calls of a routine: its name (upper case), its positional arguments when a name
+    /// (upper case), and the call's place.
+    calls: Vec<(String, Vec<Option<String>>, usize)>,
+    /// Names a call passes to a parameter a move moves to, with what to say: the first.
+    through_parameters: HashMap<String, String>,
 }
 
 impl Module {
@@ -164,7 +179,15 @@ impl Module {
                 let k = if routine == "FUNC" { i + 2 } else { i + 1 };
                 if let Some(w) = words.get(k) {
                     self.procs.insert(w.clone());
+                    let params = parameters(src, &statement[k + 1..]);
+                    self.parameter_lists.insert(w.clone(), params.clone());
+                    let written = &statement[k];
+                    self.routine = Some((src.text(written.start, written.end), params));
                 }
+                return Ok(());
+            }
+            Some("ENDPROC" | "ENDFUNC" | "ENDTRAP") => {
+                self.routine = None;
                 return Ok(());
             }
             _ => {}
@@ -182,10 +205,43 @@ impl Module {
         {
             Some((at, m)) => self.motion(src, &statement[at..], m),
             None => {
+                self.call(src, statement);
                 self.unknown_motion(src, statement);
                 Ok(())
             }
         }
+    }
+
+    /// A statement that may call a routine of the module (`pick pPart, wobj1;`): kept
+    /// with the names it passes, resolved once the routines are known.
+    fn call(&mut self, src: &Source, statement: &[Token]) {
+        let Some(t) = statement.first().filter(|t| t.kind == Tok::Ident) else {
+            return;
+        };
+        let Ok(args) = arguments(src, &statement[1..]) else {
+            return;
+        };
+        let names = args
+            .iter()
+            .filter(|a| !a.positional.is_empty())
+            .map(|a| match a.positional {
+                [n] if n.kind == Tok::Ident => Some(src.text(n.start, n.end).to_ascii_uppercase()),
+                _ => None,
+            })
+            .collect();
+        self.calls.push((
+            src.text(t.start, t.end).to_ascii_uppercase(),
+            names,
+            t.start,
+        ));
+    }
+
+    /// The routine being read (as written), and the positional index of `name` among its
+    /// parameters.
+    fn parameter(&self, name: &str) -> Option<(&str, usize)> {
+        let (routine, params) = self.routine.as_ref()?;
+        let k = params.iter().position(|p| p.eq_ignore_ascii_case(name))?;
+        Some((routine.as_str(), k))
     }
 
     /// A statement whose first word looks like a motion the table does not hold: kept
@@ -233,7 +289,21 @@ impl Module {
             .filter(|a| !a.positional.is_empty())
             .map(|a| a.positional)
             .collect();
-        let used = motion_use(src, statement, m, &args, &positional)?;
+        let mut used = motion_use(src, statement, m, &args, &positional)?;
+        let frames = [
+            (false, Some((used.tool.clone(), used.tool_at))),
+            (true, used.wobj.clone()),
+        ];
+        for (base, name) in frames {
+            let Some((name, at)) = name else { continue };
+            let name = src.text(at, at + name.len());
+            if let Some((routine, _)) = self.parameter(&name) {
+                used.frame_params.push(format!(
+                    "{} {name} is a parameter of {routine}: whatever its callers pass",
+                    if base { "work object" } else { "tool" }
+                ));
+            }
+        }
         // A search's found point is written by the controller.
         if let Some(found) = m.found.and_then(|slot| positional.get(slot)) {
             if let Some(t) = found.first().filter(|t| t.kind == Tok::Ident) {
@@ -268,6 +338,23 @@ impl Module {
         match *arg {
             [t] if t.kind == Tok::Ident => {
                 let name = src.text(t.start, t.end).to_ascii_uppercase();
+                if let Some((routine, k)) = self.parameter(&name) {
+                    let routine = routine.to_string();
+                    let written = src.text(t.start, t.end);
+                    self.moved_parameters
+                        .entry((routine.to_ascii_uppercase(), k))
+                        .or_insert(t.start);
+                    self.targets.push((
+                        refused_motion(
+                            instruction,
+                            &t,
+                            Reason::Dynamic,
+                            format!("{instruction} {written}: a parameter of {routine}, whatever its callers pass"),
+                        ),
+                        Vec::new(),
+                    ));
+                    return Ok(());
+                }
                 self.pending(Named::One(name), used, t, instruction);
             }
             // An array's element: `seam{2}`, or any of them: `seam{i}`.
@@ -275,11 +362,9 @@ impl Module {
                 if t.kind == Tok::Ident && open.is(b'{') && close.is(b'}') =>
             {
                 let name = src.text(t.start, t.end).to_ascii_uppercase();
-                let named = match index {
-                    [n] if n.kind == Tok::Number => {
-                        Named::One(format!("{name}{{{}}}", src.text(n.start, n.end)))
-                    }
-                    _ => Named::All(name),
+                let named = match constant_index(src, index) {
+                    Some(index) => Named::One(format!("{name}{{{index}}}")),
+                    None => Named::All(name),
                 };
                 self.pending(named, used, t, instruction);
             }
@@ -386,6 +471,37 @@ impl Module {
             ));
         }
         moved_by_unknown
+    }
+
+    /// The names calls pass to a parameter that a move of the called routine moves to
+    /// (`pick pPart, wobj1;` with `PROC pick(robtarget pT, …)` doing `MoveL pT, …`), each
+    /// with what to say.
+    fn passed_to_moves(&self, src: &Source) -> HashMap<String, String> {
+        let mut params: HashMap<&str, &[String]> = HashMap::new();
+        // The routines' parameter lists, as their heads were read.
+        for (routine, list) in &self.parameter_lists {
+            params.insert(routine, list);
+        }
+        let mut out = HashMap::new();
+        for (routine, names, at) in &self.calls {
+            for (k, name) in names.iter().enumerate() {
+                let (Some(name), Some(_)) =
+                    (name, self.moved_parameters.get(&(routine.clone(), k)))
+                else {
+                    continue;
+                };
+                let param = params
+                    .get(routine.as_str())
+                    .and_then(|l| l.get(k))
+                    .map_or("?", String::as_str);
+                let (line, column) = src.location(*at);
+                out.entry(name.clone()).or_insert(format!(
+                    "moved to through the parameter {param} of {} (called at {line}:{column}), in the frames its callers pass",
+                    src.text(*at, *at + routine.len())
+                ));
+            }
+        }
+        out
     }
 
     /// Gives each use to the targets it names; a use of a name no target answers is
@@ -524,6 +640,10 @@ impl Module {
                 format!("moved to by {word} ({line}:{column}), a motion this reader does not know"),
             ));
         }
+        // Passed to a routine that moves to its parameter: in the frames of that move.
+        if let Some(detail) = self.through_parameters.get(base_name) {
+            return Some(Refusal::new(Reason::Dynamic, detail.clone()));
+        }
         // A target moved to only through an expression: no one correction holds for it.
         if unused {
             if let Some((reason, detail)) = self.in_expressions.get(base_name) {
@@ -543,7 +663,23 @@ impl Module {
     /// The frames of a use: its tool and work object as the module declares them (`tool0`
     /// and `wobj0` the flange and the world), or named undeclared.
     fn frame_use(&self, src: &Source, u: &Use) -> FrameUse {
-        let mut unknown = Vec::new();
+        let mut unknown = u.frame_params.clone();
+        // A tool or work object the program assigns (`wobj1.oframe := …;`): a PERS keeps
+        // the value, a VAR keeps it as main runs again; no move's frame is known.
+        let names = [
+            (false, Some(&u.tool)),
+            (true, u.wobj.as_ref().map(|w| &w.0)),
+        ];
+        for (base, name) in names {
+            if let Some(&at) = name.and_then(|n| self.decl.assigned.get(n)) {
+                let (line, column) = src.location(at);
+                unknown.push(format!(
+                    "{} {} is assigned as the program runs ({line}:{column})",
+                    if base { "work object" } else { "tool" },
+                    src.text(at, src.identifier_end(at, b""))
+                ));
+            }
+        }
         let mut declared = |found: Option<&Declared>| match found {
             Some(Ok(t)) => Some(*t),
             Some(Err(why)) => {
@@ -628,6 +764,7 @@ fn motion_use(
         tool_at: tool[0].start,
         wobj,
         at: statement[0].start,
+        frame_params: Vec::new(),
     })
 }
 
@@ -764,6 +901,56 @@ fn assigned(src: &Source, statement: &[Token]) -> Option<String> {
     });
     (plain && before.first().is_none_or(|t| t.is(b'.') || t.is(b'{')))
         .then(|| src.text(first.start, first.end).to_ascii_uppercase())
+}
+
+/// The parameters of a routine's head after its name, `(robtarget pT, PERS wobjdata wo,
+/// \switch Fast)`: the positional ones' names, in order.
+fn parameters(src: &Source, tokens: &[Token]) -> Vec<String> {
+    if !tokens.first().is_some_and(|t| t.is(b'(')) {
+        return Vec::new();
+    }
+    let Some(close) = tokens.iter().rposition(|t| t.is(b')')) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    let mut depth = 0i32;
+    let mut piece: Vec<&Token> = Vec::new();
+    for t in tokens[1..close]
+        .iter()
+        .chain(std::iter::once(&tokens[close]))
+    {
+        match t.kind {
+            Tok::Punct(b'(' | b'{' | b'[') => depth += 1,
+            Tok::Punct(b')' | b'}' | b']') if depth > 0 => depth -= 1,
+            _ => {}
+        }
+        if (t.is(b',') && depth == 0) || std::ptr::eq(t, &tokens[close]) {
+            // `type name`, `PERS type name`, `name{*}`: the name is the last word; an
+            // optional one (`\switch Fast`) takes no place among the positional ones.
+            if !piece.first().is_some_and(|p| p.is(b'\\')) {
+                if let Some(n) = piece.iter().rev().find(|p| p.kind == Tok::Ident) {
+                    out.push(src.text(n.start, n.end));
+                }
+            }
+            piece.clear();
+        } else {
+            piece.push(t);
+        }
+    }
+    out
+}
+
+/// An array index written as numbers, `2` or `2,3`: as the key writes it.
+fn constant_index(src: &Source, index: &[Token]) -> Option<String> {
+    let mut out = String::new();
+    for (k, t) in index.iter().enumerate() {
+        match (k % 2, t.kind) {
+            (0, Tok::Number) => out.push_str(&src.text(t.start, t.end)),
+            (1, _) if t.is(b',') => out.push(','),
+            _ => return None,
+        }
+    }
+    (index.len() % 2 == 1).then_some(out)
 }
 
 /// What a move names as its target.
@@ -1167,17 +1354,19 @@ fn declaration(
     if is_target {
         decl.names.insert(key.clone());
     }
-    // An array of targets, `name{n} := [t1, …, tn]` (one dimension).
+    // An array of targets, `name{n} := [t1, …, tn]`, `name{n,m} := [[…], …]` (up to
+    // three dimensions).
     let mut at = 2;
     let mut length = None;
     if tokens.get(2).is_some_and(|t| t.is(b'{')) {
-        match (tokens.get(3), tokens.get(4)) {
-            (Some(n), Some(close)) if n.kind == Tok::Number && close.is(b'}') && is_target => {
-                length = Some(src.text(n.start, n.end));
-                at = 5;
+        let close = tokens.iter().position(|t| t.is(b'}'));
+        match close.and_then(|c| constant_index(src, &tokens[3..c]).map(|i| (c, i))) {
+            Some((c, dims)) if is_target && c <= 8 => {
+                length = Some(dims);
+                at = c + 1;
             }
-            // Arrays of frames, of more dimensions or sized by a constant: their targets
-            // are not read (a move to them is reported).
+            // Arrays of frames, or sized by a constant: their targets are not read (a move
+            // to them is reported).
             _ => return Ok(()),
         }
     }
@@ -1247,31 +1436,44 @@ fn declared_target(
     })
 }
 
-/// The targets of an array `name{n}`'s value `v`, `[t1, …, tn]`: `name{1}` to `name{n}`.
+/// The targets of an array `name{n}`'s value `v`, `[t1, …, tn]`: `name{1}` to `name{n}`;
+/// of `name{n,m}`'s, `[[t11, …, t1m], …]`: `name{1,1}` to `name{n,m}` (`dims` as written).
 fn array_targets(
     src: &Source,
     is_robtarget: bool,
     name: &str,
-    n: &str,
+    dims: &str,
     v: &Value,
 ) -> Result<Vec<ProgramTarget>, Error> {
-    let Value::List(items, list_at) = v else {
-        return Err(src.error(v.offset(), format!("expected {n} targets in [ ]")));
-    };
-    if n.parse::<usize>().ok() != Some(items.len()) {
-        return Err(src.error(
-            *list_at,
-            format!("{name}{{{n}}} holds {} targets", items.len()),
-        ));
+    let sizes: Vec<&str> = dims.split(',').collect();
+    let mut out = Vec::new();
+    // (value, its index so far, its dimension)
+    let mut stack = vec![(v, String::new(), 0usize)];
+    while let Some((v, index, d)) = stack.pop() {
+        let Some(n) = sizes.get(d) else {
+            let element = format!("{name}{{{index}}}");
+            out.push(declared_target(src, is_robtarget, element, v.offset(), v)?);
+            continue;
+        };
+        let Value::List(items, list_at) = v else {
+            return Err(src.error(v.offset(), format!("expected {n} items in [ ]")));
+        };
+        if n.parse::<usize>().ok() != Some(items.len()) {
+            return Err(src.error(
+                *list_at,
+                format!("{name}{{{dims}}} holds {} items here, not {n}", items.len()),
+            ));
+        }
+        for (k, item) in items.iter().enumerate().rev() {
+            let index = if index.is_empty() {
+                format!("{}", k + 1)
+            } else {
+                format!("{index},{}", k + 1)
+            };
+            stack.push((item, index, d + 1));
+        }
     }
-    items
-        .iter()
-        .enumerate()
-        .map(|(k, item)| {
-            let element = format!("{name}{{{}}}", k + 1);
-            declared_target(src, is_robtarget, element, item.offset(), item)
-        })
-        .collect()
+    Ok(out)
 }
 
 /// The tool a `tooldata` value `v` declares as `key`, or why it cannot be used.
@@ -1417,5 +1619,121 @@ mod tests {
             err.to_string().starts_with("m.mod:2:1: expected ';'"),
             "{err}"
         );
+    }
+
+    fn statuses(text: &str) -> Vec<(String, Option<Reason>, usize)> {
+        read(&Source::new("m.mod", text.as_bytes()))
+            .unwrap()
+            .targets
+            .iter()
+            .map(|t| {
+                (
+                    t.name.clone(),
+                    t.refused.as_ref().map(|r| r.reason),
+                    t.uses.len(),
+                )
+            })
+            .collect()
+    }
+
+    const P: &str =
+        "[[50,0,0],[0.707106781,0,0.707106781,0],[0,0,-1,1],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]]";
+
+    #[test]
+    fn a_tool_or_work_object_the_program_assigns_leaves_its_moves_frame_unknown() {
+        let text = format!(
+            "MODULE PalletModule\n\
+             \x20   PERS tooldata tGrip:=[TRUE,[[0,0,150],[1,0,0,0]],[5,[0,0,75],[1,0,0,0],0,0,0]];\n\
+             \x20   TASK PERS wobjdata wStation:=[FALSE,TRUE,\"\",[[1750,450,1200],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n\
+             \x20   PERS pose poseStation2:=[[-350,350,300],[1,0,0,0]];\n\
+             \x20   CONST robtarget pPick:={P};\n    CONST robtarget pPlace:={P};\n\
+             \x20   PROC main()\n\
+             \x20       MoveL pPlace,v500,fine,tGrip;\n\
+             \x20       wStation.oframe:=poseStation2;\n\
+             \x20       MoveL pPick,v500,fine,tool0\\WObj:=wStation;\n\
+             \x20       tGrip.tframe.trans.z:=210;\n\
+             \x20   ENDPROC\nENDMODULE\n"
+        );
+        let p = read(&Source::new("m.mod", text.as_bytes())).unwrap();
+        // The tool is assigned after the move: main runs again with it.
+        let tool = &p.targets[1].uses[0].unknown;
+        assert_eq!(p.targets[1].name, "pPlace");
+        assert_eq!(tool.len(), 1);
+        assert!(tool[0].starts_with("tool tGrip is assigned as the program runs (11:9)"));
+        let wobj = &p.targets[0].uses[0].unknown;
+        assert!(wobj[0].starts_with("work object wStation is assigned as the program runs (9:9)"));
+    }
+
+    #[test]
+    fn a_target_passed_to_a_routine_that_moves_to_its_parameter_is_not_corrected() {
+        let text = format!(
+            "MODULE Cell\n\
+             \x20   TASK PERS wobjdata wobj1:=[FALSE,TRUE,\"\",[[1700,400,1100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n\
+             \x20   CONST robtarget pParam:={P};\n    CONST robtarget p10:={P};\n\
+             \x20   PROC main()\n        pick pParam, wobj1;\n        place p10;\n    ENDPROC\n\
+             \x20   PROC pick(robtarget pT, PERS wobjdata wo)\n\
+             \x20       MoveL Offs(pT,0,0,100), v1000, z50, tool0\\WObj:=wo;\n\
+             \x20       MoveL pT, v200, fine, tool0\\WObj:=wo;\n\
+             \x20       MoveL p10, v200, fine, tool0\\WObj:=wo;\n    ENDPROC\n\
+             \x20   PROC place(robtarget pT, \\switch Slow)\n\
+             \x20       MoveL p10, v200, fine, tool0\\WObj:=wobj1;\n    ENDPROC\nENDMODULE\n"
+        );
+        let p = read(&Source::new("m.mod", text.as_bytes())).unwrap();
+        let seen: Vec<(&str, Option<Reason>)> = p
+            .targets
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("pParam", Some(Reason::Dynamic)),
+                ("p10", None),
+                ("MoveL", Some(Reason::Relative)),
+                ("MoveL", Some(Reason::Dynamic)),
+            ]
+        );
+        let detail = &p.targets[0].refused.as_ref().unwrap().detail;
+        assert!(
+            detail.starts_with("moved to through the parameter pT of pick (called at 6:9)"),
+            "{detail}"
+        );
+        assert!(p.targets[3]
+            .refused
+            .as_ref()
+            .unwrap()
+            .detail
+            .contains("a parameter of pick"));
+        // A work object that is a parameter is whatever the callers pass.
+        let u = &p.targets[1].uses;
+        assert_eq!(u.len(), 2);
+        assert!(u[0].unknown[0].starts_with("work object wo is a parameter of pick"));
+        assert!(u[1].unknown.is_empty());
+    }
+
+    #[test]
+    fn arrays_of_two_and_three_dimensions_are_read() {
+        let text = format!(
+            "MODULE M\n    CONST robtarget pGrid{{2,3}}:=[[{P},{P},{P}],[{P},{P},{P}]];\n\
+             \x20   CONST robtarget pCube{{1,1,2}}:=[[[{P},{P}]]];\n\
+             \x20   PROC main()\n        MoveL pGrid{{2,3}}, v500, fine, tool0;\n\
+             \x20       MoveL pCube{{1,1,i}}, v500, fine, tool0;\n    ENDPROC\nENDMODULE\n"
+        );
+        let seen = statuses(&text);
+        let names: Vec<(&str, usize)> = seen.iter().map(|(n, _, u)| (n.as_str(), *u)).collect();
+        assert_eq!(
+            names,
+            [
+                ("pGrid{1,1}", 0),
+                ("pGrid{1,2}", 0),
+                ("pGrid{1,3}", 0),
+                ("pGrid{2,1}", 0),
+                ("pGrid{2,2}", 0),
+                ("pGrid{2,3}", 1),
+                ("pCube{1,1,1}", 1),
+                ("pCube{1,1,2}", 1),
+            ]
+        );
+        assert!(seen.iter().all(|s| s.1.is_none()));
     }
 }
