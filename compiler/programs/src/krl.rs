@@ -243,9 +243,21 @@ pub fn read_with(
     let mut declared_here = HashSet::new();
     let mut declared_there = HashSet::new();
     let mut arrays = HashMap::new();
-    declarations(src, &mut fdats, &mut declared_here, &mut arrays);
+    let mut valued = HashSet::new();
+    declarations(
+        src,
+        &mut fdats,
+        &mut declared_here,
+        &mut arrays,
+        &mut valued,
+    );
     if let Some(p) = partner {
-        declarations(p, &mut fdats, &mut declared_there, &mut arrays);
+        declarations(p, &mut fdats, &mut declared_there, &mut arrays, &mut valued);
+    }
+    let mut assigned = Writes::default();
+    writes(src, &arrays, &mut assigned);
+    if let Some(p) = partner {
+        writes(p, &arrays, &mut assigned);
     }
     let context = Context {
         frames,
@@ -254,6 +266,8 @@ pub fn read_with(
         declared_there: &declared_there,
         arrays: &arrays,
         partner_name: partner.map(|p| p.name),
+        valued: &valued,
+        writes: &assigned,
     };
     let mut scan = Scan::default();
     let truncated_at = scan_file(src, &context, true, limit, &mut scan)?;
@@ -261,6 +275,23 @@ pub fn read_with(
         // The partner is context only: what does not read there gives no uses.
         let mut other = Scan::default();
         if scan_file(p, &context, false, usize::MAX, &mut other).is_ok() {
+            // The partner's own targets: not in this file's output, reported.
+            for mut t in other.partner_targets {
+                let (line, column) = p.location(t.offset);
+                t.refused = Some(Refusal::new(
+                    Reason::NotMoved,
+                    format!(
+                        "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
+                        t.name, p.name, p.name
+                    ),
+                ));
+                t.kind = TargetKind::Motion;
+                t.uses.clear();
+                t.offset = src.bytes.len();
+                scan.targets.push((t, None, None));
+            }
+            scan.moved_parameters.extend(other.moved_parameters);
+            scan.calls.extend(other.calls);
             scan.unknown_uses.extend(other.unknown_uses);
             scan.expression_uses.extend(other.expression_uses);
             scan.uses
@@ -293,6 +324,24 @@ pub fn read_with(
     for (name, by) in scan.expression_uses {
         expression_uses.entry(name).or_insert(by);
     }
+    // Targets passed to a routine that moves to its parameter.
+    let mut through: HashMap<String, String> = HashMap::new();
+    for call in &scan.calls {
+        let routine = call.routine.to_ascii_uppercase();
+        for (k, name) in call.names.iter().enumerate() {
+            let (Some(name), Some(param)) =
+                (name, scan.moved_parameters.get(&(routine.clone(), k)))
+            else {
+                continue;
+            };
+            through.entry(name.clone()).or_insert_with(|| {
+                format!(
+                    "moved to through the parameter {param} of {} (called at {}), in the frames of its callers",
+                    call.routine, call.place
+                )
+            });
+        }
+    }
     let mut targets = Vec::with_capacity(scan.targets.len());
     for (mut target, key, kind) in scan.targets {
         if let Some(key) = key {
@@ -319,6 +368,23 @@ pub fn read_with(
                     Reason::UnknownMotion,
                     format!("moved to by {by}, a motion this reader does not know"),
                 ));
+            }
+            // Assigned as the program runs: its declared value is not where it moves.
+            let array_any = key.split_once('[').map(|(a, _)| format!("{a}[*]"));
+            let writes = &context.writes.variables;
+            let written = (writes.get(&key))
+                .or_else(|| array_any.and_then(|a| writes.get(&a)))
+                .or_else(|| key.split_once('[').and_then(|(a, _)| writes.get(a)));
+            if let Some(place) = written {
+                target.refused.get_or_insert(Refusal::new(
+                    Reason::Dynamic,
+                    format!("{} is assigned as the program runs ({place}): its declared value is not what the robot moves to", target.name),
+                ));
+            }
+            if let Some(detail) = through.get(&key) {
+                target
+                    .refused
+                    .get_or_insert(Refusal::new(Reason::Dynamic, detail.clone()));
             }
             // Moved to only through an expression: no one correction holds for it.
             if let Some(by) = expression_uses.get(&key) {
@@ -350,6 +416,85 @@ struct Context<'a> {
     /// Arrays of targets (`DECL E6POS XPA[5]`), by name, with their type.
     arrays: &'a HashMap<String, Kind>,
     partner_name: Option<&'a str>,
+    /// Names declared with a value in either file.
+    valued: &'a HashSet<String>,
+    /// What the program writes as it runs ([`Writes`]).
+    writes: &'a Writes,
+}
+
+/// What the routines of the pair assign as they run.
+#[derive(Default)]
+struct Writes {
+    /// Variables (upper case; an array's element `XPA[2]`, any element `XPA[*]`), and
+    /// where first: `file:line:column`.
+    variables: HashMap<String, String>,
+    /// Numbered frames (base, number), and where first.
+    frames: HashMap<(bool, u32), String>,
+    /// A numbered frame of an index computed at run time: tools, bases.
+    any_frame: [Option<String>; 2],
+}
+
+/// The assignments of the routines of a file (`XP2.Y = XP2.Y + 25.0`, `XP2 = XP1`,
+/// `BASE_DATA[1].Z = …`, `TOOL_DATA[4] = {…}`).
+fn writes(src: &Source, arrays: &HashMap<String, Kind>, out: &mut Writes) {
+    let mut in_routine = false;
+    let mut lexer = Lexer::new(src, KRL);
+    while let Some(line) = lexer.line() {
+        if routine_head(src, &line).is_some() {
+            in_routine = true;
+            continue;
+        }
+        let Some(first) = line.first().filter(|t| t.kind == Tok::Ident) else {
+            continue;
+        };
+        if word_is(src, Some(first), "END") || word_is(src, Some(first), "ENDFCT") {
+            in_routine = false;
+            continue;
+        }
+        // The designator before `=`: the name, an index, components.
+        let Some(eq) = line.iter().position(|t| t.is(b'=')) else {
+            continue;
+        };
+        let designator = &line[1..eq];
+        let plain = designator.iter().all(|t| {
+            t.kind == Tok::Ident || t.kind == Tok::Number || t.is(b'.') || t.is(b'[') || t.is(b']')
+        });
+        if !plain || src.bytes[first.start] == b'$' {
+            continue;
+        }
+        let name = src.text(first.start, first.end).to_ascii_uppercase();
+        let index = match designator {
+            [o, n, c, ..] if o.is(b'[') && n.kind == Tok::Number && c.is(b']') => {
+                Some(Some(src.text(n.start, n.end)))
+            }
+            [o, ..] if o.is(b'[') => Some(None),
+            _ => None,
+        };
+        let (line_no, column) = src.location(first.start);
+        let place = format!("{}:{line_no}:{column}", src.name);
+        let base = name == "BASE_DATA";
+        if base || name == "TOOL_DATA" {
+            match index.flatten().and_then(|n| n.parse::<f64>().ok()) {
+                Some(n) if n.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&n) => {
+                    out.frames.entry((base, n as u32)).or_insert(place);
+                }
+                _ => {
+                    out.any_frame[usize::from(base)].get_or_insert(place);
+                }
+            }
+            continue;
+        }
+        // Outside a routine, `XPA[2]={…}` gives an array's element its value.
+        if !in_routine || line.get(eq + 1).is_some_and(|t| t.is(b'=')) {
+            continue;
+        }
+        let key = match index {
+            Some(Some(n)) if arrays.contains_key(&name) => element_key(&name, &n),
+            Some(_) if arrays.contains_key(&name) => format!("{name}[*]"),
+            _ => name,
+        };
+        out.variables.entry(key).or_insert(place);
+    }
 }
 
 /// An `FDAT`: the tool and base a motion's inline form selects.
@@ -370,6 +515,8 @@ enum FrameState {
     Undeclared(String),
     /// A frame no input gives.
     Unknown(String),
+    /// In the frames a statement sets: the one it leaves as it was.
+    Kept,
 }
 
 #[derive(Clone, Debug)]
@@ -390,6 +537,13 @@ struct Scan {
     /// Names a motion takes inside an expression (`XP1:XOFF`): the name and the motion.
     expression_uses: Vec<(String, String)>,
     first_motion: Option<usize>,
+    /// Targets the partner writes in its motions (inline aggregates), reported here since
+    /// this file's output does not hold them.
+    partner_targets: Vec<ProgramTarget>,
+    /// Parameters a motion moves to: (routine upper case, index) and the parameter.
+    moved_parameters: HashMap<(String, usize), String>,
+    /// The calls of the file's routines.
+    calls: Vec<Call>,
 }
 
 /// The `FDAT`s and declared target names (upper case) of a file; what does not read is
@@ -399,6 +553,7 @@ fn declarations(
     fdats: &mut HashMap<String, Fdat>,
     names: &mut HashSet<String>,
     arrays: &mut HashMap<String, Kind>,
+    valued: &mut HashSet<String>,
 ) {
     let mut lexer = Lexer::new(src, KRL);
     while let Some(line) = lexer.line() {
@@ -420,6 +575,9 @@ fn declarations(
             // `DECL E6POS XPA[5]`: an array, its elements assigned on lines of their own.
             if line.get(i + 2).is_some_and(|t| t.is(b'[')) {
                 arrays.insert(key.clone(), kind);
+            }
+            if line.get(i + 2).is_some_and(|t| t.is(b'=')) {
+                valued.insert(key.clone());
             }
             names.insert(key);
         } else if word_is(src, Some(ty), "FDAT") {
@@ -456,24 +614,44 @@ fn scan_file(
     limit: usize,
     scan: &mut Scan,
 ) -> Result<Option<usize>, Error> {
-    let mut state = State {
-        tool: FrameState::Initial,
-        base: FrameState::Initial,
-    };
-    let mut lexer = Lexer::new(src, KRL);
-    loop {
-        let line_start = lexer.pos;
-        let Some(line) = lexer.line() else { break };
-        // An inline form's fold line names its tool and base: `;FOLD LIN P2 … Tool[1]
-        // Base[2];%{PE}`.
-        let comment_from = line.last().map_or(line_start, |t| t.end);
-        fold_frames(src, comment_from, lexer.pos, context, &mut state);
-        statement(src, &line, context, this_file, &mut state, scan)?;
+    let lines = lines(src);
+    let flow = Flow::new(src, &lines, context);
+    for (r, names, at) in &flow.calls {
+        let routine = &flow.routines[*r];
+        let (line, column) = src.location(*at);
+        scan.calls.push(Call {
+            routine: routine.name.clone(),
+            names: names.clone(),
+            place: format!("{}:{line}:{column}", src.name),
+        });
+    }
+    for (idx, line) in lines.iter().enumerate() {
+        let here = Here {
+            frames: flow.at.get(&idx),
+            routine: flow.routine_of[idx].map(|r| &flow.routines[r]),
+        };
+        statement(src, &line.tokens, context, this_file, &here, scan)?;
         if scan.targets.len() > limit {
-            return Ok(Some(lexer.pos));
+            return Ok(Some(line.rest.1));
         }
     }
     Ok(None)
+}
+
+/// Where a statement is: the frames the flow finds at a motion's line, and its routine.
+struct Here<'f> {
+    frames: Option<&'f Frames>,
+    routine: Option<&'f Routine>,
+}
+
+/// A call of a routine of the file.
+struct Call {
+    /// The routine as written.
+    routine: String,
+    /// The names passed, one per argument (`None`: not a name).
+    names: Vec<Option<String>>,
+    /// `file:line:column`.
+    place: String,
 }
 
 /// The tool and base a `;FOLD` comment in `from..to` names, applied to `state`.
@@ -506,7 +684,7 @@ fn fold_frames(src: &Source, from: usize, to: usize, context: &Context, state: &
                     .flatten()
             });
         if let Some(n) = found {
-            let frame = numbered(context.frames, base, n);
+            let frame = numbered(context, base, n);
             if base {
                 state.base = frame;
             } else {
@@ -516,11 +694,24 @@ fn fold_frames(src: &Source, from: usize, to: usize, context: &Context, state: &
     }
 }
 
-/// A numbered frame: `$NULLFRAME` for 0, else the controller's.
-fn numbered(frames: &KrlFrames, base: bool, n: u32) -> FrameState {
+/// A numbered frame: `$NULLFRAME` for 0, else the controller's, unless the program
+/// writes it.
+fn numbered(context: &Context, base: bool, n: u32) -> FrameState {
     if n == 0 {
         return FrameState::Known(Isometry3::identity());
     }
+    let writes = context.writes;
+    if let Some(place) = writes
+        .frames
+        .get(&(base, n))
+        .or(writes.any_frame[usize::from(base)].as_ref())
+    {
+        return FrameState::Unknown(format!(
+            "{} is assigned by the program ({place}): not the configuration's value",
+            frame_name(base, n)
+        ));
+    }
+    let frames = context.frames;
     let map = if base { &frames.bases } else { &frames.tools };
     match map.get(&n) {
         Some(f) => FrameState::Known(*f),
@@ -539,13 +730,13 @@ fn fdat_frames(context: &Context, name: &str, at: (usize, usize)) -> (FrameState
             } else {
                 f.tool_no
                     .map_or(FrameState::Unknown(format!("{name} has no TOOL_NO")), |n| {
-                        numbered(context.frames, false, n)
+                        numbered(context, false, n)
                     })
             };
             let base = f
                 .base_no
                 .map_or(FrameState::Unknown(format!("{name} has no BASE_NO")), |n| {
-                    numbered(context.frames, true, n)
+                    numbered(context, true, n)
                 });
             (tool, base)
         }
@@ -585,7 +776,7 @@ fn frame_expression(
         {
             match crate::number::parse_number(src.bytes, n.start) {
                 Some(v) if v.value.fract() == 0.0 && (0.0..=u32::MAX as f64).contains(&v.value) => {
-                    numbered(context.frames, word(0, "BASE_DATA"), v.value as u32)
+                    numbered(context, word(0, "BASE_DATA"), v.value as u32)
                 }
                 _ => unknown(),
             }
@@ -670,7 +861,22 @@ fn argument_end(src: &Source, line: &[Token], i: usize) -> usize {
     k
 }
 
-/// A motion's frames: the state, with its `WITH $TOOL = …, $BASE = …` for it alone.
+/// A motion's frames, one use per tool and base the paths reaching it may have.
+fn frame_uses(frames: &Frames, offset: usize) -> Vec<FrameUse> {
+    let mut out = Vec::new();
+    for tool in &frames.tool.0 {
+        for base in &frames.base.0 {
+            let state = State {
+                tool: tool.clone(),
+                base: base.clone(),
+            };
+            out.push(frame_use(&state, offset));
+        }
+    }
+    out
+}
+
+/// The frames of one path: the state.
 fn frame_use(state: &State, offset: usize) -> FrameUse {
     let mut u = FrameUse {
         tool: None,
@@ -682,7 +888,7 @@ fn frame_use(state: &State, offset: usize) -> FrameUse {
     };
     for (frame, base) in [(&state.tool, false), (&state.base, true)] {
         match frame {
-            FrameState::Initial => {}
+            FrameState::Initial | FrameState::Kept => {}
             FrameState::Known(f) => {
                 if base {
                     u.base = Some(*f);
@@ -742,7 +948,7 @@ fn statement(
     line: &[Token],
     context: &Context,
     this_file: bool,
-    state: &mut State,
+    here: &Here,
     scan: &mut Scan,
 ) -> Result<(), Error> {
     let Some(first) = line.first() else {
@@ -752,11 +958,16 @@ fn statement(
         return Ok(());
     }
     let first_word = src.text(first.start, first.end).to_ascii_uppercase();
-    if frame_statement(src, line, &first_word, context, state) {
+    // Frames are followed by the flow ([`Flow`]): here the statement is only recognised.
+    let mut scratch = State {
+        tool: FrameState::Kept,
+        base: FrameState::Kept,
+    };
+    if frame_statement(src, line, &first_word, context, &mut scratch) {
         return Ok(());
     }
     if let Some(m) = is_motion(src, first) {
-        return motion_statement(src, line, m, context, this_file, state, scan);
+        return motion_statement(src, line, m, context, this_file, here, scan);
     }
     if looks_like_motion(src, first) && !line.get(1).is_some_and(|t| t.is(b'(') || t.is(b'=')) {
         unknown_motion(src, line, &first_word, this_file, scan);
@@ -778,6 +989,16 @@ fn frame_statement(
     state: &mut State,
 ) -> bool {
     match first_word {
+        // A component changed as the program runs: `$TOOL.Z = 210`.
+        "$TOOL" | "$BASE" if line.get(1).is_some_and(|t| t.is(b'.')) => {
+            let (l, c) = src.location(line[0].start);
+            let frame = FrameState::Unknown(format!("{first_word} changed at {l}:{c}"));
+            if first_word == "$BASE" {
+                state.base = frame;
+            } else {
+                state.tool = frame;
+            }
+        }
         "$TOOL" | "$BASE" | "$IPO_MODE" => {
             for (name, value, at) in assignments(src, line) {
                 apply(src, &name, value, at, context, state);
@@ -819,7 +1040,7 @@ fn bas(src: &Source, line: &[Token], context: &Context, state: &mut State) {
                 && v.value >= 0.0
                 && v.value <= u32::MAX as f64 =>
         {
-            numbered(context.frames, base, v.value as u32)
+            numbered(context, base, v.value as u32)
         }
         _ => {
             let (l, c) = src.location(first.start);
@@ -962,7 +1183,7 @@ fn motion_statement(
     m: &Motion,
     context: &Context,
     this_file: bool,
-    state: &mut State,
+    here: &Here,
     scan: &mut Scan,
 ) -> Result<(), Error> {
     let first = &line[0];
@@ -970,13 +1191,21 @@ fn motion_statement(
     let motion = m.name;
     let args = motion_arguments(src, line, m.targets);
     // Frames given for this motion alone.
-    let mut frames = state.clone();
+    let mut frames = here
+        .frames
+        .cloned()
+        .unwrap_or_else(|| Frames::of(FrameState::Initial, FrameState::Initial));
     if let Some(w) = line.iter().position(|t| word_is(src, Some(t), "WITH")) {
+        let mut with = State {
+            tool: FrameState::Kept,
+            base: FrameState::Kept,
+        };
         for (name, value, at) in assignments(src, &line[w + 1..]) {
-            apply(src, &name, value, at, context, &mut frames);
+            apply(src, &name, value, at, context, &mut with);
         }
+        frames.set(with);
     }
-    let frame = frame_use(&frames, first.start);
+    let frame = frame_uses(&frames, first.start);
     if let Some(reason) = m.refused {
         if this_file {
             let detail = match reason {
@@ -997,6 +1226,7 @@ fn motion_statement(
         context,
         this_file,
         frame: &frame,
+        routine: here.routine,
     };
     for &(start, end) in &args {
         targets.argument(start, end, scan)?;
@@ -1040,8 +1270,10 @@ struct MotionTargets<'m, 'a> {
     motion: &'static str,
     context: &'m Context<'m>,
     this_file: bool,
-    /// The frames the motion moves in.
-    frame: &'m FrameUse,
+    /// The frames the motion moves in: one use per path's frames.
+    frame: &'m [FrameUse],
+    /// The routine the motion is in.
+    routine: Option<&'m Routine>,
 }
 
 impl MotionTargets<'_, '_> {
@@ -1066,7 +1298,9 @@ impl MotionTargets<'_, '_> {
                     [n] if n.kind == Tok::Number => element_key(&array, &src.text(n.start, n.end)),
                     _ => format!("{array}[*]"),
                 };
-                scan.uses.push((key, self.frame.clone()));
+                for u in self.frame {
+                    scan.uses.push((key.clone(), u.clone()));
+                }
             }
             // A system variable (`$POS_ACT`, `$AXIS_ACT`): where the robot stands when the
             // motion runs (none declares it: the partner's are not reported here).
@@ -1110,18 +1344,17 @@ impl MotionTargets<'_, '_> {
                 "expected ',' or the end of the motion after the aggregate",
             ));
         }
+        let target = ProgramTarget {
+            name: self.motion.to_string(),
+            offset: t.start,
+            kind,
+            uses: self.frame.to_vec(),
+            refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
+        };
         if self.this_file {
-            scan.targets.push((
-                ProgramTarget {
-                    name: self.motion.to_string(),
-                    offset: t.start,
-                    kind,
-                    uses: vec![self.frame.clone()],
-                    refused: external.map(|e| Refusal::new(Reason::ExternalAxis, e)),
-                },
-                None,
-                None,
-            ));
+            scan.targets.push((target, None, None));
+        } else {
+            scan.partner_targets.push(target);
         }
         Ok(())
     }
@@ -1131,14 +1364,44 @@ impl MotionTargets<'_, '_> {
         let name = self.src.text(t.start, t.end);
         let key = name.to_ascii_uppercase();
         let context = self.context;
+        let motion = self.motion;
+        // A parameter of the routine: whatever its callers pass.
+        if let Some((routine, k)) = self
+            .routine
+            .and_then(|r| r.params.iter().position(|p| *p == key).map(|k| (r, k)))
+        {
+            scan.moved_parameters
+                .entry((routine.name.to_ascii_uppercase(), k))
+                .or_insert_with(|| name.clone());
+            self.refuse(
+                t,
+                Reason::Dynamic,
+                format!(
+                    "{motion} {name}: a parameter of {}, whatever its callers pass",
+                    routine.name
+                ),
+                scan,
+            );
+            return;
+        }
+        if context.valued.contains(&key) {
+            for u in self.frame {
+                scan.uses.push((key.clone(), u.clone()));
+            }
+            return;
+        }
         if context.declared_here.contains(&key) || context.declared_there.contains(&key) {
-            scan.uses.push((key, self.frame.clone()));
+            self.refuse(
+                t,
+                Reason::Dynamic,
+                format!("{motion} {name}: declared without a value, given when the program runs"),
+                scan,
+            );
             return;
         }
         let partner = context
             .partner_name
             .map_or(String::new(), |p| format!(" nor in {p}"));
-        let motion = self.motion;
         self.refuse(
             t,
             Reason::NotDeclared,
@@ -1510,6 +1773,633 @@ fn bit_literal(text: &[u8]) -> Option<u32> {
     u32::from_str_radix(std::str::from_utf8(digits).ok()?, radix).ok()
 }
 
+/// A line of a file: its tokens, and the bytes from its last token to its end (its
+/// comment, if any).
+struct Line {
+    tokens: Vec<Token>,
+    rest: (usize, usize),
+}
+
+/// The lines of a file.
+fn lines(src: &Source) -> Vec<Line> {
+    let mut out = Vec::new();
+    let mut lexer = Lexer::new(src, KRL);
+    loop {
+        let line_start = lexer.pos;
+        let Some(tokens) = lexer.line() else { break };
+        let from = tokens.last().map_or(line_start, |t| t.end);
+        out.push(Line {
+            tokens,
+            rest: (from, lexer.pos),
+        });
+    }
+    out
+}
+
+/// The most values a frame keeps apart along the paths reaching a point of the program;
+/// beyond, it is not known.
+const MAX_PATHS: usize = 4;
+
+/// The most passes the flow of a file takes to settle; a file whose flow has not settled
+/// then leaves its motions' frames not known.
+const MAX_PASSES: usize = 16;
+
+const MANY_PATHS: &str =
+    "the frame differs on more than four paths through the program (branches, loops, calls)";
+
+impl FrameState {
+    fn same(&self, other: &FrameState) -> bool {
+        match (self, other) {
+            (FrameState::Initial, FrameState::Initial) | (FrameState::Kept, FrameState::Kept) => {
+                true
+            }
+            (FrameState::Known(a), FrameState::Known(b)) => {
+                (a.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-9
+            }
+            (FrameState::Undeclared(a), FrameState::Undeclared(b))
+            | (FrameState::Unknown(a), FrameState::Unknown(b)) => a == b,
+            _ => false,
+        }
+    }
+}
+
+/// A frame's values on the paths that reach a point of the program; none when no path
+/// reaches it.
+#[derive(Clone, Debug, Default)]
+struct Paths(Vec<FrameState>);
+
+impl Paths {
+    /// Adds `other`'s values; whether any was new.
+    fn join(&mut self, other: &Paths) -> bool {
+        let many =
+            |p: &Paths| matches!(p.0.as_slice(), [FrameState::Unknown(w)] if w == MANY_PATHS);
+        if many(self) {
+            return false;
+        }
+        if many(other) {
+            self.0 = other.0.clone();
+            return true;
+        }
+        let mut changed = false;
+        for f in &other.0 {
+            if !self.0.iter().any(|g| g.same(f)) {
+                self.0.push(f.clone());
+                changed = true;
+            }
+        }
+        if self.0.len() > MAX_PATHS {
+            self.0 = vec![FrameState::Unknown(MANY_PATHS.to_string())];
+        }
+        changed
+    }
+}
+
+/// The tool and base along the paths reaching a point of the program.
+#[derive(Clone, Debug, Default)]
+struct Frames {
+    tool: Paths,
+    base: Paths,
+}
+
+impl Frames {
+    fn of(tool: FrameState, base: FrameState) -> Frames {
+        Frames {
+            tool: Paths(vec![tool]),
+            base: Paths(vec![base]),
+        }
+    }
+
+    fn unknown(why: String) -> Frames {
+        Frames::of(FrameState::Unknown(why.clone()), FrameState::Unknown(why))
+    }
+
+    fn reached(&self) -> bool {
+        !self.tool.0.is_empty() && !self.base.0.is_empty()
+    }
+
+    fn join(&mut self, other: &Frames) -> bool {
+        let tool = self.tool.join(&other.tool);
+        self.base.join(&other.base) | tool
+    }
+
+    /// `set`'s frames where a statement set them ([`FrameState::Kept`] elsewhere); which it
+    /// set.
+    fn set(&mut self, set: State) -> [bool; 2] {
+        let mut which = [false; 2];
+        for (k, (paths, f)) in [(&mut self.tool, set.tool), (&mut self.base, set.base)]
+            .into_iter()
+            .enumerate()
+        {
+            if !matches!(f, FrameState::Kept) {
+                which[k] = true;
+                if !paths.0.is_empty() {
+                    paths.0 = vec![f];
+                }
+            }
+        }
+        which
+    }
+}
+
+/// A routine of a `.src` (`DEF`, `DEFFCT`).
+struct Routine {
+    /// Its name as written.
+    name: String,
+    /// Its parameters, upper case.
+    params: Vec<String>,
+    global: bool,
+    /// The first routine of its file: the module's main one, started by the controller.
+    main: bool,
+    /// Its first `GOTO`'s line: its jumps are not followed.
+    goto: Option<usize>,
+}
+
+/// A routine's head on `line`, `[GLOBAL] DEF name(p1:IN, …)` or `[GLOBAL] DEFFCT type
+/// name(…)`: its name, its parameters (upper case), and whether it is global.
+fn routine_head(src: &Source, line: &[Token]) -> Option<(String, Vec<String>, bool)> {
+    let global = word_is(src, line.first(), "GLOBAL");
+    let k = usize::from(global);
+    let name_at = if word_is(src, line.get(k), "DEF") {
+        k + 1
+    } else if word_is(src, line.get(k), "DEFFCT") {
+        k + 2
+    } else {
+        return None;
+    };
+    let name = line.get(name_at).filter(|t| t.kind == Tok::Ident)?;
+    let mut params = Vec::new();
+    if line.get(name_at + 1).is_some_and(|t| t.is(b'(')) {
+        let mut expect_name = true;
+        for t in &line[name_at + 2..] {
+            if t.is(b')') {
+                break;
+            }
+            if t.is(b',') {
+                expect_name = true;
+            } else if expect_name && t.kind == Tok::Ident {
+                params.push(src.text(t.start, t.end).to_ascii_uppercase());
+                expect_name = false;
+            }
+        }
+    }
+    Some((src.text(name.start, name.end), params, global))
+}
+
+/// The routines a line calls (`pick_part( )`, `approach(XP2, 50.0)`, a function in an
+/// expression): the routine, the names passed (one per argument, `None` when not a
+/// name), where, and whether it runs as an interrupt's or trigger's (after `DO`).
+fn calls_of(
+    src: &Source,
+    line: &[Token],
+    by_name: &HashMap<String, usize>,
+) -> Vec<(usize, Vec<Option<String>>, usize, bool)> {
+    let mut out = Vec::new();
+    let mut after_do = false;
+    for (k, t) in line.iter().enumerate() {
+        if word_is(src, Some(t), "DO") {
+            after_do = true;
+        }
+        if t.kind != Tok::Ident || !line.get(k + 1).is_some_and(|o| o.is(b'(')) {
+            continue;
+        }
+        let Some(&r) = by_name.get(&src.text(t.start, t.end).to_ascii_uppercase()) else {
+            continue;
+        };
+        let mut args = Vec::new();
+        let mut depth = 0i32;
+        let mut piece: Vec<&Token> = Vec::new();
+        for a in &line[k + 2..] {
+            match a.kind {
+                Tok::Punct(b'(' | b'[' | b'{') => depth += 1,
+                Tok::Punct(b')' | b']' | b'}') if depth > 0 => depth -= 1,
+                Tok::Punct(b')') => break,
+                Tok::Punct(b',') if depth == 0 => {
+                    args.push(std::mem::take(&mut piece));
+                    continue;
+                }
+                _ => {}
+            }
+            piece.push(a);
+        }
+        if !piece.is_empty() || !args.is_empty() {
+            args.push(piece);
+        }
+        let names = args
+            .iter()
+            .map(|p| match p.as_slice() {
+                [n] if n.kind == Tok::Ident => Some(src.text(n.start, n.end).to_ascii_uppercase()),
+                _ => None,
+            })
+            .collect();
+        out.push((r, names, t.start, after_do));
+    }
+    out
+}
+
+/// An open block of the flow.
+enum Block {
+    If {
+        before: Frames,
+        done: Frames,
+        has_else: bool,
+    },
+    Switch {
+        before: Frames,
+        done: Frames,
+        started: bool,
+        has_default: bool,
+    },
+    /// A loop opened at a line: its kind (`FOR`, `WHILE`, `LOOP`, `REPEAT`), the frames
+    /// before it, and those its `EXIT`s leave with.
+    Loop {
+        head: usize,
+        kind: &'static str,
+        entry: Frames,
+        exits: Frames,
+    },
+}
+
+/// The frames at each motion of a file, following its routines, branches and loops.
+struct Flow {
+    routines: Vec<Routine>,
+    /// The routine each line is in.
+    routine_of: Vec<Option<usize>>,
+    /// The frames at the lines of motions.
+    at: HashMap<usize, Frames>,
+    /// The calls: routine, names passed, where.
+    calls: Vec<(usize, Vec<Option<String>>, usize)>,
+}
+
+/// What the passes keep from one to the next.
+#[derive(Default)]
+struct Memory {
+    entry: Vec<Frames>,
+    exit: Vec<Frames>,
+    /// Whether each routine (or one it calls) sets the tool, the base.
+    sets: Vec<[bool; 2]>,
+    /// The frames at the end of each loop's body, by its line.
+    back: HashMap<usize, Frames>,
+    changed: bool,
+}
+
+impl Flow {
+    fn new(src: &Source, lines: &[Line], context: &Context) -> Flow {
+        let mut routines: Vec<Routine> = Vec::new();
+        let mut routine_of = Vec::with_capacity(lines.len());
+        let mut current = None;
+        for line in lines {
+            let first = line.tokens.first();
+            if let Some((name, params, global)) = routine_head(src, &line.tokens) {
+                routines.push(Routine {
+                    name,
+                    params,
+                    global,
+                    main: routines.is_empty(),
+                    goto: None,
+                });
+                current = Some(routines.len() - 1);
+            } else if word_is(src, first, "END") || word_is(src, first, "ENDFCT") {
+                routine_of.push(current);
+                current = None;
+                continue;
+            } else if word_is(src, first, "GOTO") {
+                if let Some(r) = current {
+                    routines[r]
+                        .goto
+                        .get_or_insert(src.location(line.tokens[0].start).0);
+                }
+            }
+            routine_of.push(current);
+        }
+        let by_name: HashMap<String, usize> = routines
+            .iter()
+            .enumerate()
+            .map(|(k, r)| (r.name.to_ascii_uppercase(), k))
+            .collect();
+        let mut calls = Vec::new();
+        for line in lines {
+            if routine_head(src, &line.tokens).is_none() {
+                for (r, names, at, _) in calls_of(src, &line.tokens, &by_name) {
+                    calls.push((r, names, at));
+                }
+            }
+        }
+        let mut flow = Flow {
+            routines,
+            routine_of,
+            at: HashMap::new(),
+            calls,
+        };
+        let n = flow.routines.len();
+        let mut memory = Memory {
+            entry: vec![Frames::default(); n],
+            exit: vec![Frames::default(); n],
+            sets: vec![[false; 2]; n],
+            ..Memory::default()
+        };
+        let mut settled = false;
+        for _ in 0..MAX_PASSES {
+            memory.changed = false;
+            flow.pass(src, lines, context, &by_name, &mut memory);
+            if !memory.changed {
+                settled = true;
+                break;
+            }
+        }
+        if !settled {
+            let why = "the frames of this file's calls and loops did not settle: not known";
+            for f in flow.at.values_mut() {
+                *f = Frames::unknown(why.to_string());
+            }
+        }
+        flow
+    }
+
+    /// The frames a routine starts with.
+    fn entry(&self, src: &Source, r: usize, memory: &Memory) -> Frames {
+        let routine = &self.routines[r];
+        let called = self.calls.iter().any(|c| c.0 == r);
+        let mut frames = if called {
+            memory.entry[r].clone()
+        } else {
+            Frames::default()
+        };
+        if routine.main {
+            frames.join(&Frames::of(FrameState::Initial, FrameState::Initial));
+        } else if !called {
+            frames = Frames::unknown(format!(
+                "{} is called from no line of {}: its tool and base are its callers'",
+                routine.name, src.name
+            ));
+        }
+        if routine.global && !routine.main {
+            frames.join(&Frames::unknown(format!(
+                "{} is GLOBAL: other modules may call it in other frames",
+                routine.name
+            )));
+        }
+        frames
+    }
+
+    fn pass(
+        &mut self,
+        src: &Source,
+        lines: &[Line],
+        context: &Context,
+        by_name: &HashMap<String, usize>,
+        memory: &mut Memory,
+    ) {
+        let initial = Frames::of(FrameState::Initial, FrameState::Initial);
+        let mut current = initial.clone();
+        let mut blocks: Vec<Block> = Vec::new();
+        for (idx, line) in lines.iter().enumerate() {
+            let routine = self.routine_of[idx];
+            let tokens = &line.tokens;
+            let mut set = State {
+                tool: FrameState::Kept,
+                base: FrameState::Kept,
+            };
+            fold_frames(src, line.rest.0, line.rest.1, context, &mut set);
+            self.apply(&mut current, set, routine, memory);
+            let Some(first) = tokens.first() else {
+                continue;
+            };
+            if routine_head(src, tokens).is_some() {
+                current = routine.map_or(initial.clone(), |r| self.entry(src, r, memory));
+                blocks.clear();
+                continue;
+            }
+            let word = if first.kind == Tok::Ident {
+                src.text(first.start, first.end).to_ascii_uppercase()
+            } else {
+                String::new()
+            };
+            match word.as_str() {
+                "END" | "ENDFCT" => {
+                    if let Some(r) = routine {
+                        memory.changed |= memory.exit[r].join(&current);
+                    }
+                    current = initial.clone();
+                    blocks.clear();
+                    continue;
+                }
+                "RETURN" => {
+                    if let Some(r) = routine {
+                        memory.changed |= memory.exit[r].join(&current);
+                    }
+                    current = Frames::default();
+                    continue;
+                }
+                "IF" => {
+                    blocks.push(Block::If {
+                        before: current.clone(),
+                        done: Frames::default(),
+                        has_else: false,
+                    });
+                    continue;
+                }
+                "ELSE" => {
+                    if let Some(Block::If {
+                        before,
+                        done,
+                        has_else,
+                    }) = blocks.last_mut()
+                    {
+                        done.join(&current);
+                        current = before.clone();
+                        *has_else = true;
+                    }
+                    continue;
+                }
+                "ENDIF" => {
+                    if let Some(Block::If {
+                        before,
+                        done,
+                        has_else,
+                    }) = blocks.last()
+                    {
+                        current.join(done);
+                        if !has_else {
+                            current.join(before);
+                        }
+                        blocks.pop();
+                    }
+                    continue;
+                }
+                "SWITCH" => {
+                    blocks.push(Block::Switch {
+                        before: current.clone(),
+                        done: Frames::default(),
+                        started: false,
+                        has_default: false,
+                    });
+                    continue;
+                }
+                "CASE" | "DEFAULT" => {
+                    if let Some(Block::Switch {
+                        before,
+                        done,
+                        started,
+                        has_default,
+                    }) = blocks.last_mut()
+                    {
+                        if *started {
+                            done.join(&current);
+                        }
+                        current = before.clone();
+                        *started = true;
+                        *has_default |= word == "DEFAULT";
+                    }
+                    continue;
+                }
+                "ENDSWITCH" => {
+                    if let Some(Block::Switch {
+                        before,
+                        done,
+                        started,
+                        has_default,
+                    }) = blocks.last()
+                    {
+                        if *started {
+                            current.join(done);
+                        } else {
+                            current = before.clone();
+                        }
+                        if !has_default {
+                            current.join(before);
+                        }
+                        blocks.pop();
+                    }
+                    continue;
+                }
+                "FOR" | "WHILE" | "LOOP" | "REPEAT" => {
+                    let kind = match word.as_str() {
+                        "FOR" => "FOR",
+                        "WHILE" => "WHILE",
+                        "LOOP" => "LOOP",
+                        _ => "REPEAT",
+                    };
+                    let entry = current.clone();
+                    if let Some(back) = memory.back.get(&idx) {
+                        current.join(back);
+                    }
+                    blocks.push(Block::Loop {
+                        head: idx,
+                        kind,
+                        entry,
+                        exits: Frames::default(),
+                    });
+                    // A WHILE's condition may call a function: read below with the line.
+                    if kind != "WHILE" {
+                        continue;
+                    }
+                }
+                "ENDFOR" | "ENDWHILE" | "ENDLOOP" | "UNTIL" => {
+                    if let Some(Block::Loop {
+                        head,
+                        kind,
+                        entry,
+                        exits,
+                    }) = blocks.pop()
+                    {
+                        let back = memory.back.entry(head).or_default();
+                        memory.changed |= back.join(&current);
+                        current = match kind {
+                            "LOOP" => exits,
+                            "REPEAT" => {
+                                current.join(&exits);
+                                current
+                            }
+                            _ => {
+                                let mut after = entry;
+                                after.join(back);
+                                after.join(&exits);
+                                after
+                            }
+                        };
+                    }
+                    continue;
+                }
+                "EXIT" => {
+                    if let Some(Block::Loop { exits, .. }) = blocks
+                        .iter_mut()
+                        .rev()
+                        .find(|b| matches!(b, Block::Loop { .. }))
+                    {
+                        exits.join(&current);
+                    }
+                    current = Frames::default();
+                    continue;
+                }
+                _ => {}
+            }
+            if is_motion(src, first).is_some() {
+                let mut at = current.clone();
+                if !at.reached() {
+                    at = Frames::unknown(
+                        "no path of the program reaches this motion, as this reader follows it"
+                            .to_string(),
+                    );
+                }
+                if let Some(line) = routine.and_then(|r| self.routines[r].goto) {
+                    at.join(&Frames::unknown(format!(
+                        "GOTO at line {line}: jumps this reader does not follow"
+                    )));
+                }
+                self.at.insert(idx, at);
+                continue;
+            }
+            let mut set = State {
+                tool: FrameState::Kept,
+                base: FrameState::Kept,
+            };
+            if frame_statement(src, tokens, &word, context, &mut set) {
+                self.apply(&mut current, set, routine, memory);
+                continue;
+            }
+            for (callee, _, at, after_do) in calls_of(src, tokens, by_name) {
+                if after_do {
+                    let (line, _) = src.location(at);
+                    let why = format!(
+                        "{} runs when an interrupt or trigger fires (line {line}): wherever the robot is",
+                        self.routines[callee].name
+                    );
+                    memory.changed |= memory.entry[callee].join(&Frames::unknown(why));
+                    continue;
+                }
+                memory.changed |= memory.entry[callee].join(&current);
+                let sets = memory.sets[callee];
+                if sets[0] {
+                    current.tool = memory.exit[callee].tool.clone();
+                }
+                if sets[1] {
+                    current.base = memory.exit[callee].base.clone();
+                }
+                memory.note_sets(routine, sets);
+            }
+        }
+    }
+
+    /// Applies the frames a statement sets, and notes that its routine sets them.
+    fn apply(&self, current: &mut Frames, set: State, routine: Option<usize>, memory: &mut Memory) {
+        let which = current.set(set);
+        memory.note_sets(routine, which);
+    }
+}
+
+impl Memory {
+    /// Notes that `routine` sets the tool, the base (`which`).
+    fn note_sets(&mut self, routine: Option<usize>, which: [bool; 2]) {
+        let Some(r) = routine else { return };
+        for (noted, set) in self.sets[r].iter_mut().zip(which) {
+            if set && !*noted {
+                *noted = true;
+                self.changed = true;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1650,5 +2540,184 @@ mod tests {
         assert!(err.to_string().starts_with("t.dat:1:"), "{err}");
         let err = read(&Source::new("t.dat", b"DECL E6AXIS X={A1 1,Q 2}\n"), None).unwrap_err();
         assert!(err.to_string().contains("Q is not a component"), "{err}");
+    }
+
+    /// A `$config.dat` with tools 1, 2 and bases 1, 2.
+    fn cell_config() -> KrlFrames {
+        read_config(&Source::new(
+            "$config.dat",
+            b"FRAME TOOL_DATA[16]\nTOOL_DATA[1]={X 0.0,Y 0.0,Z 180.0,A 0.0,B 0.0,C 0.0}\n\
+              TOOL_DATA[2]={X 0.0,Y 25.0,Z 120.0,A 0.0,B 0.0,C 0.0}\nFRAME BASE_DATA[32]\n\
+              BASE_DATA[1]={X 1700.0,Y 400.0,Z 1100.0,A 0.0,B 0.0,C 0.0}\n\
+              BASE_DATA[2]={X 1450.0,Y 150.0,Z 950.0,A 0.0,B 0.0,C 0.0}\n",
+        ))
+        .unwrap()
+    }
+
+    const E6: &str = "={X 100.0,Y 0.0,Z 0.0,A 0.0,B 90.0,C 0.0,S 6,T 50,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+
+    /// The `.dat` declaring `names`, read with `src` as its partner.
+    fn pair(names: &[&str], src: &str) -> Program {
+        let mut dat = String::from("&ACCESS RVP\n&REL 1\nDEFDAT  cell\n");
+        for n in names {
+            dat.push_str(&format!("DECL E6POS {n}{E6}\n"));
+        }
+        dat.push_str("ENDDAT\n");
+        let dat = Source::new("cell.dat", dat.as_bytes());
+        let src = Source::new("cell.src", src.as_bytes());
+        read_with(&dat, Some(&src), &cell_config(), usize::MAX).unwrap()
+    }
+
+    fn reasons(p: &Program) -> Vec<(&str, Option<Reason>)> {
+        p.targets
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect()
+    }
+
+    /// The x of each use's base (`None`: not known or the options').
+    fn bases(t: &ProgramTarget) -> Vec<Option<f64>> {
+        t.uses
+            .iter()
+            .map(|u| u.base.map(|b| b.translation.vector.x))
+            .collect()
+    }
+
+    #[test]
+    fn a_target_the_program_assigns_is_dynamic() {
+        let p = pair(
+            &["XP1", "XP2", "XP3"],
+            "&ACCESS RVP\n&REL 1\nDEF cell( )\n  BAS (#INITMOV,0 )\n  $TOOL = TOOL_DATA[1]\n\
+             \x20 $BASE = BASE_DATA[2]\n  XP2.Y = XP2.Y + 25.0\n  LIN XP2\n  XP3 = XP1\n  LIN XP3\n  LIN XP1\nEND\n",
+        );
+        assert_eq!(
+            reasons(&p),
+            [
+                ("XP1", None),
+                ("XP2", Some(Reason::Dynamic)),
+                ("XP3", Some(Reason::Dynamic))
+            ]
+        );
+        let detail = &p.targets[1].refused.as_ref().unwrap().detail;
+        assert!(
+            detail.starts_with("XP2 is assigned as the program runs (cell.src:7:3)"),
+            "{detail}"
+        );
+    }
+
+    #[test]
+    fn a_numbered_frame_the_program_writes_is_not_the_configurations() {
+        let p = pair(
+            &["XP1", "XP2", "XP3"],
+            "DEF cell( )\n  $TOOL = TOOL_DATA[1]\n  BASE_DATA[1].Z = BASE_DATA[1].Z + 40.0\n\
+             \x20 $BASE = BASE_DATA[1]\n  LIN XP1\n\
+             \x20 BASE_DATA[8] = {FRAME: X 1750.0, Y 450.0, Z 1000.0, A 0, B 0, C 0}\n\
+             \x20 $BASE = BASE_DATA[8]\n  LIN XP2\n  $BASE = BASE_DATA[2]\n  LIN XP3\nEND\n",
+        );
+        let unknown = |k: usize| p.targets[k].uses[0].unknown.clone();
+        assert_eq!(
+            unknown(0),
+            ["BASE_DATA[1] is assigned by the program (cell.src:3:3): not the configuration's value"]
+        );
+        assert!(unknown(1)[0].starts_with("BASE_DATA[8] is assigned by the program (cell.src:6:3)"));
+        assert!(unknown(2).is_empty());
+        assert_eq!(bases(&p.targets[2]), [Some(1450.0)]);
+        // A component of $TOOL changed as the program runs.
+        let p = pair(
+            &["XP1"],
+            "DEF cell( )\n  $TOOL = TOOL_DATA[1]\n  $TOOL.Z = 210\n  LIN XP1\nEND\n",
+        );
+        assert_eq!(p.targets[0].uses[0].unknown, ["$TOOL changed at 3:3"]);
+    }
+
+    #[test]
+    fn a_subroutine_moves_in_the_frames_of_its_call_sites() {
+        let src = "&ACCESS RVP\n&REL 1\nDEF cell( )\n  BAS (#INITMOV,0 )\n  $TOOL = TOOL_DATA[1]\n\
+                   \x20 $BASE = BASE_DATA[1]\n  PTP XP0 C_PTP\n  pick_part( )\n  $TOOL = TOOL_DATA[2]\n\
+                   \x20 $BASE = BASE_DATA[2]\n  LIN XP9\nEND\n\nDEF pick_part( )\n  LIN XP1 C_DIS\nEND\n\n\
+                   DEF spare( )\n  LIN XP2\nEND\n";
+        let p = pair(&["XP0", "XP1", "XP2", "XP9"], src);
+        assert_eq!(bases(&p.targets[0]), [Some(1700.0)]);
+        // Called while BASE_DATA[1] is active, though written after BASE_DATA[2] is set.
+        assert_eq!(bases(&p.targets[1]), [Some(1700.0)]);
+        // Called from nowhere in the pair: its frames are its callers'.
+        assert!(p.targets[2].uses[0].unknown[0].starts_with("spare is called from no line"));
+        assert_eq!(bases(&p.targets[3]), [Some(1450.0)]);
+        // Called from two places in different bases: one use in each.
+        let src = "DEF cell( )\n  $BASE = BASE_DATA[1]\n  pick_part( )\n  $BASE = BASE_DATA[2]\n\
+                   \x20 pick_part( )\nEND\nDEF pick_part( )\n  LIN XP1\nEND\n";
+        let p = pair(&["XP1"], src);
+        assert_eq!(bases(&p.targets[0]), [Some(1700.0), Some(1450.0)]);
+        // A subroutine that sets the base: the caller continues in it.
+        let src = "DEF cell( )\n  $BASE = BASE_DATA[1]\n  to_station2( )\n  LIN XP1\nEND\n\
+                   DEF to_station2( )\n  $BASE = BASE_DATA[2]\nEND\n";
+        assert_eq!(bases(&pair(&["XP1"], src).targets[0]), [Some(1450.0)]);
+    }
+
+    #[test]
+    fn branches_and_loops_that_set_frames_leave_them_ambiguous() {
+        let src = "DEF cell( )\n  INTERRUPT DECL 10 WHEN $IN[12]==FALSE DO retract( )\n\
+                   \x20 $TOOL = TOOL_DATA[1]\n  IF $IN[5] THEN\n    $BASE = BASE_DATA[1]\n  ELSE\n\
+                   \x20   $BASE = BASE_DATA[2]\n  ENDIF\n  LIN XP1\n  $BASE = BASE_DATA[2]\n\
+                   \x20 FOR I = 1 TO 2\n    LIN XP2\n    $BASE = BASE_DATA[1]\n    LIN XP3\n  ENDFOR\n\
+                   \x20 SWITCH station\n  CASE 1\n    $BASE = BASE_DATA[2]\n  DEFAULT\n    $BASE = BASE_DATA[2]\n\
+                   \x20 ENDSWITCH\n  LIN XP4\nEND\nDEF retract( )\n  LIN XP5\nEND\n";
+        let p = pair(&["XP1", "XP2", "XP3", "XP4", "XP5"], src);
+        assert_eq!(bases(&p.targets[0]), [Some(1450.0), Some(1700.0)]);
+        // Earlier in the loop's body: its first pass, and the passes after the set.
+        assert_eq!(bases(&p.targets[1]), [Some(1450.0), Some(1700.0)]);
+        assert_eq!(bases(&p.targets[2]), [Some(1700.0)]);
+        assert_eq!(bases(&p.targets[3]), [Some(1450.0)]);
+        assert!(p.targets[4].uses[0].unknown[0].starts_with("retract runs when an interrupt"));
+    }
+
+    #[test]
+    fn a_target_passed_to_a_routine_that_moves_to_its_parameter_is_dynamic() {
+        let src = "DEF cell( )\n  $TOOL = TOOL_DATA[1]\n  $BASE = BASE_DATA[1]\n  LIN XP1\n\
+                   \x20 approach(XP2, 50.0)\nEND\n\nDEF approach(PT:IN, DIST:IN)\n  DECL E6POS PT\n\
+                   \x20 DECL REAL DIST\n  DECL E6POS PABOVE\n  PABOVE = PT\n  PABOVE.Z = PABOVE.Z + DIST\n\
+                   \x20 LIN PABOVE\n  LIN PT\nEND\n";
+        let p = pair(&["XP1", "XP2"], src);
+        assert_eq!(reasons(&p), [("XP1", None), ("XP2", Some(Reason::Dynamic))]);
+        assert_eq!(
+            p.targets[1].refused.as_ref().unwrap().detail,
+            "moved to through the parameter PT of approach (called at cell.src:5:3), in the frames of its callers"
+        );
+        // In the .src, the motions to the parameter and to a value given as it runs.
+        let t = read_with(
+            &Source::new("cell.src", src.as_bytes()),
+            None,
+            &cell_config(),
+            usize::MAX,
+        )
+        .unwrap()
+        .targets;
+        let seen: Vec<(&str, Option<Reason>)> = t
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("XP1", Some(Reason::NotDeclared)),
+                ("PABOVE", Some(Reason::Dynamic)),
+                ("PT", Some(Reason::Dynamic))
+            ]
+        );
+    }
+
+    #[test]
+    fn the_partners_own_targets_are_reported_with_the_data_list() {
+        let src = "DEF cell( )\n  $BASE = BASE_DATA[2]\n  LIN XP9\n\
+                   \x20 LIN {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}\n  LIN_REL {X -30.0}\nEND\n";
+        let p = pair(&["XP9"], src);
+        assert_eq!(
+            reasons(&p),
+            [("XP9", None), ("LIN", Some(Reason::NotMoved))]
+        );
+        assert_eq!(
+            p.targets[1].refused.as_ref().unwrap().detail,
+            "LIN written at cell.src:4:7: a target of that file, left as written here; compensate cell.src for it"
+        );
     }
 }
