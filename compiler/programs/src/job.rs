@@ -193,7 +193,7 @@ impl CompensateOptions {
             Some(f) => f,
             None => Format::from_path(&o.program).ok_or_else(|| {
                 Error::Option(format!(
-                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .script, .csv, .nc, .ngc, .gcode, .tap, .jbi, .ls, .pjx, .dtx); give it (krl, rapid, urscript, csv, gcode, yaskawa, fanuc, val3)",
+                    "{}: cannot tell the program's format from its extension (.src, .dat, .mod, .modx, .prg, .sys, .sysx, .script, .urscript, .csv, .nc, .ngc, .gcode, .tap, .jbi, .ls, .pjx, .dtx); give it (krl, rapid, urscript, csv, gcode, yaskawa, fanuc, val3)",
                     o.program.display()
                 ))
             })?,

@@ -13,7 +13,7 @@ pub use adwi_samples::{AngleUnit, LengthUnit};
 pub enum Format {
     /// KUKA KRL: a `.src` or a `.dat` file.
     Krl,
-    /// ABB RAPID: a `.mod` (or `.modx`, `.prg`) module.
+    /// ABB RAPID: a `.mod` (or `.modx`, `.prg`, `.sys`, `.sysx`) module.
     Rapid,
     /// Universal Robots URScript: a `.script` file.
     UrScript,
@@ -62,14 +62,14 @@ impl Format {
     }
 
     /// The format of a file by its extension (case-insensitive): `.src`, `.dat` KRL;
-    /// `.mod`, `.modx`, `.prg`, `.sys` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
+    /// `.mod`, `.modx`, `.prg`, `.sys`, `.sysx` RAPID; `.script`, `.urscript` URScript; `.csv` CSV;
     /// `.nc`, `.ngc`, `.gcode`, `.tap` G-code; `.jbi` Yaskawa INFORM; `.ls` Fanuc TP; `.pjx`,
     /// `.dtx` a Stäubli VAL3 application.
     pub fn from_path(path: &std::path::Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
             "src" | "dat" => Format::Krl,
-            "mod" | "modx" | "prg" | "sys" => Format::Rapid,
+            "mod" | "modx" | "prg" | "sys" | "sysx" => Format::Rapid,
             "script" | "urscript" => Format::UrScript,
             "csv" => Format::Csv,
             "nc" | "ngc" | "gcode" | "tap" => Format::Gcode,

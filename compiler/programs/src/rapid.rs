@@ -4,8 +4,8 @@
 //! `TASK`) with a value, `[[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,…,eax_f]]` (mm,
 //! quaternion w first), `jointtarget` declarations `[[rax_1,…,rax_6],[eax_a,…]]` (degrees),
 //! and such values written inline as the target of a `MoveJ`, `MoveL`, `MoveC` (two
-//! targets) or `MoveAbsJ` (the pendant shows them as `*`). Arrays of targets are left
-//! alone.
+//! targets) or `MoveAbsJ` (the pendant shows them as `*`); arrays of targets (`pSeam{n}`,
+//! `pGrid{n,m}`, three dimensions) element by element.
 //!
 //! Frames come from the module: each use of a target is in the move's tool (its fourth
 //! positional argument, the fifth of `MoveC`) and work object (`\WObj`, `wobj0` when
