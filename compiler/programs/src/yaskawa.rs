@@ -40,9 +40,16 @@
 //! Every instruction that moves is accounted for: `MOVJ`, `MOVL`, `MOVC`, `MOVS` to a `C`
 //! position are the motions whose targets are corrected; a move to a `P` variable (which
 //! the controller holds, and the program may set as it runs), `IMOV` (an increment), a
-//! move between `SFTON` and `SFTOF` (a shift added as it runs), a move with a base or
-//! station axis (`BC`, `EC`, `+MOVJ`), and any other motion-looking instruction are
-//! reported where they are written.
+//! move between `SFTON` and `SFTOF` (a shift added as it runs), a move with a base axis
+//! (`BC`), and any other motion-looking instruction are reported where they are written.
+//!
+//! The table is robot 1's (`RB1`). A motion line moves the job's groups (`///GROUP1
+//! RB1,ST1`, `///GROUP2 RB2`) in order, each after a `+` (`MOVJ C00000 EC00000 VJ=10.00
+//! +MOVJ C00001 VJ=10.00`): a position another robot's part moves is that robot's, and
+//! every position of a job without robot 1 is reported. A station's axis (`EC`) moves the
+//! work, not the robot's frames. Frames the job sets as it runs (`MFRAME UF#(n)`,
+//! `SETTOOL TL#(n)`) and a base frame a base axis (`BS1`) sets apart leave the positions
+//! in them unknown.
 
 use nalgebra::Isometry3;
 
@@ -184,6 +191,61 @@ struct Position {
     target: usize,
     refused_uses: Vec<Refusal>,
     direct: bool,
+    /// Its frame type, tool and user frame, for the job's groups and the frames it sets
+    /// as it runs, known once `//INST` is read.
+    kind: PosType,
+    tool: u16,
+    user: Option<u16>,
+    /// Moved by another group's part of a motion (`+MOVJ C00001` of `///GROUP2 RB2`):
+    /// another robot's position.
+    other_group: Option<Refusal>,
+}
+
+/// A `///GROUPn` line of `//INST`: the group's number, what its units (`RB1`, `ST1`,
+/// `BS1`) hold, the line as written, and its number.
+struct Group {
+    number: usize,
+    /// Robot 1 (`RB1`), the table's robot.
+    robot_one: bool,
+    /// Another robot's unit (`RB2`), the first.
+    other_robot: Option<String>,
+    /// A base axis (`BS1`).
+    base_axis: bool,
+    text: String,
+    line: usize,
+}
+
+/// Whether `unit` is `prefix` and digits (`RB2` of `RB`).
+fn unit_of(unit: &str, prefix: &str) -> bool {
+    unit.len() > prefix.len()
+        && unit.is_char_boundary(prefix.len())
+        && unit[..prefix.len()].eq_ignore_ascii_case(prefix)
+        && unit[prefix.len()..].bytes().all(|b| b.is_ascii_digit())
+}
+
+impl Group {
+    /// `///GROUP2 RB2 (line 21)`.
+    fn describe(&self) -> String {
+        format!("{} (line {})", self.text, self.line)
+    }
+}
+
+/// Frames a job sets as it runs, by kind (a user frame, true, or a tool) and number (`None`:
+/// chosen as the job runs): the first instruction that sets each, and its line.
+type SetFrames = std::collections::HashMap<(bool, Option<u16>), (String, usize)>;
+
+/// Which group a part of a motion line moves (`MOVJ C00000 … +MOVJ C00001 …`: the parts
+/// are the job's groups in their order).
+enum PartGroup {
+    /// The table's robot, `RB1` (or, in a job without `///GROUP` lines, the job's robot).
+    Table,
+    /// Another robot of the job's groups.
+    OtherRobot(String),
+    /// A group without a robot (a station, a base axis alone).
+    NoRobot(String),
+    /// A part beyond the job's groups, or a second part in a job without `///GROUP`
+    /// lines: its group is not known.
+    Unknown(String),
 }
 
 /// The whitespace-separated words of `start..end`, with their offsets.
@@ -275,6 +337,7 @@ pub fn read_at_most(
             Section::Header => {}
             Section::Pos if upper.starts_with(b"///") => reader.directive(line)?,
             Section::Pos => reader.position(line)?,
+            Section::Inst if upper.starts_with(b"///GROUP") => reader.group(line),
             Section::Inst if upper.starts_with(b"///") || upper.starts_with(b"'") => {}
             Section::Inst => reader.instruction(line),
         }
@@ -315,6 +378,12 @@ struct Reader<'s, 'a> {
     rconf: ConfigHint,
     /// The shift in force (`SFTON`) and its line.
     shift: Option<(String, usize)>,
+    /// The job's `///GROUPn` lines.
+    groups: Vec<Group>,
+    /// Frames the job sets as it runs (`MFRAME UF#(1) …`, `SETTOOL TL#(2) …`): a user
+    /// frame (true) or a tool, its number (`None`: chosen as the job runs, `UF#(I000)`),
+    /// the instruction and its line.
+    set_frames: SetFrames,
 }
 
 impl<'s, 'a> Reader<'s, 'a> {
@@ -331,6 +400,8 @@ impl<'s, 'a> Reader<'s, 'a> {
             postype: None,
             rconf: ConfigHint::None,
             shift: None,
+            groups: Vec::new(),
+            set_frames: SetFrames::new(),
         }
     }
 
@@ -433,6 +504,10 @@ impl<'s, 'a> Reader<'s, 'a> {
             target: self.targets.len(),
             refused_uses: Vec::new(),
             direct: false,
+            kind,
+            tool: self.tool,
+            user: self.user.map(|u| u.0),
+            other_group: None,
         });
         self.targets.push(ProgramTarget {
             name: src.text(at, at + eq),
@@ -444,12 +519,110 @@ impl<'s, 'a> Reader<'s, 'a> {
         Ok(())
     }
 
-    /// An instruction of `//INST`: a shift begun or ended, or a motion, which uses its `C`
-    /// position or is reported with its reason.
+    /// A `///GROUPn RB1,ST1` line of `//INST`: a control group of the job and its units.
+    fn group(&mut self, line: Line) {
+        let src = self.src;
+        let w = words(src.bytes, line.at + 3, line.end);
+        let Some(&(_, key)) = w.first() else {
+            return;
+        };
+        let Some(number) = std::str::from_utf8(&key[5.min(key.len())..])
+            .ok()
+            .and_then(|n| n.parse::<usize>().ok())
+        else {
+            return;
+        };
+        // A controller has a few groups; a number beyond, or given twice, is not one.
+        if number > 99 || self.groups.iter().any(|g| g.number == number) {
+            return;
+        }
+        let units = w
+            .get(1)
+            .map(|(_, v)| String::from_utf8_lossy(v).into_owned())
+            .unwrap_or_default();
+        let units = units.split(',').map(str::trim);
+        let mut group = Group {
+            number,
+            robot_one: false,
+            other_robot: None,
+            base_axis: false,
+            text: src.text(
+                line.at,
+                line.at + src.bytes[line.at..line.end].trim_ascii_end().len(),
+            ),
+            line: line.number,
+        };
+        for u in units {
+            if u.eq_ignore_ascii_case("RB1") {
+                group.robot_one = true;
+            } else if unit_of(u, "RB") {
+                group.other_robot.get_or_insert_with(|| u.to_string());
+            } else if unit_of(u, "BS") {
+                group.base_axis = true;
+            }
+        }
+        self.groups.push(group);
+    }
+
+    /// The group the `k`th part of a motion line moves.
+    fn part_group(&self, k: usize) -> PartGroup {
+        if self.groups.is_empty() {
+            return if k == 0 {
+                PartGroup::Table
+            } else {
+                PartGroup::Unknown(
+                    "a second motion group, which the job names in no ///GROUP line".into(),
+                )
+            };
+        }
+        let Some(g) = self.groups.iter().find(|g| g.number == k + 1) else {
+            return PartGroup::Unknown(format!(
+                "its part {} of the line names no ///GROUP{} line",
+                k + 1,
+                k + 1
+            ));
+        };
+        if g.robot_one {
+            PartGroup::Table
+        } else if g.other_robot.is_some() {
+            PartGroup::OtherRobot(g.describe())
+        } else {
+            PartGroup::NoRobot(g.describe())
+        }
+    }
+
+    /// `MFRAME UF#(n) …` or `SETTOOL TL#(n) …`: a user frame or a tool set as the job runs.
+    fn frame_set(&mut self, user: bool, w: &[(usize, &[u8])], line: Line) {
+        let src = self.src;
+        let tag: &[u8] = if user { b"UF#(" } else { b"TL#(" };
+        let number = w.iter().skip(1).find_map(|(_, t)| {
+            let u = t.to_ascii_uppercase();
+            let inner = u.strip_prefix(tag)?;
+            let close = inner.iter().position(|b| *b == b')')?;
+            Some(
+                std::str::from_utf8(&inner[..close])
+                    .ok()
+                    .and_then(|n| n.parse::<u16>().ok()),
+            )
+        });
+        let text = src.text(
+            line.at,
+            line.at + src.bytes[line.at..line.end].trim_ascii_end().len(),
+        );
+        // Without its frame number written, or one chosen as the job runs, any frame.
+        self.set_frames
+            .entry((user, number.flatten()))
+            .or_insert((text, line.number));
+    }
+
+    /// An instruction of `//INST`: a shift begun or ended, a frame set, or a motion, whose
+    /// parts (`MOVJ C00000 EC00000 VJ=10.00  +MOVJ C00001 VJ=10.00`) move the job's groups
+    /// in order: the table's robot's part uses its `C` position or is reported with its
+    /// reason; another robot's position is that robot's.
     fn instruction(&mut self, line: Line) {
         let src = self.src;
         let w = words(src.bytes, line.at, line.end);
-        let Some(&(op_at, op)) = w.first() else {
+        let Some(&(_, op)) = w.first() else {
             return;
         };
         let op_upper = op.to_ascii_uppercase();
@@ -465,31 +638,137 @@ impl<'s, 'a> Reader<'s, 'a> {
                 self.shift = None;
                 return;
             }
+            b"MFRAME" => return self.frame_set(true, &w, line),
+            b"SETTOOL" => return self.frame_set(false, &w, line),
             _ => {}
         }
-        let motion = matches!(op_upper.as_slice(), b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
-        let refp = op_upper.as_slice() == b"REFP";
-        let looks = op_upper.starts_with(b"MOV")
-            || op_upper.starts_with(b"IMOV")
-            || op_upper.starts_with(b"SMOV")
-            || op_upper.starts_with(b"EIMOV")
-            || op_upper.starts_with(b"SYMOV");
-        if !(motion || refp || looks) {
+        if !(motion_like(&op_upper) || op_upper.as_slice() == b"REFP") {
             return;
         }
-        if !refp {
-            self.first_motion.get_or_insert(op_at);
+        // The parts: each `+MOVJ` (or `+ MOVJ`) starts one.
+        let mut parts: Vec<Vec<(usize, &[u8])>> = vec![Vec::new()];
+        for &(s, t) in &w {
+            if let Some(rest) = t.strip_prefix(b"+") {
+                parts.push(Vec::new());
+                if !rest.is_empty() {
+                    parts.last_mut().expect("a part").push((s + 1, rest));
+                }
+            } else {
+                parts.last_mut().expect("a part").push((s, t));
+            }
         }
-        let op_name = src.text(op_at, op_at + op.len());
-        let c = w.iter().skip(1).find(|(_, t)| variable(t, b"C"));
-        let reason = self.move_reason(&op_name, &op_upper, &w, c.is_some());
+        let groups: Vec<PartGroup> = (0..parts.len()).map(|k| self.part_group(k)).collect();
+        let robot_part = |k: usize| {
+            matches!(groups[k], PartGroup::Table | PartGroup::OtherRobot(_))
+                || parts[k].iter().skip(1).any(|(_, t)| variable(t, b"C"))
+        };
+        let any_robot = (0..parts.len()).any(robot_part);
+        // In a job without ///GROUP lines, a second part's group is not known: the line is
+        // reported as before, whole.
+        let unknown_second = match (parts.get(1), groups.get(1)) {
+            (Some(p), Some(PartGroup::Unknown(why))) if self.groups.is_empty() => p
+                .first()
+                .map(|(s, t)| (format!("+{}", src.text(*s, *s + t.len())), why.clone())),
+            _ => None,
+        };
+        for (k, part) in parts.iter().enumerate() {
+            let Some(&(op_at, op)) = part.first() else {
+                continue;
+            };
+            let op_upper = op.to_ascii_uppercase();
+            let op_name = src.text(op_at, op_at + op.len());
+            let c = part.iter().skip(1).find(|(_, t)| variable(t, b"C"));
+            let declared = c.and_then(|(_, t)| {
+                variable_number(t, 1).and_then(|n| self.by_number.get(&n).copied())
+            });
+            match &groups[k] {
+                PartGroup::Table => {
+                    if op_upper.as_slice() != b"REFP" {
+                        self.first_motion.get_or_insert(op_at);
+                    }
+                    let reason = match &unknown_second {
+                        Some((word, why)) => {
+                            Some((Reason::ExternalAxis, format!("{word}: {why} moves with it")))
+                        }
+                        None => self.move_reason(&op_name, &op_upper, part, c.is_some()),
+                    };
+                    self.table_move(op_at, &op_name, &op_upper, c.copied(), reason);
+                }
+                PartGroup::OtherRobot(group) | PartGroup::Unknown(group) => {
+                    self.first_motion.get_or_insert(op_at);
+                    let why = if matches!(groups[k], PartGroup::OtherRobot(_)) {
+                        "another robot than robot 1 (RB1), the robot the table and the robot file describe".to_string()
+                    } else {
+                        String::new()
+                    };
+                    if let Some(p) = declared {
+                        let (line_number, _) = src.location(op_at);
+                        let detail = if why.is_empty() {
+                            format!("moved by {op_name} (line {line_number}): {group}")
+                        } else {
+                            format!("moved by {op_name} (line {line_number}) of {group}: {why}")
+                        };
+                        self.positions[p]
+                            .other_group
+                            .get_or_insert(Refusal::new(Reason::ExternalAxis, detail));
+                    }
+                }
+                PartGroup::NoRobot(group) => {
+                    if let Some(p) = declared {
+                        let (line_number, _) = src.location(op_at);
+                        self.positions[p].other_group.get_or_insert(Refusal::new(
+                            Reason::ExternalAxis,
+                            format!("moved by {op_name} (line {line_number}) of {group}, a group without a robot"),
+                        ));
+                    } else if !any_robot && op_upper.as_slice() != b"REFP" {
+                        // A job's station or base axis moved alone: no robot position, and
+                        // not the robot's motion.
+                        let axes: Vec<String> = part
+                            .iter()
+                            .skip(1)
+                            .filter(|(_, t)| {
+                                variable(t, b"EC") || variable(t, b"BC") || variable(t, b"EX")
+                            })
+                            .map(|(s, t)| src.text(*s, *s + t.len()))
+                            .collect();
+                        self.targets.push(ProgramTarget {
+                            name: op_name.clone(),
+                            offset: op_at,
+                            kind: TargetKind::Motion,
+                            uses: Vec::new(),
+                            refused: Some(Refusal::new(
+                                Reason::ExternalAxis,
+                                format!(
+                                    "{op_name} {}moves {group} alone: a station or base axis, no robot position the table corrects",
+                                    if axes.is_empty() { String::new() } else { format!("{} ", axes.join(" ")) }
+                                ),
+                            )),
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// The table's robot's part of a motion line: its position used, or the motion
+    /// reported with `reason`.
+    fn table_move(
+        &mut self,
+        op_at: usize,
+        op_name: &str,
+        op_upper: &[u8],
+        c: Option<(usize, &[u8])>,
+        reason: Option<(Reason, String)>,
+    ) {
+        let src = self.src;
+        let refp = op_upper == b"REFP";
         let found = c.map(|(s, t)| {
             let p = variable_number(t, 1).and_then(|n| self.by_number.get(&n).copied());
-            (*s, t, p)
+            (s, t, p)
         });
         let refuse = |targets: &mut Vec<ProgramTarget>, reason: Reason, detail: String| {
             targets.push(ProgramTarget {
-                name: op_name.clone(),
+                name: op_name.to_string(),
                 offset: op_at,
                 kind: TargetKind::Motion,
                 uses: Vec::new(),
@@ -533,7 +812,9 @@ impl<'s, 'a> Reader<'s, 'a> {
     }
 
     /// Why a motion's `C` position is not corrected as moved to by it (an increment, a
-    /// base or station axis, a variable, a shift, a reference point), or `None`.
+    /// base axis, a variable, a shift, a reference point), or `None`. A station's axis
+    /// (`EC00001`) moves the work, not the robot's frames: it leaves the robot's position
+    /// as it is.
     fn move_reason(
         &self,
         op_name: &str,
@@ -544,10 +825,11 @@ impl<'s, 'a> Reader<'s, 'a> {
         let src = self.src;
         let motion = matches!(op_upper, b"MOVJ" | b"MOVL" | b"MOVC" | b"MOVS");
         let refp = op_upper == b"REFP";
-        let external = w
+        let external = w.iter().skip(1).find(|(_, t)| variable(t, b"BC"));
+        let station = w
             .iter()
             .skip(1)
-            .find(|(_, t)| variable(t, b"BC") || variable(t, b"EC") || t.starts_with(b"+"));
+            .find(|(_, t)| variable(t, b"EC") || variable(t, b"EX"));
         let variable_word = w.iter().skip(1).find(|(_, t)| {
             let u = t.to_ascii_uppercase();
             variable(&u, b"P")
@@ -570,7 +852,7 @@ impl<'s, 'a> Reader<'s, 'a> {
             Some((
                 Reason::ExternalAxis,
                 format!(
-                    "{}: a base or station axis (a track, a positioner) the table does not have",
+                    "{}: a base axis (a track) the table does not have moves the robot",
                     place(*s, t)
                 ),
             ))
@@ -579,6 +861,14 @@ impl<'s, 'a> Reader<'s, 'a> {
                 Reason::Dynamic,
                 format!(
                     "{op_name} {}: a position variable the controller holds, which the program may set as it runs",
+                    place(*s, t)
+                ),
+            ))
+        } else if let (false, Some((s, t))) = (has_c, station) {
+            Some((
+                Reason::ExternalAxis,
+                format!(
+                    "{op_name} {}: a station axis moved, no robot position the table corrects",
                     place(*s, t)
                 ),
             ))
@@ -600,16 +890,64 @@ impl<'s, 'a> Reader<'s, 'a> {
             None
         }
     }
-
     /// The program: a position moved to only through refused uses is refused with the
     /// first; one moved to directly is corrected.
     fn finish(mut self, truncated_at: Option<usize>) -> Program {
+        // The job's robot when it is not robot 1 (`///GROUP1 RB2`): the table and the robot
+        // file describe one robot, robot 1.
+        let no_robot_one = !self.groups.is_empty() && !self.groups.iter().any(|g| g.robot_one);
+        let foreign = no_robot_one.then(|| {
+            self.groups
+                .iter()
+                .find_map(|g| Some((g.other_robot.as_ref()?, g)))
+                .map_or_else(
+                    || "the job's groups hold no robot".to_string(),
+                    |(unit, g)| {
+                        format!(
+                            "the job moves {unit} of {}, not robot 1 (RB1), the robot the table and the robot file describe",
+                            g.describe()
+                        )
+                    },
+                )
+        });
+        // A base axis in the robot's group sets the base frame (and the user frames, given
+        // in it) apart from the robot's by where it stands as the job runs.
+        let base_axis = self
+            .groups
+            .iter()
+            .find(|g| g.robot_one && g.base_axis)
+            .map(Group::describe);
         for p in &self.positions {
+            let target = &mut self.targets[p.target];
+            if let Some(r) = &p.other_group {
+                target.refused = Some(r.clone());
+                continue;
+            }
+            if let (Some(why), None) = (&foreign, &target.refused) {
+                target.refused = Some(Refusal::new(Reason::ExternalAxis, why.clone()));
+                continue;
+            }
+            if let Some(u) = target.uses.first_mut() {
+                if p.kind != PosType::Pulse {
+                    frames_set_as_the_job_runs(&self.set_frames, p, u);
+                    if let (Some(g), PosType::Base | PosType::User) = (&base_axis, p.kind) {
+                        let what = if p.kind == PosType::Base {
+                            "POSTYPE BASE"
+                        } else {
+                            "POSTYPE USER (a user frame given in the base frame)"
+                        };
+                        u.base = None;
+                        u.undeclared.retain(|d| !d.base);
+                        u.unknown.push(format!(
+                            "{what} in a job whose group {g} has a base axis: the base frame stands where the base axis puts it as the job runs"
+                        ));
+                    }
+                }
+            }
             if p.direct {
                 continue;
             }
             if let Some(r) = p.refused_uses.first() {
-                let target = &mut self.targets[p.target];
                 if target.refused.is_none() {
                     target.refused = Some(Refusal::new(
                         r.reason,
@@ -625,6 +963,46 @@ impl<'s, 'a> Reader<'s, 'a> {
             first_motion: self.first_motion,
         }
     }
+}
+
+/// A position's frames the job sets as it runs (`MFRAME UF#(1) …`, `SETTOOL TL#(2) …`):
+/// the controller's tool file and user frame file hold the value set, in this run and the
+/// next, so every use of the position is in a frame no option gives.
+fn frames_set_as_the_job_runs(set_frames: &SetFrames, p: &Position, u: &mut FrameUse) {
+    let user = match (p.kind, p.user) {
+        (PosType::User, Some(n)) => Some(n),
+        _ => None,
+    };
+    let sets = [
+        user.map(|n| (true, n, format!("USER {n}"))),
+        Some((false, p.tool, format!("TOOL {}", p.tool))),
+    ];
+    for (is_user, n, what) in sets.into_iter().flatten() {
+        let set = set_frames
+            .get(&(is_user, Some(n)))
+            .or_else(|| set_frames.get(&(is_user, None)));
+        let Some((text, line)) = set else {
+            continue;
+        };
+        if is_user {
+            u.base = None;
+        } else {
+            u.tool = None;
+        }
+        u.undeclared.retain(|d| d.base != is_user);
+        u.unknown.push(format!(
+            "{what} is set as the job runs: {text} (line {line})"
+        ));
+    }
+}
+
+/// Whether an instruction starts as a motion does (`MOVJ`, `IMOV`, `SMOVL`, `EIMOVL`…).
+fn motion_like(op_upper: &[u8]) -> bool {
+    op_upper.starts_with(b"MOV")
+        || op_upper.starts_with(b"IMOV")
+        || op_upper.starts_with(b"SMOV")
+        || op_upper.starts_with(b"EIMOV")
+        || op_upper.starts_with(b"SYMOV")
 }
 
 /// A position's values: numbers separated by commas, to the end of the line.
@@ -979,6 +1357,148 @@ mod tests {
             }]
         );
         assert_eq!(p.first_motion, JOB.find("MOVJ C00000"));
+    }
+
+    /// A job's targets and, for each, its status and detail (a frame not known counted as
+    /// `frame_unknown`).
+    fn report(text: &str) -> Vec<(String, String, String)> {
+        let p = read(&Source::new("t.jbi", text.as_bytes()), &options()).unwrap();
+        p.targets
+            .iter()
+            .zip(statuses(&p))
+            .map(|(t, (name, status))| {
+                let unknown = t
+                    .uses
+                    .first()
+                    .map(|u| u.unknown.join("; "))
+                    .unwrap_or_default();
+                match (&t.refused, unknown.is_empty()) {
+                    (Some(r), _) => (name, status.to_string(), r.detail.clone()),
+                    (None, false) => (name, "frame_unknown".to_string(), unknown),
+                    (None, true) => (name, status.to_string(), String::new()),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn another_robot_groups_positions_are_that_robots() {
+        // Two robots and a station, as the pendant saves such a job: each line moves group
+        // 1 (RB1 and its station) and, after `+`, group 2 (RB2).
+        let job = "/JOB\r\n//NAME R1-R2-S1\r\n//POS\r\n///NPOS 4,0,2,0,0,0\r\n///TOOL 0\r\n\
+            ///POSTYPE ROBOT\r\n///RECTAN\r\n///RCONF 0,0,0,0,0,0,0,0\r\n\
+            C00000=1900.000,300.000,1200.000,0.0000,90.0000,0.0000\r\n///TOOL 1\r\n\
+            C00001=1910.000,285.000,1205.000,0.0000,90.0000,0.0000\r\n///TOOL 0\r\n\
+            C00002=1920.000,270.000,1210.000,0.0000,90.0000,0.0000\r\n///TOOL 1\r\n\
+            C00003=1930.000,255.000,1215.000,0.0000,90.0000,0.0000\r\n///TOOL 0\r\n///POSTYPE PULSE\r\n\
+            ///PULSE\r\nEC00000=-28898,221232\r\nEC00001=10741,151008\r\n//INST\r\n\
+            ///DATE 2023/02/06 16:23\r\n///ATTR SC,RW\r\n///GROUP1 RB1,ST1\r\n///GROUP2 RB2\r\nNOP\r\n\
+            MOVJ C00000 EC00000 VJ=10.00  +MOVJ C00001 VJ=10.00\r\n\
+            MOVL C00002 EC00001 V=11.0  +MOVL C00003 V=11.0\r\nEND\r\n";
+        let r = report(job);
+        let s: Vec<&str> = r.iter().map(|t| t.1.as_str()).collect();
+        // Robot 1's positions are corrected, its station's axis beside them moving the work,
+        // not the robot; robot 2's are robot 2's.
+        assert_eq!(
+            s,
+            ["cartesian", "external_axis", "cartesian", "external_axis"]
+        );
+        assert_eq!(
+            r[1].2,
+            "moved by MOVJ (line 27) of ///GROUP2 RB2 (line 25): another robot than robot 1 (RB1), the robot the table and the robot file describe"
+        );
+        // A job whose only robot is robot 2: none of its positions is the table's robot's.
+        let r2 = job
+            .replace(
+                "///GROUP1 RB1,ST1\r\n///GROUP2 RB2\r\n",
+                "///GROUP1 RB2\r\n",
+            )
+            .replace("  +MOVJ C00001 VJ=10.00", "")
+            .replace("  +MOVL C00003 V=11.0", "");
+        let r = report(&r2);
+        assert!(r.iter().all(|t| t.1 == "external_axis"), "{r:?}");
+        assert!(
+            r[0].2.contains("of ///GROUP1 RB2 (line 24): another robot"),
+            "{}",
+            r[0].2
+        );
+        assert!(
+            r[1].2
+                .starts_with("the job moves RB2 of ///GROUP1 RB2 (line 24), not robot 1 (RB1)"),
+            "{}",
+            r[1].2
+        );
+    }
+
+    #[test]
+    fn a_station_moved_alone_is_no_robot_motion() {
+        let job = "/JOB\r\n//NAME S1-MOV\r\n//POS\r\n///NPOS 0,0,2,0,0,0\r\n///TOOL 0\r\n\
+            ///POSTYPE PULSE\r\n///PULSE\r\nEC00000=-28898,221232\r\nEC00001=70924,108240\r\n//INST\r\n\
+            ///DATE 2023/02/06 16:42\r\n///ATTR SC,RW\r\n///GROUP1 ST1\r\nNOP\r\n\
+            MOVJ EC00000 VJ=10.00\r\nMOVJ EC00001 VJ=10.00\r\nEND\r\n";
+        let p = read(&Source::new("t.jbi", job.as_bytes()), &options()).unwrap();
+        // Not a robot's motion: the job is not said to move the robot.
+        assert_eq!(p.first_motion, None);
+        let r = report(job);
+        assert_eq!(r.len(), 2);
+        assert_eq!(
+            r[0].2,
+            "MOVJ EC00000 moves ///GROUP1 ST1 (line 13) alone: a station or base axis, no robot position the table corrects"
+        );
+    }
+
+    #[test]
+    fn frames_the_job_sets_as_it_runs_are_not_known() {
+        // As RoboDK's Motoman post writes a job: the user frame and the tool set by the job.
+        let job = "/JOB\r\n//NAME PROG1\r\n//POS\r\n///NPOS 3,0,0,0,0,0\r\n///USER 1\r\n///TOOL 1\r\n\
+            ///POSTYPE USER\r\n///RECTAN\r\n///RCONF 0,0,0,0,0,0,0,0\r\n\
+            C00000=300.000,100.000,450.000,0.00,90.00,-30.00\r\n///TOOL 2\r\n///POSTYPE ROBOT\r\n\
+            C00001=1900.000,300.000,1200.000,0.0000,90.0000,0.0000\r\n///TOOL 1\r\n\
+            C00002=1910.000,285.000,1205.000,0.0000,90.0000,0.0000\r\n//INST\r\n///DATE 2024/01/10 10:00\r\n\
+            ///COMM Generated using RoboDK\r\n///ATTR SC,RW,RJ\r\n///FRAME USER 1\r\n///GROUP1 RB1\r\nNOP\r\n\
+            SETE P00095 (1) 1600000\r\nMFRAME UF#(1) P00095 P00096 P00097\r\nSETE P00095 (3) 180000\r\n\
+            SETTOOL TL#(2) P00095\r\nMOVL C00000 V=100.0 PL=0\r\nMOVL C00001 V=100.0 PL=0\r\n\
+            MOVL C00002 V=100.0 PL=0\r\nEND\r\n";
+        let r = report(job);
+        assert_eq!(
+            r.iter().map(|t| t.1.as_str()).collect::<Vec<_>>(),
+            ["frame_unknown", "frame_unknown", "cartesian"]
+        );
+        assert_eq!(
+            r[0].2,
+            "USER 1 is set as the job runs: MFRAME UF#(1) P00095 P00096 P00097 (line 24)"
+        );
+        assert_eq!(
+            r[1].2,
+            "TOOL 2 is set as the job runs: SETTOOL TL#(2) P00095 (line 26)"
+        );
+        // A frame number chosen as the job runs may be any.
+        let r = report(&job.replace("TL#(2)", "TL#(I001)"));
+        assert_eq!(r[2].1, "frame_unknown");
+    }
+
+    #[test]
+    fn a_base_axis_sets_the_base_frame_apart() {
+        let job = "/JOB\r\n//NAME TRACK\r\n//POS\r\n///NPOS 2,1,0,0,0,0\r\n///TOOL 1\r\n\
+            ///POSTYPE BASE\r\n///RECTAN\r\n///RCONF 0,0,0,0,0,0,0,0\r\n\
+            C00000=1900.000,300.000,1200.000,0.0000,90.0000,0.0000\r\n///POSTYPE ROBOT\r\n\
+            C00001=1910.000,285.000,1205.000,0.0000,90.0000,0.0000\r\n///POSTYPE PULSE\r\n///PULSE\r\n\
+            BC00000=500000\r\n//INST\r\n///DATE 2024/01/10 10:00\r\n///ATTR SC,RW\r\n///GROUP1 RB1,BS1\r\n\
+            NOP\r\nMOVJ C00001 BC00000 VJ=50.00\r\nMOVL C00000 V=100.0\r\nMOVL C00001 V=100.0\r\nEND\r\n";
+        let r = report(job);
+        assert_eq!(r[0].1, "frame_unknown");
+        assert!(
+            r[0].2.starts_with(
+                "POSTYPE BASE in a job whose group ///GROUP1 RB1,BS1 (line 18) has a base axis"
+            ),
+            "{}",
+            r[0].2
+        );
+        // In the robot's own frame the position stands with the robot.
+        assert_eq!(r[1].1, "cartesian");
+        // Without the base axis in the group, the base frame is the robot's.
+        let r = report(&job.replace("RB1,BS1", "RB1"));
+        assert_eq!(r[0].1, "cartesian");
     }
 
     #[test]
