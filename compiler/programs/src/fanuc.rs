@@ -26,11 +26,15 @@
 //!
 //! Every motion statement of `/MN` is accounted for ([`MOTIONS`]): a position moved to by
 //! `J`, `L`, `C` (via and end) or `A` is corrected in its frames; a motion with an offset
-//! (`Offset`, `Offset,PR[n]`, `Tool_Offset`, `VOFFSET`, `INC`) is reported `relative`, one
+//! (`Offset`, `Offset,PR[n]`, `Tool_Offset` or the German `WKZ_Offset`, `VOFFSET`, `INC`,
+//! a `Touch Offset` region) is reported `relative`, one
 //! to a position register (`PR[n]`) or an indirect position `dynamic`, a remote TCP
 //! (`RTCP`) `frame_unknown`, a position the program does not hold `not_declared`. A
 //! position that moves a second motion group (`GP2`: a positioner, a rail) or an extended
-//! axis (`E1`) is `external_axis`.
+//! axis (`E1`) is `external_axis`; a position not taught (`X = ********`) `incomplete`; one
+//! only copied into a register (`PR[7]=P[30]`) `dynamic`. A frame the program sets
+//! (`UFRAME[1]=PR[9]`; any frame, for `UFRAME[R[9]]=…`) leaves the positions in it
+//! unknown.
 
 use std::collections::HashMap;
 
@@ -56,7 +60,7 @@ pub const MOTIONS: [(&str, usize, &str); 4] = [
 
 /// The options of a motion statement that offset its target as the controller runs, and
 /// why such a motion is reported rather than corrected.
-const OFFSETS: [(&str, Reason, &str); 5] = [
+const OFFSETS: [(&str, Reason, &str); 6] = [
     (
         "OFFSET",
         Reason::Relative,
@@ -64,6 +68,12 @@ const OFFSETS: [(&str, Reason, &str); 5] = [
     ),
     (
         "TOOL_OFFSET",
+        Reason::Relative,
+        "an offset in the tool frame the controller adds as it runs",
+    ),
+    (
+        // `Tool_Offset` on a German pendant.
+        "WKZ_OFFSET",
         Reason::Relative,
         "an offset in the tool frame the controller adds as it runs",
     ),
@@ -540,6 +550,10 @@ impl Sections {
     }
 }
 
+/// Frames a program sets as it runs, by kind (a user frame, true, or a tool) and number
+/// (`None`: chosen as it runs, `UFRAME[R[9]]`): the first statement that sets each.
+type SetFrames = HashMap<(bool, Option<u16>), usize>;
+
 /// What the `/MN` section says: the motions reported, the uses of each position, and the
 /// frames the program sets as it runs.
 #[derive(Default)]
@@ -549,10 +563,13 @@ struct Motions {
     truncated_at: Option<usize>,
     /// Per position number, the motions that use it.
     uses: HashMap<u32, Vec<Use>>,
-    /// Frames the program sets as it runs: (user, number) and the statement's place.
-    set_frames: Vec<(bool, u16, usize)>,
+    /// Frames the program sets as it runs: (user, number) and the statement's place; the
+    /// number `None` when the program chooses it as it runs (`UFRAME[R[9]]=PR[71]`).
+    set_frames: SetFrames,
     /// Motions to positions `/POS` may not hold, checked once it is read.
     pending: Vec<(u32, Use)>,
+    /// The `Touch Offset PR[n]` region in force: the statement and its place.
+    touch_offset: Option<(String, usize)>,
 }
 
 impl Motions {
@@ -573,22 +590,53 @@ impl Motions {
             return Ok(());
         }
         let (words, designators) = statement.scan(src)?;
+        let starts_with_word = words.first().is_some_and(|w| w.start == at);
+        if !starts_with_word {
+            // An assignment (`PR[7]=P[30]`): a position it names is used, as the program
+            // runs, through what it is assigned to.
+            self.values_used(src, at, statement, &designators);
+            return Ok(());
+        }
         let Some(first) = words.first() else {
             return Ok(());
         };
         let word = &bytes[first.start..first.end];
-        // `UFRAME[2]=PR[1]`, `UTOOL[1]=…`: a frame set as the program runs.
-        if word.eq_ignore_ascii_case(b"UFRAME") || word.eq_ignore_ascii_case(b"UTOOL") {
+        // `UFRAME[2]=PR[1]`, `UTOOL[1]=…`: a frame set as the program runs (the German
+        // pendant's `BENUTZER[…]` and `WKZ[…]`, as its `BENUTZER_NUM` and `WKZ_NUM`); an
+        // index computed as it runs (`UFRAME[R[9]]`, `UTOOL[AR[1]]`) may be any frame.
+        let user_frame =
+            word.eq_ignore_ascii_case(b"UFRAME") || word.eq_ignore_ascii_case(b"BENUTZER");
+        if user_frame || word.eq_ignore_ascii_case(b"UTOOL") || word.eq_ignore_ascii_case(b"WKZ") {
             let open = first.end;
             if bytes.get(open) == Some(&b'[') {
                 let digits_end = (open + 1..first_end)
                     .find(|i| !bytes[*i].is_ascii_digit())
                     .unwrap_or(first_end);
-                if let Ok(n) = src.text(open + 1, digits_end).parse::<u16>() {
-                    self.set_frames
-                        .push((word.eq_ignore_ascii_case(b"UFRAME"), n, at));
-                }
+                let direct = matches!(bytes.get(digits_end), Some(b']' | b':'));
+                let number = src.text(open + 1, digits_end).parse::<u16>().ok();
+                self.set_frames
+                    .entry((user_frame, number.filter(|_| direct)))
+                    .or_insert(at);
             }
+            return Ok(());
+        }
+        // `Touch Offset PR[10]` … `Touch Offset End`: the motions between are offset by
+        // what touch sensing found.
+        if word.eq_ignore_ascii_case(b"TOUCH")
+            && words
+                .get(1)
+                .is_some_and(|w| bytes[w.start..w.end].eq_ignore_ascii_case(b"OFFSET"))
+        {
+            let end = words
+                .get(2)
+                .is_some_and(|w| bytes[w.start..w.end].eq_ignore_ascii_case(b"END"));
+            self.touch_offset = if end {
+                None
+            } else {
+                let last = statement.ranges.last().map_or(first_end, |r| r.1);
+                let text = src.text(at, at + bytes[at..last.max(at)].trim_ascii_end().len());
+                Some((text, at))
+            };
             return Ok(());
         }
         let letter = word.len() == 1 && word[0].is_ascii_uppercase();
@@ -607,6 +655,31 @@ impl Motions {
             self.motion(src, at, &words, &designators, limit);
         }
         Ok(())
+    }
+
+    /// The positions an assignment at `at` names (`PR[7]=P[30]`): used as the program runs
+    /// through the register (or whatever it assigns), not moved to as written.
+    fn values_used(
+        &mut self,
+        src: &Source,
+        at: usize,
+        statement: &Statement,
+        designators: &[Designator],
+    ) {
+        let last = statement.ranges.last().map_or(at, |r| r.1);
+        let text = src.text(at, at + src.bytes[at..last.max(at)].trim_ascii_end().len());
+        for d in designators.iter().filter(|d| !d.register && d.at > at) {
+            if let Some(n) = d.number {
+                self.uses.entry(n).or_default().push(Use {
+                    at,
+                    motion: text.clone(),
+                    refused: Some((
+                        Reason::Dynamic,
+                        "the position is copied as the program runs, and moved to through what it is copied into (a position register the program may change), not as written".to_string(),
+                    )),
+                });
+            }
+        }
     }
 
     /// A motion at `at` (its words and designators): each position it moves to, used or
@@ -640,7 +713,15 @@ impl Motions {
             });
             return;
         }
-        let offset = motion_offset(src, words, designators);
+        let offset = motion_offset(src, words, designators).or_else(|| {
+            self.touch_offset.as_ref().map(|(text, place)| {
+                let (line, column) = src.location(*place);
+                (
+                    Reason::Relative,
+                    format!("inside {text} ({line}:{column}): the offset touch sensing finds, which the controller adds as it runs"),
+                )
+            })
+        });
         for d in moves.iter().take(count) {
             let u = Use {
                 at: d.at,
@@ -761,7 +842,14 @@ fn motion_offset(
 ) -> Option<(Reason, String)> {
     words.iter().skip(1).find_map(|w| {
         let text = src.bytes[w.start..w.end].to_ascii_uppercase();
-        OFFSETS.iter().find(|o| o.0.as_bytes() == text).map(|o| {
+        // Any other option named an offset (another pendant language's `Tool_Offset`).
+        let other = (text.ends_with(b"_OFFSET") || text.ends_with(b"OFFSET")).then_some((
+            "",
+            Reason::Relative,
+            "an offset option: an offset the controller adds as it runs",
+        ));
+        let known = OFFSETS.iter().find(|o| o.0.as_bytes() == text).copied();
+        known.or(other).map(|o| {
             let argument = designators
                 .iter()
                 .find(|d| d.argument && d.at > w.end && d.at <= w.end + 2);
@@ -821,6 +909,8 @@ enum FieldValue {
     Text(usize, usize),
     /// `X =  1234.567  mm`.
     Number(Number),
+    /// `X = ********  mm`: not taught; where the stars start.
+    Untaught(usize),
 }
 
 /// A position's fields, by group: the group's number, where it is written, its fields.
@@ -832,7 +922,7 @@ fn position(
     at: usize,
     end: usize,
     options: &FanucOptions,
-    set_frames: &[(bool, u16, usize)],
+    set_frames: &SetFrames,
 ) -> Result<(u32, ProgramTarget, usize), Error> {
     let (number, brace, body_end) = position_head(src, at, end)?;
     let mut next = body_end + 1;
@@ -943,6 +1033,16 @@ fn field_value(
         }
         Some(b'=') if i < body_end => {
             let v = skip_blanks(bytes, i + 1, body_end);
+            if bytes.get(v) == Some(&b'*') && v < body_end {
+                // `X = ********  mm`: a position not taught.
+                let stars = bytes[v..body_end]
+                    .iter()
+                    .take_while(|b| **b == b'*')
+                    .count();
+                i = skip_blanks(bytes, v + stars, body_end);
+                i = src.identifier_end(i, b"").min(body_end).max(i);
+                return Ok((FieldValue::Untaught(v), i));
+            }
             let n = parse_number(&bytes[..body_end], v).ok_or_else(|| {
                 src.error(
                     v,
@@ -997,7 +1097,7 @@ fn group_refusal(src: &Source, groups: &[Group], fields: &[Field]) -> Option<Ref
 struct FrameFields<'s, 'a> {
     src: &'s Source<'a>,
     options: &'s FanucOptions,
-    set_frames: &'s [(bool, u16, usize)],
+    set_frames: &'s SetFrames,
 }
 
 impl FrameFields<'_, '_> {
@@ -1013,6 +1113,16 @@ impl FrameFields<'_, '_> {
         let Some((_, _, fields)) = groups.iter().find(|g| g.0 == 1) else {
             return target(TargetKind::Incomplete("no group 1 (GP1) data".into()));
         };
+        if let Some((f, place)) = fields.iter().find_map(|f| match f.value {
+            FieldValue::Untaught(place) => Some((f, place)),
+            _ => None,
+        }) {
+            let (line, column) = self.src.location(place);
+            return target(TargetKind::Incomplete(format!(
+                "not taught: {} = ******** ({line}:{column}), as the pendant writes a position never recorded",
+                f.name
+            )));
+        }
         let refused = group_refusal(self.src, groups, fields);
         let cartesian: Vec<Option<Number>> = ["X", "Y", "Z", "W", "P", "R"]
             .iter()
@@ -1104,11 +1214,26 @@ impl FrameFields<'_, '_> {
             unknown.push(format!("{what} {text}: not a frame number"));
             return None;
         };
-        if let Some((_, _, place)) = self.set_frames.iter().find(|s| s.0 == user && s.1 == n) {
+        let set = self
+            .set_frames
+            .get(&(user, Some(n)))
+            .map(|place| (true, place))
+            .or_else(|| {
+                // Frame 0 (the world, the faceplate) is never set.
+                (n != 0)
+                    .then(|| self.set_frames.get(&(user, None)))
+                    .flatten()
+                    .map(|place| (false, place))
+            });
+        if let Some((direct, place)) = set {
             let (line, column) = self.src.location(*place);
-            unknown.push(format!(
-                "{what} {n} is set as the program runs ({line}:{column})"
-            ));
+            unknown.push(if direct {
+                format!("{what} {n} is set as the program runs ({line}:{column})")
+            } else {
+                format!(
+                    "{what} {n} may be set as the program runs: the {what} set at {line}:{column} is chosen by a register"
+                )
+            });
             return None;
         }
         if n == 0 {
@@ -1296,6 +1421,162 @@ mod tests {
         assert_eq!(
             p2.uses[0].unknown,
             ["user frame 1 is set as the program runs (5:8)"]
+        );
+    }
+
+    fn statuses(text: &str) -> Vec<(String, String, String)> {
+        let p = read(&Source::new("t.ls", text.as_bytes()), &options()).unwrap();
+        p.targets
+            .iter()
+            .map(|t| {
+                let detail = match (&t.refused, &t.kind) {
+                    (Some(r), _) => r.detail.clone(),
+                    (None, TargetKind::Incomplete(why)) => why.clone(),
+                    _ => t
+                        .uses
+                        .first()
+                        .map(|u| u.unknown.join("; "))
+                        .unwrap_or_default(),
+                };
+                (t.name.clone(), status(t), detail)
+            })
+            .collect()
+    }
+
+    /// A program's `/MN` statements over positions `P[1]`-`P[n]`, each in user frame 1 and
+    /// tool frame 1 but `P[1]` in user frame 0, as a pendant saves it.
+    fn program(head: &str, mn: &[&str], n: u32) -> String {
+        let mut text = format!("/PROG  T\n/ATTR\n{head}/MN\n");
+        for (k, m) in mn.iter().enumerate() {
+            text.push_str(&format!("{:>4}:{m} ;\n", k + 1));
+        }
+        text.push_str("/POS\n");
+        for k in 1..=n {
+            let uf = u32::from(k != 1);
+            text.push_str(&format!(
+                "P[{k}]{{\n   GP1:\n\tUF : {uf}, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\
+                 \tX =   {}.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\
+                 \tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg\n}};\n",
+                100 + k
+            ));
+        }
+        text.push_str("/END\n");
+        text
+    }
+
+    #[test]
+    fn a_german_pendants_tool_offset_is_relative() {
+        let head = "EIGN.\t\t= AUROM;\nKOMMENTAR\t= \"Posicion\";\nDEFAULT_GRUP\t= 1,*,*,*,*;\n";
+        let text = program(
+            head,
+            &[
+                "  WKZ_NUM=1",
+                "  BENUTZER_NUM=0",
+                "L P[1] 100mm/sek CNT0 ACC100",
+                "L P[2] 100mm/sek CNT0 ACC100 WKZ_Offset ,PR[2]",
+                "L P[3] 100mm/sek CNT0 ACC100 Interrupt,LABEL[1]",
+                "L P[4] 100mm/sek FINE Werkzeug_Offset,PR[3]",
+            ],
+            4,
+        );
+        let s = statuses(&text);
+        let p: Vec<(&str, &str)> = s.iter().map(|t| (t.0.as_str(), t.1.as_str())).collect();
+        assert_eq!(
+            p,
+            [
+                ("L P[2]", "relative"),
+                ("L P[4]", "relative"),
+                ("P[1]", "cartesian"),
+                ("P[2]", "relative"),
+                ("P[3]", "cartesian"),
+                ("P[4]", "relative"),
+            ]
+        );
+        assert_eq!(
+            s[0].2,
+            "WKZ_Offset ,PR[2]: an offset in the tool frame the controller adds as it runs"
+        );
+    }
+
+    #[test]
+    fn a_frame_chosen_by_a_register_may_be_any() {
+        let mn = [
+            "  UFRAME_NUM=0",
+            "L P[1] 100mm/sec FINE",
+            "  UFRAME[R[9]]=PR[71:newFRAME]",
+            "L P[2] 100mm/sec FINE",
+        ];
+        let s = statuses(&program("", &mn, 2));
+        // User frame 0, the world, is never set; user frame 1 may be the one set.
+        assert_eq!(s[0].1, "cartesian");
+        assert_eq!(s[1].1, "frame_unknown");
+        assert_eq!(
+            s[1].2,
+            "user frame 1 may be set as the program runs: the user frame set at 6:8 is chosen by a register"
+        );
+        let mut mn = mn;
+        mn[2] = "  UTOOL[AR[1]]=PR[8]";
+        let s = statuses(&program("", &mn, 2));
+        assert!(s.iter().all(|t| t.1 == "frame_unknown"), "{s:?}");
+        assert!(s[0].2.starts_with("tool frame 1 may be set"), "{}", s[0].2);
+    }
+
+    #[test]
+    fn an_untaught_position_is_incomplete_and_the_others_read() {
+        let text = program("", &["L P[1] 100mm/sec FINE", "L P[2] 100mm/sec FINE"], 2)
+            .replacen(
+                "\tX =   102.000  mm,\tY =   -50.000  mm,\tZ =    20.000  mm,\n\
+                 \tW =  -180.000 deg,\tP =      .000 deg,\tR =    90.000 deg",
+                "\tX = ********  mm,\tY = ********  mm,\tZ = ********  mm,\n\
+                 \tW = ******** deg,\tP = ******** deg,\tR = ******** deg",
+                1,
+            )
+            .replacen("UF : 1, UT : 1", "UF : F, UT : F", 1);
+        let s = statuses(&text);
+        assert_eq!(s[0].1, "cartesian");
+        assert_eq!(s[1].1, "incomplete");
+        assert_eq!(
+            s[1].2,
+            "not taught: X = ******** (16:6), as the pendant writes a position never recorded"
+        );
+    }
+
+    #[test]
+    fn touch_offset_regions_and_copies_into_registers_are_reported() {
+        let mn = [
+            "L P[1] 100mm/sec FINE",
+            "  Touch Offset PR[10]",
+            "L P[2] 100mm/sec FINE",
+            "  Touch Offset End",
+            "L P[3] 100mm/sec FINE",
+            "  PR[7]=P[4]",
+            "  PR[7,3]=PR[7,3]+50",
+            "L PR[7] 100mm/sec FINE",
+            "  PR[8]=P[3]",
+        ];
+        let s = statuses(&program("", &mn, 4));
+        let p: Vec<(&str, &str)> = s.iter().map(|t| (t.0.as_str(), t.1.as_str())).collect();
+        assert_eq!(
+            p,
+            [
+                ("L P[2]", "relative"),
+                ("L PR[7]", "dynamic"),
+                ("P[1]", "cartesian"),
+                ("P[2]", "relative"),
+                // Moved to directly as well: corrected.
+                ("P[3]", "cartesian"),
+                ("P[4]", "dynamic"),
+            ]
+        );
+        assert_eq!(
+            s[0].2,
+            "inside Touch Offset PR[10] (5:8): the offset touch sensing finds, which the controller adds as it runs"
+        );
+        assert!(
+            s[5].2
+                .starts_with("used only by PR[7]=P[4] (9:8): the position is copied"),
+            "{}",
+            s[5].2
         );
     }
 
