@@ -1111,7 +1111,20 @@ impl FrameFields<'_, '_> {
             refused: None,
         };
         let Some((_, _, fields)) = groups.iter().find(|g| g.0 == 1) else {
-            return target(TargetKind::Incomplete("no group 1 (GP1) data".into()));
+            let kind = TargetKind::Incomplete("no group 1 (GP1) data".into());
+            // Another group alone (a second robot's program, `GP2:`): not the robot the
+            // table and the robot file describe.
+            let refused = groups.first().map(|(g, gat, _)| {
+                let (line, _) = self.src.location(*gat);
+                Refusal::new(
+                    Reason::ExternalAxis,
+                    format!("GP{g} (line {line}) alone: the position moves motion group {g} (another robot, a positioner), not group 1, the robot the table and the robot file describe"),
+                )
+            });
+            return ProgramTarget {
+                refused,
+                ..target(kind)
+            };
         };
         if let Some((f, place)) = fields.iter().find_map(|f| match f.value {
             FieldValue::Untaught(place) => Some((f, place)),
@@ -1495,6 +1508,23 @@ mod tests {
         assert_eq!(
             s[0].2,
             "WKZ_Offset ,PR[2]: an offset in the tool frame the controller adds as it runs"
+        );
+    }
+
+    #[test]
+    fn a_second_groups_position_alone_is_not_the_tables_robots() {
+        // A program of robot 2 on a two-robot controller, as ROBOGUIDE writes it.
+        let text = program(
+            "DEFAULT_GROUP\t= *,1,*,*,*;\n",
+            &["L P[1] 100mm/sec FINE"],
+            1,
+        )
+        .replace("   GP1:", "   GP2:");
+        let s = statuses(&text);
+        assert_eq!(s[0].1, "external_axis");
+        assert_eq!(
+            s[0].2,
+            "GP2 (line 8) alone: the position moves motion group 2 (another robot, a positioner), not group 1, the robot the table and the robot file describe"
         );
     }
 
