@@ -23,7 +23,7 @@ const FIXTURES: [(&str, &[u8]); 2] = [
 const FRAMES: &[u8] = include_bytes!("../../../tests/programs/fanuc_sysframe.va");
 
 /// Bytes that matter to the reader, and some that do not.
-const ALPHABET: &[u8] = b"0123456789.-+eE{}[](),;:=!/'\"\\ \t\r\nPRJLCAXYZWUTFGN\xdf\x00";
+const ALPHABET: &[u8] = b"0123456789.-+eE{}[](),;:=!/'\"\\ \t\r\nPRJLCAXYZWUTFGN*\xdf\x00";
 
 fn mutations() -> impl Strategy<Value = Vec<(f64, u8, usize)>> {
     prop::collection::vec((0.0..1.0f64, 0..3u8, 0..ALPHABET.len()), 1..8)
