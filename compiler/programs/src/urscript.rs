@@ -344,15 +344,13 @@ impl Script {
         }];
         let mut lexer = Lexer::new(src, URSCRIPT);
         while let Some(line) = lexer.line() {
-            if let [d, name, ..] = line.as_slice() {
-                if (word(src, d, "def") || word(src, d, "thread")) && name.kind == Tok::Ident {
-                    let n = src.text(name.start, name.end);
-                    names.entry(n.clone()).or_insert(funcs.len());
-                    funcs.push(Func {
-                        name: n,
-                        ..Func::default()
-                    });
-                }
+            if let Some(name) = func_header(src, &line) {
+                let n = src.text(name.start, name.end);
+                names.entry(n.clone()).or_insert(funcs.len());
+                funcs.push(Func {
+                    name: n,
+                    ..Func::default()
+                });
             }
         }
         Script {
@@ -425,7 +423,7 @@ impl Script {
                 });
                 script.blocks.len() - 1
             };
-            if header && (word(src, first, "def") || word(src, first, "thread")) {
+            if func_header(src, &line).is_some() && next_func < self.funcs.len() {
                 let f = next_func;
                 next_func += 1;
                 let b = open(self, false, f);
@@ -1293,6 +1291,20 @@ fn balanced(src: &Source, line: &[Token]) -> Result<(), Error> {
         ));
     }
     Ok(())
+}
+
+/// The name of a `def NAME(…):` or `thread NAME():` line.
+fn func_header<'t>(src: &Source, line: &'t [Token]) -> Option<&'t Token> {
+    match line {
+        [d, name, .., colon]
+            if (word(src, d, "def") || word(src, d, "thread"))
+                && name.kind == Tok::Ident
+                && colon.is(b':') =>
+        {
+            Some(name)
+        }
+        _ => None,
+    }
 }
 
 /// The parameters of a `def NAME(a, b=1):` line.
