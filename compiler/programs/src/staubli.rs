@@ -150,6 +150,7 @@ impl Application {
         let mut data: Vec<(usize, PathBuf)> = Vec::new();
         let mut programs = Vec::new();
         let mut saw_project = false;
+        let mut old_project: Option<String> = None;
         let mut xml = Xml::new(&src);
         while let Some(tag) = xml.next()? {
             if tag.closing {
@@ -158,6 +159,10 @@ impl Application {
             let file = tag.attribute(&src, b"file");
             match tag.local_name(&bytes) {
                 b"Project" => saw_project = true,
+                b"project" => old_project = Some(String::new()),
+                b"parameters" if old_project.is_some() => {
+                    old_project = tag.attribute(&src, b"version").map(|v| v.1);
+                }
                 b"Program" => {
                     let (at, file) =
                         file.ok_or_else(|| src.error(tag.start, "a <Program> without its file"))?;
@@ -175,6 +180,9 @@ impl Application {
             }
         }
         if !saw_project {
+            if let Some(version) = old_project {
+                return Err(src.error(0, older_format("project", "<project>", &version)));
+            }
             return Err(src.error(0, "not a VAL3 project: no <Project> element"));
         }
         match data.as_slice() {
@@ -566,6 +574,9 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
     let mut saw_database = false;
     while let Some(tag) = xml.next()? {
         let local = tag.local_name(bytes);
+        if local == b"dataList" && !saw_database {
+            return Err(src.error(tag.start, older_format("data file", "<dataList>", "")));
+        }
         if tag.closing {
             close(src, &tag, &mut open)?;
             if in_data.is_some_and(|(_, depth)| depth == open.len()) {
@@ -625,6 +636,19 @@ fn read_data(src: &Source) -> Result<Datas, Error> {
         return Err(src.error(0, "not a VAL3 data file: no <Database> element"));
     }
     Ok(Datas { list: data, names })
+}
+
+/// Why a file of the format of Stäubli Robotics Suite 6 (`<project>`, `<dataList>`,
+/// `<programList>`, version s6.x) is not read.
+fn older_format(what: &str, element: &str, version: &str) -> String {
+    let version = if version.is_empty() {
+        String::new()
+    } else {
+        format!(", version {version}")
+    };
+    format!(
+        "a VAL3 {what} in the format of Stäubli Robotics Suite 6 ({element}{version}), which this reader does not read: it reads the format of SRS 7 and later (<Project>, <Database> with <Data> and <Value>, <Programs>)"
+    )
 }
 
 /// A closing tag checked against the element it closes, which it pops.
@@ -942,6 +966,13 @@ struct Code {
     named: std::collections::HashMap<String, String>,
     /// Names local to a program (its locals and parameters), with the program.
     locals: std::collections::HashMap<String, String>,
+    /// Each program's locals and parameters: (program, name).
+    program_locals: std::collections::HashSet<(String, String)>,
+    /// Data whose frame `link(…)` sets as the programs run: the key (`None`: any) and the
+    /// place.
+    linked: HashMap<String, Vec<(Option<String>, String)>>,
+    /// The calls of programs: `call NAME(arguments)`.
+    calls: Vec<Call>,
     /// The application's programs' names.
     programs: Vec<String>,
 }
@@ -954,6 +985,15 @@ impl Code {
             .push((r.key, place));
     }
 
+    /// Where the code first links `name[key]` to a frame, if it does.
+    fn linked_at(&self, name: &str, key: &str) -> Option<&str> {
+        self.linked
+            .get(name)?
+            .iter()
+            .find(|(k, _)| k.as_deref().is_none_or(|k| k == key))
+            .map(|(_, at)| at.as_str())
+    }
+
     /// Where the code first assigns `name[key]`, if it does.
     fn assigned_at(&self, name: &str, key: &str) -> Option<&str> {
         self.assigned
@@ -964,9 +1004,20 @@ impl Code {
     }
 }
 
+/// A call of a program: `call pick(pPart[2])`.
+struct Call {
+    program: String,
+    place: String,
+    /// The call as written (its first 80 characters).
+    text: String,
+    args: Vec<String>,
+}
+
 struct Motion {
     /// `movej`, `movel`, `movec`, or the other motion-looking call.
     instruction: String,
+    /// The program it is in.
+    program: String,
     place: String,
     /// The call as written, for messages (its first 80 characters).
     text: String,
@@ -991,6 +1042,7 @@ fn read_code(programs: &[Source], code: &mut Code) -> Result<(), Error> {
         let bytes = src.bytes;
         let mut xml = Xml::new(src);
         let mut program = String::new();
+        let mut starts: Vec<(usize, String)> = Vec::new();
         let mut saw_programs = false;
         while let Some(tag) = xml.next()? {
             if tag.closing {
@@ -998,14 +1050,19 @@ fn read_code(programs: &[Source], code: &mut Code) -> Result<(), Error> {
             }
             match tag.local_name(bytes) {
                 b"Programs" => saw_programs = true,
+                b"programList" if !saw_programs => {
+                    return Err(src.error(tag.start, older_format("program", "<programList>", "")));
+                }
                 b"Program" => {
                     if let Some((_, name)) = tag.attribute(src, b"name") {
                         code.programs.push(name.clone());
+                        starts.push((tag.start, name.clone()));
                         program = name;
                     }
                 }
                 b"Local" | b"Parameter" => {
                     if let Some((_, name)) = tag.attribute(src, b"name") {
+                        code.program_locals.insert((program.clone(), name.clone()));
                         code.locals.entry(name).or_insert_with(|| program.clone());
                     }
                 }
@@ -1016,14 +1073,16 @@ fn read_code(programs: &[Source], code: &mut Code) -> Result<(), Error> {
             return Err(src.error(0, "not a VAL3 program: no <Programs> element"));
         }
         for (start, end) in xml.cdata.clone() {
-            read_statements(src, start, end, code);
+            let k = starts.partition_point(|(at, _)| *at < start);
+            let program = k.checked_sub(1).map_or("", |k| starts[k].1.as_str());
+            read_statements(src, start, end, code, program);
         }
     }
     Ok(())
 }
 
 /// Reads the code between `start` and `end` of `src`: its motions, assignments and names.
-fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
+fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code, program: &str) {
     let bytes = &src.bytes[..end];
     let place = |at: usize| {
         let (line, column) = src.location(at);
@@ -1069,8 +1128,31 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
             j += 1;
         }
         let is_call = bytes.get(j) == Some(&b'(');
-        let motion = MOTIONS.iter().find(|m| m.0 == word);
-        let looks = word.to_ascii_lowercase().starts_with("move") || word.starts_with("alterMove");
+        // RoboDK's `$Xmovel(…)`: a call of a library's motion, named with its `$`.
+        let dollar = word_start > start && bytes[word_start - 1] == b'$';
+        let lower = word.to_ascii_lowercase();
+        let motion = MOTIONS.iter().find(|m| m.0 == word).filter(|_| !dollar);
+        let looks = lower.starts_with("move")
+            || word.starts_with("alterMove")
+            || (dollar && lower.contains("move"));
+        let word = if dollar { format!("${word}") } else { word };
+        let word_start = if dollar { word_start - 1 } else { word_start };
+        if called && is_call {
+            if let Some((args, close)) = split_arguments(bytes, j + 1) {
+                code.calls.push(Call {
+                    program: word.clone(),
+                    place: place(word_start),
+                    text: format!(
+                        "call {}",
+                        String::from_utf8_lossy(&bytes[word_start..close.min(word_start + 80)])
+                    ),
+                    args: args
+                        .iter()
+                        .map(|(s, e)| String::from_utf8_lossy(&bytes[*s..*e]).into_owned())
+                        .collect(),
+                });
+            }
+        }
         if is_call && !called && (motion.is_some() || looks) && !code.programs.contains(&word) {
             let Some((args, close)) = split_arguments(bytes, j + 1) else {
                 i = j + 1;
@@ -1084,6 +1166,7 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
                 .collect();
             let mut m = Motion {
                 instruction: word.clone(),
+                program: program.to_string(),
                 place: place(word_start),
                 text,
                 targets: Vec::new(),
@@ -1113,6 +1196,19 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code) {
             // (the tool, the motion descriptor).
             i = j + 1;
             continue;
+        }
+        if word == "link" && is_call {
+            // link(point or frame, frame): its frame set as the program runs.
+            if let Some((args, _)) = split_arguments(bytes, j + 1) {
+                if let Some((s, e)) = args.first() {
+                    if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
+                        code.linked
+                            .entry(r.name)
+                            .or_default()
+                            .push((r.key, place(*s)));
+                    }
+                }
+            }
         }
         if word == "setFrame" && is_call {
             // setFrame(origin, x, xy, frame): the frame computed as the program runs.
@@ -1193,9 +1289,41 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
     }
     let MotionWalk {
         mut uses,
-        refused_motions,
+        mut refused_motions,
+        local_movers,
         ..
     } = walk;
+    // The values a call hands to a program that moves to its locals or parameters: not in
+    // the data, so not corrected; each call reported.
+    for call in &code.calls {
+        let Some((motion, at)) = local_movers.get(&call.program) else {
+            continue;
+        };
+        let passes_values = call.args.iter().any(|a| match argument(a) {
+            Argument::Data(r) => data.index(&r.name).is_none(),
+            _ => true,
+        });
+        if !passes_values {
+            continue;
+        }
+        refused_motions.push(ProgramTarget {
+            name: "call".into(),
+            offset: 0,
+            kind: TargetKind::Motion,
+            uses: Vec::new(),
+            refused: Some(Refusal::new(
+                Reason::Dynamic,
+                format!(
+                    "{} at {}: {} moves to what it is handed ({} at {}), values the data does not hold: not corrected",
+                    crate::escape_controls(&call.text),
+                    call.place,
+                    call.program,
+                    crate::escape_controls(motion),
+                    at
+                ),
+            )),
+        });
+    }
     let (mut targets, mut truncated_at) = data_targets(&data, &code, &mut uses, limit);
     if truncated_at.is_none() {
         targets.extend(refused_motions);
@@ -1219,6 +1347,9 @@ struct MotionWalk<'d> {
     /// Per data, per value: the uses.
     uses: Vec<Vec<Uses>>,
     refused_motions: Vec<ProgramTarget>,
+    /// The programs that move to a local variable or parameter of theirs: the first such
+    /// motion and its place.
+    local_movers: HashMap<String, (String, String)>,
 }
 
 impl<'d> MotionWalk<'d> {
@@ -1231,6 +1362,7 @@ impl<'d> MotionWalk<'d> {
                 .map(|d| d.values.iter().map(|_| Uses::default()).collect())
                 .collect(),
             refused_motions: Vec::new(),
+            local_movers: HashMap::new(),
         }
     }
 
@@ -1310,6 +1442,26 @@ impl<'d> MotionWalk<'d> {
                 return;
             }
         };
+        // A local or parameter of the motion's program hides the global of its name.
+        let local = code
+            .program_locals
+            .contains(&(m.program.clone(), r.name.clone()));
+        if local || (data.index(&r.name).is_none() && code.locals.contains_key(&r.name)) {
+            let program = if local {
+                m.program.clone()
+            } else {
+                code.locals[&r.name].clone()
+            };
+            self.local_movers
+                .entry(program.clone())
+                .or_insert_with(|| (m.text.clone(), m.place.clone()));
+            let why = format!(
+                "{} is a local variable or parameter of {program}, set as the program runs",
+                r.name
+            );
+            self.refuse_motion(m, 0, Reason::Dynamic, why);
+            return;
+        }
         let Some(d) = data.index(&r.name) else {
             let (reason, why) = match code.locals.get(&r.name) {
                 Some(p) => (
@@ -1369,7 +1521,7 @@ impl<'d> MotionWalk<'d> {
             let u = &mut self.uses[d][k];
             u.direct = true;
             if item.kind == Kind::Point {
-                let frame = point_frames(data, code, &item.values[k], m, tool);
+                let frame = point_frames(data, code, &item.name, &item.values[k], m, tool);
                 if !u.frames.contains(&frame) {
                     u.frames.push(frame);
                 }
@@ -1383,6 +1535,7 @@ impl<'d> MotionWalk<'d> {
 fn point_frames(
     data: &Datas,
     code: &Code,
+    name: &str,
     value: &Value,
     m: &Motion,
     tool: Option<&Result<Isometry3<f64>, Missing>>,
@@ -1403,6 +1556,12 @@ fn point_frames(
         }),
         Some(Err(Missing::Unknown(why))) => frame.unknown.push(why.clone()),
         None => {}
+    }
+    if let Some(at) = code.linked_at(name, &value.key) {
+        frame.unknown.push(format!(
+            "{name}[{}] is linked to a frame as the program runs ({at})",
+            value.key
+        ));
     }
     match father_frame(data, code, value.father.as_ref().map(|f| f.0.as_str()), 0) {
         Ok(b) => frame.base = Some(b),
@@ -1540,6 +1699,11 @@ fn father_frame(
     if let Some(at) = code.assigned_at(&d.name, &key) {
         return Err(Missing::Unknown(format!(
             "frame {father} is set as the program runs ({at})"
+        )));
+    }
+    if let Some(at) = code.linked_at(&d.name, &key) {
+        return Err(Missing::Unknown(format!(
+            "frame {father} is linked to another frame as the program runs ({at})"
         )));
     }
     let up = father_frame(
@@ -1981,5 +2145,170 @@ end]]></Code>\r\n\
             err,
             "s.pgx:1:35: a CDATA section not closed (']]>' missing)"
         );
+    }
+
+    /// RoboDK's VAL3 data: three points in a frame of the cell, a tool.
+    const RDK_DTX: &str = "<?xml version=\"1.0\" encoding=\"utf-8\" ?>\n\
+<Database xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xmlns=\"http://www.staubli.com/robotics/VAL3/Data/2\">\n\
+  <Datas>\n\
+    <Data name=\"fPartReal\" access=\"public\" xsi:type=\"array\" type=\"frame\" size=\"1\">\n\
+      <Value key=\"0\" x=\"1500.000\" y=\"0.000\" z=\"500.000\" rx=\"0.000\" ry=\"0.000\" rz=\"0.000\" fatherId=\"world[0]\" />\n\
+    </Data>\n\
+    <Data name=\"pPoint\" access=\"public\" xsi:type=\"array\" type=\"pointRx\" size=\"3\">\n\
+      <Value key=\"0\" x=\"250.000\" y=\"40.000\" z=\"450.000\" rx=\"90.000\" ry=\"60.000\" rz=\"-90.000\" fatherId=\"fPartReal[0]\" />\n\
+      <Value key=\"1\" x=\"300.000\" y=\"40.000\" z=\"450.000\" rx=\"90.000\" ry=\"60.000\" rz=\"-90.000\" fatherId=\"world[0]\" />\n\
+      <Value key=\"2\" x=\"300.000\" y=\"90.000\" z=\"450.000\" rx=\"90.000\" ry=\"60.000\" rz=\"-90.000\" fatherId=\"world[0]\" />\n\
+    </Data>\n\
+  </Datas>\n\
+</Database>\n";
+
+    /// A RoboDK program `name` with the parameters and locals `decl` and the code `code`.
+    fn rdk_pgx(name: &str, decl: &str, code: &str) -> String {
+        format!(
+            "<?xml version=\"1.0\" encoding=\"utf-8\" ?>\n\
+<Programs xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" xmlns=\"http://www.staubli.com/robotics/VAL3/Program/2\">\n\
+  <Program name=\"{name}\" access=\"public\">\n{decl}\
+    <Code><![CDATA[\nbegin\n{code}end\n      ]]></Code>\n  </Program>\n</Programs>\n"
+        )
+    }
+
+    fn read_rdk(programs: &[(&str, String)]) -> Program {
+        let sources: Vec<Source> = programs
+            .iter()
+            .map(|(n, t)| Source::new(n, t.as_bytes()))
+            .collect();
+        read(&Source::new("rt.dtx", RDK_DTX.as_bytes()), &sources).unwrap()
+    }
+
+    #[test]
+    fn a_frame_or_point_the_code_links_is_not_known() {
+        let set_link = rdk_pgx(
+            "setLink",
+            "    <Parameters xmlns=\"http://www.staubli.com/robotics/VAL3/Param/1\">\n\
+      <Parameter name=\"x_fCellule\" type=\"frame\" xsi:type=\"element\" use=\"reference\" />\n\
+    </Parameters>\n",
+            "  link(fPartReal,x_fCellule)\n",
+        );
+        let start = rdk_pgx(
+            "start",
+            "",
+            "  link(pPoint[1], world)\n  movel(pPoint[0],tCad[0],mSpeed[0])\n\
+  movel(pPoint[1],tCad[0],mSpeed[0])\n  movel(pPoint[2],tCad[0],mSpeed[0])\n",
+        );
+        let p = read_rdk(&[("setLink.pgx", set_link), ("start.pgx", start)]);
+        let unknown: Vec<String> = p
+            .targets
+            .iter()
+            .map(|t| t.uses[0].unknown.join("; "))
+            .collect();
+        assert_eq!(
+            unknown,
+            [
+                "frame fPartReal[0] is linked to another frame as the program runs (setLink.pgx:9:8)",
+                "pPoint[1] is linked to a frame as the program runs (start.pgx:6:8)",
+                "",
+            ]
+        );
+    }
+
+    #[test]
+    fn a_local_or_parameter_hides_the_global_of_its_name() {
+        for decl in [
+            "    <Locals>\n      <Local name=\"pPoint\" type=\"pointRx\" xsi:type=\"array\" size=\"3\" />\n    </Locals>\n",
+            "    <Parameters xmlns=\"http://www.staubli.com/robotics/VAL3/Param/1\">\n      <Parameter name=\"pPoint\" type=\"pointRx\" xsi:type=\"array\" use=\"reference\" />\n    </Parameters>\n",
+        ] {
+            let start = rdk_pgx("start", decl, "  nTraj=movel(pPoint[0],tCad[0],mSpeed[0])\n");
+            let p = read_rdk(&[("start.pgx", start)]);
+            assert_eq!(
+                statuses(&p),
+                [
+                    "pPoint[0] not_moved",
+                    "pPoint[1] not_moved",
+                    "pPoint[2] not_moved",
+                    "movel dynamic"
+                ]
+            );
+            assert!(p.targets[3].refused.as_ref().unwrap().detail.ends_with(
+                "pPoint is a local variable or parameter of start, set as the program runs"
+            ));
+        }
+    }
+
+    #[test]
+    fn a_dollar_motion_is_an_unknown_motion() {
+        let start = rdk_pgx(
+            "start",
+            "",
+            "  nTraj=$Xmovel(pPoint[1],nTarget0[0],tCad[0],mSpeed[0])\n",
+        );
+        let p = read_rdk(&[("start.pgx", start)]);
+        assert_eq!(
+            statuses(&p),
+            [
+                "pPoint[0] not_moved",
+                "pPoint[1] unknown_motion",
+                "pPoint[2] not_moved",
+                "$Xmovel unknown_motion"
+            ]
+        );
+    }
+
+    #[test]
+    fn values_handed_to_a_program_that_moves_to_them_are_reported() {
+        // RoboDK's post without data: each joint target a call of MoveJoint.
+        let move_joint = rdk_pgx(
+            "MoveJoint",
+            "    <Parameters xmlns=\"http://www.staubli.com/robotics/VAL3/Param/1\">\n\
+      <Parameter name=\"x_nJ1\" type=\"num\" xsi:type=\"element\" />\n\
+      <Parameter name=\"x_nJ2\" type=\"num\" xsi:type=\"element\" />\n\
+    </Parameters>\n    <Locals>\n      <Local name=\"l_jJoint\" type=\"joint\" xsi:type=\"array\" size=\"1\" />\n    </Locals>\n",
+            "  l_jJoint.j1 = x_nJ1\n  l_jJoint.j2 = x_nJ2\n  movej(l_jJoint,tCurrentTool ,mCurrentSpeed)\n",
+        );
+        let main = rdk_pgx(
+            "main",
+            "",
+            "  call MoveJoint(0.00000,0.00000)\n  call MoveJoint(0.05064,0.10127)\n  movel(pPoint[2],tCad[0],mSpeed[0])\n",
+        );
+        let p = read_rdk(&[("MoveJoint.pgx", move_joint), ("main.pgx", main)]);
+        assert_eq!(
+            statuses(&p),
+            [
+                "pPoint[0] not_moved",
+                "pPoint[1] not_moved",
+                "pPoint[2] cartesian",
+                "movej dynamic",
+                "call dynamic",
+                "call dynamic"
+            ]
+        );
+        assert_eq!(
+            p.targets[5].refused.as_ref().unwrap().detail,
+            "call MoveJoint(0.05064,0.10127) at main.pgx:7:8: MoveJoint moves to what it is handed \
+             (movej(l_jJoint,tCurrentTool ,mCurrentSpeed) at MoveJoint.pgx:15:3), values the data does not hold: not corrected"
+        );
+    }
+
+    #[test]
+    fn the_format_of_srs_6_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let pjx = dir.path().join("NovaAplicacio.pjx");
+        std::fs::write(
+            &pjx,
+            "\u{feff}<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n<project xmlns=\"ProjectNameSpace\">\r\n\
+  <parameters version=\"s6.8\" stackSize=\"5000\" millimeterUnit=\"true\" />\r\n  <programSection>\r\n\
+    <program file=\"start.pgx\" />\r\n  </programSection>\r\n  <dataSection>\r\n\
+    <data file=\"NovaAplicacio.dtx\" />\r\n  </dataSection>\r\n</project>",
+        )
+        .unwrap();
+        let err = Application::locate(&pjx).err().unwrap().to_string();
+        assert!(
+            err.ends_with("NovaAplicacio.pjx:1:1: a VAL3 project in the format of Stäubli Robotics Suite 6 (<project>, version s6.8), which this reader does not read: it reads the format of SRS 7 and later (<Project>, <Database> with <Data> and <Value>, <Programs>)"),
+            "{err}"
+        );
+        let dtx = "\u{feff}<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n<dataList xmlns=\"DataNameSpace\">\r\n  <pointSection />\r\n</dataList>";
+        let err = read(&Source::new("a.dtx", dtx.as_bytes()), &[]).unwrap_err();
+        assert!(err.to_string().starts_with(
+            "a.dtx:2:1: a VAL3 data file in the format of Stäubli Robotics Suite 6 (<dataList>)"
+        ));
     }
 }
