@@ -181,7 +181,7 @@ struct Block {
 #[derive(Clone, Debug, Default)]
 struct Func {
     name: String,
-    params: HashSet<String>,
+    params: Vec<String>,
     locals: HashSet<String>,
     body: Vec<Node>,
     /// Whether a call or `run` names it.
@@ -278,6 +278,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
     for m in 0..script.moves.len() {
         script.motion(src, m)?;
     }
+    script.refuse_handed(src)?;
     script.refuse_ambiguous(src);
     script.refuse_offsets_from_targets();
     Ok(script.program(truncated_at))
@@ -307,6 +308,12 @@ struct Script {
     frames_used: Vec<(String, usize)>,
     refused: Vec<ProgramTarget>,
     ambiguities: Vec<Ambiguity>,
+    /// The calls of the script's functions (not `run`), and per call its line, the index
+    /// of its name there and the function called.
+    call_sites: Vec<Ctx>,
+    call_tokens: Vec<(usize, usize, usize)>,
+    /// Per function and parameter, the first motion that moves to the parameter.
+    param_moves: HashMap<(usize, usize), (String, usize)>,
     /// Per variable and function, the spans of its assignments moves read ambiguously.
     spans: HashMap<(String, usize), Vec<Span>>,
     /// Per variable, the other functions' assignments a move read ambiguously: from which
@@ -369,6 +376,9 @@ impl Script {
             frames_used: Vec::new(),
             refused: Vec::new(),
             ambiguities: Vec::new(),
+            call_sites: Vec::new(),
+            call_tokens: Vec::new(),
+            param_moves: HashMap::new(),
             spans: HashMap::new(),
             others: HashMap::new(),
             first_motion: None,
@@ -671,6 +681,15 @@ impl Script {
                 self.funcs[f].called = true;
                 let run = k > 0 && word(src, &line[k - 1], "run");
                 nodes.push(if run { Node::Run(f) } else { Node::Call(f) });
+                if !run {
+                    self.call_sites.push(Ctx {
+                        call: call.clone(),
+                        at: t.start,
+                        func,
+                        block,
+                    });
+                    self.call_tokens.push((index, k, f));
+                }
             } else if call.starts_with("move") || call.starts_with("servo") {
                 self.first_motion.get_or_insert(t.start);
                 self.refused.push(refused_call(
@@ -755,7 +774,7 @@ impl Script {
     /// The assignments of `name` a read at `at` (in `func`, `block`) can see.
     fn reach(&self, name: &str, at: usize, func: usize, block: usize) -> Reached {
         let f = &self.funcs[func];
-        let param = f.params.contains(name);
+        let param = f.params.iter().any(|p| p == name);
         let local = param || f.locals.contains(name);
         let key = (name.to_string(), func);
         let own: &[usize] = self.by_var_func.get(&key).map_or(&[], |v| v);
@@ -971,6 +990,77 @@ impl Script {
             s.push_str(&format!(" (and {more} more)"));
         }
         s
+    }
+
+    /// Reports each literal handed to a function that moves to the parameter it becomes:
+    /// the motion is reported as a parameter's, and so is the literal, not corrected.
+    fn refuse_handed(&mut self, src: &Source) -> Result<(), Error> {
+        if self.param_moves.is_empty() {
+            return Ok(());
+        }
+        for n in 0..self.call_sites.len() {
+            let (line, k, f) = self.call_tokens[n];
+            let line = self.lines[line].clone();
+            let site = &self.call_sites[n];
+            let (l, c) = src.location(site.at);
+            let mut j = k + 2;
+            let mut i = 0;
+            loop {
+                let end = argument_end(&line, j);
+                if end == j {
+                    break;
+                }
+                if let Some((call, at)) = self.param_moves.get(&(f, i)).cloned() {
+                    let (ml, mc) = src.location(at);
+                    let why = format!(
+                        "handed to {} as {} ({l}:{c}), which {call} at {ml}:{mc} moves to: a parameter's value, not corrected",
+                        self.funcs[f].name, self.funcs[f].params[i]
+                    );
+                    let arg = &line[j..end];
+                    match literal(src, arg, 0)? {
+                        Some((literal, e)) if e == arg.len() => {
+                            self.candidates.push(Candidate {
+                                name: self.funcs[f].name.clone(),
+                                offset: arg[0].start,
+                                literal,
+                                uses: Vec::new(),
+                                refused: Some(Refusal::new(Reason::Dynamic, why)),
+                            });
+                        }
+                        _ => {
+                            if let [v] = arg {
+                                if v.kind == Tok::Ident {
+                                    let name = src.text(v.start, v.end);
+                                    let site = Ctx {
+                                        call: format!("{call} (through {})", self.funcs[f].name),
+                                        ..self.call_sites[n].clone()
+                                    };
+                                    let r = self.reach(&name, site.at, site.func, site.block);
+                                    if r.count >= 2 {
+                                        self.ambiguous(&site, &name, &r);
+                                    } else if let Some(Assign::Literal(c)) =
+                                        r.recs.first().map(|&a| self.assigns[a].value)
+                                    {
+                                        if !r.param && self.candidates[c].refused.is_none() {
+                                            self.candidates[c].refused =
+                                                Some(Refusal::new(Reason::Dynamic, why));
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                j = end;
+                i += 1;
+                if line.get(j).is_some_and(|t| t.is(b',')) {
+                    j += 1;
+                } else {
+                    break;
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Reports each literal a motion may read besides another value.
@@ -1245,6 +1335,7 @@ impl Run<'_> {
 }
 
 /// A motion being read: its call, where, and its function and block.
+#[derive(Clone, Debug)]
 struct Ctx {
     call: String,
     at: usize,
@@ -1308,8 +1399,8 @@ fn func_header<'t>(src: &Source, line: &'t [Token]) -> Option<&'t Token> {
 }
 
 /// The parameters of a `def NAME(a, b=1):` line.
-fn params(src: &Source, line: &[Token]) -> HashSet<String> {
-    let mut names = HashSet::new();
+fn params(src: &Source, line: &[Token]) -> Vec<String> {
+    let mut names = Vec::new();
     let mut depth = 0;
     for (k, t) in line.iter().enumerate() {
         match t.kind {
@@ -1318,7 +1409,7 @@ fn params(src: &Source, line: &[Token]) -> HashSet<String> {
             Tok::Ident if depth == 1 => {
                 let prev = &line[k - 1];
                 if prev.is(b'(') || prev.is(b',') {
-                    names.insert(src.text(t.start, t.end));
+                    names.push(src.text(t.start, t.end));
                 }
             }
             _ => {}
@@ -1436,6 +1527,11 @@ impl Script {
                         &format!("{name} holds the value of {places}, by the way the script runs"),
                     );
                 } else if r.param {
+                    if let Some(i) = self.funcs[ctx.func].params.iter().position(|p| *p == name) {
+                        self.param_moves
+                            .entry((ctx.func, i))
+                            .or_insert_with(|| (ctx.call.clone(), ctx.at));
+                    }
                     self.refuse_target(
                         src,
                         ctx,
@@ -1917,6 +2013,31 @@ mod tests {
         assert_eq!(
             err.to_string(),
             "bad.script:1:1: this block is not closed: expected 'end'"
+        );
+    }
+
+    #[test]
+    fn a_literal_handed_to_a_function_that_moves_to_its_parameter_is_reported() {
+        let text = "def Program():\n  global Waypoint_1_p=p[-.4822, -.1177, .2971, 1.1312, -.7841, -1.0500]\n\
+                    def pick(pt, v=0.25):\n    movel(pt, a=1.2, v=v)\n  end\n  pick(Waypoint_1_p)\n\
+                    pick(p[-.4764, -.2924, .0693, 1.1232, -1.1676, -1.2504], 0.1)\nend\n";
+        let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
+        let seen: Vec<(&str, Option<Reason>)> = p
+            .targets
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("Waypoint_1_p", Some(Reason::Dynamic)),
+                ("movel", Some(Reason::Dynamic)),
+                ("pick", Some(Reason::Dynamic)),
+            ]
+        );
+        assert_eq!(
+            p.targets[0].refused.as_ref().unwrap().detail,
+            "handed to pick as pt (6:3), which movel at 4:5 moves to: a parameter's value, not corrected"
         );
     }
 }
