@@ -186,6 +186,8 @@ struct Func {
     body: Vec<Node>,
     /// Whether a call or `run` names it.
     called: bool,
+    /// Whether it may `return` before its end.
+    returns: bool,
     /// Whether it runs as the program (the top level, or a top-level `def` no one calls
     /// in a script of functions alone).
     entry: bool,
@@ -506,6 +508,9 @@ impl Script {
                 self.assignment(src, &line, func, block)?;
                 let mut nodes = Vec::new();
                 literals += self.calls(src, &line, index, func, block, &mut nodes);
+                if word(src, first, "return") {
+                    self.funcs[func].returns = true;
+                }
                 if line.len() == 1 && (word(src, first, "break") || word(src, first, "continue")) {
                     stack[top].breaks = true;
                     nodes.push(Node::Break);
@@ -718,6 +723,7 @@ impl Script {
         let mut run = Run {
             sets: &sets,
             bodies: &bodies,
+            returns: self.funcs.iter().map(|f| f.returns).collect(),
             effects: vec![None; bodies.len()],
             in_progress: vec![false; bodies.len()],
             entries: vec![Tcp::Unreached; bodies.len()],
@@ -1199,6 +1205,8 @@ impl Script {
 struct Run<'r> {
     sets: &'r [Tcp],
     bodies: &'r [Vec<Node>],
+    /// Per function, whether it may return before its end.
+    returns: Vec<bool>,
     effects: Vec<Option<Effect>>,
     in_progress: Vec<bool>,
     /// Per function, the TCPs its calls enter it with.
@@ -1240,7 +1248,15 @@ impl Run<'_> {
         }
         self.in_progress[f] = true;
         self.depth += 1;
-        let e = self.effect(&self.bodies[f]);
+        let mut e = self.effect(&self.bodies[f]);
+        if self.returns[f] {
+            // A `return` leaves with any TCP set before it, or none.
+            e = Effect {
+                passes: true,
+                value: e.any.join(&e.value),
+                any: e.any,
+            };
+        }
         self.depth -= 1;
         self.in_progress[f] = false;
         self.effects[f] = Some(e.clone());
@@ -2038,6 +2054,19 @@ mod tests {
         assert_eq!(
             p.targets[0].refused.as_ref().unwrap().detail,
             "handed to pick as pt (6:3), which movel at 4:5 moves to: a parameter's value, not corrected"
+        );
+    }
+
+    #[test]
+    fn a_return_leaves_a_function_with_the_tcp_set_before_it() {
+        let text = "def Program():\n  def tool():\n    if (get_standard_digital_in(0)):\n\
+                    set_tcp(p[0,0,0.2,0,0,0])\n      return\n    end\n    set_tcp(p[0,0,0.031,0,0,0])\n  end\n\
+                    tool()\n  movel(p[0.4,0,0.3,0,3.14,0])\nend\n";
+        let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
+        let z: Vec<String> = tools(&p).into_iter().map(|t| t.1).collect();
+        assert_eq!(
+            z,
+            ["the TCP is the set_tcp at 4:1 or the set_tcp at 7:5, by the way the script runs to this motion"]
         );
     }
 }
