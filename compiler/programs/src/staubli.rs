@@ -23,10 +23,13 @@
 //! `movel(…)` and `movec(pVia, pEnd, tTool, mDesc)` move the TCP of the tool (a `tool`
 //! data chained to `flange[0]`) to a point; `movej` to a `jointRx` moves the joints.
 //! `appro(p, trsf)` and `compose(p, frame, trsf)` are offsets computed as the program runs
-//! (`relative`); any other expression, a local variable or a parameter is `dynamic`; a
-//! name the data does not hold is `not_declared`; a point assigned by the code
-//! (`pPart[0] = here(tGripper, world)`) is `dynamic`; a point no motion moves to is left as
-//! written (`not_moved`), with where the code uses it.
+//! (`relative`); any other expression, a local variable or a parameter (which hides data
+//! of its name) is `dynamic`, and so is each call handing values to a program that moves
+//! to its parameters or locals; a name the data does not hold is `not_declared`; a point
+//! assigned by the code (`pPart[0] = here(tGripper, world)`) is `dynamic`; a frame or
+//! point the code sets or links (`link(fPart, fCell)`) is `frame_unknown`; a point no
+//! motion moves to is left as written (`not_moved`), with where the code uses it. The
+//! older format of SRS 6 (`<project>`, `<dataList>`, `<programList>`) is refused by name.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
