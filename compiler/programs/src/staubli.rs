@@ -964,7 +964,7 @@ fn split_arguments(bytes: &[u8], from: usize) -> Option<(Vec<(usize, usize)>, us
 struct Code {
     motions: Vec<Motion>,
     /// Data assigned as the programs run, by name: the key (`None`: any) and the place.
-    assigned: HashMap<String, Vec<(Option<String>, String)>>,
+    assigned: HashMap<String, Places>,
     /// The first place the code names each data outside a motion's targets.
     named: std::collections::HashMap<String, String>,
     /// Names local to a program (its locals and parameters), with the program.
@@ -973,7 +973,7 @@ struct Code {
     program_locals: std::collections::HashSet<(String, String)>,
     /// Data whose frame `link(…)` sets as the programs run: the key (`None`: any) and the
     /// place.
-    linked: HashMap<String, Vec<(Option<String>, String)>>,
+    linked: HashMap<String, Places>,
     /// The calls of programs: `call NAME(arguments)`.
     calls: Vec<Call>,
     /// The application's programs' names.
@@ -982,28 +982,52 @@ struct Code {
 
 impl Code {
     fn assign(&mut self, r: Reference, place: String) {
-        self.assigned
-            .entry(r.name)
-            .or_default()
-            .push((r.key, place));
+        self.assigned.entry(r.name).or_default().add(r.key, place);
     }
 
     /// Where the code first links `name[key]` to a frame, if it does.
     fn linked_at(&self, name: &str, key: &str) -> Option<&str> {
-        self.linked
-            .get(name)?
-            .iter()
-            .find(|(k, _)| k.as_deref().is_none_or(|k| k == key))
-            .map(|(_, at)| at.as_str())
+        self.linked.get(name)?.first(key)
     }
 
     /// Where the code first assigns `name[key]`, if it does.
     fn assigned_at(&self, name: &str, key: &str) -> Option<&str> {
-        self.assigned
-            .get(name)?
-            .iter()
-            .find(|(k, _)| k.as_deref().is_none_or(|k| k == key))
-            .map(|(_, at)| at.as_str())
+        self.assigned.get(name)?.first(key)
+    }
+}
+
+/// The places the code does something to one data: to any of its values (a reference
+/// without a key, or with one computed as it runs), or to each key; the first of each,
+/// in the code's order.
+#[derive(Default)]
+struct Places {
+    count: usize,
+    any: Option<(usize, String)>,
+    keys: HashMap<String, (usize, String)>,
+}
+
+impl Places {
+    fn add(&mut self, key: Option<String>, place: String) {
+        let n = self.count;
+        self.count += 1;
+        match key {
+            None => {
+                self.any.get_or_insert((n, place));
+            }
+            Some(k) => {
+                self.keys.entry(k).or_insert((n, place));
+            }
+        }
+    }
+
+    /// The first place that does it to `key`.
+    fn first(&self, key: &str) -> Option<&str> {
+        match (&self.any, self.keys.get(key)) {
+            (Some(a), Some(k)) => Some(if a.0 < k.0 { &a.1 } else { &k.1 }),
+            (Some((_, p)), None) | (None, Some((_, p))) => Some(p),
+            (None, None) => None,
+        }
+        .map(String::as_str)
     }
 }
 
@@ -1205,10 +1229,7 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code, prog
             if let Some((args, _)) = split_arguments(bytes, j + 1) {
                 if let Some((s, e)) = args.first() {
                     if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
-                        code.linked
-                            .entry(r.name)
-                            .or_default()
-                            .push((r.key, place(*s)));
+                        code.linked.entry(r.name).or_default().add(r.key, place(*s));
                     }
                 }
             }
