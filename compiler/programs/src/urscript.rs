@@ -449,8 +449,10 @@ impl Script {
                     breaks: false,
                     at: first.start,
                 });
-            } else if header && (word(src, first, "if") || word(src, first, "while")) {
-                let is_loop = word(src, first, "while");
+            } else if header
+                && (word(src, first, "if") || word(src, first, "while") || word(src, first, "for"))
+            {
+                let is_loop = !word(src, first, "if");
                 let b = open(self, is_loop, func);
                 stack.push(Open {
                     kind: if is_loop { Opened::While } else { Opened::If },
