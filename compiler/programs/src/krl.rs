@@ -2568,13 +2568,6 @@ mod tests {
         read_with(&dat, Some(&src), &cell_config(), usize::MAX).unwrap()
     }
 
-    fn reasons(p: &Program) -> Vec<(&str, Option<Reason>)> {
-        p.targets
-            .iter()
-            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
-            .collect()
-    }
-
     /// The x of each use's base (`None`: not known or the options').
     fn bases(t: &ProgramTarget) -> Vec<Option<f64>> {
         t.uses
@@ -2591,7 +2584,7 @@ mod tests {
              \x20 $BASE = BASE_DATA[2]\n  XP2.Y = XP2.Y + 25.0\n  LIN XP2\n  XP3 = XP1\n  LIN XP3\n  LIN XP1\nEND\n",
         );
         assert_eq!(
-            reasons(&p),
+            p.reasons(),
             [
                 ("XP1", None),
                 ("XP2", Some(Reason::Dynamic)),
@@ -2678,7 +2671,7 @@ mod tests {
                    \x20 DECL REAL DIST\n  DECL E6POS PABOVE\n  PABOVE = PT\n  PABOVE.Z = PABOVE.Z + DIST\n\
                    \x20 LIN PABOVE\n  LIN PT\nEND\n";
         let p = pair(&["XP1", "XP2"], src);
-        assert_eq!(reasons(&p), [("XP1", None), ("XP2", Some(Reason::Dynamic))]);
+        assert_eq!(p.reasons(), [("XP1", None), ("XP2", Some(Reason::Dynamic))]);
         assert_eq!(
             p.targets[1].refused.as_ref().unwrap().detail,
             "moved to through the parameter PT of approach (called at cell.src:5:3), in the frames of its callers"
@@ -2712,7 +2705,7 @@ mod tests {
                    \x20 LIN {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}\n  LIN_REL {X -30.0}\nEND\n";
         let p = pair(&["XP9"], src);
         assert_eq!(
-            reasons(&p),
+            p.reasons(),
             [("XP9", None), ("LIN", Some(Reason::NotMoved))]
         );
         assert_eq!(

@@ -343,3 +343,15 @@ pub struct Program {
     /// declares too): a program that moves must have targets to correct.
     pub first_motion: Option<usize>,
 }
+
+#[cfg(test)]
+impl Program {
+    /// Each target's name and the reason it is left unchanged (`None`: corrected), in
+    /// reading order: what the readers' tests compare.
+    pub(crate) fn reasons(&self) -> Vec<(&str, Option<Reason>)> {
+        self.targets
+            .iter()
+            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
+            .collect()
+    }
+}

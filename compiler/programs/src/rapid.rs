@@ -1679,11 +1679,7 @@ mod tests {
              \x20       MoveL p10, v200, fine, tool0\\WObj:=wobj1;\n    ENDPROC\nENDMODULE\n"
         );
         let p = read(&Source::new("m.mod", text.as_bytes())).unwrap();
-        let seen: Vec<(&str, Option<Reason>)> = p
-            .targets
-            .iter()
-            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
-            .collect();
+        let seen = p.reasons();
         assert_eq!(
             seen,
             [

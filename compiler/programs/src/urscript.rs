@@ -1861,11 +1861,7 @@ mod tests {
                     movel(pose_trans(Plane_1, p[0,0,0.1,0,3.14,0]))\n  x = get_actual_tcp_pose()\n\
                     movel(x)\n  movel(pose_add(get_actual_tcp_pose(), p[0,0,0.01,0,0,0]))\n  moveq(W_p)\nend\n";
         let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
-        let seen: Vec<(&str, Option<Reason>)> = p
-            .targets
-            .iter()
-            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
-            .collect();
+        let seen = p.reasons();
         assert_eq!(
             seen,
             [
@@ -2040,11 +2036,7 @@ mod tests {
                     def pick(pt, v=0.25):\n    movel(pt, a=1.2, v=v)\n  end\n  pick(Waypoint_1_p)\n\
                     pick(p[-.4764, -.2924, .0693, 1.1232, -1.1676, -1.2504], 0.1)\nend\n";
         let p = read(&Source::new("p.script", text.as_bytes())).unwrap();
-        let seen: Vec<(&str, Option<Reason>)> = p
-            .targets
-            .iter()
-            .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
-            .collect();
+        let seen = p.reasons();
         assert_eq!(
             seen,
             [
