@@ -1110,31 +1110,22 @@ fn read_code(programs: &[Source], code: &mut Code) -> Result<(), Error> {
 
 /// Reads the code between `start` and `end` of `src`: its motions, assignments and names.
 fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code, program: &str) {
-    let bytes = &src.bytes[..end];
-    let place = |at: usize| {
-        let (line, column) = src.location(at);
-        format!("{}:{line}:{column}", src.name)
+    let statements = Statements {
+        src,
+        bytes: &src.bytes[..end],
+        program,
     };
+    let bytes = statements.bytes;
     let mut i = start;
     // The end of the last motion's arguments: names within them are its targets.
     let mut within_motion = 0;
     let mut previous_word: (usize, usize) = (0, 0);
     while i < end {
+        if let Some(after) = skip_comment_or_string(bytes, i) {
+            i = after;
+            continue;
+        }
         let b = bytes[i];
-        if b == b'/' && bytes.get(i + 1) == Some(&b'/') {
-            while i < end && bytes[i] != b'\n' && bytes[i] != b'\r' {
-                i += 1;
-            }
-            continue;
-        }
-        if b == b'"' {
-            i += 1;
-            while i < end && bytes[i] != b'"' && bytes[i] != b'\n' {
-                i += 1;
-            }
-            i += 1;
-            continue;
-        }
         if !(b.is_ascii_alphabetic() || b == b'_') {
             i += 1;
             continue;
@@ -1165,120 +1156,194 @@ fn read_statements(src: &Source, start: usize, end: usize, code: &mut Code, prog
         let word = if dollar { format!("${word}") } else { word };
         let word_start = if dollar { word_start - 1 } else { word_start };
         if called && is_call {
-            if let Some((args, close)) = split_arguments(bytes, j + 1) {
-                code.calls.push(Call {
-                    program: word.clone(),
-                    place: place(word_start),
-                    text: format!(
-                        "call {}",
-                        String::from_utf8_lossy(&bytes[word_start..close.min(word_start + 80)])
-                    ),
-                    args: args
-                        .iter()
-                        .map(|(s, e)| String::from_utf8_lossy(&bytes[*s..*e]).into_owned())
-                        .collect(),
-                });
-            }
+            statements.read_call(code, &word, word_start, j + 1);
         }
         if is_call && !called && (motion.is_some() || looks) && !code.programs.contains(&word) {
-            let Some((args, close)) = split_arguments(bytes, j + 1) else {
-                i = j + 1;
-                continue;
-            };
-            let text = String::from_utf8_lossy(&bytes[word_start..close.min(word_start + 80)])
-                .into_owned();
-            let texts: Vec<String> = args
-                .iter()
-                .map(|(s, e)| String::from_utf8_lossy(&bytes[*s..*e]).into_owned())
-                .collect();
-            let mut m = Motion {
-                instruction: word.clone(),
-                program: program.to_string(),
-                place: place(word_start),
-                text,
-                targets: Vec::new(),
-                tool: None,
-                unknown: None,
-            };
-            match motion {
-                Some((_, targets, tool)) if texts.len() > *tool => {
-                    m.targets = targets.iter().map(|k| texts[*k].clone()).collect();
-                    m.tool = Some(texts[*tool].clone());
-                }
-                Some((_, _, tool)) => {
-                    m.unknown = Some(format!(
-                        "{word} with {} arguments: the tool is its argument {}",
-                        texts.len(),
-                        tool + 1
-                    ));
-                }
-                None => {
-                    m.targets = texts.first().cloned().into_iter().collect();
-                    m.unknown = Some(format!("{word} is not a VAL3 motion this reader corrects"));
-                }
+            if let Some(close) = statements.read_motion(code, &word, word_start, j + 1, motion) {
+                within_motion = close;
             }
-            code.motions.push(m);
-            within_motion = close;
             // The arguments are read again for the names they hold, which are not targets
             // (the tool, the motion descriptor).
             i = j + 1;
             continue;
         }
-        if word == "link" && is_call {
-            // link(point or frame, frame): its frame set as the program runs.
-            if let Some((args, _)) = split_arguments(bytes, j + 1) {
-                if let Some((s, e)) = args.first() {
-                    if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
-                        code.linked.entry(r.name).or_default().add(r.key, place(*s));
-                    }
-                }
-            }
+        if is_call {
+            statements.read_frame_call(code, &word, j + 1);
         }
-        if word == "setFrame" && is_call {
-            // setFrame(origin, x, xy, frame): the frame computed as the program runs.
-            if let Some((args, _)) = split_arguments(bytes, j + 1) {
-                if let Some((s, e)) = args.get(3) {
-                    if let Some(r) = reference(&String::from_utf8_lossy(&bytes[*s..*e])) {
-                        code.assign(r, place(*s));
-                    }
-                }
-            }
-        }
-        // An assignment: the reference, any fields, then '=' (not '==').
-        let mut k = j;
-        if bytes.get(k) == Some(&b'[') {
-            let mut depth = 0;
-            while k < end {
-                match bytes[k] {
-                    b'[' => depth += 1,
-                    b']' => {
-                        depth -= 1;
-                        if depth == 0 {
-                            k += 1;
-                            break;
-                        }
-                    }
-                    _ => {}
-                }
-                k += 1;
-            }
-        }
-        let reference_end = k;
-        while k < end
-            && (bytes[k].is_ascii_alphanumeric() || matches!(bytes[k], b'.' | b'_' | b' ' | b'\t'))
-        {
-            k += 1;
-        }
-        let assigns = bytes.get(k) == Some(&b'=') && bytes.get(k + 1) != Some(&b'=');
-        if assigns {
-            if let Some(r) = reference(&String::from_utf8_lossy(&bytes[word_start..reference_end]))
-            {
-                code.assign(r, place(word_start));
+        if let Some(reference_end) = assigned_reference_end(bytes, j) {
+            if let Some(r) = reference(&statements.text(word_start, reference_end)) {
+                code.assign(r, statements.place(word_start));
             }
         } else if word_start >= within_motion {
-            code.named.entry(word).or_insert_with(|| place(word_start));
+            code.named
+                .entry(word)
+                .or_insert_with(|| statements.place(word_start));
         }
     }
+}
+
+/// The code [`read_statements`] reads, shared by the helpers that read each kind of
+/// statement: its bytes, cut at the code's end so no argument list is read past it, and
+/// its file and program, for the places and motions they record.
+struct Statements<'a> {
+    src: &'a Source<'a>,
+    bytes: &'a [u8],
+    program: &'a str,
+}
+
+impl Statements<'_> {
+    /// `file:line:column` of the byte `at`: how messages name a place in the code.
+    fn place(&self, at: usize) -> String {
+        let (line, column) = self.src.location(at);
+        format!("{}:{line}:{column}", self.src.name)
+    }
+
+    /// The code's text from `start` to `end`, decoded lossily: it is only matched against
+    /// ASCII names or shown in messages.
+    fn text(&self, start: usize, end: usize) -> String {
+        String::from_utf8_lossy(&self.bytes[start..end]).into_owned()
+    }
+
+    /// `call NAME(…)` at `word_start`, its `(` just before `from`: kept with its arguments'
+    /// texts, since a called program that moves to its parameters moves to what it is handed.
+    fn read_call(&self, code: &mut Code, word: &str, word_start: usize, from: usize) {
+        let Some((args, close)) = split_arguments(self.bytes, from) else {
+            return;
+        };
+        code.calls.push(Call {
+            program: word.to_string(),
+            place: self.place(word_start),
+            text: format!("call {}", self.text(word_start, close.min(word_start + 80))),
+            args: args.iter().map(|(s, e)| self.text(*s, *e)).collect(),
+        });
+    }
+
+    /// The motion (or motion-looking call) `word` at `word_start`, its `(` just before
+    /// `from`: its targets and tool when it is one of [`MOTIONS`] with enough arguments,
+    /// else why this reader does not correct it, reported with the motion. The end of its
+    /// arguments, `None` when they are not closed (nothing is recorded then).
+    fn read_motion(
+        &self,
+        code: &mut Code,
+        word: &str,
+        word_start: usize,
+        from: usize,
+        motion: Option<&(&str, &[usize], usize)>,
+    ) -> Option<usize> {
+        let (args, close) = split_arguments(self.bytes, from)?;
+        let texts: Vec<String> = args.iter().map(|(s, e)| self.text(*s, *e)).collect();
+        let mut m = Motion {
+            instruction: word.to_string(),
+            program: self.program.to_string(),
+            place: self.place(word_start),
+            text: self.text(word_start, close.min(word_start + 80)),
+            targets: Vec::new(),
+            tool: None,
+            unknown: None,
+        };
+        match motion {
+            Some((_, targets, tool)) if texts.len() > *tool => {
+                m.targets = targets.iter().map(|k| texts[*k].clone()).collect();
+                m.tool = Some(texts[*tool].clone());
+            }
+            Some((_, _, tool)) => {
+                m.unknown = Some(format!(
+                    "{word} with {} arguments: the tool is its argument {}",
+                    texts.len(),
+                    tool + 1
+                ));
+            }
+            None => {
+                m.targets = texts.first().cloned().into_iter().collect();
+                m.unknown = Some(format!("{word} is not a VAL3 motion this reader corrects"));
+            }
+        }
+        code.motions.push(m);
+        Some(close)
+    }
+
+    /// `link(…)` or `setFrame(…)`, its `(` just before `from`: each gives a frame its value
+    /// only as the program runs, so the data's own value cannot be trusted for it.
+    fn read_frame_call(&self, code: &mut Code, word: &str, from: usize) {
+        match word {
+            // link(point or frame, frame): its frame set as the program runs.
+            "link" => {
+                if let Some((r, at)) = self.argument_reference(from, 0) {
+                    code.linked
+                        .entry(r.name)
+                        .or_default()
+                        .add(r.key, self.place(at));
+                }
+            }
+            // setFrame(origin, x, xy, frame): the frame computed as the program runs.
+            "setFrame" => {
+                if let Some((r, at)) = self.argument_reference(from, 3) {
+                    code.assign(r, self.place(at));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// The reference that is the whole of argument `k` of the call whose `(` is just before
+    /// `from`, and where it starts; `None` when the call is not closed or the argument is
+    /// missing or an expression.
+    fn argument_reference(&self, from: usize, k: usize) -> Option<(Reference, usize)> {
+        let (args, _) = split_arguments(self.bytes, from)?;
+        let &(s, e) = args.get(k)?;
+        Some((reference(&self.text(s, e))?, s))
+    }
+}
+
+/// Where the comment or string starting at `i` ends, if one does: the words in them are
+/// not code. A string left open ends with its line, so a stray quote hides no more.
+fn skip_comment_or_string(bytes: &[u8], mut i: usize) -> Option<usize> {
+    if bytes[i] == b'/' && bytes.get(i + 1) == Some(&b'/') {
+        while i < bytes.len() && bytes[i] != b'\n' && bytes[i] != b'\r' {
+            i += 1;
+        }
+        return Some(i);
+    }
+    if bytes[i] == b'"' {
+        i += 1;
+        while i < bytes.len() && bytes[i] != b'"' && bytes[i] != b'\n' {
+            i += 1;
+        }
+        return Some(i + 1);
+    }
+    None
+}
+
+/// When the word ending at `after_word` is assigned (its index, any fields, then `=`, not
+/// `==`): the end of the reference, its index included but not its fields, since setting
+/// a field changes the value the reference names.
+fn assigned_reference_end(bytes: &[u8], after_word: usize) -> Option<usize> {
+    let mut k = after_word;
+    if bytes.get(k) == Some(&b'[') {
+        let mut depth = 0;
+        while k < bytes.len() {
+            match bytes[k] {
+                b'[' => depth += 1,
+                b']' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        k += 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+            k += 1;
+        }
+    }
+    let reference_end = k;
+    while k < bytes.len()
+        && (bytes[k].is_ascii_alphanumeric() || matches!(bytes[k], b'.' | b'_' | b' ' | b'\t'))
+    {
+        k += 1;
+    }
+    let assigns = bytes.get(k) == Some(&b'=') && bytes.get(k + 1) != Some(&b'=');
+    assigns.then_some(reference_end)
 }
 
 /// Reads the targets of a VAL3 application: its data file `src` and its programs.
