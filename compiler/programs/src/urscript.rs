@@ -343,6 +343,21 @@ enum Opened {
     While,
 }
 
+impl Open {
+    /// A block just opened, its header's first word at `at`, nothing read in it yet.
+    fn new(kind: Opened, block: usize, at: usize) -> Open {
+        Open {
+            kind,
+            block,
+            nodes: Vec::new(),
+            branches: Vec::new(),
+            has_else: false,
+            breaks: false,
+            at,
+        }
+    }
+}
+
 impl Script {
     /// A script about to be read, its functions and threads named.
     fn new(src: &Source) -> Script {
@@ -397,15 +412,7 @@ impl Script {
             is_loop: false,
             func: 0,
         });
-        let mut stack = vec![Open {
-            kind: Opened::Top,
-            block: 0,
-            nodes: Vec::new(),
-            branches: Vec::new(),
-            has_else: false,
-            breaks: false,
-            at: 0,
-        }];
+        let mut stack = vec![Open::new(Opened::Top, 0, 0)];
         let mut lexer = Lexer::new(src, URSCRIPT);
         let mut next_func = 1;
         let mut literals = 0usize;
@@ -422,137 +429,163 @@ impl Script {
             }
             balanced(src, &line)?;
             let top = stack.len() - 1;
-            let (func, block) = (self.blocks[stack[top].block].func, stack[top].block);
             let first = &line[0];
             let header = line.last().is_some_and(|t| t.is(b':'));
-            let open = |script: &mut Script, is_loop: bool, func: usize| {
-                script.blocks.push(Block {
-                    start: line_start,
-                    end: usize::MAX,
-                    parent: Some(block),
-                    is_loop,
-                    func,
-                });
-                script.blocks.len() - 1
-            };
             if func_header(src, &line).is_some() && next_func < self.funcs.len() {
-                let f = next_func;
+                self.funcs[next_func].params = params(src, &line);
+                self.open(&mut stack, Opened::Func(next_func), line_start, first.start);
                 next_func += 1;
-                let b = open(self, false, f);
-                self.funcs[f].params = params(src, &line);
-                stack.push(Open {
-                    kind: Opened::Func(f),
-                    block: b,
-                    nodes: Vec::new(),
-                    branches: Vec::new(),
-                    has_else: false,
-                    breaks: false,
-                    at: first.start,
-                });
             } else if header
                 && (word(src, first, "if") || word(src, first, "while") || word(src, first, "for"))
             {
-                let is_loop = !word(src, first, "if");
-                let b = open(self, is_loop, func);
-                stack.push(Open {
-                    kind: if is_loop { Opened::While } else { Opened::If },
-                    block: b,
-                    nodes: Vec::new(),
-                    branches: Vec::new(),
-                    has_else: false,
-                    breaks: false,
-                    at: first.start,
-                });
+                let kind = if word(src, first, "if") {
+                    Opened::If
+                } else {
+                    Opened::While
+                };
+                self.open(&mut stack, kind, line_start, first.start);
             } else if header && (word(src, first, "elif") || word(src, first, "else")) {
-                if stack[top].kind != Opened::If {
-                    return Err(src.error(first.start, "'elif' or 'else' outside an 'if'"));
-                }
-                self.blocks[stack[top].block].end = line_start;
-                let parent = self.blocks[stack[top].block].parent;
-                self.blocks.push(Block {
-                    start: line_start,
-                    end: usize::MAX,
-                    parent,
-                    is_loop: false,
-                    func,
-                });
-                let o = &mut stack[top];
-                o.block = self.blocks.len() - 1;
-                let branch = std::mem::take(&mut o.nodes);
-                o.branches.push(branch);
-                o.has_else |= word(src, first, "else");
+                self.next_branch(src, &mut stack, first, line_start)?;
             } else if line.len() == 1 && word(src, first, "end") {
                 if top == 0 {
                     return Err(src.error(first.start, "'end' without a block to close"));
                 }
-                let mut o = stack.pop().unwrap_or_else(|| unreachable!());
-                self.blocks[o.block].end = lexer.pos;
-                let parent = stack.last_mut().unwrap_or_else(|| unreachable!());
-                match o.kind {
-                    Opened::If => {
-                        o.branches.push(o.nodes);
-                        parent.nodes.push(Node::If(o.branches, o.has_else));
-                        // A `break` in a branch breaks the loop around.
-                        parent.breaks |= o.breaks;
-                    }
-                    Opened::While => parent.nodes.push(Node::While(o.nodes, o.breaks)),
-                    Opened::Func(f) => self.funcs[f].body = o.nodes,
-                    Opened::Top => {}
-                }
+                self.close(&mut stack, lexer.pos, true);
             } else {
-                if stack.len() > MAX_DEPTH {
-                    return Err(src.error(
-                        first.start,
-                        format!("blocks nested deeper than {MAX_DEPTH}"),
-                    ));
-                }
-                let index = self.lines.len();
-                self.assignment(src, &line, func, block)?;
-                let mut nodes = Vec::new();
-                literals += self.calls(src, &line, index, func, block, &mut nodes);
-                if word(src, first, "return") {
-                    self.funcs[func].returns = true;
-                }
-                if line.len() == 1 && (word(src, first, "break") || word(src, first, "continue")) {
-                    stack[top].breaks = true;
-                    nodes.push(Node::Break);
-                }
-                stack[top].nodes.extend(nodes);
-                self.lines.push(line);
+                refuse_too_deep(src, stack.len(), first.start)?;
+                literals += self.statement(src, line, &mut stack[top])?;
                 literals = self.candidates.len().max(literals);
                 continue;
             }
-            if stack.len() > MAX_DEPTH {
-                return Err(src.error(
-                    first.start,
-                    format!("blocks nested deeper than {MAX_DEPTH}"),
-                ));
-            }
+            refuse_too_deep(src, stack.len(), first.start)?;
             self.lines.push(Vec::new());
         }
-        if truncated_at.is_none() && stack.len() > 1 {
+        self.close_all(src, stack, truncated_at.is_some())?;
+        self.mark_entries();
+        self.index_assigns();
+        Ok(truncated_at)
+    }
+
+    /// Opens a function's body, a branch or a loop at the line starting at `start`, its
+    /// header's first word at `at` (where an unclosed block is reported).
+    fn open(&mut self, stack: &mut Vec<Open>, kind: Opened, start: usize, at: usize) {
+        let parent = stack[stack.len() - 1].block;
+        // A function's body is its own; a branch or a loop belongs to the block around.
+        let func = match kind {
+            Opened::Func(f) => f,
+            _ => self.blocks[parent].func,
+        };
+        self.blocks.push(Block {
+            start,
+            end: usize::MAX,
+            parent: Some(parent),
+            is_loop: kind == Opened::While,
+            func,
+        });
+        stack.push(Open::new(kind, self.blocks.len() - 1, at));
+    }
+
+    /// `elif` or `else`: ends the open branch of the `if` at `start` and opens the next as
+    /// its sibling, so that a move in one branch does not see the assignments of another.
+    fn next_branch(
+        &mut self,
+        src: &Source,
+        stack: &mut [Open],
+        first: &Token,
+        start: usize,
+    ) -> Result<(), Error> {
+        let o = &mut stack[stack.len() - 1];
+        if o.kind != Opened::If {
+            return Err(src.error(first.start, "'elif' or 'else' outside an 'if'"));
+        }
+        self.blocks[o.block].end = start;
+        let Block { parent, func, .. } = self.blocks[o.block];
+        self.blocks.push(Block {
+            start,
+            end: usize::MAX,
+            parent,
+            is_loop: false,
+            func,
+        });
+        o.block = self.blocks.len() - 1;
+        let branch = std::mem::take(&mut o.nodes);
+        o.branches.push(branch);
+        o.has_else |= word(src, first, "else");
+        Ok(())
+    }
+
+    /// Closes the innermost open block at `end` and hands what it runs to the block around.
+    /// Only a block closed by its `end` (`by_end`) passes a `break` in a branch on to the
+    /// loop around; a script read in part closes its open blocks without.
+    fn close(&mut self, stack: &mut Vec<Open>, end: usize, by_end: bool) {
+        let mut o = stack.pop().unwrap_or_else(|| unreachable!());
+        self.blocks[o.block].end = end;
+        let parent = stack.last_mut().unwrap_or_else(|| unreachable!());
+        match o.kind {
+            Opened::If => {
+                o.branches.push(o.nodes);
+                parent.nodes.push(Node::If(o.branches, o.has_else));
+                // A `break` in a branch breaks the loop around.
+                if by_end {
+                    parent.breaks |= o.breaks;
+                }
+            }
+            Opened::While => parent.nodes.push(Node::While(o.nodes, o.breaks)),
+            Opened::Func(f) => self.funcs[f].body = o.nodes,
+            Opened::Top => {}
+        }
+    }
+
+    /// After the last line read: refuses a block left open in a script read whole (one read
+    /// in part, `truncated`, ends its open blocks where the reading stopped), and gives the
+    /// top level its body.
+    fn close_all(
+        &mut self,
+        src: &Source,
+        mut stack: Vec<Open>,
+        truncated: bool,
+    ) -> Result<(), Error> {
+        if !truncated && stack.len() > 1 {
             let o = &stack[stack.len() - 1];
             return Err(src.error(o.at, "this block is not closed: expected 'end'"));
         }
-        // A script read in part: its open blocks end where the reading stopped.
         while stack.len() > 1 {
-            let mut o = stack.pop().unwrap_or_else(|| unreachable!());
-            self.blocks[o.block].end = src.bytes.len() + 1;
-            let parent = stack.last_mut().unwrap_or_else(|| unreachable!());
-            match o.kind {
-                Opened::If => {
-                    o.branches.push(o.nodes);
-                    parent.nodes.push(Node::If(o.branches, o.has_else));
-                }
-                Opened::While => parent.nodes.push(Node::While(o.nodes, o.breaks)),
-                Opened::Func(f) => self.funcs[f].body = o.nodes,
-                Opened::Top => {}
-            }
+            self.close(&mut stack, src.bytes.len() + 1, false);
         }
         let top = stack.pop().map(|o| o.nodes).unwrap_or_default();
         self.funcs[0].body = top;
-        // The program: the top level when it does anything, else each top-level function
-        // no one calls.
+        Ok(())
+    }
+
+    /// A line that opens or closes no block, in the open block `open`: its assignment, its
+    /// calls, a `return` or `break`. Returns how many literals its motions may write.
+    fn statement(
+        &mut self,
+        src: &Source,
+        line: Vec<Token>,
+        open: &mut Open,
+    ) -> Result<usize, Error> {
+        let (func, block) = (self.blocks[open.block].func, open.block);
+        let first = &line[0];
+        let index = self.lines.len();
+        self.assignment(src, &line, func, block)?;
+        let mut nodes = Vec::new();
+        let literals = self.calls(src, &line, index, func, block, &mut nodes);
+        if word(src, first, "return") {
+            self.funcs[func].returns = true;
+        }
+        if line.len() == 1 && (word(src, first, "break") || word(src, first, "continue")) {
+            open.breaks = true;
+            nodes.push(Node::Break);
+        }
+        open.nodes.extend(nodes);
+        self.lines.push(line);
+        Ok(literals)
+    }
+
+    /// Marks the functions that run as the program: the top level when it does anything,
+    /// else each top-level function no one calls (a script of functions alone).
+    fn mark_entries(&mut self) {
         let mut entries = vec![0];
         if self.funcs[0].body.is_empty() {
             entries = (1..self.funcs.len())
@@ -568,6 +601,11 @@ impl Script {
         for f in entries {
             self.funcs[f].entry = true;
         }
+    }
+
+    /// Indexes the assignments by variable and function, and those other functions see,
+    /// so that each move's reading of its variable need not scan them all.
+    fn index_assigns(&mut self) {
         for (i, a) in self.assigns.iter().enumerate() {
             self.by_var_func
                 .entry((a.name.clone(), a.func))
@@ -590,7 +628,6 @@ impl Script {
                     .or_insert((i, None));
             }
         }
-        Ok(truncated_at)
     }
 
     /// A line's assignment, if it is one: `[global|local] NAME = value`.
@@ -1359,6 +1396,15 @@ struct Ctx {
     at: usize,
     func: usize,
     block: usize,
+}
+
+/// Refuses a statement inside more than [`MAX_DEPTH`] blocks (`depth` open, the top level
+/// counted), at `at`.
+fn refuse_too_deep(src: &Source, depth: usize, at: usize) -> Result<(), Error> {
+    if depth > MAX_DEPTH {
+        return Err(src.error(at, format!("blocks nested deeper than {MAX_DEPTH}")));
+    }
+    Ok(())
 }
 
 /// Refuses a line whose brackets do not close on it.
