@@ -272,41 +272,69 @@ pub fn read_with(
     let mut scan = Scan::default();
     let truncated_at = scan_file(src, &context, true, limit, &mut scan)?;
     if let Some(p) = partner {
-        // The partner is context only: what does not read there gives no uses.
-        let mut other = Scan::default();
-        if scan_file(p, &context, false, usize::MAX, &mut other).is_ok() {
-            // The partner's own targets: not in this file's output, reported.
-            for mut t in other.partner_targets {
-                let (line, column) = p.location(t.offset);
-                t.refused = Some(Refusal::new(
-                    Reason::NotMoved,
-                    format!(
-                        "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
-                        t.name, p.name, p.name
-                    ),
-                ));
-                t.kind = TargetKind::Motion;
-                t.uses.clear();
-                t.offset = src.bytes.len();
-                scan.targets.push((t, None, None));
-            }
-            scan.moved_parameters.extend(other.moved_parameters);
-            scan.calls.extend(other.calls);
-            scan.unknown_uses.extend(other.unknown_uses);
-            scan.expression_uses.extend(other.expression_uses);
-            scan.uses
-                .extend(other.uses.into_iter().map(|(name, mut u)| {
-                    let (line, column) = p.location(u.offset);
-                    u.elsewhere = Some(format!("{}:{line}:{column}", p.name));
-                    (name, u)
-                }));
-        }
+        merge_partner(src, p, &context, &mut scan);
     }
-    let mut uses: HashMap<String, Vec<FrameUse>> = HashMap::new();
-    for (name, u) in scan.uses {
-        let list = uses.entry(name.clone()).or_default();
-        // A motion to any element of an array: once per frames, so that many such
-        // motions and a long array stay linear.
+    let named = NamedUses {
+        frames: uses_by_name(scan.uses),
+        unknown: first_by_name(scan.unknown_uses),
+        expressions: first_by_name(scan.expression_uses),
+        through: moved_through_parameters(&scan.calls, &scan.moved_parameters),
+    };
+    let mut targets = Vec::with_capacity(scan.targets.len());
+    for (target, key, kind) in scan.targets {
+        targets.extend(named.resolve(target, key, kind, context.writes));
+    }
+    targets.sort_by_key(|t| t.offset);
+    Ok(Program {
+        format: Format::Krl,
+        targets,
+        truncated_at,
+        first_motion: scan.first_motion,
+    })
+}
+
+/// Adds to `scan` what the partner gives this file: the uses of its motions (placed in
+/// the partner), its calls and moved parameters, and its own inline targets, reported
+/// since this file's output does not hold them. The partner is context only: what does
+/// not read there gives nothing.
+fn merge_partner(src: &Source, partner: &Source, context: &Context, scan: &mut Scan) {
+    let mut other = Scan::default();
+    if scan_file(partner, context, false, usize::MAX, &mut other).is_err() {
+        return;
+    }
+    for mut t in other.partner_targets {
+        let (line, column) = partner.location(t.offset);
+        t.refused = Some(Refusal::new(
+            Reason::NotMoved,
+            format!(
+                "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
+                t.name, partner.name, partner.name
+            ),
+        ));
+        t.kind = TargetKind::Motion;
+        t.uses.clear();
+        t.offset = src.bytes.len();
+        scan.targets.push((t, None, None));
+    }
+    scan.moved_parameters.extend(other.moved_parameters);
+    scan.calls.extend(other.calls);
+    scan.unknown_uses.extend(other.unknown_uses);
+    scan.expression_uses.extend(other.expression_uses);
+    scan.uses
+        .extend(other.uses.into_iter().map(|(name, mut u)| {
+            let (line, column) = partner.location(u.offset);
+            u.elsewhere = Some(format!("{}:{line}:{column}", partner.name));
+            (name, u)
+        }));
+}
+
+/// The frames of the motions to each name. A motion to any element of an array
+/// (`NAME[*]`) counts once per frames, so that many such motions and a long array stay
+/// linear.
+fn uses_by_name(uses: Vec<(String, FrameUse)>) -> HashMap<String, Vec<FrameUse>> {
+    let mut by_name: HashMap<String, Vec<FrameUse>> = HashMap::new();
+    for (name, u) in uses {
+        let list = by_name.entry(name.clone()).or_default();
         let same = |v: &FrameUse| {
             (&v.tool, &v.base, &v.undeclared, &v.unknown)
                 == (&u.tool, &u.base, &u.undeclared, &u.unknown)
@@ -315,22 +343,29 @@ pub fn read_with(
             list.push(u);
         }
     }
-    // The first motion not in the table, and the first expression, naming each target.
-    let mut unknown_uses: HashMap<String, String> = HashMap::new();
-    for (name, by) in scan.unknown_uses {
-        unknown_uses.entry(name).or_insert(by);
+    by_name
+}
+
+/// The first of `pairs` naming each name: one motion or expression is enough to say why.
+fn first_by_name(pairs: Vec<(String, String)>) -> HashMap<String, String> {
+    let mut first: HashMap<String, String> = HashMap::new();
+    for (name, by) in pairs {
+        first.entry(name).or_insert(by);
     }
-    let mut expression_uses: HashMap<String, String> = HashMap::new();
-    for (name, by) in scan.expression_uses {
-        expression_uses.entry(name).or_insert(by);
-    }
-    // Targets passed to a routine that moves to its parameter.
+    first
+}
+
+/// The names passed to a routine that moves to its parameter, and how: such a target is
+/// moved to in the frames of each caller, which no one correction holds for.
+fn moved_through_parameters(
+    calls: &[Call],
+    moved_parameters: &HashMap<(String, usize), String>,
+) -> HashMap<String, String> {
     let mut through: HashMap<String, String> = HashMap::new();
-    for call in &scan.calls {
+    for call in calls {
         let routine = call.routine.to_ascii_uppercase();
         for (k, name) in call.names.iter().enumerate() {
-            let (Some(name), Some(param)) =
-                (name, scan.moved_parameters.get(&(routine.clone(), k)))
+            let (Some(name), Some(param)) = (name, moved_parameters.get(&(routine.clone(), k)))
             else {
                 continue;
             };
@@ -342,69 +377,86 @@ pub fn read_with(
             });
         }
     }
-    let mut targets = Vec::with_capacity(scan.targets.len());
-    for (mut target, key, kind) in scan.targets {
-        if let Some(key) = key {
-            // An array's element is moved to by its index, or by an index computed at run
-            // time (`LIN XPA[I]`: every element).
-            let every = key
-                .split_once('[')
-                .and_then(|(array, _)| uses.get(&format!("{array}[*]")));
-            let found: Vec<FrameUse> = uses
-                .get(&key)
-                .into_iter()
-                .chain(every)
-                .flatten()
-                .cloned()
-                .collect();
-            // A FRAME no motion moves to is a base or tool offset, not a target.
-            if kind == Some(Kind::Frame) && found.is_empty() {
-                continue;
-            }
-            target.uses = found;
-            // A motion not in the table moves to it: its frames are not known.
-            if let Some(by) = unknown_uses.get(&key) {
-                target.refused.get_or_insert(Refusal::new(
-                    Reason::UnknownMotion,
-                    format!("moved to by {by}, a motion this reader does not know"),
-                ));
-            }
-            // Assigned as the program runs: its declared value is not where it moves.
-            let array_any = key.split_once('[').map(|(a, _)| format!("{a}[*]"));
-            let writes = &context.writes.variables;
-            let written = (writes.get(&key))
-                .or_else(|| array_any.and_then(|a| writes.get(&a)))
-                .or_else(|| key.split_once('[').and_then(|(a, _)| writes.get(a)));
-            if let Some(place) = written {
+    through
+}
+
+/// How the motions of the pair name the targets, by name (upper case), for each declared
+/// target to look up.
+struct NamedUses {
+    /// The frames of the motions to each name ([`uses_by_name`]).
+    frames: HashMap<String, Vec<FrameUse>>,
+    /// The first motion not in the table naming each target.
+    unknown: HashMap<String, String>,
+    /// The first expression naming each target.
+    expressions: HashMap<String, String>,
+    /// Targets passed to a routine that moves to its parameter ([`moved_through_parameters`]).
+    through: HashMap<String, String>,
+}
+
+impl NamedUses {
+    /// A target of the file with the uses of its declared name (`key`), refused where they
+    /// do not give it one correction; `None` for a FRAME no motion moves to.
+    fn resolve(
+        &self,
+        mut target: ProgramTarget,
+        key: Option<String>,
+        kind: Option<Kind>,
+        writes: &Writes,
+    ) -> Option<ProgramTarget> {
+        let Some(key) = key else {
+            return Some(target);
+        };
+        // An array's element is moved to by its index, or by an index computed at run
+        // time (`LIN XPA[I]`: every element).
+        let every = key
+            .split_once('[')
+            .and_then(|(array, _)| self.frames.get(&format!("{array}[*]")));
+        let found: Vec<FrameUse> = (self.frames.get(&key))
+            .into_iter()
+            .chain(every)
+            .flatten()
+            .cloned()
+            .collect();
+        // A FRAME no motion moves to is a base or tool offset, not a target.
+        if kind == Some(Kind::Frame) && found.is_empty() {
+            return None;
+        }
+        target.uses = found;
+        // A motion not in the table moves to it: its frames are not known.
+        if let Some(by) = self.unknown.get(&key) {
+            target.refused.get_or_insert(Refusal::new(
+                Reason::UnknownMotion,
+                format!("moved to by {by}, a motion this reader does not know"),
+            ));
+        }
+        // Assigned as the program runs: its declared value is not where it moves.
+        let array_any = key.split_once('[').map(|(a, _)| format!("{a}[*]"));
+        let variables = &writes.variables;
+        let written = (variables.get(&key))
+            .or_else(|| array_any.and_then(|a| variables.get(&a)))
+            .or_else(|| key.split_once('[').and_then(|(a, _)| variables.get(a)));
+        if let Some(place) = written {
+            target.refused.get_or_insert(Refusal::new(
+                Reason::Dynamic,
+                format!("{} is assigned as the program runs ({place}): its declared value is not what the robot moves to", target.name),
+            ));
+        }
+        if let Some(detail) = self.through.get(&key) {
+            target
+                .refused
+                .get_or_insert(Refusal::new(Reason::Dynamic, detail.clone()));
+        }
+        // Moved to only through an expression: no one correction holds for it.
+        if let Some(by) = self.expressions.get(&key) {
+            if target.uses.is_empty() {
                 target.refused.get_or_insert(Refusal::new(
                     Reason::Dynamic,
-                    format!("{} is assigned as the program runs ({place}): its declared value is not what the robot moves to", target.name),
+                    format!("used only by {by}, computed when the program runs"),
                 ));
             }
-            if let Some(detail) = through.get(&key) {
-                target
-                    .refused
-                    .get_or_insert(Refusal::new(Reason::Dynamic, detail.clone()));
-            }
-            // Moved to only through an expression: no one correction holds for it.
-            if let Some(by) = expression_uses.get(&key) {
-                if target.uses.is_empty() {
-                    target.refused.get_or_insert(Refusal::new(
-                        Reason::Dynamic,
-                        format!("used only by {by}, computed when the program runs"),
-                    ));
-                }
-            }
         }
-        targets.push(target);
+        Some(target)
     }
-    targets.sort_by_key(|t| t.offset);
-    Ok(Program {
-        format: Format::Krl,
-        targets,
-        truncated_at,
-        first_motion: scan.first_motion,
-    })
 }
 
 /// What the files declare: `FDAT`s and target names.
@@ -2150,8 +2202,11 @@ impl Flow {
         memory: &mut Memory,
     ) {
         let initial = Frames::of(FrameState::Initial, FrameState::Initial);
-        let mut current = initial.clone();
-        let mut blocks: Vec<Block> = Vec::new();
+        let mut walk = Walk {
+            current: initial.clone(),
+            initial,
+            blocks: Vec::new(),
+        };
         for (idx, line) in lines.iter().enumerate() {
             let routine = self.routine_of[idx];
             let tokens = &line.tokens;
@@ -2160,13 +2215,13 @@ impl Flow {
                 base: FrameState::Kept,
             };
             fold_frames(src, line.rest.0, line.rest.1, context, &mut set);
-            self.apply(&mut current, set, routine, memory);
+            self.apply(&mut walk.current, set, routine, memory);
             let Some(first) = tokens.first() else {
                 continue;
             };
             if routine_head(src, tokens).is_some() {
-                current = routine.map_or(initial.clone(), |r| self.entry(src, r, memory));
-                blocks.clear();
+                walk.current = routine.map_or(walk.initial.clone(), |r| self.entry(src, r, memory));
+                walk.blocks.clear();
                 continue;
             }
             let word = if first.kind == Tok::Ident {
@@ -2174,178 +2229,16 @@ impl Flow {
             } else {
                 String::new()
             };
-            match word.as_str() {
-                "END" | "ENDFCT" => {
-                    if let Some(r) = routine {
-                        memory.changed |= memory.exit[r].join(&current);
-                    }
-                    current = initial.clone();
-                    blocks.clear();
-                    continue;
-                }
-                "RETURN" => {
-                    if let Some(r) = routine {
-                        memory.changed |= memory.exit[r].join(&current);
-                    }
-                    current = Frames::default();
-                    continue;
-                }
-                "IF" => {
-                    blocks.push(Block::If {
-                        before: current.clone(),
-                        done: Frames::default(),
-                        has_else: false,
-                    });
-                    continue;
-                }
-                "ELSE" => {
-                    if let Some(Block::If {
-                        before,
-                        done,
-                        has_else,
-                    }) = blocks.last_mut()
-                    {
-                        done.join(&current);
-                        current = before.clone();
-                        *has_else = true;
-                    }
-                    continue;
-                }
-                "ENDIF" => {
-                    if let Some(Block::If {
-                        before,
-                        done,
-                        has_else,
-                    }) = blocks.last()
-                    {
-                        current.join(done);
-                        if !has_else {
-                            current.join(before);
-                        }
-                        blocks.pop();
-                    }
-                    continue;
-                }
-                "SWITCH" => {
-                    blocks.push(Block::Switch {
-                        before: current.clone(),
-                        done: Frames::default(),
-                        started: false,
-                        has_default: false,
-                    });
-                    continue;
-                }
-                "CASE" | "DEFAULT" => {
-                    if let Some(Block::Switch {
-                        before,
-                        done,
-                        started,
-                        has_default,
-                    }) = blocks.last_mut()
-                    {
-                        if *started {
-                            done.join(&current);
-                        }
-                        current = before.clone();
-                        *started = true;
-                        *has_default |= word == "DEFAULT";
-                    }
-                    continue;
-                }
-                "ENDSWITCH" => {
-                    if let Some(Block::Switch {
-                        before,
-                        done,
-                        started,
-                        has_default,
-                    }) = blocks.last()
-                    {
-                        if *started {
-                            current.join(done);
-                        } else {
-                            current = before.clone();
-                        }
-                        if !has_default {
-                            current.join(before);
-                        }
-                        blocks.pop();
-                    }
-                    continue;
-                }
-                "FOR" | "WHILE" | "LOOP" | "REPEAT" => {
-                    let kind = match word.as_str() {
-                        "FOR" => "FOR",
-                        "WHILE" => "WHILE",
-                        "LOOP" => "LOOP",
-                        _ => "REPEAT",
-                    };
-                    let entry = current.clone();
-                    if let Some(back) = memory.back.get(&idx) {
-                        current.join(back);
-                    }
-                    blocks.push(Block::Loop {
-                        head: idx,
-                        kind,
-                        entry,
-                        exits: Frames::default(),
-                    });
-                    // A WHILE's condition may call a function: read below with the line.
-                    if kind != "WHILE" {
-                        continue;
-                    }
-                }
-                "ENDFOR" | "ENDWHILE" | "ENDLOOP" | "UNTIL" => {
-                    if let Some(Block::Loop {
-                        head,
-                        kind,
-                        entry,
-                        exits,
-                    }) = blocks.pop()
-                    {
-                        let back = memory.back.entry(head).or_default();
-                        memory.changed |= back.join(&current);
-                        current = match kind {
-                            "LOOP" => exits,
-                            "REPEAT" => {
-                                current.join(&exits);
-                                current
-                            }
-                            _ => {
-                                let mut after = entry;
-                                after.join(back);
-                                after.join(&exits);
-                                after
-                            }
-                        };
-                    }
-                    continue;
-                }
-                "EXIT" => {
-                    if let Some(Block::Loop { exits, .. }) = blocks
-                        .iter_mut()
-                        .rev()
-                        .find(|b| matches!(b, Block::Loop { .. }))
-                    {
-                        exits.join(&current);
-                    }
-                    current = Frames::default();
-                    continue;
-                }
-                _ => {}
+            // The words are exclusive: at most one of these reads the line.
+            if walk.leave_routine(&word, routine, memory)
+                || walk.follow_if(&word)
+                || walk.follow_switch(&word)
+                || walk.follow_loop(&word, idx, memory)
+            {
+                continue;
             }
             if is_motion(src, first).is_some() {
-                let mut at = current.clone();
-                if !at.reached() {
-                    at = Frames::unknown(
-                        "no path of the program reaches this motion, as this reader follows it"
-                            .to_string(),
-                    );
-                }
-                if let Some(line) = routine.and_then(|r| self.routines[r].goto) {
-                    at.join(&Frames::unknown(format!(
-                        "GOTO at line {line}: jumps this reader does not follow"
-                    )));
-                }
+                let at = self.motion_frames(&walk.current, routine);
                 self.at.insert(idx, at);
                 continue;
             }
@@ -2354,29 +2247,60 @@ impl Flow {
                 base: FrameState::Kept,
             };
             if frame_statement(src, tokens, &word, context, &mut set) {
-                self.apply(&mut current, set, routine, memory);
+                self.apply(&mut walk.current, set, routine, memory);
                 continue;
             }
-            for (callee, _, at, after_do) in calls_of(src, tokens, by_name) {
-                if after_do {
-                    let (line, _) = src.location(at);
-                    let why = format!(
-                        "{} runs when an interrupt or trigger fires (line {line}): wherever the robot is",
-                        self.routines[callee].name
-                    );
-                    memory.changed |= memory.entry[callee].join(&Frames::unknown(why));
-                    continue;
-                }
-                memory.changed |= memory.entry[callee].join(&current);
-                let sets = memory.sets[callee];
-                if sets[0] {
-                    current.tool = memory.exit[callee].tool.clone();
-                }
-                if sets[1] {
-                    current.base = memory.exit[callee].base.clone();
-                }
-                memory.note_sets(routine, sets);
+            self.follow_calls(src, tokens, by_name, routine, &mut walk.current, memory);
+        }
+    }
+
+    /// The frames a motion runs in: those reaching it, or unknown where no path followed
+    /// reaches it or a `GOTO` of its routine may jump past the frames followed.
+    fn motion_frames(&self, current: &Frames, routine: Option<usize>) -> Frames {
+        let mut at = current.clone();
+        if !at.reached() {
+            at = Frames::unknown(
+                "no path of the program reaches this motion, as this reader follows it".to_string(),
+            );
+        }
+        if let Some(line) = routine.and_then(|r| self.routines[r].goto) {
+            at.join(&Frames::unknown(format!(
+                "GOTO at line {line}: jumps this reader does not follow"
+            )));
+        }
+        at
+    }
+
+    /// Follows the calls of a line: a callee starts in the caller's frames and hands back
+    /// those it sets; one an interrupt or trigger runs (`after_do`) starts anywhere.
+    fn follow_calls(
+        &self,
+        src: &Source,
+        tokens: &[Token],
+        by_name: &HashMap<String, usize>,
+        routine: Option<usize>,
+        current: &mut Frames,
+        memory: &mut Memory,
+    ) {
+        for (callee, _, at, after_do) in calls_of(src, tokens, by_name) {
+            if after_do {
+                let (line, _) = src.location(at);
+                let why = format!(
+                    "{} runs when an interrupt or trigger fires (line {line}): wherever the robot is",
+                    self.routines[callee].name
+                );
+                memory.changed |= memory.entry[callee].join(&Frames::unknown(why));
+                continue;
             }
+            memory.changed |= memory.entry[callee].join(current);
+            let sets = memory.sets[callee];
+            if sets[0] {
+                current.tool = memory.exit[callee].tool.clone();
+            }
+            if sets[1] {
+                current.base = memory.exit[callee].base.clone();
+            }
+            memory.note_sets(routine, sets);
         }
     }
 
@@ -2396,6 +2320,203 @@ impl Memory {
                 *noted = true;
                 self.changed = true;
             }
+        }
+    }
+}
+
+/// Where a pass of [`Flow`] is in a file: the frames along the paths reaching the line,
+/// and the branches and loops open around it.
+struct Walk {
+    /// The frames outside any routine, and at a routine's end.
+    initial: Frames,
+    current: Frames,
+    blocks: Vec<Block>,
+}
+
+impl Walk {
+    /// Leaves a routine at its `END` or a `RETURN`: its callers continue in the frames it
+    /// leaves with. True when `word` is one of these.
+    fn leave_routine(&mut self, word: &str, routine: Option<usize>, memory: &mut Memory) -> bool {
+        match word {
+            "END" | "ENDFCT" => {
+                if let Some(r) = routine {
+                    memory.changed |= memory.exit[r].join(&self.current);
+                }
+                self.current = self.initial.clone();
+                self.blocks.clear();
+            }
+            "RETURN" => {
+                if let Some(r) = routine {
+                    memory.changed |= memory.exit[r].join(&self.current);
+                }
+                // Nothing falls through a RETURN.
+                self.current = Frames::default();
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    /// Follows an `IF … ELSE … ENDIF`: after it, the frames of either branch, or of none
+    /// without an `ELSE`. True when `word` is one of these.
+    fn follow_if(&mut self, word: &str) -> bool {
+        match word {
+            "IF" => {
+                self.blocks.push(Block::If {
+                    before: self.current.clone(),
+                    done: Frames::default(),
+                    has_else: false,
+                });
+            }
+            "ELSE" => {
+                if let Some(Block::If {
+                    before,
+                    done,
+                    has_else,
+                }) = self.blocks.last_mut()
+                {
+                    done.join(&self.current);
+                    self.current = before.clone();
+                    *has_else = true;
+                }
+            }
+            "ENDIF" => {
+                if let Some(Block::If {
+                    before,
+                    done,
+                    has_else,
+                }) = self.blocks.last()
+                {
+                    self.current.join(done);
+                    if !has_else {
+                        self.current.join(before);
+                    }
+                    self.blocks.pop();
+                }
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    /// Follows a `SWITCH … CASE … DEFAULT … ENDSWITCH`: each case starts in the frames
+    /// before it; after it, those of any case, or of none without a `DEFAULT`. True when
+    /// `word` is one of these.
+    fn follow_switch(&mut self, word: &str) -> bool {
+        match word {
+            "SWITCH" => {
+                self.blocks.push(Block::Switch {
+                    before: self.current.clone(),
+                    done: Frames::default(),
+                    started: false,
+                    has_default: false,
+                });
+            }
+            "CASE" | "DEFAULT" => {
+                if let Some(Block::Switch {
+                    before,
+                    done,
+                    started,
+                    has_default,
+                }) = self.blocks.last_mut()
+                {
+                    if *started {
+                        done.join(&self.current);
+                    }
+                    self.current = before.clone();
+                    *started = true;
+                    *has_default |= word == "DEFAULT";
+                }
+            }
+            "ENDSWITCH" => {
+                if let Some(Block::Switch {
+                    before,
+                    done,
+                    started,
+                    has_default,
+                }) = self.blocks.last()
+                {
+                    if *started {
+                        self.current.join(done);
+                    } else {
+                        self.current = before.clone();
+                    }
+                    if !has_default {
+                        self.current.join(before);
+                    }
+                    self.blocks.pop();
+                }
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    /// Follows a loop: its body starts in the frames before it and those its last pass
+    /// ended with ([`Memory::back`]); after it, those its kind lets through, and its
+    /// `EXIT`s'. True when the line is read; false for a `WHILE`, whose condition may
+    /// call a function, and for any other word.
+    fn follow_loop(&mut self, word: &str, idx: usize, memory: &mut Memory) -> bool {
+        match word {
+            "FOR" | "WHILE" | "LOOP" | "REPEAT" => {
+                let kind = match word {
+                    "FOR" => "FOR",
+                    "WHILE" => "WHILE",
+                    "LOOP" => "LOOP",
+                    _ => "REPEAT",
+                };
+                let entry = self.current.clone();
+                if let Some(back) = memory.back.get(&idx) {
+                    self.current.join(back);
+                }
+                self.blocks.push(Block::Loop {
+                    head: idx,
+                    kind,
+                    entry,
+                    exits: Frames::default(),
+                });
+                kind != "WHILE"
+            }
+            "ENDFOR" | "ENDWHILE" | "ENDLOOP" | "UNTIL" => {
+                if let Some(Block::Loop {
+                    head,
+                    kind,
+                    entry,
+                    exits,
+                }) = self.blocks.pop()
+                {
+                    let mut current = std::mem::take(&mut self.current);
+                    let back = memory.back.entry(head).or_default();
+                    memory.changed |= back.join(&current);
+                    self.current = match kind {
+                        "LOOP" => exits,
+                        "REPEAT" => {
+                            current.join(&exits);
+                            current
+                        }
+                        _ => {
+                            let mut after = entry;
+                            after.join(back);
+                            after.join(&exits);
+                            after
+                        }
+                    };
+                }
+                true
+            }
+            "EXIT" => {
+                if let Some(Block::Loop { exits, .. }) = self
+                    .blocks
+                    .iter_mut()
+                    .rev()
+                    .find(|b| matches!(b, Block::Loop { .. }))
+                {
+                    exits.join(&self.current);
+                }
+                self.current = Frames::default();
+                true
+            }
+            _ => false,
         }
     }
 }
