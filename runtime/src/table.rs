@@ -19,6 +19,7 @@ use crate::format::{
     v1, v2, v3, v5, Grid, Header, CONTENT_CONFIG, CONTENT_MODEL, CONTENT_ORIENTATION, HEADER_LEN,
     MAX_COORDINATE_MM, PAYLOAD_ALIGN,
 };
+use crate::kinematics::rotation_displacement;
 use crate::method::{self, MethodParams, Prediction};
 use crate::model::{ModelAt, PreparedModel};
 use crate::posture::{PostureParams, PreparedPosture};
@@ -69,9 +70,12 @@ struct ModelPart {
     rotation_rad: [f64; 3],
     /// The nominal TCP's approach axis at the query's joint values, base frame.
     approach: [f64; 3],
-    /// The model's position error at the target's TCP (at the table's point when no TCP
-    /// is named or it cannot be placed), mm, base frame.
+    /// The model's position error at the table's point, mm, base frame.
     error_mm: [f64; 3],
+    /// A named TCP's lever from the table's point, base frame (mm): the answer's rotation
+    /// error, the model's and the residual's, turns it (docs/runtime.md, "Another TCP").
+    /// `None` when no TCP is named or the table does not record its point.
+    lever_mm: Option<[f64; 3]>,
     /// Where the table's point is for the target, mm, base frame: what the residual
     /// field and the joints' check read.
     point_mm: [f64; 3],
@@ -838,6 +842,12 @@ impl<D: AsRef<[u8]>> Table<D> {
             for (out, model) in orientation.zip(m.rotation_rad) {
                 *out += model;
             }
+            if let Some(lever_mm) = m.lever_mm {
+                let turn = rotation_displacement(correction.orientation_error_rad, lever_mm);
+                for (out, t) in correction.position_error_mm.iter_mut().zip(turn) {
+                    *out += t;
+                }
+            }
         }
         correction.evidence = evidence;
         correction.finite_or_failure()
@@ -997,20 +1007,20 @@ impl<D: AsRef<[u8]>> Table<D> {
             residual_scale,
             (position_mm, orientation_rad, neighbours, residual),
         );
-        // The residual plus the model, as `answer` adds them; built once, in place.
+        // The residual plus the model, as `answer` adds them (a named TCP's lever turned
+        // by the sum); built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-        Correction::ok_if_finite(
-            plus(position_mm, m.error_mm),
-            plus(orientation_rad, m.rotation_rad),
-            neighbours,
-            residual,
-            evidence,
-        )
+        let rotation_rad = plus(orientation_rad, m.rotation_rad);
+        let mut position_mm = plus(position_mm, m.error_mm);
+        if let Some(lever_mm) = m.lever_mm {
+            position_mm = plus(position_mm, rotation_displacement(rotation_rad, lever_mm));
+        }
+        Correction::ok_if_finite(position_mm, rotation_rad, neighbours, residual, evidence)
     }
 
     /// A hybrid query's model part (see [`Table::answer`]): the model at `q` with its
     /// orientation, the table's point for the target, the joints' check against that
-    /// point, and the error at the target's TCP.
+    /// point, and a named TCP's lever, which the answer's rotation error turns.
     #[inline(always)]
     fn model_part(
         &self,
@@ -1034,7 +1044,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         if !rotation {
             at.rotation_rad = [0.0; 3];
         }
-        let (error_mm, point_mm) = self.placed(model, at, target)?;
+        let (point_mm, lever_mm) = self.placed(model, at, target)?;
         // NaN (a chain that overflowed) is refused too.
         if !joints_within(method::distance_squared_mm2(at.nominal_tcp_mm, point_mm)) {
             return Err(Status::JointsMismatch);
@@ -1042,32 +1052,33 @@ impl<D: AsRef<[u8]>> Table<D> {
         Ok(ModelPart {
             rotation_rad: at.rotation_rad,
             approach: at.approach,
-            error_mm,
+            error_mm: at.position_mm,
+            lever_mm,
             point_mm,
             beyond_terms: model.beyond_terms(q),
         })
     }
 
     /// Where a hybrid query puts `target` for the model evaluated `at` its joint values:
-    /// the model's position error at the target's TCP, and the table's point for the
-    /// target (the target moved back by the TCP's lever when the table records its point
-    /// in the flange, else the target itself), which the joints' nominal TCP must lie near.
+    /// the table's point for the target (the target moved back by the TCP's lever when the
+    /// table records its point in the flange, else the target itself), which the joints'
+    /// nominal TCP must lie near, and that lever in the base frame.
     #[inline(always)]
     fn placed(
         &self,
         model: &PreparedModel,
         at: &ModelAt,
         target: &Target,
-    ) -> Result<([f64; 3], [f64; 3]), Status> {
+    ) -> Result<([f64; 3], Option<[f64; 3]>), Status> {
         match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => {
-                let (error_mm, lever_base) = model
+                let (_, lever_mm) = model
                     .error_at_lever(at, point.lever_of(tcp))
                     .ok_or(Status::InvalidInput)?;
                 let p = target.position_mm;
-                Ok((error_mm, [0, 1, 2].map(|i| p[i] - lever_base[i])))
+                Ok(([0, 1, 2].map(|i| p[i] - lever_mm[i]), Some(lever_mm)))
             }
-            _ => Ok((at.position_mm, target.position_mm)),
+            _ => Ok((target.position_mm, None)),
         }
     }
 
@@ -1080,7 +1091,7 @@ impl<D: AsRef<[u8]>> Table<D> {
     pub fn joints_offset_mm(&self, target: &Target, joints_rad: &[f64]) -> Option<f64> {
         let model = self.model.as_ref()?;
         let at = model.evaluate(joints_rad, true)?;
-        let (_, point_mm) = self.placed(model, &at, target).ok()?;
+        let (point_mm, _) = self.placed(model, &at, target).ok()?;
         Some(method::distance_mm(at.nominal_tcp_mm, point_mm))
     }
 

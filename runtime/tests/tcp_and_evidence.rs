@@ -124,29 +124,34 @@ fn table_with_orientation(
     q: &[f64; 6],
     evidence: EvidenceRecord,
 ) -> Table<adwi_runtime::AlignedBytes> {
-    Table::from_vec(table_bytes_measuring(q, evidence, true)).unwrap()
+    Table::from_vec(table_bytes_measuring(q, evidence, Some([0.0; 3]))).unwrap()
 }
 
 /// The bytes of [`table`].
 fn table_bytes(q: &[f64; 6], evidence: EvidenceRecord) -> Vec<u8> {
-    table_bytes_measuring(q, evidence, false)
+    table_bytes_measuring(q, evidence, None)
 }
 
-/// The bytes of [`table`], or of [`table_with_orientation`] when `orientation`.
-fn table_bytes_measuring(q: &[f64; 6], evidence: EvidenceRecord, orientation: bool) -> Vec<u8> {
+/// The bytes of [`table`], or, with `orientation` (the residual's orientation error, rad,
+/// every sample's and node's), of a table of samples that measured orientation.
+fn table_bytes_measuring(
+    q: &[f64; 6],
+    evidence: EvidenceRecord,
+    orientation: Option<[f64; 3]>,
+) -> Vec<u8> {
     let (nominal, calibrated) = chains(q);
     let mut data = data(Some(ModelRecord {
         nominal: ChainRecord::from_chain(&nominal),
         calibrated: ChainRecord::from_chain(&calibrated),
     }));
-    if orientation {
-        data.orientation_errors_rad = vec![[0.0; 3]; data.samples.len()];
-        data.node_orientation_errors_rad = vec![[0.0; 3]; data.node_errors_mm.len()];
+    if let Some(r) = orientation {
+        data.orientation_errors_rad = vec![r; data.samples.len()];
+        data.node_orientation_errors_rad = vec![r; data.node_errors_mm.len()];
     }
     let header = Header {
         version: FORMAT_VERSION,
         rkyv_flags: RKYV_FLAGS,
-        content_flags: if orientation {
+        content_flags: if orientation.is_some() {
             CONTENT_MODEL | CONTENT_ORIENTATION
         } else {
             CONTENT_MODEL
@@ -294,6 +299,63 @@ fn a_hybrid_table_answers_the_model_orientation_error_where_its_samples_measured
         }
         let exact = table.exact().query_with_joints(&Target::at(POINT_MM), &q);
         assert_eq!(exact.orientation_error_rad, got.orientation_error_rad);
+    }
+}
+
+/// A named TCP's lever is turned by the answer's whole rotation error, the model's and
+/// the residual's, as the TCP rides on the point: `e_tcp = e_point + (Exp(ω) − I) · x`,
+/// `e_point` and `ω` the answer at the point, `x` the lever in the base frame (the nominal
+/// TCP less the nominal point). `tablec compensate` carries a TCP by the same rotation.
+#[test]
+fn a_named_tcp_turns_by_the_models_and_the_residuals_rotation() {
+    let q = [0.3, -0.8, 1.1, 0.4, 0.9, -0.6];
+    let residual_rad = [4e-4, -3e-4, 2e-4];
+    let bytes = table_bytes_measuring(&q, recorded(), Some(residual_rad));
+    let table = Table::from_vec(bytes).unwrap();
+    let (_, _, point_at_mm) = reference(&q, point_in_flange().translation_mm);
+    for tcp in [[0.0, 0.0, 200.0], [40.0, -25.0, 350.0]] {
+        let (_, _, at_mm) = reference(&q, tcp);
+        let lever_mm = [0, 1, 2].map(|a| at_mm[a] - point_at_mm[a]);
+        for exact in [false, true] {
+            let ask = |t: &Target| match exact {
+                false => table.query_with_joints(t, &q),
+                true => table.exact().query_with_joints(t, &q),
+            };
+            let at_point = ask(&Target::at(point_at_mm));
+            let at_tcp = ask(&Target::at(at_mm).with_tcp(tcp));
+            assert_eq!(
+                (at_tcp.status, at_tcp.evidence),
+                (Status::Ok, Evidence::WITHIN)
+            );
+            // (The point is the target less the lever: the same to rounding.)
+            let rotation_apart =
+                method::distance_mm(at_tcp.orientation_error_rad, at_point.orientation_error_rad);
+            assert!(rotation_apart < 1e-12, "{rotation_apart} rad");
+            let turned = rotation_from_vector(at_point.orientation_error_rad);
+            for a in 0..3 {
+                let turn: f64 =
+                    (0..3).map(|k| turned[a][k] * lever_mm[k]).sum::<f64>() - lever_mm[a];
+                let want = at_point.position_error_mm[a] + turn;
+                assert!(
+                    (at_tcp.position_error_mm[a] - want).abs() < 1e-9,
+                    "exact {exact}: {:?} vs {want} ({a})",
+                    at_tcp.position_error_mm
+                );
+            }
+            // The residual's rotation is felt: without it the lever turns less.
+            let model_rad = [0, 1, 2].map(|a| at_point.orientation_error_rad[a] - residual_rad[a]);
+            let model_only = rotation_from_vector(model_rad);
+            let apart: f64 = (0..3)
+                .map(|a| {
+                    let t: f64 = (0..3)
+                        .map(|k| (turned[a][k] - model_only[a][k]) * lever_mm[k])
+                        .sum();
+                    t * t
+                })
+                .sum::<f64>()
+                .sqrt();
+            assert!(apart > 0.05, "{apart} mm");
+        }
     }
 }
 
