@@ -42,6 +42,7 @@ fuzz_target!(|data: &[u8]| {
         } else {
             AngleUnit::Radian
         },
+        prismatic_joints: u64::from(bits >> 6 & 1),
     };
     if let Ok(set) = parse_samples_with(path, data, &ColumnMap::default(), &options) {
         let _ = set.spacing_mm();

@@ -71,7 +71,24 @@ impl Reading {
             decimal: self.decimal,
             length_unit: self.length_unit.unwrap_or_default(),
             angle_unit: self.angle_unit.unwrap_or_default(),
+            prismatic_joints: 0,
         };
+        Ok((columns, options))
+    }
+
+    /// [`Reading::resolve`] for a file of `robot`'s samples or poses: its prismatic joints'
+    /// columns are lengths where the mapping gives no unit (mm by default), as `tablec
+    /// simulate` and `tablec plan` write them.
+    ///
+    /// # Errors
+    ///
+    /// As [`Reading::resolve`].
+    pub fn resolve_for(
+        &self,
+        robot: Option<&adwi_robot::Robot>,
+    ) -> Result<(ColumnMap, adwi_samples::ReadOptions), JobError> {
+        let (columns, mut options) = self.resolve()?;
+        options.prismatic_joints = robot.map_or(0, adwi_robot::Robot::prismatic_joints);
         Ok((columns, options))
     }
 

@@ -235,7 +235,7 @@ impl BuildJob {
         inputs.add_sources(&args.samples);
         let file_robot = load_robot(&args.robot, &mut inputs)?;
         let outputs = OutputPlan::check(&[&args.output], &inputs.paths())?;
-        let (columns, read) = args.reading.resolve()?;
+        let (columns, read) = args.reading.resolve_for(file_robot.as_ref())?;
         let tracker = args.measured_in == Frame::Tracker;
         // `auto` registers several series and starts its choice without terms.
         let calibrate = CalibrateOptions {

@@ -206,7 +206,7 @@ impl CalibrateJob {
             .collect::<Vec<&Path>>(),
             &inputs.paths(),
         )?;
-        let (columns, read) = args.reading.resolve()?;
+        let (columns, read) = args.reading.resolve_for(Some(&file_robot))?;
         let tracker = args.measured_in == Frame::Tracker;
         let series =
             crate::series::read(&args.samples, &columns, &read, Some(&file_robot), tracker)?;

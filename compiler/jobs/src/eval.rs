@@ -281,7 +281,7 @@ impl EvalJob {
         if let Some(page) = &page {
             outputs.check_in_new_directory(page, &inputs.paths())?;
         }
-        let (columns, read) = args.reading.resolve()?;
+        let (columns, read) = args.reading.resolve_for(file_robot.as_ref())?;
         let subject = match &args.table_file {
             Some(path) => {
                 // SAFETY: the mapping lives as long as the job; tablec and the Python

@@ -91,7 +91,7 @@ pub(crate) fn read_joint_rows(
     path: &std::path::Path,
     robot: &Robot,
 ) -> Result<Vec<Vec<f64>>, JobError> {
-    let (columns, options) = crate::args::Reading::default().resolve()?;
+    let (columns, options) = crate::args::Reading::default().resolve_for(Some(robot))?;
     // Joint values are what a pose to measure is: x,y,z may be in the file (a plan has
     // them) but are not needed.
     let rows = adwi_samples::read_poses(path, &columns, &options)?;

@@ -147,6 +147,10 @@ pub struct ReadOptions {
     /// The unit of joint and orientation-angle columns whose mapping gives none (not of the
     /// rotation vector `rx,ry,rz`, which is in radians unless mapped `:deg`).
     pub angle_unit: AngleUnit,
+    /// The prismatic joints of the robot the file is read for (bit `i`: joint `i + 1`):
+    /// their columns, where the mapping gives no unit, are lengths in `length_unit`, not
+    /// angles (the robot file says which; the reader alone cannot know).
+    pub prismatic_joints: u64,
 }
 
 /// How the reader came to use a separator or a decimal mark, for messages.
@@ -1348,8 +1352,13 @@ fn resolve(
     // The factor to millimetres or radians of a column (sign included), and its unit.
     let scale = |canonical: &str, source: &Source| -> Scale {
         let quantity = Quantity::of(canonical).expect("a canonical column");
+        let prismatic = canonical
+            .strip_prefix('j')
+            .and_then(|n| n.parse::<u32>().ok())
+            .is_some_and(|n| (1..=64).contains(&n) && options.prismatic_joints >> (n - 1) & 1 == 1);
         let unit = source.unit.or(match quantity {
             Quantity::Length => Some(Unit::Length(options.length_unit)),
+            Quantity::Joint if prismatic => Some(Unit::Length(options.length_unit)),
             Quantity::Angle | Quantity::Joint => Some(Unit::Angle(options.angle_unit)),
             Quantity::RotationVector => Some(Unit::Angle(AngleUnit::Radian)),
             Quantity::Unitless => None,
@@ -1972,6 +1981,36 @@ mod tests {
         };
         let t = read(text, "mx:mm,my:mm,mz:mm,ma:deg,mb:deg,mc:deg,j3:m", options).unwrap();
         assert_eq!(t, s);
+    }
+
+    /// A prismatic joint's column (a track, as `tablec simulate` writes it) is a length
+    /// where the mapping gives no unit: in the file's length unit, not degrees; a unit
+    /// mapped on it still holds.
+    #[test]
+    fn a_prismatic_joints_column_is_a_length() {
+        let text = "x,y,z,dx,dy,dz,j1,j2\n1,2,3,0,0,0,1500,90\n";
+        let track = ReadOptions {
+            prismatic_joints: 1,
+            ..ReadOptions::default()
+        };
+        let row = |map: &str, options| {
+            read(text, map, options)
+                .unwrap()
+                .joints_rad(0)
+                .unwrap()
+                .to_vec()
+        };
+        assert_eq!(row("", track), [1500.0, 90f64.to_radians()]);
+        assert_eq!(
+            row("", ReadOptions::default()),
+            [1500f64.to_radians(), 90f64.to_radians()]
+        );
+        let metres = ReadOptions {
+            length_unit: LengthUnit::Metre,
+            ..track
+        };
+        assert_eq!(row("", metres), [1_500_000.0, 90f64.to_radians()]);
+        assert_eq!(row("j1:mm", metres), [1500.0, 90f64.to_radians()]);
     }
 
     #[test]
