@@ -1388,3 +1388,39 @@ fn cr_only_line_ends_read_as_lf_and_utf16_and_programs_of_another_dialect_are_re
     assert_eq!(code, 1);
     assert!(stderr.contains("no target and no motion found"), "{stderr}");
 }
+
+/// A KRL Status and Turn, or a RAPID robconf, on a robot without closed-form
+/// configurations (seven axes) names the written configuration it cannot keep, as a Fanuc
+/// `CONFIG` or a VAL3 `config` does, and leaves the target as written.
+#[test]
+fn a_krl_status_or_rapid_robconf_a_robot_cannot_keep_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let krl = dir.path().join("s.src");
+    std::fs::write(
+        &krl,
+        "DEF s( )\nLIN {X 600,Y 0,Z 500,A 0,B 90,C 0,S 'B110',T 'B10'}\nEND\n",
+    )
+    .unwrap();
+    let rapid = dir.path().join("m.mod");
+    std::fs::write(
+        &rapid,
+        "MODULE m\n  PROC main()\n    MoveL [[600,0,500],[0,0,1,0],[0,0,0,1],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n  ENDPROC\nENDMODULE\n",
+    )
+    .unwrap();
+    for (program, written) in [(&krl, "S 'B110', T 'B10'"), (&rapid, "robconf [0,0,0,1]")] {
+        let mut o = CompensateOptions::new(&table, program);
+        o.robot = Some(repo("tables/iiwa14/robot.toml"));
+        let done = CompensateJob::new(o).unwrap().run().unwrap();
+        let line = &done.report.targets[0];
+        assert_eq!(line.status.as_str(), "invalid", "{}", line.detail);
+        assert_eq!(
+            line.detail,
+            format!(
+                "the written configuration ({written}) is not one a robot of 7 joints without \
+                 closed-form configurations has: left as written, not corrected in a posture \
+                 the program does not give"
+            )
+        );
+    }
+}

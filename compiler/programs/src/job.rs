@@ -1914,6 +1914,10 @@ fn unmapped_configuration(src: &Source, hint: &ConfigHint, k: &Kinematics) -> Op
         }
         ConfigHint::Val3 { .. }
         | ConfigHint::YaskawaRconf { .. }
+        | ConfigHint::KukaStatusTurn {
+            status: Some(_), ..
+        }
+        | ConfigHint::RapidConf(_)
         | ConfigHint::FanucConfig {
             configuration: Some(_),
             ..
@@ -1980,6 +1984,11 @@ fn written_configuration(hint: &ConfigHint) -> String {
                 turn(turns[2])
             )
         }
+        ConfigHint::KukaStatusTurn { status, turn } => {
+            let bits = |v: Option<u32>| v.map_or_else(|| "?".to_string(), |v| format!("'B{v:b}'"));
+            format!("S {}, T {}", bits(status), bits(turn))
+        }
+        ConfigHint::RapidConf([cf1, cf4, cf6, cfx]) => format!("robconf [{cf1},{cf4},{cf6},{cfx}]"),
         _ => String::new(),
     }
 }
