@@ -653,7 +653,7 @@ class Table:
         exact tier (the paper's method to the digit) instead of the served field.
         ``tcp`` (X, Y, Z mm, flange frame): the TCP the points are for, when it is not the
         point the samples measured (``tablec query --tcp``): a hybrid table answers the
-        error there, its model turning the lever (where its samples measured orientation;
+        error there, its answer's rotation turning the lever (where its samples measured orientation;
         else unturned, and flagged); another flags its answers (``evidence``).
         """
         p = _points(points)

@@ -200,9 +200,10 @@ adwi_result adwi_table_query_joints_exact(const adwi_table *table, const double 
  * flange frame; NULL: the table's measured point) with the tool's orientation
  * rotation_rad (rotation vector, rad, base frame; NULL: not known), reached with the
  * n_joints values at joints_rad (NULL and 0 for a position-only table). A hybrid table
- * answers the error at the TCP (its model turns the lever from its point where its samples
- * measured orientation; else the lever is unturned, and flagged); out->evidence
- * says where the answer lies beyond the samples. */
+ * answers the error at the TCP (its answer's rotation, the model's and the residual's,
+ * turns the lever from its point where its samples measured orientation; else the lever
+ * is unturned, and flagged); out->evidence says where the answer lies beyond the
+ * samples. */
 adwi_result adwi_table_query_pose(const adwi_table *table, const double target_mm[3],
                                   const double *rotation_rad, const double *tcp_mm,
                                   int32_t config, const double *joints_rad, size_t n_joints,

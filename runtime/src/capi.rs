@@ -575,9 +575,9 @@ pub unsafe extern "C" fn adwi_table_query_joints(
 /// point), with the tool's orientation `rotation_rad` (rotation vector, rad, base frame;
 /// null: not known), for configuration `config` (-1 unknown), reached with the `n_joints`
 /// joint values at `joints_rad` (null with `n_joints` 0 for a position-only table). A
-/// hybrid table answers the error at the TCP, its model turning the lever from its point
-/// (where its samples measured orientation; else unturned, and flagged);
-/// `out->evidence` says where the answer lies beyond what the samples cover
+/// hybrid table answers the error at the TCP, its answer's rotation (the model's and the
+/// residual's) turning the lever from its point (where its samples measured orientation;
+/// else unturned, and flagged); `out->evidence` says where the answer lies beyond what the samples cover
 /// ([`crate::Table::answer`]). Returns `ADWI_OK` whenever the table answered; `out->status`
 /// then says whether the correction holds. Does not allocate.
 ///

@@ -45,7 +45,7 @@ pub struct Args {
     joints: Option<NumberList>,
     /// The TCP the target is for, X,Y,Z mm in the flange frame, when it is not the point
     /// the table's samples measured: a hybrid table answers the error at this TCP (its
-    /// model turns the lever from the measured point where the samples measured
+    /// answer's rotation turns the lever from the measured point where the samples measured
     /// orientation; else unturned, and flagged); another table flags the answer (evidence
     /// `tcp`).
     #[arg(

@@ -513,7 +513,7 @@ fn put<const N: usize>(buf: &mut [u8; HEADER_LEN], offset: usize, bytes: [u8; N]
 
 impl Header {
     /// Whether a query turns a named TCP's lever by a rotation error its samples measured:
-    /// a hybrid table (its model turns the lever) of samples with orientation. Positions
+    /// a hybrid table (its answer's rotation turns the lever) of samples with orientation. Positions
     /// at one point do not determine that rotation (docs/runtime.md, "Another TCP"), and a
     /// position-only table has nothing to turn the lever with.
     pub fn turns_measured_lever(&self) -> bool {
