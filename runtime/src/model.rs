@@ -232,31 +232,22 @@ impl PreparedModel {
         &self.calibrated
     }
 
-    /// The position error at a TCP other than the measured point, from the model's pose
-    /// error at the point (`at`, evaluated with the orientation) and the TCP's lever from
-    /// the point, `lever` in the nominal point's frame (as
-    /// [`crate::format::PointInFlange::lever_of`] gives it). Returns the error at the TCP
-    /// (mm, base frame) and the lever in the base frame (nominal), or `None` without the
+    /// A TCP's lever from the measured point in the base frame, `x = R_nom · lever`, from
+    /// the model evaluated with its orientation (`at`) and `lever` in the nominal point's
+    /// frame (as [`crate::format::PointInFlange::lever_of`] gives it); `None` without the
     /// nominal rotation.
     ///
-    /// The TCP is rigid with the measured point: both ride on the flange, so the
-    /// calibrated pose of one gives the other's. With `x = R_nom · lever` and the rotation
-    /// error `ω` (`R_cal = Exp(ω) · R_nom`):
-    ///
-    /// ```text
-    /// e_tcp = e_point + (Exp(ω) − I) · x
-    /// ```
-    ///
-    /// An identified change of the point's own offset on the flange (the calibrated
-    /// chain's tool) is taken as the flange's: the chain's tool also holds the last
-    /// joint's fixed geometry, so the two cannot be told apart from the chains.
+    /// The TCP is rigid with the measured point: both ride on the flange, so the error at
+    /// the TCP is the point's turned by the rotation error `ω` (the answer's: the model's
+    /// and the residual's), `e_tcp = e_point + (Exp(ω) − I) · x`
+    /// ([`crate::kinematics::rotation_displacement`]). An identified change of the point's
+    /// own offset on the flange (the calibrated chain's tool) is taken as the flange's:
+    /// the chain's tool also holds the last joint's fixed geometry, so the two cannot be
+    /// told apart from the chains.
     #[inline]
-    pub fn error_at_lever(&self, at: &ModelAt, lever: [f64; 3]) -> Option<([f64; 3], [f64; 3])> {
+    pub fn lever_in_base(&self, at: &ModelAt, lever: [f64; 3]) -> Option<[f64; 3]> {
         let r = at.nominal_rotation?;
-        let x = [0, 1, 2].map(|i| r[i][0] * lever[0] + r[i][1] * lever[1] + r[i][2] * lever[2]);
-        let turn = crate::kinematics::rotation_displacement(at.rotation_rad, x);
-        let e = [0, 1, 2].map(|i| at.position_mm[i] + turn[i]);
-        Some((e, x))
+        Some([0, 1, 2].map(|i| r[i][0] * lever[0] + r[i][1] * lever[1] + r[i][2] * lever[2]))
     }
 
     /// The number of joint values a prediction needs.

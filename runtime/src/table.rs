@@ -1072,8 +1072,8 @@ impl<D: AsRef<[u8]>> Table<D> {
     ) -> Result<([f64; 3], Option<[f64; 3]>), Status> {
         match (target.tcp_mm, self.header.evidence.point_in_flange) {
             (Some(tcp), Some(point)) => {
-                let (_, lever_mm) = model
-                    .error_at_lever(at, point.lever_of(tcp))
+                let lever_mm = model
+                    .lever_in_base(at, point.lever_of(tcp))
                     .ok_or(Status::InvalidInput)?;
                 let p = target.position_mm;
                 Ok(([0, 1, 2].map(|i| p[i] - lever_mm[i]), Some(lever_mm)))
