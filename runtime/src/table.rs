@@ -84,6 +84,23 @@ struct ModelPart {
     beyond_terms: bool,
 }
 
+impl ModelPart {
+    /// The answer's position error at the target's TCP from its error at the table's
+    /// point (the residual's and the model's) and its whole rotation error: a named TCP's
+    /// lever turned by that rotation, as the TCP rides on the point; the point's error
+    /// when no TCP is named. Both served paths and the exact tier add it alike.
+    #[inline(always)]
+    fn at_tcp(&self, point_error_mm: [f64; 3], rotation_rad: [f64; 3]) -> [f64; 3] {
+        match self.lever_mm {
+            Some(lever_mm) => {
+                let turn = rotation_displacement(rotation_rad, lever_mm);
+                [0, 1, 2].map(|a| point_error_mm[a] + turn[a])
+            }
+            None => point_error_mm,
+        }
+    }
+}
+
 /// [`scaled_residual`] of a correction's residual, in place.
 #[inline(always)]
 fn scale_residual(c: &mut Correction, scale: f64) {
@@ -842,12 +859,10 @@ impl<D: AsRef<[u8]>> Table<D> {
             for (out, model) in orientation.zip(m.rotation_rad) {
                 *out += model;
             }
-            if let Some(lever_mm) = m.lever_mm {
-                let turn = rotation_displacement(correction.orientation_error_rad, lever_mm);
-                for (out, t) in correction.position_error_mm.iter_mut().zip(turn) {
-                    *out += t;
-                }
-            }
+            correction.position_error_mm = m.at_tcp(
+                correction.position_error_mm,
+                correction.orientation_error_rad,
+            );
         }
         correction.evidence = evidence;
         correction.finite_or_failure()
@@ -1011,10 +1026,7 @@ impl<D: AsRef<[u8]>> Table<D> {
         // by the sum); built once, in place.
         let plus = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
         let rotation_rad = plus(orientation_rad, m.rotation_rad);
-        let mut position_mm = plus(position_mm, m.error_mm);
-        if let Some(lever_mm) = m.lever_mm {
-            position_mm = plus(position_mm, rotation_displacement(rotation_rad, lever_mm));
-        }
+        let position_mm = m.at_tcp(plus(position_mm, m.error_mm), rotation_rad);
         Correction::ok_if_finite(position_mm, rotation_rad, neighbours, residual, evidence)
     }
 
