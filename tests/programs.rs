@@ -347,6 +347,51 @@ fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
     }
 }
 
+/// The same arm described in MD-H and as URDF compensates a program alike: the URDF's
+/// flange is its `tool0`, where the controller's `set_tcp` starts, 82.3 mm beyond the last
+/// joint's frame, not that frame (which put every target's correction at a point 82.3 mm
+/// beyond the TCP).
+#[test]
+fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    build_ur5_hybrid(
+        dir.path(),
+        repo("tables/ur5/robot.toml").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5-hybrid.tbl",
+    );
+    let table = dir.path().join("ur5-hybrid.tbl");
+    let reports: Vec<Report> = ["robot.toml", "robot.urdf"]
+        .iter()
+        .map(|file| {
+            let robot = repo("tables/ur5").join(file);
+            run_job(&table, &fixture("pick.script"), &robot, |_| {})
+                .1
+                .report
+        })
+        .collect();
+    let (mdh, urdf) = (&reports[0], &reports[1]);
+    assert_eq!(mdh.summary().corrected, 7, "{}", mdh.summary());
+    assert_eq!(mdh.targets.len(), urdf.targets.len());
+    for (a, b) in mdh.targets.iter().zip(&urdf.targets) {
+        assert_eq!(a.status.as_str(), b.status.as_str(), "{}", a.place());
+        if let (Some(p), Some(q)) = (a.command_mm, b.command_mm) {
+            for axis in 0..3 {
+                assert!(
+                    (p[axis] - q[axis]).abs() < 1e-6,
+                    "{}: {p:?} {q:?}",
+                    a.place()
+                );
+            }
+        }
+        if let (Some(p), Some(q)) = (&a.command_joints, &b.command_joints) {
+            for (x, y) in p.iter().zip(q) {
+                assert!((x - y).abs() < 1e-9, "{}: {p:?} {q:?}", a.place());
+            }
+        }
+    }
+}
+
 /// Mean and max of a list.
 fn stats(v: &[f64]) -> (f64, f64) {
     (

@@ -61,6 +61,7 @@ fn written_robots_load(dir: &Path) -> Result<(), String> {
     let tcp = LinkNames {
         base_link: None,
         tip_link: Some(adwi_robot::urdf::TCP_LINK.into()),
+        flange_link: None,
     };
     Robot::load_with(dir.join("calibrated.urdf"), &tcp)
         .map_err(|e| format!("the calibrated URDF does not load: {e:#?}"))?;

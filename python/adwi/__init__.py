@@ -745,6 +745,7 @@ def compensate_program(
     robot: Optional[Union[str, os.PathLike]] = None,
     base_link: Optional[str] = None,
     tip_link: Optional[str] = None,
+    flange_link: Optional[str] = None,
     tool: Optional[Sequence[float]] = None,
     base: Optional[Sequence[float]] = None,
     table_tool: Optional[Sequence[float]] = None,
@@ -766,8 +767,9 @@ def compensate_program(
 
     ``output`` and ``report`` (CSV) are written atomically when given, never over an
     input. ``format``: ``"krl"``, ``"rapid"``, ``"urscript"`` or ``"csv"`` (default: by
-    extension). ``robot``: a robot file, for joint targets and the posture checks.
-    ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
+    extension). ``robot``: a robot file, for joint targets and the posture checks
+    (``base_link``, ``tip_link``, ``flange_link``: a URDF's links, as tablec's
+    ``--base-link``, ``--tip-link``, ``--flange-link``). ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
     tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
     leaving any target unchanged. ``beyond_evidence``: correct a position-only table's
     targets at orientations its samples never had instead of refusing them (status
@@ -794,6 +796,7 @@ def compensate_program(
         robot=path(robot),
         base_link=base_link,
         tip_link=tip_link,
+        flange_link=flange_link,
         tool=frame(tool),
         base=frame(base),
         table_tool=frame(table_tool),

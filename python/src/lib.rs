@@ -890,7 +890,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, tool=None, base=None, table_tool=None, max_correction_mm=compensate::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=compensate::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=compensate::DEFAULT_MAX_SECONDS, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, flange_link=None, tool=None, base=None, table_tool=None, max_correction_mm=compensate::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=compensate::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=compensate::DEFAULT_MAX_SECONDS, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -902,6 +902,7 @@ fn compensate_program<'py>(
     robot: Option<PathBuf>,
     base_link: Option<String>,
     tip_link: Option<String>,
+    flange_link: Option<String>,
     tool: Option<[f64; 6]>,
     base: Option<[f64; 6]>,
     table_tool: Option<[f64; 6]>,
@@ -931,6 +932,7 @@ fn compensate_program<'py>(
         robot,
         base_link,
         tip_link,
+        flange_link,
     };
     args.tool = tool;
     args.base = base;

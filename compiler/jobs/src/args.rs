@@ -510,6 +510,11 @@ pub struct RobotArgs {
     /// link below the base].
     #[arg(long, value_name = "LINK")]
     pub tip_link: Option<String>,
+    /// URDF robots: the flange, the link tool data (--tool, a program's) are given in,
+    /// fixed to the last movable joint's link [default: tool0, else flange, where the file has it so,
+    /// else the last movable joint's link].
+    #[arg(long, value_name = "LINK")]
+    pub flange_link: Option<String>,
 }
 
 impl RobotArgs {
@@ -518,15 +523,17 @@ impl RobotArgs {
         adwi_robot::LinkNames {
             base_link: self.base_link.clone(),
             tip_link: self.tip_link.clone(),
+            flange_link: self.flange_link.clone(),
         }
     }
 
     /// Refuses link names without a robot file to apply them to.
     pub(crate) fn check(&self) -> Result<(), JobError> {
-        if self.robot.is_none() && (self.base_link.is_some() || self.tip_link.is_some()) {
+        let links = [&self.base_link, &self.tip_link, &self.flange_link];
+        if self.robot.is_none() && links.iter().any(|l| l.is_some()) {
             return Err(JobError::Options(
-                "--base-link and --tip-link name the links of a URDF robot: give the robot \
-                 file (--robot)"
+                "--base-link, --tip-link and --flange-link name the links of a URDF robot: \
+                 give the robot file (--robot)"
                     .into(),
             ));
         }

@@ -100,7 +100,20 @@ impl Robot {
             .map(|b| b.transform("base"))
             .transpose()?
             .unwrap_or(Transform::IDENTITY);
+        let flange = file
+            .flange
+            .map(|f| f.transform("flange"))
+            .transpose()?
+            .unwrap_or(Transform::IDENTITY);
         if let Some(urdf_path) = &file.urdf {
+            if file.flange.is_some() {
+                return Err(RobotError::Invalid {
+                    field: "flange".into(),
+                    reason: "a robot file naming a URDF file takes its flange from the URDF: \
+                             name the link as flange_link"
+                        .into(),
+                });
+            }
             if !file.joints.is_empty() {
                 return Err(RobotError::Invalid {
                     field: "joints".into(),
@@ -110,6 +123,7 @@ impl Robot {
             let links = LinkNames {
                 base_link: links.base_link.clone().or(file.base_link),
                 tip_link: links.tip_link.clone().or(file.tip_link),
+                flange_link: links.flange_link.clone().or(file.flange_link),
             };
             let urdf = load(&dir.join(urdf_path), &links)?;
             let kinds: Vec<JointKind> = urdf.chain().joints().iter().map(|j| j.kind).collect();
@@ -125,9 +139,9 @@ impl Robot {
             )?;
             return carrying(robot, file.payload);
         }
-        if file.base_link.is_some() || file.tip_link.is_some() {
+        if file.base_link.is_some() || file.tip_link.is_some() || file.flange_link.is_some() {
             return Err(RobotError::Invalid {
-                field: "base_link, tip_link".into(),
+                field: "base_link, tip_link, flange_link".into(),
                 reason: "only a robot file naming a URDF file has links".into(),
             });
         }
@@ -170,7 +184,7 @@ impl Robot {
             }
         }
         carrying(
-            Robot::new(file.name, geometry, joints, base, tool, home)?,
+            Robot::with_flange_at(file.name, geometry, joints, base, flange, tool, home)?,
             file.payload,
         )
     }
@@ -296,11 +310,13 @@ struct RobotFile {
     #[serde(default)]
     joints: Vec<JointFile>,
     tool: Option<FrameFile>,
+    flange: Option<FrameFile>,
     base: Option<FrameFile>,
     home_deg: Option<Vec<f64>>,
     urdf: Option<PathBuf>,
     base_link: Option<String>,
     tip_link: Option<String>,
+    flange_link: Option<String>,
     payload: Option<PayloadFile>,
 }
 

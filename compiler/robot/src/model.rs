@@ -209,6 +209,10 @@ pub struct Robot {
     geometry: Geometry,
     joints: Vec<Joint>,
     base: Transform,
+    /// The flange (the frame tool data are given in) in the last joint's frame after its
+    /// motion: identity but for a chain whose flange lies beyond its last joint's frame
+    /// (a URDF's `tool0`, a chain file's `[flange]`).
+    flange: Transform,
     tool: Transform,
     home: Vec<f64>,
     chain: Chain,
@@ -239,16 +243,51 @@ impl Robot {
         tool: Transform,
         home: Vec<f64>,
     ) -> Result<Robot, RobotError> {
+        Robot::with_flange_at(
+            name,
+            geometry,
+            joints,
+            base,
+            Transform::IDENTITY,
+            tool,
+            home,
+        )
+    }
+
+    /// [`Robot::new`] for a chain geometry whose flange, the frame `tool` is given in, is
+    /// `flange` in the last joint's frame after its motion (a URDF's `tool0` beyond its
+    /// last joint, a chain file's `[flange]`): the chain ends in `flange · tool`.
+    ///
+    /// # Errors
+    ///
+    /// As [`Robot::new`], and [`RobotError::Invalid`] for a flange other than the identity
+    /// on an MD-H geometry (whose flange is frame `n`) or one not finite.
+    pub fn with_flange_at(
+        name: String,
+        geometry: Geometry,
+        joints: Vec<Joint>,
+        base: Transform,
+        flange: Transform,
+        tool: Transform,
+        home: Vec<f64>,
+    ) -> Result<Robot, RobotError> {
         check_counts(&geometry, &joints, &home)?;
-        for (t, what) in [(&base, "base"), (&tool, "tool")] {
+        for (t, what) in [(&base, "base"), (&flange, "flange"), (&tool, "tool")] {
             check_all(&t.translation_mm, Quantity::LengthMm, || {
                 format!("{what} translation_mm")
             })?;
         }
         check_geometry(&geometry)?;
         let mut chain = match &geometry {
+            Geometry::Mdh(_) if flange != Transform::IDENTITY => {
+                return Err(RobotError::Invalid {
+                    field: "flange".into(),
+                    reason: "an MD-H robot's flange is its frame n: give the TCP as the tool"
+                        .into(),
+                })
+            }
             Geometry::Mdh(rows) => Chain::from_mdh(base, rows, tool, None),
-            Geometry::Chain(rows) => Chain::new(base, rows, tool, None),
+            Geometry::Chain(rows) => Chain::new(base, rows, flange.compose(&tool), None),
         }
         .map_err(RobotError::Chain)?;
         let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
@@ -263,6 +302,7 @@ impl Robot {
             geometry,
             joints,
             base,
+            flange,
             tool,
             home,
             chain,
@@ -308,11 +348,12 @@ impl Robot {
         tool: Transform,
         home: Vec<f64>,
     ) -> Result<Robot, RobotError> {
-        let mut robot = Robot::new(
+        let mut robot = Robot::with_flange_at(
             name,
             self.geometry.clone(),
             self.joints.clone(),
             base,
+            self.flange,
             tool,
             home,
         )?;
@@ -333,11 +374,12 @@ impl Robot {
         base: Transform,
         tool: Transform,
     ) -> Result<Robot, RobotError> {
-        let mut robot = Robot::new(
+        let mut robot = Robot::with_flange_at(
             name,
             geometry,
             self.joints.clone(),
             base,
+            self.flange,
             tool,
             self.home.clone(),
         )?;
@@ -394,10 +436,17 @@ impl Robot {
         }
     }
 
-    /// The TCP in the flange frame (MD-H) or in the last joint's frame after its motion
-    /// (chain).
+    /// The TCP in the flange frame: MD-H frame `n`, or a chain's [`Robot::flange`].
     pub fn tool(&self) -> Transform {
         self.tool
+    }
+
+    /// The flange, the frame [`Robot::tool`] and a program's tool data are given in, in
+    /// the last joint's frame after its motion: the identity for an MD-H robot (its frame
+    /// `n`) and for a chain file without `[flange]`; a URDF's flange link's (`tool0`)
+    /// where it lies beyond the last movable joint.
+    pub fn flange(&self) -> Transform {
+        self.flange
     }
 
     /// The robot's base in the frame poses are given in.
@@ -559,6 +608,9 @@ impl Robot {
             ));
         };
         frame(&mut out, "base", &self.base);
+        if self.flange != Transform::IDENTITY {
+            frame(&mut out, "flange", &self.flange);
+        }
         frame(&mut out, "tool", &self.tool);
         for (i, (joint, &kind)) in self.joints.iter().zip(&kinds).enumerate() {
             out.push_str("\n[[joints]]\n");
@@ -1163,6 +1215,72 @@ limits_deg = [-inf, inf]
         assert_eq!(back.home(), robot.home());
     }
 
+    /// A chain file's `[flange]` places the flange beyond the last joint's frame, the tool
+    /// on it; a URDF robot read to `tool0` is written with its flange and reads back as
+    /// the same robot, flange and tool apart; an MD-H file or one naming a URDF file
+    /// refuses one.
+    #[test]
+    fn a_chain_file_places_its_flange_and_keeps_it_when_written() {
+        use crate::urdf::LinkNames;
+        let text = r#"
+name = "one turn"
+[flange]
+translation_mm = [158.0, 0.0, 0.0]
+abc_deg = [0.0, 90.0, 0.0]
+[tool]
+translation_mm = [0.0, 0.0, 100.0]
+[[joints]]
+axis = [-1.0, 0.0, 0.0]
+limits_deg = [-350.0, 350.0]
+"#;
+        let robot = Robot::from_toml_str(text).unwrap();
+        // The flange 158 mm along x, its z turned onto x: the TCP 258 mm along x at zero.
+        let pose = robot.tcp_transform(&[0.0]);
+        assert!((Vector3::from(pose.translation_mm) - Vector3::new(258.0, 0.0, 0.0)).norm() < 1e-9);
+        assert_eq!(robot.tool().translation_mm, [0.0, 0.0, 100.0]);
+        let urdf =
+            Robot::load_with(shipped_file("iiwa14", "robot.urdf"), &LinkNames::default()).unwrap();
+        // The iiwa's URDF names its media flange `flange`, 45 mm beyond link 7.
+        assert!((urdf.flange().translation_mm[2] - 45.0).abs() < 1e-12);
+        assert_eq!(urdf.tool(), Transform::IDENTITY);
+        for robot in [robot, urdf] {
+            let written = robot.to_toml_string(&[]);
+            assert!(written.contains("[flange]"), "{written}");
+            let back = Robot::from_toml_str(&written).unwrap();
+            assert_eq!(back.flange(), robot.flange());
+            assert_eq!(back.tool(), robot.tool());
+            let q: Vec<f64> = (0..robot.joint_count())
+                .map(|i| 0.1 * i as f64 - 0.2)
+                .collect();
+            let (a, b) = (robot.tcp_transform(&q), back.tcp_transform(&q));
+            assert!(
+                (Vector3::from(a.translation_mm) - Vector3::from(b.translation_mm)).norm() < 1e-9
+            );
+        }
+        let mdh = kr150().to_toml_string(&[]).replacen(
+            "\n[tool]",
+            "\n[flange]\ntranslation_mm = [0.0, 0.0, 10.0]\n\n[tool]",
+            1,
+        );
+        let error = Robot::from_toml_str(&mdh).unwrap_err().to_string();
+        assert!(
+            error.contains("an MD-H robot's flange is its frame n"),
+            "{error}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let naming = dir.path().join("naming.toml");
+        std::fs::write(
+            &naming,
+            format!(
+                "name = \"n\"\nurdf = {:?}\n[flange]\ntranslation_mm = [0.0, 0.0, 1.0]\n",
+                shipped_file("ur5", "robot.urdf").display().to_string()
+            ),
+        )
+        .unwrap();
+        let error = Robot::load(&naming).unwrap_err().to_string();
+        assert!(error.contains("name the link as flange_link"), "{error}");
+    }
+
     /// A file's compliances: the chain carries them with the masses (zero where none is
     /// given), the commanded pose stays undeflected, and a prismatic joint refuses one.
     #[test]
@@ -1228,11 +1346,12 @@ compliance_urad_per_nm = 1.0
                 (last.mass_kg * last.com_mm[a] + payload.mass_kg * payload.com_mm[a]) / mass_kg
             });
             joints[n - 1].inertial = Some(LinkInertial { mass_kg, com_mm });
-            let heavier = Robot::new(
+            let heavier = Robot::with_flange_at(
                 robot.name.clone(),
                 robot.geometry().clone(),
                 joints,
                 robot.base(),
+                robot.flange(),
                 robot.tool(),
                 robot.home().to_vec(),
             )

@@ -340,6 +340,7 @@ fn written_back(c: &Calibration, case_dir: &Path) -> Result<(), String> {
         &LinkNames {
             base_link: None,
             tip_link: Some(adwi_robot::urdf::TCP_LINK.into()),
+            flange_link: None,
         },
     )
     .map_err(|e| format!("the calibrated URDF does not load: {}\n{urdf}", chain(&e)))?;

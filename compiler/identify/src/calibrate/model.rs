@@ -294,7 +294,7 @@ impl Model {
                         column += 6;
                     }
                 }
-                frames[joints.len() - 1].1
+                frames[joints.len() - 1].1.compose(&state.robot.flange())
             }
         };
         let c = self.tool_translation;

@@ -16,6 +16,24 @@ fn iiwa() -> Robot {
     Robot::load(shipped_file("iiwa14", "robot.urdf")).unwrap()
 }
 
+/// The iiwa with its flange turned and moved off the last joint's frame (as a URDF's
+/// `tool0` may lie) and a tool on it: the tool's parameters move the TCP along and about
+/// the flange's axes, not the last joint's.
+fn iiwa_on_a_turned_flange() -> Robot {
+    use adwi_robot::model::transform_from_xyz_rpy;
+    let r = iiwa();
+    Robot::with_flange_at(
+        "iiwa on a turned flange".into(),
+        r.geometry().clone(),
+        r.joints().to_vec(),
+        r.base(),
+        transform_from_xyz_rpy([10.0, -5.0, 60.0], [0.3, -1.2, 0.7]),
+        transform_from_xyz_rpy([20.0, 30.0, 150.0], [0.1, 0.2, -0.3]),
+        r.home().to_vec(),
+    )
+    .unwrap()
+}
+
 /// Random joint values inside 80 % of the limits.
 fn poses(robot: &Robot, n: usize, seed: u64) -> Vec<Vec<f64>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -128,7 +146,7 @@ fn parameters_of_mdh_and_chain_robots() {
 /// away from nominal, for an MD-H robot and a URDF chain.
 #[test]
 fn jacobian_matches_finite_differences_of_the_exact_model() {
-    for robot in [kr150(), iiwa()] {
+    for robot in [kr150(), iiwa(), iiwa_on_a_turned_flange()] {
         let model = Model::new(&robot, false, 0);
         let all: Vec<usize> = (0..model.len()).collect();
         let x = deviations_on(&model.parameters, &all, 3);
@@ -831,6 +849,7 @@ fn written_calibrated_robots_reproduce_the_calibrated_model() {
             &adwi_robot::urdf::LinkNames {
                 base_link: None,
                 tip_link: Some(adwi_robot::urdf::TCP_LINK.into()),
+                flange_link: None,
             },
         )
         .unwrap();

@@ -10,8 +10,21 @@
 //! movable joint's origin (or into the tool, after the last movable joint); `floating`,
 //! `planar` and `spherical` joints, and joints that `mimic` another, are refused. Origins
 //! are `xyz` (m, written here in mm) and `rpy` (`R = Rz(yaw)·Ry(pitch)·Rx(roll)`); axes are
-//! normalised. The tool is the tip link's frame (a TOML robot file naming the URDF file may
-//! add a `[tool]` after it); the base is the base link's frame.
+//! normalised. The base is the base link's frame.
+//!
+//! # Flange
+//!
+//! The flange is the frame a controller's tool data (KRL `$TOOL`, RAPID `tooldata`, a
+//! `--tool`) and the robot's tool are given in: the link [`LinkNames::flange_link`] names,
+//! else the first of [`FLANGE_LINKS`] the file has (`tool0`, ROS-Industrial's mounting
+//! flange, `z` out of it; then `flange`). Either must hang from the last movable joint's
+//! link through fixed joints alone (a named link that does not is refused; a default one
+//! that does not is passed over); without one the flange is the last movable joint's link
+//! itself. Its fixed offset
+//! is [`Robot::flange`]; the robot's tool is the tip link's frame in the flange's (a TOML
+//! robot file naming the URDF file may add a `[tool]` after the tip link). So a ROS-
+//! Industrial arm read to `tool0` has no tool, as its controller has none at `$TOOL` 0,
+//! however far its last joint's frame lies from the flange.
 //!
 //! Limits: `revolute` and `prismatic` joints need `lower < upper` (rad; m, read in mm);
 //! `continuous` joints have none (`[−∞, ∞]`). The home posture is zero where the limits
@@ -89,7 +102,17 @@ pub struct LinkNames {
     /// The link the chain ends at: the frame of the TCP (before any tool a TOML robot file
     /// adds).
     pub tip_link: Option<String>,
+    /// The flange, the link a controller's tool data are given in: fixed to the last
+    /// movable joint's link (`None`: the first of [`FLANGE_LINKS`] the file has fixed
+    /// there, else the last movable joint's own link).
+    pub flange_link: Option<String>,
 }
+
+/// The links a URDF without [`LinkNames::flange_link`] is read with as its flange, the first
+/// the file has fixed to the last movable joint's link: ROS-Industrial's `tool0` (REP 199:
+/// the mounting flange in the controller's own convention, where its tool data start),
+/// then `flange`, the name other descriptions give the mounting flange.
+pub const FLANGE_LINKS: [&str; 2] = ["tool0", "flange"];
 
 fn chain_error(message: String) -> RobotError {
     RobotError::UrdfChain(message)
@@ -148,17 +171,20 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
         rows.push(row);
         joints.push(joint);
     }
-    let tool = product(urdf, &fixed_after);
+    let last = &urdf.joints[*movable.last().expect("split_at_fixed: one movable joint")];
+    let flange = flange_of(urdf, links, &tree, &last.child.link)?;
+    let tool = flange.inverse().compose(&product(urdf, &fixed_after));
     let name = if urdf.name.is_empty() {
         "URDF robot".to_owned()
     } else {
         urdf.name.clone()
     };
-    let mut robot = Robot::new(
+    let mut robot = Robot::with_flange_at(
         name,
         Geometry::Chain(rows),
         joints,
         Transform::IDENTITY,
+        flange,
         tool,
         home,
     )?;
@@ -316,6 +342,53 @@ fn tip_link(
             first_few(&leaves, NAMES_SHOWN)
         ))),
     }
+}
+
+/// The flange in the last movable joint's link `end` (module docs, "Flange"): the origins of
+/// the fixed joints from `end` down to the flange link.
+fn flange_of(
+    urdf: &urdf_rs::Robot,
+    links: &LinkNames,
+    tree: &Tree,
+    end: &str,
+) -> Result<Transform, RobotError> {
+    if let Some(name) = &links.flange_link {
+        if !tree.link_index.contains_key(name.as_str()) {
+            return Err(chain_error(format!(
+                "no link named '{}' (flange link)",
+                shown(name)
+            )));
+        }
+        return fixed_below(urdf, tree, end, name).ok_or_else(|| {
+            chain_error(format!(
+                "the flange link '{}' is not fixed to '{}', the last movable joint's link",
+                shown(name),
+                shown(end)
+            ))
+        });
+    }
+    Ok(FLANGE_LINKS
+        .iter()
+        .find_map(|name| fixed_below(urdf, tree, end, name))
+        .unwrap_or(Transform::IDENTITY))
+}
+
+/// Link `name` in link `end`'s frame when it hangs from `end` through fixed joints alone
+/// (`end` itself: the identity); `None` when it does not or the file has no such link.
+fn fixed_below(urdf: &urdf_rs::Robot, tree: &Tree, end: &str, name: &str) -> Option<Transform> {
+    let mut joints = Vec::new();
+    let mut link = tree.link_index.get(name).map(|_| name)?;
+    while link != end {
+        let j = *tree.parent_joint.get(link)?;
+        let joint = &urdf.joints[j];
+        if joint.joint_type != JointType::Fixed || joints.len() >= urdf.joints.len() {
+            return None;
+        }
+        joints.push(j);
+        link = joint.parent.link.as_str();
+    }
+    joints.reverse();
+    Some(product(urdf, &joints))
 }
 
 /// The joints from `base` down to `tip`, in order.
@@ -502,7 +575,7 @@ fn body_inertial(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::shipped_file;
+    use crate::model::{isometry_from_transform, shipped_file};
     use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -668,6 +741,7 @@ mod tests {
         let links = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         let test = largest_walk_difference(TEST_URDF, &links, "world", "tool0", 1);
         let mut largest = test;
@@ -691,9 +765,104 @@ mod tests {
         let links = LinkNames {
             base_link: Some("l1".into()),
             tip_link: Some("camera".into()),
+            flange_link: None,
         };
         let d = largest_walk_difference(TEST_URDF, &links, "l1", "camera", 3);
         assert!(d < 1e-9, "{d}");
+    }
+
+    /// The flange, where tool data start, is the link named, else `tool0` (then `flange`)
+    /// where it hangs from the last movable joint's link by fixed joints; the robot's tool
+    /// is the tip in the flange's frame, so the chain's end never moves. A named link
+    /// that is not so fixed, or not there, is refused.
+    #[test]
+    fn the_flange_is_tool0_or_the_link_named() {
+        let urdf = urdf_rs::read_from_string(TEST_URDF).unwrap();
+        let joint = |name: &str| urdf.joints.iter().position(|j| j.name == name).unwrap();
+        let origins =
+            |names: &[&str]| product(&urdf, &names.iter().map(|n| joint(n)).collect::<Vec<_>>());
+        let close = |a: &Transform, b: &Transform| {
+            let (a, b) = (isometry_from_transform(a), isometry_from_transform(b));
+            (a.translation.vector - b.translation.vector).norm() < 1e-9
+                && a.rotation.angle_to(&b.rotation) < 1e-12
+        };
+        let read = |tip: &str, flange: Option<&str>| {
+            robot_from_urdf_str(
+                TEST_URDF,
+                &LinkNames {
+                    base_link: None,
+                    tip_link: Some(tip.into()),
+                    flange_link: flange.map(Into::into),
+                },
+            )
+        };
+        let l4_to_tool0 = origins(&["l4_flange", "flange_tool0"]);
+        let cases = [
+            // (tip, flange named, the flange, the tool)
+            ("tool0", None, l4_to_tool0, Transform::IDENTITY),
+            (
+                "flange",
+                None,
+                l4_to_tool0,
+                origins(&["flange_tool0"]).inverse(),
+            ),
+            (
+                "tool0",
+                Some("flange"),
+                origins(&["l4_flange"]),
+                origins(&["flange_tool0"]),
+            ),
+            ("tool0", Some("l4"), Transform::IDENTITY, l4_to_tool0),
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for (tip, named, flange, tool) in cases {
+            let robot = read(tip, named).unwrap();
+            assert!(
+                close(&robot.flange(), &flange),
+                "{tip} {named:?}: {:?}",
+                robot.flange()
+            );
+            assert!(
+                close(&robot.tool(), &tool),
+                "{tip} {named:?}: {:?}",
+                robot.tool()
+            );
+            for _ in 0..20 {
+                let q = random_q(&robot, &mut rng);
+                let q_si: Vec<f64> = q
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| match robot.joint_kind(i) {
+                        JointKind::Prismatic => v / 1000.0,
+                        JointKind::Revolute => *v,
+                    })
+                    .collect();
+                let want = walk(&urdf, "world", tip, &q_si);
+                let got = robot.tcp_pose(&q);
+                assert!((got.translation.vector - want.translation.vector * 1000.0).norm() < 1e-9);
+                assert!(got.rotation.angle_to(&want.rotation) < 1e-12);
+            }
+        }
+        // A chain to the camera, which hangs from l2: its last movable joint is j2, from
+        // whose link no tool0 hangs, so the flange is l2's frame.
+        let camera = robot_from_urdf_str(
+            TEST_URDF,
+            &LinkNames {
+                base_link: Some("l1".into()),
+                tip_link: Some("camera".into()),
+                flange_link: None,
+            },
+        )
+        .unwrap();
+        assert_eq!(camera.flange(), Transform::IDENTITY);
+        for (named, words) in [
+            ("l3", "is not fixed to 'l4'"),
+            ("camera", "is not fixed to 'l4'"),
+            ("nowhere", "no link named 'nowhere' (flange link)"),
+        ] {
+            let error = read("tool0", Some(named)).unwrap_err().to_string();
+            assert!(error.contains(words), "{named}: {error}");
+        }
     }
 
     #[test]
@@ -701,6 +870,7 @@ mod tests {
         let links = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         let robot = robot_from_urdf_str(TEST_URDF, &links).unwrap();
         assert_eq!(robot.joint_count(), 4);
@@ -737,6 +907,7 @@ mod tests {
             &LinkNames {
                 base_link: Some("l4".into()),
                 tip_link: Some("camera".into()),
+                flange_link: None,
             },
         )
         .unwrap_err();
@@ -750,6 +921,7 @@ mod tests {
             &LinkNames {
                 base_link: None,
                 tip_link: Some("tool0".into()),
+                flange_link: None,
             },
         )
         .unwrap_err();
@@ -760,6 +932,7 @@ mod tests {
             &LinkNames {
                 base_link: None,
                 tip_link: Some("tool0".into()),
+                flange_link: None,
             },
         )
         .unwrap_err();
@@ -770,6 +943,7 @@ mod tests {
             &LinkNames {
                 base_link: Some("l4".into()),
                 tip_link: Some("tool0".into()),
+                flange_link: None,
             },
         )
         .unwrap_err();
@@ -786,6 +960,7 @@ mod tests {
         let links = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         let robot = robot_from_urdf_str(TEST_URDF, &links).unwrap();
         // A changed model of it: offsets, a moved origin, a base and a tool.
@@ -815,6 +990,7 @@ mod tests {
             &LinkNames {
                 base_link: None,
                 tip_link: Some(TCP_LINK.into()),
+                flange_link: None,
             },
         )
         .unwrap();
@@ -929,6 +1105,7 @@ mod tests {
         let tip = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         let refused = |text: &str| robot_from_urdf_str(text, &tip).unwrap_err().to_string();
         // Masses that are not a mass, on the chain or off it.
@@ -1006,6 +1183,7 @@ mod tests {
         let tip = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         let refused = |text: &str| {
             let error = robot_from_urdf_str(text, &tip).unwrap_err();
@@ -1049,7 +1227,8 @@ mod tests {
             &written,
             &LinkNames {
                 base_link: None,
-                tip_link: Some(TCP_LINK.into())
+                tip_link: Some(TCP_LINK.into()),
+                flange_link: None,
             }
         )
         .is_ok());
@@ -1062,6 +1241,7 @@ mod tests {
         let tip = LinkNames {
             base_link: None,
             tip_link: Some("tool0".into()),
+            flange_link: None,
         };
         for axis in ["1e200 0 0", "1e-200 0 0", "1 0 0"] {
             let text = TEST_URDF.replace(
