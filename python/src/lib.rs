@@ -546,10 +546,21 @@ impl BatchRows {
                     }
                 }
                 // Degrees to radians by `f64::to_radians`, as `tablec query --joints`
-                // (the reader's factor gives the same bits).
+                // (the reader's factor gives the same bits); a prismatic joint's value is
+                // mm either way.
+                let prismatic = table.model().map_or(0, |m| m.nominal().prismatic_joints());
+                let columns = j.ncols();
                 let values = j
                     .iter()
-                    .map(|&v| if joints_deg { v.to_radians() } else { v })
+                    .enumerate()
+                    .map(|(k, &v)| {
+                        let angle = prismatic >> (k % columns) & 1 == 0;
+                        if joints_deg && angle {
+                            v.to_radians()
+                        } else {
+                            v
+                        }
+                    })
                     .collect();
                 Some((j.ncols(), values))
             }

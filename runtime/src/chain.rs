@@ -314,6 +314,16 @@ impl Chain {
         self.len
     }
 
+    /// The prismatic joints, bit `i` for joint `i` (0-based): which joint values are
+    /// lengths (mm) rather than angles.
+    pub fn prismatic_joints(&self) -> u64 {
+        self.joints()
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| j.kind == JointKind::Prismatic)
+            .fold(0, |mask, (i, _)| mask | 1 << i)
+    }
+
     /// The tool centre point's pose at joint values `q` (rad, mm for prismatic joints),
     /// without compliance: `None` when `q` does not have one value per joint.
     #[inline]

@@ -297,10 +297,12 @@ impl QueryJob {
                 }
                 Work::One(one)
             }
-            Asked::File(targets, columns, options) => {
+            Asked::File(targets, columns, mut options) => {
                 if let Some(output) = &args.output {
                     OutputPlan::check(&[output], &[&args.table, targets])?;
                 }
+                // The table's robot says which joints slide: their columns are lengths.
+                options.prismatic_joints = prismatic_joints(&table);
                 Work::File {
                     rows: adwi_samples::read_targets(targets, &columns, &options)?,
                     output: args.output.clone(),
@@ -506,12 +508,27 @@ fn joints_rad<D: AsRef<[u8]>>(table: &Table<D>, joints_deg: &[f64]) -> Result<Ve
     if let Some(n) = table.joint_count() {
         if joints_deg.len() != n {
             return Err(JobError::Options(format!(
-                "--joints takes the robot's {n} joint angles in degrees, J1,...,J{n}; {} given",
+                "--joints takes the robot's {n} joint values, J1,...,J{n} (degrees; mm for a prismatic joint); {} given",
                 joints_deg.len()
             )));
         }
     }
-    Ok(joints_deg.iter().map(|v| v.to_radians()).collect())
+    Ok(joints_deg
+        .iter()
+        .enumerate()
+        .map(
+            |(i, v)| match kinds.and_then(|k| k.get(i)).map(|j| j.kind) {
+                Some(JointKind::Prismatic) => *v,
+                _ => v.to_radians(),
+            },
+        )
+        .collect())
+}
+
+/// The table's prismatic joints as a mask ([`adwi_runtime::chain::Chain::prismatic_joints`]);
+/// none without a model.
+fn prismatic_joints<D: AsRef<[u8]>>(table: &Table<D>) -> u64 {
+    table.model().map_or(0, |m| m.nominal().prismatic_joints())
 }
 
 /// How far the joints' nominal forward kinematics puts the table's point from where the

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use adwi_robot::{Geometry, Joint, LinkNames, Robot};
+use adwi_runtime::chain::JointKind;
 use adwi_runtime::{AlignedBytes, Table};
 use nalgebra::{Isometry3, Vector3};
 
@@ -660,8 +661,9 @@ impl CompensateJob {
             })?),
             None => None,
         };
-        let given_joints: Option<Vec<f64>> =
-            (!c.joints.is_empty()).then(|| c.joints.iter().map(|n| n.value.to_radians()).collect());
+        let robot = self.kinematics.as_ref().map(Kinematics::robot);
+        let given_joints: Option<Vec<f64>> = (!c.joints.is_empty())
+            .then(|| joint_values_in(robot, &c.joints, adwi_samples::AngleUnit::Degree));
         // With the program's TCP the table's point, a position maps through the
         // work object alone (`W · p`): the orientation it does not write plays no
         // part, as in plain 3-axis G-code in G54.
@@ -799,8 +801,10 @@ impl CompensateJob {
             }
         }
         if let Some(q) = joints {
-            for (n, v) in c.joints.iter().zip(q) {
-                edits.extend(number_edit(n, v.to_degrees(), 6));
+            let robot = self.kinematics.as_ref().map(Kinematics::robot);
+            for (i, (n, v)) in c.joints.iter().zip(q).enumerate() {
+                let written = joint_value_out(robot, i, *v, adwi_samples::AngleUnit::Degree);
+                edits.extend(number_edit(n, written, 6));
             }
         }
         edits
@@ -834,7 +838,7 @@ impl CompensateJob {
                 format!("{} joint values for a robot of {n}", j.joints.len()),
             ));
         }
-        let q: Vec<f64> = j.joints.iter().map(|v| v.value * j.unit.rad()).collect();
+        let q = joint_values_in(Some(k.robot()), &j.joints, j.unit);
         let point = k.forward(&q).expect("one value per joint");
         let posture = Posture {
             configuration: k.configuration(&q),
@@ -880,14 +884,48 @@ impl CompensateJob {
                 Some(per_deg) => crate::yaskawa::pulse_text(
                     n,
                     &bytes[n.span.0..n.span.1],
-                    v.to_degrees(),
+                    joint_value_out(Some(k.robot()), i, *v, adwi_samples::AngleUnit::Degree),
                     *per_deg,
                 )
                 .map(|text| (n.span, text)),
-                None => number_edit(n, v / j.unit.rad(), j.unit.decimals())
-                    .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
+                None => number_edit(
+                    n,
+                    joint_value_out(Some(k.robot()), i, *v, j.unit),
+                    j.unit.decimals(),
+                )
+                .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
             })
             .collect())
+    }
+}
+
+/// A program's joint values in the robot's units (rad; mm for a prismatic joint): an
+/// angle in `unit`; a prismatic joint's length in mm where the program writes its angles
+/// in degrees, in metres where it writes radians (SI, as URScript). Without a robot every
+/// value is an angle.
+fn joint_values_in(
+    robot: Option<&Robot>,
+    values: &[Number],
+    unit: adwi_samples::AngleUnit,
+) -> Vec<f64> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, n)| match (robot.map(|r| r.joint_kind(i)), unit) {
+            (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Degree) => n.value,
+            (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Radian) => n.value * 1000.0,
+            _ => n.value * unit.rad(),
+        })
+        .collect()
+}
+
+/// Joint `i`'s value `v` in the robot's units as the program writes it: the inverse of
+/// [`joint_values_in`].
+fn joint_value_out(robot: Option<&Robot>, i: usize, v: f64, unit: adwi_samples::AngleUnit) -> f64 {
+    match (robot.map(|r| r.joint_kind(i)), unit) {
+        (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Degree) => v,
+        (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Radian) => v / 1000.0,
+        _ => v / unit.rad(),
     }
 }
 

@@ -418,9 +418,7 @@ impl Robot {
     /// The prismatic joints, bit `i` for joint `i` (0-based; the first 64 joints): what a
     /// sample file's joint columns are read as lengths for.
     pub fn prismatic_joints(&self) -> u64 {
-        (0..self.joint_count().min(64))
-            .filter(|&i| self.joint_kind(i) == JointKind::Prismatic)
-            .fold(0, |mask, i| mask | 1 << i)
+        self.chain.prismatic_joints()
     }
 
     /// How the joints are described.
