@@ -559,7 +559,7 @@ fn query_takes_negative_joint_angles() {
     );
     // A usage error: the joints the table takes are an option's values.
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("6 joint angles"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("6 joint values"), "{}", stderr(&o));
 }
 
 /// `--targets` writes the compensated command beside the error, keeps every row with its
