@@ -62,13 +62,15 @@
 //! compliance_urad_per_nm = 2.5    # optional, revolute joints only
 //! ```
 //!
-//! where the tool is the TCP in the last joint's frame after its motion, and so is a
-//! `[payload]`'s `com_mm`. A TOML file may
-//! instead name a URDF file (`urdf = "robot.urdf"`, relative to the TOML file, with optional
-//! `base_link` and `tip_link`) and add a `name`, `home_deg`, `[tool]` (TCP in the tip
-//! link's frame), `[base]` and `[payload]` (in the last movable joint's frame) to it. The
-//! file it names may itself be a TOML robot file naming another (a tool added to a robot),
-//! at most [`crate::error::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
+//! where the tool is the TCP in the flange frame: the last joint's frame after its motion,
+//! or a `[flange]` (`translation_mm`, `abc_deg`) in it where the mounting flange, the frame
+//! a controller's tool data start in, lies beyond. A `[payload]`'s `com_mm` is in the last
+//! joint's frame. A TOML file may instead name a URDF file (`urdf = "robot.urdf"`, relative
+//! to the TOML file, with optional `base_link`, `tip_link` and `flange_link`:
+//! [`crate::urdf`]) and add a `name`, `home_deg`, `[tool]` (TCP in the tip link's frame),
+//! `[base]` and `[payload]` (in the last movable joint's frame) to it. The file it names
+//! may itself be a TOML robot file naming another (a tool added to a robot), at most
+//! [`crate::error::MAX_ROBOT_FILE_DEPTH`] files deep and never in a cycle;
 //! [`Robot::load_with_files`] reports every file read. `home_deg` holds degrees for
 //! revolute joints and millimetres for prismatic ones.
 //!

@@ -20,11 +20,10 @@
 //! flange, `z` out of it; then `flange`). Either must hang from the last movable joint's
 //! link through fixed joints alone (a named link that does not is refused; a default one
 //! that does not is passed over); without one the flange is the last movable joint's link
-//! itself. Its fixed offset
-//! is [`Robot::flange`]; the robot's tool is the tip link's frame in the flange's (a TOML
-//! robot file naming the URDF file may add a `[tool]` after the tip link). So a ROS-
-//! Industrial arm read to `tool0` has no tool, as its controller has none at `$TOOL` 0,
-//! however far its last joint's frame lies from the flange.
+//! itself. Its fixed offset is [`Robot::flange`]; the robot's tool is the tip link's frame
+//! in the flange's (a TOML robot file naming the URDF file may add a `[tool]` after the tip
+//! link). So a ROS-Industrial arm read to `tool0` has no tool, as its controller has none
+//! at `$TOOL` 0, however far its last joint's frame lies from the flange.
 //!
 //! Limits: `revolute` and `prismatic` joints need `lower < upper` (rad; m, read in mm);
 //! `continuous` joints have none (`[−∞, ∞]`). The home posture is zero where the limits
