@@ -193,6 +193,9 @@ pub(crate) struct UrdfSource {
     pub(crate) robot: urdf_rs::Robot,
     /// The link the chain ends at.
     pub(crate) tip_link: String,
+    /// The controller's base frame in the chain's base link (`urdf`, "Base"): the robot's
+    /// nominal base is its inverse.
+    pub(crate) base_frame: Transform,
     /// Per movable joint of the chain, its index in `robot.joints`.
     pub(crate) movable: Vec<usize>,
     /// Per movable joint, the fixed joints between the previous movable joint (or the base

@@ -10,7 +10,16 @@
 //! movable joint's origin (or into the tool, after the last movable joint); `floating`,
 //! `planar` and `spherical` joints, and joints that `mimic` another, are refused. Origins
 //! are `xyz` (m, written here in mm) and `rpy` (`R = Rz(yaw)·Ry(pitch)·Rx(roll)`); axes are
-//! normalised. The base is the base link's frame.
+//! normalised.
+//!
+//! # Base
+//!
+//! Poses are given in the controller's base frame: link [`BASE_FRAME_LINK`] (`base`,
+//! ROS-Industrial's, REP 199) where it hangs from the chain's base link through fixed
+//! joints alone, beside the chain (a Fanuc's world at its second axis's height, a UR's
+//! turned by π about z); else the base link's frame. Choosing the tip, a leaf so fixed to the base
+//! link is a frame, not the chain's end. (A robot file naming the URDF gives another frame
+//! by its `[base]`: the base link in it, composed after this one.)
 //!
 //! # Flange
 //!
@@ -113,6 +122,11 @@ pub struct LinkNames {
 /// then `flange`, the name other descriptions give the mounting flange.
 pub const FLANGE_LINKS: [&str; 2] = ["tool0", "flange"];
 
+/// The link ROS-Industrial's descriptions (REP 199) give the controller's base frame,
+/// beside the chain's base link: the frame the controller's programs, and measurements
+/// taken from it, give poses in.
+pub const BASE_FRAME_LINK: &str = "base";
+
 fn chain_error(message: String) -> RobotError {
     RobotError::UrdfChain(message)
 }
@@ -178,11 +192,19 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     } else {
         urdf.name.clone()
     };
+    let base_frame = base_frame_of(urdf, &tree, &base, &path);
+    // The identity's inverse would hold −0.0: a frame where the base link is, exactly,
+    // leaves the base as the identity, and the table the same bytes.
+    let base_of_chain = if base_frame == Transform::IDENTITY {
+        Transform::IDENTITY
+    } else {
+        base_frame.inverse()
+    };
     let mut robot = Robot::with_flange_at(
         name,
         Geometry::Chain(rows),
         joints,
-        Transform::IDENTITY,
+        base_of_chain,
         flange,
         tool,
         home,
@@ -190,6 +212,7 @@ pub fn robot_from_urdf(urdf: &urdf_rs::Robot, links: &LinkNames) -> Result<Robot
     robot.set_urdf_source(UrdfSource {
         robot: urdf.clone(),
         tip_link: tip,
+        base_frame,
         movable,
         fixed_before,
         fixed_after,
@@ -314,11 +337,13 @@ fn tip_link(
         }
         return Ok(name.clone());
     }
-    // The leaves below the base, depth first.
+    // The leaves below the base, depth first, and whether a movable joint leads to each:
+    // a leaf fixed to the base (ROS-Industrial's `base` frame beside the chain) is a frame,
+    // not the chain's end.
     let mut leaves = Vec::new();
-    let mut stack = vec![base];
+    let mut stack = vec![(base, false)];
     let mut visited = 0;
-    while let Some(link) = stack.pop() {
+    while let Some((link, moved)) = stack.pop() {
         visited += 1;
         if visited > urdf.links.len() {
             return Err(chain_error("the joints form a cycle".into()));
@@ -326,12 +351,20 @@ fn tip_link(
         match tree.child_joints.get(link) {
             Some(children) if !children.is_empty() => {
                 for &j in children.iter().rev() {
-                    stack.push(urdf.joints[j].child.link.as_str());
+                    let joint = &urdf.joints[j];
+                    let movable = joint.joint_type != JointType::Fixed;
+                    stack.push((joint.child.link.as_str(), moved || movable));
                 }
             }
-            _ => leaves.push(link),
+            _ => leaves.push((link, moved)),
         }
     }
+    let moved: Vec<&str> = leaves.iter().filter(|l| l.1).map(|l| l.0).collect();
+    let leaves = if moved.is_empty() {
+        leaves.iter().map(|l| l.0).collect()
+    } else {
+        moved
+    };
     match leaves.as_slice() {
         [leaf] => Ok((*leaf).to_owned()),
         _ => Err(chain_error(format!(
@@ -341,6 +374,20 @@ fn tip_link(
             first_few(&leaves, NAMES_SHOWN)
         ))),
     }
+}
+
+/// The controller's base frame in the chain's base link `base` (module docs, "Base"):
+/// link [`BASE_FRAME_LINK`] where it hangs from `base` through fixed joints alone, beside
+/// the chain (`path`), not on it.
+fn base_frame_of(urdf: &urdf_rs::Robot, tree: &Tree, base: &str, path: &[usize]) -> Transform {
+    let on_chain = base == BASE_FRAME_LINK
+        || path
+            .iter()
+            .any(|&j| urdf.joints[j].child.link == BASE_FRAME_LINK);
+    if on_chain {
+        return Transform::IDENTITY;
+    }
+    fixed_below(urdf, tree, base, BASE_FRAME_LINK).unwrap_or(Transform::IDENTITY)
 }
 
 /// The flange in the last movable joint's link `end` (module docs, "Flange"): the origins of
@@ -574,7 +621,7 @@ fn body_inertial(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{isometry_from_transform, shipped_file};
+    use crate::model::{isometry_from_transform, shipped_file, transform_from_xyz_rpy};
     use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -862,6 +909,63 @@ mod tests {
             let error = read("tool0", Some(named)).unwrap_err().to_string();
             assert!(error.contains(words), "{named}: {error}");
         }
+    }
+
+    /// A ROS-Industrial layout (REP 199) of the UR5: its `base_link` turned by π about z
+    /// from the controller's `base`, which hangs beside the chain, and `tool0` beyond the
+    /// last joint. Read with no link named it is the shipped UR5 (whose base link is the
+    /// controller's base): poses in `base`, the flange at `tool0`, no tool; written as URDF
+    /// with a base deviation and read again, the same robot.
+    #[test]
+    fn a_ros_industrial_layout_reads_in_the_controllers_base_and_flange() {
+        let shipped = std::fs::read_to_string(shipped_file("ur5", "robot.urdf")).unwrap();
+        let turn = r#"<origin xyz="0 0 0" rpy="0 0 3.141592653589793"/>"#;
+        let ros = shipped.replacen(
+            r#"<link name="base_link"/>"#,
+            &format!(
+                r#"<link name="base_link"/>
+  <link name="ros_base_link"/>
+  <link name="base"/>
+  <joint name="ros_base_link-base_link" type="fixed"><parent link="ros_base_link"/><child link="base_link"/>{turn}</joint>
+  <joint name="ros_base_link-base" type="fixed"><parent link="ros_base_link"/><child link="base"/>{turn}</joint>"#
+            ),
+            1,
+        );
+        let plain = robot_from_urdf_str(&shipped, &LinkNames::default()).unwrap();
+        let read = robot_from_urdf_str(&ros, &LinkNames::default()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let same = |a: &Robot, b: &Robot, rng: &mut ChaCha8Rng| {
+            for _ in 0..50 {
+                let q = random_q(a, rng);
+                let (p, r) = (a.tcp_pose(&q), b.tcp_pose(&q));
+                assert!((p.translation.vector - r.translation.vector).norm() < 1e-9);
+                assert!(p.rotation.angle_to(&r.rotation) < 1e-12);
+            }
+        };
+        same(&plain, &read, &mut rng);
+        assert_eq!(read.tool(), Transform::IDENTITY);
+        assert!((read.flange().translation_mm[2] - 82.3).abs() < 1e-9);
+        // A calibrated base (a deviation before the nominal one) survives the round trip.
+        let deviated = read
+            .with_parts(
+                "deviated".into(),
+                transform_from_xyz_rpy([1.5, -0.7, 0.3], [0.001, -0.002, 0.003])
+                    .compose(&read.base()),
+                read.tool(),
+                read.home().to_vec(),
+            )
+            .unwrap();
+        let written = deviated.to_urdf_string(&[]).unwrap();
+        let again = robot_from_urdf_str(
+            &written,
+            &LinkNames {
+                base_link: None,
+                tip_link: Some(TCP_LINK.into()),
+                flange_link: None,
+            },
+        )
+        .unwrap();
+        same(&deviated, &again, &mut rng);
     }
 
     #[test]

@@ -56,6 +56,12 @@ impl Robot {
     pub fn to_urdf_string(&self, comment: &[String]) -> Result<String, RobotError> {
         let omissions = self.urdf_omissions();
         let chain = self.chain();
+        // The base in the file's base link: the chain's base, less the controller's base
+        // frame the file was read in (`urdf`, "Base"), which the file keeps.
+        let base = self
+            .urdf_source()
+            .map_or(Transform::IDENTITY, |s| s.base_frame)
+            .compose(&chain.base);
         // Each movable joint's origin with its offset folded in, the base in the first.
         let origins: Vec<Transform> = chain
             .joints()
@@ -64,7 +70,7 @@ impl Robot {
             .map(|(i, j)| {
                 let origin = j.origin.compose(&j.motion(j.offset));
                 if i == 0 {
-                    chain.base.compose(&origin)
+                    base.compose(&origin)
                 } else {
                     origin
                 }
