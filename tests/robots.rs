@@ -443,15 +443,9 @@ fn track_poses(seed: u64, count: usize) -> String {
     out
 }
 
-/// A track's position is a length wherever joint values are read: simulated samples, the
-/// hybrid table built from them, `tablec query --targets` and `--joints`, and a CSV
-/// program's `j` columns, read and written back, all in mm (a track at 1500 mm was read
-/// as 1500 degrees by the query and the program, and its targets refused or answered at
-/// another place on the track).
-#[test]
-fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// Simulated samples (`s.csv`) and held-out poses (`v.csv`) of the arm on a track in `d`,
+/// and the hybrid table built from the samples (`t.tbl`).
+fn track_table(d: &Path) {
     std::fs::write(d.join("robot.toml"), TRACK_ROBOT).unwrap();
     let mut scenario = String::new();
     for (i, offset) in ["delta_offset_mm = 0.3", "delta_offset_deg = -0.02"]
@@ -501,6 +495,18 @@ fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
         d,
     );
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A track's position is a length wherever joint values are read: simulated samples, the
+/// hybrid table built from them, `tablec query --targets` and `--joints`, and a CSV
+/// program's `j` columns, read and written back, all in mm (a track at 1500 mm was read
+/// as 1500 degrees by the query and the program, and its targets refused or answered at
+/// another place on the track).
+#[test]
+fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    track_table(d);
     let o = tablec(&["query", "t.tbl", "--targets", "v.csv", "-o", "q.csv"], d);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let rows = |file: &str| -> Vec<Vec<String>> {
