@@ -96,6 +96,17 @@ fn a_table_that_corrects_nothing_reproduces_every_program_byte_for_byte() {
     }
 }
 
+/// The UR5's hybrid table at 30 mm cells (`build_ur5_hybrid`) in `dir`, as
+/// `ur5-hybrid.tbl`.
+fn ur5_hybrid(dir: &Path) {
+    build_ur5_hybrid(
+        dir,
+        repo("tables/ur5/robot.toml").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5-hybrid.tbl",
+    );
+}
+
 /// The job of `program` with `table`, the KR150-2 robot and `tweak`, run.
 fn run_job(
     table: &Path,
@@ -275,12 +286,7 @@ fn kr150_commands_are_tablec_querys_and_the_written_numbers_hold_them() {
 #[test]
 fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
     let dir = tempfile::tempdir().unwrap();
-    build_ur5_hybrid(
-        dir.path(),
-        repo("tables/ur5/robot.toml").to_str().unwrap(),
-        &["--cell", "30"],
-        "ur5-hybrid.tbl",
-    );
+    ur5_hybrid(dir.path());
     let table = dir.path().join("ur5-hybrid.tbl");
     let (_, done) = run_job(
         &table,
@@ -325,15 +331,7 @@ fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
         );
         // Shortest round-trip decimals: tablec reads the very same posture.
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        let error: Vec<f64> = stdout
-            .lines()
-            .find_map(|l| l.strip_prefix("error"))
-            .unwrap()
-            .split_whitespace()
-            .take(3)
-            .map(|v| v.parse().unwrap())
-            .collect();
+        let error = crate::common::printed_error(&String::from_utf8_lossy(&o.stdout));
         let p = t.point_mm.unwrap();
         // command + error(command) = target, to the fixed point's tolerance (1e-6 mm) and
         // the query's printing (1e-9 mm).
@@ -354,12 +352,7 @@ fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
 #[test]
 fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
     let dir = tempfile::tempdir().unwrap();
-    build_ur5_hybrid(
-        dir.path(),
-        repo("tables/ur5/robot.toml").to_str().unwrap(),
-        &["--cell", "30"],
-        "ur5-hybrid.tbl",
-    );
+    ur5_hybrid(dir.path());
     let table = dir.path().join("ur5-hybrid.tbl");
     let reports: Vec<Report> = ["robot.toml", "robot.urdf"]
         .iter()
@@ -1238,12 +1231,7 @@ fn rapid_arc_trigg_do_sync_search_and_array_targets_land_with_the_torch_in_the_f
 #[test]
 fn polyscope_waypoints_through_get_inverse_kin_and_a_feature_land_by_the_hybrid_model() {
     let dir = tempfile::tempdir().unwrap();
-    build_ur5_hybrid(
-        dir.path(),
-        repo("tables/ur5/robot.toml").to_str().unwrap(),
-        &["--cell", "30"],
-        "ur5-hybrid.tbl",
-    );
+    ur5_hybrid(dir.path());
     let table_path = dir.path().join("ur5-hybrid.tbl");
     let (_, done) = run_job(
         &table_path,

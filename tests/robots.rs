@@ -360,15 +360,7 @@ fn a_seven_joint_robot_from_simulation_to_hybrid_queries() {
         assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
         // The sample's own pose: the correction is its measured error to within the
         // residual interpolation's smoothing (tens of µm).
-        let error: Vec<f64> = stdout(&o)
-            .lines()
-            .find(|l| l.starts_with("error"))
-            .unwrap()
-            .split_whitespace()
-            .skip(1)
-            .take(3)
-            .map(|v| v.parse().unwrap())
-            .collect();
+        let error = crate::common::printed_error(&stdout(&o));
         for a in 0..3 {
             let measured: f64 = first[6 + a].parse().unwrap();
             assert!((error[a] - measured).abs() < 0.05, "{error:?} vs {first:?}");
@@ -547,14 +539,7 @@ fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
         d,
     );
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
-    let error: Vec<f64> = stdout(&o)
-        .lines()
-        .find_map(|l| l.strip_prefix("error"))
-        .unwrap()
-        .split_whitespace()
-        .take(3)
-        .map(|v| v.parse().unwrap())
-        .collect();
+    let error = crate::common::printed_error(&stdout(&o));
     for (a, k) in ["x", "y", "z"].iter().enumerate() {
         let row: f64 = answers[1][column(&answers, &format!("pred_d{k}"))]
             .parse()

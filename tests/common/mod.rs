@@ -345,3 +345,17 @@ pub fn compensate(dir: &std::path::Path, args: &[&str]) -> (i32, String, String)
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
 }
+
+/// The predicted error `tablec query` prints for one target: its `error dx dy dz` line's
+/// three numbers, mm.
+pub fn printed_error(stdout: &str) -> [f64; 3] {
+    let values: Vec<f64> = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("error"))
+        .expect("an error line")
+        .split_whitespace()
+        .take(3)
+        .map(|v| v.parse().expect("a number"))
+        .collect();
+    values.try_into().expect("three numbers")
+}
