@@ -385,6 +385,44 @@ fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
     }
 }
 
+/// A hybrid table records where its point is on the flange: without a robot file, a
+/// program's tool (`set_tcp`) is placed by that record, and the commands are those made
+/// with the robot file (the whole program was refused before: "where the table's point is
+/// on the flange is not known").
+#[test]
+fn a_hybrid_table_alone_places_a_programs_tool_by_the_point_it_records() {
+    let dir = tempfile::tempdir().unwrap();
+    ur5_hybrid(dir.path());
+    let table = dir.path().join("ur5-hybrid.tbl");
+    let with_robot = run_job(
+        &table,
+        &fixture("pick.script"),
+        &repo("tables/ur5/robot.toml"),
+        |_| {},
+    )
+    .1
+    .report;
+    let alone = CompensateJob::new(CompensateOptions::new(&table, &fixture("pick.script")))
+        .unwrap()
+        .run()
+        .unwrap()
+        .report;
+    assert_eq!(alone.summary().corrected, 7, "{}", alone.summary());
+    for (a, b) in with_robot.targets.iter().zip(&alone.targets) {
+        assert_eq!(a.status.as_str(), b.status.as_str(), "{}", a.place());
+        if let (Some(p), Some(q)) = (a.command_mm, b.command_mm) {
+            // The record is f32: 1e-5 mm at 200 mm.
+            for axis in 0..3 {
+                assert!(
+                    (p[axis] - q[axis]).abs() < 1e-5,
+                    "{}: {p:?} {q:?}",
+                    a.place()
+                );
+            }
+        }
+    }
+}
+
 /// Mean and max of a list.
 fn stats(v: &[f64]) -> (f64, f64) {
     (

@@ -769,8 +769,9 @@ def compensate_program(
     input. ``format``: ``"krl"``, ``"rapid"``, ``"urscript"`` or ``"csv"`` (default: by
     extension). ``robot``: a robot file, for joint targets and the posture checks
     (``base_link``, ``tip_link``, ``flange_link``: a URDF's links, as tablec's
-    ``--base-link``, ``--tip-link``, ``--flange-link``). ``tool``, ``base``, ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as
-    tablec's ``--tool``, ``--base``, ``--table-tool``. ``strict``: raise instead of
+    ``--base-link``, ``--tip-link``, ``--flange-link``). ``tool``, ``base``,
+    ``table_tool``: ``[X, Y, Z, A, B, C]`` (mm, KUKA degrees), as tablec's ``--tool``,
+    ``--base``, ``--table-tool``. ``strict``: raise instead of
     leaving any target unchanged. ``beyond_evidence``: correct a position-only table's
     targets at orientations its samples never had instead of refusing them (status
     ``beyond_evidence``; each target's ``evidence`` says where it lies). ``krl_config``: a

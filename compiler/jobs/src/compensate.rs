@@ -70,7 +70,8 @@ pub struct CompensateArgs {
     #[arg(long, value_name = "PATH")]
     pub krl_config: Option<PathBuf>,
     /// The point the table's samples measured, in the flange frame, X,Y,Z,A,B,C [default: a
-    /// hybrid table's own (with --robot); else the robot file's tool; else the flange].
+    /// hybrid table's own (the robot file's flange with --robot, else where the table
+    /// records its point on the flange); else the robot file's tool; else the flange].
     #[arg(long, value_name = "X,Y,Z,A,B,C", allow_hyphen_values = true, value_parser = crate::args::parse_frame)]
     pub table_tool: Option<Frame>,
     /// G-code: how A, B, C (degrees) write the tool's orientation: kuka, R = Rz(A)·Ry(B)·Rx(C);

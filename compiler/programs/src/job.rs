@@ -2233,8 +2233,15 @@ fn kinematics(
                     .map_err(|e| {
                         Error::Option(format!("the table's nominal chain cannot be used: {e}"))
                     })?;
-                    // Without a robot file the flange is known only from the option.
-                    (robot, flag)
+                    // Without a robot file the flange is where the table records its point
+                    // on it (format version 4 on), unless the option says.
+                    let recorded = table.header().evidence.point_in_flange.map(|p| {
+                        Isometry3::new(
+                            Vector3::from(p.translation_mm),
+                            Vector3::from(p.rotation_rad),
+                        )
+                    });
+                    (robot, flag.or(recorded))
                 }
             };
             Ok((Some(Kinematics::new(robot)), table_tool))
