@@ -402,7 +402,7 @@ fn a_hybrid_table_alone_places_a_programs_tool_by_the_point_it_records() {
     )
     .1
     .report;
-    let alone = CompensateJob::new(CompensateOptions::new(&table, &fixture("pick.script")))
+    let alone = CompensateJob::new(CompensateOptions::new(&table, fixture("pick.script")))
         .unwrap()
         .run()
         .unwrap()
