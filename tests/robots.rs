@@ -529,6 +529,18 @@ fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
     }
     // The measured error is 0.3-1 mm; the table predicts it to its noise.
     assert!(worst < 0.1, "worst {worst} mm");
+    // `eval --table` reads the held-out poses' track in mm too: every pose predicted.
+    let o = tablec(&["eval", "--table", "t.tbl", "--validation", "v.csv"], d);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let table_row: Vec<String> = stdout(&o)
+        .lines()
+        .find(|l| l.starts_with("table "))
+        .unwrap()
+        .split_whitespace()
+        .take(3)
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(table_row, ["table", "40", "0"], "{}", stdout(&o));
     // One target with --joints: the same answer as its row's.
     let first = &validation[1];
     let joints = first[column(&validation, "j1")..].join(",");

@@ -293,6 +293,11 @@ impl EvalJob {
                     }
                 })?;
                 let validation = args.validation.as_ref().expect("checked");
+                // The table's robot says which joints slide: their columns are lengths.
+                let read = adwi_samples::ReadOptions {
+                    prismatic_joints: crate::query::prismatic_joints(&table),
+                    ..read
+                };
                 let mut points = validation.input().samples(&columns, &read)?;
                 limit(&mut points, args.limit);
                 Subject::Table {

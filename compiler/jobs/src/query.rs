@@ -527,7 +527,7 @@ fn joints_rad<D: AsRef<[u8]>>(table: &Table<D>, joints_deg: &[f64]) -> Result<Ve
 
 /// The table's prismatic joints as a mask ([`adwi_runtime::chain::Chain::prismatic_joints`]);
 /// none without a model.
-fn prismatic_joints<D: AsRef<[u8]>>(table: &Table<D>) -> u64 {
+pub(crate) fn prismatic_joints<D: AsRef<[u8]>>(table: &Table<D>) -> u64 {
     table.model().map_or(0, |m| m.nominal().prismatic_joints())
 }
 
