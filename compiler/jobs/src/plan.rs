@@ -225,8 +225,10 @@ fn prior(args: &PlanArgs, robot: &Robot) -> Result<Option<Prior>, JobError> {
         return Ok(None);
     }
     let mut prior = Prior::default();
+    // As build reads them: the robot's prismatic joints' columns are lengths.
+    let (columns, read) = crate::args::Reading::default().resolve_for(Some(robot))?;
     for path in &args.measured {
-        let samples = adwi_samples::read_samples(path, &adwi_samples::ColumnMap::default())?;
+        let samples = adwi_samples::read_samples_with(path, &columns, &read)?;
         if samples.joints.is_none() {
             return Err(JobError::option(
                 "measured",
