@@ -606,3 +606,138 @@ fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
         );
     }
 }
+
+/// A SCARA, as a chain robot file: three turns about the vertical and a stroke down.
+const SCARA: &str = r#"name = "SCARA"
+[tool]
+translation_mm = [0.0, 0.0, -50.0]
+[[joints]]
+xyz_mm = [0.0, 0.0, 400.0]
+limits_deg = [-130.0, 130.0]
+[[joints]]
+xyz_mm = [325.0, 0.0, 0.0]
+limits_deg = [-145.0, 145.0]
+[[joints]]
+type = "prismatic"
+xyz_mm = [275.0, 0.0, 0.0]
+axis = [0.0, 0.0, -1.0]
+limits_mm = [0.0, 200.0]
+[[joints]]
+axis = [0.0, 0.0, 1.0]
+limits_deg = [-360.0, 360.0]
+"#;
+
+/// A SCARA cannot tilt its tool: a hybrid table's correction turns it, so every command
+/// was `ik_failed`. Now the command takes the turn the robot can give (about the vertical)
+/// and the position, and its report line says how much turn is left uncorrected.
+#[test]
+fn a_scara_program_is_corrected_in_position_with_the_tilt_it_cannot_take_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("robot.toml"), SCARA).unwrap();
+    let mut scenario = String::new();
+    for (i, offset) in ["deg = 0.01", "deg = -0.015", "mm = 0.2", "deg = 0.02"]
+        .iter()
+        .enumerate()
+    {
+        let s = [0.05, 0.12, -0.08, 0.0][i];
+        scenario.push_str(&format!(
+            "[[joints]]\ndelta_xyz_mm = [{s}, 0.04, -0.03]\ndelta_rpy_deg = [0.003, -0.002, 0.0]\ndelta_offset_{offset}\n"
+        ));
+    }
+    std::fs::write(d.join("scenario.toml"), scenario).unwrap();
+    let mut rng = crate::common::SplitMix(3);
+    for (name, count) in [("poses.csv", 300), ("val_poses.csv", 20)] {
+        let mut text = String::from("j1,j2,j3,j4\n");
+        for _ in 0..count {
+            let [a, b, c, e] = [(120.0, 0.0), (140.0, 0.0), (100.0, 100.0), (180.0, 0.0)]
+                .map(|(half, mid)| rng.uniform(mid - half, mid + half));
+            text.push_str(&format!("{a:.3},{b:.3},{c:.3},{e:.3}\n"));
+        }
+        std::fs::write(d.join(name), text).unwrap();
+    }
+    for (poses, out) in [("poses.csv", "s.csv"), ("val_poses.csv", "v.csv")] {
+        let args = [
+            "simulate",
+            "--robot",
+            "robot.toml",
+            "--scenario",
+            "scenario.toml",
+        ];
+        let o = tablec(&[&args[..], &["--poses", poses, "-o", out]].concat(), d);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let o = tablec(
+        &[
+            "build",
+            "-q",
+            "s.csv",
+            "--robot",
+            "robot.toml",
+            "-o",
+            "t.tbl",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The held-out poses as a program: x,y,z,a,b,c and the joints.
+    let validation: Vec<Vec<String>> = std::fs::read_to_string(d.join("v.csv"))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    let column = |name: &str| validation[0].iter().position(|c| c == name).unwrap();
+    let keep = ["x", "y", "z", "a", "b", "c", "j1", "j2", "j3", "j4"].map(column);
+    let program: String = validation
+        .iter()
+        .map(|row| keep.map(|k| row[k].as_str()).join(",") + "\n")
+        .collect();
+    std::fs::write(d.join("p.csv"), program).unwrap();
+    let o = tablec(
+        &[
+            "compensate",
+            "t.tbl",
+            "p.csv",
+            "-o",
+            "pc.csv",
+            "--robot",
+            "robot.toml",
+            "--report",
+            "r.csv",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("20 of 20 targets corrected"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        stdout(&o).contains("beyond the 4 joints' reach, left uncorrected"),
+        "{}",
+        stdout(&o)
+    );
+    // Each command's position correction is the pose's simulated error, to the table's
+    // accuracy (a few µm here).
+    let mut report = csv::Reader::from_path(d.join("r.csv")).unwrap();
+    let header = report.headers().unwrap().clone();
+    let at = |name: &str| header.iter().position(|c| c == name).unwrap();
+    let lines: Vec<csv::StringRecord> = report.records().map(Result::unwrap).collect();
+    let mut worst: f64 = 0.0;
+    for (row, line) in validation[1..].iter().zip(&lines) {
+        let miss = ["x", "y", "z"]
+            .iter()
+            .map(|k| {
+                let command: f64 = line[at(&format!("command_{k}"))].parse().unwrap();
+                let point: f64 = line[at(&format!("point_{k}"))].parse().unwrap();
+                let error: f64 = row[column(&format!("d{k}"))].parse().unwrap();
+                (command - point + error).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        worst = worst.max(miss);
+    }
+    assert!(worst < 0.03, "worst {worst} mm");
+}

@@ -249,6 +249,39 @@ pub struct Command {
     pub residual: Residual,
     /// Where the correction at the command lies beyond the table's evidence.
     pub evidence: Evidence,
+    /// The correction's turn a robot of fewer than six joints cannot give its tool at the
+    /// command (a SCARA's tilt), left uncorrected, rad ([`reachable_turn`]); zero else.
+    pub unturned_rad: f64,
+}
+
+/// The part of a correction's rotation `omega` (rotation vector, rad, base frame) a robot
+/// can turn its tool by at joints `q`: all of it with six joints or more; with fewer, its
+/// projection onto the span of the joints' angular velocities there (a SCARA's: about the
+/// vertical, so that the command keeps the tool as the robot can hold it, and its
+/// position is still corrected). The rest is returned too.
+pub fn reachable_turn(
+    robot: &Robot,
+    q: &[f64],
+    omega: Vector3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
+    if robot.joint_count() >= 6 || q.len() != robot.joint_count() {
+        return (omega, Vector3::zeros());
+    }
+    let jacobian = adwi_robot::error_model::joint_jacobian(robot.chain(), q);
+    let angular = jacobian.rows(3, 3).into_owned();
+    let svd = angular.svd(true, false);
+    let (Some(u), sigma) = (svd.u, svd.singular_values) else {
+        return (Vector3::zeros(), omega);
+    };
+    let largest = sigma.max();
+    let mut reached = Vector3::zeros();
+    for (k, &s) in sigma.iter().enumerate() {
+        if s > 1e-9 * largest {
+            let direction = Vector3::from_iterator(u.column(k).iter().copied());
+            reached += direction * direction.dot(&omega);
+        }
+    }
+    (reached, omega - reached)
 }
 
 /// Why no command was found, and the details for the report.
@@ -438,6 +471,11 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
             }
             let e = Vector3::from(c.position_error_mm);
             let residual_mm = (point.translation.vector + e - p).norm();
+            let (turn, unturned) = reachable_turn(
+                kinematics.robot(),
+                &q,
+                -Vector3::from(c.orientation_error_rad),
+            );
             if residual_mm <= limits.tolerance_mm {
                 return Ok(Command {
                     point,
@@ -448,12 +486,12 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
                     residual_mm,
                     residual: c.residual,
                     evidence: c.evidence,
+                    unturned_rad: unturned.norm(),
                 });
             }
             point = Isometry3::from_parts(
                 Translation3::from(p - e),
-                UnitQuaternion::from_scaled_axis(-Vector3::from(c.orientation_error_rad))
-                    * target.rotation,
+                UnitQuaternion::from_scaled_axis(turn) * target.rotation,
             );
             q = kinematics
                 .inverse(&point, &self.posture, &q)
@@ -504,8 +542,13 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
                 ),
             ));
         }
-        let rotation = UnitQuaternion::from_scaled_axis(Vector3::from(comp.command_rotation_rad))
-            * target.rotation;
+        let (turn, unturned) = match (kinematics, target_joints) {
+            (Some(k), Some(q)) => {
+                reachable_turn(k.robot(), q, Vector3::from(comp.command_rotation_rad))
+            }
+            _ => (Vector3::from(comp.command_rotation_rad), Vector3::zeros()),
+        };
+        let rotation = UnitQuaternion::from_scaled_axis(turn) * target.rotation;
         let point = Isometry3::from_parts(
             Translation3::from(Vector3::from(comp.command_position_mm)),
             rotation,
@@ -528,6 +571,7 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
             residual_mm: comp.residual_mm,
             residual: comp.correction.residual,
             evidence: comp.correction.evidence,
+            unturned_rad: unturned.norm(),
         })
     }
 }

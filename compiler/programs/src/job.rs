@@ -1834,6 +1834,16 @@ fn fill(
     entry.point_mm = Some(point.translation.vector.into());
     entry.command_mm = Some(command.point.translation.vector.into());
     entry.rotation_deg = turned.map(f64::to_degrees);
+    // A turn the robot cannot give its tool (fewer than six joints): said, never hidden in
+    // an `ok`. A microradian is below any tool's use.
+    if let (Some(k), true) = (kinematics, command.unturned_rad > 1e-6) {
+        entry.detail = format!(
+            "orientation: {:.3} mrad of the correction's turn is beyond the {} joints' reach, \
+             left uncorrected; the position is corrected",
+            command.unturned_rad * 1e3,
+            k.robot().joint_count()
+        );
+    }
     entry.iterations = command.iterations;
     entry.residual_mm = Some(command.residual_mm);
     entry.residual = Some(command.residual);
