@@ -627,32 +627,59 @@ axis = [0.0, 0.0, 1.0]
 limits_deg = [-360.0, 360.0]
 "#;
 
-/// A SCARA cannot tilt its tool: a hybrid table's correction turns it, so every command
-/// was `ik_failed`. Now the command takes the turn the robot can give (about the vertical)
-/// and the position, and its report line says how much turn is left uncorrected.
-#[test]
-fn a_scara_program_is_corrected_in_position_with_the_tilt_it_cannot_take_said() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    std::fs::write(d.join("robot.toml"), SCARA).unwrap();
+/// A five-axis arm: a base turn, three parallel pitch joints, a wrist roll.
+const FIVE_AXES: &str = r#"name = "five axes"
+[tool]
+translation_mm = [0.0, 0.0, 80.0]
+[[joints]]
+xyz_mm = [0.0, 0.0, 300.0]
+limits_deg = [-160.0, 160.0]
+[[joints]]
+axis = [0.0, 1.0, 0.0]
+limits_deg = [-90.0, 90.0]
+[[joints]]
+xyz_mm = [0.0, 0.0, 250.0]
+axis = [0.0, 1.0, 0.0]
+limits_deg = [-10.0, 150.0]
+[[joints]]
+xyz_mm = [0.0, 0.0, 160.0]
+axis = [0.0, 1.0, 0.0]
+limits_deg = [-110.0, 110.0]
+[[joints]]
+xyz_mm = [0.0, 0.0, 70.0]
+axis = [0.0, 0.0, 1.0]
+limits_deg = [-200.0, 200.0]
+"#;
+
+/// Simulated samples (`s.csv`) and 20 held-out poses (`v.csv`) of `robot` (a chain file)
+/// at joint values drawn in `ranges` (degrees; mm for a prismatic joint), each joint's
+/// origin and offset deviated, and the hybrid table of the samples (`t.tbl`), in `d`.
+fn simulated_table(d: &Path, robot: &str, ranges: &[(f64, f64)]) {
+    std::fs::write(d.join("robot.toml"), robot).unwrap();
+    let prismatic = robot.matches("prismatic").count() > 0;
     let mut scenario = String::new();
-    for (i, offset) in ["deg = 0.01", "deg = -0.015", "mm = 0.2", "deg = 0.02"]
-        .iter()
-        .enumerate()
-    {
-        let s = [0.05, 0.12, -0.08, 0.0][i];
+    for (i, _) in ranges.iter().enumerate() {
+        let s = [0.05, 0.12, -0.08, 0.03, -0.02][i % 5];
+        let offset = if prismatic && i == 2 {
+            "mm = 0.2"
+        } else {
+            "deg = 0.015"
+        };
         scenario.push_str(&format!(
             "[[joints]]\ndelta_xyz_mm = [{s}, 0.04, -0.03]\ndelta_rpy_deg = [0.003, -0.002, 0.0]\ndelta_offset_{offset}\n"
         ));
     }
     std::fs::write(d.join("scenario.toml"), scenario).unwrap();
     let mut rng = crate::common::SplitMix(3);
+    let names: Vec<String> = (1..=ranges.len()).map(|i| format!("j{i}")).collect();
     for (name, count) in [("poses.csv", 300), ("val_poses.csv", 20)] {
-        let mut text = String::from("j1,j2,j3,j4\n");
+        let mut text = names.join(",") + "\n";
         for _ in 0..count {
-            let [a, b, c, e] = [(120.0, 0.0), (140.0, 0.0), (100.0, 100.0), (180.0, 0.0)]
-                .map(|(half, mid)| rng.uniform(mid - half, mid + half));
-            text.push_str(&format!("{a:.3},{b:.3},{c:.3},{e:.3}\n"));
+            let row: Vec<String> = ranges
+                .iter()
+                .map(|&(lo, hi)| format!("{:.3}", rng.uniform(lo, hi)))
+                .collect();
+            text += &(row.join(",") + "\n");
         }
         std::fs::write(d.join(name), text).unwrap();
     }
@@ -680,22 +707,59 @@ fn a_scara_program_is_corrected_in_position_with_the_tilt_it_cannot_take_said() 
         d,
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    // The held-out poses as a program: x,y,z,a,b,c and the joints.
-    let validation: Vec<Vec<String>> = std::fs::read_to_string(d.join("v.csv"))
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split(',').map(str::to_owned).collect())
-        .collect();
-    let column = |name: &str| validation[0].iter().position(|c| c == name).unwrap();
-    let keep = ["x", "y", "z", "a", "b", "c", "j1", "j2", "j3", "j4"].map(column);
-    let program: String = validation
-        .iter()
-        .map(|row| keep.map(|k| row[k].as_str()).join(",") + "\n")
-        .collect();
-    std::fs::write(d.join("p.csv"), program).unwrap();
-    let o = tablec(
-        &[
+}
+
+/// A SCARA cannot tilt its tool, a five-axis arm cannot take every orientation at every
+/// position: a hybrid table's correction turns the tool by its orientation error, so every
+/// command was `ik_failed`. Now the command reaches the position first and the
+/// orientation as near as the joints allow, and its report line says how much of the turn
+/// is left uncorrected.
+#[test]
+fn a_robot_of_fewer_than_six_joints_is_corrected_in_position_and_says_the_turn_left() {
+    let scara = [
+        (-120.0, 120.0),
+        (-140.0, 140.0),
+        (0.0, 200.0),
+        (-180.0, 180.0),
+    ];
+    let five = [
+        (-120.0, 120.0),
+        (-30.0, 60.0),
+        (20.0, 120.0),
+        (-80.0, 80.0),
+        (-180.0, 180.0),
+    ];
+    for (robot, ranges) in [(SCARA, &scara[..]), (FIVE_AXES, &five[..])] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        simulated_table(d, robot, ranges);
+        let validation: Vec<Vec<String>> = std::fs::read_to_string(d.join("v.csv"))
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| l.split(',').map(str::to_owned).collect())
+            .collect();
+        let column = |name: &str| validation[0].iter().position(|c| c == name).unwrap();
+        // The held-out poses as a program: x,y,z,a,b,c and the joints.
+        let joints = (1..=ranges.len()).map(|i| format!("j{i}"));
+        let keep: Vec<usize> = ["x", "y", "z", "a", "b", "c"]
+            .map(str::to_owned)
+            .into_iter()
+            .chain(joints)
+            .map(|c| column(&c))
+            .collect();
+        let program: String = validation
+            .iter()
+            .map(|row| {
+                keep.iter()
+                    .map(|&k| row[k].as_str())
+                    .collect::<Vec<_>>()
+                    .join(",")
+                    + "\n"
+            })
+            .collect();
+        std::fs::write(d.join("p.csv"), program).unwrap();
+        let args = [
             "compensate",
             "t.tbl",
             "p.csv",
@@ -703,41 +767,39 @@ fn a_scara_program_is_corrected_in_position_with_the_tilt_it_cannot_take_said() 
             "pc.csv",
             "--robot",
             "robot.toml",
-            "--report",
-            "r.csv",
-        ],
-        d,
-    );
-    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
-    assert!(
-        stdout(&o).contains("20 of 20 targets corrected"),
-        "{}",
-        stdout(&o)
-    );
-    assert!(
-        stdout(&o).contains("beyond the 4 joints' reach, left uncorrected"),
-        "{}",
-        stdout(&o)
-    );
-    // Each command's position correction is the pose's simulated error, to the table's
-    // accuracy (a few µm here).
-    let mut report = csv::Reader::from_path(d.join("r.csv")).unwrap();
-    let header = report.headers().unwrap().clone();
-    let at = |name: &str| header.iter().position(|c| c == name).unwrap();
-    let lines: Vec<csv::StringRecord> = report.records().map(Result::unwrap).collect();
-    let mut worst: f64 = 0.0;
-    for (row, line) in validation[1..].iter().zip(&lines) {
-        let miss = ["x", "y", "z"]
-            .iter()
-            .map(|k| {
-                let command: f64 = line[at(&format!("command_{k}"))].parse().unwrap();
-                let point: f64 = line[at(&format!("point_{k}"))].parse().unwrap();
-                let error: f64 = row[column(&format!("d{k}"))].parse().unwrap();
-                (command - point + error).powi(2)
-            })
-            .sum::<f64>()
-            .sqrt();
-        worst = worst.max(miss);
+        ];
+        let o = tablec(&[&args[..], &["--report", "r.csv"]].concat(), d);
+        assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+        assert!(
+            stdout(&o).contains("20 of 20 targets corrected"),
+            "{}",
+            stdout(&o)
+        );
+        let left = format!(
+            "beyond the {} joints' reach, left uncorrected",
+            ranges.len()
+        );
+        assert!(stdout(&o).contains(&left), "{}", stdout(&o));
+        // Each command's position correction is the pose's simulated error, to the
+        // table's accuracy (a few µm here).
+        let mut report = csv::Reader::from_path(d.join("r.csv")).unwrap();
+        let header = report.headers().unwrap().clone();
+        let at = |name: &str| header.iter().position(|c| c == name).unwrap();
+        let mut worst: f64 = 0.0;
+        for (row, line) in validation[1..].iter().zip(report.records()) {
+            let line = line.unwrap();
+            let miss = ["x", "y", "z"]
+                .iter()
+                .map(|k| {
+                    let command: f64 = line[at(&format!("command_{k}"))].parse().unwrap();
+                    let point: f64 = line[at(&format!("point_{k}"))].parse().unwrap();
+                    let error: f64 = row[column(&format!("d{k}"))].parse().unwrap();
+                    (command - point + error).powi(2)
+                })
+                .sum::<f64>()
+                .sqrt();
+            worst = worst.max(miss);
+        }
+        assert!(worst < 0.03, "worst {worst} mm");
     }
-    assert!(worst < 0.03, "worst {worst} mm");
 }

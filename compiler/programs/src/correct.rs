@@ -4,7 +4,7 @@
 
 use std::f64::consts::TAU;
 
-use adwi_robot::ik::{configuration_of, solve_near, JOINT_COUNT};
+use adwi_robot::ik::{configuration_of, solve_near, solve_position_first, JOINT_COUNT};
 use adwi_robot::{Configuration, InverseKinematics, Robot};
 use adwi_runtime::kinematics::MdhJoint;
 use adwi_runtime::{Evidence, Residual, Status, Table, Target};
@@ -177,9 +177,34 @@ impl Kinematics {
         Some(configuration_of(rows, &q))
     }
 
+    /// The command a posture reaches for the asked `pose`, as [`Kinematics::inverse`]
+    /// solves it: `(q, the pose reached, the turn left, rad)`. A robot of six joints or
+    /// more reaches the pose asked; one of fewer its position, and of its orientation what
+    /// its joints allow (a SCARA keeps its tool upright): the pose reached is the one to
+    /// command, and the turn between it and the asked one is said.
+    pub fn reach(
+        &self,
+        pose: &Isometry3<f64>,
+        posture: &Posture,
+        near: &[f64],
+    ) -> Option<(Vec<f64>, Isometry3<f64>, f64)> {
+        let q = self.inverse(pose, posture, near)?;
+        if self.robot.joint_count() >= 6 {
+            return Some((q, *pose, 0.0));
+        }
+        let reached = self.robot.tcp_pose(&q);
+        let left = reached.rotation.angle_to(&pose.rotation);
+        Some((
+            q,
+            Isometry3::from_parts(pose.translation, reached.rotation),
+            left,
+        ))
+    }
+
     /// The posture reaching `pose` in `posture`'s configuration and turns nearest `near`:
     /// in closed form where the robot has it, else by damped least squares from `near`
-    /// (which then decides the configuration).
+    /// (which then decides the configuration); for a robot of fewer than six joints
+    /// position first ([`solve_position_first`]).
     pub fn inverse(
         &self,
         pose: &Isometry3<f64>,
@@ -187,7 +212,12 @@ impl Kinematics {
         near: &[f64],
     ) -> Option<Vec<f64>> {
         let Some((ik, _)) = &self.closed else {
-            let q = solve_near(&self.robot, pose, near)?;
+            // Fewer than six joints cannot take every orientation: position first.
+            let q = if self.robot.joint_count() < 6 {
+                solve_position_first(&self.robot, pose, near)?
+            } else {
+                solve_near(&self.robot, pose, near)?
+            };
             return posture
                 .turns
                 .iter()
@@ -250,38 +280,8 @@ pub struct Command {
     /// Where the correction at the command lies beyond the table's evidence.
     pub evidence: Evidence,
     /// The correction's turn a robot of fewer than six joints cannot give its tool at the
-    /// command (a SCARA's tilt), left uncorrected, rad ([`reachable_turn`]); zero else.
+    /// command (a SCARA's tilt), left uncorrected, rad ([`Kinematics::reach`]); zero else.
     pub unturned_rad: f64,
-}
-
-/// The part of a correction's rotation `omega` (rotation vector, rad, base frame) a robot
-/// can turn its tool by at joints `q`: all of it with six joints or more; with fewer, its
-/// projection onto the span of the joints' angular velocities there (a SCARA's: about the
-/// vertical, so that the command keeps the tool as the robot can hold it, and its
-/// position is still corrected). The rest is returned too.
-pub fn reachable_turn(
-    robot: &Robot,
-    q: &[f64],
-    omega: Vector3<f64>,
-) -> (Vector3<f64>, Vector3<f64>) {
-    if robot.joint_count() >= 6 || q.len() != robot.joint_count() {
-        return (omega, Vector3::zeros());
-    }
-    let jacobian = adwi_robot::error_model::joint_jacobian(robot.chain(), q);
-    let angular = jacobian.rows(3, 3).into_owned();
-    let svd = angular.svd(true, false);
-    let (Some(u), sigma) = (svd.u, svd.singular_values) else {
-        return (Vector3::zeros(), omega);
-    };
-    let largest = sigma.max();
-    let mut reached = Vector3::zeros();
-    for (k, &s) in sigma.iter().enumerate() {
-        if s > 1e-9 * largest {
-            let direction = Vector3::from_iterator(u.column(k).iter().copied());
-            reached += direction * direction.dot(&omega);
-        }
-    }
-    (reached, omega - reached)
 }
 
 /// Why no command was found, and the details for the report.
@@ -456,6 +456,7 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
         let p = target.translation.vector;
         let mut point = *target;
         let mut q = q0;
+        let mut unturned_rad = 0.0;
         for iteration in 1..=limits.max_iterations.max(1) {
             let c = table.query_with_joints(
                 &Target {
@@ -471,11 +472,6 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
             }
             let e = Vector3::from(c.position_error_mm);
             let residual_mm = (point.translation.vector + e - p).norm();
-            let (turn, unturned) = reachable_turn(
-                kinematics.robot(),
-                &q,
-                -Vector3::from(c.orientation_error_rad),
-            );
             if residual_mm <= limits.tolerance_mm {
                 return Ok(Command {
                     point,
@@ -486,16 +482,16 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
                     residual_mm,
                     residual: c.residual,
                     evidence: c.evidence,
-                    unturned_rad: unturned.norm(),
+                    unturned_rad,
                 });
             }
-            point = Isometry3::from_parts(
+            let asked = Isometry3::from_parts(
                 Translation3::from(p - e),
-                UnitQuaternion::from_scaled_axis(turn) * target.rotation,
+                UnitQuaternion::from_scaled_axis(-Vector3::from(c.orientation_error_rad))
+                    * target.rotation,
             );
-            q = kinematics
-                .inverse(&point, &self.posture, &q)
-                .ok_or_else(|| {
+            (q, point, unturned_rad) =
+                kinematics.reach(&asked, &self.posture, &q).ok_or_else(|| {
                     (
                         TargetStatus::IkFailed,
                         "no posture reaches the command in the target's configuration".to_string(),
@@ -542,25 +538,23 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
                 ),
             ));
         }
-        let (turn, unturned) = match (kinematics, target_joints) {
-            (Some(k), Some(q)) => {
-                reachable_turn(k.robot(), q, Vector3::from(comp.command_rotation_rad))
-            }
-            _ => (Vector3::from(comp.command_rotation_rad), Vector3::zeros()),
-        };
-        let rotation = UnitQuaternion::from_scaled_axis(turn) * target.rotation;
-        let point = Isometry3::from_parts(
+        let rotation = UnitQuaternion::from_scaled_axis(Vector3::from(comp.command_rotation_rad))
+            * target.rotation;
+        let asked = Isometry3::from_parts(
             Translation3::from(Vector3::from(comp.command_position_mm)),
             rotation,
         );
-        let joints = match (kinematics, target_joints) {
-            (Some(k), Some(q)) => Some(k.inverse(&point, &self.posture, q).ok_or_else(|| {
-                (
-                    TargetStatus::IkFailed,
-                    "no posture reaches the command in the target's configuration".to_string(),
-                )
-            })?),
-            _ => None,
+        let (joints, point, unturned_rad) = match (kinematics, target_joints) {
+            (Some(k), Some(q)) => {
+                let (qc, point, unturned) = k.reach(&asked, &self.posture, q).ok_or_else(|| {
+                    (
+                        TargetStatus::IkFailed,
+                        "no posture reaches the command in the target's configuration".to_string(),
+                    )
+                })?;
+                (Some(qc), point, unturned)
+            }
+            _ => (None, asked, 0.0),
         };
         Ok(Command {
             point,
@@ -571,7 +565,7 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
             residual_mm: comp.residual_mm,
             residual: comp.correction.residual,
             evidence: comp.correction.evidence,
-            unturned_rad: unturned.norm(),
+            unturned_rad,
         })
     }
 }

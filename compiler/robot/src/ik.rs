@@ -633,6 +633,62 @@ pub fn solve_from(robot: &Robot, tcp_pose: &Isometry3<f64>, start: &[f64]) -> Op
         .then(|| q.as_slice().to_vec())
 }
 
+/// The posture of `robot` reached from `seed` that puts the TCP at `tcp_pose`'s position
+/// and turns it as near that pose's orientation as the joints allow: position first, the
+/// orientation in what the position leaves free (each step's orientation part in the null
+/// space of the position's Jacobian, least squares). For a robot of fewer than six
+/// joints, which cannot take every orientation (a SCARA does not tilt): `solve_near` asks
+/// the whole pose and finds none. `None` unless the position is reached within
+/// [`POSITION_TOLERANCE_MM`] and the posture lies within the limits, or when `seed` has
+/// another joint count than `robot`.
+pub fn solve_position_first(
+    robot: &Robot,
+    tcp_pose: &Isometry3<f64>,
+    seed: &[f64],
+) -> Option<Vec<f64>> {
+    let n = robot.joint_count();
+    if seed.len() != n {
+        return None;
+    }
+    let target = transform_from_isometry(tcp_pose);
+    let chain = robot.chain();
+    let pinv = |m: DMatrix<f64>| {
+        let eps = 1e-10 * m.norm() + f64::MIN_POSITIVE;
+        m.pseudo_inverse(eps).ok()
+    };
+    let mut q = DVector::from_column_slice(seed);
+    for _ in 0..NUMERIC_MAX_STEPS {
+        let error = transform_pose_error(&chain.tcp_pose(q.as_slice())?, &target);
+        let jacobian = joint_jacobian(chain, q.as_slice());
+        if !(error.iter().all(|v| v.is_finite()) && jacobian.iter().all(|v| v.is_finite())) {
+            return None;
+        }
+        let (jp, jo) = (
+            jacobian.rows(0, 3).into_owned(),
+            jacobian.rows(3, 3).into_owned(),
+        );
+        let ep = DVector::from_column_slice(error.fixed_rows::<3>(0).as_slice());
+        let eo = DVector::from_column_slice(error.fixed_rows::<3>(3).as_slice());
+        let jp_pinv = pinv(jp.clone())?;
+        let step_p = &jp_pinv * &ep;
+        let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
+        let jo_null = &jo * &null;
+        let step_o = &null * (pinv(jo_null)? * (&eo - &jo * &step_p));
+        let mut step = step_p + step_o;
+        let step_size = step.amax();
+        if step_size > MAX_STEP {
+            step *= MAX_STEP / step_size;
+        }
+        q += &step;
+        if step_size < NEWTON_STEP_TOLERANCE_RAD {
+            break;
+        }
+    }
+    let error = transform_pose_error(&chain.tcp_pose(q.as_slice())?, &target);
+    (error.fixed_rows::<3>(0).norm() <= POSITION_TOLERANCE_MM && robot.within_limits(q.as_slice()))
+        .then(|| q.as_slice().to_vec())
+}
+
 /// Starting postures [`solve_near`] tries, uniformly within the joint ranges, when the
 /// seed's solution breaks a limit.
 pub const FURTHER_SEEDS: usize = 32;
