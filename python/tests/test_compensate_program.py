@@ -74,10 +74,18 @@ def test_the_ur5_hybrid_program_and_its_frames(ur5_hybrid_table, tmp_path):
     assert [t["status"] for t in done.targets if t["status"] != "ok"] == ["relative"]
     assert done.output != (PROGRAMS / "pick.script").read_bytes()
     assert all(len(t["command_joints"]) == 6 for t in done.targets if t["status"] == "ok")
-    # Without a robot the flange of set_tcp's tool is unknown to a hybrid table: refused at
-    # the move, before any work.
+    # Without a robot the table's own record of its point on the flange places set_tcp's
+    # tool: the same commands (the record is f32).
+    alone = adwi.compensate_program(ur5_hybrid_table, PROGRAMS / "pick.script")
+    assert [t["status"] for t in alone.targets] == [t["status"] for t in done.targets]
+    for a, b in zip(done.targets, alone.targets):
+        if a["status"] == "ok" and a["kind"] == "cartesian":
+            assert max(abs(x - y) for x, y in zip(a["command_mm"], b["command_mm"])) < 1e-5
+    # A table from before that record (format version 3) does not know it: refused at the
+    # move, before any work.
+    v3 = UR5.parent / "compat" / "v3" / "ur5_hybrid_posture.tbl"
     with pytest.raises(adwi.AdwiError, match=r"pick\.script:8:3: this use names a tool"):
-        adwi.compensate_program(ur5_hybrid_table, PROGRAMS / "pick.script")
+        adwi.compensate_program(v3, PROGRAMS / "pick.script")
 
 
 def test_a_yaskawa_job_in_its_tool_files_user_frames_and_pulses_matches_tablec(
