@@ -423,6 +423,30 @@ fn a_hybrid_table_alone_places_a_programs_tool_by_the_point_it_records() {
     }
 }
 
+/// A CSV program with more joint columns than the robot has joints: its targets are
+/// refused one by one, never a crash (the prismatic joints' reading asked the robot for a
+/// joint it does not have).
+#[test]
+fn more_joint_columns_than_the_robot_has_are_refused_per_target() {
+    let dir = tempfile::tempdir().unwrap();
+    ur5_hybrid(dir.path());
+    let program = dir.path().join("seven.csv");
+    std::fs::write(
+        &program,
+        "x,y,z,a,b,c,j1,j2,j3,j4,j5,j6,j7\n-430.328,-6.274,-98.637,0,90,0,\
+         -22.9333,-43.7192,135.3978,-94.7403,55.4168,-5.5522,3\n",
+    )
+    .unwrap();
+    let (_, done) = run_job(
+        &dir.path().join("ur5-hybrid.tbl"),
+        &program,
+        &repo("tables/ur5/robot.toml"),
+        |_| {},
+    );
+    let summary = done.report.summary();
+    assert_eq!((summary.corrected, summary.total), (0, 1), "{summary}");
+}
+
 /// Mean and max of a list.
 fn stats(v: &[f64]) -> (f64, f64) {
     (

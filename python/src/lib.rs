@@ -554,7 +554,8 @@ impl BatchRows {
                     .iter()
                     .enumerate()
                     .map(|(k, &v)| {
-                        let angle = prismatic >> (k % columns) & 1 == 0;
+                        let joint = (k % columns) as u32;
+                        let angle = prismatic.checked_shr(joint).unwrap_or(0) & 1 == 0;
                         if joints_deg && angle {
                             v.to_radians()
                         } else {

@@ -899,6 +899,14 @@ impl CompensateJob {
     }
 }
 
+/// Joint `i`'s kind, when the robot has such a joint (a program may write more values
+/// than the robot has joints: the count is checked where the values are used).
+fn kind_of(robot: Option<&Robot>, i: usize) -> Option<JointKind> {
+    robot
+        .filter(|r| i < r.joint_count())
+        .map(|r| r.joint_kind(i))
+}
+
 /// A program's joint values in the robot's units (rad; mm for a prismatic joint): an
 /// angle in `unit`; a prismatic joint's length in mm where the program writes its angles
 /// in degrees, in metres where it writes radians (SI, as URScript). Without a robot every
@@ -911,7 +919,7 @@ fn joint_values_in(
     values
         .iter()
         .enumerate()
-        .map(|(i, n)| match (robot.map(|r| r.joint_kind(i)), unit) {
+        .map(|(i, n)| match (kind_of(robot, i), unit) {
             (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Degree) => n.value,
             (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Radian) => n.value * 1000.0,
             _ => n.value * unit.rad(),
@@ -922,7 +930,7 @@ fn joint_values_in(
 /// Joint `i`'s value `v` in the robot's units as the program writes it: the inverse of
 /// [`joint_values_in`].
 fn joint_value_out(robot: Option<&Robot>, i: usize, v: f64, unit: adwi_samples::AngleUnit) -> f64 {
-    match (robot.map(|r| r.joint_kind(i)), unit) {
+    match (kind_of(robot, i), unit) {
         (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Degree) => v,
         (Some(JointKind::Prismatic), adwi_samples::AngleUnit::Radian) => v / 1000.0,
         _ => v / unit.rad(),
