@@ -610,19 +610,14 @@ pub fn check_base_frame(
     else {
         return judged;
     };
-    if !matches!(fitting.reading, Reading::Tool { .. }) {
+    let Reading::Tool { translation_mm } = fitting.reading else {
         return judged;
-    }
+    };
     let under: Vec<Miss> = (0..samples.len())
         .into_par_iter()
         .map(|i| Miss {
             line: samples.lines[i],
-            miss_mm: miss_under(
-                robot,
-                &fitting.reading,
-                joints.row(i),
-                samples.nominal_mm[i],
-            ),
+            miss_mm: miss_with_tool(robot, translation_mm, joints.row(i), samples.nominal_mm[i]),
         })
         .collect();
     match judge(path, Compared::Base, under, || None) {
@@ -634,26 +629,11 @@ pub fn check_base_frame(
     }
 }
 
-/// The miss of a sample at joints `q` commanded to `p` under another tool or base frame
-/// (a unit reading is not one: the samples' own miss).
-fn miss_under(robot: &Robot, reading: &Reading, q: &[f64], p: [f64; 3]) -> f64 {
-    let pose = robot.tcp_pose(q);
-    let at = match reading {
-        Reading::Tool { translation_mm } => {
-            let flange = pose * isometry_from_transform(&robot.tool()).inverse();
-            flange.rotation * Vector3::from(*translation_mm) + flange.translation.vector
-        }
-        Reading::Frame {
-            translation_mm,
-            rotation_rad,
-            ..
-        } => {
-            nalgebra::Rotation3::from_scaled_axis(Vector3::from(*rotation_rad))
-                * pose.translation.vector
-                + Vector3::from(*translation_mm)
-        }
-        Reading::Units(_) => pose.translation.vector,
-    };
+/// The miss of a sample at joints `q` commanded to `p` with another tool, at
+/// `translation_mm` on the flange.
+fn miss_with_tool(robot: &Robot, translation_mm: [f64; 3], q: &[f64], p: [f64; 3]) -> f64 {
+    let flange = robot.tcp_pose(q) * isometry_from_transform(&robot.tool()).inverse();
+    let at = flange.rotation * Vector3::from(translation_mm) + flange.translation.vector;
     finite_or_infinite((at - Vector3::from(p)).norm())
 }
 
