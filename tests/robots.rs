@@ -411,84 +411,6 @@ axis = [1.0, 0.0, 0.0]
 limits_deg = [-350.0, 350.0]
 "#;
 
-/// Joint vectors over the track's 2 m and the arm's working range, mm then degrees.
-fn track_poses(seed: u64, count: usize) -> String {
-    let mut rng = crate::common::SplitMix(seed);
-    let ranges = [
-        (0.0, 2000.0),
-        (-60.0, 60.0),
-        (-60.0, 10.0),
-        (-10.0, 80.0),
-        (-90.0, 90.0),
-        (30.0, 90.0),
-        (-90.0, 90.0),
-    ];
-    let mut out = String::from("j1,j2,j3,j4,j5,j6,j7\n");
-    for _ in 0..count {
-        let row: Vec<String> = ranges
-            .iter()
-            .map(|&(lo, hi)| format!("{:.4}", rng.uniform(lo, hi)))
-            .collect();
-        out.push_str(&row.join(","));
-        out.push('\n');
-    }
-    out
-}
-
-/// Simulated samples (`s.csv`) and held-out poses (`v.csv`) of the arm on a track in `d`,
-/// and the hybrid table built from the samples (`t.tbl`).
-fn track_table(d: &Path) {
-    std::fs::write(d.join("robot.toml"), TRACK_ROBOT).unwrap();
-    let mut scenario = String::new();
-    for (i, offset) in ["delta_offset_mm = 0.3", "delta_offset_deg = -0.02"]
-        .iter()
-        .chain(&["delta_offset_deg = 0.015"; 5])
-        .enumerate()
-    {
-        let s = if i % 2 == 0 { 1.0 } else { -1.0 };
-        scenario.push_str(&format!(
-            "[[joints]]\ndelta_xyz_mm = [{:.3}, {:.3}, 0.1]\ndelta_rpy_deg = [0.005, {:.3}, 0.004]\n{offset}\n",
-            0.1 * s,
-            -0.15 * s,
-            0.01 * s
-        ));
-    }
-    std::fs::write(d.join("scenario.toml"), scenario).unwrap();
-    for (name, seed, count) in [("poses", 1, 250), ("val_poses", 2, 40)] {
-        std::fs::write(d.join(format!("{name}.csv")), track_poses(seed, count)).unwrap();
-    }
-    for (poses, out) in [("poses.csv", "s.csv"), ("val_poses.csv", "v.csv")] {
-        let o = tablec(
-            &[
-                "simulate",
-                "--robot",
-                "robot.toml",
-                "--scenario",
-                "scenario.toml",
-                "--poses",
-                poses,
-                "-o",
-                out,
-            ],
-            d,
-        );
-        assert!(o.status.success(), "{}", stderr(&o));
-    }
-    let o = tablec(
-        &[
-            "build",
-            "-q",
-            "s.csv",
-            "--robot",
-            "robot.toml",
-            "-o",
-            "t.tbl",
-        ],
-        d,
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-}
-
 /// A track's position is a length wherever joint values are read: simulated samples, the
 /// hybrid table built from them, `tablec query --targets` and `--joints`, and a CSV
 /// program's `j` columns, read and written back, all in mm (a track at 1500 mm was read
@@ -498,7 +420,16 @@ fn track_table(d: &Path) {
 fn a_track_is_read_in_mm_by_the_query_and_the_programs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    track_table(d);
+    let track = [
+        (0.0, 2000.0),
+        (-60.0, 60.0),
+        (-60.0, 10.0),
+        (-10.0, 80.0),
+        (-90.0, 90.0),
+        (30.0, 90.0),
+        (-90.0, 90.0),
+    ];
+    simulated_table(d, TRACK_ROBOT, &track, 0, [250, 40]);
     let o = tablec(&["query", "t.tbl", "--targets", "v.csv", "-o", "q.csv"], d);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let rows = |file: &str| -> Vec<Vec<String>> {
@@ -651,16 +582,23 @@ axis = [0.0, 0.0, 1.0]
 limits_deg = [-200.0, 200.0]
 "#;
 
-/// Simulated samples (`s.csv`) and 20 held-out poses (`v.csv`) of `robot` (a chain file)
-/// at joint values drawn in `ranges` (degrees; mm for a prismatic joint), each joint's
-/// origin and offset deviated, and the hybrid table of the samples (`t.tbl`), in `d`.
-fn simulated_table(d: &Path, robot: &str, ranges: &[(f64, f64)]) {
+/// Simulated samples (`s.csv`) and held-out poses (`v.csv`), `counts` of each, of `robot`
+/// (a chain file whose joint `prismatic` slides; `usize::MAX`: none) at joint values drawn
+/// in `ranges` (degrees; mm for the prismatic joint), each joint's origin and offset
+/// deviated, and the hybrid table of the samples (`t.tbl`), in `d`; the held-out poses
+/// lie a twentieth of each range inside it.
+fn simulated_table(
+    d: &Path,
+    robot: &str,
+    ranges: &[(f64, f64)],
+    prismatic: usize,
+    counts: [usize; 2],
+) {
     std::fs::write(d.join("robot.toml"), robot).unwrap();
-    let prismatic = robot.matches("prismatic").count() > 0;
     let mut scenario = String::new();
-    for (i, _) in ranges.iter().enumerate() {
+    for i in 0..ranges.len() {
         let s = [0.05, 0.12, -0.08, 0.03, -0.02][i % 5];
-        let offset = if prismatic && i == 2 {
+        let offset = if i == prismatic {
             "mm = 0.2"
         } else {
             "deg = 0.015"
@@ -672,12 +610,19 @@ fn simulated_table(d: &Path, robot: &str, ranges: &[(f64, f64)]) {
     std::fs::write(d.join("scenario.toml"), scenario).unwrap();
     let mut rng = crate::common::SplitMix(3);
     let names: Vec<String> = (1..=ranges.len()).map(|i| format!("j{i}")).collect();
-    for (name, count) in [("poses.csv", 300), ("val_poses.csv", 20)] {
+    // The held-out poses inside the samples' ranges by a twentieth: within their evidence.
+    for (name, count, inset) in [
+        ("poses.csv", counts[0], 0.0),
+        ("val_poses.csv", counts[1], 0.05),
+    ] {
         let mut text = names.join(",") + "\n";
         for _ in 0..count {
             let row: Vec<String> = ranges
                 .iter()
-                .map(|&(lo, hi)| format!("{:.3}", rng.uniform(lo, hi)))
+                .map(|&(lo, hi)| {
+                    let margin = inset * (hi - lo);
+                    format!("{:.3}", rng.uniform(lo + margin, hi - margin))
+                })
                 .collect();
             text += &(row.join(",") + "\n");
         }
@@ -729,10 +674,10 @@ fn a_robot_of_fewer_than_six_joints_is_corrected_in_position_and_says_the_turn_l
         (-80.0, 80.0),
         (-180.0, 180.0),
     ];
-    for (robot, ranges) in [(SCARA, &scara[..]), (FIVE_AXES, &five[..])] {
+    for (robot, ranges, prismatic) in [(SCARA, &scara[..], 2), (FIVE_AXES, &five[..], usize::MAX)] {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        simulated_table(d, robot, ranges);
+        simulated_table(d, robot, ranges, prismatic, [300, 20]);
         let validation: Vec<Vec<String>> = std::fs::read_to_string(d.join("v.csv"))
             .unwrap()
             .lines()

@@ -674,13 +674,7 @@ pub fn solve_position_first(
         let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
         let jo_null = &jo * &null;
         let step_o = &null * (pinv(jo_null)? * (&eo - &jo * &step_p));
-        let mut step = step_p + step_o;
-        let step_size = step.amax();
-        if step_size > MAX_STEP {
-            step *= MAX_STEP / step_size;
-        }
-        q += &step;
-        if step_size < NEWTON_STEP_TOLERANCE_RAD {
+        if take_step(&mut q, step_p + step_o) {
             break;
         }
     }
@@ -929,24 +923,30 @@ fn to_pose(
         } else {
             0.0
         };
-        let mut step = pseudo_inverse_times(u, sigma, v_t, &e, |s| {
+        let step = pseudo_inverse_times(u, sigma, v_t, &e, |s| {
             if s > rank_tolerance {
                 s / (s * s + lambda2)
             } else {
                 0.0
             }
         });
-        let step_size = step.amax();
-        if step_size > MAX_STEP {
-            step *= MAX_STEP / step_size;
-        }
-        q += &step;
-        if step_size < NEWTON_STEP_TOLERANCE_RAD {
+        if take_step(&mut q, step) {
             break;
         }
     }
     let (_, _, error) = weighted(chain, target, &q)?;
     converged(&error).then_some(q)
+}
+
+/// Moves `q` by `step`, each joint at most [`MAX_STEP`] (the step scaled down as a whole);
+/// whether the step was below [`NEWTON_STEP_TOLERANCE_RAD`], the iteration's end.
+fn take_step(q: &mut DVector<f64>, mut step: DVector<f64>) -> bool {
+    let step_size = step.amax();
+    if step_size > MAX_STEP {
+        step *= MAX_STEP / step_size;
+    }
+    *q += &step;
+    step_size < NEWTON_STEP_TOLERANCE_RAD
 }
 
 /// The part of `v` in the null space of the chain's Jacobian at `q`: `(I − J⁺J) v`.
