@@ -548,7 +548,7 @@ impl BatchRows {
                 // Degrees to radians by `f64::to_radians`, as `tablec query --joints`
                 // (the reader's factor gives the same bits); a prismatic joint's value is
                 // mm either way.
-                let prismatic = table.model().map_or(0, |m| m.nominal().prismatic_joints());
+                let prismatic = table.prismatic_joints();
                 let columns = j.ncols();
                 let values = j
                     .iter()

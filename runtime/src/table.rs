@@ -539,6 +539,15 @@ impl<D: AsRef<[u8]>> Table<D> {
         (self.header.joint_count > 0).then_some(self.header.joint_count as usize)
     }
 
+    /// Which joint values are lengths (mm) rather than angles: bit `i` for a prismatic
+    /// joint `i`, as the table's model says ([`crate::chain::Chain::prismatic_joints`]);
+    /// none without a model.
+    pub fn prismatic_joints(&self) -> u64 {
+        self.model
+            .as_ref()
+            .map_or(0, |m| m.nominal().prismatic_joints())
+    }
+
     /// Whether the table has a served tier (a continuous field): version-2 tables without a
     /// joint-space screen. Without one, [`Table::query`] and the others answer from the
     /// exact tier.

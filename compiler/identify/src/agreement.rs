@@ -136,8 +136,6 @@ pub enum Reading {
         translation_mm: [f64; 3],
         /// Its rotation angle, degrees.
         rotation_deg: f64,
-        /// Its rotation, a rotation vector, rad.
-        rotation_rad: [f64; 3],
     },
     /// The commanded positions of another tool than the robot file's: a tool offset on
     /// the flange fits them.
@@ -697,7 +695,6 @@ fn diagnose_base(
                 Reading::Frame {
                     translation_mm: translation.into(),
                     rotation_deg: Vector3::from(rotation_rad).norm().to_degrees(),
-                    rotation_rad,
                 },
                 misses,
             ),

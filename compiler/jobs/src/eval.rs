@@ -295,7 +295,7 @@ impl EvalJob {
                 let validation = args.validation.as_ref().expect("checked");
                 // The table's robot says which joints slide: their columns are lengths.
                 let read = adwi_samples::ReadOptions {
-                    prismatic_joints: crate::query::prismatic_joints(&table),
+                    prismatic_joints: table.prismatic_joints(),
                     ..read
                 };
                 let mut points = validation.input().samples(&columns, &read)?;

@@ -302,7 +302,7 @@ impl QueryJob {
                     OutputPlan::check(&[output], &[&args.table, targets])?;
                 }
                 // The table's robot says which joints slide: their columns are lengths.
-                options.prismatic_joints = prismatic_joints(&table);
+                options.prismatic_joints = table.prismatic_joints();
                 Work::File {
                     rows: adwi_samples::read_targets(targets, &columns, &options)?,
                     output: args.output.clone(),
@@ -523,12 +523,6 @@ fn joints_rad<D: AsRef<[u8]>>(table: &Table<D>, joints_deg: &[f64]) -> Result<Ve
             },
         )
         .collect())
-}
-
-/// The table's prismatic joints as a mask ([`adwi_runtime::chain::Chain::prismatic_joints`]);
-/// none without a model.
-pub(crate) fn prismatic_joints<D: AsRef<[u8]>>(table: &Table<D>) -> u64 {
-    table.model().map_or(0, |m| m.nominal().prismatic_joints())
 }
 
 /// How far the joints' nominal forward kinematics puts the table's point from where the

@@ -181,20 +181,26 @@ impl Kinematics {
     /// solves it: `(q, the pose reached, the turn left, rad)`. A robot of six joints or
     /// more reaches the pose asked; one of fewer its position, and of its orientation what
     /// its joints allow (a SCARA keeps its tool upright): the pose reached is the one to
-    /// command, and the turn between it and the asked one is said.
+    /// command, and the turn between it and the asked one is said. `ik_failed` when no
+    /// posture in the configuration reaches it.
     pub fn reach(
         &self,
         pose: &Isometry3<f64>,
         posture: &Posture,
         near: &[f64],
-    ) -> Option<(Vec<f64>, Isometry3<f64>, f64)> {
-        let q = self.inverse(pose, posture, near)?;
+    ) -> Result<(Vec<f64>, Isometry3<f64>, f64), Failure> {
+        let q = self.inverse(pose, posture, near).ok_or_else(|| {
+            (
+                TargetStatus::IkFailed,
+                "no posture reaches the command in the target's configuration".to_string(),
+            )
+        })?;
         if self.robot.joint_count() >= 6 {
-            return Some((q, *pose, 0.0));
+            return Ok((q, *pose, 0.0));
         }
         let reached = self.robot.tcp_pose(&q);
         let left = reached.rotation.angle_to(&pose.rotation);
-        Some((
+        Ok((
             q,
             Isometry3::from_parts(pose.translation, reached.rotation),
             left,
@@ -490,13 +496,7 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
                 UnitQuaternion::from_scaled_axis(-Vector3::from(c.orientation_error_rad))
                     * target.rotation,
             );
-            (q, point, unturned_rad) =
-                kinematics.reach(&asked, &self.posture, &q).ok_or_else(|| {
-                    (
-                        TargetStatus::IkFailed,
-                        "no posture reaches the command in the target's configuration".to_string(),
-                    )
-                })?;
+            (q, point, unturned_rad) = kinematics.reach(&asked, &self.posture, &q)?;
         }
         Err((
             TargetStatus::NotConverged,
@@ -546,12 +546,7 @@ impl<D: AsRef<[u8]>> Solving<'_, D> {
         );
         let (joints, point, unturned_rad) = match (kinematics, target_joints) {
             (Some(k), Some(q)) => {
-                let (qc, point, unturned) = k.reach(&asked, &self.posture, q).ok_or_else(|| {
-                    (
-                        TargetStatus::IkFailed,
-                        "no posture reaches the command in the target's configuration".to_string(),
-                    )
-                })?;
+                let (qc, point, unturned) = k.reach(&asked, &self.posture, q)?;
                 (Some(qc), point, unturned)
             }
             _ => (None, asked, 0.0),
