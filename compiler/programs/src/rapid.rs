@@ -148,6 +148,9 @@ struct Module {
     /// Calls of a routine: its name (upper case), its positional arguments when a name
     /// (upper case), and the call's place.
     calls: Vec<(String, Vec<Option<String>>, usize)>,
+    /// The first statement that displaces the program's positions as it runs (`PDispOn`,
+    /// `PDispSet`, `EOffsOn`, `EOffsSet`), as written, and its place.
+    displacement: Option<(String, usize)>,
     /// Names a call passes to a parameter a move moves to, with what to say: the first.
     through_parameters: HashMap<String, String>,
 }
@@ -191,6 +194,16 @@ impl Module {
                 return Ok(());
             }
             _ => {}
+        }
+        // A displacement stays on across routines and calls until switched off, so no
+        // move of the module is known to run without it.
+        if matches!(
+            words.get(i).map(String::as_str),
+            Some("PDISPON" | "PDISPSET" | "EOFFSON" | "EOFFSSET")
+        ) {
+            let written = &statement[i];
+            self.displacement
+                .get_or_insert((src.text(written.start, written.end), written.start));
         }
         // A target assigned as the program runs: `p10 := CRobT();`, `p10.trans.z := 5;`.
         if let Some(name) = assigned(src, statement) {
@@ -664,6 +677,12 @@ impl Module {
     /// and `wobj0` the flange and the world), or named undeclared.
     fn frame_use(&self, src: &Source, u: &Use) -> FrameUse {
         let mut unknown = u.frame_params.clone();
+        if let Some((instruction, at)) = &self.displacement {
+            let (line, column) = src.location(*at);
+            unknown.push(format!(
+                "{instruction} at {line}:{column}: a program displacement, set as the program runs and on until switched off, moves the robot away from the target as written"
+            ));
+        }
         // A tool or work object the program assigns (`wobj1.oframe := …;`): a PERS keeps
         // the value, a VAR keeps it as main runs again; no move's frame is known.
         let names = [
@@ -1662,6 +1681,42 @@ mod tests {
         assert!(tool[0].starts_with("tool tGrip is assigned as the program runs (11:9)"));
         let wobj = &p.targets[0].uses[0].unknown;
         assert!(wobj[0].starts_with("work object wStation is assigned as the program runs (9:9)"));
+    }
+
+    /// A program displacement (`PDispSet`, `PDispOn`; the external axes' `EOffsOn`,
+    /// `EOffsSet`) stays on across routines until switched off: every move of its module,
+    /// before it in the text too (a routine runs again, or is called, while it is on), is
+    /// left frame_unknown with the statement named; a module without one keeps its moves.
+    #[test]
+    fn a_program_displacement_leaves_every_move_of_its_module_frame_unknown() {
+        let module = |displace: &str| {
+            format!(
+                "MODULE Disp\n\
+                 \x20   CONST robtarget p10:={P};\n    CONST robtarget p20:={P};\n\
+                 \x20   CONST pose peTurn:=[[0,0,0],[0.707106781,0,0,0.707106781]];\n\
+                 \x20   PROC first()\n        MoveL p10,v100,fine,tool0;\n    ENDPROC\n\
+                 \x20   PROC main()\n\
+                 \x20       {displace}\n\
+                 \x20       MoveL p20,v100,fine,tool0;\n\
+                 \x20       PDispOff;\n\
+                 \x20   ENDPROC\nENDMODULE\n"
+            )
+        };
+        for (statement, named) in [
+            ("PDispSet peTurn;", "PDispSet at 9:9"),
+            ("pdispon \\ExeP:=p10, p20, tool0;", "pdispon at 9:9"),
+            ("EOffsSet [100,9E9,9E9,9E9,9E9,9E9];", "EOffsSet at 9:9"),
+        ] {
+            let p = read(&Source::new("m.mod", module(statement).as_bytes())).unwrap();
+            assert_eq!(p.targets.len(), 2, "{statement}");
+            for t in &p.targets {
+                let unknown = &t.uses[0].unknown;
+                assert_eq!(unknown.len(), 1, "{statement}: {unknown:?}");
+                assert!(unknown[0].starts_with(named), "{statement}: {unknown:?}");
+            }
+        }
+        let p = read(&Source::new("m.mod", module("WaitTime 1;").as_bytes())).unwrap();
+        assert!(p.targets.iter().all(|t| t.uses[0].unknown.is_empty()));
     }
 
     #[test]
