@@ -190,6 +190,95 @@ fn a_lever_the_samples_did_not_measure_is_refused_by_compensation() {
     }
 }
 
+/// A joint target's TCP is the motion's, as a Cartesian target's is: on the UR5 table
+/// (samples of position alone, so no rotation to turn a lever by) a `movej` under a 200 mm
+/// `set_tcp` is refused with the lever's reason, as the `movel` beside it, and corrected
+/// under the 31 mm TCP of the table's point; a RAPID `MoveAbsJ` with a tool the module
+/// does not declare is left frame_unknown (its work object does not matter), with the
+/// flange a lever, and corrected with a tool at the table's point.
+#[test]
+fn a_joint_targets_tcp_is_its_motions() {
+    let dir = tempfile::tempdir().unwrap();
+    let q_deg = [17.2729, -81.9889, 88.4100, 0.0713, 93.4555, -0.1215];
+    let q_rad: Vec<String> = q_deg
+        .iter()
+        .map(|v: &f64| format!("{}", v.to_radians()))
+        .collect();
+    let p: Vec<String> = POSES[0].iter().map(|v| format!("{v}")).collect();
+    let run = |name: &str, text: String| {
+        let program = dir.path().join(name);
+        std::fs::write(&program, text).unwrap();
+        let mut options = CompensateOptions::new(&ur5_table().1, &program);
+        options.robot = Some(repo("tables/ur5/robot.toml"));
+        options.limits.max_correction_mm = 20.0;
+        let done = CompensateJob::new(options).unwrap().run().unwrap();
+        done.report.targets
+    };
+    for (tcp_z_m, refused) in [(0.031, false), (0.2, true)] {
+        let targets = run(
+            &format!("j-{tcp_z_m}.script"),
+            format!(
+                "def j():\n  set_tcp(p[0, 0, {tcp_z_m}, 0, 0, 0])\n  movej([{}], a=1.4, v=1.05)\n  movel(p[{}], a=1.2, v=0.25)\nend\nj()\n",
+                q_rad.join(", "),
+                p.join(", ")
+            ),
+        );
+        assert_eq!(targets.len(), 2);
+        assert_eq!(targets[0].kind, "joints");
+        for t in &targets {
+            assert_eq!(
+                !t.status.corrected(),
+                refused,
+                "{}: {}",
+                t.place(),
+                t.detail
+            );
+            if refused {
+                assert!(
+                    t.detail
+                        .contains("never had this TCP lever, nor any orientation to turn it by"),
+                    "{}",
+                    t.detail
+                );
+            }
+        }
+    }
+    let joints: Vec<String> = q_deg.iter().map(|v| format!("{v}")).collect();
+    let module = |tool: &str| {
+        format!(
+            "MODULE M\n  PERS wobjdata wAnywhere:=[FALSE,TRUE,\"\",[[100,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n  CONST jointtarget jPose:=[[{}],[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    MoveAbsJ jPose,v100,fine,{tool}\\WObj:=wAnywhere;\n  ENDPROC\nENDMODULE\n",
+            joints.join(",")
+        )
+    };
+    let unknown = run("gun.mod", module("tGun"));
+    assert_eq!(
+        unknown[0].status.as_str(),
+        "frame_unknown",
+        "{}",
+        unknown[0].detail
+    );
+    assert!(
+        unknown[0].detail.starts_with("tool tGun not given"),
+        "{}",
+        unknown[0].detail
+    );
+    // The flange is 31 mm from the table's point: a lever; the point itself is none.
+    let flange = run("flange.mod", module("tool0"));
+    assert!(
+        flange[0].detail.contains("never had this TCP lever"),
+        "{}",
+        flange[0].detail
+    );
+    let point = run(
+        "point.mod",
+        module("tPoint").replace(
+            "  CONST jointtarget",
+            "  PERS tooldata tPoint:=[TRUE,[[0,0.09,31],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n  CONST jointtarget",
+        ),
+    );
+    assert!(point[0].status.corrected(), "{}", point[0].detail);
+}
+
 #[test]
 fn a_query_naming_a_far_tcp_is_flagged_and_its_lever_carried_unturned() {
     // SAFETY: the tests' own file, not modified while mapped.

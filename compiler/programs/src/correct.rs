@@ -405,15 +405,25 @@ fn check_evidence<D: AsRef<[u8]>>(
     if command.evidence.is_within() || carried || limits.beyond_evidence {
         return Ok(());
     }
+    // Every reason the answer carries, the TCP's first: on a hybrid table it is the one
+    // that refuses (its model carries an orientation its samples never had).
+    let reasons: Vec<&str> = [
+        (
+            Evidence::TCP,
+            "TCP lever, nor any orientation to turn it by",
+        ),
+        (Evidence::ORIENTATION, "orientation"),
+        (Evidence::JOINTS, "joint angle for its joint terms"),
+    ]
+    .into_iter()
+    .filter(|(flag, _)| command.evidence.contains(*flag))
+    .map(|(_, why)| why)
+    .collect();
     Err((
         TargetStatus::BeyondEvidence(command.evidence),
         format!(
             "the table's samples never had this {} (--beyond-evidence corrects it anyway)",
-            if command.evidence.contains(Evidence::ORIENTATION) {
-                "orientation"
-            } else {
-                "TCP lever, nor any orientation to turn it by"
-            }
+            reasons.join("; nor this ")
         ),
     ))
 }

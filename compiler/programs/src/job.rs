@@ -301,8 +301,11 @@ impl CompensateJob {
         program.targets.shrink_to_fit();
         budget.refuse_truncated(&program)?;
         refuse_nothing_to_compensate(&src, &program, format, inputs.partner.as_deref())?;
+        // A joint target's TCP matters where the table cannot turn its lever (a
+        // correction of the point's whole pose carries every point the flange holds).
+        let joint_levers = !table.has_orientation();
         let chains = FrameContext::new(o, &src, format, &program, &work_offsets, table_tool)
-            .chains(&program)?;
+            .chains(&program, joint_levers)?;
         budget.refuse_too_long(program.targets.len())?;
         let motions_seen = match format {
             Format::Krl => inputs.partner.is_some() || program.first_motion.is_some(),
@@ -584,7 +587,7 @@ impl CompensateJob {
                 "no numbers written".into(),
             )),
             TargetKind::Cartesian(c) => self.cartesian(src, c, chains, seed, entry, end),
-            TargetKind::Joints(j) => self.joints(src, j, seed, entry),
+            TargetKind::Joints(j) => self.joints(src, j, chains, seed, entry),
         }
     }
 
@@ -816,6 +819,7 @@ impl CompensateJob {
         &self,
         src: &Source,
         j: &crate::program::JointTarget,
+        chains: &[FrameChain],
         seed: &mut Vec<f64>,
         entry: &mut TargetLine,
     ) -> Result<Vec<Edit>, correct::Failure> {
@@ -838,6 +842,18 @@ impl CompensateJob {
                 format!("{} joint values for a robot of {n}", j.joints.len()),
             ));
         }
+        // The TCP's lever from the table's point, where the table cannot turn it
+        // (`FrameContext::chains`: no chain where it can).
+        let lever_mm = match chains {
+            [] => 0.0,
+            [chain] => chain.lever_mm(),
+            _ => {
+                return Err((
+                    TargetStatus::AmbiguousFrame,
+                    format!("used with {} different tools", chains.len()),
+                ))
+            }
+        };
         let q = joint_values_in(Some(k.robot()), &j.joints, j.unit);
         let point = k.forward(&q).expect("one value per joint");
         let posture = Posture {
@@ -855,8 +871,7 @@ impl CompensateJob {
                 posture: &posture,
                 target_joints: Some(&q),
                 seed: &q,
-                // The joints move the table's point itself.
-                lever_mm: 0.0,
+                lever_mm,
             },
         )?;
         let qc = command.joints.clone().unwrap_or_else(|| q.clone());
@@ -1504,11 +1519,11 @@ impl<'a> FrameContext<'a> {
     /// Every target's chains; a target's list shared with the target before it when the
     /// two are the same (a long program's targets mostly are): one list, not one each
     /// (168 bytes a chain).
-    fn chains(&self, program: &Program) -> Result<Vec<Chains>, Error> {
+    fn chains(&self, program: &Program, joint_levers: bool) -> Result<Vec<Chains>, Error> {
         let mut chains = Vec::with_capacity(program.targets.len());
         let mut last: Option<std::sync::Arc<[FrameChain]>> = None;
         for (index, target) in program.targets.iter().enumerate() {
-            let list = match self.target_chains(index, target)? {
+            let list = match self.target_chains(index, target, joint_levers)? {
                 Ok(list) => list,
                 Err(why) => {
                     chains.push(Err(why));
@@ -1525,14 +1540,22 @@ impl<'a> FrameContext<'a> {
         Ok(chains)
     }
 
-    /// One target's distinct chains (none for a joint or refused target).
+    /// One target's distinct chains: none for a refused target, nor for a joint target
+    /// unless `joint_levers` (then its tools alone, for their levers: joints place the
+    /// flange whatever the work object).
     fn target_chains(
         &self,
         index: usize,
         target: &crate::program::ProgramTarget,
+        joint_levers: bool,
     ) -> Result<Result<Vec<FrameChain>, correct::Failure>, Error> {
         let mut list: Vec<FrameChain> = Vec::new();
-        if !matches!(target.kind, TargetKind::Cartesian(_)) || target.refused.is_some() {
+        let joints = match target.kind {
+            TargetKind::Cartesian(_) => false,
+            TargetKind::Joints(_) if joint_levers => true,
+            _ => return Ok(Ok(list)),
+        };
+        if target.refused.is_some() {
             return Ok(Ok(list));
         }
         let default_use = [FrameUse {
@@ -1554,10 +1577,15 @@ impl<'a> FrameContext<'a> {
                 let (line, column) = self.src.location(at);
                 format!("{line}:{column}")
             });
-            if let Some(why) = self.unknown(u, &place) {
+            if let Some(why) = self.unknown(u, &place, joints) {
                 return Ok(Err((TargetStatus::Unaccounted(Reason::FrameUnknown), why)));
             }
             let tool = u.tool.or(self.default_tool);
+            let base = if joints {
+                Some(Isometry3::identity())
+            } else {
+                base
+            };
             let chain = match (tool, self.table_tool) {
                 (None, _) => FrameChain {
                     base: base.unwrap_or(self.default_base),
@@ -1569,6 +1597,12 @@ impl<'a> FrameContext<'a> {
                     tool,
                     table_tool,
                 },
+                (Some(_), None) if joints => {
+                    return Ok(Err((
+                        TargetStatus::Unaccounted(Reason::FrameUnknown),
+                        format!("its tool (used at {place}) is not placed against the table's point, whose place on the flange is not known: give the table tool or a robot file"),
+                    )));
+                }
                 (Some(_), None) => {
                     return Err(self.src.error(at, "this use names a tool, but where the table's point is on the flange is not known: give the table tool or a robot file"));
                 }
@@ -1588,13 +1622,14 @@ impl<'a> FrameContext<'a> {
     }
 
     /// Why a use's frames are not known: a frame its reader could not resolve, or one it
-    /// leaves undeclared that the options do not give (or give for another name too).
-    fn unknown(&self, u: &FrameUse, place: &str) -> Option<String> {
+    /// leaves undeclared that the options do not give (or give for another name too);
+    /// with `tools_only`, an undeclared work object is no reason (a joint target's).
+    fn unknown(&self, u: &FrameUse, place: &str, tools_only: bool) -> Option<String> {
         if let Some(why) = u.unknown.first() {
             return Some(format!("{why} (used at {place})"));
         }
         let o = self.o;
-        for m in &u.undeclared {
+        for m in u.undeclared.iter().filter(|m| !(tools_only && m.base)) {
             let (given, option) = if m.base {
                 (o.base.is_some(), "base")
             } else {
