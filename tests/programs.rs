@@ -1110,7 +1110,12 @@ fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select(
     assert_eq!(xp8.status.as_str(), "external_axis");
     assert!(xp8.detail.starts_with("E1 1500.0: "), "{}", xp8.detail);
     assert!(line_of(report, "XSPARE").detail.starts_with("unused: "));
-    assert_eq!(report.summary().total, 9);
+    // The .src's own motions no run corrects (its LIN_REL, its two moves to $config.dat's
+    // XHOME) are counted with the .dat's targets, placed where the .src writes them.
+    assert_eq!(report.summary().total, 12);
+    let rel = line_of(report, "LIN_REL");
+    assert_eq!(rel.status.as_str(), "relative");
+    assert!(rel.detail.ends_with("seam.src:49:1)"), "{}", rel.detail);
     // By the table's own model, each corrected target lands at its TCP: the torch
     // (TOOL_DATA[1], 180 mm) and gripper (TOOL_DATA[2]) in the fixture (BASE_DATA[1], turned
     // 30°) and the second table (BASE_DATA[2]), as $config.dat declares them.
@@ -1165,7 +1170,7 @@ fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_ref
     );
     assert!(
         stdout
-            .contains("1 of 9 targets corrected; left unchanged: 1 external_axis, 7 frame_unknown"),
+            .contains("1 of 12 targets corrected; left unchanged: 1 external_axis, 7 frame_unknown, 2 not_declared, 1 relative"),
         "{stdout}"
     );
     // The .src holds motions, its targets are in the .dat: refused, naming the .dat.
@@ -1186,6 +1191,20 @@ fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_ref
         "error: seam.src:25:1: PTP moves the robot, but the program holds no target it can correct: its motions' targets are declared in seam.dat; compensate that file (the motions that use them are read from this one)"
     );
     assert!(!d.join("out.src").exists());
+    // A .src whose .dat holds no target is refused for its own motions' reasons, not
+    // sent to the .dat (which would refuse as holding nothing).
+    std::fs::write(
+        d.join("lowdyn.src"),
+        "DEF lowdyn()\n   DECL AXIS jtgt\n   jtgt = $AXIS_ACT_MEAS\n   PTP jtgt\nEND\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("lowdyn.dat"), "DEFDAT lowdyn\nENDDAT\n").unwrap();
+    let (code, _, stderr) = compensate(d, &[table, "lowdyn.src", "-o", "low.src"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert_eq!(
+        stderr.trim(),
+        "error: lowdyn.src:4:4: PTP moves the robot, but the program holds no target it can correct (dynamic: PTP jtgt: declared without a value, given when the program runs)"
+    );
     // The .src reports what it writes itself: LIN_REL, and XHOME of $config.dat.
     let options = {
         let mut o = CompensateOptions::new(d.join("kr150.tbl"), d.join("seam.src"));
@@ -1208,7 +1227,7 @@ fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_ref
     );
     assert_eq!(code, 3, "{stderr}");
     assert!(
-        stderr.contains("2 of 9 targets not corrected (strict: nothing written); the first: XP7 (32:12) frame_unknown: work object BASE_DATA[3] not given"),
+        stderr.contains("5 of 12 targets not corrected (strict: nothing written); the first: XP7 (32:12) frame_unknown: work object BASE_DATA[3] not given"),
         "{stderr}"
     );
     assert!(!d.join("strict.dat").exists());
@@ -1436,7 +1455,7 @@ fn cr_only_line_ends_read_as_lf_and_utf16_and_programs_of_another_dialect_are_re
         "{stdout_cr}"
     );
     assert!(
-        stdout_cr.contains("7 of 9 targets corrected"),
+        stdout_cr.contains("7 of 12 targets corrected"),
         "{stdout_cr}"
     );
     let written_cr = std::fs::read(d.join("cr.dat")).unwrap();

@@ -1442,7 +1442,7 @@ fn refuse_nothing_to_compensate(
         Some(at) => {
             let word = src.text(at, src.identifier_end(at, b"$#_"));
             let elsewhere = match (partner_path, format) {
-                (Some(p), Format::Krl) => format!(
+                (Some(p), Format::Krl) if krl_partner_holds_targets(src, p) => format!(
                     ": its motions' targets are declared in {}; compensate that file (the motions that use them are read from this one)",
                     p.display()
                 ),
@@ -1463,6 +1463,26 @@ fn refuse_nothing_to_compensate(
         ),
     };
     Err(src.error(at, message))
+}
+
+/// Whether a KRL file's partner holds a target of its own to correct (read as the program,
+/// `src` its partner): where it holds none, a refusal of `src` names `src`'s own reasons,
+/// not the partner.
+fn krl_partner_holds_targets(src: &Source, partner: &Path) -> bool {
+    let Ok(bytes) = adwi_runtime::input::read_regular(partner) else {
+        return false;
+    };
+    let name = partner.display().to_string();
+    let partner = Source::new(&name, &bytes);
+    // The first few answer it; a partner holding more is taken to hold targets.
+    crate::krl::read_with(&partner, Some(src), &crate::krl::KrlFrames::default(), 256).is_ok_and(
+        |p| {
+            p.truncated_at.is_some()
+                || p.targets
+                    .iter()
+                    .any(|t| !matches!(t.kind, TargetKind::Motion))
+        },
+    )
 }
 
 /// A target's frame chains, one per distinct use, or why its frames are not known.

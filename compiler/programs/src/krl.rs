@@ -304,13 +304,21 @@ fn merge_partner(src: &Source, partner: &Source, context: &Context, scan: &mut S
     }
     for mut t in other.partner_targets {
         let (line, column) = partner.location(t.offset);
-        t.refused = Some(Refusal::new(
-            Reason::NotMoved,
-            format!(
-                "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
-                t.name, partner.name, partner.name
+        t.refused = Some(match t.refused.take() {
+            // A motion the partner moves without a target here (`LIN_REL`, a target
+            // computed as it runs): what no run corrects is said in this one's report.
+            Some(Refusal { reason, detail }) if matches!(t.kind, TargetKind::Motion) => Refusal::new(
+                reason,
+                format!("{detail} (written at {}:{line}:{column})", partner.name),
             ),
-        ));
+            _ => Refusal::new(
+                Reason::NotMoved,
+                format!(
+                    "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
+                    t.name, partner.name, partner.name
+                ),
+            ),
+        });
         t.kind = TargetKind::Motion;
         t.uses.clear();
         t.offset = src.bytes.len();
@@ -589,13 +597,25 @@ struct Scan {
     /// Names a motion takes inside an expression (`XP1:XOFF`): the name and the motion.
     expression_uses: Vec<(String, String)>,
     first_motion: Option<usize>,
-    /// Targets the partner writes in its motions (inline aggregates), reported here since
-    /// this file's output does not hold them.
+    /// Targets the partner writes in its motions (inline aggregates) and the motions it
+    /// refuses (`LIN_REL`, a target computed as it runs), reported here since this file's
+    /// output does not hold them.
     partner_targets: Vec<ProgramTarget>,
     /// Parameters a motion moves to: (routine upper case, index) and the parameter.
     moved_parameters: HashMap<(String, usize), String>,
     /// The calls of the file's routines.
     calls: Vec<Call>,
+}
+
+impl Scan {
+    /// A motion refused: this file's target, or the partner's to report.
+    fn refused(&mut self, this_file: bool, target: ProgramTarget) {
+        if this_file {
+            self.targets.push((target, None, None));
+        } else {
+            self.partner_targets.push(target);
+        }
+    }
 }
 
 /// The `FDAT`s and declared target names (upper case) of a file; what does not read is
@@ -1127,18 +1147,15 @@ fn unknown_motion(
             format!("{first_word} ({}:{l}:{c})", src.name),
         ));
     }
-    if this_file {
-        scan.targets.push((
-            refused_motion(
-                src,
-                first,
-                Reason::UnknownMotion,
-                format!("{first_word} is not a KRL motion this reader knows"),
-            ),
-            None,
-            None,
-        ));
-    }
+    scan.refused(
+        this_file,
+        refused_motion(
+            src,
+            first,
+            Reason::UnknownMotion,
+            format!("{first_word} is not a KRL motion this reader knows"),
+        ),
+    );
 }
 
 /// An array's element given its value: `XPA[2]={X …}`; `false` when the line is none.
@@ -1259,16 +1276,13 @@ fn motion_statement(
     }
     let frame = frame_uses(&frames, first.start);
     if let Some(reason) = m.refused {
-        if this_file {
-            let detail = match reason {
-                Reason::Relative => {
-                    format!("{motion}: an offset from where the robot stands when it runs")
-                }
-                _ => format!("{motion}: an external axis motion; the table has no such axis"),
-            };
-            scan.targets
-                .push((refused_motion(src, first, reason, detail), None, None));
-        }
+        let detail = match reason {
+            Reason::Relative => {
+                format!("{motion}: an offset from where the robot stands when it runs")
+            }
+            _ => format!("{motion}: an external axis motion; the table has no such axis"),
+        };
+        scan.refused(this_file, refused_motion(src, first, reason, detail));
         return Ok(());
     }
     let targets = MotionTargets {
@@ -1464,10 +1478,7 @@ impl MotionTargets<'_, '_> {
 
     /// Reports the motion's target at `t` as left unchanged, when this file reports it.
     fn refuse(&self, t: &Token, reason: Reason, detail: String, scan: &mut Scan) {
-        if self.this_file {
-            scan.targets
-                .push((refused_motion(self.src, t, reason, detail), None, None));
-        }
+        scan.refused(self.this_file, refused_motion(self.src, t, reason, detail));
     }
 }
 
@@ -2792,7 +2803,16 @@ mod tests {
                    \x20 DECL REAL DIST\n  DECL E6POS PABOVE\n  PABOVE = PT\n  PABOVE.Z = PABOVE.Z + DIST\n\
                    \x20 LIN PABOVE\n  LIN PT\nEND\n";
         let p = pair(&["XP1", "XP2"], src);
-        assert_eq!(p.reasons(), [("XP1", None), ("XP2", Some(Reason::Dynamic))]);
+        // The .src's own motions to values given as it runs, reported with the .dat's.
+        assert_eq!(
+            p.reasons(),
+            [
+                ("XP1", None),
+                ("XP2", Some(Reason::Dynamic)),
+                ("PABOVE", Some(Reason::Dynamic)),
+                ("PT", Some(Reason::Dynamic))
+            ]
+        );
         assert_eq!(
             p.targets[1].refused.as_ref().unwrap().detail,
             "moved to through the parameter PT of approach (called at cell.src:5:3), in the frames of its callers"
@@ -2821,17 +2841,26 @@ mod tests {
     }
 
     #[test]
-    fn the_partners_own_targets_are_reported_with_the_data_list() {
+    fn the_partners_own_targets_and_refused_motions_are_reported_with_the_data_list() {
         let src = "DEF cell( )\n  $BASE = BASE_DATA[2]\n  LIN XP9\n\
                    \x20 LIN {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}\n  LIN_REL {X -30.0}\nEND\n";
         let p = pair(&["XP9"], src);
+        // Its inline target, and the motion no run corrects, placed where it is written.
         assert_eq!(
             p.reasons(),
-            [("XP9", None), ("LIN", Some(Reason::NotMoved))]
+            [
+                ("XP9", None),
+                ("LIN", Some(Reason::NotMoved)),
+                ("LIN_REL", Some(Reason::Relative))
+            ]
         );
         assert_eq!(
             p.targets[1].refused.as_ref().unwrap().detail,
             "LIN written at cell.src:4:7: a target of that file, left as written here; compensate cell.src for it"
+        );
+        assert_eq!(
+            p.targets[2].refused.as_ref().unwrap().detail,
+            "LIN_REL: an offset from where the robot stands when it runs (written at cell.src:5:3)"
         );
     }
 }
