@@ -133,21 +133,33 @@ pub fn orientation_values(orientation: &Orientation, rotation: &Rotation3<f64>) 
     }
 }
 
-/// KUKA angles of `rotation` nearest `original` (degrees): the canonical ones
-/// ([`adwi_samples::pose::kuka_abc_deg_from_rotation`]), except at gimbal lock, where only
-/// `A − C` (B = 90°) or `A + C` (B = −90°) is defined and the written C is kept.
+/// KUKA angles of `rotation` nearest `original` (degrees), so that a corrected target
+/// is written as its program wrote it: of the two triples that give a rotation (the
+/// canonical one, [`adwi_samples::pose::kuka_abc_deg_from_rotation`], with B within
+/// ±90°, and `A + 180°, 180° − B, C + 180°`), each angle turned by the whole turns that
+/// bring it nearest its written value (a generator's `C -206.374` stays below −180°), the
+/// nearer; at gimbal lock, where only `A − C` (B = 90°) or `A + C` (B = −90°) is defined,
+/// the written C is kept.
 pub fn kuka_abc_near(rotation: &Rotation3<f64>, original: [f64; 3]) -> [f64; 3] {
     let [a, b, c] = adwi_samples::pose::kuka_abc_deg_from_rotation(rotation);
     let m = rotation.matrix();
     let cos_b = m[(0, 0)].hypot(m[(1, 0)]);
+    let turned = |v: f64, written: f64| v + 360.0 * ((written - v) / 360.0).round();
     if cos_b > 1e-12 || c != 0.0 {
-        return [a, b, c];
+        let near = |t: [f64; 3]| -> [f64; 3] { [0, 1, 2].map(|k| turned(t[k], original[k])) };
+        let distance =
+            |t: &[f64; 3]| -> f64 { t.iter().zip(&original).map(|(v, w)| (v - w).powi(2)).sum() };
+        let canonical = near([a, b, c]);
+        let other = near([a + 180.0, 180.0 - b, c + 180.0]);
+        return if distance(&other) < distance(&canonical) {
+            other
+        } else {
+            canonical
+        };
     }
     let keep = original[2];
     let a = if b > 0.0 { a + keep } else { a - keep };
-    // Back into (−180°, 180°].
-    let a = a - 360.0 * ((a - 180.0) / 360.0).ceil();
-    [a, b, keep]
+    [turned(a, original[0]), b, keep]
 }
 
 /// The angle of the rotation between two rotations, rad.
@@ -210,7 +222,31 @@ mod tests {
                 prop_assert_eq!(near[2], abc[2]);
                 let d = (near[0] - abc[0]).rem_euclid(360.0);
                 prop_assert!(!(1e-6..=360.0 - 1e-6).contains(&d), "{near:?} {abc:?}");
+            } else {
+                // Away from gimbal lock, the written angles themselves.
+                prop_assert!(near.iter().zip(&abc).all(|(n, w)| (n - w).abs() < 1e-6), "{near:?} {abc:?}");
             }
+        }
+
+        /// Angles written beyond ±180° (a generator's `C -206.374`), or in the branch of B
+        /// beyond ±90°, come back as written, and a small turn of them stays in that branch.
+        #[test]
+        fn kuka_angles_keep_the_branch_they_are_written_in(
+            abc in pose_strategy(), turns in -1..=1i32, other in proptest::bool::ANY, small in -0.01..0.01f64
+        ) {
+            let canonical = [abc[3], abc[4] / 2.0, abc[5]];
+            let written = if other {
+                [canonical[0] + 180.0, 180.0 - canonical[1], canonical[2] + 180.0]
+            } else {
+                canonical
+            };
+            let written = [written[0] + 360.0 * f64::from(turns), written[1], written[2] - 360.0 * f64::from(turns)];
+            let r = adwi_samples::pose::rotation_from_kuka_abc_deg(written);
+            let near = kuka_abc_near(&r, written);
+            prop_assert!(near.iter().zip(&written).all(|(n, w)| (n - w).abs() < 1e-6), "{near:?} {written:?}");
+            let moved = [written[0] + small, written[1] - small, written[2] + small];
+            let near = kuka_abc_near(&adwi_samples::pose::rotation_from_kuka_abc_deg(moved), written);
+            prop_assert!(near.iter().zip(&moved).all(|(n, w)| (n - w).abs() < 1e-6), "{near:?} {moved:?}");
         }
     }
 }
