@@ -446,6 +446,15 @@ fn one_position_program(dir: &Path, config: &str) -> PathBuf {
 /// The program's one position compensated by `table` with the KR150-2 robot file and tool
 /// 1 at the faceplate: its report line.
 fn compensate_one_position(table: &Path, program: &Path) -> adwi_programs::TargetLine {
+    compensate_one_position_with(table, program, |_| {})
+}
+
+/// [`compensate_one_position`], with `change` made to the options.
+fn compensate_one_position_with(
+    table: &Path,
+    program: &Path,
+    change: impl FnOnce(&mut CompensateOptions),
+) -> adwi_programs::TargetLine {
     let mut o = CompensateOptions::new(table, program);
     o.robot = Some(robot());
     o.fanuc = FanucOptions {
@@ -453,6 +462,7 @@ fn compensate_one_position(table: &Path, program: &Path) -> adwi_programs::Targe
         tool_frames: vec![(1, [0.0; 6])],
         frames_file: None,
     };
+    change(&mut o);
     let done = CompensateJob::new(o).unwrap().run().unwrap();
     done.report.targets[0].clone()
 }
@@ -481,7 +491,7 @@ fn a_fanuc_config_that_cannot_be_read_leaves_the_position_as_written() {
         assert_eq!(line.status.as_str(), "invalid", "{config}: {}", line.detail);
         assert!(
             line.detail
-                .starts_with("a Fanuc CONFIG is 'N|F U|D T|B, j4, j5, j6'")
+                .starts_with("a Fanuc CONFIG is 'N|F U|D T|B, t1, t2, t3'")
                 && line
                     .detail
                     .contains(&format!("found '{config}' (line 11, column 29)"))
@@ -528,4 +538,102 @@ fn a_hybrid_table_with_joint_terms_gives_one_posture_one_command_on_either_turn(
         .norm();
     assert!(gap < 1e-6, "{gap} mm between the commands");
     assert_eq!(near.evidence, turned.evidence);
+}
+
+/// A controller's `$SCR_GRP[1].$TURN_AXIS = [1, 4, 6]` (an R-2000iB's, as its SYMOTN.VA
+/// holds it).
+const TURN_AXIS_1_4_6: &str = "[*SYSTEM*]$SCR_GRP  Storage: SHADOW  Access: FP  : ARRAY[4] OF SCR_GRP_T\n\
+     Field: $SCR_GRP[1].$NUM_AXES Access: RO: BYTE = 6\n\
+     Field: $SCR_GRP[1].$TURN_AXIS  ARRAY[3] OF INTEGER\n      [1] = 1\n      [2] = 4\n      [3] = 6\n";
+
+/// The turn numbers of a controller whose turn axes are J1, J4 and J6: `CONFIG 'F U T, 0,
+/// -1, 0'` there is J4 on its turn −1 (near −333°, J4 near 27° on turn 0). Read on J4, J5
+/// and J6, the default, it asks a turn of J5 its limits do not hold: the position is left
+/// as written, naming the turn number, its joint and where the turn axes came from.
+/// `--fanuc-turn-axes 1,4,6`, or a frame file holding `$TURN_AXIS`, corrects it on J4's
+/// turn −1; and `'F U T, -1, 0, 0'`, J1's turn −1 there (J1 near 14°), is not taken for
+/// J4's. Turn axes that are not the robot's, or an option the frame file contradicts, are
+/// refused before any work.
+#[test]
+fn turn_numbers_are_of_the_joints_the_controllers_turn_axes_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let table = crate::common::kr150_hybrid_table(d);
+    let j4_turned = one_position_program(d, "F U T, 0, -1, 0");
+    let j1_turned = one_position_program(d, "F U T, -1, 0, 0");
+    let line = compensate_one_position(&table, &j4_turned);
+    assert_eq!(line.status.as_str(), "invalid", "{}", line.detail);
+    assert_eq!(
+        line.detail,
+        "turn number -1 of J5 (turn axes 4, 5, 6, the default; --fanuc-turn-axes or the controller's $TURN_AXIS gives others): J5 in (-540°, -180°], beyond its limits [-125°, 125°]"
+    );
+    std::fs::write(d.join("symotn.va"), TURN_AXIS_1_4_6).unwrap();
+    let option = |o: &mut CompensateOptions| o.fanuc_turn_axes = Some([1, 4, 6]);
+    let file = |o: &mut CompensateOptions| o.fanuc.frames_file = Some(d.join("symotn.va"));
+    let by_option = compensate_one_position_with(&table, &j4_turned, option);
+    let by_file = compensate_one_position_with(&table, &j4_turned, file);
+    for line in [&by_option, &by_file] {
+        assert_eq!(line.status.as_str(), "ok", "{}", line.detail);
+        let q = line.command_joints.clone().unwrap();
+        assert!(q[3] > -540.0 && q[3] <= -180.0, "{q:?}");
+        assert!(
+            q[0] > -180.0 && q[0] <= 180.0 && q[5] > -180.0 && q[5] <= 180.0,
+            "{q:?}"
+        );
+    }
+    assert_eq!(by_option.command_joints, by_file.command_joints);
+    let line = compensate_one_position_with(&table, &j1_turned, option);
+    assert_eq!(line.status.as_str(), "ik_failed", "{}", line.detail);
+
+    // The command line: the option, the frame file, both when they agree; the CONFIG
+    // written back as it was.
+    let program = j4_turned.file_name().unwrap().to_str().unwrap();
+    let robot = robot();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            table.to_str().unwrap(),
+            program,
+            "-o",
+            "out.ls",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--fanuc-utool",
+            "1=0,0,0,0,0,0",
+        ];
+        args.extend_from_slice(extra);
+        compensate(d, &args)
+    };
+    for extra in [
+        &["--fanuc-turn-axes", "1,4,6"][..],
+        &["--fanuc-frames", "symotn.va"],
+        &["--fanuc-frames", "symotn.va", "--fanuc-turn-axes", "1,4,6"],
+    ] {
+        let (code, stdout, stderr) = run(extra);
+        assert_eq!(code, 0, "{extra:?}: {stdout}{stderr}");
+        let out = std::fs::read_to_string(d.join("out.ls")).unwrap();
+        assert!(out.contains("CONFIG : 'F U T, 0, -1, 0',"), "{out}");
+        assert_ne!(out, std::fs::read_to_string(&j4_turned).unwrap());
+    }
+    let (code, _, stderr) = run(&["--fanuc-frames", "symotn.va", "--fanuc-turn-axes", "4,5,6"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("--fanuc-turn-axes 4,5,6 and the frame file symotn.va's $SCR_GRP[1].$TURN_AXIS 1,4,6 disagree"),
+        "{stderr}"
+    );
+    let (code, _, stderr) = run(&["--fanuc-turn-axes", "1,4,7"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("turn axes 1, 4, 7, --fanuc-turn-axes: the robot has 6 joints"),
+        "{stderr}"
+    );
+    for bad in ["1,4,4", "1,4", "0,4,6"] {
+        let (code, _, stderr) = run(&["--fanuc-turn-axes", bad]);
+        assert_eq!(code, 2, "{bad}: {stderr}");
+        assert!(
+            stderr.contains(&format!(
+                "invalid value '{bad}' for '--fanuc-turn-axes <J,J,J>'"
+            )),
+            "{stderr}"
+        );
+    }
 }

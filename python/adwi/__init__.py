@@ -758,6 +758,7 @@ def compensate_program(
     fanuc_uframes: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_frames: Optional[Union[str, os.PathLike]] = None,
+    fanuc_turn_axes: Optional[Sequence[int]] = None,
     yaskawa_tools: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_users: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_pulses_per_deg: Optional[Sequence[float]] = None,
@@ -779,7 +780,10 @@ def compensate_program(
     program selects (tablec's ``--krl-config``). ``fanuc_uframes``, ``fanuc_utools``: a
     Fanuc program's user and tool frames by number, ``{n: [X, Y, Z, W, P, R]}`` (mm,
     degrees), and ``fanuc_frames`` the controller's ``SYSFRAME.VA`` (tablec's
-    ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``). ``yaskawa_tools``,
+    ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``); ``fanuc_turn_axes`` the
+    joints of a ``CONFIG``'s three turn numbers, ``[1, 4, 6]`` on an R-2000iB, as the
+    controller's ``$SCR_GRP[1].$TURN_AXIS`` gives them (default: a frame file's holding
+    it, such as ``SYMOTN.VA``, else ``[4, 5, 6]``; tablec's ``--fanuc-turn-axes``). ``yaskawa_tools``,
     ``yaskawa_users``: a Yaskawa job's tool files and user frames by number, ``{n: [X, Y, Z,
     Rx, Ry, Rz]}`` (mm, degrees about the fixed x, y, z), and ``yaskawa_pulses_per_deg`` its
     axes' encoder pulses per degree (tablec's ``--yaskawa-tool``, ``--yaskawa-user``,
@@ -814,6 +818,9 @@ def compensate_program(
         if fanuc_utools is None
         else {int(n): frame(f) for n, f in fanuc_utools.items()},
         fanuc_frames=path(fanuc_frames),
+        fanuc_turn_axes=None
+        if fanuc_turn_axes is None
+        else [int(j) for j in fanuc_turn_axes],
         yaskawa_tools=None
         if yaskawa_tools is None
         else {int(n): frame(f) for n, f in yaskawa_tools.items()},

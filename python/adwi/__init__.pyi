@@ -393,6 +393,7 @@ def compensate_program(
     fanuc_uframes: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_frames: Optional[PathLike] = None,
+    fanuc_turn_axes: Optional[Sequence[int]] = None,
     yaskawa_tools: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_users: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_pulses_per_deg: Optional[Sequence[float]] = None,

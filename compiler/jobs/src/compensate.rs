@@ -14,6 +14,7 @@ use serde::Serialize;
 
 use crate::JobError;
 
+pub use adwi_programs::fanuc::parse_turn_axes;
 pub use adwi_programs::gcode::DEFAULT_ARC_TOLERANCE_MM;
 pub use adwi_programs::Error as ProgramError;
 pub use adwi_programs::{
@@ -111,9 +112,15 @@ pub struct CompensateArgs {
     #[arg(long, value_name = "n=X,Y,Z,W,P,R", allow_hyphen_values = true, value_parser = adwi_programs::fanuc::parse_frame)]
     pub fanuc_utool: Vec<(u16, [f64; 6])>,
     /// Fanuc: the controller's frame file (SYSFRAME.VA, its $MNUFRAME and $MNUTOOL), for the
-    /// frames --fanuc-uframe and --fanuc-utool do not give.
+    /// frames --fanuc-uframe and --fanuc-utool do not give; a file holding
+    /// $SCR_GRP[1].$TURN_AXIS (SYMOTN.VA) gives the turn axes too.
     #[arg(long, value_name = "PATH")]
     pub fanuc_frames: Option<PathBuf>,
+    /// Fanuc: the joints of a CONFIG's three turn numbers, J,J,J (1 for J1), as the
+    /// controller's $SCR_GRP[1].$TURN_AXIS gives them: 1,4,6 on an R-2000iB or M-900iA,
+    /// 4,5,6 on many LR Mates [default: the frame file's, else 4,5,6].
+    #[arg(long, value_name = "J,J,J", value_parser = adwi_programs::fanuc::parse_turn_axes)]
+    pub fanuc_turn_axes: Option<[u8; 3]>,
     /// Refuse (leave unchanged, report) a correction larger than this, mm.
     #[arg(long, default_value_t = DEFAULT_MAX_CORRECTION_MM)]
     pub max_correction_mm: f64,
@@ -163,6 +170,7 @@ impl CompensateArgs {
             fanuc_uframe: Vec::new(),
             fanuc_utool: Vec::new(),
             fanuc_frames: None,
+            fanuc_turn_axes: None,
             max_correction_mm: DEFAULT_MAX_CORRECTION_MM,
             max_joint_change_deg: DEFAULT_MAX_JOINT_CHANGE_DEG,
             strict: false,
@@ -223,6 +231,7 @@ impl CompensateArgs {
             tool_frames: self.fanuc_utool,
             frames_file: self.fanuc_frames,
         };
+        options.fanuc_turn_axes = self.fanuc_turn_axes;
         options
             .check()
             .map_err(|e| JobError::Options(e.to_string()))?;
@@ -355,7 +364,7 @@ mod tests {
     #[test]
     fn every_option_is_refused_before_any_file_is_read() {
         type Change = Box<dyn FnOnce(&mut CompensateArgs)>;
-        let cases: [(&str, Change); 8] = [
+        let cases: [(&str, Change); 9] = [
             ("max_correction_mm", Box::new(|a| a.max_correction_mm = 0.0)),
             (
                 "max_joint_change_deg",
@@ -375,6 +384,10 @@ mod tests {
             (
                 "Fanuc programs",
                 Box::new(|a| a.fanuc_frames = Some("f.va".into())),
+            ),
+            (
+                "turn axes 4,4,6: three distinct joint numbers",
+                Box::new(|a| a.fanuc_turn_axes = Some([4, 4, 6])),
             ),
         ];
         for (said, change) in cases {

@@ -141,17 +141,29 @@ impl Turn {
 /// A robot whose TCP is the table's point: forward and inverse kinematics.
 pub struct Kinematics {
     robot: Robot,
-    closed: Option<(InverseKinematics, [MdhJoint; JOINT_COUNT])>,
+    /// The closed form and its MD-H rows, or why the robot has none (what a written
+    /// configuration's refusal names).
+    closed: Result<(InverseKinematics, [MdhJoint; JOINT_COUNT]), String>,
 }
 
 impl Kinematics {
     /// The kinematics of `robot` (its tool the table's point).
     pub fn new(robot: Robot) -> Kinematics {
-        let closed = InverseKinematics::new(&robot).ok().and_then(|ik| {
-            let rows: [MdhJoint; JOINT_COUNT] = robot.mdh()?.try_into().ok()?;
-            Some((ik, rows))
-        });
+        let closed = InverseKinematics::new(&robot)
+            .map_err(|e| e.to_string())
+            .and_then(|ik| {
+                let rows: Option<[MdhJoint; JOINT_COUNT]> =
+                    robot.mdh().and_then(|rows| rows.try_into().ok());
+                rows.map(|rows| (ik, rows))
+                    .ok_or_else(|| "not six MD-H joints".to_string())
+            });
         Kinematics { robot, closed }
+    }
+
+    /// Why postures carry no configuration labels, when they do not: the geometry the
+    /// closed form needs, and what of it the robot file breaks.
+    pub fn without_configurations(&self) -> Option<&str> {
+        self.closed.as_ref().err().map(String::as_str)
     }
 
     /// The robot.
@@ -161,7 +173,7 @@ impl Kinematics {
 
     /// Whether postures carry configuration labels (a six-axis spherical wrist).
     pub fn has_configurations(&self) -> bool {
-        self.closed.is_some()
+        self.closed.is_ok()
     }
 
     /// The table point's pose at joint values `q`; `None` for the wrong count.
@@ -172,7 +184,7 @@ impl Kinematics {
 
     /// The configuration of `q`, for robots with configuration labels.
     pub fn configuration(&self, q: &[f64]) -> Option<Configuration> {
-        let (_, rows) = self.closed.as_ref()?;
+        let (_, rows) = self.closed.as_ref().ok()?;
         let q: [f64; JOINT_COUNT] = q.try_into().ok()?;
         Some(configuration_of(rows, &q))
     }
@@ -217,7 +229,7 @@ impl Kinematics {
         posture: &Posture,
         near: &[f64],
     ) -> Option<Vec<f64>> {
-        let Some((ik, _)) = &self.closed else {
+        let Ok((ik, _)) = &self.closed else {
             // Fewer than six joints cannot take every orientation: position first.
             let q = if self.robot.joint_count() < 6 {
                 solve_position_first(&self.robot, pose, near)?

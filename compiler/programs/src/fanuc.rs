@@ -22,7 +22,9 @@
 //! it; user frame 0 is the world frame (taken as the robot's base frame) and tool frame 0
 //! the faceplate (the flange). Numbered frames come from the job's options or a frame file
 //! ([`read_frames`]); a position in a frame neither gives is left unchanged, naming the
-//! frame.
+//! frame. Its `CONFIG` gives the posture: the wrist, elbow and shoulder, and the turn
+//! numbers of the three joints the controller's `$SCR_GRP[1].$TURN_AXIS` names
+//! ([`TurnAxes`]: J4, J5, J6 unless the job gives others).
 //!
 //! Every motion statement of `/MN` is accounted for ([`MOTIONS`]): a position moved to by
 //! `J`, `L`, `C` (via and end) or `A` is corrected in its frames; a motion with an offset
@@ -143,6 +145,217 @@ pub fn parse_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
     Ok((number, crate::bounds::option_frame(values, usage)?))
 }
 
+/// The joints the three turn numbers of a `CONFIG` belong to, as the controller's
+/// `$SCR_GRP[1].$TURN_AXIS` defines them (`[1, 4, 6]` on an R-2000iB, `[4, 5, 6]` on many
+/// LR Mates), and where they were taken from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TurnAxes {
+    /// The joint of each turn number, 1 for J1; 0 for none (a controller may leave a
+    /// place without a joint).
+    pub joints: [u8; 3],
+    /// Where the job took them from.
+    pub from: TurnAxesFrom,
+}
+
+/// Where a job's turn axes come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TurnAxesFrom {
+    /// Neither the options nor the frame file: J4, J5, J6.
+    Default,
+    /// `--fanuc-turn-axes`.
+    Option,
+    /// The frame file's `$SCR_GRP[1].$TURN_AXIS` (`--fanuc-frames`).
+    Controller,
+}
+
+/// The most joints a Fanuc motion group has.
+const MAX_GROUP_JOINTS: u8 = 9;
+
+impl Default for TurnAxes {
+    fn default() -> TurnAxes {
+        TurnAxes {
+            joints: [4, 5, 6],
+            from: TurnAxesFrom::Default,
+        }
+    }
+}
+
+impl TurnAxes {
+    /// The job's turn axes: `option` (`--fanuc-turn-axes`), else `controller` (a frame
+    /// file's `$TURN_AXIS`, and the file's name), else J4, J5, J6.
+    ///
+    /// # Errors
+    ///
+    /// When the option and the frame file are both given and disagree, naming both: a
+    /// turn number read on the wrong joint solves another posture.
+    pub fn of_job(
+        option: Option<[u8; 3]>,
+        controller: Option<([u8; 3], String)>,
+    ) -> Result<TurnAxes, String> {
+        match (option, controller) {
+            (Some(o), Some((c, file))) if o != c => Err(format!(
+                "--fanuc-turn-axes {} and the frame file {file}'s $SCR_GRP[1].$TURN_AXIS {} disagree: give the controller's",
+                list(&o, ","),
+                list(&c, ",")
+            )),
+            (Some(joints), _) => Ok(TurnAxes {
+                joints,
+                from: TurnAxesFrom::Option,
+            }),
+            (None, Some((joints, _))) => Ok(TurnAxes {
+                joints,
+                from: TurnAxesFrom::Controller,
+            }),
+            (None, None) => Ok(TurnAxes::default()),
+        }
+    }
+
+    /// Checks that the turn axes given are revolute joints of `robot` (the default ones are
+    /// taken where the robot has them, as before any was given).
+    ///
+    /// # Errors
+    ///
+    /// A message naming the joint and where the axes came from.
+    pub fn fit(&self, robot: Option<&adwi_robot::Robot>) -> Result<(), String> {
+        let Some(robot) = robot.filter(|_| self.from != TurnAxesFrom::Default) else {
+            return Ok(());
+        };
+        for &j in self.joints.iter().filter(|j| **j != 0) {
+            let index = usize::from(j) - 1;
+            let why = if index >= robot.joint_count() {
+                format!("the robot has {} joints", robot.joint_count())
+            } else if robot.prismatic_joints() >> index & 1 == 1 {
+                format!("J{j} is prismatic, and a turn number counts a revolute joint's turns")
+            } else {
+                continue;
+            };
+            return Err(format!("{}: {why}", self.said()));
+        }
+        Ok(())
+    }
+
+    /// The turn axes and where they came from, for messages.
+    fn said(&self) -> String {
+        let axes = list(&self.joints, ", ");
+        match self.from {
+            TurnAxesFrom::Default => format!(
+                "turn axes {axes}, the default; --fanuc-turn-axes or the controller's $TURN_AXIS gives others"
+            ),
+            TurnAxesFrom::Option => format!("turn axes {axes}, --fanuc-turn-axes"),
+            TurnAxesFrom::Controller => format!(
+                "turn axes {axes}, the controller's $SCR_GRP[1].$TURN_AXIS (--fanuc-frames)"
+            ),
+        }
+    }
+}
+
+/// Joint numbers as a list, `sep` between them.
+fn list(joints: &[u8; 3], sep: &str) -> String {
+    joints.map(|j| j.to_string()).join(sep)
+}
+
+/// Checks turn axes as the options give them: three distinct joint numbers from 1.
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn check_turn_axes(joints: &[u8; 3]) -> Result<(), String> {
+    let distinct = joints[0] != joints[1] && joints[0] != joints[2] && joints[1] != joints[2];
+    if distinct && joints.iter().all(|j| (1..=MAX_GROUP_JOINTS).contains(j)) {
+        Ok(())
+    } else {
+        Err(format!(
+            "turn axes {}: three distinct joint numbers from 1 to {MAX_GROUP_JOINTS} (1 for J1), as the controller's $SCR_GRP[1].$TURN_AXIS gives them (1,4,6 on an R-2000iB)",
+            list(joints, ",")
+        ))
+    }
+}
+
+/// Parses turn axes as the command line writes them: `J,J,J` (`1,4,6`).
+///
+/// # Errors
+///
+/// A message saying what is wrong.
+pub fn parse_turn_axes(text: &str) -> Result<[u8; 3], String> {
+    let numbers: Vec<u8> = text
+        .split(',')
+        .map(|t| t.trim().parse::<u8>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{text}': turn axes are J,J,J (three joint numbers, 1 for J1)"))?;
+    let joints: [u8; 3] = numbers
+        .try_into()
+        .map_err(|_| format!("'{text}': turn axes are J,J,J (three joint numbers, 1 for J1)"))?;
+    check_turn_axes(&joints)?;
+    Ok(joints)
+}
+
+/// The turn each joint of a robot of `joints` joints must keep, by the three turn
+/// numbers `turns` of `axes`' joints.
+pub(crate) fn joint_turns(
+    turns: &[Option<i8>; 3],
+    axes: &TurnAxes,
+    joints: usize,
+) -> Vec<crate::correct::Turn> {
+    (0..joints)
+        .map(|i| {
+            axes.joints
+                .iter()
+                .position(|j| usize::from(*j) == i + 1)
+                .and_then(|place| turns[place])
+                .map_or(crate::correct::Turn::Any, |k| {
+                    crate::correct::Turn::Revolution(i64::from(k))
+                })
+        })
+        .collect()
+}
+
+/// Why a Fanuc CONFIG's turn number cannot be kept on `robot`: its joint's limits hold no
+/// angle of that turn, or it is written where the turn axes give no joint. The turn axes
+/// are named: read on another joint than the controller's, a turn number asks a posture
+/// the program never meant. `None` for any other configuration.
+pub(crate) fn unheld_turn(
+    hint: &crate::program::ConfigHint,
+    robot: &adwi_robot::Robot,
+) -> Option<String> {
+    let ConfigHint::FanucConfig {
+        turns, turn_axes, ..
+    } = *hint
+    else {
+        return None;
+    };
+    let places = ["first", "second", "third"];
+    for ((turn, &joint), place) in turns.iter().zip(&turn_axes.joints).zip(places) {
+        let Some(k) = *turn else { continue };
+        if joint == 0 {
+            if k != 0 {
+                return Some(format!(
+                    "turn number {k}, the {place}, is of no joint ({})",
+                    turn_axes.said()
+                ));
+            }
+            continue;
+        }
+        // Joints the robot has not, or prismatic: taken as before for the default axes
+        // (the ones given were checked against the robot).
+        let index = usize::from(joint) - 1;
+        if index >= robot.joint_count() || robot.prismatic_joints() >> index & 1 == 1 {
+            continue;
+        }
+        // Degrees as a robot file writes them, not 124.99999999999999.
+        let [lower, upper] = robot.joints()[index]
+            .limits
+            .map(|r| (r.to_degrees() * 1e6).round() / 1e6);
+        let (from, to) = (-180.0 + 360.0 * f64::from(k), 180.0 + 360.0 * f64::from(k));
+        if to < lower || from >= upper {
+            return Some(format!(
+                "turn number {k} of J{joint} ({}): J{joint} in ({from}°, {to}°], beyond its limits [{lower}°, {upper}°]",
+                turn_axes.said()
+            ));
+        }
+    }
+    None
+}
+
 /// Reads a controller's frame file: the ASCII dump of its system variables
 /// `$MNUFRAME` (user frames) and `$MNUTOOL` (tool frames), as `SYSFRAME.VA` holds them:
 ///
@@ -234,6 +447,92 @@ pub fn read_frames(src: &Source) -> Result<FanucOptions, Error> {
         list.push((number, frame));
     }
     Ok(out)
+}
+
+/// Reads the turn axes of motion group 1 from a controller's system variables, as its
+/// `SYMOTN.VA` holds them:
+///
+/// ```text
+///      Field: $SCR_GRP[1].$TURN_AXIS  ARRAY[3] OF INTEGER
+///       [1] = 1
+///       [2] = 4
+///       [3] = 6
+/// ```
+///
+/// `None` when the file does not hold the variable (a `SYSFRAME.VA`).
+///
+/// # Errors
+///
+/// [`Error::Syntax`] at the variable when its three joint numbers do not read as the
+/// controller's (0 to 9, 0 for none, the others distinct), or when it is given twice.
+pub fn read_turn_axes(src: &Source) -> Result<Option<[u8; 3]>, Error> {
+    const NAME: &[u8] = b"$SCR_GRP[1].$TURN_AXIS";
+    let bytes = src.bytes;
+    let mut found: Option<(usize, [u8; 3])> = None;
+    let mut start = 0;
+    while start < bytes.len() {
+        let (end, next) = src.line_at(start);
+        let at = skip_space(bytes, start, end);
+        start = next;
+        let text = &bytes[at..end];
+        let field = text
+            .get(..6)
+            .is_some_and(|t| t.eq_ignore_ascii_case(b"Field:"));
+        let name_at = if field {
+            skip_space(bytes, at + 6, end)
+        } else {
+            at
+        };
+        let name_end = (name_at..end)
+            .find(|i| bytes[*i].is_ascii_whitespace())
+            .unwrap_or(end);
+        if !bytes[name_at..name_end].eq_ignore_ascii_case(NAME) {
+            continue;
+        }
+        if let Some((first, _)) = found {
+            let (line, _) = src.location(first);
+            return Err(src.error(
+                name_at,
+                format!("$SCR_GRP[1].$TURN_AXIS twice (first at line {line})"),
+            ));
+        }
+        let usage = "$SCR_GRP[1].$TURN_AXIS: expected its [1], [2] and [3], each a joint number from 0 to 9 (0 for none), the joints distinct";
+        // Its elements, `[i] = j`, on the lines that follow.
+        let mut joints: [Option<u8>; 3] = [None; 3];
+        while start < bytes.len() {
+            let (end, next) = src.line_at(start);
+            let at = skip_space(bytes, start, end);
+            let line = String::from_utf8_lossy(&bytes[at..end]);
+            let Some((index, value)) = line
+                .strip_prefix('[')
+                .and_then(|l| l.split_once(']'))
+                .and_then(|(i, v)| Some((i.trim(), v.trim().strip_prefix('=')?.trim())))
+            else {
+                break;
+            };
+            start = next;
+            let place = index
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| i.checked_sub(1))
+                .filter(|i| *i < 3);
+            let joint = value.parse::<u8>().ok().filter(|j| *j <= MAX_GROUP_JOINTS);
+            match (place, joint) {
+                (Some(place), Some(joint)) if joints[place].is_none() => {
+                    joints[place] = Some(joint);
+                }
+                _ => return Err(src.error(at, usage)),
+            }
+        }
+        let [Some(a), Some(b), Some(c)] = joints else {
+            return Err(src.error(name_at, usage));
+        };
+        if (a != 0 && (a == b || a == c)) || (b != 0 && b == c) {
+            return Err(src.error(name_at, usage));
+        }
+        found = Some((name_at, [a, b, c]));
+    }
+    Ok(found.map(|f| f.1))
 }
 
 /// Which frames a variable's header names (`[*SYSTEM*]$MNUFRAME  Storage: …`): user
@@ -468,15 +767,21 @@ struct Use {
 ///
 /// [`Error::Syntax`] at the first malformed position or statement.
 pub fn read(src: &Source, options: &FanucOptions) -> Result<Program, Error> {
-    read_at_most(src, options, usize::MAX)
+    read_at_most(src, options, TurnAxes::default(), usize::MAX)
 }
 
-/// [`read`], stopping after `limit` targets ([`Program::truncated_at`]).
+/// [`read`], the CONFIGs' turn numbers of `turn_axes`' joints, stopping after `limit`
+/// targets ([`Program::truncated_at`]).
 ///
 /// # Errors
 ///
 /// As [`read`].
-pub fn read_at_most(src: &Source, options: &FanucOptions, limit: usize) -> Result<Program, Error> {
+pub fn read_at_most(
+    src: &Source,
+    options: &FanucOptions,
+    turn_axes: TurnAxes,
+    limit: usize,
+) -> Result<Program, Error> {
     let sections = Sections::of(src)?;
     let mut motions = Motions::default();
     if let Some((s, e)) = sections.mn {
@@ -489,8 +794,14 @@ pub fn read_at_most(src: &Source, options: &FanucOptions, limit: usize) -> Resul
     }
     let mut positions: Vec<(u32, ProgramTarget)> = Vec::new();
     if let (Some((s, e)), None) = (sections.pos, motions.truncated_at) {
+        let frames = FrameFields {
+            src,
+            options,
+            set_frames: &motions.set_frames,
+            turn_axes,
+        };
         motions.truncated_at =
-            read_positions(src, (s, e), options, &motions, limit, &mut positions)?;
+            read_positions(src, (s, e), &frames, &motions, limit, &mut positions)?;
     }
     Ok(motions.program(src, positions))
 }
@@ -864,7 +1175,7 @@ fn motion_offset(
 fn read_positions(
     src: &Source,
     (s, e): (usize, usize),
-    options: &FanucOptions,
+    frames: &FrameFields,
     motions: &Motions,
     limit: usize,
     positions: &mut Vec<(u32, ProgramTarget)>,
@@ -882,7 +1193,7 @@ fn read_positions(
                 format!("expected a position P[n]{{…}}; found {}", src.describe(i)),
             ));
         }
-        let (n, target, next) = position(src, i, e, options, &motions.set_frames)?;
+        let (n, target, next) = position(src, i, e, frames)?;
         if let Some(first) = positions.iter().find(|p| p.0 == n) {
             let (line, _) = src.location(first.1.offset);
             return Err(src.error(i, format!("P[{n}] twice (first at line {line})")));
@@ -921,8 +1232,7 @@ fn position(
     src: &Source,
     at: usize,
     end: usize,
-    options: &FanucOptions,
-    set_frames: &SetFrames,
+    frames: &FrameFields,
 ) -> Result<(u32, ProgramTarget, usize), Error> {
     let (number, brace, body_end) = position_head(src, at, end)?;
     let mut next = body_end + 1;
@@ -931,11 +1241,6 @@ fn position(
     }
     let name = format!("P[{number}]");
     let groups = groups(src, &name, brace + 1, body_end)?;
-    let frames = FrameFields {
-        src,
-        options,
-        set_frames,
-    };
     Ok((number, frames.target(name, at, &groups), next))
 }
 
@@ -1093,11 +1398,12 @@ fn group_refusal(src: &Source, groups: &[Group], fields: &[Field]) -> Option<Ref
 }
 
 /// What a position's frame numbers (`UF`, `UT`) stand for: the options, and the frames
-/// the program sets as it runs.
+/// the program sets as it runs; and the joints of its CONFIG's turn numbers.
 struct FrameFields<'s, 'a> {
     src: &'s Source<'a>,
     options: &'s FanucOptions,
     set_frames: &'s SetFrames,
+    turn_axes: TurnAxes,
 }
 
 impl FrameFields<'_, '_> {
@@ -1179,7 +1485,7 @@ impl FrameFields<'_, '_> {
             .iter()
             .find_map(|f| match f.value {
                 FieldValue::Text(s, e) if f.name == "CONFIG" => {
-                    Some(config_hint(&self.src.bytes[s..e], (s, e)))
+                    Some(config_hint(&self.src.bytes[s..e], (s, e), self.turn_axes))
                 }
                 _ => None,
             })
@@ -1272,15 +1578,16 @@ impl FrameFields<'_, '_> {
 }
 
 /// A position's `CONFIG : 'N U T, 0, 0, 0'`: the wrist (`N` no flip, `F` flip), the elbow
-/// (`U` up, `D` down), the shoulder (`T` front, `B` back), and the turn numbers of J4, J5
-/// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k). `span` is where the text is written.
+/// (`U` up, `D` down), the shoulder (`T` front, `B` back), and the turn numbers of
+/// `turn_axes`' joints (turn k: −180° + 360°k < J ≤ 180° + 360°k; J4, J5 and J6 unless the
+/// controller says otherwise). `span` is where the text is written.
 ///
 /// A CONFIG that is not one letter of each pair and three whole turn numbers (a SCARA's,
 /// a misspelt one) is [`ConfigHint::Unreadable`]: the controller reads it in a way this
 /// reader does not, so a target solved in any posture would be a guess.
-fn config_hint(text: &[u8], span: (usize, usize)) -> ConfigHint {
+fn config_hint(text: &[u8], span: (usize, usize), turn_axes: TurnAxes) -> ConfigHint {
     const EXPECTED: &str =
-        "a Fanuc CONFIG is 'N|F U|D T|B, j4, j5, j6' (one letter of each pair, three turn numbers from -4 to 4)";
+        "a Fanuc CONFIG is 'N|F U|D T|B, t1, t2, t3' (one letter of each pair, three turn numbers from -4 to 4)";
     let unreadable = ConfigHint::Unreadable {
         span,
         expected: EXPECTED,
@@ -1320,6 +1627,7 @@ fn config_hint(text: &[u8], span: (usize, usize)) -> ConfigHint {
     ConfigHint::FanucConfig {
         configuration: Some(bits),
         turns: [Some(turns[0]), Some(turns[1]), Some(turns[2])],
+        turn_axes,
     }
 }
 
@@ -1417,7 +1725,8 @@ mod tests {
             c.config,
             ConfigHint::FanucConfig {
                 configuration: Some(7),
-                turns: [Some(0), Some(1), Some(-1)]
+                turns: [Some(0), Some(1), Some(-1)],
+                turn_axes: TurnAxes::default(),
             }
         );
         // The user frame is its base, the tool frame its tool.
@@ -1630,6 +1939,88 @@ mod tests {
         let bad = va.replace("R:    30.000", "R:    x");
         let err = read_frames(&Source::new("SYSFRAME.VA", bad.as_bytes())).unwrap_err();
         assert!(err.to_string().starts_with("SYSFRAME.VA:5:"), "{err}");
+    }
+
+    #[test]
+    fn the_turn_axes_are_read_from_the_controllers_variables() {
+        // As SYMOTN.VA holds them: group 1's, not group 2's; a frame file holds none.
+        let va = "[*SYSTEM*]$SCR_GRP  Storage: SHADOW  Access: FP  : ARRAY[4] OF SCR_GRP_T\n\
+                  \x20    Field: $SCR_GRP[1].$NUM_AXES Access: RO: BYTE = 6\n\
+                  \x20    Field: $SCR_GRP[1].$TURN_AXIS  ARRAY[3] OF INTEGER\n\
+                  \x20     [1] = 1\n      [2] = 4\n      [3] = 6\n\
+                  \x20    Field: $SCR_GRP[1].$AXS_AMP_NUM  ARRAY[9] OF BYTE\n      [1] = 1\n\
+                  \x20    Field: $SCR_GRP[2].$TURN_AXIS  ARRAY[3] OF INTEGER\n\
+                  \x20     [1] = 4\n      [2] = 0\n      [3] = 6\n";
+        let read = |text: &str| read_turn_axes(&Source::new("SYMOTN.VA", text.as_bytes()));
+        assert_eq!(read(va).unwrap(), Some([1, 4, 6]));
+        assert_eq!(
+            read(&va.replace("[2] = 4", "[2] = 0")).unwrap(),
+            Some([1, 0, 6])
+        );
+        assert_eq!(
+            read("[*SYSTEM*]$MNUFRAME  Storage: SHADOW\n").unwrap(),
+            None
+        );
+        for (bad, line) in [
+            (va.replace("[2] = 4", "[2] = 6"), 3),
+            (va.replace("[2] = 4", "[2] = 12"), 5),
+            (va.replace("[2] = 4", "[2] = x"), 5),
+            (va.replace("      [3] = 6\n", ""), 3),
+        ] {
+            let err = read(&bad).unwrap_err().to_string();
+            assert!(
+                err.starts_with(&format!("SYMOTN.VA:{line}:"))
+                    && err.contains("$TURN_AXIS: expected"),
+                "{err}"
+            );
+        }
+        let twice = format!(
+            "{va}{}",
+            &va[va.find("     Field: $SCR_GRP[1].$TURN").unwrap()..]
+        );
+        assert!(read(&twice)
+            .unwrap_err()
+            .to_string()
+            .contains("twice (first at line 3)"));
+    }
+
+    #[test]
+    fn turn_axes_are_three_distinct_joints_and_the_option_stands_with_the_controller() {
+        assert_eq!(parse_turn_axes("1,4,6").unwrap(), [1, 4, 6]);
+        assert_eq!(parse_turn_axes(" 4, 5 ,6").unwrap(), [4, 5, 6]);
+        for bad in [
+            "1,4", "1,4,6,7", "1,4,4", "0,4,6", "1,4,10", "1,4,x", "-1,4,6",
+        ] {
+            let err = parse_turn_axes(bad).unwrap_err();
+            assert!(err.contains("turn axes"), "{bad}: {err}");
+        }
+        let file = || Some(([1, 4, 6], "SYMOTN.VA".to_string()));
+        let axes = TurnAxes::of_job(None, file()).unwrap();
+        assert_eq!(
+            (axes.joints, axes.from),
+            ([1, 4, 6], TurnAxesFrom::Controller)
+        );
+        let axes = TurnAxes::of_job(Some([1, 4, 6]), file()).unwrap();
+        assert_eq!(axes.from, TurnAxesFrom::Option);
+        assert_eq!(
+            TurnAxes::of_job(Some([4, 5, 6]), file()).unwrap_err(),
+            "--fanuc-turn-axes 4,5,6 and the frame file SYMOTN.VA's $SCR_GRP[1].$TURN_AXIS 1,4,6 disagree: give the controller's"
+        );
+        assert_eq!(TurnAxes::of_job(None, None).unwrap(), TurnAxes::default());
+        // Each joint keeps the turn its axis is given; the others any.
+        let turns = joint_turns(&[Some(-1), Some(1), Some(0)], &axes, 6);
+        use crate::correct::Turn;
+        assert_eq!(
+            turns,
+            [
+                Turn::Revolution(-1),
+                Turn::Any,
+                Turn::Any,
+                Turn::Revolution(1),
+                Turn::Any,
+                Turn::Revolution(0)
+            ]
+        );
     }
 
     #[test]

@@ -63,6 +63,9 @@ pub struct CompensateOptions {
     pub yaskawa: crate::yaskawa::YaskawaOptions,
     /// A Fanuc program's numbered user and tool frames, and a frame file.
     pub fanuc: crate::fanuc::FanucOptions,
+    /// The joints of a Fanuc CONFIG's three turn numbers, 1 for J1 (the controller's
+    /// `$SCR_GRP[1].$TURN_AXIS`); `None`: the frame file's, else J4, J5, J6.
+    pub fanuc_turn_axes: Option<[u8; 3]>,
 }
 
 /// The default bound of a job's memory: 4 GiB, some two million targets.
@@ -111,6 +114,7 @@ impl CompensateOptions {
             gcode: crate::gcode::GcodeOptions::default(),
             yaskawa: crate::yaskawa::YaskawaOptions::default(),
             fanuc: crate::fanuc::FanucOptions::default(),
+            fanuc_turn_axes: None,
         }
     }
 }
@@ -173,6 +177,9 @@ impl CompensateOptions {
                 crate::bounds::MAX_POSITION_MM,
                 crate::bounds::MAX_ANGLE_DEG
             )));
+        }
+        if let Some(axes) = &o.fanuc_turn_axes {
+            crate::fanuc::check_turn_axes(axes).map_err(Error::Option)?;
         }
         if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
             return Err(Error::Option("max_seconds must be positive".into()));
@@ -289,6 +296,13 @@ impl CompensateJob {
         crate::dialect::check(&Source::new(&name, &bytes), format, o.format.is_some())?;
         let frame_files = FrameFiles::read(o)?;
         let (kinematics, table_tool) = kinematics(o, &table, inputs.robot.take())?;
+        if format == Format::Fanuc {
+            let robot = kinematics.as_ref().map(Kinematics::robot);
+            frame_files
+                .fanuc_turn_axes
+                .fit(robot)
+                .map_err(Error::Option)?;
+        }
         let budget = Budget::new(o, kinematics.as_ref(), &name, bytes.len())?;
         let src = Source::new(&name, &bytes);
         let ReadProgram {
@@ -1206,6 +1220,7 @@ fn read_program(program_path: &Path, partner_path: Option<&Path>) -> Result<Vec<
 struct FrameFiles {
     krl: crate::krl::KrlFrames,
     fanuc: crate::fanuc::FanucOptions,
+    fanuc_turn_axes: crate::fanuc::TurnAxes,
 }
 
 impl FrameFiles {
@@ -1221,6 +1236,7 @@ impl FrameFiles {
             }
         };
         // A Fanuc frame file gives the frames the options do not.
+        let mut controller_turn_axes = None;
         let fanuc = match &o.fanuc.frames_file {
             None => o.fanuc.clone(),
             Some(path) => {
@@ -1233,6 +1249,9 @@ impl FrameFiles {
                 let file = read_input(path)?;
                 let file_name = path.display().to_string();
                 let from_file = crate::fanuc::read_frames(&Source::new(&file_name, &file))?;
+                controller_turn_axes =
+                    crate::fanuc::read_turn_axes(&Source::new(&file_name, &file))?
+                        .map(|axes| (axes, file_name));
                 let mut merged = o.fanuc.clone();
                 for (n, f) in from_file.user_frames {
                     if !merged.user_frames.iter().any(|u| u.0 == n) {
@@ -1247,7 +1266,14 @@ impl FrameFiles {
                 merged
             }
         };
-        Ok(FrameFiles { krl, fanuc })
+        let fanuc_turn_axes =
+            crate::fanuc::TurnAxes::of_job(o.fanuc_turn_axes, controller_turn_axes)
+                .map_err(Error::Option)?;
+        Ok(FrameFiles {
+            krl,
+            fanuc,
+            fanuc_turn_axes,
+        })
     }
 }
 
@@ -1402,7 +1428,9 @@ fn read_targets(
             });
         }
         Format::Yaskawa => crate::yaskawa::read_at_most(src, &o.yaskawa, limit)?,
-        Format::Fanuc => crate::fanuc::read_at_most(src, &frame_files.fanuc, limit)?,
+        Format::Fanuc => {
+            crate::fanuc::read_at_most(src, &frame_files.fanuc, frame_files.fanuc_turn_axes, limit)?
+        }
         Format::Val3 => {
             let files = inputs
                 .application
@@ -1992,15 +2020,10 @@ fn posture(hint: &ConfigHint, kinematics: Option<&Kinematics>) -> Posture {
         ConfigHint::FanucConfig {
             configuration: bits,
             turns,
+            turn_axes,
         } => Posture {
             configuration: bits.and_then(configuration),
-            // Fanuc's turn numbers are those of J4, J5 and J6.
-            turns: (0..joints.min(6))
-                .map(|i| match i.checked_sub(3).and_then(|k| turns[k]) {
-                    Some(k) => Turn::Revolution(i64::from(k)),
-                    None => Turn::Any,
-                })
-                .collect(),
+            turns: crate::fanuc::joint_turns(&turns, &turn_axes, joints),
         },
     }
 }
@@ -2032,14 +2055,12 @@ fn unmapped_configuration(src: &Source, hint: &ConfigHint, k: &Kinematics) -> Op
         | ConfigHint::FanucConfig {
             configuration: Some(_),
             ..
-        } if !k.has_configurations() => {
-            Some(format!(
-                "the written configuration ({}) is not one a robot of {} joints without closed-form configurations has: {unmapped}",
-                written_configuration(hint),
-                k.robot().joint_count()
-            ))
-        }
-        _ => None,
+        } if !k.has_configurations() => Some(format!(
+            "the written configuration ({}) cannot be told apart on this robot file ({}): {unmapped}",
+            written_configuration(hint),
+            k.without_configurations().unwrap_or_default()
+        )),
+        _ => crate::fanuc::unheld_turn(hint, k.robot()),
     }
 }
 
@@ -2083,6 +2104,7 @@ fn written_configuration(hint: &ConfigHint) -> String {
         ConfigHint::FanucConfig {
             configuration: Some(bits),
             turns,
+            ..
         } => {
             let turn = |t: Option<i8>| t.map_or_else(|| "?".to_string(), |t| t.to_string());
             format!(

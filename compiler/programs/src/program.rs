@@ -233,13 +233,15 @@ pub enum ConfigHint {
     /// files write it): bit 0 shoulder back, bit 1 elbow down, bit 2 wrist flipped.
     Configuration(u8),
     /// Fanuc `CONFIG : 'N U T, 0, 0, 0'`: the configuration in this project's labels
-    /// (`None` when the letters do not give all three), and the turn numbers of J4, J5
-    /// and J6 (turn k: −180° + 360°k < J ≤ 180° + 360°k).
+    /// (`None` when the letters do not give all three), and three turn numbers (turn k:
+    /// −180° + 360°k < J ≤ 180° + 360°k) of the joints the controller's turn axes name.
     FanucConfig {
         /// Bit 0 shoulder back (`B`), bit 1 elbow down (`D`), bit 2 wrist flipped (`F`).
         configuration: Option<u8>,
         /// The turn numbers, as written.
         turns: [Option<i8>; 3],
+        /// The joints they are of: J4, J5, J6 unless the job says otherwise.
+        turn_axes: crate::fanuc::TurnAxes,
     },
     /// Stäubli VAL3 `config` of a `pointRx`, each part as written; `None` where the
     /// controller chooses (`ssame`, `sfree`, `esame`, `efree`, `wsame`, `wfree`, or the
