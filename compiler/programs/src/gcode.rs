@@ -23,6 +23,8 @@
 //! cutter compensation (`G41`/`G42`), a tool length offset (`G43`), a rotation (`G68`),
 //! a scaling, polar coordinates or an offset the program sets as it runs (`G51`, `G16`,
 //! `G52`, `G92`, `G10`), canned cycles (`G73`-`G89`), and any other motion-looking code.
+//! A `G92` or `G52` that names none of X, Y, Z, A, B, C (a slicer's `G92 E0`) offsets
+//! axes the reader does not read, and leaves the moves' frame as it was.
 //! `G54`-`G59` select a work offset, which the job's options give; a move in one they do
 //! not give is refused by its name (`frame_unknown`).
 //!
@@ -671,6 +673,17 @@ fn group_of(g: u32) -> Option<Group> {
     })
 }
 
+/// Whether `G92` or `G52` (`g` in tenths) on a block of `words` sets the position of
+/// axes the reader does not read alone (`G92 E0`, a slicer's extruder reset; `G52 U10`):
+/// it writes some value and none of X, Y, Z, A, B, C, whose offsets the controller keeps.
+/// A bare `G92` is not (a printer's firmware sets every axis to 0), nor is `G10`, whose
+/// `R` and `L` words set tool data and parameters without naming an axis.
+fn sets_other_axes_only(g: u32, words: &[Word]) -> bool {
+    matches!(g, 520 | 920)
+        && words.iter().any(|w| !matches!(w.letter, b'G' | b'N'))
+        && !words.iter().any(|w| AXES.contains(&w.letter))
+}
+
 /// Why a group's mode is not known where a move is: its status and what made it so.
 #[derive(Clone, Debug, PartialEq)]
 struct Unknown {
@@ -976,6 +989,12 @@ impl State {
 
     /// Applies the G code `g` (in tenths), written `name` at `at`.
     fn apply_g(&mut self, g: u32, name: String, at: usize, block: &Block, codes: &mut BlockCodes) {
+        if sets_other_axes_only(g, block.words) {
+            // The offset's values, of axes no move here is read by: the frame of the
+            // moves, known or not, stays as it was.
+            codes.data = true;
+            return;
+        }
         if let Some(group) = group_of(g) {
             self.unknown[group as usize] = None;
         }
@@ -1564,7 +1583,10 @@ fn line_mask(src: &Source, parsed: &Parsed) -> u16 {
     for w in &parsed.words {
         match (w.letter, w.value) {
             (b'G', Value::Number(n)) => {
-                if let Some(g) = code(&n).and_then(group_of) {
+                if let Some(g) = code(&n)
+                    .filter(|g| !sets_other_axes_only(*g, &parsed.words))
+                    .and_then(group_of)
+                {
                     mask |= g.bit();
                 }
             }
