@@ -56,7 +56,8 @@ def test_a_krl_seam_in_the_frames_of_its_config_dat_matches_tablec(tablec, kr150
     assert cli_out.read_bytes() == done.output
     statuses = {t["name"]: t["status"] for t in done.targets}
     assert statuses["XP7"] == "frame_unknown" and statuses["XP8"] == "external_axis"
-    assert (done.summary["corrected"], done.summary["total"]) == (7, 9)
+    # The .src's LIN_REL and its two moves to $config.dat's XHOME are counted with them.
+    assert (done.summary["corrected"], done.summary["total"]) == (7, 12)
     # Without the configuration, the torch of TOOL_DATA[1] is named, not taken as the flange.
     bare = adwi.compensate_program(kr150_table, PROGRAMS / "seam.dat", robot=robot)
     assert [t for t in bare.targets if t["name"] == "XP1"][0]["detail"].startswith(
@@ -149,3 +150,34 @@ def test_refusals(kr150_table, tmp_path):
         adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", PROGRAMS / "targets.csv")
     with pytest.raises(adwi.AdwiError, match="format 'nosuch': one of krl, rapid, urscript, csv, gcode"):
         adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", format="nosuch")
+
+
+def test_fanuc_turn_axes_are_the_command_lines(tablec, kr150_table, tmp_path):
+    # J4 on its turn -1 on a controller whose turn axes are J1, J4, J6 (an R-2000iB's).
+    program = tmp_path / "branch.ls"
+    program.write_text(
+        "/PROG  BRANCH\n/ATTR\nOWNER\t\t= MNEDITOR;\n/MN\n   1:  UFRAME_NUM=0 ;\n"
+        "   2:  UTOOL_NUM=1 ;\n   3:L P[1] 100mm/sec FINE    ;\n/POS\nP[1]{\n   GP1:\n"
+        "\tUF : 0, UT : 1,\t\tCONFIG : 'F U T, 0, -1, 0',\n"
+        "\tX =   1750.000  mm,\tY =    450.000  mm,\tZ =   1250.000  mm,\n"
+        "\tW =       .000 deg,\tP =     90.000 deg,\tR =       .000 deg\n};\n/END\n"
+    )
+    robot = KR150 / "robot.toml"
+    tool = {1: [0, 0, 0, 0, 0, 0]}
+    default = adwi.compensate_program(kr150_table, program, robot=robot, fanuc_utools=tool)
+    assert default.targets[0]["status"] == "invalid"
+    assert default.targets[0]["detail"].startswith("turn number -1 of J5 (turn axes 4, 5, 6, the default")
+    done = adwi.compensate_program(
+        kr150_table, program, robot=robot, fanuc_utools=tool, fanuc_turn_axes=[1, 4, 6]
+    )
+    assert done.targets[0]["status"] == "ok", done.targets[0]["detail"]
+    out = tmp_path / "cli.ls"
+    subprocess.run(
+        [tablec, "compensate", kr150_table, program, "-o", out, "--robot", robot,
+         "--fanuc-utool", "1=0,0,0,0,0,0", "--fanuc-turn-axes", "1,4,6"],
+        check=True,
+        capture_output=True,
+    )
+    assert out.read_bytes() == done.output
+    with pytest.raises(adwi.AdwiError, match="^fanuc_turn_axes: turn axes 4,4,6: three distinct"):
+        adwi.compensate_program(kr150_table, program, robot=robot, fanuc_turn_axes=[4, 4, 6])
