@@ -345,25 +345,79 @@ fn ur5_hybrid_commands_land_on_their_targets_by_tablec_query() {
     }
 }
 
-/// The same arm described in MD-H and as URDF compensates a program alike: the URDF's
-/// flange is its `tool0`, where the controller's `set_tcp` starts, 82.3 mm beyond the last
-/// joint's frame, not that frame (which put every target's correction at a point 82.3 mm
-/// beyond the TCP).
+/// The same arm described in MD-H and as URDF compensates a program alike, whichever
+/// built the table: the URDF's flange is its `tool0`, where the controller's `set_tcp`
+/// starts, 82.3 mm beyond the last joint's frame, not that frame (which put every
+/// target's correction at a point 82.3 mm beyond the TCP); and a robot file takes the
+/// table's point where the table records it on the flange, whatever frame the table's
+/// chain ends in (a URDF whose last joint's frame lies 20 mm along its axis from the
+/// others' made the MD-H file "20.000000 mm apart at home", refused).
 #[test]
 fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
     let dir = tempfile::tempdir().unwrap();
     ur5_hybrid(dir.path());
-    let table = dir.path().join("ur5-hybrid.tbl");
-    let reports: Vec<Report> = ["robot.toml", "robot.urdf"]
-        .iter()
-        .map(|file| {
-            let robot = repo("tables/ur5").join(file);
-            run_job(&table, &fixture("pick.script"), &robot, |_| {})
+    build_ur5_hybrid(
+        dir.path(),
+        repo("tables/ur5/robot.urdf").to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5-hybrid-urdf.tbl",
+    );
+    // The same arm again, its last joint's frame 20 mm further along its axis and tool0
+    // 20 mm nearer: its chain ends where neither of the others does.
+    let urdf = std::fs::read_to_string(repo("tables/ur5/robot.urdf")).unwrap();
+    let moved = urdf
+        .replace(
+            r#"<origin xyz="0.0 0.0 0.09465" rpy="-1.5707963267948966 0.0 0.0"/>"#,
+            r#"<origin xyz="0.0 0.02 0.09465" rpy="-1.5707963267948966 0.0 0.0"/>"#,
+        )
+        .replace(
+            r#"<origin xyz="0.0 0.0 0.0823" rpy="0.0 0.0 0.0"/>"#,
+            r#"<origin xyz="0.0 0.0 0.0623" rpy="0.0 0.0 0.0"/>"#,
+        );
+    assert_eq!(
+        moved.matches("0.02 0.09465").count() + moved.matches("0.0623").count(),
+        2
+    );
+    let moved_path = dir.path().join("moved.urdf");
+    std::fs::write(&moved_path, moved).unwrap();
+    build_ur5_hybrid(
+        dir.path(),
+        moved_path.to_str().unwrap(),
+        &["--cell", "30"],
+        "ur5-hybrid-moved.tbl",
+    );
+    // The URDF gives no measured point: those tables' is the flange, 31 mm from the
+    // script's TCP, a lever their samples of position alone cannot turn.
+    for (built, beyond) in [
+        ("ur5-hybrid.tbl", false),
+        ("ur5-hybrid-urdf.tbl", true),
+        ("ur5-hybrid-moved.tbl", true),
+    ] {
+        let table = dir.path().join(built);
+        let robots = [
+            repo("tables/ur5/robot.toml"),
+            repo("tables/ur5/robot.urdf"),
+            moved_path.clone(),
+        ];
+        let reports: Vec<Report> = robots
+            .iter()
+            .map(|robot| {
+                run_job(&table, &fixture("pick.script"), &robot, |o| {
+                    o.limits.beyond_evidence = beyond;
+                })
                 .1
                 .report
-        })
-        .collect();
-    let (mdh, urdf) = (&reports[0], &reports[1]);
+            })
+            .collect();
+        for other in &reports[1..] {
+            same_commands(&reports[0], other);
+        }
+    }
+}
+
+/// Two compensations of one program: the same statuses, commands to 1e-6 mm and joints
+/// to 1e-9; seven corrected.
+fn same_commands(mdh: &Report, urdf: &Report) {
     assert_eq!(mdh.summary().corrected, 7, "{}", mdh.summary());
     assert_eq!(mdh.targets.len(), urdf.targets.len());
     for (a, b) in mdh.targets.iter().zip(&urdf.targets) {

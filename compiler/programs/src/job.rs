@@ -2281,31 +2281,60 @@ fn kinematics(
                             chain.joint_count()
                         )));
                     }
-                    // Where the flange is in the robot's last frame: its chain's tool less
-                    // its own tool.
+                    // The table's point on the robot file's flange: the option's; else
+                    // the point the table records in its flange (format version 4 on),
+                    // whatever frame its chain ends in (a URDF's last joint, an MD-H
+                    // file's flange), or the table's chain's tool less the flange's place
+                    // in the robot's last frame (its chain's tool less its own tool), for
+                    // a table that records none or, built from a URDF before the
+                    // controller's flange, records it in the last joint's frame. The
+                    // first that makes the robot file the table's nominal robot is taken.
                     let flange_in_end = iso(&robot.chain().tool) * iso(&robot.tool()).inverse();
-                    let table_tool = flag.unwrap_or_else(|| flange_in_end.inverse() * point_in_end);
-                    let robot = robot
-                        .with_parts(
-                            robot.name.clone(),
-                            robot.base(),
-                            transform(&table_tool),
-                            robot.home().to_vec(),
+                    let recorded = table.header().evidence.point_in_flange.map(|p| {
+                        Isometry3::new(
+                            Vector3::from(p.translation_mm),
+                            Vector3::from(p.rotation_rad),
                         )
-                        .map_err(|e| robot_error(e.to_string()))?;
-                    // The robot file must be the table's nominal robot.
-                    let home = robot.home().to_vec();
-                    let a = iso(&robot.chain().tcp_pose(&home).expect("one value per joint"));
-                    let b = iso(&chain.tcp_pose(&home).expect("same joint count"));
-                    let gap = (a.translation.vector - b.translation.vector).norm();
-                    if gap > 1e-6
-                        || angle_between(
+                    });
+                    let candidates: Vec<Isometry3<f64>> = match flag {
+                        Some(t) => vec![t],
+                        None => recorded
+                            .into_iter()
+                            .chain([flange_in_end.inverse() * point_in_end])
+                            .collect(),
+                    };
+                    let mut nearest: Option<f64> = None;
+                    let mut found = None;
+                    for table_tool in candidates {
+                        let placed = robot
+                            .with_parts(
+                                robot.name.clone(),
+                                robot.base(),
+                                transform(&table_tool),
+                                robot.home().to_vec(),
+                            )
+                            .map_err(|e| robot_error(e.to_string()))?;
+                        // The robot file must be the table's nominal robot.
+                        let home = placed.home().to_vec();
+                        let a = iso(&placed.chain().tcp_pose(&home).expect("one value per joint"));
+                        let b = iso(&chain.tcp_pose(&home).expect("same joint count"));
+                        let gap = (a.translation.vector - b.translation.vector).norm();
+                        let turn = angle_between(
                             &a.rotation.to_rotation_matrix(),
                             &b.rotation.to_rotation_matrix(),
-                        ) > 1e-9
-                    {
-                        return Err(robot_error(format!("it is not the table's nominal robot with the table's point as its tool: {gap:.6} mm apart at home")));
+                        );
+                        if gap <= 1e-6 && turn <= 1e-9 {
+                            found = Some((placed, table_tool));
+                            break;
+                        }
+                        nearest = Some(nearest.map_or(gap, |n: f64| n.min(gap)));
                     }
+                    let Some((robot, table_tool)) = found else {
+                        return Err(robot_error(format!(
+                            "it is not the table's nominal robot with the table's point as its tool: {:.6} mm apart at home",
+                            nearest.unwrap_or(f64::NAN)
+                        )));
+                    };
                     (robot, Some(table_tool))
                 }
                 None => {
