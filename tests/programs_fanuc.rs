@@ -66,11 +66,13 @@ fn query(dir: &Path, table: &Path, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
     rows
 }
 
-/// The job on a fixture with the KR150-2 robot and the frame file.
+/// The job on a fixture with the KR150-2 robot and the frame file; the fixtures' joint
+/// positions count J3 as its robot file does (`--fanuc-j23 0`).
 fn job(table: &Path, program: &Path) -> (CompensateJob, Compensated) {
     let mut options = CompensateOptions::new(table, program);
     options.robot = Some(robot());
     options.fanuc.frames_file = Some(frames_file());
+    options.fanuc_j23 = Some(0.0);
     let job = CompensateJob::new(options).unwrap();
     let done = job.run().unwrap();
     (job, done)
@@ -111,6 +113,8 @@ fn a_table_that_corrects_nothing_reproduces_fanuc_programs_byte_for_byte() {
                 out.to_str().unwrap(),
                 "--robot",
                 robot().to_str().unwrap(),
+                "--fanuc-j23",
+                "0",
                 "--fanuc-frames",
                 frames_file().to_str().unwrap(),
             ],
@@ -214,6 +218,8 @@ fn every_fanuc_motion_and_position_is_accounted_for_by_name() {
             "out.ls",
             "--robot",
             robot().to_str().unwrap(),
+            "--fanuc-j23",
+            "0",
             "--fanuc-frames",
             frames_file().to_str().unwrap(),
             "--report",
@@ -344,6 +350,8 @@ fn a_frame_not_given_is_named_and_the_options_stand_before_the_frame_file() {
             "out.ls",
             "--robot",
             kr150.to_str().unwrap(),
+            "--fanuc-j23",
+            "0",
             "--report",
             "r.csv",
             "-q",
@@ -636,4 +644,72 @@ fn turn_numbers_are_of_the_joints_the_controllers_turn_axes_name() {
             "{stderr}"
         );
     }
+}
+
+/// A joint position with J3 as the pendant counts it: `--fanuc-j23 K` reads J3 as the
+/// robot file's J3 + K·J2 and writes it back so. The home position written with K = 1 (J3
+/// + J2) is corrected to the same posture as written the robot file's way with K = 0, its
+/// J3 written back coupled; without the option it is refused, naming it.
+#[test]
+fn a_fanuc_joint_positions_j3_is_read_and_written_as_the_pendant_counts_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let table = kr150_table(d);
+    let q = [13.846, -73.539, 117.165, 19.659, -45.347, -14.094];
+    let program = |name: &str, j3: f64| {
+        let path = d.join(name);
+        std::fs::write(
+            &path,
+            format!(
+                "/PROG  HOME\n/ATTR\nOWNER\t\t= MNEDITOR;\n/MN\n   1:J P[1] 100% FINE    ;\n/POS\nP[1]{{\n   GP1:\n\tUF : 0, UT : 1,\n\
+                 \tJ1= {:.3} deg,\tJ2= {:.3} deg,\tJ3= {j3:.3} deg,\n\tJ4= {:.3} deg,\tJ5= {:.3} deg,\tJ6= {:.3} deg\n}};\n/END\n",
+                q[0], q[1], q[3], q[4], q[5]
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let as_file = program("file.ls", q[2]);
+    let as_pendant = program("pendant.ls", q[2] + q[1]);
+    let run = |path: &Path, j23: Option<f64>| {
+        let mut o = CompensateOptions::new(&table, path);
+        o.robot = Some(robot());
+        o.fanuc.frames_file = Some(frames_file());
+        o.fanuc_j23 = j23;
+        let done = CompensateJob::new(o).unwrap().run().unwrap();
+        (
+            done.report.targets[0].clone(),
+            String::from_utf8(done.output).unwrap(),
+        )
+    };
+    let (refused, _) = run(&as_pendant, None);
+    assert_eq!(refused.status.as_str(), "invalid", "{}", refused.detail);
+    assert!(
+        refused.detail.contains("give --fanuc-j23 1"),
+        "{}",
+        refused.detail
+    );
+    let (file, file_out) = run(&as_file, Some(0.0));
+    let (pendant, pendant_out) = run(&as_pendant, Some(1.0));
+    assert_eq!(file.status.as_str(), "ok", "{}", file.detail);
+    assert_eq!(pendant.status.as_str(), "ok", "{}", pendant.detail);
+    // The same command, J3 written back as each program counts it.
+    let joints = |text: &str| -> Vec<f64> {
+        (1..=6)
+            .filter_map(|k| {
+                let (_, after) = text.split_once(&format!("J{k}="))?;
+                after.split_whitespace().next()?.parse().ok()
+            })
+            .collect()
+    };
+    let (a, b) = (joints(&file_out), joints(&pendant_out));
+    assert_eq!((a.len(), b.len()), (6, 6), "{file_out}\n{pendant_out}");
+    for i in [0, 1, 3, 4, 5] {
+        assert!((a[i] - b[i]).abs() < 1e-5, "J{}: {a:?} {b:?}", i + 1);
+    }
+    assert!((b[2] - (a[2] + a[1])).abs() < 1e-5, "{a:?} {b:?}");
+    assert!(
+        (a[2] - q[2]).abs() > 1e-3,
+        "the position was corrected: {a:?}"
+    );
 }

@@ -759,6 +759,7 @@ def compensate_program(
     fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_frames: Optional[Union[str, os.PathLike]] = None,
     fanuc_turn_axes: Optional[Sequence[int]] = None,
+    fanuc_j23: Optional[float] = None,
     yaskawa_tools: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_users: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_pulses_per_deg: Optional[Sequence[float]] = None,
@@ -783,7 +784,11 @@ def compensate_program(
     ``--fanuc-uframe``, ``--fanuc-utool``, ``--fanuc-frames``); ``fanuc_turn_axes`` the
     joints of a ``CONFIG``'s three turn numbers, ``[1, 4, 6]`` on an R-2000iB, as the
     controller's ``$SCR_GRP[1].$TURN_AXIS`` gives them (default: a frame file's holding
-    it, such as ``SYMOTN.VA``, else ``[4, 5, 6]``; tablec's ``--fanuc-turn-axes``). ``yaskawa_tools``,
+    it, such as ``SYMOTN.VA``, else ``[4, 5, 6]``; tablec's ``--fanuc-turn-axes``);
+    ``fanuc_j23`` how the pendant counts J3 in a joint position, J3 = the robot file's J3 +
+    ``fanuc_j23`` · J2 (1 where it counts J3 from the horizontal and the robot file from the
+    upper arm, 0 where both count alike; without it Fanuc joint positions are refused;
+    tablec's ``--fanuc-j23``). ``yaskawa_tools``,
     ``yaskawa_users``: a Yaskawa job's tool files and user frames by number, ``{n: [X, Y, Z,
     Rx, Ry, Rz]}`` (mm, degrees about the fixed x, y, z), and ``yaskawa_pulses_per_deg`` its
     axes' encoder pulses per degree (tablec's ``--yaskawa-tool``, ``--yaskawa-user``,
@@ -821,6 +826,7 @@ def compensate_program(
         fanuc_turn_axes=None
         if fanuc_turn_axes is None
         else [int(j) for j in fanuc_turn_axes],
+        fanuc_j23=None if fanuc_j23 is None else float(fanuc_j23),
         yaskawa_tools=None
         if yaskawa_tools is None
         else {int(n): frame(f) for n, f in yaskawa_tools.items()},

@@ -394,6 +394,7 @@ def compensate_program(
     fanuc_utools: Optional[Dict[int, Sequence[float]]] = None,
     fanuc_frames: Optional[PathLike] = None,
     fanuc_turn_axes: Optional[Sequence[int]] = None,
+    fanuc_j23: Optional[float] = None,
     yaskawa_tools: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_users: Optional[Dict[int, Sequence[float]]] = None,
     yaskawa_pulses_per_deg: Optional[Sequence[float]] = None,

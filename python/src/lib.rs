@@ -902,7 +902,7 @@ impl Table {
 /// every target, and writes `output` (and `report`, as CSV) atomically when given.
 /// Returns (the compensated program's bytes, one dict per target, the summary dict).
 #[pyfunction]
-#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, flange_link=None, tool=None, base=None, table_tool=None, max_correction_mm=compensate::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=compensate::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=compensate::DEFAULT_MAX_SECONDS, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, fanuc_turn_axes=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
+#[pyo3(signature = (table, program, output=None, report=None, format=None, robot=None, base_link=None, tip_link=None, flange_link=None, tool=None, base=None, table_tool=None, max_correction_mm=compensate::DEFAULT_MAX_CORRECTION_MM, max_joint_change_deg=compensate::DEFAULT_MAX_JOINT_CHANGE_DEG, strict=false, max_seconds=compensate::DEFAULT_MAX_SECONDS, beyond_evidence=false, krl_config=None, fanuc_uframes=None, fanuc_utools=None, fanuc_frames=None, fanuc_turn_axes=None, fanuc_j23=None, yaskawa_tools=None, yaskawa_users=None, yaskawa_pulses_per_deg=None))]
 #[allow(clippy::too_many_arguments)]
 fn compensate_program<'py>(
     py: Python<'py>,
@@ -928,6 +928,7 @@ fn compensate_program<'py>(
     fanuc_utools: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
     fanuc_frames: Option<PathBuf>,
     fanuc_turn_axes: Option<Vec<i64>>,
+    fanuc_j23: Option<f64>,
     yaskawa_tools: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
     yaskawa_users: Option<std::collections::BTreeMap<u16, [f64; 6]>>,
     yaskawa_pulses_per_deg: Option<Vec<f64>>,
@@ -972,6 +973,7 @@ fn compensate_program<'py>(
                 .map_err(|e| AdwiError::new_err(format!("fanuc_turn_axes: {e}")))
         })
         .transpose()?;
+    args.fanuc_j23 = fanuc_j23;
     // Yaskawa tool files and user frames by number, X, Y, Z, Rx, Ry, Rz (mm, degrees), and
     // the axes' pulses per degree.
     args.yaskawa_tool = yaskawa_tools.unwrap_or_default().into_iter().collect();

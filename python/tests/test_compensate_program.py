@@ -181,3 +181,29 @@ def test_fanuc_turn_axes_are_the_command_lines(tablec, kr150_table, tmp_path):
     assert out.read_bytes() == done.output
     with pytest.raises(adwi.AdwiError, match="^fanuc_turn_axes: turn axes 4,4,6: three distinct"):
         adwi.compensate_program(kr150_table, program, robot=robot, fanuc_turn_axes=[4, 4, 6])
+
+
+def test_fanuc_j23_is_the_command_lines(tablec, kr150_table, tmp_path):
+    program = tmp_path / "home.ls"
+    program.write_text(
+        "/PROG  HOME\n/ATTR\nOWNER\t\t= MNEDITOR;\n/MN\n   1:J P[1] 100% FINE    ;\n/POS\nP[1]{\n"
+        "   GP1:\n\tUF : 0, UT : 1,\n\tJ1= 13.846 deg,\tJ2= -73.539 deg,\tJ3= 43.626 deg,\n"
+        "\tJ4= 19.659 deg,\tJ5= -45.347 deg,\tJ6= -14.094 deg\n};\n/END\n"
+    )
+    robot = KR150 / "robot.toml"
+    tool = {1: [0, 0, 0, 0, 0, 0]}
+    refused = adwi.compensate_program(kr150_table, program, robot=robot, fanuc_utools=tool)
+    assert refused.targets[0]["status"] == "invalid"
+    assert "give --fanuc-j23 1" in refused.targets[0]["detail"]
+    done = adwi.compensate_program(kr150_table, program, robot=robot, fanuc_utools=tool, fanuc_j23=1)
+    assert done.targets[0]["status"] == "ok", done.targets[0]["detail"]
+    out = tmp_path / "cli.ls"
+    subprocess.run(
+        [tablec, "compensate", kr150_table, program, "-o", out, "--robot", robot,
+         "--fanuc-utool", "1=0,0,0,0,0,0", "--fanuc-j23", "1"],
+        check=True,
+        capture_output=True,
+    )
+    assert out.read_bytes() == done.output
+    with pytest.raises(adwi.AdwiError, match="J2/J3 factor must be a number from -2 to 2"):
+        adwi.compensate_program(kr150_table, program, robot=robot, fanuc_j23=float("nan"))

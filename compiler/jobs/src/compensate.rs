@@ -121,6 +121,12 @@ pub struct CompensateArgs {
     /// 4,5,6 on many LR Mates [default: the frame file's, else 4,5,6].
     #[arg(long, value_name = "J,J,J", value_parser = adwi_programs::fanuc::parse_turn_axes)]
     pub fanuc_turn_axes: Option<[u8; 3]>,
+    /// Fanuc: how the pendant counts J3 in a joint position, J3 = the robot file's J3 + K·J2:
+    /// 1 where it counts J3 from the horizontal (the J2/J3 interaction of most Fanuc arms)
+    /// and the robot file from the upper arm (a ROS-Industrial URDF, any MD-H file), 0
+    /// where both count alike [default: joint positions refused until it is given].
+    #[arg(long, value_name = "K", allow_hyphen_values = true)]
+    pub fanuc_j23: Option<f64>,
     /// Refuse (leave unchanged, report) a correction larger than this, mm.
     #[arg(long, default_value_t = DEFAULT_MAX_CORRECTION_MM)]
     pub max_correction_mm: f64,
@@ -171,6 +177,7 @@ impl CompensateArgs {
             fanuc_utool: Vec::new(),
             fanuc_frames: None,
             fanuc_turn_axes: None,
+            fanuc_j23: None,
             max_correction_mm: DEFAULT_MAX_CORRECTION_MM,
             max_joint_change_deg: DEFAULT_MAX_JOINT_CHANGE_DEG,
             strict: false,
@@ -232,6 +239,7 @@ impl CompensateArgs {
             frames_file: self.fanuc_frames,
         };
         options.fanuc_turn_axes = self.fanuc_turn_axes;
+        options.fanuc_j23 = self.fanuc_j23;
         options
             .check()
             .map_err(|e| JobError::Options(e.to_string()))?;
@@ -364,7 +372,7 @@ mod tests {
     #[test]
     fn every_option_is_refused_before_any_file_is_read() {
         type Change = Box<dyn FnOnce(&mut CompensateArgs)>;
-        let cases: [(&str, Change); 9] = [
+        let cases: [(&str, Change); 10] = [
             ("max_correction_mm", Box::new(|a| a.max_correction_mm = 0.0)),
             (
                 "max_joint_change_deg",
@@ -388,6 +396,10 @@ mod tests {
             (
                 "turn axes 4,4,6: three distinct joint numbers",
                 Box::new(|a| a.fanuc_turn_axes = Some([4, 4, 6])),
+            ),
+            (
+                "the Fanuc J2/J3 factor must be a number from -2 to 2",
+                Box::new(|a| a.fanuc_j23 = Some(f64::NAN)),
             ),
         ];
         for (said, change) in cases {

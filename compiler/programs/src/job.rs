@@ -66,6 +66,12 @@ pub struct CompensateOptions {
     /// The joints of a Fanuc CONFIG's three turn numbers, 1 for J1 (the controller's
     /// `$SCR_GRP[1].$TURN_AXIS`); `None`: the frame file's, else J4, J5, J6.
     pub fanuc_turn_axes: Option<[u8; 3]>,
+    /// How a Fanuc pendant counts J3: the J3 it writes is the robot file's J3 plus this
+    /// times J2 (1 where it counts J3 from the horizontal, the J2/J3 interaction of most
+    /// Fanuc arms, and the robot file from the upper arm, as a ROS-Industrial URDF and
+    /// every MD-H file do; 0 where both count alike). `None`: not said, and a Fanuc joint
+    /// position is refused rather than read one way or the other.
+    pub fanuc_j23: Option<f64>,
 }
 
 /// The default bound of a job's memory: 4 GiB, some two million targets.
@@ -115,6 +121,7 @@ impl CompensateOptions {
             yaskawa: crate::yaskawa::YaskawaOptions::default(),
             fanuc: crate::fanuc::FanucOptions::default(),
             fanuc_turn_axes: None,
+            fanuc_j23: None,
         }
     }
 }
@@ -180,6 +187,13 @@ impl CompensateOptions {
         }
         if let Some(axes) = &o.fanuc_turn_axes {
             crate::fanuc::check_turn_axes(axes).map_err(Error::Option)?;
+        }
+        if o.fanuc_j23
+            .is_some_and(|k| !(k.is_finite() && k.abs() <= 2.0))
+        {
+            return Err(Error::Option(
+                "the Fanuc J2/J3 factor must be a number from -2 to 2 (1: the pendant counts J3 from the horizontal, 0: as the robot file)".into(),
+            ));
         }
         if o.max_seconds.is_nan() || o.max_seconds <= 0.0 {
             return Err(Error::Option("max_seconds must be positive".into()));
@@ -868,7 +882,9 @@ impl CompensateJob {
                 ))
             }
         };
-        let q = joint_values_in(Some(k.robot()), &j.joints, j.unit);
+        let mut q = joint_values_in(Some(k.robot()), &j.joints, j.unit);
+        let j23 = self.fanuc_j23(k)?;
+        q[2] -= j23 * q[1];
         let point = k.forward(&q).expect("one value per joint");
         let posture = Posture {
             configuration: k.configuration(&q),
@@ -888,7 +904,11 @@ impl CompensateJob {
                 lever_mm,
             },
         )?;
-        let qc = command.joints.clone().unwrap_or_else(|| q.clone());
+        let mut qc = command.joints.clone().unwrap_or_else(|| q.clone());
+        // Written back as the pendant counts J3.
+        if j23 != 0.0 {
+            qc[2] += j23 * qc[1];
+        }
         let moved = (command.point.translation.vector - point.translation.vector).norm();
         let turned = angle_between(
             &command.point.rotation.to_rotation_matrix(),
@@ -925,6 +945,30 @@ impl CompensateJob {
                 .map(|e| crate::staubli::inserted(e, &crate::staubli::joint_name(i))),
             })
             .collect())
+    }
+}
+
+impl CompensateJob {
+    /// The factor a Fanuc joint position's J3 is written with (`J3 = J3_file + k·J2`),
+    /// zero for the other dialects; a Fanuc joint position without it is refused, since
+    /// either reading is confidently wrong for half the robot files (on an LR Mate read
+    /// through a ROS-Industrial URDF as written, 0.095 mm mean where 0.004 mm was due).
+    fn fanuc_j23(&self, k: &Kinematics) -> Result<f64, correct::Failure> {
+        if self.program.format != Format::Fanuc || k.robot().joint_count() < 3 {
+            return Ok(0.0);
+        }
+        let revolute = (1..3).all(|i| k.robot().joint_kind(i) == JointKind::Revolute);
+        match self.options.fanuc_j23 {
+            Some(k) if revolute || k == 0.0 => Ok(k),
+            Some(_) => Err((
+                TargetStatus::Invalid,
+                "--fanuc-j23 couples J3 with J2, and one of them is prismatic".into(),
+            )),
+            None => Err((
+                TargetStatus::Invalid,
+                "a Fanuc pendant counts J3 from the horizontal on most arms (the J2/J3 interaction), a robot file from the upper arm: give --fanuc-j23 1 if it does so here (a ROS-Industrial URDF, any MD-H file), --fanuc-j23 0 if both count J3 alike".into(),
+            )),
+        }
     }
 }
 
