@@ -1452,9 +1452,23 @@ impl FrameFields<'_, '_> {
             .collect();
         if cartesian.iter().all(Option::is_none) {
             if joints.is_empty() {
-                return target(TargetKind::Incomplete(
-                    "neither X, Y, Z, W, P, R nor J1… written".into(),
-                ));
+                // Name what is written instead (a pendant's `RX =`, `KONFIG`), so that the
+                // reason is not taken for a position left empty.
+                let known = ["UF", "UT", "CONFIG"];
+                let others: Vec<&str> = fields
+                    .iter()
+                    .map(|f| f.name.as_str())
+                    .filter(|n| !known.contains(n))
+                    .collect();
+                let why = if others.is_empty() {
+                    "neither X, Y, Z, W, P, R nor J1… written".to_string()
+                } else {
+                    format!(
+                        "written as {}, which this reader does not read (it reads X, Y, Z, W, P, R or J1…)",
+                        others.join(", ")
+                    )
+                };
+                return target(TargetKind::Incomplete(why));
             }
             let kind = TargetKind::Joints(JointTarget {
                 joints,
@@ -1743,6 +1757,32 @@ mod tests {
         assert_eq!(
             p2.uses[0].unknown,
             ["user frame 1 is set as the program runs (5:8)"]
+        );
+    }
+
+    /// A position whose coordinates are written under labels the reader does not read (a
+    /// pendant's `RX =` … `RR =`) is incomplete, naming them; one with nothing written says
+    /// so.
+    #[test]
+    fn coordinates_under_labels_not_read_are_named() {
+        let labelled = program("", &["L P[1] 100mm/sec FINE"], 1)
+            .replace("\tX =", "\tRX =")
+            .replace("\tY =", "\tRY =")
+            .replace("\tZ =", "\tRZ =")
+            .replace("\tW =", "\tRW =")
+            .replace("\tP =", "\tRP =")
+            .replace("\tR =", "\tRR =");
+        let seen = statuses(&labelled);
+        assert_eq!(seen[0].1, "incomplete", "{seen:?}");
+        assert_eq!(
+            seen[0].2,
+            "written as RX, RY, RZ, RW, RP, RR, which this reader does not read (it reads X, Y, Z, W, P, R or J1…)"
+        );
+        let empty = "/PROG  T\n/MN\n   1:L P[1] 100mm/sec FINE ;\n/POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 1,\n};\n/END\n";
+        let seen = statuses(empty);
+        assert_eq!(
+            seen[0].2, "neither X, Y, Z, W, P, R nor J1… written",
+            "{seen:?}"
         );
     }
 
