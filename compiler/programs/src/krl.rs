@@ -304,22 +304,31 @@ fn merge_partner(src: &Source, partner: &Source, context: &Context, scan: &mut S
     }
     for mut t in other.partner_targets {
         let (line, column) = partner.location(t.offset);
-        t.refused = Some(match t.refused.take() {
+        let place = format!("{}:{line}:{column}", partner.name);
+        match (t.refused.take(), &t.kind) {
             // A motion the partner moves without a target here (`LIN_REL`, a target
             // computed as it runs): what no run corrects is said in this one's report.
-            Some(Refusal { reason, detail }) if matches!(t.kind, TargetKind::Motion) => Refusal::new(
-                reason,
-                format!("{detail} (written at {}:{line}:{column})", partner.name),
-            ),
-            _ => Refusal::new(
-                Reason::NotMoved,
-                format!(
-                    "{} written at {}:{line}:{column}: a target of that file, left as written here; compensate {} for it",
-                    t.name, partner.name, partner.name
-                ),
-            ),
-        });
-        t.kind = TargetKind::Motion;
+            (Some(Refusal { reason, detail }), TargetKind::Motion) => {
+                t.refused = Some(Refusal::new(
+                    reason,
+                    format!("{detail} (written at {place})"),
+                ));
+            }
+            // An inline target the partner writes in part: its own reason, said there.
+            (None, TargetKind::Incomplete(why)) => {
+                t.kind = TargetKind::Incomplete(format!("{why} (written at {place})"));
+            }
+            _ => {
+                t.refused = Some(Refusal::new(
+                    Reason::NotMoved,
+                    format!(
+                        "{} written at {place}: a target of that file, left as written here; compensate {} for it",
+                        t.name, partner.name
+                    ),
+                ));
+                t.kind = TargetKind::Motion;
+            }
+        }
         t.uses.clear();
         t.offset = src.bytes.len();
         scan.targets.push((t, None, None));
@@ -2862,5 +2871,12 @@ mod tests {
             p.targets[2].refused.as_ref().unwrap().detail,
             "LIN_REL: an offset from where the robot stands when it runs (written at cell.src:5:3)"
         );
+        // An inline target written in part is incomplete here as there, not sent there.
+        let p = pair(&["XP9"], &src.replace("LIN_REL {X -30.0}", "LIN {Z 900}"));
+        let TargetKind::Incomplete(why) = &p.targets[2].kind else {
+            panic!("{:?}", p.targets[2]);
+        };
+        assert!(p.targets[2].refused.is_none());
+        assert!(why.ends_with("(written at cell.src:5:7)"), "{why}");
     }
 }
