@@ -417,8 +417,8 @@ fn check_evidence<D: AsRef<[u8]>>(
     if command.evidence.is_within() || carried || limits.beyond_evidence {
         return Ok(());
     }
-    // Every reason the answer carries, the TCP's first: on a hybrid table it is the one
-    // that refuses (its model carries an orientation its samples never had).
+    // Every reason the answer carries that refuses it: on a hybrid table the TCP's alone
+    // (its model carries an orientation or joint angles its samples never had).
     let reasons: Vec<&str> = [
         (
             Evidence::TCP,
@@ -428,7 +428,9 @@ fn check_evidence<D: AsRef<[u8]>>(
         (Evidence::JOINTS, "joint angle for its joint terms"),
     ]
     .into_iter()
-    .filter(|(flag, _)| command.evidence.contains(*flag))
+    .filter(|(flag, _)| {
+        command.evidence.contains(*flag) && (*flag == Evidence::TCP || !table.is_hybrid())
+    })
     .map(|(_, why)| why)
     .collect();
     Err((
