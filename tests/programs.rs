@@ -415,6 +415,48 @@ fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
     }
 }
 
+/// A robot file that is not the table's nominal robot is refused before any target is
+/// read, with how far apart the two are at home: a link 1 mm longer, or the last joint's
+/// zero turned 0.001° (which moves no point of its axis: "0.000000 mm apart" alone said
+/// they agree).
+#[test]
+fn a_robot_file_that_is_not_the_tables_robot_is_refused_with_the_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::kr150_hybrid_table(dir.path());
+    let original = std::fs::read_to_string(repo("tables/kr150-2/robot.toml")).unwrap();
+    let lines: Vec<&str> = original.lines().collect();
+    let changed = |line: usize, text: &str, name: &str| {
+        let mut l = lines.clone();
+        l[line - 1] = text;
+        let path = dir.path().join(name);
+        std::fs::write(&path, l.join("\n") + "\n").unwrap();
+        path
+    };
+    for (robot, said) in [
+        (
+            changed(33, "a_mm = 1251.0", "longer.toml"),
+            "1.000000 mm and 0.000000° apart at home",
+        ),
+        (
+            changed(69, "theta_offset_deg = 0.001", "turned.toml"),
+            "0.000000 mm and 0.001000° apart at home",
+        ),
+    ] {
+        let mut o = CompensateOptions::new(&table, fixture("seam.mod"));
+        o.robot = Some(robot);
+        let Err(e) = CompensateJob::new(o) else {
+            panic!("accepted");
+        };
+        let message = e.to_string();
+        assert!(
+            message
+                .contains("it is not the table's nominal robot with the table's point as its tool")
+                && message.ends_with(said),
+            "{message}"
+        );
+    }
+}
+
 /// Two compensations of one program: the same statuses, commands to 1e-6 mm and joints
 /// to 1e-9; seven corrected.
 fn same_commands(mdh: &Report, urdf: &Report) {

@@ -2326,13 +2326,12 @@ fn kinematics(
                         )));
                     }
                     // The table's point on the robot file's flange: the option's; else
-                    // the point the table records in its flange (format version 4 on),
-                    // whatever frame its chain ends in (a URDF's last joint, an MD-H
-                    // file's flange), or the table's chain's tool less the flange's place
-                    // in the robot's last frame (its chain's tool less its own tool), for
-                    // a table that records none or, built from a URDF before the
-                    // controller's flange, records it in the last joint's frame. The
-                    // first that makes the robot file the table's nominal robot is taken.
+                    // the table's chain's tool less the flange's place in the robot's last
+                    // frame (its chain's tool less its own tool), exact where the two
+                    // chains end in the same frame, or the point the table records in its
+                    // flange (format version 4 on, to the digits it keeps), where they do
+                    // not (a URDF's last joint against an MD-H file's flange). The first
+                    // that makes the robot file the table's nominal robot is taken.
                     let flange_in_end = iso(&robot.chain().tool) * iso(&robot.tool()).inverse();
                     let recorded = table.header().evidence.point_in_flange.map(|p| {
                         Isometry3::new(
@@ -2342,12 +2341,12 @@ fn kinematics(
                     });
                     let candidates: Vec<Isometry3<f64>> = match flag {
                         Some(t) => vec![t],
-                        None => recorded
+                        None => [flange_in_end.inverse() * point_in_end]
                             .into_iter()
-                            .chain([flange_in_end.inverse() * point_in_end])
+                            .chain(recorded)
                             .collect(),
                     };
-                    let mut nearest: Option<f64> = None;
+                    let mut nearest: Option<(f64, f64)> = None;
                     let mut found = None;
                     for table_tool in candidates {
                         let placed = robot
@@ -2371,12 +2370,15 @@ fn kinematics(
                             found = Some((placed, table_tool));
                             break;
                         }
-                        nearest = Some(nearest.map_or(gap, |n: f64| n.min(gap)));
+                        if nearest.is_none_or(|(g, _)| gap < g) {
+                            nearest = Some((gap, turn));
+                        }
                     }
                     let Some((robot, table_tool)) = found else {
+                        let (gap, turn) = nearest.unwrap_or((f64::NAN, f64::NAN));
                         return Err(robot_error(format!(
-                            "it is not the table's nominal robot with the table's point as its tool: {:.6} mm apart at home",
-                            nearest.unwrap_or(f64::NAN)
+                            "it is not the table's nominal robot with the table's point as its tool: {gap:.6} mm and {:.6}° apart at home",
+                            turn.to_degrees()
                         )));
                     };
                     (robot, Some(table_tool))
