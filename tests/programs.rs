@@ -402,7 +402,7 @@ fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
         let reports: Vec<Report> = robots
             .iter()
             .map(|robot| {
-                run_job(&table, &fixture("pick.script"), &robot, |o| {
+                run_job(&table, &fixture("pick.script"), robot, |o| {
                     o.limits.beyond_evidence = beyond;
                 })
                 .1

@@ -647,9 +647,9 @@ fn turn_numbers_are_of_the_joints_the_controllers_turn_axes_name() {
 }
 
 /// A joint position with J3 as the pendant counts it: `--fanuc-j23 K` reads J3 as the
-/// robot file's J3 + K·J2 and writes it back so. The home position written with K = 1 (J3
-/// + J2) is corrected to the same posture as written the robot file's way with K = 0, its
-/// J3 written back coupled; without the option it is refused, naming it.
+/// robot file's J3 + K·J2 and writes it back so. The home position written with K = 1
+/// (J3 plus J2) is corrected to the same posture as written the robot file's way with
+/// K = 0, its J3 written back coupled; without the option it is refused, naming it.
 #[test]
 fn a_fanuc_joint_positions_j3_is_read_and_written_as_the_pendant_counts_it() {
     let dir = tempfile::tempdir().unwrap();
