@@ -1636,3 +1636,62 @@ fn a_krl_status_or_rapid_robconf_a_robot_cannot_keep_is_named() {
         );
     }
 }
+
+/// Targets whose wrist is at its singularity (J5 at 0° and a billionth of a degree either
+/// side) in a written configuration: where no posture in it reaches the target or its
+/// command, one in the other wrist configuration does, and the refusal says so, with J5,
+/// rather than only that no posture reaches it.
+#[test]
+fn a_command_across_the_wrist_singularity_is_refused_naming_it() {
+    use adwi_robot::{InverseKinematics, Robot};
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::kr150_hybrid_table(dir.path());
+    let robot = Robot::load(kr150_robot()).unwrap();
+    let ik = InverseKinematics::new(&robot).unwrap();
+    let mut rows = String::from("name,x,y,z,a,b,c,config\n");
+    for (k, j5_deg) in [0.0, 1e-9, -1e-9].into_iter().enumerate() {
+        let q = [0.2, -1.4, 1.6, 0.3, f64::to_radians(j5_deg), 0.2];
+        let pose = robot.tcp_pose(&q);
+        let config = ik
+            .solve(&pose)
+            .into_iter()
+            .min_by(|a, b| {
+                let d = |s: &[f64; 6]| s.iter().zip(&q).map(|(x, y)| (x - y).powi(2)).sum::<f64>();
+                d(&a.q_rad).total_cmp(&d(&b.q_rad))
+            })
+            .unwrap()
+            .config;
+        let abc =
+            adwi_samples::pose::kuka_abc_deg_from_rotation(&pose.rotation.to_rotation_matrix());
+        let p = pose.translation.vector;
+        rows += &format!(
+            "P{k},{},{},{},{},{},{},{}\n",
+            p.x,
+            p.y,
+            p.z,
+            abc[0],
+            abc[1],
+            abc[2],
+            config.bits()
+        );
+    }
+    let program = dir.path().join("wrist.csv");
+    std::fs::write(&program, rows).unwrap();
+    let (_, done) = run_job(&table, &program, &kr150_robot(), |_| {});
+    let refused: Vec<&adwi_programs::TargetLine> = done
+        .report
+        .targets
+        .iter()
+        .filter(|t| t.status.as_str() == "ik_failed")
+        .collect();
+    assert!(!refused.is_empty(), "{}", done.report.summary());
+    for t in refused {
+        assert!(
+            t.detail.contains(
+                "configuration: one reaches it across the wrist's (J5 through 0°, axes 4 and 6 aligned) singularity"
+            ),
+            "{}",
+            t.detail
+        );
+    }
+}

@@ -204,7 +204,7 @@ impl Kinematics {
         let q = self.inverse(pose, posture, near).ok_or_else(|| {
             (
                 TargetStatus::IkFailed,
-                "no posture reaches the command in the target's configuration".to_string(),
+                self.unreached(pose, posture, near, "the command"),
             )
         })?;
         if self.robot.joint_count() >= 6 {
@@ -217,6 +217,67 @@ impl Kinematics {
             Isometry3::from_parts(pose.translation, reached.rotation),
             left,
         ))
+    }
+
+    /// Why no posture in `posture`'s configuration reaches `pose` (`what`, in words):
+    /// where one in another configuration does, the singularity between them (a wrist at
+    /// J5 = 0°, where the smallest turn flips it, is the usual one).
+    pub fn unreached(
+        &self,
+        pose: &Isometry3<f64>,
+        posture: &Posture,
+        near: &[f64],
+        what: &str,
+    ) -> String {
+        let unreached = format!("no posture reaches {what}");
+        let (Some(wanted), Ok((_, rows))) = (posture.configuration, &self.closed) else {
+            return unreached;
+        };
+        let free = Posture {
+            configuration: None,
+            turns: posture.turns.clone(),
+        };
+        let Some(other) = self
+            .inverse(pose, &free, near)
+            .and_then(|q| self.configuration(&q))
+        else {
+            return format!(
+                "{unreached} (nor in any other: beyond the robot's reach or its joint limits)"
+            );
+        };
+        let crossed: Vec<&str> = [
+            (
+                wanted.wrist_flip() != other.wrist_flip(),
+                "the wrist's (J5 through 0°, axes 4 and 6 aligned)",
+            ),
+            (
+                wanted.elbow_down() != other.elbow_down(),
+                "the elbow's (the arm stretched or folded)",
+            ),
+            (
+                wanted.shoulder_back() != other.shoulder_back(),
+                "the shoulder's (the wrist centre over axis 1)",
+            ),
+        ]
+        .into_iter()
+        .filter_map(|(crossed, what)| crossed.then_some(what))
+        .collect();
+        if crossed.is_empty() {
+            return unreached;
+        }
+        let j5 = near
+            .get(4)
+            .map(|q| {
+                format!(
+                    ", J5 {:.4}° in the posture it was solved from",
+                    (q + rows[4].theta_offset_rad).to_degrees()
+                )
+            })
+            .unwrap_or_default();
+        format!(
+            "{unreached}: one reaches it across {} singularity, in configuration {other}{j5}",
+            crossed.join(" and ")
+        )
     }
 
     /// The posture reaching `pose` in `posture`'s configuration and turns nearest `near`:
@@ -357,7 +418,7 @@ pub fn solve<D: AsRef<[u8]>>(
         (None, Some(k)) => Some(k.inverse(target, posture, seed).ok_or_else(|| {
             (
                 TargetStatus::IkFailed,
-                "no posture reaches the target in its configuration".to_string(),
+                k.unreached(target, posture, seed, "the target in its configuration"),
             )
         })?),
         (None, None) => None,
