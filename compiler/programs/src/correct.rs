@@ -219,9 +219,10 @@ impl Kinematics {
         ))
     }
 
-    /// Why no posture in `posture`'s configuration reaches `pose` (`what`, in words):
-    /// where one in another configuration does, the singularity between them (a wrist at
-    /// J5 = 0°, where the smallest turn flips it, is the usual one).
+    /// Why no posture in `posture`'s configuration and turns reaches `pose` (`what`, in
+    /// words): where one in that configuration does on other turns, the joints whose turn
+    /// it is; where one in another configuration does, the singularity between them (a
+    /// wrist at J5 = 0°, which the smallest turn flips, is the usual one).
     pub fn unreached(
         &self,
         pose: &Isometry3<f64>,
@@ -233,13 +234,28 @@ impl Kinematics {
         let (Some(wanted), Ok((_, rows))) = (posture.configuration, &self.closed) else {
             return unreached;
         };
+        // In its configuration on other turns: the turns written are the reason.
+        let any_turn = Posture {
+            configuration: Some(wanted),
+            turns: Vec::new(),
+        };
+        if let Some(q) = self.inverse(pose, &any_turn, near) {
+            let off: Vec<String> = (posture.turns.iter().zip(&q).enumerate())
+                .filter(|(_, (turn, v))| !turn.holds(**v))
+                .map(|(i, (_, v))| format!("J{} {:.3}°", i + 1, v.to_degrees()))
+                .collect();
+            return format!(
+                "{unreached}: in it, only with {} on another turn than the program writes (within the joints' limits)",
+                off.join(", ")
+            );
+        }
         let free = Posture {
             configuration: None,
             turns: posture.turns.clone(),
         };
-        let Some(other) = self
+        let Some((other, q)) = self
             .inverse(pose, &free, near)
-            .and_then(|q| self.configuration(&q))
+            .and_then(|q| Some((self.configuration(&q)?, q)))
         else {
             return format!(
                 "{unreached} (nor in any other: beyond the robot's reach or its joint limits)"
@@ -265,18 +281,10 @@ impl Kinematics {
         if crossed.is_empty() {
             return unreached;
         }
-        let j5 = near
-            .get(4)
-            .map(|q| {
-                format!(
-                    ", J5 {:.4}° in the posture it was solved from",
-                    (q + rows[4].theta_offset_rad).to_degrees()
-                )
-            })
-            .unwrap_or_default();
         format!(
-            "{unreached}: one reaches it across {} singularity, in configuration {other}{j5}",
-            crossed.join(" and ")
+            "{unreached}: one reaches it across {} singularity, in configuration {other} (J5 {:.4}°)",
+            crossed.join(" and "),
+            (q[4] + rows[4].theta_offset_rad).to_degrees()
         )
     }
 
