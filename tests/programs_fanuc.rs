@@ -592,6 +592,16 @@ fn turn_numbers_are_of_the_joints_the_controllers_turn_axes_name() {
     assert_eq!(by_option.command_joints, by_file.command_joints);
     let line = compensate_one_position_with(&table, &j1_turned, option);
     assert_eq!(line.status.as_str(), "ik_failed", "{}", line.detail);
+    // J1's turn −1 is the reason, named.
+    assert!(
+        line.detail
+            .contains("in its configuration: in it, only with J1 ")
+            && line
+                .detail
+                .ends_with("on another turn than the program writes (within the joints' limits)"),
+        "{}",
+        line.detail
+    );
 
     // The command line: the option, the frame file, both when they agree; the CONFIG
     // written back as it was.
