@@ -227,14 +227,7 @@ fn every_fanuc_motion_and_position_is_accounted_for_by_name() {
         ],
     );
     assert_eq!(code, 3, "{stderr}");
-    let rows: Vec<(String, String, String)> = csv::Reader::from_path(&report)
-        .unwrap()
-        .records()
-        .map(|r| {
-            let r = r.unwrap();
-            (r[0].to_string(), r[4].to_string(), r[5].to_string())
-        })
-        .collect();
+    let rows = crate::common::report_rows(&report, 0);
     let seen: Vec<(&str, &str)> = rows.iter().map(|r| (r.0.as_str(), r.1.as_str())).collect();
     assert_eq!(
         seen,

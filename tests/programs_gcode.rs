@@ -322,14 +322,7 @@ fn modal_axes_work_offsets_and_every_other_motion_are_reported_by_name() {
         ],
     );
     assert_eq!(code, 3, "{stderr}");
-    let rows: Vec<(String, String, String)> = csv::Reader::from_path(&report)
-        .unwrap()
-        .records()
-        .map(|r| {
-            let r = r.unwrap();
-            (r[1].to_string(), r[4].to_string(), r[5].to_string())
-        })
-        .collect();
+    let rows = crate::common::report_rows(&report, 1);
     let seen: Vec<(&str, &str)> = rows.iter().map(|r| (r.0.as_str(), r.1.as_str())).collect();
     assert_eq!(
         seen,
@@ -560,14 +553,7 @@ fn an_extruder_reset_keeps_the_frame_and_an_axis_offset_does_not() {
         ],
     );
     assert_eq!(code, 3, "{stderr}");
-    let rows: Vec<(String, String, String)> = csv::Reader::from_path(&report)
-        .unwrap()
-        .records()
-        .map(|r| {
-            let r = r.unwrap();
-            (r[1].to_string(), r[4].to_string(), r[5].to_string())
-        })
-        .collect();
+    let rows = crate::common::report_rows(&report, 1);
     let seen: Vec<(&str, &str)> = rows.iter().map(|r| (r.0.as_str(), r.1.as_str())).collect();
     assert_eq!(
         seen,

@@ -359,3 +359,16 @@ pub fn printed_error(stdout: &str) -> [f64; 3] {
         .collect();
     values.try_into().expect("three numbers")
 }
+
+/// A compensation report's rows as (the column `key`, status, detail): `key` 0 the name,
+/// 1 the line.
+pub fn report_rows(path: &std::path::Path, key: usize) -> Vec<(String, String, String)> {
+    csv::Reader::from_path(path)
+        .unwrap()
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (r[key].to_string(), r[4].to_string(), r[5].to_string())
+        })
+        .collect()
+}

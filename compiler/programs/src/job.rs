@@ -2298,18 +2298,29 @@ fn kinematics(
         path: o.robot.clone().unwrap_or_default(),
         message,
     };
+    // The robot with the table's point as its tool.
+    let placed = |robot: &Robot, table_tool: &Isometry3<f64>| {
+        robot
+            .with_parts(
+                robot.name.clone(),
+                robot.base(),
+                transform(table_tool),
+                robot.home().to_vec(),
+            )
+            .map_err(|e| robot_error(e.to_string()))
+    };
+    // Where the table records its point on the flange (format version 4 on).
+    let recorded = table.header().evidence.point_in_flange.map(|p| {
+        Isometry3::new(
+            Vector3::from(p.translation_mm),
+            Vector3::from(p.rotation_rad),
+        )
+    });
     match (table.model(), robot) {
         (None, None) => Ok((None, Some(flag.unwrap_or_else(Isometry3::identity)))),
         (None, Some(robot)) => {
             let table_tool = flag.unwrap_or_else(|| iso(&robot.tool()));
-            let robot = robot
-                .with_parts(
-                    robot.name.clone(),
-                    robot.base(),
-                    transform(&table_tool),
-                    robot.home().to_vec(),
-                )
-                .map_err(|e| robot_error(e.to_string()))?;
+            let robot = placed(&robot, &table_tool)?;
             Ok((Some(Kinematics::new(robot)), Some(table_tool)))
         }
         (Some(model), robot) => {
@@ -2333,12 +2344,6 @@ fn kinematics(
                     // not (a URDF's last joint against an MD-H file's flange). The first
                     // that makes the robot file the table's nominal robot is taken.
                     let flange_in_end = iso(&robot.chain().tool) * iso(&robot.tool()).inverse();
-                    let recorded = table.header().evidence.point_in_flange.map(|p| {
-                        Isometry3::new(
-                            Vector3::from(p.translation_mm),
-                            Vector3::from(p.rotation_rad),
-                        )
-                    });
                     let candidates: Vec<Isometry3<f64>> = match flag {
                         Some(t) => vec![t],
                         None => [flange_in_end.inverse() * point_in_end]
@@ -2349,14 +2354,7 @@ fn kinematics(
                     let mut nearest: Option<(f64, f64)> = None;
                     let mut found = None;
                     for table_tool in candidates {
-                        let placed = robot
-                            .with_parts(
-                                robot.name.clone(),
-                                robot.base(),
-                                transform(&table_tool),
-                                robot.home().to_vec(),
-                            )
-                            .map_err(|e| robot_error(e.to_string()))?;
+                        let placed = placed(&robot, &table_tool)?;
                         // The robot file must be the table's nominal robot.
                         let home = placed.home().to_vec();
                         let a = iso(&placed.chain().tcp_pose(&home).expect("one value per joint"));
@@ -2404,13 +2402,7 @@ fn kinematics(
                         Error::Option(format!("the table's nominal chain cannot be used: {e}"))
                     })?;
                     // Without a robot file the flange is where the table records its point
-                    // on it (format version 4 on), unless the option says.
-                    let recorded = table.header().evidence.point_in_flange.map(|p| {
-                        Isometry3::new(
-                            Vector3::from(p.translation_mm),
-                            Vector3::from(p.rotation_rad),
-                        )
-                    });
+                    // on it, unless the option says.
                     (robot, flag.or(recorded))
                 }
             };
