@@ -145,40 +145,10 @@ pub fn parse_frame(text: &str) -> Result<(u16, [f64; 6]), String> {
     Ok((number, crate::bounds::option_frame(values, usage)?))
 }
 
-/// The joints the three turn numbers of a `CONFIG` belong to, as the controller's
-/// `$SCR_GRP[1].$TURN_AXIS` defines them (`[1, 4, 6]` on an R-2000iB, `[4, 5, 6]` on many
-/// LR Mates), and where they were taken from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TurnAxes {
-    /// The joint of each turn number, 1 for J1; 0 for none (a controller may leave a
-    /// place without a joint).
-    pub joints: [u8; 3],
-    /// Where the job took them from.
-    pub from: TurnAxesFrom,
-}
-
-/// Where a job's turn axes come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TurnAxesFrom {
-    /// Neither the options nor the frame file: J4, J5, J6.
-    Default,
-    /// `--fanuc-turn-axes`.
-    Option,
-    /// The frame file's `$SCR_GRP[1].$TURN_AXIS` (`--fanuc-frames`).
-    Controller,
-}
+pub use crate::program::{TurnAxes, TurnAxesFrom};
 
 /// The most joints a Fanuc motion group has.
 const MAX_GROUP_JOINTS: u8 = 9;
-
-impl Default for TurnAxes {
-    fn default() -> TurnAxes {
-        TurnAxes {
-            joints: [4, 5, 6],
-            from: TurnAxesFrom::Default,
-        }
-    }
-}
 
 impl TurnAxes {
     /// The job's turn axes: `option` (`--fanuc-turn-axes`), else `controller` (a frame

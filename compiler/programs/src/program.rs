@@ -241,7 +241,7 @@ pub enum ConfigHint {
         /// The turn numbers, as written.
         turns: [Option<i8>; 3],
         /// The joints they are of: J4, J5, J6 unless the job says otherwise.
-        turn_axes: crate::fanuc::TurnAxes,
+        turn_axes: TurnAxes,
     },
     /// Stäubli VAL3 `config` of a `pointRx`, each part as written; `None` where the
     /// controller chooses (`ssame`, `sfree`, `esame`, `efree`, `wsame`, `wfree`, or the
@@ -344,6 +344,38 @@ pub struct Program {
     /// Where its first motion instruction is written (any, those whose targets another file
     /// declares too): a program that moves must have targets to correct.
     pub first_motion: Option<usize>,
+}
+
+/// The joints the three turn numbers of a `CONFIG` belong to, as the controller's
+/// `$SCR_GRP[1].$TURN_AXIS` defines them (`[1, 4, 6]` on an R-2000iB, `[4, 5, 6]` on many
+/// LR Mates), and where they were taken from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TurnAxes {
+    /// The joint of each turn number, 1 for J1; 0 for none (a controller may leave a
+    /// place without a joint).
+    pub joints: [u8; 3],
+    /// Where the job took them from.
+    pub from: TurnAxesFrom,
+}
+
+/// Where a job's turn axes come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TurnAxesFrom {
+    /// Neither the options nor the frame file: J4, J5, J6.
+    Default,
+    /// `--fanuc-turn-axes`.
+    Option,
+    /// The frame file's `$SCR_GRP[1].$TURN_AXIS` (`--fanuc-frames`).
+    Controller,
+}
+
+impl Default for TurnAxes {
+    fn default() -> TurnAxes {
+        TurnAxes {
+            joints: [4, 5, 6],
+            from: TurnAxesFrom::Default,
+        }
+    }
 }
 
 #[cfg(test)]
