@@ -1629,7 +1629,7 @@ fn a_krl_status_or_rapid_robconf_a_robot_cannot_keep_is_named() {
             format!(
                 "the written configuration ({written}) cannot be told apart on this robot file \
                  (KUKA LBR iiwa 14 R820: no closed-form inverse kinematics: 7 joints, not 6 \
-                 (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, \
+                 (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0° or 180°, β = 0, \
                  a4 = a5 = a6 = d5 = 0, a2 > 0)): left as written, not corrected in a posture \
                  the program does not give"
             )

@@ -692,6 +692,6 @@ fn a_val3_config_that_cannot_be_read_or_kept_leaves_the_point_as_written() {
     assert_eq!(line.status.as_str(), "invalid", "{}", line.detail);
     assert_eq!(
         line.detail,
-        "the written configuration (shoulder lefty, elbow free, wrist wpositive) cannot be told apart on this robot file (KUKA LBR iiwa 14 R820: no closed-form inverse kinematics: 7 joints, not 6 (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, a4 = a5 = a6 = d5 = 0, a2 > 0)): left as written, not corrected in a posture the program does not give"
+        "the written configuration (shoulder lefty, elbow free, wrist wpositive) cannot be told apart on this robot file (KUKA LBR iiwa 14 R820: no closed-form inverse kinematics: 7 joints, not 6 (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0° or 180°, β = 0, a4 = a5 = a6 = d5 = 0, a2 > 0)): left as written, not corrected in a posture the program does not give"
     );
 }

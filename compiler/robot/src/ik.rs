@@ -15,8 +15,11 @@
 //!   line from the shoulder (joint 2's axis) to the wrist centre, seen in the vertical
 //!   plane through the base axis and the wrist centre, with the horizontal axis pointing
 //!   from the base axis toward the wrist centre.
-//! - bit 2, **wrist**: 0 *no flip*, 1 *flip*. Flip when `sin θ5 < 0`, i.e. joint 5 bends to
-//!   its negative side (for KUKA robots, A5 < 0).
+//! - bit 2, **wrist**: 0 *no flip*, 1 *flip*. Flip when joint 5's value is negative, as the
+//!   robot file counts it and the controller writes it (KUKA's A5 < 0, Fanuc's `F`): the
+//!   wrist's singularity is at J5 = 0°, where θ5 = q5 + its offset is 0° or 180°, so flip is
+//!   `sin θ5 < 0` with an offset of 0° and `sin θ5 > 0` with one of 180° (a file that puts
+//!   J5's zero elsewhere has no labels).
 //!
 //! The labels are geometric, so they change only where the robot passes a singularity
 //! (wrist centre on axis 1, arm stretched or folded, axes 4 and 6 aligned).
@@ -24,7 +27,9 @@
 //! # Closed form
 //!
 //! The closed form assumes the *skeleton* of the nominal model: six MD-H joints with α1, α3,
-//! α4, α5 = ±90°, α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0. Joints 2 and 3 are then parallel,
+//! α4, α5 = ±90°, α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0 (α2 = 180°, a J3 that turns
+//! against J2 as Fanuc and Yaskawa count it, is the same skeleton with q3 counted the other
+//! way, `Rx(π)·Rz(θ3)·Tz(d3) = Rz(−θ3)·Tz(−d3)·Rx(π)`). Joints 2 and 3 are then parallel,
 //! and axes 4, 5, 6 meet at the wrist centre, which decouples position (joints 1-3 place the
 //! wrist centre) from orientation (joints 4-6 are a Z-X-Z-like Euler triple). The model
 //! actually used — a nominal β2, or a calibrated model with all 30 deviations — differs
@@ -165,7 +170,7 @@ pub enum IkError {
     /// The nominal geometry is not the spherical-wrist structure the closed form needs.
     #[error(
         "{robot}: no closed-form inverse kinematics: {reason} \
-         (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0°, β = 0, \
+         (needs six MD-H joints with α1, α3, α4, α5 = ±90°, α2 = 0° or 180°, β = 0, \
          a4 = a5 = a6 = d5 = 0, a2 > 0)"
     )]
     UnsupportedGeometry {
@@ -202,6 +207,10 @@ pub struct InverseKinematics {
     skeleton: [MdhJoint; JOINT_COUNT],
     /// ±1: the sign of sin α of joints 1, 3, 4, 5 in the skeleton.
     sin_alpha: [f64; JOINT_COUNT],
+    /// Whether the robot's J3 turns against its J2 (α2 = 180°, as Fanuc and Yaskawa count
+    /// J3): the skeleton then counts q3 the other way (`Rx(π)·Rz(θ3)·Tz(d3) =
+    /// Rz(−θ3)·Tz(−d3)·Rx(π)`, the half turn passed on to α3).
+    j3_reversed: bool,
 }
 
 impl InverseKinematics {
@@ -227,6 +236,7 @@ impl InverseKinematics {
             }
         };
         let mut sin_alpha = [0.0; JOINT_COUNT];
+        let mut j3_reversed = false;
         for (i, joint) in skeleton.iter_mut().enumerate() {
             let number = i + 1;
             if joint.beta_rad.abs() > SKELETON_ANGLE_TOLERANCE_RAD {
@@ -235,21 +245,36 @@ impl InverseKinematics {
             joint.beta_rad = 0.0;
             match number {
                 1 | 3 | 4 | 5 => {
-                    let sign = joint.alpha_rad.signum();
+                    let mut sign = joint.alpha_rad.signum();
                     if (joint.alpha_rad.abs() - FRAC_PI_2).abs() > SKELETON_ANGLE_TOLERANCE_RAD {
                         return Err(unsupported(format!("α{number} is not ±90°")));
+                    }
+                    if number == 3 && j3_reversed {
+                        sign = -sign;
+                        joint.d_mm = -joint.d_mm;
+                        joint.theta_offset_rad = -joint.theta_offset_rad;
                     }
                     joint.alpha_rad = sign * FRAC_PI_2;
                     sin_alpha[i] = sign;
                 }
                 2 => {
-                    if joint.alpha_rad.abs() > SKELETON_ANGLE_TOLERANCE_RAD {
-                        return Err(unsupported("α2 is not 0°".into()));
+                    j3_reversed =
+                        (joint.alpha_rad.abs() - PI).abs() <= SKELETON_ANGLE_TOLERANCE_RAD;
+                    if joint.alpha_rad.abs() > SKELETON_ANGLE_TOLERANCE_RAD && !j3_reversed {
+                        return Err(unsupported("α2 is neither 0° nor 180°".into()));
                     }
                     joint.alpha_rad = 0.0;
                 }
                 _ => {}
             }
+        }
+        // The labels count J5's sign, which says the wrist's side only where J5's zero is
+        // its singularity.
+        if skeleton[4].theta_offset_rad.sin().abs() > SKELETON_ANGLE_TOLERANCE_RAD.sin() {
+            return Err(unsupported(format!(
+                "J5's zero is not the wrist's singularity (θ5 offset {:.1}°, not 0° or 180°)",
+                skeleton[4].theta_offset_rad.to_degrees()
+            )));
         }
         let [_, _, _, joint4, joint5, joint6] = &mut skeleton;
         for (name, value) in [
@@ -270,6 +295,7 @@ impl InverseKinematics {
             robot: robot.clone(),
             skeleton,
             sin_alpha,
+            j3_reversed,
         })
     }
 
@@ -312,7 +338,11 @@ impl InverseKinematics {
         let target = transform_from_isometry(tcp_pose);
         let mut solutions: Vec<IkSolution> = Vec::with_capacity(8);
         for theta in self.skeleton_solutions(&flange) {
-            let q = std::array::from_fn(|i| theta[i] - self.skeleton[i].theta_offset_rad);
+            let mut q: [f64; JOINT_COUNT] =
+                std::array::from_fn(|i| theta[i] - self.skeleton[i].theta_offset_rad);
+            if self.j3_reversed {
+                q[2] = -q[2];
+            }
             let Some(q) = newton(&chain, &target, q) else {
                 continue;
             };
@@ -512,7 +542,10 @@ pub fn configuration_of(
     // Cross product of shoulder→wrist and shoulder→elbow: positive with the elbow on the
     // left of that outward line, i.e. above it.
     let elbow_down = (wr - sr) * (ez - sz) - (wz - sz) * (er - sr) < 0.0;
-    let wrist_flip = (q_rad[4] + joints[4].theta_offset_rad).sin() < 0.0;
+    // J5 negative: θ5's sine, turned by the half turn an offset of 180° puts in it.
+    let wrist_flip = (q_rad[4] + joints[4].theta_offset_rad).sin()
+        * joints[4].theta_offset_rad.cos().signum()
+        < 0.0;
     Configuration::new(shoulder_back, elbow_down, wrist_flip)
 }
 
@@ -1081,6 +1114,99 @@ mod tests {
         }
         assert!(solutions_checked > 20_000, "{solutions_checked}");
         assert!(configs_seen.iter().all(|&seen| seen), "{configs_seen:?}");
+    }
+
+    /// A J3 that turns against J2 (α2 = 180°, as Fanuc and Yaskawa count it): the KR150-2
+    /// written so (α2 180°, α3 and d3 and J3's offset and limits turned with it) is the same
+    /// arm with q3 negated; the closed form solves it, every posture drawn is among the
+    /// solutions of its pose with q3 negated, and each carries the label the KR150-2's
+    /// own posture has.
+    #[test]
+    fn a_j3_turning_against_j2_is_solved_as_the_same_arm() {
+        let robot = kr150();
+        let text = std::fs::read_to_string(shipped_robot_path("kr150-2")).unwrap();
+        let a2 = "a_mm = 1250.0\nd_mm = 0.0\nalpha_deg = 0.0";
+        let a3 = "a_mm = 55.0\nd_mm = 0.0\nalpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = 90.0\nlimits_deg = [-119.0, 155.0]";
+        assert!(text.contains(a2) && text.contains(a3));
+        let reversed = Robot::from_toml_str(
+            &text.replace(a2, "a_mm = 1250.0\nd_mm = 0.0\nalpha_deg = 180.0").replace(
+                a3,
+                "a_mm = 55.0\nd_mm = 0.0\nalpha_deg = -90.0\nbeta_deg = 0.0\ntheta_offset_deg = -90.0\nlimits_deg = [-155.0, 119.0]",
+            ),
+        )
+        .unwrap();
+        let ik = InverseKinematics::new(&reversed).unwrap();
+        let (joints, tool) = (rows(&reversed), reversed.tool());
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..2_000 {
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let [lo, hi] = robot.joints()[i].limits;
+                rng.gen_range(lo..hi)
+            });
+            let mut negated = q;
+            negated[2] = -q[2];
+            let target = robot.tcp_pose(&q);
+            assert!(
+                (reversed.tcp_pose(&negated).translation.vector - target.translation.vector).norm()
+                    < 1e-9
+            );
+            let solutions = ik.solve(&target);
+            for solution in &solutions {
+                assert_reaches(&joints, &tool, solution, &target);
+            }
+            if q[4].sin().abs() > 1e-3 {
+                let found = solutions
+                    .iter()
+                    .find(|s| same_posture(&s.q_rad, &negated))
+                    .unwrap_or_else(|| panic!("{q:?} not recovered from {solutions:?}"));
+                assert_eq!(found.config, configuration_of(&rows(&robot), &q));
+            }
+        }
+    }
+
+    /// The wrist label is J5's sign as the robot file counts it, whatever the half turn
+    /// its θ5 offset holds: the KR150-2 written with θ5's offset 180° (α5 and θ6's offset
+    /// turned with it: `Rz(π)·Rx(α5) = Rx(−α5)·Rz(π)`) is the same arm at the same joint
+    /// values, so every posture has the same label in both, and each file's closed form
+    /// finds it. (Labelled by `sin θ5` alone, the second file called every posture of the
+    /// first flipped where it was not, and a program's `F` was solved in the other wrist.)
+    #[test]
+    fn the_wrist_label_is_j5s_sign_whatever_its_offset() {
+        let robot = kr150();
+        let text = std::fs::read_to_string(shipped_robot_path("kr150-2")).unwrap();
+        let a5 = "alpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0\nlimits_deg = [-125.0, 125.0]";
+        let a6 = "d_mm = 230.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0";
+        assert!(text.contains(a5) && text.contains(a6));
+        let turned = Robot::from_toml_str(
+            &text
+                .replace(a5, "alpha_deg = -90.0\nbeta_deg = 0.0\ntheta_offset_deg = 180.0\nlimits_deg = [-125.0, 125.0]")
+                .replace(a6, "d_mm = 230.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 180.0"),
+        )
+        .unwrap();
+        let ik = InverseKinematics::new(&turned).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..2_000 {
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let [lo, hi] = robot.joints()[i].limits;
+                rng.gen_range(lo..hi)
+            });
+            let target = robot.tcp_pose(&q);
+            let there = turned.tcp_pose(&q);
+            assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
+            assert!(there.rotation.angle_to(&target.rotation) < 1e-12);
+            let label = configuration_of(&rows(&robot), &q);
+            assert_eq!(configuration_of(&rows(&turned), &q), label);
+            assert_eq!(label.wrist_flip(), q[4].sin() < 0.0);
+            if q[4].sin().abs() > 1e-3 {
+                let found = ik.solve(&target);
+                assert!(
+                    found
+                        .iter()
+                        .any(|s| same_posture(&s.q_rad, &q) && s.config == label),
+                    "{q:?} not recovered from {found:?}"
+                );
+            }
+        }
     }
 
     #[test]
