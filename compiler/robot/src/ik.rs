@@ -1074,6 +1074,14 @@ mod tests {
         assert!(error.fixed_rows::<3>(3).norm() <= 1e-12);
     }
 
+    /// A posture drawn uniformly within a six-joint robot's limits.
+    fn posture_within(robot: &Robot, rng: &mut ChaCha8Rng) -> [f64; 6] {
+        std::array::from_fn(|i| {
+            let [lo, hi] = robot.joints()[i].limits;
+            rng.gen_range(lo..hi)
+        })
+    }
+
     /// Whether two joint vectors are the same posture (joints compared modulo a turn).
     fn same_posture(a: &[f64; 6], b: &[f64; 6]) -> bool {
         a.iter().zip(b).all(|(x, y)| {
@@ -1091,10 +1099,7 @@ mod tests {
         let mut solutions_checked = 0;
         let mut configs_seen = [false; 8];
         for _ in 0..10_000 {
-            let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints()[i].limits;
-                rng.gen_range(lo..hi)
-            });
+            let q = posture_within(&robot, &mut rng);
             let target = robot.tcp_pose(&q);
             let solutions = ik.solve(&target);
             for solution in &solutions {
@@ -1139,10 +1144,7 @@ mod tests {
         let (joints, tool) = (rows(&reversed), reversed.tool());
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for _ in 0..2_000 {
-            let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints()[i].limits;
-                rng.gen_range(lo..hi)
-            });
+            let q = posture_within(&robot, &mut rng);
             let mut negated = q;
             negated[2] = -q[2];
             let target = robot.tcp_pose(&q);
@@ -1186,10 +1188,7 @@ mod tests {
         let ik = InverseKinematics::new(&turned).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for _ in 0..2_000 {
-            let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints()[i].limits;
-                rng.gen_range(lo..hi)
-            });
+            let q = posture_within(&robot, &mut rng);
             let target = robot.tcp_pose(&q);
             let there = turned.tcp_pose(&q);
             assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
@@ -1230,10 +1229,7 @@ mod tests {
         let tool = robot.tool();
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         for _ in 0..200 {
-            let q: [f64; 6] = std::array::from_fn(|i| {
-                let [lo, hi] = robot.joints()[i].limits;
-                rng.gen_range(lo..hi)
-            });
+            let q = posture_within(&robot, &mut rng);
             let target = isometry_from_transform(&fk(&joints, &tool, &q));
             let solutions = ik.solve_with_model(&target, &joints, &tool, &Transform::IDENTITY);
             for solution in &solutions {
