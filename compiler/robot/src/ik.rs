@@ -235,6 +235,18 @@ impl InverseKinematics {
                 ))
             }
         };
+        // A negative link length is the same link with its x axis the other way:
+        // `Tx(−a) = Rz(π)·Tx(a)·Rz(π)` and `Rz(π)·Rx(α) = Rx(−α)·Rz(π)`, so θ of the joint and
+        // of the next turn by a half turn and α changes sign (q is unchanged: the offsets
+        // take the half turns).
+        for i in 0..JOINT_COUNT - 1 {
+            if skeleton[i].a_mm < 0.0 {
+                skeleton[i].a_mm = -skeleton[i].a_mm;
+                skeleton[i].alpha_rad = -skeleton[i].alpha_rad;
+                skeleton[i].theta_offset_rad += PI;
+                skeleton[i + 1].theta_offset_rad += PI;
+            }
+        }
         let mut sin_alpha = [0.0; JOINT_COUNT];
         let mut j3_reversed = false;
         for (i, joint) in skeleton.iter_mut().enumerate() {
@@ -529,8 +541,13 @@ pub fn configuration_of(
     // Joint 5's axis passes through the wrist centre.
     let wrist_centre = Vector3::from(frames[3].translation_mm);
     let heading = Vector3::new(wrist_centre.x, wrist_centre.y, 0.0);
-    // Joint 1's x axis, from the base axis toward joint 2.
-    let arm_x = Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0]));
+    // From the base axis toward joint 2: frame 1's origin lies a1 along joint 1's x axis,
+    // so the sense an MD-H file gives that axis (a negative a1) plays no part; the axis
+    // itself where axes 1 and 2 meet (a1 = 0).
+    let toward_joint2 = Vector3::new(shoulder.x, shoulder.y, 0.0);
+    let arm_x = toward_joint2
+        .try_normalize(1e-9)
+        .unwrap_or_else(|| Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0])));
     let shoulder_back = arm_x.dot(&heading) < 0.0;
     // The vertical plane through the base axis and the wrist centre: horizontal coordinate
     // along the wrist centre's heading, vertical along base z.
@@ -1196,6 +1213,50 @@ mod tests {
             let label = configuration_of(&rows(&robot), &q);
             assert_eq!(configuration_of(&rows(&turned), &q), label);
             assert_eq!(label.wrist_flip(), q[4].sin() < 0.0);
+            if q[4].sin().abs() > 1e-3 {
+                let found = ik.solve(&target);
+                assert!(
+                    found
+                        .iter()
+                        .any(|s| same_posture(&s.q_rad, &q) && s.config == label),
+                    "{q:?} not recovered from {found:?}"
+                );
+            }
+        }
+    }
+
+    /// Negative link lengths (an MD-H file that points x the other way, as one fitted to a
+    /// URDF may): the KR150-2 with a1 and a2 negated, their offsets and α1 turned with them,
+    /// is the same arm at the same joints; its closed form finds every posture drawn, with
+    /// the KR150-2's labels (the shoulder's is read from where joint 2 is, not from the
+    /// file's x axis).
+    #[test]
+    fn negative_link_lengths_are_solved_as_the_same_arm() {
+        let robot = kr150();
+        let text = std::fs::read_to_string(shipped_robot_path("kr150-2")).unwrap();
+        let a1 =
+            "a_mm = 350.0\nd_mm = 750.0\nalpha_deg = -90.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0";
+        let a2 =
+            "a_mm = 1250.0\nd_mm = 0.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0";
+        let a3 = "alpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = 90.0";
+        assert!(text.contains(a1) && text.contains(a2) && text.contains(a3));
+        let negated = Robot::from_toml_str(
+            &text
+                .replace(a1, "a_mm = -350.0\nd_mm = 750.0\nalpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = 180.0")
+                .replace(a2, "a_mm = -1250.0\nd_mm = 0.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0")
+                .replace(a3, "alpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = -90.0"),
+        )
+        .unwrap();
+        let ik = InverseKinematics::new(&negated).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        for _ in 0..2_000 {
+            let q = posture_within(&robot, &mut rng);
+            let target = robot.tcp_pose(&q);
+            let there = negated.tcp_pose(&q);
+            assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
+            assert!(there.rotation.angle_to(&target.rotation) < 1e-12);
+            let label = configuration_of(&rows(&robot), &q);
+            assert_eq!(configuration_of(&rows(&negated), &q), label);
             if q[4].sin().abs() > 1e-3 {
                 let found = ik.solve(&target);
                 assert!(
