@@ -1099,6 +1099,34 @@ mod tests {
         })
     }
 
+    /// `other` describes the KR150-2 at the same joint values: at 2,000 postures drawn
+    /// within its limits the same pose and the same label, and `other`'s closed form finds
+    /// the posture with that label (away from the wrist's singularity).
+    fn assert_the_kr150_at_the_same_joints(other: &Robot, seed: u64) {
+        let robot = kr150();
+        let ik = InverseKinematics::new(other).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for _ in 0..2_000 {
+            let q = posture_within(&robot, &mut rng);
+            let target = robot.tcp_pose(&q);
+            let there = other.tcp_pose(&q);
+            assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
+            assert!(there.rotation.angle_to(&target.rotation) < 1e-12);
+            let label = configuration_of(&rows(&robot), &q);
+            assert_eq!(configuration_of(&rows(other), &q), label);
+            assert_eq!(label.wrist_flip(), q[4].sin() < 0.0);
+            if q[4].sin().abs() > 1e-3 {
+                let found = ik.solve(&target);
+                assert!(
+                    found
+                        .iter()
+                        .any(|s| same_posture(&s.q_rad, &q) && s.config == label),
+                    "{q:?} not recovered from {found:?}"
+                );
+            }
+        }
+    }
+
     /// Whether two joint vectors are the same posture (joints compared modulo a turn).
     fn same_posture(a: &[f64; 6], b: &[f64; 6]) -> bool {
         a.iter().zip(b).all(|(x, y)| {
@@ -1191,7 +1219,6 @@ mod tests {
     /// first flipped where it was not, and a program's `F` was solved in the other wrist.)
     #[test]
     fn the_wrist_label_is_j5s_sign_whatever_its_offset() {
-        let robot = kr150();
         let text = std::fs::read_to_string(shipped_robot_path("kr150-2")).unwrap();
         let a5 = "alpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0\nlimits_deg = [-125.0, 125.0]";
         let a6 = "d_mm = 230.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0";
@@ -1202,27 +1229,7 @@ mod tests {
                 .replace(a6, "d_mm = 230.0\nalpha_deg = 0.0\nbeta_deg = 0.0\ntheta_offset_deg = 180.0"),
         )
         .unwrap();
-        let ik = InverseKinematics::new(&turned).unwrap();
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        for _ in 0..2_000 {
-            let q = posture_within(&robot, &mut rng);
-            let target = robot.tcp_pose(&q);
-            let there = turned.tcp_pose(&q);
-            assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
-            assert!(there.rotation.angle_to(&target.rotation) < 1e-12);
-            let label = configuration_of(&rows(&robot), &q);
-            assert_eq!(configuration_of(&rows(&turned), &q), label);
-            assert_eq!(label.wrist_flip(), q[4].sin() < 0.0);
-            if q[4].sin().abs() > 1e-3 {
-                let found = ik.solve(&target);
-                assert!(
-                    found
-                        .iter()
-                        .any(|s| same_posture(&s.q_rad, &q) && s.config == label),
-                    "{q:?} not recovered from {found:?}"
-                );
-            }
-        }
+        assert_the_kr150_at_the_same_joints(&turned, 11);
     }
 
     /// Negative link lengths (an MD-H file that points x the other way, as one fitted to a
@@ -1232,7 +1239,6 @@ mod tests {
     /// file's x axis).
     #[test]
     fn negative_link_lengths_are_solved_as_the_same_arm() {
-        let robot = kr150();
         let text = std::fs::read_to_string(shipped_robot_path("kr150-2")).unwrap();
         let a1 =
             "a_mm = 350.0\nd_mm = 750.0\nalpha_deg = -90.0\nbeta_deg = 0.0\ntheta_offset_deg = 0.0";
@@ -1247,26 +1253,7 @@ mod tests {
                 .replace(a3, "alpha_deg = 90.0\nbeta_deg = 0.0\ntheta_offset_deg = -90.0"),
         )
         .unwrap();
-        let ik = InverseKinematics::new(&negated).unwrap();
-        let mut rng = ChaCha8Rng::seed_from_u64(13);
-        for _ in 0..2_000 {
-            let q = posture_within(&robot, &mut rng);
-            let target = robot.tcp_pose(&q);
-            let there = negated.tcp_pose(&q);
-            assert!((there.translation.vector - target.translation.vector).norm() < 1e-9);
-            assert!(there.rotation.angle_to(&target.rotation) < 1e-12);
-            let label = configuration_of(&rows(&robot), &q);
-            assert_eq!(configuration_of(&rows(&negated), &q), label);
-            if q[4].sin().abs() > 1e-3 {
-                let found = ik.solve(&target);
-                assert!(
-                    found
-                        .iter()
-                        .any(|s| same_posture(&s.q_rad, &q) && s.config == label),
-                    "{q:?} not recovered from {found:?}"
-                );
-            }
-        }
+        assert_the_kr150_at_the_same_joints(&negated, 13);
     }
 
     #[test]
