@@ -543,6 +543,31 @@ fn more_joint_columns_than_the_robot_has_are_refused_per_target() {
     assert_eq!((summary.corrected, summary.total), (0, 1), "{summary}");
 }
 
+/// A joint target of a robot of two joints (a positioner, say) is answered like any
+/// other, never a crash (the Fanuc J2/J3 coupling's reading indexed a third joint on every
+/// dialect).
+#[test]
+fn a_joint_target_of_a_two_joint_robot_is_answered() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let robot = dir.path().join("two.toml");
+    std::fs::write(
+        &robot,
+        "name = \"two joints\"\n[[joints]]\nxyz_mm = [0.0, 0.0, 400.0]\nlimits_deg = [-170.0, 170.0]\n\
+         [[joints]]\nxyz_mm = [1600.0, 0.0, 800.0]\naxis = [0.0, 1.0, 0.0]\nlimits_deg = [-90.0, 90.0]\n",
+    )
+    .unwrap();
+    let program = dir.path().join("two.script");
+    std::fs::write(&program, "def p():\n  movej([0.1, 0.2], a=1, v=1)\nend\n").unwrap();
+    let (_, done) = run_job(&table, &program, &robot, |_| {});
+    let summary = done.report.summary();
+    assert_eq!(
+        (summary.total, done.report.targets[0].kind),
+        (1, "joints"),
+        "{summary}"
+    );
+}
+
 /// Mean and max of a list.
 fn stats(v: &[f64]) -> (f64, f64) {
     (

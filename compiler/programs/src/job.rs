@@ -883,8 +883,12 @@ impl CompensateJob {
             }
         };
         let mut q = joint_values_in(Some(k.robot()), &j.joints, j.unit);
+        // Read as the pendant counts J3 (a factor other than zero only on three joints or
+        // more).
         let j23 = self.fanuc_j23(k)?;
-        q[2] -= j23 * q[1];
+        if j23 != 0.0 {
+            q[2] -= j23 * q[1];
+        }
         let point = k.forward(&q).expect("one value per joint");
         let posture = Posture {
             configuration: k.configuration(&q),
