@@ -239,11 +239,16 @@ impl Kinematics {
             configuration: Some(wanted),
             turns: Vec::new(),
         };
-        if let Some(q) = self.inverse(pose, &any_turn, near) {
-            let off: Vec<String> = (posture.turns.iter().zip(&q).enumerate())
-                .filter(|(_, (turn, v))| !turn.holds(**v))
-                .map(|(i, (_, v))| format!("J{} {:.3}°", i + 1, v.to_degrees()))
-                .collect();
+        let off: Vec<String> = self
+            .inverse(pose, &any_turn, near)
+            .map(|q| {
+                (posture.turns.iter().zip(&q).enumerate())
+                    .filter(|(_, (turn, v))| !turn.holds(**v))
+                    .map(|(i, (_, v))| format!("J{} {:.3}°", i + 1, v.to_degrees()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        if !off.is_empty() {
             return format!(
                 "{unreached}: in it, only with {} on another turn than the program writes (within the joints' limits)",
                 off.join(", ")
