@@ -410,7 +410,7 @@ fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
             })
             .collect();
         for other in &reports[1..] {
-            same_commands(&reports[0], other);
+            same_commands(&reports[0], other, 1e-6, Some(1e-9));
         }
     }
 }
@@ -457,25 +457,26 @@ fn a_robot_file_that_is_not_the_tables_robot_is_refused_with_the_gap() {
     }
 }
 
-/// Two compensations of one program: the same statuses, commands to 1e-6 mm and joints
-/// to 1e-9; seven corrected.
-fn same_commands(mdh: &Report, urdf: &Report) {
-    assert_eq!(mdh.summary().corrected, 7, "{}", mdh.summary());
-    assert_eq!(mdh.targets.len(), urdf.targets.len());
-    for (a, b) in mdh.targets.iter().zip(&urdf.targets) {
+/// Two compensations of one program, the first with seven corrected: the same statuses,
+/// commands to `command_mm`, and joints to `joints` (rad) when given.
+fn same_commands(first: &Report, second: &Report, command_mm: f64, joints: Option<f64>) {
+    assert_eq!(first.summary().corrected, 7, "{}", first.summary());
+    assert_eq!(first.targets.len(), second.targets.len());
+    for (a, b) in first.targets.iter().zip(&second.targets) {
         assert_eq!(a.status.as_str(), b.status.as_str(), "{}", a.place());
         if let (Some(p), Some(q)) = (a.command_mm, b.command_mm) {
             for axis in 0..3 {
                 assert!(
-                    (p[axis] - q[axis]).abs() < 1e-6,
+                    (p[axis] - q[axis]).abs() < command_mm,
                     "{}: {p:?} {q:?}",
                     a.place()
                 );
             }
         }
-        if let (Some(p), Some(q)) = (&a.command_joints, &b.command_joints) {
+        if let (Some(p), Some(q), Some(tolerance)) = (&a.command_joints, &b.command_joints, joints)
+        {
             for (x, y) in p.iter().zip(q) {
-                assert!((x - y).abs() < 1e-9, "{}: {p:?} {q:?}", a.place());
+                assert!((x - y).abs() < tolerance, "{}: {p:?} {q:?}", a.place());
             }
         }
     }
@@ -503,20 +504,8 @@ fn a_hybrid_table_alone_places_a_programs_tool_by_the_point_it_records() {
         .run()
         .unwrap()
         .report;
-    assert_eq!(alone.summary().corrected, 7, "{}", alone.summary());
-    for (a, b) in with_robot.targets.iter().zip(&alone.targets) {
-        assert_eq!(a.status.as_str(), b.status.as_str(), "{}", a.place());
-        if let (Some(p), Some(q)) = (a.command_mm, b.command_mm) {
-            // The record is f32: 1e-5 mm at 200 mm.
-            for axis in 0..3 {
-                assert!(
-                    (p[axis] - q[axis]).abs() < 1e-5,
-                    "{}: {p:?} {q:?}",
-                    a.place()
-                );
-            }
-        }
-    }
+    // The record is f32: 1e-5 mm at 200 mm.
+    same_commands(&alone, &with_robot, 1e-5, None);
 }
 
 /// A CSV program with more joint columns than the robot has joints: its targets are
