@@ -152,6 +152,19 @@ def test_refusals(kr150_table, tmp_path):
         adwi.compensate_program(kr150_table, PROGRAMS / "targets.csv", format="nosuch")
 
 
+def fanuc_kr150_by_tablec(tablec, table, program, tmp_path, *options):
+    """The bytes tablec writes for a Fanuc program on the KR150-2 with tool frame 1 at the
+    flange and the options given."""
+    out = tmp_path / "cli.ls"
+    subprocess.run(
+        [tablec, "compensate", table, program, "-o", out, "--robot", KR150 / "robot.toml",
+         "--fanuc-utool", "1=0,0,0,0,0,0", *options],
+        check=True,
+        capture_output=True,
+    )
+    return out.read_bytes()
+
+
 def test_fanuc_turn_axes_are_the_command_lines(tablec, kr150_table, tmp_path):
     # J4 on its turn -1 on a controller whose turn axes are J1, J4, J6 (an R-2000iB's).
     program = tmp_path / "branch.ls"
@@ -171,14 +184,9 @@ def test_fanuc_turn_axes_are_the_command_lines(tablec, kr150_table, tmp_path):
         kr150_table, program, robot=robot, fanuc_utools=tool, fanuc_turn_axes=[1, 4, 6]
     )
     assert done.targets[0]["status"] == "ok", done.targets[0]["detail"]
-    out = tmp_path / "cli.ls"
-    subprocess.run(
-        [tablec, "compensate", kr150_table, program, "-o", out, "--robot", robot,
-         "--fanuc-utool", "1=0,0,0,0,0,0", "--fanuc-turn-axes", "1,4,6"],
-        check=True,
-        capture_output=True,
-    )
-    assert out.read_bytes() == done.output
+    assert fanuc_kr150_by_tablec(
+        tablec, kr150_table, program, tmp_path, "--fanuc-turn-axes", "1,4,6"
+    ) == done.output
     with pytest.raises(adwi.AdwiError, match="^fanuc_turn_axes: turn axes 4,4,6: three distinct"):
         adwi.compensate_program(kr150_table, program, robot=robot, fanuc_turn_axes=[4, 4, 6])
 
@@ -197,13 +205,8 @@ def test_fanuc_j23_is_the_command_lines(tablec, kr150_table, tmp_path):
     assert "give --fanuc-j23 1" in refused.targets[0]["detail"]
     done = adwi.compensate_program(kr150_table, program, robot=robot, fanuc_utools=tool, fanuc_j23=1)
     assert done.targets[0]["status"] == "ok", done.targets[0]["detail"]
-    out = tmp_path / "cli.ls"
-    subprocess.run(
-        [tablec, "compensate", kr150_table, program, "-o", out, "--robot", robot,
-         "--fanuc-utool", "1=0,0,0,0,0,0", "--fanuc-j23", "1"],
-        check=True,
-        capture_output=True,
-    )
-    assert out.read_bytes() == done.output
+    assert fanuc_kr150_by_tablec(
+        tablec, kr150_table, program, tmp_path, "--fanuc-j23", "1"
+    ) == done.output
     with pytest.raises(adwi.AdwiError, match="J2/J3 factor must be a number from -2 to 2"):
         adwi.compensate_program(kr150_table, program, robot=robot, fanuc_j23=float("nan"))
