@@ -410,8 +410,60 @@ fn the_same_arm_in_md_h_and_as_urdf_compensates_alike() {
             })
             .collect();
         for other in &reports[1..] {
-            same_commands(&reports[0], other, 1e-6, Some(1e-9));
+            same_commands(&reports[0], other, 7, 1e-6, Some(1e-9));
         }
+    }
+}
+
+/// The KR150-2 written as a URDF (the shipped MD-H file's joints as origins and axes)
+/// keeps a KRL target's written Status and Turn as the MD-H file does: a URDF is read in
+/// its MD-H form, so it has the configurations (every `S` was `invalid` with a URDF, and
+/// `XHOME`, at the wrist's singularity, moved J4 half a turn).
+#[test]
+fn a_urdf_arm_keeps_a_written_configuration_as_its_md_h_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = crate::common::kr150_hybrid_table(dir.path());
+    let urdf = dir.path().join("kr150-2.urdf");
+    let mut text = String::from("<robot name=\"kr150-2\"><link name=\"base_link\"/>");
+    let mut parent = "base_link".to_string();
+    for (i, (xyz, axis, [lo, hi])) in [
+        ("0 0 0.75", "0 0 1", [-185.0f64, 185.0]),
+        ("0.35 0 0", "0 1 0", [-146.0, 0.0]),
+        ("1.25 0 0", "0 1 0", [-119.0, 155.0]),
+        ("0 0 -0.055", "1 0 0", [-350.0, 350.0]),
+        ("1.1 0 0", "0 1 0", [-125.0, 125.0]),
+        ("0.23 0 0", "1 0 0", [-350.0, 350.0]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let (lo, hi) = (lo.to_radians(), hi.to_radians());
+        text += &format!(
+            "<link name=\"link_{n}\"/><joint name=\"a{n}\" type=\"revolute\"><origin xyz=\"{xyz}\"/>\
+             <parent link=\"{parent}\"/><child link=\"link_{n}\"/><axis xyz=\"{axis}\"/>\
+             <limit effort=\"0\" lower=\"{lo}\" upper=\"{hi}\" velocity=\"1\"/></joint>",
+            n = i + 1
+        );
+        parent = format!("link_{}", i + 1);
+    }
+    // tool0, the flange as KUKA frames it: z out of the flange (the MD-H file's frame 6).
+    text += "<link name=\"tool0\"/><joint name=\"flange\" type=\"fixed\">\
+             <origin rpy=\"0 1.5707963267948966 0\"/><parent link=\"link_6\"/>\
+             <child link=\"tool0\"/></joint></robot>";
+    std::fs::write(&urdf, text).unwrap();
+    for program in ["weld.dat", "config.dat"] {
+        let reports: Vec<Report> = [kr150_robot(), urdf.clone()]
+            .iter()
+            .map(|robot| {
+                run_job(&table, &fixture(program), robot, |o| {
+                    o.tool = Some([0.0; 6]);
+                })
+                .1
+                .report
+            })
+            .collect();
+        let corrected = if program == "weld.dat" { 6 } else { 0 };
+        same_commands(&reports[0], &reports[1], corrected, 1e-6, Some(1e-9));
     }
 }
 
@@ -424,21 +476,24 @@ fn a_robot_file_that_is_not_the_tables_robot_is_refused_with_the_gap() {
     let dir = tempfile::tempdir().unwrap();
     let table = crate::common::kr150_hybrid_table(dir.path());
     let original = std::fs::read_to_string(repo("tables/kr150-2/robot.toml")).unwrap();
-    let lines: Vec<&str> = original.lines().collect();
-    let changed = |line: usize, text: &str, name: &str| {
-        let mut l = lines.clone();
-        l[line - 1] = text;
+    let changed = |from: &str, to: &str, name: &str| {
+        assert_eq!(original.matches(from).count(), 1, "{from}");
         let path = dir.path().join(name);
-        std::fs::write(&path, l.join("\n") + "\n").unwrap();
+        std::fs::write(&path, original.replace(from, to)).unwrap();
         path
     };
+    let a6 = "# A6 (flange)\na_mm = 0.0\nd_mm = 230.0\nalpha_deg = 0.0\nbeta_deg = 0.0\n";
     for (robot, said) in [
         (
-            changed(33, "a_mm = 1251.0", "longer.toml"),
+            changed("a_mm = 1250.0", "a_mm = 1251.0", "longer.toml"),
             "1.000000 mm and 0.000000° apart at home",
         ),
         (
-            changed(69, "theta_offset_deg = 0.001", "turned.toml"),
+            changed(
+                &format!("{a6}theta_offset_deg = 0.0"),
+                &format!("{a6}theta_offset_deg = 0.001"),
+                "turned.toml",
+            ),
             "0.000000 mm and 0.001000° apart at home",
         ),
     ] {
@@ -459,8 +514,16 @@ fn a_robot_file_that_is_not_the_tables_robot_is_refused_with_the_gap() {
 
 /// Two compensations of one program, the first with seven corrected: the same statuses,
 /// commands to `command_mm`, and joints to `joints` (rad) when given.
-fn same_commands(first: &Report, second: &Report, command_mm: f64, joints: Option<f64>) {
-    assert_eq!(first.summary().corrected, 7, "{}", first.summary());
+/// Two reports of one program: `corrected` targets corrected in the first, and target by
+/// target the same status and commands (to `command_mm`, and the joints to `joints` rad).
+fn same_commands(
+    first: &Report,
+    second: &Report,
+    corrected: usize,
+    command_mm: f64,
+    joints: Option<f64>,
+) {
+    assert_eq!(first.summary().corrected, corrected, "{}", first.summary());
     assert_eq!(first.targets.len(), second.targets.len());
     for (a, b) in first.targets.iter().zip(&second.targets) {
         assert_eq!(a.status.as_str(), b.status.as_str(), "{}", a.place());
@@ -505,7 +568,7 @@ fn a_hybrid_table_alone_places_a_programs_tool_by_the_point_it_records() {
         .unwrap()
         .report;
     // The record is f32: 1e-5 mm at 200 mm.
-    same_commands(&alone, &with_robot, 1e-5, None);
+    same_commands(&alone, &with_robot, 7, 1e-5, None);
 }
 
 /// A CSV program with more joint columns than the robot has joints: its targets are

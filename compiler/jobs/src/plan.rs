@@ -512,8 +512,13 @@ impl PlanJob {
                 planned.min_distance_mm
             )));
         }
-        let closed_form = InverseKinematics::new(&robot).is_ok();
-        let label = |q: &[f64]| adwi_simulate::label(&robot, q).bits();
+        let closed_form = InverseKinematics::new(&robot).ok();
+        let label = |q: &[f64]| {
+            let ik = closed_form
+                .as_ref()
+                .expect("labels only with the closed form");
+            ik.configuration(q.try_into().expect("six joints")).bits()
+        };
         let boxes: Vec<String> = options
             .boxes_mm
             .iter()
@@ -571,7 +576,7 @@ impl PlanJob {
             &robot,
             &planned,
             &comments,
-            closed_form.then_some(&label as &ConfigLabel),
+            closed_form.is_some().then_some(&label as &ConfigLabel),
         );
         outputs.write(&[(&args.output, text.as_bytes())])?;
         Ok(Planned {

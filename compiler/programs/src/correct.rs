@@ -4,9 +4,8 @@
 
 use std::f64::consts::TAU;
 
-use adwi_robot::ik::{configuration_of, solve_near, solve_position_first, JOINT_COUNT};
+use adwi_robot::ik::{solve_near, solve_position_first, JOINT_COUNT};
 use adwi_robot::{Configuration, InverseKinematics, Robot};
-use adwi_runtime::kinematics::MdhJoint;
 use adwi_runtime::{Evidence, Residual, Status, Table, Target};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -143,20 +142,13 @@ pub struct Kinematics {
     robot: Robot,
     /// The closed form and its MD-H rows, or why the robot has none (what a written
     /// configuration's refusal names).
-    closed: Result<(InverseKinematics, [MdhJoint; JOINT_COUNT]), String>,
+    closed: Result<InverseKinematics, String>,
 }
 
 impl Kinematics {
     /// The kinematics of `robot` (its tool the table's point).
     pub fn new(robot: Robot) -> Kinematics {
-        let closed = InverseKinematics::new(&robot)
-            .map_err(|e| e.to_string())
-            .and_then(|ik| {
-                let rows: Option<[MdhJoint; JOINT_COUNT]> =
-                    robot.mdh().and_then(|rows| rows.try_into().ok());
-                rows.map(|rows| (ik, rows))
-                    .ok_or_else(|| "not six MD-H joints".to_string())
-            });
+        let closed = InverseKinematics::new(&robot).map_err(|e| e.to_string());
         Kinematics { robot, closed }
     }
 
@@ -184,9 +176,9 @@ impl Kinematics {
 
     /// The configuration of `q`, for robots with configuration labels.
     pub fn configuration(&self, q: &[f64]) -> Option<Configuration> {
-        let (_, rows) = self.closed.as_ref().ok()?;
+        let ik = self.closed.as_ref().ok()?;
         let q: [f64; JOINT_COUNT] = q.try_into().ok()?;
-        Some(configuration_of(rows, &q))
+        Some(ik.configuration(&q))
     }
 
     /// The command a posture reaches for the asked `pose`, as [`Kinematics::inverse`]
@@ -231,7 +223,7 @@ impl Kinematics {
         what: &str,
     ) -> String {
         let unreached = format!("no posture reaches {what}");
-        let (Some(wanted), Ok((_, rows))) = (posture.configuration, &self.closed) else {
+        let (Some(wanted), Ok(_)) = (posture.configuration, &self.closed) else {
             return unreached;
         };
         // In its configuration on other turns: the turns written are the reason.
@@ -289,7 +281,7 @@ impl Kinematics {
         format!(
             "{unreached}: one reaches it across {} singularity, in configuration {other} (J5 {:.4}°)",
             crossed.join(" and "),
-            (q[4] + rows[4].theta_offset_rad).to_degrees()
+            q[4].to_degrees()
         )
     }
 
@@ -303,7 +295,7 @@ impl Kinematics {
         posture: &Posture,
         near: &[f64],
     ) -> Option<Vec<f64>> {
-        let Ok((ik, _)) = &self.closed else {
+        let Ok(ik) = &self.closed else {
             // Fewer than six joints cannot take every orientation: position first.
             let q = if self.robot.joint_count() < 6 {
                 solve_position_first(&self.robot, pose, near)?

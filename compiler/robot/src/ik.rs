@@ -12,9 +12,11 @@
 //!   axis toward joint 2) points toward the wrist centre's horizontal direction, back when
 //!   the arm reaches over behind itself.
 //! - bit 1, **elbow**: 0 *up*, 1 *down*. Up when the elbow (joint 3's axis) lies above the
-//!   line from the shoulder (joint 2's axis) to the wrist centre, seen in the vertical
-//!   plane through the base axis and the wrist centre, with the horizontal axis pointing
-//!   from the base axis toward the wrist centre.
+//!   line from the shoulder (joint 2's axis) to the wrist centre, seen in the arm's
+//!   vertical plane (normal to joint 2's axis; through the base axis unless the arm is
+//!   offset sideways), with the horizontal axis pointing toward the wrist centre. Above is
+//!   along joint 1's axis, or against it where that axis points down in the robot's base
+//!   frame (a URDF that turns joint 1 about −z, as KUKA counts A1).
 //! - bit 2, **wrist**: 0 *no flip*, 1 *flip*. Flip when joint 5's value is negative, as the
 //!   robot file counts it and the controller writes it (KUKA's A5 < 0, Fanuc's `F`): the
 //!   wrist's singularity is at J5 = 0°, where θ5 = q5 + its offset is 0° or 180°, so flip is
@@ -25,6 +27,12 @@
 //! (wrist centre on axis 1, arm stretched or folded, axes 4 and 6 aligned).
 //!
 //! # Closed form
+//!
+//! A robot given by its joints' origins and axes (a URDF) is read in its MD-H form
+//! ([`crate::mdh_form`]: the same kinematics, written as rows), so that it has the closed
+//! form and the labels wherever its geometry has them. Where joints 1 and 2 meet (a1 = 0),
+//! that form's frame 1 x axis (which then says the shoulder's front) points where the arm
+//! reaches at the home posture, or, upright there, where a positive J2 leans it.
 //!
 //! The closed form assumes the *skeleton* of the nominal model: six MD-H joints with α1, α3,
 //! α4, α5 = ±90°, α2 = 0, all β = 0, a4 = a5 = a6 = d5 = 0 (α2 = 180°, a J3 that turns
@@ -86,6 +94,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::error_model::{joint_jacobian, transform_pose_error};
+use super::mdh_form::mdh_form;
 use super::model::{isometry_from_transform, rotation_of, transform_from_isometry, Robot};
 
 /// The joint count of the robots the closed form solves.
@@ -203,6 +212,13 @@ pub const ORIENTATION_TOLERANCE_RAD: f64 = 1e-12;
 #[derive(Debug, Clone)]
 pub struct InverseKinematics {
     robot: Robot,
+    /// The robot's nominal kinematics in MD-H: its file's rows, or the rows written from
+    /// its chain's axes (a URDF robot, [`mdh_form`]).
+    model: NominalModel,
+    /// +1, or −1 where MD-H frame 0's z (joint 1's axis as it turns) points down in the
+    /// robot's base frame (a URDF joint 1 about −z, as KUKA counts A1): the elbow's up is
+    /// the base frame's.
+    up: f64,
     /// The nominal model idealised to the structure the closed form solves.
     skeleton: [MdhJoint; JOINT_COUNT],
     /// ±1: the sign of sin α of joints 1, 3, 4, 5 in the skeleton.
@@ -223,18 +239,13 @@ impl InverseKinematics {
     pub fn new(robot: &Robot) -> Result<InverseKinematics, IkError> {
         let unsupported = |reason: String| IkError::UnsupportedGeometry {
             robot: robot.name.clone(),
-            reason,
+            reason: match robot.mdh() {
+                Some(_) => reason,
+                None => format!("its joints in MD-H form: {reason}"),
+            },
         };
-        let mut skeleton: [MdhJoint; JOINT_COUNT] = match robot.mdh() {
-            Some(rows) => rows
-                .try_into()
-                .map_err(|_| unsupported(format!("{} joints, not {JOINT_COUNT}", rows.len())))?,
-            None => {
-                return Err(unsupported(
-                    "the joints are not given in MD-H (a URDF or chain robot)".into(),
-                ))
-            }
-        };
+        let (model, up) = nominal_model(robot).map_err(unsupported)?;
+        let mut skeleton = model.rows;
         // A negative link length is the same link with its x axis the other way:
         // `Tx(−a) = Rz(π)·Tx(a)·Rz(π)` and `Rz(π)·Rx(α) = Rx(−α)·Rz(π)`, so θ of the joint and
         // of the next turn by a half turn and α changes sign (q is unchanged: the offsets
@@ -305,10 +316,27 @@ impl InverseKinematics {
         }
         Ok(InverseKinematics {
             robot: robot.clone(),
+            model,
+            up,
             skeleton,
             sin_alpha,
             j3_reversed,
         })
+    }
+
+    /// The configuration of joint values `q_rad` of the nominal robot (module docs).
+    pub fn configuration(&self, q_rad: &[f64; JOINT_COUNT]) -> Configuration {
+        self.label(&self.model.rows, q_rad)
+    }
+
+    /// [`configuration_of`] on `joints`, the elbow read against the robot's up.
+    fn label(&self, joints: &[MdhJoint; JOINT_COUNT], q_rad: &[f64; JOINT_COUNT]) -> Configuration {
+        let c = configuration_of(joints, q_rad);
+        if self.up < 0.0 {
+            Configuration(c.0 ^ Configuration::ELBOW_DOWN)
+        } else {
+            c
+        }
     }
 
     /// The robot this solver was prepared for.
@@ -323,13 +351,8 @@ impl InverseKinematics {
     /// Empty when the pose is out of reach, every solution breaks a limit, or the wrist
     /// centre lies on axis 1 (infinitely many solutions: none is returned).
     pub fn solve(&self, tcp_pose: &Isometry3<f64>) -> Vec<IkSolution> {
-        let rows: [MdhJoint; JOINT_COUNT] = self
-            .robot
-            .mdh()
-            .expect("checked by InverseKinematics::new")
-            .try_into()
-            .expect("checked by InverseKinematics::new");
-        self.solve_with_model(tcp_pose, &rows, &self.robot.tool(), &self.robot.base())
+        let m = &self.model;
+        self.solve_with_model(tcp_pose, &m.rows, &m.tool, &m.base)
     }
 
     /// Like [`InverseKinematics::solve`], for an exact model `joints`, `tool` and `base`
@@ -363,7 +386,7 @@ impl InverseKinematics {
             };
             // Labelled on the exact model, so that a label always describes the posture
             // returned. At a singularity two candidates may meet in one posture: keep one.
-            let config = configuration_of(joints, &q_rad);
+            let config = self.label(joints, &q_rad);
             if solutions.iter().any(|s| s.config == config) {
                 continue;
             }
@@ -484,8 +507,8 @@ impl InverseKinematics {
     }
 
     /// Joints 4-6 from the rotation the wrist must produce (module docs, bit 2): both wrist
-    /// solutions, or one at the wrist singularity (θ5 = 0 or π, only θ4 ± θ6 defined, θ4 is
-    /// set to 0).
+    /// solutions, or one at the wrist singularity (θ5 = 0 or π, only θ4 ± θ6 defined, J4 is
+    /// set to its home value).
     fn wrist(&self, theta: &[f64; 3], flange_rotation: &Rotation3<f64>) -> Vec<(f64, f64, f64)> {
         let s = &self.skeleton;
         let q = |i: usize| theta[i] - s[i].theta_offset_rad;
@@ -506,12 +529,16 @@ impl InverseKinematics {
         // Below this, θ4 and θ6 would be atan2 of rounding noise.
         if sin5_magnitude < 1e-10 {
             let theta5 = if cos5 > 0.0 { 0.0 } else { PI };
-            // θ4 = 0: M = Rx(α4)·Rz(θ5)·Rx(α5)·Rz(θ6), so Rz(θ6) = (Rx(α4)·Rz(θ5)·Rx(α5))ᵀ·M.
-            let fixed = Rotation3::from_axis_angle(&Vector3::x_axis(), s[3].alpha_rad)
+            // J4 at its home value (how the robot file frames joint 4 then plays no part):
+            // M = Rz(θ4)·Rx(α4)·Rz(θ5)·Rx(α5)·Rz(θ6), so
+            // Rz(θ6) = (Rz(θ4)·Rx(α4)·Rz(θ5)·Rx(α5))ᵀ·M.
+            let theta4 = self.robot.home()[3] + s[3].theta_offset_rad;
+            let fixed = Rotation3::from_axis_angle(&Vector3::z_axis(), theta4)
+                * Rotation3::from_axis_angle(&Vector3::x_axis(), s[3].alpha_rad)
                 * Rotation3::from_axis_angle(&Vector3::z_axis(), theta5)
                 * Rotation3::from_axis_angle(&Vector3::x_axis(), s[4].alpha_rad);
             let rest = fixed.inverse().matrix() * m;
-            return vec![(0.0, theta5, rest[(1, 0)].atan2(rest[(0, 0)]))];
+            return vec![(theta4, theta5, rest[(1, 0)].atan2(rest[(0, 0)]))];
         }
         [1.0, -1.0]
             .into_iter()
@@ -525,6 +552,85 @@ impl InverseKinematics {
                 (theta4, theta5, theta6)
             })
             .collect()
+    }
+}
+
+/// A robot's nominal kinematics as six MD-H rows: `base · A_1 ⋯ A_6 · tool`.
+#[derive(Debug, Clone)]
+struct NominalModel {
+    base: Transform,
+    rows: [MdhJoint; JOINT_COUNT],
+    tool: Transform,
+}
+
+/// The nominal model of `robot` and its up (the sign of [`InverseKinematics`]'s `up`), or
+/// why there is none. An MD-H file's rows as written; a chain's (URDF) in its MD-H form,
+/// where, with joints 1 and 2 meeting (a1 = 0), frame 1's x axis (which then says the
+/// shoulder's front) is turned toward the wrist centre's reach at the home posture, or where
+/// the arm stands upright there, toward where a positive J2 leans it.
+fn nominal_model(robot: &Robot) -> Result<(NominalModel, f64), String> {
+    let six = |rows: &[MdhJoint]| -> Result<[MdhJoint; JOINT_COUNT], String> {
+        rows.try_into()
+            .map_err(|_| format!("{} joints, not {JOINT_COUNT}", rows.len()))
+    };
+    let Some(rows) = robot.mdh() else {
+        let form = mdh_form(robot.chain())?;
+        let mut rows = six(&form.rows)?;
+        if rows[0].a_mm.abs() <= 1e-9 {
+            if let Some(home) = robot.home().get(..JOINT_COUNT) {
+                let home: [f64; JOINT_COUNT] = home.try_into().expect("six values");
+                // The wrist centre's reach along frame 1's x axis (a shoulder's sideways
+                // offset, along joint 2's axis, plays no part).
+                let reach = |q: &[f64; JOINT_COUNT]| {
+                    let frames = link_frames(&rows, q);
+                    let [x, y, _] = frames[3].translation_mm;
+                    Vector3::new(x, y, 0.0)
+                        .dot(&Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0])))
+                };
+                let mut toward = reach(&home);
+                if toward.abs() <= 1e-6 {
+                    let mut leaned = home;
+                    leaned[1] += 1e-3;
+                    toward = reach(&leaned);
+                }
+                if toward < 0.0 {
+                    // Rz(θ1)·Rx(α1)·Rz(π) = Rz(θ1 + π)·Rx(−α1): frame 1 turned a half turn
+                    // about its z, which joint 2's offset takes back.
+                    rows[0].alpha_rad = -rows[0].alpha_rad;
+                    rows[0].theta_offset_rad = wrap(rows[0].theta_offset_rad + PI);
+                    rows[1].theta_offset_rad = wrap(rows[1].theta_offset_rad - PI);
+                }
+            }
+        }
+        let axis1 = form.base.rotate_vector([0.0, 0.0, 1.0]);
+        let base_up = robot.base().rotate_vector([0.0, 0.0, 1.0]);
+        let up = if Vector3::from(axis1).dot(&Vector3::from(base_up)) < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        let model = NominalModel {
+            base: form.base,
+            rows,
+            tool: form.tool,
+        };
+        return Ok((model, up));
+    };
+    let model = NominalModel {
+        base: robot.base(),
+        rows: six(rows)?,
+        tool: robot.tool(),
+    };
+    Ok((model, 1.0))
+}
+
+/// An angle in (−π, π], rad.
+fn wrap(angle_rad: f64) -> f64 {
+    let r = angle_rad.rem_euclid(TAU);
+    if r > PI {
+        r - TAU
+    } else {
+        r
     }
 }
 
@@ -548,21 +654,24 @@ pub fn configuration_of(
     let arm_x = toward_joint2
         .try_normalize(1e-9)
         .unwrap_or_else(|| Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0])));
-    let shoulder_back = arm_x.dot(&heading) < 0.0;
-    // The vertical plane through the base axis and the wrist centre: horizontal coordinate
-    // along the wrist centre's heading, vertical along base z.
-    let heading = heading.try_normalize(0.0).unwrap_or(arm_x);
-    let plane = |p: &Vector3<f64>| (p.dot(&heading), p.z);
+    let reach = arm_x.dot(&heading);
+    let shoulder_back = reach < 0.0;
+    // The arm's vertical plane (through the base axis and the wrist centre where the arm has
+    // no sideways offset): horizontal coordinate along joint 1's x axis turned toward the
+    // wrist centre, vertical along base z. Along the heading itself, a sideways offset
+    // (d2 + d3) would be mixed in wherever the wrist centre reaches little beyond axis 1.
+    let outward = if reach < 0.0 { -arm_x } else { arm_x };
+    let plane = |p: &Vector3<f64>| (p.dot(&outward), p.z);
     let (sr, sz) = plane(&shoulder);
     let (er, ez) = plane(&elbow);
     let (wr, wz) = plane(&wrist_centre);
     // Cross product of shoulder→wrist and shoulder→elbow: positive with the elbow on the
     // left of that outward line, i.e. above it.
     let elbow_down = (wr - sr) * (ez - sz) - (wz - sz) * (er - sr) < 0.0;
-    // J5 negative: θ5's sine, turned by the half turn an offset of 180° puts in it.
-    let wrist_flip = (q_rad[4] + joints[4].theta_offset_rad).sin()
-        * joints[4].theta_offset_rad.cos().signum()
-        < 0.0;
+    // J5 negative: the sine of θ5 less the half turns of its offset (0° or 180°), taken
+    // out before the sine so that J5 = 0 reads as no flip with either offset.
+    let offset = joints[4].theta_offset_rad;
+    let wrist_flip = (q_rad[4] + offset - PI * (offset / PI).round()).sin() < 0.0;
     Configuration::new(shoulder_back, elbow_down, wrist_flip)
 }
 
@@ -1364,9 +1473,18 @@ mod tests {
         let iiwa = Robot::load(crate::model::shipped_file("iiwa14", "robot.toml")).unwrap();
         let error = InverseKinematics::new(&iiwa).unwrap_err();
         assert!(error.to_string().contains("7 joints"), "{error}");
+        // A URDF is read in its MD-H form: the UR10's wrist is offset as in its MD-H file.
         let urdf = Robot::load(crate::model::shipped_file("ur10", "robot.urdf")).unwrap();
         let error = InverseKinematics::new(&urdf).unwrap_err();
-        assert!(error.to_string().contains("not given in MD-H"), "{error}");
+        assert!(
+            error
+                .to_string()
+                .contains("its joints in MD-H form: α3 is not ±90°"),
+            "{error}"
+        );
+        let urdf = Robot::load(crate::model::shipped_file("iiwa14", "robot.urdf")).unwrap();
+        let error = InverseKinematics::new(&urdf).unwrap_err();
+        assert!(error.to_string().contains("7 joints, not 6"), "{error}");
     }
 
     /// The seven-axis iiwa: from a seed near a posture, the numerical inverse reaches the

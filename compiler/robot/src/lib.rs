@@ -12,6 +12,7 @@ pub mod error;
 pub mod error_model;
 pub mod file;
 pub mod ik;
+pub mod mdh_form;
 pub mod model;
 pub mod plausible;
 pub mod testing;

@@ -53,7 +53,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use adwi_robot::error_model::{apply_deviations, JointDeviation};
-use adwi_robot::ik::{configuration_of, solve_near};
+use adwi_robot::ik::solve_near;
 use adwi_robot::model::{
     chain_frames, isometry_from_parts, isometry_from_transform, mdh_constant_part,
     transform_from_xyz_rpy, Geometry, MAX_JOINTS,
@@ -623,7 +623,7 @@ pub fn simulate(
     let actual = scenario.actual_robot(robot)?;
     let closed_form = InverseKinematics::new(robot);
     // Configurations are labelled wherever the closed form applies.
-    let labels = closed_form.is_ok();
+    let labels = closed_form.as_ref().ok();
     let mut pose_rng = ChaCha8Rng::seed_from_u64(plan.seed);
     let mut noise_rng = ChaCha8Rng::seed_from_u64(plan.seed);
     noise_rng.set_stream(1);
@@ -643,7 +643,8 @@ pub fn simulate(
                         abc_deg: kuka_abc_deg_from_rotation(&pose.rotation.to_rotation_matrix())
                             .map(round_to_file),
                     };
-                    let config = labels.then(|| label(robot, &q));
+                    let config = labels
+                        .map(|ik| ik.configuration(q.as_slice().try_into().expect("six joints")));
                     (nominal, q, config)
                 })
                 .collect()
@@ -741,22 +742,6 @@ pub fn simulate(
         }
     }
     Ok(samples)
-}
-
-/// The configuration label of joint values `q` of a robot with the closed form
-/// ([`InverseKinematics::new`](adwi_robot::ik::InverseKinematics::new) accepts it).
-///
-/// # Panics
-///
-/// For a robot without the closed form's six MD-H joints.
-pub fn label(robot: &Robot, q: &[f64]) -> Configuration {
-    let rows: [MdhJoint; 6] = robot
-        .mdh()
-        .expect("the closed form needs MD-H rows")
-        .try_into()
-        .expect("the closed form needs six joints");
-    let q: [f64; 6] = q.try_into().expect("six joint values");
-    configuration_of(&rows, &q)
 }
 
 /// Comment lines describing a simulated file: robot, scenario, plan, seed and columns.
