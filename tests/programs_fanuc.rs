@@ -625,16 +625,19 @@ fn turn_numbers_are_of_the_joints_the_controllers_turn_axes_name() {
         assert!(out.contains("CONFIG : 'F U T, 0, -1, 0',"), "{out}");
         assert_ne!(out, std::fs::read_to_string(&j4_turned).unwrap());
     }
+    // An option the inputs cannot take is a usage error, as one refused before any is read.
     let (code, _, stderr) = run(&["--fanuc-frames", "symotn.va", "--fanuc-turn-axes", "4,5,6"]);
-    assert_eq!(code, 1, "{stderr}");
+    assert_eq!(code, 2, "{stderr}");
     assert!(
         stderr.contains("--fanuc-turn-axes 4,5,6 and the frame file symotn.va's $SCR_GRP[1].$TURN_AXIS 1,4,6 disagree"),
         "{stderr}"
     );
     let (code, _, stderr) = run(&["--fanuc-turn-axes", "1,4,7"]);
-    assert_eq!(code, 1, "{stderr}");
+    assert_eq!(code, 2, "{stderr}");
     assert!(
-        stderr.contains("turn axes 1, 4, 7, --fanuc-turn-axes: the robot has 6 joints"),
+        stderr.contains(
+            "turn axes 1, 4, 7, --fanuc-turn-axes: J7 is not a joint of this robot, which has 6"
+        ),
         "{stderr}"
     );
     for bad in ["1,4,4", "1,4", "0,4,6"] {

@@ -347,9 +347,12 @@ impl CompensateJob {
     }
 }
 
-/// A program's error, as the job's.
+/// A program's error, as the job's: an option the inputs cannot take is an option's.
 fn program(e: adwi_programs::Error) -> JobError {
-    JobError::Program(Box::new(e))
+    match e {
+        adwi_programs::Error::OptionMisfit(message) => JobError::Options(message),
+        e => JobError::Program(Box::new(e)),
+    }
 }
 
 #[cfg(test)]

@@ -26,6 +26,11 @@ pub enum Error {
     /// An option, or a combination of options and inputs, that cannot work.
     #[error("{0}")]
     Option(String),
+    /// An option the inputs it is used with cannot take, found once they are read (turn
+    /// axes the robot has not, or that the controller's file contradicts): a usage error,
+    /// as an option refused before any file is read.
+    #[error("{0}")]
+    OptionMisfit(String),
     /// A file could not be read.
     #[error("cannot read {path}: {source}")]
     Read {

@@ -193,7 +193,10 @@ impl TurnAxes {
         for &j in self.joints.iter().filter(|j| **j != 0) {
             let index = usize::from(j) - 1;
             let why = if index >= robot.joint_count() {
-                format!("the robot has {} joints", robot.joint_count())
+                format!(
+                    "J{j} is not a joint of this robot, which has {}",
+                    robot.joint_count()
+                )
             } else if robot.prismatic_joints() >> index & 1 == 1 {
                 format!("J{j} is prismatic, and a turn number counts a revolute joint's turns")
             } else {

@@ -315,7 +315,7 @@ impl CompensateJob {
             frame_files
                 .fanuc_turn_axes
                 .fit(robot)
-                .map_err(Error::Option)?;
+                .map_err(Error::OptionMisfit)?;
         }
         let budget = Budget::new(o, kinematics.as_ref(), &name, bytes.len())?;
         let src = Source::new(&name, &bytes);
@@ -1316,7 +1316,7 @@ impl FrameFiles {
         };
         let fanuc_turn_axes =
             crate::fanuc::TurnAxes::of_job(o.fanuc_turn_axes, controller_turn_axes)
-                .map_err(Error::Option)?;
+                .map_err(Error::OptionMisfit)?;
         Ok(FrameFiles {
             krl,
             fanuc,
