@@ -634,7 +634,9 @@ fn wrap(angle_rad: f64) -> f64 {
     }
 }
 
-/// The configuration of joint angles `q_rad` on the model `joints` (module docs).
+/// The configuration of joint angles `q_rad` on the MD-H model `joints` (module docs), up
+/// along frame 0's z: a robot file's rows as written. A robot's own labels, whatever its
+/// file (a URDF, a joint 1 about −z), are [`InverseKinematics::configuration`]'s.
 ///
 /// Works for any joint vector, e.g. the commanded angles of a measured data set.
 pub fn configuration_of(
