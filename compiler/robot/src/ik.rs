@@ -11,12 +11,16 @@
 //! - bit 0, **shoulder**: 0 *front*, 1 *back*. Front when joint 1's x axis (from the base
 //!   axis toward joint 2) points toward the wrist centre's horizontal direction, back when
 //!   the arm reaches over behind itself.
-//! - bit 1, **elbow**: 0 *up*, 1 *down*. Up when the elbow (joint 3's axis) lies above the
-//!   line from the shoulder (joint 2's axis) to the wrist centre, seen in the arm's
-//!   vertical plane (normal to joint 2's axis; through the base axis unless the arm is
-//!   offset sideways), with the horizontal axis pointing toward the wrist centre. Above is
-//!   along joint 1's axis, or against it where that axis points down in the robot's base
-//!   frame (a URDF that turns joint 1 about −z, as KUKA counts A1).
+//! - bit 1, **elbow**: 0 *up*, 1 *down*: the side the arm bends to. Up when the elbow
+//!   (joint 3's axis) lies above the line from the shoulder (joint 2's axis) to the wrist
+//!   centre, seen in the arm's vertical plane (normal to joint 2's axis; through the base
+//!   axis unless the arm is offset sideways) with the horizontal axis along joint 1's x axis,
+//!   the arm's front, whichever side the wrist centre is on. So an arm reaching over behind
+//!   itself keeps the label of its bend as a front posture shows it (the elbow may then be
+//!   the lower), as ABB's cfx ("the wrist centre behind the lower arm"), KUKA's status bit
+//!   1 and Fanuc's U/D (both from J3 alone) count it. Above is along joint 1's axis, or
+//!   against it where that axis points down in the robot's base frame (a URDF that turns
+//!   joint 1 about −z, as KUKA counts A1).
 //! - bit 2, **wrist**: 0 *no flip*, 1 *flip*. Flip when joint 5's value is negative, as the
 //!   robot file counts it and the controller writes it (KUKA's A5 < 0, Fanuc's `F`): the
 //!   wrist's singularity is at J5 = 0°, where θ5 = q5 + its offset is 0° or 180°, so flip is
@@ -656,19 +660,18 @@ pub fn configuration_of(
     let arm_x = toward_joint2
         .try_normalize(1e-9)
         .unwrap_or_else(|| Vector3::from(frames[0].rotate_vector([1.0, 0.0, 0.0])));
-    let reach = arm_x.dot(&heading);
-    let shoulder_back = reach < 0.0;
-    // The arm's vertical plane (through the base axis and the wrist centre where the arm has
-    // no sideways offset): horizontal coordinate along joint 1's x axis turned toward the
-    // wrist centre, vertical along base z. Along the heading itself, a sideways offset
-    // (d2 + d3) would be mixed in wherever the wrist centre reaches little beyond axis 1.
-    let outward = if reach < 0.0 { -arm_x } else { arm_x };
-    let plane = |p: &Vector3<f64>| (p.dot(&outward), p.z);
+    let shoulder_back = arm_x.dot(&heading) < 0.0;
+    // The arm's vertical plane: horizontal coordinate along joint 1's x axis (the arm's
+    // front, whichever side the wrist centre is on), vertical along base z. Not along the
+    // wrist centre's heading: that turns the plane over when the arm reaches behind (the
+    // elbow's side would flip with the shoulder's), and mixes in a sideways offset (d2 + d3)
+    // wherever the wrist centre reaches little beyond axis 1.
+    let plane = |p: &Vector3<f64>| (p.dot(&arm_x), p.z);
     let (sr, sz) = plane(&shoulder);
     let (er, ez) = plane(&elbow);
     let (wr, wz) = plane(&wrist_centre);
     // Cross product of shoulder→wrist and shoulder→elbow: positive with the elbow on the
-    // left of that outward line, i.e. above it.
+    // left of that line (above it where the wrist centre is in front).
     let elbow_down = (wr - sr) * (ez - sz) - (wz - sz) * (er - sr) < 0.0;
     // J5 negative: the sine of θ5 less the half turns of its offset (0° or 180°), taken
     // out before the sine so that J5 = 0 reads as no flip with either offset.
@@ -1429,8 +1432,13 @@ mod tests {
         // is below the line from the shoulder (350, 0, 750) to the wrist (≈1205, 0, 2000).
         assert_eq!(label_of([0.0, -10.0, -100.0, 0.0, 30.0, 0.0]), 2);
         // Upper arm leaning 30° back, forearm horizontal backward: the wrist centre
-        // (≈ −1375, 0, 1888) is behind the base axis, the elbow above the line.
-        assert_eq!(label_of([0.0, -120.0, -60.0, 0.0, 30.0, 0.0]), 1);
+        // (≈ −1375, 0, 1888) is behind the base axis, and the arm bends as in the elbow-down
+        // posture above (A3 on the same side of stretched), though the elbow (−275, 0, 1833)
+        // lies above the shoulder–wrist line: elbow down, as KUKA's status bit 1 (from A3)
+        // and ABB's cfx (the wrist centre behind the lower arm) count it.
+        assert_eq!(label_of([0.0, -120.0, -60.0, 0.0, 30.0, 0.0]), 3);
+        // The same bend as home, reaching over behind: elbow up.
+        assert_eq!(label_of([0.0, -140.0, 15.0, 0.0, 30.0, 0.0]), 1);
     }
 
     #[test]
