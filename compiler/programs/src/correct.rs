@@ -137,6 +137,17 @@ impl Turn {
     }
 }
 
+/// A joint value in degrees for a message: three decimals, or where those would show
+/// `−0.000` (a hair across zero that decides a turn), the value in full.
+fn joint_deg(q_rad: f64) -> String {
+    let deg = q_rad.to_degrees();
+    if deg != 0.0 && deg.abs() < 5e-4 {
+        format!("{deg:.3e}")
+    } else {
+        format!("{deg:.3}")
+    }
+}
+
 /// A robot whose TCP is the table's point: forward and inverse kinematics.
 pub struct Kinematics {
     robot: Robot,
@@ -236,7 +247,7 @@ impl Kinematics {
             .map(|q| {
                 (posture.turns.iter().zip(&q).enumerate())
                     .filter(|(_, (turn, v))| !turn.holds(**v))
-                    .map(|(i, (_, v))| format!("J{} {:.3}°", i + 1, v.to_degrees()))
+                    .map(|(i, (_, v))| format!("J{} {}°", i + 1, joint_deg(*v)))
                     .collect()
             })
             .unwrap_or_default();
@@ -666,4 +677,17 @@ pub fn joint_change(robot: &Robot, a: &[f64], b: &[f64]) -> f64 {
             adwi_runtime::chain::JointKind::Prismatic => (a - b).abs(),
         })
         .fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::joint_deg;
+
+    #[test]
+    fn a_hair_across_zero_is_shown_not_rounded_to_minus_zero() {
+        assert_eq!(joint_deg((-2.1e-5f64).to_radians()), "-2.100e-5");
+        assert_eq!(joint_deg(0.0), "0.000");
+        assert_eq!(joint_deg(19.659f64.to_radians()), "19.659");
+        assert_eq!(joint_deg((-0.042f64).to_radians()), "-0.042");
+    }
 }
