@@ -513,12 +513,9 @@ impl PlanJob {
             )));
         }
         let closed_form = InverseKinematics::new(&robot).ok();
-        let label = |q: &[f64]| {
-            let ik = closed_form
-                .as_ref()
-                .expect("labels only with the closed form");
-            ik.configuration(q.try_into().expect("six joints")).bits()
-        };
+        let label = closed_form
+            .as_ref()
+            .map(|ik| move |q: &[f64]| ik.configuration(q.try_into().expect("six joints")).bits());
         let boxes: Vec<String> = options
             .boxes_mm
             .iter()
@@ -576,7 +573,7 @@ impl PlanJob {
             &robot,
             &planned,
             &comments,
-            closed_form.is_some().then_some(&label as &ConfigLabel),
+            label.as_ref().map(|l| l as &ConfigLabel),
         );
         outputs.write(&[(&args.output, text.as_bytes())])?;
         Ok(Planned {

@@ -219,10 +219,6 @@ pub struct InverseKinematics {
     /// The robot's nominal kinematics in MD-H: its file's rows, or the rows written from
     /// its chain's axes (a URDF robot, [`mdh_form`]).
     model: NominalModel,
-    /// +1, or −1 where MD-H frame 0's z (joint 1's axis as it turns) points down in the
-    /// robot's base frame (a URDF joint 1 about −z, as KUKA counts A1): the elbow's up is
-    /// the base frame's.
-    up: f64,
     /// The nominal model idealised to the structure the closed form solves.
     skeleton: [MdhJoint; JOINT_COUNT],
     /// ±1: the sign of sin α of joints 1, 3, 4, 5 in the skeleton.
@@ -248,7 +244,7 @@ impl InverseKinematics {
                 None => format!("its joints in MD-H form: {reason}"),
             },
         };
-        let (model, up) = nominal_model(robot).map_err(unsupported)?;
+        let model = nominal_model(robot).map_err(unsupported)?;
         let mut skeleton = model.rows;
         // A negative link length is the same link with its x axis the other way:
         // `Tx(−a) = Rz(π)·Tx(a)·Rz(π)` and `Rz(π)·Rx(α) = Rx(−α)·Rz(π)`, so θ of the joint and
@@ -321,7 +317,6 @@ impl InverseKinematics {
         Ok(InverseKinematics {
             robot: robot.clone(),
             model,
-            up,
             skeleton,
             sin_alpha,
             j3_reversed,
@@ -336,7 +331,7 @@ impl InverseKinematics {
     /// [`configuration_of`] on `joints`, the elbow read against the robot's up.
     fn label(&self, joints: &[MdhJoint; JOINT_COUNT], q_rad: &[f64; JOINT_COUNT]) -> Configuration {
         let c = configuration_of(joints, q_rad);
-        if self.up < 0.0 {
+        if self.model.up_against_z0 {
             Configuration(c.0 ^ Configuration::ELBOW_DOWN)
         } else {
             c
@@ -565,14 +560,17 @@ struct NominalModel {
     base: Transform,
     rows: [MdhJoint; JOINT_COUNT],
     tool: Transform,
+    /// Whether frame 0's z (joint 1's axis as it turns) points down in the robot's base
+    /// frame (a URDF joint 1 about −z, as KUKA counts A1): the elbow's up is then against
+    /// it, the base frame's.
+    up_against_z0: bool,
 }
 
-/// The nominal model of `robot` and its up (the sign of [`InverseKinematics`]'s `up`), or
-/// why there is none. An MD-H file's rows as written; a chain's (URDF) in its MD-H form,
+/// The nominal model of `robot`, or why there is none. An MD-H file's rows as written; a chain's (URDF) in its MD-H form,
 /// where, with joints 1 and 2 meeting (a1 = 0), frame 1's x axis (which then says the
 /// shoulder's front) is turned toward the wrist centre's reach at the home posture, or where
 /// the arm stands upright there, toward where a positive J2 leans it.
-fn nominal_model(robot: &Robot) -> Result<(NominalModel, f64), String> {
+fn nominal_model(robot: &Robot) -> Result<NominalModel, String> {
     let six = |rows: &[MdhJoint]| -> Result<[MdhJoint; JOINT_COUNT], String> {
         rows.try_into()
             .map_err(|_| format!("{} joints, not {JOINT_COUNT}", rows.len()))
@@ -581,8 +579,7 @@ fn nominal_model(robot: &Robot) -> Result<(NominalModel, f64), String> {
         let form = mdh_form(robot.chain())?;
         let mut rows = six(&form.rows)?;
         if rows[0].a_mm.abs() <= 1e-9 {
-            if let Some(home) = robot.home().get(..JOINT_COUNT) {
-                let home: [f64; JOINT_COUNT] = home.try_into().expect("six values");
+            if let Ok(home) = <[f64; JOINT_COUNT]>::try_from(robot.home()) {
                 // The wrist centre's reach along frame 1's x axis (a shoulder's sideways
                 // offset, along joint 2's axis, plays no part).
                 let reach = |q: &[f64; JOINT_COUNT]| {
@@ -606,26 +603,21 @@ fn nominal_model(robot: &Robot) -> Result<(NominalModel, f64), String> {
                 }
             }
         }
-        let axis1 = form.base.rotate_vector([0.0, 0.0, 1.0]);
-        let base_up = robot.base().rotate_vector([0.0, 0.0, 1.0]);
-        let up = if Vector3::from(axis1).dot(&Vector3::from(base_up)) < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        let model = NominalModel {
+        let axis1 = Vector3::from(form.base.rotate_vector([0.0, 0.0, 1.0]));
+        let base_up = Vector3::from(robot.base().rotate_vector([0.0, 0.0, 1.0]));
+        return Ok(NominalModel {
             base: form.base,
             rows,
             tool: form.tool,
-        };
-        return Ok((model, up));
+            up_against_z0: axis1.dot(&base_up) < 0.0,
+        });
     };
-    let model = NominalModel {
+    Ok(NominalModel {
         base: robot.base(),
         rows: six(rows)?,
         tool: robot.tool(),
-    };
-    Ok((model, 1.0))
+        up_against_z0: false,
+    })
 }
 
 /// An angle in (−π, π], rad.
