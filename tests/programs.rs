@@ -1326,6 +1326,40 @@ fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select(
 }
 
 #[test]
+fn a_circles_end_point_that_its_angle_passes_by_is_corrected_and_said_to_be_passed() {
+    // `CA` ends the motion at the angle, elsewhere on the circle: the end point written is
+    // still corrected (it defines the circle), and its line says the motion's end is not it.
+    let dir = tempfile::tempdir().unwrap();
+    let table = method_table(dir.path(), &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let program = dir.path().join("arc.src");
+    std::fs::write(
+        &program,
+        "DEF arc( )\n  LIN {X 1700.0, Y 300.0, Z 1000.0, A 0.0, B 90.0, C 0.0}\n\
+         \x20 CIRC {X 1750.0, Y 350.0, Z 1000.0, A 0.0, B 90.0, C 0.0}, \
+         {X 1700.0, Y 400.0, Z 1000.0, A 0.0, B 90.0, C 0.0}, CA 270 C_DIS\n\
+         \x20 CIRC {X 1750.0, Y 350.0, Z 1050.0, A 0.0, B 90.0, C 0.0}, \
+         {X 1700.0, Y 400.0, Z 1050.0, A 0.0, B 90.0, C 0.0}\nEND\n",
+    )
+    .unwrap();
+    let (_, done) = run_job(&table, &program, &kr150_robot(), |_| {});
+    let lines: Vec<(&str, &str, &str)> = (done.report.targets.iter())
+        .map(|t| (t.name.as_str(), t.status.as_str(), t.detail.as_str()))
+        .collect();
+    let noted = "CIRC … CA 270: corrected as a point defining the circle; the motion ends at the \
+                 angle, a point not corrected on its own";
+    assert_eq!(
+        lines,
+        [
+            ("LIN", "ok", ""),
+            ("CIRC", "ok", ""),
+            ("CIRC", "ok", noted),
+            ("CIRC", "ok", ""),
+            ("CIRC", "ok", "")
+        ]
+    );
+}
+
+#[test]
 fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

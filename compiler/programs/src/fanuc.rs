@@ -1490,6 +1490,7 @@ impl FrameFields<'_, '_> {
                 base,
                 offset: at,
                 elsewhere: None,
+                note: None,
                 undeclared: Vec::new(),
                 unknown,
             }],

@@ -475,6 +475,7 @@ impl CompensateJob {
                 }
             }
             self.say_if_unused(target, &mut entry);
+            say_notes(target, &mut entry);
             summary.add(&entry);
             if first_not_corrected.is_none() && !entry.status.corrected() {
                 first_not_corrected = Some(not_corrected(&entry));
@@ -1659,6 +1660,7 @@ impl<'a> FrameContext<'a> {
             base: self.work_offset(index),
             offset: target.offset,
             elsewhere: None,
+            note: None,
             undeclared: Vec::new(),
             unknown: Vec::new(),
         }];
@@ -2412,5 +2414,25 @@ fn kinematics(
             };
             Ok((Some(Kinematics::new(robot)), table_tool))
         }
+    }
+}
+
+/// What the motions using a corrected target do with it besides reaching it
+/// ([`FrameUse::note`]), after the detail, once each.
+fn say_notes(target: &crate::program::ProgramTarget, entry: &mut TargetLine) {
+    if !entry.status.corrected() {
+        return;
+    }
+    let mut said: Vec<&str> = Vec::new();
+    for note in target.uses.iter().filter_map(|u| u.note.as_deref()) {
+        if !said.contains(&note) {
+            said.push(note);
+        }
+    }
+    for note in said {
+        if !entry.detail.is_empty() {
+            entry.detail.push_str("; ");
+        }
+        entry.detail.push_str(note);
     }
 }

@@ -964,6 +964,7 @@ fn frame_use(state: &State, offset: usize) -> FrameUse {
         base: None,
         offset,
         elsewhere: None,
+        note: None,
         undeclared: Vec::new(),
         unknown: Vec::new(),
     };
@@ -1303,8 +1304,31 @@ fn motion_statement(
         frame: &frame,
         routine: here.routine,
     };
-    for &(start, end) in &args {
-        targets.argument(start, end, scan)?;
+    // A circle's angle ends the motion where the angle does, on the circle, not at the
+    // end point written: the end point is corrected as a point of the circle, and said so.
+    let end_uses: Option<Vec<FrameUse>> = (m.targets == 2)
+        .then(|| circle_angle(src, line))
+        .flatten()
+        .map(|angle| {
+            let note = format!(
+                "{motion} … CA {angle}: corrected as a point defining the circle; the \
+                 motion ends at the angle, a point not corrected on its own"
+            );
+            (frame.iter().cloned())
+                .map(|u| FrameUse {
+                    note: Some(note.clone()),
+                    ..u
+                })
+                .collect()
+        });
+    let end = end_uses
+        .as_deref()
+        .map(|frame| MotionTargets { frame, ..targets });
+    for (k, &(start, stop)) in args.iter().enumerate() {
+        match (&end, k) {
+            (Some(end), 1) => end.argument(start, stop, scan)?,
+            _ => targets.argument(start, stop, scan)?,
+        }
     }
     if args.len() < m.targets && this_file {
         return Err(src.error(
@@ -1313,6 +1337,18 @@ fn motion_statement(
         ));
     }
     Ok(())
+}
+
+/// The angle a circular motion's `CA` gives (`CA 270`, `CA -45.5`, `CA ANGLE`), as
+/// written: the words after `CA` up to the next word that follows a motion's targets.
+fn circle_angle(src: &Source, line: &[Token]) -> Option<String> {
+    let at = line.iter().position(|t| word_is(src, Some(t), "CA"))?;
+    let rest = &line[at + 1..];
+    let stop = (rest.iter())
+        .position(|t| AFTER_TARGETS.iter().any(|w| word_is(src, Some(t), w)))
+        .unwrap_or(rest.len());
+    let (first, last) = (rest.first()?, rest[..stop].last()?);
+    Some(src.text(first.start, last.end).trim().to_string())
 }
 
 /// The ranges of a motion's target arguments (at most `count`): up to the first word that
@@ -2715,6 +2751,55 @@ mod tests {
             .iter()
             .map(|u| u.base.map(|b| b.translation.vector.x))
             .collect()
+    }
+
+    #[test]
+    fn a_circles_end_point_is_noted_where_its_angle_ends_the_motion() {
+        // Named in the data list and inline: the end point of a circle with `CA` carries
+        // the note on its use; the auxiliary point and a circle without an angle do not.
+        let p = pair(
+            &["XP1", "XP2", "XP3", "XP4"],
+            "DEF cell( )\n  LIN XP1\n  CIRC XP2, XP3, CA -45.5 C_DIS\n  CIRC XP2, XP4\n\
+             \x20 SCIRC {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, \
+             {X 1750.0,Y 400.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, CA 270\nEND\n",
+        );
+        let notes = |name: &str| -> Vec<Option<String>> {
+            let t = p.targets.iter().find(|t| t.name == name).unwrap();
+            t.uses.iter().map(|u| u.note.clone()).collect()
+        };
+        assert_eq!(notes("XP1"), [None]);
+        assert_eq!(notes("XP2"), [None, None]);
+        assert_eq!(
+            notes("XP3"),
+            [Some(
+                "CIRC … CA -45.5: corrected as a point defining the circle; the motion ends at \
+                 the angle, a point not corrected on its own"
+                    .to_string()
+            )]
+        );
+        assert_eq!(notes("XP4"), [None]);
+        // The .src's inline circle, read in the .src itself.
+        let src = "DEF cell( )\n  SCIRC {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, \
+                   {X 1750.0,Y 400.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, CA 270\nEND\n";
+        let t = read_with(
+            &Source::new("cell.src", src.as_bytes()),
+            None,
+            &cell_config(),
+            usize::MAX,
+        )
+        .unwrap()
+        .targets;
+        let inline: Vec<bool> = t
+            .iter()
+            .map(|t| {
+                t.uses.iter().any(|u| {
+                    u.note
+                        .as_deref()
+                        .is_some_and(|n| n.starts_with("SCIRC … CA 270:"))
+                })
+            })
+            .collect();
+        assert_eq!(inline, [false, true]);
     }
 
     #[test]

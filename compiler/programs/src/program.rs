@@ -301,6 +301,10 @@ pub struct FrameUse {
     /// The use's place when another file holds it (a KRL `.dat`'s target moved to by its
     /// `.src`): `file:line:column`; `None`: `offset` in the target's own file.
     pub elsewhere: Option<String>,
+    /// What the motion does with the target besides reaching it, said beside its
+    /// correction: a KRL circle's end point when the circle's angle (`CA`) ends the motion
+    /// elsewhere on the circle.
+    pub note: Option<String>,
     /// The frames the use names but the program does not declare (RAPID `gun`, KRL
     /// `TOOL_DATA[1]` without `--krl-config`), which the job's `tool` or `base` option may
     /// then stand for (one name each).

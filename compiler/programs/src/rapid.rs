@@ -721,6 +721,7 @@ impl Module {
             base,
             offset: u.at,
             elsewhere: None,
+            note: None,
             undeclared: [
                 tool.is_none().then(|| Undeclared {
                     base: false,

@@ -1634,6 +1634,7 @@ fn point_frames(
         base: None,
         offset: value.offset,
         elsewhere: Some(m.place.clone()),
+        note: None,
         undeclared: Vec::new(),
         unknown: Vec::new(),
     };

@@ -979,6 +979,7 @@ impl Script {
             base: Some(Isometry3::identity()),
             offset: at,
             elsewhere: None,
+            note: None,
             undeclared,
             unknown,
         }

@@ -1170,6 +1170,7 @@ fn position(
         base: None,
         offset: at,
         elsewhere: None,
+        note: None,
         undeclared: Vec::new(),
         unknown: Vec::new(),
     };
