@@ -121,7 +121,7 @@ fn a_table_that_corrects_nothing_reproduces_fanuc_programs_byte_for_byte() {
         );
         assert!(code == 0 || code == 3, "{program}: {stderr}");
         assert_eq!(
-            stdout.lines().filter(|l| l.contains(" ok ")).count(),
+            crate::common::corrected_lines(&stdout),
             corrected,
             "{stdout}"
         );

@@ -372,3 +372,12 @@ pub fn report_rows(path: &std::path::Path, key: usize) -> Vec<(String, String, S
         })
         .collect()
 }
+
+/// How many targets a `tablec compensate` text report prints as corrected: lines whose
+/// status, the last column before any detail, is `ok`.
+pub fn corrected_lines(stdout: &str) -> usize {
+    stdout
+        .lines()
+        .filter(|l| l.ends_with("  ok") || l.contains("  ok ("))
+        .count()
+}

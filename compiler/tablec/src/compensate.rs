@@ -46,6 +46,9 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         }
         done => done?,
     };
+    if !printed.is_empty() {
+        println!("{HEADER}");
+    }
     print!("{printed}");
     let summary = &done.summary;
     println!("{}", escape_controls(&summary.to_string()));
@@ -56,20 +59,25 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     })
 }
 
-/// A target's line of the text report.
+/// The text report's columns: fixed widths, the status last with its detail after it,
+/// so that the figures line up whatever the status (the CSV report, `--report`, has every
+/// field).
+const HEADER: &str =
+    "target                   place      kind        correction  joint change  status";
+
+/// A target's line of the text report ([`HEADER`]'s columns; a name or place longer than
+/// its column pushes the rest of its line along, never cut).
 fn print_line(out: &mut String, t: &TargetLine) {
-    let figure =
-        |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!(" {v:.4} {unit}"));
+    let figure = |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!("{v:.4}{unit}"));
     let _ = writeln!(
         out,
-        "{:<24} {}:{:<5} {:<10} {}{}{}{}",
+        "{:<24} {:<10} {:<10} {:>11} {:>13}  {}{}",
         escape_controls(&t.name),
-        t.line,
-        t.column,
+        format!("{}:{}", t.line, t.column),
         t.kind,
+        figure(t.correction_mm, " mm"),
+        figure(t.joint_change_deg, "°"),
         t.status.as_str(),
-        figure(t.correction_mm, "mm"),
-        figure(t.joint_change_deg, "° joint"),
         if t.detail.is_empty() {
             String::new()
         } else {
