@@ -2745,6 +2745,18 @@ mod tests {
         read_with(&dat, Some(&src), &cell_config(), usize::MAX).unwrap()
     }
 
+    /// The targets of `src` read as `cell.src`, without its data list.
+    fn src_alone(src: &str) -> Vec<ProgramTarget> {
+        read_with(
+            &Source::new("cell.src", src.as_bytes()),
+            None,
+            &cell_config(),
+            usize::MAX,
+        )
+        .unwrap()
+        .targets
+    }
+
     /// The x of each use's base (`None`: not known or the options').
     fn bases(t: &ProgramTarget) -> Vec<Option<f64>> {
         t.uses
@@ -2781,14 +2793,7 @@ mod tests {
         // The .src's inline circle, read in the .src itself.
         let src = "DEF cell( )\n  SCIRC {X 1700.0,Y 450.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, \
                    {X 1750.0,Y 400.0,Z 1150.0,A 0.0,B 90.0,C 0.0}, CA 270\nEND\n";
-        let t = read_with(
-            &Source::new("cell.src", src.as_bytes()),
-            None,
-            &cell_config(),
-            usize::MAX,
-        )
-        .unwrap()
-        .targets;
+        let t = src_alone(src);
         let inline: Vec<bool> = t
             .iter()
             .map(|t| {
@@ -2912,14 +2917,7 @@ mod tests {
             "moved to through the parameter PT of approach (called at cell.src:5:3), in the frames of its callers"
         );
         // In the .src, the motions to the parameter and to a value given as it runs.
-        let t = read_with(
-            &Source::new("cell.src", src.as_bytes()),
-            None,
-            &cell_config(),
-            usize::MAX,
-        )
-        .unwrap()
-        .targets;
+        let t = src_alone(src);
         let seen: Vec<(&str, Option<Reason>)> = t
             .iter()
             .map(|t| (t.name.as_str(), t.refused.as_ref().map(|r| r.reason)))
