@@ -992,7 +992,7 @@ fn a_posture_near_the_wrist_singularity_is_refused_not_flipped() {
     );
     assert!(
         stdout.contains(
-            "XS3                      4:13       joints       1.9467 mm       0.6798°  ok\n"
+            "XS3                      4:13       joints       1.9467 mm       0.6798°  ok, beyond orientation\n"
         ),
         "{stdout}"
     );
@@ -1331,6 +1331,46 @@ fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select(
         check_against_query(dir.path(), &table, report, "seam.dat"),
         7
     );
+}
+
+#[test]
+fn a_hybrid_tables_text_line_says_what_its_correction_rests_on() {
+    // Corrected by the model alone, at an orientation no sample had: the text line says
+    // both after `ok`, as the CSV report's residual and evidence columns do.
+    let dir = tempfile::tempdir().unwrap();
+    ur5_hybrid(dir.path());
+    std::fs::write(
+        dir.path().join("far.script"),
+        "def far():\n  movel(p[-0.45, -0.26, 0.36, 0, 3.1416, 0], a=1.2, v=0.25)\n\
+         \x20 movel(p[0.30, 0.30, 0.30, 0, 3.1416, 0], a=1.2, v=0.25)\nend\n",
+    )
+    .unwrap();
+    let robot = repo("tables/ur5/robot.toml");
+    let (code, stdout, stderr) = compensate(
+        dir.path(),
+        &[
+            "ur5-hybrid.tbl",
+            "far.script",
+            "-o",
+            "out.script",
+            "--robot",
+            robot.to_str().unwrap(),
+            "--report",
+            "far.csv",
+        ],
+    );
+    assert_eq!(code, 0, "{stderr}");
+    let lines: Vec<&str> = stdout.lines().filter(|l| l.starts_with("movel")).collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    for line in &lines {
+        assert!(
+            line.ends_with("  ok, model_only, beyond orientation"),
+            "{line}"
+        );
+    }
+    assert_eq!(crate::common::corrected_lines(&stdout), 2);
+    let csv = std::fs::read_to_string(dir.path().join("far.csv")).unwrap();
+    assert_eq!(csv.matches(",model_only,orientation,").count(), 2, "{csv}");
 }
 
 #[test]

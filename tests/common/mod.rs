@@ -374,10 +374,11 @@ pub fn report_rows(path: &std::path::Path, key: usize) -> Vec<(String, String, S
 }
 
 /// How many targets a `tablec compensate` text report prints as corrected: lines whose
-/// status, the last column before any detail, is `ok`.
+/// status, the last column before any detail, is `ok` (with a hybrid table's residual
+/// flag where it is not `full`: `ok, model_only`).
 pub fn corrected_lines(stdout: &str) -> usize {
     stdout
         .lines()
-        .filter(|l| l.ends_with("  ok") || l.contains("  ok ("))
+        .filter(|l| l.ends_with("  ok") || l.contains("  ok (") || l.contains("  ok, "))
         .count()
 }

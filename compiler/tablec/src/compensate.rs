@@ -7,6 +7,7 @@ use adwi_jobs::compensate::{
     escape_controls, CompensateArgs, CompensateJob, ProgramError, TargetLine,
 };
 use adwi_jobs::JobError;
+use adwi_runtime::Residual;
 
 use crate::Answered;
 
@@ -65,6 +66,24 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
 const HEADER: &str =
     "target                   place      kind        correction  joint change  status";
 
+/// A line's status, and for a corrected target on a hybrid table what its correction
+/// rests on where that is less than the samples: the residual flag where the correction
+/// did not hold all of the residual field (`faded`, `model_only`) and the evidence flag
+/// where it lies beyond the samples (`beyond orientation`), as the CSV report's
+/// `residual` and `evidence` say, so that neither reads as a plain `ok`.
+fn status_of(t: &TargetLine) -> String {
+    let mut parts = vec![t.status.as_str()];
+    if t.status.corrected() {
+        if let Some(r @ (Residual::Faded | Residual::ModelOnly)) = t.residual {
+            parts.push(r.as_str());
+        }
+        if let Some(e) = t.evidence.filter(|e| !e.is_within()) {
+            return format!("{}, beyond {}", parts.join(", "), e.as_str());
+        }
+    }
+    parts.join(", ")
+}
+
 /// A target's line of the text report ([`HEADER`]'s columns; a name or place longer than
 /// its column pushes the rest of its line along, never cut).
 fn print_line(out: &mut String, t: &TargetLine) {
@@ -77,7 +96,7 @@ fn print_line(out: &mut String, t: &TargetLine) {
         t.kind,
         figure(t.correction_mm, " mm"),
         figure(t.joint_change_deg, "°"),
-        t.status.as_str(),
+        status_of(t),
         if t.detail.is_empty() {
             String::new()
         } else {
