@@ -559,12 +559,12 @@ impl CompensateJob {
             );
         if declared && target.uses.is_empty() && target.refused.is_none() {
             let unused = "unused: no motion of the program moves to it";
-            let frames = matches!(target.kind, TargetKind::Cartesian(_));
-            entry.detail = match (entry.detail.is_empty(), frames) {
-                (true, true) => format!("{unused}; in the options' frames"),
-                (true, false) => unused.to_string(),
-                (false, _) => format!("{}; {unused}", entry.detail),
-            };
+            // Where nothing else was said, in which frames it was corrected.
+            if matches!(target.kind, TargetKind::Cartesian(_)) && entry.detail.is_empty() {
+                entry.add_detail(&format!("{unused}; in the options' frames"));
+            } else {
+                entry.add_detail(unused);
+            }
         }
     }
 
@@ -2430,9 +2430,6 @@ fn say_notes(target: &crate::program::ProgramTarget, entry: &mut TargetLine) {
         }
     }
     for note in said {
-        if !entry.detail.is_empty() {
-            entry.detail.push_str("; ");
-        }
-        entry.detail.push_str(note);
+        entry.add_detail(note);
     }
 }

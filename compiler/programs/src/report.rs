@@ -226,6 +226,14 @@ impl CsvRows {
 }
 
 impl TargetLine {
+    /// Adds `text` to the detail, after what it says already (`; ` between).
+    pub fn add_detail(&mut self, text: &str) {
+        if !self.detail.is_empty() {
+            self.detail.push_str("; ");
+        }
+        self.detail.push_str(text);
+    }
+
     /// `name (line:column)`.
     pub fn place(&self) -> String {
         format!("{} ({}:{})", self.name, self.line, self.column)

@@ -72,16 +72,16 @@ const HEADER: &str =
 /// where it lies beyond the samples (`beyond orientation`), as the CSV report's
 /// `residual` and `evidence` say, so that neither reads as a plain `ok`.
 fn status_of(t: &TargetLine) -> String {
-    let mut parts = vec![t.status.as_str()];
+    let mut status = t.status.as_str().to_string();
     if t.status.corrected() {
         if let Some(r @ (Residual::Faded | Residual::ModelOnly)) = t.residual {
-            parts.push(r.as_str());
+            let _ = write!(status, ", {}", r.as_str());
         }
         if let Some(e) = t.evidence.filter(|e| !e.is_within()) {
-            return format!("{}, beyond {}", parts.join(", "), e.as_str());
+            let _ = write!(status, ", beyond {}", e.as_str());
         }
     }
-    parts.join(", ")
+    status
 }
 
 /// A target's line of the text report ([`HEADER`]'s columns; a name or place longer than
