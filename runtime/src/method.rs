@@ -307,6 +307,15 @@ impl<T: Copy, const N: usize> Slots<T, N> {
         }
     }
 
+    /// The first `len` of `items` (at most `N`), the rest unset.
+    #[inline]
+    fn filled(items: [T; N], len: usize) -> Self {
+        Slots {
+            len: len.min(N),
+            items: items.map(MaybeUninit::new),
+        }
+    }
+
     /// Appends `value`; ignored when full.
     #[inline]
     fn push(&mut self, value: T) {
@@ -500,11 +509,11 @@ pub fn select_nearest(
             }
         });
     }
-    let mut selection = Selection::new(params.max_neighbours);
+    let empty = Selection::new(params.max_neighbours);
     if !params.target_in_range(target_mm) {
-        return selection;
+        return empty;
     }
-    let capacity = selection.capacity;
+    let capacity = empty.capacity;
     let radius_squared = params.radius_mm * params.radius_mm;
     // The kept keys and indices, nearest first; `len` of them set. Locals, not `Slots`,
     // so that they live in registers and the stack without length bookkeeping.
@@ -547,11 +556,11 @@ pub fn select_nearest(
         len = (len + 1).min(capacity);
         (bound, bound_sample) = (keys_mm2[last_slot], samples[last_slot]);
     }
-    for (&s, &k) in samples.iter().zip(&keys_mm2).take(len) {
-        selection.samples.push(s);
-        selection.keys_mm2.push(k);
+    Selection {
+        capacity,
+        samples: Slots::filled(samples, len),
+        keys_mm2: Slots::filled(keys_mm2, len),
     }
-    selection
 }
 
 /// The weights of selected neighbours, in selection order; `Σ q_i = 1` when non-empty.
