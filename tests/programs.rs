@@ -1297,6 +1297,30 @@ fn krl_targets_land_at_their_tcp_in_the_tool_and_base_their_inline_forms_select(
     let rel = line_of(report, "LIN_REL");
     assert_eq!(rel.status.as_str(), "relative");
     assert!(rel.detail.ends_with("seam.src:49:1)"), "{}", rel.detail);
+    // Their lines are placed in the .src, not past the .dat's last line (37): the CSV
+    // gives no place in the .dat, and the .dat's own targets keep theirs.
+    let in_partner: Vec<(&str, usize, usize)> = (report.targets.iter())
+        .filter(|t| t.in_partner)
+        .map(|t| (t.name.as_str(), t.line, t.column))
+        .collect();
+    assert_eq!(
+        in_partner,
+        [("XHOME", 25, 6), ("LIN_REL", 49, 1), ("XHOME", 75, 6)]
+    );
+    assert_eq!(
+        (line_of(report, "XP1").line, line_of(report, "XP1").column),
+        (18, 12)
+    );
+    let csv = report.to_csv();
+    assert!(
+        csv.lines()
+            .any(|row| row.starts_with("LIN_REL,,,motion,relative,")),
+        "{csv}"
+    );
+    assert!(
+        csv.lines().any(|row| row.starts_with("XP1,18,12,")),
+        "{csv}"
+    );
     // By the table's own model, each corrected target lands at its TCP: the torch
     // (TOOL_DATA[1], 180 mm) and gripper (TOOL_DATA[2]) in the fixture (BASE_DATA[1], turned
     // 30°) and the second table (BASE_DATA[2]), as $config.dat declares them.
@@ -1426,6 +1450,11 @@ fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_ref
     assert!(
         stdout
             .contains("1 of 12 targets corrected; left unchanged: 1 external_axis, 7 frame_unknown, 2 not_declared, 1 relative"),
+        "{stdout}"
+    );
+    // The .src's motions no run corrects are placed where the .src writes them.
+    assert!(
+        stdout.contains("LIN_REL                  seam.src:49:1 motion                                relative (LIN_REL: "),
         "{stdout}"
     );
     // The .src holds motions, its targets are in the .dat: refused, naming the .dat.

@@ -713,7 +713,9 @@ __all__ += ["CompensatedProgram", "compensate_program"]
 class CompensatedProgram:
     """A compensated robot program: ``output``, its bytes (every target's numbers replaced,
     everything else as read); ``targets``, one dict per target as ``tablec compensate
-    --report`` writes its rows (``name``, ``line``, ``column``, ``kind``, ``status``,
+    --report`` writes its rows (``name``, ``line``, ``column``, ``in_partner`` (True where
+    the target is written in the program's partner file, a KRL ``.dat``'s ``.src``: ``line``
+    and ``column`` are then the partner's), ``kind``, ``status``,
     ``detail``, ``correction_mm``, ``rotation_deg``, ``joint_change_deg``,
     ``iterations``, ``residual_mm``, ``point_mm``, ``command_mm``, ``residual`` (the
     residual flag, None where no command was computed), and ``command_joints`` in

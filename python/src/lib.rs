@@ -993,6 +993,7 @@ fn compensate_program<'py>(
         d.set_item("name", &t.name)?;
         d.set_item("line", t.line)?;
         d.set_item("column", t.column)?;
+        d.set_item("in_partner", t.in_partner)?;
         d.set_item("kind", t.kind)?;
         d.set_item("status", t.status.as_str())?;
         d.set_item("detail", &t.detail)?;

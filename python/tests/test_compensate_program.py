@@ -58,6 +58,10 @@ def test_a_krl_seam_in_the_frames_of_its_config_dat_matches_tablec(tablec, kr150
     assert statuses["XP7"] == "frame_unknown" and statuses["XP8"] == "external_axis"
     # The .src's LIN_REL and its two moves to $config.dat's XHOME are counted with them.
     assert (done.summary["corrected"], done.summary["total"]) == (7, 12)
+    # ... placed where the .src writes them, the .dat's own targets in the .dat.
+    placed = [(t["name"], t["line"], t["column"]) for t in done.targets if t["in_partner"]]
+    assert placed == [("XHOME", 25, 6), ("LIN_REL", 49, 1), ("XHOME", 75, 6)]
+    assert {(t["name"], t["line"]) for t in done.targets if not t["in_partner"]} >= {("XP1", 18)}
     # Without the configuration, the torch of TOOL_DATA[1] is named, not taken as the flange.
     bare = adwi.compensate_program(kr150_table, PROGRAMS / "seam.dat", robot=robot)
     assert [t for t in bare.targets if t["name"] == "XP1"][0]["detail"].startswith(

@@ -296,6 +296,12 @@ impl CompensateJob {
         self.job.program()
     }
 
+    /// The name of the program's partner file as read (a KRL `.dat`'s `.src` and back),
+    /// where a report line `in_partner` is written.
+    pub fn partner_name(&self) -> Option<&str> {
+        self.job.partner_name()
+    }
+
     /// Corrects every target, keeping every target's report line; writes nothing.
     ///
     /// # Errors

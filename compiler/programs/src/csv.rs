@@ -95,6 +95,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         targets,
         truncated_at,
         first_motion: None,
+        in_partner: Vec::new(),
     })
 }
 

@@ -1094,6 +1094,7 @@ impl Motions {
             targets: self.targets,
             truncated_at: self.truncated_at,
             first_motion: self.first_motion,
+            in_partner: Vec::new(),
         }
     }
 }

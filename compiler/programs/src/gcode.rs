@@ -2246,6 +2246,7 @@ pub fn read_at_most(src: &Source, options: &GcodeOptions, limit: usize) -> Resul
             targets: found.targets,
             truncated_at,
             first_motion: found.first_motion,
+            in_partner: Vec::new(),
         },
         arcs: found.arcs,
         work_offsets: found.offsets,

@@ -276,6 +276,9 @@ pub struct CompensateJob {
     motions_seen: bool,
     /// A G-code program's arcs, per target (empty for other formats).
     arcs: Vec<Option<Box<crate::gcode::Arc>>>,
+    /// The partner file's name as read (a KRL program's other file), where the report's
+    /// lines `in_partner` are written.
+    partner: Option<String>,
 }
 
 /// Estimated cost of one target, seconds: the fixed point alone, with a closed-form
@@ -347,6 +350,7 @@ impl CompensateJob {
         };
         Ok(CompensateJob {
             motions_seen,
+            partner: inputs.partner.as_ref().map(|p| p.display().to_string()),
             options,
             table,
             bytes,
@@ -367,6 +371,12 @@ impl CompensateJob {
     /// The options, as checked.
     pub fn options(&self) -> &CompensateOptions {
         &self.options
+    }
+
+    /// The name of the program's partner file as read (a KRL `.dat`'s `.src` and back),
+    /// where a report line `in_partner` is written; `None` when it has none.
+    pub fn partner_name(&self) -> Option<&str> {
+        self.partner.as_deref()
     }
 
     /// Corrects every target: the compensated program's bytes and the report.
@@ -449,7 +459,7 @@ impl CompensateJob {
             .map_or_else(Vec::new, |k| k.robot().home().to_vec());
         let mut gcode = (self.program.format == Format::Gcode).then(|| GcodeEnds::new(&self.arcs));
         for (i, (target, chains)) in self.program.targets.iter().zip(&self.chains).enumerate() {
-            let mut entry = report_line(&src, target);
+            let mut entry = report_line(&src, &self.program, i);
             let block = Block {
                 src: &src,
                 index: i,
@@ -1781,13 +1791,22 @@ struct Block<'a> {
     chains: &'a Chains,
 }
 
-/// A target's report line before it is corrected: where it is written and what it is.
-fn report_line(src: &Source, target: &crate::program::ProgramTarget) -> TargetLine {
-    let (line, column) = src.location(target.offset);
+/// Target `index`'s report line before it is corrected: where it is written and what it
+/// is.
+fn report_line(src: &Source, program: &Program, index: usize) -> TargetLine {
+    let target = &program.targets[index];
+    let (line, column, in_partner) = match program.partner_place(index) {
+        Some(p) => (p.line, p.column, true),
+        None => {
+            let (line, column) = src.location(target.offset);
+            (line, column, false)
+        }
+    };
     TargetLine {
         name: target.name.clone(),
         line,
         column,
+        in_partner,
         kind: match target.kind {
             TargetKind::Cartesian(_) => "cartesian",
             TargetKind::Joints(_) => "joints",

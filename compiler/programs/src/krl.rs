@@ -39,7 +39,7 @@ use crate::lex::{Language, Lexer, Tok, Token};
 use crate::number::Number;
 use crate::program::{
     AngleUnit, CartesianTarget, ConfigHint, Format, FrameUse, JointTarget, LengthUnit, Orientation,
-    Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
+    PartnerPlace, Program, ProgramTarget, Reason, Refusal, TargetKind, Undeclared,
 };
 use crate::source::{same_name, Source};
 use crate::Error;
@@ -285,11 +285,23 @@ pub fn read_with(
         targets.extend(named.resolve(target, key, kind, context.writes));
     }
     targets.sort_by_key(|t| t.offset);
+    // The partner's targets sit at this file's end, in the order they were merged (the
+    // sort is stable, and no target of this file is written at its end).
+    let in_partner = (targets.iter().enumerate())
+        .filter(|(_, t)| t.offset == src.bytes.len())
+        .zip(scan.partner_places)
+        .map(|((target, _), (line, column))| PartnerPlace {
+            target,
+            line,
+            column,
+        })
+        .collect();
     Ok(Program {
         format: Format::Krl,
         targets,
         truncated_at,
         first_motion: scan.first_motion,
+        in_partner,
     })
 }
 
@@ -304,6 +316,7 @@ fn merge_partner(src: &Source, partner: &Source, context: &Context, scan: &mut S
     }
     for mut t in other.partner_targets {
         let (line, column) = partner.location(t.offset);
+        scan.partner_places.push((line, column));
         let place = format!("{}:{line}:{column}", partner.name);
         match (t.refused.take(), &t.kind) {
             // A motion the partner moves without a target here (`LIN_REL`, a target
@@ -610,6 +623,9 @@ struct Scan {
     /// refuses (`LIN_REL`, a target computed as it runs), reported here since this file's
     /// output does not hold them.
     partner_targets: Vec<ProgramTarget>,
+    /// Where the partner's targets merged into `targets` are written there (line,
+    /// column), in the order they were merged.
+    partner_places: Vec<(usize, usize)>,
     /// Parameters a motion moves to: (routine upper case, index) and the parameter.
     moved_parameters: HashMap<(String, usize), String>,
     /// The calls of the file's routines.
@@ -2954,6 +2970,15 @@ mod tests {
             p.targets[2].refused.as_ref().unwrap().detail,
             "LIN_REL: an offset from where the robot stands when it runs (written at cell.src:5:3)"
         );
+        // Where the .src writes them, by target; the .dat's own target has no such place.
+        let place = |target, line, column| PartnerPlace {
+            target,
+            line,
+            column,
+        };
+        assert_eq!(p.in_partner, [place(1, 4, 7), place(2, 5, 3)]);
+        assert_eq!(p.partner_place(0), None);
+        assert_eq!(p.partner_place(2), Some(place(2, 5, 3)));
         // An inline target written in part is incomplete here as there, not sent there.
         let p = pair(&["XP9"], &src.replace("LIN_REL {X -30.0}", "LIN {Z 900}"));
         let TargetKind::Incomplete(why) = &p.targets[2].kind else {

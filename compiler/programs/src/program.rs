@@ -348,6 +348,34 @@ pub struct Program {
     /// Where its first motion instruction is written (any, those whose targets another file
     /// declares too): a program that moves must have targets to correct.
     pub first_motion: Option<usize>,
+    /// The targets written in the program's partner file rather than in it (a KRL `.dat`
+    /// read with its `.src`: the `.src`'s inline targets and refused motions, reported since
+    /// this file's output does not hold them), by target index, ascending. Such a target's
+    /// `offset` is the program's length (it is written nowhere in the program); its place
+    /// is here, so that no target pays for a field only these few use.
+    pub in_partner: Vec<PartnerPlace>,
+}
+
+/// Where a target written in the program's partner file is written there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PartnerPlace {
+    /// The target's index in [`Program::targets`].
+    pub target: usize,
+    /// 1-based line in the partner.
+    pub line: usize,
+    /// 1-based column in the partner, in bytes.
+    pub column: usize,
+}
+
+impl Program {
+    /// Where target `index` is written in the partner file, when it is written there.
+    pub fn partner_place(&self, index: usize) -> Option<PartnerPlace> {
+        let at = self
+            .in_partner
+            .binary_search_by_key(&index, |p| p.target)
+            .ok()?;
+        self.in_partner.get(at).copied()
+    }
 }
 
 /// The joints the three turn numbers of a `CONFIG` belong to, as the controller's

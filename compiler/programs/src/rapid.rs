@@ -112,6 +112,7 @@ pub fn read_at_most(src: &Source, limit: usize) -> Result<Program, Error> {
         targets,
         truncated_at,
         first_motion: module.first_motion,
+        in_partner: Vec::new(),
     })
 }
 

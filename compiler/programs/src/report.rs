@@ -12,10 +12,15 @@ use crate::correct::TargetStatus;
 pub struct TargetLine {
     /// Its name, or the instruction writing it inline.
     pub name: String,
-    /// 1-based line and column where it is written.
+    /// 1-based line and column where it is written: in the program, or in its partner
+    /// file when `in_partner`.
     pub line: usize,
     /// 1-based column, in bytes.
     pub column: usize,
+    /// Whether it is written in the program's partner file (a KRL `.dat`'s `.src`, whose
+    /// inline targets and refused motions a `.dat`'s run reports) rather than in the
+    /// program: `line` and `column` are then the partner's.
+    pub in_partner: bool,
     /// `cartesian` or `joints` (or `incomplete`).
     pub kind: &'static str,
     /// What became of it.
@@ -177,8 +182,18 @@ impl CsvRows {
             self.text,
             "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},",
             csv_field(&t.name),
-            t.line,
-            t.column,
+            // A place in the program only: a target written in the partner has none there
+            // (its detail names where it is written).
+            if t.in_partner {
+                String::new()
+            } else {
+                t.line.to_string()
+            },
+            if t.in_partner {
+                String::new()
+            } else {
+                t.column.to_string()
+            },
             t.kind,
             t.status.as_str(),
             csv_field(&t.detail),
@@ -234,9 +249,11 @@ impl TargetLine {
         self.detail.push_str(text);
     }
 
-    /// `name (line:column)`.
+    /// `name (line:column)`; `name (partner line:column)` for a target written in the
+    /// program's partner file.
     pub fn place(&self) -> String {
-        format!("{} ({}:{})", self.name, self.line, self.column)
+        let partner = if self.in_partner { "partner " } else { "" };
+        format!("{} ({partner}{}:{})", self.name, self.line, self.column)
     }
 }
 
@@ -301,6 +318,7 @@ mod tests {
             name: "P".into(),
             line: 1,
             column: 1,
+            in_partner: false,
             kind: "cartesian",
             status,
             detail: String::new(),

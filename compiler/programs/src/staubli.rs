@@ -1425,6 +1425,7 @@ pub fn read_at_most(src: &Source, programs: &[Source], limit: usize) -> Result<P
         targets,
         truncated_at,
         first_motion: None,
+        in_partner: Vec::new(),
     })
 }
 

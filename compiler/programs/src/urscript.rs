@@ -1237,6 +1237,7 @@ impl Script {
             targets,
             truncated_at,
             first_motion: self.first_motion,
+            in_partner: Vec::new(),
         }
     }
 }

@@ -961,6 +961,7 @@ impl<'s, 'a> Reader<'s, 'a> {
             targets: self.targets,
             truncated_at,
             first_motion: self.first_motion,
+            in_partner: Vec::new(),
         }
     }
 }

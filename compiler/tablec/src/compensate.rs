@@ -33,9 +33,12 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     // The lines printed once the outputs are written: with --quiet only those left
     // unchanged, so that a long program's lines are not held.
     let mut printed = String::new();
+    // A line written in the partner file is placed there, by its name as the details
+    // give it.
+    let partner = job.partner_name();
     let done = job.run_and_write(|t| {
         if !(args.quiet && t.status.corrected()) {
-            print_line(&mut printed, &t);
+            print_line(&mut printed, &t, partner);
         }
     });
     let done = match done {
@@ -85,14 +88,20 @@ fn status_of(t: &TargetLine) -> String {
 }
 
 /// A target's line of the text report ([`HEADER`]'s columns; a name or place longer than
-/// its column pushes the rest of its line along, never cut).
-fn print_line(out: &mut String, t: &TargetLine) {
+/// its column pushes the rest of its line along, never cut). A target written in the
+/// program's partner file (`partner`, by name) is placed there: `cell/seam.src:25:6`.
+fn print_line(out: &mut String, t: &TargetLine, partner: Option<&str>) {
     let figure = |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!("{v:.4}{unit}"));
+    let place = match (t.in_partner, partner) {
+        (true, Some(file)) => format!("{}:{}:{}", escape_controls(file), t.line, t.column),
+        (true, None) => format!("partner:{}:{}", t.line, t.column),
+        (false, _) => format!("{}:{}", t.line, t.column),
+    };
     let _ = writeln!(
         out,
         "{:<24} {:<10} {:<10} {:>11} {:>13}  {}{}",
         escape_controls(&t.name),
-        format!("{}:{}", t.line, t.column),
+        place,
         t.kind,
         figure(t.correction_mm, " mm"),
         figure(t.joint_change_deg, "°"),
