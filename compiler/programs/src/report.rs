@@ -184,16 +184,8 @@ impl CsvRows {
             csv_field(&t.name),
             // A place in the program only: a target written in the partner has none there
             // (its detail names where it is written).
-            if t.in_partner {
-                String::new()
-            } else {
-                t.line.to_string()
-            },
-            if t.in_partner {
-                String::new()
-            } else {
-                t.column.to_string()
-            },
+            Blank((!t.in_partner).then_some(t.line)),
+            Blank((!t.in_partner).then_some(t.column)),
             t.kind,
             t.status.as_str(),
             csv_field(&t.detail),
@@ -298,6 +290,18 @@ fn named_residual<S: serde::Serializer>(r: &Option<Residual>, s: S) -> Result<S:
 /// An evidence by the name the CSV gives it.
 fn named_evidence<S: serde::Serializer>(e: &Option<Evidence>, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_some(&e.map(Evidence::as_str))
+}
+
+/// A number, or an empty field where there is none.
+struct Blank(Option<usize>);
+
+impl std::fmt::Display for Blank {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(v) => write!(f, "{v}"),
+            None => Ok(()),
+        }
+    }
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line end.
