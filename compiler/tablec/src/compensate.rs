@@ -34,11 +34,17 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     // unchanged, so that a long program's lines are not held.
     let mut printed = String::new();
     // A line written in the partner file is placed there, by its name as the details
-    // give it.
+    // give it; the place column is as wide as the widest such place, so that those lines
+    // keep the columns too.
     let partner = job.partner_name();
+    let columns = Columns {
+        place: (job.program().in_partner.iter())
+            .map(|p| partner_place(partner, p.line, p.column).chars().count())
+            .fold(PLACE_WIDTH, usize::max),
+    };
     let done = job.run_and_write(|t| {
         if !(args.quiet && t.status.corrected()) {
-            print_line(&mut printed, &t, partner);
+            print_line(&mut printed, &t, partner, &columns);
         }
     });
     let done = match done {
@@ -51,7 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
         done => done?,
     };
     if !printed.is_empty() {
-        println!("{HEADER}");
+        println!("{}", header(&columns));
     }
     print!("{printed}");
     let summary = &done.summary;
@@ -65,9 +71,31 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
 
 /// The text report's columns: fixed widths, the status last with its detail after it,
 /// so that the figures line up whatever the status (the CSV report, `--report`, has every
-/// field).
-const HEADER: &str =
-    "target                   place      kind        correction  joint change  status";
+/// field): `target  place  kind  correction  joint change  status`.
+fn header(columns: &Columns) -> String {
+    let place = columns.place;
+    format!(
+        "{:<24} {:<place$} {:<10} {:>11} {:>13}  status",
+        "target", "place", "kind", "correction", "joint change"
+    )
+}
+
+/// The place column's width, unless a place written in the partner file is wider.
+const PLACE_WIDTH: usize = 10;
+
+/// The widths of the text report's columns that vary with the program.
+struct Columns {
+    /// The place's: [`PLACE_WIDTH`], or the widest place in the partner file.
+    place: usize,
+}
+
+/// A place in the partner file (`cell/seam.src:25:6`).
+fn partner_place(partner: Option<&str>, line: usize, column: usize) -> String {
+    format!(
+        "{}:{line}:{column}",
+        escape_controls(partner.unwrap_or("partner"))
+    )
+}
 
 /// A line's status, and for a corrected target on a hybrid table what its correction
 /// rests on where that is less than the samples: the residual flag where the correction
@@ -87,19 +115,20 @@ fn status_of(t: &TargetLine) -> String {
     status
 }
 
-/// A target's line of the text report ([`HEADER`]'s columns; a name or place longer than
-/// its column pushes the rest of its line along, never cut). A target written in the
-/// program's partner file (`partner`, by name) is placed there: `cell/seam.src:25:6`.
-fn print_line(out: &mut String, t: &TargetLine, partner: Option<&str>) {
+/// A target's line of the text report ([`header`]'s columns; a name longer than its
+/// column pushes the rest of its line along, never cut). A target written in the program's
+/// partner file (`partner`, by name) is placed there: `cell/seam.src:25:6`.
+fn print_line(out: &mut String, t: &TargetLine, partner: Option<&str>, columns: &Columns) {
     let figure = |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!("{v:.4}{unit}"));
-    let place = match (t.in_partner, partner) {
-        (true, Some(file)) => format!("{}:{}:{}", escape_controls(file), t.line, t.column),
-        (true, None) => format!("partner:{}:{}", t.line, t.column),
-        (false, _) => format!("{}:{}", t.line, t.column),
+    let place = if t.in_partner {
+        partner_place(partner, t.line, t.column)
+    } else {
+        format!("{}:{}", t.line, t.column)
     };
+    let place_width = columns.place;
     let _ = writeln!(
         out,
-        "{:<24} {:<10} {:<10} {:>11} {:>13}  {}{}",
+        "{:<24} {:<place_width$} {:<10} {:>11} {:>13}  {}{}",
         escape_controls(&t.name),
         place,
         t.kind,
