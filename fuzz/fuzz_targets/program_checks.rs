@@ -10,6 +10,16 @@ use adwi_programs::Error;
 pub fn check(src: &Source, result: Result<Program, Error>) {
     match result {
         Ok(program) => {
+            // A target placed in the partner file names a target of the program, written
+            // nowhere in it (at its end), in the order of the targets.
+            let mut last = None;
+            for p in &program.in_partner {
+                assert_eq!(program.targets[p.target].offset, src.bytes.len());
+                assert!(last.is_none_or(|l| l < p.target));
+                assert!(p.line >= 1 && p.column >= 1);
+                assert_eq!(program.partner_place(p.target), Some(*p));
+                last = Some(p.target);
+            }
             for target in &program.targets {
                 assert!(target.offset <= src.bytes.len());
                 let numbers: Vec<&adwi_programs::number::Number> = match &target.kind {
