@@ -290,6 +290,8 @@ fn eval_decides_the_term_on_each_splits_training_samples_as_a_build_does() {
             "samples.csv",
             "--robot",
             robot_path.to_str().unwrap(),
+            "--harmonics",
+            "0",
             "--folds",
             &folds.to_string(),
             "--methods",

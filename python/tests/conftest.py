@@ -13,15 +13,16 @@ KR150 = REPO / "tables" / "kr150-2"
 PAPER = REPO / "tables" / "paper"
 UR5 = REPO / "tables" / "ur5"
 UR5_GRID = UR5 / "measurements" / "3D_UR5_uncalibrated_grid_cleaned.csv"
-# The options of the shared tables (fixtures below): choosing the served field and the
-# posture term cross-validates the whole build several times, which the tests of that
-# choice do once each.
+# The options of the shared tables (fixtures below): choosing the served field, the
+# posture term and the joint-space terms cross-validates the whole build several times,
+# which the tests of those choices do once each.
 KR150_OPTIONS = {"served_field": "method"}
 UR5_HYBRID_OPTIONS = {
     "robot": UR5 / "robot.toml",
     "cell": 30,
     "served_field": "method",
     "posture": "off",
+    "harmonics": 0,
 }
 UR5_RANDOM = UR5 / "measurements" / "3D_UR5_uncalibrated_random_cleaned.csv"
 UR5_COLUMNS = (

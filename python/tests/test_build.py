@@ -272,7 +272,8 @@ def test_compliant_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
     subprocess.run(
         [str(tablec), "build", "--quiet", str(UR5_GRID), "-o", str(theirs),
          "--columns", UR5_COLUMNS, "--robot", str(UR5 / "robot.toml"),
-         "--compliance", "--cell", "30", "--served-field", "method", "--posture", "off"],
+         "--compliance", "--cell", "30", "--served-field", "method", "--posture", "off",
+         "--harmonics", "0"],
         check=True,
     )
     assert ours.read_bytes() == theirs.read_bytes()

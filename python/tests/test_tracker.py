@@ -92,10 +92,12 @@ def validation_block(r):
 
 
 def test_tracker_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
-    # The registration is the subject: the served field and the posture term are given,
-    # not chosen by cross-validating the whole build (test_build.py checks the choice).
+    # The registration is the subject: the served field, the posture term and the joint-space
+    # terms are given, not chosen by cross-validating the whole build (test_build.py checks
+    # the choice).
     options = dict(
-        columns=UR10_TRACKER_COLUMNS, robot=ROBOT, cell=CELL, served_field="method", posture="off"
+        columns=UR10_TRACKER_COLUMNS, robot=ROBOT, cell=CELL, served_field="method", posture="off",
+        harmonics=0,
     )
     ours = tmp_path / "ours.tbl"
     report = adwi.build(UR10_C, ours, measured_in="tracker", **options)
@@ -103,7 +105,7 @@ def test_tracker_hybrid_table_is_byte_identical_to_tablec(tablec, tmp_path):
     stdout = run_tablec(
         tablec, "build", UR10_C, "-o", theirs, "--columns", UR10_TRACKER_COLUMNS,
         "--robot", ROBOT, "--measured-in", "tracker", "--cell", CELL,
-        "--served-field", "method", "--posture", "off",
+        "--served-field", "method", "--posture", "off", "--harmonics", "0",
     )
     assert ours.read_bytes() == theirs.read_bytes()
     r = report.registration

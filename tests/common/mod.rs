@@ -229,9 +229,9 @@ pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out:
         robot,
         "--hybrid",
     ];
-    // The method's own served field, no posture term and the whole residual field unless
-    // asked otherwise: the tests that use this table check its figures, not the choices a
-    // default build makes (tests of their own).
+    // The method's own served field, no posture term, the whole residual field and no
+    // joint-space terms unless asked otherwise: the tests that use this table check its
+    // figures, not the choices a default build makes (tests of their own).
     if !extra.contains(&"--served-field") {
         args.extend(["--served-field", "method"]);
     }
@@ -240,6 +240,9 @@ pub fn build_ur5_hybrid(dir: &std::path::Path, robot: &str, extra: &[&str], out:
     }
     if !extra.contains(&"--residual-weight") {
         args.extend(["--residual-weight", "full"]);
+    }
+    if !extra.contains(&"--harmonics") {
+        args.extend(["--harmonics", "0"]);
     }
     args.extend_from_slice(extra);
     args.extend(["-o", out]);
@@ -325,9 +328,7 @@ pub fn kr150_hybrid_table_with(dir: &std::path::Path, harmonics: u8) -> std::pat
         "--posture",
         "off",
     ];
-    if harmonics != "0" {
-        args.extend(["--harmonics", harmonics.as_str()]);
-    }
+    args.extend(["--harmonics", harmonics.as_str()]);
     args.extend(["-o", out.as_str()]);
     let o = tablec_once(&args, dir);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

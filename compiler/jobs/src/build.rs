@@ -63,11 +63,11 @@ pub struct BuildArgs {
     pub compliance: bool,
     /// Kinematic identification: identify each revolute joint's joint-space terms up to
     /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
-    /// where the information criterion (BIC) supports it; `auto`, the count of 0, 1 or 2
-    /// whose model predicts held-out samples best (each series from the others when
-    /// several are given, else each of 5 spatial blocks from the others), fewer terms
+    /// where the information criterion (BIC) supports it; `auto` (the default), the count
+    /// of 0, 1 or 2 whose model predicts held-out samples best (each series from the others
+    /// when several are given, else each of 5 spatial blocks from the others), fewer terms
     /// unless more improve it by more than its noise.
-    #[arg(long, value_name = "N", default_value_t = Harmonics::Count(0))]
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
     #[serde(deserialize_with = "Harmonics::deserialize")]
     pub harmonics: Harmonics,
     /// The frame the measured poses are in: `base` (the robot's), or `tracker` (a laser
@@ -101,7 +101,7 @@ impl Default for BuildArgs {
             robot: RobotArgs::default(),
             hybrid: false,
             compliance: false,
-            harmonics: Harmonics::Count(0),
+            harmonics: Harmonics::Auto,
             measured_in: Frame::Base,
             tune: false,
             tune_folds: 5,

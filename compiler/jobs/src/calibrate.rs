@@ -58,7 +58,8 @@ pub struct CalibrateArgs {
     pub compliance: bool,
     /// Kinematic identification: identify each revolute joint's joint-space terms up to
     /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
-    /// where the information criterion (BIC) supports it.
+    /// where the information criterion (BIC) supports it. None unless asked: the robot file
+    /// and URDF written cannot hold them (a table can; `tablec build` chooses the count).
     #[arg(long, value_name = "N", default_value_t = CalibrateOptions::default().harmonics)]
     pub harmonics: u8,
     /// On a simulated robot: compare the identification with the truth of the scenario

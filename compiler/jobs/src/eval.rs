@@ -98,10 +98,10 @@ pub struct EvalArgs {
     pub compliance: bool,
     /// Kinematic identification: identify each revolute joint's joint-space terms up to
     /// this harmonic (0 none; 1 `sin q, cos q`; 2 also `sin 2q, cos 2q`), each kept only
-    /// where the information criterion (BIC) supports it; `auto`, chosen among 0, 1 and 2
-    /// as `tablec build` chooses it, on the training samples alone (each split's own in
-    /// cross-validation).
-    #[arg(long, value_name = "N", default_value_t = Harmonics::Count(0))]
+    /// where the information criterion (BIC) supports it; `auto` (the default), chosen
+    /// among 0, 1 and 2 as `tablec build` chooses it, on the training samples alone (each
+    /// split's own in cross-validation).
+    #[arg(long, value_name = "N", default_value_t = Harmonics::Auto)]
     #[serde(deserialize_with = "Harmonics::deserialize")]
     pub harmonics: Harmonics,
     #[command(flatten)]
@@ -136,7 +136,7 @@ impl Default for EvalArgs {
             rank_tol: CalibrateOptions::default().rank_tolerance,
             keep_untrustworthy: false,
             compliance: false,
-            harmonics: Harmonics::Count(0),
+            harmonics: Harmonics::Auto,
             options: TableArgs::default(),
             csv: None,
             json: None,
