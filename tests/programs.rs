@@ -1431,6 +1431,48 @@ fn a_circles_end_point_that_its_angle_passes_by_is_corrected_and_said_to_be_pass
     );
 }
 
+/// The text report's place column is as wide as the widest place the program itself
+/// writes: a target at line 20,001, column 20,005 (11 characters) widens the header and
+/// every line alike, so that the kind and the figures stay in their columns.
+#[test]
+fn a_place_wider_than_its_column_widens_the_column_for_every_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let table = method_table(d, &repo("tables/kr150-2/samples.csv"), "kr150.tbl");
+    let mut program = String::from("DEF far()\n");
+    program.push_str(&"; filler\n".repeat(19_999));
+    program.push_str(&" ".repeat(20_000));
+    program.push_str("LIN {X 1500,Y 200,Z 1200,A 0,B 90,C 0}\n");
+    program.push_str("LIN {X 1600,Y 300,Z 1100,A 0,B 90,C 0}\nEND\n");
+    std::fs::write(d.join("far.src"), program).unwrap();
+    let (code, stdout, stderr) =
+        compensate(d, &[table.to_str().unwrap(), "far.src", "-o", "out.src"]);
+    assert_eq!(code, 0, "{stderr}");
+    let lines: Vec<&str> = stdout.lines().take(3).collect();
+    assert_eq!(
+        lines[0],
+        "target                   place       kind        correction  joint change  status",
+        "{stdout}"
+    );
+    assert!(
+        lines[1].starts_with("LIN                      20001:20005 cartesian "),
+        "{stdout}"
+    );
+    assert!(
+        lines[2].starts_with("LIN                      20002:5     cartesian "),
+        "{stdout}"
+    );
+    // The kind and the correction start where the header's do.
+    for line in &lines[1..] {
+        assert_eq!(line.find("cartesian"), lines[0].find("kind"), "{stdout}");
+        assert_eq!(
+            line.find(" mm"),
+            lines[0].find("correction").map(|c| c + 7),
+            "{stdout}"
+        );
+    }
+}
+
 #[test]
 fn krl_frames_not_given_are_named_and_a_src_whose_targets_live_in_its_dat_is_refused() {
     let dir = tempfile::tempdir().unwrap();

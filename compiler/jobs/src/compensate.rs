@@ -302,6 +302,12 @@ impl CompensateJob {
         self.job.partner_name()
     }
 
+    /// The characters of the widest place (`line:column`) of a target written in the
+    /// program itself ([`adwi_programs::CompensateJob::widest_place`]).
+    pub fn widest_place(&self) -> usize {
+        self.job.widest_place()
+    }
+
     /// Corrects every target, keeping every target's report line; writes nothing.
     ///
     /// # Errors

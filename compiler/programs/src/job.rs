@@ -379,6 +379,22 @@ impl CompensateJob {
         self.partner.as_deref()
     }
 
+    /// The characters of the widest place (`line:column`, as a report line gives it) of a
+    /// target written in the program itself, 0 when it has none: a text report's place
+    /// column is sized by it before the first line is printed.
+    pub fn widest_place(&self) -> usize {
+        let src = Source::new(&self.name, &self.bytes);
+        let digits = |n: usize| n.checked_ilog10().map_or(1, |d| d as usize + 1);
+        (self.program.targets.iter().enumerate())
+            .filter(|&(i, _)| self.program.partner_place(i).is_none())
+            .map(|(_, t)| {
+                let (line, column) = src.location(t.offset);
+                digits(line) + 1 + digits(column)
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Corrects every target: the compensated program's bytes and the report.
     ///
     /// # Errors

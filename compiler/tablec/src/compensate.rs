@@ -34,13 +34,13 @@ pub fn run(args: Args) -> anyhow::Result<Answered> {
     // unchanged, so that a long program's lines are not held.
     let mut printed = String::new();
     // A line written in the partner file is placed there, by its name as the details
-    // give it; the place column is as wide as the widest such place, so that those lines
-    // keep the columns too.
+    // give it; the place column is as wide as the widest place, the program's own or
+    // such a one, so that every line keeps the columns.
     let partner = job.partner_name();
     let columns = Columns {
         place: (job.program().in_partner.iter())
             .map(|p| partner_place(partner, p.line, p.column).chars().count())
-            .fold(PLACE_WIDTH, usize::max),
+            .fold(PLACE_WIDTH.max(job.widest_place()), usize::max),
     };
     let done = job.run_and_write(|t| {
         if !(args.quiet && t.status.corrected()) {
@@ -80,12 +80,13 @@ fn header(columns: &Columns) -> String {
     )
 }
 
-/// The place column's width, unless a place written in the partner file is wider.
+/// The place column's width, unless a place is wider (a line and column of ten digits
+/// together, or a place in the partner file).
 const PLACE_WIDTH: usize = 10;
 
 /// The widths of the text report's columns that vary with the program.
 struct Columns {
-    /// The place's: [`PLACE_WIDTH`], or the widest place in the partner file.
+    /// The place's: [`PLACE_WIDTH`], or the widest place.
     place: usize,
 }
 
@@ -115,8 +116,8 @@ fn status_of(t: &TargetLine) -> String {
     status
 }
 
-/// A target's line of the text report ([`header`]'s columns; a name longer than its
-/// column pushes the rest of its line along, never cut). A target written in the program's
+/// A target's line of the text report ([`header`]'s columns, the place's as wide as the
+/// widest; a name longer than its column pushes the rest of its line along, never cut). A target written in the program's
 /// partner file (`partner`, by name) is placed there: `cell/seam.src:25:6`.
 fn print_line(out: &mut String, t: &TargetLine, partner: Option<&str>, columns: &Columns) {
     let figure = |v: Option<f64>, unit: &str| v.map_or(String::new(), |v| format!("{v:.4}{unit}"));
