@@ -636,9 +636,12 @@ fn hybrid_reaches_the_noise_floor_where_kinematic_cannot() {
             "--served-field",
             "kriging",
             // What the field reaches, not whether the posture term would add to it (its
-            // decision costs twice the evaluation; `posture.rs` tests it).
+            // decision costs twice the evaluation; `posture.rs` tests it), on the model
+            // the first evaluation scored.
             "--posture",
             "off",
+            "--harmonics",
+            "0",
             "--cell",
             "50",
             "--csv",
