@@ -385,12 +385,10 @@ impl CompensateJob {
     pub fn widest_place(&self) -> usize {
         let src = Source::new(&self.name, &self.bytes);
         let digits = |n: usize| n.checked_ilog10().map_or(1, |d| d as usize + 1);
-        (self.program.targets.iter().enumerate())
-            .filter(|&(i, _)| self.program.partner_place(i).is_none())
-            .map(|(_, t)| {
-                let (line, column) = src.location(t.offset);
-                digits(line) + 1 + digits(column)
-            })
+        (0..self.program.targets.len())
+            .map(|i| place(&src, &self.program, i))
+            .filter(|&(_, _, in_partner)| !in_partner)
+            .map(|(line, column, _)| digits(line) + 1 + digits(column))
             .max()
             .unwrap_or(0)
     }
@@ -1807,17 +1805,23 @@ struct Block<'a> {
     chains: &'a Chains,
 }
 
+/// Where target `index` is written: its line and column, in the partner file (`true`) or
+/// in the program.
+fn place(src: &Source, program: &Program, index: usize) -> (usize, usize, bool) {
+    match program.partner_place(index) {
+        Some(p) => (p.line, p.column, true),
+        None => {
+            let (line, column) = src.location(program.targets[index].offset);
+            (line, column, false)
+        }
+    }
+}
+
 /// Target `index`'s report line before it is corrected: where it is written and what it
 /// is.
 fn report_line(src: &Source, program: &Program, index: usize) -> TargetLine {
     let target = &program.targets[index];
-    let (line, column, in_partner) = match program.partner_place(index) {
-        Some(p) => (p.line, p.column, true),
-        None => {
-            let (line, column) = src.location(target.offset);
-            (line, column, false)
-        }
-    };
+    let (line, column, in_partner) = place(src, program, index);
     TargetLine {
         name: target.name.clone(),
         line,
